@@ -1,0 +1,30 @@
+"""labcli: lab acquisition for pneumatic-actuator rigs.
+
+The library is usable without the command line::
+
+    import labcli
+    df = labcli.load_trials("run.h5")      # the trial table as a DataFrame
+
+Heavy dependencies (numpy, pandas, h5py, scipy) are imported only by the
+functions that need them, so ``labcli --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+__all__ = ["__version__", "load_trials", "load_pushes"]
+
+
+def load_trials(path):
+    """Return the trial table of a run file (``.h5``) or a trial CSV as a DataFrame."""
+    from .tables import load_trials as _load
+
+    return _load(path)
+
+
+def load_pushes(path):
+    """Return the push table of a run file (``.h5``) or a push CSV as a DataFrame."""
+    from .tables import load_pushes as _load
+
+    return _load(path)

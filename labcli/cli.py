@@ -1,0 +1,69 @@
+"""The ``labcli`` command line.
+
+Each subcommand lives in ``labcli/commands/<name>.py`` and is imported only
+when it runs, so ``labcli --help`` loads click and nothing heavy.  Commands are
+thin: parse, call the library once, turn :class:`~labcli.errors.LabcliError`
+into a one-line :class:`click.ClickException`.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import click
+
+from . import __version__
+
+# name -> (module, attribute, one-line help shown by ``labcli --help``)
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "demo": ("labcli.commands.demo", "demo", "Run the whole paper on the simulated rig, no hardware needed."),
+    "acquire": ("labcli.commands.acquire", "acquire", "Guide a run at the rig and record it into an HDF5 file."),
+    "fit": ("labcli.commands.fit", "fit", "Fit the paper's regression (Eqs. 34-37) to a run's fit trials."),
+    "validate": ("labcli.commands.validate", "validate", "Check a fitted model on the validation trials (Figure 7)."),
+    "classify": ("labcli.commands.classify", "classify", "Object stiffness and material category from pushes (Section 4)."),
+    "optimize": ("labcli.commands.optimize", "optimize", "Optimise an rPAM joint's link lengths for joint travel."),
+    "split": ("labcli.commands.split", "split", "Assign a run's trials to the fit and validation sets."),
+    "inspect": ("labcli.commands.inspect", "inspect", "Summarise a run file: trials, split, completeness, drift."),
+    "export": ("labcli.commands.export", "export", "Write a run's trial or push table as CSV."),
+    "import": ("labcli.commands.import_", "import_", "Build a run file from a trial or push CSV table."),
+    "monitor": ("labcli.commands.monitor", "monitor", "Show live calibrated readings and link statistics."),
+    "ports": ("labcli.commands.ports", "ports", "List the serial ports on this machine."),
+    "sim": ("labcli.commands.sim", "sim", "Serve the simulated rig on a pseudo-terminal."),
+}
+
+
+class LazyGroup(click.Group):
+    """A group whose subcommands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        entry = COMMANDS.get(name)
+        if entry is None:
+            return None
+        module, attr, _ = entry
+        return getattr(importlib.import_module(module), attr)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        # Short help comes from the table so that --help imports no command module.
+        rows = [(name, short) for name, (_, _, short) in COMMANDS.items()]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, "-V", "--version", prog_name="labcli")
+def cli() -> None:
+    """Lab acquisition for pneumatic-actuator rigs.
+
+    \b
+    Try it with no hardware:
+        labcli demo out/
+    Talk to a rig (or the simulated one):
+        labcli monitor --port sim:// --seconds 5
+    """
+
+
+def main() -> None:
+    cli(prog_name="labcli")

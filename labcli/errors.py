@@ -1,0 +1,40 @@
+"""Errors that carry one sentence for the person at the rig.
+
+Every error raised on purpose by the library derives from :class:`LabcliError`;
+the command line turns it into a one-line message and a non-zero exit, never a
+traceback.  The message names what was wrong, where, and what to check.
+"""
+
+from __future__ import annotations
+
+
+class LabcliError(Exception):
+    """Base class: ``str(err)`` is a complete sentence for the user."""
+
+
+class ConfigError(LabcliError):
+    """A protocol file, plan, table or option is invalid (names file/row/key)."""
+
+
+class DeviceError(LabcliError):
+    """The rig could not be opened or did not behave as the wire protocol says."""
+
+
+class DeviceNotFound(DeviceError):
+    """The serial port does not exist or cannot be opened."""
+
+
+class DeviceTimeout(DeviceError):
+    """The device did not answer, or stopped sending data, within the timeout."""
+
+
+class DeviceDisconnected(DeviceError):
+    """The device vanished mid-stream (unplugged, port closed)."""
+
+
+class StoreError(LabcliError):
+    """A run file is missing, of another schema, damaged, or would be overwritten."""
+
+
+class ModelError(LabcliError):
+    """A model cannot be fitted or applied (too few trials, wrong protocol, ...)."""
