@@ -1,4 +1,4 @@
-"""Codec for the rig wire protocol, version 1 (``rig-wire-protocol.md``).
+"""Codec and stream reader for the rig wire protocol, version 1 (``rig-wire-protocol.md``).
 
 A line from the device is one of:
 
@@ -9,11 +9,24 @@ A line from the device is one of:
 
 Nothing here raises on bad input: noise is a value, so the stream reader can
 count it and move on.
+
+:func:`parse_line` is the reference: short, line by line, obviously right.
+:class:`StreamReader` parses whole chunks at once with numpy for the common
+line (unsigned integer values) and hands every other line to
+:func:`parse_line`, so both paths agree by construction on everything but the
+fast path's own checks, which the property tests compare line by line.
 """
 
 from __future__ import annotations
 
+import re
+import time
+from collections import deque
 from dataclasses import dataclass
+from numbers import Integral
+from typing import Any, Iterable, Union
+
+import numpy as np
 
 MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
 U32 = 1 << 32
@@ -58,20 +71,34 @@ class Noise:
     reason: str
 
 
-Parsed = Frame | LogLine | Reply | Noise
+Parsed = Union[Frame, LogLine, Reply, Noise]
 
-_REPLY_PREFIXES = (b"ID,", b"OK", b"ERR")
+# A value is an integer (raw ADC counts) or a decimal; nothing Python's int()
+# or float() would also swallow (spaces, '_', 'nan', 'inf') is on the wire.
+_INT_RE = re.compile(rb"[+-]?[0-9]+")
+_DEC_RE = re.compile(rb"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_HEX_DIGITS = frozenset(b"0123456789abcdefABCDEF")
 
 
 def _number(field: bytes) -> float | int:
-    # int() first so raw ADC counts stay exact integers.
-    try:
+    # int first so raw ADC counts stay exact integers.
+    if _INT_RE.fullmatch(field):
         return int(field)
-    except ValueError:
-        v = float(field)
-        if v != v or v in (float("inf"), float("-inf")):
-            raise ValueError("not finite") from None
-        return v
+    if not _DEC_RE.fullmatch(field):
+        raise ValueError("not a number")
+    v = float(field)
+    if v != v or v in (float("inf"), float("-inf")):
+        raise ValueError("not finite")
+    return v
+
+
+def _is_reply(line: bytes) -> bool:
+    if line.startswith(b"ID,"):
+        return True
+    for word in (b"OK", b"ERR"):
+        if line == word or line.startswith(word + b" "):
+            return True
+    return False
 
 
 def parse_line(line: bytes, n_channels: int | None = None) -> Parsed:
@@ -79,6 +106,7 @@ def parse_line(line: bytes, n_channels: int | None = None) -> Parsed:
 
     ``n_channels``, when given, is the number of values a data line must carry.
     """
+    line = bytes(line)
     if line.endswith(b"\n"):
         line = line[:-1]
     if line.endswith(b"\r"):
@@ -92,7 +120,7 @@ def parse_line(line: bytes, n_channels: int | None = None) -> Parsed:
         return _parse_data(line, n_channels)
     if first == 0x23:  # '#'
         return LogLine(line[1:].decode("ascii", "replace").strip())
-    if line.startswith(_REPLY_PREFIXES):
+    if _is_reply(line):
         try:
             return Reply(line.decode("ascii"))
         except UnicodeDecodeError:
@@ -104,13 +132,10 @@ def _parse_data(line: bytes, n_channels: int | None) -> Parsed:
     star = line.rfind(b"*")
     if star < 0 or len(line) - star != 3:
         return Noise(line, "data line without '*HH' checksum at its end")
-    try:
-        want = int(line[star + 1 :], 16)
-    except ValueError:
-        return Noise(line, "checksum is not two hex digits")
     hh = line[star + 1 :]
-    if not all(c in b"0123456789abcdefABCDEF" for c in hh):
+    if not all(c in _HEX_DIGITS for c in hh):
         return Noise(line, "checksum is not two hex digits")
+    want = int(hh, 16)
     payload = line[1:star]
     if checksum(payload) != want:
         return Noise(line, "bad checksum")
@@ -121,15 +146,12 @@ def _parse_data(line: bytes, n_channels: int | None) -> Parsed:
         return Noise(line, "data line has no values")
     if n_channels is not None and len(fields) - 3 != n_channels:
         return Noise(line, f"expected {n_channels} values, got {len(fields) - 3}")
-    try:
-        seq = int(fields[1])
-        t_us = int(fields[2])
-    except ValueError:
-        return Noise(line, "seq or t_us is not an integer")
-    if not (0 <= seq < U32 and 0 <= t_us < U32):
-        return Noise(line, "seq or t_us outside unsigned 32-bit range")
     if not (fields[1].isdigit() and fields[2].isdigit()):
         return Noise(line, "seq or t_us is not an unsigned integer")
+    seq = int(fields[1])
+    t_us = int(fields[2])
+    if not (seq < U32 and t_us < U32):
+        return Noise(line, "seq or t_us outside unsigned 32-bit range")
     try:
         values = tuple(_number(f) for f in fields[3:])
     except ValueError:
@@ -137,11 +159,11 @@ def _parse_data(line: bytes, n_channels: int | None) -> Parsed:
     return Frame(seq, t_us, values)
 
 
-def format_frame(seq: int, t_us: int, values) -> bytes:
-    """Encode a data line, ``\\n`` included.  Integers stay integers."""
+def format_frame(seq: int, t_us: int, values: Iterable[Any]) -> bytes:
+    """Encode a data line, ``\\n`` included.  Integers (numpy's too) stay integers."""
     body = ",".join(
-        ["D", str(seq % U32), str(t_us % U32)]
-        + [str(v) if isinstance(v, int) else repr(float(v)) for v in values]
+        ["D", str(int(seq) % U32), str(int(t_us) % U32)]
+        + [str(int(v)) if isinstance(v, Integral) else repr(float(v)) for v in values]
     ).encode("ascii")
     return b"$" + body + b"*%02X\n" % checksum(body)
 
@@ -156,3 +178,332 @@ def format_command(command: str, *args: object) -> bytes:
     if "\n" in text or "\r" in text:
         raise ValueError("a command is one line")
     return text.encode("ascii") + b"\n"
+
+
+# --------------------------------------------------------------------------
+# Stream reader
+
+
+@dataclass(frozen=True)
+class FrameBatch:
+    """Frames in arrival order: ``seq`` and ``t_us`` int64 ``(n,)``, ``values`` float64 ``(n, k)``."""
+
+    seq: np.ndarray
+    t_us: np.ndarray
+    values: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.seq.shape[0])
+
+    @classmethod
+    def empty(cls, n_channels: int = 0) -> "FrameBatch":
+        return cls(np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, n_channels), np.float64))
+
+    @classmethod
+    def concat(cls, batches: Iterable["FrameBatch"], n_channels: int = 0) -> "FrameBatch":
+        parts = [b for b in batches if len(b)]
+        if not parts:
+            return cls.empty(n_channels)
+        if len(parts) == 1:
+            return parts[0]
+        return cls(
+            np.concatenate([b.seq for b in parts]),
+            np.concatenate([b.t_us for b in parts]),
+            np.concatenate([b.values for b in parts]),
+        )
+
+
+COUNTER_NAMES = ("frames", "lost", "bad_checksum", "malformed", "log_lines", "overlong", "replies", "bytes")
+
+_HEXVAL = np.full(256, -1, np.int16)
+for _i, _c in enumerate(b"0123456789abcdef"):
+    _HEXVAL[_c] = _i
+for _i, _c in enumerate(b"ABCDEF"):
+    _HEXVAL[_c] = 10 + _i
+_IS_DIGIT = np.zeros(256, bool)
+_IS_DIGIT[48:58] = True
+_IS_FIELD = _IS_DIGIT.copy()
+_IS_FIELD[44] = True  # ','
+_POW10 = 10 ** np.arange(19, dtype=np.int64)
+_MAX_VALUE_DIGITS = 15  # below 2**53: counts stay exact in float64
+_MAX_U32_DIGITS = 10
+_MIN_VECTOR_LINES = 8  # below this, line by line is quicker than numpy's fixed cost per call
+
+
+class StreamReader:
+    """Turns a byte stream from the rig into frame batches, replies and log lines.
+
+    ``port`` is any object with pyserial's ``read``/``in_waiting`` (or None for
+    :meth:`feed` only).  Its ``timeout`` is the poll interval of :meth:`read`, so
+    it must be finite (the Device sets 0.05 s).  ``n_channels=None`` takes the
+    channel count from the first valid frame; later frames with another count
+    are malformed.
+
+    A line longer than ``MAX_LINE`` is counted once as ``overlong`` and skipped
+    up to the next ``\\n``.  Lost frames are counted from gaps in ``seq``
+    (modulo 2**32); a backwards jump (firmware restarted) resynchronises
+    without counting loss.
+    """
+
+    def __init__(self, port: Any = None, n_channels: int | None = None, chunk: int = 65536,
+                 max_logs: int = 1000) -> None:
+        if n_channels is not None and n_channels < 1:
+            raise ValueError("a data line carries at least one value")
+        self.port = port
+        self.chunk = int(chunk)
+        self.n_channels = n_channels
+        self.counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
+        self.replies: deque[str] = deque(maxlen=256)
+        self.logs: deque[str] = deque(maxlen=max_logs)
+        self.noise: deque[tuple[str, bytes]] = deque(maxlen=32)  # (reason, first bytes) for diagnostics
+        self.lines = 0  # complete lines consumed, overlong runs included
+        self._pending = b""
+        self._skipping = False
+        self._last_seq: int | None = None
+
+    # -- state -------------------------------------------------------------
+
+    def reset_sequence(self) -> None:
+        """Forget the last seq (call at START: the firmware may restart its counter)."""
+        self._last_seq = None
+
+    def reset_counters(self) -> None:
+        for name in COUNTER_NAMES:
+            self.counters[name] = 0
+
+    def clear(self) -> None:
+        """Drop the partial line held between reads (after the port's input was flushed)."""
+        self._pending = b""
+        self._skipping = False
+
+    # -- input -------------------------------------------------------------
+
+    def read(self, timeout: float) -> FrameBatch:
+        """Read the port in chunks until at least one line is complete or ``timeout`` s pass."""
+        port = self.port
+        deadline = time.monotonic() + timeout
+        lines_before = self.lines
+        batches = []
+        while True:
+            waiting = port.in_waiting
+            data = port.read(min(waiting, self.chunk) if waiting else 1)
+            if data:
+                # The blocking read(1) woke on the first byte; take the rest of the burst too.
+                waiting = port.in_waiting
+                if waiting:
+                    data += port.read(min(waiting, self.chunk))
+                batch = self.feed(data)
+                if len(batch):
+                    batches.append(batch)
+                if self.lines != lines_before:
+                    break
+            if time.monotonic() >= deadline:
+                break
+        return FrameBatch.concat(batches, self.n_channels or 0)
+
+    def feed(self, data: bytes) -> FrameBatch:
+        """Consume ``data`` (any split of the stream) and return the frames it completed."""
+        data = bytes(data)
+        self.counters["bytes"] += len(data)
+        if self._skipping:
+            nl = data.find(b"\n")
+            if nl < 0:
+                return FrameBatch.empty(self.n_channels or 0)
+            data = data[nl + 1 :]
+            self._skipping = False
+        buf = self._pending + data if self._pending else data
+        last = buf.rfind(b"\n")
+        if last < 0:
+            self._pending = buf
+            self._check_pending()
+            return FrameBatch.empty(self.n_channels or 0)
+        self._pending = buf[last + 1 :]
+        batch = self._parse_block(buf[: last + 1])
+        self._check_pending()
+        return batch
+
+    def _check_pending(self) -> None:
+        # One '\r' may still precede the '\n', so MAX_LINE + 1 bytes can yet be a good line.
+        if len(self._pending) > MAX_LINE + 1:
+            self.counters["overlong"] += 1
+            self.lines += 1
+            self.noise.append((f"line longer than {MAX_LINE} bytes", self._pending[:64]))
+            self._pending = b""
+            self._skipping = True
+
+    # -- parsing -----------------------------------------------------------
+
+    def _parse_block(self, block: bytes) -> FrameBatch:
+        """Parse complete lines (``block`` ends with ``\\n``) and count loss across them."""
+        batches: list[FrameBatch] = []
+        offset = 0
+        if self.n_channels is None:
+            # The channel count comes from the first valid frame; until then go line by line.
+            while self.n_channels is None and offset < len(block):
+                nl = block.index(b"\n", offset)
+                parsed = self._classify(block[offset:nl])
+                self.lines += 1
+                if isinstance(parsed, Frame):
+                    self.n_channels = len(parsed.values)
+                    batches.append(_batch_of([parsed], self.n_channels))
+                offset = nl + 1
+        if offset < len(block):
+            rest = block[offset:] if offset else block
+            if rest.count(b"\n") < _MIN_VECTOR_LINES:
+                batches.append(self._parse_lines(rest))
+            else:
+                batches.append(self._parse_vectorised(rest))
+        batch = FrameBatch.concat(batches, self.n_channels or 0)
+        self._count_frames(batch)
+        return batch
+
+    def _count_frames(self, batch: FrameBatch) -> None:
+        n = len(batch)
+        if not n:
+            return
+        self.counters["frames"] += n
+        seq = batch.seq
+        prev = np.empty_like(seq)
+        prev[0] = seq[0] - 1 if self._last_seq is None else self._last_seq
+        prev[1:] = seq[:-1]
+        gap = (seq - prev - 1) % U32
+        self.counters["lost"] += int(gap[gap < (U32 >> 1)].sum())
+        self._last_seq = int(seq[-1])
+
+    def _classify(self, line: bytes) -> Parsed:
+        """Slow path: one line through the reference parser, counted."""
+        parsed = parse_line(line, self.n_channels)
+        if isinstance(parsed, Frame):
+            pass  # counted with its batch
+        elif isinstance(parsed, LogLine):
+            self.counters["log_lines"] += 1
+            self.logs.append(parsed.text)
+        elif isinstance(parsed, Reply):
+            self.counters["replies"] += 1
+            self.replies.append(parsed.text)
+        else:
+            if parsed.reason == "bad checksum":
+                self.counters["bad_checksum"] += 1
+            elif parsed.reason.startswith("line longer"):
+                self.counters["overlong"] += 1
+            else:
+                self.counters["malformed"] += 1
+            self.noise.append((parsed.reason, parsed.line[:64]))
+        return parsed
+
+    def _parse_lines(self, block: bytes) -> FrameBatch:
+        """A few lines (a slow rate's poll): numpy's per-call cost would exceed the work."""
+        lines = block.split(b"\n")
+        lines.pop()  # after the final '\n'
+        self.lines += len(lines)
+        frames = [p for p in map(self._classify, lines) if isinstance(p, Frame)]
+        return _batch_of(frames, self.n_channels or 0) if frames else FrameBatch.empty(self.n_channels or 0)
+
+    def _parse_vectorised(self, block: bytes) -> FrameBatch:
+        k = self.n_channels
+        assert k is not None
+        a = np.frombuffer(block, np.uint8)
+        nl = np.flatnonzero(a == 10)
+        n_lines = nl.shape[0]
+        self.lines += n_lines
+        starts = np.empty(n_lines, np.int64)
+        starts[0] = 0
+        starts[1:] = nl[:-1] + 1
+        ends = nl.astype(np.int64)
+        cr = (ends > starts) & (a[ends - 1] == 13)
+        ends = ends - cr  # content is a[starts:ends], one '\r' stripped as parse_line does
+        length = ends - starts
+
+        # Candidates for the fast path: "$D," digits and commas "*HH", right size.
+        cand = np.flatnonzero((length >= 2 * k + 9) & (length <= MAX_LINE))
+        s = starts[cand]
+        e = ends[cand]
+        ok = (a[s] == 36) & (a[s + 1] == 68) & (a[s + 2] == 44) & (a[e - 3] == 42)
+        h1 = _HEXVAL[a[e - 2]]
+        h2 = _HEXVAL[a[e - 1]]
+        ok &= (h1 >= 0) & (h2 >= 0)
+        ok &= _IS_DIGIT[a[s + 3]] & _IS_DIGIT[a[e - 4]]
+        # Prefix sums make every per-line range query O(1): XOR, stray bytes, commas.
+        px = np.zeros(a.shape[0] + 1, np.uint8)
+        np.bitwise_xor.accumulate(a, out=px[1:])
+        ok &= (px[e - 3] ^ px[s + 1]) == (h1 * 16 + h2)
+        is_comma = a == 44
+        bad = ~_IS_FIELD[a]
+        bad[:-1] |= is_comma[:-1] & is_comma[1:]  # ",," is an empty field
+        pbad = np.zeros(a.shape[0] + 1, np.int32)
+        np.cumsum(bad, out=pbad[1:])
+        pcom = np.zeros(a.shape[0] + 1, np.int32)
+        np.cumsum(is_comma, out=pcom[1:])
+        ok &= (pbad[e - 3] == pbad[s + 3]) & (pcom[e - 3] - pcom[s + 3] == k + 1)
+
+        good = cand[ok]
+        slow = np.ones(n_lines, bool)
+        fast = FrameBatch.empty(k)
+        if good.shape[0]:
+            fast, valid = _digits_to_batch(a, starts[good] + 3, ends[good] - 2, k)
+            if not valid.all():
+                good = good[valid]
+                fast = FrameBatch(fast.seq[valid], fast.t_us[valid], fast.values[valid])
+            slow[good] = False
+        # Everything else (logs, replies, noise, decimals, signs, long numbers) goes line by line.
+        slow_idx = np.flatnonzero(slow)
+        if not slow_idx.shape[0]:
+            return fast
+        frame_lines: list[int] = []
+        frames: list[Frame] = []
+        for i in slow_idx.tolist():
+            parsed = self._classify(block[starts[i] : nl[i]])
+            if isinstance(parsed, Frame):
+                frame_lines.append(i)
+                frames.append(parsed)
+        if not frames:
+            return fast
+        if not len(fast):
+            return _batch_of(frames, k)
+        # Interleave both paths' frames back into line order.
+        keys = np.concatenate([good, np.array(frame_lines, np.int64)])
+        merged = FrameBatch.concat([fast, _batch_of(frames, k)], k)
+        order = np.argsort(keys, kind="stable")
+        return FrameBatch(merged.seq[order], merged.t_us[order], merged.values[order])
+
+
+def _batch_of(frames: list[Frame], k: int) -> FrameBatch:
+    return FrameBatch(
+        np.fromiter((f.seq for f in frames), np.int64, len(frames)),
+        np.fromiter((f.t_us for f in frames), np.int64, len(frames)),
+        np.array([f.values for f in frames], np.float64).reshape(len(frames), k),
+    )
+
+
+def _digits_to_batch(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, k: int) -> tuple[FrameBatch, np.ndarray]:
+    """Decode ``a[lo:hi]`` ranges of ``digits(,digits)*\\*`` into numbers, all lines at once.
+
+    Returns the batch and a per-line mask of lines whose numbers fit the fast
+    path (seq/t_us below 2**32, values of at most 15 digits); the others are
+    for :func:`parse_line` to judge.
+    """
+    lens = hi - lo
+    n = lens.shape[0]
+    total = int(lens.sum())
+    first = np.cumsum(lens) - lens
+    idx = np.repeat(lo - first, lens) + np.arange(total, dtype=np.int64)
+    b = a[idx]
+    sep = (b == 44) | (b == 42)
+    seppos = np.flatnonzero(sep)  # n * (k + 2) separators, one ending each field
+    fstart = np.empty_like(seppos)
+    fstart[0] = 0
+    fstart[1:] = seppos[:-1] + 1
+    flen = (seppos - fstart).reshape(n, k + 2)
+    field_of = np.cumsum(sep) - sep
+    power = seppos[field_of] - np.arange(total) - 1
+    np.clip(power, 0, 18, out=power)
+    digit = b.astype(np.int64) - 48
+    digit[sep] = 0
+    nums = np.add.reduceat(digit * _POW10[power], fstart).reshape(n, k + 2)
+    valid = (
+        (flen[:, 0] <= _MAX_U32_DIGITS)
+        & (flen[:, 1] <= _MAX_U32_DIGITS)
+        & (flen[:, 2:] <= _MAX_VALUE_DIGITS).all(axis=1)
+    )
+    valid &= (nums[:, 0] < U32) & (nums[:, 1] < U32)
+    return FrameBatch(nums[:, 0].copy(), nums[:, 1].copy(), nums[:, 2:].astype(np.float64)), valid

@@ -1,0 +1,84 @@
+"""Frame generation of the simulated rig against a per-frame baseline.
+
+Run:  python benchmarks/bench_sim.py [--frames N] [--repeat R]
+
+Both sides produce the same bytes for N frames of the reference rig (six
+12-bit channels, 1 kHz): the rig's vectorised ``samples`` then either the
+firmware's column-wise :func:`labcli.sim.firmware.format_frames` or the
+baseline, :func:`labcli.wire.format_frame` called once per frame.  Also
+reported: device seconds produced per wall second through a ``sim://`` port
+(virtual clock) read in 64 KiB chunks.  Best of R runs; the ratio is measured
+in the same run on the same machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+
+from labcli.sim.firmware import format_frames  # noqa: E402
+from labcli.sim.rig import SimRig  # noqa: E402
+from labcli.wire import format_frame  # noqa: E402
+
+
+def best(fn, repeat: int) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return min(times), out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--frames", type=int, default=100_000)
+    ap.add_argument("--repeat", type=int, default=3)
+    a = ap.parse_args()
+    n = a.frames
+
+    def samples():
+        rig = SimRig(seed=1)
+        rig.supply_air()
+        return rig.samples(n, 1000.0)
+
+    t_samples, (t_us, counts) = best(samples, a.repeat)
+    seq = np.arange(n, dtype=np.int64)
+    t_fast, fast = best(lambda: format_frames(seq, t_us % (1 << 32), counts), a.repeat)
+    rows = counts.tolist()
+    t_base, base = best(
+        lambda: b"".join(format_frame(i, int(t_us[i]) % (1 << 32), rows[i]) for i in range(n)), a.repeat
+    )
+    assert fast == base, "column-wise formatting differs from wire.format_frame"
+
+    import serial
+
+    from labcli.urlhandler import register
+
+    register()
+    port = serial.serial_for_url("sim://?seed=1&rate=1000", timeout=1.0)
+    port.write(b"START\n")
+    t = time.perf_counter()
+    got = 0
+    while got < 40 * n:
+        got += len(port.read(1 << 16))
+    wall = time.perf_counter() - t
+    device_s = port.rig.time_s
+    port.close()
+
+    print(f"frames: {n}")
+    print(f"rig.samples:            {t_samples * 1e3:8.1f} ms")
+    print(f"format_frames:          {t_fast * 1e3:8.1f} ms")
+    print(f"format_frame per frame: {t_base * 1e3:8.1f} ms  (baseline)")
+    print(f"speed-up vs baseline:   {t_base / t_fast:8.1f} x")
+    print(f"sim:// virtual clock:   {device_s / wall:8.0f} device s per wall s at 1 kHz")
+
+
+if __name__ == "__main__":
+    main()

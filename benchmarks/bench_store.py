@@ -1,0 +1,144 @@
+"""Raw samples per second into a run file, crash safety on, against a plain h5py append loop.
+
+Run:  python benchmarks/bench_store.py [--trials N] [--samples S[,S...]] [--repeat R] [--dir DIR]
+
+Each trial carries two windows (baseline and loaded) of S frames of the
+reference rig's 6 channels: ``time`` float64, ``counts`` int32, ``values``
+float64 and ``seq`` uint32 per frame, as the run file stores them.
+
+* ``store (fsync)``: ``RunFile.write_trial`` as ``labcli acquire`` uses it: one
+  group per trial with its summary datasets and attributes, flush + fsync,
+  ``complete`` set, flush + fsync again.
+* ``store (no fsync)``: the same writes with the per-trial flush/fsync off (how
+  ``labcli import`` builds a file), to separate the cost of durability from the
+  cost of the layout.
+* ``plain h5py``: the baseline a first version usually is: four resizable
+  datasets in one file, each window appended with ``resize`` and a slice
+  write, never flushed until the file is closed (closing is timed).  It does
+  not survive a kill -9 (see engineering-notes.md).
+
+Samples are frames x channels.  Best of R runs for each; the ratios are
+measured in the same run on the same disk.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import h5py  # noqa: E402
+import numpy as np  # noqa: E402
+
+from labcli.store import RunFile  # noqa: E402
+
+CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
+
+
+class _Protocol:
+    name = "bench"
+    kind = "force"
+    text = 'name = "bench"\nkind = "force"\n'
+    channels = CHANNELS
+
+    class calibration:  # noqa: N801 - stands in for labcli.calibration.Calibration
+        units = ("MPa",) * 4 + ("rad",) * 2
+
+        @staticmethod
+        def to_si(counts):
+            c = np.asarray(counts, dtype=np.float64)
+            return np.hstack([(c[:, :4] * 5.0 / 4095 - 1.0) / 4.0, np.radians((c[:, 4:] - 2048) * 340 / 4095)])
+
+
+class _Device:
+    device, firmware, channels, port = "bench", "1.0", CHANNELS, "bench://"
+
+
+def make_records(n_trials: int, n: int, seed: int = 0) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n_trials):
+        raw = {}
+        for w, key in enumerate(("baseline", "load")):
+            counts = rng.integers(0, 4096, size=(n, 6)).astype(np.float64)
+            t_us = (np.arange(n, dtype=np.int64) + (2 * i + w) * n) * 5000
+            raw[key] = {"seq": np.arange(n, dtype=np.int64) + (2 * i + w) * n, "t_us": t_us,
+                        "counts": counts, "si": _Protocol.calibration.to_si(counts)}
+        out.append({"trial": i, "P0_MPa": rng.uniform(0.1, 0.3, 4), "P_MPa": rng.uniform(0.1, 0.3, 4),
+                    "theta_rad": rng.uniform(-0.3, 0.3, 2), "force_N": rng.uniform(-2, 2, 2),
+                    "mass_kg": 0.2, "direction_rad": 0.5, "raw": raw,
+                    "settle": {"load": {"settled": True, "settle_time_s": 2.0, "criterion": "bench"}}})
+    return out
+
+
+def run_store(path: str, records: list[dict], sync: bool) -> float:
+    t0 = time.perf_counter()
+    with RunFile.create(path, protocol=_Protocol(), device_info=_Device(), force=True) as run:
+        run.sync_each_record = sync
+        for rec in records:
+            run.write_trial(rec)
+    return time.perf_counter() - t0
+
+
+def run_plain(path: str, records: list[dict]) -> float:
+    t0 = time.perf_counter()
+    with h5py.File(path, "w") as f:
+        time_ds = f.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(4096,))
+        counts_ds = f.create_dataset("counts", shape=(0, 6), maxshape=(None, 6), dtype="i4", chunks=(4096, 6))
+        values_ds = f.create_dataset("values", shape=(0, 6), maxshape=(None, 6), dtype="f8", chunks=(4096, 6))
+        seq_ds = f.create_dataset("seq", shape=(0,), maxshape=(None,), dtype="u4", chunks=(4096,))
+        end = 0
+        for rec in records:
+            for w in rec["raw"].values():
+                n = len(w["seq"])
+                for ds in (time_ds, counts_ds, values_ds, seq_ds):
+                    ds.resize(end + n, axis=0)
+                time_ds[end:end + n] = w["t_us"] * 1e-6
+                counts_ds[end:end + n] = w["counts"].astype(np.int32)
+                values_ds[end:end + n] = w["si"]
+                seq_ds[end:end + n] = w["seq"].astype(np.uint32)
+                end += n
+    return time.perf_counter() - t0
+
+
+def best(fn, repeat: int) -> float:
+    return min(fn() for _ in range(repeat))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trials", type=int, default=40)
+    ap.add_argument("--samples", default="400,4000", help="frames per window, comma-separated")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--dir", default=None, help="where to write (default: a temporary folder)")
+    args = ap.parse_args()
+    folder = args.dir or tempfile.mkdtemp(prefix="bench_store_")
+    os.makedirs(folder, exist_ok=True)
+    print(f"h5py {h5py.__version__}, HDF5 {h5py.version.hdf5_version}; {args.trials} trials x 2 windows x 6 channels; "
+          f"best of {args.repeat}; files in {folder}")
+    print(f"{'frames/window':>13} {'store fsync':>17} {'store no fsync':>17} {'plain h5py':>17} "
+          f"{'fsync/plain':>12} {'fsync/no-fsync':>15} {'ms/trial (fsync)':>17}")
+    try:
+        for n in (int(s) for s in args.samples.split(",")):
+            records = make_records(args.trials, n)
+            samples = args.trials * 2 * n * len(CHANNELS)
+            t_sync = best(lambda: run_store(os.path.join(folder, "sync.h5"), records, True), args.repeat)
+            t_nosync = best(lambda: run_store(os.path.join(folder, "nosync.h5"), records, False), args.repeat)
+            t_plain = best(lambda: run_plain(os.path.join(folder, "plain.h5"), records), args.repeat)
+            rate = [samples / t for t in (t_sync, t_nosync, t_plain)]
+            print(f"{n:>13} {rate[0]:>11.3g} smp/s {rate[1]:>11.3g} smp/s {rate[2]:>11.3g} smp/s "
+                  f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t_sync / args.trials * 1e3:>14.1f} ms")
+    finally:
+        if args.dir is None:
+            shutil.rmtree(folder, ignore_errors=True)
+    print("A 200 Hz rig produces 1200 samples/s (6 channels).")
+
+
+if __name__ == "__main__":
+    main()

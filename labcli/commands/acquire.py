@@ -1,0 +1,48 @@
+"""``labcli acquire``: guide a run at the rig and record it into an HDF5 file."""
+
+from __future__ import annotations
+
+import click
+
+
+@click.command()
+@click.argument("run", metavar="RUN.h5", type=click.Path(dir_okay=False))
+@click.option("--port", required=True, help="Serial port (/dev/ttyUSB0, COM3) or URL (sim://?seed=1&clock=virtual).")
+@click.option("--protocol", default=None, help="Shipped protocol name or .toml path  [default: takuma2014]")
+@click.option("--plan", "plan", type=click.Path(dir_okay=False), default=None,
+              help="Plan CSV (trial,set,mass_g,direction_deg)  [default: the protocol's plan]")
+@click.option("--no-plan", is_flag=True, help="Type each weight and direction at the rig instead.")
+@click.option("--operator", default="", help="Who runs the rig (stored in the file).")
+@click.option("--resume", is_flag=True, help="Continue RUN.h5 at its first trial not yet complete.")
+@click.option("--force", is_flag=True, help="Overwrite RUN.h5 if it exists.")
+@click.option("--unattended", is_flag=True, help="Simulated rig only: act out every prompt and accept every trial.")
+@click.option("--rate", "rate", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Frames per second  [default: the protocol's rate_hz]")
+def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan: bool, operator: str,
+            resume: bool, force: bool, unattended: bool, rate: float | None) -> None:
+    """Guide a run at the rig, trial by trial, and record it into RUN.h5.
+
+    Setup check, baseline with the valves closed, then per trial: baseline,
+    load (from the plan, or typed), equilibrium judged from the data, capture,
+    summary row to accept, redo, skip or quit.  Each accepted trial is written
+    whole; Ctrl-C, q or an unplugged rig lose only the trial in progress.
+
+    \b
+    Example:
+        labcli acquire run.h5 --port /dev/ttyUSB0 --operator kim
+        labcli acquire run.h5 --port /dev/ttyUSB0 --resume
+        labcli acquire sim.h5 --port 'sim://?seed=1&clock=virtual' --unattended
+    """
+    from ..engine import acquire as run_acquisition
+    from ..errors import LabcliError
+
+    try:
+        outcome = run_acquisition(
+            run, port, protocol=protocol, plan=plan, no_plan=no_plan, operator=operator,
+            resume=resume, force=force, unattended=unattended, rate_hz=rate,
+        )
+    except LabcliError as e:
+        raise click.ClickException(str(e)) from None
+    click.echo(outcome.message, err=outcome.exit_code != 0)
+    if outcome.exit_code:
+        raise SystemExit(outcome.exit_code)

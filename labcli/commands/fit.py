@@ -1,0 +1,127 @@
+"""``labcli fit``: least squares of the paper's Eqs. 34-37 on a run's fit trials."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ..errors import LabcliError
+
+
+def default_model_path(run: Path) -> Path:
+    """``run.h5`` -> ``run.model.json`` beside it."""
+    return run.with_name(run.stem + ".model.json")
+
+
+def _fmt(x: Any, spec: str = ".4g") -> str:
+    if x is None:
+        return "—"
+    return format(x, spec)
+
+
+def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded: str) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from ..models.takuma import SIGN_NOTE, TERMS
+
+    con = Console(highlight=False)
+    titles = {
+        "theta1": ("Eq. 34  sin(theta1)", "1 (dimensionless)", "sin(theta1)"),
+        "theta2": ("Eq. 35  sin(theta2)", "1 (dimensionless)", "sin(theta2)"),
+        "Fx": ("Eq. 36  Fx", "N m/MPa", "N"),
+        "Fy": ("Eq. 37  Fy", "N m/MPa", "N"),
+    }
+    for eq, names in TERMS.items():
+        title, unit, space = titles[eq]
+        st = model.fit_stats[eq]
+        table = Table(title=f"{title}   (coefficients in {unit})", title_justify="left")
+        table.add_column("coefficient")
+        table.add_column("value", justify="right")
+        table.add_column("std. error", justify="right")
+        table.add_column("95% interval", justify="right")
+        table.add_column("paper", justify="right")
+        for name in names:
+            lo, hi = model.ci95[name]
+            table.add_row(name, f"{model.coefficients[name]:.5g}", f"{model.standard_errors[name]:.3g}",
+                          f"[{lo:.5g}, {hi:.5g}]", _fmt(paper.get(name), ".6g"))
+        con.print(table)
+        if eq.startswith("theta"):
+            fit_line = (f"R^2 {_fmt(st['r2'], '.5f')} ({space}), {_fmt(st['r2_native'], '.5f')} (deg); "
+                        f"RMSE {_fmt(st['rmse'], '.3g')} ({space}) = {_fmt(st['rmse_native'], '.3g')} deg")
+        else:
+            fit_line = f"R^2 {_fmt(st['r2'], '.5f')}; RMSE {_fmt(st['rmse'], '.3g')} N"
+        cond = st["design_cond"]
+        warn = "  (ill-conditioned: coefficients poorly determined)" if st.get("ill_conditioned") else ""
+        con.print(f"  {fit_line}; condition number {_fmt(cond, '.3g')}{warn}; "
+                  f"{st['n']} trials ({st['dof']} degrees of freedom)")
+        excluded = model.excluded_trials.get(eq, [])
+        if excluded:
+            con.print(f"  excluded {len(excluded)} trial(s):")
+            for item in excluded[:12]:
+                con.print(f"    trial {item['trial']}: {item['reason']}")
+            if len(excluded) > 12:
+                con.print(f"    ... and {len(excluded) - 12} more (see the model file)")
+        con.print()
+    con.print(f"Sign reading: {SIGN_NOTE}.")
+    thr = model.to_dict()["settings"]["theta2_threshold_deg"]
+    con.print(f"Force fit excludes postures with |theta2| < {thr:.2f} deg "
+              f"(Jacobian condition number > {model.max_jacobian_cond:g}).")
+    con.print(f"Model written to {out_path}{recorded}.")
+
+
+@click.command("fit")
+@click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Model JSON to write [default: RUN.model.json beside the run].")
+@click.option("--protocol", default=None,
+              help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.")
+@click.option("--max-jacobian-cond", type=float, default=100.0, show_default=True,
+              help="Leave postures whose Jacobian condition number exceeds this out of the force fit.")
+@click.option("--json", "as_json", is_flag=True, help="Print the model and the paper's values as JSON.")
+def fit(run: Path, output: Path | None, protocol: str | None, max_jacobian_cond: float,
+        as_json: bool) -> None:
+    """Fit the paper's regression (Eqs. 34-37) to the fit trials of RUN.
+
+    RUN is a run file (.h5) or a trial CSV.  Prints each equation's coefficients with standard
+    errors, 95% intervals and the paper's values (Section 3.3), saves the model JSON and
+    records it in the run file.
+
+    \b
+    Example:
+        labcli fit run.h5                  # writes run.model.json
+        labcli fit trials.csv --protocol takuma2014 -o model.json --json
+    """
+    from ..models.inputs import load_trial_source
+    from ..models.takuma import TakumaModel
+
+    try:
+        src = load_trial_source(run, protocol)
+        model = TakumaModel(geometry=src.protocol.rig, protocol=src.protocol.name,
+                            max_jacobian_cond=max_jacobian_cond).fit(src.table, source=str(run))
+        out_path = output or default_model_path(run)
+        text = model.to_json()
+        try:
+            out_path.write_text(text, encoding="utf-8")
+        except OSError as e:
+            raise click.ClickException(f"Cannot write the model to {out_path}: {e.strerror or e}.")
+        recorded = ""
+        if src.is_run:
+            from ..store import RunFile
+
+            with RunFile.open(run, "a") as rf:
+                rf.record_model(model.protocol, text)
+            recorded = f" and recorded in {run} under /models/{model.protocol}"
+    except LabcliError as e:
+        raise click.ClickException(str(e)) from None
+    paper = dict(getattr(src.protocol, "paper_coefficients", {}) or {})
+    if as_json:
+        click.echo(json.dumps({
+            "model_path": str(out_path), "recorded_in_run": bool(recorded),
+            "model": model.to_dict(), "paper_coefficients": paper,
+        }, indent=2))
+        return
+    _print_report(model, paper, out_path, recorded)

@@ -1,0 +1,105 @@
+"""``labcli validate``: accuracy of a fitted model on a run's validation trials (Figure 7)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ..errors import LabcliError
+
+
+def _fmt(x: Any, spec: str) -> str:
+    return "—" if x is None else format(x, spec)
+
+
+def _print_report(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | None) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    from ..models.metrics import QUANTITIES
+    from ..models.takuma import FLAG_TEXT
+
+    con = Console(highlight=False)
+    how = ("angles from Eqs. 34-35, forces from those angles in Eqs. 36-37"
+           if ev["mode"] == "pressure-only" else "angles from Eqs. 34-35, forces from the measured angles")
+    table = Table(title=f"Validation of {model_path.name} on {run.name} ({ev['mode']}: {how})",
+                  title_justify="left")
+    for col, just in (("quantity", "left"), ("n", "right"), ("RMSE", "right"), ("MAE", "right"),
+                      ("max |err|", "right"), ("bias", "right"), ("R^2", "right"),
+                      ("RMSE/range", "right"), ("flagged", "right")):
+        table.add_column(col, justify=just)
+    for q, (_, unit, label) in QUANTITIES.items():
+        m = ev["metrics"][q]
+        u = f" {unit}"
+        table.add_row(f"{label} ({unit})", str(m["n"]),
+                      _fmt(m["rmse"], ".3g") + u if m["rmse"] is not None else "—",
+                      _fmt(m["mae"], ".3g") + u if m["mae"] is not None else "—",
+                      _fmt(m["max_abs"], ".3g") + u if m["max_abs"] is not None else "—",
+                      _fmt(m["bias"], "+.2g") + u if m["bias"] is not None else "—",
+                      _fmt(m["r2"], ".4f"),
+                      _fmt(m["pct_range"], ".2f") + " %" if m["pct_range"] is not None else "—",
+                      str(m["n_flagged"]))
+    con.print(table)
+    flagged = [(int(t), fl) for t, fl in zip(ev["trial"], ev["flags"]) if fl]
+    if flagged:
+        con.print(f"{len(flagged)} trial(s) flagged; their values show as — and stay out of the metrics:")
+        for t, fl in flagged:
+            missing = [q for q in QUANTITIES if not ev["ok"][q][list(ev["trial"]).index(t)]]
+            reasons = "; ".join(FLAG_TEXT.get(f, f) for f in fl)
+            con.print(f"  trial {t}: {', '.join(missing)} = — ({reasons})")
+    if plot is not None:
+        con.print(f"Figure 7 written to {plot}.")
+
+
+@click.command("validate")
+@click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Model JSON from `labcli fit` [default: RUN.model.json beside the run].")
+@click.option("--mode", type=click.Choice(["pressure-only", "measured-angles"]), default="pressure-only",
+              show_default=True,
+              help="Angles for the force equations: from the pressures (Eqs. 34-35) or the potentiometers.")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write Figure 7 (observed vs calculated) to this .png, .pdf or .svg file.")
+@click.option("--protocol", default=None,
+              help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the metrics and every validation trial's observed and calculated values as JSON.")
+def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, protocol: str | None,
+             as_json: bool) -> None:
+    """Check a fitted model on the validation trials of RUN (the paper's Figure 7).
+
+    RUN is a run file (.h5) or a trial CSV.  Reports RMSE, MAE, max |error|, bias, R^2 and
+    RMSE as a share of the observed range for theta1, theta2 (deg) and Fx, Fy (N).
+
+    \b
+    Example:
+        labcli validate run.h5 --model run.model.json --plot fig7.png
+        labcli validate trials.csv --mode measured-angles --json
+    """
+    from ..commands.fit import default_model_path
+    from ..models.inputs import load_trial_source
+    from ..models.metrics import evaluate, evaluation_to_dict
+    from ..models.takuma import TakumaModel
+
+    try:
+        src = load_trial_source(run, protocol)
+        mpath = model_path or default_model_path(run)
+        model = TakumaModel.load(mpath)
+        model.check_compatible(src.protocol.name, src.protocol.rig,
+                               model_name=f"the model file {mpath}", run_name=str(run))
+        ev = evaluate(model, src.table, mode=mode, source=str(run))
+        if plot is not None:
+            from ..figures import figure7
+
+            figure7(ev, plot)
+    except LabcliError as e:
+        raise click.ClickException(str(e)) from None
+    if as_json:
+        out = evaluation_to_dict(ev)
+        out.update(run=str(run), model=str(mpath), plot=str(plot) if plot else None)
+        click.echo(json.dumps(out, indent=2, allow_nan=False))
+        return
+    _print_report(ev, mpath, run, plot)

@@ -1,0 +1,70 @@
+"""Where fit and validate get their trials and their rig: a run file or a trial CSV.
+
+A run file (``.h5``) carries its protocol verbatim, so its geometry is the one the trials were
+recorded with; a CSV carries none, so the protocol is named (default ``takuma2014``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError
+
+DEFAULT_PROTOCOL = "takuma2014"
+RUN_SUFFIXES = (".h5", ".hdf5")
+
+
+@dataclass
+class TrialSource:
+    path: Path
+    table: Any            # the trial table (pandas DataFrame, contract columns)
+    protocol: Any         # labcli.protocol.Protocol
+    is_run: bool          # True for a run file, False for a CSV
+
+    @property
+    def label(self) -> str:
+        return str(self.path)
+
+
+def _read_table(path: Path) -> Any:
+    try:
+        from ..tables import load_trials
+    except ImportError:
+        # Minimal readers used until labcli.tables is present in this tree.
+        if path.suffix.lower() in RUN_SUFFIXES:
+            from ..store import RunFile
+
+            with RunFile.open(path) as run:
+                return run.trial_table()
+        import pandas as pd
+
+        try:
+            return pd.read_csv(path)
+        except (OSError, ValueError) as e:
+            raise ConfigError(f"{path} cannot be read as a trial CSV ({e}).") from None
+    return load_trials(path)
+
+
+def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSource:
+    """Trials and protocol of a run file or a trial CSV (``protocol`` names one for a CSV)."""
+    from ..protocol import load_protocol, loads_protocol
+
+    p = Path(path)
+    if not p.exists():
+        raise ConfigError(f"{p} does not exist; pass a run file (.h5) or a trial CSV.")
+    if p.suffix.lower() in RUN_SUFFIXES:
+        from ..store import RunFile
+
+        with RunFile.open(p) as run:
+            text = run.protocol_text
+            name = str(run.attrs.get("protocol", ""))
+        if protocol is not None and protocol != name:
+            raise ConfigError(f"{p} was recorded with protocol '{name}'; --protocol applies to "
+                              "trial CSV files only, so leave it out for a run file.")
+        proto = (loads_protocol(text, source=f"{p} (embedded protocol)") if text.strip()
+                 else load_protocol(name or DEFAULT_PROTOCOL))
+        return TrialSource(p, _read_table(p), proto, True)
+    proto = load_protocol(protocol or DEFAULT_PROTOCOL)
+    return TrialSource(p, _read_table(p), proto, False)

@@ -1,0 +1,216 @@
+"""Watching a streaming rig: running per-channel statistics and link health.
+
+:func:`watch` starts the stream, reads until the time is up (or Ctrl-C),
+stops it and returns a :class:`MonitorSummary`; a callback sees a
+:class:`Snapshot` a few times per second for a live display.  Values are
+calibrated to SI (MPa, rad) with the protocol's calibration; channels the
+protocol does not know stay in raw counts.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .device import Device
+from .wire import FrameBatch
+
+
+class RunningStats:
+    """Mean and sample standard deviation per column, merged batch by batch (Chan et al.)."""
+
+    def __init__(self, k: int) -> None:
+        self.n = 0
+        self.mean = np.zeros(k)
+        self._m2 = np.zeros(k)
+
+    def update(self, x: np.ndarray) -> None:
+        m = x.shape[0]
+        if not m:
+            return
+        bmean = x.mean(axis=0)
+        bm2 = ((x - bmean) ** 2).sum(axis=0)
+        n = self.n + m
+        delta = bmean - self.mean
+        self.mean = self.mean + delta * (m / n)
+        self._m2 = self._m2 + bm2 + delta**2 * (self.n * m / n)
+        self.n = n
+
+    @property
+    def std(self) -> np.ndarray:
+        if self.n < 2:
+            return np.zeros_like(self.mean)
+        return np.sqrt(self._m2 / (self.n - 1))
+
+
+@dataclass(frozen=True)
+class ChannelScale:
+    """Counts -> SI per device channel, and how each is shown to people."""
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]  # SI unit per channel (MPa, rad; "counts" when uncalibrated)
+    display_units: tuple[str, ...]  # MPa, deg, counts
+    to_si: Callable[[np.ndarray], np.ndarray]
+    to_display: Callable[[np.ndarray], np.ndarray]
+
+
+def channel_scale(channels: Sequence[str], calibration: Any) -> ChannelScale:
+    """Match the device's channel order to a protocol calibration by name."""
+    known = {name: i for i, name in enumerate(calibration.names)}
+    cols = [known.get(name) for name in channels]
+    k_cal = len(calibration.names)
+    si_units = calibration.units
+    disp_units = calibration.display_units
+    units = tuple(si_units[c] if c is not None else "counts" for c in cols)
+    shown = tuple(disp_units[c] if c is not None else "counts" for c in cols)
+    mapped = [(j, c) for j, c in enumerate(cols) if c is not None]
+
+    def _apply(fn: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        out = x.copy()
+        if mapped:
+            full = np.zeros(x.shape[:-1] + (k_cal,))
+            for j, c in mapped:
+                full[..., c] = x[..., j]
+            conv = fn(full)
+            for j, c in mapped:
+                out[..., j] = conv[..., c]
+        return out
+
+    return ChannelScale(
+        tuple(channels),
+        units,
+        shown,
+        lambda counts: _apply(calibration.to_si, counts),
+        lambda si: _apply(calibration.to_display, si),
+    )
+
+
+@dataclass
+class Snapshot:
+    elapsed_s: float
+    rate_hz: float  # as the firmware set it
+    frames_per_s: float  # over the last second
+    latest_si: np.ndarray  # mean of the last batch, per channel
+    stats: RunningStats
+    counters: dict[str, int]
+
+
+@dataclass
+class MonitorSummary:
+    port: str
+    device: str
+    firmware: str
+    rate_hz: float
+    seconds: float
+    counters: dict[str, int]
+    channels: tuple[str, ...]
+    units: tuple[str, ...]
+    mean: np.ndarray
+    std: np.ndarray
+    interrupted: bool = False
+
+    @property
+    def frames_per_s(self) -> float:
+        return self.counters["frames"] / self.seconds if self.seconds > 0 else 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        c = self.counters
+        return {
+            "port": self.port,
+            "device": self.device,
+            "firmware": self.firmware,
+            "rate_hz": num(self.rate_hz),
+            "seconds": round(self.seconds, 3),
+            "frames": c["frames"],
+            "frames_per_s": round(self.frames_per_s, 1),
+            "lost": c["lost"],
+            "bad_checksum": c["bad_checksum"],
+            "malformed": c["malformed"],
+            "overlong": c["overlong"],
+            "log_lines": c["log_lines"],
+            "interrupted": self.interrupted,
+            "channels": {
+                name: {"mean": num(m), "std": num(s), "unit": u}
+                for name, m, s, u in zip(self.channels, self.mean, self.std, self.units)
+            },
+        }
+
+
+def watch(
+    dev: Device,
+    scale: ChannelScale,
+    *,
+    rate_hz: float | None = None,
+    seconds: float | None = None,
+    on_update: Callable[[Snapshot], None] | None = None,
+    refresh_s: float = 0.25,
+) -> MonitorSummary:
+    """Stream from ``dev`` for ``seconds`` (None: until Ctrl-C) and summarise.
+
+    The stream is always stopped on the way out, Ctrl-C included; frames in
+    flight before ``OK STOP`` count too.
+    """
+    actual = dev.set_rate(rate_hz) if rate_hz is not None else float("nan")
+    k = len(scale.names)
+    stats = RunningStats(k)
+    latest = np.full(k, np.nan)
+    recent: deque[tuple[float, int]] = deque()
+    interrupted = False
+
+    def take(batch: FrameBatch) -> None:
+        nonlocal latest
+        if len(batch):
+            si = scale.to_si(batch.values)
+            stats.update(si)
+            latest = si.mean(axis=0)
+
+    dev.start()
+    t0 = time.monotonic()
+    next_update = t0
+    try:
+        try:
+            while True:
+                now = time.monotonic()
+                if seconds is not None and now - t0 >= seconds:
+                    break
+                wait = refresh_s if seconds is None else max(0.0, min(refresh_s, t0 + seconds - now))
+                batch = dev.read(timeout=wait)
+                take(batch)
+                now = time.monotonic()
+                recent.append((now, stats.n))
+                while recent and now - recent[0][0] > 1.0:
+                    recent.popleft()
+                if on_update is not None and now >= next_update:
+                    span = now - recent[0][0] if len(recent) > 1 else 0.0
+                    fps = (recent[-1][1] - recent[0][1]) / span if span > 0 else 0.0
+                    on_update(Snapshot(now - t0, actual, fps, latest, stats, dev.counters))
+                    next_update = now + refresh_s
+        except KeyboardInterrupt:
+            interrupted = True
+    finally:
+        elapsed = time.monotonic() - t0
+        if dev.streaming:
+            take(dev.stop())
+    info = dev.info
+    return MonitorSummary(
+        port=dev.port,
+        device=info.device if info else "",
+        firmware=info.firmware if info else "",
+        rate_hz=actual,
+        seconds=elapsed,
+        counters=dev.counters,
+        channels=scale.names,
+        units=scale.units,
+        mean=stats.mean if stats.n else np.full(k, np.nan),
+        std=stats.std if stats.n else np.full(k, np.nan),
+        interrupted=interrupted,
+    )

@@ -1,0 +1,224 @@
+"""Equilibrium detection: has the joint stopped moving?
+
+The paper waits "a certain interval of time" after loading the joint before it
+reads the pressures (Section 3.2).  A fixed interval is either wasteful or too
+short, so the toolkit judges equilibrium from the data instead:
+
+* samples are grouped into blocks of ``window_s / BLOCKS`` seconds of device
+  time and each block is averaged (so sensor noise, about one ADC count, does
+  not masquerade as motion);
+* the *spread* of a channel is the range (max - min) of the last ``BLOCKS``
+  block means, i.e. how far the signal wandered over one window;
+* the joint is settled when every pressure spread is under
+  ``pressure_spread_MPa`` and every angle spread under ``angle_spread_rad``,
+  and has stayed so for ``hold_s`` seconds of device time.
+
+Time is always device time (seconds, from the frames' ``t_us``), so the same
+rule holds on a real rig, on the simulated rig in virtual time, and on
+synthetic signals in tests.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+BLOCKS = 10  # block means per window
+
+
+@dataclass(frozen=True)
+class SettleCriteria:
+    """Thresholds of the equilibrium rule, SI (s, MPa, rad)."""
+
+    window_s: float
+    hold_s: float
+    pressure_spread_MPa: float
+    angle_spread_rad: float
+    timeout_s: float
+
+    def __post_init__(self) -> None:
+        for name in ("window_s", "pressure_spread_MPa", "angle_spread_rad", "timeout_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"settling {name} must be positive, got {getattr(self, name)!r}")
+        if self.hold_s < 0:
+            raise ValueError(f"settling hold_s must be zero or positive, got {self.hold_s!r}")
+
+    @classmethod
+    def from_settling(cls, settling: object) -> "SettleCriteria":
+        """Build from a protocol's ``settling`` section (attributes or a mapping)."""
+        get = settling.get if isinstance(settling, dict) else lambda k: getattr(settling, k)
+        return cls(
+            window_s=float(get("window_s")),
+            hold_s=float(get("hold_s")),
+            pressure_spread_MPa=float(get("pressure_spread_MPa")),
+            angle_spread_rad=float(get("angle_spread_rad")),
+            timeout_s=float(get("timeout_s")),
+        )
+
+    def describe(self) -> str:
+        """The rule in one line, with units, as recorded next to each trial."""
+        return (
+            f"range of {BLOCKS} block means over {self.window_s:g} s below "
+            f"{self.pressure_spread_MPa * 1e3:g} kPa (pressures) and "
+            f"{np.degrees(self.angle_spread_rad):.3g} deg (angles) for {self.hold_s:g} s"
+        )
+
+    def as_dict(self) -> dict[str, float | str]:
+        return {
+            "window_s": self.window_s,
+            "hold_s": self.hold_s,
+            "pressure_spread_MPa": self.pressure_spread_MPa,
+            "angle_spread_rad": self.angle_spread_rad,
+            "timeout_s": self.timeout_s,
+            "rule": self.describe(),
+        }
+
+
+@dataclass(frozen=True)
+class SettleStatus:
+    """Where the detector stands after the latest samples."""
+
+    elapsed_s: float  # device time since the wait began
+    pressure_spread_MPa: float  # largest pressure spread of the last full window (nan before one)
+    angle_spread_rad: float  # largest angle spread of the last full window (nan before one)
+    quiet_s: float  # how long the spreads have stayed under the thresholds
+    settled: bool
+    settle_time_s: float  # elapsed time at which the final quiet period began (nan until settled)
+    timed_out: bool
+
+
+class SettleDetector:
+    """Feed device-time samples with :meth:`update`; it says when the joint is settled.
+
+    ``pressure_cols`` and ``angle_cols`` index the SI columns that the thresholds
+    apply to.  ``t_s`` must be non-decreasing device time in seconds (already
+    unwrapped); its origin is the first sample seen.
+    """
+
+    def __init__(
+        self,
+        criteria: SettleCriteria,
+        pressure_cols: tuple[int, ...] | list[int],
+        angle_cols: tuple[int, ...] | list[int],
+    ) -> None:
+        self.criteria = criteria
+        self._pcols = list(pressure_cols)
+        self._acols = list(angle_cols)
+        self._block_s = criteria.window_s / BLOCKS
+        self._timeout_s = criteria.timeout_s
+        self._t0: float | None = None
+        self._block_index = 0
+        self._sum: np.ndarray | None = None
+        self._count = 0
+        self._means: deque[np.ndarray] = deque(maxlen=BLOCKS)
+        self._quiet_since: float | None = None  # block-end time when the quiet run began
+        self._status = SettleStatus(0.0, float("nan"), float("nan"), 0.0, False, float("nan"), False)
+
+    @property
+    def origin_s(self) -> float:
+        """Device time of the first sample (the zero of ``elapsed_s``); 0 before any."""
+        return self._t0 or 0.0
+
+    @property
+    def status(self) -> SettleStatus:
+        return self._status
+
+    def extend_timeout(self, extra_s: float | None = None) -> None:
+        """Wait longer: push the timeout out by ``extra_s`` (default: one more timeout)."""
+        self._timeout_s += self.criteria.timeout_s if extra_s is None else extra_s
+        s = self._status
+        self._status = SettleStatus(
+            s.elapsed_s, s.pressure_spread_MPa, s.angle_spread_rad, s.quiet_s, s.settled,
+            s.settle_time_s, False,
+        )
+
+    def update(self, t_s: np.ndarray, si: np.ndarray) -> SettleStatus:
+        """Add samples (``t_s`` shape (n,), ``si`` shape (n, k)) and return the new status."""
+        t_s = np.asarray(t_s, dtype=float)
+        si = np.asarray(si, dtype=float)
+        if t_s.size == 0 or self._status.settled:
+            return self._status
+        if self._t0 is None:
+            self._t0 = float(t_s[0])
+            self._sum = np.zeros(si.shape[1])
+        rel = t_s - self._t0
+        idx = np.floor(rel / self._block_s).astype(np.int64)
+        # Split the batch where the block index changes; every completed block
+        # is one evaluation point, whatever the size of the read batches.
+        cuts = np.flatnonzero(np.diff(idx)) + 1
+        starts = np.concatenate(([0], cuts))
+        ends = np.concatenate((cuts, [len(idx)]))
+        for a, b in zip(starts, ends):
+            block = int(idx[a])
+            if block != self._block_index:
+                self._close_block()
+                self._block_index = block
+                if self._status.settled:
+                    return self._status
+            self._sum += si[a:b].sum(axis=0)
+            self._count += b - a
+        elapsed = float(rel[-1])
+        s = self._status
+        timed_out = (not s.settled) and elapsed >= self._timeout_s
+        self._status = SettleStatus(
+            elapsed, s.pressure_spread_MPa, s.angle_spread_rad, s.quiet_s, s.settled,
+            s.settle_time_s, timed_out,
+        )
+        return self._status
+
+    def _close_block(self) -> None:
+        if self._count:
+            self._means.append(self._sum / self._count)
+        self._sum = np.zeros_like(self._sum)
+        self._count = 0
+        t_end = (self._block_index + 1) * self._block_s
+        c = self.criteria
+        if len(self._means) < BLOCKS:
+            self._status = SettleStatus(t_end, float("nan"), float("nan"), 0.0, False, float("nan"), False)
+            return
+        m = np.array(self._means)
+        spread = m.max(axis=0) - m.min(axis=0)
+        ps = float(spread[self._pcols].max()) if self._pcols else 0.0
+        an = float(spread[self._acols].max()) if self._acols else 0.0
+        quiet = ps < c.pressure_spread_MPa and an < c.angle_spread_rad
+        if not quiet:
+            self._quiet_since = None
+        elif self._quiet_since is None:
+            self._quiet_since = t_end
+        quiet_s = 0.0 if self._quiet_since is None else t_end - self._quiet_since
+        settled = quiet and quiet_s >= c.hold_s - 1e-9
+        self._status = SettleStatus(
+            t_end, ps, an, quiet_s, settled,
+            self._quiet_since if settled else float("nan"), False,
+        )
+
+
+class TimeUnwrapper:
+    """Turn the device's wrapping 32-bit microsecond clock into seconds.
+
+    Consecutive frames are assumed less than 2**32 us (71 min) apart, which any
+    streaming rig satisfies.
+    """
+
+    WRAP = 1 << 32
+
+    def __init__(self) -> None:
+        self._last: int | None = None
+        self._offset = 0  # us added to raw t_us
+
+    def __call__(self, t_us: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_us, dtype=np.int64)
+        if t.size == 0:
+            return np.zeros(0)
+        prev = np.concatenate(([t[0] if self._last is None else self._last], t[:-1]))
+        step = (t - prev) % self.WRAP
+        if self._last is None:
+            base = int(t[0])
+        else:
+            base = self._last + self._offset
+        absolute = base + np.cumsum(step)
+        self._offset = int(absolute[-1]) - int(t[-1])
+        self._last = int(t[-1])
+        return absolute.astype(float) * 1e-6

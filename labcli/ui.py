@@ -1,0 +1,259 @@
+"""What the experimenter sees and types during ``labcli acquire``.
+
+Two implementations of one small interface:
+
+* :class:`RichUI` prints prompts, a progress line per trial, a settling status
+  and the summary table with ``rich``, and reads answers line by line from
+  standard input (a terminal, a pipe or a test runner alike);
+* :class:`UnattendedUI` answers every prompt itself, for the simulated rig,
+  and prints one line per trial.
+
+Typing ``q`` at any prompt raises :class:`QuitRequested`; the engine then
+discards the trial in progress and says how to resume.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from typing import IO, Any, Iterator
+
+from .session import (
+    AskLoad,
+    AskObject,
+    AskPush,
+    BeginTrial,
+    Load,
+    ObjectSpec,
+    Prompt,
+    PushSpec,
+    parse_direction_deg,
+    parse_length_mm,
+    parse_mass_g,
+)
+
+
+class QuitRequested(Exception):
+    """The experimenter typed q (or input ended)."""
+
+
+def fmt_duration(seconds: float) -> str:
+    s = int(round(seconds))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {(s % 3600) // 60:02d} min"
+
+
+def progress_text(step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> str:
+    """Trial n of N, set, elapsed and remaining estimate in one line."""
+    done = step.index - 1
+    width = 24
+    filled = int(round(width * done / step.total)) if step.total else 0
+    bar = "#" * filled + "-" * (width - filled)
+    left = "estimating" if remaining_s is None else f"about {fmt_duration(remaining_s)} left"
+    return (
+        f"{step.label}  [{bar}] {done}/{step.total} done ({stored} stored this session)  "
+        f"elapsed {fmt_duration(elapsed_s)}, {left}"
+    )
+
+
+def settle_text(label: str, status: Any, criteria: Any) -> str:
+    ps = status.pressure_spread_MPa
+    an = status.angle_spread_rad
+    p = "-" if math.isnan(ps) else f"{ps * 1e3:.2f}"
+    a = "-" if math.isnan(an) else f"{math.degrees(an):.3f}"
+    return (
+        f"settling ({label}): {status.elapsed_s:.1f} s, pressure spread {p} kPa "
+        f"(< {criteria.pressure_spread_MPa * 1e3:g}), angle spread {a} deg "
+        f"(< {math.degrees(criteria.angle_spread_rad):.3g}), quiet {status.quiet_s:.1f}/{criteria.hold_s:g} s"
+    )
+
+
+class RichUI:
+    """Prompts on a terminal (or any line-oriented stdin)."""
+
+    unattended = False
+
+    def __init__(self, console: Any = None, stdin: IO[str] | None = None) -> None:
+        from rich.console import Console
+
+        self.console = console or Console(highlight=False)
+        self._stdin = stdin
+
+    # -- output
+    def info(self, text: str) -> None:
+        self.console.print(text, markup=False)
+
+    def warn(self, text: str) -> None:
+        self.console.print(f"[bold yellow]Warning:[/] {_esc(text)}")
+
+    def begin_trial(self, step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
+        self.console.rule(_esc(progress_text(step, stored, elapsed_s, remaining_s)), align="left")
+
+    @contextlib.contextmanager
+    def settling(self, label: str, criteria: Any) -> Iterator[Any]:
+        """A live status line while the engine waits for equilibrium."""
+        if self.console.is_terminal:
+            with self.console.status(f"settling ({label})") as status:
+                yield lambda s: status.update(_esc(settle_text(label, s, criteria)))
+        else:
+            yield lambda s: None
+
+    def settled(self, label: str, report: Any) -> None:
+        what = "settled" if report.settled else "accepted without settling"
+        self.console.print(
+            f"  {label}: {what} after {report.settle_time_s:.2f} s "
+            f"(pressure spread {report.pressure_spread_MPa * 1e3:.2f} kPa, "
+            f"angle spread {math.degrees(report.angle_spread_rad):.3f} deg)",
+            markup=False,
+        )
+
+    # -- input
+    def _ask(self, text: str) -> str:
+        self.console.print(_esc(text) + " ", end="", soft_wrap=True)
+        stream = self._stdin
+        try:
+            line = input() if stream is None else stream.readline()
+        except EOFError:
+            raise QuitRequested("input ended") from None
+        if stream is not None and line == "":
+            raise QuitRequested("input ended")
+        line = line.rstrip("\r\n")
+        if line.strip().lower() in ("q", "quit"):
+            raise QuitRequested("quit")
+        return line
+
+    def prompt(self, step: Prompt) -> None:
+        self._ask(f"{step.text} (q to quit):")
+
+    def _ask_valid(self, text: str, parse: Any) -> Any:
+        while True:
+            answer = self._ask(text)
+            try:
+                return parse(answer)
+            except ValueError as e:
+                self.console.print(f"[red]{_esc(str(e))}[/]")
+
+    def ask_load(self, step: AskLoad) -> Load | None:
+        head = f"Trial {step.trial}/{step.total}"
+        lo, hi = step.mass_range_g
+        first = self._ask(f"{head}: mass to hang in g, {lo:g} to {hi:g} (Enter when the run is complete, q to quit):")
+        if not first.strip():
+            return None
+        while True:
+            try:
+                mass = parse_mass_g(first, *step.mass_range_g)
+                break
+            except ValueError as e:
+                self.console.print(f"[red]{_esc(str(e))}[/]")
+                first = self._ask(f"{head}: mass to hang in g:")
+        direction = self._ask_valid(
+            f"{head}: pulley direction in deg, counter-clockwise from +x "
+            f"({step.direction_range_deg[0]:g} to {step.direction_range_deg[1]:g}):",
+            lambda t: parse_direction_deg(t, *step.direction_range_deg),
+        )
+        return Load(mass, direction)
+
+    def ask_object(self, step: AskObject) -> ObjectSpec | None:
+        name = self._ask(f"Object {step.index}: name (e.g. pet-1; Enter when all objects are done, q to quit):").strip()
+        if not name:
+            return None
+        radius = self._ask_valid(f"{name}: radius R in mm:", lambda t: parse_length_mm(t, "radius", 0.0, 500.0))
+        category = self._ask(f"{name}: category (soft, medium, hard, a name, or Enter if unknown):").strip()
+        return ObjectSpec(name, radius, category)
+
+    def ask_push(self, step: AskPush) -> PushSpec:
+        head = f"Push {step.index}/{step.total} of {step.object}"
+        lo, hi = (v * 1e3 for v in step.distance_range_m)
+        d = self._ask_valid(f"{head}: push distance d in mm, {lo:g} to {hi:g}:",
+                            lambda t: parse_length_mm(t, "push distance", lo, hi))
+        phi = self._ask_valid(
+            f"{head}: push direction phi in deg (? or Enter if unknown):",
+            lambda t: parse_direction_deg(t, allow_unknown=True),
+        )
+        return PushSpec(d, phi)
+
+    def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
+        self.console.print(
+            f"[yellow]Not settled ({label}) after {status.elapsed_s:.1f} s:[/] "
+            + _esc(settle_text(label, status, criteria))
+        )
+        return self._choose("Accept these readings [a], wait longer [w] or redo the trial [r]?", "awr", "w")
+
+    def review(self, row: dict) -> str:
+        from rich.table import Table
+
+        table = Table(show_header=True, header_style="bold")
+        for key in row:
+            table.add_column(key)
+        table.add_row(*(_esc(v) for v in row.values()))
+        self.console.print(table)
+        return self._choose("Accept [a], redo [r], skip [s] or quit [q]?", "arsq", "a")
+
+    def _choose(self, text: str, keys: str, default: str) -> str:
+        words = {"a": "accept", "r": "redo", "s": "skip", "w": "wait", "q": "quit"}
+        while True:
+            answer = self._ask(f"{text} ({default}):").strip().lower() or default
+            if answer[:1] in keys and (len(answer) == 1 or answer == words[answer[0]]):
+                return words[answer[0]]
+            self.console.print(f"[red]Type one of {', '.join(keys)}.[/]")
+
+
+class UnattendedUI:
+    """Answers every prompt itself (simulated rig only) and prints one line per trial."""
+
+    unattended = True
+
+    def __init__(self, console: Any = None, verbose: bool = False) -> None:
+        from rich.console import Console
+
+        self.console = console or Console(highlight=False)
+        self.verbose = verbose
+        self._step: BeginTrial | None = None
+
+    def info(self, text: str) -> None:
+        self.console.print(text, markup=False)
+
+    def warn(self, text: str) -> None:
+        self.console.print(f"Warning: {text}", markup=False)
+
+    def begin_trial(self, step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
+        self._step = step
+        if self.verbose:
+            self.console.print(progress_text(step, stored, elapsed_s, remaining_s), markup=False)
+
+    @contextlib.contextmanager
+    def settling(self, label: str, criteria: Any) -> Iterator[Any]:
+        yield lambda s: None
+
+    def settled(self, label: str, report: Any) -> None:
+        if not report.settled:
+            self.warn(f"{label}: not settled after {report.waited_s:.1f} s, readings accepted")
+
+    def prompt(self, step: Prompt) -> None:
+        if self.verbose:
+            self.console.print(f"  {step.text} [done by the simulated rig]", markup=False)
+
+    def ask_load(self, step: AskLoad) -> Load | None:
+        raise QuitRequested("unattended mode needs a plan")
+
+    def ask_object(self, step: AskObject) -> ObjectSpec | None:
+        raise QuitRequested("unattended mode needs a list of objects")
+
+    def ask_push(self, step: AskPush) -> PushSpec:
+        raise QuitRequested("unattended mode needs a list of pushes")
+
+    def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
+        return "accept"
+
+    def review(self, row: dict) -> str:
+        self.console.print("  " + "  ".join(f"{k} {v}" for k, v in row.items()), markup=False)
+        return "accept"
+
+
+def _esc(text: str) -> str:
+    from rich.markup import escape
+
+    return escape(text)

@@ -1,0 +1,305 @@
+"""``labcli acquire`` end to end on the simulated rig (virtual clock): engine, run file, CLI."""
+
+from __future__ import annotations
+
+import io
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from rich.console import Console
+
+import labcli.urlhandler.protocol_sim as protocol_sim
+from labcli.cli import cli
+from labcli.device import Device
+from labcli.engine import RunEngine, resume_command
+from labcli.errors import DeviceDisconnected, DeviceTimeout
+from labcli.protocol import load_protocol
+from labcli.session import Baseline, Capture, Commit, G, WaitSettle, Window, force_session
+from labcli.store import RunFile
+from labcli.tables import load_trials
+from labcli.ui import UnattendedUI
+
+PROTOCOL = load_protocol("takuma2014")
+PLAN = PROTOCOL.load_plan()
+# One count of sensor noise per sample, rms (labcli.sim.rig): 0.5 count of 0.305 kPa, 0.7 count of 0.083 deg.
+PRESSURE_NOISE_MPA = 0.5 * 5.0 / 16380
+ANGLE_NOISE_DEG = 0.7 * 340 / 4095
+
+SMALL_PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n4,validation,400,-150\n"
+
+
+@pytest.fixture
+def fast_virtual_clock(monkeypatch):
+    """Generate the virtual clock's frames in 0.5 s blocks (fewer, larger reads; same frames)."""
+    monkeypatch.setattr(protocol_sim, "BLOCK_S", 0.5)
+
+
+def quiet_ui():
+    return UnattendedUI(console=Console(file=io.StringIO(), width=200))
+
+
+def open_run(path, port, plan=PLAN):
+    dev = Device.open(port)
+    store = RunFile.create(path, protocol=PROTOCOL, device_info=dev.info, port=port, plan=plan)
+    engine = RunEngine(dev, store, PROTOCOL, quiet_ui(), run_path=str(path),
+                       resume_command=resume_command(str(path), port))
+    return dev, store, engine
+
+
+def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path, fast_virtual_clock):
+    path = tmp_path / "run.h5"
+    dev, store, engine = open_run(path, "sim://?seed=3&clock=virtual")
+    rig = dev.rig
+    truth, baseline = [], {}
+
+    def record_truth(step, reply):
+        if isinstance(step, Baseline):
+            baseline["state"] = rig.true_state()
+        elif isinstance(step, Capture):
+            truth.append((baseline["state"], rig.true_state()))
+
+    engine.subscribe(record_truth)
+    outcome = engine.run(force_session(PROTOCOL, PLAN))
+    store.close()
+    dev.close()
+    assert outcome.status == "finished" and outcome.exit_code == 0
+    assert outcome.message.startswith(f"Session complete: 108 trials stored in {path} (108 this session, ")
+
+    df = load_trials(path)
+    assert list(df["trial"]) == list(range(1, 109))
+    assert list(df["set"]) == ["fit"] * 90 + ["validation"] * 18
+    assert len(truth) == 108
+    # Deflections: potentiometer under load minus the trial's own baseline vs the rig's true angles.
+    true_theta = np.degrees([s["theta_rad"] - b["theta_rad"] for b, s in truth])
+    err_theta = np.abs(df[["theta1_deg", "theta2_deg"]].to_numpy() - true_theta)
+    assert err_theta.max() < ANGLE_NOISE_DEG
+    assert np.abs(true_theta).max() > 5.0  # the loads did bend the joints
+    # Pressures (the simulated sensors' zero offsets are part of what they read).
+    true_p = np.array([s["pressures_MPa"] for _, s in truth]) + rig.sensor_offset_MPa
+    err_p = np.abs(df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - true_p)
+    assert err_p.max() < PRESSURE_NOISE_MPA
+    true_p0 = np.array([b["pressures_MPa"] for b, _ in truth]) + rig.sensor_offset_MPa
+    assert np.abs(df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy() - true_p0).max() < PRESSURE_NOISE_MPA
+    # Forces: m g (cos, sin) of the plan, and exactly what the rig's pulley applied.
+    true_f = np.array([s["force_N"] for _, s in truth])
+    assert df[["Fx_N", "Fy_N"]].to_numpy() == pytest.approx(true_f, abs=1e-9)
+    row12 = df[df["trial"] == 12].iloc[0]
+    assert row12["Fx_N"] == pytest.approx(0.2 * G * math.cos(math.radians(-120)))
+    assert row12["mass_g"] == 200 and row12["direction_deg"] == -120
+
+    with RunFile.open(path) as run:
+        split = run.split()
+        assert split["strategy"] == "plan" and split["fit"] == list(range(1, 91))
+        assert split["validation"] == list(range(91, 109))
+        rec = run.read_trial(12)
+        for name in ("baseline", "load"):
+            w = rec["raw"][name]
+            n = len(w["seq"])
+            assert n == 200  # capture_s 1 s at 200 Hz
+            assert np.all(np.diff(w["seq"].astype(np.int64)) == 1)
+            assert w["counts"].shape == (n, 6) and w["si"].shape == (n, 6)
+            assert np.allclose(PROTOCOL.calibration.to_si(w["counts"]), w["si"])
+            assert np.allclose(np.diff(w["t_s"]), 0.005)
+        assert rec["settle"]["load"]["settled"] is True
+        assert rec["settle"]["load"]["criterion"].startswith("range of 10 block means over 1 s below 2 kPa")
+        assert rec["settle"]["load"]["settle_time_s"] >= 0
+
+
+def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path, fast_virtual_clock):
+    path = tmp_path / "run.h5"
+    port = "sim://?seed=5&clock=virtual"
+    dev, store, engine = open_run(path, port, plan=PLAN.iloc[:6])
+    snapshot = {}
+
+    def unplug_in_trial_3(step, reply):
+        if isinstance(step, Commit) and step.record["trial"] == 2:
+            snapshot["table"] = store.trial_table()
+            snapshot["raw2"] = store.read_trial(2)["raw"]["load"]["counts"].copy()
+        if isinstance(step, Capture) and engine._trial.trial == 3:
+            dev.serial.unplug()
+
+    engine.subscribe(unplug_in_trial_3)
+    with pytest.raises(DeviceDisconnected) as err:
+        engine.run(force_session(PROTOCOL, PLAN.iloc[:6]))
+    store.close()
+    dev.close()
+    assert str(err.value) == (
+        f"The rig on {port} was disconnected during trial 3; that trial was not stored and the "
+        f"2 completed trials in {path} are unchanged. Check the cable and power, then resume with: "
+        f"labcli acquire {path} --port '{port}' --resume"
+    )
+    with RunFile.open(path) as run:
+        assert run.completed_ids() == [1, 2] and run.incomplete_ids() == []
+        assert run.trial_table().equals(snapshot["table"])
+        assert np.array_equal(run.read_trial(2)["raw"]["load"]["counts"], snapshot["raw2"])
+    # The command the message gives continues the run at trial 3.
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", port, "--resume", "--unattended"])
+    assert result.exit_code == 0, result.output
+    assert load_trials(path)["trial"].tolist() == [1, 2, 3, 4, 5, 6]
+
+
+def test_a_silent_rig_mid_trial_is_reported_with_the_resume_command(tmp_path, fast_virtual_clock):
+    path = tmp_path / "run.h5"
+    port = "sim://?seed=5&clock=virtual"
+    dev = Device.open(port, timeout=0.3)  # the device's own silence limit, wall clock
+    store = RunFile.create(path, protocol=PROTOCOL, device_info=dev.info, port=port, plan=PLAN.iloc[:3])
+    engine = RunEngine(dev, store, PROTOCOL, quiet_ui(), run_path=str(path),
+                       resume_command=resume_command(str(path), port))
+
+    def fall_silent_in_trial_2(step, reply):
+        if isinstance(step, WaitSettle) and step.label == "load" and engine._trial.trial == 2:
+            dev.serial.firmware.streaming = False  # the firmware hangs mid-capture: no more data lines
+
+    engine.subscribe(fall_silent_in_trial_2)
+    with pytest.raises(DeviceTimeout) as err:
+        engine.run(force_session(PROTOCOL, PLAN.iloc[:3]))
+    store.close()
+    dev.close()
+    assert str(err.value) == (
+        f"The rig on {port} stopped sending data during trial 2; that trial was not stored and the "
+        f"1 completed trial in {path} is unchanged. Check the cable and power, then resume with: "
+        f"labcli acquire {path} --port '{port}' --resume"
+    )
+    assert load_trials(path)["trial"].tolist() == [1]
+
+
+def test_ctrl_c_discards_the_current_trial_and_says_how_to_resume(tmp_path, fast_virtual_clock):
+    path = tmp_path / "run.h5"
+    port = "sim://?seed=6&clock=virtual"
+    dev, store, engine = open_run(path, port, plan=PLAN.iloc[:5])
+
+    def interrupt_in_trial_3(step, reply):
+        if isinstance(step, Capture) and engine._trial.trial == 3:
+            raise KeyboardInterrupt
+
+    engine.subscribe(interrupt_in_trial_3)
+    outcome = engine.run(force_session(PROTOCOL, PLAN.iloc[:5]))
+    assert not dev.streaming
+    store.close()
+    dev.close()
+    assert outcome.status == "interrupted" and outcome.exit_code == 130
+    assert outcome.message == (
+        f"Interrupted during trial 3, which was discarded; 2 trials stored in {path} are safe. "
+        f"Resume with: labcli acquire {path} --port '{port}' --resume"
+    )
+    with RunFile.open(path) as run:
+        assert run.completed_ids() == [1, 2] and run.incomplete_ids() == []
+
+
+def test_typed_session_with_redo_skip_quit_then_resume(tmp_path, fast_virtual_clock):
+    """The prompts answered as a person types them (stdin), on the simulated rig."""
+    path = tmp_path / "run.h5"
+    plan = tmp_path / "plan.csv"
+    plan.write_text(SMALL_PLAN)
+    port = "sim://?seed=7&clock=virtual"
+    setup = "\n\n"  # air supplied, valves closed
+    trial = "\n\n"  # weight hung, weight removed
+    answers = setup + trial + "r\n" + trial + "a\n" + trial + "s\n" + trial + "q\n"
+    runner = CliRunner()
+    result = runner.invoke(cli, ["acquire", str(path), "--port", port, "--plan", str(plan),
+                                 "--operator", "kim"], input=answers)
+    assert result.exit_code == 0, result.output
+    out = result.output
+    assert "Trial 1/4 (fit): hang 200 g, pulley direction -60 deg, then press Enter" in out
+    assert out.count("Trial 1/4 (fit): hang 200 g") == 2  # redone
+    assert "Trial 3/4 (validation): hang 300 g, pulley direction 150 deg, then press Enter" in out
+    assert out.rstrip().endswith(
+        f"Stopped at your request during trial 3, which was not stored; 1 trial stored in {path}. "
+        f"Resume with: labcli acquire {path} --port '{port}' --resume"
+    )
+    first = load_trials(path)
+    assert first["trial"].tolist() == [1]
+    with RunFile.open(path) as run:
+        assert run.attrs["operator"] == "kim"
+
+    result = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume"],
+                           input=setup + (trial + "a\n") * 3)
+    assert result.exit_code == 0, result.output
+    assert "Trial 2/4 (fit): hang 500 g, pulley direction 30 deg, then press Enter" in result.output
+    assert "Trial 1/4" not in result.output
+    assert f"Session complete: 4 trials stored in {path} (3 this session, " in result.output
+    df = load_trials(path)
+    assert df["trial"].tolist() == [1, 2, 3, 4]
+    assert df["set"].tolist() == ["fit", "fit", "validation", "validation"]
+    # The first session's trial is untouched (its set came with the split at the end).
+    assert df.drop(columns="set").iloc[0].equals(first.drop(columns="set").iloc[0])
+    assert df["Fy_N"].tolist() == pytest.approx([0.2 * G * math.sin(math.radians(-60)), 0.5 * G * 0.5,
+                                                  0.3 * G * 0.5, 0.4 * G * -0.5])
+    result = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume"])
+    assert result.exit_code == 0
+    assert result.output == f"All 4 planned trials are already stored in {path}; nothing to resume.\n"
+
+
+def test_typed_loads_without_a_plan_are_checked(tmp_path, fast_virtual_clock):
+    path = tmp_path / "run.h5"
+    answers = "\n\n" + "5000\n250 g\n400\n45\n" + "\n\na\n" + "\n"
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=8&clock=virtual",
+                                      "--no-plan"], input=answers)
+    assert result.exit_code == 0, result.output
+    assert "The mass must be from 1 g to 2000 g, got 5000 g." in result.output
+    assert "The direction must be from -180 deg to 180 deg, got 400 deg." in result.output
+    assert "Trial 1/108: hang 250 g, pulley direction 45 deg, then press Enter" in result.output
+    df = load_trials(path)
+    assert df["trial"].tolist() == [1] and df["set"].tolist() == [""]
+    assert df["Fx_N"].iloc[0] == pytest.approx(0.25 * G / math.sqrt(2))
+    assert df["theta1_deg"].abs().iloc[0] > 0.5  # the simulated rig did hang the weight
+
+
+def test_existing_file_is_never_overwritten_without_force(tmp_path):
+    path = tmp_path / "run.h5"
+    path.write_bytes(b"precious")
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://", "--unattended"])
+    assert result.exit_code == 1
+    assert result.output == (
+        f"Error: {path} already exists; continue it with --resume, or pass --force to overwrite it.\n"
+    )
+    assert path.read_bytes() == b"precious"
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--resume", "--force"], "--resume continues a run and --force overwrites it: give one of them, not both."),
+        (["--no-plan", "--unattended"], "--unattended needs a plan to follow: drop --no-plan, or give --plan FILE."),
+        (["--plan", "p.csv", "--no-plan"], "--plan and --no-plan contradict each other: give one of them."),
+        (["--protocol", "nosuch"], "There is no shipped protocol named 'nosuch'; shipped protocols are "),
+    ],
+)
+def test_contradictory_options_are_refused(tmp_path, args, message):
+    result = CliRunner().invoke(cli, ["acquire", str(tmp_path / "r.h5"), "--port", "sim://", *args])
+    assert result.exit_code == 1
+    assert result.output.startswith("Error: " + message)
+    assert not (tmp_path / "r.h5").exists()
+
+
+def test_setup_check_names_the_mismatching_channels(tmp_path):
+    text = PROTOCOL.text.replace('channels = ["P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2"]',
+                                 'channels = ["P_L1", "P_R1", "P_L2", "P_R2", "POT2", "POT1"]')
+    proto = tmp_path / "swapped.toml"
+    proto.write_text(text)
+    (tmp_path / "takuma2014-plan.csv").write_text(SMALL_PLAN)
+    result = CliRunner().invoke(cli, ["acquire", str(tmp_path / "r.h5"), "--port", "sim://?seed=1",
+                                      "--protocol", str(proto), "--plan", str(tmp_path / "takuma2014-plan.csv"),
+                                      "--unattended"])
+    assert result.exit_code == 1
+    assert result.output == (
+        "Error: The rig on sim://?seed=1 reports channels P_L1,P_R1,P_L2,P_R2,POT1,POT2 but protocol "
+        "takuma2014 expects P_L1,P_R1,P_L2,P_R2,POT2,POT1: check the firmware, or pass the matching --protocol.\n"
+    )
+    assert not (tmp_path / "r.h5").exists()  # a failed setup check leaves no run file
+
+
+def test_setup_check_says_which_reading_is_out_of_range():
+    engine = RunEngine.__new__(RunEngine)
+    engine.protocol = PROTOCOL
+    engine._pcols, engine._acols = [0, 1, 2, 3], [4, 5]
+    counts = np.tile([1556, 1560, 0, 1551, 2048, 3900], (10, 1)).astype(float)  # P_L2 unplugged, POT2 at 154 deg
+    si = PROTOCOL.calibration.to_si(counts)
+    w = Window(np.arange(10), np.arange(10) * 5000, counts, si, np.arange(10) * 0.005)
+    assert engine._check_readings(w) == [
+        "P_L2 reads -0.250 to -0.250 MPa, outside the sensor span 0 to 1 MPa (check that sensor's cable and supply)",
+        "POT2 reads 153.8 to 153.8 deg, outside the plausible -90 to 90 deg (check the potentiometer's wiring "
+        "and centring)",
+    ]

@@ -1,0 +1,104 @@
+"""Crash safety: a process writing trials is killed with SIGKILL at random moments.
+
+After every kill the file must open, every complete trial must be bit-for-bit
+what the writer was given (``store_fixtures.make_record``), nothing complete
+before the kill may be lost, and the unfinished trial is ignored and replaced
+when the next writer resumes.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from labcli.errors import StoreError
+from labcli.store import RunFile
+
+from store_fixtures import assert_record_stored, make_record
+
+WRITER = Path(__file__).with_name("store_fixtures.py")
+ROOT = Path(__file__).resolve().parent.parent
+N_TRIALS = 1_000_000  # never reached: the writer is always killed first
+
+
+def start_writer(path: str, n_samples: int) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.Popen([sys.executable, str(WRITER), path, str(N_TRIALS), str(n_samples)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    line = proc.stdout.readline()
+    if line != b"ready\n":
+        proc.kill()
+        proc.wait()
+        raise AssertionError(f"writer did not start: {line!r} {proc.stderr.read()!r}")
+    return proc
+
+
+def kill_loop(path: str, kills: int, n_samples: int, seed: int, max_delay_s: float) -> None:
+    rng = random.Random(seed)
+    verified: set[int] = set()
+    saw_incomplete = 0
+    for k in range(kills):
+        proc = start_writer(path, n_samples)
+        if k == 0:
+            # While a writer holds the file, a reader is told so in one sentence.
+            with pytest.raises(StoreError) as e:
+                RunFile.open(path)
+            assert str(e.value) == (f"{path} is open for writing in another process; "
+                                    "wait for that run to end and try again.")
+        time.sleep(rng.uniform(0.0, max_delay_s))
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        assert proc.returncode == -signal.SIGKILL
+        with RunFile.open(path) as run:
+            ids = run.completed_ids()
+            # the writer always writes the first missing id, so complete ids are dense
+            assert ids == list(range(len(ids)))
+            assert verified <= set(ids), "a trial complete before the kill was lost"
+            for i in sorted(set(ids) - verified):
+                assert_record_stored(run.read_trial(i), make_record(i, n_samples))
+            verified |= set(ids)
+            incomplete = run.incomplete_ids()
+            assert incomplete in ([], [len(ids)])
+            saw_incomplete += bool(incomplete)
+            assert len(run.trial_table()) == len(ids)
+            assert run.first_incomplete(range(N_TRIALS)) == len(ids)
+    # At the end, everything once complete is still intact (later writes touched nothing).
+    with RunFile.open(path) as run:
+        for i in run.completed_ids():
+            assert_record_stored(run.read_trial(i), make_record(i, n_samples))
+    assert len(verified) > kills  # the writer made progress between kills
+    assert saw_incomplete > 0 or kills < 5  # kills did land inside trial writes
+
+
+def test_kill_during_writes(tmp_path):
+    kill_loop(str(tmp_path / "run.h5"), kills=6, n_samples=200, seed=1, max_delay_s=0.3)
+
+
+@pytest.mark.slow
+def test_kill_during_writes_many(tmp_path):
+    kill_loop(str(tmp_path / "run.h5"), kills=60, n_samples=400, seed=2, max_delay_s=0.25)
+
+
+def test_kill_during_create_leaves_no_half_run(tmp_path):
+    """A kill before the file is whole leaves either nothing or a complete empty run."""
+    rng = random.Random(3)
+    for k in range(5):
+        path = str(tmp_path / f"run{k}.h5")
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        proc = subprocess.Popen([sys.executable, str(WRITER), path, str(N_TRIALS), "50"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        time.sleep(rng.uniform(0.2, 1.0))  # somewhere in interpreter start-up, create, or the first trials
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        if os.path.exists(path):
+            with RunFile.open(path) as run:
+                assert run.attrs["schema"] == "labcli-run"
+                for i in run.completed_ids():
+                    assert_record_stored(run.read_trial(i), make_record(i, 50))

@@ -1,0 +1,242 @@
+"""The acquisition protocol as plain steps (labcli.session), recorded without a rig."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from labcli.protocol import load_protocol
+from labcli.session import (
+    G,
+    AskLoad,
+    AskObject,
+    AskPush,
+    Baseline,
+    BeginTrial,
+    Capture,
+    CloseValves,
+    Commit,
+    Finish,
+    HangWeight,
+    Load,
+    ObjectSpec,
+    PlannedObject,
+    Prompt,
+    PushObject,
+    PushSpec,
+    ReleaseObject,
+    RemoveWeight,
+    Review,
+    SettleReport,
+    SetupCheck,
+    SupplyAir,
+    WaitSettle,
+    Window,
+    force_session,
+    parse_direction_deg,
+    parse_length_mm,
+    parse_mass_g,
+    push_session,
+)
+
+PROTOCOL = load_protocol("takuma2014")
+STIFFNESS = load_protocol("takuma2014-stiffness")
+P_BASE = np.array([0.30, 0.31, 0.29, 0.32])  # MPa
+POT_BASE = np.radians([1.0, -2.0])
+
+
+PLAN = PROTOCOL.load_plan()
+
+
+def plan():
+    return PLAN
+
+
+def window(p_mpa, pot_rad, n=20, t0=0.0):
+    si = np.tile(np.concatenate([p_mpa, pot_rad]), (n, 1))
+    counts = PROTOCOL.calibration.to_counts(si)
+    t_s = t0 + np.arange(n) / 200.0
+    return Window(np.arange(n, dtype=np.int64), (t_s * 1e6).astype(np.int64), counts, si, t_s)
+
+
+SETTLED = SettleReport(True, 3.1, 3.1, 0.0004, 0.0002, "rule")
+
+
+def drive(session, review=lambda step, n: "accept", loads=None, objects=None, pushes=None):
+    """Run a session as the engine would, with made-up readings; return the steps."""
+    steps = []
+    reply = None
+    current = None
+    reviews: dict[int, int] = {}
+    loaded_p = None
+    while True:
+        try:
+            step = session.send(reply)
+        except StopIteration:
+            return steps
+        steps.append(step)
+        reply = None
+        if isinstance(step, BeginTrial):
+            current = step.trial
+        elif isinstance(step, WaitSettle):
+            reply = SETTLED
+        elif isinstance(step, Baseline):
+            reply = window(P_BASE, POT_BASE)
+        elif isinstance(step, Prompt) and isinstance(step.action, (HangWeight, PushObject)):
+            # A load raises the left pressures and bends the joints (made-up, but trial-specific).
+            loaded_p = P_BASE + 0.001 * current * np.array([1, -1, 1, -1])
+        elif isinstance(step, Capture):
+            reply = window(loaded_p, POT_BASE + np.radians([0.01 * current, -0.02 * current]))
+        elif isinstance(step, Review):
+            reviews[current] = reviews.get(current, 0) + 1
+            reply = review(step, reviews[current])
+        elif isinstance(step, AskLoad):
+            reply = loads.pop(0) if loads else None
+        elif isinstance(step, AskObject):
+            reply = objects.pop(0) if objects else None
+        elif isinstance(step, AskPush):
+            reply = pushes.pop(0)
+
+
+def of(steps, kind):
+    return [s for s in steps if isinstance(s, kind)]
+
+
+def test_the_shipped_plan_as_steps():
+    steps = drive(force_session(PROTOCOL, plan()))
+    assert isinstance(steps[0], SetupCheck)
+    assert steps[1] == Prompt("Supply compressed air to the four actuators, then press Enter", SupplyAir())
+    # The valves close only once the supplied pressures have settled.
+    assert steps[2] == WaitSettle("air supply")
+    assert steps[3] == Prompt("Close the valves so that the actuators are sealed, then press Enter", CloseValves())
+    commits = of(steps, Commit)
+    assert [c.record["trial"] for c in commits] == list(range(1, 109))
+    assert len(of(steps, BeginTrial)) == 108
+    prompts = [s.text for s in of(steps, Prompt)]
+    # Trial 12 of the shipped plan: 200 g at -120 deg (protocols/takuma2014-plan.csv, row 12).
+    assert "Trial 12/108 (fit): hang 200 g, pulley direction -120 deg, then press Enter" in prompts
+    assert "Trial 12/108 (fit): remove the weight, then press Enter" in prompts
+    assert prompts[-1] == "Trial 108/108 (validation): remove the weight, then press Enter"
+    # Every trial runs the same sequence, in this order.
+    first = steps.index(of(steps, BeginTrial)[11])
+    kinds = [type(s).__name__ for s in steps[first:first + 10]]
+    assert kinds == ["BeginTrial", "WaitSettle", "Baseline", "Prompt", "WaitSettle", "Capture",
+                     "Prompt", "Review", "Commit", "BeginTrial"]
+    hang = steps[first + 3].action
+    assert hang == HangWeight(pytest.approx(0.2), pytest.approx(math.radians(-120)))
+    finish = steps[-1]
+    assert isinstance(finish, Finish) and finish.skipped == ()
+    assert sorted(t for t, s in finish.split.items() if s == "fit") == list(range(1, 91))
+    assert sorted(t for t, s in finish.split.items() if s == "validation") == list(range(91, 109))
+
+
+def test_trial_record_holds_the_load_the_baseline_and_the_deflection():
+    steps = drive(force_session(PROTOCOL, plan()))
+    rec = of(steps, Commit)[11].record
+    assert rec["trial"] == 12 and rec["set"] == "fit"
+    w = 0.2 * G
+    assert rec["force_N"] == pytest.approx([w * math.cos(math.radians(-120)), w * math.sin(math.radians(-120))])
+    assert rec["force_N"][0] == pytest.approx(-0.980665)
+    assert rec["P0_MPa"] == pytest.approx(P_BASE)
+    assert rec["P_MPa"] == pytest.approx(P_BASE + 0.012 * np.array([1, -1, 1, -1]))
+    # Deflection is the potentiometer now minus the trial's own baseline, not the absolute angle.
+    assert rec["theta_rad"] == pytest.approx(np.radians([0.12, -0.24]))
+    assert rec["pot0_rad"] == pytest.approx(POT_BASE)
+    assert rec["plan"] == {"set": "fit", "mass_g": 200.0, "direction_deg": -120.0}
+    assert set(rec["raw"]) == {"baseline", "load"}
+    assert rec["raw"]["load"]["counts"].shape == (20, 6)
+    assert rec["settle"]["load"]["settle_time_s"] == 3.1
+
+
+def test_resume_starts_at_the_first_trial_not_complete():
+    done = list(range(1, 12)) + [15]
+    steps = drive(force_session(PROTOCOL, plan(), completed=done))
+    begins = of(steps, BeginTrial)
+    assert begins[0].trial == 12 and begins[0].index == 13 and begins[0].label == "Trial 12/108 (fit)"
+    assert 15 not in [b.trial for b in begins]
+    assert len(of(steps, Commit)) == 108 - 12
+    # The split at the end covers the stored trials as well as the new ones.
+    assert len(steps[-1].split) == 108
+
+
+def test_redo_repeats_the_trial_and_skip_leaves_it_out():
+    def review(step, n):
+        if step.row["trial"] == "3" and n == 1:
+            return "redo"
+        if step.row["trial"] == "5":
+            return "skip"
+        return "accept"
+
+    steps = drive(force_session(PROTOCOL, plan()), review=review)
+    ids = [c.record["trial"] for c in of(steps, Commit)]
+    assert ids.count(3) == 1 and 5 not in ids and len(ids) == 107
+    hangs_3 = [s for s in of(steps, Prompt) if s.text.startswith("Trial 3/108 (fit): hang")]
+    assert len(hangs_3) == 2
+    assert steps[-1].skipped == (5,)
+    assert 5 not in steps[-1].split
+
+
+def test_without_a_plan_the_experimenter_types_each_load():
+    loads = [Load(0.15, math.radians(30)), Load(0.5, math.radians(-45))]
+    steps = drive(force_session(PROTOCOL, None), loads=loads)
+    asks = of(steps, AskLoad)
+    assert [a.trial for a in asks] == [1, 2, 3]
+    assert asks[0].mass_range_g == (1.0, 2000.0) and asks[0].direction_range_deg == (-180.0, 180.0)
+    prompts = [s.text for s in of(steps, Prompt)]
+    assert "Trial 1/108: hang 150 g, pulley direction 30 deg, then press Enter" in prompts
+    assert "Trial 2/108: hang 500 g, pulley direction -45 deg, then press Enter" in prompts
+    recs = [c.record for c in of(steps, Commit)]
+    assert [r["trial"] for r in recs] == [1, 2] and recs[0]["set"] == ""
+    assert recs[1]["force_N"] == pytest.approx([0.5 * G / math.sqrt(2), -0.5 * G / math.sqrt(2)])
+    assert steps[-1].split is None
+
+
+def test_typed_values_are_checked_with_units_in_the_message():
+    assert parse_mass_g("200") == pytest.approx(0.2)
+    assert parse_mass_g("200 g") == pytest.approx(0.2)
+    assert parse_mass_g("0.25 kg") == pytest.approx(0.25)
+    with pytest.raises(ValueError, match=r"^The mass must be from 1 g to 2000 g, got -5 g\.$"):
+        parse_mass_g("-5")
+    with pytest.raises(ValueError, match=r"^'heavy' is not a mass: type a number of grams, e\.g\. 200 g\.$"):
+        parse_mass_g("heavy")
+    assert parse_direction_deg("45 deg") == pytest.approx(math.pi / 4)
+    with pytest.raises(ValueError, match=r"^The direction must be from -180 deg to 180 deg, got 270 deg\.$"):
+        parse_direction_deg("270")
+    assert parse_direction_deg("?", allow_unknown=True) is None
+    assert parse_length_mm("10", "push distance", 2, 20) == pytest.approx(0.010)
+    with pytest.raises(ValueError, match=r"^The push distance must be from 2 mm to 20 mm, got 25 mm\.$"):
+        parse_length_mm("25 mm", "push distance", 2, 20)
+
+
+def test_push_session_with_typed_objects():
+    objects = [ObjectSpec("pet-1", 0.033, "soft")]
+    pushes = [PushSpec(0.010, math.radians(30))] + [PushSpec(0.005, None)] * 9
+    steps = drive(push_session(STIFFNESS), objects=objects, pushes=pushes)
+    prompts = [s.text for s in of(steps, Prompt)]
+    assert "Push 1/10 of pet-1: push pet-1 by 10 mm along 30 deg, then press Enter" in prompts
+    assert "Push 2/10 of pet-1: push pet-1 by 5 mm along an unknown direction, then press Enter" in prompts
+    assert "Push 10/10 of pet-1: move pet-1 back until it just touches the contact point, then press Enter" in prompts
+    asks = of(steps, AskPush)
+    assert len(asks) == 10 and asks[0].distance_range_m == (0.002, 0.020)
+    recs = [c.record for c in of(steps, Commit)]
+    assert [r["push"] for r in recs] == list(range(1, 11))
+    assert recs[0]["R_m"] == 0.033 and recs[0]["category"] == "soft"
+    assert recs[0]["phi_rad"] == pytest.approx(math.radians(30)) and math.isnan(recs[1]["phi_rad"])
+    assert "true_stiffness_N_per_m" not in recs[0]
+    assert len(of(steps, AskObject)) == 2  # the second answer (none) ends the session
+
+
+def test_push_session_with_a_fixed_schedule_resumes_by_push_id():
+    objs = [
+        PlannedObject(ObjectSpec("pet-1", 0.033, "soft", 300.0), tuple(PushSpec(0.01, 0.0) for _ in range(10))),
+        PlannedObject(ObjectSpec("can-steel-1", 0.033, "hard", 5000.0), tuple(PushSpec(0.004, 0.1) for _ in range(10))),
+    ]
+    steps = drive(push_session(STIFFNESS, objs, completed=range(1, 14)))
+    recs = [c.record for c in of(steps, Commit)]
+    assert [r["push"] for r in recs] == list(range(14, 21))
+    assert all(r["object"] == "can-steel-1" and r["true_stiffness_N_per_m"] == 5000.0 for r in recs)
+    acts = [s.action for s in of(steps, Prompt)]
+    assert PushObject(0.033, 0.004, 0.1, 5000.0) in acts and ReleaseObject() in acts
+    assert of(steps, BeginTrial)[0].label == "Push 4/10 of can-steel-1"

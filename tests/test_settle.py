@@ -1,0 +1,167 @@
+"""Equilibrium detection on synthetic first-order-lag signals (labcli.settle)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from labcli.settle import BLOCKS, SettleCriteria, SettleDetector, TimeUnwrapper
+
+RATE = 200.0
+TAU = 1.0  # s, first-order lag time constant
+STEP_MPA = 0.02  # 20 kPa pressure step
+STEP_RAD = math.radians(4.0)
+CRIT = SettleCriteria(window_s=1.0, hold_s=2.0, pressure_spread_MPa=0.002,
+                      angle_spread_rad=math.radians(0.5), timeout_s=30.0)
+
+
+def lag(t: np.ndarray, step: float) -> np.ndarray:
+    return step * (1.0 - np.exp(-t / TAU))
+
+
+def signals(duration_s: float, noise_mpa: float = 0.0, noise_rad: float = 0.0, seed: int = 0):
+    """Four pressures and two angles, each a first-order lag to its own step."""
+    t = np.arange(int(duration_s * RATE)) / RATE
+    rng = np.random.default_rng(seed)
+    cols = [lag(t, STEP_MPA * s) for s in (1.0, -0.7, 0.4, -0.2)]
+    cols += [lag(t, STEP_RAD), lag(t, -0.5 * STEP_RAD)]
+    si = np.column_stack(cols)
+    si[:, :4] += rng.normal(0, noise_mpa, (len(t), 4)) if noise_mpa else 0
+    si[:, 4:] += rng.normal(0, noise_rad, (len(t), 2)) if noise_rad else 0
+    return t, si
+
+
+def run(t, si, chunk=37, crit=CRIT):
+    det = SettleDetector(crit, [0, 1, 2, 3], [4, 5])
+    history = []
+    for a in range(0, len(t), chunk):
+        s = det.update(t[a:a + chunk], si[a:a + chunk])
+        history.append(s)
+        if s.settled or s.timed_out:
+            break
+    return det, history
+
+
+def analytic_quiet_start(crit: SettleCriteria) -> float:
+    """First block boundary where the range of the block means of the largest lag is under threshold.
+
+    The mean of exp(-t/tau) over [a, a+b] is tau exp(-a/tau) (1 - exp(-b/tau)) / b, so the
+    range over a window of BLOCKS blocks ending at T is (first block mean - last block mean).
+    """
+    b = crit.window_s / BLOCKS
+    k = BLOCKS
+    while True:
+        T = k * b
+        first = T - crit.window_s
+
+        def mean(a):
+            return TAU * math.exp(-a / TAU) * (1 - math.exp(-b / TAU)) / b
+
+        p_range = STEP_MPA * (mean(first) - mean(T - b))
+        a_range = STEP_RAD * (mean(first) - mean(T - b))
+        if p_range < crit.pressure_spread_MPa and a_range < crit.angle_spread_rad:
+            return T
+        k += 1
+
+
+def test_settles_when_the_closed_form_says_and_not_before():
+    t, si = signals(10.0)
+    det, history = run(t, si)
+    final = history[-1]
+    expected_quiet = analytic_quiet_start(CRIT)
+    # 20 kPa step, tau 1 s: block-mean range 0.0307 e^-T MPa < 2 kPa from T = 2.73 s -> 2.8 s.
+    assert expected_quiet == pytest.approx(2.8, abs=1e-9)
+    assert final.settled
+    assert final.settle_time_s == pytest.approx(expected_quiet, abs=1e-9)
+    assert final.elapsed_s == pytest.approx(expected_quiet + CRIT.hold_s, abs=1e-9)
+    # No earlier status claimed equilibrium.
+    assert not any(s.settled for s in history[:-1])
+    # At the moment of settling, what is left of the step is below the threshold.
+    assert STEP_MPA * math.exp(-final.elapsed_s / TAU) < CRIT.pressure_spread_MPa
+
+
+def test_batch_size_does_not_change_the_answer():
+    t, si = signals(10.0, noise_mpa=0.0003, noise_rad=math.radians(0.08))
+    results = {chunk: run(t, si, chunk=chunk)[1][-1] for chunk in (1, 7, 200, 5000)}
+    times = {round(r.elapsed_s, 9) for r in results.values()}
+    assert len(times) == 1
+
+
+def test_sensor_noise_of_one_count_does_not_delay_or_hasten_much():
+    # One ADC count of pressure is 0.305 kPa, of angle 0.083 deg.
+    clean = run(*signals(10.0))[1][-1]
+    for seed in range(5):
+        noisy = run(*signals(10.0, 0.000305, math.radians(0.083), seed=seed))[1][-1]
+        assert noisy.settled
+        assert abs(noisy.elapsed_s - clean.elapsed_s) <= 0.3
+
+
+def test_the_angle_criterion_alone_holds_equilibrium_back():
+    # Pressures flat from the start; the angle still creeps at 1 deg/s for 5 s.
+    t = np.arange(int(12 * RATE)) / RATE
+    si = np.zeros((len(t), 6))
+    si[:, 4] = np.radians(np.minimum(t, 5.0))
+    det, history = run(t, si)
+    final = history[-1]
+    assert final.settled
+    # The ramp stops at 5 s; the window is quiet once it holds only the flat part.
+    assert 5.0 <= final.settle_time_s <= 6.0 + 1e-9
+    assert final.elapsed_s == pytest.approx(final.settle_time_s + CRIT.hold_s, abs=1e-9)
+
+
+def test_a_disturbance_during_the_hold_restarts_it():
+    t, si = signals(16.0)
+    bump_at = 4.0  # inside the first hold (2.8 s .. 4.8 s)
+    si[t >= bump_at, 0] += 0.005  # 5 kPa step: someone knocked the weight
+    det, history = run(t, si)
+    final = history[-1]
+    assert final.settled
+    assert final.settle_time_s >= bump_at + CRIT.window_s - 1e-9
+    assert final.elapsed_s == pytest.approx(final.settle_time_s + CRIT.hold_s, abs=1e-9)
+
+
+def test_timeout_when_the_joint_keeps_creeping_and_wait_longer():
+    crit = SettleCriteria(1.0, 2.0, 0.002, math.radians(0.5), timeout_s=5.0)
+    t = np.arange(int(20 * RATE)) / RATE
+    si = np.zeros((len(t), 6))
+    si[:, 1] = 0.003 * t  # 3 kPa/s creep: range over 0.9 s of block centres is 2.7 kPa
+    det, history = run(t, si, chunk=50, crit=crit)
+    final = history[-1]
+    assert final.timed_out and not final.settled
+    assert final.elapsed_s == pytest.approx(5.0, abs=50 / RATE)
+    assert final.pressure_spread_MPa == pytest.approx(0.003 * 0.9, rel=1e-6)
+    det.extend_timeout()
+    assert not det.status.timed_out
+    rest = np.searchsorted(t, final.elapsed_s, side="right")
+    s = det.update(t[rest:rest + int(4 * RATE)], si[rest:rest + int(4 * RATE)])
+    assert not s.timed_out and not s.settled
+    for a in range(rest + int(4 * RATE), len(t), 50):
+        s = det.update(t[a:a + 50], si[a:a + 50])
+        if s.timed_out:
+            break
+    # One more timeout of 5 s.
+    assert s.timed_out and s.elapsed_s == pytest.approx(10.0, abs=50 / RATE)
+
+
+def test_bad_criteria_are_refused_with_a_sentence():
+    with pytest.raises(ValueError, match=r"^settling window_s must be positive, got 0.0$"):
+        SettleCriteria(0.0, 1.0, 0.002, 0.01, 30.0)
+    with pytest.raises(ValueError, match=r"^settling hold_s must be zero or positive, got -1.0$"):
+        SettleCriteria(1.0, -1.0, 0.002, 0.01, 30.0)
+
+
+def test_describe_states_the_rule_with_units():
+    assert CRIT.describe() == (
+        "range of 10 block means over 1 s below 2 kPa (pressures) and 0.5 deg (angles) for 2 s"
+    )
+
+
+def test_time_unwrapper_crosses_the_32_bit_wrap():
+    u = TimeUnwrapper()
+    raw = (np.arange(0, 3_000_000, 5000, dtype=np.int64) + (1 << 32) - 1_000_000) % (1 << 32)
+    parts = [u(raw[:100]), u(raw[100:250]), u(raw[250:])]
+    t = np.concatenate(parts)
+    assert np.allclose(np.diff(t), 0.005)
+    assert t[0] == pytest.approx(((1 << 32) - 1_000_000) * 1e-6)

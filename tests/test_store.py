@@ -1,0 +1,356 @@
+"""The HDF5 run file: round trips, units, refusals, open errors, resume."""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from labcli.errors import ConfigError, StoreError
+from labcli.store import SCHEMA_VERSION, RunFile, choose_split, import_table, to_edge
+
+from store_fixtures import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
+
+
+def new_run(path, **kw) -> RunFile:
+    return RunFile.create(path, protocol=FakeProtocol(), device_info=FakeDevice(), port="sim://?seed=1",
+                          operator="ada", **kw)
+
+
+@pytest.fixture
+def run_path(tmp_path):
+    path = str(tmp_path / "run.h5")
+    with new_run(path) as run:
+        for i in range(1, 13):
+            run.write_trial(make_record(i))
+    return path
+
+
+def test_record_round_trip_values_and_dtypes(tmp_path):
+    path = str(tmp_path / "run.h5")
+    rec = make_record(3)
+    with new_run(path) as run:
+        run.write_trial(rec)
+    with RunFile.open(path) as run:
+        assert run.completed_ids() == [3]
+        assert_record_stored(run.read_trial(3), rec)
+    with h5py.File(path, "r") as f:
+        g = f["trials/000003"]
+        assert g["loaded/counts"].dtype == np.int32
+        assert g["baseline/time"].dtype == np.float64
+        assert g["baseline/values"].dtype == np.float64
+        assert g["baseline/seq"].dtype == np.uint32
+        assert g["baseline/counts"].shape == (50, 6)
+        assert g["P0"].attrs["units"] == "MPa" and g["theta"].attrs["units"] == "rad"
+        assert g["mass"].attrs["units"] == "kg" and g["F"].attrs["units"] == "N"
+        assert g["loaded/values"].attrs["units"] == "MPa,MPa,MPa,MPa,rad,rad"
+        assert g.attrs["complete"] is np.True_ or bool(g.attrs["complete"]) is True
+        assert g.attrs["NX_class"] == "NXcollection" and g["loaded"].attrs["NX_class"] == "NXlog"
+
+
+def test_every_dataset_has_units(run_path):
+    with RunFile.open(run_path, "a") as run:
+        run.set_split([1, 2], [3], "sequential")
+        run.record_model("takuma", '{"a": 1}')
+    missing = []
+    with h5py.File(run_path, "r") as f:
+        f.visititems(lambda name, obj: missing.append(name)
+                     if isinstance(obj, h5py.Dataset) and "units" not in obj.attrs else None)
+        n = []
+        f.visititems(lambda name, obj: n.append(name) if isinstance(obj, h5py.Dataset) else None)
+    assert missing == []
+    assert len(n) > 12 * 8  # the check above did visit the windows
+
+
+def test_root_metadata(run_path):
+    with RunFile.open(run_path) as run:
+        a = run.attrs
+        assert a["schema"] == "labcli-run" and a["schema_version"] == SCHEMA_VERSION
+        assert a["kind"] == "force" and a["protocol"] == "bench"
+        assert (a["device"], a["firmware"], a["port"], a["operator"]) == ("mckibben-2dof", "1.0", "sim://?seed=1", "ada")
+        assert a["channels"] == list(CHANNELS)
+        assert a["started"].endswith("Z") and a["started"][4] == "-"
+        assert run.protocol_text == FakeProtocol().text
+        cal = run.calibration()
+        # P = (c*5/4095 - 1)/4 MPa: gain 5/(4*4095) MPa/count, offset -0.25 MPa
+        assert cal["gain"][0] == pytest.approx(5 / (4 * 4095), rel=1e-12)
+        assert cal["offset"][0] == pytest.approx(-0.25, rel=1e-12)
+        assert cal["gain"][5] == pytest.approx(math.radians(340 / 4095), rel=1e-9)
+        assert cal["units"] == ("MPa",) * 4 + ("rad",) * 2
+
+
+def test_trial_table_columns_and_units(run_path):
+    with RunFile.open(run_path, "a") as run:
+        run.set_split([1, 2, 3], [4], "manual")
+        df = run.trial_table()
+    assert list(df.columns) == ["trial", "set", "P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2",
+                                "theta1_deg", "theta2_deg", "Fx_N", "Fy_N", "mass_g", "direction_deg"]
+    assert df["trial"].tolist() == list(range(1, 13))
+    assert df["set"].tolist()[:5] == ["fit", "fit", "fit", "validation", ""]
+    rec = make_record(7)
+    row = df[df.trial == 7].iloc[0]
+    assert row["theta2_deg"] == pytest.approx(math.degrees(rec["theta_rad"][1]), rel=1e-11)
+    assert row["mass_g"] == pytest.approx(rec["mass_kg"] * 1e3)
+    assert row["direction_deg"] == 15.0 * 7
+    assert row["P_R20"] == rec["P0_MPa"][3] and row["Fy_N"] == rec["force_N"][1]
+
+
+def test_edge_rounding_makes_degrees_round_trip_exact():
+    rng = np.random.default_rng(5)
+    typed = np.round(rng.uniform(-180, 180, 2000), 6)
+    back = to_edge(np.degrees(np.radians(typed)))
+    assert np.array_equal(back, typed)
+    # without the edge rounding some values do not come back bit for bit
+    assert not np.array_equal(np.degrees(np.radians(typed)), typed)
+
+
+def test_overwrite_refused_with_exact_message(run_path):
+    with pytest.raises(StoreError) as e:
+        new_run(run_path)
+    assert str(e.value) == f"{run_path} already exists; use --resume to continue it or --force to overwrite it."
+    with RunFile.open(run_path) as run:
+        assert len(run.completed_ids()) == 12
+    with new_run(run_path, force=True) as run:
+        assert run.completed_ids() == []
+
+
+def test_open_missing(tmp_path):
+    path = str(tmp_path / "nope.h5")
+    with pytest.raises(StoreError) as e:
+        RunFile.open(path)
+    assert str(e.value) == f"{path} does not exist; check the path."
+
+
+def test_open_not_hdf5(tmp_path):
+    path = tmp_path / "trials.csv"
+    path.write_text("trial,set\n1,fit\n")
+    with pytest.raises(StoreError) as e:
+        RunFile.open(str(path))
+    assert str(e.value) == (f"{path} is not an HDF5 file; run files are written by 'labcli acquire' "
+                            "or 'labcli import'.")
+
+
+def test_open_other_schema(tmp_path):
+    path = str(tmp_path / "other.h5")
+    with h5py.File(path, "w") as f:
+        f.create_dataset("x", data=[1, 2, 3])
+    with pytest.raises(StoreError) as e:
+        RunFile.open(path)
+    assert str(e.value) == (f"{path} is an HDF5 file but not a labcli run file (no schema attribute, "
+                            "expected 'labcli-run').")
+    with h5py.File(path, "a") as f:
+        f.attrs["schema"] = "nexus-scan"
+    with pytest.raises(StoreError) as e:
+        RunFile.open(path)
+    assert str(e.value) == (f"{path} is an HDF5 file but not a labcli run file (schema 'nexus-scan', "
+                            "expected 'labcli-run').")
+
+
+def test_open_newer_schema(run_path):
+    with h5py.File(run_path, "a") as f:
+        f.attrs["schema_version"] = SCHEMA_VERSION + 1
+    with pytest.raises(StoreError) as e:
+        RunFile.open(run_path)
+    assert str(e.value) == (f"{run_path} uses run-file schema version {SCHEMA_VERSION + 1}, newer than this "
+                            f"labcli reads ({SCHEMA_VERSION}); upgrade labcli.")
+
+
+@pytest.mark.parametrize("keep", [0.5, 0.9])
+def test_open_truncated(run_path, tmp_path, keep):
+    cut = str(tmp_path / "cut.h5")
+    size = os.path.getsize(run_path)
+    with open(run_path, "rb") as src, open(cut, "wb") as dst:
+        dst.write(src.read(int(size * keep)))
+    with pytest.raises(StoreError) as e:
+        RunFile.open(cut)
+    assert str(e.value) == f"{cut} is damaged or truncated and HDF5 cannot open it; use a backup copy."
+
+
+def test_incomplete_trial_ignored_then_replaced_on_resume(run_path):
+    # An interrupted write leaves a group whose @complete is still False.
+    with h5py.File(run_path, "a") as f:
+        g = f["trials"].create_group("000013")
+        g.attrs["complete"] = False
+        g.create_dataset("P0", data=[9.0, 9, 9, 9])
+    with RunFile.open(run_path, "a") as run:
+        assert run.completed_ids() == list(range(1, 13))
+        assert run.incomplete_ids() == [13]
+        assert 13 not in run.trial_table()["trial"].tolist()
+        assert run.first_incomplete(range(1, 20)) == 13
+        run.write_trial(make_record(13))
+        assert run.incomplete_ids() == []
+        assert run.first_incomplete(range(1, 20)) == 14
+        assert run.first_incomplete(range(1, 14)) is None
+        assert_record_stored(run.read_trial(13), make_record(13))
+        assert run.summary()["complete"] == 13
+
+
+def test_complete_trial_never_overwritten(run_path):
+    with RunFile.open(run_path, "a") as run:
+        with pytest.raises(StoreError) as e:
+            run.write_trial(make_record(5))
+        assert str(e.value) == f"trial 5 is already complete in {run_path}; a stored record is never overwritten."
+        assert_record_stored(run.read_trial(5), make_record(5))
+
+
+def test_bad_record_writes_nothing(run_path):
+    rec = make_record(20)
+    rec["P_MPa"] = [0.1, 0.2, 0.3]
+    with RunFile.open(run_path, "a") as run:
+        with pytest.raises(StoreError) as e:
+            run.write_trial(rec)
+        assert str(e.value) == ("trial 20 record: 'P_MPa' must hold 4 values (loaded pressures "
+                                "P_L1,P_R1,P_L2,P_R2 in MPa), got shape (3,).")
+        rec = make_record(20)
+        rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"][:, :5]
+        with pytest.raises(StoreError, match=r"the loaded window must hold n frames of 6 channels"):
+            run.write_trial(rec)
+        assert run.incomplete_ids() == [] and 20 not in run.completed_ids()
+
+
+def test_read_only_refuses_writes(run_path):
+    with RunFile.open(run_path) as run:
+        with pytest.raises(StoreError) as e:
+            run.write_trial(make_record(30))
+    assert str(e.value) == f"{run_path} is open read-only; open it with mode 'a' to add records."
+
+
+def test_decimal_counts_kept_exactly(tmp_path):
+    rec = make_record(2)
+    rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"] + 0.25
+    with new_run(str(tmp_path / "d.h5")) as run:
+        run.write_trial(rec)
+        back = run.read_trial(2)
+    assert back["raw"]["load"]["counts"].dtype == np.float64
+    np.testing.assert_array_equal(back["raw"]["load"]["counts"], rec["raw"]["load"]["counts"])
+
+
+def test_recording_order_not_id_order(tmp_path):
+    with new_run(str(tmp_path / "o.h5")) as run:
+        for i in (5, 2, 9, 1):
+            run.write_trial(make_record(i))
+        assert run.completed_ids() == [5, 2, 9, 1]
+        assert choose_split(run.completed_ids(), 2, 1) == ([5, 2], [9])
+
+
+def test_choose_split_random_is_seeded_and_disjoint():
+    ids = list(range(100, 208))
+    f1, v1 = choose_split(ids, 90, 18, "random", 7)
+    f2, v2 = choose_split(ids, 90, 18, "random", 7)
+    f3, _ = choose_split(ids, 90, 18, "random", 8)
+    assert (f1, v1) == (f2, v2) and f1 != f3
+    assert len(f1) == 90 and len(v1) == 18 and not set(f1) & set(v1)
+    assert f1 == sorted(f1)
+    with pytest.raises(ConfigError) as e:
+        choose_split(ids[:100], 90, 18)
+    assert str(e.value) == "the run has 100 completed trials, fewer than the 108 asked for (90 fit + 18 validation)."
+
+
+def test_set_split_checks_ids(run_path):
+    with RunFile.open(run_path, "a") as run:
+        with pytest.raises(StoreError, match=r"^trial 3 cannot be in both the fit and the validation set\.$"):
+            run.set_split([1, 3], [3])
+        with pytest.raises(StoreError, match=r"^trial 44 is not a complete trial in .*run\.h5, so it cannot join"):
+            run.set_split([1, 44], [2])
+        s = run.assign_split(8, 4, "random", 3)
+        assert s["strategy"] == "random" and s["seed"] == 3
+        assert sorted(s["fit"] + s["validation"]) == list(range(1, 13))
+
+
+def test_models_round_trip(run_path):
+    with RunFile.open(run_path, "a") as run:
+        run.record_model("takuma2014", '{"beta_Fx1": 1.5}')
+        run.record_model("takuma2014", '{"beta_Fx1": 2.5}')
+    with RunFile.open(run_path) as run:
+        assert run.models() == {"takuma2014": '{"beta_Fx1": 2.5}'}
+
+
+def test_plan_stored_as_columns(tmp_path):
+    plan = {"trial": [1, 2], "set": ["fit", "validation"], "mass_g": [200.0, 150.5], "direction_deg": [0.0, 90.0]}
+    with new_run(str(tmp_path / "p.h5"), plan=plan) as run:
+        df = run.plan_table()
+    assert df.to_dict("list") == plan
+    with h5py.File(str(tmp_path / "p.h5"), "r") as f:
+        assert f["plan/mass_g"].attrs["units"] == "g" and f["plan/direction_deg"].attrs["units"] == "deg"
+        assert f["plan/trial"].dtype == np.int64
+
+
+def test_push_run_round_trip(tmp_path):
+    proto = FakeProtocol(name="bench-push", kind="push")
+    path = str(tmp_path / "push.h5")
+    rec = make_record(1)
+    push = {"push": 3, "object": "can-al-1", "R_m": 0.033, "d_m": 0.008, "phi_rad": None, "category": "medium",
+            "true_stiffness_N_per_m": 2500.0, "P0_MPa": rec["P0_MPa"], "P_MPa": rec["P_MPa"],
+            "raw": rec["raw"], "settle": rec["settle"]}
+    with RunFile.create(path, protocol=proto, device_info=FakeDevice()) as run:
+        run.write_push(push)
+        run.write_push({**push, "push": 4, "phi_rad": math.radians(10.0), "true_stiffness_N_per_m": None})
+    with RunFile.open(path) as run:
+        assert run.kind == "push" and run.completed_ids() == [3, 4]
+        back = run.read_push(3)
+        assert math.isnan(back["phi_rad"]) and back["R_m"] == 0.033 and back["object"] == "can-al-1"
+        np.testing.assert_array_equal(back["raw"]["load"]["si"], rec["raw"]["load"]["si"])
+        df = run.push_table()
+    assert list(df.columns) == ["push", "object", "R_m", "d_m", "phi_deg", "P_L10", "P_R10", "P_L20", "P_R20",
+                                "P_L1", "P_R1", "P_L2", "P_R2", "category", "true_stiffness_N_per_m"]
+    assert math.isnan(df.phi_deg[0]) and df.phi_deg[1] == 10.0
+    assert df.true_stiffness_N_per_m[0] == 2500.0 and math.isnan(df.true_stiffness_N_per_m[1])
+
+
+def test_import_table_round_trip_and_refusal(run_path, tmp_path):
+    with RunFile.open(run_path, "a") as run:
+        run.set_split(list(range(1, 10)), [10, 11], "sequential")
+        df = run.trial_table()
+    df["operator_note"] = ["ok"] * 12
+    df["rep"] = list(range(12))
+    out = str(tmp_path / "imp.h5")
+    with import_table(df, out, protocol=FakeProtocol(), source="t.csv") as run:
+        assert run.attrs["imported"] is True and run.attrs["source"] == "t.csv"
+        assert run.split()["strategy"] == "imported"
+        back = run.trial_table()
+        assert run.read_trial(4)["raw"] == {} and run.read_trial(4)["accepted"] == "imported"
+    assert back.equals(df)
+    with pytest.raises(StoreError) as e:
+        import_table(df, out, protocol=FakeProtocol())
+    assert str(e.value) == f"{out} already exists; use --force to overwrite it."
+    bad = df.copy()
+    bad.loc[3, "set"] = "train"
+    before = os.path.getsize(out)
+    with pytest.raises(ConfigError) as e:
+        import_table(bad, out, protocol=FakeProtocol(), force=True)
+    assert str(e.value) == "trial 4: set must be fit, validation or empty, got 'train'."
+    assert os.path.getsize(out) == before and not os.path.exists(out + ".importing")
+
+
+def test_summary_drift_and_settling(tmp_path):
+    path = str(tmp_path / "s.h5")
+    with new_run(path) as run:
+        for i in range(10):
+            rec = make_record(i)
+            rec["P0_MPa"] = np.array([0.2 + 0.0005 * i, 0.2, 0.2 - 0.001 * i, 0.2])  # 0.5 kPa/trial, -1 kPa/trial
+            run.write_trial(rec)
+        s = run.summary()
+    d = s["baseline_drift"]
+    assert d["P_L1"]["slope_kPa_per_trial"] == pytest.approx(0.5)
+    assert d["P_L2"]["slope_kPa_per_trial"] == pytest.approx(-1.0)
+    assert d["P_L2"]["max_deviation_kPa"] == pytest.approx(9.0)
+    assert d["P_R1"]["max_deviation_kPa"] == 0.0
+    assert d["P_L1"]["first_MPa"] == 0.2 and d["P_L1"]["last_MPa"] == pytest.approx(0.2045)
+    times = [2.0 + (i % 4) for i in range(10)]
+    assert s["settle"]["median_s"] == float(np.median(times)) and s["settle"]["max_s"] == 5.0
+    assert s["settle"]["timeout_ids"] == [4, 9] and s["settle"]["timeout_accepted"] == 2
+    assert s["complete"] == 10 and s["incomplete"] == 0 and s["planned"] is None
+
+
+def test_file_is_default_libver_and_reopens_for_append(run_path):
+    with h5py.File(run_path, "r") as f:
+        assert f.libver[0] == "earliest"
+    with RunFile.open(run_path, "a") as run:
+        run.write_trial(make_record(40))
+    shutil.copy(run_path, run_path + ".copy")
+    with RunFile.open(run_path + ".copy") as run:
+        assert run.completed_ids()[-1] == 40

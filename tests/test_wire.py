@@ -1,0 +1,404 @@
+"""Wire codec and stream reader: round trips, hostile bytes, and the fast path against the reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from labcli.wire import (
+    MAX_LINE,
+    U32,
+    Frame,
+    LogLine,
+    Noise,
+    Reply,
+    StreamReader,
+    checksum,
+    format_command,
+    format_frame,
+    format_log,
+    parse_line,
+)
+
+from firmware_fake import data_line, xor_checksum
+
+u32 = st.integers(0, U32 - 1)
+counts = st.integers(-(10**15) + 1, 10**15 - 1)
+finite = st.floats(allow_nan=False, allow_infinity=False)
+values = st.lists(st.one_of(counts, finite), min_size=1, max_size=12)
+
+
+# -- codec ------------------------------------------------------------------
+
+
+def test_protocol_document_example_checksum():
+    line = b"$D,0,1000,1556,1560,1549,1551,2048,2047*76"
+    assert checksum(b"D,0,1000,1556,1560,1549,1551,2048,2047") == 0x76
+    assert parse_line(line) == Frame(0, 1000, (1556, 1560, 1549, 1551, 2048, 2047))
+    assert format_frame(0, 1000, [1556, 1560, 1549, 1551, 2048, 2047]) == line + b"\n"
+
+
+@given(st.binary(max_size=600))
+def test_checksum_is_the_bytewise_xor(payload):
+    assert checksum(payload) == xor_checksum(payload)
+
+
+@given(u32, u32, values)
+def test_format_then_parse_round_trips(seq, t_us, vals):
+    line = format_frame(seq, t_us, vals)
+    if len(line) - 1 > MAX_LINE:
+        assert isinstance(parse_line(line), Noise)
+        return
+    parsed = parse_line(line, len(vals))
+    assert parsed == Frame(seq, t_us, tuple(vals))
+    assert all(type(a) is type(b) for a, b in zip(parsed.values, vals))  # ints stay ints
+
+
+@given(u32, u32, st.lists(st.integers(0, 4095), min_size=1, max_size=8))
+def test_an_independent_encoder_is_understood(seq, t_us, vals):
+    """The test firmware formats lines its own way (lower-case hex, CRLF)."""
+    assert parse_line(data_line(seq, t_us, vals, b"\r\n")) == Frame(seq, t_us, tuple(vals))
+
+
+def test_numpy_integers_are_encoded_as_integers():
+    assert format_frame(1, 2, np.array([7, 8])) == format_frame(1, 2, [7, 8])
+
+
+# Bytes that look like the protocol make the accept path likely, not just noise.
+_alphabet = st.sampled_from(list(b"$D,0123456789*.-+eE#OKRIabcfx \r\x00\xff"))
+_protocolish = st.lists(_alphabet, max_size=80).map(bytes)
+
+
+@st.composite
+def _maybe_signed(draw):
+    body = draw(_protocolish)
+    if draw(st.booleans()):
+        # A correct checksum on arbitrary content: only the field checks stand between it and a frame.
+        payload = body[1:] if body.startswith(b"$") else body
+        body = b"$" + payload + b"*%02X" % checksum(payload)
+    return body
+
+
+@given(st.one_of(st.binary(max_size=400), _maybe_signed()), st.one_of(st.none(), st.integers(1, 8)))
+@settings(max_examples=250)
+def test_arbitrary_bytes_never_raise_and_frames_are_genuine(line, k):
+    parsed = parse_line(line, k)
+    assert isinstance(parsed, (Frame, LogLine, Reply, Noise))
+    if isinstance(parsed, Frame):
+        stripped = line.rstrip(b"\n")
+        stripped = stripped[:-1] if stripped.endswith(b"\r") else stripped
+        star = stripped.rindex(b"*")
+        assert checksum(stripped[1:star]) == int(stripped[star + 1 :], 16)
+        assert 0 <= parsed.seq < U32 and 0 <= parsed.t_us < U32
+        assert k is None or len(parsed.values) == k
+        again = format_frame(parsed.seq, parsed.t_us, parsed.values)
+        body, hh = again[1:-1].split(b"*")
+        assert checksum(body) == int(hh, 16)
+        assert parse_line(again) == parsed
+
+
+@pytest.mark.parametrize(
+    "line, reason",
+    [
+        (b"$D,1,2,3*FF", "bad checksum"),
+        (b"$D,1,2,3", "data line without '*HH' checksum at its end"),
+        (b"$D,1,2,3*G1", "checksum is not two hex digits"),
+        (b"", "empty line"),
+        (b"hello", "not a data, log or reply line"),
+        (b"OKAY", "not a data, log or reply line"),
+        (b"x" * 257, f"line longer than {MAX_LINE} bytes"),
+    ],
+)
+def test_noise_reasons(line, reason):
+    parsed = parse_line(line)
+    assert isinstance(parsed, Noise) and parsed.reason == reason
+
+
+@pytest.mark.parametrize(
+    "body, reason",
+    [
+        ("D,1,2", "data line has no values"),
+        ("X,1,2,3", "data line does not start with '$D,'"),
+        ("D,+1,2,3", "seq or t_us is not an unsigned integer"),
+        ("D,4294967296,2,3", "seq or t_us outside unsigned 32-bit range"),
+        ("D,1,2,nan", "a value is not a finite number"),
+        ("D,1,2,1_000", "a value is not a finite number"),
+        ("D,1,2, 7", "a value is not a finite number"),
+        ("D,1,2,1e999", "a value is not a finite number"),
+        ("D,1,2,3,4", "expected 1 values, got 2"),
+    ],
+)
+def test_signed_lines_with_bad_fields_are_noise(body, reason):
+    line = b"$" + body.encode() + b"*%02x" % checksum(body.encode())
+    parsed = parse_line(line, 1 if body.endswith("3,4") else None)
+    assert isinstance(parsed, Noise) and parsed.reason == reason
+
+
+def test_logs_replies_and_commands():
+    assert parse_line(b"# boot ok \r\n") == LogLine("boot ok")
+    assert parse_line(format_log("two\nlines")) == LogLine("two lines")
+    assert parse_line(b"OK RATE 200\r\n") == Reply("OK RATE 200")
+    assert parse_line(b"ERR unknown command") == Reply("ERR unknown command")
+    assert parse_line(b"ID,rig,1.0,A,B") == Reply("ID,rig,1.0,A,B")
+    assert format_command("RATE", 200) == b"RATE 200\n"
+    with pytest.raises(ValueError):
+        format_command("RATE\n")
+
+
+# -- stream reader ------------------------------------------------------------
+
+
+def reference(stream: bytes, k: int | None = None) -> tuple[list[Frame], dict[str, int], list[str], list[str]]:
+    """What the reader must produce: parse_line on every complete line, seq gaps counted mod 2**32."""
+    *complete, tail = stream.split(b"\n")
+    c = dict(frames=0, lost=0, bad_checksum=0, malformed=0, log_lines=0, overlong=0, replies=0, bytes=len(stream))
+    frames, logs, replies = [], [], []
+    last = None
+    for line in complete:
+        p = parse_line(line, k)
+        if isinstance(p, Frame):
+            k = len(p.values)
+            if last is not None:
+                gap = (p.seq - last - 1) % U32
+                c["lost"] += gap if gap < U32 // 2 else 0
+            last = p.seq
+            frames.append(p)
+            c["frames"] += 1
+        elif isinstance(p, LogLine):
+            c["log_lines"] += 1
+            logs.append(p.text)
+        elif isinstance(p, Reply):
+            c["replies"] += 1
+            replies.append(p.text)
+        elif p.reason == "bad checksum":
+            c["bad_checksum"] += 1
+        elif p.reason.startswith("line longer"):
+            c["overlong"] += 1
+        else:
+            c["malformed"] += 1
+    if len(tail) > MAX_LINE + 1:  # already known to be overlong ('\r' may still come)
+        c["overlong"] += 1
+    return frames, c, logs, replies
+
+
+def run_reader(chunks, k=None):
+    r = StreamReader(n_channels=k)
+    batches = [r.feed(ch) for ch in chunks]
+    seq = np.concatenate([b.seq for b in batches]) if batches else np.empty(0)
+    t = np.concatenate([b.t_us for b in batches]) if batches else np.empty(0)
+    vals = [b.values for b in batches if len(b)]
+    return r, seq, t, vals
+
+
+def assert_agrees(stream: bytes, cuts: list[int], k: int | None = None) -> StreamReader:
+    cuts = sorted(set(c for c in cuts if 0 < c < len(stream)))
+    chunks = [stream[a:b] for a, b in zip([0] + cuts, cuts + [len(stream)])]
+    r, seq, t, vals = run_reader(chunks, k)
+    frames, counters, logs, replies = reference(stream, k)
+    assert r.counters == counters
+    assert seq.tolist() == [f.seq for f in frames]
+    assert t.tolist() == [f.t_us for f in frames]
+    got = np.concatenate(vals) if vals else np.empty((0, 0))
+    want = np.array([f.values for f in frames], dtype=np.float64)
+    if frames:
+        np.testing.assert_array_equal(got, want)
+    assert list(r.logs) == logs and list(r.replies) == replies
+    return r
+
+
+def _good(seq, vals, crlf=False):
+    return format_frame(seq, seq * 5000, vals)[:-1] + (b"\r\n" if crlf else b"\n")
+
+
+@st.composite
+def streams(draw):
+    """A stream mixing good frames with every kind of damage the link produces."""
+    k = draw(st.integers(1, 7))
+    seq = draw(u32)
+    parts = []
+    for _ in range(draw(st.integers(0, 40))):
+        kind = draw(st.sampled_from(
+            ["good"] * 6 + ["decimal", "gap", "corrupt", "cut", "junk", "log", "reply", "long", "wrongk", "bigint", "protocolish"]
+        ))
+        vals = draw(st.lists(st.integers(0, 4095), min_size=k, max_size=k))
+        if kind == "good":
+            parts.append(_good(seq, vals, draw(st.booleans())))
+            seq += 1
+        elif kind == "decimal":
+            parts.append(_good(seq, [v / 8 - 100 for v in vals]))
+            seq += 1
+        elif kind == "bigint":
+            parts.append(_good(seq, [v * 10**14 for v in vals]))
+            seq += 1
+        elif kind == "gap":
+            seq += draw(st.integers(1, 5))
+        elif kind == "corrupt":
+            line = bytearray(_good(seq, vals))
+            i = draw(st.integers(0, len(line) - 2))
+            line[i] = draw(st.integers(0, 255))
+            parts.append(bytes(line))
+            seq += 1
+        elif kind == "cut":
+            line = _good(seq, vals)
+            parts.append(line[: draw(st.integers(0, len(line) - 1))])  # no '\n': merges with the next
+            seq += 1
+        elif kind == "junk":
+            parts.append(draw(st.binary(max_size=40)))
+        elif kind == "log":
+            parts.append(b"#note\r\n")
+        elif kind == "reply":
+            parts.append(b"OK RATE 200\n")
+        elif kind == "long":
+            parts.append(b"y" * draw(st.integers(250, 700)) + draw(st.sampled_from([b"\n", b"\r\n", b""])))
+        elif kind == "wrongk":
+            parts.append(_good(seq, vals + [1]))
+        else:
+            parts.append(draw(_maybe_signed()) + b"\n")
+        seq %= U32
+    stream = b"".join(parts)
+    cuts = draw(st.lists(st.integers(0, max(len(stream), 1)), max_size=30))
+    fixed_k = draw(st.sampled_from([None, k]))
+    return stream, cuts, fixed_k
+
+
+@given(streams())
+@settings(max_examples=60, suppress_health_check=[HealthCheck.too_slow])
+def test_fast_path_agrees_with_parse_line_on_any_stream(case):
+    stream, cuts, k = case
+    assert_agrees(stream, cuts, k)
+
+
+@pytest.mark.slow
+@given(streams())
+@settings(max_examples=3000, suppress_health_check=[HealthCheck.too_slow])
+def test_fast_path_agrees_with_parse_line_on_many_streams(case):
+    stream, cuts, k = case
+    assert_agrees(stream, cuts, k)
+
+
+@given(st.binary(max_size=2000), st.lists(st.integers(0, 2000), max_size=20))
+@settings(max_examples=200)
+def test_reader_never_raises_on_random_bytes(stream, cuts):
+    assert_agrees(stream, cuts)
+
+
+SAMPLE = (
+    _good(7, [1556, 1560, 1549, 1551, 2048, 2047])
+    + b"#boot done\r\n"
+    + _good(8, [1, 2, 3, 4, 5, 6], crlf=True)
+    + b"OK START\n"
+    + _good(9, [10, 20, 30, 40, 50, 60])[:-3] + b"00\n"  # corrupted checksum
+    + b"\x00\xffjunk\n"
+    + _good(11, [0, 0, 0, 0, 0, 4095])
+)
+
+
+def test_split_at_every_byte_position_gives_the_same_result():
+    whole = assert_agrees(SAMPLE, [])
+    assert whole.counters == dict(frames=3, lost=2, bad_checksum=1, malformed=1, log_lines=1, overlong=0,
+                                  replies=1, bytes=len(SAMPLE))
+    for i in range(1, len(SAMPLE)):
+        r = assert_agrees(SAMPLE, [i], k=6)
+        assert r.counters == whole.counters
+    r = assert_agrees(SAMPLE, list(range(len(SAMPLE))))  # one byte at a time
+    assert r.counters == whole.counters
+
+
+def test_overlong_run_is_counted_once_and_the_next_line_is_read():
+    r = StreamReader(n_channels=1)
+    noise = b"z" * 10_000
+    for i in range(0, len(noise), 100):
+        assert len(r.feed(noise[i : i + 100])) == 0
+    batch = r.feed(b"still noise\n" + format_frame(3, 4, [5]))
+    assert batch.seq.tolist() == [3] and batch.values.tolist() == [[5.0]]
+    assert r.counters["overlong"] == 1 and r.counters["malformed"] == 0 and r.counters["frames"] == 1
+
+
+def test_line_length_limit_is_exactly_256_bytes_before_the_newline():
+    r = StreamReader()
+    r.feed(b"#" + b"a" * 255 + b"\r\n")  # 256 bytes + CRLF: fine
+    r.feed(b"#" + b"a" * 256 + b"\n")  # 257: noise
+    assert r.counters["log_lines"] == 1 and r.counters["overlong"] == 1
+    r.feed(b"#" + b"b" * 256)  # 257 pending: a '\r' may still come... it does not
+    assert r.counters["overlong"] == 1
+    r.feed(b"c\n")
+    assert r.counters["overlong"] == 2
+
+
+@pytest.mark.parametrize(
+    "seqs, lost",
+    [
+        ([U32 - 2, U32 - 1, 0, 1], 0),  # wrap without loss
+        ([U32 - 2, 1], 2),  # U32-1 and 0 lost across the wrap
+        ([U32 - 1, 3], 3),
+        ([5, 6, 10], 3),
+        ([100, 101, 0, 1], 0),  # firmware restarted: not a loss
+        ([4, 4, 5], 0),  # repeated line
+    ],
+)
+def test_lost_frames_from_sequence_gaps(seqs, lost):
+    stream = b"".join(format_frame(s, 0, [1, 2]) for s in seqs)
+    r = assert_agrees(stream, [len(stream) // 2])
+    assert r.counters["lost"] == lost and r.counters["frames"] == len(seqs)
+
+
+def test_reset_sequence_forgets_the_last_seq():
+    r = StreamReader()
+    r.feed(format_frame(50, 0, [1]))
+    r.reset_sequence()
+    r.feed(format_frame(0, 0, [1]) + format_frame(2, 0, [1]))
+    assert r.counters["lost"] == 1
+
+
+def test_channel_count_is_fixed_by_the_first_frame():
+    r = StreamReader()
+    b = r.feed(format_frame(0, 0, [1, 2]) + format_frame(1, 0, [1, 2, 3]) + format_frame(2, 0, [3, 4]))
+    assert r.n_channels == 2 and b.values.tolist() == [[1, 2], [3, 4]]
+    assert r.counters["malformed"] == 1
+
+
+class ChunkPort:
+    """A pyserial stand-in that hands out the stream in bursts and forbids line-wise reading."""
+
+    timeout = 0.01
+
+    def __init__(self, bursts):
+        self.bursts = list(bursts)
+        self.sizes = []
+
+    @property
+    def in_waiting(self):
+        return len(self.bursts[0]) if self.bursts else 0
+
+    def read(self, size=1):
+        self.sizes.append(size)
+        if not self.bursts:
+            return b""
+        burst = self.bursts.pop(0)
+        out, rest = burst[:size], burst[size:]
+        if rest:
+            self.bursts.insert(0, rest)
+        return out
+
+    def readline(self):  # pragma: no cover - the reader must never call it
+        raise AssertionError("readline is byte by byte in pyserial")
+
+
+def test_read_takes_whole_bursts_from_the_port():
+    frames = b"".join(format_frame(i, i, [i, i]) for i in range(100))
+    port = ChunkPort([frames[:1234], frames[1234:]])
+    r = StreamReader(port, n_channels=2)
+    got = []
+    while len(got) < 100:
+        got.extend(r.read(0.5).seq.tolist())
+    assert got == list(range(100))
+    assert port.sizes == [1234, len(frames) - 1234]
+
+
+def test_read_returns_empty_after_timeout_on_a_silent_port():
+    port = ChunkPort([])
+    r = StreamReader(port, n_channels=2)
+    assert len(r.read(0.05)) == 0
+    assert set(port.sizes) == {1}
