@@ -16,7 +16,7 @@ from .errors import ConfigError
 FORMATS = (".png", ".pdf", ".svg")
 
 
-def _check_path(path: str | Path, option: str = "the plot file") -> Path:
+def _check_path(path: str | Path, option: str = "The plot file") -> Path:
     p = Path(path)
     if p.suffix.lower() not in FORMATS:
         raise ConfigError(f"{option} {p} must end in .png, .pdf or .svg.")
@@ -74,7 +74,8 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
     fig = _new_figure(8.0, 8.4)
     axes = fig.subplots(2, 2)
     mode = evaluation.get("mode", "pressure-only")
-    source = ("Eqs. 34-35" if mode == "pressure-only" else "potentiometers")
+    how = ("forces from the calculated angles" if mode == "pressure-only"
+           else "forces from the measured angles")
     for ax, (q, label, unit) in zip(axes.flat, FIGURE7_PANELS):
         obs = np.asarray(evaluation["observed"][q], dtype=float)
         calc = np.asarray(evaluation["calculated"][q], dtype=float)
@@ -113,7 +114,7 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
                 bbox=dict(boxstyle="round,pad=0.3", facecolor="white", edgecolor="0.7", alpha=0.9))
         if bad.any():
             ax.legend(loc="lower right", fontsize=7, frameon=True)
-    fig.suptitle(title or f"Accuracy of contact information (Figure 7); forces from {source} angles",
+    fig.suptitle(title or f"Accuracy of contact information (Figure 7): validation trials, {how}",
                  fontsize=11)
     fig.tight_layout()
     _save(fig, p)

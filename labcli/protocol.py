@@ -25,7 +25,7 @@ import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -85,9 +85,9 @@ SECTIONS: dict[str, Any] = {
     "channel": {
         "quantity": {"type": "str", "check": ["one-of", list(UNIT_FACTORS)]},
         "actuator": {"type": "str", "check": ["one-of", list(ACTUATORS)], "optional": True,
-                     "help": "the actuator of a pressure channel (L1, R1, L2 or R2)"},
+                     "help": "the actuator of a pressure channel: L1, R1, L2 or R2"},
         "joint": {"type": "int", "check": ["one-of", list(JOINTS)], "optional": True,
-                  "help": "the joint of an angle channel (1 or 2)"},
+                  "help": "the joint of an angle channel: 1 or 2"},
         "unit": {"type": "str"},
         "gain": {"type": "number", "unit": "unit per count", "check": "nonzero"},
         "zero_counts": {"type": "number", "unit": "counts"},
@@ -325,7 +325,10 @@ def load_protocol(path_or_name: str | Path) -> Protocol:
     else:
         path = Path(path_or_name)
         if not path.is_file():
-            raise ConfigError(f"Protocol file {arg} does not exist; check the path.")
+            hint = ""
+            if (DATA_DIR / path.name).is_file() and path.suffix == ".toml":
+                hint = f" (the shipped protocol of that name is loaded with the bare name {path.stem})"
+            raise ConfigError(f"Protocol file {arg} does not exist; check the path{hint}.")
     try:
         raw = path.read_bytes()
     except OSError as exc:
@@ -374,7 +377,7 @@ class _Checker:
     def __init__(self, source: str) -> None:
         self.source = source
 
-    def fail(self, message: str) -> None:
+    def fail(self, message: str) -> NoReturn:
         raise ConfigError(f"{self.source}: {message}")
 
     # one value against one key spec
@@ -404,13 +407,15 @@ class _Checker:
                 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
             ):
                 self._wrong(v, spec, key)
-            if any(math.isnan(x) for x in v) or v[0] == -math.inf:
+            if any(math.isnan(x) for x in v):
+                self.fail(f"key '{key}' must be two numbers, not {_show(v)}.")
+            if v[0] == -math.inf:
                 self.fail(f"key '{key}' must have a finite low end, not {_show(v)}.")
             v = [float(x) for x in v]
         self._check(v, spec.get("check"), key)
         return v
 
-    def _wrong(self, v: Any, spec: dict[str, Any], key: str) -> None:
+    def _wrong(self, v: Any, spec: dict[str, Any], key: str) -> NoReturn:
         self.fail(f"key '{key}' must be {_describe(spec)}, not {_kind_of(v)} {_show(v)}.")
 
     def _check(self, v: Any, check: Any, key: str) -> None:
@@ -516,6 +521,8 @@ def _build(data: dict[str, Any], text: str, chk: _Checker, path: Path | None) ->
     section_specs: dict[str, tuple[str, str]] = kind_spec["sections"]
 
     for k in scalars:
+        if k in section_specs:
+            chk.fail(f"key '{k}' must be a table [{k}], not {_kind_of(scalars[k])} {_show(scalars[k])}.")
         if k not in TOP_LEVEL:
             allowed = list(TOP_LEVEL) + [f"[{s}]" for s in section_specs]
             chk.fail(f"unknown key '{k}'; the keys allowed there are {', '.join(allowed)}.")
@@ -672,7 +679,11 @@ def _calibration(
                          "quantity, joint, unit, gain, zero_counts, range.")
         factors = UNIT_FACTORS[q]
         if c["unit"] not in factors:
-            chk.fail(f"key '{key}.unit' must be one of {', '.join(factors)} for a {q} channel, not {_show(c['unit'])}.")
+            article = "an" if q[0] in "aeiou" else "a"
+            chk.fail(
+                f"key '{key}.unit' must be one of {', '.join(factors)} for {article} {q} channel, "
+                f"not {_show(c['unit'])}."
+            )
         lo, hi = c["range"]
         if q == "pressure" and lo < 0:
             chk.fail(f"key '{key}.range' must start at 0 or above (gauge pressure), not {_show(c['range'])}.")

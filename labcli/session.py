@@ -420,7 +420,7 @@ def force_record(
 
 
 def summary_row(record: dict) -> dict[str, str]:
-    """The trial's row as people read it: degrees, grams, units on every number."""
+    """The trial's row as people read it: degrees, grams, the unit of every column in its name."""
     p0 = record["P0_MPa"]
     p = record["P_MPa"]
     row = {"push": str(record["push"])} if "push" in record else {"trial": str(record["trial"])}
@@ -428,20 +428,19 @@ def summary_row(record: dict) -> dict[str, str]:
         row["set"] = record["set"]
     if "object" in record:
         row["object"] = record["object"]
-        row["d"] = f"{record['d_m'] * 1e3:.4g} mm"
+        row["d (mm)"] = f"{record['d_m'] * 1e3:.4g}"
         phi = record.get("phi_rad")
-        row["phi"] = "unknown" if phi is None or not np.isfinite(phi) else fmt_deg(phi)
+        row["phi (deg)"] = "unknown" if phi is None or not np.isfinite(phi) else f"{math.degrees(phi):.4g}"
     for name, a, c in zip(PRESSURE_NAMES, p0, p):
-        row[name] = f"{a:.4f} -> {c:.4f} MPa"
+        row[f"{name} (MPa)"] = f"{a:.4f}->{c:.4f}"
     if "theta_rad" in record:
-        row["theta1"] = f"{math.degrees(record['theta_rad'][0]):+.3f} deg"
-        row["theta2"] = f"{math.degrees(record['theta_rad'][1]):+.3f} deg"
+        row["theta1 (deg)"] = f"{math.degrees(record['theta_rad'][0]):+.3f}"
+        row["theta2 (deg)"] = f"{math.degrees(record['theta_rad'][1]):+.3f}"
     if "force_N" in record:
-        row["Fx"] = f"{record['force_N'][0]:+.3f} N"
-        row["Fy"] = f"{record['force_N'][1]:+.3f} N"
-    row["settled in"] = f"{record['settle']['load']['settle_time_s']:.2f} s" + (
-        "" if record["settle"]["load"]["settled"] else " (timed out, accepted)"
-    )
+        row["Fx (N)"] = f"{record['force_N'][0]:+.3f}"
+        row["Fy (N)"] = f"{record['force_N'][1]:+.3f}"
+    load = record["settle"]["load"]
+    row["settled (s)"] = f"{load['settle_time_s']:.2f}" + ("" if load["settled"] else " timed out")
     return row
 
 

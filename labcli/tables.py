@@ -133,6 +133,11 @@ def _parse_number(s: str) -> tuple[float | None, str | None]:
 
 def _parse_cell(kind: str, s: str, span: tuple[float, float]) -> tuple[Any, str | None]:
     if kind == "id":
+        t = s.strip()
+        if re.fullmatch(r"[+-]?[0-9]+", t):
+            # int() directly: going through float would round ids above 2**53.
+            v = int(t)
+            return (v, None) if abs(v) <= _INT64_MAX else (None, f"{_quote(s)} is too large for an integer id")
         v, err = _parse_number(s)
         if err:
             return None, err.replace("a number", "an integer id")

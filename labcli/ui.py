@@ -82,6 +82,16 @@ class RichUI:
         self.console = console or Console(highlight=False)
         self._stdin = stdin
 
+    @property
+    def _interactive(self) -> bool:
+        import sys
+
+        stream = self._stdin or sys.stdin
+        try:
+            return bool(stream.isatty())
+        except (AttributeError, ValueError):
+            return False
+
     # -- output
     def info(self, text: str) -> None:
         self.console.print(text, markup=False)
@@ -121,6 +131,10 @@ class RichUI:
         if stream is not None and line == "":
             raise QuitRequested("input ended")
         line = line.rstrip("\r\n")
+        if not self._interactive:
+            # Answers from a pipe or a script are not echoed by a terminal: echo them,
+            # so the transcript reads as the session went.
+            self.console.print(line, markup=False, highlight=False)
         if line.strip().lower() in ("q", "quit"):
             raise QuitRequested("quit")
         return line
@@ -183,12 +197,21 @@ class RichUI:
         return self._choose("Accept these readings [a], wait longer [w] or redo the trial [r]?", "awr", "w")
 
     def review(self, row: dict) -> str:
+        from rich import box
         from rich.table import Table
 
-        table = Table(show_header=True, header_style="bold")
-        for key in row:
-            table.add_column(key)
-        table.add_row(*(_esc(v) for v in row.values()))
+        needed = sum(max(len(k), len(v)) + 3 for k, v in row.items())
+        if needed <= self.console.width:
+            table = Table(box=box.SIMPLE_HEAD, header_style="bold")
+            for key in row:
+                table.add_column(_esc(key), no_wrap=True)
+            table.add_row(*(_esc(v) for v in row.values()))
+        else:  # a narrow terminal: one line per column
+            table = Table(box=box.SIMPLE, show_header=False)
+            table.add_column(no_wrap=True, style="bold")
+            table.add_column(no_wrap=True)
+            for key, value in row.items():
+                table.add_row(_esc(key), _esc(value))
         self.console.print(table)
         return self._choose("Accept [a], redo [r], skip [s] or quit [q]?", "arsq", "a")
 

@@ -10,13 +10,12 @@ import pytest
 from click.testing import CliRunner
 from rich.console import Console
 
-import labcli.urlhandler.protocol_sim as protocol_sim
 from labcli.cli import cli
 from labcli.device import Device
 from labcli.engine import RunEngine, resume_command
 from labcli.errors import DeviceDisconnected, DeviceTimeout
 from labcli.protocol import load_protocol
-from labcli.session import Baseline, Capture, Commit, G, WaitSettle, Window, force_session
+from labcli.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
 from labcli.store import RunFile
 from labcli.tables import load_trials
 from labcli.ui import UnattendedUI
@@ -28,12 +27,6 @@ PRESSURE_NOISE_MPA = 0.5 * 5.0 / 16380
 ANGLE_NOISE_DEG = 0.7 * 340 / 4095
 
 SMALL_PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n4,validation,400,-150\n"
-
-
-@pytest.fixture
-def fast_virtual_clock(monkeypatch):
-    """Generate the virtual clock's frames in 0.5 s blocks (fewer, larger reads; same frames)."""
-    monkeypatch.setattr(protocol_sim, "BLOCK_S", 0.5)
 
 
 def quiet_ui():
@@ -48,7 +41,7 @@ def open_run(path, port, plan=PLAN):
     return dev, store, engine
 
 
-def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path, fast_virtual_clock):
+def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
     path = tmp_path / "run.h5"
     dev, store, engine = open_run(path, "sim://?seed=3&clock=virtual")
     rig = dev.rig
@@ -107,7 +100,7 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path, fast_vi
         assert rec["settle"]["load"]["settle_time_s"] >= 0
 
 
-def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path, fast_virtual_clock):
+def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path):
     path = tmp_path / "run.h5"
     port = "sim://?seed=5&clock=virtual"
     dev, store, engine = open_run(path, port, plan=PLAN.iloc[:6])
@@ -140,7 +133,7 @@ def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path, fast_virtua
     assert load_trials(path)["trial"].tolist() == [1, 2, 3, 4, 5, 6]
 
 
-def test_a_silent_rig_mid_trial_is_reported_with_the_resume_command(tmp_path, fast_virtual_clock):
+def test_a_silent_rig_mid_trial_is_reported_with_the_resume_command(tmp_path):
     path = tmp_path / "run.h5"
     port = "sim://?seed=5&clock=virtual"
     dev = Device.open(port, timeout=0.3)  # the device's own silence limit, wall clock
@@ -149,8 +142,9 @@ def test_a_silent_rig_mid_trial_is_reported_with_the_resume_command(tmp_path, fa
                        resume_command=resume_command(str(path), port))
 
     def fall_silent_in_trial_2(step, reply):
-        if isinstance(step, WaitSettle) and step.label == "load" and engine._trial.trial == 2:
-            dev.serial.firmware.streaming = False  # the firmware hangs mid-capture: no more data lines
+        if isinstance(step, Prompt) and isinstance(step.action, HangWeight) and engine._trial.trial == 2:
+            # The firmware hangs: it still answers commands but sends no more data lines.
+            dev.serial.firmware.frames = lambda n: b""
 
     engine.subscribe(fall_silent_in_trial_2)
     with pytest.raises(DeviceTimeout) as err:
@@ -165,7 +159,7 @@ def test_a_silent_rig_mid_trial_is_reported_with_the_resume_command(tmp_path, fa
     assert load_trials(path)["trial"].tolist() == [1]
 
 
-def test_ctrl_c_discards_the_current_trial_and_says_how_to_resume(tmp_path, fast_virtual_clock):
+def test_ctrl_c_discards_the_current_trial_and_says_how_to_resume(tmp_path):
     path = tmp_path / "run.h5"
     port = "sim://?seed=6&clock=virtual"
     dev, store, engine = open_run(path, port, plan=PLAN.iloc[:5])
@@ -188,7 +182,7 @@ def test_ctrl_c_discards_the_current_trial_and_says_how_to_resume(tmp_path, fast
         assert run.completed_ids() == [1, 2] and run.incomplete_ids() == []
 
 
-def test_typed_session_with_redo_skip_quit_then_resume(tmp_path, fast_virtual_clock):
+def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
     """The prompts answered as a person types them (stdin), on the simulated rig."""
     path = tmp_path / "run.h5"
     plan = tmp_path / "plan.csv"
@@ -232,7 +226,7 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path, fast_virtual_cl
     assert result.output == f"All 4 planned trials are already stored in {path}; nothing to resume.\n"
 
 
-def test_typed_loads_without_a_plan_are_checked(tmp_path, fast_virtual_clock):
+def test_typed_loads_without_a_plan_are_checked(tmp_path):
     path = tmp_path / "run.h5"
     answers = "\n\n" + "5000\n250 g\n400\n45\n" + "\n\na\n" + "\n"
     result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=8&clock=virtual",

@@ -55,7 +55,7 @@ def kill_loop(path: str, kills: int, n_samples: int, seed: int, max_delay_s: flo
         time.sleep(rng.uniform(0.0, max_delay_s))
         proc.send_signal(signal.SIGKILL)
         proc.wait()
-        assert proc.returncode == -signal.SIGKILL
+        assert proc.returncode == -signal.SIGKILL, proc.stderr.read().decode()
         with RunFile.open(path) as run:
             ids = run.completed_ids()
             # the writer always writes the first missing id, so complete ids are dense

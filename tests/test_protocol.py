@@ -236,8 +236,15 @@ def test_wrong_type(tmp_path: Path) -> None:
     assert error_of(p) == f"{p}: key 'rig.h1_m' must be a number in m, not the string '0.355'."
     p = write_variant(tmp_path, "fit = 90", "fit = 90.0")
     assert error_of(p) == f"{p}: key 'trials.fit' must be an integer, not the number 90.0."
-    p = write_variant(tmp_path, "[settling]", "settling = 3\n[settling_]")
-    assert "settling" in error_of(p)
+    text = FORCE_TEXT.replace("[settling]", "[settling_old]").replace('kind = "force"\n', 'kind = "force"\nsettling = 3\n')
+    p = tmp_path / "rig.toml"
+    p.write_text(text, encoding="utf-8")
+    assert error_of(p) == f"{p}: key 'settling' must be a table [settling], not the integer 3."
+    p = write_variant(tmp_path, '"POT2"]', '"POT2", 7]')
+    assert error_of(p) == (
+        f"{p}: key 'device.channels' must be a list of strings (the channel names in data-line order), "
+        "not the list ['P_L1', 'P_R1', 'P_L2', 'P_R2', 'POT1', 'POT2', ...]."
+    )
 
 
 def test_bad_values(tmp_path: Path) -> None:
@@ -250,8 +257,11 @@ def test_bad_values(tmp_path: Path) -> None:
     p = write_variant(tmp_path, "timeout_s = 30.0", "timeout_s = 2.5")
     assert error_of(p) == f"{p}: key 'settling.timeout_s' must be longer than window_s + hold_s (3.0 s), not 2.5."
     p = write_variant(tmp_path, 'unit = "deg"', 'unit = "V"')
-    assert error_of(p) == f"{p}: key 'channels.POT1.unit' must be one of rad, deg for a angle channel, not 'V'." \
-        or error_of(p) == f"{p}: key 'channels.POT1.unit' must be one of rad, deg for an angle channel, not 'V'."
+    assert error_of(p) == f"{p}: key 'channels.POT1.unit' must be one of rad, deg for an angle channel, not 'V'."
+    p = write_variant(tmp_path, 'unit = "MPa"', 'unit = "deg"')
+    assert error_of(p) == (
+        f"{p}: key 'channels.P_L1.unit' must be one of MPa, kPa, Pa, bar, psi for a pressure channel, not 'deg'."
+    )
 
 
 def test_calibration_that_does_not_fit_the_adc(tmp_path: Path) -> None:
@@ -273,8 +283,11 @@ def test_channel_map_errors(tmp_path: Path) -> None:
     p = write_variant(tmp_path, '"POT2"]', '"POT2", "POT3"]')
     assert error_of(p) == f"{p}: missing key 'channels.POT3', expected a table describing a channel of device.channels."
     p = write_variant(tmp_path, 'quantity = "angle"\njoint = 1', 'quantity = "angle"\nactuator = "L1"')
-    assert error_of(p) == f"{p}: missing key 'channels.POT1.joint', expected an integer (the joint of an angle channel (1 or 2))." \
-        or "channels.POT1.joint" in error_of(p)
+    assert error_of(p) == (
+        f"{p}: missing key 'channels.POT1.joint', expected an integer (the joint of an angle channel: 1 or 2)."
+    )
+    p = write_variant(tmp_path, 'quantity = "angle"\njoint = 1', 'quantity = "angle"\njoint = 3')
+    assert error_of(p) == f"{p}: key 'channels.POT1.joint' must be one of 1, 2, not 3."
 
 
 def test_syntax_error_names_line_and_column(tmp_path: Path) -> None:
@@ -287,6 +300,10 @@ def test_syntax_error_names_line_and_column(tmp_path: Path) -> None:
 
 def test_missing_file_and_unknown_name(tmp_path: Path) -> None:
     assert error_of(tmp_path / "nope.toml") == f"Protocol file {tmp_path / 'nope.toml'} does not exist; check the path."
+    assert error_of(tmp_path / "takuma2014.toml") == (
+        f"Protocol file {tmp_path / 'takuma2014.toml'} does not exist; check the path "
+        "(the shipped protocol of that name is loaded with the bare name takuma2014)."
+    )
     with pytest.raises(ConfigError) as exc:
         load_protocol("takuma2015")
     assert str(exc.value) == (
@@ -414,3 +431,39 @@ def test_plan_design() -> None:
         assert len(runs) == len(set(runs))
     # weights are shuffled inside a block, not ascending
     assert fit.mass_g.iloc[:9].tolist() != sorted(fit.mass_g.iloc[:9])
+
+
+# ---------------------------------------------------------------- fuzzing
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_VALUE_LINES = [i for i, line in enumerate(FORCE_TEXT.splitlines()) if re.match(r"^[A-Za-z_0-9]+ = ", line)]
+_TOML_VALUES = st.one_of(
+    st.sampled_from(['"x"', '""', "0", "-1", "1e999", "nan", "-inf", "true", "[]", "[1, 2]", "[1, nan]",
+                     "[-inf, 1.0]", '["a", "a"]', "{a = 1}", "1979-05-27", "07:32:00", "0.0", "4095", "[0.0, 1.0, 2.0]"]),
+    st.integers(-10**20, 10**20).map(str),
+    st.floats(allow_nan=False, allow_infinity=False).map(repr),
+    st.text(alphabet="abcPL12_ -", max_size=8).map(lambda s: '"' + s + '"'),
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(line=st.sampled_from(_VALUE_LINES), value=_TOML_VALUES)
+def test_any_value_anywhere_loads_or_raises_one_sentence(line: int, value: str) -> None:
+    lines = FORCE_TEXT.splitlines()
+    key = lines[line].split(" = ")[0]
+    lines[line] = f"{key} = {value}"
+    try:
+        p = loads_protocol("\n".join(lines) + "\n", source="fz.toml")
+    except ConfigError as exc:
+        msg = str(exc)
+        assert msg.startswith("fz.toml: ") and msg.endswith(".") and "\n" not in msg, msg
+        assert "key '" in msg or "TOML syntax error" in msg, msg
+    else:
+        # accepted: the calibration still covers its span inside the ADC range
+        cal = p.calibration
+        lo = np.array([c.range[0] for c in cal.channels])
+        hi = np.array([c.range[1] for c in cal.channels])
+        for ends in (cal.to_counts(lo), cal.to_counts(hi)):
+            assert np.all(ends >= cal.adc_range[0] - 1e-3) and np.all(ends <= cal.adc_range[1] + 1e-3)

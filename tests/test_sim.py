@@ -235,6 +235,21 @@ def test_firmware_seq_and_time_wrap_at_2_32():
     assert all((b - a) % (1 << 32) == 1000 for a, b in zip(t, t[1:]))
 
 
+@pytest.mark.parametrize("n", [1, 63, 64, 3000])
+def test_block_formatting_is_byte_identical_to_the_wire_codec(n):
+    from labcli.sim.firmware import format_frames
+    from labcli.wire import format_frame
+
+    rng = np.random.default_rng(n)
+    seq = rng.integers(0, 1 << 32, n)
+    t_us = rng.integers(0, 1 << 32, n)
+    values = rng.integers(0, 4096, (n, 6))
+    values[0] = 0
+    seq[-1] = 0
+    want = b"".join(format_frame(int(a), int(b), [int(v) for v in row]) for a, b, row in zip(seq, t_us, values))
+    assert format_frames(seq, t_us, values) == want
+
+
 # ---------------------------------------------------------------- sim:// port
 
 
@@ -314,10 +329,10 @@ def test_virtual_port_has_no_stale_backlog_when_the_operator_acts():
         seen += port.read(port.in_waiting)
     t_hook = port.rig.time_s
     last_seen = frames_of(seen)[-1].t_us / 1e6
-    assert 0 <= t_hook - last_seen <= 3 / 200 + 1e-9  # at most a few frames on their way
+    assert -1e-6 <= t_hook - last_seen <= 3 / 200 + 1e-6  # at most a few frames on their way
     port.rig.hang_weight(0.5, 0.0)
     after = frames_of(seen[seen.rfind(b"\n") + 1 :] + port.read(4000))
-    before_hook = [f for f in after if f.t_us / 1e6 <= t_hook + 1e-9]
+    before_hook = [f for f in after if f.t_us / 1e6 <= t_hook + 1e-6]
     assert before_hook == after[: len(before_hook)] and len(before_hook) <= 3
     pots = np.array([f.values[4] for f in after[len(before_hook):]])
     assert pots[-1] < pots[0] - 30  # every later frame shows the arm moving

@@ -402,3 +402,12 @@ def test_read_returns_empty_after_timeout_on_a_silent_port():
     r = StreamReader(port, n_channels=2)
     assert len(r.read(0.05)) == 0
     assert set(port.sizes) == {1}
+
+
+def test_place_value_decoder_agrees_when_numpy_has_no_text_parser(monkeypatch):
+    stream = b"".join(format_frame(i, 7 * i, [i, 10**15 - 1, 0, 10**16 + i]) for i in range(40))
+    stream += b"".join(format_frame(U32 - 1 + i, U32 + i, [3, 2, 1, 0]) for i in range(12))  # t_us wraps
+    want = assert_agrees(stream, [1000])
+    monkeypatch.delattr(np, "fromstring")
+    got = assert_agrees(stream, [1000])
+    assert got.counters == want.counters and got.counters["frames"] == 52

@@ -24,26 +24,29 @@ def _fmt(x: Any, spec: str = ".4g") -> str:
 
 def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded: str) -> None:
     from rich.console import Console
+    from rich import box
     from rich.table import Table
 
     from ..models.takuma import SIGN_NOTE, TERMS
 
-    con = Console(highlight=False)
+    con = Console(highlight=False, markup=False)
+    if not con.is_terminal:
+        con.width = max(con.width, 110)  # a pipe or a log file: never truncate numbers
     titles = {
-        "theta1": ("Eq. 34  sin(theta1)", "1 (dimensionless)", "sin(theta1)"),
-        "theta2": ("Eq. 35  sin(theta2)", "1 (dimensionless)", "sin(theta2)"),
+        "theta1": ("Eq. 34  sin(theta1)", "1, dimensionless", "sin(theta1)"),
+        "theta2": ("Eq. 35  sin(theta2)", "1, dimensionless", "sin(theta2)"),
         "Fx": ("Eq. 36  Fx", "N m/MPa", "N"),
         "Fy": ("Eq. 37  Fy", "N m/MPa", "N"),
     }
     for eq, names in TERMS.items():
         title, unit, space = titles[eq]
         st = model.fit_stats[eq]
-        table = Table(title=f"{title}   (coefficients in {unit})", title_justify="left")
+        table = Table(title=f"{title}   (coefficients in {unit})", title_justify="left", box=box.SIMPLE_HEAD)
         table.add_column("coefficient")
         table.add_column("value", justify="right")
         table.add_column("std. error", justify="right")
         table.add_column("95% interval", justify="right")
-        table.add_column("paper", justify="right")
+        table.add_column("paper 3.3", justify="right")
         for name in names:
             lo, hi = model.ci95[name]
             table.add_row(name, f"{model.coefficients[name]:.5g}", f"{model.standard_errors[name]:.3g}",
@@ -57,20 +60,20 @@ def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded:
         cond = st["design_cond"]
         warn = "  (ill-conditioned: coefficients poorly determined)" if st.get("ill_conditioned") else ""
         con.print(f"  {fit_line}; condition number {_fmt(cond, '.3g')}{warn}; "
-                  f"{st['n']} trials ({st['dof']} degrees of freedom)")
+                  f"{st['n']} trials ({st['dof']} degrees of freedom)", soft_wrap=True)
         excluded = model.excluded_trials.get(eq, [])
         if excluded:
             con.print(f"  excluded {len(excluded)} trial(s):")
             for item in excluded[:12]:
-                con.print(f"    trial {item['trial']}: {item['reason']}")
+                con.print(f"    trial {item['trial']}: {item['reason']}", soft_wrap=True)
             if len(excluded) > 12:
                 con.print(f"    ... and {len(excluded) - 12} more (see the model file)")
         con.print()
-    con.print(f"Sign reading: {SIGN_NOTE}.")
+    con.print(f"Sign: {SIGN_NOTE}.", soft_wrap=True)
     thr = model.to_dict()["settings"]["theta2_threshold_deg"]
     con.print(f"Force fit excludes postures with |theta2| < {thr:.2f} deg "
-              f"(Jacobian condition number > {model.max_jacobian_cond:g}).")
-    con.print(f"Model written to {out_path}{recorded}.")
+              f"(Jacobian condition number > {model.max_jacobian_cond:g}).", soft_wrap=True)
+    con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
 
 
 @click.command("fit")

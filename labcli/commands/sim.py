@@ -15,19 +15,32 @@ import click
               help="Scale of the sensor noise (1 = 0.5 count pressure, 0.7 count angle rms).")
 @click.option("--drift", type=click.FloatRange(min=0), default=0.0, show_default=True,
               help="Scale of sensor zero drift and chamber leak.")
-def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float) -> None:
+@click.option("--faults", default="", metavar="KIND:RATE[@X],...",
+              help="Make the link noisy: rates per frame of checksum, garbage, truncate, overlong, drop, "
+                   "stall@SECONDS, burst@FRAMES, e.g. checksum:0.01,drop:0.01,stall:0.001@2.5 (drawn from --seed).")
+def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float, faults: str) -> None:
     """Serve the simulated rig on a pseudo-terminal until Ctrl-C.
 
     The rig answers the wire protocol (ID?, RATE, START, STOP) on the printed
     device path, paced by the wall clock, so any serial program can talk to
-    it.  Inside labcli the port sim:// needs no pseudo-terminal.
+    it.  Inside labcli the port sim:// needs no pseudo-terminal.  With
+    --faults the link corrupts, drops and stalls frames (seeded); on exit the
+    faults injected and the counts a host must report are printed.
 
     \b
-    Example:
+    Examples:
         labcli sim --pty --seed 3 --rate 500
         labcli monitor --port /dev/pts/5     (in another terminal)
+        labcli sim --pty --rate 1000 --faults checksum:0.01,garbage:0.005,stall:0.001@0.5
     """
     import signal
+
+    from ..sim.faults import FaultSpec, FaultSpecError
+
+    try:
+        spec = FaultSpec.parse(faults)
+    except FaultSpecError as e:
+        raise click.BadParameter(str(e), param_hint="'--faults'") from None
 
     if not use_pty:
         raise click.ClickException(
@@ -37,7 +50,7 @@ def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float) -> No
     from ..sim.pty import serve_pty
 
     try:
-        server = serve_pty(seed=seed, rate=rate, noise=noise, drift=drift)
+        server = serve_pty(seed=seed, rate=rate, noise=noise, drift=drift, faults=spec)
     except OSError as e:
         raise click.ClickException(f"cannot open a pseudo-terminal: {e.strerror or e}.") from None
 
@@ -54,3 +67,5 @@ def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float) -> No
             signal.signal(s, h)
         server.stop()
         click.echo("Simulated rig stopped.")
+        if server.faults is not None:
+            click.echo(f"Faults: {server.faults.summary()}")

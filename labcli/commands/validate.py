@@ -17,39 +17,38 @@ def _fmt(x: Any, spec: str) -> str:
 
 def _print_report(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | None) -> None:
     from rich.console import Console
+    from rich import box
     from rich.table import Table
 
     from ..models.metrics import QUANTITIES
     from ..models.takuma import FLAG_TEXT
 
-    con = Console(highlight=False)
-    how = ("angles from Eqs. 34-35, forces from those angles in Eqs. 36-37"
-           if ev["mode"] == "pressure-only" else "angles from Eqs. 34-35, forces from the measured angles")
-    table = Table(title=f"Validation of {model_path.name} on {run.name} ({ev['mode']}: {how})",
-                  title_justify="left")
-    for col, just in (("quantity", "left"), ("n", "right"), ("RMSE", "right"), ("MAE", "right"),
-                      ("max |err|", "right"), ("bias", "right"), ("R^2", "right"),
-                      ("RMSE/range", "right"), ("flagged", "right")):
-        table.add_column(col, justify=just)
-    for q, (_, unit, label) in QUANTITIES.items():
+    con = Console(highlight=False, markup=False)
+    if not con.is_terminal:
+        con.width = max(con.width, 110)  # a pipe or a log file: never truncate numbers
+    how = ("forces from the calculated angles" if ev["mode"] == "pressure-only"
+           else "forces from the measured angles")
+    table = Table(title=f"Validation of {model_path.name} on {run.name}: {ev['mode']} ({how})",
+                  title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("quantity", "n", "RMSE", "MAE", "max|err|", "bias", "R^2", "RMSE/range", "flagged"):
+        table.add_column(col, justify="left" if col == "quantity" else "right")
+    for q, (_, unit, _) in QUANTITIES.items():
         m = ev["metrics"][q]
-        u = f" {unit}"
-        table.add_row(f"{label} ({unit})", str(m["n"]),
-                      _fmt(m["rmse"], ".3g") + u if m["rmse"] is not None else "—",
-                      _fmt(m["mae"], ".3g") + u if m["mae"] is not None else "—",
-                      _fmt(m["max_abs"], ".3g") + u if m["max_abs"] is not None else "—",
-                      _fmt(m["bias"], "+.2g") + u if m["bias"] is not None else "—",
-                      _fmt(m["r2"], ".4f"),
-                      _fmt(m["pct_range"], ".2f") + " %" if m["pct_range"] is not None else "—",
+        table.add_row(f"{q} [{unit}]", str(m["n"]), _fmt(m["rmse"], ".3g"), _fmt(m["mae"], ".3g"),
+                      _fmt(m["max_abs"], ".3g"), _fmt(m["bias"], "+.2g"), _fmt(m["r2"], ".4f"),
+                      _fmt(m["pct_range"], ".2f") + (" %" if m["pct_range"] is not None else ""),
                       str(m["n_flagged"]))
     con.print(table)
+    con.print("Errors are calculated - observed; RMSE/range is the RMSE as a share of the observed range.",
+              soft_wrap=True)
     flagged = [(int(t), fl) for t, fl in zip(ev["trial"], ev["flags"]) if fl]
     if flagged:
-        con.print(f"{len(flagged)} trial(s) flagged; their values show as — and stay out of the metrics:")
+        con.print(f"{len(flagged)} trial(s) flagged; their values show as — and stay out of the metrics:",
+                  soft_wrap=True)
         for t, fl in flagged:
             missing = [q for q in QUANTITIES if not ev["ok"][q][list(ev["trial"]).index(t)]]
             reasons = "; ".join(FLAG_TEXT.get(f, f) for f in fl)
-            con.print(f"  trial {t}: {', '.join(missing)} = — ({reasons})")
+            con.print(f"  trial {t}: {', '.join(missing)} = — ({reasons})", soft_wrap=True)
     if plot is not None:
         con.print(f"Figure 7 written to {plot}.")
 

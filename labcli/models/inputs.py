@@ -29,21 +29,8 @@ class TrialSource:
 
 
 def _read_table(path: Path) -> Any:
-    try:
-        from ..tables import load_trials
-    except ImportError:
-        # Minimal readers used until labcli.tables is present in this tree.
-        if path.suffix.lower() in RUN_SUFFIXES:
-            from ..store import RunFile
+    from ..tables import load_trials
 
-            with RunFile.open(path) as run:
-                return run.trial_table()
-        import pandas as pd
-
-        try:
-            return pd.read_csv(path)
-        except (OSError, ValueError) as e:
-            raise ConfigError(f"{path} cannot be read as a trial CSV ({e}).") from None
     return load_trials(path)
 
 

@@ -51,7 +51,8 @@ def paper_trials(n: int, *, seed: int = 0, noise: bool = True, set_name: str = "
     """A trial-table DataFrame of ``n`` trials generated from Eqs. 34-37.
 
     ``theta2_deg`` is the range of |theta2| (its sign is random); ``theta2_values_deg`` pins
-    theta2 per trial instead (e.g. near-singular postures).  Draws whose pressures have no
+    theta2 per trial instead (e.g. near-singular postures; not exactly 0, where Eqs. 36-37
+    have no finite value).  Draws whose pressures have no
     solution in (0.05, 0.95) MPa are redrawn, so the table always has ``n`` rows.
     """
     import pandas as pd
@@ -61,7 +62,11 @@ def paper_trials(n: int, *, seed: int = 0, noise: bool = True, set_name: str = "
     h2, h3 = geometry["h2"], geometry["h3"]
     b = {eq: np.array([coefficients[k] for k in TERMS[eq]]) for eq in TERMS}
     rows = []
+    attempts = 0
     while len(rows) < n:
+        attempts += 1
+        if attempts > 200 * n:
+            raise ValueError("no pressures solve Eqs. 34-37 for these ranges; narrow them")
         i = len(rows)
         t1 = np.radians(rng.uniform(*theta1_deg))
         if theta2_values_deg is not None:
@@ -81,9 +86,18 @@ def paper_trials(n: int, *, seed: int = 0, noise: bool = True, set_name: str = "
             return np.array([u[:2] @ b["theta1"] - np.sin(t1), u @ b["theta2"] - np.sin(t2),
                              *(A @ dP - F)])
 
-        dP, _, ier, _ = fsolve(equations, np.zeros(4), full_output=True, xtol=1e-15)
+        # Start from the linearised system (u ~ dP / P0), which is close for loads of this size.
+        lin = np.vstack([np.r_[b["theta1"], 0.0, 0.0] / P0, b["theta2"] / P0, A])
+        try:
+            start = np.linalg.solve(lin, np.r_[np.sin(t1), np.sin(t2), F])
+        except np.linalg.LinAlgError:
+            continue
+        if np.any(P0 - start < 0.0):
+            continue
+        # Success is judged by the residual below; full_output keeps fsolve quiet about slow progress.
+        dP = fsolve(equations, start, xtol=1e-13, full_output=True)[0]
         P = P0 - dP
-        if ier != 1 or np.max(np.abs(equations(dP))) > 1e-12 or np.any(P < 0.05) or np.any(P > 0.95):
+        if np.max(np.abs(equations(dP))) > 1e-12 or np.any(P < 0.05) or np.any(P > 0.95):
             continue
         rows.append((t1, t2, F, P0, P))
 

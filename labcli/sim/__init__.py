@@ -18,7 +18,13 @@ def _mckibben(seed: int, noise: float, drift: float, tau_s: float):
     return SimRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s)
 
 
-MODELS: dict[str, Callable] = {"mckibben": _mckibben}
+def _rpam(seed: int, noise: float, drift: float, tau_s: float):
+    from .rpam_rig import RpamRig
+
+    return RpamRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s)
+
+
+MODELS: dict[str, Callable] = {"mckibben": _mckibben, "rpam": _rpam}
 
 
 def make_rig(mode: str = "mckibben", *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7):

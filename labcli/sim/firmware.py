@@ -9,6 +9,9 @@ Commands (one per line, ``\\r`` tolerated): ``ID?``, ``RATE <hz>`` (1..5000),
 ``START``, ``STOP``; anything else is answered with ``ERR ...``.  ``seq`` counts
 data lines since power-up and ``t_us`` is the rig's clock, both unsigned 32-bit
 and wrapping.
+
+A :class:`~labcli.sim.faults.FaultInjector` (``faults=``) spoils the data
+lines the way a noisy link does; without one the output is exact.
 """
 
 from __future__ import annotations
@@ -24,12 +27,15 @@ RATE_MAX = 5000.0
 class Firmware:
     """Device-side protocol state machine over a rig (see :mod:`labcli.sim`)."""
 
-    def __init__(self, rig, rate_hz: float = 200.0) -> None:
+    def __init__(self, rig, rate_hz: float = 200.0, faults=None) -> None:
         if not RATE_MIN <= rate_hz <= RATE_MAX:
             raise ValueError(f"rate must be within {RATE_MIN:g}..{RATE_MAX:g} Hz")
         self.rig = rig
         self.rate_hz = float(rate_hz)
         self.seq = 0
+        self.count = 0  # frames made since power-up (not wrapped): the fault plan's frame number
+        self.faults = faults
+        self.stall: tuple[float, int] | None = None  # (seconds, frames not made), see frames()
         self.streaming = False
         self._pending = bytearray()
 
@@ -84,20 +90,45 @@ class Firmware:
             )
         if text == "STOP":
             self.streaming = False
-            return b"OK STOP\n"
+            held = self.faults.flush() if self.faults is not None else b""
+            return held + b"OK STOP\n"
         shown = text if len(text) <= 40 else text[:40] + "..."
         return f"ERR unknown command '{shown}'\n".encode("ascii", "replace")
 
     # ------------------------------------------------------------ device -> host
 
     def frames(self, n: int) -> bytes:
-        """``n`` data lines (advancing the rig's clock); empty when not streaming."""
+        """``n`` data lines (advancing the rig's clock); empty when not streaming.
+
+        With a fault injector a stall can end the block early: ``stall`` is
+        then ``(seconds, frames not made)`` for the caller's pacing (see
+        :meth:`take_stall`), and the rig's clock has run on by the stall.
+        """
         if n <= 0 or not self.streaming:
             return b""
+        if self.faults is not None:
+            return self.faults.emit(self, n)
         t_us, counts = self.rig.samples(n, self.rate_hz)
         seq = (self.seq + np.arange(n, dtype=np.int64)) % U32
         self.seq = int((self.seq + n) % U32)
+        self.count += n
         return format_frames(seq, t_us % U32, counts)
+
+    def take_stall(self) -> tuple[float, int] | None:
+        """The stall that ended the last :meth:`frames` block early, once; else None."""
+        stall, self.stall = self.stall, None
+        return stall
+
+    def skip(self, n: int) -> None:
+        """Make ``n`` frames and lose them (the device's output buffer is full)."""
+        if n <= 0 or not self.streaming:
+            return
+        if self.faults is not None:
+            self.faults.skipped(self, n)
+            return
+        self.rig.samples(n, self.rate_hz)
+        self.seq = int((self.seq + n) % U32)
+        self.count += n
 
 
 _HEX = np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)
@@ -106,8 +137,8 @@ _HEX = np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)
 def format_frames(seq: np.ndarray, t_us: np.ndarray, values: np.ndarray) -> bytes:
     """Many integer data lines at once: the same bytes as :func:`labcli.wire.format_frame`.
 
-    Digits are written into one byte buffer column by column, so a block of
-    10^5 frames costs a few numpy passes instead of 10^5 Python formats.
+    Lines are built as rows of a byte matrix, a few numpy passes per field,
+    so a block of 10^5 frames costs far less than 10^5 Python formats.
     """
     cols = np.column_stack([seq, t_us, values]).astype(np.int64)
     n, m = cols.shape
@@ -122,37 +153,24 @@ def format_frames(seq: np.ndarray, t_us: np.ndarray, values: np.ndarray) -> byte
         return b"".join(out)
     if cols.min() < 0:
         raise ValueError("data line fields must be unsigned integers")
-    nd = np.ones((n, m), dtype=np.int64)
-    top = int(cols.max())
-    p10 = 10
-    while p10 <= top:
-        nd += cols >= p10
-        p10 *= 10
-    linelen = 6 + m + nd.sum(axis=1)  # '$D' + m commas + digits + '*HH\n'
-    ends = np.cumsum(linelen)
-    starts = ends - linelen
-    buf = np.empty(int(ends[-1]), dtype=np.uint8)
-    buf[starts] = 0x24  # '$'
-    buf[starts + 1] = 0x44  # 'D'
-    pos = starts + 2
+    # One fixed-width row per line: every field gets as many digit columns as
+    # its widest value; leading zeros are masked out, and masked bytes (0)
+    # leave the XOR checksum unchanged.
+    parts, keeps = [np.full((n, 2), (0x24, 0x44), dtype=np.uint8)], [np.ones((n, 2), bool)]
     for f in range(m):
-        buf[pos] = 0x2C  # ','
-        pos = pos + 1
-        x = cols[:, f].copy()
-        d = nd[:, f]
-        last = pos + d - 1
-        for k in range(int(d.max())):
-            live = d > k
-            buf[(last - k)[live]] = 48 + x[live] % 10
-            x //= 10
-        pos = pos + d
-    # XOR over each payload: reduceat on [start+1, pos) pairs, keep the even results.
-    idx = np.empty(2 * n, dtype=np.int64)
-    idx[0::2] = starts + 1
-    idx[1::2] = pos
-    cs = np.bitwise_xor.reduceat(buf, idx)[0::2]
-    buf[pos] = 0x2A  # '*'
-    buf[pos + 1] = _HEX[cs >> 4]
-    buf[pos + 2] = _HEX[cs & 15]
-    buf[pos + 3] = 0x0A
-    return buf.tobytes()
+        x = cols[:, f]
+        width = len(str(int(x.max())))
+        p10 = 10 ** np.arange(width - 1, -1, -1, dtype=np.int64)
+        digits = (x[:, None] // p10) % 10
+        keep = (x[:, None] >= p10) | (p10 == 1)
+        parts += [np.full((n, 1), 0x2C, np.uint8), (digits + 48).astype(np.uint8)]
+        keeps += [np.ones((n, 1), bool), keep]
+    mat = np.concatenate(parts + [np.zeros((n, 4), np.uint8)], axis=1)
+    kept = np.concatenate(keeps + [np.ones((n, 4), bool)], axis=1)
+    mat[~kept] = 0
+    cs = np.bitwise_xor.reduce(mat[:, 1:-4], axis=1)
+    mat[:, -4] = 0x2A  # '*'
+    mat[:, -3] = _HEX[cs >> 4]
+    mat[:, -2] = _HEX[cs & 15]
+    mat[:, -1] = 0x0A
+    return mat[kept].tobytes()

@@ -12,6 +12,9 @@ The server runs in a daemon thread.  The slave side is put in raw mode (no
 echo, no line discipline) and kept open by the server, so the path stays
 valid while clients come and go; frames written while nobody reads pile up in
 the pty's buffer and, once it is full, are dropped as a real UART would.
+
+``serve_pty(..., faults="checksum:0.01,stall:0.001@0.5")`` makes the link
+noisy (:mod:`labcli.sim.faults`); ``server.faults`` holds the ground truth.
 """
 
 from __future__ import annotations
@@ -24,17 +27,19 @@ import time
 import tty
 
 from . import make_rig
+from .faults import FaultInjector, FaultSpec
 from .firmware import Firmware
 
 POLL_S = 0.005
 
 
 class PtyServer:
-    """A running pty server: ``path``, ``rig``, ``firmware``, ``stop()``."""
+    """A running pty server: ``path``, ``rig``, ``firmware``, ``faults`` (or None), ``stop()``."""
 
-    def __init__(self, rig, rate_hz: float = 200.0) -> None:
+    def __init__(self, rig, rate_hz: float = 200.0, faults: FaultInjector | None = None) -> None:
         self.rig = rig
-        self.firmware = Firmware(rig, rate_hz)
+        self.faults = faults
+        self.firmware = Firmware(rig, rate_hz, faults=faults)
         self.dropped_frames = 0
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
@@ -104,6 +109,11 @@ class PtyServer:
                 if due > 0:
                     sent += due
                     self._out += fw.frames(due)
+                    stall = fw.take_stall()
+                    if stall is not None:
+                        # The firmware hung: the frames it did not make fall due a stall later.
+                        sent -= stall[1]
+                        pace_t0 += stall[0]
             if self._out:
                 try:
                     n = os.write(self._master, self._out)
@@ -119,8 +129,15 @@ class PtyServer:
 
 
 def serve_pty(seed: int = 0, rate: float = 200.0, noise: float = 1.0, drift: float = 0.0,
-              tau: float = 0.7, mode: str = "mckibben", rig=None) -> PtyServer:
-    """Start serving a simulated rig on a new pseudo-terminal; returns the running server."""
+              tau: float = 0.7, mode: str = "mckibben", rig=None,
+              faults: "FaultSpec | str | dict | None" = None) -> PtyServer:
+    """Start serving a simulated rig on a new pseudo-terminal; returns the running server.
+
+    ``faults`` (a :class:`~labcli.sim.faults.FaultSpec`, its text form or a
+    dict) makes the link noisy, drawn from ``seed``; FaultSpecError if malformed.
+    """
+    spec = FaultSpec.from_data(faults)
     if rig is None:
         rig = make_rig(mode, seed=seed, noise=noise, drift=drift, tau_s=tau)
-    return PtyServer(rig, rate)
+    injector = FaultInjector(spec, seed=seed, n_channels=len(rig.channels)) if spec.active else None
+    return PtyServer(rig, rate, faults=injector)

@@ -5,7 +5,7 @@ in ``serial.protocol_handler_packages``, see :func:`labcli.urlhandler.register`)
 returns a port with the pyserial API whose other end runs the simulated
 firmware (:mod:`labcli.sim.firmware`) over a simulated rig.
 
-URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME]``
+URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME][&faults=SPEC]``
 
 * ``seed`` (0): seeds the actuators, sensor offsets, noise and settling times;
 * ``rate`` (200): sample rate at power-up, Hz (1..5000; ``RATE`` changes it);
@@ -13,14 +13,18 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
 * ``drift`` (0): scale of sensor zero drift and chamber leak;
 * ``clock``: ``virtual`` (default) advances device time only as the host reads,
   so hours of protocol run in seconds: while streaming, a read never waits
-  (frames are sampled when read; ``in_waiting`` offers about 0.5 s of device
+  (frames are sampled when read; ``in_waiting`` offers about 1 s of device
   time, so an operator action between reads acts after the frames the host
   has seen, give or take two); while idle,
   a read short of bytes waits its timeout as on a real port and the device's
   clock runs on by the time waited.  ``wall`` paces frames by the wall clock
   like real hardware;
 * ``tau`` (0.7): settling time constant after each load change, s;
-* ``mode`` (mckibben): which rig model (keys of :data:`labcli.sim.MODELS`).
+* ``mode`` (mckibben): which rig model (keys of :data:`labcli.sim.MODELS`);
+* ``faults`` (none): a noisy link, ``KIND:RATE[@X],...`` per
+  :mod:`labcli.sim.faults`, e.g. ``faults=checksum:0.01,drop:0.01,stall:0.001@2.5``;
+  drawn from ``seed``.  ``port.faults`` is then the
+  :class:`~labcli.sim.faults.FaultInjector` holding the exact ground truth.
 
 ``port.rig`` is the rig object (operator hooks for unattended runs and
 tests; not part of the wire protocol).  ``port.unplug()`` makes every later
@@ -37,10 +41,11 @@ import urllib.parse
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
 from ..sim import MODELS, make_rig
+from ..sim.faults import FAULTS_FORM, FaultInjector, FaultSpec, FaultSpecError
 from ..sim.firmware import RATE_MAX, RATE_MIN, Firmware
 
 UNPLUGGED = "device reports readiness to read but returned no data"
-BLOCK_S = 0.5  # device time offered by in_waiting while streaming (virtual clock)
+BLOCK_S = 1.0  # device time offered by in_waiting while streaming (virtual clock)
 MAX_BLOCK_FRAMES = 1500
 MAX_BUFFER = 1 << 22  # bytes held for the host before new frames are dropped (wall clock)
 
@@ -48,7 +53,7 @@ MAX_BUFFER = 1 << 22  # bytes held for the host before new frames are dropped (w
 def accepted_form() -> str:
     return (
         "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
-        f"[&mode={'|'.join(MODELS)}]"
+        f"[&mode={'|'.join(MODELS)}][&faults=KIND:RATE[@X],...]"
     )
 
 
@@ -96,6 +101,11 @@ def _mode(text: str) -> str:
     return text
 
 
+def _faults(text: str) -> FaultSpec | None:
+    spec = FaultSpec.parse(text)
+    return spec if spec.active else None
+
+
 # option -> (parser, default, what a valid value is)
 OPTIONS = {
     "seed": (_whole, 0, "a whole number >= 0"),
@@ -105,6 +115,7 @@ OPTIONS = {
     "clock": (_clock, "virtual", "'virtual' or 'wall'"),
     "tau": (_positive, 0.7, "a number of seconds > 0"),
     "mode": (_mode, "mckibben", "one of " + ", ".join(MODELS)),
+    "faults": (_faults, None, "KIND:RATE[@X],..."),
 }
 
 
@@ -130,6 +141,10 @@ def parse_sim_url(url: str) -> dict:
         parser, _, what = OPTIONS[key]
         try:
             opts[key] = parser(raw) if eq else parser("")
+        except FaultSpecError as e:
+            raise SimURLError(
+                f"option 'faults' in sim:// URL: {e.detail}; expected faults={FAULTS_FORM}"
+            ) from None
         except ValueError:
             raise SimURLError(
                 f"option '{key}' in sim:// URL must be {what}, got '{raw}'; expected {accepted_form()}"
@@ -143,6 +158,7 @@ class Serial(SerialBase):
     def __init__(self, *args, **kwargs) -> None:
         self.rig = None
         self.firmware: Firmware | None = None
+        self.faults: FaultInjector | None = None
         self.options: dict = {}
         self._rx = bytearray()
         self._cond = threading.Condition(threading.RLock())
@@ -168,7 +184,9 @@ class Serial(SerialBase):
             self.rig = make_rig(opts["mode"], seed=opts["seed"], noise=opts["noise"],
                                 drift=opts["drift"], tau_s=opts["tau"])
         self.options = opts
-        self.firmware = Firmware(self.rig, opts["rate"])
+        spec = opts["faults"]
+        self.faults = None if spec is None else FaultInjector(spec, seed=opts["seed"], n_channels=len(self.rig.channels))
+        self.firmware = Firmware(self.rig, opts["rate"], faults=self.faults)
         self._unplugged = False
         self._wall0 = time.monotonic() - self.rig.time_s
         self.is_open = True
@@ -220,7 +238,9 @@ class Serial(SerialBase):
             while len(self._rx) < want_bytes:
                 n = -(-(want_bytes - len(self._rx)) // self._line_len)
                 chunk = fw.frames(max(1, min(n, 100_000)))
-                self._line_len = max(20, len(chunk) // max(1, chunk.count(b"\n")))
+                fw.take_stall()  # virtual clock: the stall is the gap the rig's clock already made
+                if chunk:
+                    self._line_len = max(20, len(chunk) // max(1, chunk.count(b"\n")))
                 self._rx += chunk
             return
         due = int((time.monotonic() - self._pace_t0) * fw.rate_hz) - self._pace_sent
@@ -229,11 +249,16 @@ class Serial(SerialBase):
         self._pace_sent += due
         if len(self._rx) > MAX_BUFFER:
             # The host is not reading: the device's buffer overflows and frames are lost.
-            self.rig.samples(due, fw.rate_hz)
-            fw.seq = (fw.seq + due) % (1 << 32)
+            fw.skip(due)
             self.dropped_frames += due
             return
         self._rx += fw.frames(due)
+        stall = fw.take_stall()
+        if stall is not None:
+            # The firmware hung: the frames it did not make fall due a stall later.
+            seconds, not_made = stall
+            self._pace_sent -= not_made
+            self._pace_t0 += seconds
 
     def _next_due(self) -> float:
         fw = self.firmware
