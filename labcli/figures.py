@@ -107,7 +107,7 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
         text = (f"RMSE {_fmt(m.get('rmse'))} {unit}\n"
                 f"max |err| {_fmt(m.get('max_abs'))} {unit}\n"
                 f"bias {_fmt(m.get('bias'), 2)} {unit}\n"
-                f"$R^2$ {_fmt(m.get('r2'), 4)}   n = {m.get('n', 0)}")
+                f"$R^2$ {'—' if m.get('r2') is None else format(m['r2'], '.4f')}   n = {m.get('n', 0)}")
         if m.get("n_flagged"):
             text += f"\nflagged {m['n_flagged']}"
         ax.text(0.03, 0.97, text, transform=ax.transAxes, va="top", ha="left", fontsize=8,

@@ -100,12 +100,18 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
     toggle = result.toggle_deg
     finite = [np.abs(v[np.isfinite(v)]) for v in (*models.values(), result.measured_deg)]
     top = max((float(v.max()) for v in finite if v.size), default=step_deg)
-    top = min(math.ceil(top / step_deg) * step_deg, math.ceil(toggle / step_deg) * step_deg)
+    # Angles near the toggle (and the stop) share the end colour rather than widening the scale.
+    top = min(math.ceil(top / step_deg) * step_deg, max(math.floor(toggle / step_deg), 1) * step_deg)
     levels = np.arange(-top, top + step_deg / 2, step_deg)
     if levels.size < 3:
         levels = np.array([-step_deg, 0.0, step_deg])
     lines = levels[np.isclose(np.mod(levels, 2 * step_deg), 0) | np.isclose(np.mod(levels, 2 * step_deg), 2 * step_deg)]
     norm = BoundaryNorm(levels, 256)
+    eps = 1e-6 * step_deg
+
+    def clip(z: Any) -> Any:
+        return np.clip(z, levels[0] + eps, levels[-1] - eps)
+
     kpa = 1e3
 
     fig = _new_figure(15.5, 5.4)
@@ -118,7 +124,7 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
     filled = None
     for ax, name in zip(axes[:2], ("without", "with")):
         z = models[name]
-        zc = np.clip(z, levels[0], levels[-1])
+        zc = clip(z)
         filled = ax.contourf(PA * kpa, PB * kpa, zc, levels=levels, cmap=_CMAP, norm=norm)
         cs = ax.contour(PA * kpa, PB * kpa, z, levels=lines, colors="k", linewidths=0.7, linestyles="solid")
         ax.clabel(cs, fmt=_deg_label, fontsize=8, inline=True)
@@ -131,11 +137,11 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
 
     ax = axes[2]
     g = result.grid()
-    meas = np.clip(result.measured_deg, levels[0], levels[-1])
+    meas = clip(result.measured_deg)
     if g is not None:
         gpa, gpb, cells = g
         GA, GB = np.meshgrid(gpa * kpa, gpb * kpa)
-        zc = np.clip(cells["measured"], levels[0], levels[-1])
+        zc = clip(cells["measured"])
         ax.contourf(GA, GB, zc, levels=levels, cmap=_CMAP, norm=norm)
         cs = ax.contour(GA, GB, cells["measured"], levels=lines, colors="k", linewidths=0.7, linestyles="solid")
     else:
@@ -191,7 +197,9 @@ def figure_stretch(fit: Any, path: str | Path, *, title: str | None = None) -> P
     ax.fill_between(x, band_lo, band_hi, color="tab:red", alpha=0.25, linewidth=0, label="95 % band of the fit")
     ax.plot(lam, F, "o", mfc="none", mec="tab:blue", markersize=5, label=f"stretch test ({m.n_points} points)")
     ax.plot(x, m.predict(x), "-", color="tab:red", linewidth=1.8, label="third-order polynomial fit")
-    default = np.polynomial.polynomial.polyval(x, fit.default_coefficients_N)
+    # The model holds the default's end value outside the range it was made for.
+    d_lo, d_hi = fit.default_lambda_range
+    default = np.polynomial.polynomial.polyval(np.clip(x, d_lo, d_hi), fit.default_coefficients_N)
     ax.plot(x, default, "--", color="0.4", linewidth=1.0, label="protocol's default correction")
     ax.set_xlabel("stretch $\\lambda = L / L_0$")
     ax.set_ylabel("stretch force $F_{stretch}$ (N)")

@@ -44,6 +44,8 @@ group an ``NX_class`` attribute in the NeXus style::
             @settled @settle_time_s @waited_s @pressure_spread_MPa
             @angle_spread_rad @criterion @accepted
           @complete     True, written last (see below)
+        000012.1/       a later attempt at trial 12, only when a kill left an
+                        unfinished 000012 that HDF5 cannot remove (ignored)
       pushes/           NXcollection, push runs
         000003/         @push @order @object @category, R () m, d () m,
                         phi () rad (NaN unknown), true_stiffness () N/m (NaN unless
@@ -455,7 +457,12 @@ class RunFile:
         # fsync each record (crash safety); a file built whole under a temporary
         # name (import) turns it off and is synced once when closed.
         self.sync_each_record = True
-        self._order = self._next_order()
+        # (collection, id) -> (recording order, group name) of every complete
+        # record.  Scanned once: the file is locked, so only this object adds records.
+        self._index: dict[tuple[str, int], tuple[int, str]] = {
+            (c, rid): (order, name) for c in ("trials", "pushes") for order, rid, name in self._scan(c)[0]
+        }
+        self._order = max((order for order, _ in self._index.values()), default=-1) + 1
 
     # ----------------------------------------------------------- open / create
 
@@ -683,40 +690,25 @@ class RunFile:
         if self._f.mode == "r":
             raise StoreError(f"{self.path} is open read-only; open it with mode 'a' to add records.")
 
-    def _next_order(self) -> int:
-        orders = [-1]
-        for name in ("trials", "pushes"):
-            g = self._group(name)
-            if g is None:
-                continue
-            for key in g:
-                try:
-                    a = g[key].attrs
-                    if a.get("complete", False):
-                        orders.append(int(a["order"]))
-                except (OSError, KeyError, RuntimeError):
-                    continue
-        return max(orders) + 1
-
     def _new_group(self, collection: str, rid: int, label: str) -> h5py.Group:
         if collection not in self._f:
             self._f.create_group(collection).attrs["NX_class"] = "NXcollection"
         parent = self._f[collection]
-        name = f"{rid:06d}"
-        if name in parent:
-            try:
-                complete = bool(parent[name].attrs.get("complete", False))
-            except (OSError, KeyError, RuntimeError):
-                complete = False  # unreadable leftovers of a crash are never complete
-            if complete:
-                raise StoreError(f"{label} is already complete in {self.path}; a stored record is never overwritten.")
+        base = f"{rid:06d}"
+        if (collection, rid) in self._index:
+            raise StoreError(f"{label} is already complete in {self.path}; a stored record is never overwritten.")
+        # Leftovers of interrupted writes of this id are removed.  A kill can
+        # leave one that HDF5 cannot remove (its header never reached the disk);
+        # it stays, ignored, and the new attempt takes the next free name
+        # (000012.1, 000012.2, ...).
+        name = base
+        n = 0
+        while name in parent:
             try:
                 del parent[name]
-            except (OSError, KeyError, RuntimeError):
-                raise StoreError(
-                    f"the unfinished {label} in {self.path} cannot be removed; copy the complete records "
-                    "to a new file with 'labcli export' and 'labcli import'."
-                ) from None
+            except Exception:
+                n += 1
+                name = f"{base}.{n}"
         g = parent.create_group(name)
         g.attrs["NX_class"] = "NXcollection"
         g.attrs["complete"] = False  # first attribute; set True in place once all else is on disk
@@ -769,12 +761,13 @@ class RunFile:
                     _dataset(e, name, math.nan if v is None else float(v), _column_units(name))
         self._write_windows(g, record, label)
 
-    def _finish(self, g: h5py.Group) -> None:
+    def _finish(self, g: h5py.Group, collection: str, rid: int) -> None:
         if self.sync_each_record:
             self._commit()
         g.attrs.modify("complete", True)
         if self.sync_each_record:
             self._commit()
+        self._index[(collection, rid)] = (self._order, g.name.rsplit("/", 1)[1])
         self._order += 1
 
     def write_trial(self, record: TrialRecord | Mapping) -> None:
@@ -815,7 +808,7 @@ class RunFile:
         _dataset(g, "mass", mass, "kg")
         _dataset(g, "direction", direction, "rad")
         self._write_common(g, record, label)
-        self._finish(g)
+        self._finish(g, "trials", tid)
 
     def write_push(self, record: PushRecord | Mapping) -> None:
         """Write one object push whole (see :class:`PushRecord`); crash-safe as :meth:`write_trial`."""
@@ -853,41 +846,47 @@ class RunFile:
         if pot0 is not None:
             _dataset(g, "pot0", pot0, "rad")
         self._write_common(g, record, label)
-        self._finish(g)
+        self._finish(g, "pushes", pid)
 
     # ----------------------------------------------------------- reading records
 
-    def _scan(self, collection: str | None = None) -> tuple[list[tuple[int, int]], list[int]]:
-        """((order, id) of complete records, ids of incomplete ones)."""
+    def _scan(self, collection: str | None = None) -> tuple[list[tuple[int, int, str]], list[int]]:
+        """((order, id, group name) of complete records in recording order, ids only incomplete)."""
         g = self._group(collection)
-        complete: list[tuple[int, int]] = []
-        incomplete: list[int] = []
+        complete: list[tuple[int, int, str]] = []
+        incomplete: set[int] = set()
         if g is None:
-            return complete, incomplete
+            return complete, []
         for key in g:
             try:
-                rid = int(key)
+                rid = int(key.split(".")[0])
             except ValueError:
                 continue
             try:
                 a = g[key].attrs
                 ok = bool(a.get("complete", False))
                 order = int(a["order"]) if ok else -1
-            except (OSError, KeyError, RuntimeError):
+            except Exception:  # a crash's leftovers may be unreadable in any way: never complete
                 ok = False
             if ok:
-                complete.append((order, rid))
+                complete.append((order, rid, key))
             else:
-                incomplete.append(rid)
+                incomplete.add(rid)
         complete.sort()
-        return complete, sorted(incomplete)
+        done = {rid for _, rid, _ in complete}
+        return complete, sorted(incomplete - done)
+
+    def _complete(self, collection: str | None = None) -> list[tuple[int, int, str]]:
+        """(order, id, group name) of the complete records, in recording order."""
+        c = collection or self._records_name
+        return sorted((order, rid, name) for (cc, rid), (order, name) in self._index.items() if cc == c)
 
     def completed_ids(self, collection: str | None = None) -> list[int]:
         """Ids of the complete trials (pushes for a push run), in recording order."""
-        return [rid for _, rid in self._scan(collection)[0]]
+        return [rid for _, rid, _ in self._complete(collection)]
 
     def incomplete_ids(self, collection: str | None = None) -> list[int]:
-        """Ids of groups left incomplete by an interrupted write (never counted)."""
+        """Ids with only groups left incomplete by an interrupted write (never counted)."""
         return self._scan(collection)[1]
 
     def first_incomplete(self, plan_ids: Iterable[int]) -> int | None:
@@ -898,13 +897,17 @@ class RunFile:
                 return int(i)
         return None
 
-    def _complete_group(self, collection: str, rid: int) -> h5py.Group:
+    def _complete_groups(self, collection: str) -> tuple[list[int], list[h5py.Group]]:
+        complete = self._complete(collection)
         g = self._group(collection)
-        name = f"{rid:06d}"
-        if g is None or name not in g or not bool(g[name].attrs.get("complete", False)):
+        return [rid for _, rid, _ in complete], [g[name] for _, _, name in complete]
+
+    def _complete_group(self, collection: str, rid: int) -> h5py.Group:
+        entry = self._index.get((collection, rid))
+        if entry is None:
             what = "trial" if collection == "trials" else "push"
             raise StoreError(f"{what} {rid} is not a complete record in {self.path}.")
-        return g[name]
+        return self._f[collection][entry[1]]
 
     @staticmethod
     def _read_windows(g: h5py.Group) -> tuple[dict, dict]:
@@ -978,8 +981,7 @@ class RunFile:
         """The trial table (table-formats.md): MPa, N, degrees and grams; ``set`` from the split."""
         import pandas as pd
 
-        ids = self.completed_ids("trials")
-        groups = [self._f["trials"][f"{t:06d}"] for t in ids]
+        ids, groups = self._complete_groups("trials")
         sets = self.set_of()
         cols: dict[str, Any] = {c: [] for c in TRIAL_COLUMNS}
         mass, direction = [], []
@@ -1013,8 +1015,7 @@ class RunFile:
         """The push table (table-formats.md): m, degrees, MPa; ``phi_deg`` NaN when unknown."""
         import pandas as pd
 
-        ids = self.completed_ids("pushes")
-        groups = [self._f["pushes"][f"{t:06d}"] for t in ids]
+        ids, groups = self._complete_groups("pushes")
         cols: dict[str, Any] = {c: [] for c in PUSH_COLUMNS}
         stiffness = []
         for t, g in zip(ids, groups):
@@ -1155,8 +1156,8 @@ class RunFile:
         """What ``labcli inspect`` shows: metadata, completeness, split, drift, settling."""
         a = self.attrs
         collection = self._records_name
-        complete, incomplete = self._scan(collection)
-        ids = [rid for _, rid in complete]
+        ids, groups = self._complete_groups(collection)
+        incomplete = self.incomplete_ids(collection)
         plan = self.plan_table()
         out: dict[str, Any] = {
             "path": self.path,
@@ -1188,7 +1189,6 @@ class RunFile:
                 "validation": len(s["validation"]),
                 "unassigned": len(set(ids) - set(s["fit"]) - set(s["validation"])) if collection == "trials" else 0,
             }
-        groups = [self._f[collection][f"{i:06d}"] for i in ids]
         if len(groups) >= 2:
             p0 = np.array([g["P0"][()] for g in groups])
             index = np.arange(len(groups), dtype=np.float64)

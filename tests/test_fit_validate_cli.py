@@ -46,7 +46,7 @@ def test_fit_prints_coefficients_beside_the_paper_and_writes_the_model(csv: Path
     for value in ("-2201.03", "-642.995", "2.972", "-75.906"):
         assert value in out
     assert "the paper's -2.972 appears here as +2.972" in out
-    assert "trial 111: singular Jacobian: |theta2| = 1.00 deg < 2.86 deg" in out
+    assert "trial 111: singular Jacobian: |theta2| = 1.00 deg, Fy amplification 28" in out
     assert "coefficients in N m/MPa" in out and " deg;" in out
     model = json.loads((csv.parent / "trials.model.json").read_text())
     assert model["schema"] == "labcli-takuma-model" and model["protocol"] == "takuma2014"
@@ -54,7 +54,7 @@ def test_fit_prints_coefficients_beside_the_paper_and_writes_the_model(csv: Path
     for name in COEFFICIENT_NAMES:
         se = model["standard_errors"][name]
         assert abs(model["coefficients"][name] - PAPER_COEFFICIENTS[name]) < 5 * se, name
-    assert model["fit_stats"]["Fx"]["n"] == 90 and model["fit_stats"]["theta1"]["n"] == 91
+    assert model["fit_stats"]["Fy"]["n"] == 90 and model["fit_stats"]["Fx"]["n"] == 91
 
 
 def test_fit_json_output(csv: Path, tmp_path: Path) -> None:
@@ -74,7 +74,8 @@ def test_validate_reports_metrics_flags_and_figure(csv: Path, tmp_path: Path) ->
     r = run("validate", csv, "--plot", png)
     assert r.exit_code == 0, r.output
     assert "pressure-only" in r.output and "theta1 [deg]" in r.output and "Fy [N]" in r.output
-    assert ("trial 109: Fx, Fy = — (theta2 too close to 0 (Jacobian near singular))") in r.output
+    assert ("trial 109: Fy = — (theta2 too close to 0 for this force component (Jacobian near "
+            "singular))") in r.output
     assert f"Figure 7 written to {png}." in r.output
     assert png.read_bytes()[:4] == b"\x89PNG"
     for line in r.output.splitlines():
@@ -90,12 +91,14 @@ def test_validate_json(csv: Path, table: pd.DataFrame, mode: str) -> None:
     assert d["mode"] == mode and d["units"] == {"theta1": "deg", "theta2": "deg", "Fx": "N", "Fy": "N"}
     assert [t["trial"] for t in d["trials"]] == list(range(91, 111))
     m = d["metrics"]
-    assert m["Fx"]["n"] == 18 and m["Fx"]["n_flagged"] == 2 and m["theta2"]["n"] == 20
+    assert m["Fy"]["n"] == 18 and m["Fy"]["n_flagged"] == 2 and m["theta2"]["n"] == 20
+    assert m["Fx"]["n"] == 20 and m["Fx"]["n_flagged"] == 0
     # 12-bit rounding: angles to a tenth of a degree, forces to about a newton
     assert m["theta1"]["rmse"] < 0.1 and m["theta2"]["rmse"] < 0.2
     assert m["Fx"]["rmse"] < 1.5 and m["Fy"]["rmse"] < 1.5
     rows = {t["trial"]: t for t in d["trials"]}
-    assert rows[109]["calculated"]["Fx"] is None and rows[109]["flags"][0]["flag"] == "singular-jacobian"
+    assert rows[109]["calculated"]["Fy"] is None and rows[109]["flags"][0]["flag"] == "singular-jacobian"
+    assert rows[109]["calculated"]["Fx"] is not None
     obs = table.set_index("trial")
     assert rows[95]["observed"]["Fy"] == obs.loc[95, "Fy_N"]
     errs = [t["calculated"]["theta1"] - t["observed"]["theta1"] for t in d["trials"]]

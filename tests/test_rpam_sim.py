@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from rpam_helpers import capture
+from rpam_runs import capture
 
 from labcli.device import Device
 from labcli.models import rpam
@@ -184,3 +184,18 @@ def test_operator_hooks_reject_impossible_requests():
     rig.hang_payload(0.2)
     rig.remove_payload()
     assert rig.true_state()["payload_kg"] == 0.0
+
+
+def test_drift_moves_the_zeros_slowly_and_only_when_asked():
+    still, drifting = RpamRig(seed=4, noise=0.0), RpamRig(seed=4, noise=0.0, drift=1.0)
+    for rig in (still, drifting):
+        rig.set_pressures(0.06, 0.06)
+        rig.advance(20.0)
+    first = [r.samples(10, 10.0)[1].astype(float).mean(axis=0) for r in (still, drifting)]
+    for rig in (still, drifting):
+        rig.advance(900.0)
+    later = [r.samples(10, 10.0)[1].astype(float).mean(axis=0) for r in (still, drifting)]
+    np.testing.assert_array_equal(first[0], later[0])
+    moved = np.abs(later[1] - first[1])
+    assert moved.max() >= 1.0 and moved.max() <= 7.0  # a few counts over 15 min
+    np.testing.assert_allclose(first[1], first[0], atol=0.6)  # barely any drift in the first 20 s

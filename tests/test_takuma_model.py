@@ -19,7 +19,7 @@ from labcli.models.metrics import error_metrics, evaluate, evaluation_to_dict
 from labcli.models.synthetic import (ANGLE_LSB_DEG, PAPER_GEOMETRY, PRESSURE_LSB_MPA,
                                      add_sensor_noise, paper_trials)
 from labcli.models.takuma import (COEFFICIENT_NAMES, PAPER_COEFFICIENTS, TERMS, TakumaModel, fit,
-                                  jacobian_cond, jstar, theta2_threshold)
+                                  force_amplification, jacobian_cond, jstar, theta2_threshold)
 
 G = PAPER_GEOMETRY
 H2, H3 = G["h2"], G["h3"]
@@ -227,28 +227,45 @@ def test_error_metrics_known_answer() -> None:
 
 # ----------------------------------------------------------------------------- edge cases
 
+def test_force_amplification_per_component() -> None:
+    th = np.radians([[7.0, 0.8], [-5.0, -1.5], [0.0, 0.5], [3.0, 20.0], [7.0, 0.1]])
+    amp = force_amplification(th, H2, H3)
+    for k, (t1, t2) in enumerate(th):
+        J = printed_jacobian(t1, t2)
+        rows = np.linalg.norm(np.linalg.inv(J).T, axis=1) * np.linalg.norm(J, 2)
+        np.testing.assert_allclose(amp[k], rows, rtol=1e-10)
+        assert max(amp[k]) <= np.linalg.cond(J) * (1 + 1e-12)
+    # upright arm: Fx stays determined, Fy (along the arm) is lost
+    assert amp[2, 0] < 10 and amp[2, 1] > 500
+    assert np.all(force_amplification(np.array([[0.1, 0.0]]), H2, H3) == np.inf)
+
+
 def test_near_singular_trials_are_left_out_of_the_force_fit_and_flagged(clean: pd.DataFrame) -> None:
-    near = paper_trials(3, seed=4, noise=False, start_id=900, theta2_values_deg=[0.8, -1.5, 2.5])
+    near = paper_trials(4, seed=4, noise=False, start_id=900, theta2_values_deg=[0.8, -1.5, 2.5, 0.1])
+    amp = force_amplification(np.radians(near[["theta1_deg", "theta2_deg"]].to_numpy()), H2, H3)
+    assert np.all(amp[:, 1] > 100) and amp[3, 0] > 100 and np.all(amp[:3, 0] < 100)
     m = fit(pd.concat([clean, near]), G)
-    excluded = {e["trial"]: e["reason"] for e in m.excluded_trials["Fx"]}
-    assert sorted(excluded) == [900, 901, 902]
-    assert excluded[900].startswith("singular Jacobian: |theta2| = 0.80 deg < 2.86 deg (cond J = ")
-    assert m.excluded_trials["Fy"] == m.excluded_trials["Fx"]
+    fy = {e["trial"]: e["reason"] for e in m.excluded_trials["Fy"]}
+    assert sorted(fy) == [900, 901, 902, 903]
+    assert fy[900] == f"singular Jacobian: |theta2| = 0.80 deg, Fy amplification {amp[0, 1]:.3g} > 100"
+    assert [e["trial"] for e in m.excluded_trials["Fx"]] == [903]
     assert m.excluded_trials["theta2"] == [] and 900 in m.fitted_trials["theta2"]
-    assert m.fit_stats["Fx"]["n"] == 90 and m.fit_stats["theta1"]["n"] == 93
-    # the singular trials would have been consistent anyway: the fit stays exact
-    assert m.coefficients["beta_Fy6"] == pytest.approx(PAPER_COEFFICIENTS["beta_Fy6"], rel=1e-9)
+    assert m.fit_stats["Fx"]["n"] == 93 and m.fit_stats["Fy"]["n"] == 90 and m.fit_stats["theta1"]["n"] == 94
+    # the near-singular trials obey the equations too: the fit stays exact
+    assert m.coefficients["beta_Fx3"] == pytest.approx(PAPER_COEFFICIENTS["beta_Fx3"], rel=1e-9)
 
     P0 = near[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy(float)
     P = near[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy(float)
     out = m.predict(P0, P)
-    assert np.all(np.isfinite(out["Fx_N"])) and np.all(np.isfinite(out["Fy_N"]))
-    assert list(out["ok"]["Fx"]) == [False, False, False]
-    assert list(out["ok"]["theta2"]) == [True, True, True]
+    assert list(out["ok"]["Fy"]) == [False] * 4 and list(out["ok"]["Fx"]) == [True, True, True, False]
+    assert all(out["ok"]["theta2"])
     assert all(f == ["singular-jacobian"] for f in out["flags"])
-    # exactly straight upper joint, measured: still finite, still flagged
+    # flagged values are still the model's own answer (here exact, the data being noise-free)
+    np.testing.assert_allclose(out["Fy_N"], near["Fy_N"], rtol=1e-6)
+    # exactly straight upper joint: a finite stand-in, flagged
     out = m.predict(P0[:1], P[:1], mode="measured-angles", theta=[[0.05, 0.0]])
-    assert np.isfinite(out["Fx_N"][0]) and out["flags"] == [["singular-jacobian"]]
+    assert np.isfinite(out["Fx_N"][0]) and np.isfinite(out["Fy_N"][0])
+    assert out["flags"] == [["singular-jacobian"]] and not out["ok"]["Fx"][0]
 
 
 def test_arcsin_argument_outside_unit_range_is_clipped_and_flagged() -> None:
@@ -279,7 +296,7 @@ def test_too_few_after_singular_exclusions(clean: pd.DataFrame) -> None:
     near = paper_trials(2, seed=4, noise=False, start_id=900, theta2_values_deg=[0.8, -1.5])
     with pytest.raises(ModelError) as e:
         fit(pd.concat([clean.head(6), near]), G, source="run.h5")
-    assert str(e.value).startswith("The Fx equation needs at least 7 usable fit trials for its 6 "
+    assert str(e.value).startswith("The Fy equation needs at least 7 usable fit trials for its 6 "
                                    "coefficients, but run.h5 has 6 (2 excluded: singular Jacobian: ")
 
 
@@ -381,7 +398,7 @@ def test_figure7_png_and_pdf(noisy_model: TakumaModel, validation: pd.DataFrame,
 
     near = paper_trials(2, seed=4, set_name="validation", start_id=900, theta2_values_deg=[0.8, -1.5])
     ev = evaluate(noisy_model, pd.concat([validation, near]))
-    assert ev["metrics"]["Fx"]["n_flagged"] == 2
+    assert ev["metrics"]["Fy"]["n_flagged"] == 2 and ev["metrics"]["Fx"]["n_flagged"] == 0
     png = figure7(ev, tmp_path / "fig7.png")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
     pdf = figure7(ev, tmp_path / "fig7.pdf")
@@ -392,6 +409,6 @@ def test_figure7_png_and_pdf(noisy_model: TakumaModel, validation: pd.DataFrame,
     d = evaluation_to_dict(ev)
     flagged = [t for t in d["trials"] if t["flags"]]
     assert [t["trial"] for t in flagged] == [900, 901]
-    assert flagged[0]["calculated"]["Fx"] is None and flagged[0]["calculated"]["theta2"] is not None
+    assert flagged[0]["calculated"]["Fy"] is None and flagged[0]["calculated"]["Fx"] is not None
     assert flagged[0]["flags"][0]["flag"] == "singular-jacobian"
     json.dumps(d, allow_nan=False)

@@ -70,9 +70,9 @@ def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded:
                 con.print(f"    ... and {len(excluded) - 12} more (see the model file)")
         con.print()
     con.print(f"Sign: {SIGN_NOTE}.", soft_wrap=True)
-    thr = model.to_dict()["settings"]["theta2_threshold_deg"]
-    con.print(f"Force fit excludes postures with |theta2| < {thr:.2f} deg "
-              f"(Jacobian condition number > {model.max_jacobian_cond:g}).", soft_wrap=True)
+    con.print(f"Each force fit leaves out postures near the straight arm (theta2 = 0) where that "
+              f"component's amplification ||row of (J^-1)^T|| ||J|| exceeds {model.max_amplification:g}.",
+              soft_wrap=True)
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
 
 
@@ -82,10 +82,11 @@ def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded:
               help="Model JSON to write [default: RUN.model.json beside the run].")
 @click.option("--protocol", default=None,
               help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.")
-@click.option("--max-jacobian-cond", type=float, default=100.0, show_default=True,
-              help="Leave postures whose Jacobian condition number exceeds this out of the force fit.")
+@click.option("--max-amplification", type=float, default=100.0, show_default=True,
+              help="Leave a posture out of the Fx (Fy) fit when that force's error amplification "
+                   "near theta2 = 0 exceeds this.")
 @click.option("--json", "as_json", is_flag=True, help="Print the model and the paper's values as JSON.")
-def fit(run: Path, output: Path | None, protocol: str | None, max_jacobian_cond: float,
+def fit(run: Path, output: Path | None, protocol: str | None, max_amplification: float,
         as_json: bool) -> None:
     """Fit the paper's regression (Eqs. 34-37) to the fit trials of RUN.
 
@@ -104,7 +105,7 @@ def fit(run: Path, output: Path | None, protocol: str | None, max_jacobian_cond:
     try:
         src = load_trial_source(run, protocol)
         model = TakumaModel(geometry=src.protocol.rig, protocol=src.protocol.name,
-                            max_jacobian_cond=max_jacobian_cond).fit(src.table, source=str(run))
+                            max_amplification=max_amplification).fit(src.table, source=str(run))
         out_path = output or default_model_path(run)
         text = model.to_json()
         try:

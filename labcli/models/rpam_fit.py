@@ -40,6 +40,7 @@ NaN is written as ``null``):
 
     {"kind": "rpam-stretch-fit", "protocol": path, "L0_m": float,
      "default_coefficients_N": [...4],     # the protocol's [stretch_correction]
+     "default_lambda_range": [lo, hi],     # ... and the stretches it holds for
      "model": <StretchCorrection.to_dict()>,
      "skipped_rows": [int, ...],
      "points": {"row", "mass_kg", "P_MPa", "L_m", "lambda", "F_ext_N", "F_cons_N",
@@ -87,7 +88,7 @@ _NEGATIVE_P_TEXT = ("the rPAM works with gauge pressures of 0 MPa or more, so a 
                     "points to a pressure sensor or its calibration")
 
 
-# --------------------------------------------------------------------------- helpers
+# --------------------------------------------------------------------------- tables and records
 
 
 def _protocol(protocol: Any) -> tuple[str, dict[str, Any]]:
@@ -324,6 +325,7 @@ class StretchFit:
     protocol: str
     L0_m: float
     default_coefficients_N: tuple[float, ...]
+    default_lambda_range: tuple[float, float] = (1.0, 2.2)
     skipped_rows: list[int] = field(default_factory=list)
 
     def apply_to(self, act: rpam.Actuator) -> rpam.Actuator:
@@ -343,6 +345,7 @@ class StretchFit:
             "protocol": self.protocol,
             "L0_m": self.L0_m,
             "default_coefficients_N": list(self.default_coefficients_N),
+            "default_lambda_range": list(self.default_lambda_range),
             "model": self.model.to_dict(),
             "skipped_rows": list(self.skipped_rows),
             "points": {k: list(v) for k, v in self.points.items()},
@@ -359,6 +362,7 @@ class StretchFit:
                 protocol=str(d["protocol"]),
                 L0_m=float(d["L0_m"]),
                 default_coefficients_N=tuple(float(v) for v in d["default_coefficients_N"]),
+                default_lambda_range=tuple(float(v) for v in d["default_lambda_range"]),  # type: ignore[arg-type]
                 skipped_rows=[int(v) for v in d.get("skipped_rows", [])],
             )
         except (KeyError, TypeError, ValueError, AttributeError) as e:
@@ -432,6 +436,7 @@ def analyse_stretch(table: Any, protocol: Any = "rpam2015") -> StretchFit:
     }
     return StretchFit(model=model, points=points, protocol=path, L0_m=act.L0_m,
                       default_coefficients_N=act.stretch_coefficients_N,
+                      default_lambda_range=act.stretch_lambda_range,
                       skipped_rows=[int(v) for v in rows[~ok]])
 
 

@@ -48,7 +48,7 @@ def paper_trials(n: int, *, seed: int = 0, noise: bool = True, set_name: str = "
                  theta2_deg: tuple[float, float] = (5.0, 25.0),
                  force_N: float = 5.0, baseline_MPa: tuple[float, float] = (0.28, 0.32),
                  theta2_values_deg: Any = None) -> Any:
-    """A trial-table DataFrame of ``n`` trials generated from Eqs. 34-37.
+    """A trial-table DataFrame of ``n`` trials that satisfy Eqs. 34-37.
 
     ``theta2_deg`` is the range of |theta2| (its sign is random); ``theta2_values_deg`` pins
     theta2 per trial instead (e.g. near-singular postures; not exactly 0, where Eqs. 36-37

@@ -23,11 +23,16 @@ Units: pressures MPa, lengths m, angles rad, forces N.  Angle coefficients are d
 (sine per unit pressure ratio); force coefficients are N m / MPa (j* is in 1/m).
 
 Near-singular posture: ``det J`` vanishes at theta2 = 0, where a force along the straight arm
-makes no torque and the j* blow up.  A trial whose Jacobian condition number exceeds
-``max_jacobian_cond`` (default 100, i.e. |theta2| below about 2.9 deg for the paper's h2, h3)
-is left out of the force fit with that reason, and in prediction its forces are computed at the
-edge of the trusted region (theta2 moved to +-threshold), so every number stays finite, and the
-trial is flagged ``singular-jacobian`` and kept out of the accuracy metrics.
+makes no torque and the j* blow up.  Only the component along the arm is lost, so the policy is
+per component: the amplification of Fx (resp. Fy) is ``||row 1 (resp. 2) of (J^-1)^T|| ||J||``
+(dimensionless, at most cond(J)), the factor by which a relative torque error grows into that
+force.  A trial whose amplification exceeds ``max_amplification`` (default 100) is left out of
+that component's fit with the reason, and in prediction that component is flagged
+``singular-jacobian`` (ok False) and kept out of the accuracy metrics.  Its value is still the
+model's own answer; only at theta2 = 0 exactly, where that is infinite, a stand-in is computed
+with theta2 moved to the whole-Jacobian bound (cond J = max_amplification, 2.86 deg for the
+paper's h2, h3), so every returned number is finite.  On an upright arm Fx stays well
+determined (amplification of a few tens) while Fy is lost below |theta2| of about 3 deg.
 """
 
 from __future__ import annotations
@@ -78,7 +83,7 @@ UNITS = {
 }
 GEOMETRY_KEYS = ("h1", "h2", "h3", "r1", "r2")
 
-DEFAULT_MAX_JACOBIAN_COND = 100.0
+DEFAULT_MAX_AMPLIFICATION = 100.0
 DEFAULT_MAX_DESIGN_COND = 1e8
 # Above this (column-scaled) condition number the fit is kept but marked ill-conditioned.
 WARN_DESIGN_COND = 1e4
@@ -88,7 +93,7 @@ FLAG_TEXT = {
     "theta1-clipped": "Eq. 34 gave |sin(theta1)| > 1 (clipped)",
     "theta2-clipped": "Eq. 35 gave |sin(theta2)| > 1 (clipped)",
     "missing-angle": "the measured angle is missing",
-    "singular-jacobian": "theta2 too close to 0 (Jacobian near singular)",
+    "singular-jacobian": "theta2 too close to 0 for this force component (Jacobian near singular)",
 }
 
 
@@ -131,10 +136,22 @@ def jacobian_cond(theta2: np.ndarray, h2: float, h3: float) -> np.ndarray:
         return np.where(det > 0, smax2 / det, np.inf)
 
 
+def force_amplification(theta: np.ndarray, h2: float, h3: float) -> np.ndarray:
+    """Per-component amplification ``||row_k (J^-1)^T|| ||J||`` (n, 2) for Fx, Fy (inf if singular)."""
+    theta = np.atleast_2d(np.asarray(theta, dtype=float))
+    t2 = theta[:, 1]
+    frob2 = h2 ** 2 + 2.0 * h3 ** 2 + 2.0 * h2 * h3 * np.cos(t2)
+    det = np.abs(h2 * h3 * np.sin(t2))
+    smax = np.sqrt(0.5 * (frob2 + np.sqrt(np.maximum(frob2 ** 2 - 4.0 * det ** 2, 0.0))))
+    with np.errstate(invalid="ignore"):
+        amp = np.linalg.norm(jstar(theta, h2, h3), axis=2) * smax[:, None]
+    return np.where(det[:, None] > 0, amp, np.inf)
+
+
 def theta2_threshold(h2: float, h3: float, max_cond: float) -> float:
     """Smallest |theta2| (rad) at which cond(J) <= max_cond."""
     if not max_cond > 1.0:
-        raise ModelError(f"The Jacobian condition bound must exceed 1, got {max_cond}.")
+        raise ModelError(f"The force amplification bound must exceed 1, got {max_cond:g}.")
     lo, hi = 0.0, math.pi / 2
     if jacobian_cond(np.array(hi), h2, h3) > max_cond:
         return hi
@@ -303,7 +320,7 @@ class TakumaModel:
 
     geometry: dict[str, float]
     protocol: str = "takuma2014"
-    max_jacobian_cond: float = DEFAULT_MAX_JACOBIAN_COND
+    max_amplification: float = DEFAULT_MAX_AMPLIFICATION
     max_design_cond: float = DEFAULT_MAX_DESIGN_COND
     coefficients: dict[str, float] = field(default_factory=dict)
     standard_errors: dict[str, float] = field(default_factory=dict)
@@ -325,8 +342,8 @@ class TakumaModel:
 
     @property
     def theta2_threshold_rad(self) -> float:
-        """|theta2| below which a posture counts as singular (from max_jacobian_cond)."""
-        return theta2_threshold(self.geometry["h2"], self.geometry["h3"], self.max_jacobian_cond)
+        """|theta2| below which cond(J) exceeds max_amplification (stand-in posture at theta2 = 0)."""
+        return theta2_threshold(self.geometry["h2"], self.geometry["h3"], self.max_amplification)
 
     def fit(self, table: Any, source: str = "the trial table") -> "TakumaModel":
         """Least squares on the table's ``set == 'fit'`` rows; returns self, fitted."""
@@ -349,8 +366,8 @@ class TakumaModel:
             for t in trial[~np.isfinite(theta[:, k]) & ~bad_p]:
                 reasons[eq][int(t)] = f"{ANGLE_COLUMNS[k]} is missing"
         angles_known = np.all(np.isfinite(theta), axis=1)
-        kappa = jacobian_cond(np.where(angles_known, theta[:, 1], 0.0), h2, h3)
-        thr_deg = math.degrees(self.theta2_threshold_rad)
+        theta2_threshold(h2, h3, self.max_amplification)  # a bound <= 1 is refused here
+        amp = force_amplification(np.where(angles_known[:, None], theta, 0.0), h2, h3)
         for k, eq in enumerate(("Fx", "Fy")):
             for i, t in enumerate(trial):
                 if bad_p[i]:
@@ -359,10 +376,10 @@ class TakumaModel:
                     reasons[eq][int(t)] = "a measured angle is missing"
                 elif not np.isfinite(F[i, k]):
                     reasons[eq][int(t)] = f"{FORCE_COLUMNS[k]} is missing"
-                elif not kappa[i] <= self.max_jacobian_cond:
+                elif not amp[i, k] <= self.max_amplification:
                     reasons[eq][int(t)] = (
-                        f"singular Jacobian: |theta2| = {abs(math.degrees(theta[i, 1])):.2f} deg "
-                        f"< {thr_deg:.2f} deg (cond J = {kappa[i]:.3g} > {self.max_jacobian_cond:g})")
+                        f"singular Jacobian: |theta2| = {abs(math.degrees(theta[i, 1])):.2f} deg, "
+                        f"{eq} amplification {amp[i, k]:.3g} > {self.max_amplification:g}")
 
         with np.errstate(divide="ignore", invalid="ignore"):
             u = pressure_ratio_features(P0, P)
@@ -483,20 +500,27 @@ class TakumaModel:
             th_force = np.where(known[:, None], th_meas, 0.0)
             ok_source = known & ~bad_p
 
-        kappa = jacobian_cond(th_force[:, 1], h2, h3)
-        singular = ~(kappa <= self.max_jacobian_cond)
-        thr = self.theta2_threshold_rad
-        t2_used = np.where(singular, np.where(th_force[:, 1] < 0, -thr, thr), th_force[:, 1])
-        for i in np.flatnonzero(singular & ok_source):
+        amp = force_amplification(th_force, h2, h3)
+        singular = ~(amp <= self.max_amplification)          # (n, 2): Fx, Fy
+        for i in np.flatnonzero(singular.any(axis=1) & ok_source):
             flags[i].append("singular-jacobian")
-        Xfx, Xfy = force_design(P0s, Ps, np.column_stack([th_force[:, 0], t2_used]), h2, h3)
-        Fx = Xfx @ np.array([b[k] for k in TERMS["Fx"]])
-        Fy = Xfy @ np.array([b[k] for k in TERMS["Fy"]])
-        ok_f = ok_source & ~singular
+        bx, by = (np.array([b[k] for k in TERMS[eq]]) for eq in ("Fx", "Fy"))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            Xfx, Xfy = force_design(P0s, Ps, th_force, h2, h3)
+            F = np.column_stack([Xfx @ bx, Xfy @ by])
+        bad = ~np.isfinite(F)
+        if bad.any():
+            # theta2 = 0 exactly: a finite stand-in from the edge of the trusted region.
+            thr = self.theta2_threshold_rad
+            t2 = np.where(th_force[:, 1] < 0, -thr, thr)
+            Sx, Sy = force_design(P0s, Ps, np.column_stack([th_force[:, 0], t2]), h2, h3)
+            F = np.where(bad, np.column_stack([Sx @ bx, Sy @ by]), F)
+        ok_f = ok_source[:, None] & ~singular
         return {
-            "theta1_rad": th[:, 0], "theta2_rad": th[:, 1], "Fx_N": Fx, "Fy_N": Fy,
-            "ok": {"theta1": ok_t[:, 0], "theta2": ok_t[:, 1], "Fx": ok_f, "Fy": ok_f.copy()},
-            "flags": flags, "jacobian_cond": kappa, "mode": mode,
+            "theta1_rad": th[:, 0], "theta2_rad": th[:, 1], "Fx_N": F[:, 0], "Fy_N": F[:, 1],
+            "ok": {"theta1": ok_t[:, 0], "theta2": ok_t[:, 1], "Fx": ok_f[:, 0], "Fy": ok_f[:, 1]},
+            "flags": flags, "amplification": amp, "jacobian_cond": jacobian_cond(th_force[:, 1], h2, h3),
+            "mode": mode,
         }
 
     def predict_table(self, table: Any, mode: str = "pressure-only") -> dict[str, Any]:
@@ -528,7 +552,7 @@ class TakumaModel:
             "units": UNITS, "sign_convention": SIGN_NOTE,
             "equations": {eq: list(TERMS[eq]) for eq in EQUATIONS},
             "protocol": self.protocol, "geometry": self.geometry,
-            "settings": {"max_jacobian_cond": self.max_jacobian_cond,
+            "settings": {"max_amplification": self.max_amplification,
                          "max_design_cond": self.max_design_cond,
                          "theta2_threshold_deg": math.degrees(self.theta2_threshold_rad)},
             "coefficients": self.coefficients, "standard_errors": self.standard_errors,
@@ -554,7 +578,7 @@ class TakumaModel:
             settings = d.get("settings", {})
             model = cls(
                 geometry=dict(d["geometry"]), protocol=str(d["protocol"]),
-                max_jacobian_cond=float(settings.get("max_jacobian_cond", DEFAULT_MAX_JACOBIAN_COND)),
+                max_amplification=float(settings.get("max_amplification", DEFAULT_MAX_AMPLIFICATION)),
                 max_design_cond=float(settings.get("max_design_cond", DEFAULT_MAX_DESIGN_COND)),
                 coefficients={k: float(v) for k, v in d["coefficients"].items()},
                 standard_errors={k: float(v) for k, v in d.get("standard_errors", {}).items()},
@@ -603,10 +627,10 @@ class TakumaModel:
 
 
 def fit(table: Any, geometry: Mapping[str, Any], *, protocol: str = "takuma2014",
-        max_jacobian_cond: float = DEFAULT_MAX_JACOBIAN_COND,
+        max_amplification: float = DEFAULT_MAX_AMPLIFICATION,
         max_design_cond: float = DEFAULT_MAX_DESIGN_COND,
         source: str = "the trial table") -> TakumaModel:
     """Fit Eqs. 34-37 to the table's fit trials and return the model."""
     return TakumaModel(geometry=dict(geometry), protocol=protocol,
-                       max_jacobian_cond=max_jacobian_cond,
+                       max_amplification=max_amplification,
                        max_design_cond=max_design_cond).fit(table, source=source)

@@ -42,9 +42,12 @@ Ground truth, exact: ``injected`` (events by kind, ``stall_s`` total),
 i.e. what a stream reader must count as ``bad_checksum``/``malformed``/
 ``overlong``), ``stalls`` ``[(seq, seconds)]``, ``destroyed`` (the ``seq`` of
 every frame not delivered intact) and, with ``record = True``, every frame
-made with its fate (:meth:`emitted`).  A reader that saw the whole stream
-after START counts ``lost == lost_between(first, last)`` for the first and
-last intact frames it yielded.
+made with its fate (:meth:`FaultInjector.emitted`).  :meth:`FaultInjector.expected`
+gives the counters a reader that saw the whole stream since START must show:
+``frames`` sent intact, ``bad_checksum``, ``malformed``, ``overlong``, and
+``lost`` = drop + checksum + truncate + overlong faults between the first and
+the last intact frame (a spoiled frame's ``seq`` is used up, so the reader
+sees it as a gap too).
 """
 
 from __future__ import annotations
@@ -56,6 +59,7 @@ from typing import Any
 import numpy as np
 
 from ..wire import MAX_LINE, U32, Frame, Noise, parse_line
+from .firmware import format_frames
 
 FRAME_FAULTS = ("drop", "overlong", "truncate", "checksum")  # order of precedence
 KINDS = ("checksum", "garbage", "truncate", "overlong", "drop", "stall", "burst")
@@ -318,8 +322,6 @@ class FaultInjector:
         fw.seq = int((fw.seq + m) % U32)
         fw.count += m
         self.frames += m
-        from .firmware import format_frames
-
         block = format_frames(seq, t_us, counts)
         fate = np.zeros(m, np.int8) if self.record else None
         if not slots.shape[0] and self._burst_end <= first:

@@ -46,7 +46,7 @@ change); pressures follow their regulators with the same lag.
   :data:`STOP_MARGIN_DEG` short of the toggle (the paper's runaway "toggle" state).
 
 The true stretch correction is the protocol's cubic scaled per actuator by a seeded factor
-(about 8 % rms, within 0.8-1.25) and never clamped, so a stretch test can recover it and
+(about 5 % rms, within 0.8-1.25) and never clamped, so a stretch test can recover it and
 tell it from the protocol's default.  Every change also draws a friction offset (the
 paper's "variable friction in the joints"): about 0.15 N on the hanging actuator and
 2 mN m on the joint, the scatter of Fig. 6 and of the measured map.  The potentiometer has
@@ -80,7 +80,7 @@ POT_SPAN_DEG = 340.0
 LEN_SPAN_M = 0.300
 STOP_MARGIN_DEG = 1.0
 NOISE_COUNTS = np.array([0.5, 0.5, 0.7, 0.7])
-STRETCH_SCALE_RMS = 0.08
+STRETCH_SCALE_RMS = 0.05
 FRICTION_FORCE_N = 0.15
 FRICTION_TORQUE_NM = 0.002
 POT_OFFSET_DEG = 0.5

@@ -1,0 +1,150 @@
+"""End to end over a pseudo-terminal: the simulated rig at 1 kHz x 6 channels.
+
+Run:  python benchmarks/bench_link.py [--seconds 60] [--baseline-seconds 10] [--rate 1000]
+                                       [--faults KIND:RATE[@X],...]
+
+The rig runs in its own process (``labcli sim --pty``, wall clock), as a
+microcontroller would; this process is the host.  Measured per path, over the
+same pty in the same run:
+
+* labcli: ``Device`` (the stream reader, chunked reads) for ``--seconds``;
+* baseline: pyserial ``readline()`` + :func:`labcli.wire.parse_line` per line,
+  what a first host usually looks like, for ``--baseline-seconds``.
+
+Reported: frames, frames/s, lost frames (must be 0 without faults), and the
+host's CPU share (``time.process_time`` over wall time), plus the ratio of CPU
+per frame labcli / baseline, and the rig process's own CPU share
+(``getrusage(RUSAGE_CHILDREN)``).  With ``--faults`` only the labcli path runs
+and its counters are compared with what the rig reports it injected.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import serial  # noqa: E402
+
+from labcli.device import Device  # noqa: E402
+from labcli.wire import Frame, Noise, parse_line  # noqa: E402
+
+
+def start_rig(rate: float, faults: str) -> tuple[subprocess.Popen, str]:
+    cmd = [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "1", "--rate", f"{rate:g}"]
+    if faults:
+        cmd += ["--faults", faults]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, cwd=Path(__file__).resolve().parents[1])
+    line = proc.stdout.readline()
+    m = re.match(r"Simulated rig on (\S+) ", line)
+    if not m:
+        proc.kill()
+        raise SystemExit(f"the simulated rig did not start: {line!r}")
+    return proc, m.group(1)
+
+
+def run_labcli(path: str, rate: float, seconds: float) -> dict:
+    with Device.open(path, boot_wait=0, timeout=2.0) as dev:
+        dev.set_rate(rate)
+        c0, w0 = time.process_time(), time.monotonic()
+        dev.start()
+        frames = 0
+        while time.monotonic() - w0 < seconds:
+            frames += len(dev.read(timeout=0.25))
+        frames += len(dev.stop())
+        cpu, wall = time.process_time() - c0, time.monotonic() - w0
+        c = dev.counters
+    return {"path": "labcli Device", "wall": wall, "cpu": cpu, "frames": frames, "lost": c["lost"],
+            "bad_checksum": c["bad_checksum"], "malformed": c["malformed"], "overlong": c["overlong"]}
+
+
+def run_readline(path: str, rate: float, seconds: float) -> dict:
+    port = serial.Serial(path, timeout=0.25)
+    try:
+        port.write(f"RATE {rate:g}\n".encode())
+        port.reset_input_buffer()
+        c0, w0 = time.process_time(), time.monotonic()
+        port.write(b"START\n")
+        frames = lost = bad = malformed = 0
+        last = None
+        stopping = False
+        while True:
+            if not stopping and time.monotonic() - w0 >= seconds:
+                port.write(b"STOP\n")
+                stopping = True
+            line = port.readline()
+            p = parse_line(line, 6)
+            if isinstance(p, Frame):
+                frames += 1
+                if last is not None:
+                    lost += (p.seq - last - 1) % (1 << 32)
+                last = p.seq
+            elif isinstance(p, Noise) and line:
+                bad += p.reason == "bad checksum"
+                malformed += p.reason != "bad checksum"
+            elif stopping and line.startswith(b"OK STOP"):
+                break
+        cpu, wall = time.process_time() - c0, time.monotonic() - w0
+    finally:
+        port.close()
+    return {"path": "pyserial readline", "wall": wall, "cpu": cpu, "frames": frames, "lost": lost,
+            "bad_checksum": bad, "malformed": malformed, "overlong": 0}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0, help="labcli path duration, s")
+    ap.add_argument("--baseline-seconds", type=float, default=10.0, help="readline baseline duration, s (0: skip)")
+    ap.add_argument("--rate", type=float, default=1000.0, help="frames per second")
+    ap.add_argument("--faults", default="", help="fault specification for the rig (labcli path only)")
+    a = ap.parse_args()
+
+    t_start = time.monotonic()
+    proc, path = start_rig(a.rate, a.faults)
+    rows = []
+    try:
+        rows.append(run_labcli(path, a.rate, a.seconds))
+        if a.baseline_seconds > 0 and not a.faults:
+            rows.append(run_readline(path, a.rate, a.baseline_seconds))
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=10)
+    rig_wall = time.monotonic() - t_start
+    rig_cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
+    rig_cpu_s = rig_cpu.ru_utime + rig_cpu.ru_stime
+
+    print(f"Rig wire link over a pty, {a.rate:g} Hz x 6 channels{', faults ' + a.faults if a.faults else ''}")
+    print(f"{'path':<18} {'wall s':>7} {'frames':>8} {'frames/s':>9} {'lost':>6} {'bad cs':>7} "
+          f"{'malformed':>9} {'CPU s':>7} {'CPU share':>9} {'CPU us/frame':>12}")
+    for r in rows:
+        per = 1e6 * r["cpu"] / r["frames"] if r["frames"] else float("nan")
+        r["per"] = per
+        print(f"{r['path']:<18} {r['wall']:7.1f} {r['frames']:8d} {r['frames'] / r['wall']:9.1f} {r['lost']:6d} "
+              f"{r['bad_checksum']:7d} {r['malformed']:9d} {r['cpu']:7.2f} {100 * r['cpu'] / r['wall']:8.2f}% "
+              f"{per:12.1f}")
+    if len(rows) == 2:
+        print(f"CPU per frame, labcli / readline baseline: {rows[0]['per'] / rows[1]['per']:.3f}")
+    print(f"rig process (simulator, not the host): {rig_cpu_s:.2f} s CPU over {rig_wall:.1f} s "
+          f"({100 * rig_cpu_s / rig_wall:.1f} %)")
+    faults_line = next((x for x in out.splitlines() if x.startswith("Faults: ")), "")
+    if faults_line:
+        print(faults_line)
+        m = re.search(r"must count (\d+) bad checksum, (\d+) malformed, (\d+) overlong, (\d+) lost", faults_line)
+        r = rows[0]
+        got = (r["bad_checksum"], r["malformed"], r["overlong"], r["lost"])
+        want = tuple(int(x) for x in m.groups())
+        print(f"host counters {'match' if got == want else 'DIFFER FROM'} the injected faults: {got} vs {want}")
+    if not a.faults and any(r["lost"] for r in rows):
+        print("FRAMES LOST without faults")
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
