@@ -17,7 +17,7 @@ Three figures, measured in the same run:
 Reported: run / baseline (the cost of the engine, settle detection and store on
 top of the link) and device time / run (how much faster than real time).
 ``--block`` sets the virtual clock's on-demand block (``BLOCK_S`` of the
-``sim://`` handler, device seconds generated per read) to show how much of the
+``sim://`` URL handler, device seconds generated per read) to show how much of the
 run is the simulated link.
 """
 

@@ -17,13 +17,14 @@ float64 and ``seq`` uint32 per frame, as the run file stores them.
   write, never flushed until the file is closed (closing is timed).  It does
   not survive a kill -9 (see engineering-notes.md).
 
-Samples are frames x channels.  Best of R runs for each; the ratios are
+Samples are frames x channels.  Best of R interleaved runs for each; the ratios are
 measured in the same run on the same disk.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shutil
 import sys
@@ -107,15 +108,11 @@ def run_plain(path: str, records: list[dict]) -> float:
     return time.perf_counter() - t0
 
 
-def best(fn, repeat: int) -> float:
-    return min(fn() for _ in range(repeat))
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--trials", type=int, default=40)
+    ap.add_argument("--trials", type=int, default=60)
     ap.add_argument("--samples", default="400,4000", help="frames per window, comma-separated")
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--dir", default=None, help="where to write (default: a temporary folder)")
     args = ap.parse_args()
     folder = args.dir or tempfile.mkdtemp(prefix="bench_store_")
@@ -128,9 +125,12 @@ def main() -> None:
         for n in (int(s) for s in args.samples.split(",")):
             records = make_records(args.trials, n)
             samples = args.trials * 2 * n * len(CHANNELS)
-            t_sync = best(lambda: run_store(os.path.join(folder, "sync.h5"), records, True), args.repeat)
-            t_nosync = best(lambda: run_store(os.path.join(folder, "nosync.h5"), records, False), args.repeat)
-            t_plain = best(lambda: run_plain(os.path.join(folder, "plain.h5"), records), args.repeat)
+            # Interleaved so that a busy moment on the machine hits all three alike.
+            t_sync = t_nosync = t_plain = math.inf
+            for _ in range(args.repeat):
+                t_sync = min(t_sync, run_store(os.path.join(folder, "sync.h5"), records, True))
+                t_nosync = min(t_nosync, run_store(os.path.join(folder, "nosync.h5"), records, False))
+                t_plain = min(t_plain, run_plain(os.path.join(folder, "plain.h5"), records))
             rate = [samples / t for t in (t_sync, t_nosync, t_plain)]
             print(f"{n:>13} {rate[0]:>11.3g} smp/s {rate[1]:>11.3g} smp/s {rate[2]:>11.3g} smp/s "
                   f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t_sync / args.trials * 1e3:>14.1f} ms")

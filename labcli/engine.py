@@ -22,13 +22,13 @@ import math
 import signal
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Generator, Iterator
 
 import numpy as np
 
-from .errors import ConfigError, DeviceDisconnected, DeviceError, DeviceTimeout, LabcliError, StoreError
+from .errors import ConfigError, DeviceDisconnected, DeviceError, DeviceTimeout, StoreError
 from .session import (
     AskLoad,
     AskObject,
@@ -300,7 +300,7 @@ class RunEngine:
         if isinstance(step, AskLoad):
             return self.ui.ask_load(step)
         if isinstance(step, AskObject):
-            return self.ui.ask_object(step)
+            return self.ui.ask_object(step, simulated=getattr(self.device, "rig", None) is not None)
         if isinstance(step, AskPush):
             return self.ui.ask_push(step)
         if isinstance(step, BeginTrial):
@@ -346,7 +346,10 @@ class RunEngine:
         elif isinstance(action, RemoveWeight):
             rig.remove_weight()
         elif isinstance(action, PushObject):
-            rig.push_object(action.radius_m, action.distance_m, action.phi_rad, action.stiffness_N_per_m)
+            # A direction unknown to the experimenter is still some direction for the
+            # simulated rig: it pushes along the normal (phi = 0) then.
+            phi = 0.0 if action.phi_rad is None else action.phi_rad
+            rig.push_object(action.radius_m, action.distance_m, phi, action.stiffness_N_per_m)
         elif isinstance(action, ReleaseObject):
             rig.release_object()
 
@@ -364,32 +367,35 @@ class RunEngine:
     def _wait_settle(self, label: str) -> SettleReport | str:
         self._start()
         detector = SettleDetector(self.criteria, self._pcols, self._acols)
-        with self.ui.settling(label, self.criteria) as show:
-            while True:
-                w = self._next_batch()
-                status = detector.update(w.t_s, w.si)
-                show(status)
-                if status.settled:
-                    # Frames after the settle point belong to the capture that follows.
-                    cut = int(np.searchsorted(w.t_s - detector.origin_s, status.elapsed_s, side="left"))
-                    self._pending = _slice(w, cut, len(w)) if cut < len(w) else None
-                    report = SettleReport(
-                        True, status.settle_time_s, status.elapsed_s, status.pressure_spread_MPa,
-                        status.angle_spread_rad, self.criteria.describe(),
-                    )
-                    break
-                if status.timed_out:
-                    choice = self.ui.settle_timeout(label, status, self.criteria)
-                    if choice == "wait":
-                        detector.extend_timeout()
-                        continue
-                    if choice == "redo":
-                        return "redo"
-                    report = SettleReport(
-                        False, status.elapsed_s, status.elapsed_s, status.pressure_spread_MPa,
-                        status.angle_spread_rad, self.criteria.describe() + " (timed out, accepted)",
-                    )
-                    break
+        while True:
+            # The live status line is closed before any question is asked.
+            with self.ui.settling(label, self.criteria) as show:
+                while True:
+                    w = self._next_batch()
+                    status = detector.update(w.t_s, w.si)
+                    show(status)
+                    if detector.consumed < len(w):
+                        # Frames after the decision belong to what follows (capture, or more waiting).
+                        self._pending = _slice(w, detector.consumed, len(w))
+                    if status.settled or status.timed_out:
+                        break
+            if status.settled:
+                report = SettleReport(
+                    True, status.settle_time_s, status.elapsed_s, status.pressure_spread_MPa,
+                    status.angle_spread_rad, self.criteria.describe(),
+                )
+                break
+            choice = self.ui.settle_timeout(label, status, self.criteria)
+            if choice == "wait":
+                detector.extend_timeout()
+                continue
+            if choice == "redo":
+                return "redo"
+            report = SettleReport(
+                False, status.elapsed_s, status.elapsed_s, status.pressure_spread_MPa,
+                status.angle_spread_rad, self.criteria.describe() + " (timed out, accepted)",
+            )
+            break
         self.ui.settled(label, report)
         if label == "air supply":
             p = w.si[:, self._pcols].mean(axis=0)
@@ -465,7 +471,9 @@ class RunEngine:
 
 
 def _count(n: int, noun: str) -> str:
-    return f"{n} {noun}" + ("" if n == 1 else "s")
+    if n == 1:
+        return f"{n} {noun}"
+    return f"{n} {noun}" + ("es" if noun.endswith(("sh", "ch", "s")) else "s")
 
 
 def _slice(w: Window, a: int, b: int) -> Window:
@@ -557,6 +565,11 @@ def acquire(
             existing.close()
             raise
         if plan_df is not None and len(plan_df) and existing.first_incomplete(plan_df["trial"]) is None:
+            if existing.split() is None:
+                # Stopped between the last trial and the split: finish the job.
+                sets = dict(zip(plan_df["trial"].astype(int), plan_df["set"]))
+                existing.set_split([t for t, v in sets.items() if v == "fit"],
+                                   [t for t, v in sets.items() if v == "validation"], "plan")
             existing.close()
             return Outcome("finished", f"All {len(plan_df)} planned trials are already stored in {path}; nothing to resume.",
                            0, len(completed))
@@ -586,10 +599,6 @@ def acquire(
         )
     if unattended and proto.kind == "force" and plan_df is None:
         raise ConfigError("--unattended needs a plan to follow: drop --no-plan, or give --plan FILE.")
-    if unattended and proto.kind == "push":
-        raise ConfigError(
-            f"--unattended runs force protocols only; {proto.name} asks the experimenter to name each object."
-        )
 
     try:
         device = Device.open(port, timeout=device_timeout)
@@ -622,7 +631,15 @@ def acquire(
         for cb in subscribers:
             engine.subscribe(cb)
         if proto.kind == "push":
-            session = push_session(proto, completed=completed)
+            objects = None
+            if unattended:
+                # The simulated rig's reference objects (three PET bottles, two aluminium
+                # cans, one steel can), labelled with their categories.
+                from .sim.objects import demo_plan
+
+                per = proto.push.pushes_per_object if proto.push else 10
+                objects = demo_plan(pushes_per_object=per, labelled=True)
+            session = push_session(proto, objects, completed=completed)
         else:
             session = force_session(proto, plan_df, completed=completed)
         try:

@@ -161,6 +161,9 @@ KINDS: dict[str, dict[str, Any]] = {
             **_MCKIBBEN_COMMON,
             "push": ("required", "push"),
             "stiffness_bands_N_per_m": ("optional", "stiffness-bands"),
+            # Settings of the stiffness estimate (labcli.models.stiffness.StiffnessParams,
+            # which checks its own keys).
+            "stiffness": ("optional", OPEN),
             "paper_coefficients": ("optional", "paper_coefficients.takuma2014"),
         },
         "extra_sections": False,

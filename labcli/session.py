@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Generator, Iterable, Sequence
 
 import numpy as np
@@ -488,11 +488,11 @@ def force_session(
     rows = planned_trials(plan)
     if rows:
         total = len(rows)
-        todo = [r for r in rows if r.trial not in done]
+        remaining = [r for r in rows if r.trial not in done]
     else:
         trials = getattr(protocol, "trials", None)
         total = target or (int(trials.fit) + int(trials.validation) if trials is not None else 0)
-        todo = []
+        remaining = []
 
     yield from _pressurise()
 
@@ -500,9 +500,9 @@ def force_session(
     position = 0
     while True:
         if rows:
-            if position >= len(todo):
+            if position >= len(remaining):
                 break
-            planned = todo[position]
+            planned = remaining[position]
             position += 1
             label = trial_label(planned.trial, total, planned.set)
         else:

@@ -115,6 +115,7 @@ class SettleDetector:
         self._means: deque[np.ndarray] = deque(maxlen=BLOCKS)
         self._quiet_since: float | None = None  # block-end time when the quiet run began
         self._status = SettleStatus(0.0, float("nan"), float("nan"), 0.0, False, float("nan"), False)
+        self.consumed = 0
 
     @property
     def origin_s(self) -> float:
@@ -135,16 +136,23 @@ class SettleDetector:
         )
 
     def update(self, t_s: np.ndarray, si: np.ndarray) -> SettleStatus:
-        """Add samples (``t_s`` shape (n,), ``si`` shape (n, k)) and return the new status."""
+        """Add samples (``t_s`` shape (n,), ``si`` shape (n, k)) and return the new status.
+
+        Samples after the moment of decision (settled, or the timeout) are not
+        consumed; :attr:`consumed` says how many of this call's samples were.
+        """
         t_s = np.asarray(t_s, dtype=float)
         si = np.asarray(si, dtype=float)
-        if t_s.size == 0 or self._status.settled:
+        self.consumed = 0
+        if t_s.size == 0 or self._status.settled or self._status.timed_out:
             return self._status
         if self._t0 is None:
             self._t0 = float(t_s[0])
             self._sum = np.zeros(si.shape[1])
         rel = t_s - self._t0
-        idx = np.floor(rel / self._block_s).astype(np.int64)
+        # Consume up to and including the first sample at or past the timeout.
+        stop = min(len(rel), int(np.searchsorted(rel, self._timeout_s, side="left")) + 1)
+        idx = np.floor(rel[:stop] / self._block_s).astype(np.int64)
         # Split the batch where the block index changes; every completed block
         # is one evaluation point, whatever the size of the read batches.
         cuts = np.flatnonzero(np.diff(idx)) + 1
@@ -156,12 +164,14 @@ class SettleDetector:
                 self._close_block()
                 self._block_index = block
                 if self._status.settled:
+                    self.consumed = int(a)
                     return self._status
             self._sum += si[a:b].sum(axis=0)
             self._count += b - a
-        elapsed = float(rel[-1])
+        self.consumed = stop
+        elapsed = float(rel[stop - 1])
         s = self._status
-        timed_out = (not s.settled) and elapsed >= self._timeout_s
+        timed_out = elapsed >= self._timeout_s
         self._status = SettleStatus(
             elapsed, s.pressure_spread_MPa, s.angle_spread_rad, s.quiet_s, s.settled,
             s.settle_time_s, timed_out,

@@ -59,16 +59,20 @@ def progress_text(step: BeginTrial, stored: int, elapsed_s: float, remaining_s: 
     )
 
 
-def settle_text(label: str, status: Any, criteria: Any) -> str:
+def spreads_text(status: Any, criteria: Any) -> str:
     ps = status.pressure_spread_MPa
     an = status.angle_spread_rad
     p = "-" if math.isnan(ps) else f"{ps * 1e3:.2f}"
     a = "-" if math.isnan(an) else f"{math.degrees(an):.3f}"
     return (
-        f"settling ({label}): {status.elapsed_s:.1f} s, pressure spread {p} kPa "
-        f"(< {criteria.pressure_spread_MPa * 1e3:g}), angle spread {a} deg "
-        f"(< {math.degrees(criteria.angle_spread_rad):.3g}), quiet {status.quiet_s:.1f}/{criteria.hold_s:g} s"
+        f"pressure spread {p} kPa (limit {criteria.pressure_spread_MPa * 1e3:g} kPa), "
+        f"angle spread {a} deg (limit {math.degrees(criteria.angle_spread_rad):.3g} deg), "
+        f"quiet for {status.quiet_s:.1f} s of {criteria.hold_s:g} s"
     )
+
+
+def settle_text(label: str, status: Any, criteria: Any) -> str:
+    return f"settling ({label}): {status.elapsed_s:.1f} s, {spreads_text(status, criteria)}"
 
 
 class RichUI:
@@ -100,7 +104,8 @@ class RichUI:
         self.console.print(f"[bold yellow]Warning:[/] {_esc(text)}")
 
     def begin_trial(self, step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
-        self.console.rule(_esc(progress_text(step, stored, elapsed_s, remaining_s)), align="left")
+        self.console.rule(style="dim")
+        self.console.print(_esc(progress_text(step, stored, elapsed_s, remaining_s)), style="bold")
 
     @contextlib.contextmanager
     def settling(self, label: str, criteria: Any) -> Iterator[Any]:
@@ -170,13 +175,16 @@ class RichUI:
         )
         return Load(mass, direction)
 
-    def ask_object(self, step: AskObject) -> ObjectSpec | None:
+    def ask_object(self, step: AskObject, simulated: bool = False) -> ObjectSpec | None:
         name = self._ask(f"Object {step.index}: name (e.g. pet-1; Enter when all objects are done, q to quit):").strip()
         if not name:
             return None
         radius = self._ask_valid(f"{name}: radius R in mm:", lambda t: parse_length_mm(t, "radius", 0.0, 500.0))
         category = self._ask(f"{name}: category (soft, medium, hard, a name, or Enter if unknown):").strip()
-        return ObjectSpec(name, radius, category)
+        stiffness = None
+        if simulated:
+            stiffness = self._ask_valid(f"{name}: stiffness of the simulated object in N/m:", _parse_stiffness)
+        return ObjectSpec(name, radius, category, stiffness)
 
     def ask_push(self, step: AskPush) -> PushSpec:
         head = f"Push {step.index}/{step.total} of {step.object}"
@@ -192,7 +200,7 @@ class RichUI:
     def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
         self.console.print(
             f"[yellow]Not settled ({label}) after {status.elapsed_s:.1f} s:[/] "
-            + _esc(settle_text(label, status, criteria))
+            + _esc(spreads_text(status, criteria))
         )
         return self._choose("Accept these readings [a], wait longer [w] or redo the trial [r]?", "awr", "w")
 
@@ -262,7 +270,7 @@ class UnattendedUI:
     def ask_load(self, step: AskLoad) -> Load | None:
         raise QuitRequested("unattended mode needs a plan")
 
-    def ask_object(self, step: AskObject) -> ObjectSpec | None:
+    def ask_object(self, step: AskObject, simulated: bool = False) -> ObjectSpec | None:
         raise QuitRequested("unattended mode needs a list of objects")
 
     def ask_push(self, step: AskPush) -> PushSpec:
@@ -274,6 +282,16 @@ class UnattendedUI:
     def review(self, row: dict) -> str:
         self.console.print("  " + "  ".join(f"{k} {v}" for k, v in row.items()), markup=False)
         return "accept"
+
+
+def _parse_stiffness(text: str) -> float:
+    try:
+        value = float(text.strip().removesuffix("N/m").strip())
+    except ValueError:
+        raise ValueError(f"'{text.strip()}' is not a stiffness: type newtons per metre, e.g. 800.") from None
+    if not 0 < value < float("inf"):
+        raise ValueError(f"The stiffness must be more than 0 N/m, got {value:g} N/m.")
+    return value
 
 
 def _esc(text: str) -> str:

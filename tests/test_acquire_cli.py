@@ -144,7 +144,16 @@ def test_a_silent_rig_mid_trial_is_reported_with_the_resume_command(tmp_path):
     def fall_silent_in_trial_2(step, reply):
         if isinstance(step, Prompt) and isinstance(step.action, HangWeight) and engine._trial.trial == 2:
             # The firmware hangs: it still answers commands but sends no more data lines.
-            dev.serial.firmware.frames = lambda n: b""
+            fw = dev.serial.firmware
+            answer = fw.command
+
+            def hung(line):
+                reply = answer(line)
+                fw.streaming = False
+                return reply
+
+            fw.command = hung
+            fw.streaming = False
 
     engine.subscribe(fall_silent_in_trial_2)
     with pytest.raises(DeviceTimeout) as err:
@@ -297,3 +306,84 @@ def test_setup_check_says_which_reading_is_out_of_range():
         "POT2 reads 153.8 to 153.8 deg, outside the plausible -90 to 90 deg (check the potentiometer's wiring "
         "and centring)",
     ]
+
+
+def test_typed_push_session_on_the_simulated_rig(tmp_path):
+    """Section 4: name the object, its radius and category, then ten pushes."""
+    path = tmp_path / "push.h5"
+    obj = "pet-1\n33\nsoft\n400\n"  # name, R in mm, category, stiffness of the simulated object
+    pushes = "10\n0\n" + "\n\na\n" + ("8\n?\n" + "\n\na\n") * 9
+    answers = "\n\n" + obj + pushes + "\n"
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=9&clock=virtual",
+                                      "--protocol", "takuma2014-stiffness"], input=answers)
+    assert result.exit_code == 0, result.output
+    assert "Push 1/10 of pet-1: push pet-1 by 10 mm along 0 deg, then press Enter" in result.output
+    assert "Push 2/10 of pet-1: push pet-1 by 8 mm along an unknown direction, then press Enter" in result.output
+    assert f"Session complete: 10 pushes stored in {path} (10 this session, " in result.output
+    with RunFile.open(path) as run:
+        df = run.push_table()
+    assert df["push"].tolist() == list(range(1, 11))
+    assert set(df["object"]) == {"pet-1"} and set(df["category"]) == {"soft"}
+    assert df["R_m"].iloc[0] == pytest.approx(0.033) and df["d_m"].tolist() == pytest.approx([0.010] + [0.008] * 9)
+    assert df["phi_deg"].iloc[0] == 0 and df["phi_deg"].iloc[1:].isna().all()
+    assert df["true_stiffness_N_per_m"].tolist() == [400.0] * 10
+    # Pushing the object in changes the pressures.
+    dp = (df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy())
+    assert np.abs(dp).max(axis=1).min() > 0.001
+
+
+def test_settle_timeout_offers_wait_longer_and_accept(tmp_path):
+    import re
+
+    text = PROTOCOL.text
+    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "1.0"),
+                       ("pressure_spread_MPa", "0.000001")):  # 1 Pa: never met, so every wait times out
+        text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
+        assert n == 1
+    proto = tmp_path / "strict.toml"
+    proto.write_text(text)
+    plan = tmp_path / "takuma2014-plan.csv"
+    plan.write_text(SMALL_PLAN)
+    path = tmp_path / "run.h5"
+    answers = ("\n" + "a\n" + "\n"  # supply air, accept its timeout, close valves
+               + "a\n" + "\n" + "w\n" + "a\n" + "\n" + "a\n"  # trial 1: baseline accepted, load waited then accepted
+               + "q\n")  # trial 2: quit at the baseline timeout
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=4&clock=virtual",
+                                      "--protocol", str(proto), "--plan", str(plan)], input=answers)
+    assert result.exit_code == 0, result.output
+    assert result.output.count("Accept these readings [a], wait longer [w] or redo the trial [r]? (w):") == 5
+    assert "Not settled (load) after 1.0 s:" in result.output
+    assert "Not settled (load) after 2.0 s:" in result.output
+    assert "load: accepted without settling after 2.00 s" in result.output
+    flat = " ".join(result.output.split())
+    assert re.search(r"Not settled \(load\) after 2\.0 s: pressure spread \d+\.\d\d kPa \(limit 0\.001 kPa\), "
+                     r"angle spread \d\.\d{3} deg \(limit 0\.5 deg\), quiet for 0\.0 s of 0\.2 s", flat)
+    with RunFile.open(path) as run:
+        assert run.completed_ids() == [1]
+        rec = run.read_trial(1)
+    load = rec["settle"]["load"]
+    assert load["settled"] is False and load["accepted"] == "timeout"
+    assert load["waited_s"] == pytest.approx(2.0, abs=0.05)
+    assert load["criterion"].endswith("for 0.2 s (timed out, accepted)")
+    assert rec["accepted"] == "timeout"
+
+
+def test_unattended_push_run_pushes_the_six_reference_objects(tmp_path):
+    path = tmp_path / "push.h5"
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=12&clock=virtual",
+                                      "--protocol", "takuma2014-stiffness", "--unattended"])
+    assert result.exit_code == 0, result.output
+    assert f"Session complete: 60 pushes stored in {path} (60 this session, " in result.output
+    with RunFile.open(path) as run:
+        df = run.push_table()
+    assert df["object"].tolist() == [n for n in ("pet-1", "pet-2", "pet-3", "can-al-1", "can-al-2", "can-steel-1")
+                                     for _ in range(10)]
+    assert df.groupby("object")["category"].first().to_dict() == {
+        "pet-1": "soft", "pet-2": "soft", "pet-3": "soft", "can-al-1": "medium", "can-al-2": "medium",
+        "can-steel-1": "hard"}
+    # A stiffer object pushed the same distance loads the arm more: compare the PET bottles' and
+    # the aluminium cans' pressure changes per millimetre of push.
+    dp = np.abs(df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy()
+                - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()).sum(axis=1) / (df["d_m"] * 1e3)
+    per_object = dp.groupby(df["object"]).mean()
+    assert per_object[["can-al-1", "can-al-2"]].min() > per_object[["pet-1", "pet-2", "pet-3"]].max()

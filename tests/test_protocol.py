@@ -121,7 +121,7 @@ def test_push_protocol_shares_the_rig_with_the_force_protocol() -> None:
     bands = push.push.stiffness_bands_N_per_m
     assert list(bands) == ["soft", "medium", "hard"]
     assert push.push.category_of(100.0) == "soft"
-    assert push.push.category_of(500.0) == "medium"
+    assert push.push.category_of(1500.0) == "medium"
     assert push.push.category_of(1e9) == "hard"
     assert "assumed" in PUSH_TEXT.split("[stiffness_bands_N_per_m]")[1]
 

@@ -125,6 +125,7 @@ def test_the_shipped_plan_as_steps():
     assert kinds == ["BeginTrial", "WaitSettle", "Baseline", "Prompt", "WaitSettle", "Capture",
                      "Prompt", "Review", "Commit", "BeginTrial"]
     hang = steps[first + 3].action
+    assert steps[first + 6].action == RemoveWeight()
     assert hang == HangWeight(pytest.approx(0.2), pytest.approx(math.radians(-120)))
     finish = steps[-1]
     assert isinstance(finish, Finish) and finish.skipped == ()

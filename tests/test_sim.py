@@ -25,7 +25,8 @@ CAL_P = lambda c: (np.asarray(c) * 5.0 / 4095 - 1.0) / 4.0  # reference calibrat
 CAL_DEG = lambda c: (np.asarray(c) - 2048) * 340 / 4095
 
 EXPECTED_FORM = (
-    "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=mckibben]"
+    "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
+    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...]"
 )
 
 

@@ -354,3 +354,24 @@ def test_file_is_default_libver_and_reopens_for_append(run_path):
     shutil.copy(run_path, run_path + ".copy")
     with RunFile.open(run_path + ".copy") as run:
         assert run.completed_ids()[-1] == 40
+
+
+def test_unremovable_leftover_is_bypassed(run_path):
+    """A kill can leave a group whose header never reached the disk: it stays, ignored."""
+    with h5py.File(run_path, "a") as f:
+        g = f["trials"].create_group("000013")
+        g.attrs["complete"] = False
+        g.create_dataset("P0", data=[1.0, 2.0, 3.0, 4.0])
+        addr = h5py.h5o.get_info(g.id).addr
+    with open(run_path, "r+b") as fh:  # the state a kill before the header's write leaves
+        fh.seek(addr)
+        fh.write(b"\0" * 64)
+    with RunFile.open(run_path, "a") as run:
+        assert run.incomplete_ids() == [13] and 13 not in run.completed_ids()
+        run.write_trial(make_record(13))
+        assert run.completed_ids()[-1] == 13 and run.incomplete_ids() == []
+    with RunFile.open(run_path) as run:
+        assert_record_stored(run.read_trial(13), make_record(13))
+        assert run.trial_table()["trial"].tolist() == list(range(1, 14))
+    with h5py.File(run_path, "r") as f:
+        assert sorted(k for k in f["trials"] if k.startswith("000013")) == ["000013", "000013.1"]
