@@ -197,8 +197,19 @@ class Device:
 
     @property
     def counters(self) -> dict[str, int]:
-        """Link statistics since the last :meth:`start` (see ``StreamReader``)."""
-        return dict(self._reader.counters)
+        """Link statistics since the last :meth:`start` (see ``StreamReader``), ``stalls`` included."""
+        return {**self._reader.counters, "stalls": self._reader.stalls}
+
+    @property
+    def stalls(self) -> int:
+        """Stalls since the last :meth:`start`: frame gaps longer in device time than the
+        rate's period by more than ``StreamReader.stall_us`` (counted once :meth:`set_rate` was called)."""
+        return self._reader.stalls
+
+    @property
+    def stalled_s(self) -> float:
+        """Device time lost to those stalls, s."""
+        return self._reader.stalled_s
 
     @property
     def logs(self) -> list[str]:
@@ -219,12 +230,14 @@ class Device:
         arg = int(hz) if float(hz).is_integer() else hz
         reply = self._command(f"RATE {arg}", expect="OK RATE")
         try:
-            return float(reply.split()[2])
+            actual = float(reply.split()[2])
         except (IndexError, ValueError):
             raise DeviceError(
                 f"The device on {self.port} answered {reply!r} to RATE {arg}, expected 'OK RATE <hz>'. "
                 "Check that the firmware speaks wire protocol version 1."
             ) from None
+        self._reader.set_rate(actual if actual > 0 else None)
+        return actual
 
     def start(self) -> None:
         """Start streaming; counters and the sequence check start afresh."""

@@ -133,6 +133,7 @@ class MonitorSummary:
             "frames": c["frames"],
             "frames_per_s": round(self.frames_per_s, 1),
             "lost": c["lost"],
+            "stalls": c.get("stalls", 0),
             "bad_checksum": c["bad_checksum"],
             "malformed": c["malformed"],
             "overlong": c["overlong"],

@@ -29,6 +29,7 @@ from typing import Any, Iterable, Union
 import numpy as np
 
 MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
+STALL_US = 250_000  # device-time excess over the expected gap that counts as a stall
 U32 = 1 << 32
 
 
@@ -243,10 +244,18 @@ class StreamReader:
     up to the next ``\\n``.  Lost frames are counted from gaps in ``seq``
     (modulo 2**32); a backwards jump (firmware restarted) resynchronises
     without counting loss.
+
+    Stalls: once the sample rate is known (:meth:`set_rate`, which
+    ``Device.set_rate`` calls with the rate the firmware confirmed), a gap
+    between consecutive frames whose device time (``t_us``) exceeds
+    ``seq`` difference x period by more than ``stall_us`` counts as one stall
+    (``stalls``; their total excess in ``stalled_s``).  Device time, not
+    arrival time, is judged, so a burst held back by a USB bridge is not a
+    stall and a stall is seen even when the host read late.
     """
 
     def __init__(self, port: Any = None, n_channels: int | None = None, chunk: int = 65536,
-                 max_logs: int = 1000) -> None:
+                 max_logs: int = 1000, stall_us: int = STALL_US) -> None:
         if n_channels is not None and n_channels < 1:
             raise ValueError("a data line carries at least one value")
         self.port = port
@@ -260,16 +269,28 @@ class StreamReader:
         self._pending = b""
         self._skipping = False
         self._last_seq: int | None = None
+        self._last_t_us: int | None = None
+        self.stall_us = int(stall_us)
+        self.period_us: float | None = None
+        self.stalls = 0
+        self.stalled_s = 0.0
 
     # -- state -------------------------------------------------------------
 
     def reset_sequence(self) -> None:
         """Forget the last seq (call at START: the firmware may restart its counter)."""
         self._last_seq = None
+        self._last_t_us = None
 
     def reset_counters(self) -> None:
         for name in COUNTER_NAMES:
             self.counters[name] = 0
+        self.stalls = 0
+        self.stalled_s = 0.0
+
+    def set_rate(self, rate_hz: float | None) -> None:
+        """The firmware's sample rate, whose period the stall check expects between frames."""
+        self.period_us = None if not rate_hz else 1e6 / float(rate_hz)
 
     def clear(self) -> None:
         """Drop the partial line held between reads (after the port's input was flushed)."""
@@ -367,7 +388,22 @@ class StreamReader:
         prev[0] = seq[0] - 1 if self._last_seq is None else self._last_seq
         prev[1:] = seq[:-1]
         gap = (seq - prev - 1) % U32
-        self.counters["lost"] += int(gap[gap < (U32 >> 1)].sum())
+        forward = gap < (U32 >> 1)
+        self.counters["lost"] += int(gap[forward].sum())
+        if self.period_us is not None:
+            t = batch.t_us
+            prev_t = np.empty_like(t)
+            prev_t[1:] = t[:-1]
+            prev_t[0] = t[0] if self._last_t_us is None else self._last_t_us
+            if self._last_seq is None:
+                forward[0] = False  # the first frame since START has nothing before it
+            # t_us wraps like seq: differences modulo 2**32 stay right across the wrap.
+            excess = (t - prev_t) % U32 - (gap + 1) * self.period_us
+            stalled = forward & (excess > self.stall_us)
+            if stalled.any():
+                self.stalls += int(stalled.sum())
+                self.stalled_s += float(excess[stalled].sum()) * 1e-6
+        self._last_t_us = int(batch.t_us[-1])
         self._last_seq = int(seq[-1])
 
     def _classify(self, line: bytes) -> Parsed:

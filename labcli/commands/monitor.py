@@ -36,7 +36,7 @@ def _render(snap: Any, scale: Any, info: Any) -> Any:
     link = Text(
         f"{snap.frames_per_s:.1f} frames/s · {c['frames']} frames · {c['lost']} lost · "
         f"{c['bad_checksum']} bad checksum · {c['malformed']} malformed · {c['overlong']} overlong · "
-        f"{c['log_lines']} log lines · {snap.elapsed_s:.1f} s"
+        f"{c.get('stalls', 0)} stalls · {c['log_lines']} log lines · {snap.elapsed_s:.1f} s"
     )
     return Group(table, link)
 
@@ -59,9 +59,12 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
     """Show live calibrated readings (MPa, deg) and link statistics from a rig.
 
     Ctrl-C stops the stream and prints the summary.  A sim:// port runs on
-    the wall clock unless its URL says otherwise.  With --json the summary
-    (frames, lost, bad_checksum, malformed, log_lines, per-channel mean and
-    std in SI units) is printed as one JSON object.
+    the wall clock unless its URL says otherwise.  A stall is a gap in the
+    rig's own clock of more than 0.25 s beyond the sample period (the
+    firmware hung or dropped out); a silence longer than --timeout ends the
+    run with an error.  With --json the summary (frames, lost, stalls,
+    bad_checksum, malformed, log_lines, per-channel mean and std in SI
+    units) is printed as one JSON object.
 
     \b
     Examples:
@@ -109,7 +112,7 @@ def _print_summary(summary: Any, scale: Any) -> None:
     stopped = "stopped by Ctrl-C" if summary.interrupted else "stopped"
     click.echo(
         f"{summary.port}: {stopped} after {summary.seconds:.1f} s; {c['frames']} frames "
-        f"({summary.frames_per_s:.1f} frames/s at {summary.rate_hz:g} Hz set), {c['lost']} lost, "
+        f"({summary.frames_per_s:.1f} frames/s at {summary.rate_hz:g} Hz set), {c.get('stalls', 0)} stalls, {c['lost']} lost, "
         f"{c['bad_checksum']} bad checksum, {c['malformed']} malformed, {c['overlong']} overlong, "
         f"{c['log_lines']} log lines."
     )

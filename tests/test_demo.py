@@ -1,0 +1,94 @@
+"""``labcli demo``: the whole paper on the simulated rig, checked against the rig's truth."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from labcli.cli import cli
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def demo_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "out"
+    result = CliRunner().invoke(cli, ["demo", str(out), "--seed", "3"])
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+def test_demo_writes_every_file(demo_out):
+    out, _ = demo_out
+    for name in ("force.h5", "force.model.json", "pushes.h5", "trials.csv", "pushes.csv", "summary.json"):
+        assert (out / name).stat().st_size > 0, name
+    for name in ("fig7-accuracy.png", "fig9-stiffness.png"):
+        assert (out / name).read_bytes()[:8] == PNG, name
+
+
+def test_demo_follows_the_papers_split_and_counts(demo_out):
+    out, _ = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["trials"]["fit"] == 90
+    assert summary["trials"]["validation"] == 18
+    assert summary["trials"]["pushes"] == 60
+    assert [c["name"] for c in summary["coefficients"]][:2] == ["beta_theta1_L1", "beta_theta1_R1"]
+    assert len(summary["coefficients"]) == 18
+
+
+def test_demo_angles_sit_near_the_sensor_floor(demo_out):
+    out, _ = demo_out
+    acc = json.loads((out / "summary.json").read_text())["accuracy"]
+    # The potentiometers resolve 0.083 deg per count; averaged windows land well below it.
+    assert acc["theta1"]["rmse"] < 0.05 and acc["theta2"]["rmse"] < 0.05
+    assert acc["theta1"]["n"] == 18
+    # Fx is observable in every pose of the upright arm; Fy only away from theta2 = 0.
+    assert acc["Fx"]["rmse"] < 0.2 and acc["Fx"]["n"] == 18
+    assert acc["Fy"]["n"] + acc["Fy"]["n_flagged"] == 18
+
+
+def test_demo_categories_and_stiffness_match_the_simulated_objects(demo_out):
+    from labcli.sim.objects import DEMO_OBJECTS
+
+    out, _ = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    truth = {o.name: o for o in DEMO_OBJECTS}
+    assert {o["object"] for o in summary["objects"]} == set(truth)
+    for o in summary["objects"]:
+        true = truth[o["object"]]
+        assert o["category"] == true.category, o
+        assert o["n_used"] >= 8, o
+        # Within 10 % of the true stiffness, and within three of its own standard deviations
+        # or 3 % (bottles scatter by less than the model's own small bias).
+        err = abs(o["k_mean_N_per_m"] - true.stiffness_N_per_m)
+        assert err < 0.10 * true.stiffness_N_per_m, o
+        assert err < max(3 * o["k_sd_N_per_m"], 0.03 * true.stiffness_N_per_m), o
+
+
+def test_demo_summary_shows_paper_values_and_units(demo_out):
+    _, output = demo_out
+    assert "-2201" in output  # beta_Fx3 beside the paper's value
+    assert "theta1 (deg)" in output and "Fx (N)" in output and "[N/m]" in output
+
+
+def test_demo_refuses_to_overwrite_without_force(demo_out):
+    out, _ = demo_out
+    before = (out / "force.h5").read_bytes()
+    result = CliRunner().invoke(cli, ["demo", str(out)])
+    assert result.exit_code == 1
+    assert result.output == (
+        f"Error: {out} already holds demo output (force.h5, force.model.json, fig7-accuracy.png, ...); "
+        "pass --force to overwrite it or choose another directory.\n"
+    )
+    assert (out / "force.h5").read_bytes() == before
+
+
+def test_demo_into_a_file_is_one_sentence(tmp_path):
+    f = tmp_path / "afile"
+    f.write_text("x")
+    result = CliRunner().invoke(cli, ["demo", str(f)])
+    assert result.exit_code != 0
+    assert "Traceback" not in result.output
+    assert str(f) in result.output
