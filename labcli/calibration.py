@@ -6,8 +6,9 @@ Every channel is linear in its counts::
 
 with ``unit`` as written in the protocol file (``MPa``, ``kPa``, ``deg`` ...).
 Loading converts gain and range to the library's internal units: MPa (gauge)
-for pressures, because the paper's coefficients are fitted in MPa, and rad for
-angles.  Degrees appear only when a number is shown to a person
+for pressures, because the paper's coefficients are fitted in MPa, rad for
+angles and m for lengths (the rPAM rig's draw-wire sensor).  Degrees and
+millimetres appear only when a number is shown to a person
 (:meth:`Calibration.to_display`, :func:`format_value`).
 
 The reference rig (``rig-wire-protocol.md``) reads, for a 12-bit ADC at 5.0 V::
@@ -28,17 +29,18 @@ from typing import Sequence
 import numpy as np
 
 # Internal (SI) unit per quantity and the unit people read.
-SI_UNITS: dict[str, str] = {"pressure": "MPa", "angle": "rad"}
-DISPLAY_UNITS: dict[str, str] = {"pressure": "MPa", "angle": "deg"}
+SI_UNITS: dict[str, str] = {"pressure": "MPa", "angle": "rad", "length": "m"}
+DISPLAY_UNITS: dict[str, str] = {"pressure": "MPa", "angle": "deg", "length": "mm"}
 
 # Factor from a unit a protocol file may use to the internal unit of its quantity.
 UNIT_FACTORS: dict[str, dict[str, float]] = {
     "pressure": {"MPa": 1.0, "kPa": 1e-3, "Pa": 1e-6, "bar": 0.1, "psi": 0.006894757293168361},
     "angle": {"rad": 1.0, "deg": math.pi / 180.0},
+    "length": {"m": 1.0, "mm": 1e-3},
 }
 
-# Internal -> display factor per quantity (MPa stays MPa, rad becomes deg).
-_DISPLAY_FACTORS: dict[str, float] = {"pressure": 1.0, "angle": 180.0 / math.pi}
+# Internal -> display factor per quantity (MPa stays MPa, rad becomes deg, m becomes mm).
+_DISPLAY_FACTORS: dict[str, float] = {"pressure": 1.0, "angle": 180.0 / math.pi, "length": 1e3}
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,7 @@ class Channel:
     """One calibrated channel; ``gain``, ``range`` in internal units (MPa or rad)."""
 
     name: str
-    quantity: str  # "pressure" | "angle"
+    quantity: str  # "pressure" | "angle" | "length"
     gain: float  # internal unit per count
     zero_counts: float  # the count that reads zero
     range: tuple[float, float]  # plausible / sensor span, internal unit
@@ -200,6 +202,7 @@ def format_value(value_si: float, quantity: str, digits: int | None = None) -> s
     """A reading with its unit, e.g. ``0.3052 MPa`` or ``-12.35 deg``."""
     if digits is None:
         # Four decimals of MPa is 0.1 kPa, finer than one count (0.31 kPa);
-        # two of deg is finer than one potentiometer count (0.083 deg).
+        # two of deg is finer than one potentiometer count (0.083 deg), two of mm
+        # finer than one count of the rPAM rig's draw-wire sensor (0.073 mm).
         digits = 4 if quantity == "pressure" else 2
     return f"{to_display(value_si, quantity):.{digits}f} {DISPLAY_UNITS[quantity]}"

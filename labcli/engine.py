@@ -12,7 +12,10 @@ uses the wall clock, because a silent rig has no clock to read.
 
 Nothing is written to the run file except by a ``Commit`` step, and a commit
 writes one whole trial; an unplugged rig, a quit or Ctrl-C therefore discard
-only the trial in progress.
+only the trial in progress.  An attended run whose rig is lost asks the
+experimenter to reconnect it, opens the same port again and starts the session
+afresh (setup check, air supply, then the interrupted trial from its
+baseline); an unattended one ends with the command that resumes it.
 """
 
 from __future__ import annotations
@@ -116,15 +119,28 @@ class RunEngine:
         self.rate_hz = rate_hz
         self.silent_s = silent_s
         self.criteria = SettleCriteria.from_settling(protocol.settling)
-        self._noun = "push" if getattr(protocol, "kind", "force") == "push" else "trial"
+        kind = getattr(protocol, "kind", "force")
+        self._noun = "push" if kind == "push" else "point" if kind.startswith("rpam-") else "trial"
         units = tuple(protocol.calibration.units)
         self._pcols = [i for i, u in enumerate(units) if u == "MPa"]
         self._acols = [i for i, u in enumerate(units) if u == "rad"]
+        # Length channels (the rPAM stand's draw-wire sensor) are judged with the angles:
+        # scaled so that the protocol's length limit lands on the angle limit.
+        self._settle_scale: np.ndarray | None = None
+        lcols = [i for i, u in enumerate(units) if u == "m"]
+        length_spread = getattr(protocol, "length_spread_m", None)
+        if lcols and length_spread:
+            self._settle_scale = np.ones(len(units))
+            self._settle_scale[lcols] = self.criteria.angle_spread_rad / float(length_spread)
+        self._motion_cols = self._acols + (lcols if self._settle_scale is not None else [])
         self._subscribers: list[Callable[[Any, Any], None]] = []
         self._streaming = False
         self._unwrap = TimeUnwrapper()
         self._pending: Window | None = None
-        self._trial: BeginTrial | None = None
+        self._trial: BeginTrial | None = None  # the trial in progress (None between trials)
+        self._trials_begun = False
+        self._finished = False
+        self._skipped: list[int] = []
         self._stored = 0
         self._t_start = 0.0
         self._trial_walls: list[float] = []
@@ -146,26 +162,59 @@ class RunEngine:
         self._subscribers.append(callback)
 
     # ------------------------------------------------------------------ main loop
-    def run(self, session: Generator[Any, Any, None]) -> Outcome:
+    def run(
+        self,
+        session: Generator[Any, Any, None],
+        *,
+        restart: Callable[[tuple[int, ...]], Generator[Any, Any, None]] | None = None,
+        reopen: Callable[[], Any] | None = None,
+    ) -> Outcome:
+        """Execute ``session`` to its end and say how it ended.
+
+        With ``reopen`` (opens the same port again, returns a Device) and
+        ``restart`` (a new session given the ids already stored or skipped), an
+        attended run survives a lost rig: the experimenter is asked to reconnect
+        it, and the new session redoes the setup and the interrupted trial from
+        its baseline.  Without them, or unattended, a lost rig ends the run with
+        a DeviceError whose sentence gives the resume command.
+        """
         if self.ui.unattended and getattr(self.device, "rig", None) is None:
             raise ConfigError(
                 f"--unattended drives the simulated rig only, and {self._port()} is a real port: "
                 "run without --unattended and follow the prompts."
             )
         self._t_start = time.monotonic()
+        while True:
+            try:
+                return self._drive(session)
+            except (DeviceDisconnected, DeviceTimeout) as e:
+                lost = e
+            wait = restart is not None and reopen is not None and not self.ui.unattended
+            try:
+                back = wait and self._wait_for_rig(lost, reopen)
+            except KeyboardInterrupt:
+                return self._outcome("interrupted", ())
+            if not back:
+                raise type(lost)(self._lost_rig_message(lost)) from lost
+            session = restart(tuple(self._done_ids()))
+
+    def _drive(self, session: Generator[Any, Any, None]) -> Outcome:
         reply: Any = None
         try:
             while True:
                 try:
                     step = session.send(reply)
                 except StopIteration:
-                    return self._outcome("finished", ())
+                    return self._outcome("finished", tuple(self._skipped))
                 reply = self._execute(step)
                 for cb in self._subscribers:
                     cb(step, reply)
+                if isinstance(step, Review) and reply == "skip" and self._trial is not None:
+                    self._skipped.append(self._trial.trial)
+                    self._trial = None
                 if isinstance(step, Finish):
                     session.close()
-                    return self._outcome("finished", step.skipped)
+                    return self._outcome("finished", tuple(dict.fromkeys([*self._skipped, *step.skipped])))
         except QuitRequested:
             session.close()
             self._stop_quietly()
@@ -173,30 +222,75 @@ class RunEngine:
         except KeyboardInterrupt:
             session.close()
             self._stop_quietly()
+            if self._finished:  # Ctrl-C after the last step: the run is complete
+                return self._outcome("finished", tuple(dict.fromkeys(self._skipped)))
             return self._outcome("interrupted", ())
-        except (DeviceDisconnected, DeviceTimeout) as e:
+        except (DeviceDisconnected, DeviceTimeout):
             session.close()
             self._stop_quietly()
-            raise type(e)(self._lost_rig_message(e)) from e
+            raise
+
+    def _done_ids(self) -> list[int]:
+        stored = list(self._store.completed_ids()) if self._store is not None else []
+        return stored + [t for t in self._skipped if t not in stored]
+
+    def _wait_for_rig(self, e: Exception, reopen: Callable[[], Any]) -> bool:
+        """Ask for the lost rig until it opens again (True) or the experimenter stops (False)."""
+        port = self._port()
+        what = "stopped sending data" if isinstance(e, DeviceTimeout) else "was disconnected"
+        if self._trial is not None:
+            then = (f"during {self._current()}, which was not stored; it will be redone from its baseline "
+                    "once the rig is back")
+        else:
+            then = f"during {self._current()}; the setup will be redone once the rig is back"
+        self.ui.warn(f"The rig on {port} {what} {then}.")
+        with contextlib.suppress(Exception):
+            self.device.close()
+        while True:
+            try:
+                self.ui.prompt(Prompt(f"Rig lost on {port}; reconnect it and press Enter to retry"))
+            except QuitRequested:
+                return False
+            try:
+                device = reopen()
+            except DeviceError as err:
+                self.ui.warn(str(err))
+                continue
+            self.device = device
+            self._streaming = False
+            self._pending = None
+            self._trial = None
+            self._trials_begun = False  # the new session starts with the setup
+            return True
 
     # ------------------------------------------------------------------ messages
     def _port(self) -> str:
         info = getattr(self.device, "info", None)
         return getattr(info, "port", None) or "the port"
 
-    def _current(self) -> str:
-        return f"{self._noun} {self._trial.trial}" if self._trial is not None else "the setup"
-
     def _complete(self) -> int:
         if self._store is None:
             return 0
         return len(list(self._store.completed_ids()))
 
+    def _current(self) -> str:
+        if self._trial is not None:
+            return f"{self._noun} {self._trial.trial}"
+        if self._trials_begun:
+            return f"the pause between {_plural(self._noun)}"
+        return "the setup"
+
     def _lost_rig_message(self, e: Exception) -> str:
         what = "stopped sending data" if isinstance(e, DeviceTimeout) else "was disconnected"
+        if not self.store_created:
+            return (
+                f"The rig on {self._port()} {what} during the setup, before anything was written to "
+                f"{self.run_path}. Check the cable and power, then run the same command again."
+            )
         n = self._complete()
+        lost = f"that {self._noun} was not stored and " if self._trial is not None else ""
         return (
-            f"The rig on {self._port()} {what} during {self._current()}; that trial was not stored and "
+            f"The rig on {self._port()} {what} during {self._current()}; {lost}"
             f"the {_count(n, 'completed ' + self._noun)} in {self.run_path} {'is' if n == 1 else 'are'} unchanged. "
             f"Check the cable and power, then resume with: {self.resume_command}"
         )
@@ -218,9 +312,15 @@ class RunEngine:
                 f"Stopped at your request during {self._current()}, which was not stored; "
                 f"{stored} stored in {self.run_path}. Resume with: {self.resume_command}"
             )
-        else:
+        elif not self.store_created:
             msg = (
-                f"Interrupted during {self._current()}, which was discarded; {stored} stored in "
+                f"Interrupted during the setup, before anything was written to {self.run_path}; "
+                "run the same command again to start the run."
+            )
+        else:
+            what = ", which was discarded" if self._trial is not None else ""
+            msg = (
+                f"Interrupted during {self._current()}{what}; {stored} stored in "
                 f"{self.run_path} {'is' if complete == 1 else 'are'} safe. Resume with: {self.resume_command}"
             )
         return Outcome(status, msg, self._stored, complete, tuple(skipped), wall)
@@ -288,7 +388,8 @@ class RunEngine:
             self._stop()
         if isinstance(step, SetupCheck):
             self._setup_check()
-            self.store  # the run file exists from here on, so every resume hint works
+            with _sigint_deferred():  # Ctrl-C during the creation: the file exists whole, or not at all
+                self.store  # the run file exists from here on, so every resume hint works
             return None
         if isinstance(step, Prompt):
             self.ui.prompt(step)
@@ -318,10 +419,14 @@ class RunEngine:
             with _sigint_deferred():
                 if "push" in record:
                     self.store.write_push(record)
+                elif "point" in record:
+                    self.store.write_point(record)
                 else:
                     self.store.write_trial(record)
-            self._stored += 1
-            self._trial_walls.append(time.monotonic() - self._trial_wall_start)
+                # Inside the deferral, so a Ctrl-C held during the write finds the trial stored.
+                self._stored += 1
+                self._trial_walls.append(time.monotonic() - self._trial_wall_start)
+                self._trial = None
             return None
         if isinstance(step, Finish):
             return self._finish(step)
@@ -352,9 +457,12 @@ class RunEngine:
             rig.push_object(action.radius_m, action.distance_m, phi, action.stiffness_N_per_m)
         elif isinstance(action, ReleaseObject):
             rig.release_object()
+        elif hasattr(action, "act_on"):  # the rPAM stand's actions (labcli.session_rpam)
+            action.act_on(rig)
 
     def _begin(self, step: BeginTrial) -> None:
         self._trial = step
+        self._trials_begun = True
         self._trial_wall_start = time.monotonic()
         self._trial_started = utc_now()
         elapsed = time.monotonic() - self._t_start
@@ -366,13 +474,13 @@ class RunEngine:
 
     def _wait_settle(self, label: str) -> SettleReport | str:
         self._start()
-        detector = SettleDetector(self.criteria, self._pcols, self._acols)
+        detector = SettleDetector(self.criteria, self._pcols, self._motion_cols)
         while True:
             # The live status line is closed before any question is asked.
             with self.ui.settling(label, self.criteria) as show:
                 while True:
                     w = self._next_batch()
-                    status = detector.update(w.t_s, w.si)
+                    status = detector.update(w.t_s, w.si if self._settle_scale is None else w.si * self._settle_scale)
                     show(status)
                     if detector.consumed < len(w):
                         # Frames after the decision belong to what follows (capture, or more waiting).
@@ -407,10 +515,14 @@ class RunEngine:
 
     def _finish(self, step: Finish) -> None:
         self._stop()
-        if step.split:
-            fit = sorted(t for t, s in step.split.items() if s == "fit")
-            val = sorted(t for t, s in step.split.items() if s == "validation")
-            self.store.set_split(fit, val, "plan")
+        with _sigint_deferred():  # a Ctrl-C now finds the split whole and the run finished
+            if step.split:
+                # Only stored trials join (a session restarted after a lost rig counts skips as done).
+                stored = set(self.store.completed_ids())
+                fit = sorted(t for t, s in step.split.items() if s == "fit" and t in stored)
+                val = sorted(t for t, s in step.split.items() if s == "validation" and t in stored)
+                self.store.set_split(fit, val, "plan")
+            self._finished = True
 
     # ------------------------------------------------------------------ setup
     def _setup_check(self) -> None:
@@ -470,10 +582,12 @@ class RunEngine:
         return problems
 
 
+def _plural(noun: str) -> str:
+    return noun + ("es" if noun.endswith(("sh", "ch", "s")) else "s")
+
+
 def _count(n: int, noun: str) -> str:
-    if n == 1:
-        return f"{n} {noun}"
-    return f"{n} {noun}" + ("es" if noun.endswith(("sh", "ch", "s")) else "s")
+    return f"{n} {noun}" if n == 1 else f"{n} {_plural(noun)}"
 
 
 def _slice(w: Window, a: int, b: int) -> Window:
@@ -529,6 +643,7 @@ def acquire(
     force: bool = False,
     unattended: bool = False,
     rate_hz: float | None = None,
+    experiment: str | None = None,
     ui: Any = None,
     subscribers: tuple[Callable[[Any, Any], None], ...] = (),
     device_timeout: float = 2.0,
@@ -561,9 +676,18 @@ def acquire(
                 )
             plan_df = existing.plan_table()
             completed = existing.completed_ids()
+            if proto.kind == "rpam" or experiment is not None:
+                from .session_rpam import acquisition_protocol
+
+                proto = acquisition_protocol(proto, experiment, stored_kind=existing.kind, run_path=path)
         except BaseException:
             existing.close()
             raise
+        points = getattr(proto, "points", None)
+        if points and {p.point for p in points} <= set(completed):
+            existing.close()
+            return Outcome("finished", f"All {len(points)} points of the {proto.experiment_title} are already "
+                           f"stored in {path}; nothing to resume.", 0, len(completed))
         if plan_df is not None and len(plan_df) and existing.first_incomplete(plan_df["trial"]) is None:
             if existing.split() is None:
                 # Stopped between the last trial and the split: finish the job.
@@ -578,6 +702,13 @@ def acquire(
         if Path(path).exists() and not force:
             raise StoreError(f"{path} already exists; continue it with --resume, or pass --force to overwrite it.")
         proto = load_protocol(protocol or "takuma2014")
+        if proto.kind == "rpam" or experiment is not None:
+            from .session_rpam import acquisition_protocol
+
+            proto = acquisition_protocol(proto, experiment)
+            if plan is not None or no_plan:
+                raise ConfigError("--plan and --no-plan apply to force protocols; an rPAM experiment runs the "
+                                  "grid of its protocol's [experiments] table.")
         completed = []
         plan_df = None
         if proto.kind == "force" and not no_plan:
@@ -593,7 +724,7 @@ def acquire(
             else:
                 plan_df = proto.load_plan()
         store = None
-    if proto.kind not in ("force", "push"):
+    if proto.kind not in ("force", "push", "rpam-stretch", "rpam-joint"):
         raise ConfigError(
             f"labcli acquire runs force and push protocols; {proto.name} is of kind '{proto.kind}'."
         )
@@ -630,8 +761,8 @@ def acquire(
         )
         for cb in subscribers:
             engine.subscribe(cb)
+        objects = None
         if proto.kind == "push":
-            objects = None
             if unattended:
                 # The simulated rig's reference objects (three PET bottles, two aluminium
                 # cans, one steel can), labelled with their categories.
@@ -639,14 +770,25 @@ def acquire(
 
                 per = proto.push.pushes_per_object if proto.push else 10
                 objects = demo_plan(pushes_per_object=per, labelled=True)
-            session = push_session(proto, objects, completed=completed)
-        else:
-            session = force_session(proto, plan_df, completed=completed)
+
+        def make_session(done: Any) -> Generator[Any, Any, None]:
+            if proto.kind in ("rpam-stretch", "rpam-joint"):
+                from .session_rpam import rpam_session
+
+                return rpam_session(proto, completed=done)
+            if proto.kind == "push":
+                return push_session(proto, objects, completed=done)
+            return force_session(proto, plan_df, completed=done)
+
         try:
-            return engine.run(session)
+            return engine.run(make_session(completed), restart=make_session,
+                              reopen=lambda: Device.open(port, timeout=device_timeout))
         finally:
             if engine.store_created:
                 engine.store.close()
+            if engine.device is not device:  # reopened after the rig was lost
+                with contextlib.suppress(Exception):
+                    engine.device.close()
     finally:
         with contextlib.suppress(Exception):
             device.close()

@@ -44,13 +44,22 @@ group an ``NX_class`` attribute in the NeXus style::
             @settled @settle_time_s @waited_s @pressure_spread_MPa
             @angle_spread_rad @criterion @accepted
           @complete     True, written last (see below)
-        000012.1/       a later attempt at trial 12, only when a kill left an
-                        unfinished 000012 that HDF5 cannot remove (ignored)
+        000012.1/       a later attempt at trial 12, when a kill left 000012
+                        unfinished (which stays, ignored)
       pushes/           NXcollection, push runs
         000003/         @push @order @object @category, R () m, d () m,
                         phi () rad (NaN unknown), true_stiffness () N/m (NaN unless
                         simulated), P0, P, theta and pot0 (optional), extra/,
                         baseline/, loaded/, the trial attributes, @complete as above
+      points/           NXcollection, rPAM runs (kinds rpam-stretch, rpam-joint)
+        000007/         @point @experiment ("stretch" | "joint") @order, the set values
+                        @plan_mass_g @plan_P_A_kPa @plan_P_B_kPa; P (2,) MPa (P_A, P_B);
+                        stretch: mass () kg, L () m, lambda () 1; joint map: alpha () rad
+                        (deflection from the vented baseline), P0 (2,) MPa, pot0 () rad,
+                        L () m; baseline/ (joint map), loaded/, @complete as above
+      index (16384,)    object references to the record groups in recording order,
+                        written in place (storage allocated at creation): a second
+                        way to every complete record if a crash damages a link list
       split/            NXcollection: fit (m,) and validation (v,) trial ids
                         @strategy ("sequential" | "random" | "plan" | "imported" | ...)
                         @seed (-1 when none) @created
@@ -59,8 +68,13 @@ group an ``NX_class`` attribute in the NeXus style::
 Crash safety.  A trial group is created with ``@complete = False``; its
 datasets and attributes are written, the file is flushed and fsynced, and only
 then is ``@complete`` set to True (in place) and the file flushed and fsynced
-again.  Readers count only complete groups; an incomplete one is removed when
-its id is written again (resume).  The file uses HDF5's default format bounds
+again.  Readers count only complete groups.  An incomplete one (a crash's
+leftover) is never removed: the next attempt at its id is written beside it as
+``000012.1``, because a removal frees blocks at the end of the file and HDF5
+shrinks the file at the next flush, which a kill at that moment turns into a
+file that no longer opens.  Nothing is ever deleted during a session.  The root's groups all exist from creation,
+so the root's link list never changes afterwards; each record's reference
+goes into ``/index`` before the first fsync.  The file uses HDF5's default format bounds
 (not ``libver='latest'``, not SWMR: after a kill -9 those refuse to open
 without ``h5clear``) with the file-space strategy "none", so space freed
 during a session is never reused and structures already on disk are never
@@ -104,6 +118,10 @@ PUSH_COLUMNS = ("push", "object", "R_m", "d_m", "phi_deg", *BASELINE_COLUMNS, *P
 PUSH_OPTIONAL_COLUMNS = ("true_stiffness_N_per_m",)
 ACCEPTED = ("auto", "timeout", "operator", "imported")
 MAX_ID = 999_999
+INDEX_SLOTS = 16_384  # records reachable through /index; later ones by name only
+# Run kind -> the collection its records live in (force runs and imported tables: trials).
+_RECORDS = {"push": "pushes", "rpam-stretch": "points", "rpam-joint": "points"}
+_RPAM_EXPERIMENTS = {"rpam-stretch": "stretch", "rpam-joint": "joint"}
 _EDGE_DIGITS = 12
 
 _WINDOW_GROUPS = {"baseline": "baseline", "load": "loaded", "loaded": "loaded"}
@@ -459,8 +477,9 @@ class RunFile:
         self.sync_each_record = True
         # (collection, id) -> (recording order, group name) of every complete
         # record.  Scanned once: the file is locked, so only this object adds records.
-        self._index: dict[tuple[str, int], tuple[int, str]] = {
-            (c, rid): (order, name) for c in ("trials", "pushes") for order, rid, name in self._scan(c)[0]
+        complete, self._incomplete = self._scan()
+        self._index: dict[tuple[str, int], tuple[int, Any]] = {
+            (c, rid): (order, ref) for c, order, rid, ref in complete
         }
         self._order = max((order for order, _ in self._index.values()), default=-1) + 1
 
@@ -552,8 +571,14 @@ class RunFile:
             g = f.create_group("plan")
             g.attrs["NX_class"] = "NXcollection"
             _write_columns(g, cols, list(cols))
-        for name in ("pushes",) if kind == "push" else ("trials",):
+        # Every group the run will need exists from the start: the root's link
+        # list is never changed again, so no later crash can damage it.
+        for name in (_RECORDS.get(kind, "trials"), "split", "models"):
             f.create_group(name).attrs["NX_class"] = "NXcollection"
+        dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+        dcpl.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)
+        index = f.create_dataset("index", shape=(INDEX_SLOTS,), dtype=h5py.ref_dtype, dcpl=dcpl)
+        index.attrs["units"] = ""
 
     @classmethod
     def open(cls, path: str | os.PathLike, mode: str = "r") -> "RunFile":
@@ -678,11 +703,7 @@ class RunFile:
 
     @property
     def _records_name(self) -> str:
-        return "pushes" if self.kind == "push" else "trials"
-
-    def _group(self, name: str | None = None) -> h5py.Group | None:
-        name = name or self._records_name
-        return self._f[name] if name in self._f else None
+        return _RECORDS.get(self.kind, "trials")
 
     # ----------------------------------------------------------- writing
 
@@ -691,24 +712,29 @@ class RunFile:
             raise StoreError(f"{self.path} is open read-only; open it with mode 'a' to add records.")
 
     def _new_group(self, collection: str, rid: int, label: str) -> h5py.Group:
-        if collection not in self._f:
-            self._f.create_group(collection).attrs["NX_class"] = "NXcollection"
-        parent = self._f[collection]
-        base = f"{rid:06d}"
         if (collection, rid) in self._index:
             raise StoreError(f"{label} is already complete in {self.path}; a stored record is never overwritten.")
-        # Leftovers of interrupted writes of this id are removed.  A kill can
-        # leave one that HDF5 cannot remove (its header never reached the disk);
-        # it stays, ignored, and the new attempt takes the next free name
-        # (000012.1, 000012.2, ...).
+        try:
+            if collection not in self._f:
+                self._f.create_group(collection).attrs["NX_class"] = "NXcollection"
+            parent = self._f[collection]
+            list(parent)
+        except Exception:
+            raise StoreError(
+                f"the list of {collection} in {self.path} is damaged, so no record can be added; its complete "
+                "records can still be read: copy them to a new file with 'labcli export' and 'labcli import'."
+            ) from None
+        base = f"{rid:06d}"
+        # Leftovers of interrupted writes stay where they are, ignored, and the
+        # new attempt takes the next free name (000012, 000012.1, ...).  Removing
+        # them frees blocks at the end of the file; HDF5 then shrinks the file at
+        # the next flush, and a kill at that moment left a file that no longer
+        # opens ("truncated file"), as the kill tests showed.
         name = base
         n = 0
         while name in parent:
-            try:
-                del parent[name]
-            except Exception:
-                n += 1
-                name = f"{base}.{n}"
+            n += 1
+            name = f"{base}.{n}"
         g = parent.create_group(name)
         g.attrs["NX_class"] = "NXcollection"
         g.attrs["complete"] = False  # first attribute; set True in place once all else is on disk
@@ -762,12 +788,19 @@ class RunFile:
         self._write_windows(g, record, label)
 
     def _finish(self, g: h5py.Group, collection: str, rid: int) -> None:
+        index = self._f.get("index")
+        if index is not None and self._order < index.shape[0]:
+            # A write in place into storage allocated at creation: no HDF5
+            # structure changes, so the record stays reachable even if a later
+            # crash damages the group's list of links.
+            index[self._order] = g.ref
         if self.sync_each_record:
             self._commit()
         g.attrs.modify("complete", True)
         if self.sync_each_record:
             self._commit()
-        self._index[(collection, rid)] = (self._order, g.name.rsplit("/", 1)[1])
+        self._index[(collection, rid)] = (self._order, g.ref)
+        self._incomplete.discard((collection, rid))
         self._order += 1
 
     def write_trial(self, record: TrialRecord | Mapping) -> None:
@@ -850,36 +883,72 @@ class RunFile:
 
     # ----------------------------------------------------------- reading records
 
-    def _scan(self, collection: str | None = None) -> tuple[list[tuple[int, int, str]], list[int]]:
-        """((order, id, group name) of complete records in recording order, ids only incomplete)."""
-        g = self._group(collection)
-        complete: list[tuple[int, int, str]] = []
-        incomplete: set[int] = set()
-        if g is None:
-            return complete, []
-        for key in g:
-            try:
-                rid = int(key.split(".")[0])
-            except ValueError:
-                continue
-            try:
-                a = g[key].attrs
-                ok = bool(a.get("complete", False))
-                order = int(a["order"]) if ok else -1
-            except Exception:  # a crash's leftovers may be unreadable in any way: never complete
-                ok = False
-            if ok:
-                complete.append((order, rid, key))
-            else:
-                incomplete.add(rid)
-        complete.sort()
-        done = {rid for _, rid, _ in complete}
-        return complete, sorted(incomplete - done)
+    @staticmethod
+    def _identify(g: h5py.Group) -> tuple[str, int, bool, int]:
+        """(collection, id, complete, order) of a record group; raises if it cannot be read."""
+        a = g.attrs
+        if "trial" in a:
+            collection, rid = "trials", int(a["trial"])
+        elif "push" in a:
+            collection, rid = "pushes", int(a["push"])
+        elif "point" in a:
+            collection, rid = "points", int(a["point"])
+        else:
+            raise KeyError("no id")
+        ok = bool(a.get("complete", False))
+        return collection, rid, ok, int(a["order"]) if ok else -1
 
-    def _complete(self, collection: str | None = None) -> list[tuple[int, int, str]]:
+    def _scan(self) -> tuple[list[tuple[str, int, int, Any]], set[tuple[str, int]]]:
+        """Complete records as (collection, order, id, reference), and (collection, id) only incomplete.
+
+        Records are found by name under /trials and /pushes and, independently,
+        through /index (object references written in place), so that damage to
+        a group's link list after a crash loses no complete record.
+        """
+        complete: dict[tuple[str, int], tuple[int, Any]] = {}
+        incomplete: set[tuple[str, int]] = set()
+
+        def visit(get_group, fallback: tuple[str, int] | None = None) -> None:
+            try:
+                g = get_group()
+                collection, rid, ok, order = self._identify(g)
+            except Exception:  # a crash's leftovers may be unreadable in any way: never complete
+                if fallback is not None:
+                    incomplete.add(fallback)
+                return
+            if ok:
+                complete.setdefault((collection, rid), (order, g.ref))
+            else:
+                incomplete.add((collection, rid))
+
+        for collection in ("trials", "pushes", "points"):
+            try:
+                parent = self._f[collection] if collection in self._f else None
+                keys = list(parent) if parent is not None else []
+            except Exception:
+                keys = []
+            for key in keys:
+                try:
+                    fallback = (collection, int(key.split(".")[0]))
+                except ValueError:
+                    continue
+                visit(lambda parent=parent, key=key: parent[key], fallback)
+        try:
+            refs = self._f["index"][()] if "index" in self._f else []
+        except Exception:
+            refs = []
+        for ref in refs:
+            if not ref:
+                break  # slots are filled in recording order
+            visit(lambda ref=ref: self._f[ref])
+        rows = sorted(((c, order, rid, ref) for (c, rid), (order, ref) in complete.items()), key=lambda r: r[:3])
+        return rows, incomplete - set(complete)
+
+    def _complete(self, collection: str | None = None) -> list[tuple[int, int, Any]]:
         """(order, id, group name) of the complete records, in recording order."""
         c = collection or self._records_name
-        return sorted((order, rid, name) for (cc, rid), (order, name) in self._index.items() if cc == c)
+        return sorted(((order, rid, ref) for (cc, rid), (order, ref) in self._index.items() if cc == c),
+                      key=lambda row: row[:2])
 
     def completed_ids(self, collection: str | None = None) -> list[int]:
         """Ids of the complete trials (pushes for a push run), in recording order."""
@@ -887,7 +956,8 @@ class RunFile:
 
     def incomplete_ids(self, collection: str | None = None) -> list[int]:
         """Ids with only groups left incomplete by an interrupted write (never counted)."""
-        return self._scan(collection)[1]
+        c = collection or self._records_name
+        return sorted(rid for cc, rid in self._incomplete if cc == c)
 
     def first_incomplete(self, plan_ids: Iterable[int]) -> int | None:
         """The first id of ``plan_ids`` not yet complete in the file (None: all done)."""
@@ -899,15 +969,14 @@ class RunFile:
 
     def _complete_groups(self, collection: str) -> tuple[list[int], list[h5py.Group]]:
         complete = self._complete(collection)
-        g = self._group(collection)
-        return [rid for _, rid, _ in complete], [g[name] for _, _, name in complete]
+        return [rid for _, rid, _ in complete], [self._f[ref] for _, _, ref in complete]
 
     def _complete_group(self, collection: str, rid: int) -> h5py.Group:
         entry = self._index.get((collection, rid))
         if entry is None:
-            what = "trial" if collection == "trials" else "push"
+            what = {"trials": "trial", "pushes": "push", "points": "point"}.get(collection, collection)
             raise StoreError(f"{what} {rid} is not a complete record in {self.path}.")
-        return self._f[collection][entry[1]]
+        return self._f[entry[1]]
 
     @staticmethod
     def _read_windows(g: h5py.Group) -> tuple[dict, dict]:
@@ -1050,6 +1119,104 @@ class RunFile:
                 values.append(_str(v) if isinstance(v, (bytes, str)) else v.item())
             df[name] = values
 
+    # ----------------------------------------------------------- rPAM points
+
+    def write_point(self, record: Mapping) -> None:
+        """Write one rPAM point whole (stretch test or joint map); crash-safe as :meth:`write_trial`.
+
+        ``record``: ``point`` (id), ``experiment`` ("stretch" | "joint", as the run's kind
+        says), ``P_MPa`` (2,) P_A, P_B; stretch points ``mass_kg``, ``L_m`` (actuator A's
+        length) and ``lambda`` (L / L0); joint-map points ``alpha_rad`` (deflection from the
+        vented baseline) and optionally ``P0_MPa`` (2,) and ``pot0_rad`` of the baseline and
+        ``L_m``; ``plan`` (the set values as typed: ``mass_g``, ``P_A_kPa``, ``P_B_kPa``),
+        ``settle``, ``raw``, ``started``, ``ended`` as in :class:`TrialRecord`.
+        """
+        self._check_writable()
+        if "point" not in record:
+            raise StoreError("point record lacks 'point' (the point id).")
+        pid = int(record["point"])
+        label = f"point {pid}"
+        if not 0 <= pid <= MAX_ID:
+            raise StoreError(f"{label}: point ids must be between 0 and {MAX_ID}.")
+        experiment = _RPAM_EXPERIMENTS.get(self.kind)
+        if experiment is None:
+            raise StoreError(f"{self.path} is a {self.kind} run; rPAM points go into runs of kind "
+                             "rpam-stretch or rpam-joint.")
+        if record.get("experiment", experiment) != experiment:
+            raise StoreError(f"{label}: a {record['experiment']} point cannot go into {self.path}, "
+                             f"a {self.kind} run.")
+        p = _vector(record, "P_MPa", 2, "pressures P_A, P_B in MPa", label)
+        p0 = _vector(record, "P0_MPa", 2, "baseline pressures P_A, P_B in MPa", label) if "P0_MPa" in record else None
+        needed = ("mass_kg", "L_m", "lambda") if experiment == "stretch" else ("alpha_rad",)
+        values = {}
+        for key in needed:
+            values[key] = _scalar(record, key, label)
+            if not math.isfinite(values[key]):
+                raise StoreError(f"{label} record lacks a finite '{key}', which a {experiment} point needs.")
+        for key in ("L_m", "pot0_rad"):
+            if key not in values and key in record:
+                values[key] = _scalar(record, key, label)
+        _validate_common(record, len(self.channels), label)
+        g = self._new_group("points", pid, label)
+        g.attrs["point"] = pid
+        g.attrs["experiment"] = experiment
+        for key, v in (record.get("plan") or {}).items():
+            g.attrs[f"plan_{key}"] = v if isinstance(v, str) else float(v)
+        _dataset(g, "P", p, "MPa", channels="P_A,P_B")
+        if p0 is not None:
+            _dataset(g, "P0", p0, "MPa", channels="P_A,P_B")
+        names = {"mass_kg": ("mass", "kg"), "L_m": ("L", "m"), "lambda": ("lambda", "1"),
+                 "alpha_rad": ("alpha", "rad"), "pot0_rad": ("pot0", "rad")}
+        for key, v in values.items():
+            _dataset(g, names[key][0], v, names[key][1])
+        self._write_common(g, record, label)
+        self._finish(g, "points", pid)
+
+    def point_table(self):
+        """The table of an rPAM run (DataFrame): MPa and m, grams and degrees at the edge.
+
+        Stretch test: ``point, mass_g, P_A, P_B, L_m, lambda``; joint map: ``point, P_A,
+        P_B, alpha_deg, P_A0, P_B0, L_m`` (pressures in MPa, ``alpha_deg`` the deflection
+        from the vented baseline); then the set values as ``set_mass_g``, ``set_P_A_kPa``,
+        ``set_P_B_kPa``.  Rows in recording order.
+        """
+        import pandas as pd
+
+        experiment = _RPAM_EXPERIMENTS.get(self.kind)
+        if experiment is None:
+            raise StoreError(f"{self.path} is a {self.kind} run, not an rPAM stretch-test or joint-map run.")
+        ids, groups = self._complete_groups("points")
+        cols: dict[str, list] = {"point": list(ids)}
+
+        def add(name: str, values: list) -> None:
+            cols[name] = values
+
+        def get(g: h5py.Group, key: str, i: int | None = None) -> float:
+            if key not in g:
+                return math.nan
+            v = g[key][()]
+            return float(v if i is None else v[i])
+
+        if experiment == "stretch":
+            add("mass_g", list(to_edge([get(g, "mass") * 1e3 for g in groups])))
+        add("P_A", [get(g, "P", 0) for g in groups])
+        add("P_B", [get(g, "P", 1) for g in groups])
+        if experiment == "stretch":
+            add("L_m", [get(g, "L") for g in groups])
+            add("lambda", [get(g, "lambda") for g in groups])
+        else:
+            add("alpha_deg", list(to_edge([math.degrees(get(g, "alpha")) for g in groups])))
+            add("P_A0", [get(g, "P0", 0) for g in groups])
+            add("P_B0", [get(g, "P0", 1) for g in groups])
+            add("L_m", [get(g, "L") for g in groups])
+        for key in ("mass_g", "P_A_kPa", "P_B_kPa"):
+            vals = [float(g.attrs.get(f"plan_{key}", math.nan)) for g in groups]
+            if any(math.isfinite(v) for v in vals):
+                add(f"set_{key}", vals)
+        df = pd.DataFrame(cols)
+        df["point"] = df["point"].astype("int64")
+        return df
+
     # ----------------------------------------------------------- split and models
 
     def set_split(self, fit_ids: Iterable[int], validation_ids: Iterable[int], strategy: str = "manual",
@@ -1067,15 +1234,20 @@ class RunFile:
         missing = [i for i in fit + val if i not in done]
         if missing:
             raise StoreError(f"trial {missing[0]} is not a complete trial in {self.path}, so it cannot join the split.")
-        if "split" in self._f:
-            del self._f["split"]
-        g = self._f.create_group("split")
-        g.attrs["NX_class"] = "NXcollection"
+        if "split" not in self._f:
+            self._f.create_group("split").attrs["NX_class"] = "NXcollection"
+        g = self._f["split"]
         g.attrs["strategy"] = str(strategy)
         g.attrs["seed"] = -1 if seed is None else int(seed)
         g.attrs["created"] = utc_now()
-        _dataset(g, "fit", np.asarray(fit, dtype=np.int64), "1")
-        _dataset(g, "validation", np.asarray(val, dtype=np.int64), "1")
+        for name, ids in (("fit", fit), ("validation", val)):
+            data = np.asarray(ids, dtype=np.int64)
+            if name in g and g[name].shape == data.shape:
+                g[name][...] = data  # in place: nothing freed (see the module docstring)
+                continue
+            if name in g:
+                del g[name]
+            _dataset(g, name, data, "1")
         self._commit()
 
     def split_sizes(self) -> tuple[int, int]:
@@ -1110,7 +1282,7 @@ class RunFile:
 
     def split(self) -> dict[str, Any] | None:
         """``{"fit": [...], "validation": [...], "strategy", "seed" (None), "created"}`` or None."""
-        if "split" not in self._f:
+        if "split" not in self._f or "fit" not in self._f["split"]:
             return None
         g = self._f["split"]
         seed = int(g.attrs.get("seed", -1))
@@ -1189,7 +1361,7 @@ class RunFile:
                 "validation": len(s["validation"]),
                 "unassigned": len(set(ids) - set(s["fit"]) - set(s["validation"])) if collection == "trials" else 0,
             }
-        if len(groups) >= 2:
+        if len(groups) >= 2 and collection != "points":
             p0 = np.array([g["P0"][()] for g in groups])
             index = np.arange(len(groups), dtype=np.float64)
             drift = {}

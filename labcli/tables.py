@@ -395,14 +395,32 @@ def _read(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], e
     return _parse_records(_records(Path(path), label), spec, label, span, extra_checks)
 
 
-def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> "pd.DataFrame":
-    """Read and check a trial table (``table-formats.md``); every problem in one TableError."""
-    return _read(path, TRIAL, span_MPa)
+def _id_limits(spec: TableSpec, id_range: tuple[int, int] | None):
+    if id_range is None:
+        return None
+    lo, hi = id_range
+
+    def check(values: dict[str, Any]) -> Iterable[tuple[str, str]]:
+        v = values.get(spec.id_column)
+        if isinstance(v, int) and not lo <= v <= hi:
+            yield spec.id_column, f"{v} is outside the {spec.label} ids a run file holds, {lo} to {hi}"
+
+    return check
 
 
-def read_push_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> "pd.DataFrame":
+def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
+                   id_range: tuple[int, int] | None = None) -> "pd.DataFrame":
+    """Read and check a trial table (``table-formats.md``); every problem in one TableError.
+
+    ``id_range`` (low, high) also checks the trial ids, e.g. against what a run file can hold.
+    """
+    return _read(path, TRIAL, span_MPa, _id_limits(TRIAL, id_range))
+
+
+def read_push_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
+                  id_range: tuple[int, int] | None = None) -> "pd.DataFrame":
     """Read and check a push table; ``phi_deg`` is NaN where the file leaves it empty."""
-    return _read(path, PUSH, span_MPa)
+    return _read(path, PUSH, span_MPa, _id_limits(PUSH, id_range))
 
 
 def load_plan(
@@ -559,6 +577,10 @@ def _atomic_write(path: Path, data: bytes) -> None:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+        # mkstemp creates 0600; an exported table is as readable as any file the user writes.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except OSError as exc:
         try:

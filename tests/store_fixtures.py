@@ -3,7 +3,7 @@
 Also the writer process of the kill tests:
 ``python tests/store_fixtures.py RUN.h5 N_TRIALS N_SAMPLES`` writes trials
 0..N-1 of :func:`make_record`, resuming a file that exists, and prints
-"ready" once the file is open.
+"ready" once the file is open and "stored N" after each trial.
 """
 
 from __future__ import annotations
@@ -128,6 +128,7 @@ def writer(path: str, n_trials: int, n_samples: int) -> None:
             if nxt is None:
                 break
             run.write_trial(make_record(nxt, n_samples))
+            print(f"stored {nxt}", flush=True)
     print("done", flush=True)
 
 

@@ -31,7 +31,7 @@ def test_help_lists_every_command_with_its_summary():
 def test_every_command_module_loads_and_has_help():
     runner = CliRunner()
     for name in COMMANDS:
-        result = runner.invoke(cli, [name, "--help"])
+        result = runner.invoke(cli, [name, "--help"], prog_name="labcli")
         assert result.exit_code == 0, (name, result.output)
         assert "Usage: labcli " + name in result.output.replace("\n", " ")
 

@@ -10,7 +10,6 @@ here are compared with that ground truth exactly.
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest

@@ -170,7 +170,7 @@ def test_open_truncated(run_path, tmp_path, keep):
     assert str(e.value) == f"{cut} is damaged or truncated and HDF5 cannot open it; use a backup copy."
 
 
-def test_incomplete_trial_ignored_then_replaced_on_resume(run_path):
+def test_incomplete_trial_ignored_then_superseded_on_resume(run_path):
     # An interrupted write leaves a group whose @complete is still False.
     with h5py.File(run_path, "a") as f:
         g = f["trials"].create_group("000013")
@@ -184,6 +184,9 @@ def test_incomplete_trial_ignored_then_replaced_on_resume(run_path):
         run.write_trial(make_record(13))
         assert run.incomplete_ids() == []
         assert run.first_incomplete(range(1, 20)) == 14
+    with h5py.File(run_path, "r") as f:  # nothing is deleted: the new attempt sits beside the leftover
+        assert not f["trials/000013"].attrs["complete"] and f["trials/000013.1"].attrs["complete"]
+    with RunFile.open(run_path) as run:
         assert run.first_incomplete(range(1, 14)) is None
         assert_record_stored(run.read_trial(13), make_record(13))
         assert run.summary()["complete"] == 13
@@ -375,3 +378,40 @@ def test_unremovable_leftover_is_bypassed(run_path):
         assert run.trial_table()["trial"].tolist() == list(range(1, 14))
     with h5py.File(run_path, "r") as f:
         assert sorted(k for k in f["trials"] if k.startswith("000013")) == ["000013", "000013.1"]
+
+
+def test_complete_trials_survive_a_damaged_trial_list(run_path):
+    """/index reaches every complete trial even when /trials itself cannot be read."""
+    with h5py.File(run_path, "r") as f:
+        addr = h5py.h5o.get_info(f["trials"].id).addr
+    with open(run_path, "r+b") as fh:
+        fh.seek(addr)
+        fh.write(b"\0" * 64)
+    with h5py.File(run_path, "r") as f:
+        with pytest.raises(Exception):
+            list(f["trials"])
+    with RunFile.open(run_path, "a") as run:
+        assert run.completed_ids() == list(range(1, 13))
+        for i in range(1, 13):
+            assert_record_stored(run.read_trial(i), make_record(i))
+        assert run.trial_table()["trial"].tolist() == list(range(1, 13))
+        with pytest.raises(StoreError) as e:
+            run.write_trial(make_record(13))
+    assert str(e.value) == (
+        f"the list of trials in {run_path} is damaged, so no record can be added; its complete records can "
+        "still be read: copy them to a new file with 'labcli export' and 'labcli import'.")
+
+
+def test_resplit_of_same_size_rewrites_in_place(run_path):
+    with RunFile.open(run_path, "a") as run:
+        run.assign_split(8, 4, "random", 1)
+        first = run.split()
+    with h5py.File(run_path, "r") as f:
+        addr = h5py.h5o.get_info(f["split/fit"].id).addr
+    with RunFile.open(run_path, "a") as run:
+        run.assign_split(8, 4, "random", 2)
+        second = run.split()
+    with h5py.File(run_path, "r") as f:
+        assert h5py.h5o.get_info(f["split/fit"].id).addr == addr
+    assert first["fit"] != second["fit"] and second["seed"] == 2
+    assert sorted(second["fit"] + second["validation"]) == list(range(1, 13))

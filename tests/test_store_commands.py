@@ -15,7 +15,7 @@ from labcli.cli import cli
 from labcli.protocol import load_protocol
 from labcli.store import RunFile
 
-from store_fixtures import FakeDevice, FakeProtocol, make_record
+from store_fixtures import FakeDevice, make_record
 
 
 def invoke(*args):

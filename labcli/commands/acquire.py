@@ -18,8 +18,10 @@ import click
 @click.option("--unattended", is_flag=True, help="Simulated rig only: act out every prompt and accept every trial.")
 @click.option("--rate", "rate", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Frames per second  [default: the protocol's rate_hz]")
+@click.option("--experiment", type=click.Choice(["stretch", "joint"]), default=None,
+              help="rPAM protocols: the stretch test (Figs. 5-6) or the joint map (Fig. 8).")
 def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan: bool, operator: str,
-            resume: bool, force: bool, unattended: bool, rate: float | None) -> None:
+            resume: bool, force: bool, unattended: bool, rate: float | None, experiment: str | None) -> None:
     """Guide a run at the rig, trial by trial, and record it into RUN.h5.
 
     Setup check, baseline with the valves closed, then per trial: baseline,
@@ -32,6 +34,8 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
         labcli acquire run.h5 --port /dev/ttyUSB0 --operator kim
         labcli acquire run.h5 --port /dev/ttyUSB0 --resume
         labcli acquire sim.h5 --port 'sim://?seed=1&clock=virtual' --unattended
+        labcli acquire stretch.h5 --protocol rpam2015 --experiment stretch \
+            --port 'sim://?mode=rpam&clock=virtual' --unattended
     """
     from ..engine import acquire as run_acquisition
     from ..errors import LabcliError
@@ -39,7 +43,7 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
     try:
         outcome = run_acquisition(
             run, port, protocol=protocol, plan=plan, no_plan=no_plan, operator=operator,
-            resume=resume, force=force, unattended=unattended, rate_hz=rate,
+            resume=resume, force=force, unattended=unattended, rate_hz=rate, experiment=experiment,
         )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None

@@ -72,24 +72,35 @@ def _print_summary(res: Any) -> None:
 @click.option("--seed", type=int, default=1, show_default=True, help="Seed of the simulated rig.")
 @click.option("--force", is_flag=True, help="Overwrite earlier demo output in OUTDIR.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-def demo(outdir: Path, seed: int, force: bool, as_json: bool) -> None:
+@click.option("--protocol", type=click.Choice(["takuma2014", "rpam2015"]), default="takuma2014", show_default=True,
+              help="Which paper: the McKibben joint (takuma2014) or the rPAM joint (rpam2015).")
+def demo(outdir: Path, seed: int, force: bool, as_json: bool, protocol: str) -> None:
     """Run the whole paper on the simulated rig: no hardware, no questions.
 
     Acquires the 108 force trials of the shipped plan unattended, splits them
     90/18, fits Eqs. 34-37, validates them (Figure 7), pushes six simulated
     objects ten times each, classifies them (Figure 9) and prints one summary.
-    Everything lands in OUTDIR (default ./labcli-demo).
+    Everything lands in OUTDIR (default ./labcli-demo).  With --protocol rpam2015:
+    the rPAM paper's stretch test, the fitted stretch correction (Fig. 6), the joint
+    map against the model without and with it (Fig. 8) and the link optimisation.
 
     \b
     Example:
         labcli demo out/
         labcli demo out/ --seed 7 --force --json
+        labcli demo out/ --protocol rpam2015
     """
     import json
     import sys
 
     from ..demo import STAGES, run_demo
     from ..errors import LabcliError
+
+    run, summarise = run_demo, _print_summary
+    if protocol == "rpam2015":
+        from ..demo_rpam import STAGES, print_rpam_summary, run_rpam_demo  # noqa: F811
+
+        run, summarise = run_rpam_demo, print_rpam_summary
 
     show = sys.stderr.isatty() and not as_json
 
@@ -101,7 +112,7 @@ def demo(outdir: Path, seed: int, force: bool, as_json: bool) -> None:
         click.echo(f"\r[{n}/{len(STAGES)}] {stage}{count}".ljust(60), nl=False, err=True)
 
     try:
-        result = run_demo(outdir, seed=seed, force=force, progress=progress)
+        result = run(outdir, seed=seed, force=force, progress=progress)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     if show:
@@ -109,4 +120,4 @@ def demo(outdir: Path, seed: int, force: bool, as_json: bool) -> None:
     if as_json:
         click.echo(json.dumps(result.to_dict(), indent=2))
         return
-    _print_summary(result)
+    summarise(result)

@@ -22,6 +22,40 @@ def _fmt(x: Any, spec: str = ".4g") -> str:
     return format(x, spec)
 
 
+def _write_model(path: Path, text: str) -> Any:
+    """Replace ``path`` atomically with ``text``; returns a function that puts the old file back."""
+    import os
+    import tempfile
+
+    old = path.read_bytes() if path.is_file() else None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as e:
+        raise click.ClickException(f"Cannot write the model to {path}: {e.strerror or e} "
+                                   "(check the folder exists and is writable).") from None
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a model file is as readable as any other
+        os.replace(tmp, path)
+    except OSError as e:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise click.ClickException(f"Cannot write the model to {path}: {e.strerror or e}.") from None
+
+    def restore() -> None:
+        if old is None:
+            path.unlink(missing_ok=True)
+        else:
+            path.write_bytes(old)
+
+    return restore
+
+
 def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded: str) -> None:
     from rich.console import Console
     from rich import box
@@ -82,25 +116,37 @@ def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded:
               help="Model JSON to write [default: RUN.model.json beside the run].")
 @click.option("--protocol", default=None,
               help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.")
-@click.option("--max-amplification", type=float, default=100.0, show_default=True,
+@click.option("--max-amplification", type=click.FloatRange(min=1, min_open=True), default=100.0, show_default=True,
               help="Leave a posture out of the Fx (Fy) fit when that force's error amplification "
                    "near theta2 = 0 exceeds this.")
 @click.option("--json", "as_json", is_flag=True, help="Print the model and the paper's values as JSON.")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="rPAM stretch-test runs: write the stretch test's figure (Fig. 6) to this .png, .pdf or .svg.")
 def fit(run: Path, output: Path | None, protocol: str | None, max_amplification: float,
-        as_json: bool) -> None:
+        as_json: bool, plot: Path | None) -> None:
     """Fit the paper's regression (Eqs. 34-37) to the fit trials of RUN.
 
     RUN is a run file (.h5) or a trial CSV.  Prints each equation's coefficients with standard
     errors, 95% intervals and the paper's values (Section 3.3), saves the model JSON and
-    records it in the run file.
+    records it in the run file.  On an rPAM stretch-test run it fits the cubic stretch
+    correction F_stretch(lambda) of the rPAM paper's Eq. 7 instead, with its uncertainty.
 
     \b
     Example:
         labcli fit run.h5                  # writes run.model.json
         labcli fit trials.csv --protocol takuma2014 -o model.json --json
+        labcli fit stretch.h5 --plot fig6-stretch.png
     """
     from ..models.inputs import load_trial_source
     from ..models.takuma import TakumaModel
+    from ..rpam_commands import fit_command, rpam_run_kind
+
+    if rpam_run_kind(run):  # an rPAM run: the stretch correction (Eq. 7), not Eqs. 34-37
+        fit_command(run, output=output, protocol=protocol, plot=plot, as_json=as_json)
+        return
+    if plot is not None:
+        raise click.ClickException("--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
+                                   "for a force run draw Figure 7 with labcli validate --plot.")
 
     try:
         src = load_trial_source(run, protocol)
@@ -108,17 +154,22 @@ def fit(run: Path, output: Path | None, protocol: str | None, max_amplification:
                             max_amplification=max_amplification).fit(src.table, source=str(run))
         out_path = output or default_model_path(run)
         text = model.to_json()
-        try:
-            out_path.write_text(text, encoding="utf-8")
-        except OSError as e:
-            raise click.ClickException(f"Cannot write the model to {out_path}: {e.strerror or e}.")
         recorded = ""
         if src.is_run:
             from ..store import RunFile
 
+            # Open the run for writing before the model file is touched: a run that cannot take
+            # the model (locked by a viewer, read-only) must leave both files as they were.
             with RunFile.open(run, "a") as rf:
-                rf.record_model(model.protocol, text)
+                restore = _write_model(out_path, text)
+                try:
+                    rf.record_model(model.protocol, text)
+                except BaseException:
+                    restore()
+                    raise
             recorded = f" and recorded in {run} under /models/{model.protocol}"
+        else:
+            _write_model(out_path, text)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     paper = dict(getattr(src.protocol, "paper_coefficients", {}) or {})

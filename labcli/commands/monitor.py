@@ -112,7 +112,8 @@ def _print_summary(summary: Any, scale: Any) -> None:
     stopped = "stopped by Ctrl-C" if summary.interrupted else "stopped"
     click.echo(
         f"{summary.port}: {stopped} after {summary.seconds:.1f} s; {c['frames']} frames "
-        f"({summary.frames_per_s:.1f} frames/s at {summary.rate_hz:g} Hz set), {c.get('stalls', 0)} stalls, {c['lost']} lost, "
+        f"({summary.frames_per_s:.1f} frames/s at {summary.rate_hz:g} Hz set), "
+        f"{c.get('stalls', 0)} stalls, {c['lost']} lost, "
         f"{c['bad_checksum']} bad checksum, {c['malformed']} malformed, {c['overlong']} overlong, "
         f"{c['log_lines']} log lines."
     )

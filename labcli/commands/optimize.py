@@ -12,6 +12,9 @@ from ..errors import LabcliError
 def _kpa(value: float | None, name: str) -> float | None:
     if value is not None and not value == value:  # NaN typed on the command line
         raise click.BadParameter("must be a number of kPa", param_hint=name)
+    if value is not None and not 0 <= value < float("inf"):
+        # Gauge pressure: a muscle cannot be driven below atmosphere.
+        raise click.BadParameter(f"{value:g} is not a gauge pressure; give 0 kPa or more.", param_hint=name)
     return value
 
 

@@ -72,12 +72,21 @@ def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, p
 
     RUN is a run file (.h5) or a trial CSV.  Reports RMSE, MAE, max |error|, bias, R^2 and
     RMSE as a share of the observed range for theta1, theta2 (deg) and Fx, Fy (N).
+    On an rPAM joint-map run it compares the measured angles with the model without and
+    with the stretch correction (--model: the stretch fit; default: the protocol's own),
+    and --plot draws the rPAM paper's Figure 8.
 
     \b
     Example:
         labcli validate run.h5 --model run.model.json --plot fig7.png
         labcli validate trials.csv --mode measured-angles --json
+        labcli validate joint.h5 --model stretch.model.json --plot fig8.png
     """
+    from ..rpam_commands import rpam_run_kind, validate_command
+
+    if rpam_run_kind(run):  # an rPAM joint map (Fig. 8), not Eqs. 34-37
+        validate_command(run, model_path=model_path, protocol=protocol, plot=plot, as_json=as_json)
+        return
     from ..commands.fit import default_model_path
     from ..models.inputs import load_trial_source
     from ..models.metrics import evaluate, evaluation_to_dict

@@ -74,10 +74,11 @@ def _column(df: Any, name: str) -> np.ndarray:
 def _labels(df: Any) -> np.ndarray:
     if "category" not in df.columns:
         return np.full(len(df), "", dtype=object)
-    return np.array(
-        ["" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v).strip() for v in df["category"]],
-        dtype=object,
-    )
+    import pandas as pd
+
+    # Few distinct labels: clean each once (code -1 is an empty cell).
+    codes, values = pd.factorize(df["category"])
+    return np.array([str(v).strip() for v in values] + [""], dtype=object)[codes]
 
 
 def _prediction(pred: Mapping[str, Any], name: str) -> Any:
@@ -170,15 +171,17 @@ def classify_pushes(
         _column(table, "R_m"), _column(table, "d_m"), phi,
         h2=h2, h3=h3, theta0=theta0, params=params,
         model_flags=pred.get("flags"), model_reasons=pred.get("reasons"), force_ok=force_ok,
-        push_ids=list(table["push"]),
+        push_ids=table["push"].tolist(),
     )
 
     labels = _labels(table)
     objects = [str(o) for o in pd.unique(table["object"].astype(str))]
     obj_col = table["object"].astype(str).to_numpy()
+    # Row numbers of every object in one pass; a mask per object would cost objects x pushes.
+    members = pd.Series(np.arange(len(table))).groupby(obj_col, sort=False).indices
     known: dict[str, str] = {}
     for name in objects:
-        cats = sorted(set(labels[obj_col == name]))
+        cats = sorted(set(labels[members[name]]))
         named = [c for c in cats if c]
         if len(named) > 1 or (named and "" in cats):
             raise ConfigError(
@@ -204,26 +207,28 @@ def classify_pushes(
         cat_model = CategoryModel("reference").fit(np.where(use, est.k, np.nan)[ref], list(labels[ref]))
 
     rows = []
+    true_k = np.asarray(table[TRUE_K], dtype=float) if TRUE_K in table.columns else None
     for name in objects:
-        sel = obj_col == name
+        sel = members[name]
         stats = object_stats(est.k[sel], est.flag[sel] | ~np.isfinite(est.k[sel]))
         row: dict[str, Any] = {"object": name, "known_category": known[name], **stats}
-        if TRUE_K in table.columns:
-            row["true_k_N_per_m"] = float(np.nanmean(np.asarray(table[TRUE_K], dtype=float)[sel]))
-        samples = est.k[sel & use]
+        if true_k is not None:
+            row["true_k_N_per_m"] = float(np.nanmean(true_k[sel]))
+        samples = est.k[sel[use[sel]]]
         if samples.size == 0:
             counts = Counter(r for r in est.reason[sel] if r)
             top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
             if not allow_unusable:
                 raise ModelError(
-                    f"Object {name!r} has no usable push: all {int(sel.sum())} are flagged (most often: {top})."
+                    f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top})."
                 )
             row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})")
             rows.append(row)
             continue
         scorer, note = cat_model, ""
         if cat_model.method == "reference" and known[name]:
-            others = use & (labels != "") & ~sel
+            others = use & (labels != "")
+            others[sel] = False
             note = "in-sample (only reference of its category)"
             if known[name] in set(labels[others]):
                 try:

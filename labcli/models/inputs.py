@@ -52,6 +52,14 @@ def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSou
                               "trial CSV files only, so leave it out for a run file.")
         proto = (loads_protocol(text, source=f"{p} (embedded protocol)") if text.strip()
                  else load_protocol(name or DEFAULT_PROTOCOL))
+        if proto.kind != "force":
+            raise ConfigError(f"{p} is a run of kind '{proto.kind}' (protocol '{proto.name}'), not a force run; "
+                              "fit and validate read the trials of a force run such as one recorded "
+                              f"with protocol {DEFAULT_PROTOCOL}.")
         return TrialSource(p, _read_table(p), proto, True)
     proto = load_protocol(protocol or DEFAULT_PROTOCOL)
+    if proto.kind != "force":
+        # A model fitted under a push or rPAM protocol would be refused by every later check.
+        raise ConfigError(f"--protocol {protocol} is of kind '{proto.kind}'; a trial CSV is read with a "
+                          f"force protocol such as {DEFAULT_PROTOCOL}.")
     return TrialSource(p, _read_table(p), proto, False)

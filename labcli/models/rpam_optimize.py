@@ -292,6 +292,8 @@ def optimize_protocol(
     if Pb_kPa is not None:
         extra.append(f"optimize.Pb_kPa={float(Pb_kPa)!r}")
     raw = rpam.apply_overrides(raw, extra)
-    act = rpam.actuator_from_protocol(raw, path)
-    bounds, settings = settings_from_protocol(raw, path)
+    # A value set on the command line is not in the file: say so when it is the one refused.
+    where = f"{path} with --set {' '.join(overrides)}" if overrides else path
+    act = rpam.actuator_from_protocol(raw, where)
+    bounds, settings = settings_from_protocol(raw, where)
     return optimize_joint(act, bounds, settings, progress=progress)

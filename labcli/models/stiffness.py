@@ -356,12 +356,12 @@ def _flags_from_model(flags: Any, reasons: Any, n: int) -> list[list[str]] | Non
     given = list(np.asarray(reasons, dtype=object).reshape(n)) if reasons is not None else [""] * n
     out: list[list[str]] = []
     for item, why in zip(items, given):
-        if item is None or (isinstance(item, float) and math.isnan(item)):
+        if isinstance(item, (list, tuple, set)):  # TakumaModel.predict's form first: one test per push
+            out.append(list(filter(None, map(str, item))))
+        elif item is None or (isinstance(item, float) and math.isnan(item)):
             out.append([])
         elif isinstance(item, str):
             out.append([item] if item else [])
-        elif isinstance(item, (list, tuple, set)):
-            out.append([str(t) for t in item if str(t)])
         else:
             out.append([str(why) if why else "flagged by the model"] if bool(item) else [])
     return out
@@ -488,12 +488,14 @@ def estimate_pushes(
         for i, names in enumerate(model):
             if handled[i]:
                 names = [t for t in names if t != SINGULAR_FLAG]
+            if not names:
+                continue
             kept = [t for t in names if t not in accepted]
             if kept:
                 reasons[i].append("model: " + ", ".join(kept))
             notes[i].extend(f"accepted model flag: {t}" for t in names if t in accepted)
 
-    reason = np.array(["; ".join(r) for r in reasons], dtype=object)
+    reason = np.array(list(map("; ".join, reasons)), dtype=object)
     return PushEstimates(
         C=C,
         phi=phi_out,
@@ -509,7 +511,7 @@ def estimate_pushes(
         dx_theta_gain=dx_theta_gain,
         flag=reason != "",
         reason=reason,
-        note=np.array(["; ".join(t) for t in notes], dtype=object),
+        note=np.array(list(map("; ".join, notes)), dtype=object),
         F=F,
     )
 
@@ -536,7 +538,9 @@ def _project_singular(
     if ok.shape != (n, 2):
         raise ConfigError(f"Model force flags have shape {ok.shape}, expected ({n}, 2) for {n} pushes.")
     # Only pushes whose sole complaint is the singular pose, with exactly one component usable.
-    only_singular = np.array([bool(names) and set(names) == {SINGULAR_FLAG} for names in model])
+    single = [SINGULAR_FLAG]
+    only_singular = np.array([bool(names) and (names == single or set(names) == {SINGULAR_FLAG}) for names in model],
+                             dtype=bool)
     one = only_singular & (ok.sum(axis=1) == 1)
     F = F.copy()
     g = C - O2_given
@@ -544,17 +548,21 @@ def _project_singular(
         u = g / np.hypot(g[:, 0], g[:, 1])[:, None]
     names = ("Fx", "Fy")
     unobserved = one & ~known
-    for i in np.flatnonzero(one):
-        c = 0 if ok[i, 0] else 1
-        if not known[i]:
-            reasons[i].append(REASON_UNOBSERVED_DIRECTION)
-            continue
-        share = u[i, c]
-        if not (abs(share) >= params.min_projection and F[i, c] * share > 0):
-            reasons[i].append(REASON_PROJECTION)
-            continue
-        F[i] = (F[i, c] / share) * u[i]
-        notes[i].append(f"force from {names[c]} along O2 -> C ({names[1 - c]} near singular)")
+    # Every push at once; only the sentences are appended push by push.
+    c = np.where(ok[:, 0], 0, 1)
+    share = u[np.arange(n), c]
+    usable = F[np.arange(n), c]
+    with np.errstate(invalid="ignore"):
+        good = (np.abs(share) >= params.min_projection) & (usable * share > 0)
+    project = one & known & good
+    F[project] = (usable[project] / share[project])[:, None] * u[project]
+    for i in np.flatnonzero(unobserved):
+        reasons[i].append(REASON_UNOBSERVED_DIRECTION)
+    for i in np.flatnonzero(one & known & ~good):
+        reasons[i].append(REASON_PROJECTION)
+    text = [f"force from {names[k]} along O2 -> C ({names[1 - k]} near singular)" for k in (0, 1)]
+    for i, k in zip(np.flatnonzero(project).tolist(), c[project].tolist()):
+        notes[i].append(text[k])
     return F, one, unobserved
 
 

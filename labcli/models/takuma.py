@@ -40,7 +40,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, NoReturn, Sequence
 
 import numpy as np
 
@@ -226,7 +226,12 @@ def _table_arrays(table: Any) -> dict[str, np.ndarray]:
 def select_set(table: Any, name: str, source: str = "the trial table") -> Any:
     """Rows of the trial table whose ``set`` is ``name`` (ModelError if there are none)."""
     if "set" in table.columns:
-        rows = table[table["set"].astype(str).str.strip().str.lower() == name]
+        import pandas as pd
+
+        # Few distinct set names: normalise each once, not every row (code -1 is a missing value).
+        codes, values = pd.factorize(table["set"])
+        hit = np.array([str(v).strip().lower() == name for v in values] + [False], dtype=bool)
+        rows = table[hit[codes]]
     else:
         rows = table.iloc[0:0]
     if len(rows) == 0:
@@ -347,7 +352,8 @@ class TakumaModel:
 
     def fit(self, table: Any, source: str = "the trial table") -> "TakumaModel":
         """Least squares on the table's ``set == 'fit'`` rows; returns self, fitted."""
-        from scipy import stats
+        # scipy.special alone: scipy.stats would add a second to every `labcli fit` for one quantile.
+        from scipy.special import stdtrit
 
         from .. import __version__
 
@@ -369,9 +375,10 @@ class TakumaModel:
         theta2_threshold(h2, h3, self.max_amplification)  # a bound <= 1 is refused here
         amp = force_amplification(np.where(angles_known[:, None], theta, 0.0), h2, h3)
         for k, eq in enumerate(("Fx", "Fy")):
-            for i, t in enumerate(trial):
-                if bad_p[i]:
-                    continue
+            # A sentence per excluded trial only; the usable ones are settled by one mask.
+            usable = angles_known & np.isfinite(F[:, k]) & (amp[:, k] <= self.max_amplification)
+            for i in np.flatnonzero(~bad_p & ~usable):
+                t = trial[i]
                 if not angles_known[i]:
                     reasons[eq][int(t)] = "a measured angle is missing"
                 elif not np.isfinite(F[i, k]):
@@ -399,7 +406,7 @@ class TakumaModel:
         excluded: dict[str, list[dict[str, Any]]] = {}
         for eq in EQUATIONS:
             names = TERMS[eq]
-            use = np.array([int(t) not in reasons[eq] for t in trial], dtype=bool)
+            use = ~np.isin(trial, np.fromiter(reasons[eq], dtype=trial.dtype, count=len(reasons[eq])))
             n, p = int(use.sum()), len(names)
             if n < p + 1:
                 why = sorted(set(reasons[eq].values()))
@@ -409,7 +416,7 @@ class TakumaModel:
                                  "record more fit trials.")
             X, y = designs[eq][use], targets[eq][use]
             res = _lstsq(X, y, names, eq, self.max_design_cond)
-            tq = float(stats.t.ppf(0.975, res.dof))
+            tq = float(stdtrit(res.dof, 0.975))
             se = np.sqrt(np.maximum(np.diag(res.cov), 0.0))
             for k, name in enumerate(names):
                 coefs[name] = float(res.beta[k])
@@ -432,7 +439,7 @@ class TakumaModel:
                 st["space"] = f"{eq} (N)"
                 st["r2_native"], st["rmse_native"], st["native_unit"] = st["r2"], st["rmse"], "N"
             stats_out[eq] = st
-            fitted_ids[eq] = [int(t) for t in trial[use]]
+            fitted_ids[eq] = trial[use].tolist()
             excluded[eq] = [{"trial": t, "reason": r} for t, r in sorted(reasons[eq].items())]
 
         self.coefficients, self.standard_errors, self.ci95 = coefs, ses, ci
@@ -479,7 +486,7 @@ class TakumaModel:
         clipped = np.abs(s) > 1.0
         th = np.arcsin(np.clip(s, -1.0, 1.0))
         ok_t = ~clipped & ~bad_p[:, None]
-        for i in range(n):
+        for i in np.flatnonzero(bad_p | clipped.any(axis=1)):
             if bad_p[i]:
                 flags[i].append("bad-pressure")
             for k in range(2):
@@ -567,31 +574,16 @@ class TakumaModel:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "TakumaModel":
-        if not isinstance(d, Mapping) or d.get("schema") != SCHEMA:
-            got = d.get("schema") if isinstance(d, Mapping) else type(d).__name__
-            raise ModelError(f"{_cap(name)} is not a labcli Takuma model (schema {got!r}, "
+        if not isinstance(d, Mapping):
+            raise ModelError(f"{_cap(name)} is not a labcli Takuma model (it holds {_json_kind(d)}, not an "
+                             f"object with schema {SCHEMA!r}); pass a file written by `labcli fit`.")
+        if d.get("schema") != SCHEMA:
+            raise ModelError(f"{_cap(name)} is not a labcli Takuma model (schema {d.get('schema')!r}, "
                              f"expected {SCHEMA!r}); pass a file written by `labcli fit`.")
         if d.get("version") != SCHEMA_VERSION:
             raise ModelError(f"{_cap(name)} has model version {d.get('version')!r}; this labcli reads "
                              f"version {SCHEMA_VERSION}.")
-        try:
-            settings = d.get("settings", {})
-            model = cls(
-                geometry=dict(d["geometry"]), protocol=str(d["protocol"]),
-                max_amplification=float(settings.get("max_amplification", DEFAULT_MAX_AMPLIFICATION)),
-                max_design_cond=float(settings.get("max_design_cond", DEFAULT_MAX_DESIGN_COND)),
-                coefficients={k: float(v) for k, v in d["coefficients"].items()},
-                standard_errors={k: float(v) for k, v in d.get("standard_errors", {}).items()},
-                ci95={k: [float(x) for x in v] for k, v in d.get("ci95", {}).items()},
-                covariance={k: [[float(x) for x in r] for r in v]
-                            for k, v in d.get("covariance", {}).items()},
-                fit_stats=dict(d.get("fit_stats", {})),
-                fitted_trials={k: [int(t) for t in v] for k, v in d.get("fitted_trials", {}).items()},
-                excluded_trials={k: list(v) for k, v in d.get("excluded_trials", {}).items()},
-                source=str(d.get("source", "")), labcli_version=str(d.get("labcli_version", "")),
-            )
-        except (KeyError, TypeError, ValueError) as e:
-            raise ModelError(f"{_cap(name)} is damaged ({type(e).__name__}: {e}); refit with `labcli fit`.") from None
+        model = cls(**_model_fields(d, _cap(name)))
         missing = [k for k in COEFFICIENT_NAMES if k not in model.coefficients]
         if missing:
             raise ModelError(f"{_cap(name)} lacks the coefficient(s) {', '.join(missing)}; "
@@ -616,14 +608,109 @@ class TakumaModel:
             text = p.read_text(encoding="utf-8")
         except FileNotFoundError:
             raise ModelError(f"The model file {p} does not exist; write one with `labcli fit`.") from None
-        except (OSError, UnicodeDecodeError) as e:
-            raise ModelError(f"The model file {p} cannot be read ({e}).") from None
+        except IsADirectoryError:
+            raise ModelError(f"The model file {p} is a folder; pass the .json file `labcli fit` wrote.") from None
+        except UnicodeDecodeError as e:
+            raise ModelError(f"The model file {p} is not UTF-8 text (bad byte at offset {e.start}); "
+                             "pass the .json file `labcli fit` wrote.") from None
+        except OSError as e:
+            raise ModelError(f"The model file {p} cannot be read ({e.strerror or e}).") from None
         return cls.from_json(text, name=f"The model file {p}")
 
     def save(self, path: Any) -> None:
         from pathlib import Path
 
         Path(path).write_text(self.to_json(), encoding="utf-8")
+
+
+# --------------------------------------------------------------------------- reading a model file
+# A model file is typed by hand now and then, or comes from another program: every field is
+# checked by name, so a damaged file gives one sentence naming the key, never a traceback.
+
+def _json_kind(v: Any) -> str:
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return f"the boolean {str(v).lower()}"
+    if isinstance(v, str):
+        return f"the string {v[:40]!r}"
+    if isinstance(v, (int, float)):
+        return f"the number {v!r}"
+    if isinstance(v, Mapping):
+        return "an object"
+    if isinstance(v, list):
+        return "a list"
+    return type(v).__name__
+
+
+def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """Constructor arguments of TakumaModel from a model dict, each checked by key."""
+
+    def bad(key: str, what: str) -> NoReturn:
+        raise ModelError(f"{where}: key '{key}' {what}; refit with `labcli fit`.")
+
+    def obj(key: str, v: Any) -> Mapping[str, Any]:
+        if not isinstance(v, Mapping):
+            bad(key, f"must be an object, not {_json_kind(v)}")
+        return v
+
+    def num(key: str, v: Any, *, finite: bool = True, allow_null: bool = False) -> float:
+        if v is None and allow_null:
+            return math.nan  # written for a non-finite statistic (to_dict stores those as null)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (finite and not math.isfinite(v)):
+            bad(key, f"must be a {'finite ' if finite else ''}number, not {_json_kind(v)}")
+        return float(v)
+
+    def seq(key: str, v: Any) -> list[Any]:
+        if not isinstance(v, list):
+            bad(key, f"must be a list, not {_json_kind(v)}")
+        return v
+
+    for key in ("protocol", "geometry", "coefficients"):
+        if key not in d:
+            raise ModelError(f"{where} lacks the key '{key}'; refit with `labcli fit`.")
+    if not isinstance(d["protocol"], str):
+        bad("protocol", f"must be a string, not {_json_kind(d['protocol'])}")
+    geometry = {k: num(f"geometry.{k}", v) for k, v in obj("geometry", d["geometry"]).items()}
+    for key in ("h2", "h3"):
+        value = geometry.get(key, geometry.get(f"{key}_m"))
+        if value is None:
+            raise ModelError(f"{where} lacks the key 'geometry.{key}'; refit with `labcli fit`.")
+        if not value > 0:
+            bad(f"geometry.{key}", f"must be a length greater than 0 m, not {value:g}")
+    settings = obj("settings", d.get("settings", {}))
+    max_amp = num("settings.max_amplification", settings.get("max_amplification", DEFAULT_MAX_AMPLIFICATION))
+    if not max_amp > 1:
+        bad("settings.max_amplification", f"must exceed 1, not {max_amp:g}")
+    max_cond = num("settings.max_design_cond", settings.get("max_design_cond", DEFAULT_MAX_DESIGN_COND))
+    if not max_cond > 1:
+        bad("settings.max_design_cond", f"must exceed 1, not {max_cond:g}")
+    stats = obj("fit_stats", d.get("fit_stats", {}))
+    for k, v in stats.items():
+        obj(f"fit_stats.{k}", v)
+    fitted: dict[str, list[int]] = {}
+    for k, v in obj("fitted_trials", d.get("fitted_trials", {})).items():
+        ids = seq(f"fitted_trials.{k}", v)
+        if not all(isinstance(t, int) and not isinstance(t, bool) for t in ids):
+            bad(f"fitted_trials.{k}", "must list whole trial numbers")
+        fitted[k] = list(ids)
+    excluded = {k: list(seq(f"excluded_trials.{k}", v))
+                for k, v in obj("excluded_trials", d.get("excluded_trials", {})).items()}
+    return dict(
+        geometry=geometry, protocol=d["protocol"],
+        max_amplification=max_amp, max_design_cond=max_cond,
+        coefficients={k: num(f"coefficients.{k}", v) for k, v in obj("coefficients", d["coefficients"]).items()},
+        standard_errors={k: num(f"standard_errors.{k}", v, finite=False, allow_null=True)
+                         for k, v in obj("standard_errors", d.get("standard_errors", {})).items()},
+        ci95={k: [num(f"ci95.{k}", x, finite=False, allow_null=True) for x in seq(f"ci95.{k}", v)]
+              for k, v in obj("ci95", d.get("ci95", {})).items()},
+        covariance={k: [[num(f"covariance.{k}", x, finite=False, allow_null=True) for x in seq(f"covariance.{k}", r)]
+                        for r in seq(f"covariance.{k}", v)]
+                    for k, v in obj("covariance", d.get("covariance", {})).items()},
+        fit_stats={k: dict(v) for k, v in stats.items()},
+        fitted_trials=fitted, excluded_trials=excluded,
+        source=str(d.get("source", "")), labcli_version=str(d.get("labcli_version", "")),
+    )
 
 
 def fit(table: Any, geometry: Mapping[str, Any], *, protocol: str = "takuma2014",
