@@ -179,9 +179,9 @@ class Campaign:
         """
         path = self.tmp / f"{name}.h5"
         seen: dict[int, dict[str, Any]] = {}
-        todo = list(signals)
-        while todo:
-            sig = todo[0]
+        pending = list(signals)
+        while pending:
+            sig = pending[0]
             pristine = not path.exists()  # this process starts the file: its trials equal the reference's
             before = len(seen)
             proc = Acquire(run_args(path, self.plan))
@@ -204,7 +204,7 @@ class Campaign:
                 if len(ids) == len(self.ids):
                     break
                 continue
-            todo.pop(0)
+            pending.pop(0)
             self.landed[sig.name] += 1
             self.phases[self.phase(proc, path, ids, len(ids) - before)] += 1
             if sig == signal.SIGKILL:
@@ -223,7 +223,7 @@ class Campaign:
             self.resumes += 1
             self.check(path, seen, pristine)
         self.check_complete(path, seen)
-        return todo
+        return pending
 
     def check(self, path: Path, seen: dict[int, dict[str, Any]], pristine: bool) -> list[int]:
         """The file after a process ended: opens, keeps everything, holds only whole trials."""
@@ -308,10 +308,10 @@ def test_a_handful_of_kills(tmp_path):
     """Two SIGKILLs and two SIGINTs on a 40-trial plan, two per file, each file resumed to the end."""
     c = Campaign(tmp_path, plan_rows(40, 8))
     rng = random.Random(7)
-    todo = [signal.SIGKILL, signal.SIGINT, signal.SIGINT, signal.SIGKILL]
+    pending = [signal.SIGKILL, signal.SIGINT, signal.SIGINT, signal.SIGKILL]
     n = 0
-    while todo and n < 6:
-        todo = c.episode(f"run{n}", rng, todo[:2]) + todo[2:]
+    while pending and n < 6:
+        pending = c.episode(f"run{n}", rng, pending[:2]) + pending[2:]
         n += 1
     print(c.report())
     assert c.landed["SIGKILL"] == 2 and c.landed["SIGINT"] == 2

@@ -47,7 +47,7 @@ PLAN = ("trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,fit,300,
 LOSE_AT_START = 8
 
 
-# ---------------------------------------------------------------- helpers
+# ---------------------------------------------------------------- building blocks
 
 
 def trial_data(path: Path, attrs: bool = True) -> dict[int, dict[str, Any]]:
