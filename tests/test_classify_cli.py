@@ -30,7 +30,7 @@ from labcli.tables import write_push_csv
 
 SEED = 5
 # Stated tolerance: the mean stiffness of every demo object within 10 % of the
-# truth.  Measured over rig seeds 1-10 (benchmarks/classify_accuracy.py): PET
+# truth.  Measured over rig seeds 1-10 (tests/benchmarks/classify_accuracy.py): PET
 # bottles -0.6..+1.4 %, aluminium cans +0.2..+4 %, the steel can +2.9..+8.2 %
 # (its 0.45 mm deformation meets the pressure-only angles' model error).
 K_TOLERANCE = 0.10

@@ -63,7 +63,7 @@ the unit vector O2 -> C (pushes where |u_x| < ``min_projection`` or F_x points
 against u are flagged).  With phi unknown the direction is exactly what is
 missing, so such pushes are flagged.  ``"exclude"`` flags every push with a
 flagged component.  Measured on the simulated rig over ten seeds
-(``benchmarks/classify_accuracy.py``, phi given, pressure-only): PET bottles
+(``tests/benchmarks/classify_accuracy.py``, phi given, pressure-only): PET bottles
 (420-610 N/m) come out at 1.003 of their true k_o with 1.4 % spread per push
 when projected, against 1.045 (up to 1.15) and 5.6 % spread with the model's
 own Fy accepted; aluminium cans 1.02 against 1.025; the steel can (8000 N/m,

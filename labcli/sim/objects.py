@@ -17,7 +17,7 @@ therefore get longer pushes (10, 15, 20 mm for PET, aluminium, steel).  The
 pressure-only angles err by about 0.01 deg rms on the simulated rig, some
 0.03 mm at the 0.195 m lever, plus a model error of the paper's regression
 that grows with the deflection; against the steel can's 0.45 mm this leaves
-k_o some 6 % high with 8 % spread per push (``benchmarks/classify_accuracy.py``).
+k_o some 6 % high with 8 % spread per push (``tests/benchmarks/classify_accuracy.py``).
 Much stiffer than 1e4 N/m the deformation at 20 mm shrinks towards that error
 and this arm stops telling objects apart.
 

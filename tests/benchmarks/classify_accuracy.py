@@ -1,6 +1,6 @@
 """Stiffness and category accuracy of ``labcli classify`` on the simulated rig.
 
-Run:  python benchmarks/classify_accuracy.py [--seeds 1-10] [--pushes 10]
+Run:  python tests/benchmarks/classify_accuracy.py [--seeds 1-10] [--pushes 10]
 
 For each rig seed (actuator variation, sensor offsets, noise): fit the paper's
 model on the takuma2014 plan's weight trials, push the demo objects of
@@ -19,7 +19,7 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import pandas as pd  # noqa: E402
 

@@ -1,6 +1,6 @@
 """Joint-map solve (Eq. 6 over a Pa x Pb grid): one vectorised call against a scalar loop.
 
-    python benchmarks/bench_rpam_solver.py [--grid 21] [--repeat 5]
+    python tests/benchmarks/bench_rpam_solver.py [--grid 21] [--repeat 5]
 
 Both solve the same grid of the shipped rpam2015 protocol at the paper's optimum links; the
 baseline calls ``equilibrium_angle`` (grid bracket + scipy brentq) once per pressure pair.

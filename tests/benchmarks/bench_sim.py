@@ -1,6 +1,6 @@
 """Frame generation of the simulated rig against a per-frame baseline.
 
-Run:  python benchmarks/bench_sim.py [--frames N] [--repeat R]
+Run:  python tests/benchmarks/bench_sim.py [--frames N] [--repeat R]
 
 Both sides produce the same bytes for N frames of the reference rig (six
 12-bit channels, 1 kHz): the rig's vectorised ``samples`` then either the
@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 

@@ -1,6 +1,6 @@
 """Wall time of ``labcli demo`` and of an unattended 108-trial ``labcli acquire``, as subprocesses.
 
-Run:  python benchmarks/bench_demo.py [--seeds 1-3] [--import-repeat 10] [--skip-demo] [--skip-acquire]
+Run:  python tests/benchmarks/bench_demo.py [--seeds 1-3] [--import-repeat 10] [--skip-demo] [--skip-acquire]
 
 Each run is a fresh process in a fresh temporary folder, exactly as a user types it:
 
@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LABCLI = [sys.executable, "-m", "labcli"]
 IMPORTS = "import labcli.engine, labcli.store, labcli.models.takuma"
 

@@ -1,6 +1,6 @@
 """Wall time of an unattended 108-trial acquisition on the simulated rig (virtual clock).
 
-Run:  python benchmarks/bench_acquire.py [--seed N] [--block S]
+Run:  python tests/benchmarks/bench_acquire.py [--seed N] [--block S]
 
 Three figures, measured in the same run:
 
@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from rich.console import Console  # noqa: E402
 

@@ -1,6 +1,6 @@
 """End to end over a pseudo-terminal: the simulated rig at 1 kHz x 6 channels.
 
-Run:  python benchmarks/bench_link.py [--seconds 60] [--baseline-seconds 10] [--rate 1000]
+Run:  python tests/benchmarks/bench_link.py [--seconds 60] [--baseline-seconds 10] [--rate 1000]
                                        [--faults KIND:RATE[@X],...]
 
 The rig runs in its own process (``labcli sim --pty``, wall clock), as a
@@ -29,7 +29,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import serial  # noqa: E402
 
@@ -41,7 +41,7 @@ def start_rig(rate: float, faults: str) -> tuple[subprocess.Popen, str]:
     cmd = [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "1", "--rate", f"{rate:g}"]
     if faults:
         cmd += ["--faults", faults]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, cwd=Path(__file__).resolve().parents[1])
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, cwd=Path(__file__).resolve().parents[2])
     line = proc.stdout.readline()
     m = re.match(r"Simulated rig on (\S+) ", line)
     if not m:

@@ -1,6 +1,6 @@
 """Fit, validate and classify from 10^2 to 10^6 trials, against a bare numpy lstsq of the same size.
 
-Run:  python benchmarks/bench_models.py [--sizes 1e2,1e3,1e4,1e5,1e6] [--repeat 5] [--repeat-large 2]
+Run:  python tests/benchmarks/bench_models.py [--sizes 1e2,1e3,1e4,1e5,1e6] [--repeat 5] [--repeat-large 2]
                                          [--no-memory]
 
 Inputs, built once before any timing:
@@ -45,7 +45,7 @@ import time
 import tracemalloc
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 # One BLAS thread for the fit and the baseline alike: on a busy machine idle-spinning BLAS
 # threads make the baseline jump by tens; set OPENBLAS_NUM_THREADS to measure otherwise.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

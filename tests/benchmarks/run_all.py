@@ -1,6 +1,6 @@
 """Run every benchmark (quick by default) and print one Markdown table of the headline ratios.
 
-Run:  python benchmarks/run_all.py [--full] [--only models,demo,...] [--out table.md] [--log-dir DIR]
+Run:  python tests/benchmarks/run_all.py [--full] [--only models,demo,...] [--out table.md] [--log-dir DIR]
 
 Each script runs in its own process, with arguments that shorten it (``--full``: the
 scripts' own defaults), and its output is read for the figures below; every ratio is
@@ -183,7 +183,7 @@ def main() -> None:
         print(f"running {b.name}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run(cmd, cwd=HERE.parent, capture_output=True, text=True, timeout=b.timeout_s)
+            proc = subprocess.run(cmd, cwd=HERE.parents[1], capture_output=True, text=True, timeout=b.timeout_s)
             out, code = proc.stdout, proc.returncode
             (logs / f"{b.name}.log").write_text(out + proc.stderr)
         except subprocess.TimeoutExpired:
@@ -202,7 +202,7 @@ def main() -> None:
     import numpy
 
     lines = [
-        f"Measured {time.strftime('%Y-%m-%d')} with `python benchmarks/run_all.py{' --full' if args.full else ''}` "
+        f"Measured {time.strftime('%Y-%m-%d')} with `python tests/benchmarks/run_all.py{' --full' if args.full else ''}` "
         f"on {platform.system()} {platform.machine()}, {os.cpu_count()} CPUs (load {load:.1f}), "
         f"Python {platform.python_version()}, numpy {numpy.__version__}; "
         f"{'full' if args.full else 'quick'} settings, {time.perf_counter() - t_all:.0f} s in all.",

@@ -1,6 +1,6 @@
 """Raw samples per second into a run file, crash safety on, against a plain h5py append loop.
 
-Run:  python benchmarks/bench_store.py [--trials N] [--samples S[,S...]] [--repeat R] [--dir DIR]
+Run:  python tests/benchmarks/bench_store.py [--trials N] [--samples S[,S...]] [--repeat R] [--dir DIR]
 
 Each trial carries two windows (baseline and loaded) of S frames of the
 reference rig's 6 channels: ``time`` float64, ``counts`` int32, ``values``
@@ -32,7 +32,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import h5py  # noqa: E402
 import numpy as np  # noqa: E402

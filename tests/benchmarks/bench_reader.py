@@ -1,6 +1,6 @@
 """Throughput of the stream reader against a naive line-by-line baseline.
 
-Run:  python benchmarks/bench_reader.py [--frames N] [--repeat R] [--chunk BYTES]
+Run:  python tests/benchmarks/bench_reader.py [--frames N] [--repeat R] [--chunk BYTES]
 
 Both sides parse the same bytes: N data lines of 6 integer channels (the
 reference rig), with ``\\r\\n`` on one line in 50 and a log line every 500, the
@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 

@@ -1,6 +1,6 @@
 """Start-up time of ``labcli --help`` against ``python -c pass``, in the same run.
 
-    python benchmarks/bench_startup.py [--repeat 20]
+    python tests/benchmarks/bench_startup.py [--repeat 20]
 
 Prints the median wall time of each and their ratio.  The promise is that
 ``labcli --help`` stays well under half a second.
