@@ -126,6 +126,7 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     from .protocol import load_protocol
     from .sim.rpam_rig import RpamRig
     from .store import RunFile
+    from .tables import write_point_csv
 
     out = Path(outdir)
     _check_outdir(out, force)
@@ -189,8 +190,8 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     timings["optimize"] = time.perf_counter() - t
 
     stage(5)
-    stretch_table.to_csv(files["stretch_csv"], index=False)
-    joint_table.to_csv(files["joint_csv"], index=False)
+    write_point_csv(stretch_table, files["stretch_csv"], "stretch")
+    write_point_csv(joint_table, files["joint_csv"], "joint")
     timings["total"] = time.perf_counter() - t0
 
     m = fit.model

@@ -729,6 +729,13 @@ def acquire(
             f"labcli acquire runs force and push protocols; {proto.name} is of kind '{proto.kind}'."
         )
     if unattended and proto.kind == "force" and plan_df is None:
+        if resume:
+            how = "it was imported from a table" if store.attrs.get("imported") else "it was recorded with --no-plan"
+            store.close()
+            raise ConfigError(
+                f"{path} has no plan ({how}), so --unattended has nothing to follow; "
+                "resume it without --unattended and type each load."
+            )
         raise ConfigError("--unattended needs a plan to follow: drop --no-plan, or give --plan FILE.")
 
     try:

@@ -56,7 +56,7 @@ group an ``NX_class`` attribute in the NeXus style::
                         @plan_mass_g @plan_P_A_kPa @plan_P_B_kPa; P (2,) MPa (P_A, P_B);
                         stretch: mass () kg, L () m, lambda () 1; joint map: alpha () rad
                         (deflection from the vented baseline), P0 (2,) MPa, pot0 () rad,
-                        L () m; baseline/ (joint map), loaded/, @complete as above
+                        L () m; baseline/ (joint map), loaded/, extra/ (imported), @complete as above
       index (16384,)    object references to the record groups in recording order,
                         written in place (storage allocated at creation): a second
                         way to every complete record if a crash damages a link list
@@ -89,7 +89,9 @@ the acquisition session hands to :meth:`RunFile.write_trial` and
 Tables.  :meth:`RunFile.trial_table` and :meth:`RunFile.push_table` give the
 CSV exchange tables (``table-formats.md``): MPa, N, m, and degrees and grams
 rounded to 12 significant digits (:func:`to_edge`), which makes
-table -> run file -> table exact.
+table -> run file -> table exact; :meth:`RunFile.point_table` does the same for
+rPAM runs.  HDF5 strings end at a NUL, so text holding one is refused before any
+file is made (:func:`storable_cells`) rather than stored cut short.
 """
 
 from __future__ import annotations
@@ -102,7 +104,7 @@ from typing import Any, Iterable, Mapping, Sequence, TypedDict
 import h5py
 import numpy as np
 
-from .errors import ConfigError, StoreError
+from .errors import ConfigError, LabcliError, StoreError
 
 SCHEMA = "labcli-run"
 SCHEMA_VERSION = 1
@@ -123,6 +125,8 @@ INDEX_SLOTS = 16_384  # records reachable through /index; later ones by name onl
 _RECORDS = {"push": "pushes", "rpam-stretch": "points", "rpam-joint": "points"}
 _RPAM_EXPERIMENTS = {"rpam-stretch": "stretch", "rpam-joint": "joint"}
 _EDGE_DIGITS = 12
+# What to do about a run file that already exists where a new run would go.
+RESUME_OR_FORCE = "continue it with --resume, or pass --force to overwrite it"
 
 _WINDOW_GROUPS = {"baseline": "baseline", "load": "loaded", "loaded": "loaded"}
 
@@ -499,7 +503,7 @@ class RunFile:
         imported: bool = False,
         source: str = "",
         started: str | None = None,
-        exists_hint: str = "use --resume to continue it or --force to overwrite it",
+        exists_hint: str = RESUME_OR_FORCE,
     ) -> "RunFile":
         """Create a new run file for ``protocol`` (a :class:`labcli.protocol.Protocol`).
 
@@ -604,8 +608,15 @@ class RunFile:
             f = cls._h5open(path, mode)
         except OSError as e:
             if "unable to lock file" in str(e).lower():
+                if mode == "r":
+                    # A read lock is refused only while a writer holds the file.
+                    raise StoreError(
+                        f"{path} is open for writing in another process; wait for that run to end and try again."
+                    ) from None
+                # A write lock is refused while anyone holds the file, a reader included.
                 raise StoreError(
-                    f"{path} is open for writing in another process; wait for that run to end and try again."
+                    f"{path} is open in another program (a viewer, or a run still recording); "
+                    "close it there and try again."
                 ) from None
             raise StoreError(f"{path} is damaged or truncated and HDF5 cannot open it; use a backup copy.") from None
         try:
@@ -1178,7 +1189,8 @@ class RunFile:
         Stretch test: ``point, mass_g, P_A, P_B, L_m, lambda``; joint map: ``point, P_A,
         P_B, alpha_deg, P_A0, P_B0, L_m`` (pressures in MPa, ``alpha_deg`` the deflection
         from the vented baseline); then the set values as ``set_mass_g``, ``set_P_A_kPa``,
-        ``set_P_B_kPa``.  Rows in recording order.
+        ``set_P_B_kPa``; then the columns of an imported table labcli does not know.  Rows in
+        recording order.  ``labcli export`` writes this table and ``labcli import`` reads it back.
         """
         import pandas as pd
 
@@ -1215,6 +1227,7 @@ class RunFile:
                 add(f"set_{key}", vals)
         df = pd.DataFrame(cols)
         df["point"] = df["point"].astype("int64")
+        self._add_extras(df, groups)
         return df
 
     # ----------------------------------------------------------- split and models
@@ -1374,6 +1387,8 @@ class RunFile:
                     "max_deviation_kPa": float(np.max(np.abs(p0[:, c] - p0[0, c])) * 1e3),
                 }
             out["baseline_drift"] = drift
+        if collection == "points":
+            out["rpam"] = self._rpam_summary(ids, bool(out["imported"]))
         times = np.array([float(g.attrs.get("settle_time_s", math.nan)) for g in groups])
         accepted = [_str(g.attrs.get("accepted", "")) for g in groups]
         finite = times[np.isfinite(times)]
@@ -1386,8 +1401,67 @@ class RunFile:
         }
         return out
 
+    def _rpam_summary(self, ids: list[int], imported: bool) -> dict[str, Any]:
+        """The rPAM part of :meth:`summary`: the experiment, its grid's coverage, ranges measured.
+
+        ``planned``/``missing_ids`` come from the protocol embedded in the run (None for an
+        imported table, whose grid need not be the protocol's); ranges are [min, max] over
+        the complete points (None when there is none): pressures in kPa, payloads in g,
+        deflections in degrees.
+        """
+        experiment = _RPAM_EXPERIMENTS[self.kind]
+        table = self.point_table()
+
+        def span(values: Any, scale: float = 1.0) -> list[float] | None:
+            v = np.asarray(values, dtype=np.float64) * scale
+            v = v[np.isfinite(v)]
+            return [float(v.min()), float(v.max())] if v.size else None
+
+        planned = missing = None
+        if not imported:
+            from .protocol import loads_protocol
+            from .session_rpam import acquisition_protocol
+
+            try:
+                base = loads_protocol(self.protocol_text, source=f"{self.path} (embedded protocol)")
+                grid = [p.point for p in acquisition_protocol(base, experiment).points]
+            except LabcliError:
+                grid = None
+            if grid is not None:
+                done = set(ids)
+                planned, missing = len(grid), [i for i in grid if i not in done]
+        out: dict[str, Any] = {
+            "experiment": experiment,
+            "title": {"stretch": "stretch test", "joint": "joint map"}[experiment],
+            "planned": planned,
+            "missing_ids": missing,
+            "P_A_kPa": span(table["P_A"], 1e3),
+            "P_B_kPa": span(table["P_B"], 1e3),
+        }
+        if experiment == "stretch":
+            masses = sorted({float(m) for m in table["mass_g"] if math.isfinite(m)})
+            out["payloads_g"] = masses
+            out["lambda"] = span(table["lambda"])
+        else:
+            out["alpha_deg"] = span(table["alpha_deg"])
+        return out
+
 
 # --------------------------------------------------------------------------- import
+
+NUL_PROBLEM = "holds a NUL character, which a run file cannot store; remove it"
+
+
+def storable_cells(row: Mapping[str, Any]) -> Iterable[tuple[str, str]]:
+    """(column, problem) for each cell of a table row that a run file cannot store.
+
+    HDF5 keeps text as NUL-terminated strings: a NUL inside a text cell would cut it
+    short (h5py refuses it outright).  Pass this to the table readers' ``check`` to
+    have such cells reported by file, row and column.
+    """
+    for column, value in row.items():
+        if isinstance(value, str) and "\x00" in value:
+            yield str(column), NUL_PROBLEM
 
 
 def _nan_if_empty(v: Any) -> float:
@@ -1396,33 +1470,66 @@ def _nan_if_empty(v: Any) -> float:
     return float(v)
 
 
+def _extra_value(v: Any) -> Any:
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (int, np.integer)):
+        return v
+    return _nan_if_empty(v)
+
+
+def _check_storable(columns: Sequence[Any], rows: list[dict], id_col: str) -> None:
+    """Refuse, before any file is made, a table holding text a run file cannot store."""
+    for c in columns:
+        if "\x00" in str(c):
+            raise ConfigError(f"the column name {str(c)!r} holds a NUL character, which a run file cannot "
+                              "store; rename the column.")
+    for row in rows:
+        for column, problem in storable_cells(row):
+            raise ConfigError(f"{id_col} {row[id_col]}, column {column}: {problem}.")
+
+
 def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool = False, source: str = "",
                  operator: str = "") -> RunFile:
-    """Build a run file without raw windows from a trial or push table (DataFrame).
+    """Build a run file without raw windows from a trial, push or point table (DataFrame).
 
-    The protocol's kind decides which: ``push`` -> push table, otherwise trial
-    table.  The ``set`` column of a trial table becomes the split (strategy
-    ``imported``); columns labcli does not know are kept per record.  The file
-    is built beside ``path`` and moved into place only when whole, so a failed
-    import leaves an existing file untouched.  Returns the run, open for reading.
+    The protocol's kind decides which: ``push`` -> push table (:data:`PUSH_COLUMNS`),
+    ``rpam-stretch`` / ``rpam-joint`` (an rPAM protocol with its experiment chosen,
+    :func:`labcli.session_rpam.acquisition_protocol`) -> the point table of
+    :meth:`RunFile.point_table`, otherwise trial table.  The ``set`` column of a trial
+    table becomes the split (strategy ``imported``); columns labcli does not know are
+    kept per record.  The file is built beside ``path`` and moved into place only when
+    whole, so a failed import leaves an existing file untouched.  Returns the run, open
+    for reading.
     """
     path = os.fspath(path)
     if os.path.exists(path) and not force:
         raise StoreError(f"{path} already exists; use --force to overwrite it.")
     kind = str(getattr(protocol, "kind", "force"))
     push = kind == "push"
-    known = set(PUSH_COLUMNS + PUSH_OPTIONAL_COLUMNS) if push else set(TRIAL_COLUMNS + TRIAL_OPTIONAL_COLUMNS)
+    experiment = _RPAM_EXPERIMENTS.get(kind)
+    if experiment is not None:
+        from .tables import POINT_SPECS
+
+        known = set(POINT_SPECS[experiment].names)
+        id_col = "point"
+    elif push:
+        known = set(PUSH_COLUMNS + PUSH_OPTIONAL_COLUMNS)
+        id_col = "push"
+    else:
+        known = set(TRIAL_COLUMNS + TRIAL_OPTIONAL_COLUMNS)
+        id_col = "trial"
     rows = df.to_dict("records")
     extras = [c for c in df.columns if c not in known]
-    id_col = "push" if push else "trial"
     seen: set[int] = set()
     for row in rows:
         rid = int(row[id_col])
         if rid in seen:
             raise ConfigError(f"{id_col} {rid} appears twice in the table; ids must be unique.")
         seen.add(rid)
+    _check_storable(list(df.columns), rows, id_col)
     fit, val = [], []
-    if not push:
+    if not push and experiment is None:
         for row in rows:
             s = "" if _missing(row.get("set")) else str(row["set"])
             if s not in ("fit", "validation", ""):
@@ -1433,8 +1540,10 @@ def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool
     run.sync_each_record = False  # the file only becomes the run once whole (os.replace below)
     try:
         for row in rows:
-            extra = {c: (v if isinstance(v, str) else _nan_if_empty(v) if not isinstance(v, (int, np.integer)) else v)
-                     for c, v in ((c, row[c]) for c in extras)}
+            extra = {c: _extra_value(row[c]) for c in extras}
+            if experiment is not None:
+                run.write_point(_point_record(row, experiment, protocol, extra))
+                continue
             common = {"P0_MPa": [row[c] for c in BASELINE_COLUMNS], "P_MPa": [row[c] for c in PRESSURE_NAMES],
                       "accepted": "imported", "ended": "", "extra": extra}
             if push:
@@ -1464,6 +1573,37 @@ def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool
         os.unlink(tmp)
         raise
     return RunFile.open(path)
+
+
+def _point_record(row: Mapping[str, Any], experiment: str, protocol: Any, extra: dict) -> dict[str, Any]:
+    """One row of an rPAM point table as the record :meth:`RunFile.write_point` takes (SI)."""
+
+    def value(key: str) -> float:
+        return _nan_if_empty(row.get(key))
+
+    record: dict[str, Any] = {
+        "point": int(row["point"]), "experiment": experiment, "P_MPa": [value("P_A"), value("P_B")],
+        "accepted": "imported", "ended": "", "extra": extra,
+    }
+    plan = {key: value(f"set_{key}") for key in (("mass_g",) if experiment == "stretch" else ()) + ("P_A_kPa", "P_B_kPa")}
+    record["plan"] = {k: v for k, v in plan.items() if math.isfinite(v)}
+    length = value("L_m")
+    if experiment == "stretch":
+        record["mass_kg"] = value("mass_g") * 1e-3
+        record["L_m"] = length
+        stretch = value("lambda")
+        if not math.isfinite(stretch):
+            # A table without lambda: the stretch of actuator A over its protocol's rest length.
+            stretch = length / float(getattr(protocol, "L0_m"))
+        record["lambda"] = stretch
+    else:
+        record["alpha_rad"] = math.radians(value("alpha_deg"))
+        p0 = [value("P_A0"), value("P_B0")]
+        if all(math.isfinite(v) for v in p0):
+            record["P0_MPa"] = p0
+        if math.isfinite(length):
+            record["L_m"] = length
+    return record
 
 
 def _missing(v: Any) -> bool:

@@ -1,4 +1,8 @@
-"""The CSV exchange tables: trials, pushes and plans (``table-formats.md``).
+"""The CSV exchange tables: trials, pushes, plans (``table-formats.md``) and rPAM points.
+
+rPAM point tables are those of ``RunFile.point_table``, one per experiment
+(:data:`STRETCH_POINTS`, :data:`JOINT_POINTS`): ``labcli export`` writes them and
+``labcli import --experiment stretch|joint`` reads them back.
 
 Reading checks every cell and reports every problem at once, one per line, as
 ``file:row N, column C: message``, under a first line that counts them.  Rows
@@ -26,7 +30,7 @@ import re
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from .errors import ConfigError
 
@@ -109,6 +113,44 @@ PLAN = TableSpec(
     ),
     id_column="trial",
 )
+
+# rPAM runs (``RunFile.point_table``): one table per experiment, columns in the order the
+# run file gives them.  Pressures are measured gauge values in MPa: a vented actuator reads
+# a little below zero, so they are any finite number here (not the McKibben span check).
+STRETCH_POINTS = TableSpec(
+    label="point",
+    columns=(
+        ("point", "id", "required"),
+        ("mass_g", "nonnegative", "required"),
+        ("P_A", "float", "required"),
+        ("P_B", "float", "required"),
+        ("L_m", "positive", "required"),
+        ("lambda", "positive-or-empty", "omit-if-empty"),
+        ("set_mass_g", "float-or-empty", "omit-if-empty"),
+        ("set_P_A_kPa", "float-or-empty", "omit-if-empty"),
+        ("set_P_B_kPa", "float-or-empty", "omit-if-empty"),
+    ),
+    id_column="point",
+)
+
+JOINT_POINTS = TableSpec(
+    label="point",
+    columns=(
+        ("point", "id", "required"),
+        ("P_A", "float", "required"),
+        ("P_B", "float", "required"),
+        ("alpha_deg", "float", "required"),
+        ("P_A0", "float-or-empty", "omit-if-empty"),
+        ("P_B0", "float-or-empty", "omit-if-empty"),
+        ("L_m", "positive-or-empty", "omit-if-empty"),
+        ("set_P_A_kPa", "float-or-empty", "omit-if-empty"),
+        ("set_P_B_kPa", "float-or-empty", "omit-if-empty"),
+    ),
+    id_column="point",
+    pairs=(("P_A0", "P_B0"),),
+)
+
+POINT_SPECS = {"stretch": STRETCH_POINTS, "joint": JOINT_POINTS}
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _INT64_MAX = 2**63 - 1
@@ -325,14 +367,7 @@ def _parse_records(
             row_numbers.append(rownum)
 
     if problems:
-        n = len(problems)
-        shown = problems[:MAX_LISTED]
-        more = [f"... and {n - MAX_LISTED} more."] if n > MAX_LISTED else []
-        head = (
-            f"{label} has {n} problem{'s' if n != 1 else ''} "
-            "(rows counted as a spreadsheet shows them, the header included):"
-        )
-        raise TableError("\n".join([head, *shown, *more]), problems)
+        raise table_error(label, problems)
 
     frame: dict[str, Any] = {}
     n = len(row_numbers)
@@ -348,6 +383,18 @@ def _parse_records(
         if name not in kinds:
             frame[name] = _infer_extra(columns[name])
     return pd.DataFrame(frame)
+
+
+def table_error(label: str, problems: list[str]) -> TableError:
+    """The TableError listing ``problems`` (``file:row N, column C: message.``) under their count."""
+    n = len(problems)
+    shown = problems[:MAX_LISTED]
+    more = [f"... and {n - MAX_LISTED} more."] if n > MAX_LISTED else []
+    head = (
+        f"{label} has {n} problem{'s' if n != 1 else ''} "
+        "(rows counted as a spreadsheet shows them, the header included):"
+    )
+    return TableError("\n".join([head, *shown, *more]), problems)
 
 
 def _standard_series(kind: str, values: list[Any]) -> "pd.Series":
@@ -395,32 +442,53 @@ def _read(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], e
     return _parse_records(_records(Path(path), label), spec, label, span, extra_checks)
 
 
-def _id_limits(spec: TableSpec, id_range: tuple[int, int] | None):
-    if id_range is None:
+RowCheck = Callable[[dict[str, Any]], Iterable[tuple[str, str]]]
+
+
+def _row_checks(spec: TableSpec, id_range: tuple[int, int] | None, check: RowCheck | None) -> RowCheck | None:
+    if id_range is None and check is None:
         return None
-    lo, hi = id_range
 
-    def check(values: dict[str, Any]) -> Iterable[tuple[str, str]]:
-        v = values.get(spec.id_column)
-        if isinstance(v, int) and not lo <= v <= hi:
-            yield spec.id_column, f"{v} is outside the {spec.label} ids a run file holds, {lo} to {hi}"
+    def checks(values: dict[str, Any]) -> Iterable[tuple[str, str]]:
+        if id_range is not None:
+            lo, hi = id_range
+            v = values.get(spec.id_column)
+            if isinstance(v, int) and not lo <= v <= hi:
+                yield spec.id_column, f"{v} is outside the {spec.label} ids a run file holds, {lo} to {hi}"
+        if check is not None:
+            yield from check(values)
 
-    return check
+    return checks
 
 
 def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
-                   id_range: tuple[int, int] | None = None) -> "pd.DataFrame":
+                   id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
     """Read and check a trial table (``table-formats.md``); every problem in one TableError.
 
-    ``id_range`` (low, high) also checks the trial ids, e.g. against what a run file can hold.
+    ``id_range`` (low, high) also checks the trial ids, e.g. against what a run file can hold;
+    ``check(row) -> [(column, problem), ...]`` adds checks of its own (e.g.
+    :func:`labcli.store.storable_cells`), reported by row and column like the others.
     """
-    return _read(path, TRIAL, span_MPa, _id_limits(TRIAL, id_range))
+    return _read(path, TRIAL, span_MPa, _row_checks(TRIAL, id_range, check))
 
 
 def read_push_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
-                  id_range: tuple[int, int] | None = None) -> "pd.DataFrame":
+                  id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
     """Read and check a push table; ``phi_deg`` is NaN where the file leaves it empty."""
-    return _read(path, PUSH, span_MPa, _id_limits(PUSH, id_range))
+    return _read(path, PUSH, span_MPa, _row_checks(PUSH, id_range, check))
+
+
+def read_point_csv(path: str | os.PathLike, experiment: str, *, id_range: tuple[int, int] | None = None,
+                   check: RowCheck | None = None) -> "pd.DataFrame":
+    """Read and check the point table of an rPAM experiment (``"stretch"`` or ``"joint"``).
+
+    The columns are those of :meth:`labcli.store.RunFile.point_table`; pressures in MPa,
+    ``L_m`` in m, ``mass_g`` in g, ``alpha_deg`` in degrees, set values in g and kPa.
+    """
+    spec = POINT_SPECS.get(experiment)
+    if spec is None:
+        raise ConfigError(f"an rPAM point table is of experiment stretch or joint, not {experiment!r}.")
+    return _read(path, spec, PRESSURE_SPAN_MPA, _row_checks(spec, id_range, check))
 
 
 def load_plan(
@@ -598,6 +666,14 @@ def write_trial_csv(df: "pd.DataFrame", path: str | os.PathLike, *, span_MPa: tu
 def write_push_csv(df: "pd.DataFrame", path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
     """Write a push table: standard columns in ``table-formats.md`` order, then extras."""
     _write(df, path, PUSH, span_MPa)
+
+
+def write_point_csv(df: "pd.DataFrame", path: str | os.PathLike, experiment: str) -> None:
+    """Write an rPAM point table (stretch test or joint map) in the run file's column order."""
+    spec = POINT_SPECS.get(experiment)
+    if spec is None:
+        raise ConfigError(f"an rPAM point table is of experiment stretch or joint, not {experiment!r}.")
+    _write(df, path, spec, PRESSURE_SPAN_MPA)
 
 
 def write_plan_csv(df: "pd.DataFrame", path: str | os.PathLike) -> None:

@@ -203,22 +203,27 @@ CASES: list[Case] = [
          ["run.h5 already exists; use --force to overwrite it."]),
     Case("trial-rpam-protocol", "trial CSV", "trial CSV imported under the rPAM protocol",
          ["import", "trials.csv", "-o", "new.h5", "--protocol", "rpam2015"],
-         ["rpam2015 is a protocol of kind 'rpam'; labcli import reads trial tables of force protocols "
-          "(such as takuma2014) and push tables of push protocols (such as takuma2014-stiffness)."],
-         xfail="import_.py imports a trial table under any protocol kind and writes an rpam run file"),
+         ["rpam2015 is a protocol of kind 'rpam' with two experiments; labcli import reads its point tables "
+          "with --experiment stretch (the stretch test) or --experiment joint (the joint map), and trial tables "
+          "with a force protocol such as takuma2014."]),
+    Case("trial-rpam-experiment", "trial CSV", "trial CSV imported as an rPAM stretch test",
+         ["import", "trials.csv", "-o", "new.h5", "--protocol", "rpam2015", "--experiment", "stretch"],
+         ["trials.csv has 5 problems (rows counted as a spreadsheet shows them, the header included):",
+          "trials.csv:row 1, column point: required column is missing from the header.",
+          "trials.csv:row 1, column mass_g: required column is missing from the header.",
+          "trials.csv:row 1, column P_A: required column is missing from the header.",
+          "trials.csv:row 1, column P_B: required column is missing from the header.",
+          "trials.csv:row 1, column L_m: required column is missing from the header."]),
     Case("trial-nul-in-extra", "trial CSV", "NUL character in an extra text column (import)",
          ["import", "bad.csv", "-o", "new.h5", "--protocol", "takuma2014"],
          ["bad.csv " + TABLE_HEAD, "bad.csv:row 2, column note: holds a NUL character, which a run file "
           "cannot store; remove it."],
-         files={"bad.csv": (TRIAL_HEADER + ",note\n1,fit," + ",".join(["0.2"] * 8) + ",1.0,2.0,0.5,-0.5,a\x00b\n").encode()},
-         xfail="store.py writes the text to an HDF5 string and h5py raises ValueError (a traceback)"),
+         files={"bad.csv": (TRIAL_HEADER + ",note\n1,fit," + ",".join(["0.2"] * 8) + ",1.0,2.0,0.5,-0.5,a\x00b\n").encode()}),
     Case("trial-id-out-of-range", "trial CSV", "trial id a run file cannot hold (import)",
          ["import", "bad.csv", "-o", "new.h5", "--protocol", "takuma2014"],
          ["bad.csv " + TABLE_HEAD, "bad.csv:row 2, column trial: 1000000 is outside the trial ids a run "
           "file holds, 0 to 999999."],
-         files={"bad.csv": (TRIAL_HEADER + "\n1000000,fit," + ",".join(["0.2"] * 8) + ",1.0,2.0,0.5,-0.5\n").encode()},
-         xfail="import_.py reads the table without id_range; store.import_table refuses the id naming no "
-               "file, row or column"),
+         files={"bad.csv": (TRIAL_HEADER + "\n1000000,fit," + ",".join(["0.2"] * 8) + ",1.0,2.0,0.5,-0.5\n").encode()}),
     # ---- push CSV
     Case("push-bad-cell", "push CSV", "negative radius (import)",
          ["import", "bad.csv", "-o", "new.h5", "--protocol", "takuma2014-stiffness"],
@@ -275,9 +280,7 @@ CASES: list[Case] = [
          ["fit", "unsplit.h5"],
          ["unsplit.h5 has no fit trials (no row with set = 'fit'); assign trials with `labcli split` (or "
           "fill the `set` column)."],
-         files={"unsplit.csv": _trial_csv(lambda h, rows: (h, [r[:1] + [""] + r[2:] for r in rows]))},
-         xfail="models/takuma.py _cap() capitalises the file name (Unsplit.h5); tests/test_takuma_model.py:330 "
-               "asserts the capitalised form"),
+         files={"unsplit.csv": _trial_csv(lambda h, rows: (h, [r[:1] + [""] + r[2:] for r in rows]))}),
     # ---- model JSON
     Case("model-other-protocol", "model JSON", "model of another protocol",
          ["validate", "run.h5", "--model", "m.json"],
@@ -376,9 +379,7 @@ CASES: list[Case] = [
     Case("port-sim-unknown-option-monitor", "port", "sim:// URL with an unknown option (monitor)",
          ["monitor", "--port", "sim://?sed=1", "--seconds", "1"],
          [f"Cannot open serial port sim://?sed=1: unknown option 'sed' in sim:// URL; expected {SIM_URL_FORM}. "
-          "Check the URL's options."],
-         xfail="monitor.py appends &clock=wall to the URL before opening, and the message shows the URL "
-               "the user did not type"),
+          "Check the URL's options."]),
     Case("port-unknown-scheme", "port", "unknown URL scheme (monitor)",
          ["monitor", "--port", "bogus://x", "--seconds", "1"],
          ["Cannot open serial port bogus://x: unknown URL scheme 'bogus://'. Use a port name such as "
@@ -402,8 +403,7 @@ CASES: list[Case] = [
     Case("acquire-resume-imported-unattended", "run file", "--resume --unattended on an imported run (no plan)",
          ["acquire", "run.h5", "--port", SIM, "--resume", "--unattended"],
          ["run.h5 has no plan (it was imported from a table), so --unattended has nothing to follow; resume it "
-          "without --unattended and type each load."],
-         xfail="engine.acquire advises 'drop --no-plan, or give --plan FILE', both impossible with --resume"),
+          "without --unattended and type each load."]),
 ]
 
 
@@ -527,7 +527,6 @@ def test_fit_on_a_run_open_in_a_viewer_changes_no_file(world: Path, tmp_path: Pa
     assert digest(here) == before
 
 
-@pytest.mark.xfail(strict=True, reason="store.py says 'open for writing' when another process only reads it")
 def test_a_run_open_for_reading_elsewhere_is_reported_as_such(world: Path, tmp_path: Path) -> None:
     import h5py
 

@@ -29,7 +29,7 @@ from hypothesis import strategies as st
 from labcli.cli import cli
 from labcli.errors import ConfigError, StoreError
 from labcli.protocol import load_protocol
-from labcli.store import MAX_ID, RunFile, import_table
+from labcli.store import MAX_ID, RunFile, import_table, storable_cells
 from labcli.tables import TRIAL, TableError, read_trial_csv, write_trial_csv
 
 STANDARD = list(TRIAL.names)
@@ -39,12 +39,13 @@ EXACT = PRESSURES + ["Fx_N", "Fy_N"]
 CONVERTED = ["theta1_deg", "theta2_deg", "mass_g", "direction_deg"]  # stored in rad / kg
 PROTOCOL = load_protocol("takuma2014")
 
-# NUL is left out: a run file cannot store it yet (test_bad_input.py, case trial-nul-in-extra).
+# NUL is left out of good text: a run file cannot store it, and the import refuses it by row and
+# column (test_bad_input.py, case trial-nul-in-extra); JUNK below puts it in now and then.
 TEXT = st.text(alphabet=st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00"), max_size=10)
 JUNK = st.one_of(
     st.sampled_from(["", " ", "nan", "NaN", "inf", "-inf", "1e400", "-0", "0", "1.5", "-3", "0x10", "1,5",
                      "1_000", "１２", "fit", "validation", "FIT", "\"", "'", "\r", "\n", "a\nb", "1e-400",
-                     "9" * 30, "0.5 ", " 0.5"]),
+                     "9" * 30, "0.5 ", " 0.5", "a\x00b"]),
     TEXT,
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
     st.integers(-(2**70), 2**70).map(str),
@@ -133,10 +134,24 @@ def check_outcome(text: str, folder: Path) -> None:
         assert "\n" not in str(e) and str(e).startswith(str(src)) and str(e).endswith("."), str(e)
         assert not out.exists()
         return
+    nul = [(i, c) for c in df.columns for i, v in enumerate(df[c]) if isinstance(v, str) and "\x00" in v]
+    if nul:
+        # Text a run file cannot hold: refused before any file is made, and by row and column
+        # when the reader is given the store's check (as labcli import does).
+        with pytest.raises(ConfigError) as e:
+            import_table(df, out, protocol=PROTOCOL, source="t.csv")
+        assert "holds a NUL character, which a run file cannot store" in str(e.value)
+        assert not out.exists() and not Path(str(out) + ".importing").exists()
+        with pytest.raises(TableError) as e:
+            read_trial_csv(src, check=storable_cells)
+        assert all(PROBLEM.match(p) and p.endswith("holds a NUL character, which a run file cannot store; "
+                                                   "remove it.") for p in e.value.problems), e.value.problems
+        assert len(e.value.problems) == len(nul)
+        return
     outside = [int(t) for t in df["trial"] if not 0 <= t <= MAX_ID]
     if outside:
-        # The reader takes any int64 id; a run file holds 0..MAX_ID.  Today the import refuses
-        # them without naming the row (see the xfail below); the reader's id_range names it.
+        # The reader takes any int64 id; a run file holds 0..MAX_ID.  import_table refuses them
+        # (naming the id); the reader's id_range, which labcli import passes, names row and column.
         with pytest.raises(StoreError) as e:
             import_table(df, out, protocol=PROTOCOL, source="t.csv")
         assert str(e.value) == f"trial {outside[0]}: trial ids must be between 0 and {MAX_ID}."
@@ -241,8 +256,6 @@ def test_a_ragged_row_and_a_bad_cell_are_both_named(tmp_path: Path) -> None:
                                 f"{src}:row 4: has 3 values but the header has 14 columns."]
 
 
-@pytest.mark.xfail(strict=True, reason="import_.py reads the table without id_range, so store.import_table "
-                                       "refuses the id without naming file, row and column")
 def test_an_id_a_run_file_cannot_hold_is_named_by_row_and_column(tmp_path: Path) -> None:
     header = ",".join(STANDARD[:14])
     src = tmp_path / "t.csv"

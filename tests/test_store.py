@@ -111,7 +111,7 @@ def test_edge_rounding_makes_degrees_round_trip_exact():
 def test_overwrite_refused_with_exact_message(run_path):
     with pytest.raises(StoreError) as e:
         new_run(run_path)
-    assert str(e.value) == f"{run_path} already exists; use --resume to continue it or --force to overwrite it."
+    assert str(e.value) == f"{run_path} already exists; continue it with --resume, or pass --force to overwrite it."
     with RunFile.open(run_path) as run:
         assert len(run.completed_ids()) == 12
     with new_run(run_path, force=True) as run:

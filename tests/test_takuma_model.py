@@ -327,11 +327,11 @@ def test_no_fit_trials_and_empty_validation_set(clean: pd.DataFrame, noisy_model
     t["set"] = ""
     with pytest.raises(ModelError) as e:
         fit(t, G, source="trials.csv")
-    assert str(e.value) == ("Trials.csv has no fit trials (no row with set = 'fit'); assign trials with "
+    assert str(e.value) == ("trials.csv has no fit trials (no row with set = 'fit'); assign trials with "
                             "`labcli split` (or fill the `set` column).")
     with pytest.raises(ModelError) as e:
         evaluate(noisy_model, clean, source="run.h5")
-    assert str(e.value) == ("Run.h5 has no validation trials (no row with set = 'validation'); assign "
+    assert str(e.value) == ("run.h5 has no validation trials (no row with set = 'validation'); assign "
                             "trials with `labcli split` (or fill the `set` column).")
 
 

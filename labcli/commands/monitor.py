@@ -75,6 +75,7 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
     from ..monitoring import channel_scale, watch
     from ..protocol import load_protocol
 
+    typed = port
     if port.startswith("sim://") and "clock=" not in port:
         # A live display wants the simulated rig paced like hardware, not as fast as it is read.
         port += ("&" if "?" in port else "?") + "clock=wall"
@@ -99,7 +100,8 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
                 if not console.is_terminal:
                     console.line()  # the last frame of a non-terminal Live ends mid-line
     except LabcliError as exc:
-        raise click.ClickException(str(exc)) from None
+        # Speak of the port as the user typed it, not of the paced URL opened for them.
+        raise click.ClickException(str(exc).replace(port, typed)) from None
 
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))

@@ -290,8 +290,15 @@ def _rmse(obs: np.ndarray, calc: np.ndarray) -> float:
 
 
 def _cap(text: str) -> str:
-    """Sentence case for a name that may open a message ("the model" -> "The model")."""
-    return text[:1].upper() + text[1:]
+    """Sentence case for a name that may open a message ("the model" -> "The model").
+
+    Only a leading article is capitalised: a file name is shown exactly as typed
+    (``unsplit.h5`` stays ``unsplit.h5``), because it is what the person must find.
+    """
+    head, sep, rest = text.partition(" ")
+    if sep and head in ("the", "a", "an"):
+        return head.capitalize() + sep + rest
+    return text
 
 
 def _clean(value: Any) -> Any:
