@@ -283,8 +283,18 @@ def _scalar(record: Mapping, key: str, label: str, *, default: float = math.nan)
         raise StoreError(f"{label} record: '{key}' must be a number, got {v!r}.") from None
 
 
-def _dataset(g: h5py.Group, key: str, data: Any, units: str, **attrs: Any) -> h5py.Dataset:
-    ds = g.create_dataset(key, data=data)
+# Raw windows of a few hundred samples a channel are most of a run's data; byte-shuffled
+# gzip shrinks the large ones about fourfold at a cost far below the fsync each trial pays.
+# Below about a thousand values a chunk index costs more than it saves: those stay contiguous.
+_RAW_COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+_RAW_MIN_VALUES = 1000
+
+
+def _dataset(g: h5py.Group, key: str, data: Any, units: str, *, raw: bool = False,
+             **attrs: Any) -> h5py.Dataset:
+    arr = np.asarray(data)
+    opts = _RAW_COMPRESSION if raw and arr.size >= _RAW_MIN_VALUES else {}
+    ds = g.create_dataset(key, data=arr, **opts)
     ds.attrs["units"] = units
     for k, v in attrs.items():
         ds.attrs[k] = v
@@ -768,10 +778,10 @@ class RunFile:
             w = g.create_group(name)
             w.attrs["NX_class"] = "NXlog"
             w.attrs["channels"] = list(self.channels)
-            _dataset(w, "time", arrays["time"], "s")
-            _dataset(w, "counts", arrays["counts"], "counts")
-            _dataset(w, "values", arrays["values"], ",".join(units))
-            _dataset(w, "seq", arrays["seq"], "1")
+            _dataset(w, "time", arrays["time"], "s", raw=True)
+            _dataset(w, "counts", arrays["counts"], "counts", raw=True)
+            _dataset(w, "values", arrays["values"], ",".join(units), raw=True)
+            _dataset(w, "seq", arrays["seq"], "1", raw=True)
             for sk, sv in _settle_attrs(settle.get(key) or settle.get(name)).items():
                 w.attrs[sk] = sv
 

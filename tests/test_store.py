@@ -52,6 +52,23 @@ def test_record_round_trip_values_and_dtypes(tmp_path):
         assert g.attrs["NX_class"] == "NXcollection" and g["loaded"].attrs["NX_class"] == "NXlog"
 
 
+def test_large_raw_windows_are_compressed_and_read_back_exactly(tmp_path):
+    # A 1 s window at 200 Hz (1200 values) is compressed; a short one stays contiguous.
+    path = str(tmp_path / "run.h5")
+    big, small = make_record(1, n=200), make_record(2, n=50)
+    with new_run(path) as run:
+        run.write_trial(big)
+        run.write_trial(small)
+    with RunFile.open(path) as run:
+        assert_record_stored(run.read_trial(1), big)
+        assert_record_stored(run.read_trial(2), small)
+    with h5py.File(path, "r") as f:
+        assert f["trials/000001/loaded/values"].compression == "gzip"
+        assert f["trials/000001/loaded/counts"].shuffle
+        assert f["trials/000001/loaded/time"].compression is None  # 200 values
+        assert f["trials/000002/loaded/values"].compression is None  # 300 values
+
+
 def test_every_dataset_has_units(run_path):
     with RunFile.open(run_path, "a") as run:
         run.set_split([1, 2], [3], "sequential")

@@ -25,7 +25,7 @@ def _print_summary(res: Any) -> None:
     tr = res.trials
     con.print(f"[bold]labcli demo[/bold] on the simulated rig (seed {res.seed}): "
               f"{tr['fit'] + tr['validation']} force trials ({tr['fit']} fit, {tr['validation']} validation), "
-              f"{tr['pushes']} pushes, {res.timings_s['total']:.1f} s.")
+              f"{tr['pushes']} pushes, {res.timings_s['total']:.1f} s.", soft_wrap=True)
 
     coef = Table(title="Eqs. 34-37 fitted vs paper (3.3)",
                  title_justify="left", box=box.SIMPLE_HEAD)
@@ -53,7 +53,8 @@ def _print_summary(res: Any) -> None:
                 title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("object", "pushes used", "k mean [N/m]", "k sd [N/m]", "true k [N/m]", "category",
                 "confidence", "true category"):
-        obj.add_column(col, justify="left" if col in ("object", "category", "true category") else "right")
+        obj.add_column(col, justify="left" if col in ("object", "category", "true category") else "right",
+                       no_wrap=col == "object")
     for o in res.objects:
         obj.add_row(o["object"], f"{o['n_used']}/{o['n']}", _num(o["k_mean_N_per_m"], ".0f"),
                     _num(o["k_sd_N_per_m"], ".0f"), _num(o.get("true_k_N_per_m"), ".0f"), o["category"],
