@@ -554,6 +554,21 @@ def test_a_failing_fit_leaves_an_existing_model_and_the_run_as_they_were(world: 
 # --------------------------------------------------------------------------- the table for the README
 
 
+TABLE_PATH = Path(__file__).with_name("bad_input_table.md")
+TABLE_HEADER = (
+    "# Bad input: what labcli says\n\n"
+    "Every case below runs the real `labcli` (`tests/test_bad_input.py`): a non-zero exit, no traceback, "
+    "and every file in the folder hashed unchanged before and after (the run file a failing `fit` would "
+    "record into included). Table errors print a count line, then one line per problem naming file, row "
+    "and column; option errors come from click after its two usage lines. Regenerate this file with "
+    "`python tests/test_bad_input.py > tests/bad_input_table.md`.\n\n"
+)
+
+
+def test_committed_table_lists_every_case():
+    assert TABLE_PATH.read_text(encoding="utf-8") == markdown_table()
+
+
 def markdown_table() -> str:
     rows = ["| # | input | case | command | message (first line) | exit |", "|---|---|---|---|---|---|"]
     for i, c in enumerate(CASES, 1):
@@ -562,7 +577,7 @@ def markdown_table() -> str:
         msg = "Error: " + msg.replace("{world}", "/tmp/w").replace("|", "\\|")
         note = f" *(xfail: {c.xfail})*" if c.xfail else ""
         rows.append(f"| {i} | {c.entry} | {c.what}{note} | `labcli {args}` | {msg} | {c.code} |")
-    return "\n".join(rows) + "\n"
+    return TABLE_HEADER + "\n".join(rows) + "\n"
 
 
 if __name__ == "__main__":
