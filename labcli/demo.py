@@ -67,35 +67,14 @@ class DemoResult:
 Progress = Callable[[str, int, int], None]  # (stage, done, total)
 
 
-def _quiet_ui(stage: str, progress: Progress | None) -> Any:
-    from .ui import UnattendedUI
-
-    class _DemoUI(UnattendedUI):
-        """Acts out every prompt like UnattendedUI, but reports progress instead of rows."""
-
-        def begin_trial(self, step: Any, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
-            super().begin_trial(step, stored, elapsed_s, remaining_s)
-            if progress is not None:
-                progress(stage, stored, int(step.total))
-
-        def info(self, text: str) -> None:
-            pass
-
-        def review(self, row: dict) -> str:
-            return "accept"
-
-    from rich.console import Console
-
-    return _DemoUI(console=Console(quiet=True))
-
-
-def _check_outdir(outdir: Path, force: bool) -> None:
+def check_outdir(outdir: Path, outputs: tuple[str, ...], force: bool, what: str = "demo") -> None:
+    """Refuse a file, or a directory holding earlier output, unless ``force``."""
     if outdir.exists() and not outdir.is_dir():
-        raise StoreError(f"{outdir} is a file; give a directory for the demo's output.")
+        raise StoreError(f"{outdir} is a file; give a directory for the {what}'s output.")
     if not force:
-        taken = [name for name in OUTPUTS if (outdir / name).exists()]
+        taken = [name for name in outputs if (outdir / name).exists()]
         if taken:
-            raise StoreError(f"{outdir} already holds demo output ({', '.join(taken[:3])}"
+            raise StoreError(f"{outdir} already holds {what} output ({', '.join(taken[:3])}"
                              f"{', ...' if len(taken) > 3 else ''}); pass --force to overwrite it "
                              "or choose another directory.")
 
@@ -111,9 +90,10 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     from .models.takuma import TakumaModel
     from .store import RunFile
     from .tables import load_pushes, write_push_csv, write_trial_csv
+    from .ui import ProgressUI
 
     out = Path(outdir)
-    _check_outdir(out, force)
+    check_outdir(out, OUTPUTS, force)
     out.mkdir(parents=True, exist_ok=True)
     files = {
         "force_run": out / "force.h5", "model": out / "force.model.json",
@@ -130,7 +110,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     t0 = time.perf_counter()
     stage(STAGES[0])
     outcome = acquire(files["force_run"], f"sim://?seed={seed}&clock=virtual", protocol=FORCE_PROTOCOL,
-                      unattended=True, force=True, ui=_quiet_ui(STAGES[0], progress))
+                      unattended=True, force=True, ui=ProgressUI(STAGES[0], progress))
     if outcome.exit_code:
         raise StoreError(f"The simulated force run stopped early: {outcome.message}")
     timings["acquire_force"] = time.perf_counter() - t0
@@ -157,7 +137,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     # The same seed is the same rig (its actuators' variation): the model fitted above
     # describes this rig and no other.
     outcome = acquire(files["push_run"], f"sim://?seed={seed}&clock=virtual", protocol=PUSH_PROTOCOL,
-                      unattended=True, force=True, ui=_quiet_ui(STAGES[3], progress))
+                      unattended=True, force=True, ui=ProgressUI(STAGES[3], progress))
     if outcome.exit_code:
         raise StoreError(f"The simulated push run stopped early: {outcome.message}")
     timings["acquire_pushes"] = time.perf_counter() - t

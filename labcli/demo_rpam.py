@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from .demo import check_outdir
 from .errors import StoreError
 
 PROTOCOL = "rpam2015"
@@ -76,39 +77,6 @@ def _nan_to_none(x: Any) -> Any:
     return x
 
 
-def _quiet_ui(stage: str, progress: Progress | None) -> Any:
-    from rich.console import Console
-
-    from .ui import UnattendedUI
-
-    class _DemoUI(UnattendedUI):
-        """Acts out every prompt like UnattendedUI, but reports progress instead of rows."""
-
-        def begin_trial(self, step: Any, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
-            super().begin_trial(step, stored, elapsed_s, remaining_s)
-            if progress is not None:
-                progress(stage, stored, int(step.total))
-
-        def info(self, text: str) -> None:
-            pass
-
-        def review(self, row: dict) -> str:
-            return "accept"
-
-    return _DemoUI(console=Console(quiet=True))
-
-
-def _check_outdir(outdir: Path, force: bool) -> None:
-    if outdir.exists() and not outdir.is_dir():
-        raise StoreError(f"{outdir} is a file; give a directory for the demo's output.")
-    if not force:
-        taken = [name for name in OUTPUTS if (outdir / name).exists()]
-        if taken:
-            raise StoreError(f"{outdir} already holds rPAM demo output ({', '.join(taken[:3])}"
-                             f"{', ...' if len(taken) > 3 else ''}); pass --force to overwrite it "
-                             "or choose another directory.")
-
-
 def _summary(s: dict[str, Any]) -> dict[str, Any]:
     keep = ("n_compared", "n_toggle", "rmse_deg", "max_abs_error_deg", "max_error_at_kPa", "rmse_all_deg")
     return {k: s[k] for k in keep}
@@ -127,9 +95,10 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     from .sim.rpam_rig import RpamRig
     from .store import RunFile
     from .tables import write_point_csv
+    from .ui import ProgressUI
 
     out = Path(outdir)
-    _check_outdir(out, force)
+    check_outdir(out, OUTPUTS, force, what="rPAM demo")
     out.mkdir(parents=True, exist_ok=True)
     files = {
         "stretch_run": out / "stretch.h5", "stretch_model": out / "stretch.model.json",
@@ -147,7 +116,7 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     t0 = time.perf_counter()
     stage(0)
     outcome = acquire(files["stretch_run"], port, protocol=PROTOCOL, experiment="stretch", unattended=True,
-                      force=True, ui=_quiet_ui(STAGES[0], progress))
+                      force=True, ui=ProgressUI(STAGES[0], progress))
     if outcome.exit_code:
         raise StoreError(f"The simulated stretch test stopped early: {outcome.message}")
     timings["acquire_stretch"] = time.perf_counter() - t0
@@ -170,7 +139,7 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     stage(2)
     # The same seed is the same rig: the correction fitted above belongs to these actuators.
     outcome = acquire(files["joint_run"], port, protocol=PROTOCOL, experiment="joint", unattended=True,
-                      force=True, ui=_quiet_ui(STAGES[2], progress))
+                      force=True, ui=ProgressUI(STAGES[2], progress))
     if outcome.exit_code:
         raise StoreError(f"The simulated joint map stopped early: {outcome.message}")
     timings["acquire_joint"] = time.perf_counter() - t

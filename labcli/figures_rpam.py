@@ -21,35 +21,11 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError
+# The rPAM figures share the output checks and the headless canvas of the McKibben ones.
+from .figures import FORMATS, _check_path, _new_figure, _save
 
-FORMATS = (".png", ".pdf", ".svg")
 _CMAP = "coolwarm"
 _FINE = 81  # model grid points per axis
-
-
-def _check_path(path: str | Path) -> Path:
-    p = Path(path)
-    if p.suffix.lower() not in FORMATS:
-        raise ConfigError(f"The plot file {p} must end in .png, .pdf or .svg.")
-    if not p.parent.exists():
-        raise ConfigError(f"Cannot write {p}: the directory {p.parent} does not exist.")
-    return p
-
-
-def _new_figure(width_in: float, height_in: float) -> Any:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width_in, height_in))
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig: Any, path: Path) -> None:
-    try:
-        fig.savefig(path, dpi=200 if path.suffix.lower() == ".png" else None)
-    except OSError as e:
-        raise ConfigError(f"Cannot write {path}: {e.strerror or e}.") from None
 
 
 def _deg_label(v: float) -> str:

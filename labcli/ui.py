@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from typing import IO, Any, Iterator
+from typing import IO, Any, Callable, Iterator
 
 from .session import (
     AskLoad,
@@ -283,6 +283,29 @@ class UnattendedUI:
         self.console.print("  " + "  ".join(f"{k} {v}" for k, v in row.items()), markup=False)
         return "accept"
 
+
+
+class ProgressUI(UnattendedUI):
+    """Acts out every prompt like :class:`UnattendedUI` but prints nothing: it reports
+    ``progress(stage, stored, total)`` at each trial instead (for ``labcli demo``)."""
+
+    def __init__(self, stage: str, progress: Callable[[str, int, int], None] | None = None) -> None:
+        from rich.console import Console
+
+        super().__init__(console=Console(quiet=True))
+        self.stage = stage
+        self.progress = progress
+
+    def begin_trial(self, step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
+        super().begin_trial(step, stored, elapsed_s, remaining_s)
+        if self.progress is not None:
+            self.progress(self.stage, stored, int(step.total))
+
+    def info(self, text: str) -> None:
+        pass
+
+    def review(self, row: dict) -> str:
+        return "accept"
 
 def _parse_stiffness(text: str) -> float:
     try:

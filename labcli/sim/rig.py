@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import physics as ph
+from .clock import SimClock
 
 CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
 ADC_MAX = 4095
@@ -73,7 +74,7 @@ class _Segment:
     target: ph.Equilibrium
 
 
-class SimRig:
+class SimRig(SimClock):
     """Physical model of the reference rig with operator hooks and an ADC.
 
     ``SimRig(seed=0, noise=1.0, drift=0.0)``; ``params`` overrides the
@@ -131,25 +132,6 @@ class SimRig:
         self._seg = _Segment(0.0, self.tau_s, eq.theta_rad, eq.theta_rad, np.zeros(4), np.zeros(4),
                              chambers, ph.NoLoad(), eq)
         self._valves = "vented"
-
-    # ------------------------------------------------------------ clock
-
-    @property
-    def time_s(self) -> float:
-        """The rig's simulated time, s."""
-        return self._t
-
-    def advance(self, seconds: float) -> None:
-        """Let ``seconds`` of simulated time pass without sampling."""
-        if seconds < 0:
-            raise ValueError("time only runs forward")
-        with self._lock:
-            self._t += float(seconds)
-
-    def advance_to(self, time_s: float) -> None:
-        """Let simulated time run up to ``time_s`` (no-op if already past it)."""
-        with self._lock:
-            self._t = max(self._t, float(time_s))
 
     # ------------------------------------------------------------ state
 

@@ -72,6 +72,7 @@ from typing import Any
 import numpy as np
 
 from ..models import rpam
+from .clock import SimClock
 
 CHANNELS = ("P_A", "P_B", "POT", "LEN")
 ADC_MAX = 4095
@@ -123,7 +124,7 @@ class _Segment:
     status: str  # "ok" | "stop"
 
 
-class RpamRig:
+class RpamRig(SimClock):
     """Physical model of the rPAM joint and stretch stand with operator hooks and an ADC.
 
     ``RpamRig(seed=0, noise=1.0, drift=0.0, experiment="joint", protocol="rpam2015")``.
@@ -188,25 +189,6 @@ class RpamRig:
         self._seg = _Segment(0.0, self.tau_s, np.zeros(2), np.zeros(2), 0.0, 0.0,
                              nominal.L0_m, nominal.L0_m, "ok")
         self._change(initial=True)
-
-    # ------------------------------------------------------------ clock
-
-    @property
-    def time_s(self) -> float:
-        """The rig's simulated time, s."""
-        return self._t
-
-    def advance(self, seconds: float) -> None:
-        """Let ``seconds`` of simulated time pass without sampling."""
-        if seconds < 0:
-            raise ValueError("time only runs forward")
-        with self._lock:
-            self._t += float(seconds)
-
-    def advance_to(self, time_s: float) -> None:
-        """Let simulated time run up to ``time_s`` (no-op if already past it)."""
-        with self._lock:
-            self._t = max(self._t, float(time_s))
 
     # ------------------------------------------------------------ state
 
