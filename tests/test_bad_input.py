@@ -344,7 +344,7 @@ CASES: list[Case] = [
           "prestretch, thread_length_m."]),
     Case("arg-optimize-bad-value", "CLI argument", "negative length by --set (optimize)",
          ["optimize", "--set", "actuator.L0_m=-1"],
-         [f"Protocol key 'actuator.L0_m' in {PROTOCOLS / 'rpam2015.toml'} with --set actuator.L0_m=-1 must be "
+         ["Protocol key 'actuator.L0_m' in protocol rpam2015 with --set actuator.L0_m=-1 must be "
           "a positive number, got -1."]),
     Case("arg-optimize-negative-pa", "CLI argument", "negative --pa (optimize)",
          ["optimize", "--pa", "-5"],

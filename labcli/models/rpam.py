@@ -1,8 +1,8 @@
 """The reverse pneumatic artificial muscle (rPAM) and its 1-DoF antagonistic joint.
 
-Model of Section II-III of the rPAM joint paper
-(``/work/shared/papers/rpam2015-kinematic-module-optimization.txt``), with the misprints
-listed in ``/work/shared/paper-notes.md`` resolved as documented here.  Pure numpy; scipy
+Model of Sections II-III of the rPAM joint paper ("Optimized Design of a Rigid Kinematic
+Module for Antagonistic Soft Actuation", 2015), with its misprints (Eq. 2's dimensions,
+Eq. 5's undefined L23 and its (S_b - L_a)) resolved as documented here.  Pure numpy; scipy
 only inside the functions that need it.  Units: SI (m, m^2, N, rad); pressures and moduli
 in MPa (gauge), as everywhere in labcli.
 
@@ -509,16 +509,26 @@ def _read_toml(path: Path) -> dict[str, Any]:
 
 def resolve_protocol_path(path_or_name: str | Path) -> Path:
     """A path as given, or a shipped protocol name such as ``rpam2015``."""
+    from ..protocol import DATA_DIR, shipped_protocols
+
     p = Path(path_or_name)
     if p.suffix == ".toml" or p.exists():
         if not p.is_file():
             raise ConfigError(f"Protocol file {p} does not exist; give a .toml path or a shipped name like rpam2015.")
         return p
-    here = Path(__file__).resolve().parent.parent
-    for candidate in (here.parent / "protocols" / f"{p.name}.toml", here / "data" / f"{p.name}.toml"):
-        if candidate.is_file():
-            return candidate
-    raise ConfigError(f"No protocol named '{path_or_name}'; give a .toml path or a shipped name like rpam2015.")
+    shipped = DATA_DIR / f"{p.name}.toml"
+    if shipped.is_file():
+        return shipped
+    raise ConfigError(f"No protocol named '{path_or_name}'; give a .toml path or a shipped name "
+                      f"({', '.join(shipped_protocols())}).")
+
+
+def where(path: str | Path) -> str:
+    """How an error names a protocol: ``protocol rpam2015`` for a shipped one, else its path."""
+    from ..protocol import DATA_DIR
+
+    p = Path(path)
+    return f"protocol {p.stem}" if p.parent == DATA_DIR else str(p)
 
 
 def read_rpam_protocol(path_or_name: str | Path) -> tuple[Path, dict[str, Any]]:
@@ -526,7 +536,7 @@ def read_rpam_protocol(path_or_name: str | Path) -> tuple[Path, dict[str, Any]]:
     path = resolve_protocol_path(path_or_name)
     raw = _read_toml(path)
     if raw.get("kind") != "rpam":
-        raise ConfigError(f"Protocol file {path} has kind = {raw.get('kind')!r}; the rPAM model needs kind = \"rpam\".")
+        raise ConfigError(f"Protocol file {where(path)} has kind = {raw.get('kind')!r}; the rPAM model needs kind = \"rpam\".")
     return path, raw
 
 
@@ -605,7 +615,7 @@ def _get(raw: dict[str, Any], dotted: str, path: Path | str) -> Any:
     node: Any = raw
     for part in dotted.split("."):
         if not isinstance(node, dict) or part not in node:
-            raise ConfigError(f"Protocol file {path} lacks the key '{dotted}'.")
+            raise ConfigError(f"Protocol key '{dotted}' is missing from {where(path)}.")
         node = node[part]
     return node
 
@@ -614,7 +624,7 @@ def _num(raw: dict[str, Any], dotted: str, path: Path | str, *, positive: bool =
     v = _get(raw, dotted, path)
     if not _is_number(v) or not math.isfinite(v) or (positive and v <= 0):
         need = "a positive number" if positive else "a number"
-        raise ConfigError(f"Protocol key '{dotted}' in {path} must be {need}, got {v!r}.")
+        raise ConfigError(f"Protocol key '{dotted}' in {where(path)} must be {need}, got {v!r}.")
     return float(v)
 
 
@@ -622,14 +632,14 @@ def _nums(raw: dict[str, Any], dotted: str, path: Path | str, n: int | None = No
     v = _get(raw, dotted, path)
     if not isinstance(v, list) or not all(_is_number(x) for x in v) or (n is not None and len(v) != n):
         need = f"a list of {n} numbers" if n else "a list of numbers"
-        raise ConfigError(f"Protocol key '{dotted}' in {path} must be {need}, got {v!r}.")
+        raise ConfigError(f"Protocol key '{dotted}' in {where(path)} must be {need}, got {v!r}.")
     return tuple(float(x) for x in v)
 
 
 def _range(raw: dict[str, Any], dotted: str, path: Path | str) -> tuple[float, float]:
     lo, hi = _nums(raw, dotted, path, 2)
     if not lo < hi:
-        raise ConfigError(f"Protocol key '{dotted}' in {path} must be [low, high] with low < high, got {[lo, hi]}.")
+        raise ConfigError(f"Protocol key '{dotted}' in {where(path)} must be [low, high] with low < high, got {[lo, hi]}.")
     return lo, hi
 
 
@@ -643,9 +653,9 @@ def actuator_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
     mu = _nums(raw, "ogden.mu_MPa", path)
     al = _nums(raw, "ogden.alpha", path)
     if len(mu) != len(al) or not mu:
-        raise ConfigError(f"Protocol keys 'ogden.mu_MPa' and 'ogden.alpha' in {path} must be lists of the same length.")
+        raise ConfigError(f"Protocol keys 'ogden.mu_MPa' and 'ogden.alpha' in {where(path)} must be lists of the same length.")
     if any(a == 0 for a in al) or any(m * a <= 0 for m, a in zip(mu, al)):
-        raise ConfigError(f"Ogden constants in {path} need mu_i * alpha_i > 0 for every term (material stability).")
+        raise ConfigError(f"Ogden constants in {where(path)} need mu_i * alpha_i > 0 for every term (material stability).")
     act = Actuator(
         L0_m=_num(raw, "actuator.L0_m", path),
         A0_m2=_num(raw, "actuator.A0_m2", path),
@@ -658,7 +668,7 @@ def actuator_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
     )
     if act.thread_length_m <= act.L0_m:
         raise ConfigError(
-            f"Protocol key 'actuator.thread_length_m' in {path} must exceed actuator.L0_m: "
+            f"Protocol key 'actuator.thread_length_m' in {where(path)} must exceed actuator.L0_m: "
             "a thread shorter than the actuator cannot wind round it."
         )
     return act
@@ -669,9 +679,9 @@ def _grid(raw: dict[str, Any], table: str, prefix: str, path: Path | str) -> np.
     stop = _num(raw, f"{table}.{prefix}_stop_kPa", path, positive=False)
     count = _get(raw, f"{table}.{prefix}_count", path)
     if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-        raise ConfigError(f"Protocol key '{table}.{prefix}_count' in {path} must be a whole number of at least 1.")
+        raise ConfigError(f"Protocol key '{table}.{prefix}_count' in {where(path)} must be a whole number of at least 1.")
     if start < 0 or stop < start:
-        raise ConfigError(f"Protocol keys '{table}.{prefix}_start_kPa/_stop_kPa' in {path} must satisfy 0 <= start <= stop.")
+        raise ConfigError(f"Protocol keys '{table}.{prefix}_start_kPa/_stop_kPa' in {where(path)} must satisfy 0 <= start <= stop.")
     return np.linspace(start, stop, count) * 1e-3
 
 
@@ -679,7 +689,7 @@ def stretch_test_plan(raw: dict[str, Any], path: Path | str = "<protocol>") -> t
     """Payloads (kg) x pressures (MPa) of the stretch test (Fig. 5), as two 1-D arrays."""
     masses = np.asarray(_nums(raw, "experiments.stretch_test.payloads_g", path)) * 1e-3
     if np.any(masses < 0):
-        raise ConfigError(f"Protocol key 'experiments.stretch_test.payloads_g' in {path} must not hold negative masses.")
+        raise ConfigError(f"Protocol key 'experiments.stretch_test.payloads_g' in {where(path)} must not hold negative masses.")
     return masses, _grid(raw, "experiments.stretch_test", "pressure", path)
 
 

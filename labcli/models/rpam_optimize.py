@@ -120,16 +120,16 @@ def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
         alpha_deg=r(raw, "joint.bounds.alpha_deg", path),
     )
     if any(lo <= 0 for lo in (bounds.L1_m[0], bounds.L2_m[0], bounds.L3_m[0])):
-        raise ConfigError(f"Link-length bounds in {path} must be positive.")
+        raise ConfigError(f"Link-length bounds in {rpam.where(path)} must be positive.")
     seed = rpam._get(raw, "optimize.seed", path)
     popsize = rpam._get(raw, "optimize.popsize", path)
     maxiter = rpam._get(raw, "optimize.maxiter", path)
     for key, v in (("seed", seed), ("popsize", popsize), ("maxiter", maxiter)):
         if not isinstance(v, int) or isinstance(v, bool) or v < (0 if key == "seed" else 1):
-            raise ConfigError(f"Protocol key 'optimize.{key}' in {path} must be a whole number, got {v!r}.")
+            raise ConfigError(f"Protocol key 'optimize.{key}' in {rpam.where(path)} must be a whole number, got {v!r}.")
     stretch = rpam._get(raw, "optimize.stretch_correction", path)
     if not isinstance(stretch, bool):
-        raise ConfigError(f"Protocol key 'optimize.stretch_correction' in {path} must be true or false.")
+        raise ConfigError(f"Protocol key 'optimize.stretch_correction' in {rpam.where(path)} must be true or false.")
     settings = OptimizeSettings(
         Pa_MPa=rpam._num(raw, "optimize.Pa_kPa", path, positive=False) / 1e3,
         Pb_MPa=rpam._num(raw, "optimize.Pb_kPa", path, positive=False) / 1e3,
@@ -144,7 +144,7 @@ def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
         min_toggle_margin_deg=rpam._num(raw, "optimize.min_toggle_margin_deg", path, positive=False),
     )
     if settings.min_toggle_margin_deg < 0:
-        raise ConfigError(f"Protocol key 'optimize.min_toggle_margin_deg' in {path} must not be negative.")
+        raise ConfigError(f"Protocol key 'optimize.min_toggle_margin_deg' in {rpam.where(path)} must not be negative.")
     return bounds, settings
 
 
@@ -293,7 +293,7 @@ def optimize_protocol(
         extra.append(f"optimize.Pb_kPa={float(Pb_kPa)!r}")
     raw = rpam.apply_overrides(raw, extra)
     # A value set on the command line is not in the file: say so when it is the one refused.
-    where = f"{path} with --set {' '.join(overrides)}" if overrides else path
+    where = f"{rpam.where(path)} with --set {' '.join(overrides)}" if overrides else path
     act = rpam.actuator_from_protocol(raw, where)
     bounds, settings = settings_from_protocol(raw, where)
     return optimize_joint(act, bounds, settings, progress=progress)
