@@ -657,7 +657,7 @@ def acquire(
     from .device import Device
     from .protocol import load_protocol, loads_protocol
     from .session import force_session, push_session
-    from .store import RunFile
+    from .store import RESUME_OR_FORCE, RunFile
 
     path = str(path)
     if resume and force:
@@ -700,7 +700,7 @@ def acquire(
         store: Any = existing
     else:
         if Path(path).exists() and not force:
-            raise StoreError(f"{path} already exists; continue it with --resume, or pass --force to overwrite it.")
+            raise StoreError(f"{path} already exists; {RESUME_OR_FORCE}.")
         proto = load_protocol(protocol or "takuma2014")
         if proto.kind == "rpam" or experiment is not None:
             from .session_rpam import acquisition_protocol
