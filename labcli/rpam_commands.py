@@ -41,8 +41,13 @@ def rpam_run_kind(path: str | Path) -> str | None:
     return kind if kind.startswith("rpam") else None
 
 
-def _read_run(path: Path, protocol: str | None) -> tuple[str, Any, dict[str, Any], str]:
-    """(kind, point table, raw protocol TOML, protocol name) of an rPAM run."""
+def _read_run(path: Path, protocol: str | None,
+              overrides: tuple[str, ...] = ()) -> tuple[str, Any, dict[str, Any], str, str]:
+    """(kind, point table, raw protocol TOML, protocol name, where) of an rPAM run.
+
+    ``overrides`` (``--set key=value``) change the run's stored protocol for this analysis only;
+    ``where`` names the protocol in messages, with the overrides when there are any.
+    """
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
@@ -62,7 +67,13 @@ def _read_run(path: Path, protocol: str | None) -> tuple[str, Any, dict[str, Any
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: the protocol stored in the run is not valid TOML ({e}).") from None
-    return kind, table, raw, name
+    where = f"{path} (protocol)"
+    if overrides:
+        from .models import rpam
+
+        raw = rpam.apply_overrides(raw, overrides)
+        where += f" with --set {' '.join(overrides)}"
+    return kind, table, raw, name, where
 
 
 def _console() -> Any:
@@ -78,7 +89,7 @@ def _console() -> Any:
 
 
 def fit_stretch_run(run: Path, *, output: Path | None = None, protocol: str | None = None,
-                    plot: Path | None = None) -> tuple[Any, Path, str]:
+                    plot: Path | None = None, overrides: tuple[str, ...] = ()) -> tuple[Any, Path, str]:
     """Fit the stretch correction to a stretch-test run; write and record the fit.
 
     Returns ``(StretchFit, model path, model name in the run)``.
@@ -87,13 +98,13 @@ def fit_stretch_run(run: Path, *, output: Path | None = None, protocol: str | No
     from .models.rpam_fit import analyse_stretch
     from .store import RunFile
 
-    kind, table, raw, name = _read_run(run, protocol)
+    kind, table, raw, name, where = _read_run(run, protocol, overrides)
     if kind != "rpam-stretch":
         raise ConfigError(
             f"{run} is a joint-map run (kind {kind}); labcli fit fits the stretch correction to a stretch-test "
             "run (labcli acquire --experiment stretch), and labcli validate compares a joint map with the model."
         )
-    fit = analyse_stretch(table, (f"{run} (protocol)", raw))
+    fit = analyse_stretch(table, (where, raw))
     if plot is not None:
         from .figures_rpam import figure_stretch
 
@@ -162,7 +173,7 @@ def load_stretch_model(path: Path) -> Any:
 
 
 def validate_joint_run(run: Path, *, model_path: Path | None = None, protocol: str | None = None,
-                       plot: Path | None = None) -> Any:
+                       plot: Path | None = None, overrides: tuple[str, ...] = ()) -> Any:
     """Compare a joint-map run with the model without and with the stretch correction (Fig. 8).
 
     The correction is the fit in ``model_path`` or, without one, the protocol's own
@@ -171,7 +182,7 @@ def validate_joint_run(run: Path, *, model_path: Path | None = None, protocol: s
     from .models import rpam
     from .models.rpam_fit import analyse_joint_map
 
-    kind, table, raw, _ = _read_run(run, protocol)
+    kind, table, raw, _, where = _read_run(run, protocol, overrides)
     if kind != "rpam-joint":
         raise ConfigError(
             f"{run} is a stretch-test run (kind {kind}); labcli validate compares a joint-map run with the model: "
@@ -181,14 +192,14 @@ def validate_joint_run(run: Path, *, model_path: Path | None = None, protocol: s
     if model_path is not None:
         correction = load_stretch_model(model_path)
     else:
-        act = rpam.actuator_from_protocol(raw, f"{run} (protocol)")
+        act = rpam.actuator_from_protocol(raw, where)
         if not any(act.stretch_coefficients_N):
             raise ConfigError(
                 f"{run}'s protocol has no stretch correction (its coefficients are all 0 N), so the model with "
                 "and without it would agree; fit one to a stretch-test run with labcli fit STRETCH.h5 and pass "
                 "it with --model STRETCH.model.json."
             )
-    result = analyse_joint_map(table, (f"{run} (protocol)", raw), correction)
+    result = analyse_joint_map(table, (where, raw), correction)
     if plot is not None:
         from .figures_rpam import figure8
 
@@ -257,7 +268,7 @@ def _given(names: tuple[str, ...]) -> dict[str, bool]:
 
 
 def fit_command(run: Path, *, output: Path | None, protocol: str | None, plot: Path | None,
-                as_json: bool) -> None:
+                as_json: bool, overrides: tuple[str, ...] = ()) -> None:
     """``labcli fit`` on an rPAM run: the stretch correction of a stretch-test run."""
     import click
 
@@ -265,7 +276,7 @@ def fit_command(run: Path, *, output: Path | None, protocol: str | None, plot: P
 
     try:
         check_force_only_options(**_given(("max_amplification",)))
-        fit, out, name = fit_stretch_run(run, output=output, protocol=protocol, plot=plot)
+        fit, out, name = fit_stretch_run(run, output=output, protocol=protocol, plot=plot, overrides=overrides)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     if as_json:
@@ -277,7 +288,7 @@ def fit_command(run: Path, *, output: Path | None, protocol: str | None, plot: P
 
 
 def validate_command(run: Path, *, model_path: Path | None, protocol: str | None, plot: Path | None,
-                     as_json: bool) -> None:
+                     as_json: bool, overrides: tuple[str, ...] = ()) -> None:
     """``labcli validate`` on an rPAM run: the joint map against the model (Fig. 8)."""
     import click
 
@@ -285,7 +296,8 @@ def validate_command(run: Path, *, model_path: Path | None, protocol: str | None
 
     try:
         check_force_only_options(**_given(("mode",)))
-        result = validate_joint_run(run, model_path=model_path, protocol=protocol, plot=plot)
+        result = validate_joint_run(run, model_path=model_path, protocol=protocol, plot=plot,
+                                    overrides=overrides)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     if as_json:

@@ -164,3 +164,40 @@ def test_plot_on_a_force_run_points_to_validate(tmp_path):
     result = invoke("fit", csv, "--plot", tmp_path / "f.png")
     assert result.output == ("Error: --plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; for a "
                              "force run draw Figure 7 with labcli validate --plot.\n")
+
+
+# --------------------------------------------------------------------------- --set on an analysis
+
+
+def test_set_changes_the_model_for_this_analysis_only(runs):
+    base = json.loads(invoke("validate", runs["joint"], "--json").output)
+    before = runs["joint"].read_bytes()
+    # A wall twice as thick makes the actuators stiffer: the model's angles change, the
+    # measured ones do not, and the run file keeps its own protocol.
+    thick = invoke("validate", runs["joint"], "--json", "--set", "actuator.A0_m2=4.147e-4")
+    assert thick.exit_code == 0, thick.output
+    changed = json.loads(thick.output)
+    assert changed["summary"]["with"]["rmse_all_deg"] != pytest.approx(base["summary"]["with"]["rmse_all_deg"])
+    assert runs["joint"].read_bytes() == before
+    again = json.loads(invoke("validate", runs["joint"], "--json").output)
+    assert again["summary"] == base["summary"]
+
+
+def test_set_with_an_unknown_key_names_the_choices(runs):
+    result = invoke("fit", runs["stretch"], "--set", "actuator.L0_mm=0.08")
+    assert result.exit_code == 1
+    assert result.output == ("Error: Unknown protocol key 'actuator.L0_mm' in --set; keys under actuator: "
+                             "A0_m2, L0_m, n_turns, prestretch, thread_length_m.\n")
+
+
+def test_set_is_refused_on_a_force_run(tmp_path):
+    from labcli.models.synthetic import paper_trials
+    from labcli.tables import write_trial_csv
+
+    csv = tmp_path / "trials.csv"
+    write_trial_csv(paper_trials(20, noise=False), csv)
+    for cmd in ("fit", "validate"):
+        result = invoke(cmd, csv, "--set", "actuator.L0_m=0.08")
+        assert result.exit_code == 1
+        assert result.output == ("Error: --set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
+                                 "run's model is fitted from its trials, so leave --set out.\n")

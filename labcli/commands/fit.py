@@ -122,8 +122,11 @@ def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded:
 @click.option("--json", "as_json", is_flag=True, help="Print the model and the paper's values as JSON.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="rPAM stretch-test runs: write the stretch test's figure (Fig. 6) to this .png, .pdf or .svg.")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+              help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
+                   "(repeatable; the run file keeps its own).")
 def fit(run: Path, output: Path | None, protocol: str | None, max_amplification: float,
-        as_json: bool, plot: Path | None) -> None:
+        as_json: bool, plot: Path | None, overrides: tuple[str, ...]) -> None:
     """Fit the paper's regression (Eqs. 34-37) to the fit trials of RUN.
 
     RUN is a run file (.h5) or a trial CSV.  Prints each equation's coefficients with standard
@@ -142,8 +145,11 @@ def fit(run: Path, output: Path | None, protocol: str | None, max_amplification:
     from ..rpam_commands import fit_command, rpam_run_kind
 
     if rpam_run_kind(run):  # an rPAM run: the stretch correction (Eq. 7), not Eqs. 34-37
-        fit_command(run, output=output, protocol=protocol, plot=plot, as_json=as_json)
+        fit_command(run, output=output, protocol=protocol, plot=plot, as_json=as_json, overrides=overrides)
         return
+    if overrides:
+        raise click.ClickException("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
+                                   "run's model is fitted from its trials, so leave --set out.")
     if plot is not None:
         raise click.ClickException("--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
                                    "for a force run draw Figure 7 with labcli validate --plot.")

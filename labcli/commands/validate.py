@@ -66,8 +66,11 @@ def _print_report(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | 
               help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the metrics and every validation trial's observed and calculated values as JSON.")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+              help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
+                   "(repeatable; the run file keeps its own).")
 def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, protocol: str | None,
-             as_json: bool) -> None:
+             as_json: bool, overrides: tuple[str, ...]) -> None:
     """Check a fitted model on the validation trials of RUN (the paper's Figure 7).
 
     RUN is a run file (.h5) or a trial CSV.  Reports RMSE, MAE, max |error|, bias, R^2 and
@@ -85,8 +88,12 @@ def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, p
     from ..rpam_commands import rpam_run_kind, validate_command
 
     if rpam_run_kind(run):  # an rPAM joint map (Fig. 8), not Eqs. 34-37
-        validate_command(run, model_path=model_path, protocol=protocol, plot=plot, as_json=as_json)
+        validate_command(run, model_path=model_path, protocol=protocol, plot=plot, as_json=as_json,
+                         overrides=overrides)
         return
+    if overrides:
+        raise click.ClickException("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
+                                   "run's model is fitted from its trials, so leave --set out.")
     from ..commands.fit import default_model_path
     from ..models.inputs import load_trial_source
     from ..models.metrics import evaluate, evaluation_to_dict
