@@ -616,6 +616,19 @@ def _sigint_deferred() -> Iterator[None]:
             raise KeyboardInterrupt
 
 
+@contextlib.contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """Ignore Ctrl-C while a finished session closes its files."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 # ---------------------------------------------------------------------- the whole command
 
 
@@ -791,11 +804,14 @@ def acquire(
             return engine.run(make_session(completed), restart=make_session,
                               reopen=lambda: Device.open(port, timeout=device_timeout))
         finally:
-            if engine.store_created:
-                engine.store.close()
-            if engine.device is not device:  # reopened after the rig was lost
-                with contextlib.suppress(Exception):
-                    engine.device.close()
+            # The session is over (finished, quit, interrupted or the rig lost): a Ctrl-C now
+            # has nothing left to stop, and must not cut the file's close short.
+            with sigint_ignored():
+                if engine.store_created:
+                    engine.store.close()
+                if engine.device is not device:  # reopened after the rig was lost
+                    with contextlib.suppress(Exception):
+                        engine.device.close()
     finally:
         with contextlib.suppress(Exception):
             device.close()

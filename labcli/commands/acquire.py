@@ -37,6 +37,8 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
         labcli acquire stretch.h5 --protocol rpam2015 --experiment stretch \
             --port 'sim://?mode=rpam&clock=virtual' --unattended
     """
+    import signal
+
     from ..engine import acquire as run_acquisition
     from ..errors import LabcliError
 
@@ -47,6 +49,16 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
         )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
-    click.echo(outcome.message, err=outcome.exit_code != 0)
+    except KeyboardInterrupt:
+        # The engine answers every Ctrl-C once the session runs; one that escapes came before
+        # it began (reading the protocol, opening the port), when nothing had been written.
+        click.echo(f"Interrupted before the session began; {run} is as it was.", err=True)
+        raise SystemExit(130) from None
+    # The session is over; its outcome is printed whole.
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        click.echo(outcome.message, err=outcome.exit_code != 0)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     if outcome.exit_code:
         raise SystemExit(outcome.exit_code)
