@@ -79,10 +79,20 @@ def check_outdir(outdir: Path, outputs: tuple[str, ...], force: bool, what: str 
                              "or choose another directory.")
 
 
+def acquire_unattended(path: Path, port: str, what: str, stage: str, progress: Progress | None,
+                       **options: Any) -> None:
+    """One unattended run on the simulated rig, overwriting ``path``; StoreError if it stops early."""
+    from .engine import acquire
+    from .ui import ProgressUI
+
+    outcome = acquire(path, port, unattended=True, force=True, ui=ProgressUI(stage, progress), **options)
+    if outcome.exit_code:
+        raise StoreError(f"The simulated {what} stopped early: {outcome.message}")
+
+
 def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
              progress: Progress | None = None) -> DemoResult:
     """Acquire, fit, validate, push and classify on the simulated rig; write everything to ``outdir``."""
-    from .engine import acquire
     from .figures import figure7, figure9
     from .models.classify import classify_file
     from .models.inputs import load_trial_source
@@ -90,7 +100,6 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     from .models.takuma import TakumaModel
     from .store import RunFile
     from .tables import load_pushes, write_push_csv, write_trial_csv
-    from .ui import ProgressUI
 
     out = Path(outdir)
     check_outdir(out, OUTPUTS, force)
@@ -109,10 +118,8 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
 
     t0 = time.perf_counter()
     stage(STAGES[0])
-    outcome = acquire(files["force_run"], f"sim://?seed={seed}&clock=virtual", protocol=FORCE_PROTOCOL,
-                      unattended=True, force=True, ui=ProgressUI(STAGES[0], progress))
-    if outcome.exit_code:
-        raise StoreError(f"The simulated force run stopped early: {outcome.message}")
+    port = f"sim://?seed={seed}&clock=virtual"
+    acquire_unattended(files["force_run"], port, "force run", STAGES[0], progress, protocol=FORCE_PROTOCOL)
     timings["acquire_force"] = time.perf_counter() - t0
 
     t = time.perf_counter()
@@ -136,10 +143,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     stage(STAGES[3])
     # The same seed is the same rig (its actuators' variation): the model fitted above
     # describes this rig and no other.
-    outcome = acquire(files["push_run"], f"sim://?seed={seed}&clock=virtual", protocol=PUSH_PROTOCOL,
-                      unattended=True, force=True, ui=ProgressUI(STAGES[3], progress))
-    if outcome.exit_code:
-        raise StoreError(f"The simulated push run stopped early: {outcome.message}")
+    acquire_unattended(files["push_run"], port, "push run", STAGES[3], progress, protocol=PUSH_PROTOCOL)
     timings["acquire_pushes"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -174,7 +178,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
                 "pushes": len(rep["pushes"]), "pushes_flagged": sum(p["flagged"] for p in rep["pushes"])},
         coefficients=coefficients, accuracy=accuracy, objects=rep["objects"],
         classify_method=rep["method"],
-        notes=[f"Coefficients use the plus-sign reading: the paper's beta_theta2_R2 = -2.972 appears as +2.972."],
+        notes=["Coefficients use the plus-sign reading: the paper's beta_theta2_R2 = -2.972 appears as +2.972."],
     )
     files["summary"].write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False), encoding="utf-8")
     return result

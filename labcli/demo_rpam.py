@@ -26,18 +26,15 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from .demo import check_outdir
-from .errors import StoreError
+from .demo import Progress, acquire_unattended, check_outdir
 
 PROTOCOL = "rpam2015"
 STAGES = ("acquire stretch test", "fit stretch correction", "acquire joint map", "validate joint map",
           "optimise links", "export")
 OUTPUTS = ("stretch.h5", "stretch.model.json", "fig6-stretch.png", "joint.h5", "fig8-joint-map.png",
            "stretch.csv", "joint-map.csv", "rpam-summary.json")
-
-Progress = Callable[[str, int, int], None]  # (stage, done, total)
 
 
 @dataclass
@@ -87,7 +84,6 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     """Stretch test, fit, joint map, validation, optimisation on the simulated rPAM rig, into ``outdir``."""
     import numpy as np
 
-    from .engine import acquire
     from .figures_rpam import figure8, figure_stretch
     from .models.rpam_fit import analyse_joint_map, analyse_stretch
     from .models.rpam_optimize import optimize_protocol
@@ -95,7 +91,6 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     from .sim.rpam_rig import RpamRig
     from .store import RunFile
     from .tables import write_point_csv
-    from .ui import ProgressUI
 
     out = Path(outdir)
     check_outdir(out, OUTPUTS, force, what="rPAM demo")
@@ -115,10 +110,8 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
 
     t0 = time.perf_counter()
     stage(0)
-    outcome = acquire(files["stretch_run"], port, protocol=PROTOCOL, experiment="stretch", unattended=True,
-                      force=True, ui=ProgressUI(STAGES[0], progress))
-    if outcome.exit_code:
-        raise StoreError(f"The simulated stretch test stopped early: {outcome.message}")
+    acquire_unattended(files["stretch_run"], port, "stretch test", STAGES[0], progress,
+                       protocol=PROTOCOL, experiment="stretch")
     timings["acquire_stretch"] = time.perf_counter() - t0
 
     t = time.perf_counter()
@@ -138,10 +131,8 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     t = time.perf_counter()
     stage(2)
     # The same seed is the same rig: the correction fitted above belongs to these actuators.
-    outcome = acquire(files["joint_run"], port, protocol=PROTOCOL, experiment="joint", unattended=True,
-                      force=True, ui=ProgressUI(STAGES[2], progress))
-    if outcome.exit_code:
-        raise StoreError(f"The simulated joint map stopped early: {outcome.message}")
+    acquire_unattended(files["joint_run"], port, "joint map", STAGES[2], progress,
+                       protocol=PROTOCOL, experiment="joint")
     timings["acquire_joint"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -198,60 +189,3 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     files["summary"].write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False), encoding="utf-8")
     return result
 
-
-def _num(x: Any, spec: str) -> str:
-    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
-
-
-def print_rpam_summary(res: RpamDemoResult) -> None:
-    """The demo's summary as tables (rich), units on every number."""
-    from rich import box
-    from rich.console import Console
-    from rich.table import Table
-
-    con = Console(highlight=False)
-    if not con.is_terminal:
-        con.width = max(con.width, 100)
-    s = res.stretch
-    con.print(f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
-              f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "
-              f"{res.timings_s['total']:.1f} s.", soft_wrap=True)
-
-    coef = Table(title=f"Eq. 7 stretch correction F_stretch(lambda) fitted on {s['n_points']} points "
-                       f"(lambda {s['lambda_range'][0]:.2f}-{s['lambda_range'][1]:.2f})",
-                 title_justify="left", box=box.SIMPLE_HEAD)
-    for col in ("coefficient", "fitted (N)", "std. error (N)", "rig's truth (N)", "fit - truth (s.e.)",
-                "protocol default (N)"):
-        coef.add_column(col, justify="left" if col == "coefficient" else "right")
-    for k in range(4):
-        coef.add_row(f"c{k}", f"{s['coefficients_N'][k]:+.3f}", f"{s['std_errors_N'][k]:.3f}",
-                     f"{s['true_N'][k]:+.3f}", f"{s['deviation_in_se'][k]:+.2f}",
-                     f"{s['protocol_default_N'][k]:+.3g}")
-    con.print(coef)
-    con.print(f"R^2 {s['r2']:.5f}, RMSE {s['rmse_N']:.3f} N; chi^2 of the truth against the fit's covariance "
-              f"{s['chi2_4dof']:.2f} (4 degrees of freedom; 18.5 is the 99.9 % limit).", soft_wrap=True)
-
-    jm = Table(title=f"Joint map against the model (Fig. 8), errors model - measured; toggle angle "
-                     f"{res.joint_map['toggle_deg']:.1f} deg",
-               title_justify="left", box=box.SIMPLE_HEAD)
-    for col in ("F_stretch", "points compared", "toggles", "RMSE (deg)", "max |error| (deg)",
-                "RMSE with toggles (deg)"):
-        jm.add_column(col, justify="left" if col == "F_stretch" else "right", no_wrap=col == "F_stretch")
-    for key, label in (("without", "none"), ("with_default", "protocol's"), ("with_fitted", "fitted")):
-        r = res.joint_map[key]
-        jm.add_row(label, str(r["n_compared"]), str(r["n_toggle"]), _num(r["rmse_deg"], ".2f"),
-                   _num(r["max_abs_error_deg"], ".2f"), _num(r["rmse_all_deg"], ".2f"))
-    con.print(jm)
-    con.print("Toggles: pressure pairs where the model has no balance below the toggle angle; they stay out "
-              "of the RMSE and count at the toggle angle in the last column.", soft_wrap=True)
-
-    o = res.optimum
-    con.print(f"Link optimisation (Section IV) at Pa = {o['Pa_kPa']:g} kPa, Pb = {o['Pb_kPa']:g} kPa with the "
-              f"fitted F_stretch: alpha = {o['alpha_deg']:.2f} deg at L1 = {o['L1_m']:.4f} m, "
-              f"L2 = {o['L2_m']:.4f} m, L3 = {o['L3_m']:.4f} m (toggle {o['toggle_deg']:.2f} deg; "
-              f"{'; '.join(o['active_constraints']) or 'no constraint at its bound'}).", soft_wrap=True)
-    for note in res.notes:
-        con.print(note, soft_wrap=True)
-    con.print("Files:", soft_wrap=True)
-    for path in res.files.values():
-        con.print(f"  {path}", soft_wrap=True, markup=False)

@@ -23,6 +23,7 @@ from typing import Any
 import serial
 
 from .errors import DeviceDisconnected, DeviceError, DeviceNotFound, DeviceTimeout
+from .urlhandler import register as register_url_handlers
 from .wire import FrameBatch, StreamReader, format_command
 
 try:  # absent on Windows
@@ -31,7 +32,6 @@ except ImportError:  # pragma: no cover
     class _TermiosError(Exception):  # type: ignore[no-redef]
         pass
 
-HANDLER_PACKAGE = "labcli.urlhandler"
 POLL_S = 0.05  # port read timeout: how often a waiting read looks at its deadline
 ID_RETRY_S = 0.5  # a board still booting ignores commands; ask again this often
 DEFAULT_BOOT_WAIT_S = 2.0  # DTR reset of an Arduino-class board on open: 1-3 s
@@ -43,12 +43,6 @@ class DeviceInfo:
     firmware: str
     channels: tuple[str, ...]
     port: str
-
-
-def register_url_handlers() -> None:
-    """Let ``serial.serial_for_url`` find ``sim://`` (``labcli/urlhandler/protocol_sim.py``)."""
-    if HANDLER_PACKAGE not in serial.protocol_handler_packages:
-        serial.protocol_handler_packages.append(HANDLER_PACKAGE)
 
 
 def _open_error(port: str, exc: BaseException) -> DeviceNotFound:
@@ -85,9 +79,11 @@ def _open_error(port: str, exc: BaseException) -> DeviceNotFound:
 class Device:
     """An open rig.  Use :meth:`open`; the constructor takes an already open serial object."""
 
-    def __init__(self, ser: Any, port: str, *, timeout: float = 2.0, baudrate: int = 115200) -> None:
+    def __init__(self, ser: Any, port: str, *, timeout: float = 2.0, baudrate: int = 115200,
+                 name: str | None = None) -> None:
         self._serial = ser
         self.port = port
+        self.name = port if name is None else name  # how messages speak of the port
         self.timeout = float(timeout)
         self.baudrate = baudrate
         self._reader = StreamReader(ser)
@@ -107,13 +103,16 @@ class Device:
         baudrate: int = 115200,
         timeout: float = 2.0,
         boot_wait: float | None = None,
+        name: str | None = None,
     ) -> "Device":
         """Open ``port`` and do the handshake.
 
         ``timeout`` bounds every wait for an answer and the silence tolerated
         while streaming; ``boot_wait`` is added to the first ``ID?`` wait for a
         board that resets when the port opens (default 2 s for serial ports,
-        0 for URLs such as ``sim://``).
+        0 for URLs such as ``sim://``); ``name`` is how error messages speak of
+        the port (default ``port``), for a caller that opens a variant of what
+        the user typed.
         """
         register_url_handlers()
         is_url = "://" in port
@@ -125,8 +124,8 @@ class Device:
         try:
             ser = serial.serial_for_url(port, **kwargs)
         except (serial.SerialException, ValueError, OSError, _TermiosError) as exc:
-            raise _open_error(port, exc) from None
-        dev = cls(ser, port, timeout=timeout, baudrate=baudrate)
+            raise _open_error(port if name is None else name, exc) from None
+        dev = cls(ser, port, timeout=timeout, baudrate=baudrate, name=name)
         try:
             dev._handshake(timeout + boot_wait)
         except BaseException:
@@ -157,7 +156,7 @@ class Device:
         fields = reply.split(",")
         if len(fields) < 4 or not all(f.strip() for f in fields[3:]):
             raise DeviceError(
-                f"The device on {self.port} sent an ID line without channel names ({reply!r}). "
+                f"The device on {self.name} sent an ID line without channel names ({reply!r}). "
                 "Check that its firmware answers ID? with ID,<device>,<firmware>,<ch1>,...,<chN>."
             )
         channels = tuple(f.strip() for f in fields[3:])
@@ -180,11 +179,11 @@ class Device:
             else:
                 shown = reader.noise[-1][1].decode("ascii", "replace")
             raise DeviceError(
-                f"The device on {self.port} answered {shown!r}, which is not the labcli wire protocol. "
+                f"The device on {self.name} answered {shown!r}, which is not the labcli wire protocol. "
                 f"Check the baud rate ({self.baudrate}) and that the firmware speaks wire protocol version 1."
             )
         raise DeviceTimeout(
-            f"No answer to ID? from {self.port} within {wait:g} s. Check that the rig is powered and "
+            f"No answer to ID? from {self.name} within {wait:g} s. Check that the rig is powered and "
             f"that its firmware speaks the labcli wire protocol at {self.baudrate} baud."
         )
 
@@ -233,7 +232,7 @@ class Device:
             actual = float(reply.split()[2])
         except (IndexError, ValueError):
             raise DeviceError(
-                f"The device on {self.port} answered {reply!r} to RATE {arg}, expected 'OK RATE <hz>'. "
+                f"The device on {self.name} answered {reply!r} to RATE {arg}, expected 'OK RATE <hz>'. "
                 "Check that the firmware speaks wire protocol version 1."
             ) from None
         self._reader.set_rate(actual if actual > 0 else None)
@@ -278,7 +277,7 @@ class Device:
                 return batch
             if self._streaming and now - self._last_frame > self.timeout:
                 raise DeviceTimeout(
-                    f"No data from {self.port} for {self.timeout:g} s while streaming. "
+                    f"No data from {self.name} for {self.timeout:g} s while streaming. "
                     "Check the cable and that the rig is powered."
                 )
             if now >= deadline:
@@ -297,13 +296,13 @@ class Device:
                     if accept_err:
                         return text
                     raise DeviceError(
-                        f"The device on {self.port} refused {command}: {text!r}. "
+                        f"The device on {self.name} refused {command}: {text!r}. "
                         "Check the values its firmware accepts for that command."
                     )
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise DeviceTimeout(
-                    f"No answer to {command} from {self.port} within {self.timeout:g} s. "
+                    f"No answer to {command} from {self.name} within {self.timeout:g} s. "
                     "Check that the rig is still powered and connected."
                 )
             batch = self._pump(min(remaining, 0.2))
@@ -324,13 +323,13 @@ class Device:
             return fn(*args)
         except serial.SerialTimeoutException:
             raise DeviceTimeout(
-                f"Writing to {self.port} did not finish within {self.timeout:g} s. "
+                f"Writing to {self.name} did not finish within {self.timeout:g} s. "
                 "Check that the rig is powered and not blocked (hardware flow control)."
             ) from None
         except (serial.SerialException, OSError, _TermiosError) as exc:
             self._streaming = False
             raise DeviceDisconnected(
-                f"Lost the connection to {self.port}: the device was disconnected. "
+                f"Lost the connection to {self.name}: the device was disconnected. "
                 "Check the cable and USB power, then run the command again."
             ) from exc
 

@@ -21,7 +21,9 @@ baseline); an unattended one ends with the command that resumes it.
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
 import math
+import shlex
 import signal
 import threading
 import time
@@ -59,9 +61,8 @@ from .ui import QuitRequested
 
 
 def utc_now() -> str:
-    import datetime as dt
-
     return dt.datetime.now(dt.timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+
 
 SILENT_S = 5.0  # wall-clock seconds without a frame before the rig counts as silent
 SETUP_S = 0.5  # device seconds of readings for the setup check
@@ -124,15 +125,10 @@ class RunEngine:
         units = tuple(protocol.calibration.units)
         self._pcols = [i for i, u in enumerate(units) if u == "MPa"]
         self._acols = [i for i, u in enumerate(units) if u == "rad"]
-        # Length channels (the rPAM stand's draw-wire sensor) are judged with the angles:
-        # scaled so that the protocol's length limit lands on the angle limit.
-        self._settle_scale: np.ndarray | None = None
-        lcols = [i for i, u in enumerate(units) if u == "m"]
-        length_spread = getattr(protocol, "length_spread_m", None)
-        if lcols and length_spread:
-            self._settle_scale = np.ones(len(units))
-            self._settle_scale[lcols] = self.criteria.angle_spread_rad / float(length_spread)
-        self._motion_cols = self._acols + (lcols if self._settle_scale is not None else [])
+        # Length channels (the rPAM stand's draw-wire sensor) settle only under a protocol
+        # that gives their limit; McKibben protocols have none.
+        self._length_spread_m = getattr(protocol, "length_spread_m", None)
+        self._lcols = [i for i, u in enumerate(units) if u == "m"] if self._length_spread_m else []
         self._subscribers: list[Callable[[Any, Any], None]] = []
         self._streaming = False
         self._unwrap = TimeUnwrapper()
@@ -474,13 +470,13 @@ class RunEngine:
 
     def _wait_settle(self, label: str) -> SettleReport | str:
         self._start()
-        detector = SettleDetector(self.criteria, self._pcols, self._motion_cols)
+        detector = SettleDetector(self.criteria, self._pcols, self._acols, self._lcols, self._length_spread_m)
         while True:
             # The live status line is closed before any question is asked.
             with self.ui.settling(label, self.criteria) as show:
                 while True:
                     w = self._next_batch()
-                    status = detector.update(w.t_s, w.si if self._settle_scale is None else w.si * self._settle_scale)
+                    status = detector.update(w.t_s, w.si)
                     show(status)
                     if detector.consumed < len(w):
                         # Frames after the decision belong to what follows (capture, or more waiting).
@@ -634,8 +630,6 @@ def sigint_ignored() -> Iterator[None]:
 
 def resume_command(path: str, port: str, *, unattended: bool = False, rate_hz: float | None = None) -> str:
     """The exact command line that continues a run."""
-    import shlex
-
     cmd = f"labcli acquire {shlex.quote(str(path))} --port {shlex.quote(port)} --resume"
     if rate_hz:
         cmd += f" --rate {rate_hz:g}"
@@ -782,14 +776,13 @@ def acquire(
         for cb in subscribers:
             engine.subscribe(cb)
         objects = None
-        if proto.kind == "push":
-            if unattended:
-                # The simulated rig's reference objects (three PET bottles, two aluminium
-                # cans, one steel can), labelled with their categories.
-                from .sim.objects import demo_plan
+        if proto.kind == "push" and unattended:
+            # The simulated rig's reference objects (three PET bottles, two aluminium
+            # cans, one steel can), labelled with their categories.
+            from .sim.objects import demo_plan
 
-                per = proto.push.pushes_per_object if proto.push else 10
-                objects = demo_plan(pushes_per_object=per, labelled=True)
+            per = proto.push.pushes_per_object if proto.push else 10
+            objects = demo_plan(pushes_per_object=per, labelled=True)
 
         def make_session(done: Any) -> Generator[Any, Any, None]:
             if proto.kind in ("rpam-stretch", "rpam-joint"):

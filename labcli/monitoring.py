@@ -13,12 +13,13 @@ import math
 import time
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
-from .device import Device
-from .wire import FrameBatch
+if TYPE_CHECKING:
+    from .device import Device
+    from .wire import FrameBatch
 
 
 class RunningStats:

@@ -574,7 +574,7 @@ def _build(data: dict[str, Any], text: str, chk: _Checker, path: Path | None) ->
         calibration = _calibration(checked["channels"], device, kind_spec.get("needs", {}), chk)
         channels = calibration.names
     elif device is not None:
-        chk.fail(f"missing key 'channels', expected one [channels.NAME] table per channel of device.channels.")
+        chk.fail("missing key 'channels', expected one [channels.NAME] table per channel of device.channels.")
 
     if "settling" in checked:
         s = checked["settling"]

@@ -221,11 +221,11 @@ def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path 
     for col in ("F_stretch", "points compared", "toggles", "RMSE (deg)", "max |error| (deg)", "at Pa, Pb (kPa)",
                 "RMSE with toggles (deg)"):
         table.add_column(col, justify="left" if col == "F_stretch" else "right")
-    for name, label in (("without", "without"), ("with", "with")):
+    for name in ("without", "with"):
         s = result.summary[name]
         at = s["max_error_at_kPa"]
         where = "—" if not all(_finite(v) for v in at) else f"{at[0]:.0f}, {at[1]:.0f}"
-        table.add_row(label, str(s["n_compared"]), str(s["n_toggle"]), _f(s["rmse_deg"], ".2f"),
+        table.add_row(name, str(s["n_compared"]), str(s["n_toggle"]), _f(s["rmse_deg"], ".2f"),
                       _f(s["max_abs_error_deg"], ".2f"), where, _f(s["rmse_all_deg"], ".2f"))
     con.print(table)
     c = ", ".join(f"{v:+.4g}" for v in result.actuator.stretch_coefficients_N)

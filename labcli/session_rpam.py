@@ -31,6 +31,7 @@ read (:class:`RpamAcquisition`).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any, Generator, Iterable, Sequence
@@ -213,13 +214,14 @@ def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str 
         raise ConfigError(f"{label}: labcli acquire needs [acquisition] rate_hz.")
     calibration, device, length_spread = _sensors(raw, label)
     act = rpam.actuator_from_protocol(raw, label)
+    # Points are numbered in the order they are run: the first set value outermost.
     if experiment == "stretch":
         masses, pressures = rpam.stretch_test_plan(raw, label)
-        grid = [(float(m), float(p), 0.0) for m in masses for p in pressures]
-        points = [PlannedPoint(i + 1, p, 0.0, m) for i, (m, p, _) in enumerate(grid)]
+        grid = itertools.product(masses, pressures)
+        points = [PlannedPoint(i, float(p), 0.0, float(m)) for i, (m, p) in enumerate(grid, start=1)]
     else:
-        pa, pb = rpam.joint_map_plan(raw, label)
-        points = [PlannedPoint(i + 1, float(a), float(b)) for i, (a, b) in enumerate((a, b) for a in pa for b in pb)]
+        grid = itertools.product(*rpam.joint_map_plan(raw, label))
+        points = [PlannedPoint(i, float(a), float(b)) for i, (a, b) in enumerate(grid, start=1)]
     return RpamAcquisition(base, experiment, calibration, device, points, act.L0_m, length_spread)
 
 

@@ -11,7 +11,10 @@ short, so the toolkit judges equilibrium from the data instead:
   block means, i.e. how far the signal wandered over one window;
 * the joint is settled when every pressure spread is under
   ``pressure_spread_MPa`` and every angle spread under ``angle_spread_rad``,
-  and has stayed so for ``hold_s`` seconds of device time.
+  and has stayed so for ``hold_s`` seconds of device time;
+* a length channel (the rPAM stand's draw-wire sensor) has its own limit, and
+  counts as motion with the angles: its spread is reported as the angle spread
+  that is the same fraction of the angle limit.
 
 Time is always device time (seconds, from the frames' ``t_us``), so the same
 rule holds on a real rig, on the simulated rig in virtual time, and on
@@ -92,8 +95,9 @@ class SettleStatus:
 class SettleDetector:
     """Feed device-time samples with :meth:`update`; it says when the joint is settled.
 
-    ``pressure_cols`` and ``angle_cols`` index the SI columns that the thresholds
-    apply to.  ``t_s`` must be non-decreasing device time in seconds (already
+    ``pressure_cols``, ``angle_cols`` and ``length_cols`` index the SI columns
+    that the thresholds apply to; length columns need ``length_spread_m``, their
+    limit.  ``t_s`` must be non-decreasing device time in seconds (already
     unwrapped); its origin is the first sample seen.
     """
 
@@ -102,10 +106,17 @@ class SettleDetector:
         criteria: SettleCriteria,
         pressure_cols: tuple[int, ...] | list[int],
         angle_cols: tuple[int, ...] | list[int],
+        length_cols: tuple[int, ...] | list[int] = (),
+        length_spread_m: float | None = None,
     ) -> None:
         self.criteria = criteria
         self._pcols = list(pressure_cols)
         self._acols = list(angle_cols)
+        self._lcols = list(length_cols)
+        if self._lcols and not (length_spread_m and length_spread_m > 0):
+            raise ValueError(f"settling length_spread_m must be positive, got {length_spread_m!r}")
+        # Lands the length limit on the angle limit, so one motion spread covers both.
+        self._length_scale = criteria.angle_spread_rad / length_spread_m if self._lcols else 0.0
         self._block_s = criteria.window_s / BLOCKS
         self._timeout_s = criteria.timeout_s
         self._t0: float | None = None
@@ -192,6 +203,8 @@ class SettleDetector:
         spread = m.max(axis=0) - m.min(axis=0)
         ps = float(spread[self._pcols].max()) if self._pcols else 0.0
         an = float(spread[self._acols].max()) if self._acols else 0.0
+        if self._lcols:
+            an = max(an, float(spread[self._lcols].max()) * self._length_scale)
         quiet = ps < c.pressure_spread_MPa and an < c.angle_spread_rad
         if not quiet:
             self._quiet_since = None

@@ -97,6 +97,7 @@ file is made (:func:`storable_cells`) rather than stored cut short.
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import math
 import os
 from typing import Any, Iterable, Mapping, Sequence, TypedDict
@@ -410,22 +411,28 @@ def _settle_attrs(info: Mapping | None) -> dict[str, Any]:
     return out
 
 
-def _accepted(record: Mapping, label: str) -> str:
-    """How the loaded window's equilibrium was accepted (validated before any write)."""
+Window = tuple[str, dict[str, np.ndarray], dict[str, Any]]  # group name, arrays, settle attributes
+
+
+def _checked_common(record: Mapping, k: int, label: str) -> tuple[dict[str, Any], list[Window]]:
+    """The record's settle attributes and raw windows, checked and converted before anything touches the file."""
     settle = record.get("settle") or {}
     load = _settle_attrs(settle.get("load") or settle.get("loaded"))
     accepted = str(record.get("accepted", load.get("accepted", "auto" if record.get("raw") else "imported")))
     if accepted not in ACCEPTED:
         raise StoreError(f"{label} record: 'accepted' must be one of {', '.join(ACCEPTED)}, got {accepted!r}.")
-    return accepted
-
-
-def _validate_common(record: Mapping, k: int, label: str) -> None:
-    _accepted(record, label)
+    attrs = {"settle_time_s": float(load.get("settle_time_s", math.nan)),
+             "settle_criterion": str(load.get("criterion", "")), "accepted": accepted}
+    windows: list[Window] = []
     for key, raw_w in (record.get("raw") or {}).items():
         if key not in _WINDOW_GROUPS:
             raise StoreError(f"{label} record: unknown window {key!r} in 'raw' (use baseline and load).")
-        _window_arrays(raw_w, k, label, _WINDOW_GROUPS[key])
+        name = _WINDOW_GROUPS[key]
+        if any(name == w[0] for w in windows):
+            raise StoreError(f"{label} record: 'raw' gives the {name} window twice.")
+        windows.append((name, _window_arrays(raw_w, k, label, name),
+                        _settle_attrs(settle.get(key) or settle.get(name))))
+    return attrs, windows
 
 
 def _calibration_arrays(protocol: Any, k: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -489,8 +496,9 @@ class RunFile:
         # fsync each record (crash safety); a file built whole under a temporary
         # name (import) turns it off and is synced once when closed.
         self.sync_each_record = True
-        # (collection, id) -> (recording order, group name) of every complete
+        # (collection, id) -> (recording order, object reference) of every complete
         # record.  Scanned once: the file is locked, so only this object adds records.
+        self._unreadable: set[str] = set()  # collections whose link list the scan could not read
         complete, self._incomplete = self._scan()
         self._index: dict[tuple[str, int], tuple[int, Any]] = {
             (c, rid): (order, ref) for c, order, rid, ref in complete
@@ -735,16 +743,15 @@ class RunFile:
     def _new_group(self, collection: str, rid: int, label: str) -> h5py.Group:
         if (collection, rid) in self._index:
             raise StoreError(f"{label} is already complete in {self.path}; a stored record is never overwritten.")
-        try:
-            if collection not in self._f:
-                self._f.create_group(collection).attrs["NX_class"] = "NXcollection"
-            parent = self._f[collection]
-            list(parent)
-        except Exception:
+        # The scan at opening read every link list; nothing but this object changes them since.
+        if collection in self._unreadable:
             raise StoreError(
                 f"the list of {collection} in {self.path} is damaged, so no record can be added; its complete "
                 "records can still be read: copy them to a new file with 'labcli export' and 'labcli import'."
-            ) from None
+            )
+        if collection not in self._f:
+            self._f.create_group(collection).attrs["NX_class"] = "NXcollection"
+        parent = self._f[collection]
         base = f"{rid:06d}"
         # Leftovers of interrupted writes stay where they are, ignored, and the
         # new attempt takes the next free name (000012, 000012.1, ...).  Removing
@@ -761,39 +768,22 @@ class RunFile:
         g.attrs["complete"] = False  # first attribute; set True in place once all else is on disk
         return g
 
-    def _write_windows(self, g: h5py.Group, record: Mapping, label: str) -> None:
-        raw = record.get("raw") or {}
-        settle = record.get("settle") or {}
-        k = len(self.channels)
-        units = _str(self._f["calibration/offset"].attrs["units"]).split(",")
-        seen = set()
-        for key, raw_w in raw.items():
-            if key not in _WINDOW_GROUPS:
-                raise StoreError(f"{label} record: unknown window {key!r} in 'raw' (use baseline and load).")
-            name = _WINDOW_GROUPS[key]
-            if name in seen:
-                raise StoreError(f"{label} record: 'raw' gives the {name} window twice.")
-            seen.add(name)
-            arrays = _window_arrays(raw_w, k, label, name)
-            w = g.create_group(name)
-            w.attrs["NX_class"] = "NXlog"
-            w.attrs["channels"] = list(self.channels)
-            _dataset(w, "time", arrays["time"], "s", raw=True)
-            _dataset(w, "counts", arrays["counts"], "counts", raw=True)
-            _dataset(w, "values", arrays["values"], ",".join(units), raw=True)
-            _dataset(w, "seq", arrays["seq"], "1", raw=True)
-            for sk, sv in _settle_attrs(settle.get(key) or settle.get(name)).items():
-                w.attrs[sk] = sv
+    @functools.cached_property
+    def _values_units(self) -> str:
+        """The units of a window's calibrated values, one per channel (read once, on the first write)."""
+        return _str(self._f["calibration/offset"].attrs["units"])
 
-    def _write_common(self, g: h5py.Group, record: Mapping, label: str) -> None:
+    @functools.cached_property
+    def _index_dataset(self) -> h5py.Dataset | None:
+        return self._f.get("index")
+
+    def _write_common(self, g: h5py.Group, record: Mapping, attrs: Mapping[str, Any],
+                      windows: list[Window]) -> None:
         g.attrs["order"] = self._order
         g.attrs["started"] = str(record.get("started", "") or "")
         g.attrs["ended"] = str(record.get("ended", "") or utc_now())
-        settle = record.get("settle") or {}
-        load = _settle_attrs(settle.get("load") or settle.get("loaded"))
-        g.attrs["settle_time_s"] = float(load.get("settle_time_s", math.nan))
-        g.attrs["settle_criterion"] = str(load.get("criterion", ""))
-        g.attrs["accepted"] = _accepted(record, label)
+        for key, v in attrs.items():
+            g.attrs[key] = v
         extra = record.get("extra") or {}
         if extra:
             e = g.create_group("extra")
@@ -806,10 +796,19 @@ class RunFile:
                     _dataset(e, name, np.int64(v), _column_units(name))
                 else:
                     _dataset(e, name, math.nan if v is None else float(v), _column_units(name))
-        self._write_windows(g, record, label)
+        for name, arrays, settle in windows:
+            w = g.create_group(name)
+            w.attrs["NX_class"] = "NXlog"
+            w.attrs["channels"] = list(self.channels)
+            _dataset(w, "time", arrays["time"], "s", raw=True)
+            _dataset(w, "counts", arrays["counts"], "counts", raw=True)
+            _dataset(w, "values", arrays["values"], self._values_units, raw=True)
+            _dataset(w, "seq", arrays["seq"], "1", raw=True)
+            for sk, sv in settle.items():
+                w.attrs[sk] = sv
 
     def _finish(self, g: h5py.Group, collection: str, rid: int) -> None:
-        index = self._f.get("index")
+        index = self._index_dataset
         if index is not None and self._order < index.shape[0]:
             # A write in place into storage allocated at creation: no HDF5
             # structure changes, so the record stays reachable even if a later
@@ -824,19 +823,24 @@ class RunFile:
         self._incomplete.discard((collection, rid))
         self._order += 1
 
+    def _record_id(self, record: Mapping, what: str) -> tuple[int, str]:
+        """The id of a ``what`` ("trial", "push", "point") record and its label for messages."""
+        self._check_writable()
+        if what not in record:
+            raise StoreError(f"{what} record lacks '{what}' (the {what} id).")
+        rid = int(record[what])
+        label = f"{what} {rid}"
+        if not 0 <= rid <= MAX_ID:
+            raise StoreError(f"{label}: {what} ids must be between 0 and {MAX_ID}.")
+        return rid, label
+
     def write_trial(self, record: TrialRecord | Mapping) -> None:
         """Write one force/angle trial whole; it counts only once it is on disk.
 
         ``record``: see :class:`TrialRecord`.  Raises StoreError if the trial is
         already complete in the file or the record is malformed (nothing is written then).
         """
-        self._check_writable()
-        if "trial" not in record:
-            raise StoreError("trial record lacks 'trial' (the trial id).")
-        tid = int(record["trial"])
-        label = f"trial {tid}"
-        if not 0 <= tid <= MAX_ID:
-            raise StoreError(f"{label}: trial ids must be between 0 and {MAX_ID}.")
+        tid, label = self._record_id(record, "trial")
         p0 = _vector(record, "P0_MPa", 4, "baseline pressures P_L1,P_R1,P_L2,P_R2 in MPa", label)
         p = _vector(record, "P_MPa", 4, "loaded pressures P_L1,P_R1,P_L2,P_R2 in MPa", label)
         theta = _vector(record, "theta_rad", 2, "joint deflections in rad", label)
@@ -844,7 +848,7 @@ class RunFile:
         pot0 = _vector(record, "pot0_rad", 2, "baseline potentiometer angles in rad", label) if "pot0_rad" in record else None
         mass = _scalar(record, "mass_kg", label)
         direction = _scalar(record, "direction_rad", label)
-        _validate_common(record, len(self.channels), label)  # before anything touches the file
+        common = _checked_common(record, len(self.channels), label)
         g = self._new_group("trials", tid, label)
         g.attrs["trial"] = tid
         plan = dict(record.get("plan") or {})
@@ -861,18 +865,12 @@ class RunFile:
         _dataset(g, "F", force, "N", components="Fx,Fy")
         _dataset(g, "mass", mass, "kg")
         _dataset(g, "direction", direction, "rad")
-        self._write_common(g, record, label)
+        self._write_common(g, record, *common)
         self._finish(g, "trials", tid)
 
     def write_push(self, record: PushRecord | Mapping) -> None:
         """Write one object push whole (see :class:`PushRecord`); crash-safe as :meth:`write_trial`."""
-        self._check_writable()
-        if "push" not in record:
-            raise StoreError("push record lacks 'push' (the push id).")
-        pid = int(record["push"])
-        label = f"push {pid}"
-        if not 0 <= pid <= MAX_ID:
-            raise StoreError(f"{label}: push ids must be between 0 and {MAX_ID}.")
+        pid, label = self._record_id(record, "push")
         p0 = _vector(record, "P0_MPa", 4, "baseline pressures P_L1,P_R1,P_L2,P_R2 in MPa", label)
         p = _vector(record, "P_MPa", 4, "pressures with the object pushed in, MPa", label)
         if "object" not in record:
@@ -883,7 +881,7 @@ class RunFile:
         stiffness = _scalar(record, "true_stiffness_N_per_m", label)
         theta = _vector(record, "theta_rad", 2, "joint deflections in rad", label) if "theta_rad" in record else None
         pot0 = _vector(record, "pot0_rad", 2, "baseline potentiometer angles in rad", label) if "pot0_rad" in record else None
-        _validate_common(record, len(self.channels), label)
+        common = _checked_common(record, len(self.channels), label)
         g = self._new_group("pushes", pid, label)
         g.attrs["push"] = pid
         g.attrs["object"] = str(record["object"])
@@ -899,7 +897,7 @@ class RunFile:
             _dataset(g, "theta", theta, "rad")
         if pot0 is not None:
             _dataset(g, "pot0", pot0, "rad")
-        self._write_common(g, record, label)
+        self._write_common(g, record, *common)
         self._finish(g, "pushes", pid)
 
     # ----------------------------------------------------------- reading records
@@ -947,6 +945,7 @@ class RunFile:
                 parent = self._f[collection] if collection in self._f else None
                 keys = list(parent) if parent is not None else []
             except Exception:
+                self._unreadable.add(collection)
                 keys = []
             for key in keys:
                 try:
@@ -966,7 +965,7 @@ class RunFile:
         return rows, incomplete - set(complete)
 
     def _complete(self, collection: str | None = None) -> list[tuple[int, int, Any]]:
-        """(order, id, group name) of the complete records, in recording order."""
+        """(order, id, object reference) of the complete records, in recording order."""
         c = collection or self._records_name
         return sorted(((order, rid, ref) for (cc, rid), (order, ref) in self._index.items() if cc == c),
                       key=lambda row: row[:2])
@@ -1058,15 +1057,6 @@ class RunFile:
 
     # ----------------------------------------------------------- tables
 
-    def _extra_columns(self, groups: list[h5py.Group]) -> list[str]:
-        names: list[str] = []
-        for g in groups:
-            if "extra" in g:
-                for c in g["extra"].attrs.get("columns", list(g["extra"])):
-                    if _str(c) not in names:
-                        names.append(_str(c))
-        return names
-
     def trial_table(self):
         """The trial table (table-formats.md): MPa, N, degrees and grams; ``set`` from the split."""
         import pandas as pd
@@ -1129,16 +1119,10 @@ class RunFile:
         return df
 
     def _add_extras(self, df: Any, groups: list[h5py.Group]) -> None:
-        for name in self._extra_columns(groups):
-            values = []
-            for g in groups:
-                e = g["extra"] if "extra" in g else None
-                if e is None or name not in e:
-                    values.append(math.nan)
-                    continue
-                v = e[name][()]
-                values.append(_str(v) if isinstance(v, (bytes, str)) else v.item())
-            df[name] = values
+        """Append the imported columns labcli does not know, in first-seen order; NaN where a record lacks one."""
+        extras = [self._read_extra(g) for g in groups]
+        for name in dict.fromkeys(name for e in extras for name in e):
+            df[name] = [e.get(name, math.nan) for e in extras]
 
     # ----------------------------------------------------------- rPAM points
 
@@ -1152,13 +1136,7 @@ class RunFile:
         ``L_m``; ``plan`` (the set values as typed: ``mass_g``, ``P_A_kPa``, ``P_B_kPa``),
         ``settle``, ``raw``, ``started``, ``ended`` as in :class:`TrialRecord`.
         """
-        self._check_writable()
-        if "point" not in record:
-            raise StoreError("point record lacks 'point' (the point id).")
-        pid = int(record["point"])
-        label = f"point {pid}"
-        if not 0 <= pid <= MAX_ID:
-            raise StoreError(f"{label}: point ids must be between 0 and {MAX_ID}.")
+        pid, label = self._record_id(record, "point")
         experiment = _RPAM_EXPERIMENTS.get(self.kind)
         if experiment is None:
             raise StoreError(f"{self.path} is a {self.kind} run; rPAM points go into runs of kind "
@@ -1177,7 +1155,7 @@ class RunFile:
         for key in ("L_m", "pot0_rad"):
             if key not in values and key in record:
                 values[key] = _scalar(record, key, label)
-        _validate_common(record, len(self.channels), label)
+        common = _checked_common(record, len(self.channels), label)
         g = self._new_group("points", pid, label)
         g.attrs["point"] = pid
         g.attrs["experiment"] = experiment
@@ -1190,7 +1168,7 @@ class RunFile:
                  "alpha_rad": ("alpha", "rad"), "pot0_rad": ("pot0", "rad")}
         for key, v in values.items():
             _dataset(g, names[key][0], v, names[key][1])
-        self._write_common(g, record, label)
+        self._write_common(g, record, *common)
         self._finish(g, "points", pid)
 
     def point_table(self):
@@ -1375,7 +1353,7 @@ class RunFile:
             "split": None,
             "baseline_drift": None,
             "settle": None,
-            "models": sorted(self.models()),
+            "models": sorted(self._f["models"]) if "models" in self._f else [],
         }
         s = self.split()
         if s is not None:

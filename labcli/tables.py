@@ -415,11 +415,10 @@ def _infer_extra(cells: list[str]) -> "pd.Series":
     if not filled:
         # No value says what the column is; missing numbers, as pandas reads it.
         return pd.Series([math.nan] * len(cells), dtype="float64")
-    if filled:
-        if len(filled) == len(cells) and all(_is_canonical_int(c) for c in filled):
-            return pd.Series([int(c) for c in cells], dtype="int64")
-        if all(_is_canonical_float(c) for c in filled):
-            return pd.Series([float(c) if c else math.nan for c in cells], dtype="float64")
+    if len(filled) == len(cells) and all(_is_canonical_int(c) for c in filled):
+        return pd.Series([int(c) for c in cells], dtype="int64")
+    if all(_is_canonical_float(c) for c in filled):
+        return pd.Series([float(c) if c else math.nan for c in cells], dtype="float64")
     return pd.Series(cells, dtype=object)
 
 
@@ -538,9 +537,7 @@ def _from_run_file(path: str | os.PathLike, method: str) -> "pd.DataFrame":
     try:
         return getattr(run, method)()
     finally:
-        close = getattr(run, "close", None)
-        if close is not None:
-            close()
+        run.close()
 
 
 # ---------------------------------------------------------------------------
@@ -549,17 +546,15 @@ def _from_run_file(path: str | os.PathLike, method: str) -> "pd.DataFrame":
 
 
 def _format(v: Any, kind: str | None) -> str:
-    if v is None:
+    import numpy as np
+    import pandas as pd
+
+    if v is None or v is pd.NA or v is pd.NaT:
         return ""
     if isinstance(v, str):
         return v
-    try:
-        import numpy as np
-
-        if isinstance(v, np.generic):
-            v = v.item()
-    except ImportError:  # pragma: no cover
-        pass
+    if isinstance(v, np.generic):
+        v = v.item()
     if isinstance(v, bool):
         return str(v)
     if isinstance(v, float):
@@ -572,13 +567,6 @@ def _format(v: Any, kind: str | None) -> str:
         if kind is not None and kind not in ("id", "set", "set-required", "name", "text"):
             return repr(float(v))
         return str(v)
-    try:
-        import pandas as pd
-
-        if v is pd.NA or v is pd.NaT:
-            return ""
-    except ImportError:  # pragma: no cover
-        pass
     return str(v)
 
 

@@ -284,10 +284,9 @@ class UnattendedUI:
         return "accept"
 
 
-
 class ProgressUI(UnattendedUI):
-    """Acts out every prompt like :class:`UnattendedUI` but prints nothing: it reports
-    ``progress(stage, stored, total)`` at each trial instead (for ``labcli demo``)."""
+    """Acts out every prompt like :class:`UnattendedUI` but prints nothing (a quiet console): it
+    reports ``progress(stage, stored, total)`` at each trial instead (for ``labcli demo``)."""
 
     def __init__(self, stage: str, progress: Callable[[str, int, int], None] | None = None) -> None:
         from rich.console import Console
@@ -301,11 +300,6 @@ class ProgressUI(UnattendedUI):
         if self.progress is not None:
             self.progress(self.stage, stored, int(step.total))
 
-    def info(self, text: str) -> None:
-        pass
-
-    def review(self, row: dict) -> str:
-        return "accept"
 
 def _parse_stiffness(text: str) -> float:
     try:

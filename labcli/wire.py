@@ -29,6 +29,8 @@ from typing import Any, Iterable, Union
 import numpy as np
 
 MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
+OVERLONG = f"line longer than {MAX_LINE} bytes"  # Noise reasons the reader counts apart
+BAD_CHECKSUM = "bad checksum"
 STALL_US = 250_000  # device-time excess over the expected gap that counts as a stall
 U32 = 1 << 32
 
@@ -113,7 +115,7 @@ def parse_line(line: bytes, n_channels: int | None = None) -> Parsed:
     if line.endswith(b"\r"):
         line = line[:-1]
     if len(line) > MAX_LINE:
-        return Noise(line[:64], f"line longer than {MAX_LINE} bytes")
+        return Noise(line[:64], OVERLONG)
     if not line:
         return Noise(line, "empty line")
     first = line[0]
@@ -139,7 +141,7 @@ def _parse_data(line: bytes, n_channels: int | None) -> Parsed:
     want = int(hh, 16)
     payload = line[1:star]
     if checksum(payload) != want:
-        return Noise(line, "bad checksum")
+        return Noise(line, BAD_CHECKSUM)
     fields = payload.split(b",")
     if fields[0] != b"D":
         return Noise(line, "data line does not start with '$D,'")
@@ -179,6 +181,15 @@ def format_command(command: str, *args: object) -> bytes:
     if "\n" in text or "\r" in text:
         raise ValueError("a command is one line")
     return text.encode("ascii") + b"\n"
+
+
+def noise_counter(reason: str) -> str:
+    """The :class:`StreamReader` counter a :class:`Noise` line of this ``reason`` adds to."""
+    if reason == BAD_CHECKSUM:
+        return "bad_checksum"
+    if reason == OVERLONG:
+        return "overlong"
+    return "malformed"
 
 
 # --------------------------------------------------------------------------
@@ -348,7 +359,7 @@ class StreamReader:
         if len(self._pending) > MAX_LINE + 1:
             self.counters["overlong"] += 1
             self.lines += 1
-            self.noise.append((f"line longer than {MAX_LINE} bytes", self._pending[:64]))
+            self.noise.append((OVERLONG, self._pending[:64]))
             self._pending = b""
             self._skipping = True
 
@@ -409,23 +420,16 @@ class StreamReader:
     def _classify(self, line: bytes) -> Parsed:
         """Slow path: one line through the reference parser, counted."""
         parsed = parse_line(line, self.n_channels)
-        if isinstance(parsed, Frame):
-            pass  # counted with its batch
-        elif isinstance(parsed, LogLine):
+        if isinstance(parsed, LogLine):
             self.counters["log_lines"] += 1
             self.logs.append(parsed.text)
         elif isinstance(parsed, Reply):
             self.counters["replies"] += 1
             self.replies.append(parsed.text)
-        else:
-            if parsed.reason == "bad checksum":
-                self.counters["bad_checksum"] += 1
-            elif parsed.reason.startswith("line longer"):
-                self.counters["overlong"] += 1
-            else:
-                self.counters["malformed"] += 1
+        elif isinstance(parsed, Noise):
+            self.counters[noise_counter(parsed.reason)] += 1
             self.noise.append((parsed.reason, parsed.line[:64]))
-        return parsed
+        return parsed  # a Frame is counted with its batch
 
     def _parse_lines(self, block: bytes) -> FrameBatch:
         """A few lines (a slow rate's poll): numpy's per-call cost would exceed the work."""

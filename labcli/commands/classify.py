@@ -3,27 +3,20 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import click
 
 from ..errors import LabcliError
-
-
-def _f(x: Any, spec: str) -> str:
-    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+from ._report import cell, report_console
 
 
 def _print_report(data: dict[str, Any], plot: Path | None) -> None:
     from rich import box
-    from rich.console import Console
     from rich.table import Table
 
-    con = Console(highlight=False, markup=False)
-    if not con.is_terminal:
-        con.width = max(con.width, 160)  # a pipe or a log file: never truncate numbers
+    con = report_console(160)
     angles = ("angles and force from the pressures" if data["angles"] == "pressure-only"
               else "angles from the potentiometers, force from the pressures")
     pushes = Table(title=f"Pushes of {Path(data['pushes_file']).name}: {angles} (* = phi solved)",
@@ -33,13 +26,13 @@ def _print_report(data: dict[str, Any], plot: Path | None) -> None:
     for c in cols:
         pushes.add_column(c, justify="left" if c in ("object", "") else "right")
     for p in data["pushes"]:
-        phi = _f(p["phi_deg"], ".1f") + ("*" if p["phi_solved"] else "")
+        phi = cell(p["phi_deg"], ".1f") + ("*" if p["phi_solved"] else "")
         pushes.add_row(
-            str(p["push"]), p["object"], _f(p["theta1_deg"], ".3f"), _f(p["theta2_deg"], ".3f"),
-            _f(p["Fx_N"], ".3f"), _f(p["Fy_N"], ".3f"),
-            f"({_f(p['xc_mm'], '.1f')}, {_f(p['yc_mm'], '.1f')})", phi,
-            f"({_f(p['xo_mm'], '.1f')}, {_f(p['yo_mm'], '.1f')})",
-            _f(p["delta_x_mm"], ".3f"), _f(p["k_N_per_m"], ".0f"), "flagged" if p["flagged"] else "",
+            str(p["push"]), p["object"], cell(p["theta1_deg"], ".3f"), cell(p["theta2_deg"], ".3f"),
+            cell(p["Fx_N"], ".3f"), cell(p["Fy_N"], ".3f"),
+            f"({cell(p['xc_mm'], '.1f')}, {cell(p['yc_mm'], '.1f')})", phi,
+            f"({cell(p['xo_mm'], '.1f')}, {cell(p['yo_mm'], '.1f')})",
+            cell(p["delta_x_mm"], ".3f"), cell(p["k_N_per_m"], ".0f"), "flagged" if p["flagged"] else "",
         )
     con.print(pushes)
 
@@ -56,11 +49,11 @@ def _print_report(data: dict[str, Any], plot: Path | None) -> None:
         mean, sd = o["k_mean_N_per_m"], o["k_sd_N_per_m"]
         rel = 100 * sd / mean if mean and sd is not None else None
         role = f"reference ({o['category_given']})" if o["role"] == "reference" else "unknown"
-        row = [o["object"], role, str(o["n"]), str(o["n_flagged"]), _f(mean, ".0f"), _f(sd, ".0f"),
-               _f(rel, ".1f")]
-        row += [_f(o.get("true_k_N_per_m"), ".0f")] if has_true else []
+        row = [o["object"], role, str(o["n"]), str(o["n_flagged"]), cell(mean, ".0f"), cell(sd, ".0f"),
+               cell(rel, ".1f")]
+        row += [cell(o.get("true_k_N_per_m"), ".0f")] if has_true else []
         conf = o["confidence"]
-        row += [o["category"] or "—", _f(None if conf is None else 100 * conf, ".0f") + (" %" if conf is not None else ""),
+        row += [o["category"] or "—", cell(None if conf is None else 100 * conf, ".0f") + (" %" if conf is not None else ""),
                 o["method"]]
         objects.add_row(*row)
     con.print(objects)

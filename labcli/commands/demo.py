@@ -2,26 +2,31 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 import click
 
-QUANTITY_LABEL = {"theta1": "theta1", "theta2": "theta2", "Fx": "Fx", "Fy": "Fy"}
-
 
 def _num(x: Any, spec: str) -> str:
-    return "—" if x is None else format(x, spec)
+    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+def _console() -> Any:
+    from rich.console import Console
+
+    con = Console(highlight=False)
+    if not con.is_terminal:
+        con.width = max(con.width, 100)  # a pipe or a log file: never truncate numbers
+    return con
 
 
 def _print_summary(res: Any) -> None:
     from rich import box
-    from rich.console import Console
     from rich.table import Table
 
-    con = Console(highlight=False)
-    if not con.is_terminal:
-        con.width = max(con.width, 100)
+    con = _console()
     tr = res.trials
     con.print(f"[bold]labcli demo[/bold] on the simulated rig (seed {res.seed}): "
               f"{tr['fit'] + tr['validation']} force trials ({tr['fit']} fit, {tr['validation']} validation), "
@@ -64,7 +69,58 @@ def _print_summary(res: Any) -> None:
         con.print("Stiffness bands come from the push protocol (protocols/takuma2014-stiffness.toml).",
                   soft_wrap=True)
     con.print("Files:", soft_wrap=True)
-    for key, path in res.files.items():
+    for path in res.files.values():
+        con.print(f"  {path}", soft_wrap=True, markup=False)
+
+
+def _print_rpam_summary(res: Any) -> None:
+    """The demo's summary as tables (rich), units on every number."""
+    from rich import box
+    from rich.table import Table
+
+    con = _console()
+    s = res.stretch
+    con.print(f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
+              f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "
+              f"{res.timings_s['total']:.1f} s.", soft_wrap=True)
+
+    coef = Table(title=f"Eq. 7 stretch correction F_stretch(lambda) fitted on {s['n_points']} points "
+                       f"(lambda {s['lambda_range'][0]:.2f}-{s['lambda_range'][1]:.2f})",
+                 title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("coefficient", "fitted (N)", "std. error (N)", "rig's truth (N)", "fit - truth (s.e.)",
+                "protocol default (N)"):
+        coef.add_column(col, justify="left" if col == "coefficient" else "right")
+    for k in range(4):
+        coef.add_row(f"c{k}", f"{s['coefficients_N'][k]:+.3f}", f"{s['std_errors_N'][k]:.3f}",
+                     f"{s['true_N'][k]:+.3f}", f"{s['deviation_in_se'][k]:+.2f}",
+                     f"{s['protocol_default_N'][k]:+.3g}")
+    con.print(coef)
+    con.print(f"R^2 {s['r2']:.5f}, RMSE {s['rmse_N']:.3f} N; chi^2 of the truth against the fit's covariance "
+              f"{s['chi2_4dof']:.2f} (4 degrees of freedom; 18.5 is the 99.9 % limit).", soft_wrap=True)
+
+    jm = Table(title=f"Joint map against the model (Fig. 8), errors model - measured; toggle angle "
+                     f"{res.joint_map['toggle_deg']:.1f} deg",
+               title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("F_stretch", "points compared", "toggles", "RMSE (deg)", "max |error| (deg)",
+                "RMSE with toggles (deg)"):
+        jm.add_column(col, justify="left" if col == "F_stretch" else "right", no_wrap=col == "F_stretch")
+    for key, label in (("without", "none"), ("with_default", "protocol's"), ("with_fitted", "fitted")):
+        r = res.joint_map[key]
+        jm.add_row(label, str(r["n_compared"]), str(r["n_toggle"]), _num(r["rmse_deg"], ".2f"),
+                   _num(r["max_abs_error_deg"], ".2f"), _num(r["rmse_all_deg"], ".2f"))
+    con.print(jm)
+    con.print("Toggles: pressure pairs where the model has no balance below the toggle angle; they stay out "
+              "of the RMSE and count at the toggle angle in the last column.", soft_wrap=True)
+
+    o = res.optimum
+    con.print(f"Link optimisation (Section IV) at Pa = {o['Pa_kPa']:g} kPa, Pb = {o['Pb_kPa']:g} kPa with the "
+              f"fitted F_stretch: alpha = {o['alpha_deg']:.2f} deg at L1 = {o['L1_m']:.4f} m, "
+              f"L2 = {o['L2_m']:.4f} m, L3 = {o['L3_m']:.4f} m (toggle {o['toggle_deg']:.2f} deg; "
+              f"{'; '.join(o['active_constraints']) or 'no constraint at its bound'}).", soft_wrap=True)
+    for note in res.notes:
+        con.print(note, soft_wrap=True)
+    con.print("Files:", soft_wrap=True)
+    for path in res.files.values():
         con.print(f"  {path}", soft_wrap=True, markup=False)
 
 
@@ -99,9 +155,9 @@ def demo(outdir: Path, seed: int, force: bool, as_json: bool, protocol: str) -> 
 
     run, summarise = run_demo, _print_summary
     if protocol == "rpam2015":
-        from ..demo_rpam import STAGES, print_rpam_summary, run_rpam_demo  # noqa: F811
+        from ..demo_rpam import STAGES, run_rpam_demo  # noqa: F811
 
-        run, summarise = run_rpam_demo, print_rpam_summary
+        run, summarise = run_rpam_demo, _print_rpam_summary
 
     show = sys.stderr.isatty() and not as_json
 

@@ -9,17 +9,12 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
+from ._report import cell, report_console
 
 
 def default_model_path(run: Path) -> Path:
     """``run.h5`` -> ``run.model.json`` beside it."""
     return run.with_name(run.stem + ".model.json")
-
-
-def _fmt(x: Any, spec: str = ".4g") -> str:
-    if x is None:
-        return "—"
-    return format(x, spec)
 
 
 def _write_model(path: Path, text: str) -> Any:
@@ -57,15 +52,12 @@ def _write_model(path: Path, text: str) -> Any:
 
 
 def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded: str) -> None:
-    from rich.console import Console
     from rich import box
     from rich.table import Table
 
     from ..models.takuma import SIGN_NOTE, TERMS
 
-    con = Console(highlight=False, markup=False)
-    if not con.is_terminal:
-        con.width = max(con.width, 110)  # a pipe or a log file: never truncate numbers
+    con = report_console(110)
     titles = {
         "theta1": ("Eq. 34  sin(theta1)", "1, dimensionless", "sin(theta1)"),
         "theta2": ("Eq. 35  sin(theta2)", "1, dimensionless", "sin(theta2)"),
@@ -84,16 +76,16 @@ def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded:
         for name in names:
             lo, hi = model.ci95[name]
             table.add_row(name, f"{model.coefficients[name]:.5g}", f"{model.standard_errors[name]:.3g}",
-                          f"[{lo:.5g}, {hi:.5g}]", _fmt(paper.get(name), ".6g"))
+                          f"[{lo:.5g}, {hi:.5g}]", cell(paper.get(name), ".6g"))
         con.print(table)
         if eq.startswith("theta"):
-            fit_line = (f"R^2 {_fmt(st['r2'], '.5f')} ({space}), {_fmt(st['r2_native'], '.5f')} (deg); "
-                        f"RMSE {_fmt(st['rmse'], '.3g')} ({space}) = {_fmt(st['rmse_native'], '.3g')} deg")
+            fit_line = (f"R^2 {cell(st['r2'], '.5f')} ({space}), {cell(st['r2_native'], '.5f')} (deg); "
+                        f"RMSE {cell(st['rmse'], '.3g')} ({space}) = {cell(st['rmse_native'], '.3g')} deg")
         else:
-            fit_line = f"R^2 {_fmt(st['r2'], '.5f')}; RMSE {_fmt(st['rmse'], '.3g')} N"
+            fit_line = f"R^2 {cell(st['r2'], '.5f')}; RMSE {cell(st['rmse'], '.3g')} N"
         cond = st["design_cond"]
         warn = "  (ill-conditioned: coefficients poorly determined)" if st.get("ill_conditioned") else ""
-        con.print(f"  {fit_line}; condition number {_fmt(cond, '.3g')}{warn}; "
+        con.print(f"  {fit_line}; condition number {cell(cond, '.3g')}{warn}; "
                   f"{st['n']} trials ({st['dof']} degrees of freedom)", soft_wrap=True)
         excluded = model.excluded_trials.get(eq, [])
         if excluded:

@@ -10,6 +10,12 @@ import click
 from ..errors import LabcliError
 
 
+def _reading(value: float, unit: str, extra_digits: int = 0) -> str:
+    # Four decimals of MPa and two of deg are finer than one ADC count (as calibration.format_value).
+    digits = (4 if unit == "MPa" else 2) + extra_digits
+    return f"{value:.{digits}f} {unit}"
+
+
 def _render(snap: Any, scale: Any, info: Any) -> Any:
     from rich.console import Group
     from rich.table import Table
@@ -25,12 +31,11 @@ def _render(snap: Any, scale: Any, info: Any) -> Any:
     shown_std = scale.to_display(snap.stats.std)
     for j, name in enumerate(scale.names):
         unit = scale.display_units[j]
-        digits = 4 if unit == "MPa" else 2
         table.add_row(
             name,
-            f"{shown_now[j]:.{digits}f} {unit}",
-            f"{shown_mean[j]:.{digits}f} {unit}",
-            f"{abs(shown_std[j]):.{digits + 1}f} {unit}",
+            _reading(shown_now[j], unit),
+            _reading(shown_mean[j], unit),
+            _reading(abs(shown_std[j]), unit, 1),
         )
     c = snap.counters
     link = Text(
@@ -75,14 +80,15 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
     from ..monitoring import channel_scale, watch
     from ..protocol import load_protocol
 
-    typed = port
+    url = port
     if port.startswith("sim://") and "clock=" not in port:
         # A live display wants the simulated rig paced like hardware, not as fast as it is read.
-        port += ("&" if "?" in port else "?") + "clock=wall"
+        url += ("&" if "?" in port else "?") + "clock=wall"
     try:
         proto = load_protocol(protocol)
         rate_hz = rate if rate is not None else float(proto.rate_hz)
-        with Device.open(port, timeout=timeout, boot_wait=boot_wait) as dev:
+        # Errors speak of the port as the user typed it, not of the paced URL.
+        with Device.open(url, timeout=timeout, boot_wait=boot_wait, name=port) as dev:
             assert dev.info is not None
             scale = channel_scale(dev.info.channels, proto.calibration)
             if as_json:
@@ -100,8 +106,7 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
                 if not console.is_terminal:
                     console.line()  # the last frame of a non-terminal Live ends mid-line
     except LabcliError as exc:
-        # Speak of the port as the user typed it, not of the paced URL opened for them.
-        raise click.ClickException(str(exc).replace(port, typed)) from None
+        raise click.ClickException(str(exc)) from None
 
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
@@ -124,5 +129,4 @@ def _print_summary(summary: Any, scale: Any) -> None:
     width = max(len(n) for n in scale.names)
     for j, name in enumerate(scale.names):
         unit = scale.display_units[j]
-        digits = 4 if unit == "MPa" else 2
-        click.echo(f"  {name:<{width}}  mean {shown_mean[j]:.{digits}f} {unit}  std {abs(shown_std[j]):.{digits + 1}f} {unit}")
+        click.echo(f"  {name:<{width}}  mean {_reading(shown_mean[j], unit)}  std {_reading(abs(shown_std[j]), unit, 1)}")

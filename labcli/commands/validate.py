@@ -9,23 +9,17 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
-
-
-def _fmt(x: Any, spec: str) -> str:
-    return "—" if x is None else format(x, spec)
+from ._report import cell, report_console
 
 
 def _print_report(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | None) -> None:
-    from rich.console import Console
     from rich import box
     from rich.table import Table
 
     from ..models.metrics import QUANTITIES
     from ..models.takuma import FLAG_TEXT
 
-    con = Console(highlight=False, markup=False)
-    if not con.is_terminal:
-        con.width = max(con.width, 110)  # a pipe or a log file: never truncate numbers
+    con = report_console(110)
     how = ("forces from the calculated angles" if ev["mode"] == "pressure-only"
            else "forces from the measured angles")
     table = Table(title=f"Validation of {model_path.name} on {run.name}: {ev['mode']} ({how})",
@@ -34,19 +28,19 @@ def _print_report(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | 
         table.add_column(col, justify="left" if col == "quantity" else "right")
     for q, (_, unit, _) in QUANTITIES.items():
         m = ev["metrics"][q]
-        table.add_row(f"{q} [{unit}]", str(m["n"]), _fmt(m["rmse"], ".3g"), _fmt(m["mae"], ".3g"),
-                      _fmt(m["max_abs"], ".3g"), _fmt(m["bias"], "+.2g"), _fmt(m["r2"], ".4f"),
-                      _fmt(m["pct_range"], ".2f") + (" %" if m["pct_range"] is not None else ""),
+        table.add_row(f"{q} [{unit}]", str(m["n"]), cell(m["rmse"], ".3g"), cell(m["mae"], ".3g"),
+                      cell(m["max_abs"], ".3g"), cell(m["bias"], "+.2g"), cell(m["r2"], ".4f"),
+                      cell(m["pct_range"], ".2f") + (" %" if m["pct_range"] is not None else ""),
                       str(m["n_flagged"]))
     con.print(table)
     con.print("Errors are calculated - observed; RMSE/range is the RMSE as a share of the observed range.",
               soft_wrap=True)
-    flagged = [(int(t), fl) for t, fl in zip(ev["trial"], ev["flags"]) if fl]
+    flagged = [(i, int(t), fl) for i, (t, fl) in enumerate(zip(ev["trial"], ev["flags"])) if fl]
     if flagged:
         con.print(f"{len(flagged)} trial(s) flagged; their values show as — and stay out of the metrics:",
                   soft_wrap=True)
-        for t, fl in flagged:
-            missing = [q for q in QUANTITIES if not ev["ok"][q][list(ev["trial"]).index(t)]]
+        for i, t, fl in flagged:
+            missing = [q for q in QUANTITIES if not ev["ok"][q][i]]
             reasons = "; ".join(FLAG_TEXT.get(f, f) for f in fl)
             con.print(f"  trial {t}: {', '.join(missing)} = — ({reasons})", soft_wrap=True)
     if plot is not None:

@@ -347,9 +347,7 @@ def check_force_model(model: Any, protocol: Any, *, model_name: str, run_name: s
                       force_protocol: str | None = None) -> None:
     """ModelError unless ``model`` was fitted on a force run of the rig these pushes were made on."""
     from ..protocol import load_protocol, shipped_protocols
-
-    def cap(text: str) -> str:
-        return text[:1].upper() + text[1:]
+    from .takuma import _cap as cap
 
     if force_protocol is not None and model.protocol != force_protocol:
         raise ModelError(

@@ -93,9 +93,8 @@ from ..errors import ConfigError, ModelError
 G_N_PER_KG = 9.80665
 _MPA = 1e6  # Pa per MPa: forces are P[MPa] * area[m^2] * 1e6
 
-# Status codes of the equilibrium solver (arrays of small ints vectorise; names for people).
+# Status codes of the equilibrium solver: arrays of small ints vectorise.
 OK, TOGGLE, BAD_INPUT = 0, 1, 2
-STATUS_NAMES = {OK: "ok", TOGGLE: "toggle", BAD_INPUT: "bad input"}
 
 
 # --------------------------------------------------------------------------- parameters
@@ -342,9 +341,6 @@ class Equilibrium:
     def alpha_deg(self) -> np.ndarray:
         return np.degrees(self.alpha_rad)
 
-    def status_names(self) -> list[str]:
-        return [STATUS_NAMES[int(s)] for s in np.ravel(self.status)]
-
 
 def solve_equilibrium(
     Pa_MPa: Any,
@@ -495,10 +491,8 @@ def joint_map(
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        import tomli as tomllib  # type: ignore[no-redef]
+    from ..protocol import tomllib
+
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as e:
@@ -541,10 +535,8 @@ def read_rpam_protocol(path_or_name: str | Path) -> tuple[Path, dict[str, Any]]:
 
 
 def _parse_value(text: str) -> Any:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        import tomli as tomllib  # type: ignore[no-redef]
+    from ..protocol import tomllib
+
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:

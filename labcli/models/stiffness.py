@@ -83,6 +83,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import ConfigError
+from .geometry import contact_point, jacobian
 
 # Reasons are fixed sentences so that tables and tests can match them.
 REASON_NO_PHI = "no push direction makes the force point from the object's centre to the contact point with a positive deformation"
@@ -239,28 +240,6 @@ class PushEstimates:
                 "note": self.note,
             }
         )
-
-
-def contact_point(theta1: np.ndarray, theta2: np.ndarray, h2: float, h3: float) -> np.ndarray:
-    """Contact point C(theta1, theta2), shape (n, 2) in m (Section 4)."""
-    t1 = np.asarray(theta1, dtype=float)
-    t12 = t1 + np.asarray(theta2, dtype=float)
-    x = -h2 * np.sin(t1) - h3 * np.sin(t12)
-    y = h2 * np.cos(t1) + h3 * np.cos(t12)
-    return np.stack(np.broadcast_arrays(x, y), axis=-1).reshape(-1, 2)
-
-
-def jacobian(theta1: np.ndarray, theta2: np.ndarray, h2: float, h3: float) -> np.ndarray:
-    """dC/dtheta, shape (n, 2, 2): the matrix J of Section 2.2.2 (tau = J^T F)."""
-    t1 = np.atleast_1d(np.asarray(theta1, dtype=float))
-    t12 = t1 + np.atleast_1d(np.asarray(theta2, dtype=float))
-    t1, t12 = np.broadcast_arrays(t1, t12)
-    J = np.empty(t1.shape + (2, 2))
-    J[..., 0, 0] = -h2 * np.cos(t1) - h3 * np.cos(t12)
-    J[..., 0, 1] = -h3 * np.cos(t12)
-    J[..., 1, 0] = -h2 * np.sin(t1) - h3 * np.sin(t12)
-    J[..., 1, 1] = -h3 * np.sin(t12)
-    return J
 
 
 def object_centre(

@@ -45,6 +45,7 @@ from typing import Any, Mapping, NoReturn, Sequence
 import numpy as np
 
 from ..errors import ModelError
+from .geometry import force_amplification, jacobian_cond, jstar
 
 SCHEMA = "labcli-takuma-model"
 SCHEMA_VERSION = 1
@@ -106,48 +107,6 @@ def pressure_ratio_features(P0: np.ndarray, P: np.ndarray) -> np.ndarray:
     return P0 / P - 1.0
 
 
-def jstar(theta: np.ndarray, h2: float, h3: float) -> np.ndarray:
-    """Elements of ``(J^-1)^T`` (1/m), shape (n, 2, 2), for angles (n, 2) in rad.
-
-    Infinite where sin(theta2) = 0; callers keep such postures out (see jacobian_cond).
-    """
-    theta = np.atleast_2d(np.asarray(theta, dtype=float))
-    t1, t2 = theta[:, 0], theta[:, 1]
-    s1, c1 = np.sin(t1), np.cos(t1)
-    s12, c12 = np.sin(t1 + t2), np.cos(t1 + t2)
-    det = h2 * h3 * np.sin(t2)
-    out = np.empty((len(t1), 2, 2))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # (J^-1)^T = [[J22, -J21], [-J12, J11]] / det J
-        out[:, 0, 0] = -h3 * s12 / det
-        out[:, 0, 1] = (h2 * s1 + h3 * s12) / det
-        out[:, 1, 0] = h3 * c12 / det
-        out[:, 1, 1] = (-h2 * c1 - h3 * c12) / det
-    return out
-
-
-def jacobian_cond(theta2: np.ndarray, h2: float, h3: float) -> np.ndarray:
-    """2-norm condition number of J; depends on theta2 only (inf at theta2 = 0)."""
-    theta2 = np.asarray(theta2, dtype=float)
-    frob2 = h2 ** 2 + 2.0 * h3 ** 2 + 2.0 * h2 * h3 * np.cos(theta2)
-    det = np.abs(h2 * h3 * np.sin(theta2))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        smax2 = 0.5 * (frob2 + np.sqrt(np.maximum(frob2 ** 2 - 4.0 * det ** 2, 0.0)))
-        return np.where(det > 0, smax2 / det, np.inf)
-
-
-def force_amplification(theta: np.ndarray, h2: float, h3: float) -> np.ndarray:
-    """Per-component amplification ``||row_k (J^-1)^T|| ||J||`` (n, 2) for Fx, Fy (inf if singular)."""
-    theta = np.atleast_2d(np.asarray(theta, dtype=float))
-    t2 = theta[:, 1]
-    frob2 = h2 ** 2 + 2.0 * h3 ** 2 + 2.0 * h2 * h3 * np.cos(t2)
-    det = np.abs(h2 * h3 * np.sin(t2))
-    smax = np.sqrt(0.5 * (frob2 + np.sqrt(np.maximum(frob2 ** 2 - 4.0 * det ** 2, 0.0))))
-    with np.errstate(invalid="ignore"):
-        amp = np.linalg.norm(jstar(theta, h2, h3), axis=2) * smax[:, None]
-    return np.where(det[:, None] > 0, amp, np.inf)
-
-
 def theta2_threshold(h2: float, h3: float, max_cond: float) -> float:
     """Smallest |theta2| (rad) at which cond(J) <= max_cond."""
     if not max_cond > 1.0:
@@ -182,7 +141,7 @@ def force_design(P0: np.ndarray, P: np.ndarray, theta: np.ndarray, h2: float,
     return rows(js[:, 0, 0], js[:, 0, 1]), rows(js[:, 1, 0], js[:, 1, 1])
 
 
-# --------------------------------------------------------------------------- helpers
+# --------------------------------------------------------------------------- tables and least squares
 
 def normalise_geometry(geometry: Mapping[str, Any]) -> dict[str, float]:
     """Geometry dict in m with keys h1, h2, h3, r1, r2 (h2, h3 required; ``_m`` suffix accepted)."""

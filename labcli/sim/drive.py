@@ -16,9 +16,8 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from ..physics import G
 from .objects import DEMO_OBJECTS, DEMO_PHI_DEG, SimObject
-
-G = 9.80665  # m/s^2, as table-formats.md
 
 
 def _window(rig: Any, calibration: Any, n: int, rate_hz: float) -> np.ndarray:

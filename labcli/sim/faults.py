@@ -58,7 +58,7 @@ from typing import Any
 
 import numpy as np
 
-from ..wire import MAX_LINE, U32, Frame, Noise, parse_line
+from ..wire import MAX_LINE, U32, Frame, Noise, noise_counter, parse_line
 from .firmware import format_frames
 
 FRAME_FAULTS = ("drop", "overlong", "truncate", "checksum")  # order of precedence
@@ -198,19 +198,6 @@ def _frames(text: str) -> int:
     if n < 2:
         raise FaultSpecError(f"burst length must be a whole number of frames >= 2, got '{text}'")
     return n
-
-
-def reader_class(parsed: Any) -> str:
-    """The stream reader's counter for a parsed line (``frames``, ``bad_checksum``, ...)."""
-    if isinstance(parsed, Frame):
-        return "frames"
-    if not isinstance(parsed, Noise):
-        return "other"
-    if parsed.reason == "bad checksum":
-        return "bad_checksum"
-    if parsed.reason.startswith("line longer"):
-        return "overlong"
-    return "malformed"
 
 
 @dataclass(frozen=True)
@@ -412,10 +399,10 @@ class FaultInjector:
     # ------------------------------------------------------------ lines
 
     def _count(self, line: bytes) -> None:
-        cls = reader_class(parse_line(line, self.n_channels))
-        if cls not in self.noise:  # the generators below make sure of it
-            raise AssertionError(f"a spoiled line classified as {cls}: {line[:64]!r}")
-        self.noise[cls] += 1
+        parsed = parse_line(line, self.n_channels)
+        if not isinstance(parsed, Noise):  # the generators below make sure of it
+            raise AssertionError(f"a spoiled line classified as {type(parsed).__name__}: {line[:64]!r}")
+        self.noise[noise_counter(parsed.reason)] += 1
 
     def _garbage(self, slot: int) -> bytes:
         rng = self._rng(slot, 1)

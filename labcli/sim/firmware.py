@@ -22,6 +22,7 @@ from ..wire import MAX_LINE, U32, checksum, format_log
 
 RATE_MIN = 1.0
 RATE_MAX = 5000.0
+_OVERLONG = f"ERR line longer than {MAX_LINE} bytes\n".encode()
 
 
 class Firmware:
@@ -54,7 +55,7 @@ class Firmware:
             if nl < 0:
                 if len(self._pending) > MAX_LINE:
                     self._pending.clear()
-                    out += b"ERR line longer than 256 bytes\n"
+                    out += _OVERLONG
                 break
             line = bytes(self._pending[:nl])
             del self._pending[: nl + 1]
@@ -66,7 +67,7 @@ class Firmware:
         if line.endswith(b"\r"):
             line = line[:-1]
         if len(line) > MAX_LINE:
-            return b"ERR line longer than 256 bytes\n"
+            return _OVERLONG
         text = line.decode("ascii", "replace").strip()
         if not text:
             return b""
@@ -80,7 +81,7 @@ class Firmware:
             except ValueError:
                 return f"ERR RATE needs a number of Hz, got '{arg}'\n".encode()
             if not RATE_MIN <= hz <= RATE_MAX:
-                return f"ERR RATE must be within 1..5000 Hz, got {arg}\n".encode()
+                return f"ERR RATE must be within {RATE_MIN:g}..{RATE_MAX:g} Hz, got {arg}\n".encode()
             self.rate_hz = hz
             return f"OK RATE {hz:g}\n".encode()
         if text == "START":
@@ -144,7 +145,9 @@ def format_frames(seq: np.ndarray, t_us: np.ndarray, values: np.ndarray) -> byte
     n, m = cols.shape
     if n == 0:
         return b""
-    if n < 64:  # numpy's fixed costs outweigh per-line formatting for short blocks
+    if n < 64:
+        # numpy's fixed costs outweigh per-line formatting for short blocks; one
+        # "%d" format per line is some 3x quicker than format_frame's per-value checks.
         fmt = "D" + ",%d" * m
         out = []
         for row in cols.tolist():

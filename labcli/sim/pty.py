@@ -82,9 +82,8 @@ class PtyServer:
         pace_t0, sent = t0, 0
         cmd = bytearray()
         while not self._stop.is_set():
-            timeout = POLL_S
             try:
-                readable, _, _ = select.select([self._master], [], [], timeout)
+                readable, _, _ = select.select([self._master], [], [], POLL_S)
             except (OSError, ValueError):
                 return
             now = time.monotonic()
