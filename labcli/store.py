@@ -220,7 +220,7 @@ class PushRecord(_PushRequired, total=False):
     extra: dict
 
 
-# --------------------------------------------------------------------------- helpers
+# --------------------------------------------------------------------------- record checks and conversions
 
 
 def utc_now() -> str:
