@@ -18,13 +18,13 @@ __all__ = ["__version__", "load_trials", "load_pushes"]
 
 def load_trials(path):
     """Return the trial table of a run file (``.h5``) or a trial CSV as a DataFrame."""
-    from .tables import load_trials as _load
+    from .core.tables import load_trials as _load
 
     return _load(path)
 
 
 def load_pushes(path):
     """Return the push table of a run file (``.h5``) or a push CSV as a DataFrame."""
-    from .tables import load_pushes as _load
+    from .core.tables import load_pushes as _load
 
     return _load(path)

@@ -1,6 +1,6 @@
 """A small rig firmware on a pseudo-terminal, written from the wire protocol document alone.
 
-It shares no code with ``labcli.wire`` (its own checksum loop, its own line
+It shares no code with ``labcli.core.wire`` (its own checksum loop, its own line
 formatting), so tests that drive labcli against it check the host against an
 independent reading of the protocol, the way a third-party microcontroller
 sketch would.

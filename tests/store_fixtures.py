@@ -115,7 +115,7 @@ def assert_record_stored(stored: dict, rec: dict) -> None:
 
 def writer(path: str, n_trials: int, n_samples: int) -> None:
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    from labcli.store import RunFile
+    from labcli.core.store import RunFile
 
     if os.path.exists(path):
         run = RunFile.open(path, "a")

@@ -11,18 +11,18 @@ from click.testing import CliRunner
 from rich.console import Console
 
 from labcli.cli import cli
-from labcli.device import Device
-from labcli.engine import RunEngine, resume_command
+from labcli.core.device import Device
+from labcli.core.engine import RunEngine, resume_command
 from labcli.errors import DeviceDisconnected, DeviceTimeout
-from labcli.protocol import load_protocol
-from labcli.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
-from labcli.store import RunFile
-from labcli.tables import load_trials
-from labcli.ui import UnattendedUI
+from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
+from labcli.core.store import RunFile
+from labcli.core.tables import load_trials
+from labcli.core.ui import UnattendedUI
 
 PROTOCOL = load_protocol("takuma2014")
 PLAN = PROTOCOL.load_plan()
-# One count of sensor noise per sample, rms (labcli.sim.rig): 0.5 count of 0.305 kPa, 0.7 count of 0.083 deg.
+# One count of sensor noise per sample, rms (labcli.experiments.takuma2014.sim.rig): 0.5 count of 0.305 kPa, 0.7 count of 0.083 deg.
 PRESSURE_NOISE_MPA = 0.5 * 5.0 / 16380
 ANGLE_NOISE_DEG = 0.7 * 340 / 4095
 

@@ -38,9 +38,9 @@ import h5py
 import numpy as np
 import pytest
 
-from labcli.engine import acquire
-from labcli.protocol import load_protocol
-from labcli.store import RunFile
+from labcli.core.engine import acquire
+from labcli.core.protocol import load_protocol
+from labcli.core.store import RunFile
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = 21
@@ -318,7 +318,7 @@ def test_a_handful_of_kills(tmp_path):
 
 
 def test_ctrl_c_during_the_setup_check_leaves_no_file_and_says_so(tmp_path, monkeypatch):
-    from labcli.device import Device
+    from labcli.core.device import Device
 
     def interrupted(self, timeout=1.0):
         raise KeyboardInterrupt
@@ -337,7 +337,7 @@ def quiet():
 
     from rich.console import Console
 
-    from labcli.ui import UnattendedUI
+    from labcli.core.ui import UnattendedUI
 
     return UnattendedUI(console=Console(file=io.StringIO()))
 

@@ -23,10 +23,10 @@ import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
-from labcli.protocol import load_protocol
-from labcli.sim.pty import serve_pty
-from labcli.store import RunFile
-from labcli.tables import load_trials
+from labcli.core.protocol import load_protocol
+from labcli.core.sim.pty import serve_pty
+from labcli.core.store import RunFile
+from labcli.core.tables import load_trials
 
 ROOT = Path(__file__).resolve().parents[1]
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n"

@@ -421,8 +421,8 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Good files every case starts from: trials.csv, run.h5 + run.model.json, acq.h5, push.h5, ..."""
     import pandas as pd
 
-    from labcli.models.synthetic import paper_trials
-    from labcli.tables import write_trial_csv
+    from labcli.experiments.takuma2014.models.synthetic import paper_trials
+    from labcli.core.tables import write_trial_csv
 
     w = tmp_path_factory.mktemp("world")
     table = pd.concat([paper_trials(12, seed=1), paper_trials(4, seed=2, set_name="validation", start_id=13)],
@@ -471,7 +471,7 @@ def run_case(case: Case, world: Path, tmp_path: Path) -> tuple[subprocess.Comple
     before = digest(here)
     port = None
     if case.pty:
-        from labcli.sim.pty import serve_pty
+        from labcli.core.sim.pty import serve_pty
 
         server = serve_pty(seed=1, rate=200)
         try:

@@ -2,9 +2,9 @@
 
 The force model is fitted on the protocol plan's weight trials driven through
 the simulated rig the way an acquisition does it, from sampled, noisy ADC
-counts calibrated by the protocol (:mod:`labcli.sim.drive`); the pushes are
+counts calibrated by the protocol (:mod:`labcli.experiments.takuma2014.sim.drive`); the pushes are
 the demo's six objects (three PET bottles, two aluminium cans, a steel can,
-:mod:`labcli.sim.objects`).
+:mod:`labcli.experiments.takuma2014.sim.objects`).
 """
 
 from __future__ import annotations
@@ -18,15 +18,15 @@ import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
-from labcli.models.classify import classify_file, stiffness_settings
-from labcli.models.stiffness import REASON_UNOBSERVED_DIRECTION, StiffnessParams
-from labcli.models.takuma import TakumaModel
-from labcli.protocol import load_protocol
-from labcli.sim.drive import simulate_pushes, simulate_weight_trials
-from labcli.sim.objects import CATEGORY_OF_MATERIAL, DEMO_OBJECTS, SimObject
-from labcli.sim.rig import SimRig
-from labcli.store import import_table
-from labcli.tables import write_push_csv
+from labcli.experiments.takuma2014.models.classify import classify_file, stiffness_settings
+from labcli.experiments.takuma2014.models.stiffness import REASON_UNOBSERVED_DIRECTION, StiffnessParams
+from labcli.experiments.takuma2014.models.takuma import TakumaModel
+from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
+from labcli.experiments.takuma2014.sim.objects import CATEGORY_OF_MATERIAL, DEMO_OBJECTS, SimObject
+from labcli.experiments.takuma2014.sim.rig import SimRig
+from labcli.core.store import import_table
+from labcli.core.tables import write_push_csv
 
 SEED = 5
 # Stated tolerance: the mean stiffness of every demo object within 10 % of the
@@ -210,7 +210,7 @@ def test_flagged_pushes_are_drawn_hollow(lab, tmp_path):
     report = classify_file(lab["pushes"], lab["model"])
     res = report.result
     res.pushes.loc[[0, 1], "flag"] = True
-    from labcli.figures import figure9
+    from labcli.experiments.takuma2014.figures import figure9
 
     out = figure9(res, tmp_path / "f.svg")
     assert 'style="fill: none' in out.read_text()

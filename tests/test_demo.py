@@ -50,7 +50,7 @@ def test_demo_angles_sit_near_the_sensor_floor(demo_out):
 
 
 def test_demo_categories_and_stiffness_match_the_simulated_objects(demo_out):
-    from labcli.sim.objects import DEMO_OBJECTS
+    from labcli.experiments.takuma2014.sim.objects import DEMO_OBJECTS
 
     out, _ = demo_out
     summary = json.loads((out / "summary.json").read_text())

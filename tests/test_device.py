@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from firmware_fake import REFERENCE_CHANNELS, REFERENCE_COUNTS, FakeFirmware
-from labcli.device import Device, DeviceInfo
+from labcli.core.device import Device, DeviceInfo
 from labcli.errors import DeviceDisconnected, DeviceError, DeviceNotFound, DeviceTimeout
 
 
@@ -191,7 +191,7 @@ def test_device_left_streaming_is_quieted_at_open(firmware):
 
 
 def test_sim_url_when_the_simulated_rig_is_installed():
-    pytest.importorskip("labcli.urlhandler.protocol_sim")
+    pytest.importorskip("labcli.core.sim.protocol_sim")
     with Device.open("sim://?seed=1", timeout=2.0) as dev:
         assert dev.info.channels == REFERENCE_CHANNELS
         assert dev.rig is not None
@@ -204,7 +204,7 @@ def test_sim_url_when_the_simulated_rig_is_installed():
 
 
 def test_sim_unplugged_mid_stream():
-    pytest.importorskip("labcli.urlhandler.protocol_sim")
+    pytest.importorskip("labcli.core.sim.protocol_sim")
     dev = Device.open("sim://?seed=2&clock=wall", timeout=1.0)
     dev.start()
     assert len(read_frames(dev, 5)[0]) >= 5

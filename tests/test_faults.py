@@ -2,7 +2,7 @@
 
 Every test compares the stream reader's counters with the injector's ground
 truth exactly, and every frame the host yields with the frames the rig made.
-Identities (see ``labcli.sim.faults``):
+Identities (see ``labcli.core.sim.faults``):
 
     frames       == frames sent intact
     bad_checksum == checksum faults + truncations that kept '*HH'
@@ -30,14 +30,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from labcli.cli import cli
-from labcli.device import Device
+from labcli.core.device import Device
 from labcli.errors import DeviceTimeout
-from labcli.sim.faults import FAULTS_FORM, FaultInjector, FaultSpec, FaultSpecError
-from labcli.sim.firmware import Firmware
-from labcli.sim.pty import serve_pty
-from labcli.sim.rig import SimRig
-from labcli.urlhandler import register
-from labcli.wire import FrameBatch, StreamReader
+from labcli.core.sim.faults import FAULTS_FORM, FaultInjector, FaultSpec, FaultSpecError
+from labcli.core.sim.firmware import Firmware
+from labcli.core.sim.pty import serve_pty
+from labcli.experiments.takuma2014.sim.rig import SimRig
+from labcli.core.sim import register
+from labcli.core.wire import FrameBatch, StreamReader
 
 register()
 

@@ -12,9 +12,9 @@ import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
-from labcli.models.synthetic import paper_trials
-from labcli.models.takuma import COEFFICIENT_NAMES, PAPER_COEFFICIENTS
-from labcli.tables import write_trial_csv
+from labcli.experiments.takuma2014.models.synthetic import paper_trials
+from labcli.experiments.takuma2014.models.takuma import COEFFICIENT_NAMES, PAPER_COEFFICIENTS
+from labcli.core.tables import write_trial_csv
 
 
 @pytest.fixture(scope="module")
@@ -106,8 +106,8 @@ def test_validate_json(csv: Path, table: pd.DataFrame, mode: str) -> None:
 
 
 def test_fit_and_validate_on_a_run_file_record_the_model(tmp_path: Path, table: pd.DataFrame) -> None:
-    from labcli.protocol import load_protocol
-    from labcli.store import RunFile
+    from labcli.core.protocol import load_protocol
+    from labcli.core.store import RunFile
 
     path = tmp_path / "run.h5"
     with RunFile.create(path, protocol=load_protocol("takuma2014"), operator="test") as rf:

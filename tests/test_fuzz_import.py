@@ -28,9 +28,9 @@ from hypothesis import strategies as st
 
 from labcli.cli import cli
 from labcli.errors import ConfigError, StoreError
-from labcli.protocol import load_protocol
-from labcli.store import MAX_ID, RunFile, import_table, storable_cells
-from labcli.tables import TRIAL, TableError, read_trial_csv, write_trial_csv
+from labcli.core.protocol import load_protocol
+from labcli.core.store import MAX_ID, RunFile, import_table, storable_cells
+from labcli.core.tables import TRIAL, TableError, read_trial_csv, write_trial_csv
 
 STANDARD = list(TRIAL.names)
 REQUIRED = [c for c, _, presence in TRIAL.columns if presence == "required"]

@@ -14,7 +14,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from labcli.wire import COUNTER_NAMES, FrameBatch, StreamReader, checksum, format_frame
+from labcli.core.wire import COUNTER_NAMES, FrameBatch, StreamReader, checksum, format_frame
 
 U32 = 1 << 32
 

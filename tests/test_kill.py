@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from labcli.errors import StoreError
-from labcli.store import RunFile
+from labcli.core.store import RunFile
 
 from store_fixtures import assert_record_stored, make_record
 

@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 
 from firmware_fake import REFERENCE_CHANNELS, REFERENCE_COUNTS, FakeFirmware
 from labcli.cli import cli
-from labcli.device import Device
-from labcli.monitoring import RunningStats, channel_scale, watch
-from labcli.protocol import load_protocol
+from labcli.core.device import Device
+from labcli.core.monitoring import RunningStats, channel_scale, watch
+from labcli.core.protocol import load_protocol
 
 
 def reference_si(name: str, counts: float) -> tuple[float, str]:
@@ -168,7 +168,7 @@ def test_ports_says_plainly_when_there_are_none(monkeypatch):
 
 
 def test_monitor_on_the_simulated_rig():
-    pytest.importorskip("labcli.urlhandler.protocol_sim")
+    pytest.importorskip("labcli.core.sim.protocol_sim")
     result = CliRunner().invoke(
         cli, ["monitor", "--port", "sim://?seed=3", "--seconds", "1", "--rate", "100", "--json"]
     )

@@ -12,8 +12,8 @@ from click.testing import CliRunner
 
 from labcli.cli import cli
 from labcli.errors import ConfigError, ModelError
-from labcli.models import rpam
-from labcli.models import rpam_optimize as ro
+from labcli.experiments.rpam2015.models import rpam
+from labcli.experiments.rpam2015.models import rpam_optimize as ro
 
 PATH, RAW = rpam.read_rpam_protocol("rpam2015")
 ACT = rpam.actuator_from_protocol(RAW, PATH)

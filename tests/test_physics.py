@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from labcli import physics as ph
+from labcli.experiments.takuma2014.sim import physics as ph
 
 GEOM = ph.Geometry()
 RNG = np.random.default_rng(12)

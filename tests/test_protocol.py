@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from labcli import protocol as protocol_mod
-from labcli.calibration import Calibration, format_value, from_display, to_display
+from labcli.core import protocol as protocol_mod
+from labcli.core.calibration import Calibration, format_value, from_display, to_display
 from labcli.errors import ConfigError
-from labcli.protocol import COEFFICIENT_NAMES, KINDS, load_protocol, loads_protocol, shipped_protocols
+from labcli.core.protocol import COEFFICIENT_NAMES, KINDS, load_protocol, loads_protocol, shipped_protocols
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOLS = ROOT / "protocols"

@@ -29,14 +29,14 @@ from click.testing import CliRunner
 from rich.console import Console
 
 from labcli.cli import cli
-from labcli.device import Device
-from labcli.engine import acquire
+from labcli.core.device import Device
+from labcli.core.engine import acquire
 from labcli.errors import DeviceDisconnected
-from labcli.protocol import load_protocol
-from labcli.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
-from labcli.sim.pty import serve_pty
-from labcli.store import RunFile
-from labcli.ui import RichUI
+from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
+from labcli.core.sim.pty import serve_pty
+from labcli.core.store import RunFile
+from labcli.core.ui import RichUI
 
 SEED = 5
 PORT = f"sim://?seed={SEED}&clock=virtual"

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from labcli.errors import ConfigError, ModelError
-from labcli.models import rpam
+from labcli.experiments.rpam2015.models import rpam
 
 PATH, RAW = rpam.read_rpam_protocol("rpam2015")
 ACT = rpam.actuator_from_protocol(RAW, PATH)

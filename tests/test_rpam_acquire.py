@@ -18,18 +18,18 @@ from rich.console import Console
 from scipy import stats
 
 from labcli.cli import cli
-from labcli.engine import acquire
+from labcli.core.engine import acquire
 from labcli.errors import ConfigError, StoreError
-from labcli.protocol import load_protocol
-from labcli.session import Baseline, Capture, Prompt
-from labcli.session_rpam import acquisition_protocol, rpam_session
-from labcli.sim.rpam_rig import RpamRig
-from labcli.store import RunFile
-from labcli.ui import UnattendedUI
+from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.session import Baseline, Capture, Prompt
+from labcli.experiments.rpam2015.session import acquisition_protocol, rpam_session
+from labcli.experiments.rpam2015.sim.rig import RpamRig
+from labcli.core.store import RunFile
+from labcli.core.ui import UnattendedUI
 
 SHIPPED = Path(__file__).resolve().parent.parent / "protocols" / "rpam2015.toml"
 CHI2_999 = float(stats.chi2.ppf(0.999, 4))
-# Sensor noise per sample, rms (labcli.sim.rpam_rig): 0.7 count of 0.0733 mm, 0.7 count of 0.083 deg.
+# Sensor noise per sample, rms (labcli.experiments.rpam2015.sim.rig): 0.7 count of 0.0733 mm, 0.7 count of 0.083 deg.
 LEN_NOISE_M = 0.7 * 0.300 / 4095
 POT_NOISE_DEG = 0.7 * 340 / 4095
 
@@ -71,7 +71,7 @@ class Recorder:
 
 def run_experiment(path: Path, experiment: str, seed: int, protocol: str = "rpam2015") -> Recorder:
     rec = Recorder()
-    import labcli.device as device
+    import labcli.core.device as device
 
     original = device.Device.__dict__["open"]
     opened = device.Device.open

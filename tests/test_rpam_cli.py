@@ -11,8 +11,8 @@ from click.testing import CliRunner
 from rich.console import Console
 
 from labcli.cli import cli
-from labcli.engine import acquire
-from labcli.ui import UnattendedUI
+from labcli.core.engine import acquire
+from labcli.core.ui import UnattendedUI
 
 SHIPPED = Path(__file__).resolve().parent.parent / "protocols" / "rpam2015.toml"
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -191,8 +191,8 @@ def test_set_with_an_unknown_key_names_the_choices(runs):
 
 
 def test_set_is_refused_on_a_force_run(tmp_path):
-    from labcli.models.synthetic import paper_trials
-    from labcli.tables import write_trial_csv
+    from labcli.experiments.takuma2014.models.synthetic import paper_trials
+    from labcli.core.tables import write_trial_csv
 
     csv = tmp_path / "trials.csv"
     write_trial_csv(paper_trials(20, noise=False), csv)

@@ -12,13 +12,13 @@ from rpam_runs import PATH, RAW, joint_table, stretch_table
 from scipy import stats
 
 from labcli.errors import ConfigError, ModelError
-from labcli.figures_rpam import figure8, figure_stretch
-from labcli.models import rpam
-from labcli.models.rpam_fit import (
+from labcli.experiments.rpam2015.figures import figure8, figure_stretch
+from labcli.experiments.rpam2015.models import rpam
+from labcli.experiments.rpam2015.models.rpam_fit import (
     JointMapResult, StretchCorrection, StretchFit, analyse_joint_map, analyse_stretch,
     correction_actuator, stretch_forces,
 )
-from labcli.sim.rpam_rig import RpamRig
+from labcli.experiments.rpam2015.sim.rig import RpamRig
 
 ACT = rpam.actuator_from_protocol(RAW, PATH)
 CHI2_999 = float(stats.chi2.ppf(0.999, 4))

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from rpam_runs import capture
 
-from labcli.device import Device
-from labcli.models import rpam
-from labcli.sim import MODELS, make_rig
-from labcli.sim.rpam_rig import (
+from labcli.core.device import Device
+from labcli.experiments.rpam2015.models import rpam
+from labcli.core.sim import MODELS, make_rig
+from labcli.experiments.rpam2015.sim.rig import (
     ADC_MAX, CALIBRATION, CHANNELS, STOP_MARGIN_DEG, RpamRig, counts_to_si, si_to_counts,
 )
 

@@ -21,13 +21,13 @@ from click.testing import CliRunner
 from rich.console import Console
 
 from labcli.cli import cli
-from labcli.engine import acquire
+from labcli.core.engine import acquire
 from labcli.errors import ConfigError
-from labcli.protocol import load_protocol
-from labcli.session_rpam import acquisition_protocol
-from labcli.store import RunFile, import_table
-from labcli.tables import TableError, read_point_csv
-from labcli.ui import UnattendedUI
+from labcli.core.protocol import load_protocol
+from labcli.experiments.rpam2015.session import acquisition_protocol
+from labcli.core.store import RunFile, import_table
+from labcli.core.tables import TableError, read_point_csv
+from labcli.core.ui import UnattendedUI
 
 SHIPPED = Path(__file__).resolve().parent.parent / "protocols" / "rpam2015.toml"
 STRETCH_HEADER = "point,mass_g,P_A,P_B,L_m,lambda,set_mass_g,set_P_A_kPa,set_P_B_kPa"

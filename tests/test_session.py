@@ -1,4 +1,4 @@
-"""The acquisition protocol as plain steps (labcli.session), recorded without a rig."""
+"""The acquisition protocol as plain steps (labcli.experiments.takuma2014.session), recorded without a rig."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from labcli.protocol import load_protocol
-from labcli.session import (
+from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.session import (
     G,
     AskLoad,
     AskObject,

@@ -1,4 +1,4 @@
-"""Equilibrium detection on synthetic first-order-lag signals (labcli.settle)."""
+"""Equilibrium detection on synthetic first-order-lag signals (labcli.core.settle)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from labcli.settle import BLOCKS, SettleCriteria, SettleDetector, TimeUnwrapper
+from labcli.core.settle import BLOCKS, SettleCriteria, SettleDetector, TimeUnwrapper
 
 RATE = 200.0
 TAU = 1.0  # s, first-order lag time constant

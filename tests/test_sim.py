@@ -13,11 +13,11 @@ import pytest
 import serial
 from click.testing import CliRunner
 
-from labcli import physics as ph
-from labcli.sim.firmware import Firmware
-from labcli.sim.rig import SimRig
-from labcli.urlhandler import register
-from labcli.wire import Frame, parse_line
+from labcli.experiments.takuma2014.sim import physics as ph
+from labcli.core.sim.firmware import Firmware
+from labcli.experiments.takuma2014.sim.rig import SimRig
+from labcli.core.sim import register
+from labcli.core.wire import Frame, parse_line
 
 register()
 
@@ -238,8 +238,8 @@ def test_firmware_seq_and_time_wrap_at_2_32():
 
 @pytest.mark.parametrize("n", [1, 63, 64, 3000])
 def test_block_formatting_is_byte_identical_to_the_wire_codec(n):
-    from labcli.sim.firmware import format_frames
-    from labcli.wire import format_frame
+    from labcli.core.sim.firmware import format_frames
+    from labcli.core.wire import format_frame
 
     rng = np.random.default_rng(n)
     seq = rng.integers(0, 1 << 32, n)
@@ -389,7 +389,7 @@ def reply(port) -> bytes:
 
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 def test_protocol_over_pty():
-    from labcli.sim.pty import serve_pty
+    from labcli.core.sim.pty import serve_pty
 
     with serve_pty(seed=2, rate=200) as server:
         port = serial.Serial(server.path, timeout=1.0)

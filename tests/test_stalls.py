@@ -2,7 +2,7 @@
 
 A stall is a gap between consecutive frames whose device time (``t_us``)
 exceeds what their ``seq`` difference allows at the confirmed rate by more
-than ``stall_us`` (0.25 s).  The fault injector (``labcli.sim.faults``) knows
+than ``stall_us`` (0.25 s).  The fault injector (``labcli.core.sim.faults``) knows
 every stall it made, ``[(seq of the frame after it, seconds)]``: the counts
 here are compared with that ground truth exactly.
 """
@@ -17,11 +17,11 @@ import serial
 from click.testing import CliRunner
 
 from labcli.cli import cli
-from labcli.device import Device
+from labcli.core.device import Device
 from labcli.errors import DeviceTimeout
-from labcli.sim.pty import serve_pty
-from labcli.urlhandler import register
-from labcli.wire import STALL_US, U32, FrameBatch, StreamReader, format_frame
+from labcli.core.sim.pty import serve_pty
+from labcli.core.sim import register
+from labcli.core.wire import STALL_US, U32, FrameBatch, StreamReader, format_frame
 
 register()
 

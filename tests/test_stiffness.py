@@ -17,9 +17,9 @@ import pytest
 from scipy.optimize import brentq, minimize, root
 
 from labcli.errors import ConfigError, ModelError
-from labcli.models.categories import CategoryModel, parse_bands
-from labcli.models.classify import classify_pushes
-from labcli.models.stiffness import (
+from labcli.experiments.takuma2014.models.categories import CategoryModel, parse_bands
+from labcli.experiments.takuma2014.models.classify import classify_pushes
+from labcli.experiments.takuma2014.models.stiffness import (
     REASON_NO_DEFORMATION,
     REASON_NO_PHI,
     REASON_PROJECTION,
@@ -665,7 +665,7 @@ def test_true_state_of_the_simulated_rig_gives_its_object_stiffness():
     # The simulated rig's own physics (labcli/physics.py, a leaning hand-built
     # rig) against this module's geometry: true deflections and forces must
     # give back the true k_o, with phi given and solved.
-    sim = pytest.importorskip("labcli.sim.rig")
+    sim = pytest.importorskip("labcli.experiments.takuma2014.sim.rig")
     rig = sim.SimRig(seed=1, noise=0.0, variation=True)
     g = rig.params.geometry
     for k_o, phi_deg in ((500.0, 0.0), (2000.0, 30.0), (8000.0, -25.0)):
@@ -692,8 +692,8 @@ def test_simulated_rig_end_to_end_from_pressures():
     # of the truth (measured), the excess growing with stiffness: a 9500 N/m
     # object pushed 10 mm deforms by 0.2 mm, where the pressure-only angles'
     # model error shows.  The order, and so the categories, hold.
-    sim = pytest.importorskip("labcli.sim.rig")
-    takuma = pytest.importorskip("labcli.models.takuma")
+    sim = pytest.importorskip("labcli.experiments.takuma2014.sim.rig")
+    takuma = pytest.importorskip("labcli.experiments.takuma2014.models.takuma")
     rig = sim.SimRig(seed=2, noise=0.0, variation=True)
     g = rig.params.geometry
     p_cols = ["P_L1", "P_R1", "P_L2", "P_R2"]

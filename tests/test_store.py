@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from labcli.errors import ConfigError, StoreError
-from labcli.store import SCHEMA_VERSION, RunFile, choose_split, import_table, to_edge
+from labcli.core.store import SCHEMA_VERSION, RunFile, choose_split, import_table, to_edge
 
 from store_fixtures import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
 

@@ -12,8 +12,8 @@ from click.testing import CliRunner
 
 import labcli
 from labcli.cli import cli
-from labcli.protocol import load_protocol
-from labcli.store import RunFile
+from labcli.core.protocol import load_protocol
+from labcli.core.store import RunFile
 
 from store_fixtures import FakeDevice, make_record
 
@@ -304,7 +304,7 @@ _row = st.tuples(st.lists(_mpa, min_size=8, max_size=8), _deg, _deg, st.floats(-
 @given(rows=st.lists(_row, min_size=1, max_size=3))
 def test_any_table_round_trips_byte_identical(tmp_path_factory, rows):
     """Any table, once in a run file, exports to bytes that survive import -> export exactly."""
-    from labcli.tables import read_trial_csv, write_trial_csv
+    from labcli.core.tables import read_trial_csv, write_trial_csv
     import pandas as pd
 
     d = tmp_path_factory.mktemp("rt")

@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from labcli.errors import ConfigError
-from labcli.tables import (
+from labcli.core.tables import (
     MAX_LISTED,
     PUSH,
     TRIAL,
@@ -329,7 +329,7 @@ def test_h5_paths_go_to_the_run_file(monkeypatch: pytest.MonkeyPatch, tmp_path: 
         def close(self):
             calls.append("close")
 
-    monkeypatch.setitem(sys.modules, "labcli.store", types.SimpleNamespace(RunFile=FakeRun))
+    monkeypatch.setitem(sys.modules, "labcli.core.store", types.SimpleNamespace(RunFile=FakeRun))
     assert load_trials(tmp_path / "run.h5")["trial"].tolist() == [1]
     assert load_pushes(tmp_path / "run.H5")["push"].tolist() == [1]
     assert calls == [("open", str(tmp_path / "run.h5")), "trial_table", "close",

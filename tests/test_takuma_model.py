@@ -1,6 +1,6 @@
 """The paper's regression (Eqs. 34-37): fit, predict, accuracy, JSON, Figure 7.
 
-Data come from the paper's own equations and Section 3.3 coefficients (labcli.models.synthetic)
+Data come from the paper's own equations and Section 3.3 coefficients (labcli.experiments.takuma2014.models.synthetic)
 read through 12-bit sensors, so the fit must give the paper's numbers back within what that
 quantisation allows, and exactly without it.
 """
@@ -15,10 +15,10 @@ import pandas as pd
 import pytest
 
 from labcli.errors import ConfigError, ModelError
-from labcli.models.metrics import error_metrics, evaluate, evaluation_to_dict
-from labcli.models.synthetic import (ANGLE_LSB_DEG, PAPER_GEOMETRY, PRESSURE_LSB_MPA,
+from labcli.experiments.takuma2014.models.metrics import error_metrics, evaluate, evaluation_to_dict
+from labcli.experiments.takuma2014.models.synthetic import (ANGLE_LSB_DEG, PAPER_GEOMETRY, PRESSURE_LSB_MPA,
                                      add_sensor_noise, paper_trials)
-from labcli.models.takuma import (COEFFICIENT_NAMES, PAPER_COEFFICIENTS, TERMS, TakumaModel, fit,
+from labcli.experiments.takuma2014.models.takuma import (COEFFICIENT_NAMES, PAPER_COEFFICIENTS, TERMS, TakumaModel, fit,
                                   force_amplification, jacobian_cond, jstar, theta2_threshold)
 
 G = PAPER_GEOMETRY
@@ -394,7 +394,7 @@ def test_json_that_is_not_a_model_is_refused(tmp_path) -> None:
 # ----------------------------------------------------------------------------- Figure 7
 
 def test_figure7_png_and_pdf(noisy_model: TakumaModel, validation: pd.DataFrame, tmp_path) -> None:
-    from labcli.figures import figure7
+    from labcli.experiments.takuma2014.figures import figure7
 
     near = paper_trials(2, seed=4, set_name="validation", start_id=900, theta2_values_deg=[0.8, -1.5])
     ev = evaluate(noisy_model, pd.concat([validation, near]))

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from labcli.wire import (
+from labcli.core.wire import (
     MAX_LINE,
     U32,
     Frame,

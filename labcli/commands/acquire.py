@@ -39,7 +39,7 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
     """
     import signal
 
-    from ..engine import acquire as run_acquisition
+    from ..core.engine import acquire as run_acquisition
     from ..errors import LabcliError
 
     try:

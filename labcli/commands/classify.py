@@ -9,7 +9,7 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
-from ._report import cell, report_console
+from ..core.report import cell, report_console
 
 
 def _print_report(data: dict[str, Any], plot: Path | None) -> None:
@@ -105,13 +105,13 @@ def classify(pushes: Path, model_path: Path, reference: Path | None, method: str
         labcli classify pushes.h5 --model force.model.json --plot fig9.png
         labcli classify unknown.csv --model force.model.json --reference refs.h5 --json
     """
-    from ..models.classify import classify_file
+    from ..experiments.takuma2014.models.classify import classify_file
 
     try:
         report = classify_file(pushes, model_path, reference=reference, protocol=protocol, method=method,
                                angles=angles)
         if plot is not None:
-            from ..figures import figure9
+            from ..experiments.takuma2014.figures import figure9
 
             figure9(report.result, plot)
     except LabcliError as e:

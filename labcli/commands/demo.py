@@ -150,12 +150,12 @@ def demo(outdir: Path, seed: int, force: bool, as_json: bool, protocol: str) -> 
     import json
     import sys
 
-    from ..demo import STAGES, run_demo
+    from ..experiments.takuma2014.demo import STAGES, run_demo
     from ..errors import LabcliError
 
     run, summarise = run_demo, _print_summary
     if protocol == "rpam2015":
-        from ..demo_rpam import STAGES, run_rpam_demo  # noqa: F811
+        from ..experiments.rpam2015.demo import STAGES, run_rpam_demo  # noqa: F811
 
         run, summarise = run_rpam_demo, _print_rpam_summary
 

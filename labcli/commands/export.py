@@ -34,8 +34,8 @@ def export(run: str, output: str) -> None:
         labcli export run.h5 -o trials.csv
         labcli export stretch.h5 -o stretch.csv
     """
-    from ..store import RunFile
-    from ..tables import write_point_csv, write_push_csv, write_trial_csv
+    from ..core.store import RunFile
+    from ..core.tables import write_point_csv, write_push_csv, write_trial_csv
 
     try:
         with RunFile.open(run) as rf:

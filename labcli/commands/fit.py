@@ -9,7 +9,7 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
-from ._report import cell, report_console
+from ..core.report import cell, report_console
 
 
 def default_model_path(run: Path) -> Path:
@@ -55,7 +55,7 @@ def _print_report(model: Any, paper: dict[str, float], out_path: Path, recorded:
     from rich import box
     from rich.table import Table
 
-    from ..models.takuma import SIGN_NOTE, TERMS
+    from ..experiments.takuma2014.models.takuma import SIGN_NOTE, TERMS
 
     con = report_console(110)
     titles = {
@@ -132,9 +132,9 @@ def fit(run: Path, output: Path | None, protocol: str | None, max_amplification:
         labcli fit trials.csv --protocol takuma2014 -o model.json --json
         labcli fit stretch.h5 --plot fig6-stretch.png
     """
-    from ..models.inputs import load_trial_source
-    from ..models.takuma import TakumaModel
-    from ..rpam_commands import fit_command, rpam_run_kind
+    from ..experiments.takuma2014.models.inputs import load_trial_source
+    from ..experiments.takuma2014.models.takuma import TakumaModel
+    from ..experiments.rpam2015.report import fit_command, rpam_run_kind
 
     if rpam_run_kind(run):  # an rPAM run: the stretch correction (Eq. 7), not Eqs. 34-37
         fit_command(run, output=output, protocol=protocol, plot=plot, as_json=as_json, overrides=overrides)
@@ -154,7 +154,7 @@ def fit(run: Path, output: Path | None, protocol: str | None, max_amplification:
         text = model.to_json()
         recorded = ""
         if src.is_run:
-            from ..store import RunFile
+            from ..core.store import RunFile
 
             # Open the run for writing before the model file is touched: a run that cannot take
             # the model (locked by a viewer, read-only) must leave both files as they were.

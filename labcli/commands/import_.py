@@ -34,9 +34,9 @@ def import_(table: str, output: str, protocol_name: str, experiment: str | None,
         labcli import trials.csv -o run.h5 --protocol takuma2014
         labcli import stretch.csv -o stretch.h5 --protocol rpam2015 --experiment stretch
     """
-    from ..protocol import load_protocol
-    from ..store import MAX_ID, import_table, storable_cells
-    from ..tables import read_point_csv, read_push_csv, read_trial_csv
+    from ..core.protocol import load_protocol
+    from ..core.store import MAX_ID, import_table, storable_cells
+    from ..core.tables import read_point_csv, read_push_csv, read_trial_csv
 
     try:
         protocol = load_protocol(protocol_name)
@@ -48,7 +48,7 @@ def import_(table: str, output: str, protocol_name: str, experiment: str | None,
                     "its point tables with --experiment stretch (the stretch test) or --experiment joint "
                     "(the joint map), and trial tables with a force protocol such as takuma2014."
                 )
-            from ..session_rpam import acquisition_protocol
+            from ..experiments.rpam2015.session import acquisition_protocol
 
             protocol = acquisition_protocol(protocol, experiment)
             df = read_point_csv(table, experiment, id_range=(0, MAX_ID), check=storable_cells)

@@ -122,7 +122,7 @@ def inspect(run: str, as_json: bool) -> None:
         labcli inspect run.h5
         labcli inspect run.h5 --json | jq .baseline_drift
     """
-    from ..store import RunFile
+    from ..core.store import RunFile
 
     try:
         with RunFile.open(run) as rf:

@@ -76,9 +76,9 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
         labcli monitor --port sim:// --seconds 5
         labcli monitor --port /dev/ttyUSB0 --rate 200 --seconds 10 --json
     """
-    from ..device import Device
-    from ..monitoring import channel_scale, watch
-    from ..protocol import load_protocol
+    from ..core.device import Device
+    from ..core.monitoring import channel_scale, watch
+    from ..core.protocol import load_protocol
 
     url = port
     if port.startswith("sim://") and "clock=" not in port:

@@ -43,7 +43,7 @@ def optimize(protocol: str, seed: int | None, pa_kpa: float | None, pb_kpa: floa
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from ..models.rpam_optimize import optimize_protocol
+    from ..experiments.rpam2015.models.rpam_optimize import optimize_protocol
 
     _kpa(pa_kpa, "--pa")
     _kpa(pb_kpa, "--pb")

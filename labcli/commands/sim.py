@@ -35,7 +35,7 @@ def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float, fault
     """
     import signal
 
-    from ..sim.faults import FaultSpec, FaultSpecError
+    from ..core.sim.faults import FaultSpec, FaultSpecError
 
     try:
         spec = FaultSpec.parse(faults)
@@ -47,7 +47,7 @@ def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float, fault
             "nothing to serve: add --pty to serve the simulated rig on a pseudo-terminal"
             " (labcli commands can use the port sim:// directly)."
         )
-    from ..sim.pty import serve_pty
+    from ..core.sim.pty import serve_pty
 
     try:
         server = serve_pty(seed=seed, rate=rate, noise=noise, drift=drift, faults=spec)

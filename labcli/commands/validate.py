@@ -9,15 +9,15 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
-from ._report import cell, report_console
+from ..core.report import cell, report_console
 
 
 def _print_report(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | None) -> None:
     from rich import box
     from rich.table import Table
 
-    from ..models.metrics import QUANTITIES
-    from ..models.takuma import FLAG_TEXT
+    from ..experiments.takuma2014.models.metrics import QUANTITIES
+    from ..experiments.takuma2014.models.takuma import FLAG_TEXT
 
     con = report_console(110)
     how = ("forces from the calculated angles" if ev["mode"] == "pressure-only"
@@ -79,7 +79,7 @@ def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, p
         labcli validate trials.csv --mode measured-angles --json
         labcli validate joint.h5 --model stretch.model.json --plot fig8.png
     """
-    from ..rpam_commands import rpam_run_kind, validate_command
+    from ..experiments.rpam2015.report import rpam_run_kind, validate_command
 
     if rpam_run_kind(run):  # an rPAM joint map (Fig. 8), not Eqs. 34-37
         validate_command(run, model_path=model_path, protocol=protocol, plot=plot, as_json=as_json,
@@ -88,10 +88,10 @@ def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, p
     if overrides:
         raise click.ClickException("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
                                    "run's model is fitted from its trials, so leave --set out.")
-    from ..commands.fit import default_model_path
-    from ..models.inputs import load_trial_source
-    from ..models.metrics import evaluate, evaluation_to_dict
-    from ..models.takuma import TakumaModel
+    from .fit import default_model_path
+    from ..experiments.takuma2014.models.inputs import load_trial_source
+    from ..experiments.takuma2014.models.metrics import evaluate, evaluation_to_dict
+    from ..experiments.takuma2014.models.takuma import TakumaModel
 
     try:
         src = load_trial_source(run, protocol)
@@ -101,7 +101,7 @@ def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, p
                                model_name=f"the model file {mpath}", run_name=str(run))
         ev = evaluate(model, src.table, mode=mode, source=str(run))
         if plot is not None:
-            from ..figures import figure7
+            from ..experiments.takuma2014.figures import figure7
 
             figure7(ev, plot)
     except LabcliError as e:

@@ -8,7 +8,7 @@ microcontroller would; this process is the host.  Measured per path, over the
 same pty in the same run:
 
 * labcli: ``Device`` (the stream reader, chunked reads) for ``--seconds``;
-* baseline: pyserial ``readline()`` + :func:`labcli.wire.parse_line` per line,
+* baseline: pyserial ``readline()`` + :func:`labcli.core.wire.parse_line` per line,
   what a first host usually looks like, for ``--baseline-seconds``.
 
 Reported: frames, frames/s, lost frames (must be 0 without faults), and the
@@ -33,8 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import serial  # noqa: E402
 
-from labcli.device import Device  # noqa: E402
-from labcli.wire import Frame, Noise, parse_line  # noqa: E402
+from labcli.core.device import Device  # noqa: E402
+from labcli.core.wire import Frame, Noise, parse_line  # noqa: E402
 
 
 def start_rig(rate: float, faults: str) -> tuple[subprocess.Popen, str]:

@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 
-from labcli.wire import StreamReader, format_frame, format_log  # noqa: E402
+from labcli.core.wire import StreamReader, format_frame, format_log  # noqa: E402
 
 
 def make_stream(n: int, seed: int = 0) -> bytes:

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from labcli.models import rpam
+from labcli.experiments.rpam2015.models import rpam
 
 
 def median_time(fn, repeat: int) -> float:

@@ -4,8 +4,8 @@ Run:  python tests/benchmarks/bench_sim.py [--frames N] [--repeat R]
 
 Both sides produce the same bytes for N frames of the reference rig (six
 12-bit channels, 1 kHz): the rig's vectorised ``samples`` then either the
-firmware's column-wise :func:`labcli.sim.firmware.format_frames` or the
-baseline, :func:`labcli.wire.format_frame` called once per frame.  Also
+firmware's column-wise :func:`labcli.core.sim.firmware.format_frames` or the
+baseline, :func:`labcli.core.wire.format_frame` called once per frame.  Also
 reported: device seconds produced per wall second through a ``sim://`` port
 (virtual clock) read in 64 KiB chunks.  Best of R runs; the ratio is measured
 in the same run on the same machine.
@@ -22,9 +22,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 
-from labcli.sim.firmware import format_frames  # noqa: E402
-from labcli.sim.rig import SimRig  # noqa: E402
-from labcli.wire import format_frame  # noqa: E402
+from labcli.core.sim.firmware import format_frames  # noqa: E402
+from labcli.experiments.takuma2014.sim.rig import SimRig  # noqa: E402
+from labcli.core.wire import format_frame  # noqa: E402
 
 
 def best(fn, repeat: int) -> tuple[float, object]:
@@ -59,7 +59,7 @@ def main() -> None:
 
     import serial
 
-    from labcli.urlhandler import register
+    from labcli.core.sim import register
 
     register()
     port = serial.serial_for_url("sim://?seed=1&rate=1000", timeout=1.0)

@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 
-from labcli.store import RunFile  # noqa: E402
+from labcli.core.store import RunFile  # noqa: E402
 
 CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
 
@@ -48,7 +48,7 @@ class _Protocol:
     text = 'name = "bench"\nkind = "force"\n'
     channels = CHANNELS
 
-    class calibration:  # noqa: N801 - stands in for labcli.calibration.Calibration
+    class calibration:  # noqa: N801 - stands in for labcli.core.calibration.Calibration
         units = ("MPa",) * 4 + ("rad",) * 2
 
         @staticmethod

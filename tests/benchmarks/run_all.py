@@ -154,7 +154,7 @@ BENCHES = [
           "numpy lstsq on the fit's design shapes, same n", p_models, json=True),
     Bench("demo", "bench_demo.py", ["--seeds", "1", "--import-repeat", "5"],
           "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
-          "`python -c \"import labcli.engine, labcli.store, labcli.models.takuma\"`", p_demo, json=True),
+          "`python -c \"import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma\"`", p_demo, json=True),
 ]
 FULL_ARGS = {"models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"], "demo": ["--seeds", "1-3"]}
 

@@ -1,0 +1,360 @@
+"""The rig on the other end of a serial link, spoken to in the wire protocol.
+
+``Device.open`` takes a port name (``/dev/ttyUSB0``, ``COM3``) or any pyserial
+URL, ``sim://`` included, and does the handshake: flush, ``ID?`` until the
+firmware answers (a board reset by opening the port needs a moment), channel
+names learnt from the reply.  Every failure a person can act on becomes one
+typed :class:`~labcli.errors.DeviceError` naming the port and what to check.
+
+    with Device.open("sim://?seed=1", timeout=2.0) as dev:
+        dev.set_rate(200)
+        dev.start()
+        batch = dev.read(timeout=1.0)     # FrameBatch of raw counts
+        dev.stop()
+"""
+
+from __future__ import annotations
+
+import errno
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import serial
+
+from ..errors import DeviceDisconnected, DeviceError, DeviceNotFound, DeviceTimeout
+from .sim import register as register_url_handlers
+from .wire import FrameBatch, StreamReader, format_command
+
+try:  # absent on Windows
+    from termios import error as _TermiosError
+except ImportError:  # pragma: no cover
+    class _TermiosError(Exception):  # type: ignore[no-redef]
+        pass
+
+POLL_S = 0.05  # port read timeout: how often a waiting read looks at its deadline
+ID_RETRY_S = 0.5  # a board still booting ignores commands; ask again this often
+DEFAULT_BOOT_WAIT_S = 2.0  # DTR reset of an Arduino-class board on open: 1-3 s
+
+
+@dataclass(frozen=True)
+class DeviceInfo:
+    device: str
+    firmware: str
+    channels: tuple[str, ...]
+    port: str
+
+
+def _open_error(port: str, exc: BaseException) -> DeviceNotFound:
+    text = str(exc)
+    code = getattr(exc, "errno", None)
+    if "://" in port and ("not known" in text or "invalid URL" in text):
+        scheme = port.split("://", 1)[0]
+        return DeviceNotFound(
+            f"Cannot open serial port {port}: unknown URL scheme '{scheme}://'. "
+            "Use a port name such as /dev/ttyUSB0 or COM3, or sim:// for the simulated rig."
+        )
+    if "://" in port:
+        detail = text.rstrip(".")
+        return DeviceNotFound(f"Cannot open serial port {port}: {detail}. Check the URL's options.")
+    if code == errno.ENOENT or "No such file" in text or "FileNotFoundError" in text or "cannot find" in text:
+        return DeviceNotFound(
+            f"Cannot open serial port {port}: no such device. Check the cable and run `labcli ports` to list ports."
+        )
+    if code in (errno.EACCES, errno.EPERM) or "Permission denied" in text or "Access is denied" in text:
+        return DeviceNotFound(
+            f"Cannot open serial port {port}: permission denied. Add your user to the group that owns "
+            "the port (dialout on most Linux systems) and log in again."
+        )
+    if code == errno.EBUSY or "exclusively lock" in text or "busy" in text.lower():
+        return DeviceNotFound(
+            f"Cannot open serial port {port}: it is in use by another program. "
+            "Close that program (a serial monitor, another labcli) and try again."
+        )
+    return DeviceNotFound(
+        f"Cannot open serial port {port}: {text.rstrip('.')}. Check the cable and run `labcli ports` to list ports."
+    )
+
+
+class Device:
+    """An open rig.  Use :meth:`open`; the constructor takes an already open serial object."""
+
+    def __init__(self, ser: Any, port: str, *, timeout: float = 2.0, baudrate: int = 115200,
+                 name: str | None = None) -> None:
+        self._serial = ser
+        self.port = port
+        self.name = port if name is None else name  # how messages speak of the port
+        self.timeout = float(timeout)
+        self.baudrate = baudrate
+        self._reader = StreamReader(ser)
+        self._backlog: list[FrameBatch] = []
+        self._streaming = False
+        self._last_frame = time.monotonic()
+        self.info: DeviceInfo | None = None
+        self._other_reply: str | None = None  # last non-ID answer during the handshake
+
+    # -- opening ---------------------------------------------------------------
+
+    @classmethod
+    def open(
+        cls,
+        port: str,
+        *,
+        baudrate: int = 115200,
+        timeout: float = 2.0,
+        boot_wait: float | None = None,
+        name: str | None = None,
+    ) -> "Device":
+        """Open ``port`` and do the handshake.
+
+        ``timeout`` bounds every wait for an answer and the silence tolerated
+        while streaming; ``boot_wait`` is added to the first ``ID?`` wait for a
+        board that resets when the port opens (default 2 s for serial ports,
+        0 for URLs such as ``sim://``); ``name`` is how error messages speak of
+        the port (default ``port``), for a caller that opens a variant of what
+        the user typed.
+        """
+        register_url_handlers()
+        is_url = "://" in port
+        if boot_wait is None:
+            boot_wait = 0.0 if is_url else DEFAULT_BOOT_WAIT_S
+        kwargs: dict[str, Any] = {"baudrate": baudrate, "timeout": POLL_S, "write_timeout": timeout}
+        if not is_url:
+            kwargs["exclusive"] = True  # a second program on the port would steal half the lines
+        try:
+            ser = serial.serial_for_url(port, **kwargs)
+        except (serial.SerialException, ValueError, OSError, _TermiosError) as exc:
+            raise _open_error(port if name is None else name, exc) from None
+        dev = cls(ser, port, timeout=timeout, baudrate=baudrate, name=name)
+        try:
+            dev._handshake(timeout + boot_wait)
+        except BaseException:
+            dev._close_port()
+            raise
+        return dev
+
+    def _handshake(self, wait: float) -> None:
+        self._io(self._serial.reset_input_buffer)
+        self._reader.clear()
+        deadline = time.monotonic() + wait
+        reply = None
+        self._other_reply = None
+        while reply is None:
+            self._reader.replies.clear()
+            self._write(format_command("ID?"))
+            retry_at = min(deadline, time.monotonic() + ID_RETRY_S)
+            while reply is None and time.monotonic() < retry_at:
+                self._pump(retry_at - time.monotonic())
+                while self._reader.replies:
+                    text = self._reader.replies.popleft()
+                    if text.startswith("ID,"):
+                        reply = text
+                        break
+                    self._other_reply = text
+            if reply is None and time.monotonic() >= deadline:
+                self._handshake_failed(wait)
+        fields = reply.split(",")
+        if len(fields) < 4 or not all(f.strip() for f in fields[3:]):
+            raise DeviceError(
+                f"The device on {self.name} sent an ID line without channel names ({reply!r}). "
+                "Check that its firmware answers ID? with ID,<device>,<firmware>,<ch1>,...,<chN>."
+            )
+        channels = tuple(f.strip() for f in fields[3:])
+        self.info = DeviceInfo(fields[1].strip(), fields[2].strip(), channels, self.port)
+        logs = self._reader.logs
+        self._reader = StreamReader(self._serial, n_channels=len(channels))
+        self._reader.logs.extend(logs)
+        # A board left streaming by an earlier session must be quiet before commands get clean
+        # replies; STOP on an idle board is answered too, so always send it.
+        # (A firmware that answers ERR when idle is in a known state as well.)
+        self._command("STOP", expect="OK STOP", accept_err=True)
+        self._backlog.clear()
+        self._reader.reset_counters()
+
+    def _handshake_failed(self, wait: float) -> None:
+        reader = self._reader
+        if reader.noise or self._other_reply is not None:
+            if self._other_reply is not None:
+                shown = self._other_reply
+            else:
+                shown = reader.noise[-1][1].decode("ascii", "replace")
+            raise DeviceError(
+                f"The device on {self.name} answered {shown!r}, which is not the labcli wire protocol. "
+                f"Check the baud rate ({self.baudrate}) and that the firmware speaks wire protocol version 1."
+            )
+        raise DeviceTimeout(
+            f"No answer to ID? from {self.name} within {wait:g} s. Check that the rig is powered and "
+            f"that its firmware speaks the labcli wire protocol at {self.baudrate} baud."
+        )
+
+    # -- properties ------------------------------------------------------------
+
+    @property
+    def rig(self) -> Any:
+        """The simulated rig behind a ``sim://`` port (operator hooks, truth), else None."""
+        return getattr(self._serial, "rig", None)
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """Link statistics since the last :meth:`start` (see ``StreamReader``), ``stalls`` included."""
+        return {**self._reader.counters, "stalls": self._reader.stalls}
+
+    @property
+    def stalls(self) -> int:
+        """Stalls since the last :meth:`start`: frame gaps longer in device time than the
+        rate's period by more than ``StreamReader.stall_us`` (counted once :meth:`set_rate` was called)."""
+        return self._reader.stalls
+
+    @property
+    def stalled_s(self) -> float:
+        """Device time lost to those stalls, s."""
+        return self._reader.stalled_s
+
+    @property
+    def logs(self) -> list[str]:
+        return list(self._reader.logs)
+
+    @property
+    def streaming(self) -> bool:
+        return self._streaming
+
+    @property
+    def serial(self) -> Any:
+        return self._serial
+
+    # -- commands --------------------------------------------------------------
+
+    def set_rate(self, hz: float) -> float:
+        """Ask for ``hz`` frames per second; returns the rate the firmware actually set."""
+        arg = int(hz) if float(hz).is_integer() else hz
+        reply = self._command(f"RATE {arg}", expect="OK RATE")
+        try:
+            actual = float(reply.split()[2])
+        except (IndexError, ValueError):
+            raise DeviceError(
+                f"The device on {self.name} answered {reply!r} to RATE {arg}, expected 'OK RATE <hz>'. "
+                "Check that the firmware speaks wire protocol version 1."
+            ) from None
+        self._reader.set_rate(actual if actual > 0 else None)
+        return actual
+
+    def start(self) -> None:
+        """Start streaming; counters and the sequence check start afresh."""
+        self._reader.reset_sequence()
+        self._reader.reset_counters()
+        self._backlog.clear()
+        self._command("START", expect="OK START")
+        self._streaming = True
+        self._last_frame = time.monotonic()
+
+    def stop(self) -> FrameBatch:
+        """Stop streaming; returns the frames not yet read, those in flight before ``OK STOP`` included."""
+        try:
+            self._command("STOP", expect="OK STOP")
+        finally:
+            self._streaming = False
+        batch = FrameBatch.concat(self._backlog, len(self.info.channels) if self.info else 0)
+        self._backlog.clear()
+        return batch
+
+    def read(self, timeout: float = 1.0) -> FrameBatch:
+        """Frames received so far, waiting up to ``timeout`` s for the first.
+
+        Raises DeviceTimeout when streaming and no frame came for the open
+        ``timeout``; DeviceDisconnected when the port went away.
+        """
+        k = len(self.info.channels) if self.info else 0
+        if self._backlog:
+            batch = FrameBatch.concat(self._backlog, k)
+            self._backlog.clear()
+            return batch
+        deadline = time.monotonic() + timeout
+        while True:
+            batch = self._pump(max(0.0, deadline - time.monotonic()))
+            now = time.monotonic()
+            if len(batch):
+                self._last_frame = now
+                return batch
+            if self._streaming and now - self._last_frame > self.timeout:
+                raise DeviceTimeout(
+                    f"No data from {self.name} for {self.timeout:g} s while streaming. "
+                    "Check the cable and that the rig is powered."
+                )
+            if now >= deadline:
+                return batch
+
+    def _command(self, command: str, *, expect: str, accept_err: bool = False) -> str:
+        self._reader.replies.clear()
+        self._write(format_command(command))
+        deadline = time.monotonic() + self.timeout
+        while True:
+            while self._reader.replies:
+                text = self._reader.replies.popleft()
+                if text == expect or text.startswith(expect + " "):
+                    return text
+                if text.startswith("ERR"):
+                    if accept_err:
+                        return text
+                    raise DeviceError(
+                        f"The device on {self.name} refused {command}: {text!r}. "
+                        "Check the values its firmware accepts for that command."
+                    )
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise DeviceTimeout(
+                    f"No answer to {command} from {self.name} within {self.timeout:g} s. "
+                    "Check that the rig is still powered and connected."
+                )
+            batch = self._pump(min(remaining, 0.2))
+            if len(batch):
+                self._backlog.append(batch)  # frames around a command are kept, never dropped
+
+    # -- port I/O --------------------------------------------------------------
+
+    def _pump(self, timeout: float) -> FrameBatch:
+        return self._io(self._reader.read, timeout)
+
+    def _write(self, data: bytes) -> None:
+        self._io(self._serial.write, data)
+        self._io(self._serial.flush)
+
+    def _io(self, fn, *args):
+        try:
+            return fn(*args)
+        except serial.SerialTimeoutException:
+            raise DeviceTimeout(
+                f"Writing to {self.name} did not finish within {self.timeout:g} s. "
+                "Check that the rig is powered and not blocked (hardware flow control)."
+            ) from None
+        except (serial.SerialException, OSError, _TermiosError) as exc:
+            self._streaming = False
+            raise DeviceDisconnected(
+                f"Lost the connection to {self.name}: the device was disconnected. "
+                "Check the cable and USB power, then run the command again."
+            ) from exc
+
+    # -- closing ---------------------------------------------------------------
+
+    def close(self) -> None:
+        """Stop the stream if running (best effort) and release the port."""
+        if self._streaming:
+            try:
+                self.stop()
+            except DeviceError:
+                pass
+        self._close_port()
+
+    def _close_port(self) -> None:
+        try:
+            self._serial.close()
+        except (serial.SerialException, OSError, _TermiosError):
+            pass
+
+    def __enter__(self) -> "Device":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"Device({self.port!r}, info={self.info!r})"

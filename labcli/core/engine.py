@@ -1,0 +1,816 @@
+"""The run engine: executes a session's steps against a device, a run file and a UI.
+
+:mod:`labcli.experiments.takuma2014.session` says *what* happens in a run; this module does it:
+it reads frames from the :class:`~labcli.core.device.Device`, converts them with the
+protocol's calibration, judges equilibrium (:mod:`labcli.core.settle`), writes
+finished trials to the :class:`~labcli.core.store.RunFile` and talks to the
+experimenter through a UI (:mod:`labcli.core.ui`).
+
+Timing is device time (the frames' ``t_us``, unwrapped), so a simulated rig in
+virtual time runs a whole protocol in seconds.  Only the "rig silent" check
+uses the wall clock, because a silent rig has no clock to read.
+
+Nothing is written to the run file except by a ``Commit`` step, and a commit
+writes one whole trial; an unplugged rig, a quit or Ctrl-C therefore discard
+only the trial in progress.  An attended run whose rig is lost asks the
+experimenter to reconnect it, opens the same port again and starts the session
+afresh (setup check, air supply, then the interrupted trial from its
+baseline); an unattended one ends with the command that resumes it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import math
+import shlex
+import signal
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Generator, Iterator
+
+import numpy as np
+
+from ..errors import ConfigError, DeviceDisconnected, DeviceError, DeviceTimeout, StoreError
+from ..experiments.takuma2014.session import (
+    AskLoad,
+    AskObject,
+    AskPush,
+    Baseline,
+    BeginTrial,
+    Capture,
+    CloseValves,
+    Commit,
+    Finish,
+    HangWeight,
+    Prompt,
+    PushObject,
+    ReleaseObject,
+    RemoveWeight,
+    Review,
+    SettleReport,
+    SetupCheck,
+    SupplyAir,
+    WaitSettle,
+    Window,
+)
+from .settle import SettleCriteria, SettleDetector, TimeUnwrapper
+from .ui import QuitRequested
+
+
+def utc_now() -> str:
+    return dt.datetime.now(dt.timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+
+
+SILENT_S = 5.0  # wall-clock seconds without a frame before the rig counts as silent
+SETUP_S = 0.5  # device seconds of readings for the setup check
+LOW_SUPPLY_MPA = 0.02  # a supplied actuator below this has no air
+PRESSURE_MARGIN_MPA = 0.02  # sensor noise and offset allowed outside the 0-1 MPa span
+
+
+@dataclass
+class Outcome:
+    """How a session ended; ``message`` is the sentence to print."""
+
+    status: str  # "finished" | "quit" | "interrupted"
+    message: str
+    stored: int  # trials committed by this session
+    complete: int  # trials complete in the file
+    skipped: tuple[int, ...] = ()
+    wall_s: float = 0.0
+
+    @property
+    def exit_code(self) -> int:
+        return {"finished": 0, "quit": 0, "interrupted": 130}[self.status]
+
+
+class RunEngine:
+    """Drive one session to its end.
+
+    ``device``: an open :class:`labcli.core.device.Device`; ``store``: a writable
+    :class:`labcli.core.store.RunFile`; ``ui``: :class:`labcli.core.ui.RichUI` or
+    :class:`labcli.core.ui.UnattendedUI`; ``resume_command``: the exact command line
+    that continues this run, quoted in every "how to resume" sentence.
+    Subscribers (``subscribe``) see every step and its reply, for logging and tests.
+    """
+
+    def __init__(
+        self,
+        device: Any,
+        store: Any,
+        protocol: Any,
+        ui: Any,
+        *,
+        run_path: str | Path,
+        resume_command: str,
+        rate_hz: float | None = None,
+        silent_s: float = SILENT_S,
+    ) -> None:
+        self.device = device
+        # A callable store is created on first use, so a session that fails its
+        # setup check leaves no run file behind.
+        self._store = None if callable(store) else store
+        self._store_factory = store if callable(store) else None
+        self.protocol = protocol
+        self.ui = ui
+        self.run_path = str(run_path)
+        self.resume_command = resume_command
+        self.rate_hz = rate_hz
+        self.silent_s = silent_s
+        self.criteria = SettleCriteria.from_settling(protocol.settling)
+        kind = getattr(protocol, "kind", "force")
+        self._noun = "push" if kind == "push" else "point" if kind.startswith("rpam-") else "trial"
+        units = tuple(protocol.calibration.units)
+        self._pcols = [i for i, u in enumerate(units) if u == "MPa"]
+        self._acols = [i for i, u in enumerate(units) if u == "rad"]
+        # Length channels (the rPAM stand's draw-wire sensor) settle only under a protocol
+        # that gives their limit; McKibben protocols have none.
+        self._length_spread_m = getattr(protocol, "length_spread_m", None)
+        self._lcols = [i for i, u in enumerate(units) if u == "m"] if self._length_spread_m else []
+        self._subscribers: list[Callable[[Any, Any], None]] = []
+        self._streaming = False
+        self._unwrap = TimeUnwrapper()
+        self._pending: Window | None = None
+        self._trial: BeginTrial | None = None  # the trial in progress (None between trials)
+        self._trials_begun = False
+        self._finished = False
+        self._skipped: list[int] = []
+        self._stored = 0
+        self._t_start = 0.0
+        self._trial_walls: list[float] = []
+        self._trial_wall_start = 0.0
+        self._trial_started = ""
+
+    @property
+    def store(self) -> Any:
+        if self._store is None:
+            self._store = self._store_factory()
+        return self._store
+
+    @property
+    def store_created(self) -> bool:
+        return self._store is not None
+
+    def subscribe(self, callback: Callable[[Any, Any], None]) -> None:
+        """Call ``callback(step, reply)`` after every executed step."""
+        self._subscribers.append(callback)
+
+    # ------------------------------------------------------------------ main loop
+    def run(
+        self,
+        session: Generator[Any, Any, None],
+        *,
+        restart: Callable[[tuple[int, ...]], Generator[Any, Any, None]] | None = None,
+        reopen: Callable[[], Any] | None = None,
+    ) -> Outcome:
+        """Execute ``session`` to its end and say how it ended.
+
+        With ``reopen`` (opens the same port again, returns a Device) and
+        ``restart`` (a new session given the ids already stored or skipped), an
+        attended run survives a lost rig: the experimenter is asked to reconnect
+        it, and the new session redoes the setup and the interrupted trial from
+        its baseline.  Without them, or unattended, a lost rig ends the run with
+        a DeviceError whose sentence gives the resume command.
+        """
+        if self.ui.unattended and getattr(self.device, "rig", None) is None:
+            raise ConfigError(
+                f"--unattended drives the simulated rig only, and {self._port()} is a real port: "
+                "run without --unattended and follow the prompts."
+            )
+        self._t_start = time.monotonic()
+        while True:
+            try:
+                return self._drive(session)
+            except (DeviceDisconnected, DeviceTimeout) as e:
+                lost = e
+            wait = restart is not None and reopen is not None and not self.ui.unattended
+            try:
+                back = wait and self._wait_for_rig(lost, reopen)
+            except KeyboardInterrupt:
+                return self._outcome("interrupted", ())
+            if not back:
+                raise type(lost)(self._lost_rig_message(lost)) from lost
+            session = restart(tuple(self._done_ids()))
+
+    def _drive(self, session: Generator[Any, Any, None]) -> Outcome:
+        reply: Any = None
+        try:
+            while True:
+                try:
+                    step = session.send(reply)
+                except StopIteration:
+                    return self._outcome("finished", tuple(self._skipped))
+                reply = self._execute(step)
+                for cb in self._subscribers:
+                    cb(step, reply)
+                if isinstance(step, Review) and reply == "skip" and self._trial is not None:
+                    self._skipped.append(self._trial.trial)
+                    self._trial = None
+                if isinstance(step, Finish):
+                    session.close()
+                    return self._outcome("finished", tuple(dict.fromkeys([*self._skipped, *step.skipped])))
+        except QuitRequested:
+            session.close()
+            self._stop_quietly()
+            return self._outcome("quit", ())
+        except KeyboardInterrupt:
+            session.close()
+            self._stop_quietly()
+            if self._finished:  # Ctrl-C after the last step: the run is complete
+                return self._outcome("finished", tuple(dict.fromkeys(self._skipped)))
+            return self._outcome("interrupted", ())
+        except (DeviceDisconnected, DeviceTimeout):
+            session.close()
+            self._stop_quietly()
+            raise
+
+    def _done_ids(self) -> list[int]:
+        stored = list(self._store.completed_ids()) if self._store is not None else []
+        return stored + [t for t in self._skipped if t not in stored]
+
+    def _wait_for_rig(self, e: Exception, reopen: Callable[[], Any]) -> bool:
+        """Ask for the lost rig until it opens again (True) or the experimenter stops (False)."""
+        port = self._port()
+        what = "stopped sending data" if isinstance(e, DeviceTimeout) else "was disconnected"
+        if self._trial is not None:
+            then = (f"during {self._current()}, which was not stored; it will be redone from its baseline "
+                    "once the rig is back")
+        else:
+            then = f"during {self._current()}; the setup will be redone once the rig is back"
+        self.ui.warn(f"The rig on {port} {what} {then}.")
+        with contextlib.suppress(Exception):
+            self.device.close()
+        while True:
+            try:
+                self.ui.prompt(Prompt(f"Rig lost on {port}; reconnect it and press Enter to retry"))
+            except QuitRequested:
+                return False
+            try:
+                device = reopen()
+            except DeviceError as err:
+                self.ui.warn(str(err))
+                continue
+            self.device = device
+            self._streaming = False
+            self._pending = None
+            self._trial = None
+            self._trials_begun = False  # the new session starts with the setup
+            return True
+
+    # ------------------------------------------------------------------ messages
+    def _port(self) -> str:
+        info = getattr(self.device, "info", None)
+        return getattr(info, "port", None) or "the port"
+
+    def _complete(self) -> int:
+        if self._store is None:
+            return 0
+        return len(list(self._store.completed_ids()))
+
+    def _current(self) -> str:
+        if self._trial is not None:
+            return f"{self._noun} {self._trial.trial}"
+        if self._trials_begun:
+            return f"the pause between {_plural(self._noun)}"
+        return "the setup"
+
+    def _lost_rig_message(self, e: Exception) -> str:
+        what = "stopped sending data" if isinstance(e, DeviceTimeout) else "was disconnected"
+        if not self.store_created:
+            return (
+                f"The rig on {self._port()} {what} during the setup, before anything was written to "
+                f"{self.run_path}. Check the cable and power, then run the same command again."
+            )
+        n = self._complete()
+        lost = f"that {self._noun} was not stored and " if self._trial is not None else ""
+        return (
+            f"The rig on {self._port()} {what} during {self._current()}; {lost}"
+            f"the {_count(n, 'completed ' + self._noun)} in {self.run_path} {'is' if n == 1 else 'are'} unchanged. "
+            f"Check the cable and power, then resume with: {self.resume_command}"
+        )
+
+    def _outcome(self, status: str, skipped: tuple[int, ...]) -> Outcome:
+        complete = self._complete()
+        wall = time.monotonic() - self._t_start
+        stored = _count(complete, self._noun)
+        if status == "finished":
+            msg = (f"Session complete: {stored} stored in {self.run_path} "
+                   f"({self._stored} this session, {wall:.1f} s).")
+            if skipped:
+                msg += (
+                    f" Skipped {_count(len(skipped), self._noun)} ({', '.join(map(str, skipped))}) "
+                    f"not stored; record {'it' if len(skipped) == 1 else 'them'} with: {self.resume_command}"
+                )
+        elif status == "quit":
+            msg = (
+                f"Stopped at your request during {self._current()}, which was not stored; "
+                f"{stored} stored in {self.run_path}. Resume with: {self.resume_command}"
+            )
+        elif not self.store_created:
+            msg = (
+                f"Interrupted during the setup, before anything was written to {self.run_path}; "
+                "run the same command again to start the run."
+            )
+        else:
+            what = ", which was discarded" if self._trial is not None else ""
+            msg = (
+                f"Interrupted during {self._current()}{what}; {stored} stored in "
+                f"{self.run_path} {'is' if complete == 1 else 'are'} safe. Resume with: {self.resume_command}"
+            )
+        return Outcome(status, msg, self._stored, complete, tuple(skipped), wall)
+
+    # ------------------------------------------------------------------ streaming
+    def _start(self) -> None:
+        if not self._streaming:
+            self.device.start()
+            self._streaming = True
+            self._unwrap = TimeUnwrapper()
+            self._pending = None
+
+    def _stop(self) -> None:
+        if self._streaming:
+            self._streaming = False
+            self._pending = None
+            self.device.stop()
+
+    def _stop_quietly(self) -> None:
+        with contextlib.suppress(Exception):
+            self._stop()
+
+    def _next_batch(self) -> Window:
+        """The next frames as a Window; pending frames first.  Raises if the rig goes silent."""
+        if self._pending is not None and len(self._pending):
+            w, self._pending = self._pending, None
+            return w
+        # The device raises DeviceTimeout itself after its own silence limit;
+        # this wall-clock deadline is the backstop for a device that does not.
+        deadline = time.monotonic() + self.silent_s
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise DeviceTimeout(f"no data for {self.silent_s:g} s")
+            batch = self.device.read(timeout=min(remaining, 1.0))
+            if len(batch):
+                counts = np.asarray(batch.values, dtype=float)
+                return Window(
+                    seq=np.asarray(batch.seq, dtype=np.int64),
+                    t_us=np.asarray(batch.t_us, dtype=np.int64),
+                    counts=counts,
+                    si=np.asarray(self.protocol.calibration.to_si(counts), dtype=float),
+                    t_s=self._unwrap(batch.t_us),
+                )
+
+    def _collect(self, duration_s: float) -> Window:
+        """Frames covering ``duration_s`` of device time from the next frame on."""
+        parts: list[Window] = []
+        t0: float | None = None
+        while True:
+            w = self._next_batch()
+            if t0 is None:
+                t0 = float(w.t_s[0])
+            n = int(np.searchsorted(w.t_s, t0 + duration_s, side="left"))
+            if n < len(w):
+                parts.append(_slice(w, 0, n))
+                self._pending = _slice(w, n, len(w))
+                break
+            parts.append(w)
+        return _concat(parts)
+
+    # ------------------------------------------------------------------ steps
+    def _execute(self, step: Any) -> Any:
+        if isinstance(step, (Prompt, AskLoad, AskObject, AskPush, Review)):
+            self._stop()
+        if isinstance(step, SetupCheck):
+            self._setup_check()
+            with _sigint_deferred():  # Ctrl-C during the creation: the file exists whole, or not at all
+                self.store  # the run file exists from here on, so every resume hint works
+            return None
+        if isinstance(step, Prompt):
+            self.ui.prompt(step)
+            if getattr(self.device, "rig", None) is not None:
+                # The simulated rig has no one standing at it: it does what the
+                # prompt asked once the prompt is answered.
+                self._act(step.action)
+            return None
+        if isinstance(step, AskLoad):
+            return self.ui.ask_load(step)
+        if isinstance(step, AskObject):
+            return self.ui.ask_object(step, simulated=getattr(self.device, "rig", None) is not None)
+        if isinstance(step, AskPush):
+            return self.ui.ask_push(step)
+        if isinstance(step, BeginTrial):
+            return self._begin(step)
+        if isinstance(step, WaitSettle):
+            return self._wait_settle(step.label)
+        if isinstance(step, (Baseline, Capture)):
+            self._start()
+            return self._collect(step.capture_s)
+        if isinstance(step, Review):
+            return self.ui.review(step.row)
+        if isinstance(step, Commit):
+            record = dict(step.record)
+            record.setdefault("started", self._trial_started)
+            with _sigint_deferred():
+                if "push" in record:
+                    self.store.write_push(record)
+                elif "point" in record:
+                    self.store.write_point(record)
+                else:
+                    self.store.write_trial(record)
+                # Inside the deferral, so a Ctrl-C held during the write finds the trial stored.
+                self._stored += 1
+                self._trial_walls.append(time.monotonic() - self._trial_wall_start)
+                self._trial = None
+            return None
+        if isinstance(step, Finish):
+            return self._finish(step)
+        raise TypeError(f"unknown step {step!r}")
+
+    def _act(self, action: Any) -> None:
+        if action is None:
+            return
+        try:
+            self._apply(action)
+        except ValueError as e:
+            raise ConfigError(f"The simulated rig cannot do {action}: {str(e).rstrip('.')}.") from None
+
+    def _apply(self, action: Any) -> None:
+        rig = self.device.rig
+        if isinstance(action, SupplyAir):
+            rig.supply_air()
+        elif isinstance(action, CloseValves):
+            rig.close_valves()
+        elif isinstance(action, HangWeight):
+            rig.hang_weight(action.mass_kg, action.direction_rad)
+        elif isinstance(action, RemoveWeight):
+            rig.remove_weight()
+        elif isinstance(action, PushObject):
+            # A direction unknown to the experimenter is still some direction for the
+            # simulated rig: it pushes along the normal (phi = 0) then.
+            phi = 0.0 if action.phi_rad is None else action.phi_rad
+            rig.push_object(action.radius_m, action.distance_m, phi, action.stiffness_N_per_m)
+        elif isinstance(action, ReleaseObject):
+            rig.release_object()
+        elif hasattr(action, "act_on"):  # the rPAM stand's actions (labcli.experiments.rpam2015.session)
+            action.act_on(rig)
+
+    def _begin(self, step: BeginTrial) -> None:
+        self._trial = step
+        self._trials_begun = True
+        self._trial_wall_start = time.monotonic()
+        self._trial_started = utc_now()
+        elapsed = time.monotonic() - self._t_start
+        remaining = None
+        if self._trial_walls:
+            per = sum(self._trial_walls) / len(self._trial_walls)
+            remaining = per * (step.total - step.index + 1)
+        self.ui.begin_trial(step, self._stored, elapsed, remaining)
+
+    def _wait_settle(self, label: str) -> SettleReport | str:
+        self._start()
+        detector = SettleDetector(self.criteria, self._pcols, self._acols, self._lcols, self._length_spread_m)
+        while True:
+            # The live status line is closed before any question is asked.
+            with self.ui.settling(label, self.criteria) as show:
+                while True:
+                    w = self._next_batch()
+                    status = detector.update(w.t_s, w.si)
+                    show(status)
+                    if detector.consumed < len(w):
+                        # Frames after the decision belong to what follows (capture, or more waiting).
+                        self._pending = _slice(w, detector.consumed, len(w))
+                    if status.settled or status.timed_out:
+                        break
+            if status.settled:
+                report = SettleReport(
+                    True, status.settle_time_s, status.elapsed_s, status.pressure_spread_MPa,
+                    status.angle_spread_rad, self.criteria.describe(),
+                )
+                break
+            choice = self.ui.settle_timeout(label, status, self.criteria)
+            if choice == "wait":
+                detector.extend_timeout()
+                continue
+            if choice == "redo":
+                return "redo"
+            report = SettleReport(
+                False, status.elapsed_s, status.elapsed_s, status.pressure_spread_MPa,
+                status.angle_spread_rad, self.criteria.describe() + " (timed out, accepted)",
+            )
+            break
+        self.ui.settled(label, report)
+        if label == "air supply":
+            p = w.si[:, self._pcols].mean(axis=0)
+            if p.min() < LOW_SUPPLY_MPA:
+                names = [self.protocol.channels[i] for i in self._pcols]
+                low = ", ".join(f"{n} {v:.3f} MPa" for n, v in zip(names, p) if v < LOW_SUPPLY_MPA)
+                self.ui.warn(f"after the air supply {low}: check the compressor and that the valves are open")
+        return report
+
+    def _finish(self, step: Finish) -> None:
+        self._stop()
+        with _sigint_deferred():  # a Ctrl-C now finds the split whole and the run finished
+            if step.split:
+                # Only stored trials join (a session restarted after a lost rig counts skips as done).
+                stored = set(self.store.completed_ids())
+                fit = sorted(t for t, s in step.split.items() if s == "fit" and t in stored)
+                val = sorted(t for t, s in step.split.items() if s == "validation" and t in stored)
+                self.store.set_split(fit, val, "plan")
+            self._finished = True
+
+    # ------------------------------------------------------------------ setup
+    def _setup_check(self) -> None:
+        info = self.device.info
+        spec = getattr(self.protocol, "device", None)
+        if spec is not None and not spec.matches(info.device):
+            raise DeviceError(
+                f"The device on {info.port} is '{info.device}', but protocol {self.protocol.name} is for "
+                f"'{spec.name}': connect that rig, or pass the matching --protocol."
+            )
+        want = tuple(self.protocol.channels)
+        have = tuple(info.channels)
+        if have != want:
+            raise DeviceError(
+                f"The rig on {info.port} reports channels {','.join(have)} but protocol "
+                f"{self.protocol.name} expects {','.join(want)}: check the firmware, or pass the "
+                "matching --protocol."
+            )
+        rate = self.rate_hz or float(self.protocol.rate_hz)
+        got = self.device.set_rate(rate)
+        if got and abs(float(got) - rate) > 1e-6 * rate:
+            self.ui.warn(f"the rig runs at {float(got):g} Hz, not the requested {rate:g} Hz")
+        self._start()
+        window = self._collect(SETUP_S)
+        self._stop()
+        problems = self._check_readings(window)
+        if problems:
+            raise DeviceError(
+                f"The readings from {info.port} are not plausible: " + "; ".join(problems) + "."
+            )
+        self.ui.info(
+            f"Rig {info.device} (firmware {info.firmware}) on {info.port}: channels "
+            f"{','.join(have)} match protocol {self.protocol.name}; readings in range."
+        )
+
+    def _check_readings(self, window: Window) -> list[str]:
+        names = list(self.protocol.channels)
+        ranges = self.protocol.calibration.ranges
+        lo = window.si.min(axis=0)
+        hi = window.si.max(axis=0)
+        problems = []
+        for i in self._pcols:
+            a, b = ranges[i]
+            if lo[i] < a - PRESSURE_MARGIN_MPA or hi[i] > b + PRESSURE_MARGIN_MPA:
+                problems.append(
+                    f"{names[i]} reads {lo[i]:.3f} to {hi[i]:.3f} MPa, outside the sensor span {a:g} to {b:g} MPa "
+                    "(check that sensor's cable and supply)"
+                )
+        for i in self._acols:
+            a, b = ranges[i]
+            if lo[i] < a or hi[i] > b:
+                problems.append(
+                    f"{names[i]} reads {math.degrees(lo[i]):.1f} to {math.degrees(hi[i]):.1f} deg, outside the "
+                    f"plausible {math.degrees(a):.0f} to {math.degrees(b):.0f} deg (check the potentiometer's "
+                    "wiring and centring)"
+                )
+        return problems
+
+
+def _plural(noun: str) -> str:
+    return noun + ("es" if noun.endswith(("sh", "ch", "s")) else "s")
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" if n == 1 else f"{n} {_plural(noun)}"
+
+
+def _slice(w: Window, a: int, b: int) -> Window:
+    return Window(w.seq[a:b], w.t_us[a:b], w.counts[a:b], w.si[a:b], w.t_s[a:b])
+
+
+def _concat(parts: list[Window]) -> Window:
+    if len(parts) == 1:
+        return parts[0]
+    return Window(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("seq", "t_us", "counts", "si", "t_s")))
+
+
+@contextlib.contextmanager
+def _sigint_deferred() -> Iterator[None]:
+    """Hold Ctrl-C until a trial is written whole (the store's write is not interruptible)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[Any] = []
+    previous = signal.signal(signal.SIGINT, lambda *a: caught.append(a))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if caught:
+            raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """Ignore Ctrl-C while a finished session closes its files."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+# ---------------------------------------------------------------------- the whole command
+
+
+def resume_command(path: str, port: str, *, unattended: bool = False, rate_hz: float | None = None) -> str:
+    """The exact command line that continues a run."""
+    cmd = f"labcli acquire {shlex.quote(str(path))} --port {shlex.quote(port)} --resume"
+    if rate_hz:
+        cmd += f" --rate {rate_hz:g}"
+    if unattended:
+        cmd += " --unattended"
+    return cmd
+
+
+def acquire(
+    path: str | Path,
+    port: str,
+    *,
+    protocol: str | None = None,
+    plan: str | Path | None = None,
+    no_plan: bool = False,
+    operator: str = "",
+    resume: bool = False,
+    force: bool = False,
+    unattended: bool = False,
+    rate_hz: float | None = None,
+    experiment: str | None = None,
+    ui: Any = None,
+    subscribers: tuple[Callable[[Any, Any], None], ...] = (),
+    device_timeout: float = 2.0,
+    silent_s: float = SILENT_S,
+) -> Outcome:
+    """Run ``labcli acquire``: open the rig and the run file, build the session, run it.
+
+    Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the
+    person at the rig can fix; returns the :class:`Outcome` otherwise.
+    """
+    from .device import Device
+    from .protocol import load_protocol, loads_protocol
+    from ..experiments.takuma2014.session import force_session, push_session
+    from .store import RESUME_OR_FORCE, RunFile
+
+    path = str(path)
+    if resume and force:
+        raise ConfigError("--resume continues a run and --force overwrites it: give one of them, not both.")
+    if plan is not None and no_plan:
+        raise ConfigError("--plan and --no-plan contradict each other: give one of them.")
+    if resume:
+        if plan is not None or no_plan:
+            raise ConfigError(f"The plan of {path} was fixed when the run began; drop --plan/--no-plan with --resume.")
+        existing = RunFile.open(path, "a")
+        try:
+            proto = loads_protocol(existing.protocol_text, source=f"{path} (protocol)")
+            if protocol is not None and _protocol_name(protocol) != proto.name:
+                raise ConfigError(
+                    f"{path} was recorded with protocol {proto.name}, not {protocol}; drop --protocol to resume it."
+                )
+            plan_df = existing.plan_table()
+            completed = existing.completed_ids()
+            if proto.kind == "rpam" or experiment is not None:
+                from ..experiments.rpam2015.session import acquisition_protocol
+
+                proto = acquisition_protocol(proto, experiment, stored_kind=existing.kind, run_path=path)
+        except BaseException:
+            existing.close()
+            raise
+        points = getattr(proto, "points", None)
+        if points and {p.point for p in points} <= set(completed):
+            existing.close()
+            return Outcome("finished", f"All {len(points)} points of the {proto.experiment_title} are already "
+                           f"stored in {path}; nothing to resume.", 0, len(completed))
+        if plan_df is not None and len(plan_df) and existing.first_incomplete(plan_df["trial"]) is None:
+            if existing.split() is None:
+                # Stopped between the last trial and the split: finish the job.
+                sets = dict(zip(plan_df["trial"].astype(int), plan_df["set"]))
+                existing.set_split([t for t, v in sets.items() if v == "fit"],
+                                   [t for t, v in sets.items() if v == "validation"], "plan")
+            existing.close()
+            return Outcome("finished", f"All {len(plan_df)} planned trials are already stored in {path}; nothing to resume.",
+                           0, len(completed))
+        store: Any = existing
+    else:
+        if Path(path).exists() and not force:
+            raise StoreError(f"{path} already exists; {RESUME_OR_FORCE}.")
+        proto = load_protocol(protocol or "takuma2014")
+        if proto.kind == "rpam" or experiment is not None:
+            from ..experiments.rpam2015.session import acquisition_protocol
+
+            proto = acquisition_protocol(proto, experiment)
+            if plan is not None or no_plan:
+                raise ConfigError("--plan and --no-plan apply to force protocols; an rPAM experiment runs the "
+                                  "grid of its protocol's [experiments] table.")
+        completed = []
+        plan_df = None
+        if proto.kind == "force" and not no_plan:
+            if plan is not None:
+                from .tables import load_plan
+
+                lim = proto.force_limits
+                plan_df = load_plan(
+                    plan,
+                    mass_range_g=(lim.mass_min_g, lim.mass_max_g) if lim else None,
+                    direction_range_deg=(lim.direction_min_deg, lim.direction_max_deg) if lim else None,
+                )
+            else:
+                plan_df = proto.load_plan()
+        store = None
+    if proto.kind not in ("force", "push", "rpam-stretch", "rpam-joint"):
+        raise ConfigError(
+            f"labcli acquire runs force and push protocols; {proto.name} is of kind '{proto.kind}'."
+        )
+    if unattended and proto.kind == "force" and plan_df is None:
+        if resume:
+            how = "it was imported from a table" if store.attrs.get("imported") else "it was recorded with --no-plan"
+            store.close()
+            raise ConfigError(
+                f"{path} has no plan ({how}), so --unattended has nothing to follow; "
+                "resume it without --unattended and type each load."
+            )
+        raise ConfigError("--unattended needs a plan to follow: drop --no-plan, or give --plan FILE.")
+
+    try:
+        device = Device.open(port, timeout=device_timeout)
+    except BaseException:
+        if store is not None:
+            store.close()
+        raise
+    try:
+        if unattended and device.rig is None:
+            raise ConfigError(
+                f"--unattended drives the simulated rig only, and {port} is a real port: "
+                "run without --unattended and follow the prompts."
+            )
+        if store is None:
+            info = device.info
+
+            def store_factory() -> Any:
+                return RunFile.create(path, protocol=proto, device_info=info, port=port, operator=operator,
+                                      plan=plan_df, force=force)
+
+            store = store_factory
+        from .ui import RichUI, UnattendedUI
+
+        the_ui = ui or (UnattendedUI() if unattended else RichUI())
+        engine = RunEngine(
+            device, store, proto, the_ui, run_path=path,
+            resume_command=resume_command(path, port, unattended=unattended, rate_hz=rate_hz),
+            rate_hz=rate_hz, silent_s=silent_s,
+        )
+        for cb in subscribers:
+            engine.subscribe(cb)
+        objects = None
+        if proto.kind == "push" and unattended:
+            # The simulated rig's reference objects (three PET bottles, two aluminium
+            # cans, one steel can), labelled with their categories.
+            from ..experiments.takuma2014.sim.objects import demo_plan
+
+            per = proto.push.pushes_per_object if proto.push else 10
+            objects = demo_plan(pushes_per_object=per, labelled=True)
+
+        def make_session(done: Any) -> Generator[Any, Any, None]:
+            if proto.kind in ("rpam-stretch", "rpam-joint"):
+                from ..experiments.rpam2015.session import rpam_session
+
+                return rpam_session(proto, completed=done)
+            if proto.kind == "push":
+                return push_session(proto, objects, completed=done)
+            return force_session(proto, plan_df, completed=done)
+
+        try:
+            return engine.run(make_session(completed), restart=make_session,
+                              reopen=lambda: Device.open(port, timeout=device_timeout))
+        finally:
+            # The session is over (finished, quit, interrupted or the rig lost): a Ctrl-C now
+            # has nothing left to stop, and must not cut the file's close short.
+            with sigint_ignored():
+                if engine.store_created:
+                    engine.store.close()
+                if engine.device is not device:  # reopened after the rig was lost
+                    with contextlib.suppress(Exception):
+                        engine.device.close()
+    finally:
+        with contextlib.suppress(Exception):
+            device.close()
+        if store is not None and not callable(store):
+            store.close()
+
+
+def _protocol_name(arg: str) -> str:
+    return Path(arg).stem if arg.endswith(".toml") else arg

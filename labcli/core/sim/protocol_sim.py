@@ -1,0 +1,381 @@
+"""pyserial URL handler for ``sim://``: the simulated rig as a serial port.
+
+``serial.serial_for_url("sim://?seed=1&rate=200")`` (with ``labcli.core.sim``
+in ``serial.protocol_handler_packages``, see :func:`labcli.core.sim.register`)
+returns a port with the pyserial API whose other end runs the simulated
+firmware (:mod:`labcli.core.sim.firmware`) over a simulated rig.
+
+URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME][&faults=SPEC]``
+
+* ``seed`` (0): seeds the actuators, sensor offsets, noise and settling times;
+* ``rate`` (200): sample rate at power-up, Hz (1..5000; ``RATE`` changes it);
+* ``noise`` (1): scale of the sensor noise (0.5 count pressure, 0.7 count pot rms);
+* ``drift`` (0): scale of sensor zero drift and chamber leak;
+* ``clock``: ``virtual`` (default) advances device time only as the host reads,
+  so hours of protocol run in seconds: while streaming, a read never waits
+  (frames are sampled when read; ``in_waiting`` offers about 1 s of device
+  time, so an operator action between reads acts after the frames the host
+  has seen, give or take two); while idle,
+  a read short of bytes waits its timeout as on a real port and the device's
+  clock runs on by the time waited.  ``wall`` paces frames by the wall clock
+  like real hardware;
+* ``tau`` (0.7): settling time constant after each load change, s;
+* ``mode`` (mckibben): which rig model (keys of :data:`labcli.core.sim.MODELS`);
+* ``faults`` (none): a noisy link, ``KIND:RATE[@X],...`` per
+  :mod:`labcli.core.sim.faults`, e.g. ``faults=checksum:0.01,drop:0.01,stall:0.001@2.5``;
+  drawn from ``seed``.  ``port.faults`` is then the
+  :class:`~labcli.core.sim.faults.FaultInjector` holding the exact ground truth.
+
+``port.rig`` is the rig object (operator hooks for unattended runs and
+tests; not part of the wire protocol).  ``port.unplug()`` makes every later
+read and write fail as a hot-unplugged USB adapter does.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+import urllib.parse
+
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+
+from . import MODELS, make_rig
+from .faults import FAULTS_FORM, FaultInjector, FaultSpec, FaultSpecError
+from .firmware import RATE_MAX, RATE_MIN, Firmware
+
+UNPLUGGED = "device reports readiness to read but returned no data"
+BLOCK_S = 1.0  # device time offered by in_waiting while streaming (virtual clock)
+MAX_BLOCK_FRAMES = 1500
+MAX_BUFFER = 1 << 22  # bytes held for the host before new frames are dropped (wall clock)
+
+
+def accepted_form() -> str:
+    return (
+        "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
+        f"[&mode={'|'.join(MODELS)}][&faults=KIND:RATE[@X],...]"
+    )
+
+
+class SimURLError(SerialException, ValueError):
+    """A malformed ``sim://`` URL (both a SerialException and a ValueError)."""
+
+
+def _whole(text: str) -> int:
+    v = int(text)
+    if v < 0:
+        raise ValueError
+    return v
+
+
+def _nonneg(text: str) -> float:
+    v = float(text)
+    if not (math.isfinite(v) and v >= 0):
+        raise ValueError
+    return v
+
+
+def _rate(text: str) -> float:
+    v = float(text)
+    if not RATE_MIN <= v <= RATE_MAX:
+        raise ValueError
+    return v
+
+
+def _positive(text: str) -> float:
+    v = float(text)
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError
+    return v
+
+
+def _clock(text: str) -> str:
+    if text not in ("virtual", "wall"):
+        raise ValueError
+    return text
+
+
+def _mode(text: str) -> str:
+    if text not in MODELS:
+        raise ValueError
+    return text
+
+
+def _faults(text: str) -> FaultSpec | None:
+    spec = FaultSpec.parse(text)
+    return spec if spec.active else None
+
+
+# option -> (parser, default, what a valid value is)
+OPTIONS = {
+    "seed": (_whole, 0, "a whole number >= 0"),
+    "rate": (_rate, 200.0, "a number of Hz within 1..5000"),
+    "noise": (_nonneg, 1.0, "a number >= 0"),
+    "drift": (_nonneg, 0.0, "a number >= 0"),
+    "clock": (_clock, "virtual", "'virtual' or 'wall'"),
+    "tau": (_positive, 0.7, "a number of seconds > 0"),
+    "mode": (_mode, "mckibben", "one of " + ", ".join(MODELS)),
+    "faults": (_faults, None, "KIND:RATE[@X],..."),
+}
+
+
+def parse_sim_url(url: str) -> dict:
+    """Options of a ``sim://`` URL with defaults filled in; :class:`SimURLError` if malformed."""
+    parts = urllib.parse.urlsplit(url)
+    if parts.scheme != "sim":
+        raise SimURLError(f"'{url}' is not a sim:// URL; expected {accepted_form()}")
+    if parts.netloc or parts.path not in ("", "/") or parts.fragment:
+        extra = parts.netloc + parts.path + ("#" + parts.fragment if parts.fragment else "")
+        raise SimURLError(f"unexpected '{extra}' in sim:// URL; expected {accepted_form()}")
+    opts = {k: default for k, (_, default, _) in OPTIONS.items()}
+    seen = set()
+    for item in filter(None, parts.query.split("&")):
+        key, eq, raw = item.partition("=")
+        key = urllib.parse.unquote(key)
+        raw = urllib.parse.unquote(raw)
+        if key not in OPTIONS:
+            raise SimURLError(f"unknown option '{key}' in sim:// URL; expected {accepted_form()}")
+        if key in seen:
+            raise SimURLError(f"option '{key}' given twice in sim:// URL; expected {accepted_form()}")
+        seen.add(key)
+        parser, _, what = OPTIONS[key]
+        try:
+            opts[key] = parser(raw) if eq else parser("")
+        except FaultSpecError as e:
+            raise SimURLError(
+                f"option 'faults' in sim:// URL: {e.detail}; expected faults={FAULTS_FORM}"
+            ) from None
+        except ValueError:
+            raise SimURLError(
+                f"option '{key}' in sim:// URL must be {what}, got '{raw}'; expected {accepted_form()}"
+            ) from None
+    return opts
+
+
+class Serial(SerialBase):
+    """The simulated rig behind the pyserial ``Serial`` API (see module docstring)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.rig = None
+        self.firmware: Firmware | None = None
+        self.faults: FaultInjector | None = None
+        self.options: dict = {}
+        self._rx = bytearray()
+        self._cond = threading.Condition(threading.RLock())
+        self._unplugged = False
+        self._cancel = False
+        self._line_len = 46  # bytes per data line, refined as frames are made
+        self._wall0 = 0.0
+        self._pace_t0 = 0.0
+        self._pace_sent = 0
+        self.dropped_frames = 0
+        super().__init__(*args, **kwargs)
+
+    # ------------------------------------------------------------ open/close
+
+    def open(self) -> None:
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        opts = parse_sim_url(self._port)
+        # The rig is physical: reopening the port reboots the firmware, not the rig.
+        if self.rig is None or opts != self.options:
+            self.rig = make_rig(opts["mode"], seed=opts["seed"], noise=opts["noise"],
+                                drift=opts["drift"], tau_s=opts["tau"])
+        self.options = opts
+        spec = opts["faults"]
+        self.faults = None if spec is None else FaultInjector(spec, seed=opts["seed"], n_channels=len(self.rig.channels))
+        self.firmware = Firmware(self.rig, opts["rate"], faults=self.faults)
+        self._unplugged = False
+        self._wall0 = time.monotonic() - self.rig.time_s
+        self.is_open = True
+        self.reset_input_buffer()
+        self._rx += self.firmware.banner()
+
+    def close(self) -> None:
+        with self._cond:
+            self.is_open = False
+            self._cond.notify_all()
+        super().close()
+
+    def _reconfigure_port(self) -> None:
+        # A USB-serial bridge accepts any line settings; nothing to do.
+        pass
+
+    def from_url(self, url: str) -> dict:
+        return parse_sim_url(url)
+
+    # ------------------------------------------------------------ faults
+
+    def unplug(self) -> None:
+        """Simulate a hot unplug: every later read/write/in_waiting raises SerialException."""
+        with self._cond:
+            self._unplugged = True
+            self._cond.notify_all()
+
+    def _check(self) -> None:
+        if not self.is_open:
+            raise PortNotOpenError()
+        if self._unplugged:
+            raise SerialException(UNPLUGGED)
+
+    # ------------------------------------------------------------ clocks
+
+    @property
+    def _virtual(self) -> bool:
+        return self.options.get("clock", "virtual") == "virtual"
+
+    def _pump(self, want_bytes: int = 0) -> None:
+        """Append the frames that are due (wall clock) or wanted (virtual clock)."""
+        fw = self.firmware
+        if fw is None or not fw.streaming:
+            return
+        if self._virtual:
+            # Only about what the host takes is sampled, so an operator action
+            # after a read acts after the frames the host has seen (give or take
+            # the couple of frames a real USB link also holds).
+            while len(self._rx) < want_bytes:
+                n = -(-(want_bytes - len(self._rx)) // self._line_len)
+                chunk = fw.frames(max(1, min(n, 100_000)))
+                fw.take_stall()  # virtual clock: the stall is the gap the rig's clock already made
+                if chunk:
+                    self._line_len = max(20, len(chunk) // max(1, chunk.count(b"\n")))
+                self._rx += chunk
+            return
+        due = int((time.monotonic() - self._pace_t0) * fw.rate_hz) - self._pace_sent
+        if due <= 0:
+            return
+        self._pace_sent += due
+        if len(self._rx) > MAX_BUFFER:
+            # The host is not reading: the device's buffer overflows and frames are lost.
+            fw.skip(due)
+            self.dropped_frames += due
+            return
+        self._rx += fw.frames(due)
+        stall = fw.take_stall()
+        if stall is not None:
+            # The firmware hung: the frames it did not make fall due a stall later.
+            seconds, not_made = stall
+            self._pace_sent -= not_made
+            self._pace_t0 += seconds
+
+    def _next_due(self) -> float:
+        fw = self.firmware
+        return self._pace_t0 + (self._pace_sent + 1) / fw.rate_hz
+
+    # ------------------------------------------------------------ I/O
+
+    @property
+    def in_waiting(self) -> int:
+        with self._cond:
+            self._check()
+            fw = self.firmware
+            if self._virtual and fw.streaming:
+                # A streaming virtual device always has the next block ready; it
+                # is sampled when read.
+                block = min(max(1, round(fw.rate_hz * BLOCK_S)), MAX_BLOCK_FRAMES)
+                return len(self._rx) + block * self._line_len
+            self._pump()
+            return len(self._rx)
+
+    def read(self, size: int = 1) -> bytes:
+        with self._cond:
+            self._check()
+            if size <= 0:
+                return b""
+            self._cancel = False
+            self._pump(size)
+            if len(self._rx) < size:
+                # Like a real port: wait for more bytes until the timeout.  A
+                # streaming virtual device never gets here (frames are made on
+                # demand); an idle one lets its clock run while the host waits.
+                start = time.monotonic()
+                deadline = None if self._timeout is None else start + self._timeout
+                while len(self._rx) < size and not self._cancel:
+                    now = time.monotonic()
+                    if deadline is not None and now >= deadline:
+                        break
+                    wake = deadline
+                    if self.firmware.streaming and not self._virtual:
+                        nd = self._next_due()
+                        wake = nd if wake is None else min(wake, nd)
+                    self._cond.wait(None if wake is None else max(0.0, wake - now))
+                    self._check()
+                    self._pump(size)
+                if self._virtual:
+                    self.rig.advance(time.monotonic() - start)
+            data = bytes(self._rx[:size])
+            del self._rx[:size]
+            return data
+
+    def write(self, data) -> int:
+        with self._cond:
+            self._check()
+            data = to_bytes(data)
+            fw = self.firmware
+            was_streaming, old_rate = fw.streaming, fw.rate_hz
+            if not self._virtual:
+                self._pump()
+                if not fw.streaming:
+                    # Idle device: its clock kept running with the wall clock.
+                    self.rig.advance_to(time.monotonic() - self._wall0)
+            reply = fw.receive(data)
+            if not self._virtual and fw.streaming and (not was_streaming or fw.rate_hz != old_rate):
+                self._pace_t0 = time.monotonic()
+                self._pace_sent = 0
+            self._rx += reply
+            self._cond.notify_all()
+            return len(data)
+
+    def reset_input_buffer(self) -> None:
+        with self._cond:
+            if not self.is_open:
+                raise PortNotOpenError()
+            self._rx.clear()
+
+    def reset_output_buffer(self) -> None:
+        if not self.is_open:
+            raise PortNotOpenError()
+
+    @property
+    def out_waiting(self) -> int:
+        if not self.is_open:
+            raise PortNotOpenError()
+        return 0
+
+    def flush(self) -> None:
+        # Writes reach the firmware at once; only an unplugged port fails here.
+        if self.is_open and self._unplugged:
+            raise SerialException(UNPLUGGED)
+
+    def cancel_read(self) -> None:
+        with self._cond:
+            self._cancel = True
+            self._cond.notify_all()
+
+    # Modem lines: a USB bridge with nothing attached to them.
+    def _update_break_state(self) -> None:
+        pass
+
+    def _update_rts_state(self) -> None:
+        pass
+
+    def _update_dtr_state(self) -> None:
+        pass
+
+    @property
+    def cts(self) -> bool:
+        return True
+
+    @property
+    def dsr(self) -> bool:
+        return True
+
+    @property
+    def ri(self) -> bool:
+        return False
+
+    @property
+    def cd(self) -> bool:
+        return True

@@ -1,0 +1,669 @@
+"""The CSV exchange tables: trials, pushes, plans (``table-formats.md``) and rPAM points.
+
+rPAM point tables are those of ``RunFile.point_table``, one per experiment
+(:data:`STRETCH_POINTS`, :data:`JOINT_POINTS`): ``labcli export`` writes them and
+``labcli import --experiment stretch|joint`` reads them back.
+
+Reading checks every cell and reports every problem at once, one per line, as
+``file:row N, column C: message``, under a first line that counts them.  Rows
+are numbered as a spreadsheet shows them: the header is row 1, the first data
+row is row 2.  Unknown extra columns are kept (as numbers when every cell is a
+number written canonically, else as text) and written back after the standard
+columns.
+
+Writing formats floats with ``repr`` (the shortest text that reads back to the
+same float), so export -> import -> export is byte-identical, and checks the
+table with the same rules as reading, so a written file always loads.
+Files are replaced atomically: an interrupted export leaves the old file.
+
+``load_trials`` / ``load_pushes`` also accept a run file (``.h5``) and then ask
+:mod:`labcli.core.store` for its table.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import re
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Iterable
+
+from ..errors import ConfigError
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+PRESSURE_SPAN_MPA = (0.0, 1.0)  # SMC PSE530, gauge (rig-wire-protocol.md)
+RUN_FILE_SUFFIXES = (".h5", ".hdf5")
+MAX_LISTED = 200  # problems shown in one message; the count in line one is always complete
+
+BASELINE = ("P_L10", "P_R10", "P_L20", "P_R20")
+LOADED = ("P_L1", "P_R1", "P_L2", "P_R2")
+
+
+class TableError(ConfigError):
+    """A table failed its checks; ``.problems`` lists every ``file:row N, column C: message``."""
+
+    def __init__(self, message: str, problems: list[str]) -> None:
+        super().__init__(message)
+        self.problems = problems
+
+
+# ---------------------------------------------------------------------------
+# Table descriptions (plain data): (column, kind, presence)
+#   presence: "required" | "optional" (added empty when absent) |
+#             "omit-if-empty" (optional, and left out of a written file when empty)
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    label: str  # "trial", "push", "plan": used in messages
+    columns: tuple[tuple[str, str, str], ...]
+    id_column: str
+    pairs: tuple[tuple[str, str], ...] = ()  # given together or not at all
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(c[0] for c in self.columns)
+
+
+TRIAL = TableSpec(
+    label="trial",
+    columns=(
+        ("trial", "id", "required"),
+        ("set", "set", "optional"),
+        *((c, "pressure", "required") for c in BASELINE + LOADED),
+        ("theta1_deg", "float", "required"),
+        ("theta2_deg", "float", "required"),
+        ("Fx_N", "float", "required"),
+        ("Fy_N", "float", "required"),
+        ("mass_g", "positive-or-empty", "omit-if-empty"),
+        ("direction_deg", "float-or-empty", "omit-if-empty"),
+    ),
+    id_column="trial",
+    pairs=(("mass_g", "direction_deg"),),
+)
+
+PUSH = TableSpec(
+    label="push",
+    columns=(
+        ("push", "id", "required"),
+        ("object", "name", "required"),
+        ("R_m", "positive", "required"),
+        ("d_m", "nonnegative", "required"),
+        ("phi_deg", "float-or-empty", "required"),
+        *((c, "pressure", "required") for c in BASELINE + LOADED),
+        ("category", "text", "omit-if-empty"),
+    ),
+    id_column="push",
+)
+
+PLAN = TableSpec(
+    label="plan",
+    columns=(
+        ("trial", "id", "required"),
+        ("set", "set-required", "required"),
+        ("mass_g", "positive", "required"),
+        ("direction_deg", "float", "required"),
+    ),
+    id_column="trial",
+)
+
+# rPAM runs (``RunFile.point_table``): one table per experiment, columns in the order the
+# run file gives them.  Pressures are measured gauge values in MPa: a vented actuator reads
+# a little below zero, so they are any finite number here (not the McKibben span check).
+STRETCH_POINTS = TableSpec(
+    label="point",
+    columns=(
+        ("point", "id", "required"),
+        ("mass_g", "nonnegative", "required"),
+        ("P_A", "float", "required"),
+        ("P_B", "float", "required"),
+        ("L_m", "positive", "required"),
+        ("lambda", "positive-or-empty", "omit-if-empty"),
+        ("set_mass_g", "float-or-empty", "omit-if-empty"),
+        ("set_P_A_kPa", "float-or-empty", "omit-if-empty"),
+        ("set_P_B_kPa", "float-or-empty", "omit-if-empty"),
+    ),
+    id_column="point",
+)
+
+JOINT_POINTS = TableSpec(
+    label="point",
+    columns=(
+        ("point", "id", "required"),
+        ("P_A", "float", "required"),
+        ("P_B", "float", "required"),
+        ("alpha_deg", "float", "required"),
+        ("P_A0", "float-or-empty", "omit-if-empty"),
+        ("P_B0", "float-or-empty", "omit-if-empty"),
+        ("L_m", "positive-or-empty", "omit-if-empty"),
+        ("set_P_A_kPa", "float-or-empty", "omit-if-empty"),
+        ("set_P_B_kPa", "float-or-empty", "omit-if-empty"),
+    ),
+    id_column="point",
+    pairs=(("P_A0", "P_B0"),),
+)
+
+POINT_SPECS = {"stretch": STRETCH_POINTS, "joint": JOINT_POINTS}
+
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_INT64_MAX = 2**63 - 1
+
+
+# ---------------------------------------------------------------------------
+# Cell parsing: (value, problem or None)
+# ---------------------------------------------------------------------------
+
+
+def _parse_number(s: str) -> tuple[float | None, str | None]:
+    t = s.strip()
+    if t == "":
+        return None, "is empty; a number is required"
+    if not _NUMBER.fullmatch(t):
+        return None, f"{_quote(s)} is not a number"
+    v = float(t)
+    if not math.isfinite(v):
+        return None, f"{_quote(s)} is too large to be a finite number"
+    return v, None
+
+
+def _parse_cell(kind: str, s: str, span: tuple[float, float]) -> tuple[Any, str | None]:
+    if kind == "id":
+        t = s.strip()
+        if re.fullmatch(r"[+-]?[0-9]+", t):
+            # int() directly: going through float would round ids above 2**53.
+            v = int(t)
+            return (v, None) if abs(v) <= _INT64_MAX else (None, f"{_quote(s)} is too large for an integer id")
+        v, err = _parse_number(s)
+        if err:
+            return None, err.replace("a number", "an integer id")
+        if v != int(v) or abs(v) > _INT64_MAX:
+            return None, f"{_quote(s)} is not an integer id"
+        return int(v), None
+    if kind in ("set", "set-required"):
+        t = s.strip()
+        if t in ("fit", "validation") or (t == "" and kind == "set"):
+            return t, None
+        if kind == "set":
+            return None, f"{_quote(s)} must be fit, validation or empty (unassigned)"
+        return None, f"{_quote(s)} must be fit or validation"
+    if kind == "name":
+        if s.strip() == "":
+            return None, "is empty; an object name is required"
+        return s, None
+    if kind == "text":
+        return s, None
+    if kind.endswith("-or-empty") and s.strip() == "":
+        return math.nan, None
+    v, err = _parse_number(s)
+    if err:
+        return None, err
+    if kind == "pressure":
+        lo, hi = span
+        if not v > lo:
+            return None, f"{_fmt(v)} MPa is not a positive gauge pressure"
+        if v > hi:
+            return None, f"{_fmt(v)} MPa is outside the sensor span {_fmt(lo)} to {_fmt(hi)} MPa"
+    elif kind.startswith("positive") and not v > 0:
+        return None, f"{_fmt(v)} must be greater than 0"
+    elif kind == "nonnegative" and not v >= 0:
+        return None, f"{_fmt(v)} must be 0 or more"
+    return v, None
+
+
+def _quote(s: str) -> str:
+    return repr(s if len(s) <= 40 else s[:37] + "...")
+
+
+def _fmt(v: float) -> str:
+    return repr(float(v)) if v != int(v) or abs(v) >= 1e16 else str(int(v))
+
+
+# ---------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------
+
+
+def _records(path: Path, label: str) -> list[list[str]]:
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise ConfigError(f"{label} does not exist; check the path.") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{label} is a folder, not a CSV file.") from None
+    except OSError as exc:
+        raise ConfigError(f"{label} cannot be read ({exc.strerror or exc}).") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"{label} is not UTF-8 text (bad byte at offset {exc.start}); save it as CSV UTF-8."
+        ) from None
+    return _records_from_text(text, label)
+
+
+def _records_from_text(text: str, label: str) -> list[list[str]]:
+    out: list[list[str]] = []
+    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+    try:
+        for rec in reader:
+            out.append(rec)
+    except csv.Error as exc:
+        raise ConfigError(f"{label}:row {len(out) + 1}: not valid CSV ({exc}); check the quoting on that row.") from None
+    return out
+
+
+def _parse_records(
+    records: list[list[str]],
+    spec: TableSpec,
+    label: str,
+    span: tuple[float, float],
+    extra_checks: Any = None,
+) -> "pd.DataFrame":
+    import pandas as pd
+
+    problems: list[str] = []
+
+    def bad(row: int, col: str | None, msg: str) -> None:
+        where = f"{label}:row {row}" + (f", column {col}" if col is not None else "")
+        problems.append(f"{where}: {msg}.")
+
+    # Header: the first non-blank record.
+    start = 0
+    while start < len(records) and not any(c.strip() for c in records[start]):
+        start += 1
+    if start == len(records):
+        raise ConfigError(
+            f"{label} has no header row; the first line must name the columns "
+            f"({', '.join(c for c, _, p in spec.columns if p == 'required')})."
+        )
+    hrow = start + 1
+    header = [h.strip() for h in records[start]]
+    data = [(i + 1, rec) for i, rec in enumerate(records) if i > start and any(c.strip() for c in rec)]
+
+    keep: list[int] = []  # header positions that carry a column
+    seen: dict[str, int] = {}
+    for j, name in enumerate(header):
+        if name == "":
+            # A trailing separator (common in spreadsheet exports) makes an unnamed,
+            # empty column: harmless; an unnamed column with values is not.
+            if any(j < len(rec) and rec[j].strip() for _, rec in data):
+                bad(hrow, f"{j + 1}", "has values but no name in the header")
+            continue
+        if name in seen:
+            bad(hrow, name, f"appears twice in the header (columns {seen[name] + 1} and {j + 1})")
+            continue
+        seen[name] = j
+        keep.append(j)
+    kinds = {c: k for c, k, _ in spec.columns}
+    for c, _, presence in spec.columns:
+        if presence == "required" and c not in seen:
+            hint = ""
+            if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
+                hint = " (the header is one column: is the file separated by ';' or tabs instead of commas?)"
+            bad(hrow, c, f"required column is missing from the header{hint}")
+
+    pairs = []
+    for a, b in spec.pairs:
+        if (a in seen) != (b in seen):
+            have, lack = (a, b) if a in seen else (b, a)
+            bad(hrow, lack, f"is missing from the header but {have} is there; give both columns or neither")
+        elif a in seen:
+            pairs.append((a, b))
+
+    ncols = len(header)
+    columns: dict[str, list[Any]] = {header[j]: [] for j in keep}
+    row_numbers: list[int] = []
+    ids: dict[int, int] = {}
+    for rownum, rec in data:
+        if len(rec) != ncols:
+            # Trailing empty cells beyond the header are harmless; values are not.
+            if len(rec) > ncols and not any(c.strip() for c in rec[ncols:]):
+                rec = rec[:ncols]
+            else:
+                bad(rownum, None, f"has {len(rec)} values but the header has {ncols} columns")
+                continue
+        values: dict[str, Any] = {}
+        ok = True
+        for j in keep:
+            name = header[j]
+            cell = rec[j]
+            if name in kinds:
+                v, err = _parse_cell(kinds[name], cell, span)
+                if err:
+                    bad(rownum, name, err)
+                    ok = False
+                values[name] = v
+            else:
+                values[name] = cell
+        for a, b in pairs:
+            va, vb = values[a], values[b]
+            if va is None or vb is None:
+                continue
+            if math.isnan(va) != math.isnan(vb):
+                missing, given = (a, b) if math.isnan(va) else (b, a)
+                bad(rownum, missing, f"is empty but {given} is given; give both or neither")
+                ok = False
+        idv = values.get(spec.id_column)
+        if isinstance(idv, int):
+            if idv in ids:
+                bad(rownum, spec.id_column, f"{spec.id_column} {idv} is already used on row {ids[idv]}")
+                ok = False
+            else:
+                ids[idv] = rownum
+        if extra_checks is not None:
+            for col, msg in extra_checks(values):
+                bad(rownum, col, msg)
+                ok = False
+        if ok:
+            for name in columns:
+                columns[name].append(values[name])
+            row_numbers.append(rownum)
+
+    if problems:
+        raise table_error(label, problems)
+
+    frame: dict[str, Any] = {}
+    n = len(row_numbers)
+    for c, kind, _ in spec.columns:
+        if c in columns:
+            frame[c] = _standard_series(kind, columns[c])
+        elif kind in ("set", "text"):
+            frame[c] = pd.Series([""] * n, dtype=object)
+        else:
+            frame[c] = pd.Series([math.nan] * n, dtype="float64")
+    for j in keep:
+        name = header[j]
+        if name not in kinds:
+            frame[name] = _infer_extra(columns[name])
+    return pd.DataFrame(frame)
+
+
+def table_error(label: str, problems: list[str]) -> TableError:
+    """The TableError listing ``problems`` (``file:row N, column C: message.``) under their count."""
+    n = len(problems)
+    shown = problems[:MAX_LISTED]
+    more = [f"... and {n - MAX_LISTED} more."] if n > MAX_LISTED else []
+    head = (
+        f"{label} has {n} problem{'s' if n != 1 else ''} "
+        "(rows counted as a spreadsheet shows them, the header included):"
+    )
+    return TableError("\n".join([head, *shown, *more]), problems)
+
+
+def _standard_series(kind: str, values: list[Any]) -> "pd.Series":
+    import pandas as pd
+
+    if kind == "id":
+        return pd.Series(values, dtype="int64")
+    if kind in ("set", "set-required", "name", "text"):
+        return pd.Series(values, dtype=object)
+    return pd.Series(values, dtype="float64")
+
+
+def _infer_extra(cells: list[str]) -> "pd.Series":
+    """Numbers only when every cell reads back to exactly its own text (nothing lost); empty: NaN."""
+    import pandas as pd
+
+    filled = [c for c in cells if c != ""]
+    if not filled:
+        # No value says what the column is; missing numbers, as pandas reads it.
+        return pd.Series([math.nan] * len(cells), dtype="float64")
+    if len(filled) == len(cells) and all(_is_canonical_int(c) for c in filled):
+        return pd.Series([int(c) for c in cells], dtype="int64")
+    if all(_is_canonical_float(c) for c in filled):
+        return pd.Series([float(c) if c else math.nan for c in cells], dtype="float64")
+    return pd.Series(cells, dtype=object)
+
+
+def _is_canonical_int(s: str) -> bool:
+    if not re.fullmatch(r"-?[0-9]+", s):
+        return False
+    v = int(s)
+    return str(v) == s and abs(v) <= _INT64_MAX
+
+
+def _is_canonical_float(s: str) -> bool:
+    if not _NUMBER.fullmatch(s):
+        return False
+    v = float(s)
+    return math.isfinite(v) and repr(v) == s
+
+
+def _read(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], extra_checks=None):
+    label = str(path)
+    return _parse_records(_records(Path(path), label), spec, label, span, extra_checks)
+
+
+RowCheck = Callable[[dict[str, Any]], Iterable[tuple[str, str]]]
+
+
+def _row_checks(spec: TableSpec, id_range: tuple[int, int] | None, check: RowCheck | None) -> RowCheck | None:
+    if id_range is None and check is None:
+        return None
+
+    def checks(values: dict[str, Any]) -> Iterable[tuple[str, str]]:
+        if id_range is not None:
+            lo, hi = id_range
+            v = values.get(spec.id_column)
+            if isinstance(v, int) and not lo <= v <= hi:
+                yield spec.id_column, f"{v} is outside the {spec.label} ids a run file holds, {lo} to {hi}"
+        if check is not None:
+            yield from check(values)
+
+    return checks
+
+
+def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
+                   id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
+    """Read and check a trial table (``table-formats.md``); every problem in one TableError.
+
+    ``id_range`` (low, high) also checks the trial ids, e.g. against what a run file can hold;
+    ``check(row) -> [(column, problem), ...]`` adds checks of its own (e.g.
+    :func:`labcli.core.store.storable_cells`), reported by row and column like the others.
+    """
+    return _read(path, TRIAL, span_MPa, _row_checks(TRIAL, id_range, check))
+
+
+def read_push_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
+                  id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
+    """Read and check a push table; ``phi_deg`` is NaN where the file leaves it empty."""
+    return _read(path, PUSH, span_MPa, _row_checks(PUSH, id_range, check))
+
+
+def read_point_csv(path: str | os.PathLike, experiment: str, *, id_range: tuple[int, int] | None = None,
+                   check: RowCheck | None = None) -> "pd.DataFrame":
+    """Read and check the point table of an rPAM experiment (``"stretch"`` or ``"joint"``).
+
+    The columns are those of :meth:`labcli.core.store.RunFile.point_table`; pressures in MPa,
+    ``L_m`` in m, ``mass_g`` in g, ``alpha_deg`` in degrees, set values in g and kPa.
+    """
+    spec = POINT_SPECS.get(experiment)
+    if spec is None:
+        raise ConfigError(f"an rPAM point table is of experiment stretch or joint, not {experiment!r}.")
+    return _read(path, spec, PRESSURE_SPAN_MPA, _row_checks(spec, id_range, check))
+
+
+def load_plan(
+    path: str | os.PathLike,
+    *,
+    mass_range_g: tuple[float, float] | None = None,
+    direction_range_deg: tuple[float, float] | None = None,
+) -> "pd.DataFrame":
+    """Read and check a plan (``trial, set, mass_g, direction_deg``), optionally against limits.
+
+    Problems name the file, the row as a spreadsheet numbers it (header = row 1)
+    and the column.
+    """
+
+    def limits(values: dict[str, Any]) -> Iterable[tuple[str, str]]:
+        m, d = values.get("mass_g"), values.get("direction_deg")
+        if mass_range_g is not None and isinstance(m, float):
+            lo, hi = mass_range_g
+            if not lo <= m <= hi:
+                yield "mass_g", f"{_fmt(m)} g is outside the protocol's range {_fmt(lo)} to {_fmt(hi)} g"
+        if direction_range_deg is not None and isinstance(d, float):
+            lo, hi = direction_range_deg
+            if not lo <= d <= hi:
+                yield "direction_deg", f"{_fmt(d)} deg is outside the protocol's range {_fmt(lo)} to {_fmt(hi)} deg"
+
+    return _read(path, PLAN, PRESSURE_SPAN_MPA, limits)
+
+
+def load_trials(path: str | os.PathLike) -> "pd.DataFrame":
+    """The trial table of a run file (``.h5``) or a trial CSV."""
+    if Path(path).suffix.lower() in RUN_FILE_SUFFIXES:
+        return _from_run_file(path, "trial_table")
+    return read_trial_csv(path)
+
+
+def load_pushes(path: str | os.PathLike) -> "pd.DataFrame":
+    """The push table of a run file (``.h5``) or a push CSV."""
+    if Path(path).suffix.lower() in RUN_FILE_SUFFIXES:
+        return _from_run_file(path, "push_table")
+    return read_push_csv(path)
+
+
+def _from_run_file(path: str | os.PathLike, method: str) -> "pd.DataFrame":
+    from .store import RunFile
+
+    run = RunFile.open(path)
+    try:
+        return getattr(run, method)()
+    finally:
+        run.close()
+
+
+# ---------------------------------------------------------------------------
+# Writing
+# ---------------------------------------------------------------------------
+
+
+def _format(v: Any, kind: str | None) -> str:
+    import numpy as np
+    import pandas as pd
+
+    if v is None or v is pd.NA or v is pd.NaT:
+        return ""
+    if isinstance(v, str):
+        return v
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return ""
+        if kind == "id" and v == int(v) and math.isfinite(v):
+            return str(int(v))
+        return repr(v)
+    if isinstance(v, int):
+        if kind is not None and kind not in ("id", "set", "set-required", "name", "text"):
+            return repr(float(v))
+        return str(v)
+    return str(v)
+
+
+def _format_frame(df: "pd.DataFrame", spec: TableSpec) -> tuple[list[str], list[list[str]]]:
+    kinds = {c: k for c, k, _ in spec.columns}
+    names = [str(c) for c in df.columns]
+    presence = {c: p for c, _, p in spec.columns}
+    header = [c for c in spec.names if c in names or presence[c] != "omit-if-empty"]
+    header += [c for c in names if c not in kinds]
+    cols = []
+    for c in header:
+        if c in names:
+            series = df[df.columns[names.index(c)]]
+            cols.append([_format(v, kinds.get(c)) for v in series.tolist()])
+        else:
+            cols.append([""] * len(df))
+    # Optional columns that are empty throughout stay out of the file.
+    drop = {
+        c for c, _, p in spec.columns if p == "omit-if-empty" and c in header and not any(cols[header.index(c)])
+    }
+    keep = [i for i, c in enumerate(header) if c not in drop]
+    rows = [[cols[i][r] for i in keep] for r in range(len(df))]
+    return [header[i] for i in keep], rows
+
+
+def _write(df: "pd.DataFrame", path: str | os.PathLike, spec: TableSpec, span: tuple[float, float]) -> None:
+    label = str(path)
+    names = [str(c) for c in df.columns]
+    dup = sorted({c for c in names if names.count(c) > 1})
+    if dup:
+        raise ConfigError(f"Cannot write {label}: the {spec.label} table has column {dup[0]} twice.")
+    missing = [c for c, _, p in spec.columns if p == "required" and c not in names]
+    if missing:
+        raise ConfigError(
+            f"Cannot write {label}: the {spec.label} table has no column {', '.join(missing)}."
+        )
+    header, rows = _format_frame(df, spec)
+    # Check with the reader's rules, then write the canonical form of what was read.
+    checked = _parse_records([header, *rows], spec, label, span)
+    header, rows = _format_frame(checked, spec)
+    text = "".join(_csv_line(r) for r in [header, *rows])
+    try:
+        data = text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        raise ConfigError(f"Cannot write {label}: the table holds text that is not valid Unicode ({exc.reason}).") from None
+    _atomic_write(Path(path), data)
+
+
+def _csv_line(fields: list[str]) -> str:
+    # csv.writer with a "\n" terminator leaves a lone "\r" unquoted, which readers
+    # then take for a line break; quote every field holding a separator, quote or
+    # line break ourselves.
+    return ",".join('"' + f.replace('"', '""') + '"' if any(ch in f for ch in ',"\r\n') else f for f in fields) + "\n"
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    folder = path.parent if str(path.parent) else Path(".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise ConfigError(f"Cannot write {path}: {exc.strerror or exc} (check the folder exists and is writable).") from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        # mkstemp creates 0600; an exported table is as readable as any file the user writes.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except OSError as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise ConfigError(f"Cannot write {path}: {exc.strerror or exc}.") from None
+
+
+def write_trial_csv(df: "pd.DataFrame", path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
+    """Write a trial table: standard columns in ``table-formats.md`` order, then extras."""
+    _write(df, path, TRIAL, span_MPa)
+
+
+def write_push_csv(df: "pd.DataFrame", path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
+    """Write a push table: standard columns in ``table-formats.md`` order, then extras."""
+    _write(df, path, PUSH, span_MPa)
+
+
+def write_point_csv(df: "pd.DataFrame", path: str | os.PathLike, experiment: str) -> None:
+    """Write an rPAM point table (stretch test or joint map) in the run file's column order."""
+    spec = POINT_SPECS.get(experiment)
+    if spec is None:
+        raise ConfigError(f"an rPAM point table is of experiment stretch or joint, not {experiment!r}.")
+    _write(df, path, spec, PRESSURE_SPAN_MPA)
+
+
+def write_plan_csv(df: "pd.DataFrame", path: str | os.PathLike) -> None:
+    """Write a plan (``trial, set, mass_g, direction_deg``)."""
+    _write(df, path, PLAN, PRESSURE_SPAN_MPA)

@@ -1,0 +1,317 @@
+"""What the experimenter sees and types during ``labcli acquire``.
+
+Two implementations of one small interface:
+
+* :class:`RichUI` prints prompts, a progress line per trial, a settling status
+  and the summary table with ``rich``, and reads answers line by line from
+  standard input (a terminal, a pipe or a test runner alike);
+* :class:`UnattendedUI` answers every prompt itself, for the simulated rig,
+  and prints one line per trial.
+
+Typing ``q`` at any prompt raises :class:`QuitRequested`; the engine then
+discards the trial in progress and says how to resume.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from typing import IO, Any, Callable, Iterator
+
+from ..experiments.takuma2014.session import (
+    AskLoad,
+    AskObject,
+    AskPush,
+    BeginTrial,
+    Load,
+    ObjectSpec,
+    Prompt,
+    PushSpec,
+    parse_direction_deg,
+    parse_length_mm,
+    parse_mass_g,
+)
+
+
+class QuitRequested(Exception):
+    """The experimenter typed q (or input ended)."""
+
+
+def fmt_duration(seconds: float) -> str:
+    s = int(round(seconds))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {(s % 3600) // 60:02d} min"
+
+
+def progress_text(step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> str:
+    """Trial n of N, set, elapsed and remaining estimate in one line."""
+    done = step.index - 1
+    width = 24
+    filled = int(round(width * done / step.total)) if step.total else 0
+    bar = "#" * filled + "-" * (width - filled)
+    left = "estimating" if remaining_s is None else f"about {fmt_duration(remaining_s)} left"
+    return (
+        f"{step.label}  [{bar}] {done}/{step.total} done ({stored} stored this session)  "
+        f"elapsed {fmt_duration(elapsed_s)}, {left}"
+    )
+
+
+def spreads_text(status: Any, criteria: Any) -> str:
+    ps = status.pressure_spread_MPa
+    an = status.angle_spread_rad
+    p = "-" if math.isnan(ps) else f"{ps * 1e3:.2f}"
+    a = "-" if math.isnan(an) else f"{math.degrees(an):.3f}"
+    return (
+        f"pressure spread {p} kPa (limit {criteria.pressure_spread_MPa * 1e3:g} kPa), "
+        f"angle spread {a} deg (limit {math.degrees(criteria.angle_spread_rad):.3g} deg), "
+        f"quiet for {status.quiet_s:.1f} s of {criteria.hold_s:g} s"
+    )
+
+
+def settle_text(label: str, status: Any, criteria: Any) -> str:
+    return f"settling ({label}): {status.elapsed_s:.1f} s, {spreads_text(status, criteria)}"
+
+
+class RichUI:
+    """Prompts on a terminal (or any line-oriented stdin)."""
+
+    unattended = False
+
+    def __init__(self, console: Any = None, stdin: IO[str] | None = None) -> None:
+        from rich.console import Console
+
+        self.console = console or Console(highlight=False)
+        self._stdin = stdin
+
+    @property
+    def _interactive(self) -> bool:
+        import sys
+
+        stream = self._stdin or sys.stdin
+        try:
+            return bool(stream.isatty())
+        except (AttributeError, ValueError):
+            return False
+
+    # -- output
+    def info(self, text: str) -> None:
+        self.console.print(text, markup=False)
+
+    def warn(self, text: str) -> None:
+        self.console.print(f"[bold yellow]Warning:[/] {_esc(text)}")
+
+    def begin_trial(self, step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
+        self.console.rule(style="dim")
+        self.console.print(_esc(progress_text(step, stored, elapsed_s, remaining_s)), style="bold")
+
+    @contextlib.contextmanager
+    def settling(self, label: str, criteria: Any) -> Iterator[Any]:
+        """A live status line while the engine waits for equilibrium."""
+        if self.console.is_terminal:
+            with self.console.status(f"settling ({label})") as status:
+                yield lambda s: status.update(_esc(settle_text(label, s, criteria)))
+        else:
+            yield lambda s: None
+
+    def settled(self, label: str, report: Any) -> None:
+        what = "settled" if report.settled else "accepted without settling"
+        self.console.print(
+            f"  {label}: {what} after {report.settle_time_s:.2f} s "
+            f"(pressure spread {report.pressure_spread_MPa * 1e3:.2f} kPa, "
+            f"angle spread {math.degrees(report.angle_spread_rad):.3f} deg)",
+            markup=False,
+        )
+
+    # -- input
+    def _ask(self, text: str) -> str:
+        self.console.print(_esc(text) + " ", end="", soft_wrap=True)
+        stream = self._stdin
+        try:
+            line = input() if stream is None else stream.readline()
+        except EOFError:
+            raise QuitRequested("input ended") from None
+        if stream is not None and line == "":
+            raise QuitRequested("input ended")
+        line = line.rstrip("\r\n")
+        if not self._interactive:
+            # Answers from a pipe or a script are not echoed by a terminal: echo them,
+            # so the transcript reads as the session went.
+            self.console.print(line, markup=False, highlight=False)
+        if line.strip().lower() in ("q", "quit"):
+            raise QuitRequested("quit")
+        return line
+
+    def prompt(self, step: Prompt) -> None:
+        self._ask(f"{step.text} (q to quit):")
+
+    def _ask_valid(self, text: str, parse: Any) -> Any:
+        while True:
+            answer = self._ask(text)
+            try:
+                return parse(answer)
+            except ValueError as e:
+                self.console.print(f"[red]{_esc(str(e))}[/]")
+
+    def ask_load(self, step: AskLoad) -> Load | None:
+        head = f"Trial {step.trial}/{step.total}"
+        lo, hi = step.mass_range_g
+        first = self._ask(f"{head}: mass to hang in g, {lo:g} to {hi:g} (Enter when the run is complete, q to quit):")
+        if not first.strip():
+            return None
+        while True:
+            try:
+                mass = parse_mass_g(first, *step.mass_range_g)
+                break
+            except ValueError as e:
+                self.console.print(f"[red]{_esc(str(e))}[/]")
+                first = self._ask(f"{head}: mass to hang in g:")
+        direction = self._ask_valid(
+            f"{head}: pulley direction in deg, counter-clockwise from +x "
+            f"({step.direction_range_deg[0]:g} to {step.direction_range_deg[1]:g}):",
+            lambda t: parse_direction_deg(t, *step.direction_range_deg),
+        )
+        return Load(mass, direction)
+
+    def ask_object(self, step: AskObject, simulated: bool = False) -> ObjectSpec | None:
+        name = self._ask(f"Object {step.index}: name (e.g. pet-1; Enter when all objects are done, q to quit):").strip()
+        if not name:
+            return None
+        radius = self._ask_valid(f"{name}: radius R in mm:", lambda t: parse_length_mm(t, "radius", 0.0, 500.0))
+        category = self._ask(f"{name}: category (soft, medium, hard, a name, or Enter if unknown):").strip()
+        stiffness = None
+        if simulated:
+            stiffness = self._ask_valid(f"{name}: stiffness of the simulated object in N/m:", _parse_stiffness)
+        return ObjectSpec(name, radius, category, stiffness)
+
+    def ask_push(self, step: AskPush) -> PushSpec:
+        head = f"Push {step.index}/{step.total} of {step.object}"
+        lo, hi = (v * 1e3 for v in step.distance_range_m)
+        d = self._ask_valid(f"{head}: push distance d in mm, {lo:g} to {hi:g}:",
+                            lambda t: parse_length_mm(t, "push distance", lo, hi))
+        phi = self._ask_valid(
+            f"{head}: push direction phi in deg (? or Enter if unknown):",
+            lambda t: parse_direction_deg(t, allow_unknown=True),
+        )
+        return PushSpec(d, phi)
+
+    def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
+        self.console.print(
+            f"[yellow]Not settled ({label}) after {status.elapsed_s:.1f} s:[/] "
+            + _esc(spreads_text(status, criteria))
+        )
+        return self._choose("Accept these readings [a], wait longer [w] or redo the trial [r]?", "awr", "w")
+
+    def review(self, row: dict) -> str:
+        from rich import box
+        from rich.table import Table
+
+        needed = sum(max(len(k), len(v)) + 3 for k, v in row.items())
+        if needed <= self.console.width:
+            table = Table(box=box.SIMPLE_HEAD, header_style="bold")
+            for key in row:
+                table.add_column(_esc(key), no_wrap=True)
+            table.add_row(*(_esc(v) for v in row.values()))
+        else:  # a narrow terminal: one line per column
+            table = Table(box=box.SIMPLE, show_header=False)
+            table.add_column(no_wrap=True, style="bold")
+            table.add_column(no_wrap=True)
+            for key, value in row.items():
+                table.add_row(_esc(key), _esc(value))
+        self.console.print(table)
+        return self._choose("Accept [a], redo [r], skip [s] or quit [q]?", "arsq", "a")
+
+    def _choose(self, text: str, keys: str, default: str) -> str:
+        words = {"a": "accept", "r": "redo", "s": "skip", "w": "wait", "q": "quit"}
+        while True:
+            answer = self._ask(f"{text} ({default}):").strip().lower() or default
+            if answer[:1] in keys and (len(answer) == 1 or answer == words[answer[0]]):
+                return words[answer[0]]
+            self.console.print(f"[red]Type one of {', '.join(keys)}.[/]")
+
+
+class UnattendedUI:
+    """Answers every prompt itself (simulated rig only) and prints one line per trial."""
+
+    unattended = True
+
+    def __init__(self, console: Any = None, verbose: bool = False) -> None:
+        from rich.console import Console
+
+        self.console = console or Console(highlight=False)
+        self.verbose = verbose
+        self._step: BeginTrial | None = None
+
+    def info(self, text: str) -> None:
+        self.console.print(text, markup=False)
+
+    def warn(self, text: str) -> None:
+        self.console.print(f"Warning: {text}", markup=False)
+
+    def begin_trial(self, step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
+        self._step = step
+        if self.verbose:
+            self.console.print(progress_text(step, stored, elapsed_s, remaining_s), markup=False)
+
+    @contextlib.contextmanager
+    def settling(self, label: str, criteria: Any) -> Iterator[Any]:
+        yield lambda s: None
+
+    def settled(self, label: str, report: Any) -> None:
+        if not report.settled:
+            self.warn(f"{label}: not settled after {report.waited_s:.1f} s, readings accepted")
+
+    def prompt(self, step: Prompt) -> None:
+        if self.verbose:
+            self.console.print(f"  {step.text} [done by the simulated rig]", markup=False)
+
+    def ask_load(self, step: AskLoad) -> Load | None:
+        raise QuitRequested("unattended mode needs a plan")
+
+    def ask_object(self, step: AskObject, simulated: bool = False) -> ObjectSpec | None:
+        raise QuitRequested("unattended mode needs a list of objects")
+
+    def ask_push(self, step: AskPush) -> PushSpec:
+        raise QuitRequested("unattended mode needs a list of pushes")
+
+    def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
+        return "accept"
+
+    def review(self, row: dict) -> str:
+        self.console.print("  " + "  ".join(f"{k} {v}" for k, v in row.items()), markup=False)
+        return "accept"
+
+
+class ProgressUI(UnattendedUI):
+    """Acts out every prompt like :class:`UnattendedUI` but prints nothing (a quiet console): it
+    reports ``progress(stage, stored, total)`` at each trial instead (for ``labcli demo``)."""
+
+    def __init__(self, stage: str, progress: Callable[[str, int, int], None] | None = None) -> None:
+        from rich.console import Console
+
+        super().__init__(console=Console(quiet=True))
+        self.stage = stage
+        self.progress = progress
+
+    def begin_trial(self, step: BeginTrial, stored: int, elapsed_s: float, remaining_s: float | None) -> None:
+        super().begin_trial(step, stored, elapsed_s, remaining_s)
+        if self.progress is not None:
+            self.progress(self.stage, stored, int(step.total))
+
+
+def _parse_stiffness(text: str) -> float:
+    try:
+        value = float(text.strip().removesuffix("N/m").strip())
+    except ValueError:
+        raise ValueError(f"'{text.strip()}' is not a stiffness: type newtons per metre, e.g. 800.") from None
+    if not 0 < value < float("inf"):
+        raise ValueError(f"The stiffness must be more than 0 N/m, got {value:g} N/m.")
+    return value
+
+
+def _esc(text: str) -> str:
+    from rich.markup import escape
+
+    return escape(text)

@@ -1,0 +1,1 @@
+"""The papers, one subpackage each, plugged into the core through :mod:`labcli.core.registry`."""

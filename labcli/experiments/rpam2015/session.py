@@ -1,0 +1,434 @@
+"""The rPAM joint paper's two experiments as sessions of plain steps.
+
+The rPAM protocol (``protocols/rpam2015.toml``, kind ``rpam``) holds two experiments, and a
+run records one of them (``labcli acquire --experiment stretch|joint``); the run file's
+kind says which:
+
+* ``stretch`` (kind ``rpam-stretch``), Figs. 5-6: actuator A hangs on the stretch stand;
+  for every payload (g) x pressure (kPa) of ``[experiments.stretch_test]`` the
+  experimenter hangs the payload and sets ``P_A``, the session waits for equilibrium and
+  records ``LEN`` and ``P_A`` averaged over the capture, with ``lambda = L / L0``::
+
+      Point 7/120 (stretch): hang 100 g on actuator A, set P_A = 60 kPa, then press Enter
+
+* ``joint`` (kind ``rpam-joint``), Fig. 8: both actuators drive the joint; for every
+  ``Pa x Pb`` of ``[experiments.joint_map]`` the experimenter vents both actuators (the
+  baseline: the potentiometer's reading of the rest posture), then sets the pair; the
+  joint angle is the potentiometer's deflection from that baseline::
+
+      Point 12/121 (joint map): set P_A = 50.7 kPa and P_B = 41 kPa, then press Enter
+
+The steps are :mod:`labcli.experiments.takuma2014.session`'s (``Prompt``, ``WaitSettle``, ``Capture``, ...), so the
+run engine executes them as it does the McKibben trials: equilibrium judged from the data,
+one point written whole per ``Commit``, interrupt and resume by point id.  The actions
+below are what the simulated rig acts out in unattended runs (``act_on(rig)``).
+
+The protocol's ``[sensors]`` table names the DAQ (``device``, ``channels``) and calibrates
+its four channels (``P_A``, ``P_B`` pressures, ``POT`` the joint angle, ``LEN`` actuator
+A's length); :func:`acquisition_protocol` turns it into what the engine and the run file
+read (:class:`RpamAcquisition`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Any, Generator, Iterable, Sequence
+
+import numpy as np
+
+from ...errors import ConfigError
+from ..takuma2014.session import (
+    BeginTrial,
+    Capture,
+    Baseline,
+    Commit,
+    Finish,
+    Prompt,
+    Review,
+    SettleReport,
+    SetupCheck,
+    Step,
+    WaitSettle,
+    Window,
+)
+
+EXPERIMENTS: dict[str, str] = {"stretch": "rpam-stretch", "joint": "rpam-joint"}
+KINDS: dict[str, str] = {v: k for k, v in EXPERIMENTS.items()}
+CHANNELS = ("P_A", "P_B", "POT", "LEN")
+_TITLE = {"stretch": "stretch", "joint": "joint map"}
+
+
+# --------------------------------------------------------------------------- actions
+
+
+@dataclass(frozen=True)
+class MountStretchStand:
+    """Actuator A off the joint, hanging on the stretch stand, vented, no payload."""
+
+    def act_on(self, rig: Any) -> None:
+        rig.set_experiment("stretch")
+
+
+@dataclass(frozen=True)
+class MountJoint:
+    """Both actuators on the joint's swivel plates, vented."""
+
+    def act_on(self, rig: Any) -> None:
+        rig.set_experiment("joint")
+
+
+@dataclass(frozen=True)
+class StretchLoad:
+    """Payload on actuator A and its pressure set (P_B stays vented)."""
+
+    mass_kg: float
+    P_A_MPa: float
+
+    def act_on(self, rig: Any) -> None:
+        # Pressure first: between payloads the sweep drops to its lowest pressure with the
+        # old payload on, then the new one is hung at that pressure.
+        rig.set_pressures(self.P_A_MPa, 0.0)
+        rig.hang_payload(self.mass_kg)
+
+
+@dataclass(frozen=True)
+class SetPressures:
+    P_A_MPa: float
+    P_B_MPa: float
+
+    def act_on(self, rig: Any) -> None:
+        rig.set_pressures(self.P_A_MPa, self.P_B_MPa)
+
+
+@dataclass(frozen=True)
+class Vent:
+    def act_on(self, rig: Any) -> None:
+        rig.vent()
+
+
+@dataclass(frozen=True)
+class UnloadStretchStand:
+    def act_on(self, rig: Any) -> None:
+        rig.remove_payload()
+        rig.vent()
+
+
+# --------------------------------------------------------------------------- protocol
+
+
+@dataclass(frozen=True)
+class PlannedPoint:
+    """One point of an experiment's grid: SI set values (``mass_kg`` None on the joint)."""
+
+    point: int  # 1-based, in the order the grid is run
+    P_A_MPa: float
+    P_B_MPa: float
+    mass_kg: float | None = None
+
+    def plan_row(self) -> dict[str, float]:
+        row = {"P_A_kPa": _edge(self.P_A_MPa * 1e3), "P_B_kPa": _edge(self.P_B_MPa * 1e3)}
+        if self.mass_kg is not None:
+            row = {"mass_g": _edge(self.mass_kg * 1e3), **row}
+        return row
+
+
+def _edge(x: float) -> float:
+    # Set values as people typed them (grams, kPa): 12 significant digits, like the store's tables.
+    return float(f"{x:.12g}")
+
+
+class RpamAcquisition:
+    """An rPAM protocol with one experiment chosen: what the engine and the run file read.
+
+    Has the attributes of :class:`labcli.core.protocol.Protocol` that acquisition uses
+    (``name``, ``text``, ``path``, ``settling``, ``rate_hz``) with ``kind`` the run's kind
+    (``rpam-stretch`` / ``rpam-joint``) and ``calibration``, ``channels``, ``device`` from
+    the ``[sensors]`` table; plus ``experiment``, ``points`` (the grid), ``L0_m`` and
+    ``length_spread_m`` (the settling limit of length channels).  Anything else is the
+    base protocol's.
+    """
+
+    def __init__(self, base: Any, experiment: str, calibration: Any, device: Any, points: Sequence[PlannedPoint],
+                 L0_m: float, length_spread_m: float) -> None:
+        self.base = base
+        self.experiment = experiment
+        self.kind = EXPERIMENTS[experiment]
+        self.calibration = calibration
+        self.channels = calibration.names
+        self.device = device
+        self.points = tuple(points)
+        self.L0_m = float(L0_m)
+        self.length_spread_m = float(length_spread_m)
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "base":  # not yet set (copying, unpickling)
+            raise AttributeError(name)
+        return getattr(self.base, name)
+
+    @property
+    def experiment_title(self) -> str:
+        """``stretch test`` or ``joint map``, for sentences."""
+        return {"stretch": "stretch test", "joint": "joint map"}[self.experiment]
+
+
+def experiment_of_kind(kind: str) -> str | None:
+    """``rpam-stretch`` -> ``stretch``, ``rpam-joint`` -> ``joint``, else None."""
+    return KINDS.get(kind)
+
+
+def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str | None = None,
+                         run_path: str = "") -> RpamAcquisition:
+    """Check the choice of experiment and build the acquisition view of an rPAM protocol.
+
+    ``stored_kind``: the kind of the run being resumed (its experiment is then fixed).
+    Raises :class:`ConfigError` with one sentence for a missing or contradictory choice
+    and for a protocol that lacks what acquisition needs.
+    """
+    name = getattr(base, "name", "the protocol")
+    if getattr(base, "kind", "") != "rpam":
+        raise ConfigError(f"--experiment picks one experiment of an rPAM protocol; {name} is of kind "
+                          f"'{getattr(base, 'kind', '')}', so leave --experiment out.")
+    if experiment is not None and experiment not in EXPERIMENTS:
+        raise ConfigError(f"--experiment must be stretch or joint, not '{experiment}'.")
+    if stored_kind is not None:
+        stored = experiment_of_kind(stored_kind)
+        if stored is None:
+            raise ConfigError(f"{run_path} is a run of kind '{stored_kind}', which protocol {name} cannot continue.")
+        if experiment is not None and experiment != stored:
+            raise ConfigError(f"{run_path} records the {stored} experiment, not {experiment}; "
+                              "drop --experiment to resume it.")
+        experiment = stored
+    if experiment is None:
+        raise ConfigError(f"Protocol {name} holds two experiments: choose one with --experiment stretch "
+                          "(the stretch test, Figs. 5-6) or --experiment joint (the joint map, Fig. 8).")
+    from .models import rpam
+
+    label = str(getattr(base, "path", None) or name)
+    raw = dict(getattr(base, "sections", {}) or {})
+    if getattr(base, "settling", None) is None:
+        raise ConfigError(f"{label}: labcli acquire needs a [settling] table (window_s, hold_s, "
+                          "pressure_spread_MPa, angle_spread_deg, timeout_s, capture_s).")
+    if getattr(base, "rate_hz", None) is None:
+        raise ConfigError(f"{label}: labcli acquire needs [acquisition] rate_hz.")
+    calibration, device, length_spread = _sensors(raw, label)
+    act = rpam.actuator_from_protocol(raw, label)
+    # Points are numbered in the order they are run: the first set value outermost.
+    if experiment == "stretch":
+        masses, pressures = rpam.stretch_test_plan(raw, label)
+        grid = itertools.product(masses, pressures)
+        points = [PlannedPoint(i, float(p), 0.0, float(m)) for i, (m, p) in enumerate(grid, start=1)]
+    else:
+        grid = itertools.product(*rpam.joint_map_plan(raw, label))
+        points = [PlannedPoint(i, float(a), float(b)) for i, (a, b) in enumerate(grid, start=1)]
+    return RpamAcquisition(base, experiment, calibration, device, points, act.L0_m, length_spread)
+
+
+def _sensors(raw: dict[str, Any], label: str) -> tuple[Any, Any, float]:
+    """Calibration, device spec and length settling limit (m) from the ``[sensors]`` table."""
+    from ...core.calibration import UNIT_FACTORS, Calibration, Channel
+    from ...core.protocol import DeviceSpec
+
+    s = raw.get("sensors")
+    if not isinstance(s, dict):
+        raise ConfigError(f"{label}: labcli acquire needs a [sensors] table naming the DAQ (device, channels) "
+                          "and calibrating each channel.")
+
+    def bad(key: str, need: str, value: Any) -> ConfigError:
+        return ConfigError(f"{label}: key 'sensors.{key}' must be {need}, not {value!r}.")
+
+    device = s.get("device")
+    if not isinstance(device, str) or not device:
+        raise bad("device", "the device name the ID? reply carries", device)
+    names = s.get("channels")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names) or len(set(names)) != len(names):
+        raise bad("channels", "a list of distinct channel names in data-line order", names)
+    missing = [c for c in CHANNELS if c not in names]
+    if missing:
+        raise ConfigError(f"{label}: key 'sensors.channels' must include {', '.join(CHANNELS)}; "
+                          f"{', '.join(missing)} {'is' if len(missing) == 1 else 'are'} missing.")
+    lo_adc, hi_adc = s.get("adc_min_counts", 0), s.get("adc_max_counts", 4095)
+    channels = []
+    length_spread = None
+    for n in names:
+        c = s.get(n)
+        if not isinstance(c, dict):
+            raise ConfigError(f"{label}: missing table [sensors.{n}] calibrating channel {n}.")
+        q = c.get("quantity")
+        if q not in UNIT_FACTORS:
+            raise bad(f"{n}.quantity", "one of " + ", ".join(UNIT_FACTORS), q)
+        unit = c.get("unit")
+        if unit not in UNIT_FACTORS[q]:
+            raise bad(f"{n}.unit", f"one of {', '.join(UNIT_FACTORS[q])} for a {q} channel", unit)
+        gain, zero, rng = c.get("gain"), c.get("zero_counts"), c.get("range")
+        if not _number(gain) or gain == 0:
+            raise bad(f"{n}.gain", "a non-zero number", gain)
+        if not _number(zero):
+            raise bad(f"{n}.zero_counts", "a number", zero)
+        if not (isinstance(rng, list) and len(rng) == 2 and all(_number(v) for v in rng) and rng[0] < rng[1]):
+            raise bad(f"{n}.range", "[low, high] with low < high", rng)
+        f = UNIT_FACTORS[q][unit]
+        channels.append(Channel(name=n, quantity=q, gain=float(gain) * f, zero_counts=float(zero),
+                                range=(float(rng[0]) * f, float(rng[1]) * f), unit_in_file=unit))
+        if q == "length":
+            spread = c.get("settle_spread_mm")
+            if not _number(spread) or spread <= 0:
+                raise bad(f"{n}.settle_spread_mm", "a positive number of mm (the length's settling limit)", spread)
+            length_spread = float(spread) * 1e-3 if length_spread is None else min(length_spread, float(spread) * 1e-3)
+    if [ch.quantity for ch in channels if ch.name in CHANNELS] != ["pressure", "pressure", "angle", "length"] or \
+            [ch.name for ch in channels if ch.name in CHANNELS] != list(CHANNELS):
+        raise ConfigError(f"{label}: channels {', '.join(CHANNELS)} of [sensors] must be, in this order, "
+                          "two pressures, an angle and a length.")
+    cal = Calibration(tuple(channels), (float(lo_adc), float(hi_adc)))
+    return cal, DeviceSpec(device, tuple(names), float(lo_adc), float(hi_adc)), float(length_spread)
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+# --------------------------------------------------------------------------- text
+
+
+def kpa(p_MPa: float) -> str:
+    return f"{p_MPa * 1e3:.4g} kPa"
+
+
+def point_label(point: int, total: int, experiment: str) -> str:
+    return f"Point {point}/{total} ({_TITLE[experiment]})"
+
+
+def stretch_prompt(label: str, p: PlannedPoint) -> str:
+    grams = (p.mass_kg or 0.0) * 1e3
+    load = f"hang {grams:.4g} g on actuator A" if grams > 0 else "leave actuator A without a payload"
+    return f"{label}: {load}, set P_A = {kpa(p.P_A_MPa)}, then press Enter"
+
+
+def joint_prompt(label: str, p: PlannedPoint) -> str:
+    return f"{label}: set P_A = {kpa(p.P_A_MPa)} and P_B = {kpa(p.P_B_MPa)}, then press Enter"
+
+
+def vent_prompt(label: str) -> str:
+    return f"{label}: vent both actuators (P_A = P_B = 0 kPa) for the baseline, then press Enter"
+
+
+MOUNT_STRETCH_TEXT = ("Take actuator A off the joint and hang it on the stretch stand, "
+                      "draw-wire sensor on its end caps, vented and without payload, then press Enter")
+MOUNT_JOINT_TEXT = "Mount actuators A and B on the joint's swivel plates, both vented, then press Enter"
+UNLOAD_STRETCH_TEXT = "Take the payload off actuator A and vent it, then press Enter"
+VENT_TEXT = "Vent both actuators, then press Enter"
+
+
+# --------------------------------------------------------------------------- records
+
+
+def _cols(protocol: Any) -> dict[str, int]:
+    names = list(protocol.channels)
+    return {n: names.index(n) for n in CHANNELS}
+
+
+def stretch_record(p: PlannedPoint, window: Window, settle: SettleReport, protocol: Any) -> dict:
+    """One stretch-test point, SI, with its raw window (what the store writes)."""
+    c = _cols(protocol)
+    m = window.mean()
+    L = float(m[c["LEN"]])
+    return {
+        "point": int(p.point),
+        "experiment": "stretch",
+        "mass_kg": float(p.mass_kg or 0.0),
+        "P_MPa": np.array([m[c["P_A"]], m[c["P_B"]]]),
+        "L_m": L,
+        "lambda": L / protocol.L0_m,
+        "plan": p.plan_row(),
+        "settle": {"load": settle.as_dict()},
+        "raw": {"load": window.as_dict()},
+    }
+
+
+def joint_record(p: PlannedPoint, baseline: Window, loaded: Window, settle_b: SettleReport,
+                 settle_l: SettleReport, protocol: Any) -> dict:
+    """One joint-map point: pressures and the deflection from the vented baseline, SI."""
+    c = _cols(protocol)
+    b = baseline.mean()
+    m = loaded.mean()
+    return {
+        "point": int(p.point),
+        "experiment": "joint",
+        "P0_MPa": np.array([b[c["P_A"]], b[c["P_B"]]]),
+        "P_MPa": np.array([m[c["P_A"]], m[c["P_B"]]]),
+        "pot0_rad": float(b[c["POT"]]),
+        "alpha_rad": float(m[c["POT"]] - b[c["POT"]]),
+        "L_m": float(m[c["LEN"]]),
+        "plan": p.plan_row(),
+        "settle": {"baseline": settle_b.as_dict(), "load": settle_l.as_dict()},
+        "raw": {"baseline": baseline.as_dict(), "load": loaded.as_dict()},
+    }
+
+
+def point_row(record: dict) -> dict[str, str]:
+    """The point as people read it (kPa, g, mm, deg), for the review."""
+    row = {"point": str(record["point"])}
+    p = record["P_MPa"]
+    if record["experiment"] == "stretch":
+        row["payload (g)"] = f"{record['mass_kg'] * 1e3:.4g}"
+        row["P_A (kPa)"] = f"{p[0] * 1e3:.2f}"
+        row["L (mm)"] = f"{record['L_m'] * 1e3:.2f}"
+        row["lambda"] = f"{record['lambda']:.4f}"
+    else:
+        row["P_A (kPa)"] = f"{p[0] * 1e3:.2f}"
+        row["P_B (kPa)"] = f"{p[1] * 1e3:.2f}"
+        row["alpha (deg)"] = f"{math.degrees(record['alpha_rad']):+.2f}"
+    load = record["settle"]["load"]
+    row["settled (s)"] = f"{load['settle_time_s']:.2f}" + ("" if load["settled"] else " timed out")
+    return row
+
+
+# --------------------------------------------------------------------------- sessions
+
+
+def rpam_session(protocol: RpamAcquisition, *, completed: Iterable[int] = ()) -> Generator[Step, Any, None]:
+    """The chosen experiment's grid, point by point; ``completed`` ids (resume) are skipped."""
+    capture_s = float(protocol.settling.capture_s)
+    done = set(int(t) for t in completed)
+    total = len(protocol.points)
+    remaining = [p for p in protocol.points if p.point not in done]
+    stretch = protocol.experiment == "stretch"
+
+    yield SetupCheck()
+    yield Prompt(MOUNT_STRETCH_TEXT, MountStretchStand()) if stretch else Prompt(MOUNT_JOINT_TEXT, MountJoint())
+    skipped: list[int] = []
+    for p in remaining:
+        label = point_label(p.point, total, protocol.experiment)
+        yield BeginTrial(p.point, "", len(done) + 1, total, label)
+        while True:  # until accepted or skipped
+            if stretch:
+                yield Prompt(stretch_prompt(label, p), StretchLoad(float(p.mass_kg or 0.0), p.P_A_MPa))
+                wait = yield WaitSettle("point")
+                if wait == "redo":
+                    continue
+                window = yield Capture(capture_s)
+                record = stretch_record(p, window, wait, protocol)
+            else:
+                yield Prompt(vent_prompt(label), Vent())
+                wait_b = yield WaitSettle("baseline")
+                if wait_b == "redo":
+                    continue
+                base = yield Baseline(capture_s)
+                yield Prompt(joint_prompt(label, p), SetPressures(p.P_A_MPa, p.P_B_MPa))
+                wait = yield WaitSettle("pressures")
+                if wait == "redo":
+                    continue
+                window = yield Capture(capture_s)
+                record = joint_record(p, base, window, wait_b, wait, protocol)
+            decision = yield Review(point_row(record))
+            if decision == "redo":
+                continue
+            if decision == "skip":
+                skipped.append(p.point)
+                break
+            yield Commit(record)
+            done.add(p.point)
+            break
+    yield Prompt(UNLOAD_STRETCH_TEXT, UnloadStretchStand()) if stretch else Prompt(VENT_TEXT, Vent())
+    yield Finish(None, tuple(skipped))

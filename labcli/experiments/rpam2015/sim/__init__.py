@@ -1,0 +1,1 @@
+"""The simulated rPAM joint and stretch stand."""

@@ -1,0 +1,65 @@
+"""Where fit and validate get their trials and their rig: a run file or a trial CSV.
+
+A run file (``.h5``) carries its protocol verbatim, so its geometry is the one the trials were
+recorded with; a CSV carries none, so the protocol is named (default ``takuma2014``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ....errors import ConfigError
+
+DEFAULT_PROTOCOL = "takuma2014"
+RUN_SUFFIXES = (".h5", ".hdf5")
+
+
+@dataclass
+class TrialSource:
+    path: Path
+    table: Any            # the trial table (pandas DataFrame, contract columns)
+    protocol: Any         # labcli.core.protocol.Protocol
+    is_run: bool          # True for a run file, False for a CSV
+
+    @property
+    def label(self) -> str:
+        return str(self.path)
+
+
+def _read_table(path: Path) -> Any:
+    from ....core.tables import load_trials
+
+    return load_trials(path)
+
+
+def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSource:
+    """Trials and protocol of a run file or a trial CSV (``protocol`` names one for a CSV)."""
+    from ....core.protocol import load_protocol, loads_protocol
+
+    p = Path(path)
+    if not p.exists():
+        raise ConfigError(f"{p} does not exist; pass a run file (.h5) or a trial CSV.")
+    if p.suffix.lower() in RUN_SUFFIXES:
+        from ....core.store import RunFile
+
+        with RunFile.open(p) as run:
+            text = run.protocol_text
+            name = str(run.attrs.get("protocol", ""))
+        if protocol is not None and protocol != name:
+            raise ConfigError(f"{p} was recorded with protocol '{name}'; --protocol applies to "
+                              "trial CSV files only, so leave it out for a run file.")
+        proto = (loads_protocol(text, source=f"{p} (embedded protocol)") if text.strip()
+                 else load_protocol(name or DEFAULT_PROTOCOL))
+        if proto.kind != "force":
+            raise ConfigError(f"{p} is a run of kind '{proto.kind}' (protocol '{proto.name}'), not a force run; "
+                              "fit and validate read the trials of a force run such as one recorded "
+                              f"with protocol {DEFAULT_PROTOCOL}.")
+        return TrialSource(p, _read_table(p), proto, True)
+    proto = load_protocol(protocol or DEFAULT_PROTOCOL)
+    if proto.kind != "force":
+        # A model fitted under a push or rPAM protocol would be refused by every later check.
+        raise ConfigError(f"--protocol {protocol} is of kind '{proto.kind}'; a trial CSV is read with a "
+                          f"force protocol such as {DEFAULT_PROTOCOL}.")
+    return TrialSource(p, _read_table(p), proto, False)

@@ -1,0 +1,124 @@
+"""Accuracy of the fitted regression on the validation trials (the paper's Figure 7).
+
+Errors are ``calculated - observed`` in degrees for the angles and newtons for the forces.
+Trials whose prediction is flagged (clipped arcsin, near-singular Jacobian, bad pressure) are
+counted apart and left out of the measures, so one bad posture cannot hide or dominate the
+accuracy of the rest.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ....errors import ModelError
+from .takuma import FLAG_TEXT, TakumaModel, select_set
+
+QUANTITIES: dict[str, tuple[str, str, str]] = {
+    # name: (table column, unit, label)
+    "theta1": ("theta1_deg", "deg", "angle theta1"),
+    "theta2": ("theta2_deg", "deg", "angle theta2"),
+    "Fx": ("Fx_N", "N", "force Fx"),
+    "Fy": ("Fy_N", "N", "force Fy"),
+}
+MEASURES: tuple[str, ...] = ("rmse", "mae", "max_abs", "bias", "r2", "pct_range")
+MODES: tuple[str, ...] = ("pressure-only", "measured-angles")
+
+
+def error_metrics(observed: Any, calculated: Any) -> dict[str, Any]:
+    """RMSE, MAE, max |error|, bias, R^2 and RMSE as % of the observed range.
+
+    ``None`` where a measure is undefined (no trials; R^2 and % of range need a spread).
+    """
+    obs = np.asarray(observed, dtype=float)
+    calc = np.asarray(calculated, dtype=float)
+    n = int(obs.size)
+    out: dict[str, Any] = {"n": n, **{m: None for m in MEASURES}, "range": None}
+    if n == 0:
+        return out
+    err = calc - obs
+    rmse = float(np.sqrt(np.mean(err ** 2)))
+    out.update(rmse=rmse, mae=float(np.mean(np.abs(err))), max_abs=float(np.max(np.abs(err))),
+               bias=float(np.mean(err)))
+    spread = float(np.max(obs) - np.min(obs))
+    out["range"] = spread
+    ss_tot = float(np.sum((obs - obs.mean()) ** 2))
+    if ss_tot > 0:
+        out["r2"] = 1.0 - float(np.sum(err ** 2)) / ss_tot
+    if spread > 0:
+        out["pct_range"] = 100.0 * rmse / spread
+    return out
+
+
+def evaluate(model: TakumaModel, table: Any, mode: str = "pressure-only",
+             source: str = "the run") -> dict[str, Any]:
+    """Predict the validation trials of ``table`` and measure the errors.
+
+    Returns ``{"mode", "trial", "observed", "calculated", "ok", "flags", "metrics"}``:
+    arrays per quantity in degrees / N (calculated values of flagged trials are finite
+    stand-ins, marked False in ``ok``), and ``metrics[q]`` from :func:`error_metrics` plus
+    ``unit``, ``n_flagged`` and ``n_missing`` (observed value absent).
+    """
+    if mode not in MODES:
+        raise ModelError(f"Unknown validation mode '{mode}'; use pressure-only or measured-angles.")
+    rows = select_set(table, "validation", source)
+    pred = model.predict_table(rows, mode=mode)
+    calculated = {
+        "theta1": np.degrees(pred["theta1_rad"]), "theta2": np.degrees(pred["theta2_rad"]),
+        "Fx": np.asarray(pred["Fx_N"], dtype=float), "Fy": np.asarray(pred["Fy_N"], dtype=float),
+    }
+    observed = {}
+    for q, (col, _, _) in QUANTITIES.items():
+        observed[q] = (np.asarray(rows[col], dtype=float) if col in rows.columns
+                       else np.full(len(rows), np.nan))
+    metrics: dict[str, dict[str, Any]] = {}
+    for q, (_, unit, _) in QUANTITIES.items():
+        have = np.isfinite(observed[q])
+        ok = np.asarray(pred["ok"][q], dtype=bool)
+        use = have & ok
+        m = error_metrics(observed[q][use], calculated[q][use])
+        m.update(unit=unit, n_flagged=int(np.sum(have & ~ok)), n_missing=int(np.sum(~have)))
+        metrics[q] = m
+    if all(metrics[q]["n"] == 0 for q in QUANTITIES):
+        raise ModelError(f"No validation trial of {source} gives a usable prediction "
+                         f"({_flag_summary(pred['flags'])}); check the pressures and the model.")
+    return {
+        "mode": mode, "trial": np.asarray(pred["trial"], dtype=int),
+        "observed": observed, "calculated": calculated,
+        "ok": {q: np.asarray(pred["ok"][q], dtype=bool) for q in QUANTITIES},
+        "flags": pred["flags"], "metrics": metrics,
+    }
+
+
+def _flag_summary(flags: list[list[str]]) -> str:
+    counts: dict[str, int] = {}
+    for fl in flags:
+        for f in fl:
+            counts[f] = counts.get(f, 0) + 1
+    if not counts:
+        return "no flags"
+    return ", ".join(f"{n} x {FLAG_TEXT.get(f, f)}" for f, n in sorted(counts.items()))
+
+
+def _num(x: Any) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def evaluation_to_dict(ev: dict[str, Any]) -> dict[str, Any]:
+    """Plain-JSON view: metrics, and per trial observed / calculated (null when flagged)."""
+    trials = []
+    for i, t in enumerate(ev["trial"]):
+        trials.append({
+            "trial": int(t),
+            "observed": {q: _num(ev["observed"][q][i]) for q in QUANTITIES},
+            "calculated": {q: (_num(ev["calculated"][q][i]) if ev["ok"][q][i] else None)
+                           for q in QUANTITIES},
+            "flags": [{"flag": f, "reason": FLAG_TEXT.get(f, f)} for f in ev["flags"][i]],
+        })
+    units = {q: QUANTITIES[q][1] for q in QUANTITIES}
+    metrics = {q: {k: (_num(v) if isinstance(v, float) else v) for k, v in m.items()}
+               for q, m in ev["metrics"].items()}
+    return {"mode": ev["mode"], "units": units, "metrics": metrics, "trials": trials}

@@ -1,0 +1,314 @@
+"""The simulated two-joint McKibben rig: physics, operator, sensors and ADC.
+
+:class:`SimRig` is the test bed of Takuma et al. (2014) behind a 12-bit ADC.
+It is not part of the wire protocol; the simulated firmware
+(:mod:`labcli.core.sim.firmware`) reads it through two generic members that any other
+rig model can provide as well:
+
+* ``channels`` (names, in data-line order), ``device`` and ``firmware`` (for ``ID?``);
+* ``samples(n, rate_hz) -> (t_us int64 (n,), counts int64 (n, k))``, advancing
+  the rig's own simulated clock, and ``advance(seconds)``.
+
+Operator hooks (``supply_air``, ``close_valves``, ``hang_weight``, ...) act at
+the rig's current simulated time.  Each solves the new static equilibrium once
+(:func:`labcli.experiments.takuma2014.sim.physics.solve_equilibrium`); the posture then relaxes towards it
+as a first-order lag with time constant ``tau`` (seeded jitter of about 15 %
+per change).  With the valves open the pressures follow the regulator with the
+same lag; with them closed the pressures follow the posture through Boyle's
+law, so angles and pressures are always consistent.
+
+Sensors: pressure counts per the reference calibration
+``P[MPa] = (counts * 5 / 4095 - 1) / 4`` and potentiometer counts per
+``deg = (counts - 2048) * 340 / 4095``, Gaussian noise of 0.5 count (pressure)
+and 0.7 count (potentiometer) rms times ``noise``, rounded and clipped to
+0..4095.  With ``variation`` on (the default) each potentiometer has a
+mechanical offset (1.5 deg rms) and each pressure sensor a zero offset
+(1.5 kPa rms), and the actuators differ (:func:`labcli.experiments.takuma2014.sim.physics.varied_params`).
+``drift`` scales two slow effects: sensor zero drift (slow sinusoids of a few
+counts, periods of 10-40 min) and a leak of the closed chambers (air amount
+decaying with a time constant of ``6 h / drift``; the leak moves the
+pressures, its tiny effect on posture enters at the next operator action).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import physics as ph
+from ....core.sim.clock import SimClock
+
+CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
+ADC_MAX = 4095
+VREF = 5.0
+POT_SPAN_DEG = 340.0
+PRESSURE_NOISE_COUNTS = 0.5
+POT_NOISE_COUNTS = 0.7
+LEAK_TIME_S = 6 * 3600.0  # at drift = 1
+
+
+def pressure_to_counts(p_MPa):
+    """Ideal (unrounded) ADC counts for a gauge pressure, inverse of the reference calibration."""
+    return (4.0 * np.asarray(p_MPa) + 1.0) * ADC_MAX / VREF
+
+
+def angle_to_counts(theta_rad):
+    """Ideal (unrounded) ADC counts for a potentiometer angle."""
+    return 2048.0 + np.degrees(theta_rad) * ADC_MAX / POT_SPAN_DEG
+
+
+@dataclass(frozen=True)
+class _Segment:
+    """The state between two operator actions: a first-order lag to ``target``."""
+
+    t0: float
+    tau: float
+    theta_from: np.ndarray
+    theta_to: np.ndarray
+    p_from: np.ndarray  # gauge Pa (used with open valves)
+    p_to: np.ndarray
+    chambers: ph.Chambers
+    load: object
+    target: ph.Equilibrium
+
+
+class SimRig(SimClock):
+    """Physical model of the reference rig with operator hooks and an ADC.
+
+    ``SimRig(seed=0, noise=1.0, drift=0.0)``; ``params`` overrides the
+    actuator/geometry parameters (:class:`labcli.experiments.takuma2014.sim.physics.RigParams`),
+    ``variation=False`` gives the symmetric design rig with ideal sensors.
+    The rig starts vented (no air), at its unloaded posture.
+    """
+
+    channels: tuple[str, ...] = CHANNELS
+    device = "mckibben-2dof-sim"
+    firmware = "1.0"
+
+    def __init__(
+        self,
+        seed: int = 0,
+        noise: float = 1.0,
+        drift: float = 0.0,
+        params: ph.RigParams | None = None,
+        *,
+        variation: bool = True,
+        tau_s: float = 0.7,
+        supply_MPa: float = ph.SUPPLY_MPA,
+    ) -> None:
+        if noise < 0 or drift < 0 or tau_s <= 0:
+            raise ValueError("noise and drift must be >= 0 and tau_s > 0")
+        self.seed = int(seed)
+        self.noise = float(noise)
+        self.drift = float(drift)
+        self.tau_s = float(tau_s)
+        self.variation = bool(variation)
+        if params is None:
+            params = (
+                ph.varied_params(self.seed, supply_MPa=supply_MPa)
+                if variation
+                else ph.nominal_params(supply_MPa=supply_MPa)
+            )
+        self.params = params
+        self._lock = threading.RLock()
+        self._noise_rng = np.random.default_rng([self.seed, 1])
+        self._event_rng = np.random.default_rng([self.seed, 2])
+        srng = np.random.default_rng([self.seed, 3])
+        if variation:
+            self.pot_offset_rad = np.radians(1.5) * srng.standard_normal(2)
+            self.sensor_offset_MPa = 0.0015 * srng.standard_normal(4)
+        else:
+            self.pot_offset_rad = np.zeros(2)
+            self.sensor_offset_MPa = np.zeros(4)
+        self._drift_amp = np.array([3.0, 3.0, 3.0, 3.0, 2.0, 2.0])  # counts at drift = 1
+        self._drift_period = srng.uniform(600.0, 2400.0, 6)
+        self._drift_phase = srng.uniform(0.0, 2 * np.pi, 6)
+        self._t = 0.0
+        self._t_closed = 0.0
+        chambers = ph.Chambers.open(np.zeros(4))
+        eq = ph.solve_equilibrium(self.params, chambers, ph.NoLoad())
+        self._seg = _Segment(0.0, self.tau_s, eq.theta_rad, eq.theta_rad, np.zeros(4), np.zeros(4),
+                             chambers, ph.NoLoad(), eq)
+        self._valves = "vented"
+
+    # ------------------------------------------------------------ state
+
+    def _state_at(self, t):
+        """Posture (..., 2), gauge pressures Pa (..., 4) at times ``t``."""
+        s = self._seg
+        t = np.asarray(t, dtype=float)
+        w = np.exp(-np.clip(t - s.t0, 0.0, None) / s.tau)[..., None]
+        theta = s.theta_to + (s.theta_from - s.theta_to) * w
+        if s.chambers.state == "open":
+            p = s.p_to + (s.p_from - s.p_to) * w
+        else:
+            L = ph.actuator_lengths(theta, self.params)
+            V = ph.mckibben_volume(L, self.params.b, self.params.n)
+            amount = s.chambers.amount * self._leak_factor(t)[..., None]
+            p = amount / (V + self.params.V_dead) - ph.P_ATM
+        return theta, p
+
+    def _leak_factor(self, t):
+        if self.drift == 0 or self._seg.chambers.state != "closed":
+            return np.ones_like(np.asarray(t, dtype=float))
+        return np.exp(-(np.asarray(t, dtype=float) - self._t_closed) * self.drift / LEAK_TIME_S)
+
+    def true_state(self) -> dict:
+        """The truth at the current simulated time (for tests and checks).
+
+        Keys: ``theta_rad`` (2,) absolute joint angles, ``pressures_MPa`` (4,)
+        gauge L1 R1 L2 R2, ``force_N`` (2,) on the contact point, ``time_s``;
+        also ``valves`` ("vented" | "open" | "closed"), ``contact_m`` (2,),
+        ``target_theta_rad`` (2,) the equilibrium being approached, ``tau_s``,
+        ``load`` (dict describing the load) and ``residual_Nm`` of the target.
+        """
+        with self._lock:
+            theta, p = self._state_at(self._t)
+            s = self._seg
+            return {
+                "theta_rad": theta.copy(),
+                "pressures_MPa": p / 1e6,
+                "force_N": np.asarray(s.load.force(theta, self.params.geometry), dtype=float),
+                "time_s": self._t,
+                "valves": self._valves,
+                "contact_m": ph.contact_point(theta, self.params.geometry),
+                "target_theta_rad": s.target.theta_rad.copy(),
+                "tau_s": s.tau,
+                "load": _describe(s.load, self.params.geometry),
+                "residual_Nm": s.target.residual_Nm,
+            }
+
+    # ------------------------------------------------------------ operator
+
+    def _change(self, chambers: ph.Chambers | None = None, load=None, valves: str | None = None) -> None:
+        with self._lock:
+            theta_now, p_now = self._state_at(self._t)
+            s = self._seg
+            if chambers is None:
+                chambers = s.chambers
+                if chambers.state == "closed" and self.drift:
+                    # Fold the leak so far into the amount of air; posture sees it from now on.
+                    chambers = ph.Chambers("closed", amount=chambers.amount * self._leak_factor(self._t))
+                    self._t_closed = self._t
+            load = s.load if load is None else load
+            try:
+                eq = ph.solve_equilibrium(self.params, chambers, load, theta0=theta_now)
+            except ValueError:
+                raise ValueError(
+                    f"the simulated rig finds no static equilibrium with {_load_text(load)};"
+                    " the load is beyond the rig's range"
+                ) from None
+            p_to = chambers.gauge_pa if chambers.state == "open" else eq.pressures_MPa * 1e6
+            tau = self.tau_s * float(np.clip(np.exp(0.15 * self._event_rng.standard_normal()), 0.7, 1.4))
+            self._seg = _Segment(self._t, tau, theta_now, eq.theta_rad, p_now, np.asarray(p_to, float),
+                                 chambers, load, eq)
+            if valves is not None:
+                self._valves = valves
+
+    def supply_air(self, pressures_MPa=None) -> None:
+        """Open the valves and pressurise to the supply (scalar or 4 values, MPa gauge); pressures are held."""
+        p = self.params.supply_pa if pressures_MPa is None else np.asarray(pressures_MPa, float) * 1e6
+        p = np.broadcast_to(p, (4,)).astype(float)
+        if np.any(p < 0) or np.any(p > 1.0e6):
+            raise ValueError("supply pressures must be within 0..1 MPa gauge (the sensors' span)")
+        self._change(chambers=ph.Chambers.open(p), valves="open")
+
+    def close_valves(self) -> None:
+        """Close the valves: from now on each chamber keeps its air (Boyle's law)."""
+        with self._lock:
+            theta_now, p_now = self._state_at(self._t)
+            L = ph.actuator_lengths(theta_now, self.params)
+            self._t_closed = self._t
+            self._change(chambers=ph.Chambers.closed_at(L, p_now, self.params), valves="closed")
+
+    def vent(self) -> None:
+        """Open the valves to atmosphere: the rig goes limp (rubber only)."""
+        self._change(chambers=ph.Chambers.open(np.zeros(4)), valves="vented")
+
+    def hang_weight(self, mass_kg: float, direction_rad: float) -> None:
+        """Hang ``mass_kg`` from the tip over a pulley pulling along ``direction_rad`` (replaces any load)."""
+        if not mass_kg >= 0:
+            raise ValueError("mass must be >= 0 kg")
+        self._change(load=ph.Weight(float(mass_kg), float(direction_rad)))
+
+    def remove_weight(self) -> None:
+        """Take the weight off (no-op if none hangs)."""
+        if isinstance(self._seg.load, ph.Weight):
+            self._change(load=ph.NoLoad())
+
+    def push_object(self, radius_m: float, distance_m: float, phi_rad: float, stiffness_N_per_m: float) -> None:
+        """Place Section 4's cylinder just touching the tip, then push it ``distance_m`` along ``phi_rad``."""
+        if not (radius_m > 0 and distance_m >= 0 and stiffness_N_per_m > 0):
+            raise ValueError("object radius and stiffness must be > 0 and the push distance >= 0")
+        with self._lock:
+            theta_now, _ = self._state_at(self._t)
+            touch = tuple(float(v) for v in ph.contact_point(theta_now, self.params.geometry))
+            self._change(load=ph.Push(float(radius_m), float(distance_m), float(phi_rad),
+                                      float(stiffness_N_per_m), touch))
+
+    def release_object(self) -> None:
+        """Withdraw the object (no-op if none is pushed)."""
+        if isinstance(self._seg.load, ph.Push):
+            self._change(load=ph.NoLoad())
+
+    # ------------------------------------------------------------ sensors
+
+    def ideal_counts(self, theta, p_gauge_pa, t) -> np.ndarray:
+        """Noise-free, unrounded counts (n, 6) for states at times ``t`` (drift included)."""
+        n = np.shape(t)[0]
+        out = np.empty((n, 6))
+        out[:, :4] = pressure_to_counts(np.asarray(p_gauge_pa) / 1e6 + self.sensor_offset_MPa)
+        out[:, 4:] = angle_to_counts(np.asarray(theta) + self.pot_offset_rad)
+        if self.drift:
+            tt = np.asarray(t)[:, None]
+            out += self.drift * self._drift_amp * (
+                np.sin(2 * np.pi * tt / self._drift_period + self._drift_phase) - np.sin(self._drift_phase)
+            )
+        return out
+
+    def samples(self, n: int, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` ADC samples at ``rate_hz``: ``(t_us int64 (n,), counts int64 (n, 6))``.
+
+        The first sample is one period after the current time; the clock ends
+        at the last sample.
+        """
+        if n < 0 or not rate_hz > 0:
+            raise ValueError("need n >= 0 and rate_hz > 0")
+        with self._lock:
+            t = self._t + np.arange(1, n + 1) / float(rate_hz)
+            if n == 0:
+                return np.zeros(0, np.int64), np.zeros((0, 6), np.int64)
+            theta, p = self._state_at(t)
+            x = self.ideal_counts(theta, p, t)
+            if self.noise:
+                sd = self.noise * np.array([PRESSURE_NOISE_COUNTS] * 4 + [POT_NOISE_COUNTS] * 2)
+                x = x + sd * self._noise_rng.standard_normal((n, 6))
+            counts = np.clip(np.rint(x), 0, ADC_MAX).astype(np.int64)
+            self._t = float(t[-1])
+            return np.rint(t * 1e6).astype(np.int64), counts
+
+
+def _load_text(load) -> str:
+    if isinstance(load, ph.Weight):
+        return f"{load.mass_kg * 1e3:g} g hanging at {np.degrees(load.direction_rad):g} deg"
+    if isinstance(load, ph.Push):
+        return (f"an object of radius {load.radius_m * 1e3:g} mm pushed {load.distance_m * 1e3:g} mm"
+                f" at {np.degrees(load.phi_rad):g} deg")
+    return "no load"
+
+
+def _describe(load, geom) -> dict:
+    if isinstance(load, ph.Weight):
+        return {"kind": "weight", "mass_kg": load.mass_kg, "direction_rad": load.direction_rad}
+    if isinstance(load, ph.Push):
+        return {
+            "kind": "push",
+            "radius_m": load.radius_m,
+            "distance_m": load.distance_m,
+            "phi_rad": load.phi_rad,
+            "stiffness_N_per_m": load.stiffness_N_per_m,
+            "center_m": load.center(geom).tolist(),
+        }
+    return {"kind": "none"}
