@@ -12,16 +12,18 @@ from rich.console import Console
 
 from labcli.cli import cli
 from labcli.core.device import Device
-from labcli.core.engine import RunEngine, resume_command
+from labcli.core.acquisition import resume_command
+from labcli.core.engine import RunEngine
 from labcli.errors import DeviceDisconnected, DeviceTimeout
 from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.experiments.takuma2014.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
 from labcli.core.store import RunFile
 from labcli.core.tables import load_trials
 from labcli.core.ui import UnattendedUI
 
 PROTOCOL = load_protocol("takuma2014")
-PLAN = PROTOCOL.load_plan()
+PLAN = load_plan(PROTOCOL)
 # One count of sensor noise per sample, rms (labcli.experiments.takuma2014.sim.rig): 0.5 count of 0.305 kPa, 0.7 count of 0.083 deg.
 PRESSURE_NOISE_MPA = 0.5 * 5.0 / 16380
 ANGLE_NOISE_DEG = 0.7 * 340 / 4095

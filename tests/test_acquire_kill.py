@@ -38,8 +38,9 @@ import h5py
 import numpy as np
 import pytest
 
-from labcli.core.engine import acquire
+from labcli.core.acquisition import acquire
 from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.core.store import RunFile
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -296,7 +297,7 @@ class Campaign:
 
 
 def plan_rows(n: int, n_validation: int) -> list[tuple[int, str, float, float]]:
-    rows = load_protocol("takuma2014").load_plan().head(n).to_dict("records")
+    rows = load_plan(load_protocol("takuma2014")).head(n).to_dict("records")
     return [(int(r["trial"]), "validation" if i >= n - n_validation else "fit", float(r["mass_g"]),
              float(r["direction_deg"])) for i, r in enumerate(rows)]
 
@@ -325,7 +326,7 @@ def test_ctrl_c_during_the_setup_check_leaves_no_file_and_says_so(tmp_path, monk
 
     monkeypatch.setattr(Device, "read", interrupted)
     path = tmp_path / "run.h5"
-    outcome = acquire(path, PORT, unattended=True, ui=quiet())
+    outcome = acquire(path, PORT, protocol="takuma2014", unattended=True, ui=quiet())
     assert outcome.exit_code == 130
     assert outcome.message == (f"Interrupted during the setup, before anything was written to {path}; "
                                "run the same command again to start the run.")
@@ -360,7 +361,7 @@ def test_ctrl_c_during_a_write_stores_the_trial_whole_and_says_so(tmp_path, monk
                     "4,validation,400,-150\n")
     path = tmp_path / "run.h5"
     ctrl_c_inside(monkeypatch, "write_trial", lambda record: record["trial"] == 3)
-    outcome = acquire(path, PORT, plan=plan, unattended=True, ui=quiet())
+    outcome = acquire(path, PORT, protocol="takuma2014", plan=plan, unattended=True, ui=quiet())
     assert outcome.exit_code == 130
     assert outcome.message == (f"Interrupted during the pause between trials; 3 trials stored in {path} are safe. "
                                f"{resume_sentence(path)}")
@@ -373,7 +374,7 @@ def test_ctrl_c_while_the_split_is_written_finishes_the_run(tmp_path, monkeypatc
     plan.write_text("trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,validation,500,30\n")
     path = tmp_path / "run.h5"
     ctrl_c_inside(monkeypatch, "set_split")
-    outcome = acquire(path, PORT, plan=plan, unattended=True, ui=quiet())
+    outcome = acquire(path, PORT, protocol="takuma2014", plan=plan, unattended=True, ui=quiet())
     assert outcome.exit_code == 0
     assert outcome.message.startswith(f"Session complete: 2 trials stored in {path} (2 this session, ")
     with RunFile.open(path) as run:

@@ -22,6 +22,7 @@ from labcli.experiments.takuma2014.models.classify import classify_file, stiffne
 from labcli.experiments.takuma2014.models.stiffness import REASON_UNOBSERVED_DIRECTION, StiffnessParams
 from labcli.experiments.takuma2014.models.takuma import TakumaModel
 from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
 from labcli.experiments.takuma2014.sim.objects import CATEGORY_OF_MATERIAL, DEMO_OBJECTS, SimObject
 from labcli.experiments.takuma2014.sim.rig import SimRig
@@ -43,8 +44,8 @@ def lab(tmp_path_factory):
     force = load_protocol("takuma2014")
     push = load_protocol("takuma2014-stiffness")
     rig = SimRig(seed=SEED)
-    trials = simulate_weight_trials(rig, force.load_plan(), calibration=force.calibration)
-    model = TakumaModel(geometry=force.rig, protocol=force.name).fit(trials)
+    trials = simulate_weight_trials(rig, load_plan(force), calibration=force.calibration)
+    model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(trials)
     model.save(d / "model.json")
     table = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration)
     write_push_csv(table, d / "pushes.csv")
@@ -335,11 +336,11 @@ def test_demo_objects_deform_measurably_and_stay_in_the_protocol_range():
     proto = load_protocol("takuma2014-stiffness")
     k_tip = 186.0
     for o in DEMO_OBJECTS:
-        assert proto.push.distance_min_m <= o.distance_m <= proto.push.distance_max_m
+        assert proto.settings.push.distance_min_m <= o.distance_m <= proto.settings.push.distance_max_m
         assert 0.02 < o.radius_m < 0.05
         delta_x = o.distance_m * k_tip / (k_tip + o.stiffness_N_per_m)
         assert delta_x > 4 * StiffnessParams().min_deformation_m
-        assert proto.push.category_of(o.stiffness_N_per_m) == o.category
+        assert proto.settings.push.category_of(o.stiffness_N_per_m) == o.category
     assert [o.material for o in DEMO_OBJECTS].count("PET") == 3
     assert [o.material for o in DEMO_OBJECTS].count("aluminium") == 2
     assert [o.material for o in DEMO_OBJECTS].count("steel") == 1

@@ -12,9 +12,11 @@ import numpy as np
 import pytest
 
 from labcli.core import protocol as protocol_mod
-from labcli.core.calibration import Calibration, format_value, from_display, to_display
+from labcli.core.calibration import format_value, from_display, to_display
 from labcli.errors import ConfigError
-from labcli.core.protocol import COEFFICIENT_NAMES, KINDS, load_protocol, loads_protocol, shipped_protocols
+from labcli.core.experiment import ProtocolKind
+from labcli.core.protocol import kinds, load_protocol, loads_protocol, shipped_protocols
+from labcli.experiments.takuma2014.protocol import COEFFICIENT_NAMES, load_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOLS = ROOT / "protocols"
@@ -49,7 +51,7 @@ def test_every_shipped_protocol_loads(name: str) -> None:
     by_name = load_protocol(name)
     by_path = load_protocol(PROTOCOLS / f"{name}.toml")
     assert by_name.name == by_path.name == name
-    assert by_name.kind in KINDS
+    assert by_name.kind in kinds()
     assert by_name.text == (PROTOCOLS / f"{name}.toml").read_text(encoding="utf-8")
 
 
@@ -79,14 +81,14 @@ def test_package_data_holds_nothing_unshipped() -> None:
 def test_force_protocol_values_from_the_paper() -> None:
     p = load_protocol("takuma2014")
     assert p.kind == "force"
-    assert p.rig == {"h1_m": 0.355, "h2_m": 0.130, "h3_m": 0.065, "r1_m": 0.075, "r2_m": 0.035}
-    assert (p.trials.fit, p.trials.validation, p.trials.total) == (90, 18, 108)
-    assert p.trials.plan == DATA / "takuma2014-plan.csv"
+    assert p.settings.rig == {"h1_m": 0.355, "h2_m": 0.130, "h3_m": 0.065, "r1_m": 0.075, "r2_m": 0.035}
+    assert (p.settings.trials.fit, p.settings.trials.validation, p.settings.trials.total) == (90, 18, 108)
+    assert p.settings.trials.plan == DATA / "takuma2014-plan.csv"
     assert p.device.name == "mckibben-2dof"
     assert p.device.matches("mckibben-2dof") and p.device.matches("mckibben-2dof-sim")
     assert not p.device.matches("mckibben-2dof-v2") and not p.device.matches("rpam")
-    assert p.force_limits.mass_min_g == 1.0 and p.force_limits.mass_max_g == 2000.0
-    assert tuple(p.paper_coefficients) == COEFFICIENT_NAMES
+    assert p.settings.force_limits.mass_min_g == 1.0 and p.settings.force_limits.mass_max_g == 2000.0
+    assert tuple(p.settings.paper_coefficients) == COEFFICIENT_NAMES
     # Section 3.3 as printed, except beta_theta2_R2 read with Eq. 35's minus folded in.
     printed = {
         "beta_theta1_L1": 0.136, "beta_theta1_R1": -1.587, "beta_theta2_L1": 1.359,
@@ -96,8 +98,8 @@ def test_force_protocol_values_from_the_paper() -> None:
         "beta_Fy3": -642.995, "beta_Fy4": -393.750, "beta_Fy5": 1.196, "beta_Fy6": -21.697,
     }
     for k, v in printed.items():
-        assert p.paper_coefficients[k] == (-v if k == "beta_theta2_R2" else v), k
-    assert p.paper_coefficients["beta_theta2_R2"] == 2.972
+        assert p.settings.paper_coefficients[k] == (-v if k == "beta_theta2_R2" else v), k
+    assert p.settings.paper_coefficients["beta_theta2_R2"] == 2.972
 
 
 def test_settling_is_converted_and_consistent_with_the_rig() -> None:
@@ -116,13 +118,13 @@ def test_push_protocol_shares_the_rig_with_the_force_protocol() -> None:
     for sec in ("device", "acquisition", "rig", "channels", "settling"):
         assert push.sections[sec] == force.sections[sec], f"[{sec}] differs between the two files"
     assert push.calibration == force.calibration
-    assert push.trials is None and push.paper_coefficients == {}
-    assert push.push.pushes_per_object == 10
-    bands = push.push.stiffness_bands_N_per_m
+    assert push.settings.trials is None and push.settings.paper_coefficients == {}
+    assert push.settings.push.pushes_per_object == 10
+    bands = push.settings.push.stiffness_bands_N_per_m
     assert list(bands) == ["soft", "medium", "hard"]
-    assert push.push.category_of(100.0) == "soft"
-    assert push.push.category_of(1500.0) == "medium"
-    assert push.push.category_of(1e9) == "hard"
+    assert push.settings.push.category_of(100.0) == "soft"
+    assert push.settings.push.category_of(1500.0) == "medium"
+    assert push.settings.push.category_of(1e9) == "hard"
     assert "assumed" in PUSH_TEXT.split("[stiffness_bands_N_per_m]")[1]
 
 
@@ -150,7 +152,7 @@ def test_reference_calibration_example_numbers() -> None:
 
 
 def test_calibration_round_trip_counts_si_counts() -> None:
-    cal = Calibration.reference()
+    cal = load_protocol("takuma2014").calibration
     rng = np.random.default_rng(7)
     counts = rng.integers(0, 4096, size=(1000, 6))
     back = cal.to_counts(cal.to_si(counts))
@@ -161,14 +163,14 @@ def test_calibration_round_trip_counts_si_counts() -> None:
 
 
 def test_calibration_clips_integer_counts_like_an_adc_and_rejects_wrong_width() -> None:
-    cal = Calibration.reference()
+    cal = load_protocol("takuma2014").calibration
     assert cal.to_counts([2.0, -1.0, 0.5, 0.5, 0.0, 0.0], integer=True).tolist()[:2] == [4095, 0]
     with pytest.raises(ValueError, match="6 values per row"):
         cal.to_si(np.zeros((3, 5)))
 
 
 def test_display_helpers() -> None:
-    cal = Calibration.reference()
+    cal = load_protocol("takuma2014").calibration
     shown = cal.to_display([0.25, 0.25, 0.25, 0.25, math.pi / 2, -math.pi / 4])
     assert shown.tolist() == pytest.approx([0.25] * 4 + [90.0, -45.0])
     assert cal.from_display(shown) == pytest.approx([0.25] * 4 + [math.pi / 2, -math.pi / 4])
@@ -194,7 +196,7 @@ def test_other_units_convert_to_mpa_and_rad(tmp_path: Path) -> None:
     p = tmp_path / "kpa.toml"
     p.write_text(text, encoding="utf-8")
     cal = load_protocol(p).calibration
-    ref = Calibration.reference()
+    ref = load_protocol("takuma2014").calibration
     counts = np.array([[1801.8, 1801.8, 1000, 1000, 3000, 3000]])
     assert cal.to_si(counts) == pytest.approx(ref.to_si(counts), rel=1e-12)
     assert cal.channels[0].unit_in_file == "kPa" and cal.channels[0].range == pytest.approx((0.0, 1.0))
@@ -337,16 +339,16 @@ def test_every_single_line_deletion_loads_or_raises_one_sentence(tmp_path: Path)
 
 def test_loads_from_text_without_a_file() -> None:
     p = loads_protocol(FORCE_TEXT, source="run.h5:protocol")
-    assert p.path is None and p.trials.plan is None and p.text == FORCE_TEXT
+    assert p.path is None and p.settings.trials.plan is None and p.text == FORCE_TEXT
     with pytest.raises(ConfigError) as exc:
-        p.load_plan()
+        load_plan(p)
     assert str(exc.value) == "takuma2014: protocol 'takuma2014' has no plan (key 'trials.plan')."
 
 
 def test_plan_must_exist_and_match_the_trial_counts(tmp_path: Path) -> None:
     p = write_variant(tmp_path, 'plan = "takuma2014-plan.csv"', 'plan = "missing.csv"')
     with pytest.raises(ConfigError) as exc:
-        load_protocol(p).load_plan()
+        load_plan(load_protocol(p))
     assert str(exc.value) == (
         f"{p}: key 'trials.plan' names {tmp_path / 'missing.csv'}, which does not exist; "
         "put the plan next to the protocol file or fix the name."
@@ -354,7 +356,7 @@ def test_plan_must_exist_and_match_the_trial_counts(tmp_path: Path) -> None:
     p = write_variant(tmp_path, "validation = 18", "validation = 17")
     (tmp_path / "takuma2014-plan.csv").write_bytes((PROTOCOLS / "takuma2014-plan.csv").read_bytes())
     with pytest.raises(ConfigError) as exc:
-        load_protocol(p).load_plan()
+        load_plan(load_protocol(p))
     assert str(exc.value) == (
         f"{tmp_path / 'takuma2014-plan.csv'}: the plan has 90 fit and 18 validation trials, but {p} asks for "
         "90 and 17 (keys 'trials.fit', 'trials.validation')."
@@ -362,13 +364,14 @@ def test_plan_must_exist_and_match_the_trial_counts(tmp_path: Path) -> None:
 
 
 def test_a_new_kind_is_an_entry_in_the_schema_data(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(
-        KINDS,
-        "demo-kind",
-        {"sections": {"rig": ("required", protocol_mod.OPEN)}, "extra_sections": True, "needs": {}},
-    )
+    from labcli.core import registry
+
+    kind = ProtocolKind("demo-kind", {"rig": ("required", protocol_mod.OPEN)}, extra_sections=True,
+                        build=lambda checked, chk, path: {"rig": checked["rig"]})
+    installed = registry.protocol_kinds
+    monkeypatch.setattr(registry, "protocol_kinds", lambda: {**installed(), "demo-kind": kind})
     p = loads_protocol('name = "x"\nkind = "demo-kind"\n[rig]\nL2_m = 0.1048\n[stretch]\npayloads_kg = [0.1, 0.2]\n')
-    assert p.kind == "demo-kind" and p.rig == {"L2_m": 0.1048}
+    assert p.kind == "demo-kind" and p.settings == {"rig": {"L2_m": 0.1048}}
     assert p.sections["stretch"] == {"payloads_kg": [0.1, 0.2]}
     assert p.calibration is None and p.channels == ()
 
@@ -397,7 +400,7 @@ def test_plan_script_regenerates_the_shipped_plan_byte_for_byte(tmp_path: Path) 
 
 
 def test_plan_design() -> None:
-    plan = load_protocol("takuma2014").load_plan()
+    plan = load_plan(load_protocol("takuma2014"))
     assert len(plan) == 108
     assert plan["trial"].tolist() == list(range(1, 109))
     assert plan["set"].tolist() == ["fit"] * 90 + ["validation"] * 18  # sequential split

@@ -30,7 +30,7 @@ from rich.console import Console
 
 from labcli.cli import cli
 from labcli.core.device import Device
-from labcli.core.engine import acquire
+from labcli.core.acquisition import acquire
 from labcli.errors import DeviceDisconnected
 from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
@@ -259,7 +259,7 @@ def test_attended_run_waits_for_the_rig_and_redoes_the_trial_from_its_baseline(
     path = tmp_path / "run.h5"
     opened = lose_rig_at_start(monkeypatch, LOSE_AT_START)
     person = Person()
-    outcome = acquire(path, PORT, plan=plan_file, ui=person)
+    outcome = acquire(path, PORT, protocol="takuma2014", plan=plan_file, ui=person)
     assert outcome.status == "finished", person.out.getvalue()
     assert outcome.message.startswith(f"Session complete: 6 trials stored in {path} (6 this session, ")
     assert len(opened) == 2  # the port was opened again, by its name
@@ -284,7 +284,7 @@ def test_attended_run_waits_for_a_silent_rig_too(tmp_path, monkeypatch, plan_fil
     path = tmp_path / "run.h5"
     opened = lose_rig_at_start(monkeypatch, LOSE_AT_START, lose=hang)
     person = Person()
-    outcome = acquire(path, PORT, plan=plan_file, ui=person, device_timeout=0.3)
+    outcome = acquire(path, PORT, protocol="takuma2014", plan=plan_file, ui=person, device_timeout=0.3)
     assert outcome.status == "finished", person.out.getvalue()
     assert len(opened) == 2
     assert (f"Warning: The rig on {PORT} stopped sending data during trial 3, which was not stored; it will be "
@@ -305,7 +305,7 @@ def test_attended_run_stopped_at_the_reconnect_prompt_says_how_to_resume(tmp_pat
 
     person = Person(on_prompt=stop_when_lost)
     with pytest.raises(DeviceDisconnected) as e:
-        acquire(path, PORT, plan=plan_file, ui=person)
+        acquire(path, PORT, protocol="takuma2014", plan=plan_file, ui=person)
     assert str(e.value) == (
         f"The rig on {PORT} was disconnected during trial 3; that trial was not stored and the "
         f"2 completed trials in {path} are unchanged. Check the cable and power, then resume with: "

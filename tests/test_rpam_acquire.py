@@ -18,7 +18,7 @@ from rich.console import Console
 from scipy import stats
 
 from labcli.cli import cli
-from labcli.core.engine import acquire
+from labcli.core.acquisition import acquire
 from labcli.errors import ConfigError, StoreError
 from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.session import Baseline, Capture, Prompt
@@ -278,7 +278,8 @@ def test_the_length_is_judged_for_settling(tmp_path):
 
 def test_session_steps_without_a_rig():
     proto = acquisition_protocol(load_protocol("rpam2015"), "joint")
-    assert proto.kind == "rpam-joint" and len(proto.points) == 121 and proto.length_spread_m == pytest.approx(1.5e-4)
+    assert proto.kind == "rpam-joint" and len(proto.settings.points) == 121
+    assert proto.settling.length_spread_m == pytest.approx(1.5e-4)
     assert proto.calibration.units == ("MPa", "MPa", "rad", "m") and proto.device.matches("rpam-joint-sim")
     gen = rpam_session(proto, completed=range(1, 121))
     steps = [next(gen), gen.send(None), gen.send(None)]

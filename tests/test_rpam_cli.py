@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from rich.console import Console
 
 from labcli.cli import cli
-from labcli.core.engine import acquire
+from labcli.core.acquisition import acquire
 from labcli.core.ui import UnattendedUI
 
 SHIPPED = Path(__file__).resolve().parent.parent / "protocols" / "rpam2015.toml"

@@ -10,7 +10,7 @@ from rpam_runs import capture
 
 from labcli.core.device import Device
 from labcli.experiments.rpam2015.models import rpam
-from labcli.core.sim import MODELS, make_rig
+from labcli.core.sim import make_rig, modes
 from labcli.experiments.rpam2015.sim.rig import (
     ADC_MAX, CALIBRATION, CHANNELS, STOP_MARGIN_DEG, RpamRig, counts_to_si, si_to_counts,
 )
@@ -19,7 +19,7 @@ KPA = 1e-3
 
 
 def test_sim_url_selects_the_rpam_rig_and_id_names_its_channels():
-    assert "rpam" in MODELS
+    assert "rpam" in modes()
     assert isinstance(make_rig("rpam", seed=4), RpamRig)
     with Device.open("sim://?mode=rpam&seed=2") as dev:
         assert dev.info.device == "rpam-joint-sim"

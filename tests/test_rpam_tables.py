@@ -21,7 +21,7 @@ from click.testing import CliRunner
 from rich.console import Console
 
 from labcli.cli import cli
-from labcli.core.engine import acquire
+from labcli.core.acquisition import acquire
 from labcli.errors import ConfigError
 from labcli.core.protocol import load_protocol
 from labcli.experiments.rpam2015.session import acquisition_protocol

@@ -8,32 +8,33 @@ import numpy as np
 import pytest
 
 from labcli.core.protocol import load_protocol
-from labcli.experiments.takuma2014.session import (
-    G,
-    AskLoad,
-    AskObject,
-    AskPush,
+from labcli.experiments.takuma2014.protocol import load_plan
+from labcli.core.steps import (
+    Ask,
     Baseline,
     BeginTrial,
     Capture,
-    CloseValves,
     Commit,
     Finish,
+    Prompt,
+    Review,
+    SettleReport,
+    SetupCheck,
+    WaitSettle,
+    Window,
+)
+from labcli.experiments.takuma2014.session import (
+    G,
+    CloseValves,
     HangWeight,
     Load,
     ObjectSpec,
     PlannedObject,
-    Prompt,
     PushObject,
     PushSpec,
     ReleaseObject,
     RemoveWeight,
-    Review,
-    SettleReport,
-    SetupCheck,
     SupplyAir,
-    WaitSettle,
-    Window,
     force_session,
     parse_direction_deg,
     parse_length_mm,
@@ -47,7 +48,7 @@ P_BASE = np.array([0.30, 0.31, 0.29, 0.32])  # MPa
 POT_BASE = np.radians([1.0, -2.0])
 
 
-PLAN = PROTOCOL.load_plan()
+PLAN = load_plan(PROTOCOL)
 
 
 def plan():
@@ -92,16 +93,30 @@ def drive(session, review=lambda step, n: "accept", loads=None, objects=None, pu
         elif isinstance(step, Review):
             reviews[current] = reviews.get(current, 0) + 1
             reply = review(step, reviews[current])
-        elif isinstance(step, AskLoad):
-            reply = loads.pop(0) if loads else None
-        elif isinstance(step, AskObject):
-            reply = objects.pop(0) if objects else None
-        elif isinstance(step, AskPush):
-            reply = pushes.pop(0)
+        elif isinstance(step, Ask):
+            reply = answer(step, loads, objects, pushes)
+
+
+def answer(step, loads, objects, pushes):
+    """The experimenter's typed answers to an Ask, as the UI returns them (SI)."""
+    asked = step.fields[0].key
+    if asked == "mass_kg":
+        load = loads.pop(0) if loads else None
+        return None if load is None else {"mass_kg": load.mass_kg, "direction_rad": load.direction_rad}
+    if asked == "name":
+        obj = objects.pop(0) if objects else None
+        return None if obj is None else {"name": obj.name, "radius_m": obj.radius_m, "category": obj.category}
+    push = pushes.pop(0)
+    return {"distance_m": push.distance_m, "phi_rad": push.phi_rad}
 
 
 def of(steps, kind):
     return [s for s in steps if isinstance(s, kind)]
+
+
+def asks(steps, key):
+    """The questions whose first field is ``key`` (mass_kg: a load, name: an object, distance_m: a push)."""
+    return [s for s in of(steps, Ask) if s.fields[0].key == key]
 
 
 def test_the_shipped_plan_as_steps():
@@ -109,7 +124,7 @@ def test_the_shipped_plan_as_steps():
     assert isinstance(steps[0], SetupCheck)
     assert steps[1] == Prompt("Supply compressed air to the four actuators, then press Enter", SupplyAir())
     # The valves close only once the supplied pressures have settled.
-    assert steps[2] == WaitSettle("air supply")
+    assert steps[2] == WaitSettle("air supply", min_pressure_MPa=0.02)
     assert steps[3] == Prompt("Close the valves so that the actuators are sealed, then press Enter", CloseValves())
     commits = of(steps, Commit)
     assert [c.record["trial"] for c in commits] == list(range(1, 109))
@@ -182,9 +197,15 @@ def test_redo_repeats_the_trial_and_skip_leaves_it_out():
 def test_without_a_plan_the_experimenter_types_each_load():
     loads = [Load(0.15, math.radians(30)), Load(0.5, math.radians(-45))]
     steps = drive(force_session(PROTOCOL, None), loads=loads)
-    asks = of(steps, AskLoad)
-    assert [a.trial for a in asks] == [1, 2, 3]
-    assert asks[0].mass_range_g == (1.0, 2000.0) and asks[0].direction_range_deg == (-180.0, 180.0)
+    loads_asked = asks(steps, "mass_kg")
+    assert [a.fields[0].prompt.split(":")[0] for a in loads_asked] == ["Trial 1/108", "Trial 2/108", "Trial 3/108"]
+    # The protocol's limits for typed loads, in the prompts and in the parsers.
+    mass, direction = loads_asked[0].fields
+    assert "1 to 2000 (Enter when the run is complete" in mass.prompt and mass.stop_if_empty
+    assert "(-180 to 180)" in direction.prompt
+    with pytest.raises(ValueError, match="from 1 g to 2000 g"):
+        mass.parse("2500")
+    assert direction.parse("-45") == pytest.approx(math.radians(-45))
     prompts = [s.text for s in of(steps, Prompt)]
     assert "Trial 1/108: hang 150 g, pulley direction 30 deg, then press Enter" in prompts
     assert "Trial 2/108: hang 500 g, pulley direction -45 deg, then press Enter" in prompts
@@ -219,14 +240,14 @@ def test_push_session_with_typed_objects():
     assert "Push 1/10 of pet-1: push pet-1 by 10 mm along 30 deg, then press Enter" in prompts
     assert "Push 2/10 of pet-1: push pet-1 by 5 mm along an unknown direction, then press Enter" in prompts
     assert "Push 10/10 of pet-1: move pet-1 back until it just touches the contact point, then press Enter" in prompts
-    asks = of(steps, AskPush)
-    assert len(asks) == 10 and asks[0].distance_range_m == (0.002, 0.020)
+    pushes_asked = asks(steps, "distance_m")
+    assert len(pushes_asked) == 10 and "push distance d in mm, 2 to 20:" in pushes_asked[0].fields[0].prompt
     recs = [c.record for c in of(steps, Commit)]
     assert [r["push"] for r in recs] == list(range(1, 11))
     assert recs[0]["R_m"] == 0.033 and recs[0]["category"] == "soft"
     assert recs[0]["phi_rad"] == pytest.approx(math.radians(30)) and math.isnan(recs[1]["phi_rad"])
     assert "true_stiffness_N_per_m" not in recs[0]
-    assert len(of(steps, AskObject)) == 2  # the second answer (none) ends the session
+    assert len(asks(steps, "name")) == 2  # the second answer (none) ends the session
 
 
 def test_push_session_with_a_fixed_schedule_resumes_by_push_id():

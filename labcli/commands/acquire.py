@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+DEFAULT_PROTOCOL = "takuma2014"  # a new run without --protocol
+
 
 @click.command()
 @click.argument("run", metavar="RUN.h5", type=click.Path(dir_okay=False))
@@ -39,13 +41,14 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
     """
     import signal
 
-    from ..core.engine import acquire as run_acquisition
+    from ..core.acquisition import acquire as run_acquisition
     from ..errors import LabcliError
 
     try:
         outcome = run_acquisition(
-            run, port, protocol=protocol, plan=plan, no_plan=no_plan, operator=operator,
-            resume=resume, force=force, unattended=unattended, rate_hz=rate, experiment=experiment,
+            run, port, protocol=protocol if protocol is not None or resume else DEFAULT_PROTOCOL, plan=plan,
+            no_plan=no_plan, operator=operator, resume=resume, force=force, unattended=unattended, rate_hz=rate,
+            experiment=experiment,
         )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None

@@ -148,7 +148,7 @@ def fit(run: Path, output: Path | None, protocol: str | None, max_amplification:
 
     try:
         src = load_trial_source(run, protocol)
-        model = TakumaModel(geometry=src.protocol.rig, protocol=src.protocol.name,
+        model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
                             max_amplification=max_amplification).fit(src.table, source=str(run))
         out_path = output or default_model_path(run)
         text = model.to_json()
@@ -170,7 +170,7 @@ def fit(run: Path, output: Path | None, protocol: str | None, max_amplification:
             _write_model(out_path, text)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
-    paper = dict(getattr(src.protocol, "paper_coefficients", {}) or {})
+    paper = dict(src.protocol.settings.paper_coefficients or {})
     if as_json:
         click.echo(json.dumps({
             "model_path": str(out_path), "recorded_in_run": bool(recorded),

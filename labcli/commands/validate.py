@@ -97,7 +97,7 @@ def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, p
         src = load_trial_source(run, protocol)
         mpath = model_path or default_model_path(run)
         model = TakumaModel.load(mpath)
-        model.check_compatible(src.protocol.name, src.protocol.rig,
+        model.check_compatible(src.protocol.name, src.protocol.settings.rig,
                                model_name=f"the model file {mpath}", run_name=str(run))
         ev = evaluate(model, src.table, mode=mode, source=str(run))
         if plot is not None:

@@ -1,9 +1,9 @@
 """The run engine: executes a session's steps against a device, a run file and a UI.
 
-:mod:`labcli.experiments.takuma2014.session` says *what* happens in a run; this module does it:
-it reads frames from the :class:`~labcli.core.device.Device`, converts them with the
+An experiment's session of steps (:mod:`labcli.core.steps`) says *what* happens in a run;
+this module does it: it reads frames from the :class:`~labcli.core.device.Device`, converts them with the
 protocol's calibration, judges equilibrium (:mod:`labcli.core.settle`), writes
-finished trials to the :class:`~labcli.core.store.RunFile` and talks to the
+finished records to the :class:`~labcli.core.store.RunFile` and talks to the
 experimenter through a UI (:mod:`labcli.core.ui`).
 
 Timing is device time (the frames' ``t_us``, unwrapped), so a simulated rig in
@@ -23,7 +23,6 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import math
-import shlex
 import signal
 import threading
 import time
@@ -33,26 +32,18 @@ from typing import Any, Callable, Generator, Iterator
 
 import numpy as np
 
-from ..errors import ConfigError, DeviceDisconnected, DeviceError, DeviceTimeout, StoreError
-from ..experiments.takuma2014.session import (
-    AskLoad,
-    AskObject,
-    AskPush,
+from ..errors import ConfigError, DeviceDisconnected, DeviceError, DeviceTimeout
+from .steps import (
+    Ask,
     Baseline,
     BeginTrial,
     Capture,
-    CloseValves,
     Commit,
     Finish,
-    HangWeight,
     Prompt,
-    PushObject,
-    ReleaseObject,
-    RemoveWeight,
     Review,
     SettleReport,
     SetupCheck,
-    SupplyAir,
     WaitSettle,
     Window,
 )
@@ -66,7 +57,6 @@ def utc_now() -> str:
 
 SILENT_S = 5.0  # wall-clock seconds without a frame before the rig counts as silent
 SETUP_S = 0.5  # device seconds of readings for the setup check
-LOW_SUPPLY_MPA = 0.02  # a supplied actuator below this has no air
 PRESSURE_MARGIN_MPA = 0.02  # sensor noise and offset allowed outside the 0-1 MPa span
 
 
@@ -107,6 +97,7 @@ class RunEngine:
         resume_command: str,
         rate_hz: float | None = None,
         silent_s: float = SILENT_S,
+        noun: str = "trial",
     ) -> None:
         self.device = device
         # A callable store is created on first use, so a session that fails its
@@ -120,14 +111,13 @@ class RunEngine:
         self.rate_hz = rate_hz
         self.silent_s = silent_s
         self.criteria = SettleCriteria.from_settling(protocol.settling)
-        kind = getattr(protocol, "kind", "force")
-        self._noun = "push" if kind == "push" else "point" if kind.startswith("rpam-") else "trial"
+        self._noun = noun  # what one record is called in sentences ("trial", "push", "point")
         units = tuple(protocol.calibration.units)
         self._pcols = [i for i, u in enumerate(units) if u == "MPa"]
         self._acols = [i for i, u in enumerate(units) if u == "rad"]
-        # Length channels (the rPAM stand's draw-wire sensor) settle only under a protocol
-        # that gives their limit; McKibben protocols have none.
-        self._length_spread_m = getattr(protocol, "length_spread_m", None)
+        # Length channels (a draw-wire sensor) settle only under a protocol that gives
+        # their limit; without one they are not watched.
+        self._length_spread_m = getattr(protocol.settling, "length_spread_m", None)
         self._lcols = [i for i, u in enumerate(units) if u == "m"] if self._length_spread_m else []
         self._subscribers: list[Callable[[Any, Any], None]] = []
         self._streaming = False
@@ -380,7 +370,7 @@ class RunEngine:
 
     # ------------------------------------------------------------------ steps
     def _execute(self, step: Any) -> Any:
-        if isinstance(step, (Prompt, AskLoad, AskObject, AskPush, Review)):
+        if isinstance(step, (Prompt, Ask, Review)):
             self._stop()
         if isinstance(step, SetupCheck):
             self._setup_check()
@@ -394,16 +384,12 @@ class RunEngine:
                 # prompt asked once the prompt is answered.
                 self._act(step.action)
             return None
-        if isinstance(step, AskLoad):
-            return self.ui.ask_load(step)
-        if isinstance(step, AskObject):
-            return self.ui.ask_object(step, simulated=getattr(self.device, "rig", None) is not None)
-        if isinstance(step, AskPush):
-            return self.ui.ask_push(step)
+        if isinstance(step, Ask):
+            return self.ui.ask(step, simulated=getattr(self.device, "rig", None) is not None)
         if isinstance(step, BeginTrial):
             return self._begin(step)
         if isinstance(step, WaitSettle):
-            return self._wait_settle(step.label)
+            return self._wait_settle(step.label, step.min_pressure_MPa)
         if isinstance(step, (Baseline, Capture)):
             self._start()
             return self._collect(step.capture_s)
@@ -413,12 +399,7 @@ class RunEngine:
             record = dict(step.record)
             record.setdefault("started", self._trial_started)
             with _sigint_deferred():
-                if "push" in record:
-                    self.store.write_push(record)
-                elif "point" in record:
-                    self.store.write_point(record)
-                else:
-                    self.store.write_trial(record)
+                self.store.write(record)
                 # Inside the deferral, so a Ctrl-C held during the write finds the trial stored.
                 self._stored += 1
                 self._trial_walls.append(time.monotonic() - self._trial_wall_start)
@@ -432,29 +413,9 @@ class RunEngine:
         if action is None:
             return
         try:
-            self._apply(action)
+            action.act_on(self.device.rig)
         except ValueError as e:
             raise ConfigError(f"The simulated rig cannot do {action}: {str(e).rstrip('.')}.") from None
-
-    def _apply(self, action: Any) -> None:
-        rig = self.device.rig
-        if isinstance(action, SupplyAir):
-            rig.supply_air()
-        elif isinstance(action, CloseValves):
-            rig.close_valves()
-        elif isinstance(action, HangWeight):
-            rig.hang_weight(action.mass_kg, action.direction_rad)
-        elif isinstance(action, RemoveWeight):
-            rig.remove_weight()
-        elif isinstance(action, PushObject):
-            # A direction unknown to the experimenter is still some direction for the
-            # simulated rig: it pushes along the normal (phi = 0) then.
-            phi = 0.0 if action.phi_rad is None else action.phi_rad
-            rig.push_object(action.radius_m, action.distance_m, phi, action.stiffness_N_per_m)
-        elif isinstance(action, ReleaseObject):
-            rig.release_object()
-        elif hasattr(action, "act_on"):  # the rPAM stand's actions (labcli.experiments.rpam2015.session)
-            action.act_on(rig)
 
     def _begin(self, step: BeginTrial) -> None:
         self._trial = step
@@ -468,7 +429,7 @@ class RunEngine:
             remaining = per * (step.total - step.index + 1)
         self.ui.begin_trial(step, self._stored, elapsed, remaining)
 
-    def _wait_settle(self, label: str) -> SettleReport | str:
+    def _wait_settle(self, label: str, min_pressure_MPa: float | None = None) -> SettleReport | str:
         self._start()
         detector = SettleDetector(self.criteria, self._pcols, self._acols, self._lcols, self._length_spread_m)
         while True:
@@ -501,12 +462,12 @@ class RunEngine:
             )
             break
         self.ui.settled(label, report)
-        if label == "air supply":
+        if min_pressure_MPa is not None and self._pcols:
             p = w.si[:, self._pcols].mean(axis=0)
-            if p.min() < LOW_SUPPLY_MPA:
+            if p.min() < min_pressure_MPa:
                 names = [self.protocol.channels[i] for i in self._pcols]
-                low = ", ".join(f"{n} {v:.3f} MPa" for n, v in zip(names, p) if v < LOW_SUPPLY_MPA)
-                self.ui.warn(f"after the air supply {low}: check the compressor and that the valves are open")
+                low = ", ".join(f"{n} {v:.3f} MPa" for n, v in zip(names, p) if v < min_pressure_MPa)
+                self.ui.warn(f"after the {label} {low}: check the compressor and that the valves are open")
         return report
 
     def _finish(self, step: Finish) -> None:
@@ -610,207 +571,3 @@ def _sigint_deferred() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
         if caught:
             raise KeyboardInterrupt
-
-
-@contextlib.contextmanager
-def sigint_ignored() -> Iterator[None]:
-    """Ignore Ctrl-C while a finished session closes its files."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
-# ---------------------------------------------------------------------- the whole command
-
-
-def resume_command(path: str, port: str, *, unattended: bool = False, rate_hz: float | None = None) -> str:
-    """The exact command line that continues a run."""
-    cmd = f"labcli acquire {shlex.quote(str(path))} --port {shlex.quote(port)} --resume"
-    if rate_hz:
-        cmd += f" --rate {rate_hz:g}"
-    if unattended:
-        cmd += " --unattended"
-    return cmd
-
-
-def acquire(
-    path: str | Path,
-    port: str,
-    *,
-    protocol: str | None = None,
-    plan: str | Path | None = None,
-    no_plan: bool = False,
-    operator: str = "",
-    resume: bool = False,
-    force: bool = False,
-    unattended: bool = False,
-    rate_hz: float | None = None,
-    experiment: str | None = None,
-    ui: Any = None,
-    subscribers: tuple[Callable[[Any, Any], None], ...] = (),
-    device_timeout: float = 2.0,
-    silent_s: float = SILENT_S,
-) -> Outcome:
-    """Run ``labcli acquire``: open the rig and the run file, build the session, run it.
-
-    Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the
-    person at the rig can fix; returns the :class:`Outcome` otherwise.
-    """
-    from .device import Device
-    from .protocol import load_protocol, loads_protocol
-    from ..experiments.takuma2014.session import force_session, push_session
-    from .store import RESUME_OR_FORCE, RunFile
-
-    path = str(path)
-    if resume and force:
-        raise ConfigError("--resume continues a run and --force overwrites it: give one of them, not both.")
-    if plan is not None and no_plan:
-        raise ConfigError("--plan and --no-plan contradict each other: give one of them.")
-    if resume:
-        if plan is not None or no_plan:
-            raise ConfigError(f"The plan of {path} was fixed when the run began; drop --plan/--no-plan with --resume.")
-        existing = RunFile.open(path, "a")
-        try:
-            proto = loads_protocol(existing.protocol_text, source=f"{path} (protocol)")
-            if protocol is not None and _protocol_name(protocol) != proto.name:
-                raise ConfigError(
-                    f"{path} was recorded with protocol {proto.name}, not {protocol}; drop --protocol to resume it."
-                )
-            plan_df = existing.plan_table()
-            completed = existing.completed_ids()
-            if proto.kind == "rpam" or experiment is not None:
-                from ..experiments.rpam2015.session import acquisition_protocol
-
-                proto = acquisition_protocol(proto, experiment, stored_kind=existing.kind, run_path=path)
-        except BaseException:
-            existing.close()
-            raise
-        points = getattr(proto, "points", None)
-        if points and {p.point for p in points} <= set(completed):
-            existing.close()
-            return Outcome("finished", f"All {len(points)} points of the {proto.experiment_title} are already "
-                           f"stored in {path}; nothing to resume.", 0, len(completed))
-        if plan_df is not None and len(plan_df) and existing.first_incomplete(plan_df["trial"]) is None:
-            if existing.split() is None:
-                # Stopped between the last trial and the split: finish the job.
-                sets = dict(zip(plan_df["trial"].astype(int), plan_df["set"]))
-                existing.set_split([t for t, v in sets.items() if v == "fit"],
-                                   [t for t, v in sets.items() if v == "validation"], "plan")
-            existing.close()
-            return Outcome("finished", f"All {len(plan_df)} planned trials are already stored in {path}; nothing to resume.",
-                           0, len(completed))
-        store: Any = existing
-    else:
-        if Path(path).exists() and not force:
-            raise StoreError(f"{path} already exists; {RESUME_OR_FORCE}.")
-        proto = load_protocol(protocol or "takuma2014")
-        if proto.kind == "rpam" or experiment is not None:
-            from ..experiments.rpam2015.session import acquisition_protocol
-
-            proto = acquisition_protocol(proto, experiment)
-            if plan is not None or no_plan:
-                raise ConfigError("--plan and --no-plan apply to force protocols; an rPAM experiment runs the "
-                                  "grid of its protocol's [experiments] table.")
-        completed = []
-        plan_df = None
-        if proto.kind == "force" and not no_plan:
-            if plan is not None:
-                from .tables import load_plan
-
-                lim = proto.force_limits
-                plan_df = load_plan(
-                    plan,
-                    mass_range_g=(lim.mass_min_g, lim.mass_max_g) if lim else None,
-                    direction_range_deg=(lim.direction_min_deg, lim.direction_max_deg) if lim else None,
-                )
-            else:
-                plan_df = proto.load_plan()
-        store = None
-    if proto.kind not in ("force", "push", "rpam-stretch", "rpam-joint"):
-        raise ConfigError(
-            f"labcli acquire runs force and push protocols; {proto.name} is of kind '{proto.kind}'."
-        )
-    if unattended and proto.kind == "force" and plan_df is None:
-        if resume:
-            how = "it was imported from a table" if store.attrs.get("imported") else "it was recorded with --no-plan"
-            store.close()
-            raise ConfigError(
-                f"{path} has no plan ({how}), so --unattended has nothing to follow; "
-                "resume it without --unattended and type each load."
-            )
-        raise ConfigError("--unattended needs a plan to follow: drop --no-plan, or give --plan FILE.")
-
-    try:
-        device = Device.open(port, timeout=device_timeout)
-    except BaseException:
-        if store is not None:
-            store.close()
-        raise
-    try:
-        if unattended and device.rig is None:
-            raise ConfigError(
-                f"--unattended drives the simulated rig only, and {port} is a real port: "
-                "run without --unattended and follow the prompts."
-            )
-        if store is None:
-            info = device.info
-
-            def store_factory() -> Any:
-                return RunFile.create(path, protocol=proto, device_info=info, port=port, operator=operator,
-                                      plan=plan_df, force=force)
-
-            store = store_factory
-        from .ui import RichUI, UnattendedUI
-
-        the_ui = ui or (UnattendedUI() if unattended else RichUI())
-        engine = RunEngine(
-            device, store, proto, the_ui, run_path=path,
-            resume_command=resume_command(path, port, unattended=unattended, rate_hz=rate_hz),
-            rate_hz=rate_hz, silent_s=silent_s,
-        )
-        for cb in subscribers:
-            engine.subscribe(cb)
-        objects = None
-        if proto.kind == "push" and unattended:
-            # The simulated rig's reference objects (three PET bottles, two aluminium
-            # cans, one steel can), labelled with their categories.
-            from ..experiments.takuma2014.sim.objects import demo_plan
-
-            per = proto.push.pushes_per_object if proto.push else 10
-            objects = demo_plan(pushes_per_object=per, labelled=True)
-
-        def make_session(done: Any) -> Generator[Any, Any, None]:
-            if proto.kind in ("rpam-stretch", "rpam-joint"):
-                from ..experiments.rpam2015.session import rpam_session
-
-                return rpam_session(proto, completed=done)
-            if proto.kind == "push":
-                return push_session(proto, objects, completed=done)
-            return force_session(proto, plan_df, completed=done)
-
-        try:
-            return engine.run(make_session(completed), restart=make_session,
-                              reopen=lambda: Device.open(port, timeout=device_timeout))
-        finally:
-            # The session is over (finished, quit, interrupted or the rig lost): a Ctrl-C now
-            # has nothing left to stop, and must not cut the file's close short.
-            with sigint_ignored():
-                if engine.store_created:
-                    engine.store.close()
-                if engine.device is not device:  # reopened after the rig was lost
-                    with contextlib.suppress(Exception):
-                        engine.device.close()
-    finally:
-        with contextlib.suppress(Exception):
-            device.close()
-        if store is not None and not callable(store):
-            store.close()
-
-
-def _protocol_name(arg: str) -> str:
-    return Path(arg).stem if arg.endswith(".toml") else arg

@@ -1,20 +1,22 @@
-"""Protocol files: the rig, its channels, how a run is paced, what the paper published.
+"""Protocol files: the rig, its channels, how a run is paced, what each experiment adds.
 
-A protocol is a TOML file; the shipped ones live in ``protocols/`` and, as
-package data, in ``labcli/data/``.  ``load_protocol("takuma2014")`` reads a
-shipped one by name, ``load_protocol("my-rig.toml")`` reads a file as is.
+A protocol is a TOML file; the shipped ones live in ``protocols/`` (installed as the
+package ``labcli.protocols``).  ``load_protocol("takuma2014")`` reads a shipped one by
+name, ``load_protocol("my-rig.toml")`` reads a file as is.  This is the one loader: every
+experiment reads its protocols through it.
 
-The accepted keys are described by plain data (:data:`SECTIONS`, :data:`KINDS`),
-so a new protocol kind is a new entry there, not new parsing code.  Every error
-is one :class:`~labcli.errors.ConfigError` sentence naming the file and the key,
-for example::
+The accepted keys are described by plain data.  The core's own sections are here
+(:data:`SECTIONS`: ``[device]``, ``[acquisition]``, ``[channels.NAME]``, ``[settling]``
+and the top-level keys); each experiment contributes its protocol kinds and their
+sections through the registry (:class:`labcli.core.experiment.ProtocolKind`), so a new
+protocol kind is new data there, not new parsing code here.  Every error is one
+:class:`~labcli.errors.ConfigError` sentence naming the file and the key, for example::
 
     my-rig.toml: key 'rig.h1_m' must be greater than 0, not -0.355.
 
-Values are converted to the library's units on loading: lengths in m,
-pressures in MPa, angles in rad (``angle_spread_deg`` becomes
-``Settling.angle_spread_rad``).  Grams and degrees stay as typed only where
-people enter them (``Protocol.force_limits``).
+Values are converted to the library's units on loading: lengths in m, pressures in
+MPa, angles in rad (``angle_spread_deg`` becomes ``Settling.angle_spread_rad``).  Grams
+and degrees stay as typed only where people enter them.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import copy
 import math
 import re
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -32,8 +34,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on 3.10 only
     import tomli as tomllib
 
-from .calibration import UNIT_FACTORS, Calibration, Channel
 from ..errors import ConfigError
+from .calibration import UNIT_FACTORS, Calibration, Channel
+from .experiment import ChannelRoles, ProtocolKind
 
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 
@@ -45,8 +48,8 @@ DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 #   check  None | "positive" | "nonnegative" | "nonzero" | "unique" |
 #          "increasing" | ["min", v] | ["one-of", [values]]
 # A section spec is a dict of key specs, OPEN (any keys, kept as a plain dict),
-# or one of the names in TABLE_OF (a table whose keys are free names, each value
-# checked against another spec).
+# or one of the names in a kind's ``tables_of`` (a table whose keys are free names,
+# each value checked against another spec).
 # ---------------------------------------------------------------------------
 
 OPEN = "open"
@@ -59,16 +62,6 @@ TOP_LEVEL: dict[str, dict[str, Any]] = {
     "paper": {"type": "str", "optional": True, "help": "the paper's file name under papers/"},
 }
 
-COEFFICIENT_NAMES: tuple[str, ...] = (
-    "beta_theta1_L1", "beta_theta1_R1",
-    "beta_theta2_L1", "beta_theta2_R1", "beta_theta2_L2", "beta_theta2_R2",
-    *(f"beta_Fx{i}" for i in range(1, 7)),
-    *(f"beta_Fy{i}" for i in range(1, 7)),
-)
-
-ACTUATORS: tuple[str, ...] = ("L1", "R1", "L2", "R2")
-JOINTS: tuple[int, ...] = (1, 2)
-
 SECTIONS: dict[str, Any] = {
     "device": {
         "name": {"type": "str", "help": "the device name the ID? reply carries"},
@@ -79,20 +72,6 @@ SECTIONS: dict[str, Any] = {
     "acquisition": {
         "rate_hz": {"type": "number", "unit": "Hz", "check": "positive"},
     },
-    "rig.mckibben-2dof": {
-        k: {"type": "number", "unit": "m", "check": "positive"} for k in ("h1_m", "h2_m", "h3_m", "r1_m", "r2_m")
-    },
-    "channel": {
-        "quantity": {"type": "str", "check": ["one-of", list(UNIT_FACTORS)]},
-        "actuator": {"type": "str", "check": ["one-of", list(ACTUATORS)], "optional": True,
-                     "help": "the actuator of a pressure channel: L1, R1, L2 or R2"},
-        "joint": {"type": "int", "check": ["one-of", list(JOINTS)], "optional": True,
-                  "help": "the joint of an angle channel: 1 or 2"},
-        "unit": {"type": "str"},
-        "gain": {"type": "number", "unit": "unit per count", "check": "nonzero"},
-        "zero_counts": {"type": "number", "unit": "counts"},
-        "range": {"type": "pair", "check": "increasing", "help": "[low, high] in the channel's unit"},
-    },
     "settling": {
         "window_s": {"type": "number", "unit": "s", "check": "positive"},
         "hold_s": {"type": "number", "unit": "s", "check": "nonnegative"},
@@ -101,76 +80,43 @@ SECTIONS: dict[str, Any] = {
         "timeout_s": {"type": "number", "unit": "s", "check": "positive"},
         "capture_s": {"type": "number", "unit": "s", "check": "positive"},
     },
-    "trials": {
-        "fit": {"type": "int", "check": ["min", 1]},
-        "validation": {"type": "int", "check": ["min", 0]},
-        "plan": {"type": "str", "check": "nonempty", "help": "the plan CSV, relative to the protocol file"},
-    },
-    "force": {
-        "mass_min_g": {"type": "number", "unit": "g", "check": "positive"},
-        "mass_max_g": {"type": "number", "unit": "g", "check": "positive"},
-        "direction_min_deg": {"type": "number", "unit": "deg", "check": ["min", -360]},
-        "direction_max_deg": {"type": "number", "unit": "deg", "check": ["min", -360]},
-    },
-    "push": {
-        "pushes_per_object": {"type": "int", "check": ["min", 1]},
-        "distance_min_m": {"type": "number", "unit": "m", "check": "positive"},
-        "distance_max_m": {"type": "number", "unit": "m", "check": "positive"},
-    },
-    "paper_coefficients.takuma2014": {name: {"type": "number"} for name in COEFFICIENT_NAMES},
-    "stiffness_band": {"type": "pair", "check": "increasing", "help": "[low, high] in N/m"},
 }
 
-# Sections whose keys are free names (channel names, category names).
-TABLE_OF: dict[str, str] = {
-    "channel-map": "channel",
-    "stiffness-bands": "stiffness_band",
-}
+# The [channels] section: a table per channel, keyed by channel name.
+CHANNEL_MAP = "channel-map"
 
-_MCKIBBEN_COMMON: dict[str, tuple[str, str]] = {
-    "device": ("required", "device"),
-    "acquisition": ("required", "acquisition"),
-    "rig": ("required", "rig.mckibben-2dof"),
-    "channels": ("required", "channel-map"),
-    "settling": ("required", "settling"),
-}
 
-_RPAM_COMMON: dict[str, tuple[str, str]] = {
-    "device": ("optional", "device"),
-    "acquisition": ("optional", "acquisition"),
-    "rig": ("optional", OPEN),
-    "channels": ("optional", "channel-map"),
-    "settling": ("optional", "settling"),
-}
+def _or(values: Any) -> str:
+    items = [str(v) for v in values]
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
 
-# kind -> sections (name -> (required|optional, spec)); "extra_sections": other
-# tables are accepted and kept as plain dicts in Protocol.sections.
-KINDS: dict[str, dict[str, Any]] = {
-    "force": {
-        "sections": {
-            **_MCKIBBEN_COMMON,
-            "trials": ("required", "trials"),
-            "force": ("required", "force"),
-            "paper_coefficients": ("optional", "paper_coefficients.takuma2014"),
-        },
-        "extra_sections": False,
-        "needs": {"actuators": ACTUATORS, "joints": JOINTS},
-    },
-    "push": {
-        "sections": {
-            **_MCKIBBEN_COMMON,
-            "push": ("required", "push"),
-            "stiffness_bands_N_per_m": ("optional", "stiffness-bands"),
-            # Settings of the stiffness estimate (labcli.experiments.takuma2014.models.stiffness.StiffnessParams,
-            # which checks its own keys).
-            "stiffness": ("optional", OPEN),
-            "paper_coefficients": ("optional", "paper_coefficients.takuma2014"),
-        },
-        "extra_sections": False,
-        "needs": {"actuators": ACTUATORS, "joints": JOINTS},
-    },
-    "rpam": {"sections": dict(_RPAM_COMMON), "extra_sections": True, "needs": {}},
-}
+
+def channel_spec(roles: ChannelRoles | None) -> dict[str, Any]:
+    """The key specs of one ``[channels.NAME]`` table under a kind's channel roles."""
+    actuator: dict[str, Any] = {"type": "str", "optional": True}
+    joint: dict[str, Any] = {"type": "int", "optional": True}
+    if roles is not None and roles.actuators:
+        actuator.update(check=["one-of", list(roles.actuators)],
+                        help=f"the actuator of a pressure channel: {_or(roles.actuators)}")
+    if roles is not None and roles.joints:
+        joint.update(check=["one-of", list(roles.joints)], help=f"the joint of an angle channel: {_or(roles.joints)}")
+    return {
+        "quantity": {"type": "str", "check": ["one-of", list(UNIT_FACTORS)]},
+        "actuator": actuator,
+        "joint": joint,
+        "unit": {"type": "str"},
+        "gain": {"type": "number", "unit": "unit per count", "check": "nonzero"},
+        "zero_counts": {"type": "number", "unit": "counts"},
+        "range": {"type": "pair", "check": "increasing", "help": "[low, high] in the channel's unit"},
+    }
+
+
+def kinds() -> dict[str, ProtocolKind]:
+    """Every protocol kind the installed experiments read (through the registry)."""
+    from .registry import protocol_kinds
+
+    return protocol_kinds()
+
 
 _TYPE_TEXT = {
     "str": "a string",
@@ -203,7 +149,11 @@ class DeviceSpec:
 
 @dataclass(frozen=True)
 class Settling:
-    """Equilibrium criteria: spreads over a rolling window, held for ``hold_s``."""
+    """Equilibrium criteria: spreads over a rolling window, held for ``hold_s``.
+
+    ``length_spread_m``: the limit of length channels, where a protocol gives one (an
+    experiment's sensors table); without it length channels are not watched.
+    """
 
     window_s: float
     hold_s: float
@@ -211,94 +161,33 @@ class Settling:
     angle_spread_rad: float
     timeout_s: float
     capture_s: float
-
-
-@dataclass(frozen=True)
-class Trials:
-    fit: int
-    validation: int
-    plan: Path | None  # resolved against the protocol file's folder
-
-    @property
-    def total(self) -> int:
-        return self.fit + self.validation
-
-
-@dataclass(frozen=True)
-class ForceLimits:
-    """Bounds for weights and directions typed by the operator (grams, degrees)."""
-
-    mass_min_g: float
-    mass_max_g: float
-    direction_min_deg: float
-    direction_max_deg: float
-
-
-@dataclass(frozen=True)
-class PushSettings:
-    pushes_per_object: int
-    distance_min_m: float
-    distance_max_m: float
-    stiffness_bands_N_per_m: dict[str, tuple[float, float]] = field(default_factory=dict)
-
-    def category_of(self, stiffness_N_per_m: float) -> str | None:
-        """The band containing a stiffness (low inclusive, high exclusive), or None."""
-        for name, (lo, hi) in self.stiffness_bands_N_per_m.items():
-            if lo <= stiffness_N_per_m < hi:
-                return name
-        return None
+    length_spread_m: float | None = None
 
 
 @dataclass(frozen=True)
 class Protocol:
+    """A checked protocol.  ``settings`` holds what the experiment of its kind made of its
+    own sections (:attr:`labcli.core.experiment.ProtocolKind.build`); ``sections`` every
+    table of the file as plain data, as written.  Settings that define ``default_split``
+    (fit and validation counts) give ``labcli split`` its defaults."""
+
     name: str
     kind: str
     path: Path | None
     text: str  # the file verbatim, for the run file
-    rig: dict[str, float]
     channels: tuple[str, ...]
     calibration: Calibration | None
     settling: Settling | None
-    trials: Trials | None
-    paper_coefficients: dict[str, float]
     rate_hz: float | None
     device: DeviceSpec | None
-    force_limits: ForceLimits | None
-    push: PushSettings | None
-    sections: dict[str, Any]  # every table of the file as plain data, as written
+    sections: dict[str, Any]
+    settings: Any = None
     title: str = ""
     source: str = ""
 
     @property
     def source_label(self) -> str:
         return str(self.path) if self.path is not None else self.name
-
-    def load_plan(self):
-        """The plan named by ``trials.plan`` as a DataFrame, checked against this protocol."""
-        from .tables import load_plan
-
-        if self.trials is None or self.trials.plan is None:
-            raise ConfigError(f"{self.source_label}: protocol '{self.name}' has no plan (key 'trials.plan').")
-        if not self.trials.plan.is_file():
-            raise ConfigError(
-                f"{self.source_label}: key 'trials.plan' names {self.trials.plan}, which does not exist; "
-                "put the plan next to the protocol file or fix the name."
-            )
-        limits = self.force_limits
-        plan = load_plan(
-            self.trials.plan,
-            mass_range_g=(limits.mass_min_g, limits.mass_max_g) if limits else None,
-            direction_range_deg=(limits.direction_min_deg, limits.direction_max_deg) if limits else None,
-        )
-        n_fit = int((plan["set"] == "fit").sum())
-        n_val = int((plan["set"] == "validation").sum())
-        if (n_fit, n_val) != (self.trials.fit, self.trials.validation):
-            raise ConfigError(
-                f"{self.trials.plan}: the plan has {n_fit} fit and {n_val} validation trials, but "
-                f"{self.source_label} asks for {self.trials.fit} and {self.trials.validation} "
-                "(keys 'trials.fit', 'trials.validation')."
-            )
-        return plan
 
 
 # ---------------------------------------------------------------------------
@@ -347,10 +236,10 @@ def load_protocol(path_or_name: str | Path) -> Protocol:
 def loads_protocol(text: str, *, source: str = "<protocol>", path: Path | None = None) -> Protocol:
     """Check protocol TOML given as text (e.g. the copy kept in a run file).
 
-    ``source`` names the text in messages; ``trials.plan`` is resolved against
-    ``path``'s folder when a path is given.
+    ``source`` names the text in messages; relative file names in the protocol (a plan)
+    are resolved against ``path``'s folder when a path is given.
     """
-    chk = _Checker(source)
+    chk = Checker(source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -376,7 +265,9 @@ def _sentence_body(s: str) -> str:
     return s[:1].lower() + s[1:] if s[:1].isupper() and not s[:2].isupper() else s
 
 
-class _Checker:
+class Checker:
+    """Checks values against key specs; every failure is one ConfigError naming the source."""
+
     def __init__(self, source: str) -> None:
         self.source = source
 
@@ -508,37 +399,43 @@ def _show(v: Any) -> str:
     return str(v)
 
 
-def _build(data: dict[str, Any], text: str, chk: _Checker, path: Path | None) -> Protocol:
-    # Top level: scalars first, so 'kind' is known before sections are judged.
-    scalars = {k: v for k, v in data.items() if not isinstance(v, dict)}
-    tables = {k: v for k, v in data.items() if isinstance(v, dict)}
+def _kind(scalars: dict[str, Any], tables: dict[str, Any], all_kinds: dict[str, ProtocolKind],
+          chk: Checker) -> ProtocolKind:
+    """The file's kind, read first: it decides which sections are judged."""
     if "kind" in scalars:
         kind = chk.value(scalars["kind"], TOP_LEVEL["kind"], "kind")
-        if kind not in KINDS:
-            chk.fail(f"key 'kind' must be one of {', '.join(KINDS)}, not {_show(kind)}.")
-    elif "kind" in tables:
+        if kind not in all_kinds:
+            chk.fail(f"key 'kind' must be one of {', '.join(all_kinds)}, not {_show(kind)}.")
+        return all_kinds[kind]
+    if "kind" in tables:
         chk.fail(f"key 'kind' must be a string (the protocol kind), not a table {_show(tables['kind'])}.")
-    else:
-        chk.fail(f"missing key 'kind', expected a string (one of {', '.join(KINDS)}).")
-    kind_spec = KINDS[kind]
-    section_specs: dict[str, tuple[str, str]] = kind_spec["sections"]
+    chk.fail(f"missing key 'kind', expected a string (one of {', '.join(all_kinds)}).")
 
+
+def _check_top(scalars: dict[str, Any], tables: dict[str, Any], spec: ProtocolKind, chk: Checker) -> dict[str, Any]:
+    """The top-level keys, and no table the kind does not know."""
     for k in scalars:
-        if k in section_specs:
+        if k in spec.sections:
             chk.fail(f"key '{k}' must be a table [{k}], not {_kind_of(scalars[k])} {_show(scalars[k])}.")
         if k not in TOP_LEVEL:
-            allowed = list(TOP_LEVEL) + [f"[{s}]" for s in section_specs]
+            allowed = list(TOP_LEVEL) + [f"[{s}]" for s in spec.sections]
             chk.fail(f"unknown key '{k}'; the keys allowed there are {', '.join(allowed)}.")
     top = chk.table(scalars, TOP_LEVEL, "")
     for k, v in tables.items():
-        if k not in section_specs and k in TOP_LEVEL:
+        if k not in spec.sections and k in TOP_LEVEL:
             chk.fail(f"key '{k}' must be {_describe(TOP_LEVEL[k])}, not a table {_show(v)}.")
-        if k not in section_specs and not kind_spec["extra_sections"]:
-            allowed = list(TOP_LEVEL) + [f"[{s}]" for s in section_specs]
+        if k not in spec.sections and not spec.extra_sections:
+            allowed = list(TOP_LEVEL) + [f"[{s}]" for s in spec.sections]
             chk.fail(f"unknown key '{k}'; the keys allowed there are {', '.join(allowed)}.")
+    return top
 
+
+def _check_sections(data: dict[str, Any], spec: ProtocolKind, chk: Checker) -> dict[str, Any]:
+    """Every section of the kind, checked against its spec (converted values)."""
+    specs = {**SECTIONS, **spec.specs, "channel": channel_spec(spec.channel_roles)}
+    tables_of = {CHANNEL_MAP: "channel", **spec.tables_of}
     checked: dict[str, Any] = {}
-    for sec, (need, spec_name) in section_specs.items():
+    for sec, (need, spec_name) in spec.sections.items():
         if sec not in data:
             if need == "required":
                 chk.fail(f"missing key '{sec}', expected a table [{sec}].")
@@ -548,18 +445,21 @@ def _build(data: dict[str, Any], text: str, chk: _Checker, path: Path | None) ->
             chk.fail(f"key '{sec}' must be a table [{sec}], not {_kind_of(raw)} {_show(raw)}.")
         if spec_name == OPEN:
             checked[sec] = raw
-        elif spec_name in TABLE_OF:
-            item_spec = SECTIONS[TABLE_OF[spec_name]]
+        elif spec_name in tables_of:
+            item_spec = specs[tables_of[spec_name]]
             checked[sec] = {
                 name: (chk.table(v, item_spec, f"{sec}.{name}.") if "type" not in item_spec
                        else chk.value(v, item_spec, f"{sec}.{name}"))
                 for name, v in raw.items()
             }
         else:
-            checked[sec] = chk.table(raw, SECTIONS[spec_name], f"{sec}.")
+            checked[sec] = chk.table(raw, specs[spec_name], f"{sec}.")
+    return checked
 
-    device = calibration = settling = trials = force_limits = push = None
-    channels: tuple[str, ...] = ()
+
+def _device(checked: dict[str, Any], roles: ChannelRoles | None,
+            chk: Checker) -> tuple[DeviceSpec | None, Calibration | None]:
+    device = calibration = None
     if "device" in checked:
         d = checked["device"]
         if not d["adc_min_counts"] < d["adc_max_counts"]:
@@ -571,86 +471,60 @@ def _build(data: dict[str, Any], text: str, chk: _Checker, path: Path | None) ->
     if "channels" in checked:
         if device is None:
             chk.fail("missing key 'device', expected a table [device] listing the channel order.")
-        calibration = _calibration(checked["channels"], device, kind_spec.get("needs", {}), chk)
-        channels = calibration.names
+        calibration = _calibration(checked["channels"], device, roles, chk)
     elif device is not None:
         chk.fail("missing key 'channels', expected one [channels.NAME] table per channel of device.channels.")
+    return device, calibration
 
-    if "settling" in checked:
-        s = checked["settling"]
-        if not s["timeout_s"] > s["window_s"] + s["hold_s"]:
-            chk.fail(
-                f"key 'settling.timeout_s' must be longer than window_s + hold_s "
-                f"({_show(s['window_s'] + s['hold_s'])} s), not {_show(s['timeout_s'])}."
-            )
-        settling = Settling(
-            window_s=s["window_s"],
-            hold_s=s["hold_s"],
-            pressure_spread_MPa=s["pressure_spread_MPa"],
-            angle_spread_rad=math.radians(s["angle_spread_deg"]),
-            timeout_s=s["timeout_s"],
-            capture_s=s["capture_s"],
+
+def _settling(checked: dict[str, Any], chk: Checker) -> Settling | None:
+    if "settling" not in checked:
+        return None
+    s = checked["settling"]
+    if not s["timeout_s"] > s["window_s"] + s["hold_s"]:
+        chk.fail(
+            f"key 'settling.timeout_s' must be longer than window_s + hold_s "
+            f"({_show(s['window_s'] + s['hold_s'])} s), not {_show(s['timeout_s'])}."
         )
-    if "trials" in checked:
-        t = checked["trials"]
-        base = path.parent if path is not None else None
-        plan = Path(t["plan"])
-        if base is not None and not plan.is_absolute():
-            plan = base / plan
-        trials = Trials(t["fit"], t["validation"], plan if base is not None or plan.is_absolute() else None)
-    if "force" in checked:
-        f = checked["force"]
-        if not f["mass_max_g"] > f["mass_min_g"]:
-            chk.fail(
-                f"key 'force.mass_max_g' must be greater than force.mass_min_g "
-                f"({_show(f['mass_min_g'])}), not {_show(f['mass_max_g'])}."
-            )
-        if not f["direction_max_deg"] > f["direction_min_deg"]:
-            chk.fail(
-                f"key 'force.direction_max_deg' must be greater than force.direction_min_deg "
-                f"({_show(f['direction_min_deg'])}), not {_show(f['direction_max_deg'])}."
-            )
-        if f["direction_max_deg"] - f["direction_min_deg"] > 360:
-            chk.fail(
-                "key 'force.direction_max_deg' must be at most 360 deg above force.direction_min_deg, "
-                f"not {_show(f['direction_max_deg'])}."
-            )
-        force_limits = ForceLimits(**f)
-    if "push" in checked:
-        p = checked["push"]
-        if not p["distance_max_m"] > p["distance_min_m"]:
-            chk.fail(
-                f"key 'push.distance_max_m' must be greater than push.distance_min_m "
-                f"({_show(p['distance_min_m'])}), not {_show(p['distance_max_m'])}."
-            )
-        bands = {k: (v[0], v[1]) for k, v in checked.get("stiffness_bands_N_per_m", {}).items()}
-        _check_bands(bands, chk)
-        push = PushSettings(p["pushes_per_object"], p["distance_min_m"], p["distance_max_m"], bands)
+    return Settling(
+        window_s=s["window_s"],
+        hold_s=s["hold_s"],
+        pressure_spread_MPa=s["pressure_spread_MPa"],
+        angle_spread_rad=math.radians(s["angle_spread_deg"]),
+        timeout_s=s["timeout_s"],
+        capture_s=s["capture_s"],
+    )
 
-    rate = checked.get("acquisition", {}).get("rate_hz")
+
+def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> Protocol:
+    # Top level: scalars first, so 'kind' is known before sections are judged.
+    scalars = {k: v for k, v in data.items() if not isinstance(v, dict)}
+    tables = {k: v for k, v in data.items() if isinstance(v, dict)}
+    spec = _kind(scalars, tables, kinds(), chk)
+    top = _check_top(scalars, tables, spec, chk)
+    checked = _check_sections(data, spec, chk)
+    device, calibration = _device(checked, spec.channel_roles, chk)
+    settling = _settling(checked, chk)
+    settings = spec.build(checked, chk, path) if spec.build is not None else None
     return Protocol(
         name=top["name"],
-        kind=kind,
+        kind=spec.name,
         path=path,
         text=text,
-        rig=dict(checked.get("rig", {})),
-        channels=channels,
+        channels=calibration.names if calibration is not None else (),
         calibration=calibration,
         settling=settling,
-        trials=trials,
-        paper_coefficients=dict(checked.get("paper_coefficients", {})),
-        rate_hz=rate,
+        rate_hz=checked.get("acquisition", {}).get("rate_hz"),
         device=device,
-        force_limits=force_limits,
-        push=push,
         sections=copy.deepcopy(tables),
+        settings=settings,
         title=top.get("title", ""),
         source=top.get("source", ""),
     )
 
 
 def _calibration(
-    chans: dict[str, dict[str, Any]], device: DeviceSpec, needs: dict[str, Any], chk: _Checker
+    chans: dict[str, dict[str, Any]], device: DeviceSpec, roles: ChannelRoles | None, chk: Checker
 ) -> Calibration:
     listed = list(device.channels)
     missing = [c for c in listed if c not in chans]
@@ -670,13 +544,13 @@ def _calibration(
         key = f"channels.{name}"
         if q == "pressure":
             if "actuator" not in c:
-                chk.fail(f"missing key '{key}.actuator', expected {_describe(SECTIONS['channel']['actuator'])}.")
+                chk.fail(f"missing key '{key}.actuator', expected {_describe(channel_spec(roles)['actuator'])}.")
             if "joint" in c:
                 chk.fail(f"unknown key '{key}.joint' for a pressure channel; the keys allowed there are "
                          "quantity, actuator, unit, gain, zero_counts, range.")
         else:
             if "joint" not in c:
-                chk.fail(f"missing key '{key}.joint', expected {_describe(SECTIONS['channel']['joint'])}.")
+                chk.fail(f"missing key '{key}.joint', expected {_describe(channel_spec(roles)['joint'])}.")
             if "actuator" in c:
                 chk.fail(f"unknown key '{key}.actuator' for an angle channel; the keys allowed there are "
                          "quantity, joint, unit, gain, zero_counts, range.")
@@ -726,29 +600,22 @@ def _calibration(
                     f"channels.{seen[v]}; each {what} has one channel."
                 )
             seen[v] = ch.name
-    for a in needs.get("actuators", ()):
+    for a in roles.actuators if roles is not None else ():
         if not any(ch.actuator == a for ch in out):
             chk.fail(f"key 'channels' must give a pressure channel for actuator {a} (actuator = \"{a}\").")
-    for j in needs.get("joints", ()):
+    for j in roles.joints if roles is not None else ():
         if not any(ch.joint == j for ch in out):
             chk.fail(f"key 'channels' must give an angle channel for joint {j} (joint = {j}).")
     return Calibration(tuple(out), (lo_adc, hi_adc))
-
-
-def _check_bands(bands: dict[str, tuple[float, float]], chk: _Checker) -> None:
-    for name, (lo, hi) in bands.items():
-        if lo < 0:
-            chk.fail(f"key 'stiffness_bands_N_per_m.{name}' must start at 0 or above, not {_show([lo, hi])}.")
-    ordered = sorted(bands.items(), key=lambda kv: kv[1][0])
-    for (n1, (_, h1)), (n2, (l2, _)) in zip(ordered, ordered[1:]):
-        if l2 < h1:
-            chk.fail(
-                f"key 'stiffness_bands_N_per_m.{n2}' must not overlap band {n1} "
-                f"(which ends at {_fmt_num(h1)} N/m), not start at {_fmt_num(l2)}."
-            )
 
 
 def _fmt_num(x: float) -> str:
     if math.isinf(x):
         return "inf" if x > 0 else "-inf"
     return f"{x:.6g}"
+
+
+# Helpers for the experiments' own section checks (their ProtocolKind.build hooks).
+show_value = _show
+describe_spec = _describe
+fmt_num = _fmt_num

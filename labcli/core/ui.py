@@ -18,19 +18,7 @@ import contextlib
 import math
 from typing import IO, Any, Callable, Iterator
 
-from ..experiments.takuma2014.session import (
-    AskLoad,
-    AskObject,
-    AskPush,
-    BeginTrial,
-    Load,
-    ObjectSpec,
-    Prompt,
-    PushSpec,
-    parse_direction_deg,
-    parse_length_mm,
-    parse_mass_g,
-)
+from .steps import Ask, BeginTrial, Prompt
 
 
 class QuitRequested(Exception):
@@ -147,55 +135,24 @@ class RichUI:
     def prompt(self, step: Prompt) -> None:
         self._ask(f"{step.text} (q to quit):")
 
-    def _ask_valid(self, text: str, parse: Any) -> Any:
-        while True:
+    def ask(self, step: Ask, simulated: bool = False) -> dict[str, Any] | None:
+        """Ask each field in turn until its answer parses; None when a stopping field is left empty."""
+        answers: dict[str, Any] = {}
+        for field in step.fields:
+            if field.simulated_only and not simulated:
+                continue
+            text = field.prompt(answers) if callable(field.prompt) else field.prompt
             answer = self._ask(text)
-            try:
-                return parse(answer)
-            except ValueError as e:
-                self.console.print(f"[red]{_esc(str(e))}[/]")
-
-    def ask_load(self, step: AskLoad) -> Load | None:
-        head = f"Trial {step.trial}/{step.total}"
-        lo, hi = step.mass_range_g
-        first = self._ask(f"{head}: mass to hang in g, {lo:g} to {hi:g} (Enter when the run is complete, q to quit):")
-        if not first.strip():
-            return None
-        while True:
-            try:
-                mass = parse_mass_g(first, *step.mass_range_g)
-                break
-            except ValueError as e:
-                self.console.print(f"[red]{_esc(str(e))}[/]")
-                first = self._ask(f"{head}: mass to hang in g:")
-        direction = self._ask_valid(
-            f"{head}: pulley direction in deg, counter-clockwise from +x "
-            f"({step.direction_range_deg[0]:g} to {step.direction_range_deg[1]:g}):",
-            lambda t: parse_direction_deg(t, *step.direction_range_deg),
-        )
-        return Load(mass, direction)
-
-    def ask_object(self, step: AskObject, simulated: bool = False) -> ObjectSpec | None:
-        name = self._ask(f"Object {step.index}: name (e.g. pet-1; Enter when all objects are done, q to quit):").strip()
-        if not name:
-            return None
-        radius = self._ask_valid(f"{name}: radius R in mm:", lambda t: parse_length_mm(t, "radius", 0.0, 500.0))
-        category = self._ask(f"{name}: category (soft, medium, hard, a name, or Enter if unknown):").strip()
-        stiffness = None
-        if simulated:
-            stiffness = self._ask_valid(f"{name}: stiffness of the simulated object in N/m:", _parse_stiffness)
-        return ObjectSpec(name, radius, category, stiffness)
-
-    def ask_push(self, step: AskPush) -> PushSpec:
-        head = f"Push {step.index}/{step.total} of {step.object}"
-        lo, hi = (v * 1e3 for v in step.distance_range_m)
-        d = self._ask_valid(f"{head}: push distance d in mm, {lo:g} to {hi:g}:",
-                            lambda t: parse_length_mm(t, "push distance", lo, hi))
-        phi = self._ask_valid(
-            f"{head}: push direction phi in deg (? or Enter if unknown):",
-            lambda t: parse_direction_deg(t, allow_unknown=True),
-        )
-        return PushSpec(d, phi)
+            if field.stop_if_empty and not answer.strip():
+                return None
+            while True:
+                try:
+                    answers[field.key] = _answer(field, answer)
+                    break
+                except ValueError as e:
+                    self.console.print(f"[red]{_esc(str(e))}[/]")
+                    answer = self._ask(field.again or text)
+        return answers
 
     def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
         self.console.print(
@@ -267,14 +224,8 @@ class UnattendedUI:
         if self.verbose:
             self.console.print(f"  {step.text} [done by the simulated rig]", markup=False)
 
-    def ask_load(self, step: AskLoad) -> Load | None:
-        raise QuitRequested("unattended mode needs a plan")
-
-    def ask_object(self, step: AskObject, simulated: bool = False) -> ObjectSpec | None:
-        raise QuitRequested("unattended mode needs a list of objects")
-
-    def ask_push(self, step: AskPush) -> PushSpec:
-        raise QuitRequested("unattended mode needs a list of pushes")
+    def ask(self, step: Ask, simulated: bool = False) -> dict[str, Any] | None:
+        raise QuitRequested("unattended mode cannot answer questions: it needs a plan")
 
     def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
         return "accept"
@@ -301,14 +252,11 @@ class ProgressUI(UnattendedUI):
             self.progress(self.stage, stored, int(step.total))
 
 
-def _parse_stiffness(text: str) -> float:
-    try:
-        value = float(text.strip().removesuffix("N/m").strip())
-    except ValueError:
-        raise ValueError(f"'{text.strip()}' is not a stiffness: type newtons per metre, e.g. 800.") from None
-    if not 0 < value < float("inf"):
-        raise ValueError(f"The stiffness must be more than 0 N/m, got {value:g} N/m.")
-    return value
+def _answer(field: Any, text: str) -> Any:
+    """The value of one typed answer (ValueError with a sentence when it does not parse)."""
+    if not text.strip() and field.has_default:
+        return field.default
+    return field.parse(text) if field.parse is not None else text.strip()
 
 
 def _esc(text: str) -> str:

@@ -36,7 +36,7 @@ from rich.console import Console  # noqa: E402
 
 import labcli.core.sim.protocol_sim as protocol_sim  # noqa: E402
 from labcli.core.device import Device  # noqa: E402
-from labcli.core.engine import acquire  # noqa: E402
+from labcli.core.acquisition import acquire  # noqa: E402
 from labcli.core.ui import UnattendedUI  # noqa: E402
 
 
@@ -63,7 +63,7 @@ def main() -> None:
         path = Path(tmp) / "run.h5"
         ui = UnattendedUI(console=Console(file=io.StringIO()))
         t0 = time.perf_counter()
-        outcome = acquire(path, port, unattended=True, ui=ui)
+        outcome = acquire(path, port, protocol="takuma2014", unattended=True, ui=ui)
         t_run = time.perf_counter() - t0
     Device.read = original_read
     assert outcome.stored == 108, outcome.message

@@ -59,6 +59,7 @@ from labcli.experiments.takuma2014.models.metrics import evaluate  # noqa: E402
 from labcli.experiments.takuma2014.models.synthetic import PAPER_GEOMETRY, add_sensor_noise, paper_trials  # noqa: E402
 from labcli.experiments.takuma2014.models.takuma import TakumaModel  # noqa: E402
 from labcli.core.protocol import load_protocol  # noqa: E402
+from labcli.experiments.takuma2014.protocol import load_plan  # noqa: E402
 from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
 from labcli.experiments.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
 from labcli.experiments.takuma2014.sim.rig import SimRig  # noqa: E402
@@ -117,10 +118,10 @@ def main() -> None:
     trial_pool = paper_trials(POOL, seed=3, noise=False)
     geometry = dict(PAPER_GEOMETRY)
     force, push = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
-    bands = push.push.stiffness_bands_N_per_m
+    bands = push.settings.push.stiffness_bands_N_per_m
     rig = SimRig(seed=1)
-    push_model = TakumaModel(geometry=force.rig, protocol=force.name).fit(
-        simulate_weight_trials(rig, force.load_plan(), calibration=force.calibration))
+    push_model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(
+        simulate_weight_trials(rig, load_plan(force), calibration=force.calibration))
     push_pool = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=10)
     print(f"inputs: {POOL}-trial pool (Eqs. 34-37 exact), {len(push_pool)}-push pool from the simulated rig, "
           f"built in {time.perf_counter() - t_setup:.1f} s")

@@ -26,6 +26,7 @@ import pandas as pd  # noqa: E402
 from labcli.experiments.takuma2014.models.classify import classify_pushes  # noqa: E402
 from labcli.experiments.takuma2014.models.takuma import TakumaModel  # noqa: E402
 from labcli.core.protocol import load_protocol  # noqa: E402
+from labcli.experiments.takuma2014.protocol import load_plan  # noqa: E402
 from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
 from labcli.experiments.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
 from labcli.experiments.takuma2014.sim.rig import SimRig  # noqa: E402
@@ -48,13 +49,13 @@ def main() -> None:
     rows = []
     for seed in seeds:
         rig = SimRig(seed=seed)
-        trials = simulate_weight_trials(rig, force.load_plan(), calibration=force.calibration)
-        model = TakumaModel(geometry=force.rig, protocol=force.name).fit(trials)
+        trials = simulate_weight_trials(rig, load_plan(force), calibration=force.calibration)
+        model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(trials)
         table = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=args.pushes)
         for policy, params in POLICIES.items():
             for angles in ("pressure-only", "measured-angles"):
                 res = classify_pushes(table, model, params=params, angles=angles,
-                                      bands=push.push.stiffness_bands_N_per_m)
+                                      bands=push.settings.push.stiffness_bands_N_per_m)
                 for o in res.objects.itertuples():
                     rows.append({
                         "policy": policy, "angles": angles, "object": o.object,

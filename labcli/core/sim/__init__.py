@@ -1,20 +1,20 @@
-"""The simulated rig: a physical model behind the rig wire protocol.
+"""The simulated rig's plumbing: a rig model behind the rig wire protocol.
 
-``MODELS`` maps the ``mode`` option of a ``sim://`` URL to a factory
-``f(seed, noise, drift, tau_s) -> rig``.  A rig is any object with
-``channels``, ``device``, ``firmware``, ``samples(n, rate_hz)``, ``advance``,
-``advance_to`` and ``time_s`` (see :mod:`labcli.experiments.takuma2014.sim.rig`); the firmware and the
-URL handler need nothing else, so other rig models plug in here.
+A simulated rig is any object with ``channels``, ``device``, ``firmware``,
+``samples(n, rate_hz)``, ``advance``, ``advance_to`` and ``time_s`` (the McKibben rig of
+:mod:`labcli.experiments.takuma2014.sim.rig` is one); the firmware (:mod:`.firmware`),
+the fault injector (:mod:`.faults`), the pty server (:mod:`.pty`) and the ``sim://`` URL
+handler (:mod:`.protocol_sim`) need nothing else.  The rigs themselves belong to the
+experiments: ``mode=NAME`` picks one through the registry (:func:`make_rig`).
 
 This package is also the toolkit's pyserial URL-handler package: pyserial finds a
 handler for ``scheme://`` by importing ``<package>.protocol_<scheme>`` for each
-package in ``serial.protocol_handler_packages``, and :func:`register` adds this one
-(:mod:`labcli.core.sim.protocol_sim` serves ``sim://``).
+package in ``serial.protocol_handler_packages``, and :func:`register` adds this one.
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from .. import registry
 
 PACKAGE = "labcli.core.sim"
 
@@ -27,25 +27,16 @@ def register() -> None:
         serial.protocol_handler_packages.append(PACKAGE)
 
 
-def _mckibben(seed: int, noise: float, drift: float, tau_s: float):
-    from ...experiments.takuma2014.sim.rig import SimRig
-
-    return SimRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s)
-
-
-def _rpam(seed: int, noise: float, drift: float, tau_s: float):
-    from ...experiments.rpam2015.sim.rig import RpamRig
-
-    return RpamRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s)
+def modes() -> list[str]:
+    """The ``mode=`` values of the installed experiments' rigs, in name order."""
+    return registry.sim_modes()
 
 
-MODELS: dict[str, Callable] = {"mckibben": _mckibben, "rpam": _rpam}
+def default_mode() -> str:
+    """The rig ``sim://`` gives without ``mode=``."""
+    return registry.default_sim_mode()
 
 
-def make_rig(mode: str = "mckibben", *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7):
-    """Build the simulated rig named ``mode`` (a key of ``MODELS``)."""
-    try:
-        factory = MODELS[mode]
-    except KeyError:
-        raise ValueError(f"unknown simulated rig mode {mode!r}; known: {', '.join(MODELS)}") from None
-    return factory(seed, noise, drift, tau_s)
+def make_rig(mode: str | None = None, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7):
+    """Build the simulated rig named ``mode`` (None: the default rig); ValueError for an unknown mode."""
+    return registry.make_rig(mode or registry.default_sim_mode(), seed=seed, noise=noise, drift=drift, tau_s=tau_s)

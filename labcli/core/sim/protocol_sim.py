@@ -20,7 +20,8 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
   clock runs on by the time waited.  ``wall`` paces frames by the wall clock
   like real hardware;
 * ``tau`` (0.7): settling time constant after each load change, s;
-* ``mode`` (mckibben): which rig model (keys of :data:`labcli.core.sim.MODELS`);
+* ``mode`` (the default rig, mckibben): which rig model (:func:`labcli.core.sim.modes`, one per
+  experiment's simulated rig);
 * ``faults`` (none): a noisy link, ``KIND:RATE[@X],...`` per
   :mod:`labcli.core.sim.faults`, e.g. ``faults=checksum:0.01,drop:0.01,stall:0.001@2.5``;
   drawn from ``seed``.  ``port.faults`` is then the
@@ -40,7 +41,7 @@ import urllib.parse
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
-from . import MODELS, make_rig
+from . import default_mode, make_rig, modes
 from .faults import FAULTS_FORM, FaultInjector, FaultSpec, FaultSpecError
 from .firmware import RATE_MAX, RATE_MIN, Firmware
 
@@ -53,7 +54,7 @@ MAX_BUFFER = 1 << 22  # bytes held for the host before new frames are dropped (w
 def accepted_form() -> str:
     return (
         "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
-        f"[&mode={'|'.join(MODELS)}][&faults=KIND:RATE[@X],...]"
+        f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...]"
     )
 
 
@@ -96,7 +97,7 @@ def _clock(text: str) -> str:
 
 
 def _mode(text: str) -> str:
-    if text not in MODELS:
+    if text not in modes():
         raise ValueError
     return text
 
@@ -106,7 +107,7 @@ def _faults(text: str) -> FaultSpec | None:
     return spec if spec.active else None
 
 
-# option -> (parser, default, what a valid value is)
+# option -> (parser, default, what a valid value is (text, or a function giving it))
 OPTIONS = {
     "seed": (_whole, 0, "a whole number >= 0"),
     "rate": (_rate, 200.0, "a number of Hz within 1..5000"),
@@ -114,7 +115,7 @@ OPTIONS = {
     "drift": (_nonneg, 0.0, "a number >= 0"),
     "clock": (_clock, "virtual", "'virtual' or 'wall'"),
     "tau": (_positive, 0.7, "a number of seconds > 0"),
-    "mode": (_mode, "mckibben", "one of " + ", ".join(MODELS)),
+    "mode": (_mode, None, lambda: "one of " + ", ".join(modes())),  # None: the default rig
     "faults": (_faults, None, "KIND:RATE[@X],..."),
 }
 
@@ -147,8 +148,11 @@ def parse_sim_url(url: str) -> dict:
             ) from None
         except ValueError:
             raise SimURLError(
-                f"option '{key}' in sim:// URL must be {what}, got '{raw}'; expected {accepted_form()}"
+                f"option '{key}' in sim:// URL must be {what() if callable(what) else what}, got '{raw}'; "
+                f"expected {accepted_form()}"
             ) from None
+    if opts["mode"] is None:
+        opts["mode"] = default_mode()
     return opts
 
 

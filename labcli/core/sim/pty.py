@@ -128,7 +128,7 @@ class PtyServer:
 
 
 def serve_pty(seed: int = 0, rate: float = 200.0, noise: float = 1.0, drift: float = 0.0,
-              tau: float = 0.7, mode: str = "mckibben", rig=None,
+              tau: float = 0.7, mode: str | None = None, rig=None,
               faults: "FaultSpec | str | dict | None" = None) -> PtyServer:
     """Start serving a simulated rig on a new pseudo-terminal; returns the running server.
 

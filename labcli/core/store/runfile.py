@@ -106,6 +106,7 @@ import h5py
 import numpy as np
 
 from ...errors import ConfigError, LabcliError, StoreError
+from ..registry import record_type
 
 SCHEMA = "labcli-run"
 SCHEMA_VERSION = 1
@@ -122,8 +123,6 @@ PUSH_OPTIONAL_COLUMNS = ("true_stiffness_N_per_m",)
 ACCEPTED = ("auto", "timeout", "operator", "imported")
 MAX_ID = 999_999
 INDEX_SLOTS = 16_384  # records reachable through /index; later ones by name only
-# Run kind -> the collection its records live in (force runs and imported tables: trials).
-_RECORDS = {"push": "pushes", "rpam-stretch": "points", "rpam-joint": "points"}
 _RPAM_EXPERIMENTS = {"rpam-stretch": "stretch", "rpam-joint": "joint"}
 _EDGE_DIGITS = 12
 # What to do about a run file that already exists where a new run would go.
@@ -522,6 +521,7 @@ class RunFile:
         source: str = "",
         started: str | None = None,
         exists_hint: str = RESUME_OR_FORCE,
+        kind: str | None = None,
     ) -> "RunFile":
         """Create a new run file for ``protocol`` (a :class:`labcli.core.protocol.Protocol`).
 
@@ -535,7 +535,7 @@ class RunFile:
         parent = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(parent):
             raise StoreError(f"cannot create {path}: the directory {parent} does not exist.")
-        kind = str(getattr(protocol, "kind", "force"))
+        kind = kind or str(getattr(protocol, "kind", "force"))
         channels = [str(c) for c in (getattr(device_info, "channels", None) or getattr(protocol, "channels", ()))]
         # Built under a temporary name and renamed when whole: a kill during
         # creation leaves no half-made run, and --force keeps the old file until then.
@@ -595,7 +595,7 @@ class RunFile:
             _write_columns(g, cols, list(cols))
         # Every group the run will need exists from the start: the root's link
         # list is never changed again, so no later crash can damage it.
-        for name in (_RECORDS.get(kind, "trials"), "split", "models"):
+        for name in (record_type(kind).collection, "split", "models"):
             f.create_group(name).attrs["NX_class"] = "NXcollection"
         dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
         dcpl.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)
@@ -732,7 +732,7 @@ class RunFile:
 
     @property
     def _records_name(self) -> str:
-        return _RECORDS.get(self.kind, "trials")
+        return record_type(self.kind).collection
 
     # ----------------------------------------------------------- writing
 
@@ -833,6 +833,11 @@ class RunFile:
         if not 0 <= rid <= MAX_ID:
             raise StoreError(f"{label}: {what} ids must be between 0 and {MAX_ID}.")
         return rid, label
+
+    def write(self, record: Mapping) -> None:
+        """Write one record of the run's kind whole; it counts only once it is on disk."""
+        writer = {"trials": self.write_trial, "pushes": self.write_push, "points": self.write_point}
+        writer[self._records_name](record)
 
     def write_trial(self, record: TrialRecord | Mapping) -> None:
         """Write one force/angle trial whole; it counts only once it is on disk.
@@ -1252,17 +1257,18 @@ class RunFile:
         self._commit()
 
     def split_sizes(self) -> tuple[int, int]:
-        """The fit and validation counts of the run's embedded protocol (``[trials]``)."""
+        """The fit and validation counts of the run's embedded protocol (its settings' ``default_split``)."""
         from ..protocol import loads_protocol
 
         try:
-            trials = loads_protocol(self.protocol_text, source=f"{self.path} (embedded protocol)").trials
+            settings = loads_protocol(self.protocol_text, source=f"{self.path} (embedded protocol)").settings
         except ConfigError:
-            trials = None
-        if trials is None:
+            settings = None
+        sizes = getattr(settings, "default_split", None)
+        if sizes is None:
             raise ConfigError(f"{self.path}: the run's protocol gives no fit and validation counts; "
                               "give --fit and --validation.")
-        return int(trials.fit), int(trials.validation)
+        return int(sizes[0]), int(sizes[1])
 
     def assign_split(self, n_fit: int | None, n_validation: int | None, strategy: str = "sequential",
                      seed: int | None = None) -> dict[str, Any]:
@@ -1412,7 +1418,7 @@ class RunFile:
 
             try:
                 base = loads_protocol(self.protocol_text, source=f"{self.path} (embedded protocol)")
-                grid = [p.point for p in acquisition_protocol(base, experiment).points]
+                grid = [p.point for p in acquisition_protocol(base, experiment).settings.points]
             except LabcliError:
                 grid = None
             if grid is not None:
@@ -1582,7 +1588,7 @@ def _point_record(row: Mapping[str, Any], experiment: str, protocol: Any, extra:
         stretch = value("lambda")
         if not math.isfinite(stretch):
             # A table without lambda: the stretch of actuator A over its protocol's rest length.
-            stretch = length / float(getattr(protocol, "L0_m"))
+            stretch = length / float(protocol.settings.L0_m)
         record["lambda"] = stretch
     else:
         record["alpha_rad"] = math.radians(value("alpha_deg"))

@@ -18,31 +18,35 @@ kind says which:
 
       Point 12/121 (joint map): set P_A = 50.7 kPa and P_B = 41 kPa, then press Enter
 
-The steps are :mod:`labcli.experiments.takuma2014.session`'s (``Prompt``, ``WaitSettle``, ``Capture``, ...), so the
-run engine executes them as it does the McKibben trials: equilibrium judged from the data,
-one point written whole per ``Commit``, interrupt and resume by point id.  The actions
-below are what the simulated rig acts out in unattended runs (``act_on(rig)``).
+The steps are the core's (:mod:`labcli.core.steps`: ``Prompt``, ``WaitSettle``,
+``Capture``, ...), so the run engine executes them as it does any other experiment's:
+equilibrium judged from the data, one point written whole per ``Commit``, interrupt and
+resume by point id.  The actions below are what the simulated rig acts out in unattended
+runs (``act_on(rig)``).
 
 The protocol's ``[sensors]`` table names the DAQ (``device``, ``channels``) and calibrates
 its four channels (``P_A``, ``P_B`` pressures, ``POT`` the joint angle, ``LEN`` actuator
-A's length); :func:`acquisition_protocol` turns it into what the engine and the run file
-read (:class:`RpamAcquisition`).
+A's length); :func:`acquisition_protocol` turns the protocol into the one a run records
+with: its kind the run's (``rpam-stretch`` / ``rpam-joint``), its calibration, channels
+and device from ``[sensors]``, the length's settling limit in its settling, and the
+chosen experiment's grid in its settings (:class:`RpamRun`).
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
-from typing import Any, Generator, Iterable, Sequence
+from dataclasses import dataclass, replace
+from typing import Any, Generator, Iterable
 
 import numpy as np
 
-from ...errors import ConfigError
-from ..takuma2014.session import (
+from ...core.calibration import UNIT_FACTORS, Calibration, Channel
+from ...core.protocol import DeviceSpec
+from ...core.steps import (
+    Baseline,
     BeginTrial,
     Capture,
-    Baseline,
     Commit,
     Finish,
     Prompt,
@@ -53,8 +57,10 @@ from ..takuma2014.session import (
     WaitSettle,
     Window,
 )
+from ...errors import ConfigError
+from .models import rpam
+from .protocol import EXPERIMENTS
 
-EXPERIMENTS: dict[str, str] = {"stretch": "rpam-stretch", "joint": "rpam-joint"}
 KINDS: dict[str, str] = {v: k for k, v in EXPERIMENTS.items()}
 CHANNELS = ("P_A", "P_B", "POT", "LEN")
 _TITLE = {"stretch": "stretch", "joint": "joint map"}
@@ -139,36 +145,18 @@ def _edge(x: float) -> float:
     return float(f"{x:.12g}")
 
 
-class RpamAcquisition:
-    """An rPAM protocol with one experiment chosen: what the engine and the run file read.
+@dataclass(frozen=True)
+class RpamRun:
+    """What an rPAM run records (``Protocol.settings`` of :func:`acquisition_protocol`):
+    the chosen experiment, its grid of points in the order they are run, and actuator A's
+    undeformed length (the stretch is ``L / L0``)."""
 
-    Has the attributes of :class:`labcli.core.protocol.Protocol` that acquisition uses
-    (``name``, ``text``, ``path``, ``settling``, ``rate_hz``) with ``kind`` the run's kind
-    (``rpam-stretch`` / ``rpam-joint``) and ``calibration``, ``channels``, ``device`` from
-    the ``[sensors]`` table; plus ``experiment``, ``points`` (the grid), ``L0_m`` and
-    ``length_spread_m`` (the settling limit of length channels).  Anything else is the
-    base protocol's.
-    """
-
-    def __init__(self, base: Any, experiment: str, calibration: Any, device: Any, points: Sequence[PlannedPoint],
-                 L0_m: float, length_spread_m: float) -> None:
-        self.base = base
-        self.experiment = experiment
-        self.kind = EXPERIMENTS[experiment]
-        self.calibration = calibration
-        self.channels = calibration.names
-        self.device = device
-        self.points = tuple(points)
-        self.L0_m = float(L0_m)
-        self.length_spread_m = float(length_spread_m)
-
-    def __getattr__(self, name: str) -> Any:
-        if name == "base":  # not yet set (copying, unpickling)
-            raise AttributeError(name)
-        return getattr(self.base, name)
+    experiment: str  # "stretch" | "joint"
+    points: tuple[PlannedPoint, ...]
+    L0_m: float
 
     @property
-    def experiment_title(self) -> str:
+    def title(self) -> str:
         """``stretch test`` or ``joint map``, for sentences."""
         return {"stretch": "stretch test", "joint": "joint map"}[self.experiment]
 
@@ -179,8 +167,8 @@ def experiment_of_kind(kind: str) -> str | None:
 
 
 def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str | None = None,
-                         run_path: str = "") -> RpamAcquisition:
-    """Check the choice of experiment and build the acquisition view of an rPAM protocol.
+                         run_path: str = "") -> Any:
+    """Check the choice of experiment and build the protocol an rPAM run records with.
 
     ``stored_kind``: the kind of the run being resumed (its experiment is then fixed).
     Raises :class:`ConfigError` with one sentence for a missing or contradictory choice
@@ -203,8 +191,6 @@ def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str 
     if experiment is None:
         raise ConfigError(f"Protocol {name} holds two experiments: choose one with --experiment stretch "
                           "(the stretch test, Figs. 5-6) or --experiment joint (the joint map, Fig. 8).")
-    from .models import rpam
-
     label = str(getattr(base, "path", None) or name)
     raw = dict(getattr(base, "sections", {}) or {})
     if getattr(base, "settling", None) is None:
@@ -222,14 +208,15 @@ def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str 
     else:
         grid = itertools.product(*rpam.joint_map_plan(raw, label))
         points = [PlannedPoint(i, float(a), float(b)) for i, (a, b) in enumerate(grid, start=1)]
-    return RpamAcquisition(base, experiment, calibration, device, points, act.L0_m, length_spread)
+    return replace(
+        base, kind=EXPERIMENTS[experiment], calibration=calibration, channels=calibration.names, device=device,
+        settling=replace(base.settling, length_spread_m=length_spread),
+        settings=RpamRun(experiment, tuple(points), act.L0_m),
+    )
 
 
 def _sensors(raw: dict[str, Any], label: str) -> tuple[Any, Any, float]:
     """Calibration, device spec and length settling limit (m) from the ``[sensors]`` table."""
-    from ...core.calibration import UNIT_FACTORS, Calibration, Channel
-    from ...core.protocol import DeviceSpec
-
     s = raw.get("sensors")
     if not isinstance(s, dict):
         raise ConfigError(f"{label}: labcli acquire needs a [sensors] table naming the DAQ (device, channels) "
@@ -339,7 +326,7 @@ def stretch_record(p: PlannedPoint, window: Window, settle: SettleReport, protoc
         "mass_kg": float(p.mass_kg or 0.0),
         "P_MPa": np.array([m[c["P_A"]], m[c["P_B"]]]),
         "L_m": L,
-        "lambda": L / protocol.L0_m,
+        "lambda": L / protocol.settings.L0_m,
         "plan": p.plan_row(),
         "settle": {"load": settle.as_dict()},
         "raw": {"load": window.as_dict()},
@@ -387,19 +374,22 @@ def point_row(record: dict) -> dict[str, str]:
 # --------------------------------------------------------------------------- sessions
 
 
-def rpam_session(protocol: RpamAcquisition, *, completed: Iterable[int] = ()) -> Generator[Step, Any, None]:
-    """The chosen experiment's grid, point by point; ``completed`` ids (resume) are skipped."""
+def rpam_session(protocol: Any, *, completed: Iterable[int] = ()) -> Generator[Step, Any, None]:
+    """The chosen experiment's grid, point by point; ``completed`` ids (resume) are skipped.
+
+    ``protocol``: from :func:`acquisition_protocol`."""
+    run: RpamRun = protocol.settings
     capture_s = float(protocol.settling.capture_s)
     done = set(int(t) for t in completed)
-    total = len(protocol.points)
-    remaining = [p for p in protocol.points if p.point not in done]
-    stretch = protocol.experiment == "stretch"
+    total = len(run.points)
+    remaining = [p for p in run.points if p.point not in done]
+    stretch = run.experiment == "stretch"
 
     yield SetupCheck()
     yield Prompt(MOUNT_STRETCH_TEXT, MountStretchStand()) if stretch else Prompt(MOUNT_JOINT_TEXT, MountJoint())
     skipped: list[int] = []
     for p in remaining:
-        label = point_label(p.point, total, protocol.experiment)
+        label = point_label(p.point, total, run.experiment)
         yield BeginTrial(p.point, "", len(done) + 1, total, label)
         while True:  # until accepted or skipped
             if stretch:

@@ -82,7 +82,7 @@ def check_outdir(outdir: Path, outputs: tuple[str, ...], force: bool, what: str 
 def acquire_unattended(path: Path, port: str, what: str, stage: str, progress: Progress | None,
                        **options: Any) -> None:
     """One unattended run on the simulated rig, overwriting ``path``; StoreError if it stops early."""
-    from ...core.engine import acquire
+    from ...core.acquisition import acquire
     from ...core.ui import ProgressUI
 
     outcome = acquire(path, port, unattended=True, force=True, ui=ProgressUI(stage, progress), **options)
@@ -125,7 +125,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     t = time.perf_counter()
     stage(STAGES[1])
     src = load_trial_source(files["force_run"])
-    model = TakumaModel(geometry=src.protocol.rig, protocol=src.protocol.name).fit(
+    model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name).fit(
         src.table, source=str(files["force_run"]))
     text = model.to_json()
     files["model"].write_text(text, encoding="utf-8")
@@ -160,7 +160,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     write_push_csv(load_pushes(files["push_run"]), files["pushes_csv"])
     timings["total"] = time.perf_counter() - t0
 
-    paper = dict(src.protocol.paper_coefficients or {})
+    paper = dict(src.protocol.settings.paper_coefficients or {})
     coefficients = [
         {"name": name, "value": float(value), "standard_error": float(model.standard_errors[name]),
          "paper": paper.get(name)}

@@ -1,37 +1,14 @@
-"""An acquisition protocol as a sequence of plain steps.
+"""The paper's two experiments as sessions of plain steps (:mod:`labcli.core.steps`).
 
-A *session* is a generator of step objects; it knows nothing of serial ports,
-HDF5 files or terminals.  The run engine (:mod:`labcli.core.engine`) executes each
-step and sends its result back into the generator, much as a bluesky plan
-yields messages to its run engine::
+* :func:`force_session`: the force/angle calibration of Section 3.2, one trial per plan row
+  (or per load the experimenter types): baseline, hang the weight, equilibrium, capture,
+  remove the weight, review, commit.
+* :func:`push_session`: the stiffness experiment of Section 4, ``pushes_per_object``
+  pushes per object.
 
-    gen = force_session(protocol, plan)
-    reply = None
-    while True:
-        step = gen.send(reply)          # SetupCheck(), Prompt(...), WaitSettle(...), ...
-        reply = execute(step)           # what the step returns is listed on each class
-
-Because steps are plain data, a test can drive a session with made-up replies
-and check every prompt and every record without a rig.
-
-Replies the engine sends back:
-
-=================  ==========================================================
-step               reply
-=================  ==========================================================
-``SetupCheck``     ``None``
-``Prompt``         ``None`` (a quit ends the session inside the engine)
-``AskLoad``        :class:`Load`, or ``None`` when the experimenter is done
-``AskObject``      :class:`ObjectSpec`, or ``None`` when there are no more
-``AskPush``        :class:`PushSpec`
-``BeginTrial``     ``None``
-``WaitSettle``     :class:`SettleReport`, or ``"redo"``
-``Baseline``       :class:`Window`
-``Capture``        :class:`Window`
-``Review``         ``"accept"``, ``"redo"`` or ``"skip"`` (quit ends the session)
-``Commit``         ``None``
-``Finish``         ``None``
-=================  ==========================================================
+The actions below are what the experimenter does at the McKibben rig; each carries
+``act_on(rig)``, which the simulated rig performs in unattended runs.  The records are
+plain dicts (SI) that :mod:`labcli.experiments.takuma2014.records` stores.
 """
 
 from __future__ import annotations
@@ -39,14 +16,33 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Generator, Iterable, Sequence
 
 import numpy as np
+
+from ...core.steps import (
+    Ask,
+    Baseline,
+    BeginTrial,
+    Capture,
+    Commit,
+    Field,
+    Finish,
+    Prompt,
+    Review,
+    SettleReport,
+    SetupCheck,
+    Step,
+    WaitSettle,
+    Window,
+)
 
 G = 9.80665  # standard gravity, m/s^2 (table-formats.md)
 
 PRESSURE_NAMES = ("P_L1", "P_R1", "P_L2", "P_R2")
 POT_NAMES = ("POT1", "POT2")
+LOW_SUPPLY_MPA = 0.02  # a supplied actuator below this has no air
 
 
 # --------------------------------------------------------------------------- actions
@@ -56,12 +52,14 @@ POT_NAMES = ("POT1", "POT2")
 
 @dataclass(frozen=True)
 class SupplyAir:
-    pass
+    def act_on(self, rig: Any) -> None:
+        rig.supply_air()
 
 
 @dataclass(frozen=True)
 class CloseValves:
-    pass
+    def act_on(self, rig: Any) -> None:
+        rig.close_valves()
 
 
 @dataclass(frozen=True)
@@ -69,10 +67,14 @@ class HangWeight:
     mass_kg: float
     direction_rad: float
 
+    def act_on(self, rig: Any) -> None:
+        rig.hang_weight(self.mass_kg, self.direction_rad)
+
 
 @dataclass(frozen=True)
 class RemoveWeight:
-    pass
+    def act_on(self, rig: Any) -> None:
+        rig.remove_weight()
 
 
 @dataclass(frozen=True)
@@ -82,117 +84,20 @@ class PushObject:
     phi_rad: float | None  # None: the direction is not known to the experimenter
     stiffness_N_per_m: float | None = None  # simulated objects only
 
+    def act_on(self, rig: Any) -> None:
+        # A direction unknown to the experimenter is still some direction for the
+        # simulated rig: it pushes along the normal (phi = 0) then.
+        phi = 0.0 if self.phi_rad is None else self.phi_rad
+        rig.push_object(self.radius_m, self.distance_m, phi, self.stiffness_N_per_m)
+
 
 @dataclass(frozen=True)
 class ReleaseObject:
-    pass
+    def act_on(self, rig: Any) -> None:
+        rig.release_object()
 
 
 Action = SupplyAir | CloseValves | HangWeight | RemoveWeight | PushObject | ReleaseObject
-
-
-# --------------------------------------------------------------------------- steps
-
-
-@dataclass(frozen=True)
-class SetupCheck:
-    """Handshake done; check channels against the protocol and live readings in range."""
-
-
-@dataclass(frozen=True)
-class Prompt:
-    """Tell the experimenter what to do and wait for Enter."""
-
-    text: str
-    action: Action | None = None
-
-
-@dataclass(frozen=True)
-class AskLoad:
-    """No plan: ask for the mass (g) and pulley direction (deg) of the next trial."""
-
-    trial: int
-    index: int
-    total: int
-    mass_range_g: tuple[float, float] = (1.0, 2000.0)
-    direction_range_deg: tuple[float, float] = (-180.0, 180.0)
-
-
-@dataclass(frozen=True)
-class AskObject:
-    """Push experiment: ask for the next object's name, radius and category."""
-
-    index: int
-
-
-@dataclass(frozen=True)
-class AskPush:
-    """Push experiment: ask for push distance (mm) and direction (deg or unknown)."""
-
-    object: str
-    index: int
-    total: int
-    distance_range_m: tuple[float, float] = (0.002, 0.020)
-
-
-@dataclass(frozen=True)
-class BeginTrial:
-    """A trial (or push) starts: for the progress display and the engine's bookkeeping."""
-
-    trial: int
-    set: str
-    index: int  # 1-based position in this session's schedule
-    total: int
-    label: str  # "Trial 12/108 (fit)"
-
-
-@dataclass(frozen=True)
-class WaitSettle:
-    """Read until the joint is at equilibrium (``labcli.core.settle``)."""
-
-    label: str  # "baseline" or "load"
-
-
-@dataclass(frozen=True)
-class Baseline:
-    """Record the unloaded readings over ``capture_s`` seconds of device time."""
-
-    capture_s: float
-
-
-@dataclass(frozen=True)
-class Capture:
-    """Record the loaded readings over ``capture_s`` seconds of device time."""
-
-    capture_s: float
-
-
-@dataclass(frozen=True)
-class Review:
-    """Show the trial's summary row; the experimenter accepts, redoes, skips or quits."""
-
-    row: dict
-
-
-@dataclass(frozen=True)
-class Commit:
-    """Store one finished trial (or push) whole."""
-
-    record: dict
-
-
-@dataclass(frozen=True)
-class Finish:
-    """End of the schedule; ``split`` maps trial ids to "fit"/"validation" (None: no split)."""
-
-    split: dict | None
-    skipped: tuple[int, ...] = ()
-
-
-Step = (
-    SetupCheck | Prompt | AskLoad | AskObject | AskPush | BeginTrial | WaitSettle | Baseline
-    | Capture | Review | Commit | Finish
-)
 
 
 # --------------------------------------------------------------------------- replies
@@ -216,46 +121,6 @@ class ObjectSpec:
 class PushSpec:
     distance_m: float
     phi_rad: float | None
-
-
-@dataclass
-class Window:
-    """Raw samples of one capture window, as received, plus their SI values."""
-
-    seq: np.ndarray  # (n,) int64
-    t_us: np.ndarray  # (n,) int64, device clock as sent (wraps at 2**32)
-    counts: np.ndarray  # (n, k) float64, values as sent
-    si: np.ndarray  # (n, k) float64, MPa / rad per the protocol's calibration
-    t_s: np.ndarray  # (n,) float64, unwrapped device time
-
-    def __len__(self) -> int:
-        return len(self.seq)
-
-    def mean(self) -> np.ndarray:
-        return self.si.mean(axis=0)
-
-    def as_dict(self) -> dict[str, np.ndarray]:
-        return {"seq": self.seq, "t_us": self.t_us, "counts": self.counts, "si": self.si, "t_s": self.t_s}
-
-
-@dataclass(frozen=True)
-class SettleReport:
-    settled: bool  # False: timed out and accepted by the experimenter
-    settle_time_s: float  # device time from the start of the wait to equilibrium
-    waited_s: float  # device time spent waiting in all
-    pressure_spread_MPa: float
-    angle_spread_rad: float
-    criterion: str
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "settled": self.settled,
-            "settle_time_s": self.settle_time_s,
-            "waited_s": self.waited_s,
-            "pressure_spread_MPa": self.pressure_spread_MPa,
-            "angle_spread_rad": self.angle_spread_rad,
-            "criterion": self.criterion,
-        }
 
 
 # --------------------------------------------------------------------------- plan rows
@@ -444,6 +309,59 @@ def summary_row(record: dict) -> dict[str, str]:
     return row
 
 
+# --------------------------------------------------------------------------- questions
+
+
+def parse_stiffness(text: str) -> float:
+    """Parse a typed stiffness in N/m ("800", "800 N/m")."""
+    try:
+        value = float(text.strip().removesuffix("N/m").strip())
+    except ValueError:
+        raise ValueError(f"'{text.strip()}' is not a stiffness: type newtons per metre, e.g. 800.") from None
+    if not 0 < value < float("inf"):
+        raise ValueError(f"The stiffness must be more than 0 N/m, got {value:g} N/m.")
+    return value
+
+
+def ask_load(trial: int, total: int, mass_range_g: tuple[float, float] = (1.0, 2000.0),
+             direction_range_deg: tuple[float, float] = (-180.0, 180.0)) -> Ask:
+    """No plan: the mass (g) and pulley direction (deg) of the next trial; Enter ends the run."""
+    head = f"Trial {trial}/{total}"
+    lo, hi = mass_range_g
+    dlo, dhi = direction_range_deg
+    return Ask((
+        Field("mass_kg", f"{head}: mass to hang in g, {lo:g} to {hi:g} (Enter when the run is complete, q to quit):",
+              partial(parse_mass_g, lo_g=lo, hi_g=hi), again=f"{head}: mass to hang in g:", stop_if_empty=True),
+        Field("direction_rad", f"{head}: pulley direction in deg, counter-clockwise from +x ({dlo:g} to {dhi:g}):",
+              partial(parse_direction_deg, lo_deg=dlo, hi_deg=dhi)),
+    ))
+
+
+def ask_object(index: int) -> Ask:
+    """Push experiment: the next object's name, radius and category; Enter ends the run."""
+    return Ask((
+        Field("name", f"Object {index}: name (e.g. pet-1; Enter when all objects are done, q to quit):",
+              stop_if_empty=True),
+        Field("radius_m", lambda a: f"{a['name']}: radius R in mm:",
+              partial(parse_length_mm, what="radius", lo_mm=0.0, hi_mm=500.0)),
+        Field("category", lambda a: f"{a['name']}: category (soft, medium, hard, a name, or Enter if unknown):"),
+        Field("stiffness_N_per_m", lambda a: f"{a['name']}: stiffness of the simulated object in N/m:",
+              parse_stiffness, simulated_only=True),
+    ))
+
+
+def ask_push(name: str, index: int, total: int, distance_range_m: tuple[float, float] = (0.002, 0.020)) -> Ask:
+    """Push experiment: push distance (mm) and direction (deg, or unknown)."""
+    head = f"Push {index}/{total} of {name}"
+    lo, hi = (v * 1e3 for v in distance_range_m)
+    return Ask((
+        Field("distance_m", f"{head}: push distance d in mm, {lo:g} to {hi:g}:",
+              partial(parse_length_mm, what="push distance", lo_mm=lo, hi_mm=hi)),
+        Field("phi_rad", f"{head}: push direction phi in deg (? or Enter if unknown):",
+              partial(parse_direction_deg, allow_unknown=True)),
+    ))
+
+
 # --------------------------------------------------------------------------- sessions
 
 
@@ -452,19 +370,46 @@ def _pressurise() -> Generator[Step, Any, None]:
     yield SetupCheck()
     while True:
         yield Prompt(SUPPLY_TEXT, SupplyAir())
-        if (yield WaitSettle("air supply")) != "redo":
+        if (yield WaitSettle("air supply", min_pressure_MPa=LOW_SUPPLY_MPA)) != "redo":
             break
     yield Prompt(CLOSE_TEXT, CloseValves())
 
 
+def _trial(capture_s: float, load: Prompt, unload: Prompt, record_of: Any) -> Generator[Step, Any, bool]:
+    """One trial or push until accepted (True) or skipped (False).
+
+    Baseline at equilibrium, the load, equilibrium, capture, the unload, then the review;
+    a redo (of a wait or of the review) starts again from the baseline.
+    ``record_of(baseline, loaded, settle_baseline, settle_load)`` makes the record.
+    """
+    while True:
+        wait_b = yield WaitSettle("baseline")
+        if wait_b == "redo":
+            continue
+        base = yield Baseline(capture_s)
+        yield load
+        wait_l = yield WaitSettle("load")
+        if wait_l == "redo":
+            yield unload
+            continue
+        loaded = yield Capture(capture_s)
+        yield unload
+        record = record_of(base, loaded, wait_b, wait_l)
+        decision = yield Review(summary_row(record))
+        if decision == "redo":
+            continue
+        if decision == "skip":
+            return False
+        yield Commit(record)
+        return True
+
+
 def _load_limits(protocol: Any) -> tuple[tuple[float, float], tuple[float, float]]:
     """Typed-load limits from the protocol's [force] section (defaults: 1-2000 g, +-180 deg)."""
-    force = getattr(protocol, "force_limits", None) or {}
-    get = force.get if isinstance(force, dict) else lambda k, d: getattr(force, k, d)
-    return (
-        (float(get("mass_min_g", 1.0)), float(get("mass_max_g", 2000.0))),
-        (float(get("direction_min_deg", -180.0)), float(get("direction_max_deg", 180.0))),
-    )
+    lim = protocol.settings.force_limits
+    if lim is None:
+        return (1.0, 2000.0), (-180.0, 180.0)
+    return (lim.mass_min_g, lim.mass_max_g), (lim.direction_min_deg, lim.direction_max_deg)
 
 
 def force_session(
@@ -481,64 +426,43 @@ def force_session(
     ``target``: the number of trials announced when there is no plan
     (default: the protocol's fit + validation counts).
     """
-    settling = protocol.settling
-    capture_s = float(settling.capture_s)
+    capture_s = float(protocol.settling.capture_s)
     cmap = ChannelMap.from_channels(protocol.channels)
     done = set(int(t) for t in completed)
     rows = planned_trials(plan)
+    remaining = [r for r in rows if r.trial not in done]
     if rows:
         total = len(rows)
-        remaining = [r for r in rows if r.trial not in done]
     else:
-        trials = getattr(protocol, "trials", None)
+        trials = protocol.settings.trials
         total = target or (int(trials.fit) + int(trials.validation) if trials is not None else 0)
-        remaining = []
 
     yield from _pressurise()
 
     skipped: list[int] = []
-    position = 0
-    while True:
+    while not rows or remaining:
         if rows:
-            if position >= len(remaining):
-                break
-            planned = remaining[position]
-            position += 1
+            planned = remaining.pop(0)
             label = trial_label(planned.trial, total, planned.set)
         else:
             # Ids stay dense: a skipped trial's id is used by the next load.
             next_id = max(done, default=0) + 1
             shown_total = max(total, len(done) + 1)
-            load = yield AskLoad(next_id, len(done) + 1, shown_total, *_load_limits(protocol))
+            load = yield ask_load(next_id, shown_total, *_load_limits(protocol))
             if load is None:
                 break
-            planned = PlannedTrial(next_id, "", load.mass_kg, load.direction_rad)
+            planned = PlannedTrial(next_id, "", load["mass_kg"], load["direction_rad"])
             label = trial_label(next_id, shown_total, "")
         yield BeginTrial(planned.trial, planned.set, len(done) + 1, total, label)
-        while True:  # until accepted or skipped
-            wait_b = yield WaitSettle("baseline")
-            if wait_b == "redo":
-                continue
-            base = yield Baseline(capture_s)
-            yield Prompt(load_prompt(label, planned.mass_kg, planned.direction_rad),
-                         HangWeight(planned.mass_kg, planned.direction_rad))
-            wait_l = yield WaitSettle("load")
-            if wait_l == "redo":
-                yield Prompt(remove_prompt(label), RemoveWeight())
-                continue
-            loaded = yield Capture(capture_s)
-            yield Prompt(remove_prompt(label), RemoveWeight())
-            record = force_record(planned.trial, planned.set, planned.mass_kg, planned.direction_rad,
-                                  base, loaded, wait_b, wait_l, cmap, planned.plan_row)
-            decision = yield Review(summary_row(record))
-            if decision == "redo":
-                continue
-            if decision == "skip":
-                skipped.append(planned.trial)
-                break
-            yield Commit(record)
-            done.add(planned.trial)
-            break
+        stored = yield from _trial(
+            capture_s,
+            Prompt(load_prompt(label, planned.mass_kg, planned.direction_rad),
+                   HangWeight(planned.mass_kg, planned.direction_rad)),
+            Prompt(remove_prompt(label), RemoveWeight()),
+            lambda base, loaded, wait_b, wait_l, p=planned: force_record(
+                p.trial, p.set, p.mass_kg, p.direction_rad, base, loaded, wait_b, wait_l, cmap, p.plan_row),
+        )
+        (done.add if stored else skipped.append)(planned.trial)
 
     split = None
     if rows:
@@ -610,13 +534,11 @@ def push_session(
     numbered through it, so a resumed run skips the ones already stored; without,
     the experimenter names each object and types each push.
     """
-    settling = protocol.settling
-    capture_s = float(settling.capture_s)
+    capture_s = float(protocol.settling.capture_s)
     cmap = ChannelMap.from_channels(protocol.channels)
-    push_cfg = getattr(protocol, "push", None) or {}
-    get = push_cfg.get if isinstance(push_cfg, dict) else lambda k, d: getattr(push_cfg, k, d)
-    per_object = int(get("pushes_per_object", 10))
-    d_range = (float(get("distance_min_m", 0.002)), float(get("distance_max_m", 0.020)))
+    push = protocol.settings.push
+    per_object = push.pushes_per_object if push is not None else 10
+    d_range = (push.distance_min_m, push.distance_max_m) if push is not None else (0.002, 0.020)
     done = set(int(t) for t in completed)
     fixed = list(objects or [])
     total = sum(len(o.pushes) for o in fixed) if fixed else 0
@@ -626,16 +548,15 @@ def push_session(
     skipped: list[int] = []
     next_id = 1
     index = 0
-    while True:
+    while not fixed or index < len(fixed):
         if fixed:
-            if index >= len(fixed):
-                break
             planned = fixed[index]
         else:
-            spec = yield AskObject(index + 1)
-            if spec is None:
+            answer = yield ask_object(index + 1)
+            if answer is None:
                 break
-            planned = PlannedObject(spec)
+            planned = PlannedObject(ObjectSpec(answer["name"], answer["radius_m"], answer["category"],
+                                               answer.get("stiffness_N_per_m")))
             next_id = max(done, default=0) + 1
         index += 1
         obj = planned.spec
@@ -647,28 +568,18 @@ def push_session(
                 continue
             label = f"Push {k}/{n} of {obj.name}"
             yield BeginTrial(push_id, "", len(done) + 1, total or per_object * index, label)
-            spec_k = planned.pushes[k - 1] if fixed else (yield AskPush(obj.name, k, n, d_range))
-            while True:
-                wait_b = yield WaitSettle("baseline")
-                if wait_b == "redo":
-                    continue
-                base = yield Baseline(capture_s)
-                yield Prompt(push_prompt(label, obj.name, spec_k.distance_m, spec_k.phi_rad),
-                             PushObject(obj.radius_m, spec_k.distance_m, spec_k.phi_rad, obj.stiffness_N_per_m))
-                wait_l = yield WaitSettle("load")
-                if wait_l == "redo":
-                    yield Prompt(release_prompt(label, obj.name), ReleaseObject())
-                    continue
-                loaded = yield Capture(capture_s)
-                yield Prompt(release_prompt(label, obj.name), ReleaseObject())
-                record = push_record(push_id, obj, spec_k, base, loaded, wait_b, wait_l, cmap)
-                decision = yield Review(summary_row(record))
-                if decision == "redo":
-                    continue
-                if decision == "skip":
-                    skipped.append(push_id)
-                    break
-                yield Commit(record)
-                done.add(push_id)
-                break
+            if fixed:
+                spec = planned.pushes[k - 1]
+            else:
+                typed = yield ask_push(obj.name, k, n, d_range)
+                spec = PushSpec(typed["distance_m"], typed["phi_rad"])
+            stored = yield from _trial(
+                capture_s,
+                Prompt(push_prompt(label, obj.name, spec.distance_m, spec.phi_rad),
+                       PushObject(obj.radius_m, spec.distance_m, spec.phi_rad, obj.stiffness_N_per_m)),
+                Prompt(release_prompt(label, obj.name), ReleaseObject()),
+                lambda base, loaded, wait_b, wait_l, pid=push_id, o=obj, s=spec: push_record(
+                    pid, o, s, base, loaded, wait_b, wait_l, cmap),
+            )
+            (done.add if stored else skipped.append)(push_id)
     yield Finish(None, tuple(skipped))

@@ -362,7 +362,7 @@ def check_force_model(model: Any, protocol: Any, *, model_name: str, run_name: s
                 f"{cap(model_name)} was fitted for protocol '{model.protocol}', of kind '{kind}', not on a "
                 f"force run; fit a model with `labcli fit` on a force run of the rig of {run_name}."
             )
-    model.check_compatible(model.protocol, protocol.rig, model_name=model_name, run_name=run_name)
+    model.check_compatible(model.protocol, protocol.settings.rig, model_name=model_name, run_name=run_name)
 
 
 def _merge_reference(table: Any, ref: Any, ref_label: str) -> Any:
@@ -455,7 +455,8 @@ def classify_file(
             "and no reference run was given; give one with --reference or use the protocol's stiffness bands "
             "(--method bands)."
         )
-    bands = src.protocol.push.stiffness_bands_N_per_m if src.protocol.push is not None else None
+    push = src.protocol.settings.push
+    bands = push.stiffness_bands_N_per_m if push is not None else None
     result = classify_pushes(
         table, fmodel, params=params, bands=bands or None, method=method, angles=angles,
         allow_unusable=allow_unusable,

@@ -284,7 +284,7 @@ class TakumaModel:
 
     Example::
 
-        model = TakumaModel(geometry=protocol.rig, protocol="takuma2014").fit(table)
+        model = TakumaModel(geometry=protocol.settings.rig, protocol="takuma2014").fit(table)
         out = model.predict(P0, P)            # pressure-only: angles, then forces
         text = model.to_json(); TakumaModel.from_json(text) == model
     """

@@ -1,0 +1,247 @@
+"""The seams between the paper-free core and an experiment (one paper).
+
+An *experiment* is one paper's acquisition and analysis, plugged into the core through
+the registry (:mod:`labcli.core.registry`).  The engine, the run file, the loader and the
+commands talk to it only through the interfaces below, in the spirit of bluesky's
+``protocols.py`` and pyserial's ``SerialBase``: a typing.Protocol says what an object
+must offer, and anything that offers it plugs in.
+
+* :class:`Experiment`: the paper; its protocol kinds (plain data for the loader), the
+  names of its shipped protocol files, its run kinds and their :class:`RecordType`, its
+  simulated rigs, how it acquires (:class:`Acquisition`), its analyses (:class:`Analysis`)
+  and its demo (:class:`Demo`).  Its module must import nothing heavy: the registry loads
+  it to answer "which experiment owns this kind", and heavy parts load on first use.
+* :class:`ProtocolKind`: the sections a protocol of one kind holds, as plain-data key
+  specs (:mod:`labcli.core.protocol` checks them), plus the hook that turns the checked
+  sections into the experiment's typed settings (``Protocol.settings``).
+* :class:`RecordType`: what one record of a run kind holds (a trial, a push, a point), how
+  it is checked and written into its HDF5 group, read back, tabled as CSV, imported from
+  a table row and summarised by ``labcli inspect``.
+* :class:`Acquisition`: one run being acquired: the protocol it records with, its session
+  of steps (:mod:`labcli.core.steps`), its plan, and the rules of resuming it.
+* :class:`RigAction`: what the experimenter does at the rig, which the simulated rig acts
+  out in unattended runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Generator, Iterable, Mapping, Protocol, Sequence, runtime_checkable
+
+# --------------------------------------------------------------------------- protocol files
+
+
+@dataclass(frozen=True)
+class ChannelRoles:
+    """What a ``[channels.NAME]`` table may name: the actuator of a pressure channel, the
+    joint of an angle channel; a kind lists the roles its rig has, and each must be given."""
+
+    actuators: tuple[str, ...] = ()
+    joints: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class ProtocolKind:
+    """A protocol kind (``kind = "..."`` in the file) as plain data for the loader.
+
+    ``sections`` maps a table name to ``(required | optional, spec name)``; a spec name is
+    one of the core's (``device``, ``acquisition``, ``channel-map``, ``settling``), one of
+    ``specs`` (key specs, see :mod:`labcli.core.protocol`), one of ``tables_of`` (a table
+    of free names, each checked against another spec), or ``"open"`` (kept as written).
+    ``extra_sections`` accepts tables not listed.  ``build(checked, checker, path)`` turns
+    the checked tables into the experiment's typed settings (``Protocol.settings``); it
+    runs after the core's own sections, and reports through ``checker.fail(message)``.
+    ``experiments`` maps ``--experiment`` choices to the run kinds they record, for a kind
+    whose protocol holds several experiments; ``described_as`` names such a protocol in
+    messages ("an rPAM protocol").
+    """
+
+    name: str
+    sections: Mapping[str, tuple[str, str]]
+    specs: Mapping[str, Any] = field(default_factory=dict)
+    tables_of: Mapping[str, str] = field(default_factory=dict)
+    extra_sections: bool = False
+    channel_roles: ChannelRoles | None = None
+    build: Callable[[dict[str, Any], Any, Path | None], Any] | None = None
+    experiments: Mapping[str, str] = field(default_factory=dict)
+    described_as: str = ""
+
+
+# --------------------------------------------------------------------------- run files
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """One dataset of a record group: name, value (array-like or scalar), units, attributes."""
+
+    name: str
+    value: Any
+    units: str
+    attrs: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Stored:
+    """What a record type writes into a record's group (before the core's common parts)."""
+
+    attrs: Mapping[str, Any]
+    datasets: Sequence[Dataset]
+
+
+@runtime_checkable
+class RecordType(Protocol):
+    """One record kind of a run: where it lives, what it holds, how it is tabled.
+
+    The run file (:class:`labcli.core.store.RunFile`) writes the common parts of every
+    record itself (the id, recording order, times, settling, raw windows, extra columns,
+    the ``complete`` flag, the index) and asks the record type for the rest.
+    """
+
+    kind: str  # the run kind, e.g. "force"
+    collection: str  # the group records live in, e.g. "trials"
+    id_column: str  # the id attribute and table column, e.g. "trial"
+    noun: str  # "trial" (for sentences)
+    plural: str  # "trials"
+    qualifier: str  # appended to counts in sentences, e.g. " of the joint map" ("" for none)
+    splits: bool  # records join the run's fit/validation split
+    known_columns: frozenset[str]  # table columns the record type stores (others are kept as extras)
+
+    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
+        """Check a record before anything touches the file (StoreError) and say what to write."""
+
+    def read(self, group: Any) -> dict[str, Any]:
+        """The record-specific part of a complete record's group, as the writer gave it (SI)."""
+
+    def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
+        """The CSV exchange table (DataFrame) of these records, without the extra columns."""
+
+    def from_row(self, row: Mapping[str, Any], protocol: Any, extra: dict[str, Any]) -> dict[str, Any]:
+        """One table row (as read by :meth:`read_csv`) as the record :meth:`check` takes."""
+
+    def import_split(self, rows: list[dict[str, Any]]) -> tuple[list[int], list[int]]:
+        """Fit and validation ids named by an imported table (empty lists: no split)."""
+
+    def read_csv(self, path: Any, *, id_range: tuple[int, int] | None = None,
+                 check: Callable[[dict[str, Any]], Iterable[tuple[str, str]]] | None = None) -> Any:
+        """Read and check a CSV table of these records (:class:`labcli.core.tables.TableError`)."""
+
+    def write_csv(self, table: Any, path: Any) -> None:
+        """Write the table as CSV, atomically."""
+
+    def summarise(self, run: Any, ids: list[int], groups: list[Any]) -> dict[str, Any]:
+        """Keys this record type adds to ``RunFile.summary()`` (``baseline_drift``, ...)."""
+
+    def inspect_lines(self, summary: dict[str, Any]) -> list[str]:
+        """The record-specific lines of ``labcli inspect`` (records, split, settling, ...)."""
+
+
+# --------------------------------------------------------------------------- acquisition
+
+
+class RigAction(Protocol):
+    """What the experimenter does at the rig; the simulated rig acts it out unattended."""
+
+    def act_on(self, rig: Any) -> None:
+        """Do it on the simulated rig (ValueError with a sentence when it cannot)."""
+
+
+@dataclass(frozen=True)
+class AcquireOptions:
+    """What ``labcli acquire`` was asked for, for the experiment to judge.
+
+    ``experiment``: the ``--experiment`` choice of a protocol holding several;
+    ``plan``/``no_plan``: a plan file, or typed loads; ``resume``: the run being continued
+    (None for a new run).
+    """
+
+    path: str
+    plan: str | Path | None = None
+    no_plan: bool = False
+    experiment: str | None = None
+    unattended: bool = False
+    resume: Any = None  # the open RunFile being resumed
+
+
+Session = Generator[Any, Any, None]
+
+
+class Acquisition(Protocol):
+    """One run being acquired, as the experiment plans it."""
+
+    protocol: Any  # the protocol the run records with (calibration, channels, settling, ...)
+    kind: str  # the run kind
+    plan: Any  # the plan table stored in a new run (a DataFrame or None)
+
+    def session(self, completed: Sequence[int]) -> Session:
+        """The steps of the run, skipping the record ids already ``completed``."""
+
+    def already_done(self, run: Any, path: str) -> str | None:
+        """On resuming: the sentence to end with when nothing is left to record (None: go on).
+
+        May finish the run's bookkeeping first (the split of a finished plan)."""
+
+
+# --------------------------------------------------------------------------- analyses
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """One analysis a command runs: ``run(**options) -> result``, ``show(result, as_json=...)``.
+
+    ``run`` is a plain library function (raises :class:`~labcli.errors.LabcliError`);
+    ``show`` prints the result (the experiment's report module).
+    """
+
+    run: Callable[..., Any]
+    show: Callable[..., None]
+
+
+@dataclass(frozen=True)
+class Demo:
+    """The paper on the simulated rig: ``run(outdir, seed=, force=, progress=) -> result``."""
+
+    stages: tuple[str, ...]
+    run: Callable[..., Any]
+    show: Callable[[Any], None]
+
+
+# --------------------------------------------------------------------------- the experiment
+
+
+@runtime_checkable
+class Experiment(Protocol):
+    """One paper, as the core sees it.  Attributes are plain data; methods load lazily."""
+
+    name: str  # e.g. "takuma2014"
+    title: str
+    paper: str  # the paper, as cited
+    protocol_kinds: Mapping[str, ProtocolKind]
+    shipped_protocols: tuple[str, ...]  # file stems in protocols/ this experiment owns
+    run_kinds: tuple[str, ...]
+    sim_modes: tuple[str, ...]  # ``sim://?mode=`` values this experiment's rigs answer to
+    default_sim_mode: str | None  # the rig ``sim://`` gives without mode= (one experiment at most)
+    demo_protocol: str | None  # ``labcli demo --protocol NAME`` runs this experiment's demo
+
+    def record_type(self, run_kind: str) -> RecordType:
+        """The record type of one of :attr:`run_kinds`."""
+
+    def make_rig(self, mode: str, *, seed: int, noise: float, drift: float, tau_s: float) -> Any:
+        """A simulated rig for one of :attr:`sim_modes` (see :mod:`labcli.core.sim`)."""
+
+    def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
+                     run_path: str = "") -> Any:
+        """The protocol as a run records it (its ``kind`` the run kind), ``choice`` being
+        the ``--experiment`` option; ``stored_kind`` is the kind of a run being resumed."""
+
+    def import_protocol(self, protocol: Any, choice: str | None, name: str) -> Any:
+        """As :meth:`run_protocol`, for ``labcli import`` (its own sentences)."""
+
+    def acquisition(self, protocol: Any, options: AcquireOptions) -> Acquisition:
+        """Plan one run of ``protocol`` (from :meth:`run_protocol`)."""
+
+    def analysis(self, name: str) -> Analysis | None:
+        """The analysis ``name`` ("fit", "validate", "classify", "optimize"), or None."""
+
+    def demo(self) -> Demo | None:
+        """The paper's demo on the simulated rig, or None."""

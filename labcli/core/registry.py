@@ -1,0 +1,210 @@
+"""Which experiment owns a run kind, a protocol kind, a shipped protocol or a simulated rig.
+
+Experiments are found through the entry-point group ``labcli.experiments`` (each entry
+point names an object implementing :class:`labcli.core.experiment.Experiment`; labcli's
+own are declared in ``pyproject.toml``), loaded on the first lookup and never before, so
+``labcli --help`` loads none.  :func:`register` adds one at run time (a test, a notebook).
+The map from kinds to experiments is written here once: nothing else in the toolkit
+compares a kind with a paper's name.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+from ..errors import ConfigError, LabcliError
+from .experiment import Experiment, ProtocolKind, RecordType
+
+GROUP = "labcli.experiments"
+
+_experiments: dict[str, Experiment] = {}
+_discovered = False
+
+
+def register(experiment: Experiment) -> Experiment:
+    """Add an experiment (replacing one of the same name); returns it."""
+    if not isinstance(experiment, Experiment):
+        raise TypeError(f"{experiment!r} does not implement labcli.core.experiment.Experiment")
+    _experiments[experiment.name] = experiment
+    return experiment
+
+
+def unregister(name: str) -> None:
+    """Remove an experiment added with :func:`register` (a test cleaning up)."""
+    _experiments.pop(name, None)
+
+
+def _discover() -> None:
+    global _discovered
+    if _discovered:
+        return
+    _discovered = True
+    from importlib.metadata import entry_points
+
+    found = {}
+    for ep in entry_points(group=GROUP):
+        found[ep.name] = ep.load()
+    if not found and not _experiments:
+        raise ConfigError(
+            f"No experiment is installed (the entry-point group {GROUP} is empty); "
+            "reinstall labcli (pip install .) so that its experiments register."
+        )
+    # Installed experiments first, in name order; those registered at run time keep theirs.
+    runtime = dict(_experiments)
+    _experiments.clear()
+    for name in sorted(found):
+        register(found[name])
+    _experiments.update(runtime)
+
+
+def experiments() -> list[Experiment]:
+    """Every experiment, installed ones in name order."""
+    _discover()
+    return list(_experiments.values())
+
+
+def experiment(name: str) -> Experiment:
+    """The experiment called ``name``."""
+    _discover()
+    try:
+        return _experiments[name]
+    except KeyError:
+        raise ConfigError(f"No experiment named '{name}'; installed: {', '.join(_experiments)}.") from None
+
+
+# --------------------------------------------------------------------------- kinds
+
+
+def protocol_kinds() -> dict[str, ProtocolKind]:
+    """Protocol kind -> its sections, over every experiment, in name order."""
+    kinds = {name: spec for e in experiments() for name, spec in e.protocol_kinds.items()}
+    return dict(sorted(kinds.items()))
+
+
+def for_protocol_kind(kind: str) -> Experiment:
+    """The experiment that reads protocols of ``kind``."""
+    for e in experiments():
+        if kind in e.protocol_kinds:
+            return e
+    raise ConfigError(f"No experiment reads protocols of kind '{kind}'.")
+
+
+def for_run_kind(kind: str) -> Experiment:
+    """The experiment that records runs of ``kind``."""
+    for e in experiments():
+        if kind in e.run_kinds:
+            return e
+    raise LabcliError(f"No experiment records runs of kind '{kind}'.")
+
+
+def record_type(kind: str) -> RecordType:
+    """The record type of runs of ``kind``."""
+    return for_run_kind(kind).record_type(kind)
+
+
+def for_shipped_protocol(name: str) -> Experiment:
+    """The experiment that ships the protocol file ``name`` (e.g. ``takuma2014``)."""
+    for e in experiments():
+        if name in e.shipped_protocols:
+            return e
+    raise ConfigError(f"No experiment ships a protocol named '{name}'.")
+
+
+def demo_protocols(default: str) -> list[str]:
+    """Names ``labcli demo --protocol`` takes: ``default`` first, then the others in order."""
+    names = [e.demo_protocol for e in experiments() if e.demo_protocol]
+    return [default] + sorted(n for n in names if n != default) if default in names else sorted(names)
+
+
+def _unused_experiment_option(name: str, kind: str) -> ConfigError:
+    holders = " or ".join(k.described_as for k in protocol_kinds().values() if k.experiments)
+    return ConfigError(f"--experiment picks one experiment of {holders}; {name} is of kind '{kind}', "
+                       "so leave --experiment out.")
+
+
+def run_protocol(protocol: Any, choice: str | None, *, stored_kind: str | None = None,
+                 run_path: str = "") -> tuple[Experiment, Any]:
+    """The experiment of a loaded protocol and the protocol a run of it records with.
+
+    ``choice`` is the ``--experiment`` option, for a protocol holding several experiments;
+    ``stored_kind`` the kind of a run being resumed.
+    """
+    spec = protocol_kinds()[protocol.kind]
+    if choice is not None and not spec.experiments:
+        raise _unused_experiment_option(protocol.name, protocol.kind)
+    owner = for_protocol_kind(protocol.kind)
+    return owner, owner.run_protocol(protocol, choice, stored_kind=stored_kind, run_path=run_path)
+
+
+def import_protocol(protocol: Any, choice: str | None, name: str) -> tuple[Experiment, Any]:
+    """As :func:`run_protocol`, for ``labcli import`` (``name`` as the person typed it)."""
+    spec = protocol_kinds()[protocol.kind]
+    if choice is not None and not spec.experiments:
+        raise _unused_experiment_option(name, protocol.kind)
+    owner = for_protocol_kind(protocol.kind)
+    return owner, owner.import_protocol(protocol, choice, name)
+
+
+# --------------------------------------------------------------------------- simulated rigs
+
+
+def sim_modes() -> list[str]:
+    """``sim://?mode=`` values, in name order."""
+    return sorted(m for e in experiments() for m in e.sim_modes)
+
+
+def default_sim_mode() -> str:
+    """The rig ``sim://`` gives without ``mode=``."""
+    defaults = [e.default_sim_mode for e in experiments() if e.default_sim_mode]
+    if len(defaults) != 1:
+        raise ConfigError(f"Exactly one experiment must name the default simulated rig; found {defaults or 'none'}.")
+    return defaults[0]
+
+
+def make_rig(mode: str, **options: Any) -> Any:
+    """The simulated rig of ``mode`` (options: seed, noise, drift, tau_s)."""
+    for e in experiments():
+        if mode in e.sim_modes:
+            return e.make_rig(mode, **options)
+    raise ValueError(f"unknown simulated rig mode {mode!r}; known: {', '.join(sim_modes())}")
+
+
+# --------------------------------------------------------------------------- which experiment reads a file
+
+
+RUN_SUFFIXES = (".h5", ".hdf5")
+
+
+def run_kind_of(path: str | Path) -> str | None:
+    """The kind of a readable run file; None for a table, a missing or unreadable file."""
+    p = Path(path)
+    if p.suffix.lower() not in RUN_SUFFIXES or not p.is_file():
+        return None
+    from .store import RunFile
+
+    try:
+        with RunFile.open(p) as run:
+            return run.kind
+    except LabcliError:
+        return None
+
+
+def for_analysis(name: str, *, inputs: Iterable[str | Path] = (), default_protocol: str) -> Experiment:
+    """The experiment whose analysis ``name`` reads these inputs.
+
+    A run file's own experiment when it offers the analysis; anything else (a table, a
+    protocol file, a file that does not open) goes to the experiment that ships
+    ``default_protocol``, whose analysis then says in its own words what is wrong.
+    """
+    for path in inputs:
+        kind = run_kind_of(path)
+        if kind is None:
+            continue
+        try:
+            owner = for_run_kind(kind)
+        except LabcliError:
+            continue
+        if owner.analysis(name) is not None:
+            return owner
+    return for_shipped_protocol(default_protocol)

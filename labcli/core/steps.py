@@ -1,0 +1,204 @@
+"""An acquisition protocol as a sequence of plain steps.
+
+A *session* is a generator of step objects; it knows nothing of serial ports,
+HDF5 files or terminals.  The run engine (:mod:`labcli.core.engine`) executes each
+step and sends its result back into the generator, much as a bluesky plan
+yields messages to its run engine::
+
+    gen = experiment.acquisition(protocol, options).session(completed=())
+    reply = None
+    while True:
+        step = gen.send(reply)          # SetupCheck(), Prompt(...), WaitSettle(...), ...
+        reply = execute(step)           # what the step returns is listed below
+
+Because steps are plain data, a test can drive a session with made-up replies
+and check every prompt and every record without a rig.  The steps are the same for
+every experiment; what the experimenter does at the rig is an action of the
+experiment's own (a frozen dataclass with ``act_on(rig)``, carried by a
+:class:`Prompt`), and what a record holds is the experiment's record type's business.
+
+Replies the engine sends back:
+
+=================  ==========================================================
+step               reply
+=================  ==========================================================
+``SetupCheck``     ``None``
+``Prompt``         ``None`` (a quit ends the session inside the engine)
+``Ask``            ``{field key: parsed answer}``, or ``None`` when the first
+                   answer was empty and its field says that ends the questions
+``BeginTrial``     ``None``
+``WaitSettle``     :class:`SettleReport`, or ``"redo"``
+``Baseline``       :class:`Window`
+``Capture``        :class:`Window`
+``Review``         ``"accept"``, ``"redo"`` or ``"skip"`` (quit ends the session)
+``Commit``         ``None``
+``Finish``         ``None``
+=================  ==========================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+# --------------------------------------------------------------------------- steps
+
+
+@dataclass(frozen=True)
+class SetupCheck:
+    """Handshake done; check channels against the protocol and live readings in range."""
+
+
+@dataclass(frozen=True)
+class Prompt:
+    """Tell the experimenter what to do and wait for Enter.
+
+    ``action`` (an object with ``act_on(rig)``, see :class:`labcli.core.experiment.RigAction`)
+    is what the prompt asks for; the simulated rig does it itself once the prompt is answered.
+    """
+
+    text: str
+    action: Any = None
+
+
+_NO_DEFAULT: Any = object()
+
+
+@dataclass(frozen=True)
+class Field:
+    """One question of an :class:`Ask`.
+
+    ``prompt`` is formatted with the answers given so far (``"{name}: radius R in mm:"``);
+    ``parse(text)`` returns the value or raises ValueError with a sentence, after which the
+    question is asked again (with ``again`` when given).  Without ``parse`` the answer is
+    the text typed, stripped.  An empty answer gives ``default`` when there is one
+    ("Enter keeps the default"); an empty first answer to a ``stop_if_empty`` field ends
+    the questions (the reply is None).  ``simulated_only`` questions are asked only of a
+    simulated rig (what a real rig would tell by itself).
+    """
+
+    key: str
+    prompt: str
+    parse: Callable[[str], Any] | None = None
+    default: Any = _NO_DEFAULT
+    again: str | None = None
+    stop_if_empty: bool = False
+    simulated_only: bool = False
+
+    @property
+    def has_default(self) -> bool:
+        return self.default is not _NO_DEFAULT
+
+
+@dataclass(frozen=True)
+class Ask:
+    """Ask the experimenter for values (a load typed without a plan, an object, a push)."""
+
+    fields: tuple[Field, ...]
+
+
+@dataclass(frozen=True)
+class BeginTrial:
+    """A trial (or push, or point) starts: for the progress display and the engine's bookkeeping."""
+
+    trial: int
+    set: str
+    index: int  # 1-based position in this session's schedule
+    total: int
+    label: str  # "Trial 12/108 (fit)"
+
+
+@dataclass(frozen=True)
+class WaitSettle:
+    """Read until the rig is at equilibrium (:mod:`labcli.core.settle`).
+
+    With ``min_pressure_MPa``, a settled pressure below it is warned about (a supply that
+    gave no air: ``"after the air supply P_L1 0.001 MPa: check the compressor ..."``).
+    """
+
+    label: str  # "baseline", "load", "air supply", ...
+    min_pressure_MPa: float | None = None
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """Record the unloaded readings over ``capture_s`` seconds of device time."""
+
+    capture_s: float
+
+
+@dataclass(frozen=True)
+class Capture:
+    """Record the loaded readings over ``capture_s`` seconds of device time."""
+
+    capture_s: float
+
+
+@dataclass(frozen=True)
+class Review:
+    """Show the trial's summary row; the experimenter accepts, redoes, skips or quits."""
+
+    row: dict
+
+
+@dataclass(frozen=True)
+class Commit:
+    """Store one finished record whole (its record type is the run's)."""
+
+    record: dict
+
+
+@dataclass(frozen=True)
+class Finish:
+    """End of the schedule; ``split`` maps record ids to "fit"/"validation" (None: no split)."""
+
+    split: dict | None
+    skipped: tuple[int, ...] = ()
+
+
+Step = SetupCheck | Prompt | Ask | BeginTrial | WaitSettle | Baseline | Capture | Review | Commit | Finish
+
+
+# --------------------------------------------------------------------------- replies
+
+
+@dataclass
+class Window:
+    """Raw samples of one capture window, as received, plus their SI values."""
+
+    seq: np.ndarray  # (n,) int64
+    t_us: np.ndarray  # (n,) int64, device clock as sent (wraps at 2**32)
+    counts: np.ndarray  # (n, k) float64, values as sent
+    si: np.ndarray  # (n, k) float64, MPa / rad / m per the protocol's calibration
+    t_s: np.ndarray  # (n,) float64, unwrapped device time
+
+    def __len__(self) -> int:
+        return len(self.seq)
+
+    def mean(self) -> np.ndarray:
+        return self.si.mean(axis=0)
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        return {"seq": self.seq, "t_us": self.t_us, "counts": self.counts, "si": self.si, "t_s": self.t_s}
+
+
+@dataclass(frozen=True)
+class SettleReport:
+    settled: bool  # False: timed out and accepted by the experimenter
+    settle_time_s: float  # device time from the start of the wait to equilibrium
+    waited_s: float  # device time spent waiting in all
+    pressure_spread_MPa: float
+    angle_spread_rad: float
+    criterion: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "settled": self.settled,
+            "settle_time_s": self.settle_time_s,
+            "waited_s": self.waited_s,
+            "pressure_spread_MPa": self.pressure_spread_MPa,
+            "angle_spread_rad": self.angle_spread_rad,
+            "criterion": self.criterion,
+        }
