@@ -13,9 +13,10 @@ from click.testing import CliRunner
 from labcli.cli import cli
 from labcli.errors import ConfigError, ModelError
 from labcli.experiments.rpam2015.models import rpam
+from labcli.experiments.rpam2015.protocol import read_rpam_protocol
 from labcli.experiments.rpam2015.models import rpam_optimize as ro
 
-PATH, RAW = rpam.read_rpam_protocol("rpam2015")
+PATH, RAW = read_rpam_protocol("rpam2015")
 ACT = rpam.actuator_from_protocol(RAW, PATH)
 BOUNDS, SETTINGS = ro.settings_from_protocol(RAW, PATH)
 QUICK = ("optimize.popsize=6", "optimize.maxiter=40")

@@ -11,8 +11,9 @@ from hypothesis import strategies as st
 
 from labcli.errors import ConfigError, ModelError
 from labcli.experiments.rpam2015.models import rpam
+from labcli.experiments.rpam2015.protocol import read_rpam_protocol
 
-PATH, RAW = rpam.read_rpam_protocol("rpam2015")
+PATH, RAW = read_rpam_protocol("rpam2015")
 ACT = rpam.actuator_from_protocol(RAW, PATH)
 PAPER = rpam.JointGeometry(0.03, 0.1048, 0.06)
 KPA = 1e-3  # MPa per kPa
@@ -285,11 +286,11 @@ def test_bad_protocol_values_are_one_sentence(tmp_path):
     f = tmp_path / "other.toml"
     f.write_text('kind = "force"\n')
     with pytest.raises(ConfigError) as e:
-        rpam.read_rpam_protocol(f)
+        read_rpam_protocol(f)
     assert str(e.value) == f"Protocol file {f} has kind = 'force'; the rPAM model needs kind = \"rpam\"."
     f.write_text("kind = [\n")
     with pytest.raises(ConfigError) as e:
-        rpam.read_rpam_protocol(f)
+        read_rpam_protocol(f)
     assert str(e.value).startswith(f"Protocol file {f} is not valid TOML:")
 
 

@@ -25,7 +25,7 @@ import copy
 import math
 import re
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -168,7 +168,8 @@ class Settling:
 class Protocol:
     """A checked protocol.  ``settings`` holds what the experiment of its kind made of its
     own sections (:attr:`labcli.core.experiment.ProtocolKind.build`); ``sections`` every
-    table of the file as plain data, as written.  Settings that define ``default_split``
+    table of the file as plain data, as written, and ``document`` the whole file (top-level
+    keys too), for an experiment that reads its own tables.  Settings that define ``default_split``
     (fit and validation counts) give ``labcli split`` its defaults."""
 
     name: str
@@ -184,6 +185,7 @@ class Protocol:
     settings: Any = None
     title: str = ""
     source: str = ""
+    document: dict[str, Any] = field(default_factory=dict, repr=False)  # the whole file as plain data
 
     @property
     def source_label(self) -> str:
@@ -195,6 +197,20 @@ class Protocol:
 # ---------------------------------------------------------------------------
 
 
+class ProtocolFileError(ConfigError):
+    """A protocol file that is missing, unreadable, not TOML, or of a kind not asked for.
+
+    ``problem`` is ``"missing"``, ``"unreadable"``, ``"syntax"`` or ``"kind"``; ``detail`` the
+    reason (the path, the system's words, the TOML parser's, the kind found), so that a caller
+    with sentences of its own (the rPAM optimiser's) can word the same failure its way.
+    """
+
+    def __init__(self, message: str, problem: str, detail: Any) -> None:
+        super().__init__(message)
+        self.problem = problem
+        self.detail = detail
+
+
 def shipped_protocols() -> tuple[str, ...]:
     """Names accepted by :func:`load_protocol` without a path."""
     return tuple(sorted(p.stem for p in DATA_DIR.glob("*.toml")))
@@ -204,15 +220,19 @@ def _looks_like_name(arg: str) -> bool:
     return not any(sep in arg for sep in ("/", "\\")) and not arg.endswith(".toml")
 
 
-def load_protocol(path_or_name: str | Path) -> Protocol:
-    """Read and check a protocol file; a bare name (``"takuma2014"``) means a shipped one."""
+def load_protocol(path_or_name: str | Path, *, kinds: tuple[str, ...] | None = None) -> Protocol:
+    """Read and check a protocol file; a bare name (``"takuma2014"``) means a shipped one.
+
+    ``kinds``: the protocol kinds the caller reads; a file of another kind is refused
+    before its sections are judged.
+    """
     arg = str(path_or_name)
     if isinstance(path_or_name, str) and _looks_like_name(arg):
         path = DATA_DIR / f"{arg}.toml"
         if not path.is_file():
-            raise ConfigError(
+            raise ProtocolFileError(
                 f"There is no shipped protocol named '{arg}'; shipped protocols are "
-                f"{', '.join(shipped_protocols())}, or give the path of a .toml file."
+                f"{', '.join(shipped_protocols())}, or give the path of a .toml file.", "missing", arg
             )
     else:
         path = Path(path_or_name)
@@ -220,30 +240,36 @@ def load_protocol(path_or_name: str | Path) -> Protocol:
             hint = ""
             if (DATA_DIR / path.name).is_file() and path.suffix == ".toml":
                 hint = f" (the shipped protocol of that name is loaded with the bare name {path.stem})"
-            raise ConfigError(f"Protocol file {arg} does not exist; check the path{hint}.")
+            raise ProtocolFileError(f"Protocol file {arg} does not exist; check the path{hint}.", "missing", arg)
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise ConfigError(f"Protocol file {arg} cannot be read ({exc.strerror or exc}).") from None
+        raise ProtocolFileError(f"Protocol file {arg} cannot be read ({exc.strerror or exc}).", "unreadable",
+                                exc.strerror or str(exc)) from None
     label = str(path) if isinstance(path_or_name, str) and _looks_like_name(arg) else arg
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{label}: not UTF-8 text (byte {exc.start}); save the file as UTF-8.") from None
-    return loads_protocol(text, source=label, path=path)
+    return loads_protocol(text, source=label, path=path, kinds=kinds)
 
 
-def loads_protocol(text: str, *, source: str = "<protocol>", path: Path | None = None) -> Protocol:
+def loads_protocol(text: str, *, source: str = "<protocol>", path: Path | None = None,
+                   kinds: tuple[str, ...] | None = None) -> Protocol:
     """Check protocol TOML given as text (e.g. the copy kept in a run file).
 
     ``source`` names the text in messages; relative file names in the protocol (a plan)
-    are resolved against ``path``'s folder when a path is given.
+    are resolved against ``path``'s folder when a path is given; ``kinds`` as for
+    :func:`load_protocol`.
     """
     chk = Checker(source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        chk.fail(_syntax_message(str(exc), text))
+        raise ProtocolFileError(f"{source}: {_syntax_message(str(exc), text)}", "syntax", str(exc)) from None
+    if kinds is not None and data.get("kind") not in kinds:
+        raise ProtocolFileError(f"{source}: key 'kind' must be one of {', '.join(kinds)}, not {_show(data.get('kind'))}.",
+                                "kind", data.get("kind"))
     return _build(data, text, chk, path)
 
 
@@ -520,6 +546,7 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
         settings=settings,
         title=top.get("title", ""),
         source=top.get("source", ""),
+        document=copy.deepcopy(data),
     )
 
 

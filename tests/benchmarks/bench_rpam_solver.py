@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from labcli.experiments.rpam2015.models import rpam
+from labcli.experiments.rpam2015.protocol import read_rpam_protocol
 
 
 def median_time(fn, repeat: int) -> float:
@@ -32,7 +33,7 @@ def main() -> None:
     parser.add_argument("--grid", type=int, default=21)
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
-    path, raw = rpam.read_rpam_protocol("rpam2015")
+    path, raw = read_rpam_protocol("rpam2015")
     act = rpam.actuator_from_protocol(raw, path)
     geom = rpam.geometry_from_protocol(raw, path)
     P = np.linspace(0.041, 0.138, args.grid)

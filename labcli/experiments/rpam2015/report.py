@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import ConfigError, ModelError
+from .protocol import stored_protocol
 
 RUN_SUFFIXES = (".h5", ".hdf5")
 
@@ -48,11 +49,6 @@ def _read_run(path: Path, protocol: str | None,
     ``overrides`` (``--set key=value``) change the run's stored protocol for this analysis only;
     ``where`` names the protocol in messages, with the overrides when there are any.
     """
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        import tomli as tomllib  # type: ignore[no-redef]
-
     from ...core.store import RunFile
 
     with RunFile.open(path) as run:
@@ -63,10 +59,7 @@ def _read_run(path: Path, protocol: str | None,
     if protocol is not None and protocol != name:
         raise ConfigError(f"{path} was recorded with protocol '{name}'; --protocol applies to "
                           "trial CSV files only, so leave it out for a run file.")
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: the protocol stored in the run is not valid TOML ({e}).") from None
+    raw = stored_protocol(text, path)
     where = f"{path} (protocol)"
     if overrides:
         from .models import rpam

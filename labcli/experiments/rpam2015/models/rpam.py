@@ -89,6 +89,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ....errors import ConfigError, ModelError
+from ..protocol import where  # how a message names the protocol
 
 G_N_PER_KG = 9.80665
 _MPA = 1e6  # Pa per MPa: forces are P[MPa] * area[m^2] * 1e6
@@ -488,50 +489,6 @@ def joint_map(
 
 
 # --------------------------------------------------------------------------- protocol file
-
-
-def _read_toml(path: Path) -> dict[str, Any]:
-    from ....core.protocol import tomllib
-
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise ConfigError(f"Cannot read protocol file {path}: {e.strerror}.") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"Protocol file {path} is not valid TOML: {e}.") from None
-
-
-def resolve_protocol_path(path_or_name: str | Path) -> Path:
-    """A path as given, or a shipped protocol name such as ``rpam2015``."""
-    from ....core.protocol import DATA_DIR, shipped_protocols
-
-    p = Path(path_or_name)
-    if p.suffix == ".toml" or p.exists():
-        if not p.is_file():
-            raise ConfigError(f"Protocol file {p} does not exist; give a .toml path or a shipped name like rpam2015.")
-        return p
-    shipped = DATA_DIR / f"{p.name}.toml"
-    if shipped.is_file():
-        return shipped
-    raise ConfigError(f"No protocol named '{path_or_name}'; give a .toml path or a shipped name "
-                      f"({', '.join(shipped_protocols())}).")
-
-
-def where(path: str | Path) -> str:
-    """How an error names a protocol: ``protocol rpam2015`` for a shipped one, else its path."""
-    from ....core.protocol import DATA_DIR
-
-    p = Path(path)
-    return f"protocol {p.stem}" if p.parent == DATA_DIR else str(p)
-
-
-def read_rpam_protocol(path_or_name: str | Path) -> tuple[Path, dict[str, Any]]:
-    """The raw TOML tables of an rPAM protocol (``kind = "rpam"``) and its path."""
-    path = resolve_protocol_path(path_or_name)
-    raw = _read_toml(path)
-    if raw.get("kind") != "rpam":
-        raise ConfigError(f"Protocol file {where(path)} has kind = {raw.get('kind')!r}; the rPAM model needs kind = \"rpam\".")
-    return path, raw
 
 
 def _parse_value(text: str) -> Any:

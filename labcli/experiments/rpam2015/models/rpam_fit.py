@@ -78,6 +78,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ....errors import ConfigError, ModelError
+from ..protocol import read_rpam_protocol
 from . import rpam
 
 DEGREE = 3
@@ -99,7 +100,7 @@ def _protocol(protocol: Any) -> tuple[str, dict[str, Any]]:
         return str(protocol[0]), dict(protocol[1])
     if hasattr(protocol, "path") and not isinstance(protocol, (str, Path)):
         protocol = protocol.path
-    path, raw = rpam.read_rpam_protocol(protocol)
+    path, raw = read_rpam_protocol(protocol)
     return str(path), raw
 
 

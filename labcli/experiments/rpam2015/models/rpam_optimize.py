@@ -26,6 +26,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ....errors import ConfigError, ModelError
+from ..protocol import read_rpam_protocol
 from . import rpam
 
 _TOGGLE_COST = 1000.0
@@ -283,7 +284,7 @@ def optimize_protocol(
     progress: Progress | None = None,
 ) -> OptimumResult:
     """Load an rPAM protocol, apply ``key=value`` overrides, and optimise its joint."""
-    path, raw = rpam.read_rpam_protocol(path_or_name)
+    path, raw = read_rpam_protocol(path_or_name)
     extra = list(overrides)
     if seed is not None:
         extra.append(f"optimize.seed={int(seed)}")

@@ -72,6 +72,7 @@ from typing import Any
 import numpy as np
 
 from ..models import rpam
+from ..protocol import read_rpam_protocol
 from ....core.sim.clock import SimClock
 
 CHANNELS = ("P_A", "P_B", "POT", "LEN")
@@ -148,7 +149,7 @@ class RpamRig(SimClock):
     ) -> None:
         if noise < 0 or drift < 0 or not tau_s > 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
-        path, raw = rpam.read_rpam_protocol(protocol)
+        path, raw = read_rpam_protocol(protocol)
         self.protocol_path = path
         self.geometry = rpam.geometry_from_protocol(raw, path)
         nominal = rpam.actuator_from_protocol(raw, path)
