@@ -11,20 +11,22 @@ functions that need them, so ``labcli --help`` stays fast.
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from .core.version import __version__
 
 __all__ = ["__version__", "load_trials", "load_pushes"]
 
 
 def load_trials(path):
     """Return the trial table of a run file (``.h5``) or a trial CSV as a DataFrame."""
-    from .core.tables import load_trials as _load
+    from .core.registry import record_type
+    from .core.store import load_table
 
-    return _load(path)
+    return load_table(path, record_type("force"))
 
 
 def load_pushes(path):
     """Return the push table of a run file (``.h5``) or a push CSV as a DataFrame."""
-    from .core.tables import load_pushes as _load
+    from .core.registry import record_type
+    from .core.store import load_table
 
-    return _load(path)
+    return load_table(path, record_type("push"))

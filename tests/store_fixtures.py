@@ -92,7 +92,7 @@ def unwrap_s(t_us) -> np.ndarray:
 
 
 def assert_record_stored(stored: dict, rec: dict) -> None:
-    """``stored`` (RunFile.read_trial) holds exactly what ``rec`` (make_record) gave."""
+    """``stored`` (RunFile.read) holds exactly what ``rec`` (make_record) gave."""
     assert stored["trial"] == rec["trial"]
     for key in ("P0_MPa", "P_MPa", "theta_rad", "force_N", "pot0_rad"):
         np.testing.assert_array_equal(stored[key], rec[key])
@@ -127,7 +127,7 @@ def writer(path: str, n_trials: int, n_samples: int) -> None:
             nxt = run.first_incomplete(range(n_trials))
             if nxt is None:
                 break
-            run.write_trial(make_record(nxt, n_samples))
+            run.write(make_record(nxt, n_samples))
             print(f"stored {nxt}", flush=True)
     print("done", flush=True)
 

@@ -19,7 +19,7 @@ from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.experiments.takuma2014.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
 from labcli.core.store import RunFile
-from labcli.core.tables import load_trials
+from labcli.experiments.takuma2014.tables import load_trials
 from labcli.core.ui import UnattendedUI
 
 PROTOCOL = load_protocol("takuma2014")
@@ -88,7 +88,7 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
         split = run.split()
         assert split["strategy"] == "plan" and split["fit"] == list(range(1, 91))
         assert split["validation"] == list(range(91, 109))
-        rec = run.read_trial(12)
+        rec = run.read(12)
         for name in ("baseline", "load"):
             w = rec["raw"][name]
             n = len(w["seq"])
@@ -110,8 +110,8 @@ def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path):
 
     def unplug_in_trial_3(step, reply):
         if isinstance(step, Commit) and step.record["trial"] == 2:
-            snapshot["table"] = store.trial_table()
-            snapshot["raw2"] = store.read_trial(2)["raw"]["load"]["counts"].copy()
+            snapshot["table"] = store.table()
+            snapshot["raw2"] = store.read(2)["raw"]["load"]["counts"].copy()
         if isinstance(step, Capture) and engine._trial.trial == 3:
             dev.serial.unplug()
 
@@ -127,8 +127,8 @@ def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path):
     )
     with RunFile.open(path) as run:
         assert run.completed_ids() == [1, 2] and run.incomplete_ids() == []
-        assert run.trial_table().equals(snapshot["table"])
-        assert np.array_equal(run.read_trial(2)["raw"]["load"]["counts"], snapshot["raw2"])
+        assert run.table().equals(snapshot["table"])
+        assert np.array_equal(run.read(2)["raw"]["load"]["counts"], snapshot["raw2"])
     # The command the message gives continues the run at trial 3.
     result = CliRunner().invoke(cli, ["acquire", str(path), "--port", port, "--resume", "--unattended"])
     assert result.exit_code == 0, result.output
@@ -323,7 +323,7 @@ def test_typed_push_session_on_the_simulated_rig(tmp_path):
     assert "Push 2/10 of pet-1: push pet-1 by 8 mm along an unknown direction, then press Enter" in result.output
     assert f"Session complete: 10 pushes stored in {path} (10 this session, " in result.output
     with RunFile.open(path) as run:
-        df = run.push_table()
+        df = run.table()
     assert df["push"].tolist() == list(range(1, 11))
     assert set(df["object"]) == {"pet-1"} and set(df["category"]) == {"soft"}
     assert df["R_m"].iloc[0] == pytest.approx(0.033) and df["d_m"].tolist() == pytest.approx([0.010] + [0.008] * 9)
@@ -362,7 +362,7 @@ def test_settle_timeout_offers_wait_longer_and_accept(tmp_path):
                      r"angle spread \d\.\d{3} deg \(limit 0\.5 deg\), quiet for 0\.0 s of 0\.2 s", flat)
     with RunFile.open(path) as run:
         assert run.completed_ids() == [1]
-        rec = run.read_trial(1)
+        rec = run.read(1)
     load = rec["settle"]["load"]
     assert load["settled"] is False and load["accepted"] == "timeout"
     assert load["waited_s"] == pytest.approx(2.0, abs=0.05)
@@ -377,7 +377,7 @@ def test_unattended_push_run_pushes_the_six_reference_objects(tmp_path):
     assert result.exit_code == 0, result.output
     assert f"Session complete: 60 pushes stored in {path} (60 this session, " in result.output
     with RunFile.open(path) as run:
-        df = run.push_table()
+        df = run.table()
     assert df["object"].tolist() == [n for n in ("pet-1", "pet-2", "pet-3", "can-al-1", "can-al-2", "can-steel-1")
                                      for _ in range(10)]
     assert df.groupby("object")["category"].first().to_dict() == {

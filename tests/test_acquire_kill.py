@@ -234,7 +234,7 @@ class Campaign:
         with RunFile.open(path) as run:
             ids = run.completed_ids()
             incomplete = run.incomplete_ids()
-            assert len(run.trial_table()) == len(ids)
+            assert len(run.table()) == len(ids)
         # Trials are recorded in plan order, each once.
         assert ids == self.ids[: len(ids)], ids
         assert incomplete in ([], self.ids[len(ids): len(ids) + 1]), incomplete
@@ -284,7 +284,7 @@ class Campaign:
             split = run.split()
             assert split is not None and split["strategy"] == "plan"
             assert split["fit"] == self.fit and split["validation"] == self.validation
-            table = run.trial_table()
+            table = run.table()
         assert table["trial"].tolist() == self.ids
         assert table["set"].tolist() == ["fit" if t in self.fit else "validation" for t in self.ids]
         data = trial_data(path)
@@ -360,7 +360,7 @@ def test_ctrl_c_during_a_write_stores_the_trial_whole_and_says_so(tmp_path, monk
     plan.write_text("trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n"
                     "4,validation,400,-150\n")
     path = tmp_path / "run.h5"
-    ctrl_c_inside(monkeypatch, "write_trial", lambda record: record["trial"] == 3)
+    ctrl_c_inside(monkeypatch, "write", lambda record: record["trial"] == 3)
     outcome = acquire(path, PORT, protocol="takuma2014", plan=plan, unattended=True, ui=quiet())
     assert outcome.exit_code == 130
     assert outcome.message == (f"Interrupted during the pause between trials; 3 trials stored in {path} are safe. "

@@ -26,7 +26,7 @@ from labcli.cli import cli
 from labcli.core.protocol import load_protocol
 from labcli.core.sim.pty import serve_pty
 from labcli.core.store import RunFile
-from labcli.core.tables import load_trials
+from labcli.experiments.takuma2014.tables import load_trials
 
 ROOT = Path(__file__).resolve().parents[1]
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n"
@@ -177,7 +177,7 @@ def test_a_person_redoes_skips_quits_is_interrupted_and_resumes(tmp_path, rig_on
     assert math.copysign(1, df["theta1_deg"][0]) != math.copysign(1, df["theta1_deg"][2])
     with RunFile.open(run) as f:
         assert f.attrs["port"] == port
-        assert f.read_trial(1)["raw"]["load"]["counts"].shape == (40, 6)  # 0.2 s at 200 Hz
+        assert f.read(1)["raw"]["load"]["counts"].shape == (40, 6)  # 0.2 s at 200 Hz
 
 
 def test_unattended_is_refused_on_a_real_port(tmp_path, rig_on_pty):

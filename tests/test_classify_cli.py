@@ -27,7 +27,7 @@ from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_we
 from labcli.experiments.takuma2014.sim.objects import CATEGORY_OF_MATERIAL, DEMO_OBJECTS, SimObject
 from labcli.experiments.takuma2014.sim.rig import SimRig
 from labcli.core.store import import_table
-from labcli.core.tables import write_push_csv
+from labcli.experiments.takuma2014.tables import write_push_csv
 
 SEED = 5
 # Stated tolerance: the mean stiffness of every demo object within 10 % of the

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from labcli.cli import cli
 from labcli.experiments.takuma2014.models.synthetic import paper_trials
 from labcli.experiments.takuma2014.models.takuma import COEFFICIENT_NAMES, PAPER_COEFFICIENTS
-from labcli.core.tables import write_trial_csv
+from labcli.experiments.takuma2014.tables import write_trial_csv
 
 
 @pytest.fixture(scope="module")
@@ -112,7 +112,7 @@ def test_fit_and_validate_on_a_run_file_record_the_model(tmp_path: Path, table: 
     path = tmp_path / "run.h5"
     with RunFile.create(path, protocol=load_protocol("takuma2014"), operator="test") as rf:
         for _, r in table.iterrows():
-            rf.write_trial({
+            rf.write({
                 "trial": int(r.trial),
                 "P0_MPa": r[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy(float),
                 "P_MPa": r[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy(float),

@@ -30,7 +30,8 @@ from labcli.cli import cli
 from labcli.errors import ConfigError, StoreError
 from labcli.core.protocol import load_protocol
 from labcli.core.store import MAX_ID, RunFile, import_table, storable_cells
-from labcli.core.tables import TRIAL, TableError, read_trial_csv, write_trial_csv
+from labcli.core.tables import TableError
+from labcli.experiments.takuma2014.tables import TRIAL, read_trial_csv, write_trial_csv
 
 STANDARD = list(TRIAL.names)
 REQUIRED = [c for c, _, presence in TRIAL.columns if presence == "required"]
@@ -162,7 +163,7 @@ def check_outcome(text: str, folder: Path) -> None:
                                 rf"a run file holds, 0 to {MAX_ID}\.", p) for p in e.value.problems)
         return
     with import_table(df, out, protocol=PROTOCOL, source="t.csv") as run:
-        back = run.trial_table()
+        back = run.table()
     assert list(back["trial"]) == list(df["trial"])
     assert list(back["set"]) == list(df["set"])
     for c in EXACT:
@@ -180,7 +181,7 @@ def check_outcome(text: str, folder: Path) -> None:
     first, second, again = folder / "a.csv", folder / "b.csv", folder / "again.h5"
     write_trial_csv(back, first)
     with import_table(read_trial_csv(first), again, protocol=PROTOCOL, source="a.csv", force=True) as run:
-        write_trial_csv(run.trial_table(), second)
+        write_trial_csv(run.table(), second)
     assert first.read_bytes() == second.read_bytes()
 
 

@@ -65,16 +65,16 @@ def kill_loop(path: str, kills: int, n_samples: int, seed: int, max_delay_s: flo
             assert ids == list(range(len(ids)))
             assert verified <= set(ids), "a trial complete before the kill was lost"
             for i in sorted(set(ids) - verified):
-                assert_record_stored(run.read_trial(i), make_record(i, n_samples))
+                assert_record_stored(run.read(i), make_record(i, n_samples))
             verified |= set(ids)
             incomplete = run.incomplete_ids()
             assert incomplete in ([], [len(ids)])
-            assert len(run.trial_table()) == len(ids)
+            assert len(run.table()) == len(ids)
             assert run.first_incomplete(range(N_TRIALS)) == len(ids)
     # At the end, everything once complete is still intact (later writes touched nothing).
     with RunFile.open(path) as run:
         for i in run.completed_ids():
-            assert_record_stored(run.read_trial(i), make_record(i, n_samples))
+            assert_record_stored(run.read(i), make_record(i, n_samples))
     if require_progress:
         assert len(verified) >= kills
 
@@ -109,4 +109,4 @@ def test_kill_during_create_leaves_no_half_run(tmp_path):
             with RunFile.open(path) as run:
                 assert run.attrs["schema"] == "labcli-run"
                 for i in run.completed_ids():
-                    assert_record_stored(run.read_trial(i), make_record(i, 50))
+                    assert_record_stored(run.read(i), make_record(i, 50))

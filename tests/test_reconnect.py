@@ -245,7 +245,7 @@ def test_the_printed_command_completes_the_run_and_leaves_earlier_trials_untouch
         assert after[t] == r["before"][t]  # datasets and attributes, byte for byte
     # Trial 3 was measured whole in the resumed session: both windows full, from its own baseline.
     with RunFile.open(path) as run:
-        rec = run.read_trial(3)
+        rec = run.read(3)
     for name in ("baseline", "load"):
         seq = rec["raw"][name]["seq"].astype(np.int64)
         assert len(seq) == 200 and np.all(np.diff(seq) == 1)
@@ -407,8 +407,8 @@ def test_pty_rig_replugged_while_the_run_waits(tmp_path, socket):
     assert text.count(f"Rig lost on {socket.path}; reconnect it and press Enter to retry (q to quit):") == 2
     assert_run_complete(path, 2, [1], [2])
     with RunFile.open(path) as run:
-        df = run.trial_table()
-        seq = run.read_trial(2)["raw"]["load"]["seq"].astype(np.int64)
+        df = run.table()
+        seq = run.read(2)["raw"]["load"]["seq"].astype(np.int64)
     assert len(seq) >= 40 and np.all(np.diff(seq) == 1)  # 0.2 s at 200 Hz, whole, from the new rig
     # The person hung what the prompts said on whichever rig was plugged in: the joints bent.
     assert df["theta1_deg"].abs().min() > 0.5

@@ -110,7 +110,7 @@ def test_stretch_points_are_what_the_rig_did(stretch_run):
     path, rec = stretch_run
     with RunFile.open(path) as run:
         assert run.kind == "rpam-stretch" and run.attrs["device"] == "rpam-joint-sim"
-        table = run.point_table()
+        table = run.table()
         summary = run.summary()
     assert list(table.columns[:6]) == ["point", "mass_g", "P_A", "P_B", "L_m", "lambda"]
     assert table["point"].tolist() == list(range(1, 121)) and summary["records"] == "points"
@@ -157,7 +157,7 @@ def test_labcli_fit_recovers_the_rigs_true_correction(stretch_run, tmp_path):
 def test_joint_points_are_deflections_from_the_vented_baseline(joint_run):
     path, rec = joint_run
     with RunFile.open(path) as run:
-        table = run.point_table()
+        table = run.table()
     assert len(table) == 121 and list(table.columns[:4]) == ["point", "P_A", "P_B", "alpha_deg"]
     assert "Point 12/121 (joint map): set P_A = 50.7 kPa and P_B = 41 kPa, then press Enter" in rec.prompts
     assert "Point 12/121 (joint map): vent both actuators (P_A = P_B = 0 kPa) for the baseline, then press Enter" in rec.prompts
@@ -218,7 +218,7 @@ def test_an_interrupted_joint_map_resumes_where_it_stopped(tmp_path):
                                   + result.output.rsplit("this session, ", 1)[1])
     with RunFile.open(path) as run:
         assert run.completed_ids() == list(range(1, 10)) and run.incomplete_ids() == []
-        table = run.point_table()
+        table = run.table()
     assert table["set_P_A_kPa"].tolist() == [41.0] * 3 + [89.5] * 3 + [138.0] * 3
     again = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume"])
     assert again.output == f"All 9 points of the joint map are already stored in {path}; nothing to resume.\n"
@@ -293,14 +293,14 @@ def test_store_refuses_points_of_the_other_experiment(tmp_path):
     proto = acquisition_protocol(load_protocol("rpam2015"), "stretch")
     with RunFile.create(tmp_path / "s.h5", protocol=proto) as run:
         with pytest.raises(StoreError) as e:
-            run.write_point({"point": 1, "experiment": "joint", "P_MPa": [0.1, 0.0], "alpha_rad": 0.1})
+            run.write({"point": 1, "experiment": "joint", "P_MPa": [0.1, 0.0], "alpha_rad": 0.1})
         assert str(e.value) == f"point 1: a joint point cannot go into {tmp_path / 's.h5'}, a rpam-stretch run."
         with pytest.raises(StoreError) as e:
-            run.write_point({"point": 1, "experiment": "stretch", "P_MPa": [0.1, 0.0], "mass_kg": 0.1, "L_m": 0.1})
+            run.write({"point": 1, "experiment": "stretch", "P_MPa": [0.1, 0.0], "mass_kg": 0.1, "L_m": 0.1})
         assert str(e.value) == "point 1 record lacks a finite 'lambda', which a stretch point needs."
-        run.write_point({"point": 2, "experiment": "stretch", "P_MPa": [0.1, 0.0], "mass_kg": 0.25,
+        run.write({"point": 2, "experiment": "stretch", "P_MPa": [0.1, 0.0], "mass_kg": 0.25,
                          "L_m": 0.1, "lambda": 0.1 / 0.07, "plan": {"mass_g": 250.0, "P_A_kPa": 100.0}})
-        t = run.point_table()
+        t = run.table()
         assert run.completed_ids() == [2]
     assert t.to_dict("records") == [{"point": 2, "mass_g": 250.0, "P_A": 0.1, "P_B": 0.0, "L_m": 0.1,
                                      "lambda": 0.1 / 0.07, "set_mass_g": 250.0, "set_P_A_kPa": 100.0}]

@@ -26,7 +26,8 @@ from labcli.errors import ConfigError
 from labcli.core.protocol import load_protocol
 from labcli.experiments.rpam2015.session import acquisition_protocol
 from labcli.core.store import RunFile, import_table
-from labcli.core.tables import TableError, read_point_csv
+from labcli.core.tables import TableError
+from labcli.experiments.rpam2015.tables import read_point_csv
 from labcli.core.ui import UnattendedUI
 
 SHIPPED = Path(__file__).resolve().parent.parent / "protocols" / "rpam2015.toml"
@@ -72,7 +73,7 @@ def kpa(p_MPa: float) -> str:
 
 def table_of(path: Path) -> pd.DataFrame:
     with RunFile.open(path) as run:
-        return run.point_table()
+        return run.table()
 
 
 # --------------------------------------------------------------------------- export
@@ -263,7 +264,7 @@ def test_inspect_a_joint_map_cut_short(runs, tmp_path):
     full = table_of(runs["joint"])
     with RunFile.create(path, protocol=proto, port="sim://") as run:
         for row in full.head(4).itertuples():
-            run.write_point({"point": row.point, "experiment": "joint", "P_MPa": [row.P_A, row.P_B],
+            run.write({"point": row.point, "experiment": "joint", "P_MPa": [row.P_A, row.P_B],
                              "alpha_rad": math.radians(row.alpha_deg), "settle": {"load": {"settle_time_s": 2.5}}})
         run._new_group("points", 5, "point 5")  # what a kill during the fifth write leaves
     r = invoke("inspect", path)

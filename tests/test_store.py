@@ -26,7 +26,7 @@ def run_path(tmp_path):
     path = str(tmp_path / "run.h5")
     with new_run(path) as run:
         for i in range(1, 13):
-            run.write_trial(make_record(i))
+            run.write(make_record(i))
     return path
 
 
@@ -34,10 +34,10 @@ def test_record_round_trip_values_and_dtypes(tmp_path):
     path = str(tmp_path / "run.h5")
     rec = make_record(3)
     with new_run(path) as run:
-        run.write_trial(rec)
+        run.write(rec)
     with RunFile.open(path) as run:
         assert run.completed_ids() == [3]
-        assert_record_stored(run.read_trial(3), rec)
+        assert_record_stored(run.read(3), rec)
     with h5py.File(path, "r") as f:
         g = f["trials/000003"]
         assert g["loaded/counts"].dtype == np.int32
@@ -57,11 +57,11 @@ def test_large_raw_windows_are_compressed_and_read_back_exactly(tmp_path):
     path = str(tmp_path / "run.h5")
     big, small = make_record(1, n=200), make_record(2, n=50)
     with new_run(path) as run:
-        run.write_trial(big)
-        run.write_trial(small)
+        run.write(big)
+        run.write(small)
     with RunFile.open(path) as run:
-        assert_record_stored(run.read_trial(1), big)
-        assert_record_stored(run.read_trial(2), small)
+        assert_record_stored(run.read(1), big)
+        assert_record_stored(run.read(2), small)
     with h5py.File(path, "r") as f:
         assert f["trials/000001/loaded/values"].compression == "gzip"
         assert f["trials/000001/loaded/counts"].shuffle
@@ -103,7 +103,7 @@ def test_root_metadata(run_path):
 def test_trial_table_columns_and_units(run_path):
     with RunFile.open(run_path, "a") as run:
         run.set_split([1, 2, 3], [4], "manual")
-        df = run.trial_table()
+        df = run.table()
     assert list(df.columns) == ["trial", "set", "P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2",
                                 "theta1_deg", "theta2_deg", "Fx_N", "Fy_N", "mass_g", "direction_deg"]
     assert df["trial"].tolist() == list(range(1, 13))
@@ -196,25 +196,25 @@ def test_incomplete_trial_ignored_then_superseded_on_resume(run_path):
     with RunFile.open(run_path, "a") as run:
         assert run.completed_ids() == list(range(1, 13))
         assert run.incomplete_ids() == [13]
-        assert 13 not in run.trial_table()["trial"].tolist()
+        assert 13 not in run.table()["trial"].tolist()
         assert run.first_incomplete(range(1, 20)) == 13
-        run.write_trial(make_record(13))
+        run.write(make_record(13))
         assert run.incomplete_ids() == []
         assert run.first_incomplete(range(1, 20)) == 14
     with h5py.File(run_path, "r") as f:  # nothing is deleted: the new attempt sits beside the leftover
         assert not f["trials/000013"].attrs["complete"] and f["trials/000013.1"].attrs["complete"]
     with RunFile.open(run_path) as run:
         assert run.first_incomplete(range(1, 14)) is None
-        assert_record_stored(run.read_trial(13), make_record(13))
+        assert_record_stored(run.read(13), make_record(13))
         assert run.summary()["complete"] == 13
 
 
 def test_complete_trial_never_overwritten(run_path):
     with RunFile.open(run_path, "a") as run:
         with pytest.raises(StoreError) as e:
-            run.write_trial(make_record(5))
+            run.write(make_record(5))
         assert str(e.value) == f"trial 5 is already complete in {run_path}; a stored record is never overwritten."
-        assert_record_stored(run.read_trial(5), make_record(5))
+        assert_record_stored(run.read(5), make_record(5))
 
 
 def test_bad_record_writes_nothing(run_path):
@@ -222,20 +222,20 @@ def test_bad_record_writes_nothing(run_path):
     rec["P_MPa"] = [0.1, 0.2, 0.3]
     with RunFile.open(run_path, "a") as run:
         with pytest.raises(StoreError) as e:
-            run.write_trial(rec)
+            run.write(rec)
         assert str(e.value) == ("trial 20 record: 'P_MPa' must hold 4 values (loaded pressures "
                                 "P_L1,P_R1,P_L2,P_R2 in MPa), got shape (3,).")
         rec = make_record(20)
         rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"][:, :5]
         with pytest.raises(StoreError, match=r"the loaded window must hold n frames of 6 channels"):
-            run.write_trial(rec)
+            run.write(rec)
         assert run.incomplete_ids() == [] and 20 not in run.completed_ids()
 
 
 def test_read_only_refuses_writes(run_path):
     with RunFile.open(run_path) as run:
         with pytest.raises(StoreError) as e:
-            run.write_trial(make_record(30))
+            run.write(make_record(30))
     assert str(e.value) == f"{run_path} is open read-only; open it with mode 'a' to add records."
 
 
@@ -243,8 +243,8 @@ def test_decimal_counts_kept_exactly(tmp_path):
     rec = make_record(2)
     rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"] + 0.25
     with new_run(str(tmp_path / "d.h5")) as run:
-        run.write_trial(rec)
-        back = run.read_trial(2)
+        run.write(rec)
+        back = run.read(2)
     assert back["raw"]["load"]["counts"].dtype == np.float64
     np.testing.assert_array_equal(back["raw"]["load"]["counts"], rec["raw"]["load"]["counts"])
 
@@ -252,7 +252,7 @@ def test_decimal_counts_kept_exactly(tmp_path):
 def test_recording_order_not_id_order(tmp_path):
     with new_run(str(tmp_path / "o.h5")) as run:
         for i in (5, 2, 9, 1):
-            run.write_trial(make_record(i))
+            run.write(make_record(i))
         assert run.completed_ids() == [5, 2, 9, 1]
         assert choose_split(run.completed_ids(), 2, 1) == ([5, 2], [9])
 
@@ -307,14 +307,14 @@ def test_push_run_round_trip(tmp_path):
             "true_stiffness_N_per_m": 2500.0, "P0_MPa": rec["P0_MPa"], "P_MPa": rec["P_MPa"],
             "raw": rec["raw"], "settle": rec["settle"]}
     with RunFile.create(path, protocol=proto, device_info=FakeDevice()) as run:
-        run.write_push(push)
-        run.write_push({**push, "push": 4, "phi_rad": math.radians(10.0), "true_stiffness_N_per_m": None})
+        run.write(push)
+        run.write({**push, "push": 4, "phi_rad": math.radians(10.0), "true_stiffness_N_per_m": None})
     with RunFile.open(path) as run:
         assert run.kind == "push" and run.completed_ids() == [3, 4]
-        back = run.read_push(3)
+        back = run.read(3)
         assert math.isnan(back["phi_rad"]) and back["R_m"] == 0.033 and back["object"] == "can-al-1"
         np.testing.assert_array_equal(back["raw"]["load"]["si"], rec["raw"]["load"]["si"])
-        df = run.push_table()
+        df = run.table()
     assert list(df.columns) == ["push", "object", "R_m", "d_m", "phi_deg", "P_L10", "P_R10", "P_L20", "P_R20",
                                 "P_L1", "P_R1", "P_L2", "P_R2", "category", "true_stiffness_N_per_m"]
     assert math.isnan(df.phi_deg[0]) and df.phi_deg[1] == 10.0
@@ -324,15 +324,15 @@ def test_push_run_round_trip(tmp_path):
 def test_import_table_round_trip_and_refusal(run_path, tmp_path):
     with RunFile.open(run_path, "a") as run:
         run.set_split(list(range(1, 10)), [10, 11], "sequential")
-        df = run.trial_table()
+        df = run.table()
     df["operator_note"] = ["ok"] * 12
     df["rep"] = list(range(12))
     out = str(tmp_path / "imp.h5")
     with import_table(df, out, protocol=FakeProtocol(), source="t.csv") as run:
         assert run.attrs["imported"] is True and run.attrs["source"] == "t.csv"
         assert run.split()["strategy"] == "imported"
-        back = run.trial_table()
-        assert run.read_trial(4)["raw"] == {} and run.read_trial(4)["accepted"] == "imported"
+        back = run.table()
+        assert run.read(4)["raw"] == {} and run.read(4)["accepted"] == "imported"
     assert back.equals(df)
     with pytest.raises(StoreError) as e:
         import_table(df, out, protocol=FakeProtocol())
@@ -352,7 +352,7 @@ def test_summary_drift_and_settling(tmp_path):
         for i in range(10):
             rec = make_record(i)
             rec["P0_MPa"] = np.array([0.2 + 0.0005 * i, 0.2, 0.2 - 0.001 * i, 0.2])  # 0.5 kPa/trial, -1 kPa/trial
-            run.write_trial(rec)
+            run.write(rec)
         s = run.summary()
     d = s["baseline_drift"]
     assert d["P_L1"]["slope_kPa_per_trial"] == pytest.approx(0.5)
@@ -370,7 +370,7 @@ def test_file_is_default_libver_and_reopens_for_append(run_path):
     with h5py.File(run_path, "r") as f:
         assert f.libver[0] == "earliest"
     with RunFile.open(run_path, "a") as run:
-        run.write_trial(make_record(40))
+        run.write(make_record(40))
     shutil.copy(run_path, run_path + ".copy")
     with RunFile.open(run_path + ".copy") as run:
         assert run.completed_ids()[-1] == 40
@@ -388,11 +388,11 @@ def test_unremovable_leftover_is_bypassed(run_path):
         fh.write(b"\0" * 64)
     with RunFile.open(run_path, "a") as run:
         assert run.incomplete_ids() == [13] and 13 not in run.completed_ids()
-        run.write_trial(make_record(13))
+        run.write(make_record(13))
         assert run.completed_ids()[-1] == 13 and run.incomplete_ids() == []
     with RunFile.open(run_path) as run:
-        assert_record_stored(run.read_trial(13), make_record(13))
-        assert run.trial_table()["trial"].tolist() == list(range(1, 14))
+        assert_record_stored(run.read(13), make_record(13))
+        assert run.table()["trial"].tolist() == list(range(1, 14))
     with h5py.File(run_path, "r") as f:
         assert sorted(k for k in f["trials"] if k.startswith("000013")) == ["000013", "000013.1"]
 
@@ -410,10 +410,10 @@ def test_complete_trials_survive_a_damaged_trial_list(run_path):
     with RunFile.open(run_path, "a") as run:
         assert run.completed_ids() == list(range(1, 13))
         for i in range(1, 13):
-            assert_record_stored(run.read_trial(i), make_record(i))
-        assert run.trial_table()["trial"].tolist() == list(range(1, 13))
+            assert_record_stored(run.read(i), make_record(i))
+        assert run.table()["trial"].tolist() == list(range(1, 13))
         with pytest.raises(StoreError) as e:
-            run.write_trial(make_record(13))
+            run.write(make_record(13))
     assert str(e.value) == (
         f"the list of trials in {run_path} is damaged, so no record can be added; its complete records can "
         "still be read: copy them to a new file with 'labcli export' and 'labcli import'.")

@@ -29,7 +29,7 @@ def make_run(path, n=30, protocol=None, drift=False):
             rec = make_record(i)
             if drift:
                 rec["P0_MPa"] = np.array([0.2 + 0.0002 * i, 0.25, 0.2, 0.3 - 0.0004 * i])
-            run.write_trial(rec)
+            run.write(rec)
     return str(path)
 
 
@@ -49,7 +49,7 @@ def test_split_sequential(run_path):
         s = run.split()
         assert s["fit"] == list(range(1, 21)) and s["validation"] == list(range(21, 27))
         assert s["strategy"] == "sequential" and s["seed"] is None
-        assert run.trial_table()["set"].tolist() == ["fit"] * 20 + ["validation"] * 6 + [""] * 4
+        assert run.table()["set"].tolist() == ["fit"] * 20 + ["validation"] * 6 + [""] * 4
 
 
 def test_split_random_is_reproducible(run_path, tmp_path):
@@ -103,11 +103,11 @@ def test_export_import_export_is_byte_identical(run_path, tmp_path):
     with RunFile.open(str(imported)) as run:
         assert run.attrs["imported"] is True and run.attrs["source"] == "a.csv"
         assert run.attrs["protocol"] == "takuma2014" and run.protocol_text == load_protocol("takuma2014").text
-        assert run.read_trial(7)["raw"] == {}
+        assert run.read(7)["raw"] == {}
         # SI inside: degrees and grams came back as rad and kg
         rec = make_record(7)
-        assert run.read_trial(7)["theta_rad"][0] == pytest.approx(rec["theta_rad"][0], rel=1e-11)
-        assert run.read_trial(7)["mass_kg"] == pytest.approx(rec["mass_kg"], rel=1e-12)
+        assert run.read(7)["theta_rad"][0] == pytest.approx(rec["theta_rad"][0], rel=1e-11)
+        assert run.read(7)["mass_kg"] == pytest.approx(rec["mass_kg"], rel=1e-12)
     with h5py.File(str(imported), "r") as f:
         assert f["trials/000007/theta"].attrs["units"] == "rad"
 
@@ -149,7 +149,7 @@ def test_import_refuses_overwrite(run_path, tmp_path):
     assert res.exit_code == 1
     assert res.output == f"Error: {run_path} already exists; use --force to overwrite it.\n"
     with RunFile.open(run_path) as run:  # untouched, raw windows still there
-        assert run.read_trial(3)["raw"]["load"]["counts"].shape == (50, 6)
+        assert run.read(3)["raw"]["load"]["counts"].shape == (50, 6)
     res = invoke("import", csv, "-o", run_path, "--protocol", "takuma2014", "--force")
     assert res.exit_code == 0
     with RunFile.open(run_path) as run:
@@ -162,7 +162,7 @@ def test_push_run_export_import(tmp_path):
     rec = make_record(1)
     with RunFile.create(path, protocol=proto, device_info=FakeDevice()) as run:
         for i, (obj, phi) in enumerate([("pet-1", None), ("can-al-1", math.radians(12.5)), ("can-steel-1", 0.0)]):
-            run.write_push({"push": i + 1, "object": obj, "R_m": 0.033, "d_m": 0.004 + 0.001 * i, "phi_rad": phi,
+            run.write({"push": i + 1, "object": obj, "R_m": 0.033, "d_m": 0.004 + 0.001 * i, "phi_rad": phi,
                             "category": "" if i == 0 else "hard", "P0_MPa": rec["P0_MPa"], "P_MPa": rec["P_MPa"],
                             "raw": rec["raw"], "settle": rec["settle"]})
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
@@ -272,7 +272,7 @@ def test_acquired_run_on_the_simulated_rig(tmp_path):
     assert df.loc[1, "Fx_N"] == pytest.approx(0.3 * g * math.cos(math.pi / 4), rel=1e-12)
     assert df.loc[2, "Fy_N"] == pytest.approx(0.1 * g, rel=1e-12)
     with RunFile.open(str(run)) as rf:
-        t = rf.read_trial(2)
+        t = rf.read(2)
         load = t["raw"]["load"]
         assert load["counts"].dtype == np.int32 and load["counts"].shape[1] == 6 and len(load["seq"]) > 10
         # SI values are the protocol's calibration of the counts as sent
@@ -304,7 +304,7 @@ _row = st.tuples(st.lists(_mpa, min_size=8, max_size=8), _deg, _deg, st.floats(-
 @given(rows=st.lists(_row, min_size=1, max_size=3))
 def test_any_table_round_trips_byte_identical(tmp_path_factory, rows):
     """Any table, once in a run file, exports to bytes that survive import -> export exactly."""
-    from labcli.core.tables import read_trial_csv, write_trial_csv
+    from labcli.experiments.takuma2014.tables import read_trial_csv, write_trial_csv
     import pandas as pd
 
     d = tmp_path_factory.mktemp("rt")

@@ -6,8 +6,6 @@ import csv
 import io
 import math
 import re
-import sys
-import types
 from pathlib import Path
 
 import numpy as np
@@ -17,11 +15,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from labcli.errors import ConfigError
-from labcli.core.tables import (
-    MAX_LISTED,
+from labcli.core.store import runfile
+from labcli.core.tables import MAX_LISTED, TableError
+from labcli.experiments.takuma2014.tables import (
     PUSH,
     TRIAL,
-    TableError,
     load_plan,
     load_pushes,
     load_trials,
@@ -318,22 +316,21 @@ def test_h5_paths_go_to_the_run_file(monkeypatch: pytest.MonkeyPatch, tmp_path: 
             calls.append(("open", str(path)))
             return cls()
 
-        def trial_table(self):
-            calls.append("trial_table")
-            return pd.DataFrame({"trial": [1]})
+        def table(self, kind):
+            calls.append(("table", kind.kind))
+            return pd.DataFrame({kind.id_column: [1]})
 
-        def push_table(self):
-            calls.append("push_table")
-            return pd.DataFrame({"push": [1]})
+        def __enter__(self):
+            return self
 
-        def close(self):
+        def __exit__(self, *exc):
             calls.append("close")
 
-    monkeypatch.setitem(sys.modules, "labcli.core.store", types.SimpleNamespace(RunFile=FakeRun))
+    monkeypatch.setattr(runfile, "RunFile", FakeRun)
     assert load_trials(tmp_path / "run.h5")["trial"].tolist() == [1]
     assert load_pushes(tmp_path / "run.H5")["push"].tolist() == [1]
-    assert calls == [("open", str(tmp_path / "run.h5")), "trial_table", "close",
-                     ("open", str(tmp_path / "run.H5")), "push_table", "close"]
+    assert calls == [("open", str(tmp_path / "run.h5")), ("table", "force"), "close",
+                     ("open", str(tmp_path / "run.H5")), ("table", "push"), "close"]
     p = put(tmp_path, f"{HEADER}\n{GOOD_ROW}\n")
     assert load_trials(p)["trial"].tolist() == [1]
 

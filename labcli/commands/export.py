@@ -1,12 +1,10 @@
-"""``labcli export``: a run's trial, push or rPAM point table as CSV."""
+"""``labcli export``: a run's table (trials, pushes, rPAM points, ...) as CSV."""
 
 from __future__ import annotations
 
 import click
 
 from ..errors import LabcliError
-
-_EXPERIMENTS = {"rpam-stretch": "stretch", "rpam-joint": "joint"}
 
 
 @click.command("export")
@@ -35,30 +33,11 @@ def export(run: str, output: str) -> None:
         labcli export stretch.h5 -o stretch.csv
     """
     from ..core.store import RunFile
-    from ..core.tables import write_point_csv, write_push_csv, write_trial_csv
 
     try:
         with RunFile.open(run) as rf:
-            kind = rf.kind
-            experiment = _EXPERIMENTS.get(kind)
-            if experiment is not None:
-                df = rf.point_table()
-            elif kind == "push":
-                df = rf.push_table()
-            else:
-                df = rf.trial_table()
-        if experiment is not None:
-            write_point_csv(df, output, experiment)
-            noun = ("point", "points")
-        elif kind == "push":
-            write_push_csv(df, output)
-            noun = ("push", "pushes")
-        else:
-            write_trial_csv(df, output)
-            noun = ("trial", "trials")
+            records, df = rf.record_type, rf.table()
+        records.write_csv(df, output)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
-    what = noun[len(df) != 1]
-    if experiment is not None:
-        what += " of the stretch test" if experiment == "stretch" else " of the joint map"
-    click.echo(f"Wrote {len(df)} {what} from {run} to {output}.")
+    click.echo(f"Wrote {records.count(len(df))} from {run} to {output}.")

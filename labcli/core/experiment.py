@@ -107,6 +107,9 @@ class RecordType(Protocol):
     splits: bool  # records join the run's fit/validation split
     known_columns: frozenset[str]  # table columns the record type stores (others are kept as extras)
 
+    def count(self, n: int) -> str:
+        """``3 points of the joint map``: a number of these records in a sentence."""
+
     def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
         """Check a record before anything touches the file (StoreError) and say what to write."""
 
@@ -116,8 +119,10 @@ class RecordType(Protocol):
     def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
         """The CSV exchange table (DataFrame) of these records, without the extra columns."""
 
-    def from_row(self, row: Mapping[str, Any], protocol: Any, extra: dict[str, Any]) -> dict[str, Any]:
-        """One table row (as read by :meth:`read_csv`) as the record :meth:`check` takes."""
+    def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
+        """One table row (as read by :meth:`read_csv`) as the record :meth:`check` takes.
+
+        The importer adds what every imported record carries (``accepted``, ``extra``)."""
 
     def import_split(self, rows: list[dict[str, Any]]) -> tuple[list[int], list[int]]:
         """Fit and validation ids named by an imported table (empty lists: no split)."""

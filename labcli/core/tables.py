@@ -1,8 +1,9 @@
-"""The CSV exchange tables: trials, pushes, plans (``table-formats.md``) and rPAM points.
+"""The CSV exchange tables: the machinery every experiment's tables share.
 
-rPAM point tables are those of ``RunFile.point_table``, one per experiment
-(:data:`STRETCH_POINTS`, :data:`JOINT_POINTS`): ``labcli export`` writes them and
-``labcli import --experiment stretch|joint`` reads them back.
+A table is described by plain data (:class:`TableSpec`: its columns, what each holds,
+which are required); an experiment declares its own (the McKibben trial, push and plan
+tables, the rPAM point tables) and reads and writes them with :func:`read_table` and
+:func:`write_table`.
 
 Reading checks every cell and reports every problem at once, one per line, as
 ``file:row N, column C: message``, under a first line that counts them.  Rows
@@ -15,9 +16,6 @@ Writing formats floats with ``repr`` (the shortest text that reads back to the
 same float), so export -> import -> export is byte-identical, and checks the
 table with the same rules as reading, so a written file always loads.
 Files are replaced atomically: an interrupted export leaves the old file.
-
-``load_trials`` / ``load_pushes`` also accept a run file (``.h5``) and then ask
-:mod:`labcli.core.store` for its table.
 """
 
 from __future__ import annotations
@@ -27,23 +25,18 @@ import io
 import math
 import os
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from ..errors import ConfigError
+from .files import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-PRESSURE_SPAN_MPA = (0.0, 1.0)  # SMC PSE530, gauge (rig-wire-protocol.md)
-RUN_FILE_SUFFIXES = (".h5", ".hdf5")
+PRESSURE_SPAN_MPA = (0.0, 1.0)  # what a "pressure" cell may hold unless a table says otherwise: gauge, MPa
 MAX_LISTED = 200  # problems shown in one message; the count in line one is always complete
-
-BASELINE = ("P_L10", "P_R10", "P_L20", "P_R20")
-LOADED = ("P_L1", "P_R1", "P_L2", "P_R2")
-
 
 class TableError(ConfigError):
     """A table failed its checks; ``.problems`` lists every ``file:row N, column C: message``."""
@@ -71,86 +64,6 @@ class TableSpec:
     def names(self) -> tuple[str, ...]:
         return tuple(c[0] for c in self.columns)
 
-
-TRIAL = TableSpec(
-    label="trial",
-    columns=(
-        ("trial", "id", "required"),
-        ("set", "set", "optional"),
-        *((c, "pressure", "required") for c in BASELINE + LOADED),
-        ("theta1_deg", "float", "required"),
-        ("theta2_deg", "float", "required"),
-        ("Fx_N", "float", "required"),
-        ("Fy_N", "float", "required"),
-        ("mass_g", "positive-or-empty", "omit-if-empty"),
-        ("direction_deg", "float-or-empty", "omit-if-empty"),
-    ),
-    id_column="trial",
-    pairs=(("mass_g", "direction_deg"),),
-)
-
-PUSH = TableSpec(
-    label="push",
-    columns=(
-        ("push", "id", "required"),
-        ("object", "name", "required"),
-        ("R_m", "positive", "required"),
-        ("d_m", "nonnegative", "required"),
-        ("phi_deg", "float-or-empty", "required"),
-        *((c, "pressure", "required") for c in BASELINE + LOADED),
-        ("category", "text", "omit-if-empty"),
-    ),
-    id_column="push",
-)
-
-PLAN = TableSpec(
-    label="plan",
-    columns=(
-        ("trial", "id", "required"),
-        ("set", "set-required", "required"),
-        ("mass_g", "positive", "required"),
-        ("direction_deg", "float", "required"),
-    ),
-    id_column="trial",
-)
-
-# rPAM runs (``RunFile.point_table``): one table per experiment, columns in the order the
-# run file gives them.  Pressures are measured gauge values in MPa: a vented actuator reads
-# a little below zero, so they are any finite number here (not the McKibben span check).
-STRETCH_POINTS = TableSpec(
-    label="point",
-    columns=(
-        ("point", "id", "required"),
-        ("mass_g", "nonnegative", "required"),
-        ("P_A", "float", "required"),
-        ("P_B", "float", "required"),
-        ("L_m", "positive", "required"),
-        ("lambda", "positive-or-empty", "omit-if-empty"),
-        ("set_mass_g", "float-or-empty", "omit-if-empty"),
-        ("set_P_A_kPa", "float-or-empty", "omit-if-empty"),
-        ("set_P_B_kPa", "float-or-empty", "omit-if-empty"),
-    ),
-    id_column="point",
-)
-
-JOINT_POINTS = TableSpec(
-    label="point",
-    columns=(
-        ("point", "id", "required"),
-        ("P_A", "float", "required"),
-        ("P_B", "float", "required"),
-        ("alpha_deg", "float", "required"),
-        ("P_A0", "float-or-empty", "omit-if-empty"),
-        ("P_B0", "float-or-empty", "omit-if-empty"),
-        ("L_m", "positive-or-empty", "omit-if-empty"),
-        ("set_P_A_kPa", "float-or-empty", "omit-if-empty"),
-        ("set_P_B_kPa", "float-or-empty", "omit-if-empty"),
-    ),
-    id_column="point",
-    pairs=(("P_A0", "P_B0"),),
-)
-
-POINT_SPECS = {"stretch": STRETCH_POINTS, "joint": JOINT_POINTS}
 
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _INT64_MAX = 2**63 - 1
@@ -219,6 +132,11 @@ def _parse_cell(kind: str, s: str, span: tuple[float, float]) -> tuple[Any, str 
 
 def _quote(s: str) -> str:
     return repr(s if len(s) <= 40 else s[:37] + "...")
+
+
+def fmt_number(v: float) -> str:
+    """A number as a message shows it: an integer without a decimal point, else ``repr``."""
+    return _fmt(v)
 
 
 def _fmt(v: float) -> str:
@@ -444,6 +362,18 @@ def _read(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], e
 RowCheck = Callable[[dict[str, Any]], Iterable[tuple[str, str]]]
 
 
+def read_table(path: str | os.PathLike, spec: TableSpec, *, span: tuple[float, float] = PRESSURE_SPAN_MPA,
+               id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
+    """Read and check a table of ``spec``; every problem in one :class:`TableError`.
+
+    ``span`` bounds the "pressure" cells (MPa); ``id_range`` (low, high) also checks the
+    ids, e.g. against what a run file can hold; ``check(row) -> [(column, problem), ...]``
+    adds checks of its own (e.g. :func:`labcli.core.store.storable_cells`), reported by
+    row and column like the others.
+    """
+    return _read(path, spec, span, _row_checks(spec, id_range, check))
+
+
 def _row_checks(spec: TableSpec, id_range: tuple[int, int] | None, check: RowCheck | None) -> RowCheck | None:
     if id_range is None and check is None:
         return None
@@ -458,86 +388,6 @@ def _row_checks(spec: TableSpec, id_range: tuple[int, int] | None, check: RowChe
             yield from check(values)
 
     return checks
-
-
-def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
-                   id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
-    """Read and check a trial table (``table-formats.md``); every problem in one TableError.
-
-    ``id_range`` (low, high) also checks the trial ids, e.g. against what a run file can hold;
-    ``check(row) -> [(column, problem), ...]`` adds checks of its own (e.g.
-    :func:`labcli.core.store.storable_cells`), reported by row and column like the others.
-    """
-    return _read(path, TRIAL, span_MPa, _row_checks(TRIAL, id_range, check))
-
-
-def read_push_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
-                  id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
-    """Read and check a push table; ``phi_deg`` is NaN where the file leaves it empty."""
-    return _read(path, PUSH, span_MPa, _row_checks(PUSH, id_range, check))
-
-
-def read_point_csv(path: str | os.PathLike, experiment: str, *, id_range: tuple[int, int] | None = None,
-                   check: RowCheck | None = None) -> "pd.DataFrame":
-    """Read and check the point table of an rPAM experiment (``"stretch"`` or ``"joint"``).
-
-    The columns are those of :meth:`labcli.core.store.RunFile.point_table`; pressures in MPa,
-    ``L_m`` in m, ``mass_g`` in g, ``alpha_deg`` in degrees, set values in g and kPa.
-    """
-    spec = POINT_SPECS.get(experiment)
-    if spec is None:
-        raise ConfigError(f"an rPAM point table is of experiment stretch or joint, not {experiment!r}.")
-    return _read(path, spec, PRESSURE_SPAN_MPA, _row_checks(spec, id_range, check))
-
-
-def load_plan(
-    path: str | os.PathLike,
-    *,
-    mass_range_g: tuple[float, float] | None = None,
-    direction_range_deg: tuple[float, float] | None = None,
-) -> "pd.DataFrame":
-    """Read and check a plan (``trial, set, mass_g, direction_deg``), optionally against limits.
-
-    Problems name the file, the row as a spreadsheet numbers it (header = row 1)
-    and the column.
-    """
-
-    def limits(values: dict[str, Any]) -> Iterable[tuple[str, str]]:
-        m, d = values.get("mass_g"), values.get("direction_deg")
-        if mass_range_g is not None and isinstance(m, float):
-            lo, hi = mass_range_g
-            if not lo <= m <= hi:
-                yield "mass_g", f"{_fmt(m)} g is outside the protocol's range {_fmt(lo)} to {_fmt(hi)} g"
-        if direction_range_deg is not None and isinstance(d, float):
-            lo, hi = direction_range_deg
-            if not lo <= d <= hi:
-                yield "direction_deg", f"{_fmt(d)} deg is outside the protocol's range {_fmt(lo)} to {_fmt(hi)} deg"
-
-    return _read(path, PLAN, PRESSURE_SPAN_MPA, limits)
-
-
-def load_trials(path: str | os.PathLike) -> "pd.DataFrame":
-    """The trial table of a run file (``.h5``) or a trial CSV."""
-    if Path(path).suffix.lower() in RUN_FILE_SUFFIXES:
-        return _from_run_file(path, "trial_table")
-    return read_trial_csv(path)
-
-
-def load_pushes(path: str | os.PathLike) -> "pd.DataFrame":
-    """The push table of a run file (``.h5``) or a push CSV."""
-    if Path(path).suffix.lower() in RUN_FILE_SUFFIXES:
-        return _from_run_file(path, "push_table")
-    return read_push_csv(path)
-
-
-def _from_run_file(path: str | os.PathLike, method: str) -> "pd.DataFrame":
-    from .store import RunFile
-
-    run = RunFile.open(path)
-    try:
-        return getattr(run, method)()
-    finally:
-        run.close()
 
 
 # ---------------------------------------------------------------------------
@@ -592,7 +442,9 @@ def _format_frame(df: "pd.DataFrame", spec: TableSpec) -> tuple[list[str], list[
     return [header[i] for i in keep], rows
 
 
-def _write(df: "pd.DataFrame", path: str | os.PathLike, spec: TableSpec, span: tuple[float, float]) -> None:
+def write_table(df: "pd.DataFrame", path: str | os.PathLike, spec: TableSpec,
+                span: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
+    """Write a table of ``spec``: its columns in order, then the extras; checked as it would be read."""
     label = str(path)
     names = [str(c) for c in df.columns]
     dup = sorted({c for c in names if names.count(c) > 1})
@@ -612,7 +464,7 @@ def _write(df: "pd.DataFrame", path: str | os.PathLike, spec: TableSpec, span: t
         data = text.encode("utf-8")
     except UnicodeEncodeError as exc:
         raise ConfigError(f"Cannot write {label}: the table holds text that is not valid Unicode ({exc.reason}).") from None
-    _atomic_write(Path(path), data)
+    atomic_write(Path(path), data)
 
 
 def _csv_line(fields: list[str]) -> str:
@@ -620,50 +472,3 @@ def _csv_line(fields: list[str]) -> str:
     # then take for a line break; quote every field holding a separator, quote or
     # line break ourselves.
     return ",".join('"' + f.replace('"', '""') + '"' if any(ch in f for ch in ',"\r\n') else f for f in fields) + "\n"
-
-
-def _atomic_write(path: Path, data: bytes) -> None:
-    folder = path.parent if str(path.parent) else Path(".")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    except OSError as exc:
-        raise ConfigError(f"Cannot write {path}: {exc.strerror or exc} (check the folder exists and is writable).") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        # mkstemp creates 0600; an exported table is as readable as any file the user writes.
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except OSError as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise ConfigError(f"Cannot write {path}: {exc.strerror or exc}.") from None
-
-
-def write_trial_csv(df: "pd.DataFrame", path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
-    """Write a trial table: standard columns in ``table-formats.md`` order, then extras."""
-    _write(df, path, TRIAL, span_MPa)
-
-
-def write_push_csv(df: "pd.DataFrame", path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
-    """Write a push table: standard columns in ``table-formats.md`` order, then extras."""
-    _write(df, path, PUSH, span_MPa)
-
-
-def write_point_csv(df: "pd.DataFrame", path: str | os.PathLike, experiment: str) -> None:
-    """Write an rPAM point table (stretch test or joint map) in the run file's column order."""
-    spec = POINT_SPECS.get(experiment)
-    if spec is None:
-        raise ConfigError(f"an rPAM point table is of experiment stretch or joint, not {experiment!r}.")
-    _write(df, path, spec, PRESSURE_SPAN_MPA)
-
-
-def write_plan_csv(df: "pd.DataFrame", path: str | os.PathLike) -> None:
-    """Write a plan (``trial, set, mass_g, direction_deg``)."""
-    _write(df, path, PLAN, PRESSURE_SPAN_MPA)

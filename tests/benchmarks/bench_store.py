@@ -6,7 +6,7 @@ Each trial carries two windows (baseline and loaded) of S frames of the
 reference rig's 6 channels: ``time`` float64, ``counts`` int32, ``values``
 float64 and ``seq`` uint32 per frame, as the run file stores them.
 
-* ``store (fsync)``: ``RunFile.write_trial`` as ``labcli acquire`` uses it: one
+* ``store (fsync)``: ``RunFile.write`` as ``labcli acquire`` uses it: one
   group per trial with its summary datasets and attributes, flush + fsync,
   ``complete`` set, flush + fsync again.
 * ``store (no fsync)``: the same writes with the per-trial flush/fsync off (how
@@ -83,7 +83,7 @@ def run_store(path: str, records: list[dict], sync: bool) -> float:
     with RunFile.create(path, protocol=_Protocol(), device_info=_Device(), force=True) as run:
         run.sync_each_record = sync
         for rec in records:
-            run.write_trial(rec)
+            run.write(rec)
     return time.perf_counter() - t0
 
 

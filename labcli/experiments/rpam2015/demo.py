@@ -90,7 +90,7 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     from ...core.protocol import load_protocol
     from .sim.rig import RpamRig
     from ...core.store import RunFile
-    from ...core.tables import write_point_csv
+    from .tables import write_point_csv
 
     out = Path(outdir)
     check_outdir(out, OUTPUTS, force, what="rPAM demo")
@@ -119,7 +119,7 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     proto = load_protocol(PROTOCOL)
     protocol_ref = (str(proto.path), dict(proto.sections))
     with RunFile.open(files["stretch_run"]) as run:
-        stretch_table = run.point_table()
+        stretch_table = run.table()
     fit = analyse_stretch(stretch_table, protocol_ref)
     text = fit.to_json()
     files["stretch_model"].write_text(text, encoding="utf-8")
@@ -138,7 +138,7 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     t = time.perf_counter()
     stage(3)
     with RunFile.open(files["joint_run"]) as run:
-        joint_table = run.point_table()
+        joint_table = run.table()
     fitted = analyse_joint_map(joint_table, protocol_ref, fit)
     default = analyse_joint_map(joint_table, protocol_ref, None)
     figure8(fitted, files["figure8"])

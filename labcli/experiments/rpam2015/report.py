@@ -55,7 +55,7 @@ def _read_run(path: Path, protocol: str | None,
         kind = run.kind
         name = str(run.attrs.get("protocol", ""))
         text = run.protocol_text
-        table = run.point_table()
+        table = run.table()
     if protocol is not None and protocol != name:
         raise ConfigError(f"{path} was recorded with protocol '{name}'; --protocol applies to "
                           "trial CSV files only, so leave it out for a run file.")

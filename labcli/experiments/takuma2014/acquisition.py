@@ -57,7 +57,7 @@ def _plan(protocol: Any, options: AcquireOptions) -> Any:
     if options.no_plan:
         return None
     if options.plan is not None:
-        from ...core.tables import load_plan as read_plan  # pandas, only when a plan is read
+        from .tables import load_plan as read_plan  # pandas, only when a plan is read
 
         lim = protocol.settings.force_limits
         return read_plan(

@@ -99,7 +99,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     from .models.metrics import evaluate
     from .models.takuma import TakumaModel
     from ...core.store import RunFile
-    from ...core.tables import load_pushes, write_push_csv, write_trial_csv
+    from .tables import load_pushes, write_push_csv, write_trial_csv
 
     out = Path(outdir)
     check_outdir(out, OUTPUTS, force)

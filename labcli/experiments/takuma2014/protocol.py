@@ -213,7 +213,7 @@ KINDS: dict[str, ProtocolKind] = {
 
 def load_plan(protocol: Any) -> Any:
     """The plan named by ``trials.plan`` as a DataFrame, checked against the protocol."""
-    from ...core.tables import load_plan as read_plan  # pandas, only when a plan is read
+    from .tables import load_plan as read_plan  # pandas, only when a plan is read
 
     s = protocol.settings
     trials = s.trials if s is not None else None

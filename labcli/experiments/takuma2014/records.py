@@ -1,34 +1,260 @@
-"""The McKibben rig's records: a force/angle trial (Section 3.2) and an object push (Section 4)."""
+"""The McKibben rig's records: a force/angle trial (Section 3.2) and an object push (Section 4).
+
+What each record holds in its group of the run file (SI: MPa gauge, rad, N, m, kg)::
+
+    trials/000012/   @trial @plan_set @plan_mass_g @plan_direction_deg (the plan row)
+        P0 (4,) MPa     baseline pressures P_L1, P_R1, P_L2, P_R2 (@channels)
+        P  (4,) MPa     pressures under the load
+        theta (2,) rad  joint deflections under the load; pot0 (2,) rad baseline angles (optional)
+        F (2,) N        Fx, Fy at the contact point
+        mass () kg, direction () rad   the pulley load (NaN when not a pulley load)
+    pushes/000003/   @push @object @category
+        P0, P (4,) MPa, R () m, d () m, phi () rad (NaN: unknown),
+        true_stiffness () N/m (NaN unless simulated), theta and pot0 (optional)
+
+The run file adds what every record has (times, settling, raw windows, extra columns).
+Tables come out in the CSV exchange units (:mod:`.tables`): MPa, N, degrees, grams; degrees
+and grams rounded to 12 significant digits, so table -> run file -> table is exact.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from typing import Any, Mapping
+
+from ...core.experiment import Dataset, Stored
+from ...core.report import records_line, settling_line, split_line
+from ...core.store.h5 import missing, nan_if_empty, plain, scalar, text, to_edge, vector
+from ...core.store.records import BaseRecordType
+from ...errors import ConfigError, StoreError
+from .tables import BASELINE, LOADED, PUSH, TRIAL
+
+PRESSURE_NAMES = LOADED  # P_L1, P_R1, P_L2, P_R2
+_PRESSURE_ATTRS = {"channels": ",".join(PRESSURE_NAMES)}
 
 
-@dataclass(frozen=True)
-class TrialRecords:
+class _McKibbenRecords(BaseRecordType):
+    """What trials and pushes share: four pressures before and under the load, the drift of the baseline."""
+
+    def summarise(self, run: Any, ids: list[int], groups: list[Any]) -> dict[str, Any]:
+        """How the baseline pressures moved over the run (recording order), from 2 records on."""
+        import numpy as np
+
+        if len(groups) < 2:
+            return {}
+        p0 = np.array([g["P0"][()] for g in groups])
+        index = np.arange(len(groups), dtype=np.float64)
+        drift = {}
+        for c, name in enumerate(PRESSURE_NAMES):
+            slope = np.polyfit(index, p0[:, c], 1)[0]
+            drift[name] = {
+                "first_MPa": float(p0[0, c]),
+                "last_MPa": float(p0[-1, c]),
+                "slope_kPa_per_trial": float(slope * 1e3),
+                "max_deviation_kPa": float(np.max(np.abs(p0[:, c] - p0[0, c])) * 1e3),
+            }
+        return {"baseline_drift": drift}
+
+    def inspect_lines(self, summary: dict[str, Any]) -> list[str]:
+        return [records_line(summary), split_line(summary), settling_line(summary), *drift_lines(summary)]
+
+    @staticmethod
+    def _pressures(record: Mapping[str, Any], label: str, loaded: str) -> list[Dataset]:
+        p0 = vector(record, "P0_MPa", 4, "baseline pressures P_L1,P_R1,P_L2,P_R2 in MPa", label)
+        p = vector(record, "P_MPa", 4, loaded, label)
+        return [Dataset("P0", p0, "MPa", _PRESSURE_ATTRS), Dataset("P", p, "MPa", _PRESSURE_ATTRS)]
+
+
+def drift_lines(s: dict[str, Any]) -> list[str]:
+    """How the baseline pressures of a force or push run moved over the records."""
+    rec = s["records"]
+    drift = s["baseline_drift"]
+    if not drift:
+        return ["  baseline drift  needs at least 2 complete records"]
+    lines = [f"  baseline drift over {s['complete']} {rec} (recording order):"]
+    for name, d in drift.items():
+        lines.append(f"    {name:<5} first {d['first_MPa']:.4f} MPa, last {d['last_MPa']:.4f} MPa, "
+                     f"slope {d['slope_kPa_per_trial']:+.3f} kPa/{rec[:-1] if rec == 'trials' else 'push'}, "
+                     f"max deviation {d['max_deviation_kPa']:.3f} kPa")
+    return lines
+
+
+class TrialRecords(_McKibbenRecords):
     """Force/angle trials of a ``force`` run: loaded pressures, deflections, the pulley load."""
 
-    kind: str = "force"
-    collection: str = "trials"
-    id_column: str = "trial"
-    noun: str = "trial"
-    plural: str = "trials"
-    qualifier: str = ""
-    splits: bool = True
+    kind = "force"
+    collection = "trials"
+    id_column = "trial"
+    noun = "trial"
+    plural = "trials"
+    splits = True
+    table_spec = TRIAL
+
+    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
+        """A trial (keys of ``TrialRecord`` in the run file's docs), checked before anything is written."""
+        pressures = self._pressures(record, label, "loaded pressures P_L1,P_R1,P_L2,P_R2 in MPa")
+        theta = vector(record, "theta_rad", 2, "joint deflections in rad", label)
+        force = vector(record, "force_N", 2, "Fx, Fy in N", label)
+        pot0 = (vector(record, "pot0_rad", 2, "baseline potentiometer angles in rad", label)
+                if "pot0_rad" in record else None)
+        mass = scalar(record, "mass_kg", label)
+        direction = scalar(record, "direction_rad", label)
+        plan = dict(record.get("plan") or {})
+        if "set" in record and "set" not in plan:
+            plan["set"] = record["set"]
+        attrs = {f"plan_{k}": v if isinstance(v, str) else float(v) for k, v in plan.items()}
+        datasets = [*pressures, Dataset("theta", theta, "rad")]
+        if pot0 is not None:
+            datasets.append(Dataset("pot0", pot0, "rad"))
+        datasets += [Dataset("F", force, "N", {"components": "Fx,Fy"}), Dataset("mass", mass, "kg"),
+                     Dataset("direction", direction, "rad")]
+        return Stored(attrs, datasets)
+
+    def read(self, g: Any) -> dict[str, Any]:
+        rec: dict[str, Any] = {
+            "trial": int(g.attrs["trial"]),
+            "P0_MPa": g["P0"][()], "P_MPa": g["P"][()], "theta_rad": g["theta"][()], "force_N": g["F"][()],
+            "mass_kg": float(g["mass"][()]), "direction_rad": float(g["direction"][()]),
+            "plan": {k[5:]: plain(v) for k, v in g.attrs.items() if k.startswith("plan_")},
+        }
+        if "pot0" in g:
+            rec["pot0_rad"] = g["pot0"][()]
+        return rec
+
+    def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
+        """The trial table (table-formats.md): MPa, N, degrees and grams; ``set`` from the split."""
+        import numpy as np
+        import pandas as pd
+
+        sets = run.set_of()
+        cols: dict[str, Any] = {c: [] for c in TRIAL.names[:-2]}
+        mass, direction = [], []
+        for t, g in zip(ids, groups):
+            p0, p, theta, force = g["P0"][()], g["P"][()], g["theta"][()], g["F"][()]
+            cols["trial"].append(t)
+            cols["set"].append(sets.get(t, ""))
+            for name, v in zip(BASELINE, p0):
+                cols[name].append(float(v))
+            for name, v in zip(LOADED, p):
+                cols[name].append(float(v))
+            cols["theta1_deg"].append(math.degrees(theta[0]))
+            cols["theta2_deg"].append(math.degrees(theta[1]))
+            cols["Fx_N"].append(float(force[0]))
+            cols["Fy_N"].append(float(force[1]))
+            mass.append(float(g["mass"][()]) * 1e3)
+            direction.append(math.degrees(float(g["direction"][()])))
+        df = pd.DataFrame(cols)
+        df["trial"] = df["trial"].astype("int64")
+        df["set"] = df["set"].astype(object)
+        for c in ("theta1_deg", "theta2_deg"):
+            df[c] = to_edge(df[c].to_numpy())
+        if np.any(np.isfinite(mass)):
+            df["mass_g"] = to_edge(mass)
+        if np.any(np.isfinite(direction)):
+            df["direction_deg"] = to_edge(direction)
+        return df
+
+    def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
+        return {
+            "trial": int(row["trial"]),
+            "P0_MPa": [row[c] for c in BASELINE], "P_MPa": [row[c] for c in LOADED],
+            "theta_rad": [math.radians(row["theta1_deg"]), math.radians(row["theta2_deg"])],
+            "force_N": [row["Fx_N"], row["Fy_N"]],
+            "mass_kg": nan_if_empty(row.get("mass_g")) * 1e-3,
+            "direction_rad": math.radians(nan_if_empty(row.get("direction_deg"))),
+        }
+
+    def import_split(self, rows: list[dict[str, Any]]) -> tuple[list[int], list[int]]:
+        """The ``set`` column of an imported trial table as the run's split."""
+        fit, val = [], []
+        for row in rows:
+            s = "" if missing(row.get("set")) else str(row["set"])
+            if s not in ("fit", "validation", ""):
+                raise ConfigError(f"trial {int(row['trial'])}: set must be fit, validation or empty, got {s!r}.")
+            (fit if s == "fit" else val if s == "validation" else []).append(int(row["trial"]))
+        return fit, val
 
 
-@dataclass(frozen=True)
-class PushRecords:
+class PushRecords(_McKibbenRecords):
     """Object pushes of a ``push`` run: pressures before and with the object pushed in."""
 
-    kind: str = "push"
-    collection: str = "pushes"
-    id_column: str = "push"
-    noun: str = "push"
-    plural: str = "pushes"
-    qualifier: str = ""
-    splits: bool = False
+    kind = "push"
+    collection = "pushes"
+    id_column = "push"
+    noun = "push"
+    plural = "pushes"
+    table_spec = PUSH
+
+    @property
+    def known_columns(self) -> frozenset[str]:
+        return frozenset((*PUSH.names, "true_stiffness_N_per_m"))
+
+    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
+        """A push (keys of ``PushRecord`` in the run file's docs), checked before anything is written."""
+        pressures = self._pressures(record, label, "pressures with the object pushed in, MPa")
+        if "object" not in record:
+            raise StoreError(f"{label} record lacks 'object' (the object name).")
+        radius = scalar(record, "R_m", label)
+        distance = scalar(record, "d_m", label)
+        phi = scalar(record, "phi_rad", label)
+        stiffness = scalar(record, "true_stiffness_N_per_m", label)
+        theta = vector(record, "theta_rad", 2, "joint deflections in rad", label) if "theta_rad" in record else None
+        pot0 = (vector(record, "pot0_rad", 2, "baseline potentiometer angles in rad", label)
+                if "pot0_rad" in record else None)
+        attrs = {"object": str(record["object"]), "category": str(record.get("category", "") or "")}
+        datasets = [*pressures, Dataset("R", radius, "m"), Dataset("d", distance, "m"), Dataset("phi", phi, "rad"),
+                    Dataset("true_stiffness", stiffness, "N/m")]
+        if theta is not None:
+            datasets.append(Dataset("theta", theta, "rad"))
+        if pot0 is not None:
+            datasets.append(Dataset("pot0", pot0, "rad"))
+        return Stored(attrs, datasets)
+
+    def read(self, g: Any) -> dict[str, Any]:
+        optional = {key: g[name][()] for key, name in (("theta_rad", "theta"), ("pot0_rad", "pot0")) if name in g}
+        return {
+            **optional,
+            "push": int(g.attrs["push"]), "object": text(g.attrs["object"]), "category": text(g.attrs["category"]),
+            "R_m": float(g["R"][()]), "d_m": float(g["d"][()]), "phi_rad": float(g["phi"][()]),
+            "true_stiffness_N_per_m": float(g["true_stiffness"][()]),
+            "P0_MPa": g["P0"][()], "P_MPa": g["P"][()],
+        }
+
+    def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
+        """The push table (table-formats.md): m, degrees, MPa; ``phi_deg`` NaN when unknown."""
+        import numpy as np
+        import pandas as pd
+
+        cols: dict[str, Any] = {c: [] for c in PUSH.names}
+        stiffness = []
+        for t, g in zip(ids, groups):
+            cols["push"].append(t)
+            cols["object"].append(text(g.attrs["object"]))
+            cols["R_m"].append(float(g["R"][()]))
+            cols["d_m"].append(float(g["d"][()]))
+            cols["phi_deg"].append(math.degrees(float(g["phi"][()])))
+            for name, v in zip(BASELINE, g["P0"][()]):
+                cols[name].append(float(v))
+            for name, v in zip(LOADED, g["P"][()]):
+                cols[name].append(float(v))
+            cols["category"].append(text(g.attrs["category"]))
+            stiffness.append(float(g["true_stiffness"][()]))
+        df = pd.DataFrame(cols)
+        df["push"] = df["push"].astype("int64")
+        df["phi_deg"] = to_edge(df["phi_deg"].to_numpy())
+        if np.any(np.isfinite(stiffness)):
+            df["true_stiffness_N_per_m"] = stiffness
+        return df
+
+    def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
+        return {
+            "push": int(row["push"]), "object": str(row["object"]),
+            "R_m": float(row["R_m"]), "d_m": float(row["d_m"]),
+            "phi_rad": math.radians(nan_if_empty(row.get("phi_deg"))),
+            "category": "" if missing(row.get("category")) else str(row["category"]),
+            "true_stiffness_N_per_m": nan_if_empty(row.get("true_stiffness_N_per_m")),
+            "P0_MPa": [row[c] for c in BASELINE], "P_MPa": [row[c] for c in LOADED],
+        }
 
 
 RECORD_TYPES = {"force": TrialRecords(), "push": PushRecords()}

@@ -283,7 +283,7 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
     from pathlib import Path
 
     from ....core.protocol import load_protocol, loads_protocol
-    from ....core.tables import load_pushes
+    from ..tables import load_pushes
 
     p = Path(path)
     if not p.exists():
@@ -313,11 +313,11 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
                 f"{p} is a {kind} run (protocol '{name}'), not a push run; classify reads the pushes of a "
                 "stiffness run such as one recorded with protocol takuma2014-stiffness."
             )
-        table = run.push_table()
+        table = run.table()
         if measured_angles and not all(c in table.columns for c in THETA_COLUMNS):
             theta = []
             for pid in table["push"]:
-                rec = run.read_push(int(pid))
+                rec = run.read(int(pid))
                 theta.append(np.degrees(rec["theta_rad"]) if "theta_rad" in rec else (math.nan, math.nan))
             theta = np.asarray(theta, dtype=float).reshape(-1, 2)
             table["theta1_deg"], table["theta2_deg"] = theta[:, 0], theta[:, 1]

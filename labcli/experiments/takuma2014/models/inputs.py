@@ -29,7 +29,7 @@ class TrialSource:
 
 
 def _read_table(path: Path) -> Any:
-    from ....core.tables import load_trials
+    from ..tables import load_trials
 
     return load_trials(path)
 

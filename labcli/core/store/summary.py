@@ -1,0 +1,69 @@
+"""What ``labcli inspect`` shows of a run: metadata, completeness, split, settling.
+
+The record type adds what is its own (:meth:`labcli.core.experiment.RecordType.summarise`:
+the baseline's drift over a McKibben run, an rPAM run's grid).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .h5 import text
+
+
+def summarise(run: Any) -> dict[str, Any]:
+    """The summary of an open :class:`~labcli.core.store.RunFile` as plain data (JSON-ready)."""
+    rt = run.record_type
+    a = run.attrs
+    ids, groups = run.complete_groups()
+    incomplete = run.incomplete_ids()
+    plan = run.plan_table()
+    out: dict[str, Any] = {
+        "path": run.path,
+        "schema_version": a.get("schema_version"),
+        "labcli_version": a.get("labcli_version", ""),
+        "kind": a.get("kind", ""),
+        "protocol": a.get("protocol", ""),
+        "device": a.get("device", ""),
+        "firmware": a.get("firmware", ""),
+        "port": a.get("port", ""),
+        "operator": a.get("operator", ""),
+        "started": a.get("started", ""),
+        "imported": bool(a.get("imported", False)),
+        "channels": list(run.channels),
+        "records": rt.collection,
+        "complete": len(ids),
+        "incomplete": len(incomplete),
+        "incomplete_ids": incomplete,
+        "planned": None if plan is None else int(len(plan)),
+        "split": None,
+        "baseline_drift": None,  # how the baseline moved over the records, where the record type says
+        "settle": None,
+        "models": run.model_names(),
+    }
+    s = run.split()
+    if s is not None:
+        out["split"] = {
+            "strategy": s["strategy"], "seed": s["seed"], "fit": len(s["fit"]),
+            "validation": len(s["validation"]),
+            "unassigned": len(set(ids) - set(s["fit"]) - set(s["validation"])) if rt.splits else 0,
+        }
+    out.update(rt.summarise(run, ids, groups))
+    out["settle"] = _settling(ids, groups)
+    return out
+
+
+def _settling(ids: list[int], groups: list[Any]) -> dict[str, Any]:
+    times = np.array([float(g.attrs.get("settle_time_s", math.nan)) for g in groups])
+    accepted = [text(g.attrs.get("accepted", "")) for g in groups]
+    finite = times[np.isfinite(times)]
+    return {
+        "n": int(finite.size),
+        "median_s": float(np.median(finite)) if finite.size else None,
+        "max_s": float(np.max(finite)) if finite.size else None,
+        "timeout_accepted": int(sum(x == "timeout" for x in accepted)),
+        "timeout_ids": [i for i, x in zip(ids, accepted) if x == "timeout"],
+    }
