@@ -60,10 +60,21 @@ class Rpam2015:
         return acquisition(protocol, options)
 
     def analysis(self, name: str) -> Analysis | None:
-        return None
+        if name not in ("fit", "validate", "optimize"):
+            return None
+        from . import analyses  # numpy, scipy: only once an analysis runs
+
+        run, show = {
+            "fit": (analyses.fit, analyses.show_fit),
+            "validate": (analyses.validate, analyses.show_validation),
+            "optimize": (analyses.optimize, analyses.show_optimum),
+        }[name]
+        return Analysis(run, show)
 
     def demo(self) -> Demo | None:
-        return None
+        from . import demo, report  # the whole toolkit: only once the demo runs
+
+        return Demo(demo.STAGES, demo.run_rpam_demo, report.print_demo)
 
 
 EXPERIMENT = Rpam2015()

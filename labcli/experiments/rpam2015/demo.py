@@ -23,12 +23,21 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..takuma2014.demo import Progress, acquire_unattended, check_outdir
+import numpy as np
+
+from ...core.demo import Progress, Stages, acquire_unattended, check_outdir, simulated_port
+from ...core.modelfile import save_model
+from ...core.protocol import load_protocol
+from ...core.store import RunFile
+from .figures import figure8, figure_stretch
+from .models.rpam_fit import analyse_joint_map, analyse_stretch
+from .models.rpam_optimize import optimize_protocol
+from .sim.rig import RpamRig
+from .tables import write_point_csv
 
 PROTOCOL = "rpam2015"
 STAGES = ("acquire stretch test", "fit stretch correction", "acquire joint map", "validate joint map",
@@ -82,16 +91,6 @@ def _summary(s: dict[str, Any]) -> dict[str, Any]:
 def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
                   progress: Progress | None = None) -> RpamDemoResult:
     """Stretch test, fit, joint map, validation, optimisation on the simulated rPAM rig, into ``outdir``."""
-    import numpy as np
-
-    from .figures import figure8, figure_stretch
-    from .models.rpam_fit import analyse_joint_map, analyse_stretch
-    from .models.rpam_optimize import optimize_protocol
-    from ...core.protocol import load_protocol
-    from .sim.rig import RpamRig
-    from ...core.store import RunFile
-    from .tables import write_point_csv
-
     out = Path(outdir)
     check_outdir(out, OUTPUTS, force, what="rPAM demo")
     out.mkdir(parents=True, exist_ok=True)
@@ -101,91 +100,68 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         "figure8": out / "fig8-joint-map.png", "stretch_csv": out / "stretch.csv",
         "joint_csv": out / "joint-map.csv", "summary": out / "rpam-summary.json",
     }
-    port = f"sim://?mode=rpam&seed={seed}&clock=virtual"
-    timings: dict[str, float] = {}
+    port = simulated_port(seed, "rpam")
+    stages = Stages(STAGES, progress)
+    with stages.run(0, "acquire_stretch"):
+        acquire_unattended(files["stretch_run"], port, "stretch test", STAGES[0], progress,
+                           protocol=PROTOCOL, experiment="stretch")
+    with stages.run(1, "fit"):
+        proto = load_protocol(PROTOCOL)
+        protocol_ref = (str(proto.path), dict(proto.sections))
+        with RunFile.open(files["stretch_run"]) as run:
+            stretch_table = run.table()
+        fit = analyse_stretch(stretch_table, protocol_ref)
+        save_model(fit.to_json(), files["stretch_model"], run=files["stretch_run"], name=f"{PROTOCOL}-stretch")
+        figure_stretch(fit, files["figure6"])
+    with stages.run(2, "acquire_joint"):
+        # The same seed is the same rig: the correction fitted above belongs to these actuators.
+        acquire_unattended(files["joint_run"], port, "joint map", STAGES[2], progress,
+                           protocol=PROTOCOL, experiment="joint")
+    with stages.run(3, "validate"):
+        with RunFile.open(files["joint_run"]) as run:
+            joint_table = run.table()
+        fitted = analyse_joint_map(joint_table, protocol_ref, fit)
+        default = analyse_joint_map(joint_table, protocol_ref, None)
+        figure8(fitted, files["figure8"])
+    with stages.run(4, "optimize"):
+        optimum = optimize_protocol(PROTOCOL, overrides=fit.overrides()).to_dict()
+    with stages.run(5):
+        write_point_csv(stretch_table, files["stretch_csv"], "stretch")
+        write_point_csv(joint_table, files["joint_csv"], "joint")
+    result = RpamDemoResult(
+        outdir=out, seed=seed, files=files, timings_s=stages.done(),
+        points={"stretch": int(len(stretch_table)), "joint_map": int(len(joint_table))},
+        stretch=_stretch_summary(fit, seed),
+        joint_map={"without": _summary(fitted.summary["without"]), "with_default": _summary(default.summary["with"]),
+                   "with_fitted": _summary(fitted.summary["with"]), "toggle_deg": fitted.toggle_deg},
+        optimum={k: optimum[k] for k in _OPTIMUM_KEYS},
+        notes=list(_NOTES),
+    )
+    files["summary"].write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False), encoding="utf-8")
+    return result
 
-    def stage(i: int) -> None:
-        if progress is not None:
-            progress(STAGES[i], 0, 0)
 
-    t0 = time.perf_counter()
-    stage(0)
-    acquire_unattended(files["stretch_run"], port, "stretch test", STAGES[0], progress,
-                       protocol=PROTOCOL, experiment="stretch")
-    timings["acquire_stretch"] = time.perf_counter() - t0
+_OPTIMUM_KEYS = ("L1_m", "L2_m", "L3_m", "alpha_deg", "toggle_deg", "L_a_m", "L_b_m", "active_constraints",
+                 "Pa_kPa", "Pb_kPa", "seed", "generations")
+_NOTES = (
+    "The paper prints no F_stretch coefficients; the protocol's default is an assumed placeholder, "
+    "and the simulated rig's actuators follow it scaled by a seeded factor, which the fit recovers.",
+    "The paper reports alpha_max = 58.4 deg at L1 = 0.03, L2 = 0.1048, L3 = 0.06 m for the same "
+    "pressures with its own (unpublished) actuator constants.",
+)
 
-    t = time.perf_counter()
-    stage(1)
-    proto = load_protocol(PROTOCOL)
-    protocol_ref = (str(proto.path), dict(proto.sections))
-    with RunFile.open(files["stretch_run"]) as run:
-        stretch_table = run.table()
-    fit = analyse_stretch(stretch_table, protocol_ref)
-    text = fit.to_json()
-    files["stretch_model"].write_text(text, encoding="utf-8")
-    with RunFile.open(files["stretch_run"], "a") as run:
-        run.record_model(f"{PROTOCOL}-stretch", text)
-    figure_stretch(fit, files["figure6"])
-    timings["fit"] = time.perf_counter() - t
 
-    t = time.perf_counter()
-    stage(2)
-    # The same seed is the same rig: the correction fitted above belongs to these actuators.
-    acquire_unattended(files["joint_run"], port, "joint map", STAGES[2], progress,
-                       protocol=PROTOCOL, experiment="joint")
-    timings["acquire_joint"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    stage(3)
-    with RunFile.open(files["joint_run"]) as run:
-        joint_table = run.table()
-    fitted = analyse_joint_map(joint_table, protocol_ref, fit)
-    default = analyse_joint_map(joint_table, protocol_ref, None)
-    figure8(fitted, files["figure8"])
-    timings["validate"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    stage(4)
-    optimum = optimize_protocol(PROTOCOL, overrides=fit.overrides()).to_dict()
-    timings["optimize"] = time.perf_counter() - t
-
-    stage(5)
-    write_point_csv(stretch_table, files["stretch_csv"], "stretch")
-    write_point_csv(joint_table, files["joint_csv"], "joint")
-    timings["total"] = time.perf_counter() - t0
-
+def _stretch_summary(fit: Any, seed: int) -> dict[str, Any]:
+    """The stretch fit against the simulated rig's true correction (known: it is seeded)."""
     m = fit.model
     truth = [float(v) for v in RpamRig(seed=seed).true_stretch_coefficients_N["A"]]
     d = np.asarray(m.coefficients_N) - np.asarray(truth)
-    chi2 = float(d @ np.linalg.solve(np.asarray(m.covariance_N2), d))
-    stretch = {
+    return {
         "coefficients_N": list(m.coefficients_N), "std_errors_N": list(m.std_errors_N),
         "ci95_N": [list(p) for p in m.ci95_N], "r2": m.r2, "rmse_N": m.rmse_N,
         "n_points": m.n_points, "lambda_range": list(m.lambda_range),
         "protocol_default_N": list(fit.default_coefficients_N),
         "true_N": truth,
         "deviation_in_se": [float(x / s) for x, s in zip(d, m.std_errors_N)],
-        "chi2_4dof": chi2,
+        "chi2_4dof": float(d @ np.linalg.solve(np.asarray(m.covariance_N2), d)),
     }
-    joint = {
-        "without": _summary(fitted.summary["without"]),
-        "with_default": _summary(default.summary["with"]),
-        "with_fitted": _summary(fitted.summary["with"]),
-        "toggle_deg": fitted.toggle_deg,
-    }
-    keep = ("L1_m", "L2_m", "L3_m", "alpha_deg", "toggle_deg", "L_a_m", "L_b_m", "active_constraints",
-            "Pa_kPa", "Pb_kPa", "seed", "generations")
-    result = RpamDemoResult(
-        outdir=out, seed=seed, files=files, timings_s=timings,
-        points={"stretch": int(len(stretch_table)), "joint_map": int(len(joint_table))},
-        stretch=stretch, joint_map=joint, optimum={k: optimum[k] for k in keep},
-        notes=[
-            "The paper prints no F_stretch coefficients; the protocol's default is an assumed placeholder, "
-            "and the simulated rig's actuators follow it scaled by a seeded factor, which the fit recovers.",
-            "The paper reports alpha_max = 58.4 deg at L1 = 0.03, L2 = 0.1048, L3 = 0.06 m for the same "
-            "pressures with its own (unpublished) actuator constants.",
-        ],
-    )
-    files["summary"].write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False), encoding="utf-8")
-    return result
-

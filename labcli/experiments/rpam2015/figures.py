@@ -10,7 +10,7 @@
   default; beside it the residuals per payload.
 
 matplotlib is imported inside each function and drawn through the Agg canvas directly (no
-pyplot, no global backend switch), as in :mod:`labcli.experiments.takuma2014.figures`.  The file format follows
+pyplot, no global backend switch), through :mod:`labcli.core.figures`.  The file format follows
 the extension: ``.png`` (200 dpi), ``.pdf`` or ``.svg``.
 """
 
@@ -20,9 +20,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ...core.figures import check_path, new_figure, save
 from ...errors import ConfigError
-# The rPAM figures share the output checks and the headless canvas of the McKibben ones.
-from ..takuma2014.figures import FORMATS, _check_path, _new_figure, _save
 
 _CMAP = "coolwarm"
 _FINE = 81  # model grid points per axis
@@ -59,7 +58,7 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
 
     from .models import rpam
 
-    out = _check_path(path)
+    out = check_path(path)
     if result.Pa_MPa.size < 3:
         raise ConfigError("Figure 8 needs a joint map of at least 3 points.")
     pa_lo, pa_hi = float(result.Pa_MPa.min()), float(result.Pa_MPa.max())
@@ -90,7 +89,7 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
 
     kpa = 1e3
 
-    fig = _new_figure(15.5, 5.4)
+    fig = new_figure(15.5, 5.4)
     axes = fig.subplots(1, 3, sharex=True, sharey=True)
     fig.subplots_adjust(left=0.05, right=0.9, bottom=0.12, top=0.8, wspace=0.08)
     titles = {
@@ -143,7 +142,7 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
     fig.suptitle(title or "Joint angle over actuator pressures: model without and with the stretch "
                  "correction against the measured map (Fig. 8)", fontsize=11)
     fig.subplots_adjust(bottom=0.16)
-    _save(fig, out)
+    save(fig, out)
     return out
 
 
@@ -156,7 +155,7 @@ def figure_stretch(fit: Any, path: str | Path, *, title: str | None = None) -> P
     """Draw the stretch test (Fig. 6) from a :class:`~labcli.experiments.rpam2015.models.rpam_fit.StretchFit`."""
     import numpy as np
 
-    out = _check_path(path)
+    out = check_path(path)
     m = fit.model
     p = fit.points
     lam = np.asarray(p["lambda"], dtype=float)
@@ -167,7 +166,7 @@ def figure_stretch(fit: Any, path: str | Path, *, title: str | None = None) -> P
     x = np.linspace(lo, hi, 300)
     band_lo, band_hi = m.band(x)
 
-    fig = _new_figure(12.5, 5.0)
+    fig = new_figure(12.5, 5.0)
     ax, ax2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.6, 1.0]})
     fig.subplots_adjust(left=0.07, right=0.98, bottom=0.12, top=0.84, wspace=0.25)
     ax.fill_between(x, band_lo, band_hi, color="tab:red", alpha=0.25, linewidth=0, label="95 % band of the fit")
@@ -203,5 +202,5 @@ def figure_stretch(fit: Any, path: str | Path, *, title: str | None = None) -> P
     ax2.set_title("(b) residuals of the fit by payload", fontsize=10)
     fig.suptitle(title or f"Stretch test: $L_0$ = {fit.L0_m * 1e3:.0f} mm, "
                  f"$\\lambda$ {lo:.2f}–{hi:.2f}", fontsize=11)
-    _save(fig, out)
+    save(fig, out)
     return out

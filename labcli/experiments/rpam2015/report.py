@@ -1,126 +1,27 @@
-"""``labcli fit`` and ``labcli validate`` on rPAM runs (the rPAM joint paper, Figs. 6 and 8).
+"""What the rPAM experiment prints: the stretch fit (Fig. 6, Eq. 7), the joint map against the
+model (Fig. 8), the link optimisation (Section IV) and the demo's summary.
 
-The commands dispatch on the run file's kind: a stretch-test run (``rpam-stretch``) is
-fitted here (the cubic ``F_stretch(lambda)`` of Eq. 7 with its uncertainty), a joint-map
-run (``rpam-joint``) is compared here with the model without and with that correction;
-every other run goes on to the McKibben path unchanged.
-
-Each function parses nothing and prints through ``rich``; it raises
-:class:`~labcli.errors.LabcliError` with one sentence for anything a person can fix.
+Each function prints one result of :mod:`.analyses` (or of the demo) with ``rich``; units
+on every number.
 """
 
 from __future__ import annotations
 
-import json
+import contextlib
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
-from ...errors import ConfigError, ModelError
-from .protocol import stored_protocol
-
-RUN_SUFFIXES = (".h5", ".hdf5")
-
-
-def rpam_run_kind(path: str | Path) -> str | None:
-    """``rpam-stretch`` / ``rpam-joint`` for an rPAM run file; None for anything else.
-
-    Unreadable or missing files give None too: the McKibben path reports them in its words.
-    """
-    from ...errors import LabcliError
-
-    p = Path(path)
-    if p.suffix.lower() not in RUN_SUFFIXES or not p.is_file():
-        return None
-    from ...core.store import RunFile
-
-    try:
-        with RunFile.open(p) as run:
-            kind = run.kind
-    except LabcliError:
-        return None
-    return kind if kind.startswith("rpam") else None
-
-
-def _read_run(path: Path, protocol: str | None,
-              overrides: tuple[str, ...] = ()) -> tuple[str, Any, dict[str, Any], str, str]:
-    """(kind, point table, raw protocol TOML, protocol name, where) of an rPAM run.
-
-    ``overrides`` (``--set key=value``) change the run's stored protocol for this analysis only;
-    ``where`` names the protocol in messages, with the overrides when there are any.
-    """
-    from ...core.store import RunFile
-
-    with RunFile.open(path) as run:
-        kind = run.kind
-        name = str(run.attrs.get("protocol", ""))
-        text = run.protocol_text
-        table = run.table()
-    if protocol is not None and protocol != name:
-        raise ConfigError(f"{path} was recorded with protocol '{name}'; --protocol applies to "
-                          "trial CSV files only, so leave it out for a run file.")
-    raw = stored_protocol(text, path)
-    where = f"{path} (protocol)"
-    if overrides:
-        from .models import rpam
-
-        raw = rpam.apply_overrides(raw, overrides)
-        where += f" with --set {' '.join(overrides)}"
-    return kind, table, raw, name, where
-
-
-def _console() -> Any:
-    from rich.console import Console
-
-    con = Console(highlight=False, markup=False)
-    if not con.is_terminal:
-        con.width = max(con.width, 110)  # a pipe or a log file: never truncate numbers
-    return con
-
-
-# --------------------------------------------------------------------------- fit
-
-
-def fit_stretch_run(run: Path, *, output: Path | None = None, protocol: str | None = None,
-                    plot: Path | None = None, overrides: tuple[str, ...] = ()) -> tuple[Any, Path, str]:
-    """Fit the stretch correction to a stretch-test run; write and record the fit.
-
-    Returns ``(StretchFit, model path, model name in the run)``.
-    """
-    from ...commands.fit import _write_model, default_model_path
-    from .models.rpam_fit import analyse_stretch
-    from ...core.store import RunFile
-
-    kind, table, raw, name, where = _read_run(run, protocol, overrides)
-    if kind != "rpam-stretch":
-        raise ConfigError(
-            f"{run} is a joint-map run (kind {kind}); labcli fit fits the stretch correction to a stretch-test "
-            "run (labcli acquire --experiment stretch), and labcli validate compares a joint map with the model."
-        )
-    fit = analyse_stretch(table, (where, raw))
-    if plot is not None:
-        from .figures import figure_stretch
-
-        figure_stretch(fit, plot)
-    out = output or default_model_path(run)
-    text = fit.to_json()
-    model_name = f"{name or 'rpam'}-stretch"
-    with RunFile.open(run, "a") as rf:
-        restore = _write_model(out, text)
-        try:
-            rf.record_model(model_name, text)
-        except BaseException:
-            restore()
-            raise
-    return fit, out, model_name
+from ...core.report import cell, report_console
 
 
 def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Path | None) -> None:
+    """The fitted cubic with its uncertainty, beside the protocol's default."""
     from rich import box
     from rich.table import Table
 
     m = fit.model
-    con = _console()
+    con = report_console(110)
     table = Table(title="Eq. 7 stretch correction F_stretch = c0 + c1 lambda + c2 lambda^2 + c3 lambda^3 (N)",
                   title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("coefficient", "fitted (N)", "std. error (N)", "95% interval (N)", "protocol's default (N)"):
@@ -140,75 +41,16 @@ def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Pat
               f"with it: labcli validate JOINT.h5 --model {out}", soft_wrap=True)
 
 
-# --------------------------------------------------------------------------- validate
-
-
-def load_stretch_model(path: Path) -> Any:
-    """A stretch fit (``labcli fit`` on a stretch-test run) or a bare stretch correction, from JSON."""
-    from .models.rpam_fit import StretchCorrection, StretchFit
-
-    if not path.is_file():
-        raise ConfigError(f"Model file {path} does not exist; fit the stretch test first with "
-                          "labcli fit STRETCH.h5, which writes STRETCH.model.json.")
-    try:
-        text = path.read_text(encoding="utf-8")
-        d = json.loads(text)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        raise ConfigError(f"Model file {path} is not a JSON stretch fit; give the file labcli fit wrote "
-                          "for a stretch-test run.") from None
-    kind = d.get("kind") if isinstance(d, dict) else None
-    if kind == "rpam-stretch-fit":
-        return StretchFit.from_dict(d)
-    if kind == "rpam-stretch-correction":
-        return StretchCorrection.from_dict(d)
-    raise ConfigError(f"Model file {path} is not a stretch fit (kind {kind!r}); a joint map is compared with "
-                      "the stretch correction labcli fit writes for a stretch-test run.")
-
-
-def validate_joint_run(run: Path, *, model_path: Path | None = None, protocol: str | None = None,
-                       plot: Path | None = None, overrides: tuple[str, ...] = ()) -> Any:
-    """Compare a joint-map run with the model without and with the stretch correction (Fig. 8).
-
-    The correction is the fit in ``model_path`` or, without one, the protocol's own
-    ``[stretch_correction]``; a protocol whose correction is zero needs a fit.
-    """
-    from .models import rpam
-    from .models.rpam_fit import analyse_joint_map
-
-    kind, table, raw, _, where = _read_run(run, protocol, overrides)
-    if kind != "rpam-joint":
-        raise ConfigError(
-            f"{run} is a stretch-test run (kind {kind}); labcli validate compares a joint-map run with the model: "
-            f"fit this one with labcli fit {run} and pass the model it writes to labcli validate JOINT.h5 --model."
-        )
-    correction = None
-    if model_path is not None:
-        correction = load_stretch_model(model_path)
-    else:
-        act = rpam.actuator_from_protocol(raw, where)
-        if not any(act.stretch_coefficients_N):
-            raise ConfigError(
-                f"{run}'s protocol has no stretch correction (its coefficients are all 0 N), so the model with "
-                "and without it would agree; fit one to a stretch-test run with labcli fit STRETCH.h5 and pass "
-                "it with --model STRETCH.model.json."
-            )
-    result = analyse_joint_map(table, (where, raw), correction)
-    if plot is not None:
-        from .figures import figure8
-
-        figure8(result, plot)
-    return result
-
-
 _SOURCE = {"protocol": "the protocol's [stretch_correction] (no --model given)",
            "fit": "the stretch fit in {model}", "given": "the coefficients given"}
 
 
 def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path | None) -> None:
+    """The joint map against the model without and with the stretch correction."""
     from rich import box
     from rich.table import Table
 
-    con = _console()
+    con = report_console(110)
     table = Table(title=f"Joint map of {run.name} against the model (Fig. 8); errors are model - measured",
                   title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("F_stretch", "points compared", "toggles", "RMSE (deg)", "max |error| (deg)", "at Pa, Pb (kPa)",
@@ -239,63 +81,103 @@ def _f(v: Any, spec: str) -> str:
     return format(v, spec) if _finite(v) else "—"
 
 
-def check_force_only_options(**given: bool) -> None:
-    """Refuse options of the McKibben path given for an rPAM run (``name=was_given``)."""
-    for name, was_given in given.items():
-        if was_given:
-            raise ModelError(f"--{name} applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out.")
+# --------------------------------------------------------------------------- optimize
 
 
-# --------------------------------------------------------------------------- the commands' rPAM branch
+@contextlib.contextmanager
+def optimize_progress() -> Iterator[Any]:
+    """A live line on stderr while the optimiser runs (a terminal only); yields its callback."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    err = Console(stderr=True)
+    progress = Progress(
+        TextColumn("[bold]optimising[/bold] gen {task.completed:>3.0f}"),
+        BarColumn(bar_width=16),
+        TextColumn("{task.fields[best]}"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=True,
+        disable=not err.is_terminal,
+    )
+    task = progress.add_task("de", total=None, best="")
+
+    def report(generation: int, best: dict[str, float]) -> None:
+        alpha = best["alpha_deg"]
+        text = "no feasible design yet" if alpha != alpha else (
+            f"best alpha {alpha:5.2f} deg at L1 {best['L1_m']:.4f}, L2 {best['L2_m']:.4f}, "
+            f"L3 {best['L3_m']:.4f} m"
+        )
+        progress.update(task, completed=generation, total=best["maxiter"], best=text)
+
+    with progress:
+        yield report
 
 
-def _given(names: tuple[str, ...]) -> dict[str, bool]:
-    """Which of the McKibben-only options the person typed (not their defaults)."""
-    import click
-    from click.core import ParameterSource
-
-    ctx = click.get_current_context(silent=True)
-    if ctx is None:
-        return {}
-    return {n.replace("_", "-"): ctx.get_parameter_source(n) == ParameterSource.COMMANDLINE for n in names}
-
-
-def fit_command(run: Path, *, output: Path | None, protocol: str | None, plot: Path | None,
-                as_json: bool, overrides: tuple[str, ...] = ()) -> None:
-    """``labcli fit`` on an rPAM run: the stretch correction of a stretch-test run."""
-    import click
-
-    from ...errors import LabcliError
-
-    try:
-        check_force_only_options(**_given(("max_amplification",)))
-        fit, out, name = fit_stretch_run(run, output=output, protocol=protocol, plot=plot, overrides=overrides)
-    except LabcliError as e:
-        raise click.ClickException(str(e)) from None
-    if as_json:
-        click.echo(json.dumps({"model_path": str(out), "recorded_in_run": True, "model_name": name,
-                               "plot": str(plot) if plot else None, "fit": fit.to_dict()},
-                              indent=2, allow_nan=False))
-        return
-    print_stretch_fit(fit, out, run, name, plot)
+def print_optimum(d: dict[str, Any]) -> None:
+    """The optimum design (``OptimumResult.to_dict()``) and the constraints at their bounds."""
+    print(f"Optimum at Pa = {d['Pa_kPa']:g} kPa, Pb = {d['Pb_kPa']:g} kPa (seed {d['seed']}, "
+          f"{d['generations']} generations):")
+    print(f"  L1    = {d['L1_m']:.4f} m")
+    print(f"  L2    = {d['L2_m']:.4f} m")
+    print(f"  L3    = {d['L3_m']:.4f} m")
+    print(f"  alpha = {d['alpha_deg']:.2f} deg")
+    print(f"  L_a   = {d['L_a_m']:.4f} m, L_b = {d['L_b_m']:.4f} m")
+    print(f"  toggle angle atan(L2/L3) = {d['toggle_deg']:.2f} deg, "
+          f"{d['toggle_margin_deg']:.3g} deg beyond the optimum")
+    active = d["active_constraints"]
+    print("  active constraints: " + ("; ".join(active) if active else "none (interior optimum)"))
 
 
-def validate_command(run: Path, *, model_path: Path | None, protocol: str | None, plot: Path | None,
-                     as_json: bool, overrides: tuple[str, ...] = ()) -> None:
-    """``labcli validate`` on an rPAM run: the joint map against the model (Fig. 8)."""
-    import click
+# --------------------------------------------------------------------------- demo
 
-    from ...errors import LabcliError
 
-    try:
-        check_force_only_options(**_given(("mode",)))
-        result = validate_joint_run(run, model_path=model_path, protocol=protocol, plot=plot,
-                                    overrides=overrides)
-    except LabcliError as e:
-        raise click.ClickException(str(e)) from None
-    if as_json:
-        out = result.to_dict()
-        out.update(run=str(run), model=str(model_path) if model_path else None, plot=str(plot) if plot else None)
-        click.echo(json.dumps(out, indent=2, allow_nan=False))
-        return
-    print_joint_map(result, run, model_path, plot)
+def print_demo(res: Any) -> None:
+    """The demo's summary as tables (rich), units on every number."""
+    from rich import box
+    from rich.table import Table
+
+    con = report_console(100, markup=True)
+    s = res.stretch
+    con.print(f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
+              f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "
+              f"{res.timings_s['total']:.1f} s.", soft_wrap=True)
+
+    coef = Table(title=f"Eq. 7 stretch correction F_stretch(lambda) fitted on {s['n_points']} points "
+                       f"(lambda {s['lambda_range'][0]:.2f}-{s['lambda_range'][1]:.2f})",
+                 title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("coefficient", "fitted (N)", "std. error (N)", "rig's truth (N)", "fit - truth (s.e.)",
+                "protocol default (N)"):
+        coef.add_column(col, justify="left" if col == "coefficient" else "right")
+    for k in range(4):
+        coef.add_row(f"c{k}", f"{s['coefficients_N'][k]:+.3f}", f"{s['std_errors_N'][k]:.3f}",
+                     f"{s['true_N'][k]:+.3f}", f"{s['deviation_in_se'][k]:+.2f}",
+                     f"{s['protocol_default_N'][k]:+.3g}")
+    con.print(coef)
+    con.print(f"R^2 {s['r2']:.5f}, RMSE {s['rmse_N']:.3f} N; chi^2 of the truth against the fit's covariance "
+              f"{s['chi2_4dof']:.2f} (4 degrees of freedom; 18.5 is the 99.9 % limit).", soft_wrap=True)
+
+    jm = Table(title=f"Joint map against the model (Fig. 8), errors model - measured; toggle angle "
+                     f"{res.joint_map['toggle_deg']:.1f} deg",
+               title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("F_stretch", "points compared", "toggles", "RMSE (deg)", "max |error| (deg)",
+                "RMSE with toggles (deg)"):
+        jm.add_column(col, justify="left" if col == "F_stretch" else "right", no_wrap=col == "F_stretch")
+    for key, label in (("without", "none"), ("with_default", "protocol's"), ("with_fitted", "fitted")):
+        r = res.joint_map[key]
+        jm.add_row(label, str(r["n_compared"]), str(r["n_toggle"]), cell(r["rmse_deg"], ".2f"),
+                   cell(r["max_abs_error_deg"], ".2f"), cell(r["rmse_all_deg"], ".2f"))
+    con.print(jm)
+    con.print("Toggles: pressure pairs where the model has no balance below the toggle angle; they stay out "
+              "of the RMSE and count at the toggle angle in the last column.", soft_wrap=True)
+
+    o = res.optimum
+    con.print(f"Link optimisation (Section IV) at Pa = {o['Pa_kPa']:g} kPa, Pb = {o['Pb_kPa']:g} kPa with the "
+              f"fitted F_stretch: alpha = {o['alpha_deg']:.2f} deg at L1 = {o['L1_m']:.4f} m, "
+              f"L2 = {o['L2_m']:.4f} m, L3 = {o['L3_m']:.4f} m (toggle {o['toggle_deg']:.2f} deg; "
+              f"{'; '.join(o['active_constraints']) or 'no constraint at its bound'}).", soft_wrap=True)
+    for note in res.notes:
+        con.print(note, soft_wrap=True)
+    con.print("Files:", soft_wrap=True)
+    for path in res.files.values():
+        con.print(f"  {path}", soft_wrap=True, markup=False)

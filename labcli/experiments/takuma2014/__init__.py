@@ -50,10 +50,21 @@ class Takuma2014:
         return acquisition(protocol, options)
 
     def analysis(self, name: str) -> Analysis | None:
-        return None
+        if name not in ("fit", "validate", "classify"):
+            return None
+        from . import analyses  # numpy, pandas: only once an analysis runs
+
+        run, show = {
+            "fit": (analyses.fit, analyses.show_fit),
+            "validate": (analyses.validate, analyses.show_validation),
+            "classify": (analyses.classify, analyses.show_classification),
+        }[name]
+        return Analysis(run, show)
 
     def demo(self) -> Demo | None:
-        return None
+        from . import demo, report  # the whole toolkit: only once the demo runs
+
+        return Demo(demo.STAGES, demo.run_demo, report.print_demo)
 
 
 EXPERIMENT = Takuma2014()

@@ -19,12 +19,18 @@ and read its numbers without the command line.
 from __future__ import annotations
 
 import json
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from ...errors import StoreError
+from ...core.demo import Progress, Stages, acquire_unattended, check_outdir, simulated_port
+from ...core.modelfile import save_model
+from .figures import figure7, figure9
+from .models.classify import classify_file
+from .models.inputs import load_trial_source
+from .models.metrics import evaluate
+from .models.takuma import TakumaModel
+from .tables import load_pushes, write_push_csv, write_trial_csv
 
 FORCE_PROTOCOL = "takuma2014"
 PUSH_PROTOCOL = "takuma2014-stiffness"
@@ -64,43 +70,9 @@ class DemoResult:
         }
 
 
-Progress = Callable[[str, int, int], None]  # (stage, done, total)
-
-
-def check_outdir(outdir: Path, outputs: tuple[str, ...], force: bool, what: str = "demo") -> None:
-    """Refuse a file, or a directory holding earlier output, unless ``force``."""
-    if outdir.exists() and not outdir.is_dir():
-        raise StoreError(f"{outdir} is a file; give a directory for the {what}'s output.")
-    if not force:
-        taken = [name for name in outputs if (outdir / name).exists()]
-        if taken:
-            raise StoreError(f"{outdir} already holds {what} output ({', '.join(taken[:3])}"
-                             f"{', ...' if len(taken) > 3 else ''}); pass --force to overwrite it "
-                             "or choose another directory.")
-
-
-def acquire_unattended(path: Path, port: str, what: str, stage: str, progress: Progress | None,
-                       **options: Any) -> None:
-    """One unattended run on the simulated rig, overwriting ``path``; StoreError if it stops early."""
-    from ...core.acquisition import acquire
-    from ...core.ui import ProgressUI
-
-    outcome = acquire(path, port, unattended=True, force=True, ui=ProgressUI(stage, progress), **options)
-    if outcome.exit_code:
-        raise StoreError(f"The simulated {what} stopped early: {outcome.message}")
-
-
 def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
              progress: Progress | None = None) -> DemoResult:
     """Acquire, fit, validate, push and classify on the simulated rig; write everything to ``outdir``."""
-    from .figures import figure7, figure9
-    from .models.classify import classify_file
-    from .models.inputs import load_trial_source
-    from .models.metrics import evaluate
-    from .models.takuma import TakumaModel
-    from ...core.store import RunFile
-    from .tables import load_pushes, write_push_csv, write_trial_csv
-
     out = Path(outdir)
     check_outdir(out, OUTPUTS, force)
     out.mkdir(parents=True, exist_ok=True)
@@ -110,69 +82,50 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         "figure9": out / "fig9-stiffness.png", "trials_csv": out / "trials.csv",
         "pushes_csv": out / "pushes.csv", "summary": out / "summary.json",
     }
-    timings: dict[str, float] = {}
+    stages = Stages(STAGES, progress)
+    port = simulated_port(seed)
+    with stages.run(0, "acquire_force"):
+        acquire_unattended(files["force_run"], port, "force run", STAGES[0], progress, protocol=FORCE_PROTOCOL)
+    with stages.run(1, "fit"):
+        src = load_trial_source(files["force_run"])
+        model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name).fit(
+            src.table, source=str(files["force_run"]))
+        save_model(model.to_json(), files["model"], run=files["force_run"], name=model.protocol)
+    with stages.run(2, "validate"):
+        evaluation = evaluate(model, src.table, "pressure-only", source=str(files["force_run"]))
+        figure7(evaluation, files["figure7"])
+    with stages.run(3, "acquire_pushes"):
+        # The same seed is the same rig (its actuators' variation): the model fitted above
+        # describes this rig and no other.
+        acquire_unattended(files["push_run"], port, "push run", STAGES[3], progress, protocol=PUSH_PROTOCOL)
+    with stages.run(4, "classify"):
+        # Categories from the protocol's stiffness bands: the pushed objects are labelled in
+        # the run (their true class), and judging each against labels that include its own
+        # would be circular for the lone steel can.
+        report = classify_file(files["push_run"], model, method="bands")
+        figure9(report, files["figure9"])
+    with stages.run(5):
+        write_trial_csv(src.table, files["trials_csv"])
+        write_push_csv(load_pushes(files["push_run"]), files["pushes_csv"])
+    result = _result(out, seed, files, stages.done(), src, model, evaluation, report)
+    files["summary"].write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False), encoding="utf-8")
+    return result
 
-    def stage(name: str) -> None:
-        if progress is not None:
-            progress(name, 0, 0)
 
-    t0 = time.perf_counter()
-    stage(STAGES[0])
-    port = f"sim://?seed={seed}&clock=virtual"
-    acquire_unattended(files["force_run"], port, "force run", STAGES[0], progress, protocol=FORCE_PROTOCOL)
-    timings["acquire_force"] = time.perf_counter() - t0
-
-    t = time.perf_counter()
-    stage(STAGES[1])
-    src = load_trial_source(files["force_run"])
-    model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name).fit(
-        src.table, source=str(files["force_run"]))
-    text = model.to_json()
-    files["model"].write_text(text, encoding="utf-8")
-    with RunFile.open(files["force_run"], "a") as run:
-        run.record_model(model.protocol, text)
-    timings["fit"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    stage(STAGES[2])
-    evaluation = evaluate(model, src.table, "pressure-only", source=str(files["force_run"]))
-    figure7(evaluation, files["figure7"])
-    timings["validate"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    stage(STAGES[3])
-    # The same seed is the same rig (its actuators' variation): the model fitted above
-    # describes this rig and no other.
-    acquire_unattended(files["push_run"], port, "push run", STAGES[3], progress, protocol=PUSH_PROTOCOL)
-    timings["acquire_pushes"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    stage(STAGES[4])
-    # Categories from the protocol's stiffness bands: the pushed objects are labelled in
-    # the run (their true class), and judging each against labels that include its own
-    # would be circular for the lone steel can.
-    report = classify_file(files["push_run"], model, method="bands")
-    figure9(report, files["figure9"])
-    timings["classify"] = time.perf_counter() - t
-
-    stage(STAGES[5])
-    write_trial_csv(src.table, files["trials_csv"])
-    write_push_csv(load_pushes(files["push_run"]), files["pushes_csv"])
-    timings["total"] = time.perf_counter() - t0
-
+def _result(out: Path, seed: int, files: dict[str, Path], timings: dict[str, float], src: Any, model: Any,
+            evaluation: dict[str, Any], report: Any) -> DemoResult:
+    """The demo's numbers as plain data: coefficients against the paper's, accuracy, objects."""
     paper = dict(src.protocol.settings.paper_coefficients or {})
     coefficients = [
         {"name": name, "value": float(value), "standard_error": float(model.standard_errors[name]),
          "paper": paper.get(name)}
         for name, value in model.coefficients.items()
     ]
-    accuracy = {}
-    for q, m in evaluation["metrics"].items():
-        accuracy[q] = {k: v for k, v in m.items()
-                       if k in ("n", "rmse", "mae", "max_abs", "bias", "r2", "unit", "n_flagged", "pct_range")}
+    keep = ("n", "rmse", "mae", "max_abs", "bias", "r2", "unit", "n_flagged", "pct_range")
+    accuracy = {q: {k: v for k, v in m.items() if k in keep} for q, m in evaluation["metrics"].items()}
     rep = report.to_dict()
     sets = src.table["set"].value_counts().to_dict()
-    result = DemoResult(
+    return DemoResult(
         outdir=out, seed=seed, files=files, timings_s=timings,
         trials={"fit": int(sets.get("fit", 0)), "validation": int(sets.get("validation", 0)),
                 "pushes": len(rep["pushes"]), "pushes_flagged": sum(p["flagged"] for p in rep["pushes"])},
@@ -180,5 +133,3 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         classify_method=rep["method"],
         notes=["Coefficients use the plus-sign reading: the paper's beta_theta2_R2 = -2.972 appears as +2.972."],
     )
-    files["summary"].write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False), encoding="utf-8")
-    return result

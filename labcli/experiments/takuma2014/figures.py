@@ -1,8 +1,8 @@
-"""The papers' figures, drawn from labcli results (one section per figure).
+"""The paper's figures, drawn from labcli results (one section per figure): Figure 7, the
+accuracy of the contact information, and Figure 9, the stiffness of the pushed objects.
 
-matplotlib is imported inside each function and drawn through the Agg canvas directly (no
-pyplot, no global backend switch), so importing this module is cheap and works headless.
-The file format follows the extension: ``.png`` (200 dpi), ``.pdf`` or ``.svg``.
+Drawn headless through :mod:`labcli.core.figures`; the file format follows the extension:
+``.png`` (200 dpi), ``.pdf`` or ``.svg``.
 """
 
 from __future__ import annotations
@@ -11,41 +11,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ...errors import ConfigError
-
-FORMATS = (".png", ".pdf", ".svg")
-
-
-def _check_path(path: str | Path, option: str = "The plot file") -> Path:
-    p = Path(path)
-    if p.suffix.lower() not in FORMATS:
-        raise ConfigError(f"{option} {p} must end in .png, .pdf or .svg.")
-    if not p.parent.exists():
-        raise ConfigError(f"Cannot write {p}: the directory {p.parent} does not exist.")
-    return p
-
-
-def _new_figure(width_in: float, height_in: float) -> Any:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width_in, height_in))
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig: Any, path: Path) -> None:
-    try:
-        fig.savefig(path, dpi=200 if path.suffix.lower() == ".png" else None)
-    except OSError as e:
-        raise ConfigError(f"Cannot write {path}: {e.strerror or e}.") from None
-
-
-def _fmt(x: Any, digits: int = 3) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "—"
-    return f"{x:.{digits}g}"
-
+from ...core.figures import check_path, fmt, new_figure, save
 
 # --------------------------------------------------------------------------------------
 # Figure 7 (Takuma et al. 2014): accuracy of contact information on the validation trials.
@@ -70,8 +36,8 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
     """
     import numpy as np
 
-    p = _check_path(path)
-    fig = _new_figure(8.0, 8.4)
+    p = check_path(path)
+    fig = new_figure(8.0, 8.4)
     axes = fig.subplots(2, 2)
     mode = evaluation.get("mode", "pressure-only")
     how = ("forces from the calculated angles" if mode == "pressure-only"
@@ -104,9 +70,9 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
         ax.set_title(label, loc="left", fontsize=11)
         ax.grid(True, color="0.9", lw=0.6, zorder=0)
         m = evaluation["metrics"][q]
-        text = (f"RMSE {_fmt(m.get('rmse'))} {unit}\n"
-                f"max |err| {_fmt(m.get('max_abs'))} {unit}\n"
-                f"bias {_fmt(m.get('bias'), 2)} {unit}\n"
+        text = (f"RMSE {fmt(m.get('rmse'))} {unit}\n"
+                f"max |err| {fmt(m.get('max_abs'))} {unit}\n"
+                f"bias {fmt(m.get('bias'), 2)} {unit}\n"
                 f"$R^2$ {'—' if m.get('r2') is None else format(m['r2'], '.4f')}   n = {m.get('n', 0)}")
         if m.get("n_flagged"):
             text += f"\nflagged {m['n_flagged']}"
@@ -117,7 +83,7 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
     fig.suptitle(title or f"Accuracy of contact information (Figure 7): validation trials, {how}",
                  fontsize=11)
     fig.tight_layout()
-    _save(fig, p)
+    save(fig, p)
     return p
 
 
@@ -148,13 +114,13 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     import numpy as np
 
     res = getattr(result, "result", result)
-    p = _check_path(path)
+    p = check_path(path)
     pushes, objects, model = res.pushes, res.objects, res.model
     names = [str(o) for o in objects["object"]]
     order = _category_order(model)
     style = {c: (FIGURE9_COLOURS[i % len(FIGURE9_COLOURS)], FIGURE9_MARKERS[i % len(FIGURE9_MARKERS)])
              for i, c in enumerate(order)}
-    fig = _new_figure(max(6.5, 1.05 * len(names) + 2.5), 5.2)
+    fig = new_figure(max(6.5, 1.05 * len(names) + 2.5), 5.2)
     ax = fig.add_subplot(1, 1, 1)
     ax.set_yscale("log")
 
@@ -262,5 +228,5 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     fig.suptitle(title or f"Acquired stiffness of the sample objects (Figure 9): categories by {how}",
                  fontsize=11)
     fig.tight_layout()
-    _save(fig, p)
+    save(fig, p)
     return p

@@ -1,0 +1,51 @@
+"""What every paper's figures share: the output check, the headless canvas, the save.
+
+matplotlib is imported inside each function and drawn through the Agg canvas directly (no
+pyplot, no global backend switch), so importing a figures module is cheap and works
+headless.  The file format follows the extension: ``.png`` (200 dpi), ``.pdf`` or ``.svg``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError
+
+FORMATS = (".png", ".pdf", ".svg")
+
+
+def check_path(path: str | Path, option: str = "The plot file") -> Path:
+    """The figure's path, once it ends in a known format and its folder exists (ConfigError otherwise)."""
+    p = Path(path)
+    if p.suffix.lower() not in FORMATS:
+        raise ConfigError(f"{option} {p} must end in .png, .pdf or .svg.")
+    if not p.parent.exists():
+        raise ConfigError(f"Cannot write {p}: the directory {p.parent} does not exist.")
+    return p
+
+
+def new_figure(width_in: float, height_in: float) -> Any:
+    """A matplotlib Figure on the Agg canvas (no pyplot, no global state)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in))
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save(fig: Any, path: Path) -> None:
+    """Write the figure in the format of its extension (ConfigError naming the path if it cannot)."""
+    try:
+        fig.savefig(path, dpi=200 if path.suffix.lower() == ".png" else None)
+    except OSError as e:
+        raise ConfigError(f"Cannot write {path}: {e.strerror or e}.") from None
+
+
+def fmt(x: Any, digits: int = 3) -> str:
+    """A number for a figure's annotation, or a dash where there is none."""
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "—"
+    return f"{x:.{digits}g}"

@@ -1,0 +1,42 @@
+"""The one transaction that writes a fitted model: the model file, and its record in the run.
+
+``labcli fit RUN.h5`` writes ``RUN.model.json`` beside the run and records the same JSON in
+the run (``/models/<name>``).  Either both happen or neither: the run is opened for
+writing before the model file is touched (a run locked by a viewer, or read-only, leaves
+both files as they were), and a model file written for a run that then refuses the record
+is put back as it was.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .files import atomic_write, replace_restorably
+from .store import RunFile
+
+
+def default_model_path(run: str | Path) -> Path:
+    """``run.h5`` -> ``run.model.json`` beside it."""
+    run = Path(run)
+    return run.with_name(run.stem + ".model.json")
+
+
+def save_model(text: str, path: str | Path, *, run: str | Path | None = None, name: str = "") -> bool:
+    """Write the model JSON ``text`` to ``path`` and, given a run file, record it there as ``name``.
+
+    Returns True when the model was recorded in the run.  Raises
+    :class:`~labcli.errors.LabcliError` (one sentence) and leaves both files as they were
+    when either cannot take it.
+    """
+    data = text.encode("utf-8")
+    if run is None:
+        atomic_write(path, data, what="the model to ")
+        return False
+    with RunFile.open(run, "a") as rf:
+        restore = replace_restorably(path, data, what="the model to ")
+        try:
+            rf.record_model(name, text)
+        except BaseException:
+            restore()
+            raise
+    return True

@@ -1,0 +1,209 @@
+"""What the McKibben experiment prints: the fit (Eqs. 34-37), the validation (Figure 7), the
+classification (Figure 9) and the demo's summary, as tables with units on every number.
+
+Each function prints one result of :mod:`.analyses` (or of the demo); ``--json`` output is
+the result's own ``to_dict``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ...core.report import cell, report_console
+from .models.metrics import QUANTITIES
+from .models.takuma import FLAG_TEXT, SIGN_NOTE, TERMS
+
+
+def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str) -> None:
+    from rich import box
+    from rich.table import Table
+
+    con = report_console(110)
+    titles = {
+        "theta1": ("Eq. 34  sin(theta1)", "1, dimensionless", "sin(theta1)"),
+        "theta2": ("Eq. 35  sin(theta2)", "1, dimensionless", "sin(theta2)"),
+        "Fx": ("Eq. 36  Fx", "N m/MPa", "N"),
+        "Fy": ("Eq. 37  Fy", "N m/MPa", "N"),
+    }
+    for eq, names in TERMS.items():
+        title, unit, space = titles[eq]
+        st = model.fit_stats[eq]
+        table = Table(title=f"{title}   (coefficients in {unit})", title_justify="left", box=box.SIMPLE_HEAD)
+        table.add_column("coefficient")
+        table.add_column("value", justify="right")
+        table.add_column("std. error", justify="right")
+        table.add_column("95% interval", justify="right")
+        table.add_column("paper 3.3", justify="right")
+        for name in names:
+            lo, hi = model.ci95[name]
+            table.add_row(name, f"{model.coefficients[name]:.5g}", f"{model.standard_errors[name]:.3g}",
+                          f"[{lo:.5g}, {hi:.5g}]", cell(paper.get(name), ".6g"))
+        con.print(table)
+        if eq.startswith("theta"):
+            fit_line = (f"R^2 {cell(st['r2'], '.5f')} ({space}), {cell(st['r2_native'], '.5f')} (deg); "
+                        f"RMSE {cell(st['rmse'], '.3g')} ({space}) = {cell(st['rmse_native'], '.3g')} deg")
+        else:
+            fit_line = f"R^2 {cell(st['r2'], '.5f')}; RMSE {cell(st['rmse'], '.3g')} N"
+        cond = st["design_cond"]
+        warn = "  (ill-conditioned: coefficients poorly determined)" if st.get("ill_conditioned") else ""
+        con.print(f"  {fit_line}; condition number {cell(cond, '.3g')}{warn}; "
+                  f"{st['n']} trials ({st['dof']} degrees of freedom)", soft_wrap=True)
+        excluded = model.excluded_trials.get(eq, [])
+        if excluded:
+            con.print(f"  excluded {len(excluded)} trial(s):")
+            for item in excluded[:12]:
+                con.print(f"    trial {item['trial']}: {item['reason']}", soft_wrap=True)
+            if len(excluded) > 12:
+                con.print(f"    ... and {len(excluded) - 12} more (see the model file)")
+        con.print()
+    con.print(f"Sign: {SIGN_NOTE}.", soft_wrap=True)
+    con.print(f"Each force fit leaves out postures near the straight arm (theta2 = 0) where that "
+              f"component's amplification ||row of (J^-1)^T|| ||J|| exceeds {model.max_amplification:g}.",
+              soft_wrap=True)
+    con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
+
+
+def print_validation(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | None) -> None:
+    from rich import box
+    from rich.table import Table
+
+    con = report_console(110)
+    how = ("forces from the calculated angles" if ev["mode"] == "pressure-only"
+           else "forces from the measured angles")
+    table = Table(title=f"Validation of {model_path.name} on {run.name}: {ev['mode']} ({how})",
+                  title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("quantity", "n", "RMSE", "MAE", "max|err|", "bias", "R^2", "RMSE/range", "flagged"):
+        table.add_column(col, justify="left" if col == "quantity" else "right")
+    for q, (_, unit, _) in QUANTITIES.items():
+        m = ev["metrics"][q]
+        table.add_row(f"{q} [{unit}]", str(m["n"]), cell(m["rmse"], ".3g"), cell(m["mae"], ".3g"),
+                      cell(m["max_abs"], ".3g"), cell(m["bias"], "+.2g"), cell(m["r2"], ".4f"),
+                      cell(m["pct_range"], ".2f") + (" %" if m["pct_range"] is not None else ""),
+                      str(m["n_flagged"]))
+    con.print(table)
+    con.print("Errors are calculated - observed; RMSE/range is the RMSE as a share of the observed range.",
+              soft_wrap=True)
+    flagged = [(i, int(t), fl) for i, (t, fl) in enumerate(zip(ev["trial"], ev["flags"])) if fl]
+    if flagged:
+        con.print(f"{len(flagged)} trial(s) flagged; their values show as — and stay out of the metrics:",
+                  soft_wrap=True)
+        for i, t, fl in flagged:
+            missing = [q for q in QUANTITIES if not ev["ok"][q][i]]
+            reasons = "; ".join(FLAG_TEXT.get(f, f) for f in fl)
+            con.print(f"  trial {t}: {', '.join(missing)} = — ({reasons})", soft_wrap=True)
+    if plot is not None:
+        con.print(f"Figure 7 written to {plot}.")
+
+
+def print_classification(data: dict[str, Any], plot: Path | None) -> None:
+    from rich import box
+    from rich.table import Table
+
+    con = report_console(160)
+    angles = ("angles and force from the pressures" if data["angles"] == "pressure-only"
+              else "angles from the potentiometers, force from the pressures")
+    pushes = Table(title=f"Pushes of {Path(data['pushes_file']).name}: {angles} (* = phi solved)",
+                   title_justify="left", box=box.SIMPLE_HEAD)
+    cols = ("push", "object", "theta1 [deg]", "theta2 [deg]", "Fx [N]", "Fy [N]", "C [mm]", "phi [deg]",
+            "O2 [mm]", "delta_x [mm]", "k_o [N/m]", "")
+    for c in cols:
+        pushes.add_column(c, justify="left" if c in ("object", "") else "right")
+    for p in data["pushes"]:
+        phi = cell(p["phi_deg"], ".1f") + ("*" if p["phi_solved"] else "")
+        pushes.add_row(
+            str(p["push"]), p["object"], cell(p["theta1_deg"], ".3f"), cell(p["theta2_deg"], ".3f"),
+            cell(p["Fx_N"], ".3f"), cell(p["Fy_N"], ".3f"),
+            f"({cell(p['xc_mm'], '.1f')}, {cell(p['yc_mm'], '.1f')})", phi,
+            f"({cell(p['xo_mm'], '.1f')}, {cell(p['yo_mm'], '.1f')})",
+            cell(p["delta_x_mm"], ".3f"), cell(p["k_N_per_m"], ".0f"), "flagged" if p["flagged"] else "",
+        )
+    con.print(pushes)
+
+    method = {"bands": "stiffness bands of the protocol",
+              "reference": "nearest reference class in ln k"}[data["method"]]
+    objects = Table(title=f"Objects: category by {method}", title_justify="left", box=box.SIMPLE_HEAD)
+    has_true = any("true_k_N_per_m" in o for o in data["objects"])
+    ocols = ["object", "role", "n", "flagged", "mean k_o [N/m]", "sd [N/m]", "sd [%]"]
+    ocols += ["true k_o [N/m]"] if has_true else []
+    ocols += ["category", "confidence", "method"]
+    for c in ocols:
+        objects.add_column(c, justify="left" if c in ("object", "role", "category", "method") else "right")
+    for o in data["objects"]:
+        mean, sd = o["k_mean_N_per_m"], o["k_sd_N_per_m"]
+        rel = 100 * sd / mean if mean and sd is not None else None
+        role = f"reference ({o['category_given']})" if o["role"] == "reference" else "unknown"
+        row = [o["object"], role, str(o["n"]), str(o["n_flagged"]), cell(mean, ".0f"), cell(sd, ".0f"),
+               cell(rel, ".1f")]
+        row += [cell(o.get("true_k_N_per_m"), ".0f")] if has_true else []
+        conf = o["confidence"]
+        row += [o["category"] or "—", cell(None if conf is None else 100 * conf, ".0f") + (" %" if conf is not None else ""),
+                o["method"]]
+        objects.add_row(*row)
+    con.print(objects)
+    for o in data["objects"]:
+        if o["note"]:
+            con.print(f"  {o['object']}: {o['note']}", soft_wrap=True)
+    flagged = [p for p in data["pushes"] if p["flagged"]]
+    if flagged:
+        con.print(f"{len(flagged)} push(es) flagged and kept out of the statistics:", soft_wrap=True)
+        for p in flagged:
+            con.print(f"  push {p['push']} ({p['object']}): {p['reason']}", soft_wrap=True)
+    notes = sorted({p["note"] for p in data["pushes"] if p["note"] and not p["flagged"]})
+    for note in notes:
+        n = sum(1 for p in data["pushes"] if p["note"] == note and not p["flagged"])
+        con.print(f"{n} push(es): {note}.", soft_wrap=True)
+    if plot is not None:
+        con.print(f"Figure 9 written to {plot}.")
+
+
+def print_demo(res: Any) -> None:
+    """The demo's summary as tables (rich), units on every number."""
+    from rich import box
+    from rich.table import Table
+
+    con = report_console(100, markup=True)
+    tr = res.trials
+    con.print(f"[bold]labcli demo[/bold] on the simulated rig (seed {res.seed}): "
+              f"{tr['fit'] + tr['validation']} force trials ({tr['fit']} fit, {tr['validation']} validation), "
+              f"{tr['pushes']} pushes, {res.timings_s['total']:.1f} s.", soft_wrap=True)
+
+    coef = Table(title="Eqs. 34-37 fitted vs paper (3.3)",
+                 title_justify="left", box=box.SIMPLE_HEAD)
+    for col, just in (("coefficient", "left"), ("fitted", "right"), ("std. error", "right"), ("paper", "right")):
+        coef.add_column(col, justify=just)
+    for c in res.coefficients:
+        coef.add_row(c["name"], f"{c['value']:.4g}", f"{c['standard_error']:.2g}", cell(c["paper"], ".4g"))
+    con.print(coef)
+    con.print("Units: MPa, N, m, rad. " + " ".join(res.notes) + " The simulated rig's actuators "
+              "differ from the paper's, so its coefficients differ too; the accuracy is what carries over.",
+              soft_wrap=True)
+
+    acc = Table(title="Accuracy on the validation trials, pressure-only (Figure 7)",
+                title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("quantity", "n", "RMSE", "max |error|", "R^2", "RMSE / range", "flagged"):
+        acc.add_column(col, justify="left" if col == "quantity" else "right")
+    for q, m in res.accuracy.items():
+        unit = m["unit"]
+        acc.add_row(f"{q} ({unit})", str(m["n"]), cell(m["rmse"], ".3g"), cell(m["max_abs"], ".3g"),
+                    cell(m["r2"], ".4f"), cell(m["pct_range"], ".2f") + " %", str(m["n_flagged"]))
+    con.print(acc)
+
+    obj = Table(title=f"Object stiffness (Section 4, Figure 9); categories by the {res.classify_method} method, "
+                      "true values from the simulated objects",
+                title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("object", "pushes used", "k mean [N/m]", "k sd [N/m]", "true k [N/m]", "category",
+                "confidence", "true category"):
+        obj.add_column(col, justify="left" if col in ("object", "category", "true category") else "right",
+                       no_wrap=col == "object")
+    for o in res.objects:
+        obj.add_row(o["object"], f"{o['n_used']}/{o['n']}", cell(o["k_mean_N_per_m"], ".0f"),
+                    cell(o["k_sd_N_per_m"], ".0f"), cell(o.get("true_k_N_per_m"), ".0f"), o["category"],
+                    cell(o["confidence"], ".2f"), o["category_given"] or "—")
+    con.print(obj)
+    if res.classify_method == "bands":
+        con.print("Stiffness bands come from the push protocol (protocols/takuma2014-stiffness.toml).",
+                  soft_wrap=True)
+    con.print("Files:", soft_wrap=True)
+    for path in res.files.values():
+        con.print(f"  {path}", soft_wrap=True, markup=False)
