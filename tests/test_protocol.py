@@ -20,7 +20,7 @@ from labcli.experiments.takuma2014.protocol import COEFFICIENT_NAMES, load_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOLS = ROOT / "protocols"
-DATA = ROOT / "labcli" / "data"
+SHIPPED = protocol_mod.SHIPPED_DIR  # the protocols as installed (labcli.protocols)
 FORCE_TEXT = (PROTOCOLS / "takuma2014.toml").read_text(encoding="utf-8")
 PUSH_TEXT = (PROTOCOLS / "takuma2014-stiffness.toml").read_text(encoding="utf-8")
 
@@ -66,16 +66,17 @@ def test_mckibben_protocols_by_name_and_by_path(name: str) -> None:
 
 
 @pytest.mark.parametrize("path", sorted(p for p in PROTOCOLS.iterdir() if p.suffix in (".toml", ".csv")), ids=str)
-def test_package_data_copies_are_identical(path: Path) -> None:
-    copy = DATA / path.name
-    assert copy.is_file(), f"copy {path} to {copy}"
-    assert copy.read_bytes() == path.read_bytes(), f"cp {path} {copy}"
+def test_installed_protocols_are_the_repository_files(path: Path) -> None:
+    installed = SHIPPED / path.name
+    assert installed.is_file(), f"{path} is not installed as package data of labcli.protocols"
+    assert installed.read_bytes() == path.read_bytes()
 
 
-def test_package_data_holds_nothing_unshipped() -> None:
-    assert sorted(p.name for p in DATA.iterdir() if p.is_file()) == sorted(
+def test_installed_protocols_hold_nothing_unshipped_and_git_holds_one_copy() -> None:
+    assert sorted(p.name for p in SHIPPED.iterdir() if p.suffix in (".toml", ".csv")) == sorted(
         p.name for p in PROTOCOLS.iterdir() if p.suffix in (".toml", ".csv")
     )
+    assert not (ROOT / "labcli" / "data").exists()
 
 
 def test_force_protocol_values_from_the_paper() -> None:
@@ -83,7 +84,7 @@ def test_force_protocol_values_from_the_paper() -> None:
     assert p.kind == "force"
     assert p.settings.rig == {"h1_m": 0.355, "h2_m": 0.130, "h3_m": 0.065, "r1_m": 0.075, "r2_m": 0.035}
     assert (p.settings.trials.fit, p.settings.trials.validation, p.settings.trials.total) == (90, 18, 108)
-    assert p.settings.trials.plan == DATA / "takuma2014-plan.csv"
+    assert p.settings.trials.plan == SHIPPED / "takuma2014-plan.csv"
     assert p.device.name == "mckibben-2dof"
     assert p.device.matches("mckibben-2dof") and p.device.matches("mckibben-2dof-sim")
     assert not p.device.matches("mckibben-2dof-v2") and not p.device.matches("rpam")

@@ -1,7 +1,7 @@
 """Protocol files: the rig, its channels, how a run is paced, what each experiment adds.
 
 A protocol is a TOML file; the shipped ones live in ``protocols/`` (installed as the
-package ``labcli.protocols``).  ``load_protocol("takuma2014")`` reads a shipped one by
+package ``labcli.protocols``, :data:`SHIPPED_DIR`).  ``load_protocol("takuma2014")`` reads a shipped one by
 name, ``load_protocol("my-rig.toml")`` reads a file as is.  This is the one loader: every
 experiment reads its protocols through it.
 
@@ -22,6 +22,7 @@ and degrees stay as typed only where people enter them.
 from __future__ import annotations
 
 import copy
+import importlib.resources
 import math
 import re
 import sys
@@ -38,7 +39,20 @@ from ..errors import ConfigError
 from .calibration import UNIT_FACTORS, Calibration, Channel
 from .experiment import ChannelRoles, ProtocolKind
 
-DATA_DIR = Path(__file__).resolve().parents[1] / "data"
+
+
+def _shipped_dir() -> Path:
+    # The package labcli.protocols is the folder protocols/ at the top of the repository
+    # (pyproject.toml maps it), in an editable install and a built one alike.
+    try:
+        return Path(str(importlib.resources.files("labcli.protocols")))
+    except ModuleNotFoundError:
+        # labcli imported from a source checkout instead (``python -m pytest`` in the
+        # repository puts it first on the path): the same folder, beside the package.
+        return Path(__file__).resolve().parents[2] / "protocols"
+
+
+SHIPPED_DIR = _shipped_dir()  # the shipped protocol files (names for load_protocol)
 
 # ---------------------------------------------------------------------------
 # Schema, as plain data.
@@ -213,7 +227,7 @@ class ProtocolFileError(ConfigError):
 
 def shipped_protocols() -> tuple[str, ...]:
     """Names accepted by :func:`load_protocol` without a path."""
-    return tuple(sorted(p.stem for p in DATA_DIR.glob("*.toml")))
+    return tuple(sorted(p.stem for p in SHIPPED_DIR.glob("*.toml")))
 
 
 def _looks_like_name(arg: str) -> bool:
@@ -228,7 +242,7 @@ def load_protocol(path_or_name: str | Path, *, kinds: tuple[str, ...] | None = N
     """
     arg = str(path_or_name)
     if isinstance(path_or_name, str) and _looks_like_name(arg):
-        path = DATA_DIR / f"{arg}.toml"
+        path = SHIPPED_DIR / f"{arg}.toml"
         if not path.is_file():
             raise ProtocolFileError(
                 f"There is no shipped protocol named '{arg}'; shipped protocols are "
@@ -238,7 +252,7 @@ def load_protocol(path_or_name: str | Path, *, kinds: tuple[str, ...] | None = N
         path = Path(path_or_name)
         if not path.is_file():
             hint = ""
-            if (DATA_DIR / path.name).is_file() and path.suffix == ".toml":
+            if (SHIPPED_DIR / path.name).is_file() and path.suffix == ".toml":
                 hint = f" (the shipped protocol of that name is loaded with the bare name {path.stem})"
             raise ProtocolFileError(f"Protocol file {arg} does not exist; check the path{hint}.", "missing", arg)
     try:

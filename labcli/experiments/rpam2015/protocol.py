@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ...core.experiment import ProtocolKind
-from ...core.protocol import DATA_DIR, OPEN, ProtocolFileError, load_protocol, loads_protocol, shipped_protocols
+from ...core.protocol import SHIPPED_DIR, OPEN, ProtocolFileError, load_protocol, loads_protocol, shipped_protocols
 from ...errors import ConfigError
 
 EXPERIMENTS: dict[str, str] = {"stretch": "rpam-stretch", "joint": "rpam-joint"}
@@ -49,7 +49,7 @@ def resolve_protocol_path(path_or_name: str | Path) -> Path:
         if not p.is_file():
             raise ConfigError(f"Protocol file {p} does not exist; give a .toml path or a shipped name like rpam2015.")
         return p
-    shipped = DATA_DIR / f"{p.name}.toml"
+    shipped = SHIPPED_DIR / f"{p.name}.toml"
     if shipped.is_file():
         return shipped
     raise ConfigError(f"No protocol named '{path_or_name}'; give a .toml path or a shipped name "
@@ -59,7 +59,7 @@ def resolve_protocol_path(path_or_name: str | Path) -> Path:
 def where(path: str | Path) -> str:
     """How an error names a protocol: ``protocol rpam2015`` for a shipped one, else its path."""
     p = Path(path)
-    return f"protocol {p.stem}" if p.parent == DATA_DIR else str(p)
+    return f"protocol {p.stem}" if p.parent == SHIPPED_DIR else str(p)
 
 
 def read_rpam_protocol(path_or_name: str | Path) -> tuple[Path, dict[str, Any]]:
