@@ -18,6 +18,7 @@ __all__ = ["__version__", "load_trials", "load_pushes"]
 
 def load_trials(path):
     """Return the trial table of a run file (``.h5``) or a trial CSV as a DataFrame."""
+    # Here, not at the top: ``import labcli`` (and ``labcli --help``) load no h5py or pandas.
     from .core.registry import record_type
     from .core.store import load_table
 
@@ -26,7 +27,7 @@ def load_trials(path):
 
 def load_pushes(path):
     """Return the push table of a run file (``.h5``) or a push CSV as a DataFrame."""
-    from .core.registry import record_type
+    from .core.registry import record_type  # h5py, pandas: only here (see load_trials)
     from .core.store import load_table
 
     return load_table(path, record_type("push"))

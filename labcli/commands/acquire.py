@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import signal
+
 import click
+
+from ..errors import LabcliError
 
 DEFAULT_PROTOCOL = "takuma2014"  # a new run without --protocol
 
@@ -39,10 +43,7 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
         labcli acquire stretch.h5 --protocol rpam2015 --experiment stretch \
             --port 'sim://?mode=rpam&clock=virtual' --unattended
     """
-    import signal
-
-    from ..core.acquisition import acquire as run_acquisition
-    from ..errors import LabcliError
+    from ..core.acquisition import acquire as run_acquisition  # heavy: when the command runs, not for --help
 
     try:
         outcome = run_acquisition(

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ..core.registry import for_analysis
+from ..core.dispatch import for_analysis
 from ..errors import LabcliError
 
 DEFAULT_PROTOCOL = "takuma2014-stiffness"  # what a push CSV is read with when --protocol is not given

@@ -32,7 +32,7 @@ def export(run: str, output: str) -> None:
         labcli export run.h5 -o trials.csv
         labcli export stretch.h5 -o stretch.csv
     """
-    from ..core.store import RunFile
+    from ..core.store import RunFile  # heavy: when the command runs, not for --help
 
     try:
         with RunFile.open(run) as rf:

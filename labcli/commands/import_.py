@@ -32,7 +32,7 @@ def import_(table: str, output: str, protocol_name: str, experiment: str | None,
         labcli import trials.csv -o run.h5 --protocol takuma2014
         labcli import stretch.csv -o stretch.h5 --protocol rpam2015 --experiment stretch
     """
-    from ..core.store import import_csv
+    from ..core.store import import_csv  # heavy: when the command runs, not for --help
 
     try:
         imported = import_csv(table, output, protocol=protocol_name, experiment=experiment, operator=operator,

@@ -25,7 +25,7 @@ def inspect(run: str, as_json: bool) -> None:
         labcli inspect run.h5
         labcli inspect run.h5 --json | jq .baseline_drift
     """
-    from ..core.store import RunFile
+    from ..core.store import RunFile  # heavy: when the command runs, not for --help
 
     try:
         with RunFile.open(run) as rf:

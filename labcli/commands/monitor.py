@@ -76,7 +76,7 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
         labcli monitor --port sim:// --seconds 5
         labcli monitor --port /dev/ttyUSB0 --rate 200 --seconds 10 --json
     """
-    from ..core.device import Device
+    from ..core.device import Device  # heavy: when the command runs, not for --help
     from ..core.monitoring import channel_scale, watch
     from ..core.protocol import load_protocol
 

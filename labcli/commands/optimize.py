@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..core.registry import for_analysis
+from ..core.dispatch import for_analysis
 from ..errors import LabcliError
 
 DEFAULT_PROTOCOL = "rpam2015"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+
 import click
 
 
@@ -33,9 +35,7 @@ def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float, fault
         labcli monitor --port /dev/pts/5     (in another terminal)
         labcli sim --pty --rate 1000 --faults checksum:0.01,garbage:0.005,stall:0.001@0.5
     """
-    import signal
-
-    from ..core.sim.faults import FaultSpec, FaultSpecError
+    from ..core.sim.faults import FaultSpec, FaultSpecError  # heavy: when the command runs, not for --help
 
     try:
         spec = FaultSpec.parse(faults)

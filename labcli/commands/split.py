@@ -27,7 +27,7 @@ def split(run: str, n_fit: int | None, n_validation: int | None, strategy: str, 
         labcli split run.h5 --fit 90 --validation 18
         labcli split run.h5 --fit 90 --validation 18 --strategy random --seed 7
     """
-    from ..core.store import RunFile
+    from ..core.store import RunFile  # heavy: when the command runs, not for --help
 
     if seed is not None and strategy != "random":
         raise click.UsageError("--seed applies only to --strategy random.")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ..core.registry import for_analysis
+from ..core.dispatch import for_analysis
 from ..errors import LabcliError
 from ._options import typed_options
 

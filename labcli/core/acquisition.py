@@ -23,6 +23,7 @@ from .experiment import AcquireOptions
 from .protocol import load_protocol, loads_protocol
 from .registry import record_type, run_protocol
 from .store import RESUME_OR_FORCE, RunFile
+from .ui import RichUI, UnattendedUI
 
 
 def resume_command(path: str, port: str, *, unattended: bool = False, rate_hz: float | None = None) -> str:
@@ -177,8 +178,6 @@ def _creator(path: str, acq: Any, info: Any, port: str, operator: str, force: bo
 
 def _engine(device: Any, store: Any, acq: Any, ui: Any, path: str, port: str, unattended: bool,
             rate_hz: float | None, silent_s: float) -> RunEngine:
-    from .ui import RichUI, UnattendedUI  # rich, only once a session runs
-
     return RunEngine(
         device, store, acq.protocol, ui or (UnattendedUI() if unattended else RichUI()), run_path=path,
         resume_command=resume_command(path, port, unattended=unattended, rate_hz=rate_hz),

@@ -180,12 +180,6 @@ class Calibration:
         hi = np.array([c.range[1] for c in self.channels])
         return (a >= lo) & (a <= hi)
 
-    @classmethod
-    def reference(cls) -> "Calibration":
-        """The reference rig's calibration, as shipped in ``takuma2014.toml``."""
-        from .protocol import load_protocol
-
-        return load_protocol("takuma2014").calibration
 
 
 def to_display(value_si: float | np.ndarray, quantity: str) -> float | np.ndarray:

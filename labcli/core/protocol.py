@@ -38,6 +38,7 @@ else:  # pragma: no cover - exercised on 3.10 only
 from ..errors import ConfigError
 from .calibration import UNIT_FACTORS, Calibration, Channel
 from .experiment import ChannelRoles, ProtocolKind
+from . import registry
 
 
 
@@ -127,9 +128,7 @@ def channel_spec(roles: ChannelRoles | None) -> dict[str, Any]:
 
 def kinds() -> dict[str, ProtocolKind]:
     """Every protocol kind the installed experiments read (through the registry)."""
-    from .registry import protocol_kinds
-
-    return protocol_kinds()
+    return registry.protocol_kinds()
 
 
 _TYPE_TEXT = {
@@ -281,9 +280,10 @@ def loads_protocol(text: str, *, source: str = "<protocol>", path: Path | None =
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ProtocolFileError(f"{source}: {_syntax_message(str(exc), text)}", "syntax", str(exc)) from None
-    if kinds is not None and data.get("kind") not in kinds:
-        raise ProtocolFileError(f"{source}: key 'kind' must be one of {', '.join(kinds)}, not {_show(data.get('kind'))}.",
-                                "kind", data.get("kind"))
+    found = data.get("kind")
+    if kinds is not None and found not in kinds:
+        raise ProtocolFileError(f"{source}: key 'kind' must be one of {', '.join(kinds)}, not {_show(found)}.",
+                                "kind", found)
     return _build(data, text, chk, path)
 
 

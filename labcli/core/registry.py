@@ -10,8 +10,9 @@ compares a kind with a paper's name.
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Any, Iterable
+from importlib.metadata import entry_points
+
+from typing import Any
 
 from ..errors import ConfigError, LabcliError
 from .experiment import Experiment, ProtocolKind, RecordType
@@ -40,8 +41,6 @@ def _discover() -> None:
     if _discovered:
         return
     _discovered = True
-    from importlib.metadata import entry_points
-
     found = {}
     for ep in entry_points(group=GROUP):
         found[ep.name] = ep.load()
@@ -168,43 +167,3 @@ def make_rig(mode: str, **options: Any) -> Any:
         if mode in e.sim_modes:
             return e.make_rig(mode, **options)
     raise ValueError(f"unknown simulated rig mode {mode!r}; known: {', '.join(sim_modes())}")
-
-
-# --------------------------------------------------------------------------- which experiment reads a file
-
-
-RUN_SUFFIXES = (".h5", ".hdf5")
-
-
-def run_kind_of(path: str | Path) -> str | None:
-    """The kind of a readable run file; None for a table, a missing or unreadable file."""
-    p = Path(path)
-    if p.suffix.lower() not in RUN_SUFFIXES or not p.is_file():
-        return None
-    from .store import RunFile
-
-    try:
-        with RunFile.open(p) as run:
-            return run.kind
-    except LabcliError:
-        return None
-
-
-def for_analysis(name: str, *, inputs: Iterable[str | Path] = (), default_protocol: str) -> Experiment:
-    """The experiment whose analysis ``name`` reads these inputs.
-
-    A run file's own experiment when it offers the analysis; anything else (a table, a
-    protocol file, a file that does not open) goes to the experiment that ships
-    ``default_protocol``, whose analysis then says in its own words what is wrong.
-    """
-    for path in inputs:
-        kind = run_kind_of(path)
-        if kind is None:
-            continue
-        try:
-            owner = for_run_kind(kind)
-        except LabcliError:
-            continue
-        if owner.analysis(name) is not None:
-            return owner
-    return for_shipped_protocol(default_protocol)

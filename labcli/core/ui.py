@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import sys
 from typing import IO, Any, Callable, Iterator
 
 from .steps import Ask, BeginTrial, Prompt
@@ -76,8 +77,6 @@ class RichUI:
 
     @property
     def _interactive(self) -> bool:
-        import sys
-
         stream = self._stdin or sys.stdin
         try:
             return bool(stream.isatty())

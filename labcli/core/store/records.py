@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any, Callable, Iterable, Mapping
 
 from ..experiment import Stored
+from ..report import records_line, settling_line, split_line
 from ..tables import TableSpec, read_table, write_table
 
 
@@ -62,8 +63,6 @@ class BaseRecordType:
         return {}
 
     def inspect_lines(self, summary: dict[str, Any]) -> list[str]:
-        from ..report import records_line, settling_line, split_line
-
         lines = [records_line(summary)]
         if self.splits:
             lines.append(split_line(summary))

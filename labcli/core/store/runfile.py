@@ -93,6 +93,7 @@ from ..registry import record_type
 from ..version import __version__
 from . import models as _models
 from . import split as _split
+from .summary import summarise
 from .h5 import (
     Window,
     calibration_arrays,
@@ -704,8 +705,6 @@ class RunFile:
     def summary(self) -> dict[str, Any]:
         """What ``labcli inspect`` shows: metadata, completeness, split, settling, and what the
         record type adds (baseline drift, an experiment's grid, ...)."""
-        from .summary import summarise
-
         return summarise(self)
 
     def complete_groups(self) -> tuple[list[int], list[h5py.Group]]:

@@ -3,7 +3,8 @@ artificial muscles; its stretch test, joint map and link optimisation.
 
 ``EXPERIMENT`` is what the core sees (:class:`labcli.core.experiment.Experiment`); it is
 registered through the entry-point group ``labcli.experiments``.  This module imports
-nothing heavy: the sessions, the model, the figures and the simulated rig load on first use.
+nothing heavy (the registry imports it to learn the kinds it owns), so each method imports
+what it needs when it is called: the sessions, the model, the figures and the simulated rig load on first use.
 """
 
 from __future__ import annotations

@@ -22,6 +22,7 @@ from typing import Any
 
 from ...core.figures import check_path, new_figure, save
 from ...errors import ConfigError
+from .models import rpam
 
 _CMAP = "coolwarm"
 _FINE = 81  # model grid points per axis
@@ -55,8 +56,6 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
     import numpy as np
     from matplotlib.colors import BoundaryNorm
     from matplotlib.tri import Triangulation
-
-    from .models import rpam
 
     out = check_path(path)
     if result.Pa_MPa.size < 3:

@@ -9,6 +9,8 @@ from ...core.experiment import AcquireOptions, Session
 from ...errors import ConfigError
 from .protocol import load_plan
 from .session import force_session, push_session
+from .sim.objects import demo_plan
+from .tables import load_plan as read_plan
 
 
 @dataclass
@@ -57,8 +59,6 @@ def _plan(protocol: Any, options: AcquireOptions) -> Any:
     if options.no_plan:
         return None
     if options.plan is not None:
-        from .tables import load_plan as read_plan  # pandas, only when a plan is read
-
         lim = protocol.settings.force_limits
         return read_plan(
             options.plan,
@@ -75,8 +75,6 @@ def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | Pu
         if options.unattended:
             # The simulated rig's reference objects (three PET bottles, two aluminium
             # cans, one steel can), labelled with their categories.
-            from .sim.objects import demo_plan
-
             push = protocol.settings.push
             objects = demo_plan(pushes_per_object=push.pushes_per_object if push else 10, labelled=True)
         return PushAcquisition(protocol, objects)

@@ -30,7 +30,8 @@ from .models.classify import classify_file
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate
 from .models.takuma import TakumaModel
-from .tables import load_pushes, write_push_csv, write_trial_csv
+from .records import load_pushes
+from .tables import write_push_csv, write_trial_csv
 
 FORCE_PROTOCOL = "takuma2014"
 PUSH_PROTOCOL = "takuma2014-stiffness"

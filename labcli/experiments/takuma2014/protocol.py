@@ -17,6 +17,7 @@ from typing import Any
 from ...core.experiment import ChannelRoles, ProtocolKind
 from ...core.protocol import OPEN, fmt_num, show_value
 from ...errors import ConfigError
+from .tables import load_plan as read_plan
 
 COEFFICIENT_NAMES: tuple[str, ...] = (
     "beta_theta1_L1", "beta_theta1_R1",
@@ -213,8 +214,6 @@ KINDS: dict[str, ProtocolKind] = {
 
 def load_plan(protocol: Any) -> Any:
     """The plan named by ``trials.plan`` as a DataFrame, checked against the protocol."""
-    from .tables import load_plan as read_plan  # pandas, only when a plan is read
-
     s = protocol.settings
     trials = s.trials if s is not None else None
     if trials is None or trials.plan is None:

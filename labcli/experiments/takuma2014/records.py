@@ -20,11 +20,13 @@ and grams rounded to 12 significant digits, so table -> run file -> table is exa
 from __future__ import annotations
 
 import math
+import os
 from typing import Any, Mapping
 
 from ...core.experiment import Dataset, Stored
 from ...core.report import records_line, settling_line, split_line
 from ...core.store.h5 import missing, nan_if_empty, plain, scalar, text, to_edge, vector
+from ...core.store import load_table
 from ...core.store.records import BaseRecordType
 from ...errors import ConfigError, StoreError
 from .tables import BASELINE, LOADED, PUSH, TRIAL
@@ -258,3 +260,13 @@ class PushRecords(_McKibbenRecords):
 
 
 RECORD_TYPES = {"force": TrialRecords(), "push": PushRecords()}
+
+
+def load_trials(path: str | os.PathLike) -> Any:
+    """The trial table (DataFrame) of a run file (``.h5``) or a trial CSV."""
+    return load_table(path, RECORD_TYPES["force"])
+
+
+def load_pushes(path: str | os.PathLike) -> Any:
+    """The push table (DataFrame) of a run file (``.h5``) or a push CSV."""
+    return load_table(path, RECORD_TYPES["push"])

@@ -123,20 +123,3 @@ def write_push_csv(df: "pd.DataFrame", path: str | os.PathLike, *,
 def write_plan_csv(df: "pd.DataFrame", path: str | os.PathLike) -> None:
     """Write a plan (``trial, set, mass_g, direction_deg``)."""
     write_table(df, path, PLAN)
-
-
-def load_trials(path: str | os.PathLike) -> "pd.DataFrame":
-    """The trial table of a run file (``.h5``) or a trial CSV."""
-    return _load(path, "force")
-
-
-def load_pushes(path: str | os.PathLike) -> "pd.DataFrame":
-    """The push table of a run file (``.h5``) or a push CSV."""
-    return _load(path, "push")
-
-
-def _load(path: str | os.PathLike, kind: str) -> "pd.DataFrame":
-    from ...core.store import load_table  # h5py, only once a table is read
-    from .records import RECORD_TYPES
-
-    return load_table(path, RECORD_TYPES[kind])

@@ -81,6 +81,7 @@ Stretch test (Fig. 5, 6)
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -88,6 +89,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
+from ....core.protocol import tomllib
 from ....errors import ConfigError, ModelError
 from ..protocol import where  # how a message names the protocol
 
@@ -492,8 +494,6 @@ def joint_map(
 
 
 def _parse_value(text: str) -> Any:
-    from ....core.protocol import tomllib
-
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
@@ -514,8 +514,6 @@ def apply_overrides(raw: dict[str, Any], assignments: Iterable[str]) -> dict[str
     Only existing keys can be set, and a number can only replace a number (a list a list of
     the same length), so a typo is reported instead of silently ignored.
     """
-    import copy
-
     out = copy.deepcopy(raw)
     for item in assignments:
         if "=" not in item:

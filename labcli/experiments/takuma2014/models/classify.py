@@ -26,13 +26,18 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from ....errors import ConfigError, ModelError
+from ....core.protocol import load_protocol, loads_protocol, shipped_protocols
+from ....core.store import RunFile
+from ..records import load_pushes
 from .categories import CategoryModel
 from .stiffness import PushEstimates, StiffnessParams, estimate_pushes, object_stats
+from .takuma import TakumaModel, cap
 
 P0_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
 THETA0_COLUMNS = ("theta10_deg", "theta20_deg")  # optional: absolute baseline posture
@@ -280,11 +285,6 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
     With ``measured_angles`` the potentiometer deflections a run file stores per
     push are added as ``theta1_deg, theta2_deg`` when the table lacks them.
     """
-    from pathlib import Path
-
-    from ....core.protocol import load_protocol, loads_protocol
-    from ..tables import load_pushes
-
     p = Path(path)
     if not p.exists():
         raise ConfigError(f"{p} does not exist; pass a push run file (.h5) or a push CSV.")
@@ -296,8 +296,6 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
                 f"such as {DEFAULT_PUSH_PROTOCOL}."
             )
         return PushSource(p, load_pushes(p), proto, False)
-
-    from ....core.store import RunFile
 
     with RunFile.open(p) as run:
         text = run.protocol_text
@@ -346,9 +344,6 @@ def stiffness_settings(protocol: Any) -> tuple[StiffnessParams, str | None]:
 def check_force_model(model: Any, protocol: Any, *, model_name: str, run_name: str,
                       force_protocol: str | None = None) -> None:
     """ModelError unless ``model`` was fitted on a force run of the rig these pushes were made on."""
-    from ....core.protocol import load_protocol, shipped_protocols
-    from .takuma import _cap as cap
-
     if force_protocol is not None and model.protocol != force_protocol:
         raise ModelError(
             f"{cap(model_name)} was fitted for protocol '{model.protocol}' but pushes of protocol "
@@ -424,10 +419,6 @@ def classify_file(
     ``pressure-only | measured-angles``.  Bands come from the protocol's
     ``[stiffness_bands_N_per_m]``, flag settings from its ``[stiffness]``.
     """
-    from pathlib import Path
-
-    from .takuma import TakumaModel
-
     if method not in ("auto", "reference", "bands"):
         raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
     src = load_push_source(pushes, protocol, measured_angles=angles == "measured-angles")

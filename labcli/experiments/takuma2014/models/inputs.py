@@ -10,7 +10,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ....core.protocol import load_protocol, loads_protocol
+from ....core.store import RunFile
 from ....errors import ConfigError
+from ..records import load_trials
 
 DEFAULT_PROTOCOL = "takuma2014"
 RUN_SUFFIXES = (".h5", ".hdf5")
@@ -29,21 +32,15 @@ class TrialSource:
 
 
 def _read_table(path: Path) -> Any:
-    from ..tables import load_trials
-
     return load_trials(path)
 
 
 def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSource:
     """Trials and protocol of a run file or a trial CSV (``protocol`` names one for a CSV)."""
-    from ....core.protocol import load_protocol, loads_protocol
-
     p = Path(path)
     if not p.exists():
         raise ConfigError(f"{p} does not exist; pass a run file (.h5) or a trial CSV.")
     if p.suffix.lower() in RUN_SUFFIXES:
-        from ....core.store import RunFile
-
         with RunFile.open(p) as run:
             text = run.protocol_text
             name = str(run.attrs.get("protocol", ""))

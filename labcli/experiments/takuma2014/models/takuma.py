@@ -40,10 +40,12 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Mapping, NoReturn, Sequence
 
 import numpy as np
 
+from ....core.version import __version__
 from ....errors import ModelError
 from .geometry import force_amplification, jacobian_cond, jstar
 
@@ -195,7 +197,7 @@ def select_set(table: Any, name: str, source: str = "the trial table") -> Any:
         rows = table.iloc[0:0]
     if len(rows) == 0:
         hint = ("assign trials with `labcli split` (or fill the `set` column)")
-        raise ModelError(f"{_cap(source)} has no {name} trials (no row with set = '{name}'); {hint}.")
+        raise ModelError(f"{cap(source)} has no {name} trials (no row with set = '{name}'); {hint}.")
     return rows
 
 
@@ -248,7 +250,7 @@ def _rmse(obs: np.ndarray, calc: np.ndarray) -> float:
     return float(np.sqrt(np.mean((obs - calc) ** 2)))
 
 
-def _cap(text: str) -> str:
+def cap(text: str) -> str:
     """Sentence case for a name that may open a message ("the model" -> "The model").
 
     Only a leading article is capitalised: a file name is shown exactly as typed
@@ -321,7 +323,6 @@ class TakumaModel:
         # scipy.special alone: scipy.stats would add a second to every `labcli fit` for one quantile.
         from scipy.special import stdtrit
 
-        from .... import __version__
 
         rows = select_set(table, "fit", source)
         a = _table_arrays(rows)
@@ -509,13 +510,13 @@ class TakumaModel:
                          model_name: str = "the model", run_name: str = "the run") -> None:
         """ModelError unless the run has this model's protocol name and rig geometry."""
         if protocol != self.protocol:
-            raise ModelError(f"{_cap(model_name)} was fitted for protocol '{self.protocol}' but {run_name} "
+            raise ModelError(f"{cap(model_name)} was fitted for protocol '{self.protocol}' but {run_name} "
                              f"uses protocol '{protocol}'; fit a model on a run of this protocol.")
         other = normalise_geometry(geometry)
         for key in GEOMETRY_KEYS:
             if key in self.geometry and key in other and not math.isclose(
                     self.geometry[key], other[key], rel_tol=1e-9, abs_tol=1e-12):
-                raise ModelError(f"{_cap(model_name)} was fitted for {key} = {self.geometry[key]:g} m but "
+                raise ModelError(f"{cap(model_name)} was fitted for {key} = {self.geometry[key]:g} m but "
                                  f"{run_name} has {key} = {other[key]:g} m; fit a model for this rig.")
 
     # ---------------------------------------------------------------- JSON
@@ -541,18 +542,18 @@ class TakumaModel:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "TakumaModel":
         if not isinstance(d, Mapping):
-            raise ModelError(f"{_cap(name)} is not a labcli Takuma model (it holds {_json_kind(d)}, not an "
+            raise ModelError(f"{cap(name)} is not a labcli Takuma model (it holds {_json_kind(d)}, not an "
                              f"object with schema {SCHEMA!r}); pass a file written by `labcli fit`.")
         if d.get("schema") != SCHEMA:
-            raise ModelError(f"{_cap(name)} is not a labcli Takuma model (schema {d.get('schema')!r}, "
+            raise ModelError(f"{cap(name)} is not a labcli Takuma model (schema {d.get('schema')!r}, "
                              f"expected {SCHEMA!r}); pass a file written by `labcli fit`.")
         if d.get("version") != SCHEMA_VERSION:
-            raise ModelError(f"{_cap(name)} has model version {d.get('version')!r}; this labcli reads "
+            raise ModelError(f"{cap(name)} has model version {d.get('version')!r}; this labcli reads "
                              f"version {SCHEMA_VERSION}.")
-        model = cls(**_model_fields(d, _cap(name)))
+        model = cls(**_model_fields(d, cap(name)))
         missing = [k for k in COEFFICIENT_NAMES if k not in model.coefficients]
         if missing:
-            raise ModelError(f"{_cap(name)} lacks the coefficient(s) {', '.join(missing)}; "
+            raise ModelError(f"{cap(name)} lacks the coefficient(s) {', '.join(missing)}; "
                              "refit with `labcli fit`.")
         return model
 
@@ -561,14 +562,12 @@ class TakumaModel:
         try:
             d = json.loads(text)
         except json.JSONDecodeError as e:
-            raise ModelError(f"{_cap(name)} is not valid JSON (line {e.lineno}, column {e.colno}: {e.msg}).") from None
+            raise ModelError(f"{cap(name)} is not valid JSON (line {e.lineno}, column {e.colno}: {e.msg}).") from None
         return cls.from_dict(d, name)
 
     @classmethod
     def load(cls, path: Any) -> "TakumaModel":
         """Read a model JSON file (ModelError if missing or not a model)."""
-        from pathlib import Path
-
         p = Path(path)
         try:
             text = p.read_text(encoding="utf-8")
@@ -584,8 +583,6 @@ class TakumaModel:
         return cls.from_json(text, name=f"The model file {p}")
 
     def save(self, path: Any) -> None:
-        from pathlib import Path
-
         Path(path).write_text(self.to_json(), encoding="utf-8")
 
 

@@ -33,6 +33,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Sequence
 
+from ..session import ObjectSpec, PlannedObject, PushSpec
+
 CATEGORY_OF_MATERIAL = {"PET": "soft", "aluminium": "medium", "steel": "hard"}
 
 
@@ -102,8 +104,6 @@ def demo_plan(
     ``phi_known=False`` leaves the direction out of the table (it is then
     solved); ``labelled`` writes each object's category (reference objects).
     """
-    from ..session import ObjectSpec, PlannedObject, PushSpec
-
     plan = []
     for obj in objects:
         pushes = tuple(

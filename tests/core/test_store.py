@@ -13,7 +13,7 @@ import pytest
 from labcli.errors import ConfigError, StoreError
 from labcli.core.store import SCHEMA_VERSION, RunFile, choose_split, import_table, to_edge
 
-from store_fixtures import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
+from support.records import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
 
 
 def new_run(path, **kw) -> RunFile:

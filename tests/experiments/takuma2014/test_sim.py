@@ -417,7 +417,7 @@ def test_protocol_over_pty():
 def test_sim_command_serves_a_pty_until_sigterm():
     proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "4"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+                            cwd=os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))))
     try:
         first = proc.stdout.readline()
         assert first.startswith("Simulated rig on /dev/") and first.endswith(" (Ctrl-C to stop)\n")

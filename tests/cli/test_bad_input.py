@@ -28,7 +28,7 @@ from typing import Callable
 import pytest
 
 SIM = "sim://?seed=1&clock=virtual"
-PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
+PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 TRIAL_HEADER = "trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N"
 PUSH_HEADER = "push,object,R_m,d_m,phi_deg,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,category"
 PUSH_ROW = "pet-1,0.033,0.01,,0.2,0.2,0.2,0.2,0.21,0.19,0.2,0.2,soft"
@@ -554,7 +554,7 @@ def test_a_failing_fit_leaves_an_existing_model_and_the_run_as_they_were(world: 
 # --------------------------------------------------------------------------- the table for the README
 
 
-TABLE_PATH = Path(__file__).with_name("bad_input_table.md")
+TABLE_PATH = Path(__file__).resolve().parents[1] / "bad_input_table.md"
 TABLE_HEADER = (
     "# Bad input: what labcli says\n\n"
     "Every case below runs the real `labcli` (`tests/test_bad_input.py`): a non-zero exit, no traceback, "

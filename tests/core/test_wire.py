@@ -22,7 +22,7 @@ from labcli.core.wire import (
     parse_line,
 )
 
-from firmware_fake import data_line, xor_checksum
+from support.firmware import data_line, xor_checksum
 
 u32 = st.integers(0, U32 - 1)
 counts = st.integers(-(10**15) + 1, 10**15 - 1)

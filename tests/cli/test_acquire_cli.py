@@ -19,7 +19,7 @@ from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.experiments.takuma2014.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
 from labcli.core.store import RunFile
-from labcli.experiments.takuma2014.tables import load_trials
+from labcli.experiments.takuma2014.records import load_trials
 from labcli.core.ui import UnattendedUI
 
 PROTOCOL = load_protocol("takuma2014")

@@ -17,12 +17,11 @@ from hypothesis import strategies as st
 from labcli.errors import ConfigError
 from labcli.core.store import runfile
 from labcli.core.tables import MAX_LISTED, TableError
+from labcli.experiments.takuma2014.records import load_pushes, load_trials
 from labcli.experiments.takuma2014.tables import (
     PUSH,
     TRIAL,
     load_plan,
-    load_pushes,
-    load_trials,
     read_push_csv,
     read_trial_csv,
     write_plan_csv,
@@ -230,7 +229,7 @@ def test_plan_errors_name_row_and_column(tmp_path: Path) -> None:
 
 
 def test_plan_round_trip(tmp_path: Path) -> None:
-    plan = load_plan(Path(__file__).resolve().parents[1] / "protocols" / "takuma2014-plan.csv")
+    plan = load_plan(Path(__file__).resolve().parents[2] / "protocols" / "takuma2014-plan.csv")
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
     write_plan_csv(plan, a)
     write_plan_csv(load_plan(a), b)

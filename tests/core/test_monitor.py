@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_fake import REFERENCE_CHANNELS, REFERENCE_COUNTS, FakeFirmware
+from support.firmware import REFERENCE_CHANNELS, REFERENCE_COUNTS, FakeFirmware
 from labcli.cli import cli
 from labcli.core.device import Device
 from labcli.core.monitoring import RunningStats, channel_scale, watch

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-from rpam_runs import PATH, RAW, joint_table, stretch_table
+from support.rpam_runs import PATH, RAW, joint_table, stretch_table
 from scipy import stats
 
 from labcli.errors import ConfigError, ModelError

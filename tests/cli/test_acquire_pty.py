@@ -26,9 +26,9 @@ from labcli.cli import cli
 from labcli.core.protocol import load_protocol
 from labcli.core.sim.pty import serve_pty
 from labcli.core.store import RunFile
-from labcli.experiments.takuma2014.tables import load_trials
+from labcli.experiments.takuma2014.records import load_trials
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n"
 REVIEW = "Accept [a], redo [r], skip [s] or quit [q]? (a):"
 

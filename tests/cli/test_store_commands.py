@@ -15,7 +15,7 @@ from labcli.cli import cli
 from labcli.core.protocol import load_protocol
 from labcli.core.store import RunFile
 
-from store_fixtures import FakeDevice, make_record
+from support.records import FakeDevice, make_record
 
 
 def invoke(*args):

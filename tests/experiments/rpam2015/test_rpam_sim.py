@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from rpam_runs import capture
+from support.rpam_runs import capture
 
 from labcli.core.device import Device
 from labcli.experiments.rpam2015.models import rpam

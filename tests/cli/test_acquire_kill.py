@@ -43,7 +43,7 @@ from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.core.store import RunFile
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SEED = 21
 PORT = f"sim://?seed={SEED}&clock=virtual"
 READY = "readings in range."  # printed once the setup check passed (just before the file is created)

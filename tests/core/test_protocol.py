@@ -18,7 +18,7 @@ from labcli.core.experiment import ProtocolKind
 from labcli.core.protocol import kinds, load_protocol, loads_protocol, shipped_protocols
 from labcli.experiments.takuma2014.protocol import COEFFICIENT_NAMES, load_plan
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PROTOCOLS = ROOT / "protocols"
 SHIPPED = protocol_mod.SHIPPED_DIR  # the protocols as installed (labcli.protocols)
 FORCE_TEXT = (PROTOCOLS / "takuma2014.toml").read_text(encoding="utf-8")

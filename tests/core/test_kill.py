@@ -21,10 +21,10 @@ import pytest
 from labcli.errors import StoreError
 from labcli.core.store import RunFile
 
-from store_fixtures import assert_record_stored, make_record
+from support.records import assert_record_stored, make_record
 
-WRITER = Path(__file__).with_name("store_fixtures.py")
-ROOT = Path(__file__).resolve().parent.parent
+WRITER = Path(__file__).resolve().parents[1] / "support" / "records.py"
+ROOT = Path(__file__).resolve().parents[2]
 N_TRIALS = 1_000_000  # never reached: the writer is always killed first
 
 

@@ -27,7 +27,7 @@ from labcli.experiments.rpam2015.sim.rig import RpamRig
 from labcli.core.store import RunFile
 from labcli.core.ui import UnattendedUI
 
-SHIPPED = Path(__file__).resolve().parent.parent / "protocols" / "rpam2015.toml"
+SHIPPED = Path(__file__).resolve().parents[3] / "protocols" / "rpam2015.toml"
 CHI2_999 = float(stats.chi2.ppf(0.999, 4))
 # Sensor noise per sample, rms (labcli.experiments.rpam2015.sim.rig): 0.7 count of 0.0733 mm, 0.7 count of 0.083 deg.
 LEN_NOISE_M = 0.7 * 0.300 / 4095

@@ -30,7 +30,7 @@ from labcli.core.tables import TableError
 from labcli.experiments.rpam2015.tables import read_point_csv
 from labcli.core.ui import UnattendedUI
 
-SHIPPED = Path(__file__).resolve().parent.parent / "protocols" / "rpam2015.toml"
+SHIPPED = Path(__file__).resolve().parents[3] / "protocols" / "rpam2015.toml"
 STRETCH_HEADER = "point,mass_g,P_A,P_B,L_m,lambda,set_mass_g,set_P_A_kPa,set_P_B_kPa"
 JOINT_HEADER = "point,P_A,P_B,alpha_deg,P_A0,P_B0,L_m,set_P_A_kPa,set_P_B_kPa"
 TABLE_HEAD = "has 1 problem (rows counted as a spreadsheet shows them, the header included):"

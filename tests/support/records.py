@@ -1,7 +1,7 @@
 """Deterministic records and a stand-in protocol for the run-file tests.
 
 Also the writer process of the kill tests:
-``python tests/store_fixtures.py RUN.h5 N_TRIALS N_SAMPLES`` writes trials
+``python tests/support/records.py RUN.h5 N_TRIALS N_SAMPLES`` writes trials
 0..N-1 of :func:`make_record`, resuming a file that exists, and prints
 "ready" once the file is open and "stored N" after each trial.
 """
@@ -114,7 +114,6 @@ def assert_record_stored(stored: dict, rec: dict) -> None:
 
 
 def writer(path: str, n_trials: int, n_samples: int) -> None:
-    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     from labcli.core.store import RunFile
 
     if os.path.exists(path):

@@ -14,7 +14,7 @@ from labcli.cli import cli
 from labcli.core.acquisition import acquire
 from labcli.core.ui import UnattendedUI
 
-SHIPPED = Path(__file__).resolve().parent.parent / "protocols" / "rpam2015.toml"
+SHIPPED = Path(__file__).resolve().parents[2] / "protocols" / "rpam2015.toml"
 PNG = b"\x89PNG\r\n\x1a\n"
 
 

@@ -1,0 +1,51 @@
+"""Which experiment's analysis reads a file the person named (a run file, a table, a protocol).
+
+A run file names its kind, and the kind its experiment (:mod:`labcli.core.registry`);
+anything else goes to the experiment that ships the command's default protocol, whose
+analysis then says in its own words what is wrong with it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable
+
+from ..errors import LabcliError
+from .experiment import Experiment
+from .registry import for_run_kind, for_shipped_protocol
+
+RUN_SUFFIXES = (".h5", ".hdf5")
+
+
+def run_kind_of(path: str | Path) -> str | None:
+    """The kind of a readable run file; None for a table, a missing or unreadable file."""
+    p = Path(path)
+    if p.suffix.lower() not in RUN_SUFFIXES or not p.is_file():
+        return None
+    from .store import RunFile  # h5py, only for a run file
+
+    try:
+        with RunFile.open(p) as run:
+            return run.kind
+    except LabcliError:
+        return None
+
+
+def for_analysis(name: str, *, inputs: Iterable[str | Path] = (), default_protocol: str) -> Experiment:
+    """The experiment whose analysis ``name`` reads these inputs.
+
+    A run file's own experiment when it offers the analysis; anything else (a table, a
+    protocol file, a file that does not open) goes to the experiment that ships
+    ``default_protocol``.
+    """
+    for path in inputs:
+        kind = run_kind_of(path)
+        if kind is None:
+            continue
+        try:
+            owner = for_run_kind(kind)
+        except LabcliError:
+            continue
+        if owner.analysis(name) is not None:
+            return owner
+    return for_shipped_protocol(default_protocol)

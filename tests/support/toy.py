@@ -1,0 +1,264 @@
+"""A third experiment, defined here and nowhere else: the proof that the core knows no paper.
+
+A 1-DoF rig with one pressure and one angle: a weight hung on its arm deflects the joint
+and raises the actuator's pressure, both linearly in the mass.  A run is two trials (the
+two masses of the protocol's ``[load]`` table), each with a baseline, the weight, the
+equilibrium and a capture.  Everything an experiment gives the core is here: the
+protocol kind, the record type (what a trial holds, its table, its ``labcli inspect``
+lines), the session, the simulated rig behind ``sim://?mode=toy`` and the registration.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from labcli.core.experiment import AcquireOptions, Analysis, ChannelRoles, Dataset, Demo, ProtocolKind, Stored
+from labcli.core.sim.clock import SimClock
+from labcli.core.steps import (
+    Baseline,
+    BeginTrial,
+    Capture,
+    Commit,
+    Finish,
+    Prompt,
+    Review,
+    SetupCheck,
+    WaitSettle,
+)
+from labcli.core.store.h5 import scalar, to_edge
+from labcli.core.store.records import BaseRecordType
+from labcli.core.tables import TableSpec
+
+KIND = "toy"
+MODE = "toy"
+G = 9.80665
+# The rig: 0.2 MPa at rest, +0.05 MPa and +10 deg per kg; a 12-bit ADC as the reference rig's.
+P_REST_MPA = 0.2
+P_PER_KG = 0.05
+ANGLE_PER_KG_RAD = math.radians(10.0)
+P_GAIN, P_ZERO = 1.0 / 4095.0, 0.0  # MPa per count: 0-1 MPa over the ADC
+A_GAIN, A_ZERO = math.radians(0.1), 2048.0  # rad per count, centred
+
+PROTOCOL_TEXT = f"""\
+name = "toy"
+kind = "{KIND}"
+title = "A 1-DoF toy rig"
+
+[device]
+name = "toy-rig"
+channels = ["P", "ANG"]
+adc_min_counts = 0
+adc_max_counts = 4095
+
+[acquisition]
+rate_hz = 100.0
+
+[channels.P]
+quantity = "pressure"
+actuator = "A"
+unit = "MPa"
+gain = {P_GAIN!r}
+zero_counts = {P_ZERO!r}
+range = [0.0, 1.0]
+
+[channels.ANG]
+quantity = "angle"
+joint = 1
+unit = "deg"
+gain = 0.1
+zero_counts = {A_ZERO!r}
+range = [-90.0, 90.0]
+
+[settling]
+window_s = 0.5
+hold_s = 0.5
+pressure_spread_MPa = 0.002
+angle_spread_deg = 0.3
+timeout_s = 10.0
+capture_s = 0.5
+
+[load]
+masses_g = [200.0, 500.0]
+"""
+
+
+def write_protocol(folder: Path) -> Path:
+    path = folder / "toy.toml"
+    path.write_text(PROTOCOL_TEXT, encoding="utf-8")
+    return path
+
+
+# --------------------------------------------------------------------------- the rig
+
+
+class ToyRig(SimClock):
+    """The simulated toy rig: what a weight does to the pressure and the angle, behind an ADC."""
+
+    channels = ("P", "ANG")
+    device = "toy-rig-sim"
+    firmware = "1.0"
+
+    def __init__(self, seed: int = 0, noise: float = 1.0) -> None:
+        self._t = 0.0
+        self._lock = threading.RLock()
+        self.mass_kg = 0.0
+        self.noise = noise
+        self._rng = np.random.default_rng(seed)
+
+    def hang(self, mass_kg: float) -> None:
+        self.mass_kg = float(mass_kg)
+
+    def samples(self, n: int, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+        with self._lock:
+            t = self._t + np.arange(1, n + 1) / float(rate_hz)
+            p = P_REST_MPA + P_PER_KG * self.mass_kg
+            a = ANGLE_PER_KG_RAD * self.mass_kg
+            ideal = np.array([p / P_GAIN + P_ZERO, a / A_GAIN + A_ZERO])
+            x = ideal + 0.3 * self.noise * self._rng.standard_normal((n, 2))
+            self._t = float(t[-1]) if n else self._t
+            return np.rint(t * 1e6).astype(np.int64), np.clip(np.rint(x), 0, 4095).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class Hang:
+    mass_kg: float
+
+    def act_on(self, rig: Any) -> None:
+        rig.hang(self.mass_kg)
+
+
+# --------------------------------------------------------------------------- records
+
+
+TOY_TABLE = TableSpec(
+    label="trial",
+    columns=(("trial", "id", "required"), ("mass_g", "positive", "required"),
+             ("P_MPa", "pressure", "required"), ("theta_deg", "float", "required")),
+    id_column="trial",
+)
+
+
+class ToyTrials(BaseRecordType):
+    kind = KIND
+    collection = "trials"
+    id_column = "trial"
+    noun = "trial"
+    plural = "trials"
+    table_spec = TOY_TABLE
+
+    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
+        return Stored({}, [Dataset("P", scalar(record, "P_MPa", label), "MPa"),
+                           Dataset("theta", scalar(record, "theta_rad", label), "rad"),
+                           Dataset("mass", scalar(record, "mass_kg", label), "kg")])
+
+    def read(self, g: Any) -> dict[str, Any]:
+        return {"trial": int(g.attrs["trial"]), "P_MPa": float(g["P"][()]), "theta_rad": float(g["theta"][()]),
+                "mass_kg": float(g["mass"][()])}
+
+    def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
+        import pandas as pd
+
+        return pd.DataFrame({
+            "trial": pd.Series(ids, dtype="int64"),
+            "mass_g": to_edge([float(g["mass"][()]) * 1e3 for g in groups]),
+            "P_MPa": [float(g["P"][()]) for g in groups],
+            "theta_deg": to_edge([math.degrees(float(g["theta"][()])) for g in groups]),
+        })
+
+    def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
+        return {"trial": int(row["trial"]), "P_MPa": row["P_MPa"], "theta_rad": math.radians(row["theta_deg"]),
+                "mass_kg": row["mass_g"] * 1e-3}
+
+
+# --------------------------------------------------------------------------- session
+
+
+def toy_session(protocol: Any, completed: Any = ()) -> Any:
+    capture_s = protocol.settling.capture_s
+    masses = [m * 1e-3 for m in protocol.settings["masses_g"]]
+    done = set(completed)
+    yield SetupCheck()
+    for trial, mass in enumerate(masses, start=1):
+        if trial in done:
+            continue
+        label = f"Toy trial {trial}/{len(masses)}"
+        yield BeginTrial(trial, "", len(done) + 1, len(masses), label)
+        settle_b = yield WaitSettle("baseline")
+        base = yield Baseline(capture_s)
+        yield Prompt(f"{label}: hang {mass * 1e3:g} g, then press Enter", Hang(mass))
+        settle_l = yield WaitSettle("load")
+        loaded = yield Capture(capture_s)
+        yield Prompt(f"{label}: take the weight off, then press Enter", Hang(0.0))
+        b, m = base.mean(), loaded.mean()
+        record = {"trial": trial, "P_MPa": float(m[0]), "theta_rad": float(m[1] - b[1]), "mass_kg": mass,
+                  "settle": {"baseline": settle_b.as_dict(), "load": settle_l.as_dict()},
+                  "raw": {"baseline": base.as_dict(), "load": loaded.as_dict()}}
+        yield Review({"trial": str(trial), "P (MPa)": f"{record['P_MPa']:.4f}"})
+        yield Commit(record)
+        done.add(trial)
+    yield Finish(None)
+
+
+@dataclass
+class ToyAcquisition:
+    protocol: Any
+    kind: str = KIND
+    plan: Any = None
+
+    def session(self, completed: Any) -> Any:
+        return toy_session(self.protocol, completed)
+
+    def already_done(self, run: Any, path: str) -> str | None:
+        return None
+
+
+# --------------------------------------------------------------------------- the experiment
+
+
+class ToyExperiment:
+    name = "toy"
+    title = "A 1-DoF toy rig"
+    paper = "none: defined in the tests"
+    protocol_kinds = {KIND: ProtocolKind(
+        name=KIND,
+        sections={"device": ("required", "device"), "acquisition": ("required", "acquisition"),
+                  "channels": ("required", "channel-map"), "settling": ("required", "settling"),
+                  "load": ("required", "toy-load")},
+        specs={"toy-load": {"masses_g": {"type": "pair", "unit": "g", "help": "the two trials' masses"}}},
+        channel_roles=ChannelRoles(actuators=("A",), joints=(1,)),
+        build=lambda checked, chk, path: dict(checked["load"]),
+    )}
+    shipped_protocols = ()
+    run_kinds = (KIND,)
+    sim_modes = (MODE,)
+    default_sim_mode = None
+    demo_protocol = None
+
+    def record_type(self, run_kind: str) -> ToyTrials:
+        return ToyTrials()
+
+    def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0,
+                 tau_s: float = 0.7) -> ToyRig:
+        return ToyRig(seed=seed, noise=noise)
+
+    def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
+                     run_path: str = "") -> Any:
+        return protocol
+
+    def import_protocol(self, protocol: Any, choice: str | None, name: str) -> Any:
+        return protocol
+
+    def acquisition(self, protocol: Any, options: AcquireOptions) -> ToyAcquisition:
+        return ToyAcquisition(protocol)
+
+    def analysis(self, name: str) -> Analysis | None:
+        return None
+
+    def demo(self) -> Demo | None:
+        return None
