@@ -1,0 +1,117 @@
+"""The layers, as the imports draw them: no cycle, the core knows no paper, no paper another.
+
+Every module of the package is read with ``ast`` (imports inside functions too, relative
+imports resolved) into a graph of labcli modules.  An import of ``pkg.name`` counts as an
+import of the module ``pkg.name`` when there is one, else of ``pkg``.
+
+==========================  ================================================================
+layer                       may import
+==========================  ================================================================
+labcli.errors               nothing from labcli
+labcli.core.*               labcli.errors, labcli.core.*
+labcli.experiments.<p>.*    labcli.errors, labcli.core.*, its own subpackage
+labcli.commands.*, cli      anything but a paper: papers only through the registry
+==========================  ================================================================
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import labcli
+
+PACKAGE = Path(labcli.__file__).resolve().parent
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+
+
+def imports_of(name: str) -> set[str]:
+    """The labcli modules ``name`` imports, anywhere in its body."""
+    path = MODULES[name]
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                origin = ".".join(base + ([node.module] if node.module else []))
+            else:
+                origin = node.module or ""
+            targets = [f"{origin}.{a.name}" if f"{origin}.{a.name}" in MODULES else origin for a in node.names]
+        else:
+            continue
+        found.update(t for t in targets if t == "labcli" or t.startswith("labcli."))
+    return found - {name}
+
+
+GRAPH = {name: imports_of(name) for name in MODULES}
+
+
+def paper_of(name: str) -> str | None:
+    parts = name.split(".")
+    return parts[2] if len(parts) > 2 and parts[1] == "experiments" else None
+
+
+def test_the_graph_sees_function_level_and_relative_imports():
+    # commands import the core inside their functions; the rPAM model names its protocol module relatively.
+    assert "labcli.core.acquisition" in GRAPH["labcli.commands.acquire"]
+    assert "labcli.experiments.rpam2015.protocol" in GRAPH["labcli.experiments.rpam2015.models.rpam"]
+    assert "labcli.experiments.takuma2014.analyses" in GRAPH["labcli.experiments.takuma2014"]
+
+
+def test_no_import_cycle():
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(node: str) -> None:
+        state[node] = 1
+        path.append(node)
+        for nxt in sorted(GRAPH.get(node, ())):
+            if state.get(nxt) == 1:
+                cycle = path[path.index(nxt):] + [nxt]
+                pytest.fail("import cycle: " + " -> ".join(cycle))
+            if nxt not in state:
+                visit(nxt)
+        path.pop()
+        state[node] = 2
+
+    for name in sorted(GRAPH):
+        if name not in state:
+            visit(name)
+
+
+def test_errors_import_nothing_from_labcli():
+    assert GRAPH["labcli.errors"] == set()
+
+
+@pytest.mark.parametrize("name", sorted(n for n in MODULES if n.startswith("labcli.core")))
+def test_core_imports_only_the_core_and_errors(name):
+    outside = {m for m in GRAPH[name] if not (m == "labcli.errors" or m.startswith("labcli.core"))}
+    assert not outside, f"{name} imports {sorted(outside)}"
+
+
+@pytest.mark.parametrize("name", sorted(n for n in MODULES if paper_of(n)))
+def test_a_paper_imports_the_core_errors_and_itself_only(name):
+    own = f"labcli.experiments.{paper_of(name)}"
+    outside = {m for m in GRAPH[name]
+               if not (m == "labcli.errors" or m.startswith("labcli.core") or m == own or m.startswith(own + "."))}
+    assert not outside, f"{name} imports {sorted(outside)}"
+
+
+@pytest.mark.parametrize("name", sorted(n for n in MODULES if n.startswith("labcli.commands") or n == "labcli.cli"
+                                        or n == "labcli"))
+def test_commands_reach_a_paper_only_through_the_registry(name):
+    papers = {m for m in GRAPH[name] if paper_of(m) or m == "labcli.experiments"}
+    assert not papers, f"{name} imports {sorted(papers)}"
