@@ -577,58 +577,7 @@ def _calibration(
             f"unknown key 'channels.{extra[0]}'; the keys allowed there are the names in device.channels "
             f"({', '.join(listed)})."
         )
-    lo_adc, hi_adc = device.adc_min_counts, device.adc_max_counts
-    out: list[Channel] = []
-    for name in listed:
-        c = chans[name]
-        q = c["quantity"]
-        key = f"channels.{name}"
-        if q == "pressure":
-            if "actuator" not in c:
-                chk.fail(f"missing key '{key}.actuator', expected {_describe(channel_spec(roles)['actuator'])}.")
-            if "joint" in c:
-                chk.fail(f"unknown key '{key}.joint' for a pressure channel; the keys allowed there are "
-                         "quantity, actuator, unit, gain, zero_counts, range.")
-        else:
-            if "joint" not in c:
-                chk.fail(f"missing key '{key}.joint', expected {_describe(channel_spec(roles)['joint'])}.")
-            if "actuator" in c:
-                chk.fail(f"unknown key '{key}.actuator' for an angle channel; the keys allowed there are "
-                         "quantity, joint, unit, gain, zero_counts, range.")
-        factors = UNIT_FACTORS[q]
-        if c["unit"] not in factors:
-            article = "an" if q[0] in "aeiou" else "a"
-            chk.fail(
-                f"key '{key}.unit' must be one of {', '.join(factors)} for {article} {q} channel, "
-                f"not {_show(c['unit'])}."
-            )
-        lo, hi = c["range"]
-        if q == "pressure" and lo < 0:
-            chk.fail(f"key '{key}.range' must start at 0 or above (gauge pressure), not {_show(c['range'])}.")
-        if not math.isfinite(hi):
-            chk.fail(f"key '{key}.range' must have a finite high end, not {_show(c['range'])}.")
-        # The sensor span must be representable: its ends, in counts, inside the ADC range.
-        ends = sorted((lo / c["gain"] + c["zero_counts"], hi / c["gain"] + c["zero_counts"]))
-        tol = 1e-6 * max(1.0, abs(hi_adc - lo_adc))
-        if ends[0] < lo_adc - tol or ends[1] > hi_adc + tol:
-            chk.fail(
-                f"key '{key}.gain' with zero_counts {_show(c['zero_counts'])} maps the range "
-                f"{_fmt_num(lo)} to {_fmt_num(hi)} {c['unit']} to counts {_fmt_num(ends[0])} to {_fmt_num(ends[1])}, "
-                f"outside the ADC range {_fmt_num(lo_adc)} to {_fmt_num(hi_adc)}; check gain, zero_counts and range."
-            )
-        f = factors[c["unit"]]
-        out.append(
-            Channel(
-                name=name,
-                quantity=q,
-                gain=c["gain"] * f,
-                zero_counts=c["zero_counts"],
-                range=(lo * f, hi * f),
-                unit_in_file=c["unit"],
-                actuator=c.get("actuator"),
-                joint=c.get("joint"),
-            )
-        )
+    out = [_channel(name, chans[name], device, roles, chk) for name in listed]
     for what, attr in (("actuator", "actuator"), ("joint", "joint")):
         seen: dict[Any, str] = {}
         for ch in out:
@@ -647,7 +596,58 @@ def _calibration(
     for j in roles.joints if roles is not None else ():
         if not any(ch.joint == j for ch in out):
             chk.fail(f"key 'channels' must give an angle channel for joint {j} (joint = {j}).")
-    return Calibration(tuple(out), (lo_adc, hi_adc))
+    return Calibration(tuple(out), (device.adc_min_counts, device.adc_max_counts))
+
+
+def _channel(name: str, c: dict[str, Any], device: DeviceSpec, roles: ChannelRoles | None, chk: Checker) -> Channel:
+    """One checked ``[channels.NAME]`` table: its role, unit, and a span the ADC can represent."""
+    q = c["quantity"]
+    key = f"channels.{name}"
+    if q == "pressure":
+        if "actuator" not in c:
+            chk.fail(f"missing key '{key}.actuator', expected {_describe(channel_spec(roles)['actuator'])}.")
+        if "joint" in c:
+            chk.fail(f"unknown key '{key}.joint' for a pressure channel; the keys allowed there are "
+                     "quantity, actuator, unit, gain, zero_counts, range.")
+    else:
+        if "joint" not in c:
+            chk.fail(f"missing key '{key}.joint', expected {_describe(channel_spec(roles)['joint'])}.")
+        if "actuator" in c:
+            chk.fail(f"unknown key '{key}.actuator' for an angle channel; the keys allowed there are "
+                     "quantity, joint, unit, gain, zero_counts, range.")
+    factors = UNIT_FACTORS[q]
+    if c["unit"] not in factors:
+        article = "an" if q[0] in "aeiou" else "a"
+        chk.fail(
+            f"key '{key}.unit' must be one of {', '.join(factors)} for {article} {q} channel, "
+            f"not {_show(c['unit'])}."
+        )
+    lo, hi = c["range"]
+    if q == "pressure" and lo < 0:
+        chk.fail(f"key '{key}.range' must start at 0 or above (gauge pressure), not {_show(c['range'])}.")
+    if not math.isfinite(hi):
+        chk.fail(f"key '{key}.range' must have a finite high end, not {_show(c['range'])}.")
+    # The sensor span must be representable: its ends, in counts, inside the ADC range.
+    lo_adc, hi_adc = device.adc_min_counts, device.adc_max_counts
+    ends = sorted((lo / c["gain"] + c["zero_counts"], hi / c["gain"] + c["zero_counts"]))
+    tol = 1e-6 * max(1.0, abs(hi_adc - lo_adc))
+    if ends[0] < lo_adc - tol or ends[1] > hi_adc + tol:
+        chk.fail(
+            f"key '{key}.gain' with zero_counts {_show(c['zero_counts'])} maps the range "
+            f"{_fmt_num(lo)} to {_fmt_num(hi)} {c['unit']} to counts {_fmt_num(ends[0])} to {_fmt_num(ends[1])}, "
+            f"outside the ADC range {_fmt_num(lo_adc)} to {_fmt_num(hi_adc)}; check gain, zero_counts and range."
+        )
+    f = factors[c["unit"]]
+    return Channel(
+        name=name,
+        quantity=q,
+        gain=c["gain"] * f,
+        zero_counts=c["zero_counts"],
+        range=(lo * f, hi * f),
+        unit_in_file=c["unit"],
+        actuator=c.get("actuator"),
+        joint=c.get("joint"),
+    )
 
 
 def _fmt_num(x: float) -> str:

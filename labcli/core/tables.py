@@ -177,6 +177,18 @@ def _records_from_text(text: str, label: str) -> list[list[str]]:
     return out
 
 
+class _Problems(list):
+    """Every problem of a table, as ``file:row N, column C: message.``, in the order found."""
+
+    def __init__(self, label: str) -> None:
+        super().__init__()
+        self.label = label
+
+    def add(self, row: int, col: str | None, msg: str) -> None:
+        where = f"{self.label}:row {row}" + (f", column {col}" if col is not None else "")
+        self.append(f"{where}: {msg}.")
+
+
 def _parse_records(
     records: list[list[str]],
     spec: TableSpec,
@@ -184,15 +196,18 @@ def _parse_records(
     span: tuple[float, float],
     extra_checks: Any = None,
 ) -> "pd.DataFrame":
-    import pandas as pd
+    problems = _Problems(label)
+    hrow, header, data = _header(records, spec, label)
+    keep, pairs = _check_header(header, data, spec, hrow, problems)
+    columns, n = _parse_rows(data, header, keep, pairs, spec, span, extra_checks, problems)
+    if problems:
+        raise table_error(label, list(problems))
+    return _frame(spec, header, keep, columns, n)
 
-    problems: list[str] = []
 
-    def bad(row: int, col: str | None, msg: str) -> None:
-        where = f"{label}:row {row}" + (f", column {col}" if col is not None else "")
-        problems.append(f"{where}: {msg}.")
-
-    # Header: the first non-blank record.
+def _header(records: list[list[str]], spec: TableSpec,
+            label: str) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
+    """The header (the first non-blank record), its row number, and the non-blank data rows numbered."""
     start = 0
     while start < len(records) and not any(c.strip() for c in records[start]):
         start += 1
@@ -201,94 +216,115 @@ def _parse_records(
             f"{label} has no header row; the first line must name the columns "
             f"({', '.join(c for c, _, p in spec.columns if p == 'required')})."
         )
-    hrow = start + 1
     header = [h.strip() for h in records[start]]
     data = [(i + 1, rec) for i, rec in enumerate(records) if i > start and any(c.strip() for c in rec)]
+    return start + 1, header, data
 
-    keep: list[int] = []  # header positions that carry a column
+
+def _check_header(header: list[str], data: list[tuple[int, list[str]]], spec: TableSpec, hrow: int,
+                  problems: _Problems) -> tuple[list[int], list[tuple[str, str]]]:
+    """The header positions that carry a column, and the column pairs present; problems noted."""
+    keep: list[int] = []
     seen: dict[str, int] = {}
     for j, name in enumerate(header):
         if name == "":
             # A trailing separator (common in spreadsheet exports) makes an unnamed,
             # empty column: harmless; an unnamed column with values is not.
             if any(j < len(rec) and rec[j].strip() for _, rec in data):
-                bad(hrow, f"{j + 1}", "has values but no name in the header")
+                problems.add(hrow, f"{j + 1}", "has values but no name in the header")
             continue
         if name in seen:
-            bad(hrow, name, f"appears twice in the header (columns {seen[name] + 1} and {j + 1})")
+            problems.add(hrow, name, f"appears twice in the header (columns {seen[name] + 1} and {j + 1})")
             continue
         seen[name] = j
         keep.append(j)
-    kinds = {c: k for c, k, _ in spec.columns}
     for c, _, presence in spec.columns:
         if presence == "required" and c not in seen:
             hint = ""
             if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
                 hint = " (the header is one column: is the file separated by ';' or tabs instead of commas?)"
-            bad(hrow, c, f"required column is missing from the header{hint}")
-
+            problems.add(hrow, c, f"required column is missing from the header{hint}")
     pairs = []
     for a, b in spec.pairs:
         if (a in seen) != (b in seen):
             have, lack = (a, b) if a in seen else (b, a)
-            bad(hrow, lack, f"is missing from the header but {have} is there; give both columns or neither")
+            problems.add(hrow, lack, f"is missing from the header but {have} is there; give both columns or neither")
         elif a in seen:
             pairs.append((a, b))
+    return keep, pairs
 
+
+def _parse_rows(data: list[tuple[int, list[str]]], header: list[str], keep: list[int],
+                pairs: list[tuple[str, str]], spec: TableSpec, span: tuple[float, float], extra_checks: Any,
+                problems: _Problems) -> tuple[dict[str, list[Any]], int]:
+    """The values of every good row, by column; every bad cell noted."""
+    kinds = {c: k for c, k, _ in spec.columns}
     ncols = len(header)
     columns: dict[str, list[Any]] = {header[j]: [] for j in keep}
-    row_numbers: list[int] = []
     ids: dict[int, int] = {}
+    n = 0
     for rownum, rec in data:
         if len(rec) != ncols:
             # Trailing empty cells beyond the header are harmless; values are not.
             if len(rec) > ncols and not any(c.strip() for c in rec[ncols:]):
                 rec = rec[:ncols]
             else:
-                bad(rownum, None, f"has {len(rec)} values but the header has {ncols} columns")
+                problems.add(rownum, None, f"has {len(rec)} values but the header has {ncols} columns")
                 continue
-        values: dict[str, Any] = {}
-        ok = True
-        for j in keep:
-            name = header[j]
-            cell = rec[j]
-            if name in kinds:
-                v, err = _parse_cell(kinds[name], cell, span)
-                if err:
-                    bad(rownum, name, err)
-                    ok = False
-                values[name] = v
-            else:
-                values[name] = cell
-        for a, b in pairs:
-            va, vb = values[a], values[b]
-            if va is None or vb is None:
-                continue
-            if math.isnan(va) != math.isnan(vb):
-                missing, given = (a, b) if math.isnan(va) else (b, a)
-                bad(rownum, missing, f"is empty but {given} is given; give both or neither")
-                ok = False
+        values, ok = _parse_row(rownum, rec, header, keep, kinds, pairs, span, problems)
         idv = values.get(spec.id_column)
         if isinstance(idv, int):
             if idv in ids:
-                bad(rownum, spec.id_column, f"{spec.id_column} {idv} is already used on row {ids[idv]}")
+                problems.add(rownum, spec.id_column, f"{spec.id_column} {idv} is already used on row {ids[idv]}")
                 ok = False
             else:
                 ids[idv] = rownum
         if extra_checks is not None:
             for col, msg in extra_checks(values):
-                bad(rownum, col, msg)
+                problems.add(rownum, col, msg)
                 ok = False
         if ok:
             for name in columns:
                 columns[name].append(values[name])
-            row_numbers.append(rownum)
+            n += 1
+    return columns, n
 
-    if problems:
-        raise table_error(label, problems)
 
+def _parse_row(rownum: int, rec: list[str], header: list[str], keep: list[int], kinds: dict[str, str],
+               pairs: list[tuple[str, str]], span: tuple[float, float],
+               problems: _Problems) -> tuple[dict[str, Any], bool]:
+    """One row's values by column name (None where a cell is bad) and whether all were good."""
+    values: dict[str, Any] = {}
+    ok = True
+    for j in keep:
+        name = header[j]
+        cell = rec[j]
+        if name in kinds:
+            v, err = _parse_cell(kinds[name], cell, span)
+            if err:
+                problems.add(rownum, name, err)
+                ok = False
+            values[name] = v
+        else:
+            values[name] = cell
+    for a, b in pairs:
+        va, vb = values[a], values[b]
+        if va is None or vb is None:
+            continue
+        if math.isnan(va) != math.isnan(vb):
+            missing, given = (a, b) if math.isnan(va) else (b, a)
+            problems.add(rownum, missing, f"is empty but {given} is given; give both or neither")
+            ok = False
+    return values, ok
+
+
+def _frame(spec: TableSpec, header: list[str], keep: list[int], columns: dict[str, list[Any]],
+           n: int) -> "pd.DataFrame":
+    """The table: the spec's columns in order (absent ones empty), then the extra columns."""
+    import pandas as pd
+
+    kinds = {c: k for c, k, _ in spec.columns}
     frame: dict[str, Any] = {}
-    n = len(row_numbers)
     for c, kind, _ in spec.columns:
         if c in columns:
             frame[c] = _standard_series(kind, columns[c])

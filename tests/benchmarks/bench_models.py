@@ -104,6 +104,7 @@ def slope(ns: list[int], ts: list[float]) -> float:
     return float(np.polyfit(np.log10(ns), np.log10(ts), 1)[0])
 
 
+# Over 80 lines: one benchmark from its options to its printed table, each step a column of it.
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="1e2,1e3,1e4,1e5,1e6", help="numbers of trials, comma-separated")

@@ -54,8 +54,7 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
     Filled contours every ``step_deg``, labelled lines every ``2 * step_deg``.
     """
     import numpy as np
-    from matplotlib.colors import BoundaryNorm
-    from matplotlib.tri import Triangulation
+    from matplotlib.patches import Patch
 
     out = check_path(path)
     if result.Pa_MPa.size < 3:
@@ -64,30 +63,12 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
     pb_lo, pb_hi = float(result.Pb_MPa.min()), float(result.Pb_MPa.max())
     if not (pa_hi > pa_lo and pb_hi > pb_lo):
         raise ConfigError("Figure 8 needs a joint map that spans a range of both Pa and Pb.")
-    pa = np.linspace(pa_lo, pa_hi, _FINE)
-    pb = np.linspace(pb_lo, pb_hi, _FINE)
-    PA, PB = np.meshgrid(pa, pb)  # rows: Pb, columns: Pa
+    PA, PB = np.meshgrid(np.linspace(pa_lo, pa_hi, _FINE), np.linspace(pb_lo, pb_hi, _FINE))  # rows: Pb
     models = {
         name: rpam.solve_equilibrium(PA, PB, result.geometry, result.actuator, stretch=stretch).alpha_deg
         for name, stretch in (("without", False), ("with", True))
     }
-    toggle = result.toggle_deg
-    finite = [np.abs(v[np.isfinite(v)]) for v in (*models.values(), result.measured_deg)]
-    top = max((float(v.max()) for v in finite if v.size), default=step_deg)
-    # Angles near the toggle (and the stop) share the end colour rather than widening the scale.
-    top = min(math.ceil(top / step_deg) * step_deg, max(math.floor(toggle / step_deg), 1) * step_deg)
-    levels = np.arange(-top, top + step_deg / 2, step_deg)
-    if levels.size < 3:
-        levels = np.array([-step_deg, 0.0, step_deg])
-    lines = levels[np.isclose(np.mod(levels, 2 * step_deg), 0) | np.isclose(np.mod(levels, 2 * step_deg), 2 * step_deg)]
-    norm = BoundaryNorm(levels, 256)
-    eps = 1e-6 * step_deg
-
-    def clip(z: Any) -> Any:
-        return np.clip(z, levels[0] + eps, levels[-1] - eps)
-
-    kpa = 1e3
-
+    scale = _Scale(models, result, step_deg)
     fig = new_figure(15.5, 5.4)
     axes = fig.subplots(1, 3, sharex=True, sharey=True)
     fig.subplots_adjust(left=0.05, right=0.9, bottom=0.12, top=0.8, wspace=0.08)
@@ -97,52 +78,88 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
     }
     filled = None
     for ax, name in zip(axes[:2], ("without", "with")):
-        z = models[name]
-        zc = clip(z)
-        filled = ax.contourf(PA * kpa, PB * kpa, zc, levels=levels, cmap=_CMAP, norm=norm)
-        cs = ax.contour(PA * kpa, PB * kpa, z, levels=lines, colors="k", linewidths=0.7, linestyles="solid")
-        ax.clabel(cs, fmt=_deg_label, fontsize=8, inline=True)
-        nan = ~np.isfinite(z)
-        if nan.any():
-            ax.contourf(PA * kpa, PB * kpa, nan.astype(float), levels=[0.5, 1.5], colors=["0.85"],
-                        hatches=["//"])
-            ax.contour(PA * kpa, PB * kpa, nan.astype(float), levels=[0.5], colors="0.4", linewidths=0.8)
+        filled = _draw_model(ax, PA, PB, models[name], scale)
         ax.set_title(titles[name], fontsize=10)
-
-    ax = axes[2]
-    g = result.grid()
-    meas = clip(result.measured_deg)
-    if g is not None:
-        gpa, gpb, cells = g
-        GA, GB = np.meshgrid(gpa * kpa, gpb * kpa)
-        zc = clip(cells["measured"])
-        ax.contourf(GA, GB, zc, levels=levels, cmap=_CMAP, norm=norm)
-        cs = ax.contour(GA, GB, cells["measured"], levels=lines, colors="k", linewidths=0.7, linestyles="solid")
-    else:
-        tri = Triangulation(result.Pa_MPa * kpa, result.Pb_MPa * kpa)
-        ax.tricontourf(tri, meas, levels=levels, cmap=_CMAP, norm=norm)
-        cs = ax.tricontour(tri, result.measured_deg, levels=lines, colors="k", linewidths=0.7, linestyles="solid")
-    ax.clabel(cs, fmt=_deg_label, fontsize=8, inline=True)
-    ax.plot(result.Pa_MPa * kpa, result.Pb_MPa * kpa, ".", color="k", markersize=2, alpha=0.45)
-    ax.set_title(f"(c) measured\n{result.Pa_MPa.size} points", fontsize=10)
-
+    _draw_measured(axes[2], result, scale)
     for ax in axes:
         ax.set_xlabel("$P_a$ (kPa)")
         ax.set_aspect("equal")
     axes[0].set_ylabel("$P_b$ (kPa)")
     cax = fig.add_axes([0.915, 0.12, 0.015, 0.68])
-    cb = fig.colorbar(filled, cax=cax, ticks=lines)
+    cb = fig.colorbar(filled, cax=cax, ticks=scale.lines)
     cb.set_label("joint angle $\\alpha$ (deg)")
-    from matplotlib.patches import Patch
-
     fig.legend(handles=[Patch(facecolor="0.85", hatch="//", edgecolor="0.4",
-                              label=f"model runs onto the toggle (|$\\alpha$| → {toggle:.1f}°)")],
+                              label=f"model runs onto the toggle (|$\\alpha$| → {result.toggle_deg:.1f}°)")],
                loc="lower center", ncol=1, frameon=False, fontsize=9)
     fig.suptitle(title or "Joint angle over actuator pressures: model without and with the stretch "
                  "correction against the measured map (Fig. 8)", fontsize=11)
     fig.subplots_adjust(bottom=0.16)
     save(fig, out)
     return out
+
+
+class _Scale:
+    """Fig. 8's one colour scale: levels every ``step_deg`` up to the largest angle, lines every other."""
+
+    def __init__(self, models: dict[str, Any], result: Any, step_deg: float) -> None:
+        import numpy as np
+        from matplotlib.colors import BoundaryNorm
+
+        finite = [np.abs(v[np.isfinite(v)]) for v in (*models.values(), result.measured_deg)]
+        top = max((float(v.max()) for v in finite if v.size), default=step_deg)
+        # Angles near the toggle (and the stop) share the end colour rather than widening the scale.
+        top = min(math.ceil(top / step_deg) * step_deg, max(math.floor(result.toggle_deg / step_deg), 1) * step_deg)
+        levels = np.arange(-top, top + step_deg / 2, step_deg)
+        if levels.size < 3:
+            levels = np.array([-step_deg, 0.0, step_deg])
+        every_other = np.mod(levels, 2 * step_deg)
+        self.levels = levels
+        self.lines = levels[np.isclose(every_other, 0) | np.isclose(every_other, 2 * step_deg)]
+        self.norm = BoundaryNorm(levels, 256)
+        self._eps = 1e-6 * step_deg
+
+    def clip(self, z: Any) -> Any:
+        import numpy as np
+
+        return np.clip(z, self.levels[0] + self._eps, self.levels[-1] - self._eps)
+
+
+def _draw_model(ax: Any, PA: Any, PB: Any, z: Any, scale: _Scale) -> Any:
+    """One model panel: filled contours, labelled lines, the toggle region hatched; returns the fill."""
+    import numpy as np
+
+    kpa = 1e3
+    filled = ax.contourf(PA * kpa, PB * kpa, scale.clip(z), levels=scale.levels, cmap=_CMAP, norm=scale.norm)
+    cs = ax.contour(PA * kpa, PB * kpa, z, levels=scale.lines, colors="k", linewidths=0.7, linestyles="solid")
+    ax.clabel(cs, fmt=_deg_label, fontsize=8, inline=True)
+    nan = ~np.isfinite(z)
+    if nan.any():
+        ax.contourf(PA * kpa, PB * kpa, nan.astype(float), levels=[0.5, 1.5], colors=["0.85"], hatches=["//"])
+        ax.contour(PA * kpa, PB * kpa, nan.astype(float), levels=[0.5], colors="0.4", linewidths=0.8)
+    return filled
+
+
+def _draw_measured(ax: Any, result: Any, scale: _Scale) -> None:
+    """The measured panel: contours on the grid the points make, or on their triangulation."""
+    import numpy as np
+    from matplotlib.tri import Triangulation
+
+    kpa = 1e3
+    g = result.grid()
+    if g is not None:
+        gpa, gpb, cells = g
+        GA, GB = np.meshgrid(gpa * kpa, gpb * kpa)
+        ax.contourf(GA, GB, scale.clip(cells["measured"]), levels=scale.levels, cmap=_CMAP, norm=scale.norm)
+        cs = ax.contour(GA, GB, cells["measured"], levels=scale.lines, colors="k", linewidths=0.7,
+                        linestyles="solid")
+    else:
+        tri = Triangulation(result.Pa_MPa * kpa, result.Pb_MPa * kpa)
+        ax.tricontourf(tri, scale.clip(result.measured_deg), levels=scale.levels, cmap=_CMAP, norm=scale.norm)
+        cs = ax.tricontour(tri, result.measured_deg, levels=scale.lines, colors="k", linewidths=0.7,
+                           linestyles="solid")
+    ax.clabel(cs, fmt=_deg_label, fontsize=8, inline=True)
+    ax.plot(result.Pa_MPa * kpa, result.Pb_MPa * kpa, ".", color="k", markersize=2, alpha=0.45)
+    ax.set_title(f"(c) measured\n{result.Pa_MPa.size} points", fontsize=10)
 
 
 # --------------------------------------------------------------------------------------

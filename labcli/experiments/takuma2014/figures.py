@@ -123,93 +123,18 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     fig = new_figure(max(6.5, 1.05 * len(names) + 2.5), 5.2)
     ax = fig.add_subplot(1, 1, 1)
     ax.set_yscale("log")
-
     k_all = np.asarray(pushes["k_N_per_m"], dtype=float)
-    shown = k_all[np.isfinite(k_all) & (k_all > 0)]
-    lo, hi = (float(shown.min()), float(shown.max())) if shown.size else (100.0, 1e4)
-    if "true_k_N_per_m" in objects.columns:
-        true_k = np.asarray(objects["true_k_N_per_m"], dtype=float)
-        ok_t = true_k[np.isfinite(true_k) & (true_k > 0)]
-        if ok_t.size:
-            lo, hi = min(lo, float(ok_t.min())), max(hi, float(ok_t.max()))
+    lo, hi = _stiffness_span(k_all, objects)
     y_lo, y_hi = lo / 2.2, hi * 2.2
-
-    # What the categories mean, behind the data.
-    if model.method == "bands":
-        for cat in order:
-            b_lo, b_hi = model.bands[cat]
-            colour = style[cat][0]
-            top = min(b_hi, y_hi)
-            bottom = max(b_lo, y_lo)
-            if top <= bottom:
-                continue
-            ax.axhspan(bottom, top, color=colour, alpha=0.07, lw=0, zorder=0)
-            if math.isfinite(b_hi) and y_lo < b_hi < y_hi:
-                ax.axhline(b_hi, color="0.6", lw=0.8, ls="--", zorder=1)
-            ax.text(1.01, math.sqrt(bottom * top), f"{cat}\nband", transform=ax.get_yaxis_transform(),
-                    ha="left", va="center", fontsize=8, color=colour)
-    else:
-        sd = float(model.std_log_k)
-        for cat in order:
-            mu = model.classes[cat]["mean_log_k"]
-            colour = style[cat][0]
-            ax.axhspan(math.exp(mu - sd), math.exp(mu + sd), color=colour, alpha=0.08, lw=0, zorder=0)
-            ax.axhline(math.exp(mu), color=colour, lw=0.9, ls=":", zorder=1)
-            ax.text(1.01, math.exp(mu), f"{cat}\nreference\nmean ± sd", transform=ax.get_yaxis_transform(),
-                    ha="left", va="center", fontsize=8, color=colour)
-
+    _draw_categories(ax, model, order, style, y_lo, y_hi)
     obj_col = pushes["object"].astype(str).to_numpy()
     flags = np.asarray(pushes["flag"], dtype=bool)
     used_labels: set[str] = set()
     ticks = []
     for i, row in enumerate(objects.to_dict("records")):
-        name = str(row["object"])
-        cat = str(row.get("category") or "")
-        colour, marker = style.get(cat, ("0.45", "X"))
-        sel = obj_col == name
-        k = k_all[sel]
-        fl = flags[sel]
-        visible = np.isfinite(k) & (k > 0)
-        # Deterministic spread so that repeated pushes do not hide each other.
-        n = int(sel.sum())
-        dx = (np.arange(n) - (n - 1) / 2) * (0.32 / max(n - 1, 1)) - 0.1
-        good = visible & ~fl
-        label = f"{cat}" if cat and cat not in used_labels else None
-        if label:
-            used_labels.add(cat)
-        ax.scatter(i + dx[good], k[good], s=30, marker=marker, facecolor=colour, edgecolor="black", lw=0.5,
-                   zorder=3, label=label)
-        bad = visible & fl
-        if bad.any():
-            flabel = "flagged push (not in mean)" if "flagged" not in used_labels else None
-            used_labels.add("flagged")
-            ax.scatter(i + dx[bad], np.clip(k[bad], y_lo * 1.05, y_hi / 1.05), s=34, marker=marker,
-                       facecolor="none", edgecolor=colour, lw=1.2, zorder=3, label=flabel)
-        mean, sd = row.get("k_mean_N_per_m"), row.get("k_std_N_per_m")
-        if mean is not None and np.isfinite(mean):
-            err = sd if sd is not None and np.isfinite(sd) else 0.0
-            lower = min(err, mean * 0.999)  # a log axis cannot show mean - sd <= 0
-            mlabel = "mean ± sd" if "mean" not in used_labels else None
-            used_labels.add("mean")
-            ax.errorbar([i + 0.3], [mean], yerr=[[lower], [err]], fmt="_", ms=14, mew=2.0, color="black",
-                        ecolor="black", elinewidth=1.3, capsize=4, zorder=4, label=mlabel)
-        t = row.get("true_k_N_per_m")
-        if t is not None and np.isfinite(t):
-            tlabel = "true k (simulated rig)" if "true" not in used_labels else None
-            used_labels.add("true")
-            ax.plot([i - 0.32, i + 0.42], [t, t], color="0.25", lw=1.0, ls=(0, (4, 2)), zorder=2, label=tlabel)
-        conf = row.get("confidence")
-        text = cat if cat else "no category"
-        if cat and conf is not None and np.isfinite(conf):
-            text += f"\n{100 * conf:.0f} %"
-        top = np.nanmax(k[visible]) if visible.any() else (mean if mean is not None and np.isfinite(mean) else lo)
-        ax.annotate(text, (i, min(top * 1.25, y_hi / 1.3)), ha="center", va="bottom", fontsize=8,
-                    color=colour if cat else "0.3", fontweight="bold")
-        n_flag = int(row.get("n_flagged", 0))
-        given = str(row.get("known_category") or "")
-        ref_text = f"ref. {given}" if len(names) > 8 else f"reference ({given})"  # room per tick
-        ticks.append(f"{name}\n" + (f"{ref_text}\n" if given else "")
-                     + f"n = {int(row.get('n_pushes', n))}" + (f", {n_flag} flagged" if n_flag else ""))
+        sel = obj_col == str(row["object"])
+        ticks.append(_draw_object(ax, i, row, k_all[sel], flags[sel], style, used_labels, (lo, y_lo, y_hi),
+                                  many=len(names) > 8))
     ax.set_xticks(range(len(names)))
     ax.set_xticklabels(ticks, fontsize=8)
     ax.set_xlim(-0.6, len(names) - 0.4)
@@ -230,3 +155,97 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     fig.tight_layout()
     save(fig, p)
     return p
+
+
+def _stiffness_span(k_all: Any, objects: Any) -> tuple[float, float]:
+    """The lowest and highest stiffness to show (N/m): the pushes' and the true values'."""
+    import numpy as np
+
+    shown = k_all[np.isfinite(k_all) & (k_all > 0)]
+    lo, hi = (float(shown.min()), float(shown.max())) if shown.size else (100.0, 1e4)
+    if "true_k_N_per_m" in objects.columns:
+        true_k = np.asarray(objects["true_k_N_per_m"], dtype=float)
+        ok_t = true_k[np.isfinite(true_k) & (true_k > 0)]
+        if ok_t.size:
+            lo, hi = min(lo, float(ok_t.min())), max(hi, float(ok_t.max()))
+    return lo, hi
+
+
+def _draw_categories(ax: Any, model: Any, order: list[str], style: dict[str, tuple[str, str]], y_lo: float,
+                     y_hi: float) -> None:
+    """What the categories mean, behind the data: the bands, or each reference class's mean ± sd."""
+    if model.method == "bands":
+        for cat in order:
+            b_lo, b_hi = model.bands[cat]
+            colour = style[cat][0]
+            top = min(b_hi, y_hi)
+            bottom = max(b_lo, y_lo)
+            if top <= bottom:
+                continue
+            ax.axhspan(bottom, top, color=colour, alpha=0.07, lw=0, zorder=0)
+            if math.isfinite(b_hi) and y_lo < b_hi < y_hi:
+                ax.axhline(b_hi, color="0.6", lw=0.8, ls="--", zorder=1)
+            ax.text(1.01, math.sqrt(bottom * top), f"{cat}\nband", transform=ax.get_yaxis_transform(),
+                    ha="left", va="center", fontsize=8, color=colour)
+        return
+    sd = float(model.std_log_k)
+    for cat in order:
+        mu = model.classes[cat]["mean_log_k"]
+        colour = style[cat][0]
+        ax.axhspan(math.exp(mu - sd), math.exp(mu + sd), color=colour, alpha=0.08, lw=0, zorder=0)
+        ax.axhline(math.exp(mu), color=colour, lw=0.9, ls=":", zorder=1)
+        ax.text(1.01, math.exp(mu), f"{cat}\nreference\nmean ± sd", transform=ax.get_yaxis_transform(),
+                ha="left", va="center", fontsize=8, color=colour)
+
+
+def _once(used: set[str], key: str, label: str) -> str | None:
+    """``label`` the first time ``key`` is drawn (the legend names each kind of mark once)."""
+    if key in used:
+        return None
+    used.add(key)
+    return label
+
+
+def _draw_object(ax: Any, i: int, row: dict[str, Any], k: Any, fl: Any, style: dict[str, tuple[str, str]],
+                 used: set[str], span: tuple[float, float, float], *, many: bool) -> str:
+    """One object's pushes, mean ± sd, true stiffness and category at x = ``i``; returns its tick label."""
+    import numpy as np
+
+    lo, y_lo, y_hi = span
+    name = str(row["object"])
+    cat = str(row.get("category") or "")
+    colour, marker = style.get(cat, ("0.45", "X"))
+    visible = np.isfinite(k) & (k > 0)
+    # Deterministic spread so that repeated pushes do not hide each other.
+    n = len(k)
+    dx = (np.arange(n) - (n - 1) / 2) * (0.32 / max(n - 1, 1)) - 0.1
+    good = visible & ~fl
+    ax.scatter(i + dx[good], k[good], s=30, marker=marker, facecolor=colour, edgecolor="black", lw=0.5,
+               zorder=3, label=_once(used, cat, cat) if cat else None)
+    bad = visible & fl
+    if bad.any():
+        ax.scatter(i + dx[bad], np.clip(k[bad], y_lo * 1.05, y_hi / 1.05), s=34, marker=marker,
+                   facecolor="none", edgecolor=colour, lw=1.2, zorder=3,
+                   label=_once(used, "flagged", "flagged push (not in mean)"))
+    mean, sd = row.get("k_mean_N_per_m"), row.get("k_std_N_per_m")
+    if mean is not None and np.isfinite(mean):
+        err = sd if sd is not None and np.isfinite(sd) else 0.0
+        lower = min(err, mean * 0.999)  # a log axis cannot show mean - sd <= 0
+        ax.errorbar([i + 0.3], [mean], yerr=[[lower], [err]], fmt="_", ms=14, mew=2.0, color="black",
+                    ecolor="black", elinewidth=1.3, capsize=4, zorder=4, label=_once(used, "mean", "mean ± sd"))
+    t = row.get("true_k_N_per_m")
+    if t is not None and np.isfinite(t):
+        ax.plot([i - 0.32, i + 0.42], [t, t], color="0.25", lw=1.0, ls=(0, (4, 2)), zorder=2,
+                label=_once(used, "true", "true k (simulated rig)"))
+    conf = row.get("confidence")
+    text = cat if cat else "no category"
+    if cat and conf is not None and np.isfinite(conf):
+        text += f"\n{100 * conf:.0f} %"
+    top = np.nanmax(k[visible]) if visible.any() else (mean if mean is not None and np.isfinite(mean) else lo)
+    ax.annotate(text, (i, min(top * 1.25, y_hi / 1.3)), ha="center", va="bottom", fontsize=8,
+                color=colour if cat else "0.3", fontweight="bold")
+    n_flag = int(row.get("n_flagged", 0))
+    given = str(row.get("known_category") or "")
+    ref_text = f"ref. {given}" if many else f"reference ({given})"  # room per tick
+    return (f"{name}\n" + (f"{ref_text}\n" if given else "")
+            + f"n = {int(row.get('n_pushes', n))}" + (f", {n_flag} flagged" if n_flag else ""))

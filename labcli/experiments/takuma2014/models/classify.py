@@ -140,37 +140,18 @@ def classify_pushes(
     if not isinstance(params, StiffnessParams):
         params = StiffnessParams.from_dict(params)
     h2, h3 = (_length(model, key, value) for key, value in (("h2", h2), ("h3", h3)))
-    missing = [c for c in REQUIRED if c not in table.columns]
-    if missing:
-        raise ConfigError(f"The push table lacks column {missing[0]!r}; a push table needs {', '.join(REQUIRED)}.")
-    if len(table) == 0:
-        raise ModelError("The push table has no pushes to classify.")
-    if method not in ("auto", "reference", "bands"):
-        raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
-
+    _check_table(table, method)
     table = table.reset_index(drop=True)
-    P0 = np.column_stack([_column(table, c) for c in P0_COLUMNS])
-    P = np.column_stack([_column(table, c) for c in P_COLUMNS])
-    phi = np.radians(np.asarray(table["phi_deg"], dtype=float)) if "phi_deg" in table.columns else None
-    theta0 = None
-    if all(c in table.columns for c in THETA0_COLUMNS):
-        theta0 = np.radians(np.column_stack([_column(table, c) for c in THETA0_COLUMNS]))
-    if angles == "pressure-only":
-        pred = model.predict(P0, P, mode="pressure-only")
-        theta = np.column_stack([_prediction(pred, "theta1"), _prediction(pred, "theta2")])
-    elif angles == "measured-angles":
-        missing = [c for c in THETA_COLUMNS if c not in table.columns]
-        if missing:
-            raise ConfigError(f"The push table lacks column {missing[0]!r}, which measured angles need.")
-        theta = np.radians(np.column_stack([_column(table, c) for c in THETA_COLUMNS]))
-        pred = model.predict(P0, P, mode="measured-angles", theta=theta)
-    else:
-        raise ConfigError(f"Unknown angle source {angles!r}; use 'pressure-only' or 'measured-angles'.")
+    theta, pred = _posture_and_force(table, model, angles)
     Fx, Fy = (np.asarray(_prediction(pred, q), dtype=float) for q in ("Fx", "Fy"))
     ok = pred.get("ok")
     force_ok = None
     if isinstance(ok, Mapping) and "Fx" in ok and "Fy" in ok:
         force_ok = np.column_stack([np.asarray(ok["Fx"], dtype=bool), np.asarray(ok["Fy"], dtype=bool)])
+    theta0 = None
+    if all(c in table.columns for c in THETA0_COLUMNS):
+        theta0 = np.radians(np.column_stack([_column(table, c) for c in THETA0_COLUMNS]))
+    phi = np.radians(np.asarray(table["phi_deg"], dtype=float)) if "phi_deg" in table.columns else None
     est: PushEstimates = estimate_pushes(
         theta[:, 0], theta[:, 1], Fx, Fy,
         _column(table, "R_m"), _column(table, "d_m"), phi,
@@ -181,9 +162,54 @@ def classify_pushes(
 
     labels = _labels(table)
     objects = [str(o) for o in pd.unique(table["object"].astype(str))]
-    obj_col = table["object"].astype(str).to_numpy()
     # Row numbers of every object in one pass; a mask per object would cost objects x pushes.
-    members = pd.Series(np.arange(len(table))).groupby(obj_col, sort=False).indices
+    members = pd.Series(np.arange(len(table))).groupby(table["object"].astype(str).to_numpy(), sort=False).indices
+    known = _known_categories(objects, members, labels)
+    use = ~est.flag & np.isfinite(est.k)
+    if method == "auto":
+        method = "reference" if any(known.values()) else "bands"
+    cat_model = _category_model(method, bands, est.k, use, labels)
+    true_k = np.asarray(table[TRUE_K], dtype=float) if TRUE_K in table.columns else None
+    rows = [_object_row(name, members[name], known[name], est, use, labels, cat_model, true_k, allow_unusable)
+            for name in objects]
+
+    push_cols = [c for c in ("push", "object", "category", "source", TRUE_K) if c in table.columns]
+    model_cols = pd.DataFrame({
+        "R_m": _column(table, "R_m"), "d_m": _column(table, "d_m"),
+        "theta1_deg": np.degrees(theta[:, 0]), "theta2_deg": np.degrees(theta[:, 1]), "Fx_N": Fx, "Fy_N": Fy,
+    })
+    pushes = pd.concat([table[push_cols], model_cols, est.to_frame()], axis=1)
+    return ClassifyResult(pushes=pushes, objects=pd.DataFrame(rows), model=cat_model, params=params)
+
+
+def _check_table(table: Any, method: str) -> None:
+    missing = [c for c in REQUIRED if c not in table.columns]
+    if missing:
+        raise ConfigError(f"The push table lacks column {missing[0]!r}; a push table needs {', '.join(REQUIRED)}.")
+    if len(table) == 0:
+        raise ModelError("The push table has no pushes to classify.")
+    if method not in ("auto", "reference", "bands"):
+        raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
+
+
+def _posture_and_force(table: Any, model: Any, angles: str) -> tuple[np.ndarray, Mapping[str, Any]]:
+    """The joint angles (rad, per push) and the model's prediction, from the pressures or the pots."""
+    P0 = np.column_stack([_column(table, c) for c in P0_COLUMNS])
+    P = np.column_stack([_column(table, c) for c in P_COLUMNS])
+    if angles == "pressure-only":
+        pred = model.predict(P0, P, mode="pressure-only")
+        return np.column_stack([_prediction(pred, "theta1"), _prediction(pred, "theta2")]), pred
+    if angles == "measured-angles":
+        missing = [c for c in THETA_COLUMNS if c not in table.columns]
+        if missing:
+            raise ConfigError(f"The push table lacks column {missing[0]!r}, which measured angles need.")
+        theta = np.radians(np.column_stack([_column(table, c) for c in THETA_COLUMNS]))
+        return theta, model.predict(P0, P, mode="measured-angles", theta=theta)
+    raise ConfigError(f"Unknown angle source {angles!r}; use 'pressure-only' or 'measured-angles'.")
+
+
+def _known_categories(objects: list[str], members: Mapping[str, np.ndarray], labels: np.ndarray) -> dict[str, str]:
+    """Each object's category as its pushes give it ("" for an unknown object)."""
     known: dict[str, str] = {}
     for name in objects:
         cats = sorted(set(labels[members[name]]))
@@ -194,72 +220,62 @@ def classify_pushes(
                 "give every push of a reference object the same category."
             )
         known[name] = named[0] if named else ""
+    return known
 
-    use = ~est.flag & np.isfinite(est.k)
-    if method == "auto":
-        method = "reference" if any(known.values()) else "bands"
+
+def _category_model(method: str, bands: Mapping[str, Any] | None, k: np.ndarray, use: np.ndarray,
+                    labels: np.ndarray) -> CategoryModel:
     if method == "bands":
         if not bands:
             raise ModelError(
                 "No reference objects and no stiffness bands: label some objects' pushes with a category "
                 "or give [stiffness_bands_N_per_m] in the protocol."
             )
-        cat_model = CategoryModel.from_bands(bands)
-    else:
-        # Flagged reference pushes go in as NaN so that a category whose pushes
-        # are all flagged is named as such rather than reported missing.
-        ref = labels != ""
-        cat_model = CategoryModel("reference").fit(np.where(use, est.k, np.nan)[ref], list(labels[ref]))
+        return CategoryModel.from_bands(bands)
+    # Flagged reference pushes go in as NaN so that a category whose pushes
+    # are all flagged is named as such rather than reported missing.
+    ref = labels != ""
+    return CategoryModel("reference").fit(np.where(use, k, np.nan)[ref], list(labels[ref]))
 
-    rows = []
-    true_k = np.asarray(table[TRUE_K], dtype=float) if TRUE_K in table.columns else None
-    for name in objects:
-        sel = members[name]
-        stats = object_stats(est.k[sel], est.flag[sel] | ~np.isfinite(est.k[sel]))
-        row: dict[str, Any] = {"object": name, "known_category": known[name], **stats}
-        if true_k is not None:
-            row["true_k_N_per_m"] = float(np.nanmean(true_k[sel]))
-        samples = est.k[sel[use[sel]]]
-        if samples.size == 0:
-            counts = Counter(r for r in est.reason[sel] if r)
-            top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
-            if not allow_unusable:
-                raise ModelError(
-                    f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top})."
+
+def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use: np.ndarray, labels: np.ndarray,
+                cat_model: CategoryModel, true_k: np.ndarray | None, allow_unusable: bool) -> dict[str, Any]:
+    """One object's statistics over its unflagged pushes, its category and how sure that is."""
+    stats = object_stats(est.k[sel], est.flag[sel] | ~np.isfinite(est.k[sel]))
+    row: dict[str, Any] = {"object": name, "known_category": known, **stats}
+    if true_k is not None:
+        row["true_k_N_per_m"] = float(np.nanmean(true_k[sel]))
+    samples = est.k[sel[use[sel]]]
+    if samples.size == 0:
+        counts = Counter(r for r in est.reason[sel] if r)
+        top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
+        if not allow_unusable:
+            raise ModelError(f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top}).")
+        row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})")
+        return row
+    scorer, note = cat_model, ""
+    if cat_model.method == "reference" and known:
+        # A reference object is judged against the other references, where there are some of its category.
+        others = use & (labels != "")
+        others[sel] = False
+        note = "in-sample (only reference of its category)"
+        if known in set(labels[others]):
+            try:
+                scorer = CategoryModel("reference", min_std_log_k=cat_model.min_std_log_k).fit(
+                    est.k[others], list(labels[others])
                 )
-            row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})")
-            rows.append(row)
-            continue
-        scorer, note = cat_model, ""
-        if cat_model.method == "reference" and known[name]:
-            others = use & (labels != "")
-            others[sel] = False
-            note = "in-sample (only reference of its category)"
-            if known[name] in set(labels[others]):
-                try:
-                    scorer = CategoryModel("reference", min_std_log_k=cat_model.min_std_log_k).fit(
-                        est.k[others], list(labels[others])
-                    )
-                    note = ""
-                except ModelError:
-                    pass  # too few references left without this object: keep the in-sample answer
-        p = scorer.predict([samples], names=[name])
-        row.update(
-            category=p.category[0],
-            confidence=float(p.confidence[0]),
-            z=float(p.z[0]),
-            method=p.method,
-            note="; ".join(t for t in (note, p.note[0]) if t),
-        )
-        rows.append(row)
-
-    push_cols = [c for c in ("push", "object", "category", "source", TRUE_K) if c in table.columns]
-    model_cols = pd.DataFrame({
-        "R_m": _column(table, "R_m"), "d_m": _column(table, "d_m"),
-        "theta1_deg": np.degrees(theta[:, 0]), "theta2_deg": np.degrees(theta[:, 1]), "Fx_N": Fx, "Fy_N": Fy,
-    })
-    pushes = pd.concat([table[push_cols], model_cols, est.to_frame()], axis=1)
-    return ClassifyResult(pushes=pushes, objects=pd.DataFrame(rows), model=cat_model, params=params)
+                note = ""
+            except ModelError:
+                pass  # too few references left without this object: keep the in-sample answer
+    p = scorer.predict([samples], names=[name])
+    row.update(
+        category=p.category[0],
+        confidence=float(p.confidence[0]),
+        z=float(p.z[0]),
+        method=p.method,
+        note="; ".join(t for t in (note, p.note[0]) if t),
+    )
+    return row
 
 
 # --------------------------------------------------------------------------- from files

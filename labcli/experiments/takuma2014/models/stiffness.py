@@ -379,6 +379,54 @@ def estimate_pushes(
     ``params.singular_component`` applies (see the module docstring).
     """
     params = params or StiffnessParams()
+    t1, t2, F, R, d, phi_in, base = _push_inputs(theta1, theta2, Fx, Fy, R, d, phi, theta0, push_ids)
+    n = t1.shape[0]
+    a1, a2 = base[:, 0] + t1, base[:, 1] + t2  # absolute posture under the push
+    C = contact_point(a1, a2, h2, h3)
+    C0 = None if theta0 is None else contact_point(base[:, 0], base[:, 1], h2, h3)
+    known = np.isfinite(phi_in)
+    model = _flags_from_model(model_flags, model_reasons, n)
+    reasons: list[list[str]] = [[] for _ in range(n)]
+    notes: list[list[str]] = [[] for _ in range(n)]
+    handled = np.zeros(n, dtype=bool)  # singular-jacobian dealt with by the policy
+    unobserved = np.zeros(n, dtype=bool)  # phi to solve but the force direction is unknown
+    if force_ok is not None and model is not None and params.singular_component == "project":
+        F, handled, unobserved = _project_singular(F, force_ok, model, known, C, object_centre(R, d, phi_in, h2, h3, C0),
+                                       params, reasons, notes, n)
+    force = np.hypot(F[:, 0], F[:, 1])
+    sol = solve_phi(C, F, R, d, h2, h3, C0)
+    phi_out = np.where(known, phi_in, np.where(unobserved, np.nan, sol.phi))
+    O2 = object_centre(R, d, phi_out, h2, h3, C0)
+    g = C - O2
+    dist = np.hypot(g[:, 0], g[:, 1])
+    delta_x = R - dist
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = np.where(delta_x > 0, force / delta_x, np.nan)
+    direction_error = np.arctan2(g[:, 0] * F[:, 1] - g[:, 1] * F[:, 0], g[:, 0] * F[:, 0] + g[:, 1] * F[:, 1])
+    n_sol = np.where(known, 1, np.where(unobserved, 0, sol.n_solutions))
+    dx_theta = _deformation_per_angle(a1, a2, h2, h3, R, C0, O2, g, dist, F, force, known)
+
+    finite_in = np.isfinite(t1) & np.isfinite(t2) & np.isfinite(F).all(axis=1)
+    _flag(reasons, finite_in, force, known, unobserved, sol.n_solutions, phi_out, delta_x, direction_error, params)
+    if model is None:
+        _add(reasons, finite_in & (np.abs(np.sin(a2)) < params.singular_sin_theta2), REASON_SINGULAR)
+    else:
+        _flag_model(reasons, notes, model, handled, params)
+
+    reason = np.array(list(map("; ".join, reasons)), dtype=object)
+    return PushEstimates(
+        C=C, phi=phi_out, phi_solved=~known, n_phi_solutions=n_sol.astype(int), O2=O2, delta_x=delta_x,
+        force=force, k=k, direction_error=direction_error,
+        phi_gain=np.where(known | unobserved, np.nan, sol.phi_gain),
+        dx_gain=np.where(known | unobserved, np.nan, sol.dx_gain),
+        dx_theta_gain=np.hypot(dx_theta[:, 0], dx_theta[:, 1]),
+        flag=reason != "", reason=reason, note=np.array(list(map("; ".join, notes)), dtype=object), F=F,
+    )
+
+
+def _push_inputs(theta1: Any, theta2: Any, Fx: Any, Fy: Any, R: Any, d: Any, phi: Any, theta0: Any,
+                 push_ids: Sequence[Any] | None) -> tuple[np.ndarray, ...]:
+    """The pushes' inputs as arrays of one value per push, checked (ConfigError naming the push)."""
     t1 = np.atleast_1d(np.asarray(theta1, dtype=float))
     n = t1.shape[0]
     ids = list(push_ids) if push_ids is not None else list(range(n))
@@ -407,92 +455,63 @@ def estimate_pushes(
             )
     if not np.isfinite(base).all():
         raise ConfigError("The baseline posture theta0 must be finite angles in rad.")
+    return t1, t2, F, R, d, phi_in, base
 
-    a1, a2 = base[:, 0] + t1, base[:, 1] + t2  # absolute posture under the push
-    C = contact_point(a1, a2, h2, h3)
-    C0 = None if theta0 is None else contact_point(base[:, 0], base[:, 1], h2, h3)
-    known = np.isfinite(phi_in)
-    model = _flags_from_model(model_flags, model_reasons, n)
-    reasons: list[list[str]] = [[] for _ in range(n)]
-    notes: list[list[str]] = [[] for _ in range(n)]
-    handled = np.zeros(n, dtype=bool)  # singular-jacobian dealt with by the policy
-    unobserved = np.zeros(n, dtype=bool)  # phi to solve but the force direction is unknown
-    if force_ok is not None and model is not None and params.singular_component == "project":
-        F, handled, unobserved = _project_singular(F, force_ok, model, known, C, object_centre(R, d, phi_in, h2, h3, C0),
-                                       params, reasons, notes, n)
-    force = np.hypot(F[:, 0], F[:, 1])
-    sol = solve_phi(C, F, R, d, h2, h3, C0)
-    phi_out = np.where(known, phi_in, np.where(unobserved, np.nan, sol.phi))
-    O2 = object_centre(R, d, phi_out, h2, h3, C0)
-    g = C - O2
-    dist = np.hypot(g[:, 0], g[:, 1])
-    delta_x = R - dist
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k = np.where(delta_x > 0, force / delta_x, np.nan)
-    direction_error = np.arctan2(g[:, 0] * F[:, 1] - g[:, 1] * F[:, 0], g[:, 0] * F[:, 0] + g[:, 1] * F[:, 1])
-    phi_gain = np.where(known | unobserved, np.nan, sol.phi_gain)
-    dx_gain = np.where(known | unobserved, np.nan, sol.dx_gain)
-    n_sol = np.where(known, 1, np.where(unobserved, 0, sol.n_solutions))
-    # d delta_x / d theta: through C alone for a given phi (-n^T J, n the unit
-    # vector O2 -> C); for a solved phi, O2 slides along the d-circle as C
-    # moves, which gives -v^T J / (v . F^) with v = O2 - O1.
+
+def _deformation_per_angle(a1: np.ndarray, a2: np.ndarray, h2: float, h3: float, R: np.ndarray, C0: Any,
+                           O2: np.ndarray, g: np.ndarray, dist: np.ndarray, F: np.ndarray, force: np.ndarray,
+                           known: np.ndarray) -> np.ndarray:
+    """d delta_x / d theta (m/rad, per push): how an angle error moves the deformation.
+
+    Through C alone for a given phi (-n^T J, n the unit vector O2 -> C); for a solved phi,
+    O2 slides along the d-circle as C moves, which gives -v^T J / (v . F^) with v = O2 - O1.
+    """
+    n = len(a1)
     J = jacobian(a1, a2, h2, h3)
     with np.errstate(invalid="ignore", divide="ignore"):
         v = O2 - object_centre(R, np.zeros(n), np.zeros(n), h2, h3, C0)
         dir_row = np.where(known[:, None], g / dist[:, None], v / np.einsum("ij,ij->i", v, F / force[:, None])[:, None])
-    dx_theta = -np.einsum("ij,ijk->ik", dir_row, J)
-    dx_theta_gain = np.hypot(dx_theta[:, 0], dx_theta[:, 1])
+    return -np.einsum("ij,ijk->ik", dir_row, J)
 
-    def add(mask: np.ndarray, text: str) -> None:
-        for i in np.flatnonzero(mask):
-            reasons[i].append(text)
 
-    finite_in = np.isfinite(t1) & np.isfinite(t2) & np.isfinite(F).all(axis=1)
-    add(~finite_in, REASON_INPUT)
-    add(finite_in & (force < params.min_force_N), REASON_SMALL_FORCE)
-    add(finite_in & ~known & ~unobserved & (sol.n_solutions == 0) & (force >= params.min_force_N), REASON_NO_PHI)
+def _add(reasons: list[list[str]], mask: np.ndarray, text: str) -> None:
+    for i in np.flatnonzero(mask):
+        reasons[i].append(text)
+
+
+def _flag(reasons: list[list[str]], finite_in: np.ndarray, force: np.ndarray, known: np.ndarray,
+          unobserved: np.ndarray, n_solutions: np.ndarray, phi_out: np.ndarray, delta_x: np.ndarray,
+          direction_error: np.ndarray, params: StiffnessParams) -> None:
+    """Why a push's stiffness cannot be trusted: inputs, force, direction, deformation."""
+    _add(reasons, ~finite_in, REASON_INPUT)
+    _add(reasons, finite_in & (force < params.min_force_N), REASON_SMALL_FORCE)
+    _add(reasons, finite_in & ~known & ~unobserved & (n_solutions == 0) & (force >= params.min_force_N), REASON_NO_PHI)
     has_phi = np.isfinite(phi_out)
     with np.errstate(invalid="ignore"):
-        add(finite_in & has_phi & (delta_x <= 0), REASON_NO_DEFORMATION)
-        add(finite_in & has_phi & (delta_x > 0) & (delta_x < params.min_deformation_m), REASON_SMALL_DEFORMATION)
-        add(
+        _add(reasons, finite_in & has_phi & (delta_x <= 0), REASON_NO_DEFORMATION)
+        _add(reasons, finite_in & has_phi & (delta_x > 0) & (delta_x < params.min_deformation_m),
+             REASON_SMALL_DEFORMATION)
+        _add(
+            reasons,
             finite_in & known & (force >= params.min_force_N)
             & (np.abs(direction_error) > math.radians(params.max_direction_error_deg)),
             REASON_DIRECTION,
         )
-    if model is None:
-        add(finite_in & (np.abs(np.sin(a2)) < params.singular_sin_theta2), REASON_SINGULAR)
-    else:
-        accepted = set(params.accept_model_flags)
-        for i, names in enumerate(model):
-            if handled[i]:
-                names = [t for t in names if t != SINGULAR_FLAG]
-            if not names:
-                continue
-            kept = [t for t in names if t not in accepted]
-            if kept:
-                reasons[i].append("model: " + ", ".join(kept))
-            notes[i].extend(f"accepted model flag: {t}" for t in names if t in accepted)
 
-    reason = np.array(list(map("; ".join, reasons)), dtype=object)
-    return PushEstimates(
-        C=C,
-        phi=phi_out,
-        phi_solved=~known,
-        n_phi_solutions=n_sol.astype(int),
-        O2=O2,
-        delta_x=delta_x,
-        force=force,
-        k=k,
-        direction_error=direction_error,
-        phi_gain=phi_gain,
-        dx_gain=dx_gain,
-        dx_theta_gain=dx_theta_gain,
-        flag=reason != "",
-        reason=reason,
-        note=np.array(list(map("; ".join, notes)), dtype=object),
-        F=F,
-    )
+
+def _flag_model(reasons: list[list[str]], notes: list[list[str]], model: list[list[str]], handled: np.ndarray,
+                params: StiffnessParams) -> None:
+    """The model's own flags: kept as reasons, or noted where the settings accept them."""
+    accepted = set(params.accept_model_flags)
+    for i, names in enumerate(model):
+        if handled[i]:
+            names = [t for t in names if t != SINGULAR_FLAG]
+        if not names:
+            continue
+        kept = [t for t in names if t not in accepted]
+        if kept:
+            reasons[i].append("model: " + ", ".join(kept))
+        notes[i].extend(f"accepted model flag: {t}" for t in names if t in accepted)
 
 
 def _project_singular(

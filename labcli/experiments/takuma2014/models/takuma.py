@@ -250,6 +250,26 @@ def _rmse(obs: np.ndarray, calc: np.ndarray) -> float:
     return float(np.sqrt(np.mean((obs - calc) ** 2)))
 
 
+def _equation_stats(eq: str, res: Any, y: np.ndarray, theta: np.ndarray, n: int, tq: float) -> dict[str, Any]:
+    """How well one equation fits: in its own space (sin theta, N) and natively (deg, N)."""
+    st: dict[str, Any] = {
+        "n": n, "dof": res.dof, "design_cond": res.cond,
+        "ill_conditioned": bool(res.cond > WARN_DESIGN_COND),
+        "sigma": res.sigma, "t_975": tq,
+        "r2": _r2(y, res.fitted), "rmse": _rmse(y, res.fitted),
+    }
+    if eq.startswith("theta"):
+        st["space"] = f"sin({eq})"
+        obs_deg = np.degrees(theta[:, 0 if eq == "theta1" else 1])
+        calc_deg = np.degrees(np.arcsin(np.clip(res.fitted, -1.0, 1.0)))
+        st["r2_native"], st["rmse_native"] = _r2(obs_deg, calc_deg), _rmse(obs_deg, calc_deg)
+        st["native_unit"] = "deg"
+    else:
+        st["space"] = f"{eq} (N)"
+        st["r2_native"], st["rmse_native"], st["native_unit"] = st["r2"], st["rmse"], "N"
+    return st
+
+
 def cap(text: str) -> str:
     """Sentence case for a name that may open a message ("the model" -> "The model").
 
@@ -323,38 +343,11 @@ class TakumaModel:
         # scipy.special alone: scipy.stats would add a second to every `labcli fit` for one quantile.
         from scipy.special import stdtrit
 
-
         rows = select_set(table, "fit", source)
         a = _table_arrays(rows)
         trial, P0, P, theta, F = a["trial"], a["P0"], a["P"], a["theta"], a["F"]
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
-
-        reasons: dict[str, dict[int, str]] = {eq: {} for eq in EQUATIONS}
-        bad_p = ~(np.all(np.isfinite(P0), axis=1) & np.all(np.isfinite(P), axis=1)
-                  & np.all(P0 > 0, axis=1) & np.all(P > 0, axis=1))
-        for eq in EQUATIONS:
-            for t in trial[bad_p]:
-                reasons[eq][int(t)] = "a pressure is missing or not positive"
-        for k, eq in enumerate(("theta1", "theta2")):
-            for t in trial[~np.isfinite(theta[:, k]) & ~bad_p]:
-                reasons[eq][int(t)] = f"{ANGLE_COLUMNS[k]} is missing"
-        angles_known = np.all(np.isfinite(theta), axis=1)
-        theta2_threshold(h2, h3, self.max_amplification)  # a bound <= 1 is refused here
-        amp = force_amplification(np.where(angles_known[:, None], theta, 0.0), h2, h3)
-        for k, eq in enumerate(("Fx", "Fy")):
-            # A sentence per excluded trial only; the usable ones are settled by one mask.
-            usable = angles_known & np.isfinite(F[:, k]) & (amp[:, k] <= self.max_amplification)
-            for i in np.flatnonzero(~bad_p & ~usable):
-                t = trial[i]
-                if not angles_known[i]:
-                    reasons[eq][int(t)] = "a measured angle is missing"
-                elif not np.isfinite(F[i, k]):
-                    reasons[eq][int(t)] = f"{FORCE_COLUMNS[k]} is missing"
-                elif not amp[i, k] <= self.max_amplification:
-                    reasons[eq][int(t)] = (
-                        f"singular Jacobian: |theta2| = {abs(math.degrees(theta[i, 1])):.2f} deg, "
-                        f"{eq} amplification {amp[i, k]:.3g} > {self.max_amplification:g}")
-
+        reasons = self._exclusions(trial, P0, P, theta, F)
         with np.errstate(divide="ignore", invalid="ignore"):
             u = pressure_ratio_features(P0, P)
             Xfx, Xfy = force_design(P0, P, np.nan_to_num(theta, nan=1.0), h2, h3)
@@ -390,22 +383,7 @@ class TakumaModel:
                 ses[name] = float(se[k])
                 ci[name] = [float(res.beta[k] - tq * se[k]), float(res.beta[k] + tq * se[k])]
             covs[eq] = res.cov.tolist()
-            st: dict[str, Any] = {
-                "n": n, "dof": res.dof, "design_cond": res.cond,
-                "ill_conditioned": bool(res.cond > WARN_DESIGN_COND),
-                "sigma": res.sigma, "t_975": tq,
-                "r2": _r2(y, res.fitted), "rmse": _rmse(y, res.fitted),
-            }
-            if eq.startswith("theta"):
-                st["space"] = f"sin({eq})"
-                obs_deg = np.degrees(theta[use, 0 if eq == "theta1" else 1])
-                calc_deg = np.degrees(np.arcsin(np.clip(res.fitted, -1.0, 1.0)))
-                st["r2_native"], st["rmse_native"] = _r2(obs_deg, calc_deg), _rmse(obs_deg, calc_deg)
-                st["native_unit"] = "deg"
-            else:
-                st["space"] = f"{eq} (N)"
-                st["r2_native"], st["rmse_native"], st["native_unit"] = st["r2"], st["rmse"], "N"
-            stats_out[eq] = st
+            stats_out[eq] = _equation_stats(eq, res, y, theta[use], n, tq)
             fitted_ids[eq] = trial[use].tolist()
             excluded[eq] = [{"trial": t, "reason": r} for t, r in sorted(reasons[eq].items())]
 
@@ -415,6 +393,37 @@ class TakumaModel:
         self.source = str(source)
         self.labcli_version = __version__
         return self
+
+    def _exclusions(self, trial: np.ndarray, P0: np.ndarray, P: np.ndarray, theta: np.ndarray,
+                    F: np.ndarray) -> dict[str, dict[int, str]]:
+        """Per equation, the fit trials it leaves out and why (a sentence per trial)."""
+        h2, h3 = self.geometry["h2"], self.geometry["h3"]
+        reasons: dict[str, dict[int, str]] = {eq: {} for eq in EQUATIONS}
+        bad_p = ~(np.all(np.isfinite(P0), axis=1) & np.all(np.isfinite(P), axis=1)
+                  & np.all(P0 > 0, axis=1) & np.all(P > 0, axis=1))
+        for eq in EQUATIONS:
+            for t in trial[bad_p]:
+                reasons[eq][int(t)] = "a pressure is missing or not positive"
+        for k, eq in enumerate(("theta1", "theta2")):
+            for t in trial[~np.isfinite(theta[:, k]) & ~bad_p]:
+                reasons[eq][int(t)] = f"{ANGLE_COLUMNS[k]} is missing"
+        angles_known = np.all(np.isfinite(theta), axis=1)
+        theta2_threshold(h2, h3, self.max_amplification)  # a bound <= 1 is refused here
+        amp = force_amplification(np.where(angles_known[:, None], theta, 0.0), h2, h3)
+        for k, eq in enumerate(("Fx", "Fy")):
+            # A sentence per excluded trial only; the usable ones are settled by one mask.
+            usable = angles_known & np.isfinite(F[:, k]) & (amp[:, k] <= self.max_amplification)
+            for i in np.flatnonzero(~bad_p & ~usable):
+                t = trial[i]
+                if not angles_known[i]:
+                    reasons[eq][int(t)] = "a measured angle is missing"
+                elif not np.isfinite(F[i, k]):
+                    reasons[eq][int(t)] = f"{FORCE_COLUMNS[k]} is missing"
+                elif not amp[i, k] <= self.max_amplification:
+                    reasons[eq][int(t)] = (
+                        f"singular Jacobian: |theta2| = {abs(math.degrees(theta[i, 1])):.2f} deg, "
+                        f"{eq} amplification {amp[i, k]:.3g} > {self.max_amplification:g}")
+        return reasons
 
     # ---------------------------------------------------------------- prediction
     def _require_fitted(self) -> None:
