@@ -10,7 +10,7 @@ The expected messages are exact.  ``labcli`` prints one ``Error: ...`` line; a t
 bad cell prints the count of problems, then the problem naming file, row and column; a bad
 option is reported by click after its usage lines.
 
-``python tests/test_bad_input.py`` prints the table of cases as Markdown (for the README).
+``python tests/cli/test_bad_input.py`` prints the table of cases as Markdown (for the README).
 """
 
 from __future__ import annotations
@@ -557,11 +557,11 @@ def test_a_failing_fit_leaves_an_existing_model_and_the_run_as_they_were(world: 
 TABLE_PATH = Path(__file__).resolve().parents[1] / "bad_input_table.md"
 TABLE_HEADER = (
     "# Bad input: what labcli says\n\n"
-    "Every case below runs the real `labcli` (`tests/test_bad_input.py`): a non-zero exit, no traceback, "
+    "Every case below runs the real `labcli` (`tests/cli/test_bad_input.py`): a non-zero exit, no traceback, "
     "and every file in the folder hashed unchanged before and after (the run file a failing `fit` would "
     "record into included). Table errors print a count line, then one line per problem naming file, row "
     "and column; option errors come from click after its two usage lines. Regenerate this file with "
-    "`python tests/test_bad_input.py > tests/bad_input_table.md`.\n\n"
+    "`python tests/cli/test_bad_input.py > tests/bad_input_table.md`.\n\n"
 )
 
 

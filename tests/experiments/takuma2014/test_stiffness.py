@@ -662,7 +662,7 @@ def _sim_baseline(rig):
 
 
 def test_true_state_of_the_simulated_rig_gives_its_object_stiffness():
-    # The simulated rig's own physics (labcli/physics.py, a leaning hand-built
+    # The simulated rig's own physics (labcli/experiments/takuma2014/sim/physics.py, a leaning hand-built
     # rig) against this module's geometry: true deflections and forces must
     # give back the true k_o, with phi given and solved.
     sim = pytest.importorskip("labcli.experiments.takuma2014.sim.rig")

@@ -8,7 +8,7 @@ the middle of their side; every stiffness is an assumption, stated per object.
 
 Why these push distances.  The simulated arm is soft: with the valves closed
 its tip yields about 186 N/m along x (pushing a rigid object 10 mm moves the
-tip 10 mm for 1.86 N; ``tests/test_classify_cli.py`` measures it).  Arm and
+tip 10 mm for 1.86 N; ``tests/cli/test_classify_cli.py`` measures it).  Arm and
 object act as springs in series, so an object of stiffness k_o pushed by d
 deforms by about ``d k_tip / (k_tip + k_o)``: 2.7 mm for a bottle (500 N/m)
 pushed 10 mm, but only 0.45 mm for the steel can (8000 N/m) pushed 20 mm, the
