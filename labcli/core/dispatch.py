@@ -12,15 +12,14 @@ from typing import Iterable
 
 from ..errors import LabcliError
 from .experiment import Experiment
+from .files import RUN_FILE_SUFFIXES
 from .registry import for_run_kind, for_shipped_protocol
-
-RUN_SUFFIXES = (".h5", ".hdf5")
 
 
 def run_kind_of(path: str | Path) -> str | None:
     """The kind of a readable run file; None for a table, a missing or unreadable file."""
     p = Path(path)
-    if p.suffix.lower() not in RUN_SUFFIXES or not p.is_file():
+    if p.suffix.lower() not in RUN_FILE_SUFFIXES or not p.is_file():
         return None
     from .store import RunFile  # h5py, only for a run file
 

@@ -9,6 +9,8 @@ from typing import Callable
 
 from ..errors import ConfigError
 
+RUN_FILE_SUFFIXES = (".h5", ".hdf5")  # a path ending so names a run file; anything else, a table
+
 
 def atomic_write(path: str | os.PathLike, data: bytes, *, what: str = "") -> None:
     """Replace ``path`` with ``data`` (written beside it, flushed, fsynced, renamed into place).

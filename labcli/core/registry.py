@@ -11,7 +11,6 @@ compares a kind with a paper's name.
 from __future__ import annotations
 
 from importlib.metadata import entry_points
-
 from typing import Any
 
 from ..errors import ConfigError, LabcliError

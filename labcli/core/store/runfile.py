@@ -89,11 +89,11 @@ import numpy as np
 
 from ...errors import LabcliError, StoreError
 from ..experiment import RecordType
+from ..files import RUN_FILE_SUFFIXES
 from ..registry import record_type
 from ..version import __version__
 from . import models as _models
 from . import split as _split
-from .summary import summarise
 from .h5 import (
     Window,
     calibration_arrays,
@@ -107,6 +107,7 @@ from .h5 import (
     utc_now,
     write_columns,
 )
+from .summary import summarise
 
 SCHEMA = "labcli-run"
 SCHEMA_VERSION = 1
@@ -710,9 +711,6 @@ class RunFile:
     def complete_groups(self) -> tuple[list[int], list[h5py.Group]]:
         """Ids and groups of the complete records, in recording order."""
         return self._complete_groups(self.record_type.collection)
-
-
-RUN_FILE_SUFFIXES = (".h5", ".hdf5")
 
 
 def load_table(path: str | os.PathLike, kind: RecordType) -> Any:

@@ -60,8 +60,8 @@ def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path 
         s = result.summary[name]
         at = s["max_error_at_kPa"]
         where = "—" if not all(_finite(v) for v in at) else f"{at[0]:.0f}, {at[1]:.0f}"
-        table.add_row(name, str(s["n_compared"]), str(s["n_toggle"]), _f(s["rmse_deg"], ".2f"),
-                      _f(s["max_abs_error_deg"], ".2f"), where, _f(s["rmse_all_deg"], ".2f"))
+        table.add_row(name, str(s["n_compared"]), str(s["n_toggle"]), cell(s["rmse_deg"], ".2f"),
+                      cell(s["max_abs_error_deg"], ".2f"), where, cell(s["rmse_all_deg"], ".2f"))
     con.print(table)
     c = ", ".join(f"{v:+.4g}" for v in result.actuator.stretch_coefficients_N)
     source = _SOURCE.get(result.correction_source, result.correction_source).format(model=model_path)
@@ -75,10 +75,6 @@ def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path 
 
 def _finite(v: Any) -> bool:
     return isinstance(v, (int, float)) and math.isfinite(v)
-
-
-def _f(v: Any, spec: str) -> str:
-    return format(v, spec) if _finite(v) else "—"
 
 
 # --------------------------------------------------------------------------- optimize

@@ -32,6 +32,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ....errors import ConfigError, ModelError
+from ....core.files import RUN_FILE_SUFFIXES
 from ....core.protocol import load_protocol, loads_protocol, shipped_protocols
 from ....core.store import RunFile
 from ..records import load_pushes
@@ -281,7 +282,6 @@ def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use:
 # --------------------------------------------------------------------------- from files
 
 DEFAULT_PUSH_PROTOCOL = "takuma2014-stiffness"
-RUN_SUFFIXES = (".h5", ".hdf5")
 FORCE_PROTOCOL_KEY = "force_protocol"
 
 
@@ -304,7 +304,7 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
     p = Path(path)
     if not p.exists():
         raise ConfigError(f"{p} does not exist; pass a push run file (.h5) or a push CSV.")
-    if p.suffix.lower() not in RUN_SUFFIXES:
+    if p.suffix.lower() not in RUN_FILE_SUFFIXES:
         proto = load_protocol(protocol or DEFAULT_PUSH_PROTOCOL)
         if proto.kind != "push":
             raise ConfigError(

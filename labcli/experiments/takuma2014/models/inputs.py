@@ -10,13 +10,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ....core.files import RUN_FILE_SUFFIXES
 from ....core.protocol import load_protocol, loads_protocol
 from ....core.store import RunFile
 from ....errors import ConfigError
 from ..records import load_trials
 
 DEFAULT_PROTOCOL = "takuma2014"
-RUN_SUFFIXES = (".h5", ".hdf5")
 
 
 @dataclass
@@ -40,7 +40,7 @@ def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSou
     p = Path(path)
     if not p.exists():
         raise ConfigError(f"{p} does not exist; pass a run file (.h5) or a trial CSV.")
-    if p.suffix.lower() in RUN_SUFFIXES:
+    if p.suffix.lower() in RUN_FILE_SUFFIXES:
         with RunFile.open(p) as run:
             text = run.protocol_text
             name = str(run.attrs.get("protocol", ""))
