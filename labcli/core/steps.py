@@ -70,8 +70,8 @@ _NO_DEFAULT: Any = object()
 class Field:
     """One question of an :class:`Ask`.
 
-    ``prompt`` is formatted with the answers given so far (``"{name}: radius R in mm:"``);
-    ``parse(text)`` returns the value or raises ValueError with a sentence, after which the
+    ``prompt`` is the question, or a function of the answers given so far that words it
+    (``lambda a: f"{a['name']}: radius R in mm:"``); ``parse(text)`` returns the value or raises ValueError with a sentence, after which the
     question is asked again (with ``again`` when given).  Without ``parse`` the answer is
     the text typed, stripped.  An empty answer gives ``default`` when there is one
     ("Enter keeps the default"); an empty first answer to a ``stop_if_empty`` field ends
@@ -80,7 +80,7 @@ class Field:
     """
 
     key: str
-    prompt: str
+    prompt: str | Callable[[dict[str, Any]], str]
     parse: Callable[[str], Any] | None = None
     default: Any = _NO_DEFAULT
     again: str | None = None
