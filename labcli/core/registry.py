@@ -62,15 +62,6 @@ def experiments() -> list[Experiment]:
     return list(_experiments.values())
 
 
-def experiment(name: str) -> Experiment:
-    """The experiment called ``name``."""
-    _discover()
-    try:
-        return _experiments[name]
-    except KeyError:
-        raise ConfigError(f"No experiment named '{name}'; installed: {', '.join(_experiments)}.") from None
-
-
 # --------------------------------------------------------------------------- kinds
 
 
