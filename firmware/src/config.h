@@ -1,0 +1,78 @@
+/*
+ * Build-time settings of the reference rig firmware (ATmega328P, Arduino Uno class).
+ *
+ * Everything here can be overridden on the make command line, e.g.
+ *   make -C firmware BAUD=1000000 BUILD=build/1M
+ * The protocol code (proto.c) includes this file too, so the host tests see
+ * the same limits as the board.
+ */
+#ifndef LABCLI_CONFIG_H
+#define LABCLI_CONFIG_H
+
+#ifndef F_CPU
+#define F_CPU 16000000UL
+#endif
+
+#ifndef BAUD
+#define BAUD 115200UL
+#endif
+
+/* The reference rig (rig-wire-protocol.md): four pressures on A0-A3, two potentiometers on A4-A5. */
+#define DEVICE_NAME "mckibben-2dof"
+#define FIRMWARE_VERSION "1.0-avr"
+#define CHANNEL_NAMES "P_L1,P_R1,P_L2,P_R2,POT1,POT2"
+#define N_CHANNELS 6
+
+/* 16 conversions per value: 4^2 samples buy 2 bits on top of the ADC's 10 (see proto_counts). */
+#define OVERSAMPLE 16
+
+/* Timer1 runs at F_CPU / 8: 0.5 us ticks at 16 MHz, so a frame period is exact to 0.5 us. */
+#define TIMER_PRESCALE 8UL
+#define TICK_HZ (F_CPU / TIMER_PRESCALE)
+
+/*
+ * UART with U2X (8 clocks per bit): UBRR = F_CPU / (8 BAUD) - 1, rounded.
+ * At 16 MHz, 115200 comes out as 117647 baud (+2.1 %), as on the Arduino core and
+ * on the Uno's USB bridge (an ATmega16U2 on the same 16 MHz, so both ends agree);
+ * 1000000 is exact.
+ */
+#define UART_UBRR ((F_CPU + 4UL * BAUD) / (8UL * BAUD) - 1UL)
+#define UART_BAUD_REAL (F_CPU / (8UL * (UART_UBRR + 1UL)))
+#define UART_BYTES_PER_S (UART_BAUD_REAL / 10UL) /* 8N1: start + 8 data + stop */
+
+/*
+ * The longest data line: "$D," seq(10) "," t_us(10) then 6 x ",dddd" and "*HH\n".
+ * Lines at the start of a run are shorter (seq and t_us have few digits); a rate
+ * must fit the longest one, or frames are lost once the counters grow.
+ */
+#define LINE_MAX_BYTES (3U + 10U + 1U + 10U + N_CHANNELS * 5U + 4U)
+
+/*
+ * Highest RATE accepted, Hz: what the UART carries with the longest line, and
+ * never above ADC_RATE_MAX_HZ, where 96 conversions per frame stop fitting the
+ * period (measured on the simulated board: tests/benchmarks/bench_firmware.py).
+ */
+#ifndef ADC_RATE_MAX_HZ
+#define ADC_RATE_MAX_HZ 500UL
+#endif
+#define UART_RATE_MAX_HZ (UART_BYTES_PER_S / LINE_MAX_BYTES)
+#ifndef RATE_MAX_HZ
+#define RATE_MAX_HZ (UART_RATE_MAX_HZ < ADC_RATE_MAX_HZ ? UART_RATE_MAX_HZ : ADC_RATE_MAX_HZ)
+#endif
+#define RATE_MIN_HZ 1UL
+#define RATE_DEFAULT_MHZ 200000UL /* 200 Hz at power-up, the reference protocol's rate */
+
+/* Buffers.  Power-of-two ring sizes so uint8_t indices wrap by themselves. */
+#define CMD_MAX 64    /* one command line, '\n' excluded, plus NUL */
+#define RX_RING 64    /* host commands are a few bytes each */
+#define TX_RING 256   /* four longest lines: a reply can queue behind frames without a drop */
+
+/* Counters start here (a build for testing the 32-bit wrap sets them near 2^32). */
+#ifndef SEQ_START
+#define SEQ_START 0UL
+#endif
+#ifndef T_US_START
+#define T_US_START 0UL
+#endif
+
+#endif

@@ -1,0 +1,36 @@
+/*
+ * Timer-paced sampling: Timer1 ticks at the commanded rate and keeps the device
+ * clock (t_us); each tick starts N_CHANNELS x OVERSAMPLE ADC conversions, run
+ * back to back by the ADC interrupt; the finished frame waits for the main loop.
+ */
+#ifndef LABCLI_SAMPLER_H
+#define LABCLI_SAMPLER_H
+
+#include <stdint.h>
+
+#include "config.h"
+#include "proto.h"
+
+struct frame {
+    uint32_t seq;   /* frame counter, +1 per tick while streaming, dropped frames included */
+    uint32_t t_us;  /* device clock at the tick that started the conversions */
+    uint16_t sum[N_CHANNELS]; /* sums of OVERSAMPLE 10-bit conversions per channel */
+};
+
+void sampler_init(const struct proto_rate *rate);
+
+/* The new period starts at the end of the current one, so the device clock never jumps. */
+void sampler_set_rate(const struct proto_rate *rate);
+
+/* Start (counters reset) and stop streaming; stop discards the frame being sampled. */
+void sampler_start(void);
+void sampler_stop(void);
+
+/* Copy out the finished frame, if any; 1 if there was one. */
+uint8_t sampler_take(struct frame *out);
+
+/* Frames dropped by the sampler since start (adc_late, unformatted) and the longest time from a
+ * frame's tick to its hand-over. */
+void sampler_stats(struct proto_stats *stats);
+
+#endif
