@@ -5,7 +5,7 @@ in ``serial.protocol_handler_packages``, see :func:`labcli.core.sim.register`)
 returns a port with the pyserial API whose other end runs the simulated
 firmware (:mod:`labcli.core.sim.firmware`) over a simulated rig.
 
-URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME][&faults=SPEC]``
+URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME][&faults=SPEC][&firmware=ELF]``
 
 * ``seed`` (0): seeds the actuators, sensor offsets, noise and settling times;
 * ``rate`` (200): sample rate at power-up, Hz (1..5000; ``RATE`` changes it);
@@ -25,7 +25,9 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
 * ``faults`` (none): a noisy link, ``KIND:RATE[@X],...`` per
   :mod:`labcli.core.sim.faults`, e.g. ``faults=checksum:0.01,drop:0.01,stall:0.001@2.5``;
   drawn from ``seed``.  ``port.faults`` is then the
-  :class:`~labcli.core.sim.faults.FaultInjector` holding the exact ground truth.
+  :class:`~labcli.core.sim.faults.FaultInjector` holding the exact ground truth;
+* ``firmware`` (none): run this compiled firmware on simavr instead of the
+  firmware model (:mod:`labcli.core.sim.hil_port`, chosen by :func:`serial_class_for_url`).
 
 ``port.rig`` is the rig object (operator hooks for unattended runs and
 tests; not part of the wire protocol).  ``port.unplug()`` makes every later
@@ -54,7 +56,7 @@ MAX_BUFFER = 1 << 22  # bytes held for the host before new frames are dropped (w
 def accepted_form() -> str:
     return (
         "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
-        f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...]"
+        f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...][&firmware=ELF]"
     )
 
 
@@ -107,6 +109,12 @@ def _faults(text: str) -> FaultSpec | None:
     return spec if spec.active else None
 
 
+def _firmware(text: str) -> str:
+    if not text:
+        raise ValueError
+    return text
+
+
 # option -> (parser, default, what a valid value is (text, or a function giving it))
 OPTIONS = {
     "seed": (_whole, 0, "a whole number >= 0"),
@@ -117,6 +125,7 @@ OPTIONS = {
     "tau": (_positive, 0.7, "a number of seconds > 0"),
     "mode": (_mode, None, lambda: "one of " + ", ".join(modes())),  # None: the default rig
     "faults": (_faults, None, "KIND:RATE[@X],..."),
+    "firmware": (_firmware, None, "the path of a firmware ELF"),
 }
 
 
@@ -154,6 +163,15 @@ def parse_sim_url(url: str) -> dict:
     if opts["mode"] is None:
         opts["mode"] = default_mode()
     return opts
+
+
+def serial_class_for_url(url: str) -> tuple[str, type]:
+    """pyserial's hook: ``firmware=`` selects the firmware on simavr, otherwise the firmware model."""
+    if parse_sim_url(url)["firmware"] is None:
+        return url, Serial
+    from .hil_port import HilSerial
+
+    return url, HilSerial
 
 
 class Serial(SerialBase):

@@ -1,0 +1,186 @@
+"""``sim://?firmware=ELF``: the rig firmware on simavr behind pyserial's ``Serial`` API.
+
+The URL handler (:mod:`labcli.core.sim.protocol_sim`) hands a ``sim://``
+URL with a ``firmware`` option to :class:`HilSerial`: the bytes are the
+compiled firmware's, from its UART on the simulated ATmega328P, and
+``port.rig`` is the physics rig whose sensors drive its analog inputs, so
+``labcli acquire --unattended`` works the rig while the firmware measures it.
+
+* ``clock=virtual`` (the default): simulated time runs as fast as simavr
+  goes while the host waits for bytes, and stands still while it does not
+  (see :class:`labcli.core.sim.hil.HilLink`, ``pacing="demand"``);
+* ``clock=wall``: simulated time follows the wall clock, like a board.
+
+``seed``, ``noise``, ``drift`` and ``tau`` shape the rig as for ``sim://``;
+``rate`` and ``faults`` belong to the firmware model and are refused: the
+firmware powers up at its own rate and takes RATE from the host, and its link
+is what its UART makes.  Reopening the port powers the board up again (as a
+DTR reset does); the rig, being physical, stays as it was.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import urllib.parse
+
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+
+from . import make_rig
+from .hil import HilLink
+from .protocol_sim import SimURLError, accepted_form, parse_sim_url
+
+DEMAND_S = 0.05  # simulated time a waiting read lets run at a time (clock=virtual)
+POLL_S = 0.05
+NOT_WITH_FIRMWARE = {
+    "rate": "the firmware powers up at its own rate and takes RATE from the host",
+    "faults": "the firmware's link is what its UART makes",
+}
+
+
+def firmware_options(url: str) -> dict:
+    """Options of a ``sim://?firmware=...`` URL; :class:`SimURLError` if malformed or not for firmware."""
+    opts = parse_sim_url(url)
+    for item in filter(None, urllib.parse.urlsplit(url).query.split("&")):
+        key = urllib.parse.unquote(item.partition("=")[0])
+        if key in NOT_WITH_FIRMWARE:
+            raise SimURLError(
+                f"option '{key}' in sim:// URL does not go with firmware=: {NOT_WITH_FIRMWARE[key]}; "
+                f"expected {accepted_form()}"
+            )
+    return opts
+
+
+class HilSerial(SerialBase):
+    """The firmware on simavr as a serial port (see module docstring)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.rig = None
+        self.link: HilLink | None = None
+        self.options: dict = {}
+        self._rx = bytearray()
+        self._cond = threading.Condition()
+        super().__init__(*args, **kwargs)
+
+    # ------------------------------------------------------------ open/close
+
+    def open(self) -> None:
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        opts = firmware_options(self._port)
+        if self.rig is None or opts != self.options:
+            self.rig = make_rig(opts["mode"], seed=opts["seed"], noise=opts["noise"],
+                                drift=opts["drift"], tau_s=opts["tau"])
+        self.options = opts
+        pacing = "wall" if opts["clock"] == "wall" else "demand"
+        self._rx.clear()
+        self.link = HilLink(self.rig, opts["firmware"], pacing=pacing, seed=opts["seed"], on_bytes=self._on_bytes)
+        self.is_open = True
+
+    def close(self) -> None:
+        link, self.link = self.link, None
+        if link is not None:
+            link.stop()
+        with self._cond:
+            self.is_open = False
+            self._cond.notify_all()
+        super().close()
+
+    def _reconfigure_port(self) -> None:
+        # The simulated USB bridge takes any line settings.
+        pass
+
+    def from_url(self, url: str) -> dict:
+        return firmware_options(url)
+
+    # ------------------------------------------------------------ I/O
+
+    def _on_bytes(self, data: bytes) -> None:
+        with self._cond:
+            self._rx += data
+            self._cond.notify_all()
+
+    def _check(self) -> HilLink:
+        if not self.is_open or self.link is None:
+            raise PortNotOpenError()
+        if self.link.exited.is_set():
+            raise SerialException(f"the simulated board stopped: {self.link.error or 'no message'}")
+        return self.link
+
+    @property
+    def in_waiting(self) -> int:
+        link = self._check()
+        if link.pacing == "demand":
+            link.demand(DEMAND_S)
+        return len(self._rx)
+
+    def read(self, size: int = 1) -> bytes:
+        link = self._check()
+        if size <= 0:
+            return b""
+        deadline = None if self._timeout is None else time.monotonic() + self._timeout
+        with self._cond:
+            while len(self._rx) < size:
+                if link.pacing == "demand":
+                    link.demand(DEMAND_S)
+                wait = POLL_S if deadline is None else min(POLL_S, deadline - time.monotonic())
+                if wait <= 0:
+                    break
+                self._cond.wait(wait)
+                self._check()
+            data = bytes(self._rx[:size])
+            del self._rx[:size]
+            return data
+
+    def write(self, data) -> int:
+        link = self._check()
+        data = to_bytes(data)
+        link.write(data)
+        return len(data)
+
+    def reset_input_buffer(self) -> None:
+        if not self.is_open:
+            raise PortNotOpenError()
+        with self._cond:
+            self._rx.clear()
+
+    def reset_output_buffer(self) -> None:
+        if not self.is_open:
+            raise PortNotOpenError()
+
+    @property
+    def out_waiting(self) -> int:
+        if not self.is_open:
+            raise PortNotOpenError()
+        return 0
+
+    def flush(self) -> None:
+        self._check()
+
+    # Modem lines: a USB bridge with nothing attached to them.
+    def _update_break_state(self) -> None:
+        pass
+
+    def _update_rts_state(self) -> None:
+        pass
+
+    def _update_dtr_state(self) -> None:
+        pass
+
+    @property
+    def cts(self) -> bool:
+        return True
+
+    @property
+    def dsr(self) -> bool:
+        return True
+
+    @property
+    def ri(self) -> bool:
+        return False
+
+    @property
+    def cd(self) -> bool:
+        return True
