@@ -26,7 +26,7 @@ CAL_DEG = lambda c: (np.asarray(c) - 2048) * 340 / 4095
 
 EXPECTED_FORM = (
     "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
-    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...]"
+    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&firmware=ELF]"
 )
 
 
