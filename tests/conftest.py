@@ -1,5 +1,6 @@
 """Fixtures every test may use: the command line, a quiet unattended UI, stand-ins for a run
-file's protocol and rig, deterministic records, and the toy experiment registered for one test."""
+file's protocol and rig, deterministic records, the toy experiment registered for one test,
+and the rig firmware built for simavr."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 from click.testing import CliRunner, Result
 
 from labcli.cli import cli
-from support import records, toy
+from support import firmware_build, records, toy
 
 
 @pytest.fixture
@@ -62,3 +63,12 @@ def toy_experiment(tmp_path: Path) -> Iterator[Path]:
         yield toy.write_protocol(tmp_path)
     finally:
         registry.unregister(toy.ToyExperiment.name)
+
+
+@pytest.fixture(scope="session")
+def firmware_elf(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The rig firmware and its simavr harness, built once (warnings refused); skips without the tools."""
+    firmware_build.need_simavr()
+    build = tmp_path_factory.mktemp("firmware-hil")
+    firmware_build.make(build)
+    return build / "labcli_rig.elf"

@@ -90,8 +90,10 @@ uint8_t proto_format_frame(char *out, uint32_t seq, uint32_t t_us, const uint16_
  * ADC's codes are 1024 per Vref, the protocol's counts 4095 per Vref
  * ("counts * 5.0 / 4095"), so counts = sum * 4095 / (1024 * 16), rounded.  A
  * bare (sum + 2) >> 2 would read 1 part in 4096 high: up to one count at the
- * top of the range.  A perfectly quiet input gains nothing: 16 equal codes give
- * steps of 4 counts; the sensors' noise, or the ADC's own, provides the dither.
+ * top of the range.  Rounding the sum's quarter counts to whole ones leaves a
+ * still input within 1/8 count of its mean.  A perfectly quiet input gains
+ * nothing: 16 equal codes give steps of 4 counts; the sensors' noise, or the
+ * ADC's own, provides the dither.
  */
 uint16_t proto_counts(uint16_t sum)
 {

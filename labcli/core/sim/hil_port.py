@@ -54,6 +54,8 @@ def firmware_options(url: str) -> dict:
 class HilSerial(SerialBase):
     """The firmware on simavr as a serial port (see module docstring)."""
 
+    record_feed = False  # keep every sample fed to the board, ``port.link.fed()`` (for tests)
+
     def __init__(self, *args, **kwargs) -> None:
         self.rig = None
         self.link: HilLink | None = None
@@ -76,13 +78,14 @@ class HilSerial(SerialBase):
         self.options = opts
         pacing = "wall" if opts["clock"] == "wall" else "demand"
         self._rx.clear()
-        self.link = HilLink(self.rig, opts["firmware"], pacing=pacing, seed=opts["seed"], on_bytes=self._on_bytes)
+        self.link = HilLink(self.rig, opts["firmware"], pacing=pacing, seed=opts["seed"], on_bytes=self._on_bytes,
+                            record=self.record_feed)
         self.is_open = True
 
     def close(self) -> None:
-        link, self.link = self.link, None
-        if link is not None:
-            link.stop()
+        # The link stays (stopped) for a look at what it fed; reopening starts a new one.
+        if self.link is not None:
+            self.link.stop()
         with self._cond:
             self.is_open = False
             self._cond.notify_all()
@@ -157,7 +160,9 @@ class HilSerial(SerialBase):
         return 0
 
     def flush(self) -> None:
-        self._check()
+        # Writes reach the harness at once; a closed port has nothing to flush (io's close calls this).
+        if self.is_open:
+            self._check()
 
     # Modem lines: a USB bridge with nothing attached to them.
     def _update_break_state(self) -> None:

@@ -35,7 +35,7 @@ class HilPtyServer:
 
     faults = None  # the link's faults are whatever the firmware and its UART make
 
-    def __init__(self, rig, elf, *, seed: int = 0, adc_noise_lsb: float = 0.5) -> None:
+    def __init__(self, rig, elf, *, seed: int = 0, adc_noise_lsb: float = 0.5, record: bool = False) -> None:
         self.rig = rig
         self.dropped_bytes = 0
         self._out = bytearray()
@@ -47,7 +47,7 @@ class HilPtyServer:
             os.set_blocking(self._master, False)
             self.path = os.ttyname(self._slave)
             self.link = HilLink(rig, elf, pacing="wall", seed=seed, adc_noise_lsb=adc_noise_lsb,
-                                on_bytes=self._from_device)
+                                on_bytes=self._from_device, record=record)
         except BaseException:
             self._close_fds()
             raise
@@ -128,12 +128,14 @@ class HilPtyServer:
 
 
 def serve_firmware_pty(elf, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau: float = 0.7,
-                       rig=None, adc_noise_lsb: float = 0.5) -> HilPtyServer:
+                       rig=None, adc_noise_lsb: float = 0.5, record: bool = False) -> HilPtyServer:
     """Start the firmware ``elf`` on simavr, fed by a McKibben rig, on a new pseudo-terminal.
+
+    ``record`` keeps every sample fed to the board (``server.link.fed()``).
 
     Raises :class:`~labcli.core.sim.hil.FirmwareSimError` (one sentence) when the
     firmware or its harness is missing or the simulated board does not start.
     """
     if rig is None:
         rig = make_rig("mckibben", seed=seed, noise=noise, drift=drift, tau_s=tau)
-    return HilPtyServer(rig, elf, seed=seed, adc_noise_lsb=adc_noise_lsb)
+    return HilPtyServer(rig, elf, seed=seed, adc_noise_lsb=adc_noise_lsb, record=record)
