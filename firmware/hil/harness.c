@@ -1,6 +1,6 @@
 /*
  * labcli_hil: the rig firmware (an AVR ELF) on simavr's ATmega328P, its analog
- * inputs driven in lockstep by a driver program (labcli.sim.hil) that owns the
+ * inputs driven in lockstep by a driver program (labcli.core.sim.hil) that owns the
  * physical model of the rig.
  *
  * usage: labcli_hil [options] FIRMWARE.elf

@@ -48,9 +48,11 @@
 #define LINE_MAX_BYTES (3U + 10U + 1U + 10U + N_CHANNELS * 5U + 4U)
 
 /*
- * Highest RATE accepted, Hz: what the UART carries with the longest line, and
- * never above ADC_RATE_MAX_HZ, where 96 conversions per frame stop fitting the
- * period (measured on the simulated board: tests/benchmarks/bench_firmware.py).
+ * Highest RATE accepted, Hz: what the UART carries with the longest line (202 Hz
+ * at 115200), and never above ADC_RATE_MAX_HZ.  A frame's 96 conversions at the
+ * fastest ADC clock (1 MHz) with their interrupts take 1.6 ms, so frames are lost
+ * from about 620 Hz whatever the baud (tests/benchmarks/bench_firmware.py); 500
+ * keeps a fifth of the period for formatting and the UART.
  */
 #ifndef ADC_RATE_MAX_HZ
 #define ADC_RATE_MAX_HZ 500UL

@@ -1,6 +1,6 @@
 /*
  * The device-side protocol code (src/proto.c) behind a line-oriented pipe, for
- * the pytest cross-checks against labcli.wire (tests/test_firmware_host.py).
+ * the pytest cross-checks against labcli.core.wire (tests/core/test_firmware_host.py).
  * One request per input line, one answer line per request:
  *
  *   F <seq> <t_us> <v1> ... <vn>   the data line proto_format_frame makes (n <= 16)

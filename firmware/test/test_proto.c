@@ -1,7 +1,7 @@
 /*
  * Host unit tests of the device-side protocol code (src/proto.c), known answers only.
- * Run by `make -C firmware test`; tests/test_firmware_host.py runs it and, through
- * proto_tool, checks the same code against labcli.wire on random inputs.
+ * Run by `make -C firmware test`; tests/core/test_firmware_host.py runs it and, through
+ * proto_tool, checks the same code against labcli.core.wire on random inputs.
  */
 #include <stdio.h>
 #include <string.h>

@@ -130,6 +130,20 @@ def p_demo(_: str, path: Path) -> tuple[str, str]:
             f"(median over seeds {d['seeds'][0]}-{d['seeds'][-1]})")
 
 
+def p_firmware(out: str, _: Path) -> tuple[str, str]:
+    if out.startswith("skipped"):
+        return "skipped", out.strip()
+    rows = {(m.group(1), m.group(2)): m for m in re.finditer(
+        r"^\s*(\d+) (fresh|long)\s+(\d+)\s+[\d.]+\s+([\d.]+)\s+([\d.]+)\s+\d+\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)",
+        out, re.M)}
+    slow, fast = rows[("115200", "long")], rows[("1000000", "long")]
+    speeds = [float(m.group(8)) for m in rows.values()]
+    return (f"{slow.group(3)} Hz at 115200 ({slow.group(5)} of the baud limit), {fast.group(3)} Hz at 1000000 "
+            f"({fast.group(7)} of the AVR limit), long lines",
+            f"fresh lines {rows[('115200', 'fresh')].group(3)} / {rows[('1000000', 'fresh')].group(3)} Hz; "
+            f"simavr {min(speeds):.1f}-{max(speeds):.1f}x real time")
+
+
 BENCHES = [
     Bench("reader", "bench_reader.py", ["--frames", "50000", "--repeat", "3"],
           "stream reader, 6-channel frames parsed from 4 KiB chunks", "readline + split + per-byte XOR", p_reader),
@@ -152,6 +166,9 @@ BENCHES = [
     Bench("models", "bench_models.py", ["--sizes", "1e2,1e3,1e4,1e5", "--repeat", "3", "--repeat-large", "2"],
           "fit / validate / classify (6 objects) / classify (n/10 objects), time over trials",
           "numpy lstsq on the fit's design shapes, same n", p_models, json=True),
+    Bench("firmware", "bench_firmware.py", ["--seconds", "2"],
+          "highest frame rate with 0 lost, the firmware on simavr, 115200 and 1000000 baud",
+          "baud limit (UART bytes/s over line length) and AVR limit (1 / sampling time per frame)", p_firmware),
     Bench("demo", "bench_demo.py", ["--seeds", "1", "--import-repeat", "5"],
           "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
           "`python -c \"import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma\"`", p_demo, json=True),
