@@ -11,7 +11,8 @@ a small harness (``firmware/hil/harness.c``, built next to the ELF as
   ``samples(n, 1000 Hz)``.  So the rig's clock advances with the AVR's, a few
   milliseconds ahead of it (at most ``IN_FLIGHT`` batches), and an operator
   action on the rig (``hang_weight`` ...) acts at the AVR time the rig has
-  reached.  Between slices the harness interpolates linearly; at each ADC
+  reached.  Only the link moves the rig's clock while it runs: a
+  ``rig.advance()`` from elsewhere would put the rig ahead of the board.  Between slices the harness interpolates linearly; at each ADC
   conversion it adds the ADC's own noise (``adc_noise_lsb``) and applies the
   ATmega328P's transfer function (see the harness).
 * **Pace.**  ``pacing="wall"``: simulated time follows the wall clock, at most
