@@ -12,9 +12,10 @@ a small harness (``firmware/hil/harness.c``, built next to the ELF as
   milliseconds ahead of it (at most ``IN_FLIGHT`` batches), and an operator
   action on the rig (``hang_weight`` ...) acts at the AVR time the rig has
   reached.  Only the link moves the rig's clock while it runs: a
-  ``rig.advance()`` from elsewhere would put the rig ahead of the board.  Between slices the harness interpolates linearly; at each ADC
-  conversion it adds the ADC's own noise (``adc_noise_lsb``) and applies the
-  ATmega328P's transfer function (see the harness).
+  ``rig.advance()`` from elsewhere would put the rig ahead of the board.
+  Between slices the harness interpolates linearly; at each ADC conversion it
+  adds the ADC's own noise (``adc_noise_lsb``) and applies the ATmega328P's
+  transfer function (see the harness).
 * **Pace.**  ``pacing="wall"``: simulated time follows the wall clock, at most
   ``lead_s`` ahead, as a board on a desk does (``labcli sim --pty --firmware``,
   ``sim://?firmware=...&clock=wall``).  ``pacing="demand"``: as fast as simavr
@@ -53,7 +54,6 @@ SLICE_MS = 1
 IN_FLIGHT = {"wall": 3, "demand": 8}  # batches the harness may hold beyond the one it runs
 VREF = 5.0
 ADC_MAX = 4095  # the rig's counts are the protocol's: V = counts * 5 / 4095
-F_CPU = 16_000_000
 START_TIMEOUT_S = 10.0
 _HEAD = struct.Struct("<cI")
 
