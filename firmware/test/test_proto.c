@@ -129,8 +129,18 @@ static void test_rate_settings(void)
     CHECK(r.ticks == 6000 && r.mhz == 333333);
     proto_rate_settings(30500, &r); /* just over 2^16 ticks per period */
     CHECK(r.n_sub == 2 && (uint32_t)(r.base + 1) * 2 + r.extra == r.ticks);
-    proto_rate_settings(500000, &r);
-    CHECK(r.adc_ps_log2 == 4); /* 1 MHz ADC clock above 259 Hz */
+    proto_rate_settings(260000, &r);
+    CHECK(r.adc_ps_log2 == 5); /* 500 kHz up to 260 Hz, */
+    proto_rate_settings(261000, &r);
+    CHECK(r.adc_ps_log2 == 4); /* 1 MHz above */
+    proto_rate_settings(72000, &r);
+    CHECK(r.adc_ps_log2 == 7); /* 125 kHz up to 72 Hz, */
+    proto_rate_settings(73000, &r);
+    CHECK(r.adc_ps_log2 == 6); /* 250 kHz above, */
+    proto_rate_settings(139000, &r);
+    CHECK(r.adc_ps_log2 == 6); /* up to 139 Hz */
+    proto_rate_settings(140000, &r);
+    CHECK(r.adc_ps_log2 == 5);
     proto_rate_settings(100000, &r);
     CHECK(r.adc_ps_log2 == 6);
     proto_rate_settings(50000, &r);
