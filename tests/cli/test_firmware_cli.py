@@ -36,7 +36,7 @@ from labcli.core.protocol import load_protocol
 from labcli.core.sim.hil import FIRMWARE_CHANNELS
 from labcli.core.sim.hil_port import HilSerial
 from labcli.core.sim.hil_pty import serve_firmware_pty
-from labcli.core.sim.protocol_sim import accepted_form
+from labcli.core.sim.url import accepted_form
 from labcli.core.store import RunFile
 from support.firmware_build import ROOT
 

@@ -4,7 +4,9 @@ A simulated rig is any object with ``channels``, ``device``, ``firmware``,
 ``samples(n, rate_hz)``, ``advance``, ``advance_to`` and ``time_s`` (the McKibben rig of
 :mod:`labcli.experiments.takuma2014.sim.rig` is one); the firmware (:mod:`.firmware`),
 the fault injector (:mod:`.faults`), the pty server (:mod:`.pty`) and the ``sim://`` URL
-handler (:mod:`.protocol_sim`) need nothing else.  The rigs themselves belong to the
+handler (:mod:`.protocol_sim`, its grammar in :mod:`.url`) need nothing else.  The compiled
+firmware on simavr (:mod:`.hil`; as ``sim://?firmware=ELF`` :mod:`.hil_port`, on a pty
+:mod:`.hil_pty`) needs a rig with the firmware's six channels.  The rigs themselves belong to the
 experiments: ``mode=NAME`` picks one through the registry (:func:`make_rig`).
 
 This package is also the toolkit's pyserial URL-handler package: pyserial finds a

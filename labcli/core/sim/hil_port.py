@@ -11,7 +11,8 @@ compiled firmware's, from its UART on the simulated ATmega328P, and
   (see :class:`labcli.core.sim.hil.HilLink`, ``pacing="demand"``);
 * ``clock=wall``: simulated time follows the wall clock, like a board.
 
-``seed``, ``noise``, ``drift`` and ``tau`` shape the rig as for ``sim://``;
+``mode`` picks the rig as for ``sim://`` (it must have the firmware's
+channels); ``seed``, ``noise``, ``drift`` and ``tau`` shape it as there;
 ``rate`` and ``faults`` belong to the firmware model and are refused: the
 firmware powers up at its own rate and takes RATE from the host, and its link
 is what its UART makes.  Reopening the port powers the board up again (as a
@@ -22,33 +23,15 @@ from __future__ import annotations
 
 import threading
 import time
-import urllib.parse
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
 from . import make_rig
 from .hil import HilLink
-from .protocol_sim import SimURLError, accepted_form, parse_sim_url
+from .url import firmware_options
 
 DEMAND_S = 0.05  # simulated time a waiting read lets run at a time (clock=virtual)
 POLL_S = 0.05
-NOT_WITH_FIRMWARE = {
-    "rate": "the firmware powers up at its own rate and takes RATE from the host",
-    "faults": "the firmware's link is what its UART makes",
-}
-
-
-def firmware_options(url: str) -> dict:
-    """Options of a ``sim://?firmware=...`` URL; :class:`SimURLError` if malformed or not for firmware."""
-    opts = parse_sim_url(url)
-    for item in filter(None, urllib.parse.urlsplit(url).query.split("&")):
-        key = urllib.parse.unquote(item.partition("=")[0])
-        if key in NOT_WITH_FIRMWARE:
-            raise SimURLError(
-                f"option '{key}' in sim:// URL does not go with firmware=: {NOT_WITH_FIRMWARE[key]}; "
-                f"expected {accepted_form()}"
-            )
-    return opts
 
 
 class HilSerial(SerialBase):

@@ -1,0 +1,148 @@
+"""The ``sim://`` URL's grammar: its options, their defaults and checks, and the accepted form
+every refusal shows.
+
+The firmware model's port (:mod:`.protocol_sim`, where each option's meaning is written) and
+the compiled firmware on simavr (:mod:`.hil_port`, chosen by ``firmware=``) read the same URL.
+"""
+
+from __future__ import annotations
+
+import math
+import urllib.parse
+
+from serial.serialutil import SerialException
+
+from . import default_mode, modes
+from .faults import FAULTS_FORM, FaultSpec, FaultSpecError
+from .firmware import RATE_MAX, RATE_MIN
+
+
+def accepted_form() -> str:
+    return (
+        "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
+        f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...][&firmware=ELF]"
+    )
+
+
+class SimURLError(SerialException, ValueError):
+    """A malformed ``sim://`` URL (both a SerialException and a ValueError)."""
+
+
+def _whole(text: str) -> int:
+    v = int(text)
+    if v < 0:
+        raise ValueError
+    return v
+
+
+def _nonneg(text: str) -> float:
+    v = float(text)
+    if not (math.isfinite(v) and v >= 0):
+        raise ValueError
+    return v
+
+
+def _rate(text: str) -> float:
+    v = float(text)
+    if not RATE_MIN <= v <= RATE_MAX:
+        raise ValueError
+    return v
+
+
+def _positive(text: str) -> float:
+    v = float(text)
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError
+    return v
+
+
+def _clock(text: str) -> str:
+    if text not in ("virtual", "wall"):
+        raise ValueError
+    return text
+
+
+def _mode(text: str) -> str:
+    if text not in modes():
+        raise ValueError
+    return text
+
+
+def _faults(text: str) -> FaultSpec | None:
+    spec = FaultSpec.parse(text)
+    return spec if spec.active else None
+
+
+def _firmware(text: str) -> str:
+    if not text:
+        raise ValueError
+    return text
+
+
+# option -> (parser, default, what a valid value is (text, or a function giving it))
+OPTIONS = {
+    "seed": (_whole, 0, "a whole number >= 0"),
+    "rate": (_rate, 200.0, "a number of Hz within 1..5000"),
+    "noise": (_nonneg, 1.0, "a number >= 0"),
+    "drift": (_nonneg, 0.0, "a number >= 0"),
+    "clock": (_clock, "virtual", "'virtual' or 'wall'"),
+    "tau": (_positive, 0.7, "a number of seconds > 0"),
+    "mode": (_mode, None, lambda: "one of " + ", ".join(modes())),  # None: the default rig
+    "faults": (_faults, None, "KIND:RATE[@X],..."),
+    "firmware": (_firmware, None, "the path of a firmware ELF"),
+}
+
+
+def parse_sim_url(url: str) -> dict:
+    """Options of a ``sim://`` URL with defaults filled in; :class:`SimURLError` if malformed."""
+    parts = urllib.parse.urlsplit(url)
+    if parts.scheme != "sim":
+        raise SimURLError(f"'{url}' is not a sim:// URL; expected {accepted_form()}")
+    if parts.netloc or parts.path not in ("", "/") or parts.fragment:
+        extra = parts.netloc + parts.path + ("#" + parts.fragment if parts.fragment else "")
+        raise SimURLError(f"unexpected '{extra}' in sim:// URL; expected {accepted_form()}")
+    opts = {k: default for k, (_, default, _) in OPTIONS.items()}
+    seen = set()
+    for item in filter(None, parts.query.split("&")):
+        key, eq, raw = item.partition("=")
+        key = urllib.parse.unquote(key)
+        raw = urllib.parse.unquote(raw)
+        if key not in OPTIONS:
+            raise SimURLError(f"unknown option '{key}' in sim:// URL; expected {accepted_form()}")
+        if key in seen:
+            raise SimURLError(f"option '{key}' given twice in sim:// URL; expected {accepted_form()}")
+        seen.add(key)
+        parser, _, what = OPTIONS[key]
+        try:
+            opts[key] = parser(raw) if eq else parser("")
+        except FaultSpecError as e:
+            raise SimURLError(
+                f"option 'faults' in sim:// URL: {e.detail}; expected faults={FAULTS_FORM}"
+            ) from None
+        except ValueError:
+            raise SimURLError(
+                f"option '{key}' in sim:// URL must be {what() if callable(what) else what}, got '{raw}'; "
+                f"expected {accepted_form()}"
+            ) from None
+    if opts["mode"] is None:
+        opts["mode"] = default_mode()
+    return opts
+
+
+NOT_WITH_FIRMWARE = {
+    "rate": "the firmware powers up at its own rate and takes RATE from the host",
+    "faults": "the firmware's link is what its UART makes",
+}
+
+
+def firmware_options(url: str) -> dict:
+    """Options of a ``sim://?firmware=...`` URL; :class:`SimURLError` if malformed or not for firmware."""
+    opts = parse_sim_url(url)
+    for item in filter(None, urllib.parse.urlsplit(url).query.split("&")):
+        key = urllib.parse.unquote(item.partition("=")[0])
+        if key in NOT_WITH_FIRMWARE:
+            raise SimURLError(
+                f"option '{key}' in sim:// URL does not go with firmware=: {NOT_WITH_FIRMWARE[key]}; "
+                f"expected {accepted_form()}"
+            )
+    return opts
