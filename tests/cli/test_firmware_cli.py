@@ -232,8 +232,7 @@ def test_the_firmware_needs_the_rig_it_was_written_for(tmp_path):
                                       "--seconds", "1"])
     assert result.exit_code == 1
     assert result.output == ("Error: The firmware reads P_L1,P_R1,P_L2,P_R2,POT1,POT2 on A0-A5, but the simulated rig "
-                             "rpam-joint-sim has channels P_A,P_B,POT,LEN: run it with the McKibben rig "
-                             "(mode=mckibben).\n")
+                             "rpam-joint-sim has channels P_A,P_B,POT,LEN: run it with mode=mckibben.\n")
 
 
 @pytest.mark.parametrize("args, option, why", [

@@ -27,7 +27,9 @@ a small harness (``firmware/hil/harness.c``, built next to the ELF as
 
 ``record=True`` keeps every fed sample (``fed()``: AVR time in microseconds
 and the rig's counts) so tests can hold the firmware's frames against the rig.
-The rig must have the firmware's channels (the McKibben rig's six).
+The rig must have the firmware's six channels, in its order (``FIRMWARE_CHANNELS``: the
+reference rig's names, compiled into the firmware); the ``sim://`` mode whose rig has them
+is found through the registry, like any ``mode=``.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ...errors import DeviceError
+from . import make_rig, modes
 
 FIRMWARE_CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")  # A0..A5
 HARNESS_NAME = "labcli_hil"
@@ -72,6 +75,16 @@ def find_harness(elf: Path) -> Path:
     return harness
 
 
+def _wrong_rig(rig: Any) -> FirmwareSimError:
+    """The rig lacks the firmware's channels: say which ``sim://`` mode has them (builds each rig once)."""
+    fits = [m for m in modes() if tuple(make_rig(m).channels) == FIRMWARE_CHANNELS]
+    advice = f"run it with mode={' or mode='.join(fits)}" if fits else "no installed simulated rig has them"
+    return FirmwareSimError(
+        f"The firmware reads {','.join(FIRMWARE_CHANNELS)} on A0-A5, but the simulated rig "
+        f"{rig.device} has channels {','.join(rig.channels)}: {advice}."
+    )
+
+
 class HilLink:
     """One run of the firmware on simavr, fed by ``rig`` (see the module docstring)."""
 
@@ -80,12 +93,8 @@ class HilLink:
                  record: bool = False, batch_ms: int = 10, lead_s: float = 0.02) -> None:
         if pacing not in ("wall", "demand"):
             raise ValueError("pacing is 'wall' or 'demand'")
-        channels = tuple(rig.channels)
-        if channels != FIRMWARE_CHANNELS:
-            raise FirmwareSimError(
-                f"The firmware reads {','.join(FIRMWARE_CHANNELS)} on A0-A5, but the simulated rig "
-                f"{rig.device} has channels {','.join(channels)}: run it with the McKibben rig (mode=mckibben)."
-            )
+        if tuple(rig.channels) != FIRMWARE_CHANNELS:
+            raise _wrong_rig(rig)
         self.elf = Path(elf)
         harness = find_harness(self.elf)
         self.rig = rig
@@ -109,7 +118,7 @@ class HilLink:
         self._wake_lock = threading.Lock()
         self._wake_r, self._wake_w = os.pipe()
         self._proc = subprocess.Popen(
-            [str(harness), "--channels", str(len(channels)), "--slice-us", str(SLICE_MS * 1000),
+            [str(harness), "--channels", str(len(FIRMWARE_CHANNELS)), "--slice-us", str(SLICE_MS * 1000),
              "--seed", str(int(seed)), "--adc-noise-lsb", repr(float(adc_noise_lsb)), str(self.elf)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0,
         )

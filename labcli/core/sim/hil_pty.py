@@ -128,14 +128,16 @@ class HilPtyServer:
 
 
 def serve_firmware_pty(elf, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau: float = 0.7,
-                       rig=None, adc_noise_lsb: float = 0.5, record: bool = False) -> HilPtyServer:
-    """Start the firmware ``elf`` on simavr, fed by a McKibben rig, on a new pseudo-terminal.
+                       mode: str | None = None, rig=None, adc_noise_lsb: float = 0.5,
+                       record: bool = False) -> HilPtyServer:
+    """Serve the firmware ``elf`` on simavr on a new pty, fed by the rig of ``mode`` (None: the default rig).
 
     ``record`` keeps every sample fed to the board (``server.link.fed()``).
 
     Raises :class:`~labcli.core.sim.hil.FirmwareSimError` (one sentence) when the
-    firmware or its harness is missing or the simulated board does not start.
+    firmware or its harness is missing, the rig lacks the firmware's channels or the
+    simulated board does not start.
     """
     if rig is None:
-        rig = make_rig("mckibben", seed=seed, noise=noise, drift=drift, tau_s=tau)
+        rig = make_rig(mode, seed=seed, noise=noise, drift=drift, tau_s=tau)
     return HilPtyServer(rig, elf, seed=seed, adc_noise_lsb=adc_noise_lsb, record=record)
