@@ -24,25 +24,23 @@ from __future__ import annotations
 import threading
 import time
 
-from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+from serial.serialutil import PortNotOpenError, SerialException, to_bytes
 
-from . import make_rig
 from .hil import HilLink
+from .port import SimulatedPort
 from .url import firmware_options
 
 DEMAND_S = 0.05  # simulated time a waiting read lets run at a time (clock=virtual)
 POLL_S = 0.05
 
 
-class HilSerial(SerialBase):
+class HilSerial(SimulatedPort):
     """The firmware on simavr as a serial port (see module docstring)."""
 
     record_feed = False  # keep every sample fed to the board, ``port.link.fed()`` (for tests)
 
     def __init__(self, *args, **kwargs) -> None:
-        self.rig = None
         self.link: HilLink | None = None
-        self.options: dict = {}
         self._rx = bytearray()
         self._cond = threading.Condition()
         super().__init__(*args, **kwargs)
@@ -50,15 +48,7 @@ class HilSerial(SerialBase):
     # ------------------------------------------------------------ open/close
 
     def open(self) -> None:
-        if self.is_open:
-            raise SerialException("Port is already open.")
-        if self._port is None:
-            raise SerialException("Port must be configured before it can be used.")
-        opts = firmware_options(self._port)
-        if self.rig is None or opts != self.options:
-            self.rig = make_rig(opts["mode"], seed=opts["seed"], noise=opts["noise"],
-                                drift=opts["drift"], tau_s=opts["tau"])
-        self.options = opts
+        opts = self._open_rig()
         pacing = "wall" if opts["clock"] == "wall" else "demand"
         self._rx.clear()
         self.link = HilLink(self.rig, opts["firmware"], pacing=pacing, seed=opts["seed"], on_bytes=self._on_bytes,
@@ -73,10 +63,6 @@ class HilSerial(SerialBase):
             self.is_open = False
             self._cond.notify_all()
         super().close()
-
-    def _reconfigure_port(self) -> None:
-        # The simulated USB bridge takes any line settings.
-        pass
 
     def from_url(self, url: str) -> dict:
         return firmware_options(url)
@@ -132,43 +118,7 @@ class HilSerial(SerialBase):
         with self._cond:
             self._rx.clear()
 
-    def reset_output_buffer(self) -> None:
-        if not self.is_open:
-            raise PortNotOpenError()
-
-    @property
-    def out_waiting(self) -> int:
-        if not self.is_open:
-            raise PortNotOpenError()
-        return 0
-
     def flush(self) -> None:
         # Writes reach the harness at once; a closed port has nothing to flush (io's close calls this).
         if self.is_open:
             self._check()
-
-    # Modem lines: a USB bridge with nothing attached to them.
-    def _update_break_state(self) -> None:
-        pass
-
-    def _update_rts_state(self) -> None:
-        pass
-
-    def _update_dtr_state(self) -> None:
-        pass
-
-    @property
-    def cts(self) -> bool:
-        return True
-
-    @property
-    def dsr(self) -> bool:
-        return True
-
-    @property
-    def ri(self) -> bool:
-        return False
-
-    @property
-    def cd(self) -> bool:
-        return True

@@ -42,11 +42,11 @@ from __future__ import annotations
 import threading
 import time
 
-from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+from serial.serialutil import PortNotOpenError, SerialException, to_bytes
 
-from . import make_rig
 from .faults import FaultInjector
 from .firmware import Firmware
+from .port import SimulatedPort
 from .url import parse_sim_url
 
 UNPLUGGED = "device reports readiness to read but returned no data"
@@ -64,14 +64,12 @@ def serial_class_for_url(url: str) -> tuple[str, type]:
     return url, HilSerial
 
 
-class Serial(SerialBase):
+class Serial(SimulatedPort):
     """The simulated rig behind the pyserial ``Serial`` API (see module docstring)."""
 
     def __init__(self, *args, **kwargs) -> None:
-        self.rig = None
         self.firmware: Firmware | None = None
         self.faults: FaultInjector | None = None
-        self.options: dict = {}
         self._rx = bytearray()
         self._cond = threading.Condition(threading.RLock())
         self._unplugged = False
@@ -86,16 +84,8 @@ class Serial(SerialBase):
     # ------------------------------------------------------------ open/close
 
     def open(self) -> None:
-        if self.is_open:
-            raise SerialException("Port is already open.")
-        if self._port is None:
-            raise SerialException("Port must be configured before it can be used.")
-        opts = parse_sim_url(self._port)
         # The rig is physical: reopening the port reboots the firmware, not the rig.
-        if self.rig is None or opts != self.options:
-            self.rig = make_rig(opts["mode"], seed=opts["seed"], noise=opts["noise"],
-                                drift=opts["drift"], tau_s=opts["tau"])
-        self.options = opts
+        opts = self._open_rig()
         spec = opts["faults"]
         self.faults = None if spec is None else FaultInjector(spec, seed=opts["seed"], n_channels=len(self.rig.channels))
         self.firmware = Firmware(self.rig, opts["rate"], faults=self.faults)
@@ -110,10 +100,6 @@ class Serial(SerialBase):
             self.is_open = False
             self._cond.notify_all()
         super().close()
-
-    def _reconfigure_port(self) -> None:
-        # A USB-serial bridge accepts any line settings; nothing to do.
-        pass
 
     def from_url(self, url: str) -> dict:
         return parse_sim_url(url)
@@ -246,16 +232,6 @@ class Serial(SerialBase):
                 raise PortNotOpenError()
             self._rx.clear()
 
-    def reset_output_buffer(self) -> None:
-        if not self.is_open:
-            raise PortNotOpenError()
-
-    @property
-    def out_waiting(self) -> int:
-        if not self.is_open:
-            raise PortNotOpenError()
-        return 0
-
     def flush(self) -> None:
         # Writes reach the firmware at once; only an unplugged port fails here.
         if self.is_open and self._unplugged:
@@ -265,29 +241,3 @@ class Serial(SerialBase):
         with self._cond:
             self._cancel = True
             self._cond.notify_all()
-
-    # Modem lines: a USB bridge with nothing attached to them.
-    def _update_break_state(self) -> None:
-        pass
-
-    def _update_rts_state(self) -> None:
-        pass
-
-    def _update_dtr_state(self) -> None:
-        pass
-
-    @property
-    def cts(self) -> bool:
-        return True
-
-    @property
-    def dsr(self) -> bool:
-        return True
-
-    @property
-    def ri(self) -> bool:
-        return False
-
-    @property
-    def cd(self) -> bool:
-        return True
