@@ -285,7 +285,11 @@ def test_monitor_over_a_pty_reports_exactly_the_injected_faults():
     summary = json.loads(result.output)
     want = server.faults.expected()
     assert {k: summary[k] for k in NOISE_KEYS} == want
-    assert want["frames"] > 1500 and want["lost"] > 10 and want["bad_checksum"] > 10 and want["malformed"] > 10
+    # Not 0 == 0: every kind of fault was injected and counted.  How many frames 2 s of wall clock
+    # bring depends on the machine's load; seed 12 puts each kind within the first 400 frames.
+    injected = server.faults.injected
+    assert all(injected[kind] > 0 for kind in ("checksum", "garbage", "truncate", "overlong", "drop")), injected
+    assert all(want[key] > 0 for key in NOISE_KEYS), want
 
 
 def test_sim_command_prints_what_a_host_must_count():
