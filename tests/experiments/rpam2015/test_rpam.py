@@ -77,7 +77,7 @@ def test_helical_term_vanishes_at_the_magic_angle():
     assert rpam.helical_tension(0.2, 0.9 * L, n, b) < 0 < rpam.helical_tension(0.2, 1.1 * L, n, b)
 
 
-def test_hoop_threads_give_the_end_cap_force_on_the_lumen():
+def test_hoop_threads_give_the_end_cap_force_on_the_whole_cage():
     r, L, P = 0.01, 0.08, 0.1  # m, m, MPa
     for n in (1e3, 1e4, 1e5):
         b = math.hypot(2 * math.pi * r * n, L)
@@ -86,12 +86,13 @@ def test_hoop_threads_give_the_end_cap_force_on_the_lumen():
         assert cage == pytest.approx(P * 1e6 * (math.pi * r**2 - L**2 / (2 * math.pi * n**2)), rel=1e-12)
     assert cage == pytest.approx(0.1e6 * math.pi * 1e-4, rel=1e-9)  # 31.4159 N
     assert cage == pytest.approx(31.4159, abs=1e-3)
-    # With a wall of section A0 inside the cage the gas acts on pi r^2 - A0 / lambda only.
+    # A wall of section A0 inside the cage takes nothing off the gas's share: its volume is
+    # fixed, so the gas volume changes as the cage's (no P A0 / lambda term).
     act = rpam.Actuator(L0_m=L, A0_m2=5e-5, n_turns=1e5, thread_length_m=math.hypot(2 * math.pi * r * 1e5, L),
                         ogden_mu_MPa=(0.1,), ogden_alpha=(2.0,))
-    assert -rpam.constraint_force(P, L, act) == pytest.approx(P * 1e6 * (math.pi * r**2 - 5e-5), rel=1e-9)
-    assert -rpam.constraint_force(P, 2 * L, act) == pytest.approx(
-        P * 1e6 * (math.pi * r**2 - 5e-5 / 2 - 4 * L**2 / (2 * math.pi * 1e10)), rel=1e-9)
+    for lam in (1.0, 1.5, 2.0):
+        assert rpam.constraint_force(P, lam * L, act) == pytest.approx(
+            rpam.helical_tension(P, lam * L, act.n_turns, act.thread_length_m), rel=1e-12)
 
 
 def test_helical_term_is_minus_p_dv_dl_and_scales_as_an_area():
@@ -132,12 +133,24 @@ def test_ogden_force_vanishes_unstretched_with_slope_three_mu_a0():
     assert slope == pytest.approx(3 * mu0 * ACT.A0_m2, rel=1e-6)  # E = 3 mu, incompressible
 
 
-def test_shipped_ogden_constants_follow_the_cited_dragon_skin_10_fits():
+def test_shipped_ogden_constants_follow_the_cited_dragon_skin_10_fit_in_every_mode():
+    # Uniaxial, planar and equibiaxial nominal stress (MPa) of the cited Yeoh fit against
+    # Eq. 3's Ogden form with the shipped constants, over stretch 1.05-3.
     lam = np.linspace(1.05, 3.0, 40)
-    nominal = rpam.material_force(lam, ACT) / ACT.A0_m2 / 1e6  # MPa
-    I1 = lam**2 + 2 / lam
-    yeoh = 2 * (lam - lam**-2) * (0.036 + 2 * 2.5e-4 * (I1 - 3) + 3 * 2.3e-5 * (I1 - 3) ** 2)
-    assert np.max(np.abs(nominal / yeoh - 1)) < 0.03
+    mu, al = np.array(ACT.ogden_mu_MPa), np.array(ACT.ogden_alpha)
+    assert np.all(mu > 0)  # every term's energy convex: stable in every mode
+    modes = {  # I1, d I1 / d lambda / 2, lateral exponent factor k in lambda^(-k alpha - 1)
+        "uniaxial": (lam**2 + 2 / lam, lam - lam**-2, 0.5),
+        "planar": (lam**2 + 1 + lam**-2, lam - lam**-3, 1.0),
+        "equibiaxial": (2 * lam**2 + lam**-4, lam - lam**-5, 2.0),
+    }
+    for name, (I1, half_dI1, k) in modes.items():
+        x = I1 - 3
+        yeoh = 2 * half_dI1 * (0.036 + 2 * 2.5e-4 * x + 3 * 2.3e-5 * x**2)
+        ogden = sum(2 * m / a * (lam ** (a - 1) - lam ** (-k * a - 1)) for m, a in zip(mu, al))
+        assert np.max(np.abs(ogden / yeoh - 1)) < 0.08, name
+    nominal = rpam.material_force(lam, ACT) / ACT.A0_m2 / 1e6
+    assert nominal == pytest.approx(sum(2 * m / a * (lam ** (a - 1) - lam ** (-a / 2 - 1)) for m, a in zip(mu, al)))
     at_100 = float(rpam.material_force(2.0, ACT)) / ACT.A0_m2 / 1e6
     assert at_100 == pytest.approx(22 * 0.00689476, rel=0.2)  # datasheet 100% modulus, 22 psi
 
@@ -192,17 +205,20 @@ def test_swapping_the_pressures_mirrors_the_angle():
 
 
 def test_solved_angle_satisfies_eq6_with_heron_arms_and_brent_agrees():
-    alpha = rpam.equilibrium_angle(0.096, 0.041, PAPER, ACT)
+    alpha = rpam.equilibrium_angle(0.08, 0.06, PAPER, ACT)
     La, Lb = rpam.actuator_lengths(alpha, PAPER)
     ha, hb = rpam.moment_arms_heron(alpha, PAPER)
-    Fa = rpam.push_force(0.096, La, ACT)
-    Fb = rpam.push_force(0.041, Lb, ACT)
+    Fa = rpam.push_force(0.08, La, ACT)
+    Fb = rpam.push_force(0.06, Lb, ACT)
     assert Fa * ha == pytest.approx(Fb * hb, rel=1e-9)
-    grid = rpam.joint_map([0.096], [0.041], PAPER, ACT)
+    grid = rpam.joint_map([0.08], [0.06], PAPER, ACT)
     assert float(grid.alpha_rad[0, 0]) == pytest.approx(alpha, abs=1e-12)
-    # Stable: torque drives the joint back from either side.
+    # Stable: torque drives the joint back from either side, and the stiffness says so.
     h = 1e-4
-    assert rpam.joint_torque(alpha - h, 0.096, 0.041, PAPER, ACT) > 0 > rpam.joint_torque(alpha + h, 0.096, 0.041, PAPER, ACT)
+    assert rpam.joint_torque(alpha - h, 0.08, 0.06, PAPER, ACT) > 0 > rpam.joint_torque(alpha + h, 0.08, 0.06, PAPER, ACT)
+    K = float(rpam.joint_stiffness(alpha, 0.08, 0.06, PAPER, ACT))
+    assert K > 0
+    assert float(rpam.joint_torque(alpha + h, 0.08, 0.06, PAPER, ACT)) == pytest.approx(-K * h, rel=1e-3)
 
 
 @settings(max_examples=60, deadline=None)
@@ -275,10 +291,18 @@ def test_overrides_set_values_and_reject_unknown_keys():
 
 
 def test_bad_protocol_values_are_one_sentence(tmp_path):
-    bad = rpam.apply_overrides(RAW, ["ogden.mu_MPa=[0.1, 0.003, 0.03]"])
+    # A uniaxial-only fit can have a negative modulus; in Eq. 3's convention that is unstable.
+    bad = rpam.apply_overrides(RAW, ["ogden.mu_MPa=[0.1004, 0.00281, -0.03314]"])
     with pytest.raises(ConfigError) as e:
         rpam.actuator_from_protocol(bad, "p.toml")
-    assert str(e.value) == "Ogden constants in p.toml need mu_i * alpha_i > 0 for every term (material stability)."
+    assert str(e.value) == ("Ogden constants in p.toml need mu_i > 0 and alpha_i != 0 for every term (Eq. 3's "
+                            "convention; a negative mu_i makes the wall unstable outside uniaxial tension).")
+    bad = rpam.apply_overrides(RAW, ["actuator.A0_m2=5e-4"])
+    with pytest.raises(ConfigError) as e:
+        rpam.actuator_from_protocol(bad, "p.toml")
+    assert str(e.value) == ("Protocol key 'actuator.A0_m2' in p.toml must be less than the cage's section at rest, "
+                            "pi r^2 = 0.0004909 m^2 (r from actuator.n_turns and thread_length_m): the wall lies "
+                            "inside the thread cage.")
     bad = rpam.apply_overrides(RAW, ["actuator.thread_length_m=0.05"])
     with pytest.raises(ConfigError) as e:
         rpam.actuator_from_protocol(bad, "p.toml")

@@ -31,31 +31,27 @@ Moment arms (Eq. 5)
 Actuator force (Eqs. 1-3, 7), tension-positive as in Eq. 1
     ``F_ext = F_cons + F_int + F_stretch`` is the tensile load that holds the actuator at
     length L under gauge pressure P; the force it exerts on the joint (its push) is
-    ``-F_ext``.
+    ``-F_ext``.  ``F_cons + F_int`` is derived once, from the potential of the
+    helix-constrained Ogden wall and the gas
+    (:mod:`labcli.experiments.rpam2015.models.rpam_force`, where the derivation is written
+    out).  In brief, while the gas holds the wall on the thread cage
+    (every pressure above about 10 kPa for the shipped actuator):
 
-    Helical constraint.  Eq. 2 as printed, ``P (3 L^2 / (4 pi n^2) - 1 - A0 / lambda)``,
-    subtracts the number 1 from an area.  It is re-derived from the thread geometry: a
-    thread of length b making n turns round a cylinder of length L encloses radius
-    ``r = sqrt(b^2 - L^2) / (2 pi n)`` and volume ``V = L (b^2 - L^2) / (4 pi n^2)``.
-    Virtual work on the inextensible thread cage gives the McKibben tension
-    ``-P dV/dL = P (3 L^2 - b^2) / (4 pi n^2)``, zero at the magic angle
-    (``L = b / sqrt 3``, 54.7 deg from the axis).  The rPAM's threads are wound as
-    small-pitch helices that approximate hoops, so ``L << b / sqrt 3`` (about 88 deg from
-    the axis for the shipped actuator): the term is negative, the cage pushes, and the
-    actuator extends when pressurised; in the hoop limit it tends to the end-cap force
-    ``P pi r^2``.  A free-body cut across the actuator shows the gas acts on the lumen
-    only, ``pi r^2 - A``, where ``A = A0 / lambda`` is the wall cross-section (the wall
-    lies inside the thread cage and, being incompressible, thins as it stretches): the
-    part of the end cap covered by the wall is carried by the wall, not by the gas.  So
+        F_cons = -P dV_c/dL = P (3 L^2 - b^2) / (4 pi n^2),     F_int = dU_wall/dL,
 
-        F_cons = P [ (3 L^2 - b^2) / (4 pi n^2) + A0 / lambda ]
-
-    which reduces to ``-P pi r_lumen^2`` for hoop threads.  The printed minus before
-    ``A0 / lambda`` would let the wall add to the push, which no free-body cut allows; the
-    "1" stands where ``b^2 / (4 pi n^2)`` must be for the bracket to be an area.
-
-    Material (Eq. 3, Ogden, incompressible, uniaxial): ``F_int = sum 2 mu_i A0 / alpha_i
-    (lambda^(alpha_i - 1) - lambda^(-alpha_i / 2 - 1))`` with ``lambda = L / L0``.
+    with ``V_c = L (b^2 - L^2) / (4 pi n^2)`` the volume a thread of length b in n turns
+    encloses at length L and ``U_wall`` the Ogden strain energy of a wall stretched axially
+    to ``lambda = L / L0`` while the cage sets its radius.  Eq. 2 as printed,
+    ``P (3 L^2 / (4 pi n^2) - 1 - A0 / lambda)``, subtracts the number 1 from an area (the
+    "1" stands where ``b^2 / (4 pi n^2)`` must be) and carries a wall term ``A0 / lambda``
+    that virtual work does not give: the incompressible wall keeps its volume inside the
+    cage, so the gas volume changes exactly as the cage's.  The rPAM's threads are wound as
+    small-pitch helices that approximate hoops, so ``L << b / sqrt 3`` (about 86 deg from
+    the axis for the shipped actuator): the cage term is negative, the cage pushes, and the
+    actuator extends when pressurised; in the hoop limit it tends to the full end-cap force
+    ``-P pi r^2``.  With the cage slack (low pressure, stretched wall) the tube is free and
+    at P = 0 ``F_int`` is Eq. 3 exactly, ``sum 2 mu_i A0 / alpha_i (lambda^(alpha_i - 1) -
+    lambda^(-alpha_i / 2 - 1))`` (:func:`material_force`).
 
     Stretch correction (Eq. 7): ``F_stretch = c0 + c1 lambda + c2 lambda^2 + c3 lambda^3``
     (newtons), an empirical fit to a stretch test; lambda is clamped to the range the fit
@@ -92,6 +88,7 @@ import numpy as np
 from ....core.protocol import tomllib
 from ....errors import ConfigError, ModelError
 from ..protocol import where  # how a message names the protocol
+from . import rpam_force
 
 G_N_PER_KG = 9.80665
 _MPA = 1e6  # Pa per MPa: forces are P[MPa] * area[m^2] * 1e6
@@ -231,14 +228,20 @@ def helical_tension(P_MPa: Any, L: Any, n_turns: float, thread_length_m: float) 
 
 
 def constraint_force(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:
-    """Eq. 2 re-derived: cage term plus wall term ``P A0 / lambda`` (N, tension +)."""
-    lam = np.asarray(L, dtype=float) / act.L0_m
-    wall = np.asarray(P_MPa, dtype=float) * _MPA * act.A0_m2 / lam
-    return helical_tension(P_MPa, L, act.n_turns, act.thread_length_m) + wall
+    """Eq. 2 re-derived: the gas's part of the force (N, tension +), the cage term on the cage.
+
+    See :func:`.rpam_force.force_parts`; with a slack cage it is ``-P pi r_o^2``.
+    """
+    return rpam_force.force_parts(P_MPa, L, act)[0]
+
+
+def wall_force(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:
+    """Eq. 3 re-derived: the helix-constrained Ogden wall's part of the force (N, tension +)."""
+    return rpam_force.force_parts(P_MPa, L, act)[1]
 
 
 def material_force(lam: Any, act: Actuator) -> np.ndarray:
-    """Eq. 3: Ogden uniaxial wall force in N (tension +) at stretch lambda."""
+    """Eq. 3: Ogden uniaxial wall force in N (tension +), the free wall's at P = 0."""
     lam = np.asarray(lam, dtype=float)
     total = np.zeros_like(lam)
     for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha):
@@ -256,10 +259,9 @@ def stretch_force(lam: Any, act: Actuator) -> np.ndarray:
 
 def external_force(P_MPa: Any, L: Any, act: Actuator, *, stretch: bool = True) -> np.ndarray:
     """Eq. 1 / Eq. 7: tensile load (N) that holds the actuator at length L under P."""
-    lam = np.asarray(L, dtype=float) / act.L0_m
-    F = constraint_force(P_MPa, L, act) + material_force(lam, act)
+    F = rpam_force.internal_force(P_MPa, L, act)
     if stretch:
-        F = F + stretch_force(lam, act)
+        F = F + stretch_force(np.asarray(L, dtype=float) / act.L0_m, act)
     return F
 
 
@@ -273,12 +275,15 @@ def loaded_length(
 ) -> np.ndarray:
     """Length (m) of a hanging actuator carrying ``mass_kg`` at pressure P (stretch test).
 
-    Solves ``F_ext(L) = m g`` by bisection on ``L0/2 .. 4 L0`` (vectorised); NaN where the
-    load is outside what the actuator can hold in that range.
+    Solves ``F_ext(L) = m g`` by bisection on ``L0/2 .. 4 L0`` (vectorised; the lower end
+    is raised to keep the lumen of a thick wall open); NaN where the load is outside what the
+    actuator can hold in that range.
     """
     P, m = np.broadcast_arrays(np.asarray(P_MPa, float), np.asarray(mass_kg, float))
     target = m * G_N_PER_KG
-    lo = np.full(P.shape, 0.5 * act.L0_m)
+    # Shortened, the wall thickens; at lambda = A0 / (pi R_o^2) it would fill the cage.
+    closed = act.A0_m2 / (np.pi * act.rest_radius_m**2)
+    lo = np.full(P.shape, max(0.5, 1.05 * closed) * act.L0_m)
     hi = np.full(P.shape, 4.0 * act.L0_m)
     f_lo = external_force(P, lo, act, stretch=stretch) - target
     f_hi = external_force(P, hi, act, stretch=stretch) - target
@@ -298,8 +303,7 @@ def stretch_residual(P_MPa: Any, L: Any, mass_kg: Any, act: Actuator) -> np.ndar
     ``L`` is the measured length under payload ``mass_kg`` at pressure P; these residuals
     against ``L / L0`` are what :func:`fit_stretch_correction` fits (Fig. 6).
     """
-    lam = np.asarray(L, dtype=float) / act.L0_m
-    return np.asarray(mass_kg, dtype=float) * G_N_PER_KG - constraint_force(P_MPa, L, act) - material_force(lam, act)
+    return np.asarray(mass_kg, dtype=float) * G_N_PER_KG - rpam_force.internal_force(P_MPa, L, act)
 
 
 def fit_stretch_correction(lam: Any, force_N: Any) -> tuple[float, float, float, float]:
@@ -328,6 +332,20 @@ def joint_torque(
     Fa = push_force(Pa_MPa, La, act, stretch=stretch)
     Fb = push_force(Pb_MPa, Lb, act, stretch=stretch)
     return Fa * ma - Fb * mb
+
+
+def joint_stiffness(
+    alpha: Any, Pa_MPa: Any, Pb_MPa: Any, geom: JointGeometry, act: Actuator, *, stretch: bool = True,
+    step_rad: float = 1e-6,
+) -> np.ndarray:
+    """Joint stiffness ``-d tau / d alpha`` (N m/rad) by a central difference of Eq. 6.
+
+    Positive at a stable balance; zero at a fold, where the balance is about to vanish.
+    """
+    alpha = np.asarray(alpha, dtype=float)
+    up = joint_torque(alpha + step_rad, Pa_MPa, Pb_MPa, geom, act, stretch=stretch)
+    down = joint_torque(alpha - step_rad, Pa_MPa, Pb_MPa, geom, act, stretch=stretch)
+    return -(up - down) / (2 * step_rad)
 
 
 @dataclass
@@ -601,8 +619,11 @@ def actuator_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
     al = _nums(raw, "ogden.alpha", path)
     if len(mu) != len(al) or not mu:
         raise ConfigError(f"Protocol keys 'ogden.mu_MPa' and 'ogden.alpha' in {where(path)} must be lists of the same length.")
-    if any(a == 0 for a in al) or any(m * a <= 0 for m, a in zip(mu, al)):
-        raise ConfigError(f"Ogden constants in {where(path)} need mu_i * alpha_i > 0 for every term (material stability).")
+    # Eq. 3's convention: W = sum 2 mu_i / alpha_i^2 (l1^alpha_i + l2^alpha_i + l3^alpha_i - 3),
+    # convex (stable in every mode, not only in uniaxial tension) when every mu_i > 0.
+    if any(a == 0 for a in al) or any(m <= 0 for m in mu):
+        raise ConfigError(f"Ogden constants in {where(path)} need mu_i > 0 and alpha_i != 0 for every term "
+                          "(Eq. 3's convention; a negative mu_i makes the wall unstable outside uniaxial tension).")
     act = Actuator(
         L0_m=_num(raw, "actuator.L0_m", path),
         A0_m2=_num(raw, "actuator.A0_m2", path),
@@ -617,6 +638,12 @@ def actuator_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
         raise ConfigError(
             f"Protocol key 'actuator.thread_length_m' in {where(path)} must exceed actuator.L0_m: "
             "a thread shorter than the actuator cannot wind round it."
+        )
+    if act.A0_m2 >= np.pi * act.rest_radius_m**2:
+        raise ConfigError(
+            f"Protocol key 'actuator.A0_m2' in {where(path)} must be less than the cage's section at rest, "
+            f"pi r^2 = {np.pi * act.rest_radius_m**2:.4g} m^2 (r from actuator.n_turns and thread_length_m): "
+            "the wall lies inside the thread cage."
         )
     return act
 

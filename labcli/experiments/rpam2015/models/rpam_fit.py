@@ -4,7 +4,8 @@ Two calls, one per experiment of the rPAM joint paper:
 
 * :func:`analyse_stretch` turns a stretch-test table into the empirical stretch force of
   every point, ``F_stretch = m g - F_cons - F_int`` (Eq. 7 with ``F_ext = m g``; the
-  constraint and wall forces are :mod:`labcli.experiments.rpam2015.models.rpam`'s), and fits the cubic
+  gas's and the wall's forces are :mod:`labcli.experiments.rpam2015.models.rpam`'s, derived
+  from one potential in :mod:`labcli.experiments.rpam2015.models.rpam_force`), and fits the cubic
   ``F_stretch(lambda) = c0 + c1 lambda + c2 lambda^2 + c3 lambda^3`` by least squares with
   standard errors, 95 % intervals, R^2 and RMSE (:class:`StretchCorrection`).
 * :func:`analyse_joint_map` compares a measured map of joint angles over (Pa, Pb) with
@@ -383,7 +384,7 @@ def stretch_forces(mass_kg: Any, P_MPa: Any, L_m: Any, act: rpam.Actuator) -> di
     lam = L / act.L0_m
     F_ext = mass * rpam.G_N_PER_KG
     F_cons = rpam.constraint_force(P, L, act)
-    F_int = rpam.material_force(lam, act)
+    F_int = rpam.wall_force(P, L, act)
     return {"lambda": lam, "F_ext_N": F_ext, "F_cons_N": F_cons, "F_int_N": F_int,
             "F_stretch_N": F_ext - F_cons - F_int}
 
