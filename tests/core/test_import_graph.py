@@ -1,8 +1,7 @@
 """The layers, as the imports draw them: no cycle, the core knows no paper, no paper another.
 
 Every module of the package is read with ``ast`` (imports inside functions too, relative
-imports resolved) into a graph of labcli modules.  An import of ``pkg.name`` counts as an
-import of the module ``pkg.name`` when there is one, else of ``pkg``.
+imports resolved) into a graph of labcli modules (:mod:`support.imports`).
 
 ==========================  ================================================================
 layer                       may import
@@ -16,47 +15,8 @@ labcli.commands.*, cli      anything but a paper: papers only through the regist
 
 from __future__ import annotations
 
-import ast
-from pathlib import Path
-
 import pytest
-
-import labcli
-
-PACKAGE = Path(labcli.__file__).resolve().parent
-
-
-def module_name(path: Path) -> str:
-    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-
-
-MODULES = {module_name(p): p for p in PACKAGE.rglob("*.py")}
-
-
-def imports_of(name: str) -> set[str]:
-    """The labcli modules ``name`` imports, anywhere in its body."""
-    path = MODULES[name]
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    found: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            targets = [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - (node.level - 1)]
-                origin = ".".join(base + ([node.module] if node.module else []))
-            else:
-                origin = node.module or ""
-            targets = [f"{origin}.{a.name}" if f"{origin}.{a.name}" in MODULES else origin for a in node.names]
-        else:
-            continue
-        found.update(t for t in targets if t == "labcli" or t.startswith("labcli."))
-    return found - {name}
-
-
-GRAPH = {name: imports_of(name) for name in MODULES}
+from support.imports import GRAPH, MODULES
 
 
 def paper_of(name: str) -> str | None:

@@ -3,19 +3,32 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from support.imports import MODULES, reachable
 from support.rpam_runs import capture
 
 from labcli.core.device import Device
 from labcli.experiments.rpam2015.models import rpam
 from labcli.core.sim import make_rig, modes
+from labcli.experiments.rpam2015.protocol import read_rpam_protocol
 from labcli.experiments.rpam2015.sim.rig import (
     ADC_MAX, CALIBRATION, CHANNELS, STOP_MARGIN_DEG, RpamRig, counts_to_si, si_to_counts,
 )
 
 KPA = 1e-3
+SIM, MODEL = "labcli.experiments.rpam2015.sim", "labcli.experiments.rpam2015.models"
+# The model the rig is there to check, built from the same protocol.
+PATH, RAW = read_rpam_protocol("rpam2015")
+GEOM = rpam.geometry_from_protocol(RAW, PATH)
+ACT = rpam.actuator_from_protocol(RAW, PATH)
+
+
+def model_actuator(rig: RpamRig, which: str = "A") -> rpam.Actuator:
+    """The model's actuator with the rig's true, unclamped stretch correction."""
+    return replace(ACT, stretch_coefficients_N=rig.true_stretch_coefficients_N[which], stretch_lambda_range=(0.0, 1e6))
 
 
 def test_sim_url_selects_the_rpam_rig_and_id_names_its_channels():
@@ -77,7 +90,7 @@ def test_equal_pressures_on_the_symmetric_joint_give_zero_angle():
         # Noise of 0.7 count = 0.06 deg per sample, averaged over 50: far below 0.05 deg.
         assert math.degrees(v[2]) == pytest.approx(0.0, abs=0.05), p_kpa
         # LEN reads actuator a's length at alpha = 0 (Eq. 4).
-        assert v[3] == pytest.approx(float(rpam.actuator_lengths(0.0, rig.geometry)[0]), abs=0.1e-3)
+        assert v[3] == pytest.approx(float(rpam.actuator_lengths(0.0, GEOM)[0]), abs=0.1e-3)
 
 
 def test_joint_angle_rises_with_pa_and_falls_with_pb():
@@ -98,13 +111,52 @@ def test_joint_angle_rises_with_pa_and_falls_with_pb():
 
 def test_the_joint_balances_eq6_of_the_true_actuators():
     rig = RpamRig(seed=3, variation=False)
-    rig.set_pressures(0.09, 0.06)
+    rig.set_pressures(0.08, 0.06)
     truth = rig.true_state()
     alpha = truth["target_alpha_rad"]
     assert truth["status"] == "ok" and 0 < alpha < rig.stop_rad
-    assert abs(float(rig.joint_torque(alpha, 0.09, 0.06))) < 1e-9
+    assert abs(float(rig.joint_torque(alpha, 0.08, 0.06))) < 1e-9
     # The nominal rig is the protocol's model: same angle as the model's solver.
-    assert alpha == pytest.approx(rpam.equilibrium_angle(0.09, 0.06, rig.geometry, rig.nominal_actuator), abs=1e-9)
+    assert alpha == pytest.approx(rpam.equilibrium_angle(0.08, 0.06, GEOM, ACT), abs=1e-9)
+
+
+def test_the_rigs_own_stress_integration_gives_the_models_energy_force():
+    # Two derivations of one force: the model differentiates the potential (wall strain
+    # energy and gas volume over R^2, models/rpam_force.py), the rig integrates the
+    # wall's Cauchy stresses over the current radius and adds the thread's statics.
+    rig = RpamRig(seed=0, variation=False)
+    tube = rig.tubes[0]
+    L = np.linspace(0.05, 0.20, 31)
+    for p in (0.0, 0.002, 0.006, 0.041, 0.096, 0.138, 0.19):  # slack cage below ~10 kPa, then on it
+        model = rpam.external_force(p, L, model_actuator(rig))
+        np.testing.assert_allclose(tube.tension(p, L), model, rtol=1e-6, atol=1e-6)
+    # The printed Eq. 2's wall term is what the stresses rule out: about P A0 / lambda apart.
+    lam = 0.1336 / ACT.L0_m
+    old = float(rpam.external_force(0.096, 0.1336, ACT)) + 0.096e6 * ACT.A0_m2 / lam
+    assert float(tube.tension(0.096, 0.1336)) == pytest.approx(old - 10.4, abs=0.05)
+
+
+def test_the_rigs_cross_product_torque_is_eq6_with_the_models_moment_arms():
+    rig = RpamRig(seed=0, variation=False)
+    alpha = np.linspace(-1.3, 1.3, 27)  # both sides of both toggles
+    La, Lb = rpam.actuator_lengths(alpha, GEOM)
+    np.testing.assert_allclose(rig.links.lengths(alpha), (La, Lb), rtol=1e-13)
+    for pa, pb in ((0.041, 0.041), (0.096, 0.041), (0.0, 0.138)):
+        np.testing.assert_allclose(rig.joint_torque(alpha, pa, pb), rpam.joint_torque(alpha, pa, pb, GEOM, ACT),
+                                   rtol=1e-7, atol=1e-9)
+    assert rig.toggle_rad == pytest.approx(float(rpam.toggle_angle(GEOM)), abs=1e-15)
+
+
+def test_the_rig_does_not_use_the_model_it_checks():
+    # Every import of the stand's modules (inside functions and relative ones too), followed
+    # through the modules they name: its own physics and the protocol, never the model.
+    stand = {name for name in MODULES if name.startswith(SIM)}
+    assert {f"{SIM}.rig", f"{SIM}.rpam_physics"} <= stand
+    assert f"{SIM}.rpam_physics" in reachable(f"{SIM}.rig")
+    assert f"{MODEL}.rpam_force" in reachable(f"{MODEL}.rpam_optimize")  # the graph does see the model
+    for name in sorted(stand):
+        used = sorted(m for m in reachable(name) if m == MODEL or m.startswith(MODEL + "."))
+        assert not used, f"{name} reaches {used}"
 
 
 def test_a_large_pressure_difference_leaves_the_joint_on_its_stop():
@@ -117,7 +169,7 @@ def test_a_large_pressure_difference_leaves_the_joint_on_its_stop():
     assert math.degrees(v[2]) == pytest.approx(math.degrees(rig.stop_rad), abs=0.1)
     # The model has no balance there: the joint runs onto the toggle.
     with pytest.raises(rpam.ModelError):
-        rpam.equilibrium_angle(0.138, 0.041, rig.geometry, rig.nominal_actuator)
+        rpam.equilibrium_angle(0.138, 0.041, GEOM, ACT)
 
 
 def test_posture_and_pressures_follow_a_first_order_lag():
@@ -143,14 +195,16 @@ def test_stretch_stand_length_is_the_loaded_length_of_the_true_actuator():
         rig.hang_payload(mass)
         rig.set_pressures(p, 0.0)
         v = capture(rig)
-        want = float(rpam.loaded_length(p, mass, rig.actuators[0]))
+        want = float(rpam.loaded_length(p, mass, model_actuator(rig)))
         assert v[3] == pytest.approx(want, abs=0.05e-3)
         assert v[0] == pytest.approx(p, abs=0.3e-3)
         assert math.degrees(v[2]) == pytest.approx(0.0, abs=0.05)  # joint locked on the stand
     assert rig.true_state()["lambda"] > 2.0
     # The true correction is never clamped: at lambda beyond the protocol's range it still grows.
-    act = rig.actuators[0]
-    assert float(rpam.stretch_force(3.0, act)) == pytest.approx(np.polyval(act.stretch_coefficients_N[::-1], 3.0))
+    tube = rig.tubes[0]
+    coef = rig.true_stretch_coefficients_N["A"]
+    assert float(tube.tension(0.1, 3.0 * tube.L0_m) - rpam.external_force(0.1, 3.0 * tube.L0_m, ACT, stretch=False)) == \
+        pytest.approx(np.polyval(coef[::-1], 3.0), abs=1e-6)
 
 
 def test_heavier_payload_and_higher_pressure_both_lengthen_the_actuator():

@@ -1,8 +1,9 @@
 """The simulated rPAM rig: the antagonistic 1-DoF joint and the stretch-test stand.
 
 :class:`RpamRig` is the test bed of the rPAM joint paper (Figs. 5-8) behind a 12-bit ADC,
-built from :mod:`labcli.experiments.rpam2015.models.rpam` with the constants of a protocol file (the shipped
-``rpam2015`` by default).  Like :class:`labcli.experiments.takuma2014.sim.rig.SimRig` it is not part of the wire
+built from the constants of a protocol file (the shipped ``rpam2015`` by default) with its
+own physics (:mod:`labcli.experiments.rpam2015.sim.rpam_physics`), not the model it is there
+to check.  Like :class:`labcli.experiments.takuma2014.sim.rig.SimRig` it is not part of the wire
 protocol: the simulated firmware reads it through ``channels``, ``device``, ``firmware``,
 ``samples(n, rate_hz)``, ``advance``, ``advance_to`` and ``time_s``; ``sim://?mode=rpam``
 selects it.
@@ -38,12 +39,16 @@ Physics.  Every operator action solves the new static balance once and the state
 towards it as a first-order lag (time constant ``tau_s``, with about 15 % seeded jitter per
 change); pressures follow their regulators with the same lag.
 
-* Stretch stand: ``F_ext(L) = m g`` (Eq. 7) with the rig's own "true" ``F_stretch``.
-* Joint: Eq. 6 with the signed moment arms of :mod:`labcli.experiments.rpam2015.models.rpam`, each actuator
-  with its own true ``F_stretch``.  From the current angle the joint moves in the
-  direction of the torque to the first balance; one it cannot reach before the toggle
-  angle ``atan(L2/L3)`` leaves it on the hard stop of the swivel plates,
-  :data:`STOP_MARGIN_DEG` short of the toggle (the paper's runaway "toggle" state).
+* Each actuator's force comes from the Cauchy stresses of its thick Ogden wall and the
+  statics of its thread cage (:class:`~.rpam_physics.Tube`), plus its own true
+  ``F_stretch``.
+* Stretch stand: the hanging actuator settles where its tension equals ``m g``.
+* Joint: the torque on the upper plate is the cross product of each upper mount's
+  position with the push along its actuator (:class:`~.rpam_physics.Links`).
+  From the current angle the joint moves in the direction of the torque to the first
+  balance; one it cannot reach before the toggle angle ``atan(L2/L3)`` leaves it on the
+  hard stop of the swivel plates, :data:`STOP_MARGIN_DEG` short of the toggle (the
+  paper's runaway "toggle" state).
 
 The true stretch correction is the protocol's cubic scaled per actuator by a seeded factor
 (about 5 % rms, within 0.8-1.25) and never clamped, so a stretch test can recover it and
@@ -71,9 +76,8 @@ from typing import Any
 
 import numpy as np
 
-from ..models import rpam
-from ..protocol import read_rpam_protocol
 from ....core.sim.clock import SimClock
+from .rpam_physics import G_N_PER_KG, read_stand
 
 CHANNELS = ("P_A", "P_B", "POT", "LEN")
 ADC_MAX = 4095
@@ -149,11 +153,10 @@ class RpamRig(SimClock):
     ) -> None:
         if noise < 0 or drift < 0 or not tau_s > 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
-        path, raw = read_rpam_protocol(protocol)
+        path, links, nominal = read_stand(protocol)
         self.protocol_path = path
-        self.geometry = rpam.geometry_from_protocol(raw, path)
-        nominal = rpam.actuator_from_protocol(raw, path)
-        self.nominal_actuator = nominal
+        self.links = links
+        self.nominal_tube = nominal
         self.seed = int(seed)
         self.noise = float(noise)
         self.drift = float(drift)
@@ -167,12 +170,9 @@ class RpamRig(SimClock):
             scales = np.ones(2)
             self.pot_offset_rad = 0.0
         # The true correction holds everywhere (no clamp), so a fit over any range sees a cubic.
-        self.actuators = tuple(
-            replace(nominal, stretch_coefficients_N=tuple(float(s * c) for c in nominal.stretch_coefficients_N),
-                    stretch_lambda_range=(0.0, 1e6))
-            for s in scales
-        )
-        self.toggle_rad = float(rpam.toggle_angle(self.geometry))
+        self.tubes = tuple(replace(nominal, stretch_N=tuple(float(s * c) for c in nominal.stretch_N))
+                           for s in scales)
+        self.toggle_rad = links.toggle_rad
         self.stop_rad = self.toggle_rad - math.radians(STOP_MARGIN_DEG)
         self._friction = (FRICTION_FORCE_N, FRICTION_TORQUE_NM) if variation else (0.0, 0.0)
         self._noise_rng = np.random.default_rng([self.seed, 1])
@@ -196,7 +196,7 @@ class RpamRig(SimClock):
     @property
     def true_stretch_coefficients_N(self) -> dict[str, tuple[float, ...]]:
         """The rig's true ``F_stretch`` cubic per actuator (c0..c3, N)."""
-        return {"A": self.actuators[0].stretch_coefficients_N, "B": self.actuators[1].stretch_coefficients_N}
+        return {"A": self.tubes[0].stretch_N, "B": self.tubes[1].stretch_N}
 
     def _state_at(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pressures (..., 2) MPa, joint angle (...) rad, actuator a's length (...) m at times t."""
@@ -206,7 +206,7 @@ class RpamRig(SimClock):
         p = s.p_to + (s.p_from - s.p_to) * w[..., None]
         alpha = s.alpha_to + (s.alpha_from - s.alpha_to) * w
         if self.experiment == "joint":
-            length = rpam.actuator_lengths(alpha, self.geometry)[0]
+            length = self.links.lengths(alpha)[0]
         else:
             length = s.len_to + (s.len_from - s.len_to) * w
         return p, alpha, length
@@ -229,12 +229,12 @@ class RpamRig(SimClock):
                 "pressures_MPa": p.copy(),
                 "alpha_rad": float(alpha),
                 "length_m": float(length),
-                "lambda": float(length) / self.nominal_actuator.L0_m,
+                "lambda": float(length) / self.nominal_tube.L0_m,
                 "payload_kg": self._payload_kg,
                 "setpoints_MPa": self._setpoint.copy(),
                 "target_alpha_rad": s.alpha_to,
                 "target_length_m": s.len_to if self.experiment == "stretch"
-                else float(rpam.actuator_lengths(s.alpha_to, self.geometry)[0]),
+                else float(self.links.lengths(s.alpha_to)[0]),
                 "status": s.status,
                 "stop_rad": self.stop_rad,
                 "toggle_rad": self.toggle_rad,
@@ -246,11 +246,8 @@ class RpamRig(SimClock):
 
     def joint_torque(self, alpha: Any, pa_MPa: float, pb_MPa: float) -> np.ndarray:
         """Eq. 6 residual (N m) of the true rig, each actuator with its own correction; > 0 raises alpha."""
-        La, Lb = rpam.actuator_lengths(alpha, self.geometry)
-        ma, mb = rpam.moment_arms(alpha, self.geometry)
-        Fa = rpam.push_force(pa_MPa, La, self.actuators[0])
-        Fb = rpam.push_force(pb_MPa, Lb, self.actuators[1])
-        return Fa * ma - Fb * mb
+        La, Lb = self.links.lengths(alpha)
+        return self.links.torque(alpha, self.tubes[0].push(pa_MPa, La), self.tubes[1].push(pb_MPa, Lb))
 
     def _joint_balance(self, alpha0: float, pa: float, pb: float, friction: float) -> tuple[float, str]:
         from scipy.optimize import brentq
@@ -277,10 +274,8 @@ class RpamRig(SimClock):
         return float(brentq(tau, lo, hi, xtol=1e-13)), "ok"
 
     def _stretch_length(self, p_MPa: float, mass_kg: float, friction_N: float) -> float:
-        # Friction carries part of the load: the actuator settles where F_ext = m g - F_f.
-        act = self.actuators[0]
-        m_eff = mass_kg - friction_N / rpam.G_N_PER_KG
-        L = float(rpam.loaded_length(p_MPa, m_eff, act))
+        # Friction carries part of the load: the actuator settles where its tension is m g - F_f.
+        L = self.tubes[0].hanging_length(p_MPa, mass_kg * G_N_PER_KG - friction_N)
         if not math.isfinite(L):
             raise ValueError(
                 f"the simulated stretch stand finds no length for {mass_kg * 1e3:g} g at "
