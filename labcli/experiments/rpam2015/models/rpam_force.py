@@ -113,6 +113,24 @@ def wall_radii_sq(act: WallAndCage) -> tuple[float, float]:
     return Ro2 - act.A0_m2 / np.pi, Ro2
 
 
+def _power(x: np.ndarray, a: float, logs: dict[str, np.ndarray], key: str) -> np.ndarray:
+    """``x ** a``; by repeated products for a whole exponent (the solver's hot loop spends
+    most of its time here, and a product costs a small fraction of an ``exp``)."""
+    if a == int(a) and 0 < abs(a) <= 16:
+        n, base, out = abs(int(a)), x, None
+        while n:
+            if n & 1:
+                out = base if out is None else out * base
+            n >>= 1
+            if n:
+                base = base * base
+        return out if a > 0 else 1.0 / out
+    if key not in logs:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            logs[key] = np.log(x)
+    return np.exp(a * logs[key])
+
+
 def _wall(L: np.ndarray, ro2: np.ndarray, act: WallAndCage, energy: bool = False
           ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """``(U, dU/dL at fixed r_o^2, dU/d(r_o^2) at fixed L)`` by quadrature over R^2.
@@ -125,8 +143,8 @@ def _wall(L: np.ndarray, ro2: np.ndarray, act: WallAndCage, energy: bool = False
     lam = (L / act.L0_m)[..., None]
     u = ro2[..., None] - (Ro2 - s) / lam  # r^2 of each ring
     with np.errstate(invalid="ignore", divide="ignore"):
-        ln_l = np.log(lam)
-        ln_t = 0.5 * np.log(u / s)  # log of the hoop stretch r / R
+        lt = np.sqrt(u / s)  # hoop stretch r / R
+    logs: dict[str, np.ndarray] = {}
     # Sums over the Ogden terms of c_i alpha_i (l^a - l_r^a) and c_i alpha_i (l_t^a - l_r^a),
     # c_i = 2 mu_i / alpha_i^2, with the radial stretch l_r = 1 / (lambda lambda_t).
     sum_l = np.zeros(u.shape)
@@ -134,8 +152,8 @@ def _wall(L: np.ndarray, ro2: np.ndarray, act: WallAndCage, energy: bool = False
     W = np.zeros(u.shape) if energy else None
     for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha):
         ca = 2 * mu * _MPA / a
-        pl = np.exp(a * ln_l)
-        pt = np.exp(a * ln_t)
+        pl = _power(lam, a, logs, "l")
+        pt = _power(lt, a, logs, "t")
         pr = 1.0 / (pl * pt)
         sum_l += ca * (pl - pr)
         sum_t += ca * (pt - pr)
@@ -161,17 +179,20 @@ def liftoff_pressure(L: Any, act: WallAndCage) -> np.ndarray:
 def _free_radius_sq(P: np.ndarray, L: np.ndarray, act: WallAndCage, hi: np.ndarray) -> np.ndarray:
     """r_o^2 of a free (slack-cage) tube: the root of ``dU/d(r_o^2) = P pi L`` below ``hi``.
 
-    The root lies between the homogeneous state ``R_o^2 / lambda`` (its P = 0 root) and the
-    cage; bisection, since U is convex in r_o^2 for a stable wall.
+    The root lies between the homogeneous state ``R_o^2 / lambda`` (its P = 0 root, exact)
+    and the cage; bisection, since U is convex in r_o^2 for a stable wall.
     """
     _, Ro2 = wall_radii_sq(act)
-    lo = Ro2 * act.L0_m / L
-    target = P * _MPA * np.pi * L
-    for _ in range(_BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        above = _wall(L, mid, act)[2] > target
-        lo, hi = np.where(above, lo, mid), np.where(above, mid, hi)
-    return np.where(P == 0, Ro2 * act.L0_m / L, 0.5 * (lo + hi))
+    out = Ro2 * act.L0_m / L
+    pressed = P > 0
+    if pressed.any():
+        lo, hi, L, target = out[pressed], hi[pressed], L[pressed], P[pressed] * _MPA * np.pi * L[pressed]
+        for _ in range(_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            above = _wall(L, mid, act)[2] > target
+            lo, hi = np.where(above, lo, mid), np.where(above, mid, hi)
+        out[pressed] = 0.5 * (lo + hi)
+    return out
 
 
 def _settled(P: np.ndarray, L: np.ndarray, act: WallAndCage

@@ -109,10 +109,11 @@ class Tube:
     def _free_tension(self, P: np.ndarray, L: np.ndarray, r_c: np.ndarray) -> np.ndarray:
         # The slack cage: the tube inflates until its outer surface is free (p_c = 0),
         # between the unloaded tube's radius R_o / sqrt(lambda) and the cage.
+        # Vented, it is the unloaded tube's radius itself (t_hoop = t_rad throughout).
         _, Ro = self.rest_radii
         lo = Ro / np.sqrt(L / self.L0_m)
-        hi = r_c
-        for _ in range(_BISECTIONS):
+        hi = np.where(P > 0, r_c, lo)
+        for _ in range(_BISECTIONS if np.any(P > 0) else 0):
             mid = 0.5 * (lo + hi)
             inflated = self._integrals(L, mid)[1] > P  # p_c < 0: smaller than that
             lo, hi = np.where(inflated, lo, mid), np.where(inflated, mid, hi)
