@@ -33,13 +33,17 @@ def optimize(protocol: str, seed: int | None, pa_kpa: float | None, pb_kpa: floa
     """Maximise the joint angle of an rPAM joint over L1, L2, L3 (Section IV, g1-g7).
 
     Differential evolution, seeded and reproducible, stands in for the paper's genetic
-    algorithm.  Reports the optimum, the constraints at their bounds and the distance to
-    the toggle angle atan(L2/L3).
+    algorithm.  Besides g1-g7 the joint must hold: a stiffness of at least
+    optimize.min_stiffness_Nm_per_rad and a margin to the toggle angle atan(L2/L3).
+    Reports the optimum's angle, stiffness, margin, forces, moment arms and active
+    constraints, with the links rounded to 0.1 mm as printed, beside the paper's design
+    evaluated with the same model.
 
     \b
     Example:
         labcli optimize --protocol protocols/rpam2015.toml --seed 1
         labcli optimize --pa 110 --pb 41 --set actuator.L0_m=0.08 --json
+        labcli optimize --set optimize.min_stiffness_Nm_per_rad=0.2
     """
     _kpa(pa_kpa, "--pa")
     _kpa(pb_kpa, "--pb")

@@ -185,7 +185,8 @@ def show_validation(result: JointMapValidation, *, as_json: bool = False) -> Non
 
 def optimize(protocol: str, *, seed: int | None = None, pa_kpa: float | None = None, pb_kpa: float | None = None,
              overrides: tuple[str, ...] = (), progress: bool = True, **_: Any) -> Any:
-    """Maximise the joint angle over L1, L2, L3 (g1-g7); a live line on stderr while it runs."""
+    """Maximise the joint angle over L1, L2, L3 (g1-g7, K_min, the toggle margin); a live line
+    on stderr while it runs."""
     if not progress:
         return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa)
     with report.optimize_progress() as show:

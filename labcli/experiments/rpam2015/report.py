@@ -110,19 +110,57 @@ def optimize_progress() -> Iterator[Any]:
         yield report
 
 
+_OPTIMUM_ROWS = (  # label, key, scale, format
+    ("L1 (m)", "L1_m", 1.0, ".4f"),
+    ("L2 (m)", "L2_m", 1.0, ".4f"),
+    ("L3 (m)", "L3_m", 1.0, ".4f"),
+    ("alpha (deg)", "alpha_deg", 1.0, ".2f"),
+    ("toggle atan(L2/L3) (deg)", "toggle_deg", 1.0, ".2f"),
+    ("margin to the toggle (deg)", "toggle_margin_deg", 1.0, ".2f"),
+    ("stiffness -dtau/dalpha (N m/rad)", "stiffness_Nm_per_rad", 1.0, ".4f"),
+    ("L_a (m)", "L_a_m", 1.0, ".4f"),
+    ("L_b (m)", "L_b_m", 1.0, ".4f"),
+    ("push of a, F_a (N)", "F_a_N", 1.0, ".2f"),
+    ("push of b, F_b (N)", "F_b_N", 1.0, ".2f"),
+    ("moment arm of a, m_a (mm)", "arm_a_m", 1e3, ".2f"),
+    ("moment arm of b, m_b (mm)", "arm_b_m", 1e3, ".2f"),
+)
+
+
+def _design_cell(design: dict[str, Any], key: str, scale: float, spec: str) -> str:
+    if key == "alpha_deg" and not design.get("balanced", True):
+        return "toggles"
+    v = design.get(key)
+    return cell(None if v is None else v * scale, spec)
+
+
 def print_optimum(d: dict[str, Any]) -> None:
-    """The optimum design (``OptimumResult.to_dict()``) and the constraints at their bounds."""
-    print(f"Optimum at Pa = {d['Pa_kPa']:g} kPa, Pb = {d['Pb_kPa']:g} kPa (seed {d['seed']}, "
-          f"{d['generations']} generations):")
-    print(f"  L1    = {d['L1_m']:.4f} m")
-    print(f"  L2    = {d['L2_m']:.4f} m")
-    print(f"  L3    = {d['L3_m']:.4f} m")
-    print(f"  alpha = {d['alpha_deg']:.2f} deg")
-    print(f"  L_a   = {d['L_a_m']:.4f} m, L_b = {d['L_b_m']:.4f} m")
-    print(f"  toggle angle atan(L2/L3) = {d['toggle_deg']:.2f} deg, "
-          f"{d['toggle_margin_deg']:.3g} deg beyond the optimum")
+    """The optimum (``OptimumResult.to_dict()``): its stiffness, margin to the toggle, forces, moment
+    arms and active constraints, with the links as printed beside the paper's design."""
+    rounded, paper = d["rounded"], d["paper"]
+    lines = [
+        f"Optimum at Pa = {d['Pa_kPa']:g} kPa, Pb = {d['Pb_kPa']:g} kPa (seed {d['seed']}, {d['generations']} "
+        f"generations): alpha = {d['alpha_deg']:.2f} deg, stiffness {d['stiffness_Nm_per_rad']:.4f} N m/rad "
+        f"(K_min {d['min_stiffness_Nm_per_rad']:g}), {d['toggle_margin_deg']:.2f} deg short of the toggle.",
+        f"Links to {rounded['resolution_m'] * 1e3:g} mm as printed, beside the paper's design (Section IV) "
+        "with the same model:",
+        "",
+        f"  {'':34s}{'labcli':>10s}{'paper' if paper else '':>10s}",
+    ]
+    for label, key, scale, spec in _OPTIMUM_ROWS:
+        lines.append(f"  {label:34s}{_design_cell(rounded, key, scale, spec):>10s}"
+                     f"{_design_cell(paper, key, scale, spec) if paper else '':>10s}")
+    lines.append("")
     active = d["active_constraints"]
-    print("  active constraints: " + ("; ".join(active) if active else "none (interior optimum)"))
+    lines.append("Active at the optimum: " + ("; ".join(active) if active else "none (interior optimum)") + ".")
+    if paper is not None:
+        verdict = ("meets g1-g7, the toggle margin and K_min" if paper["feasible"]
+                   else "misses " + "; ".join(paper["violated_constraints"]))
+        lines.append(f"The paper's design {verdict}.")
+        if paper["reported_alpha_deg"] is not None:
+            lines.append(f"The paper reports alpha = {paper['reported_alpha_deg']:g} deg for it, "
+                         "with its own, unpublished actuator constants.")
+    print("\n".join(lines))
 
 
 # --------------------------------------------------------------------------- demo

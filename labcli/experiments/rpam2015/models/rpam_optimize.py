@@ -1,19 +1,29 @@
 """Link-length optimisation of the rPAM joint (Section IV of the rPAM joint paper).
 
 Maximise the joint angle alpha at fixed pressures (Pa = 96 kPa, Pb = 41 kPa) over the link
-lengths L1, L2, L3 under the paper's constraints:
+lengths L1, L2, L3 under the paper's constraints and two that keep the joint holding:
 
 - g1, the torque balance (Eq. 6), holds by construction: alpha *is* the balance's solution
   on the valid branch (:func:`labcli.experiments.rpam2015.models.rpam.solve_equilibrium`); a design whose joint
   runs onto the toggle angle has no equilibrium and is infeasible.
 - g2-g4 are the search box.
-- g5, g6 (actuator lengths within 0.07-0.14 m), g7 (0 <= alpha <= 90 deg) and, when
-  asked for, a minimum distance from the toggle angle (not in the paper; 0 by default) are
-  penalties: every feasible design costs -alpha_deg (in [-90, 0]) and every infeasible one
-  costs more than 100, so the ranking never trades a violation for angle.
+- g5, g6 (actuator lengths within 0.07-0.14 m) and g7 (0 <= alpha <= 90 deg) are penalties.
+- K_min: the joint stiffness ``-d tau / d alpha`` at the balance must reach
+  ``min_stiffness_Nm_per_rad``.  Maximising alpha alone drives the design to a fold of the
+  balance (zero stiffness) or onto the toggle, the compliance and toggling the paper's
+  Section V reports from its built joint.  The shipped value is the stiffness that keeps
+  the link upright under its own weight (``m g d``; see the protocol).
+- A margin to the toggle angle ``atan(L2 / L3)`` of at least ``min_toggle_margin_deg``.
 
-scipy's differential evolution stands in for the paper's genetic algorithm; with a seed it
-is reproducible.  The whole population is evaluated in one vectorised call per generation.
+Every feasible design costs -alpha_deg (in [-90, 0]) and every infeasible one more than
+100, so the ranking never trades a violation for angle.  scipy's differential evolution
+stands in for the paper's genetic algorithm; with a seed it is reproducible.  The whole
+population is evaluated in one vectorised call per generation.
+
+The optimum is reported as a :class:`DesignReport` (angle, margin, stiffness, both
+actuators' forces and moment arms, active constraints), together with the design rounded
+to 0.1 mm as printed (it must balance within :data:`ROUNDING_TOLERANCE_DEG` of the
+optimum) and the paper's published design evaluated with the same model.
 """
 
 from __future__ import annotations
@@ -31,6 +41,9 @@ from . import rpam
 
 _TOGGLE_COST = 1000.0
 _VIOLATION_COST = 100.0
+ROUND_M = 1e-4  # the printed design: links to 0.1 mm
+ROUNDING_TOLERANCE_DEG = 0.5
+_LINKS = ("L1", "L2", "L3")
 
 
 @dataclass(frozen=True)
@@ -46,7 +59,7 @@ class Bounds:
 
 @dataclass(frozen=True)
 class OptimizeSettings:
-    """Pressures of the optimisation and the differential-evolution settings."""
+    """Pressures of the optimisation, the holding constraints and the differential-evolution settings."""
 
     Pa_MPa: float
     Pb_MPa: float
@@ -58,24 +71,32 @@ class OptimizeSettings:
     recombination: float = 0.7
     active_tolerance: float = 0.005
     stretch_correction: bool = True
-    min_toggle_margin_deg: float = 0.0
+    min_toggle_margin_deg: float = 1.0
+    min_stiffness_Nm_per_rad: float = 0.07
+    paper_links_m: tuple[float, float, float] | None = None
+    paper_alpha_deg: float | None = None
 
 
 @dataclass
-class OptimumResult:
-    """The optimum design and how it sits against its constraints."""
+class DesignReport:
+    """One design at the optimiser's pressures: its balance and how it meets g1-g7 and K_min.
+
+    Forces are the actuators' pushes (N), arms the signed moment arms (m); every balance
+    quantity is NaN when the joint runs onto the toggle (``balanced`` False).
+    """
 
     geometry: rpam.JointGeometry
     alpha_rad: float
     toggle_rad: float
+    stiffness_Nm_per_rad: float
     L_a_m: float
     L_b_m: float
+    F_a_N: float
+    F_b_N: float
+    arm_a_m: float
+    arm_b_m: float
     active: list[str]
-    settings: OptimizeSettings
-    nit: int
-    nfev: int
-    message: str
-    history: list[dict[str, float]] = field(default_factory=list)
+    violated: list[str]
 
     @property
     def alpha_deg(self) -> float:
@@ -83,23 +104,89 @@ class OptimumResult:
 
     @property
     def toggle_margin_deg(self) -> float:
-        """Degrees between the optimum and the toggle angle atan(L2 / L3)."""
+        """Degrees between the balance and the toggle angle atan(L2 / L3)."""
         return math.degrees(self.toggle_rad - self.alpha_rad)
 
+    @property
+    def balanced(self) -> bool:
+        return math.isfinite(self.alpha_rad)
+
+    @property
+    def feasible(self) -> bool:
+        return self.balanced and not self.violated
+
     def to_dict(self) -> dict[str, Any]:
-        s = self.settings
         return {
             "L1_m": self.geometry.L1_m,
             "L2_m": self.geometry.L2_m,
             "L3_m": self.geometry.L3_m,
+            "balanced": self.balanced,
             "alpha_deg": self.alpha_deg,
             "toggle_deg": math.degrees(self.toggle_rad),
             "toggle_margin_deg": self.toggle_margin_deg,
+            "stiffness_Nm_per_rad": self.stiffness_Nm_per_rad,
             "L_a_m": self.L_a_m,
             "L_b_m": self.L_b_m,
+            "F_a_N": self.F_a_N,
+            "F_b_N": self.F_b_N,
+            "arm_a_m": self.arm_a_m,
+            "arm_b_m": self.arm_b_m,
             "active_constraints": list(self.active),
+            "violated_constraints": list(self.violated),
+            "feasible": self.feasible,
+        }
+
+
+@dataclass
+class OptimumResult:
+    """The optimum design, the same design rounded as printed, and the paper's design beside it."""
+
+    optimum: DesignReport
+    rounded: DesignReport
+    paper: DesignReport | None
+    settings: OptimizeSettings
+    nit: int
+    nfev: int
+    message: str
+    history: list[dict[str, float]] = field(default_factory=list)
+
+    @property
+    def geometry(self) -> rpam.JointGeometry:
+        return self.optimum.geometry
+
+    @property
+    def alpha_rad(self) -> float:
+        return self.optimum.alpha_rad
+
+    @property
+    def alpha_deg(self) -> float:
+        return self.optimum.alpha_deg
+
+    @property
+    def toggle_rad(self) -> float:
+        return self.optimum.toggle_rad
+
+    @property
+    def toggle_margin_deg(self) -> float:
+        return self.optimum.toggle_margin_deg
+
+    @property
+    def active(self) -> list[str]:
+        return self.optimum.active
+
+    def to_dict(self) -> dict[str, Any]:
+        s = self.settings
+        d = self.optimum.to_dict()
+        for key in ("balanced", "violated_constraints", "feasible"):
+            del d[key]  # an optimum always balances and meets its constraints
+        return _nan_to_none({
+            **d,
             "Pa_kPa": s.Pa_MPa * 1e3,
             "Pb_kPa": s.Pb_MPa * 1e3,
+            "min_stiffness_Nm_per_rad": s.min_stiffness_Nm_per_rad,
+            "min_toggle_margin_deg": s.min_toggle_margin_deg,
+            "rounded": {"resolution_m": ROUND_M, **self.rounded.to_dict()},
+            "paper": None if self.paper is None else {"reported_alpha_deg": s.paper_alpha_deg, **self.paper.to_dict()},
             "seed": s.seed,
             "popsize": s.popsize,
             "maxiter": s.maxiter,
@@ -107,7 +194,15 @@ class OptimumResult:
             "generations": self.nit,
             "evaluations": self.nfev,
             "message": self.message,
-        }
+        })
+
+
+def _nan_to_none(x: Any) -> Any:
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _nan_to_none(v) for k, v in x.items()}
+    return x
 
 
 def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>") -> tuple[Bounds, OptimizeSettings]:
@@ -131,6 +226,10 @@ def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
     stretch = rpam._get(raw, "optimize.stretch_correction", path)
     if not isinstance(stretch, bool):
         raise ConfigError(f"Protocol key 'optimize.stretch_correction' in {rpam.where(path)} must be true or false.")
+    opt = raw.get("optimize", {})
+    paper = rpam._nums(raw, "optimize.paper_links_m", path, 3) if "paper_links_m" in opt else None
+    if paper is not None and min(paper) <= 0:
+        raise ConfigError(f"Protocol key 'optimize.paper_links_m' in {rpam.where(path)} must hold three positive lengths.")
     settings = OptimizeSettings(
         Pa_MPa=rpam._num(raw, "optimize.Pa_kPa", path, positive=False) / 1e3,
         Pb_MPa=rpam._num(raw, "optimize.Pb_kPa", path, positive=False) / 1e3,
@@ -142,11 +241,59 @@ def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
         recombination=rpam._num(raw, "optimize.recombination", path),
         active_tolerance=rpam._num(raw, "optimize.active_tolerance", path),
         stretch_correction=stretch,
-        min_toggle_margin_deg=rpam._num(raw, "optimize.min_toggle_margin_deg", path, positive=False),
+        # Both must be positive: a design at the toggle or with no stiffness holds nothing.
+        min_toggle_margin_deg=rpam._num(raw, "optimize.min_toggle_margin_deg", path),
+        min_stiffness_Nm_per_rad=rpam._num(raw, "optimize.min_stiffness_Nm_per_rad", path),
+        paper_links_m=paper,  # type: ignore[arg-type]
+        paper_alpha_deg=rpam._num(raw, "optimize.paper_alpha_deg", path) if "paper_alpha_deg" in opt else None,
     )
-    if settings.min_toggle_margin_deg < 0:
-        raise ConfigError(f"Protocol key 'optimize.min_toggle_margin_deg' in {rpam.where(path)} must not be negative.")
     return bounds, settings
+
+
+def _shortfalls(alpha_deg: Any, toggle_deg: Any, L_a: Any, L_b: Any, stiffness: Any, bounds: Bounds,
+                settings: OptimizeSettings) -> dict[str, np.ndarray]:
+    """How far a balanced design misses g5-g7, the toggle margin and K_min (0 where met).
+
+    In each constraint's own unit: m (g5, g6), deg (g7, margin), N m/rad (K_min).
+    """
+    lo, hi = bounds.actuator_length_m
+    a_lo, a_hi = bounds.alpha_deg
+
+    def outside(v: Any, low: float, high: float) -> np.ndarray:
+        return np.clip(low - v, 0.0, None) + np.clip(v - high, 0.0, None)
+
+    return {
+        "g5": outside(L_a, lo, hi),
+        "g6": outside(L_b, lo, hi),
+        "g7": outside(alpha_deg, a_lo, a_hi),
+        "margin": np.clip(settings.min_toggle_margin_deg - (toggle_deg - alpha_deg), 0.0, None),
+        "K_min": np.clip(settings.min_stiffness_Nm_per_rad - stiffness, 0.0, None),
+    }
+
+
+def _balance(X: np.ndarray, act: rpam.Actuator, settings: OptimizeSettings) -> dict[str, np.ndarray]:
+    """Balance of designs ``X = (L1, L2, L3)`` of shape ``(3, S)``: angle, stiffness, lengths, forces, arms.
+
+    The one evaluation behind both the optimiser's cost and the reports, so that a design
+    the search accepted is reported as meeting its constraints to the last digit.
+    """
+    geom = rpam.JointGeometry(X[0], X[1], X[2])
+    P = (settings.Pa_MPa, settings.Pb_MPa)
+    stretch = settings.stretch_correction
+    eq = rpam.solve_equilibrium(*P, geom, act, stretch=stretch)
+    ma, mb = rpam.moment_arms(eq.alpha_rad, geom)
+    return {
+        "alpha_rad": eq.alpha_rad, "toggle_rad": eq.toggle_rad, "L_a_m": eq.L_a_m, "L_b_m": eq.L_b_m,
+        "stiffness": rpam.joint_stiffness(eq.alpha_rad, *P, geom, act, stretch=stretch),
+        "F_a_N": rpam.push_force(P[0], eq.L_a_m, act, stretch=stretch),
+        "F_b_N": rpam.push_force(P[1], eq.L_b_m, act, stretch=stretch),
+        "arm_a_m": ma, "arm_b_m": mb,
+    }
+
+
+def _misses(b: dict[str, np.ndarray], bounds: Bounds, settings: OptimizeSettings) -> dict[str, np.ndarray]:
+    alpha = np.degrees(b["alpha_rad"])
+    return _shortfalls(alpha, np.degrees(b["toggle_rad"]), b["L_a_m"], b["L_b_m"], b["stiffness"], bounds, settings)
 
 
 def design_cost(
@@ -155,26 +302,53 @@ def design_cost(
     """Cost of designs ``x = (L1, L2, L3)``, shape ``(3,)`` or ``(3, S)``: -alpha_deg or a penalty."""
     x = np.asarray(x, dtype=float)
     single = x.ndim == 1
-    X = x.reshape(3, -1)
-    eq = rpam.solve_equilibrium(
-        settings.Pa_MPa, settings.Pb_MPa, rpam.JointGeometry(X[0], X[1], X[2]), act,
-        stretch=settings.stretch_correction,
-    )
-    alpha = eq.alpha_deg
-    lo, hi = bounds.actuator_length_m
-    a_lo, a_hi = bounds.alpha_deg
-    violation = sum(
-        np.clip(v, 0.0, None)
-        for v in (lo - eq.L_a_m, eq.L_a_m - hi, lo - eq.L_b_m, eq.L_b_m - hi)
-    )
-    # Lengths in metres, angles in degrees: scale so a 1 mm or 1 deg violation weigh alike.
-    violation = 1e3 * violation + np.clip(a_lo - alpha, 0.0, None) + np.clip(alpha - a_hi, 0.0, None)
-    # Optional margin from the toggle (the paper's problem has none: 0 deg).
-    margin = np.degrees(eq.toggle_rad) - alpha
-    violation = violation + np.clip(settings.min_toggle_margin_deg - margin, 0.0, None)
+    b = _balance(x.reshape(3, -1), act, settings)
+    alpha = np.degrees(b["alpha_rad"])
+    miss = _misses(b, bounds, settings)
+    # Scale so that 1 mm, 1 deg and a tenth of K_min weigh alike.
+    violation = (1e3 * (miss["g5"] + miss["g6"]) + miss["g7"] + miss["margin"]
+                 + 10 * miss["K_min"] / settings.min_stiffness_Nm_per_rad)
     cost = np.where(violation > 0, _VIOLATION_COST + violation, -alpha)
     cost = np.where(np.isfinite(alpha), cost, _TOGGLE_COST)
     return cost[0] if single else cost
+
+
+def evaluate_design(geom: rpam.JointGeometry, act: rpam.Actuator, bounds: Bounds,
+                    settings: OptimizeSettings) -> DesignReport:
+    """Balance, stiffness, forces and arms of one design, and the constraints it meets or misses."""
+    b = {k: float(v[0]) for k, v in _balance(np.array([[geom.L1_m], [geom.L2_m], [geom.L3_m]]), act, settings).items()}
+    K, La, Lb = b["stiffness"], b["L_a_m"], b["L_b_m"]
+    report = DesignReport(
+        geometry=geom, alpha_rad=b["alpha_rad"], toggle_rad=b["toggle_rad"], stiffness_Nm_per_rad=K,
+        L_a_m=La, L_b_m=Lb, F_a_N=b["F_a_N"], F_b_N=b["F_b_N"], arm_a_m=b["arm_a_m"], arm_b_m=b["arm_b_m"],
+        active=[], violated=[],
+    )
+    box = [(f"g{i + 2}", name, getattr(geom, f"{name}_m"), getattr(bounds, f"{name}_m"))
+           for i, name in enumerate(_LINKS)]
+    for g, name, v, (lo, hi) in box:
+        if not lo - 1e-12 <= v <= hi + 1e-12:
+            report.violated.append(f"{g}: {name} = {v:.4f} m outside {lo:g}-{hi:g} m")
+    if not report.balanced:
+        report.violated.insert(0, "g1: no balance below the toggle angle, the joint runs onto it")
+        return report
+    miss = _misses({k: np.asarray(v) for k, v in b.items()}, bounds, settings)
+    lo, hi = bounds.actuator_length_m
+    texts = {
+        "g5": f"g5: L_a = {La:.4f} m outside {lo:g}-{hi:g} m",
+        "g6": f"g6: L_b = {Lb:.4f} m outside {lo:g}-{hi:g} m",
+        "g7": f"g7: alpha = {report.alpha_deg:.2f} deg outside {bounds.alpha_deg[0]:g}-{bounds.alpha_deg[1]:g} deg",
+        "margin": f"toggle margin {report.toggle_margin_deg:.2f} deg below {settings.min_toggle_margin_deg:g} deg",
+        "K_min": f"K_min: stiffness {K:.4f} N m/rad below {settings.min_stiffness_Nm_per_rad:g} N m/rad",
+    }
+    report.violated.extend(texts[k] for k, v in miss.items() if float(v) > 0)
+    report.active.extend(active_constraints(geom, report.alpha_deg, La, Lb, bounds, settings.active_tolerance))
+    # The holding constraints, within the same relative tolerance of their bound.
+    tol = settings.active_tolerance
+    if abs(K - settings.min_stiffness_Nm_per_rad) <= tol * settings.min_stiffness_Nm_per_rad:
+        report.active.append(f"K_min: stiffness at its minimum {settings.min_stiffness_Nm_per_rad:g} N m/rad")
+    if abs(report.toggle_margin_deg - settings.min_toggle_margin_deg) <= tol * max(settings.min_toggle_margin_deg, 1.0):
+        report.active.append(f"toggle margin at its minimum {settings.min_toggle_margin_deg:g} deg")
+    return report
 
 
 def active_constraints(
@@ -199,6 +373,36 @@ def active_constraints(
     return out
 
 
+def round_design(optimum: DesignReport, act: rpam.Actuator, bounds: Bounds,
+                 settings: OptimizeSettings) -> DesignReport:
+    """The design as printed: links on the :data:`ROUND_M` grid, evaluated.
+
+    At the optimum the stiffness and length constraints are typically active, so rounding
+    each link to the nearest 0.1 mm can leave the design just infeasible; the printed
+    design is the best feasible grid point within two steps of the optimum in every link
+    (the nearest grid point when none is feasible).  Raises :class:`ModelError` when it
+    does not balance within :data:`ROUNDING_TOLERANCE_DEG` of the optimum.
+    """
+    g = optimum.geometry
+    centre = np.rint(np.array([g.L1_m, g.L2_m, g.L3_m]) / ROUND_M)
+    steps = np.array(np.meshgrid(*[np.arange(-2, 3)] * 3, indexing="ij")).reshape(3, -1)
+    # Integer multiples of the resolution, so the printed digits are the design.
+    grid = (centre[:, None] + steps) * ROUND_M
+    inside = np.all([(lo <= x) & (x <= hi) for x, (lo, hi) in zip(grid, (bounds.L1_m, bounds.L2_m, bounds.L3_m))],
+                    axis=0)
+    grid = grid[:, inside | np.all(steps == 0, axis=0)]
+    cost = design_cost(grid, act, bounds, settings)
+    pick = int(np.argmin(cost)) if cost.min() <= 0 else int(np.flatnonzero(np.all(grid == centre[:, None] * ROUND_M, axis=0))[0])
+    best = evaluate_design(rpam.JointGeometry(*(float(v) for v in grid[:, pick])), act, bounds, settings)
+    if not (best.balanced and abs(best.alpha_deg - optimum.alpha_deg) <= ROUNDING_TOLERANCE_DEG):
+        found = f"balances at {best.alpha_deg:.2f} deg" if best.balanced else "has no balance"
+        raise ModelError(
+            f"The optimum (alpha = {optimum.alpha_deg:.2f} deg) is too sensitive to build: on a "
+            f"{ROUND_M * 1e3:g} mm grid the best design {found}; raise optimize.min_stiffness_Nm_per_rad."
+        )
+    return best
+
+
 Progress = Callable[[int, dict[str, float]], None]
 
 
@@ -213,7 +417,7 @@ def optimize_joint(
 
     ``best`` holds ``L1_m, L2_m, L3_m, alpha_deg, convergence`` of the best design so far
     (alpha NaN while no design is feasible) and the generation limit ``maxiter``.
-    Raises :class:`ModelError` when no design satisfies g1-g7.
+    Raises :class:`ModelError` when no design satisfies g1-g7, the toggle margin and K_min.
     """
     from scipy.optimize import differential_evolution
 
@@ -252,20 +456,21 @@ def optimize_joint(
     )
     if not res.fun <= 0:
         raise ModelError(
-            f"No link lengths within g2-g4 give a balanced joint (g1) that also meets g5-g7 at "
-            f"Pa = {settings.Pa_MPa * 1e3:g} kPa, Pb = {settings.Pb_MPa * 1e3:g} kPa; "
+            f"No link lengths within g2-g4 give a balanced joint (g1) that also meets g5-g7, a toggle margin of "
+            f"{settings.min_toggle_margin_deg:g} deg and a stiffness of {settings.min_stiffness_Nm_per_rad:g} N m/rad "
+            f"at Pa = {settings.Pa_MPa * 1e3:g} kPa, Pb = {settings.Pb_MPa * 1e3:g} kPa; "
             "check the pressures and the actuator constants."
         )
-    geom = rpam.JointGeometry(*(float(v) for v in res.x))
-    alpha = rpam.equilibrium_angle(settings.Pa_MPa, settings.Pb_MPa, geom, act, stretch=settings.stretch_correction)
-    La, Lb = (float(v) for v in rpam.actuator_lengths(alpha, geom))
+    optimum = evaluate_design(rpam.JointGeometry(*(float(v) for v in res.x)), act, bounds, settings)
+    if not optimum.feasible:  # the penalties make this unreachable; a guard, not a path
+        raise ModelError(f"The optimiser returned a design that misses {'; '.join(optimum.violated)}.")
+    paper = None
+    if settings.paper_links_m is not None:
+        paper = evaluate_design(rpam.JointGeometry(*settings.paper_links_m), act, bounds, settings)
     return OptimumResult(
-        geometry=geom,
-        alpha_rad=alpha,
-        toggle_rad=float(rpam.toggle_angle(geom)),
-        L_a_m=La,
-        L_b_m=Lb,
-        active=active_constraints(geom, math.degrees(alpha), La, Lb, bounds, settings.active_tolerance),
+        optimum=optimum,
+        rounded=round_design(optimum, act, bounds, settings),
+        paper=paper,
         settings=settings,
         nit=int(res.nit),
         nfev=int(res.nfev),
