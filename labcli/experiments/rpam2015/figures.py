@@ -38,8 +38,11 @@ def _model_title(letter: str, what: str, s: dict[str, Any]) -> str:
         line = "no point to compare"
     else:
         line = f"RMSE {rmse:.1f}° over {s['n_compared']} points"
+    total = s["n_compared"] + s["n_toggle"] + s.get("n_on_stop", 0)
     if s.get("n_toggle"):
-        line += f"; toggles at {s['n_toggle']} of {s['n_compared'] + s['n_toggle']}"
+        line += f"; toggles at {s['n_toggle']} of {total}"
+    if s.get("n_on_stop"):
+        line += f", on the stop at {s['n_on_stop']}"
     return f"({letter}) {what}\n{line}"
 
 

@@ -61,11 +61,16 @@ NaN is written as ``null``):
                 "without_toggle", "with_toggle": [bool, ...]}}
 
     S = {"rmse_deg", "max_abs_error_deg", "max_error_at_kPa": [Pa, Pb],
-         "n_compared", "n_toggle", "rmse_all_deg"}
+         "n_compared", "n_toggle", "n_on_stop", "rmse_all_deg"}
 
-``rmse_deg`` and ``max_abs_error_deg`` are over the points where the model balances;
-``rmse_all_deg`` also counts the toggle points, where a joint that runs onto the toggle
-is taken to sit at the toggle angle on the side the pressures drive it to.
+``rmse_deg`` and ``max_abs_error_deg`` are over the ``n_compared`` points where both the
+model and the joint balance.  The others are ``n_toggle`` points where the model runs onto
+the toggle, and ``n_on_stop`` points where the model balances but the joint was measured
+on its stop (within :data:`STOP_BAND_DEG` of the toggle angle).  Those are the paper's
+toggle (Section V): past the unstable balance that follows the stable one, the torque
+drives the joint onto its stop, so a joint that comes from the stop stays there while the
+model, released at 0, finds the stable balance.  ``rmse_all_deg`` counts every point, a
+model toggle at the toggle angle on the side the pressures drive the joint to.
 """
 
 from __future__ import annotations
@@ -83,6 +88,9 @@ from ..protocol import read_rpam_protocol
 from . import rpam
 
 DEGREE = 3
+# A joint measured this close to its toggle angle rests on its stop, not at a balance: the
+# swivel plates stop about 1 deg short of the toggle, plus the potentiometer's offset.
+STOP_BAND_DEG = 2.0
 _MIN_POINTS = DEGREE + 2  # a cubic plus at least one degree of freedom for its uncertainty
 # A vented actuator reads a little below 0 through sensor noise; far below is a fault.
 _NEGATIVE_P_MPA = 0.005
@@ -586,10 +594,12 @@ def correction_actuator(act: rpam.Actuator, correction: Any) -> tuple[rpam.Actua
 
 
 def _summary(Pa: np.ndarray, Pb: np.ndarray, measured: np.ndarray, model: np.ndarray,
-             toggle: np.ndarray, limit: np.ndarray) -> dict[str, Any]:
-    both = np.isfinite(model) & np.isfinite(measured)
+             toggle: np.ndarray, limit: np.ndarray, toggle_deg: float) -> dict[str, Any]:
+    on_stop = np.isfinite(model) & (np.abs(measured) >= toggle_deg - STOP_BAND_DEG)
+    both = np.isfinite(model) & np.isfinite(measured) & ~on_stop
     err = model[both] - measured[both]
-    out: dict[str, Any] = {"n_compared": int(both.sum()), "n_toggle": int(toggle.sum())}
+    out: dict[str, Any] = {"n_compared": int(both.sum()), "n_toggle": int(toggle.sum()),
+                           "n_on_stop": int(on_stop.sum())}
     if err.size:
         k = int(np.argmax(np.abs(err)))
         out.update(rmse_deg=float(np.sqrt(np.mean(err**2))), max_abs_error_deg=float(abs(err[k])),
@@ -637,10 +647,11 @@ def analyse_joint_map(table: Any, protocol: Any = "rpam2015", correction: Any = 
         raise ModelError(f"Every one of the {n} rows of the joint-map table misses a pressure or an angle.")
     Pa, Pb, meas, kept = Pa[ok], Pb[ok], meas[ok], rows[ok]
     model, toggles, summary = {}, {}, {}
+    toggle_deg = math.degrees(float(rpam.toggle_angle(geom)))
     for name, stretch in (("without", False), ("with", True)):
         a, t, limit = model_angles(Pa, Pb, geom, act, stretch=stretch)
         model[name], toggles[name] = a, t
-        summary[name] = _summary(Pa, Pb, meas, a, t, limit)
+        summary[name] = _summary(Pa, Pb, meas, a, t, limit, toggle_deg)
     return JointMapResult(protocol=path, geometry=geom, actuator=act, correction_source=source, rows=kept,
                           Pa_MPa=Pa, Pb_MPa=Pb, measured_deg=meas, model_deg=model, toggle=toggles,
                           summary=summary, skipped_rows=[int(v) for v in rows[~ok]])
