@@ -167,9 +167,9 @@ def _stop_note(on_stop: int) -> list[str]:
     """Joint-map points measured on the stop where the model balances, if there were any."""
     if not on_stop:
         return []
-    return [f"{on_stop} joint-map point{'s' if on_stop > 1 else ''} sat on the stand's stop where the model balances: "
-            "the joint came from the stop and stayed there (the paper's toggle between two states); they stay out "
-            "of the RMSE and count in the RMSE with toggles."]
+    return [(f"{on_stop} joint-map points sat" if on_stop > 1 else "1 joint-map point sat")
+            + " on the stand's stop where the model balances: the joint came from the stop and stayed there (the "
+            "paper's toggle between two states). Such points stay out of the RMSE and count in the RMSE with toggles."]
 
 
 def _stretch_summary(fit: Any, seed: int) -> dict[str, Any]:

@@ -41,7 +41,8 @@ from . import rpam
 
 _TOGGLE_COST = 1000.0
 _VIOLATION_COST = 100.0
-ROUND_M = 1e-4  # the printed design: links to 0.1 mm
+_STEPS_PER_M = 10_000  # the printed design: links to 0.1 mm
+ROUND_M = 1 / _STEPS_PER_M
 ROUNDING_TOLERANCE_DEG = 0.5
 _LINKS = ("L1", "L2", "L3")
 
@@ -384,15 +385,16 @@ def round_design(optimum: DesignReport, act: rpam.Actuator, bounds: Bounds,
     does not balance within :data:`ROUNDING_TOLERANCE_DEG` of the optimum.
     """
     g = optimum.geometry
-    centre = np.rint(np.array([g.L1_m, g.L2_m, g.L3_m]) / ROUND_M)
+    centre = np.rint(np.array([g.L1_m, g.L2_m, g.L3_m]) * _STEPS_PER_M)
     steps = np.array(np.meshgrid(*[np.arange(-2, 3)] * 3, indexing="ij")).reshape(3, -1)
-    # Integer multiples of the resolution, so the printed digits are the design.
-    grid = (centre[:, None] + steps) * ROUND_M
-    inside = np.all([(lo <= x) & (x <= hi) for x, (lo, hi) in zip(grid, (bounds.L1_m, bounds.L2_m, bounds.L3_m))],
-                    axis=0)
-    grid = grid[:, inside | np.all(steps == 0, axis=0)]
+    # Whole steps divided out, so each link is the double nearest its printed digits.
+    grid = (centre[:, None] + steps) / _STEPS_PER_M
+    box = (bounds.L1_m, bounds.L2_m, bounds.L3_m)
+    nearest = np.all(steps == 0, axis=0)
+    keep = np.all([(lo <= x) & (x <= hi) for x, (lo, hi) in zip(grid, box)], axis=0) | nearest
+    grid, nearest = grid[:, keep], nearest[keep]
     cost = design_cost(grid, act, bounds, settings)
-    pick = int(np.argmin(cost)) if cost.min() <= 0 else int(np.flatnonzero(np.all(grid == centre[:, None] * ROUND_M, axis=0))[0])
+    pick = int(np.argmin(cost)) if cost.min() <= 0 else int(np.flatnonzero(nearest)[0])
     best = evaluate_design(rpam.JointGeometry(*(float(v) for v in grid[:, pick])), act, bounds, settings)
     if not (best.balanced and abs(best.alpha_deg - optimum.alpha_deg) <= ROUNDING_TOLERANCE_DEG):
         found = f"balances at {best.alpha_deg:.2f} deg" if best.balanced else "has no balance"
