@@ -227,6 +227,28 @@ def test_nominal_rig_reads_the_protocol_model_and_sources_are_labelled(stretch_r
     np.testing.assert_allclose(given.model_deg["with"], fitted.model_deg["with"], atol=0.05)
 
 
+def test_a_joint_measured_on_its_stop_where_the_model_balances_counts_apart():
+    # Three pairs measured where the model says, one where the joint sat on its stop
+    # (0.8 deg short of the toggle) although the model balances there: the paper's toggle
+    # between two states, not a balance error.
+    geom = rpam.geometry_from_protocol(RAW, PATH)
+    Pa, Pb = np.array([0.05, 0.06, 0.07, 0.08]), np.array([0.05, 0.05, 0.05, 0.06])
+    model = np.degrees(rpam.solve_equilibrium(Pa, Pb, geom, ACT).alpha_rad)
+    assert np.all(np.isfinite(model))
+    toggle = math.degrees(float(rpam.toggle_angle(geom)))
+    measured = np.append(model[:3], toggle - 0.8)
+    res = analyse_joint_map({"P_A": Pa, "P_B": Pb, "alpha_deg": measured})
+    s = res.summary["with"]
+    assert (s["n_compared"], s["n_toggle"], s["n_on_stop"]) == (3, 0, 1)
+    assert s["rmse_deg"] == pytest.approx(0.0, abs=1e-9)
+    # Counting every point, the stop point weighs in.
+    assert s["rmse_all_deg"] == pytest.approx(abs(toggle - 0.8 - model[3]) / 2, rel=1e-9)
+    # Just outside the band it is an ordinary (large) error.
+    measured[3] = toggle - 2.5
+    s = analyse_joint_map({"P_A": Pa, "P_B": Pb, "alpha_deg": measured}).summary["with"]
+    assert (s["n_compared"], s["n_on_stop"]) == (4, 0) and s["max_abs_error_deg"] > 20
+
+
 def test_grid_recovers_the_plan_from_noisy_pressures(joint_run):
     _, res = joint_run
     g = res.grid()

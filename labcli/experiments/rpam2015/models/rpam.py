@@ -222,9 +222,7 @@ def thread_radius(L: Any, n_turns: float, thread_length_m: float) -> np.ndarray:
 
 def helical_tension(P_MPa: Any, L: Any, n_turns: float, thread_length_m: float) -> np.ndarray:
     """McKibben cage term ``-P dV/dL = P (3 L^2 - b^2) / (4 pi n^2)`` in N (tension +)."""
-    P = np.asarray(P_MPa, dtype=float) * _MPA
-    L = np.asarray(L, dtype=float)
-    return P * (3 * L**2 - thread_length_m**2) / (4 * np.pi * n_turns**2)
+    return rpam_force.cage_gas_force(P_MPa, L, n_turns, thread_length_m)
 
 
 def constraint_force(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:

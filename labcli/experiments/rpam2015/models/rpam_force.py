@@ -100,11 +100,11 @@ def cage_radius_sq(L: Any, act: WallAndCage) -> np.ndarray:
     return (act.thread_length_m**2 - L**2) / (4 * np.pi**2 * act.n_turns**2)
 
 
-def cage_gas_force(P_MPa: Any, L: Any, act: WallAndCage) -> np.ndarray:
+def cage_gas_force(P_MPa: Any, L: Any, n_turns: float, thread_length_m: float) -> np.ndarray:
     """``-P dV_c/dL = P (3 L^2 - b^2) / (4 pi n^2)`` (N, tension +): the gas on the cage."""
     P = np.asarray(P_MPa, dtype=float) * _MPA
     L = np.asarray(L, dtype=float)
-    return P * (3 * L**2 - act.thread_length_m**2) / (4 * np.pi * act.n_turns**2)
+    return P * (3 * L**2 - thread_length_m**2) / (4 * np.pi * n_turns**2)
 
 
 def wall_radii_sq(act: WallAndCage) -> tuple[float, float]:
@@ -232,7 +232,7 @@ def force_parts(P_MPa: Any, L: Any, act: WallAndCage) -> tuple[np.ndarray, np.nd
     ro2, on_cage, dU_dL, dU_dro2 = _settled(P, L, act)
     drc2_dL = -L / (2 * np.pi**2 * act.n_turns**2)
     wall = np.where(on_cage, dU_dL + dU_dro2 * drc2_dL, dU_dL)
-    gas = np.where(on_cage, cage_gas_force(P, L, act), -P * _MPA * np.pi * ro2)
+    gas = np.where(on_cage, cage_gas_force(P, L, act.n_turns, act.thread_length_m), -P * _MPA * np.pi * ro2)
     return gas, wall
 
 
