@@ -169,11 +169,12 @@ class RigParams:
     L_mount: np.ndarray = field(default_factory=lambda: np.zeros(4))  # m
     V_dead: np.ndarray = field(default_factory=lambda: np.zeros(4))  # m^3
     supply_pa: np.ndarray = field(default_factory=lambda: np.full(4, 0.30e6))  # gauge
+    link_mass_kg: np.ndarray = field(default_factory=lambda: np.zeros(2))  # links 1, 2; centre of mass mid-link
 
     def to_dict(self) -> dict:
         """Plain-data form (JSON-serialisable)."""
         out = {"geometry": vars(self.geometry).copy()}
-        for k in ("b", "n", "k_rubber", "L_rubber", "L_mount", "V_dead", "supply_pa"):
+        for k in ("b", "n", "k_rubber", "L_rubber", "L_mount", "V_dead", "supply_pa", "link_mass_kg"):
             out[k] = [float(v) for v in getattr(self, k)]
         return out
 
@@ -381,8 +382,28 @@ class Push:
 # ---------------------------------------------------------------- statics
 
 
-def generalised_forces(theta, params: RigParams, chambers: Chambers, load) -> np.ndarray:
-    """Residual of virtual work ``J^T F - sum T grad s`` (N m), shape ``(..., 2)``."""
+def link_weight_torques(theta, geom: Geometry, link_mass_kg) -> np.ndarray:
+    """Generalised force of the links' own weight (N m), ``(..., 2)``; centres of mass mid-link.
+
+    ``Q_k = -sum_links m g d(y_com)/d(theta_k)``: zero on the upright arm and
+    growing with ``sin``, so the links act as an inverted pendulum (negative stiffness).
+    """
+    theta = np.asarray(theta, dtype=float)
+    t1, t12 = theta[..., 0], theta[..., 0] + theta[..., 1]
+    m1, m2 = np.asarray(link_mass_kg, dtype=float)
+    c1, c2 = 0.5 * geom.h2, 0.5 * geom.h3
+    q2 = m2 * G * c2 * np.sin(t12)
+    q1 = m1 * G * c1 * np.sin(t1) + m2 * G * geom.h2 * np.sin(t1) + q2
+    return np.stack([q1, q2], axis=-1)
+
+
+def generalised_forces(theta, params: RigParams, chambers: Chambers, load, extra=None) -> np.ndarray:
+    """Residual of virtual work ``J^T F - sum T grad s`` (N m), shape ``(..., 2)``.
+
+    The links' weight enters when ``params.link_mass_kg`` is non-zero; ``extra``
+    (a function of theta giving ``(..., 2)`` N m) adds any other generalised
+    force, e.g. sleeve friction (:mod:`labcli.sim.nonideal`).
+    """
     theta = np.asarray(theta, dtype=float)
     geom = params.geometry
     L = actuator_lengths(theta, params)
@@ -391,7 +412,12 @@ def generalised_forces(theta, params: RigParams, chambers: Chambers, load) -> np
     grad = path_gradients(theta, geom)  # (..., 4, 2)
     F = load.force(theta, geom)
     JT_F = np.einsum("...ij,...i->...j", jacobian(theta, geom), F)
-    return JT_F - np.einsum("...i,...ij->...j", T, grad)
+    r = JT_F - np.einsum("...i,...ij->...j", T, grad)
+    if np.any(params.link_mass_kg):
+        r = r + link_weight_torques(theta, geom, params.link_mass_kg)
+    if extra is not None:
+        r = r + extra(theta)
+    return r
 
 
 @dataclass(frozen=True)
@@ -407,7 +433,8 @@ class Equilibrium:
     stable: bool  # stiffness matrix positive definite
 
 
-def stiffness_matrix(theta, params: RigParams, chambers: Chambers, load, h: float = 1e-6) -> np.ndarray:
+def stiffness_matrix(theta, params: RigParams, chambers: Chambers, load, h: float = 1e-6,
+                     extra=None) -> np.ndarray:
     """``K = -d(residual)/d theta`` by central differences (N m/rad)."""
     theta = np.asarray(theta, dtype=float)
     K = np.empty((2, 2))
@@ -415,8 +442,8 @@ def stiffness_matrix(theta, params: RigParams, chambers: Chambers, load, h: floa
         d = np.zeros(2)
         d[k] = h
         K[:, k] = -(
-            generalised_forces(theta + d, params, chambers, load)
-            - generalised_forces(theta - d, params, chambers, load)
+            generalised_forces(theta + d, params, chambers, load, extra)
+            - generalised_forces(theta - d, params, chambers, load, extra)
         ) / (2 * h)
     return K
 
@@ -427,9 +454,11 @@ def solve_equilibrium(
     load=None,
     theta0: Sequence[float] | None = None,
     tol: float = 1e-10,
+    extra=None,
 ) -> Equilibrium:
     """Static equilibrium posture under ``load`` (None: unloaded).
 
+    ``extra`` adds a generalised force (see :func:`generalised_forces`).
     Raises ``ValueError`` if no equilibrium with a residual below ``tol`` (N m)
     is found, e.g. for a load far beyond the rig's range.
     """
@@ -442,7 +471,7 @@ def solve_equilibrium(
     for steps in (1, 4, 16):
         x = x0.copy()
         for k in range(1, steps + 1):
-            x, res = _newton(params, chambers, _scaled(load, k / steps), x, tol)
+            x, res = _newton(params, chambers, _scaled(load, k / steps), x, tol, extra=extra)
             if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > 1.5:
                 break
         else:
@@ -456,7 +485,7 @@ def solve_equilibrium(
     L = actuator_lengths(x, params)
     p = chambers.gauge(L, params)
     T = mckibben_tension(L, p, params.b, params.n, params.k_rubber, params.L_rubber)
-    K = stiffness_matrix(x, params, chambers, load)
+    K = stiffness_matrix(x, params, chambers, load, extra=extra)
     stable = bool(np.all(np.linalg.eigvalsh(0.5 * (K + K.T)) > 0))
     return Equilibrium(
         theta_rad=x,
@@ -469,15 +498,15 @@ def solve_equilibrium(
     )
 
 
-def _newton(params, chambers, load, x, tol: float, iters: int = 80):
+def _newton(params, chambers, load, x, tol: float, iters: int = 80, extra=None):
     """Damped Newton on the virtual-work residual; returns (theta, max |residual|)."""
-    r = generalised_forces(x, params, chambers, load)
+    r = generalised_forces(x, params, chambers, load, extra)
     nr = float(np.max(np.abs(r)))
     for _ in range(iters):
         if nr < tol * 1e-3:
             break
         try:
-            dx = np.linalg.solve(stiffness_matrix(x, params, chambers, load), r)
+            dx = np.linalg.solve(stiffness_matrix(x, params, chambers, load, extra=extra), r)
         except np.linalg.LinAlgError:
             break
         big = np.max(np.abs(dx))
@@ -486,7 +515,7 @@ def _newton(params, chambers, load, x, tol: float, iters: int = 80):
         t = 1.0
         while t > 1e-6:
             xn = x + t * dx
-            rn = generalised_forces(xn, params, chambers, load)
+            rn = generalised_forces(xn, params, chambers, load, extra)
             nn = float(np.max(np.abs(rn)))
             if nn < nr:
                 break
@@ -510,22 +539,49 @@ def _scaled(load, s: float):
 # ---------------------------------------------------------------- parameters
 
 SUPPLY_MPA = 0.30
-_NOMINAL = {
-    # j: (length at baseline m, braid angle deg, diameter m)
-    1: (0.220, 41.0, 0.006),
-    2: (0.220, 37.0, 0.006),
-}
-K_RUBBER = 100.0  # N/m
-RUBBER_PRESTRETCH = 0.005  # m
-V_DEAD = 3.0e-6  # m^3
 
 
-def nominal_params(geometry: Geometry | None = None, supply_MPa: float = SUPPLY_MPA) -> RigParams:
-    """The symmetric design rig (no actuator-to-actuator variation)."""
+@dataclass(frozen=True)
+class Design:
+    """The design actuators: per pair j (1 outside, 2 inside) length at the
+    baseline posture (m), braid angle (deg) and diameter (m); rubber, dead volume."""
+
+    pairs: dict  # j -> (length m, braid angle deg, diameter m)
+    k_rubber: float  # N/m
+    rubber_prestretch: float  # m below the mounting length
+    v_dead: tuple  # m^3 per chamber, pairs 1 and 2
+
+
+# The default: the paper's test bed (see the module docstring for the figures used).
+PAPER_SCALE = Design(pairs={1: (0.220, 41.0, 0.013), 2: (0.220, 41.0, 0.013)}, k_rubber=700.0,
+                     rubber_prestretch=0.005, v_dead=(15.0e-6, 21.0e-6))
+# The tuning before the paper-scale retune: thin, soft muscles (0.6-13 deg for 50-1000 g).
+# Kept so that runs recorded on it (``sim://?design=thin&ideal=1``) can be reproduced.
+THIN_MUSCLES = Design(pairs={1: (0.220, 41.0, 0.006), 2: (0.220, 37.0, 0.006)}, k_rubber=100.0,
+                      rubber_prestretch=0.005, v_dead=(3.0e-6, 3.0e-6))
+DESIGNS = {"paper": PAPER_SCALE, "thin": THIN_MUSCLES}
+# Kept under their old names for callers that read them.
+K_RUBBER = PAPER_SCALE.k_rubber
+RUBBER_PRESTRETCH = PAPER_SCALE.rubber_prestretch
+
+
+def supply_array(supply_MPa) -> np.ndarray:
+    """One supply pressure or four (L1, R1, L2, R2), MPa gauge, as four gauge Pa."""
+    return np.broadcast_to(np.asarray(supply_MPa, dtype=float) * 1e6, (4,)).copy()
+
+
+def nominal_params(geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA,
+                   design: Design | str = PAPER_SCALE) -> RigParams:
+    """The symmetric design rig (no actuator-to-actuator variation).
+
+    ``supply_MPa`` is one gauge pressure or four (L1, R1, L2, R2); ``design`` a
+    :class:`Design` or a key of :data:`DESIGNS`.
+    """
     geom = geometry or Geometry()
+    d = DESIGNS[design] if isinstance(design, str) else design
     b, n, L0 = np.empty(4), np.empty(4), np.empty(4)
     for i, j in enumerate((1, 1, 2, 2)):
-        L, alpha, D = _NOMINAL[j]
+        L, alpha, D = d.pairs[j]
         a = np.radians(alpha)
         b[i] = L / np.cos(a)
         n[i] = L * np.tan(a) / (np.pi * D)
@@ -534,22 +590,23 @@ def nominal_params(geometry: Geometry | None = None, supply_MPa: float = SUPPLY_
         geometry=geom,
         b=b,
         n=n,
-        k_rubber=np.full(4, K_RUBBER),
-        L_rubber=L0 - RUBBER_PRESTRETCH,
+        k_rubber=np.full(4, d.k_rubber),
+        L_rubber=L0 - d.rubber_prestretch,
         L_mount=L0,
-        V_dead=np.full(4, V_DEAD),
-        supply_pa=np.full(4, supply_MPa * 1e6),
+        V_dead=np.repeat(np.asarray(d.v_dead, dtype=float), 2),
+        supply_pa=supply_array(supply_MPa),
     )
 
 
-def varied_params(seed: int, geometry: Geometry | None = None, supply_MPa: float = SUPPLY_MPA) -> RigParams:
+def varied_params(seed: int, geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA,
+                  design: Design | str = PAPER_SCALE) -> RigParams:
     """A hand-built rig: each actuator differs from the design by a few percent.
 
     Mounting lengths are the nominal ones (where the design actuator carries
     its pretension) plus a sub-millimetre mounting error, so the real
     actuators carry slightly different pretensions.
     """
-    nom = nominal_params(geometry, supply_MPa)
+    nom = nominal_params(geometry, supply_MPa, design)
     rng = np.random.default_rng([int(seed), 0x4D4B])
     return replace(
         nom,
