@@ -9,9 +9,22 @@ short, so the toolkit judges equilibrium from the data instead:
   not masquerade as motion);
 * the *spread* of a channel is the range (max - min) of the last ``BLOCKS``
   block means, i.e. how far the signal wandered over one window;
-* the joint is settled when every pressure spread is under
-  ``pressure_spread_MPa`` and every angle spread under ``angle_spread_rad``,
-  and has stayed so for ``hold_s`` seconds of device time;
+* a spread alone accepts a slow exponential tail too early (a tail with time
+  constant tau wanders only ``window_s / tau`` of what is left of it over a
+  window; the air's thermal relaxation after a fast load has tau of seconds).
+  So the detector also estimates what is left: from the means A, B, C of the
+  last three windows, ``d1 = B - A`` and ``d2 = C - B``; a decaying trend
+  (same sign or stopped, ``|d2| < |d1|``) is an exponential with ratio ``r = d2 / d1``
+  per window, whose remaining change after C is ``|d2| r / (1 - r)`` (Aitken's
+  extrapolation), capped at ``TAIL_MAX |d2|``; a trend that does not decay
+  (a creep, e.g. a leak) counts ``TAIL_MAX |d2|``, and a change of sign
+  (noise, or a hump such as a pressure that overshoots) counts the larger of
+  ``|d1|`` and ``|d2|``;
+* the joint is settled when every pressure spread and remaining tail is under
+  ``pressure_spread_MPa`` and every angle spread and tail under
+  ``angle_spread_rad``, and has stayed so for ``hold_s`` seconds of device
+  time.  The tail needs three windows of data, so the earliest acceptance is
+  ``3 window_s + hold_s`` after the wait begins;
 * a length channel (the rPAM stand's draw-wire sensor) has its own limit, and
   counts as motion with the angles: its spread is reported as the angle spread
   that is the same fraction of the angle limit.
@@ -29,6 +42,24 @@ from dataclasses import dataclass
 import numpy as np
 
 BLOCKS = 10  # block means per window
+TAIL_WINDOWS = 3  # windows of history behind the tail estimate
+# Largest remaining tail counted, in multiples of the last window-to-window change:
+# r / (1 - r) = 4 at r = 0.8, an exponential with a time constant of 4.5 windows.
+TAIL_MAX = 4.0
+
+
+def remaining_tail(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Estimated change still to come after the means ``C`` of three consecutive windows.
+
+    Aitken's extrapolation of an exponential approach (see the module docstring).
+    """
+    d1, d2 = B - A, C - B
+    trend = d1 * d2 >= 0
+    decaying = trend & (np.abs(d2) < np.abs(d1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(decaying, d2 / d1, 0.0)
+        factor = np.where(decaying, np.minimum(r / (1.0 - r), TAIL_MAX), TAIL_MAX)
+    return np.where(trend, np.abs(d2) * factor, np.maximum(np.abs(d1), np.abs(d2)))
 
 
 @dataclass(frozen=True)
@@ -63,7 +94,8 @@ class SettleCriteria:
     def describe(self) -> str:
         """The rule in one line, with units, as recorded next to each trial."""
         return (
-            f"range of {BLOCKS} block means over {self.window_s:g} s below "
+            f"range of {BLOCKS} block means over {self.window_s:g} s and the tail extrapolated "
+            f"from {TAIL_WINDOWS} windows below "
             f"{self.pressure_spread_MPa * 1e3:g} kPa (pressures) and "
             f"{np.degrees(self.angle_spread_rad):.3g} deg (angles) for {self.hold_s:g} s"
         )
@@ -123,7 +155,7 @@ class SettleDetector:
         self._block_index = 0
         self._sum: np.ndarray | None = None
         self._count = 0
-        self._means: deque[np.ndarray] = deque(maxlen=BLOCKS)
+        self._means: deque[np.ndarray] = deque(maxlen=TAIL_WINDOWS * BLOCKS)
         self._quiet_since: float | None = None  # block-end time when the quiet run began
         self._status = SettleStatus(0.0, float("nan"), float("nan"), 0.0, False, float("nan"), False)
         self.consumed = 0
@@ -199,13 +231,17 @@ class SettleDetector:
         if len(self._means) < BLOCKS:
             self._status = SettleStatus(t_end, float("nan"), float("nan"), 0.0, False, float("nan"), False)
             return
-        m = np.array(self._means)
+        history = np.array(self._means)
+        m = history[-BLOCKS:]
         spread = m.max(axis=0) - m.min(axis=0)
-        ps = float(spread[self._pcols].max()) if self._pcols else 0.0
-        an = float(spread[self._acols].max()) if self._acols else 0.0
-        if self._lcols:
-            an = max(an, float(spread[self._lcols].max()) * self._length_scale)
+        ps, an = self._largest(spread)
         quiet = ps < c.pressure_spread_MPa and an < c.angle_spread_rad
+        if len(history) < TAIL_WINDOWS * BLOCKS:
+            quiet = False  # the tail cannot be judged yet
+        else:
+            A, B, C = history.reshape(TAIL_WINDOWS, BLOCKS, -1).mean(axis=1)
+            pt, at = self._largest(remaining_tail(A, B, C))
+            quiet = quiet and pt < c.pressure_spread_MPa and at < c.angle_spread_rad
         if not quiet:
             self._quiet_since = None
         elif self._quiet_since is None:
@@ -216,6 +252,15 @@ class SettleDetector:
             t_end, ps, an, quiet_s, settled,
             self._quiet_since if settled else float("nan"), False,
         )
+
+
+    def _largest(self, per_channel: np.ndarray) -> tuple[float, float]:
+        """Largest pressure and motion (angle, or length as the same share of its limit) values."""
+        ps = float(per_channel[self._pcols].max()) if self._pcols else 0.0
+        an = float(per_channel[self._acols].max()) if self._acols else 0.0
+        if self._lcols:
+            an = max(an, float(per_channel[self._lcols].max()) * self._length_scale)
+        return ps, an
 
 
 class TimeUnwrapper:

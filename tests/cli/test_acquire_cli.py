@@ -98,7 +98,7 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
             assert np.allclose(PROTOCOL.calibration.to_si(w["counts"]), w["si"])
             assert np.allclose(np.diff(w["t_s"]), 0.005)
         assert rec["settle"]["load"]["settled"] is True
-        assert rec["settle"]["load"]["criterion"].startswith("range of 10 block means over 1 s below 2 kPa")
+        assert rec["settle"]["load"]["criterion"].startswith("range of 10 block means over 1 s and the tail extrapolated from 3 windows below 0.3 kPa")
         assert rec["settle"]["load"]["settle_time_s"] >= 0
 
 
