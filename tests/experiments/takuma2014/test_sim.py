@@ -443,3 +443,66 @@ def test_sim_command_without_pty_says_what_to_add():
         "Error: nothing to serve: add --pty to serve the simulated rig on a pseudo-terminal"
         " (labcli commands can use the port sim:// directly).\n"
     )
+
+
+# ---------------------------------------------------------------- operator console
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
+    # Two terminals, no Python: `labcli sim --pty` takes the operator's lines on stdin while a
+    # serial program reads the port.  The readings must move as the physics says.
+    proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3", "--rate", "100"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            bufsize=1, cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+    def say(line: str) -> str:
+        proc.stdin.write(line + "\n")
+        proc.stdin.flush()
+        return proc.stdout.readline().rstrip("\n")
+
+    def state() -> dict:
+        fields = dict(f.split("=", 1) for f in say("state").split()[1:] if "=" in f)
+        return {k: np.array(v.split(","), dtype=float) for k, v in fields.items()
+                if k in ("theta_deg", "P_MPa", "F_N")}
+
+    try:
+        path = proc.stdout.readline().split()[3]
+        with serial.Serial(path, timeout=2.0) as port:
+            assert say("supply").startswith("ok supply 0.300,0.300,0.300,0.300 MPa")
+            assert say("wait 4").startswith("ok wait 4 s")
+            assert say("close").startswith("ok close")
+            port.reset_input_buffer()
+            port.write(b"START\n")
+
+            def window(seconds: float) -> np.ndarray:
+                """Mean counts of the last half second of frames, reading all the while."""
+                data, end = b"", time.monotonic() + seconds
+                while time.monotonic() < end:
+                    data += port.read(port.in_waiting or 1)
+                fr = frames_of(data)
+                return np.array([f.values for f in fr[-50:]], dtype=float).mean(axis=0)
+
+            before, true0 = window(1.0), state()
+            assert say("hang 1000 0").startswith("ok hang 1000 g at 0 deg")
+            after, true1 = window(8.0), state()
+            assert true1["F_N"] == pytest.approx([9.807, 0.0], abs=1e-3)
+            # A pull along +x turns both joints clockwise: the left actuators stretch.
+            d_true = true1["theta_deg"] - true0["theta_deg"]
+            assert d_true[0] < -0.5 and d_true[1] < -0.5
+            assert CAL_DEG(after[4:]) - CAL_DEG(before[4:]) == pytest.approx(d_true, abs=0.2)  # counts, backlash
+            dp_true = true1["P_MPa"] - true0["P_MPa"]
+            assert dp_true[0] > 0.002 and dp_true[1] < -0.002  # L1 up, R1 down (Boyle)
+            assert CAL_P(after[:4]) - CAL_P(before[:4]) == pytest.approx(dp_true, abs=0.0005)
+            assert say("remove").startswith("ok remove")
+            assert say("push tin 3 0") == ("error: unknown object 'tin'; known: pet-1, pet-2, pet-3, "
+                                           "can-al-1, can-al-2, can-steel-1")
+            assert say("hang heavy 0") == "error: mass must be a number, got 'heavy'; usage: hang GRAMS DEG"
+            port.write(b"STOP\n")
+        assert say("quit") == "ok quit"
+        out, err = proc.communicate(timeout=10)
+        assert proc.returncode == 0, err
+        assert out == "Simulated rig stopped.\n"
+    finally:
+        if proc.poll() is None:
+            proc.kill()
