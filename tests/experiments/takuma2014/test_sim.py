@@ -13,11 +13,12 @@ import pytest
 import serial
 from click.testing import CliRunner
 
-from labcli.experiments.takuma2014.sim import physics as ph
-from labcli.core.sim.firmware import Firmware
-from labcli.experiments.takuma2014.sim.rig import SimRig
 from labcli.core.sim import register
+from labcli.core.sim.firmware import Firmware
 from labcli.core.wire import Frame, parse_line
+from labcli.experiments.takuma2014.sim import physics as ph
+from labcli.experiments.takuma2014.sim.nonideal import NonIdeal
+from labcli.experiments.takuma2014.sim.rig import SimRig
 
 register()
 
@@ -26,11 +27,17 @@ CAL_DEG = lambda c: (np.asarray(c) - 2048) * 340 / 4095
 
 EXPECTED_FORM = (
     "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
-    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&firmware=ELF]"
+    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&firmware=ELF][&ideal=0|1][&friction=X][&leak=X]"
+    "[&thermal=X][&backlash=X][&links=X][&supply=MPA[,MPA,MPA,MPA]][&design=paper|thin]"
 )
 
 
 def settled_rig(**kw) -> SimRig:
+    """The ideal rig (the physics tests below hold the ideal model), pressurised and closed.
+
+    The non-idealities have their own tests (tests/experiments/takuma2014/test_nonideal.py).
+    """
+    kw.setdefault("nonideal", NonIdeal.ideal())
     rig = SimRig(**kw)
     rig.supply_air()
     rig.advance(10)
@@ -94,9 +101,9 @@ def test_boyle_invariant_holds_after_closing_through_loads_and_transients():
 def test_unload_returns_to_the_baseline():
     rig = settled_rig(seed=6)
     base = rig.true_state()
-    rig.hang_weight(0.5, 0.0)
+    rig.hang_weight(1.0, 0.0)
     rig.advance(5)
-    assert abs(rig.true_state()["theta_rad"][0] - base["theta_rad"][0]) > np.radians(3)
+    assert abs(rig.true_state()["theta_rad"][0] - base["theta_rad"][0]) > np.radians(1)
     rig.remove_weight()
     rig.advance(20)
     st = rig.true_state()
@@ -122,13 +129,13 @@ def test_first_order_lag_reaches_63_percent_at_tau():
 def test_pot_counts_track_angles_and_pressures_track_boyle_in_counts():
     rig = settled_rig(seed=9, noise=0)
     _, c0 = rig.samples(1, 200)
-    rig.hang_weight(0.5, np.pi)
+    rig.hang_weight(1.0, np.pi)
     rig.advance(10)
     _, c1 = rig.samples(1, 200)
     st = rig.true_state()
     dtheta_deg = CAL_DEG(c1[0, 4:]) - CAL_DEG(c0[0, 4:])
     base_theta = np.degrees(rig.true_state()["theta_rad"])
-    assert dtheta_deg[0] > 3  # pulled to the left: counter-clockwise
+    assert dtheta_deg[0] > 1  # pulled to the left: counter-clockwise
     # Deflection read from the pots within one count of the truth.
     rig2 = settled_rig(seed=9, noise=0)
     d_true = base_theta - np.degrees(rig2.true_state()["theta_rad"])
@@ -182,13 +189,12 @@ def test_seeded_determinism():
     assert not np.array_equal(run(21), run(22))
 
 
-def test_drift_moves_readings_slowly_and_leaks_closed_chambers():
+def test_drift_moves_readings_slowly_and_does_not_touch_the_air():
+    # Sensor zero drift only; the chambers' leak is its own switch (tests/experiments/takuma2014/test_nonideal.py).
     rig = settled_rig(seed=12, drift=1.0, noise=0)
     p0 = rig.true_state()["pressures_MPa"]
     rig.advance(600)
-    st = rig.true_state()
-    drop = (p0 + ph.P_ATM / 1e6) - (st["pressures_MPa"] + ph.P_ATM / 1e6)
-    assert drop / (p0 + ph.P_ATM / 1e6) == pytest.approx(1 - np.exp(-600 / (6 * 3600)), rel=1e-9)
+    assert rig.true_state()["pressures_MPa"] == pytest.approx(p0, abs=1e-12)
     still = settled_rig(seed=12, drift=0.0, noise=0)
     q0 = still.true_state()["pressures_MPa"]
     still.advance(600)
@@ -204,8 +210,8 @@ def test_drift_moves_readings_slowly_and_leaks_closed_chambers():
 
 def test_unreachable_load_is_a_clear_error():
     rig = settled_rig(seed=1)
-    with pytest.raises(ValueError, match="no static equilibrium with 80000 g hanging at 0 deg"):
-        rig.hang_weight(80.0, 0.0)
+    with pytest.raises(ValueError, match="no static equilibrium with 800000 g hanging at 0 deg"):
+        rig.hang_weight(800.0, 0.0)
 
 
 # ---------------------------------------------------------------- firmware
@@ -322,7 +328,7 @@ def test_virtual_clock_runs_long_protocols_and_buffer_resets():
 
 
 def test_virtual_port_has_no_stale_backlog_when_the_operator_acts():
-    port = serial.serial_for_url("sim://?seed=2&rate=200&noise=0", timeout=0.5)
+    port = serial.serial_for_url("sim://?seed=2&rate=200&noise=0&ideal=1", timeout=0.5)
     port.rig.supply_air()
     port.write(b"START\n")
     seen = port.read(port.in_waiting)
@@ -331,12 +337,12 @@ def test_virtual_port_has_no_stale_backlog_when_the_operator_acts():
     t_hook = port.rig.time_s
     last_seen = frames_of(seen)[-1].t_us / 1e6
     assert -1e-6 <= t_hook - last_seen <= 3 / 200 + 1e-6  # at most a few frames on their way
-    port.rig.hang_weight(0.5, 0.0)
+    port.rig.hang_weight(1.0, 0.0)
     after = frames_of(seen[seen.rfind(b"\n") + 1 :] + port.read(4000))
     before_hook = [f for f in after if f.t_us / 1e6 <= t_hook + 1e-6]
     assert before_hook == after[: len(before_hook)] and len(before_hook) <= 3
     pots = np.array([f.values[4] for f in after[len(before_hook):]])
-    assert pots[-1] < pots[0] - 30  # every later frame shows the arm moving
+    assert pots[-1] < pots[0] - 10  # every later frame shows the arm moving
 
 
 def test_idle_virtual_port_waits_its_timeout_and_the_device_clock_runs_meanwhile():

@@ -63,8 +63,8 @@ Equilibrium (virtual work)
 ``J(theta)^T F_ext(theta) = sum_ij T_ij(theta) grad s_ij(theta)``: a tension pulls
 to shorten its path.  ``F_ext`` is a pulley weight ``m g (cos dir, sin dir)``,
 fixed in the world, or the radial-spring cylinder of Section 4 (Eq. 39) pushed
-into the tip.  The links' own weight is not modelled (the arm stands upright
-and the protocol measures deflections from each trial's own baseline).
+into the tip.  The links' own weight (``RigParams.link_mass_kg``, centres of
+mass mid-link) adds :func:`link_weight_torques`.
 
 Chosen parameters, and why (:func:`nominal_params`)
 ---------------------------------------------------
@@ -72,44 +72,46 @@ Geometry is the paper's (Section 3.1): h1 = 0.355 m, h2 = 0.130 m, h3 = 0.065 m,
 r1 = 0.075 m, r2 = 0.035 m.  Supply pressure 0.30 MPa gauge (inside the
 sensor's 0-1 MPa span, close to the 0.33 MPa of Figure 1c).
 
-The actuators are thin muscles (6 mm diameter) described at the baseline
-posture and supply pressure:
+The paper prints no actuator dimensions and its Figure 1 has no numbers in our
+text, so the actuators are tuned to the one quantitative trace of the paper's
+rig that survives: its Section 3.3 coefficients.  Applied to the simulated
+rig's pressures they must give the true angles and forces within a factor of
+1.5 (:mod:`labcli.experiments.takuma2014.sim.paper_scale` measures it): the angle coefficients fix
+the pressure change per radian (Boyle's ``beta`` with the dead volume), the
+force coefficients the pressure change per newton, i.e. the joint stiffness
+at that ``beta``.  Four equal actuators, 13 mm across (an ordinary hand-made
+muscle, thicker than the earlier 6 mm ones to be stiff enough):
 
 =========  ========  =========  ========  =======  =========  ==========  =========
 actuator   length    braid ang  diameter  b        n (turns)  pretension  beta
 =========  ========  =========  ========  =======  =========  ==========  =========
-outside    0.220 m   41 deg     6 mm      0.292 m  10.1       14.5 N      -0.198 m
-inside     0.220 m   37 deg     6 mm      0.275 m  8.8        21.9 N      -0.129 m
+outside    0.220 m   41 deg     13 mm     0.292 m  4.68       69.1 N      -0.202 m
+inside     0.220 m   41 deg     13 mm     0.292 m  4.68       69.1 N      -0.230 m
 =========  ========  =========  ========  =======  =========  ==========  =========
 
-Rubber: k_rubber = 100 N/m (a latex tube of that size) with a rest length 5 mm
-below the mounting length, so a vented rig stays taut.  Dead volume 3 mL per
-chamber (short thin tubing and the sensor) against 6.2 mL of actuator volume.
-
-Why: joint stiffness must let 50-1000 g at the tip deflect the joints by a few
-tenths of a degree up to about 15 deg.  Under a tip load theta1 is set mainly
-by the outside pair and the absolute angle of link 2 by the inside pair; with
-the paper's moment arms each actuator may only be a few hundred N/m stiff.
-Ordinary 10-20 mm muscles at 0.3 MPa are ten times stiffer: thin ones with a
-braid angle near (but below) 54.7 deg are soft enough.  The braid angle and the
-dead volume also set the pressure sensitivity: Boyle's law linearised is the
-paper's Eq. 29 with ``beta = (V + V_dead) / V'(L)`` (the paper's beta when
-``V_dead = 0``), so 0.1 rad at joint 1 (7.5 mm on the outside tendons) changes
-those pressures by about 5 % of gauge: the size the paper's coefficients imply
-(sin(theta1) = 0.136 u_L1 - 1.587 u_R1 gives about 6 %).  A smaller dead volume
-or braid angle gives larger pressure changes and a stiffer joint.
+Rubber: k_rubber = 700 N/m (a latex tube of that size) with a rest length 5 mm
+below the mounting length, so a vented rig stays taut.  Dead volume (tubing,
+fittings and the sensor) 15 mL per outside chamber and 21 mL per inside one,
+against 29 mL of actuator volume: the inside pair's larger dead volume brings
+the pressure change per radian of theta2 to the scale of the paper's theta2
+coefficients.  0.1 rad at joint 1 changes the outside pressures by about 5 %
+of gauge (the paper's sin(theta1) = 0.136 u_L1 - 1.587 u_R1 implies about 6 %).
+Supplying the inside pair unequally (L2 0.40, R2 0.20 MPa) bends the rest
+posture to theta2 = 16.9 deg.  ``THIN_MUSCLES`` keeps the earlier tuning (6 mm
+muscles, 0.6-13 deg for 50-1000 g, about 9 times the paper's pressure change
+per newton).
 
 Resulting closed-valve joint stiffness about theta = 0 (N m/rad):
-``[[7.42, 1.79], [1.79, 1.79]]``.  Tip loads (symmetric rig, valves closed;
+``[[35.09, 6.17], [6.17, 6.17]]``.  Tip loads (symmetric rig, valves closed;
 angles in deg, pressure changes in % of gauge, L1 R1 L2 R2)::
 
     mass  dir     theta1  theta2   dP_L1  dP_R1  dP_L2  dP_R2
-      50 g   0      -0.65   -0.37   +0.58  -0.57  +0.65  -0.64
-     200 g  45      -1.78   -0.97   +1.63  -1.51  +1.79  -1.69
-     500 g   0      -6.46   -3.58   +6.54  -4.99  +7.06  -5.71
-     500 g 135      +4.24   +2.14   -3.43  +4.10  -3.77  +4.31
-    1000 g   0     -12.79   -6.30  +14.78  -8.63 +14.81  -9.90
-    1000 g -45     -10.80   -7.25  +11.97  -7.60 +13.87  -9.47
+      50 g   0      -0.13   -0.17   +0.11  -0.11  +0.11  -0.10
+     200 g  45      -0.35   -0.47   +0.31  -0.31  +0.30  -0.29
+     500 g   0      -1.26   -1.69   +1.12  -1.06  +1.08  -1.02
+     500 g 135      +0.88   +1.14   -0.75  +0.78  -0.70  +0.73
+    1000 g   0      -2.52   -3.37   +2.30  -2.07  +2.21  -1.98
+    1000 g -45      -1.84   -2.66   +1.66  -1.53  +1.67  -1.54
     1000 g  90       0.00    0.00    0.00   0.00   0.00   0.00
 
 A force along the straight arm (90 or -90 deg) produces no torque on the
@@ -125,8 +127,9 @@ about 0.3 deg rms from zero at joint 1 and 0.9 deg rms at joint 2 (the inside
 pair acts on the short moment arm r2).
 
 Limits: tendons are assumed taut (tension may go negative on a vented rig
-under load, where a real tendon would go slack); no friction, hysteresis or
-link weight; isothermal air.
+under load, where a real tendon would go slack); isothermal air.  The links'
+weight is here (``RigParams.link_mass_kg``, zero by default); friction, leak,
+heat and backlash live in the simulated rig (:mod:`.nonideal`).
 """
 
 from __future__ import annotations
@@ -402,7 +405,7 @@ def generalised_forces(theta, params: RigParams, chambers: Chambers, load, extra
 
     The links' weight enters when ``params.link_mass_kg`` is non-zero; ``extra``
     (a function of theta giving ``(..., 2)`` N m) adds any other generalised
-    force, e.g. sleeve friction (:mod:`labcli.sim.nonideal`).
+    force, e.g. sleeve friction (:mod:`.nonideal`).
     """
     theta = np.asarray(theta, dtype=float)
     geom = params.geometry
