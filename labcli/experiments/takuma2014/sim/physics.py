@@ -79,40 +79,41 @@ rig's pressures they must give the true angles and forces within a factor of
 1.5 (:mod:`labcli.experiments.takuma2014.sim.paper_scale` measures it): the angle coefficients fix
 the pressure change per radian (Boyle's ``beta`` with the dead volume), the
 force coefficients the pressure change per newton, i.e. the joint stiffness
-at that ``beta``.  Four equal actuators, 13 mm across (an ordinary hand-made
-muscle, thicker than the earlier 6 mm ones to be stiff enough):
+at that ``beta``.  Ordinary hand-made muscles, 13 mm across outside and 9 mm
+inside (thicker than the earlier 6 mm ones, to be stiff enough):
 
 =========  ========  =========  ========  =======  =========  ==========  =========
 actuator   length    braid ang  diameter  b        n (turns)  pretension  beta
 =========  ========  =========  ========  =======  =========  ==========  =========
 outside    0.220 m   41 deg     13 mm     0.292 m  4.68       69.1 N      -0.202 m
-inside     0.220 m   41 deg     13 mm     0.292 m  4.68       69.1 N      -0.230 m
+inside     0.220 m   41 deg     9 mm      0.292 m  6.76       34.9 N      -0.191 m
 =========  ========  =========  ========  =======  =========  ==========  =========
 
 Rubber: k_rubber = 700 N/m (a latex tube of that size) with a rest length 5 mm
 below the mounting length, so a vented rig stays taut.  Dead volume (tubing,
-fittings and the sensor) 15 mL per outside chamber and 21 mL per inside one,
-against 29 mL of actuator volume: the inside pair's larger dead volume brings
-the pressure change per radian of theta2 to the scale of the paper's theta2
-coefficients.  0.1 rad at joint 1 changes the outside pressures by about 5 %
+fittings and the sensor) 15 mL per outside chamber (29 mL of actuator) and
+6 mL per inside one (14 mL of actuator).  The thinner inside pair leaves joint
+2 soft enough that the heavier loads bend it past 3 deg, where the force along
+the arm (Fy) becomes observable (det J = h2 h3 sin theta2), with the pressure
+change per radian of theta2 on the scale of the paper's theta2 coefficients.  0.1 rad at joint 1 changes the outside pressures by about 5 %
 of gauge (the paper's sin(theta1) = 0.136 u_L1 - 1.587 u_R1 implies about 6 %).
 Supplying the inside pair unequally (L2 0.40, R2 0.20 MPa) bends the rest
-posture to theta2 = 16.9 deg.  ``THIN_MUSCLES`` keeps the earlier tuning (6 mm
+posture to theta2 = 12.4 deg.  ``THIN_MUSCLES`` keeps the earlier tuning (6 mm
 muscles, 0.6-13 deg for 50-1000 g, about 9 times the paper's pressure change
 per newton).
 
 Resulting closed-valve joint stiffness about theta = 0 (N m/rad):
-``[[35.09, 6.17], [6.17, 6.17]]``.  Tip loads (symmetric rig, valves closed;
+``[[32.86, 3.94], [3.94, 3.94]]``.  Tip loads (symmetric rig, valves closed;
 angles in deg, pressure changes in % of gauge, L1 R1 L2 R2)::
 
     mass  dir     theta1  theta2   dP_L1  dP_R1  dP_L2  dP_R2
-      50 g   0      -0.13   -0.17   +0.11  -0.11  +0.11  -0.10
-     200 g  45      -0.35   -0.47   +0.31  -0.31  +0.30  -0.29
-     500 g   0      -1.26   -1.69   +1.12  -1.06  +1.08  -1.02
-     500 g 135      +0.88   +1.14   -0.75  +0.78  -0.70  +0.73
-    1000 g   0      -2.52   -3.37   +2.30  -2.07  +2.21  -1.98
-    1000 g -45      -1.84   -2.66   +1.66  -1.53  +1.67  -1.54
-    1000 g  90       0.00    0.00    0.00   0.00   0.00   0.00
+      50 g   0     -0.13   -0.34   +0.11  -0.11  +0.20  -0.20
+     200 g  45     -0.35   -0.93   +0.31  -0.31  +0.56  -0.54
+     500 g   0     -1.26   -3.36   +1.12  -1.06  +2.07  -1.89
+     500 g 135     +0.88   +2.22   -0.75  +0.78  -1.29  +1.37
+    1000 g   0     -2.52   -6.68   +2.30  -2.07  +4.31  -3.59
+    1000 g -45     -1.84   -5.53   +1.65  -1.53  +3.39  -2.93
+    1000 g  90      0.00    0.00    0.00   0.00   0.00   0.00
 
 A force along the straight arm (90 or -90 deg) produces no torque on the
 symmetric rig; on a varied rig its baseline is slightly bent and it does.
@@ -556,8 +557,8 @@ class Design:
 
 
 # The default: the paper's test bed (see the module docstring for the figures used).
-PAPER_SCALE = Design(pairs={1: (0.220, 41.0, 0.013), 2: (0.220, 41.0, 0.013)}, k_rubber=700.0,
-                     rubber_prestretch=0.005, v_dead=(15.0e-6, 21.0e-6))
+PAPER_SCALE = Design(pairs={1: (0.220, 41.0, 0.013), 2: (0.220, 41.0, 0.009)}, k_rubber=700.0,
+                     rubber_prestretch=0.005, v_dead=(15.0e-6, 6.0e-6))
 # The tuning before the paper-scale retune: thin, soft muscles (0.6-13 deg for 50-1000 g).
 # Kept so that runs recorded on it (``sim://?design=thin&ideal=1``) can be reproduced.
 THIN_MUSCLES = Design(pairs={1: (0.220, 41.0, 0.006), 2: (0.220, 37.0, 0.006)}, k_rubber=100.0,
