@@ -127,21 +127,26 @@ def friction_equilibrium(params: ph.RigParams, chambers: ph.Chambers, load, thet
         return free
     ff = friction_forces(theta_from, params, chambers, fraction)
     s_from = ph.path_lengths(theta_from, params.geometry)
-    sign = np.sign(np.round((ph.path_lengths(free.theta_rad, params.geometry) - s_from) * 1e9))
+
+    def motion(theta) -> np.ndarray:
+        """Each actuator's direction from ``theta_from`` to ``theta``: +1 stretching, -1 shortening, 0."""
+        return np.sign(np.round((ph.path_lengths(theta, params.geometry) - s_from) * 1e9))
+
+    sign = motion(free.theta_rad)
     result = free
     for _ in range(2):
         if not np.any(sign):
             return _held(params, chambers, load, theta_from)
 
-        def extra(theta, sign=sign):
-            # Friction resists each actuator's motion: extra tension ff * sign along grad s.
-            return -np.einsum("i,...ij->...j", ff * sign, ph.path_gradients(theta, params.geometry))
-
-        result = ph.solve_equilibrium(params, chambers, load, theta0=theta_from, extra=extra)
+        # Friction resists each actuator's motion: a stretching one pulls harder, a shortening
+        # one less.  Started from the last posture found (the frictionless one first): friction
+        # moves the arm by a fraction of a degree from it, so Newton needs a step or two.
+        result = ph.solve_equilibrium(params, chambers, load, theta0=result.theta_rad,
+                                      extra_tension_N=ff * sign)
         step = result.theta_rad - theta_from
         if float(step @ (free.theta_rad - theta_from)) <= 0:
             return _held(params, chambers, load, theta_from)
-        new_sign = np.sign(np.round((ph.path_lengths(result.theta_rad, params.geometry) - s_from) * 1e9))
+        new_sign = motion(result.theta_rad)
         if np.array_equal(new_sign, sign):
             break
         sign = new_sign
@@ -161,7 +166,7 @@ def _held(params, chambers, load, theta) -> ph.Equilibrium:
 # ---------------------------------------------------------------- thermal
 
 
-def thermal_excess(dt, x0, dlnV, kappa_minus_1: float, tau_lag: float, tau_th: float = THERMAL_TAU_S):
+def thermal_excess(dt, x0, dlnV, kappa_minus_1: float, tau_lag: float, tau_th: float):
     """Gas temperature excess ``T/T0 - 1`` at ``dt`` after a change (``(..., 4)``).
 
     ``x0``: the excess at the change; ``dlnV``: the change of ``ln V`` the

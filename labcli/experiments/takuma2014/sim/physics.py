@@ -186,47 +186,55 @@ class RigParams:
 # ---------------------------------------------------------------- geometry
 
 
-def _seg(h: float, r: float, sign, t):
-    a = h + sign * r * np.sin(t)
-    c = r - r * np.cos(t)
-    return np.sqrt(a * a + c * c)
+# The six straight tendon pieces, one per joint an actuator crosses:
+# L1, R1 over joint 1 (arm r1); L2, R2 over joint 1 (arm r2); L2, R2 over joint 2 (arm r2).
+_PIECE_SIDE = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
+_PIECE_JOINT = [0, 0, 0, 0, 1, 1]
 
 
-def _dseg(h: float, r: float, sign, t):
-    a = h + sign * r * np.sin(t)
-    c = r - r * np.cos(t)
-    return (a * sign * r * np.cos(t) + c * r * np.sin(t)) / np.sqrt(a * a + c * c)
+def _pieces(theta, geom: Geometry, derivative: bool = False):
+    """Lengths of the six tendon pieces ``(..., 6)`` (m), with ``d length / d (own joint angle)`` (m/rad).
+
+    A piece leaves its joint at ``r`` beside the axis and runs a height ``h`` to
+    the next: ``sqrt((h + side r sin t)^2 + (r - r cos t)^2)``.
+    """
+    theta = np.asarray(theta, dtype=float)
+    t = theta[..., _PIECE_JOINT]
+    h = np.array([geom.h1] * 4 + [geom.h2] * 2)
+    r = np.array([geom.r1] * 2 + [geom.r2] * 4)
+    sin, cos = np.sin(t), np.cos(t)
+    a = h + _PIECE_SIDE * r * sin
+    c = r - r * cos
+    length = np.sqrt(a * a + c * c)
+    if not derivative:
+        return length, None
+    return length, (a * _PIECE_SIDE * r * cos + c * r * sin) / length
+
+
+def _paths(theta, geom: Geometry, gradients: bool = True):
+    """Path lengths ``(..., 4)`` and, with ``gradients``, ``d s / d theta`` ``(..., 4, 2)``, from one pass.
+
+    L1 and R1 are one piece each; L2 and R2 add their piece over joint 2.
+    """
+    length, d = _pieces(theta, geom, gradients)
+    s = length[..., :4].copy()
+    s[..., 2:] += length[..., 4:]
+    if not gradients:
+        return s, None
+    grad = np.zeros(d.shape[:-1] + (4, 2))
+    grad[..., 0] = d[..., :4]
+    grad[..., 2:, 1] = d[..., 4:]
+    return s, grad
 
 
 def path_lengths(theta, geom: Geometry) -> np.ndarray:
     """Exact tendon path lengths ``(..., 4)`` in order L1, R1, L2, R2 (m)."""
-    theta = np.asarray(theta, dtype=float)
-    t1, t2 = theta[..., 0], theta[..., 1]
-    g = geom
-    return np.stack(
-        [
-            _seg(g.h1, g.r1, -1.0, t1),
-            _seg(g.h1, g.r1, 1.0, t1),
-            _seg(g.h1, g.r2, -1.0, t1) + _seg(g.h2, g.r2, -1.0, t2),
-            _seg(g.h1, g.r2, 1.0, t1) + _seg(g.h2, g.r2, 1.0, t2),
-        ],
-        axis=-1,
-    )
+    return _paths(theta, geom, gradients=False)[0]
 
 
 def path_gradients(theta, geom: Geometry) -> np.ndarray:
     """Exact ``d s_ij / d theta`` as ``(..., 4, 2)`` (m/rad)."""
-    theta = np.asarray(theta, dtype=float)
-    t1, t2 = theta[..., 0], theta[..., 1]
-    g = geom
-    zero = np.zeros_like(t1)
-    rows = [
-        (_dseg(g.h1, g.r1, -1.0, t1), zero),
-        (_dseg(g.h1, g.r1, 1.0, t1), zero),
-        (_dseg(g.h1, g.r2, -1.0, t1), _dseg(g.h2, g.r2, -1.0, t2)),
-        (_dseg(g.h1, g.r2, 1.0, t1), _dseg(g.h2, g.r2, 1.0, t2)),
-    ]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    return _paths(theta, geom)[1]
 
 
 def rest_paths(geom: Geometry) -> np.ndarray:
@@ -257,6 +265,18 @@ def jacobian(theta, geom: Geometry) -> np.ndarray:
     row0 = np.stack([-h2 * c1 - h3 * c12, -h3 * c12], axis=-1)
     row1 = np.stack([-h2 * s1 - h3 * s12, -h3 * s12], axis=-1)
     return np.stack([row0, row1], axis=-2)
+
+
+def _jacobian_transpose_times(theta, geom: Geometry, F) -> np.ndarray:
+    """``J(theta)^T F`` (..., 2) without building ``J`` (:func:`jacobian`): the load's generalised force (N m)."""
+    theta = np.asarray(theta, dtype=float)
+    t1, t2 = theta[..., 0], theta[..., 1]
+    c1, s1 = np.cos(t1), np.sin(t1)
+    c12, s12 = np.cos(t1 + t2), np.sin(t1 + t2)
+    h2, h3 = geom.h2, geom.h3
+    Fx, Fy = F[..., 0], F[..., 1]
+    return np.stack([(-h2 * c1 - h3 * c12) * Fx + (-h2 * s1 - h3 * s12) * Fy,
+                     (-h3 * c12) * Fx + (-h3 * s12) * Fy], axis=-1)
 
 
 def actuator_lengths(theta, params: RigParams) -> np.ndarray:
@@ -401,26 +421,26 @@ def link_weight_torques(theta, geom: Geometry, link_mass_kg) -> np.ndarray:
     return np.stack([q1, q2], axis=-1)
 
 
-def generalised_forces(theta, params: RigParams, chambers: Chambers, load, extra=None) -> np.ndarray:
+def generalised_forces(theta, params: RigParams, chambers: Chambers, load,
+                       extra_tension_N=None) -> np.ndarray:
     """Residual of virtual work ``J^T F - sum T grad s`` (N m), shape ``(..., 2)``.
 
-    The links' weight enters when ``params.link_mass_kg`` is non-zero; ``extra``
-    (a function of theta giving ``(..., 2)`` N m) adds any other generalised
-    force, e.g. sleeve friction (:mod:`.nonideal`).
+    The links' weight enters when ``params.link_mass_kg`` is non-zero;
+    ``extra_tension_N`` (4,) adds to each actuator's tension, e.g. sleeve
+    friction (:mod:`.nonideal`).
     """
     theta = np.asarray(theta, dtype=float)
     geom = params.geometry
-    L = actuator_lengths(theta, params)
+    s, grad = _paths(theta, geom)  # (..., 4), (..., 4, 2)
+    L = params.L_mount + s - rest_paths(geom)  # actuator_lengths
     p = chambers.gauge(L, params)
     T = mckibben_tension(L, p, params.b, params.n, params.k_rubber, params.L_rubber)
-    grad = path_gradients(theta, geom)  # (..., 4, 2)
-    F = load.force(theta, geom)
-    JT_F = np.einsum("...ij,...i->...j", jacobian(theta, geom), F)
-    r = JT_F - np.einsum("...i,...ij->...j", T, grad)
+    if extra_tension_N is not None:
+        T = T + extra_tension_N
+    load_q = _jacobian_transpose_times(theta, geom, load.force(theta, geom))  # J^T F
+    r = load_q - np.einsum("...i,...ij->...j", T, grad)
     if np.any(params.link_mass_kg):
         r = r + link_weight_torques(theta, geom, params.link_mass_kg)
-    if extra is not None:
-        r = r + extra(theta)
     return r
 
 
@@ -437,19 +457,20 @@ class Equilibrium:
     stable: bool  # stiffness matrix positive definite
 
 
+# The four postures of the central differences, theta +- h along each joint.
+_STENCIL = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+
+
 def stiffness_matrix(theta, params: RigParams, chambers: Chambers, load, h: float = 1e-6,
-                     extra=None) -> np.ndarray:
-    """``K = -d(residual)/d theta`` by central differences (N m/rad)."""
+                     extra_tension_N=None) -> np.ndarray:
+    """``K = -d(residual)/d theta`` by central differences (N m/rad).
+
+    The four displaced postures go through :func:`generalised_forces` as one
+    batch (every term broadcasts over leading axes), a quarter of the calls.
+    """
     theta = np.asarray(theta, dtype=float)
-    K = np.empty((2, 2))
-    for k in range(2):
-        d = np.zeros(2)
-        d[k] = h
-        K[:, k] = -(
-            generalised_forces(theta + d, params, chambers, load, extra)
-            - generalised_forces(theta - d, params, chambers, load, extra)
-        ) / (2 * h)
-    return K
+    r = generalised_forces(theta + h * _STENCIL, params, chambers, load, extra_tension_N)
+    return -np.stack([r[0] - r[1], r[2] - r[3]], axis=-1) / (2 * h)
 
 
 def solve_equilibrium(
@@ -458,11 +479,11 @@ def solve_equilibrium(
     load=None,
     theta0: Sequence[float] | None = None,
     tol: float = 1e-10,
-    extra=None,
+    extra_tension_N=None,
 ) -> Equilibrium:
     """Static equilibrium posture under ``load`` (None: unloaded).
 
-    ``extra`` adds a generalised force (see :func:`generalised_forces`).
+    ``extra_tension_N`` (4,) adds to the actuators' tensions (see :func:`generalised_forces`).
     Raises ``ValueError`` if no equilibrium with a residual below ``tol`` (N m)
     is found, e.g. for a load far beyond the rig's range.
     """
@@ -475,7 +496,7 @@ def solve_equilibrium(
     for steps in (1, 4, 16):
         x = x0.copy()
         for k in range(1, steps + 1):
-            x, res = _newton(params, chambers, _scaled(load, k / steps), x, tol, extra=extra)
+            x, res = _newton(params, chambers, _scaled(load, k / steps), x, tol, extra_tension_N)
             if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > 1.5:
                 break
         else:
@@ -489,7 +510,7 @@ def solve_equilibrium(
     L = actuator_lengths(x, params)
     p = chambers.gauge(L, params)
     T = mckibben_tension(L, p, params.b, params.n, params.k_rubber, params.L_rubber)
-    K = stiffness_matrix(x, params, chambers, load, extra=extra)
+    K = stiffness_matrix(x, params, chambers, load, extra_tension_N=extra_tension_N)
     stable = bool(np.all(np.linalg.eigvalsh(0.5 * (K + K.T)) > 0))
     return Equilibrium(
         theta_rad=x,
@@ -502,15 +523,15 @@ def solve_equilibrium(
     )
 
 
-def _newton(params, chambers, load, x, tol: float, iters: int = 80, extra=None):
+def _newton(params, chambers, load, x, tol: float, extra_tension_N=None, iters: int = 80):
     """Damped Newton on the virtual-work residual; returns (theta, max |residual|)."""
-    r = generalised_forces(x, params, chambers, load, extra)
+    r = generalised_forces(x, params, chambers, load, extra_tension_N)
     nr = float(np.max(np.abs(r)))
     for _ in range(iters):
         if nr < tol * 1e-3:
             break
         try:
-            dx = np.linalg.solve(stiffness_matrix(x, params, chambers, load, extra=extra), r)
+            dx = np.linalg.solve(stiffness_matrix(x, params, chambers, load, extra_tension_N=extra_tension_N), r)
         except np.linalg.LinAlgError:
             break
         big = np.max(np.abs(dx))
@@ -519,7 +540,7 @@ def _newton(params, chambers, load, x, tol: float, iters: int = 80, extra=None):
         t = 1.0
         while t > 1e-6:
             xn = x + t * dx
-            rn = generalised_forces(xn, params, chambers, load, extra)
+            rn = generalised_forces(xn, params, chambers, load, extra_tension_N)
             nn = float(np.max(np.abs(rn)))
             if nn < nr:
                 break
