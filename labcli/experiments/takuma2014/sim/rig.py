@@ -142,6 +142,7 @@ class SimRig(SimClock):
         self.params = params
         self._friction = ni.FRICTION_FRACTION * self.nonideal.friction
         self._kappa1 = (ni.KAPPA - 1.0) * self.nonideal.thermal
+        self._thermal_tau = ni.THERMAL_TAU_S  # read when the rig is built (a test may set another)
         self._backlash = ni.BACKLASH_RAD * self.nonideal.backlash
         self._leak_rate = ni.leak_factors(self.seed, self.nonideal.leak)
         self._lock = threading.RLock()
@@ -182,7 +183,7 @@ class SimRig(SimClock):
             amount = s.chambers.amount * self._leak_factor(t)
             p_abs = amount / (V + self.params.V_dead)
             if not isothermal and (s.kappa1 or np.any(s.x0)):
-                p_abs = p_abs * (1.0 + ni.thermal_excess(t - s.t0, s.x0, s.dlnV, s.kappa1, s.tau))
+                p_abs = p_abs * (1.0 + self._thermal_at(t))
             p = p_abs - ph.P_ATM
         return theta, p
 
@@ -198,10 +199,11 @@ class SimRig(SimClock):
         return ni.play(self._seg.shaft0, theta, self._backlash)
 
     def _thermal_at(self, t) -> np.ndarray:
+        """Gas temperature excess ``T/T0 - 1`` of each chamber at times ``t`` (``(..., 4)``)."""
         s = self._seg
         if s.chambers.state != "closed" or not (s.kappa1 or np.any(s.x0)):
-            return np.zeros(4)
-        return ni.thermal_excess(t - s.t0, s.x0, s.dlnV, s.kappa1, s.tau)
+            return np.zeros(np.shape(t) + (4,))
+        return ni.thermal_excess(t - s.t0, s.x0, s.dlnV, s.kappa1, s.tau, self._thermal_tau)
 
     def true_state(self) -> dict:
         """The truth at the current simulated time (for tests and checks).
@@ -237,7 +239,7 @@ class SimRig(SimClock):
                 "pressures_isothermal_MPa": p_iso / 1e6,
                 "pot_shaft_rad": self._shaft_at(self._t, theta),
                 "supply_MPa": self.params.supply_pa / 1e6,
-                "nonideal": self.nonideal.magnitudes(),
+                "nonideal": {**self.nonideal.magnitudes(), "thermal_tau_s": self._thermal_tau},
             }
 
     # ------------------------------------------------------------ operator
@@ -258,10 +260,7 @@ class SimRig(SimClock):
                 x_now = np.zeros(4)  # new air from the regulator (or none): at the wall's temperature
             load = s.load if load is None else load
             try:
-                if self._friction:
-                    eq = ni.friction_equilibrium(self.params, chambers, load, theta_now, self._friction)
-                else:
-                    eq = ph.solve_equilibrium(self.params, chambers, load, theta0=theta_now)
+                eq = ni.friction_equilibrium(self.params, chambers, load, theta_now, self._friction)
             except ValueError:
                 raise ValueError(
                     f"the simulated rig finds no static equilibrium with {_load_text(load)};"
