@@ -457,20 +457,26 @@ class Equilibrium:
     stable: bool  # stiffness matrix positive definite
 
 
-# The four postures of the central differences, theta +- h along each joint.
-_STENCIL = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+# Where one Newton step evaluates the residual: theta itself, then theta +- h along
+# each joint for the central differences of the stiffness.
+_STENCIL = np.array([[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+
+
+def _residual_and_stiffness(theta, params: RigParams, chambers: Chambers, load, extra_tension_N=None,
+                            h: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """The residual (2,) and ``K = -d(residual)/d theta`` (2, 2) at ``theta``, from one batch.
+
+    The five postures go through :func:`generalised_forces` together (every
+    term broadcasts over leading axes): a Newton step costs one call, not five.
+    """
+    r = generalised_forces(np.asarray(theta, dtype=float) + h * _STENCIL, params, chambers, load, extra_tension_N)
+    return r[0], -np.stack([r[1] - r[2], r[3] - r[4]], axis=-1) / (2 * h)
 
 
 def stiffness_matrix(theta, params: RigParams, chambers: Chambers, load, h: float = 1e-6,
                      extra_tension_N=None) -> np.ndarray:
-    """``K = -d(residual)/d theta`` by central differences (N m/rad).
-
-    The four displaced postures go through :func:`generalised_forces` as one
-    batch (every term broadcasts over leading axes), a quarter of the calls.
-    """
-    theta = np.asarray(theta, dtype=float)
-    r = generalised_forces(theta + h * _STENCIL, params, chambers, load, extra_tension_N)
-    return -np.stack([r[0] - r[1], r[2] - r[3]], axis=-1) / (2 * h)
+    """``K = -d(residual)/d theta`` by central differences (N m/rad)."""
+    return _residual_and_stiffness(theta, params, chambers, load, extra_tension_N, h)[1]
 
 
 def solve_equilibrium(
@@ -496,21 +502,20 @@ def solve_equilibrium(
     for steps in (1, 4, 16):
         x = x0.copy()
         for k in range(1, steps + 1):
-            x, res = _newton(params, chambers, _scaled(load, k / steps), x, tol, extra_tension_N)
+            x, res, K = _newton(params, chambers, _scaled(load, k / steps), x, tol, extra_tension_N)
             if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > 1.5:
                 break
         else:
             if best is None or res < best[1]:
-                best = (x, res)
+                best = (x, res, K)
             if res < tol:
                 break
     if best is None or best[1] >= tol:
         raise ValueError("no static equilibrium found for this load (is it beyond the rig's range?)")
-    x, res = best
+    x, res, K = best
     L = actuator_lengths(x, params)
     p = chambers.gauge(L, params)
     T = mckibben_tension(L, p, params.b, params.n, params.k_rubber, params.L_rubber)
-    K = stiffness_matrix(x, params, chambers, load, extra_tension_N=extra_tension_N)
     stable = bool(np.all(np.linalg.eigvalsh(0.5 * (K + K.T)) > 0))
     return Equilibrium(
         theta_rad=x,
@@ -524,31 +529,36 @@ def solve_equilibrium(
 
 
 def _newton(params, chambers, load, x, tol: float, extra_tension_N=None, iters: int = 80):
-    """Damped Newton on the virtual-work residual; returns (theta, max |residual|)."""
-    r = generalised_forces(x, params, chambers, load, extra_tension_N)
+    """Damped Newton on the virtual-work residual; returns (theta, max |residual|, stiffness there).
+
+    A full step gets the residual and the stiffness at the new posture from
+    one batch; a step that must be shortened tries the residual alone.
+    """
+    r, K = _residual_and_stiffness(x, params, chambers, load, extra_tension_N)
     nr = float(np.max(np.abs(r)))
     for _ in range(iters):
         if nr < tol * 1e-3:
             break
         try:
-            dx = np.linalg.solve(stiffness_matrix(x, params, chambers, load, extra_tension_N=extra_tension_N), r)
+            dx = np.linalg.solve(K, r)
         except np.linalg.LinAlgError:
             break
         big = np.max(np.abs(dx))
         if big > 0.2:  # rad: keep steps where the linearisation means something
             dx *= 0.2 / big
-        t = 1.0
-        while t > 1e-6:
-            xn = x + t * dx
+        t, xn = 1.0, x + dx
+        rn, Kn = _residual_and_stiffness(xn, params, chambers, load, extra_tension_N)
+        nn = float(np.max(np.abs(rn)))
+        while not nn < nr:  # halve the step until the residual falls (down to 2^-19; NaN never does)
+            t *= 0.5
+            if t <= 1e-6:
+                return x, nr, K
+            xn, Kn = x + t * dx, None
             rn = generalised_forces(xn, params, chambers, load, extra_tension_N)
             nn = float(np.max(np.abs(rn)))
-            if nn < nr:
-                break
-            t *= 0.5
-        else:
-            break
         x, r, nr = xn, rn, nn
-    return x, nr
+        K = Kn if Kn is not None else stiffness_matrix(x, params, chambers, load, extra_tension_N=extra_tension_N)
+    return x, nr, K
 
 
 def _scaled(load, s: float):
