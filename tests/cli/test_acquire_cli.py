@@ -100,7 +100,7 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
             assert np.allclose(PROTOCOL.calibration.to_si(w["counts"]), w["si"])
             assert np.allclose(np.diff(w["t_s"]), 0.005)
         assert rec["settle"]["load"]["settled"] is True
-        assert rec["settle"]["load"]["criterion"].startswith("range of 10 block means over 1 s and the tail extrapolated from 3 windows below 0.3 kPa")
+        assert rec["settle"]["load"]["criterion"].startswith("range of 10 block means over 1 s and the tail extrapolated from 3 windows below 0.31 kPa")
         assert rec["settle"]["load"]["settle_time_s"] >= 0
 
 
@@ -242,7 +242,9 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
 def test_typed_loads_without_a_plan_are_checked(tmp_path):
     path = tmp_path / "run.h5"
     answers = "\n\n" + "5000\n250 g\n400\n45\n" + "\n\na\n" + "\n"
-    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=8&clock=virtual",
+    # The ideal rig: the check is of the typed loads; on the default rig sleeve friction and the
+    # potentiometers' play hide most of a 250 g deflection (tests/test_nonideal.py has those).
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=8&clock=virtual&ideal=1",
                                       "--no-plan"], input=answers)
     assert result.exit_code == 0, result.output
     assert "The mass must be from 1 g to 2000 g, got 5000 g." in result.output
@@ -251,7 +253,8 @@ def test_typed_loads_without_a_plan_are_checked(tmp_path):
     df = load_trials(path)
     assert df["trial"].tolist() == [1] and df["set"].tolist() == [""]
     assert df["Fx_N"].iloc[0] == pytest.approx(0.25 * G / math.sqrt(2))
-    assert df["theta1_deg"].abs().iloc[0] > 0.2  # the rig did hang the weight (paper scale: ~0.4 deg)
+    # The rig did hang the weight: 250 g at 45 deg bends joint 1 of the paper-scale rig by 0.44 deg.
+    assert 0.35 < df["theta1_deg"].abs().iloc[0] < 0.55
 
 
 def test_existing_file_is_never_overwritten_without_force(tmp_path):

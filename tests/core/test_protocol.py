@@ -104,7 +104,7 @@ def test_force_protocol_values_from_the_paper() -> None:
 
 
 def test_settling_is_converted_and_consistent_with_the_rig() -> None:
-    from labcli.settle import TAIL_WINDOWS
+    from labcli.core.settle import TAIL_WINDOWS
 
     s = load_protocol("takuma2014").settling
     assert s.angle_spread_rad == pytest.approx(math.radians(0.1), rel=1e-15)

@@ -259,13 +259,14 @@ def unattended_load_settles(tmp_path, url):
     at the moment the detector accepted the load."""
     from rich.console import Console
 
-    from labcli.device import Device
-    from labcli.engine import RunEngine
-    from labcli.protocol import load_protocol
-    from labcli.session import Capture, WaitSettle, force_session
-    from labcli.store import RunFile
-    from labcli.tables import load_plan
-    from labcli.ui import UnattendedUI
+    from labcli.core.device import Device
+    from labcli.core.engine import RunEngine
+    from labcli.core.protocol import load_protocol
+    from labcli.core.steps import Capture, WaitSettle
+    from labcli.core.store import RunFile
+    from labcli.core.ui import UnattendedUI
+    from labcli.experiments.takuma2014.session import force_session
+    from labcli.experiments.takuma2014.tables import load_plan
 
     protocol = load_protocol("takuma2014")
     plan_csv = tmp_path / "heavy.csv"
@@ -301,8 +302,8 @@ def unattended_load_settles(tmp_path, url):
 
 
 def test_stored_settle_times_reflect_the_thermal_time_constant(tmp_path, monkeypatch):
-    from labcli.protocol import load_protocol
-    from labcli.settle import TAIL_WINDOWS
+    from labcli.core.protocol import load_protocol
+    from labcli.core.settle import TAIL_WINDOWS
 
     settling = load_protocol("takuma2014").settling
     off, _ = unattended_load_settles(tmp_path, "sim://?seed=3&thermal=0")
