@@ -252,7 +252,8 @@ class SettleDetector:
             m = history[length[three, None] + np.arange(-TAIL_WINDOWS * BLOCKS, 0)]
             A, B, C = np.moveaxis(m.reshape(len(three), TAIL_WINDOWS, BLOCKS, -1).mean(axis=2), 1, 0)
             tail_p[three], tail_a[three] = self._largest(remaining_tail(A, B, C))
-        quiet = (np.maximum(spread_p, tail_p) < c.pressure_spread_MPa) & (np.maximum(spread_a, tail_a) < c.angle_spread_rad)
+        quiet = ((np.maximum(spread_p, tail_p) < c.pressure_spread_MPa)
+                 & (np.maximum(spread_a, tail_a) < c.angle_spread_rad))
         # The run of quiet blocks and the hold, block by block (plain floats: a few per batch).
         t_end, quiet, length = ((blocks + 1) * self._block_s).tolist(), quiet.tolist(), length.tolist()
         settled = False

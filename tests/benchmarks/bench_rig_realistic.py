@@ -146,7 +146,8 @@ def main() -> None:
         print("CPU per part (s, median):")
         print(f"  {'part':28s} {'realistic':>10s} {'ideal':>10s}")
         for label in PARTS:
-            r, i = (statistics.median(run["parts"].get(label, 0.0) for run in runs[rig]) for rig in ("realistic", "ideal"))
+            r, i = (statistics.median(run["parts"].get(label, 0.0) for run in runs[rig])
+                    for rig in ("realistic", "ideal"))
             print(f"  {label:28s} {r:10.2f} {i:10.2f}")
 
 

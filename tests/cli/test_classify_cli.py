@@ -127,7 +127,8 @@ def test_json_carries_every_push_with_its_geometry(lab):
         assert p["theta1_deg"] > 0 and p["Fx_N"] < 0
         # Where theta2 is too small for Fy (its amplification beyond the model's bound) the force
         # is rebuilt from Fx along O2 -> C; where the push bends joint 2 further, both are used.
-        fy_lost = force_amplification(np.radians([[p["theta1_deg"], p["theta2_deg"]]]), h2, h3)[0, 1] > DEFAULT_MAX_AMPLIFICATION
+        theta = np.radians([[p["theta1_deg"], p["theta2_deg"]]])
+        fy_lost = force_amplification(theta, h2, h3)[0, 1] > DEFAULT_MAX_AMPLIFICATION
         assert p["note"] == ("force from Fx along O2 -> C (Fy near singular)" if fy_lost else ""), p
         if fy_lost:
             assert p["Fx_used_N"] == pytest.approx(p["Fx_N"])

@@ -95,8 +95,9 @@ fittings and the sensor) 15 mL per outside chamber (29 mL of actuator) and
 6 mL per inside one (14 mL of actuator).  The thinner inside pair leaves joint
 2 soft enough that the heavier loads bend it past 3 deg, where the force along
 the arm (Fy) becomes observable (det J = h2 h3 sin theta2), with the pressure
-change per radian of theta2 on the scale of the paper's theta2 coefficients.  0.1 rad at joint 1 changes the outside pressures by about 5 %
-of gauge (the paper's sin(theta1) = 0.136 u_L1 - 1.587 u_R1 implies about 6 %).
+change per radian of theta2 on the scale of the paper's theta2 coefficients.
+0.1 rad at joint 1 changes the outside pressures by about 5 % of gauge (the
+paper's sin(theta1) = 0.136 u_L1 - 1.587 u_R1 implies about 6 %).
 Supplying the inside pair unequally (L2 0.40, R2 0.20 MPa) bends the rest
 posture to theta2 = 12.4 deg.  ``THIN_MUSCLES`` keeps the earlier tuning (6 mm
 muscles, 0.6-13 deg for 50-1000 g, about 9 times the paper's pressure change

@@ -163,7 +163,8 @@ class SimRig(SimClock):
         chambers = ph.Chambers.open(np.zeros(4))
         eq = ph.solve_equilibrium(self.params, chambers, ph.NoLoad())
         self._seg = _Segment(0.0, self.tau_s, eq.theta_rad, eq.theta_rad, np.zeros(4), np.zeros(4),
-                             chambers, ph.NoLoad(), eq, np.zeros(4), np.zeros(4), 0.0, eq.theta_rad.copy())
+                             chambers, ph.NoLoad(), eq, x0=np.zeros(4), dlnV=np.zeros(4), kappa1=0.0,
+                             shaft0=eq.theta_rad.copy())
         self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
 
@@ -274,7 +275,8 @@ class SimRig(SimClock):
                                                     self.params.n) + self.params.V_dead
                 dlnV, kappa1 = np.log(vol(eq.theta_rad)) - np.log(vol(theta_now)), self._kappa1
             self._seg = _Segment(self._t, tau, theta_now, eq.theta_rad, p_now, np.asarray(p_to, float),
-                                 chambers, load, eq, x_now, dlnV, kappa1, np.asarray(shaft_now, float))
+                                 chambers, load, eq, x0=x_now, dlnV=dlnV, kappa1=kappa1,
+                                 shaft0=np.asarray(shaft_now, float))
             if isinstance(load, ph.NoLoad):
                 self._rest_theta = eq.theta_rad.copy()
             if valves is not None:
