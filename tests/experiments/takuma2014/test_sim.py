@@ -419,6 +419,13 @@ def test_protocol_over_pty():
         port.close()
 
 
+def assert_stopped_cleanly(proc: subprocess.Popen) -> None:
+    """``labcli sim`` ended by itself (signal or ``quit``): exit 0 and its last line."""
+    out, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    assert out == "Simulated rig stopped.\n"
+
+
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 def test_sim_command_serves_a_pty_until_sigterm():
     proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "4"],
@@ -432,9 +439,7 @@ def test_sim_command_serves_a_pty_until_sigterm():
             port.write(b"ID?\n")
             assert reply(port).startswith(b"ID,mckibben-2dof-sim,1.0,")
         proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=10)
-        assert proc.returncode == 0, err
-        assert out == "Simulated rig stopped.\n"
+        assert_stopped_cleanly(proc)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -506,9 +511,7 @@ def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
             assert say("hang heavy 0") == "error: mass must be a number, got 'heavy'; usage: hang GRAMS DEG"
             port.write(b"STOP\n")
         assert say("quit") == "ok quit"
-        out, err = proc.communicate(timeout=10)
-        assert proc.returncode == 0, err
-        assert out == "Simulated rig stopped.\n"
+        assert_stopped_cleanly(proc)
     finally:
         if proc.poll() is None:
             proc.kill()
