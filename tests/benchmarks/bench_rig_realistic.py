@@ -6,7 +6,7 @@ Both runs are the library call ``labcli acquire RUN --port 'sim://?seed=N' --una
 makes (virtual clock, the shipped protocol and plan): setup, air, 108 trials of
 baseline, load, settling, capture and review, the crash-safe writes, the split.  The
 default rig has sleeve friction, leak, heat, backlash and link weight
-(:mod:`labcli.sim.nonideal`); ``&ideal=1`` turns them off.  The two alternate, R times
+(:mod:`labcli.experiments.takuma2014.sim.nonideal`); ``&ideal=1`` turns them off.  The two alternate, R times
 each, in this one process, and the figures are medians:
 
 * wall and CPU time of each run, and realistic / ideal;
@@ -35,16 +35,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from rich.console import Console  # noqa: E402
 
-from labcli.device import Device  # noqa: E402
-from labcli.engine import acquire  # noqa: E402
-from labcli.ui import UnattendedUI  # noqa: E402
+from labcli.core.acquisition import acquire  # noqa: E402
+from labcli.core.device import Device  # noqa: E402
+from labcli.core.ui import UnattendedUI  # noqa: E402
 
 PARTS = {  # label: (module, attribute path)
-    "rig actions (equilibria)": ("labcli.sim.rig", "SimRig._change"),
-    "frames (rig samples)": ("labcli.sim.rig", "SimRig.samples"),
-    "frames (formatting)": ("labcli.sim.firmware", "format_frames"),
-    "settle detector": ("labcli.settle", "SettleDetector.update"),
-    "run file (trial writes)": ("labcli.store", "RunFile.write_trial"),
+    "rig actions (equilibria)": ("labcli.experiments.takuma2014.sim.rig", "SimRig._change"),
+    "frames (rig samples)": ("labcli.experiments.takuma2014.sim.rig", "SimRig.samples"),
+    "frames (formatting)": ("labcli.core.sim.firmware", "format_frames"),
+    "settle detector": ("labcli.core.settle", "SettleDetector.update"),
+    "run file (trial writes)": ("labcli.core.store", "RunFile.write"),
 }
 
 
@@ -102,7 +102,7 @@ def one_run(port: str, meter: Meter | None) -> dict:
                 meter.cpu.clear()
                 meter.on = True
             w0, c0 = time.perf_counter(), time.process_time()
-            outcome = acquire(Path(tmp) / "run.h5", port, unattended=True, ui=ui)
+            outcome = acquire(Path(tmp) / "run.h5", port, protocol="takuma2014", unattended=True, ui=ui)
             wall, cpu = time.perf_counter() - w0, time.process_time() - c0
             if meter is not None:
                 meter.on = False
