@@ -33,6 +33,7 @@ def paper_ratios(rig: Any, reading: str = "plus", settle_s: float = 15.0) -> dic
     """Per quantity: ``n``, ``median``, ``q25``, ``q75`` of prediction / truth on ``rig``."""
     from ....core.protocol import load_protocol
     from ..models.takuma import PAPER_COEFFICIENTS, TakumaModel
+    from ..protocol import load_plan
     from .drive import simulate_weight_trials
 
     proto = load_protocol("takuma2014")
@@ -41,8 +42,8 @@ def paper_ratios(rig: Any, reading: str = "plus", settle_s: float = 15.0) -> dic
         coefficients["beta_theta2_R2"] = -coefficients["beta_theta2_R2"]
     elif reading != "plus":
         raise ValueError(f"unknown reading {reading!r}; use 'plus' or 'eq31'")
-    table = simulate_weight_trials(rig, proto.load_plan(), calibration=proto.calibration, settle_s=settle_s)
-    model = TakumaModel(geometry=proto.rig, protocol=proto.name, coefficients=coefficients)
+    table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=settle_s)
+    model = TakumaModel(geometry=proto.settings.rig, protocol=proto.name, coefficients=coefficients)
     out = model.predict_table(table, mode="measured-angles")
     truth = {"theta1": np.radians(table["theta1_deg"].to_numpy()), "theta2": np.radians(table["theta2_deg"].to_numpy()),
              "Fx": table["Fx_N"].to_numpy(), "Fy": table["Fy_N"].to_numpy()}
