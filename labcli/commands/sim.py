@@ -12,7 +12,8 @@ import click
 @click.option("--pty", "use_pty", is_flag=True, help="Serve on a new pseudo-terminal (required).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the rig's actuators, sensor offsets and noise.")
-@click.option("--rate", type=click.FloatRange(1, 5000), default=200.0, show_default=True,
+# 1..50000 are labcli.core.sim.firmware's RATE_MIN and RATE_MAX (not imported here: --help stays light).
+@click.option("--rate", type=click.FloatRange(1, 50000), default=200.0, show_default=True,
               help="Sample rate at power-up, Hz (the host's RATE command changes it).")
 @click.option("--noise", type=click.FloatRange(min=0), default=1.0, show_default=True,
               help="Scale of the sensor noise (1 = 0.5 count pressure, 0.7 count angle rms).")
