@@ -8,9 +8,10 @@ must offer, and anything that offers it plugs in.
 
 * :class:`Experiment`: the paper; its protocol kinds (plain data for the loader), the
   names of its shipped protocol files, its run kinds and their :class:`RecordType`, its
-  simulated rigs, how it acquires (:class:`Acquisition`), its analyses (:class:`Analysis`)
-  and its demo (:class:`Demo`).  Its module must import nothing heavy: the registry loads
-  it to answer "which experiment owns this kind", and heavy parts load on first use.
+  simulated rigs and their own ``sim://`` options (:class:`SimOption`), how it acquires
+  (:class:`Acquisition`), its analyses (:class:`Analysis`) and its demo (:class:`Demo`).
+  Its module must import nothing heavy: the registry loads it to answer "which experiment
+  owns this kind", and heavy parts load on first use.
 * :class:`ProtocolKind`: the sections a protocol of one kind holds, as plain-data key
   specs (:mod:`labcli.core.protocol` checks them), plus the hook that turns the checked
   sections into the experiment's typed settings (``Protocol.settings``).
@@ -211,6 +212,20 @@ class Demo:
     show: Callable[[Any], None]
 
 
+@dataclass(frozen=True)
+class SimOption:
+    """One of a simulated rig's own ``sim://`` options (beside the core's seed, rate, noise, ...).
+
+    ``parse(text)`` gives the value the rig is built with (ValueError when malformed; the URL
+    and ``labcli sim`` then show ``what``); ``form`` is how the accepted form shows a value
+    (``0|1``, ``X``).  An option not given is not passed to the rig.
+    """
+
+    parse: Callable[[str], Any]
+    form: str
+    what: str
+
+
 # --------------------------------------------------------------------------- the experiment
 
 
@@ -226,13 +241,15 @@ class Experiment(Protocol):
     run_kinds: tuple[str, ...]
     sim_modes: tuple[str, ...]  # ``sim://?mode=`` values this experiment's rigs answer to
     default_sim_mode: str | None  # the rig ``sim://`` gives without mode= (one experiment at most)
+    sim_options: Mapping[str, SimOption]  # its rigs' own ``sim://`` options, passed to make_rig when given
     demo_protocol: str | None  # ``labcli demo --protocol NAME`` runs this experiment's demo
 
     def record_type(self, run_kind: str) -> RecordType:
         """The record type of one of :attr:`run_kinds`."""
 
-    def make_rig(self, mode: str, *, seed: int, noise: float, drift: float, tau_s: float) -> Any:
-        """A simulated rig for one of :attr:`sim_modes` (see :mod:`labcli.core.sim`)."""
+    def make_rig(self, mode: str, *, seed: int, noise: float, drift: float, tau_s: float, **options: Any) -> Any:
+        """A simulated rig for one of :attr:`sim_modes` (see :mod:`labcli.core.sim`); ``options``
+        are parsed values of :attr:`sim_options`, only those given."""
 
     def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
                      run_path: str = "") -> Any:

@@ -14,7 +14,7 @@ from importlib.metadata import entry_points
 from typing import Any
 
 from ..errors import ConfigError, LabcliError
-from .experiment import Experiment, ProtocolKind, RecordType
+from .experiment import Experiment, ProtocolKind, RecordType, SimOption
 
 GROUP = "labcli.experiments"
 
@@ -151,8 +151,22 @@ def default_sim_mode() -> str:
     return defaults[0]
 
 
+def sim_options(mode: str | None = None) -> dict[str, SimOption]:
+    """The rigs' own ``sim://`` options: those of the experiment whose rig ``mode`` is, or (None) all."""
+    found: dict[str, SimOption] = {}
+    for e in experiments():
+        if mode is None or mode in e.sim_modes:
+            found.update(e.sim_options)
+    return found
+
+
+def modes_taking(option: str) -> list[str]:
+    """The ``sim://?mode=`` values whose rig takes the option ``option``, in name order."""
+    return sorted(m for e in experiments() if option in e.sim_options for m in e.sim_modes)
+
+
 def make_rig(mode: str, **options: Any) -> Any:
-    """The simulated rig of ``mode`` (options: seed, noise, drift, tau_s)."""
+    """The simulated rig of ``mode`` (options: seed, noise, drift, tau_s and the rig's own)."""
     for e in experiments():
         if mode in e.sim_modes:
             return e.make_rig(mode, **options)

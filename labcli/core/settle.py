@@ -9,9 +9,22 @@ short, so the toolkit judges equilibrium from the data instead:
   not masquerade as motion);
 * the *spread* of a channel is the range (max - min) of the last ``BLOCKS``
   block means, i.e. how far the signal wandered over one window;
-* the joint is settled when every pressure spread is under
-  ``pressure_spread_MPa`` and every angle spread under ``angle_spread_rad``,
-  and has stayed so for ``hold_s`` seconds of device time;
+* a spread alone accepts a slow exponential tail too early (a tail with time
+  constant tau wanders only ``window_s / tau`` of what is left of it over a
+  window; the air's thermal relaxation after a fast load has tau of seconds).
+  So the detector also estimates what is left: from the means A, B, C of the
+  last three windows, ``d1 = B - A`` and ``d2 = C - B``; a decaying trend
+  (same sign or stopped, ``|d2| < |d1|``) is an exponential with ratio ``r = d2 / d1``
+  per window, whose remaining change after C is ``|d2| r / (1 - r)`` (Aitken's
+  extrapolation), capped at ``TAIL_MAX |d2|``; a trend that does not decay
+  (a creep, e.g. a leak) counts ``TAIL_MAX |d2|``, and a change of sign
+  (noise, or a hump such as a pressure that overshoots) counts the larger of
+  ``|d1|`` and ``|d2|``;
+* the joint is settled when every pressure spread and remaining tail is under
+  ``pressure_spread_MPa`` and every angle spread and tail under
+  ``angle_spread_rad``, and has stayed so for ``hold_s`` seconds of device
+  time.  The tail needs three windows of data, so the earliest acceptance is
+  ``3 window_s + hold_s`` after the wait begins;
 * a length channel (the rPAM stand's draw-wire sensor) has its own limit, and
   counts as motion with the angles: its spread is reported as the angle spread
   that is the same fraction of the angle limit.
@@ -23,12 +36,29 @@ synthetic signals in tests.
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 BLOCKS = 10  # block means per window
+TAIL_WINDOWS = 3  # windows of history behind the tail estimate
+# Largest remaining tail counted, in multiples of the last window-to-window change:
+# r / (1 - r) = 4 at r = 0.8, an exponential with a time constant of 4.5 windows.
+TAIL_MAX = 4.0
+
+
+def remaining_tail(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Estimated change still to come after the means ``C`` of three consecutive windows.
+
+    Aitken's extrapolation of an exponential approach (see the module docstring).
+    """
+    d1, d2 = B - A, C - B
+    trend = d1 * d2 >= 0
+    decaying = trend & (np.abs(d2) < np.abs(d1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(decaying, d2 / d1, 0.0)
+        factor = np.where(decaying, np.minimum(r / (1.0 - r), TAIL_MAX), TAIL_MAX)
+    return np.where(trend, np.abs(d2) * factor, np.maximum(np.abs(d1), np.abs(d2)))
 
 
 @dataclass(frozen=True)
@@ -63,7 +93,8 @@ class SettleCriteria:
     def describe(self) -> str:
         """The rule in one line, with units, as recorded next to each trial."""
         return (
-            f"range of {BLOCKS} block means over {self.window_s:g} s below "
+            f"range of {BLOCKS} block means over {self.window_s:g} s and the tail extrapolated "
+            f"from {TAIL_WINDOWS} windows below "
             f"{self.pressure_spread_MPa * 1e3:g} kPa (pressures) and "
             f"{np.degrees(self.angle_spread_rad):.3g} deg (angles) for {self.hold_s:g} s"
         )
@@ -123,7 +154,7 @@ class SettleDetector:
         self._block_index = 0
         self._sum: np.ndarray | None = None
         self._count = 0
-        self._means: deque[np.ndarray] = deque(maxlen=BLOCKS)
+        self._means = np.zeros((0, 0))  # the last TAIL_WINDOWS * BLOCKS block means, oldest first
         self._quiet_since: float | None = None  # block-end time when the quiet run began
         self._status = SettleStatus(0.0, float("nan"), float("nan"), 0.0, False, float("nan"), False)
         self.consumed = 0
@@ -160,25 +191,33 @@ class SettleDetector:
         if self._t0 is None:
             self._t0 = float(t_s[0])
             self._sum = np.zeros(si.shape[1])
+            self._means = np.zeros((0, si.shape[1]))
         rel = t_s - self._t0
         # Consume up to and including the first sample at or past the timeout.
         stop = min(len(rel), int(np.searchsorted(rel, self._timeout_s, side="left")) + 1)
         idx = np.floor(rel[:stop] / self._block_s).astype(np.int64)
         # Split the batch where the block index changes; every completed block
         # is one evaluation point, whatever the size of the read batches.
-        cuts = np.flatnonzero(np.diff(idx)) + 1
-        starts = np.concatenate(([0], cuts))
-        ends = np.concatenate((cuts, [len(idx)]))
-        for a, b in zip(starts, ends):
-            block = int(idx[a])
-            if block != self._block_index:
-                self._close_block()
-                self._block_index = block
-                if self._status.settled:
-                    self.consumed = int(a)
-                    return self._status
-            self._sum += si[a:b].sum(axis=0)
-            self._count += b - a
+        starts = np.concatenate(([0], np.flatnonzero(np.diff(idx)) + 1))
+        ends = np.append(starts[1:], stop)
+        blocks = idx[starts]
+        # Row by row, as a running sum adds them (np.add.reduceat rounds differently).
+        sums = np.array([si[i:k].sum(axis=0) for i, k in zip(starts, ends)])
+        counts = ends - starts
+        if blocks[0] == self._block_index:  # the batch goes on with the open block
+            sums[0] += self._sum
+            counts[0] += self._count
+        else:  # it completes the open block at its first sample
+            starts = np.concatenate(([0], starts))
+            blocks = np.concatenate(([self._block_index], blocks))
+            sums = np.concatenate(([self._sum], sums))
+            counts = np.concatenate(([self._count], counts))
+        self._block_index, self._sum, self._count = int(blocks[-1]), sums[-1], int(counts[-1])
+        if len(blocks) > 1:
+            decided = self._judge(blocks[:-1], sums[:-1], counts[:-1])
+            if decided is not None:
+                self.consumed = int(starts[decided + 1])  # the sample that completed the deciding block
+                return self._status
         self.consumed = stop
         elapsed = float(rel[stop - 1])
         s = self._status
@@ -189,33 +228,63 @@ class SettleDetector:
         )
         return self._status
 
-    def _close_block(self) -> None:
-        if self._count:
-            self._means.append(self._sum / self._count)
-        self._sum = np.zeros_like(self._sum)
-        self._count = 0
-        t_end = (self._block_index + 1) * self._block_s
+    def _judge(self, blocks: np.ndarray, sums: np.ndarray, counts: np.ndarray) -> int | None:
+        """Judge completed blocks in order, the windows' arithmetic for all of them at once.
+
+        A block without samples adds nothing to the history of block means but
+        is still judged.  Sets the status of the first settled block, or else of
+        the last, and returns the position of the settled one (None if none is).
+        """
         c = self.criteria
-        if len(self._means) < BLOCKS:
-            self._status = SettleStatus(t_end, float("nan"), float("nan"), 0.0, False, float("nan"), False)
-            return
-        m = np.array(self._means)
-        spread = m.max(axis=0) - m.min(axis=0)
-        ps = float(spread[self._pcols].max()) if self._pcols else 0.0
-        an = float(spread[self._acols].max()) if self._acols else 0.0
-        if self._lcols:
-            an = max(an, float(spread[self._lcols].max()) * self._length_scale)
-        quiet = ps < c.pressure_spread_MPa and an < c.angle_spread_rad
-        if not quiet:
-            self._quiet_since = None
-        elif self._quiet_since is None:
-            self._quiet_since = t_end
-        quiet_s = 0.0 if self._quiet_since is None else t_end - self._quiet_since
-        settled = quiet and quiet_s >= c.hold_s - 1e-9
+        full = counts > 0
+        history = np.concatenate([self._means, sums[full] / counts[full, None]])
+        self._means = history[-TAIL_WINDOWS * BLOCKS:]
+        # History length after each block: one window of it gives the spreads, three the tail.
+        length = len(history) - int(full.sum()) + np.cumsum(full)
+        spread_p, spread_a = np.full((2, len(blocks)), np.nan)
+        tail_p, tail_a = np.full((2, len(blocks)), np.inf)  # no tail estimate yet: not quiet
+        one = np.flatnonzero(length >= BLOCKS)
+        if len(one):
+            m = history[length[one, None] + np.arange(-BLOCKS, 0)]
+            spread_p[one], spread_a[one] = self._largest(m.max(axis=1) - m.min(axis=1))
+        three = np.flatnonzero(length >= TAIL_WINDOWS * BLOCKS)
+        if len(three):
+            m = history[length[three, None] + np.arange(-TAIL_WINDOWS * BLOCKS, 0)]
+            A, B, C = np.moveaxis(m.reshape(len(three), TAIL_WINDOWS, BLOCKS, -1).mean(axis=2), 1, 0)
+            tail_p[three], tail_a[three] = self._largest(remaining_tail(A, B, C))
+        quiet = ((np.maximum(spread_p, tail_p) < c.pressure_spread_MPa)
+                 & (np.maximum(spread_a, tail_a) < c.angle_spread_rad))
+        # The run of quiet blocks and the hold, block by block (plain floats: a few per batch).
+        t_end, quiet, length = ((blocks + 1) * self._block_s).tolist(), quiet.tolist(), length.tolist()
+        settled = False
+        for j in range(len(t_end)):
+            if length[j] < BLOCKS:
+                continue  # not one window yet: nothing to judge (and nothing was quiet before)
+            if not quiet[j]:
+                self._quiet_since = None
+            elif self._quiet_since is None:
+                self._quiet_since = t_end[j]
+            if quiet[j] and t_end[j] - self._quiet_since >= c.hold_s - 1e-9:
+                settled = True
+                break
+        if length[j] < BLOCKS:
+            self._status = SettleStatus(t_end[j], float("nan"), float("nan"), 0.0, False, float("nan"), False)
+            return None
+        quiet_s = 0.0 if self._quiet_since is None else t_end[j] - self._quiet_since
         self._status = SettleStatus(
-            t_end, ps, an, quiet_s, settled,
+            t_end[j], float(spread_p[j]), float(spread_a[j]), quiet_s, settled,
             self._quiet_since if settled else float("nan"), False,
         )
+        return j if settled else None
+
+    def _largest(self, per_channel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Largest pressure and motion (angle, or length as the same share of its limit) values per row."""
+        none = np.zeros(per_channel.shape[:-1])
+        ps = per_channel[..., self._pcols].max(axis=-1) if self._pcols else none
+        an = per_channel[..., self._acols].max(axis=-1) if self._acols else none
+        if self._lcols:
+            an = np.maximum(an, per_channel[..., self._lcols].max(axis=-1) * self._length_scale)
+        return ps, an
 
 
 class TimeUnwrapper:

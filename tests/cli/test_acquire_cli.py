@@ -45,7 +45,9 @@ def open_run(path, port, plan=PLAN):
 
 def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
     path = tmp_path / "run.h5"
-    dev, store, engine = open_run(path, "sim://?seed=3&clock=virtual")
+    # The ideal rig: potentiometers without backlash read the true angles (the pipeline is
+    # what is tested here; the non-idealities have tests/experiments/takuma2014/test_nonideal.py).
+    dev, store, engine = open_run(path, "sim://?seed=3&clock=virtual&ideal=1")
     rig = dev.rig
     truth, baseline = [], {}
 
@@ -70,7 +72,7 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
     true_theta = np.degrees([s["theta_rad"] - b["theta_rad"] for b, s in truth])
     err_theta = np.abs(df[["theta1_deg", "theta2_deg"]].to_numpy() - true_theta)
     assert err_theta.max() < ANGLE_NOISE_DEG
-    assert np.abs(true_theta).max() > 5.0  # the loads did bend the joints
+    assert np.abs(true_theta).max() > 1.5  # the loads did bend the joints (paper scale: a few deg)
     # Pressures (the simulated sensors' zero offsets are part of what they read).
     true_p = np.array([s["pressures_MPa"] for _, s in truth]) + rig.sensor_offset_MPa
     err_p = np.abs(df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - true_p)
@@ -98,7 +100,7 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
             assert np.allclose(PROTOCOL.calibration.to_si(w["counts"]), w["si"])
             assert np.allclose(np.diff(w["t_s"]), 0.005)
         assert rec["settle"]["load"]["settled"] is True
-        assert rec["settle"]["load"]["criterion"].startswith("range of 10 block means over 1 s below 2 kPa")
+        assert rec["settle"]["load"]["criterion"].startswith("range of 10 block means over 1 s and the tail extrapolated from 3 windows below 0.31 kPa")
         assert rec["settle"]["load"]["settle_time_s"] >= 0
 
 
@@ -240,7 +242,9 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
 def test_typed_loads_without_a_plan_are_checked(tmp_path):
     path = tmp_path / "run.h5"
     answers = "\n\n" + "5000\n250 g\n400\n45\n" + "\n\na\n" + "\n"
-    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=8&clock=virtual",
+    # The ideal rig: the check is of the typed loads; on the default rig sleeve friction and the
+    # potentiometers' play hide most of a 250 g deflection (tests/test_nonideal.py has those).
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=8&clock=virtual&ideal=1",
                                       "--no-plan"], input=answers)
     assert result.exit_code == 0, result.output
     assert "The mass must be from 1 g to 2000 g, got 5000 g." in result.output
@@ -249,7 +253,8 @@ def test_typed_loads_without_a_plan_are_checked(tmp_path):
     df = load_trials(path)
     assert df["trial"].tolist() == [1] and df["set"].tolist() == [""]
     assert df["Fx_N"].iloc[0] == pytest.approx(0.25 * G / math.sqrt(2))
-    assert df["theta1_deg"].abs().iloc[0] > 0.5  # the simulated rig did hang the weight
+    # The rig did hang the weight: 250 g at 45 deg bends joint 1 of the paper-scale rig by 0.44 deg.
+    assert 0.35 < df["theta1_deg"].abs().iloc[0] < 0.55
 
 
 def test_existing_file_is_never_overwritten_without_force(tmp_path):
@@ -359,7 +364,7 @@ def test_settle_timeout_offers_wait_longer_and_accept(tmp_path):
     assert "load: accepted without settling after 2.00 s" in result.output
     flat = " ".join(result.output.split())
     assert re.search(r"Not settled \(load\) after 2\.0 s: pressure spread \d+\.\d\d kPa \(limit 0\.001 kPa\), "
-                     r"angle spread \d\.\d{3} deg \(limit 0\.5 deg\), quiet for 0\.0 s of 0\.2 s", flat)
+                     r"angle spread \d\.\d{3} deg \(limit 0\.1 deg\), quiet for 0\.0 s of 0\.2 s", flat)
     with RunFile.open(path) as run:
         assert run.completed_ids() == [1]
         rec = run.read(1)

@@ -18,15 +18,18 @@ import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
+from labcli.core.protocol import load_protocol
+from labcli.core.store import import_table
 from labcli.experiments.takuma2014.models.classify import classify_file, stiffness_settings
 from labcli.experiments.takuma2014.models.stiffness import REASON_UNOBSERVED_DIRECTION, StiffnessParams
-from labcli.experiments.takuma2014.models.takuma import TakumaModel
-from labcli.core.protocol import load_protocol
+from labcli.experiments.takuma2014.models.takuma import (DEFAULT_MAX_AMPLIFICATION, TakumaModel,
+                                                        force_amplification)
 from labcli.experiments.takuma2014.protocol import load_plan
+from labcli.experiments.takuma2014.sim import physics as ph
 from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
+from labcli.experiments.takuma2014.sim.nonideal import NonIdeal
 from labcli.experiments.takuma2014.sim.objects import CATEGORY_OF_MATERIAL, DEMO_OBJECTS, SimObject
 from labcli.experiments.takuma2014.sim.rig import SimRig
-from labcli.core.store import import_table
 from labcli.experiments.takuma2014.tables import write_push_csv
 
 SEED = 5
@@ -43,7 +46,10 @@ def lab(tmp_path_factory):
     d = tmp_path_factory.mktemp("classify")
     force = load_protocol("takuma2014")
     push = load_protocol("takuma2014-stiffness")
-    rig = SimRig(seed=SEED)
+    # The ideal rig: the tolerance above is the method's.  Sleeve friction and the
+    # potentiometers' play of the default rig bias the stiffness far more (the realistic
+    # figures belong to the demo's report, beside the ideal ones).
+    rig = SimRig(seed=SEED, nonideal=NonIdeal.ideal())
     trials = simulate_weight_trials(rig, load_plan(force), calibration=force.calibration)
     model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(trials)
     model.save(d / "model.json")
@@ -119,9 +125,16 @@ def test_json_carries_every_push_with_its_geometry(lab):
         assert p["k_N_per_m"] == pytest.approx(p["force_N"] / (p["delta_x_mm"] * 1e-3), rel=1e-9)
         # the pushed arm bends away from the object (theta1 > 0) and the object pushes towards -x
         assert p["theta1_deg"] > 0 and p["Fx_N"] < 0
-        # the model flags Fy near theta2 = 0; the force is rebuilt from Fx along O2 -> C
-        assert p["note"] == "force from Fx along O2 -> C (Fy near singular)"
-        assert p["Fx_used_N"] == pytest.approx(p["Fx_N"])
+        # Where theta2 is too small for Fy (its amplification beyond the model's bound) the force
+        # is rebuilt from Fx along O2 -> C; where the push bends joint 2 further, both are used.
+        theta = np.radians([[p["theta1_deg"], p["theta2_deg"]]])
+        fy_lost = force_amplification(theta, h2, h3)[0, 1] > DEFAULT_MAX_AMPLIFICATION
+        assert p["note"] == ("force from Fx along O2 -> C (Fy near singular)" if fy_lost else ""), p
+        if fy_lost:
+            assert p["Fx_used_N"] == pytest.approx(p["Fx_N"])
+    # The paper-scale inside pair bends past the bound under some pushes and not under others.
+    notes = [p["note"] for p in data["pushes"]]
+    assert 0 < notes.count("") < len(notes)
     assert data["stiffness_settings"] == StiffnessParams().to_dict()
 
 
@@ -138,7 +151,8 @@ def test_rich_report_has_units_and_the_numbers_of_the_json(lab):
     row = lines["can-steel-1"]
     assert row[1:6] == ["unknown", "10", "0", f"{steel['k_mean_N_per_m']:.0f}", f"{steel['k_sd_N_per_m']:.0f}"]
     assert row[-4:] == ["hard", "100", "%", "bands"]
-    assert "60 push(es): force from Fx along O2 -> C (Fy near singular)." in res.output
+    rebuilt = sum(p["note"] == "force from Fx along O2 -> C (Fy near singular)" for p in data["pushes"])
+    assert f"{rebuilt} push(es): force from Fx along O2 -> C (Fy near singular)." in res.output
 
 
 def test_reference_objects_from_a_reference_run(lab):
@@ -319,22 +333,41 @@ def test_stiffness_settings_from_a_protocol_table():
     )
 
 
-def test_the_arm_tip_yields_about_186_newtons_per_metre():
-    # objects.py chooses push distances from this: pushing a rigid object
-    # 10 mm into the upright tip (valves closed) takes 1.86 N.
-    rig = SimRig(seed=0, noise=0.0, variation=False)
+def tip_stiffness(design: str = "paper") -> float:
+    """Closed-valve stiffness of the upright tip along x (N/m) from the joints' stiffness:
+    ``1 / (J K^-1 J^T)_xx`` (y free), the ideal symmetric rig after its air supply."""
+    rig = SimRig(seed=0, noise=0.0, variation=False, nonideal=NonIdeal.ideal(), design=design)
+    rig.supply_air()
+    rig.advance(8.0)
+    st = rig.true_state()
+    p, theta = rig.params, st["theta_rad"]
+    closed = ph.Chambers.closed_at(ph.actuator_lengths(theta, p), st["pressures_MPa"] * 1e6, p)
+    K = ph.stiffness_matrix(theta, p, closed, ph.NoLoad())
+    J = ph.jacobian(theta, p.geometry)
+    return 1.0 / (J @ np.linalg.solve(K, J.T))[0, 0]
+
+
+@pytest.mark.parametrize("design", ["paper", "thin"])
+def test_the_arm_tip_yields_as_its_joint_stiffness_says(design):
+    # objects.py chooses push distances from the tip's stiffness: pushing a rigid object
+    # 10 mm into the upright tip (valves closed) takes k_tip times 10 mm, k_tip in series
+    # with the object's 1e5 N/m.
+    rig = SimRig(seed=0, noise=0.0, variation=False, nonideal=NonIdeal.ideal(), design=design)
     rig.supply_air()
     rig.advance(8.0)
     rig.close_valves()
     rig.push_object(0.033, 0.010, 0.0, 1e5)
     rig.advance(10.0)
     F = rig.true_state()["force_N"]
-    assert math.hypot(*F) / 0.010 == pytest.approx(186.0, rel=0.02)
+    k_tip = tip_stiffness(design)
+    assert math.hypot(*F) / 0.010 == pytest.approx(k_tip * 1e5 / (k_tip + 1e5), rel=0.02)
+    # The thin muscles' tip is the 186 N/m that objects.py was written for; the paper scale's is stiffer.
+    assert k_tip == pytest.approx(186.0, rel=0.02) if design == "thin" else k_tip > 3 * 186.0
 
 
 def test_demo_objects_deform_measurably_and_stay_in_the_protocol_range():
     proto = load_protocol("takuma2014-stiffness")
-    k_tip = 186.0
+    k_tip = tip_stiffness()
     for o in DEMO_OBJECTS:
         assert proto.settings.push.distance_min_m <= o.distance_m <= proto.settings.push.distance_max_m
         assert 0.02 < o.radius_m < 0.05

@@ -339,7 +339,9 @@ class PlugSocket:
         self.server = None
 
     def plug(self):
-        self.server = serve_pty(seed=11, tau=0.1)
+        # The ideal rig: what is tested is the reconnection; on the wall clock the default
+        # rig's heat would hold each load for seconds past this protocol's short timeout.
+        self.server = serve_pty(seed=11, tau=0.1, ideal=True)
         os.symlink(self.server.path, self.path)
         return self.server
 
@@ -358,7 +360,10 @@ def quick_protocol(tmp_path: Path) -> Path:
     import re
 
     text = load_protocol("takuma2014").text
-    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "20.0"), ("capture_s", "0.2")):
+    # Limits for the short window: its 0.02 s block means (4 samples) carry about twice the noise
+    # of the shipped 0.1 s ones, which one count would not leave still for long.
+    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "20.0"), ("capture_s", "0.2"),
+                       ("pressure_spread_MPa", "0.001"), ("angle_spread_deg", "0.3")):
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
     path = tmp_path / "quick.toml"
@@ -410,8 +415,9 @@ def test_pty_rig_replugged_while_the_run_waits(tmp_path, socket):
         df = run.table()
         seq = run.read(2)["raw"]["load"]["seq"].astype(np.int64)
     assert len(seq) >= 40 and np.all(np.diff(seq) == 1)  # 0.2 s at 200 Hz, whole, from the new rig
-    # The person hung what the prompts said on whichever rig was plugged in: the joints bent.
-    assert df["theta1_deg"].abs().min() > 0.5
+    # The person hung what the prompts said on whichever rig was plugged in: the joints bent as
+    # the paper-scale rig bends under 200 g at -60 deg and 500 g at 30 deg (0.27 and 1.12 deg).
+    assert df["theta1_deg"].abs().to_numpy() == pytest.approx([0.27, 1.12], abs=0.1)
 
 
 def test_pty_rig_lost_then_resumed_by_the_printed_command_on_a_new_server(tmp_path, socket):

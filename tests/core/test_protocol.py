@@ -104,13 +104,19 @@ def test_force_protocol_values_from_the_paper() -> None:
 
 
 def test_settling_is_converted_and_consistent_with_the_rig() -> None:
+    from labcli.core.settle import TAIL_WINDOWS
+
     s = load_protocol("takuma2014").settling
-    assert s.angle_spread_rad == pytest.approx(math.radians(0.5), rel=1e-15)
-    # at least three 1-s time constants before the earliest acceptance
-    assert s.window_s + s.hold_s >= 3.0
-    # the pressure spread is several ADC counts (0.305 kPa each), not below one
-    assert 3 < s.pressure_spread_MPa / (5.0 / 4095 / 4.0) < 20
-    assert s.timeout_s > s.window_s + s.hold_s + s.capture_s
+    assert s.angle_spread_rad == pytest.approx(math.radians(0.1), rel=1e-15)
+    # at least three 1-s time constants before the earliest acceptance (the tail rule's
+    # three windows of history, then the hold)
+    earliest = TAIL_WINDOWS * s.window_s + s.hold_s
+    assert earliest >= 3.0
+    # each limit is one ADC count or a little more (0.305 kPa, 0.083 deg), never below one:
+    # block means that sit on two neighbouring counts must count as still
+    assert 1 <= s.pressure_spread_MPa / (5.0 / 4095 / 4.0) < 1.5
+    assert 1 <= s.angle_spread_rad / math.radians(340 / 4095) < 1.5
+    assert s.timeout_s > earliest + s.capture_s
 
 
 def test_push_protocol_shares_the_rig_with_the_force_protocol() -> None:

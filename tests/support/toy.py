@@ -238,6 +238,7 @@ class ToyExperiment:
     run_kinds = (KIND,)
     sim_modes = (MODE,)
     default_sim_mode = None
+    sim_options: dict = {}  # its rig takes only the core's sim:// options
     demo_protocol = None
 
     def record_type(self, run_kind: str) -> ToyTrials:

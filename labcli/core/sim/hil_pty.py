@@ -1,7 +1,7 @@
 """Serve the rig firmware, running on simavr, on a pseudo-terminal (``labcli sim --pty --firmware ELF``).
 
 The same shape as :class:`labcli.core.sim.pty.PtyServer` (``path``, ``rig``,
-``stop()``, ``wait()``, ``request_stop()``), so whatever drives the rig of
+``stop()``, ``wait()``, ``request_stop()``, ``operate()``), so whatever drives the rig of
 ``labcli sim --pty`` drives this one the same way.  Simulated time follows the
 wall clock; the bytes on the pty are the firmware's own, from its UART.
 
@@ -21,9 +21,11 @@ import errno
 import os
 import select
 import threading
+import time
 import tty
 
 from . import make_rig
+from .console import execute
 from .hil import HilLink
 
 POLL_S = 0.005
@@ -53,6 +55,16 @@ class HilPtyServer:
             raise
         self._thread = threading.Thread(target=self._run, name="labcli-hil-pty", daemon=True)
         self._thread.start()
+
+    def operate(self, line: str) -> str:
+        """Act on one operator console line (:mod:`.console`); returns the reply.
+
+        The link keeps the rig's clock with the wall clock, so ``wait`` just lets wall time pass.
+        """
+        reply = execute(self.rig, line, idle_wait=time.sleep)
+        if reply == "ok quit":
+            self.request_stop()
+        return reply
 
     def request_stop(self) -> None:
         """Ask the server to stop (safe from a signal handler)."""
@@ -129,15 +141,16 @@ class HilPtyServer:
 
 def serve_firmware_pty(elf, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau: float = 0.7,
                        mode: str | None = None, rig=None, adc_noise_lsb: float = 0.5,
-                       record: bool = False) -> HilPtyServer:
+                       record: bool = False, **rig_options) -> HilPtyServer:
     """Serve the firmware ``elf`` on simavr on a new pty, fed by the rig of ``mode`` (None: the default rig).
 
-    ``record`` keeps every sample fed to the board (``server.link.fed()``).
+    ``record`` keeps every sample fed to the board (``server.link.fed()``); ``rig_options``
+    are the rig's own (its experiment's ``sim_options``, parsed).
 
     Raises :class:`~labcli.core.sim.hil.FirmwareSimError` (one sentence) when the
     firmware or its harness is missing, the rig lacks the firmware's channels or the
     simulated board does not start.
     """
     if rig is None:
-        rig = make_rig(mode, seed=seed, noise=noise, drift=drift, tau_s=tau)
+        rig = make_rig(mode, seed=seed, noise=noise, drift=drift, tau_s=tau, **rig_options)
     return HilPtyServer(rig, elf, seed=seed, adc_noise_lsb=adc_noise_lsb, record=record)

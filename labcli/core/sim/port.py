@@ -16,6 +16,7 @@ from typing import Any
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from . import make_rig
+from .url import rig_options
 
 
 class SimulatedPort(SerialBase):
@@ -38,7 +39,7 @@ class SimulatedPort(SerialBase):
         opts = self.from_url(self._port)
         if self.rig is None or opts != self.options:
             self.rig = make_rig(opts["mode"], seed=opts["seed"], noise=opts["noise"],
-                                drift=opts["drift"], tau_s=opts["tau"])
+                                drift=opts["drift"], tau_s=opts["tau"], **rig_options(opts))
         self.options = opts
         return opts
 

@@ -5,12 +5,12 @@ in ``serial.protocol_handler_packages``, see :func:`labcli.core.sim.register`)
 returns a port with the pyserial API whose other end runs the simulated
 firmware (:mod:`labcli.core.sim.firmware`) over a simulated rig.
 
-URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME][&faults=SPEC][&firmware=ELF]``
+URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME][&faults=SPEC][&firmware=ELF][&RIG_OPTION=...]``
 
 * ``seed`` (0): seeds the actuators, sensor offsets, noise and settling times;
-* ``rate`` (200): sample rate at power-up, Hz (1..5000; ``RATE`` changes it);
+* ``rate`` (200): sample rate at power-up, Hz (1..50000; ``RATE`` changes it);
 * ``noise`` (1): scale of the sensor noise (0.5 count pressure, 0.7 count pot rms);
-* ``drift`` (0): scale of sensor zero drift and chamber leak;
+* ``drift`` (0): scale of sensor zero drift;
 * ``clock``: ``virtual`` (default) advances device time only as the host reads,
   so hours of protocol run in seconds: while streaming, a read never waits
   (frames are sampled when read; ``in_waiting`` offers about 1 s of device
@@ -31,6 +31,12 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
 
 The grammar (parsing, defaults, the accepted form every refusal shows) is
 :mod:`labcli.core.sim.url`, shared with the firmware on simavr.
+
+Beside these, a rig takes its own options, declared by its experiment
+(``Experiment.sim_options``) and refused with any other ``mode``: the McKibben
+rig's non-idealities, supply and actuator design, for instance
+(``ideal=1``, ``friction=0.5``, ``supply=0.3``, ``design=thin``; see
+:mod:`labcli.experiments.takuma2014.sim.options`).
 
 ``port.rig`` is the rig object (operator hooks for unattended runs and
 tests; not part of the wire protocol).  ``port.unplug()`` makes every later

@@ -15,6 +15,10 @@ the pty's buffer and, once it is full, are dropped as a real UART would.
 
 ``serve_pty(..., faults="checksum:0.01,stall:0.001@0.5")`` makes the link
 noisy (:mod:`labcli.core.sim.faults`); ``server.faults`` holds the ground truth.
+
+``server.operate("hang 500 30")`` acts on the rig as the operator's console
+(:mod:`labcli.core.sim.console`) does, at the rig's present time; ``labcli sim
+--pty`` feeds it the lines typed on its standard input.
 """
 
 from __future__ import annotations
@@ -27,10 +31,12 @@ import time
 import tty
 
 from . import make_rig
+from .console import execute
 from .faults import FaultInjector, FaultSpec
 from .firmware import Firmware
 
 POLL_S = 0.005
+MAX_BACKLOG = 1 << 20  # bytes queued for a host that does not read, about 20000 frames
 
 
 class PtyServer:
@@ -48,7 +54,34 @@ class PtyServer:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="labcli-sim-pty", daemon=True)
         self._out = bytearray(self.firmware.banner())
+        self._t0 = time.monotonic() - rig.time_s  # wall time at the rig's time zero
         self._thread.start()
+
+    def operate(self, line: str) -> str:
+        """Act on one operator console line (:mod:`.console`); returns the reply.
+
+        An idle rig's clock is first brought up to the wall clock (a streaming
+        one is kept there by the frames), so the action happens now.
+        """
+        with self.rig._lock:
+            self._sync()
+            reply = execute(self.rig, line, idle_wait=self._wait)
+        if reply == "ok quit":
+            self.request_stop()
+        return reply
+
+    def _sync(self) -> None:
+        if not self.firmware.streaming:
+            self.rig.advance_to(time.monotonic() - self._t0)
+
+    def _wait(self, seconds: float) -> None:
+        """Let ``seconds`` of wall time pass (the rig's clock follows the wall here)."""
+        self.rig._lock.release()
+        try:
+            time.sleep(seconds)
+        finally:
+            self.rig._lock.acquire()
+        self._sync()
 
     def request_stop(self) -> None:
         """Ask the serving thread to stop (safe from a signal handler)."""
@@ -78,8 +111,8 @@ class PtyServer:
 
     def _run(self) -> None:
         fw = self.firmware
-        t0 = time.monotonic()
-        pace_t0, sent = t0, 0
+        t0 = self._t0
+        pace_t0, sent = time.monotonic(), 0
         cmd = bytearray()
         while not self._stop.is_set():
             try:
@@ -107,7 +140,7 @@ class PtyServer:
                 due = int((now - pace_t0) * fw.rate_hz) - sent
                 if due > 0:
                     sent += due
-                    self._out += fw.frames(due)
+                    self._queue_frames(fw.frames(due))
                     stall = fw.take_stall()
                     if stall is not None:
                         # The firmware hung: the frames it did not make fall due a stall later.
@@ -121,22 +154,31 @@ class PtyServer:
                     pass
                 except OSError:
                     return
-                if len(self._out) > 1 << 20:
-                    # Nobody is reading: drop what the pty cannot take, as a UART would.
-                    self.dropped_frames += self._out.count(b"\n$")
-                    self._out.clear()
+
+    def _queue_frames(self, frames: bytes) -> None:
+        """Queue new frames for the host, or drop them whole while the backlog is full.
+
+        A firmware whose UART cannot keep up drops the frames it makes, never what it
+        already queued, and never its replies to commands: so ``OK STOP`` still reaches
+        a host that fell behind (the sequence numbers show the gap).
+        """
+        if len(self._out) + len(frames) > MAX_BACKLOG:
+            self.dropped_frames += frames.count(b"$D")
+        else:
+            self._out += frames
 
 
 def serve_pty(seed: int = 0, rate: float = 200.0, noise: float = 1.0, drift: float = 0.0,
               tau: float = 0.7, mode: str | None = None, rig=None,
-              faults: "FaultSpec | str | dict | None" = None) -> PtyServer:
+              faults: "FaultSpec | str | dict | None" = None, **rig_options) -> PtyServer:
     """Start serving a simulated rig on a new pseudo-terminal; returns the running server.
 
     ``faults`` (a :class:`~labcli.core.sim.faults.FaultSpec`, its text form or a
     dict) makes the link noisy, drawn from ``seed``; FaultSpecError if malformed.
+    ``rig_options`` are the rig's own (its experiment's ``sim_options``, parsed).
     """
     spec = FaultSpec.from_data(faults)
     if rig is None:
-        rig = make_rig(mode, seed=seed, noise=noise, drift=drift, tau_s=tau)
+        rig = make_rig(mode, seed=seed, noise=noise, drift=drift, tau_s=tau, **rig_options)
     injector = FaultInjector(spec, seed=seed, n_channels=len(rig.channels)) if spec.active else None
     return PtyServer(rig, rate, faults=injector)

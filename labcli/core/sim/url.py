@@ -1,6 +1,10 @@
 """The ``sim://`` URL's grammar: its options, their defaults and checks, and the accepted form
 every refusal shows.
 
+Beside the core's options each experiment declares its rigs' own
+(:class:`labcli.core.experiment.SimOption`, through the registry); one given with a
+``mode`` whose rig does not take it is refused.
+
 The firmware model's port (:mod:`.protocol_sim`, where each option's meaning is written) and
 the compiled firmware on simavr (:mod:`.hil_port`, chosen by ``firmware=``) read the same URL.
 """
@@ -12,15 +16,17 @@ import urllib.parse
 
 from serial.serialutil import SerialException
 
+from .. import registry
 from . import default_mode, modes
 from .faults import FAULTS_FORM, FaultSpec, FaultSpecError
 from .firmware import RATE_MAX, RATE_MIN
 
 
 def accepted_form() -> str:
+    own = "".join(f"[&{name}={opt.form}]" for name, opt in registry.sim_options().items())
     return (
         "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
-        f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...][&firmware=ELF]"
+        f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...][&firmware=ELF]{own}"
     )
 
 
@@ -82,7 +88,7 @@ def _firmware(text: str) -> str:
 # option -> (parser, default, what a valid value is (text, or a function giving it))
 OPTIONS = {
     "seed": (_whole, 0, "a whole number >= 0"),
-    "rate": (_rate, 200.0, "a number of Hz within 1..5000"),
+    "rate": (_rate, 200.0, f"a number of Hz within {RATE_MIN:g}..{RATE_MAX:g}"),
     "noise": (_nonneg, 1.0, "a number >= 0"),
     "drift": (_nonneg, 0.0, "a number >= 0"),
     "clock": (_clock, "virtual", "'virtual' or 'wall'"),
@@ -101,18 +107,20 @@ def parse_sim_url(url: str) -> dict:
     if parts.netloc or parts.path not in ("", "/") or parts.fragment:
         extra = parts.netloc + parts.path + ("#" + parts.fragment if parts.fragment else "")
         raise SimURLError(f"unexpected '{extra}' in sim:// URL; expected {accepted_form()}")
-    opts = {k: default for k, (_, default, _) in OPTIONS.items()}
+    own = registry.sim_options()
+    known = {**OPTIONS, **{name: (opt.parse, None, opt.what) for name, opt in own.items()}}
+    opts = {k: default for k, (_, default, _) in known.items()}
     seen = set()
     for item in filter(None, parts.query.split("&")):
         key, eq, raw = item.partition("=")
         key = urllib.parse.unquote(key)
         raw = urllib.parse.unquote(raw)
-        if key not in OPTIONS:
+        if key not in known:
             raise SimURLError(f"unknown option '{key}' in sim:// URL; expected {accepted_form()}")
         if key in seen:
             raise SimURLError(f"option '{key}' given twice in sim:// URL; expected {accepted_form()}")
         seen.add(key)
-        parser, _, what = OPTIONS[key]
+        parser, _, what = known[key]
         try:
             opts[key] = parser(raw) if eq else parser("")
         except FaultSpecError as e:
@@ -126,7 +134,17 @@ def parse_sim_url(url: str) -> dict:
             ) from None
     if opts["mode"] is None:
         opts["mode"] = default_mode()
+    takes = registry.sim_options(opts["mode"])
+    for key in own:
+        if key in seen and key not in takes:
+            raise SimURLError(f"option '{key}' in sim:// URL applies to mode={'|'.join(registry.modes_taking(key))} "
+                              f"only; expected {accepted_form()}")
     return opts
+
+
+def rig_options(opts: dict) -> dict:
+    """The rig's own options (its experiment's ``sim_options``) among parsed URL options, those given."""
+    return {k: opts[k] for k in registry.sim_options(opts["mode"]) if opts.get(k) is not None}
 
 
 NOT_WITH_FIRMWARE = {

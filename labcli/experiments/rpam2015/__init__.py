@@ -25,6 +25,7 @@ class Rpam2015:
     run_kinds = tuple(EXPERIMENTS.values())
     sim_modes = ("rpam",)
     default_sim_mode = None
+    sim_options: dict = {}  # its rig takes only the core's sim:// options
     demo_protocol = "rpam2015"
 
     def record_type(self, run_kind: str) -> RecordType:

@@ -13,6 +13,7 @@ from typing import Any
 
 from ...core.experiment import AcquireOptions, Analysis, Demo, RecordType
 from .protocol import KINDS
+from .sim.options import SIM_OPTIONS
 
 
 class Takuma2014:
@@ -25,6 +26,7 @@ class Takuma2014:
     run_kinds = ("force", "push")
     sim_modes = ("mckibben",)
     default_sim_mode = "mckibben"
+    sim_options = SIM_OPTIONS
     demo_protocol = "takuma2014"
 
     def record_type(self, run_kind: str) -> RecordType:
@@ -33,10 +35,10 @@ class Takuma2014:
         return RECORD_TYPES[run_kind]
 
     def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0,
-                 tau_s: float = 0.7) -> Any:
-        from .sim.rig import SimRig
+                 tau_s: float = 0.7, **options: Any) -> Any:
+        from .sim.options import build_rig
 
-        return SimRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s)
+        return build_rig(seed=seed, noise=noise, drift=drift, tau_s=tau_s, **options)
 
     def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
                      run_path: str = "") -> Any:

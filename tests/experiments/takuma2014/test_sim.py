@@ -13,11 +13,12 @@ import pytest
 import serial
 from click.testing import CliRunner
 
-from labcli.experiments.takuma2014.sim import physics as ph
-from labcli.core.sim.firmware import Firmware
-from labcli.experiments.takuma2014.sim.rig import SimRig
 from labcli.core.sim import register
+from labcli.core.sim.firmware import Firmware
 from labcli.core.wire import Frame, parse_line
+from labcli.experiments.takuma2014.sim import physics as ph
+from labcli.experiments.takuma2014.sim.nonideal import NonIdeal
+from labcli.experiments.takuma2014.sim.rig import SimRig
 
 register()
 
@@ -26,11 +27,17 @@ CAL_DEG = lambda c: (np.asarray(c) - 2048) * 340 / 4095
 
 EXPECTED_FORM = (
     "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
-    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&firmware=ELF]"
+    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&firmware=ELF][&ideal=0|1][&friction=X][&leak=X]"
+    "[&thermal=X][&backlash=X][&links=X][&supply=MPA[,MPA,MPA,MPA]][&design=paper|thin]"
 )
 
 
 def settled_rig(**kw) -> SimRig:
+    """The ideal rig (the physics tests below hold the ideal model), pressurised and closed.
+
+    The non-idealities have their own tests (tests/experiments/takuma2014/test_nonideal.py).
+    """
+    kw.setdefault("nonideal", NonIdeal.ideal())
     rig = SimRig(**kw)
     rig.supply_air()
     rig.advance(10)
@@ -94,9 +101,9 @@ def test_boyle_invariant_holds_after_closing_through_loads_and_transients():
 def test_unload_returns_to_the_baseline():
     rig = settled_rig(seed=6)
     base = rig.true_state()
-    rig.hang_weight(0.5, 0.0)
+    rig.hang_weight(1.0, 0.0)
     rig.advance(5)
-    assert abs(rig.true_state()["theta_rad"][0] - base["theta_rad"][0]) > np.radians(3)
+    assert abs(rig.true_state()["theta_rad"][0] - base["theta_rad"][0]) > np.radians(1)
     rig.remove_weight()
     rig.advance(20)
     st = rig.true_state()
@@ -122,13 +129,13 @@ def test_first_order_lag_reaches_63_percent_at_tau():
 def test_pot_counts_track_angles_and_pressures_track_boyle_in_counts():
     rig = settled_rig(seed=9, noise=0)
     _, c0 = rig.samples(1, 200)
-    rig.hang_weight(0.5, np.pi)
+    rig.hang_weight(1.0, np.pi)
     rig.advance(10)
     _, c1 = rig.samples(1, 200)
     st = rig.true_state()
     dtheta_deg = CAL_DEG(c1[0, 4:]) - CAL_DEG(c0[0, 4:])
     base_theta = np.degrees(rig.true_state()["theta_rad"])
-    assert dtheta_deg[0] > 3  # pulled to the left: counter-clockwise
+    assert dtheta_deg[0] > 1  # pulled to the left: counter-clockwise
     # Deflection read from the pots within one count of the truth.
     rig2 = settled_rig(seed=9, noise=0)
     d_true = base_theta - np.degrees(rig2.true_state()["theta_rad"])
@@ -182,13 +189,12 @@ def test_seeded_determinism():
     assert not np.array_equal(run(21), run(22))
 
 
-def test_drift_moves_readings_slowly_and_leaks_closed_chambers():
+def test_drift_moves_readings_slowly_and_does_not_touch_the_air():
+    # Sensor zero drift only; the chambers' leak is its own switch (tests/experiments/takuma2014/test_nonideal.py).
     rig = settled_rig(seed=12, drift=1.0, noise=0)
     p0 = rig.true_state()["pressures_MPa"]
     rig.advance(600)
-    st = rig.true_state()
-    drop = (p0 + ph.P_ATM / 1e6) - (st["pressures_MPa"] + ph.P_ATM / 1e6)
-    assert drop / (p0 + ph.P_ATM / 1e6) == pytest.approx(1 - np.exp(-600 / (6 * 3600)), rel=1e-9)
+    assert rig.true_state()["pressures_MPa"] == pytest.approx(p0, abs=1e-12)
     still = settled_rig(seed=12, drift=0.0, noise=0)
     q0 = still.true_state()["pressures_MPa"]
     still.advance(600)
@@ -204,8 +210,8 @@ def test_drift_moves_readings_slowly_and_leaks_closed_chambers():
 
 def test_unreachable_load_is_a_clear_error():
     rig = settled_rig(seed=1)
-    with pytest.raises(ValueError, match="no static equilibrium with 80000 g hanging at 0 deg"):
-        rig.hang_weight(80.0, 0.0)
+    with pytest.raises(ValueError, match="no static equilibrium with 800000 g hanging at 0 deg"):
+        rig.hang_weight(800.0, 0.0)
 
 
 # ---------------------------------------------------------------- firmware
@@ -215,7 +221,11 @@ def test_firmware_replies():
     fw = Firmware(SimRig(seed=0), 200)
     assert fw.receive(b"ID?\n") == b"ID,mckibben-2dof-sim,1.0,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n"
     assert fw.receive(b"RATE 500\r\n") == b"OK RATE 500\n"
-    assert fw.receive(b"RATE 0\n") == b"ERR RATE must be within 1..5000 Hz, got 0\n"
+    assert fw.receive(b"RATE 0\n") == b"ERR RATE must be within 1..50000 Hz, got 0\n"
+    # Up to the stream reader's measured limit (tests/benchmarks/bench_link.py), not beyond.
+    assert fw.receive(b"RATE 50000\n") == b"OK RATE 50000\n"
+    assert fw.receive(b"RATE 50001\n") == b"ERR RATE must be within 1..50000 Hz, got 50001\n"
+    assert fw.rate_hz == 50000
     assert fw.receive(b"RATE fast\n") == b"ERR RATE needs a number of Hz, got 'fast'\n"
     assert fw.receive(b"HELLO\n") == b"ERR unknown command 'HELLO'\n"
     assert fw.receive(b"STA") == b""  # partial line waits for its newline
@@ -265,7 +275,7 @@ def test_url_rejects_unknown_option_with_the_accepted_form():
     "url,message",
     [
         ("sim://?seed=abc", "option 'seed' in sim:// URL must be a whole number >= 0, got 'abc'"),
-        ("sim://?rate=9000", "option 'rate' in sim:// URL must be a number of Hz within 1..5000, got '9000'"),
+        ("sim://?rate=60000", "option 'rate' in sim:// URL must be a number of Hz within 1..50000, got '60000'"),
         ("sim://?clock=fast", "option 'clock' in sim:// URL must be 'virtual' or 'wall', got 'fast'"),
         ("sim://?noise=-1", "option 'noise' in sim:// URL must be a number >= 0, got '-1'"),
         ("sim://?seed=1&seed=2", "option 'seed' given twice in sim:// URL"),
@@ -322,7 +332,7 @@ def test_virtual_clock_runs_long_protocols_and_buffer_resets():
 
 
 def test_virtual_port_has_no_stale_backlog_when_the_operator_acts():
-    port = serial.serial_for_url("sim://?seed=2&rate=200&noise=0", timeout=0.5)
+    port = serial.serial_for_url("sim://?seed=2&rate=200&noise=0&ideal=1", timeout=0.5)
     port.rig.supply_air()
     port.write(b"START\n")
     seen = port.read(port.in_waiting)
@@ -331,12 +341,12 @@ def test_virtual_port_has_no_stale_backlog_when_the_operator_acts():
     t_hook = port.rig.time_s
     last_seen = frames_of(seen)[-1].t_us / 1e6
     assert -1e-6 <= t_hook - last_seen <= 3 / 200 + 1e-6  # at most a few frames on their way
-    port.rig.hang_weight(0.5, 0.0)
+    port.rig.hang_weight(1.0, 0.0)
     after = frames_of(seen[seen.rfind(b"\n") + 1 :] + port.read(4000))
     before_hook = [f for f in after if f.t_us / 1e6 <= t_hook + 1e-6]
     assert before_hook == after[: len(before_hook)] and len(before_hook) <= 3
     pots = np.array([f.values[4] for f in after[len(before_hook):]])
-    assert pots[-1] < pots[0] - 30  # every later frame shows the arm moving
+    assert pots[-1] < pots[0] - 10  # every later frame shows the arm moving
 
 
 def test_idle_virtual_port_waits_its_timeout_and_the_device_clock_runs_meanwhile():
@@ -413,6 +423,13 @@ def test_protocol_over_pty():
         port.close()
 
 
+def assert_stopped_cleanly(proc: subprocess.Popen) -> None:
+    """``labcli sim`` ended by itself (signal or ``quit``): exit 0 and its last line."""
+    out, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    assert out == "Simulated rig stopped.\n"
+
+
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 def test_sim_command_serves_a_pty_until_sigterm():
     proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "4"],
@@ -426,9 +443,7 @@ def test_sim_command_serves_a_pty_until_sigterm():
             port.write(b"ID?\n")
             assert reply(port).startswith(b"ID,mckibben-2dof-sim,1.0,")
         proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=10)
-        assert proc.returncode == 0, err
-        assert out == "Simulated rig stopped.\n"
+        assert_stopped_cleanly(proc)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -443,3 +458,109 @@ def test_sim_command_without_pty_says_what_to_add():
         "Error: nothing to serve: add --pty to serve the simulated rig on a pseudo-terminal"
         " (labcli commands can use the port sim:// directly).\n"
     )
+
+
+# ---------------------------------------------------------------- operator console
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
+    # Two terminals, no Python: `labcli sim --pty` takes the operator's lines on stdin while a
+    # serial program reads the port.  The readings must move as the physics says.
+    proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3", "--rate", "100"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            bufsize=1, cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+    def say(line: str) -> str:
+        proc.stdin.write(line + "\n")
+        proc.stdin.flush()
+        return proc.stdout.readline().rstrip("\n")
+
+    def state() -> dict:
+        fields = dict(f.split("=", 1) for f in say("state").split()[1:] if "=" in f)
+        return {k: np.array(v.split(","), dtype=float) for k, v in fields.items()
+                if k in ("theta_deg", "P_MPa", "F_N")}
+
+    try:
+        path = proc.stdout.readline().split()[3]
+        with serial.Serial(path, timeout=2.0) as port:
+            assert say("supply").startswith("ok supply 0.300,0.300,0.300,0.300 MPa")
+            assert say("wait 4").startswith("ok wait 4 s")
+            assert say("close").startswith("ok close")
+            port.reset_input_buffer()
+            port.write(b"START\n")
+
+            def window(seconds: float) -> np.ndarray:
+                """Mean counts of the last half second of frames, reading all the while."""
+                data, end = b"", time.monotonic() + seconds
+                while time.monotonic() < end:
+                    data += port.read(port.in_waiting or 1)
+                fr = frames_of(data)
+                return np.array([f.values for f in fr[-50:]], dtype=float).mean(axis=0)
+
+            before, true0 = window(1.0), state()
+            assert say("hang 1000 0").startswith("ok hang 1000 g at 0 deg")
+            after, true1 = window(8.0), state()
+            assert true1["F_N"] == pytest.approx([9.807, 0.0], abs=1e-3)
+            # A pull along +x turns both joints clockwise: the left actuators stretch.
+            d_true = true1["theta_deg"] - true0["theta_deg"]
+            assert d_true[0] < -0.5 and d_true[1] < -0.5
+            assert CAL_DEG(after[4:]) - CAL_DEG(before[4:]) == pytest.approx(d_true, abs=0.2)  # counts, backlash
+            dp_true = true1["P_MPa"] - true0["P_MPa"]
+            assert dp_true[0] > 0.002 and dp_true[1] < -0.002  # L1 up, R1 down (Boyle)
+            assert CAL_P(after[:4]) - CAL_P(before[:4]) == pytest.approx(dp_true, abs=0.0005)
+            assert say("remove").startswith("ok remove")
+            assert say("push tin 3 0") == ("error: unknown object 'tin'; known: pet-1, pet-2, pet-3, "
+                                           "can-al-1, can-al-2, can-steel-1")
+            assert say("hang heavy 0") == "error: mass must be a number, got 'heavy'; usage: hang GRAMS DEG"
+            port.write(b"STOP\n")
+        assert say("quit") == "ok quit"
+        assert_stopped_cleanly(proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def test_sim_command_refuses_a_rate_beyond_the_readers_limit():
+    from labcli.core.sim.firmware import RATE_MAX, RATE_MIN
+
+    from labcli.cli import cli
+    from labcli.commands.sim import sim
+
+    result = CliRunner().invoke(cli, ["sim", "--pty", "--rate", "60000"])
+    assert result.exit_code == 2
+    assert result.output.splitlines()[-1] == (
+        "Error: Invalid value for '--rate': 60000.0 is not in the range 1<=x<=50000.")
+    # The command's bounds (kept literal so that --help imports no numpy) are the firmware's.
+    rate = next(p for p in sim.params if p.name == "rate")
+    assert (rate.type.min, rate.type.max) == (RATE_MIN, RATE_MAX)
+    assert serial.serial_for_url("sim://?rate=50000").firmware.rate_hz == RATE_MAX
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+def test_a_host_that_falls_behind_loses_frames_but_still_gets_ok_stop():
+    # At 50 kHz a host that stops reading fills the backlog in well under a second.  The rig
+    # drops its new frames whole from then on (the sequence numbers show the gap), never what is
+    # queued and never its replies: the STOP sent afterwards is answered (a host waiting for it
+    # used to wait for ever once the backlog was cleared with the reply in it).
+    from labcli.core.sim.pty import MAX_BACKLOG, serve_pty
+
+    server = serve_pty(seed=1, rate=50000)
+    try:
+        with serial.Serial(server.path, timeout=0.2) as port:
+            port.write(b"START\n")
+            time.sleep(1.5)  # not reading: about 75000 frames fall due
+            assert server.dropped_frames > 10000
+            port.write(b"STOP\n")
+            data, deadline = b"", time.monotonic() + 10.0
+            while b"OK STOP\n" not in data and time.monotonic() < deadline:
+                data += port.read(1 << 16)
+            assert b"OK STOP\n" in data
+            assert len(data) <= MAX_BACKLOG + 4096 + (1 << 16)  # the backlog, the pty's buffer, the reply
+            seqs = [parse_line(line + b"\n", 6).seq for line in data.split(b"\n") if line.startswith(b"$D")]
+            # Frames arrive whole and in order, with a gap where new ones were dropped (the host
+            # may drain some backlog before STOP is read); every frame made was sent or counted dropped.
+            assert seqs[0] == 0 and all(b > a for a, b in zip(seqs, seqs[1:]))
+            assert len(seqs) + server.dropped_frames == server.firmware.count
+    finally:
+        server.stop()

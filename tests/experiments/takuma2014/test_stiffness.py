@@ -694,7 +694,12 @@ def test_simulated_rig_end_to_end_from_pressures():
     # model error shows.  The order, and so the categories, hold.
     sim = pytest.importorskip("labcli.experiments.takuma2014.sim.rig")
     takuma = pytest.importorskip("labcli.experiments.takuma2014.models.takuma")
-    rig = sim.SimRig(seed=2, noise=0.0, variation=True)
+    # The ideal thin-muscle rig (the rig before the paper-scale retune, frame for frame): on it
+    # every push leaves theta2 within the bound, Section 4's premise that this test is about.  The
+    # paper scale's thinner inside pair bends past it under the harder objects (test_classify_cli
+    # covers both cases), and friction and backlash would add errors that are not the method's.
+    nonideal = pytest.importorskip("labcli.experiments.takuma2014.sim.nonideal")
+    rig = sim.SimRig(seed=2, noise=0.0, variation=True, nonideal=nonideal.NonIdeal.ideal(), design="thin")
     g = rig.params.geometry
     p_cols = ["P_L1", "P_R1", "P_L2", "P_R2"]
     p0_cols = ["P_L10", "P_R10", "P_L20", "P_R20"]

@@ -63,8 +63,8 @@ Equilibrium (virtual work)
 ``J(theta)^T F_ext(theta) = sum_ij T_ij(theta) grad s_ij(theta)``: a tension pulls
 to shorten its path.  ``F_ext`` is a pulley weight ``m g (cos dir, sin dir)``,
 fixed in the world, or the radial-spring cylinder of Section 4 (Eq. 39) pushed
-into the tip.  The links' own weight is not modelled (the arm stands upright
-and the protocol measures deflections from each trial's own baseline).
+into the tip.  The links' own weight (``RigParams.link_mass_kg``, centres of
+mass mid-link) adds :func:`link_weight_torques`.
 
 Chosen parameters, and why (:func:`nominal_params`)
 ---------------------------------------------------
@@ -72,45 +72,49 @@ Geometry is the paper's (Section 3.1): h1 = 0.355 m, h2 = 0.130 m, h3 = 0.065 m,
 r1 = 0.075 m, r2 = 0.035 m.  Supply pressure 0.30 MPa gauge (inside the
 sensor's 0-1 MPa span, close to the 0.33 MPa of Figure 1c).
 
-The actuators are thin muscles (6 mm diameter) described at the baseline
-posture and supply pressure:
+The paper prints no actuator dimensions and its Figure 1 has no numbers in our
+text, so the actuators are tuned to the one quantitative trace of the paper's
+rig that survives: its Section 3.3 coefficients.  Applied to the simulated
+rig's pressures they must give the true angles and forces within a factor of
+1.5 (:mod:`labcli.experiments.takuma2014.sim.paper_scale` measures it): the angle coefficients fix
+the pressure change per radian (Boyle's ``beta`` with the dead volume), the
+force coefficients the pressure change per newton, i.e. the joint stiffness
+at that ``beta``.  Ordinary hand-made muscles, 13 mm across outside and 9 mm
+inside (thicker than the earlier 6 mm ones, to be stiff enough):
 
 =========  ========  =========  ========  =======  =========  ==========  =========
 actuator   length    braid ang  diameter  b        n (turns)  pretension  beta
 =========  ========  =========  ========  =======  =========  ==========  =========
-outside    0.220 m   41 deg     6 mm      0.292 m  10.1       14.5 N      -0.198 m
-inside     0.220 m   37 deg     6 mm      0.275 m  8.8        21.9 N      -0.129 m
+outside    0.220 m   41 deg     13 mm     0.292 m  4.68       69.1 N      -0.202 m
+inside     0.220 m   41 deg     9 mm      0.292 m  6.76       34.9 N      -0.191 m
 =========  ========  =========  ========  =======  =========  ==========  =========
 
-Rubber: k_rubber = 100 N/m (a latex tube of that size) with a rest length 5 mm
-below the mounting length, so a vented rig stays taut.  Dead volume 3 mL per
-chamber (short thin tubing and the sensor) against 6.2 mL of actuator volume.
-
-Why: joint stiffness must let 50-1000 g at the tip deflect the joints by a few
-tenths of a degree up to about 15 deg.  Under a tip load theta1 is set mainly
-by the outside pair and the absolute angle of link 2 by the inside pair; with
-the paper's moment arms each actuator may only be a few hundred N/m stiff.
-Ordinary 10-20 mm muscles at 0.3 MPa are ten times stiffer: thin ones with a
-braid angle near (but below) 54.7 deg are soft enough.  The braid angle and the
-dead volume also set the pressure sensitivity: Boyle's law linearised is the
-paper's Eq. 29 with ``beta = (V + V_dead) / V'(L)`` (the paper's beta when
-``V_dead = 0``), so 0.1 rad at joint 1 (7.5 mm on the outside tendons) changes
-those pressures by about 5 % of gauge: the size the paper's coefficients imply
-(sin(theta1) = 0.136 u_L1 - 1.587 u_R1 gives about 6 %).  A smaller dead volume
-or braid angle gives larger pressure changes and a stiffer joint.
+Rubber: k_rubber = 700 N/m (a latex tube of that size) with a rest length 5 mm
+below the mounting length, so a vented rig stays taut.  Dead volume (tubing,
+fittings and the sensor) 15 mL per outside chamber (29 mL of actuator) and
+6 mL per inside one (14 mL of actuator).  The thinner inside pair leaves joint
+2 soft enough that the heavier loads bend it past 3 deg, where the force along
+the arm (Fy) becomes observable (det J = h2 h3 sin theta2), with the pressure
+change per radian of theta2 on the scale of the paper's theta2 coefficients.
+0.1 rad at joint 1 changes the outside pressures by about 5 % of gauge (the
+paper's sin(theta1) = 0.136 u_L1 - 1.587 u_R1 implies about 6 %).
+Supplying the inside pair unequally (L2 0.40, R2 0.20 MPa) bends the rest
+posture to theta2 = 12.4 deg.  ``THIN_MUSCLES`` keeps the earlier tuning (6 mm
+muscles, 0.6-13 deg for 50-1000 g, about 9 times the paper's pressure change
+per newton).
 
 Resulting closed-valve joint stiffness about theta = 0 (N m/rad):
-``[[7.42, 1.79], [1.79, 1.79]]``.  Tip loads (symmetric rig, valves closed;
+``[[32.86, 3.94], [3.94, 3.94]]``.  Tip loads (symmetric rig, valves closed;
 angles in deg, pressure changes in % of gauge, L1 R1 L2 R2)::
 
     mass  dir     theta1  theta2   dP_L1  dP_R1  dP_L2  dP_R2
-      50 g   0      -0.65   -0.37   +0.58  -0.57  +0.65  -0.64
-     200 g  45      -1.78   -0.97   +1.63  -1.51  +1.79  -1.69
-     500 g   0      -6.46   -3.58   +6.54  -4.99  +7.06  -5.71
-     500 g 135      +4.24   +2.14   -3.43  +4.10  -3.77  +4.31
-    1000 g   0     -12.79   -6.30  +14.78  -8.63 +14.81  -9.90
-    1000 g -45     -10.80   -7.25  +11.97  -7.60 +13.87  -9.47
-    1000 g  90       0.00    0.00    0.00   0.00   0.00   0.00
+      50 g   0     -0.13   -0.34   +0.11  -0.11  +0.20  -0.20
+     200 g  45     -0.35   -0.93   +0.31  -0.31  +0.56  -0.54
+     500 g   0     -1.26   -3.36   +1.12  -1.06  +2.07  -1.89
+     500 g 135     +0.88   +2.22   -0.75  +0.78  -1.29  +1.37
+    1000 g   0     -2.52   -6.68   +2.30  -2.07  +4.31  -3.59
+    1000 g -45     -1.84   -5.53   +1.65  -1.53  +3.39  -2.93
+    1000 g  90      0.00    0.00    0.00   0.00   0.00   0.00
 
 A force along the straight arm (90 or -90 deg) produces no torque on the
 symmetric rig; on a varied rig its baseline is slightly bent and it does.
@@ -125,8 +129,9 @@ about 0.3 deg rms from zero at joint 1 and 0.9 deg rms at joint 2 (the inside
 pair acts on the short moment arm r2).
 
 Limits: tendons are assumed taut (tension may go negative on a vented rig
-under load, where a real tendon would go slack); no friction, hysteresis or
-link weight; isothermal air.
+under load, where a real tendon would go slack); isothermal air.  The links'
+weight is here (``RigParams.link_mass_kg``, zero by default); friction, leak,
+heat and backlash live in the simulated rig (:mod:`.nonideal`).
 """
 
 from __future__ import annotations
@@ -169,11 +174,12 @@ class RigParams:
     L_mount: np.ndarray = field(default_factory=lambda: np.zeros(4))  # m
     V_dead: np.ndarray = field(default_factory=lambda: np.zeros(4))  # m^3
     supply_pa: np.ndarray = field(default_factory=lambda: np.full(4, 0.30e6))  # gauge
+    link_mass_kg: np.ndarray = field(default_factory=lambda: np.zeros(2))  # links 1, 2; centre of mass mid-link
 
     def to_dict(self) -> dict:
         """Plain-data form (JSON-serialisable)."""
         out = {"geometry": vars(self.geometry).copy()}
-        for k in ("b", "n", "k_rubber", "L_rubber", "L_mount", "V_dead", "supply_pa"):
+        for k in ("b", "n", "k_rubber", "L_rubber", "L_mount", "V_dead", "supply_pa", "link_mass_kg"):
             out[k] = [float(v) for v in getattr(self, k)]
         return out
 
@@ -181,47 +187,55 @@ class RigParams:
 # ---------------------------------------------------------------- geometry
 
 
-def _seg(h: float, r: float, sign, t):
-    a = h + sign * r * np.sin(t)
-    c = r - r * np.cos(t)
-    return np.sqrt(a * a + c * c)
+# The six straight tendon pieces, one per joint an actuator crosses:
+# L1, R1 over joint 1 (arm r1); L2, R2 over joint 1 (arm r2); L2, R2 over joint 2 (arm r2).
+_PIECE_SIDE = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
+_PIECE_JOINT = [0, 0, 0, 0, 1, 1]
 
 
-def _dseg(h: float, r: float, sign, t):
-    a = h + sign * r * np.sin(t)
-    c = r - r * np.cos(t)
-    return (a * sign * r * np.cos(t) + c * r * np.sin(t)) / np.sqrt(a * a + c * c)
+def _pieces(theta, geom: Geometry, derivative: bool = False):
+    """Lengths of the six tendon pieces ``(..., 6)`` (m), with ``d length / d (own joint angle)`` (m/rad).
+
+    A piece leaves its joint at ``r`` beside the axis and runs a height ``h`` to
+    the next: ``sqrt((h + side r sin t)^2 + (r - r cos t)^2)``.
+    """
+    theta = np.asarray(theta, dtype=float)
+    t = theta[..., _PIECE_JOINT]
+    h = np.array([geom.h1] * 4 + [geom.h2] * 2)
+    r = np.array([geom.r1] * 2 + [geom.r2] * 4)
+    sin, cos = np.sin(t), np.cos(t)
+    a = h + _PIECE_SIDE * r * sin
+    c = r - r * cos
+    length = np.sqrt(a * a + c * c)
+    if not derivative:
+        return length, None
+    return length, (a * _PIECE_SIDE * r * cos + c * r * sin) / length
+
+
+def _paths(theta, geom: Geometry, gradients: bool = True):
+    """Path lengths ``(..., 4)`` and, with ``gradients``, ``d s / d theta`` ``(..., 4, 2)``, from one pass.
+
+    L1 and R1 are one piece each; L2 and R2 add their piece over joint 2.
+    """
+    length, d = _pieces(theta, geom, gradients)
+    s = length[..., :4].copy()
+    s[..., 2:] += length[..., 4:]
+    if not gradients:
+        return s, None
+    grad = np.zeros(d.shape[:-1] + (4, 2))
+    grad[..., 0] = d[..., :4]
+    grad[..., 2:, 1] = d[..., 4:]
+    return s, grad
 
 
 def path_lengths(theta, geom: Geometry) -> np.ndarray:
     """Exact tendon path lengths ``(..., 4)`` in order L1, R1, L2, R2 (m)."""
-    theta = np.asarray(theta, dtype=float)
-    t1, t2 = theta[..., 0], theta[..., 1]
-    g = geom
-    return np.stack(
-        [
-            _seg(g.h1, g.r1, -1.0, t1),
-            _seg(g.h1, g.r1, 1.0, t1),
-            _seg(g.h1, g.r2, -1.0, t1) + _seg(g.h2, g.r2, -1.0, t2),
-            _seg(g.h1, g.r2, 1.0, t1) + _seg(g.h2, g.r2, 1.0, t2),
-        ],
-        axis=-1,
-    )
+    return _paths(theta, geom, gradients=False)[0]
 
 
 def path_gradients(theta, geom: Geometry) -> np.ndarray:
     """Exact ``d s_ij / d theta`` as ``(..., 4, 2)`` (m/rad)."""
-    theta = np.asarray(theta, dtype=float)
-    t1, t2 = theta[..., 0], theta[..., 1]
-    g = geom
-    zero = np.zeros_like(t1)
-    rows = [
-        (_dseg(g.h1, g.r1, -1.0, t1), zero),
-        (_dseg(g.h1, g.r1, 1.0, t1), zero),
-        (_dseg(g.h1, g.r2, -1.0, t1), _dseg(g.h2, g.r2, -1.0, t2)),
-        (_dseg(g.h1, g.r2, 1.0, t1), _dseg(g.h2, g.r2, 1.0, t2)),
-    ]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    return _paths(theta, geom)[1]
 
 
 def rest_paths(geom: Geometry) -> np.ndarray:
@@ -252,6 +266,18 @@ def jacobian(theta, geom: Geometry) -> np.ndarray:
     row0 = np.stack([-h2 * c1 - h3 * c12, -h3 * c12], axis=-1)
     row1 = np.stack([-h2 * s1 - h3 * s12, -h3 * s12], axis=-1)
     return np.stack([row0, row1], axis=-2)
+
+
+def _jacobian_transpose_times(theta, geom: Geometry, F) -> np.ndarray:
+    """``J(theta)^T F`` (..., 2) without building ``J`` (:func:`jacobian`): the load's generalised force (N m)."""
+    theta = np.asarray(theta, dtype=float)
+    t1, t2 = theta[..., 0], theta[..., 1]
+    c1, s1 = np.cos(t1), np.sin(t1)
+    c12, s12 = np.cos(t1 + t2), np.sin(t1 + t2)
+    h2, h3 = geom.h2, geom.h3
+    Fx, Fy = F[..., 0], F[..., 1]
+    return np.stack([(-h2 * c1 - h3 * c12) * Fx + (-h2 * s1 - h3 * s12) * Fy,
+                     (-h3 * c12) * Fx + (-h3 * s12) * Fy], axis=-1)
 
 
 def actuator_lengths(theta, params: RigParams) -> np.ndarray:
@@ -381,17 +407,42 @@ class Push:
 # ---------------------------------------------------------------- statics
 
 
-def generalised_forces(theta, params: RigParams, chambers: Chambers, load) -> np.ndarray:
-    """Residual of virtual work ``J^T F - sum T grad s`` (N m), shape ``(..., 2)``."""
+def link_weight_torques(theta, geom: Geometry, link_mass_kg) -> np.ndarray:
+    """Generalised force of the links' own weight (N m), ``(..., 2)``; centres of mass mid-link.
+
+    ``Q_k = -sum_links m g d(y_com)/d(theta_k)``: zero on the upright arm and
+    growing with ``sin``, so the links act as an inverted pendulum (negative stiffness).
+    """
+    theta = np.asarray(theta, dtype=float)
+    t1, t12 = theta[..., 0], theta[..., 0] + theta[..., 1]
+    m1, m2 = np.asarray(link_mass_kg, dtype=float)
+    c1, c2 = 0.5 * geom.h2, 0.5 * geom.h3
+    q2 = m2 * G * c2 * np.sin(t12)
+    q1 = m1 * G * c1 * np.sin(t1) + m2 * G * geom.h2 * np.sin(t1) + q2
+    return np.stack([q1, q2], axis=-1)
+
+
+def generalised_forces(theta, params: RigParams, chambers: Chambers, load,
+                       extra_tension_N=None) -> np.ndarray:
+    """Residual of virtual work ``J^T F - sum T grad s`` (N m), shape ``(..., 2)``.
+
+    The links' weight enters when ``params.link_mass_kg`` is non-zero;
+    ``extra_tension_N`` (4,) adds to each actuator's tension, e.g. sleeve
+    friction (:mod:`.nonideal`).
+    """
     theta = np.asarray(theta, dtype=float)
     geom = params.geometry
-    L = actuator_lengths(theta, params)
+    s, grad = _paths(theta, geom)  # (..., 4), (..., 4, 2)
+    L = params.L_mount + s - rest_paths(geom)  # actuator_lengths
     p = chambers.gauge(L, params)
     T = mckibben_tension(L, p, params.b, params.n, params.k_rubber, params.L_rubber)
-    grad = path_gradients(theta, geom)  # (..., 4, 2)
-    F = load.force(theta, geom)
-    JT_F = np.einsum("...ij,...i->...j", jacobian(theta, geom), F)
-    return JT_F - np.einsum("...i,...ij->...j", T, grad)
+    if extra_tension_N is not None:
+        T = T + extra_tension_N
+    load_q = _jacobian_transpose_times(theta, geom, load.force(theta, geom))  # J^T F
+    r = load_q - np.einsum("...i,...ij->...j", T, grad)
+    if np.any(params.link_mass_kg):
+        r = r + link_weight_torques(theta, geom, params.link_mass_kg)
+    return r
 
 
 @dataclass(frozen=True)
@@ -407,18 +458,26 @@ class Equilibrium:
     stable: bool  # stiffness matrix positive definite
 
 
-def stiffness_matrix(theta, params: RigParams, chambers: Chambers, load, h: float = 1e-6) -> np.ndarray:
+# Where one Newton step evaluates the residual: theta itself, then theta +- h along
+# each joint for the central differences of the stiffness.
+_STENCIL = np.array([[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+
+
+def _residual_and_stiffness(theta, params: RigParams, chambers: Chambers, load, extra_tension_N=None,
+                            h: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """The residual (2,) and ``K = -d(residual)/d theta`` (2, 2) at ``theta``, from one batch.
+
+    The five postures go through :func:`generalised_forces` together (every
+    term broadcasts over leading axes): a Newton step costs one call, not five.
+    """
+    r = generalised_forces(np.asarray(theta, dtype=float) + h * _STENCIL, params, chambers, load, extra_tension_N)
+    return r[0], -np.stack([r[1] - r[2], r[3] - r[4]], axis=-1) / (2 * h)
+
+
+def stiffness_matrix(theta, params: RigParams, chambers: Chambers, load, h: float = 1e-6,
+                     extra_tension_N=None) -> np.ndarray:
     """``K = -d(residual)/d theta`` by central differences (N m/rad)."""
-    theta = np.asarray(theta, dtype=float)
-    K = np.empty((2, 2))
-    for k in range(2):
-        d = np.zeros(2)
-        d[k] = h
-        K[:, k] = -(
-            generalised_forces(theta + d, params, chambers, load)
-            - generalised_forces(theta - d, params, chambers, load)
-        ) / (2 * h)
-    return K
+    return _residual_and_stiffness(theta, params, chambers, load, extra_tension_N, h)[1]
 
 
 def solve_equilibrium(
@@ -427,9 +486,11 @@ def solve_equilibrium(
     load=None,
     theta0: Sequence[float] | None = None,
     tol: float = 1e-10,
+    extra_tension_N=None,
 ) -> Equilibrium:
     """Static equilibrium posture under ``load`` (None: unloaded).
 
+    ``extra_tension_N`` (4,) adds to the actuators' tensions (see :func:`generalised_forces`).
     Raises ``ValueError`` if no equilibrium with a residual below ``tol`` (N m)
     is found, e.g. for a load far beyond the rig's range.
     """
@@ -442,21 +503,20 @@ def solve_equilibrium(
     for steps in (1, 4, 16):
         x = x0.copy()
         for k in range(1, steps + 1):
-            x, res = _newton(params, chambers, _scaled(load, k / steps), x, tol)
+            x, res, K = _newton(params, chambers, _scaled(load, k / steps), x, tol, extra_tension_N)
             if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > 1.5:
                 break
         else:
             if best is None or res < best[1]:
-                best = (x, res)
+                best = (x, res, K)
             if res < tol:
                 break
     if best is None or best[1] >= tol:
         raise ValueError("no static equilibrium found for this load (is it beyond the rig's range?)")
-    x, res = best
+    x, res, K = best
     L = actuator_lengths(x, params)
     p = chambers.gauge(L, params)
     T = mckibben_tension(L, p, params.b, params.n, params.k_rubber, params.L_rubber)
-    K = stiffness_matrix(x, params, chambers, load)
     stable = bool(np.all(np.linalg.eigvalsh(0.5 * (K + K.T)) > 0))
     return Equilibrium(
         theta_rad=x,
@@ -469,32 +529,37 @@ def solve_equilibrium(
     )
 
 
-def _newton(params, chambers, load, x, tol: float, iters: int = 80):
-    """Damped Newton on the virtual-work residual; returns (theta, max |residual|)."""
-    r = generalised_forces(x, params, chambers, load)
+def _newton(params, chambers, load, x, tol: float, extra_tension_N=None, iters: int = 80):
+    """Damped Newton on the virtual-work residual; returns (theta, max |residual|, stiffness there).
+
+    A full step gets the residual and the stiffness at the new posture from
+    one batch; a step that must be shortened tries the residual alone.
+    """
+    r, K = _residual_and_stiffness(x, params, chambers, load, extra_tension_N)
     nr = float(np.max(np.abs(r)))
     for _ in range(iters):
         if nr < tol * 1e-3:
             break
         try:
-            dx = np.linalg.solve(stiffness_matrix(x, params, chambers, load), r)
+            dx = np.linalg.solve(K, r)
         except np.linalg.LinAlgError:
             break
         big = np.max(np.abs(dx))
         if big > 0.2:  # rad: keep steps where the linearisation means something
             dx *= 0.2 / big
-        t = 1.0
-        while t > 1e-6:
-            xn = x + t * dx
-            rn = generalised_forces(xn, params, chambers, load)
-            nn = float(np.max(np.abs(rn)))
-            if nn < nr:
-                break
+        t, xn = 1.0, x + dx
+        rn, Kn = _residual_and_stiffness(xn, params, chambers, load, extra_tension_N)
+        nn = float(np.max(np.abs(rn)))
+        while not nn < nr:  # halve the step until the residual falls (down to 2^-19; NaN never does)
             t *= 0.5
-        else:
-            break
+            if t <= 1e-6:
+                return x, nr, K
+            xn, Kn = x + t * dx, None
+            rn = generalised_forces(xn, params, chambers, load, extra_tension_N)
+            nn = float(np.max(np.abs(rn)))
         x, r, nr = xn, rn, nn
-    return x, nr
+        K = Kn if Kn is not None else stiffness_matrix(x, params, chambers, load, extra_tension_N=extra_tension_N)
+    return x, nr, K
 
 
 def _scaled(load, s: float):
@@ -510,22 +575,49 @@ def _scaled(load, s: float):
 # ---------------------------------------------------------------- parameters
 
 SUPPLY_MPA = 0.30
-_NOMINAL = {
-    # j: (length at baseline m, braid angle deg, diameter m)
-    1: (0.220, 41.0, 0.006),
-    2: (0.220, 37.0, 0.006),
-}
-K_RUBBER = 100.0  # N/m
-RUBBER_PRESTRETCH = 0.005  # m
-V_DEAD = 3.0e-6  # m^3
 
 
-def nominal_params(geometry: Geometry | None = None, supply_MPa: float = SUPPLY_MPA) -> RigParams:
-    """The symmetric design rig (no actuator-to-actuator variation)."""
+@dataclass(frozen=True)
+class Design:
+    """The design actuators: per pair j (1 outside, 2 inside) length at the
+    baseline posture (m), braid angle (deg) and diameter (m); rubber, dead volume."""
+
+    pairs: dict  # j -> (length m, braid angle deg, diameter m)
+    k_rubber: float  # N/m
+    rubber_prestretch: float  # m below the mounting length
+    v_dead: tuple  # m^3 per chamber, pairs 1 and 2
+
+
+# The default: the paper's test bed (see the module docstring for the figures used).
+PAPER_SCALE = Design(pairs={1: (0.220, 41.0, 0.013), 2: (0.220, 41.0, 0.009)}, k_rubber=700.0,
+                     rubber_prestretch=0.005, v_dead=(15.0e-6, 6.0e-6))
+# The tuning before the paper-scale retune: thin, soft muscles (0.6-13 deg for 50-1000 g).
+# Kept so that runs recorded on it (``sim://?design=thin&ideal=1``) can be reproduced.
+THIN_MUSCLES = Design(pairs={1: (0.220, 41.0, 0.006), 2: (0.220, 37.0, 0.006)}, k_rubber=100.0,
+                      rubber_prestretch=0.005, v_dead=(3.0e-6, 3.0e-6))
+DESIGNS = {"paper": PAPER_SCALE, "thin": THIN_MUSCLES}
+# Kept under their old names for callers that read them.
+K_RUBBER = PAPER_SCALE.k_rubber
+RUBBER_PRESTRETCH = PAPER_SCALE.rubber_prestretch
+
+
+def supply_array(supply_MPa) -> np.ndarray:
+    """One supply pressure or four (L1, R1, L2, R2), MPa gauge, as four gauge Pa."""
+    return np.broadcast_to(np.asarray(supply_MPa, dtype=float) * 1e6, (4,)).copy()
+
+
+def nominal_params(geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA,
+                   design: Design | str = PAPER_SCALE) -> RigParams:
+    """The symmetric design rig (no actuator-to-actuator variation).
+
+    ``supply_MPa`` is one gauge pressure or four (L1, R1, L2, R2); ``design`` a
+    :class:`Design` or a key of :data:`DESIGNS`.
+    """
     geom = geometry or Geometry()
+    d = DESIGNS[design] if isinstance(design, str) else design
     b, n, L0 = np.empty(4), np.empty(4), np.empty(4)
     for i, j in enumerate((1, 1, 2, 2)):
-        L, alpha, D = _NOMINAL[j]
+        L, alpha, D = d.pairs[j]
         a = np.radians(alpha)
         b[i] = L / np.cos(a)
         n[i] = L * np.tan(a) / (np.pi * D)
@@ -534,22 +626,23 @@ def nominal_params(geometry: Geometry | None = None, supply_MPa: float = SUPPLY_
         geometry=geom,
         b=b,
         n=n,
-        k_rubber=np.full(4, K_RUBBER),
-        L_rubber=L0 - RUBBER_PRESTRETCH,
+        k_rubber=np.full(4, d.k_rubber),
+        L_rubber=L0 - d.rubber_prestretch,
         L_mount=L0,
-        V_dead=np.full(4, V_DEAD),
-        supply_pa=np.full(4, supply_MPa * 1e6),
+        V_dead=np.repeat(np.asarray(d.v_dead, dtype=float), 2),
+        supply_pa=supply_array(supply_MPa),
     )
 
 
-def varied_params(seed: int, geometry: Geometry | None = None, supply_MPa: float = SUPPLY_MPA) -> RigParams:
+def varied_params(seed: int, geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA,
+                  design: Design | str = PAPER_SCALE) -> RigParams:
     """A hand-built rig: each actuator differs from the design by a few percent.
 
     Mounting lengths are the nominal ones (where the design actuator carries
     its pretension) plus a sub-millimetre mounting error, so the real
     actuators carry slightly different pretensions.
     """
-    nom = nominal_params(geometry, supply_MPa)
+    nom = nominal_params(geometry, supply_MPa, design)
     rng = np.random.default_rng([int(seed), 0x4D4B])
     return replace(
         nom,

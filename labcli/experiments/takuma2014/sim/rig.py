@@ -24,21 +24,30 @@ and 0.7 count (potentiometer) rms times ``noise``, rounded and clipped to
 0..4095.  With ``variation`` on (the default) each potentiometer has a
 mechanical offset (1.5 deg rms) and each pressure sensor a zero offset
 (1.5 kPa rms), and the actuators differ (:func:`labcli.experiments.takuma2014.sim.physics.varied_params`).
-``drift`` scales two slow effects: sensor zero drift (slow sinusoids of a few
-counts, periods of 10-40 min) and a leak of the closed chambers (air amount
-decaying with a time constant of ``6 h / drift``; the leak moves the
-pressures, its tiny effect on posture enters at the next operator action).
+``drift`` scales sensor zero drift (slow sinusoids of a few counts, periods of
+10-40 min).
+
+``nonideal`` (:class:`labcli.experiments.takuma2014.sim.nonideal.NonIdeal`, on at typical levels by
+default) adds sleeve friction with hysteresis, a leak of the closed chambers,
+thermal relaxation after fast loads, potentiometer backlash and the links'
+weight; ``NonIdeal.ideal()`` turns them off, and the rig then computes exactly
+what it computed before they existed (same parameters, same frames).  The
+leak moves the pressures at once; its small effect on posture enters at the
+next operator action.  ``design`` picks the actuators (:data:`labcli.experiments.takuma2014.sim.physics.DESIGNS`:
+``"paper"``, the paper-scale default, or ``"thin"``, the earlier soft tuning);
+``supply_MPa`` is one supply pressure or four (L1, R1, L2, R2).
 """
 
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import physics as ph
 from ....core.sim.clock import SimClock
+from . import nonideal as ni
+from . import physics as ph
 
 CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
 ADC_MAX = 4095
@@ -46,7 +55,6 @@ VREF = 5.0
 POT_SPAN_DEG = 340.0
 PRESSURE_NOISE_COUNTS = 0.5
 POT_NOISE_COUNTS = 0.7
-LEAK_TIME_S = 6 * 3600.0  # at drift = 1
 
 
 def pressure_to_counts(p_MPa):
@@ -72,6 +80,10 @@ class _Segment:
     chambers: ph.Chambers
     load: object
     target: ph.Equilibrium
+    x0: np.ndarray  # gas temperature excess T/T0 - 1 at t0 (closed chambers)
+    dlnV: np.ndarray  # change of ln(V + V_dead) the lag drives (closed chambers)
+    kappa1: float  # kappa - 1 of the fast compression (0: isothermal)
+    shaft0: np.ndarray  # potentiometer shaft angles at t0 (backlash)
 
 
 class SimRig(SimClock):
@@ -79,13 +91,21 @@ class SimRig(SimClock):
 
     ``SimRig(seed=0, noise=1.0, drift=0.0)``; ``params`` overrides the
     actuator/geometry parameters (:class:`labcli.experiments.takuma2014.sim.physics.RigParams`),
-    ``variation=False`` gives the symmetric design rig with ideal sensors.
+    ``variation=False`` gives the symmetric design rig with ideal sensors,
+    ``nonideal=NonIdeal.ideal()`` the ideal model.
     The rig starts vented (no air), at its unloaded posture.
     """
 
     channels: tuple[str, ...] = CHANNELS
     device = "mckibben-2dof-sim"
     firmware = "1.0"
+
+    @property
+    def console_commands(self) -> dict:
+        """The operator's actions on ``labcli sim``'s console (:mod:`.console`)."""
+        from .console import COMMANDS
+
+        return COMMANDS
 
     def __init__(
         self,
@@ -96,22 +116,35 @@ class SimRig(SimClock):
         *,
         variation: bool = True,
         tau_s: float = 0.7,
-        supply_MPa: float = ph.SUPPLY_MPA,
+        supply_MPa=ph.SUPPLY_MPA,
+        nonideal: ni.NonIdeal | None = None,
+        design: str | ph.Design = "paper",
     ) -> None:
         if noise < 0 or drift < 0 or tau_s <= 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
+        supply = ph.supply_array(supply_MPa)
+        if np.any(supply < 0) or np.any(supply > 1.0e6):
+            raise ValueError("supply pressures must be within 0..1 MPa gauge (the sensors' span)")
         self.seed = int(seed)
         self.noise = float(noise)
         self.drift = float(drift)
         self.tau_s = float(tau_s)
         self.variation = bool(variation)
+        self.nonideal = ni.NonIdeal() if nonideal is None else nonideal
         if params is None:
             params = (
-                ph.varied_params(self.seed, supply_MPa=supply_MPa)
+                ph.varied_params(self.seed, supply_MPa=supply_MPa, design=design)
                 if variation
-                else ph.nominal_params(supply_MPa=supply_MPa)
+                else ph.nominal_params(supply_MPa=supply_MPa, design=design)
             )
+            if self.nonideal.links:
+                params = replace(params, link_mass_kg=np.array(ni.LINK_MASS_KG) * self.nonideal.links)
         self.params = params
+        self._friction = ni.FRICTION_FRACTION * self.nonideal.friction
+        self._kappa1 = (ni.KAPPA - 1.0) * self.nonideal.thermal
+        self._thermal_tau = ni.THERMAL_TAU_S  # read when the rig is built (a test may set another)
+        self._backlash = ni.BACKLASH_RAD * self.nonideal.backlash
+        self._leak_rate = ni.leak_factors(self.seed, self.nonideal.leak)
         self._lock = threading.RLock()
         self._noise_rng = np.random.default_rng([self.seed, 1])
         self._event_rng = np.random.default_rng([self.seed, 2])
@@ -130,12 +163,14 @@ class SimRig(SimClock):
         chambers = ph.Chambers.open(np.zeros(4))
         eq = ph.solve_equilibrium(self.params, chambers, ph.NoLoad())
         self._seg = _Segment(0.0, self.tau_s, eq.theta_rad, eq.theta_rad, np.zeros(4), np.zeros(4),
-                             chambers, ph.NoLoad(), eq)
+                             chambers, ph.NoLoad(), eq, x0=np.zeros(4), dlnV=np.zeros(4), kappa1=0.0,
+                             shaft0=eq.theta_rad.copy())
+        self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
 
     # ------------------------------------------------------------ state
 
-    def _state_at(self, t):
+    def _state_at(self, t, isothermal: bool = False):
         """Posture (..., 2), gauge pressures Pa (..., 4) at times ``t``."""
         s = self._seg
         t = np.asarray(t, dtype=float)
@@ -146,14 +181,30 @@ class SimRig(SimClock):
         else:
             L = ph.actuator_lengths(theta, self.params)
             V = ph.mckibben_volume(L, self.params.b, self.params.n)
-            amount = s.chambers.amount * self._leak_factor(t)[..., None]
-            p = amount / (V + self.params.V_dead) - ph.P_ATM
+            amount = s.chambers.amount * self._leak_factor(t)
+            p_abs = amount / (V + self.params.V_dead)
+            if not isothermal and (s.kappa1 or np.any(s.x0)):
+                p_abs = p_abs * (1.0 + self._thermal_at(t))
+            p = p_abs - ph.P_ATM
         return theta, p
 
     def _leak_factor(self, t):
-        if self.drift == 0 or self._seg.chambers.state != "closed":
-            return np.ones_like(np.asarray(t, dtype=float))
-        return np.exp(-(np.asarray(t, dtype=float) - self._t_closed) * self.drift / LEAK_TIME_S)
+        """Fraction of each closed chamber's air left at times ``t`` (``(..., 4)``)."""
+        t = np.asarray(t, dtype=float)
+        if not np.any(self._leak_rate) or self._seg.chambers.state != "closed":
+            return np.ones(t.shape + (4,))
+        return np.exp(-(t - self._t_closed)[..., None] * self._leak_rate)
+
+    def _shaft_at(self, t, theta):
+        """Potentiometer shaft angles (..., 2) for joint angles ``theta`` at times ``t`` (backlash)."""
+        return ni.play(self._seg.shaft0, theta, self._backlash)
+
+    def _thermal_at(self, t) -> np.ndarray:
+        """Gas temperature excess ``T/T0 - 1`` of each chamber at times ``t`` (``(..., 4)``)."""
+        s = self._seg
+        if s.chambers.state != "closed" or not (s.kappa1 or np.any(s.x0)):
+            return np.zeros(np.shape(t) + (4,))
+        return ni.thermal_excess(t - s.t0, s.x0, s.dlnV, s.kappa1, s.tau, self._thermal_tau)
 
     def true_state(self) -> dict:
         """The truth at the current simulated time (for tests and checks).
@@ -162,10 +213,17 @@ class SimRig(SimClock):
         gauge L1 R1 L2 R2, ``force_N`` (2,) on the contact point, ``time_s``;
         also ``valves`` ("vented" | "open" | "closed"), ``contact_m`` (2,),
         ``target_theta_rad`` (2,) the equilibrium being approached, ``tau_s``,
-        ``load`` (dict describing the load) and ``residual_Nm`` of the target.
+        ``load`` (dict describing the load) and ``residual_Nm`` of the target;
+        ``rest_theta_rad`` (2,) the unloaded posture the arm last rested at (or
+        is settling to), i.e. the absolute angles of the current baseline;
+        ``pressures_isothermal_MPa`` (4,) what the pressures relax to once the
+        air has the wall's temperature; ``pot_shaft_rad`` (2,) where the
+        potentiometers' shafts stand (backlash); ``supply_MPa`` (4,) the
+        regulator settings; ``nonideal`` the configured magnitudes.
         """
         with self._lock:
             theta, p = self._state_at(self._t)
+            _, p_iso = self._state_at(self._t, isothermal=True)
             s = self._seg
             return {
                 "theta_rad": theta.copy(),
@@ -178,6 +236,11 @@ class SimRig(SimClock):
                 "tau_s": s.tau,
                 "load": _describe(s.load, self.params.geometry),
                 "residual_Nm": s.target.residual_Nm,
+                "rest_theta_rad": self._rest_theta.copy(),
+                "pressures_isothermal_MPa": p_iso / 1e6,
+                "pot_shaft_rad": self._shaft_at(self._t, theta),
+                "supply_MPa": self.params.supply_pa / 1e6,
+                "nonideal": {**self.nonideal.magnitudes(), "thermal_tau_s": self._thermal_tau},
             }
 
     # ------------------------------------------------------------ operator
@@ -186,15 +249,19 @@ class SimRig(SimClock):
         with self._lock:
             theta_now, p_now = self._state_at(self._t)
             s = self._seg
+            x_now = self._thermal_at(self._t)
+            shaft_now = self._shaft_at(self._t, theta_now)
             if chambers is None:
                 chambers = s.chambers
-                if chambers.state == "closed" and self.drift:
+                if chambers.state == "closed" and np.any(self._leak_rate):
                     # Fold the leak so far into the amount of air; posture sees it from now on.
                     chambers = ph.Chambers("closed", amount=chambers.amount * self._leak_factor(self._t))
                     self._t_closed = self._t
+            else:
+                x_now = np.zeros(4)  # new air from the regulator (or none): at the wall's temperature
             load = s.load if load is None else load
             try:
-                eq = ph.solve_equilibrium(self.params, chambers, load, theta0=theta_now)
+                eq = ni.friction_equilibrium(self.params, chambers, load, theta_now, self._friction)
             except ValueError:
                 raise ValueError(
                     f"the simulated rig finds no static equilibrium with {_load_text(load)};"
@@ -202,8 +269,16 @@ class SimRig(SimClock):
                 ) from None
             p_to = chambers.gauge_pa if chambers.state == "open" else eq.pressures_MPa * 1e6
             tau = self.tau_s * float(np.clip(np.exp(0.15 * self._event_rng.standard_normal()), 0.7, 1.4))
+            dlnV, kappa1 = np.zeros(4), 0.0
+            if chambers.state == "closed" and (self._kappa1 or np.any(x_now)):
+                vol = lambda th: ph.mckibben_volume(ph.actuator_lengths(th, self.params), self.params.b,
+                                                    self.params.n) + self.params.V_dead
+                dlnV, kappa1 = np.log(vol(eq.theta_rad)) - np.log(vol(theta_now)), self._kappa1
             self._seg = _Segment(self._t, tau, theta_now, eq.theta_rad, p_now, np.asarray(p_to, float),
-                                 chambers, load, eq)
+                                 chambers, load, eq, x0=x_now, dlnV=dlnV, kappa1=kappa1,
+                                 shaft0=np.asarray(shaft_now, float))
+            if isinstance(load, ph.NoLoad):
+                self._rest_theta = eq.theta_rad.copy()
             if valves is not None:
                 self._valves = valves
 
@@ -218,6 +293,8 @@ class SimRig(SimClock):
     def close_valves(self) -> None:
         """Close the valves: from now on each chamber keeps its air (Boyle's law)."""
         with self._lock:
+            if self._seg.chambers.state == "closed":
+                return  # closing a closed valve changes nothing
             theta_now, p_now = self._state_at(self._t)
             L = ph.actuator_lengths(theta_now, self.params)
             self._t_closed = self._t
@@ -281,7 +358,7 @@ class SimRig(SimClock):
             if n == 0:
                 return np.zeros(0, np.int64), np.zeros((0, 6), np.int64)
             theta, p = self._state_at(t)
-            x = self.ideal_counts(theta, p, t)
+            x = self.ideal_counts(self._shaft_at(t, theta), p, t)
             if self.noise:
                 sd = self.noise * np.array([PRESSURE_NOISE_COUNTS] * 4 + [POT_NOISE_COUNTS] * 2)
                 x = x + sd * self._noise_rng.standard_normal((n, 6))
