@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from ..errors import ConfigError
+from .bounds import QUANTITIES, fmt_number, wrap_degrees
 from .files import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -48,6 +49,12 @@ class TableError(ConfigError):
 
 # ---------------------------------------------------------------------------
 # Table descriptions (plain data): (column, kind, presence)
+#   kind: "id" (integer) | "set" (fit, validation or empty) | "set-required" | "name"
+#         (non-empty text) | "text" | "pressure" (gauge MPa in the sensor span) | a
+#         quantity of labcli.core.bounds ("angle", "force", "mass", ...: unit and physical
+#         range) | "float", "positive", "nonnegative" (any finite number, with that sign:
+#         for a table whose quantities have no entry there yet); a numeric kind ending in
+#         "-or-empty" also takes an empty cell (NaN).
 #   presence: "required" | "optional" (added empty when absent) |
 #             "omit-if-empty" (optional, and left out of a written file when empty)
 # ---------------------------------------------------------------------------
@@ -112,35 +119,62 @@ def _parse_cell(kind: str, s: str, span: tuple[float, float]) -> tuple[Any, str 
         return s, None
     if kind == "text":
         return s, None
-    if kind.endswith("-or-empty") and s.strip() == "":
+    base = kind.removesuffix("-or-empty")
+    if base != kind and s.strip() == "":
         return math.nan, None
     v, err = _parse_number(s)
     if err:
         return None, err
+    err = number_problem(base, v, span)
+    if err:
+        return None, err
+    q = QUANTITIES.get(base)
+    return (wrap_degrees(v) if q is not None and q.wrap else v), None
+
+
+def number_problem(kind: str, v: float, span: tuple[float, float] = PRESSURE_SPAN_MPA) -> str | None:
+    """Why the finite number ``v`` cannot be a cell of ``kind`` (without "-or-empty"), or None."""
     if kind == "pressure":
         lo, hi = span
         if not v > lo:
-            return None, f"{_fmt(v)} MPa is not a positive gauge pressure"
+            return f"{_fmt(v)} MPa is not a positive gauge pressure"
         if v > hi:
-            return None, f"{_fmt(v)} MPa is outside the sensor span {_fmt(lo)} to {_fmt(hi)} MPa"
-    elif kind.startswith("positive") and not v > 0:
-        return None, f"{_fmt(v)} must be greater than 0"
+            return f"{_fmt(v)} MPa is outside the sensor span {_fmt(lo)} to {_fmt(hi)} MPa"
+    elif kind == "positive" and not v > 0:
+        return f"{_fmt(v)} must be greater than 0"
     elif kind == "nonnegative" and not v >= 0:
-        return None, f"{_fmt(v)} must be 0 or more"
-    return v, None
+        return f"{_fmt(v)} must be 0 or more"
+    elif kind in QUANTITIES:
+        return QUANTITIES[kind].problem(v)
+    return None
+
+
+def number_problem_mask(kind: str, v: Any, span: tuple[float, float] = PRESSURE_SPAN_MPA) -> Any:
+    """Where :func:`number_problem` finds a problem, for a numpy array of finite numbers."""
+    import numpy as np
+
+    if kind == "pressure":
+        return ~(v > span[0]) | (v > span[1])
+    if kind == "positive":
+        return ~(v > 0)
+    if kind == "nonnegative":
+        return ~(v >= 0)
+    q = QUANTITIES.get(kind)
+    if q is None:
+        return np.zeros(len(v), dtype=bool)
+    bad = ~((v >= q.lo) & (v <= q.hi))
+    if q.sign == "positive":
+        bad |= ~(v > 0)
+    elif q.sign == "nonnegative":
+        bad |= ~(v >= 0)
+    return bad
 
 
 def _quote(s: str) -> str:
     return repr(s if len(s) <= 40 else s[:37] + "...")
 
 
-def fmt_number(v: float) -> str:
-    """A number as a message shows it: an integer without a decimal point, else ``repr``."""
-    return _fmt(v)
-
-
-def _fmt(v: float) -> str:
-    return repr(float(v)) if v != int(v) or abs(v) >= 1e16 else str(int(v))
+_fmt = fmt_number
 
 
 # ---------------------------------------------------------------------------
@@ -335,7 +369,7 @@ def _frame(spec: TableSpec, header: list[str], keep: list[int], columns: dict[st
     for j in keep:
         name = header[j]
         if name not in kinds:
-            frame[name] = _infer_extra(columns[name])
+            frame[name] = infer_extra_column(columns[name])
     return pd.DataFrame(frame)
 
 
@@ -361,7 +395,7 @@ def _standard_series(kind: str, values: list[Any]) -> "pd.Series":
     return pd.Series(values, dtype="float64")
 
 
-def _infer_extra(cells: list[str]) -> "pd.Series":
+def infer_extra_column(cells: list[str]) -> "pd.Series":
     """Numbers only when every cell reads back to exactly its own text (nothing lost); empty: NaN."""
     import pandas as pd
 
@@ -405,9 +439,41 @@ def read_table(path: str | os.PathLike, spec: TableSpec, *, span: tuple[float, f
     ``span`` bounds the "pressure" cells (MPa); ``id_range`` (low, high) also checks the
     ids, e.g. against what a run file can hold; ``check(row) -> [(column, problem), ...]``
     adds checks of its own (e.g. :func:`labcli.core.store.storable_cells`), reported by
-    row and column like the others.
+    row and column like the others.  A check may carry ``screen(frame) -> bool``, whether
+    any row of the whole table may fail it, so that a large good table need not be
+    checked row by row.
+
+    The table is read whole columns at a time (:mod:`labcli.core.table_fast`); a table
+    that does not read cleanly that way is read again cell by cell, which names every
+    problem.
     """
+    from .table_fast import read_fast
+
+    fast = read_fast(path, spec, span, _screen(spec, id_range, check))
+    if fast is not None:
+        return fast
     return _read(path, spec, span, _row_checks(spec, id_range, check))
+
+
+def _screen(spec: TableSpec, id_range: tuple[int, int] | None,
+            check: RowCheck | None) -> Callable[["pd.DataFrame"], bool] | None:
+    """Whether any row of a parsed table may fail ``id_range`` or ``check`` (whole columns where it can)."""
+    if id_range is None and check is None:
+        return None
+    own = getattr(check, "screen", None)
+
+    def screen(frame: "pd.DataFrame") -> bool:
+        if id_range is not None and spec.id_column in frame.columns:
+            ids = frame[spec.id_column]
+            if ((ids < id_range[0]) | (ids > id_range[1])).any():
+                return True
+        if check is None:
+            return False
+        if own is not None:
+            return bool(own(frame))
+        return any(True for row in frame.to_dict("records") for _ in check(row))
+
+    return screen
 
 
 def _row_checks(spec: TableSpec, id_range: tuple[int, int] | None, check: RowCheck | None) -> RowCheck | None:

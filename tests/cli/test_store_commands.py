@@ -99,7 +99,7 @@ def test_export_import_export_is_byte_identical(run_path, tmp_path):
     assert first.read_bytes() == second.read_bytes()
     header = first.read_text().splitlines()[0]
     assert header == ("trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,"
-                      "mass_g,direction_deg")
+                      "mass_g,direction_deg,theta1_0_deg,theta2_0_deg")
     with RunFile.open(str(imported)) as run:
         assert run.attrs["imported"] is True and run.attrs["source"] == "a.csv"
         assert run.attrs["protocol"] == "takuma2014" and run.protocol_text == load_protocol("takuma2014").text
