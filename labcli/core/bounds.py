@@ -19,7 +19,7 @@ enough to catch what no such rig can produce:
   are centimetres);
 * gauge pressures of a rig that reads below zero (rPAM), above perfect vacuum
   (-0.101325 MPa) and up to 1 MPa; the McKibben sensors' span is the protocol's
-  (``labcli.core.tables.PRESSURE_SPAN_MPA`` by default);
+  (:data:`PRESSURE_SPAN_MPA` by default);
 * stretch ratios up to 10 (silicone tears well before).
 """
 
@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 ATMOSPHERE_MPA = 0.101325
+PRESSURE_SPAN_MPA = (0.0, 1.0)  # what a "pressure" cell may hold unless a table says otherwise: gauge, MPa
 
 
 @dataclass(frozen=True)
@@ -103,3 +104,41 @@ def wrap_degrees_array(v: Any) -> Any:
 def fmt_number(v: float) -> str:
     """A number as a message shows it: an integer without a decimal point, else ``repr``."""
     return repr(float(v)) if v != int(v) or abs(v) >= 1e16 else str(int(v))
+
+
+def number_problem(kind: str, v: float, span: tuple[float, float] = PRESSURE_SPAN_MPA) -> str | None:
+    """Why the finite number ``v`` cannot be a cell of ``kind`` (without "-or-empty"), or None."""
+    if kind == "pressure":
+        lo, hi = span
+        if not v > lo:
+            return f"{fmt_number(v)} MPa is not a positive gauge pressure"
+        if v > hi:
+            return f"{fmt_number(v)} MPa is outside the sensor span {fmt_number(lo)} to {fmt_number(hi)} MPa"
+    elif kind == "positive" and not v > 0:
+        return f"{fmt_number(v)} must be greater than 0"
+    elif kind == "nonnegative" and not v >= 0:
+        return f"{fmt_number(v)} must be 0 or more"
+    elif kind in QUANTITIES:
+        return QUANTITIES[kind].problem(v)
+    return None
+
+
+def number_problem_mask(kind: str, v: Any, span: tuple[float, float] = PRESSURE_SPAN_MPA) -> Any:
+    """Where :func:`number_problem` finds a problem, for a numpy array of finite numbers."""
+    import numpy as np
+
+    if kind == "pressure":
+        return ~(v > span[0]) | (v > span[1])
+    if kind == "positive":
+        return ~(v > 0)
+    if kind == "nonnegative":
+        return ~(v >= 0)
+    q = QUANTITIES.get(kind)
+    if q is None:
+        return np.zeros(len(v), dtype=bool)
+    bad = ~((v >= q.lo) & (v <= q.hi))
+    if q.sign == "positive":
+        bad |= ~(v > 0)
+    elif q.sign == "nonnegative":
+        bad |= ~(v >= 0)
+    return bad

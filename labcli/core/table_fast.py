@@ -28,18 +28,17 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from .bounds import QUANTITIES, wrap_degrees_array
+from .bounds import QUANTITIES, number_problem_mask, wrap_degrees_array
+from .cells import TableSpec, infer_extra_column
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
-
-    from .tables import TableSpec
 
 BLOCK = 1 << 22  # bytes scanned at a time: memory stays flat whatever the file's size
 _TEXT_KINDS = ("set", "set-required", "name", "text")
 
 
-def read_fast(path: str | os.PathLike, spec: "TableSpec", span: tuple[float, float],
+def read_fast(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float],
               screen: Callable[["pd.DataFrame"], bool] | None) -> "pd.DataFrame | None":
     """The table at ``path`` read whole-column, or None: the cell-by-cell reader decides.
 
@@ -136,7 +135,7 @@ def _plain(data: bytes) -> bool:
     return True
 
 
-def _header_fits(header: list[str], spec: "TableSpec") -> bool:
+def _header_fits(header: list[str], spec: TableSpec) -> bool:
     names = [h.strip() for h in header]
     if not names or "" in names or len(set(names)) != len(names):
         return False
@@ -148,7 +147,7 @@ def _header_fits(header: list[str], spec: "TableSpec") -> bool:
 # --------------------------------------------------------------------------- the columns
 
 
-def _parse(path: str | os.PathLike, header: list[str], spec: "TableSpec") -> "pd.DataFrame | None":
+def _parse(path: str | os.PathLike, header: list[str], spec: TableSpec) -> "pd.DataFrame | None":
     import pandas as pd
 
     kinds = {c: k for c, k, _ in spec.columns}
@@ -183,10 +182,8 @@ def _exact_floats() -> dict[str, str]:
     return {} if (major, minor) >= (3, 1) else {"float_precision": "round_trip"}
 
 
-def _values_fit(frame: "pd.DataFrame", spec: "TableSpec", span: tuple[float, float]) -> bool:
+def _values_fit(frame: "pd.DataFrame", spec: TableSpec, span: tuple[float, float]) -> bool:
     """Every cell within its kind's rules, ids unique, pairs given together."""
-    from .tables import number_problem_mask
-
     present = set(frame.columns)
     for c, kind, _ in spec.columns:
         if c not in present:
@@ -214,11 +211,9 @@ def _values_fit(frame: "pd.DataFrame", spec: "TableSpec", span: tuple[float, flo
     return True
 
 
-def _assemble(frame: "pd.DataFrame", header: list[str], spec: "TableSpec") -> "pd.DataFrame":
+def _assemble(frame: "pd.DataFrame", header: list[str], spec: TableSpec) -> "pd.DataFrame":
     """The spec's columns in order (absent ones empty, directions wrapped), then the extras as read."""
     import pandas as pd
-
-    from .tables import infer_extra_column
 
     n = len(frame)
     out: dict[str, Any] = {}

@@ -25,19 +25,19 @@ import io
 import math
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from ..errors import ConfigError
-from .bounds import QUANTITIES, fmt_number, wrap_degrees
+from .bounds import PRESSURE_SPAN_MPA, QUANTITIES, fmt_number, number_problem, wrap_degrees
+from .cells import INT64_MAX as _INT64_MAX, NUMBER as _NUMBER, TableSpec, infer_extra_column
 from .files import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-PRESSURE_SPAN_MPA = (0.0, 1.0)  # what a "pressure" cell may hold unless a table says otherwise: gauge, MPa
 MAX_LISTED = 200  # problems shown in one message; the count in line one is always complete
+
 
 class TableError(ConfigError):
     """A table failed its checks; ``.problems`` lists every ``file:row N, column C: message``."""
@@ -45,35 +45,6 @@ class TableError(ConfigError):
     def __init__(self, message: str, problems: list[str]) -> None:
         super().__init__(message)
         self.problems = problems
-
-
-# ---------------------------------------------------------------------------
-# Table descriptions (plain data): (column, kind, presence)
-#   kind: "id" (integer) | "set" (fit, validation or empty) | "set-required" | "name"
-#         (non-empty text) | "text" | "pressure" (gauge MPa in the sensor span) | a
-#         quantity of labcli.core.bounds ("angle", "force", "mass", ...: unit and physical
-#         range) | "float", "positive", "nonnegative" (any finite number, with that sign:
-#         for a table whose quantities have no entry there yet); a numeric kind ending in
-#         "-or-empty" also takes an empty cell (NaN).
-#   presence: "required" | "optional" (added empty when absent) |
-#             "omit-if-empty" (optional, and left out of a written file when empty)
-# ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class TableSpec:
-    label: str  # "trial", "push", "plan": used in messages
-    columns: tuple[tuple[str, str, str], ...]
-    id_column: str
-    pairs: tuple[tuple[str, str], ...] = ()  # given together or not at all
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return tuple(c[0] for c in self.columns)
-
-
-_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-_INT64_MAX = 2**63 - 1
 
 
 # ---------------------------------------------------------------------------
@@ -130,44 +101,6 @@ def _parse_cell(kind: str, s: str, span: tuple[float, float]) -> tuple[Any, str 
         return None, err
     q = QUANTITIES.get(base)
     return (wrap_degrees(v) if q is not None and q.wrap else v), None
-
-
-def number_problem(kind: str, v: float, span: tuple[float, float] = PRESSURE_SPAN_MPA) -> str | None:
-    """Why the finite number ``v`` cannot be a cell of ``kind`` (without "-or-empty"), or None."""
-    if kind == "pressure":
-        lo, hi = span
-        if not v > lo:
-            return f"{_fmt(v)} MPa is not a positive gauge pressure"
-        if v > hi:
-            return f"{_fmt(v)} MPa is outside the sensor span {_fmt(lo)} to {_fmt(hi)} MPa"
-    elif kind == "positive" and not v > 0:
-        return f"{_fmt(v)} must be greater than 0"
-    elif kind == "nonnegative" and not v >= 0:
-        return f"{_fmt(v)} must be 0 or more"
-    elif kind in QUANTITIES:
-        return QUANTITIES[kind].problem(v)
-    return None
-
-
-def number_problem_mask(kind: str, v: Any, span: tuple[float, float] = PRESSURE_SPAN_MPA) -> Any:
-    """Where :func:`number_problem` finds a problem, for a numpy array of finite numbers."""
-    import numpy as np
-
-    if kind == "pressure":
-        return ~(v > span[0]) | (v > span[1])
-    if kind == "positive":
-        return ~(v > 0)
-    if kind == "nonnegative":
-        return ~(v >= 0)
-    q = QUANTITIES.get(kind)
-    if q is None:
-        return np.zeros(len(v), dtype=bool)
-    bad = ~((v >= q.lo) & (v <= q.hi))
-    if q.sign == "positive":
-        bad |= ~(v > 0)
-    elif q.sign == "nonnegative":
-        bad |= ~(v >= 0)
-    return bad
 
 
 def _quote(s: str) -> str:
@@ -393,35 +326,6 @@ def _standard_series(kind: str, values: list[Any]) -> "pd.Series":
     if kind in ("set", "set-required", "name", "text"):
         return pd.Series(values, dtype=object)
     return pd.Series(values, dtype="float64")
-
-
-def infer_extra_column(cells: list[str]) -> "pd.Series":
-    """Numbers only when every cell reads back to exactly its own text (nothing lost); empty: NaN."""
-    import pandas as pd
-
-    filled = [c for c in cells if c != ""]
-    if not filled:
-        # No value says what the column is; missing numbers, as pandas reads it.
-        return pd.Series([math.nan] * len(cells), dtype="float64")
-    if len(filled) == len(cells) and all(_is_canonical_int(c) for c in filled):
-        return pd.Series([int(c) for c in cells], dtype="int64")
-    if all(_is_canonical_float(c) for c in filled):
-        return pd.Series([float(c) if c else math.nan for c in cells], dtype="float64")
-    return pd.Series(cells, dtype=object)
-
-
-def _is_canonical_int(s: str) -> bool:
-    if not re.fullmatch(r"-?[0-9]+", s):
-        return False
-    v = int(s)
-    return str(v) == s and abs(v) <= _INT64_MAX
-
-
-def _is_canonical_float(s: str) -> bool:
-    if not _NUMBER.fullmatch(s):
-        return False
-    v = float(s)
-    return math.isfinite(v) and repr(v) == s
 
 
 def _read(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], extra_checks=None):

@@ -186,6 +186,28 @@ def test_load_trials_api_reads_run_files(run_path, tmp_path):
     assert labcli.load_trials(csv).equals(df)
 
 
+def test_rest_posture_and_wrapped_direction_round_trip(tmp_path):
+    """theta1_0_deg/theta2_0_deg are stored as pot0 (rad) and come back; a direction of 200 deg comes back -160."""
+    header = ("trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,"
+              "mass_g,direction_deg,theta1_0_deg,theta2_0_deg")
+    rows = ["1,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,200,12.5,-30",
+            "2,validation,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,-90,,",
+            "3,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,270,0,170"]
+    src, run, out = tmp_path / "t.csv", tmp_path / "t.h5", tmp_path / "out.csv"
+    src.write_text("\n".join([header, *rows]) + "\n")
+    assert invoke("import", src, "-o", run, "--protocol", "takuma2014").exit_code == 0
+    with h5py.File(run) as f:
+        assert np.allclose(f["trials/000001/pot0"][()], [math.radians(12.5), math.radians(-30)], rtol=1e-15)
+        assert "pot0" not in f["trials/000002"]
+    df = labcli.load_trials(run)
+    assert df["theta1_0_deg"].tolist()[::2] == [12.5, 0.0] and df["theta2_0_deg"].tolist()[::2] == [-30.0, 170.0]
+    assert math.isnan(df.loc[1, "theta1_0_deg"]) and math.isnan(df.loc[1, "theta2_0_deg"])
+    assert df["direction_deg"].tolist() == [-160.0, -90.0, -90.0]  # 270 and -90 are the same direction
+    assert invoke("export", run, "-o", out).exit_code == 0
+    assert out.read_text().splitlines()[1].endswith(",100.0,-160.0,12.5,-30.0")
+    assert labcli.load_trials(out).equals(df)
+
+
 # ------------------------------------------------------------------ inspect
 
 

@@ -229,6 +229,15 @@ def test_plan_errors_name_row_and_column(tmp_path: Path) -> None:
     assert len(load_plan(put(tmp_path, text.split("2,,")[0], "ok.csv"))) == 1
 
 
+def test_a_plan_direction_is_any_angle_wrapped(tmp_path: Path) -> None:
+    text = "trial,set,mass_g,direction_deg\n1,fit,50,200\n2,fit,50,270\n3,fit,50,-90\n4,fit,50,540\n5,fit,50,180\n"
+    plan = load_plan(put(tmp_path, text, "plan.csv"), direction_range_deg=(-180, 180))
+    assert plan["direction_deg"].tolist() == [-160.0, -90.0, -90.0, -180.0, 180.0]
+    p = put(tmp_path, "trial,set,mass_g,direction_deg\n1,fit,50,721\n", "far.csv")
+    assert problems_of(load_plan, p).splitlines()[1:] == [
+        f"{p}:row 2, column direction_deg: 721 deg is outside the range of a direction, -720 to 720 deg."]
+
+
 def test_plan_round_trip(tmp_path: Path) -> None:
     plan = load_plan(Path(__file__).resolve().parents[2] / "protocols" / "takuma2014-plan.csv")
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
