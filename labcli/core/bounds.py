@@ -10,8 +10,8 @@ enough to catch what no such rig can produce:
 
 * joint angles within a half turn either way (a potentiometer covers 340 deg);
 * directions any angle, within two turns either way; a direction is wrapped into
-  -180..180 deg on reading (270 and -90 are the same direction), values already in that
-  range are kept as typed;
+  (-180, 180] deg on reading (270 and -90 are the same direction, -180 reads 180), values
+  already in that range are kept as typed;
 * forces at the tip within 1 kN (about 100 kg): far beyond what a pneumatic arm of this
   size can exert or bear (a McKibben muscle at the 1 MPa sensor limit pulls a few hundred
   N at most, and the arm's levers reduce it at the tip);
@@ -42,7 +42,7 @@ class Quantity:
     lo: float
     hi: float
     sign: str = ""  # "positive" (> 0) or "nonnegative" (>= 0): checked first, in the words of the tables
-    wrap: bool = False  # a direction: wrapped into -180..180 deg once in range
+    wrap: bool = False  # a direction: wrapped into (-180, 180] deg once in range
 
     def problem(self, v: float) -> str | None:
         """Why ``v`` (finite) cannot be this quantity, or None."""
@@ -72,18 +72,18 @@ QUANTITIES: dict[str, Quantity] = {
 
 
 def wrap_degrees(v: float) -> float:
-    """A direction in -180..180 deg: values already there as given, others wrapped into -180..180.
+    """A direction in (-180, 180] deg: values already there as given, others wrapped into it.
 
     The wrapped value is ``v - 360 k`` (exact in floating point) kept to 12 significant
     digits, the digits a table keeps of a converted angle, so that a table holding 200
-    and its export holding -160 read back the same.
+    and its export holding -160 read back the same; -180 and 540 both read 180.
     """
-    if -180.0 <= v <= 180.0 or not math.isfinite(v):
+    if -180.0 < v <= 180.0 or not math.isfinite(v):
         return v
-    w = v - 360.0 * math.floor((v + 180.0) / 360.0)
-    if w >= 180.0:
+    w = v - 360.0 * math.ceil((v - 180.0) / 360.0)
+    if w > 180.0:
         w -= 360.0
-    elif w < -180.0:
+    elif w <= -180.0:
         w += 360.0
     return float(f"{w:.12g}")
 
@@ -93,7 +93,7 @@ def wrap_degrees_array(v: Any) -> Any:
     import numpy as np
 
     v = np.asarray(v, dtype=np.float64)
-    outside = np.flatnonzero(np.abs(v) > 180.0)
+    outside = np.flatnonzero((v <= -180.0) | (v > 180.0))
     if not len(outside):
         return v
     out = v.copy()

@@ -65,7 +65,9 @@ def good_cell(column: str, trial: int) -> st.SearchStrategy[str]:
         return st.floats(min_value=1e-3, max_value=5e3).map(repr)
     if column in ("Fx_N", "Fy_N"):
         return st.floats(min_value=-1e3, max_value=1e3, allow_subnormal=False).map(repr)
-    return st.floats(min_value=-180, max_value=180, allow_subnormal=False).map(repr)  # angles, directions
+    # angles; a direction of -180 reads back as 180, the same direction
+    return st.floats(min_value=-180, max_value=180, exclude_min=column == "direction_deg",
+                     allow_subnormal=False).map(repr)
 
 
 @st.composite

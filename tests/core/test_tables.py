@@ -230,9 +230,9 @@ def test_plan_errors_name_row_and_column(tmp_path: Path) -> None:
 
 
 def test_a_plan_direction_is_any_angle_wrapped(tmp_path: Path) -> None:
-    text = "trial,set,mass_g,direction_deg\n1,fit,50,200\n2,fit,50,270\n3,fit,50,-90\n4,fit,50,540\n5,fit,50,180\n"
+    text = "trial,set,mass_g,direction_deg\n1,fit,50,200\n2,fit,50,270\n3,fit,50,-90\n4,fit,50,540\n5,fit,50,-180\n"
     plan = load_plan(put(tmp_path, text, "plan.csv"), direction_range_deg=(-180, 180))
-    assert plan["direction_deg"].tolist() == [-160.0, -90.0, -90.0, -180.0, 180.0]
+    assert plan["direction_deg"].tolist() == [-160.0, -90.0, -90.0, 180.0, 180.0]  # (-180, 180]
     p = put(tmp_path, "trial,set,mass_g,direction_deg\n1,fit,50,721\n", "far.csv")
     assert problems_of(load_plan, p).splitlines()[1:] == [
         f"{p}:row 2, column direction_deg: 721 deg is outside the range of a direction, -720 to 720 deg."]
@@ -356,6 +356,7 @@ NOTE = st.text(alphabet="abc ,\"'\n\r;\t-é", max_size=8).map(lambda s: "n" + s)
 PRESSURE = st.floats(min_value=0.0, max_value=1.0, exclude_min=True, allow_nan=False)
 ANY_FLOAT = st.floats(allow_nan=False, allow_infinity=False)
 ANGLE = st.floats(min_value=-180, max_value=180)
+DIRECTION = st.floats(min_value=-180, max_value=180, exclude_min=True)  # -180 reads back as 180
 FORCE = st.floats(min_value=-1000, max_value=1000)
 
 
@@ -377,7 +378,7 @@ def trial_tables(draw) -> pd.DataFrame:
         df[c] = pd.Series(draw(st.lists(PRESSURE, min_size=n, max_size=n)), dtype="float64")
     for c, values in (("theta1_deg", ANGLE), ("theta2_deg", ANGLE), ("Fx_N", FORCE), ("Fy_N", FORCE)):
         df[c] = pd.Series(draw(st.lists(values, min_size=n, max_size=n)), dtype="float64")
-    pairs = draw(st.lists(st.one_of(st.none(), st.tuples(st.floats(min_value=1e-3, max_value=1e5), ANGLE)),
+    pairs = draw(st.lists(st.one_of(st.none(), st.tuples(st.floats(min_value=1e-3, max_value=1e5), DIRECTION)),
                           min_size=n, max_size=n))
     df["mass_g"] = pd.Series([math.nan if p is None else p[0] for p in pairs], dtype="float64")
     df["direction_deg"] = pd.Series([math.nan if p is None else p[1] for p in pairs], dtype="float64")
@@ -398,7 +399,7 @@ def push_tables(draw) -> pd.DataFrame:
     df["object"] = pd.Series(draw(st.lists(NOTE, min_size=n, max_size=n)), dtype=object)
     df["R_m"] = pd.Series(draw(st.lists(st.floats(min_value=1e-6, max_value=1.0), min_size=n, max_size=n)), dtype="float64")
     df["d_m"] = pd.Series(draw(st.lists(st.floats(min_value=0.0, max_value=0.1), min_size=n, max_size=n)), dtype="float64")
-    df["phi_deg"] = pd.Series(draw(st.lists(st.one_of(ANGLE, st.just(math.nan)), min_size=n, max_size=n)),
+    df["phi_deg"] = pd.Series(draw(st.lists(st.one_of(DIRECTION, st.just(math.nan)), min_size=n, max_size=n)),
                               dtype="float64")
     for c in ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2"):
         df[c] = pd.Series(draw(st.lists(PRESSURE, min_size=n, max_size=n)), dtype="float64")
