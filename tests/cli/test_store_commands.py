@@ -317,9 +317,10 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 _deg = st.floats(-180, 180, allow_nan=False)
+_direction = st.floats(-180, 180, exclude_min=True)  # -180 is read as 180, the same direction
 _mpa = st.floats(0.01, 0.99, allow_nan=False)
 _row = st.tuples(st.lists(_mpa, min_size=8, max_size=8), _deg, _deg, st.floats(-50, 50, allow_nan=False),
-                 st.floats(0.001, 5000), _deg)
+                 st.floats(0.001, 5000), _direction)
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
