@@ -179,6 +179,13 @@ def check_outcome(text: str, folder: Path) -> None:
     for c in CONVERTED:
         want = df[c].to_numpy(dtype=float)
         got = back[c].to_numpy(dtype=float) if c in back.columns else np.full(len(df), np.nan)
+        if c == "direction_deg":  # a direction is kept wrapped into (-180, 180]: compare on the circle
+            assert np.array_equal(np.isnan(got), np.isnan(want)), c
+            both = ~np.isnan(want)
+            turn = (got[both] - want[both] + 180.0) % 360.0 - 180.0
+            turn = np.where(turn < -180.0 + 1e-9, turn + 360.0, turn)  # -180 and 180 are one direction
+            assert np.all(np.abs(turn) <= 5e-11 * np.maximum(np.abs(want[both]), 1.0)), (c, got, want)
+            continue
         np.testing.assert_allclose(got, want, rtol=5e-12 * 10, atol=0, err_msg=c)  # 12 digits kept
     extras = [c for c in df.columns if c not in STANDARD]
     if len(df):  # an extra column is kept per record: with no record there is nothing to keep
