@@ -8,18 +8,21 @@ fix.  :mod:`.report` prints the results; ``to_dict`` gives their ``--json`` form
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ...core.modelfile import default_model_path, save_model
-from ...errors import ConfigError
+from ...errors import ConfigError, ModelError
 from . import report
 from .figures import figure7, figure9
 from .models.classify import classify_file
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
-from .models.takuma import TakumaModel
+from .models.takuma import ANGLE_COLUMNS, EQUATIONS, FORCE_COLUMNS, TERMS, TakumaModel
 
 # Options of the rPAM analyses that mean nothing to a force run (``--set``, ``--plot`` of fit).
 SET_REFUSED = ("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
@@ -50,11 +53,37 @@ def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, m
         raise ConfigError("--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
                           "for a force run draw Figure 7 with labcli validate --plot.")
     src = load_trial_source(run, protocol)
-    model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
-                        max_amplification=max_amplification).fit(src.table, source=str(run))
+    with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
+        model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
+                            max_amplification=max_amplification).fit(src.table, source=str(run))
+    refuse_non_finite(model, src.table, str(run))
     out_path = output or default_model_path(run)
     recorded = save_model(model.to_json(), out_path, run=run if src.is_run else None, name=model.protocol)
     return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
+
+
+# The column each equation is fitted to, named in the refusal of a fit that overflowed.
+TARGET_COLUMNS = {"theta1": ANGLE_COLUMNS[0], "theta2": ANGLE_COLUMNS[1], "Fx": FORCE_COLUMNS[0],
+                  "Fy": FORCE_COLUMNS[1]}
+
+
+def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
+    """ModelError when a fitted coefficient or its uncertainty is not finite (never print inf, never write null).
+
+    The tables refuse absurd values on reading; this is the second line of defence, for
+    values finite one by one whose squares or products overflow (Fx_N = 1e308).
+    """
+    for eq in EQUATIONS:
+        bad = [k for k in TERMS[eq]
+               if not all(math.isfinite(v) for v in (model.coefficients[k], model.standard_errors[k],
+                                                    *model.ci95[k]))]
+        if bad:
+            col = TARGET_COLUMNS[eq]
+            values = np.abs(np.asarray(table[col], dtype=float))
+            largest = float(np.nanmax(values)) if np.isfinite(values).any() else math.nan
+            raise ModelError(f"The {eq} fit on {source} gives no finite value for {', '.join(bad)}: "
+                             f"its numbers overflow (largest |{col}| is {largest:g} {col.rsplit('_', 1)[1]}); "
+                             f"check the table for values beyond what the rig measures.")
 
 
 def show_fit(result: FitResult, *, as_json: bool = False) -> None:
