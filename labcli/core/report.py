@@ -22,6 +22,14 @@ def report_console(min_width: int, *, markup: bool = False) -> Any:
     return con
 
 
+def print_warnings(warnings: list[str]) -> None:
+    """Each warning on its own line of stderr, before the report (a pipe of stdout keeps only the report)."""
+    import sys
+
+    for w in warnings:
+        print(f"Warning: {w}", file=sys.stderr)
+
+
 def cell(x: Any, spec: str) -> str:
     """``x`` formatted with ``spec``, or a dash where there is no number (None, NaN, inf)."""
     if x is None or (isinstance(x, float) and not math.isfinite(x)):

@@ -64,14 +64,15 @@ def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
 
 
-def print_validation(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | None) -> None:
+def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | None) -> None:
     from rich import box
     from rich.table import Table
 
     con = report_console(110)
     how = ("forces from the calculated angles" if ev["mode"] == "pressure-only"
            else "forces from the measured angles")
-    table = Table(title=f"Validation of {model_path.name} on {run.name}: {ev['mode']} ({how})",
+    con.print(f"model: {model}", soft_wrap=True)
+    table = Table(title=f"Validation on {run.name}: {ev['mode']} ({how})",
                   title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("quantity", "n", "RMSE", "MAE", "max|err|", "bias", "R^2", "RMSE/range", "flagged"):
         table.add_column(col, justify="left" if col == "quantity" else "right")

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -34,6 +34,7 @@ import numpy as np
 from ....errors import ConfigError, ModelError
 from ....core.files import RUN_FILE_SUFFIXES
 from ....core.protocol import load_protocol, loads_protocol, shipped_protocols
+from ....core.provenance import rig_warning, run_identity, table_identity
 from ....core.store import RunFile
 from ..records import load_pushes
 from .categories import CategoryModel
@@ -293,6 +294,7 @@ class PushSource:
     table: Any
     protocol: Any
     is_run: bool
+    identity: dict = field(default_factory=dict)  # core.provenance: the data, the rig, the protocol
 
 
 def load_push_source(path: Any, protocol: str | None = None, *, measured_angles: bool = False) -> PushSource:
@@ -311,7 +313,7 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
                 f"Protocol '{proto.name}' is of kind '{proto.kind}'; a push CSV needs a push protocol "
                 f"such as {DEFAULT_PUSH_PROTOCOL}."
             )
-        return PushSource(p, load_pushes(p), proto, False)
+        return PushSource(p, load_pushes(p), proto, False, table_identity(p, proto))
 
     with RunFile.open(p) as run:
         text = run.protocol_text
@@ -328,6 +330,7 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
                 "stiffness run such as one recorded with protocol takuma2014-stiffness."
             )
         table = run.table()
+        identity = run_identity(run, p)
         if measured_angles and not all(c in table.columns for c in THETA_COLUMNS):
             theta = []
             for pid in table["push"]:
@@ -337,7 +340,7 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
             table["theta1_deg"], table["theta2_deg"] = theta[:, 0], theta[:, 1]
     proto = (loads_protocol(text, source=f"{p} (embedded protocol)") if text.strip()
              else load_protocol(name or DEFAULT_PUSH_PROTOCOL))
-    return PushSource(p, table, proto, True)
+    return PushSource(p, table, proto, True, identity)
 
 
 def stiffness_settings(protocol: Any) -> tuple[StiffnessParams, str | None]:
@@ -406,6 +409,7 @@ class ClassifyReport:
     protocol: Any
     angles: str
     force_protocol: str | None = None
+    warnings: list[str] = field(default_factory=list)  # one sentence each, printed before the report
 
     @property
     def method(self) -> str:
@@ -447,6 +451,9 @@ def classify_file(
     model_name = f"the model file {model_path}" if model_path is not None else "the model"
     check_force_model(fmodel, src.protocol, model_name=model_name, run_name=str(src.path),
                       force_protocol=force_protocol)
+    # Pushes are read under a push protocol, the model under a force one: the rig is compared, not the text.
+    warnings = [w for w in [rig_warning(cap(model_name), fmodel.fitted_on, str(src.path), src.identity,
+                                        protocol_text=False)] if w]
     table = src.table
     ref_path = None
     if reference is not None:
@@ -464,11 +471,16 @@ def classify_file(
         )
     push = src.protocol.settings.push
     bands = push.stiffness_bands_N_per_m if push is not None else None
-    result = classify_pushes(
-        table, fmodel, params=params, bands=bands or None, method=method, angles=angles,
-        allow_unusable=allow_unusable,
-    )
-    return ClassifyReport(result, src.path, model_path, ref_path, src.protocol, angles, force_protocol)
+    try:
+        result = classify_pushes(
+            table, fmodel, params=params, bands=bands or None, method=method, angles=angles,
+            allow_unusable=allow_unusable,
+        )
+    except ModelError as e:
+        if warnings:  # a model of another rig is the likeliest cause: say so with the failure
+            raise ModelError(f"{e} {warnings[0]}") from None
+        raise
+    return ClassifyReport(result, src.path, model_path, ref_path, src.protocol, angles, force_protocol, warnings)
 
 
 def _num(x: Any, scale: float = 1.0) -> float | None:
@@ -533,6 +545,7 @@ def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
         "protocol": report.protocol.name,
         "angles": report.angles,
         "method": res.method,
+        "warnings": list(report.warnings),
         "categories": res.model.to_dict(),
         "stiffness_settings": res.params.to_dict(),
         "units": {"length": "mm", "angle": "deg", "force": "N", "stiffness": "N/m"},

@@ -325,6 +325,7 @@ class TakumaModel:
     excluded_trials: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     source: str = ""
     labcli_version: str = ""
+    fitted_on: dict[str, Any] = field(default_factory=dict)  # the fit run's identity (core.provenance)
 
     def __post_init__(self) -> None:
         self.geometry = normalise_geometry(self.geometry)
@@ -542,7 +543,7 @@ class TakumaModel:
             "coefficients": self.coefficients, "standard_errors": self.standard_errors,
             "ci95": self.ci95, "covariance": self.covariance, "fit_stats": self.fit_stats,
             "fitted_trials": self.fitted_trials, "excluded_trials": self.excluded_trials,
-            "source": self.source, "labcli_version": self.labcli_version,
+            "source": self.source, "labcli_version": self.labcli_version, "fitted_on": self.fitted_on,
         })
 
     def to_json(self) -> str:
@@ -675,6 +676,7 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
         fit_stats={k: dict(v) for k, v in stats.items()},
         fitted_trials=fitted, excluded_trials=excluded,
         source=str(d.get("source", "")), labcli_version=str(d.get("labcli_version", "")),
+        fitted_on=dict(obj("fitted_on", d.get("fitted_on", {}))),
     )
 
 
