@@ -377,3 +377,16 @@ def test_demo_objects_deform_measurably_and_stay_in_the_protocol_range():
     assert [o.material for o in DEMO_OBJECTS].count("PET") == 3
     assert [o.material for o in DEMO_OBJECTS].count("aluminium") == 2
     assert [o.material for o in DEMO_OBJECTS].count("steel") == 1
+
+
+def test_the_report_piped_at_80_columns_is_plain_and_whole(lab):
+    import re
+
+    r = CliRunner(env={"COLUMNS": "80"}).invoke(cli, ["classify", str(lab["pushes"]), "--model", str(lab["model"]),
+                                                      "--method", "bands"])
+    assert r.exit_code == 0, r.output
+    assert not re.search("[\u2500-\u257f]", r.stdout)
+    assert not re.search(r"[0-9.+\-]\u2026", r.stdout) and "pet\u2026" not in r.stdout
+    data = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--method", "bands", "--json").stdout)
+    for o in data["objects"]:
+        assert o["object"] in r.stdout and f"{o['k_mean_N_per_m']:.0f}" in r.stdout

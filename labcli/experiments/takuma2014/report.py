@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ...core.report import cell, report_console
+from ...core.report import cell, print_table, report_console
 from .models.metrics import QUANTITIES
 from .models.takuma import FLAG_TEXT, SIGN_NOTE, TERMS
 
@@ -39,7 +39,7 @@ def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str
             lo, hi = model.ci95[name]
             table.add_row(name, f"{model.coefficients[name]:.5g}", f"{model.standard_errors[name]:.3g}",
                           f"[{lo:.5g}, {hi:.5g}]", cell(paper.get(name), ".6g"))
-        con.print(table)
+        print_table(con, table)
         if eq.startswith("theta"):
             fit_line = (f"R^2 {cell(st['r2'], '.5f')} ({space}), {cell(st['r2_native'], '.5f')} (deg); "
                         f"RMSE {cell(st['rmse'], '.3g')} ({space}) = {cell(st['rmse_native'], '.3g')} deg")
@@ -82,7 +82,7 @@ def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | Non
                       cell(m["max_abs"], ".3g"), cell(m["bias"], "+.2g"), cell(m["r2"], ".4f"),
                       cell(m["pct_range"], ".2f") + (" %" if m["pct_range"] is not None else ""),
                       str(m["n_flagged"]))
-    con.print(table)
+    print_table(con, table)
     con.print("Errors are calculated - observed; RMSE/range is the RMSE as a share of the observed range.",
               soft_wrap=True)
     flagged = [(i, int(t), fl) for i, (t, fl) in enumerate(zip(ev["trial"], ev["flags"])) if fl]
@@ -119,7 +119,7 @@ def print_classification(data: dict[str, Any], plot: Path | None) -> None:
             f"({cell(p['xo_mm'], '.1f')}, {cell(p['yo_mm'], '.1f')})",
             cell(p["delta_x_mm"], ".3f"), cell(p["k_N_per_m"], ".0f"), "flagged" if p["flagged"] else "",
         )
-    con.print(pushes)
+    print_table(con, pushes)
 
     method = {"bands": "stiffness bands of the protocol",
               "reference": "nearest reference class in ln k"}[data["method"]]
@@ -141,7 +141,7 @@ def print_classification(data: dict[str, Any], plot: Path | None) -> None:
         row += [o["category"] or "—", cell(None if conf is None else 100 * conf, ".0f") + (" %" if conf is not None else ""),
                 o["method"]]
         objects.add_row(*row)
-    con.print(objects)
+    print_table(con, objects)
     for o in data["objects"]:
         if o["note"]:
             con.print(f"  {o['object']}: {o['note']}", soft_wrap=True)
@@ -175,7 +175,7 @@ def print_demo(res: Any) -> None:
         coef.add_column(col, justify=just)
     for c in res.coefficients:
         coef.add_row(c["name"], f"{c['value']:.4g}", f"{c['standard_error']:.2g}", cell(c["paper"], ".4g"))
-    con.print(coef)
+    print_table(con, coef)
     con.print("Units: MPa, N, m, rad. " + " ".join(res.notes) + " The simulated rig's actuators "
               "differ from the paper's, so its coefficients differ too; the accuracy is what carries over.",
               soft_wrap=True)
@@ -194,7 +194,7 @@ def print_demo(res: Any) -> None:
         if ideal:
             row.append(cell(ideal[q]["rmse"], ".3g") if q in ideal else "—")
         acc.add_row(*row)
-    con.print(acc)
+    print_table(con, acc)
     if ideal:
         con.print("The default rig has sleeve friction, chamber leaks, thermal relaxation, potentiometer backlash "
                   "and link weight; the ideal rig (the same seed with ideal=1) has none, so the two RMSE columns "
@@ -211,7 +211,7 @@ def print_demo(res: Any) -> None:
         obj.add_row(o["object"], f"{o['n_used']}/{o['n']}", cell(o["k_mean_N_per_m"], ".0f"),
                     cell(o["k_sd_N_per_m"], ".0f"), cell(o.get("true_k_N_per_m"), ".0f"), o["category"],
                     cell(o["confidence"], ".2f"), o["category_given"] or "—")
-    con.print(obj)
+    print_table(con, obj)
     if res.classify_method == "bands":
         con.print("Stiffness bands come from the push protocol (protocols/takuma2014-stiffness.toml).",
                   soft_wrap=True)
