@@ -20,7 +20,8 @@ def report_console(min_width: int = 80, *, markup: bool = False) -> Any:
     """
     from rich.console import Console  # rich only once something is printed
 
-    return Console(highlight=False, markup=markup)
+    # soft_wrap: prose lines are never broken by rich (a path stays whole for copying); tables still fit.
+    return Console(highlight=False, markup=markup, soft_wrap=True)
 
 
 def _cell_width(cell: Any) -> int:

@@ -146,9 +146,10 @@ def test_rich_report_has_units_and_the_numbers_of_the_json(lab):
                    "mean k_o [N/m]", "sd [N/m]", "true k_o [N/m]", "confidence"):
         assert header in res.output
     assert "Objects: category by stiffness bands of the protocol" in res.output
-    lines = {line.split()[0]: line.split() for line in res.output.splitlines() if line.strip().startswith("can-steel-1 ")}
+    # At 80 columns the objects' table comes in column groups, each starting with the object's name.
+    groups = [line.split() for line in res.output.splitlines() if line.strip().startswith("can-steel-1 ")]
     steel = next(o for o in data["objects"] if o["object"] == "can-steel-1")
-    row = lines["can-steel-1"]
+    row = ["can-steel-1"] + [token for g in groups[-2:] for token in g[1:]]
     assert row[1:6] == ["unknown", "10", "0", f"{steel['k_mean_N_per_m']:.0f}", f"{steel['k_sd_N_per_m']:.0f}"]
     assert row[-4:] == ["hard", "100", "%", "bands"]
     rebuilt = sum(p["note"] == "force from Fx along O2 -> C (Fy near singular)" for p in data["pushes"])
@@ -390,3 +391,42 @@ def test_the_report_piped_at_80_columns_is_plain_and_whole(lab):
     data = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--method", "bands", "--json").stdout)
     for o in data["objects"]:
         assert o["object"] in r.stdout and f"{o['k_mean_N_per_m']:.0f}" in r.stdout
+
+
+def test_categories_report_their_evidence(lab, tmp_path):
+    """An object between two classes or beyond every class is "uncertain"; a lone reference is "in-sample"."""
+    push = lab["push_protocol"]
+    rig = SimRig(seed=SEED)
+    odd = [SimObject("between-1", "aluminium", 0.033, 1100.0, 0.015, "unknown"),
+           SimObject("beyond-1", "steel", 0.037, 40000.0, 0.020, "unknown")]
+    table = simulate_pushes(rig, odd, calibration=push.calibration, first_push=2001)
+    write_push_csv(table, tmp_path / "odd.csv")
+    r = run("classify", tmp_path / "odd.csv", "--model", lab["model"], "--reference", lab["refs"], "--json")
+    assert r.exit_code == 0, r.output
+    objects = {o["object"]: o for o in json.loads(r.stdout)["objects"]}
+    between, beyond = objects["between-1"], objects["beyond-1"]
+    assert between["evidence"] == "uncertain" and beyond["evidence"] == "uncertain"
+    assert set(between["z_by_category"]) == {"soft", "medium", "hard"}
+    z = sorted(abs(v) for v in between["z_by_category"].values())
+    assert 0.5 * (z[1] ** 2 - z[0] ** 2) < math.log(10)  # the two nearest classes are close
+    assert min(abs(v) for v in beyond["z_by_category"].values()) > 3  # outside every class
+    for name in ("ref-pet-a", "ref-al-a", "ref-steel-a"):
+        assert objects[name]["evidence"] == ""  # two references per class: judged on the others
+    text = run("classify", tmp_path / "odd.csv", "--model", lab["model"], "--reference", lab["refs"]).stdout
+    assert f"uncertain ({between['category']})" in text and f"uncertain ({beyond['category']})" in text
+    assert "between-1: " in text and "Distance to each category (z, in class spreads of ln k):" in text
+
+
+def test_the_only_reference_of_its_class_is_in_sample(lab, tmp_path):
+    """The demo's objects labelled: the steel can is the only hard reference, scored against itself."""
+    table = simulate_pushes(SimRig(seed=SEED), DEMO_OBJECTS, calibration=lab["push_protocol"].calibration,
+                            labelled=True)
+    write_push_csv(table, tmp_path / "labelled.csv")
+    r = run("classify", tmp_path / "labelled.csv", "--model", lab["model"], "--method", "reference", "--json")
+    assert r.exit_code == 0, r.output
+    objects = json.loads(r.stdout)["objects"]
+    steel = [o for o in objects if o["category_given"] == "hard"]
+    assert len(steel) == 1 and steel[0]["evidence"] == "in-sample"
+    assert all(o["evidence"] != "in-sample" for o in objects if o["category_given"] != "hard")
+    text = run("classify", tmp_path / "labelled.csv", "--model", lab["model"], "--method", "reference").stdout
+    assert f"{steel[0]['category']} (in-sample)" in text

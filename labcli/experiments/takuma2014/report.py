@@ -138,13 +138,16 @@ def print_classification(data: dict[str, Any], plot: Path | None) -> None:
                cell(rel, ".1f")]
         row += [cell(o.get("true_k_N_per_m"), ".0f")] if has_true else []
         conf = o["confidence"]
-        row += [o["category"] or "—", cell(None if conf is None else 100 * conf, ".0f") + (" %" if conf is not None else ""),
+        row += [category_text(o), cell(None if conf is None else 100 * conf, ".0f") + (" %" if conf is not None else ""),
                 o["method"]]
         objects.add_row(*row)
     print_table(con, objects)
+    unit = "class spreads of ln k" if data["method"] == "reference" else "the object's spread of ln k outside each band"
+    con.print(f"Distance to each category (z, in {unit}):", soft_wrap=True)
     for o in data["objects"]:
-        if o["note"]:
-            con.print(f"  {o['object']}: {o['note']}", soft_wrap=True)
+        z = ", ".join(f"{c} {cell(v, '+.1f')}" for c, v in o.get("z_by_category", {}).items())
+        note = f"; {o['note']}" if o["note"] else ""
+        con.print(f"  {o['object']}: {z or '—'}{note}", soft_wrap=True)
     flagged = [p for p in data["pushes"] if p["flagged"]]
     if flagged:
         con.print(f"{len(flagged)} push(es) flagged and kept out of the statistics:", soft_wrap=True)
@@ -156,6 +159,16 @@ def print_classification(data: dict[str, Any], plot: Path | None) -> None:
         con.print(f"{n} push(es): {note}.", soft_wrap=True)
     if plot is not None:
         con.print(f"Figure 9 written to {plot}.")
+
+
+def category_text(o: dict[str, Any]) -> str:
+    """An object's category with its evidence: ``hard``, ``hard (in-sample)``, ``uncertain (medium)``."""
+    cat, evidence = o.get("category") or "", o.get("evidence") or ""
+    if evidence == "uncertain":
+        return f"uncertain ({cat})" if cat else "uncertain"
+    if evidence == "in-sample":
+        return f"{cat} (in-sample)"
+    return cat or "—"
 
 
 def print_demo(res: Any) -> None:
@@ -209,7 +222,7 @@ def print_demo(res: Any) -> None:
                        no_wrap=col == "object")
     for o in res.objects:
         obj.add_row(o["object"], f"{o['n_used']}/{o['n']}", cell(o["k_mean_N_per_m"], ".0f"),
-                    cell(o["k_sd_N_per_m"], ".0f"), cell(o.get("true_k_N_per_m"), ".0f"), o["category"],
+                    cell(o["k_sd_N_per_m"], ".0f"), cell(o.get("true_k_N_per_m"), ".0f"), category_text(o),
                     cell(o["confidence"], ".2f"), o["category_given"] or "—")
     print_table(con, obj)
     if res.classify_method == "bands":

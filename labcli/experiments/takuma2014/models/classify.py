@@ -253,7 +253,8 @@ def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use:
         top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
         if not allow_unusable:
             raise ModelError(f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top}).")
-        row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})")
+        row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})",
+                   evidence="uncertain", z_by_category={})
         return row
     scorer, note = cat_model, ""
     if cat_model.method == "reference" and known:
@@ -276,6 +277,9 @@ def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use:
         z=float(p.z[0]),
         method=p.method,
         note="; ".join(t for t in (note, p.note[0]) if t),
+        # in-sample first: a class scored against its own only reference proves nothing
+        evidence="in-sample" if note.startswith("in-sample") else p.evidence[0],
+        z_by_category=p.distances[0],
     )
     return row
 
@@ -534,6 +538,8 @@ def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
             "log_k_mean": _num(row["log_k_mean"]), "log_k_sd": _num(row["log_k_std"]),
             "category": str(row.get("category") or ""), "confidence": _num(row.get("confidence")),
             "z": _num(row.get("z")), "method": str(row.get("method") or res.method), "note": str(row.get("note") or ""),
+            "evidence": str(row.get("evidence") or ""),
+            "z_by_category": {str(c): _num(v) for c, v in dict(row.get("z_by_category") or {}).items()},
         }
         if "true_k_N_per_m" in row:
             item["true_k_N_per_m"] = _num(row["true_k_N_per_m"])
