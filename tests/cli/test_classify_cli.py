@@ -430,3 +430,25 @@ def test_the_only_reference_of_its_class_is_in_sample(lab, tmp_path):
     assert all(o["evidence"] != "in-sample" for o in objects if o["category_given"] != "hard")
     text = run("classify", tmp_path / "labelled.csv", "--model", lab["model"], "--method", "reference").stdout
     assert f"{steel[0]['category']} (in-sample)" in text
+
+
+def test_many_pushes_are_summarised_per_object_and_listed_on_request(lab, tmp_path):
+    table = lab["table"]
+    many = pd.concat([table, table.assign(push=table["push"] + 1000)], ignore_index=True)  # 120 pushes
+    write_push_csv(many, tmp_path / "many.csv")
+    r = run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands")
+    assert r.exit_code == 0, r.output
+    assert "120 pushes of many.csv (angles and force from the pressures) on 6 objects; list them with --pushes." \
+        in r.stdout
+    assert "theta1 [deg]" not in r.stdout and "Objects: category by" in r.stdout
+    listed = run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands", "--pushes")
+    assert "theta1 [deg]" in listed.stdout and "1060 " in listed.stdout
+    data = json.loads(run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands",
+                          "--json").stdout)
+    assert data["n_pushes"] == 120 and len(data["pushes"]) == 120 and len(data["objects"]) == 6
+    small = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--method", "bands", "--json").stdout)
+    # the same objects from twice the same pushes: the same means, the streamed JSON the same fields
+    for a, b in zip(small["objects"], data["objects"]):
+        assert a["object"] == b["object"] and a["k_mean_N_per_m"] == pytest.approx(b["k_mean_N_per_m"])
+        assert b["n"] == 2 * a["n"]
+    assert set(data["pushes"][0]) == set(small["pushes"][0])

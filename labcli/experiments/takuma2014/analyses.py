@@ -22,7 +22,7 @@ from ...core.store import RunFile
 from ...errors import ConfigError, ModelError
 from . import report
 from .figures import figure7, figure9
-from .models.classify import classify_file
+from .models.classify import classify_file, flag_summary, object_items, push_items, report_header, write_report_json
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
 from .models.takuma import ANGLE_COLUMNS, EQUATIONS, FORCE_COLUMNS, TERMS, TakumaModel, cap
@@ -213,9 +213,20 @@ def classify(pushes: Path, *, model_path: Path, reference: Path | None = None, m
     return ClassificationResult(result, plot)
 
 
-def show_classification(result: ClassificationResult, *, as_json: bool = False) -> None:
+# The human report lists every push up to this many; beyond, a summary per object (--pushes lists them).
+PUSH_LIST_LIMIT = 60
+
+
+def show_classification(result: ClassificationResult, *, as_json: bool = False, pushes: bool = False) -> None:
+    """Print the classification: JSON streamed push by push, or the report (pushes listed when few)."""
+    import sys
+
     print_warnings(result.report.warnings)
     if as_json:
-        print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
+        write_report_json(result.report, sys.stdout, {"plot": str(result.plot) if result.plot else None})
         return
-    report.print_classification(result.report.to_dict(), result.plot)
+    rep = result.report
+    data = {**report_header(rep), "objects": object_items(rep)}
+    listed = pushes or data["n_pushes"] <= PUSH_LIST_LIMIT
+    report.print_classification(data, result.plot, list(push_items(rep)) if listed else None,
+                                flag_summary(rep.result.pushes))

@@ -97,29 +97,20 @@ def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | Non
         con.print(f"Figure 7 written to {plot}.")
 
 
-def print_classification(data: dict[str, Any], plot: Path | None) -> None:
+def print_classification(data: dict[str, Any], plot: Path | None, pushes: list[dict[str, Any]] | None,
+                         flags: dict[str, Any]) -> None:
+    """The objects' summary, and the pushes one by one when ``pushes`` is given (few, or --pushes)."""
     from rich import box
     from rich.table import Table
 
     con = report_console(160)
     angles = ("angles and force from the pressures" if data["angles"] == "pressure-only"
               else "angles from the potentiometers, force from the pressures")
-    pushes = Table(title=f"Pushes of {Path(data['pushes_file']).name}: {angles} (* = phi solved)",
-                   title_justify="left", box=box.SIMPLE_HEAD)
-    cols = ("push", "object", "theta1 [deg]", "theta2 [deg]", "Fx [N]", "Fy [N]", "C [mm]", "phi [deg]",
-            "O2 [mm]", "delta_x [mm]", "k_o [N/m]", "")
-    for c in cols:
-        pushes.add_column(c, justify="left" if c in ("object", "") else "right")
-    for p in data["pushes"]:
-        phi = cell(p["phi_deg"], ".1f") + ("*" if p["phi_solved"] else "")
-        pushes.add_row(
-            str(p["push"]), p["object"], cell(p["theta1_deg"], ".3f"), cell(p["theta2_deg"], ".3f"),
-            cell(p["Fx_N"], ".3f"), cell(p["Fy_N"], ".3f"),
-            f"({cell(p['xc_mm'], '.1f')}, {cell(p['yc_mm'], '.1f')})", phi,
-            f"({cell(p['xo_mm'], '.1f')}, {cell(p['yo_mm'], '.1f')})",
-            cell(p["delta_x_mm"], ".3f"), cell(p["k_N_per_m"], ".0f"), "flagged" if p["flagged"] else "",
-        )
-    print_table(con, pushes)
+    if pushes is not None:
+        _print_pushes(con, pushes, f"Pushes of {Path(data['pushes_file']).name}: {angles} (* = phi solved)")
+    else:
+        con.print(f"{data['n_pushes']} pushes of {Path(data['pushes_file']).name} ({angles}) on "
+                  f"{len(data['objects'])} objects; list them with --pushes.")
 
     method = {"bands": "stiffness bands of the protocol",
               "reference": "nearest reference class in ln k"}[data["method"]]
@@ -148,17 +139,40 @@ def print_classification(data: dict[str, Any], plot: Path | None) -> None:
         z = ", ".join(f"{c} {cell(v, '+.1f')}" for c, v in o.get("z_by_category", {}).items())
         note = f"; {o['note']}" if o["note"] else ""
         con.print(f"  {o['object']}: {z or '—'}{note}", soft_wrap=True)
-    flagged = [p for p in data["pushes"] if p["flagged"]]
-    if flagged:
-        con.print(f"{len(flagged)} push(es) flagged and kept out of the statistics:", soft_wrap=True)
-        for p in flagged:
-            con.print(f"  push {p['push']} ({p['object']}): {p['reason']}", soft_wrap=True)
-    notes = sorted({p["note"] for p in data["pushes"] if p["note"] and not p["flagged"]})
-    for note in notes:
-        n = sum(1 for p in data["pushes"] if p["note"] == note and not p["flagged"])
+    if flags["n_flagged"]:
+        con.print(f"{flags['n_flagged']} push(es) flagged and kept out of the statistics:", soft_wrap=True)
+        if pushes is not None:
+            for p in pushes:
+                if p["flagged"]:
+                    con.print(f"  push {p['push']} ({p['object']}): {p['reason']}", soft_wrap=True)
+        else:
+            for reason, n in flags["reasons"].items():
+                con.print(f"  {n} push(es): {reason}", soft_wrap=True)
+    for note, n in sorted(flags["notes"].items()):
         con.print(f"{n} push(es): {note}.", soft_wrap=True)
     if plot is not None:
         con.print(f"Figure 9 written to {plot}.")
+
+
+def _print_pushes(con: Any, pushes: list[dict[str, Any]], title: str) -> None:
+    from rich import box
+    from rich.table import Table
+
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD)
+    cols = ("push", "object", "theta1 [deg]", "theta2 [deg]", "Fx [N]", "Fy [N]", "C [mm]", "phi [deg]",
+            "O2 [mm]", "delta_x [mm]", "k_o [N/m]", "")
+    for c in cols:
+        table.add_column(c, justify="left" if c in ("object", "") else "right")
+    for p in pushes:
+        phi = cell(p["phi_deg"], ".1f") + ("*" if p["phi_solved"] else "")
+        table.add_row(
+            str(p["push"]), p["object"], cell(p["theta1_deg"], ".3f"), cell(p["theta2_deg"], ".3f"),
+            cell(p["Fx_N"], ".3f"), cell(p["Fy_N"], ".3f"),
+            f"({cell(p['xc_mm'], '.1f')}, {cell(p['yc_mm'], '.1f')})", phi,
+            f"({cell(p['xo_mm'], '.1f')}, {cell(p['yo_mm'], '.1f')})",
+            cell(p["delta_x_mm"], ".3f"), cell(p["k_N_per_m"], ".0f"), "flagged" if p["flagged"] else "",
+        )
+    print_table(con, table)
 
 
 def category_text(o: dict[str, Any]) -> str:

@@ -27,7 +27,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import IO, Any, Iterator, Mapping
 
 import numpy as np
 
@@ -508,25 +508,34 @@ PUSH_FIELDS: tuple[tuple[str, str, float], ...] = (
 )
 
 
-def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
-    """The report as plain data (JSON-ready; NaN becomes None; mm, deg, N, N/m in the key names)."""
+def _push_item(row: Mapping[str, Any]) -> dict[str, Any]:
+    item: dict[str, Any] = {"push": int(row["push"]), "object": str(row["object"])}
+    if "source" in row:
+        item["source"] = str(row["source"])
+    item["category_given"] = "" if not isinstance(row.get("category"), str) else row["category"]
+    for key, col, scale in PUSH_FIELDS:
+        item[key] = _num(row.get(col), scale)
+    item["phi_solved"] = bool(row["phi_solved"])
+    item["n_phi_solutions"] = int(row["n_phi_solutions"])
+    item["flagged"] = bool(row["flag"])
+    item["reason"] = str(row["reason"])
+    item["note"] = str(row["note"])
+    if TRUE_K in row:
+        item["true_k_N_per_m"] = _num(row[TRUE_K])
+    return item
+
+
+def push_items(report: ClassifyReport, chunk: int = 10_000) -> Iterator[dict[str, Any]]:
+    """Every push as plain data, a chunk of rows at a time (memory stays flat for any number of pushes)."""
+    df = report.result.pushes
+    for start in range(0, len(df), chunk):
+        for row in df.iloc[start:start + chunk].to_dict("records"):
+            yield _push_item(row)
+
+
+def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
+    """Every object's summary as plain data (one per object: small)."""
     res = report.result
-    pushes = []
-    for row in res.pushes.to_dict("records"):
-        item: dict[str, Any] = {"push": int(row["push"]), "object": str(row["object"])}
-        if "source" in row:
-            item["source"] = str(row["source"])
-        item["category_given"] = "" if not isinstance(row.get("category"), str) else row["category"]
-        for key, col, scale in PUSH_FIELDS:
-            item[key] = _num(row.get(col), scale)
-        item["phi_solved"] = bool(row["phi_solved"])
-        item["n_phi_solutions"] = int(row["n_phi_solutions"])
-        item["flagged"] = bool(row["flag"])
-        item["reason"] = str(row["reason"])
-        item["note"] = str(row["note"])
-        if TRUE_K in row:
-            item["true_k_N_per_m"] = _num(row[TRUE_K])
-        pushes.append(item)
     objects = []
     for row in res.objects.to_dict("records"):
         item = {
@@ -544,6 +553,12 @@ def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
         if "true_k_N_per_m" in row:
             item["true_k_N_per_m"] = _num(row["true_k_N_per_m"])
         objects.append(item)
+    return objects
+
+
+def report_header(report: ClassifyReport) -> dict[str, Any]:
+    """What the report says besides its pushes and objects: files, protocol, method, categories, settings."""
+    res = report.result
     return {
         "pushes_file": str(report.pushes_path),
         "model_file": None if report.model_path is None else str(report.model_path),
@@ -555,6 +570,35 @@ def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
         "categories": res.model.to_dict(),
         "stiffness_settings": res.params.to_dict(),
         "units": {"length": "mm", "angle": "deg", "force": "N", "stiffness": "N/m"},
-        "pushes": pushes,
-        "objects": objects,
+        "n_pushes": int(len(res.pushes)),
     }
+
+
+def flag_summary(pushes: Any) -> dict[str, Any]:
+    """How many pushes are flagged (by reason) and how many carry each note, without listing them."""
+    flagged = pushes["flag"].to_numpy(dtype=bool)
+    reasons = pushes.loc[flagged, "reason"].astype(str).value_counts()
+    notes = pushes.loc[~flagged & (pushes["note"].astype(str) != ""), "note"].astype(str).value_counts()
+    return {"n_flagged": int(flagged.sum()), "reasons": {str(k): int(v) for k, v in reasons.items()},
+            "notes": {str(k): int(v) for k, v in notes.items()}}
+
+
+def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
+    """The report as plain data (JSON-ready; NaN becomes None; mm, deg, N, N/m in the key names)."""
+    return {**report_header(report), "pushes": list(push_items(report)), "objects": object_items(report)}
+
+
+def write_report_json(report: ClassifyReport, out: IO[str], extra: Mapping[str, Any] | None = None) -> None:
+    """The JSON of :func:`report_to_dict`, streamed: one push per line, never all pushes in memory at once."""
+    import json
+
+    head = {**report_header(report), **(extra or {})}
+    out.write("{\n")
+    for key, value in head.items():
+        out.write(f"  {json.dumps(key)}: {json.dumps(value, allow_nan=False)},\n")
+    out.write('  "objects": ' + json.dumps(object_items(report), allow_nan=False) + ',\n  "pushes": [')
+    sep = "\n    "
+    for item in push_items(report):
+        out.write(sep + json.dumps(item, allow_nan=False))
+        sep = ",\n    "
+    out.write("\n  ]\n}\n")
