@@ -39,8 +39,9 @@ def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, p
     RUN is a run file (.h5) or a trial CSV.  The model is --model, else RUN.model.json beside
     the run, else the model the run file records (/models/<protocol>); the report names it.
     Validation trials the model was fitted on are refused unless --allow-overlap; a model
-    fitted on another rig or under other protocol settings gets a warning.  Reports RMSE, MAE, max |error|, bias, R^2 and
-    RMSE as a share of the observed range for theta1, theta2 (deg) and Fx, Fy (N).
+    fitted on another rig or under other protocol settings gets a warning.  Reports RMSE,
+    MAE, max |error|, bias, R^2 and RMSE as a share of the observed range for theta1,
+    theta2 (deg) and Fx, Fy (N).
     On an rPAM joint-map run it compares the measured angles with the model without and
     with the stretch correction (--model: the stretch fit; default: the protocol's own),
     and --plot draws the rPAM paper's Figure 8.

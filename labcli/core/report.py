@@ -12,11 +12,11 @@ import math
 from typing import Any
 
 
-def report_console(min_width: int = 80, *, markup: bool = False) -> Any:
+def report_console(*, markup: bool = False) -> Any:
     """A rich console for a report, as wide as the terminal (COLUMNS, else 80 when piped).
 
-    ``min_width`` is what the report's widest table needs side by side; narrower
-    consoles get it in column groups (:func:`print_table`), never a truncated number.
+    A table wider than that prints in column groups (:func:`print_table`), never with a
+    number cut short.
     """
     from rich.console import Console  # rich only once something is printed
 

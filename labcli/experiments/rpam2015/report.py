@@ -21,7 +21,7 @@ def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Pat
     from rich.table import Table
 
     m = fit.model
-    con = report_console(110)
+    con = report_console()
     table = Table(title="Eq. 7 stretch correction F_stretch = c0 + c1 lambda + c2 lambda^2 + c3 lambda^3 (N)",
                   title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("coefficient", "fitted (N)", "std. error (N)", "95% interval (N)", "protocol's default (N)"):
@@ -50,7 +50,7 @@ def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path 
     from rich import box
     from rich.table import Table
 
-    con = report_console(110)
+    con = report_console()
     table = Table(title=f"Joint map of {run.name} against the model (Fig. 8); errors are model - measured",
                   title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("F_stretch", "points compared", "toggles", "on the stop", "RMSE (deg)", "max |error| (deg)",
@@ -174,7 +174,7 @@ def print_demo(res: Any) -> None:
     from rich import box
     from rich.table import Table
 
-    con = report_console(100, markup=True)
+    con = report_console(markup=True)
     s = res.stretch
     con.print(f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
               f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "

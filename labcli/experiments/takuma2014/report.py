@@ -19,7 +19,7 @@ def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str
     from rich import box
     from rich.table import Table
 
-    con = report_console(110)
+    con = report_console()
     titles = {
         "theta1": ("Eq. 34  sin(theta1)", "1, dimensionless", "sin(theta1)"),
         "theta2": ("Eq. 35  sin(theta2)", "1, dimensionless", "sin(theta2)"),
@@ -68,7 +68,7 @@ def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | Non
     from rich import box
     from rich.table import Table
 
-    con = report_console(110)
+    con = report_console()
     how = ("forces from the calculated angles" if ev["mode"] == "pressure-only"
            else "forces from the measured angles")
     con.print(f"model: {model}", soft_wrap=True)
@@ -103,7 +103,7 @@ def print_classification(data: dict[str, Any], plot: Path | None, pushes: list[d
     from rich import box
     from rich.table import Table
 
-    con = report_console(160)
+    con = report_console()
     angles = ("angles and force from the pressures" if data["angles"] == "pressure-only"
               else "angles from the potentiometers, force from the pressures")
     if pushes is not None:
@@ -190,7 +190,7 @@ def print_demo(res: Any) -> None:
     from rich import box
     from rich.table import Table
 
-    con = report_console(100, markup=True)
+    con = report_console(markup=True)
     tr = res.trials
     con.print(f"[bold]labcli demo[/bold] on the simulated rig (seed {res.seed}): "
               f"{tr['fit'] + tr['validation']} force trials ({tr['fit']} fit, {tr['validation']} validation), "

@@ -28,6 +28,12 @@ Two methods, and every result says which one was used:
     confidence is the fraction of its pushes whose own stiffness lies in that
     band.  Means outside every band give the category "" and confidence 0.
 
+Either way each object also gets its evidence: the distance to every class (z above;
+for bands, how far ln of its mean lies outside each band in its own spread of ln k), and
+"uncertain" when it lies outside every class or between two close ones (see Z_OUTSIDE,
+CLOSE_RATIO, BAND_CLOSE_Z).  The classifier adds "in-sample" for an object that was its
+class's only reference.
+
 Parameters are plain data: :meth:`CategoryModel.to_dict` / ``to_json`` and
 ``from_dict`` / ``from_json`` round-trip them (an open upper bound is written
 as ``null``).
@@ -223,7 +229,7 @@ class CategoryModel:
         return {c: (m - s["mean_log_k"]) / self.std_log_k for c, s in self.classes.items()}
 
     def _band_distances(self, k: np.ndarray) -> dict[str, float]:
-        """How far the object's mean ln k lies outside each band, in its own spread of ln k (0 inside)."""
+        """How far ln(mean k) lies outside each band, in the object's own spread of ln k (0 inside)."""
         logs = np.log(k)
         m = float(np.log(k.mean()))
         spread = max(float(logs.std(ddof=1)) if k.size > 1 else 0.0, self.min_std_log_k)
