@@ -394,34 +394,48 @@ def test_the_report_piped_at_80_columns_is_plain_and_whole(lab):
 
 
 def test_categories_report_their_evidence(lab, tmp_path):
-    """An object between two classes or beyond every class is "uncertain"; a lone reference is "in-sample"."""
+    """Every object carries its distance to each class, and "uncertain" exactly when the rule says so."""
     push = lab["push_protocol"]
-    rig = SimRig(seed=SEED)
-    odd = [SimObject("between-1", "aluminium", 0.033, 1100.0, 0.015, "unknown"),
-           SimObject("beyond-1", "steel", 0.037, 40000.0, 0.020, "unknown")]
-    table = simulate_pushes(rig, odd, calibration=push.calibration, first_push=2001)
-    write_push_csv(table, tmp_path / "odd.csv")
+    odd = [SimObject("between-1", "PET", 0.033, 1000.0, 0.010, "unknown")]
+    write_push_csv(simulate_pushes(SimRig(seed=SEED), odd, calibration=push.calibration, first_push=2001),
+                   tmp_path / "odd.csv")
     r = run("classify", tmp_path / "odd.csv", "--model", lab["model"], "--reference", lab["refs"], "--json")
     assert r.exit_code == 0, r.output
     objects = {o["object"]: o for o in json.loads(r.stdout)["objects"]}
-    between, beyond = objects["between-1"], objects["beyond-1"]
-    assert between["evidence"] == "uncertain" and beyond["evidence"] == "uncertain"
-    assert set(between["z_by_category"]) == {"soft", "medium", "hard"}
-    z = sorted(abs(v) for v in between["z_by_category"].values())
-    assert 0.5 * (z[1] ** 2 - z[0] ** 2) < math.log(10)  # the two nearest classes are close
-    assert min(abs(v) for v in beyond["z_by_category"].values()) > 3  # outside every class
+    for o in objects.values():
+        assert set(o["z_by_category"]) == {"soft", "medium", "hard"}
+        z = sorted(abs(v) for v in o["z_by_category"].values())
+        rule = z[0] > 3 or 0.5 * (z[1] ** 2 - z[0] ** 2) < math.log(10)
+        assert (o["evidence"] == "uncertain") == rule, o
     for name in ("ref-pet-a", "ref-al-a", "ref-steel-a"):
-        assert objects[name]["evidence"] == ""  # two references per class: judged on the others
+        assert objects[name]["evidence"] != "in-sample"  # two references per class: judged on the others
     text = run("classify", tmp_path / "odd.csv", "--model", lab["model"], "--reference", lab["refs"]).stdout
-    assert f"uncertain ({between['category']})" in text and f"uncertain ({beyond['category']})" in text
-    assert "between-1: " in text and "Distance to each category (z, in class spreads of ln k):" in text
+    assert "between-1: hard " in text and "Distance to each category (z, in class spreads of ln k):" in text
+    for o in objects.values():
+        if o["evidence"] == "uncertain":
+            assert f"uncertain ({o['category']})" in text
+
+
+def test_an_object_outside_every_class_is_uncertain():
+    from labcli.experiments.takuma2014.models.categories import CategoryModel
+
+    rng = np.random.default_rng(1)
+    k = np.concatenate([rng.lognormal(np.log(500), 0.1, 10), rng.lognormal(np.log(2000), 0.1, 10)])
+    model = CategoryModel("reference").fit(k, ["soft"] * 10 + ["medium"] * 10)
+    p = model.predict([np.full(5, 20000.0), np.full(5, 2000.0)])
+    assert p.category == ["medium", "medium"] and p.evidence == ["uncertain", ""]
+    assert min(abs(v) for v in p.distances[0].values()) > 3
+    bands = CategoryModel.from_bands({"soft": [0, 800], "medium": [800, 3000]})
+    q = bands.predict([np.full(5, 5000.0), [790.0, 810.0, 795.0], np.full(5, 400.0)])
+    assert q.category == ["", "soft", "soft"] and q.evidence == ["uncertain", "uncertain", ""]
+    assert q.distances[2] == {"soft": 0.0, "medium": pytest.approx(np.log(800 / 400) / 0.05)}
 
 
 def test_the_only_reference_of_its_class_is_in_sample(lab, tmp_path):
-    """The demo's objects labelled: the steel can is the only hard reference, scored against itself."""
-    table = simulate_pushes(SimRig(seed=SEED), DEMO_OBJECTS, calibration=lab["push_protocol"].calibration,
-                            labelled=True)
-    write_push_csv(table, tmp_path / "labelled.csv")
+    """The reference set with one steel can left: that can is the only hard reference, scored against itself."""
+    refs = pd.read_csv(lab["refs"])
+    refs = refs[refs["object"] != "ref-steel-b"]
+    write_push_csv(refs, tmp_path / "labelled.csv")
     r = run("classify", tmp_path / "labelled.csv", "--model", lab["model"], "--method", "reference", "--json")
     assert r.exit_code == 0, r.output
     objects = json.loads(r.stdout)["objects"]
