@@ -1,5 +1,5 @@
 """Bad-input cases of the analyses: model files with numbers or nesting no parser should meet,
-a model with a coefficient the equations do not have, a fit that overflows, an optimiser seed
+a model with a coefficient the equations do not have, an optimiser seed
 out of the generator's range."""
 
 from __future__ import annotations
@@ -19,15 +19,6 @@ def coefficient_text(digits: int) -> Callable[[Path], bytes]:
         text = (world / "run.model.json").read_text()
         return re.sub(r'"beta_Fx1": [^,\n]+', '"beta_Fx1": ' + "1" * digits, text, count=1).encode()
     return make
-
-
-def big_force(world: Path) -> bytes:
-    """All of trials.csv, with Fx_N = 1e308 on its second trial (finite, but its square overflows)."""
-    lines = (world / "trials.csv").read_text().splitlines()
-    header, row = lines[0].split(","), lines[2].split(",")
-    row[header.index("Fx_N")] = "1e308"
-    lines[2] = ",".join(row)
-    return ("\n".join(lines) + "\n").encode()
 
 
 CASES: list[Case] = [
@@ -57,12 +48,6 @@ CASES: list[Case] = [
          ["The model file m.json has an unknown coefficient, beta_Fy7 (Eqs. 34-37 have beta_theta1_L1 to "
           "beta_Fy6); refit with `labcli fit`."],
          files={"m.json": model_edit(lambda d: d["coefficients"].update(beta_Fy7=1.0))}),
-    Case("trial-force-overflow", "trial CSV", "Fx_N = 1e308: the fit overflows",
-         ["fit", "big.csv", "-o", "big.json"],
-         ["The Fx fit on big.csv gives no finite value for beta_Fx1, beta_Fx2, beta_Fx3, beta_Fx4, beta_Fx5, "
-          "beta_Fx6: its numbers overflow (largest |Fx_N| is 1e+308 N); check the table for values beyond "
-          "what the rig measures."],
-         files={"big.csv": big_force}),
     Case("arg-optimize-negative-seed", "CLI argument", "--seed -1 (optimize)",
          ["optimize", "--seed", "-1"],
          ["Invalid value for '--seed': -1 is outside the seed's range; give a whole number from 0 to 4294967295."],
