@@ -16,12 +16,15 @@ def _reading(value: float, unit: str, extra_digits: int = 0) -> str:
     return f"{value:.{digits}f} {unit}"
 
 
-def _render(snap: Any, scale: Any, info: Any) -> Any:
+def _render(snap: Any, scale: Any, info: Any, plain: bool = False) -> Any:
+    """The live table; ``plain`` (stdout not a terminal): no box drawing."""
+    from rich import box
     from rich.console import Group
     from rich.table import Table
     from rich.text import Text
 
-    table = Table(title=f"{info.device} {info.firmware} on {info.port} at {snap.rate_hz:g} Hz", title_justify="left")
+    table = Table(title=f"{info.device} {info.firmware} on {info.port} at {snap.rate_hz:g} Hz", title_justify="left",
+                  box=None if plain else box.HEAVY_HEAD)
     table.add_column("channel")
     table.add_column("now", justify="right")
     table.add_column("mean", justify="right")
@@ -101,7 +104,7 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
                 with Live(console=console, refresh_per_second=4, transient=False) as live:
                     summary = watch(
                         dev, scale, rate_hz=rate_hz, seconds=seconds,
-                        on_update=lambda snap: live.update(_render(snap, scale, dev.info)),
+                        on_update=lambda snap: live.update(_render(snap, scale, dev.info, not console.is_terminal)),
                     )
                 if not console.is_terminal:
                     console.line()  # the last frame of a non-terminal Live ends mid-line

@@ -19,10 +19,19 @@ def _kpa(value: float | None, name: str) -> float | None:
     return value
 
 
+SEED_MAX = 2**32 - 1  # the search's random generator takes seeds 0 to 2**32 - 1
+
+
+def _seed(ctx: click.Context, param: click.Parameter, value: int | None) -> int | None:
+    if value is not None and not 0 <= value <= SEED_MAX:
+        raise click.BadParameter(f"{value} is outside the seed's range; give a whole number from 0 to {SEED_MAX}.")
+    return value
+
+
 @click.command()
 @click.option("--protocol", "protocol", default=DEFAULT_PROTOCOL, show_default=True,
               help="rPAM protocol: a .toml path or a shipped name.")
-@click.option("--seed", type=int, default=None, help="Seed of the search (default: the protocol's).")
+@click.option("--seed", type=int, default=None, callback=_seed, help="Seed of the search (default: the protocol's).")
 @click.option("--pa", "pa_kpa", type=float, default=None, metavar="KPA", help="Pressure of actuator a, kPa (default: the protocol's, 96).")
 @click.option("--pb", "pb_kpa", type=float, default=None, metavar="KPA", help="Pressure of actuator b, kPa (default: the protocol's, 41).")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",

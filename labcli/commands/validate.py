@@ -25,17 +25,23 @@ DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol
               help="Write Figure 7 (observed vs calculated) to this .png, .pdf or .svg file.")
 @click.option("--protocol", default=None,
               help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.")
+@click.option("--allow-overlap", is_flag=True,
+              help="Validate even when validation trials were used to fit the model (a warning says how many).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the metrics and every validation trial's observed and calculated values as JSON.")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
               help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
                    "(repeatable; the run file keeps its own).")
 def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, protocol: str | None,
-             as_json: bool, overrides: tuple[str, ...]) -> None:
+             allow_overlap: bool, as_json: bool, overrides: tuple[str, ...]) -> None:
     """Check a fitted model on the validation trials of RUN (the paper's Figure 7).
 
-    RUN is a run file (.h5) or a trial CSV.  Reports RMSE, MAE, max |error|, bias, R^2 and
-    RMSE as a share of the observed range for theta1, theta2 (deg) and Fx, Fy (N).
+    RUN is a run file (.h5) or a trial CSV.  The model is --model, else RUN.model.json beside
+    the run, else the model the run file records (/models/<protocol>); the report names it.
+    Validation trials the model was fitted on are refused unless --allow-overlap; a model
+    fitted on another rig or under other protocol settings gets a warning.  Reports RMSE,
+    MAE, max |error|, bias, R^2 and RMSE as a share of the observed range for theta1,
+    theta2 (deg) and Fx, Fy (N).
     On an rPAM joint-map run it compares the measured angles with the model without and
     with the stretch correction (--model: the stretch fit; default: the protocol's own),
     and --plot draws the rPAM paper's Figure 8.
@@ -49,7 +55,7 @@ def validate(run: Path, model_path: Path | None, mode: str, plot: Path | None, p
     try:
         analysis = for_analysis("validate", inputs=[run], default_protocol=DEFAULT_PROTOCOL).analysis("validate")
         result = analysis.run(run, model_path=model_path, mode=mode, plot=plot, protocol=protocol,
-                              overrides=overrides, typed=typed_options("mode"))
+                              overrides=overrides, allow_overlap=allow_overlap, typed=typed_options("mode"))
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     analysis.show(result, as_json=as_json)

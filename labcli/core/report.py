@@ -12,14 +12,72 @@ import math
 from typing import Any
 
 
-def report_console(min_width: int, *, markup: bool = False) -> Any:
-    """A rich console for a report; piped or logged, it is at least ``min_width`` wide."""
+def report_console(*, markup: bool = False) -> Any:
+    """A rich console for a report, as wide as the terminal (COLUMNS, else 80 when piped).
+
+    A table wider than that prints in column groups (:func:`print_table`), never with a
+    number cut short.
+    """
     from rich.console import Console  # rich only once something is printed
 
-    con = Console(highlight=False, markup=markup)
+    # soft_wrap: prose lines are never broken by rich (a path stays whole for copying); tables still fit.
+    return Console(highlight=False, markup=markup, soft_wrap=True)
+
+
+def _cell_width(cell: Any) -> int:
+    from rich.cells import cell_len
+    from rich.text import Text
+
+    text = cell.plain if isinstance(cell, Text) else str(cell)
+    return max((cell_len(line) for line in text.split("\n")), default=0)
+
+
+def _column_widths(table: Any) -> list[int]:
+    """Each column's natural width in cells, padding included (rich's default: one each side)."""
+    return [max([_cell_width(c.header)] + [_cell_width(x) for x in c._cells]) + 2 for c in table.columns]
+
+
+def print_table(con: Any, table: Any) -> None:
+    """Print a rich table whole: plain when piped, and in column groups when the console is narrow.
+
+    rich shrinks a table that does not fit by cutting cells short ("0.009…"); a number cut
+    short is a wrong number.  Here the columns that do not fit go to a further table below,
+    each group repeating the first column (the row's name), so every cell prints in full.
+    """
+    from rich.table import Table
+
     if not con.is_terminal:
-        con.width = max(con.width, min_width)  # a pipe or a log file: never truncate numbers
-    return con
+        table.box = None  # piped or logged: no box drawing, only text and spaces
+    widths = _column_widths(table)
+    if sum(widths) + 2 <= con.width or len(table.columns) <= 2:
+        con.print(table)
+        return
+    groups: list[list[int]] = []
+    used = widths[0]
+    for i in range(1, len(widths)):
+        if not groups or used + widths[i] + 2 > con.width:
+            groups.append([])
+            used = widths[0]
+        groups[-1].append(i)
+        used += widths[i]
+    n_rows = len(table.columns[0]._cells)
+    for k, group in enumerate(groups):
+        part = Table(title=table.title if k == 0 else None, title_justify=table.title_justify, box=table.box,
+                     show_header=table.show_header, header_style=table.header_style)
+        for i in [0, *group]:
+            c = table.columns[i]
+            part.add_column(c.header, justify=c.justify, style=c.style, no_wrap=True)
+        for r in range(n_rows):
+            part.add_row(*(table.columns[i]._cells[r] for i in [0, *group]))
+        con.print(part)
+
+
+def print_warnings(warnings: list[str]) -> None:
+    """Each warning on its own line of stderr, before the report (a pipe of stdout keeps only the report)."""
+    import sys
+
+    for w in warnings:
+        print(f"Warning: {w}", file=sys.stderr)
 
 
 def cell(x: Any, spec: str) -> str:

@@ -155,6 +155,17 @@ def p_demo(_: str, path: Path) -> tuple[str, str]:
             f"(median over seeds {d['seeds'][0]}-{d['seeds'][-1]})")
 
 
+def p_classify_report(out: str, _: Path) -> tuple[str, str]:
+    rows = json.loads(out.strip().splitlines()[-1])
+    r = rows[-1]
+    stage = (f"; report stage alone: streamed {r['stage_stream_MB']:.0f} MB vs one dict {r['stage_dict_MB']:.0f} MB"
+             if "stage_stream_MB" in r else "")
+    return (f"--json {r['json_MB'] / r['baseline_MB']:.2f}x memory, {r['json_s'] / r['baseline_s']:.1f}x time; "
+            f"report {r['report_MB'] / r['baseline_MB']:.2f}x memory",
+            f"at n = {r['n']:.0e} pushes ({r['csv_MB']:.0f} MB CSV): baseline {r['baseline_MB']:.0f} MB "
+            f"{r['baseline_s']:.1f} s, --json {r['json_MB']:.0f} MB {r['json_s']:.1f} s{stage}")
+
+
 def p_firmware(out: str, _: Path) -> tuple[str, str]:
     if out.startswith("skipped"):
         return "skipped", out.strip()
@@ -191,6 +202,9 @@ BENCHES = [
     Bench("models", "bench_models.py", ["--sizes", "1e2,1e3,1e4,1e5", "--repeat", "3", "--repeat-large", "2"],
           "fit / validate / classify (6 objects) / classify (n/10 objects), time over trials",
           "numpy lstsq on the fit's design shapes, same n", p_models, json=True),
+    Bench("classify-report", "bench_classify_report.py", ["--sizes", "1e4", "--no-stage"],
+          "`labcli classify` on an archive of n pushes (n/10 objects): --json and the report, peak RSS",
+          "pandas read_csv + groupby(object) mean/sd, same CSV", p_classify_report),
     Bench("firmware", "bench_firmware.py", ["--seconds", "2"],
           "highest frame rate with 0 lost, the firmware on simavr, 115200 and 1000000 baud",
           "baud limit (UART bytes/s over line length) and AVR limit (1 / sampling time per frame)", p_firmware),
@@ -202,7 +216,8 @@ BENCHES = [
           "`python -c \"import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma\"`", p_demo, json=True),
 ]
 FULL_ARGS = {"models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"], "demo": ["--seeds", "1-3"],
-             "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e3,3e3", "--repeat", "2"]}
+             "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e3,3e3", "--repeat", "2"],
+             "classify-report": ["--sizes", "1e5,1e6"]}
 
 
 def main() -> None:

@@ -146,9 +146,10 @@ def test_rich_report_has_units_and_the_numbers_of_the_json(lab):
                    "mean k_o [N/m]", "sd [N/m]", "true k_o [N/m]", "confidence"):
         assert header in res.output
     assert "Objects: category by stiffness bands of the protocol" in res.output
-    lines = {line.split()[0]: line.split() for line in res.output.splitlines() if line.strip().startswith("can-steel-1 ")}
+    # At 80 columns the objects' table comes in column groups, each starting with the object's name.
+    groups = [line.split() for line in res.output.splitlines() if line.strip().startswith("can-steel-1 ")]
     steel = next(o for o in data["objects"] if o["object"] == "can-steel-1")
-    row = lines["can-steel-1"]
+    row = ["can-steel-1"] + [token for g in groups[-2:] for token in g[1:]]
     assert row[1:6] == ["unknown", "10", "0", f"{steel['k_mean_N_per_m']:.0f}", f"{steel['k_sd_N_per_m']:.0f}"]
     assert row[-4:] == ["hard", "100", "%", "bands"]
     rebuilt = sum(p["note"] == "force from Fx along O2 -> C (Fy near singular)" for p in data["pushes"])
@@ -377,3 +378,91 @@ def test_demo_objects_deform_measurably_and_stay_in_the_protocol_range():
     assert [o.material for o in DEMO_OBJECTS].count("PET") == 3
     assert [o.material for o in DEMO_OBJECTS].count("aluminium") == 2
     assert [o.material for o in DEMO_OBJECTS].count("steel") == 1
+
+
+def test_the_report_piped_at_80_columns_is_plain_and_whole(lab):
+    import re
+
+    r = CliRunner(env={"COLUMNS": "80"}).invoke(cli, ["classify", str(lab["pushes"]), "--model", str(lab["model"]),
+                                                      "--method", "bands"])
+    assert r.exit_code == 0, r.output
+    assert not re.search("[\u2500-\u257f]", r.stdout)
+    assert not re.search(r"[0-9.+\-]\u2026", r.stdout) and "pet\u2026" not in r.stdout
+    data = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--method", "bands", "--json").stdout)
+    for o in data["objects"]:
+        assert o["object"] in r.stdout and f"{o['k_mean_N_per_m']:.0f}" in r.stdout
+
+
+def test_categories_report_their_evidence(lab, tmp_path):
+    """Every object carries its distance to each class, and "uncertain" exactly when the rule says so."""
+    push = lab["push_protocol"]
+    odd = [SimObject("between-1", "PET", 0.033, 1000.0, 0.010, "unknown")]
+    write_push_csv(simulate_pushes(SimRig(seed=SEED), odd, calibration=push.calibration, first_push=2001),
+                   tmp_path / "odd.csv")
+    r = run("classify", tmp_path / "odd.csv", "--model", lab["model"], "--reference", lab["refs"], "--json")
+    assert r.exit_code == 0, r.output
+    objects = {o["object"]: o for o in json.loads(r.stdout)["objects"]}
+    for o in objects.values():
+        assert set(o["z_by_category"]) == {"soft", "medium", "hard"}
+        z = sorted(abs(v) for v in o["z_by_category"].values())
+        rule = z[0] > 3 or 0.5 * (z[1] ** 2 - z[0] ** 2) < math.log(10)
+        assert (o["evidence"] == "uncertain") == rule, o
+    for name in ("ref-pet-a", "ref-al-a", "ref-steel-a"):
+        assert objects[name]["evidence"] != "in-sample"  # two references per class: judged on the others
+    text = run("classify", tmp_path / "odd.csv", "--model", lab["model"], "--reference", lab["refs"]).stdout
+    assert "between-1: hard " in text and "Distance to each category (z, in class spreads of ln k):" in text
+    for o in objects.values():
+        if o["evidence"] == "uncertain":
+            assert f"uncertain ({o['category']})" in text
+
+
+def test_an_object_outside_every_class_is_uncertain():
+    from labcli.experiments.takuma2014.models.categories import CategoryModel
+
+    rng = np.random.default_rng(1)
+    k = np.concatenate([rng.lognormal(np.log(500), 0.1, 10), rng.lognormal(np.log(2000), 0.1, 10)])
+    model = CategoryModel("reference").fit(k, ["soft"] * 10 + ["medium"] * 10)
+    p = model.predict([np.full(5, 20000.0), np.full(5, 2000.0)])
+    assert p.category == ["medium", "medium"] and p.evidence == ["uncertain", ""]
+    assert min(abs(v) for v in p.distances[0].values()) > 3
+    bands = CategoryModel.from_bands({"soft": [0, 800], "medium": [800, 3000]})
+    q = bands.predict([np.full(5, 5000.0), [790.0, 810.0, 795.0], np.full(5, 400.0)])
+    assert q.category == ["", "soft", "soft"] and q.evidence == ["uncertain", "uncertain", ""]
+    assert q.distances[2] == {"soft": 0.0, "medium": pytest.approx(np.log(800 / 400) / 0.05)}
+
+
+def test_the_only_reference_of_its_class_is_in_sample(lab, tmp_path):
+    """The reference set with one steel can left: that can is the only hard reference, scored against itself."""
+    refs = pd.read_csv(lab["refs"])
+    refs = refs[refs["object"] != "ref-steel-b"]
+    write_push_csv(refs, tmp_path / "labelled.csv")
+    r = run("classify", tmp_path / "labelled.csv", "--model", lab["model"], "--method", "reference", "--json")
+    assert r.exit_code == 0, r.output
+    objects = json.loads(r.stdout)["objects"]
+    steel = [o for o in objects if o["category_given"] == "hard"]
+    assert len(steel) == 1 and steel[0]["evidence"] == "in-sample"
+    assert all(o["evidence"] != "in-sample" for o in objects if o["category_given"] != "hard")
+    text = run("classify", tmp_path / "labelled.csv", "--model", lab["model"], "--method", "reference").stdout
+    assert f"{steel[0]['category']} (in-sample)" in text
+
+
+def test_many_pushes_are_summarised_per_object_and_listed_on_request(lab, tmp_path):
+    table = lab["table"]
+    many = pd.concat([table, table.assign(push=table["push"] + 1000)], ignore_index=True)  # 120 pushes
+    write_push_csv(many, tmp_path / "many.csv")
+    r = run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands")
+    assert r.exit_code == 0, r.output
+    assert "120 pushes of many.csv (angles and force from the pressures) on 6 objects; list them with --pushes." \
+        in r.stdout
+    assert "theta1 [deg]" not in r.stdout and "Objects: category by" in r.stdout
+    listed = run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands", "--pushes")
+    assert "theta1 [deg]" in listed.stdout and "1060 " in listed.stdout
+    data = json.loads(run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands",
+                          "--json").stdout)
+    assert data["n_pushes"] == 120 and len(data["pushes"]) == 120 and len(data["objects"]) == 6
+    small = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--method", "bands", "--json").stdout)
+    # the same objects from twice the same pushes: the same means, the streamed JSON the same fields
+    for a, b in zip(small["objects"], data["objects"]):
+        assert a["object"] == b["object"] and a["k_mean_N_per_m"] == pytest.approx(b["k_mean_N_per_m"])
+        assert b["n"] == 2 * a["n"]
+    assert set(data["pushes"][0]) == set(small["pushes"][0])

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ...core.jsontext import loads_bounded
 from ...core.modelfile import default_model_path, save_model
 from ...core.store import RunFile
 from ...errors import ConfigError, ModelError
@@ -129,8 +130,8 @@ def load_stretch_model(path: Path) -> Any:
                           "labcli fit STRETCH.h5, which writes STRETCH.model.json.")
     try:
         text = path.read_text(encoding="utf-8")
-        d = json.loads(text)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        d = loads_bounded(text)
+    except (OSError, UnicodeDecodeError, ValueError):  # ValueError: bad JSON, or nested too deep
         raise ConfigError(f"Model file {path} is not a JSON stretch fit; give the file labcli fit wrote "
                           "for a stretch-test run.") from None
     kind = d.get("kind") if isinstance(d, dict) else None

@@ -12,7 +12,7 @@ import math
 from pathlib import Path
 from typing import Any, Iterator
 
-from ...core.report import cell, report_console
+from ...core.report import cell, print_table, report_console
 
 
 def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Path | None) -> None:
@@ -21,7 +21,7 @@ def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Pat
     from rich.table import Table
 
     m = fit.model
-    con = report_console(110)
+    con = report_console()
     table = Table(title="Eq. 7 stretch correction F_stretch = c0 + c1 lambda + c2 lambda^2 + c3 lambda^3 (N)",
                   title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("coefficient", "fitted (N)", "std. error (N)", "95% interval (N)", "protocol's default (N)"):
@@ -29,7 +29,7 @@ def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Pat
     for k, (c, se, (lo, hi), d) in enumerate(zip(m.coefficients_N, m.std_errors_N, m.ci95_N,
                                                    fit.default_coefficients_N)):
         table.add_row(f"c{k}", f"{c:+.4f}", f"{se:.4f}", f"[{lo:+.4f}, {hi:+.4f}]", f"{d:+.4g}")
-    con.print(table)
+    print_table(con, table)
     con.print(f"  {m.n_points} points ({m.dof} degrees of freedom), lambda {m.lambda_range[0]:.3f} to "
               f"{m.lambda_range[1]:.3f}; R^2 {m.r2:.5f}, RMSE {m.rmse_N:.3f} N", soft_wrap=True)
     if fit.skipped_rows:
@@ -50,7 +50,7 @@ def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path 
     from rich import box
     from rich.table import Table
 
-    con = report_console(110)
+    con = report_console()
     table = Table(title=f"Joint map of {run.name} against the model (Fig. 8); errors are model - measured",
                   title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("F_stretch", "points compared", "toggles", "on the stop", "RMSE (deg)", "max |error| (deg)",
@@ -63,7 +63,7 @@ def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path 
         table.add_row(name, str(s["n_compared"]), str(s["n_toggle"]), str(s.get("n_on_stop", 0)),
                       cell(s["rmse_deg"], ".2f"), cell(s["max_abs_error_deg"], ".2f"), where,
                       cell(s["rmse_all_deg"], ".2f"))
-    con.print(table)
+    print_table(con, table)
     c = ", ".join(f"{v:+.4g}" for v in result.actuator.stretch_coefficients_N)
     source = _SOURCE.get(result.correction_source, result.correction_source).format(model=model_path)
     con.print(f"  F_stretch coefficients c0..c3 = [{c}] N, from {source}.", soft_wrap=True)
@@ -174,7 +174,7 @@ def print_demo(res: Any) -> None:
     from rich import box
     from rich.table import Table
 
-    con = report_console(100, markup=True)
+    con = report_console(markup=True)
     s = res.stretch
     con.print(f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
               f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "
@@ -190,7 +190,7 @@ def print_demo(res: Any) -> None:
         coef.add_row(f"c{k}", f"{s['coefficients_N'][k]:+.3f}", f"{s['std_errors_N'][k]:.3f}",
                      f"{s['true_N'][k]:+.3f}", f"{s['deviation_in_se'][k]:+.2f}",
                      f"{s['protocol_default_N'][k]:+.3g}")
-    con.print(coef)
+    print_table(con, coef)
     con.print(f"R^2 {s['r2']:.5f}, RMSE {s['rmse_N']:.3f} N; chi^2 of the truth against the fit's covariance "
               f"{s['chi2_4dof']:.2f} (4 degrees of freedom; 18.5 is the 99.9 % limit).", soft_wrap=True)
 
@@ -204,7 +204,7 @@ def print_demo(res: Any) -> None:
         r = res.joint_map[key]
         jm.add_row(label, str(r["n_compared"]), str(r["n_toggle"]), cell(r["rmse_deg"], ".2f"),
                    cell(r["max_abs_error_deg"], ".2f"), cell(r["rmse_all_deg"], ".2f"))
-    con.print(jm)
+    print_table(con, jm)
     con.print("Toggles: pressure pairs where the model has no balance below the toggle angle; they stay out "
               "of the RMSE and count at the toggle angle in the last column.", soft_wrap=True)
 

@@ -8,18 +8,24 @@ fix.  :mod:`.report` prints the results; ``to_dict`` gives their ``--json`` form
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ...core.modelfile import default_model_path, save_model
-from ...errors import ConfigError
+from ...core.provenance import rig_warning, same_data
+from ...core.report import ids_text, print_warnings
+from ...core.store import RunFile
+from ...errors import ConfigError, ModelError
 from . import report
 from .figures import figure7, figure9
-from .models.classify import classify_file
+from .models.classify import classify_file, flag_summary, object_items, push_items, report_header, write_report_json
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
-from .models.takuma import TakumaModel
+from .models.takuma import ANGLE_COLUMNS, EQUATIONS, FORCE_COLUMNS, TERMS, TakumaModel, cap
 
 # Options of the rPAM analyses that mean nothing to a force run (``--set``, ``--plot`` of fit).
 SET_REFUSED = ("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
@@ -50,11 +56,38 @@ def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, m
         raise ConfigError("--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
                           "for a force run draw Figure 7 with labcli validate --plot.")
     src = load_trial_source(run, protocol)
-    model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
-                        max_amplification=max_amplification).fit(src.table, source=str(run))
+    with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
+        model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
+                            max_amplification=max_amplification).fit(src.table, source=str(run))
+    refuse_non_finite(model, src.table, str(run))
+    model.fitted_on = src.identity
     out_path = output or default_model_path(run)
     recorded = save_model(model.to_json(), out_path, run=run if src.is_run else None, name=model.protocol)
     return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
+
+
+# The column each equation is fitted to, named in the refusal of a fit that overflowed.
+TARGET_COLUMNS = {"theta1": ANGLE_COLUMNS[0], "theta2": ANGLE_COLUMNS[1], "Fx": FORCE_COLUMNS[0],
+                  "Fy": FORCE_COLUMNS[1]}
+
+
+def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
+    """ModelError when a fitted coefficient or its uncertainty is not finite (never print inf, never write null).
+
+    The tables refuse absurd values on reading; this is the second line of defence, for
+    values finite one by one whose squares or products overflow (Fx_N = 1e308).
+    """
+    for eq in EQUATIONS:
+        bad = [k for k in TERMS[eq]
+               if not all(math.isfinite(v) for v in (model.coefficients[k], model.standard_errors[k],
+                                                    *model.ci95[k]))]
+        if bad:
+            col = TARGET_COLUMNS[eq]
+            values = np.abs(np.asarray(table[col], dtype=float))
+            largest = float(np.nanmax(values)) if np.isfinite(values).any() else math.nan
+            raise ModelError(f"The {eq} fit on {source} gives no finite value for {', '.join(bad)}: "
+                             f"its numbers overflow (largest |{col}| is {largest:g} {col.rsplit('_', 1)[1]}); "
+                             f"check the table for values beyond what the rig measures.")
 
 
 def show_fit(result: FitResult, *, as_json: bool = False) -> None:
@@ -73,35 +106,88 @@ class ValidationResult:
     model_path: Path
     run: Path
     plot: Path | None
+    model_label: str = ""  # where the model came from: a file, or run.h5:/models/<name>
+    warnings: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         out = evaluation_to_dict(self.evaluation)
-        out.update(run=str(self.run), model=str(self.model_path), plot=str(self.plot) if self.plot else None)
+        out.update(run=str(self.run), model=self.model_label or str(self.model_path),
+                   plot=str(self.plot) if self.plot else None, warnings=list(self.warnings))
         return out
 
 
+def model_for_run(run: Path, model_path: Path | None, is_run: bool, name: str) -> tuple[TakumaModel, str]:
+    """The model to apply to ``run`` and where it came from (a label for the report).
+
+    ``--model`` when given; else the sidecar ``RUN.model.json``; else, for a run file, the
+    model the run records under ``/models/<name>`` (a run passed on without its sidecar).
+    """
+    if model_path is not None:
+        return TakumaModel.load(model_path), str(model_path)
+    side = default_model_path(run)
+    if side.exists() or not is_run:
+        return TakumaModel.load(side), str(side)
+    with RunFile.open(run) as rf:
+        recorded = rf.models()
+    if name not in recorded:
+        raise ModelError(f"The model file {side} does not exist and {run} records no model under /models/{name}; "
+                         f"write one with `labcli fit {run}`.")
+    label = f"{run}:/models/{name}"
+    return TakumaModel.from_json(recorded[name], name=f"the model {label}"), label
+
+
+def overlap(model: TakumaModel, src: Any) -> list[int]:
+    """The validation trials of ``src`` that ``model`` was fitted on (same data only)."""
+    if model.fitted_on:
+        same = same_data(model.fitted_on, src.identity)
+    else:  # a model written before models recorded their run: the run's name is all there is
+        same = bool(model.source) and Path(model.source).name == src.path.name
+    if not same:
+        return []
+    fitted = {int(t) for ids in model.fitted_trials.values() for t in ids}
+    table = src.table
+    val = table.loc[table["set"].astype(str) == "validation", "trial"]
+    return sorted(int(t) for t in val if int(t) in fitted)
+
+
 def validate(run: Path, *, model_path: Path | None = None, mode: str = "pressure-only", plot: Path | None = None,
-             protocol: str | None = None, overrides: tuple[str, ...] = (),
+             protocol: str | None = None, overrides: tuple[str, ...] = (), allow_overlap: bool = False,
              typed: frozenset[str] = frozenset()) -> ValidationResult:
-    """Accuracy of a fitted model on the validation trials of a run file or trial CSV (Figure 7)."""
+    """Accuracy of a fitted model on the validation trials of a run file or trial CSV (Figure 7).
+
+    Refuses when validation trials were used in the fit (unless ``allow_overlap``); warns when
+    the model was fitted on another rig or under other protocol settings.
+    """
     if overrides:
         raise ConfigError(SET_REFUSED)
     src = load_trial_source(run, protocol)
-    mpath = model_path or default_model_path(run)
-    model = TakumaModel.load(mpath)
+    model, label = model_for_run(run, model_path, src.is_run, src.protocol.name)
     model.check_compatible(src.protocol.name, src.protocol.settings.rig,
-                           model_name=f"the model file {mpath}", run_name=str(run))
+                           model_name=f"the model {label}" if ":/models/" in label else f"the model file {label}",
+                           run_name=str(run))
+    warnings = [w for w in [rig_warning(cap(label), model.fitted_on, str(run), src.identity)] if w]
+    shared = overlap(model, src)
+    if shared:
+        n_val = int((src.table["set"].astype(str) == "validation").sum())
+        what = (f"{len(shared)} of the {n_val} validation trials of {run} ({ids_text(shared)}) "
+                f"were used to fit {label}")
+        if not allow_overlap:
+            raise ModelError(f"{what}, so the validation would test the model on its own data; refit after the "
+                             f"split (`labcli fit {run}`), or pass --allow-overlap to validate anyway.")
+        warnings.append(f"{what}; their errors measure the fit, not a prediction (--allow-overlap).")
     ev = evaluate(model, src.table, mode=mode, source=str(run))
     if plot is not None:
         figure7(ev, plot)
-    return ValidationResult(ev, mpath, run, plot)
+    return ValidationResult(ev, Path(model_path or default_model_path(run)), run, plot, label, warnings)
 
 
 def show_validation(result: ValidationResult, *, as_json: bool = False) -> None:
+    print_warnings(result.warnings)
     if as_json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
         return
-    report.print_validation(result.evaluation, result.model_path, result.run, result.plot)
+    report.print_validation(result.evaluation, result.model_label or str(result.model_path), result.run,
+                            result.plot)
 
 
 @dataclass
@@ -127,8 +213,20 @@ def classify(pushes: Path, *, model_path: Path, reference: Path | None = None, m
     return ClassificationResult(result, plot)
 
 
-def show_classification(result: ClassificationResult, *, as_json: bool = False) -> None:
+# The human report lists every push up to this many; beyond, a summary per object (--pushes lists them).
+PUSH_LIST_LIMIT = 60
+
+
+def show_classification(result: ClassificationResult, *, as_json: bool = False, pushes: bool = False) -> None:
+    """Print the classification: JSON streamed push by push, or the report (pushes listed when few)."""
+    import sys
+
+    print_warnings(result.report.warnings)
     if as_json:
-        print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
+        write_report_json(result.report, sys.stdout, {"plot": str(result.plot) if result.plot else None})
         return
-    report.print_classification(result.report.to_dict(), result.plot)
+    rep = result.report
+    data = {**report_header(rep), "objects": object_items(rep)}
+    listed = pushes or data["n_pushes"] <= PUSH_LIST_LIMIT
+    report.print_classification(data, result.plot, list(push_items(rep)) if listed else None,
+                                flag_summary(rep.result.pushes))

@@ -99,6 +99,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         src = load_trial_source(files["force_run"])
         model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name).fit(
             src.table, source=str(files["force_run"]))
+        model.fitted_on = src.identity
         save_model(model.to_json(), files["model"], run=files["force_run"], name=model.protocol)
     with stages.run(2, "validate"):
         evaluation = evaluate(model, src.table, "pressure-only", source=str(files["force_run"]))

@@ -238,9 +238,12 @@ def _draw_object(ax: Any, i: int, row: dict[str, Any], k: Any, fl: Any, style: d
         ax.plot([i - 0.32, i + 0.42], [t, t], color="0.25", lw=1.0, ls=(0, (4, 2)), zorder=2,
                 label=_once(used, "true", "true k (simulated rig)"))
     conf = row.get("confidence")
+    evidence = str(row.get("evidence") or "")
     text = cat if cat else "no category"
     if cat and conf is not None and np.isfinite(conf):
         text += f"\n{100 * conf:.0f} %"
+    if evidence:  # the report's evidence: "uncertain" (outside every class, or two close), "in-sample"
+        text = f"uncertain\n({cat})" if evidence == "uncertain" and cat else text + f"\n{evidence}"
     top = np.nanmax(k[visible]) if visible.any() else (mean if mean is not None and np.isfinite(mean) else lo)
     ax.annotate(text, (i, min(top * 1.25, y_hi / 1.3)), ha="center", va="bottom", fontsize=8,
                 color=colour if cat else "0.3", fontweight="bold")

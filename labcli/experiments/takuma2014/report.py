@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ...core.report import cell, report_console
+from ...core.report import cell, print_table, report_console
 from .models.metrics import QUANTITIES
 from .models.takuma import FLAG_TEXT, SIGN_NOTE, TERMS
 
@@ -19,7 +19,7 @@ def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str
     from rich import box
     from rich.table import Table
 
-    con = report_console(110)
+    con = report_console()
     titles = {
         "theta1": ("Eq. 34  sin(theta1)", "1, dimensionless", "sin(theta1)"),
         "theta2": ("Eq. 35  sin(theta2)", "1, dimensionless", "sin(theta2)"),
@@ -39,7 +39,7 @@ def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str
             lo, hi = model.ci95[name]
             table.add_row(name, f"{model.coefficients[name]:.5g}", f"{model.standard_errors[name]:.3g}",
                           f"[{lo:.5g}, {hi:.5g}]", cell(paper.get(name), ".6g"))
-        con.print(table)
+        print_table(con, table)
         if eq.startswith("theta"):
             fit_line = (f"R^2 {cell(st['r2'], '.5f')} ({space}), {cell(st['r2_native'], '.5f')} (deg); "
                         f"RMSE {cell(st['rmse'], '.3g')} ({space}) = {cell(st['rmse_native'], '.3g')} deg")
@@ -64,14 +64,15 @@ def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
 
 
-def print_validation(ev: dict[str, Any], model_path: Path, run: Path, plot: Path | None) -> None:
+def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | None) -> None:
     from rich import box
     from rich.table import Table
 
-    con = report_console(110)
+    con = report_console()
     how = ("forces from the calculated angles" if ev["mode"] == "pressure-only"
            else "forces from the measured angles")
-    table = Table(title=f"Validation of {model_path.name} on {run.name}: {ev['mode']} ({how})",
+    con.print(f"model: {model}", soft_wrap=True)
+    table = Table(title=f"Validation on {run.name}: {ev['mode']} ({how})",
                   title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("quantity", "n", "RMSE", "MAE", "max|err|", "bias", "R^2", "RMSE/range", "flagged"):
         table.add_column(col, justify="left" if col == "quantity" else "right")
@@ -81,7 +82,7 @@ def print_validation(ev: dict[str, Any], model_path: Path, run: Path, plot: Path
                       cell(m["max_abs"], ".3g"), cell(m["bias"], "+.2g"), cell(m["r2"], ".4f"),
                       cell(m["pct_range"], ".2f") + (" %" if m["pct_range"] is not None else ""),
                       str(m["n_flagged"]))
-    con.print(table)
+    print_table(con, table)
     con.print("Errors are calculated - observed; RMSE/range is the RMSE as a share of the observed range.",
               soft_wrap=True)
     flagged = [(i, int(t), fl) for i, (t, fl) in enumerate(zip(ev["trial"], ev["flags"])) if fl]
@@ -96,29 +97,20 @@ def print_validation(ev: dict[str, Any], model_path: Path, run: Path, plot: Path
         con.print(f"Figure 7 written to {plot}.")
 
 
-def print_classification(data: dict[str, Any], plot: Path | None) -> None:
+def print_classification(data: dict[str, Any], plot: Path | None, pushes: list[dict[str, Any]] | None,
+                         flags: dict[str, Any]) -> None:
+    """The objects' summary, and the pushes one by one when ``pushes`` is given (few, or --pushes)."""
     from rich import box
     from rich.table import Table
 
-    con = report_console(160)
+    con = report_console()
     angles = ("angles and force from the pressures" if data["angles"] == "pressure-only"
               else "angles from the potentiometers, force from the pressures")
-    pushes = Table(title=f"Pushes of {Path(data['pushes_file']).name}: {angles} (* = phi solved)",
-                   title_justify="left", box=box.SIMPLE_HEAD)
-    cols = ("push", "object", "theta1 [deg]", "theta2 [deg]", "Fx [N]", "Fy [N]", "C [mm]", "phi [deg]",
-            "O2 [mm]", "delta_x [mm]", "k_o [N/m]", "")
-    for c in cols:
-        pushes.add_column(c, justify="left" if c in ("object", "") else "right")
-    for p in data["pushes"]:
-        phi = cell(p["phi_deg"], ".1f") + ("*" if p["phi_solved"] else "")
-        pushes.add_row(
-            str(p["push"]), p["object"], cell(p["theta1_deg"], ".3f"), cell(p["theta2_deg"], ".3f"),
-            cell(p["Fx_N"], ".3f"), cell(p["Fy_N"], ".3f"),
-            f"({cell(p['xc_mm'], '.1f')}, {cell(p['yc_mm'], '.1f')})", phi,
-            f"({cell(p['xo_mm'], '.1f')}, {cell(p['yo_mm'], '.1f')})",
-            cell(p["delta_x_mm"], ".3f"), cell(p["k_N_per_m"], ".0f"), "flagged" if p["flagged"] else "",
-        )
-    con.print(pushes)
+    if pushes is not None:
+        _print_pushes(con, pushes, f"Pushes of {Path(data['pushes_file']).name}: {angles} (* = phi solved)")
+    else:
+        con.print(f"{data['n_pushes']} pushes of {Path(data['pushes_file']).name} ({angles}) on "
+                  f"{len(data['objects'])} objects; list them with --pushes.")
 
     method = {"bands": "stiffness bands of the protocol",
               "reference": "nearest reference class in ln k"}[data["method"]]
@@ -137,24 +129,60 @@ def print_classification(data: dict[str, Any], plot: Path | None) -> None:
                cell(rel, ".1f")]
         row += [cell(o.get("true_k_N_per_m"), ".0f")] if has_true else []
         conf = o["confidence"]
-        row += [o["category"] or "—", cell(None if conf is None else 100 * conf, ".0f") + (" %" if conf is not None else ""),
+        row += [category_text(o), cell(None if conf is None else 100 * conf, ".0f") + (" %" if conf is not None else ""),
                 o["method"]]
         objects.add_row(*row)
-    con.print(objects)
+    print_table(con, objects)
+    unit = "class spreads of ln k" if data["method"] == "reference" else "the object's spread of ln k outside each band"
+    con.print(f"Distance to each category (z, in {unit}):", soft_wrap=True)
     for o in data["objects"]:
-        if o["note"]:
-            con.print(f"  {o['object']}: {o['note']}", soft_wrap=True)
-    flagged = [p for p in data["pushes"] if p["flagged"]]
-    if flagged:
-        con.print(f"{len(flagged)} push(es) flagged and kept out of the statistics:", soft_wrap=True)
-        for p in flagged:
-            con.print(f"  push {p['push']} ({p['object']}): {p['reason']}", soft_wrap=True)
-    notes = sorted({p["note"] for p in data["pushes"] if p["note"] and not p["flagged"]})
-    for note in notes:
-        n = sum(1 for p in data["pushes"] if p["note"] == note and not p["flagged"])
+        z = ", ".join(f"{c} {cell(v, '+.1f')}" for c, v in o.get("z_by_category", {}).items())
+        note = f"; {o['note']}" if o["note"] else ""
+        con.print(f"  {o['object']}: {z or '—'}{note}", soft_wrap=True)
+    if flags["n_flagged"]:
+        con.print(f"{flags['n_flagged']} push(es) flagged and kept out of the statistics:", soft_wrap=True)
+        if pushes is not None:
+            for p in pushes:
+                if p["flagged"]:
+                    con.print(f"  push {p['push']} ({p['object']}): {p['reason']}", soft_wrap=True)
+        else:
+            for reason, n in flags["reasons"].items():
+                con.print(f"  {n} push(es): {reason}", soft_wrap=True)
+    for note, n in sorted(flags["notes"].items()):
         con.print(f"{n} push(es): {note}.", soft_wrap=True)
     if plot is not None:
         con.print(f"Figure 9 written to {plot}.")
+
+
+def _print_pushes(con: Any, pushes: list[dict[str, Any]], title: str) -> None:
+    from rich import box
+    from rich.table import Table
+
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD)
+    cols = ("push", "object", "theta1 [deg]", "theta2 [deg]", "Fx [N]", "Fy [N]", "C [mm]", "phi [deg]",
+            "O2 [mm]", "delta_x [mm]", "k_o [N/m]", "")
+    for c in cols:
+        table.add_column(c, justify="left" if c in ("object", "") else "right")
+    for p in pushes:
+        phi = cell(p["phi_deg"], ".1f") + ("*" if p["phi_solved"] else "")
+        table.add_row(
+            str(p["push"]), p["object"], cell(p["theta1_deg"], ".3f"), cell(p["theta2_deg"], ".3f"),
+            cell(p["Fx_N"], ".3f"), cell(p["Fy_N"], ".3f"),
+            f"({cell(p['xc_mm'], '.1f')}, {cell(p['yc_mm'], '.1f')})", phi,
+            f"({cell(p['xo_mm'], '.1f')}, {cell(p['yo_mm'], '.1f')})",
+            cell(p["delta_x_mm"], ".3f"), cell(p["k_N_per_m"], ".0f"), "flagged" if p["flagged"] else "",
+        )
+    print_table(con, table)
+
+
+def category_text(o: dict[str, Any]) -> str:
+    """An object's category with its evidence: ``hard``, ``hard (in-sample)``, ``uncertain (medium)``."""
+    cat, evidence = o.get("category") or "", o.get("evidence") or ""
+    if evidence == "uncertain":
+        return f"uncertain ({cat})" if cat else "uncertain"
+    if evidence == "in-sample":
+        return f"{cat} (in-sample)"
+    return cat or "—"
 
 
 def print_demo(res: Any) -> None:
@@ -162,7 +190,7 @@ def print_demo(res: Any) -> None:
     from rich import box
     from rich.table import Table
 
-    con = report_console(100, markup=True)
+    con = report_console(markup=True)
     tr = res.trials
     con.print(f"[bold]labcli demo[/bold] on the simulated rig (seed {res.seed}): "
               f"{tr['fit'] + tr['validation']} force trials ({tr['fit']} fit, {tr['validation']} validation), "
@@ -174,7 +202,7 @@ def print_demo(res: Any) -> None:
         coef.add_column(col, justify=just)
     for c in res.coefficients:
         coef.add_row(c["name"], f"{c['value']:.4g}", f"{c['standard_error']:.2g}", cell(c["paper"], ".4g"))
-    con.print(coef)
+    print_table(con, coef)
     con.print("Units: MPa, N, m, rad. " + " ".join(res.notes) + " The simulated rig's actuators "
               "differ from the paper's, so its coefficients differ too; the accuracy is what carries over.",
               soft_wrap=True)
@@ -193,7 +221,7 @@ def print_demo(res: Any) -> None:
         if ideal:
             row.append(cell(ideal[q]["rmse"], ".3g") if q in ideal else "—")
         acc.add_row(*row)
-    con.print(acc)
+    print_table(con, acc)
     if ideal:
         con.print("The default rig has sleeve friction, chamber leaks, thermal relaxation, potentiometer backlash "
                   "and link weight; the ideal rig (the same seed with ideal=1) has none, so the two RMSE columns "
@@ -208,9 +236,9 @@ def print_demo(res: Any) -> None:
                        no_wrap=col == "object")
     for o in res.objects:
         obj.add_row(o["object"], f"{o['n_used']}/{o['n']}", cell(o["k_mean_N_per_m"], ".0f"),
-                    cell(o["k_sd_N_per_m"], ".0f"), cell(o.get("true_k_N_per_m"), ".0f"), o["category"],
+                    cell(o["k_sd_N_per_m"], ".0f"), cell(o.get("true_k_N_per_m"), ".0f"), category_text(o),
                     cell(o["confidence"], ".2f"), o["category_given"] or "—")
-    con.print(obj)
+    print_table(con, obj)
     if res.classify_method == "bands":
         con.print("Stiffness bands come from the push protocol (protocols/takuma2014-stiffness.toml).",
                   soft_wrap=True)

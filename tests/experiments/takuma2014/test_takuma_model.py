@@ -412,3 +412,21 @@ def test_figure7_png_and_pdf(noisy_model: TakumaModel, validation: pd.DataFrame,
     assert flagged[0]["calculated"]["Fy"] is None and flagged[0]["calculated"]["Fx"] is not None
     assert flagged[0]["flags"][0]["flag"] == "singular-jacobian"
     json.dumps(d, allow_nan=False)
+
+
+# --------------------------------------------------------------------------- a fit that overflows
+
+
+def test_a_fit_whose_numbers_overflow_is_refused_before_anything_is_written():
+    """Second line of defence behind the table reader: Fx_N = 1e308 squares to inf."""
+    from labcli.experiments.takuma2014.analyses import refuse_non_finite
+
+    table = paper_trials(12, seed=1)
+    table.loc[1, "Fx_N"] = 1e308
+    with np.errstate(all="ignore"):
+        model = TakumaModel(geometry=PAPER_GEOMETRY).fit(table)
+    with pytest.raises(ModelError, match=r"^The Fx fit on t\.csv gives no finite value for beta_Fx1, .*"
+                                         r"largest \|Fx_N\| is 1e\+308 N\); check the table"):
+        refuse_non_finite(model, table, "t.csv")
+    healthy = TakumaModel(geometry=PAPER_GEOMETRY).fit(paper_trials(12, seed=1))
+    refuse_non_finite(healthy, table, "t.csv")  # finite coefficients pass whatever the table holds

@@ -83,6 +83,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from ....core.jsontext import MAX_DEPTH, JSONDepthError, loads_bounded
 from ....errors import ConfigError, ModelError
 from ..protocol import read_rpam_protocol
 from . import rpam
@@ -315,9 +316,11 @@ class StretchCorrection:
 
 def _loads(text: str, what: str) -> dict[str, Any]:
     try:
-        d = json.loads(text)
+        d = loads_bounded(text)
     except json.JSONDecodeError as e:
         raise ModelError(f"The {what} record is not valid JSON ({e.msg} at line {e.lineno}).") from None
+    except JSONDepthError as e:
+        raise ModelError(f"The {what} record nests {e.depth} levels deep, beyond the {MAX_DEPTH} it can have.") from None
     if not isinstance(d, dict):
         raise ModelError(f"The {what} record must be a JSON object.")
     return d

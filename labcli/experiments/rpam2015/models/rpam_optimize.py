@@ -222,8 +222,14 @@ def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
     popsize = rpam._get(raw, "optimize.popsize", path)
     maxiter = rpam._get(raw, "optimize.maxiter", path)
     for key, v in (("seed", seed), ("popsize", popsize), ("maxiter", maxiter)):
-        if not isinstance(v, int) or isinstance(v, bool) or v < (0 if key == "seed" else 1):
+        if not isinstance(v, int) or isinstance(v, bool):
             raise ConfigError(f"Protocol key 'optimize.{key}' in {rpam.where(path)} must be a whole number, got {v!r}.")
+        if key == "seed" and not 0 <= v <= 2**32 - 1:  # the range the search's random generator takes
+            raise ConfigError(f"Protocol key 'optimize.seed' in {rpam.where(path)} must be from 0 to "
+                              f"{2**32 - 1}, got {v}.")
+        if key != "seed" and v < 1:
+            raise ConfigError(f"Protocol key 'optimize.{key}' in {rpam.where(path)} must be a whole number "
+                              f"of at least 1, got {v!r}.")
     stretch = rpam._get(raw, "optimize.stretch_correction", path)
     if not isinstance(stretch, bool):
         raise ConfigError(f"Protocol key 'optimize.stretch_correction' in {rpam.where(path)} must be true or false.")

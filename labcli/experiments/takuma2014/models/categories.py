@@ -28,6 +28,12 @@ Two methods, and every result says which one was used:
     confidence is the fraction of its pushes whose own stiffness lies in that
     band.  Means outside every band give the category "" and confidence 0.
 
+Either way each object also gets its evidence: the distance to every class (z above;
+for bands, how far ln of its mean lies outside each band in its own spread of ln k), and
+"uncertain" when it lies outside every class or between two close ones (see Z_OUTSIDE,
+CLOSE_RATIO, BAND_CLOSE_Z).  The classifier adds "in-sample" for an object that was its
+class's only reference.
+
 Parameters are plain data: :meth:`CategoryModel.to_dict` / ``to_json`` and
 ``from_dict`` / ``from_json`` round-trip them (an open upper bound is written
 as ``null``).
@@ -58,6 +64,17 @@ class CategoryPrediction:
     z: np.ndarray
     method: str
     note: list[str]
+    evidence: list[str] = field(default_factory=list)       # "uncertain" or ""
+    distances: list[dict[str, float]] = field(default_factory=list)  # per object: z to each class
+
+
+# When a category is not trusted.  Reference method: the object's mean ln k lies more than
+# Z_OUTSIDE class spreads from every class mean, or the runner-up class is less than
+# CLOSE_RATIO times less likely than the best.  Bands: the mean lies outside every band, or
+# within BAND_CLOSE_Z of its own spread of ln k from another band.
+Z_OUTSIDE = 3.0
+CLOSE_RATIO = 10.0
+BAND_CLOSE_Z = 1.0
 
 
 def _bound(value: Any, name: str, which: str) -> float:
@@ -170,6 +187,8 @@ class CategoryModel:
         conf = np.zeros(len(samples))
         zs = np.full(len(samples), np.nan)
         notes: list[str] = []
+        evidence: list[str] = []
+        distances: list[dict[str, float]] = []
         for i, raw in enumerate(samples):
             k = np.asarray(raw, dtype=float).reshape(-1)
             k = k[np.isfinite(k) & (k > 0)]
@@ -182,13 +201,44 @@ class CategoryModel:
                 cat, c, z = self._score_reference(k)
                 cats.append(cat)
                 conf[i], zs[i] = c, z
-                notes.append("" if abs(z) <= 3 else f"mean ln k is {abs(z):.1f} class spreads from {cat!r}")
+                dist = self._reference_distances(k)
+                notes.append("" if abs(z) <= Z_OUTSIDE else f"mean ln k is {abs(z):.1f} class spreads from {cat!r}")
+                ranked = sorted(abs(v) for v in dist.values())
+                # likelihood ratio of best to runner-up: exp((z2^2 - z1^2) / 2)
+                close = len(ranked) > 1 and 0.5 * (ranked[1] ** 2 - ranked[0] ** 2) < math.log(CLOSE_RATIO)
+                if close:
+                    notes[-1] = "; ".join(t for t in (notes[-1], "two classes are close") if t)
+                evidence.append("uncertain" if abs(z) > Z_OUTSIDE or close else "")
             else:
                 cat, c, note = self._score_bands(k)
                 cats.append(cat)
                 conf[i] = c
+                dist = self._band_distances(k)
+                near = [n for n, v in dist.items() if n != cat and v < BAND_CLOSE_Z]
+                if cat and near:
+                    note = f"within one spread of band {near[0]!r}"
                 notes.append(note)
-        return CategoryPrediction(category=cats, confidence=conf, z=zs, method=self.method, note=notes)
+                evidence.append("uncertain" if not cat or near else "")
+            distances.append(dist)
+        return CategoryPrediction(category=cats, confidence=conf, z=zs, method=self.method, note=notes,
+                                  evidence=evidence, distances=distances)
+
+    def _reference_distances(self, k: np.ndarray) -> dict[str, float]:
+        """z of the object's mean ln k from each class mean, in class spreads (signed)."""
+        m = float(np.log(k).mean())
+        return {c: (m - s["mean_log_k"]) / self.std_log_k for c, s in self.classes.items()}
+
+    def _band_distances(self, k: np.ndarray) -> dict[str, float]:
+        """How far ln(mean k) lies outside each band, in the object's own spread of ln k (0 inside)."""
+        logs = np.log(k)
+        m = float(np.log(k.mean()))
+        spread = max(float(logs.std(ddof=1)) if k.size > 1 else 0.0, self.min_std_log_k)
+        out = {}
+        for name, (lo, hi) in self.bands.items():
+            below = (math.log(lo) - m) if lo > 0 else -math.inf
+            above = m - math.log(hi) if math.isfinite(hi) else -math.inf
+            out[name] = max(below, above, 0.0) / spread
+        return out
 
     def _score_reference(self, k: np.ndarray) -> tuple[str, float, float]:
         m = float(np.log(k).mean())

@@ -25,15 +25,16 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import IO, Any, Iterator, Mapping
 
 import numpy as np
 
 from ....errors import ConfigError, ModelError
 from ....core.files import RUN_FILE_SUFFIXES
 from ....core.protocol import load_protocol, loads_protocol, shipped_protocols
+from ....core.provenance import rig_warning, run_identity, table_identity
 from ....core.store import RunFile
 from ..records import load_pushes
 from .categories import CategoryModel
@@ -252,7 +253,8 @@ def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use:
         top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
         if not allow_unusable:
             raise ModelError(f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top}).")
-        row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})")
+        row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})",
+                   evidence="uncertain", z_by_category={})
         return row
     scorer, note = cat_model, ""
     if cat_model.method == "reference" and known:
@@ -275,6 +277,9 @@ def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use:
         z=float(p.z[0]),
         method=p.method,
         note="; ".join(t for t in (note, p.note[0]) if t),
+        # in-sample first: a class scored against its own only reference proves nothing
+        evidence="in-sample" if note.startswith("in-sample") else p.evidence[0],
+        z_by_category=p.distances[0],
     )
     return row
 
@@ -293,6 +298,7 @@ class PushSource:
     table: Any
     protocol: Any
     is_run: bool
+    identity: dict = field(default_factory=dict)  # core.provenance: the data, the rig, the protocol
 
 
 def load_push_source(path: Any, protocol: str | None = None, *, measured_angles: bool = False) -> PushSource:
@@ -311,7 +317,7 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
                 f"Protocol '{proto.name}' is of kind '{proto.kind}'; a push CSV needs a push protocol "
                 f"such as {DEFAULT_PUSH_PROTOCOL}."
             )
-        return PushSource(p, load_pushes(p), proto, False)
+        return PushSource(p, load_pushes(p), proto, False, table_identity(p, proto))
 
     with RunFile.open(p) as run:
         text = run.protocol_text
@@ -328,6 +334,7 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
                 "stiffness run such as one recorded with protocol takuma2014-stiffness."
             )
         table = run.table()
+        identity = run_identity(run, p)
         if measured_angles and not all(c in table.columns for c in THETA_COLUMNS):
             theta = []
             for pid in table["push"]:
@@ -337,7 +344,7 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
             table["theta1_deg"], table["theta2_deg"] = theta[:, 0], theta[:, 1]
     proto = (loads_protocol(text, source=f"{p} (embedded protocol)") if text.strip()
              else load_protocol(name or DEFAULT_PUSH_PROTOCOL))
-    return PushSource(p, table, proto, True)
+    return PushSource(p, table, proto, True, identity)
 
 
 def stiffness_settings(protocol: Any) -> tuple[StiffnessParams, str | None]:
@@ -406,6 +413,7 @@ class ClassifyReport:
     protocol: Any
     angles: str
     force_protocol: str | None = None
+    warnings: list[str] = field(default_factory=list)  # one sentence each, printed before the report
 
     @property
     def method(self) -> str:
@@ -447,6 +455,9 @@ def classify_file(
     model_name = f"the model file {model_path}" if model_path is not None else "the model"
     check_force_model(fmodel, src.protocol, model_name=model_name, run_name=str(src.path),
                       force_protocol=force_protocol)
+    # Pushes are read under a push protocol, the model under a force one: the rig is compared, not the text.
+    warnings = [w for w in [rig_warning(cap(model_name), fmodel.fitted_on, str(src.path), src.identity,
+                                        protocol_text=False)] if w]
     table = src.table
     ref_path = None
     if reference is not None:
@@ -464,11 +475,16 @@ def classify_file(
         )
     push = src.protocol.settings.push
     bands = push.stiffness_bands_N_per_m if push is not None else None
-    result = classify_pushes(
-        table, fmodel, params=params, bands=bands or None, method=method, angles=angles,
-        allow_unusable=allow_unusable,
-    )
-    return ClassifyReport(result, src.path, model_path, ref_path, src.protocol, angles, force_protocol)
+    try:
+        result = classify_pushes(
+            table, fmodel, params=params, bands=bands or None, method=method, angles=angles,
+            allow_unusable=allow_unusable,
+        )
+    except ModelError as e:
+        if warnings:  # a model of another rig is the likeliest cause: say so with the failure
+            raise ModelError(f"{e} {warnings[0]}") from None
+        raise
+    return ClassifyReport(result, src.path, model_path, ref_path, src.protocol, angles, force_protocol, warnings)
 
 
 def _num(x: Any, scale: float = 1.0) -> float | None:
@@ -492,25 +508,34 @@ PUSH_FIELDS: tuple[tuple[str, str, float], ...] = (
 )
 
 
-def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
-    """The report as plain data (JSON-ready; NaN becomes None; mm, deg, N, N/m in the key names)."""
+def _push_item(row: Mapping[str, Any]) -> dict[str, Any]:
+    item: dict[str, Any] = {"push": int(row["push"]), "object": str(row["object"])}
+    if "source" in row:
+        item["source"] = str(row["source"])
+    item["category_given"] = "" if not isinstance(row.get("category"), str) else row["category"]
+    for key, col, scale in PUSH_FIELDS:
+        item[key] = _num(row.get(col), scale)
+    item["phi_solved"] = bool(row["phi_solved"])
+    item["n_phi_solutions"] = int(row["n_phi_solutions"])
+    item["flagged"] = bool(row["flag"])
+    item["reason"] = str(row["reason"])
+    item["note"] = str(row["note"])
+    if TRUE_K in row:
+        item["true_k_N_per_m"] = _num(row[TRUE_K])
+    return item
+
+
+def push_items(report: ClassifyReport, chunk: int = 10_000) -> Iterator[dict[str, Any]]:
+    """Every push as plain data, a chunk of rows at a time (memory stays flat for any number of pushes)."""
+    df = report.result.pushes
+    for start in range(0, len(df), chunk):
+        for row in df.iloc[start:start + chunk].to_dict("records"):
+            yield _push_item(row)
+
+
+def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
+    """Every object's summary as plain data (one per object: small)."""
     res = report.result
-    pushes = []
-    for row in res.pushes.to_dict("records"):
-        item: dict[str, Any] = {"push": int(row["push"]), "object": str(row["object"])}
-        if "source" in row:
-            item["source"] = str(row["source"])
-        item["category_given"] = "" if not isinstance(row.get("category"), str) else row["category"]
-        for key, col, scale in PUSH_FIELDS:
-            item[key] = _num(row.get(col), scale)
-        item["phi_solved"] = bool(row["phi_solved"])
-        item["n_phi_solutions"] = int(row["n_phi_solutions"])
-        item["flagged"] = bool(row["flag"])
-        item["reason"] = str(row["reason"])
-        item["note"] = str(row["note"])
-        if TRUE_K in row:
-            item["true_k_N_per_m"] = _num(row[TRUE_K])
-        pushes.append(item)
     objects = []
     for row in res.objects.to_dict("records"):
         item = {
@@ -522,10 +547,18 @@ def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
             "log_k_mean": _num(row["log_k_mean"]), "log_k_sd": _num(row["log_k_std"]),
             "category": str(row.get("category") or ""), "confidence": _num(row.get("confidence")),
             "z": _num(row.get("z")), "method": str(row.get("method") or res.method), "note": str(row.get("note") or ""),
+            "evidence": str(row.get("evidence") or ""),
+            "z_by_category": {str(c): _num(v) for c, v in dict(row.get("z_by_category") or {}).items()},
         }
         if "true_k_N_per_m" in row:
             item["true_k_N_per_m"] = _num(row["true_k_N_per_m"])
         objects.append(item)
+    return objects
+
+
+def report_header(report: ClassifyReport) -> dict[str, Any]:
+    """What the report says besides its pushes and objects: files, protocol, method, categories, settings."""
+    res = report.result
     return {
         "pushes_file": str(report.pushes_path),
         "model_file": None if report.model_path is None else str(report.model_path),
@@ -533,9 +566,39 @@ def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
         "protocol": report.protocol.name,
         "angles": report.angles,
         "method": res.method,
+        "warnings": list(report.warnings),
         "categories": res.model.to_dict(),
         "stiffness_settings": res.params.to_dict(),
         "units": {"length": "mm", "angle": "deg", "force": "N", "stiffness": "N/m"},
-        "pushes": pushes,
-        "objects": objects,
+        "n_pushes": int(len(res.pushes)),
     }
+
+
+def flag_summary(pushes: Any) -> dict[str, Any]:
+    """How many pushes are flagged (by reason) and how many carry each note, without listing them."""
+    flagged = pushes["flag"].to_numpy(dtype=bool)
+    reasons = pushes.loc[flagged, "reason"].astype(str).value_counts()
+    notes = pushes.loc[~flagged & (pushes["note"].astype(str) != ""), "note"].astype(str).value_counts()
+    return {"n_flagged": int(flagged.sum()), "reasons": {str(k): int(v) for k, v in reasons.items()},
+            "notes": {str(k): int(v) for k, v in notes.items()}}
+
+
+def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
+    """The report as plain data (JSON-ready; NaN becomes None; mm, deg, N, N/m in the key names)."""
+    return {**report_header(report), "pushes": list(push_items(report)), "objects": object_items(report)}
+
+
+def write_report_json(report: ClassifyReport, out: IO[str], extra: Mapping[str, Any] | None = None) -> None:
+    """The JSON of :func:`report_to_dict`, streamed: one push per line, never all pushes in memory at once."""
+    import json
+
+    head = {**report_header(report), **(extra or {})}
+    out.write("{\n")
+    for key, value in head.items():
+        out.write(f"  {json.dumps(key)}: {json.dumps(value, allow_nan=False)},\n")
+    out.write('  "objects": ' + json.dumps(object_items(report), allow_nan=False) + ',\n  "pushes": [')
+    sep = "\n    "
+    for item in push_items(report):
+        out.write(sep + json.dumps(item, allow_nan=False))
+        sep = ",\n    "
+    out.write("\n  ]\n}\n")

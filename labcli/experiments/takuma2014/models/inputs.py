@@ -6,12 +6,13 @@ recorded with; a CSV carries none, so the protocol is named (default ``takuma201
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ....core.files import RUN_FILE_SUFFIXES
 from ....core.protocol import load_protocol, loads_protocol
+from ....core.provenance import run_identity, table_identity
 from ....core.store import RunFile
 from ....errors import ConfigError
 from ..records import load_trials
@@ -25,6 +26,7 @@ class TrialSource:
     table: Any            # the trial table (pandas DataFrame, contract columns)
     protocol: Any         # labcli.core.protocol.Protocol
     is_run: bool          # True for a run file, False for a CSV
+    identity: dict = field(default_factory=dict)  # core.provenance: the data, the rig, the protocol
 
     @property
     def label(self) -> str:
@@ -44,6 +46,7 @@ def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSou
         with RunFile.open(p) as run:
             text = run.protocol_text
             name = str(run.attrs.get("protocol", ""))
+            identity = run_identity(run, p)
         if protocol is not None and protocol != name:
             raise ConfigError(f"{p} was recorded with protocol '{name}'; --protocol applies to "
                               "trial CSV files only, so leave it out for a run file.")
@@ -53,10 +56,10 @@ def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSou
             raise ConfigError(f"{p} is a run of kind '{proto.kind}' (protocol '{proto.name}'), not a force run; "
                               "fit and validate read the trials of a force run such as one recorded "
                               f"with protocol {DEFAULT_PROTOCOL}.")
-        return TrialSource(p, _read_table(p), proto, True)
+        return TrialSource(p, _read_table(p), proto, True, identity)
     proto = load_protocol(protocol or DEFAULT_PROTOCOL)
     if proto.kind != "force":
         # A model fitted under a push or rPAM protocol would be refused by every later check.
         raise ConfigError(f"--protocol {protocol} is of kind '{proto.kind}'; a trial CSV is read with a "
                           f"force protocol such as {DEFAULT_PROTOCOL}.")
-    return TrialSource(p, _read_table(p), proto, False)
+    return TrialSource(p, _read_table(p), proto, False, table_identity(p, proto))

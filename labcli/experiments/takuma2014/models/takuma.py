@@ -45,6 +45,7 @@ from typing import Any, Mapping, NoReturn, Sequence
 
 import numpy as np
 
+from ....core.jsontext import MAX_DEPTH, JSONDepthError, json_kind, loads_bounded
 from ....core.version import __version__
 from ....errors import ModelError
 from .geometry import force_amplification, jacobian_cond, jstar
@@ -324,6 +325,7 @@ class TakumaModel:
     excluded_trials: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     source: str = ""
     labcli_version: str = ""
+    fitted_on: dict[str, Any] = field(default_factory=dict)  # the fit run's identity (core.provenance)
 
     def __post_init__(self) -> None:
         self.geometry = normalise_geometry(self.geometry)
@@ -541,7 +543,7 @@ class TakumaModel:
             "coefficients": self.coefficients, "standard_errors": self.standard_errors,
             "ci95": self.ci95, "covariance": self.covariance, "fit_stats": self.fit_stats,
             "fitted_trials": self.fitted_trials, "excluded_trials": self.excluded_trials,
-            "source": self.source, "labcli_version": self.labcli_version,
+            "source": self.source, "labcli_version": self.labcli_version, "fitted_on": self.fitted_on,
         })
 
     def to_json(self) -> str:
@@ -551,7 +553,7 @@ class TakumaModel:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "TakumaModel":
         if not isinstance(d, Mapping):
-            raise ModelError(f"{cap(name)} is not a labcli Takuma model (it holds {_json_kind(d)}, not an "
+            raise ModelError(f"{cap(name)} is not a labcli Takuma model (it holds {json_kind(d)}, not an "
                              f"object with schema {SCHEMA!r}); pass a file written by `labcli fit`.")
         if d.get("schema") != SCHEMA:
             raise ModelError(f"{cap(name)} is not a labcli Takuma model (schema {d.get('schema')!r}, "
@@ -560,6 +562,11 @@ class TakumaModel:
             raise ModelError(f"{cap(name)} has model version {d.get('version')!r}; this labcli reads "
                              f"version {SCHEMA_VERSION}.")
         model = cls(**_model_fields(d, cap(name)))
+        unknown = [k for k in model.coefficients if k not in COEFFICIENT_NAMES]
+        if unknown:
+            what = "an unknown coefficient" if len(unknown) == 1 else "unknown coefficients"
+            raise ModelError(f"{cap(name)} has {what}, {', '.join(unknown)} (Eqs. 34-37 have "
+                             f"{COEFFICIENT_NAMES[0]} to {COEFFICIENT_NAMES[-1]}); refit with `labcli fit`.")
         missing = [k for k in COEFFICIENT_NAMES if k not in model.coefficients]
         if missing:
             raise ModelError(f"{cap(name)} lacks the coefficient(s) {', '.join(missing)}; "
@@ -569,9 +576,12 @@ class TakumaModel:
     @classmethod
     def from_json(cls, text: str, name: str = "the model") -> "TakumaModel":
         try:
-            d = json.loads(text)
+            d = loads_bounded(text)
         except json.JSONDecodeError as e:
             raise ModelError(f"{cap(name)} is not valid JSON (line {e.lineno}, column {e.colno}: {e.msg}).") from None
+        except JSONDepthError as e:
+            raise ModelError(f"{cap(name)} nests {e.depth} levels deep, beyond the {MAX_DEPTH} a model file "
+                             "can have; pass the .json file `labcli fit` wrote.") from None
         return cls.from_dict(d, name)
 
     @classmethod
@@ -599,22 +609,6 @@ class TakumaModel:
 # A model file is typed by hand now and then, or comes from another program: every field is
 # checked by name, so a damaged file gives one sentence naming the key, never a traceback.
 
-def _json_kind(v: Any) -> str:
-    if v is None:
-        return "null"
-    if isinstance(v, bool):
-        return f"the boolean {str(v).lower()}"
-    if isinstance(v, str):
-        return f"the string {v[:40]!r}"
-    if isinstance(v, (int, float)):
-        return f"the number {v!r}"
-    if isinstance(v, Mapping):
-        return "an object"
-    if isinstance(v, list):
-        return "a list"
-    return type(v).__name__
-
-
 def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
     """Constructor arguments of TakumaModel from a model dict, each checked by key."""
 
@@ -623,26 +617,26 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
 
     def obj(key: str, v: Any) -> Mapping[str, Any]:
         if not isinstance(v, Mapping):
-            bad(key, f"must be an object, not {_json_kind(v)}")
+            bad(key, f"must be an object, not {json_kind(v)}")
         return v
 
     def num(key: str, v: Any, *, finite: bool = True, allow_null: bool = False) -> float:
         if v is None and allow_null:
             return math.nan  # written for a non-finite statistic (to_dict stores those as null)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or (finite and not math.isfinite(v)):
-            bad(key, f"must be a {'finite ' if finite else ''}number, not {_json_kind(v)}")
+            bad(key, f"must be a {'finite ' if finite else ''}number, not {json_kind(v)}")
         return float(v)
 
     def seq(key: str, v: Any) -> list[Any]:
         if not isinstance(v, list):
-            bad(key, f"must be a list, not {_json_kind(v)}")
+            bad(key, f"must be a list, not {json_kind(v)}")
         return v
 
     for key in ("protocol", "geometry", "coefficients"):
         if key not in d:
             raise ModelError(f"{where} lacks the key '{key}'; refit with `labcli fit`.")
     if not isinstance(d["protocol"], str):
-        bad("protocol", f"must be a string, not {_json_kind(d['protocol'])}")
+        bad("protocol", f"must be a string, not {json_kind(d['protocol'])}")
     geometry = {k: num(f"geometry.{k}", v) for k, v in obj("geometry", d["geometry"]).items()}
     for key in ("h2", "h3"):
         value = geometry.get(key, geometry.get(f"{key}_m"))
@@ -682,6 +676,7 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
         fit_stats={k: dict(v) for k, v in stats.items()},
         fitted_trials=fitted, excluded_trials=excluded,
         source=str(d.get("source", "")), labcli_version=str(d.get("labcli_version", "")),
+        fitted_on=dict(obj("fitted_on", d.get("fitted_on", {}))),
     )
 
 

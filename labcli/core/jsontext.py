@@ -1,0 +1,94 @@
+"""JSON typed by hand or written by another program, read without surprises.
+
+``json.loads`` turns a 400-digit integer into a Python int that ``float()`` cannot take
+(OverflowError), refuses 5000 digits outright (ValueError: the int-conversion limit) and
+recurses once per level of nesting (RecursionError at ~1000).  :func:`loads_bounded`
+parses numbers too large for a float into :class:`OutOfRange` markers, which every
+field check refuses by name, and refuses nesting deeper than any labcli document before
+parsing starts.  :func:`json_kind` names a parsed value in a message.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from itertools import accumulate
+from typing import Any, Mapping
+
+MAX_DEPTH = 64  # labcli's own documents nest at most 5 deep (a covariance matrix in a model)
+_FLOAT_DIGITS = 308  # any integer of this many digits or fewer is below 1.8e308
+_STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
+_BRACKETS = re.compile(r"[^\[\]{}]+")
+
+
+class OutOfRange:
+    """A JSON number no float can hold (``1e400``, a 400-digit integer); its text is kept."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def describe(self) -> str:
+        digits = len(self.text.lstrip("-"))
+        if self.text.lstrip("-").isdigit():
+            return f"a {digits}-digit number (beyond the largest float, about 1.8e308)"
+        return f"the number {self.text[:40]} (beyond the largest float, about 1.8e308)"
+
+    def __repr__(self) -> str:  # for a debugger, never shown in a message
+        return f"OutOfRange({self.text[:20]!r}...)"
+
+
+def _int(text: str) -> int | OutOfRange:
+    return int(text) if len(text.lstrip("-")) <= _FLOAT_DIGITS else OutOfRange(text)
+
+
+def _float(text: str) -> float | OutOfRange:
+    v = float(text)
+    return v if math.isfinite(v) else OutOfRange(text)
+
+
+def nesting_depth(text: str) -> int:
+    """How deep the brackets of a JSON text nest, strings left out (no parsing, no recursion)."""
+    brackets = _BRACKETS.sub("", _STRING.sub("", text))
+    if not brackets:
+        return 0
+    return max(accumulate(1 if c in "[{" else -1 for c in brackets))
+
+
+class JSONDepthError(ValueError):
+    """The text nests deeper than :data:`MAX_DEPTH`; ``depth`` says how deep."""
+
+    def __init__(self, depth: int) -> None:
+        super().__init__(f"nested {depth} levels deep")
+        self.depth = depth
+
+
+def loads_bounded(text: str) -> Any:
+    """``json.loads`` that never overflows or recurses deeply.
+
+    Raises :class:`json.JSONDecodeError` for bad syntax and :class:`JSONDepthError` for
+    nesting beyond :data:`MAX_DEPTH`; numbers beyond a float come back as :class:`OutOfRange`.
+    """
+    depth = nesting_depth(text)
+    if depth > MAX_DEPTH:
+        raise JSONDepthError(depth)
+    return json.loads(text, parse_int=_int, parse_float=_float)
+
+
+def json_kind(v: Any) -> str:
+    """A parsed JSON value named for a message: ``the string 'big'``, ``a list``, ``null``."""
+    if v is None:
+        return "null"
+    if isinstance(v, OutOfRange):
+        return v.describe()
+    if isinstance(v, bool):
+        return f"the boolean {str(v).lower()}"
+    if isinstance(v, str):
+        return f"the string {v[:40]!r}"
+    if isinstance(v, (int, float)):
+        return f"the number {v!r}"
+    if isinstance(v, Mapping):
+        return "an object"
+    if isinstance(v, list):
+        return "a list"
+    return type(v).__name__
