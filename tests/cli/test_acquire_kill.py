@@ -34,7 +34,6 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 import pytest
 
@@ -54,22 +53,28 @@ REVIEW = "  trial "  # the unattended session prints one such line per trial, be
 
 
 def trial_data(path: Path) -> dict[int, dict[str, Any]]:
-    """Every complete trial's datasets (dtype, shape, bytes) and attributes, by trial id."""
+    """Every complete trial's arrays and values (dtype, shape, bytes) and its metadata, by trial id.
+
+    Keys starting with "@" are what may differ between two runs of one seed (times, order).
+    """
     out: dict[int, dict[str, Any]] = {}
-    with h5py.File(path, "r") as f:
-        for g in f["trials"].values():
-            if not g.attrs.get("complete", False):
-                continue
-            items: dict[str, Any] = {"@": sorted((k, repr(v)) for k, v in g.attrs.items())}
-
-            def visit(name: str, obj: Any) -> None:
-                if isinstance(obj, h5py.Dataset):
-                    a = np.asarray(obj[()])
-                    items[name] = (a.dtype.str, a.shape, a.tobytes())
-                items["@" + name] = sorted((k, repr(v)) for k, v in obj.attrs.items())
-
-            g.visititems(visit)
-            out[int(g.attrs["trial"])] = items
+    with RunFile.open(path) as run:
+        for t in run.completed_ids():
+            rec = run.read(t)
+            items: dict[str, Any] = {}
+            for key, value in rec.items():
+                if key in ("started", "ended", "order", "settle", "accepted", "flags", "extra"):
+                    items["@" + key] = repr(value)
+                elif key == "raw":
+                    for window, arrays in sorted(value.items()):
+                        for name, a in sorted(arrays.items()):
+                            a = np.asarray(a)
+                            items[f"raw/{window}/{name}"] = (a.dtype.str, a.shape, a.tobytes())
+                else:
+                    a = np.asarray(value) if not isinstance(value, dict) else None
+                    items[key] = repr(value) if a is None or a.dtype == object else (a.dtype.str, a.shape,
+                                                                                     a.tobytes())
+            out[int(t)] = items
     return out
 
 

@@ -62,6 +62,8 @@ def good_cell(column: str, trial: int) -> st.SearchStrategy[str]:
         return st.floats(min_value=1e-6, max_value=1.0).map(repr)
     if column == "mass_g":
         return st.floats(min_value=1e-3, max_value=5e3).map(repr)
+    if column in ("theta1_deg", "theta2_deg"):  # a joint turns less than a full turn either way
+        return st.floats(min_value=-360.0, max_value=360.0, allow_subnormal=False).map(repr)
     return st.floats(min_value=-1e3, max_value=1e3, allow_subnormal=False).map(repr)
 
 
@@ -162,7 +164,18 @@ def check_outcome(text: str, folder: Path) -> None:
         assert any(re.fullmatch(rf"{re.escape(str(src))}:row \d+, column trial: -?\d+ is outside the trial ids "
                                 rf"a run file holds, 0 to {MAX_ID}\.", p) for p in e.value.problems)
         return
-    with import_table(df, out, protocol=PROTOCOL, source="t.csv") as run:
+    try:
+        run = import_table(df, out, protocol=PROTOCOL, source="t.csv")
+    except StoreError as e:
+        # A value no rig can produce (a joint turned past a full turn): refused by the run file in
+        # one sentence naming the record, the value and the range; no file is made.
+        m = re.fullmatch(r"trial (\d+): .+ reads (\S+) (\S+), outside the physically possible (\S+) to (\S+) \3\.",
+                         str(e))
+        assert m, str(e)
+        assert not float(m[4]) <= float(m[2]) <= float(m[5])
+        assert not out.exists()
+        return
+    with run:
         back = run.table()
     assert list(back["trial"]) == list(df["trial"])
     assert list(back["set"]) == list(df["set"])

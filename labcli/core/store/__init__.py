@@ -5,10 +5,9 @@ from .frames import StoredWindow, WindowWriter
 from .h5 import to_edge
 from .importing import import_csv, import_table, storable_cells
 from .layout import SCHEMA, SCHEMA_VERSION
-from .logs import Session
 from .runfile import RESUME_OR_FORCE, RunFile, load_table
 from .split import choose_split
 from .view import MAX_ID
 
-__all__ = ["MAX_ID", "RESUME_OR_FORCE", "SCHEMA", "SCHEMA_VERSION", "RunFile", "Session", "StoredWindow",
+__all__ = ["MAX_ID", "RESUME_OR_FORCE", "SCHEMA", "SCHEMA_VERSION", "RunFile", "StoredWindow",
            "WindowWriter", "choose_split", "import_csv", "import_table", "load_table", "storable_cells", "to_edge"]

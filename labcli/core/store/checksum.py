@@ -27,6 +27,8 @@ _STEP = np.uint64(0x9E3779B97F4A7C15)  # spreads consecutive positions over the 
 def words(a: np.ndarray, n: int) -> np.ndarray:
     """The bytes of each of the ``n`` entries of ``a`` (along axis 0) as little-endian 64-bit words."""
     a = np.asarray(a)
+    if n == 0:
+        return np.empty((0, 0), dtype="<u8")
     if a.dtype.kind in "fiub" and a.dtype.byteorder not in ("<", "|", "="):
         a = a.astype(a.dtype.newbyteorder("<"))
     b = np.ascontiguousarray(a).view(np.uint8).reshape(n, -1)

@@ -50,6 +50,7 @@ SCHEMA = "labcli-run"
 SCHEMA_VERSION = 2
 WINDOWS = ("baseline", "loaded")  # a record's raw windows: group names of schema 1, column prefixes here
 TIME_WIDTH = 40
+FLAGS_WIDTH = 1024  # bytes of the flags column: a few one-sentence notes per record
 
 
 def now_iso() -> str:
@@ -67,7 +68,7 @@ def common_columns(id_column: str) -> list[Column]:
             text_column("started", TIME_WIDTH, "when the record began (ISO 8601)"),
             text_column("ended", TIME_WIDTH, "when the record was stored (ISO 8601)"),
             text_column("accepted", 8, "how it was accepted: auto, timeout, operator or imported"),
-            text_column("flags", 128, "what was noticed about the record, words separated by spaces")]
+            text_column("flags", FLAGS_WIDTH, "what was noticed about the record, one sentence per line")]
 
 
 def window_columns() -> list[Column]:
@@ -124,7 +125,9 @@ def session_columns(k: int) -> list[Column]:
             text_column("device", 64), text_column("firmware", 64), text_column("channels", 256),
             Column("gain", "1/count", shape=(k,), optional=True, what="calibration gain per channel (SI unit per count)"),
             Column("offset", "", shape=(k,), optional=True, what="calibration offset per channel (SI)"),
-            text_column("command_line", 1024), text_column("host_name", 128),
+            text_column("command_line", 1024), text_column("host_name", 128), text_column("operator", 128),
+            Column("resumed", "1", kind="flag", what="1 when the session resumed the run, else 0"),
+            Column("other_rig", "1", kind="flag", what="1 when resumed on another rig (--allow-other-rig)"),
             text_column("how", 16, "finished, quit, interrupted, rig lost, no input, ..."),
             text_column("note", 512)]
 

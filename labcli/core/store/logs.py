@@ -26,8 +26,7 @@ A session without an ``end`` row ended without a word (a kill, a power cut).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import h5py
 import numpy as np
@@ -130,60 +129,37 @@ def read_models(t: Table) -> tuple[dict[str, str], list[str]]:
 # --------------------------------------------------------------------------- sessions
 
 
-def calibration_pair(calibration: Any, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gain and offset per channel from a Calibration, a protocol, a mapping or a (gain, offset) pair."""
-    from .h5 import calibration_arrays
-
-    if calibration is None:
-        return np.full(k, np.nan), np.full(k, np.nan)
-    if isinstance(calibration, dict):
-        return np.asarray(calibration["gain"], dtype=float), np.asarray(calibration["offset"], dtype=float)
-    if isinstance(calibration, (tuple, list)) and len(calibration) == 2:
-        return np.asarray(calibration[0], dtype=float), np.asarray(calibration[1], dtype=float)
-    holder = calibration if hasattr(calibration, "calibration") else type("P", (), {"calibration": calibration})()
-    gain, offset, _ = calibration_arrays(holder, k)
-    return gain, offset
+def begin_event(number: int, info: Any, host_name: str) -> dict[str, Any]:
+    """The ``begin`` row of session ``number`` from a :class:`labcli.core.sessionlog.SessionInfo`."""
+    rig = info.rig
+    return {"session": number, "event": "begin", "time": cut(str(info.started or now_iso()), 40),
+            "port": cut(info.port, 256), "baud": -1 if info.baud is None else int(info.baud),
+            "device": cut(rig.device, 64), "firmware": cut(rig.firmware, 64),
+            "channels": cut(",".join(rig.channels), 256),
+            "gain": np.asarray(rig.gain or np.nan, dtype=float), "offset": np.asarray(rig.offset or np.nan, dtype=float),
+            "command_line": cut(getattr(info, "command", ""), 1024), "host_name": cut(host_name, 128),
+            "operator": cut(getattr(info, "operator", ""), 128), "resumed": int(bool(getattr(info, "resumed", False))),
+            "other_rig": int(bool(getattr(info, "other_rig", False)))}
 
 
-@dataclass
-class Session:
-    """One acquisition session in a run's session log; from :meth:`RunFile.begin_session`.
+def record_event(number: int, event: str, rid: int) -> dict[str, Any]:
+    """An ``added``, ``redone`` or ``skipped`` row of session ``number``."""
+    return {"session": number, "event": event, "time": now_iso(), "record": int(rid)}
 
-    ``added``, ``redone`` and ``skipped`` note a record id; those rows are committed with
-    the run's next write (the next record, the split, :meth:`end`), so they cost no disk
-    sync of their own.  :meth:`end` says how the session ended and commits at once.
-    """
 
-    number: int
-    _queue: Callable[[dict[str, Any]], None]
-    _end: Callable[[dict[str, Any]], None]
-    ended: bool = field(default=False)
+def end_event(number: int, how: str) -> dict[str, Any]:
+    """The ``end`` row of session ``number``: how it ended (one of :data:`HOW`)."""
+    if how not in HOW:
+        raise StoreError(f"a session ends as one of {', '.join(HOW)}, not {how!r}.")
+    return {"session": number, "event": "end", "time": now_iso(), "how": how}
 
-    def _event(self, event: str, rid: int) -> None:
-        if self.ended:
-            raise StoreError(f"session {self.number} has ended; begin another one to note {event} records")
-        self._queue({"session": self.number, "event": event, "time": now_iso(), "record": int(rid)})
 
-    def added(self, rid: int) -> None:
-        """Record ``rid`` was stored in this session."""
-        self._event("added", rid)
-
-    def redone(self, rid: int) -> None:
-        """Record ``rid`` is being redone (the experimenter chose redo)."""
-        self._event("redone", rid)
-
-    def skipped(self, rid: int) -> None:
-        """Record ``rid`` was skipped."""
-        self._event("skipped", rid)
-
-    def end(self, how: str, note: str = "") -> None:
-        """How the session ended: one of ``finished``, ``quit``, ``interrupted``, ``rig lost``,
-        ``no input``, ``disk full``, ``error``; ``note``: a sentence (what was lost, ...)."""
-        if how not in HOW:
-            raise StoreError(f"a session ends as one of {', '.join(HOW)}, not {how!r}")
-        if not self.ended:
-            self.ended = True
-            self._end({"session": self.number, "event": "end", "time": now_iso(), "how": how, "note": note})
+def cut(s: Any, width: int) -> str:
+    """``s`` as text of at most ``width`` UTF-8 bytes (ending in "..." when cut)."""
+    data = str(s).encode("utf-8")
+    if len(data) <= width:
+        return str(s)
+    return data[: width - 3].decode("utf-8", "ignore") + "..."
 
 
 def read_sessions(t: Table) -> tuple[list[dict[str, Any]], list[str]]:
@@ -196,7 +172,8 @@ def read_sessions(t: Table) -> tuple[list[dict[str, Any]], list[str]]:
         n, event = int(c["session"][i]), _s(c["event"][i])
         s = sessions.setdefault(n, {"number": n, "started": "", "ended": "", "how": None, "note": "",
                                     "port": "", "baud": None, "device": "", "firmware": "", "channels": [],
-                                    "calibration": None, "command_line": "", "host_name": "",
+                                    "calibration": None, "command_line": "", "host_name": "", "operator": "",
+                                    "resumed": False, "other_rig": False,
                                     "added": [], "redone": [], "skipped": []})
         if event == "begin":
             baud = int(c["baud"][i])
@@ -205,7 +182,9 @@ def read_sessions(t: Table) -> tuple[list[dict[str, Any]], list[str]]:
                      channels=[x for x in _s(c["channels"][i]).split(",") if x],
                      calibration={"gain": [float(x) for x in c["gain"][i]],
                                   "offset": [float(x) for x in c["offset"][i]]},
-                     command_line=_s(c["command_line"][i]), host_name=_s(c["host_name"][i]))
+                     command_line=_s(c["command_line"][i]), host_name=_s(c["host_name"][i]),
+                     operator=_s(c["operator"][i]), resumed=int(c["resumed"][i]) == 1,
+                     other_rig=int(c["other_rig"][i]) == 1)
         elif event in ("added", "redone", "skipped"):
             s[event].append(int(c["record"][i]))
         elif event == "end":

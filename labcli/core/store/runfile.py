@@ -127,6 +127,8 @@ class RunFile:
         self._records: Records | None = None
         self._pending: list[dict[str, Any]] = []
         self._broken = False
+        self._session: int | None = None  # the session-log number of the session writing now
+        self._session_added: set[int] = set()
         root = h5.attrs
         self.version = int(root.get("schema_version", 1))
         if self.version == 1:
@@ -315,6 +317,11 @@ class RunFile:
             raise StoreError(f"{path} is damaged or truncated and HDF5 cannot read it; use a backup copy.") from None
         if mode == "a":
             space.ignore_file_size_signal()
+        for attempt in range(READ_RETRIES):
+            if run._metadata_ok() or mode == "a" or attempt + 1 == READ_RETRIES or not space.writer_holds(path):
+                break
+            time.sleep(0.02 * (attempt + 1))  # the writer may be mid-commit: read afresh
+            run._reopen()
         run._check_metadata()
         return run
 
@@ -381,15 +388,16 @@ class RunFile:
                 return h5py.File(path, "a", locking=False)
             raise
 
-    def _check_metadata(self) -> None:
+    def _metadata_ok(self) -> bool:
         if self.version == 1:
-            return
+            return True
         try:
-            stored = int(self._f.attrs["metadata_checksum"])
-            ok = stored == metadata_checksum(self._f)
-        except Exception:  # noqa: BLE001
-            ok = False
-        if not ok:
+            return int(self._f.attrs["metadata_checksum"]) == metadata_checksum(self._f)
+        except Exception:  # noqa: BLE001 - a damaged attribute can fail in any way
+            return False
+
+    def _check_metadata(self) -> None:
+        if not self._metadata_ok():
             self._warn(f"{self.path}: the run's metadata (the attributes of its groups and datasets) do not match "
                        "their checksum; the file was changed after it was written, so check what it says.")
 
@@ -593,10 +601,9 @@ class RunFile:
         if accepted not in ("auto", "timeout", "operator", "imported"):
             raise StoreError(f"{label} record: 'accepted' must be one of auto, timeout, operator, imported, "
                              f"got {accepted!r}.")
-        flags = record.get("flags") or ""
         row.update({rt.id_column: rid, "started": str(record.get("started", "") or ""),
                     "ended": str(record.get("ended", "") or now_iso()), "accepted": accepted,
-                    "flags": flags if isinstance(flags, str) else " ".join(map(str, flags))})
+                    "flags": _joined_flags(record.get("flags"), label)})
         for name in WINDOWS:
             s = settle_attrs(windows.get(name))
             row[f"{name}_settled"] = -1 if "settled" not in s else int(s["settled"])
@@ -641,7 +648,7 @@ class RunFile:
         imported table row), plus what every record may carry: ``started``/``ended`` (ISO
         8601; ``ended`` defaults to now), ``settle`` (``{"baseline": ..., "load": ...}``),
         ``raw`` (the windows: arrays, or the :class:`StoredWindow` the engine streamed),
-        ``accepted``, ``flags`` (words), ``extra`` (imported columns).  Raises StoreError if
+        ``accepted``, ``flags`` (a list of one-sentence notes), ``extra`` (imported columns).  Raises StoreError if
         the record is already complete in the file or is malformed (nothing is written
         then), DiskFull if there is no room for it (nothing is written then either).
         """
@@ -661,7 +668,15 @@ class RunFile:
                 writer.append(w["time"], w["seq"], w["counts"], w["values"])
                 w = writer.finish()
             row.update({f"{name}_start": w.start, f"{name}_stop": w.stop, f"{name}_checksum": w.checksum})
-        self._commit([(self._table, {k: [v] for k, v in row.items()}, 1)], frames, label)
+        queued = len(self._pending)
+        if self._session is not None:
+            self._note_event("added", rid)  # committed with the record
+        try:
+            self._commit([(self._table, {k: [v] for k, v in row.items()}, 1)], frames, label)
+        except BaseException:
+            del self._pending[queued:]
+            self._session_added.discard(rid)
+            raise
         self._note_written([rid])
 
     def append(self, columns: Mapping[str, Any]) -> int:
@@ -852,8 +867,7 @@ class RunFile:
         out = {**self.record_type.read(row), "started": str(row["started"]), "ended": str(row["ended"]),
                "accepted": str(row["accepted"]), "order": i, "raw": raw, "settle": settle,
                "extra": {name: self._extra_value(row[name]) for name in rec.extras}}
-        if str(row.get("flags", "")):
-            out["flags"] = str(row["flags"]).split()
+        out["flags"] = split_flags(row.get("flags", ""))
         return out
 
     @staticmethod
@@ -925,8 +939,23 @@ class RunFile:
         self._check_writable()
         fit, val = _split.checked(self.path, self._split_ids(), fit_ids, validation_ids)
         self._to_v2("a split")
-        row = logs.split_row(self._split_t.g, fit, val, str(strategy), seed)
-        self._commit([(self._split_t, {k: [v] for k, v in row.items()}, 1)], 8 * (len(fit) + len(val)), "the split")
+        self._commit_with_blob(self._split_t, lambda: logs.split_row(self._split_t.g, fit, val, str(strategy), seed),
+                               8 * (len(fit) + len(val)), "the split")
+
+    def _commit_with_blob(self, t: Table, make_row: Any, nbytes: int, doing: str) -> None:
+        """Commit one row of ``t`` whose data (a split's ids, a model's JSON) ``make_row`` writes first.
+
+        The room for both is reserved before the blob is written, so a full disk or ``ulimit -f``
+        stops the change before HDF5 writes anything.
+        """
+        self._reserve(nbytes, doing)
+        try:
+            row = make_row()
+        except OSError as e:
+            self._broken = True
+            raise StoreError(f"{self.path} could not be written ({e.strerror or e}), so {doing} was not stored; "
+                             f"{self._kept()}.") from None
+        self._commit([(t, {k: [v] for k, v in row.items()}, 1)], nbytes, doing)
 
     def _split_ids(self) -> list[int]:
         """The records a split may hold: the complete ones, if the record type splits at all."""
@@ -969,9 +998,9 @@ class RunFile:
         if not name or "/" in name or name.startswith(".") or len(name.encode()) > 64:
             raise StoreError(f"model name {name!r} must be non-empty, at most 64 bytes and contain no '/'.")
         self._to_v2("a model")
-        row = logs.model_row(self._models_t.g, name, str(json_text), __version__)
-        self._commit([(self._models_t, {k: [v] for k, v in row.items()}, 1)], len(json_text.encode()),
-                     f"the model {name}")
+        self._commit_with_blob(self._models_t, lambda: logs.model_row(self._models_t.g, name, str(json_text),
+                                                                      __version__),
+                               len(json_text.encode()), f"the model {name}")
 
     def models(self) -> dict[str, str]:
         """Model name -> JSON text, as recorded (the last of each name)."""
@@ -988,37 +1017,59 @@ class RunFile:
 
     # ----------------------------------------------------------- sessions
 
-    def begin_session(self, *, port: str = "", baud: int | None = None, device_info: Any = None,
-                      calibration: Any = None, command_line: str | None = None) -> logs.Session:
-        """Note in the run's session log that a session begins (committed at once); returns it.
+    # The session log: the run file's side of labcli.core.sessionlog.SessionLog, which the
+    # engine reports to.  A record's "added" row is committed with the record itself, so the
+    # log never claims a record the file lacks, nor misses one it holds; "redone" and
+    # "skipped" rows ride on the next commit; "begin" and "end" are committed at once.
 
-        ``device_info``: the rig's ID reply (``DeviceInfo``: device, firmware, channels);
-        ``calibration``: the protocol's Calibration (or a protocol, or ``(gain, offset)``).
-        See :class:`~labcli.core.store.logs.Session` for what the session then notes.
+    def begin_session(self, info: Any) -> None:
+        """A session starts writing to the run (before its first record); committed at once.
+
+        ``info``: a :class:`labcli.core.sessionlog.SessionInfo` (started, port, baud, rig
+        identity, operator, command line, resumed, other_rig).
         """
-        from .layout import command_line as current_command
         import socket
 
         self._check_writable()
         self._to_v2("a session")
-        gain, offset = logs.calibration_pair(calibration, len(self.channels))
         sessions, _ = logs.read_sessions(self._sessions_t)
-        number = (sessions[-1]["number"] + 1) if sessions else 1
-        channels = getattr(device_info, "channels", None) or ()
-        event = {"session": number, "event": "begin", "time": now_iso(), "port": str(port)[:256],
-                 "baud": -1 if baud is None else int(baud), "device": str(getattr(device_info, "device", ""))[:64],
-                 "firmware": str(getattr(device_info, "firmware", ""))[:64], "channels": ",".join(channels)[:256],
-                 "gain": gain, "offset": offset,
-                 "command_line": _cut(current_command() if command_line is None else command_line, 1024),
-                 "host_name": socket.gethostname()[:128]}
-        self._pending.append(event)
+        number = max((s["number"] for s in sessions), default=0) + 1
+        self._pending.append(logs.begin_event(number, info, socket.gethostname()))
         self._commit([], 0, "the session's start")
-        return logs.Session(number, self._pending.append, self._end_session)
+        self._session, self._session_added = number, set()
 
-    def _end_session(self, event: dict[str, Any]) -> None:
-        event["note"] = _cut(event.get("note", ""), 512)
-        self._pending.append(event)
+    def trial_added(self, rid: int) -> None:
+        """Record ``rid`` was stored whole by this session (already logged by :meth:`write`)."""
+        self._note_event("added", rid)
+
+    def trial_redone(self, rid: int) -> None:
+        """Record ``rid`` is redone before it is stored (logged with the next commit)."""
+        self._note_event("redone", rid)
+
+    def trial_skipped(self, rid: int) -> None:
+        """Record ``rid`` was skipped by this session (logged with the next commit)."""
+        self._note_event("skipped", rid)
+
+    def _note_event(self, event: str, rid: int) -> None:
+        number = self._session
+        if number is None:
+            raise StoreError(f"no session is open in {self.path}; begin one before noting {event} records.")
+        if event == "added":
+            if int(rid) in self._session_added:
+                return
+            self._session_added.add(int(rid))
+        self._pending.append(logs.record_event(number, event, rid))
+
+    def end(self, how: str) -> None:
+        """The session ended: ``finished``, ``quit``, ``interrupted``, ``no input``, ``rig lost``,
+        ``disk full`` or ``error``; committed at once.  A session with no end row ended without
+        a word (a kill, a power cut)."""
+        number = self._session
+        if number is None:
+            raise StoreError(f"no session is open in {self.path}; there is none to end.")
+        self._pending.append(logs.end_event(number, how))
         self._commit([], 0, "the session's end")
+        self._session = None
 
     def sessions(self) -> list[dict[str, Any]]:
         """Every session that recorded into the run, in order (see :mod:`.logs`); [] for schema 1."""
@@ -1029,20 +1080,19 @@ class RunFile:
             self._warn(f"{self.path}: {problems[0]}; that event is left out of the session log.")
         return out
 
-    def rig_identity(self) -> dict[str, Any]:
-        """The rig the run was last recorded with: device, firmware, channels, port, calibration.
+    def rig_identity(self) -> Any:
+        """The rig of the run's latest session (a ``RigIdentity``), or None when no session is logged.
 
-        From the last session that noted one, else from the run's metadata (its first rig).
+        (:func:`labcli.core.sessionlog.recorded_identity` falls back on the run's metadata.)
         """
         for s in reversed(self.sessions()):
-            if s["device"] or s["channels"]:
-                return {"device": s["device"], "firmware": s["firmware"], "channels": list(s["channels"]),
-                        "port": s["port"], "calibration": s["calibration"]}
-        a = self.attrs
-        cal = self.calibration()
-        return {"device": a.get("device", ""), "firmware": a.get("firmware", ""), "channels": list(self.channels),
-                "port": a.get("port", ""),
-                "calibration": {"gain": [float(x) for x in cal["gain"]], "offset": [float(x) for x in cal["offset"]]}}
+            if s["started"]:
+                cal = s["calibration"] or {"gain": [], "offset": []}
+                keep = all(math.isfinite(x) for x in (*cal["gain"], *cal["offset"]))
+                fields = {"device": s["device"], "firmware": s["firmware"], "channels": tuple(s["channels"]),
+                          "gain": tuple(cal["gain"]) if keep else (), "offset": tuple(cal["offset"]) if keep else ()}
+                return _rig_identity(fields)
+        return None
 
     # ----------------------------------------------------------- summary
 
@@ -1108,11 +1158,33 @@ class RunFile:
         return new
 
 
-def _cut(s: str, width: int) -> str:
-    data = str(s).encode("utf-8")
-    if len(data) <= width:
-        return str(s)
-    return data[: width - 3].decode("utf-8", "ignore") + "..."
+def _joined_flags(flags: Any, label: str) -> str:
+    """A record's flags (one sentence each, or one string) as the flags column keeps them: one per line."""
+    if not flags:
+        return ""
+    items = [flags] if isinstance(flags, str) else list(flags)
+    for k, flag in enumerate(items, 1):
+        if not isinstance(flag, str):
+            raise StoreError(f"{label} record: flag {k} is {type(flag).__name__}, not text; a flag is one sentence.")
+        if "\n" in flag or "\r" in flag or not flag.strip():
+            raise StoreError(f"{label} record: flag {k} is {'empty' if not flag.strip() else 'more than one line'}; "
+                             "a flag is one sentence.")
+    return "\n".join(items)
+
+
+def split_flags(value: Any) -> list[str]:
+    """The flags column of one record back as the list of sentences the writer gave."""
+    v = value.decode("utf-8") if isinstance(value, bytes) else str(value or "")
+    return v.split("\n") if v else []
+
+
+def _rig_identity(fields: dict[str, Any]) -> Any:
+    """``labcli.core.sessionlog.RigIdentity(**fields)``; plain attributes where that seam is absent."""
+    try:
+        from ..sessionlog import RigIdentity  # type: ignore[import-not-found]
+    except ImportError:
+        return SimpleNamespace(**fields)
+    return RigIdentity(**fields)
 
 
 def load_table(path: str | os.PathLike, kind: RecordType) -> Any:

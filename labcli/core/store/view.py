@@ -63,6 +63,8 @@ def out_of_bounds(columns: Sequence[Column], cols: dict[str, np.ndarray]) -> dic
             continue
         v = np.asarray(cols[c.name], dtype=np.float64)
         n = v.shape[0]
+        if n == 0:
+            continue
         flat = v.reshape(n, -1)
         finite = np.isfinite(flat)
         problem = np.zeros(flat.shape, dtype=bool) if c.optional else ~finite
@@ -115,12 +117,23 @@ def from_v2(t: Table, rt: RecordType) -> Records:
     rows = t.read()
     ids = [int(i) for i in rows.cols[rt.id_column]]
     cols = {name: decode(v) for name, v in rows.cols.items()}
-    damaged = [(f"row {r}", why) for r, why in rows.damaged]
+    damaged = [(_row_name(t, rt, r), why) for r, why in rows.damaged]
     known = {c.name for c in (*common_columns(rt.id_column), *rt.columns, *window_columns())}
     extras = [name for name in t.names if name not in known]
     tail = t.read(want=[rt.id_column], span=(t.committed, t.extent)) if t.extent > t.committed else None
     incomplete = sorted({int(i) for i in tail.cols[rt.id_column]} - set(ids)) if tail is not None else []
     return check(Records(ids, cols, [int(r) for r in rows.rows], damaged, incomplete, extras), rt, rt.noun)
+
+
+def _row_name(t: Table, rt: RecordType, r: int) -> str:
+    """A damaged row as messages name it: its position, and the record its id says it holds."""
+    if r < 0:
+        return f"the {rt.plural} table"
+    try:
+        rid = int(t.ds[rt.id_column][r])
+    except (OSError, ValueError, RuntimeError, IndexError, KeyError):
+        return f"row {r}"
+    return f"row {r}, {rt.noun} {rid} by its id" if 0 <= rid <= MAX_ID else f"row {r}"
 
 
 def from_v1(backend: Any, rt: RecordType) -> Records:
