@@ -139,3 +139,40 @@ def test_sample_runs_still_read():
         with RunFile.open(ROOT / "sample_runs" / f"{name}.h5") as run:
             assert len(run.completed_ids()) > 0
             assert len(run.table()) == len(run.completed_ids())
+
+
+def test_nexus_the_way_h5py_users_read_it(tmp_path):
+    import datetime
+    import uuid
+
+    import numpy as np
+
+    path = tmp_path / "deep" / "run.h5"
+    path.parent.mkdir()
+    with new_run(str(path)) as run:
+        run.write(make_record(1))
+        run.write(make_record(2))
+    strings: list[str] = []
+    units: dict[str, str] = {}
+    with h5py.File(path, "r") as f:
+        assert f.attrs["NX_class"] == "NXroot" and f.attrs["file_name"] == "run.h5"
+        entry = f[f.attrs["default"]]
+        assert entry.attrs["NX_class"] == "NXentry"
+        assert uuid.UUID(entry.attrs["run_uid"]).version == 4
+        assert datetime.datetime.fromisoformat(entry.attrs["start_time"]).utcoffset() is not None
+        assert set(entry["versions"].attrs) >= {"python", "numpy", "h5py", "hdf5", "labcli"}
+        data = entry[entry.attrs["default"]]
+        assert data.attrs["NX_class"] == "NXdata"
+        signal = data[data.attrs["signal"]]
+        assert signal.attrs["units"] == "MPa" and signal.shape == (2, 4)
+        np.testing.assert_array_equal(signal[1], make_record(2)["P_MPa"])
+        assert data.attrs["axes"][0] == "trial" and list(data["trial"][:]) == [1, 2]
+
+        def visit(name, obj):
+            for v in obj.attrs.values():
+                strings.extend(str(x) for x in np.atleast_1d(v))
+            if isinstance(obj, h5py.Dataset):
+                units[name] = obj.attrs["units"]
+        f.visititems(visit)
+    assert all("," not in u for u in units.values()), units  # one unit per dataset
+    assert not [s for s in strings if str(tmp_path) in s]  # no path of the writer's machine
