@@ -42,6 +42,8 @@ from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.core.store import RunFile
 
+from support.records import stored_trials
+
 ROOT = Path(__file__).resolve().parents[2]
 SEED = 21
 PORT = f"sim://?seed={SEED}&clock=virtual"
@@ -53,29 +55,8 @@ REVIEW = "  trial "  # the unattended session prints one such line per trial, be
 
 
 def trial_data(path: Path) -> dict[int, dict[str, Any]]:
-    """Every complete trial's arrays and values (dtype, shape, bytes) and its metadata, by trial id.
-
-    Keys starting with "@" are what may differ between two runs of one seed (times, order).
-    """
-    out: dict[int, dict[str, Any]] = {}
-    with RunFile.open(path) as run:
-        for t in run.completed_ids():
-            rec = run.read(t)
-            items: dict[str, Any] = {}
-            for key, value in rec.items():
-                if key in ("started", "ended", "order", "settle", "accepted", "flags", "extra"):
-                    items["@" + key] = repr(value)
-                elif key == "raw":
-                    for window, arrays in sorted(value.items()):
-                        for name, a in sorted(arrays.items()):
-                            a = np.asarray(a)
-                            items[f"raw/{window}/{name}"] = (a.dtype.str, a.shape, a.tobytes())
-                else:
-                    a = np.asarray(value) if not isinstance(value, dict) else None
-                    items[key] = repr(value) if a is None or a.dtype == object else (a.dtype.str, a.shape,
-                                                                                     a.tobytes())
-            out[int(t)] = items
-    return out
+    """Every complete trial's arrays and values (dtype, shape, bytes) and its metadata ("@" keys)."""
+    return stored_trials(path)
 
 
 def datasets(items: dict[str, Any]) -> dict[str, Any]:

@@ -60,8 +60,10 @@ def _check_storable(df: Any, id_col: str) -> None:
             raise ConfigError(f"the column name {str(c)!r} holds a NUL character, which a run file cannot "
                               "store; rename the column.")
     for c in df.columns:
-        if df[c].dtype != object:
-            continue
+        import pandas as pd
+
+        if pd.api.types.is_numeric_dtype(df[c]) or pd.api.types.is_bool_dtype(df[c]):
+            continue  # text columns are object or pandas' string dtype
         nul = df[c].map(lambda v: isinstance(v, str) and "\x00" in v).to_numpy(dtype=bool)
         if nul.any():
             rid = df[id_col].iloc[int(np.flatnonzero(nul)[0])]
