@@ -9,6 +9,7 @@ into a one-line :class:`click.ClickException`.
 from __future__ import annotations
 
 import importlib
+import warnings
 
 import click
 
@@ -65,5 +66,19 @@ def cli() -> None:
     """
 
 
+_python_show_warning = warnings.showwarning
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+    """A LabcliWarning (a damaged record left out, ...) is one line for the user; others as Python shows them."""
+    from .errors import LabcliWarning
+
+    if issubclass(category, LabcliWarning):
+        click.echo(f"Warning: {message}", err=True)
+    else:
+        _python_show_warning(message, category, filename, lineno, file, line)
+
+
 def main() -> None:
+    warnings.showwarning = _show_warning
     cli(prog_name="labcli")

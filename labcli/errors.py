@@ -36,5 +36,17 @@ class StoreError(LabcliError):
     """A run file is missing, of another schema, damaged, or would be overwritten."""
 
 
+class DiskFull(StoreError):
+    """The disk (or the file size limit, ``ulimit -f``) has no room for a write; nothing was changed."""
+
+
 class ModelError(LabcliError):
     """A model cannot be fitted or applied (too few trials, wrong protocol, ...)."""
+
+
+class LabcliWarning(UserWarning):
+    """A sentence for the user that does not stop the command (a damaged record left out, ...).
+
+    The command line prints it as ``Warning: ...`` on stderr; a library user gets it through
+    :mod:`warnings` (``warnings.simplefilter("error", LabcliWarning)`` makes it an error).
+    """

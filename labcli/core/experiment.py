@@ -15,9 +15,10 @@ must offer, and anything that offers it plugs in.
 * :class:`ProtocolKind`: the sections a protocol of one kind holds, as plain-data key
   specs (:mod:`labcli.core.protocol` checks them), plus the hook that turns the checked
   sections into the experiment's typed settings (``Protocol.settings``).
-* :class:`RecordType`: what one record of a run kind holds (a trial, a push, a point), how
-  it is checked and written into its HDF5 group, read back, tabled as CSV, imported from
-  a table row and summarised by ``labcli inspect``.
+* :class:`RecordType`: what one record of a run kind holds (a trial, a push, a point) as
+  declared :class:`Column` s, how it is checked and turned into a row of the run file's
+  record table, read back, tabled as CSV, imported from a table and summarised by
+  ``labcli inspect``.
 * :class:`Acquisition`: one run being acquired: the protocol it records with, its session
   of steps (:mod:`labcli.core.steps`), its plan, and the rules of resuming it.
 * :class:`RigAction`: what the experimenter does at the rig, which the simulated rig acts
@@ -73,60 +74,89 @@ class ProtocolKind:
 
 
 @dataclass(frozen=True)
-class Dataset:
-    """One dataset of a record group: name, value (array-like or scalar), units, attributes."""
+class Column:
+    """One value every record of a kind holds: a column of its table in the run file.
+
+    ``name`` names the dataset (``/entry/trials/P0``) and the key of a stored row;
+    ``units`` is its ``@units`` attribute (``"MPa"``, ``"rad"``, ``"1"`` for ids and counts,
+    ``""`` for text); ``shape`` is one record's value: ``()`` a number or a text, ``(4,)``
+    four numbers, whose names are ``components``.  ``kind``: ``"float"``, ``"int"``,
+    ``"text"`` (at most ``width`` bytes of UTF-8; longer is refused when written).
+    ``optional`` values may be missing (NaN, or ``""`` for text); the others must be
+    finite.  (The run file's own columns also use ``kind`` ``"uint"`` and ``"flag"``.)  ``bounds`` is the range a stored value can physically take: a value read back
+    outside it marks the record damaged (a changed file), named in a sentence with ``what``.
+    """
 
     name: str
-    value: Any
     units: str
-    attrs: Mapping[str, Any] = field(default_factory=dict)
+    shape: tuple[int, ...] = ()
+    kind: str = "float"
+    width: int = 0
+    components: tuple[str, ...] = ()
+    bounds: tuple[float, float] | None = None
+    optional: bool = False
+    what: str = ""
 
+    @property
+    def dtype(self) -> Any:
+        """The numpy dtype the column is stored as."""
+        import numpy as np
 
-@dataclass(frozen=True)
-class Stored:
-    """What a record type writes into a record's group (before the core's common parts)."""
-
-    attrs: Mapping[str, Any]
-    datasets: Sequence[Dataset]
+        return {"float": np.dtype("<f8"), "int": np.dtype("<i8"), "uint": np.dtype("<u8"),
+                "flag": np.dtype("i1")}.get(self.kind) or np.dtype(f"S{max(1, self.width)}")
 
 
 @runtime_checkable
 class RecordType(Protocol):
     """One record kind of a run: where it lives, what it holds, how it is tabled.
 
-    The run file (:class:`labcli.core.store.RunFile`) writes the common parts of every
-    record itself (the id, recording order, times, settling, raw windows, extra columns,
-    the ``complete`` flag, the index) and asks the record type for the rest.
+    The run file (:class:`labcli.core.store.RunFile`) keeps the records of a run as the rows
+    of one table (``/entry/<collection>``): the columns every record has (the id, times,
+    settling, raw-window references, checksum), written by the run file itself, and the
+    record type's :attr:`columns`.  The record type turns a record into its row
+    (:meth:`check`) and rows back into records and tables; rows come as a mapping of column
+    name to value (one record) or to an array over the records (``cols``).
     """
 
     kind: str  # the run kind, e.g. "force"
-    collection: str  # the group records live in, e.g. "trials"
-    id_column: str  # the id attribute and table column, e.g. "trial"
+    collection: str  # the table records live in, e.g. "trials"
+    id_column: str  # the id column, e.g. "trial"
     noun: str  # "trial" (for sentences)
     plural: str  # "trials"
     qualifier: str  # appended to counts in sentences, e.g. " of the joint map" ("" for none)
     splits: bool  # records join the run's fit/validation split
     known_columns: frozenset[str]  # table columns the record type stores (others are kept as extras)
+    columns: tuple[Column, ...]  # what one record holds besides what every record has
+    signal: str  # the column a NeXus reader plots (``@signal`` of the record table)
 
     def count(self, n: int) -> str:
         """``3 points of the joint map``: a number of these records in a sentence."""
 
-    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
-        """Check a record before anything touches the file (StoreError) and say what to write."""
+    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Mapping[str, Any]:
+        """Check a record before anything touches the file (StoreError); its row: column -> value.
 
-    def read(self, group: Any) -> dict[str, Any]:
-        """The record-specific part of a complete record's group, as the writer gave it (SI)."""
+        Optional columns may be left out (stored missing)."""
 
-    def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
-        """The CSV exchange table (DataFrame) of these records, without the extra columns."""
+    def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
+        """The record-specific part of a stored row, as the writer gave it (SI)."""
+
+    def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
+        """The CSV exchange table (DataFrame) of these records, without the extra columns.
+
+        ``cols`` maps each of :attr:`columns` to its values over the records (an array whose
+        first axis follows ``ids``)."""
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
         """One table row (as read by :meth:`read_csv`) as the record :meth:`check` takes.
 
         The importer adds what every imported record carries (``accepted``, ``extra``)."""
 
-    def import_split(self, rows: list[dict[str, Any]]) -> tuple[list[int], list[int]]:
-        """Fit and validation ids named by an imported table (empty lists: no split)."""
+    def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
+        """A whole table (DataFrame, as read by :meth:`read_csv`) as columns: name -> array
+        over its rows, the id column included (what :meth:`RunFile.append` takes)."""
+
+    def import_split(self, table: Any) -> tuple[list[int], list[int]]:
+        """Fit and validation ids named by an imported table (DataFrame; empty lists: no split)."""
 
     def read_csv(self, path: Any, *, id_range: tuple[int, int] | None = None,
                  check: Callable[[dict[str, Any]], Iterable[tuple[str, str]]] | None = None) -> Any:
@@ -135,7 +165,7 @@ class RecordType(Protocol):
     def write_csv(self, table: Any, path: Any) -> None:
         """Write the table as CSV, atomically."""
 
-    def summarise(self, run: Any, ids: list[int], groups: list[Any]) -> dict[str, Any]:
+    def summarise(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> dict[str, Any]:
         """Keys this record type adds to ``RunFile.summary()`` (``baseline_drift``, ...)."""
 
     def inspect_lines(self, summary: dict[str, Any]) -> list[str]:

@@ -34,14 +34,14 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-import h5py
-import numpy as np
 import pytest
 
 from labcli.core.acquisition import acquire
 from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.core.store import RunFile
+
+from support.records import stored_trials
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED = 21
@@ -54,23 +54,8 @@ REVIEW = "  trial "  # the unattended session prints one such line per trial, be
 
 
 def trial_data(path: Path) -> dict[int, dict[str, Any]]:
-    """Every complete trial's datasets (dtype, shape, bytes) and attributes, by trial id."""
-    out: dict[int, dict[str, Any]] = {}
-    with h5py.File(path, "r") as f:
-        for g in f["trials"].values():
-            if not g.attrs.get("complete", False):
-                continue
-            items: dict[str, Any] = {"@": sorted((k, repr(v)) for k, v in g.attrs.items())}
-
-            def visit(name: str, obj: Any) -> None:
-                if isinstance(obj, h5py.Dataset):
-                    a = np.asarray(obj[()])
-                    items[name] = (a.dtype.str, a.shape, a.tobytes())
-                items["@" + name] = sorted((k, repr(v)) for k, v in obj.attrs.items())
-
-            g.visititems(visit)
-            out[int(g.attrs["trial"])] = items
-    return out
+    """Every complete trial's arrays and values (dtype, shape, bytes) and its metadata ("@" keys)."""
+    return stored_trials(path)
 
 
 def datasets(items: dict[str, Any]) -> dict[str, Any]:

@@ -170,7 +170,18 @@ def check_outcome(text: str, folder: Path) -> None:
         assert any(re.fullmatch(rf"{re.escape(str(src))}:row \d+, column trial: -?\d+ is outside the trial ids "
                                 rf"a run file holds, 0 to {MAX_ID}\.", p) for p in e.value.problems)
         return
-    with import_table(df, out, protocol=PROTOCOL, source="t.csv") as run:
+    try:
+        run = import_table(df, out, protocol=PROTOCOL, source="t.csv")
+    except StoreError as e:
+        # A value no rig can produce (a joint turned past a full turn): refused by the run file in
+        # one sentence naming the record, the value and the range; no file is made.
+        m = re.fullmatch(r"trial (\d+): .+ reads (\S+) (\S+), outside the physically possible (\S+) to (\S+) \3\.",
+                         str(e))
+        assert m, str(e)
+        assert not float(m[4]) <= float(m[2]) <= float(m[5])
+        assert not out.exists()
+        return
+    with run:
         back = run.table()
     assert list(back["trial"]) == list(df["trial"])
     assert list(back["set"]) == list(df["set"])

@@ -22,7 +22,6 @@ from collections import deque
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -36,6 +35,8 @@ from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
 from labcli.core.sim.pty import serve_pty
 from labcli.core.store import RunFile
+
+from support.records import stored_trials
 from labcli.core.ui import RichUI
 
 SEED = 5
@@ -51,26 +52,8 @@ LOSE_AT_START = 8
 
 
 def trial_data(path: Path, attrs: bool = True) -> dict[int, dict[str, Any]]:
-    """Every complete trial's datasets (dtype, shape, bytes) and, optionally, attributes."""
-    out: dict[int, dict[str, Any]] = {}
-    with h5py.File(path, "r") as f:
-        for g in f["trials"].values():
-            if not g.attrs.get("complete", False):
-                continue
-            items: dict[str, Any] = {}
-
-            def visit(name: str, obj: Any) -> None:
-                if isinstance(obj, h5py.Dataset):
-                    a = np.asarray(obj[()])
-                    items[name] = (a.dtype.str, a.shape, a.tobytes())
-                if attrs:
-                    items["@" + name] = sorted((k, repr(v)) for k, v in obj.attrs.items())
-
-            g.visititems(visit)
-            if attrs:
-                items["@"] = sorted((k, repr(v)) for k, v in g.attrs.items())
-            out[int(g.attrs["trial"])] = items
-    return out
+    """Every complete trial's arrays and values (dtype, shape, bytes) and, optionally, its metadata."""
+    return stored_trials(path, attrs)
 
 
 def datasets_only(data: dict[int, dict[str, Any]]) -> dict[int, dict[str, Any]]:

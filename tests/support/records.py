@@ -113,6 +113,34 @@ def assert_record_stored(stored: dict, rec: dict) -> None:
         assert s["accepted"] == ("auto" if rec["settle"][key]["settled"] else "timeout")
 
 
+def stored_trials(path, attrs: bool = True) -> dict:
+    """Every complete trial of a run file as comparable values, by trial id: arrays as (dtype, shape,
+    bytes); with ``attrs``, under keys starting with "@", what may differ between two runs of one
+    seed (times, order, settling, flags)."""
+    from labcli.core.store import RunFile
+
+    out: dict = {}
+    with RunFile.open(path) as run:
+        for t in run.completed_ids():
+            items: dict = {}
+            for key, value in run.read(t).items():
+                if key in ("started", "ended", "order", "settle", "accepted", "flags", "extra"):
+                    if attrs:
+                        items["@" + key] = repr(value)
+                elif key == "raw":
+                    for window, arrays in sorted(value.items()):
+                        for name, a in sorted(arrays.items()):
+                            a = np.asarray(a)
+                            items[f"raw/{window}/{name}"] = (a.dtype.str, a.shape, a.tobytes())
+                elif isinstance(value, dict) or np.asarray(value).dtype == object:
+                    items[key] = repr(value)
+                else:
+                    a = np.asarray(value)
+                    items[key] = (a.dtype.str, a.shape, a.tobytes())
+            out[int(t)] = items
+    return out
+
+
 def writer(path: str, n_trials: int, n_samples: int) -> None:
     from labcli.core.store import RunFile
 

@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from labcli.core.experiment import AcquireOptions, Analysis, ChannelRoles, Dataset, Demo, ProtocolKind, Stored
+from labcli.core.experiment import AcquireOptions, Analysis, ChannelRoles, Column, Demo, ProtocolKind
 from labcli.core.sim.clock import SimClock
 from labcli.core.steps import (
     Baseline,
@@ -151,24 +151,27 @@ class ToyTrials(BaseRecordType):
     noun = "trial"
     plural = "trials"
     table_spec = TOY_TABLE
+    columns = (Column("P", "MPa", bounds=(-1.0, 10.0), what="pressure under the load"),
+               Column("theta", "rad", bounds=(-math.pi, math.pi), what="deflection"),
+               Column("mass", "kg", bounds=(0.0, 100.0), what="mass hung"))
+    signal = "theta"
 
-    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
-        return Stored({}, [Dataset("P", scalar(record, "P_MPa", label), "MPa"),
-                           Dataset("theta", scalar(record, "theta_rad", label), "rad"),
-                           Dataset("mass", scalar(record, "mass_kg", label), "kg")])
+    def check(self, record: Mapping[str, Any], label: str, run: Any) -> dict[str, Any]:
+        return {"P": scalar(record, "P_MPa", label), "theta": scalar(record, "theta_rad", label),
+                "mass": scalar(record, "mass_kg", label)}
 
-    def read(self, g: Any) -> dict[str, Any]:
-        return {"trial": int(g.attrs["trial"]), "P_MPa": float(g["P"][()]), "theta_rad": float(g["theta"][()]),
-                "mass_kg": float(g["mass"][()])}
+    def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
+        return {"trial": int(row["trial"]), "P_MPa": float(row["P"]), "theta_rad": float(row["theta"]),
+                "mass_kg": float(row["mass"])}
 
-    def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
+    def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
         import pandas as pd
 
         return pd.DataFrame({
             "trial": pd.Series(ids, dtype="int64"),
-            "mass_g": to_edge([float(g["mass"][()]) * 1e3 for g in groups]),
-            "P_MPa": [float(g["P"][()]) for g in groups],
-            "theta_deg": to_edge([math.degrees(float(g["theta"][()])) for g in groups]),
+            "mass_g": to_edge(np.asarray(cols["mass"], dtype=float) * 1e3),
+            "P_MPa": np.asarray(cols["P"], dtype=float),
+            "theta_deg": to_edge(np.degrees(np.asarray(cols["theta"], dtype=float))),
         })
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:

@@ -1,10 +1,13 @@
 """The HDF5 run file: :class:`RunFile` (crash-safe records of any experiment), its split,
-the models fitted on it, and runs built from tables (:func:`import_table`)."""
+the models fitted on it, its session log, and runs built from tables (:func:`import_table`)."""
 
+from .frames import StoredWindow, WindowWriter
 from .h5 import to_edge
 from .importing import import_csv, import_table, storable_cells
-from .runfile import MAX_ID, RESUME_OR_FORCE, SCHEMA, SCHEMA_VERSION, RunFile, load_table
+from .layout import SCHEMA, SCHEMA_VERSION
+from .runfile import RESUME_OR_FORCE, RunFile, load_table
 from .split import choose_split
+from .view import MAX_ID
 
-__all__ = ["MAX_ID", "RESUME_OR_FORCE", "SCHEMA", "SCHEMA_VERSION", "RunFile", "choose_split", "import_csv",
-           "import_table", "load_table", "storable_cells", "to_edge"]
+__all__ = ["MAX_ID", "RESUME_OR_FORCE", "SCHEMA", "SCHEMA_VERSION", "RunFile", "StoredWindow",
+           "WindowWriter", "choose_split", "import_csv", "import_table", "load_table", "storable_cells", "to_edge"]

@@ -1,9 +1,9 @@
 """A run file built from a table: ``labcli import`` (data from MATLAB, LabVIEW, a spreadsheet).
 
 The protocol's kind decides the record type (:mod:`labcli.core.registry`), which reads the
-CSV (:meth:`~labcli.core.experiment.RecordType.read_csv`) and turns each row into a record
-(:meth:`~labcli.core.experiment.RecordType.from_row`); columns labcli does not know are
-kept per record.
+CSV (:meth:`~labcli.core.experiment.RecordType.read_csv`) and turns the table into columns
+(:meth:`~labcli.core.experiment.RecordType.from_table`); columns labcli does not know are
+kept as extra columns of the run's record table.
 """
 
 from __future__ import annotations
@@ -18,7 +18,9 @@ from ...errors import ConfigError, StoreError
 from ..protocol import load_protocol
 from ..registry import import_protocol, record_type
 from .h5 import nan_if_empty
-from .runfile import MAX_ID, RunFile
+from .layout import extra_column
+from .runfile import RunFile
+from .view import MAX_ID
 
 NUL_PROBLEM = "holds a NUL character, which a run file cannot store; remove it"
 
@@ -37,30 +39,47 @@ def storable_cells(row: Mapping[str, Any]) -> Iterable[tuple[str, str]]:
 
 def _any_nul(frame: Any) -> bool:
     """Whether any text cell of a table holds a NUL (whole columns; the row check then names them)."""
+    import pandas as pd
+
     return any(frame[c].astype(str).str.contains("\x00", regex=False).any()
-               for c in frame.columns if frame[c].dtype == object)
+               for c in frame.columns if not (pd.api.types.is_numeric_dtype(frame[c])
+                                              or pd.api.types.is_bool_dtype(frame[c])))
 
 
 storable_cells.screen = _any_nul  # type: ignore[attr-defined]
 
 
-def _extra_value(v: Any) -> Any:
-    if isinstance(v, str):
-        return v
-    if isinstance(v, (int, np.integer)):
-        return v
-    return nan_if_empty(v)
+def _extras(df: Any, names: Sequence[str]) -> tuple[list[Any], dict[str, Any]]:
+    """The run-file columns and values of an imported table's columns labcli does not know."""
+    columns, values = [], {}
+    for name in names:
+        raw = df[name].tolist()
+        c = extra_column(str(name), raw)
+        columns.append(c)
+        if c.kind == "text":
+            values[str(name)] = ["" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v) for v in raw]
+        elif c.kind == "int":
+            values[str(name)] = np.asarray(raw, dtype=np.int64)
+        else:
+            values[str(name)] = np.asarray([nan_if_empty(v) for v in raw], dtype=np.float64)
+    return columns, values
 
 
-def _check_storable(columns: Sequence[Any], rows: list[dict], id_col: str) -> None:
+def _check_storable(df: Any, id_col: str) -> None:
     """Refuse, before any file is made, a table holding text a run file cannot store."""
-    for c in columns:
+    for c in df.columns:
         if "\x00" in str(c):
             raise ConfigError(f"the column name {str(c)!r} holds a NUL character, which a run file cannot "
                               "store; rename the column.")
-    for row in rows:
-        for column, problem in storable_cells(row):
-            raise ConfigError(f"{id_col} {row[id_col]}, column {column}: {problem}.")
+    for c in df.columns:
+        import pandas as pd
+
+        if pd.api.types.is_numeric_dtype(df[c]) or pd.api.types.is_bool_dtype(df[c]):
+            continue  # text columns are object or pandas' string dtype
+        nul = df[c].map(lambda v: isinstance(v, str) and "\x00" in v).to_numpy(dtype=bool)
+        if nul.any():
+            rid = df[id_col].iloc[int(np.flatnonzero(nul)[0])]
+            raise ConfigError(f"{id_col} {rid}, column {c}: {NUL_PROBLEM}.")
 
 
 def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool = False, source: str = "",
@@ -69,41 +88,35 @@ def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool
 
     ``protocol``: the protocol the run records with (its kind the run's, e.g. an rPAM
     protocol with its experiment chosen).  A table naming fit and validation sets (a trial
-    table's ``set`` column) gives the split (strategy ``imported``).  The file is built
-    beside ``path`` and moved into place only when whole, so a failed import leaves an
-    existing file untouched.  Returns the run, open for reading.
+    table's ``set`` column) gives the split (strategy ``imported``).  The records go in as
+    one bulk commit (:meth:`RunFile.append`) into a file built under a temporary name and
+    put in place only when whole, so a failed or killed import leaves an existing file
+    untouched (and the next start removes the temporary file).  Returns the run, open.
     """
     path = os.fspath(path)
-    if os.path.exists(path) and not force:
+    if os.path.lexists(path) and not force:
         raise StoreError(f"{path} already exists; use --force to overwrite it.")
     rt = record_type(str(getattr(protocol, "kind", "force")))
-    rows = df.to_dict("records")
-    extras = [c for c in df.columns if c not in rt.known_columns]
-    seen: set[int] = set()
-    for row in rows:
-        rid = int(row[rt.id_column])
-        if rid in seen:
-            raise ConfigError(f"{rt.id_column} {rid} appears twice in the table; ids must be unique.")
-        seen.add(rid)
-    _check_storable(list(df.columns), rows, rt.id_column)
-    fit, val = rt.import_split(rows)
-    tmp = path + ".importing"
-    run = RunFile.create(tmp, protocol=protocol, force=True, imported=True, source=source, operator=operator)
-    run.sync_each_record = False  # the file only becomes the run once whole (os.replace below)
+    ids = df[rt.id_column]
+    repeated = ids[ids.duplicated()]
+    if len(repeated):
+        raise ConfigError(f"{rt.id_column} {int(repeated.iloc[0])} appears twice in the table; ids must be unique.")
+    _check_storable(df, rt.id_column)
+    fit, val = rt.import_split(df)
+    columns = rt.from_table(df, protocol)
+    extra_cols, extra_values = _extras(df, [c for c in df.columns if c not in rt.known_columns])
+    run = RunFile.create(path, protocol=protocol, force=force, imported=True, source=source, operator=operator,
+                         extras=extra_cols, rows_hint=len(df), staged=True, command_line=None,
+                         exists_hint="use --force to overwrite it")
     try:
-        for row in rows:
-            record = rt.from_row(row, protocol)
-            record.update(accepted="imported", ended="", extra={c: _extra_value(row[c]) for c in extras})
-            run.write(record)
+        run.append({**columns, **extra_values, "accepted": ["imported"] * len(df)})
         if fit or val:
             run.set_split(fit, val, "imported")
-        run.close()
-        os.replace(tmp, path)
+        run.publish()
     except BaseException:
-        run.close()
-        os.unlink(tmp)
+        run.discard()
         raise
-    return RunFile.open(path)
+    return run
 
 
 @dataclass(frozen=True)

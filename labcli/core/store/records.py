@@ -1,16 +1,16 @@
 """What most record types share: CSV through their table spec, no split, plain inspect lines.
 
 An experiment's record type (:class:`labcli.core.experiment.RecordType`) may derive from
-:class:`BaseRecordType` and give only what is its own: where its records live, how one
-is checked and written (:meth:`~BaseRecordType.check`), read back and tabled, and its
-CSV table spec (:mod:`labcli.core.tables`).
+:class:`BaseRecordType` and give only what is its own: where its records live, the columns a
+record holds, how one is checked and turned into a row (:meth:`~BaseRecordType.check`),
+read back and tabled, and its CSV table spec (:mod:`labcli.core.tables`).
 """
 
 from __future__ import annotations
 
 from typing import Any, Callable, Iterable, Mapping
 
-from ..experiment import Stored
+from ..experiment import Column
 from ..report import records_line, settling_line, split_line
 from ..tables import TableSpec, read_table, write_table
 
@@ -26,6 +26,8 @@ class BaseRecordType:
     qualifier: str = ""
     splits: bool = False
     table_spec: TableSpec
+    columns: tuple[Column, ...] = ()
+    signal: str = ""
 
     @property
     def known_columns(self) -> frozenset[str]:
@@ -36,20 +38,42 @@ class BaseRecordType:
         return f"{n} {self.noun if n == 1 else self.plural}{self.qualifier}"
 
     # -- what subclasses give
-    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
+    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Mapping[str, Any]:
         raise NotImplementedError
 
-    def read(self, group: Any) -> dict[str, Any]:
+    def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
         raise NotImplementedError
 
-    def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
+    def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
         raise NotImplementedError
 
-    def from_row(self, row: Mapping[str, Any], protocol: Any, extra: dict[str, Any]) -> dict[str, Any]:
+    def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
         raise NotImplementedError
 
     # -- defaults
-    def import_split(self, rows: list[dict[str, Any]]) -> tuple[list[int], list[int]]:
+    def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
+        """Every row through :meth:`from_row` and :meth:`check`, gathered into columns.
+
+        Correct for any record type; a record type whose tables run to many rows gives a
+        vectorised version (the trial table does)."""
+        import numpy as np
+
+        rows = []
+        for row in table.to_dict("records"):
+            record = self.from_row(row, protocol)
+            rid = int(record[self.id_column])
+            rows.append({**self.check(record, f"{self.noun} {rid}", None), self.id_column: rid})
+        out: dict[str, Any] = {}
+        for c in (Column(self.id_column, "1", kind="int"), *self.columns):
+            if any(c.name in r for r in rows):
+                if c.kind == "text":
+                    out[c.name] = [str(r.get(c.name, "")) for r in rows]
+                else:
+                    out[c.name] = np.array([r[c.name] if c.name in r else np.full(c.shape, np.nan) for r in rows],
+                                           dtype=c.dtype).reshape(len(rows), *c.shape)
+        return out
+
+    def import_split(self, table: Any) -> tuple[list[int], list[int]]:
         return [], []
 
     def read_csv(self, path: Any, *, id_range: tuple[int, int] | None = None,
@@ -59,7 +83,7 @@ class BaseRecordType:
     def write_csv(self, table: Any, path: Any) -> None:
         write_table(table, path, self.table_spec)
 
-    def summarise(self, run: Any, ids: list[int], groups: list[Any]) -> dict[str, Any]:
+    def summarise(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> dict[str, Any]:
         return {}
 
     def inspect_lines(self, summary: dict[str, Any]) -> list[str]:

@@ -1,20 +1,19 @@
-"""Which records fit a model and which validate it: ``/split`` of the run file.
+"""Which records fit a model and which validate it: choosing a split and checking one.
 
-The split is a run's own decision, stored once (``labcli split``, the plan's sets at the
-end of a run, an imported table's ``set`` column) and read by everything that fits or
-validates (the ``set`` column of the exchange table).
+The split is a run's own decision (``labcli split``, the plan's sets at the end of a run,
+an imported table's ``set`` column), kept in the run file's split log
+(:mod:`labcli.core.store.logs`) and read by everything that fits or validates (the ``set``
+column of the exchange table).
 """
 
 from __future__ import annotations
 
 from typing import Any, Iterable, Sequence
 
-import h5py
 import numpy as np
 
 from ...errors import ConfigError, StoreError
 from ..protocol import loads_protocol
-from .h5 import dataset, text, utc_now
 
 
 def choose_split(ids: Sequence[int], n_fit: int, n_validation: int, strategy: str = "sequential",
@@ -66,9 +65,9 @@ def default_sizes(protocol_text: str, path: str) -> tuple[int, int]:
     return int(sizes[0]), int(sizes[1])
 
 
-def store(f: h5py.File, path: str, complete: Iterable[int], fit_ids: Iterable[int],
-          validation_ids: Iterable[int], strategy: str, seed: int | None) -> None:
-    """Write ``/split`` (replacing an earlier one); ``complete``: the ids that may join it."""
+def checked(path: str, complete: Iterable[int], fit_ids: Iterable[int],
+            validation_ids: Iterable[int]) -> tuple[list[int], list[int]]:
+    """The fit and validation ids of a split, refused in one sentence unless each is a complete record once."""
     fit = [int(i) for i in fit_ids]
     val = [int(i) for i in validation_ids]
     both = sorted(set(fit) & set(val))
@@ -80,35 +79,7 @@ def store(f: h5py.File, path: str, complete: Iterable[int], fit_ids: Iterable[in
     missing = [i for i in fit + val if i not in done]
     if missing:
         raise StoreError(f"trial {missing[0]} is not a complete trial in {path}, so it cannot join the split.")
-    if "split" not in f:
-        f.create_group("split").attrs["NX_class"] = "NXcollection"
-    g = f["split"]
-    g.attrs["strategy"] = str(strategy)
-    g.attrs["seed"] = -1 if seed is None else int(seed)
-    g.attrs["created"] = utc_now()
-    for name, ids in (("fit", fit), ("validation", val)):
-        data = np.asarray(ids, dtype=np.int64)
-        if name in g and g[name].shape == data.shape:
-            g[name][...] = data  # in place: nothing freed (see the run file's docstring)
-            continue
-        if name in g:
-            del g[name]
-        dataset(g, name, data, "1")
-
-
-def read(f: h5py.File) -> dict[str, Any] | None:
-    """``{"fit": [...], "validation": [...], "strategy", "seed" (None), "created"}`` or None."""
-    if "split" not in f or "fit" not in f["split"]:
-        return None
-    g = f["split"]
-    seed = int(g.attrs.get("seed", -1))
-    return {
-        "fit": [int(i) for i in g["fit"][()]],
-        "validation": [int(i) for i in g["validation"][()]],
-        "strategy": text(g.attrs.get("strategy", "")),
-        "seed": None if seed < 0 else seed,
-        "created": text(g.attrs.get("created", "")),
-    }
+    return fit, val
 
 
 def set_of(split: dict[str, Any] | None) -> dict[int, str]:

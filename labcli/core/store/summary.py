@@ -11,14 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from .h5 import text
-
 
 def summarise(run: Any) -> dict[str, Any]:
     """The summary of an open :class:`~labcli.core.store.RunFile` as plain data (JSON-ready)."""
     rt = run.record_type
     a = run.attrs
-    ids, groups = run.complete_groups()
+    rec = run.records()
+    ids = list(rec.ids)
     incomplete = run.incomplete_ids()
     plan = run.plan_table()
     out: dict[str, Any] = {
@@ -44,6 +43,11 @@ def summarise(run: Any) -> dict[str, Any]:
         "settle": None,
         "models": run.model_names(),
     }
+    if run.version >= 2:
+        out["run_uid"] = a.get("run_uid", "")
+        out["sessions"] = len(run.sessions())
+    if rec.damaged:
+        out["damaged"] = [f"{what}: {why}" for what, why in rec.damaged]
     s = run.split()
     if s is not None:
         out["split"] = {
@@ -51,14 +55,14 @@ def summarise(run: Any) -> dict[str, Any]:
             "validation": len(s["validation"]),
             "unassigned": len(set(ids) - set(s["fit"]) - set(s["validation"])) if rt.splits else 0,
         }
-    out.update(rt.summarise(run, ids, groups))
-    out["settle"] = _settling(ids, groups)
+    out.update(rt.summarise(run, ids, rec.cols))
+    out["settle"] = _settling(ids, rec.cols)
     return out
 
 
-def _settling(ids: list[int], groups: list[Any]) -> dict[str, Any]:
-    times = np.array([float(g.attrs.get("settle_time_s", math.nan)) for g in groups])
-    accepted = [text(g.attrs.get("accepted", "")) for g in groups]
+def _settling(ids: list[int], cols: dict[str, Any]) -> dict[str, Any]:
+    times = np.asarray(cols["loaded_settle_time_s"], dtype=np.float64)
+    accepted = [str(x) for x in cols["accepted"]]
     finite = times[np.isfinite(times)]
     return {
         "n": int(finite.size),

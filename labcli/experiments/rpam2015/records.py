@@ -1,13 +1,13 @@
 """The rPAM runs' records: one point of the stretch test or of the joint map.
 
-In the run file (SI: MPa gauge, rad, m, kg)::
+The columns of a point in its run's table (SI: MPa gauge, rad, m, kg)::
 
-    points/000007/   @point @experiment ("stretch" | "joint"), the set values as typed
-                     @plan_mass_g @plan_P_A_kPa @plan_P_B_kPa
-        P (2,) MPa   P_A, P_B (@channels)
-        stretch:     mass () kg, L () m (actuator A's length), lambda () 1 (L / L0)
-        joint map:   alpha () rad (deflection from the vented baseline), P0 (2,) MPa and
-                     pot0 () rad of the baseline, L () m
+    points   experiment ("stretch" | "joint"), P (2,) MPa (P_A, P_B), the set values as
+             typed: plan_mass_g, plan_P_A_kPa, plan_P_B_kPa
+        stretch:     mass kg, L m (actuator A's length), lambda 1 (L / L0)
+        joint map:   alpha rad (deflection from the vented baseline), P0 (2,) MPa and
+                     pot0 rad of the baseline, L m
+    (a column a point does not use holds NaN)
 
 The record a session commits (and ``RunFile.write`` takes): ``point`` (id), ``experiment``
 (as the run's kind says), ``P_MPa`` (2,); stretch points ``mass_kg``, ``L_m``, ``lambda``;
@@ -22,19 +22,36 @@ import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from ...core.experiment import Dataset, Stored
+import numpy as np
+
+from ...core.experiment import Column
 from ...core.protocol import loads_protocol
 from ...core.report import ids_text, settling_line
-from ...core.store.h5 import nan_if_empty, plain, scalar, to_edge, vector
+from ...core.store.h5 import nan_if_empty, scalar, to_edge, vector
 from ...core.store.records import BaseRecordType
 from ...core.tables import TableSpec
 from .session import acquisition_protocol
 from ...errors import LabcliError, StoreError
 from .tables import POINT_SPECS
 
-# key in the record -> (dataset, units)
+# key in the record -> (column, units)
 _DATASETS = {"mass_kg": ("mass", "kg"), "L_m": ("L", "m"), "lambda": ("lambda", "1"),
              "alpha_rad": ("alpha", "rad"), "pot0_rad": ("pot0", "rad")}
+_PRESSURE_BOUNDS = (-1.0, 10.0)  # MPa gauge: far beyond any rPAM; a value outside marks a changed file
+_BOUNDS = {"mass": (0.0, 1e4), "L": (-10.0, 10.0), "lambda": (-1e3, 1e3), "alpha": (-2 * math.pi, 2 * math.pi),
+           "pot0": (-2 * math.pi, 2 * math.pi)}
+_WHAT = {"mass": "payload", "L": "actuator A's length", "lambda": "stretch L / L0", "alpha": "joint deflection",
+         "pot0": "baseline potentiometer angle"}
+COLUMNS = (
+    Column("experiment", "", kind="text", width=8, what="stretch test or joint map"),
+    Column("P", "MPa", shape=(2,), components=("P_A", "P_B"), bounds=_PRESSURE_BOUNDS, what="pressures"),
+    Column("P0", "MPa", shape=(2,), components=("P_A", "P_B"), bounds=_PRESSURE_BOUNDS, optional=True,
+           what="baseline pressures"),
+    *(Column(name, units, bounds=_BOUNDS[name], optional=True, what=_WHAT[name]) for name, units in _DATASETS.values()),
+    Column("plan_mass_g", "g", bounds=(0.0, 1e7), optional=True, what="set payload"),
+    Column("plan_P_A_kPa", "kPa", bounds=(-1e4, 1e4), optional=True, what="set P_A"),
+    Column("plan_P_B_kPa", "kPa", bounds=(-1e4, 1e4), optional=True, what="set P_B"),
+)
 
 
 @dataclass(frozen=True)
@@ -49,6 +66,11 @@ class PointRecords(BaseRecordType):
     noun: str = "point"
     plural: str = "points"
     splits: bool = False
+    columns: tuple[Column, ...] = COLUMNS
+
+    @property
+    def signal(self) -> str:
+        return "L" if self.experiment == "stretch" else "alpha"
 
     @property
     def qualifier(self) -> str:
@@ -58,40 +80,42 @@ class PointRecords(BaseRecordType):
     def table_spec(self) -> TableSpec:
         return POINT_SPECS[self.experiment]
 
-    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Stored:
+    def check(self, record: Mapping[str, Any], label: str, run: Any) -> dict[str, Any]:
         if record.get("experiment", self.experiment) != self.experiment:
-            raise StoreError(f"{label}: a {record['experiment']} point cannot go into {run.path}, "
-                             f"a {run.kind} run.")
-        p = vector(record, "P_MPa", 2, "pressures P_A, P_B in MPa", label)
-        p0 = vector(record, "P0_MPa", 2, "baseline pressures P_A, P_B in MPa", label) if "P0_MPa" in record else None
+            raise StoreError(f"{label}: a {record['experiment']} point cannot go into {getattr(run, 'path', 'this run')}, "
+                             f"a {self.kind} run.")
+        row: dict[str, Any] = {"experiment": self.experiment,
+                               "P": vector(record, "P_MPa", 2, "pressures P_A, P_B in MPa", label)}
+        if "P0_MPa" in record:
+            row["P0"] = vector(record, "P0_MPa", 2, "baseline pressures P_A, P_B in MPa", label)
         needed = ("mass_kg", "L_m", "lambda") if self.experiment == "stretch" else ("alpha_rad",)
-        values = {}
         for key in needed:
-            values[key] = scalar(record, key, label)
-            if not math.isfinite(values[key]):
+            value = scalar(record, key, label)
+            if not math.isfinite(value):
                 raise StoreError(f"{label} record lacks a finite '{key}', which a {self.experiment} point needs.")
+            row[_DATASETS[key][0]] = value
         for key in ("L_m", "pot0_rad"):
-            if key not in values and key in record:
-                values[key] = scalar(record, key, label)
-        attrs = {"experiment": self.experiment}
-        attrs.update({f"plan_{k}": v if isinstance(v, str) else float(v) for k, v in (record.get("plan") or {}).items()})
-        datasets = [Dataset("P", p, "MPa", {"channels": "P_A,P_B"})]
-        if p0 is not None:
-            datasets.append(Dataset("P0", p0, "MPa", {"channels": "P_A,P_B"}))
-        datasets += [Dataset(_DATASETS[key][0], v, _DATASETS[key][1]) for key, v in values.items()]
-        return Stored(attrs, datasets)
+            if _DATASETS[key][0] not in row and key in record:
+                row[_DATASETS[key][0]] = scalar(record, key, label)
+        for k, v in (record.get("plan") or {}).items():
+            if f"plan_{k}" not in {c.name for c in COLUMNS}:
+                raise StoreError(f"{label} record: its set values have {k!r}; a point's are mass_g, P_A_kPa and "
+                                 "P_B_kPa.")
+            row[f"plan_{k}"] = float(v)
+        return row
 
-    def read(self, g: Any) -> dict[str, Any]:
-        rec: dict[str, Any] = {"point": int(g.attrs["point"]), "experiment": self.experiment, "P_MPa": g["P"][()]}
-        if "P0" in g:
-            rec["P0_MPa"] = g["P0"][()]
+    def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
+        rec: dict[str, Any] = {"point": int(row["point"]), "experiment": self.experiment, "P_MPa": np.asarray(row["P"])}
+        if np.all(np.isfinite(row["P0"])):
+            rec["P0_MPa"] = np.asarray(row["P0"])
         for key, (name, _) in _DATASETS.items():
-            if name in g:
-                rec[key] = float(g[name][()])
-        rec["plan"] = {k[5:]: plain(v) for k, v in g.attrs.items() if k.startswith("plan_")}
+            if math.isfinite(float(row[name])):
+                rec[key] = float(row[name])
+        rec["plan"] = {key: float(row[f"plan_{key}"]) for key in ("mass_g", "P_A_kPa", "P_B_kPa")
+                       if math.isfinite(float(row[f"plan_{key}"]))}
         return rec
 
-    def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
+    def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
         """The table of an rPAM run (DataFrame): MPa and m, grams and degrees at the edge.
 
         Stretch test: ``point, mass_g, P_A, P_B, L_m, lambda``; joint map: ``point, P_A,
@@ -102,32 +126,28 @@ class PointRecords(BaseRecordType):
         """
         import pandas as pd
 
-        cols: dict[str, list] = {"point": list(ids)}
+        n = len(ids)
 
-        def get(g: Any, key: str, i: int | None = None) -> float:
-            if key not in g:
-                return math.nan
-            v = g[key][()]
-            return float(v if i is None else v[i])
+        def get(key: str, i: int | None = None) -> list[float]:
+            v = np.asarray(cols[key], dtype=np.float64)
+            return [float(x) for x in (v.reshape(n, -1)[:, i] if i is not None else v.reshape(n))]
 
+        out: dict[str, list] = {"point": list(ids)}
         stretch = self.experiment == "stretch"
         if stretch:
-            cols["mass_g"] = list(to_edge([get(g, "mass") * 1e3 for g in groups]))
-        cols["P_A"] = [get(g, "P", 0) for g in groups]
-        cols["P_B"] = [get(g, "P", 1) for g in groups]
+            out["mass_g"] = list(to_edge([m * 1e3 for m in get("mass")]))
+        out["P_A"], out["P_B"] = get("P", 0), get("P", 1)
         if stretch:
-            cols["L_m"] = [get(g, "L") for g in groups]
-            cols["lambda"] = [get(g, "lambda") for g in groups]
+            out["L_m"], out["lambda"] = get("L"), get("lambda")
         else:
-            cols["alpha_deg"] = list(to_edge([math.degrees(get(g, "alpha")) for g in groups]))
-            cols["P_A0"] = [get(g, "P0", 0) for g in groups]
-            cols["P_B0"] = [get(g, "P0", 1) for g in groups]
-            cols["L_m"] = [get(g, "L") for g in groups]
+            out["alpha_deg"] = list(to_edge([math.degrees(a) for a in get("alpha")]))
+            out["P_A0"], out["P_B0"] = get("P0", 0), get("P0", 1)
+            out["L_m"] = get("L")
         for key in ("mass_g", "P_A_kPa", "P_B_kPa"):
-            vals = [float(g.attrs.get(f"plan_{key}", math.nan)) for g in groups]
+            vals = get(f"plan_{key}")
             if any(math.isfinite(v) for v in vals):
-                cols[f"set_{key}"] = vals
-        df = pd.DataFrame(cols)
+                out[f"set_{key}"] = vals
+        df = pd.DataFrame(out)
         df["point"] = df["point"].astype("int64")
         return df
 
@@ -160,7 +180,7 @@ class PointRecords(BaseRecordType):
                 record["L_m"] = length
         return record
 
-    def summarise(self, run: Any, ids: list[int], groups: list[Any]) -> dict[str, Any]:
+    def summarise(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> dict[str, Any]:
         """The experiment, its grid's coverage and the ranges measured (``labcli inspect``).
 
         ``planned``/``missing_ids`` come from the protocol embedded in the run (None for an
@@ -168,9 +188,7 @@ class PointRecords(BaseRecordType):
         the complete points (None when there is none): pressures in kPa, payloads in g,
         deflections in degrees.
         """
-        import numpy as np
-
-        table = self.table(run, ids, groups)
+        table = self.table(run, ids, cols)
 
         def span(values: Any, scale: float = 1.0) -> list[float] | None:
             v = np.asarray(values, dtype=np.float64) * scale

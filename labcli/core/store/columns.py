@@ -1,0 +1,230 @@
+"""Append-only tables: how a run file keeps its records, its session log, its splits and models.
+
+A table is an HDF5 group holding one resizable, chunked dataset per column (gzip, byte
+shuffle and HDF5's Fletcher32 checksum on every chunk), a ``checksum`` column (one 64-bit
+checksum per row over every other column, :mod:`.checksum`) and the attribute
+``@committed``: rows ``[0, @committed)`` are the table; anything past it is a write that
+never finished (a kill, a full disk) and is ignored.  Appending is:
+
+1. write the new rows after the committed ones, starting at a chunk boundary, so that no
+   chunk holding a committed row is ever written again (HDF5 writes a compressed chunk whose
+   size changed over its old bytes when that chunk ends the file, and a kill in that write
+   would tear committed rows; rows between the last committed one and the boundary stay
+   unwritten, checksum 0, and are skipped).  Rows a killed writer left past ``@committed``
+   are written over by the next commit: they were never part of the table;
+2. flush and fsync (the caller, :class:`~labcli.core.store.RunFile`);
+3. set ``@committed`` to the new end (in place), flush and fsync again.
+
+Rows are never changed or removed.  A reader reads ``@committed`` first, then the rows, and
+checks each row's checksum: a row that fails it is damaged (named, left out), a row with
+checksum 0 is a gap.  A chunk whose Fletcher32 check fails is read again without the check,
+so that one damaged row does not take the rows sharing its chunk with it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import h5py
+import numpy as np
+
+from ..experiment import Column
+from .checksum import row_checksums
+
+FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}
+CHECKSUM = Column("checksum", "1", kind="uint", what="checksum of the row's other columns")
+READ_BLOCK = 65_536  # rows read and checked at a time, so memory stays bounded on large tables
+
+
+def fill_value(c: Column) -> Any:
+    """What an unwritten (or missing optional) value of ``c`` holds."""
+    if c.kind == "float":
+        return np.nan
+    if c.kind in ("int", "flag"):
+        return -1
+    if c.kind == "uint":
+        return 0
+    return b""
+
+
+def h5_dtype(c: Column) -> Any:
+    if c.kind == "text":
+        return h5py.string_dtype("utf-8", length=max(1, c.width))
+    return c.dtype
+
+
+def create_dataset(g: h5py.Group, c: Column, chunk: int, length: int = 0) -> h5py.Dataset:
+    """A resizable dataset for column ``c`` (``length`` rows, chunked by ``chunk`` rows), with its units."""
+    ds = g.create_dataset(c.name, shape=(length, *c.shape), maxshape=(None, *c.shape), dtype=h5_dtype(c),
+                          chunks=(chunk, *c.shape), fillvalue=fill_value(c), **FILTERS)
+    ds.attrs["units"] = c.units
+    if c.components:
+        ds.attrs["components"] = list(c.components)
+    if c.what:
+        ds.attrs["long_name"] = c.what
+    return ds
+
+
+def fixed(c: Column, values: Any, n: int) -> np.ndarray:
+    """``values`` (or the fill, when None) as the ``(n, *shape)`` array column ``c`` stores."""
+    if values is None:
+        return np.full((n, *c.shape), fill_value(c), dtype=c.dtype)
+    if c.kind == "text":
+        a = np.asarray(values, dtype=object).reshape(n)
+        return np.array([v if isinstance(v, bytes) else str(v).encode("utf-8") for v in a], dtype=c.dtype)
+    return np.asarray(values, dtype=c.dtype).reshape(n, *c.shape)
+
+
+def append(ds: h5py.Dataset, start: int, arr: np.ndarray) -> None:
+    """Write ``arr`` at rows ``[start, start + len(arr))`` of ``ds``, growing it to hold them."""
+    n = arr.shape[0]
+    if start + n > ds.shape[0]:
+        ds.id.set_extent((start + n, *ds.shape[1:]))
+    if n == 0:
+        return
+    fspace = ds.id.get_space()
+    fspace.select_hyperslab((start,) + (0,) * (arr.ndim - 1), arr.shape)
+    ds.id.write(h5py.h5s.create_simple(arr.shape), fspace, np.ascontiguousarray(arr, dtype=ds.dtype))
+
+
+def read_rows(ds: h5py.Dataset, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ``[a, b)`` of ``ds`` and a mask of rows that could not be read at all.
+
+    When the whole range fails (a chunk failing its Fletcher32 check, or one HDF5 cannot
+    decode), it is read again chunk by chunk, so that a damaged chunk takes only its own
+    rows with it (h5py offers no way to read past a failed check); those rows are fill.
+    """
+    try:
+        return ds[a:b], np.zeros(b - a, dtype=bool)
+    except (OSError, ValueError, RuntimeError):
+        pass
+    out = np.empty((b - a, *ds.shape[1:]), dtype=ds.dtype)
+    bad = np.zeros(b - a, dtype=bool)
+    chunk = ds.chunks[0] if ds.chunks else b - a
+    for lo in range(a - a % chunk, b, chunk):
+        s, e = max(lo, a), min(lo + chunk, b)
+        try:
+            out[s - a:e - a] = ds[s:e]
+        except (OSError, ValueError, RuntimeError):
+            out[s - a:e - a] = np.zeros((e - s, *ds.shape[1:]), dtype=ds.dtype)
+            bad[s - a:e - a] = True
+    return out, bad
+
+
+@dataclass
+class Rows:
+    """What a read of a table found: the good rows' positions and values, and the damaged rows."""
+
+    rows: np.ndarray  # positions in the table of the good rows, in order
+    cols: dict[str, np.ndarray]  # column -> values of the good rows
+    damaged: list[tuple[int, str]] = field(default_factory=list)  # (position, what is wrong)
+
+
+class Table:
+    """One append-only table of an open run file (see the module docstring)."""
+
+    def __init__(self, g: h5py.Group) -> None:
+        self.g = g
+        self.names: list[str] = [n.decode() if isinstance(n, bytes) else str(n) for n in g.attrs["columns"]]
+        self.ds: dict[str, h5py.Dataset] = {name: g[name] for name in [*self.names, CHECKSUM.name]}
+        self.chunk = int(g.attrs["chunk_rows"])
+
+    @classmethod
+    def create(cls, parent: h5py.Group, name: str, columns: Sequence[Column], chunk_rows: int,
+               nx_class: str = "NXcollection", length: int = 0) -> "Table":
+        g = parent.create_group(name)
+        g.attrs["NX_class"] = nx_class
+        g.attrs["columns"] = [c.name for c in columns]
+        g.attrs["chunk_rows"] = np.int64(chunk_rows)
+        cls._set_committed(g, 0, create=True)
+        for c in (*columns, CHECKSUM):
+            create_dataset(g, c, chunk_rows, length)
+        return cls(g)
+
+    @staticmethod
+    def _set_committed(g: h5py.Group, n: int, create: bool = False) -> None:
+        check = np.uint64(row_checksums([np.array([n], dtype="<i8")], 0)[0])
+        if create:
+            g.attrs["committed"], g.attrs["committed_checksum"] = np.int64(n), check
+        else:
+            g.attrs.modify("committed", np.int64(n))
+            g.attrs.modify("committed_checksum", check)
+
+    @property
+    def committed_ok(self) -> bool:
+        """Whether ``@committed`` matches its checksum (a flipped bit, or a kill between the two)."""
+        try:
+            n = int(self.g.attrs["committed"])
+            return int(self.g.attrs["committed_checksum"]) == int(row_checksums([np.array([n], dtype="<i8")], 0)[0])
+        except (KeyError, OSError, TypeError, ValueError):
+            return False
+
+    @property
+    def committed(self) -> int:
+        """Rows ``[0, committed)`` are the table; when the count is damaged, every row stored."""
+        if not self.committed_ok:
+            return self.extent
+        return int(self.g.attrs["committed"])
+
+    @property
+    def extent(self) -> int:
+        return int(self.ds[CHECKSUM.name].shape[0])
+
+    def next_start(self) -> int:
+        """Where the next rows go: after the committed rows, at a chunk boundary."""
+        return -(-self.committed // self.chunk) * self.chunk
+
+    def prepared(self, columns: Mapping[str, Column], values: Mapping[str, Any], n: int) -> list[np.ndarray]:
+        """Every column's ``n`` values as stored (fill where ``values`` lacks the column)."""
+        return [fixed(columns[name], values.get(name), n) for name in self.names]
+
+    def write(self, arrays: list[np.ndarray], n: int) -> tuple[int, int]:
+        """Write ``n`` rows (from :meth:`prepared`) after the committed ones; returns ``[start, stop)``.
+
+        They are not part of the table until :meth:`commit`.
+        """
+        start = self.next_start()
+        checks = row_checksums(arrays, start)
+        for name, arr in zip(self.names, arrays):
+            append(self.ds[name], start, arr)
+        append(self.ds[CHECKSUM.name], start, checks)
+        return start, start + n
+
+    def commit(self, stop: int) -> None:
+        self._set_committed(self.g, stop)
+
+    def read(self, want: Sequence[str] | None = None, span: tuple[int, int] | None = None) -> Rows:
+        """Rows ``span`` (the committed ones when None), checked: good rows' ``want`` columns (all
+        when None), damaged rows named.  A committed count past the rows stored counts as damage."""
+        want = list(self.names if want is None else want)
+        out: dict[str, list[np.ndarray]] = {name: [] for name in want}
+        rows: list[np.ndarray] = []
+        damaged: list[tuple[int, str]] = []
+        lo, hi = span if span is not None else (0, self.committed)
+        if span is None and not self.committed_ok:
+            damaged.append((-1, "its committed row count does not match its checksum; every row that checks out "
+                                "is read, a last write that never finished included"))
+        extents = {int(ds.shape[0]) for ds in self.ds.values()}
+        if hi > min(extents):
+            damaged.append((min(extents), f"the table says {hi} rows are committed but holds {min(extents)}"))
+            hi = min(extents)
+        for a in range(lo, hi, READ_BLOCK):
+            b = min(a + READ_BLOCK, hi)
+            values, unreadable = {}, np.zeros(b - a, dtype=bool)
+            for name in [*self.names, CHECKSUM.name]:
+                values[name], bad = read_rows(self.ds[name], a, b)
+                unreadable |= bad
+            stored = values[CHECKSUM.name].astype(np.uint64)
+            computed = row_checksums([values[name] for name in self.names], a)
+            gap = stored == 0
+            wrong = ~gap & ((stored != computed) | unreadable)
+            damaged += [(a + int(i), "its checksum does not match its values") for i in np.flatnonzero(wrong)]
+            keep = ~gap & ~wrong
+            rows.append(np.flatnonzero(keep) + a)
+            for name in want:
+                out[name].append(values[name][keep])
+        cols = {name: (np.concatenate(parts) if parts else
+                       np.empty((0, *self.ds[name].shape[1:]), dtype=self.ds[name].dtype))
+                for name, parts in out.items()}
+        return Rows(np.concatenate(rows) if rows else np.empty(0, dtype=np.int64), cols, damaged)

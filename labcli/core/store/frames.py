@@ -1,0 +1,250 @@
+"""Raw windows: every frame of a run in run-wide arrays, each window a range of them.
+
+``/entry/raw`` holds the device time (``time``, s, unwrapped) and frame counter (``seq``) of
+every frame stored, and per channel an NXlog group (``raw/P_L1``) with the calibrated
+``value`` (SI) and the ``raw_value`` as sent (counts; float64, so that a device sending
+decimals is kept exactly), its ``time`` a link to the shared one, and the channel's
+calibration (``gain``, ``offset``).  A record refers to its windows by ``[start, stop)``
+and a checksum over the window's frames (:func:`~labcli.core.store.checksum.frames_checksum`).
+
+A window starts at a chunk boundary: the frames of a committed window share no chunk with
+frames written later (see :mod:`.columns` for why).  The frames between the end of one
+window and the next boundary are never written; they cost nothing compressed.
+
+A window is written as it arrives (:class:`WindowWriter`): each block goes into the file at
+once, and only the block's running statistics stay in memory, so a capture window of any
+length takes the same memory.  :class:`StoredWindow` is what the engine hands the session in
+place of the samples: its mean and spread, and the samples read back on demand.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import h5py
+import numpy as np
+
+from ...errors import StoreError
+from ..experiment import Column
+from .checksum import frames_checksum
+from .columns import append, create_dataset, read_rows
+
+TIME = Column("time", "s", what="device time, unwrapped")
+MOD = 1 << 64
+
+
+def chunk_frames(frames_per_window: float) -> int:
+    """Frames per chunk for windows of about this many frames: a power of two from 64 to 4096."""
+    want = max(1.0, float(frames_per_window)) if math.isfinite(frames_per_window) else 256.0
+    return int(min(4096, max(64, 2 ** math.ceil(math.log2(want)))))
+
+
+def create(entry: h5py.Group, channels: Sequence[str], units: Sequence[str], gain: np.ndarray, offset: np.ndarray,
+           chunk: int) -> h5py.Group:
+    """The empty ``raw`` group of a new run (see the module docstring)."""
+    g = entry.create_group("raw")
+    g.attrs["NX_class"] = "NXcollection"
+    g.attrs["channels"] = list(channels)
+    g.attrs["chunk_frames"] = np.int64(chunk)
+    time = create_dataset(g, TIME, chunk)
+    create_dataset(g, Column("seq", "1", kind="uint", what="frame counter as sent"), chunk)
+    for j, (name, unit) in enumerate(zip(channels, units)):
+        c = g.create_group(name)
+        c.attrs["NX_class"] = "NXlog"
+        c.attrs["channel"] = name
+        c["time"] = time  # a second name for the shared dataset (NXlog's own time axis)
+        create_dataset(c, Column("value", unit, what=f"{name}, calibrated"), chunk)
+        create_dataset(c, Column("raw_value", "counts", what=f"{name} as sent"), chunk)
+        for key, v, u in (("gain", gain[j], f"{unit}/count" if unit else "1/count"), ("offset", offset[j], unit)):
+            ds = create_dataset(c, Column(key, u), 1, length=1)
+            ds[0] = v
+    return g
+
+
+def window_parts(time: np.ndarray, seq: np.ndarray, counts: np.ndarray, si: np.ndarray) -> list[np.ndarray]:
+    """The arrays a window's checksum folds, frame by frame."""
+    return [np.asarray(time, dtype="<f8"), np.asarray(seq, dtype="<u8"), np.asarray(si, dtype="<f8"),
+            np.asarray(counts, dtype="<f8")]
+
+
+class Frames:
+    """The raw frames of an open run file."""
+
+    def __init__(self, g: h5py.Group) -> None:
+        self.g = g
+        self.channels = [c.decode() if isinstance(c, bytes) else str(c) for c in g.attrs["channels"]]
+        self.chunk = int(g.attrs["chunk_frames"])
+        self.time, self.seq = g["time"], g["seq"]
+        self.value = [g[c]["value"] for c in self.channels]
+        self.raw_value = [g[c]["raw_value"] for c in self.channels]
+
+    @property
+    def extent(self) -> int:
+        return int(self.time.shape[0])
+
+    def next_start(self) -> int:
+        return -(-self.extent // self.chunk) * self.chunk
+
+    def write(self, start: int, time: np.ndarray, seq: np.ndarray, counts: np.ndarray, si: np.ndarray) -> None:
+        """Frames at ``start`` (every array grows to end after them)."""
+        append(self.time, start, np.asarray(time, dtype="<f8"))
+        append(self.seq, start, np.asarray(seq, dtype="<u8"))
+        for j in range(len(self.channels)):
+            append(self.value[j], start, np.ascontiguousarray(si[:, j], dtype="<f8"))
+            append(self.raw_value[j], start, np.ascontiguousarray(counts[:, j], dtype="<f8"))
+
+    def read(self, a: int, b: int) -> tuple[dict[str, np.ndarray], bool]:
+        """Frames ``[a, b)`` as ``t_s``, ``seq``, ``counts`` (n, k), ``si`` (n, k); and whether all read."""
+        if not 0 <= a <= b <= self.extent:
+            raise StoreError(f"frames {a} to {b} lie outside the {self.extent} frames stored")
+        ok = True
+
+        def get(ds: h5py.Dataset) -> np.ndarray:
+            nonlocal ok
+            values, bad = read_rows(ds, a, b)
+            ok = ok and not bad.any()
+            return values
+
+        t, seq = get(self.time), get(self.seq)
+        si = np.stack([get(d) for d in self.value], axis=1) if self.channels else np.zeros((b - a, 0))
+        counts = np.stack([get(d) for d in self.raw_value], axis=1) if self.channels else np.zeros((b - a, 0))
+        return {"t_s": t, "seq": seq.astype(np.uint32), "counts": counts, "si": si}, ok
+
+    def checksum(self, a: int, b: int, block: int = 1 << 16) -> tuple[int, bool]:
+        """The checksum of frames ``[a, b)`` as stored, read in blocks."""
+        total, ok = 0, True
+        for lo in range(a, b, block):
+            hi = min(lo + block, b)
+            w, good = self.read(lo, hi)
+            ok = ok and good
+            total = (total + int(frames_checksum(window_parts(w["t_s"], w["seq"], w["counts"], w["si"]), lo - a))) % MOD
+        return total, ok
+
+
+def counts_out(counts: np.ndarray) -> np.ndarray:
+    """Counts as read back: int32 when every value is a whole number (what devices send), else as stored."""
+    c = np.asarray(counts, dtype=np.float64)
+    if np.all(np.isfinite(c)) and np.all(c == np.rint(c)) and (c.size == 0 or np.abs(c).max() < 2**31):
+        return c.astype(np.int32)
+    return c
+
+
+@dataclass
+class Stats:
+    """Running count, mean and sum of squared deviations per channel (Chan et al.'s pairwise update)."""
+
+    n: int = 0
+    mean: np.ndarray | None = None
+    m2: np.ndarray | None = None
+
+    def add(self, x: np.ndarray) -> None:
+        nb = x.shape[0]
+        if nb == 0:
+            return
+        mb = x.mean(axis=0)
+        m2b = ((x - mb) ** 2).sum(axis=0)
+        if self.n == 0:
+            self.n, self.mean, self.m2 = nb, mb, m2b
+            return
+        n = self.n + nb
+        delta = mb - self.mean
+        self.mean = self.mean + delta * (nb / n)
+        self.m2 = self.m2 + m2b + delta ** 2 * (self.n * nb / n)
+        self.n = n
+
+
+@dataclass
+class StoredWindow:
+    """A raw window already in the run file: what the engine returns for a Baseline or Capture.
+
+    It offers what a session uses of :class:`labcli.core.steps.Window`: ``len()``,
+    :meth:`mean` and :meth:`std` (per channel, SI), :meth:`as_dict` (what a record's ``raw``
+    takes); ``seq``, ``t_us``, ``t_s``, ``counts`` and ``si`` read the samples back from the
+    file when asked.
+    """
+
+    run: Any
+    start: int
+    stop: int
+    checksum: int
+    stats: Stats = field(default_factory=Stats)
+
+    def __len__(self) -> int:
+        return self.stop - self.start
+
+    def mean(self) -> np.ndarray:
+        if not self.stats.n:
+            return np.full(len(self.run.channels), np.nan)
+        return np.array(self.stats.mean)
+
+    def std(self) -> np.ndarray:
+        """Population standard deviation per channel, SI."""
+        if not self.stats.n:
+            return np.full(len(self.run.channels), np.nan)
+        return np.sqrt(self.stats.m2 / self.stats.n)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"stored": self}
+
+    def _samples(self) -> dict[str, np.ndarray]:
+        return self.run.frames(self.start, self.stop)
+
+    @property
+    def seq(self) -> np.ndarray:
+        return self._samples()["seq"].astype(np.int64)
+
+    @property
+    def t_s(self) -> np.ndarray:
+        return self._samples()["t_s"]
+
+    @property
+    def t_us(self) -> np.ndarray:
+        return (np.rint(self._samples()["t_s"] * 1e6).astype(np.int64)) % (1 << 32)
+
+    @property
+    def counts(self) -> np.ndarray:
+        return self._samples()["counts"]
+
+    @property
+    def si(self) -> np.ndarray:
+        return self._samples()["si"]
+
+
+class WindowWriter:
+    """One raw window being written block by block (:meth:`RunFile.begin_window`)."""
+
+    def __init__(self, run: Any, frames: Frames, reserve: Callable[[int], None]) -> None:
+        self.run = run
+        self._frames = frames
+        self._reserve = reserve
+        self.start = frames.next_start()
+        self.stop = self.start
+        self._sum = 0
+        self._stats = Stats()
+        self._open = True
+
+    def append(self, time: Any, seq: Any, counts: Any, si: Any) -> None:
+        """Add frames: device time (s, unwrapped), counter, counts as sent (n, k), SI values (n, k)."""
+        if not self._open:
+            raise StoreError("this window is finished; begin another one to add frames")
+        k = len(self._frames.channels)
+        time = np.asarray(time, dtype=np.float64).reshape(-1)
+        n = time.shape[0]
+        seq = (np.asarray(seq, dtype=np.int64).reshape(-1) % (1 << 32)).astype(np.uint64)
+        counts = np.asarray(counts, dtype=np.float64).reshape(n, k)
+        si = np.asarray(si, dtype=np.float64).reshape(n, k)
+        if seq.shape[0] != n:
+            raise StoreError(f"a block of {n} frames came with {seq.shape[0]} frame counters")
+        if n == 0:
+            return
+        self._reserve(n * (8 * (2 + 2 * k)))
+        self._frames.write(self.stop, time, seq, counts, si)
+        self._sum = (self._sum + int(frames_checksum(window_parts(time, seq, counts, si), self.stop - self.start))) % MOD
+        self._stats.add(si)
+        self.stop += n
+
+    def finish(self) -> StoredWindow:
+        self._open = False
+        return StoredWindow(self.run, self.start, self.stop, self._sum, self._stats)

@@ -1,0 +1,243 @@
+"""The layout of a run file, schema version 2: what a new run holds and where.
+
+::
+
+    /                           NXroot  @default "entry"  @file_name @file_time @creator
+                                @HDF5_Version @h5py_version  @schema "labcli-run" @schema_version 2
+      entry/                    NXentry  @default (the record table)  @kind @protocol @run_uid
+                                @start_time @program_name @program_version @command_line @host_name
+                                @operator @device @firmware @port @channels @imported @source
+        versions/               @python @numpy @h5py @hdf5 @labcli (that wrote the file)
+        protocol (1,)           the protocol TOML, verbatim  @name @kind @file_name
+        plan/                   the plan table (when there was a plan)
+        trials/ (pushes/, points/)  NXdata  @signal @axes: the records, one row each
+        raw/                    every raw frame: time, seq, and per channel an NXlog
+        split/                  every split assigned, the last one in force; ids (m,)
+        models/                 every model recorded, the last of each name in force; json (bytes)
+        sessions/               the session log: one row per event (begin, added, redone, skipped, end)
+
+Every dataset is chunked with gzip, byte shuffle and Fletcher32 and has a ``units``
+attribute (one unit: per-channel units live in separate datasets); every group has an
+``NX_class``.  Times are ISO 8601 with microseconds and a UTC offset.  No path of the
+writer's machine is stored: files are named by their file name only, and the command line
+keeps only the file names of the paths in it.
+
+The tables (:mod:`.columns`) are append-only and committed by ``@committed``; the raw frames
+(:mod:`.frames`) are referenced by the rows.  This module only builds a new file; the run
+file (:mod:`.runfile`) reads and adds to it.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import platform
+import shlex
+import socket
+import sys
+import uuid
+from typing import Any, Mapping, Sequence
+
+import h5py
+import numpy as np
+
+from ..experiment import Column, RecordType
+from ..version import __version__
+from .columns import FILTERS, Table
+from .frames import create as create_frames
+
+SCHEMA = "labcli-run"
+SCHEMA_VERSION = 2
+WINDOWS = ("baseline", "loaded")  # a record's raw windows: group names of schema 1, column prefixes here
+TIME_WIDTH = 40
+FLAGS_WIDTH = 1024  # bytes of the flags column: a few one-sentence notes per record
+
+
+def now_iso() -> str:
+    """The current time as ISO 8601 with microseconds and the UTC offset (``+00:00``)."""
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="microseconds")
+
+
+def text_column(name: str, width: int, what: str = "") -> Column:
+    return Column(name, "", kind="text", width=width, optional=True, what=what)
+
+
+def common_columns(id_column: str) -> list[Column]:
+    """What every record has, before its record type's columns."""
+    return [Column(id_column, "1", kind="int", what=f"{id_column} id"),
+            text_column("started", TIME_WIDTH, "when the record began (ISO 8601)"),
+            text_column("ended", TIME_WIDTH, "when the record was stored (ISO 8601)"),
+            text_column("accepted", 8, "how it was accepted: auto, timeout, operator or imported"),
+            text_column("flags", FLAGS_WIDTH, "what was noticed about the record, one sentence per line")]
+
+
+def window_columns() -> list[Column]:
+    """Per raw window: its frames in /entry/raw, their checksum, and how its equilibrium was reached."""
+    cols = []
+    for w in WINDOWS:
+        cols += [Column(f"{w}_start", "1", kind="int", what=f"first frame of the {w} window in raw/"),
+                 Column(f"{w}_stop", "1", kind="int", what=f"frame after the last of the {w} window"),
+                 Column(f"{w}_checksum", "1", kind="uint", what=f"checksum of the {w} window's frames"),
+                 Column(f"{w}_settled", "1", kind="flag", what="1 settled, 0 timed out, -1 not recorded"),
+                 Column(f"{w}_settle_time_s", "s", optional=True, what="time to equilibrium"),
+                 Column(f"{w}_waited_s", "s", optional=True, what="time waited in all"),
+                 Column(f"{w}_pressure_spread_MPa", "MPa", optional=True, what="pressure spread at equilibrium"),
+                 Column(f"{w}_angle_spread_rad", "rad", optional=True, what="angle spread at equilibrium"),
+                 text_column(f"{w}_criterion", 192, "the equilibrium criterion"),
+                 text_column(f"{w}_accepted", 8, "auto, timeout or operator")]
+    return cols
+
+
+def record_columns(rt: RecordType, extras: Sequence[Column] = ()) -> list[Column]:
+    """Every column of a record table, in order: common, imported extras, the record type's, windows."""
+    return [*common_columns(rt.id_column), *extras, *rt.columns, *window_columns()]
+
+
+def extra_column(name: str, values: Sequence[Any]) -> Column:
+    """The column for an imported table's column labcli does not know, from its values."""
+    from .h5 import column_units
+
+    present = [v for v in values if v is not None and not (isinstance(v, float) and np.isnan(v))]
+    if present and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in values):
+        return Column(name, column_units(name), kind="int", what="imported column")
+    if not any(isinstance(v, str) for v in present):
+        return Column(name, column_units(name), optional=True, what="imported column")
+    width = max([len(str(v).encode("utf-8")) for v in present] + [1])
+    return text_column(name, width, "imported column")
+
+
+SPLIT_COLUMNS = [text_column("strategy", 32), Column("seed", "1", kind="int"), text_column("created", TIME_WIDTH),
+                 Column("fit_start", "1", kind="int"), Column("fit_stop", "1", kind="int"),
+                 Column("validation_start", "1", kind="int"), Column("validation_stop", "1", kind="int"),
+                 Column("ids_checksum", "1", kind="uint")]
+MODEL_COLUMNS = [text_column("name", 64), text_column("created", TIME_WIDTH), text_column("labcli_version", 32),
+                 Column("json_start", "1", kind="int"), Column("json_stop", "1", kind="int"),
+                 Column("json_checksum", "1", kind="uint")]
+
+
+def session_columns(k: int) -> list[Column]:
+    """The session log: one row per event; ``k`` channels for the calibration in force."""
+    return [Column("session", "1", kind="int", what="session number, from 1"),
+            text_column("event", 16, "begin, added, redone, skipped or end"),
+            text_column("time", TIME_WIDTH),
+            Column("record", "1", kind="int", what="the record an added/redone/skipped event is about"),
+            text_column("port", 256), Column("baud", "1", kind="int"),
+            text_column("device", 64), text_column("firmware", 64), text_column("channels", 256),
+            Column("gain", "1/count", shape=(k,), optional=True, what="calibration gain per channel (SI unit per count)"),
+            Column("offset", "", shape=(k,), optional=True, what="calibration offset per channel (SI)"),
+            text_column("command_line", 1024), text_column("host_name", 128), text_column("operator", 128),
+            Column("resumed", "1", kind="flag", what="1 when the session resumed the run, else 0"),
+            Column("other_rig", "1", kind="flag", what="1 when resumed on another rig (--allow-other-rig)"),
+            text_column("how", 16, "finished, quit, interrupted, rig lost, no input, ..."),
+            text_column("note", 512)]
+
+
+def blob(parent: h5py.Group, name: str, dtype: str, chunk: int, units: str, what: str) -> h5py.Dataset:
+    ds = parent.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(chunk,), **FILTERS)
+    ds.attrs["units"] = units
+    ds.attrs["long_name"] = what
+    return ds
+
+
+def versions() -> dict[str, str]:
+    return {"python": platform.python_version(), "numpy": np.__version__, "h5py": h5py.version.version,
+            "hdf5": h5py.version.hdf5_version, "labcli": __version__}
+
+
+def command_line(argv: Sequence[str] | None = None) -> str:
+    """The command that is running, its paths cut to their file names (no directories of this machine)."""
+    argv = list(sys.argv if argv is None else argv)
+    if not argv:
+        return ""
+    words = ["labcli"] if os.path.basename(argv[0]) in ("labcli", "__main__.py", "-m") else [os.path.basename(argv[0])]
+    for a in argv[1:]:
+        words.append(os.path.basename(a) if os.path.isabs(a) or os.sep in a and os.path.exists(a) else a)
+    return shlex.join(words)
+
+
+def text_dataset(parent: h5py.Group, key: str, value: str, **attrs: Any) -> h5py.Dataset:
+    """A text as a one-element fixed-length UTF-8 dataset (chunked, so Fletcher32 covers it)."""
+    data = value.encode("utf-8")
+    ds = parent.create_dataset(key, shape=(1,), dtype=h5py.string_dtype("utf-8", length=max(1, len(data))),
+                               chunks=(1,), **FILTERS)
+    ds[0] = data
+    ds.attrs["units"] = ""
+    for k, v in attrs.items():
+        ds.attrs[k] = v
+    return ds
+
+
+def plan_columns(plan: Mapping[str, Sequence[Any]], id_column: str) -> tuple[list[Column], dict[str, Any]]:
+    """Columns and values of a plan table (text, whole numbers or numbers, as the values are)."""
+    from .h5 import column_units
+
+    cols, values = [], {}
+    for name, vals in plan.items():
+        vals = list(vals)
+        if vals and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in vals):
+            cols.append(Column(name, column_units(name, (id_column,)), kind="int"))
+            values[name] = np.asarray(vals, dtype=np.int64)
+            continue
+        if not any(isinstance(v, str) for v in vals):
+            try:
+                values[name] = np.asarray([np.nan if v is None else float(v) for v in vals], dtype=np.float64)
+            except (TypeError, ValueError):
+                pass
+            else:
+                cols.append(Column(name, column_units(name, (id_column,)), optional=True))
+                continue
+        texts = ["" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v) for v in vals]
+        cols.append(text_column(name, max([len(t.encode("utf-8")) for t in texts] + [1])))
+        values[name] = texts
+    return cols, values
+
+
+def initialise(f: h5py.File, *, path: str, protocol: Any, rt: RecordType, kind: str, channels: Sequence[str],
+               device_info: Any, port: str, operator: str, plan: Any, imported: bool, source: str,
+               started: str | None, command: str | None, chunk_rows: int, chunk_frames: int,
+               extras: Sequence[Column], calibration: tuple[np.ndarray, np.ndarray, list[str]]) -> None:
+    """Build the structure of a new run in ``f`` (empty tables, metadata, protocol, plan)."""
+    a = f.attrs
+    a["NX_class"], a["default"] = "NXroot", "entry"
+    a["schema"], a["schema_version"] = SCHEMA, SCHEMA_VERSION
+    a["file_name"], a["file_time"] = os.path.basename(path), now_iso()
+    a["creator"] = f"labcli {__version__}"
+    a["HDF5_Version"], a["h5py_version"] = h5py.version.hdf5_version, h5py.version.version
+    e = f.create_group("entry")
+    e.attrs["NX_class"], e.attrs["default"] = "NXentry", rt.collection
+    meta = {"kind": kind, "protocol": str(getattr(protocol, "name", "")), "run_uid": str(uuid.uuid4()),
+            "start_time": started or now_iso(), "program_name": "labcli", "program_version": __version__,
+            "command_line": command_line() if command is None else command, "host_name": socket.gethostname(),
+            "operator": str(operator or ""), "device": str(getattr(device_info, "device", "") or ""),
+            "firmware": str(getattr(device_info, "firmware", "") or ""),
+            "port": str(port or getattr(device_info, "port", "") or ""), "source": os.path.basename(str(source))}
+    for key, value in meta.items():
+        e.attrs[key] = value
+    e.attrs["channels"] = list(channels)
+    e.attrs["imported"] = bool(imported)
+    v = e.create_group("versions")
+    v.attrs["NX_class"] = "NXcollection"
+    for key, value in versions().items():
+        v.attrs[key] = value
+    proto_path = getattr(protocol, "path", None)
+    text_dataset(e, "protocol", str(getattr(protocol, "text", "")), name=str(getattr(protocol, "name", "")),
+                 kind=kind, file_name=os.path.basename(str(proto_path)) if proto_path else "")
+    if plan is not None:
+        cols = plan.to_dict("list") if hasattr(plan, "to_dict") else dict(plan)
+        pc, values = plan_columns(cols, rt.id_column)
+        t = Table.create(e, "plan", pc, chunk_rows=max(1, len(next(iter(values.values()), []))))
+        n = len(next(iter(values.values()), []))
+        t.commit(t.write(t.prepared({c.name: c for c in pc}, values, n), n)[1])
+    columns = record_columns(rt, extras)
+    t = Table.create(e, rt.collection, columns, chunk_rows, nx_class="NXdata")
+    t.g.attrs["signal"] = rt.signal
+    shape = next((c.shape for c in columns if c.name == rt.signal), ())
+    t.g.attrs["axes"] = [rt.id_column] + ["."] * len(shape)
+    t.g.attrs[f"{rt.id_column}_indices"] = np.int64(0)
+    gain, offset, units = calibration
+    create_frames(e, channels, units, gain, offset, chunk_frames)
+    s = Table.create(e, "split", SPLIT_COLUMNS, 1)
+    blob(s.g, "ids", "<i8", 256, "1", "fit ids, then validation ids, of each split")
+    m = Table.create(e, "models", MODEL_COLUMNS, 1)
+    blob(m.g, "json", "u1", 4096, "", "each model's JSON as UTF-8 bytes")
+    Table.create(e, "sessions", session_columns(len(channels)), 1)

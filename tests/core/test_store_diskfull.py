@@ -1,0 +1,64 @@
+"""Writes into an existing run under a file size limit (``ulimit -f``): refused in one sentence, file untouched.
+
+fit records its model in the run and split records the split; under a limit that leaves no room
+for them, each says so in one sentence (what was kept), exits 1, and the run file is byte for
+byte what it was, opening with every record it had.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import resource
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from labcli.core.store import RunFile
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def labcli(*args: str, cwd: Path, limit: int | None = None) -> subprocess.CompletedProcess:
+    def preexec() -> None:
+        if limit is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), COLUMNS="200")
+    return subprocess.run([sys.executable, "-m", "labcli", *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=300, preexec_fn=preexec)
+
+
+def sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="module")
+def imported(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("full")
+    r = labcli("import", str(ROOT / "sample_runs" / "trials.csv"), "-o", "run.h5", "--protocol", "takuma2014",
+               cwd=folder)
+    assert r.returncode == 0, r.stderr
+    return folder / "run.h5"
+
+
+@pytest.mark.parametrize("command", [("fit", "run.h5"), ("split", "run.h5", "--strategy", "random", "--seed", "7")])
+def test_no_room_leaves_the_run_as_it_was(imported, tmp_path, command):
+    run = tmp_path / "run.h5"
+    run.write_bytes(imported.read_bytes())
+    before = sha(run)
+    with RunFile.open(run) as f:
+        ids = f.completed_ids()
+    r = labcli(*command, cwd=tmp_path, limit=run.stat().st_size + 4096)
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert "cannot grow past the file size limit" in lines[0] and "(ulimit -f)" in lines[0]
+    assert f"the {len(ids)} trials stored before are intact" in lines[0]
+    assert sha(run) == before
+    with RunFile.open(run) as f:
+        assert f.completed_ids() == ids
+    r = labcli(*command, cwd=tmp_path)  # with room again, the same command works
+    assert r.returncode == 0, r.stderr
