@@ -28,7 +28,8 @@ group an ``NX_class`` attribute in the NeXus style::
           @trial        the id, under the record type's id column
           @order (recording order, 0-based) @started @ended (ISO 8601 UTC)
           @settle_time_s @settle_criterion @accepted ("auto" | "timeout" | "operator"
-                        | "imported") for the loaded window
+                        | "imported") for the loaded window ("operator": accepted over a warning)
+          @flags        what the session's checks found, one sentence each (only when any)
           ...           what the record type stores (labcli.experiments.<paper>.records)
           extra/        columns of an imported table that labcli does not know
           baseline/     NXlog, the unloaded window; loaded/ NXlog, the loaded window:
@@ -428,6 +429,10 @@ class RunFile:
         g.attrs["ended"] = str(record.get("ended", "") or utc_now())
         for key, v in attrs.items():
             g.attrs[key] = v
+        if record.get("flags"):
+            # What the session's checks found (a stream off its rate, a trial accepted over a
+            # warning): one sentence each, kept with the record.
+            g.attrs["flags"] = [str(f) for f in record["flags"]]
         extra = record.get("extra") or {}
         ids = (self.record_type.id_column,)
         if extra:
