@@ -1,0 +1,113 @@
+"""A scripted experimenter at a terminal (pexpect): what the session does when the person at the rig errs.
+
+``labcli acquire`` runs on a pseudo-terminal as it would in a lab, against the simulated rig
+served on another pty (wall clock); the experimenter reads the prompts, acts on the rig
+through its operator hooks, or fails to, and types on the terminal.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+pexpect = pytest.importorskip("pexpect", reason="pip install pexpect (the test extras)")
+
+from labcli.core.sim.pty import serve_pty  # noqa: E402
+from labcli.experiments.takuma2014.records import load_trials  # noqa: E402
+
+from test_acquire_pty import REVIEW, quick_protocol  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+# Seven trials teach the session what a load does on this rig (by trial 8 it is sure that 1000 g
+# at -30 deg bends the lower joint by at least 8 deg); trial 8 is the one the experimenter never
+# loads, trial 9 the one whose weight is left hanging.
+LEARN = ((800, -60), (800, 30), (800, 150), (800, -150), (1000, -60), (800, -90), (800, 90))
+PLAN = ("trial,set,mass_g,direction_deg\n" + "".join(f"{i},fit,{m},{d}\n" for i, (m, d) in enumerate(LEARN, 1))
+        + "8,validation,1000,-30\n9,validation,800,-60\n10,validation,500,150\n")
+
+
+@pytest.fixture
+def rig_on_pty():
+    server = serve_pty(seed=11, tau=0.1)
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def spawn(args: list[str]) -> "pexpect.spawn":
+    env = dict(os.environ, COLUMNS="300", PYTHONUNBUFFERED="1")
+    child = pexpect.spawn(sys.executable, ["-m", "labcli", "acquire", *args], cwd=str(ROOT), env=env,
+                          encoding="utf-8", timeout=30, dimensions=(50, 300))
+    return child
+
+
+def setup(child, rig) -> None:
+    child.expect_exact("Supply compressed air to the four actuators, then press Enter (q to quit):")
+    rig.supply_air()
+    child.sendline("")
+    child.expect_exact("Close the valves so that the actuators are sealed, then press Enter (q to quit):")
+    rig.close_valves()
+    child.sendline("")
+
+
+def trial(child, rig, label: str, mass_g: float, direction_deg: float, *, hang=True, remove=True) -> None:
+    child.expect_exact(f"{label}: hang {mass_g:g} g, pulley direction {direction_deg:g} deg, then press Enter")
+    if hang:
+        rig.hang_weight(mass_g * 1e-3, math.radians(direction_deg))
+    child.sendline("")
+    child.expect_exact(f"{label}: remove the weight, then press Enter")
+    if remove:
+        rig.remove_weight()
+    child.sendline("")
+
+
+def test_enter_twice_without_the_weight_never_stores_the_trial_and_a_weight_left_on_is_warned(tmp_path, rig_on_pty):
+    rig = rig_on_pty.rig
+    proto = quick_protocol(tmp_path)
+    (tmp_path / "plan.csv").write_text(PLAN)
+    run = tmp_path / "run.h5"
+    child = spawn([str(run), "--port", rig_on_pty.path, "--protocol", str(proto), "--plan", str(tmp_path / "plan.csv")])
+    setup(child, rig)
+    for i, (mass, direction) in enumerate(LEARN, start=1):
+        trial(child, rig, f"Trial {i}/10 (fit)", mass, direction)
+        child.expect_exact(REVIEW)
+        child.sendline("a")
+
+    # Trial 8: Enter pressed twice at "hang", no weight hung. The second Enter was typed ahead of the
+    # "remove" prompt and is discarded there; the review warns and defaults to redo.
+    child.expect_exact("Trial 8/10 (validation): hang 1000 g, pulley direction -30 deg, then press Enter")
+    child.send("\r\r")
+    child.expect_exact("Trial 8/10 (validation): remove the weight, then press Enter")
+    child.sendline("")
+    child.expect("check that the load was applied as the prompt said, then redo the trial \\(Enter\\), or accept it "
+                 "as it is \\(a\\)")
+    child.expect_exact("Accept [a], redo [r], skip [s] or quit [q]? (r):")
+    child.sendline("")  # Enter alone: the default, redo
+    trial(child, rig, "Trial 8/10 (validation)", 1000, -30)
+    child.expect_exact(REVIEW)
+    child.sendline("a")
+
+    # Trial 9: the weight is left hanging; trial 10's baseline shows it and the session says so.
+    trial(child, rig, "Trial 9/10 (validation)", 800, -60, remove=False)
+    child.expect_exact(REVIEW)
+    child.sendline("a")
+    child.expect("The readings have not returned since the last load: they are still \\d+% of the way to the "
+                 "loaded ones")
+    child.expect_exact("the last weight may still hang on the pulley")
+    rig.remove_weight()
+    child.sendline("")
+    trial(child, rig, "Trial 10/10 (validation)", 500, 150)
+    child.expect_exact(REVIEW)
+    child.sendline("a")
+    child.expect_exact("Session complete: 10 trials stored")
+    child.expect(pexpect.EOF)
+    child.close()
+    assert child.exitstatus == 0
+    df = load_trials(run).set_index("trial")
+    # Trial 8 as stored is the redone one: the lower joint bent under the 1000 g.
+    assert abs(df.loc[8, "theta1_deg"]) > 5.0
