@@ -111,3 +111,80 @@ def test_enter_twice_without_the_weight_never_stores_the_trial_and_a_weight_left
     df = load_trials(run).set_index("trial")
     # Trial 8 as stored is the redone one: the lower joint bent under the 1000 g.
     assert abs(df.loc[8, "theta1_deg"]) > 5.0
+
+
+def quick_push_protocol(tmp_path: Path, pushes: int) -> Path:
+    """The shipped stiffness protocol with short settling and ``pushes`` pushes per object."""
+    import re
+
+    from labcli.core.protocol import load_protocol
+
+    text = load_protocol("takuma2014-stiffness").text
+    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "20.0"), ("capture_s", "0.2"),
+                       ("pushes_per_object", str(pushes))):
+        text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
+        assert n == 1
+    path = tmp_path / "push.toml"
+    path.write_text(text)
+    return path
+
+
+class Typist:
+    """Types answers on the terminal and counts them, per push."""
+
+    def __init__(self, child) -> None:
+        self.child = child
+        self.count = 0
+
+    def answer(self, prompt: str, text: str = "") -> None:
+        self.child.expect_exact(prompt)
+        self.child.sendline(text)
+        self.count += 1
+
+
+def test_a_two_object_push_session_asks_per_push_at_most_three_answers(tmp_path, rig_on_pty):
+    rig = rig_on_pty.rig
+    pushes = 3
+    proto = quick_push_protocol(tmp_path, pushes)
+    run = tmp_path / "push.h5"
+    child = spawn([str(run), "--port", rig_on_pty.path, "--protocol", str(proto)])
+    t = Typist(child)
+    child.expect_exact("Supply compressed air to the four actuators, then press Enter (q to quit):")
+    rig.supply_air()
+    t.answer("")
+    child.expect_exact("then press Enter (q to quit):")
+    rig.close_valves()
+    t.answer("")
+    objects = (("pet-1", "33", "soft", "10", "30", 0.033, 0.010, 30.0, 300.0),
+               ("can-2", "40", "hard", "", "", 0.040, 0.010, 30.0, 3000.0))  # Enter keeps pet-1's d and phi
+    per_push = []
+    for i, (name, r_mm, cat, d_mm, phi, R, d, phi_deg, k) in enumerate(objects, start=1):
+        t.answer(f"Object {i}: name", name)
+        t.answer(f"{name}: radius R in mm:", r_mm)
+        t.answer(f"{name}: category", cat)
+        t.answer(f"{name}: push distance d in mm for its pushes", d_mm)
+        t.answer(f"{name}: push direction phi in deg for its pushes", phi)
+        for j in range(1, pushes + 1):
+            before = t.count
+            child.expect_exact(f"Push {j}/{pushes} of {name}: push {name} by 10 mm along 30 deg, then press Enter")
+            rig.push_object(R, d, math.radians(phi_deg), k)
+            t.answer("(q to quit):")
+            child.expect_exact(f"Push {j}/{pushes} of {name}: move {name} back until it just touches")
+            rig.release_object()
+            t.answer("(q to quit):")
+            t.answer(REVIEW)
+            per_push.append(t.count - before)
+    t.answer("Object 3: name")  # Enter: all objects done
+    child.expect_exact(f"Session complete: {2 * pushes} ")
+    child.expect(pexpect.EOF)
+    child.close()
+    assert child.exitstatus == 0
+    # Per object five answers; per push at most three (the push, the release, the review).
+    assert max(per_push) <= 3
+    assert t.count == 2 + 2 * 5 + 2 * pushes * 3 + 1
+    from labcli.experiments.takuma2014.records import load_pushes
+
+    df = load_pushes(run)
+    assert df["object"].tolist() == ["pet-1"] * pushes + ["can-2"] * pushes
+    assert df["R_m"].tolist() == pytest.approx([0.033] * pushes + [0.040] * pushes)
+    assert df["d_m"].tolist() == pytest.approx([0.010] * (2 * pushes))
