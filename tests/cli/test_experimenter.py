@@ -16,10 +16,9 @@ import pytest
 
 pexpect = pytest.importorskip("pexpect", reason="pip install pexpect (the test extras)")
 
-from labcli.core.sim.pty import serve_pty  # noqa: E402
 from labcli.experiments.takuma2014.records import load_trials  # noqa: E402
 
-from test_acquire_pty import REVIEW, quick_protocol  # noqa: E402
+from test_acquire_pty import REVIEW, quick_protocol, rig_on_pty  # noqa: E402,F401 (a fixture)
 
 ROOT = Path(__file__).resolve().parents[2]
 # Seven trials teach the session what a load does on this rig (by trial 8 it is sure that 1000 g
@@ -28,15 +27,6 @@ ROOT = Path(__file__).resolve().parents[2]
 LEARN = ((800, -60), (800, 30), (800, 150), (800, -150), (1000, -60), (800, -90), (800, 90))
 PLAN = ("trial,set,mass_g,direction_deg\n" + "".join(f"{i},fit,{m},{d}\n" for i, (m, d) in enumerate(LEARN, 1))
         + "8,validation,1000,-30\n9,validation,800,-60\n10,validation,500,150\n")
-
-
-@pytest.fixture
-def rig_on_pty():
-    server = serve_pty(seed=11, tau=0.1)
-    try:
-        yield server
-    finally:
-        server.stop()
 
 
 def spawn(args: list[str]) -> "pexpect.spawn":
