@@ -99,19 +99,19 @@ def test_enter_twice_without_the_weight_never_stores_the_trial_and_a_weight_left
     child.close()
     assert child.exitstatus == 0
     df = load_trials(run).set_index("trial")
-    # Trial 8 as stored is the redone one: the lower joint bent under the 1000 g.
-    assert abs(df.loc[8, "theta1_deg"]) > 5.0
+    # Trial 8 as stored is the redone one: the lower joint bent under the 1000 g as far as under
+    # the same weight at -60 deg within a factor of two (0 deg had it been stored unloaded).
+    assert abs(df.loc[8, "theta1_deg"]) > 0.5 * abs(df.loc[5, "theta1_deg"]) > 0.5
 
 
 def quick_push_protocol(tmp_path: Path, pushes: int) -> Path:
-    """The shipped stiffness protocol with short settling and ``pushes`` pushes per object."""
+    """The shipped stiffness protocol with a short capture and ``pushes`` pushes per object."""
     import re
 
     from labcli.core.protocol import load_protocol
 
     text = load_protocol("takuma2014-stiffness").text
-    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "20.0"), ("capture_s", "0.2"),
-                       ("pushes_per_object", str(pushes))):
+    for key, value in (("timeout_s", "20.0"), ("capture_s", "0.2"), ("pushes_per_object", str(pushes))):
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
     path = tmp_path / "push.toml"
