@@ -25,11 +25,30 @@ class DeviceNotFound(DeviceError):
 
 
 class DeviceTimeout(DeviceError):
-    """The device did not answer, or stopped sending data, within the timeout."""
+    """The device did not answer, or stopped sending data, within the timeout.
+
+    ``what`` says what the rig did, for a sentence of the form "the rig on PORT {what}
+    during trial 3" ("stopped sending data", "sends no valid frames (...)").
+    """
+
+    def __init__(self, message: str = "", what: str = "stopped sending data") -> None:
+        super().__init__(message)
+        self.what = what
 
 
 class DeviceDisconnected(DeviceError):
     """The device vanished mid-stream (unplugged, port closed)."""
+
+    what = "was disconnected"
+
+
+class DeviceClockError(DeviceError):
+    """The device's clock (``t_us``) ran backwards, or stood almost still, while it streamed;
+    ``what`` as for :class:`DeviceTimeout`."""
+
+    def __init__(self, message: str = "", what: str = "sent timestamps that do not increase") -> None:
+        super().__init__(message)
+        self.what = what
 
 
 class StoreError(LabcliError):

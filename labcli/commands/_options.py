@@ -1,6 +1,9 @@
-"""What the commands share beyond click: which options the person typed."""
+"""What the commands share beyond click: which options the person typed, option types they all use."""
 
 from __future__ import annotations
+
+import math
+from typing import Any
 
 import click
 from click.core import ParameterSource
@@ -15,3 +18,20 @@ def typed_options(*names: str) -> frozenset[str]:
     if ctx is None:
         return frozenset()
     return frozenset(n for n in names if ctx.get_parameter_source(n) == ParameterSource.COMMANDLINE)
+
+
+class FiniteRange(click.FloatRange):
+    """A click FloatRange that also refuses nan and inf (which compare as inside any range)."""
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> Any:
+        rv = click.FLOAT.convert(value, param, ctx)
+        if not math.isfinite(rv):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return super().convert(rv, param, ctx)
+
+
+FINITE = FiniteRange()  # any finite number
+
+# The serial link's speed: the wire protocol's default, and what USB-serial bridges offer.
+BAUD = click.IntRange(50, 12_000_000)
+BAUD_HELP = "Serial speed of the rig's link, bits per second  [default: 115200, the wire protocol's]"

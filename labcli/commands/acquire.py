@@ -7,6 +7,7 @@ import signal
 import click
 
 from ..errors import LabcliError
+from ._options import BAUD, BAUD_HELP, FiniteRange
 
 DEFAULT_PROTOCOL = "takuma2014"  # a new run without --protocol
 
@@ -22,18 +23,25 @@ DEFAULT_PROTOCOL = "takuma2014"  # a new run without --protocol
 @click.option("--resume", is_flag=True, help="Continue RUN.h5 at its first trial not yet complete.")
 @click.option("--force", is_flag=True, help="Overwrite RUN.h5 if it exists.")
 @click.option("--unattended", is_flag=True, help="Simulated rig only: act out every prompt and accept every trial.")
-@click.option("--rate", "rate", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--rate", "rate", type=FiniteRange(min=0, min_open=True), default=None,
               help="Frames per second  [default: the protocol's rate_hz]")
+@click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)
+@click.option("--allow-other-rig", is_flag=True,
+              help="With --resume: continue on a rig other than the one the run was recorded on.")
 @click.option("--experiment", type=click.Choice(["stretch", "joint"]), default=None,
               help="rPAM protocols: the stretch test (Figs. 5-6) or the joint map (Fig. 8).")
 def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan: bool, operator: str,
-            resume: bool, force: bool, unattended: bool, rate: float | None, experiment: str | None) -> None:
+            resume: bool, force: bool, unattended: bool, rate: float | None, baud: int, allow_other_rig: bool,
+            experiment: str | None) -> None:
     """Guide a run at the rig, trial by trial, and record it into RUN.h5.
 
     Setup check, baseline with the valves closed, then per trial: baseline,
     load (from the plan, or typed), equilibrium judged from the data, capture,
     summary row to accept, redo, skip or quit.  Each accepted trial is written
     whole; Ctrl-C, q or an unplugged rig lose only the trial in progress.
+    The readings are checked as the run goes: air supplied, a load that moved
+    them, a weight removed; a trial that looks wrong is stored only when you
+    type a.  --resume continues only on the rig the run was recorded on.
 
     \b
     Example:
@@ -49,7 +57,7 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
         outcome = run_acquisition(
             run, port, protocol=protocol if protocol is not None or resume else DEFAULT_PROTOCOL, plan=plan,
             no_plan=no_plan, operator=operator, resume=resume, force=force, unattended=unattended, rate_hz=rate,
-            experiment=experiment,
+            experiment=experiment, baud=baud, allow_other_rig=allow_other_rig,
         )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
@@ -61,7 +69,9 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
     # The session is over; its outcome is printed whole.
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        click.echo(outcome.message, err=outcome.exit_code != 0)
+        # A session nobody could answer ended in error; a Ctrl-C (130) is said plainly.
+        prefix = "Error: " if outcome.exit_code == 1 else ""
+        click.echo(prefix + outcome.message, err=outcome.exit_code != 0)
     finally:
         signal.signal(signal.SIGINT, previous)
     if outcome.exit_code:

@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
+from ._options import BAUD, BAUD_HELP, FiniteRange
 
 
 def _reading(value: float, unit: str, extra_digits: int = 0) -> str:
@@ -51,19 +52,20 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False) -> Any:
 
 @click.command()
 @click.option("--port", "-p", required=True, help="Serial port or pyserial URL, e.g. /dev/ttyUSB0, COM3, sim://.")
-@click.option("--rate", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--rate", type=FiniteRange(min=0, min_open=True), default=None,
               help="Frames per second to ask for  [default: the protocol's rate]")
-@click.option("--seconds", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--seconds", type=FiniteRange(min=0, min_open=True), default=None,
               help="Stop after this many seconds  [default: run until Ctrl-C]")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON summary instead of the live table.")
 @click.option("--protocol", default="takuma2014", show_default=True,
               help="Protocol name or .toml file whose calibration converts counts to MPa and rad.")
-@click.option("--timeout", type=click.FloatRange(min=0, min_open=True), default=2.0, show_default=True,
+@click.option("--timeout", type=FiniteRange(min=0, min_open=True), default=2.0, show_default=True,
               help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.")
-@click.option("--boot-wait", type=click.FloatRange(min=0), default=None,
+@click.option("--boot-wait", type=FiniteRange(min=0), default=None,
               help="Extra seconds for a board that resets when the port opens  [default: 2 for serial ports, 0 for URLs]")
+@click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)
 def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool, protocol: str,
-            timeout: float, boot_wait: float | None) -> None:
+            timeout: float, boot_wait: float | None, baud: int) -> None:
     """Show live calibrated readings (MPa, deg) and link statistics from a rig.
 
     Ctrl-C stops the stream and prints the summary.  A sim:// port runs on
@@ -78,6 +80,7 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
     Examples:
         labcli monitor --port sim:// --seconds 5
         labcli monitor --port /dev/ttyUSB0 --rate 200 --seconds 10 --json
+        labcli monitor --port /dev/ttyACM0 --baud 1000000 --seconds 5
     """
     from ..core.device import Device  # heavy: when the command runs, not for --help
     from ..core.monitoring import channel_scale, watch
@@ -91,7 +94,7 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
         proto = load_protocol(protocol)
         rate_hz = rate if rate is not None else float(proto.rate_hz)
         # Errors speak of the port as the user typed it, not of the paced URL.
-        with Device.open(url, timeout=timeout, boot_wait=boot_wait, name=port) as dev:
+        with Device.open(url, baudrate=baud, timeout=timeout, boot_wait=boot_wait, name=port) as dev:
             assert dev.info is not None
             scale = channel_scale(dev.info.channels, proto.calibration)
             if as_json:

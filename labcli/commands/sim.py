@@ -7,29 +7,31 @@ from typing import Any
 
 import click
 
+from ._options import FiniteRange
+
 
 @click.command()
 @click.option("--pty", "use_pty", is_flag=True, help="Serve on a new pseudo-terminal (required).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the rig's actuators, sensor offsets and noise.")
 # 1..50000 are labcli.core.sim.firmware's RATE_MIN and RATE_MAX (not imported here: --help stays light).
-@click.option("--rate", type=click.FloatRange(1, 50000), default=200.0, show_default=True,
+@click.option("--rate", type=FiniteRange(1, 50000), default=200.0, show_default=True,
               help="Sample rate at power-up, Hz (the host's RATE command changes it).")
-@click.option("--noise", type=click.FloatRange(min=0), default=1.0, show_default=True,
+@click.option("--noise", type=FiniteRange(min=0), default=1.0, show_default=True,
               help="Scale of the sensor noise (1 = 0.5 count pressure, 0.7 count angle rms).")
-@click.option("--drift", type=click.FloatRange(min=0), default=0.0, show_default=True,
+@click.option("--drift", type=FiniteRange(min=0), default=0.0, show_default=True,
               help="Scale of sensor zero drift.")
 @click.option("--ideal", is_flag=True,
               help="Turn every non-ideality off (friction, leak, thermal, backlash, link weight).")
-@click.option("--friction", type=click.FloatRange(min=0), default=None,
+@click.option("--friction", type=FiniteRange(min=0), default=None,
               help="Scale of sleeve friction and hysteresis (1 = typical, 0 = off).")
-@click.option("--leak", type=click.FloatRange(min=0), default=None,
+@click.option("--leak", type=FiniteRange(min=0), default=None,
               help="Scale of the closed chambers' leak (1 = about 1 kPa/min).")
-@click.option("--thermal", type=click.FloatRange(min=0), default=None,
+@click.option("--thermal", type=FiniteRange(min=0), default=None,
               help="Scale of the air's heating by a fast load (1 = adiabatic, relaxing over 3 s).")
-@click.option("--backlash", type=click.FloatRange(min=0), default=None,
+@click.option("--backlash", type=FiniteRange(min=0), default=None,
               help="Scale of the potentiometers' backlash (1 = 0.2 deg).")
-@click.option("--links", type=click.FloatRange(min=0), default=None,
+@click.option("--links", type=FiniteRange(min=0), default=None,
               help="Scale of the links' own weight (1 = 80 g and 30 g).")
 @click.option("--supply", default=None, metavar="MPA[,MPA,MPA,MPA]",
               help="Regulator pressure, MPa gauge: one value or four (L1,R1,L2,R2).  [default: 0.3]")

@@ -4,6 +4,11 @@ let the experiment's session run on the engine, close everything whatever happen
 The experiment that owns the protocol's kind plans the run
 (:meth:`labcli.core.experiment.Experiment.acquisition`): its session of steps, its plan,
 what "nothing left to resume" means.  This module knows no experiment.
+
+A resumed run continues only on the rig it was recorded on: the rig's identity (the
+``ID?`` reply's device and firmware, its channels, and the calibration of a ``--protocol``
+given with ``--resume``) must match the run's (:mod:`labcli.core.sessionlog`), unless
+``--allow-other-rig`` says that another rig is meant.
 """
 
 from __future__ import annotations
@@ -12,25 +17,33 @@ import contextlib
 import shlex
 import signal
 import threading
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
-from ..errors import ConfigError, StoreError
+from ..errors import ConfigError, DeviceError, StoreError
 from .device import Device
-from .engine import SILENT_S, Outcome, RunEngine
+from .engine import SILENT_S, Outcome, RunEngine, utc_now_us
 from .experiment import AcquireOptions
 from .protocol import load_protocol, loads_protocol
 from .registry import record_type, run_protocol
+from .sessionlog import RigIdentity, SessionInfo, describe, recorded_identity
 from .store import RESUME_OR_FORCE, RunFile
 from .ui import RichUI, UnattendedUI
 
+DEFAULT_BAUD = 115200  # the wire protocol's default
 
-def resume_command(path: str, port: str, *, unattended: bool = False, rate_hz: float | None = None) -> str:
+
+def resume_command(path: str, port: str, *, unattended: bool = False, rate_hz: float | None = None,
+                   baud: int = DEFAULT_BAUD, other_rig: bool = False) -> str:
     """The exact command line that continues a run."""
     cmd = f"labcli acquire {shlex.quote(str(path))} --port {shlex.quote(port)} --resume"
+    if baud != DEFAULT_BAUD:
+        cmd += f" --baud {baud}"
     if rate_hz:
         cmd += f" --rate {rate_hz:g}"
+    if other_rig:
+        cmd += " --allow-other-rig"
     if unattended:
         cmd += " --unattended"
     return cmd
@@ -60,8 +73,10 @@ def _check_options(resume: bool, force: bool, plan: Any, no_plan: bool) -> None:
         raise ConfigError("--plan and --no-plan contradict each other: give one of them.")
 
 
-def _resume(path: str, protocol: str | None, options: AcquireOptions) -> tuple[Any, RunFile, Outcome | None]:
-    """The run being resumed, open for writing, and its acquisition; an Outcome when it is done."""
+def _resume(path: str, protocol: str | None,
+            options: AcquireOptions) -> tuple[Any, RunFile, Outcome | None, Any]:
+    """The run being resumed, open for writing, its acquisition, an Outcome when it is done,
+    and the protocol ``--protocol`` gave (None: the run's own), whose calibration is this rig's."""
     if options.plan is not None or options.no_plan:
         raise ConfigError(f"The plan of {path} was fixed when the run began; drop --plan/--no-plan with --resume.")
     existing = RunFile.open(path, "a")
@@ -72,16 +87,36 @@ def _resume(path: str, protocol: str | None, options: AcquireOptions) -> tuple[A
                 f"{path} was recorded with protocol {base.name}, not {protocol}; drop --protocol to resume it."
             )
         experiment, proto = run_protocol(base, options.experiment, stored_kind=existing.kind, run_path=path)
+        given = None
+        if protocol is not None:
+            given = run_protocol(load_protocol(protocol), options.experiment, stored_kind=existing.kind,
+                                 run_path=path)[1]
         acq = experiment.acquisition(proto, replace(options, resume=existing))
         done = acq.already_done(existing, path)
         if done is not None:
             outcome = Outcome("finished", done, 0, len(existing.completed_ids()))
             existing.close()
-            return acq, existing, outcome
+            return acq, existing, outcome, given
     except BaseException:
         existing.close()
         raise
-    return acq, existing, None
+    return acq, existing, None, given
+
+
+def check_rig(run: Any, path: str, info: Any, calibration: Any, *, allow_other: bool = False) -> list[str]:
+    """What differs between the rig a run was recorded on and the rig at hand (``info``, read with
+    ``calibration``); refused in one sentence unless ``allow_other``.  Imported runs had no rig."""
+    recorded = recorded_identity(run)
+    if not recorded.device:
+        return []
+    differences = recorded.differences(RigIdentity.of(info, calibration))
+    if differences and not allow_other:
+        raise DeviceError(
+            f"{path} was recorded on {recorded.device} (firmware {recorded.firmware}), but the rig on {info.port} "
+            f"has {describe(differences)}: resume on the rig that began the run, or pass --allow-other-rig "
+            "to continue it on this one."
+        )
+    return differences
 
 
 def _plan_new(path: str, protocol: str | None, options: AcquireOptions, force: bool) -> Any:
@@ -92,6 +127,27 @@ def _plan_new(path: str, protocol: str | None, options: AcquireOptions, force: b
         raise ConfigError("labcli acquire needs a protocol for a new run: give --protocol NAME or FILE.")
     experiment, proto = run_protocol(load_protocol(protocol), options.experiment)
     return experiment.acquisition(proto, options)
+
+
+@dataclass(frozen=True)
+class Link:
+    """How the rig is reached: the port as typed, its baud rate, the wait for answers."""
+
+    port: str
+    baud: int = DEFAULT_BAUD
+    timeout: float = 2.0
+
+    def open(self) -> Device:
+        return Device.open(self.port, baudrate=self.baud, timeout=self.timeout)
+
+
+@dataclass(frozen=True)
+class SessionOptions:
+    """What the session log records beside the link and the rig."""
+
+    operator: str = ""
+    resumed: bool = False
+    other_rig: bool = False
 
 
 def acquire(
@@ -111,26 +167,31 @@ def acquire(
     subscribers: tuple[Callable[[Any, Any], None], ...] = (),
     device_timeout: float = 2.0,
     silent_s: float = SILENT_S,
+    baud: int = DEFAULT_BAUD,
+    allow_other_rig: bool = False,
 ) -> Outcome:
     """Run ``labcli acquire``: open the rig and the run file, build the session, run it.
 
     ``protocol``: a shipped name or a .toml path (a new run needs one; a resumed run
-    carries its own, and a name given must match it).  Raises
-    :class:`~labcli.errors.LabcliError` (one sentence) for anything the person at the
-    rig can fix; returns the :class:`Outcome` otherwise.
+    carries its own, and a name given must match it; its calibration is then this rig's,
+    checked against the run's).  ``allow_other_rig``: resume on a rig other than the
+    run's.  Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the
+    person at the rig can fix; returns the :class:`Outcome` otherwise.
     """
     path = str(path)
     _check_options(resume, force, plan, no_plan)
     options = AcquireOptions(path, plan=plan, no_plan=no_plan, experiment=experiment, unattended=unattended)
+    link = Link(port, baud, device_timeout)
     store: Any = None
+    given = None
     if resume:
-        acq, store, finished = _resume(path, protocol, options)
+        acq, store, finished, given = _resume(path, protocol, options)
         if finished is not None:
             return finished
     else:
         acq = _plan_new(path, protocol, options, force)
     try:
-        device = Device.open(port, timeout=device_timeout)
+        device = link.open()
     except BaseException:
         if store is not None:
             store.close()
@@ -141,15 +202,21 @@ def acquire(
                 f"--unattended drives the simulated rig only, and {port} is a real port: "
                 "run without --unattended and follow the prompts."
             )
+        other = []
+        if store is not None:
+            other = check_rig(store, path, device.info, (given or acq.protocol).calibration,
+                              allow_other=allow_other_rig)
         completed = list(store.completed_ids()) if store is not None else []
         if store is None:
             store = _creator(path, acq, device.info, port, operator, force)
-        engine = _engine(device, store, acq, ui, path, port, unattended, rate_hz, silent_s)
+        engine = _engine(device, store, acq, ui, link, path, unattended, rate_hz, silent_s,
+                         SessionOptions(operator, resume, bool(other)))
+        if other:
+            engine.ui.warn(f"continuing {path} on another rig ({describe(other)}), as --allow-other-rig allows")
         for cb in subscribers:
             engine.subscribe(cb)
         try:
-            return engine.run(acq.session(completed), restart=acq.session,
-                              reopen=lambda: Device.open(port, timeout=device_timeout))
+            return engine.run(acq.session(completed), restart=acq.session, reopen=link.open)
         finally:
             # The session is over (finished, quit, interrupted or the rig lost): a Ctrl-C now
             # has nothing left to stop, and must not cut the file's close short.
@@ -176,10 +243,14 @@ def _creator(path: str, acq: Any, info: Any, port: str, operator: str, force: bo
     return create
 
 
-def _engine(device: Any, store: Any, acq: Any, ui: Any, path: str, port: str, unattended: bool,
-            rate_hz: float | None, silent_s: float) -> RunEngine:
+def _engine(device: Any, store: Any, acq: Any, ui: Any, link: Link, path: str, unattended: bool,
+            rate_hz: float | None, silent_s: float, opts: SessionOptions) -> RunEngine:
+    command = resume_command(path, link.port, unattended=unattended, rate_hz=rate_hz, baud=link.baud,
+                             other_rig=opts.other_rig)
+    info = SessionInfo(utc_now_us(), link.port, link.baud, RigIdentity.of(device.info, acq.protocol.calibration),
+                       opts.operator, command, opts.resumed, opts.other_rig)
     return RunEngine(
         device, store, acq.protocol, ui or (UnattendedUI() if unattended else RichUI()), run_path=path,
-        resume_command=resume_command(path, port, unattended=unattended, rate_hz=rate_hz),
-        rate_hz=rate_hz, silent_s=silent_s, noun=record_type(acq.kind).noun,
+        resume_command=command, rate_hz=rate_hz, silent_s=silent_s, noun=record_type(acq.kind).noun,
+        session=info,
     )

@@ -35,6 +35,8 @@ except ImportError:  # pragma: no cover
 POLL_S = 0.05  # port read timeout: how often a waiting read looks at its deadline
 ID_RETRY_S = 0.5  # a board still booting ignores commands; ask again this often
 DEFAULT_BOOT_WAIT_S = 2.0  # DTR reset of an Arduino-class board on open: 1-3 s
+# What a stream can send instead of frames (StreamReader counters), for "sends no valid frames".
+NOISE_COUNTERS = ("bad_checksum", "malformed", "overlong")
 
 
 @dataclass(frozen=True)
@@ -90,6 +92,7 @@ class Device:
         self._backlog: list[FrameBatch] = []
         self._streaming = False
         self._last_frame = time.monotonic()
+        self._noise_at_frame: dict[str, int] = {}  # noise counters when the last frame came
         self.info: DeviceInfo | None = None
         self._other_reply: str | None = None  # last non-ID answer during the handshake
 
@@ -160,6 +163,13 @@ class Device:
                 "Check that its firmware answers ID? with ID,<device>,<firmware>,<ch1>,...,<chN>."
             )
         channels = tuple(f.strip() for f in fields[3:])
+        repeated = sorted({c for c in channels if channels.count(c) > 1})
+        if repeated:
+            raise DeviceError(
+                f"The device on {self.name} names channel{'s' if len(repeated) > 1 else ''} "
+                f"{', '.join(repeated)} more than once in its ID line ({reply!r}), so its values cannot be told "
+                "apart. Check that its firmware gives each channel its own name."
+            )
         self.info = DeviceInfo(fields[1].strip(), fields[2].strip(), channels, self.port)
         logs = self._reader.logs
         self._reader = StreamReader(self._serial, n_channels=len(channels))
@@ -246,6 +256,7 @@ class Device:
         self._command("START", expect="OK START")
         self._streaming = True
         self._last_frame = time.monotonic()
+        self._noise_at_frame = {}
 
     def stop(self) -> FrameBatch:
         """Stop streaming; returns the frames not yet read, those in flight before ``OK STOP`` included."""
@@ -274,14 +285,28 @@ class Device:
             now = time.monotonic()
             if len(batch):
                 self._last_frame = now
+                self._noise_at_frame = {k: self._reader.counters[k] for k in NOISE_COUNTERS}
                 return batch
             if self._streaming and now - self._last_frame > self.timeout:
-                raise DeviceTimeout(
-                    f"No data from {self.name} for {self.timeout:g} s while streaming. "
-                    "Check the cable and that the rig is powered."
-                )
+                raise self._silence()
             if now >= deadline:
                 return batch
+
+    def _silence(self) -> DeviceTimeout:
+        """No frame for ``timeout`` s while streaming: silence, or bytes that were never a valid frame."""
+        c = self._reader.counters
+        noise = {k: c[k] - self._noise_at_frame.get(k, 0) for k in NOISE_COUNTERS}
+        if not any(noise.values()):
+            return DeviceTimeout(
+                f"No data from {self.name} for {self.timeout:g} s while streaming. "
+                "Check the cable and that the rig is powered."
+            )
+        counts = ", ".join(f"{n} {k.replace('_', ' ')}" for k, n in noise.items() if n)
+        what = f"sends no valid frames ({counts} in {self.timeout:g} s)"
+        return DeviceTimeout(
+            f"The rig on {self.name} {what}. Check the baud rate ({self.baudrate}) and that its firmware "
+            "speaks wire protocol version 1.", what=what,
+        )
 
     def _command(self, command: str, *, expect: str, accept_err: bool = False) -> str:
         self._reader.replies.clear()

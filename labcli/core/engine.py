@@ -12,7 +12,9 @@ uses the wall clock, because a silent rig has no clock to read.
 
 Nothing is written to the run file except by a ``Commit`` step, and a commit
 writes one whole trial; an unplugged rig, a quit or Ctrl-C therefore discard
-only the trial in progress.  An attended run whose rig is lost asks the
+only the trial in progress.  A new run's file is created when its first trial
+begins (or its session finishes with none), so a session that stops during the
+setup or the air supply leaves no file behind.  An attended run whose rig is lost asks the
 experimenter to reconnect it, opens the same port again and starts the session
 afresh (setup check, air supply, then the interrupted trial from its
 baseline); an unattended one ends with the command that resumes it.
@@ -32,7 +34,8 @@ from typing import Any, Callable, Generator, Iterator
 
 import numpy as np
 
-from ..errors import ConfigError, DeviceDisconnected, DeviceError, DeviceTimeout
+from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceError, DeviceTimeout
+from .sessionlog import NoSessionLog, SessionInfo, SessionLog, session_log
 from .steps import (
     Ask,
     Baseline,
@@ -40,6 +43,7 @@ from .steps import (
     Capture,
     Commit,
     Finish,
+    Problem,
     Prompt,
     Review,
     SettleReport,
@@ -48,23 +52,32 @@ from .steps import (
     Window,
 )
 from .settle import SettleCriteria, SettleDetector, TimeUnwrapper
-from .ui import QuitRequested
+from .ui import InputEnded, QuitRequested
 
 
 def utc_now() -> str:
     return dt.datetime.now(dt.timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
 
+def utc_now_us() -> str:
+    """ISO 8601 UTC with microseconds (the session log's times)."""
+    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="microseconds").replace("+00:00", "Z")
+
+
 SILENT_S = 5.0  # wall-clock seconds without a frame before the rig counts as silent
 SETUP_S = 0.5  # device seconds of readings for the setup check
 PRESSURE_MARGIN_MPA = 0.02  # sensor noise and offset allowed outside the 0-1 MPa span
+RATE_TOLERANCE = 0.05  # a stream whose own clock says it runs 5 % off the rate set is flagged
+MAX_STEP_US = 60_000_000  # a step of the rig's clock between two frames beyond 60 s: not a clock
+SLOW_CLOCK = 10.0  # frames arriving 10x faster than the rig's clock says it sampled them
+LOST_RIG = (DeviceDisconnected, DeviceTimeout, DeviceClockError)
 
 
 @dataclass
 class Outcome:
     """How a session ended; ``message`` is the sentence to print."""
 
-    status: str  # "finished" | "quit" | "interrupted"
+    status: str  # "finished" | "quit" | "interrupted" | "no input"
     message: str
     stored: int  # trials committed by this session
     complete: int  # trials complete in the file
@@ -73,7 +86,7 @@ class Outcome:
 
     @property
     def exit_code(self) -> int:
-        return {"finished": 0, "quit": 0, "interrupted": 130}[self.status]
+        return {"finished": 0, "quit": 0, "interrupted": 130, "no input": 1}[self.status]
 
 
 class RunEngine:
@@ -84,6 +97,8 @@ class RunEngine:
     :class:`labcli.core.ui.UnattendedUI`; ``resume_command``: the exact command line
     that continues this run, quoted in every "how to resume" sentence.
     Subscribers (``subscribe``) see every step and its reply, for logging and tests.
+    A store that keeps a session log (:class:`labcli.core.sessionlog.SessionLog`) is told
+    how the session began (``session``: port, baud, rig, ...), what it did, how it ended.
     """
 
     def __init__(
@@ -98,6 +113,7 @@ class RunEngine:
         rate_hz: float | None = None,
         silent_s: float = SILENT_S,
         noun: str = "trial",
+        session: SessionInfo | None = None,
     ) -> None:
         self.device = device
         # A callable store is created on first use, so a session that fails its
@@ -132,11 +148,23 @@ class RunEngine:
         self._trial_walls: list[float] = []
         self._trial_wall_start = 0.0
         self._trial_started = ""
+        self._session = session
+        self._log: SessionLog = NoSessionLog()
+        self._logging = False
+        self._rate_set: float | None = None  # the rate the firmware confirmed
+        self._rate_warned: set[float] = set()
+        self._flags: list[str] = []  # what the stream did wrong during the trial in progress
+        self._clock: tuple[int, int, float] | None = None  # (last t_us, frames, device s) of this stream
 
     @property
     def store(self) -> Any:
         if self._store is None:
             self._store = self._store_factory()
+        if not self._logging:
+            self._logging = True
+            self._log = session_log(self._store)
+            if self._session is not None:
+                self._log.begin_session(self._session)
         return self._store
 
     @property
@@ -170,10 +198,25 @@ class RunEngine:
                 "run without --unattended and follow the prompts."
             )
         self._t_start = time.monotonic()
+        if self._store is not None:
+            self.store  # a resumed run: the session begins now
+        how = "error"
+        try:
+            outcome = self._run(session, restart, reopen)
+            how = outcome.status
+            return outcome
+        except LOST_RIG:
+            how = "rig lost"
+            raise
+        finally:
+            if self._logging:
+                self._log.end(how)
+
+    def _run(self, session: Generator[Any, Any, None], restart: Any, reopen: Any) -> Outcome:
         while True:
             try:
                 return self._drive(session)
-            except (DeviceDisconnected, DeviceTimeout) as e:
+            except LOST_RIG as e:
                 lost = e
             wait = restart is not None and reopen is not None and not self.ui.unattended
             try:
@@ -195,12 +238,15 @@ class RunEngine:
                 reply = self._execute(step)
                 for cb in self._subscribers:
                     cb(step, reply)
-                if isinstance(step, Review) and reply == "skip" and self._trial is not None:
-                    self._skipped.append(self._trial.trial)
-                    self._trial = None
+                if isinstance(step, (Review, WaitSettle)) and self._trial is not None and reply in ("redo", "skip"):
+                    self._reviewed(reply)
                 if isinstance(step, Finish):
                     session.close()
                     return self._outcome("finished", tuple(dict.fromkeys([*self._skipped, *step.skipped])))
+        except InputEnded:
+            session.close()
+            self._stop_quietly()
+            return self._outcome("no input", ())
         except QuitRequested:
             session.close()
             self._stop_quietly()
@@ -211,10 +257,22 @@ class RunEngine:
             if self._finished:  # Ctrl-C after the last step: the run is complete
                 return self._outcome("finished", tuple(dict.fromkeys(self._skipped)))
             return self._outcome("interrupted", ())
-        except (DeviceDisconnected, DeviceTimeout):
+        except LOST_RIG:
             session.close()
             self._stop_quietly()
             raise
+
+    def _reviewed(self, reply: str) -> None:
+        """A trial redone (by a review or a settling timeout) or skipped: the session log hears of it."""
+        rid = self._trial.trial
+        if reply == "skip":
+            self._skipped.append(rid)
+            self._trial = None
+            if self._logging:
+                self._log.trial_skipped(rid)
+        elif self._logging:
+            self._log.trial_redone(rid)
+        self._flags = []
 
     def _done_ids(self) -> list[int]:
         stored = list(self._store.completed_ids()) if self._store is not None else []
@@ -223,7 +281,7 @@ class RunEngine:
     def _wait_for_rig(self, e: Exception, reopen: Callable[[], Any]) -> bool:
         """Ask for the lost rig until it opens again (True) or the experimenter stops (False)."""
         port = self._port()
-        what = "stopped sending data" if isinstance(e, DeviceTimeout) else "was disconnected"
+        what = _what(e)
         if self._trial is not None:
             then = (f"during {self._current()}, which was not stored; it will be redone from its baseline "
                     "once the rig is back")
@@ -267,7 +325,7 @@ class RunEngine:
         return "the setup"
 
     def _lost_rig_message(self, e: Exception) -> str:
-        what = "stopped sending data" if isinstance(e, DeviceTimeout) else "was disconnected"
+        what = _what(e)
         if not self.store_created:
             return (
                 f"The rig on {self._port()} {what} during the setup, before anything was written to "
@@ -293,15 +351,22 @@ class RunEngine:
                     f" Skipped {_count(len(skipped), self._noun)} ({', '.join(map(str, skipped))}) "
                     f"not stored; record {'it' if len(skipped) == 1 else 'them'} with: {self.resume_command}"
                 )
+        elif not self.store_created:
+            why = {"quit": "Stopped at your request", "interrupted": "Interrupted",
+                   "no input": "No input (standard input ended)"}[status]
+            again = ("run the command where someone at the rig can answer its prompts"
+                     if status == "no input" else "run the same command again to start the run")
+            msg = f"{why} during the setup, before anything was written to {self.run_path}; {again}."
         elif status == "quit":
             msg = (
                 f"Stopped at your request during {self._current()}, which was not stored; "
                 f"{stored} stored in {self.run_path}. Resume with: {self.resume_command}"
             )
-        elif not self.store_created:
+        elif status == "no input":
+            lost = f", so {self._current()} was not stored" if self._trial is not None else ""
             msg = (
-                f"Interrupted during the setup, before anything was written to {self.run_path}; "
-                "run the same command again to start the run."
+                f"No input: standard input ended at a question during {self._current()}{lost}; {stored} stored "
+                f"in {self.run_path}. Resume where someone at the rig can answer: {self.resume_command}"
             )
         else:
             what = ", which was discarded" if self._trial is not None else ""
@@ -317,6 +382,7 @@ class RunEngine:
             self.device.start()
             self._streaming = True
             self._unwrap = TimeUnwrapper()
+            self._clock = None
             self._pending = None
 
     def _stop(self) -> None:
@@ -343,6 +409,7 @@ class RunEngine:
                 raise DeviceTimeout(f"no data for {self.silent_s:g} s")
             batch = self.device.read(timeout=min(remaining, 1.0))
             if len(batch):
+                self._check_clock(np.asarray(batch.t_us, dtype=np.int64))
                 counts = np.asarray(batch.values, dtype=float)
                 return Window(
                     seq=np.asarray(batch.seq, dtype=np.int64),
@@ -368,46 +435,116 @@ class RunEngine:
             parts.append(w)
         return _concat(parts)
 
+    def _check_clock(self, t_us: np.ndarray) -> None:
+        """The rig's clock must move forward, by less than a minute a frame, and not far slower than frames come.
+
+        A step of ``t_us`` (modulo the 32-bit wrap) of zero or of more than :data:`MAX_STEP_US`
+        is a clock that stood still or went back (a board that restarted mid-stream does
+        this); frames arriving :data:`SLOW_CLOCK` times faster than the rig's clock says it
+        sampled them would fill a capture window forever.
+        """
+        last, frames, span = self._clock if self._clock is not None else (int(t_us[0]) - 1, 0, 0.0)
+        steps = np.diff(np.concatenate(([last], t_us))) % (1 << 32)
+        bad = np.flatnonzero((steps == 0) | (steps > MAX_STEP_US))
+        if len(bad):
+            i = int(bad[0])
+            before = last if i == 0 else int(t_us[i - 1])
+            what = (f"sent a timestamp that does not follow the one before (t_us {int(t_us[i])} after {before}), "
+                    "as a clock that went back or a board that restarted does")
+            raise DeviceClockError(f"The rig on {self._port()} {what}.", what=what)
+        frames += len(t_us)
+        span += float(steps.sum()) * 1e-6
+        self._clock = (int(t_us[-1]), frames, span)
+        if self._rate_set and frames > 1000 and frames > SLOW_CLOCK * self._rate_set * span:
+            what = (f"sent {frames} frames over only {span:.3g} s of its own clock, "
+                    f"{frames / span if span else math.inf:.4g} frames per second at {self._rate_set:g} Hz set")
+            raise DeviceClockError(f"The rig on {self._port()} {what}.", what=what)
+
+    def _check_rate(self, window: Window) -> None:
+        """Flag a window whose frames the rig's own clock spaces off the rate it confirmed."""
+        if not self._rate_set or len(window) < 10:
+            return
+        gap = float(np.median(np.diff(window.t_s)))
+        rate = 1.0 / gap if gap > 0 else math.inf
+        if abs(rate / self._rate_set - 1.0) <= RATE_TOLERANCE:
+            return
+        text = (f"the rig streams at {rate:.4g} Hz by its own clock, not the {self._rate_set:g} Hz it confirmed; "
+                "check its firmware's timer")
+        if self._trial is not None:
+            self._flags.append(text)
+        key = round(rate, 1)
+        if key not in self._rate_warned:
+            self._rate_warned.add(key)
+            self.ui.warn(f"{text}; each trial recorded so carries a flag")
+
     # ------------------------------------------------------------------ steps
     def _execute(self, step: Any) -> Any:
-        if isinstance(step, (Prompt, Ask, Review)):
+        if isinstance(step, (Prompt, Ask, Review, Problem)):
             self._stop()
         if isinstance(step, SetupCheck):
-            self._setup_check()
-            with _sigint_deferred():  # Ctrl-C during the creation: the file exists whole, or not at all
-                self.store  # the run file exists from here on, so every resume hint works
-            return None
+            return self._setup_check()
         if isinstance(step, Prompt):
-            self.ui.prompt(step)
-            if getattr(self.device, "rig", None) is not None:
-                # The simulated rig has no one standing at it: it does what the
-                # prompt asked once the prompt is answered.
-                self._act(step.action)
-            return None
+            return self._prompt(step)
+        if isinstance(step, Problem):
+            return self._problem(step)
         if isinstance(step, Ask):
             return self.ui.ask(step, simulated=getattr(self.device, "rig", None) is not None)
         if isinstance(step, BeginTrial):
             return self._begin(step)
         if isinstance(step, WaitSettle):
-            return self._wait_settle(step.label, step.min_pressure_MPa)
+            return self._wait_settle(step.label)
         if isinstance(step, (Baseline, Capture)):
             self._start()
-            return self._collect(step.capture_s)
+            window = self._collect(step.capture_s)
+            self._check_rate(window)
+            return window
         if isinstance(step, Review):
-            return self.ui.review(step.row)
+            return self.ui.review(step.row, step.warnings, step.default)
         if isinstance(step, Commit):
-            record = dict(step.record)
-            record.setdefault("started", self._trial_started)
-            with _sigint_deferred():
-                self.store.write(record)
-                # Inside the deferral, so a Ctrl-C held during the write finds the trial stored.
-                self._stored += 1
-                self._trial_walls.append(time.monotonic() - self._trial_wall_start)
-                self._trial = None
-            return None
+            return self._commit(step)
         if isinstance(step, Finish):
             return self._finish(step)
         raise TypeError(f"unknown step {step!r}")
+
+    def _create_store(self) -> None:
+        with _sigint_deferred():  # Ctrl-C during the creation: the file exists whole, or not at all
+            self.store
+
+    def _prompt(self, step: Prompt) -> Any:
+        change = self.ui.prompt(step)
+        if change is not None:
+            return change  # new values typed instead of Enter: nothing was done at the rig yet
+        if getattr(self.device, "rig", None) is not None:
+            # The simulated rig has no one standing at it: it does what the
+            # prompt asked once the prompt is answered.
+            self._act(step.action)
+        return None
+
+    def _problem(self, step: Problem) -> None:
+        if self.ui.unattended:
+            # Nobody stands at a simulated rig to fix it: the session ends here.
+            stored = (f"the {_count(self._complete(), 'completed ' + self._noun)} in {self.run_path} "
+                      f"{'is' if self._complete() == 1 else 'are'} unchanged" if self.store_created
+                      else f"nothing was written to {self.run_path}")
+            raise DeviceError(f"{step.text.rstrip('.')}; {stored}.")
+        self.ui.warn(step.text)
+        return self._prompt(step.fix)
+
+    def _commit(self, step: Commit) -> None:
+        record = dict(step.record)
+        record.setdefault("started", self._trial_started)
+        if self._flags:
+            record["flags"] = [*record.get("flags", ()), *self._flags]
+        with _sigint_deferred():
+            self.store.write(record)
+            # Inside the deferral, so a Ctrl-C held during the write finds the trial stored.
+            self._stored += 1
+            self._trial_walls.append(time.monotonic() - self._trial_wall_start)
+            if self._trial is not None:
+                self._log.trial_added(self._trial.trial)
+            self._trial = None
+            self._flags = []
+        return None
 
     def _act(self, action: Any) -> None:
         if action is None:
@@ -418,7 +555,9 @@ class RunEngine:
             raise ConfigError(f"The simulated rig cannot do {action}: {str(e).rstrip('.')}.") from None
 
     def _begin(self, step: BeginTrial) -> None:
+        self._create_store()  # the run file exists from the first trial on, so every resume hint works
         self._trial = step
+        self._flags = []
         self._trials_begun = True
         self._trial_wall_start = time.monotonic()
         self._trial_started = utc_now()
@@ -429,7 +568,7 @@ class RunEngine:
             remaining = per * (step.total - step.index + 1)
         self.ui.begin_trial(step, self._stored, elapsed, remaining)
 
-    def _wait_settle(self, label: str, min_pressure_MPa: float | None = None) -> SettleReport | str:
+    def _wait_settle(self, label: str) -> SettleReport | str:
         self._start()
         detector = SettleDetector(self.criteria, self._pcols, self._acols, self._lcols, self._length_spread_m)
         while True:
@@ -462,16 +601,11 @@ class RunEngine:
             )
             break
         self.ui.settled(label, report)
-        if min_pressure_MPa is not None and self._pcols:
-            p = w.si[:, self._pcols].mean(axis=0)
-            if p.min() < min_pressure_MPa:
-                names = [self.protocol.channels[i] for i in self._pcols]
-                low = ", ".join(f"{n} {v:.3f} MPa" for n, v in zip(names, p) if v < min_pressure_MPa)
-                self.ui.warn(f"after the {label} {low}: check the compressor and that the valves are open")
         return report
 
     def _finish(self, step: Finish) -> None:
         self._stop()
+        self._create_store()  # a session that recorded nothing still leaves its (empty) run
         with _sigint_deferred():  # a Ctrl-C now finds the split whole and the run finished
             if step.split:
                 # Only stored trials join (a session restarted after a lost rig counts skips as done).
@@ -502,9 +636,11 @@ class RunEngine:
         got = self.device.set_rate(rate)
         if got and abs(float(got) - rate) > 1e-6 * rate:
             self.ui.warn(f"the rig runs at {float(got):g} Hz, not the requested {rate:g} Hz")
+        self._rate_set = float(got) if got else rate
         self._start()
         window = self._collect(SETUP_S)
         self._stop()
+        self._check_rate(window)
         problems = self._check_readings(window)
         if problems:
             raise DeviceError(
@@ -537,6 +673,11 @@ class RunEngine:
                     "wiring and centring)"
                 )
         return problems
+
+
+def _what(e: Exception) -> str:
+    """What a lost rig did, for "the rig on PORT {what} during trial 3"."""
+    return getattr(e, "what", None) or "stopped sending data"
 
 
 def _plural(noun: str) -> str:

@@ -69,6 +69,22 @@ SHIPPED_DIR = _shipped_dir()  # the shipped protocol files (names for load_proto
 
 OPEN = "open"
 
+# A serial link of 1 Mbaud carries about 2,000 frames a second of six channels; no serial
+# rig streams 10,000.
+MAX_RATE_HZ = 10_000.0
+# Gauge pressure every actuator must reach once air is supplied, unless the protocol says
+# otherwise (acquisition.supply_min_MPa).  The paper's muscles work at about 0.3 MPa
+# (Fig. 1c: 0.33 MPa) and the simulated rig's supply is 0.30 MPa; unsupplied, the sensors read
+# within their offset of 0 (a few kPa).  A third of the working pressure is far above any
+# offset and below any working supply: it catches a compressor off, a closed valve, a loose tube.
+DEFAULT_SUPPLY_MIN_MPA = 0.1
+# TOML integers are 64-bit; deeper nesting than this is no protocol file.
+MAX_INT = 2**63 - 1
+MAX_DEPTH = 16
+# A potentiometer turns less than this (ten-turn pots exist); a joint angle stays within a turn.
+MAX_POT_SPAN_DEG = 3600.0
+MAX_ANGLE_DEG = 360.0
+
 TOP_LEVEL: dict[str, dict[str, Any]] = {
     "name": {"type": "str", "check": "identifier", "help": "the protocol's name"},
     "kind": {"type": "str", "help": "the protocol kind"},
@@ -85,15 +101,19 @@ SECTIONS: dict[str, Any] = {
         "adc_max_counts": {"type": "number", "unit": "counts"},
     },
     "acquisition": {
-        "rate_hz": {"type": "number", "unit": "Hz", "check": "positive"},
+        "rate_hz": {"type": "number", "unit": "Hz", "check": "positive", "max": MAX_RATE_HZ},
+        "supply_min_MPa": {"type": "number", "unit": "MPa", "check": "nonnegative", "optional": True,
+                           "help": "gauge pressure every actuator must reach once air is supplied"},
     },
+    # Times are bounded so that a window's samples fit in memory and a wait ends: at most
+    # MAX_RATE_HZ x 60 s = 600,000 frames a window.
     "settling": {
-        "window_s": {"type": "number", "unit": "s", "check": "positive"},
-        "hold_s": {"type": "number", "unit": "s", "check": "nonnegative"},
+        "window_s": {"type": "number", "unit": "s", "check": "positive", "max": 60},
+        "hold_s": {"type": "number", "unit": "s", "check": "nonnegative", "max": 600},
         "pressure_spread_MPa": {"type": "number", "unit": "MPa", "check": "positive"},
         "angle_spread_deg": {"type": "number", "unit": "deg", "check": "positive"},
-        "timeout_s": {"type": "number", "unit": "s", "check": "positive"},
-        "capture_s": {"type": "number", "unit": "s", "check": "positive"},
+        "timeout_s": {"type": "number", "unit": "s", "check": "positive", "max": 3600},
+        "capture_s": {"type": "number", "unit": "s", "check": "positive", "max": 60},
     },
 }
 
@@ -198,6 +218,7 @@ class Protocol:
     settings: Any = None
     title: str = ""
     source: str = ""
+    supply_min_MPa: float = DEFAULT_SUPPLY_MIN_MPA
     document: dict[str, Any] = field(default_factory=dict, repr=False)  # the whole file as plain data
 
     @property
@@ -280,11 +301,30 @@ def loads_protocol(text: str, *, source: str = "<protocol>", path: Path | None =
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ProtocolFileError(f"{source}: {_syntax_message(str(exc), text)}", "syntax", str(exc)) from None
+    except RecursionError:
+        raise ProtocolFileError(f"{source}: arrays or tables nested thousands of levels deep; a protocol file "
+                                f"nests at most {MAX_DEPTH} levels.", "syntax", "nesting") from None
+    _check_values(data, chk)
     found = data.get("kind")
     if kinds is not None and found not in kinds:
         raise ProtocolFileError(f"{source}: key 'kind' must be one of {', '.join(kinds)}, not {_show(found)}.",
                                 "kind", found)
     return _build(data, text, chk, path)
+
+
+def _check_values(data: Any, chk: "Checker", key: str = "", depth: int = 0) -> None:
+    """Every value of the document: nested at most MAX_DEPTH deep, integers within TOML's 64 bits."""
+    if depth > MAX_DEPTH:
+        chk.fail(f"key '{key}' nests more than {MAX_DEPTH} levels deep; a protocol file nests at most {MAX_DEPTH}.")
+    if isinstance(data, dict):
+        for k, v in data.items():
+            _check_values(v, chk, f"{key}.{k}" if key else str(k), depth + 1)
+    elif isinstance(data, list):
+        for v in data:
+            _check_values(v, chk, key, depth + 1)
+    elif isinstance(data, int) and not isinstance(data, bool) and abs(data) > MAX_INT:
+        chk.fail(f"key '{key}' holds an integer of {len(str(abs(data)))} digits; TOML integers are 64-bit "
+                 "(at most 19 digits).")
 
 
 def _syntax_message(msg: str, text: str) -> str:
@@ -347,6 +387,9 @@ class Checker:
                 self.fail(f"key '{key}' must have a finite low end, not {_show(v)}.")
             v = [float(x) for x in v]
         self._check(v, spec.get("check"), key)
+        if "max" in spec and v > spec["max"]:
+            unit = f" {spec['unit']}" if spec.get("unit") else ""
+            self.fail(f"key '{key}' must be at most {spec['max']:g}{unit}, not {_show(v)}.")
         return v
 
     def _wrong(self, v: Any, spec: dict[str, Any], key: str) -> NoReturn:
@@ -555,6 +598,7 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
         calibration=calibration,
         settling=settling,
         rate_hz=checked.get("acquisition", {}).get("rate_hz"),
+        supply_min_MPa=checked.get("acquisition", {}).get("supply_min_MPa", DEFAULT_SUPPLY_MIN_MPA),
         device=device,
         sections=copy.deepcopy(tables),
         settings=settings,
@@ -638,6 +682,10 @@ def _channel(name: str, c: dict[str, Any], device: DeviceSpec, roles: ChannelRol
             f"outside the ADC range {_fmt_num(lo_adc)} to {_fmt_num(hi_adc)}; check gain, zero_counts and range."
         )
     f = factors[c["unit"]]
+    if q == "angle":
+        problem = angle_scale_problem(c["unit"], c["gain"] * f, (lo * f, hi * f), hi_adc - lo_adc)
+        if problem:
+            chk.fail(f"key '{key}.unit' is {c['unit']}, but {problem}; check the unit (deg or rad).")
     return Channel(
         name=name,
         quantity=q,
@@ -648,6 +696,17 @@ def _channel(name: str, c: dict[str, Any], device: DeviceSpec, roles: ChannelRol
         actuator=c.get("actuator"),
         joint=c.get("joint"),
     )
+
+
+def angle_scale_problem(unit: str, gain_rad: float, range_rad: tuple[float, float], adc_span: float) -> str | None:
+    """What makes an angle channel's calibration implausible (a unit of rad where deg was meant), or None."""
+    lo, hi = (math.degrees(x) for x in range_rad)
+    if max(abs(lo), abs(hi)) > MAX_ANGLE_DEG + 1e-9:
+        return f"its range {lo:.6g} to {hi:.6g} deg goes beyond a full turn"
+    span = abs(math.degrees(gain_rad)) * adc_span
+    if span > MAX_POT_SPAN_DEG:
+        return f"its gain makes the ADC's span {span:.6g} deg ({abs(math.degrees(gain_rad)):.3g} deg a count), beyond a ten-turn potentiometer"
+    return None
 
 
 def _fmt_num(x: float) -> str:

@@ -23,7 +23,10 @@ Replies the engine sends back:
 step               reply
 =================  ==========================================================
 ``SetupCheck``     ``None``
-``Prompt``         ``None`` (a quit ends the session inside the engine)
+``Prompt``         ``None``, or the parsed change when the prompt offers one
+                   (``change``) and the experimenter typed it instead of Enter
+                   (nothing was done at the rig then); a quit ends the session
+``Problem``        ``None`` once the fix was prompted (unattended: the session ends)
 ``Ask``            ``{field key: parsed answer}``, or ``None`` when the first
                    answer was empty and its field says that ends the questions
 ``BeginTrial``     ``None``
@@ -57,10 +60,14 @@ class Prompt:
 
     ``action`` (an object with ``act_on(rig)``, see :class:`labcli.core.experiment.RigAction`)
     is what the prompt asks for; the simulated rig does it itself once the prompt is answered.
+    ``change`` (a :class:`Field`) lets the experimenter type new values instead of Enter
+    ("Enter pushes 10 mm along 0 deg, or type a new distance"); the reply is then the parsed
+    value and the session prompts again with it.
     """
 
     text: str
     action: Any = None
+    change: Field | None = None
 
 
 _NO_DEFAULT: Any = object()
@@ -112,14 +119,9 @@ class BeginTrial:
 
 @dataclass(frozen=True)
 class WaitSettle:
-    """Read until the rig is at equilibrium (:mod:`labcli.core.settle`).
-
-    With ``min_pressure_MPa``, a settled pressure below it is warned about (a supply that
-    gave no air: ``"after the air supply P_L1 0.001 MPa: check the compressor ..."``).
-    """
+    """Read until the rig is at equilibrium (:mod:`labcli.core.settle`)."""
 
     label: str  # "baseline", "load", "air supply", ...
-    min_pressure_MPa: float | None = None
 
 
 @dataclass(frozen=True)
@@ -138,9 +140,28 @@ class Capture:
 
 @dataclass(frozen=True)
 class Review:
-    """Show the trial's summary row; the experimenter accepts, redoes, skips or quits."""
+    """Show the trial's summary row; the experimenter accepts, redoes, skips or quits.
+
+    ``warnings`` are what the checks of the readings found (:mod:`labcli.core.guard`); with
+    any, ``default`` (what Enter alone answers) is ``"redo"``, so a trial that looks wrong is
+    stored only when the experimenter types ``a``.
+    """
 
     row: dict
+    warnings: tuple[str, ...] = ()
+    default: str = "accept"
+
+
+@dataclass(frozen=True)
+class Problem:
+    """The readings say the rig is not as the prompts asked (no air, a weight left on).
+
+    Attended, the engine shows ``text`` and executes ``fix`` (a :class:`Prompt` saying what
+    to do); unattended, nobody can fix it, and the session ends with ``text`` as its error.
+    """
+
+    text: str
+    fix: Prompt
 
 
 @dataclass(frozen=True)
@@ -158,7 +179,8 @@ class Finish:
     skipped: tuple[int, ...] = ()
 
 
-Step = SetupCheck | Prompt | Ask | BeginTrial | WaitSettle | Baseline | Capture | Review | Commit | Finish
+Step = (SetupCheck | Prompt | Ask | BeginTrial | WaitSettle | Baseline | Capture | Review | Problem | Commit
+        | Finish)
 
 
 # --------------------------------------------------------------------------- replies

@@ -9,7 +9,14 @@ Two implementations of one small interface:
   and prints one line per trial.
 
 Typing ``q`` at any prompt raises :class:`QuitRequested`; the engine then
-discards the trial in progress and says how to resume.
+discards the trial in progress and says how to resume.  Input that ends (a closed
+or exhausted standard input) raises :class:`InputEnded`, which the engine reports as
+such: nobody is there to answer.
+
+Keys typed ahead are discarded before every question on a terminal: an Enter pressed
+twice at "hang 500 g" must not also answer "remove the weight".  Each answer then comes
+from a key pressed after its question was shown, whose echo ends the question's line,
+so the settling status that follows never overwrites a question.
 """
 
 from __future__ import annotations
@@ -23,7 +30,23 @@ from .steps import Ask, BeginTrial, Prompt
 
 
 class QuitRequested(Exception):
-    """The experimenter typed q (or input ended)."""
+    """The experimenter typed q."""
+
+
+class InputEnded(QuitRequested):
+    """Standard input ended (or was closed) at a question: nobody is there to answer."""
+
+
+def discard_typeahead(stream: Any) -> None:
+    """Drop what was typed on a terminal but not yet read (harmless on anything else)."""
+    try:
+        if stream is None or not stream.isatty():
+            return
+        import termios
+
+        termios.tcflush(stream.fileno(), termios.TCIFLUSH)
+    except (ImportError, AttributeError, ValueError, OSError):
+        pass  # not a terminal after all, or no termios (Windows): nothing typed ahead to drop
 
 
 def fmt_duration(seconds: float) -> str:
@@ -114,14 +137,20 @@ class RichUI:
 
     # -- input
     def _ask(self, text: str) -> str:
+        stream = self._stdin if self._stdin is not None else sys.stdin
+        if stream is None or getattr(stream, "closed", False):
+            raise InputEnded("standard input is closed")
+        discard_typeahead(stream)
         self.console.print(_esc(text) + " ", end="", soft_wrap=True)
-        stream = self._stdin
         try:
-            line = input() if stream is None else stream.readline()
-        except EOFError:
-            raise QuitRequested("input ended") from None
-        if stream is not None and line == "":
-            raise QuitRequested("input ended")
+            line = input() if self._stdin is None else stream.readline()
+        except (EOFError, RuntimeError, OSError, ValueError):
+            # EOF, a lost sys.stdin (RuntimeError), a terminal that went away (OSError, EIO)
+            self.console.print()
+            raise InputEnded("standard input ended") from None
+        if self._stdin is not None and line == "":
+            self.console.print()
+            raise InputEnded("standard input ended")
         line = line.rstrip("\r\n")
         if not self._interactive:
             # Answers from a pipe or a script are not echoed by a terminal: echo them,
@@ -131,8 +160,17 @@ class RichUI:
             raise QuitRequested("quit")
         return line
 
-    def prompt(self, step: Prompt) -> None:
-        self._ask(f"{step.text} (q to quit):")
+    def prompt(self, step: Prompt) -> Any:
+        """Wait for Enter; with ``step.change``, typed values instead are parsed and returned."""
+        answer = self._ask(f"{step.text} (q to quit):")
+        change = step.change
+        while change is not None and answer.strip():
+            try:
+                return _answer(change, answer)
+            except ValueError as e:
+                self.console.print(f"[red]{_esc(str(e))}[/]")
+                answer = self._ask(change.again or f"{step.text} (q to quit):")
+        return None
 
     def ask(self, step: Ask, simulated: bool = False) -> dict[str, Any] | None:
         """Ask each field in turn until its answer parses; None when a stopping field is left empty."""
@@ -160,7 +198,7 @@ class RichUI:
         )
         return self._choose("Accept these readings [a], wait longer [w] or redo the trial [r]?", "awr", "w")
 
-    def review(self, row: dict) -> str:
+    def review(self, row: dict, warnings: tuple[str, ...] = (), default: str = "accept") -> str:
         from rich import box
         from rich.table import Table
 
@@ -177,7 +215,9 @@ class RichUI:
             for key, value in row.items():
                 table.add_row(_esc(key), _esc(value))
         self.console.print(table)
-        return self._choose("Accept [a], redo [r], skip [s] or quit [q]?", "arsq", "a")
+        for w in warnings:
+            self.warn(w)
+        return self._choose("Accept [a], redo [r], skip [s] or quit [q]?", "arsq", default[0])
 
     def _choose(self, text: str, keys: str, default: str) -> str:
         words = {"a": "accept", "r": "redo", "s": "skip", "w": "wait", "q": "quit"}
@@ -219,9 +259,10 @@ class UnattendedUI:
         if not report.settled:
             self.warn(f"{label}: not settled after {report.waited_s:.1f} s, readings accepted")
 
-    def prompt(self, step: Prompt) -> None:
+    def prompt(self, step: Prompt) -> Any:
         if self.verbose:
             self.console.print(f"  {step.text} [done by the simulated rig]", markup=False)
+        return None
 
     def ask(self, step: Ask, simulated: bool = False) -> dict[str, Any] | None:
         raise QuitRequested("unattended mode cannot answer questions: it needs a plan")
@@ -229,8 +270,11 @@ class UnattendedUI:
     def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
         return "accept"
 
-    def review(self, row: dict) -> str:
+    def review(self, row: dict, warnings: tuple[str, ...] = (), default: str = "accept") -> str:
+        """Accepts every trial; what the checks found is printed and stays with the record."""
         self.console.print("  " + "  ".join(f"{k} {v}" for k, v in row.items()), markup=False)
+        for w in warnings:
+            self.warn(w)
         return "accept"
 
 

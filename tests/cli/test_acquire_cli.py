@@ -316,10 +316,12 @@ def test_setup_check_says_which_reading_is_out_of_range():
 
 
 def test_typed_push_session_on_the_simulated_rig(tmp_path):
-    """Section 4: name the object, its radius and category, then ten pushes."""
+    """Section 4: name the object, its radius, category and its pushes' distance and direction, then ten pushes."""
     path = tmp_path / "push.h5"
-    obj = "pet-1\n33\nsoft\n400\n"  # name, R in mm, category, stiffness of the simulated object
-    pushes = "10\n0\n" + "\n\na\n" + ("8\n?\n" + "\n\na\n") * 9
+    # name, R in mm, category, d in mm, phi (unknown), stiffness of the simulated object
+    obj = "pet-1\n33\nsoft\n8\n?\n400\n"
+    # Push 1: 10 mm along 0 deg typed instead of Enter, then Enter to push; every push: release, review.
+    pushes = "10 0\n\n\n\n" + "\n\n\n" * 9
     answers = "\n\n" + obj + pushes + "\n"
     result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=9&clock=virtual",
                                       "--protocol", "takuma2014-stiffness"], input=answers)

@@ -36,7 +36,7 @@ CASES = all_cases()
 def labcli(*args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
     env = dict(os.environ, COLUMNS="400", PYTHONWARNINGS="ignore")
     return subprocess.run([sys.executable, "-m", "labcli", *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=timeout, env=env)
+                          timeout=timeout, env=env, stdin=subprocess.DEVNULL)
 
 
 @pytest.fixture(scope="module")
@@ -93,7 +93,13 @@ def run_case(case: Case, world: Path, tmp_path: Path) -> tuple[subprocess.Comple
         assert r.returncode == 0, r.stderr
     before = digest(here)
     port = None
-    if case.pty:
+    if case.firmware is not None:
+        from support.firmware import FakeFirmware
+
+        with FakeFirmware(**case.firmware) as fw:
+            port = fw.port
+            result = labcli(*[a.replace("PTY", port) for a in case.args], cwd=here)
+    elif case.pty:
         from labcli.core.sim.pty import serve_pty
 
         server = serve_pty(seed=1, rate=200)
@@ -126,7 +132,7 @@ def test_the_table_covers_every_entry_point() -> None:
     assert len(CASES) >= 30 and len({c.id for c in CASES}) == len(CASES)
     entries = {c.entry for c in CASES}
     assert entries == {"protocol TOML", "plan CSV", "trial CSV", "push CSV", "point CSV", "HDF5 file", "model JSON",
-                       "CLI argument", "port", "run file"}
+                       "CLI argument", "port", "run file", "standard input", "rig"}
     commands = {c.args[0] for c in CASES}
     assert commands >= {"acquire", "fit", "validate", "classify", "optimize", "split", "inspect", "export",
                         "import", "monitor"}

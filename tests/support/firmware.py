@@ -18,6 +18,11 @@ START) to a list of events emitted *before* that line:
 * ``"garbage"``   a line of junk; ``"log"`` a ``#`` line;
 * ``"overlong"``  300 bytes without a newline, then ``\\n``;
 * ``("gap", m)``  skip ``m`` sequence numbers (frames lost on the wire).
+
+A misbehaving clock or stream: ``clock_scale`` stretches ``t_us`` (0.1: the timer runs ten
+times fast, so frames come ten times closer by the rig's own clock than the rate it
+confirmed); ``clock_back_at`` restarts ``t_us`` from 0 at that line index, as a board that
+reset mid-stream; ``junk_only`` sends lines of junk in place of every frame.
 """
 
 from __future__ import annotations
@@ -65,7 +70,13 @@ class FakeFirmware:
         start_seq: int = 0,
         max_frames: int | None = None,
         id_line: str | None = None,
+        clock_scale: float = 1.0,
+        clock_back_at: int | None = None,
+        junk_only: bool = False,
     ) -> None:
+        self.clock_scale = clock_scale
+        self.clock_back_at = clock_back_at
+        self.junk_only = junk_only
         self.channels = tuple(channels)
         self.counts = tuple(counts)
         self.device = device
@@ -162,8 +173,14 @@ class FakeFirmware:
                 chunk, used = self._fault(event, self._seq, self._line_index)
                 out.append(chunk)
                 self._seq += used
-            t_us = int(self._line_index * 1e6 / self.rate)
-            out.append(data_line(self._seq, t_us, self.counts, self.eol))
+            ticks = self._line_index
+            if self.clock_back_at is not None and ticks >= self.clock_back_at:
+                ticks -= self.clock_back_at
+            t_us = int(ticks * 1e6 / self.rate * self.clock_scale)
+            if self.junk_only:
+                out.append(b"\x13garbled %d\xff" % self._line_index + self.eol)
+            else:
+                out.append(data_line(self._seq, t_us, self.counts, self.eol))
             self._seq += 1
             self._line_index += 1
             self.frames_sent += 1

@@ -218,6 +218,11 @@ def load_plan(protocol: Any) -> Any:
     trials = s.trials if s is not None else None
     if trials is None or trials.plan is None:
         raise ConfigError(f"{protocol.source_label}: protocol '{protocol.name}' has no plan (key 'trials.plan').")
+    if trials.plan.is_dir():
+        raise ConfigError(
+            f"{protocol.source_label}: key 'trials.plan' names {trials.plan}, a folder, not a plan file; "
+            "give the name of the plan CSV (e.g. takuma2014-plan.csv)."
+        )
     if not trials.plan.is_file():
         raise ConfigError(
             f"{protocol.source_label}: key 'trials.plan' names {trials.plan}, which does not exist; "

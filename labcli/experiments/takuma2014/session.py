@@ -4,7 +4,13 @@
   (or per load the experimenter types): baseline, hang the weight, equilibrium, capture,
   remove the weight, review, commit.
 * :func:`push_session`: the stiffness experiment of Section 4, ``pushes_per_object``
-  pushes per object.
+  pushes per object: the object's name, radius, default push distance and direction are
+  asked once, and each push asks only for Enter (or a new distance and direction).
+
+Both check the readings as they go (:mod:`labcli.core.guard`): the air supply before the
+first trial; after each load, that the readings moved as the run's earlier trials say the
+load should (a weight never hung, an object never pushed: the review warns and offers redo
+as the default); and before each baseline, that the last load was taken off.
 
 The actions below are what the experimenter does at the McKibben rig; each carries
 ``act_on(rig)``, which the simulated rig performs in unattended runs.  The records are
@@ -21,6 +27,7 @@ from typing import Any, Generator, Iterable, Sequence
 
 import numpy as np
 
+from ...core.guard import Guard, supply_problem
 from ...core.steps import (
     Ask,
     Baseline,
@@ -29,6 +36,7 @@ from ...core.steps import (
     Commit,
     Field,
     Finish,
+    Problem,
     Prompt,
     Review,
     SettleReport,
@@ -42,7 +50,6 @@ G = 9.80665  # standard gravity, m/s^2 (docs/table-formats.md)
 
 PRESSURE_NAMES = ("P_L1", "P_R1", "P_L2", "P_R2")
 POT_NAMES = ("POT1", "POT2")
-LOW_SUPPLY_MPA = 0.02  # a supplied actuator below this has no air
 
 
 # --------------------------------------------------------------------------- actions
@@ -88,6 +95,9 @@ class PushObject:
         # A direction unknown to the experimenter is still some direction for the
         # simulated rig: it pushes along the normal (phi = 0) then.
         phi = 0.0 if self.phi_rad is None else self.phi_rad
+        if self.stiffness_N_per_m is None:
+            raise ValueError("the object's stiffness is not given (a push plan's stiffness_N_per_m), and the "
+                             "simulated rig needs it")
         rig.push_object(self.radius_m, self.distance_m, phi, self.stiffness_N_per_m)
 
 
@@ -312,17 +322,6 @@ def summary_row(record: dict) -> dict[str, str]:
 # --------------------------------------------------------------------------- questions
 
 
-def parse_stiffness(text: str) -> float:
-    """Parse a typed stiffness in N/m ("800", "800 N/m")."""
-    try:
-        value = float(text.strip().removesuffix("N/m").strip())
-    except ValueError:
-        raise ValueError(f"'{text.strip()}' is not a stiffness: type newtons per metre, e.g. 800.") from None
-    if not 0 < value < float("inf"):
-        raise ValueError(f"The stiffness must be more than 0 N/m, got {value:g} N/m.")
-    return value
-
-
 def ask_load(trial: int, total: int, mass_range_g: tuple[float, float] = (1.0, 2000.0),
              direction_range_deg: tuple[float, float] = (-180.0, 180.0)) -> Ask:
     """No plan: the mass (g) and pulley direction (deg) of the next trial; Enter ends the run."""
@@ -337,69 +336,86 @@ def ask_load(trial: int, total: int, mass_range_g: tuple[float, float] = (1.0, 2
     ))
 
 
-def ask_object(index: int) -> Ask:
-    """Push experiment: the next object's name, radius and category; Enter ends the run."""
-    return Ask((
-        Field("name", f"Object {index}: name (e.g. pet-1; Enter when all objects are done, q to quit):",
-              stop_if_empty=True),
-        Field("radius_m", lambda a: f"{a['name']}: radius R in mm:",
-              partial(parse_length_mm, what="radius", lo_mm=0.0, hi_mm=500.0)),
-        Field("category", lambda a: f"{a['name']}: category (soft, medium, hard, a name, or Enter if unknown):"),
-        Field("stiffness_N_per_m", lambda a: f"{a['name']}: stiffness of the simulated object in N/m:",
-              parse_stiffness, simulated_only=True),
-    ))
-
-
-def ask_push(name: str, index: int, total: int, distance_range_m: tuple[float, float] = (0.002, 0.020)) -> Ask:
-    """Push experiment: push distance (mm) and direction (deg, or unknown)."""
-    head = f"Push {index}/{total} of {name}"
-    lo, hi = (v * 1e3 for v in distance_range_m)
-    return Ask((
-        Field("distance_m", f"{head}: push distance d in mm, {lo:g} to {hi:g}:",
-              partial(parse_length_mm, what="push distance", lo_mm=lo, hi_mm=hi)),
-        Field("phi_rad", f"{head}: push direction phi in deg (? or Enter if unknown):",
-              partial(parse_direction_deg, allow_unknown=True)),
-    ))
-
-
 # --------------------------------------------------------------------------- sessions
 
 
-def _pressurise() -> Generator[Step, Any, None]:
-    """Setup check, air supply (held until the pressures settle), valves closed."""
+def _pressurise(protocol: Any) -> Generator[Step, Any, None]:
+    """Setup check, air supply (held until the pressures settle, then checked), valves closed."""
+    capture_s = float(protocol.settling.capture_s)
+    cols = [i for i, u in enumerate(protocol.calibration.units) if u == "MPa"]
+    names = [protocol.channels[i] for i in cols]
     yield SetupCheck()
+    problem = None
     while True:
-        yield Prompt(SUPPLY_TEXT, SupplyAir())
-        if (yield WaitSettle("air supply", min_pressure_MPa=LOW_SUPPLY_MPA)) != "redo":
+        supply = Prompt(SUPPLY_TEXT, SupplyAir())
+        yield supply if problem is None else Problem(problem, supply)
+        if (yield WaitSettle("air supply")) == "redo":
+            problem = None
+            continue
+        readings = yield Baseline(capture_s)
+        problem = supply_problem(names, readings.si[:, cols].mean(axis=0), protocol.supply_min_MPa)
+        if problem is None:
             break
     yield Prompt(CLOSE_TEXT, CloseValves())
 
 
-def _trial(capture_s: float, load: Prompt, unload: Prompt, record_of: Any) -> Generator[Step, Any, bool]:
+@dataclass(frozen=True)
+class Checked:
+    """What the checks of one trial need: the guard, the trial's load vector and its model's key,
+    and the prompt that takes a forgotten load off (``"remove the weight"``)."""
+
+    guard: Guard
+    load: tuple[float, ...]
+    key: Any
+    undo: Prompt
+    forgotten: str  # "a weight may still hang on the pulley"
+
+
+def _trial(capture_s: float, load: Prompt, unload: Prompt, record_of: Any,
+           checked: Checked | None = None) -> Generator[Step, Any, Any]:
     """One trial or push until accepted (True) or skipped (False).
 
     Baseline at equilibrium, the load, equilibrium, capture, the unload, then the review;
     a redo (of a wait or of the review) starts again from the baseline.
     ``record_of(baseline, loaded, settle_baseline, settle_load)`` makes the record.
+    With ``checked``, a baseline that still carries the last load asks for it to be taken
+    off, and a load the readings did not follow makes redo the review's default.  A load
+    prompt answered with new values (its ``change``) returns them: nothing was loaded, and
+    the caller starts the trial again with them.
     """
     while True:
         wait_b = yield WaitSettle("baseline")
         if wait_b == "redo":
             continue
         base = yield Baseline(capture_s)
-        yield load
+        if checked is not None:
+            left = checked.guard.after_baseline(base)
+            if left is not None:
+                yield Problem(f"The readings have not returned since the last load: {left}; "
+                              f"{checked.forgotten}.", checked.undo)
+                continue
+        typed = yield load
+        if typed is not None:
+            return typed
         wait_l = yield WaitSettle("load")
         if wait_l == "redo":
             yield unload
             continue
         loaded = yield Capture(capture_s)
+        weak = checked.guard.after_load(checked.load, base, loaded, checked.key) if checked else None
         yield unload
         record = record_of(base, loaded, wait_b, wait_l)
-        decision = yield Review(summary_row(record))
+        warnings = (f"{weak[:1].upper()}{weak[1:]}: check that the load was applied as the prompt said, then "
+                    "redo the trial (Enter), or accept it as it is (a).",) if weak else ()
+        decision = yield Review(summary_row(record), warnings, "redo" if weak else "accept")
         if decision == "redo":
             continue
         if decision == "skip":
             return False
+        if weak:
+            record = {**record, "accepted": "operator", "flags": [warnings[0]]}
+        elif checked is not None:
+            checked.guard.learn(checked.load, base, loaded, checked.key)
         yield Commit(record)
         return True
 
@@ -412,22 +428,33 @@ def _load_limits(protocol: Any) -> tuple[tuple[float, float], tuple[float, float
     return (lim.mass_min_g, lim.mass_max_g), (lim.direction_min_deg, lim.direction_max_deg)
 
 
+def force_vector(mass_kg: float, direction_rad: float) -> tuple[float, float]:
+    """(Fx, Fy) in N of a pulley weight: m g along its direction."""
+    return (mass_kg * G * math.cos(direction_rad), mass_kg * G * math.sin(direction_rad))
+
+
 def force_session(
     protocol: Any,
     plan: Any = None,
     *,
     completed: Iterable[int] = (),
     target: int | None = None,
+    history: Iterable[tuple[Sequence[float], Sequence[float]]] = (),
 ) -> Generator[Step, Any, None]:
     """The force/angle calibration session of Section 3.2 (one trial per plan row).
 
     ``plan``: the plan table (None: the experimenter types each load);
     ``completed``: trial ids already stored (resume skips them);
     ``target``: the number of trials announced when there is no plan
-    (default: the protocol's fit + validation counts).
+    (default: the protocol's fit + validation counts);
+    ``history``: (force N, change of the watched channels SI) of trials already stored,
+    from which the load check learns what a load does on this rig.
     """
     capture_s = float(protocol.settling.capture_s)
     cmap = ChannelMap.from_channels(protocol.channels)
+    guard = Guard(protocol)
+    for force, change in history:
+        guard.model().add(force, change)
     done = set(int(t) for t in completed)
     rows = planned_trials(plan)
     remaining = [r for r in rows if r.trial not in done]
@@ -437,7 +464,7 @@ def force_session(
         trials = protocol.settings.trials
         total = target or (int(trials.fit) + int(trials.validation) if trials is not None else 0)
 
-    yield from _pressurise()
+    yield from _pressurise(protocol)
 
     skipped: list[int] = []
     while not rows or remaining:
@@ -454,13 +481,16 @@ def force_session(
             planned = PlannedTrial(next_id, "", load["mass_kg"], load["direction_rad"])
             label = trial_label(next_id, shown_total, "")
         yield BeginTrial(planned.trial, planned.set, len(done) + 1, total, label)
+        remove = Prompt(remove_prompt(label), RemoveWeight())
         stored = yield from _trial(
             capture_s,
             Prompt(load_prompt(label, planned.mass_kg, planned.direction_rad),
                    HangWeight(planned.mass_kg, planned.direction_rad)),
-            Prompt(remove_prompt(label), RemoveWeight()),
+            remove,
             lambda base, loaded, wait_b, wait_l, p=planned: force_record(
                 p.trial, p.set, p.mass_kg, p.direction_rad, base, loaded, wait_b, wait_l, cmap, p.plan_row),
+            Checked(guard, force_vector(planned.mass_kg, planned.direction_rad), None, remove,
+                    "the last weight may still hang on the pulley"),
         )
         (done.add if stored else skipped.append)(planned.trial)
 
@@ -468,118 +498,3 @@ def force_session(
     if rows:
         split = {r.trial: r.set for r in rows if r.trial in done and r.set}
     yield Finish(split, tuple(skipped))
-
-
-# --------------------------------------------------------------------------- push experiment
-
-
-@dataclass(frozen=True)
-class PlannedObject:
-    """An object to push, with its pushes when they are known in advance (simulated runs)."""
-
-    spec: ObjectSpec
-    pushes: tuple[PushSpec, ...] = ()
-
-
-def push_prompt(label: str, name: str, distance_m: float, phi_rad: float | None) -> str:
-    along = "along an unknown direction" if phi_rad is None else f"along {fmt_deg(phi_rad)}"
-    return f"{label}: push {name} by {distance_m * 1e3:.4g} mm {along}, then press Enter"
-
-
-def release_prompt(label: str, name: str) -> str:
-    return f"{label}: move {name} back until it just touches the contact point, then press Enter"
-
-
-def push_record(
-    push: int,
-    obj: ObjectSpec,
-    spec: PushSpec,
-    baseline: Window,
-    loaded: Window,
-    settle_baseline: SettleReport,
-    settle_load: SettleReport,
-    cmap: ChannelMap,
-) -> dict:
-    """One push of the stiffness experiment (Section 4), SI, with both raw windows."""
-    b = baseline.mean()
-    m = loaded.mean()
-    record = {
-        "push": int(push),
-        "object": obj.name,
-        "R_m": float(obj.radius_m),
-        "d_m": float(spec.distance_m),
-        "phi_rad": float("nan") if spec.phi_rad is None else float(spec.phi_rad),
-        "category": obj.category,
-        "P0_MPa": b[list(cmap.pressure)],
-        "P_MPa": m[list(cmap.pressure)],
-        "pot0_rad": b[list(cmap.pot)],
-        "theta_rad": m[list(cmap.pot)] - b[list(cmap.pot)],
-        "settle": {"baseline": settle_baseline.as_dict(), "load": settle_load.as_dict()},
-        "raw": {"baseline": baseline.as_dict(), "load": loaded.as_dict()},
-    }
-    if obj.stiffness_N_per_m is not None:
-        record["true_stiffness_N_per_m"] = float(obj.stiffness_N_per_m)
-    return record
-
-
-def push_session(
-    protocol: Any,
-    objects: Sequence[PlannedObject] | None = None,
-    *,
-    completed: Iterable[int] = (),
-) -> Generator[Step, Any, None]:
-    """The stiffness experiment of Section 4: per object, ``pushes_per_object`` pushes.
-
-    With ``objects`` (each with its pushes) the schedule is fixed and push ids are
-    numbered through it, so a resumed run skips the ones already stored; without,
-    the experimenter names each object and types each push.
-    """
-    capture_s = float(protocol.settling.capture_s)
-    cmap = ChannelMap.from_channels(protocol.channels)
-    push = protocol.settings.push
-    per_object = push.pushes_per_object if push is not None else 10
-    d_range = (push.distance_min_m, push.distance_max_m) if push is not None else (0.002, 0.020)
-    done = set(int(t) for t in completed)
-    fixed = list(objects or [])
-    total = sum(len(o.pushes) for o in fixed) if fixed else 0
-
-    yield from _pressurise()
-
-    skipped: list[int] = []
-    next_id = 1
-    index = 0
-    while not fixed or index < len(fixed):
-        if fixed:
-            planned = fixed[index]
-        else:
-            answer = yield ask_object(index + 1)
-            if answer is None:
-                break
-            planned = PlannedObject(ObjectSpec(answer["name"], answer["radius_m"], answer["category"],
-                                               answer.get("stiffness_N_per_m")))
-            next_id = max(done, default=0) + 1
-        index += 1
-        obj = planned.spec
-        n = len(planned.pushes) if fixed else per_object
-        for k in range(1, n + 1):
-            push_id = next_id
-            next_id += 1
-            if push_id in done:
-                continue
-            label = f"Push {k}/{n} of {obj.name}"
-            yield BeginTrial(push_id, "", len(done) + 1, total or per_object * index, label)
-            if fixed:
-                spec = planned.pushes[k - 1]
-            else:
-                typed = yield ask_push(obj.name, k, n, d_range)
-                spec = PushSpec(typed["distance_m"], typed["phi_rad"])
-            stored = yield from _trial(
-                capture_s,
-                Prompt(push_prompt(label, obj.name, spec.distance_m, spec.phi_rad),
-                       PushObject(obj.radius_m, spec.distance_m, spec.phi_rad, obj.stiffness_N_per_m)),
-                Prompt(release_prompt(label, obj.name), ReleaseObject()),
-                lambda base, loaded, wait_b, wait_l, pid=push_id, o=obj, s=spec: push_record(
-                    pid, o, s, base, loaded, wait_b, wait_l, cmap),
-            )
-            (done.add if stored else skipped.append)(push_id)
-    yield Finish(None, tuple(skipped))

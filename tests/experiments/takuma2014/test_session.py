@@ -29,7 +29,6 @@ from labcli.experiments.takuma2014.session import (
     HangWeight,
     Load,
     ObjectSpec,
-    PlannedObject,
     PushObject,
     PushSpec,
     ReleaseObject,
@@ -39,8 +38,8 @@ from labcli.experiments.takuma2014.session import (
     parse_direction_deg,
     parse_length_mm,
     parse_mass_g,
-    push_session,
 )
+from labcli.experiments.takuma2014.push_session import PlannedObject, parse_push_change, push_session
 
 PROTOCOL = load_protocol("takuma2014")
 STIFFNESS = load_protocol("takuma2014-stiffness")
@@ -65,8 +64,12 @@ def window(p_mpa, pot_rad, n=20, t0=0.0):
 SETTLED = SettleReport(True, 3.1, 3.1, 0.0004, 0.0002, "rule")
 
 
-def drive(session, review=lambda step, n: "accept", loads=None, objects=None, pushes=None):
-    """Run a session as the engine would, with made-up readings; return the steps."""
+def drive(session, review=lambda step, n: "accept", loads=None, objects=None, changes=None):
+    """Run a session as the engine would, with made-up readings; return the steps.
+
+    ``changes`` maps a push prompt's label ("Push 2/10 of pet-1") to what the experimenter
+    types at it instead of Enter (once)."""
+    changes = dict(changes or {})
     steps = []
     reply = None
     current = None
@@ -86,6 +89,10 @@ def drive(session, review=lambda step, n: "accept", loads=None, objects=None, pu
         elif isinstance(step, Baseline):
             reply = window(P_BASE, POT_BASE)
         elif isinstance(step, Prompt) and isinstance(step.action, (HangWeight, PushObject)):
+            label = step.text.split(":")[0]
+            if step.change is not None and label in changes:
+                reply = step.change.parse(changes.pop(label))
+                continue
             # A load raises the left pressures and bends the joints (made-up, but trial-specific).
             loaded_p = P_BASE + 0.001 * current * np.array([1, -1, 1, -1])
         elif isinstance(step, Capture):
@@ -94,20 +101,22 @@ def drive(session, review=lambda step, n: "accept", loads=None, objects=None, pu
             reviews[current] = reviews.get(current, 0) + 1
             reply = review(step, reviews[current])
         elif isinstance(step, Ask):
-            reply = answer(step, loads, objects, pushes)
+            reply = answer(step, loads, objects)
 
 
-def answer(step, loads, objects, pushes):
+def answer(step, loads, objects):
     """The experimenter's typed answers to an Ask, as the UI returns them (SI)."""
     asked = step.fields[0].key
     if asked == "mass_kg":
         load = loads.pop(0) if loads else None
         return None if load is None else {"mass_kg": load.mass_kg, "direction_rad": load.direction_rad}
-    if asked == "name":
-        obj = objects.pop(0) if objects else None
-        return None if obj is None else {"name": obj.name, "radius_m": obj.radius_m, "category": obj.category}
-    push = pushes.pop(0)
-    return {"distance_m": push.distance_m, "phi_rad": push.phi_rad}
+    assert asked == "name"
+    obj = objects.pop(0) if objects else None
+    if obj is None:
+        return None
+    spec, push = obj
+    return {"name": spec.name, "radius_m": spec.radius_m, "category": spec.category,
+            "distance_m": push.distance_m, "phi_rad": push.phi_rad}
 
 
 def of(steps, kind):
@@ -115,7 +124,7 @@ def of(steps, kind):
 
 
 def asks(steps, key):
-    """The questions whose first field is ``key`` (mass_kg: a load, name: an object, distance_m: a push)."""
+    """The questions whose first field is ``key`` (mass_kg: a load, name: an object)."""
     return [s for s in of(steps, Ask) if s.fields[0].key == key]
 
 
@@ -123,9 +132,10 @@ def test_the_shipped_plan_as_steps():
     steps = drive(force_session(PROTOCOL, plan()))
     assert isinstance(steps[0], SetupCheck)
     assert steps[1] == Prompt("Supply compressed air to the four actuators, then press Enter", SupplyAir())
-    # The valves close only once the supplied pressures have settled.
-    assert steps[2] == WaitSettle("air supply", min_pressure_MPa=0.02)
-    assert steps[3] == Prompt("Close the valves so that the actuators are sealed, then press Enter", CloseValves())
+    # The valves close only once the supplied pressures have settled and been read (the supply check).
+    assert steps[2] == WaitSettle("air supply")
+    assert steps[3] == Baseline(1.0)
+    assert steps[4] == Prompt("Close the valves so that the actuators are sealed, then press Enter", CloseValves())
     commits = of(steps, Commit)
     assert [c.record["trial"] for c in commits] == list(range(1, 109))
     assert len(of(steps, BeginTrial)) == 108
@@ -232,22 +242,47 @@ def test_typed_values_are_checked_with_units_in_the_message():
         parse_length_mm("25 mm", "push distance", 2, 20)
 
 
-def test_push_session_with_typed_objects():
-    objects = [ObjectSpec("pet-1", 0.033, "soft")]
-    pushes = [PushSpec(0.010, math.radians(30))] + [PushSpec(0.005, None)] * 9
-    steps = drive(push_session(STIFFNESS), objects=objects, pushes=pushes)
+def test_push_session_asks_per_object_what_is_per_object_and_per_push_only_a_change():
+    objects = [(ObjectSpec("pet-1", 0.033, "soft"), PushSpec(0.010, math.radians(30)))]
+    steps = drive(push_session(STIFFNESS), objects=objects, changes={"Push 2/10 of pet-1": "5 ?"})
     prompts = [s.text for s in of(steps, Prompt)]
-    assert "Push 1/10 of pet-1: push pet-1 by 10 mm along 30 deg, then press Enter" in prompts
-    assert "Push 2/10 of pet-1: push pet-1 by 5 mm along an unknown direction, then press Enter" in prompts
+    offer = " (or type another distance in mm and direction in deg, e.g. 12 30)"
+    assert "Push 1/10 of pet-1: push pet-1 by 10 mm along 30 deg, then press Enter" + offer in prompts
+    # Typed at push 2 instead of Enter: that push is announced again with the new values ...
+    assert prompts.count("Push 2/10 of pet-1: push pet-1 by 10 mm along 30 deg, then press Enter" + offer) == 1
+    assert "Push 2/10 of pet-1: push pet-1 by 5 mm along an unknown direction, then press Enter" + offer in prompts
+    # ... and the next push keeps the object's own.
+    assert "Push 3/10 of pet-1: push pet-1 by 10 mm along 30 deg, then press Enter" + offer in prompts
     assert "Push 10/10 of pet-1: move pet-1 back until it just touches the contact point, then press Enter" in prompts
-    pushes_asked = asks(steps, "distance_m")
-    assert len(pushes_asked) == 10 and "push distance d in mm, 2 to 20:" in pushes_asked[0].fields[0].prompt
+    obj_asked = asks(steps, "name")
+    assert len(obj_asked) == 2  # the second answer (none) ends the session
+    assert [f.key for f in obj_asked[0].fields] == ["name", "radius_m", "category", "distance_m", "phi_rad",
+                                                    "stiffness_N_per_m"]
+    d_field = obj_asked[0].fields[3]
+    assert d_field.prompt({"name": "pet-1"}) == "pet-1: push distance d in mm for its pushes, 2 to 20:"
+    assert not d_field.has_default  # the first object has no distance to keep
+    # The next object offers this one's distance and direction as the defaults.
+    second = obj_asked[1].fields
+    assert second[3].default == pytest.approx(0.010) and second[4].default == pytest.approx(math.radians(30))
+    assert second[4].prompt({"name": "can"}).endswith("(? if unknown; Enter keeps 30 deg):")
     recs = [c.record for c in of(steps, Commit)]
     assert [r["push"] for r in recs] == list(range(1, 11))
     assert recs[0]["R_m"] == 0.033 and recs[0]["category"] == "soft"
     assert recs[0]["phi_rad"] == pytest.approx(math.radians(30)) and math.isnan(recs[1]["phi_rad"])
+    assert recs[1]["d_m"] == pytest.approx(0.005) and recs[2]["d_m"] == pytest.approx(0.010)
     assert "true_stiffness_N_per_m" not in recs[0]
-    assert len(asks(steps, "name")) == 2  # the second answer (none) ends the session
+
+
+def test_a_typed_push_change_is_checked():
+    assert parse_push_change("12", math.radians(30), (0.002, 0.02)) == PushSpec(pytest.approx(0.012),
+                                                                               pytest.approx(math.radians(30)))
+    assert parse_push_change("12 mm -45 deg", None, (0.002, 0.02)) == PushSpec(pytest.approx(0.012),
+                                                                              pytest.approx(math.radians(-45)))
+    assert parse_push_change("8 ?", 0.5, (0.002, 0.02)) == PushSpec(pytest.approx(0.008), None)
+    with pytest.raises(ValueError, match=r"^The push distance must be from 2 mm to 20 mm, got 25 mm\.$"):
+        parse_push_change("25 0", None, (0.002, 0.02))
+    with pytest.raises(ValueError, match=r"^'1 2 3' is not a push: type the distance in mm and the direction"):
+        parse_push_change("1 2 3", None, (0.002, 0.02))
 
 
 def test_push_session_with_a_fixed_schedule_resumes_by_push_id():

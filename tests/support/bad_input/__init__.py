@@ -37,6 +37,7 @@ class Case:
     files: dict[str, bytes | Callable[[Path], bytes]] = field(default_factory=dict)
     usage: str | None = None        # click usage line when click itself refuses an option
     pty: bool = False               # serve the simulated rig on a pseudo-terminal; PTY in args is its path
+    firmware: dict | None = None    # or serve support.firmware.FakeFirmware(**firmware) there instead
     xfail: str | None = None        # a bug in a module still being edited (see the report)
 
 

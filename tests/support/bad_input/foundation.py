@@ -11,7 +11,7 @@ CASES: list[Case] = [
     # ---- protocol TOML
     Case("toml-unknown-key", "protocol TOML", "unknown key",
          ["acquire", "new.h5", "--port", SIM, "--unattended", "--protocol", "p.toml"],
-         ["p.toml: unknown key 'acquisition.rate_hzz'; the keys allowed there are rate_hz."],
+         ["p.toml: unknown key 'acquisition.rate_hzz'; the keys allowed there are rate_hz, supply_min_MPa."],
          files={"p.toml": toml_edit("rate_hz = 200.0", "rate_hz = 200.0\nrate_hzz = 3")}),
     Case("toml-missing-key", "protocol TOML", "missing key",
          ["acquire", "new.h5", "--port", SIM, "--unattended", "--protocol", "p.toml"],

@@ -33,7 +33,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Sequence
 
-from ..session import ObjectSpec, PlannedObject, PushSpec
+from ..push_session import PlannedObject
+from ..session import ObjectSpec, PushSpec
 
 CATEGORY_OF_MATERIAL = {"PET": "soft", "aluminium": "medium", "steel": "hard"}
 

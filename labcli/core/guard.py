@@ -1,0 +1,241 @@
+"""Is the rig as the prompts said?  Checks of the readings against what the experimenter was asked to do.
+
+A person at the rig can press Enter without doing what a prompt asked: no air supplied,
+a weight never hung, a weight left hanging.  The readings show each of these, and the
+session says so before anything wrong is stored:
+
+* **the supply** (:func:`supply_problem`): after "supply compressed air", every pressure
+  channel must read at least the protocol's ``acquisition.supply_min_MPa``;
+* **the load** (:meth:`Guard.after_load`): the change from the baseline to the loaded
+  window is compared with what the run's earlier accepted trials did per unit of load
+  (:class:`ResponseModel`, least squares ``change = M @ load``).  Of the prediction only the
+  part the run is sure of counts (:func:`least_expected`: less three prediction errors, each
+  the trials' scatter about the fit, at least the noise floor, widened by the load's
+  leverage).  When that sure part is at least four noise floors and the readings moved by
+  less than a quarter of it, the trial is "not loaded": the review warns and offers redo
+  as its default;
+* **the removal** (:meth:`Guard.after_baseline`): a new baseline must not still sit more
+  than half-way along the last load's response, when that response was at least four
+  floors (a weight still hanging, an object still pressed in).
+
+Noise floors.  A change on one channel counts only beyond its floor, the largest of: the
+settling criterion's spread for the channel's quantity (how far the protocol lets a still
+signal wander), one ADC count, and four standard errors of the difference of the two
+window means.  Changes are judged in floor units, so pressures (MPa) and angles (rad) weigh
+alike.
+
+Why a real rig does not trip it.  Sleeve friction and hysteresis make a response differ
+from the linear prediction by a few percent of the load, noise by a floor; both show in the
+trials' scatter about the fit, which widens the prediction error and so shrinks the sure
+part, and what is left must still be missed by three quarters.  A loaded trial lands near
+1 on that scale, one without its load near 0.  The check stays silent until the run has
+two trials more than the load has components, in directions at least ~23 deg apart, and for
+loads too light to move the readings clearly (50 g on a stiff rig).  A chamber leak moves all
+pressures one way while a load moves the two actuators of a pair opposite ways, so a leak
+projects little onto a load's response in the removal check.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Hashable, Sequence
+
+import numpy as np
+
+EXPECT_FLOORS = 4.0  # a prediction this many floors or more is clear enough to judge by
+WEAK_FRACTION = 0.25  # a load moved the readings by less than this share of the prediction: not loaded
+RETURN_FRACTION = 0.5  # a baseline still this share of the way to the last loaded readings: not unloaded
+SE_FLOORS = 4.0  # standard errors of a difference of means that count as noise
+MIN_DOF = 2  # trials beyond the load's dimension before a prediction is made (to measure their scatter)
+MIN_SPAN = 0.2  # smallest / largest singular value of the loads: directions at least ~23 deg apart
+SURE_SD = 3.0  # prediction errors taken off a prediction before it is relied on
+MAX_LEVERAGE = 0.95  # a trial the fit must pass through (leverage ~1) says nothing of the scatter
+
+
+@dataclass(frozen=True)
+class Watch:
+    """The channels the checks watch (pressures and angles) and the smallest change that counts on each."""
+
+    cols: tuple[int, ...]
+    names: tuple[str, ...]
+    units: tuple[str, ...]  # "MPa" or "rad"
+    limit: np.ndarray  # settle spread limit of each channel's quantity, SI
+    count: np.ndarray  # one ADC count, SI
+
+    @classmethod
+    def of(cls, protocol: Any) -> "Watch":
+        cal = protocol.calibration
+        settling = protocol.settling
+        spread = {"MPa": settling.pressure_spread_MPa, "rad": settling.angle_spread_rad}
+        cols = tuple(i for i, u in enumerate(cal.units) if u in spread)
+        return cls(
+            cols,
+            tuple(cal.names[i] for i in cols),
+            tuple(cal.units[i] for i in cols),
+            np.array([spread[cal.units[i]] for i in cols], dtype=float),
+            np.abs(cal.gains[list(cols)]),
+        )
+
+    def change(self, before: Any, after: Any) -> np.ndarray:
+        """Mean of ``after`` minus mean of ``before`` on the watched channels, SI."""
+        c = list(self.cols)
+        return after.si[:, c].mean(axis=0) - before.si[:, c].mean(axis=0)
+
+    def floors(self, *windows: Any) -> np.ndarray:
+        """Per channel: the settle spread, one count, or four standard errors of a difference of means."""
+        c = list(self.cols)
+        var = sum(w.si[:, c].var(axis=0, ddof=1) / len(w) if len(w) > 1 else 0.0 for w in windows)
+        return np.maximum(np.maximum(self.limit, self.count), SE_FLOORS * np.sqrt(var))
+
+    def show(self, j: int, value: float) -> str:
+        """One channel's change as people read it: kPa or deg, with its sign."""
+        if self.units[j] == "MPa":
+            return f"{self.names[j]} {value * 1e3:+.2f} kPa"
+        return f"{self.names[j]} {math.degrees(value):+.2f} deg"
+
+
+class ResponseModel:
+    """What accepted trials did per unit of load: ``change = M @ load`` by least squares (no intercept).
+
+    ``load`` is any vector that the rig responds to linearly to first order: the force (Fx, Fy)
+    of a pulley weight in N, the push distance of one object in m.  :meth:`predict` says nothing
+    until the loads seen span every direction of load space well (:data:`MIN_SPAN`) and leave
+    :data:`MIN_DOF` degrees of freedom to measure how far the trials scatter about the fit, in
+    every direction (no trial's leverage above :data:`MAX_LEVERAGE`: a direction explored by one
+    trial alone is fitted exactly, so its scatter is unknown).
+    """
+
+    def __init__(self) -> None:
+        self._loads: list[np.ndarray] = []
+        self._changes: list[np.ndarray] = []
+        self._fit: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._stale = True
+
+    def __len__(self) -> int:
+        return len(self._loads)
+
+    def add(self, load: Sequence[float], change: Sequence[float]) -> None:
+        self._loads.append(np.asarray(load, dtype=float))
+        self._changes.append(np.asarray(change, dtype=float))
+        self._stale = True
+
+    def _solve(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        L = np.array(self._loads)
+        if not len(L) or len(L) < L.shape[1] + MIN_DOF:
+            return None
+        s = np.linalg.svd(L, compute_uv=False)
+        if not s[0] > 0 or s[-1] / s[0] < MIN_SPAN:
+            return None
+        inv = np.linalg.inv(L.T @ L)
+        # A direction only one trial explored is fitted exactly whatever the rig did: no scatter known there.
+        if np.einsum("ij,jk,ik->i", L, inv, L).max() > MAX_LEVERAGE:
+            return None
+        C = np.array(self._changes)
+        M, *_ = np.linalg.lstsq(L, C, rcond=None)
+        resid = C - L @ M
+        sd = np.sqrt((resid**2).sum(axis=0) / (len(L) - L.shape[1]))
+        return M.T, sd, inv
+
+    def predict(self, load: Sequence[float]) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """The change this load should cause (SI, per watched channel), the trials' scatter about
+        the fit (SI, per channel) and the load's leverage; None while unknown."""
+        if self._stale:
+            self._fit, self._stale = self._solve(), False
+        if self._fit is None:
+            return None
+        M, sd, inv = self._fit
+        x = np.asarray(load, dtype=float)
+        return M @ x, sd, float(x @ inv @ x)
+
+
+def least_expected(prediction: tuple[np.ndarray, np.ndarray, float], floors: np.ndarray) -> np.ndarray:
+    """The change a load surely causes: the prediction less :data:`SURE_SD` prediction errors, per channel.
+
+    A prediction error is the trials' scatter about the fit (at least the noise floor) widened
+    by the load's leverage: ``max(sd, floor) * sqrt(1 + h)``.  A channel the fit explains
+    badly (the upper joint's small, nonlinear response) drops out this way."""
+    mean, sd, h = prediction
+    err = np.maximum(sd, floors) * math.sqrt(1.0 + h)
+    return np.sign(mean) * np.maximum(0.0, np.abs(mean) - SURE_SD * err)
+
+
+def weak_response(watch: Watch, baseline: Any, loaded: Any,
+                  prediction: tuple[np.ndarray, np.ndarray, float] | None) -> str | None:
+    """The sentence when the readings moved by less than a quarter of what the load surely causes."""
+    if prediction is None:
+        return None
+    f = watch.floors(baseline, loaded)
+    e = least_expected(prediction, f) / f
+    size = float(np.linalg.norm(e))
+    if size < EXPECT_FLOORS:
+        return None
+    seen = watch.change(baseline, loaded)
+    share = float(np.linalg.norm(seen / f)) / size
+    if share >= WEAK_FRACTION:
+        return None
+    j = int(np.argmax(np.abs(e)))
+    return (f"the readings moved by {share:.0%} of what this run's earlier trials say this load surely does "
+            f"({watch.show(j, seen[j])}, at least {watch.show(j, e[j] * f[j]).split(' ', 1)[1]} expected)")
+
+
+def still_loaded(watch: Watch, baseline: Any, loaded: Any, now: Any) -> str | None:
+    """The sentence when ``now`` (a new baseline) is still over half-way to ``loaded`` from ``baseline``."""
+    f = np.maximum(watch.floors(baseline, loaded), watch.floors(now))
+    r = watch.change(baseline, loaded) / f
+    size2 = float(r @ r)
+    if size2 < EXPECT_FLOORS**2:
+        return None
+    q = watch.change(baseline, now) / f
+    share = float(q @ r) / size2
+    if share <= RETURN_FRACTION:
+        return None
+    j = int(np.argmax(np.abs(r)))
+    moved = watch.change(baseline, now)
+    return (f"they are still {min(share, 9.99):.0%} of the way to the loaded ones "
+            f"({watch.show(j, moved[j])} from the baseline, {watch.show(j, r[j] * f[j]).split(' ', 1)[1]} under the load)")
+
+
+def supply_problem(names: Sequence[str], pressures_MPa: Sequence[float], minimum_MPa: float) -> str | None:
+    """What is wrong with the supplied pressures (each channel at least ``minimum_MPa``), or None."""
+    p = np.asarray(pressures_MPa, dtype=float)
+    low = [(n, v) for n, v in zip(names, p) if not v >= minimum_MPa]
+    if not low:
+        return None
+    listed = ", ".join(f"{n} reads {v:.3f} MPa" for n, v in low)
+    if len(low) == len(p):
+        return (f"After the air supply {listed}, below the {minimum_MPa:g} MPa the protocol asks for "
+                "(acquisition.supply_min_MPa): check the compressor, the regulator and that the valves are open.")
+    rest = float(np.median([v for n, v in zip(names, p) if v >= minimum_MPa]))
+    return (f"After the air supply {listed} while the others read about {rest:.2f} MPa: check "
+            + ("that actuator's tube, fitting and valve." if len(low) == 1
+               else "those actuators' tubes, fittings and valves."))
+
+
+class Guard:
+    """The checks of one session: a response model per kind of load (``key``) and the last loaded trial."""
+
+    def __init__(self, protocol: Any) -> None:
+        self.watch = Watch.of(protocol)
+        self._models: dict[Hashable, ResponseModel] = {}
+        self._last: tuple[Any, Any] | None = None
+
+    def model(self, key: Hashable = None) -> ResponseModel:
+        return self._models.setdefault(key, ResponseModel())
+
+    def learn(self, load: Sequence[float], baseline: Any, loaded: Any, key: Hashable = None) -> None:
+        """A trial accepted without a warning: its change per unit of load joins the model."""
+        self.model(key).add(load, self.watch.change(baseline, loaded))
+
+    def after_load(self, load: Sequence[float], baseline: Any, loaded: Any, key: Hashable = None) -> str | None:
+        self._last = (baseline, loaded)
+        return weak_response(self.watch, baseline, loaded, self.model(key).predict(load))
+
+    def after_baseline(self, baseline: Any) -> str | None:
+        """Does the new baseline still carry the last load?  (Forgets the last load once it has not.)"""
+        if self._last is None:
+            return None
+        finding = still_loaded(self.watch, *self._last, baseline)
+        if finding is None:
+            self._last = None
+        return finding

@@ -1,0 +1,188 @@
+"""The checks of the readings at the rig (labcli.core.guard): supply, a load never applied, a load left on.
+
+The load check must never call a loaded trial unloaded, on an ideal rig or on one with friction,
+hysteresis, noise and a leak, and must catch a missing load wherever the run's earlier trials
+make its effect sure.  Both are measured here on synthetic rigs with a known response and on
+the committed sample run of the simulated rig.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from labcli.core.guard import (
+    Guard,
+    ResponseModel,
+    Watch,
+    least_expected,
+    still_loaded,
+    supply_problem,
+    weak_response,
+)
+from labcli.core.protocol import load_protocol
+from labcli.core.steps import Window
+
+PROTOCOL = load_protocol("takuma2014")
+WATCH = Watch.of(PROTOCOL)
+ROOT = Path(__file__).resolve().parents[2]
+# Per newton of (Fx, Fy): four pressures (MPa) and two deflections (rad), about the simulated rig's.
+M = np.array([[1.0e-3, 0.2e-3], [-1.0e-3, -0.1e-3], [1.2e-3, 0.3e-3], [-1.1e-3, -0.2e-3],
+              [-2.4e-2, 0.1e-2], [0.3e-2, 0.2e-2]])
+P0 = np.array([0.30, 0.31, 0.29, 0.32, 0.0, 0.0])
+
+
+def window(values, n=200, noise=None, rng=None):
+    si = np.tile(np.asarray(values, dtype=float), (n, 1))
+    if noise is not None:
+        si = si + rng.normal(0.0, noise, si.shape)
+    t = np.arange(n) / 200.0
+    return Window(np.arange(n), (t * 1e6).astype(np.int64), si.copy(), si, t)
+
+
+def force(mass_g, direction_deg):
+    w = mass_g * 1e-3 * 9.80665
+    return np.array([w * math.cos(math.radians(direction_deg)), w * math.sin(math.radians(direction_deg))])
+
+
+def test_floors_are_the_settle_spread_one_count_or_four_standard_errors():
+    assert WATCH.names == ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
+    quiet = WATCH.floors(window(P0), window(P0))
+    assert quiet[:4] == pytest.approx([0.00031] * 4)  # pressure_spread_MPa (one count is 0.000305 MPa)
+    assert quiet[4:] == pytest.approx([math.radians(0.1)] * 2)  # angle_spread_deg
+    rng = np.random.default_rng(1)
+    noisy = WATCH.floors(window(P0, noise=0.01, rng=rng), window(P0, noise=0.01, rng=rng))
+    # sd 0.01 over 200 samples in each window: 4 * 0.01 * sqrt(2 / 200) = 0.004 > 0.00031
+    assert noisy[:4] == pytest.approx([0.004] * 4, rel=0.15)
+
+
+def test_the_model_recovers_a_linear_rig_and_waits_for_enough_directions():
+    model = ResponseModel()
+    for mass, d in ((300, -60), (500, -60), (800, -60)):
+        model.add(force(mass, d), M @ force(mass, d))
+    assert model.predict(force(200, 30)) is None  # one direction only: Fy's effect is unknown
+    model.add(force(400, 30), M @ force(400, 30))
+    assert model.predict(force(200, 30)) is None  # two directions, but no scatter measured yet
+    model.add(force(600, 150), M @ force(600, 150))
+    mean, sd, h = model.predict(force(1000, -30))
+    assert mean == pytest.approx(M @ force(1000, -30), rel=1e-9, abs=1e-15)
+    assert sd == pytest.approx(np.zeros(6), abs=1e-12) and h > 0
+
+
+def trained(rng, friction=0.0, n=12):
+    """A guard that saw ``n`` accepted trials of a rig whose response varies by ``friction`` (a share)."""
+    guard = Guard(PROTOCOL)
+    plan = [(m, d) for m in (200, 500, 800, 1000) for d in (-60, 30, 150)]
+    for mass, d in plan[:n]:
+        F = force(mass, d)
+        gain = 1.0 + friction * rng.uniform(-1, 1)
+        offset = friction * rng.uniform(-1, 1, 6) * WATCH.floors(window(P0), window(P0))
+        guard.learn(F, window(P0), window(P0 + np.r_[gain * (M @ F) + offset]))
+    return guard
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.2])
+def test_a_loaded_trial_is_never_called_unloaded_and_a_missing_heavy_load_is_caught(friction):
+    rng = np.random.default_rng(7)
+    flagged, caught, heavy = 0, 0, 0
+    for seed in range(20):
+        guard = trained(np.random.default_rng(seed), friction)
+        for mass in (50, 100, 200, 400, 600, 800, 1000):
+            for d in (-150, -120, -60, -30, 30, 60, 120, 150):
+                F = force(mass, d)
+                # The trial as it happened: the response within the rig's friction band, noise on top.
+                gain = 1.0 + friction * rng.uniform(-1, 1)
+                base = window(P0, noise=1e-4, rng=rng)
+                loaded = window(P0 + gain * (M @ F), noise=1e-4, rng=rng)
+                flagged += weak_response(WATCH, base, loaded, guard.model().predict(F)) is not None
+                # The same trial with the weight never hung.
+                empty = window(P0, noise=1e-4, rng=rng)
+                miss = weak_response(WATCH, base, empty, guard.model().predict(F))
+                caught += miss is not None
+                heavy += mass >= 600
+                if mass <= 50 or (friction and mass <= 100):
+                    assert miss is None  # too light to be sure of: no verdict
+    assert flagged == 0
+    assert caught >= 0.9 * heavy  # the heavy loads (and some lighter ones) of every direction
+
+
+def test_the_weak_response_sentence_names_the_channel_and_the_numbers():
+    guard = trained(np.random.default_rng(0))
+    F = force(1000, -60)
+    text = weak_response(WATCH, window(P0), window(P0), guard.model().predict(F))
+    # POT1 should move by M[4] @ F = -0.1262 rad = -7.23 deg; less 3 floors (0.1 deg each) widened by
+    # the leverage h = 0.324 of this load among the 12 training loads: 7.23 - 0.3 * sqrt(1.324) = 6.88 deg.
+    assert text == ("the readings moved by 0% of what this run's earlier trials say this load surely does "
+                    "(POT1 +0.00 deg, at least -6.88 deg expected)")
+
+
+def test_least_expected_drops_what_the_trials_scatter_over():
+    prediction = (np.array([0.010, -0.010, 0.001, 0.0, 0.1, 0.001]), np.array([0.001] * 4 + [0.05, 0.01]), 0.0)
+    floors = np.array([0.002] * 4 + [0.01] * 2)
+    sure = least_expected(prediction, floors)
+    # 0.010 - 3 * 0.002 = 0.004; 0.001 MPa is under three floors.
+    # 0.1 rad - 3 * 0.05 < 0 for POT1; POT2's 0.001 is under three floors.
+    assert sure == pytest.approx([0.004, -0.004, 0.0, 0.0, 0.0, 0.0])
+
+
+def test_a_weight_left_hanging_is_seen_at_the_next_baseline_but_friction_and_a_leak_are_not():
+    F = force(800, -60)
+    base, loaded = window(P0), window(P0 + M @ F)
+    # POT1 under 800 g at -60 deg: -0.024 * 3.923 N + 0.001 * -6.794 N = -0.1009 rad = -5.78 deg.
+    assert still_loaded(WATCH, base, loaded, window(P0 + M @ F)) == (
+        "they are still 100% of the way to the loaded ones (POT1 -5.78 deg from the baseline, -5.78 deg under the load)")
+    # Friction leaves the arm a few percent short of its old posture.
+    assert still_loaded(WATCH, base, loaded, window(P0 + 0.05 * (M @ F))) is None
+    # A leak: every chamber down by 5 kPa, none of the angles moved.
+    assert still_loaded(WATCH, base, loaded, window(P0 - np.r_[[0.005] * 4, 0, 0])) is None
+    # A light load's response is too small to judge by.
+    small = force(50, -60)
+    assert still_loaded(WATCH, base, window(P0 + M @ small), window(P0 + M @ small)) is None
+
+
+def test_the_guard_forgets_a_load_once_a_baseline_shows_it_off():
+    guard = Guard(PROTOCOL)
+    F = force(800, -60)
+    guard.after_load(F, window(P0), window(P0 + M @ F))
+    assert guard.after_baseline(window(P0 + M @ F)) is not None
+    assert guard.after_baseline(window(P0)) is None
+    assert guard.after_baseline(window(P0 + M @ F)) is None  # nothing loaded since
+
+
+def test_supply_problems_say_what_is_wrong():
+    names = ["P_L1", "P_R1", "P_L2", "P_R2"]
+    assert supply_problem(names, [0.30, 0.31, 0.29, 0.30], 0.1) is None
+    assert supply_problem(names, [0.001, 0.0, 0.002, -0.001], 0.1) == (
+        "After the air supply P_L1 reads 0.001 MPa, P_R1 reads 0.000 MPa, P_L2 reads 0.002 MPa, P_R2 reads "
+        "-0.001 MPa, below the 0.1 MPa the protocol asks for (acquisition.supply_min_MPa): check the compressor, "
+        "the regulator and that the valves are open.")
+    assert supply_problem(names, [0.30, 0.002, 0.29, 0.30], 0.1) == (
+        "After the air supply P_R1 reads 0.002 MPa while the others read about 0.30 MPa: check that actuator's "
+        "tube, fitting and valve.")
+
+
+def test_on_the_simulated_rigs_sample_run_no_trial_is_flagged_and_most_missing_loads_would_be():
+    """Replay the committed 108-trial run in its recording order, as the session met it."""
+    from labcli.experiments.takuma2014.records import load_trials
+
+    table = load_trials(ROOT / "sample_runs" / "force.h5")
+    guard = Guard(PROTOCOL)
+    flagged, caught, caught_heavy, heavy = 0, 0, 0, 0
+    for r in table.to_dict("records"):
+        base = window([r["P_L10"], r["P_R10"], r["P_L20"], r["P_R20"], 0.0, 0.0])
+        loaded = window([r["P_L1"], r["P_R1"], r["P_L2"], r["P_R2"],
+                         math.radians(r["theta1_deg"]), math.radians(r["theta2_deg"])])
+        F = (r["Fx_N"], r["Fy_N"])
+        prediction = guard.model().predict(F)
+        flagged += weak_response(WATCH, base, loaded, prediction) is not None
+        miss = weak_response(WATCH, base, base, prediction) is not None
+        caught += miss
+        if r["mass_g"] >= 600:
+            heavy += 1
+            caught_heavy += miss
+        guard.learn(F, base, loaded)
+    assert flagged == 0
+    assert caught >= 50 and caught_heavy >= 0.8 * heavy
