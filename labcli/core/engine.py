@@ -162,8 +162,8 @@ class RunEngine:
             self._store = self._store_factory()
         if not self._logging:
             self._logging = True
-            self._log = session_log(self._store)
-            if self._session is not None:
+            if self._session is not None:  # without a session's facts there is nothing to log
+                self._log = session_log(self._store)
                 self._log.begin_session(self._session)
         return self._store
 

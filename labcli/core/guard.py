@@ -15,8 +15,10 @@ session says so before anything wrong is stored:
   less than a quarter of it, the trial is "not loaded": the review warns and offers redo
   as its default;
 * **the removal** (:meth:`Guard.after_baseline`): a new baseline must not still sit more
-  than half-way along the last load's response, when that response was at least four
-  floors (a weight still hanging, an object still pressed in).
+  than half-way along the last load's pressure response, when that response was at least
+  eight floors (a weight still hanging, an object still pressed in).  The angles are left
+  out of this check: potentiometer play and sleeve friction leave an unloaded arm a few
+  tenths of a degree from where it was, which is no sign of a load.
 
 Noise floors.  A change on one channel counts only beyond its floor, the largest of: the
 settling criterion's spread for the channel's quantity (how far the protocol lets a still
@@ -46,6 +48,10 @@ import numpy as np
 EXPECT_FLOORS = 4.0  # a prediction this many floors or more is clear enough to judge by
 WEAK_FRACTION = 0.25  # a load moved the readings by less than this share of the prediction: not loaded
 RETURN_FRACTION = 0.5  # a baseline still this share of the way to the last loaded readings: not unloaded
+# A load's pressure response must be this many floors for the removal to be judged: sleeve friction
+# and the chambers' leak leave an unloaded baseline a kPa or so off, which half of a smaller
+# response would mistake for a weight still hanging.
+RETURN_FLOORS = 8.0
 SE_FLOORS = 4.0  # standard errors of a difference of means that count as noise
 MIN_DOF = 2  # trials beyond the load's dimension before a prediction is made (to measure their scatter)
 MIN_SPAN = 0.2  # smallest / largest singular value of the loads: directions at least ~23 deg apart
@@ -87,6 +93,11 @@ class Watch:
         c = list(self.cols)
         var = sum(w.si[:, c].var(axis=0, ddof=1) / len(w) if len(w) > 1 else 0.0 for w in windows)
         return np.maximum(np.maximum(self.limit, self.count), SE_FLOORS * np.sqrt(var))
+
+    @property
+    def pressures(self) -> np.ndarray:
+        """Which watched channels are pressures."""
+        return np.array([u == "MPa" for u in self.units], dtype=bool)
 
     def show(self, j: int, value: float) -> str:
         """One channel's change as people read it: kPa or deg, with its sign."""
@@ -183,8 +194,12 @@ def still_loaded(watch: Watch, baseline: Any, loaded: Any, now: Any) -> str | No
     """The sentence when ``now`` (a new baseline) is still over half-way to ``loaded`` from ``baseline``."""
     f = np.maximum(watch.floors(baseline, loaded), watch.floors(now))
     r = watch.change(baseline, loaded) / f
+    # Judged on the pressures alone when there are any: a potentiometer's play and the sleeves'
+    # friction leave an unloaded arm where the load left it, within a few tenths of a degree,
+    # while a weight still hanging keeps its whole pressure change.
+    r = np.where(watch.pressures, r, 0.0) if watch.pressures.any() else r
     size2 = float(r @ r)
-    if size2 < EXPECT_FLOORS**2:
+    if size2 < RETURN_FLOORS**2:
         return None
     q = watch.change(baseline, now) / f
     share = float(q @ r) / size2

@@ -131,9 +131,12 @@ def test_least_expected_drops_what_the_trials_scatter_over():
 def test_a_weight_left_hanging_is_seen_at_the_next_baseline_but_friction_and_a_leak_are_not():
     F = force(800, -60)
     base, loaded = window(P0), window(P0 + M @ F)
-    # POT1 under 800 g at -60 deg: -0.024 * 3.923 N + 0.001 * -6.794 N = -0.1009 rad = -5.78 deg.
+    # Judged on the pressures; the largest change, P_R1 under 800 g at -60 deg:
+    # -1.0e-3 * 3.923 N - 0.1e-3 * -6.794 N = -3.244e-3 MPa = -3.24 kPa.
     assert still_loaded(WATCH, base, loaded, window(P0 + M @ F)) == (
-        "they are still 100% of the way to the loaded ones (POT1 -5.78 deg from the baseline, -5.78 deg under the load)")
+        "they are still 100% of the way to the loaded ones (P_R1 -3.24 kPa from the baseline, -3.24 kPa under the load)")
+    # Potentiometer play and sleeve friction: the pressures are back, the angles still where the load left them.
+    assert still_loaded(WATCH, base, loaded, window(np.r_[P0[:4], (P0 + M @ F)[4:]])) is None
     # Friction leaves the arm a few percent short of its old posture.
     assert still_loaded(WATCH, base, loaded, window(P0 + 0.05 * (M @ F))) is None
     # A leak: every chamber down by 5 kPa, none of the angles moved.
