@@ -17,7 +17,7 @@
 #define BAUD 115200UL
 #endif
 
-/* The reference rig (rig-wire-protocol.md): four pressures on A0-A3, two potentiometers on A4-A5. */
+/* The reference rig (docs/wire-protocol.md): four pressures on A0-A3, two potentiometers on A4-A5. */
 #define DEVICE_NAME "mckibben-2dof"
 #define FIRMWARE_VERSION "1.0-avr"
 #define CHANNEL_NAMES "P_L1,P_R1,P_L2,P_R2,POT1,POT2"

@@ -30,7 +30,7 @@ static int checks, failures;
 
 static void test_checksum_and_frame(void)
 {
-    /* rig-wire-protocol.md's example. */
+    /* docs/wire-protocol.md's example. */
     const char *payload = "D,0,1000,1556,1560,1549,1551,2048,2047";
     CHECK(proto_checksum(payload, (uint8_t)strlen(payload)) == 0x76);
     CHECK(proto_checksum("", 0) == 0);

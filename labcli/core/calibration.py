@@ -11,7 +11,7 @@ angles and m for lengths (the rPAM rig's draw-wire sensor).  Degrees and
 millimetres appear only when a number is shown to a person
 (:meth:`Calibration.to_display`, :func:`format_value`).
 
-The reference rig (``rig-wire-protocol.md``) reads, for a 12-bit ADC at 5.0 V::
+The reference rig (``docs/wire-protocol.md``) reads, for a 12-bit ADC at 5.0 V::
 
     P[MPa]     = (counts * 5.0 / 4095 - 1.0) / 4.0   -> gain 5/16380 MPa, zero 819
     angle[deg] = (counts - 2048) * 340 / 4095        -> gain 340/4095 deg, zero 2048

@@ -1,4 +1,4 @@
-"""Codec and stream reader for the rig wire protocol, version 1 (``rig-wire-protocol.md``).
+"""Codec and stream reader for the rig wire protocol, version 1 (``docs/wire-protocol.md``).
 
 A line from the device is one of:
 

@@ -15,7 +15,7 @@ float64 and ``seq`` uint32 per frame, as the run file stores them.
 * ``plain h5py``: the baseline a first version usually is: four resizable
   datasets in one file, each window appended with ``resize`` and a slice
   write, never flushed until the file is closed (closing is timed).  It does
-  not survive a kill -9 (see engineering-notes.md).
+  not survive a kill -9 (an HDF5 file closed by a kill mid-write may not open again).
 
 Samples are frames x channels.  Best of R interleaved runs for each; the ratios are
 measured in the same run on the same disk.

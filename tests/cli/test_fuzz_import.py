@@ -1,6 +1,6 @@
 """Arbitrary rows into ``labcli import``: a run file that round-trips, or one sentence per problem.
 
-Rows are drawn near the trial-table format (table-formats.md): mostly valid cells, with text,
+Rows are drawn near the trial-table format (docs/table-formats.md): mostly valid cells, with text,
 empty cells, non-finite and out-of-span numbers, quotes, separators and line breaks mixed in,
 columns left out or repeated, unknown extra columns, ragged rows.  The outcome is one of two:
 

@@ -20,7 +20,7 @@ def code_blocks(lang: str) -> list[str]:
 
 def test_top_two_commands_install_and_run_demo_and_tests():
     top = README[: README.index("## What the demo shows")]
-    assert "pip install . && labcli demo labcli-demo" in top
+    assert "pip install . && labcli demo out/demo" in top
     assert "pip install '.[test]' && python -m pytest -q" in top
 
 
@@ -54,6 +54,8 @@ def runnable_blocks() -> list[list[str]]:
             cmd = line.split("#", 1)[0].strip() if not line.strip().startswith("labcli sim") else ""
             if cmd.startswith("labcli ") and " monitor " not in f" {cmd} " and "--pty" not in cmd:
                 lines.append(cmd)
+            elif cmd.startswith("mkdir -p ") and lines == []:
+                lines.append(cmd)
         if lines:
             blocks.append(lines)
     return blocks
@@ -70,6 +72,9 @@ def test_shell_blocks_run_as_written(block, tmp_path):
     sample = ROOT / "sample_runs"
     before = {p.name: p.read_bytes() for p in sample.iterdir()}
     for cmd in block:
+        if cmd.startswith("mkdir -p "):
+            (tmp_path / cmd.split()[2]).mkdir(parents=True)
+            continue
         args = shlex.split(cmd.replace("sample_runs/", f"{sample}/"))
         r = subprocess.run([sys.executable, "-m", "labcli", *args[1:]], cwd=tmp_path,
                            capture_output=True, text=True, timeout=300)
@@ -86,3 +91,21 @@ def test_there_are_runnable_blocks():
     assert any("acquire" in c and "--unattended" in c for c in cmds)
     assert any(c.startswith("labcli fit sample_runs/") for c in cmds)
     assert any("rpam2015" in c for c in cmds)
+
+
+def test_example_outputs_stay_in_one_ignored_folder():
+    # Every file a README example writes lands under out/, which .gitignore covers.
+    written = [o for block in code_blocks("sh") for line in block.splitlines()
+               if line.startswith("labcli ") for o in outputs(line.split("#", 1)[0].strip())]
+    assert written and all(o.startswith("out/") for o in written), written
+    assert "/out/" in (ROOT / ".gitignore").read_text().split()
+
+
+def test_docs_cited_by_the_code_exist_and_are_linked_from_the_readme():
+    cited = set()
+    for path in [*(ROOT / "labcli").rglob("*.py"), *(ROOT / "protocols").glob("*.toml")]:
+        cited.update(re.findall(r"docs/[\w-]+\.md", path.read_text(encoding="utf-8")))
+    assert cited, "the code cites no docs"
+    for doc in cited | {"docs/wire-protocol.md", "docs/table-formats.md", "docs/errata.md"}:
+        assert (ROOT / doc).is_file(), doc
+        assert f"]({doc})" in README, f"README does not link {doc}"

@@ -19,7 +19,7 @@ CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
 
 
 class LinearCalibration:
-    """The reference rig's calibration (rig-wire-protocol.md), written out independently."""
+    """The reference rig's calibration (docs/wire-protocol.md), written out independently."""
 
     units = ("MPa", "MPa", "MPa", "MPa", "rad", "rad")
 

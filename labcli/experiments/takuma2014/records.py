@@ -124,7 +124,7 @@ class TrialRecords(_McKibbenRecords):
         return rec
 
     def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
-        """The trial table (table-formats.md): MPa, N, degrees and grams; ``set`` from the split."""
+        """The trial table (docs/table-formats.md): MPa, N, degrees and grams; ``set`` from the split."""
         import numpy as np
         import pandas as pd
 
@@ -223,7 +223,7 @@ class PushRecords(_McKibbenRecords):
         }
 
     def table(self, run: Any, ids: list[int], groups: list[Any]) -> Any:
-        """The push table (table-formats.md): m, degrees, MPa; ``phi_deg`` NaN when unknown."""
+        """The push table (docs/table-formats.md): m, degrees, MPa; ``phi_deg`` NaN when unknown."""
         import numpy as np
         import pandas as pd
 

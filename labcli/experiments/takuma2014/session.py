@@ -38,7 +38,7 @@ from ...core.steps import (
     Window,
 )
 
-G = 9.80665  # standard gravity, m/s^2 (table-formats.md)
+G = 9.80665  # standard gravity, m/s^2 (docs/table-formats.md)
 
 PRESSURE_NAMES = ("P_L1", "P_R1", "P_L2", "P_R2")
 POT_NAMES = ("POT1", "POT2")

@@ -1,4 +1,4 @@
-"""The McKibben rig's CSV exchange tables (``table-formats.md``): trials, pushes, plans.
+"""The McKibben rig's CSV exchange tables (``docs/docs/table-formats.md``): trials, pushes, plans.
 
 Plain data for :mod:`labcli.core.tables`, which reads and writes them: every cell
 checked, every problem reported by file, row and column.  Pressures in MPa (gauge),
@@ -65,7 +65,7 @@ PLAN = TableSpec(
 
 def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
                    id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
-    """Read and check a trial table (``table-formats.md``); every problem in one TableError.
+    """Read and check a trial table (``docs/docs/table-formats.md``); every problem in one TableError.
 
     ``id_range`` (low, high) also checks the trial ids, e.g. against what a run file can hold;
     ``check(row) -> [(column, problem), ...]`` adds checks of its own (e.g.
@@ -110,13 +110,13 @@ def load_plan(
 
 def write_trial_csv(df: "pd.DataFrame", path: str | os.PathLike, *,
                     span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
-    """Write a trial table: standard columns in ``table-formats.md`` order, then extras."""
+    """Write a trial table: standard columns in ``docs/docs/table-formats.md`` order, then extras."""
     write_table(df, path, TRIAL, span_MPa)
 
 
 def write_push_csv(df: "pd.DataFrame", path: str | os.PathLike, *,
                    span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
-    """Write a push table: standard columns in ``table-formats.md`` order, then extras."""
+    """Write a push table: standard columns in ``docs/docs/table-formats.md`` order, then extras."""
     write_table(df, path, PUSH, span_MPa)
 
 

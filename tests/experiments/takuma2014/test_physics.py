@@ -71,7 +71,7 @@ def test_jacobian_is_dC_dtheta(theta):
     fd = _fd(lambda t: ph.contact_point(t, GEOM), theta)
     J = ph.jacobian(theta, GEOM)
     assert J == pytest.approx(fd, abs=1e-9)
-    # det J = h2 h3 sin(theta2): singular with a straight upper joint (paper-notes).
+    # det J = h2 h3 sin(theta2): singular with a straight upper joint (docs/errata.md).
     assert np.linalg.det(J) == pytest.approx(GEOM.h2 * GEOM.h3 * np.sin(theta[1]), abs=1e-14)
 
 

@@ -7,7 +7,7 @@ counter-clockwise): the contact point of the arm is
 
 which is the point Section 4 prints and the one the Jacobian of Section 2.2.2
 belongs to (the (x, y) printed in 2.2.2 drops h3 and adds h1; see
-``paper-notes.md``).  A cylinder of radius R just touches the upright tip
+``docs/errata.md``).  A cylinder of radius R just touches the upright tip
 C0 = (0, h2 + h3) before the push, so its centre is O1 = (R, h2 + h3).  Pushed
 by d along phi the centre moves to (Eq. 39)
 
