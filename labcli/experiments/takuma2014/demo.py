@@ -132,5 +132,6 @@ def _result(out: Path, seed: int, files: dict[str, Path], timings: dict[str, flo
                 "pushes": len(rep["pushes"]), "pushes_flagged": sum(p["flagged"] for p in rep["pushes"])},
         coefficients=coefficients, accuracy=accuracy, objects=rep["objects"],
         classify_method=rep["method"],
-        notes=["Coefficients use the plus-sign reading: the paper's beta_theta2_R2 = -2.972 appears as +2.972."],
+        notes=["Coefficients use the plus-sign reading with the paper's beta_theta2_R2 = -2.972 as listed "
+               "(Eq. 35's printed minus is a misprint; docs/errata.md)."],
     )

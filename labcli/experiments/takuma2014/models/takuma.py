@@ -16,8 +16,12 @@ in the paper's Section 2.2.2::
     J = [[-h2 c1 - h3 c12, -h3 c12],
          [-h2 s1 - h3 s12, -h3 s12]]          det J = h2 h3 sin(theta2)
 
-Sign reading: every coefficient multiplies its term with a plus sign.  Eq. 35 prints a minus
-before beta_theta2R2 (Eq. 31 does not); under the plus-sign reading the paper's -2.972 is +2.972.
+Sign reading: every coefficient multiplies its term with a plus sign (Eq. 31's form), and the
+paper's listed beta_theta2R2 = -2.972 is taken as printed in Section 3.3; the minus that Eq. 35
+prints before that term is a misprint.  Measured: the paper's coefficients on the simulated rig's
+pressures give theta2 at +1.3 to +1.6 times the truth in this reading and -0.7 times in the other
+(``python -m labcli.experiments.takuma2014.sim.paper_scale``), and the geometry (Eqs. 6-7, 13)
+puts L2 and R2 on opposite sides of the joint, so their coefficients must have opposite signs.
 
 Units: pressures MPa, lengths m, angles rad, forces N.  Angle coefficients are dimensionless
 (sine per unit pressure ratio); force coefficients are N m / MPa (j* is in 1/m).
@@ -61,18 +65,19 @@ TERMS: dict[str, tuple[str, ...]] = {
 }
 COEFFICIENT_NAMES: tuple[str, ...] = tuple(n for eq in EQUATIONS for n in TERMS[eq])
 
-# Section 3.3 of the paper, plus-sign reading (beta_theta2_R2 printed as -2.972 after a minus).
+# Section 3.3 of the paper as listed, plus-sign reading (Eq. 35's minus before beta_theta2R2 is a misprint).
 PAPER_COEFFICIENTS: dict[str, float] = {
     "beta_theta1_L1": 0.136, "beta_theta1_R1": -1.587,
     "beta_theta2_L1": 1.359, "beta_theta2_R1": 1.094,
-    "beta_theta2_L2": 0.766, "beta_theta2_R2": 2.972,
+    "beta_theta2_L2": 0.766, "beta_theta2_R2": -2.972,
     "beta_Fx1": -75.906, "beta_Fx2": -5.538, "beta_Fx3": -2201.033,
     "beta_Fx4": -131.738, "beta_Fx5": 1.545, "beta_Fx6": -21.865,
     "beta_Fy1": 1.309, "beta_Fy2": -75.973, "beta_Fy3": -642.995,
     "beta_Fy4": -393.750, "beta_Fy5": 1.196, "beta_Fy6": -21.697,
 }
-SIGN_NOTE = ("plus-sign reading: every coefficient multiplies its term with +; Eq. 35 prints a "
-             "minus before beta_theta2R2, so the paper's -2.972 appears here as +2.972")
+SIGN_NOTE = ("plus-sign reading: every coefficient multiplies its term with +, the paper's "
+             "beta_theta2R2 = -2.972 as listed (the minus Eq. 35 prints before it is a misprint: "
+             "fed the rig's pressures, -2.972 gives theta2 x1.4 of the truth, +2.972 gives x-0.7)")
 
 BASELINE_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
 LOADED_COLUMNS = ("P_L1", "P_R1", "P_L2", "P_R2")
