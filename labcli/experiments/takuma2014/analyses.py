@@ -13,13 +13,16 @@ from pathlib import Path
 from typing import Any
 
 from ...core.modelfile import default_model_path, save_model
-from ...errors import ConfigError
+from ...errors import ConfigError, ModelError
 from . import report
 from .figures import figure7, figure9
 from .models.classify import classify_file
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
+from .models.posture import FORM as POSTURE, PostureModel, limits_from_protocol, load_force_model
 from .models.takuma import TakumaModel
+
+FORMS = (POSTURE, "paper")  # labcli fit --form; the first is the default
 
 # Options of the rPAM analyses that mean nothing to a force run (``--set``, ``--plot`` of fit).
 SET_REFUSED = ("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
@@ -28,9 +31,9 @@ SET_REFUSED = ("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.0
 
 @dataclass
 class FitResult:
-    """Eqs. 34-37 fitted on a run's fit trials, where the model went, the paper's values."""
+    """A force model fitted on a run's fit trials, where it went, the paper's values."""
 
-    model: TakumaModel
+    model: TakumaModel | PostureModel
     model_path: Path
     run: Path
     recorded: bool  # also recorded in the run file under /models/<protocol>
@@ -42,19 +45,32 @@ class FitResult:
 
 
 def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, max_amplification: float = 100.0,
-        plot: Path | None = None, overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset()) -> FitResult:
-    """Fit the paper's regression to the fit trials of a run file or trial CSV; save the model."""
+        form: str = POSTURE, plot: Path | None = None, overrides: tuple[str, ...] = (),
+        typed: frozenset[str] = frozenset()) -> FitResult:
+    """Fit a force model (``form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it."""
     if overrides:
         raise ConfigError(SET_REFUSED)
     if plot is not None:
         raise ConfigError("--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
                           "for a force run draw Figure 7 with labcli validate --plot.")
+    if form not in FORMS:
+        raise ConfigError(f"Unknown model form '{form}'; use {' or '.join(FORMS)}.")
+    if form == POSTURE and "max_amplification" in typed:
+        raise ConfigError("--max-amplification is the paper form's cut near theta2 = 0; the posture form "
+                          "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out.")
     src = load_trial_source(run, protocol)
-    model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
-                        max_amplification=max_amplification).fit(src.table, source=str(run))
+    model = _fit_form(form, src, str(run), max_amplification)
     out_path = output or default_model_path(run)
     recorded = save_model(model.to_json(), out_path, run=run if src.is_run else None, name=model.protocol)
     return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
+
+
+def _fit_form(form: str, src: Any, source: str, max_amplification: float = 100.0) -> TakumaModel | PostureModel:
+    rig, name = src.protocol.settings.rig, src.protocol.name
+    if form == POSTURE:
+        return PostureModel(geometry=rig, protocol=name, limits=limits_from_protocol(src.protocol)).fit(
+            src.table, source=source)
+    return TakumaModel(geometry=rig, protocol=name, max_amplification=max_amplification).fit(src.table, source=source)
 
 
 def show_fit(result: FitResult, *, as_json: bool = False) -> None:
@@ -62,7 +78,10 @@ def show_fit(result: FitResult, *, as_json: bool = False) -> None:
         print(json.dumps(result.to_dict(), indent=2))
         return
     recorded = f" and recorded in {result.run} under /models/{result.model.protocol}" if result.recorded else ""
-    report.print_fit(result.model, result.paper, result.model_path, recorded)
+    if isinstance(result.model, PostureModel):
+        report.print_posture_fit(result.model, result.model_path, recorded)
+    else:
+        report.print_fit(result.model, result.paper, result.model_path, recorded)
 
 
 @dataclass
@@ -88,13 +107,29 @@ def validate(run: Path, *, model_path: Path | None = None, mode: str = "pressure
         raise ConfigError(SET_REFUSED)
     src = load_trial_source(run, protocol)
     mpath = model_path or default_model_path(run)
-    model = TakumaModel.load(mpath)
+    model = load_force_model(mpath)
     model.check_compatible(src.protocol.name, src.protocol.settings.rig,
                            model_name=f"the model file {mpath}", run_name=str(run))
     ev = evaluate(model, src.table, mode=mode, source=str(run))
+    ev["forms"] = side_by_side(model, ev, src, mode, str(run))
     if plot is not None:
         figure7(ev, plot)
     return ValidationResult(ev, mpath, run, plot)
+
+
+def side_by_side(model: Any, ev: dict[str, Any], src: Any, mode: str, source: str) -> dict[str, Any]:
+    """Both forms' validation metrics: the given model's, and the other form fitted on the same fit trials.
+
+    Empty of the other form when the run cannot fit it (no fit trials, a collinear design): the
+    side-by-side table then shows the one form.
+    """
+    forms = {ev["form"]: ev["metrics"]}
+    other = "paper" if ev["form"] == POSTURE else POSTURE
+    try:
+        forms[other] = evaluate(_fit_form(other, src, source), src.table, mode=mode, source=source)["metrics"]
+    except ModelError:
+        pass
+    return {f: forms[f] for f in FORMS if f in forms}
 
 
 def show_validation(result: ValidationResult, *, as_json: bool = False) -> None:

@@ -102,6 +102,8 @@ FLAG_TEXT = {
     "theta2-clipped": "Eq. 35 gave |sin(theta2)| > 1 (clipped)",
     "missing-angle": "the measured angle is missing",
     "singular-jacobian": "theta2 too close to 0 for this force component (Jacobian near singular)",
+    # The posture-aware form (models/posture.py) flags by uncertainty instead.
+    "uncertain": "standard error over the protocol's [sensing] limit",
 }
 
 
@@ -546,7 +548,7 @@ class TakumaModel:
             "coefficients": self.coefficients, "standard_errors": self.standard_errors,
             "ci95": self.ci95, "covariance": self.covariance, "fit_stats": self.fit_stats,
             "fitted_trials": self.fitted_trials, "excluded_trials": self.excluded_trials,
-            "source": self.source, "labcli_version": self.labcli_version,
+            "source": self.source, "labcli_version": self.labcli_version, "form": "paper",
         })
 
     def to_json(self) -> str:
@@ -564,6 +566,9 @@ class TakumaModel:
         if d.get("version") != SCHEMA_VERSION:
             raise ModelError(f"{cap(name)} has model version {d.get('version')!r}; this labcli reads "
                              f"version {SCHEMA_VERSION}.")
+        if d.get("form", "paper") != "paper":
+            raise ModelError(f"{cap(name)} holds the {d.get('form')!r} form, not the paper's Eqs. 34-37; "
+                             "this step needs a model from `labcli fit --form paper`.")
         model = cls(**_model_fields(d, cap(name)))
         missing = [k for k in COEFFICIENT_NAMES if k not in model.coefficients]
         if missing:
