@@ -225,7 +225,7 @@ def test_unknown_section(tmp_path: Path) -> None:
     p = write_variant(tmp_path, "[force]", "[forces]")
     assert error_of(p) == (
         f"{p}: unknown key 'forces'; the keys allowed there are name, kind, title, source, paper, [device], "
-        "[acquisition], [rig], [channels], [settling], [trials], [force], [paper_coefficients]."
+        "[acquisition], [rig], [channels], [settling], [trials], [force], [sensing], [paper_coefficients]."
     )
 
 

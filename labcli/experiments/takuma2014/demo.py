@@ -10,7 +10,10 @@ same files a lab would have after an afternoon at the rig:
 4. ``pushes.h5``: six simulated objects (three PET bottles, two aluminium cans,
    one steel can) pushed ten times each (Section 4).
 5. ``fig9-stiffness.png``: their stiffness and category (Figure 9).
-6. ``trials.csv``, ``pushes.csv`` and ``summary.json``.
+6. ``bent.h5``, ``bent.model.json``, ``fig7-bent.png``: the same trials on the arm resting
+   bent (protocol takuma2014-bent, inside pair 0.40 / 0.20 MPa), the posture-aware form fitted
+   and both forms validated on both protocols (``forms`` in the summary).
+7. ``trials.csv``, ``pushes.csv`` and ``summary.json``.
 
 The result is plain data (:class:`DemoResult`), so a notebook can run the demo
 and read its numbers without the command line.
@@ -29,18 +32,23 @@ from .figures import figure7, figure9
 from .models.classify import classify_file
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate
+from .models.posture import PostureModel, limits_from_protocol
 from .models.takuma import TakumaModel
 from .records import load_pushes
 from .tables import write_push_csv, write_trial_csv
 
 FORCE_PROTOCOL = "takuma2014"
 PUSH_PROTOCOL = "takuma2014-stiffness"
+BENT_PROTOCOL = "takuma2014-bent"
+# The regulators for the bent protocol (P_L1, P_R1, P_L2, P_R2, MPa), as protocols/takuma2014-bent.toml says.
+BENT_SUPPLY = "0.3,0.3,0.4,0.2"
 
 # Stage names in order, for progress displays.
-STAGES = ("acquire force trials", "fit", "validate", "acquire pushes", "classify", "export")
+STAGES = ("acquire force trials", "fit", "validate", "acquire pushes", "classify", "bent arm", "export")
 
 OUTPUTS = ("force.h5", "force.model.json", "fig7-accuracy.png", "pushes.h5",
-           "fig9-stiffness.png", "trials.csv", "pushes.csv", "summary.json")
+           "fig9-stiffness.png", "bent.h5", "bent.model.json", "fig7-bent.png",
+           "trials.csv", "pushes.csv", "summary.json")
 
 
 @dataclass
@@ -55,6 +63,7 @@ class DemoResult:
     objects: list[dict[str, Any]]
     classify_method: str
     notes: list[str] = field(default_factory=list)
+    forms: dict[str, dict[str, Any]] = field(default_factory=dict)  # protocol -> form -> quantity -> metrics
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -68,6 +77,7 @@ class DemoResult:
             "objects": self.objects,
             "classify_method": self.classify_method,
             "notes": self.notes,
+            "forms": self.forms,
         }
 
 
@@ -82,6 +92,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         "figure7": out / "fig7-accuracy.png", "push_run": out / "pushes.h5",
         "figure9": out / "fig9-stiffness.png", "trials_csv": out / "trials.csv",
         "pushes_csv": out / "pushes.csv", "summary": out / "summary.json",
+        "bent_run": out / "bent.h5", "bent_model": out / "bent.model.json", "figure7_bent": out / "fig7-bent.png",
     }
     stages = Stages(STAGES, progress)
     port = simulated_port(seed)
@@ -105,12 +116,43 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         # would be circular for the lone steel can.
         report = classify_file(files["push_run"], model, method="bands")
         figure9(report, files["figure9"])
-    with stages.run(5):
+    with stages.run(5, "bent_arm"):
+        acquire_unattended(files["bent_run"], f"{port}&supply={BENT_SUPPLY}", "bent-arm run", STAGES[5],
+                           progress, protocol=BENT_PROTOCOL)
+        forms = {FORCE_PROTOCOL: _both_forms(src, model), BENT_PROTOCOL: {}}
+        bent = load_trial_source(files["bent_run"])
+        bent_model = _posture(bent, files["bent_run"])
+        save_model(bent_model.to_json(), files["bent_model"], run=files["bent_run"], name=bent_model.protocol)
+        bent_ev = evaluate(bent_model, bent.table, "pressure-only", source=str(files["bent_run"]))
+        figure7(bent_ev, files["figure7_bent"])
+        forms[BENT_PROTOCOL] = {"posture": _metrics(bent_ev), "paper": _metrics(evaluate(
+            TakumaModel(geometry=bent.protocol.settings.rig, protocol=bent.protocol.name).fit(bent.table),
+            bent.table, "pressure-only"))}
+    with stages.run(6):
         write_trial_csv(src.table, files["trials_csv"])
         write_push_csv(load_pushes(files["push_run"]), files["pushes_csv"])
     result = _result(out, seed, files, stages.done(), src, model, evaluation, report)
+    result.forms = forms
     files["summary"].write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False), encoding="utf-8")
     return result
+
+
+def _posture(src: Any, run: Path) -> PostureModel:
+    return PostureModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
+                        limits=limits_from_protocol(src.protocol)).fit(src.table, source=str(run))
+
+
+ACCURACY_KEYS = ("n", "rmse", "mae", "max_abs", "bias", "r2", "unit", "n_flagged", "pct_range", "rmse_all", "coverage95")
+
+
+def _metrics(ev: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {q: {k: v for k, v in m.items() if k in ACCURACY_KEYS} for q, m in ev["metrics"].items()}
+
+
+def _both_forms(src: Any, paper_model: TakumaModel) -> dict[str, Any]:
+    """Both forms' validation metrics on the straight protocol's run."""
+    return {"posture": _metrics(evaluate(_posture(src, Path(src.path)), src.table, "pressure-only")),
+            "paper": _metrics(evaluate(paper_model, src.table, "pressure-only"))}
 
 
 def _result(out: Path, seed: int, files: dict[str, Path], timings: dict[str, float], src: Any, model: Any,
@@ -122,8 +164,7 @@ def _result(out: Path, seed: int, files: dict[str, Path], timings: dict[str, flo
          "paper": paper.get(name)}
         for name, value in model.coefficients.items()
     ]
-    keep = ("n", "rmse", "mae", "max_abs", "bias", "r2", "unit", "n_flagged", "pct_range")
-    accuracy = {q: {k: v for k, v in m.items() if k in keep} for q, m in evaluation["metrics"].items()}
+    accuracy = _metrics(evaluation)
     rep = report.to_dict()
     sets = src.table["set"].value_counts().to_dict()
     return DemoResult(

@@ -104,13 +104,13 @@ def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
 
 
-def print_forms(forms: dict[str, dict[str, Any]]) -> None:
+def print_forms(forms: dict[str, dict[str, Any]], where: str = "the same validation trials") -> None:
     """Validation RMSE of both forms side by side, reported trials and all trials."""
     from rich import box
     from rich.table import Table
 
     con = report_console(110)
-    table = Table(title="Both forms on the same validation trials (RMSE; all = flagged trials too)",
+    table = Table(title=f"Both forms on {where} (RMSE; all = flagged trials too)",
                   title_justify="left", box=box.SIMPLE_HEAD)
     table.add_column("quantity")
     for form in forms:
@@ -253,6 +253,8 @@ def print_demo(res: Any) -> None:
         acc.add_row(f"{q} ({unit})", str(m["n"]), cell(m["rmse"], ".3g"), cell(m["max_abs"], ".3g"),
                     cell(m["r2"], ".4f"), cell(m["pct_range"], ".2f") + " %", str(m["n_flagged"]))
     con.print(acc)
+    for protocol, forms in getattr(res, "forms", {}).items():
+        print_forms(forms, f"protocol {protocol}")
 
     obj = Table(title=f"Object stiffness (Section 4, Figure 9); categories by the {res.classify_method} method, "
                       "true values from the simulated objects",

@@ -38,6 +38,7 @@ from ....core.store import RunFile
 from ..records import load_pushes
 from .categories import CategoryModel
 from .stiffness import PushEstimates, StiffnessParams, estimate_pushes, object_stats
+from .posture import PostureModel, load_force_model
 from .takuma import TakumaModel, cap
 
 P0_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
@@ -439,11 +440,11 @@ def classify_file(
         raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
     src = load_push_source(pushes, protocol, measured_angles=angles == "measured-angles")
     params, force_protocol = stiffness_settings(src.protocol)
-    if isinstance(model, TakumaModel):
+    if isinstance(model, (TakumaModel, PostureModel)):
         model_path, fmodel = None, model
     else:
         model_path = Path(model)
-        fmodel = TakumaModel.load(model_path)
+        fmodel = load_force_model(model_path)
     model_name = f"the model file {model_path}" if model_path is not None else "the model"
     check_force_model(fmodel, src.protocol, model_name=model_name, run_name=str(src.path),
                       force_protocol=force_protocol)

@@ -34,8 +34,12 @@ selection on the cross-validated error of both angle equations (the same terms i
 Uncertainty.  Both torque equations share one design X, so the coefficients' covariance is
 S_tau (x) (X^T X)^-1 with S_tau the 2x2 residual covariance; a new trial's torque error has
 covariance (1 + x^T (X^T X)^-1 x) S_tau (coefficients and residual), and likewise its angle.
-The force's covariance is A Sigma_tau A^T + G Sigma_dtheta G^T with A = (J^T)^-1 and G = dF /
-d(dtheta) through both the Jacobian and the torque's dtheta terms (numerically).  A trial's
+The force is the posterior mean given the torques and a Gaussian prior on F whose spread is
+the fit loads' RMS per component: where J^T is well conditioned this is (J^T)^-1 tau, and along a
+straight arm, where the torques say nothing, it falls back to the prior (0 +- the load spread)
+instead of blowing up.  Its covariance is the posterior's, (J S^-1 J^T + Lambda)^-1, plus
+G Sigma_dtheta G^T with G = dF / d(dtheta) through both the Jacobian and the torque's dtheta terms
+(numerically).  A trial's
 estimate is flagged when its standard error exceeds the protocol's ``[sensing]`` limit.
 
 Units: pressures MPa, angles rad, torques N m, forces N.
@@ -207,6 +211,7 @@ class PostureModel:
     torque_coefficients: list[list[float]] = field(default_factory=list)  # (14, 2)
     torque_xtx_inv: list[list[float]] = field(default_factory=list)
     torque_resid_cov: list[list[float]] = field(default_factory=list)
+    force_prior_sd: list[float] = field(default_factory=list)  # N, (Fx, Fy): the fit loads' RMS
     fit_stats: dict[str, Any] = field(default_factory=dict)
     fitted_trials: list[int] = field(default_factory=list)
     source: str = ""
@@ -237,6 +242,7 @@ class PostureModel:
         self.angle_resid_cov = ang.resid_cov.tolist()
         self.torque_coefficients, self.torque_xtx_inv = tq.beta.tolist(), tq.xtx_inv.tolist()
         self.torque_resid_cov = tq.resid_cov.tolist()
+        self.force_prior_sd = np.sqrt(np.mean(F ** 2, axis=0)).tolist()
         self.fitted_trials = [int(t) for t in a["trial"][use]]
         self.fit_stats = {
             "n": int(use.sum()), "angle_dof": ang.dof, "torque_dof": tq.dof,
@@ -255,9 +261,27 @@ class PostureModel:
         return X @ np.asarray(self.angle_coefficients), cov
 
     def _forces(self, dP: np.ndarray, theta0: np.ndarray, dth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Forces (n, 2) and their covariance from the torque error alone (n, 2, 2).
+
+        tau = J^T F + e with e ~ N(0, (1 + h) S_tau); with the fit loads' spread as a prior on F
+        (``force_prior_sd``) the estimate is the posterior mean, which is (J^T)^-1 tau wherever the
+        torques determine F and stays bounded along a straight arm, where they do not.
+        """
         X = torque_features(dP, dth)
         tau = X @ np.asarray(self.torque_coefficients)
-        return force_from_torque(theta0 + dth, tau, self.geometry["h2"], self.geometry["h3"]), X
+        h2, h3 = self.geometry["h2"], self.geometry["h3"]
+        th = theta0 + dth
+        JT = np.swapaxes(jacobian(th[:, 0], th[:, 1], h2, h3), 1, 2)
+        h = np.einsum("ni,ij,nj->n", X, np.asarray(self.torque_xtx_inv), X)
+        S = (1.0 + h)[:, None, None] * np.asarray(self.torque_resid_cov)[None]
+        if not self.force_prior_sd:
+            A = np.linalg.pinv(JT)
+            return np.einsum("nij,nj->ni", A, tau), np.einsum("nij,njk,nlk->nil", A, S, A)
+        # Gain form of the posterior (P J (J^T P J + S)^-1): stable when S is tiny or J^T singular.
+        prior = np.diag(np.asarray(self.force_prior_sd) ** 2)
+        K = np.einsum("ij,nkj,nkl->nil", prior, JT,
+                      np.linalg.pinv(np.einsum("nij,jk,nlk->nil", JT, prior, JT) + S, hermitian=True))
+        return np.einsum("nij,nj->ni", K, tau), prior - np.einsum("nij,njk,kl->nil", K, JT, prior)
 
     def predict(self, P0: Any, P: Any, theta0: Any = None, mode: str = "pressure-only",
                 theta: Any = None) -> dict[str, Any]:
@@ -294,8 +318,9 @@ class PostureModel:
         else:
             raise ModelError(f"Unknown prediction mode '{mode}'; use pressure-only or measured-angles.")
         F, cov_F = self._force_covariance(P0 - P, th0, dth_f, cov_f)
+        # The gain form can leave a rounding-level negative variance where the data fix F exactly.
         se = {"theta1": np.sqrt(cov_a[:, 0, 0]), "theta2": np.sqrt(cov_a[:, 1, 1]),
-              "Fx": np.sqrt(cov_F[:, 0, 0]), "Fy": np.sqrt(cov_F[:, 1, 1])}
+              "Fx": np.sqrt(np.maximum(cov_F[:, 0, 0], 0.0)), "Fy": np.sqrt(np.maximum(cov_F[:, 1, 1], 0.0))}
         ok = {}
         for q, s in se.items():
             within = s <= self.limits.get(q, math.inf)
@@ -310,12 +335,7 @@ class PostureModel:
     def _force_covariance(self, dP: np.ndarray, th0: np.ndarray, dth: np.ndarray,
                           cov_dth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Forces and their covariance: torque error through (J^T)^-1, angle error through dF/d(dtheta)."""
-        F, X = self._forces(dP, th0, dth)
-        h2, h3 = self.geometry["h2"], self.geometry["h3"]
-        JT = np.swapaxes(jacobian(th0[:, 0] + dth[:, 0], th0[:, 1] + dth[:, 1], h2, h3), 1, 2)
-        A = np.linalg.pinv(JT)
-        h = np.einsum("ni,ij,nj->n", X, np.asarray(self.torque_xtx_inv), X)
-        cov = (1.0 + h)[:, None, None] * np.einsum("nij,jk,nlk->nil", A, np.asarray(self.torque_resid_cov), A)
+        F, cov = self._forces(dP, th0, dth)
         step = 1e-6
         G = np.empty((len(F), 2, 2))
         for k in range(2):
@@ -323,9 +343,9 @@ class PostureModel:
             d[k] = step
             G[:, :, k] = (self._forces(dP, th0, dth + d)[0] - self._forces(dP, th0, dth - d)[0]) / (2 * step)
         cov = cov + np.einsum("nij,njk,nlk->nil", G, cov_dth, G)
-        # A straight arm: the force along it is not determined at all.
-        singular = np.abs(np.sin(th0[:, 1] + dth[:, 1])) < 1e-9
-        cov[singular] = np.inf
+        if not self.force_prior_sd:
+            # A straight arm: without a prior the force along it is not determined at all.
+            cov[np.abs(np.sin(th0[:, 1] + dth[:, 1])) < 1e-9] = np.inf
         return F, cov
 
     def predict_table(self, table: Any, mode: str = "pressure-only") -> dict[str, Any]:
@@ -352,7 +372,7 @@ class PostureModel:
             "angle_xtx_inv": self.angle_xtx_inv, "angle_resid_cov": self.angle_resid_cov,
             "torque_terms": list(TORQUE_TERMS), "torque_coefficients": self.torque_coefficients,
             "torque_xtx_inv": self.torque_xtx_inv, "torque_resid_cov": self.torque_resid_cov,
-            "fit_stats": self.fit_stats, "fitted_trials": self.fitted_trials, "source": self.source,
+            "force_prior_sd": self.force_prior_sd, "fit_stats": self.fit_stats, "fitted_trials": self.fitted_trials, "source": self.source,
         })
 
     def to_json(self) -> str:
@@ -381,7 +401,12 @@ class PostureModel:
             if arr.shape != shape or not np.all(np.isfinite(arr)):
                 raise ModelError(f"{cap(name)}: key '{key}' must be a {shape[0]} x {shape[1]} table of finite "
                                  "numbers; refit with `labcli fit`.")
-        keys = required + ("limits", "fit_stats", "fitted_trials", "source")
+        prior = d.get("force_prior_sd", [])
+        if prior and not (isinstance(prior, list) and len(prior) == 2
+                          and all(isinstance(v, (int, float)) and v > 0 for v in prior)):
+            raise ModelError(f"{cap(name)}: key 'force_prior_sd' must list two positive forces in N; "
+                             "refit with `labcli fit`.")
+        keys = required + ("limits", "force_prior_sd", "fit_stats", "fitted_trials", "source")
         return cls(**{k: d[k] for k in keys if k in d})
 
 
