@@ -32,7 +32,8 @@ dropped, Eq. 29's Boyle relation), plus the quadratic terms u_i u_j the data sup
 selection on the cross-validated error of both angle equations (the same terms in both).
 
 Uncertainty.  Both torque equations share one design X, so the coefficients' covariance is
-S_tau (x) (X^T X)^-1 with S_tau the 2x2 residual covariance; a new trial's torque error has
+S_tau (x) (X^T X)^-1 with S_tau the 2x2 residual covariance (from held-out blocks of trials when
+that is the larger: friction's error depends on the load's direction); a new trial's torque error has
 covariance (1 + x^T (X^T X)^-1 x) S_tau (coefficients and residual), and likewise its angle.
 The force is the posterior mean given the torques and a Gaussian prior on F whose spread is
 the fit loads' RMS per component: where J^T is well conditioned this is (J^T)^-1 tau, and along a
@@ -147,7 +148,14 @@ def _shared_lstsq(X: np.ndarray, Y: np.ndarray, what: str) -> _Shared:
     resid = Y - X @ beta
     dof = n - p
     xtx_inv = ((Vt.T / s ** 2) @ Vt) / np.outer(scale, scale)
-    return _Shared(beta, xtx_inv, resid.T @ resid / dof, dof)
+    # The residual covariance from held-out blocks when that is larger than the in-sample one:
+    # friction's hysteresis depends on the load's direction, so errors on directions the fit
+    # did not see exceed the fit's own residual.  Divided by 1 + p/n because prediction adds
+    # the coefficients' share (1 + h) again.
+    cv = _cv_residuals(X, Y)
+    held_out = cv.T @ cv / n / (1.0 + p / n)
+    in_sample = resid.T @ resid / dof
+    return _Shared(beta, xtx_inv, held_out if np.trace(held_out) > np.trace(in_sample) else in_sample, dof)
 
 
 CV_FOLDS = 10
@@ -156,16 +164,21 @@ CV_FOLDS = 10
 CV_MIN_GAIN = 0.10
 
 
-def _cv_error(X: np.ndarray, Y: np.ndarray) -> float:
-    """Summed squared error of contiguous-block cross-validation (each block a few pulley positions)."""
+def _cv_residuals(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """Held-out residuals of contiguous-block cross-validation (a plan groups trials by pulley position)."""
     n = len(Y)
     edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
-    total = 0.0
+    out = np.empty_like(Y)
     for lo, hi in zip(edges[:-1], edges[1:]):
         train = np.r_[0:lo, hi:n]
         beta, *_ = np.linalg.lstsq(X[train], Y[train], rcond=None)
-        total += float(np.sum((Y[lo:hi] - X[lo:hi] @ beta) ** 2))
-    return total
+        out[lo:hi] = Y[lo:hi] - X[lo:hi] @ beta
+    return out
+
+
+def _cv_error(X: np.ndarray, Y: np.ndarray) -> float:
+    """Summed squared held-out error of contiguous-block cross-validation."""
+    return float(np.sum(_cv_residuals(X, Y) ** 2))
 
 
 def select_angle_terms(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray) -> tuple[str, ...]:
