@@ -8,7 +8,9 @@ Printed per protocol and quantity, over the seeds: trials reported (not flagged)
 reported trials and over all trials, and for the posture form the coverage of its 95 % intervals
 (share of reported validation errors within +-1.96 standard errors, pooled over seeds).
 
-    python tests/benchmarks/sensing_accuracy.py [--seeds 1-10] [--settle 8]
+    python tests/benchmarks/sensing_accuracy.py [--seeds 1-10] [--settle 8] [--ideal]
+
+``--ideal`` turns the rig's non-idealities off (friction, leak, heat, backlash, link weight).
 
 The baseline is the paper's form on the same trials; the issue's targets are printed beside.
 """
@@ -39,7 +41,7 @@ class _Recorder:
         return out
 
 
-def trials(protocol_name: str, seed: int, settle_s: float):
+def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool = False):
     """The protocol's trial table on the simulated rig, with the rest posture columns (deg)."""
     from labcli.core.protocol import load_protocol
     from labcli.experiments.takuma2014.protocol import load_plan
@@ -47,7 +49,11 @@ def trials(protocol_name: str, seed: int, settle_s: float):
     from labcli.experiments.takuma2014.sim.rig import SimRig
 
     proto = load_protocol(protocol_name)
+    from labcli.experiments.takuma2014.sim.nonideal import NonIdeal
+
     kw = {"supply_MPa": BENT_SUPPLY_MPA} if protocol_name.endswith("bent") else {}
+    if ideal:
+        kw["nonideal"] = NonIdeal.ideal()
     rig = _Recorder(SimRig(seed=seed, **kw))
     table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=settle_s)
     pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
@@ -57,12 +63,12 @@ def trials(protocol_name: str, seed: int, settle_s: float):
     return proto, table
 
 
-def measure(protocol_name: str, seed: int, settle_s: float) -> dict:
+def measure(protocol_name: str, seed: int, settle_s: float, ideal: bool = False) -> dict:
     from labcli.experiments.takuma2014.models.metrics import evaluate
     from labcli.experiments.takuma2014.models.posture import PostureModel, limits_from_protocol
     from labcli.experiments.takuma2014.models.takuma import TakumaModel
 
-    proto, table = trials(protocol_name, seed, settle_s)
+    proto, table = trials(protocol_name, seed, settle_s, ideal)
     rig = proto.settings.rig
     out = {}
     for form, model in (("paper", TakumaModel(geometry=rig)),
@@ -88,6 +94,7 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 1,4,7")
     ap.add_argument("--settle", type=float, default=8.0, help="settling time per load, s (simulated)")
+    ap.add_argument("--ideal", action="store_true", help="the rig with its non-idealities off")
     args = ap.parse_args(argv)
     if "-" in args.seeds:
         lo, hi = (int(s) for s in args.seeds.split("-"))
@@ -95,7 +102,7 @@ def main(argv: list[str] | None = None) -> None:
     else:
         seeds = [int(s) for s in args.seeds.split(",")]
     for protocol in ("takuma2014", "takuma2014-bent"):
-        runs = [measure(protocol, s, args.settle) for s in seeds]
+        runs = [measure(protocol, s, args.settle, args.ideal) for s in seeds]
         rest = np.median([r["rest_deg"] for r in runs])
         print(f"\n{protocol}: {len(seeds)} seeds x 18 validation trials, rest theta2 {rest:.1f} deg (median)")
         print(f"{'quantity':10s} {'form':8s} {'reported':>10s} {'RMSE rep.':>10s} {'RMSE all':>10s} "
