@@ -137,3 +137,16 @@ def test_model_file_round_trip_and_form_dispatch(tmp_path):
 def test_too_few_fit_trials_name_the_paper_form():
     with pytest.raises(ModelError, match="needs more than 14 usable fit trials, got 12.*--form paper"):
         PostureModel(geometry=GEOMETRY).fit(exact_table(15, (0.0, 12.0)))
+
+
+def test_classification_reads_the_pushes_rest_posture_into_the_posture_form():
+    from labcli.experiments.takuma2014.models.classify import _posture_and_force, _rest_posture
+
+    t = exact_table(120, (0.0, 14.0))
+    model = PostureModel(geometry=GEOMETRY).fit(t)
+    v = t[t.set == "validation"].reset_index(drop=True)
+    theta0 = _rest_posture(v)
+    np.testing.assert_allclose(np.degrees(theta0), np.tile([0.0, 14.0], (len(v), 1)))
+    _, pred = _posture_and_force(v, model, "pressure-only", theta0)
+    np.testing.assert_allclose(pred["Fy_N"], v.Fy_N, atol=1e-6)
+    assert _rest_posture(v.drop(columns=["theta1_0_deg"])) is None

@@ -59,7 +59,7 @@ import numpy as np
 from ....errors import ModelError
 from .geometry import jacobian
 from .takuma import (ANGLE_COLUMNS, BASELINE_COLUMNS, FORCE_COLUMNS, LOADED_COLUMNS, SCHEMA, SCHEMA_VERSION,
-                     TakumaModel, _clean, cap, normalise_geometry, select_set)
+                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, select_set)
 
 FORM = "posture"
 REST_COLUMNS = ("theta1_0_deg", "theta2_0_deg")
@@ -305,11 +305,7 @@ class PostureModel:
         """
         if not self.is_fitted:
             raise ModelError("The model has no coefficients yet; fit it on a run first (`labcli fit RUN.h5`).")
-        P0 = np.atleast_2d(np.asarray(P0, dtype=float))
-        P = np.atleast_2d(np.asarray(P, dtype=float))
-        if P0.shape != P.shape or P0.shape[1] != 4:
-            raise ModelError(f"Pressures must be (n, 4) arrays in the order L1, R1, L2, R2; "
-                             f"got {P0.shape} and {P.shape}.")
+        P0, P = pressure_arrays(P0, P)
         n = len(P)
         th0 = np.zeros((n, 2)) if theta0 is None else np.broadcast_to(np.asarray(theta0, dtype=float), (n, 2))
         th0 = np.where(np.isfinite(th0), th0, 0.0)

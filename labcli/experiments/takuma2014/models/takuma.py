@@ -116,6 +116,16 @@ def pressure_ratio_features(P0: np.ndarray, P: np.ndarray) -> np.ndarray:
     return P0 / P - 1.0
 
 
+def pressure_arrays(P0: Any, P: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Baseline and loaded pressures as (n, 4) float arrays (ModelError for any other shape)."""
+    P0 = np.atleast_2d(np.asarray(P0, dtype=float))
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    if P0.shape != P.shape or P0.shape[1] != 4:
+        raise ModelError(f"Pressures must be (n, 4) arrays in the order L1, R1, L2, R2; "
+                         f"got {P0.shape} and {P.shape}.")
+    return P0, P
+
+
 def theta2_threshold(h2: float, h3: float, max_cond: float) -> float:
     """Smallest |theta2| (rad) at which cond(J) <= max_cond."""
     if not max_cond > 1.0:
@@ -449,11 +459,7 @@ class TakumaModel:
         self._require_fitted()
         if mode not in ("pressure-only", "measured-angles"):
             raise ModelError(f"Unknown prediction mode '{mode}'; use pressure-only or measured-angles.")
-        P0 = np.atleast_2d(np.asarray(P0, dtype=float))
-        P = np.atleast_2d(np.asarray(P, dtype=float))
-        if P0.shape != P.shape or P0.shape[1] != 4:
-            raise ModelError(f"Pressures must be (n, 4) arrays in the order L1, R1, L2, R2; "
-                             f"got {P0.shape} and {P.shape}.")
+        P0, P = pressure_arrays(P0, P)
         n = len(P)
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         flags: list[list[str]] = [[] for _ in range(n)]
