@@ -12,7 +12,8 @@ import click
 @click.option("--pty", "use_pty", is_flag=True, help="Serve on a new pseudo-terminal (required).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the rig's actuators, sensor offsets and noise.")
-@click.option("--rate", type=click.FloatRange(1, 5000), default=200.0, show_default=True,
+# 1..50000 are labcli.core.sim.firmware's RATE_MIN and RATE_MAX (not imported here: --help stays light).
+@click.option("--rate", type=click.FloatRange(1, 50000), default=200.0, show_default=True,
               help="Sample rate at power-up, Hz (the host's RATE command changes it).")
 @click.option("--noise", type=click.FloatRange(min=0), default=1.0, show_default=True,
               help="Scale of the sensor noise (1 = 0.5 count pressure, 0.7 count angle rms).")
@@ -95,14 +96,17 @@ def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float, fault
             server = serve_pty(seed=seed, rate=rate, noise=noise, drift=drift, faults=spec, **rig_options)
         except OSError as e:
             raise click.ClickException(f"cannot open a pseudo-terminal: {e.strerror or e}.") from None
-    _serve(server, firmware)
+    what = f"firmware {firmware} on simavr" if firmware is not None else "firmware model"
+    _serve(server, firmware, f"simulated rig {server.rig.device} (labcli sim --pty, seed {seed}, {what})")
 
 
-def _serve(server: Any, firmware: str | None) -> None:
-    """Serve until stopped, acting on the operator's lines typed on standard input."""
+def _serve(server: Any, firmware: str | None, description: str) -> None:
+    """Serve until stopped, acting on the operator's lines typed on standard input; listed by
+    ``labcli ports`` meanwhile."""
     import sys
 
     from ..core.sim.console import StdinConsole
+    from ..core.sim.served import announce
 
     def _stop(signum, frame):
         server.request_stop()
@@ -114,8 +118,9 @@ def _serve(server: Any, firmware: str | None) -> None:
         console = StdinConsole(sys.stdin, server.operate, click.echo)
         if console.open and sys.stdin.isatty():
             click.echo("Type operator actions here, one a line (help lists them).")
-        while not server.wait(0.0 if console.open else 0.5):
-            console.poll(0.5)
+        with announce(server.path, description):
+            while not server.wait(0.0 if console.open else 0.5):
+                console.poll(0.5)
     finally:
         for s, h in old.items():
             signal.signal(s, h)

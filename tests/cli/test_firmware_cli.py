@@ -15,7 +15,6 @@ The checks that need no simulator (option errors, missing builds) run everywhere
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import signal
@@ -73,7 +72,10 @@ def test_monitor_reads_the_rig_through_the_firmware(firmware_elf):
         rig.supply_air()
         time.sleep(1.0)  # ten time constants: 0.3 MPa in the chambers
         rig.close_valves()
-        rig.hang_weight(0.5, math.radians(30))  # pressures and angles away from their rest values
+        t_rest = server.link.avr_time_s
+        # Pressures and angles away from their rest values: at the paper's scale 1 kg along +x
+        # bends joint 1 by about 2.5 deg (30 counts) and raises P_L1 by about 7 kPa (22 counts).
+        rig.hang_weight(1.0, 0.0)
         time.sleep(1.0)  # the rig is still again
         proc = subprocess.run([sys.executable, "-m", "labcli", "monitor", "--port", server.path, "--seconds", "3",
                                "--json"], cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
@@ -92,7 +94,9 @@ def test_monitor_reads_the_rig_through_the_firmware(firmware_elf):
     one_count = np.abs(scale.to_si(truth + 1.0) - scale.to_si(truth))
     got = np.array([summary["channels"][name]["mean"] for name in FIRMWARE_CHANNELS])
     assert np.all(np.abs(got - scale.to_si(truth)) <= one_count), (got, scale.to_si(truth), one_count)
-    assert truth[0] > 1800 and abs(truth[4] - 2048) > 40  # 0.3 MPa supplied, joint 1 bent by the weight
+    rest = fed_mean(fed, t_rest - 0.5, t_rest)
+    assert rest[0] == pytest.approx(1802, abs=15)  # 0.3 MPa supplied (1802 counts), give or take the offsets
+    assert truth[0] - rest[0] > 10 and truth[4] - rest[4] < -20  # L1 stretched, joint 1 bent by the weight
 
 
 def test_unattended_acquire_through_the_firmware(firmware_elf, tmp_path, monkeypatch):

@@ -140,8 +140,10 @@ def test_running_stats_match_numpy_over_any_batching(sizes, seed):
         np.testing.assert_allclose(rs.std, x.std(axis=0, ddof=1), rtol=1e-9)
 
 
-def test_ports_lists_device_description_and_hwid(monkeypatch):
+def test_ports_lists_device_description_and_hwid(monkeypatch, tmp_path):
     from serial.tools import list_ports
+
+    monkeypatch.setenv("LABCLI_RUNTIME_DIR", str(tmp_path))  # no simulated rig serving
 
     fake = [
         SimpleNamespace(device="/dev/ttyUSB0", description="FT232R USB UART", hwid="USB VID:PID=0403:6001"),
@@ -157,8 +159,10 @@ def test_ports_lists_device_description_and_hwid(monkeypatch):
     ]
 
 
-def test_ports_says_plainly_when_there_are_none(monkeypatch):
+def test_ports_says_plainly_when_there_are_none(monkeypatch, tmp_path):
     from serial.tools import list_ports
+
+    monkeypatch.setenv("LABCLI_RUNTIME_DIR", str(tmp_path))
 
     monkeypatch.setattr(list_ports, "comports", lambda: [])
     result = CliRunner().invoke(cli, ["ports"])
@@ -167,6 +171,51 @@ def test_ports_says_plainly_when_there_are_none(monkeypatch):
         "No serial ports found on this machine: plug in the rig's USB cable (and check its driver), "
         "or use --port sim:// for the simulated rig.\n"
     )
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+def test_ports_lists_a_serving_simulated_rig_marked_as_such(monkeypatch, tmp_path):
+    # pyserial lists no pseudo-terminals; a serving `labcli sim --pty` is listed, marked as the
+    # simulated rig, only while it serves; a note left by a killed server is dropped.
+    import subprocess
+    import sys
+    import time
+
+    from serial.tools import list_ports
+
+    monkeypatch.setenv("LABCLI_RUNTIME_DIR", str(tmp_path))
+    usb = SimpleNamespace(device="/dev/ttyUSB0", description="FT232R USB UART", hwid="USB VID:PID=0403:6001")
+    monkeypatch.setattr(list_ports, "comports", lambda: [usb])
+    (tmp_path / "sim-999999999.json").write_text(json.dumps(
+        {"device": "/dev/pts/999", "pid": 999999999, "description": "simulated rig of a killed server"}))
+    proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "LABCLI_RUNTIME_DIR": str(tmp_path)})
+    try:
+        path = proc.stdout.readline().split()[3]
+        deadline = time.monotonic() + 10.0  # the note is written just after the banner
+        while not (tmp_path / f"sim-{proc.pid}.json").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        result = CliRunner().invoke(cli, ["ports"])
+        assert result.exit_code == 0
+        description = "simulated rig mckibben-2dof-sim (labcli sim --pty, seed 3, firmware model)"
+        width = max(len(path), len("/dev/ttyUSB0"))
+        assert result.output.splitlines() == [
+            f"{'DEVICE':<{width}}  {'DESCRIPTION':<{len(description)}}  HWID",
+            f"{'/dev/ttyUSB0':<{width}}  {'FT232R USB UART':<{len(description)}}  USB VID:PID=0403:6001",
+            f"{path:<{width}}  {description}  sim pid {proc.pid}",
+        ]
+        assert not (tmp_path / "sim-999999999.json").exists()
+        proc.stdin.write("quit\n")
+        proc.stdin.flush()
+        proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0
+    assert list(tmp_path.iterdir()) == []  # the note goes with the server
+    assert CliRunner().invoke(cli, ["ports"]).output.splitlines()[1:] == [
+        "/dev/ttyUSB0  FT232R USB UART  USB VID:PID=0403:6001"]
 
 
 def test_monitor_on_the_simulated_rig():

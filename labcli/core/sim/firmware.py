@@ -5,7 +5,7 @@ streaming, turns the rig's ADC samples into data lines.  It knows nothing of
 time sources: the ``sim://`` port (virtual or wall clock) and the pty server
 decide how many frames are due and ask for them with :meth:`Firmware.frames`.
 
-Commands (one per line, ``\\r`` tolerated): ``ID?``, ``RATE <hz>`` (1..5000),
+Commands (one per line, ``\\r`` tolerated): ``ID?``, ``RATE <hz>`` (1..50000),
 ``START``, ``STOP``; anything else is answered with ``ERR ...``.  ``seq`` counts
 data lines since power-up and ``t_us`` is the rig's clock, both unsigned 32-bit
 and wrapping.
@@ -21,7 +21,12 @@ import numpy as np
 from ..wire import MAX_LINE, U32, checksum, format_log
 
 RATE_MIN = 1.0
-RATE_MAX = 5000.0
+# As far as the host's stream reader goes: it spends 6-8 us of CPU per 6-channel frame
+# (tests/benchmarks/bench_link.py), so 50 kHz (2.5 MB/s over a pty) takes a third to two
+# fifths of one core, a USB-native board's link on a lab PC; beyond it a reader sharing
+# its core loses frames.  Links of 10-50 kHz can be tested; the reference firmware on an
+# ATmega328P stops far lower (its UART and ADC: firmware/src/config.h).
+RATE_MAX = 50000.0
 _OVERLONG = f"ERR line longer than {MAX_LINE} bytes\n".encode()
 
 

@@ -8,7 +8,7 @@ firmware (:mod:`labcli.core.sim.firmware`) over a simulated rig.
 URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME][&faults=SPEC][&firmware=ELF][&RIG_OPTION=...]``
 
 * ``seed`` (0): seeds the actuators, sensor offsets, noise and settling times;
-* ``rate`` (200): sample rate at power-up, Hz (1..5000; ``RATE`` changes it);
+* ``rate`` (200): sample rate at power-up, Hz (1..50000; ``RATE`` changes it);
 * ``noise`` (1): scale of the sensor noise (0.5 count pressure, 0.7 count pot rms);
 * ``drift`` (0): scale of sensor zero drift;
 * ``clock``: ``virtual`` (default) advances device time only as the host reads,

@@ -36,6 +36,7 @@ from .faults import FaultInjector, FaultSpec
 from .firmware import Firmware
 
 POLL_S = 0.005
+MAX_BACKLOG = 1 << 20  # bytes queued for a host that does not read, about 20000 frames
 
 
 class PtyServer:
@@ -139,7 +140,7 @@ class PtyServer:
                 due = int((now - pace_t0) * fw.rate_hz) - sent
                 if due > 0:
                     sent += due
-                    self._out += fw.frames(due)
+                    self._queue_frames(fw.frames(due))
                     stall = fw.take_stall()
                     if stall is not None:
                         # The firmware hung: the frames it did not make fall due a stall later.
@@ -153,10 +154,18 @@ class PtyServer:
                     pass
                 except OSError:
                     return
-                if len(self._out) > 1 << 20:
-                    # Nobody is reading: drop what the pty cannot take, as a UART would.
-                    self.dropped_frames += self._out.count(b"\n$")
-                    self._out.clear()
+
+    def _queue_frames(self, frames: bytes) -> None:
+        """Queue new frames for the host, or drop them whole while the backlog is full.
+
+        A firmware whose UART cannot keep up drops the frames it makes, never what it
+        already queued, and never its replies to commands: so ``OK STOP`` still reaches
+        a host that fell behind (the sequence numbers show the gap).
+        """
+        if len(self._out) + len(frames) > MAX_BACKLOG:
+            self.dropped_frames += frames.count(b"$D")
+        else:
+            self._out += frames
 
 
 def serve_pty(seed: int = 0, rate: float = 200.0, noise: float = 1.0, drift: float = 0.0,

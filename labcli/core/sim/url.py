@@ -88,7 +88,7 @@ def _firmware(text: str) -> str:
 # option -> (parser, default, what a valid value is (text, or a function giving it))
 OPTIONS = {
     "seed": (_whole, 0, "a whole number >= 0"),
-    "rate": (_rate, 200.0, "a number of Hz within 1..5000"),
+    "rate": (_rate, 200.0, f"a number of Hz within {RATE_MIN:g}..{RATE_MAX:g}"),
     "noise": (_nonneg, 1.0, "a number >= 0"),
     "drift": (_nonneg, 0.0, "a number >= 0"),
     "clock": (_clock, "virtual", "'virtual' or 'wall'"),

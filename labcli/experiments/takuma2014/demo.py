@@ -7,6 +7,9 @@ same files a lab would have after an afternoon at the rig:
    acquired unattended over ``sim://`` in virtual time; the plan's 90/18 split.
 2. ``force.model.json``: Eqs. 34-37 fitted on the 90 fit trials (Section 3.3).
 3. ``fig7-accuracy.png``: the 18 validation trials, pressure-only (Figure 7).
+   The same 108 trials on the ideal rig (``&ideal=1``, same seed: no friction, leak,
+   heat, backlash or link weight), fitted and validated the same way, give the accuracy
+   beside it: what the default rig's non-idealities cost (that run is not kept).
 4. ``pushes.h5``: six simulated objects (three PET bottles, two aluminium cans,
    one steel can) pushed ten times each (Section 4).
 5. ``fig9-stiffness.png``: their stiffness and category (Figure 9).
@@ -22,6 +25,7 @@ and read its numbers without the command line.
 from __future__ import annotations
 
 import json
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,7 +48,9 @@ BENT_PROTOCOL = "takuma2014-bent"
 BENT_SUPPLY = "0.3,0.3,0.4,0.2"
 
 # Stage names in order, for progress displays.
-STAGES = ("acquire force trials", "fit", "validate", "acquire pushes", "classify", "bent arm", "export")
+STAGES = ("acquire force trials", "fit", "validate", "the same trials on the ideal rig", "acquire pushes",
+          "classify", "bent arm", "export")
+IDEAL = "&ideal=1"  # the sim:// option that turns every non-ideality of the rig off
 
 OUTPUTS = ("force.h5", "force.model.json", "fig7-accuracy.png", "pushes.h5",
            "fig9-stiffness.png", "bent.h5", "bent.model.json", "fig7-bent.png",
@@ -62,6 +68,7 @@ class DemoResult:
     accuracy: dict[str, dict[str, Any]]
     objects: list[dict[str, Any]]
     classify_method: str
+    accuracy_ideal: dict[str, dict[str, Any]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     forms: dict[str, dict[str, Any]] = field(default_factory=dict)  # protocol -> form -> quantity -> metrics
 
@@ -74,6 +81,7 @@ class DemoResult:
             "trials": self.trials,
             "coefficients": self.coefficients,
             "accuracy": self.accuracy,
+            "accuracy_ideal_rig": self.accuracy_ideal,
             "objects": self.objects,
             "classify_method": self.classify_method,
             "notes": self.notes,
@@ -106,35 +114,44 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     with stages.run(2, "validate"):
         evaluation = evaluate(model, src.table, "pressure-only", source=str(files["force_run"]))
         figure7(evaluation, files["figure7"])
-    with stages.run(3, "acquire_pushes"):
+    with stages.run(3, "ideal_rig"):
+        ideal = _ideal_rig_accuracy(port + IDEAL, progress)
+    with stages.run(4, "acquire_pushes"):
         # The same seed is the same rig (its actuators' variation): the model fitted above
         # describes this rig and no other.
-        acquire_unattended(files["push_run"], port, "push run", STAGES[3], progress, protocol=PUSH_PROTOCOL)
-    with stages.run(4, "classify"):
+        acquire_unattended(files["push_run"], port, "push run", STAGES[4], progress, protocol=PUSH_PROTOCOL)
+    with stages.run(5, "classify"):
         # Categories from the protocol's stiffness bands: the pushed objects are labelled in
         # the run (their true class), and judging each against labels that include its own
         # would be circular for the lone steel can.
         report = classify_file(files["push_run"], model, method="bands")
         figure9(report, files["figure9"])
-    with stages.run(5, "bent_arm"):
-        acquire_unattended(files["bent_run"], f"{port}&supply={BENT_SUPPLY}", "bent-arm run", STAGES[5],
-                           progress, protocol=BENT_PROTOCOL)
-        forms = {FORCE_PROTOCOL: _both_forms(src, model), BENT_PROTOCOL: {}}
-        bent = load_trial_source(files["bent_run"])
-        bent_model = _posture(bent, files["bent_run"])
-        save_model(bent_model.to_json(), files["bent_model"], run=files["bent_run"], name=bent_model.protocol)
-        bent_ev = evaluate(bent_model, bent.table, "pressure-only", source=str(files["bent_run"]))
-        figure7(bent_ev, files["figure7_bent"])
-        forms[BENT_PROTOCOL] = {"posture": _metrics(bent_ev), "paper": _metrics(evaluate(
-            TakumaModel(geometry=bent.protocol.settings.rig, protocol=bent.protocol.name).fit(bent.table),
-            bent.table, "pressure-only"))}
-    with stages.run(6):
+    with stages.run(6, "bent_arm"):
+        forms = {FORCE_PROTOCOL: _both_forms(src, model),
+                 BENT_PROTOCOL: _bent_arm(port, files, progress)}
+    with stages.run(7):
         write_trial_csv(src.table, files["trials_csv"])
         write_push_csv(load_pushes(files["push_run"]), files["pushes_csv"])
     result = _result(out, seed, files, stages.done(), src, model, evaluation, report)
+    result.accuracy_ideal = ideal
     result.forms = forms
     files["summary"].write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False), encoding="utf-8")
     return result
+
+
+def _ideal_rig_accuracy(port: str, progress: Progress | None) -> dict[str, dict[str, Any]]:
+    """Validation accuracy of the same force run on the ideal rig ``port``, fitted and validated alike."""
+    with tempfile.TemporaryDirectory(prefix="labcli-demo-") as tmp:
+        path = Path(tmp) / "force-ideal.h5"
+        acquire_unattended(path, port, "ideal-rig force run", STAGES[3], progress, protocol=FORCE_PROTOCOL)
+        src = load_trial_source(path)
+    model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name).fit(src.table)
+    return _accuracy(evaluate(model, src.table, "pressure-only", source=port))
+
+
+def _accuracy(evaluation: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    keep = ("n", "rmse", "mae", "max_abs", "bias", "r2", "unit", "n_flagged", "pct_range", "rmse_all", "coverage95")
+    return {q: {k: v for k, v in m.items() if k in keep} for q, m in evaluation["metrics"].items()}
 
 
 def _posture(src: Any, run: Path) -> PostureModel:
@@ -142,17 +159,23 @@ def _posture(src: Any, run: Path) -> PostureModel:
                         limits=limits_from_protocol(src.protocol)).fit(src.table, source=str(run))
 
 
-ACCURACY_KEYS = ("n", "rmse", "mae", "max_abs", "bias", "r2", "unit", "n_flagged", "pct_range", "rmse_all", "coverage95")
-
-
-def _metrics(ev: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    return {q: {k: v for k, v in m.items() if k in ACCURACY_KEYS} for q, m in ev["metrics"].items()}
-
-
 def _both_forms(src: Any, paper_model: TakumaModel) -> dict[str, Any]:
     """Both forms' validation metrics on the straight protocol's run."""
-    return {"posture": _metrics(evaluate(_posture(src, Path(src.path)), src.table, "pressure-only")),
-            "paper": _metrics(evaluate(paper_model, src.table, "pressure-only"))}
+    return {"posture": _accuracy(evaluate(_posture(src, Path(src.path)), src.table, "pressure-only")),
+            "paper": _accuracy(evaluate(paper_model, src.table, "pressure-only"))}
+
+
+def _bent_arm(port: str, files: dict[str, Path], progress: Progress | None) -> dict[str, Any]:
+    """The bent-rest protocol: acquired, the posture form fitted and saved, Figure 7, both forms' metrics."""
+    acquire_unattended(files["bent_run"], f"{port}&supply={BENT_SUPPLY}", "bent-arm run", STAGES[6],
+                       progress, protocol=BENT_PROTOCOL)
+    bent = load_trial_source(files["bent_run"])
+    model = _posture(bent, files["bent_run"])
+    save_model(model.to_json(), files["bent_model"], run=files["bent_run"], name=model.protocol)
+    evaluation = evaluate(model, bent.table, "pressure-only", source=str(files["bent_run"]))
+    figure7(evaluation, files["figure7_bent"])
+    paper = TakumaModel(geometry=bent.protocol.settings.rig, protocol=bent.protocol.name).fit(bent.table)
+    return {"posture": _accuracy(evaluation), "paper": _accuracy(evaluate(paper, bent.table, "pressure-only"))}
 
 
 def _result(out: Path, seed: int, files: dict[str, Path], timings: dict[str, float], src: Any, model: Any,
@@ -164,7 +187,7 @@ def _result(out: Path, seed: int, files: dict[str, Path], timings: dict[str, flo
          "paper": paper.get(name)}
         for name, value in model.coefficients.items()
     ]
-    accuracy = _metrics(evaluation)
+    accuracy = _accuracy(evaluation)
     rep = report.to_dict()
     sets = src.table["set"].value_counts().to_dict()
     return DemoResult(

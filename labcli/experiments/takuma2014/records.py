@@ -55,10 +55,11 @@ class _McKibbenRecords(BaseRecordType):
                 "slope_kPa_per_trial": float(slope * 1e3),
                 "max_deviation_kPa": float(np.max(np.abs(p0[:, c] - p0[0, c])) * 1e3),
             }
-        return {"baseline_drift": drift}
+        return {"baseline_drift": drift, "baseline_leak": _leak(run, ids, groups, p0)}
 
     def inspect_lines(self, summary: dict[str, Any]) -> list[str]:
-        return [records_line(summary), split_line(summary), settling_line(summary), *drift_lines(summary)]
+        return [records_line(summary), split_line(summary), settling_line(summary), *drift_lines(summary),
+                *leak_lines(summary)]
 
     @staticmethod
     def _pressures(record: Mapping[str, Any], label: str, loaded: str) -> list[Dataset]:
@@ -79,6 +80,53 @@ def drift_lines(s: dict[str, Any]) -> list[str]:
                      f"slope {d['slope_kPa_per_trial']:+.3f} kPa/{rec[:-1] if rec == 'trials' else 'push'}, "
                      f"max deviation {d['max_deviation_kPa']:.3f} kPa")
     return lines
+
+
+def _baseline_times(run: Any, rid: int, group: Any) -> Any:
+    """Device times (s) of a record's baseline window, None without one.
+
+    Read from the record's group where the run file keeps it there (30 times faster than
+    decoding the whole record), else through :meth:`RunFile.read`."""
+    try:
+        return group["baseline"]["time"][()]
+    except (KeyError, TypeError):
+        window = run.read(rid)["raw"].get("baseline")
+        return None if window is None else window["t_s"]
+
+
+def _leak(run: Any, ids: list[int], groups: list[Any], p0: Any) -> dict[str, Any] | None:
+    """The baseline pressures' loss per minute of device time, from the records' baseline windows.
+
+    The valves stay closed from the first baseline to the last, so a chamber that leaks
+    loses pressure between baselines at its own rate; the slope of a straight line
+    through (baseline window's mean device time, P0) is that rate.  The arm's posture
+    after each unload differs a little (sleeve friction), which scatters the baselines
+    by a fraction of a kPa but does not tilt the line.  None for records without raw
+    windows (an imported table) or when the baselines span no time.
+    """
+    import numpy as np
+
+    times = []
+    for rid, g in zip(ids, groups):
+        t_s = _baseline_times(run, rid, g)
+        if t_s is None or len(t_s) == 0:
+            return None
+        times.append(float(np.mean(t_s)))
+    t = np.asarray(times)
+    if np.ptp(t) <= 0:
+        return None
+    loss = {name: float(-np.polyfit(t, p0[:, c], 1)[0] * 1e3 * 60) for c, name in enumerate(PRESSURE_NAMES)}
+    return {"span_s": float(np.ptp(t)), "loss_kPa_per_min": loss}
+
+
+def leak_lines(s: dict[str, Any]) -> list[str]:
+    """How fast the baselines lost pressure per minute of device time (the closed chambers' leak)."""
+    leak = s.get("baseline_leak")
+    if not leak:
+        return []
+    rates = ", ".join(f"{name} {v:.2f}" for name, v in leak["loss_kPa_per_min"].items())
+    return [f"  leak        baseline pressure lost over {leak['span_s'] / 60:.1f} min of device time, valves closed:",
+            f"    {rates} kPa/min"]
 
 
 class TrialRecords(_McKibbenRecords):

@@ -246,13 +246,23 @@ def print_demo(res: Any) -> None:
 
     acc = Table(title="Accuracy on the validation trials, pressure-only (Figure 7)",
                 title_justify="left", box=box.SIMPLE_HEAD)
-    for col in ("quantity", "n", "RMSE", "max |error|", "R^2", "RMSE / range", "flagged"):
+    ideal = res.accuracy_ideal
+    cols = ("quantity", "n", "RMSE", "max |error|", "R^2", "RMSE / range", "flagged") + (
+        ("ideal rig RMSE",) if ideal else ())
+    for col in cols:
         acc.add_column(col, justify="left" if col == "quantity" else "right")
     for q, m in res.accuracy.items():
         unit = m["unit"]
-        acc.add_row(f"{q} ({unit})", str(m["n"]), cell(m["rmse"], ".3g"), cell(m["max_abs"], ".3g"),
-                    cell(m["r2"], ".4f"), cell(m["pct_range"], ".2f") + " %", str(m["n_flagged"]))
+        row = [f"{q} ({unit})", str(m["n"]), cell(m["rmse"], ".3g"), cell(m["max_abs"], ".3g"),
+               cell(m["r2"], ".4f"), cell(m["pct_range"], ".2f") + " %", str(m["n_flagged"])]
+        if ideal:
+            row.append(cell(ideal[q]["rmse"], ".3g") if q in ideal else "—")
+        acc.add_row(*row)
     con.print(acc)
+    if ideal:
+        con.print("The default rig has sleeve friction, chamber leaks, thermal relaxation, potentiometer backlash "
+                  "and link weight; the ideal rig (the same seed with ideal=1) has none, so the two RMSE columns "
+                  "show what they cost.", soft_wrap=True)
     for protocol, forms in getattr(res, "forms", {}).items():
         print_forms(forms, f"protocol {protocol}")
 

@@ -221,7 +221,11 @@ def test_firmware_replies():
     fw = Firmware(SimRig(seed=0), 200)
     assert fw.receive(b"ID?\n") == b"ID,mckibben-2dof-sim,1.0,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n"
     assert fw.receive(b"RATE 500\r\n") == b"OK RATE 500\n"
-    assert fw.receive(b"RATE 0\n") == b"ERR RATE must be within 1..5000 Hz, got 0\n"
+    assert fw.receive(b"RATE 0\n") == b"ERR RATE must be within 1..50000 Hz, got 0\n"
+    # Up to the stream reader's measured limit (tests/benchmarks/bench_link.py), not beyond.
+    assert fw.receive(b"RATE 50000\n") == b"OK RATE 50000\n"
+    assert fw.receive(b"RATE 50001\n") == b"ERR RATE must be within 1..50000 Hz, got 50001\n"
+    assert fw.rate_hz == 50000
     assert fw.receive(b"RATE fast\n") == b"ERR RATE needs a number of Hz, got 'fast'\n"
     assert fw.receive(b"HELLO\n") == b"ERR unknown command 'HELLO'\n"
     assert fw.receive(b"STA") == b""  # partial line waits for its newline
@@ -271,7 +275,7 @@ def test_url_rejects_unknown_option_with_the_accepted_form():
     "url,message",
     [
         ("sim://?seed=abc", "option 'seed' in sim:// URL must be a whole number >= 0, got 'abc'"),
-        ("sim://?rate=9000", "option 'rate' in sim:// URL must be a number of Hz within 1..5000, got '9000'"),
+        ("sim://?rate=60000", "option 'rate' in sim:// URL must be a number of Hz within 1..50000, got '60000'"),
         ("sim://?clock=fast", "option 'clock' in sim:// URL must be 'virtual' or 'wall', got 'fast'"),
         ("sim://?noise=-1", "option 'noise' in sim:// URL must be a number >= 0, got '-1'"),
         ("sim://?seed=1&seed=2", "option 'seed' given twice in sim:// URL"),
@@ -515,3 +519,48 @@ def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_sim_command_refuses_a_rate_beyond_the_readers_limit():
+    from labcli.core.sim.firmware import RATE_MAX, RATE_MIN
+
+    from labcli.cli import cli
+    from labcli.commands.sim import sim
+
+    result = CliRunner().invoke(cli, ["sim", "--pty", "--rate", "60000"])
+    assert result.exit_code == 2
+    assert result.output.splitlines()[-1] == (
+        "Error: Invalid value for '--rate': 60000.0 is not in the range 1<=x<=50000.")
+    # The command's bounds (kept literal so that --help imports no numpy) are the firmware's.
+    rate = next(p for p in sim.params if p.name == "rate")
+    assert (rate.type.min, rate.type.max) == (RATE_MIN, RATE_MAX)
+    assert serial.serial_for_url("sim://?rate=50000").firmware.rate_hz == RATE_MAX
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+def test_a_host_that_falls_behind_loses_frames_but_still_gets_ok_stop():
+    # At 50 kHz a host that stops reading fills the backlog in well under a second.  The rig
+    # drops its new frames whole from then on (the sequence numbers show the gap), never what is
+    # queued and never its replies: the STOP sent afterwards is answered (a host waiting for it
+    # used to wait for ever once the backlog was cleared with the reply in it).
+    from labcli.core.sim.pty import MAX_BACKLOG, serve_pty
+
+    server = serve_pty(seed=1, rate=50000)
+    try:
+        with serial.Serial(server.path, timeout=0.2) as port:
+            port.write(b"START\n")
+            time.sleep(1.5)  # not reading: about 75000 frames fall due
+            assert server.dropped_frames > 10000
+            port.write(b"STOP\n")
+            data, deadline = b"", time.monotonic() + 10.0
+            while b"OK STOP\n" not in data and time.monotonic() < deadline:
+                data += port.read(1 << 16)
+            assert b"OK STOP\n" in data
+            assert len(data) <= MAX_BACKLOG + 4096 + (1 << 16)  # the backlog, the pty's buffer, the reply
+            seqs = [parse_line(line + b"\n", 6).seq for line in data.split(b"\n") if line.startswith(b"$D")]
+            # Frames arrive whole and in order, with a gap where new ones were dropped (the host
+            # may drain some backlog before STOP is read); every frame made was sent or counted dropped.
+            assert seqs[0] == 0 and all(b > a for a, b in zip(seqs, seqs[1:]))
+            assert len(seqs) + server.dropped_frames == server.firmware.count
+    finally:
+        server.stop()

@@ -252,7 +252,7 @@ CASES: list[Case] = [
          ["Invalid value for '--rate': 0.0 is not in the range x>0."], code=2, usage="acquire [OPTIONS] RUN.h5"),
     Case("arg-rate-refused", "CLI argument", "--rate the firmware refuses (acquire)",
          ["acquire", "new.h5", "--port", SIM, "--unattended", "--plan", "plan3.csv", "--rate", "1e9"],
-         [f"The device on {SIM} refused RATE 1000000000: 'ERR RATE must be within 1..5000 Hz, got 1000000000'. "
+         [f"The device on {SIM} refused RATE 1000000000: 'ERR RATE must be within 1..50000 Hz, got 1000000000'. "
           "Check the values its firmware accepts for that command."]),
     Case("arg-resume-and-force", "CLI argument", "--resume with --force (acquire)",
          ["acquire", "acq.h5", "--port", SIM, "--resume", "--force"],
