@@ -17,17 +17,23 @@ __all__ = ["__version__", "load_trials", "load_pushes"]
 
 
 def load_trials(path):
-    """Return the trial table of a run file (``.h5``) or a trial CSV as a DataFrame."""
+    """Return the trial table of a run file (``.h5``) or a trial CSV as a DataFrame.
+
+    ``df.attrs["units"]`` maps each column to its unit ("MPa", "deg", "N", "g");
+    ``df.attrs["provenance"]`` says where the rows came from (run uid where recorded,
+    protocol, device, labcli version, source file, ...), from the run file or from the
+    sidecar ``<csv>.json`` that ``labcli export`` writes beside a CSV.
+    """
     # Here, not at the top: ``import labcli`` (and ``labcli --help``) load no h5py or pandas.
     from .core.registry import record_type
-    from .core.store import load_table
+    from .core.table_meta import load_described
 
-    return load_table(path, record_type("force"))
+    return load_described(path, record_type("force"))
 
 
 def load_pushes(path):
-    """Return the push table of a run file (``.h5``) or a push CSV as a DataFrame."""
+    """Return the push table of a run file (``.h5``) or a push CSV as a DataFrame (attrs as load_trials)."""
     from .core.registry import record_type  # h5py, pandas: only here (see load_trials)
-    from .core.store import load_table
+    from .core.table_meta import load_described
 
-    return load_table(path, record_type("push"))
+    return load_described(path, record_type("push"))

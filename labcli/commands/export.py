@@ -1,4 +1,4 @@
-"""``labcli export``: a run's table (trials, pushes, rPAM points, ...) as CSV."""
+"""``labcli export``: a run's table (trials, pushes, rPAM points, ...) as CSV (with its sidecar) or parquet."""
 
 from __future__ import annotations
 
@@ -10,13 +10,22 @@ from ..errors import LabcliError
 @click.command("export")
 @click.argument("run", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="CSV file to write (replaced atomically).")
-def export(run: str, output: str) -> None:
+              help="File to write (replaced atomically).")
+@click.option("--format", "fmt", type=click.Choice(["csv", "parquet"]), default=None,
+              help="Table format [default: parquet for a .parquet OUTPUT, else csv].")
+def export(run: str, output: str, fmt: str | None) -> None:
     """Write RUN's table as CSV: trials, pushes for a push run, points for an rPAM run.
 
     Pressures in MPa, forces in N, angles in degrees, masses in grams; the
     ``set`` column comes from the run's split.  ``labcli import`` reads the
     file back, and exporting the imported run gives the same bytes.
+
+    Beside a CSV goes OUTPUT.json, its description in the Frictionless Table
+    Schema style: each column's type and unit, and where the rows came from
+    (run uid where recorded, protocol, device, labcli version, run file).
+    ``labcli.load_trials`` reads it back into the DataFrame's attrs.  With
+    --format parquet (needs pyarrow: pip install 'labcli[parquet]') the same
+    description goes into the parquet file's own metadata.
 
     \b
     An rPAM run (rpam2015) gives one row per point, in recording order:
@@ -31,13 +40,21 @@ def export(run: str, output: str) -> None:
     Example:
         labcli export run.h5 -o trials.csv
         labcli export stretch.h5 -o stretch.csv
+        labcli export run.h5 -o trials.parquet
     """
-    from ..core.store import RunFile  # heavy: when the command runs, not for --help
+    from ..core import table_meta  # heavy: when the command runs, not for --help
+    from ..core.store import RunFile
 
+    parquet = fmt == "parquet" or (fmt is None and output.lower().endswith((".parquet", ".pq")))
     try:
         with RunFile.open(run) as rf:
             records, df = rf.record_type, rf.table()
-        records.write_csv(df, output)
+            table_meta.describe(df, records.table_spec, table_meta.provenance(rf.attrs, run))
+        if parquet:
+            table_meta.write_parquet(df, output)
+        else:
+            records.write_csv(df, output)
+            table_meta.write_sidecar(df, records.table_spec, output)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"Wrote {records.count(len(df))} from {run} to {output}.")

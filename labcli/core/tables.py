@@ -25,18 +25,19 @@ import io
 import math
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from ..errors import ConfigError
+from .bounds import PRESSURE_SPAN_MPA, QUANTITIES, fmt_number, number_problem, wrap_degrees
+from .cells import INT64_MAX as _INT64_MAX, NUMBER as _NUMBER, TableSpec, infer_extra_column
 from .files import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-PRESSURE_SPAN_MPA = (0.0, 1.0)  # what a "pressure" cell may hold unless a table says otherwise: gauge, MPa
 MAX_LISTED = 200  # problems shown in one message; the count in line one is always complete
+
 
 class TableError(ConfigError):
     """A table failed its checks; ``.problems`` lists every ``file:row N, column C: message``."""
@@ -44,29 +45,6 @@ class TableError(ConfigError):
     def __init__(self, message: str, problems: list[str]) -> None:
         super().__init__(message)
         self.problems = problems
-
-
-# ---------------------------------------------------------------------------
-# Table descriptions (plain data): (column, kind, presence)
-#   presence: "required" | "optional" (added empty when absent) |
-#             "omit-if-empty" (optional, and left out of a written file when empty)
-# ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class TableSpec:
-    label: str  # "trial", "push", "plan": used in messages
-    columns: tuple[tuple[str, str, str], ...]
-    id_column: str
-    pairs: tuple[tuple[str, str], ...] = ()  # given together or not at all
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return tuple(c[0] for c in self.columns)
-
-
-_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-_INT64_MAX = 2**63 - 1
 
 
 # ---------------------------------------------------------------------------
@@ -112,35 +90,24 @@ def _parse_cell(kind: str, s: str, span: tuple[float, float]) -> tuple[Any, str 
         return s, None
     if kind == "text":
         return s, None
-    if kind.endswith("-or-empty") and s.strip() == "":
+    base = kind.removesuffix("-or-empty")
+    if base != kind and s.strip() == "":
         return math.nan, None
     v, err = _parse_number(s)
     if err:
         return None, err
-    if kind == "pressure":
-        lo, hi = span
-        if not v > lo:
-            return None, f"{_fmt(v)} MPa is not a positive gauge pressure"
-        if v > hi:
-            return None, f"{_fmt(v)} MPa is outside the sensor span {_fmt(lo)} to {_fmt(hi)} MPa"
-    elif kind.startswith("positive") and not v > 0:
-        return None, f"{_fmt(v)} must be greater than 0"
-    elif kind == "nonnegative" and not v >= 0:
-        return None, f"{_fmt(v)} must be 0 or more"
-    return v, None
+    err = number_problem(base, v, span)
+    if err:
+        return None, err
+    q = QUANTITIES.get(base)
+    return (wrap_degrees(v) if q is not None and q.wrap else v), None
 
 
 def _quote(s: str) -> str:
     return repr(s if len(s) <= 40 else s[:37] + "...")
 
 
-def fmt_number(v: float) -> str:
-    """A number as a message shows it: an integer without a decimal point, else ``repr``."""
-    return _fmt(v)
-
-
-def _fmt(v: float) -> str:
-    return repr(float(v)) if v != int(v) or abs(v) >= 1e16 else str(int(v))
+_fmt = fmt_number
 
 
 # ---------------------------------------------------------------------------
@@ -335,7 +302,7 @@ def _frame(spec: TableSpec, header: list[str], keep: list[int], columns: dict[st
     for j in keep:
         name = header[j]
         if name not in kinds:
-            frame[name] = _infer_extra(columns[name])
+            frame[name] = infer_extra_column(columns[name])
     return pd.DataFrame(frame)
 
 
@@ -361,35 +328,6 @@ def _standard_series(kind: str, values: list[Any]) -> "pd.Series":
     return pd.Series(values, dtype="float64")
 
 
-def _infer_extra(cells: list[str]) -> "pd.Series":
-    """Numbers only when every cell reads back to exactly its own text (nothing lost); empty: NaN."""
-    import pandas as pd
-
-    filled = [c for c in cells if c != ""]
-    if not filled:
-        # No value says what the column is; missing numbers, as pandas reads it.
-        return pd.Series([math.nan] * len(cells), dtype="float64")
-    if len(filled) == len(cells) and all(_is_canonical_int(c) for c in filled):
-        return pd.Series([int(c) for c in cells], dtype="int64")
-    if all(_is_canonical_float(c) for c in filled):
-        return pd.Series([float(c) if c else math.nan for c in cells], dtype="float64")
-    return pd.Series(cells, dtype=object)
-
-
-def _is_canonical_int(s: str) -> bool:
-    if not re.fullmatch(r"-?[0-9]+", s):
-        return False
-    v = int(s)
-    return str(v) == s and abs(v) <= _INT64_MAX
-
-
-def _is_canonical_float(s: str) -> bool:
-    if not _NUMBER.fullmatch(s):
-        return False
-    v = float(s)
-    return math.isfinite(v) and repr(v) == s
-
-
 def _read(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], extra_checks=None):
     label = str(path)
     return _parse_records(_records(Path(path), label), spec, label, span, extra_checks)
@@ -405,9 +343,41 @@ def read_table(path: str | os.PathLike, spec: TableSpec, *, span: tuple[float, f
     ``span`` bounds the "pressure" cells (MPa); ``id_range`` (low, high) also checks the
     ids, e.g. against what a run file can hold; ``check(row) -> [(column, problem), ...]``
     adds checks of its own (e.g. :func:`labcli.core.store.storable_cells`), reported by
-    row and column like the others.
+    row and column like the others.  A check may carry ``screen(frame) -> bool``, whether
+    any row of the whole table may fail it, so that a large good table need not be
+    checked row by row.
+
+    The table is read whole columns at a time (:mod:`labcli.core.table_fast`); a table
+    that does not read cleanly that way is read again cell by cell, which names every
+    problem.
     """
+    from .table_fast import read_fast
+
+    fast = read_fast(path, spec, span, _screen(spec, id_range, check))
+    if fast is not None:
+        return fast
     return _read(path, spec, span, _row_checks(spec, id_range, check))
+
+
+def _screen(spec: TableSpec, id_range: tuple[int, int] | None,
+            check: RowCheck | None) -> Callable[["pd.DataFrame"], bool] | None:
+    """Whether any row of a parsed table may fail ``id_range`` or ``check`` (whole columns where it can)."""
+    if id_range is None and check is None:
+        return None
+    own = getattr(check, "screen", None)
+
+    def screen(frame: "pd.DataFrame") -> bool:
+        if id_range is not None and spec.id_column in frame.columns:
+            ids = frame[spec.id_column]
+            if ((ids < id_range[0]) | (ids > id_range[1])).any():
+                return True
+        if check is None:
+            return False
+        if own is not None:
+            return bool(own(frame))
+        return any(True for row in frame.to_dict("records") for _ in check(row))
+
+    return screen
 
 
 def _row_checks(spec: TableSpec, id_range: tuple[int, int] | None, check: RowCheck | None) -> RowCheck | None:

@@ -121,6 +121,31 @@ def p_models(_: str, path: Path) -> tuple[str, str]:
     return head, ctx
 
 
+def p_tables(_: str, path: Path) -> tuple[str, str]:
+    d = json.loads(path.read_text())
+    steps = d["steps"]
+    last = {k: v[-1] for k, v in steps.items()}
+    n = last["fit"]["n"]
+
+    def exponent(rows: list, what: str) -> float:
+        import math
+
+        a, b = rows[0], rows[-1]
+        return math.log(b["labcli"][what] / a["labcli"][what]) / math.log(b["n"] / a["n"])
+
+    head = "; ".join(f"{k} {r['labcli']['seconds'] / r['pandas']['seconds']:.1f}x"
+                     for k, r in last.items())
+    ctx = (f"at n = {n:.0e} ({last['fit']['csv_bytes'] / 2**20:.0f} MiB CSV): "
+           + ", ".join(f"{k} {r['labcli']['seconds']:.1f} s / {r['labcli']['peak'] / 2**20:.0f} MiB "
+                       f"({r['labcli']['peak'] / r['csv_bytes']:.1f}x the CSV)" for k, r in last.items())
+           + "; exponent " + ", ".join(f"{k} {exponent(v, 'seconds'):.2f} (time) {exponent(v, 'peak'):.2f} (memory)"
+                                       for k, v in steps.items()))
+    for n_imp, r in d.get("import", {}).items():
+        ctx += (f"; import {int(n_imp):.0e} rows {r['import']['seconds']:.1f} s, of which reading "
+                f"{r['read']['seconds']:.1f} s")
+    return head, ctx
+
+
 def p_demo(_: str, path: Path) -> tuple[str, str]:
     d = json.loads(path.read_text())
     a, m = d["acquire"], d["demo"]
@@ -169,11 +194,15 @@ BENCHES = [
     Bench("firmware", "bench_firmware.py", ["--seconds", "2"],
           "highest frame rate with 0 lost, the firmware on simavr, 115200 and 1000000 baud",
           "baud limit (UART bytes/s over line length) and AVR limit (1 / sampling time per frame)", p_firmware),
+    Bench("tables", "bench_tables.py", ["--sizes", "1e4,1e5", "--import-sizes", "1e3", "--repeat", "1"],
+          "trial CSV: checked read, `labcli fit`, `labcli validate` (fresh process each, peak resident memory)",
+          "pandas `read_csv` (+ the four least-squares fits / evaluate)", p_tables, json=True),
     Bench("demo", "bench_demo.py", ["--seeds", "1", "--import-repeat", "5"],
           "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
           "`python -c \"import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma\"`", p_demo, json=True),
 ]
-FULL_ARGS = {"models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"], "demo": ["--seeds", "1-3"]}
+FULL_ARGS = {"models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"], "demo": ["--seeds", "1-3"],
+             "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e3,3e3", "--repeat", "2"]}
 
 
 def main() -> None:

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import pytest
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script: tests/ holds support/
 from support.bad_input import PLAN_HEADER, PROTOCOLS, PUSH_HEADER, PUSH_ROW, SIM, Case, all_cases
 
 CASES = all_cases()
@@ -124,7 +125,7 @@ def test_bad_input(case: Case, world: Path, tmp_path: Path) -> None:
 def test_the_table_covers_every_entry_point() -> None:
     assert len(CASES) >= 30 and len({c.id for c in CASES}) == len(CASES)
     entries = {c.entry for c in CASES}
-    assert entries == {"protocol TOML", "plan CSV", "trial CSV", "push CSV", "HDF5 file", "model JSON",
+    assert entries == {"protocol TOML", "plan CSV", "trial CSV", "push CSV", "point CSV", "HDF5 file", "model JSON",
                        "CLI argument", "port", "run file"}
     commands = {c.args[0] for c in CASES}
     assert commands >= {"acquire", "fit", "validate", "classify", "optimize", "split", "inspect", "export",

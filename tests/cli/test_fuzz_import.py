@@ -37,7 +37,8 @@ STANDARD = list(TRIAL.names)
 REQUIRED = [c for c, _, presence in TRIAL.columns if presence == "required"]
 PRESSURES = [c for c, kind, _ in TRIAL.columns if kind == "pressure"]
 EXACT = PRESSURES + ["Fx_N", "Fy_N"]
-CONVERTED = ["theta1_deg", "theta2_deg", "mass_g", "direction_deg"]  # stored in rad / kg
+CONVERTED = ["theta1_deg", "theta2_deg", "mass_g", "direction_deg", "theta1_0_deg", "theta2_0_deg"]  # rad / kg
+OPTIONAL = ("mass_g", "direction_deg", "theta1_0_deg", "theta2_0_deg")
 PROTOCOL = load_protocol("takuma2014")
 
 # NUL is left out of good text: a run file cannot store it, and the import refuses it by row and
@@ -62,15 +63,21 @@ def good_cell(column: str, trial: int) -> st.SearchStrategy[str]:
         return st.floats(min_value=1e-6, max_value=1.0).map(repr)
     if column == "mass_g":
         return st.floats(min_value=1e-3, max_value=5e3).map(repr)
-    return st.floats(min_value=-1e3, max_value=1e3, allow_subnormal=False).map(repr)
+    if column in ("Fx_N", "Fy_N"):
+        return st.floats(min_value=-1e3, max_value=1e3, allow_subnormal=False).map(repr)
+    # angles; a direction of -180 reads back as 180, the same direction
+    return st.floats(min_value=-180, max_value=180, exclude_min=column == "direction_deg",
+                     allow_subnormal=False).map(repr)
 
 
 @st.composite
 def tables(draw, valid: bool = False) -> tuple[str, bool]:
     """CSV text of a trial table, and whether it is valid (every cell, column and id); ``valid`` forces it."""
-    header = [c for c in STANDARD if c not in ("mass_g", "direction_deg")]
+    header = [c for c in STANDARD if c not in OPTIONAL]
     if draw(st.booleans()):
         header += ["mass_g", "direction_deg"]
+    if draw(st.booleans()):
+        header += ["theta1_0_deg", "theta2_0_deg"]
     names = ["note", "operator", "T_degC"] + ([] if valid else ["Fx_N", "trial"])
     extras = draw(st.lists(st.sampled_from(names), max_size=2, unique=valid))
     header += extras
@@ -83,7 +90,8 @@ def tables(draw, valid: bool = False) -> tuple[str, bool]:
     ids = draw(st.lists(id_values, min_size=n, max_size=n, unique=damage != 3))
     rows = []
     clean = (damage == 0 and len(set(header)) == len(header) and set(REQUIRED) <= set(header)
-             and ("mass_g" in header) == ("direction_deg" in header) and all(0 <= t <= MAX_ID for t in ids))
+             and ("mass_g" in header) == ("direction_deg" in header)
+             and ("theta1_0_deg" in header) == ("theta2_0_deg" in header) and all(0 <= t <= MAX_ID for t in ids))
     for i in range(n):
         row = []
         for c in header:

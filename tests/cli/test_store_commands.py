@@ -99,7 +99,7 @@ def test_export_import_export_is_byte_identical(run_path, tmp_path):
     assert first.read_bytes() == second.read_bytes()
     header = first.read_text().splitlines()[0]
     assert header == ("trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,"
-                      "mass_g,direction_deg")
+                      "mass_g,direction_deg,theta1_0_deg,theta2_0_deg")
     with RunFile.open(str(imported)) as run:
         assert run.attrs["imported"] is True and run.attrs["source"] == "a.csv"
         assert run.attrs["protocol"] == "takuma2014" and run.protocol_text == load_protocol("takuma2014").text
@@ -184,6 +184,28 @@ def test_load_trials_api_reads_run_files(run_path, tmp_path):
     csv = tmp_path / "t.csv"
     assert invoke("export", run_path, "-o", csv).exit_code == 0
     assert labcli.load_trials(csv).equals(df)
+
+
+def test_rest_posture_and_wrapped_direction_round_trip(tmp_path):
+    """theta1_0_deg/theta2_0_deg are stored as pot0 (rad) and come back; a direction of 200 deg comes back -160."""
+    header = ("trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,"
+              "mass_g,direction_deg,theta1_0_deg,theta2_0_deg")
+    rows = ["1,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,200,12.5,-30",
+            "2,validation,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,-90,,",
+            "3,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,270,0,170"]
+    src, run, out = tmp_path / "t.csv", tmp_path / "t.h5", tmp_path / "out.csv"
+    src.write_text("\n".join([header, *rows]) + "\n")
+    assert invoke("import", src, "-o", run, "--protocol", "takuma2014").exit_code == 0
+    with h5py.File(run) as f:
+        assert np.allclose(f["trials/000001/pot0"][()], [math.radians(12.5), math.radians(-30)], rtol=1e-15)
+        assert "pot0" not in f["trials/000002"]
+    df = labcli.load_trials(run)
+    assert df["theta1_0_deg"].tolist()[::2] == [12.5, 0.0] and df["theta2_0_deg"].tolist()[::2] == [-30.0, 170.0]
+    assert math.isnan(df.loc[1, "theta1_0_deg"]) and math.isnan(df.loc[1, "theta2_0_deg"])
+    assert df["direction_deg"].tolist() == [-160.0, -90.0, -90.0]  # 270 and -90 are the same direction
+    assert invoke("export", run, "-o", out).exit_code == 0
+    assert out.read_text().splitlines()[1].endswith(",100.0,-160.0,12.5,-30.0")
+    assert labcli.load_trials(out).equals(df)
 
 
 # ------------------------------------------------------------------ inspect
@@ -295,9 +317,10 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 _deg = st.floats(-180, 180, allow_nan=False)
+_direction = st.floats(-180, 180, exclude_min=True)  # -180 is read as 180, the same direction
 _mpa = st.floats(0.01, 0.99, allow_nan=False)
 _row = st.tuples(st.lists(_mpa, min_size=8, max_size=8), _deg, _deg, st.floats(-50, 50, allow_nan=False),
-                 st.floats(0.001, 5000), _deg)
+                 st.floats(0.001, 5000), _direction)
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -326,7 +349,10 @@ def test_any_table_round_trips_byte_identical(tmp_path_factory, rows):
     assert (d / "b.csv").read_bytes() == (d / "a.csv").read_bytes()
     # degrees and grams went through rad and kg: what comes out is what went in to 12 digits
     back = read_trial_csv(d / "a.csv")
-    for c in ("theta1_deg", "theta2_deg", "mass_g", "direction_deg"):
+    for c in ("theta1_deg", "theta2_deg", "mass_g"):
         np.testing.assert_allclose(back[c], df[c], rtol=1e-11, atol=1e-300)
+    # a direction is the same direction: within 1e-9 deg of -180 it is kept to 12 digits, -180, and reads 180
+    turn = (back["direction_deg"] - df["direction_deg"] + 180.0) % 360.0 - 180.0
+    np.testing.assert_allclose(turn, 0.0, atol=1e-9)
     for c in ("P_L10", "P_R2", "Fx_N", "Fy_N"):
         assert back[c].tolist() == df[c].tolist()  # stored as given: exact

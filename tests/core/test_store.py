@@ -105,7 +105,8 @@ def test_trial_table_columns_and_units(run_path):
         run.set_split([1, 2, 3], [4], "manual")
         df = run.table()
     assert list(df.columns) == ["trial", "set", "P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2",
-                                "theta1_deg", "theta2_deg", "Fx_N", "Fy_N", "mass_g", "direction_deg"]
+                                "theta1_deg", "theta2_deg", "Fx_N", "Fy_N", "mass_g", "direction_deg",
+                                "theta1_0_deg", "theta2_0_deg"]
     assert df["trial"].tolist() == list(range(1, 13))
     assert df["set"].tolist()[:5] == ["fit", "fit", "fit", "validation", ""]
     rec = make_record(7)
@@ -114,6 +115,9 @@ def test_trial_table_columns_and_units(run_path):
     assert row["mass_g"] == pytest.approx(rec["mass_kg"] * 1e3)
     assert row["direction_deg"] == 15.0 * 7
     assert row["P_R20"] == rec["P0_MPa"][3] and row["Fy_N"] == rec["force_N"][1]
+    # the rest posture is the record's baseline potentiometer angles, in degrees
+    assert row["theta1_0_deg"] == pytest.approx(math.degrees(rec["pot0_rad"][0]), rel=1e-11)
+    assert row["theta2_0_deg"] == pytest.approx(math.degrees(rec["pot0_rad"][1]), rel=1e-11)
 
 
 def test_edge_rounding_makes_degrees_round_trip_exact():

@@ -20,6 +20,7 @@ from labcli.core.tables import MAX_LISTED, TableError
 from labcli.experiments.takuma2014.records import load_pushes, load_trials
 from labcli.experiments.takuma2014.tables import (
     PUSH,
+    REST,
     TRIAL,
     load_plan,
     read_push_csv,
@@ -52,7 +53,7 @@ def problems_of(fn, path: Path) -> str:
 def test_reads_a_valid_trial_table_with_types(tmp_path: Path) -> None:
     p = put(tmp_path, f"{HEADER},note\n{GOOD_ROW},first\n" + GOOD_ROW.replace("1,fit", "2,", 1).replace(",100,0", ",,") + ",\n")
     df = read_trial_csv(p)
-    assert list(df.columns) == HEADER.split(",") + ["note"]
+    assert list(df.columns) == list(TRIAL.names) + ["note"]
     assert df["trial"].dtype == np.int64 and df["trial"].tolist() == [1, 2]
     assert df["set"].tolist() == ["fit", ""]
     assert df["P_L1"].tolist() == [0.21, 0.21] and df["P_L1"].dtype == np.float64
@@ -111,7 +112,7 @@ def test_set_and_optional_columns_may_be_absent(tmp_path: Path) -> None:
 def test_ragged_rows_and_unnamed_columns(tmp_path: Path) -> None:
     # A trailing separator on every line (spreadsheet export) is harmless.
     df = read_trial_csv(put(tmp_path, f"{HEADER},\n{GOOD_ROW},\n{GOOD_ROW.replace('1,fit', '2,fit', 1)},,\n"))
-    assert len(df) == 2 and list(df.columns) == HEADER.split(",")
+    assert len(df) == 2 and list(df.columns) == list(TRIAL.names)
     p = put(tmp_path, f"{HEADER},\n{GOOD_ROW},oops\n{GOOD_ROW[:20]}\n")
     assert problems_of(read_trial_csv, p).splitlines()[1:] == [
         f"{p}:row 1, column 17: has values but no name in the header.",
@@ -217,15 +218,24 @@ def test_plan_errors_name_row_and_column(tmp_path: Path) -> None:
     text = "trial,set,mass_g,direction_deg\n1,fit,50,0\n2,,50,0\n3,validation,2500,200\n4,fit,0,x\n"
     p = put(tmp_path, text, "plan.csv")
     with pytest.raises(TableError) as exc:
-        load_plan(p, mass_range_g=(1, 2000), direction_range_deg=(-180, 180))
+        load_plan(p, mass_range_g=(1, 2000), direction_range_deg=(-90, 90))
     assert exc.value.problems == [
         f"{p}:row 3, column set: '' must be fit or validation.",
         f"{p}:row 4, column mass_g: 2500 g is outside the protocol's range 1 to 2000 g.",
-        f"{p}:row 4, column direction_deg: 200 deg is outside the protocol's range -180 to 180 deg.",
+        f"{p}:row 4, column direction_deg: -160 deg is outside the protocol's range -90 to 90 deg.",
         f"{p}:row 5, column mass_g: 0 must be greater than 0.",
         f"{p}:row 5, column direction_deg: 'x' is not a number.",
     ]
     assert len(load_plan(put(tmp_path, text.split("2,,")[0], "ok.csv"))) == 1
+
+
+def test_a_plan_direction_is_any_angle_wrapped(tmp_path: Path) -> None:
+    text = "trial,set,mass_g,direction_deg\n1,fit,50,200\n2,fit,50,270\n3,fit,50,-90\n4,fit,50,540\n5,fit,50,-180\n"
+    plan = load_plan(put(tmp_path, text, "plan.csv"), direction_range_deg=(-180, 180))
+    assert plan["direction_deg"].tolist() == [-160.0, -90.0, -90.0, 180.0, 180.0]  # (-180, 180]
+    p = put(tmp_path, "trial,set,mass_g,direction_deg\n1,fit,50,721\n", "far.csv")
+    assert problems_of(load_plan, p).splitlines()[1:] == [
+        f"{p}:row 2, column direction_deg: 721 deg is outside the range of a direction, -720 to 720 deg."]
 
 
 def test_plan_round_trip(tmp_path: Path) -> None:
@@ -257,10 +267,15 @@ def test_export_order_is_standard_then_extras(tmp_path: Path) -> None:
     out = tmp_path / "t.csv"
     write_trial_csv(df, out)
     header = out.read_text().splitlines()[0].split(",")
-    assert header == [c for c in TRIAL.names if c not in ("mass_g", "direction_deg")] + ["operator_note"]
+    optional = ("mass_g", "direction_deg", "theta1_0_deg", "theta2_0_deg")
+    assert header == [c for c in TRIAL.names if c not in optional] + ["operator_note"]
     # optional columns appear once they carry values
     df["mass_g"] = [100.0, 200.0, 50.0]
     df["direction_deg"] = [0.0, 90.0, -30.0]
+    write_trial_csv(df, out)
+    assert out.read_text().splitlines()[0].split(",") == list(TRIAL.names[:-2]) + ["operator_note"]
+    df["theta2_0_deg"] = [0.5, -1.0, 2.0]
+    df["theta1_0_deg"] = [10.0, 0.0, -3.25]
     write_trial_csv(df, out)
     assert out.read_text().splitlines()[0].split(",") == list(TRIAL.names) + ["operator_note"]
 
@@ -340,6 +355,17 @@ SAFE_TEXT = st.text(alphabet=st.characters(blacklist_categories=("Cs",)), max_si
 NOTE = st.text(alphabet="abc ,\"'\n\r;\t-é", max_size=8).map(lambda s: "n" + s)
 PRESSURE = st.floats(min_value=0.0, max_value=1.0, exclude_min=True, allow_nan=False)
 ANY_FLOAT = st.floats(allow_nan=False, allow_infinity=False)
+ANGLE = st.floats(min_value=-180, max_value=180)
+DIRECTION = st.floats(min_value=-180, max_value=180, exclude_min=True)  # -180 reads back as 180
+FORCE = st.floats(min_value=-1000, max_value=1000)
+
+
+def _rest_posture(draw, df: pd.DataFrame, n: int) -> None:
+    """The optional rest posture (both columns or neither; per row both cells or neither)."""
+    if draw(st.booleans()):
+        pairs = draw(st.lists(st.one_of(st.none(), st.tuples(ANGLE, ANGLE)), min_size=n, max_size=n))
+        df["theta1_0_deg"] = pd.Series([math.nan if p is None else p[0] for p in pairs], dtype="float64")
+        df["theta2_0_deg"] = pd.Series([math.nan if p is None else p[1] for p in pairs], dtype="float64")
 
 
 @st.composite
@@ -350,12 +376,13 @@ def trial_tables(draw) -> pd.DataFrame:
     df["set"] = pd.Series(draw(st.lists(st.sampled_from(["fit", "validation", ""]), min_size=n, max_size=n)), dtype=object)
     for c in ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2"):
         df[c] = pd.Series(draw(st.lists(PRESSURE, min_size=n, max_size=n)), dtype="float64")
-    for c in ("theta1_deg", "theta2_deg", "Fx_N", "Fy_N"):
-        df[c] = pd.Series(draw(st.lists(ANY_FLOAT, min_size=n, max_size=n)), dtype="float64")
-    pairs = draw(st.lists(st.one_of(st.none(), st.tuples(st.floats(min_value=1e-3, max_value=1e6), ANY_FLOAT)),
+    for c, values in (("theta1_deg", ANGLE), ("theta2_deg", ANGLE), ("Fx_N", FORCE), ("Fy_N", FORCE)):
+        df[c] = pd.Series(draw(st.lists(values, min_size=n, max_size=n)), dtype="float64")
+    pairs = draw(st.lists(st.one_of(st.none(), st.tuples(st.floats(min_value=1e-3, max_value=1e5), DIRECTION)),
                           min_size=n, max_size=n))
     df["mass_g"] = pd.Series([math.nan if p is None else p[0] for p in pairs], dtype="float64")
     df["direction_deg"] = pd.Series([math.nan if p is None else p[1] for p in pairs], dtype="float64")
+    _rest_posture(draw, df, n)
     if draw(st.booleans()):
         df["temperature_C"] = pd.Series(draw(st.lists(st.one_of(ANY_FLOAT, st.just(math.nan)), min_size=n, max_size=n)),
                                         dtype="float64")
@@ -372,12 +399,13 @@ def push_tables(draw) -> pd.DataFrame:
     df["object"] = pd.Series(draw(st.lists(NOTE, min_size=n, max_size=n)), dtype=object)
     df["R_m"] = pd.Series(draw(st.lists(st.floats(min_value=1e-6, max_value=1.0), min_size=n, max_size=n)), dtype="float64")
     df["d_m"] = pd.Series(draw(st.lists(st.floats(min_value=0.0, max_value=0.1), min_size=n, max_size=n)), dtype="float64")
-    df["phi_deg"] = pd.Series(draw(st.lists(st.one_of(ANY_FLOAT, st.just(math.nan)), min_size=n, max_size=n)),
+    df["phi_deg"] = pd.Series(draw(st.lists(st.one_of(DIRECTION, st.just(math.nan)), min_size=n, max_size=n)),
                               dtype="float64")
     for c in ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2"):
         df[c] = pd.Series(draw(st.lists(PRESSURE, min_size=n, max_size=n)), dtype="float64")
     df["category"] = pd.Series(draw(st.lists(st.sampled_from(["", "soft", "hard", "can, steel"]), min_size=n, max_size=n)),
                                dtype=object)
+    _rest_posture(draw, df, n)
     if draw(st.booleans()):
         df["true_stiffness_N_per_m"] = pd.Series(
             draw(st.lists(st.floats(min_value=0, max_value=1e6), min_size=n, max_size=n)), dtype="float64")
@@ -403,7 +431,7 @@ def test_valid_trial_tables_round_trip_exactly(tmp_path: Path, df: pd.DataFrame)
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
     write_trial_csv(df, a)
     back = read_trial_csv(a)
-    pd.testing.assert_frame_equal(back, _canonical(df, TRIAL.names, ("mass_g", "direction_deg"), ""))
+    pd.testing.assert_frame_equal(back, _canonical(df, TRIAL.names, ("mass_g", "direction_deg", *REST), ""))
     write_trial_csv(back, b)
     assert a.read_bytes() == b.read_bytes()
 
@@ -414,7 +442,7 @@ def test_valid_push_tables_round_trip_exactly(tmp_path: Path, df: pd.DataFrame) 
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
     write_push_csv(df, a)
     back = read_push_csv(a)
-    pd.testing.assert_frame_equal(back, _canonical(df, PUSH.names, ("category",), ""))
+    pd.testing.assert_frame_equal(back, _canonical(df, PUSH.names, ("category", *REST), ""))
     write_push_csv(back, b)
     assert a.read_bytes() == b.read_bytes()
 

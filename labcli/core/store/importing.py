@@ -35,6 +35,15 @@ def storable_cells(row: Mapping[str, Any]) -> Iterable[tuple[str, str]]:
             yield str(column), NUL_PROBLEM
 
 
+def _any_nul(frame: Any) -> bool:
+    """Whether any text cell of a table holds a NUL (whole columns; the row check then names them)."""
+    return any(frame[c].astype(str).str.contains("\x00", regex=False).any()
+               for c in frame.columns if frame[c].dtype == object)
+
+
+storable_cells.screen = _any_nul  # type: ignore[attr-defined]
+
+
 def _extra_value(v: Any) -> Any:
     if isinstance(v, str):
         return v

@@ -2,7 +2,8 @@
 
 ``labcli export`` writes them and ``labcli import --experiment stretch|joint`` reads them
 back.  Pressures are measured gauge values in MPa: a vented actuator reads a little below
-zero, so they are any finite number here (not the McKibben sensors' span check).
+zero, so they are gauge pressures above vacuum (:mod:`labcli.core.bounds`), not the McKibben
+sensors' span check.
 """
 
 from __future__ import annotations
@@ -20,14 +21,14 @@ STRETCH_POINTS = TableSpec(
     label="point",
     columns=(
         ("point", "id", "required"),
-        ("mass_g", "nonnegative", "required"),
-        ("P_A", "float", "required"),
-        ("P_B", "float", "required"),
-        ("L_m", "positive", "required"),
-        ("lambda", "positive-or-empty", "omit-if-empty"),
-        ("set_mass_g", "float-or-empty", "omit-if-empty"),
-        ("set_P_A_kPa", "float-or-empty", "omit-if-empty"),
-        ("set_P_B_kPa", "float-or-empty", "omit-if-empty"),
+        ("mass_g", "payload", "required"),
+        ("P_A", "gauge", "required"),
+        ("P_B", "gauge", "required"),
+        ("L_m", "length", "required"),
+        ("lambda", "stretch-or-empty", "omit-if-empty"),
+        ("set_mass_g", "payload-or-empty", "omit-if-empty"),
+        ("set_P_A_kPa", "gauge-kPa-or-empty", "omit-if-empty"),
+        ("set_P_B_kPa", "gauge-kPa-or-empty", "omit-if-empty"),
     ),
     id_column="point",
 )
@@ -36,14 +37,14 @@ JOINT_POINTS = TableSpec(
     label="point",
     columns=(
         ("point", "id", "required"),
-        ("P_A", "float", "required"),
-        ("P_B", "float", "required"),
-        ("alpha_deg", "float", "required"),
-        ("P_A0", "float-or-empty", "omit-if-empty"),
-        ("P_B0", "float-or-empty", "omit-if-empty"),
-        ("L_m", "positive-or-empty", "omit-if-empty"),
-        ("set_P_A_kPa", "float-or-empty", "omit-if-empty"),
-        ("set_P_B_kPa", "float-or-empty", "omit-if-empty"),
+        ("P_A", "gauge", "required"),
+        ("P_B", "gauge", "required"),
+        ("alpha_deg", "angle", "required"),
+        ("P_A0", "gauge-or-empty", "omit-if-empty"),
+        ("P_B0", "gauge-or-empty", "omit-if-empty"),
+        ("L_m", "length-or-empty", "omit-if-empty"),
+        ("set_P_A_kPa", "gauge-kPa-or-empty", "omit-if-empty"),
+        ("set_P_B_kPa", "gauge-kPa-or-empty", "omit-if-empty"),
     ),
     id_column="point",
     pairs=(("P_A0", "P_B0"),),

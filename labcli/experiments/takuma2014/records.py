@@ -23,13 +23,14 @@ import math
 import os
 from typing import Any, Mapping
 
+from ...core.bounds import wrap_degrees_array
 from ...core.experiment import Dataset, Stored
 from ...core.report import records_line, settling_line, split_line
 from ...core.store.h5 import missing, nan_if_empty, plain, scalar, text, to_edge, vector
 from ...core.store import load_table
 from ...core.store.records import BaseRecordType
 from ...errors import ConfigError, StoreError
-from .tables import BASELINE, LOADED, PUSH, TRIAL
+from .tables import BASELINE, LOADED, PUSH, REST, TRIAL
 
 PRESSURE_NAMES = LOADED  # P_L1, P_R1, P_L2, P_R2
 _PRESSURE_ATTRS = {"channels": ",".join(PRESSURE_NAMES)}
@@ -60,6 +61,23 @@ class _McKibbenRecords(BaseRecordType):
     def inspect_lines(self, summary: dict[str, Any]) -> list[str]:
         return [records_line(summary), split_line(summary), settling_line(summary), *drift_lines(summary),
                 *leak_lines(summary)]
+
+    @staticmethod
+    def _rest_posture(df: Any, groups: list[Any]) -> None:
+        """The rest posture columns (deg) from each record's baseline angles ``pot0``, when any has them."""
+        import numpy as np
+
+        pot0 = [g["pot0"][()] if "pot0" in g else np.full(2, np.nan) for g in groups]
+        if any(np.all(np.isfinite(p)) for p in pot0):
+            rest = np.degrees(np.array(pot0, dtype=np.float64).reshape(-1, 2))
+            for j, name in enumerate(REST):
+                df[name] = to_edge(rest[:, j])
+
+    @staticmethod
+    def _rest_from_row(row: Mapping[str, Any]) -> dict[str, Any]:
+        """``pot0_rad`` from a table row's rest posture (deg), when the row gives one."""
+        a, b = (nan_if_empty(row.get(c)) for c in REST)
+        return {} if math.isnan(a) or math.isnan(b) else {"pot0_rad": [math.radians(a), math.radians(b)]}
 
     @staticmethod
     def _pressures(record: Mapping[str, Any], label: str, loaded: str) -> list[Dataset]:
@@ -177,7 +195,7 @@ class TrialRecords(_McKibbenRecords):
         import pandas as pd
 
         sets = run.set_of()
-        cols: dict[str, Any] = {c: [] for c in TRIAL.names[:-2]}
+        cols: dict[str, Any] = {c: [] for c in TRIAL.names if c not in ("mass_g", "direction_deg", *REST)}
         mass, direction = [], []
         for t, g in zip(ids, groups):
             p0, p, theta, force = g["P0"][()], g["P"][()], g["theta"][()], g["F"][()]
@@ -201,7 +219,8 @@ class TrialRecords(_McKibbenRecords):
         if np.any(np.isfinite(mass)):
             df["mass_g"] = to_edge(mass)
         if np.any(np.isfinite(direction)):
-            df["direction_deg"] = to_edge(direction)
+            df["direction_deg"] = wrap_degrees_array(to_edge(direction))
+        self._rest_posture(df, groups)
         return df
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
@@ -212,6 +231,7 @@ class TrialRecords(_McKibbenRecords):
             "force_N": [row["Fx_N"], row["Fy_N"]],
             "mass_kg": nan_if_empty(row.get("mass_g")) * 1e-3,
             "direction_rad": math.radians(nan_if_empty(row.get("direction_deg"))),
+            **self._rest_from_row(row),
         }
 
     def import_split(self, rows: list[dict[str, Any]]) -> tuple[list[int], list[int]]:
@@ -275,7 +295,7 @@ class PushRecords(_McKibbenRecords):
         import numpy as np
         import pandas as pd
 
-        cols: dict[str, Any] = {c: [] for c in PUSH.names}
+        cols: dict[str, Any] = {c: [] for c in PUSH.names if c not in REST}
         stiffness = []
         for t, g in zip(ids, groups):
             cols["push"].append(t)
@@ -291,7 +311,8 @@ class PushRecords(_McKibbenRecords):
             stiffness.append(float(g["true_stiffness"][()]))
         df = pd.DataFrame(cols)
         df["push"] = df["push"].astype("int64")
-        df["phi_deg"] = to_edge(df["phi_deg"].to_numpy())
+        df["phi_deg"] = wrap_degrees_array(to_edge(df["phi_deg"].to_numpy()))
+        self._rest_posture(df, groups)
         if np.any(np.isfinite(stiffness)):
             df["true_stiffness_N_per_m"] = stiffness
         return df
@@ -304,6 +325,7 @@ class PushRecords(_McKibbenRecords):
             "category": "" if missing(row.get("category")) else str(row["category"]),
             "true_stiffness_N_per_m": nan_if_empty(row.get("true_stiffness_N_per_m")),
             "P0_MPa": [row[c] for c in BASELINE], "P_MPa": [row[c] for c in LOADED],
+            **self._rest_from_row(row),
         }
 
 

@@ -1,4 +1,4 @@
-"""The McKibben rig's CSV exchange tables (``docs/docs/table-formats.md``): trials, pushes, plans.
+"""The McKibben rig's CSV exchange tables (``docs/table-formats.md``): trials, pushes, plans.
 
 Plain data for :mod:`labcli.core.tables`, which reads and writes them: every cell
 checked, every problem reported by file, row and column.  Pressures in MPa (gauge),
@@ -17,6 +17,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 BASELINE = ("P_L10", "P_R10", "P_L20", "P_R20")
 LOADED = ("P_L1", "P_R1", "P_L2", "P_R2")
+# The rest posture: absolute joint angles at the record's baseline (absent: the arm rests at 0, 0).
+REST = ("theta1_0_deg", "theta2_0_deg")
+REST_POSTURE = tuple((c, "angle-or-empty", "omit-if-empty") for c in REST)
 
 # Columns: (name, kind, presence); presence "required" | "optional" (added empty when
 # absent) | "omit-if-empty" (optional, and left out of a written file when empty).
@@ -26,15 +29,16 @@ TRIAL = TableSpec(
         ("trial", "id", "required"),
         ("set", "set", "optional"),
         *((c, "pressure", "required") for c in BASELINE + LOADED),
-        ("theta1_deg", "float", "required"),
-        ("theta2_deg", "float", "required"),
-        ("Fx_N", "float", "required"),
-        ("Fy_N", "float", "required"),
-        ("mass_g", "positive-or-empty", "omit-if-empty"),
-        ("direction_deg", "float-or-empty", "omit-if-empty"),
+        ("theta1_deg", "angle", "required"),
+        ("theta2_deg", "angle", "required"),
+        ("Fx_N", "force", "required"),
+        ("Fy_N", "force", "required"),
+        ("mass_g", "mass-or-empty", "omit-if-empty"),
+        ("direction_deg", "direction-or-empty", "omit-if-empty"),
+        *REST_POSTURE,
     ),
     id_column="trial",
-    pairs=(("mass_g", "direction_deg"),),
+    pairs=(("mass_g", "direction_deg"), REST),
 )
 
 PUSH = TableSpec(
@@ -42,13 +46,15 @@ PUSH = TableSpec(
     columns=(
         ("push", "id", "required"),
         ("object", "name", "required"),
-        ("R_m", "positive", "required"),
-        ("d_m", "nonnegative", "required"),
-        ("phi_deg", "float-or-empty", "required"),
+        ("R_m", "length", "required"),
+        ("d_m", "distance", "required"),
+        ("phi_deg", "direction-or-empty", "required"),
         *((c, "pressure", "required") for c in BASELINE + LOADED),
         ("category", "text", "omit-if-empty"),
+        *REST_POSTURE,
     ),
     id_column="push",
+    pairs=(REST,),
 )
 
 PLAN = TableSpec(
@@ -56,8 +62,8 @@ PLAN = TableSpec(
     columns=(
         ("trial", "id", "required"),
         ("set", "set-required", "required"),
-        ("mass_g", "positive", "required"),
-        ("direction_deg", "float", "required"),
+        ("mass_g", "mass", "required"),
+        ("direction_deg", "direction", "required"),
     ),
     id_column="trial",
 )
@@ -65,7 +71,7 @@ PLAN = TableSpec(
 
 def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
                    id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
-    """Read and check a trial table (``docs/docs/table-formats.md``); every problem in one TableError.
+    """Read and check a trial table (``docs/table-formats.md``); every problem in one TableError.
 
     ``id_range`` (low, high) also checks the trial ids, e.g. against what a run file can hold;
     ``check(row) -> [(column, problem), ...]`` adds checks of its own (e.g.
@@ -110,13 +116,13 @@ def load_plan(
 
 def write_trial_csv(df: "pd.DataFrame", path: str | os.PathLike, *,
                     span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
-    """Write a trial table: standard columns in ``docs/docs/table-formats.md`` order, then extras."""
+    """Write a trial table: standard columns in ``docs/table-formats.md`` order, then extras."""
     write_table(df, path, TRIAL, span_MPa)
 
 
 def write_push_csv(df: "pd.DataFrame", path: str | os.PathLike, *,
                    span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
-    """Write a push table: standard columns in ``docs/docs/table-formats.md`` order, then extras."""
+    """Write a push table: standard columns in ``docs/table-formats.md`` order, then extras."""
     write_table(df, path, PUSH, span_MPa)
 
 

@@ -13,7 +13,7 @@ Two calls, one per experiment of the rPAM joint paper:
   for every point at once), and flags where the model runs onto the toggle angle.
 
 Input tables are pandas DataFrames or any mapping of column name -> sequence.  SI inside;
-the column names carry the units (``docs/docs/table-formats.md`` style):
+the column names carry the units (``docs/table-formats.md`` style):
 
 =================  ===========================================================
 stretch table      ``mass_g`` (or ``payload_kg``), ``P_A`` (MPa gauge; or

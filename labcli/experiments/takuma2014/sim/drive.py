@@ -5,7 +5,7 @@ hooks are called the way the acquisition session calls them (air supplied and
 valves closed once, then per trial or push: settle, baseline window, load,
 settle, loaded window, unload), and each window is the mean of sampled, noisy
 ADC counts calibrated by the protocol, as a recorded run has it.  The result
-is the CSV exchange table of ``docs/docs/table-formats.md``.  ``labcli acquire`` on a
+is the CSV exchange table of ``docs/table-formats.md``.  ``labcli acquire`` on a
 ``sim://`` port is the full path through the serial protocol.
 """
 

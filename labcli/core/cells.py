@@ -1,0 +1,72 @@
+"""A table's description (plain data) and what the text of its cells is.
+
+Shared by the cell-by-cell reader (:mod:`labcli.core.tables`) and the whole-column one
+(:mod:`labcli.core.table_fast`), so that both read an extra column the same way.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+INT64_MAX = 2**63 - 1
+
+
+# ---------------------------------------------------------------------------
+# Table descriptions (plain data): (column, kind, presence)
+#   kind: "id" (integer) | "set" (fit, validation or empty) | "set-required" | "name"
+#         (non-empty text) | "text" | "pressure" (gauge MPa in the sensor span) | a
+#         quantity of labcli.core.bounds ("angle", "force", "mass", ...: unit and physical
+#         range) | "float", "positive", "nonnegative" (any finite number, with that sign:
+#         for a table whose quantities have no entry there yet); a numeric kind ending in
+#         "-or-empty" also takes an empty cell (NaN).
+#   presence: "required" | "optional" (added empty when absent) |
+#             "omit-if-empty" (optional, and left out of a written file when empty)
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TableSpec:
+    label: str  # "trial", "push", "plan": used in messages
+    columns: tuple[tuple[str, str, str], ...]
+    id_column: str
+    pairs: tuple[tuple[str, str], ...] = ()  # given together or not at all
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(c[0] for c in self.columns)
+
+
+def infer_extra_column(cells: list[str]) -> "pd.Series":
+    """Numbers only when every cell reads back to exactly its own text (nothing lost); empty: NaN."""
+    import pandas as pd
+
+    filled = [c for c in cells if c != ""]
+    if not filled:
+        # No value says what the column is; missing numbers, as pandas reads it.
+        return pd.Series([math.nan] * len(cells), dtype="float64")
+    if len(filled) == len(cells) and all(_is_canonical_int(c) for c in filled):
+        return pd.Series([int(c) for c in cells], dtype="int64")
+    if all(_is_canonical_float(c) for c in filled):
+        return pd.Series([float(c) if c else math.nan for c in cells], dtype="float64")
+    return pd.Series(cells, dtype=object)
+
+
+def _is_canonical_int(s: str) -> bool:
+    if not re.fullmatch(r"-?[0-9]+", s):
+        return False
+    v = int(s)
+    return str(v) == s and abs(v) <= INT64_MAX
+
+
+def _is_canonical_float(s: str) -> bool:
+    if not NUMBER.fullmatch(s):
+        return False
+    v = float(s)
+    return math.isfinite(v) and repr(v) == s

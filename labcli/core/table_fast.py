@@ -1,0 +1,235 @@
+"""The exchange tables read whole columns at a time: pandas' C parser, then checks on arrays.
+
+:func:`read_fast` gives the table exactly as the cell-by-cell reader of
+:mod:`labcli.core.tables` would (same values, same types, same columns), or None whenever
+the file holds anything that reader might judge differently: then that reader runs and
+finds every problem by file, row and column.  So the exact sentences of a bad table come
+from one place, and a good table of a million rows is read at pandas' speed.
+
+None is returned, before or after parsing, for:
+
+* anything pandas might read more leniently than the table rules: a double quote, a NUL,
+  the words pandas takes for booleans (``True``, ``FALSE``, ...), a carriage return that
+  does not end a line, a row whose number of cells differs from the header's, a blank
+  line before the header, a header with an unnamed, repeated or missing column;
+* anything that fails a rule: a cell pandas cannot parse as its column's type, a value out
+  of its range, an empty required number, a repeated id, a pair of columns half given, a
+  row the caller's check refuses.
+
+Row numbers are never computed here: a table that reads this way has no problem to name.
+"""
+
+from __future__ import annotations
+
+import codecs
+import os
+import warnings
+from typing import TYPE_CHECKING, Any, Callable
+
+import numpy as np
+
+from .bounds import QUANTITIES, number_problem_mask, wrap_degrees_array
+from .cells import TableSpec, infer_extra_column
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+BLOCK = 1 << 22  # bytes scanned at a time: memory stays flat whatever the file's size
+_TEXT_KINDS = ("set", "set-required", "name", "text")
+
+
+def read_fast(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float],
+              screen: Callable[["pd.DataFrame"], bool] | None) -> "pd.DataFrame | None":
+    """The table at ``path`` read whole-column, or None: the cell-by-cell reader decides.
+
+    ``screen(frame) -> bool`` says whether any row may fail the caller's own checks.
+    """
+    header = _scan(path)
+    if header is None or not _header_fits(header, spec):
+        return None
+    frame = _parse(path, header, spec)
+    if frame is None or not _values_fit(frame, spec, span) or (screen is not None and screen(frame)):
+        return None
+    return _assemble(frame, header, spec)
+
+
+# --------------------------------------------------------------------------- the bytes
+
+
+def _scan(path: str | os.PathLike) -> list[str] | None:
+    """The header's names when the file is plain and every line has the header's number of cells.
+
+    Lines are counted whole-array per block: the separators of the file must be the
+    header's count times the lines that are not blank, and the first data line must have
+    the header's count itself (pandas would take a longer first line as an index column;
+    a longer line after it, it refuses), so no line is short and none long.
+    """
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    header: list[str] | None = None
+    first_line_checked = False
+    carry = b""
+    separators = lines = 0
+    try:
+        with open(path, "rb") as fh:
+            while True:
+                block = fh.read(BLOCK)
+                final = not block
+                if final or not block.isascii() or decoder.getstate()[0]:
+                    decoder.decode(block, final)  # raises on a bad byte: the slow reader names it
+                data = carry + block
+                if not final:
+                    cut = data.rfind(b"\n") + 1
+                    data, carry = data[:cut], data[cut:]
+                else:
+                    data = data.rstrip(b"\r\n") + b"\n" if data.strip(b"\r\n") else b""
+                if data:
+                    if not _plain(data):
+                        return None
+                    if header is None:
+                        header = _line(data, 0).decode("utf-8-sig").rstrip("\r").split(",")
+                    if not first_line_checked:
+                        at = data.find(b"\n") + 1
+                        if at < len(data) or final:
+                            first_line_checked = True
+                            if at < len(data) and _line(data, at).count(b",") != len(header) - 1:
+                                return None
+                    s, n = _count(data)
+                    separators += s
+                    lines += n
+                if final:
+                    break
+    except (OSError, UnicodeDecodeError):
+        return None
+    if header is None or separators != (len(header) - 1) * lines:
+        return None
+    return header
+
+
+def _line(data: bytes, at: int) -> bytes:
+    end = data.find(b"\n", at)
+    return data[at:end if end >= 0 else len(data)]
+
+
+def _count(data: bytes) -> tuple[int, int]:
+    """Separators and lines that are not blank in ``data`` (whole lines, each ending in a line break)."""
+    a = np.frombuffer(data, dtype=np.uint8)
+    ends = np.flatnonzero(a == 10)
+    starts = np.empty_like(ends)
+    starts[:1] = 0
+    starts[1:] = ends[:-1] + 1
+    length = ends - starts - (a[np.maximum(ends - 1, 0)] == 13)
+    return int(np.count_nonzero(a == 44)), int(np.count_nonzero(length > 0))
+
+
+def _plain(data: bytes) -> bool:
+    """No quoting, NUL, boolean word or bare carriage return: pandas reads it as the rules do."""
+    if b'"' in data or b"\x00" in data:
+        return False
+    if b"\r" in data and data.count(b"\r") != data.count(b"\r\n"):
+        return False
+    # pandas reads true/false (any case) in a number column as 1 and 0; the letters u and s
+    # are in every such word, and rarely in a table of numbers and fit/validation.
+    if b"u" in data or b"U" in data or b"s" in data or b"S" in data:
+        low = data.lower()
+        return b"true" not in low and b"false" not in low
+    return True
+
+
+def _header_fits(header: list[str], spec: TableSpec) -> bool:
+    names = [h.strip() for h in header]
+    if not names or "" in names or len(set(names)) != len(names):
+        return False
+    if any(p == "required" and c not in names for c, _, p in spec.columns):
+        return False
+    return all((a in names) == (b in names) for a, b in spec.pairs)
+
+
+# --------------------------------------------------------------------------- the columns
+
+
+def _parse(path: str | os.PathLike, header: list[str], spec: TableSpec) -> "pd.DataFrame | None":
+    import pandas as pd
+
+    kinds = {c: k for c, k, _ in spec.columns}
+    names = [h.strip() for h in header]
+    dtype: dict[str, Any] = {}
+    empty_ok: dict[str, list[str]] = {}
+    for name in names:
+        kind = kinds.get(name, "text")
+        if kind == "id":
+            dtype[name] = "int64"
+        elif kind in _TEXT_KINDS:
+            dtype[name] = object
+        else:
+            dtype[name] = "float64"
+            if kind.endswith("-or-empty"):
+                empty_ok[name] = [""]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a cast of inf or a huge id: refused below, or by the slow reader
+            return pd.read_csv(path, sep=",", header=0, names=names, dtype=dtype, keep_default_na=False,
+                               na_values=empty_ok, encoding="utf-8", engine="c", skip_blank_lines=True,
+                               index_col=False, **_exact_floats())
+    except (ValueError, OverflowError, TypeError, pd.errors.ParserError, UnicodeDecodeError, MemoryError):
+        return None
+
+
+def _exact_floats() -> dict[str, str]:
+    """pandas before 3.1 parses floats exactly only when asked (3.1 does always, and deprecates asking)."""
+    import pandas as pd
+
+    major, minor = (int(x) for x in pd.__version__.split(".")[:2])
+    return {} if (major, minor) >= (3, 1) else {"float_precision": "round_trip"}
+
+
+def _values_fit(frame: "pd.DataFrame", spec: TableSpec, span: tuple[float, float]) -> bool:
+    """Every cell within its kind's rules, ids unique, pairs given together."""
+    present = set(frame.columns)
+    for c, kind, _ in spec.columns:
+        if c not in present:
+            continue
+        col = frame[c]
+        if kind == "id":
+            if col.duplicated().any():
+                return False
+        elif kind in ("set", "set-required"):
+            allowed = ("fit", "validation", "") if kind == "set" else ("fit", "validation")
+            if not col.isin(allowed).all():
+                return False
+        elif kind == "name":
+            if not col.str.strip().astype(bool).all():
+                return False
+        elif kind != "text":
+            v = col.to_numpy(dtype=np.float64)
+            base = kind.removesuffix("-or-empty")
+            given = ~np.isnan(v) if base != kind else np.ones(len(v), dtype=bool)
+            if not np.all(np.isfinite(v[given])) or np.any(number_problem_mask(base, v[given], span)):
+                return False
+    for a, b in spec.pairs:
+        if a in present and (np.isnan(frame[a].to_numpy()) != np.isnan(frame[b].to_numpy())).any():
+            return False
+    return True
+
+
+def _assemble(frame: "pd.DataFrame", header: list[str], spec: TableSpec) -> "pd.DataFrame":
+    """The spec's columns in order (absent ones empty, directions wrapped), then the extras as read."""
+    import pandas as pd
+
+    n = len(frame)
+    out: dict[str, Any] = {}
+    for c, kind, _ in spec.columns:
+        base = kind.removesuffix("-or-empty")
+        if c in frame.columns:
+            col = frame[c]
+            if base in QUANTITIES and QUANTITIES[base].wrap:
+                col = pd.Series(wrap_degrees_array(col.to_numpy()), dtype="float64")
+            out[c] = col.reset_index(drop=True)
+        elif kind in ("set", "text"):
+            out[c] = pd.Series([""] * n, dtype=object)
+        else:
+            out[c] = pd.Series(np.full(n, np.nan), dtype="float64")
+    known = set(spec.names)
+    for name in (h.strip() for h in header):
+        if name not in known:
+            out[name] = infer_extra_column(frame[name].tolist())
+    return pd.DataFrame(out)
