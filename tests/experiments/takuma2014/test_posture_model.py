@@ -150,3 +150,12 @@ def test_classification_reads_the_pushes_rest_posture_into_the_posture_form():
     _, pred = _posture_and_force(v, model, "pressure-only", theta0)
     np.testing.assert_allclose(pred["Fy_N"], v.Fy_N, atol=1e-6)
     assert _rest_posture(v.drop(columns=["theta1_0_deg"])) is None
+
+
+def test_empty_rest_columns_mean_no_rest_posture():
+    from labcli.experiments.takuma2014.models.classify import _rest_posture
+
+    t = pd.DataFrame({"theta1_0_deg": [np.nan, np.nan], "theta2_0_deg": [np.nan, np.nan]})
+    assert _rest_posture(t) is None
+    t = pd.DataFrame({"theta1_0_deg": [np.nan, 1.0], "theta2_0_deg": [12.0, np.nan]})
+    np.testing.assert_allclose(np.degrees(_rest_posture(t)), [[0.0, 12.0], [1.0, 0.0]])

@@ -195,10 +195,20 @@ def _check_table(table: Any, method: str) -> None:
 
 
 def _rest_posture(table: Any) -> np.ndarray | None:
-    """Each push's absolute baseline posture (rad), from either spelling of its columns, or None."""
-    for names in (THETA0_COLUMNS, REST_COLUMNS):
-        if all(c in table.columns for c in names):
-            return np.radians(np.column_stack([_column(table, c) for c in names]))
+    """Each push's absolute baseline posture (rad), from either spelling of its columns, or None.
+
+    The table format's rest columns are optional and may be empty (absent means 0, 0): None when
+    every cell is empty, 0 in an empty cell otherwise.
+    """
+    if all(c in table.columns for c in THETA0_COLUMNS):
+        return np.radians(np.column_stack([_column(table, c) for c in THETA0_COLUMNS]))
+    if all(c in table.columns for c in REST_COLUMNS):
+        import pandas as pd
+
+        rest = np.column_stack([pd.to_numeric(table[c], errors="coerce").to_numpy(dtype=float) for c in REST_COLUMNS])
+        if np.isnan(rest).all():
+            return None
+        return np.radians(np.where(np.isnan(rest), 0.0, rest))
     return None
 
 
