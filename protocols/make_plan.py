@@ -77,12 +77,21 @@ def plan_rows(seed: int = SEED) -> list[tuple[int, str, int, int]]:
     return [(i, s, m, d) for i, (s, m, d) in enumerate(rows, start=1)]
 
 
-def plan_csv(seed: int = SEED) -> str:
+def rows_csv(rows: list[tuple[int, str, int, int]]) -> str:
+    """A plan's rows as the plan CSV's text."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["trial", "set", "mass_g", "direction_deg"])
-    w.writerows(plan_rows(seed))
+    w.writerows(rows)
     return buf.getvalue()
+
+
+def write_rows(path: Path, rows: list[tuple[int, str, int, int]]) -> None:
+    path.write_text(rows_csv(rows), encoding="utf-8")
+
+
+def plan_csv(seed: int = SEED) -> str:
+    return rows_csv(plan_rows(seed))
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -38,14 +38,14 @@ def run(*args: str):
 
 
 def test_fit_prints_coefficients_beside_the_paper_and_writes_the_model(csv: Path) -> None:
-    r = run("fit", csv)
+    r = run("fit", csv, "--form", "paper")
     assert r.exit_code == 0, r.output
     out = r.output
     assert "Eq. 34  sin(theta1)" in out and "Eq. 37  Fy" in out and "paper 3.3" in out
-    # the paper's values are printed in the paper column, beta_theta2_R2 under the plus-sign reading
-    for value in ("-2201.03", "-642.995", "2.972", "-75.906"):
+    # the paper's values are printed in the paper column, beta_theta2_R2 as listed (-2.972)
+    for value in ("-2201.03", "-642.995", "-2.972", "-75.906"):
         assert value in out
-    assert "the paper's -2.972 appears here as +2.972" in out
+    assert "beta_theta2R2 = -2.972 as listed" in out
     assert "trial 111: singular Jacobian: |theta2| = 1.00 deg, Fy amplification 28" in out
     assert "coefficients in N m/MPa" in out and " deg;" in out
     model = json.loads((csv.parent / "trials.model.json").read_text())
@@ -59,17 +59,17 @@ def test_fit_prints_coefficients_beside_the_paper_and_writes_the_model(csv: Path
 
 def test_fit_json_output(csv: Path, tmp_path: Path) -> None:
     out_path = tmp_path / "m.json"
-    r = run("fit", csv, "-o", out_path, "--json")
+    r = run("fit", csv, "--form", "paper", "-o", out_path, "--json")
     assert r.exit_code == 0, r.output
     d = json.loads(r.output)
     assert d["model_path"] == str(out_path) and d["recorded_in_run"] is False
-    assert d["paper_coefficients"]["beta_theta2_R2"] == 2.972
+    assert d["paper_coefficients"]["beta_theta2_R2"] == -2.972
     assert d["model"] == json.loads(out_path.read_text())
     assert d["model"]["excluded_trials"]["Fy"][0]["trial"] == 111
 
 
 def test_validate_reports_metrics_flags_and_figure(csv: Path, tmp_path: Path) -> None:
-    assert run("fit", csv).exit_code == 0
+    assert run("fit", csv, "--form", "paper").exit_code == 0
     png = tmp_path / "fig7.png"
     r = run("validate", csv, "--plot", png)
     assert r.exit_code == 0, r.output
@@ -84,7 +84,7 @@ def test_validate_reports_metrics_flags_and_figure(csv: Path, tmp_path: Path) ->
 
 @pytest.mark.parametrize("mode", ["pressure-only", "measured-angles"])
 def test_validate_json(csv: Path, table: pd.DataFrame, mode: str) -> None:
-    assert run("fit", csv).exit_code == 0
+    assert run("fit", csv, "--form", "paper").exit_code == 0
     r = run("validate", csv, "--mode", mode, "--json")
     assert r.exit_code == 0, r.output
     d = json.loads(r.output)
@@ -120,7 +120,7 @@ def test_fit_and_validate_on_a_run_file_record_the_model(tmp_path: Path, table: 
                 "force_N": r[["Fx_N", "Fy_N"]].to_numpy(float),
             })
         rf.set_split(table.trial[table.set == "fit"], table.trial[table.set == "validation"])
-    r = run("fit", path)
+    r = run("fit", path, "--form", "paper")
     assert r.exit_code == 0, r.output
     assert f"recorded in {path} under /models/takuma2014" in r.output
     saved = (tmp_path / "run.model.json").read_text()
@@ -129,7 +129,7 @@ def test_fit_and_validate_on_a_run_file_record_the_model(tmp_path: Path, table: 
     r = run("validate", path, "--json")
     assert r.exit_code == 0, r.output
     assert json.loads(r.output)["metrics"]["theta1"]["n"] == 20
-    r = run("fit", path, "--protocol", "other")
+    r = run("fit", path, "--form", "paper", "--protocol", "other")
     assert r.exit_code == 1
     assert r.output == (f"Error: {path} was recorded with protocol 'takuma2014'; --protocol applies to "
                         "trial CSV files only, so leave it out for a run file.\n")
@@ -145,7 +145,7 @@ def test_validate_without_a_model_file(csv: Path) -> None:
 
 
 def test_validate_with_a_model_of_another_protocol(csv: Path, tmp_path: Path) -> None:
-    assert run("fit", csv).exit_code == 0
+    assert run("fit", csv, "--form", "paper").exit_code == 0
     mpath = csv.parent / "trials.model.json"
     d = json.loads(mpath.read_text())
     d["protocol"] = "rig-b"
@@ -160,7 +160,7 @@ def test_validate_with_a_model_of_another_protocol(csv: Path, tmp_path: Path) ->
 def test_validate_with_no_validation_trials(tmp_path: Path, table: pd.DataFrame) -> None:
     p = tmp_path / "fitonly.csv"
     write_trial_csv(table[table.set == "fit"], p)
-    assert run("fit", p).exit_code == 0
+    assert run("fit", p, "--form", "paper").exit_code == 0
     r = run("validate", p)
     assert r.exit_code == 1
     assert r.output == (f"Error: {p} has no validation trials (no row with set = 'validation'); assign "
@@ -170,18 +170,18 @@ def test_validate_with_no_validation_trials(tmp_path: Path, table: pd.DataFrame)
 def test_fit_with_too_few_trials(tmp_path: Path, table: pd.DataFrame) -> None:
     p = tmp_path / "few.csv"
     write_trial_csv(table.head(5), p)
-    r = run("fit", p)
+    r = run("fit", p, "--form", "paper")
     assert r.exit_code == 1
     assert r.output == (f"Error: The Fx equation needs at least 7 usable fit trials for its 6 "
                         f"coefficients, but {p} has 5; record more fit trials.\n")
 
 
 def test_bad_plot_extension_and_missing_run(csv: Path, tmp_path: Path) -> None:
-    assert run("fit", csv).exit_code == 0
+    assert run("fit", csv, "--form", "paper").exit_code == 0
     r = run("validate", csv, "--plot", tmp_path / "fig.jpg")
     assert r.exit_code == 1
     assert r.output == f"Error: The plot file {tmp_path / 'fig.jpg'} must end in .png, .pdf or .svg.\n"
-    r = run("fit", tmp_path / "nothing.csv")
+    r = run("fit", tmp_path / "nothing.csv", "--form", "paper")
     assert r.exit_code == 1
     assert r.output == (f"Error: {tmp_path / 'nothing.csv'} does not exist; pass a run file (.h5) or a "
                         "trial CSV.\n")

@@ -90,7 +90,7 @@ def test_force_protocol_values_from_the_paper() -> None:
     assert not p.device.matches("mckibben-2dof-v2") and not p.device.matches("rpam")
     assert p.settings.force_limits.mass_min_g == 1.0 and p.settings.force_limits.mass_max_g == 2000.0
     assert tuple(p.settings.paper_coefficients) == COEFFICIENT_NAMES
-    # Section 3.3 as printed, except beta_theta2_R2 read with Eq. 35's minus folded in.
+    # Section 3.3 as printed; Eq. 35's minus before beta_theta2_R2 is read as a misprint.
     printed = {
         "beta_theta1_L1": 0.136, "beta_theta1_R1": -1.587, "beta_theta2_L1": 1.359,
         "beta_theta2_R1": 1.094, "beta_theta2_L2": 0.766, "beta_theta2_R2": -2.972,
@@ -99,8 +99,9 @@ def test_force_protocol_values_from_the_paper() -> None:
         "beta_Fy3": -642.995, "beta_Fy4": -393.750, "beta_Fy5": 1.196, "beta_Fy6": -21.697,
     }
     for k, v in printed.items():
-        assert p.settings.paper_coefficients[k] == (-v if k == "beta_theta2_R2" else v), k
-    assert p.settings.paper_coefficients["beta_theta2_R2"] == 2.972
+        assert p.settings.paper_coefficients[k] == v, k
+    # L2 and R2 pull on opposite sides of the upper joint: opposite signs on theta2.
+    assert p.settings.paper_coefficients["beta_theta2_L2"] * p.settings.paper_coefficients["beta_theta2_R2"] < 0
 
 
 def test_settling_is_converted_and_consistent_with_the_rig() -> None:
@@ -224,7 +225,7 @@ def test_unknown_section(tmp_path: Path) -> None:
     p = write_variant(tmp_path, "[force]", "[forces]")
     assert error_of(p) == (
         f"{p}: unknown key 'forces'; the keys allowed there are name, kind, title, source, paper, [device], "
-        "[acquisition], [rig], [channels], [settling], [trials], [force], [paper_coefficients]."
+        "[acquisition], [rig], [channels], [settling], [trials], [force], [sensing], [paper_coefficients]."
     )
 
 

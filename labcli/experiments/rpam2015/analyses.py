@@ -81,7 +81,7 @@ class StretchFitResult:
 def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, plot: Path | None = None,
         overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset(), **_: Any) -> StretchFitResult:
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
-    check_force_only_options(typed, "max_amplification")
+    check_force_only_options(typed, "max_amplification", "form")
     kind, table, raw, name, where = _read_run(run, protocol, overrides)
     if kind != "rpam-stretch":
         raise ConfigError(

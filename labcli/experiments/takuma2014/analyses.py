@@ -25,7 +25,10 @@ from .figures import figure7, figure9
 from .models.classify import classify_file, flag_summary, object_items, push_items, report_header, write_report_json
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
+from .models.posture import FORM as POSTURE, PostureModel, force_model_from_json, limits_from_protocol, load_force_model
 from .models.takuma import ANGLE_COLUMNS, EQUATIONS, FORCE_COLUMNS, TERMS, TakumaModel, cap
+
+FORMS = (POSTURE, "paper")  # labcli fit --form; the first is the default
 
 # Options of the rPAM analyses that mean nothing to a force run (``--set``, ``--plot`` of fit).
 SET_REFUSED = ("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
@@ -34,9 +37,9 @@ SET_REFUSED = ("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.0
 
 @dataclass
 class FitResult:
-    """Eqs. 34-37 fitted on a run's fit trials, where the model went, the paper's values."""
+    """A force model fitted on a run's fit trials, where it went, the paper's values."""
 
-    model: TakumaModel
+    model: TakumaModel | PostureModel
     model_path: Path
     run: Path
     recorded: bool  # also recorded in the run file under /models/<protocol>
@@ -48,18 +51,24 @@ class FitResult:
 
 
 def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, max_amplification: float = 100.0,
-        plot: Path | None = None, overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset()) -> FitResult:
-    """Fit the paper's regression to the fit trials of a run file or trial CSV; save the model."""
+        form: str = POSTURE, plot: Path | None = None, overrides: tuple[str, ...] = (),
+        typed: frozenset[str] = frozenset()) -> FitResult:
+    """Fit a force model (``form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it."""
     if overrides:
         raise ConfigError(SET_REFUSED)
     if plot is not None:
         raise ConfigError("--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
                           "for a force run draw Figure 7 with labcli validate --plot.")
+    if form not in FORMS:
+        raise ConfigError(f"Unknown model form '{form}'; use {' or '.join(FORMS)}.")
+    if form == POSTURE and "max_amplification" in typed:
+        raise ConfigError("--max-amplification is the paper form's cut near theta2 = 0; the posture form "
+                          "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out.")
     src = load_trial_source(run, protocol)
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
-        model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
-                            max_amplification=max_amplification).fit(src.table, source=str(run))
-    refuse_non_finite(model, src.table, str(run))
+        model = _fit_form(form, src, str(run), max_amplification)
+    if isinstance(model, TakumaModel):
+        refuse_non_finite(model, src.table, str(run))
     model.fitted_on = src.identity
     out_path = output or default_model_path(run)
     recorded = save_model(model.to_json(), out_path, run=run if src.is_run else None, name=model.protocol)
@@ -90,12 +99,23 @@ def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
                              f"check the table for values beyond what the rig measures.")
 
 
+def _fit_form(form: str, src: Any, source: str, max_amplification: float = 100.0) -> TakumaModel | PostureModel:
+    rig, name = src.protocol.settings.rig, src.protocol.name
+    if form == POSTURE:
+        return PostureModel(geometry=rig, protocol=name, limits=limits_from_protocol(src.protocol)).fit(
+            src.table, source=source)
+    return TakumaModel(geometry=rig, protocol=name, max_amplification=max_amplification).fit(src.table, source=source)
+
+
 def show_fit(result: FitResult, *, as_json: bool = False) -> None:
     if as_json:
         print(json.dumps(result.to_dict(), indent=2))
         return
     recorded = f" and recorded in {result.run} under /models/{result.model.protocol}" if result.recorded else ""
-    report.print_fit(result.model, result.paper, result.model_path, recorded)
+    if isinstance(result.model, PostureModel):
+        report.print_posture_fit(result.model, result.model_path, recorded)
+    else:
+        report.print_fit(result.model, result.paper, result.model_path, recorded)
 
 
 @dataclass
@@ -116,27 +136,28 @@ class ValidationResult:
         return out
 
 
-def model_for_run(run: Path, model_path: Path | None, is_run: bool, name: str) -> tuple[TakumaModel, str]:
+def model_for_run(run: Path, model_path: Path | None, is_run: bool,
+                  name: str) -> tuple[TakumaModel | PostureModel, str]:
     """The model to apply to ``run`` and where it came from (a label for the report).
 
     ``--model`` when given; else the sidecar ``RUN.model.json``; else, for a run file, the
     model the run records under ``/models/<name>`` (a run passed on without its sidecar).
     """
     if model_path is not None:
-        return TakumaModel.load(model_path), str(model_path)
+        return load_force_model(model_path), str(model_path)
     side = default_model_path(run)
     if side.exists() or not is_run:
-        return TakumaModel.load(side), str(side)
+        return load_force_model(side), str(side)
     with RunFile.open(run) as rf:
         recorded = rf.models()
     if name not in recorded:
         raise ModelError(f"The model file {side} does not exist and {run} records no model under /models/{name}; "
                          f"write one with `labcli fit {run}`.")
     label = f"{run}:/models/{name}"
-    return TakumaModel.from_json(recorded[name], name=f"the model {label}"), label
+    return force_model_from_json(recorded[name], name=f"the model {label}"), label
 
 
-def overlap(model: TakumaModel, src: Any) -> list[int]:
+def overlap(model: TakumaModel | PostureModel, src: Any) -> list[int]:
     """The validation trials of ``src`` that ``model`` was fitted on (same data only)."""
     if model.fitted_on:
         same = same_data(model.fitted_on, src.identity)
@@ -144,7 +165,8 @@ def overlap(model: TakumaModel, src: Any) -> list[int]:
         same = bool(model.source) and Path(model.source).name == src.path.name
     if not same:
         return []
-    fitted = {int(t) for ids in model.fitted_trials.values() for t in ids}
+    ft = model.fitted_trials  # per equation (paper form), one list (posture form)
+    fitted = {int(t) for ids in (ft.values() if isinstance(ft, dict) else [ft]) for t in ids}
     table = src.table
     val = table.loc[table["set"].astype(str) == "validation", "trial"]
     return sorted(int(t) for t in val if int(t) in fitted)
@@ -176,9 +198,25 @@ def validate(run: Path, *, model_path: Path | None = None, mode: str = "pressure
                              f"split (`labcli fit {run}`), or pass --allow-overlap to validate anyway.")
         warnings.append(f"{what}; their errors measure the fit, not a prediction (--allow-overlap).")
     ev = evaluate(model, src.table, mode=mode, source=str(run))
+    ev["forms"] = side_by_side(model, ev, src, mode, str(run))
     if plot is not None:
         figure7(ev, plot)
     return ValidationResult(ev, Path(model_path or default_model_path(run)), run, plot, label, warnings)
+
+
+def side_by_side(model: Any, ev: dict[str, Any], src: Any, mode: str, source: str) -> dict[str, Any]:
+    """Both forms' validation metrics: the given model's, and the other form fitted on the same fit trials.
+
+    Empty of the other form when the run cannot fit it (no fit trials, a collinear design): the
+    side-by-side table then shows the one form.
+    """
+    forms = {ev["form"]: ev["metrics"]}
+    other = "paper" if ev["form"] == POSTURE else POSTURE
+    try:
+        forms[other] = evaluate(_fit_form(other, src, source), src.table, mode=mode, source=source)["metrics"]
+    except ModelError:
+        pass
+    return {f: forms[f] for f in FORMS if f in forms}
 
 
 def show_validation(result: ValidationResult, *, as_json: bool = False) -> None:

@@ -50,6 +50,11 @@ SECTIONS: dict[str, Any] = {
         "distance_max_m": {"type": "number", "unit": "m", "check": "positive"},
     },
     "paper_coefficients.takuma2014": {name: {"type": "number"} for name in COEFFICIENT_NAMES},
+    # The posture-aware form flags an estimate whose standard error exceeds these (models/posture.py).
+    "sensing": {
+        "max_angle_se_deg": {"type": "number", "unit": "deg", "check": "positive"},
+        "max_force_se_N": {"type": "number", "unit": "N", "check": "positive"},
+    },
     "stiffness_band": {"type": "pair", "check": "increasing", "help": "[low, high] in N/m"},
 }
 
@@ -113,6 +118,7 @@ class McKibbenSettings:
     trials: Trials | None = None  # force protocols
     force_limits: ForceLimits | None = None  # force protocols
     push: PushSettings | None = None  # push protocols
+    sensing: dict[str, float] = field(default_factory=dict)  # max_angle_se_deg, max_force_se_N
 
     @property
     def default_split(self) -> tuple[int, int] | None:
@@ -175,6 +181,7 @@ def build(checked: dict[str, Any], chk: Any, path: Path | None) -> McKibbenSetti
         trials=_trials(checked["trials"], path) if "trials" in checked else None,
         force_limits=_force_limits(checked["force"], chk) if "force" in checked else None,
         push=_push(checked["push"], checked.get("stiffness_bands_N_per_m", {}), chk) if "push" in checked else None,
+        sensing=dict(checked.get("sensing", {})),
     )
 
 
@@ -187,6 +194,7 @@ KINDS: dict[str, ProtocolKind] = {
             **_COMMON,
             "trials": ("required", "trials"),
             "force": ("required", "force"),
+            "sensing": ("optional", "sensing"),
             "paper_coefficients": ("optional", "paper_coefficients.takuma2014"),
         },
         specs=SECTIONS,

@@ -64,6 +64,69 @@ def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
 
 
+def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
+    """The posture-aware form (models/posture.py): its terms and coefficients, fit residuals, limits."""
+    import math
+
+    from rich import box
+    from rich.table import Table
+
+    from .models.posture import TORQUE_TERMS
+
+    con = report_console()
+    st = model.fit_stats
+    angles = Table(title="Deflection  dtheta = sum beta u   (u = P0/P - 1; coefficients in rad)",
+                   title_justify="left", box=box.SIMPLE_HEAD)
+    torques = Table(title="Load torque  tau = J(theta0 + dtheta)^T F   (dP in MPa, dtheta in rad; N m per unit)",
+                    title_justify="left", box=box.SIMPLE_HEAD)
+    for table, terms, coef, cov in ((angles, model.angle_terms, model.angle_coefficients, model.angle_xtx_inv),
+                                    (torques, TORQUE_TERMS, model.torque_coefficients, model.torque_xtx_inv)):
+        res = model.angle_resid_cov if table is angles else model.torque_resid_cov
+        names = ("dtheta1", "dtheta2") if table is angles else ("tau1", "tau2")
+        table.add_column("term")
+        for name in names:
+            table.add_column(name, justify="right")
+            table.add_column("std. error", justify="right")
+        for i, term in enumerate(terms):
+            row = [term]
+            for k in range(2):
+                row += [f"{coef[i][k]:.5g}", f"{math.sqrt(cov[i][i] * res[k][k]):.3g}"]
+            table.add_row(*row)
+        print_table(con, table)
+    con.print(f"Fit on {st['n']} trials; rest posture (median) theta0 = "
+              f"({st['theta0_deg'][0]:.2f}, {st['theta0_deg'][1]:.2f}) deg; residual RMSE "
+              f"dtheta {st['angle_rmse_deg'][0]:.3g}, {st['angle_rmse_deg'][1]:.3g} deg, "
+              f"tau {st['torque_rmse_Nm'][0]:.3g}, {st['torque_rmse_Nm'][1]:.3g} N m.", soft_wrap=True)
+    lim = model.limits
+    con.print(f"Forces F = (J^T)^-1 tau at theta0 + dtheta, each with its standard error; an estimate is "
+              f"flagged above {math.degrees(lim['theta1']):.3g} deg (angles) or {lim['Fx']:.3g} N (forces) "
+              "(protocol [sensing]). The paper's Eqs. 34-37: labcli fit --form paper.", soft_wrap=True)
+    con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
+
+
+def print_forms(forms: dict[str, dict[str, Any]], where: str = "the same validation trials") -> None:
+    """Validation RMSE of both forms side by side, reported trials and all trials."""
+    from rich import box
+    from rich.table import Table
+
+    con = report_console()
+    table = Table(title=f"Both forms on {where} (RMSE; all = flagged trials too)",
+                  title_justify="left", box=box.SIMPLE_HEAD)
+    table.add_column("quantity")
+    for form in forms:
+        for col in ("n", "RMSE", "RMSE all"):
+            table.add_column(f"{form} {col}", justify="right")
+    table.add_column("posture 95% cover", justify="right")
+    for q, (_, unit, _) in QUANTITIES.items():
+        row = [f"{q} [{unit}]"]
+        for m in forms.values():
+            row += [str(m[q]["n"]), cell(m[q]["rmse"], ".3g"), cell(m[q]["rmse_all"], ".3g")]
+        cover = forms.get("posture", {}).get(q, {}).get("coverage95")
+        row.append(cell(None if cover is None else 100 * cover, ".0f") + (" %" if cover is not None else ""))
+        table.add_row(*row)
+    print_table(con, table)
+
+
 def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | None) -> None:
     from rich import box
     from rich.table import Table
@@ -93,6 +156,8 @@ def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | Non
             missing = [q for q in QUANTITIES if not ev["ok"][q][i]]
             reasons = "; ".join(FLAG_TEXT.get(f, f) for f in fl)
             con.print(f"  trial {t}: {', '.join(missing)} = — ({reasons})", soft_wrap=True)
+    if len(ev.get("forms", {})) > 1:
+        print_forms(ev["forms"])
     if plot is not None:
         con.print(f"Figure 7 written to {plot}.")
 
@@ -226,6 +291,8 @@ def print_demo(res: Any) -> None:
         con.print("The default rig has sleeve friction, chamber leaks, thermal relaxation, potentiometer backlash "
                   "and link weight; the ideal rig (the same seed with ideal=1) has none, so the two RMSE columns "
                   "show what they cost.", soft_wrap=True)
+    for protocol, forms in getattr(res, "forms", {}).items():
+        print_forms(forms, f"protocol {protocol}")
 
     obj = Table(title=f"Object stiffness (Section 4, Figure 9); categories by the {res.classify_method} method, "
                       "true values from the simulated objects",

@@ -258,4 +258,4 @@ def test_cli_unknown_key_is_one_clear_line():
 def test_cli_missing_protocol_is_one_clear_line():
     result = CliRunner().invoke(cli, ["optimize", "--protocol", "nosuch"])
     assert result.exit_code == 1
-    assert result.output == "Error: No protocol named 'nosuch'; give a .toml path or a shipped name (rpam2015, takuma2014, takuma2014-stiffness).\n"
+    assert result.output == "Error: No protocol named 'nosuch'; give a .toml path or a shipped name (rpam2015, takuma2014, takuma2014-bent, takuma2014-stiffness).\n"

@@ -87,8 +87,8 @@ def test_synthetic_trials_obey_the_paper_equations(clean: pd.DataFrame) -> None:
         t1, t2 = math.radians(r.theta1_deg), math.radians(r.theta2_deg)
         u, dP = P0 / P - 1, P0 - P
         assert math.sin(t1) == pytest.approx(b["beta_theta1_L1"] * u[0] + b["beta_theta1_R1"] * u[1], abs=1e-11)
-        # Eq. 35 as printed has "- beta_theta2R2 (...)"; with the paper's -2.972 that is +2.972 u_R2.
-        s2 = (1.359 * u[0] + 1.094 * u[1] + 0.766 * u[2] - (-2.972) * u[3])
+        # Eq. 31's plus sign with Section 3.3's -2.972 (Eq. 35's printed minus is a misprint).
+        s2 = (1.359 * u[0] + 1.094 * u[1] + 0.766 * u[2] + (-2.972) * u[3])
         assert math.sin(t2) == pytest.approx(s2, abs=1e-11)
         js = np.linalg.inv(printed_jacobian(t1, t2)).T
         c1, c2 = math.cos(t1), math.cos(t2)

@@ -36,7 +36,7 @@ CASES: list[Case] = [
     Case("toml-no-such-name", "protocol TOML", "no shipped protocol of that name",
          ["import", "trials.csv", "-o", "new.h5", "--protocol", "takuma2041"],
          ["There is no shipped protocol named 'takuma2041'; shipped protocols are rpam2015, takuma2014, "
-          "takuma2014-stiffness, or give the path of a .toml file."]),
+          "takuma2014-bent, takuma2014-stiffness, or give the path of a .toml file."]),
     Case("toml-missing-file", "protocol TOML", "missing file",
          ["acquire", "new.h5", "--port", SIM, "--protocol", "nope.toml"],
          ["Protocol file nope.toml does not exist; check the path."]),

@@ -39,10 +39,13 @@ from ....core.store import RunFile
 from ..records import load_pushes
 from .categories import CategoryModel
 from .stiffness import PushEstimates, StiffnessParams, estimate_pushes, object_stats
+from .posture import PostureModel, load_force_model
 from .takuma import TakumaModel, cap
 
 P0_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
 THETA0_COLUMNS = ("theta10_deg", "theta20_deg")  # optional: absolute baseline posture
+# The same in the table format's spelling (docs/table-formats.md), read when the above is absent.
+REST_COLUMNS = ("theta1_0_deg", "theta2_0_deg")
 THETA_COLUMNS = ("theta1_deg", "theta2_deg")  # optional: measured deflections
 P_COLUMNS = ("P_L1", "P_R1", "P_L2", "P_R2")
 REQUIRED = ("push", "object", "R_m", "d_m") + P0_COLUMNS + P_COLUMNS
@@ -144,15 +147,13 @@ def classify_pushes(
     h2, h3 = (_length(model, key, value) for key, value in (("h2", h2), ("h3", h3)))
     _check_table(table, method)
     table = table.reset_index(drop=True)
-    theta, pred = _posture_and_force(table, model, angles)
+    theta0 = _rest_posture(table)
+    theta, pred = _posture_and_force(table, model, angles, theta0)
     Fx, Fy = (np.asarray(_prediction(pred, q), dtype=float) for q in ("Fx", "Fy"))
     ok = pred.get("ok")
     force_ok = None
     if isinstance(ok, Mapping) and "Fx" in ok and "Fy" in ok:
         force_ok = np.column_stack([np.asarray(ok["Fx"], dtype=bool), np.asarray(ok["Fy"], dtype=bool)])
-    theta0 = None
-    if all(c in table.columns for c in THETA0_COLUMNS):
-        theta0 = np.radians(np.column_stack([_column(table, c) for c in THETA0_COLUMNS]))
     phi = np.radians(np.asarray(table["phi_deg"], dtype=float)) if "phi_deg" in table.columns else None
     est: PushEstimates = estimate_pushes(
         theta[:, 0], theta[:, 1], Fx, Fy,
@@ -194,19 +195,42 @@ def _check_table(table: Any, method: str) -> None:
         raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
 
 
-def _posture_and_force(table: Any, model: Any, angles: str) -> tuple[np.ndarray, Mapping[str, Any]]:
-    """The joint angles (rad, per push) and the model's prediction, from the pressures or the pots."""
+def _rest_posture(table: Any) -> np.ndarray | None:
+    """Each push's absolute baseline posture (rad), from either spelling of its columns, or None.
+
+    The table format's rest columns are optional and may be empty (absent means 0, 0): None when
+    every cell is empty, 0 in an empty cell otherwise.
+    """
+    if all(c in table.columns for c in THETA0_COLUMNS):
+        return np.radians(np.column_stack([_column(table, c) for c in THETA0_COLUMNS]))
+    if all(c in table.columns for c in REST_COLUMNS):
+        import pandas as pd
+
+        rest = np.column_stack([pd.to_numeric(table[c], errors="coerce").to_numpy(dtype=float) for c in REST_COLUMNS])
+        if np.isnan(rest).all():
+            return None
+        return np.radians(np.where(np.isnan(rest), 0.0, rest))
+    return None
+
+
+def _posture_and_force(table: Any, model: Any, angles: str,
+                       theta0: np.ndarray | None = None) -> tuple[np.ndarray, Mapping[str, Any]]:
+    """The joint angles (rad, per push) and the model's prediction, from the pressures or the pots.
+
+    The posture-aware form also takes the rest posture (its Jacobian is evaluated there).
+    """
     P0 = np.column_stack([_column(table, c) for c in P0_COLUMNS])
     P = np.column_stack([_column(table, c) for c in P_COLUMNS])
+    rest = {"theta0": theta0} if isinstance(model, PostureModel) and theta0 is not None else {}
     if angles == "pressure-only":
-        pred = model.predict(P0, P, mode="pressure-only")
+        pred = model.predict(P0, P, mode="pressure-only", **rest)
         return np.column_stack([_prediction(pred, "theta1"), _prediction(pred, "theta2")]), pred
     if angles == "measured-angles":
         missing = [c for c in THETA_COLUMNS if c not in table.columns]
         if missing:
             raise ConfigError(f"The push table lacks column {missing[0]!r}, which measured angles need.")
         theta = np.radians(np.column_stack([_column(table, c) for c in THETA_COLUMNS]))
-        return theta, model.predict(P0, P, mode="measured-angles", theta=theta)
+        return theta, model.predict(P0, P, mode="measured-angles", theta=theta, **rest)
     raise ConfigError(f"Unknown angle source {angles!r}; use 'pressure-only' or 'measured-angles'.")
 
 
@@ -447,11 +471,11 @@ def classify_file(
         raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
     src = load_push_source(pushes, protocol, measured_angles=angles == "measured-angles")
     params, force_protocol = stiffness_settings(src.protocol)
-    if isinstance(model, TakumaModel):
+    if isinstance(model, (TakumaModel, PostureModel)):
         model_path, fmodel = None, model
     else:
         model_path = Path(model)
-        fmodel = TakumaModel.load(model_path)
+        fmodel = load_force_model(model_path)
     model_name = f"the model file {model_path}" if model_path is not None else "the model"
     check_force_model(fmodel, src.protocol, model_name=model_name, run_name=str(src.path),
                       force_protocol=force_protocol)

@@ -1,15 +1,18 @@
 """Accuracy of the fitted regression on the validation trials (the paper's Figure 7).
 
 Errors are ``calculated - observed`` in degrees for the angles and newtons for the forces.
-Trials whose prediction is flagged (clipped arcsin, near-singular Jacobian, bad pressure) are
-counted apart and left out of the measures, so one bad posture cannot hide or dominate the
-accuracy of the rest.
+Trials whose prediction is flagged (clipped arcsin, near-singular Jacobian, bad pressure, or in
+the posture-aware form a standard error over the protocol's limit) are counted apart and left out
+of the measures, so one bad posture cannot hide or dominate the accuracy of the rest.
+``rmse_all`` is the RMSE over every trial, flagged ones included (the forms' stand-in values), for
+comparing forms that flag differently; ``coverage95`` (posture-aware form) is the share of the
+reported trials whose error lies inside the estimate's 95 % interval (+-1.96 standard errors).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -74,22 +77,39 @@ def evaluate(model: TakumaModel, table: Any, mode: str = "pressure-only",
         observed[q] = (np.asarray(rows[col], dtype=float) if col in rows.columns
                        else np.full(len(rows), np.nan))
     metrics: dict[str, dict[str, Any]] = {}
+    se = _standard_errors(pred)
     for q, (_, unit, _) in QUANTITIES.items():
         have = np.isfinite(observed[q])
         ok = np.asarray(pred["ok"][q], dtype=bool)
         use = have & ok
         m = error_metrics(observed[q][use], calculated[q][use])
         m.update(unit=unit, n_flagged=int(np.sum(have & ~ok)), n_missing=int(np.sum(~have)))
+        every = have & np.isfinite(calculated[q])
+        m["rmse_all"] = error_metrics(observed[q][every], calculated[q][every])["rmse"]
+        if se is not None:
+            inside = np.abs(calculated[q] - observed[q]) <= Z95 * se[q]
+            m["coverage95"] = float(np.mean(inside[use])) if use.any() else None
         metrics[q] = m
     if all(metrics[q]["n"] == 0 for q in QUANTITIES):
         raise ModelError(f"No validation trial of {source} gives a usable prediction "
                          f"({_flag_summary(pred['flags'])}); check the pressures and the model.")
     return {
-        "mode": mode, "trial": np.asarray(pred["trial"], dtype=int),
-        "observed": observed, "calculated": calculated,
+        "mode": mode, "form": getattr(model, "form", "paper"), "trial": np.asarray(pred["trial"], dtype=int),
+        "observed": observed, "calculated": calculated, "se": se,
         "ok": {q: np.asarray(pred["ok"][q], dtype=bool) for q in QUANTITIES},
         "flags": pred["flags"], "metrics": metrics,
     }
+
+
+Z95 = 1.959963984540054
+
+
+def _standard_errors(pred: Mapping[str, Any]) -> dict[str, np.ndarray] | None:
+    """The prediction's standard errors in degrees / N, when its form gives them."""
+    if "se" not in pred:
+        return None
+    return {q: (np.degrees(pred["se"][q]) if q.startswith("theta") else np.asarray(pred["se"][q], dtype=float))
+            for q in QUANTITIES}
 
 
 def _flag_summary(flags: list[list[str]]) -> str:
@@ -118,7 +138,13 @@ def evaluation_to_dict(ev: dict[str, Any]) -> dict[str, Any]:
                            for q in QUANTITIES},
             "flags": [{"flag": f, "reason": FLAG_TEXT.get(f, f)} for f in ev["flags"][i]],
         })
+        if ev.get("se") is not None:
+            trials[-1]["standard_error"] = {q: _num(ev["se"][q][i]) for q in QUANTITIES}
     units = {q: QUANTITIES[q][1] for q in QUANTITIES}
     metrics = {q: {k: (_num(v) if isinstance(v, float) else v) for k, v in m.items()}
                for q, m in ev["metrics"].items()}
-    return {"mode": ev["mode"], "units": units, "metrics": metrics, "trials": trials}
+    out = {"mode": ev["mode"], "form": ev.get("form", "paper"), "units": units, "metrics": metrics, "trials": trials}
+    if "forms" in ev:
+        out["forms"] = {f: {q: {k: (_num(v) if isinstance(v, float) else v) for k, v in m.items()}
+                            for q, m in ms.items()} for f, ms in ev["forms"].items()}
+    return out

@@ -101,6 +101,9 @@ REASON_PROJECTION = (
     "the usable force component is below min_projection of the force along O2 -> C, or points against it"
 )
 SINGULAR_FLAG = "singular-jacobian"
+# Flags that, with exactly one force component usable, name that component's loss: the paper
+# form's cut near theta2 = 0, and the posture-aware form's standard error over its limit.
+ONE_COMPONENT_FLAGS = frozenset({SINGULAR_FLAG, "uncertain"})
 SINGULAR_POLICIES = ("exclude", "project")
 
 
@@ -505,7 +508,7 @@ def _flag_model(reasons: list[list[str]], notes: list[list[str]], model: list[li
     accepted = set(params.accept_model_flags)
     for i, names in enumerate(model):
         if handled[i]:
-            names = [t for t in names if t != SINGULAR_FLAG]
+            names = [t for t in names if t not in ONE_COMPONENT_FLAGS]
         if not names:
             continue
         kept = [t for t in names if t not in accepted]
@@ -535,10 +538,8 @@ def _project_singular(
     ok = np.asarray(force_ok, dtype=bool)
     if ok.shape != (n, 2):
         raise ConfigError(f"Model force flags have shape {ok.shape}, expected ({n}, 2) for {n} pushes.")
-    # Only pushes whose sole complaint is the singular pose, with exactly one component usable.
-    single = [SINGULAR_FLAG]
-    only_singular = np.array([bool(names) and (names == single or set(names) == {SINGULAR_FLAG}) for names in model],
-                             dtype=bool)
+    # Only pushes whose sole complaint is one lost force component, with exactly one component usable.
+    only_singular = np.array([bool(names) and set(names) <= ONE_COMPONENT_FLAGS for names in model], dtype=bool)
     one = only_singular & (ok.sum(axis=1) == 1)
     F = F.copy()
     g = C - O2_given

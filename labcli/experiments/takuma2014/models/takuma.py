@@ -16,8 +16,12 @@ in the paper's Section 2.2.2::
     J = [[-h2 c1 - h3 c12, -h3 c12],
          [-h2 s1 - h3 s12, -h3 s12]]          det J = h2 h3 sin(theta2)
 
-Sign reading: every coefficient multiplies its term with a plus sign.  Eq. 35 prints a minus
-before beta_theta2R2 (Eq. 31 does not); under the plus-sign reading the paper's -2.972 is +2.972.
+Sign reading: every coefficient multiplies its term with a plus sign (Eq. 31's form), and the
+paper's listed beta_theta2R2 = -2.972 is taken as printed in Section 3.3; the minus that Eq. 35
+prints before that term is a misprint.  Measured: the paper's coefficients on the simulated rig's
+pressures give theta2 at +1.3 to +1.6 times the truth in this reading and -0.7 times in the other
+(``python -m labcli.experiments.takuma2014.sim.paper_scale``), and the geometry (Eqs. 6-7, 13)
+puts L2 and R2 on opposite sides of the joint, so their coefficients must have opposite signs.
 
 Units: pressures MPa, lengths m, angles rad, forces N.  Angle coefficients are dimensionless
 (sine per unit pressure ratio); force coefficients are N m / MPa (j* is in 1/m).
@@ -62,18 +66,19 @@ TERMS: dict[str, tuple[str, ...]] = {
 }
 COEFFICIENT_NAMES: tuple[str, ...] = tuple(n for eq in EQUATIONS for n in TERMS[eq])
 
-# Section 3.3 of the paper, plus-sign reading (beta_theta2_R2 printed as -2.972 after a minus).
+# Section 3.3 of the paper as listed, plus-sign reading (Eq. 35's minus before beta_theta2R2 is a misprint).
 PAPER_COEFFICIENTS: dict[str, float] = {
     "beta_theta1_L1": 0.136, "beta_theta1_R1": -1.587,
     "beta_theta2_L1": 1.359, "beta_theta2_R1": 1.094,
-    "beta_theta2_L2": 0.766, "beta_theta2_R2": 2.972,
+    "beta_theta2_L2": 0.766, "beta_theta2_R2": -2.972,
     "beta_Fx1": -75.906, "beta_Fx2": -5.538, "beta_Fx3": -2201.033,
     "beta_Fx4": -131.738, "beta_Fx5": 1.545, "beta_Fx6": -21.865,
     "beta_Fy1": 1.309, "beta_Fy2": -75.973, "beta_Fy3": -642.995,
     "beta_Fy4": -393.750, "beta_Fy5": 1.196, "beta_Fy6": -21.697,
 }
-SIGN_NOTE = ("plus-sign reading: every coefficient multiplies its term with +; Eq. 35 prints a "
-             "minus before beta_theta2R2, so the paper's -2.972 appears here as +2.972")
+SIGN_NOTE = ("plus-sign reading: every coefficient multiplies its term with +, the paper's "
+             "beta_theta2R2 = -2.972 as listed (the minus Eq. 35 prints before it is a misprint: "
+             "fed the rig's pressures, -2.972 gives theta2 x1.4 of the truth, +2.972 gives x-0.7)")
 
 BASELINE_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
 LOADED_COLUMNS = ("P_L1", "P_R1", "P_L2", "P_R2")
@@ -98,6 +103,8 @@ FLAG_TEXT = {
     "theta2-clipped": "Eq. 35 gave |sin(theta2)| > 1 (clipped)",
     "missing-angle": "the measured angle is missing",
     "singular-jacobian": "theta2 too close to 0 for this force component (Jacobian near singular)",
+    # The posture-aware form (models/posture.py) flags by uncertainty instead.
+    "uncertain": "standard error over the protocol's [sensing] limit",
 }
 
 
@@ -108,6 +115,16 @@ def pressure_ratio_features(P0: np.ndarray, P: np.ndarray) -> np.ndarray:
     P0 = np.asarray(P0, dtype=float)
     P = np.asarray(P, dtype=float)
     return P0 / P - 1.0
+
+
+def pressure_arrays(P0: Any, P: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Baseline and loaded pressures as (n, 4) float arrays (ModelError for any other shape)."""
+    P0 = np.atleast_2d(np.asarray(P0, dtype=float))
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    if P0.shape != P.shape or P0.shape[1] != 4:
+        raise ModelError(f"Pressures must be (n, 4) arrays in the order L1, R1, L2, R2; "
+                         f"got {P0.shape} and {P.shape}.")
+    return P0, P
 
 
 def theta2_threshold(h2: float, h3: float, max_cond: float) -> float:
@@ -444,11 +461,7 @@ class TakumaModel:
         self._require_fitted()
         if mode not in ("pressure-only", "measured-angles"):
             raise ModelError(f"Unknown prediction mode '{mode}'; use pressure-only or measured-angles.")
-        P0 = np.atleast_2d(np.asarray(P0, dtype=float))
-        P = np.atleast_2d(np.asarray(P, dtype=float))
-        if P0.shape != P.shape or P0.shape[1] != 4:
-            raise ModelError(f"Pressures must be (n, 4) arrays in the order L1, R1, L2, R2; "
-                             f"got {P0.shape} and {P.shape}.")
+        P0, P = pressure_arrays(P0, P)
         n = len(P)
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         flags: list[list[str]] = [[] for _ in range(n)]
@@ -544,6 +557,7 @@ class TakumaModel:
             "ci95": self.ci95, "covariance": self.covariance, "fit_stats": self.fit_stats,
             "fitted_trials": self.fitted_trials, "excluded_trials": self.excluded_trials,
             "source": self.source, "labcli_version": self.labcli_version, "fitted_on": self.fitted_on,
+            "form": "paper",
         })
 
     def to_json(self) -> str:
@@ -561,6 +575,9 @@ class TakumaModel:
         if d.get("version") != SCHEMA_VERSION:
             raise ModelError(f"{cap(name)} has model version {d.get('version')!r}; this labcli reads "
                              f"version {SCHEMA_VERSION}.")
+        if d.get("form", "paper") != "paper":
+            raise ModelError(f"{cap(name)} holds the {d.get('form')!r} form, not the paper's Eqs. 34-37; "
+                             "this step needs a model from `labcli fit --form paper`.")
         model = cls(**_model_fields(d, cap(name)))
         unknown = [k for k in model.coefficients if k not in COEFFICIENT_NAMES]
         if unknown:

@@ -11,9 +11,10 @@ singular Jacobian, is flagged on most trials of an upright arm).  Forces use
 the measured angles (``measured-angles`` mode), so that the force ratio is the
 pressure-per-newton scale alone.
 
-``reading`` picks the sign of beta_theta2_R2: ``plus`` is the toolkit's
-(+2.972, Eq. 35 as printed with the listed -2.972), ``eq31`` takes Eq. 31's
-plus sign with the listed value (-2.972).  Only theta2 depends on it.
+``reading`` picks the sign of beta_theta2_R2: ``eq31`` is the toolkit's (Eq. 31's
+plus sign with the listed value, -2.972), ``eq35`` folds Eq. 35's printed minus
+into it (+2.972).  Only theta2 depends on it; ``eq31`` gives ratios near +1.4,
+``eq35`` near -0.7, which is why the toolkit reads Eq. 35's minus as a misprint.
 
 Rerun: ``python -m labcli.experiments.takuma2014.sim.paper_scale [SEED ...]`` (default seeds 1-5).
 """
@@ -29,7 +30,7 @@ MIN_SHARE = 0.2
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
 
 
-def paper_ratios(rig: Any, reading: str = "plus", settle_s: float = 15.0) -> dict[str, dict[str, float]]:
+def paper_ratios(rig: Any, reading: str = "eq31", settle_s: float = 15.0) -> dict[str, dict[str, float]]:
     """Per quantity: ``n``, ``median``, ``q25``, ``q75`` of prediction / truth on ``rig``."""
     from ....core.protocol import load_protocol
     from ..models.takuma import PAPER_COEFFICIENTS, TakumaModel
@@ -38,10 +39,9 @@ def paper_ratios(rig: Any, reading: str = "plus", settle_s: float = 15.0) -> dic
 
     proto = load_protocol("takuma2014")
     coefficients = dict(PAPER_COEFFICIENTS)
-    if reading == "eq31":
-        coefficients["beta_theta2_R2"] = -coefficients["beta_theta2_R2"]
-    elif reading != "plus":
-        raise ValueError(f"unknown reading {reading!r}; use 'plus' or 'eq31'")
+    if reading not in ("eq31", "eq35"):
+        raise ValueError(f"unknown reading {reading!r}; use 'eq31' or 'eq35'")
+    coefficients["beta_theta2_R2"] = -2.972 if reading == "eq31" else 2.972
     table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=settle_s)
     model = TakumaModel(geometry=proto.settings.rig, protocol=proto.name, coefficients=coefficients)
     out = model.predict_table(table, mode="measured-angles")
@@ -70,7 +70,7 @@ def main(argv: list[str]) -> None:
     print("prediction / truth with the paper's Section 3.3 coefficients, median [interquartile] (n, flagged)")
     for label, kw in (("realistic", {}), ("ideal", {"nonideal": NonIdeal.ideal()}),
                       ("thin, ideal", {"nonideal": NonIdeal.ideal(), "design": "thin"})):
-        for reading in ("plus", "eq31"):
+        for reading in ("eq31", "eq35"):
             for seed in seeds:
                 res = paper_ratios(SimRig(seed=seed, **kw), reading)
                 cells = "  ".join(f"{q} {v['median']:+.2f} [{v['q25']:+.2f},{v['q75']:+.2f}] ({v['n']},{v['flagged']})"

@@ -1,0 +1,459 @@
+"""The posture-aware force model: torques at the arm's true posture, forces by (J^T)^-1, with errors.
+
+Eqs. 34-37 evaluate the Jacobian at the deflection theta, as if the arm rested straight; a real
+arm rests at some posture theta0 (the potentiometers at the trial's baseline), and on a straight
+arm (det J = h2 h3 sin theta2 = 0) a force along the arm makes no torque at all.  This form
+regresses the load's joint torques and maps them to a force at the estimated posture::
+
+    tau = J(theta0 + dtheta)^T F                       (the load's generalised force, N m)
+    tau_k = sum_j a_kj dP_j + sum_j,l b_kjl dP_j dtheta_l + sum_l g_kl dtheta_l      (k = 1, 2)
+    F = (J(theta0 + dtheta)^T)^-1 tau                  (Eq. 14, at the true posture)
+
+Derivation (Eqs. 16-33).  Each tendon pulls with f_ij on a path of length s_ij(theta); the
+actuators' joint torques are sum_ij f_ij ds_ij/dtheta (Eqs. 15-19 are this with the paper's
+moment arms m_ij = ds_ij/dtheta).  In equilibrium before and after the load,
+J^T F = -(sum f_ij(P) m_ij(theta) - sum f_ij(P0) m_ij(theta0)), so
+
+    J^T F = -sum m_ij(theta) (f_ij - f_ij0) - sum (m_ij(theta) - m_ij(theta0)) f_ij0.
+
+Eqs. 20-29 make the tension change linear in the pressure drop, f_ij - f_ij0 = k_ij (beta_ij -
+dl_ij0) dP_ij (the paper's beta_F).  Expanding the moment arms about the rest posture,
+m_ij(theta) = m_ij(theta0) + dm_ij/dtheta dtheta, gives the three groups above: dP_j alone (the
+paper's terms, with the moment arms at theta0 instead of the paper's cos-products at dtheta), dP_j
+dtheta_l (the moment arms turning with the deflection), and dtheta_l alone (the rest tensions
+f_ij0 on the changed moment arms; the links' weight on the changed lever adds to the same term).
+No intercept: no load, no torque.  The regression is on the torques, not the forces, because the
+torques are what the pressures see: near theta2 = 0 a force along the arm gives none, and the
+force's uncertainty (below) says so instead of a fixed cut.  Regressing J^T F with the load's
+sign also settles the sign question of Eq. 14 (docs/errata.md).
+
+Angles: the deflection dtheta_k is linear in u_ij = P_ij0 / P_ij - 1 (Eqs. 30-31 with sin
+dropped, Eq. 29's Boyle relation), plus the quadratic terms u_i u_j the data support: forward
+selection on the cross-validated error of both angle equations (the same terms in both).
+
+Uncertainty.  Both torque equations share one design X, so the coefficients' covariance is
+S_tau (x) (X^T X)^-1 with S_tau the 2x2 residual covariance (from held-out blocks of trials when
+that is the larger: friction's error depends on the load's direction); a new trial's torque error has
+covariance (1 + x^T (X^T X)^-1 x) S_tau (coefficients and residual), and likewise its angle.
+The force is the posterior mean given the torques and a Gaussian prior on F whose spread is
+the fit loads' RMS per component: where J^T is well conditioned this is (J^T)^-1 tau, and along a
+straight arm, where the torques say nothing, it falls back to the prior (0 +- the load spread)
+instead of blowing up.  Its covariance is the posterior's, (J S^-1 J^T + Lambda)^-1, plus
+G Sigma_dtheta G^T with G = dF / d(dtheta) through both the Jacobian and the torque's dtheta terms
+(numerically).  A trial's
+estimate is flagged when its standard error exceeds the protocol's ``[sensing]`` limit.
+
+Units: pressures MPa, angles rad, torques N m, forces N.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ....errors import ModelError
+from .geometry import jacobian
+from .takuma import (ANGLE_COLUMNS, BASELINE_COLUMNS, FORCE_COLUMNS, LOADED_COLUMNS, SCHEMA, SCHEMA_VERSION,
+                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, select_set)
+
+FORM = "posture"
+REST_COLUMNS = ("theta1_0_deg", "theta2_0_deg")
+ACTUATORS = ("L1", "R1", "L2", "R2")
+ANGLE_LINEAR = tuple(f"u_{a}" for a in ACTUATORS)
+ANGLE_QUADRATIC = tuple(f"u_{ACTUATORS[i]}*u_{ACTUATORS[j]}" for i in range(4) for j in range(i, 4))
+TORQUE_TERMS = (tuple(f"dP_{a}" for a in ACTUATORS)
+                + tuple(f"dP_{a}*dtheta{l}" for a in ACTUATORS for l in (1, 2))
+                + ("dtheta1", "dtheta2"))
+# Standard errors above these flag an estimate (the protocol's [sensing] keys override them):
+# 1 N tells the plan's 50-1000 g loads (0.5-9.8 N) apart by about 2 N at 95 %; 0.5 deg is several
+# times the potentiometers' backlash.
+DEFAULT_LIMITS = {"theta1": math.radians(0.5), "theta2": math.radians(0.5), "Fx": 1.0, "Fy": 1.0}
+
+
+def limits_from_protocol(protocol: Any) -> dict[str, float]:
+    """The standard-error limits (rad, N) of a protocol's ``[sensing]`` table, defaults elsewhere."""
+    s = getattr(getattr(protocol, "settings", None), "sensing", None) or {}
+    out = dict(DEFAULT_LIMITS)
+    if "max_angle_se_deg" in s:
+        out["theta1"] = out["theta2"] = math.radians(float(s["max_angle_se_deg"]))
+    if "max_force_se_N" in s:
+        out["Fx"] = out["Fy"] = float(s["max_force_se_N"])
+    return out
+
+
+# --------------------------------------------------------------------------- features
+
+def angle_features(P0: np.ndarray, P: np.ndarray, terms: tuple[str, ...]) -> np.ndarray:
+    """Columns ``terms`` (names from ANGLE_LINEAR + ANGLE_QUADRATIC) of u = P0/P - 1, (n, len(terms))."""
+    u = np.asarray(P0, dtype=float) / np.asarray(P, dtype=float) - 1.0
+    idx = {a: k for k, a in enumerate(ACTUATORS)}
+    cols = []
+    for t in terms:
+        parts = [p[2:] for p in t.split("*")]
+        cols.append(np.prod([u[:, idx[p]] for p in parts], axis=0))
+    return np.column_stack(cols) if cols else np.empty((len(u), 0))
+
+
+def torque_features(dP: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
+    """The 14 torque terms (TORQUE_TERMS) from pressure drops (n, 4) MPa and deflections (n, 2) rad."""
+    dP = np.atleast_2d(dP)
+    dtheta = np.atleast_2d(dtheta)
+    products = (dP[:, :, None] * dtheta[:, None, :]).reshape(len(dP), 8)
+    return np.column_stack([dP, products, dtheta])
+
+
+def load_torque(theta: np.ndarray, F: np.ndarray, h2: float, h3: float) -> np.ndarray:
+    """tau = J(theta)^T F (n, 2) in N m for absolute angles theta (n, 2) rad and forces (n, 2) N."""
+    J = jacobian(theta[:, 0], theta[:, 1], h2, h3)
+    return np.einsum("nij,ni->nj", J, F)
+
+
+def force_from_torque(theta: np.ndarray, tau: np.ndarray, h2: float, h3: float) -> np.ndarray:
+    """F = (J(theta)^T)^-1 tau (n, 2) in N; a straight arm (det J = 0) gets the least-norm force."""
+    JT = np.swapaxes(jacobian(theta[:, 0], theta[:, 1], h2, h3), 1, 2)
+    return np.einsum("nij,nj->ni", np.linalg.pinv(JT), tau)
+
+
+# --------------------------------------------------------------------------- least squares
+
+@dataclass
+class _Shared:
+    """Least squares of several responses on one design: coefficients, (X^T X)^-1, residual covariance."""
+
+    beta: np.ndarray       # (p, k)
+    xtx_inv: np.ndarray    # (p, p)
+    resid_cov: np.ndarray  # (k, k)
+    dof: int
+
+
+def _shared_lstsq(X: np.ndarray, Y: np.ndarray, what: str) -> _Shared:
+    n, p = X.shape
+    if n <= p:
+        raise ModelError(f"The posture form's {what} fit needs more than {p} usable fit trials, got {n}; "
+                         "record more fit trials, or fit the paper's Eqs. 34-37 with --form paper.")
+    scale = np.linalg.norm(X, axis=0)
+    if not np.all(scale > 0):
+        raise ModelError(f"The {what} fit has a term that is zero in every fit trial; "
+                         "record fit trials that load every actuator.")
+    U, s, Vt = np.linalg.svd(X / scale, full_matrices=False)
+    if not s[-1] > s[0] * 1e-12:
+        raise ModelError(f"The {what} design matrix is singular; record fit trials with more "
+                         "varied force directions.")
+    beta = (Vt.T @ ((U.T @ Y) / s[:, None])) / scale[:, None]
+    resid = Y - X @ beta
+    dof = n - p
+    xtx_inv = ((Vt.T / s ** 2) @ Vt) / np.outer(scale, scale)
+    # The residual covariance from held-out blocks when that is larger than the in-sample one:
+    # friction's hysteresis depends on the load's direction, so errors on directions the fit
+    # did not see exceed the fit's own residual.  Divided by 1 + p/n because prediction adds
+    # the coefficients' share (1 + h) again.
+    cv = _cv_residuals(X, Y)
+    held_out = cv.T @ cv / n / (1.0 + p / n)
+    in_sample = resid.T @ resid / dof
+    return _Shared(beta, xtx_inv, held_out if np.trace(held_out) > np.trace(in_sample) else in_sample, dof)
+
+
+CV_FOLDS = 10
+# A quadratic term is kept only if it cuts the cross-validated error by this share: on the
+# simulated rig smaller gains in the fit set turned into losses on new directions.
+CV_MIN_GAIN = 0.10
+
+
+def _cv_residuals(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """Held-out residuals of contiguous-block cross-validation (a plan groups trials by pulley position)."""
+    n = len(Y)
+    edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
+    out = np.empty_like(Y)
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        train = np.r_[0:lo, hi:n]
+        beta, *_ = np.linalg.lstsq(X[train], Y[train], rcond=None)
+        out[lo:hi] = Y[lo:hi] - X[lo:hi] @ beta
+    return out
+
+
+def _cv_error(X: np.ndarray, Y: np.ndarray) -> float:
+    """Summed squared held-out error of contiguous-block cross-validation."""
+    return float(np.sum(_cv_residuals(X, Y) ** 2))
+
+
+def select_angle_terms(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray) -> tuple[str, ...]:
+    """The linear terms and the quadratic ones that lower the cross-validated error, added greedily.
+
+    Cross-validation over contiguous blocks of trials (a plan groups its trials by pulley
+    position) asks whether a term predicts directions it was not fitted on; BIC, which trusts
+    the residual to be independent noise, takes in terms that fit friction's hysteresis.
+    """
+    terms = list(ANGLE_LINEAR)
+    best = _cv_error(angle_features(P0, P, tuple(terms)), dtheta)
+    pool = list(ANGLE_QUADRATIC)
+    while pool:
+        scores = [(_cv_error(angle_features(P0, P, tuple(terms + [t])), dtheta), t) for t in pool]
+        score, term = min(scores)
+        if not score < (1.0 - CV_MIN_GAIN) * best:
+            break
+        best = score
+        terms.append(term)
+        pool.remove(term)
+    return tuple(terms)
+
+
+# --------------------------------------------------------------------------- the model
+
+@dataclass
+class PostureModel:
+    """Torques at the true posture, forces by (J^T)^-1, every estimate with its standard error.
+
+    Example::
+
+        model = PostureModel(geometry=protocol.settings.rig).fit(table)
+        out = model.predict(P0, P, theta0)     # deflections, forces, standard errors, flags
+    """
+
+    geometry: dict[str, float]
+    protocol: str = "takuma2014"
+    limits: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_LIMITS))
+    angle_terms: tuple[str, ...] = ()
+    angle_coefficients: list[list[float]] = field(default_factory=list)   # (p_a, 2)
+    angle_xtx_inv: list[list[float]] = field(default_factory=list)
+    angle_resid_cov: list[list[float]] = field(default_factory=list)
+    torque_coefficients: list[list[float]] = field(default_factory=list)  # (14, 2)
+    torque_xtx_inv: list[list[float]] = field(default_factory=list)
+    torque_resid_cov: list[list[float]] = field(default_factory=list)
+    force_prior_sd: list[float] = field(default_factory=list)  # N, (Fx, Fy): the fit loads' RMS
+    fit_stats: dict[str, Any] = field(default_factory=dict)
+    fitted_trials: list[int] = field(default_factory=list)
+    source: str = ""
+    fitted_on: dict[str, Any] | None = None  # the run it was fitted on (labcli.core.provenance)
+
+    form = FORM
+
+    def __post_init__(self) -> None:
+        self.geometry = normalise_geometry(self.geometry)
+        self.angle_terms = tuple(self.angle_terms)
+
+    @property
+    def is_fitted(self) -> bool:
+        return bool(self.torque_coefficients) and bool(self.angle_coefficients)
+
+    # ---------------------------------------------------------------- fitting
+    def fit(self, table: Any, source: str = "the trial table") -> "PostureModel":
+        """Least squares on the table's fit trials (``set == 'fit'``); returns self, fitted."""
+        a = table_arrays(select_set(table, "fit", source))
+        use = (np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1) & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
+               & np.all(np.isfinite(a["dtheta"]), axis=1) & np.all(np.isfinite(a["F"]), axis=1))
+        P0, P, th0, dth, F = (a[k][use] for k in ("P0", "P", "theta0", "dtheta", "F"))
+        h2, h3 = self.geometry["h2"], self.geometry["h3"]
+        self.angle_terms = select_angle_terms(P0, P, dth)
+        ang = _shared_lstsq(angle_features(P0, P, self.angle_terms), dth, "deflection")
+        tau = load_torque(th0 + dth, F, h2, h3)
+        tq = _shared_lstsq(torque_features(P0 - P, dth), tau, "torque")
+        self.angle_coefficients, self.angle_xtx_inv = ang.beta.tolist(), ang.xtx_inv.tolist()
+        self.angle_resid_cov = ang.resid_cov.tolist()
+        self.torque_coefficients, self.torque_xtx_inv = tq.beta.tolist(), tq.xtx_inv.tolist()
+        self.torque_resid_cov = tq.resid_cov.tolist()
+        self.force_prior_sd = np.sqrt(np.mean(F ** 2, axis=0)).tolist()
+        self.fitted_trials = [int(t) for t in a["trial"][use]]
+        self.fit_stats = {
+            "n": int(use.sum()), "angle_dof": ang.dof, "torque_dof": tq.dof,
+            "theta0_deg": np.degrees(np.median(th0, axis=0)).tolist(),
+            "angle_rmse_deg": np.degrees(np.sqrt(np.diag(ang.resid_cov))).tolist(),
+            "torque_rmse_Nm": np.sqrt(np.diag(tq.resid_cov)).tolist(),
+        }
+        self.source = source
+        return self
+
+    # ---------------------------------------------------------------- prediction
+    def _angles(self, P0: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        X = angle_features(P0, P, self.angle_terms)
+        h = np.einsum("ni,ij,nj->n", X, np.asarray(self.angle_xtx_inv), X)
+        cov = (1.0 + h)[:, None, None] * np.asarray(self.angle_resid_cov)[None]
+        return X @ np.asarray(self.angle_coefficients), cov
+
+    def _forces(self, dP: np.ndarray, theta0: np.ndarray, dth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Forces (n, 2) and their covariance from the torque error alone (n, 2, 2).
+
+        tau = J^T F + e with e ~ N(0, (1 + h) S_tau); with the fit loads' spread as a prior on F
+        (``force_prior_sd``) the estimate is the posterior mean, which is (J^T)^-1 tau wherever the
+        torques determine F and stays bounded along a straight arm, where they do not.
+        """
+        X = torque_features(dP, dth)
+        tau = X @ np.asarray(self.torque_coefficients)
+        h2, h3 = self.geometry["h2"], self.geometry["h3"]
+        th = theta0 + dth
+        JT = np.swapaxes(jacobian(th[:, 0], th[:, 1], h2, h3), 1, 2)
+        h = np.einsum("ni,ij,nj->n", X, np.asarray(self.torque_xtx_inv), X)
+        S = (1.0 + h)[:, None, None] * np.asarray(self.torque_resid_cov)[None]
+        if not self.force_prior_sd:
+            A = np.linalg.pinv(JT)
+            return np.einsum("nij,nj->ni", A, tau), np.einsum("nij,njk,nlk->nil", A, S, A)
+        # Gain form of the posterior (P J (J^T P J + S)^-1): stable when S is tiny or J^T singular.
+        prior = np.diag(np.asarray(self.force_prior_sd) ** 2)
+        K = np.einsum("ij,nkj,nkl->nil", prior, JT,
+                      np.linalg.pinv(np.einsum("nij,jk,nlk->nil", JT, prior, JT) + S, hermitian=True))
+        return np.einsum("nij,nj->ni", K, tau), prior - np.einsum("nij,njk,kl->nil", K, JT, prior)
+
+    def predict(self, P0: Any, P: Any, theta0: Any = None, mode: str = "pressure-only",
+                theta: Any = None) -> dict[str, Any]:
+        """Deflections (rad), forces (N) and their standard errors from pressures (MPa, (n, 4)).
+
+        ``theta0`` (n, 2) rad is the rest posture (default 0, 0).  ``mode="measured-angles"``
+        uses the measured deflections ``theta`` for the forces instead of the estimated ones.
+        """
+        if not self.is_fitted:
+            raise ModelError("The model has no coefficients yet; fit it on a run first (`labcli fit RUN.h5`).")
+        P0, P = pressure_arrays(P0, P)
+        n = len(P)
+        th0 = np.zeros((n, 2)) if theta0 is None else np.broadcast_to(np.asarray(theta0, dtype=float), (n, 2))
+        th0 = np.where(np.isfinite(th0), th0, 0.0)
+        bad = ~(np.all(np.isfinite(P0) & (P0 > 0), axis=1) & np.all(np.isfinite(P) & (P > 0), axis=1))
+        P0 = np.where(bad[:, None], 1.0, P0)
+        P = np.where(bad[:, None], 1.0, P)
+        flags: list[list[str]] = [["bad-pressure"] if b else [] for b in bad]
+        dth, cov_a = self._angles(P0, P)
+        if mode == "measured-angles":
+            if theta is None:
+                raise ModelError("The measured-angles mode needs the measured joint angles.")
+            meas = np.atleast_2d(np.asarray(theta, dtype=float))
+            known = np.all(np.isfinite(meas), axis=1)
+            for i in np.flatnonzero(~known):
+                flags[i].append("missing-angle")
+            dth_f, cov_f = np.where(known[:, None], meas, dth), np.where(known[:, None, None], 0.0, cov_a)
+        elif mode == "pressure-only":
+            known, dth_f, cov_f = np.ones(n, bool), dth, cov_a
+        else:
+            raise ModelError(f"Unknown prediction mode '{mode}'; use pressure-only or measured-angles.")
+        F, cov_F = self._force_covariance(P0 - P, th0, dth_f, cov_f)
+        # The gain form can leave a rounding-level negative variance where the data fix F exactly.
+        se = {"theta1": np.sqrt(cov_a[:, 0, 0]), "theta2": np.sqrt(cov_a[:, 1, 1]),
+              "Fx": np.sqrt(np.maximum(cov_F[:, 0, 0], 0.0)), "Fy": np.sqrt(np.maximum(cov_F[:, 1, 1], 0.0))}
+        ok = {}
+        for q, s in se.items():
+            within = s <= self.limits.get(q, math.inf)
+            ok[q] = ~bad & within & (known if q in ("Fx", "Fy") else True)
+            for i in np.flatnonzero(~within & ~bad):
+                if "uncertain" not in flags[i]:
+                    flags[i].append("uncertain")
+        return {"theta1_rad": dth[:, 0], "theta2_rad": dth[:, 1], "Fx_N": F[:, 0], "Fy_N": F[:, 1],
+                "se": se, "ok": ok, "flags": flags, "mode": mode, "form": FORM,
+                "theta0_rad": th0}
+
+    def _force_covariance(self, dP: np.ndarray, th0: np.ndarray, dth: np.ndarray,
+                          cov_dth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Forces and their covariance: torque error through (J^T)^-1, angle error through dF/d(dtheta)."""
+        F, cov = self._forces(dP, th0, dth)
+        step = 1e-6
+        G = np.empty((len(F), 2, 2))
+        for k in range(2):
+            d = np.zeros(2)
+            d[k] = step
+            G[:, :, k] = (self._forces(dP, th0, dth + d)[0] - self._forces(dP, th0, dth - d)[0]) / (2 * step)
+        cov = cov + np.einsum("nij,njk,nlk->nil", G, cov_dth, G)
+        if not self.force_prior_sd:
+            # A straight arm: without a prior the force along it is not determined at all.
+            cov[np.abs(np.sin(th0[:, 1] + dth[:, 1])) < 1e-9] = np.inf
+        return F, cov
+
+    def predict_table(self, table: Any, mode: str = "pressure-only") -> dict[str, Any]:
+        """``predict`` on a trial table (rest posture from theta1_0_deg, theta2_0_deg; absent = 0)."""
+        a = table_arrays(table)
+        out = self.predict(a["P0"], a["P"], a["theta0"], mode=mode,
+                           theta=a["dtheta"] if mode == "measured-angles" else None)
+        out["trial"] = a["trial"]
+        return out
+
+    def check_compatible(self, protocol: str, geometry: Mapping[str, Any],
+                         model_name: str = "the model", run_name: str = "the run") -> None:
+        """ModelError unless the run has this model's protocol name and rig geometry."""
+        TakumaModel.check_compatible(self, protocol, geometry, model_name, run_name)  # type: ignore[arg-type]
+
+    # ---------------------------------------------------------------- plain data
+    def to_dict(self) -> dict[str, Any]:
+        return _clean({
+            "schema": SCHEMA, "version": SCHEMA_VERSION,
+            "form": FORM, "protocol": self.protocol, "geometry": self.geometry,
+            "units": {"pressure": "MPa (gauge)", "angle": "rad", "torque": "N m", "force": "N"},
+            "limits": self.limits,
+            "angle_terms": list(self.angle_terms), "angle_coefficients": self.angle_coefficients,
+            "angle_xtx_inv": self.angle_xtx_inv, "angle_resid_cov": self.angle_resid_cov,
+            "torque_terms": list(TORQUE_TERMS), "torque_coefficients": self.torque_coefficients,
+            "torque_xtx_inv": self.torque_xtx_inv, "torque_resid_cov": self.torque_resid_cov,
+            "force_prior_sd": self.force_prior_sd, "fit_stats": self.fit_stats, "fitted_trials": self.fitted_trials, "source": self.source,
+            "fitted_on": self.fitted_on,
+        })
+
+    def to_json(self) -> str:
+        """The model as JSON (schema ``labcli-takuma-model``, form ``posture``)."""
+        return json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "PostureModel":
+        required = ("protocol", "geometry", "angle_terms", "angle_coefficients", "angle_xtx_inv",
+                    "angle_resid_cov", "torque_coefficients", "torque_xtx_inv", "torque_resid_cov")
+        missing = [k for k in required if k not in d]
+        if missing:
+            raise ModelError(f"{cap(name)} lacks the key(s) {', '.join(missing)}; refit with `labcli fit`.")
+        unknown = [t for t in d["angle_terms"] if t not in ANGLE_LINEAR + ANGLE_QUADRATIC]
+        if unknown or list(d.get("torque_terms", TORQUE_TERMS)) != list(TORQUE_TERMS):
+            raise ModelError(f"{cap(name)} names terms this labcli does not know "
+                             f"({', '.join(unknown) or 'torque_terms'}); refit with `labcli fit`.")
+        shapes = {"angle_coefficients": (len(d["angle_terms"]), 2), "angle_xtx_inv": (len(d["angle_terms"]),) * 2,
+                  "angle_resid_cov": (2, 2), "torque_coefficients": (len(TORQUE_TERMS), 2),
+                  "torque_xtx_inv": (len(TORQUE_TERMS),) * 2, "torque_resid_cov": (2, 2)}
+        for key, shape in shapes.items():
+            try:
+                arr = np.asarray(d[key], dtype=float)
+            except (TypeError, ValueError):
+                arr = np.empty(0)
+            if arr.shape != shape or not np.all(np.isfinite(arr)):
+                raise ModelError(f"{cap(name)}: key '{key}' must be a {shape[0]} x {shape[1]} table of finite "
+                                 "numbers; refit with `labcli fit`.")
+        prior = d.get("force_prior_sd", [])
+        if prior and not (isinstance(prior, list) and len(prior) == 2
+                          and all(isinstance(v, (int, float)) and v > 0 for v in prior)):
+            raise ModelError(f"{cap(name)}: key 'force_prior_sd' must list two positive forces in N; "
+                             "refit with `labcli fit`.")
+        keys = required + ("limits", "force_prior_sd", "fit_stats", "fitted_trials", "source", "fitted_on")
+        return cls(**{k: d[k] for k in keys if k in d})
+
+
+def load_force_model(path: Any) -> "TakumaModel | PostureModel":
+    """A model file of either form: ``form = "posture"`` or the paper's Eqs. 34-37 (the default)."""
+    p = Path(path)
+    try:
+        return force_model_from_json(p.read_text(encoding="utf-8"), name=f"the model file {p}")
+    except (OSError, UnicodeDecodeError, ModelError):
+        return TakumaModel.load(p)  # its one-sentence errors for a missing or damaged file
+
+
+def force_model_from_json(text: str, name: str = "the model") -> "TakumaModel | PostureModel":
+    """A model of either form from its JSON text (a file's, or one a run file records)."""
+    from ....core.jsontext import JSONDepthError, loads_bounded
+
+    try:
+        d = loads_bounded(text)
+    except (JSONDepthError, ValueError):
+        return TakumaModel.from_json(text, name=name)  # its one-sentence errors for bad JSON
+    if isinstance(d, Mapping) and d.get("form") == FORM and d.get("schema") == SCHEMA:
+        return PostureModel.from_dict(d, name=name)
+    return TakumaModel.from_json(text, name=name)
+
+
+def table_arrays(table: Any) -> dict[str, np.ndarray]:
+    """Trial ids, pressures (MPa), rest posture and deflections (rad), forces (N) of a trial table."""
+    def col(names: tuple[str, ...], default: float = math.nan) -> np.ndarray:
+        return np.column_stack([np.asarray(table[c], dtype=float) if c in table.columns
+                                else np.full(len(table), default) for c in names])
+
+    missing = [c for c in BASELINE_COLUMNS + LOADED_COLUMNS if c not in table.columns]
+    if missing:
+        raise ModelError(f"The trial table lacks the column(s) {', '.join(missing)}; "
+                         "see the trial-table format (P_L10..P_R20, P_L1..P_R2 in MPa).")
+    rest = col(REST_COLUMNS, 0.0)
+    return {"trial": np.asarray(table["trial"]).astype(int), "P0": col(BASELINE_COLUMNS), "P": col(LOADED_COLUMNS),
+            "theta0": np.deg2rad(np.where(np.isfinite(rest), rest, 0.0)),
+            "dtheta": np.deg2rad(col(ANGLE_COLUMNS)), "F": col(FORCE_COLUMNS)}

@@ -1,0 +1,127 @@
+"""Accuracy, not time: the posture-aware form against the paper's Eqs. 34-37, straight and bent arm.
+
+For each rig seed the simulated (realistic) rig runs the straight protocol (takuma2014, plan as
+shipped, default supply) and the bent one (takuma2014-bent, supply 0.30/0.30/0.40/0.20 MPa);
+each trial's rest posture is its baseline potentiometer reading, as a run file stores it.  Both
+forms are fitted on the 90 fit trials and checked on the 18 validation trials (pressure-only).
+Printed per protocol and quantity, over the seeds: trials reported (not flagged), RMSE over the
+reported trials and over all trials, and for the posture form the coverage of its 95 % intervals
+(share of reported validation errors within +-1.96 standard errors, pooled over seeds).
+
+    python tests/benchmarks/sensing_accuracy.py [--seeds 1-10] [--settle 8] [--ideal]
+
+``--ideal`` turns the rig's non-idealities off (friction, leak, heat, backlash, link weight).
+
+The baseline is the paper's form on the same trials; the issue's targets are printed beside.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
+BENT_SUPPLY_MPA = (0.30, 0.30, 0.40, 0.20)
+
+
+class _Recorder:
+    """The rig with every sample window kept: windows alternate baseline, loaded (drive.py's order)."""
+
+    def __init__(self, rig):
+        self._rig, self.windows = rig, []
+
+    def __getattr__(self, name):
+        return getattr(self._rig, name)
+
+    def samples(self, n, rate_hz):
+        out = self._rig.samples(n, rate_hz)
+        self.windows.append(out[1])
+        return out
+
+
+def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool = False):
+    """The protocol's trial table on the simulated rig, with the rest posture columns (deg)."""
+    from labcli.core.protocol import load_protocol
+    from labcli.experiments.takuma2014.protocol import load_plan
+    from labcli.experiments.takuma2014.sim.drive import simulate_weight_trials
+    from labcli.experiments.takuma2014.sim.rig import SimRig
+
+    proto = load_protocol(protocol_name)
+    from labcli.experiments.takuma2014.sim.nonideal import NonIdeal
+
+    kw = {"supply_MPa": BENT_SUPPLY_MPA} if protocol_name.endswith("bent") else {}
+    if ideal:
+        kw["nonideal"] = NonIdeal.ideal()
+    rig = _Recorder(SimRig(seed=seed, **kw))
+    table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=settle_s)
+    pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
+    base = np.array([np.asarray(proto.calibration.to_si(w), dtype=float).mean(axis=0)[pots]
+                     for w in rig.windows[0::2]])
+    table["theta1_0_deg"], table["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
+    return proto, table
+
+
+def measure(protocol_name: str, seed: int, settle_s: float, ideal: bool = False) -> dict:
+    from labcli.experiments.takuma2014.models.metrics import evaluate
+    from labcli.experiments.takuma2014.models.posture import PostureModel, limits_from_protocol
+    from labcli.experiments.takuma2014.models.takuma import TakumaModel
+
+    proto, table = trials(protocol_name, seed, settle_s, ideal)
+    rig = proto.settings.rig
+    out = {}
+    for form, model in (("paper", TakumaModel(geometry=rig)),
+                        ("posture", PostureModel(geometry=rig, limits=limits_from_protocol(proto)))):
+        ev = evaluate(model.fit(table), table)
+        per_q = {}
+        for q in QUANTITIES:
+            ok = ev["ok"][q]
+            err = ev["calculated"][q] - ev["observed"][q]
+            inside = (np.abs(err) <= 1.96 * ev["se"][q])[ok] if ev["se"] is not None else np.array([])
+            per_q[q] = {"err_ok": err[ok], "err_all": err, "inside": inside}
+        out[form] = per_q
+    out["rest_deg"] = float(np.median(table["theta2_0_deg"]))
+    return out
+
+
+def rms(x) -> float:
+    x = np.concatenate(x) if x else np.array([])
+    return float(np.sqrt(np.mean(x ** 2))) if x.size else math.nan
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 1,4,7")
+    ap.add_argument("--settle", type=float, default=8.0, help="settling time per load, s (simulated)")
+    ap.add_argument("--ideal", action="store_true", help="the rig with its non-idealities off")
+    args = ap.parse_args(argv)
+    if "-" in args.seeds:
+        lo, hi = (int(s) for s in args.seeds.split("-"))
+        seeds = list(range(lo, hi + 1))
+    else:
+        seeds = [int(s) for s in args.seeds.split(",")]
+    for protocol in ("takuma2014", "takuma2014-bent"):
+        runs = [measure(protocol, s, args.settle, args.ideal) for s in seeds]
+        rest = np.median([r["rest_deg"] for r in runs])
+        print(f"\n{protocol}: {len(seeds)} seeds x 18 validation trials, rest theta2 {rest:.1f} deg (median)")
+        print(f"{'quantity':10s} {'form':8s} {'reported':>10s} {'RMSE rep.':>10s} {'RMSE all':>10s} "
+              f"{'min/seed':>9s} {'95% cover':>10s}")
+        for q in QUANTITIES:
+            unit = "deg" if q.startswith("theta") else "N"
+            for form in ("paper", "posture"):
+                per = [r[form][q] for r in runs]
+                n_ok = sum(len(p["err_ok"]) for p in per)
+                low = min(len(p["err_ok"]) for p in per)
+                inside = np.concatenate([p["inside"] for p in per])
+                cover = f"{100 * inside.mean():.1f} %" if inside.size else "-"
+                print(f"{q + ' ' + unit:10s} {form:8s} {n_ok:>5d}/{18 * len(seeds):<4d} "
+                      f"{rms([p['err_ok'] for p in per]):10.3g} {rms([p['err_all'] for p in per]):10.3g} "
+                      f"{low:>6d}/18 {cover:>10s}")
+        inside = np.concatenate([r["posture"][q]["inside"] for r in runs for q in QUANTITIES])
+        print(f"posture form, all quantities: 95 % intervals cover {100 * inside.mean():.1f} % of "
+              f"{inside.size} reported validation errors (target 90-98 %)")
+
+
+if __name__ == "__main__":
+    main()

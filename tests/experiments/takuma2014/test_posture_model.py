@@ -1,0 +1,161 @@
+"""The posture-aware force model (models/posture.py) against closed forms and exact-geometry data."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from labcli.errors import ModelError
+from labcli.experiments.takuma2014.models.geometry import contact_point
+from labcli.experiments.takuma2014.models.posture import (
+    TORQUE_TERMS, PostureModel, force_from_torque, load_force_model, load_torque, torque_features)
+from labcli.experiments.takuma2014.models.takuma import TakumaModel
+
+H2, H3 = 0.130, 0.065
+GEOMETRY = {"h1": 0.355, "h2": H2, "h3": H3, "r1": 0.075, "r2": 0.035}
+
+
+def test_a_pure_torque_about_joint_2_is_a_force_through_joint_1():
+    # tau = (0, t2): no torque about the bottom joint, so the force's line passes through it
+    # (F parallel to C), and its moment about the upper joint is t2.
+    theta = np.array([[0.1, 0.3]])
+    F = force_from_torque(theta, np.array([[0.0, 0.2]]), H2, H3)
+    C = contact_point(theta[:, 0], theta[:, 1], H2, H3)[0]
+    assert F[0, 0] * C[1] - F[0, 1] * C[0] == pytest.approx(0.0, abs=1e-12)
+    # Upper joint at (-h2 sin t1, h2 cos t1); the load's moment about it is (C - O1) x F
+    # (dC/dtheta2 = z x (C - O1), so tau_2 = (dC/dtheta2) . F = (C - O1) x F).
+    O1 = np.array([-H2 * math.sin(0.1), H2 * math.cos(0.1)])
+    r = C - O1
+    assert r[0] * F[0, 1] - r[1] * F[0, 0] == pytest.approx(0.2, rel=1e-12)
+    np.testing.assert_allclose(load_torque(theta, F, H2, H3), [[0.0, 0.2]], atol=1e-12)
+
+
+def test_a_load_along_the_straight_arm_makes_no_torque_but_does_on_a_bent_one():
+    along = np.array([[0.0, -5.0]])
+    assert np.abs(load_torque(np.array([[0.0, 0.0]]), along, H2, H3)).max() < 1e-12
+    bent = np.array([[0.0, math.radians(15.0)]])
+    tau = load_torque(bent, along, H2, H3)
+    # tau_2 = -h3 (cos t12 Fx + sin t12 Fy) in closed form
+    assert tau[0, 1] == pytest.approx(-H3 * math.sin(math.radians(15.0)) * -5.0, rel=1e-12)
+    np.testing.assert_allclose(force_from_torque(bent, tau, H2, H3), along, atol=1e-9)
+
+
+def exact_table(n: int, theta0_deg: tuple[float, float], seed: int = 0, noise: float = 0.0) -> pd.DataFrame:
+    """Trials that follow the posture form exactly (plus optional Gaussian torque / angle noise)."""
+    rng = np.random.default_rng(seed)
+    P0 = np.tile([0.30, 0.30, 0.40, 0.20], (n, 1))
+    dP = rng.normal(0.0, 0.004, (n, 4))
+    P = P0 - dP
+    u = P0 / P - 1.0
+    A = np.array([[0.9, -0.3], [-1.1, 0.4], [0.3, 1.2], [-0.2, -1.3]])
+    dth = u @ A + noise * 1e-3 * rng.normal(size=(n, 2))
+    beta = rng.normal(0.0, 1.0, (len(TORQUE_TERMS), 2)) * np.r_[[40.0] * 4, [400.0] * 8, [2.0] * 2][:, None]
+    tau = torque_features(dP, dth) @ beta + noise * 1e-3 * rng.normal(size=(n, 2))
+    th0 = np.radians(np.tile(theta0_deg, (n, 1)))
+    F = force_from_torque(th0 + dth, tau, H2, H3)
+    sets = np.where(np.arange(n) < int(0.8 * n), "fit", "validation")
+    return pd.DataFrame({
+        "trial": np.arange(1, n + 1), "set": sets,
+        **{c: P0[:, k] for k, c in enumerate(("P_L10", "P_R10", "P_L20", "P_R20"))},
+        **{c: P[:, k] for k, c in enumerate(("P_L1", "P_R1", "P_L2", "P_R2"))},
+        "theta1_deg": np.degrees(dth[:, 0]), "theta2_deg": np.degrees(dth[:, 1]),
+        "Fx_N": F[:, 0], "Fy_N": F[:, 1],
+        "theta1_0_deg": theta0_deg[0], "theta2_0_deg": theta0_deg[1],
+    })
+
+
+def test_round_trip_on_exact_geometry_data_recovers_the_forces():
+    t = exact_table(120, (0.5, 14.0))
+    model = PostureModel(geometry=GEOMETRY).fit(t)
+    assert model.angle_terms[:4] == ("u_L1", "u_R1", "u_L2", "u_R2")
+    v = t[t.set == "validation"]
+    out = model.predict_table(v)
+    np.testing.assert_allclose(out["Fx_N"], v.Fx_N, atol=1e-6)
+    np.testing.assert_allclose(out["Fy_N"], v.Fy_N, atol=1e-6)
+    np.testing.assert_allclose(np.degrees(out["theta2_rad"]), v.theta2_deg, atol=1e-8)
+    assert all(out["ok"][q].all() for q in ("theta1", "theta2", "Fx", "Fy"))
+
+
+def test_the_rest_posture_matters_and_absent_columns_mean_straight():
+    t = exact_table(120, (0.0, 14.0))
+    model = PostureModel(geometry=GEOMETRY).fit(t)
+    v = t[t.set == "validation"]
+    straight = model.predict_table(v.drop(columns=["theta1_0_deg", "theta2_0_deg"]))
+    np.testing.assert_array_equal(straight["theta0_rad"], 0.0)
+    # Read at the wrong posture (straight) the same torques give other forces.
+    assert np.abs(straight["Fy_N"] - v.Fy_N.to_numpy()).max() > 1.0
+
+
+def test_95_percent_intervals_cover_about_95_percent_with_known_noise():
+    inside, total = 0, 0
+    for seed in range(6):
+        t = exact_table(400, (0.0, 15.0), seed=seed, noise=1.0)
+        model = PostureModel(geometry=GEOMETRY, limits={"theta1": 1.0, "theta2": 1.0, "Fx": 1e3, "Fy": 1e3}).fit(t)
+        v = t[t.set == "validation"]
+        out = model.predict_table(v)
+        for q, col in (("Fx", "Fx_N"), ("Fy", "Fy_N")):
+            err = np.abs(out[f"{q}_N"] - v[col].to_numpy())
+            inside += int(np.sum(err <= 1.96 * out["se"][q]))
+            total += len(err)
+    assert 0.90 <= inside / total <= 0.98, inside / total
+
+
+def test_a_straight_arm_flags_the_force_along_it_by_its_standard_error():
+    t = exact_table(120, (0.0, 15.0))
+    model = PostureModel(geometry=GEOMETRY).fit(t)
+    P0 = np.array([[0.30, 0.30, 0.40, 0.20]])
+    P = P0 - 0.003
+    bent = model.predict(P0, P, theta0=np.radians([[0.0, 15.0]]))
+    straight = model.predict(P0, P, theta0=np.array([[0.0, 0.0]]) - bent["theta2_rad"][0] * np.array([[0, 1]]))
+    assert bent["ok"]["Fy"][0] and bent["se"]["Fy"][0] < 1.0
+    assert not straight["ok"]["Fy"][0] and straight["flags"][0] == ["uncertain"]
+    assert math.isfinite(straight["Fy_N"][0])
+
+
+def test_model_file_round_trip_and_form_dispatch(tmp_path):
+    t = exact_table(120, (0.0, 12.0))
+    model = PostureModel(geometry=GEOMETRY, protocol="takuma2014").fit(t)
+    path = tmp_path / "m.json"
+    path.write_text(model.to_json())
+    back = load_force_model(path)
+    assert isinstance(back, PostureModel) and json.loads(path.read_text())["form"] == "posture"
+    v = t[t.set == "validation"]
+    np.testing.assert_array_equal(back.predict_table(v)["Fy_N"], model.predict_table(v)["Fy_N"])
+    with pytest.raises(ModelError, match="holds the 'posture' form, not the paper's Eqs. 34-37"):
+        TakumaModel.load(path)
+    d = json.loads(path.read_text())
+    d["torque_resid_cov"] = [[1.0]]
+    path.write_text(json.dumps(d))
+    with pytest.raises(ModelError, match="key 'torque_resid_cov' must be a 2 x 2 table of finite numbers"):
+        load_force_model(path)
+
+
+def test_too_few_fit_trials_name_the_paper_form():
+    with pytest.raises(ModelError, match="needs more than 14 usable fit trials, got 12.*--form paper"):
+        PostureModel(geometry=GEOMETRY).fit(exact_table(15, (0.0, 12.0)))
+
+
+def test_classification_reads_the_pushes_rest_posture_into_the_posture_form():
+    from labcli.experiments.takuma2014.models.classify import _posture_and_force, _rest_posture
+
+    t = exact_table(120, (0.0, 14.0))
+    model = PostureModel(geometry=GEOMETRY).fit(t)
+    v = t[t.set == "validation"].reset_index(drop=True)
+    theta0 = _rest_posture(v)
+    np.testing.assert_allclose(np.degrees(theta0), np.tile([0.0, 14.0], (len(v), 1)))
+    _, pred = _posture_and_force(v, model, "pressure-only", theta0)
+    np.testing.assert_allclose(pred["Fy_N"], v.Fy_N, atol=1e-6)
+    assert _rest_posture(v.drop(columns=["theta1_0_deg"])) is None
+
+
+def test_empty_rest_columns_mean_no_rest_posture():
+    from labcli.experiments.takuma2014.models.classify import _rest_posture
+
+    t = pd.DataFrame({"theta1_0_deg": [np.nan, np.nan], "theta2_0_deg": [np.nan, np.nan]})
+    assert _rest_posture(t) is None
+    t = pd.DataFrame({"theta1_0_deg": [np.nan, 1.0], "theta2_0_deg": [12.0, np.nan]})
+    np.testing.assert_allclose(np.degrees(_rest_posture(t)), [[0.0, 12.0], [1.0, 0.0]])
