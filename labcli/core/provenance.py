@@ -38,12 +38,14 @@ def _digest(text: str) -> str:
 def run_identity(run: Any, path: str | Path) -> dict[str, Any]:
     """The identity of an open run file (plain data, JSON-ready)."""
     a = run.attrs
-    if hasattr(run, "rig_identity"):
-        rig = run.rig_identity()
-    else:
-        cal = run.calibration()
-        rig = {"device": a.get("device", ""), "firmware": a.get("firmware", ""), "port": a.get("port", ""),
-               "calibration": {"gain": [float(x) for x in cal["gain"]], "offset": [float(x) for x in cal["offset"]]}}
+    cal = run.calibration() or {"gain": [], "offset": []}
+    rig = {"device": a.get("device", ""), "firmware": a.get("firmware", ""), "port": a.get("port", ""),
+           "calibration": {"gain": [float(x) for x in cal["gain"]], "offset": [float(x) for x in cal["offset"]]}}
+    latest = run.rig_identity() if hasattr(run, "rig_identity") else None
+    if latest is not None:  # the rig of the run's latest session (a resumed run may have moved rigs)
+        rig.update(device=latest.device, firmware=latest.firmware)
+        if latest.gain:
+            rig["calibration"] = {"gain": [float(x) for x in latest.gain], "offset": [float(x) for x in latest.offset]}
     uid = a.get("uid") or a.get("run_uid") or ""
     data = str(uid) or f"{a.get('started', '')}|{a.get('source', '')}|{a.get('port', '')}"
     return {

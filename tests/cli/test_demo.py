@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import json
 
-import h5py
 import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
+from labcli.core.store import RunFile
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -36,7 +36,7 @@ def ideal_demo_out(tmp_path_factory):
                                                         *a, **kw))
         result = CliRunner().invoke(cli, ["demo", str(out), "--seed", "3"])
     assert result.exit_code == 0, result.output
-    with h5py.File(out / "force.h5", "r") as f:
+    with RunFile.open(out / "force.h5") as f:
         assert f.attrs["port"].endswith("&ideal=1")
     return out, result.output
 

@@ -425,9 +425,10 @@ def load_force_model(path: Any) -> "TakumaModel | PostureModel":
     """A model file of either form: ``form = "posture"`` or the paper's Eqs. 34-37 (the default)."""
     p = Path(path)
     try:
-        return force_model_from_json(p.read_text(encoding="utf-8"), name=f"the model file {p}")
-    except (OSError, UnicodeDecodeError, ModelError):
-        return TakumaModel.load(p)  # its one-sentence errors for a missing or damaged file
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return TakumaModel.load(p)  # its one-sentence errors for a missing or unreadable file
+    return force_model_from_json(text, name=f"the model file {p}")
 
 
 def force_model_from_json(text: str, name: str = "the model") -> "TakumaModel | PostureModel":
