@@ -40,7 +40,9 @@ def test_python_example_runs_and_predicts_the_stored_angles():
 
     trials, pred = env["trials"], env["pred"]
     err = np.degrees(pred["theta1_rad"]) - trials["theta1_deg"].to_numpy()
-    assert np.sqrt(np.mean(err ** 2)) < 0.05  # deg: the potentiometers resolve 0.083 deg a count
+    # deg: the sample run comes from the default (realistic) rig, whose 0.2 deg potentiometer play
+    # and sleeve friction put the angles' error near 0.14 deg; a broken example is off by degrees.
+    assert np.sqrt(np.mean(err ** 2)) < 0.25
 
 
 def runnable_blocks() -> list[list[str]]:
