@@ -88,7 +88,10 @@ def test_monitor_reads_the_rig_through_the_firmware(firmware_elf):
         assert summary[counter] == 0, counter
     assert summary["rate_hz"] == 200.0
     assert summary["frames"] >= 0.98 * 600
-    assert abs(summary["frames_per_s"] - 200.0) <= 0.02 * 200.0
+    # frames_per_s is counted on the host's wall clock over 3 s, while the simulated board runs on
+    # its own clock and catches up after the host's scheduler lets it lag (seen: 207/s on a machine
+    # loaded 4x): 5 % here; the firmware's own timing is held to its clock by the frame count above.
+    assert abs(summary["frames_per_s"] - 200.0) <= 0.05 * 200.0
     scale = channel_scale(FIRMWARE_CHANNELS, load_protocol("takuma2014").calibration)
     truth = fed_mean(fed, t_end - 3.0, t_end)  # counts; the rig was still the whole time
     one_count = np.abs(scale.to_si(truth + 1.0) - scale.to_si(truth))

@@ -31,7 +31,7 @@ def fitted(tmp_path_factory) -> Path:
                       ignore_index=True)
     write_trial_csv(table, d / "trials.csv")
     assert run("import", d / "trials.csv", "-o", d / "run.h5", "--protocol", "takuma2014").exit_code == 0
-    assert run("fit", d / "run.h5").exit_code == 0
+    assert run("fit", d / "run.h5", "--form", "paper").exit_code == 0
     (d / "plan.csv").write_text("trial,set,mass_g,direction_deg\n1,fit,500,-60\n2,fit,300,30\n3,validation,800,90\n")
     r = run("acquire", d / "acq3.h5", "--port", SIM3, "--plan", d / "plan.csv", "--unattended")
     assert r.exit_code == 0, r.output
@@ -68,7 +68,7 @@ def test_validation_trials_used_in_the_fit_are_refused(here: Path) -> None:
     assert r.stderr.startswith(f"Warning: 5 of the 8 validation trials of {here / 'run.h5'} ({shared}) were used")
     assert "(--allow-overlap)" in r.stderr
     # refitting after the split removes the overlap
-    assert run("fit", here / "run.h5").exit_code == 0
+    assert run("fit", here / "run.h5", "--form", "paper").exit_code == 0
     assert run("validate", here / "run.h5").exit_code == 0
 
 
