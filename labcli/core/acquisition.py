@@ -73,12 +73,31 @@ def _check_options(resume: bool, force: bool, plan: Any, no_plan: bool) -> None:
         raise ConfigError("--plan and --no-plan contradict each other: give one of them.")
 
 
+def same_plan(a: Any, b: Any) -> bool:
+    """Whether two plan tables (DataFrames, or None) hold the same rows, numbers to 12 digits."""
+    import numpy as np
+
+    if a is None or b is None:
+        return a is None and b is None
+    if len(a) != len(b) or set(a.columns) != set(b.columns):
+        return False
+    for c in a.columns:
+        x, y = a[c].to_numpy(), b[c].to_numpy()
+        if x.dtype.kind in "fiu" and y.dtype.kind in "fiu":
+            if not np.allclose(x.astype(float), y.astype(float), rtol=1e-12, atol=0.0, equal_nan=True):
+                return False
+        elif [str(v) for v in x] != [str(v) for v in y]:
+            return False
+    return True
+
+
 def _resume(path: str, protocol: str | None,
             options: AcquireOptions) -> tuple[Any, RunFile, Outcome | None, Any]:
     """The run being resumed, open for writing, its acquisition, an Outcome when it is done,
     and the protocol ``--protocol`` gave (None: the run's own), whose calibration is this rig's."""
-    if options.plan is not None or options.no_plan:
-        raise ConfigError(f"The plan of {path} was fixed when the run began; drop --plan/--no-plan with --resume.")
+    if options.no_plan:
+        raise ConfigError(f"The plan of {path} was fixed when the run began; drop --no-plan with --resume.")
+    given_plan, options = options.plan, replace(options, plan=None)
     existing = RunFile.open(path, "a")
     try:
         base = loads_protocol(existing.protocol_text, source=f"{path} (protocol)")
@@ -92,6 +111,11 @@ def _resume(path: str, protocol: str | None,
             given = run_protocol(load_protocol(protocol), options.experiment, stored_kind=existing.kind,
                                  run_path=path)[1]
         acq = experiment.acquisition(proto, replace(options, resume=existing))
+        if given_plan is not None:  # the same plan again is harmless; another one would change the run
+            planned = experiment.acquisition(proto, replace(options, plan=given_plan)).plan
+            if not same_plan(acq.plan, planned):
+                raise ConfigError(f"{given_plan} is not the plan {path} began with; drop --plan to resume "
+                                  "with the run's own plan, or start a new run for the new one.")
         done = acq.already_done(existing, path)
         if done is not None:
             outcome = Outcome("finished", done, 0, len(existing.completed_ids()))

@@ -396,3 +396,26 @@ def test_unattended_push_run_pushes_the_six_reference_objects(tmp_path):
                 - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()).sum(axis=1) / (df["d_m"] * 1e3)
     per_object = dp.groupby(df["object"]).mean()
     assert per_object[["can-al-1", "can-al-2"]].min() > per_object[["pet-1", "pet-2", "pet-3"]].max()
+
+
+def test_resume_accepts_the_plan_the_run_began_with_and_refuses_another(tmp_path):
+    plan = tmp_path / "plan.csv"
+    plan.write_text("trial,set,mass_g,direction_deg\n1,fit,500,-60\n2,fit,300,200\n3,validation,800,90\n")
+    run = tmp_path / "run.h5"
+    port = "sim://?seed=1&clock=virtual"
+    r = CliRunner().invoke(cli, ["acquire", str(run), "--port", port, "--plan", str(plan), "--unattended"])
+    assert r.exit_code == 0, r.output
+    # The same plan again (200 deg written as -160 deg: the same direction) is the run's own.
+    same = tmp_path / "same.csv"
+    same.write_text("trial,set,mass_g,direction_deg\n1,fit,500,-60\n2,fit,300,-160\n3,validation,800,90\n")
+    r = CliRunner().invoke(cli, ["acquire", str(run), "--port", port, "--plan", str(same), "--unattended", "--resume"])
+    assert r.exit_code == 0, r.output
+    assert f"All 3 planned trials are already stored in {run}; nothing to resume." in r.output
+    other = tmp_path / "other.csv"
+    other.write_text("trial,set,mass_g,direction_deg\n1,fit,500,-60\n2,fit,300,30\n3,validation,800,90\n")
+    before = run.read_bytes()
+    r = CliRunner().invoke(cli, ["acquire", str(run), "--port", port, "--plan", str(other), "--unattended", "--resume"])
+    assert r.exit_code == 1
+    assert r.output.endswith(f"Error: {other} is not the plan {run} began with; drop --plan to resume with the "
+                             "run's own plan, or start a new run for the new one.\n")
+    assert run.read_bytes() == before
