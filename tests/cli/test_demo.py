@@ -165,3 +165,11 @@ def test_inspect_sees_the_leak_the_rig_was_given(demo_out, ideal_demo_out):
     assert result.exit_code == 0, result.output
     rates = result.output.split("valves closed:\n")[1].splitlines()[0]
     assert all(abs(float(v)) < 0.05 for v in rates.replace("kPa/min", "").replace(",", " ").split()[1::2]), rates
+
+
+def test_demo_summary_is_whole_and_plain_when_piped(demo_out):
+    import re
+
+    _, text = demo_out
+    assert not re.search("[\u2500-\u257f]", text), "box drawing in piped output"
+    assert not re.search(r"[0-9.+\-]\u2026", text), "a number cut short"

@@ -205,3 +205,16 @@ def test_set_is_refused_on_a_force_run(tmp_path):
         assert result.exit_code == 1
         assert result.output == ("Error: --set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
                                  "run's model is fitted from its trials, so leave --set out.\n")
+
+
+@pytest.mark.parametrize("args", [("fit", "stretch"), ("validate", "joint")])
+def test_rpam_reports_stay_whole_and_plain_at_80_columns(runs, args, tmp_path):
+    import re
+    import shutil
+
+    run = tmp_path / runs[args[1]].name
+    shutil.copy(runs[args[1]], run)  # fit records its model: work on a copy
+    result = CliRunner(env={"COLUMNS": "80"}).invoke(cli, [args[0], str(run)])
+    assert result.exit_code == 0, result.output
+    assert not re.search("[\u2500-\u257f]", result.output), "box drawing in piped output"
+    assert not re.search(r"[0-9.+\-]\u2026", result.output), "a number cut short"
