@@ -28,7 +28,8 @@ class SimulatedPort(SerialBase):
         super().__init__(*args, **kwargs)  # opens the port when given one
 
     def from_url(self, url: str) -> dict:
-        raise NotImplementedError
+        """Each simulated port parses its own URL (an abstract hook: ``sim://`` and the firmware port define it)."""
+        raise NotImplementedError(f"{type(self).__name__} does not define from_url()")
 
     def _open_rig(self) -> dict:
         """Check the port may open, read its URL's options and have the rig they name (``self.rig``)."""

@@ -39,16 +39,20 @@ class BaseRecordType:
 
     # -- what subclasses give
     def check(self, record: Mapping[str, Any], label: str, run: Any) -> Mapping[str, Any]:
-        raise NotImplementedError
+        """Each record type checks one record before it is written (an abstract hook: every shipped type defines it)."""
+        raise NotImplementedError(f"{type(self).__name__} does not define check()")
 
     def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
-        raise NotImplementedError
+        """Each record type turns a stored row back into a record (an abstract hook: every shipped type defines it)."""
+        raise NotImplementedError(f"{type(self).__name__} does not define read()")
 
     def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
-        raise NotImplementedError
+        """Each record type gives the exchange table of its records (an abstract hook: every shipped type defines it)."""
+        raise NotImplementedError(f"{type(self).__name__} does not define table()")
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
-        raise NotImplementedError
+        """Each record type turns a table row into a record (an abstract hook: every shipped type defines it)."""
+        raise NotImplementedError(f"{type(self).__name__} does not define from_row()")
 
     # -- defaults
     def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
