@@ -105,13 +105,16 @@ def test_enter_twice_without_the_weight_never_stores_the_trial_and_a_weight_left
 
 
 def quick_push_protocol(tmp_path: Path, pushes: int) -> Path:
-    """The shipped stiffness protocol with a short capture and ``pushes`` pushes per object."""
+    """The shipped stiffness protocol with the quick settling window of ``quick_protocol``, a short
+    capture and ``pushes`` pushes per object (the shipped 5 s earliest acceptance is not under test)."""
     import re
 
     from labcli.core.protocol import load_protocol
 
     text = load_protocol("takuma2014-stiffness").text
-    for key, value in (("timeout_s", "20.0"), ("capture_s", "0.2"), ("pushes_per_object", str(pushes))):
+    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "20.0"), ("capture_s", "0.2"),
+                       ("pressure_spread_MPa", "0.001"), ("angle_spread_deg", "0.3"),
+                       ("pushes_per_object", str(pushes))):
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
     path = tmp_path / "push.toml"
