@@ -14,6 +14,10 @@ ROOT = Path(__file__).resolve().parents[2]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 
 
+# The suite on every core, a module per worker (its module-scoped simulated runs made once).
+TEST_COMMAND = "pip install '.[test]' && python -m pytest -q -n auto --dist loadscope"
+
+
 def code_blocks(lang: str) -> list[str]:
     return re.findall(rf"```{lang}\n(.*?)```", README, flags=re.S)
 
@@ -21,14 +25,14 @@ def code_blocks(lang: str) -> list[str]:
 def test_top_two_commands_install_and_run_demo_and_tests():
     top = README[: README.index("## What the demo shows")]
     assert "pip install . && labcli demo out/demo" in top
-    assert "pip install '.[test]' && python -m pytest -q" in top
+    assert f"{TEST_COMMAND}\n" in top
 
 
 def test_ci_runs_exactly_the_readme_test_command():
     # The same extraction .ci/run performs.
     awk = r"""/<!-- readme-test-command -->/{getline; while ($0 !~ /^[a-z]/) getline; print; exit}"""
     out = subprocess.run(["awk", awk, "README.md"], cwd=ROOT, capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "pip install '.[test]' && python -m pytest -q"
+    assert out.stdout.strip() == TEST_COMMAND
     assert "awk '/<!-- readme-test-command -->/" in (ROOT / ".ci" / "run").read_text()
 
 
