@@ -11,14 +11,25 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import StoreError
 from .files import atomic_write, replace_restorably
-from .store import RunFile
+from .store import RunFile, space
 
 
 def default_model_path(run: str | Path) -> Path:
     """``run.h5`` -> ``run.model.json`` beside it."""
     run = Path(run)
     return run.with_name(run.stem + ".model.json")
+
+
+def check_recordable(run: str | Path) -> None:
+    """Refuse at once a run another labcli process is writing: the model could not be recorded in it.
+
+    Checked before fitting, so that a run still being recorded is refused in the lock's one
+    sentence rather than fitted on the trials it has so far (and then refused at the end).
+    """
+    if space.writer_holds(str(run)):
+        raise StoreError(f"{run} {space.BUSY}.")
 
 
 def save_model(text: str, path: str | Path, *, run: str | Path | None = None, name: str = "") -> bool:

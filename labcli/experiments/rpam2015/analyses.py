@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ...core.jsontext import loads_bounded
-from ...core.modelfile import default_model_path, save_model
+from ...core.modelfile import check_recordable, default_model_path, save_model
 from ...core.store import RunFile
 from ...errors import ConfigError, ModelError
 from . import report
@@ -82,6 +82,7 @@ def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, p
         overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset(), **_: Any) -> StretchFitResult:
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
     check_force_only_options(typed, "max_amplification", "form")
+    check_recordable(run)
     kind, table, raw, name, where = _read_run(run, protocol, overrides)
     if kind != "rpam-stretch":
         raise ConfigError(

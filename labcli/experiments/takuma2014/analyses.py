@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ...core.modelfile import default_model_path, save_model
+from ...core.modelfile import check_recordable, default_model_path, save_model
 from ...core.provenance import rig_warning, same_data
 from ...core.report import ids_text, print_warnings
 from ...core.store import RunFile
@@ -64,6 +64,7 @@ def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, m
     if form == POSTURE and "max_amplification" in typed:
         raise ConfigError("--max-amplification is the paper form's cut near theta2 = 0; the posture form "
                           "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out.")
+    check_recordable(run)
     src = load_trial_source(run, protocol)
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
         model = _fit_form(form, src, str(run), max_amplification)
