@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Iterator
 
 from ...errors import DiskFull, StoreError
+from ..files import kind_of, name_too_long  # noqa: F401 (kind_of: the store's too)
 
 PARTIAL_PREFIX = ".labcli-"
 PARTIAL_SUFFIX = ".partial"
@@ -87,42 +88,6 @@ def reserve(fd: int, end: int, need: int, path: str, doing: str, kept: str) -> N
     if free_bytes(path) < need:
         raise DiskFull(f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
                        f"{kept}. Free some space, then try again.")
-
-
-def name_too_long(path: str) -> str | None:
-    """The sentence for a file name longer than its file system allows (None when it fits)."""
-    name = os.path.basename(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    try:
-        limit = os.pathconf(folder if os.path.isdir(folder) else "/", "PC_NAME_MAX")
-    except (OSError, ValueError):
-        limit = 255
-    size = len(name.encode("utf-8", "surrogateescape"))
-    if size <= limit:
-        return None
-    return f"the file name is {size} bytes long and this file system allows at most {limit}; choose a shorter name"
-
-
-def kind_of(path: str) -> str | None:
-    """What a path that exists but is not a regular file is ("a directory", "a device", ...); None otherwise."""
-    try:
-        st = os.stat(path)
-    except OSError:
-        return None
-    import stat
-
-    mode = st.st_mode
-    if stat.S_ISREG(mode):
-        return None
-    if stat.S_ISDIR(mode):
-        return "a directory"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    if stat.S_ISFIFO(mode):
-        return "a FIFO (named pipe)"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
 
 
 def check_new_file(path: str) -> None:
@@ -237,10 +202,3 @@ def sync_folder(path: str) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
-
-
-def same_file(a: str | Path, b: str | Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return False
