@@ -32,6 +32,8 @@ import pytest
 from labcli.core.store import RunFile
 from labcli.core.store.verify import verify
 
+from support.big_table import big_table
+
 ROOT = Path(__file__).resolve().parents[2]
 SIM = "sim://?seed=1&clock=virtual"
 N_TRIALS = 12
@@ -39,7 +41,6 @@ PLAN = "trial,set,mass_g,direction_deg\n" + "".join(
     f"{i},fit,{500 + 100 * (i % 4)},{-150 + 30 * (i % 11)}\n" for i in range(1, N_TRIALS + 1))
 ACQUIRE = ("acquire", "run.h5", "--port", SIM, "--unattended", "--plan", "plan.csv", "--rate", "2000")
 LIMIT = 1600 * 1024  # room for the new run and about nine trials at 2 kHz
-BIG_ROWS = 300  # copies of the sample run's 108 trials in the import's table
 
 
 def labcli(*args: str, cwd: Path, limit: int | None = None) -> subprocess.CompletedProcess:
@@ -55,16 +56,6 @@ def labcli(*args: str, cwd: Path, limit: int | None = None) -> subprocess.Comple
 
 def listing(folder: Path) -> dict[str, str]:
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir()) if p.is_file()}
-
-
-def big_table(path: Path) -> int:
-    """The sample run's trials repeated under new trial numbers: an import far larger than the room."""
-    lines = (ROOT / "sample_runs" / "trials.csv").read_text().splitlines()
-    rows = [lines[0]]
-    for n, cells in enumerate((r.split(",") for _ in range(BIG_ROWS) for r in lines[1:]), start=1):
-        rows.append(",".join([str(n), *cells[1:]]))
-    path.write_text("\n".join(rows) + "\n")
-    return len(rows) - 1
 
 
 @pytest.fixture(scope="module")

@@ -30,11 +30,10 @@ import resource
 import secrets
 import signal
 import threading
-from pathlib import Path
 from typing import Iterator
 
 from ...errors import DiskFull, StoreError
-from ..files import kind_of, name_too_long  # noqa: F401 (kind_of: the store's too)
+from ..files import kind_of, name_too_long
 
 PARTIAL_PREFIX = ".labcli-"
 PARTIAL_SUFFIX = ".partial"
