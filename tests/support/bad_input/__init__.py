@@ -39,6 +39,7 @@ class Case:
     pty: bool = False               # serve the simulated rig on a pseudo-terminal; PTY in args is its path
     firmware: dict | None = None    # or serve support.firmware.FakeFirmware(**firmware) there instead
     xfail: str | None = None        # a bug in a module still being edited (see the report)
+    fifos: tuple[str, ...] = ()     # named pipes made in the folder (never opened: a reader would wait)
 
 
 def toml_edit(old: str, new: str) -> Callable[[Path], bytes]:
