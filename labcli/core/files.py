@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-from ..errors import ConfigError
+from ..errors import ConfigError, LabcliError
 
 RUN_FILE_SUFFIXES = (".h5", ".hdf5")  # a path ending so names a run file; anything else, a table
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"  # the first bytes of every HDF5 file labcli writes (no user block)
@@ -91,15 +91,16 @@ def check_output(path: str | os.PathLike, *, inputs: tuple[str | os.PathLike, ..
                           "records; choose another output name.")
 
 
-def check_writable_name(path: str | os.PathLike, what: str = "") -> None:
+def check_writable_name(path: str | os.PathLike, what: str = "", *, verb: str = "write",
+                        error: type[LabcliError] = ConfigError) -> None:
     """Refuse a name too long for its file system, or a path that is there and not a regular file."""
     too_long = name_too_long(path)
     if too_long:
-        raise ConfigError(f"Cannot write {what}{path}: {too_long}.")
+        raise error(f"Cannot {verb} {what}{path}: {too_long}.")
     kind = kind_of(path)
     if kind:
-        raise ConfigError(f"{path} is {kind}, not a regular file; labcli writes only regular files, "
-                          "so give the path of a file.")
+        raise error(f"{path} is {kind}, not a regular file; labcli writes only regular files, "
+                    "so give the path of a file.")
 
 
 def atomic_write(path: str | os.PathLike, data: bytes, *, what: str = "") -> None:

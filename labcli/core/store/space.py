@@ -33,7 +33,7 @@ import threading
 from typing import Iterator
 
 from ...errors import DiskFull, StoreError
-from ..files import kind_of, name_too_long
+from ..files import check_writable_name, kind_of
 
 PARTIAL_PREFIX = ".labcli-"
 PARTIAL_SUFFIX = ".partial"
@@ -91,13 +91,7 @@ def reserve(fd: int, end: int, need: int, path: str, doing: str, kept: str) -> N
 
 def check_new_file(path: str) -> None:
     """Refuse, in one sentence, a path labcli cannot create a run at."""
-    too_long = name_too_long(path)
-    if too_long:
-        raise StoreError(f"Cannot create {path}: {too_long}.")
-    what = kind_of(path)
-    if what:
-        raise StoreError(f"{path} is {what}, not a regular file; labcli writes only regular files, "
-                         "so give the path of a file.")
+    check_writable_name(path, verb="create", error=StoreError)
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise StoreError(f"cannot create {path}: the directory {folder} does not exist.")
