@@ -44,8 +44,8 @@ def export(run: str, output: str, fmt: str | None) -> None:
     """
     from ..core import table_meta  # heavy: when the command runs, not for --help
     from ..core.files import check_output
-    from ..core.table_meta import SIDECAR_SUFFIX
     from ..core.store import RunFile
+    from ..core.table_meta import SIDECAR_SUFFIX
 
     parquet = fmt == "parquet" or (fmt is None and output.lower().endswith((".parquet", ".pq")))
     try:
