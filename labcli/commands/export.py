@@ -10,7 +10,7 @@ from ..errors import LabcliError
 @click.command("export")
 @click.argument("run", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="File to write (replaced atomically).")
+              help="File to write (replaced atomically; never RUN itself, another run file or a non-regular file).")
 @click.option("--format", "fmt", type=click.Choice(["csv", "parquet"]), default=None,
               help="Table format [default: parquet for a .parquet OUTPUT, else csv].")
 def export(run: str, output: str, fmt: str | None) -> None:
@@ -43,10 +43,15 @@ def export(run: str, output: str, fmt: str | None) -> None:
         labcli export run.h5 -o trials.parquet
     """
     from ..core import table_meta  # heavy: when the command runs, not for --help
+    from ..core.files import check_output
     from ..core.store import RunFile
+    from ..core.table_meta import SIDECAR_SUFFIX
 
     parquet = fmt == "parquet" or (fmt is None and output.lower().endswith((".parquet", ".pq")))
     try:
+        check_output(output, inputs=(run,))
+        if not parquet:
+            check_output(output + SIDECAR_SUFFIX, inputs=(run,))
         with RunFile.open(run) as rf:
             records, df = rf.record_type, rf.table()
             table_meta.describe(df, records.table_spec, table_meta.provenance(rf.attrs, run))

@@ -29,6 +29,7 @@ from .protocol import load_protocol, loads_protocol
 from .registry import record_type, run_protocol
 from .sessionlog import RigIdentity, SessionInfo, describe, recorded_identity
 from .store import RESUME_OR_FORCE, RunFile
+from .store.space import check_new_file
 from .ui import RichUI, UnattendedUI
 
 DEFAULT_BAUD = 115200  # the wire protocol's default
@@ -145,6 +146,7 @@ def check_rig(run: Any, path: str, info: Any, calibration: Any, *, allow_other: 
 
 def _plan_new(path: str, protocol: str | None, options: AcquireOptions, force: bool) -> Any:
     """The acquisition of a new run (nothing is created yet)."""
+    check_new_file(path)  # before the rig is woken: a name the file system refuses, a device, a folder
     if Path(path).exists() and not force:
         raise StoreError(f"{path} already exists; {RESUME_OR_FORCE}.")
     if protocol is None:

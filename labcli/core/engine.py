@@ -69,7 +69,10 @@ SETUP_S = 0.5  # device seconds of readings for the setup check
 PRESSURE_MARGIN_MPA = 0.02  # sensor noise and offset allowed outside the 0-1 MPa span
 RATE_TOLERANCE = 0.05  # a stream whose own clock says it runs 5 % off the rate set is flagged
 MAX_STEP_US = 60_000_000  # a step of the rig's clock between two frames beyond 60 s: not a clock
-SLOW_CLOCK = 10.0  # frames arriving 10x faster than the rig's clock says it sampled them
+# Frames arriving 50x faster than the rig's clock says it sampled them: a capture window would
+# take 50x its length (a clock counting in the wrong unit), so the rig is refused.  Below that
+# the stream is only off its rate (a timer set wrong, 10x or 0.1x): flagged (RATE_TOLERANCE).
+SLOW_CLOCK = 50.0
 LOST_RIG = (DeviceDisconnected, DeviceTimeout, DeviceClockError)
 
 
@@ -470,7 +473,7 @@ class RunEngine:
             return
         text = (f"the rig streams at {rate:.4g} Hz by its own clock, not the {self._rate_set:g} Hz it confirmed; "
                 "check its firmware's timer")
-        if self._trial is not None:
+        if self._trial is not None and text not in self._flags:
             self._flags.append(text)
         key = round(rate, 1)
         if key not in self._rate_warned:

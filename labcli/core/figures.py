@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
+from .files import atomic_write, check_output
 
 FORMATS = (".png", ".pdf", ".svg")
 
@@ -23,6 +24,7 @@ def check_path(path: str | Path, option: str = "The plot file") -> Path:
         raise ConfigError(f"{option} {p} must end in .png, .pdf or .svg.")
     if not p.parent.exists():
         raise ConfigError(f"Cannot write {p}: the directory {p.parent} does not exist.")
+    check_output(p)
     return p
 
 
@@ -37,11 +39,13 @@ def new_figure(width_in: float, height_in: float) -> Any:
 
 
 def save(fig: Any, path: Path) -> None:
-    """Write the figure in the format of its extension (ConfigError naming the path if it cannot)."""
-    try:
-        fig.savefig(path, dpi=200 if path.suffix.lower() == ".png" else None)
-    except OSError as e:
-        raise ConfigError(f"Cannot write {path}: {e.strerror or e}.") from None
+    """Write the figure, whole, in the format of its extension (ConfigError naming the path if it cannot)."""
+    import io
+
+    buf = io.BytesIO()
+    suffix = path.suffix.lower()
+    fig.savefig(buf, format=suffix[1:], dpi=200 if suffix == ".png" else None)
+    atomic_write(path, buf.getvalue())
 
 
 def fmt(x: Any, digits: int = 3) -> str:

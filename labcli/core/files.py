@@ -1,15 +1,106 @@
-"""Files replaced whole: an interrupted write leaves the old file, never half of a new one."""
+"""Files replaced whole: an interrupted write leaves the old file, never half of a new one.
+
+And outputs that never destroy data: an output is never written over a command's own input,
+nor over a run file unless the command replaces runs on purpose (``--force``), and only
+regular files are ever replaced, never a device node, a directory or a FIFO
+(:func:`check_output`).
+"""
 
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 from pathlib import Path
 from typing import Callable
 
-from ..errors import ConfigError
+from ..errors import ConfigError, LabcliError
 
 RUN_FILE_SUFFIXES = (".h5", ".hdf5")  # a path ending so names a run file; anything else, a table
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"  # the first bytes of every HDF5 file labcli writes (no user block)
+TMP_STEM = 200  # bytes of the name kept in a temporary file's name, so that any legal name has one
+
+
+def name_too_long(path: str | os.PathLike) -> str | None:
+    """The words for a file name longer than its file system allows (None when it fits)."""
+    path = os.fspath(path)
+    name = os.path.basename(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        limit = os.pathconf(folder if os.path.isdir(folder) else "/", "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    size = len(name.encode("utf-8", "surrogateescape"))
+    if size <= limit:
+        return None
+    return f"the file name is too long ({size} bytes; this file system allows at most {limit}), so choose a shorter name"
+
+
+def kind_of(path: str | os.PathLike) -> str | None:
+    """What a path that exists but is not a regular file is ("a directory", "a device", ...); None otherwise."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def is_run_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a regular file that starts as an HDF5 file does (a run file, or other HDF5 data)."""
+    if kind_of(path) is not None:
+        return False
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE
+    except OSError:
+        return False
+
+
+def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_output(path: str | os.PathLike, *, inputs: tuple[str | os.PathLike, ...] = (), what: str = "",
+                 replaces_runs: bool = False) -> None:
+    """Refuse, in one sentence, an output path whose writing would destroy data.
+
+    Refused: a name too long for its file system; any of ``inputs`` (the same file, by any
+    name); anything but a regular file; a run file (any HDF5 file), unless ``replaces_runs``
+    (a command that builds runs, given ``--force``).  ``what`` names the content ("the model ").
+    """
+    for source in inputs:
+        if same_file(path, source):
+            raise ConfigError(f"Cannot write {what}{path}: it is this command's input, and writing there would "
+                              "destroy it; choose another output name.")
+    check_writable_name(path, what)
+    if not replaces_runs and is_run_file(path):
+        raise ConfigError(f"Cannot write {what}{path}: it is a run file (HDF5), and writing there would destroy its "
+                          "records; choose another output name.")
+
+
+def check_writable_name(path: str | os.PathLike, what: str = "", *, verb: str = "write",
+                        error: type[LabcliError] = ConfigError) -> None:
+    """Refuse a name too long for its file system, or a path that is there and not a regular file."""
+    too_long = name_too_long(path)
+    if too_long:
+        raise error(f"Cannot {verb} {what}{path}: {too_long}.")
+    kind = kind_of(path)
+    if kind:
+        raise error(f"{path} is {kind}, not a regular file; labcli writes only regular files, "
+                    "so give the path of a file.")
 
 
 def atomic_write(path: str | os.PathLike, data: bytes, *, what: str = "") -> None:
@@ -20,8 +111,10 @@ def atomic_write(path: str | os.PathLike, data: bytes, *, what: str = "") -> Non
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
+    check_writable_name(path, what)
+    stem = path.name.encode("utf-8", "surrogateescape")[:TMP_STEM].decode("utf-8", "ignore")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=".tmp", dir=folder)
     except OSError as exc:
         raise ConfigError(f"Cannot write {what}{path}: {exc.strerror or exc} "
                           "(check the folder exists and is writable).") from None

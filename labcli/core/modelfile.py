@@ -11,14 +11,27 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .files import atomic_write, replace_restorably
-from .store import RunFile
+from ..errors import StoreError
+from .files import atomic_write, check_output, replace_restorably
+from .store import RunFile, space
 
 
 def default_model_path(run: str | Path) -> Path:
     """``run.h5`` -> ``run.model.json`` beside it."""
     run = Path(run)
     return run.with_name(run.stem + ".model.json")
+
+
+def check_fit_paths(run: str | Path, output: str | Path) -> None:
+    """Refuse, before fitting, what would stop the model being saved or would destroy data.
+
+    A run another labcli process is writing is refused in the lock's one sentence (rather
+    than fitted on the trials it has so far, and refused at the end); the model file may not
+    land on the input, on any other run file, or on anything but a regular file.
+    """
+    if space.writer_holds(str(run)):
+        raise StoreError(f"{run} {space.BUSY}.")
+    check_output(output, inputs=(run,), what="the model to ")
 
 
 def save_model(text: str, path: str | Path, *, run: str | Path | None = None, name: str = "") -> bool:

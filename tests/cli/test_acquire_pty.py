@@ -51,11 +51,11 @@ def quick_protocol(tmp_path: Path) -> Path:
 class Session:
     """One ``labcli acquire`` process with a person at its prompts."""
 
-    def __init__(self, args: list[str]) -> None:
+    def __init__(self, args: list[str], cwd: Path = ROOT) -> None:
         env = dict(os.environ, COLUMNS="300", PYTHONUNBUFFERED="1",
                    PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "labcli", "acquire", *args], cwd=ROOT, env=env,
+            [sys.executable, "-m", "labcli", "acquire", *args], cwd=cwd, env=env,
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
         )
         self.out = ""

@@ -68,8 +68,9 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def digest(folder: Path) -> dict[str, str]:
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    """Every regular file's hash, and what else is there (a named pipe stays one)."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file()
+            else "fifo" if p.is_fifo() else "dir" for p in sorted(folder.rglob("*"))}
 
 
 def expected_stderr(case: Case, world: Path, port: str | None) -> str:
@@ -88,6 +89,8 @@ def run_case(case: Case, world: Path, tmp_path: Path) -> tuple[subprocess.Comple
     shutil.copytree(world, here)
     for name, content in case.files.items():
         (here / name).write_bytes(content(here) if callable(content) else content)
+    for name in case.fifos:
+        os.mkfifo(here / name)
     if case.id == "h5-no-fit-trials":
         r = labcli("import", "unsplit.csv", "-o", "unsplit.h5", "--protocol", "takuma2014", cwd=here)
         assert r.returncode == 0, r.stderr
@@ -132,7 +135,7 @@ def test_the_table_covers_every_entry_point() -> None:
     assert len(CASES) >= 30 and len({c.id for c in CASES}) == len(CASES)
     entries = {c.entry for c in CASES}
     assert entries == {"protocol TOML", "plan CSV", "trial CSV", "push CSV", "point CSV", "HDF5 file", "model JSON",
-                       "CLI argument", "port", "run file", "standard input", "rig"}
+                       "CLI argument", "port", "run file", "standard input", "rig", "output path"}
     commands = {c.args[0] for c in CASES}
     assert commands >= {"acquire", "fit", "validate", "classify", "optimize", "split", "inspect", "export",
                         "import", "monitor"}

@@ -303,7 +303,7 @@ class FaultInjector:
 
     def _make(self, fw: Any, first: int, end: int, slots: np.ndarray, rows: np.ndarray) -> bytes:
         m = end - first
-        t_us, counts = fw.rig.samples(m, fw.rate_hz)
+        t_us, counts = fw.rig.samples(m, fw.stream_hz)
         seq = (fw.seq + np.arange(m, dtype=np.int64)) % U32
         t_us = t_us % U32
         fw.seq = int((fw.seq + m) % U32)
@@ -387,7 +387,7 @@ class FaultInjector:
         """``n`` frames made but never sent (the device's buffer was full)."""
         if n <= 0:
             return
-        t_us, counts = fw.rig.samples(n, fw.rate_hz)
+        t_us, counts = fw.rig.samples(n, fw.stream_hz)
         seq = (fw.seq + np.arange(n, dtype=np.int64)) % U32
         fw.seq = int((fw.seq + n) % U32)
         fw.count += n

@@ -27,23 +27,34 @@ RATE_MIN = 1.0
 # its core loses frames.  Links of 10-50 kHz can be tested; the reference firmware on an
 # ATmega328P stops far lower (its UART and ADC: firmware/src/config.h).
 RATE_MAX = 50000.0
+# A firmware whose timer is set wrong streams at rate_factor times the rate it confirms
+# (``sim://?ratefactor=X``), its own clock stamping the frames as they are made.
+FACTOR_MIN, FACTOR_MAX = 0.01, 100.0
 _OVERLONG = f"ERR line longer than {MAX_LINE} bytes\n".encode()
 
 
 class Firmware:
     """Device-side protocol state machine over a rig (see :mod:`labcli.core.sim`)."""
 
-    def __init__(self, rig, rate_hz: float = 200.0, faults=None) -> None:
+    def __init__(self, rig, rate_hz: float = 200.0, faults=None, rate_factor: float = 1.0) -> None:
         if not RATE_MIN <= rate_hz <= RATE_MAX:
             raise ValueError(f"rate must be within {RATE_MIN:g}..{RATE_MAX:g} Hz")
+        if not FACTOR_MIN <= rate_factor <= FACTOR_MAX:
+            raise ValueError(f"rate factor must be within {FACTOR_MIN:g}..{FACTOR_MAX:g}")
         self.rig = rig
-        self.rate_hz = float(rate_hz)
+        self.rate_hz = float(rate_hz)  # the rate set and confirmed (RATE, OK RATE)
+        self.rate_factor = float(rate_factor)
         self.seq = 0
         self.count = 0  # frames made since power-up (not wrapped): the fault plan's frame number
         self.faults = faults
         self.stall: tuple[float, int] | None = None  # (seconds, frames not made), see frames()
         self.streaming = False
         self._pending = bytearray()
+
+    @property
+    def stream_hz(self) -> float:
+        """Frames per second of the rig's own clock: the rate confirmed, times the timer's error."""
+        return self.rate_hz * self.rate_factor
 
     # ------------------------------------------------------------ host -> device
 
@@ -114,7 +125,7 @@ class Firmware:
             return b""
         if self.faults is not None:
             return self.faults.emit(self, n)
-        t_us, counts = self.rig.samples(n, self.rate_hz)
+        t_us, counts = self.rig.samples(n, self.stream_hz)
         seq = (self.seq + np.arange(n, dtype=np.int64)) % U32
         self.seq = int((self.seq + n) % U32)
         self.count += n
@@ -132,7 +143,7 @@ class Firmware:
         if self.faults is not None:
             self.faults.skipped(self, n)
             return
-        self.rig.samples(n, self.rate_hz)
+        self.rig.samples(n, self.stream_hz)
         self.seq = int((self.seq + n) % U32)
         self.count += n
 

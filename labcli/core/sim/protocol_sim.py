@@ -5,7 +5,7 @@ in ``serial.protocol_handler_packages``, see :func:`labcli.core.sim.register`)
 returns a port with the pyserial API whose other end runs the simulated
 firmware (:mod:`labcli.core.sim.firmware`) over a simulated rig.
 
-URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&mode=NAME][&faults=SPEC][&firmware=ELF][&RIG_OPTION=...]``
+URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X][&mode=NAME][&faults=SPEC][&firmware=ELF][&RIG_OPTION=...]``
 
 * ``seed`` (0): seeds the actuators, sensor offsets, noise and settling times;
 * ``rate`` (200): sample rate at power-up, Hz (1..50000; ``RATE`` changes it);
@@ -20,6 +20,9 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
   clock runs on by the time waited.  ``wall`` paces frames by the wall clock
   like real hardware;
 * ``tau`` (0.7): settling time constant after each load change, s;
+* ``ratefactor`` (1): the rig streams at this many times the rate it confirms (a firmware
+  timer set wrong: ``OK RATE 200`` and frames 10x as often with ``ratefactor=10``), its
+  own clock stamping each frame as it is made; 0.01..100;
 * ``mode`` (the default rig, mckibben): which rig model (:func:`labcli.core.sim.modes`, one per
   experiment's simulated rig);
 * ``faults`` (none): a noisy link, ``KIND:RATE[@X],...`` per
@@ -94,7 +97,7 @@ class Serial(SimulatedPort):
         opts = self._open_rig()
         spec = opts["faults"]
         self.faults = None if spec is None else FaultInjector(spec, seed=opts["seed"], n_channels=len(self.rig.channels))
-        self.firmware = Firmware(self.rig, opts["rate"], faults=self.faults)
+        self.firmware = Firmware(self.rig, opts["rate"], faults=self.faults, rate_factor=opts["ratefactor"])
         self._unplugged = False
         self._wall0 = time.monotonic() - self.rig.time_s
         self.is_open = True
@@ -147,7 +150,7 @@ class Serial(SimulatedPort):
                     self._line_len = max(20, len(chunk) // max(1, chunk.count(b"\n")))
                 self._rx += chunk
             return
-        due = int((time.monotonic() - self._pace_t0) * fw.rate_hz) - self._pace_sent
+        due = int((time.monotonic() - self._pace_t0) * fw.stream_hz) - self._pace_sent
         if due <= 0:
             return
         self._pace_sent += due
@@ -166,7 +169,7 @@ class Serial(SimulatedPort):
 
     def _next_due(self) -> float:
         fw = self.firmware
-        return self._pace_t0 + (self._pace_sent + 1) / fw.rate_hz
+        return self._pace_t0 + (self._pace_sent + 1) / fw.stream_hz
 
     # ------------------------------------------------------------ I/O
 
@@ -178,7 +181,7 @@ class Serial(SimulatedPort):
             if self._virtual and fw.streaming:
                 # A streaming virtual device always has the next block ready; it
                 # is sampled when read.
-                block = min(max(1, round(fw.rate_hz * BLOCK_S)), MAX_BLOCK_FRAMES)
+                block = min(max(1, round(fw.stream_hz * BLOCK_S)), MAX_BLOCK_FRAMES)
                 return len(self._rx) + block * self._line_len
             self._pump()
             return len(self._rx)

@@ -137,7 +137,7 @@ class PtyServer:
                     if fw.streaming and (not was_streaming or fw.rate_hz != old_rate):
                         pace_t0, sent = now, 0
             if fw.streaming:
-                due = int((now - pace_t0) * fw.rate_hz) - sent
+                due = int((now - pace_t0) * fw.stream_hz) - sent
                 if due > 0:
                     sent += due
                     self._queue_frames(fw.frames(due))

@@ -19,13 +19,13 @@ from serial.serialutil import SerialException
 from .. import registry
 from . import default_mode, modes
 from .faults import FAULTS_FORM, FaultSpec, FaultSpecError
-from .firmware import RATE_MAX, RATE_MIN
+from .firmware import FACTOR_MAX, FACTOR_MIN, RATE_MAX, RATE_MIN
 
 
 def accepted_form() -> str:
     own = "".join(f"[&{name}={opt.form}]" for name, opt in registry.sim_options().items())
     return (
-        "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
+        "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X]"
         f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...][&firmware=ELF]{own}"
     )
 
@@ -51,6 +51,13 @@ def _nonneg(text: str) -> float:
 def _rate(text: str) -> float:
     v = float(text)
     if not RATE_MIN <= v <= RATE_MAX:
+        raise ValueError
+    return v
+
+
+def _factor(text: str) -> float:
+    v = float(text)
+    if not FACTOR_MIN <= v <= FACTOR_MAX:
         raise ValueError
     return v
 
@@ -93,6 +100,7 @@ OPTIONS = {
     "drift": (_nonneg, 0.0, "a number >= 0"),
     "clock": (_clock, "virtual", "'virtual' or 'wall'"),
     "tau": (_positive, 0.7, "a number of seconds > 0"),
+    "ratefactor": (_factor, 1.0, f"a number within {FACTOR_MIN:g}..{FACTOR_MAX:g}"),
     "mode": (_mode, None, lambda: "one of " + ", ".join(modes())),  # None: the default rig
     "faults": (_faults, None, "KIND:RATE[@X],..."),
     "firmware": (_firmware, None, "the path of a firmware ELF"),
@@ -149,6 +157,7 @@ def rig_options(opts: dict) -> dict:
 
 NOT_WITH_FIRMWARE = {
     "rate": "the firmware powers up at its own rate and takes RATE from the host",
+    "ratefactor": "the firmware's timer is what its code sets",
     "faults": "the firmware's link is what its UART makes",
 }
 

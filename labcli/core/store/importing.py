@@ -15,6 +15,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ...errors import ConfigError, StoreError
+from ..files import check_output
 from ..protocol import load_protocol
 from ..registry import import_protocol, record_type
 from .h5 import nan_if_empty
@@ -136,6 +137,8 @@ class Imported:
 def import_csv(table: str, output: str, *, protocol: str, experiment: str | None = None, operator: str = "",
                force: bool = False) -> Imported:
     """``labcli import``: read and check TABLE under ``protocol`` (its ``experiment``), build OUTPUT."""
+    # A run file in OUTPUT's place is the import's business (replaced only with force, never while written).
+    check_output(output, inputs=(table, protocol), replaces_runs=True)
     base = load_protocol(protocol)
     _, run_protocol = import_protocol(base, experiment, protocol)
     rt = record_type(run_protocol.kind)

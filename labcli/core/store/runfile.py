@@ -523,6 +523,8 @@ class RunFile:
         return rid, label
 
     def _kept(self) -> str:
+        if self._staged is not None:  # built under a temporary name, removed when it fails
+            return f"{self.path} is as it was" if os.path.lexists(self.path) else "no file was made"
         n = len(self.completed_ids())
         return f"the {self.record_type.count(n)} stored before {'is' if n == 1 else 'are'} intact"
 
@@ -695,7 +697,7 @@ class RunFile:
         ids = np.asarray(columns[rt.id_column], dtype=np.int64).reshape(-1)
         n = ids.shape[0]
         values = self._bulk_values(columns, ids, n)
-        self._commit([(self._table, values, n)], 0, f"{n} {rt.plural}")
+        self._commit([(self._table, values, n)], 0, f"the batch of {rt.count(n)}")
         self._note_written(ids.tolist())
         return n
 

@@ -30,10 +30,10 @@ import resource
 import secrets
 import signal
 import threading
-from pathlib import Path
 from typing import Iterator
 
 from ...errors import DiskFull, StoreError
+from ..files import check_writable_name, kind_of
 
 PARTIAL_PREFIX = ".labcli-"
 PARTIAL_SUFFIX = ".partial"
@@ -89,51 +89,9 @@ def reserve(fd: int, end: int, need: int, path: str, doing: str, kept: str) -> N
                        f"{kept}. Free some space, then try again.")
 
 
-def name_too_long(path: str) -> str | None:
-    """The sentence for a file name longer than its file system allows (None when it fits)."""
-    name = os.path.basename(path)
-    folder = os.path.dirname(os.path.abspath(path))
-    try:
-        limit = os.pathconf(folder if os.path.isdir(folder) else "/", "PC_NAME_MAX")
-    except (OSError, ValueError):
-        limit = 255
-    size = len(name.encode("utf-8", "surrogateescape"))
-    if size <= limit:
-        return None
-    return f"the file name is {size} bytes long and this file system allows at most {limit}; choose a shorter name"
-
-
-def kind_of(path: str) -> str | None:
-    """What a path that exists but is not a regular file is ("a directory", "a device", ...); None otherwise."""
-    try:
-        st = os.stat(path)
-    except OSError:
-        return None
-    import stat
-
-    mode = st.st_mode
-    if stat.S_ISREG(mode):
-        return None
-    if stat.S_ISDIR(mode):
-        return "a directory"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    if stat.S_ISFIFO(mode):
-        return "a FIFO (named pipe)"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
-
-
 def check_new_file(path: str) -> None:
     """Refuse, in one sentence, a path labcli cannot create a run at."""
-    too_long = name_too_long(path)
-    if too_long:
-        raise StoreError(f"Cannot create {path}: {too_long}.")
-    what = kind_of(path)
-    if what:
-        raise StoreError(f"{path} is {what}, not a regular file; labcli writes only regular files, "
-                         "so give the path of a file.")
+    check_writable_name(path, verb="create", error=StoreError)
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise StoreError(f"cannot create {path}: the directory {folder} does not exist.")
@@ -237,10 +195,3 @@ def sync_folder(path: str) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
-
-
-def same_file(a: str | Path, b: str | Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return False

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ...core.jsontext import loads_bounded
-from ...core.modelfile import default_model_path, save_model
+from ...core.modelfile import check_fit_paths, default_model_path, save_model
 from ...core.store import RunFile
 from ...errors import ConfigError, ModelError
 from . import report
@@ -82,6 +82,8 @@ def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, p
         overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset(), **_: Any) -> StretchFitResult:
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
     check_force_only_options(typed, "max_amplification", "form")
+    out = output or default_model_path(run)
+    check_fit_paths(run, out)
     kind, table, raw, name, where = _read_run(run, protocol, overrides)
     if kind != "rpam-stretch":
         raise ConfigError(
@@ -91,7 +93,6 @@ def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, p
     stretch = analyse_stretch(table, (where, raw))
     if plot is not None:
         figure_stretch(stretch, plot)
-    out = output or default_model_path(run)
     model_name = f"{name or 'rpam'}-stretch"
     save_model(stretch.to_json(), out, run=run, name=model_name)
     return StretchFitResult(stretch, out, run, model_name, plot)

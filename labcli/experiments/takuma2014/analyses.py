@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ...core.modelfile import default_model_path, save_model
+from ...core.modelfile import check_fit_paths, default_model_path, save_model
 from ...core.provenance import rig_warning, same_data
 from ...core.report import ids_text, print_warnings
 from ...core.store import RunFile
@@ -64,13 +64,14 @@ def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, m
     if form == POSTURE and "max_amplification" in typed:
         raise ConfigError("--max-amplification is the paper form's cut near theta2 = 0; the posture form "
                           "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out.")
+    out_path = output or default_model_path(run)
+    check_fit_paths(run, out_path)
     src = load_trial_source(run, protocol)
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
         model = _fit_form(form, src, str(run), max_amplification)
     if isinstance(model, TakumaModel):
         refuse_non_finite(model, src.table, str(run))
     model.fitted_on = src.identity
-    out_path = output or default_model_path(run)
     recorded = save_model(model.to_json(), out_path, run=run if src.is_run else None, name=model.protocol)
     return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
 

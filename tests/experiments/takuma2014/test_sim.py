@@ -26,7 +26,7 @@ CAL_P = lambda c: (np.asarray(c) * 5.0 / 4095 - 1.0) / 4.0  # reference calibrat
 CAL_DEG = lambda c: (np.asarray(c) - 2048) * 340 / 4095
 
 EXPECTED_FORM = (
-    "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
+    "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X]"
     "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&firmware=ELF][&ideal=0|1][&friction=X][&leak=X]"
     "[&thermal=X][&backlash=X][&links=X][&supply=MPA[,MPA,MPA,MPA]][&design=paper|thin]"
 )

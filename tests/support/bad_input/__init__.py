@@ -20,7 +20,7 @@ TRIAL_HEADER = "trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg
 PUSH_HEADER = "push,object,R_m,d_m,phi_deg,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,category"
 PUSH_ROW = "pet-1,0.033,0.01,,0.2,0.2,0.2,0.2,0.21,0.19,0.2,0.2,soft"
 TABLE_HEAD = "has 1 problem (rows counted as a spreadsheet shows them, the header included):"
-SIM_URL_FORM = ("sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S]"
+SIM_URL_FORM = ("sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X]"
                 "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&firmware=ELF][&ideal=0|1][&friction=X]"
                 "[&leak=X][&thermal=X][&backlash=X][&links=X][&supply=MPA[,MPA,MPA,MPA]][&design=paper|thin]")
 
@@ -39,6 +39,7 @@ class Case:
     pty: bool = False               # serve the simulated rig on a pseudo-terminal; PTY in args is its path
     firmware: dict | None = None    # or serve support.firmware.FakeFirmware(**firmware) there instead
     xfail: str | None = None        # a bug in a module still being edited (see the report)
+    fifos: tuple[str, ...] = ()     # named pipes made in the folder (never opened: a reader would wait)
 
 
 def toml_edit(old: str, new: str) -> Callable[[Path], bytes]:
