@@ -69,6 +69,18 @@ def window_parts(time: np.ndarray, seq: np.ndarray, counts: np.ndarray, si: np.n
             np.asarray(counts, dtype="<f8")]
 
 
+def _uncached(g: h5py.Group, name: str) -> h5py.Dataset:
+    """Dataset ``name`` of ``g`` without HDF5's chunk cache.
+
+    Frames are written in whole chunks, each once, and read in whole windows, so a cache
+    saves nothing; HDF5's default (8 MiB per dataset in HDF5 2) would keep the last 8 MiB
+    written of each of a run's 2 + 2k frame arrays in memory.
+    """
+    dapl = h5py.h5p.create(h5py.h5p.DATASET_ACCESS)
+    dapl.set_chunk_cache(1, 0, 1.0)
+    return h5py.Dataset(h5py.h5d.open(g.id, name.encode(), dapl))
+
+
 class Frames:
     """The raw frames of an open run file."""
 
@@ -76,9 +88,9 @@ class Frames:
         self.g = g
         self.channels = [c.decode() if isinstance(c, bytes) else str(c) for c in g.attrs["channels"]]
         self.chunk = int(g.attrs["chunk_frames"])
-        self.time, self.seq = g["time"], g["seq"]
-        self.value = [g[c]["value"] for c in self.channels]
-        self.raw_value = [g[c]["raw_value"] for c in self.channels]
+        self.time, self.seq = _uncached(g, "time"), _uncached(g, "seq")
+        self.value = [_uncached(g, f"{c}/value") for c in self.channels]
+        self.raw_value = [_uncached(g, f"{c}/raw_value") for c in self.channels]
 
     @property
     def extent(self) -> int:
