@@ -37,7 +37,7 @@ from typing import Any, Callable, Generator, Iterator
 
 import numpy as np
 
-from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceError, DeviceTimeout
+from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceError, DeviceTimeout, DiskFull
 from .capture import WindowSink
 from .sessionlog import NoSessionLog, SessionInfo, SessionLog, session_log
 from .steps import (
@@ -211,6 +211,9 @@ class RunEngine:
             return outcome
         except LOST_RIG:
             how = "rig lost"
+            raise
+        except DiskFull:
+            how = "disk full"
             raise
         finally:
             if self._logging:
