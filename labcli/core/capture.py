@@ -112,8 +112,5 @@ class WindowSink:
         else:
             self._summary.stats.add(w.si)
 
-    def __len__(self) -> int:
-        return len(self.writer) if self.writer is not None else len(self._summary)
-
     def finish(self) -> Any:
         return self.writer.finish() if self.writer is not None else self._summary

@@ -15,9 +15,9 @@ their frames arrive (:mod:`labcli.core.capture`), so memory stays flat however l
 window is; but nothing counts until the ``Commit`` step commits the trial's record (its
 row, statistics and window checksums) last.  An unplugged rig, a quit, Ctrl-C, a kill or a
 full disk therefore discard only the trial in progress: its frames stay in the file,
-referenced by no record, and are never read as a trial.  A new run's file is created when its first trial
-begins (or its session finishes with none), so a session that stops during the
-setup or the air supply leaves no file behind.  An attended run whose rig is lost asks the
+referenced by no record, and are never read as a trial.  A new run's file is created when
+its first trial begins (or its session finishes with none), so a session that stops during
+the setup or the air supply leaves no file behind.  An attended run whose rig is lost asks the
 experimenter to reconnect it, opens the same port again and starts the session
 afresh (setup check, air supply, then the interrupted trial from its
 baseline); an unattended one ends with the command that resumes it.
@@ -487,7 +487,7 @@ class RunEngine:
             raise DeviceClockError(f"The rig on {self._port()} {what}.", what=what)
 
     def _check_rate(self, frames: int, gap: float) -> None:
-        """Flag a window of ``frames`` frames whose median ``gap`` (s, by the rig's own clock) is off the rate it confirmed."""
+        """Flag a window of ``frames`` frames whose median ``gap`` (s, rig's clock) is off the rate it confirmed."""
         if not self._rate_set or frames < 10:
             return
         rate = 1.0 / gap if gap > 0 else math.inf

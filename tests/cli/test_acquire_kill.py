@@ -41,6 +41,7 @@ from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.core.store import RunFile
 
+from support.long_capture import write_long_protocol
 from support.records import stored_trials
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -403,12 +404,7 @@ def test_kills_in_the_middle_of_a_streamed_capture_window(tmp_path):
 
     (Not 60 s, the longest a protocol allows: the simulated muscles creep over a minute under
     load, and trial 3's baseline is then rightly refused as still loaded.)"""
-    text = (ROOT / "protocols" / "takuma2014.toml").read_text()
-    text = re.sub(r"(?m)^rate_hz = .*$", "rate_hz = 1000.0", text)
-    text = re.sub(r"(?m)^capture_s = .*$", "capture_s = 30.0", text)
-    (tmp_path / "long.toml").write_text(text)
-    (tmp_path / "takuma2014-plan.csv").write_text((ROOT / "protocols" / "takuma2014-plan.csv").read_text())
-    c = Campaign(tmp_path, plan_rows(3, 1), ("--protocol", str(tmp_path / "long.toml")))
+    c = Campaign(tmp_path, plan_rows(3, 1), ("--protocol", str(write_long_protocol(tmp_path, 30.0))))
     path = tmp_path / "run.h5"
     seen: dict[int, dict[str, Any]] = {}
     for frames in (20_000, 45_000):  # in trial 1's baseline; in the loaded window of the first trial resumed

@@ -69,11 +69,9 @@ def test_no_room_leaves_the_run_as_it_was(imported, tmp_path, command):
 
 def test_acquire_reaching_the_limit_mid_window_keeps_the_trials_before_and_resumes(tmp_path):
     import h5py
+    from support.long_capture import write_long_protocol
 
-    text = (ROOT / "protocols" / "takuma2014.toml").read_text()
-    text = text.replace("rate_hz = 200.0", "rate_hz = 1000.0").replace("capture_s = 1.0", "capture_s = 30.0")
-    (tmp_path / "long.toml").write_text(text)
-    (tmp_path / "takuma2014-plan.csv").write_text((ROOT / "protocols" / "takuma2014-plan.csv").read_text())
+    write_long_protocol(tmp_path, 30.0)
     (tmp_path / "plan.csv").write_text("trial,set,mass_g,direction_deg\n1,fit,800,-60\n2,fit,500,-60\n"
                                        "3,validation,1000,-60\n")
     port = "sim://?seed=21&clock=virtual"

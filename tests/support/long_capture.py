@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,19 @@ CHANNELS = 6  # the reference rig's
 
 def port(seed: int = 1) -> str:
     return f"sim://?seed={seed}&clock=virtual"
+
+
+def write_long_protocol(folder: Path, capture_s: float, rate_hz: float = RATE_HZ) -> Path:
+    """The takuma2014 protocol file with ``capture_s`` (60 s at most, as its check allows) at ``rate_hz``,
+    and its plan beside it, in ``folder``; the protocol file's path (for ``--protocol``)."""
+    root = Path(__file__).resolve().parents[2] / "protocols"
+    text = (root / "takuma2014.toml").read_text()
+    text = re.sub(r"(?m)^rate_hz = .*$", f"rate_hz = {float(rate_hz)!r}", text)
+    text = re.sub(r"(?m)^capture_s = .*$", f"capture_s = {float(capture_s)!r}", text)
+    (folder / "takuma2014-plan.csv").write_text((root / "takuma2014-plan.csv").read_text())
+    path = folder / "long.toml"
+    path.write_text(text)
+    return path
 
 
 def long_protocol(capture_s: float, rate_hz: float = RATE_HZ) -> Protocol:

@@ -13,8 +13,9 @@ window and the next boundary are never written; they cost nothing compressed.
 
 A window is written as it arrives (:class:`WindowWriter`): frames go into the file as soon
 as they fill a chunk, and only that chunk and the window's running statistics stay in
-memory, so a capture window of any length takes the same memory.  :class:`StoredWindow` is what the engine hands the session in
-place of the samples: its mean and spread, and the samples read back on demand.
+memory, so a capture window of any length takes the same memory.  :class:`StoredWindow` is
+what the engine hands the session in place of the samples: its mean and spread, and the
+samples read back on demand.
 """
 
 from __future__ import annotations
@@ -180,9 +181,9 @@ class StoredWindow:
     """A raw window already in the run file: what the engine returns for a Baseline or Capture.
 
     It offers what a session uses of :class:`labcli.core.steps.Window`: ``len()``,
-    :meth:`mean`, :meth:`var` and :meth:`std` (per channel, SI), :meth:`as_dict` (what a record's ``raw``
-    takes); ``seq``, ``t_us``, ``t_s``, ``counts`` and ``si`` read the samples back from the
-    file when asked.
+    :meth:`mean`, :meth:`var` and :meth:`std` (per channel, SI), :meth:`as_dict` (what a
+    record's ``raw`` takes); ``seq``, ``t_us``, ``t_s``, ``counts`` and ``si`` read the
+    samples back from the file when asked (the whole window at once).
     """
 
     run: Any
