@@ -880,10 +880,15 @@ class RunFile:
             if s:
                 settle[key] = s
         out = {**self.record_type.read(row), "started": str(row["started"]), "ended": str(row["ended"]),
-               "accepted": str(row["accepted"]), "order": i, "raw": raw, "settle": settle,
+               "accepted": str(row["accepted"]), "order": self._order_of(rec, i), "raw": raw, "settle": settle,
                "extra": {name: self._extra_value(row[name]) for name in rec.extras}}
         out["flags"] = split_flags(row.get("flags", ""))
         return out
+
+    def _order_of(self, rec: Records, i: int) -> int:
+        """Where record ``i`` of ``rec`` was recorded: its table row (schema 2), which a damaged
+        record before it does not shift; its position among the good records (schema 1)."""
+        return int(rec.sources[i]) if self.version >= 2 else i
 
     @staticmethod
     def _extra_value(v: Any) -> Any:
