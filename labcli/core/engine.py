@@ -10,11 +10,14 @@ Timing is device time (the frames' ``t_us``, unwrapped), so a simulated rig in
 virtual time runs a whole protocol in seconds.  Only the "rig silent" check
 uses the wall clock, because a silent rig has no clock to read.
 
-Nothing is written to the run file except by a ``Commit`` step, and a commit
-writes one whole trial; an unplugged rig, a quit or Ctrl-C therefore discard
-only the trial in progress.  A new run's file is created when its first trial
-begins (or its session finishes with none), so a session that stops during the
-setup or the air supply leaves no file behind.  An attended run whose rig is lost asks the
+A trial's capture windows (``Baseline``, ``Capture``) are streamed into the run file as
+their frames arrive (:mod:`labcli.core.capture`), so memory stays flat however long a
+window is; but nothing counts until the ``Commit`` step commits the trial's record (its
+row, statistics and window checksums) last.  An unplugged rig, a quit, Ctrl-C, a kill or a
+full disk therefore discard only the trial in progress: its frames stay in the file,
+referenced by no record, and are never read as a trial.  A new run's file is created when
+its first trial begins (or its session finishes with none), so a session that stops during
+the setup or the air supply leaves no file behind.  An attended run whose rig is lost asks the
 experimenter to reconnect it, opens the same port again and starts the session
 afresh (setup check, air supply, then the interrupted trial from its
 baseline); an unattended one ends with the command that resumes it.
@@ -34,7 +37,8 @@ from typing import Any, Callable, Generator, Iterator
 
 import numpy as np
 
-from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceError, DeviceTimeout
+from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceError, DeviceTimeout, DiskFull
+from .capture import WindowSink
 from .sessionlog import NoSessionLog, SessionInfo, SessionLog, session_log
 from .steps import (
     Ask,
@@ -210,6 +214,9 @@ class RunEngine:
             return outcome
         except LOST_RIG:
             how = "rig lost"
+            raise
+        except DiskFull:
+            how = "disk full"
             raise
         finally:
             if self._logging:
@@ -422,9 +429,8 @@ class RunEngine:
                     t_s=self._unwrap(batch.t_us),
                 )
 
-    def _collect(self, duration_s: float) -> Window:
-        """Frames covering ``duration_s`` of device time from the next frame on."""
-        parts: list[Window] = []
+    def _stream(self, duration_s: float, take: Callable[[Window], None]) -> None:
+        """Hand ``take`` the frames covering ``duration_s`` of device time from the next frame on, batch by batch."""
         t0: float | None = None
         while True:
             w = self._next_batch()
@@ -432,11 +438,31 @@ class RunEngine:
                 t0 = float(w.t_s[0])
             n = int(np.searchsorted(w.t_s, t0 + duration_s, side="left"))
             if n < len(w):
-                parts.append(_slice(w, 0, n))
+                if n:
+                    take(_slice(w, 0, n))
                 self._pending = _slice(w, n, len(w))
-                break
-            parts.append(w)
+                return
+            take(w)
+
+    def _collect(self, duration_s: float) -> Window:
+        """Frames covering ``duration_s`` of device time, in memory (the setup check's half second)."""
+        parts: list[Window] = []
+        self._stream(duration_s, parts.append)
         return _concat(parts)
+
+    def _capture(self, duration_s: float) -> Any:
+        """A Baseline or Capture window, streamed into the run file inside a trial (see :mod:`.capture`).
+
+        Only the committed record makes the window count: a window of a trial that is redone,
+        skipped or killed stays in the file unreferenced, and is never read as a trial.
+        """
+        k = len(self.protocol.channels)
+        sink = WindowSink(k, self.store.begin_window(f"{self._noun} {self._trial.trial}")
+                          if self._trial is not None else None)
+        self._stream(duration_s, sink.add)
+        window = sink.finish()
+        self._check_rate(len(window), sink.gaps.median_s())
+        return window
 
     def _check_clock(self, t_us: np.ndarray) -> None:
         """The rig's clock must move forward, by less than a minute a frame, and not far slower than frames come.
@@ -463,11 +489,10 @@ class RunEngine:
                     f"{frames / span if span else math.inf:.4g} frames per second at {self._rate_set:g} Hz set")
             raise DeviceClockError(f"The rig on {self._port()} {what}.", what=what)
 
-    def _check_rate(self, window: Window) -> None:
-        """Flag a window whose frames the rig's own clock spaces off the rate it confirmed."""
-        if not self._rate_set or len(window) < 10:
+    def _check_rate(self, frames: int, gap: float) -> None:
+        """Flag a window of ``frames`` frames whose median ``gap`` (s, rig's clock) is off the rate it confirmed."""
+        if not self._rate_set or frames < 10:
             return
-        gap = float(np.median(np.diff(window.t_s)))
         rate = 1.0 / gap if gap > 0 else math.inf
         if abs(rate / self._rate_set - 1.0) <= RATE_TOLERANCE:
             return
@@ -498,9 +523,7 @@ class RunEngine:
             return self._wait_settle(step.label)
         if isinstance(step, (Baseline, Capture)):
             self._start()
-            window = self._collect(step.capture_s)
-            self._check_rate(window)
-            return window
+            return self._capture(step.capture_s)
         if isinstance(step, Review):
             return self.ui.review(step.row, step.warnings, step.default)
         if isinstance(step, Commit):
@@ -643,7 +666,7 @@ class RunEngine:
         self._start()
         window = self._collect(SETUP_S)
         self._stop()
-        self._check_rate(window)
+        self._check_rate(len(window), float(np.median(np.diff(window.t_s))) if len(window) > 1 else math.nan)
         problems = self._check_readings(window)
         if problems:
             raise DeviceError(

@@ -86,12 +86,12 @@ class Watch:
     def change(self, before: Any, after: Any) -> np.ndarray:
         """Mean of ``after`` minus mean of ``before`` on the watched channels, SI."""
         c = list(self.cols)
-        return after.si[:, c].mean(axis=0) - before.si[:, c].mean(axis=0)
+        return after.mean()[c] - before.mean()[c]
 
     def floors(self, *windows: Any) -> np.ndarray:
         """Per channel: the settle spread, one count, or four standard errors of a difference of means."""
         c = list(self.cols)
-        var = sum(w.si[:, c].var(axis=0, ddof=1) / len(w) if len(w) > 1 else 0.0 for w in windows)
+        var = sum(w.var(ddof=1)[c] / len(w) if len(w) > 1 else 0.0 for w in windows)
         return np.maximum(np.maximum(self.limit, self.count), SE_FLOORS * np.sqrt(var))
 
     @property

@@ -31,18 +31,24 @@ step               reply
                    answer was empty and its field says that ends the questions
 ``BeginTrial``     ``None``
 ``WaitSettle``     :class:`SettleReport`, or ``"redo"``
-``Baseline``       :class:`Window`
-``Capture``        :class:`Window`
+``Baseline``       a :class:`CapturedWindow`
+``Capture``        a :class:`CapturedWindow`
 ``Review``         ``"accept"``, ``"redo"`` or ``"skip"`` (quit ends the session)
 ``Commit``         ``None``
 ``Finish``         ``None``
 =================  ==========================================================
+
+A captured window is read through :class:`CapturedWindow` only (its length, per-channel
+mean and variance, and ``as_dict()`` for the record's ``raw``): the engine streams a
+window into the run file as it arrives and hands back a
+:class:`~labcli.core.store.StoredWindow` (or, outside a trial, a summary), so a window of any
+length takes the same memory; a test may send a :class:`Window` of samples instead.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
@@ -186,6 +192,21 @@ Step = (SetupCheck | Prompt | Ask | BeginTrial | WaitSettle | Baseline | Capture
 # --------------------------------------------------------------------------- replies
 
 
+class CapturedWindow(Protocol):
+    """What a session may read of a Baseline's or Capture's window."""
+
+    def __len__(self) -> int: ...
+
+    def mean(self) -> np.ndarray:
+        """Mean per channel, SI."""
+
+    def var(self, ddof: int = 0) -> np.ndarray:
+        """Variance per channel, SI squared."""
+
+    def as_dict(self) -> dict[str, Any]:
+        """What a record's ``raw`` takes for this window."""
+
+
 @dataclass
 class Window:
     """Raw samples of one capture window, as received, plus their SI values."""
@@ -201,6 +222,10 @@ class Window:
 
     def mean(self) -> np.ndarray:
         return self.si.mean(axis=0)
+
+    def var(self, ddof: int = 0) -> np.ndarray:
+        """Variance per channel, SI squared (``ddof`` as numpy's)."""
+        return self.si.var(axis=0, ddof=ddof)
 
     def as_dict(self) -> dict[str, np.ndarray]:
         return {"seq": self.seq, "t_us": self.t_us, "counts": self.counts, "si": self.si, "t_s": self.t_s}

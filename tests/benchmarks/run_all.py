@@ -180,6 +180,17 @@ def p_firmware(out: str, _: Path) -> tuple[str, str]:
             f"simavr {min(speeds):.1f}-{max(speeds):.1f}x real time")
 
 
+def p_capture_memory(out: str, _: Path) -> tuple[str, str]:
+    rows = re.findall(r"^\s*([\d.]+ (?:s|min|h))\s+([\d,]+)\s+([\d.]+) MiB\s+([\d.]+) MiB\s+([\d.]+)x", out, re.M)
+    if not rows:
+        raise ValueError("no result row")
+    window, frames, mem, streamed, ratio = rows[-1]
+    growth = grab(r"^growth from .*: in memory ([\d.]+)x, streamed ([\d.]+)x", out)
+    return (f"{ratio}x less peak memory at {window} windows ({streamed} MiB vs {mem} MiB)",
+            f"{frames} frames per trial; from {rows[0][0]} to {window} windows peak memory grows "
+            f"{growth.group(1)}x in memory, {growth.group(2)}x streamed")
+
+
 BENCHES = [
     Bench("reader", "bench_reader.py", ["--frames", "50000", "--repeat", "3"],
           "stream reader, 6-channel frames parsed from 4 KiB chunks", "readline + split + per-byte XOR", p_reader),
@@ -211,13 +222,16 @@ BENCHES = [
     Bench("tables", "bench_tables.py", ["--sizes", "1e4,1e5", "--import-sizes", "1e3", "--repeat", "1"],
           "trial CSV: checked read, `labcli fit`, `labcli validate` (fresh process each, peak resident memory)",
           "pandas `read_csv` (+ the four least-squares fits / evaluate)", p_tables, json=True),
+    Bench("capture-memory", "bench_capture_memory.py", ["--windows", "60,600"],
+          "one trial with long capture windows (1 kHz x 6 channels) streamed into the run file, peak RSS growth",
+          "the same engine gathering each window in memory, then writing the trial", p_capture_memory),
     Bench("demo", "bench_demo.py", ["--seeds", "1", "--import-repeat", "5"],
           "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
           "`python -c \"import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma\"`", p_demo, json=True),
 ]
 FULL_ARGS = {"models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"], "demo": ["--seeds", "1-3"],
              "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e3,3e3", "--repeat", "2"],
-             "classify-report": ["--sizes", "1e5,1e6"]}
+             "classify-report": ["--sizes", "1e5,1e6"], "capture-memory": ["--windows", "60,600,3600"]}
 
 
 def main() -> None:

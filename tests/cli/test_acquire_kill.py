@@ -41,6 +41,7 @@ from labcli.core.protocol import load_protocol
 from labcli.experiments.takuma2014.protocol import load_plan
 from labcli.core.store import RunFile
 
+from support.long_capture import write_long_protocol
 from support.records import stored_trials
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -119,11 +120,11 @@ class Acquire:
         return sum(line.startswith(REVIEW) for line in self.out)
 
 
-def run_args(path: Path, plan: Path) -> list[str]:
+def run_args(path: Path, plan: Path, protocol: tuple[str, ...] = ()) -> list[str]:
     # What the person would type: resume a file that exists, start one that does not.
     if path.exists():
         return [str(path), "--port", PORT, "--unattended", "--resume"]
-    return [str(path), "--port", PORT, "--unattended", "--plan", str(plan)]
+    return [str(path), "--port", PORT, "--unattended", "--plan", str(plan), *protocol]
 
 
 def resume_sentence(path: Path) -> str:
@@ -136,8 +137,10 @@ def resume_sentence(path: Path) -> str:
 class Campaign:
     """Kill runs of one plan; check every file after every kill; count where the kills landed."""
 
-    def __init__(self, tmp_path: Path, plan_rows: list[tuple[int, str, float, float]]) -> None:
+    def __init__(self, tmp_path: Path, plan_rows: list[tuple[int, str, float, float]],
+                 protocol: tuple[str, ...] = ()) -> None:
         self.tmp = tmp_path
+        self.protocol = protocol  # ("--protocol", path) for a run of another protocol than takuma2014
         self.plan = tmp_path / "plan.csv"
         self.plan.write_text("trial,set,mass_g,direction_deg\n"
                              + "".join(f"{t},{s},{m:g},{d:g}\n" for t, s, m, d in plan_rows))
@@ -149,7 +152,7 @@ class Campaign:
         self.resumes = 0
         # The reference: the same seed and plan, never interrupted, as a process (timed).
         ref = tmp_path / "reference.h5"
-        p = Acquire(run_args(ref, self.plan))
+        p = Acquire(run_args(ref, self.plan, self.protocol))
         assert p.wait() == 0, p.stderr
         self.t_end = time.monotonic() - p.t0
         self.t_ready = p.t_ready
@@ -170,7 +173,7 @@ class Campaign:
             sig = pending[0]
             pristine = not path.exists()  # this process starts the file: its trials equal the reference's
             before = len(seen)
-            proc = Acquire(run_args(path, self.plan))
+            proc = Acquire(run_args(path, self.plan, self.protocol))
             if sig == signal.SIGINT:
                 # Python's own start-up is not the toolkit's: Ctrl-C lands once the rig answered.
                 if not proc.wait_ready():
@@ -204,7 +207,7 @@ class Campaign:
                     if len(run.completed_ids()) == len(self.ids) and run.split() is not None:
                         break
             pristine = not path.exists()
-            proc = Acquire(run_args(path, self.plan))
+            proc = Acquire(run_args(path, self.plan, self.protocol))
             assert proc.wait() == 0, proc.stdout + proc.stderr
             self.resumes += 1
             self.check(path, seen, pristine)
@@ -364,6 +367,68 @@ def test_ctrl_c_while_the_split_is_written_finishes_the_run(tmp_path, monkeypatc
     assert outcome.message.startswith(f"Session complete: 2 trials stored in {path} (2 this session, ")
     with RunFile.open(path) as run:
         assert run.split()["fit"] == [1] and run.split()["validation"] == [2]
+
+
+def uncommitted_frames(path: Path) -> tuple[int, int]:
+    """(raw frames in the file, the end of the last committed trial's windows), read as a viewer would."""
+    import h5py
+
+    with h5py.File(path, "r", locking=False) as f:
+        trials, n = f["entry/trials"], int(f["entry/trials"].attrs["committed"])
+        stop = max([int(trials[f"{w}_stop"][:n].max()) for w in ("baseline", "loaded")] if n else [0])
+        return int(f["entry/raw/time"].shape[0]), stop
+
+
+def kill_mid_window(proc: Acquire, path: Path, frames: int, timeout: float = 120.0) -> int:
+    """SIGKILL ``proc`` once ``frames`` frames of a window it streams are in the file, not yet in any trial."""
+    start = None
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.proc.poll() is None:
+        try:
+            extent, stop = uncommitted_frames(path)
+        except (OSError, KeyError, ValueError):  # no file yet, or read while the writer commits
+            time.sleep(0.01)
+            continue
+        start = extent if start is None else start  # frames an earlier process left are not this one's
+        if extent - max(stop, start) >= frames:
+            proc.proc.send_signal(signal.SIGKILL)
+            assert proc.wait() == -signal.SIGKILL, proc.stderr
+            return extent - max(stop, start)
+        time.sleep(0.005)
+    raise AssertionError(f"no streamed window of {frames} frames seen: {proc.stdout}{proc.stderr}")
+
+
+def test_kills_in_the_middle_of_a_streamed_capture_window(tmp_path):
+    """30 s windows at 1 kHz, streamed into the file as they arrive: SIGKILL while a window's frames
+    are in the file but its trial is not committed, twice, then resume to the end.
+
+    (Not 60 s, the longest a protocol allows: the simulated muscles creep over a minute under
+    load, and trial 3's baseline is then rightly refused as still loaded.)"""
+    c = Campaign(tmp_path, plan_rows(3, 1), ("--protocol", str(write_long_protocol(tmp_path, 30.0))))
+    path = tmp_path / "run.h5"
+    seen: dict[int, dict[str, Any]] = {}
+    for frames in (20_000, 45_000):  # in trial 1's baseline; in the loaded window of the first trial resumed
+        pristine = not path.exists()
+        proc = Acquire(run_args(path, c.plan, c.protocol))
+        left = kill_mid_window(proc, path, frames)
+        assert left >= frames
+        before = sorted(seen)
+        ids = c.check(path, seen, pristine)
+        assert ids == before  # the window's trial was not stored; every one before it is
+        with RunFile.open(path) as run:
+            assert run.verify()["ok"], run.verify()
+        extent, stop = uncommitted_frames(path)
+        assert extent - stop >= frames  # the killed window's frames are in the file, in no trial
+    for _ in range(3):
+        proc = Acquire(run_args(path, c.plan, c.protocol))
+        assert proc.wait() == 0, proc.stdout + proc.stderr
+        c.check(path, seen, False)
+        with RunFile.open(path) as run:
+            if len(run.completed_ids()) == len(c.ids):
+                break
+    c.check_complete(path, seen)
+    with RunFile.open(path) as run:
+        assert run.verify() == {"ok": True, "records": 3, "windows": 6, "problems": []}
 
 
 @pytest.mark.slow

@@ -2,7 +2,10 @@
 
 fit records its model in the run and split records the split; under a limit that leaves no room
 for them, each says so in one sentence (what was kept), exits 1, and the run file is byte for
-byte what it was, opening with every record it had.
+byte what it was, opening with every record it had.  An acquisition that reaches the limit while
+it streams a capture window into the file stops there in one sentence; the file keeps the trials
+completed before (the window's frames in no trial), its session log says "disk full", and the run
+resumes to the end once there is room.
 """
 
 from __future__ import annotations
@@ -62,3 +65,30 @@ def test_no_room_leaves_the_run_as_it_was(imported, tmp_path, command):
         assert f.completed_ids() == ids
     r = labcli(*command, cwd=tmp_path)  # with room again, the same command works
     assert r.returncode == 0, r.stderr
+
+
+def test_acquire_reaching_the_limit_mid_window_keeps_the_trials_before_and_resumes(tmp_path):
+    import h5py
+    from support.long_capture import write_long_protocol
+
+    write_long_protocol(tmp_path, 30.0)
+    (tmp_path / "plan.csv").write_text("trial,set,mass_g,direction_deg\n1,fit,800,-60\n2,fit,500,-60\n"
+                                       "3,validation,1000,-60\n")
+    port = "sim://?seed=21&clock=virtual"
+    r = labcli("acquire", "run.h5", "--port", port, "--unattended", "--plan", "plan.csv", "--protocol", "long.toml",
+               cwd=tmp_path, limit=1_700_000)
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    assert r.stderr == ("Error: run.h5 cannot grow past the file size limit of 1.7 MB (ulimit -f), so trial 2 was "
+                        "not written; the 1 trial stored before is intact. Raise the limit, then try again.\n")
+    run = tmp_path / "run.h5"
+    with RunFile.open(run) as f:
+        assert f.completed_ids() == [1] and f.incomplete_ids() == []
+        assert f.verify() == {"ok": True, "records": 1, "windows": 2, "problems": []}
+        assert f.sessions()[-1]["how"] == "disk full"
+    with h5py.File(run, "r") as f:  # trial 2's frames streamed before the limit lie past trial 1's
+        assert f["entry/raw/time"].shape[0] > f["entry/trials/loaded_stop"][0] + 4096
+    r = labcli("acquire", "run.h5", "--port", port, "--unattended", "--resume", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with RunFile.open(run) as f:
+        assert f.completed_ids() == [1, 2, 3]
+        assert f.verify() == {"ok": True, "records": 3, "windows": 6, "problems": []}

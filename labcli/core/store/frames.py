@@ -11,17 +11,18 @@ A window starts at a chunk boundary: the frames of a committed window share no c
 frames written later (see :mod:`.columns` for why).  The frames between the end of one
 window and the next boundary are never written; they cost nothing compressed.
 
-A window is written as it arrives (:class:`WindowWriter`): each block goes into the file at
-once, and only the block's running statistics stay in memory, so a capture window of any
-length takes the same memory.  :class:`StoredWindow` is what the engine hands the session in
-place of the samples: its mean and spread, and the samples read back on demand.
+A window is written as it arrives (:class:`WindowWriter`): frames go into the file as soon
+as they fill a chunk, and only that chunk and the window's running statistics stay in
+memory, so a capture window of any length takes the same memory.  :class:`StoredWindow` is
+what the engine hands the session in place of the samples: its mean and spread, and the
+samples read back on demand.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, ContextManager, Sequence
 
 import h5py
 import numpy as np
@@ -69,6 +70,18 @@ def window_parts(time: np.ndarray, seq: np.ndarray, counts: np.ndarray, si: np.n
             np.asarray(counts, dtype="<f8")]
 
 
+def _uncached(g: h5py.Group, name: str) -> h5py.Dataset:
+    """Dataset ``name`` of ``g`` without HDF5's chunk cache.
+
+    Frames are written in whole chunks, each once, and read in whole windows, so a cache
+    saves nothing; HDF5's default (8 MiB per dataset in HDF5 2) would keep the last 8 MiB
+    written of each of a run's 2 + 2k frame arrays in memory.
+    """
+    dapl = h5py.h5p.create(h5py.h5p.DATASET_ACCESS)
+    dapl.set_chunk_cache(1, 0, 1.0)
+    return h5py.Dataset(h5py.h5d.open(g.id, name.encode(), dapl))
+
+
 class Frames:
     """The raw frames of an open run file."""
 
@@ -76,9 +89,9 @@ class Frames:
         self.g = g
         self.channels = [c.decode() if isinstance(c, bytes) else str(c) for c in g.attrs["channels"]]
         self.chunk = int(g.attrs["chunk_frames"])
-        self.time, self.seq = g["time"], g["seq"]
-        self.value = [g[c]["value"] for c in self.channels]
-        self.raw_value = [g[c]["raw_value"] for c in self.channels]
+        self.time, self.seq = _uncached(g, "time"), _uncached(g, "seq")
+        self.value = [_uncached(g, f"{c}/value") for c in self.channels]
+        self.raw_value = [_uncached(g, f"{c}/raw_value") for c in self.channels]
 
     @property
     def extent(self) -> int:
@@ -154,15 +167,23 @@ class Stats:
         self.m2 = self.m2 + m2b + delta ** 2 * (self.n * nb / n)
         self.n = n
 
+    def means(self, k: int) -> np.ndarray:
+        """Mean per channel (``k`` of them; NaN before any frame)."""
+        return np.array(self.mean) if self.n else np.full(k, np.nan)
+
+    def variances(self, k: int, ddof: int = 0) -> np.ndarray:
+        """Variance per channel with ``ddof`` delta degrees of freedom (NaN without more frames than ``ddof``)."""
+        return self.m2 / (self.n - ddof) if self.n > ddof else np.full(k, np.nan)
+
 
 @dataclass
 class StoredWindow:
     """A raw window already in the run file: what the engine returns for a Baseline or Capture.
 
     It offers what a session uses of :class:`labcli.core.steps.Window`: ``len()``,
-    :meth:`mean` and :meth:`std` (per channel, SI), :meth:`as_dict` (what a record's ``raw``
-    takes); ``seq``, ``t_us``, ``t_s``, ``counts`` and ``si`` read the samples back from the
-    file when asked.
+    :meth:`mean`, :meth:`var` and :meth:`std` (per channel, SI), :meth:`as_dict` (what a
+    record's ``raw`` takes); ``seq``, ``t_us``, ``t_s``, ``counts`` and ``si`` read the
+    samples back from the file when asked (the whole window at once).
     """
 
     run: Any
@@ -175,15 +196,15 @@ class StoredWindow:
         return self.stop - self.start
 
     def mean(self) -> np.ndarray:
-        if not self.stats.n:
-            return np.full(len(self.run.channels), np.nan)
-        return np.array(self.stats.mean)
+        return self.stats.means(len(self.run.channels))
+
+    def var(self, ddof: int = 0) -> np.ndarray:
+        """Variance per channel, SI squared (``ddof`` as numpy's)."""
+        return self.stats.variances(len(self.run.channels), ddof)
 
     def std(self) -> np.ndarray:
         """Population standard deviation per channel, SI."""
-        if not self.stats.n:
-            return np.full(len(self.run.channels), np.nan)
-        return np.sqrt(self.stats.m2 / self.stats.n)
+        return np.sqrt(self.var())
 
     def as_dict(self) -> dict[str, Any]:
         return {"stored": self}
@@ -213,17 +234,32 @@ class StoredWindow:
 
 
 class WindowWriter:
-    """One raw window being written block by block (:meth:`RunFile.begin_window`)."""
+    """One raw window being written block by block (:meth:`RunFile.begin_window`).
 
-    def __init__(self, run: Any, frames: Frames, reserve: Callable[[int], None]) -> None:
+    Frames are held until they fill whole chunks, which are then written and flushed (not
+    synced: nothing of the window counts until a record that references it is committed),
+    so every chunk is written once and a window of any length holds at most a chunk of
+    frames in memory.  :meth:`finish` writes the rest.
+    """
+
+    def __init__(self, run: Any, frames: Frames, reserve: Callable[[int], None], flush: Callable[[], None],
+                 writing: Callable[[], ContextManager[None]]) -> None:
         self.run = run
         self._frames = frames
         self._reserve = reserve
+        self._flush = flush
+        self._writing = writing
         self.start = frames.next_start()
-        self.stop = self.start
+        self.stop = self.start  # frames written so far end here
+        self._held: list[tuple[np.ndarray, ...]] = []
+        self._n_held = 0
         self._sum = 0
         self._stats = Stats()
         self._open = True
+
+    def __len__(self) -> int:
+        """Frames taken so far (written or held)."""
+        return self.stop - self.start + self._n_held
 
     def append(self, time: Any, seq: Any, counts: Any, si: Any) -> None:
         """Add frames: device time (s, unwrapped), counter, counts as sent (n, k), SI values (n, k)."""
@@ -239,12 +275,31 @@ class WindowWriter:
             raise StoreError(f"a block of {n} frames came with {seq.shape[0]} frame counters")
         if n == 0:
             return
-        self._reserve(n * (8 * (2 + 2 * k)))
-        self._frames.write(self.stop, time, seq, counts, si)
+        self._held.append((time, seq, counts, si))
+        self._n_held += n
+        whole = self._n_held // self._frames.chunk * self._frames.chunk
+        if whole:
+            self._write(whole)
+            self._flush()
+
+    def _write(self, n: int) -> None:
+        """Write the first ``n`` frames held."""
+        held = [np.concatenate(a) if len(self._held) > 1 else a[0] for a in zip(*self._held)]
+        block = [a[:n] for a in held]
+        rest = [a[n:] for a in held]
+        self._held = [tuple(rest)] if len(rest[0]) else []
+        self._n_held -= n
+        time, seq, counts, si = block
+        self._reserve(n * (8 * (2 + 2 * len(self._frames.channels))))
+        with self._writing():
+            self._frames.write(self.stop, time, seq, counts, si)
         self._sum = (self._sum + int(frames_checksum(window_parts(time, seq, counts, si), self.stop - self.start))) % MOD
         self._stats.add(si)
         self.stop += n
 
     def finish(self) -> StoredWindow:
+        """Write what is held and close the window; the :class:`StoredWindow` a record's ``raw`` takes."""
+        if self._open and self._n_held:
+            self._write(self._n_held)
         self._open = False
         return StoredWindow(self.run, self.start, self.stop, self._sum, self._stats)

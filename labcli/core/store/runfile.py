@@ -39,12 +39,13 @@ shares.  Text holding a NUL is refused before any file is made
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
 import warnings
 from types import SimpleNamespace
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Iterator, Mapping
 
 import h5py
 import numpy as np
@@ -542,20 +543,26 @@ class RunFile:
         writes = list(writes) + self._pending_writes()
         arrays = [(t, t.prepared(self._table_columns(t), values, n), n) for t, values, n in writes]
         self._reserve(sum(a.nbytes for _, arrs, _ in arrays for a in arrs) + frames, doing)
-        try:
+        with self._writing(doing):
             spans = [t.write(arrs, n) for t, arrs, n in arrays]
             self._sync()
             for (t, _, _), (_, stop) in zip(arrays, spans):
                 t.commit(stop)
             self._sync()
+        self._pending.clear()
+        return spans
+
+    @contextlib.contextmanager
+    def _writing(self, doing: str) -> Iterator[None]:
+        """Turn a failed HDF5 write into one sentence, and keep HDF5 from flushing its half-written state later."""
+        try:
+            yield
         except DiskFull:
             raise
         except OSError as e:
             self._broken = True
             raise StoreError(f"{self.path} could not be written ({e.strerror or e}), so {doing} was not stored; "
                              f"{self._kept()}.") from None
-        self._pending.clear()
-        return spans
 
     def _table_columns(self, t: Table) -> dict[str, Column]:
         if t is self._table:
@@ -750,13 +757,21 @@ class RunFile:
     def begin_window(self, doing: str = "a raw window") -> WindowWriter:
         """Start a raw window written as it arrives (the engine's Baseline and Capture).
 
-        ``append(time, seq, counts, si)`` adds each block (frames are in the file at once, not
-        yet part of any record); ``finish()`` returns the :class:`StoredWindow` a record's
-        ``raw`` then takes.  A window no record takes (a redo, a kill) stays unused.
+        ``append(time, seq, counts, si)`` adds each block (whole chunks of frames go into the
+        file and are flushed as they fill, not yet part of any record); ``finish()`` returns the
+        :class:`StoredWindow` a record's ``raw`` then takes.  A window no record takes (a redo,
+        a kill) stays unused: it lies past every committed window and the next one starts
+        after it.
         """
         self._check_writable()
         self._to_v2(doing)
-        return WindowWriter(self, self._frames, lambda nbytes: self._reserve(nbytes, doing))
+        return WindowWriter(self, self._frames, lambda nbytes: self._reserve(nbytes, doing),
+                            lambda: self._flush_frames(doing), lambda: self._writing(doing))
+
+    def _flush_frames(self, doing: str) -> None:
+        """Push a window's frames written so far out of HDF5's caches (to the OS; the commit fsyncs)."""
+        with self._writing(doing):
+            self._f.flush()
 
     def frames(self, start: int, stop: int) -> dict[str, np.ndarray]:
         """Raw frames ``[start, stop)``: ``t_s``, ``seq``, ``counts``, ``si``."""
@@ -867,10 +882,15 @@ class RunFile:
             if s:
                 settle[key] = s
         out = {**self.record_type.read(row), "started": str(row["started"]), "ended": str(row["ended"]),
-               "accepted": str(row["accepted"]), "order": i, "raw": raw, "settle": settle,
+               "accepted": str(row["accepted"]), "order": self._order_of(rec, i), "raw": raw, "settle": settle,
                "extra": {name: self._extra_value(row[name]) for name in rec.extras}}
         out["flags"] = split_flags(row.get("flags", ""))
         return out
+
+    def _order_of(self, rec: Records, i: int) -> int:
+        """Where record ``i`` of ``rec`` was recorded: its table row (schema 2), which a damaged
+        record before it does not shift; its position among the good records (schema 1)."""
+        return int(rec.sources[i]) if self.version >= 2 else i
 
     @staticmethod
     def _extra_value(v: Any) -> Any:
@@ -951,12 +971,8 @@ class RunFile:
         stops the change before HDF5 writes anything.
         """
         self._reserve(nbytes, doing)
-        try:
+        with self._writing(doing):
             row = make_row()
-        except OSError as e:
-            self._broken = True
-            raise StoreError(f"{self.path} could not be written ({e.strerror or e}), so {doing} was not stored; "
-                             f"{self._kept()}.") from None
         self._commit([(t, {k: [v] for k, v in row.items()}, 1)], nbytes, doing)
 
     def _split_ids(self) -> list[int]:

@@ -353,7 +353,7 @@ def _pressurise(protocol: Any) -> Generator[Step, Any, None]:
             problem = None
             continue
         readings = yield Baseline(capture_s)
-        problem = supply_problem(names, readings.si[:, cols].mean(axis=0), protocol.supply_min_MPa)
+        problem = supply_problem(names, readings.mean()[cols], protocol.supply_min_MPa)
         if problem is None:
             break
     yield Prompt(CLOSE_TEXT, CloseValves())

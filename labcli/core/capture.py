@@ -1,0 +1,116 @@
+"""Capture windows taken as they arrive, never held whole in memory.
+
+A ``Baseline`` or ``Capture`` step inside a trial streams its frames into the run file
+(:meth:`labcli.core.store.RunFile.begin_window`, which holds at most one chunk of frames
+before writing it); the session is handed a :class:`~labcli.core.store.StoredWindow`: where
+the frames lie in the file, their checksum, and their running mean and variance per
+channel.  Outside a trial (the air supply's check, before the run file exists) nothing of
+a window is stored, so it is only summarised (:class:`WindowSummary`).  Either way the
+memory a capture window takes does not grow with its length, and what the session and the
+engine read from it (means, variances, the frame rate) is computed block by block.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from .steps import Window
+from .store.frames import Stats
+
+GAP_DIGITS = 4  # significant digits kept of each gap between frames (us) in the rate's tally
+
+
+class GapTally:
+    """The median gap between consecutive frames of a window, from a tally of the gaps.
+
+    Gaps are counted in whole microseconds (the rig's clock) rounded to :data:`GAP_DIGITS`
+    significant digits: exact for gaps under 10 ms (rates above 100 Hz), within 0.05 %
+    otherwise, and a steady clock gives a handful of distinct values however long the window.
+    The median is ``numpy.median``'s over the gaps so rounded.
+    """
+
+    def __init__(self) -> None:
+        self._counts: dict[int, int] = {}
+        self._last: float | None = None
+        self.n = 0  # gaps counted
+
+    def add(self, t_s: np.ndarray) -> None:
+        """Count the gaps of these frames' times (s), and the one from the last frame before them."""
+        t = np.asarray(t_s, dtype=float).reshape(-1)
+        if not t.size:
+            return
+        if self._last is not None:
+            t = np.concatenate(([self._last], t))
+        self._last = float(t[-1])
+        gaps = np.rint(np.diff(t) * 1e6).astype(np.int64)
+        big = gaps >= 10 ** GAP_DIGITS
+        if big.any():
+            scale = 10 ** (np.floor(np.log10(gaps[big])).astype(np.int64) - (GAP_DIGITS - 1))
+            gaps[big] = np.rint(gaps[big] / scale).astype(np.int64) * scale
+        values, counts = np.unique(gaps, return_counts=True)
+        for v, c in zip(values.tolist(), counts.tolist()):
+            self._counts[v] = self._counts.get(v, 0) + c
+        self.n += len(gaps)
+
+    def median_s(self) -> float:
+        """The median gap in seconds (NaN before two frames)."""
+        if not self.n:
+            return math.nan
+        keys = sorted(self._counts)
+        cum = np.cumsum([self._counts[k] for k in keys])
+        lo = keys[int(np.searchsorted(cum, (self.n - 1) // 2, side="right"))]
+        hi = keys[int(np.searchsorted(cum, self.n // 2, side="right"))]
+        return (lo + hi) / 2 * 1e-6
+
+
+@dataclass
+class WindowSummary:
+    """A window read outside a trial: how many frames, their mean and variance per channel (SI); nothing stored."""
+
+    channels: int
+    stats: Stats = field(default_factory=Stats)
+
+    def __len__(self) -> int:
+        return self.stats.n
+
+    def mean(self) -> np.ndarray:
+        return self.stats.means(self.channels)
+
+    def var(self, ddof: int = 0) -> np.ndarray:
+        return self.stats.variances(self.channels, ddof)
+
+    def std(self) -> np.ndarray:
+        return np.sqrt(self.var())
+
+    def as_dict(self) -> dict[str, Any]:
+        raise ConfigError("a window read outside a trial is not kept in the run file, so no record can take it: "
+                          "begin the trial (BeginTrial) before its Baseline or Capture.")
+
+
+class WindowSink:
+    """Where the frames of one Baseline or Capture go as they arrive.
+
+    ``writer``: the run file's :class:`~labcli.core.store.WindowWriter` (inside a trial), or
+    None to summarise only.  ``channels``: how many.  :meth:`finish` gives the window the
+    session is handed; :attr:`gaps` the frame rate's tally.
+    """
+
+    def __init__(self, channels: int, writer: Any = None) -> None:
+        self.writer = writer
+        self.gaps = GapTally()
+        self._summary = WindowSummary(channels)
+
+    def add(self, w: Window) -> None:
+        self.gaps.add(w.t_s)
+        if self.writer is not None:
+            self.writer.append(w.t_s, w.seq, w.counts, w.si)
+        else:
+            self._summary.stats.add(w.si)
+
+    def finish(self) -> Any:
+        return self.writer.finish() if self.writer is not None else self._summary
