@@ -36,11 +36,11 @@ from support.big_table import big_table
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM = "sim://?seed=1&clock=virtual"
-N_TRIALS = 12
+N_TRIALS = 24  # about 2.1 MB at 2 kHz: past both rooms below, about 17 trials in
 PLAN = "trial,set,mass_g,direction_deg\n" + "".join(
     f"{i},fit,{500 + 100 * (i % 4)},{-150 + 30 * (i % 11)}\n" for i in range(1, N_TRIALS + 1))
 ACQUIRE = ("acquire", "run.h5", "--port", SIM, "--unattended", "--plan", "plan.csv", "--rate", "2000")
-LIMIT = 1600 * 1024  # room for the new run and about nine trials at 2 kHz
+LIMIT = 1600 * 1024  # room for the new run (its reserve) and about 17 trials at 2 kHz
 
 
 def labcli(*args: str, cwd: Path, limit: int | None = None) -> subprocess.CompletedProcess:
