@@ -12,7 +12,7 @@ import pytest
 from labcli.errors import ModelError
 from labcli.experiments.takuma2014.models.geometry import contact_point
 from labcli.experiments.takuma2014.models.posture import (
-    TORQUE_TERMS, PostureModel, force_from_torque, load_force_model, load_torque, torque_features)
+    TORQUE_TERMS, PostureModel, force_from_torque, load_force_model, load_torque, loo_residuals, torque_features)
 from labcli.experiments.takuma2014.models.takuma import TakumaModel
 
 H2, H3 = 0.130, 0.065
@@ -42,6 +42,20 @@ def test_a_load_along_the_straight_arm_makes_no_torque_but_does_on_a_bent_one():
     # tau_2 = -h3 (cos t12 Fx + sin t12 Fy) in closed form
     assert tau[0, 1] == pytest.approx(-H3 * math.sin(math.radians(15.0)) * -5.0, rel=1e-12)
     np.testing.assert_allclose(force_from_torque(bent, tau, H2, H3), along, atol=1e-9)
+
+
+def test_leave_one_out_residuals_equal_refitting_without_the_trial():
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((25, 4))
+    X[0] *= 6.0  # a high-leverage trial, whose held-out residual is far above its own
+    Y = X @ rng.standard_normal((4, 2)) + 0.1 * rng.standard_normal((25, 2))
+    beta, *_ = np.linalg.lstsq(X, Y, rcond=None)
+    loo = loo_residuals(X, Y - X @ beta, np.linalg.inv(X.T @ X))
+    for i in (0, 7, 24):
+        keep = np.arange(25) != i
+        b_i, *_ = np.linalg.lstsq(X[keep], Y[keep], rcond=None)
+        np.testing.assert_allclose(loo[i], Y[i] - X[i] @ b_i, rtol=1e-10)
+    assert np.abs(loo[0]).sum() > 1.5 * np.abs((Y - X @ beta)[0]).sum()
 
 
 def exact_table(n: int, theta0_deg: tuple[float, float], seed: int = 0, noise: float = 0.0) -> pd.DataFrame:
