@@ -58,6 +58,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ....errors import ModelError
+from . import routes as rt
 from .geometry import jacobian
 from .takuma import (ANGLE_COLUMNS, BASELINE_COLUMNS, FORCE_COLUMNS, LOADED_COLUMNS, SCHEMA, SCHEMA_VERSION,
                      TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, select_set)
@@ -244,6 +245,12 @@ class PostureModel:
     fit_stats: dict[str, Any] = field(default_factory=dict)
     fitted_trials: list[int] = field(default_factory=list)
     source: str = ""
+    # Per quantity "posture" or "paper" (models/routes.py); absent means posture.  The paper's
+    # Eqs. 34-37 fitted on the same trials, kept only when some quantity takes them, and the
+    # held-out squared error (rad^2, N^2) behind those quantities' standard errors.
+    routes: dict[str, str] = field(default_factory=dict)
+    paper_model: dict[str, Any] | None = None
+    paper_variance: dict[str, float] = field(default_factory=dict)
     fitted_on: dict[str, Any] | None = None  # the run it was fitted on (labcli.core.provenance)
 
     form = FORM
@@ -251,14 +258,19 @@ class PostureModel:
     def __post_init__(self) -> None:
         self.geometry = normalise_geometry(self.geometry)
         self.angle_terms = tuple(self.angle_terms)
+        self._paper: TakumaModel | None = None
 
     @property
     def is_fitted(self) -> bool:
         return bool(self.torque_coefficients) and bool(self.angle_coefficients)
 
     # ---------------------------------------------------------------- fitting
-    def fit(self, table: Any, source: str = "the trial table") -> "PostureModel":
-        """Least squares on the table's fit trials (``set == 'fit'``); returns self, fitted."""
+    def fit(self, table: Any, source: str = "the trial table", choose_routes: bool = True) -> "PostureModel":
+        """Least squares on the table's fit trials (``set == 'fit'``); returns self, fitted.
+
+        ``choose_routes`` also fits the paper's Eqs. 34-37 and picks, per quantity, the route
+        with the smaller cross-validated error on the fit trials (models/routes.py).
+        """
         a = table_arrays(select_set(table, "fit", source))
         use = (np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1) & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
                & np.all(np.isfinite(a["dtheta"]), axis=1) & np.all(np.isfinite(a["F"]), axis=1))
@@ -281,7 +293,44 @@ class PostureModel:
             "torque_rmse_Nm": np.sqrt(np.diag(tq.resid_cov)).tolist(),
         }
         self.source = source
+        self.routes, self.paper_model, self.paper_variance = {}, None, {}
+        self._paper = None
+        if choose_routes:
+            self._choose_routes(table, source)
         return self
+
+    def _choose_routes(self, table: Any, source: str) -> None:
+        """Cross-validate both forms on the fit trials; keep the paper's where it predicts better."""
+        def posture_only(rows: Any) -> "PostureModel":
+            return PostureModel(geometry=self.geometry, protocol=self.protocol,
+                                limits=self.limits).fit(rows, choose_routes=False)
+
+        def paper(rows: Any) -> TakumaModel:
+            return TakumaModel(geometry=self.geometry, protocol=self.protocol).fit(rows)
+
+        try:
+            cv = rt.held_out_errors(select_set(table, "fit", source), posture_only, paper)
+            full = paper(table)
+        except ModelError:
+            # Too few trials, or a block whose absence leaves a design singular: the posture form alone.
+            self.routes = {q: rt.POSTURE for q in rt.QUANTITIES}
+            return
+        self.routes, self.fit_stats["routes_cv"] = rt.choose_routes(cv)
+        if rt.PAPER in self.routes.values():
+            self.paper_model = full.to_dict()
+            self.paper_variance = rt.paper_residual_variances(cv, self.routes)
+            self._paper = full
+
+    @property
+    def paper(self) -> TakumaModel | None:
+        """The paper's Eqs. 34-37 behind the paper-routed quantities (None when none is)."""
+        if self._paper is None and self.paper_model is not None:
+            self._paper = TakumaModel.from_dict(self.paper_model, name="the model's paper-form part")
+        return self._paper
+
+    def route(self, quantity: str) -> str:
+        """``"posture"`` or ``"paper"``: which estimate ``quantity`` (theta1, theta2, Fx, Fy) takes."""
+        return self.routes.get(quantity, rt.POSTURE)
 
     # ---------------------------------------------------------------- prediction
     def _angles(self, P0: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -347,16 +396,38 @@ class PostureModel:
         # The gain form can leave a rounding-level negative variance where the data fix F exactly.
         se = {"theta1": np.sqrt(cov_a[:, 0, 0]), "theta2": np.sqrt(cov_a[:, 1, 1]),
               "Fx": np.sqrt(np.maximum(cov_F[:, 0, 0], 0.0)), "Fy": np.sqrt(np.maximum(cov_F[:, 1, 1], 0.0))}
+        value = {"theta1": dth[:, 0], "theta2": dth[:, 1], "Fx": F[:, 0], "Fy": F[:, 1]}
+        valid = {q: known if q in ("Fx", "Fy") else np.ones(n, bool) for q in se}
+        self._paper_routes(P0, P, mode, theta, value, se, valid, flags)
         ok = {}
         for q, s in se.items():
             within = s <= self.limits.get(q, math.inf)
-            ok[q] = ~bad & within & (known if q in ("Fx", "Fy") else True)
+            ok[q] = ~bad & within & valid[q]
             for i in np.flatnonzero(~within & ~bad):
                 if "uncertain" not in flags[i]:
                     flags[i].append("uncertain")
-        return {"theta1_rad": dth[:, 0], "theta2_rad": dth[:, 1], "Fx_N": F[:, 0], "Fy_N": F[:, 1],
-                "se": se, "ok": ok, "flags": flags, "mode": mode, "form": FORM,
-                "theta0_rad": th0}
+        return {"theta1_rad": value["theta1"], "theta2_rad": value["theta2"], "Fx_N": value["Fx"],
+                "Fy_N": value["Fy"], "se": se, "ok": ok, "flags": flags, "mode": mode, "form": FORM,
+                "theta0_rad": th0, "routes": {q: self.route(q) for q in rt.QUANTITIES}}
+
+    def _paper_routes(self, P0: np.ndarray, P: np.ndarray, mode: str, theta: Any, value: dict[str, np.ndarray],
+                      se: dict[str, np.ndarray], valid: dict[str, np.ndarray], flags: list[list[str]]) -> None:
+        """Put the paper's estimates, standard errors and flags in place for the paper-routed quantities."""
+        paper = self.paper
+        mine = [q for q in rt.QUANTITIES if self.route(q) == rt.PAPER]
+        if paper is None or not mine:
+            return
+        pred = paper.predict(P0, P, mode=mode, theta=theta)
+        th_force = (np.column_stack([pred["theta1_rad"], pred["theta2_rad"]]) if mode == "pressure-only"
+                    else np.nan_to_num(np.atleast_2d(np.asarray(theta, dtype=float)), nan=0.0))
+        paper_se = rt.paper_standard_errors(paper, pred, P0, P, th_force, self.paper_variance)
+        for q in mine:
+            value[q], se[q] = np.asarray(pred[rt.VALUE_KEYS[q]], dtype=float), paper_se[q]
+            valid[q] = valid[q] & np.asarray(pred["ok"][q], dtype=bool)
+            why = f"{q}-clipped" if q.startswith("theta") else "singular-jacobian"
+            for i in np.flatnonzero(~pred["ok"][q]):
+                if why in pred["flags"][i] and why not in flags[i]:
+                    flags[i].append(why)
 
     def _force_covariance(self, dP: np.ndarray, th0: np.ndarray, dth: np.ndarray,
                           cov_dth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -399,7 +470,8 @@ class PostureModel:
             "torque_terms": list(TORQUE_TERMS), "torque_coefficients": self.torque_coefficients,
             "torque_xtx_inv": self.torque_xtx_inv, "torque_resid_cov": self.torque_resid_cov,
             "force_prior_sd": self.force_prior_sd, "fit_stats": self.fit_stats, "fitted_trials": self.fitted_trials, "source": self.source,
-            "fitted_on": self.fitted_on,
+            "fitted_on": self.fitted_on, "routes": {q: self.route(q) for q in rt.QUANTITIES},
+            "paper_model": self.paper_model, "paper_variance": self.paper_variance,
         })
 
     def to_json(self) -> str:
@@ -433,8 +505,33 @@ class PostureModel:
                           and all(isinstance(v, (int, float)) and v > 0 for v in prior)):
             raise ModelError(f"{cap(name)}: key 'force_prior_sd' must list two positive forces in N; "
                              "refit with `labcli fit`.")
+        routes, variance = _routes_from_dict(d, name)
         keys = required + ("limits", "force_prior_sd", "fit_stats", "fitted_trials", "source", "fitted_on")
-        return cls(**{k: d[k] for k in keys if k in d})
+        model = cls(**{k: d[k] for k in keys if k in d}, routes=routes, paper_variance=variance,
+                    paper_model=d.get("paper_model") if variance else None)
+        if variance:
+            model._paper = TakumaModel.from_dict(d["paper_model"], name=f"{name}'s paper-form part")
+        return model
+
+
+def _routes_from_dict(d: Mapping[str, Any], name: str) -> tuple[dict[str, str], dict[str, float]]:
+    """The routes and paper-route variances of a model file, checked (absent: the posture form throughout)."""
+    routes = d.get("routes") or {}
+    if not (isinstance(routes, Mapping) and set(routes) <= set(rt.QUANTITIES)
+            and all(r in (rt.POSTURE, rt.PAPER) for r in routes.values())):
+        raise ModelError(f"{cap(name)}: key 'routes' must map theta1, theta2, Fx, Fy to 'posture' or "
+                         "'paper'; refit with `labcli fit`.")
+    variance = d.get("paper_variance") or {}
+    paper_q = sorted(q for q, r in routes.items() if r == rt.PAPER)
+    if not (isinstance(variance, Mapping) and sorted(variance) == paper_q
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
+                    for v in variance.values())):
+        raise ModelError(f"{cap(name)}: key 'paper_variance' must give a finite variance for each quantity "
+                         "routed to the paper's form, and no other; refit with `labcli fit`.")
+    if paper_q and not isinstance(d.get("paper_model"), Mapping):
+        raise ModelError(f"{cap(name)} routes {', '.join(paper_q)} to the paper's form but holds no "
+                         "'paper_model'; refit with `labcli fit`.")
+    return dict(routes), {q: float(v) for q, v in variance.items()}
 
 
 def load_force_model(path: Any) -> "TakumaModel | PostureModel":
