@@ -93,6 +93,10 @@ def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
                 row += [f"{coef[i][k]:.5g}", f"{math.sqrt(cov[i][i] * res[k][k]):.3g}"]
             table.add_row(*row)
         print_table(con, table)
+    if model.theta1_terms:
+        eq = " + ".join(f"{c:.5g} {t}" for t, c in zip(model.theta1_terms, model.theta1_coefficients))
+        con.print(f"theta1 as reported: its own equation from Eq. 34's terms, theta1 = {eq} rad "
+                  "(the table's dtheta1 feeds the forces).", soft_wrap=True)
     con.print(f"Fit on {st['n']} trials; rest posture (median) theta0 = "
               f"({st['theta0_deg'][0]:.2f}, {st['theta0_deg'][1]:.2f}) deg; residual RMSE "
               f"dtheta {st['angle_rmse_deg'][0]:.3g}, {st['angle_rmse_deg'][1]:.3g} deg, "

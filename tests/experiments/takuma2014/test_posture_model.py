@@ -251,3 +251,24 @@ def test_routes_round_trip_and_bad_routes_are_one_sentence(bent_rig_table, tmp_p
         path.write_text(json.dumps(d | change))
         with pytest.raises(ModelError, match=message):
             load_force_model(path)
+
+
+def test_theta1_has_its_own_equation_from_the_paper_s_terms():
+    # theta1 follows the outside pair alone (Eq. 34's terms) plus noise: its own equation keeps
+    # just those, while theta2 needs all four in the shared design.
+    t = exact_table(200, (0.0, 14.0), seed=5, noise=1.0)
+    u = t[["P_L10", "P_R10"]].to_numpy() / t[["P_L1", "P_R1"]].to_numpy() - 1.0
+    rng = np.random.default_rng(9)
+    t["theta1_deg"] = np.degrees(u @ [0.9, -1.1] + 2e-4 * rng.standard_normal(len(t)))
+    model = PostureModel(geometry=GEOMETRY).fit(t, choose_routes=False)
+    assert model.theta1_terms == ("u_L1", "u_R1")
+    assert model.angle_terms[:4] == ("u_L1", "u_R1", "u_L2", "u_R2")
+    np.testing.assert_allclose(model.theta1_coefficients, [0.9, -1.1], rtol=0.02)
+    v = t[t.set == "validation"]
+    out = model.predict_table(v)
+    err = np.radians(v.theta1_deg.to_numpy()) - out["theta1_rad"]
+    assert np.sqrt(np.mean(err ** 2)) < 3e-4 and np.all(out["se"]["theta1"] > 1.5e-4)
+    d = model.to_dict()
+    d["theta1_xtx_inv"] = [[1.0]]
+    with pytest.raises(ModelError, match="the theta1 equation .* is incomplete or not finite"):
+        PostureModel.from_dict(d)
