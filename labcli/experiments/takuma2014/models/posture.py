@@ -29,7 +29,13 @@ sign also settles the sign question of Eq. 14 (docs/errata.md).
 
 Angles: the deflection dtheta_k is linear in u_ij = P_ij0 / P_ij - 1 (Eqs. 30-31 with sin
 dropped, Eq. 29's Boyle relation), plus the quadratic terms u_i u_j the data support: forward
-selection on the cross-validated error of both angle equations (the same terms in both).
+selection on the cross-validated error of both angle equations (the same terms in both; this
+deflection feeds the forces).  The theta1 reported has its own equation, grown the same way from
+Eq. 34's terms (THETA1_BASE).
+
+Routes.  The paper's Eqs. 34-37 are fitted beside on the same fit trials, and each quantity
+takes whichever form predicts held-out blocks of fit trials better (models/routes.py); the
+validation trials never enter that choice.
 
 Uncertainty.  Both torque equations share one design X, so the coefficients' covariance is
 S_tau (x) (X^T X)^-1 with S_tau the 2x2 residual covariance (from leave-one-trial-out
@@ -337,7 +343,7 @@ class PostureModel:
             # Too few trials, or a block whose absence leaves a design singular: the posture form alone.
             self.routes = {q: rt.POSTURE for q in rt.QUANTITIES}
             return
-        self.routes, self.fit_stats["routes_cv"] = rt.choose_routes(cv)
+        self.routes, self.fit_stats["routes_cv"] = rt.choose_routes(cv, self.limits)
         if rt.PAPER in self.routes.values():
             self.paper_model = full.to_dict()
             self.paper_variance = rt.paper_residual_variances(cv, self.routes)

@@ -68,23 +68,30 @@ def held_out_errors(fit_rows: Any, fit_posture: Callable[[Any], Any],
     return out
 
 
-def choose_routes(cv: Mapping[str, Mapping[str, np.ndarray]]) -> tuple[dict[str, str], dict[str, Any]]:
+def choose_routes(cv: Mapping[str, Mapping[str, np.ndarray]],
+                  limits: Mapping[str, float]) -> tuple[dict[str, str], dict[str, Any]]:
     """The route per quantity and the cross-validation's figures (RMSE over the trials both report).
 
     The paper's route is taken only when it reports every held-out trial the posture form
-    reports and its summed squared error over the trials both report is lower.
+    reports, and either its summed squared error over the trials both report is lower or the
+    posture form reports none.  The paper's trials count as reported only while its held-out
+    RMSE is within the quantity's standard-error limit (``limits``, rad or N): beyond it every
+    one of them would be flagged by that standard error.
     """
     routes, stats = {}, {}
     for q in QUANTITIES:
-        ok_po, ok_pa = cv[POSTURE + "_ok"][q], cv[PAPER + "_ok"][q]
-        both = ok_po & ok_pa & np.isfinite(cv[POSTURE][q]) & np.isfinite(cv[PAPER][q])
+        ok_po, ok_pa = cv[POSTURE + "_ok"][q], cv[PAPER + "_ok"][q] & np.isfinite(cv[PAPER][q])
+        if ok_pa.any() and not np.sqrt(np.mean(cv[PAPER][q][ok_pa] ** 2)) <= limits.get(q, np.inf):
+            ok_pa = np.zeros_like(ok_pa)
+        both = ok_po & ok_pa & np.isfinite(cv[POSTURE][q])
         sse = {f: float(np.sum(cv[f][q][both] ** 2)) for f in (POSTURE, PAPER)}
-        take_paper = bool(both.any()) and not np.any(ok_po & ~ok_pa) and sse[PAPER] < sse[POSTURE]
+        better = sse[PAPER] < sse[POSTURE] if both.any() else bool(ok_pa.any()) and not ok_po.any()
+        take_paper = better and not np.any(ok_po & ~ok_pa)
         routes[q] = PAPER if take_paper else POSTURE
         stats[q] = {"n_both": int(both.sum()),
                     **{f"rmse_{f}": (float(np.sqrt(sse[f] / both.sum())) if both.any() else None)
                        for f in (POSTURE, PAPER)},
-                    **{f"reported_{f}": int(cv[f + "_ok"][q].sum()) for f in (POSTURE, PAPER)}}
+                    "reported_posture": int(ok_po.sum()), "reported_paper": int(ok_pa.sum())}
     return routes, stats
 
 
