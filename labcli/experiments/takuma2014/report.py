@@ -109,7 +109,7 @@ def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
 
 
-ROUTE_TEXT = {("theta1", "posture"): "deflection fit", ("theta2", "posture"): "deflection fit",
+ROUTE_TEXT = {("theta1", "posture"): "own equation", ("theta2", "posture"): "deflection fit",
               ("Fx", "posture"): "torques", ("Fy", "posture"): "torques",
               ("theta1", "paper"): "paper's Eq. 34", ("theta2", "paper"): "paper's Eq. 35",
               ("Fx", "paper"): "paper's Eq. 36", ("Fy", "paper"): "paper's Eq. 37"}

@@ -247,6 +247,7 @@ def test_routes_round_trip_and_bad_routes_are_one_sentence(bent_rig_table, tmp_p
     d = json.loads(path.read_text())
     for change, message in (({"routes": {"theta1": "direct"}}, "key 'routes' must map theta1"),
                             ({"paper_variance": {}}, "key 'paper_variance' must give a finite variance"),
+                            ({"paper_variance": {"theta1": 10 ** 400}}, "key 'paper_variance' must give a finite"),
                             ({"paper_model": None}, "routes theta1.* to the paper's form but holds no 'paper_model'")):
         path.write_text(json.dumps(d | change))
         with pytest.raises(ModelError, match=message):

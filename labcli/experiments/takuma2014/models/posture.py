@@ -565,9 +565,13 @@ def _routes_from_dict(d: Mapping[str, Any], name: str) -> tuple[dict[str, str], 
                          "'paper'; refit with `labcli fit`.")
     variance = d.get("paper_variance") or {}
     paper_q = sorted(q for q, r in routes.items() if r == rt.PAPER)
-    if not (isinstance(variance, Mapping) and sorted(variance) == paper_q
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
-                    for v in variance.values())):
+    def finite(v: Any) -> bool:
+        try:  # a 400-digit integer is no float
+            return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v)) and v >= 0
+        except OverflowError:
+            return False
+
+    if not (isinstance(variance, Mapping) and sorted(variance) == paper_q and all(map(finite, variance.values()))):
         raise ModelError(f"{cap(name)}: key 'paper_variance' must give a finite variance for each quantity "
                          "routed to the paper's form, and no other; refit with `labcli fit`.")
     if paper_q and not isinstance(d.get("paper_model"), Mapping):
