@@ -2,7 +2,7 @@
 
     python protocols/make_bent_plan.py                # rewrites protocols/takuma2014-bent-plan.csv
 
-The arm rests bent (theta2 about 11 deg; the inside pair supplied unequally, see the protocol),
+The arm rests bent (theta2 about 18 deg; the inside pair supplied unequally, see the protocol),
 so a force along the arm makes a torque and every direction can be sensed.  The pulley pulls
 all the way round, along the arm (+-90 deg) included:
 

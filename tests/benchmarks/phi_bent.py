@@ -2,7 +2,7 @@
 at least 80 % of pushes used, the six objects 6/6 in their category).
 
 Per rig seed: the bent protocol's 90 fit trials fit the posture-aware form; the six simulated
-objects are pushed ten times each on the same bent rig (supply 0.30/0.30/0.40/0.20 MPa) with phi
+objects are pushed ten times each on the same bent rig (supply 0.15/0.15/0.45/0.15 MPa) with phi
 left blank; each push's rest posture comes from its baseline potentiometers.  classify solves
 phi from the force direction (Eqs. 39-41 as docs/errata.md reads them) and categorises by the
 stiffness protocol's bands.  The force model's standard-error limits are lifted here, because

@@ -1,16 +1,19 @@
 """Accuracy, not time: the posture-aware form against the paper's Eqs. 34-37, straight and bent arm.
 
 For each rig seed the simulated (realistic) rig runs the straight protocol (takuma2014, plan as
-shipped, default supply) and the bent one (takuma2014-bent, supply 0.30/0.30/0.40/0.20 MPa);
+shipped, default supply) and the bent one (takuma2014-bent, supply 0.15/0.15/0.45/0.15 MPa);
 each trial's rest posture is its baseline potentiometer reading, as a run file stores it.  Both
 forms are fitted on the 90 fit trials and checked on the 18 validation trials (pressure-only).
 Printed per protocol and quantity, over the seeds: trials reported (not flagged), RMSE over the
 reported trials and over all trials, and for the posture form the coverage of its 95 % intervals
 (share of reported validation errors within +-1.96 standard errors, pooled over seeds).
 
-    python tests/benchmarks/sensing_accuracy.py [--seeds 1-10] [--settle 8] [--ideal]
+    python tests/benchmarks/sensing_accuracy.py [--seeds 1-10] [--settle 8] [--ideal | --only EFFECT]
+                                                [--bent-supply 0.3,0.3,0.4,0.2]
 
-``--ideal`` turns the rig's non-idealities off (friction, leak, heat, backlash, link weight).
+``--ideal`` turns the rig's non-idealities off (friction, leak, heat, backlash, link weight);
+``--only friction`` (or leak, thermal, backlash, links) keeps that one alone, to see what each costs.
+``--bent-supply`` runs the bent protocol at other regulator settings (MPa, L1,R1,L2,R2).
 
 The baseline is the paper's form on the same trials; the issue's targets are printed beside.
 """
@@ -23,7 +26,8 @@ import math
 import numpy as np
 
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
-BENT_SUPPLY_MPA = (0.30, 0.30, 0.40, 0.20)
+# The bent protocol's regulators (protocols/takuma2014-bent.toml; the demo's BENT_SUPPLY).
+BENT_SUPPLY_MPA = (0.15, 0.15, 0.45, 0.15)
 
 
 class _Recorder:
@@ -41,7 +45,7 @@ class _Recorder:
         return out
 
 
-def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool = False):
+def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False):
     """The protocol's trial table on the simulated rig, with the rest posture columns (deg)."""
     from labcli.core.protocol import load_protocol
     from labcli.experiments.takuma2014.protocol import load_plan
@@ -52,8 +56,10 @@ def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool = False):
     from labcli.experiments.takuma2014.sim.nonideal import NonIdeal
 
     kw = {"supply_MPa": BENT_SUPPLY_MPA} if protocol_name.endswith("bent") else {}
-    if ideal:
+    if ideal is True:
         kw["nonideal"] = NonIdeal.ideal()
+    elif ideal:  # one effect alone, the others off
+        kw["nonideal"] = NonIdeal(**{**NonIdeal.ideal().as_dict(), ideal: 1.0})
     rig = _Recorder(SimRig(seed=seed, **kw))
     table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=settle_s)
     pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
@@ -63,7 +69,7 @@ def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool = False):
     return proto, table
 
 
-def measure(protocol_name: str, seed: int, settle_s: float, ideal: bool = False) -> dict:
+def measure(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False) -> dict:
     from labcli.experiments.takuma2014.models.metrics import evaluate
     from labcli.experiments.takuma2014.models.posture import PostureModel, limits_from_protocol
     from labcli.experiments.takuma2014.models.takuma import TakumaModel
@@ -95,14 +101,21 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 1,4,7")
     ap.add_argument("--settle", type=float, default=8.0, help="settling time per load, s (simulated)")
     ap.add_argument("--ideal", action="store_true", help="the rig with its non-idealities off")
+    ap.add_argument("--only", choices=("friction", "leak", "thermal", "backlash", "links"),
+                    help="the rig with this one non-ideality and no other")
+    ap.add_argument("--bent-supply", help="the bent protocol's regulators, MPa: L1,R1,L2,R2")
     args = ap.parse_args(argv)
+    global BENT_SUPPLY_MPA
+    if args.bent_supply:
+        BENT_SUPPLY_MPA = tuple(float(v) for v in args.bent_supply.split(","))
+    rig_kind = args.only or args.ideal
     if "-" in args.seeds:
         lo, hi = (int(s) for s in args.seeds.split("-"))
         seeds = list(range(lo, hi + 1))
     else:
         seeds = [int(s) for s in args.seeds.split(",")]
     for protocol in ("takuma2014", "takuma2014-bent"):
-        runs = [measure(protocol, s, args.settle, args.ideal) for s in seeds]
+        runs = [measure(protocol, s, args.settle, rig_kind) for s in seeds]
         rest = np.median([r["rest_deg"] for r in runs])
         print(f"\n{protocol}: {len(seeds)} seeds x 18 validation trials, rest theta2 {rest:.1f} deg (median)")
         print(f"{'quantity':10s} {'form':8s} {'reported':>10s} {'RMSE rep.':>10s} {'RMSE all':>10s} "

@@ -39,14 +39,23 @@ def test_fit_defaults_to_the_posture_form_and_validate_shows_both_forms(csv: Pat
     d = json.loads(r.output)
     assert d["form"] == "posture" and list(d["forms"]) == ["posture", "paper"]
     # The data follow Eqs. 34-37 (their cos-products at deflections of 5-25 deg): the paper form
-    # fits them to the noise; the posture form's linear moment arms do not, and its standard
-    # errors say so: every force it leaves out has a standard error over the 1 N limit.
+    # fits them to the noise; the torque route's linear moment arms do not (its standard errors
+    # are over the 1 N limit on every held-out fit trial), so the forces take the paper's route,
+    # chosen on the fit trials, and report what it reports.
     assert d["forms"]["paper"]["Fx"]["rmse"] < 0.5
+    assert d["routes"]["Fx"] == d["routes"]["Fy"] == "paper" and model["routes"] == d["routes"]
+    assert model["fit_stats"]["routes_cv"]["Fx"]["reported_posture"] == 0
+    for q in ("Fx", "Fy"):
+        assert d["metrics"][q]["n"] == d["forms"]["paper"][q]["n"] == 18
+        assert d["metrics"][q]["rmse"] == pytest.approx(d["forms"]["paper"][q]["rmse"], rel=1e-12)
     for t in d["trials"]:
         for q in ("Fx", "Fy"):
             assert (t["calculated"][q] is None) == (t["standard_error"][q] > 1.0), t
     r = run("validate", csv)
     assert "Both forms on the same validation trials" in r.output
+    said = " ".join(r.output.split())
+    assert "Routes (chosen by cross-validation on the fit trials): theta1 " in said
+    assert "Fx paper's Eq. 36, Fy paper's Eq. 37." in said
 
 
 def test_fit_form_paper_keeps_eqs_34_37(csv: Path) -> None:

@@ -45,7 +45,7 @@ FORCE_PROTOCOL = "takuma2014"
 PUSH_PROTOCOL = "takuma2014-stiffness"
 BENT_PROTOCOL = "takuma2014-bent"
 # The regulators for the bent protocol (P_L1, P_R1, P_L2, P_R2, MPa), as protocols/takuma2014-bent.toml says.
-BENT_SUPPLY = "0.3,0.3,0.4,0.2"
+BENT_SUPPLY = "0.15,0.15,0.45,0.15"
 
 # Stage names in order, for progress displays.
 STAGES = ("acquire force trials", "fit", "validate", "the same trials on the ideal rig", "acquire pushes",

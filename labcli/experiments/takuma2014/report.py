@@ -93,6 +93,10 @@ def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
                 row += [f"{coef[i][k]:.5g}", f"{math.sqrt(cov[i][i] * res[k][k]):.3g}"]
             table.add_row(*row)
         print_table(con, table)
+    if model.theta1_terms:
+        eq = " + ".join(f"{c:.5g} {t}" for t, c in zip(model.theta1_terms, model.theta1_coefficients))
+        con.print(f"theta1 as reported: its own equation from Eq. 34's terms, theta1 = {eq} rad "
+                  "(the table's dtheta1 feeds the forces).", soft_wrap=True)
     con.print(f"Fit on {st['n']} trials; rest posture (median) theta0 = "
               f"({st['theta0_deg'][0]:.2f}, {st['theta0_deg'][1]:.2f}) deg; residual RMSE "
               f"dtheta {st['angle_rmse_deg'][0]:.3g}, {st['angle_rmse_deg'][1]:.3g} deg, "
@@ -101,7 +105,20 @@ def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
     con.print(f"Forces F = (J^T)^-1 tau at theta0 + dtheta, each with its standard error; an estimate is "
               f"flagged above {math.degrees(lim['theta1']):.3g} deg (angles) or {lim['Fx']:.3g} N (forces) "
               "(protocol [sensing]). The paper's Eqs. 34-37: labcli fit --form paper.", soft_wrap=True)
+    con.print(route_text(model.routes), soft_wrap=True)
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
+
+
+ROUTE_TEXT = {("theta1", "posture"): "own equation", ("theta2", "posture"): "deflection fit",
+              ("Fx", "posture"): "torques", ("Fy", "posture"): "torques",
+              ("theta1", "paper"): "paper's Eq. 34", ("theta2", "paper"): "paper's Eq. 35",
+              ("Fx", "paper"): "paper's Eq. 36", ("Fy", "paper"): "paper's Eq. 37"}
+
+
+def route_text(routes: dict[str, str]) -> str:
+    """One sentence: which estimate each quantity takes (models/routes.py)."""
+    parts = [f"{q} {ROUTE_TEXT[q, routes.get(q, 'posture')]}" for q in QUANTITIES]
+    return ("Routes (chosen by cross-validation on the fit trials): " + ", ".join(parts) + ".")
 
 
 def print_forms(forms: dict[str, dict[str, Any]], where: str = "the same validation trials") -> None:
@@ -148,6 +165,8 @@ def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | Non
     print_table(con, table)
     con.print("Errors are calculated - observed; RMSE/range is the RMSE as a share of the observed range.",
               soft_wrap=True)
+    if ev.get("routes"):
+        con.print(route_text(ev["routes"]), soft_wrap=True)
     flagged = [(i, int(t), fl) for i, (t, fl) in enumerate(zip(ev["trial"], ev["flags"])) if fl]
     if flagged:
         con.print(f"{len(flagged)} trial(s) flagged; their values show as — and stay out of the metrics:",

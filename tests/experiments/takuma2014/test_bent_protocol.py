@@ -58,3 +58,23 @@ def test_sensing_limits_come_from_the_protocol(tmp_path: Path) -> None:
     (tmp_path / "takuma2014-bent-plan.csv").write_bytes((PROTOCOLS / "takuma2014-bent-plan.csv").read_bytes())
     with pytest.raises(ConfigError, match="max_force_se_N"):
         load_protocol(tmp_path / "bad.toml")
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_bent_supply_rests_the_arm_at_10_to_20_deg_with_the_outside_pair_below_the_paper(seed: int) -> None:
+    from labcli.experiments.takuma2014.demo import BENT_SUPPLY
+    from labcli.experiments.takuma2014.sim.options import parse_supply
+    from labcli.experiments.takuma2014.sim.rig import SimRig
+
+    # The protocol file names the regulators the demo and benchmarks use.
+    assert f"sim://?supply={BENT_SUPPLY}" in (PROTOCOLS / "takuma2014-bent.toml").read_text()
+    supply = parse_supply(BENT_SUPPLY)
+    # Sleeve friction scales with pressure: the outside pair (the bottom joint) below the
+    # paper's 0.30 MPa, the inside pair unequal so the upper joint rests bent.
+    assert supply[0] == supply[1] < 0.30 and supply[2] > supply[3]
+    rig = SimRig(seed=seed, supply_MPa=supply)
+    rig.supply_air()
+    rig.advance(8.0)
+    rig.close_valves()
+    rig.advance(8.0)
+    assert 10.0 <= math.degrees(rig.true_state()["theta_rad"][1]) <= 20.0

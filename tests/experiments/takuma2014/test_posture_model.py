@@ -12,7 +12,7 @@ import pytest
 from labcli.errors import ModelError
 from labcli.experiments.takuma2014.models.geometry import contact_point
 from labcli.experiments.takuma2014.models.posture import (
-    TORQUE_TERMS, PostureModel, force_from_torque, load_force_model, load_torque, torque_features)
+    TORQUE_TERMS, PostureModel, force_from_torque, load_force_model, load_torque, loo_residuals, torque_features)
 from labcli.experiments.takuma2014.models.takuma import TakumaModel
 
 H2, H3 = 0.130, 0.065
@@ -42,6 +42,20 @@ def test_a_load_along_the_straight_arm_makes_no_torque_but_does_on_a_bent_one():
     # tau_2 = -h3 (cos t12 Fx + sin t12 Fy) in closed form
     assert tau[0, 1] == pytest.approx(-H3 * math.sin(math.radians(15.0)) * -5.0, rel=1e-12)
     np.testing.assert_allclose(force_from_torque(bent, tau, H2, H3), along, atol=1e-9)
+
+
+def test_leave_one_out_residuals_equal_refitting_without_the_trial():
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((25, 4))
+    X[0] *= 6.0  # a high-leverage trial, whose held-out residual is far above its own
+    Y = X @ rng.standard_normal((4, 2)) + 0.1 * rng.standard_normal((25, 2))
+    beta, *_ = np.linalg.lstsq(X, Y, rcond=None)
+    loo = loo_residuals(X, Y - X @ beta, np.linalg.inv(X.T @ X))
+    for i in (0, 7, 24):
+        keep = np.arange(25) != i
+        b_i, *_ = np.linalg.lstsq(X[keep], Y[keep], rcond=None)
+        np.testing.assert_allclose(loo[i], Y[i] - X[i] @ b_i, rtol=1e-10)
+    assert np.abs(loo[0]).sum() > 1.5 * np.abs((Y - X @ beta)[0]).sum()
 
 
 def exact_table(n: int, theta0_deg: tuple[float, float], seed: int = 0, noise: float = 0.0) -> pd.DataFrame:
@@ -159,3 +173,103 @@ def test_empty_rest_columns_mean_no_rest_posture():
     assert _rest_posture(t) is None
     t = pd.DataFrame({"theta1_0_deg": [np.nan, 1.0], "theta2_0_deg": [12.0, np.nan]})
     np.testing.assert_allclose(np.degrees(_rest_posture(t)), [[0.0, 12.0], [1.0, 0.0]])
+
+
+@pytest.fixture(scope="module")
+def bent_rig_table() -> pd.DataFrame:
+    """The bent protocol on the simulated rig (seed 1, its non-idealities on), rest posture columns blank."""
+    from labcli.core.protocol import load_protocol
+    from labcli.experiments.takuma2014.protocol import load_plan
+    from labcli.experiments.takuma2014.sim.drive import simulate_weight_trials
+    from labcli.experiments.takuma2014.sim.rig import SimRig
+
+    proto = load_protocol("takuma2014-bent")
+    rig = SimRig(seed=1, supply_MPa=(0.15, 0.15, 0.45, 0.15))
+    table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=8.0)
+    table["theta1_0_deg"], table["theta2_0_deg"] = 0.0, 18.0
+    return table
+
+
+def test_routes_are_chosen_on_the_fit_trials_alone(bent_rig_table):
+    from labcli.core.protocol import load_protocol
+
+    rig = load_protocol("takuma2014-bent").settings.rig
+    model = PostureModel(geometry=rig).fit(bent_rig_table)
+    assert set(model.routes) == {"theta1", "theta2", "Fx", "Fy"}
+    assert set(model.fit_stats["routes_cv"]) == set(model.routes)
+    # Validation rows rewritten beyond recognition: not one number of the model moves.
+    other = bent_rig_table.copy()
+    val = other["set"] == "validation"
+    other.loc[val, ["Fx_N", "Fy_N"]] *= -3.0
+    other.loc[val, ["P_L1", "P_R2"]] *= 0.9
+    other.loc[val, "theta1_deg"] += 5.0
+    again = PostureModel(geometry=rig).fit(other)
+    assert again.to_json() == model.to_json()
+    # ... while a change to the fit rows does move it.
+    other.loc[other["set"] == "fit", "theta1_deg"] *= 1.5
+    assert PostureModel(geometry=rig).fit(other).to_json() != model.to_json()
+
+
+def test_a_paper_routed_quantity_takes_the_paper_value_and_its_own_error(bent_rig_table):
+    from labcli.core.protocol import load_protocol
+
+    rig = load_protocol("takuma2014-bent").settings.rig
+    model = PostureModel(geometry=rig).fit(bent_rig_table)
+    # On this rig the inside pair carries theta1 only through friction: Eq. 34 predicts it better.
+    assert model.route("theta1") == "paper"
+    cv = model.fit_stats["routes_cv"]["theta1"]
+    assert cv["rmse_paper"] < cv["rmse_posture"]
+    paper = TakumaModel(geometry=rig).fit(bent_rig_table)
+    v = bent_rig_table[bent_rig_table.set == "validation"]
+    out = model.predict_table(v)
+    np.testing.assert_allclose(out["theta1_rad"], paper.predict_table(v)["theta1_rad"], rtol=1e-12)
+    assert out["routes"]["theta1"] == "paper"
+    # Its standard error is the held-out RMSE and the coefficients' share: above the former, near it.
+    s_cv = math.sqrt(model.paper_variance["theta1"])
+    assert np.all(out["se"]["theta1"] >= s_cv) and np.all(out["se"]["theta1"] < 1.5 * s_cv)
+    # A quantity kept on the torque route is the posture form's, as without routes.
+    plain = PostureModel(geometry=rig).fit(bent_rig_table, choose_routes=False)
+    assert model.route("Fy") == "posture"
+    np.testing.assert_array_equal(out["Fy_N"], plain.predict_table(v)["Fy_N"])
+
+
+def test_routes_round_trip_and_bad_routes_are_one_sentence(bent_rig_table, tmp_path):
+    from labcli.core.protocol import load_protocol
+
+    model = PostureModel(geometry=load_protocol("takuma2014-bent").settings.rig).fit(bent_rig_table)
+    path = tmp_path / "m.json"
+    path.write_text(model.to_json())
+    back = load_force_model(path)
+    v = bent_rig_table[bent_rig_table.set == "validation"]
+    assert back.routes == model.routes
+    for key in ("theta1_rad", "Fx_N"):
+        np.testing.assert_array_equal(back.predict_table(v)[key], model.predict_table(v)[key])
+    d = json.loads(path.read_text())
+    for change, message in (({"routes": {"theta1": "direct"}}, "key 'routes' must map theta1"),
+                            ({"paper_variance": {}}, "key 'paper_variance' must give a finite variance"),
+                            ({"paper_variance": {"theta1": 10 ** 400}}, "key 'paper_variance' must give a finite"),
+                            ({"paper_model": None}, "routes theta1.* to the paper's form but holds no 'paper_model'")):
+        path.write_text(json.dumps(d | change))
+        with pytest.raises(ModelError, match=message):
+            load_force_model(path)
+
+
+def test_theta1_has_its_own_equation_from_the_paper_s_terms():
+    # theta1 follows the outside pair alone (Eq. 34's terms) plus noise: its own equation keeps
+    # just those, while theta2 needs all four in the shared design.
+    t = exact_table(200, (0.0, 14.0), seed=5, noise=1.0)
+    u = t[["P_L10", "P_R10"]].to_numpy() / t[["P_L1", "P_R1"]].to_numpy() - 1.0
+    rng = np.random.default_rng(9)
+    t["theta1_deg"] = np.degrees(u @ [0.9, -1.1] + 2e-4 * rng.standard_normal(len(t)))
+    model = PostureModel(geometry=GEOMETRY).fit(t, choose_routes=False)
+    assert model.theta1_terms == ("u_L1", "u_R1")
+    assert model.angle_terms[:4] == ("u_L1", "u_R1", "u_L2", "u_R2")
+    np.testing.assert_allclose(model.theta1_coefficients, [0.9, -1.1], rtol=0.02)
+    v = t[t.set == "validation"]
+    out = model.predict_table(v)
+    err = np.radians(v.theta1_deg.to_numpy()) - out["theta1_rad"]
+    assert np.sqrt(np.mean(err ** 2)) < 3e-4 and np.all(out["se"]["theta1"] > 1.5e-4)
+    d = model.to_dict()
+    d["theta1_xtx_inv"] = [[1.0]]
+    with pytest.raises(ModelError, match="the theta1 equation .* is incomplete or not finite"):
+        PostureModel.from_dict(d)
