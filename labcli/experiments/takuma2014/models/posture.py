@@ -56,10 +56,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ....core.jsontext import dumps_indented
 from ....errors import ModelError
 from .geometry import jacobian
 from .takuma import (ANGLE_COLUMNS, BASELINE_COLUMNS, FORCE_COLUMNS, LOADED_COLUMNS, SCHEMA, SCHEMA_VERSION,
-                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, select_set)
+                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, set_mask)
 
 FORM = "posture"
 REST_COLUMNS = ("theta1_0_deg", "theta2_0_deg")
@@ -121,6 +122,12 @@ def force_from_torque(theta: np.ndarray, tau: np.ndarray, h2: float, h3: float) 
 
 # --------------------------------------------------------------------------- least squares
 
+CV_FOLDS = 10
+# A quadratic term is kept only if it cuts the cross-validated error by this share: on the
+# simulated rig smaller gains in the fit set turned into losses on new directions.
+CV_MIN_GAIN = 0.10
+
+
 @dataclass
 class _Shared:
     """Least squares of several responses on one design: coefficients, (X^T X)^-1, residual covariance."""
@@ -131,12 +138,60 @@ class _Shared:
     dof: int
 
 
-def _shared_lstsq(X: np.ndarray, Y: np.ndarray, what: str) -> _Shared:
-    n, p = X.shape
+@dataclass
+class _Blocks:
+    """The R factors of [X | Y] over contiguous blocks of trials (the cross-validation's folds).
+
+    Each block's rows are X_f | Y_f = Q_f R_f with Q_f orthonormal, so a least squares on any
+    union of blocks and any subset of X's columns has the solution, singular values and
+    residual norms of the same least squares on the stacked R's (at most p + k rows each):
+    the trials are read once, and no copy of the design as large as the table is ever made.
+    """
+
+    factors: list[np.ndarray]  # one (<= p + k, p + k) R per block
+    p: int                     # columns of X; Y is the last k columns
+    n: int                     # trials
+    width: int                 # p + k
+
+    @classmethod
+    def build(cls, n: int, p: int, block: Any) -> "_Blocks":
+        """``block(lo, hi)`` gives the rows lo..hi of [X | Y]; blocks are contiguous (a plan groups
+        its trials by pulley position), as many as CV_FOLDS."""
+        edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
+        factors = [np.linalg.qr(block(lo, hi), mode="r") for lo, hi in zip(edges[:-1], edges[1:])]
+        return cls(factors, p, n, factors[0].shape[1] if factors else p)
+
+    def _train(self, held: int, cols: list[int]) -> np.ndarray:
+        return np.vstack([r[:, cols] for f, r in enumerate(self.factors) if f != held])
+
+    def cv_cov(self, xs: list[int]) -> np.ndarray:
+        """Summed outer product of the held-out residuals, (k, k): each block predicted by a fit on the others."""
+        ys = list(range(self.p, self.width))
+        out = np.zeros((len(ys), len(ys)))
+        for f, r in enumerate(self.factors):
+            beta, *_ = np.linalg.lstsq(self._train(f, xs), self._train(f, ys), rcond=None)
+            e = r[:, ys] - r[:, xs] @ beta
+            out += e.T @ e
+        return out
+
+    def cv_error(self, xs: list[int]) -> float:
+        """Summed squared held-out error of the contiguous-block cross-validation."""
+        return float(np.trace(self.cv_cov(xs)))
+
+    def whole(self) -> np.ndarray:
+        """One R of all the trials' [X | Y]."""
+        return np.linalg.qr(np.vstack(self.factors), mode="r")
+
+
+def _shared_lstsq(blocks: _Blocks, xs: list[int], what: str) -> _Shared:
+    """Least squares of Y on the columns ``xs`` of X, from the blocks' R factors."""
+    n, p = blocks.n, len(xs)
     if n <= p:
         raise ModelError(f"The posture form's {what} fit needs more than {p} usable fit trials, got {n}; "
                          "record more fit trials, or fit the paper's Eqs. 34-37 with --form paper.")
-    scale = np.linalg.norm(X, axis=0)
+    R = blocks.whole()
+    X, Y = R[:, xs], R[:, blocks.p:]
+    scale = np.linalg.norm(X, axis=0)  # the columns' norms over the trials: Q keeps lengths
     if not np.all(scale > 0):
         raise ModelError(f"The {what} fit has a term that is zero in every fit trial; "
                          "record fit trials that load every actuator.")
@@ -145,43 +200,28 @@ def _shared_lstsq(X: np.ndarray, Y: np.ndarray, what: str) -> _Shared:
         raise ModelError(f"The {what} design matrix is singular; record fit trials with more "
                          "varied force directions.")
     beta = (Vt.T @ ((U.T @ Y) / s[:, None])) / scale[:, None]
-    resid = Y - X @ beta
+    resid = Y - X @ beta  # the residuals' Gram matrix, the trials' own through Q
     dof = n - p
     xtx_inv = ((Vt.T / s ** 2) @ Vt) / np.outer(scale, scale)
     # The residual covariance from held-out blocks when that is larger than the in-sample one:
     # friction's hysteresis depends on the load's direction, so errors on directions the fit
     # did not see exceed the fit's own residual.  Divided by 1 + p/n because prediction adds
     # the coefficients' share (1 + h) again.
-    cv = _cv_residuals(X, Y)
-    held_out = cv.T @ cv / n / (1.0 + p / n)
+    held_out = blocks.cv_cov(xs) / n / (1.0 + p / n)
     in_sample = resid.T @ resid / dof
     return _Shared(beta, xtx_inv, held_out if np.trace(held_out) > np.trace(in_sample) else in_sample, dof)
 
 
-CV_FOLDS = 10
-# A quadratic term is kept only if it cuts the cross-validated error by this share: on the
-# simulated rig smaller gains in the fit set turned into losses on new directions.
-CV_MIN_GAIN = 0.10
+ANGLE_TERMS = ANGLE_LINEAR + ANGLE_QUADRATIC
 
 
-def _cv_residuals(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
-    """Held-out residuals of contiguous-block cross-validation (a plan groups trials by pulley position)."""
-    n = len(Y)
-    edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
-    out = np.empty_like(Y)
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        train = np.r_[0:lo, hi:n]
-        beta, *_ = np.linalg.lstsq(X[train], Y[train], rcond=None)
-        out[lo:hi] = Y[lo:hi] - X[lo:hi] @ beta
-    return out
+def angle_blocks(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray) -> _Blocks:
+    """The blocks of [every angle term | dtheta] (ANGLE_TERMS, then the two deflections)."""
+    return _Blocks.build(len(P), len(ANGLE_TERMS), lambda lo, hi: np.column_stack(
+        [angle_features(P0[lo:hi], P[lo:hi], ANGLE_TERMS), dtheta[lo:hi]]))
 
 
-def _cv_error(X: np.ndarray, Y: np.ndarray) -> float:
-    """Summed squared held-out error of contiguous-block cross-validation."""
-    return float(np.sum(_cv_residuals(X, Y) ** 2))
-
-
-def select_angle_terms(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray) -> tuple[str, ...]:
+def select_angle_terms(blocks: _Blocks) -> tuple[str, ...]:
     """The linear terms and the quadratic ones that lower the cross-validated error, added greedily.
 
     Cross-validation over contiguous blocks of trials (a plan groups its trials by pulley
@@ -189,10 +229,11 @@ def select_angle_terms(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray) -> tup
     the residual to be independent noise, takes in terms that fit friction's hysteresis.
     """
     terms = list(ANGLE_LINEAR)
-    best = _cv_error(angle_features(P0, P, tuple(terms)), dtheta)
+    index = {t: k for k, t in enumerate(ANGLE_TERMS)}
+    best = blocks.cv_error([index[t] for t in terms])
     pool = list(ANGLE_QUADRATIC)
     while pool:
-        scores = [(_cv_error(angle_features(P0, P, tuple(terms + [t])), dtheta), t) for t in pool]
+        scores = [(blocks.cv_error([index[t] for t in terms + [t]]), t) for t in pool]
         score, term = min(scores)
         if not score < (1.0 - CV_MIN_GAIN) * best:
             break
@@ -243,23 +284,27 @@ class PostureModel:
     # ---------------------------------------------------------------- fitting
     def fit(self, table: Any, source: str = "the trial table") -> "PostureModel":
         """Least squares on the table's fit trials (``set == 'fit'``); returns self, fitted."""
-        a = table_arrays(select_set(table, "fit", source))
+        a = table_arrays(table, set_mask(table, "fit", source))
         use = (np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1) & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
                & np.all(np.isfinite(a["dtheta"]), axis=1) & np.all(np.isfinite(a["F"]), axis=1))
-        P0, P, th0, dth, F = (a[k][use] for k in ("P0", "P", "theta0", "dtheta", "F"))
+        if not use.all():
+            a = {k: v[use] for k, v in a.items()}
+        P0, P, th0, dth, F = (a[k] for k in ("P0", "P", "theta0", "dtheta", "F"))
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
-        self.angle_terms = select_angle_terms(P0, P, dth)
-        ang = _shared_lstsq(angle_features(P0, P, self.angle_terms), dth, "deflection")
-        tau = load_torque(th0 + dth, F, h2, h3)
-        tq = _shared_lstsq(torque_features(P0 - P, dth), tau, "torque")
+        angles = angle_blocks(P0, P, dth)
+        self.angle_terms = select_angle_terms(angles)
+        ang = _shared_lstsq(angles, [ANGLE_TERMS.index(t) for t in self.angle_terms], "deflection")
+        torques = _Blocks.build(len(P), len(TORQUE_TERMS), lambda lo, hi: np.column_stack(
+            [torque_features(P0[lo:hi] - P[lo:hi], dth[lo:hi]), load_torque(th0[lo:hi] + dth[lo:hi], F[lo:hi], h2, h3)]))
+        tq = _shared_lstsq(torques, list(range(len(TORQUE_TERMS))), "torque")
         self.angle_coefficients, self.angle_xtx_inv = ang.beta.tolist(), ang.xtx_inv.tolist()
         self.angle_resid_cov = ang.resid_cov.tolist()
         self.torque_coefficients, self.torque_xtx_inv = tq.beta.tolist(), tq.xtx_inv.tolist()
         self.torque_resid_cov = tq.resid_cov.tolist()
         self.force_prior_sd = np.sqrt(np.mean(F ** 2, axis=0)).tolist()
-        self.fitted_trials = [int(t) for t in a["trial"][use]]
+        self.fitted_trials = a["trial"].tolist()
         self.fit_stats = {
-            "n": int(use.sum()), "angle_dof": ang.dof, "torque_dof": tq.dof,
+            "n": len(P), "angle_dof": ang.dof, "torque_dof": tq.dof,
             "theta0_deg": np.degrees(np.median(th0, axis=0)).tolist(),
             "angle_rmse_deg": np.degrees(np.sqrt(np.diag(ang.resid_cov))).tolist(),
             "torque_rmse_Nm": np.sqrt(np.diag(tq.resid_cov)).tolist(),
@@ -388,7 +433,7 @@ class PostureModel:
 
     def to_json(self) -> str:
         """The model as JSON (schema ``labcli-takuma-model``, form ``posture``)."""
-        return json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
+        return dumps_indented(self.to_dict(), allow_nan=False) + "\n"
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "PostureModel":
@@ -444,17 +489,27 @@ def force_model_from_json(text: str, name: str = "the model") -> "TakumaModel | 
     return TakumaModel.from_json(text, name=name)
 
 
-def table_arrays(table: Any) -> dict[str, np.ndarray]:
-    """Trial ids, pressures (MPa), rest posture and deflections (rad), forces (N) of a trial table."""
+def table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Trial ids, pressures (MPa), rest posture and deflections (rad), forces (N) of a trial table.
+
+    ``rows``: a boolean mask of the rows wanted (default all), taken column by column so
+    the table itself is never copied.
+    """
+    n = len(table) if rows is None else int(np.count_nonzero(rows))
+
+    def values(c: str) -> np.ndarray:
+        v = np.asarray(table[c], dtype=float)
+        return v if rows is None else v[rows]
+
     def col(names: tuple[str, ...], default: float = math.nan) -> np.ndarray:
-        return np.column_stack([np.asarray(table[c], dtype=float) if c in table.columns
-                                else np.full(len(table), default) for c in names])
+        return np.column_stack([values(c) if c in table.columns else np.full(n, default) for c in names])
 
     missing = [c for c in BASELINE_COLUMNS + LOADED_COLUMNS if c not in table.columns]
     if missing:
         raise ModelError(f"The trial table lacks the column(s) {', '.join(missing)}; "
                          "see the trial-table format (P_L10..P_R20, P_L1..P_R2 in MPa).")
     rest = col(REST_COLUMNS, 0.0)
-    return {"trial": np.asarray(table["trial"]).astype(int), "P0": col(BASELINE_COLUMNS), "P": col(LOADED_COLUMNS),
-            "theta0": np.deg2rad(np.where(np.isfinite(rest), rest, 0.0)),
+    trial = np.asarray(table["trial"])
+    return {"trial": (trial if rows is None else trial[rows]).astype(int), "P0": col(BASELINE_COLUMNS),
+            "P": col(LOADED_COLUMNS), "theta0": np.deg2rad(np.where(np.isfinite(rest), rest, 0.0)),
             "dtheta": np.deg2rad(col(ANGLE_COLUMNS)), "F": col(FORCE_COLUMNS)}
