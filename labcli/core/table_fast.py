@@ -232,4 +232,5 @@ def _assemble(frame: "pd.DataFrame", header: list[str], spec: TableSpec) -> "pd.
     for name in (h.strip() for h in header):
         if name not in known:
             out[name] = infer_extra_column(frame[name].tolist())
-    return pd.DataFrame(out)
+    # copy=False: the columns as parsed, not consolidated into a second copy of the whole table.
+    return pd.DataFrame(out, copy=False)
