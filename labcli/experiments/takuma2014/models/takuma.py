@@ -44,6 +44,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from itertools import compress
 from pathlib import Path
 from typing import Any, Mapping, NoReturn, Sequence
 
@@ -247,7 +248,11 @@ def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str,
     # Column scaling makes the condition number measure collinearity, not units.  [X y] = Q R
     # (Householder QR), so X's singular values and directions are those of R's first p
     # columns and U^T y = U_R^T (Q^T y): no (n, p) factor besides the design itself.
-    R = np.linalg.qr(np.column_stack([X / scale, y]), mode="r")
+    Z = np.empty((n, p + 1), order="F")  # LAPACK's own order: no further copy of the design
+    np.divide(X, scale, out=Z[:, :p])
+    Z[:, p] = y
+    R = np.linalg.qr(Z, mode="r")
+    del Z
     U, s, Vt = np.linalg.svd(R[:p, :p])
     cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
     if not cond <= max_cond:
@@ -386,6 +391,7 @@ class TakumaModel:
             "Fx": F[:, 0], "Fy": F[:, 1],
         }
 
+        all_ids = trial.tolist()
         coefs: dict[str, float] = {}
         ses: dict[str, float] = {}
         ci: dict[str, list[float]] = {}
@@ -403,7 +409,7 @@ class TakumaModel:
                 raise ModelError(f"The {eq} equation needs at least {p + 1} usable fit trials for "
                                  f"its {p} coefficients, but {source} has {n}{detail}; "
                                  "record more fit trials.")
-            X, y = designs[eq][use], targets[eq][use]
+            X, y = (designs[eq], targets[eq]) if use.all() else (designs[eq][use], targets[eq][use])
             res = _lstsq(X, y, names, eq, self.max_design_cond)
             tq = float(stdtrit(res.dof, 0.975))
             se = np.sqrt(np.maximum(np.diag(res.cov), 0.0))
@@ -412,8 +418,9 @@ class TakumaModel:
                 ses[name] = float(se[k])
                 ci[name] = [float(res.beta[k] - tq * se[k]), float(res.beta[k] + tq * se[k])]
             covs[eq] = res.cov.tolist()
-            stats_out[eq] = _equation_stats(eq, res, y, theta[use], n, tq)
-            fitted_ids[eq] = trial[use].tolist()
+            stats_out[eq] = _equation_stats(eq, res, y, theta if use.all() else theta[use], n, tq)
+            # One int object per trial, shared by the four lists (a million trials: ~30 MB a copy).
+            fitted_ids[eq] = all_ids if use.all() else list(compress(all_ids, use.tolist()))
             excluded[eq] = [{"trial": t, "reason": r} for t, r in sorted(reasons[eq].items())]
 
         self.coefficients, self.standard_errors, self.ci95 = coefs, ses, ci
