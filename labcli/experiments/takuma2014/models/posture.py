@@ -48,7 +48,6 @@ Units: pressures MPa, angles rad, torques N m, forces N.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
