@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import secrets
 from itertools import accumulate
 from typing import Any, Mapping
 
@@ -20,6 +21,8 @@ MAX_DEPTH = 64  # labcli's own documents nest at most 5 deep (a covariance matri
 _FLOAT_DIGITS = 308  # any integer of this many digits or fewer is below 1.8e308
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
 _BRACKETS = re.compile(r"[^\[\]{}]+")
+# Numbers that may not fit a float; without any, json's own (C) number parsing is safe and fast.
+_HUGE_NUMBER = re.compile(r"[0-9]{%d}|[eE][+-]?[0-9]{3}" % (_FLOAT_DIGITS + 1))
 
 
 class OutOfRange:
@@ -72,6 +75,8 @@ def loads_bounded(text: str) -> Any:
     depth = nesting_depth(text)
     if depth > MAX_DEPTH:
         raise JSONDepthError(depth)
+    if _HUGE_NUMBER.search(text) is None:
+        return json.loads(text)  # no number of 309 digits or a 3-digit exponent: every one fits a float
     return json.loads(text, parse_int=_int, parse_float=_float)
 
 
@@ -92,3 +97,32 @@ def json_kind(v: Any) -> str:
     if isinstance(v, list):
         return "a list"
     return type(v).__name__
+
+
+LONG_LIST = 100  # a list of more whole numbers than this goes on one line of indented JSON
+
+
+def dumps_indented(value: Any, *, allow_nan: bool = True) -> str:
+    """``json.dumps(value, indent=2)``, with each long list of whole numbers (trial ids) on one line.
+
+    A model fitted on a million trials lists their ids: one line each would make the file
+    mostly line breaks, and indented output goes through json's pure-Python encoder, item
+    by item.  The same JSON value either way.
+    """
+    long_lists: list[list[int]] = []
+    mark = f"long-list-{secrets.token_hex(8)}-"  # a fresh mark: no text in the document can hold it
+
+    def swap(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {k: swap(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            if len(v) > LONG_LIST and all(type(x) is int for x in v):
+                long_lists.append(list(v))
+                return f"{mark}{len(long_lists) - 1}"
+            return [swap(x) for x in v]
+        return v
+
+    text = json.dumps(swap(value), indent=2, allow_nan=allow_nan)
+    for k, ids in enumerate(long_lists):
+        text = text.replace(f'"{mark}{k}"', json.dumps(ids, separators=(", ", ": ")), 1)
+    return text

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import codecs
 import os
+import re
 import warnings
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -128,11 +129,16 @@ def _plain(data: bytes) -> bool:
     if b"\r" in data and data.count(b"\r") != data.count(b"\r\n"):
         return False
     # pandas reads true/false (any case) in a number column as 1 and 0; the letters u and s
-    # are in every such word, and rarely in a table of numbers and fit/validation.
+    # are in every such word, and rarely in a table of numbers and fit/validation.  Only a
+    # whole cell is such a word: a column named true_stiffness_N_per_m is not.
     if b"u" in data or b"U" in data or b"s" in data or b"S" in data:
         low = data.lower()
-        return b"true" not in low and b"false" not in low
+        if b"true" in low or b"false" in low:
+            return _BOOLEAN_CELL.search(low) is None
     return True
+
+
+_BOOLEAN_CELL = re.compile(rb"(?:^|,)[ \t]*(?:true|false)[ \t]*(?=,|\r?$)", re.M)
 
 
 def _header_fits(header: list[str], spec: TableSpec) -> bool:
@@ -232,4 +238,5 @@ def _assemble(frame: "pd.DataFrame", header: list[str], spec: TableSpec) -> "pd.
     for name in (h.strip() for h in header):
         if name not in known:
             out[name] = infer_extra_column(frame[name].tolist())
-    return pd.DataFrame(out)
+    # copy=False: the columns as parsed, not consolidated into a second copy of the whole table.
+    return pd.DataFrame(out, copy=False)

@@ -18,7 +18,8 @@ float64 and ``seq`` uint32 per frame, as the run file stores them.
   not survive a kill -9 (an HDF5 file closed by a kill mid-write may not open again).
 
 Samples are frames x channels.  Best of R interleaved runs for each; the ratios are
-measured in the same run on the same disk.
+measured in the same run on the same disk.  Last, the file size per trial of the run file
+(compressed, checksummed) and of the plain file (neither), beside the frames' own bytes.
 """
 
 from __future__ import annotations
@@ -121,6 +122,7 @@ def main() -> None:
           f"best of {args.repeat}; files in {folder}")
     print(f"{'frames/window':>13} {'store fsync':>17} {'store no fsync':>17} {'plain h5py':>17} "
           f"{'fsync/plain':>12} {'fsync/no-fsync':>15} {'ms/trial (fsync)':>17}")
+    sizes: list[tuple[int, float, float]] = []
     try:
         for n in (int(s) for s in args.samples.split(",")):
             records = make_records(args.trials, n)
@@ -134,6 +136,12 @@ def main() -> None:
             rate = [samples / t for t in (t_sync, t_nosync, t_plain)]
             print(f"{n:>13} {rate[0]:>11.3g} smp/s {rate[1]:>11.3g} smp/s {rate[2]:>11.3g} smp/s "
                   f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t_sync / args.trials * 1e3:>14.1f} ms")
+            sizes.append((n, *(os.path.getsize(os.path.join(folder, f)) / args.trials for f in ("sync.h5", "plain.h5"))))
+        for n, run_b, plain_b in sizes:
+            # The frames' own bytes: time f8, seq u4, counts i4 x 6, values f8 x 6, two windows a trial.
+            data_b = 2 * n * (8 + 4 + 4 * len(CHANNELS) + 8 * len(CHANNELS))
+            print(f"file size per trial at {n} frames/window: run file {run_b / 1e3:.1f} KB, plain h5py "
+                  f"{plain_b / 1e3:.1f} KB ({run_b / plain_b:.2f}x), the frames' own bytes {data_b / 1e3:.1f} KB")
     finally:
         if args.dir is None:
             shutil.rmtree(folder, ignore_errors=True)

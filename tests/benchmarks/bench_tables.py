@@ -1,24 +1,27 @@
 """Trial tables at archive scale: reading, fit, validate and import of a CSV, against pandas in the same run.
 
-Run:  python tests/benchmarks/bench_tables.py [--sizes 1e5,1e6] [--repeat 2] [--import-sizes 1e4]
+Run:  python tests/benchmarks/bench_tables.py [--sizes 1e5,1e6] [--repeat 3] [--import-sizes 1e6]
 
 Inputs, written once before any timing: a trial CSV of n rows cycled from 2000 trials of
 :func:`labcli.experiments.takuma2014.models.synthetic.paper_trials` (Eqs. 34-37 exact) with one
-ADC count of fresh sensor noise, every row renumbered; the first 4/5 ``set = fit``, the rest
-``validation``; written by pandas (``repr`` floats), about 150 bytes a row.
+ADC count of fresh sensor noise, every row renumbered 0 .. n - 1 (the ids a run file holds);
+the first 4/5 ``set = fit``, the rest ``validation``; written by pandas (``repr`` floats), about
+240 bytes a row.
 
 Each figure is one fresh Python process (so peak memory is that process's own high-water mark,
-interpreter and imports included, and start-up is paid by both sides alike); the best of
-``--repeat`` is kept:
+interpreter and imports included, and start-up is paid by both sides alike); the median of
+``--repeat`` runs is kept, the two sides alternating so that a busy moment hits both:
 
 * ``read``: ``read_trial_csv`` (the checked reader) against ``pandas.read_csv``;
-* ``fit``: ``labcli fit t.csv -o m.json`` (the command, in process) against ``pandas.read_csv``
-  plus ``TakumaModel.fit`` (the four least-squares fits of Eqs. 34-37);
-* ``validate``: ``labcli validate t.csv --model m.json`` against ``pandas.read_csv`` plus
-  ``metrics.evaluate``;
-* ``import``: ``labcli import t.csv -o t.h5`` at ``--import-sizes`` (the run file is written
-  record by record by today's store), against ``read_trial_csv`` of the same table, so that
-  the share of the time spent reading the table and writing the run file shows.
+* ``fit``: ``labcli fit t.csv -o m.json --json`` (the command, in process: its default posture
+  form, the model file and the JSON printed) against ``pandas.read_csv`` plus ``TakumaModel.fit``
+  (the four least-squares fits of Eqs. 34-37, issue 17's baseline);
+* ``validate``: ``labcli validate t.csv --model m.json`` (the report; it also fits the other form
+  for its side-by-side table) against ``pandas.read_csv`` plus ``metrics.evaluate`` of the same
+  model;
+* ``import``: ``labcli import t.csv -o t.h5`` at ``--import-sizes`` (one bulk write into the run
+  file), against ``read_trial_csv`` of the same table, so that the share of the time spent
+  reading the table and writing the run file shows; and the run file's size per trial.
 
 Printed: seconds and peak MiB per step beside the baseline and the ratios; peak memory as a
 multiple of the CSV's size; the scaling exponent (log-log slope from the smallest to the
@@ -33,6 +36,7 @@ import math
 import os
 import resource
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -55,7 +59,7 @@ def write_table(n: int, path: Path) -> None:
 
     pool = paper_trials(POOL, seed=3, noise=False)
     out = pool.iloc[np.arange(n) % POOL].reset_index(drop=True)
-    out["trial"] = np.arange(1, n + 1)
+    out["trial"] = np.arange(n)
     out = add_sensor_noise(out, seed=n, noise_counts=1.0)
     out["set"] = np.where(np.arange(n) < n * 4 // 5, "fit", "validation")
     columns = ["trial", "set", "P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2",
@@ -79,8 +83,9 @@ def child(step: str, side: str, csv: str, model: str, out: str) -> None:
                 TakumaModel(geometry=_geometry(), protocol="takuma2014").fit(df)
             else:
                 from labcli.experiments.takuma2014.models.metrics import evaluate
+                from labcli.experiments.takuma2014.models.posture import load_force_model
 
-                evaluate(TakumaModel.load(model), df)
+                evaluate(load_force_model(model), df)
     elif step == "read":
         from labcli.experiments.takuma2014.tables import read_trial_csv
 
@@ -114,14 +119,19 @@ def _geometry() -> dict:
     return dict(load_protocol("takuma2014").settings.rig)
 
 
-def measure(step: str, side: str, csv: Path, model: Path, out: Path, repeat: int) -> dict:
-    best = {"seconds": math.inf, "peak": math.inf}
+def once(step: str, side: str, csv: Path, model: Path, out: Path) -> dict:
+    res = subprocess.run([sys.executable, __file__, "--child", step, side, str(csv), str(model), str(out)],
+                         capture_output=True, text=True, check=True)
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def paired(repeat: int, *sides: tuple) -> list[dict]:
+    """Median seconds and peak of each side over ``repeat`` rounds, the sides alternating in each round."""
+    runs: list[list[dict]] = [[] for _ in sides]
     for _ in range(repeat):
-        res = subprocess.run([sys.executable, __file__, "--child", step, side, str(csv), str(model), str(out)],
-                             capture_output=True, text=True, check=True)
-        got = json.loads(res.stdout.strip().splitlines()[-1])
-        best = {k: min(best[k], got[k]) for k in best}
-    return best
+        for got, args in zip(runs, sides):
+            got.append(once(*args))
+    return [{k: statistics.median(r[k] for r in got) for k in ("seconds", "peak")} for got in runs]
 
 
 def slope(x: list[float], y: list[float]) -> float:
@@ -136,8 +146,8 @@ def mib(b: float) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="1e5,1e6", help="rows of the trial CSV, comma-separated")
-    ap.add_argument("--import-sizes", default="1e4", help="rows imported into a run file, comma-separated")
-    ap.add_argument("--repeat", type=int, default=2, help="fresh processes per figure (best is kept)")
+    ap.add_argument("--import-sizes", default="1e6", help="rows imported into a run file, comma-separated")
+    ap.add_argument("--repeat", type=int, default=3, help="fresh processes per figure (the median is kept)")
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -155,8 +165,8 @@ def main() -> None:
         write_table(n, csv)
         size = csv.stat().st_size
         for step in STEPS:
-            mine = measure(step, "labcli", csv, model, model if step == "fit" else out, args.repeat)
-            base = measure(step, "pandas", csv, model, out, args.repeat)
+            mine, base = paired(args.repeat, (step, "labcli", csv, model, model if step == "fit" else out),
+                                (step, "pandas", csv, model, out))
             figures["steps"].setdefault(step, []).append({"n": n, "csv_bytes": size, "labcli": mine, "pandas": base})
             print(f"{n:>8} {step:9} {mine['seconds']:>9.2f} {base['seconds']:>9.2f} "
                   f"{mine['seconds'] / base['seconds']:>6.2f} {mib(mine['peak']):>10} {mib(base['peak']):>10} "
@@ -170,13 +180,14 @@ def main() -> None:
     for n in import_sizes:
         csv, out = work / f"i{n}.csv", work / f"i{n}.h5"
         write_table(n, csv)
-        whole = measure("import", "labcli", csv, csv, out, args.repeat)
-        read = measure("read", "labcli", csv, csv, out, args.repeat)
-        figures["import"][n] = {"import": whole, "read": read}
-        print(f"import {n:>8} rows: {whole['seconds']:.2f} s ({whole['seconds'] / n * 1e6:.0f} us/row), of which "
-              f"reading the table {read['seconds']:.2f} s; the run file's writing "
-              f"{(whole['seconds'] - read['seconds']) / n * 1e6:.0f} us/row "
-              f"-> 10^6 rows ~ {(whole['seconds'] - read['seconds']) / n * 1e6:.0f} s at this rate")
+        whole, read = paired(args.repeat, ("import", "labcli", csv, csv, out), ("read", "labcli", csv, csv, out))
+        per_trial = out.stat().st_size / n
+        figures["import"][n] = {"import": whole, "read": read, "file_bytes_per_trial": per_trial,
+                                "csv_bytes_per_trial": csv.stat().st_size / n}
+        print(f"import {n:>8} rows: {whole['seconds']:.2f} s ({whole['seconds'] / n * 1e6:.0f} us/row), peak "
+              f"{mib(whole['peak'])} MiB; of which reading the table {read['seconds']:.2f} s "
+              f"({whole['seconds'] / read['seconds']:.2f}x the read); run file {per_trial:.0f} bytes per trial "
+              f"(the CSV {csv.stat().st_size / n:.0f})")
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=1))
     shutil.rmtree(work, ignore_errors=True)

@@ -58,8 +58,13 @@ def p_store(out: str, _: Path) -> tuple[str, str]:
     if not rows:
         raise ValueError("no result row")
     n, sync, _, _, vs_plain, vs_nosync, ms = rows[-1]
-    return (f"{float(vs_plain):.2f} of plain h5py's rate ({float(vs_nosync):.2f} of no-fsync)",
-            f"{float(sync):.3g} samples/s, {ms} ms/trial at {n} frames/window")
+    size = grab(r"^file size per trial at (\d+) frames/window: run file ([\d.]+) KB, plain h5py ([\d.]+) KB "
+                r"\(([\d.]+)x\), the frames' own bytes ([\d.]+) KB", out)
+    return (f"{float(vs_plain):.2f} of plain h5py's rate ({float(vs_nosync):.2f} of no-fsync); file size per trial "
+            f"{size.group(4)}x plain h5py's",
+            f"{float(sync):.3g} samples/s, {ms} ms/trial at {n} frames/window; {size.group(2)} KB per trial "
+            f"(plain {size.group(3)} KB, the frames' own bytes {size.group(5)} KB, random counts) "
+            f"at {size.group(1)} frames/window")
 
 
 def p_startup(out: str, _: Path) -> tuple[str, str]:
@@ -133,16 +138,19 @@ def p_tables(_: str, path: Path) -> tuple[str, str]:
         a, b = rows[0], rows[-1]
         return math.log(b["labcli"][what] / a["labcli"][what]) / math.log(b["n"] / a["n"])
 
-    head = "; ".join(f"{k} {r['labcli']['seconds'] / r['pandas']['seconds']:.1f}x"
-                     for k, r in last.items())
-    ctx = (f"at n = {n:.0e} ({last['fit']['csv_bytes'] / 2**20:.0f} MiB CSV): "
-           + ", ".join(f"{k} {r['labcli']['seconds']:.1f} s / {r['labcli']['peak'] / 2**20:.0f} MiB "
-                       f"({r['labcli']['peak'] / r['csv_bytes']:.1f}x the CSV)" for k, r in last.items())
-           + "; exponent " + ", ".join(f"{k} {exponent(v, 'seconds'):.2f} (time) {exponent(v, 'peak'):.2f} (memory)"
-                                       for k, v in steps.items()))
+    head = "; ".join(f"{k} {r['labcli']['seconds'] / r['pandas']['seconds']:.1f}x time, "
+                     f"{r['labcli']['peak'] / r['csv_bytes']:.1f}x the CSV" for k, r in last.items())
+    ctx = (f"at n = {n:.0e} ({last['fit']['csv_bytes'] / 2**20:.0f} MiB CSV), labcli vs baseline: "
+           + ", ".join(f"{k} {r['labcli']['seconds']:.1f} s vs {r['pandas']['seconds']:.1f} s, "
+                       f"{r['labcli']['peak'] / 2**20:.0f} vs {r['pandas']['peak'] / 2**20:.0f} MiB "
+                       f"({r['labcli']['peak'] / r['pandas']['peak']:.1f}x)" for k, r in last.items())
+           + (f"; exponent {steps['fit'][0]['n']:.0e} to {n:.0e}: " if len(steps["fit"]) > 1 else "; exponent: ")
+           + ", ".join(f"{k} {exponent(v, 'seconds'):.2f} (time) {exponent(v, 'peak'):.2f} (memory)"
+                       for k, v in steps.items()))
     for n_imp, r in d.get("import", {}).items():
-        ctx += (f"; import {int(n_imp):.0e} rows {r['import']['seconds']:.1f} s, of which reading "
-                f"{r['read']['seconds']:.1f} s")
+        ctx += (f"; import {int(n_imp):.0e} rows {r['import']['seconds']:.1f} s, {r['import']['peak'] / 2**20:.0f} MiB "
+                f"vs reading alone {r['read']['seconds']:.1f} s ({r['import']['seconds'] / r['read']['seconds']:.1f}x); "
+                f"run file {r['file_bytes_per_trial']:.0f} B per trial (CSV {r['csv_bytes_per_trial']:.0f} B)")
     return head, ctx
 
 
@@ -219,7 +227,7 @@ BENCHES = [
     Bench("firmware", "bench_firmware.py", ["--seconds", "2"],
           "highest frame rate with 0 lost, the firmware on simavr, 115200 and 1000000 baud",
           "baud limit (UART bytes/s over line length) and AVR limit (1 / sampling time per frame)", p_firmware),
-    Bench("tables", "bench_tables.py", ["--sizes", "1e4,1e5", "--import-sizes", "1e3", "--repeat", "1"],
+    Bench("tables", "bench_tables.py", ["--sizes", "1e4,1e5", "--import-sizes", "1e5", "--repeat", "1"],
           "trial CSV: checked read, `labcli fit`, `labcli validate` (fresh process each, peak resident memory)",
           "pandas `read_csv` (+ the four least-squares fits / evaluate)", p_tables, json=True),
     Bench("capture-memory", "bench_capture_memory.py", ["--windows", "60,600"],
@@ -229,14 +237,29 @@ BENCHES = [
           "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
           "`python -c \"import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma\"`", p_demo, json=True),
 ]
+# Issue 17's figures at its own sizes (--scale): tables and import at 10^6 rows, classify at 10^6 pushes.
+SCALE_ARGS = {"tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
+              "classify-report": ["--sizes", "1e6", "--no-stage"]}
 FULL_ARGS = {"models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"], "demo": ["--seeds", "1-3"],
-             "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e3,3e3", "--repeat", "2"],
+             "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
              "classify-report": ["--sizes", "1e5,1e6"], "capture-memory": ["--windows", "60,600,3600"]}
+
+
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return " ".join(line.split(":", 1)[1].split())
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="the scripts' own (longer) settings instead of quick ones")
+    ap.add_argument("--scale", action="store_true",
+                    help="issue 17's sizes for the tables and classify-report benchmarks (10^6 rows; about 15 minutes)")
     ap.add_argument("--only", default="", help="comma-separated names: " + ",".join(b.name for b in BENCHES))
     ap.add_argument("--out", default=None, help="also write the Markdown table to this file")
     ap.add_argument("--log-dir", default=None, help="where each script's output is kept")
@@ -251,14 +274,16 @@ def main() -> None:
     rows = []
     t_all = time.perf_counter()
     for b in chosen:
-        cmd = [sys.executable, str(HERE / b.script)] + (FULL_ARGS.get(b.name, []) if args.full else b.quick)
+        extra = SCALE_ARGS.get(b.name) if args.scale else None
+        cmd = [sys.executable, str(HERE / b.script)] + (extra or (FULL_ARGS.get(b.name, []) if args.full else b.quick))
         json_path = logs / f"{b.name}.json"
         if b.json:
             cmd += ["--json", str(json_path)]
         print(f"running {b.name}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run(cmd, cwd=HERE.parents[1], capture_output=True, text=True, timeout=b.timeout_s)
+            proc = subprocess.run(cmd, cwd=HERE.parents[1], capture_output=True, text=True,
+                                  timeout=b.timeout_s * (3 if extra else 1))
             out, code = proc.stdout, proc.returncode
             (logs / f"{b.name}.log").write_text(out + proc.stderr)
         except subprocess.TimeoutExpired:
@@ -277,10 +302,12 @@ def main() -> None:
     import numpy
 
     lines = [
-        f"Measured {time.strftime('%Y-%m-%d')} with `python tests/benchmarks/run_all.py{' --full' if args.full else ''}` "
-        f"on {platform.system()} {platform.machine()}, {os.cpu_count()} CPUs (load {load:.1f}), "
+        f"Measured {time.strftime('%Y-%m-%d')} with `python tests/benchmarks/run_all.py{' --full' if args.full else ''}"
+        f"{' --scale' if args.scale else ''}` on {platform.system()} {platform.machine()} ({_cpu_model()}), "
+        f"{os.cpu_count()} CPUs shared with other work (load {load:.1f}), "
         f"Python {platform.python_version()}, numpy {numpy.__version__}; "
-        f"{'full' if args.full else 'quick'} settings, {time.perf_counter() - t_all:.0f} s in all.",
+        f"{'full' if args.full else 'quick'} settings{', issue 17 sizes for tables and classify-report' if args.scale else ''}, "
+        f"{time.perf_counter() - t_all:.0f} s in all.",
         "",
         "| benchmark | measures | baseline (same run) | headline | context |",
         "|---|---|---|---|---|",

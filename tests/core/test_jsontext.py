@@ -39,3 +39,23 @@ def test_depth_is_counted_without_recursion_and_strings_do_not_count():
         loads_bounded("[" * 100_000 + "]" * 100_000)
     assert e.value.depth == 100_000
     loads_bounded("[" * MAX_DEPTH + "]" * MAX_DEPTH)  # at the limit: read
+
+
+def test_long_id_lists_go_on_one_line_and_the_value_is_unchanged():
+    from labcli.core.jsontext import LONG_LIST, dumps_indented
+
+    doc = {"fitted_trials": list(range(LONG_LIST + 1)), "short": [1, 2], "mixed": [1.5] * (LONG_LIST + 1),
+           "text": "long-list-0", "nested": {"ids": [list(range(3 * LONG_LIST))]}}
+    text = dumps_indented(doc)
+    assert json.loads(text) == doc
+    lines = text.splitlines()
+    assert any(line.strip().startswith('"fitted_trials": [0, 1, 2') for line in lines)
+    # Short lists and lists of floats keep json's own indented layout.
+    assert text.count("\n") > LONG_LIST
+    assert '"short": [\n    1,\n    2\n  ]' in text
+
+
+def test_numbers_that_fit_parse_as_plain_json_and_huge_ones_are_still_marked():
+    assert loads_bounded('{"a": [1, 2.5e300, -7]}') == {"a": [1, 2.5e300, -7]}
+    out = loads_bounded('{"a": [1, 9e999], "b": "1e999"}')
+    assert out["a"][0] == 1 and isinstance(out["a"][1], OutOfRange) and out["b"] == "1e999"

@@ -437,3 +437,45 @@ def test_a_new_split_is_in_force_and_the_old_one_kept(run_path):
         assert f["entry/split"].attrs["committed"] == 2
     assert first["fit"] != second["fit"] and second["seed"] == 2
     assert sorted(second["fit"] + second["validation"]) == list(range(1, 13))
+
+
+def test_checksums_of_repeated_fill_and_of_one_long_entry_equal_the_spelt_out_fold():
+    import numpy as np
+
+    from labcli.core.store import checksum as c
+
+    def reference(parts, positions):
+        h = c._BASIS ^ (positions.astype(np.uint64) * c._STEP)
+        for part in parts:
+            w = c.words(part, len(positions))
+            for j in range(w.shape[1]):
+                h = (h ^ w[:, j]) * c._PRIME
+        return h
+
+    n = 777
+    positions = np.arange(5, 5 + n, dtype=np.uint64)
+    spelt = [np.zeros(n, dtype="S1024"), np.full(n, b"imported", dtype="S40"), np.full((n, 2), np.nan), np.arange(n)]
+    repeated = [c.Repeated(a[:1], n) for a in spelt[:3]] + [spelt[3]]
+    assert (c.fold(repeated, positions) == reference(spelt, positions)).all()
+    blob = [np.arange(20_000, dtype=np.int64).view(np.uint8).reshape(1, -1)]
+    one = np.array([3], dtype=np.uint64)
+    assert c.fold(blob, one)[0] == reference(blob, one)[0]
+    flipped = blob[0].copy()
+    flipped[0, 12345] ^= 4
+    assert c.fold([flipped], one)[0] != c.fold(blob, one)[0]
+
+
+def test_a_bulk_import_leaves_columns_without_values_unwritten_and_they_read_as_their_fill(run_path, tmp_path):
+    with RunFile.open(run_path, "a") as run:
+        df = run.table()
+    out = str(tmp_path / "imp.h5")
+    with import_table(df, out, protocol=FakeProtocol(), source="t.csv") as run:
+        assert run.verify()["ok"] is True
+        back = run.table()
+        rec = run.read(int(df.trial[0]))
+        assert rec["flags"] == [] and rec["accepted"] == "imported"
+    assert back.equals(df)
+    with h5py.File(out, "r") as f:
+        rows = f["entry/trials"]
+        assert rows["flags"].shape[0] >= len(df) and rows["flags"].id.get_storage_size() == 0
+        assert rows["trial"].id.get_storage_size() > 0

@@ -180,3 +180,16 @@ def test_cells_of_a_table_are_read_whole_column_or_refused_alike(tmp_path: Path)
         fast += got is not None
         refused += got is None
     assert fast > 20 and refused > 20, (fast, refused)
+
+
+def test_the_words_true_and_false_inside_a_name_or_a_cell_keep_the_whole_column_read(tmp_path: Path) -> None:
+    # pandas turns a whole cell true/false into 1/0; a column named true_stiffness_N_per_m or an
+    # object called falsework is no such cell, and must not send a million rows cell by cell.
+    text = (f"{HEADER},true_stiffness_N_per_m,note\n{ROW},420.0,falsework\n"
+            f"{ROW.replace('1,fit', '2,fit', 1)},,untrue\n")
+    df = agree(put(tmp_path, text))
+    assert df is not None and df["note"].tolist() == ["falsework", "untrue"]
+    for cell in ("true", " FALSE", "True "):
+        p = put(tmp_path, f"{HEADER},true_stiffness_N_per_m,note\n{ROW},420.0,{cell}\n", "w.csv")
+        assert table_fast.read_fast(p, TRIAL, PRESSURE_SPAN_MPA, None) is None
+        agree(p)

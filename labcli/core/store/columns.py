@@ -30,7 +30,7 @@ import h5py
 import numpy as np
 
 from ..experiment import Column
-from .checksum import row_checksums
+from .checksum import Repeated, row_checksums
 
 FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}
 CHECKSUM = Column("checksum", "1", kind="uint", what="checksum of the row's other columns")
@@ -74,6 +74,12 @@ def fixed(c: Column, values: Any, n: int) -> np.ndarray:
         a = np.asarray(values, dtype=object).reshape(n)
         return np.array([v if isinstance(v, bytes) else str(v).encode("utf-8") for v in a], dtype=c.dtype)
     return np.asarray(values, dtype=c.dtype).reshape(n, *c.shape)
+
+
+def grow(ds: h5py.Dataset, rows: int) -> None:
+    """Extend ``ds`` to at least ``rows`` rows (the new ones read as its fill value until written)."""
+    if rows > ds.shape[0]:
+        ds.id.set_extent((rows, *ds.shape[1:]))
 
 
 def append(ds: h5py.Dataset, start: int, arr: np.ndarray) -> None:
@@ -175,8 +181,17 @@ class Table:
         """Where the next rows go: after the committed rows, at a chunk boundary."""
         return -(-self.committed // self.chunk) * self.chunk
 
-    def prepared(self, columns: Mapping[str, Column], values: Mapping[str, Any], n: int) -> list[np.ndarray]:
-        """Every column's ``n`` values as stored (fill where ``values`` lacks the column)."""
+    def prepared(self, columns: Mapping[str, Column], values: Mapping[str, Any], n: int,
+                 unwritten_fill: bool = False) -> list[np.ndarray | Repeated]:
+        """Every column's ``n`` values as stored (fill where ``values`` lacks the column).
+
+        ``unwritten_fill``: a column ``values`` lacks is a :class:`Repeated` fill, which
+        :meth:`write` leaves unwritten (a bulk write of many rows: no fill spelt out, folded or
+        compressed row by row).
+        """
+        if unwritten_fill:
+            return [fixed(columns[name], values[name], n) if name in values else
+                    Repeated(fixed(columns[name], None, 1), n) for name in self.names]
         return [fixed(columns[name], values.get(name), n) for name in self.names]
 
     def write(self, arrays: list[np.ndarray], n: int) -> tuple[int, int]:
@@ -187,7 +202,11 @@ class Table:
         start = self.next_start()
         checks = row_checksums(arrays, start)
         for name, arr in zip(self.names, arrays):
-            append(self.ds[name], start, arr)
+            ds = self.ds[name]
+            if isinstance(arr, Repeated) and start >= ds.shape[0]:
+                grow(ds, start + n)  # rows never written before read as the dataset's fill value
+            else:
+                append(ds, start, np.repeat(arr.row, n, axis=0) if isinstance(arr, Repeated) else arr)
         append(self.ds[CHECKSUM.name], start, checks)
         return start, start + n
 

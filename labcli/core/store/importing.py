@@ -72,6 +72,8 @@ def _check_storable(df: Any, id_col: str) -> None:
         if "\x00" in str(c):
             raise ConfigError(f"the column name {str(c)!r} holds a NUL character, which a run file cannot "
                               "store; rename the column.")
+    if not _any_nul(df):
+        return
     for c in df.columns:
         import pandas as pd
 
@@ -110,7 +112,7 @@ def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool
                          extras=extra_cols, rows_hint=len(df), staged=True, command_line=None,
                          exists_hint="use --force to overwrite it")
     try:
-        run.append({**columns, **extra_values, "accepted": ["imported"] * len(df)})
+        run.append({**columns, **extra_values})  # accepted: "imported", RunFile.append's default
         if fit or val:
             run.set_split(fit, val, "imported")
         run.publish()

@@ -534,14 +534,15 @@ class RunFile:
                       self._kept())
 
     def _commit(self, writes: list[tuple[Table, dict[str, Any], int]], frames: int = 0,
-                doing: str = "the change") -> list[tuple[int, int]]:
+                doing: str = "the change", unwritten_fill: bool = False) -> list[tuple[int, int]]:
         """Write rows into tables in one commit (see the module docstring); their ``[start, stop)``.
 
         ``writes``: (table, column values, number of rows); the session log's waiting events
         join.  ``frames``: bytes of raw frames already written for it (for the reservation).
+        ``unwritten_fill``: columns without values are left unwritten (:meth:`Table.prepared`).
         """
         writes = list(writes) + self._pending_writes()
-        arrays = [(t, t.prepared(self._table_columns(t), values, n), n) for t, values, n in writes]
+        arrays = [(t, t.prepared(self._table_columns(t), values, n, unwritten_fill), n) for t, values, n in writes]
         self._reserve(sum(a.nbytes for _, arrs, _ in arrays for a in arrs) + frames, doing)
         with self._writing(doing):
             spans = [t.write(arrs, n) for t, arrs, n in arrays]
@@ -704,7 +705,7 @@ class RunFile:
         ids = np.asarray(columns[rt.id_column], dtype=np.int64).reshape(-1)
         n = ids.shape[0]
         values = self._bulk_values(columns, ids, n)
-        self._commit([(self._table, values, n)], 0, f"the batch of {rt.count(n)}")
+        self._commit([(self._table, values, n)], 0, f"the batch of {rt.count(n)}", unwritten_fill=True)
         self._note_written(ids.tolist())
         return n
 

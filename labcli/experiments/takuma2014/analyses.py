@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core.jsontext import dumps_indented
 from ...core.modelfile import check_fit_paths, default_model_path, save_model
 from ...core.provenance import rig_warning, same_data
 from ...core.report import ids_text, print_warnings
@@ -110,7 +111,7 @@ def _fit_form(form: str, src: Any, source: str, max_amplification: float = 100.0
 
 def show_fit(result: FitResult, *, as_json: bool = False) -> None:
     if as_json:
-        print(json.dumps(result.to_dict(), indent=2))
+        print(dumps_indented(result.to_dict()))
         return
     recorded = f" and recorded in {result.run} under /models/{result.model.protocol}" if result.recorded else ""
     if isinstance(result.model, PostureModel):

@@ -286,15 +286,20 @@ class TrialRecords(_McKibbenRecords):
 
     def import_split(self, table: Any) -> tuple[list[int], list[int]]:
         """The ``set`` column of an imported trial table as the run's split."""
+        import pandas as pd
+
         if "set" not in table:
             return [], []
-        sets = ["" if missing(s) else str(s) for s in table["set"].tolist()]
-        trials = table["trial"].tolist()
-        for t, s in zip(trials, sets):
+        # Few distinct set names: each checked once, every row by its code (-1: a missing value).
+        codes, names = pd.factorize(table["set"], use_na_sentinel=True)
+        names = ["" if missing(s) else str(s) for s in names]
+        trials = table["trial"].to_numpy()
+        for k, s in enumerate(names):
             if s not in ("fit", "validation", ""):
+                t = trials[int(np.flatnonzero(codes == k)[0])]
                 raise ConfigError(f"trial {int(t)}: set must be fit, validation or empty, got {s!r}.")
-        return ([int(t) for t, s in zip(trials, sets) if s == "fit"],
-                [int(t) for t, s in zip(trials, sets) if s == "validation"])
+        named = np.asarray(names + [""], dtype=object)[codes]
+        return trials[named == "fit"].astype(int).tolist(), trials[named == "validation"].astype(int).tolist()
 
 
 def _numbers(table: Any, name: str, n: int) -> np.ndarray:

@@ -10,7 +10,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ...core.report import cell, print_table, report_console
+import numpy as np
+
+from ...core.report import cell, ids_text, print_table, report_console
 from .models.metrics import QUANTITIES
 from .models.takuma import FLAG_TEXT, SIGN_NOTE, TERMS
 
@@ -167,18 +169,38 @@ def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | Non
               soft_wrap=True)
     if ev.get("routes"):
         con.print(route_text(ev["routes"]), soft_wrap=True)
-    flagged = [(i, int(t), fl) for i, (t, fl) in enumerate(zip(ev["trial"], ev["flags"])) if fl]
-    if flagged:
-        con.print(f"{len(flagged)} trial(s) flagged; their values show as — and stay out of the metrics:",
-                  soft_wrap=True)
-        for i, t, fl in flagged:
-            missing = [q for q in QUANTITIES if not ev["ok"][q][i]]
-            reasons = "; ".join(FLAG_TEXT.get(f, f) for f in fl)
-            con.print(f"  trial {t}: {', '.join(missing)} = — ({reasons})", soft_wrap=True)
+    _print_flagged(con, ev)
     if len(ev.get("forms", {})) > 1:
         print_forms(ev["forms"])
     if plot is not None:
         con.print(f"Figure 7 written to {plot}.")
+
+
+FLAGGED_LIST_LIMIT = 60  # flagged validation trials listed one by one up to this many; beyond, counted by reason
+
+
+def _print_flagged(con: Any, ev: dict[str, Any]) -> None:
+    """The flagged validation trials: each with its reasons when few, else counted by reason (--json lists all)."""
+    flagged = [i for i, fl in enumerate(ev["flags"]) if fl]
+    if not flagged:
+        return
+    if len(flagged) <= FLAGGED_LIST_LIMIT:
+        con.print(f"{len(flagged)} trial(s) flagged; their values show as — and stay out of the metrics:",
+                  soft_wrap=True)
+        for i in flagged:
+            missing = [q for q in QUANTITIES if not ev["ok"][q][i]]
+            reasons = "; ".join(FLAG_TEXT.get(f, f) for f in ev["flags"][i])
+            con.print(f"  trial {int(ev['trial'][i])}: {', '.join(missing)} = — ({reasons})", soft_wrap=True)
+        return
+    by_reason: dict[str, list[int]] = {}
+    for i in flagged:
+        for f in ev["flags"][i]:
+            by_reason.setdefault(f, []).append(i)
+    con.print(f"{len(flagged)} of {len(ev['trial'])} trials flagged; their values stay out of the metrics "
+              "(--json lists every trial):", soft_wrap=True)
+    for f, rows in sorted(by_reason.items(), key=lambda kv: -len(kv[1])):
+        ids = np.asarray(ev["trial"])[rows].tolist()
+        con.print(f"  {len(rows)} x {FLAG_TEXT.get(f, f)}: trials {ids_text(ids)}", soft_wrap=True)
 
 
 def print_classification(data: dict[str, Any], plot: Path | None, pushes: list[dict[str, Any]] | None,

@@ -273,3 +273,40 @@ def test_theta1_has_its_own_equation_from_the_paper_s_terms():
     d["theta1_xtx_inv"] = [[1.0]]
     with pytest.raises(ModelError, match="the theta1 equation .* is incomplete or not finite"):
         PostureModel.from_dict(d)
+
+
+def test_block_factors_give_the_held_out_residuals_of_a_refit_per_block():
+    # The cross-validation works on R factors of contiguous blocks; it must equal fitting each
+    # block's complement with lstsq on the rows themselves and predicting the block.
+    from labcli.experiments.takuma2014.models.posture import CV_FOLDS, _Blocks
+
+    rng = np.random.default_rng(5)
+    n, p = 1003, 5
+    X = rng.normal(size=(n, p)) * [1.0, 10.0, 0.1, 3.0, 1e3]
+    Y = X @ rng.normal(size=(p, 2)) + rng.normal(scale=0.3, size=(n, 2)) + X[:, :1] ** 2 * 0.2
+    blocks = _Blocks.build(n, p, lambda lo, hi: np.column_stack([X[lo:hi], Y[lo:hi]]))
+    edges = np.linspace(0, n, CV_FOLDS + 1).astype(int)
+    for cols in ([0, 1, 2, 3, 4], [1, 3]):
+        held = np.empty_like(Y)
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            train = np.r_[0:lo, hi:n]
+            beta, *_ = np.linalg.lstsq(X[train][:, cols], Y[train], rcond=None)
+            held[lo:hi] = Y[lo:hi] - X[lo:hi][:, cols] @ beta
+        np.testing.assert_allclose(blocks.cv_cov(cols), held.T @ held, rtol=1e-9)
+        assert blocks.cv_error(cols) == pytest.approx(float(np.sum(held ** 2)), rel=1e-9)
+
+
+def test_the_fit_from_block_factors_matches_least_squares_on_the_whole_design():
+    from labcli.experiments.takuma2014.models.posture import _Blocks, _shared_lstsq
+
+    rng = np.random.default_rng(6)
+    n, p = 500, 4
+    X = rng.normal(size=(n, p))
+    Y = X @ np.array([[1.0, -2.0], [0.5, 0.0], [0.0, 3.0], [-1.0, 1.0]]) + rng.normal(scale=0.1, size=(n, 2))
+    fit = _shared_lstsq(_Blocks.build(n, p, lambda lo, hi: np.column_stack([X[lo:hi], Y[lo:hi]])),
+                        list(range(p)), "test")
+    beta, *_ = np.linalg.lstsq(X, Y, rcond=None)
+    np.testing.assert_allclose(fit.beta, beta, rtol=1e-10)
+    np.testing.assert_allclose(fit.xtx_inv, np.linalg.inv(X.T @ X), rtol=1e-10)
+    resid = Y - X @ beta
+    assert np.trace(fit.resid_cov) >= np.trace(resid.T @ resid / (n - p)) * (1 - 1e-12)

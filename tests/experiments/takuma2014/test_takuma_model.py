@@ -430,3 +430,24 @@ def test_a_fit_whose_numbers_overflow_is_refused_before_anything_is_written():
         refuse_non_finite(model, table, "t.csv")
     healthy = TakumaModel(geometry=PAPER_GEOMETRY).fit(paper_trials(12, seed=1))
     refuse_non_finite(healthy, table, "t.csv")  # finite coefficients pass whatever the table holds
+
+
+@pytest.mark.parametrize("n_flagged", [3, 61])
+def test_the_validation_report_lists_few_flagged_trials_and_counts_many_by_reason(capsys, n_flagged):
+    from labcli.experiments.takuma2014.report import FLAGGED_LIST_LIMIT, _print_flagged
+    from labcli.core.report import report_console
+
+    n = 100
+    flags = [["uncertain"] if i < n_flagged else [] for i in range(n)]
+    flags[0] = ["bad-pressure", "uncertain"]
+    ok = {q: np.array([not f for f in flags]) for q in ("theta1", "theta2", "Fx", "Fy")}
+    ev = {"trial": np.arange(1000, 1000 + n), "flags": flags, "ok": ok}
+    _print_flagged(report_console(), ev)
+    out = capsys.readouterr().out
+    if n_flagged <= FLAGGED_LIST_LIMIT:
+        assert out.count("  trial 10") == n_flagged and "trial 1002: theta1, theta2, Fx, Fy = —" in out
+    else:
+        assert "  trial 10" not in out
+        assert f"{n_flagged} of {n} trials flagged" in out and "--json lists every trial" in out
+        assert f"  {n_flagged} x " in out and "trials 1000, 1001, 1002" in out and f"({n_flagged - 10} more)" in out
+        assert "  1 x " in out  # the bad pressure, on trial 1000 alone

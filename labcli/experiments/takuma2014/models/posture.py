@@ -55,7 +55,6 @@ Units: pressures MPa, angles rad, torques N m, forces N.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,11 +62,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ....core.jsontext import dumps_indented
 from ....errors import ModelError
 from . import routes as rt
 from .geometry import jacobian
 from .takuma import (ANGLE_COLUMNS, BASELINE_COLUMNS, FORCE_COLUMNS, LOADED_COLUMNS, SCHEMA, SCHEMA_VERSION,
-                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, select_set)
+                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, select_set, set_mask)
 
 FORM = "posture"
 REST_COLUMNS = ("theta1_0_deg", "theta2_0_deg")
@@ -129,6 +129,12 @@ def force_from_torque(theta: np.ndarray, tau: np.ndarray, h2: float, h3: float) 
 
 # --------------------------------------------------------------------------- least squares
 
+CV_FOLDS = 10
+# A quadratic term is kept only if it cuts the cross-validated error by this share: on the
+# simulated rig smaller gains in the fit set turned into losses on new directions.
+CV_MIN_GAIN = 0.10
+
+
 @dataclass
 class _Shared:
     """Least squares of several responses on one design: coefficients, (X^T X)^-1, residual covariance."""
@@ -139,12 +145,78 @@ class _Shared:
     dof: int
 
 
-def _shared_lstsq(X: np.ndarray, Y: np.ndarray, what: str, by_trial: bool = False) -> _Shared:
-    n, p = X.shape
+@dataclass
+class _Blocks:
+    """The R factors of [X | Y] over contiguous blocks of trials (the cross-validation's folds).
+
+    Each block's rows are X_f | Y_f = Q_f R_f with Q_f orthonormal, so a least squares on any
+    union of blocks and any subset of X's columns has the solution, singular values and
+    residual norms of the same least squares on the stacked R's (at most p + k rows each):
+    the trials are read once, and no copy of the design as large as the table is ever made.
+    """
+
+    factors: list[np.ndarray]  # one (<= p + k, p + k) R per block
+    p: int                     # columns of X; Y is the last k columns
+    n: int                     # trials
+    width: int                 # p + k
+    rows: Any = None           # rows(lo, hi): the rows again, for leave-one-out residuals
+
+    @classmethod
+    def build(cls, n: int, p: int, block: Any) -> "_Blocks":
+        """``block(lo, hi)`` gives the rows lo..hi of [X | Y]; blocks are contiguous (a plan groups
+        its trials by pulley position), as many as CV_FOLDS."""
+        edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
+        factors = [np.linalg.qr(block(lo, hi), mode="r") for lo, hi in zip(edges[:-1], edges[1:])]
+        return cls(factors, p, n, factors[0].shape[1] if factors else p, block)
+
+    def _train(self, held: int, cols: list[int]) -> np.ndarray:
+        return np.vstack([r[:, cols] for f, r in enumerate(self.factors) if f != held])
+
+    def responses(self, ys: list[int] | None = None) -> list[int]:
+        """The columns of the responses: ``ys`` or all of Y."""
+        return list(range(self.p, self.width)) if ys is None else list(ys)
+
+    def cv_cov(self, xs: list[int], ys: list[int] | None = None) -> np.ndarray:
+        """Summed outer product of the held-out residuals, (k, k): each block predicted by a fit on the others."""
+        ys = self.responses(ys)
+        out = np.zeros((len(ys), len(ys)))
+        for f, r in enumerate(self.factors):
+            beta, *_ = np.linalg.lstsq(self._train(f, xs), self._train(f, ys), rcond=None)
+            e = r[:, ys] - r[:, xs] @ beta
+            out += e.T @ e
+        return out
+
+    def cv_error(self, xs: list[int], ys: list[int] | None = None) -> float:
+        """Summed squared held-out error of the contiguous-block cross-validation."""
+        return float(np.trace(self.cv_cov(xs, ys)))
+
+    def loo_cov(self, xs: list[int], ys: list[int] | None, beta: np.ndarray, xtx_inv: np.ndarray) -> np.ndarray:
+        """Summed outer product of the leave-one-trial-out residuals of the fit ``beta``, (k, k),
+        block by block from the rows again (no copy of the whole design)."""
+        ys = self.responses(ys)
+        edges = np.linspace(0, self.n, len(self.factors) + 1).astype(int)
+        out = np.zeros((len(ys), len(ys)))
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            z = self.rows(lo, hi)
+            loo = loo_residuals(z[:, xs], z[:, ys] - z[:, xs] @ beta, xtx_inv)
+            out += loo.T @ loo
+        return out
+
+    def whole(self) -> np.ndarray:
+        """One R of all the trials' [X | Y]."""
+        return np.linalg.qr(np.vstack(self.factors), mode="r")
+
+
+def _shared_lstsq(blocks: _Blocks, xs: list[int], what: str, by_trial: bool = False,
+                  ys: list[int] | None = None) -> _Shared:
+    """Least squares of Y (or its columns ``ys``) on the columns ``xs`` of X, from the blocks' R factors."""
+    n, p = blocks.n, len(xs)
     if n <= p:
         raise ModelError(f"The posture form's {what} fit needs more than {p} usable fit trials, got {n}; "
                          "record more fit trials, or fit the paper's Eqs. 34-37 with --form paper.")
-    scale = np.linalg.norm(X, axis=0)
+    R = blocks.whole()
+    X, Y = R[:, xs], R[:, blocks.responses(ys)]
+    scale = np.linalg.norm(X, axis=0)  # the columns' norms over the trials: Q keeps lengths
     if not np.all(scale > 0):
         raise ModelError(f"The {what} fit has a term that is zero in every fit trial; "
                          "record fit trials that load every actuator.")
@@ -153,7 +225,7 @@ def _shared_lstsq(X: np.ndarray, Y: np.ndarray, what: str, by_trial: bool = Fals
         raise ModelError(f"The {what} design matrix is singular; record fit trials with more "
                          "varied force directions.")
     beta = (Vt.T @ ((U.T @ Y) / s[:, None])) / scale[:, None]
-    resid = Y - X @ beta
+    resid = Y - X @ beta  # the residuals' Gram matrix, the trials' own through Q
     dof = n - p
     xtx_inv = ((Vt.T / s ** 2) @ Vt) / np.outer(scale, scale)
     # The residual covariance from held-out residuals when that is larger than the in-sample
@@ -165,8 +237,8 @@ def _shared_lstsq(X: np.ndarray, Y: np.ndarray, what: str, by_trial: bool = Fals
     # nearest fitted one, while a plan checks loads between fitted directions, and on the
     # bent protocol that put Fx's and Fy's 95 % intervals at 99-100 % coverage and Fy's
     # standard error over the 1 N limit on nearly every trial (tests/benchmarks/sensing_accuracy.py).
-    loo = loo_residuals(X, resid, xtx_inv) if by_trial else _cv_residuals(X, Y)
-    held_out = loo.T @ loo / n / (1.0 + p / n)
+    held = blocks.loo_cov(xs, ys, beta, xtx_inv) if by_trial else blocks.cv_cov(xs, ys)
+    held_out = held / n / (1.0 + p / n)
     in_sample = resid.T @ resid / dof
     return _Shared(beta, xtx_inv, held_out if np.trace(held_out) > np.trace(in_sample) else in_sample, dof)
 
@@ -181,31 +253,17 @@ def loo_residuals(X: np.ndarray, resid: np.ndarray, xtx_inv: np.ndarray) -> np.n
     return resid / np.clip(1.0 - h, 1e-12, None)[:, None]
 
 
-CV_FOLDS = 10
-# A quadratic term is kept only if it cuts the cross-validated error by this share: on the
-# simulated rig smaller gains in the fit set turned into losses on new directions.
-CV_MIN_GAIN = 0.10
+ANGLE_TERMS = ANGLE_LINEAR + ANGLE_QUADRATIC
 
 
-def _cv_residuals(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
-    """Held-out residuals of contiguous-block cross-validation (a plan groups trials by pulley position)."""
-    n = len(Y)
-    edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
-    out = np.empty_like(Y)
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        train = np.r_[0:lo, hi:n]
-        beta, *_ = np.linalg.lstsq(X[train], Y[train], rcond=None)
-        out[lo:hi] = Y[lo:hi] - X[lo:hi] @ beta
-    return out
+def angle_blocks(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray) -> _Blocks:
+    """The blocks of [every angle term | dtheta] (ANGLE_TERMS, then the two deflections)."""
+    return _Blocks.build(len(P), len(ANGLE_TERMS), lambda lo, hi: np.column_stack(
+        [angle_features(P0[lo:hi], P[lo:hi], ANGLE_TERMS), dtheta[lo:hi]]))
 
 
-def _cv_error(X: np.ndarray, Y: np.ndarray) -> float:
-    """Summed squared held-out error of contiguous-block cross-validation."""
-    return float(np.sum(_cv_residuals(X, Y) ** 2))
-
-
-def select_angle_terms(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray,
-                       base: tuple[str, ...] = ANGLE_LINEAR) -> tuple[str, ...]:
+def select_angle_terms(blocks: _Blocks, base: tuple[str, ...] = ANGLE_LINEAR,
+                       ys: list[int] | None = None) -> tuple[str, ...]:
     """The ``base`` terms and the others that lower the cross-validated error, added greedily.
 
     ``dtheta`` (n, k): the deflections the terms must predict together.  Cross-validation over
@@ -214,10 +272,11 @@ def select_angle_terms(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray,
     independent noise, takes in terms that fit friction's hysteresis.
     """
     terms = list(base)
-    best = _cv_error(angle_features(P0, P, tuple(terms)), dtheta)
-    pool = [t for t in ANGLE_LINEAR + ANGLE_QUADRATIC if t not in terms]
+    index = {t: k for k, t in enumerate(ANGLE_TERMS)}
+    best = blocks.cv_error([index[t] for t in terms], ys)
+    pool = [t for t in ANGLE_TERMS if t not in terms]
     while pool:
-        scores = [(_cv_error(angle_features(P0, P, tuple(terms + [t])), dtheta), t) for t in pool]
+        scores = [(blocks.cv_error([index[t] for t in terms + [t]]), t) for t in pool]
         score, term = min(scores)
         if not score < (1.0 - CV_MIN_GAIN) * best:
             break
@@ -294,27 +353,32 @@ class PostureModel:
         ``choose_routes`` also fits the paper's Eqs. 34-37 and picks, per quantity, the route
         with the smaller cross-validated error on the fit trials (models/routes.py).
         """
-        a = table_arrays(select_set(table, "fit", source))
+        a = table_arrays(table, set_mask(table, "fit", source))
         use = (np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1) & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
                & np.all(np.isfinite(a["dtheta"]), axis=1) & np.all(np.isfinite(a["F"]), axis=1))
-        P0, P, th0, dth, F = (a[k][use] for k in ("P0", "P", "theta0", "dtheta", "F"))
+        if not use.all():
+            a = {k: v[use] for k, v in a.items()}
+        P0, P, th0, dth, F = (a[k] for k in ("P0", "P", "theta0", "dtheta", "F"))
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
-        self.angle_terms = select_angle_terms(P0, P, dth)
-        ang = _shared_lstsq(angle_features(P0, P, self.angle_terms), dth, "deflection")
-        self.theta1_terms = select_angle_terms(P0, P, dth[:, :1], THETA1_BASE)
-        own = _shared_lstsq(angle_features(P0, P, self.theta1_terms), dth[:, :1], "deflection")
+        angles = angle_blocks(P0, P, dth)
+        self.angle_terms = select_angle_terms(angles)
+        ang = _shared_lstsq(angles, [ANGLE_TERMS.index(t) for t in self.angle_terms], "deflection")
+        theta1 = [angles.p]  # the first deflection column
+        self.theta1_terms = select_angle_terms(angles, THETA1_BASE, theta1)
+        own = _shared_lstsq(angles, [ANGLE_TERMS.index(t) for t in self.theta1_terms], "deflection", ys=theta1)
         self.theta1_coefficients, self.theta1_xtx_inv = own.beta[:, 0].tolist(), own.xtx_inv.tolist()
         self.theta1_resid_var = float(own.resid_cov[0, 0])
-        tau = load_torque(th0 + dth, F, h2, h3)
-        tq = _shared_lstsq(torque_features(P0 - P, dth), tau, "torque", by_trial=True)
+        torques = _Blocks.build(len(P), len(TORQUE_TERMS), lambda lo, hi: np.column_stack(
+            [torque_features(P0[lo:hi] - P[lo:hi], dth[lo:hi]), load_torque(th0[lo:hi] + dth[lo:hi], F[lo:hi], h2, h3)]))
+        tq = _shared_lstsq(torques, list(range(len(TORQUE_TERMS))), "torque", by_trial=True)
         self.angle_coefficients, self.angle_xtx_inv = ang.beta.tolist(), ang.xtx_inv.tolist()
         self.angle_resid_cov = ang.resid_cov.tolist()
         self.torque_coefficients, self.torque_xtx_inv = tq.beta.tolist(), tq.xtx_inv.tolist()
         self.torque_resid_cov = tq.resid_cov.tolist()
         self.force_prior_sd = np.sqrt(np.mean(F ** 2, axis=0)).tolist()
-        self.fitted_trials = [int(t) for t in a["trial"][use]]
+        self.fitted_trials = a["trial"].tolist()
         self.fit_stats = {
-            "n": int(use.sum()), "angle_dof": ang.dof, "torque_dof": tq.dof,
+            "n": len(P), "angle_dof": ang.dof, "torque_dof": tq.dof,
             "theta0_deg": np.degrees(np.median(th0, axis=0)).tolist(),
             "angle_rmse_deg": [math.degrees(math.sqrt(self.theta1_resid_var)),
                                math.degrees(math.sqrt(ang.resid_cov[1, 1]))],
@@ -516,7 +580,7 @@ class PostureModel:
 
     def to_json(self) -> str:
         """The model as JSON (schema ``labcli-takuma-model``, form ``posture``)."""
-        return json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
+        return dumps_indented(self.to_dict(), allow_nan=False) + "\n"
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "PostureModel":
@@ -622,17 +686,27 @@ def force_model_from_json(text: str, name: str = "the model") -> "TakumaModel | 
     return TakumaModel.from_json(text, name=name)
 
 
-def table_arrays(table: Any) -> dict[str, np.ndarray]:
-    """Trial ids, pressures (MPa), rest posture and deflections (rad), forces (N) of a trial table."""
+def table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Trial ids, pressures (MPa), rest posture and deflections (rad), forces (N) of a trial table.
+
+    ``rows``: a boolean mask of the rows wanted (default all), taken column by column so
+    the table itself is never copied.
+    """
+    n = len(table) if rows is None else int(np.count_nonzero(rows))
+
+    def values(c: str) -> np.ndarray:
+        v = np.asarray(table[c], dtype=float)
+        return v if rows is None else v[rows]
+
     def col(names: tuple[str, ...], default: float = math.nan) -> np.ndarray:
-        return np.column_stack([np.asarray(table[c], dtype=float) if c in table.columns
-                                else np.full(len(table), default) for c in names])
+        return np.column_stack([values(c) if c in table.columns else np.full(n, default) for c in names])
 
     missing = [c for c in BASELINE_COLUMNS + LOADED_COLUMNS if c not in table.columns]
     if missing:
         raise ModelError(f"The trial table lacks the column(s) {', '.join(missing)}; "
                          "see the trial-table format (P_L10..P_R20, P_L1..P_R2 in MPa).")
     rest = col(REST_COLUMNS, 0.0)
-    return {"trial": np.asarray(table["trial"]).astype(int), "P0": col(BASELINE_COLUMNS), "P": col(LOADED_COLUMNS),
-            "theta0": np.deg2rad(np.where(np.isfinite(rest), rest, 0.0)),
+    trial = np.asarray(table["trial"])
+    return {"trial": (trial if rows is None else trial[rows]).astype(int), "P0": col(BASELINE_COLUMNS),
+            "P": col(LOADED_COLUMNS), "theta0": np.deg2rad(np.where(np.isfinite(rest), rest, 0.0)),
             "dtheta": np.deg2rad(col(ANGLE_COLUMNS)), "F": col(FORCE_COLUMNS)}

@@ -44,12 +44,13 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from itertools import compress
 from pathlib import Path
 from typing import Any, Mapping, NoReturn, Sequence
 
 import numpy as np
 
-from ....core.jsontext import MAX_DEPTH, JSONDepthError, json_kind, loads_bounded
+from ....core.jsontext import MAX_DEPTH, JSONDepthError, dumps_indented, json_kind, loads_bounded
 from ....core.version import __version__
 from ....errors import ModelError
 from .geometry import force_amplification, jacobian_cond, jstar
@@ -178,23 +179,25 @@ def normalise_geometry(geometry: Mapping[str, Any]) -> dict[str, float]:
     return out
 
 
-def _table_arrays(table: Any) -> dict[str, np.ndarray]:
+def _table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Trial ids and (n, k) arrays of pressures, angles (rad) and forces; ``rows`` a boolean mask (default all),
+    taken column by column so the table itself is never copied."""
     missing = [c for c in ("trial",) + BASELINE_COLUMNS + LOADED_COLUMNS if c not in table.columns]
     if missing:
         raise ModelError(f"The trial table lacks the column(s) {', '.join(missing)}; "
                          "see the trial-table format (P_L10..P_R20, P_L1..P_R2 in MPa).")
+    n = len(table) if rows is None else int(np.count_nonzero(rows))
+
+    def values(c: str, dtype: Any = float) -> np.ndarray:
+        v = np.asarray(table[c], dtype=dtype)
+        return v if rows is None else v[rows]
 
     def col(names: Sequence[str]) -> np.ndarray:
-        cols = []
-        for c in names:
-            if c in table.columns:
-                cols.append(np.asarray(table[c], dtype=float))
-            else:
-                cols.append(np.full(len(table), np.nan))
-        return np.column_stack(cols) if cols else np.empty((len(table), 0))
+        cols = [values(c) if c in table.columns else np.full(n, np.nan) for c in names]
+        return np.column_stack(cols) if cols else np.empty((n, 0))
 
     return {
-        "trial": np.asarray(table["trial"]).astype(int),
+        "trial": values("trial", None).astype(int),
         "P0": col(BASELINE_COLUMNS),
         "P": col(LOADED_COLUMNS),
         "theta": np.deg2rad(col(ANGLE_COLUMNS)),
@@ -202,21 +205,26 @@ def _table_arrays(table: Any) -> dict[str, np.ndarray]:
     }
 
 
-def select_set(table: Any, name: str, source: str = "the trial table") -> Any:
-    """Rows of the trial table whose ``set`` is ``name`` (ModelError if there are none)."""
+def set_mask(table: Any, name: str, source: str = "the trial table") -> np.ndarray:
+    """Which rows of the trial table have ``set`` ``name``, a boolean array (ModelError if none do)."""
     if "set" in table.columns:
         import pandas as pd
 
         # Few distinct set names: normalise each once, not every row (code -1 is a missing value).
         codes, values = pd.factorize(table["set"])
         hit = np.array([str(v).strip().lower() == name for v in values] + [False], dtype=bool)
-        rows = table[hit[codes]]
+        mask = hit[codes]
     else:
-        rows = table.iloc[0:0]
-    if len(rows) == 0:
+        mask = np.zeros(len(table), dtype=bool)
+    if not mask.any():
         hint = ("assign trials with `labcli split` (or fill the `set` column)")
         raise ModelError(f"{cap(source)} has no {name} trials (no row with set = '{name}'); {hint}.")
-    return rows
+    return mask
+
+
+def select_set(table: Any, name: str, source: str = "the trial table") -> Any:
+    """Rows of the trial table whose ``set`` is ``name`` (ModelError if there are none)."""
+    return table[set_mask(table, name, source)]
 
 
 @dataclass
@@ -237,16 +245,22 @@ def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str,
     if zero:
         raise ModelError(f"The {equation} fit cannot determine {', '.join(zero)}: its term is zero "
                          "in every usable fit trial; record fit trials that load every actuator.")
-    # Column scaling makes the condition number measure collinearity, not units.
-    Xs = X / scale
-    U, s, Vt = np.linalg.svd(Xs, full_matrices=False)
+    # Column scaling makes the condition number measure collinearity, not units.  [X y] = Q R
+    # (Householder QR), so X's singular values and directions are those of R's first p
+    # columns and U^T y = U_R^T (Q^T y): no (n, p) factor besides the design itself.
+    Z = np.empty((n, p + 1), order="F")  # LAPACK's own order: no further copy of the design
+    np.divide(X, scale, out=Z[:, :p])
+    Z[:, p] = y
+    R = np.linalg.qr(Z, mode="r")
+    del Z
+    U, s, Vt = np.linalg.svd(R[:p, :p])
     cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
     if not cond <= max_cond:
         worst = names[int(np.argmax(np.abs(Vt[-1])))]
         raise ModelError(f"The {equation} design matrix is collinear (condition number "
                          f"{cond:.3g} > {max_cond:.3g}, weakest direction mostly {worst}); "
                          "record fit trials with more varied force directions and postures.")
-    bs = Vt.T @ ((U.T @ y) / s)
+    bs = Vt.T @ ((U.T @ R[:p, p]) / s)
     beta = bs / scale
     fitted = X @ beta
     resid = y - fitted
@@ -305,6 +319,8 @@ def _clean(value: Any) -> Any:
     if isinstance(value, dict):
         return {str(k): _clean(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
+        if all(type(v) is int for v in value):  # trial ids: already plain, however many
+            return list(value)
         return [_clean(v) for v in value]
     if isinstance(value, np.ndarray):
         return _clean(value.tolist())
@@ -362,8 +378,7 @@ class TakumaModel:
         # scipy.special alone: scipy.stats would add a second to every `labcli fit` for one quantile.
         from scipy.special import stdtrit
 
-        rows = select_set(table, "fit", source)
-        a = _table_arrays(rows)
+        a = _table_arrays(table, set_mask(table, "fit", source))
         trial, P0, P, theta, F = a["trial"], a["P0"], a["P"], a["theta"], a["F"]
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         reasons = self._exclusions(trial, P0, P, theta, F)
@@ -376,6 +391,7 @@ class TakumaModel:
             "Fx": F[:, 0], "Fy": F[:, 1],
         }
 
+        all_ids = trial.tolist()
         coefs: dict[str, float] = {}
         ses: dict[str, float] = {}
         ci: dict[str, list[float]] = {}
@@ -393,7 +409,7 @@ class TakumaModel:
                 raise ModelError(f"The {eq} equation needs at least {p + 1} usable fit trials for "
                                  f"its {p} coefficients, but {source} has {n}{detail}; "
                                  "record more fit trials.")
-            X, y = designs[eq][use], targets[eq][use]
+            X, y = (designs[eq], targets[eq]) if use.all() else (designs[eq][use], targets[eq][use])
             res = _lstsq(X, y, names, eq, self.max_design_cond)
             tq = float(stdtrit(res.dof, 0.975))
             se = np.sqrt(np.maximum(np.diag(res.cov), 0.0))
@@ -402,8 +418,9 @@ class TakumaModel:
                 ses[name] = float(se[k])
                 ci[name] = [float(res.beta[k] - tq * se[k]), float(res.beta[k] + tq * se[k])]
             covs[eq] = res.cov.tolist()
-            stats_out[eq] = _equation_stats(eq, res, y, theta[use], n, tq)
-            fitted_ids[eq] = trial[use].tolist()
+            stats_out[eq] = _equation_stats(eq, res, y, theta if use.all() else theta[use], n, tq)
+            # One int object per trial, shared by the four lists (a million trials: ~30 MB a copy).
+            fitted_ids[eq] = all_ids if use.all() else list(compress(all_ids, use.tolist()))
             excluded[eq] = [{"trial": t, "reason": r} for t, r in sorted(reasons[eq].items())]
 
         self.coefficients, self.standard_errors, self.ci95 = coefs, ses, ci
@@ -562,7 +579,7 @@ class TakumaModel:
 
     def to_json(self) -> str:
         """The model as JSON (schema ``labcli-takuma-model``); floats round-trip exactly."""
-        return json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
+        return dumps_indented(self.to_dict(), allow_nan=False) + "\n"
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "TakumaModel":
