@@ -9,6 +9,7 @@ into a one-line :class:`click.ClickException`.
 from __future__ import annotations
 
 import importlib
+import signal
 import warnings
 
 import click
@@ -81,4 +82,9 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 def main() -> None:
     warnings.showwarning = _show_warning
-    cli(prog_name="labcli")
+    try:
+        cli(prog_name="labcli")
+    finally:
+        # The command has ended in its own words: a Ctrl-C while the interpreter then shuts down
+        # could only print a stray "Exception ignored ... KeyboardInterrupt" from its clean-up.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
