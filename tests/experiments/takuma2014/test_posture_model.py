@@ -310,3 +310,27 @@ def test_the_fit_from_block_factors_matches_least_squares_on_the_whole_design():
     np.testing.assert_allclose(fit.xtx_inv, np.linalg.inv(X.T @ X), rtol=1e-10)
     resid = Y - X @ beta
     assert np.trace(fit.resid_cov) >= np.trace(resid.T @ resid / (n - p)) * (1 - 1e-12)
+
+
+def test_routes_of_a_large_archive_are_chosen_on_an_even_sample_in_recorded_order(monkeypatch):
+    from labcli.experiments.takuma2014.models import routes as rt
+
+    idx = np.arange(3, 3 + 2 * 50_001, 2)  # fit rows of a table interleaved with others
+    sample = rt.route_sample(idx)
+    assert len(sample) == rt.ROUTE_SAMPLE and sample[0] == idx[0] and sample[-1] == idx[-1]
+    assert np.all(np.diff(sample) > 0) and np.isin(sample, idx).all()
+    gaps = np.diff(np.searchsorted(idx, sample))
+    assert gaps.min() >= 2 and gaps.max() <= 3  # evenly spread: every 2.5th fit trial
+    small = np.arange(100)
+    assert rt.route_sample(small) is small
+
+    # A fit on more trials than the sample cross-validates both forms on the sample only.
+    monkeypatch.setattr(rt, "ROUTE_SAMPLE", 120)
+    seen = []
+    real = rt.held_out_errors
+    monkeypatch.setattr(rt, "held_out_errors", lambda rows, *a: seen.append(rows["trial"].to_numpy()) or real(rows, *a))
+    t = exact_table(400, (0.0, 14.0), seed=3, noise=1.0)
+    fit_trials = t.loc[t.set == "fit", "trial"].to_numpy()
+    PostureModel(geometry=GEOMETRY).fit(t)
+    assert len(seen) == 1 and len(seen[0]) == 120 and np.isin(seen[0], fit_trials).all()
+    assert np.all(np.diff(seen[0]) > 0)

@@ -67,7 +67,7 @@ from ....errors import ModelError
 from . import routes as rt
 from .geometry import jacobian
 from .takuma import (ANGLE_COLUMNS, BASELINE_COLUMNS, FORCE_COLUMNS, LOADED_COLUMNS, SCHEMA, SCHEMA_VERSION,
-                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, select_set, set_mask)
+                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, set_mask)
 
 FORM = "posture"
 REST_COLUMNS = ("theta1_0_deg", "theta2_0_deg")
@@ -401,7 +401,8 @@ class PostureModel:
             return TakumaModel(geometry=self.geometry, protocol=self.protocol).fit(rows)
 
         try:
-            cv = rt.held_out_errors(select_set(table, "fit", source), posture_only, paper)
+            rows = rt.route_sample(np.flatnonzero(set_mask(table, "fit", source)))
+            cv = rt.held_out_errors(table.iloc[rows], posture_only, paper)
             full = paper(table)
         except ModelError:
             # Too few trials, or a block whose absence leaves a design singular: the posture form alone.

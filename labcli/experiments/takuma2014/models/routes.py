@@ -37,6 +37,21 @@ VALUE_KEYS = {"theta1": "theta1_rad", "theta2": "theta2_rad", "Fx": "Fx_N", "Fy"
 CV_FOLDS = 10
 
 
+# The route choice compares two held-out errors; past this many fit trials more of them do not
+# change it (the errors' relative precision is already about 1 %), while refitting both forms ten
+# times over a lab archive's 10^6 trials took eight times the fit itself (tests/benchmarks/bench_tables.py).
+ROUTE_SAMPLE = 20_000
+
+
+def route_sample(fit_index: np.ndarray) -> np.ndarray:
+    """The fit trials the route choice uses: all of them, or ROUTE_SAMPLE evenly spread in recorded
+    order (so each contiguous block is still a stretch of the plan's pulley positions)."""
+    n = len(fit_index)
+    if n <= ROUTE_SAMPLE:
+        return fit_index
+    return fit_index[np.unique(np.linspace(0, n - 1, ROUTE_SAMPLE).round().astype(np.int64))]
+
+
 def _blocks(n: int) -> list[np.ndarray]:
     edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
     return [np.arange(lo, hi) for lo, hi in zip(edges[:-1], edges[1:]) if hi > lo]
