@@ -12,7 +12,7 @@ exit, its time the wall time.  Measured side by side, same run, same CSV:
 * ``classify --json``: every push's and every object's results, streamed to /dev/null;
 * ``classify``: the human report (a summary per object; pushes are not listed at this size).
 
-The ratio is classify / baseline; issue 17 asks for --json within 3x at 10^6 pushes.  The
+The ratio is classify / baseline; the target is --json within 3x at 10^6 pushes.  The
 CSV reading is the tables' (labcli.core.tables); the report stage is measured apart, in
 process, with tracemalloc: the streamed JSON against building the whole report as one dict.
 
@@ -123,7 +123,7 @@ def report_stage(csv: Path, model_path: Path) -> tuple[float, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sizes", default="1e5", help="comma-separated push counts (default 1e5; the issue's: 1e6)")
+    ap.add_argument("--sizes", default="1e5", help="comma-separated push counts (default 1e5; archive scale: 1e6)")
     ap.add_argument("--keep", type=Path, default=None, help="folder for the CSVs (default: a temporary one)")
     ap.add_argument("--no-stage", action="store_true", help="skip the in-process report-stage measurement")
     args = ap.parse_args()

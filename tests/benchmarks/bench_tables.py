@@ -15,7 +15,7 @@ interpreter and imports included, and start-up is paid by both sides alike); the
 * ``read``: ``read_trial_csv`` (the checked reader) against ``pandas.read_csv``;
 * ``fit``: ``labcli fit t.csv -o m.json --json`` (the command, in process: its default posture
   form, the model file and the JSON printed) against ``pandas.read_csv`` plus ``TakumaModel.fit``
-  (the four least-squares fits of Eqs. 34-37, issue 17's baseline);
+  (the four least-squares fits of Eqs. 34-37, the archive-scale baseline);
 * ``validate``: ``labcli validate t.csv --model m.json`` (the report; it also fits the other form
   for its side-by-side table) against ``pandas.read_csv`` plus ``metrics.evaluate`` of the same
   model;

@@ -237,7 +237,7 @@ BENCHES = [
           "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
           "`python -c \"import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma\"`", p_demo, json=True),
 ]
-# Issue 17's figures at its own sizes (--scale): tables and import at 10^6 rows, classify at 10^6 pushes.
+# The archive-scale figures (--scale): tables and import at 10^6 rows, classify at 10^6 pushes.
 SCALE_ARGS = {"tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
               "classify-report": ["--sizes", "1e6", "--no-stage"]}
 FULL_ARGS = {"models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"], "demo": ["--seeds", "1-3"],
@@ -259,7 +259,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="the scripts' own (longer) settings instead of quick ones")
     ap.add_argument("--scale", action="store_true",
-                    help="issue 17's sizes for the tables and classify-report benchmarks (10^6 rows; about 15 minutes)")
+                    help="archive sizes for the tables and classify-report benchmarks (10^6 rows; about 15 minutes)")
     ap.add_argument("--only", default="", help="comma-separated names: " + ",".join(b.name for b in BENCHES))
     ap.add_argument("--out", default=None, help="also write the Markdown table to this file")
     ap.add_argument("--log-dir", default=None, help="where each script's output is kept")
@@ -306,7 +306,7 @@ def main() -> None:
         f"{' --scale' if args.scale else ''}` on {platform.system()} {platform.machine()} ({_cpu_model()}), "
         f"{os.cpu_count()} CPUs shared with other work (load {load:.1f}), "
         f"Python {platform.python_version()}, numpy {numpy.__version__}; "
-        f"{'full' if args.full else 'quick'} settings{', issue 17 sizes for tables and classify-report' if args.scale else ''}, "
+        f"{'full' if args.full else 'quick'} settings{', archive sizes for tables and classify-report' if args.scale else ''}, "
         f"{time.perf_counter() - t_all:.0f} s in all.",
         "",
         "| benchmark | measures | baseline (same run) | headline | context |",

@@ -15,7 +15,7 @@ reported trials and over all trials, and for the posture form the coverage of it
 ``--only friction`` (or leak, thermal, backlash, links) keeps that one alone, to see what each costs.
 ``--bent-supply`` runs the bent protocol at other regulator settings (MPa, L1,R1,L2,R2).
 
-The baseline is the paper's form on the same trials; the issue's targets are printed beside.
+The baseline is the paper's form on the same trials; the sensing targets are printed beside.
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ QUICK = ("optimize.popsize=6", "optimize.maxiter=40")
 
 @pytest.fixture(scope="module")
 def shipped():
-    """One optimisation with the shipped constants and seed 1 (the issue's check)."""
+    """One optimisation with the shipped constants and seed 1 (the shipped check)."""
     return ro.optimize_protocol("rpam2015", seed=1)
 
 
@@ -211,7 +211,7 @@ def test_cli_json_reports_the_optimum_and_honours_overrides():
 
 
 def test_cli_check_of_the_shipped_optimum():
-    # The issue's check, on the command line as a person would run it.
+    # The shipped check, on the command line as a person would run it.
     result = CliRunner().invoke(cli, ["optimize", "--protocol", "rpam2015", "--seed", "1", "--json"])
     assert result.exit_code == 0, result.output
     d = json.loads(result.stdout)
