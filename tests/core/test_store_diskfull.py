@@ -1,4 +1,4 @@
-"""Writes into an existing run under a file size limit (``ulimit -f``): refused in one sentence, file untouched.
+"""Writes into an existing run under `ulimit -f` or on a full tmpfs: one sentence, file untouched.
 
 fit records its model in the run and split records the split; under a limit that leaves no room
 for them, each says so in one sentence (what was kept), exits 1, and the run file is byte for
@@ -92,3 +92,62 @@ def test_acquire_reaching_the_limit_mid_window_keeps_the_trials_before_and_resum
     with RunFile.open(run) as f:
         assert f.completed_ids() == [1, 2, 3]
         assert f.verify() == {"ok": True, "records": 3, "windows": 6, "problems": []}
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """``full_disk(run)``: a tmpfs holding a copy of ``run`` and a filler that leaves it no free
+    block; skipped where this machine refuses to mount one (the ulimit tests cover the paths)."""
+    import shutil
+    import uuid
+
+    where = tmp_path / "tmpfs"
+    where.mkdir()
+    mounted = []
+
+    def make(run: Path) -> tuple[Path, Path]:
+        size = (run.stat().st_size // 4096 + 64) * 4096
+        r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", f"labcli-{uuid.uuid4().hex[:8]}",
+                            str(where)], capture_output=True, text=True)
+        if r.returncode != 0:
+            pytest.skip(f"cannot mount a tmpfs here ({(r.stderr or r.stdout).strip() or 'mount failed'})")
+        mounted.append(where)
+        shutil.copyfile(run, where / "run.h5")
+        filler = where / "filler"
+        with open(filler, "wb", buffering=0) as f:
+            try:
+                while True:
+                    f.write(b"\0" * 4096)
+            except OSError:
+                pass
+        return where / "run.h5", filler
+
+    if shutil.which("mount") is None:
+        pytest.skip("no mount command here")
+    yield make
+    for m in mounted:
+        subprocess.run(["umount", str(m)], capture_output=True)
+
+
+@pytest.mark.parametrize("command", [("fit", "run.h5"), ("split", "run.h5", "--strategy", "random", "--seed", "7")])
+def test_a_full_disk_leaves_the_run_as_it_was(imported, full_disk, command):
+    run, filler = full_disk(imported)
+    before = sha(run)
+    with RunFile.open(run) as f:
+        ids = f.completed_ids()
+    r = labcli(*command, cwd=run.parent)
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    if command[0] == "fit":  # the model file beside the run is written first, and is what cannot be
+        assert lines[0] == "Error: Cannot write the model to run.model.json: No space left on device."
+        assert sorted(p.name for p in run.parent.iterdir()) == ["filler", "run.h5"]  # no half-written model
+    else:
+        assert lines[0].startswith("Error: The disk holding run.h5 is full") and "Free some space" in lines[0], lines[0]
+        assert f"the {len(ids)} trials stored before are intact" in lines[0]
+    assert sha(run) == before
+    with RunFile.open(run) as f:
+        assert f.completed_ids() == ids
+    filler.unlink()  # with room again (and a disk the size of a lab's), the same command works
+    subprocess.run(["mount", "-o", "remount,size=64m", str(run.parent)], check=True, capture_output=True)
+    assert labcli(*command, cwd=run.parent).returncode == 0
