@@ -101,6 +101,12 @@ def read_rows(ds: h5py.Dataset, a: int, b: int) -> tuple[np.ndarray, np.ndarray]
     decode), it is read again chunk by chunk, so that a damaged chunk takes only its own
     rows with it (h5py offers no way to read past a failed check); those rows are fill.
     """
+    if ds.shape[0] < b:  # a dataset cut short (rewritten by hand): the rows it lacks are fill, unread
+        have = max(a, int(ds.shape[0]))
+        out, bad = np.zeros((b - a, *ds.shape[1:]), dtype=ds.dtype), np.ones(b - a, dtype=bool)
+        if have > a:
+            out[:have - a], bad[:have - a] = read_rows(ds, a, have)
+        return out, bad
     try:
         return ds[a:b], np.zeros(b - a, dtype=bool)
     except (OSError, ValueError, RuntimeError):

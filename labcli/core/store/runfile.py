@@ -775,10 +775,13 @@ class RunFile:
             self._f.flush()
 
     def frames(self, start: int, stop: int) -> dict[str, np.ndarray]:
-        """Raw frames ``[start, stop)``: ``t_s``, ``seq``, ``counts``, ``si``."""
+        """Raw frames ``[start, stop)``: ``t_s``, ``seq``, ``counts``, ``si``; StoreError when any cannot be read."""
         if self.version == 1:
             raise StoreError(f"{self.path} keeps its raw windows per record (schema 1); use read().")
-        w, _ = self._frames.read(start, stop)
+        w, whole = self._frames.read(start, stop)
+        if not whole:
+            raise StoreError(f"{self.path}: raw frames {start} to {stop} cannot all be read (damaged); "
+                             "labcli inspect --verify names the records they belong to.")
         w["counts"] = counts_out(w["counts"])
         return w
 

@@ -154,9 +154,14 @@ def _leak(run: Any, ids: list[int], cols: Mapping[str, Any], p0: Any) -> dict[st
     """
     import numpy as np
 
+    from ...errors import StoreError
+
     times = []
     for i, rid in enumerate(ids):
-        t_s = _baseline_times(run, rid, i, cols)
+        try:
+            t_s = _baseline_times(run, rid, i, cols)
+        except StoreError:  # a damaged window: no leak figure rather than one from fill
+            return None
         if t_s is None or len(t_s) == 0:
             return None
         times.append(float(np.mean(t_s)))
