@@ -47,10 +47,15 @@ def wall(cmd: list[str], cwd: str) -> float:
 def device_seconds(path: Path) -> float:
     """End of the last loaded window on the rig's clock (s): how long the run kept the rig busy."""
     import h5py
+    import numpy as np
 
     end = 0.0
     with h5py.File(path, "r") as f:
-        for group in ("trials", "pushes"):
+        raw = f.get("entry/raw")
+        if raw is not None:  # schema 2: every window's frames in run-wide datasets, device time in each channel's
+            times = [raw[name]["time"] for name in raw if isinstance(raw[name], h5py.Group) and "time" in raw[name]]
+            return float(np.nanmax(times[0][()])) if times and times[0].shape[0] else 0.0  # gaps are NaN fill
+        for group in ("trials", "pushes"):  # schema 1: a group per record
             for rec in f.get(group, {}).values():
                 if "loaded/time" in rec and len(rec["loaded/time"]):
                     end = max(end, float(rec["loaded/time"][-1]))
