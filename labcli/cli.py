@@ -83,7 +83,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 def main() -> None:
     warnings.showwarning = _show_warning
     try:
-        cli(prog_name="labcli")
+        cli(prog_name="labcli", obj={"own_process": True})
     finally:
         # The command has ended in its own words: a Ctrl-C while the interpreter then shuts down
         # could only print a stray "Exception ignored ... KeyboardInterrupt" from its clean-up.

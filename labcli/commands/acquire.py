@@ -73,6 +73,9 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
         prefix = "Error: " if outcome.exit_code == 1 else ""
         click.echo(prefix + outcome.message, err=outcome.exit_code != 0)
     finally:
-        signal.signal(signal.SIGINT, previous)
+        # In labcli's own process Ctrl-C stays ignored to the end: from here a KeyboardInterrupt
+        # could only land in Python's clean-up and print "Exception ignored ..." after the outcome.
+        if not (click.get_current_context().find_root().obj or {}).get("own_process"):
+            signal.signal(signal.SIGINT, previous)
     if outcome.exit_code:
         raise SystemExit(outcome.exit_code)
