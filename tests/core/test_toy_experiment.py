@@ -103,3 +103,17 @@ def test_a_real_port_or_an_unknown_mode_is_refused_in_its_words(toy_experiment, 
                     "--unattended")
     assert result.exit_code == 1
     assert "option 'mode' in sim:// URL must be one of mckibben, rpam, toy, got 'toys'" in result.output
+
+
+def test_a_record_type_must_give_its_four_hooks():
+    from labcli.core.store.records import BaseRecordType
+
+    class Half(BaseRecordType):
+        def check(self, record, label, run):
+            return record
+
+        def read(self, row):
+            return dict(row)
+
+    with pytest.raises(TypeError, match="abstract methods from_row, table"):
+        Half()

@@ -11,7 +11,7 @@ asserted, RI as not, and setting RTS, DTR or a break does nothing.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
@@ -20,16 +20,18 @@ from .url import rig_options
 
 
 class SimulatedPort(SerialBase):
-    """pyserial's ``SerialBase`` with the URL's rig and a simulated bridge; ``from_url`` parses the URL."""
+    """pyserial's ``SerialBase`` with the URL's rig and a simulated bridge.
+
+    Each port class gives ``from_url`` (pyserial's name for it): the options its own URL form
+    gives, checked.
+    """
+
+    from_url: Callable[[str], dict]
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.rig: Any = None
         self.options: dict = {}
         super().__init__(*args, **kwargs)  # opens the port when given one
-
-    def from_url(self, url: str) -> dict:
-        """Each simulated port parses its own URL (an abstract hook: ``sim://`` and the firmware port define it)."""
-        raise NotImplementedError(f"{type(self).__name__} does not define from_url()")
 
     def _open_rig(self) -> dict:
         """Check the port may open, read its URL's options and have the rig they name (``self.rig``)."""

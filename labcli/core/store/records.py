@@ -8,6 +8,7 @@ read back and tabled, and its CSV table spec (:mod:`labcli.core.tables`).
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from typing import Any, Callable, Iterable, Mapping
 
 from ..experiment import Column
@@ -15,8 +16,9 @@ from ..report import records_line, settling_line, split_line
 from ..tables import TableSpec, read_table, write_table
 
 
-class BaseRecordType:
-    """Defaults of :class:`labcli.core.experiment.RecordType` (a subclass sets the attributes)."""
+class BaseRecordType(ABC):
+    """Defaults of :class:`labcli.core.experiment.RecordType` (a subclass sets the attributes and
+    defines the four abstract methods; Python refuses to make one that lacks any)."""
 
     kind: str
     collection: str
@@ -38,21 +40,21 @@ class BaseRecordType:
         return f"{n} {self.noun if n == 1 else self.plural}{self.qualifier}"
 
     # -- what subclasses give
+    @abstractmethod
     def check(self, record: Mapping[str, Any], label: str, run: Any) -> Mapping[str, Any]:
-        """Each record type checks one record before it is written (an abstract hook: every shipped type defines it)."""
-        raise NotImplementedError(f"{type(self).__name__} does not define check()")
+        """One record checked before it is written, as the row to store."""
 
+    @abstractmethod
     def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
-        """Each record type turns a stored row back into a record (an abstract hook: every shipped type defines it)."""
-        raise NotImplementedError(f"{type(self).__name__} does not define read()")
+        """A stored row turned back into a record."""
 
+    @abstractmethod
     def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
-        """Each record type gives the exchange table of its records (an abstract hook: every shipped type defines it)."""
-        raise NotImplementedError(f"{type(self).__name__} does not define table()")
+        """The exchange table of the records ``ids``."""
 
+    @abstractmethod
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
-        """Each record type turns a table row into a record (an abstract hook: every shipped type defines it)."""
-        raise NotImplementedError(f"{type(self).__name__} does not define from_row()")
+        """A table row turned into a record."""
 
     # -- defaults
     def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
