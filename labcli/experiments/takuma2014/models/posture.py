@@ -129,7 +129,7 @@ def force_from_torque(theta: np.ndarray, tau: np.ndarray, h2: float, h3: float) 
 
 # --------------------------------------------------------------------------- least squares
 
-CV_FOLDS = 10
+CV_FOLDS = rt.CV_FOLDS  # the folds of the route choice: one plan stretch each
 # A quadratic term is kept only if it cuts the cross-validated error by this share: on the
 # simulated rig smaller gains in the fit set turned into losses on new directions.
 CV_MIN_GAIN = 0.10
