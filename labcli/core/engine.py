@@ -38,6 +38,7 @@ from typing import Any, Callable, Generator, Iterator
 import numpy as np
 
 from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceError, DeviceTimeout, DiskFull
+from . import interrupts
 from .capture import WindowSink
 from .sessionlog import NoSessionLog, SessionInfo, SessionLog, session_log
 from .steps import (
@@ -209,7 +210,8 @@ class RunEngine:
             self.store  # a resumed run: the session begins now
         how = "error"
         try:
-            outcome = self._run(session, restart, reopen)
+            with interrupts.kept():  # a Ctrl-C landing in h5py's clean-up is kept, not lost
+                outcome = self._run(session, restart, reopen)
             how = outcome.status
             return outcome
         except LOST_RIG:
@@ -246,6 +248,7 @@ class RunEngine:
                 except StopIteration:
                     return self._outcome("finished", tuple(self._skipped))
                 reply = self._execute(step)
+                interrupts.check()
                 for cb in self._subscribers:
                     cb(step, reply)
                 if isinstance(step, (Review, WaitSettle)) and self._trial is not None and reply in ("redo", "skip"):
@@ -414,6 +417,7 @@ class RunEngine:
         # this wall-clock deadline is the backstop for a device that does not.
         deadline = time.monotonic() + self.silent_s
         while True:
+            interrupts.check()
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise DeviceTimeout(f"no data for {self.silent_s:g} s")
@@ -738,3 +742,4 @@ def _sigint_deferred() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
         if caught:
             raise KeyboardInterrupt
+        interrupts.check()

@@ -195,6 +195,36 @@ def test_ctrl_c_discards_the_current_trial_and_says_how_to_resume(tmp_path):
         assert run.completed_ids() == [1, 2] and run.incomplete_ids() == []
 
 
+class _CtrlCInFinaliser:
+    """An object whose clean-up meets the Ctrl-C, as h5py's weakref callbacks can."""
+
+    def __del__(self):
+        raise KeyboardInterrupt
+
+
+def test_ctrl_c_landing_in_a_finaliser_is_not_lost(tmp_path, capsys):
+    # Python cannot raise from a finaliser: by default it prints "Exception ignored ...
+    # KeyboardInterrupt" and the session runs on to the end.  The engine keeps it instead.
+    path = tmp_path / "run.h5"
+    port = "sim://?seed=6&clock=virtual"
+    dev, store, engine = open_run(path, port, plan=PLAN.iloc[:5])
+
+    def clean_up_in_trial_3(step, reply):
+        if isinstance(step, Baseline) and engine._trial is not None and engine._trial.trial == 3:
+            doomed = _CtrlCInFinaliser()
+            del doomed
+
+    engine.subscribe(clean_up_in_trial_3)
+    outcome = engine.run(force_session(PROTOCOL, PLAN.iloc[:5]))
+    store.close()
+    dev.close()
+    assert outcome.status == "interrupted" and outcome.exit_code == 130
+    assert outcome.message.startswith("Interrupted during trial 3, which was discarded; 2 trials stored")
+    assert "Exception ignored" not in capsys.readouterr().err
+    with RunFile.open(path) as run:
+        assert run.completed_ids() == [1, 2]
+
+
 def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
     """The prompts answered as a person types them (stdin), on the simulated rig."""
     path = tmp_path / "run.h5"
