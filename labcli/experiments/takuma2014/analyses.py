@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core import idranges
 from ...core.jsontext import dumps_indented
 from ...core.modelfile import check_fit_paths, default_model_path, save_model
 from ...core.provenance import rig_warning, same_data
@@ -167,11 +168,11 @@ def overlap(model: TakumaModel | PostureModel, src: Any) -> list[int]:
         same = bool(model.source) and Path(model.source).name == src.path.name
     if not same:
         return []
-    ft = model.fitted_trials  # per equation (paper form), one list (posture form)
-    fitted = {int(t) for ids in (ft.values() if isinstance(ft, dict) else [ft]) for t in ids}
+    ft = model.fitted_trials  # ranges per equation (paper form), or one list of them (posture form)
+    fitted = idranges.merge([r for rs in (ft.values() if isinstance(ft, dict) else [ft]) for r in rs])
     table = src.table
-    val = table.loc[table["set"].astype(str) == "validation", "trial"]
-    return sorted(int(t) for t in val if int(t) in fitted)
+    val = np.asarray(table.loc[table["set"].astype(str) == "validation", "trial"], dtype=np.int64)
+    return sorted(val[idranges.contains(fitted, val)].tolist())
 
 
 def validate(run: Path, *, model_path: Path | None = None, mode: str = "pressure-only", plot: Path | None = None,

@@ -148,6 +148,24 @@ def test_model_file_round_trip_and_form_dispatch(tmp_path):
         load_force_model(path)
 
 
+def test_fitted_trials_are_ranges_and_older_one_by_one_lists_still_read(tmp_path):
+    t = exact_table(120, (0.0, 12.0))
+    model = PostureModel(geometry=GEOMETRY, protocol="takuma2014").fit(t)
+    fit_ids = sorted(t.loc[t.set == "fit", "trial"].tolist())
+    assert {i for lo, hi in model.fitted_trials for i in range(lo, hi + 1)} == set(fit_ids)
+    d = json.loads(model.to_json())
+    d["fitted_trials"] = fit_ids[::-1]  # as files written before ranges list them
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(d))
+    assert load_force_model(path).fitted_trials == model.fitted_trials
+    d["fitted_trials"] = [[3, 1]]
+    path.write_text(json.dumps(d))
+    with pytest.raises(ModelError) as e:
+        load_force_model(path)
+    assert str(e.value).endswith("key 'fitted_trials' must list whole trial numbers, or [first, last] ranges of "
+                                 "them; refit with `labcli fit`.")
+
+
 def test_too_few_fit_trials_name_the_paper_form():
     with pytest.raises(ModelError, match="needs more than 14 usable fit trials, got 12.*--form paper"):
         PostureModel(geometry=GEOMETRY).fit(exact_table(15, (0.0, 12.0)))

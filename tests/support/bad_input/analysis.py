@@ -48,6 +48,11 @@ CASES: list[Case] = [
          ["The model file m.json has an unknown coefficient, beta_Fy7 (Eqs. 34-37 have beta_theta1_L1 to "
           "beta_Fy6); refit with `labcli fit`."],
          files={"m.json": model_edit(lambda d: d["coefficients"].update(beta_Fy7=1.0))}),
+    Case("model-fitted-range-backwards", "model JSON", "fitted trial range [5, 1]",
+         ["validate", "run.h5", "--model", "m.json"],
+         ["The model file m.json: key 'fitted_trials.Fx' must list whole trial numbers, or [first, last] ranges "
+          "of them; refit with `labcli fit`."],
+         files={"m.json": model_edit(lambda d: d["fitted_trials"].update(Fx=[[5, 1]]))}),
     Case("arg-optimize-negative-seed", "CLI argument", "--seed -1 (optimize)",
          ["optimize", "--seed", "-1"],
          ["Invalid value for '--seed': -1 is outside the seed's range; give a whole number from 0 to 4294967295."],

@@ -58,10 +58,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, NoReturn
 
 import numpy as np
 
+from ....core import idranges
 from ....core.jsontext import dumps_indented
 from ....errors import ModelError
 from . import routes as rt
@@ -324,7 +325,7 @@ class PostureModel:
     theta1_xtx_inv: list[list[float]] = field(default_factory=list)
     theta1_resid_var: float = 0.0  # rad^2
     fit_stats: dict[str, Any] = field(default_factory=dict)
-    fitted_trials: list[int] = field(default_factory=list)
+    fitted_trials: list[list[int]] = field(default_factory=list)  # [first, last] ranges (core.idranges)
     source: str = ""
     # Per quantity "posture" or "paper" (models/routes.py); absent means posture.  The paper's
     # Eqs. 34-37 fitted on the same trials, kept only when some quantity takes them, and the
@@ -353,6 +354,16 @@ class PostureModel:
         ``choose_routes`` also fits the paper's Eqs. 34-37 and picks, per quantity, the route
         with the smaller cross-validated error on the fit trials (models/routes.py).
         """
+        self._fit_posture(table, source)
+        self.routes, self.paper_model, self.paper_variance = {}, None, {}
+        self._paper = None
+        if choose_routes:
+            # After the posture fit has returned: its arrays (a copy of the fit trials) are freed
+            # before the paper's form reads them again (at 10^6 trials, 100 MB of the peak).
+            self._choose_routes(table, source)
+        return self
+
+    def _fit_posture(self, table: Any, source: str) -> None:
         a = table_arrays(table, set_mask(table, "fit", source))
         use = (np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1) & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
                & np.all(np.isfinite(a["dtheta"]), axis=1) & np.all(np.isfinite(a["F"]), axis=1))
@@ -376,7 +387,7 @@ class PostureModel:
         self.torque_coefficients, self.torque_xtx_inv = tq.beta.tolist(), tq.xtx_inv.tolist()
         self.torque_resid_cov = tq.resid_cov.tolist()
         self.force_prior_sd = np.sqrt(np.mean(F ** 2, axis=0)).tolist()
-        self.fitted_trials = a["trial"].tolist()
+        self.fitted_trials = idranges.to_ranges(a["trial"])
         self.fit_stats = {
             "n": len(P), "angle_dof": ang.dof, "torque_dof": tq.dof,
             "theta0_deg": np.degrees(np.median(th0, axis=0)).tolist(),
@@ -385,11 +396,6 @@ class PostureModel:
             "torque_rmse_Nm": np.sqrt(np.diag(tq.resid_cov)).tolist(),
         }
         self.source = source
-        self.routes, self.paper_model, self.paper_variance = {}, None, {}
-        self._paper = None
-        if choose_routes:
-            self._choose_routes(table, source)
-        return self
 
     def _choose_routes(self, table: Any, source: str) -> None:
         """Cross-validate both forms on the fit trials; keep the paper's where it predicts better."""
@@ -612,9 +618,13 @@ class PostureModel:
             raise ModelError(f"{cap(name)}: key 'force_prior_sd' must list two positive forces in N; "
                              "refit with `labcli fit`.")
         routes, variance = _routes_from_dict(d, name)
-        keys = required + ("limits", "force_prior_sd", "fit_stats", "fitted_trials", "source", "fitted_on",
+        def bad(key: str, what: str) -> NoReturn:
+            raise ModelError(f"{cap(name)}: key '{key}' {what}; refit with `labcli fit`.")
+
+        fitted = idranges.parse(d.get("fitted_trials", []), "fitted_trials", bad)
+        keys = required + ("limits", "force_prior_sd", "fit_stats", "source", "fitted_on",
                            "theta1_terms", "theta1_coefficients", "theta1_xtx_inv", "theta1_resid_var")
-        model = cls(**{k: d[k] for k in keys if k in d}, routes=routes, paper_variance=variance,
+        model = cls(**{k: d[k] for k in keys if k in d}, fitted_trials=fitted, routes=routes, paper_variance=variance,
                     paper_model=d.get("paper_model") if variance else None)
         if variance:
             model._paper = TakumaModel.from_dict(d["paper_model"], name=f"{name}'s paper-form part")

@@ -44,12 +44,12 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from itertools import compress
 from pathlib import Path
 from typing import Any, Mapping, NoReturn, Sequence
 
 import numpy as np
 
+from ....core import idranges
 from ....core.jsontext import MAX_DEPTH, JSONDepthError, dumps_indented, json_kind, loads_bounded
 from ....core.version import __version__
 from ....errors import ModelError
@@ -237,6 +237,10 @@ class _LstsqResult:
     dof: int
 
 
+# Rows per block of the least squares' QR: 2 MB of [X y] at a time, whatever the table's size.
+QR_BLOCK = 32_768
+
+
 def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str,
            max_cond: float) -> _LstsqResult:
     n, p = X.shape
@@ -247,12 +251,17 @@ def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str,
                          "in every usable fit trial; record fit trials that load every actuator.")
     # Column scaling makes the condition number measure collinearity, not units.  [X y] = Q R
     # (Householder QR), so X's singular values and directions are those of R's first p
-    # columns and U^T y = U_R^T (Q^T y): no (n, p) factor besides the design itself.
-    Z = np.empty((n, p + 1), order="F")  # LAPACK's own order: no further copy of the design
-    np.divide(X, scale, out=Z[:, :p])
-    Z[:, p] = y
-    R = np.linalg.qr(Z, mode="r")
-    del Z
+    # columns and U^T y = U_R^T (Q^T y).  R is built from the R's of row blocks (the R of
+    # their stacked R's is [X y]'s, up to signs), so no (n, p) array besides the design itself.
+    parts = []
+    for lo in range(0, n, QR_BLOCK):
+        hi = min(n, lo + QR_BLOCK)
+        Z = np.empty((hi - lo, p + 1), order="F")  # LAPACK's own order: no further copy
+        np.divide(X[lo:hi], scale, out=Z[:, :p])
+        Z[:, p] = y[lo:hi]
+        parts.append(np.linalg.qr(Z, mode="r"))
+    R = parts[0] if len(parts) == 1 else np.linalg.qr(np.vstack(parts), mode="r")
+    del Z, parts
     U, s, Vt = np.linalg.svd(R[:p, :p])
     cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
     if not cond <= max_cond:
@@ -354,7 +363,7 @@ class TakumaModel:
     ci95: dict[str, list[float]] = field(default_factory=dict)
     covariance: dict[str, list[list[float]]] = field(default_factory=dict)
     fit_stats: dict[str, dict[str, Any]] = field(default_factory=dict)
-    fitted_trials: dict[str, list[int]] = field(default_factory=dict)
+    fitted_trials: dict[str, list[list[int]]] = field(default_factory=dict)  # per equation, [first, last] ranges
     excluded_trials: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     source: str = ""
     labcli_version: str = ""
@@ -384,14 +393,19 @@ class TakumaModel:
         reasons = self._exclusions(trial, P0, P, theta, F)
         with np.errstate(divide="ignore", invalid="ignore"):
             u = pressure_ratio_features(P0, P)
-            Xfx, Xfy = force_design(P0, P, np.nan_to_num(theta, nan=1.0), h2, h3)
-        designs = {"theta1": u[:, :2], "theta2": u, "Fx": Xfx, "Fy": Xfy}
+
+        def design(eq: str) -> np.ndarray:
+            # One force design at a time, built when its equation comes: each is (n, 6), and at
+            # 10^6 trials holding both beside the least squares' own copy was 40 MB of the peak.
+            if eq.startswith("theta"):
+                return u[:, :2] if eq == "theta1" else u
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return force_design(P0, P, np.nan_to_num(theta, nan=1.0), h2, h3)[("Fx", "Fy").index(eq)]
         targets = {
             "theta1": np.sin(theta[:, 0]), "theta2": np.sin(theta[:, 1]),
             "Fx": F[:, 0], "Fy": F[:, 1],
         }
 
-        all_ids = trial.tolist()
         coefs: dict[str, float] = {}
         ses: dict[str, float] = {}
         ci: dict[str, list[float]] = {}
@@ -409,7 +423,7 @@ class TakumaModel:
                 raise ModelError(f"The {eq} equation needs at least {p + 1} usable fit trials for "
                                  f"its {p} coefficients, but {source} has {n}{detail}; "
                                  "record more fit trials.")
-            X, y = (designs[eq], targets[eq]) if use.all() else (designs[eq][use], targets[eq][use])
+            X, y = (design(eq), targets[eq]) if use.all() else (design(eq)[use], targets[eq][use])
             res = _lstsq(X, y, names, eq, self.max_design_cond)
             tq = float(stdtrit(res.dof, 0.975))
             se = np.sqrt(np.maximum(np.diag(res.cov), 0.0))
@@ -419,9 +433,9 @@ class TakumaModel:
                 ci[name] = [float(res.beta[k] - tq * se[k]), float(res.beta[k] + tq * se[k])]
             covs[eq] = res.cov.tolist()
             stats_out[eq] = _equation_stats(eq, res, y, theta if use.all() else theta[use], n, tq)
-            # One int object per trial, shared by the four lists (a million trials: ~30 MB a copy).
-            fitted_ids[eq] = all_ids if use.all() else list(compress(all_ids, use.tolist()))
+            fitted_ids[eq] = idranges.to_ranges(trial if use.all() else trial[use])
             excluded[eq] = [{"trial": t, "reason": r} for t, r in sorted(reasons[eq].items())]
+            del X, y, res  # before the next equation's design is built
 
         self.coefficients, self.standard_errors, self.ci95 = coefs, ses, ci
         self.covariance, self.fit_stats = covs, _clean(stats_out)
@@ -690,10 +704,7 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
         obj(f"fit_stats.{k}", v)
     fitted: dict[str, list[int]] = {}
     for k, v in obj("fitted_trials", d.get("fitted_trials", {})).items():
-        ids = seq(f"fitted_trials.{k}", v)
-        if not all(isinstance(t, int) and not isinstance(t, bool) for t in ids):
-            bad(f"fitted_trials.{k}", "must list whole trial numbers")
-        fitted[k] = list(ids)
+        fitted[k] = idranges.parse(v, f"fitted_trials.{k}", bad)
     excluded = {k: list(seq(f"excluded_trials.{k}", v))
                 for k, v in obj("excluded_trials", d.get("excluded_trials", {})).items()}
     return dict(

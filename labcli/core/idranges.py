@@ -1,0 +1,78 @@
+"""Sets of trial numbers kept as inclusive ranges: a million fitted trials are one pair, not a million numbers.
+
+A model file lists the trials it was fitted on, so that ``validate`` can refuse to test a model on
+its own data.  Written one number each, a fit on 10^6 trials put 4 x 10^6 integers into the file
+(31 MB of JSON, and some 150 MB of Python objects to read them back); as ``[first, last]`` pairs a
+contiguous fit set is one pair.  Files written before list the numbers one by one; :func:`parse`
+reads both.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, NoReturn
+
+import numpy as np
+
+Ranges = list[list[int]]  # sorted, disjoint, non-adjacent [first, last] pairs
+
+
+def to_ranges(ids: Any) -> Ranges:
+    """The distinct trial numbers ``ids`` as sorted inclusive ``[first, last]`` pairs."""
+    a = np.unique(np.asarray(ids, dtype=np.int64))
+    if not a.size:
+        return []
+    cut = np.flatnonzero(np.diff(a) != 1)
+    return np.column_stack([np.r_[a[0], a[cut + 1]], np.r_[a[cut], a[-1]]]).tolist()
+
+
+def _bounds(ranges: Ranges) -> tuple[np.ndarray, np.ndarray]:
+    r = np.asarray(ranges, dtype=np.int64).reshape(-1, 2)
+    return r[:, 0], r[:, 1]
+
+
+def count(ranges: Ranges) -> int:
+    """How many trial numbers the ranges hold."""
+    lo, hi = _bounds(ranges)
+    return int(np.sum(hi - lo + 1))
+
+
+def contains(ranges: Ranges, ids: Any) -> np.ndarray:
+    """Per number of ``ids``, whether the ranges hold it (bool array)."""
+    ids = np.asarray(ids, dtype=np.int64)
+    lo, hi = _bounds(ranges)
+    if not lo.size:
+        return np.zeros(ids.shape, bool)
+    k = np.searchsorted(lo, ids, side="right") - 1
+    return (k >= 0) & (ids <= hi[np.clip(k, 0, None)])
+
+
+def parse(value: Any, key: str, bad: Callable[[str, str], NoReturn]) -> Ranges:
+    """A model file's trial list: ``[first, last]`` pairs, or (older files) the numbers one by one.
+
+    ``bad(key, what)`` raises the caller's error for a value that is neither.
+    """
+    def whole(t: Any) -> bool:  # and within int64: a 400-digit number is no trial
+        return isinstance(t, int) and not isinstance(t, bool) and -2**63 <= t < 2**63
+
+    if not isinstance(value, list):
+        bad(key, "must list whole trial numbers, or [first, last] ranges of them")
+    if all(whole(t) for t in value):
+        return to_ranges(value)
+    if not all(isinstance(r, list) and len(r) == 2 and all(whole(t) for t in r) and r[0] <= r[1] for r in value):
+        bad(key, "must list whole trial numbers, or [first, last] ranges of them")
+    return merge(value)  # merged without listing them: [0, 10^15] is one pair, not a petabyte
+
+
+def merge(ranges: Ranges) -> Ranges:
+    """Ranges as :func:`to_ranges` would write them (sorted, merged), from any [first, last] pairs."""
+    lo, hi = _bounds(ranges)
+    if not lo.size:
+        return []
+    order = np.argsort(lo, kind="stable")
+    out: Ranges = []
+    for a, b in zip(lo[order].tolist(), hi[order].tolist()):
+        if out and a <= out[-1][1] + 1:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return out

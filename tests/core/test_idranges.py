@@ -1,0 +1,58 @@
+"""Trial-number sets as [first, last] ranges: round trips against plain sets, and the old one-by-one lists."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from labcli.core import idranges
+
+
+class Bad(Exception):
+    pass
+
+
+def bad(key, what):
+    raise Bad(f"{key} {what}")
+
+
+def members(ranges):
+    return {t for lo, hi in ranges for t in range(lo, hi + 1)}
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_ranges_hold_exactly_the_numbers(seed):
+    rng = np.random.default_rng(seed)
+    ids = rng.choice(400, size=rng.integers(0, 300), replace=False) - 50
+    ids = np.concatenate([ids, ids[: len(ids) // 3]])  # repeats are one member
+    r = idranges.to_ranges(ids)
+    assert members(r) == set(ids.tolist())
+    assert idranges.count(r) == len(set(ids.tolist()))
+    # sorted, disjoint and not touching: the shortest form, so equal sets give equal ranges
+    assert all(a[1] + 1 < b[0] for a, b in zip(r, r[1:]))
+    probe = np.arange(-60, 360)
+    assert idranges.contains(r, probe).tolist() == [t in set(ids.tolist()) for t in probe]
+
+
+def test_a_contiguous_fit_set_is_one_pair():
+    assert idranges.to_ranges(np.arange(800_000)[::-1]) == [[0, 799_999]]
+    assert idranges.to_ranges([]) == [] and idranges.contains([], [1, 2]).tolist() == [False, False]
+
+
+def test_older_files_one_number_each_read_as_ranges():
+    assert idranges.parse([5, 1, 2, 3, 9], "fitted_trials", bad) == [[1, 3], [5, 5], [9, 9]]
+    assert idranges.parse([], "fitted_trials", bad) == []
+
+
+def test_pairs_are_merged_without_listing_them():
+    assert idranges.parse([[10, 20], [0, 3], [4, 4], [15, 10**15]], "k", bad) == [[0, 4], [10, 10**15]]
+    assert idranges.count([[0, 10**15]]) == 10**15 + 1
+
+
+@pytest.mark.parametrize("value", [
+    "1-3", {"ranges": [[1, 2]]}, [1.5], [True], [[3, 1]], [[1, 2, 3]], [[1, "2"]], [1, [2, 3]], [10**30],
+])
+def test_anything_else_is_refused_in_the_callers_words(value):
+    with pytest.raises(Bad) as e:
+        idranges.parse(value, "fitted_trials.Fx", bad)
+    assert str(e.value) == "fitted_trials.Fx must list whole trial numbers, or [first, last] ranges of them"
