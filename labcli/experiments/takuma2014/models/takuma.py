@@ -144,22 +144,24 @@ def theta2_threshold(h2: float, h3: float, max_cond: float) -> float:
     return hi
 
 
-def force_design(P0: np.ndarray, P: np.ndarray, theta: np.ndarray, h2: float,
-                 h3: float) -> tuple[np.ndarray, np.ndarray]:
-    """Design matrices (n, 6) of Eqs. 36 and 37, columns in the order beta_F*1..6."""
+def force_design(P0: np.ndarray, P: np.ndarray, theta: np.ndarray, h2: float, h3: float,
+                 equations: Sequence[str] = ("Fx", "Fy")) -> tuple[np.ndarray, ...]:
+    """Design matrices (n, 6) of Eqs. 36 and 37 (those of ``equations``), columns beta_F*1..6."""
     dP = np.asarray(P0, dtype=float) - np.asarray(P, dtype=float)
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
     c1, c2 = np.cos(theta[:, 0]), np.cos(theta[:, 1])
     js = jstar(theta, h2, h3)
 
     def rows(ja: np.ndarray, jb: np.ndarray) -> np.ndarray:
-        return np.column_stack([
-            ja * c1 * dP[:, 0], ja * c1 * dP[:, 1],
-            ja * (c1 - c2) * dP[:, 2], ja * (c1 - c2) * dP[:, 3],
-            jb * c2 * dP[:, 2], jb * c2 * dP[:, 3],
-        ])
+        # Written into one array: six (n,) temporaries and a stacked copy were 2x the design.
+        X = np.empty((len(dP), 6))
+        for k, (weight, drop) in enumerate(((ja * c1, 0), (ja * c1, 1), (ja * (c1 - c2), 2),
+                                            (ja * (c1 - c2), 3), (jb * c2, 2), (jb * c2, 3))):
+            np.multiply(weight, dP[:, drop], out=X[:, k])
+        return X
 
-    return rows(js[:, 0, 0], js[:, 0, 1]), rows(js[:, 1, 0], js[:, 1, 1])
+    row = {"Fx": 0, "Fy": 1}
+    return tuple(rows(js[:, row[eq], 0], js[:, row[eq], 1]) for eq in equations)
 
 
 # --------------------------------------------------------------------------- tables and least squares
@@ -400,7 +402,7 @@ class TakumaModel:
             if eq.startswith("theta"):
                 return u[:, :2] if eq == "theta1" else u
             with np.errstate(divide="ignore", invalid="ignore"):
-                return force_design(P0, P, np.nan_to_num(theta, nan=1.0), h2, h3)[("Fx", "Fy").index(eq)]
+                return force_design(P0, P, np.nan_to_num(theta, nan=1.0), h2, h3, (eq,))[0]
         targets = {
             "theta1": np.sin(theta[:, 0]), "theta2": np.sin(theta[:, 1]),
             "Fx": F[:, 0], "Fy": F[:, 1],
