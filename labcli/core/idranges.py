@@ -2,8 +2,8 @@
 
 A model file lists the trials it was fitted on, so that ``validate`` can refuse to test a model on
 its own data.  Written one number each, a fit on 10^6 trials put 4 x 10^6 integers into the file
-(31 MB of JSON, and some 150 MB of Python objects to read them back); as ``[first, last]`` pairs a
-contiguous fit set is one pair.  Files written before list the numbers one by one; :func:`parse`
+(31 MB of JSON, read back as as many Python integers); as ``[first, last]`` pairs a contiguous
+fit set is one pair (the file: 21 KB).  Files written before list the numbers one by one; :func:`parse`
 reads both.
 """
 

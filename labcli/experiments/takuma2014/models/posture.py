@@ -618,6 +618,7 @@ class PostureModel:
             raise ModelError(f"{cap(name)}: key 'force_prior_sd' must list two positive forces in N; "
                              "refit with `labcli fit`.")
         routes, variance = _routes_from_dict(d, name)
+
         def bad(key: str, what: str) -> NoReturn:
             raise ModelError(f"{cap(name)}: key '{key}' {what}; refit with `labcli fit`.")
 
