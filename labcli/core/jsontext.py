@@ -105,9 +105,10 @@ LONG_LIST = 100  # a list of more whole numbers than this goes on one line of in
 def dumps_indented(value: Any, *, allow_nan: bool = True) -> str:
     """``json.dumps(value, indent=2)``, with each long list of whole numbers (trial ids) on one line.
 
-    A model fitted on a million trials lists their ids: one line each would make the file
-    mostly line breaks, and indented output goes through json's pure-Python encoder, item
-    by item.  The same JSON value either way.
+    A list of many ids one per line would make a document mostly line breaks, and indented
+    output goes through json's pure-Python encoder, item by item.  Model files now list their
+    fitted trials as ranges (:mod:`labcli.core.idranges`), so this guards a document that
+    still holds such a list.  The same JSON value either way.
     """
     long_lists: list[list[int]] = []
     mark = f"long-list-{secrets.token_hex(8)}-"  # a fresh mark: no text in the document can hold it
