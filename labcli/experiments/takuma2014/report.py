@@ -73,8 +73,6 @@ def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
     from rich import box
     from rich.table import Table
 
-    from .models.posture import TORQUE_TERMS
-
     con = report_console()
     st = model.fit_stats
     angles = Table(title="Deflection  dtheta = sum beta u   (u = P0/P - 1; coefficients in rad)",
@@ -82,7 +80,7 @@ def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
     torques = Table(title="Load torque  tau = J(theta0 + dtheta)^T F   (dP in MPa, dtheta in rad; N m per unit)",
                     title_justify="left", box=box.SIMPLE_HEAD)
     for table, terms, coef, cov in ((angles, model.angle_terms, model.angle_coefficients, model.angle_xtx_inv),
-                                    (torques, TORQUE_TERMS, model.torque_coefficients, model.torque_xtx_inv)):
+                                    (torques, model.torque_terms, model.torque_coefficients, model.torque_xtx_inv)):
         res = model.angle_resid_cov if table is angles else model.torque_resid_cov
         names = ("dtheta1", "dtheta2") if table is angles else ("tau1", "tau2")
         table.add_column("term")
@@ -107,7 +105,7 @@ def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:
     con.print(f"Forces F = (J^T)^-1 tau at theta0 + dtheta, each with its standard error; an estimate is "
               f"flagged above {math.degrees(lim['theta1']):.3g} deg (angles) or {lim['Fx']:.3g} N (forces) "
               "(protocol [sensing]). The paper's Eqs. 34-37: labcli fit --form paper.", soft_wrap=True)
-    con.print(route_text(model.routes), soft_wrap=True)
+    con.print(route_text(model.routes, model.blends), soft_wrap=True)
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
 
 
@@ -117,9 +115,18 @@ ROUTE_TEXT = {("theta1", "posture"): "own equation", ("theta2", "posture"): "def
               ("Fx", "paper"): "paper's Eq. 36", ("Fy", "paper"): "paper's Eq. 37"}
 
 
-def route_text(routes: dict[str, str]) -> str:
-    """One sentence: which estimate each quantity takes (models/routes.py)."""
-    parts = [f"{q} {ROUTE_TEXT[q, routes.get(q, 'posture')]}" for q in QUANTITIES]
+def route_text(routes: dict[str, str], blends: dict[str, dict[str, float]] | None = None) -> str:
+    """One sentence: which estimate each quantity takes (models/routes.py), a blend with its weights."""
+    parts = []
+    for q in QUANTITIES:
+        route = routes.get(q, "posture")
+        if route == "blend":
+            w = (blends or {}).get(q, {}).get("posture_weight")
+            own, paper = ROUTE_TEXT[q, "posture"], ROUTE_TEXT[q, "paper"]
+            parts.append(f"{q} {w:.2f} x {own} + {1 - w:.2f} x {paper}" if w is not None
+                         else f"{q} a blend of {own} and {paper}")
+        else:
+            parts.append(f"{q} {ROUTE_TEXT[q, route]}")
     return ("Routes (chosen by cross-validation on the fit trials): " + ", ".join(parts) + ".")
 
 
@@ -168,7 +175,7 @@ def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | Non
     con.print("Errors are calculated - observed; RMSE/range is the RMSE as a share of the observed range.",
               soft_wrap=True)
     if ev.get("routes"):
-        con.print(route_text(ev["routes"]), soft_wrap=True)
+        con.print(route_text(ev["routes"], ev.get("blends")), soft_wrap=True)
     _print_flagged(con, ev)
     if len(ev.get("forms", {})) > 1:
         print_forms(ev["forms"])

@@ -448,7 +448,11 @@ def test_stiffness_bands():
     assert json.loads(text)["bands"]["hard"] == [3000.0, None]
     assert CategoryModel.from_json(text).bands == model.bands
     gap = CategoryModel.from_bands({"soft": [0, 800], "hard": [3000, None]}).predict([[1500.0]])
-    assert gap.category == [""] and gap.confidence[0] == 0 and gap.note == ["mean stiffness 1500 N/m lies outside every band"]
+    assert gap.category == [""] and gap.confidence[0] == 0 and gap.note == ["median stiffness 1500 N/m lies outside every band"]
+    # One wild push (a phi solved wrong) does not carry the object: its mean, 5412 N/m, is in
+    # the hard band, its median in the soft one.
+    wild = model.predict([[500.0, 550.0, 600.0, 20000.0]])
+    assert wild.category == ["soft"] and wild.confidence[0] == pytest.approx(0.75)
 
 
 @pytest.mark.parametrize(

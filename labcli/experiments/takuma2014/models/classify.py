@@ -568,6 +568,7 @@ def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
             "category_given": str(row.get("known_category") or ""),
             "n": int(row["n_pushes"]), "n_used": int(row["n_used"]), "n_flagged": int(row["n_flagged"]),
             "k_mean_N_per_m": _num(row["k_mean_N_per_m"]), "k_sd_N_per_m": _num(row["k_std_N_per_m"]),
+            "k_median_N_per_m": _num(row["k_median_N_per_m"]),
             "log_k_mean": _num(row["log_k_mean"]), "log_k_sd": _num(row["log_k_std"]),
             "category": str(row.get("category") or ""), "confidence": _num(row.get("confidence")),
             "z": _num(row.get("z")), "method": str(row.get("method") or res.method), "note": str(row.get("note") or ""),

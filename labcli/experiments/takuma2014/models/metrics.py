@@ -97,7 +97,7 @@ def evaluate(model: TakumaModel, table: Any, mode: str = "pressure-only",
         "mode": mode, "form": getattr(model, "form", "paper"), "trial": np.asarray(pred["trial"], dtype=int),
         "observed": observed, "calculated": calculated, "se": se,
         "ok": {q: np.asarray(pred["ok"][q], dtype=bool) for q in QUANTITIES},
-        "flags": pred["flags"], "metrics": metrics, "routes": pred.get("routes"),
+        "flags": pred["flags"], "metrics": metrics, "routes": pred.get("routes"), "blends": pred.get("blends"),
     }
 
 
@@ -146,6 +146,8 @@ def evaluation_to_dict(ev: dict[str, Any]) -> dict[str, Any]:
     out = {"mode": ev["mode"], "form": ev.get("form", "paper"), "units": units, "metrics": metrics, "trials": trials}
     if ev.get("routes"):
         out["routes"] = dict(ev["routes"])
+    if ev.get("blends"):
+        out["blends"] = {q: dict(b) for q, b in ev["blends"].items()}
     if "forms" in ev:
         out["forms"] = {f: {q: {k: (_num(v) if isinstance(v, float) else v) for k, v in m.items()}
                             for q, m in ms.items()} for f, ms in ev["forms"].items()}

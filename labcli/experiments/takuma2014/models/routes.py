@@ -1,30 +1,45 @@
-"""Which estimate each quantity takes: the posture form's or the paper's Eqs. 34-37, by cross-validation.
+"""Which estimate each quantity takes: the posture form's, the paper's Eqs. 34-37, or a blend of both.
 
 The posture form (models/posture.py) goes through the joint torques; the paper's form regresses
 each quantity directly (Eq. 34 for theta1 on the outside pair alone, Eq. 36 for Fx on the
 pressure drops weighted by j* at the deflection).  Where the arm rests straight the paper's
 direct regressions can predict better: Eq. 36 fits Fx's own error with 6 coefficients where the
-torque route fits two torques with 14 each, and Eq. 34 leaves out the inside pair, whose
+torque route fits two torques on up to 14 terms, and Eq. 34 leaves out the inside pair, whose
 pressures carry theta1 only through friction.  Neither form contains the other, so the choice is
 made per quantity on the fit trials alone: both forms are fitted without one contiguous block of
 fit trials (a plan groups its trials by pulley position, so a block is a direction the fit has
-not seen) and predict that block from pressures only, as a validation trial is predicted.  A
-quantity takes the paper's route when, over the held-out fit trials, the paper's form reports
-every trial the posture form reports and its squared error summed over the trials both report is
-lower.  The validation trials never enter the choice.
+not seen) and predict that block from pressures only, as a validation trial is predicted.  The
+validation trials never enter the choice.
+
+The two forms' errors are far from equal (friction errs one way in the torques and another in
+Eq. 36's direct fit), so the estimate is the stacked one (Breiman's stacking, two members):
+w x_posture + (1 - w) x_paper with the weight w in [0, 1] that minimises the held-out squared
+error over the fit trials both forms report,
+
+    w = sum e_pa (e_pa - e_po) / sum (e_po - e_pa)^2,   clipped to [0, 1].
+
+w = 1 is the posture route, w = 0 the paper's, anything between a blend.  The paper's form takes
+part only when it reports every held-out trial the posture form reports, and only while its
+held-out RMSE is within the quantity's standard-error limit (beyond it every one of its trials
+would be flagged); where the posture form reports none, the paper's route is taken if it
+reports any.
 
 A quantity on the paper's route gets the paper's value and flags, and a standard error from the
 same cross-validation: sqrt(s_cv^2 + x^T C x), with s_cv^2 the mean squared held-out error (which
 already holds the angle estimate's error, as the force is computed from estimated angles) and
 x^T C x the coefficients' share (Eqs. 34-37's covariance at the trial's terms; for an angle the
-sine's variance over cos^2 theta).  It is flagged, as on the posture route, when that standard
-error exceeds the protocol's limit.
+sine's variance over cos^2 theta).  A blend's variance is that of the weighted sum,
+w^2 s_po^2 + (1 - w)^2 s_pa^2 + 2 w (1 - w) rho s_po s_pa, with each form's own standard error
+and rho the correlation of their held-out errors; on a trial the paper's form does not report,
+the blend is the posture form's estimate.  Either is flagged, as on the posture route, when its
+standard error exceeds the protocol's limit.
 
 Units: pressures MPa, angles rad, forces N.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -32,9 +47,12 @@ import numpy as np
 from .takuma import TakumaModel, force_design, pressure_ratio_features
 
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
-POSTURE, PAPER = "posture", "paper"
+POSTURE, PAPER, BLEND = "posture", "paper", "blend"
 VALUE_KEYS = {"theta1": "theta1_rad", "theta2": "theta2_rad", "Fx": "Fx_N", "Fy": "Fy_N"}
 CV_FOLDS = 10
+# A stacking weight this close to 0 or 1 is taken as the one form alone: it would move no
+# estimate by more than 1 % of the two forms' difference, and a blend needs the paper's part.
+SNAP = 0.01
 
 
 # The route choice compares two held-out errors; past this many fit trials more of them do not
@@ -83,38 +101,66 @@ def held_out_errors(fit_rows: Any, fit_posture: Callable[[Any], Any],
     return out
 
 
-def choose_routes(cv: Mapping[str, Mapping[str, np.ndarray]],
-                  limits: Mapping[str, float]) -> tuple[dict[str, str], dict[str, Any]]:
-    """The route per quantity and the cross-validation's figures (RMSE over the trials both report).
+def stacking_weight(e_posture: np.ndarray, e_paper: np.ndarray) -> float:
+    """The posture form's weight w in [0, 1] minimising sum (w e_po + (1 - w) e_pa)^2 (held-out errors)."""
+    d = np.asarray(e_posture, dtype=float) - np.asarray(e_paper, dtype=float)
+    dd = float(np.sum(d * d))
+    if not dd > 0:
+        return 1.0  # the same errors: the posture form alone
+    return float(np.clip(-np.sum(np.asarray(e_paper, dtype=float) * d) / dd, 0.0, 1.0))
 
-    The paper's route is taken only when it reports every held-out trial the posture form
-    reports, and either its summed squared error over the trials both report is lower or the
-    posture form reports none.  The paper's trials count as reported only while its held-out
-    RMSE is within the quantity's standard-error limit (``limits``, rad or N): beyond it every
-    one of them would be flagged by that standard error.
+
+def error_correlation(e_posture: np.ndarray, e_paper: np.ndarray) -> float:
+    """The correlation of two forms' held-out errors about zero (their mean is part of the error)."""
+    a, b = np.asarray(e_posture, dtype=float), np.asarray(e_paper, dtype=float)
+    norm = math.sqrt(float(np.sum(a * a)) * float(np.sum(b * b)))
+    return float(np.clip(np.sum(a * b) / norm, -1.0, 1.0)) if norm > 0 else 0.0
+
+
+def choose_routes(cv: Mapping[str, Mapping[str, np.ndarray]],
+                  limits: Mapping[str, float]) -> tuple[dict[str, str], dict[str, Any], dict[str, dict[str, float]]]:
+    """The route per quantity, the cross-validation's figures, and each blend's weight and correlation.
+
+    Returns ``routes`` (``posture``, ``paper`` or ``blend`` per quantity), ``stats`` (held-out RMSE
+    of each form and of the stacked estimate over the trials both report, and how many each
+    reports) and ``blends`` (``{q: {"posture_weight": w, "error_correlation": rho}}`` for the
+    blended quantities).  The paper's trials count as reported only while its held-out RMSE is
+    within the quantity's standard-error limit (``limits``, rad or N).
     """
-    routes, stats = {}, {}
+    routes, stats, blends = {}, {}, {}
     for q in QUANTITIES:
         ok_po, ok_pa = cv[POSTURE + "_ok"][q], cv[PAPER + "_ok"][q] & np.isfinite(cv[PAPER][q])
         if ok_pa.any() and not np.sqrt(np.mean(cv[PAPER][q][ok_pa] ** 2)) <= limits.get(q, np.inf):
             ok_pa = np.zeros_like(ok_pa)
         both = ok_po & ok_pa & np.isfinite(cv[POSTURE][q])
-        sse = {f: float(np.sum(cv[f][q][both] ** 2)) for f in (POSTURE, PAPER)}
-        better = sse[PAPER] < sse[POSTURE] if both.any() else bool(ok_pa.any()) and not ok_po.any()
-        take_paper = better and not np.any(ok_po & ~ok_pa)
-        routes[q] = PAPER if take_paper else POSTURE
-        stats[q] = {"n_both": int(both.sum()),
-                    **{f"rmse_{f}": (float(np.sqrt(sse[f] / both.sum())) if both.any() else None)
-                       for f in (POSTURE, PAPER)},
+        e_po, e_pa = cv[POSTURE][q][both], cv[PAPER][q][both]
+        covers = not np.any(ok_po & ~ok_pa)  # the paper's form reports every trial the posture form does
+        w = stacking_weight(e_po, e_pa) if both.any() and covers else 1.0
+        if not both.any() and ok_pa.any() and not ok_po.any():
+            w = 0.0
+        routes[q] = POSTURE if w >= 1.0 - SNAP else PAPER if w <= SNAP else BLEND
+        if routes[q] == BLEND:
+            blends[q] = {"posture_weight": w, "error_correlation": error_correlation(e_po, e_pa)}
+        rmse = (lambda e: float(np.sqrt(np.mean(e ** 2)))) if both.any() else (lambda e: None)
+        stats[q] = {"n_both": int(both.sum()), "rmse_posture": rmse(e_po), "rmse_paper": rmse(e_pa),
+                    "rmse_stacked": rmse(w * e_po + (1.0 - w) * e_pa), "posture_weight": w,
                     "reported_posture": int(ok_po.sum()), "reported_paper": int(ok_pa.sum())}
-    return routes, stats
+    return routes, stats, blends
+
+
+def blend_estimate(w: float, rho: float, v_po: np.ndarray, s_po: np.ndarray,
+                   v_pa: np.ndarray, s_pa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The stacked estimate w v_po + (1 - w) v_pa and its standard error (module docstring)."""
+    var = (w * s_po) ** 2 + ((1.0 - w) * s_pa) ** 2 + 2.0 * w * (1.0 - w) * rho * s_po * s_pa
+    return w * v_po + (1.0 - w) * v_pa, np.sqrt(np.maximum(var, 0.0))
 
 
 def paper_residual_variances(cv: Mapping[str, Mapping[str, np.ndarray]], routes: Mapping[str, str]) -> dict[str, float]:
-    """Mean squared held-out error (rad^2, N^2) of the paper's route over the trials it reports."""
+    """Mean squared held-out error (rad^2, N^2) of the paper's form over the trials it reports, for
+    the quantities that take it (paper route or blend)."""
     out = {}
     for q, route in routes.items():
-        if route == PAPER:
+        if route != POSTURE:
             err = cv[PAPER][q][cv[PAPER + "_ok"][q] & np.isfinite(cv[PAPER][q])]
             out[q] = float(np.mean(err ** 2))
     return out
@@ -122,7 +168,8 @@ def paper_residual_variances(cv: Mapping[str, Mapping[str, np.ndarray]], routes:
 
 def paper_standard_errors(paper: TakumaModel, pred: Mapping[str, Any], P0: np.ndarray, P: np.ndarray,
                           theta_force: np.ndarray, variances: Mapping[str, float]) -> dict[str, np.ndarray]:
-    """Standard errors (rad, N) of the paper-routed quantities: held-out residual plus the coefficients' share."""
+    """Standard errors (rad, N) of the paper's form for the quantities in ``variances``: held-out
+    residual plus the coefficients' share."""
     u = pressure_ratio_features(P0, P)
     g = paper.geometry
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -566,7 +566,7 @@ def _project_singular(
 
 
 def object_stats(k: np.ndarray, flag: np.ndarray) -> dict[str, float]:
-    """Mean and spread of one object's unflagged stiffness values (N/m and natural log)."""
+    """Mean, median and spread of one object's unflagged stiffness values (N/m and natural log)."""
     k = np.asarray(k, dtype=float)
     used = k[~np.asarray(flag, dtype=bool) & np.isfinite(k) & (k > 0)]
     n_used = int(used.size)
@@ -576,6 +576,7 @@ def object_stats(k: np.ndarray, flag: np.ndarray) -> dict[str, float]:
         "n_flagged": int(k.size - n_used),
         "k_mean_N_per_m": float(used.mean()) if n_used else math.nan,
         "k_std_N_per_m": float(used.std(ddof=1)) if n_used > 1 else math.nan,
+        "k_median_N_per_m": float(np.median(used)) if n_used else math.nan,
         "log_k_mean": float(np.log(used).mean()) if n_used else math.nan,
         "log_k_std": float(np.log(used).std(ddof=1)) if n_used > 1 else math.nan,
     }
