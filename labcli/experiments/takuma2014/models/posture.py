@@ -300,12 +300,17 @@ def select_torque_terms(blocks: _Blocks) -> tuple[str, ...]:
     def held_out(terms: tuple[str, ...] | list[str]) -> np.ndarray:
         return np.diag(blocks.cv_cov([TORQUE_TERMS.index(t) for t in terms]))
 
-    if blocks.n <= len(TORQUE_BASE) + 1:
+    if len(TORQUE_BASE) >= _room(blocks.n):
         return TORQUE_BASE  # too few trials to judge any term (the fit itself says so)
     base = held_out(TORQUE_BASE)
     if not np.all(base > 0):
         return TORQUE_BASE  # the pressure drops already predict exactly
     return _grow(TORQUE_BASE, TORQUE_TERMS, lambda terms: float(np.sum(held_out(terms) / base)), blocks.n)
+
+
+def _room(n: int) -> int:
+    """How many terms a cross-validation on ``n`` trials can judge: fewer than any fold's fit keeps."""
+    return n - int(math.ceil(n / min(CV_FOLDS, max(n, 1)))) - 1
 
 
 def _grow(base: tuple[str, ...], names: tuple[str, ...], score: Any, n: int) -> tuple[str, ...]:
@@ -314,8 +319,7 @@ def _grow(base: tuple[str, ...], names: tuple[str, ...], score: Any, n: int) -> 
     ``n`` trials: a term is offered only while every cross-validation fit (without its largest
     block) keeps more trials than terms, so that no score comes from an underdetermined fit.
     """
-    terms = list(base)
-    room = n - int(math.ceil(n / min(CV_FOLDS, max(n, 1)))) - 1
+    terms, room = list(base), _room(n)
     if len(terms) >= room:
         return tuple(terms)
     best = score(terms)

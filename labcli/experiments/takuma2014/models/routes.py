@@ -172,9 +172,10 @@ def paper_standard_errors(paper: TakumaModel, pred: Mapping[str, Any], P0: np.nd
     residual plus the coefficients' share."""
     u = pressure_ratio_features(P0, P)
     g = paper.geometry
+    forces = [q for q in ("Fx", "Fy") if q in variances]  # a force design only where one is asked for
     with np.errstate(divide="ignore", invalid="ignore"):
-        Xfx, Xfy = force_design(P0, P, theta_force, g["h2"], g["h3"])
-    designs = {"theta1": u[:, :2], "theta2": u, "Fx": Xfx, "Fy": Xfy}
+        designs = dict(zip(forces, force_design(P0, P, theta_force, g["h2"], g["h3"], forces)))
+    designs.update(theta1=u[:, :2], theta2=u)
     out = {}
     for q, var in variances.items():
         X = np.nan_to_num(designs[q], nan=0.0, posinf=1e300, neginf=-1e300)
