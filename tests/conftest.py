@@ -1,5 +1,5 @@
 """Fixtures every test may use: the command line, a quiet unattended UI, stand-ins for a run
-file's protocol and rig, deterministic records, the toy experiment registered for one test,
+file's protocol and rig, deterministic records, the toy paper registered for one test,
 and the rig firmware built for simavr."""
 
 from __future__ import annotations
@@ -54,15 +54,15 @@ def make_record() -> Callable[..., dict]:
 
 
 @pytest.fixture
-def toy_experiment(tmp_path: Path) -> Iterator[Path]:
-    """The toy experiment registered for one test; yields the path of its protocol file."""
+def toy_paper(tmp_path: Path) -> Iterator[Path]:
+    """The toy paper registered for one test; yields the path of its protocol file."""
     from labcli.core import registry
 
-    registry.register(toy.ToyExperiment())
+    registry.register(toy.ToyPaper())
     try:
         yield toy.write_protocol(tmp_path)
     finally:
-        registry.unregister(toy.ToyExperiment.name)
+        registry.unregister(toy.ToyPaper.name)
 
 
 @pytest.fixture(scope="session")

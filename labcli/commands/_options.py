@@ -12,7 +12,7 @@ from click.core import ParameterSource
 def typed_options(*names: str) -> frozenset[str]:
     """The options among ``names`` (parameter names) given on the command line, not left at their default.
 
-    An experiment refuses an option that means nothing to its runs only when it was typed.
+    A paper refuses an option that means nothing to its runs only when it was typed.
     """
     ctx = click.get_current_context(silent=True)
     if ctx is None:

@@ -1,9 +1,9 @@
 """``labcli acquire`` as one library call: check the options, resume or plan the run,
-let the experiment's session run on the engine, close everything whatever happens.
+let the paper's session run on the engine, close everything whatever happens.
 
-The experiment that owns the protocol's kind plans the run
-(:meth:`labcli.core.experiment.Experiment.acquisition`): its session of steps, its plan,
-what "nothing left to resume" means.  This module knows no experiment.
+The paper that owns the protocol's kind plans the run
+(:meth:`labcli.core.paper.Paper.acquisition`): its session of steps, its plan,
+what "nothing left to resume" means.  This module knows no paper.
 
 A resumed run continues only on the rig it was recorded on: the rig's identity (the
 ``ID?`` reply's device and firmware, its channels, and the calibration of a ``--protocol``
@@ -24,7 +24,7 @@ from typing import Any, Callable, Iterator
 from ..errors import ConfigError, DeviceError, StoreError
 from .device import Device
 from .engine import SILENT_S, Outcome, RunEngine, utc_now_us
-from .experiment import AcquireOptions
+from .paper import AcquireOptions
 from .protocol import load_protocol, loads_protocol
 from .registry import record_type, run_protocol
 from .sessionlog import RigIdentity, SessionInfo, describe, recorded_identity
@@ -106,14 +106,14 @@ def _resume(path: str, protocol: str | None,
             raise ConfigError(
                 f"{path} was recorded with protocol {base.name}, not {protocol}; drop --protocol to resume it."
             )
-        experiment, proto = run_protocol(base, options.experiment, stored_kind=existing.kind, run_path=path)
+        paper, proto = run_protocol(base, options.experiment, stored_kind=existing.kind, run_path=path)
         given = None
         if protocol is not None:
             given = run_protocol(load_protocol(protocol), options.experiment, stored_kind=existing.kind,
                                  run_path=path)[1]
-        acq = experiment.acquisition(proto, replace(options, resume=existing))
+        acq = paper.acquisition(proto, replace(options, resume=existing))
         if given_plan is not None:  # the same plan again is harmless; another one would change the run
-            planned = experiment.acquisition(proto, replace(options, plan=given_plan)).plan
+            planned = paper.acquisition(proto, replace(options, plan=given_plan)).plan
             if not same_plan(acq.plan, planned):
                 raise ConfigError(f"{given_plan} is not the plan {path} began with; drop --plan to resume "
                                   "with the run's own plan, or start a new run for the new one.")
@@ -151,8 +151,8 @@ def _plan_new(path: str, protocol: str | None, options: AcquireOptions, force: b
         raise StoreError(f"{path} already exists; {RESUME_OR_FORCE}.")
     if protocol is None:
         raise ConfigError("labcli acquire needs a protocol for a new run: give --protocol NAME or FILE.")
-    experiment, proto = run_protocol(load_protocol(protocol), options.experiment)
-    return experiment.acquisition(proto, options)
+    paper, proto = run_protocol(load_protocol(protocol), options.experiment)
+    return paper.acquisition(proto, options)
 
 
 @dataclass(frozen=True)

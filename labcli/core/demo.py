@@ -1,6 +1,6 @@
 """What every paper's demo shares: the output folder, unattended runs on the simulated rig.
 
-An experiment's demo (:class:`labcli.core.experiment.Demo`) runs its whole paper on the
+A paper's demo (:class:`labcli.core.paper.Demo`) runs its whole paper on the
 simulated rig with the same library calls the commands make; these helpers check the
 folder it writes into and acquire its runs unattended, in virtual time.
 """

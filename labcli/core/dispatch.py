@@ -1,7 +1,7 @@
-"""Which experiment's analysis reads a file the person named (a run file, a table, a protocol).
+"""Which paper's analysis reads a file the person named (a run file, a table, a protocol).
 
-A run file names its kind, and the kind its experiment (:mod:`labcli.core.registry`);
-anything else goes to the experiment that ships the command's default protocol, whose
+A run file names its kind, and the kind its paper (:mod:`labcli.core.registry`);
+anything else goes to the paper that ships the command's default protocol, whose
 analysis then says in its own words what is wrong with it.
 """
 
@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Iterable
 
 from ..errors import LabcliError
-from .experiment import Experiment
+from .paper import Paper
 from .files import RUN_FILE_SUFFIXES
 from .registry import for_run_kind, for_shipped_protocol
 
@@ -30,11 +30,11 @@ def run_kind_of(path: str | Path) -> str | None:
         return None
 
 
-def for_analysis(name: str, *, inputs: Iterable[str | Path] = (), default_protocol: str) -> Experiment:
-    """The experiment whose analysis ``name`` reads these inputs.
+def for_analysis(name: str, *, inputs: Iterable[str | Path] = (), default_protocol: str) -> Paper:
+    """The paper whose analysis ``name`` reads these inputs.
 
-    A run file's own experiment when it offers the analysis; anything else (a table, a
-    protocol file, a file that does not open) goes to the experiment that ships
+    A run file's own paper when it offers the analysis; anything else (a table, a
+    protocol file, a file that does not open) goes to the paper that ships
     ``default_protocol``.
     """
     for path in inputs:

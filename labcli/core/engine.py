@@ -1,6 +1,6 @@
 """The run engine: executes a session's steps against a device, a run file and a UI.
 
-An experiment's session of steps (:mod:`labcli.core.steps`) says *what* happens in a run;
+A paper's session of steps (:mod:`labcli.core.steps`) says *what* happens in a run;
 this module does it: it reads frames from the :class:`~labcli.core.device.Device`, converts them with the
 protocol's calibration, judges equilibrium (:mod:`labcli.core.settle`), writes
 finished records to the :class:`~labcli.core.store.RunFile` and talks to the

@@ -1,14 +1,14 @@
-"""Protocol files: the rig, its channels, how a run is paced, what each experiment adds.
+"""Protocol files: the rig, its channels, how a run is paced, what each paper adds.
 
 A protocol is a TOML file; the shipped ones live in ``protocols/`` (installed as the
 package ``labcli.protocols``, :data:`SHIPPED_DIR`).  ``load_protocol("takuma2014")`` reads a shipped one by
 name, ``load_protocol("my-rig.toml")`` reads a file as is.  This is the one loader: every
-experiment reads its protocols through it.
+paper reads its protocols through it.
 
 The accepted keys are described by plain data.  The core's own sections are here
 (:data:`SECTIONS`: ``[device]``, ``[acquisition]``, ``[channels.NAME]``, ``[settling]``
-and the top-level keys); each experiment contributes its protocol kinds and their
-sections through the registry (:class:`labcli.core.experiment.ProtocolKind`), so a new
+and the top-level keys); each paper contributes its protocol kinds and their
+sections through the registry (:class:`labcli.core.paper.ProtocolKind`), so a new
 protocol kind is new data there, not new parsing code here.  Every error is one
 :class:`~labcli.errors.ConfigError` sentence naming the file and the key, for example::
 
@@ -37,7 +37,7 @@ else:  # pragma: no cover - exercised on 3.10 only
 
 from ..errors import ConfigError
 from .calibration import UNIT_FACTORS, Calibration, Channel
-from .experiment import ChannelRoles, ProtocolKind
+from .paper import ChannelRoles, ProtocolKind
 from . import registry
 
 
@@ -147,7 +147,7 @@ def channel_spec(roles: ChannelRoles | None) -> dict[str, Any]:
 
 
 def kinds() -> dict[str, ProtocolKind]:
-    """Every protocol kind the installed experiments read (through the registry)."""
+    """Every protocol kind the installed papers read (through the registry)."""
     return registry.protocol_kinds()
 
 
@@ -185,7 +185,7 @@ class Settling:
     """Equilibrium criteria: spreads over a rolling window, held for ``hold_s``.
 
     ``length_spread_m``: the limit of length channels, where a protocol gives one (an
-    experiment's sensors table); without it length channels are not watched.
+    paper's sensors table); without it length channels are not watched.
     """
 
     window_s: float
@@ -199,10 +199,10 @@ class Settling:
 
 @dataclass(frozen=True)
 class Protocol:
-    """A checked protocol.  ``settings`` holds what the experiment of its kind made of its
-    own sections (:attr:`labcli.core.experiment.ProtocolKind.build`); ``sections`` every
+    """A checked protocol.  ``settings`` holds what the paper of its kind made of its
+    own sections (:attr:`labcli.core.paper.ProtocolKind.build`); ``sections`` every
     table of the file as plain data, as written, and ``document`` the whole file (top-level
-    keys too), for an experiment that reads its own tables.  Settings that define ``default_split``
+    keys too), for a paper that reads its own tables.  Settings that define ``default_split``
     (fit and validation counts) give ``labcli split`` its defaults."""
 
     name: str
@@ -715,7 +715,7 @@ def _fmt_num(x: float) -> str:
     return f"{x:.6g}"
 
 
-# Helpers for the experiments' own section checks (their ProtocolKind.build hooks).
+# Helpers for the papers' own section checks (their ProtocolKind.build hooks).
 show_value = _show
 describe_spec = _describe
 fmt_num = _fmt_num

@@ -1,10 +1,10 @@
-"""Which experiment owns a run kind, a protocol kind, a shipped protocol or a simulated rig.
+"""Which paper owns a run kind, a protocol kind, a shipped protocol or a simulated rig.
 
-Experiments are found through the entry-point group ``labcli.experiments`` (each entry
-point names an object implementing :class:`labcli.core.experiment.Experiment`; labcli's
+Papers are found through the entry-point group ``labcli.papers`` (each entry
+point names an object implementing :class:`labcli.core.paper.Paper`; labcli's
 own are declared in ``pyproject.toml``), loaded on the first lookup and never before, so
 ``labcli --help`` loads none.  :func:`register` adds one at run time (a test, a notebook).
-The map from kinds to experiments is written here once: nothing else in the toolkit
+The map from kinds to papers is written here once: nothing else in the toolkit
 compares a kind with a paper's name.
 """
 
@@ -14,25 +14,25 @@ from importlib.metadata import entry_points
 from typing import Any
 
 from ..errors import ConfigError, LabcliError
-from .experiment import Experiment, ProtocolKind, RecordType, SimOption
+from .paper import Paper, ProtocolKind, RecordType, SimOption
 
-GROUP = "labcli.experiments"
+GROUP = "labcli.papers"
 
-_experiments: dict[str, Experiment] = {}
+_papers: dict[str, Paper] = {}
 _discovered = False
 
 
-def register(experiment: Experiment) -> Experiment:
-    """Add an experiment (replacing one of the same name); returns it."""
-    if not isinstance(experiment, Experiment):
-        raise TypeError(f"{experiment!r} does not implement labcli.core.experiment.Experiment")
-    _experiments[experiment.name] = experiment
-    return experiment
+def register(paper: Paper) -> Paper:
+    """Add a paper (replacing one of the same name); returns it."""
+    if not isinstance(paper, Paper):
+        raise TypeError(f"{paper!r} does not implement labcli.core.paper.Paper")
+    _papers[paper.name] = paper
+    return paper
 
 
 def unregister(name: str) -> None:
-    """Remove an experiment added with :func:`register` (a test cleaning up)."""
-    _experiments.pop(name, None)
+    """Remove a paper added with :func:`register` (a test cleaning up)."""
+    _papers.pop(name, None)
 
 
 def _discover() -> None:
@@ -43,48 +43,48 @@ def _discover() -> None:
     found = {}
     for ep in entry_points(group=GROUP):
         found[ep.name] = ep.load()
-    if not found and not _experiments:
+    if not found and not _papers:
         raise ConfigError(
-            f"No experiment is installed (the entry-point group {GROUP} is empty); "
-            "reinstall labcli (pip install .) so that its experiments register."
+            f"No paper is installed (the entry-point group {GROUP} is empty); "
+            "reinstall labcli (pip install .) so that its papers register."
         )
-    # Installed experiments first, in name order; those registered at run time keep theirs.
-    runtime = dict(_experiments)
-    _experiments.clear()
+    # Installed papers first, in name order; those registered at run time keep theirs.
+    runtime = dict(_papers)
+    _papers.clear()
     for name in sorted(found):
         register(found[name])
-    _experiments.update(runtime)
+    _papers.update(runtime)
 
 
-def experiments() -> list[Experiment]:
-    """Every experiment, installed ones in name order."""
+def papers() -> list[Paper]:
+    """Every paper, installed ones in name order."""
     _discover()
-    return list(_experiments.values())
+    return list(_papers.values())
 
 
 # --------------------------------------------------------------------------- kinds
 
 
 def protocol_kinds() -> dict[str, ProtocolKind]:
-    """Protocol kind -> its sections, over every experiment, in name order."""
-    kinds = {name: spec for e in experiments() for name, spec in e.protocol_kinds.items()}
+    """Protocol kind -> its sections, over every paper, in name order."""
+    kinds = {name: spec for e in papers() for name, spec in e.protocol_kinds.items()}
     return dict(sorted(kinds.items()))
 
 
-def for_protocol_kind(kind: str) -> Experiment:
-    """The experiment that reads protocols of ``kind``."""
-    for e in experiments():
+def for_protocol_kind(kind: str) -> Paper:
+    """The paper that reads protocols of ``kind``."""
+    for e in papers():
         if kind in e.protocol_kinds:
             return e
-    raise ConfigError(f"No experiment reads protocols of kind '{kind}'.")
+    raise ConfigError(f"No paper reads protocols of kind '{kind}'.")
 
 
-def for_run_kind(kind: str) -> Experiment:
-    """The experiment that records runs of ``kind``."""
-    for e in experiments():
+def for_run_kind(kind: str) -> Paper:
+    """The paper that records runs of ``kind``."""
+    for e in papers():
         if kind in e.run_kinds:
             return e
-    raise LabcliError(f"No experiment records runs of kind '{kind}'.")
+    raise LabcliError(f"No paper records runs of kind '{kind}'.")
 
 
 def record_type(kind: str) -> RecordType:
@@ -92,17 +92,17 @@ def record_type(kind: str) -> RecordType:
     return for_run_kind(kind).record_type(kind)
 
 
-def for_shipped_protocol(name: str) -> Experiment:
-    """The experiment that ships the protocol file ``name`` (e.g. ``takuma2014``)."""
-    for e in experiments():
+def for_shipped_protocol(name: str) -> Paper:
+    """The paper that ships the protocol file ``name`` (e.g. ``takuma2014``)."""
+    for e in papers():
         if name in e.shipped_protocols:
             return e
-    raise ConfigError(f"No experiment ships a protocol named '{name}'.")
+    raise ConfigError(f"No paper ships a protocol named '{name}'.")
 
 
 def demo_protocols(default: str) -> list[str]:
     """Names ``labcli demo --protocol`` takes: ``default`` first, then the others in order."""
-    names = [e.demo_protocol for e in experiments() if e.demo_protocol]
+    names = [e.demo_protocol for e in papers() if e.demo_protocol]
     return [default] + sorted(n for n in names if n != default) if default in names else sorted(names)
 
 
@@ -113,8 +113,8 @@ def _unused_experiment_option(name: str, kind: str) -> ConfigError:
 
 
 def run_protocol(protocol: Any, choice: str | None, *, stored_kind: str | None = None,
-                 run_path: str = "") -> tuple[Experiment, Any]:
-    """The experiment of a loaded protocol and the protocol a run of it records with.
+                 run_path: str = "") -> tuple[Paper, Any]:
+    """The paper of a loaded protocol and the protocol a run of it records with.
 
     ``choice`` is the ``--experiment`` option, for a protocol holding several experiments;
     ``stored_kind`` the kind of a run being resumed.
@@ -126,7 +126,7 @@ def run_protocol(protocol: Any, choice: str | None, *, stored_kind: str | None =
     return owner, owner.run_protocol(protocol, choice, stored_kind=stored_kind, run_path=run_path)
 
 
-def import_protocol(protocol: Any, choice: str | None, name: str) -> tuple[Experiment, Any]:
+def import_protocol(protocol: Any, choice: str | None, name: str) -> tuple[Paper, Any]:
     """As :func:`run_protocol`, for ``labcli import`` (``name`` as the person typed it)."""
     spec = protocol_kinds()[protocol.kind]
     if choice is not None and not spec.experiments:
@@ -140,21 +140,21 @@ def import_protocol(protocol: Any, choice: str | None, name: str) -> tuple[Exper
 
 def sim_modes() -> list[str]:
     """``sim://?mode=`` values, in name order."""
-    return sorted(m for e in experiments() for m in e.sim_modes)
+    return sorted(m for e in papers() for m in e.sim_modes)
 
 
 def default_sim_mode() -> str:
     """The rig ``sim://`` gives without ``mode=``."""
-    defaults = [e.default_sim_mode for e in experiments() if e.default_sim_mode]
+    defaults = [e.default_sim_mode for e in papers() if e.default_sim_mode]
     if len(defaults) != 1:
-        raise ConfigError(f"Exactly one experiment must name the default simulated rig; found {defaults or 'none'}.")
+        raise ConfigError(f"Exactly one paper must name the default simulated rig; found {defaults or 'none'}.")
     return defaults[0]
 
 
 def sim_options(mode: str | None = None) -> dict[str, SimOption]:
-    """The rigs' own ``sim://`` options: those of the experiment whose rig ``mode`` is, or (None) all."""
+    """The rigs' own ``sim://`` options: those of the paper whose rig ``mode`` is, or (None) all."""
     found: dict[str, SimOption] = {}
-    for e in experiments():
+    for e in papers():
         if mode is None or mode in e.sim_modes:
             found.update(e.sim_options)
     return found
@@ -162,12 +162,12 @@ def sim_options(mode: str | None = None) -> dict[str, SimOption]:
 
 def modes_taking(option: str) -> list[str]:
     """The ``sim://?mode=`` values whose rig takes the option ``option``, in name order."""
-    return sorted(m for e in experiments() if option in e.sim_options for m in e.sim_modes)
+    return sorted(m for e in papers() if option in e.sim_options for m in e.sim_modes)
 
 
 def make_rig(mode: str, **options: Any) -> Any:
     """The simulated rig of ``mode`` (options: seed, noise, drift, tau_s and the rig's own)."""
-    for e in experiments():
+    for e in papers():
         if mode in e.sim_modes:
             return e.make_rig(mode, **options)
     raise ValueError(f"unknown simulated rig mode {mode!r}; known: {', '.join(sim_modes())}")

@@ -1,8 +1,8 @@
 """What every report shares: the console, a table cell, and the lines of ``labcli inspect``.
 
-The experiments' report modules print their analyses with :func:`report_console` and
+The papers' report modules print their analyses with :func:`report_console` and
 :func:`cell`; :func:`format_run_summary` prints what ``RunFile.summary()`` found, with
-the lines each record type adds (:meth:`labcli.core.experiment.RecordType.inspect_lines`)
+the lines each record type adds (:meth:`labcli.core.paper.RecordType.inspect_lines`)
 built from :func:`records_line`, :func:`split_line` and :func:`settling_line`.
 """
 
@@ -100,7 +100,7 @@ def format_run_summary(s: dict[str, Any], record_lines: list[str]) -> str:
     """The summary of a run file as lines people read; units on every number.
 
     ``record_lines``: what the run's record type says of its records
-    (:meth:`~labcli.core.experiment.RecordType.inspect_lines`).
+    (:meth:`~labcli.core.paper.RecordType.inspect_lines`).
     """
     lines = [
         f"{s['path']}: labcli run file, schema {s['schema_version']} (written by labcli {s['labcli_version']})",

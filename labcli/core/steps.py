@@ -5,7 +5,7 @@ HDF5 files or terminals.  The run engine (:mod:`labcli.core.engine`) executes ea
 step and sends its result back into the generator, much as a bluesky plan
 yields messages to its run engine::
 
-    gen = experiment.acquisition(protocol, options).session(completed=())
+    gen = paper.acquisition(protocol, options).session(completed=())
     reply = None
     while True:
         step = gen.send(reply)          # SetupCheck(), Prompt(...), WaitSettle(...), ...
@@ -13,9 +13,9 @@ yields messages to its run engine::
 
 Because steps are plain data, a test can drive a session with made-up replies
 and check every prompt and every record without a rig.  The steps are the same for
-every experiment; what the experimenter does at the rig is an action of the
-experiment's own (a frozen dataclass with ``act_on(rig)``, carried by a
-:class:`Prompt`), and what a record holds is the experiment's record type's business.
+every paper; what the experimenter does at the rig is an action of the
+paper's own (a frozen dataclass with ``act_on(rig)``, carried by a
+:class:`Prompt`), and what a record holds is the paper's record type's business.
 
 Replies the engine sends back:
 
@@ -64,7 +64,7 @@ class SetupCheck:
 class Prompt:
     """Tell the experimenter what to do and wait for Enter.
 
-    ``action`` (an object with ``act_on(rig)``, see :class:`labcli.core.experiment.RigAction`)
+    ``action`` (an object with ``act_on(rig)``, see :class:`labcli.core.paper.RigAction`)
     is what the prompt asks for; the simulated rig does it itself once the prompt is answered.
     ``change`` (a :class:`Field`) lets the experimenter type new values instead of Enter
     ("Enter pushes 10 mm along 0 deg, or type a new distance"); the reply is then the parsed

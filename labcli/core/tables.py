@@ -1,7 +1,7 @@
-"""The CSV exchange tables: the machinery every experiment's tables share.
+"""The CSV exchange tables: the machinery every paper's tables share.
 
 A table is described by plain data (:class:`TableSpec`: its columns, what each holds,
-which are required); an experiment declares its own (the McKibben trial, push and plan
+which are required); a paper declares its own (the McKibben trial, push and plan
 tables, the rPAM point tables) and reads and writes them with :func:`read_table` and
 :func:`write_table`.
 

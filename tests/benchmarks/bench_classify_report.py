@@ -81,12 +81,12 @@ def measure(args: list[str]) -> tuple[float, float]:
 
 def inputs(folder: Path, n: int) -> tuple[Path, Path]:
     from labcli.core.protocol import load_protocol
-    from labcli.experiments.takuma2014.models.takuma import TakumaModel
-    from labcli.experiments.takuma2014.protocol import load_plan
-    from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
-    from labcli.experiments.takuma2014.sim.objects import DEMO_OBJECTS
-    from labcli.experiments.takuma2014.sim.rig import SimRig
-    from labcli.experiments.takuma2014.tables import write_push_csv
+    from labcli.papers.takuma2014.models.takuma import TakumaModel
+    from labcli.papers.takuma2014.protocol import load_plan
+    from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
+    from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS
+    from labcli.papers.takuma2014.sim.rig import SimRig
+    from labcli.papers.takuma2014.tables import write_push_csv
 
     force, push = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
     rig = SimRig(seed=1)
@@ -106,7 +106,7 @@ def inputs(folder: Path, n: int) -> tuple[Path, Path]:
 
 def report_stage(csv: Path, model_path: Path) -> tuple[float, float]:
     """Peak traced MB above the classification of the streamed JSON and of the whole-dict report."""
-    from labcli.experiments.takuma2014.models.classify import classify_file, report_to_dict, write_report_json
+    from labcli.papers.takuma2014.models.classify import classify_file, report_to_dict, write_report_json
 
     rep = classify_file(csv, model_path, method="bands")
     out = []

@@ -11,7 +11,7 @@ Each run is a fresh process in a fresh temporary folder, exactly as a user types
   trials of the shipped takuma2014 plan, each written crash-safe.
 
 Baseline, measured in the same run: ``python -c "import labcli.core.engine, labcli.core.store,
-labcli.experiments.takuma2014.models.takuma"``, the start-up every one of those commands pays before its first
+labcli.papers.takuma2014.models.takuma"``, the start-up every one of those commands pays before its first
 frame (interpreter, numpy, h5py, the toolkit).  Reported: the median wall time of each
 over the seeds, its ratio to the baseline, the demo's own stage times (from its
 summary.json), and for each acquisition the device time it covered (the last loaded
@@ -32,7 +32,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 LABCLI = [sys.executable, "-m", "labcli"]
-IMPORTS = "import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma"
+IMPORTS = "import labcli.core.engine, labcli.core.store, labcli.papers.takuma2014.models.takuma"
 
 
 def wall(cmd: list[str], cwd: str) -> float:

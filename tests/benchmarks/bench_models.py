@@ -5,13 +5,13 @@ Run:  python tests/benchmarks/bench_models.py [--sizes 1e2,1e3,1e4,1e5,1e6] [--r
 
 Inputs, built once before any timing:
 
-* trial tables: a pool of 2000 trials from :func:`labcli.experiments.takuma2014.models.synthetic.paper_trials`
+* trial tables: a pool of 2000 trials from :func:`labcli.papers.takuma2014.models.synthetic.paper_trials`
   (Eqs. 34-37 solved exactly with the paper's coefficients), tiled to n rows and read
   through the 12-bit sensors again (:func:`add_sensor_noise`, 1 count), so every row
   differs and the equations hold to sensor noise; all rows ``set = fit`` for the fit, a
   copy with ``set = validation`` for the validation;
 * push tables: the six demo objects pushed ten times each on the simulated rig
-  (:func:`labcli.experiments.takuma2014.sim.drive.simulate_pushes`), tiled to n pushes with 1 count of fresh
+  (:func:`labcli.papers.takuma2014.sim.drive.simulate_pushes`), tiled to n pushes with 1 count of fresh
   pressure noise, classified with a model fitted on the rig's 90 weight trials.  Two
   shapes: the six objects pushed n / 6 times each (``classify``), and an archive of n / 10
   objects pushed ten times each, every copy of the pool named apart (``archive``).
@@ -54,15 +54,15 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from labcli.experiments.takuma2014.models.classify import classify_pushes  # noqa: E402
-from labcli.experiments.takuma2014.models.metrics import evaluate  # noqa: E402
-from labcli.experiments.takuma2014.models.synthetic import PAPER_GEOMETRY, add_sensor_noise, paper_trials  # noqa: E402
-from labcli.experiments.takuma2014.models.takuma import TakumaModel  # noqa: E402
+from labcli.papers.takuma2014.models.classify import classify_pushes  # noqa: E402
+from labcli.papers.takuma2014.models.metrics import evaluate  # noqa: E402
+from labcli.papers.takuma2014.models.synthetic import PAPER_GEOMETRY, add_sensor_noise, paper_trials  # noqa: E402
+from labcli.papers.takuma2014.models.takuma import TakumaModel  # noqa: E402
 from labcli.core.protocol import load_protocol  # noqa: E402
-from labcli.experiments.takuma2014.protocol import load_plan  # noqa: E402
-from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
-from labcli.experiments.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
-from labcli.experiments.takuma2014.sim.rig import SimRig  # noqa: E402
+from labcli.papers.takuma2014.protocol import load_plan  # noqa: E402
+from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
+from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
+from labcli.papers.takuma2014.sim.rig import SimRig  # noqa: E402
 
 POOL = 2000
 PRESSURES = ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2")

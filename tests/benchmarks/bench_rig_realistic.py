@@ -6,7 +6,7 @@ Both runs are the library call ``labcli acquire RUN --port 'sim://?seed=N' --una
 makes (virtual clock, the shipped protocol and plan): setup, air, 108 trials of
 baseline, load, settling, capture and review, the crash-safe writes, the split.  The
 default rig has sleeve friction, leak, heat, backlash and link weight
-(:mod:`labcli.experiments.takuma2014.sim.nonideal`); ``&ideal=1`` turns them off.  The two alternate, R times
+(:mod:`labcli.papers.takuma2014.sim.nonideal`); ``&ideal=1`` turns them off.  The two alternate, R times
 each, in this one process, and the figures are medians:
 
 * wall and CPU time of each run, and realistic / ideal;
@@ -40,8 +40,8 @@ from labcli.core.device import Device  # noqa: E402
 from labcli.core.ui import UnattendedUI  # noqa: E402
 
 PARTS = {  # label: (module, attribute path)
-    "rig actions (equilibria)": ("labcli.experiments.takuma2014.sim.rig", "SimRig._change"),
-    "frames (rig samples)": ("labcli.experiments.takuma2014.sim.rig", "SimRig.samples"),
+    "rig actions (equilibria)": ("labcli.papers.takuma2014.sim.rig", "SimRig._change"),
+    "frames (rig samples)": ("labcli.papers.takuma2014.sim.rig", "SimRig.samples"),
     "frames (formatting)": ("labcli.core.sim.firmware", "format_frames"),
     "settle detector": ("labcli.core.settle", "SettleDetector.update"),
     "run file (trial writes)": ("labcli.core.store", "RunFile.write"),

@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from labcli.experiments.rpam2015.models import rpam
-from labcli.experiments.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.models import rpam
+from labcli.papers.rpam2015.protocol import read_rpam_protocol
 
 
 def median_time(fn, repeat: int) -> float:

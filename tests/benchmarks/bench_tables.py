@@ -3,7 +3,7 @@
 Run:  python tests/benchmarks/bench_tables.py [--sizes 1e5,1e6] [--repeat 3] [--import-sizes 1e6]
 
 Inputs, written once before any timing: a trial CSV of n rows cycled from 2000 trials of
-:func:`labcli.experiments.takuma2014.models.synthetic.paper_trials` (Eqs. 34-37 exact) with one
+:func:`labcli.papers.takuma2014.models.synthetic.paper_trials` (Eqs. 34-37 exact) with one
 ADC count of fresh sensor noise, every row renumbered 0 .. n - 1 (the ids a run file holds);
 the first 4/5 ``set = fit``, the rest ``validation``; written by pandas (``repr`` floats), about
 240 bytes a row.
@@ -55,7 +55,7 @@ STEPS = ("read", "fit", "validate")
 def write_table(n: int, path: Path) -> None:
     import numpy as np
 
-    from labcli.experiments.takuma2014.models.synthetic import add_sensor_noise, paper_trials
+    from labcli.papers.takuma2014.models.synthetic import add_sensor_noise, paper_trials
 
     pool = paper_trials(POOL, seed=3, noise=False)
     out = pool.iloc[np.arange(n) % POOL].reset_index(drop=True)
@@ -77,17 +77,17 @@ def child(step: str, side: str, csv: str, model: str, out: str) -> None:
 
         df = pd.read_csv(csv)
         if step in ("fit", "validate"):
-            from labcli.experiments.takuma2014.models.takuma import TakumaModel
+            from labcli.papers.takuma2014.models.takuma import TakumaModel
 
             if step == "fit":
                 TakumaModel(geometry=_geometry(), protocol="takuma2014").fit(df)
             else:
-                from labcli.experiments.takuma2014.models.metrics import evaluate
-                from labcli.experiments.takuma2014.models.posture import load_force_model
+                from labcli.papers.takuma2014.models.metrics import evaluate
+                from labcli.papers.takuma2014.models.posture import load_force_model
 
                 evaluate(load_force_model(model), df)
     elif step == "read":
-        from labcli.experiments.takuma2014.tables import read_trial_csv
+        from labcli.papers.takuma2014.tables import read_trial_csv
 
         read_trial_csv(csv)
     else:

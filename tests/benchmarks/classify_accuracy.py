@@ -4,7 +4,7 @@ Run:  python tests/benchmarks/classify_accuracy.py [--seeds 1-10] [--pushes 10]
 
 For each rig seed (actuator variation, sensor offsets, noise): fit the paper's
 model on the takuma2014 plan's weight trials, push the demo objects of
-:mod:`labcli.experiments.takuma2014.sim.objects` with phi given, and classify from the pressures with
+:mod:`labcli.papers.takuma2014.sim.objects` with phi given, and classify from the pressures with
 the protocol's bands.  Two policies for the model's ``singular-jacobian`` flag
 on Fy are compared in the same run on the same pushes: ``project`` (the
 default: force from Fx along O2 -> C) against ``accept`` (the model's own Fy),
@@ -23,13 +23,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import pandas as pd  # noqa: E402
 
-from labcli.experiments.takuma2014.models.classify import classify_pushes  # noqa: E402
-from labcli.experiments.takuma2014.models.takuma import TakumaModel  # noqa: E402
+from labcli.papers.takuma2014.models.classify import classify_pushes  # noqa: E402
+from labcli.papers.takuma2014.models.takuma import TakumaModel  # noqa: E402
 from labcli.core.protocol import load_protocol  # noqa: E402
-from labcli.experiments.takuma2014.protocol import load_plan  # noqa: E402
-from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
-from labcli.experiments.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
-from labcli.experiments.takuma2014.sim.rig import SimRig  # noqa: E402
+from labcli.papers.takuma2014.protocol import load_plan  # noqa: E402
+from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
+from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
+from labcli.papers.takuma2014.sim.rig import SimRig  # noqa: E402
 
 POLICIES = {
     "project": {},

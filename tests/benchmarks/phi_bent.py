@@ -22,10 +22,10 @@ from sensing_accuracy import BENT_SUPPLY_MPA, _Recorder, trials
 
 def run(seed: int, angles: str) -> tuple[int, int, int]:
     from labcli.core.protocol import load_protocol
-    from labcli.experiments.takuma2014.models.classify import classify_pushes
-    from labcli.experiments.takuma2014.models.posture import PostureModel
-    from labcli.experiments.takuma2014.sim.drive import simulate_pushes
-    from labcli.experiments.takuma2014.sim.rig import SimRig
+    from labcli.papers.takuma2014.models.classify import classify_pushes
+    from labcli.papers.takuma2014.models.posture import PostureModel
+    from labcli.papers.takuma2014.sim.drive import simulate_pushes
+    from labcli.papers.takuma2014.sim.rig import SimRig
 
     proto, table = trials("takuma2014-bent", seed, 8.0)
     model = PostureModel(geometry=proto.settings.rig, protocol="takuma2014-stiffness",

@@ -235,7 +235,7 @@ BENCHES = [
           "the same engine gathering each window in memory, then writing the trial", p_capture_memory),
     Bench("demo", "bench_demo.py", ["--seeds", "1", "--import-repeat", "5"],
           "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
-          "`python -c \"import labcli.core.engine, labcli.core.store, labcli.experiments.takuma2014.models.takuma\"`", p_demo, json=True),
+          "`python -c \"import labcli.core.engine, labcli.core.store, labcli.papers.takuma2014.models.takuma\"`", p_demo, json=True),
 ]
 # The archive-scale figures (--scale): tables and import at 10^6 rows, classify at 10^6 pushes.
 SCALE_ARGS = {"tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],

@@ -48,12 +48,12 @@ class _Recorder:
 def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False):
     """The protocol's trial table on the simulated rig, with the rest posture columns (deg)."""
     from labcli.core.protocol import load_protocol
-    from labcli.experiments.takuma2014.protocol import load_plan
-    from labcli.experiments.takuma2014.sim.drive import simulate_weight_trials
-    from labcli.experiments.takuma2014.sim.rig import SimRig
+    from labcli.papers.takuma2014.protocol import load_plan
+    from labcli.papers.takuma2014.sim.drive import simulate_weight_trials
+    from labcli.papers.takuma2014.sim.rig import SimRig
 
     proto = load_protocol(protocol_name)
-    from labcli.experiments.takuma2014.sim.nonideal import NonIdeal
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
     kw = {"supply_MPa": BENT_SUPPLY_MPA} if protocol_name.endswith("bent") else {}
     if ideal is True:
@@ -70,9 +70,9 @@ def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = F
 
 
 def measure(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False) -> dict:
-    from labcli.experiments.takuma2014.models.metrics import evaluate
-    from labcli.experiments.takuma2014.models.posture import PostureModel, limits_from_protocol
-    from labcli.experiments.takuma2014.models.takuma import TakumaModel
+    from labcli.papers.takuma2014.models.metrics import evaluate
+    from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
+    from labcli.papers.takuma2014.models.takuma import TakumaModel
 
     proto, table = trials(protocol_name, seed, settle_s, ideal)
     rig = proto.settings.rig

@@ -16,15 +16,15 @@ from labcli.core.acquisition import resume_command
 from labcli.core.engine import RunEngine
 from labcli.errors import DeviceDisconnected, DeviceTimeout
 from labcli.core.protocol import load_protocol
-from labcli.experiments.takuma2014.protocol import load_plan
-from labcli.experiments.takuma2014.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
+from labcli.papers.takuma2014.protocol import load_plan
+from labcli.papers.takuma2014.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
 from labcli.core.store import RunFile
-from labcli.experiments.takuma2014.records import load_trials
+from labcli.papers.takuma2014.records import load_trials
 from labcli.core.ui import UnattendedUI
 
 PROTOCOL = load_protocol("takuma2014")
 PLAN = load_plan(PROTOCOL)
-# One count of sensor noise per sample, rms (labcli.experiments.takuma2014.sim.rig): 0.5 count of 0.305 kPa, 0.7 count of 0.083 deg.
+# One count of sensor noise per sample, rms (labcli.papers.takuma2014.sim.rig): 0.5 count of 0.305 kPa, 0.7 count of 0.083 deg.
 PRESSURE_NOISE_MPA = 0.5 * 5.0 / 16380
 ANGLE_NOISE_DEG = 0.7 * 340 / 4095
 
@@ -46,7 +46,7 @@ def open_run(path, port, plan=PLAN):
 def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
     path = tmp_path / "run.h5"
     # The ideal rig: potentiometers without backlash read the true angles (the pipeline is
-    # what is tested here; the non-idealities have tests/experiments/takuma2014/test_nonideal.py).
+    # what is tested here; the non-idealities have tests/papers/takuma2014/test_nonideal.py).
     dev, store, engine = open_run(path, "sim://?seed=3&clock=virtual&ideal=1")
     rig = dev.rig
     truth, baseline = [], {}

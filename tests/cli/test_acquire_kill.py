@@ -38,7 +38,7 @@ import pytest
 
 from labcli.core.acquisition import acquire
 from labcli.core.protocol import load_protocol
-from labcli.experiments.takuma2014.protocol import load_plan
+from labcli.papers.takuma2014.protocol import load_plan
 from labcli.core.store import RunFile
 
 from support.long_capture import write_long_protocol

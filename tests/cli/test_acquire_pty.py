@@ -26,7 +26,7 @@ from labcli.cli import cli
 from labcli.core.protocol import load_protocol
 from labcli.core.sim.pty import serve_pty
 from labcli.core.store import RunFile
-from labcli.experiments.takuma2014.records import load_trials
+from labcli.papers.takuma2014.records import load_trials
 
 ROOT = Path(__file__).resolve().parents[2]
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n"

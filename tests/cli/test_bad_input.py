@@ -44,8 +44,8 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Good files every case starts from: trials.csv, run.h5 + run.model.json, acq.h5, push.h5, ..."""
     import pandas as pd
 
-    from labcli.experiments.takuma2014.models.synthetic import paper_trials
-    from labcli.experiments.takuma2014.tables import write_trial_csv
+    from labcli.papers.takuma2014.models.synthetic import paper_trials
+    from labcli.papers.takuma2014.tables import write_trial_csv
 
     w = tmp_path_factory.mktemp("world")
     table = pd.concat([paper_trials(12, seed=1), paper_trials(4, seed=2, set_name="validation", start_id=13)],

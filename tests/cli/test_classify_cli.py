@@ -2,9 +2,9 @@
 
 The force model is fitted on the protocol plan's weight trials driven through
 the simulated rig the way an acquisition does it, from sampled, noisy ADC
-counts calibrated by the protocol (:mod:`labcli.experiments.takuma2014.sim.drive`); the pushes are
+counts calibrated by the protocol (:mod:`labcli.papers.takuma2014.sim.drive`); the pushes are
 the demo's six objects (three PET bottles, two aluminium cans, a steel can,
-:mod:`labcli.experiments.takuma2014.sim.objects`).
+:mod:`labcli.papers.takuma2014.sim.objects`).
 """
 
 from __future__ import annotations
@@ -20,17 +20,17 @@ from click.testing import CliRunner
 from labcli.cli import cli
 from labcli.core.protocol import load_protocol
 from labcli.core.store import import_table
-from labcli.experiments.takuma2014.models.classify import classify_file, stiffness_settings
-from labcli.experiments.takuma2014.models.stiffness import REASON_UNOBSERVED_DIRECTION, StiffnessParams
-from labcli.experiments.takuma2014.models.takuma import (DEFAULT_MAX_AMPLIFICATION, TakumaModel,
+from labcli.papers.takuma2014.models.classify import classify_file, stiffness_settings
+from labcli.papers.takuma2014.models.stiffness import REASON_UNOBSERVED_DIRECTION, StiffnessParams
+from labcli.papers.takuma2014.models.takuma import (DEFAULT_MAX_AMPLIFICATION, TakumaModel,
                                                         force_amplification)
-from labcli.experiments.takuma2014.protocol import load_plan
-from labcli.experiments.takuma2014.sim import physics as ph
-from labcli.experiments.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
-from labcli.experiments.takuma2014.sim.nonideal import NonIdeal
-from labcli.experiments.takuma2014.sim.objects import CATEGORY_OF_MATERIAL, DEMO_OBJECTS, SimObject
-from labcli.experiments.takuma2014.sim.rig import SimRig
-from labcli.experiments.takuma2014.tables import write_push_csv
+from labcli.papers.takuma2014.protocol import load_plan
+from labcli.papers.takuma2014.sim import physics as ph
+from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
+from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+from labcli.papers.takuma2014.sim.objects import CATEGORY_OF_MATERIAL, DEMO_OBJECTS, SimObject
+from labcli.papers.takuma2014.sim.rig import SimRig
+from labcli.papers.takuma2014.tables import write_push_csv
 
 SEED = 5
 # Stated tolerance: the mean stiffness of every demo object within 10 % of the
@@ -226,7 +226,7 @@ def test_flagged_pushes_are_drawn_hollow(lab, tmp_path):
     report = classify_file(lab["pushes"], lab["model"])
     res = report.result
     res.pushes.loc[[0, 1], "flag"] = True
-    from labcli.experiments.takuma2014.figures import figure9
+    from labcli.papers.takuma2014.figures import figure9
 
     out = figure9(res, tmp_path / "f.svg")
     assert 'style="fill: none' in out.read_text()
@@ -417,7 +417,7 @@ def test_categories_report_their_evidence(lab, tmp_path):
 
 
 def test_an_object_outside_every_class_is_uncertain():
-    from labcli.experiments.takuma2014.models.categories import CategoryModel
+    from labcli.papers.takuma2014.models.categories import CategoryModel
 
     rng = np.random.default_rng(1)
     k = np.concatenate([rng.lognormal(np.log(500), 0.1, 10), rng.lognormal(np.log(2000), 0.1, 10)])

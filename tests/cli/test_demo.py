@@ -26,7 +26,7 @@ def demo_out(tmp_path_factory):
 def ideal_demo_out(tmp_path_factory):
     """The same demo with the rig's non-idealities off (``ideal=1`` on both of its runs'
     ports): what the method achieves when the rig follows its model exactly."""
-    import labcli.experiments.takuma2014.demo as demo
+    import labcli.papers.takuma2014.demo as demo
 
     out = tmp_path_factory.mktemp("demo-ideal") / "out"
     acquire = demo.acquire_unattended
@@ -71,7 +71,7 @@ def test_demo_angles_sit_near_the_sensor_floor(ideal_demo_out):
 
 
 def test_demo_categories_and_stiffness_match_the_simulated_objects(ideal_demo_out):
-    from labcli.experiments.takuma2014.sim.objects import DEMO_OBJECTS
+    from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS
 
     out, _ = ideal_demo_out
     summary = json.loads((out / "summary.json").read_text())
@@ -146,9 +146,9 @@ def test_inspect_sees_the_leak_the_rig_was_given(demo_out, ideal_demo_out):
     # of a kPa, the leak moves them by tens.
     import numpy as np
 
-    from labcli.experiments.takuma2014.records import load_trials
-    from labcli.experiments.takuma2014.sim import nonideal as ni
-    from labcli.experiments.takuma2014.sim.physics import P_ATM
+    from labcli.papers.takuma2014.records import load_trials
+    from labcli.papers.takuma2014.sim import nonideal as ni
+    from labcli.papers.takuma2014.sim.physics import P_ATM
 
     out, _ = demo_out
     result = CliRunner().invoke(cli, ["inspect", str(out / "force.h5"), "--json"])

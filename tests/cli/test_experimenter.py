@@ -16,7 +16,7 @@ import pytest
 
 pexpect = pytest.importorskip("pexpect", reason="pip install pexpect (the test extras)")
 
-from labcli.experiments.takuma2014.records import load_trials  # noqa: E402
+from labcli.papers.takuma2014.records import load_trials  # noqa: E402
 
 from test_acquire_pty import REVIEW, quick_protocol, rig_on_pty  # noqa: E402,F401 (a fixture)
 
@@ -175,7 +175,7 @@ def test_a_two_object_push_session_asks_per_push_at_most_three_answers(tmp_path,
     # Per object five answers; per push at most three (the push, the release, the review).
     assert max(per_push) <= 3
     assert t.count == 2 + 2 * 5 + 2 * pushes * 3 + 1
-    from labcli.experiments.takuma2014.records import load_pushes
+    from labcli.papers.takuma2014.records import load_pushes
 
     df = load_pushes(run)
     assert df["object"].tolist() == ["pet-1"] * pushes + ["can-2"] * pushes

@@ -10,8 +10,8 @@ import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
-from labcli.experiments.takuma2014.models.synthetic import paper_trials
-from labcli.experiments.takuma2014.tables import write_trial_csv
+from labcli.papers.takuma2014.models.synthetic import paper_trials
+from labcli.papers.takuma2014.tables import write_trial_csv
 
 
 @pytest.fixture()

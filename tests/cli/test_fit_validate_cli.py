@@ -12,9 +12,9 @@ import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
-from labcli.experiments.takuma2014.models.synthetic import paper_trials
-from labcli.experiments.takuma2014.models.takuma import COEFFICIENT_NAMES, PAPER_COEFFICIENTS
-from labcli.experiments.takuma2014.tables import write_trial_csv
+from labcli.papers.takuma2014.models.synthetic import paper_trials
+from labcli.papers.takuma2014.models.takuma import COEFFICIENT_NAMES, PAPER_COEFFICIENTS
+from labcli.papers.takuma2014.tables import write_trial_csv
 
 
 @pytest.fixture(scope="module")

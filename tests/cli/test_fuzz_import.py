@@ -31,7 +31,7 @@ from labcli.errors import ConfigError, StoreError
 from labcli.core.protocol import load_protocol
 from labcli.core.store import MAX_ID, RunFile, import_table, storable_cells
 from labcli.core.tables import TableError
-from labcli.experiments.takuma2014.tables import TRIAL, read_trial_csv, write_trial_csv
+from labcli.papers.takuma2014.tables import TRIAL, read_trial_csv, write_trial_csv
 
 STANDARD = list(TRIAL.names)
 REQUIRED = [c for c, _, presence in TRIAL.columns if presence == "required"]

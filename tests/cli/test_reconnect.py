@@ -32,7 +32,7 @@ from labcli.core.device import Device
 from labcli.core.acquisition import acquire
 from labcli.errors import DeviceDisconnected
 from labcli.core.protocol import load_protocol
-from labcli.experiments.takuma2014.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
+from labcli.papers.takuma2014.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
 from labcli.core.sim.pty import serve_pty
 from labcli.core.store import RunFile
 

@@ -12,12 +12,12 @@ from labcli.cli import cli
 from labcli.core.acquisition import resume_command
 from labcli.core.device import Device
 from labcli.core.engine import RunEngine
-from labcli.experiments.takuma2014.protocol import load_plan
+from labcli.papers.takuma2014.protocol import load_plan
 from labcli.core.protocol import load_protocol
 from labcli.core.sessionlog import RigIdentity, SessionInfo
 from labcli.core.store import RunFile
 from labcli.core.ui import UnattendedUI
-from labcli.experiments.takuma2014.session import force_session
+from labcli.papers.takuma2014.session import force_session
 from support.firmware import FakeFirmware
 from support.sessionlog import LoggingRunFile
 

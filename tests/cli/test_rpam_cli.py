@@ -195,8 +195,8 @@ def test_set_with_an_unknown_key_names_the_choices(runs):
 
 
 def test_set_is_refused_on_a_force_run(tmp_path):
-    from labcli.experiments.takuma2014.models.synthetic import paper_trials
-    from labcli.experiments.takuma2014.tables import write_trial_csv
+    from labcli.papers.takuma2014.models.synthetic import paper_trials
+    from labcli.papers.takuma2014.tables import write_trial_csv
 
     csv = tmp_path / "trials.csv"
     write_trial_csv(paper_trials(20, noise=False), csv)

@@ -333,7 +333,7 @@ _row = st.tuples(st.lists(_mpa, min_size=8, max_size=8), _deg, _deg, st.floats(-
 @given(rows=st.lists(_row, min_size=1, max_size=3))
 def test_any_table_round_trips_byte_identical(tmp_path_factory, rows):
     """Any table, once in a run file, exports to bytes that survive import -> export exactly."""
-    from labcli.experiments.takuma2014.tables import read_trial_csv, write_trial_csv
+    from labcli.papers.takuma2014.tables import read_trial_csv, write_trial_csv
     import pandas as pd
 
     d = tmp_path_factory.mktemp("rt")

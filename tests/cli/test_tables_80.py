@@ -13,8 +13,8 @@ from click.testing import CliRunner
 
 from labcli.cli import cli
 from labcli.core.report import print_table
-from labcli.experiments.takuma2014.models.synthetic import paper_trials
-from labcli.experiments.takuma2014.tables import write_trial_csv
+from labcli.papers.takuma2014.models.synthetic import paper_trials
+from labcli.papers.takuma2014.tables import write_trial_csv
 
 BOX = re.compile("[\u2500-\u257f]")        # box-drawing characters
 CUT_NUMBER = re.compile(r"[0-9.+\-]\u2026")  # a number cut short: "0.009…", "+0.00…", "18…"

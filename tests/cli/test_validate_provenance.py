@@ -13,8 +13,8 @@ from click.testing import CliRunner
 
 from labcli.cli import cli
 from labcli.core.provenance import rig_differences, rig_warning, same_data
-from labcli.experiments.takuma2014.models.synthetic import paper_trials
-from labcli.experiments.takuma2014.tables import write_trial_csv
+from labcli.papers.takuma2014.models.synthetic import paper_trials
+from labcli.papers.takuma2014.tables import write_trial_csv
 
 SIM3 = "sim://?seed=3&clock=virtual"
 

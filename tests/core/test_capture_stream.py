@@ -31,7 +31,7 @@ from labcli.core.store import RunFile
 from labcli.core.store.checksum import frames_checksum
 from labcli.core.store.frames import MOD, window_parts
 from labcli.errors import ConfigError, StoreError
-from labcli.experiments.takuma2014.session import ChannelMap, force_record
+from labcli.papers.takuma2014.session import ChannelMap, force_record
 
 MiB = 1 << 20
 

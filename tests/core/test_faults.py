@@ -35,7 +35,7 @@ from labcli.errors import DeviceTimeout
 from labcli.core.sim.faults import FAULTS_FORM, FaultInjector, FaultSpec, FaultSpecError
 from labcli.core.sim.firmware import Firmware
 from labcli.core.sim.pty import serve_pty
-from labcli.experiments.takuma2014.sim.rig import SimRig
+from labcli.papers.takuma2014.sim.rig import SimRig
 from labcli.core.sim import register
 from labcli.core.wire import FrameBatch, StreamReader
 

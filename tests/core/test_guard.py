@@ -189,7 +189,7 @@ def test_supply_problems_say_what_is_wrong():
 
 def test_on_the_simulated_rigs_sample_run_no_trial_is_flagged_and_most_missing_loads_would_be():
     """Replay the committed 108-trial run in its recording order, as the session met it."""
-    from labcli.experiments.takuma2014.records import load_trials
+    from labcli.papers.takuma2014.records import load_trials
 
     table = load_trials(ROOT / "sample_runs" / "force.h5")
     guard = Guard(PROTOCOL)

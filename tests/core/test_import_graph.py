@@ -8,7 +8,7 @@ layer                       may import
 ==========================  ================================================================
 labcli.errors               nothing from labcli
 labcli.core.*               labcli.errors, labcli.core.*
-labcli.experiments.<p>.*    labcli.errors, labcli.core.*, its own subpackage
+labcli.papers.<p>.*    labcli.errors, labcli.core.*, its own subpackage
 labcli.commands.*, cli      anything but a paper: papers only through the registry
 ==========================  ================================================================
 """
@@ -21,14 +21,14 @@ from support.imports import GRAPH, MODULES
 
 def paper_of(name: str) -> str | None:
     parts = name.split(".")
-    return parts[2] if len(parts) > 2 and parts[1] == "experiments" else None
+    return parts[2] if len(parts) > 2 and parts[1] == "papers" else None
 
 
 def test_the_graph_sees_function_level_and_relative_imports():
     # commands import the core inside their functions; the rPAM model names its protocol module relatively.
     assert "labcli.core.acquisition" in GRAPH["labcli.commands.acquire"]
-    assert "labcli.experiments.rpam2015.protocol" in GRAPH["labcli.experiments.rpam2015.models.rpam"]
-    assert "labcli.experiments.takuma2014.analyses" in GRAPH["labcli.experiments.takuma2014"]
+    assert "labcli.papers.rpam2015.protocol" in GRAPH["labcli.papers.rpam2015.models.rpam"]
+    assert "labcli.papers.takuma2014.analyses" in GRAPH["labcli.papers.takuma2014"]
 
 
 def test_no_import_cycle():
@@ -64,7 +64,7 @@ def test_core_imports_only_the_core_and_errors(name):
 
 @pytest.mark.parametrize("name", sorted(n for n in MODULES if paper_of(n)))
 def test_a_paper_imports_the_core_errors_and_itself_only(name):
-    own = f"labcli.experiments.{paper_of(name)}"
+    own = f"labcli.papers.{paper_of(name)}"
     outside = {m for m in GRAPH[name]
                if not (m == "labcli.errors" or m.startswith("labcli.core") or m == own or m.startswith(own + "."))}
     assert not outside, f"{name} imports {sorted(outside)}"
@@ -73,5 +73,5 @@ def test_a_paper_imports_the_core_errors_and_itself_only(name):
 @pytest.mark.parametrize("name", sorted(n for n in MODULES if n.startswith("labcli.commands") or n == "labcli.cli"
                                         or n == "labcli"))
 def test_commands_reach_a_paper_only_through_the_registry(name):
-    papers = {m for m in GRAPH[name] if paper_of(m) or m == "labcli.experiments"}
+    papers = {m for m in GRAPH[name] if paper_of(m) or m == "labcli.papers"}
     assert not papers, f"{name} imports {sorted(papers)}"

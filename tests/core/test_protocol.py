@@ -14,9 +14,9 @@ import pytest
 from labcli.core import protocol as protocol_mod
 from labcli.core.calibration import format_value, from_display, to_display
 from labcli.errors import ConfigError
-from labcli.core.experiment import ProtocolKind
+from labcli.core.paper import ProtocolKind
 from labcli.core.protocol import kinds, load_protocol, loads_protocol, shipped_protocols
-from labcli.experiments.takuma2014.protocol import COEFFICIENT_NAMES, load_plan
+from labcli.papers.takuma2014.protocol import COEFFICIENT_NAMES, load_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOLS = ROOT / "protocols"

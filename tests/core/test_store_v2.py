@@ -102,6 +102,17 @@ def test_session_end_is_checked(tmp_path):
         assert str(e.value).startswith("a session ends as one of finished, quit, interrupted")
 
 
+def _close(value):
+    """``value`` with every float made a ``pytest.approx`` (nested dicts and lists kept)."""
+    if isinstance(value, dict):
+        return {k: _close(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_close(v) for v in value]
+    if isinstance(value, float):
+        return pytest.approx(value, rel=1e-9, abs=1e-12)
+    return value
+
+
 @pytest.mark.parametrize("name", ["force", "pushes", "stretch", "joint"])
 def test_version_1_files_read_as_labcli_0_1_read_them(invoke, name, tmp_path, monkeypatch):
     monkeypatch.chdir(ROOT)
@@ -119,7 +130,8 @@ def test_version_1_files_read_as_labcli_0_1_read_them(invoke, name, tmp_path, mo
         r = invoke("inspect", "--json", rel)
         got = json.loads(r.output)
         got.pop("baseline_leak", None)
-        assert got == json.loads((V1 / f"{name}.inspect.json").read_text())
+        # Sums in the drift figures may differ in the last bits between numpy releases.
+        assert got == _close(json.loads((V1 / f"{name}.inspect.json").read_text()))
     r = invoke("export", rel, "-o", tmp_path / "out.csv")
     assert r.exit_code == 0, r.output
     got = (tmp_path / "out.csv").read_text()

@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 from labcli.core import table_fast
 from labcli.core.tables import PRESSURE_SPAN_MPA, _read
 from labcli.errors import ConfigError
-from labcli.experiments.rpam2015.tables import JOINT_POINTS
-from labcli.experiments.takuma2014.tables import PLAN, PUSH, TRIAL
+from labcli.papers.rpam2015.tables import JOINT_POINTS
+from labcli.papers.takuma2014.tables import PLAN, PUSH, TRIAL
 
 HEADER = "trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,mass_g,direction_deg"
 ROW = "1,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2.0,0.98,0.0,100,0"

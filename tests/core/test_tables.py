@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 from labcli.errors import ConfigError
 from labcli.core.store import runfile
 from labcli.core.tables import MAX_LISTED, TableError
-from labcli.experiments.takuma2014.records import load_pushes, load_trials
-from labcli.experiments.takuma2014.tables import (
+from labcli.papers.takuma2014.records import load_pushes, load_trials
+from labcli.papers.takuma2014.tables import (
     PUSH,
     REST,
     TRIAL,

@@ -30,8 +30,8 @@ from labcli.core.engine import Outcome, RunEngine
 from labcli.core.protocol import Protocol, load_protocol
 from labcli.core.store import RunFile
 from labcli.core.ui import UnattendedUI
-from labcli.experiments.takuma2014.protocol import load_plan
-from labcli.experiments.takuma2014.session import force_session
+from labcli.papers.takuma2014.protocol import load_plan
+from labcli.papers.takuma2014.session import force_session
 
 RATE_HZ = 1000.0
 CHANNELS = 6  # the reference rig's

@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 
-from labcli.experiments.rpam2015.models import rpam
-from labcli.experiments.rpam2015.protocol import read_rpam_protocol
-from labcli.experiments.rpam2015.sim.rig import RpamRig, counts_to_si
+from labcli.papers.rpam2015.models import rpam
+from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.sim.rig import RpamRig, counts_to_si
 
 PATH, RAW = read_rpam_protocol("rpam2015")
 SETTLE_S = 8.0  # at least 8 time constants of the rig's lag (0.7 s, up to 1.4x)

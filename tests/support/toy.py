@@ -1,9 +1,9 @@
-"""A third experiment, defined here and nowhere else: the proof that the core knows no paper.
+"""A third paper, defined here and nowhere else: the proof that the core knows no paper.
 
 A 1-DoF rig with one pressure and one angle: a weight hung on its arm deflects the joint
 and raises the actuator's pressure, both linearly in the mass.  A run is two trials (the
 two masses of the protocol's ``[load]`` table), each with a baseline, the weight, the
-equilibrium and a capture.  Everything an experiment gives the core is here: the
+equilibrium and a capture.  Everything a paper gives the core is here: the
 protocol kind, the record type (what a trial holds, its table, its ``labcli inspect``
 lines), the session, the simulated rig behind ``sim://?mode=toy`` and the registration.
 """
@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from labcli.core.experiment import AcquireOptions, Analysis, ChannelRoles, Column, Demo, ProtocolKind
+from labcli.core.paper import AcquireOptions, Analysis, ChannelRoles, Column, Demo, ProtocolKind
 from labcli.core.sim.clock import SimClock
 from labcli.core.steps import (
     Baseline,
@@ -221,10 +221,10 @@ class ToyAcquisition:
         return None
 
 
-# --------------------------------------------------------------------------- the experiment
+# --------------------------------------------------------------------------- the paper
 
 
-class ToyExperiment:
+class ToyPaper:
     name = "toy"
     title = "A 1-DoF toy rig"
     paper = "none: defined in the tests"

@@ -2,12 +2,12 @@
 
 A simulated rig is any object with ``channels``, ``device``, ``firmware``,
 ``samples(n, rate_hz)``, ``advance``, ``advance_to`` and ``time_s`` (the McKibben rig of
-:mod:`labcli.experiments.takuma2014.sim.rig` is one); the firmware (:mod:`.firmware`),
+:mod:`labcli.papers.takuma2014.sim.rig` is one); the firmware (:mod:`.firmware`),
 the fault injector (:mod:`.faults`), the pty server (:mod:`.pty`) and the ``sim://`` URL
 handler (:mod:`.protocol_sim`, its grammar in :mod:`.url`) need nothing else.  The compiled
 firmware on simavr (:mod:`.hil`; as ``sim://?firmware=ELF`` :mod:`.hil_port`, on a pty
 :mod:`.hil_pty`) needs a rig with the firmware's six channels.  The rigs themselves belong to the
-experiments: ``mode=NAME`` picks one through the registry (:func:`make_rig`).
+papers: ``mode=NAME`` picks one through the registry (:func:`make_rig`).
 
 This package is also the toolkit's pyserial URL-handler package: pyserial finds a
 handler for ``scheme://`` by importing ``<package>.protocol_<scheme>`` for each
@@ -32,7 +32,7 @@ def register() -> None:
 
 
 def modes() -> list[str]:
-    """The ``mode=`` values of the installed experiments' rigs, in name order."""
+    """The ``mode=`` values of the installed papers' rigs, in name order."""
     return registry.sim_modes()
 
 
@@ -44,6 +44,6 @@ def default_mode() -> str:
 def make_rig(mode: str | None = None, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7,
              **options: Any) -> Any:
     """Build the simulated rig named ``mode`` (None: the default rig); ``options`` are the rig's
-    own (its experiment's ``sim_options``, parsed).  ValueError for an unknown mode."""
+    own (its paper's ``sim_options``, parsed).  ValueError for an unknown mode."""
     return registry.make_rig(mode or registry.default_sim_mode(), seed=seed, noise=noise, drift=drift, tau_s=tau_s,
                              **options)

@@ -7,7 +7,7 @@ and takes the operator's actions, the other runs ``labcli monitor`` or
 
 The actions are the rig's own: a rig offers them as ``console_commands``, a
 mapping of command name to :class:`ConsoleCommand` (the McKibben rig's are in
-:mod:`labcli.experiments.takuma2014.sim.console`: ``supply``, ``hang``, ``push``,
+:mod:`labcli.papers.takuma2014.sim.console`: ``supply``, ``hang``, ``push``,
 ``state``, ...).  Every rig's console also knows:
 
 =====================  =================================================

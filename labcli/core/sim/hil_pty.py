@@ -145,7 +145,7 @@ def serve_firmware_pty(elf, *, seed: int = 0, noise: float = 1.0, drift: float =
     """Serve the firmware ``elf`` on simavr on a new pty, fed by the rig of ``mode`` (None: the default rig).
 
     ``record`` keeps every sample fed to the board (``server.link.fed()``); ``rig_options``
-    are the rig's own (its experiment's ``sim_options``, parsed).
+    are the rig's own (its paper's ``sim_options``, parsed).
 
     Raises :class:`~labcli.core.sim.hil.FirmwareSimError` (one sentence) when the
     firmware or its harness is missing, the rig lacks the firmware's channels or the

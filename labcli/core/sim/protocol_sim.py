@@ -24,7 +24,7 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
   timer set wrong: ``OK RATE 200`` and frames 10x as often with ``ratefactor=10``), its
   own clock stamping each frame as it is made; 0.01..100;
 * ``mode`` (the default rig, mckibben): which rig model (:func:`labcli.core.sim.modes`, one per
-  experiment's simulated rig);
+  paper's simulated rig);
 * ``faults`` (none): a noisy link, ``KIND:RATE[@X],...`` per
   :mod:`labcli.core.sim.faults`, e.g. ``faults=checksum:0.01,drop:0.01,stall:0.001@2.5``;
   drawn from ``seed``.  ``port.faults`` is then the
@@ -35,11 +35,11 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
 The grammar (parsing, defaults, the accepted form every refusal shows) is
 :mod:`labcli.core.sim.url`, shared with the firmware on simavr.
 
-Beside these, a rig takes its own options, declared by its experiment
-(``Experiment.sim_options``) and refused with any other ``mode``: the McKibben
+Beside these, a rig takes its own options, declared by its paper
+(``Paper.sim_options``) and refused with any other ``mode``: the McKibben
 rig's non-idealities, supply and actuator design, for instance
 (``ideal=1``, ``friction=0.5``, ``supply=0.3``, ``design=thin``; see
-:mod:`labcli.experiments.takuma2014.sim.options`).
+:mod:`labcli.papers.takuma2014.sim.options`).
 
 ``port.rig`` is the rig object (operator hooks for unattended runs and
 tests; not part of the wire protocol).  ``port.unplug()`` makes every later

@@ -175,7 +175,7 @@ def serve_pty(seed: int = 0, rate: float = 200.0, noise: float = 1.0, drift: flo
 
     ``faults`` (a :class:`~labcli.core.sim.faults.FaultSpec`, its text form or a
     dict) makes the link noisy, drawn from ``seed``; FaultSpecError if malformed.
-    ``rig_options`` are the rig's own (its experiment's ``sim_options``, parsed).
+    ``rig_options`` are the rig's own (its paper's ``sim_options``, parsed).
     """
     spec = FaultSpec.from_data(faults)
     if rig is None:

@@ -1,8 +1,8 @@
 """The ``sim://`` URL's grammar: its options, their defaults and checks, and the accepted form
 every refusal shows.
 
-Beside the core's options each experiment declares its rigs' own
-(:class:`labcli.core.experiment.SimOption`, through the registry); one given with a
+Beside the core's options each paper declares its rigs' own
+(:class:`labcli.core.paper.SimOption`, through the registry); one given with a
 ``mode`` whose rig does not take it is refused.
 
 The firmware model's port (:mod:`.protocol_sim`, where each option's meaning is written) and
@@ -151,7 +151,7 @@ def parse_sim_url(url: str) -> dict:
 
 
 def rig_options(opts: dict) -> dict:
-    """The rig's own options (its experiment's ``sim_options``) among parsed URL options, those given."""
+    """The rig's own options (its paper's ``sim_options``) among parsed URL options, those given."""
     return {k: opts[k] for k in registry.sim_options(opts["mode"]) if opts.get(k) is not None}
 
 

@@ -1,4 +1,4 @@
-"""The HDF5 run file: :class:`RunFile` (crash-safe records of any experiment), its split,
+"""The HDF5 run file: :class:`RunFile` (crash-safe records of any paper), its split,
 the models fitted on it, its session log, and runs built from tables (:func:`import_table`)."""
 
 from .frames import StoredWindow, WindowWriter

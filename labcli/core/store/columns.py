@@ -29,7 +29,7 @@ from typing import Any, Mapping, Sequence
 import h5py
 import numpy as np
 
-from ..experiment import Column
+from ..paper import Column
 from .checksum import Repeated, row_checksums
 
 FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}

@@ -28,7 +28,7 @@ import h5py
 import numpy as np
 
 from ...errors import StoreError
-from ..experiment import Column
+from ..paper import Column
 from .checksum import frames_checksum
 from .columns import append, create_dataset, read_rows
 

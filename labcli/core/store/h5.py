@@ -1,6 +1,6 @@
 """HDF5 plumbing of the run file: datasets with units, text, columns, raw windows, settling.
 
-Record types (the experiments' :class:`labcli.core.experiment.RecordType`) check their
+Record types (the papers' :class:`labcli.core.paper.RecordType`) check their
 records with :func:`vector` and :func:`scalar` and read values back with :func:`text`
 and :func:`plain`; the run file (:mod:`labcli.core.store.runfile`) writes everything
 with the helpers below, so every dataset carries its ``units`` attribute.
@@ -24,7 +24,7 @@ WINDOW_GROUPS = {"baseline": "baseline", "load": "loaded", "loaded": "loaded"}
 
 
 class RawWindow(TypedDict, total=False):
-    """One capture window as received (``labcli.experiments.takuma2014.session.Window.as_dict()``).
+    """One capture window as received (``labcli.papers.takuma2014.session.Window.as_dict()``).
 
     ``seq`` (n,) frame counters, ``t_us`` (n,) device clock (wraps at 2**32),
     ``counts`` (n, k) values as sent, ``si`` (n, k) calibrated SI values;

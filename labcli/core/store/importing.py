@@ -1,8 +1,8 @@
 """A run file built from a table: ``labcli import`` (data from MATLAB, LabVIEW, a spreadsheet).
 
 The protocol's kind decides the record type (:mod:`labcli.core.registry`), which reads the
-CSV (:meth:`~labcli.core.experiment.RecordType.read_csv`) and turns the table into columns
-(:meth:`~labcli.core.experiment.RecordType.from_table`); columns labcli does not know are
+CSV (:meth:`~labcli.core.paper.RecordType.read_csv`) and turns the table into columns
+(:meth:`~labcli.core.paper.RecordType.from_table`); columns labcli does not know are
 kept as extra columns of the run's record table.
 """
 
@@ -90,7 +90,7 @@ def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool
     """Build a run file without raw windows from a table (DataFrame) of ``protocol``'s records.
 
     ``protocol``: the protocol the run records with (its kind the run's, e.g. an rPAM
-    protocol with its experiment chosen).  A table naming fit and validation sets (a trial
+    protocol with its paper chosen).  A table naming fit and validation sets (a trial
     table's ``set`` column) gives the split (strategy ``imported``).  The records go in as
     one bulk commit (:meth:`RunFile.append`) into a file built under a temporary name and
     put in place only when whole, so a failed or killed import leaves an existing file

@@ -41,7 +41,7 @@ from typing import Any, Mapping, Sequence
 import h5py
 import numpy as np
 
-from ..experiment import Column, RecordType
+from ..paper import Column, RecordType
 from ..version import __version__
 from .columns import FILTERS, Table
 from .frames import create as create_frames

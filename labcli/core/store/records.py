@@ -1,6 +1,6 @@
 """What most record types share: CSV through their table spec, no split, plain inspect lines.
 
-An experiment's record type (:class:`labcli.core.experiment.RecordType`) may derive from
+A paper's record type (:class:`labcli.core.paper.RecordType`) may derive from
 :class:`BaseRecordType` and give only what is its own: where its records live, the columns a
 record holds, how one is checked and turned into a row (:meth:`~BaseRecordType.check`),
 read back and tabled, and its CSV table spec (:mod:`labcli.core.tables`).
@@ -11,13 +11,13 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import Any, Callable, Iterable, Mapping
 
-from ..experiment import Column
+from ..paper import Column
 from ..report import records_line, settling_line, split_line
 from ..tables import TableSpec, read_table, write_table
 
 
 class BaseRecordType(ABC):
-    """Defaults of :class:`labcli.core.experiment.RecordType` (a subclass sets the attributes and
+    """Defaults of :class:`labcli.core.paper.RecordType` (a subclass sets the attributes and
     defines the four abstract methods; Python refuses to make one that lacks any)."""
 
     kind: str

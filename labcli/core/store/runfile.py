@@ -32,7 +32,7 @@ as columns at once (imports: a million rows in seconds); :meth:`RunFile.table` g
 exchange table, in the units people type, degrees and grams rounded to 12 significant
 digits (:func:`~labcli.core.store.h5.to_edge`), which makes table -> run file -> table
 exact.  What a record holds is its record type's business
-(:class:`labcli.core.experiment.RecordType`); the run file writes the columns every record
+(:class:`labcli.core.paper.RecordType`); the run file writes the columns every record
 shares.  Text holding a NUL is refused before any file is made
 (:func:`labcli.core.store.importing.storable_cells`).
 """
@@ -51,7 +51,7 @@ import h5py
 import numpy as np
 
 from ...errors import DiskFull, LabcliError, LabcliWarning, StoreError
-from ..experiment import Column, RecordType
+from ..paper import Column, RecordType
 from ..files import RUN_FILE_SUFFIXES
 from ..registry import record_type
 from ..version import __version__
@@ -116,7 +116,7 @@ class RunFile:
     ...                     port="sim://", operator="ada") as run:   # doctest: +SKIP
     ...     run.write(record)
 
-    ``record_type`` is the run kind's (:class:`labcli.core.experiment.RecordType`).
+    ``record_type`` is the run kind's (:class:`labcli.core.paper.RecordType`).
     """
 
     def __init__(self, h5: h5py.File, path: str, mode: str) -> None:
@@ -142,8 +142,8 @@ class RunFile:
         try:
             self.record_type: RecordType = record_type(kind)
         except LabcliError:
-            raise StoreError(f"{path} is a run of kind '{kind}', which no installed experiment reads; "
-                             "install the experiment that recorded it.") from None
+            raise StoreError(f"{path} is a run of kind '{kind}', which no installed paper reads; "
+                             "install the paper that recorded it.") from None
         if self.version == 1:
             self._v1 = V1Run(h5, self.record_type)
         else:
@@ -1120,7 +1120,7 @@ class RunFile:
 
     def summary(self) -> dict[str, Any]:
         """What ``labcli inspect`` shows: metadata, completeness, split, settling, and what the
-        record type adds (baseline drift, an experiment's grid, ...)."""
+        record type adds (baseline drift, a paper's grid, ...)."""
         return summarise(self)
 
     def verify(self) -> dict[str, Any]:

@@ -1,6 +1,6 @@
 """What ``labcli inspect`` shows of a run: metadata, completeness, split, settling.
 
-The record type adds what is its own (:meth:`labcli.core.experiment.RecordType.summarise`:
+The record type adds what is its own (:meth:`labcli.core.paper.RecordType.summarise`:
 the baseline's drift over a McKibben run, an rPAM run's grid).
 """
 

@@ -27,7 +27,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..experiment import Column, RecordType
+from ..paper import Column, RecordType
 from .h5 import plain, read_columns, text
 from .layout import WINDOWS
 

@@ -15,7 +15,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..experiment import Column, RecordType
+from ..paper import Column, RecordType
 from .columns import Table, fill_value
 from .layout import common_columns, window_columns
 

@@ -1,0 +1,82 @@
+"""The rPAM joint paper (2015): a 1-DoF revolute joint driven by two reverse pneumatic
+artificial muscles; its stretch test, joint map and link optimisation.
+
+``PAPER`` is what the core sees (:class:`labcli.core.paper.Paper`); it is
+registered through the entry-point group ``labcli.papers``.  This module imports
+nothing heavy (the registry imports it to learn the kinds it owns), so each method imports
+what it needs when it is called: the sessions, the model, the figures and the simulated rig load on first use.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
+from ...errors import ConfigError
+from .protocol import EXPERIMENTS, KINDS
+
+
+class Rpam2015:
+    name = "rpam2015"
+    title = "rPAM antagonistic 1-DoF joint: stretch test, joint map, link optimisation"
+    paper = "\"Optimized Design of a Rigid Kinematic Module for Antagonistic Soft Actuation\", 2015"
+    protocol_kinds = KINDS
+    shipped_protocols = ("rpam2015",)
+    run_kinds = tuple(EXPERIMENTS.values())
+    sim_modes = ("rpam",)
+    default_sim_mode = None
+    sim_options: dict = {}  # its rig takes only the core's sim:// options
+    demo_protocol = "rpam2015"
+
+    def record_type(self, run_kind: str) -> RecordType:
+        from .records import RECORD_TYPES
+
+        return RECORD_TYPES[run_kind]
+
+    def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0,
+                 tau_s: float = 0.7) -> Any:
+        from .sim.rig import RpamRig
+
+        return RpamRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s)
+
+    def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
+                     run_path: str = "") -> Any:
+        from .session import acquisition_protocol
+
+        return acquisition_protocol(protocol, choice, stored_kind=stored_kind, run_path=run_path)
+
+    def import_protocol(self, protocol: Any, choice: str | None, name: str) -> Any:
+        from .session import acquisition_protocol
+
+        if choice is None:
+            raise ConfigError(
+                f"{name} is a protocol of kind 'rpam' with two experiments; labcli import reads "
+                "its point tables with --experiment stretch (the stretch test) or --experiment joint "
+                "(the joint map), and trial tables with a force protocol such as takuma2014."
+            )
+        return acquisition_protocol(protocol, choice)
+
+    def acquisition(self, protocol: Any, options: AcquireOptions) -> Any:
+        from .acquisition import acquisition
+
+        return acquisition(protocol, options)
+
+    def analysis(self, name: str) -> Analysis | None:
+        if name not in ("fit", "validate", "optimize"):
+            return None
+        from . import analyses  # numpy, scipy: only once an analysis runs
+
+        run, show = {
+            "fit": (analyses.fit, analyses.show_fit),
+            "validate": (analyses.validate, analyses.show_validation),
+            "optimize": (analyses.optimize, analyses.show_optimum),
+        }[name]
+        return Analysis(run, show)
+
+    def demo(self) -> Demo | None:
+        from . import demo, report  # the whole toolkit: only once the demo runs
+
+        return Demo(demo.STAGES, demo.run_rpam_demo, report.print_demo)
+
+
+PAPER = Rpam2015()

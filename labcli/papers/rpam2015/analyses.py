@@ -1,0 +1,204 @@
+"""The rPAM paper's analyses, as ``labcli fit``, ``validate`` and ``optimize`` run them.
+
+* :func:`fit`: the cubic stretch correction ``F_stretch(lambda)`` of Eq. 7, with its
+  uncertainty, fitted to a stretch-test run (kind ``rpam-stretch``);
+* :func:`validate`: a joint-map run (kind ``rpam-joint``) against the model without and
+  with that correction (Fig. 8);
+* :func:`optimize`: the link lengths that maximise the joint's travel (Section IV).
+
+Each is a plain function: plain arguments, a result back, :class:`~labcli.errors.LabcliError`
+with one sentence for anything a person can fix.  :mod:`.report` prints the results.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ...core.jsontext import loads_bounded
+from ...core.modelfile import check_fit_paths, default_model_path, save_model
+from ...core.store import RunFile
+from ...errors import ConfigError, ModelError
+from . import report
+from .figures import figure8, figure_stretch
+from .models import rpam
+from .models.rpam_fit import StretchCorrection, StretchFit, analyse_joint_map, analyse_stretch
+from .models.rpam_optimize import optimize_protocol
+from .protocol import stored_protocol
+
+
+def check_force_only_options(typed: frozenset[str], *names: str) -> None:
+    """Refuse options of the McKibben path typed for an rPAM run (``--max-amplification``, ``--mode``)."""
+    for name in names:
+        if name in typed:
+            raise ModelError(f"--{name.replace('_', '-')} applies to force runs (Eqs. 34-37), not to rPAM runs; "
+                             "leave it out.")
+
+
+def _read_run(path: Path, protocol: str | None,
+              overrides: tuple[str, ...] = ()) -> tuple[str, Any, dict[str, Any], str, str]:
+    """(kind, point table, raw protocol TOML, protocol name, where) of an rPAM run.
+
+    ``overrides`` (``--set key=value``) change the run's stored protocol for this analysis only;
+    ``where`` names the protocol in messages, with the overrides when there are any.
+    """
+    with RunFile.open(path) as run:
+        kind = run.kind
+        name = str(run.attrs.get("protocol", ""))
+        text = run.protocol_text
+        table = run.table()
+    if protocol is not None and protocol != name:
+        raise ConfigError(f"{path} was recorded with protocol '{name}'; --protocol applies to "
+                          "trial CSV files only, so leave it out for a run file.")
+    raw = stored_protocol(text, path)
+    where = f"{path} (protocol)"
+    if overrides:
+        raw = rpam.apply_overrides(raw, overrides)
+        where += f" with --set {' '.join(overrides)}"
+    return kind, table, raw, name, where
+
+
+# --------------------------------------------------------------------------- fit
+
+
+@dataclass
+class StretchFitResult:
+    """The stretch correction fitted to a stretch-test run, and where it was written."""
+
+    fit: StretchFit
+    model_path: Path
+    run: Path
+    model_name: str
+    plot: Path | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model_path": str(self.model_path), "recorded_in_run": True, "model_name": self.model_name,
+                "plot": str(self.plot) if self.plot else None, "fit": self.fit.to_dict()}
+
+
+def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, plot: Path | None = None,
+        overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset(), **_: Any) -> StretchFitResult:
+    """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
+    check_force_only_options(typed, "max_amplification", "form")
+    out = output or default_model_path(run)
+    check_fit_paths(run, out)
+    kind, table, raw, name, where = _read_run(run, protocol, overrides)
+    if kind != "rpam-stretch":
+        raise ConfigError(
+            f"{run} is a joint-map run (kind {kind}); labcli fit fits the stretch correction to a stretch-test "
+            "run (labcli acquire --experiment stretch), and labcli validate compares a joint map with the model."
+        )
+    stretch = analyse_stretch(table, (where, raw))
+    if plot is not None:
+        figure_stretch(stretch, plot)
+    model_name = f"{name or 'rpam'}-stretch"
+    save_model(stretch.to_json(), out, run=run, name=model_name)
+    return StretchFitResult(stretch, out, run, model_name, plot)
+
+
+def show_fit(result: StretchFitResult, *, as_json: bool = False) -> None:
+    if as_json:
+        print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
+        return
+    report.print_stretch_fit(result.fit, result.model_path, result.run, result.model_name, result.plot)
+
+
+# --------------------------------------------------------------------------- validate
+
+
+@dataclass
+class JointMapValidation:
+    """A joint-map run against the model (Fig. 8), and the files involved."""
+
+    result: Any  # models.rpam_fit.JointMapResult
+    run: Path
+    model_path: Path | None
+    plot: Path | None
+
+    def to_dict(self) -> dict[str, Any]:
+        out = self.result.to_dict()
+        out.update(run=str(self.run), model=str(self.model_path) if self.model_path else None,
+                   plot=str(self.plot) if self.plot else None)
+        return out
+
+
+def load_stretch_model(path: Path) -> Any:
+    """A stretch fit (``labcli fit`` on a stretch-test run) or a bare stretch correction, from JSON."""
+    if not path.is_file():
+        raise ConfigError(f"Model file {path} does not exist; fit the stretch test first with "
+                          "labcli fit STRETCH.h5, which writes STRETCH.model.json.")
+    try:
+        text = path.read_text(encoding="utf-8")
+        d = loads_bounded(text)
+    except (OSError, UnicodeDecodeError, ValueError):  # ValueError: bad JSON, or nested too deep
+        raise ConfigError(f"Model file {path} is not a JSON stretch fit; give the file labcli fit wrote "
+                          "for a stretch-test run.") from None
+    kind = d.get("kind") if isinstance(d, dict) else None
+    if kind == "rpam-stretch-fit":
+        return StretchFit.from_dict(d)
+    if kind == "rpam-stretch-correction":
+        return StretchCorrection.from_dict(d)
+    raise ConfigError(f"Model file {path} is not a stretch fit (kind {kind!r}); a joint map is compared with "
+                      "the stretch correction labcli fit writes for a stretch-test run.")
+
+
+def validate(run: Path, *, model_path: Path | None = None, protocol: str | None = None, plot: Path | None = None,
+             overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset(), **_: Any) -> JointMapValidation:
+    """Compare a joint-map run with the model without and with the stretch correction (Fig. 8).
+
+    The correction is the fit in ``model_path`` or, without one, the protocol's own
+    ``[stretch_correction]``; a protocol whose correction is zero needs a fit.
+    """
+    check_force_only_options(typed, "mode")
+    kind, table, raw, _, where = _read_run(run, protocol, overrides)
+    if kind != "rpam-joint":
+        raise ConfigError(
+            f"{run} is a stretch-test run (kind {kind}); labcli validate compares a joint-map run with the model: "
+            f"fit this one with labcli fit {run} and pass the model it writes to labcli validate JOINT.h5 --model."
+        )
+    correction = None
+    if model_path is not None:
+        correction = load_stretch_model(model_path)
+    else:
+        act = rpam.actuator_from_protocol(raw, where)
+        if not any(act.stretch_coefficients_N):
+            raise ConfigError(
+                f"{run}'s protocol has no stretch correction (its coefficients are all 0 N), so the model with "
+                "and without it would agree; fit one to a stretch-test run with labcli fit STRETCH.h5 and pass "
+                "it with --model STRETCH.model.json."
+            )
+    result = analyse_joint_map(table, (where, raw), correction)
+    if plot is not None:
+        figure8(result, plot)
+    return JointMapValidation(result, run, model_path, plot)
+
+
+def show_validation(result: JointMapValidation, *, as_json: bool = False) -> None:
+    if as_json:
+        print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
+        return
+    report.print_joint_map(result.result, result.run, result.model_path, result.plot)
+
+
+# --------------------------------------------------------------------------- optimize
+
+
+def optimize(protocol: str, *, seed: int | None = None, pa_kpa: float | None = None, pb_kpa: float | None = None,
+             overrides: tuple[str, ...] = (), progress: bool = True, **_: Any) -> Any:
+    """Maximise the joint angle over L1, L2, L3 (g1-g7, K_min, the toggle margin); a live line
+    on stderr while it runs."""
+    if not progress:
+        return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa)
+    with report.optimize_progress() as show:
+        return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa,
+                                 progress=show)
+
+
+def show_optimum(result: Any, *, as_json: bool = False) -> None:
+    d = result.to_dict()
+    if as_json:
+        print(json.dumps(d, indent=2))
+        return
+    report.print_optimum(d)

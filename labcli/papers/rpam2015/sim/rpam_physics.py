@@ -1,0 +1,191 @@
+"""Physics of the simulated rPAM stand, written apart from the model it is used to check.
+
+:mod:`labcli.papers.rpam2015.models.rpam` derives the actuator's force from a potential
+(strain energy of the wall plus the gas's virtual work,
+:mod:`labcli.papers.rpam2015.models.rpam_force`) and the joint's torque from Eq. 5's
+moment arms.  The stand computes the same physics another way, so a
+slip in either shows up as a disagreement (the tests compare the two):
+
+* the actuator's force from the **Cauchy stresses** of the thick incompressible Ogden wall,
+  integrated over its *current* radius, and the **statics of the thread cage**;
+* the joint's torque as the **cross product** of each upper mount's position with the push
+  along the actuator, from the mount coordinates of Table I.
+
+Force balance of an end cap (tension F positive)
+    The wall ring at current radius r (rest radius R, ``R^2 = R_o^2 - lambda (r_o^2 - r^2)``
+    by incompressibility) has principal stretches ``lambda`` (axial), ``r / R`` (hoop) and
+    ``R / (lambda r)`` (radial), and Cauchy stresses ``sigma_k = t_k - p`` with
+    ``t_k = sum 2 mu_i / alpha_i * lambda_k^alpha_i`` (Eq. 3's Ogden convention) and p the
+    pressure that incompressibility leaves free.  Radial equilibrium,
+    ``d sigma_r / dr = (t_hoop - t_rad) / r``, from ``sigma_r = -P`` at the lumen gives the
+    contact pressure on the thread, ``p_c = P - int (t_hoop - t_rad) / r dr``.  The wall's
+    axial resultant, integrated by parts, is ``pi int (2 t_ax - t_hoop - t_rad) r dr -
+    pi p_c r_o^2 + pi P r_i^2``.  The thread (inextensible, n turns of length b) carries the
+    hoop load ``p_c r_o`` per unit length; the virtual work of its lateral surface gives its
+    axial pull ``p_c L^2 / (2 pi n^2)``.  The gas pushes the cap over the lumen, ``P pi r_i^2``.
+    So
+
+        F = pi int (2 t_ax - t_hoop - t_rad) r dr - pi p_c r_o^2 + p_c L^2 / (2 pi n^2),
+
+    with ``r_o`` the cage radius while ``p_c >= 0``; below that the cage is slack and r_o is
+    where ``p_c = 0``.  The empirical stretch force (Eq. 7) is added on top, never clamped.
+
+Units: SI, pressures in MPa (gauge) as at the regulators.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..protocol import read_rpam_protocol
+
+G_N_PER_KG = 9.80665
+_MPA = 1e6
+_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(16)
+_BISECTIONS = 60
+
+
+@dataclass(frozen=True)
+class Tube:
+    """One actuator as the stand builds it: wall, thread cage and its true stretch force."""
+
+    L0_m: float
+    A0_m2: float
+    n_turns: float
+    thread_length_m: float
+    mu_MPa: tuple[float, ...]
+    alpha: tuple[float, ...]
+    stretch_N: tuple[float, ...]  # c0..c3 of the stretch force, N
+
+    def cage_radius(self, L: Any) -> np.ndarray:
+        """Radius (m) of n turns of the thread wound round a cylinder of length L."""
+        L = np.asarray(L, dtype=float)
+        return np.sqrt(self.thread_length_m**2 - L**2) / (2 * math.pi * self.n_turns)
+
+    @property
+    def rest_radii(self) -> tuple[float, float]:
+        """(inner, outer) radius of the wall at rest (m); the outer one fills the cage."""
+        Ro = float(self.cage_radius(self.L0_m))
+        return math.sqrt(Ro**2 - self.A0_m2 / math.pi), Ro
+
+    def _t(self, stretch: np.ndarray) -> np.ndarray:
+        """``sum 2 mu_i / alpha_i * stretch^alpha_i`` in Pa (the Ogden stress without p)."""
+        return sum(2 * mu * _MPA / a * stretch**a for mu, a in zip(self.mu_MPa, self.alpha))
+
+    def _integrals(self, L: np.ndarray, r_o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(pi int (2 t_ax - t_hoop - t_rad) r dr, int (t_hoop - t_rad) / r dr)`` over the wall."""
+        Ri, Ro = self.rest_radii
+        lam = (L / self.L0_m)[..., None]
+        r_o = r_o[..., None]
+        r_i = np.sqrt(np.clip(r_o**2 - (Ro**2 - Ri**2) / lam, 0.0, None))
+        r = 0.5 * (r_o + r_i) + 0.5 * (r_o - r_i) * _NODES
+        dr = 0.5 * (r_o - r_i) * _WEIGHTS
+        R = np.sqrt(Ro**2 - lam * (r_o**2 - r**2))
+        hoop = r / R
+        t_ax, t_hoop, t_rad = self._t(lam), self._t(hoop), self._t(1.0 / (lam * hoop))
+        axial = math.pi * np.sum((2 * t_ax - t_hoop - t_rad) * r * dr, axis=-1)
+        radial = np.sum((t_hoop - t_rad) / r * dr, axis=-1)
+        return axial, radial
+
+    def tension(self, P_MPa: Any, L: Any) -> np.ndarray:
+        """Load (N, tension +) that holds the tube at length L under gauge pressure P."""
+        P, L = (np.array(v, dtype=float) for v in np.broadcast_arrays(np.asarray(P_MPa, float), np.asarray(L, float)))
+        P = P * _MPA
+        r_c = self.cage_radius(L)
+        axial, radial = self._integrals(L, r_c)
+        p_c = P - radial
+        F = np.array(axial - math.pi * p_c * r_c**2 + p_c * L**2 / (2 * math.pi * self.n_turns**2), dtype=float)
+        slack = p_c < 0
+        if slack.any():
+            F[slack] = self._free_tension(P[slack], L[slack], r_c[slack])
+        lam = L / self.L0_m
+        return F + np.polynomial.polynomial.polyval(lam, self.stretch_N)
+
+    def _free_tension(self, P: np.ndarray, L: np.ndarray, r_c: np.ndarray) -> np.ndarray:
+        # The slack cage: the tube inflates until its outer surface is free (p_c = 0),
+        # between the unloaded tube's radius R_o / sqrt(lambda) and the cage.
+        # Vented, it is the unloaded tube's radius itself (t_hoop = t_rad throughout).
+        _, Ro = self.rest_radii
+        lo = Ro / np.sqrt(L / self.L0_m)
+        hi = np.where(P > 0, r_c, lo)
+        for _ in range(_BISECTIONS if np.any(P > 0) else 0):
+            mid = 0.5 * (lo + hi)
+            inflated = self._integrals(L, mid)[1] > P  # p_c < 0: smaller than that
+            lo, hi = np.where(inflated, lo, mid), np.where(inflated, mid, hi)
+        return self._integrals(L, 0.5 * (lo + hi))[0]
+
+    def push(self, P_MPa: Any, L: Any) -> np.ndarray:
+        """Force (N) the tube exerts on its mounts, positive when it pushes them apart."""
+        return -self.tension(P_MPa, L)
+
+    def hanging_length(self, P_MPa: float, load_N: float) -> float:
+        """Length (m) at which the tube carries ``load_N`` under P; NaN when it cannot."""
+        from scipy.optimize import brentq
+
+        Ri, Ro = self.rest_radii
+        # Shortened, the wall thickens until it fills the cage; stay clear of that.
+        lo = self.L0_m * max(0.5, 1.05 * (1 - (Ri / Ro) ** 2))
+        hi = 4.0 * self.L0_m
+
+        def f(L: float) -> float:
+            return float(self.tension(P_MPa, L)) - load_N
+
+        if f(lo) > 0 or f(hi) < 0:
+            return float("nan")
+        return float(brentq(f, lo, hi, xtol=1e-13))
+
+
+@dataclass(frozen=True)
+class Links:
+    """The joint's links (Fig. 4): lower mounts at (-L1, 0), (L1, 0); upper plate at L2, mounts L3 apart."""
+
+    L1_m: float
+    L2_m: float
+    L3_m: float
+
+    @property
+    def toggle_rad(self) -> float:
+        """Where b's upper mount lines up with its lower mount and the pivot."""
+        return math.atan2(self.L2_m, self.L3_m)
+
+    def mounts(self, alpha: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(a_low, a_up, b_low, b_up), each ``(..., 2)``: the upper plate turned clockwise by alpha."""
+        alpha = np.asarray(alpha, dtype=float)
+        c, s = np.cos(alpha), np.sin(alpha)
+        # The plate's rest points (-L3, L2) and (L3, L2) under the clockwise rotation.
+        def turn(x: float, y: float) -> np.ndarray:
+            return np.stack([x * c + y * s, -x * s + y * c], axis=-1)
+
+        zero = np.zeros(alpha.shape)
+        return (np.stack([zero - self.L1_m, zero], axis=-1), turn(-self.L3_m, self.L2_m),
+                np.stack([zero + self.L1_m, zero], axis=-1), turn(self.L3_m, self.L2_m))
+
+    def lengths(self, alpha: Any) -> tuple[np.ndarray, np.ndarray]:
+        a_low, a_up, b_low, b_up = self.mounts(alpha)
+        return np.linalg.norm(a_up - a_low, axis=-1), np.linalg.norm(b_up - b_low, axis=-1)
+
+    def torque(self, alpha: Any, push_a: Any, push_b: Any) -> np.ndarray:
+        """Clockwise torque (N m) on the upper plate about the pivot from the two pushes."""
+        a_low, a_up, b_low, b_up = self.mounts(alpha)
+        total = 0.0
+        for low, up, push in ((a_low, a_up, push_a), (b_low, b_up, push_b)):
+            d = up - low
+            F = np.asarray(push, dtype=float)[..., None] * d / np.linalg.norm(d, axis=-1, keepdims=True)
+            total = total + (up[..., 0] * F[..., 1] - up[..., 1] * F[..., 0])
+        return -total  # z-torque is counter-clockwise positive
+
+
+def read_stand(protocol: str | Path) -> tuple[Path, Links, Tube]:
+    """The stand's links and its nominal tube from an rPAM protocol (shipped name or path)."""
+    path, t = read_rpam_protocol(protocol)
+    j, a, o, c = t["joint"], t["actuator"], t["ogden"], t["stretch_correction"]
+    links = Links(float(j["L1_m"]), float(j["L2_m"]), float(j["L3_m"]))
+    tube = Tube(L0_m=float(a["L0_m"]), A0_m2=float(a["A0_m2"]), n_turns=float(a["n_turns"]),
+                thread_length_m=float(a["thread_length_m"]), mu_MPa=tuple(float(v) for v in o["mu_MPa"]),
+                alpha=tuple(float(v) for v in o["alpha"]), stretch_N=tuple(float(v) for v in c["coefficients_N"]))
+    return path, links, tube

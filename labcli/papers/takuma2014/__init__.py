@@ -1,0 +1,73 @@
+"""Takuma, Takamine & Masuda, Actuators 2014: force and angle sensing from the pressures of a
+2-DoF McKibben joint (Sections 2-3) and object stiffness by pushing (Section 4).
+
+``PAPER`` is what the core sees (:class:`labcli.core.paper.Paper`); it is
+registered through the entry-point group ``labcli.papers``.  This module imports
+nothing heavy (the registry imports it to learn the kinds it owns), so each method imports
+what it needs when it is called: the sessions, models, figures and the simulated rig load on first use.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
+from .protocol import KINDS
+from .sim.options import SIM_OPTIONS
+
+
+class Takuma2014:
+    name = "takuma2014"
+    title = "Pressure-based force, angle and stiffness sensing, 2-DoF McKibben joint"
+    paper = ("Takuma, Takamine & Masuda, \"Sustainable multi-modal sensing by a single sensor utilizing "
+             "the passivity of an elastic actuator\", Actuators 2014")
+    protocol_kinds = KINDS
+    shipped_protocols = ("takuma2014", "takuma2014-stiffness")
+    run_kinds = ("force", "push")
+    sim_modes = ("mckibben",)
+    default_sim_mode = "mckibben"
+    sim_options = SIM_OPTIONS
+    demo_protocol = "takuma2014"
+
+    def record_type(self, run_kind: str) -> RecordType:
+        from .records import RECORD_TYPES
+
+        return RECORD_TYPES[run_kind]
+
+    def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0,
+                 tau_s: float = 0.7, **options: Any) -> Any:
+        from .sim.options import build_rig
+
+        return build_rig(seed=seed, noise=noise, drift=drift, tau_s=tau_s, **options)
+
+    def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
+                     run_path: str = "") -> Any:
+        return protocol  # a force or push run records with its protocol as it is
+
+    def import_protocol(self, protocol: Any, choice: str | None, name: str) -> Any:
+        return protocol
+
+    def acquisition(self, protocol: Any, options: AcquireOptions) -> Any:
+        from .acquisition import acquisition
+
+        return acquisition(protocol, options)
+
+    def analysis(self, name: str) -> Analysis | None:
+        if name not in ("fit", "validate", "classify"):
+            return None
+        from . import analyses  # numpy, pandas: only once an analysis runs
+
+        run, show = {
+            "fit": (analyses.fit, analyses.show_fit),
+            "validate": (analyses.validate, analyses.show_validation),
+            "classify": (analyses.classify, analyses.show_classification),
+        }[name]
+        return Analysis(run, show)
+
+    def demo(self) -> Demo | None:
+        from . import demo, report  # the whole toolkit: only once the demo runs
+
+        return Demo(demo.STAGES, demo.run_demo, report.print_demo)
+
+
+PAPER = Takuma2014()

@@ -1,0 +1,131 @@
+"""How a McKibben run is acquired: the force trials of a plan (or typed), or the pushes of objects
+(typed, from a push plan, or the simulated objects)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+from ...core.paper import AcquireOptions, Session
+from ...errors import ConfigError
+from .protocol import load_plan
+from .push_plan import load_push_plan, plan_objects
+from .push_session import push_session
+from .session import PRESSURE_NAMES, force_session
+from .sim.objects import demo_plan
+from .tables import load_plan as read_plan
+
+
+@dataclass
+class ForceAcquisition:
+    """Section 3.2: one trial per row of the plan (None: the experimenter types each load)."""
+
+    protocol: Any
+    plan: Any
+    kind: str = "force"
+    history: tuple = ()  # (force N, change SI) of the trials a resumed run already holds
+
+    def session(self, completed: Sequence[int]) -> Session:
+        return force_session(self.protocol, self.plan, completed=completed, history=self.history)
+
+    def already_done(self, run: Any, path: str) -> str | None:
+        plan = self.plan
+        if plan is None or not len(plan) or run.first_incomplete(plan["trial"]) is not None:
+            return None
+        if run.split() is None:
+            # Stopped between the last trial and the split: finish the job.
+            sets = dict(zip(plan["trial"].astype(int), plan["set"]))
+            run.set_split([t for t, v in sets.items() if v == "fit"],
+                          [t for t, v in sets.items() if v == "validation"], "plan")
+        return f"All {len(plan)} planned trials are already stored in {path}; nothing to resume."
+
+
+@dataclass
+class PushAcquisition:
+    """Section 4: ``pushes_per_object`` pushes per object (typed, a push plan, or the simulated objects)."""
+
+    protocol: Any
+    objects: Any = None
+    kind: str = "push"
+    plan: Any = None  # a push plan's table, stored in the run
+    ids: Any = None  # the plan's push ids, in the order they are run
+
+    def session(self, completed: Sequence[int]) -> Session:
+        return push_session(self.protocol, self.objects, completed=completed, ids=self.ids)
+
+    def already_done(self, run: Any, path: str) -> str | None:
+        return None
+
+
+def _plan(protocol: Any, options: AcquireOptions) -> Any:
+    """The plan a force run follows: the run's own when resuming, a file, typed, or the protocol's."""
+    if options.resume is not None:
+        return options.resume.plan_table()
+    if options.no_plan:
+        return None
+    if options.plan is not None:
+        lim = protocol.settings.force_limits
+        return read_plan(
+            options.plan,
+            mass_range_g=(lim.mass_min_g, lim.mass_max_g) if lim else None,
+            direction_range_deg=(lim.direction_min_deg, lim.direction_max_deg) if lim else None,
+        )
+    return load_plan(protocol)
+
+
+def _push_acquisition(protocol: Any, options: AcquireOptions) -> PushAcquisition:
+    """A push run: its plan (a file, or the one a resumed run stored), else the simulated objects
+    (unattended), else objects typed at the rig."""
+    push = protocol.settings.push
+    table = options.resume.plan_table() if options.resume is not None else None
+    if options.plan is not None:
+        table = load_push_plan(options.plan, distance_range_m=(push.distance_min_m, push.distance_max_m)
+                               if push is not None else None)
+    if table is not None and len(table):
+        objects, ids = plan_objects(table)
+        if options.unattended:
+            bare = [o.spec.name for o in objects if o.spec.stiffness_N_per_m is None]
+            if bare:
+                raise ConfigError(f"--unattended pushes simulated objects, whose stiffness the plan must give: "
+                                  f"column stiffness_N_per_m is empty for {', '.join(bare)}.")
+        return PushAcquisition(protocol, objects, plan=table, ids=ids)
+    if options.unattended:
+        # The simulated rig's reference objects (three PET bottles, two aluminium
+        # cans, one steel can), labelled with their categories.
+        return PushAcquisition(protocol, demo_plan(pushes_per_object=push.pushes_per_object if push else 10,
+                                                   labelled=True))
+    return PushAcquisition(protocol)
+
+
+def _history(run: Any, protocol: Any) -> tuple:
+    """What a resumed run's stored trials did per newton: (Fx, Fy) N and the change of each
+    pressure (MPa) and joint angle (rad) the load check watches, in the protocol's channel order."""
+    import math
+
+    watched = [c for c, u in zip(protocol.channels, protocol.calibration.units) if u in ("MPa", "rad")]
+    out = []
+    for row in run.table().to_dict("records"):
+        change = {p: row[p] - row[p + "0"] for p in PRESSURE_NAMES}
+        change.update(POT1=math.radians(row["theta1_deg"]), POT2=math.radians(row["theta2_deg"]))
+        values = [change.get(c, math.nan) for c in watched]
+        if all(math.isfinite(v) for v in values):
+            out.append(((row["Fx_N"], row["Fy_N"]), values))
+    return tuple(out)
+
+
+def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | PushAcquisition:
+    """Plan a run of a ``force`` or ``push`` protocol."""
+    if protocol.kind == "push":
+        return _push_acquisition(protocol, options)
+    plan = _plan(protocol, options)
+    if options.unattended and plan is None:
+        if options.resume is not None:
+            how = ("it was imported from a table" if options.resume.attrs.get("imported")
+                   else "it was recorded with --no-plan")
+            raise ConfigError(
+                f"{options.path} has no plan ({how}), so --unattended has nothing to follow; "
+                "resume it without --unattended and type each load."
+            )
+        raise ConfigError("--unattended needs a plan to follow: drop --no-plan, or give --plan FILE.")
+    history = _history(options.resume, protocol) if options.resume is not None else ()
+    return ForceAcquisition(protocol, plan, history=history)

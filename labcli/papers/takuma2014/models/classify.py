@@ -1,0 +1,629 @@
+"""Classify pushed objects: push table + fitted force model -> stiffness and category.
+
+:func:`classify_pushes` is the whole of the ``classify`` command's work in one
+call: it asks the force model for (theta1, theta2, Fx, Fy) from each push's
+pressures (``predict(P0, P, mode="pressure-only")``), estimates each push's
+object stiffness (:mod:`labcli.papers.takuma2014.models.stiffness`), summarises each object over
+its unflagged pushes, and assigns categories (:mod:`labcli.papers.takuma2014.models.categories`)
+either from labelled reference objects or from stiffness bands.
+
+Reference objects are categorised leave-one-object-out (class statistics
+refitted without the object), so their rows show how well the method would
+have done on them; an object that is the only reference of its class is
+categorised in-sample and says so.
+
+:func:`classify_file` is the same from files, as ``labcli classify`` and the
+demo call it: a push run file or CSV, a model JSON (checked to be fitted on a
+force run of the same rig), optionally a reference run whose labelled pushes
+join as reference objects, bands from the protocol's
+``[stiffness_bands_N_per_m]`` and flag settings from its ``[stiffness]`` table
+when it has one (:func:`stiffness_settings`).  :func:`report_to_dict` gives
+the JSON of the command, with mm, deg, N and N/m in the key names.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any, Iterator, Mapping
+
+import numpy as np
+
+from ....errors import ConfigError, ModelError
+from ....core.files import RUN_FILE_SUFFIXES
+from ....core.protocol import load_protocol, loads_protocol, shipped_protocols
+from ....core.provenance import rig_warning, run_identity, table_identity
+from ....core.store import RunFile
+from ..records import load_pushes
+from .categories import CategoryModel
+from .stiffness import PushEstimates, StiffnessParams, estimate_pushes, object_stats
+from .posture import PostureModel, load_force_model
+from .takuma import TakumaModel, cap
+
+P0_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
+THETA0_COLUMNS = ("theta10_deg", "theta20_deg")  # optional: absolute baseline posture
+# The same in the table format's spelling (docs/table-formats.md), read when the above is absent.
+REST_COLUMNS = ("theta1_0_deg", "theta2_0_deg")
+THETA_COLUMNS = ("theta1_deg", "theta2_deg")  # optional: measured deflections
+P_COLUMNS = ("P_L1", "P_R1", "P_L2", "P_R2")
+REQUIRED = ("push", "object", "R_m", "d_m") + P0_COLUMNS + P_COLUMNS
+TRUE_K = "true_stiffness_N_per_m"
+
+
+@dataclass
+class ClassifyResult:
+    """``pushes``: the push table's id columns plus the per-push estimates;
+    ``objects``: one row per object (stiffness statistics, category,
+    confidence, method); ``model``: the fitted or given :class:`CategoryModel`;
+    ``params``: the flag thresholds used."""
+
+    pushes: Any
+    objects: Any
+    model: CategoryModel
+    params: StiffnessParams
+
+    @property
+    def method(self) -> str:
+        return self.model.method
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for recording next to the run (categories and thresholds)."""
+        return {"categories": self.model.to_dict(), "stiffness": self.params.to_dict()}
+
+
+def _column(df: Any, name: str) -> np.ndarray:
+    values = np.asarray(df[name], dtype=float)
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise ConfigError(f"Push {df['push'].iloc[bad[0]]}: column {name!r} is empty or not a number; check the push table.")
+    return values
+
+
+def _labels(df: Any) -> np.ndarray:
+    if "category" not in df.columns:
+        return np.full(len(df), "", dtype=object)
+    import pandas as pd
+
+    # Few distinct labels: clean each once (code -1 is an empty cell).
+    codes, values = pd.factorize(df["category"])
+    return np.array([str(v).strip() for v in values] + [""], dtype=object)[codes]
+
+
+def _prediction(pred: Mapping[str, Any], name: str) -> Any:
+    # TakumaModel.predict names its outputs with units (theta1_rad, Fx_N).
+    for key in (name, f"{name}_rad", f"{name}_N"):
+        if key in pred:
+            return pred[key]
+    raise ModelError(f"The force model's prediction has no {name!r}; it must give theta1, theta2 (rad) and Fx, Fy (N).")
+
+
+def _length(model: Any, key: str, value: float | None) -> float:
+    if value is None:
+        geometry = getattr(model, "geometry", None) or {}
+        value = geometry.get(key, geometry.get(f"{key}_m"))
+    try:
+        length = float(value)
+    except (TypeError, ValueError):
+        length = math.nan
+    if not (math.isfinite(length) and length > 0):
+        raise ConfigError(f"The rig length {key} must be a positive number of metres (got {value!r}); check the protocol's [rig] table.")
+    return length
+
+
+def classify_pushes(
+    table: Any,
+    model: Any,
+    *,
+    h2: float | None = None,
+    h3: float | None = None,
+    params: StiffnessParams | Mapping[str, Any] | None = None,
+    bands: Mapping[str, Any] | None = None,
+    method: str = "auto",
+    angles: str = "pressure-only",
+    allow_unusable: bool = False,
+) -> ClassifyResult:
+    """Stiffness per push, statistics and category per object, from a push table.
+
+    ``table``: push table DataFrame (``push, object, R_m, d_m, phi_deg`` (NaN =
+    unknown), ``P_L10..P_R20``, ``P_L1..P_R2`` in MPa, optional ``category``);
+    ``model``: anything with ``predict(P0, P, mode="pressure-only")`` returning
+    ``theta1_rad, theta2_rad, Fx_N, Fy_N`` (or the same without units) and
+    optionally ``flags`` (per push: list of strings, string or bool);
+    ``h2, h3``: rig geometry in m (default: the model's ``geometry``); ``method``: ``"reference"``, ``"bands"`` or
+    ``"auto"`` (reference objects if any push has a category, else bands);
+    ``angles``: ``"pressure-only"`` (the paper: everything from pressures) or
+    ``"measured-angles"`` (deflections from the table's ``theta1_deg,
+    theta2_deg``, for the contact point and the force).  Optional columns
+    ``theta10_deg, theta20_deg`` give the absolute baseline posture.
+    Raises :class:`ModelError` if an object has no usable push, unless
+    ``allow_unusable`` (its row then has no category and says why).
+    """
+    import pandas as pd
+
+    if not isinstance(params, StiffnessParams):
+        params = StiffnessParams.from_dict(params)
+    h2, h3 = (_length(model, key, value) for key, value in (("h2", h2), ("h3", h3)))
+    _check_table(table, method)
+    table = table.reset_index(drop=True)
+    theta0 = _rest_posture(table)
+    theta, pred = _posture_and_force(table, model, angles, theta0)
+    Fx, Fy = (np.asarray(_prediction(pred, q), dtype=float) for q in ("Fx", "Fy"))
+    ok = pred.get("ok")
+    force_ok = None
+    if isinstance(ok, Mapping) and "Fx" in ok and "Fy" in ok:
+        force_ok = np.column_stack([np.asarray(ok["Fx"], dtype=bool), np.asarray(ok["Fy"], dtype=bool)])
+    phi = np.radians(np.asarray(table["phi_deg"], dtype=float)) if "phi_deg" in table.columns else None
+    est: PushEstimates = estimate_pushes(
+        theta[:, 0], theta[:, 1], Fx, Fy,
+        _column(table, "R_m"), _column(table, "d_m"), phi,
+        h2=h2, h3=h3, theta0=theta0, params=params,
+        model_flags=pred.get("flags"), model_reasons=pred.get("reasons"), force_ok=force_ok,
+        push_ids=table["push"].tolist(),
+    )
+
+    labels = _labels(table)
+    objects = [str(o) for o in pd.unique(table["object"].astype(str))]
+    # Row numbers of every object in one pass; a mask per object would cost objects x pushes.
+    members = pd.Series(np.arange(len(table))).groupby(table["object"].astype(str).to_numpy(), sort=False).indices
+    known = _known_categories(objects, members, labels)
+    use = ~est.flag & np.isfinite(est.k)
+    if method == "auto":
+        method = "reference" if any(known.values()) else "bands"
+    cat_model = _category_model(method, bands, est.k, use, labels)
+    true_k = np.asarray(table[TRUE_K], dtype=float) if TRUE_K in table.columns else None
+    rows = [_object_row(name, members[name], known[name], est, use, labels, cat_model, true_k, allow_unusable)
+            for name in objects]
+
+    push_cols = [c for c in ("push", "object", "category", "source", TRUE_K) if c in table.columns]
+    model_cols = pd.DataFrame({
+        "R_m": _column(table, "R_m"), "d_m": _column(table, "d_m"),
+        "theta1_deg": np.degrees(theta[:, 0]), "theta2_deg": np.degrees(theta[:, 1]), "Fx_N": Fx, "Fy_N": Fy,
+    })
+    pushes = pd.concat([table[push_cols], model_cols, est.to_frame()], axis=1)
+    return ClassifyResult(pushes=pushes, objects=pd.DataFrame(rows), model=cat_model, params=params)
+
+
+def _check_table(table: Any, method: str) -> None:
+    missing = [c for c in REQUIRED if c not in table.columns]
+    if missing:
+        raise ConfigError(f"The push table lacks column {missing[0]!r}; a push table needs {', '.join(REQUIRED)}.")
+    if len(table) == 0:
+        raise ModelError("The push table has no pushes to classify.")
+    if method not in ("auto", "reference", "bands"):
+        raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
+
+
+def _rest_posture(table: Any) -> np.ndarray | None:
+    """Each push's absolute baseline posture (rad), from either spelling of its columns, or None.
+
+    The table format's rest columns are optional and may be empty (absent means 0, 0): None when
+    every cell is empty, 0 in an empty cell otherwise.
+    """
+    if all(c in table.columns for c in THETA0_COLUMNS):
+        return np.radians(np.column_stack([_column(table, c) for c in THETA0_COLUMNS]))
+    if all(c in table.columns for c in REST_COLUMNS):
+        import pandas as pd
+
+        rest = np.column_stack([pd.to_numeric(table[c], errors="coerce").to_numpy(dtype=float) for c in REST_COLUMNS])
+        if np.isnan(rest).all():
+            return None
+        return np.radians(np.where(np.isnan(rest), 0.0, rest))
+    return None
+
+
+def _posture_and_force(table: Any, model: Any, angles: str,
+                       theta0: np.ndarray | None = None) -> tuple[np.ndarray, Mapping[str, Any]]:
+    """The joint angles (rad, per push) and the model's prediction, from the pressures or the pots.
+
+    The posture-aware form also takes the rest posture (its Jacobian is evaluated there).
+    """
+    P0 = np.column_stack([_column(table, c) for c in P0_COLUMNS])
+    P = np.column_stack([_column(table, c) for c in P_COLUMNS])
+    rest = {"theta0": theta0} if isinstance(model, PostureModel) and theta0 is not None else {}
+    if angles == "pressure-only":
+        pred = model.predict(P0, P, mode="pressure-only", **rest)
+        return np.column_stack([_prediction(pred, "theta1"), _prediction(pred, "theta2")]), pred
+    if angles == "measured-angles":
+        missing = [c for c in THETA_COLUMNS if c not in table.columns]
+        if missing:
+            raise ConfigError(f"The push table lacks column {missing[0]!r}, which measured angles need.")
+        theta = np.radians(np.column_stack([_column(table, c) for c in THETA_COLUMNS]))
+        return theta, model.predict(P0, P, mode="measured-angles", theta=theta, **rest)
+    raise ConfigError(f"Unknown angle source {angles!r}; use 'pressure-only' or 'measured-angles'.")
+
+
+def _known_categories(objects: list[str], members: Mapping[str, np.ndarray], labels: np.ndarray) -> dict[str, str]:
+    """Each object's category as its pushes give it ("" for an unknown object)."""
+    known: dict[str, str] = {}
+    for name in objects:
+        cats = sorted(set(labels[members[name]]))
+        named = [c for c in cats if c]
+        if len(named) > 1 or (named and "" in cats):
+            raise ConfigError(
+                f"Object {name!r} has pushes with different categories ({', '.join(repr(c) for c in cats)}); "
+                "give every push of a reference object the same category."
+            )
+        known[name] = named[0] if named else ""
+    return known
+
+
+def _category_model(method: str, bands: Mapping[str, Any] | None, k: np.ndarray, use: np.ndarray,
+                    labels: np.ndarray) -> CategoryModel:
+    if method == "bands":
+        if not bands:
+            raise ModelError(
+                "No reference objects and no stiffness bands: label some objects' pushes with a category "
+                "or give [stiffness_bands_N_per_m] in the protocol."
+            )
+        return CategoryModel.from_bands(bands)
+    # Flagged reference pushes go in as NaN so that a category whose pushes
+    # are all flagged is named as such rather than reported missing.
+    ref = labels != ""
+    return CategoryModel("reference").fit(np.where(use, k, np.nan)[ref], list(labels[ref]))
+
+
+def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use: np.ndarray, labels: np.ndarray,
+                cat_model: CategoryModel, true_k: np.ndarray | None, allow_unusable: bool) -> dict[str, Any]:
+    """One object's statistics over its unflagged pushes, its category and how sure that is."""
+    stats = object_stats(est.k[sel], est.flag[sel] | ~np.isfinite(est.k[sel]))
+    row: dict[str, Any] = {"object": name, "known_category": known, **stats}
+    if true_k is not None:
+        row["true_k_N_per_m"] = float(np.nanmean(true_k[sel]))
+    samples = est.k[sel[use[sel]]]
+    if samples.size == 0:
+        counts = Counter(r for r in est.reason[sel] if r)
+        top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
+        if not allow_unusable:
+            raise ModelError(f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top}).")
+        row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})",
+                   evidence="uncertain", z_by_category={})
+        return row
+    scorer, note = cat_model, ""
+    if cat_model.method == "reference" and known:
+        # A reference object is judged against the other references, where there are some of its category.
+        others = use & (labels != "")
+        others[sel] = False
+        note = "in-sample (only reference of its category)"
+        if known in set(labels[others]):
+            try:
+                scorer = CategoryModel("reference", min_std_log_k=cat_model.min_std_log_k).fit(
+                    est.k[others], list(labels[others])
+                )
+                note = ""
+            except ModelError:
+                pass  # too few references left without this object: keep the in-sample answer
+    p = scorer.predict([samples], names=[name])
+    row.update(
+        category=p.category[0],
+        confidence=float(p.confidence[0]),
+        z=float(p.z[0]),
+        method=p.method,
+        note="; ".join(t for t in (note, p.note[0]) if t),
+        # in-sample first: a class scored against its own only reference proves nothing
+        evidence="in-sample" if note.startswith("in-sample") else p.evidence[0],
+        z_by_category=p.distances[0],
+    )
+    return row
+
+
+# --------------------------------------------------------------------------- from files
+
+DEFAULT_PUSH_PROTOCOL = "takuma2014-stiffness"
+FORCE_PROTOCOL_KEY = "force_protocol"
+
+
+@dataclass
+class PushSource:
+    """A push table with the protocol it was recorded under (a run file carries its own)."""
+
+    path: Any
+    table: Any
+    protocol: Any
+    is_run: bool
+    identity: dict = field(default_factory=dict)  # core.provenance: the data, the rig, the protocol
+
+
+def load_push_source(path: Any, protocol: str | None = None, *, measured_angles: bool = False) -> PushSource:
+    """Pushes and protocol of a push run file (.h5) or a push CSV (``protocol`` names one for a CSV).
+
+    With ``measured_angles`` the potentiometer deflections a run file stores per
+    push are added as ``theta1_deg, theta2_deg`` when the table lacks them.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise ConfigError(f"{p} does not exist; pass a push run file (.h5) or a push CSV.")
+    if p.suffix.lower() not in RUN_FILE_SUFFIXES:
+        proto = load_protocol(protocol or DEFAULT_PUSH_PROTOCOL)
+        if proto.kind != "push":
+            raise ConfigError(
+                f"Protocol '{proto.name}' is of kind '{proto.kind}'; a push CSV needs a push protocol "
+                f"such as {DEFAULT_PUSH_PROTOCOL}."
+            )
+        return PushSource(p, load_pushes(p), proto, False, table_identity(p, proto))
+
+    with RunFile.open(p) as run:
+        text = run.protocol_text
+        name = str(run.attrs.get("protocol", ""))
+        kind = run.kind
+        if protocol is not None and protocol != name:
+            raise ConfigError(
+                f"{p} was recorded with protocol '{name}'; --protocol applies to push CSV files only, "
+                "so leave it out for a run file."
+            )
+        if kind != "push":
+            raise ConfigError(
+                f"{p} is a {kind} run (protocol '{name}'), not a push run; classify reads the pushes of a "
+                "stiffness run such as one recorded with protocol takuma2014-stiffness."
+            )
+        table = run.table()
+        identity = run_identity(run, p)
+        if measured_angles and not all(c in table.columns for c in THETA_COLUMNS):
+            theta = []
+            for pid in table["push"]:
+                rec = run.read(int(pid))
+                theta.append(np.degrees(rec["theta_rad"]) if "theta_rad" in rec else (math.nan, math.nan))
+            theta = np.asarray(theta, dtype=float).reshape(-1, 2)
+            table["theta1_deg"], table["theta2_deg"] = theta[:, 0], theta[:, 1]
+    proto = (loads_protocol(text, source=f"{p} (embedded protocol)") if text.strip()
+             else load_protocol(name or DEFAULT_PUSH_PROTOCOL))
+    return PushSource(p, table, proto, True, identity)
+
+
+def stiffness_settings(protocol: Any) -> tuple[StiffnessParams, str | None]:
+    """Flag thresholds and the force protocol from a protocol's ``[stiffness]`` table, if it has one.
+
+    Without the table the defaults of :class:`StiffnessParams` apply (they are
+    the settings measured for the reference rig; see the module docstring of
+    :mod:`labcli.papers.takuma2014.models.stiffness`) and any force protocol's model is accepted
+    whose rig geometry matches.
+    """
+    sections = getattr(protocol, "sections", None) or {}
+    raw = dict(sections.get("stiffness") or {})
+    force_protocol = raw.pop(FORCE_PROTOCOL_KEY, None)
+    where = f"[stiffness] of {getattr(protocol, 'source_label', getattr(protocol, 'name', 'the protocol'))}"
+    if force_protocol is not None and not isinstance(force_protocol, str):
+        raise ConfigError(f"Key {FORCE_PROTOCOL_KEY!r} in {where} must be a protocol name, got {force_protocol!r}.")
+    return StiffnessParams.from_dict(raw, where=where), force_protocol
+
+
+def check_force_model(model: Any, protocol: Any, *, model_name: str, run_name: str,
+                      force_protocol: str | None = None) -> None:
+    """ModelError unless ``model`` was fitted on a force run of the rig these pushes were made on."""
+    if force_protocol is not None and model.protocol != force_protocol:
+        raise ModelError(
+            f"{cap(model_name)} was fitted for protocol '{model.protocol}' but pushes of protocol "
+            f"'{protocol.name}' need a model of protocol '{force_protocol}'; fit one with `labcli fit` "
+            f"on a {force_protocol} run."
+        )
+    if model.protocol in shipped_protocols():
+        kind = load_protocol(model.protocol).kind
+        if kind != "force":
+            raise ModelError(
+                f"{cap(model_name)} was fitted for protocol '{model.protocol}', of kind '{kind}', not on a "
+                f"force run; fit a model with `labcli fit` on a force run of the rig of {run_name}."
+            )
+    model.check_compatible(model.protocol, protocol.settings.rig, model_name=model_name, run_name=run_name)
+
+
+def _merge_reference(table: Any, ref: Any, ref_label: str) -> Any:
+    """Append a reference run's labelled pushes, renaming objects whose names the run already uses."""
+    import pandas as pd
+
+    labels = _labels(ref)
+    if not (labels != "").any():
+        raise ModelError(
+            f"The reference run {ref_label} has no labelled push (no push has a category); "
+            "label its reference objects' pushes in the category column."
+        )
+    ref = ref[labels != ""].copy()
+    taken = set(table["object"].astype(str))
+    ref["object"] = [f"{o} (reference)" if o in taken else o for o in ref["object"].astype(str)]
+    ref["source"] = "reference"
+    out = table.copy()
+    out["source"] = "run"
+    return pd.concat([out, ref], ignore_index=True, sort=False)
+
+
+@dataclass
+class ClassifyReport:
+    """Everything ``labcli classify`` shows: the result and where its inputs came from."""
+
+    result: ClassifyResult
+    pushes_path: Any
+    model_path: Any
+    reference_path: Any
+    protocol: Any
+    angles: str
+    force_protocol: str | None = None
+    warnings: list[str] = field(default_factory=list)  # one sentence each, printed before the report
+
+    @property
+    def method(self) -> str:
+        return self.result.method
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready data: per push and per object, with units in the key names."""
+        return report_to_dict(self)
+
+
+def classify_file(
+    pushes: Any,
+    model: Any,
+    *,
+    reference: Any = None,
+    protocol: str | None = None,
+    method: str = "auto",
+    angles: str = "pressure-only",
+    allow_unusable: bool = False,
+) -> ClassifyReport:
+    """Classify the objects of a push run file or push CSV with a fitted force model.
+
+    ``model`` is a model JSON path or a :class:`~labcli.papers.takuma2014.models.takuma.TakumaModel`;
+    ``reference`` a push run or CSV whose labelled pushes serve as reference
+    objects; ``protocol`` names the protocol of a CSV (default
+    takuma2014-stiffness); ``method`` ``auto | reference | bands``; ``angles``
+    ``pressure-only | measured-angles``.  Bands come from the protocol's
+    ``[stiffness_bands_N_per_m]``, flag settings from its ``[stiffness]``.
+    """
+    if method not in ("auto", "reference", "bands"):
+        raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
+    src = load_push_source(pushes, protocol, measured_angles=angles == "measured-angles")
+    params, force_protocol = stiffness_settings(src.protocol)
+    if isinstance(model, (TakumaModel, PostureModel)):
+        model_path, fmodel = None, model
+    else:
+        model_path = Path(model)
+        fmodel = load_force_model(model_path)
+    model_name = f"the model file {model_path}" if model_path is not None else "the model"
+    check_force_model(fmodel, src.protocol, model_name=model_name, run_name=str(src.path),
+                      force_protocol=force_protocol)
+    # Pushes are read under a push protocol, the model under a force one: the rig is compared, not the text.
+    warnings = [w for w in [rig_warning(cap(model_name), fmodel.fitted_on, str(src.path), src.identity,
+                                        protocol_text=False)] if w]
+    table = src.table
+    ref_path = None
+    if reference is not None:
+        ref_path = Path(reference)
+        ref = load_push_source(ref_path, protocol if not src.is_run else None,
+                               measured_angles=angles == "measured-angles")
+        check_force_model(fmodel, ref.protocol, model_name=model_name, run_name=str(ref_path),
+                          force_protocol=force_protocol)
+        table = _merge_reference(table, ref.table, str(ref_path))
+    if method == "reference" and not (_labels(table) != "").any():
+        raise ModelError(
+            f"The reference method needs labelled reference objects, but no push of {src.path} has a category "
+            "and no reference run was given; give one with --reference or use the protocol's stiffness bands "
+            "(--method bands)."
+        )
+    push = src.protocol.settings.push
+    bands = push.stiffness_bands_N_per_m if push is not None else None
+    try:
+        result = classify_pushes(
+            table, fmodel, params=params, bands=bands or None, method=method, angles=angles,
+            allow_unusable=allow_unusable,
+        )
+    except ModelError as e:
+        if warnings:  # a model of another rig is the likeliest cause: say so with the failure
+            raise ModelError(f"{e} {warnings[0]}") from None
+        raise
+    return ClassifyReport(result, src.path, model_path, ref_path, src.protocol, angles, force_protocol, warnings)
+
+
+def _num(x: Any, scale: float = 1.0) -> float | None:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v * scale if math.isfinite(v) else None
+
+
+PUSH_FIELDS: tuple[tuple[str, str, float], ...] = (
+    # (output key, pushes-frame column, scale to the output unit)
+    ("R_mm", "R_m", 1e3), ("d_mm", "d_m", 1e3),
+    ("theta1_deg", "theta1_deg", 1.0), ("theta2_deg", "theta2_deg", 1.0),
+    ("Fx_N", "Fx_N", 1.0), ("Fy_N", "Fy_N", 1.0),
+    ("Fx_used_N", "Fx_used_N", 1.0), ("Fy_used_N", "Fy_used_N", 1.0), ("force_N", "force_N", 1.0),
+    ("xc_mm", "xc_m", 1e3), ("yc_mm", "yc_m", 1e3), ("phi_deg", "phi_deg", 1.0),
+    ("xo_mm", "xo_m", 1e3), ("yo_mm", "yo_m", 1e3), ("delta_x_mm", "delta_x_m", 1e3),
+    ("k_N_per_m", "k_N_per_m", 1.0), ("direction_error_deg", "direction_error_deg", 1.0),
+    ("phi_gain", "phi_gain", 1.0), ("dx_theta_gain_mm_per_deg", "dx_theta_gain_m_per_rad", 1e3 * math.pi / 180),
+)
+
+
+def _push_item(row: Mapping[str, Any]) -> dict[str, Any]:
+    item: dict[str, Any] = {"push": int(row["push"]), "object": str(row["object"])}
+    if "source" in row:
+        item["source"] = str(row["source"])
+    item["category_given"] = "" if not isinstance(row.get("category"), str) else row["category"]
+    for key, col, scale in PUSH_FIELDS:
+        item[key] = _num(row.get(col), scale)
+    item["phi_solved"] = bool(row["phi_solved"])
+    item["n_phi_solutions"] = int(row["n_phi_solutions"])
+    item["flagged"] = bool(row["flag"])
+    item["reason"] = str(row["reason"])
+    item["note"] = str(row["note"])
+    if TRUE_K in row:
+        item["true_k_N_per_m"] = _num(row[TRUE_K])
+    return item
+
+
+def push_items(report: ClassifyReport, chunk: int = 10_000) -> Iterator[dict[str, Any]]:
+    """Every push as plain data, a chunk of rows at a time (memory stays flat for any number of pushes)."""
+    df = report.result.pushes
+    for start in range(0, len(df), chunk):
+        for row in df.iloc[start:start + chunk].to_dict("records"):
+            yield _push_item(row)
+
+
+def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
+    """Every object's summary as plain data (one per object: small)."""
+    res = report.result
+    objects = []
+    for row in res.objects.to_dict("records"):
+        item = {
+            "object": str(row["object"]),
+            "role": "reference" if row.get("known_category") else "unknown",
+            "category_given": str(row.get("known_category") or ""),
+            "n": int(row["n_pushes"]), "n_used": int(row["n_used"]), "n_flagged": int(row["n_flagged"]),
+            "k_mean_N_per_m": _num(row["k_mean_N_per_m"]), "k_sd_N_per_m": _num(row["k_std_N_per_m"]),
+            "k_median_N_per_m": _num(row["k_median_N_per_m"]),
+            "log_k_mean": _num(row["log_k_mean"]), "log_k_sd": _num(row["log_k_std"]),
+            "category": str(row.get("category") or ""), "confidence": _num(row.get("confidence")),
+            "z": _num(row.get("z")), "method": str(row.get("method") or res.method), "note": str(row.get("note") or ""),
+            "evidence": str(row.get("evidence") or ""),
+            "z_by_category": {str(c): _num(v) for c, v in dict(row.get("z_by_category") or {}).items()},
+        }
+        if "true_k_N_per_m" in row:
+            item["true_k_N_per_m"] = _num(row["true_k_N_per_m"])
+        objects.append(item)
+    return objects
+
+
+def report_header(report: ClassifyReport) -> dict[str, Any]:
+    """What the report says besides its pushes and objects: files, protocol, method, categories, settings."""
+    res = report.result
+    return {
+        "pushes_file": str(report.pushes_path),
+        "model_file": None if report.model_path is None else str(report.model_path),
+        "reference_file": None if report.reference_path is None else str(report.reference_path),
+        "protocol": report.protocol.name,
+        "angles": report.angles,
+        "method": res.method,
+        "warnings": list(report.warnings),
+        "categories": res.model.to_dict(),
+        "stiffness_settings": res.params.to_dict(),
+        "units": {"length": "mm", "angle": "deg", "force": "N", "stiffness": "N/m"},
+        "n_pushes": int(len(res.pushes)),
+    }
+
+
+def flag_summary(pushes: Any) -> dict[str, Any]:
+    """How many pushes are flagged (by reason) and how many carry each note, without listing them."""
+    flagged = pushes["flag"].to_numpy(dtype=bool)
+    reasons = pushes.loc[flagged, "reason"].astype(str).value_counts()
+    notes = pushes.loc[~flagged & (pushes["note"].astype(str) != ""), "note"].astype(str).value_counts()
+    return {"n_flagged": int(flagged.sum()), "reasons": {str(k): int(v) for k, v in reasons.items()},
+            "notes": {str(k): int(v) for k, v in notes.items()}}
+
+
+def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
+    """The report as plain data (JSON-ready; NaN becomes None; mm, deg, N, N/m in the key names)."""
+    return {**report_header(report), "pushes": list(push_items(report)), "objects": object_items(report)}
+
+
+def write_report_json(report: ClassifyReport, out: IO[str], extra: Mapping[str, Any] | None = None) -> None:
+    """The JSON of :func:`report_to_dict`, streamed: one push per line, never all pushes in memory at once."""
+    import json
+
+    head = {**report_header(report), **(extra or {})}
+    out.write("{\n")
+    for key, value in head.items():
+        out.write(f"  {json.dumps(key)}: {json.dumps(value, allow_nan=False)},\n")
+    out.write('  "objects": ' + json.dumps(object_items(report), allow_nan=False) + ',\n  "pushes": [')
+    sep = "\n    "
+    for item in push_items(report):
+        out.write(sep + json.dumps(item, allow_nan=False))
+        sep = ",\n    "
+    out.write("\n  ]\n}\n")

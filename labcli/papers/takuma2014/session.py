@@ -1,0 +1,500 @@
+"""The paper's two experiments as sessions of plain steps (:mod:`labcli.core.steps`).
+
+* :func:`force_session`: the force/angle calibration of Section 3.2, one trial per plan row
+  (or per load the experimenter types): baseline, hang the weight, equilibrium, capture,
+  remove the weight, review, commit.
+* :func:`push_session`: the stiffness experiment of Section 4, ``pushes_per_object``
+  pushes per object: the object's name, radius, default push distance and direction are
+  asked once, and each push asks only for Enter (or a new distance and direction).
+
+Both check the readings as they go (:mod:`labcli.core.guard`): the air supply before the
+first trial; after each load, that the readings moved as the run's earlier trials say the
+load should (a weight never hung, an object never pushed: the review warns and offers redo
+as the default); and before each baseline, that the last load was taken off.
+
+The actions below are what the experimenter does at the McKibben rig; each carries
+``act_on(rig)``, which the simulated rig performs in unattended runs.  The records are
+plain dicts (SI) that :mod:`labcli.papers.takuma2014.records` stores.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from functools import partial
+from typing import Any, Generator, Iterable, Sequence
+
+import numpy as np
+
+from ...core.guard import Guard, supply_problem
+from ...core.steps import (
+    Ask,
+    Baseline,
+    BeginTrial,
+    Capture,
+    Commit,
+    Field,
+    Finish,
+    Problem,
+    Prompt,
+    Review,
+    SettleReport,
+    SetupCheck,
+    Step,
+    WaitSettle,
+    Window,
+)
+
+G = 9.80665  # standard gravity, m/s^2 (docs/table-formats.md)
+
+PRESSURE_NAMES = ("P_L1", "P_R1", "P_L2", "P_R2")
+POT_NAMES = ("POT1", "POT2")
+
+
+# --------------------------------------------------------------------------- actions
+# What the experimenter does at the rig.  The simulated rig can do each one
+# itself (unattended mode); on a real rig they are only words in a prompt.
+
+
+@dataclass(frozen=True)
+class SupplyAir:
+    def act_on(self, rig: Any) -> None:
+        rig.supply_air()
+
+
+@dataclass(frozen=True)
+class CloseValves:
+    def act_on(self, rig: Any) -> None:
+        rig.close_valves()
+
+
+@dataclass(frozen=True)
+class HangWeight:
+    mass_kg: float
+    direction_rad: float
+
+    def act_on(self, rig: Any) -> None:
+        rig.hang_weight(self.mass_kg, self.direction_rad)
+
+
+@dataclass(frozen=True)
+class RemoveWeight:
+    def act_on(self, rig: Any) -> None:
+        rig.remove_weight()
+
+
+@dataclass(frozen=True)
+class PushObject:
+    radius_m: float
+    distance_m: float
+    phi_rad: float | None  # None: the direction is not known to the experimenter
+    stiffness_N_per_m: float | None = None  # simulated objects only
+
+    def act_on(self, rig: Any) -> None:
+        # A direction unknown to the experimenter is still some direction for the
+        # simulated rig: it pushes along the normal (phi = 0) then.
+        phi = 0.0 if self.phi_rad is None else self.phi_rad
+        if self.stiffness_N_per_m is None:
+            raise ValueError("the object's stiffness is not given (a push plan's stiffness_N_per_m), and the "
+                             "simulated rig needs it")
+        rig.push_object(self.radius_m, self.distance_m, phi, self.stiffness_N_per_m)
+
+
+@dataclass(frozen=True)
+class ReleaseObject:
+    def act_on(self, rig: Any) -> None:
+        rig.release_object()
+
+
+Action = SupplyAir | CloseValves | HangWeight | RemoveWeight | PushObject | ReleaseObject
+
+
+# --------------------------------------------------------------------------- replies
+
+
+@dataclass(frozen=True)
+class Load:
+    mass_kg: float
+    direction_rad: float
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    name: str
+    radius_m: float
+    category: str = ""
+    stiffness_N_per_m: float | None = None  # simulated objects only
+
+
+@dataclass(frozen=True)
+class PushSpec:
+    distance_m: float
+    phi_rad: float | None
+
+
+# --------------------------------------------------------------------------- plan rows
+
+
+@dataclass(frozen=True)
+class PlannedTrial:
+    trial: int
+    set: str
+    mass_kg: float
+    direction_rad: float
+    plan_row: dict | None = None  # the plan's values as written (g, deg), kept with the trial
+
+
+def planned_trials(plan: Any) -> list[PlannedTrial]:
+    """Plan rows (a DataFrame or dicts with trial, set, mass_g, direction_deg) in SI."""
+    if plan is None:
+        return []
+    if hasattr(plan, "to_dict"):
+        rows: Iterable[dict] = plan.to_dict("records")
+    else:
+        rows = plan
+    out = []
+    for r in rows:
+        out.append(
+            PlannedTrial(
+                trial=int(r["trial"]),
+                set=str(r.get("set", "") or ""),
+                mass_kg=float(r["mass_g"]) * 1e-3,
+                direction_rad=math.radians(float(r["direction_deg"])),
+                plan_row={"set": str(r.get("set", "") or ""), "mass_g": float(r["mass_g"]),
+                          "direction_deg": float(r["direction_deg"])},
+            )
+        )
+    return out
+
+
+# --------------------------------------------------------------------------- text
+
+
+def fmt_g(mass_kg: float) -> str:
+    return f"{mass_kg * 1e3:.4g} g"
+
+
+def fmt_deg(angle_rad: float) -> str:
+    return f"{math.degrees(angle_rad):.4g} deg"
+
+
+def trial_label(trial: int, total: int, set_: str) -> str:
+    return f"Trial {trial}/{total}" + (f" ({set_})" if set_ else "")
+
+
+def load_prompt(label: str, mass_kg: float, direction_rad: float) -> str:
+    return f"{label}: hang {fmt_g(mass_kg)}, pulley direction {fmt_deg(direction_rad)}, then press Enter"
+
+
+SUPPLY_TEXT = "Supply compressed air to the four actuators, then press Enter"
+CLOSE_TEXT = "Close the valves so that the actuators are sealed, then press Enter"
+
+
+def remove_prompt(label: str) -> str:
+    return f"{label}: remove the weight, then press Enter"
+
+
+# --------------------------------------------------------------------------- typed input
+
+
+def parse_mass_g(text: str, lo_g: float = 1.0, hi_g: float = 2000.0) -> float:
+    """Parse a typed mass ("200", "200 g", "0.2 kg") into kg; ValueError with a sentence if bad."""
+    m = re.fullmatch(r"\s*([-+]?[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(g|kg)?\s*", text)
+    if not m:
+        raise ValueError(f"'{text.strip()}' is not a mass: type a number of grams, e.g. 200 g.")
+    value = float(m.group(1)) * (1000.0 if m.group(2) == "kg" else 1.0)
+    if not 0 < value or not lo_g <= value <= hi_g:
+        raise ValueError(f"The mass must be from {lo_g:g} g to {hi_g:g} g, got {value:g} g.")
+    return value * 1e-3
+
+
+def parse_direction_deg(
+    text: str, lo_deg: float = -180.0, hi_deg: float = 180.0, *, allow_unknown: bool = False
+) -> float | None:
+    """Parse a typed direction in degrees into rad; "?" or nothing is unknown when allowed."""
+    t = text.strip()
+    if allow_unknown and t.lower() in ("?", "unknown", ""):
+        return None
+    m = re.fullmatch(r"([-+]?[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(deg)?", t)
+    if not m:
+        raise ValueError(f"'{t}' is not a direction: type degrees counter-clockwise from +x, e.g. 45 deg.")
+    value = float(m.group(1))
+    if not lo_deg <= value <= hi_deg:
+        raise ValueError(f"The direction must be from {lo_deg:g} deg to {hi_deg:g} deg, got {value:g} deg.")
+    return math.radians(value)
+
+
+def parse_length_mm(text: str, what: str, lo_mm: float = 0.0, hi_mm: float = 500.0) -> float:
+    """Parse a typed length in millimetres into metres."""
+    m = re.fullmatch(r"\s*([-+]?[0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(mm)?\s*", text)
+    if not m:
+        raise ValueError(f"'{text.strip()}' is not a {what}: type millimetres, e.g. 10 mm.")
+    value = float(m.group(1))
+    if not (value > 0 and lo_mm <= value <= hi_mm):
+        raise ValueError(f"The {what} must be from {lo_mm:g} mm to {hi_mm:g} mm, got {value:g} mm.")
+    return value * 1e-3
+
+
+# --------------------------------------------------------------------------- records
+
+
+@dataclass(frozen=True)
+class ChannelMap:
+    """Where the four pressures and two potentiometers sit among the device channels."""
+
+    pressure: tuple[int, ...]
+    pot: tuple[int, ...]
+
+    @classmethod
+    def from_channels(cls, channels: Sequence[str]) -> "ChannelMap":
+        names = list(channels)
+        missing = [n for n in PRESSURE_NAMES + POT_NAMES if n not in names]
+        if missing:
+            raise ValueError(
+                "the protocol's channels lack " + ", ".join(missing)
+                + " (need " + ",".join(PRESSURE_NAMES + POT_NAMES) + ")"
+            )
+        return cls(tuple(names.index(n) for n in PRESSURE_NAMES), tuple(names.index(n) for n in POT_NAMES))
+
+
+def force_record(
+    trial: int,
+    set_: str,
+    mass_kg: float,
+    direction_rad: float,
+    baseline: Window,
+    loaded: Window,
+    settle_baseline: SettleReport,
+    settle_load: SettleReport,
+    cmap: ChannelMap,
+    plan_row: dict | None = None,
+) -> dict:
+    """One force/angle trial, SI, with both raw windows (what the store writes)."""
+    b = baseline.mean()
+    m = loaded.mean()
+    p0 = b[list(cmap.pressure)]
+    p = m[list(cmap.pressure)]
+    pot0 = b[list(cmap.pot)]
+    theta = m[list(cmap.pot)] - pot0
+    weight = mass_kg * G
+    return {
+        "trial": int(trial),
+        "set": set_,
+        "P0_MPa": p0,
+        "P_MPa": p,
+        "pot0_rad": pot0,
+        "theta_rad": theta,
+        "force_N": np.array([weight * math.cos(direction_rad), weight * math.sin(direction_rad)]),
+        "mass_kg": float(mass_kg),
+        "direction_rad": float(direction_rad),
+        "settle": {"baseline": settle_baseline.as_dict(), "load": settle_load.as_dict()},
+        "raw": {"baseline": baseline.as_dict(), "load": loaded.as_dict()},
+        **({"plan": dict(plan_row)} if plan_row else {}),
+    }
+
+
+def summary_row(record: dict) -> dict[str, str]:
+    """The trial's row as people read it: degrees, grams, the unit of every column in its name."""
+    p0 = record["P0_MPa"]
+    p = record["P_MPa"]
+    row = {"push": str(record["push"])} if "push" in record else {"trial": str(record["trial"])}
+    if record.get("set"):
+        row["set"] = record["set"]
+    if "object" in record:
+        row["object"] = record["object"]
+        row["d (mm)"] = f"{record['d_m'] * 1e3:.4g}"
+        phi = record.get("phi_rad")
+        row["phi (deg)"] = "unknown" if phi is None or not np.isfinite(phi) else f"{math.degrees(phi):.4g}"
+    for name, a, c in zip(PRESSURE_NAMES, p0, p):
+        row[f"{name} (MPa)"] = f"{a:.4f}->{c:.4f}"
+    if "theta_rad" in record:
+        row["theta1 (deg)"] = f"{math.degrees(record['theta_rad'][0]):+.3f}"
+        row["theta2 (deg)"] = f"{math.degrees(record['theta_rad'][1]):+.3f}"
+    if "force_N" in record:
+        row["Fx (N)"] = f"{record['force_N'][0]:+.3f}"
+        row["Fy (N)"] = f"{record['force_N'][1]:+.3f}"
+    load = record["settle"]["load"]
+    row["settled (s)"] = f"{load['settle_time_s']:.2f}" + ("" if load["settled"] else " timed out")
+    return row
+
+
+# --------------------------------------------------------------------------- questions
+
+
+def ask_load(trial: int, total: int, mass_range_g: tuple[float, float] = (1.0, 2000.0),
+             direction_range_deg: tuple[float, float] = (-180.0, 180.0)) -> Ask:
+    """No plan: the mass (g) and pulley direction (deg) of the next trial; Enter ends the run."""
+    head = f"Trial {trial}/{total}"
+    lo, hi = mass_range_g
+    dlo, dhi = direction_range_deg
+    return Ask((
+        Field("mass_kg", f"{head}: mass to hang in g, {lo:g} to {hi:g} (Enter when the run is complete, q to quit):",
+              partial(parse_mass_g, lo_g=lo, hi_g=hi), again=f"{head}: mass to hang in g:", stop_if_empty=True),
+        Field("direction_rad", f"{head}: pulley direction in deg, counter-clockwise from +x ({dlo:g} to {dhi:g}):",
+              partial(parse_direction_deg, lo_deg=dlo, hi_deg=dhi)),
+    ))
+
+
+# --------------------------------------------------------------------------- sessions
+
+
+def _pressurise(protocol: Any) -> Generator[Step, Any, None]:
+    """Setup check, air supply (held until the pressures settle, then checked), valves closed."""
+    capture_s = float(protocol.settling.capture_s)
+    cols = [i for i, u in enumerate(protocol.calibration.units) if u == "MPa"]
+    names = [protocol.channels[i] for i in cols]
+    yield SetupCheck()
+    problem = None
+    while True:
+        supply = Prompt(SUPPLY_TEXT, SupplyAir())
+        yield supply if problem is None else Problem(problem, supply)
+        if (yield WaitSettle("air supply")) == "redo":
+            problem = None
+            continue
+        readings = yield Baseline(capture_s)
+        problem = supply_problem(names, readings.mean()[cols], protocol.supply_min_MPa)
+        if problem is None:
+            break
+    yield Prompt(CLOSE_TEXT, CloseValves())
+
+
+@dataclass(frozen=True)
+class Checked:
+    """What the checks of one trial need: the guard, the trial's load vector and its model's key,
+    and the prompt that takes a forgotten load off (``"remove the weight"``)."""
+
+    guard: Guard
+    load: tuple[float, ...]
+    key: Any
+    undo: Prompt
+    forgotten: str  # "a weight may still hang on the pulley"
+
+
+def _trial(capture_s: float, load: Prompt, unload: Prompt, record_of: Any,
+           checked: Checked | None = None) -> Generator[Step, Any, Any]:
+    """One trial or push until accepted (True) or skipped (False).
+
+    Baseline at equilibrium, the load, equilibrium, capture, the unload, then the review;
+    a redo (of a wait or of the review) starts again from the baseline.
+    ``record_of(baseline, loaded, settle_baseline, settle_load)`` makes the record.
+    With ``checked``, a baseline that still carries the last load asks for it to be taken
+    off, and a load the readings did not follow makes redo the review's default.  A load
+    prompt answered with new values (its ``change``) returns them: nothing was loaded, and
+    the caller starts the trial again with them.
+    """
+    while True:
+        wait_b = yield WaitSettle("baseline")
+        if wait_b == "redo":
+            continue
+        base = yield Baseline(capture_s)
+        if checked is not None:
+            left = checked.guard.after_baseline(base)
+            if left is not None:
+                yield Problem(f"The readings have not returned since the last load: {left}; "
+                              f"{checked.forgotten}.", checked.undo)
+                continue
+        typed = yield load
+        if typed is not None:
+            return typed
+        wait_l = yield WaitSettle("load")
+        if wait_l == "redo":
+            yield unload
+            continue
+        loaded = yield Capture(capture_s)
+        weak = checked.guard.after_load(checked.load, base, loaded, checked.key) if checked else None
+        yield unload
+        record = record_of(base, loaded, wait_b, wait_l)
+        warnings = (f"{weak[:1].upper()}{weak[1:]}: check that the load was applied as the prompt said, then "
+                    "redo the trial (Enter), or accept it as it is (a).",) if weak else ()
+        decision = yield Review(summary_row(record), warnings, "redo" if weak else "accept")
+        if decision == "redo":
+            continue
+        if decision == "skip":
+            return False
+        if weak:
+            record = {**record, "accepted": "operator", "flags": [warnings[0]]}
+        elif checked is not None:
+            checked.guard.learn(checked.load, base, loaded, checked.key)
+        yield Commit(record)
+        return True
+
+
+def _load_limits(protocol: Any) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Typed-load limits from the protocol's [force] section (defaults: 1-2000 g, +-180 deg)."""
+    lim = protocol.settings.force_limits
+    if lim is None:
+        return (1.0, 2000.0), (-180.0, 180.0)
+    return (lim.mass_min_g, lim.mass_max_g), (lim.direction_min_deg, lim.direction_max_deg)
+
+
+def force_vector(mass_kg: float, direction_rad: float) -> tuple[float, float]:
+    """(Fx, Fy) in N of a pulley weight: m g along its direction."""
+    return (mass_kg * G * math.cos(direction_rad), mass_kg * G * math.sin(direction_rad))
+
+
+def force_session(
+    protocol: Any,
+    plan: Any = None,
+    *,
+    completed: Iterable[int] = (),
+    target: int | None = None,
+    history: Iterable[tuple[Sequence[float], Sequence[float]]] = (),
+) -> Generator[Step, Any, None]:
+    """The force/angle calibration session of Section 3.2 (one trial per plan row).
+
+    ``plan``: the plan table (None: the experimenter types each load);
+    ``completed``: trial ids already stored (resume skips them);
+    ``target``: the number of trials announced when there is no plan
+    (default: the protocol's fit + validation counts);
+    ``history``: (force N, change of the watched channels SI) of trials already stored,
+    from which the load check learns what a load does on this rig.
+    """
+    capture_s = float(protocol.settling.capture_s)
+    cmap = ChannelMap.from_channels(protocol.channels)
+    guard = Guard(protocol)
+    for force, change in history:
+        guard.model().add(force, change)
+    done = set(int(t) for t in completed)
+    rows = planned_trials(plan)
+    remaining = [r for r in rows if r.trial not in done]
+    if rows:
+        total = len(rows)
+    else:
+        trials = protocol.settings.trials
+        total = target or (int(trials.fit) + int(trials.validation) if trials is not None else 0)
+
+    yield from _pressurise(protocol)
+
+    skipped: list[int] = []
+    while not rows or remaining:
+        if rows:
+            planned = remaining.pop(0)
+            label = trial_label(planned.trial, total, planned.set)
+        else:
+            # Ids stay dense: a skipped trial's id is used by the next load.
+            next_id = max(done, default=0) + 1
+            shown_total = max(total, len(done) + 1)
+            load = yield ask_load(next_id, shown_total, *_load_limits(protocol))
+            if load is None:
+                break
+            planned = PlannedTrial(next_id, "", load["mass_kg"], load["direction_rad"])
+            label = trial_label(next_id, shown_total, "")
+        yield BeginTrial(planned.trial, planned.set, len(done) + 1, total, label)
+        remove = Prompt(remove_prompt(label), RemoveWeight())
+        stored = yield from _trial(
+            capture_s,
+            Prompt(load_prompt(label, planned.mass_kg, planned.direction_rad),
+                   HangWeight(planned.mass_kg, planned.direction_rad)),
+            remove,
+            lambda base, loaded, wait_b, wait_l, p=planned: force_record(
+                p.trial, p.set, p.mass_kg, p.direction_rad, base, loaded, wait_b, wait_l, cmap, p.plan_row),
+            Checked(guard, force_vector(planned.mass_kg, planned.direction_rad), None, remove,
+                    "the last weight may still hang on the pulley"),
+        )
+        (done.add if stored else skipped.append)(planned.trial)
+
+    split = None
+    if rows:
+        split = {r.trial: r.set for r in rows if r.trial in done and r.set}
+    yield Finish(split, tuple(skipped))

@@ -1,0 +1,75 @@
+"""The McKibben rig's own ``sim://`` options, and the rig they build.
+
+Each non-ideality (:mod:`.nonideal`) has a scale (1 = its typical level, 0 = off);
+``ideal=1`` turns all five off, and a scale given beside it still applies
+(``ideal=1&leak=1`` is the ideal rig with a leak).  ``supply`` is the regulator
+pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuators
+(``paper``, the paper-scale default, or ``thin``, the earlier soft tuning;
+``design=thin&ideal=1`` reproduces its frames exactly).
+
+This module imports nothing heavy: the experiment's declaration reads :data:`SIM_OPTIONS`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from ....core.paper import SimOption
+
+SCALES = ("friction", "leak", "thermal", "backlash", "links")
+DESIGN_NAMES = ("paper", "thin")  # the keys of physics.DESIGNS (a test holds them equal)
+SUPPLY_FORM = "one or four pressures in MPa within 0..1, comma-separated"
+
+
+def parse_flag(text: str) -> bool:
+    if text not in ("0", "1"):
+        raise ValueError
+    return text == "1"
+
+
+def parse_scale(text: str) -> float:
+    v = float(text)
+    if not (math.isfinite(v) and v >= 0):
+        raise ValueError
+    return v
+
+
+def parse_supply(text: str) -> tuple[float, ...]:
+    """``"0.3"`` or ``"0.3,0.3,0.4,0.2"`` (MPa gauge) as four pressures; ValueError otherwise."""
+    values = tuple(float(v) for v in text.split(","))
+    if len(values) not in (1, 4) or not all(math.isfinite(v) and 0 <= v <= 1 for v in values):
+        raise ValueError
+    return values if len(values) == 4 else values * 4
+
+
+def parse_design(text: str) -> str:
+    if text not in DESIGN_NAMES:
+        raise ValueError
+    return text
+
+
+SIM_OPTIONS = {
+    "ideal": SimOption(parse_flag, "0|1", "0 or 1"),
+    **{name: SimOption(parse_scale, "X", "a number >= 0") for name in SCALES},
+    "supply": SimOption(parse_supply, "MPA[,MPA,MPA,MPA]", SUPPLY_FORM),
+    "design": SimOption(parse_design, "|".join(DESIGN_NAMES), "one of " + ", ".join(DESIGN_NAMES)),
+}
+
+
+def build_rig(*, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7,
+              ideal: bool = False, supply: Any = None, design: str | None = None, **scales: float) -> Any:
+    """The McKibben rig with these options (parsed values of :data:`SIM_OPTIONS`; None: the default)."""
+    from dataclasses import replace
+
+    from .nonideal import NonIdeal
+    from .rig import SimRig
+
+    unknown = set(scales) - set(SCALES)
+    if unknown:
+        raise ValueError(f"the McKibben rig has no option {sorted(unknown)[0]!r}")
+    base = NonIdeal.ideal() if ideal else NonIdeal()
+    extra = {} if supply is None else {"supply_MPa": supply}
+    nonideal = replace(base, **{k: v for k, v in scales.items() if v is not None})
+    return SimRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s, nonideal=nonideal, design=design or "paper",
+                  **extra)

@@ -1,0 +1,391 @@
+"""The simulated two-joint McKibben rig: physics, operator, sensors and ADC.
+
+:class:`SimRig` is the test bed of Takuma et al. (2014) behind a 12-bit ADC.
+It is not part of the wire protocol; the simulated firmware
+(:mod:`labcli.core.sim.firmware`) reads it through two generic members that any other
+rig model can provide as well:
+
+* ``channels`` (names, in data-line order), ``device`` and ``firmware`` (for ``ID?``);
+* ``samples(n, rate_hz) -> (t_us int64 (n,), counts int64 (n, k))``, advancing
+  the rig's own simulated clock, and ``advance(seconds)``.
+
+Operator hooks (``supply_air``, ``close_valves``, ``hang_weight``, ...) act at
+the rig's current simulated time.  Each solves the new static equilibrium once
+(:func:`labcli.papers.takuma2014.sim.physics.solve_equilibrium`); the posture then relaxes towards it
+as a first-order lag with time constant ``tau`` (seeded jitter of about 15 %
+per change).  With the valves open the pressures follow the regulator with the
+same lag; with them closed the pressures follow the posture through Boyle's
+law, so angles and pressures are always consistent.
+
+Sensors: pressure counts per the reference calibration
+``P[MPa] = (counts * 5 / 4095 - 1) / 4`` and potentiometer counts per
+``deg = (counts - 2048) * 340 / 4095``, Gaussian noise of 0.5 count (pressure)
+and 0.7 count (potentiometer) rms times ``noise``, rounded and clipped to
+0..4095.  With ``variation`` on (the default) each potentiometer has a
+mechanical offset (1.5 deg rms) and each pressure sensor a zero offset
+(1.5 kPa rms), and the actuators differ (:func:`labcli.papers.takuma2014.sim.physics.varied_params`).
+``drift`` scales sensor zero drift (slow sinusoids of a few counts, periods of
+10-40 min).
+
+``nonideal`` (:class:`labcli.papers.takuma2014.sim.nonideal.NonIdeal`, on at typical levels by
+default) adds sleeve friction with hysteresis, a leak of the closed chambers,
+thermal relaxation after fast loads, potentiometer backlash and the links'
+weight; ``NonIdeal.ideal()`` turns them off, and the rig then computes exactly
+what it computed before they existed (same parameters, same frames).  The
+leak moves the pressures at once; its small effect on posture enters at the
+next operator action.  ``design`` picks the actuators (:data:`labcli.papers.takuma2014.sim.physics.DESIGNS`:
+``"paper"``, the paper-scale default, or ``"thin"``, the earlier soft tuning);
+``supply_MPa`` is one supply pressure or four (L1, R1, L2, R2).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ....core.sim.clock import SimClock
+from . import nonideal as ni
+from . import physics as ph
+
+CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
+ADC_MAX = 4095
+VREF = 5.0
+POT_SPAN_DEG = 340.0
+PRESSURE_NOISE_COUNTS = 0.5
+POT_NOISE_COUNTS = 0.7
+
+
+def pressure_to_counts(p_MPa):
+    """Ideal (unrounded) ADC counts for a gauge pressure, inverse of the reference calibration."""
+    return (4.0 * np.asarray(p_MPa) + 1.0) * ADC_MAX / VREF
+
+
+def angle_to_counts(theta_rad):
+    """Ideal (unrounded) ADC counts for a potentiometer angle."""
+    return 2048.0 + np.degrees(theta_rad) * ADC_MAX / POT_SPAN_DEG
+
+
+@dataclass(frozen=True)
+class _Segment:
+    """The state between two operator actions: a first-order lag to ``target``."""
+
+    t0: float
+    tau: float
+    theta_from: np.ndarray
+    theta_to: np.ndarray
+    p_from: np.ndarray  # gauge Pa (used with open valves)
+    p_to: np.ndarray
+    chambers: ph.Chambers
+    load: object
+    target: ph.Equilibrium
+    x0: np.ndarray  # gas temperature excess T/T0 - 1 at t0 (closed chambers)
+    dlnV: np.ndarray  # change of ln(V + V_dead) the lag drives (closed chambers)
+    kappa1: float  # kappa - 1 of the fast compression (0: isothermal)
+    shaft0: np.ndarray  # potentiometer shaft angles at t0 (backlash)
+
+
+class SimRig(SimClock):
+    """Physical model of the reference rig with operator hooks and an ADC.
+
+    ``SimRig(seed=0, noise=1.0, drift=0.0)``; ``params`` overrides the
+    actuator/geometry parameters (:class:`labcli.papers.takuma2014.sim.physics.RigParams`),
+    ``variation=False`` gives the symmetric design rig with ideal sensors,
+    ``nonideal=NonIdeal.ideal()`` the ideal model.
+    The rig starts vented (no air), at its unloaded posture.
+    """
+
+    channels: tuple[str, ...] = CHANNELS
+    device = "mckibben-2dof-sim"
+    firmware = "1.0"
+
+    @property
+    def console_commands(self) -> dict:
+        """The operator's actions on ``labcli sim``'s console (:mod:`.console`)."""
+        from .console import COMMANDS
+
+        return COMMANDS
+
+    def __init__(
+        self,
+        seed: int = 0,
+        noise: float = 1.0,
+        drift: float = 0.0,
+        params: ph.RigParams | None = None,
+        *,
+        variation: bool = True,
+        tau_s: float = 0.7,
+        supply_MPa=ph.SUPPLY_MPA,
+        nonideal: ni.NonIdeal | None = None,
+        design: str | ph.Design = "paper",
+    ) -> None:
+        if noise < 0 or drift < 0 or tau_s <= 0:
+            raise ValueError("noise and drift must be >= 0 and tau_s > 0")
+        supply = ph.supply_array(supply_MPa)
+        if np.any(supply < 0) or np.any(supply > 1.0e6):
+            raise ValueError("supply pressures must be within 0..1 MPa gauge (the sensors' span)")
+        self.seed = int(seed)
+        self.noise = float(noise)
+        self.drift = float(drift)
+        self.tau_s = float(tau_s)
+        self.variation = bool(variation)
+        self.nonideal = ni.NonIdeal() if nonideal is None else nonideal
+        if params is None:
+            params = (
+                ph.varied_params(self.seed, supply_MPa=supply_MPa, design=design)
+                if variation
+                else ph.nominal_params(supply_MPa=supply_MPa, design=design)
+            )
+            if self.nonideal.links:
+                params = replace(params, link_mass_kg=np.array(ni.LINK_MASS_KG) * self.nonideal.links)
+        self.params = params
+        self._friction = ni.FRICTION_FRACTION * self.nonideal.friction
+        self._kappa1 = (ni.KAPPA - 1.0) * self.nonideal.thermal
+        self._thermal_tau = ni.THERMAL_TAU_S  # read when the rig is built (a test may set another)
+        self._backlash = ni.BACKLASH_RAD * self.nonideal.backlash
+        self._leak_rate = ni.leak_factors(self.seed, self.nonideal.leak)
+        self._lock = threading.RLock()
+        self._noise_rng = np.random.default_rng([self.seed, 1])
+        self._event_rng = np.random.default_rng([self.seed, 2])
+        srng = np.random.default_rng([self.seed, 3])
+        if variation:
+            self.pot_offset_rad = np.radians(1.5) * srng.standard_normal(2)
+            self.sensor_offset_MPa = 0.0015 * srng.standard_normal(4)
+        else:
+            self.pot_offset_rad = np.zeros(2)
+            self.sensor_offset_MPa = np.zeros(4)
+        self._drift_amp = np.array([3.0, 3.0, 3.0, 3.0, 2.0, 2.0])  # counts at drift = 1
+        self._drift_period = srng.uniform(600.0, 2400.0, 6)
+        self._drift_phase = srng.uniform(0.0, 2 * np.pi, 6)
+        self._t = 0.0
+        self._t_closed = 0.0
+        chambers = ph.Chambers.open(np.zeros(4))
+        eq = ph.solve_equilibrium(self.params, chambers, ph.NoLoad())
+        self._seg = _Segment(0.0, self.tau_s, eq.theta_rad, eq.theta_rad, np.zeros(4), np.zeros(4),
+                             chambers, ph.NoLoad(), eq, x0=np.zeros(4), dlnV=np.zeros(4), kappa1=0.0,
+                             shaft0=eq.theta_rad.copy())
+        self._rest_theta = eq.theta_rad.copy()
+        self._valves = "vented"
+
+    # ------------------------------------------------------------ state
+
+    def _state_at(self, t, isothermal: bool = False):
+        """Posture (..., 2), gauge pressures Pa (..., 4) at times ``t``."""
+        s = self._seg
+        t = np.asarray(t, dtype=float)
+        w = np.exp(-np.clip(t - s.t0, 0.0, None) / s.tau)[..., None]
+        theta = s.theta_to + (s.theta_from - s.theta_to) * w
+        if s.chambers.state == "open":
+            p = s.p_to + (s.p_from - s.p_to) * w
+        else:
+            L = ph.actuator_lengths(theta, self.params)
+            V = ph.mckibben_volume(L, self.params.b, self.params.n)
+            amount = s.chambers.amount * self._leak_factor(t)
+            p_abs = amount / (V + self.params.V_dead)
+            if not isothermal and (s.kappa1 or np.any(s.x0)):
+                p_abs = p_abs * (1.0 + self._thermal_at(t))
+            p = p_abs - ph.P_ATM
+        return theta, p
+
+    def _leak_factor(self, t):
+        """Fraction of each closed chamber's air left at times ``t`` (``(..., 4)``)."""
+        t = np.asarray(t, dtype=float)
+        if not np.any(self._leak_rate) or self._seg.chambers.state != "closed":
+            return np.ones(t.shape + (4,))
+        return np.exp(-(t - self._t_closed)[..., None] * self._leak_rate)
+
+    def _shaft_at(self, t, theta):
+        """Potentiometer shaft angles (..., 2) for joint angles ``theta`` at times ``t`` (backlash)."""
+        return ni.play(self._seg.shaft0, theta, self._backlash)
+
+    def _thermal_at(self, t) -> np.ndarray:
+        """Gas temperature excess ``T/T0 - 1`` of each chamber at times ``t`` (``(..., 4)``)."""
+        s = self._seg
+        if s.chambers.state != "closed" or not (s.kappa1 or np.any(s.x0)):
+            return np.zeros(np.shape(t) + (4,))
+        return ni.thermal_excess(t - s.t0, s.x0, s.dlnV, s.kappa1, s.tau, self._thermal_tau)
+
+    def true_state(self) -> dict:
+        """The truth at the current simulated time (for tests and checks).
+
+        Keys: ``theta_rad`` (2,) absolute joint angles, ``pressures_MPa`` (4,)
+        gauge L1 R1 L2 R2, ``force_N`` (2,) on the contact point, ``time_s``;
+        also ``valves`` ("vented" | "open" | "closed"), ``contact_m`` (2,),
+        ``target_theta_rad`` (2,) the equilibrium being approached, ``tau_s``,
+        ``load`` (dict describing the load) and ``residual_Nm`` of the target;
+        ``rest_theta_rad`` (2,) the unloaded posture the arm last rested at (or
+        is settling to), i.e. the absolute angles of the current baseline;
+        ``pressures_isothermal_MPa`` (4,) what the pressures relax to once the
+        air has the wall's temperature; ``pot_shaft_rad`` (2,) where the
+        potentiometers' shafts stand (backlash); ``supply_MPa`` (4,) the
+        regulator settings; ``nonideal`` the configured magnitudes.
+        """
+        with self._lock:
+            theta, p = self._state_at(self._t)
+            _, p_iso = self._state_at(self._t, isothermal=True)
+            s = self._seg
+            return {
+                "theta_rad": theta.copy(),
+                "pressures_MPa": p / 1e6,
+                "force_N": np.asarray(s.load.force(theta, self.params.geometry), dtype=float),
+                "time_s": self._t,
+                "valves": self._valves,
+                "contact_m": ph.contact_point(theta, self.params.geometry),
+                "target_theta_rad": s.target.theta_rad.copy(),
+                "tau_s": s.tau,
+                "load": _describe(s.load, self.params.geometry),
+                "residual_Nm": s.target.residual_Nm,
+                "rest_theta_rad": self._rest_theta.copy(),
+                "pressures_isothermal_MPa": p_iso / 1e6,
+                "pot_shaft_rad": self._shaft_at(self._t, theta),
+                "supply_MPa": self.params.supply_pa / 1e6,
+                "nonideal": {**self.nonideal.magnitudes(), "thermal_tau_s": self._thermal_tau},
+            }
+
+    # ------------------------------------------------------------ operator
+
+    def _change(self, chambers: ph.Chambers | None = None, load=None, valves: str | None = None) -> None:
+        with self._lock:
+            theta_now, p_now = self._state_at(self._t)
+            s = self._seg
+            x_now = self._thermal_at(self._t)
+            shaft_now = self._shaft_at(self._t, theta_now)
+            if chambers is None:
+                chambers = s.chambers
+                if chambers.state == "closed" and np.any(self._leak_rate):
+                    # Fold the leak so far into the amount of air; posture sees it from now on.
+                    chambers = ph.Chambers("closed", amount=chambers.amount * self._leak_factor(self._t))
+                    self._t_closed = self._t
+            else:
+                x_now = np.zeros(4)  # new air from the regulator (or none): at the wall's temperature
+            load = s.load if load is None else load
+            try:
+                eq = ni.friction_equilibrium(self.params, chambers, load, theta_now, self._friction)
+            except ValueError:
+                raise ValueError(
+                    f"the simulated rig finds no static equilibrium with {_load_text(load)};"
+                    " the load is beyond the rig's range"
+                ) from None
+            p_to = chambers.gauge_pa if chambers.state == "open" else eq.pressures_MPa * 1e6
+            tau = self.tau_s * float(np.clip(np.exp(0.15 * self._event_rng.standard_normal()), 0.7, 1.4))
+            dlnV, kappa1 = np.zeros(4), 0.0
+            if chambers.state == "closed" and (self._kappa1 or np.any(x_now)):
+                vol = lambda th: ph.mckibben_volume(ph.actuator_lengths(th, self.params), self.params.b,
+                                                    self.params.n) + self.params.V_dead
+                dlnV, kappa1 = np.log(vol(eq.theta_rad)) - np.log(vol(theta_now)), self._kappa1
+            self._seg = _Segment(self._t, tau, theta_now, eq.theta_rad, p_now, np.asarray(p_to, float),
+                                 chambers, load, eq, x0=x_now, dlnV=dlnV, kappa1=kappa1,
+                                 shaft0=np.asarray(shaft_now, float))
+            if isinstance(load, ph.NoLoad):
+                self._rest_theta = eq.theta_rad.copy()
+            if valves is not None:
+                self._valves = valves
+
+    def supply_air(self, pressures_MPa=None) -> None:
+        """Open the valves and pressurise to the supply (scalar or 4 values, MPa gauge); pressures are held."""
+        p = self.params.supply_pa if pressures_MPa is None else np.asarray(pressures_MPa, float) * 1e6
+        p = np.broadcast_to(p, (4,)).astype(float)
+        if np.any(p < 0) or np.any(p > 1.0e6):
+            raise ValueError("supply pressures must be within 0..1 MPa gauge (the sensors' span)")
+        self._change(chambers=ph.Chambers.open(p), valves="open")
+
+    def close_valves(self) -> None:
+        """Close the valves: from now on each chamber keeps its air (Boyle's law)."""
+        with self._lock:
+            if self._seg.chambers.state == "closed":
+                return  # closing a closed valve changes nothing
+            theta_now, p_now = self._state_at(self._t)
+            L = ph.actuator_lengths(theta_now, self.params)
+            self._t_closed = self._t
+            self._change(chambers=ph.Chambers.closed_at(L, p_now, self.params), valves="closed")
+
+    def vent(self) -> None:
+        """Open the valves to atmosphere: the rig goes limp (rubber only)."""
+        self._change(chambers=ph.Chambers.open(np.zeros(4)), valves="vented")
+
+    def hang_weight(self, mass_kg: float, direction_rad: float) -> None:
+        """Hang ``mass_kg`` from the tip over a pulley pulling along ``direction_rad`` (replaces any load)."""
+        if not mass_kg >= 0:
+            raise ValueError("mass must be >= 0 kg")
+        self._change(load=ph.Weight(float(mass_kg), float(direction_rad)))
+
+    def remove_weight(self) -> None:
+        """Take the weight off (no-op if none hangs)."""
+        if isinstance(self._seg.load, ph.Weight):
+            self._change(load=ph.NoLoad())
+
+    def push_object(self, radius_m: float, distance_m: float, phi_rad: float, stiffness_N_per_m: float) -> None:
+        """Place Section 4's cylinder just touching the tip, then push it ``distance_m`` along ``phi_rad``."""
+        if not (radius_m > 0 and distance_m >= 0 and stiffness_N_per_m > 0):
+            raise ValueError("object radius and stiffness must be > 0 and the push distance >= 0")
+        with self._lock:
+            theta_now, _ = self._state_at(self._t)
+            touch = tuple(float(v) for v in ph.contact_point(theta_now, self.params.geometry))
+            self._change(load=ph.Push(float(radius_m), float(distance_m), float(phi_rad),
+                                      float(stiffness_N_per_m), touch))
+
+    def release_object(self) -> None:
+        """Withdraw the object (no-op if none is pushed)."""
+        if isinstance(self._seg.load, ph.Push):
+            self._change(load=ph.NoLoad())
+
+    # ------------------------------------------------------------ sensors
+
+    def ideal_counts(self, theta, p_gauge_pa, t) -> np.ndarray:
+        """Noise-free, unrounded counts (n, 6) for states at times ``t`` (drift included)."""
+        n = np.shape(t)[0]
+        out = np.empty((n, 6))
+        out[:, :4] = pressure_to_counts(np.asarray(p_gauge_pa) / 1e6 + self.sensor_offset_MPa)
+        out[:, 4:] = angle_to_counts(np.asarray(theta) + self.pot_offset_rad)
+        if self.drift:
+            tt = np.asarray(t)[:, None]
+            out += self.drift * self._drift_amp * (
+                np.sin(2 * np.pi * tt / self._drift_period + self._drift_phase) - np.sin(self._drift_phase)
+            )
+        return out
+
+    def samples(self, n: int, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` ADC samples at ``rate_hz``: ``(t_us int64 (n,), counts int64 (n, 6))``.
+
+        The first sample is one period after the current time; the clock ends
+        at the last sample.
+        """
+        if n < 0 or not rate_hz > 0:
+            raise ValueError("need n >= 0 and rate_hz > 0")
+        with self._lock:
+            t = self._t + np.arange(1, n + 1) / float(rate_hz)
+            if n == 0:
+                return np.zeros(0, np.int64), np.zeros((0, 6), np.int64)
+            theta, p = self._state_at(t)
+            x = self.ideal_counts(self._shaft_at(t, theta), p, t)
+            if self.noise:
+                sd = self.noise * np.array([PRESSURE_NOISE_COUNTS] * 4 + [POT_NOISE_COUNTS] * 2)
+                x = x + sd * self._noise_rng.standard_normal((n, 6))
+            counts = np.clip(np.rint(x), 0, ADC_MAX).astype(np.int64)
+            self._t = float(t[-1])
+            return np.rint(t * 1e6).astype(np.int64), counts
+
+
+def _load_text(load) -> str:
+    if isinstance(load, ph.Weight):
+        return f"{load.mass_kg * 1e3:g} g hanging at {np.degrees(load.direction_rad):g} deg"
+    if isinstance(load, ph.Push):
+        return (f"an object of radius {load.radius_m * 1e3:g} mm pushed {load.distance_m * 1e3:g} mm"
+                f" at {np.degrees(load.phi_rad):g} deg")
+    return "no load"
+
+
+def _describe(load, geom) -> dict:
+    if isinstance(load, ph.Weight):
+        return {"kind": "weight", "mass_kg": load.mass_kg, "direction_rad": load.direction_rad}
+    if isinstance(load, ph.Push):
+        return {
+            "kind": "push",
+            "radius_m": load.radius_m,
+            "distance_m": load.distance_m,
+            "phi_rad": load.phi_rad,
+            "stiffness_N_per_m": load.stiffness_N_per_m,
+            "center_m": load.center(geom).tolist(),
+        }
+    return {"kind": "none"}
