@@ -22,7 +22,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "acquire": ("labcli.commands.acquire", "acquire", "Guide a run at the rig and record it into an HDF5 file."),
     "fit": ("labcli.commands.fit", "fit", "Fit the paper's regression (Eqs. 34-37) to a run's fit trials."),
     "validate": ("labcli.commands.validate", "validate", "Check a fitted model on the validation trials (Figure 7)."),
-    "classify": ("labcli.commands.classify", "classify", "Object stiffness and material category from pushes (Section 4)."),
+    "classify": (
+        "labcli.commands.classify",
+        "classify",
+        "Object stiffness and material category from pushes (Section 4).",
+    ),
     "optimize": ("labcli.commands.optimize", "optimize", "Optimise an rPAM joint's link lengths for joint travel."),
     "split": ("labcli.commands.split", "split", "Assign a run's trials to the fit and validation sets."),
     "inspect": ("labcli.commands.inspect", "inspect", "Summarise a run file: trials, split, completeness, drift."),

@@ -40,7 +40,7 @@ def plan_rows(seed: int = SEED) -> list[tuple[int, str, int, int]]:
         rows += [("fit", m, direction) for m in masses]
     masses = list(VALIDATION_MASSES_G) * 2
     rng.shuffle(masses)
-    vpositions = list(zip(VALIDATION_DIRECTIONS_DEG, masses))
+    vpositions = list(zip(VALIDATION_DIRECTIONS_DEG, masses, strict=False))
     rng.shuffle(vpositions)
     rows += [("validation", m, d) for d, m in vpositions]
     return [(i, s, m, d) for i, (s, m, d) in enumerate(rows, start=1)]

@@ -64,7 +64,7 @@ def plan_rows(seed: int = SEED) -> list[tuple[int, str, int, int]]:
     # Each validation mass once per side, spread over that side's directions
     # (3, 2, 2, 2 masses per direction), masses assigned at random.
     validation: dict[int, list[int]] = {}
-    for side, directions in VALIDATION_DIRECTIONS_DEG.items():
+    for directions in VALIDATION_DIRECTIONS_DEG.values():
         masses = list(VALIDATION_MASSES_G)
         rng.shuffle(masses)
         for i, m in enumerate(masses):

@@ -5,14 +5,15 @@ and the rig firmware built for simavr."""
 from __future__ import annotations
 
 import io
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import pytest
 from click.testing import CliRunner, Result
+from support import firmware_build, records, toy
 
 from labcli.cli import cli
-from support import firmware_build, records, toy
 
 
 @pytest.fixture

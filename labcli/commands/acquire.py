@@ -16,23 +16,52 @@ DEFAULT_PROTOCOL = "takuma2014"  # a new run without --protocol
 @click.argument("run", metavar="RUN.h5", type=click.Path(dir_okay=False))
 @click.option("--port", required=True, help="Serial port (/dev/ttyUSB0, COM3) or URL (sim://?seed=1&clock=virtual).")
 @click.option("--protocol", default=None, help="Shipped protocol name or .toml path  [default: takuma2014]")
-@click.option("--plan", "plan", type=click.Path(dir_okay=False), default=None,
-              help="Plan CSV (trial,set,mass_g,direction_deg)  [default: the protocol's plan]")
+@click.option(
+    "--plan",
+    "plan",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Plan CSV (trial,set,mass_g,direction_deg)  [default: the protocol's plan]",
+)
 @click.option("--no-plan", is_flag=True, help="Type each weight and direction at the rig instead.")
 @click.option("--operator", default="", help="Who runs the rig (stored in the file).")
 @click.option("--resume", is_flag=True, help="Continue RUN.h5 at its first trial not yet complete.")
 @click.option("--force", is_flag=True, help="Overwrite RUN.h5 if it exists.")
 @click.option("--unattended", is_flag=True, help="Simulated rig only: act out every prompt and accept every trial.")
-@click.option("--rate", "rate", type=FiniteRange(min=0, min_open=True), default=None,
-              help="Frames per second  [default: the protocol's rate_hz]")
+@click.option(
+    "--rate",
+    "rate",
+    type=FiniteRange(min=0, min_open=True),
+    default=None,
+    help="Frames per second  [default: the protocol's rate_hz]",
+)
 @click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)
-@click.option("--allow-other-rig", is_flag=True,
-              help="With --resume: continue on a rig other than the one the run was recorded on.")
-@click.option("--experiment", type=click.Choice(["stretch", "joint"]), default=None,
-              help="rPAM protocols: the stretch test (Figs. 5-6) or the joint map (Fig. 8).")
-def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan: bool, operator: str,
-            resume: bool, force: bool, unattended: bool, rate: float | None, baud: int, allow_other_rig: bool,
-            experiment: str | None) -> None:
+@click.option(
+    "--allow-other-rig",
+    is_flag=True,
+    help="With --resume: continue on a rig other than the one the run was recorded on.",
+)
+@click.option(
+    "--experiment",
+    type=click.Choice(["stretch", "joint"]),
+    default=None,
+    help="rPAM protocols: the stretch test (Figs. 5-6) or the joint map (Fig. 8).",
+)
+def acquire(
+    run: str,
+    port: str,
+    protocol: str | None,
+    plan: str | None,
+    no_plan: bool,
+    operator: str,
+    resume: bool,
+    force: bool,
+    unattended: bool,
+    rate: float | None,
+    baud: int,
+    allow_other_rig: bool,
+    experiment: str | None,
+) -> None:
     """Guide a run at the rig, trial by trial, and record it into RUN.h5.
 
     Setup check, baseline with the valves closed, then per trial: baseline,
@@ -55,9 +84,19 @@ def acquire(run: str, port: str, protocol: str | None, plan: str | None, no_plan
 
     try:
         outcome = run_acquisition(
-            run, port, protocol=protocol if protocol is not None or resume else DEFAULT_PROTOCOL, plan=plan,
-            no_plan=no_plan, operator=operator, resume=resume, force=force, unattended=unattended, rate_hz=rate,
-            experiment=experiment, baud=baud, allow_other_rig=allow_other_rig,
+            run,
+            port,
+            protocol=protocol if protocol is not None or resume else DEFAULT_PROTOCOL,
+            plan=plan,
+            no_plan=no_plan,
+            operator=operator,
+            resume=resume,
+            force=force,
+            unattended=unattended,
+            rate_hz=rate,
+            experiment=experiment,
+            baud=baud,
+            allow_other_rig=allow_other_rig,
         )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None

@@ -19,8 +19,13 @@ DEFAULT_PROTOCOL = "takuma2014"
 @click.option("--seed", type=int, default=1, show_default=True, help="Seed of the simulated rig.")
 @click.option("--force", is_flag=True, help="Overwrite earlier demo output in OUTDIR.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-@click.option("--protocol", type=click.Choice(demo_protocols(DEFAULT_PROTOCOL)), default=DEFAULT_PROTOCOL,
-              show_default=True, help="Which paper: the McKibben joint (takuma2014) or the rPAM joint (rpam2015).")
+@click.option(
+    "--protocol",
+    type=click.Choice(demo_protocols(DEFAULT_PROTOCOL)),
+    default=DEFAULT_PROTOCOL,
+    show_default=True,
+    help="Which paper: the McKibben joint (takuma2014) or the rPAM joint (rpam2015).",
+)
 def demo(outdir: Path, seed: int, force: bool, as_json: bool, protocol: str) -> None:
     """Run the whole paper on the simulated rig: no hardware, no questions.
 

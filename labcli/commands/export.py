@@ -9,10 +9,20 @@ from ..errors import LabcliError
 
 @click.command("export")
 @click.argument("run", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="File to write (replaced atomically; never RUN itself, another run file or a non-regular file).")
-@click.option("--format", "fmt", type=click.Choice(["csv", "parquet"]), default=None,
-              help="Table format [default: parquet for a .parquet OUTPUT, else csv].")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="File to write (replaced atomically; never RUN itself, another run file or a non-regular file).",
+)
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["csv", "parquet"]),
+    default=None,
+    help="Table format [default: parquet for a .parquet OUTPUT, else csv].",
+)
 def export(run: str, output: str, fmt: str | None) -> None:
     """Write RUN's table as CSV: trials, pushes for a push run, points for an rPAM run.
 

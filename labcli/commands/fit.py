@@ -16,24 +16,58 @@ DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol
 
 @click.command("fit")
 @click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Model JSON to write [default: RUN.model.json beside the run].")
-@click.option("--protocol", default=None,
-              help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.")
-@click.option("--max-amplification", type=click.FloatRange(min=1, min_open=True), default=100.0, show_default=True,
-              help="Leave a posture out of the Fx (Fy) fit when that force's error amplification "
-                   "near theta2 = 0 exceeds this.")
-@click.option("--form", type=click.Choice(["posture", "paper"]), default="posture", show_default=True,
-              help="posture: torques at the arm's rest posture plus deflection, forces by (J^T)^-1, with "
-                   "standard errors; paper: Eqs. 34-37 exactly as printed, beside the paper's coefficients.")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Model JSON to write [default: RUN.model.json beside the run].",
+)
+@click.option(
+    "--protocol",
+    default=None,
+    help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.",
+)
+@click.option(
+    "--max-amplification",
+    type=click.FloatRange(min=1, min_open=True),
+    default=100.0,
+    show_default=True,
+    help="Leave a posture out of the Fx (Fy) fit when that force's error amplification near theta2 = 0 exceeds this.",
+)
+@click.option(
+    "--form",
+    type=click.Choice(["posture", "paper"]),
+    default="posture",
+    show_default=True,
+    help="posture: torques at the arm's rest posture plus deflection, forces by (J^T)^-1, with "
+    "standard errors; paper: Eqs. 34-37 exactly as printed, beside the paper's coefficients.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the model and the paper's values as JSON.")
-@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="rPAM stretch-test runs: write the stretch test's figure (Fig. 6) to this .png, .pdf or .svg.")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
-              help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
-                   "(repeatable; the run file keeps its own).")
-def fit(run: Path, output: Path | None, protocol: str | None, max_amplification: float, form: str,
-        as_json: bool, plot: Path | None, overrides: tuple[str, ...]) -> None:
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="rPAM stretch-test runs: write the stretch test's figure (Fig. 6) to this .png, .pdf or .svg.",
+)
+@click.option(
+    "--set",
+    "overrides",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
+    "(repeatable; the run file keeps its own).",
+)
+def fit(
+    run: Path,
+    output: Path | None,
+    protocol: str | None,
+    max_amplification: float,
+    form: str,
+    as_json: bool,
+    plot: Path | None,
+    overrides: tuple[str, ...],
+) -> None:
     """Fit a force model to the fit trials of RUN.
 
     RUN is a run file (.h5) or a trial CSV.  The default form regresses the joint torques at
@@ -52,9 +86,16 @@ def fit(run: Path, output: Path | None, protocol: str | None, max_amplification:
     """
     try:
         analysis = for_analysis("fit", inputs=[run], default_protocol=DEFAULT_PROTOCOL).analysis("fit")
-        result = analysis.run(run, output=output, protocol=protocol, max_amplification=max_amplification,
-                              form=form, plot=plot, overrides=overrides,
-                              typed=typed_options("max_amplification", "form"))
+        result = analysis.run(
+            run,
+            output=output,
+            protocol=protocol,
+            max_amplification=max_amplification,
+            form=form,
+            plot=plot,
+            overrides=overrides,
+            typed=typed_options("max_amplification", "form"),
+        )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     analysis.show(result, as_json=as_json)

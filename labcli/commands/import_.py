@@ -10,14 +10,21 @@ from ..errors import LabcliError
 @click.command("import")
 @click.argument("table", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Run file to create (.h5).")
-@click.option("--protocol", "protocol_name", required=True,
-              help="Protocol name (e.g. takuma2014) or TOML file; its kind decides trial, push or point table.")
-@click.option("--experiment", type=click.Choice(["stretch", "joint"]), default=None,
-              help="rPAM protocols only: the experiment TABLE holds (stretch test or joint map).")
+@click.option(
+    "--protocol",
+    "protocol_name",
+    required=True,
+    help="Protocol name (e.g. takuma2014) or TOML file; its kind decides trial, push or point table.",
+)
+@click.option(
+    "--experiment",
+    type=click.Choice(["stretch", "joint"]),
+    default=None,
+    help="rPAM protocols only: the experiment TABLE holds (stretch test or joint map).",
+)
 @click.option("--operator", default="", help="Who recorded the data.")
 @click.option("--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
-def import_(table: str, output: str, protocol_name: str, experiment: str | None, operator: str,
-            force: bool) -> None:
+def import_(table: str, output: str, protocol_name: str, experiment: str | None, operator: str, force: bool) -> None:
     """Build a run file from TABLE, a trial, push or rPAM point CSV, e.g. from MATLAB or a spreadsheet.
 
     Every cell is checked; problems are reported by row and column.  The run
@@ -35,8 +42,9 @@ def import_(table: str, output: str, protocol_name: str, experiment: str | None,
     from ..core.store import import_csv  # heavy: when the command runs, not for --help
 
     try:
-        imported = import_csv(table, output, protocol=protocol_name, experiment=experiment, operator=operator,
-                              force=force)
+        imported = import_csv(
+            table, output, protocol=protocol_name, experiment=experiment, operator=operator, force=force
+        )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     click.echo(imported.sentence(table, output))

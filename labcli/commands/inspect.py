@@ -13,8 +13,11 @@ from ..errors import LabcliError
 @click.command("inspect")
 @click.argument("run", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON (SI units named in the keys).")
-@click.option("--verify", is_flag=True,
-              help="Check every record, raw window, split, model and session entry against its checksum.")
+@click.option(
+    "--verify",
+    is_flag=True,
+    help="Check every record, raw window, split, model and session entry against its checksum.",
+)
 def inspect(run: str, as_json: bool, verify: bool) -> None:
     """Summarise RUN: metadata, complete/incomplete trials, split, baseline drift, settling.
 
@@ -60,7 +63,9 @@ def _print_verify(run: str, report: dict, records, as_json: bool) -> None:
         for p in problems:
             click.echo(f"damaged: {p}")
     if problems:
-        raise click.ClickException(f"{run}: {len(problems)} damaged item{'' if len(problems) == 1 else 's'} found; "
-                                   f"{records.count(n)} and {w} raw windows check out.")
+        raise click.ClickException(
+            f"{run}: {len(problems)} damaged item{'' if len(problems) == 1 else 's'} found; "
+            f"{records.count(n)} and {w} raw windows check out."
+        )
     if not as_json:
         click.echo(f"{run}: {records.count(n)} and {w} raw windows check out.")

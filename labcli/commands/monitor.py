@@ -24,8 +24,11 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False) -> Any:
     from rich.table import Table
     from rich.text import Text
 
-    table = Table(title=f"{info.device} {info.firmware} on {info.port} at {snap.rate_hz:g} Hz", title_justify="left",
-                  box=None if plain else box.HEAVY_HEAD)
+    table = Table(
+        title=f"{info.device} {info.firmware} on {info.port} at {snap.rate_hz:g} Hz",
+        title_justify="left",
+        box=None if plain else box.HEAVY_HEAD,
+    )
     table.add_column("channel")
     table.add_column("now", justify="right")
     table.add_column("mean", justify="right")
@@ -52,20 +55,49 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False) -> Any:
 
 @click.command()
 @click.option("--port", "-p", required=True, help="Serial port or pyserial URL, e.g. /dev/ttyUSB0, COM3, sim://.")
-@click.option("--rate", type=FiniteRange(min=0, min_open=True), default=None,
-              help="Frames per second to ask for  [default: the protocol's rate]")
-@click.option("--seconds", type=FiniteRange(min=0, min_open=True), default=None,
-              help="Stop after this many seconds  [default: run until Ctrl-C]")
+@click.option(
+    "--rate",
+    type=FiniteRange(min=0, min_open=True),
+    default=None,
+    help="Frames per second to ask for  [default: the protocol's rate]",
+)
+@click.option(
+    "--seconds",
+    type=FiniteRange(min=0, min_open=True),
+    default=None,
+    help="Stop after this many seconds  [default: run until Ctrl-C]",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON summary instead of the live table.")
-@click.option("--protocol", default="takuma2014", show_default=True,
-              help="Protocol name or .toml file whose calibration converts counts to MPa and rad.")
-@click.option("--timeout", type=FiniteRange(min=0, min_open=True), default=2.0, show_default=True,
-              help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.")
-@click.option("--boot-wait", type=FiniteRange(min=0), default=None,
-              help="Extra seconds for a board that resets when the port opens  [default: 2 for serial ports, 0 for URLs]")
+@click.option(
+    "--protocol",
+    default="takuma2014",
+    show_default=True,
+    help="Protocol name or .toml file whose calibration converts counts to MPa and rad.",
+)
+@click.option(
+    "--timeout",
+    type=FiniteRange(min=0, min_open=True),
+    default=2.0,
+    show_default=True,
+    help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.",
+)
+@click.option(
+    "--boot-wait",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Extra seconds for a board that resets when the port opens  [default: 2 for serial ports, 0 for URLs]",
+)
 @click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)
-def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool, protocol: str,
-            timeout: float, boot_wait: float | None, baud: int) -> None:
+def monitor(
+    port: str,
+    rate: float | None,
+    seconds: float | None,
+    as_json: bool,
+    protocol: str,
+    timeout: float,
+    boot_wait: float | None,
+    baud: int,
+) -> None:
     """Show live calibrated readings (MPa, deg) and link statistics from a rig.
 
     Ctrl-C stops the stream and prints the summary.  A sim:// port runs on
@@ -106,7 +138,10 @@ def monitor(port: str, rate: float | None, seconds: float | None, as_json: bool,
                 console = Console()
                 with Live(console=console, refresh_per_second=4, transient=False) as live:
                     summary = watch(
-                        dev, scale, rate_hz=rate_hz, seconds=seconds,
+                        dev,
+                        scale,
+                        rate_hz=rate_hz,
+                        seconds=seconds,
                         on_update=lambda snap: live.update(_render(snap, scale, dev.info, not console.is_terminal)),
                     )
                 if not console.is_terminal:
@@ -135,4 +170,6 @@ def _print_summary(summary: Any, scale: Any) -> None:
     width = max(len(n) for n in scale.names)
     for j, name in enumerate(scale.names):
         unit = scale.display_units[j]
-        click.echo(f"  {name:<{width}}  mean {_reading(shown_mean[j], unit)}  std {_reading(abs(shown_std[j]), unit, 1)}")
+        click.echo(
+            f"  {name:<{width}}  mean {_reading(shown_mean[j], unit)}  std {_reading(abs(shown_std[j]), unit, 1)}"
+        )

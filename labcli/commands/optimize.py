@@ -29,16 +29,46 @@ def _seed(ctx: click.Context, param: click.Parameter, value: int | None) -> int 
 
 
 @click.command()
-@click.option("--protocol", "protocol", default=DEFAULT_PROTOCOL, show_default=True,
-              help="rPAM protocol: a .toml path or a shipped name.")
+@click.option(
+    "--protocol",
+    "protocol",
+    default=DEFAULT_PROTOCOL,
+    show_default=True,
+    help="rPAM protocol: a .toml path or a shipped name.",
+)
 @click.option("--seed", type=int, default=None, callback=_seed, help="Seed of the search (default: the protocol's).")
-@click.option("--pa", "pa_kpa", type=float, default=None, metavar="KPA", help="Pressure of actuator a, kPa (default: the protocol's, 96).")
-@click.option("--pb", "pb_kpa", type=float, default=None, metavar="KPA", help="Pressure of actuator b, kPa (default: the protocol's, 41).")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
-              help="Override any protocol value, e.g. --set actuator.L0_m=0.08 (repeatable).")
+@click.option(
+    "--pa",
+    "pa_kpa",
+    type=float,
+    default=None,
+    metavar="KPA",
+    help="Pressure of actuator a, kPa (default: the protocol's, 96).",
+)
+@click.option(
+    "--pb",
+    "pb_kpa",
+    type=float,
+    default=None,
+    metavar="KPA",
+    help="Pressure of actuator b, kPa (default: the protocol's, 41).",
+)
+@click.option(
+    "--set",
+    "overrides",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="Override any protocol value, e.g. --set actuator.L0_m=0.08 (repeatable).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
-def optimize(protocol: str, seed: int | None, pa_kpa: float | None, pb_kpa: float | None,
-             overrides: tuple[str, ...], as_json: bool) -> None:
+def optimize(
+    protocol: str,
+    seed: int | None,
+    pa_kpa: float | None,
+    pb_kpa: float | None,
+    overrides: tuple[str, ...],
+    as_json: bool,
+) -> None:
     """Maximise the joint angle of an rPAM joint over L1, L2, L3 (Section IV, g1-g7).
 
     Differential evolution, seeded and reproducible, stands in for the paper's genetic

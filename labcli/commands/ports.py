@@ -21,8 +21,10 @@ def ports() -> None:
 
     from ..core.sim.served import served
 
-    rows = [(p.device, p.description or "n/a", p.hwid or "n/a")
-            for p in sorted(list_ports.comports(), key=lambda p: p.device)]
+    rows = [
+        (p.device, p.description or "n/a", p.hwid or "n/a")
+        for p in sorted(list_ports.comports(), key=lambda p: p.device)
+    ]
     rows += [(s.device, s.description, f"sim pid {s.pid}") for s in served()]
     if not rows:
         click.echo(

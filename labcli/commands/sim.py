@@ -12,40 +12,98 @@ from ._options import FiniteRange
 
 @click.command()
 @click.option("--pty", "use_pty", is_flag=True, help="Serve on a new pseudo-terminal (required).")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="Seed of the rig's actuators, sensor offsets and noise.")
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Seed of the rig's actuators, sensor offsets and noise.",
+)
 # 1..50000 are labcli.core.sim.firmware's RATE_MIN and RATE_MAX (not imported here: --help stays light).
-@click.option("--rate", type=FiniteRange(1, 50000), default=200.0, show_default=True,
-              help="Sample rate at power-up, Hz (the host's RATE command changes it).")
-@click.option("--noise", type=FiniteRange(min=0), default=1.0, show_default=True,
-              help="Scale of the sensor noise (1 = 0.5 count pressure, 0.7 count angle rms).")
-@click.option("--drift", type=FiniteRange(min=0), default=0.0, show_default=True,
-              help="Scale of sensor zero drift.")
-@click.option("--ideal", is_flag=True,
-              help="Turn every non-ideality off (friction, leak, thermal, backlash, link weight).")
-@click.option("--friction", type=FiniteRange(min=0), default=None,
-              help="Scale of sleeve friction and hysteresis (1 = typical, 0 = off).")
-@click.option("--leak", type=FiniteRange(min=0), default=None,
-              help="Scale of the closed chambers' leak (1 = about 1 kPa/min).")
-@click.option("--thermal", type=FiniteRange(min=0), default=None,
-              help="Scale of the air's heating by a fast load (1 = adiabatic, relaxing over 3 s).")
-@click.option("--backlash", type=FiniteRange(min=0), default=None,
-              help="Scale of the potentiometers' backlash (1 = 0.2 deg).")
-@click.option("--links", type=FiniteRange(min=0), default=None,
-              help="Scale of the links' own weight (1 = 80 g and 30 g).")
-@click.option("--supply", default=None, metavar="MPA[,MPA,MPA,MPA]",
-              help="Regulator pressure, MPa gauge: one value or four (L1,R1,L2,R2).  [default: 0.3]")
-@click.option("--design", type=click.Choice(["paper", "thin"]), default="paper", show_default=True,
-              help="Actuators: paper-scale, or the earlier thin-muscle tuning.")
-@click.option("--faults", default="", metavar="KIND:RATE[@X],...",
-              help="Make the link noisy: rates per frame of checksum, garbage, truncate, overlong, drop, "
-                   "stall@SECONDS, burst@FRAMES, e.g. checksum:0.01,drop:0.01,stall:0.001@2.5 (drawn from --seed).")
-@click.option("--firmware", type=click.Path(dir_okay=False), default=None, metavar="ELF",
-              help="Run this compiled rig firmware on simavr (e.g. firmware/build/labcli_rig.elf) instead of "
-                   "the built-in firmware model; the rig's sensors drive its analog inputs.")
-def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float, faults: str, firmware: str | None,
-        ideal: bool, friction: float | None, leak: float | None, thermal: float | None, backlash: float | None,
-        links: float | None, supply: str | None, design: str) -> None:
+@click.option(
+    "--rate",
+    type=FiniteRange(1, 50000),
+    default=200.0,
+    show_default=True,
+    help="Sample rate at power-up, Hz (the host's RATE command changes it).",
+)
+@click.option(
+    "--noise",
+    type=FiniteRange(min=0),
+    default=1.0,
+    show_default=True,
+    help="Scale of the sensor noise (1 = 0.5 count pressure, 0.7 count angle rms).",
+)
+@click.option("--drift", type=FiniteRange(min=0), default=0.0, show_default=True, help="Scale of sensor zero drift.")
+@click.option(
+    "--ideal", is_flag=True, help="Turn every non-ideality off (friction, leak, thermal, backlash, link weight)."
+)
+@click.option(
+    "--friction",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Scale of sleeve friction and hysteresis (1 = typical, 0 = off).",
+)
+@click.option(
+    "--leak", type=FiniteRange(min=0), default=None, help="Scale of the closed chambers' leak (1 = about 1 kPa/min)."
+)
+@click.option(
+    "--thermal",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Scale of the air's heating by a fast load (1 = adiabatic, relaxing over 3 s).",
+)
+@click.option(
+    "--backlash", type=FiniteRange(min=0), default=None, help="Scale of the potentiometers' backlash (1 = 0.2 deg)."
+)
+@click.option(
+    "--links", type=FiniteRange(min=0), default=None, help="Scale of the links' own weight (1 = 80 g and 30 g)."
+)
+@click.option(
+    "--supply",
+    default=None,
+    metavar="MPA[,MPA,MPA,MPA]",
+    help="Regulator pressure, MPa gauge: one value or four (L1,R1,L2,R2).  [default: 0.3]",
+)
+@click.option(
+    "--design",
+    type=click.Choice(["paper", "thin"]),
+    default="paper",
+    show_default=True,
+    help="Actuators: paper-scale, or the earlier thin-muscle tuning.",
+)
+@click.option(
+    "--faults",
+    default="",
+    metavar="KIND:RATE[@X],...",
+    help="Make the link noisy: rates per frame of checksum, garbage, truncate, overlong, drop, "
+    "stall@SECONDS, burst@FRAMES, e.g. checksum:0.01,drop:0.01,stall:0.001@2.5 (drawn from --seed).",
+)
+@click.option(
+    "--firmware",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="ELF",
+    help="Run this compiled rig firmware on simavr (e.g. firmware/build/labcli_rig.elf) instead of "
+    "the built-in firmware model; the rig's sensors drive its analog inputs.",
+)
+def sim(
+    use_pty: bool,
+    seed: int,
+    rate: float,
+    noise: float,
+    drift: float,
+    faults: str,
+    firmware: str | None,
+    ideal: bool,
+    friction: float | None,
+    leak: float | None,
+    thermal: float | None,
+    backlash: float | None,
+    links: float | None,
+    supply: str | None,
+    design: str,
+) -> None:
     """Serve the simulated rig on a pseudo-terminal until Ctrl-C (or `quit`).
 
     The rig answers the wire protocol (ID?, RATE, START, STOP) on the printed
@@ -80,8 +138,16 @@ def sim(use_pty: bool, seed: int, rate: float, noise: float, drift: float, fault
         supply_MPa = None if supply is None else supply_option.parse(supply)
     except ValueError:
         raise click.BadParameter(f"needs {supply_option.what}, got '{supply}'", param_hint="'--supply'") from None
-    rig_options = {"ideal": ideal, "friction": friction, "leak": leak, "thermal": thermal, "backlash": backlash,
-                   "links": links, "supply": supply_MPa, "design": design}
+    rig_options = {
+        "ideal": ideal,
+        "friction": friction,
+        "leak": leak,
+        "thermal": thermal,
+        "backlash": backlash,
+        "links": links,
+        "supply": supply_MPa,
+        "design": design,
+    }
     rig_options = {k: v for k, v in rig_options.items() if v is not None}
 
     if not use_pty:
@@ -142,11 +208,14 @@ def _serve_firmware(elf: str, faults: bool, **rig: Any) -> Any:
     from ..core.sim.hil_pty import serve_firmware_pty
 
     if click.get_current_context().get_parameter_source("rate") == ParameterSource.COMMANDLINE:
-        raise click.BadParameter("the firmware powers up at its own rate and takes RATE from the host; "
-                                 "drop --rate with --firmware", param_hint="'--rate'")
+        raise click.BadParameter(
+            "the firmware powers up at its own rate and takes RATE from the host; drop --rate with --firmware",
+            param_hint="'--rate'",
+        )
     if faults:
-        raise click.BadParameter("the firmware's link is what its UART makes; drop --faults with --firmware",
-                                 param_hint="'--faults'")
+        raise click.BadParameter(
+            "the firmware's link is what its UART makes; drop --faults with --firmware", param_hint="'--faults'"
+        )
     try:
         return serve_firmware_pty(elf, **rig)
     except FirmwareSimError as e:

@@ -9,12 +9,27 @@ from ..errors import LabcliError
 
 @click.command("split")
 @click.argument("run", type=click.Path(dir_okay=False))
-@click.option("--fit", "n_fit", type=int, default=None,
-              help="Trials in the fit set [default: the run's protocol, 90 for takuma2014].")
-@click.option("--validation", "n_validation", type=int, default=None,
-              help="Trials in the validation set [default: the run's protocol, 18 for takuma2014].")
-@click.option("--strategy", type=click.Choice(["sequential", "random"]), default="sequential", show_default=True,
-              help="sequential: first trials recorded fit, the next validate (the paper's); random: seeded draw.")
+@click.option(
+    "--fit",
+    "n_fit",
+    type=int,
+    default=None,
+    help="Trials in the fit set [default: the run's protocol, 90 for takuma2014].",
+)
+@click.option(
+    "--validation",
+    "n_validation",
+    type=int,
+    default=None,
+    help="Trials in the validation set [default: the run's protocol, 18 for takuma2014].",
+)
+@click.option(
+    "--strategy",
+    type=click.Choice(["sequential", "random"]),
+    default="sequential",
+    show_default=True,
+    help="sequential: first trials recorded fit, the next validate (the paper's); random: seeded draw.",
+)
 @click.option("--seed", type=int, default=None, help="Seed of the random draw [default: 0].")
 def split(run: str, n_fit: int | None, n_validation: int | None, strategy: str, seed: int | None) -> None:
     """Assign RUN's completed trials to the fit and validation sets.
@@ -39,5 +54,7 @@ def split(run: str, n_fit: int | None, n_validation: int | None, strategy: str, 
         raise click.ClickException(str(e)) from None
     how = strategy if strategy == "sequential" else f"random, seed {s['seed']}"
     unassigned = total - len(s["fit"]) - len(s["validation"])
-    click.echo(f"{run}: {len(s['fit'])} fit, {len(s['validation'])} validation, "
-               f"{unassigned} unassigned of {total} completed trials ({how}).")
+    click.echo(
+        f"{run}: {len(s['fit'])} fit, {len(s['validation'])} validation, "
+        f"{unassigned} unassigned of {total} completed trials ({how})."
+    )

@@ -17,9 +17,10 @@ import contextlib
 import shlex
 import signal
 import threading
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from ..errors import ConfigError, DeviceError, StoreError
 from .device import Device
@@ -35,8 +36,15 @@ from .ui import RichUI, UnattendedUI
 DEFAULT_BAUD = 115200  # the wire protocol's default
 
 
-def resume_command(path: str, port: str, *, unattended: bool = False, rate_hz: float | None = None,
-                   baud: int = DEFAULT_BAUD, other_rig: bool = False) -> str:
+def resume_command(
+    path: str,
+    port: str,
+    *,
+    unattended: bool = False,
+    rate_hz: float | None = None,
+    baud: int = DEFAULT_BAUD,
+    other_rig: bool = False,
+) -> str:
     """The exact command line that continues a run."""
     cmd = f"labcli acquire {shlex.quote(str(path))} --port {shlex.quote(port)} --resume"
     if baud != DEFAULT_BAUD:
@@ -92,8 +100,7 @@ def same_plan(a: Any, b: Any) -> bool:
     return True
 
 
-def _resume(path: str, protocol: str | None,
-            options: AcquireOptions) -> tuple[Any, RunFile, Outcome | None, Any]:
+def _resume(path: str, protocol: str | None, options: AcquireOptions) -> tuple[Any, RunFile, Outcome | None, Any]:
     """The run being resumed, open for writing, its acquisition, an Outcome when it is done,
     and the protocol ``--protocol`` gave (None: the run's own), whose calibration is this rig's."""
     if options.no_plan:
@@ -109,14 +116,17 @@ def _resume(path: str, protocol: str | None,
         paper, proto = run_protocol(base, options.experiment, stored_kind=existing.kind, run_path=path)
         given = None
         if protocol is not None:
-            given = run_protocol(load_protocol(protocol), options.experiment, stored_kind=existing.kind,
-                                 run_path=path)[1]
+            given = run_protocol(load_protocol(protocol), options.experiment, stored_kind=existing.kind, run_path=path)[
+                1
+            ]
         acq = paper.acquisition(proto, replace(options, resume=existing))
         if given_plan is not None:  # the same plan again is harmless; another one would change the run
             planned = paper.acquisition(proto, replace(options, plan=given_plan)).plan
             if not same_plan(acq.plan, planned):
-                raise ConfigError(f"{given_plan} is not the plan {path} began with; drop --plan to resume "
-                                  "with the run's own plan, or start a new run for the new one.")
+                raise ConfigError(
+                    f"{given_plan} is not the plan {path} began with; drop --plan to resume "
+                    "with the run's own plan, or start a new run for the new one."
+                )
         done = acq.already_done(existing, path)
         if done is not None:
             outcome = Outcome("finished", done, 0, len(existing.completed_ids()))
@@ -230,13 +240,24 @@ def acquire(
             )
         other = []
         if store is not None:
-            other = check_rig(store, path, device.info, (given or acq.protocol).calibration,
-                              allow_other=allow_other_rig)
+            other = check_rig(
+                store, path, device.info, (given or acq.protocol).calibration, allow_other=allow_other_rig
+            )
         completed = list(store.completed_ids()) if store is not None else []
         if store is None:
             store = _creator(path, acq, device.info, port, operator, force)
-        engine = _engine(device, store, acq, ui, link, path, unattended, rate_hz, silent_s,
-                         SessionOptions(operator, resume, bool(other)))
+        engine = _engine(
+            device,
+            store,
+            acq,
+            ui,
+            link,
+            path,
+            unattended,
+            rate_hz,
+            silent_s,
+            SessionOptions(operator, resume, bool(other)),
+        )
         if other:
             engine.ui.warn(f"continuing {path} on another rig ({describe(other)}), as --allow-other-rig allows")
         for cb in subscribers:
@@ -263,20 +284,54 @@ def _creator(path: str, acq: Any, info: Any, port: str, operator: str, force: bo
     """Creates the run file on first use, so a session that fails its setup check leaves none."""
 
     def create() -> RunFile:
-        return RunFile.create(path, protocol=acq.protocol, kind=acq.kind, device_info=info, port=port,
-                              operator=operator, plan=acq.plan, force=force)
+        return RunFile.create(
+            path,
+            protocol=acq.protocol,
+            kind=acq.kind,
+            device_info=info,
+            port=port,
+            operator=operator,
+            plan=acq.plan,
+            force=force,
+        )
 
     return create
 
 
-def _engine(device: Any, store: Any, acq: Any, ui: Any, link: Link, path: str, unattended: bool,
-            rate_hz: float | None, silent_s: float, opts: SessionOptions) -> RunEngine:
-    command = resume_command(path, link.port, unattended=unattended, rate_hz=rate_hz, baud=link.baud,
-                             other_rig=opts.other_rig)
-    info = SessionInfo(utc_now_us(), link.port, link.baud, RigIdentity.of(device.info, acq.protocol.calibration),
-                       opts.operator, command, opts.resumed, opts.other_rig)
+def _engine(
+    device: Any,
+    store: Any,
+    acq: Any,
+    ui: Any,
+    link: Link,
+    path: str,
+    unattended: bool,
+    rate_hz: float | None,
+    silent_s: float,
+    opts: SessionOptions,
+) -> RunEngine:
+    command = resume_command(
+        path, link.port, unattended=unattended, rate_hz=rate_hz, baud=link.baud, other_rig=opts.other_rig
+    )
+    info = SessionInfo(
+        utc_now_us(),
+        link.port,
+        link.baud,
+        RigIdentity.of(device.info, acq.protocol.calibration),
+        opts.operator,
+        command,
+        opts.resumed,
+        opts.other_rig,
+    )
     return RunEngine(
-        device, store, acq.protocol, ui or (UnattendedUI() if unattended else RichUI()), run_path=path,
-        resume_command=command, rate_hz=rate_hz, silent_s=silent_s, noun=record_type(acq.kind).noun,
+        device,
+        store,
+        acq.protocol,
+        ui or (UnattendedUI() if unattended else RichUI()),
+        run_path=path,
+        resume_command=command,
+        rate_hz=rate_hz,
+        silent_s=silent_s,
+        noun=record_type(acq.kind).noun,
         session=info,
     )

@@ -52,8 +52,10 @@ class Quantity:
             return f"{fmt_number(v)} must be 0 or more"
         if not self.lo <= v <= self.hi:
             unit = f" {self.unit}" if self.unit else ""
-            return (f"{fmt_number(v)}{unit} is outside the range of {self.what}, "
-                    f"{fmt_number(self.lo)} to {fmt_number(self.hi)}{unit}")
+            return (
+                f"{fmt_number(v)}{unit} is outside the range of {self.what}, "
+                f"{fmt_number(self.lo)} to {fmt_number(self.hi)}{unit}"
+            )
         return None
 
 

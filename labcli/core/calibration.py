@@ -23,8 +23,8 @@ points exact: 819 counts is exactly 0 MPa and 2048 counts exactly 0 rad.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 
@@ -79,9 +79,7 @@ class Calibration:
         # Frozen dataclass: the cached vectors are set once, here.
         object.__setattr__(self, "_gain", np.array([c.gain for c in self.channels], dtype=float))
         object.__setattr__(self, "_zero", np.array([c.zero_counts for c in self.channels], dtype=float))
-        object.__setattr__(
-            self, "_disp", np.array([_DISPLAY_FACTORS[c.quantity] for c in self.channels], dtype=float)
-        )
+        object.__setattr__(self, "_disp", np.array([_DISPLAY_FACTORS[c.quantity] for c in self.channels], dtype=float))
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Calibration):
@@ -141,8 +139,7 @@ class Calibration:
     def _check_width(self, a: np.ndarray, what: str) -> None:
         if a.ndim == 0 or a.shape[-1] != len(self.channels):
             raise ValueError(
-                f"{what} must have {len(self.channels)} values per row "
-                f"({', '.join(self.names)}), got shape {a.shape}"
+                f"{what} must have {len(self.channels)} values per row ({', '.join(self.names)}), got shape {a.shape}"
             )
 
     def to_si(self, counts: np.ndarray | Sequence) -> np.ndarray:
@@ -179,7 +176,6 @@ class Calibration:
         lo = np.array([c.range[0] for c in self.channels])
         hi = np.array([c.range[1] for c in self.channels])
         return (a >= lo) & (a <= hi)
-
 
 
 def to_display(value_si: float | np.ndarray, quantity: str) -> float | np.ndarray:

@@ -48,12 +48,12 @@ class GapTally:
             t = np.concatenate(([self._last], t))
         self._last = float(t[-1])
         gaps = np.rint(np.diff(t) * 1e6).astype(np.int64)
-        big = gaps >= 10 ** GAP_DIGITS
+        big = gaps >= 10**GAP_DIGITS
         if big.any():
             scale = 10 ** (np.floor(np.log10(gaps[big])).astype(np.int64) - (GAP_DIGITS - 1))
             gaps[big] = np.rint(gaps[big] / scale).astype(np.int64) * scale
         values, counts = np.unique(gaps, return_counts=True)
-        for v, c in zip(values.tolist(), counts.tolist()):
+        for v, c in zip(values.tolist(), counts.tolist(), strict=False):
             self._counts[v] = self._counts.get(v, 0) + c
         self.n += len(gaps)
 
@@ -88,8 +88,10 @@ class WindowSummary:
         return np.sqrt(self.var())
 
     def as_dict(self) -> dict[str, Any]:
-        raise ConfigError("a window read outside a trial is not kept in the run file, so no record can take it: "
-                          "begin the trial (BeginTrial) before its Baseline or Capture.")
+        raise ConfigError(
+            "a window read outside a trial is not kept in the run file, so no record can take it: "
+            "begin the trial (BeginTrial) before its Baseline or Capture."
+        )
 
 
 class WindowSink:

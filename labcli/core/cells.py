@@ -43,7 +43,7 @@ class TableSpec:
         return tuple(c[0] for c in self.columns)
 
 
-def infer_extra_column(cells: list[str]) -> "pd.Series":
+def infer_extra_column(cells: list[str]) -> pd.Series:
     """Numbers only when every cell reads back to exactly its own text (nothing lost); empty: NaN."""
     import pandas as pd
 

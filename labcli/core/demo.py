@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import contextlib
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from ..errors import StoreError
 from .acquisition import acquire
@@ -26,9 +27,11 @@ def check_outdir(outdir: Path, outputs: tuple[str, ...], force: bool, what: str 
     if not force:
         taken = [name for name in outputs if (outdir / name).exists()]
         if taken:
-            raise StoreError(f"{outdir} already holds {what} output ({', '.join(taken[:3])}"
-                             f"{', ...' if len(taken) > 3 else ''}); pass --force to overwrite it "
-                             "or choose another directory.")
+            raise StoreError(
+                f"{outdir} already holds {what} output ({', '.join(taken[:3])}"
+                f"{', ...' if len(taken) > 3 else ''}); pass --force to overwrite it "
+                "or choose another directory."
+            )
 
 
 def simulated_port(seed: int, mode: str | None = None) -> str:
@@ -36,8 +39,7 @@ def simulated_port(seed: int, mode: str | None = None) -> str:
     return f"sim://?{f'mode={mode}&' if mode else ''}seed={seed}&clock=virtual"
 
 
-def acquire_unattended(path: Path, port: str, what: str, stage: str, progress: Progress | None,
-                       **options: Any) -> None:
+def acquire_unattended(path: Path, port: str, what: str, stage: str, progress: Progress | None, **options: Any) -> None:
     """One unattended run on the simulated rig, overwriting ``path``; StoreError if it stops early."""
     outcome = acquire(path, port, unattended=True, force=True, ui=ProgressUI(stage, progress), **options)
     if outcome.exit_code:

@@ -29,8 +29,10 @@ from .wire import FrameBatch, StreamReader, format_command
 try:  # absent on Windows
     from termios import error as _TermiosError
 except ImportError:  # pragma: no cover
+
     class _TermiosError(Exception):  # type: ignore[no-redef]
         pass
+
 
 POLL_S = 0.05  # port read timeout: how often a waiting read looks at its deadline
 ID_RETRY_S = 0.5  # a board still booting ignores commands; ask again this often
@@ -81,8 +83,9 @@ def _open_error(port: str, exc: BaseException) -> DeviceNotFound:
 class Device:
     """An open rig.  Use :meth:`open`; the constructor takes an already open serial object."""
 
-    def __init__(self, ser: Any, port: str, *, timeout: float = 2.0, baudrate: int = 115200,
-                 name: str | None = None) -> None:
+    def __init__(
+        self, ser: Any, port: str, *, timeout: float = 2.0, baudrate: int = 115200, name: str | None = None
+    ) -> None:
         self._serial = ser
         self.port = port
         self.name = port if name is None else name  # how messages speak of the port
@@ -107,7 +110,7 @@ class Device:
         timeout: float = 2.0,
         boot_wait: float | None = None,
         name: str | None = None,
-    ) -> "Device":
+    ) -> Device:
         """Open ``port`` and do the handshake.
 
         ``timeout`` bounds every wait for an answer and the silence tolerated
@@ -305,7 +308,8 @@ class Device:
         what = f"sends no valid frames ({counts} in {self.timeout:g} s)"
         return DeviceTimeout(
             f"The rig on {self.name} {what}. Check the baud rate ({self.baudrate}) and that its firmware "
-            "speaks wire protocol version 1.", what=what,
+            "speaks wire protocol version 1.",
+            what=what,
         )
 
     def _command(self, command: str, *, expect: str, accept_err: bool = False) -> str:
@@ -375,7 +379,7 @@ class Device:
         except (serial.SerialException, OSError, _TermiosError):
             pass
 
-    def __enter__(self) -> "Device":
+    def __enter__(self) -> Device:
         return self
 
     def __exit__(self, *exc: object) -> None:

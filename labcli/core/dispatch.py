@@ -7,12 +7,12 @@ analysis then says in its own words what is wrong with it.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from ..errors import LabcliError
-from .paper import Paper
 from .files import RUN_FILE_SUFFIXES
+from .paper import Paper
 from .registry import for_run_kind, for_shipped_protocol
 
 

@@ -31,9 +31,10 @@ import math
 import signal
 import threading
 import time
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Generator, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -41,6 +42,7 @@ from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceEr
 from . import interrupts
 from .capture import WindowSink
 from .sessionlog import NoSessionLog, SessionInfo, SessionLog, session_log
+from .settle import SettleCriteria, SettleDetector, TimeUnwrapper
 from .steps import (
     Ask,
     Baseline,
@@ -56,7 +58,6 @@ from .steps import (
     WaitSettle,
     Window,
 )
-from .settle import SettleCriteria, SettleDetector, TimeUnwrapper
 from .ui import InputEnded, QuitRequested
 
 
@@ -296,8 +297,10 @@ class RunEngine:
         port = self._port()
         what = _what(e)
         if self._trial is not None:
-            then = (f"during {self._current()}, which was not stored; it will be redone from its baseline "
-                    "once the rig is back")
+            then = (
+                f"during {self._current()}, which was not stored; it will be redone from its baseline "
+                "once the rig is back"
+            )
         else:
             then = f"during {self._current()}; the setup will be redone once the rig is back"
         self.ui.warn(f"The rig on {port} {what} {then}.")
@@ -357,18 +360,23 @@ class RunEngine:
         wall = time.monotonic() - self._t_start
         stored = _count(complete, self._noun)
         if status == "finished":
-            msg = (f"Session complete: {stored} stored in {self.run_path} "
-                   f"({self._stored} this session, {wall:.1f} s).")
+            msg = f"Session complete: {stored} stored in {self.run_path} ({self._stored} this session, {wall:.1f} s)."
             if skipped:
                 msg += (
                     f" Skipped {_count(len(skipped), self._noun)} ({', '.join(map(str, skipped))}) "
                     f"not stored; record {'it' if len(skipped) == 1 else 'them'} with: {self.resume_command}"
                 )
         elif not self.store_created:
-            why = {"quit": "Stopped at your request", "interrupted": "Interrupted",
-                   "no input": "No input (standard input ended)"}[status]
-            again = ("run the command where someone at the rig can answer its prompts"
-                     if status == "no input" else "run the same command again to start the run")
+            why = {
+                "quit": "Stopped at your request",
+                "interrupted": "Interrupted",
+                "no input": "No input (standard input ended)",
+            }[status]
+            again = (
+                "run the command where someone at the rig can answer its prompts"
+                if status == "no input"
+                else "run the same command again to start the run"
+            )
             msg = f"{why} during the setup, before anything was written to {self.run_path}; {again}."
         elif status == "quit":
             msg = (
@@ -461,8 +469,9 @@ class RunEngine:
         skipped or killed stays in the file unreferenced, and is never read as a trial.
         """
         k = len(self.protocol.channels)
-        sink = WindowSink(k, self.store.begin_window(f"{self._noun} {self._trial.trial}")
-                          if self._trial is not None else None)
+        sink = WindowSink(
+            k, self.store.begin_window(f"{self._noun} {self._trial.trial}") if self._trial is not None else None
+        )
         self._stream(duration_s, sink.add)
         window = sink.finish()
         self._check_rate(len(window), sink.gaps.median_s())
@@ -482,15 +491,19 @@ class RunEngine:
         if len(bad):
             i = int(bad[0])
             before = last if i == 0 else int(t_us[i - 1])
-            what = (f"sent a timestamp that does not follow the one before (t_us {int(t_us[i])} after {before}), "
-                    "as a clock that went back or a board that restarted does")
+            what = (
+                f"sent a timestamp that does not follow the one before (t_us {int(t_us[i])} after {before}), "
+                "as a clock that went back or a board that restarted does"
+            )
             raise DeviceClockError(f"The rig on {self._port()} {what}.", what=what)
         frames += len(t_us)
         span += float(steps.sum()) * 1e-6
         self._clock = (int(t_us[-1]), frames, span)
         if self._rate_set and frames > 1000 and frames > SLOW_CLOCK * self._rate_set * span:
-            what = (f"sent {frames} frames over only {span:.3g} s of its own clock, "
-                    f"{frames / span if span else math.inf:.4g} frames per second at {self._rate_set:g} Hz set")
+            what = (
+                f"sent {frames} frames over only {span:.3g} s of its own clock, "
+                f"{frames / span if span else math.inf:.4g} frames per second at {self._rate_set:g} Hz set"
+            )
             raise DeviceClockError(f"The rig on {self._port()} {what}.", what=what)
 
     def _check_rate(self, frames: int, gap: float) -> None:
@@ -500,8 +513,10 @@ class RunEngine:
         rate = 1.0 / gap if gap > 0 else math.inf
         if abs(rate / self._rate_set - 1.0) <= RATE_TOLERANCE:
             return
-        text = (f"the rig streams at {rate:.4g} Hz by its own clock, not the {self._rate_set:g} Hz it confirmed; "
-                "check its firmware's timer")
+        text = (
+            f"the rig streams at {rate:.4g} Hz by its own clock, not the {self._rate_set:g} Hz it confirmed; "
+            "check its firmware's timer"
+        )
         if self._trial is not None and text not in self._flags:
             self._flags.append(text)
         key = round(rate, 1)
@@ -553,9 +568,12 @@ class RunEngine:
     def _problem(self, step: Problem) -> None:
         if self.ui.unattended:
             # Nobody stands at a simulated rig to fix it: the session ends here.
-            stored = (f"the {_count(self._complete(), 'completed ' + self._noun)} in {self.run_path} "
-                      f"{'is' if self._complete() == 1 else 'are'} unchanged" if self.store_created
-                      else f"nothing was written to {self.run_path}")
+            stored = (
+                f"the {_count(self._complete(), 'completed ' + self._noun)} in {self.run_path} "
+                f"{'is' if self._complete() == 1 else 'are'} unchanged"
+                if self.store_created
+                else f"nothing was written to {self.run_path}"
+            )
             raise DeviceError(f"{step.text.rstrip('.')}; {stored}.")
         self.ui.warn(step.text)
         return self._prompt(step.fix)
@@ -615,8 +633,12 @@ class RunEngine:
                         break
             if status.settled:
                 report = SettleReport(
-                    True, status.settle_time_s, status.elapsed_s, status.pressure_spread_MPa,
-                    status.angle_spread_rad, self.criteria.describe(),
+                    True,
+                    status.settle_time_s,
+                    status.elapsed_s,
+                    status.pressure_spread_MPa,
+                    status.angle_spread_rad,
+                    self.criteria.describe(),
                 )
                 break
             choice = self.ui.settle_timeout(label, status, self.criteria)
@@ -626,8 +648,12 @@ class RunEngine:
             if choice == "redo":
                 return "redo"
             report = SettleReport(
-                False, status.elapsed_s, status.elapsed_s, status.pressure_spread_MPa,
-                status.angle_spread_rad, self.criteria.describe() + " (timed out, accepted)",
+                False,
+                status.elapsed_s,
+                status.elapsed_s,
+                status.pressure_spread_MPa,
+                status.angle_spread_rad,
+                self.criteria.describe() + " (timed out, accepted)",
             )
             break
         self.ui.settled(label, report)
@@ -673,9 +699,7 @@ class RunEngine:
         self._check_rate(len(window), float(np.median(np.diff(window.t_s))) if len(window) > 1 else math.nan)
         problems = self._check_readings(window)
         if problems:
-            raise DeviceError(
-                f"The readings from {info.port} are not plausible: " + "; ".join(problems) + "."
-            )
+            raise DeviceError(f"The readings from {info.port} are not plausible: " + "; ".join(problems) + ".")
         self.ui.info(
             f"Rig {info.device} (firmware {info.firmware}) on {info.port}: channels "
             f"{','.join(have)} match protocol {self.protocol.name}; readings in range."

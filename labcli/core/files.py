@@ -11,8 +11,8 @@ from __future__ import annotations
 import os
 import stat
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from ..errors import ConfigError, LabcliError
 
@@ -33,7 +33,9 @@ def name_too_long(path: str | os.PathLike) -> str | None:
     size = len(name.encode("utf-8", "surrogateescape"))
     if size <= limit:
         return None
-    return f"the file name is too long ({size} bytes; this file system allows at most {limit}), so choose a shorter name"
+    return (
+        f"the file name is too long ({size} bytes; this file system allows at most {limit}), so choose a shorter name"
+    )
 
 
 def kind_of(path: str | os.PathLike) -> str | None:
@@ -73,8 +75,9 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return False
 
 
-def check_output(path: str | os.PathLike, *, inputs: tuple[str | os.PathLike, ...] = (), what: str = "",
-                 replaces_runs: bool = False) -> None:
+def check_output(
+    path: str | os.PathLike, *, inputs: tuple[str | os.PathLike, ...] = (), what: str = "", replaces_runs: bool = False
+) -> None:
     """Refuse, in one sentence, an output path whose writing would destroy data.
 
     Refused: a name too long for its file system; any of ``inputs`` (the same file, by any
@@ -83,24 +86,30 @@ def check_output(path: str | os.PathLike, *, inputs: tuple[str | os.PathLike, ..
     """
     for source in inputs:
         if same_file(path, source):
-            raise ConfigError(f"Cannot write {what}{path}: it is this command's input, and writing there would "
-                              "destroy it; choose another output name.")
+            raise ConfigError(
+                f"Cannot write {what}{path}: it is this command's input, and writing there would "
+                "destroy it; choose another output name."
+            )
     check_writable_name(path, what)
     if not replaces_runs and is_run_file(path):
-        raise ConfigError(f"Cannot write {what}{path}: it is a run file (HDF5), and writing there would destroy its "
-                          "records; choose another output name.")
+        raise ConfigError(
+            f"Cannot write {what}{path}: it is a run file (HDF5), and writing there would destroy its "
+            "records; choose another output name."
+        )
 
 
-def check_writable_name(path: str | os.PathLike, what: str = "", *, verb: str = "write",
-                        error: type[LabcliError] = ConfigError) -> None:
+def check_writable_name(
+    path: str | os.PathLike, what: str = "", *, verb: str = "write", error: type[LabcliError] = ConfigError
+) -> None:
     """Refuse a name too long for its file system, or a path that is there and not a regular file."""
     too_long = name_too_long(path)
     if too_long:
         raise error(f"Cannot {verb} {what}{path}: {too_long}.")
     kind = kind_of(path)
     if kind:
-        raise error(f"{path} is {kind}, not a regular file; labcli writes only regular files, "
-                    "so give the path of a file.")
+        raise error(
+            f"{path} is {kind}, not a regular file; labcli writes only regular files, so give the path of a file."
+        )
 
 
 def atomic_write(path: str | os.PathLike, data: bytes, *, what: str = "") -> None:
@@ -116,8 +125,9 @@ def atomic_write(path: str | os.PathLike, data: bytes, *, what: str = "") -> Non
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=".tmp", dir=folder)
     except OSError as exc:
-        raise ConfigError(f"Cannot write {what}{path}: {exc.strerror or exc} "
-                          "(check the folder exists and is writable).") from None
+        raise ConfigError(
+            f"Cannot write {what}{path}: {exc.strerror or exc} (check the folder exists and is writable)."
+        ) from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)

@@ -41,8 +41,9 @@ projects little onto a load's response in the removal check.
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
-from typing import Any, Hashable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -71,7 +72,7 @@ class Watch:
     count: np.ndarray  # one ADC count, SI
 
     @classmethod
-    def of(cls, protocol: Any) -> "Watch":
+    def of(cls, protocol: Any) -> Watch:
         cal = protocol.calibration
         settling = protocol.settling
         spread = {"MPa": settling.pressure_spread_MPa, "rad": settling.angle_spread_rad}
@@ -172,8 +173,9 @@ def least_expected(prediction: tuple[np.ndarray, np.ndarray, float], floors: np.
     return np.sign(mean) * np.maximum(0.0, np.abs(mean) - SURE_SD * err)
 
 
-def weak_response(watch: Watch, baseline: Any, loaded: Any,
-                  prediction: tuple[np.ndarray, np.ndarray, float] | None) -> str | None:
+def weak_response(
+    watch: Watch, baseline: Any, loaded: Any, prediction: tuple[np.ndarray, np.ndarray, float] | None
+) -> str | None:
     """The sentence when the readings moved by less than a quarter of what the load surely causes."""
     if prediction is None:
         return None
@@ -187,8 +189,10 @@ def weak_response(watch: Watch, baseline: Any, loaded: Any,
     if share >= WEAK_FRACTION:
         return None
     j = int(np.argmax(np.abs(e)))
-    return (f"the readings moved by {share:.0%} of what this run's earlier trials say this load surely does "
-            f"({watch.show(j, seen[j])}, at least {watch.show(j, e[j] * f[j]).split(' ', 1)[1]} expected)")
+    return (
+        f"the readings moved by {share:.0%} of what this run's earlier trials say this load surely does "
+        f"({watch.show(j, seen[j])}, at least {watch.show(j, e[j] * f[j]).split(' ', 1)[1]} expected)"
+    )
 
 
 def still_loaded(watch: Watch, baseline: Any, loaded: Any, now: Any, drift: np.ndarray | None = None) -> str | None:
@@ -212,24 +216,28 @@ def still_loaded(watch: Watch, baseline: Any, loaded: Any, now: Any, drift: np.n
         return None
     j = int(np.argmax(np.abs(r)))
     moved = watch.change(baseline, now)
-    return (f"they are still {min(share, 9.99):.0%} of the way to the loaded ones "
-            f"({watch.show(j, moved[j])} from the baseline, {watch.show(j, r[j] * f[j]).split(' ', 1)[1]} under the load)")
+    return (
+        f"they are still {min(share, 9.99):.0%} of the way to the loaded ones "
+        f"({watch.show(j, moved[j])} from the baseline, {watch.show(j, r[j] * f[j]).split(' ', 1)[1]} under the load)"
+    )
 
 
 def supply_problem(names: Sequence[str], pressures_MPa: Sequence[float], minimum_MPa: float) -> str | None:
     """What is wrong with the supplied pressures (each channel at least ``minimum_MPa``), or None."""
     p = np.asarray(pressures_MPa, dtype=float)
-    low = [(n, v) for n, v in zip(names, p) if not v >= minimum_MPa]
+    low = [(n, v) for n, v in zip(names, p, strict=False) if not v >= minimum_MPa]
     if not low:
         return None
     listed = ", ".join(f"{n} reads {v:.3f} MPa" for n, v in low)
     if len(low) == len(p):
-        return (f"After the air supply {listed}, below the {minimum_MPa:g} MPa the protocol asks for "
-                "(acquisition.supply_min_MPa): check the compressor, the regulator and that the valves are open.")
-    rest = float(np.median([v for n, v in zip(names, p) if v >= minimum_MPa]))
-    return (f"After the air supply {listed} while the others read about {rest:.2f} MPa: check "
-            + ("that actuator's tube, fitting and valve." if len(low) == 1
-               else "those actuators' tubes, fittings and valves."))
+        return (
+            f"After the air supply {listed}, below the {minimum_MPa:g} MPa the protocol asks for "
+            "(acquisition.supply_min_MPa): check the compressor, the regulator and that the valves are open."
+        )
+    rest = float(np.median([v for n, v in zip(names, p, strict=False) if v >= minimum_MPa]))
+    return f"After the air supply {listed} while the others read about {rest:.2f} MPa: check " + (
+        "that actuator's tube, fitting and valve." if len(low) == 1 else "those actuators' tubes, fittings and valves."
+    )
 
 
 class Guard:

@@ -9,7 +9,8 @@ reads both.
 
 from __future__ import annotations
 
-from typing import Any, Callable, NoReturn
+from collections.abc import Callable
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -51,8 +52,9 @@ def parse(value: Any, key: str, bad: Callable[[str, str], NoReturn]) -> Ranges:
 
     ``bad(key, what)`` raises the caller's error for a value that is neither.
     """
+
     def whole(t: Any) -> bool:  # and within int64: a 400-digit number is no trial
-        return isinstance(t, int) and not isinstance(t, bool) and -2**63 <= t < 2**63
+        return isinstance(t, int) and not isinstance(t, bool) and -(2**63) <= t < 2**63
 
     if not isinstance(value, list):
         bad(key, "must list whole trial numbers, or [first, last] ranges of them")
@@ -70,7 +72,7 @@ def merge(ranges: Ranges) -> Ranges:
         return []
     order = np.argsort(lo, kind="stable")
     out: Ranges = []
-    for a, b in zip(lo[order].tolist(), hi[order].tolist()):
+    for a, b in zip(lo[order].tolist(), hi[order].tolist(), strict=False):
         if out and a <= out[-1][1] + 1:
             out[-1][1] = max(out[-1][1], b)
         else:

@@ -14,15 +14,16 @@ import json
 import math
 import re
 import secrets
+from collections.abc import Mapping
 from itertools import accumulate
-from typing import Any, Mapping
+from typing import Any
 
 MAX_DEPTH = 64  # labcli's own documents nest at most 5 deep (a covariance matrix in a model)
 _FLOAT_DIGITS = 308  # any integer of this many digits or fewer is below 1.8e308
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
 _BRACKETS = re.compile(r"[^\[\]{}]+")
 # Numbers that may not fit a float; without any, json's own (C) number parsing is safe and fast.
-_HUGE_NUMBER = re.compile(r"[0-9]{%d}|[eE][+-]?[0-9]{3}" % (_FLOAT_DIGITS + 1))
+_HUGE_NUMBER = re.compile(rf"[0-9]{{{_FLOAT_DIGITS + 1}}}|[eE][+-]?[0-9]{{3}}")
 
 
 class OutOfRange:

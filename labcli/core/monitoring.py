@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -142,7 +143,7 @@ class MonitorSummary:
             "interrupted": self.interrupted,
             "channels": {
                 name: {"mean": num(m), "std": num(s), "unit": u}
-                for name, m, s, u in zip(self.channels, self.mean, self.std, self.units)
+                for name, m, s, u in zip(self.channels, self.mean, self.std, self.units, strict=False)
             },
         }
 

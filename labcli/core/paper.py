@@ -27,9 +27,10 @@ must offer, and anything that offers it plugs in.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Generator, Iterable, Mapping, Protocol, Sequence, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 # --------------------------------------------------------------------------- protocol files
 
@@ -102,8 +103,9 @@ class Column:
         """The numpy dtype the column is stored as."""
         import numpy as np
 
-        return {"float": np.dtype("<f8"), "int": np.dtype("<i8"), "uint": np.dtype("<u8"),
-                "flag": np.dtype("i1")}.get(self.kind) or np.dtype(f"S{max(1, self.width)}")
+        return {"float": np.dtype("<f8"), "int": np.dtype("<i8"), "uint": np.dtype("<u8"), "flag": np.dtype("i1")}.get(
+            self.kind
+        ) or np.dtype(f"S{max(1, self.width)}")
 
 
 @runtime_checkable
@@ -158,8 +160,13 @@ class RecordType(Protocol):
     def import_split(self, table: Any) -> tuple[list[int], list[int]]:
         """Fit and validation ids named by an imported table (DataFrame; empty lists: no split)."""
 
-    def read_csv(self, path: Any, *, id_range: tuple[int, int] | None = None,
-                 check: Callable[[dict[str, Any]], Iterable[tuple[str, str]]] | None = None) -> Any:
+    def read_csv(
+        self,
+        path: Any,
+        *,
+        id_range: tuple[int, int] | None = None,
+        check: Callable[[dict[str, Any]], Iterable[tuple[str, str]]] | None = None,
+    ) -> Any:
         """Read and check a CSV table of these records (:class:`labcli.core.tables.TableError`)."""
 
     def write_csv(self, table: Any, path: Any) -> None:
@@ -281,8 +288,9 @@ class Paper(Protocol):
         """A simulated rig for one of :attr:`sim_modes` (see :mod:`labcli.core.sim`); ``options``
         are parsed values of :attr:`sim_options`, only those given."""
 
-    def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
-                     run_path: str = "") -> Any:
+    def run_protocol(
+        self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
+    ) -> Any:
         """The protocol as a run records it (its ``kind`` the run kind), ``choice`` being
         the ``--experiment`` option; ``stored_kind`` is the kind of a run being resumed."""
 

@@ -36,10 +36,9 @@ else:  # pragma: no cover - exercised on 3.10 only
     import tomli as tomllib
 
 from ..errors import ConfigError
+from . import registry
 from .calibration import UNIT_FACTORS, Calibration, Channel
 from .paper import ChannelRoles, ProtocolKind
-from . import registry
-
 
 
 def _shipped_dir() -> Path:
@@ -102,8 +101,13 @@ SECTIONS: dict[str, Any] = {
     },
     "acquisition": {
         "rate_hz": {"type": "number", "unit": "Hz", "check": "positive", "max": MAX_RATE_HZ},
-        "supply_min_MPa": {"type": "number", "unit": "MPa", "check": "nonnegative", "optional": True,
-                           "help": "gauge pressure every actuator must reach once air is supplied"},
+        "supply_min_MPa": {
+            "type": "number",
+            "unit": "MPa",
+            "check": "nonnegative",
+            "optional": True,
+            "help": "gauge pressure every actuator must reach once air is supplied",
+        },
     },
     # Times are bounded so that a window's samples fit in memory and a wait ends: at most
     # MAX_RATE_HZ x 60 s = 600,000 frames a window.
@@ -131,8 +135,9 @@ def channel_spec(roles: ChannelRoles | None) -> dict[str, Any]:
     actuator: dict[str, Any] = {"type": "str", "optional": True}
     joint: dict[str, Any] = {"type": "int", "optional": True}
     if roles is not None and roles.actuators:
-        actuator.update(check=["one-of", list(roles.actuators)],
-                        help=f"the actuator of a pressure channel: {_or(roles.actuators)}")
+        actuator.update(
+            check=["one-of", list(roles.actuators)], help=f"the actuator of a pressure channel: {_or(roles.actuators)}"
+        )
     if roles is not None and roles.joints:
         joint.update(check=["one-of", list(roles.joints)], help=f"the joint of an angle channel: {_or(roles.joints)}")
     return {
@@ -266,7 +271,9 @@ def load_protocol(path_or_name: str | Path, *, kinds: tuple[str, ...] | None = N
         if not path.is_file():
             raise ProtocolFileError(
                 f"There is no shipped protocol named '{arg}'; shipped protocols are "
-                f"{', '.join(shipped_protocols())}, or give the path of a .toml file.", "missing", arg
+                f"{', '.join(shipped_protocols())}, or give the path of a .toml file.",
+                "missing",
+                arg,
             )
     else:
         path = Path(path_or_name)
@@ -278,8 +285,9 @@ def load_protocol(path_or_name: str | Path, *, kinds: tuple[str, ...] | None = N
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise ProtocolFileError(f"Protocol file {arg} cannot be read ({exc.strerror or exc}).", "unreadable",
-                                exc.strerror or str(exc)) from None
+        raise ProtocolFileError(
+            f"Protocol file {arg} cannot be read ({exc.strerror or exc}).", "unreadable", exc.strerror or str(exc)
+        ) from None
     label = str(path) if isinstance(path_or_name, str) and _looks_like_name(arg) else arg
     try:
         text = raw.decode("utf-8")
@@ -288,8 +296,9 @@ def load_protocol(path_or_name: str | Path, *, kinds: tuple[str, ...] | None = N
     return loads_protocol(text, source=label, path=path, kinds=kinds)
 
 
-def loads_protocol(text: str, *, source: str = "<protocol>", path: Path | None = None,
-                   kinds: tuple[str, ...] | None = None) -> Protocol:
+def loads_protocol(
+    text: str, *, source: str = "<protocol>", path: Path | None = None, kinds: tuple[str, ...] | None = None
+) -> Protocol:
     """Check protocol TOML given as text (e.g. the copy kept in a run file).
 
     ``source`` names the text in messages; relative file names in the protocol (a plan)
@@ -302,17 +311,22 @@ def loads_protocol(text: str, *, source: str = "<protocol>", path: Path | None =
     except tomllib.TOMLDecodeError as exc:
         raise ProtocolFileError(f"{source}: {_syntax_message(str(exc), text)}", "syntax", str(exc)) from None
     except RecursionError:
-        raise ProtocolFileError(f"{source}: arrays or tables nested thousands of levels deep; a protocol file "
-                                f"nests at most {MAX_DEPTH} levels.", "syntax", "nesting") from None
+        raise ProtocolFileError(
+            f"{source}: arrays or tables nested thousands of levels deep; a protocol file "
+            f"nests at most {MAX_DEPTH} levels.",
+            "syntax",
+            "nesting",
+        ) from None
     _check_values(data, chk)
     found = data.get("kind")
     if kinds is not None and found not in kinds:
-        raise ProtocolFileError(f"{source}: key 'kind' must be one of {', '.join(kinds)}, not {_show(found)}.",
-                                "kind", found)
+        raise ProtocolFileError(
+            f"{source}: key 'kind' must be one of {', '.join(kinds)}, not {_show(found)}.", "kind", found
+        )
     return _build(data, text, chk, path)
 
 
-def _check_values(data: Any, chk: "Checker", key: str = "", depth: int = 0) -> None:
+def _check_values(data: Any, chk: Checker, key: str = "", depth: int = 0) -> None:
     """Every value of the document: nested at most MAX_DEPTH deep, integers within TOML's 64 bits."""
     if depth > MAX_DEPTH:
         chk.fail(f"key '{key}' nests more than {MAX_DEPTH} levels deep; a protocol file nests at most {MAX_DEPTH}.")
@@ -323,8 +337,10 @@ def _check_values(data: Any, chk: "Checker", key: str = "", depth: int = 0) -> N
         for v in data:
             _check_values(v, chk, key, depth + 1)
     elif isinstance(data, int) and not isinstance(data, bool) and abs(data) > MAX_INT:
-        chk.fail(f"key '{key}' holds an integer of {len(str(abs(data)))} digits; TOML integers are 64-bit "
-                 "(at most 19 digits).")
+        chk.fail(
+            f"key '{key}' holds an integer of {len(str(abs(data)))} digits; TOML integers are 64-bit "
+            "(at most 19 digits)."
+        )
 
 
 def _syntax_message(msg: str, text: str) -> str:
@@ -427,9 +443,7 @@ class Checker:
             self.fail(f"key '{prefix.rstrip('.')}' must be a table, not {_kind_of(data)} {_show(data)}.")
         for k in data:
             if k not in spec:
-                self.fail(
-                    f"unknown key '{prefix}{k}'; the keys allowed there are {', '.join(spec)}."
-                )
+                self.fail(f"unknown key '{prefix}{k}'; the keys allowed there are {', '.join(spec)}.")
         out: dict[str, Any] = {}
         for k, kspec in spec.items():
             if k not in data:
@@ -482,8 +496,9 @@ def _show(v: Any) -> str:
     return str(v)
 
 
-def _kind(scalars: dict[str, Any], tables: dict[str, Any], all_kinds: dict[str, ProtocolKind],
-          chk: Checker) -> ProtocolKind:
+def _kind(
+    scalars: dict[str, Any], tables: dict[str, Any], all_kinds: dict[str, ProtocolKind], chk: Checker
+) -> ProtocolKind:
     """The file's kind, read first: it decides which sections are judged."""
     if "kind" in scalars:
         kind = chk.value(scalars["kind"], TOP_LEVEL["kind"], "kind")
@@ -531,8 +546,11 @@ def _check_sections(data: dict[str, Any], spec: ProtocolKind, chk: Checker) -> d
         elif spec_name in tables_of:
             item_spec = specs[tables_of[spec_name]]
             checked[sec] = {
-                name: (chk.table(v, item_spec, f"{sec}.{name}.") if "type" not in item_spec
-                       else chk.value(v, item_spec, f"{sec}.{name}"))
+                name: (
+                    chk.table(v, item_spec, f"{sec}.{name}.")
+                    if "type" not in item_spec
+                    else chk.value(v, item_spec, f"{sec}.{name}")
+                )
                 for name, v in raw.items()
             }
         else:
@@ -540,8 +558,9 @@ def _check_sections(data: dict[str, Any], spec: ProtocolKind, chk: Checker) -> d
     return checked
 
 
-def _device(checked: dict[str, Any], roles: ChannelRoles | None,
-            chk: Checker) -> tuple[DeviceSpec | None, Calibration | None]:
+def _device(
+    checked: dict[str, Any], roles: ChannelRoles | None, chk: Checker
+) -> tuple[DeviceSpec | None, Calibration | None]:
     device = calibration = None
     if "device" in checked:
         d = checked["device"]
@@ -651,20 +670,23 @@ def _channel(name: str, c: dict[str, Any], device: DeviceSpec, roles: ChannelRol
         if "actuator" not in c:
             chk.fail(f"missing key '{key}.actuator', expected {_describe(channel_spec(roles)['actuator'])}.")
         if "joint" in c:
-            chk.fail(f"unknown key '{key}.joint' for a pressure channel; the keys allowed there are "
-                     "quantity, actuator, unit, gain, zero_counts, range.")
+            chk.fail(
+                f"unknown key '{key}.joint' for a pressure channel; the keys allowed there are "
+                "quantity, actuator, unit, gain, zero_counts, range."
+            )
     else:
         if "joint" not in c:
             chk.fail(f"missing key '{key}.joint', expected {_describe(channel_spec(roles)['joint'])}.")
         if "actuator" in c:
-            chk.fail(f"unknown key '{key}.actuator' for an angle channel; the keys allowed there are "
-                     "quantity, joint, unit, gain, zero_counts, range.")
+            chk.fail(
+                f"unknown key '{key}.actuator' for an angle channel; the keys allowed there are "
+                "quantity, joint, unit, gain, zero_counts, range."
+            )
     factors = UNIT_FACTORS[q]
     if c["unit"] not in factors:
         article = "an" if q[0] in "aeiou" else "a"
         chk.fail(
-            f"key '{key}.unit' must be one of {', '.join(factors)} for {article} {q} channel, "
-            f"not {_show(c['unit'])}."
+            f"key '{key}.unit' must be one of {', '.join(factors)} for {article} {q} channel, not {_show(c['unit'])}."
         )
     lo, hi = c["range"]
     if q == "pressure" and lo < 0:

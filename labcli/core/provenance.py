@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 
@@ -39,8 +40,12 @@ def run_identity(run: Any, path: str | Path) -> dict[str, Any]:
     """The identity of an open run file (plain data, JSON-ready)."""
     a = run.attrs
     cal = run.calibration() or {"gain": [], "offset": []}
-    rig = {"device": a.get("device", ""), "firmware": a.get("firmware", ""), "port": a.get("port", ""),
-           "calibration": {"gain": [float(x) for x in cal["gain"]], "offset": [float(x) for x in cal["offset"]]}}
+    rig = {
+        "device": a.get("device", ""),
+        "firmware": a.get("firmware", ""),
+        "port": a.get("port", ""),
+        "calibration": {"gain": [float(x) for x in cal["gain"]], "offset": [float(x) for x in cal["offset"]]},
+    }
     latest = run.rig_identity() if hasattr(run, "rig_identity") else None
     if latest is not None:  # the rig of the run's latest session (a resumed run may have moved rigs)
         rig.update(device=latest.device, firmware=latest.firmware)
@@ -49,20 +54,31 @@ def run_identity(run: Any, path: str | Path) -> dict[str, Any]:
     uid = a.get("uid") or a.get("run_uid") or ""
     data = str(uid) or f"{a.get('started', '')}|{a.get('source', '')}|{a.get('port', '')}"
     return {
-        "run": Path(path).name, "data": data,
-        "device": str(rig.get("device") or ""), "firmware": str(rig.get("firmware") or ""),
+        "run": Path(path).name,
+        "data": data,
+        "device": str(rig.get("device") or ""),
+        "firmware": str(rig.get("firmware") or ""),
         "sim_seed": _sim_seed(str(rig.get("port") or "")),
         "calibration": {k: [float(x) for x in v] for k, v in dict(rig.get("calibration") or {}).items()},
         "channels": [str(c) for c in getattr(run, "channels", ())],
-        "protocol": str(a.get("protocol", "")), "protocol_sha256": _digest(run.protocol_text),
+        "protocol": str(a.get("protocol", "")),
+        "protocol_sha256": _digest(run.protocol_text),
     }
 
 
 def table_identity(path: str | Path, protocol: Any) -> dict[str, Any]:
     """The identity of a CSV table: its name and the protocol it is read with (no rig recorded)."""
-    return {"run": Path(path).name, "data": f"table:{Path(path).name}", "device": "", "firmware": "",
-            "sim_seed": None, "calibration": {}, "channels": [],
-            "protocol": str(getattr(protocol, "name", "")), "protocol_sha256": _digest(getattr(protocol, "text", ""))}
+    return {
+        "run": Path(path).name,
+        "data": f"table:{Path(path).name}",
+        "device": "",
+        "firmware": "",
+        "sim_seed": None,
+        "calibration": {},
+        "channels": [],
+        "protocol": str(getattr(protocol, "name", "")),
+        "protocol_sha256": _digest(getattr(protocol, "text", "")),
+    }
 
 
 def same_data(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
@@ -73,8 +89,14 @@ def same_data(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
 def _calibration_differs(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
     for key in ("gain", "offset"):
         x, y = a.get(key), b.get(key)
-        if x and y and (len(x) != len(y) or not all(math.isclose(p, q, rel_tol=1e-9, abs_tol=1e-12)
-                                                    for p, q in zip(x, y))):
+        if (
+            x
+            and y
+            and (
+                len(x) != len(y)
+                or not all(math.isclose(p, q, rel_tol=1e-9, abs_tol=1e-12) for p, q in zip(x, y, strict=False))
+            )
+        ):
             return True
     return False
 
@@ -95,17 +117,24 @@ def rig_differences(fit: Mapping[str, Any], run: Mapping[str, Any], *, protocol_
         out.append(f"simulated rig seed {fit['sim_seed']}, here seed {run['sim_seed']}")
     if _calibration_differs(fit.get("calibration") or {}, run.get("calibration") or {}):
         out.append("another channel calibration (gain or offset)")
-    if protocol_text and fit.get("protocol_sha256") and run.get("protocol_sha256") \
-            and fit["protocol_sha256"] != run["protocol_sha256"]:
+    if (
+        protocol_text
+        and fit.get("protocol_sha256")
+        and run.get("protocol_sha256")
+        and fit["protocol_sha256"] != run["protocol_sha256"]
+    ):
         out.append(f"protocol {fit.get('protocol') or '?'} with other settings than {run.get('protocol') or '?'} here")
     return out
 
 
-def rig_warning(model_name: str, fit: Mapping[str, Any], run_name: str, run: Mapping[str, Any], *,
-                protocol_text: bool = True) -> str | None:
+def rig_warning(
+    model_name: str, fit: Mapping[str, Any], run_name: str, run: Mapping[str, Any], *, protocol_text: bool = True
+) -> str | None:
     """One sentence warning that a model is applied to a run from another rig or protocol, or None."""
     diffs = rig_differences(fit, run, protocol_text=protocol_text)
     if not diffs:
         return None
-    return (f"{model_name} was fitted on {fit.get('run') or 'another run'} ({'; '.join(diffs)}): "
-            f"its results on {run_name} may not hold; fit a model on a run of this rig.")
+    return (
+        f"{model_name} was fitted on {fit.get('run') or 'another run'} ({'; '.join(diffs)}): "
+        f"its results on {run_name} may not hold; fit a model on a run of this rig."
+    )

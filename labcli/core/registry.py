@@ -108,12 +108,14 @@ def demo_protocols(default: str) -> list[str]:
 
 def _unused_experiment_option(name: str, kind: str) -> ConfigError:
     holders = " or ".join(k.described_as for k in protocol_kinds().values() if k.experiments)
-    return ConfigError(f"--experiment picks one experiment of {holders}; {name} is of kind '{kind}', "
-                       "so leave --experiment out.")
+    return ConfigError(
+        f"--experiment picks one experiment of {holders}; {name} is of kind '{kind}', so leave --experiment out."
+    )
 
 
-def run_protocol(protocol: Any, choice: str | None, *, stored_kind: str | None = None,
-                 run_path: str = "") -> tuple[Paper, Any]:
+def run_protocol(
+    protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
+) -> tuple[Paper, Any]:
     """The paper of a loaded protocol and the protocol a run of it records with.
 
     ``choice`` is the ``--experiment`` option, for a protocol holding several experiments;

@@ -62,8 +62,13 @@ def print_table(con: Any, table: Any) -> None:
         used += widths[i]
     n_rows = len(table.columns[0]._cells)
     for k, group in enumerate(groups):
-        part = Table(title=table.title if k == 0 else None, title_justify=table.title_justify, box=table.box,
-                     show_header=table.show_header, header_style=table.header_style)
+        part = Table(
+            title=table.title if k == 0 else None,
+            title_justify=table.title_justify,
+            box=table.box,
+            show_header=table.show_header,
+            header_style=table.header_style,
+        )
         for i in [0, *group]:
             c = table.columns[i]
             part.add_column(c.header, justify=c.justify, style=c.style, no_wrap=True)
@@ -130,8 +135,7 @@ def split_line(s: dict[str, Any]) -> str:
     if sp is None:
         return "  split       none (labcli split assigns one)"
     how = sp["strategy"] + ("" if sp["seed"] is None else f", seed {sp['seed']}")
-    return (f"  split       {sp['fit']} fit, {sp['validation']} validation, "
-            f"{sp['unassigned']} unassigned ({how})")
+    return f"  split       {sp['fit']} fit, {sp['validation']} validation, {sp['unassigned']} unassigned ({how})"
 
 
 def settling_line(s: dict[str, Any]) -> str:
@@ -140,8 +144,10 @@ def settling_line(s: dict[str, Any]) -> str:
     st = s["settle"]
     if st and st["n"]:
         timeouts = f" ({ids_text(st['timeout_ids'])})" if st["timeout_accepted"] else ""
-        return (f"  settling    median {st['median_s']:.2f} s, max {st['max_s']:.2f} s over {st['n']} {rec}; "
-                f"{st['timeout_accepted']} accepted on timeout{timeouts}")
+        return (
+            f"  settling    median {st['median_s']:.2f} s, max {st['max_s']:.2f} s over {st['n']} {rec}; "
+            f"{st['timeout_accepted']} accepted on timeout{timeouts}"
+        )
     if st and st["timeout_accepted"]:
         return f"  settling    {st['timeout_accepted']} accepted on timeout ({ids_text(st['timeout_ids'])})"
     return "  settling    no settle times recorded"

@@ -17,8 +17,9 @@ recorded since its creation (root attributes ``device``, ``firmware``, ``channel
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, Sequence, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 # How a session ended (SessionLog.end): the engine's outcome, or why it stopped.
 ENDINGS = ("finished", "quit", "interrupted", "no input", "rig lost", "error")
@@ -35,12 +36,12 @@ class RigIdentity:
     offset: tuple[float, ...] = ()
 
     @classmethod
-    def of(cls, info: Any, calibration: Any) -> "RigIdentity":
+    def of(cls, info: Any, calibration: Any) -> RigIdentity:
         """The identity of an open rig (``Device.info``) read with ``calibration``."""
         gain, offset = calibration_vectors(calibration, len(info.channels))
         return cls(str(info.device), str(info.firmware), tuple(info.channels), gain, offset)
 
-    def differences(self, other: "RigIdentity") -> list[str]:
+    def differences(self, other: RigIdentity) -> list[str]:
         """What differs from ``other`` (the rig at hand), one phrase each, in the words of the ID reply."""
         out = []
         if self.device != other.device:
@@ -50,8 +51,13 @@ class RigIdentity:
         if self.channels != other.channels:
             out.append(f"channels {','.join(other.channels)}, not {','.join(self.channels)}")
         elif self.gain and other.gain:
-            changed = [name for name, g0, g1, o0, o1 in zip(self.channels, self.gain, other.gain, self.offset,
-                                                             other.offset) if not (_same(g0, g1) and _same(o0, o1))]
+            changed = [
+                name
+                for name, g0, g1, o0, o1 in zip(
+                    self.channels, self.gain, other.gain, self.offset, other.offset, strict=False
+                )
+                if not (_same(g0, g1) and _same(o0, o1))
+            ]
             if changed:
                 out.append(f"another calibration of {describe(changed)}")
         return out

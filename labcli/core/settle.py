@@ -79,7 +79,7 @@ class SettleCriteria:
             raise ValueError(f"settling hold_s must be zero or positive, got {self.hold_s!r}")
 
     @classmethod
-    def from_settling(cls, settling: object) -> "SettleCriteria":
+    def from_settling(cls, settling: object) -> SettleCriteria:
         """Build from a protocol's ``settling`` section (attributes or a mapping)."""
         get = settling.get if isinstance(settling, dict) else lambda k: getattr(settling, k)
         return cls(
@@ -173,8 +173,13 @@ class SettleDetector:
         self._timeout_s += self.criteria.timeout_s if extra_s is None else extra_s
         s = self._status
         self._status = SettleStatus(
-            s.elapsed_s, s.pressure_spread_MPa, s.angle_spread_rad, s.quiet_s, s.settled,
-            s.settle_time_s, False,
+            s.elapsed_s,
+            s.pressure_spread_MPa,
+            s.angle_spread_rad,
+            s.quiet_s,
+            s.settled,
+            s.settle_time_s,
+            False,
         )
 
     def update(self, t_s: np.ndarray, si: np.ndarray) -> SettleStatus:
@@ -202,7 +207,7 @@ class SettleDetector:
         ends = np.append(starts[1:], stop)
         blocks = idx[starts]
         # Row by row, as a running sum adds them (np.add.reduceat rounds differently).
-        sums = np.array([si[i:k].sum(axis=0) for i, k in zip(starts, ends)])
+        sums = np.array([si[i:k].sum(axis=0) for i, k in zip(starts, ends, strict=False)])
         counts = ends - starts
         if blocks[0] == self._block_index:  # the batch goes on with the open block
             sums[0] += self._sum
@@ -223,8 +228,13 @@ class SettleDetector:
         s = self._status
         timed_out = elapsed >= self._timeout_s
         self._status = SettleStatus(
-            elapsed, s.pressure_spread_MPa, s.angle_spread_rad, s.quiet_s, s.settled,
-            s.settle_time_s, timed_out,
+            elapsed,
+            s.pressure_spread_MPa,
+            s.angle_spread_rad,
+            s.quiet_s,
+            s.settled,
+            s.settle_time_s,
+            timed_out,
         )
         return self._status
 
@@ -238,7 +248,7 @@ class SettleDetector:
         c = self.criteria
         full = counts > 0
         history = np.concatenate([self._means, sums[full] / counts[full, None]])
-        self._means = history[-TAIL_WINDOWS * BLOCKS:]
+        self._means = history[-TAIL_WINDOWS * BLOCKS :]
         # History length after each block: one window of it gives the spreads, three the tail.
         length = len(history) - int(full.sum()) + np.cumsum(full)
         spread_p, spread_a = np.full((2, len(blocks)), np.nan)
@@ -252,8 +262,9 @@ class SettleDetector:
             m = history[length[three, None] + np.arange(-TAIL_WINDOWS * BLOCKS, 0)]
             A, B, C = np.moveaxis(m.reshape(len(three), TAIL_WINDOWS, BLOCKS, -1).mean(axis=2), 1, 0)
             tail_p[three], tail_a[three] = self._largest(remaining_tail(A, B, C))
-        quiet = ((np.maximum(spread_p, tail_p) < c.pressure_spread_MPa)
-                 & (np.maximum(spread_a, tail_a) < c.angle_spread_rad))
+        quiet = (np.maximum(spread_p, tail_p) < c.pressure_spread_MPa) & (
+            np.maximum(spread_a, tail_a) < c.angle_spread_rad
+        )
         # The run of quiet blocks and the hold, block by block (plain floats: a few per batch).
         t_end, quiet, length = ((blocks + 1) * self._block_s).tolist(), quiet.tolist(), length.tolist()
         settled = False
@@ -272,8 +283,13 @@ class SettleDetector:
             return None
         quiet_s = 0.0 if self._quiet_since is None else t_end[j] - self._quiet_since
         self._status = SettleStatus(
-            t_end[j], float(spread_p[j]), float(spread_a[j]), quiet_s, settled,
-            self._quiet_since if settled else float("nan"), False,
+            t_end[j],
+            float(spread_p[j]),
+            float(spread_a[j]),
+            quiet_s,
+            settled,
+            self._quiet_since if settled else float("nan"),
+            False,
         )
         return j if settled else None
 

@@ -47,8 +47,9 @@ length takes the same memory; a test may send a :class:`Window` of samples inste
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -185,8 +186,7 @@ class Finish:
     skipped: tuple[int, ...] = ()
 
 
-Step = (SetupCheck | Prompt | Ask | BeginTrial | WaitSettle | Baseline | Capture | Review | Problem | Commit
-        | Finish)
+Step = SetupCheck | Prompt | Ask | BeginTrial | WaitSettle | Baseline | Capture | Review | Problem | Commit | Finish
 
 
 # --------------------------------------------------------------------------- replies

@@ -25,7 +25,8 @@ import codecs
 import os
 import re
 import warnings
-from typing import TYPE_CHECKING, Any, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -39,8 +40,9 @@ BLOCK = 1 << 22  # bytes scanned at a time: memory stays flat whatever the file'
 _TEXT_KINDS = ("set", "set-required", "name", "text")
 
 
-def read_fast(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float],
-              screen: Callable[["pd.DataFrame"], bool] | None) -> "pd.DataFrame | None":
+def read_fast(
+    path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], screen: Callable[[pd.DataFrame], bool] | None
+) -> pd.DataFrame | None:
     """The table at ``path`` read whole-column, or None: the cell-by-cell reader decides.
 
     ``screen(frame) -> bool`` says whether any row may fail the caller's own checks.
@@ -108,7 +110,7 @@ def _scan(path: str | os.PathLike) -> list[str] | None:
 
 def _line(data: bytes, at: int) -> bytes:
     end = data.find(b"\n", at)
-    return data[at:end if end >= 0 else len(data)]
+    return data[at : end if end >= 0 else len(data)]
 
 
 def _count(data: bytes) -> tuple[int, int]:
@@ -153,7 +155,7 @@ def _header_fits(header: list[str], spec: TableSpec) -> bool:
 # --------------------------------------------------------------------------- the columns
 
 
-def _parse(path: str | os.PathLike, header: list[str], spec: TableSpec) -> "pd.DataFrame | None":
+def _parse(path: str | os.PathLike, header: list[str], spec: TableSpec) -> pd.DataFrame | None:
     import pandas as pd
 
     kinds = {c: k for c, k, _ in spec.columns}
@@ -173,9 +175,20 @@ def _parse(path: str | os.PathLike, header: list[str], spec: TableSpec) -> "pd.D
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a cast of inf or a huge id: refused below, or by the slow reader
-            return pd.read_csv(path, sep=",", header=0, names=names, dtype=dtype, keep_default_na=False,
-                               na_values=empty_ok, encoding="utf-8", engine="c", skip_blank_lines=True,
-                               index_col=False, **_exact_floats())
+            return pd.read_csv(
+                path,
+                sep=",",
+                header=0,
+                names=names,
+                dtype=dtype,
+                keep_default_na=False,
+                na_values=empty_ok,
+                encoding="utf-8",
+                engine="c",
+                skip_blank_lines=True,
+                index_col=False,
+                **_exact_floats(),
+            )
     except (ValueError, OverflowError, TypeError, pd.errors.ParserError, UnicodeDecodeError, MemoryError):
         return None
 
@@ -188,7 +201,7 @@ def _exact_floats() -> dict[str, str]:
     return {} if (major, minor) >= (3, 1) else {"float_precision": "round_trip"}
 
 
-def _values_fit(frame: "pd.DataFrame", spec: TableSpec, span: tuple[float, float]) -> bool:
+def _values_fit(frame: pd.DataFrame, spec: TableSpec, span: tuple[float, float]) -> bool:
     """Every cell within its kind's rules, ids unique, pairs given together."""
     present = set(frame.columns)
     for c, kind, _ in spec.columns:
@@ -217,7 +230,7 @@ def _values_fit(frame: "pd.DataFrame", spec: TableSpec, span: tuple[float, float
     return True
 
 
-def _assemble(frame: "pd.DataFrame", header: list[str], spec: TableSpec) -> "pd.DataFrame":
+def _assemble(frame: pd.DataFrame, header: list[str], spec: TableSpec) -> pd.DataFrame:
     """The spec's columns in order (absent ones empty, directions wrapped), then the extras as read."""
     import pandas as pd
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from ..errors import ConfigError
 from .bounds import QUANTITIES
@@ -23,9 +24,25 @@ from .cells import TableSpec
 SIDECAR_SUFFIX = ".json"  # t.csv -> t.csv.json
 PARQUET_INSTALL = "pip install 'labcli[parquet]'"
 # What a run file records about where its rows came from (v1 names; a later schema adds, never renames).
-PROVENANCE_KEYS = ("run_uid", "uid", "protocol", "kind", "device", "firmware", "port", "operator", "started",
-                   "labcli_version", "versions", "command_line", "host", "imported", "source", "schema",
-                   "schema_version")
+PROVENANCE_KEYS = (
+    "run_uid",
+    "uid",
+    "protocol",
+    "kind",
+    "device",
+    "firmware",
+    "port",
+    "operator",
+    "started",
+    "labcli_version",
+    "versions",
+    "command_line",
+    "host",
+    "imported",
+    "source",
+    "schema",
+    "schema_version",
+)
 
 
 def unit_of(kind: str) -> str:
@@ -114,8 +131,10 @@ def read_sidecar(csv_path: str | os.PathLike) -> dict[str, Any] | None:
         with open(path, encoding="utf-8") as fh:
             meta = json.load(fh)
         fields = meta["schema"]["fields"]
-        return {"units": {f["name"]: f["unit"] for f in fields if f.get("unit")},
-                "provenance": dict(meta.get("labcli", {}).get("provenance", {}))}
+        return {
+            "units": {f["name"]: f["unit"] for f in fields if f.get("unit")},
+            "provenance": dict(meta.get("labcli", {}).get("provenance", {})),
+        }
     except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError):
         return None
 
@@ -129,14 +148,16 @@ def write_parquet(df: Any, path: str | os.PathLike) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
-        raise ConfigError(f"writing parquet needs pyarrow, which is not installed; install it with "
-                          f"{PARQUET_INSTALL}.") from None
+        raise ConfigError(
+            f"writing parquet needs pyarrow, which is not installed; install it with {PARQUET_INSTALL}."
+        ) from None
     from .files import atomic_write
 
     table = pa.Table.from_pandas(df, preserve_index=False)
     meta = dict(table.schema.metadata or {})
-    meta[b"labcli"] = json.dumps({"units": df.attrs.get("units", {}),
-                                  "provenance": df.attrs.get("provenance", {})}).encode()
+    meta[b"labcli"] = json.dumps(
+        {"units": df.attrs.get("units", {}), "provenance": df.attrs.get("provenance", {})}
+    ).encode()
     table = table.replace_schema_metadata(meta)
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink)

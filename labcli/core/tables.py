@@ -25,12 +25,15 @@ import io
 import math
 import os
 import re
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ConfigError
 from .bounds import PRESSURE_SPAN_MPA, QUANTITIES, fmt_number, number_problem, wrap_degrees
-from .cells import INT64_MAX as _INT64_MAX, NUMBER as _NUMBER, TableSpec, infer_extra_column
+from .cells import INT64_MAX as _INT64_MAX
+from .cells import NUMBER as _NUMBER
+from .cells import TableSpec, infer_extra_column
 from .files import atomic_write
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -140,7 +143,9 @@ def _records_from_text(text: str, label: str) -> list[list[str]]:
         for rec in reader:
             out.append(rec)
     except csv.Error as exc:
-        raise ConfigError(f"{label}:row {len(out) + 1}: not valid CSV ({exc}); check the quoting on that row.") from None
+        raise ConfigError(
+            f"{label}:row {len(out) + 1}: not valid CSV ({exc}); check the quoting on that row."
+        ) from None
     return out
 
 
@@ -162,7 +167,7 @@ def _parse_records(
     label: str,
     span: tuple[float, float],
     extra_checks: Any = None,
-) -> "pd.DataFrame":
+) -> pd.DataFrame:
     problems = _Problems(label)
     hrow, header, data = _header(records, spec, label)
     keep, pairs = _check_header(header, data, spec, hrow, problems)
@@ -172,8 +177,9 @@ def _parse_records(
     return _frame(spec, header, keep, columns, n)
 
 
-def _header(records: list[list[str]], spec: TableSpec,
-            label: str) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
+def _header(
+    records: list[list[str]], spec: TableSpec, label: str
+) -> tuple[int, list[str], list[tuple[int, list[str]]]]:
     """The header (the first non-blank record), its row number, and the non-blank data rows numbered."""
     start = 0
     while start < len(records) and not any(c.strip() for c in records[start]):
@@ -188,8 +194,9 @@ def _header(records: list[list[str]], spec: TableSpec,
     return start + 1, header, data
 
 
-def _check_header(header: list[str], data: list[tuple[int, list[str]]], spec: TableSpec, hrow: int,
-                  problems: _Problems) -> tuple[list[int], list[tuple[str, str]]]:
+def _check_header(
+    header: list[str], data: list[tuple[int, list[str]]], spec: TableSpec, hrow: int, problems: _Problems
+) -> tuple[list[int], list[tuple[str, str]]]:
     """The header positions that carry a column, and the column pairs present; problems noted."""
     keep: list[int] = []
     seen: dict[str, int] = {}
@@ -221,9 +228,16 @@ def _check_header(header: list[str], data: list[tuple[int, list[str]]], spec: Ta
     return keep, pairs
 
 
-def _parse_rows(data: list[tuple[int, list[str]]], header: list[str], keep: list[int],
-                pairs: list[tuple[str, str]], spec: TableSpec, span: tuple[float, float], extra_checks: Any,
-                problems: _Problems) -> tuple[dict[str, list[Any]], int]:
+def _parse_rows(
+    data: list[tuple[int, list[str]]],
+    header: list[str],
+    keep: list[int],
+    pairs: list[tuple[str, str]],
+    spec: TableSpec,
+    span: tuple[float, float],
+    extra_checks: Any,
+    problems: _Problems,
+) -> tuple[dict[str, list[Any]], int]:
     """The values of every good row, by column; every bad cell noted."""
     kinds = {c: k for c, k, _ in spec.columns}
     ncols = len(header)
@@ -257,9 +271,16 @@ def _parse_rows(data: list[tuple[int, list[str]]], header: list[str], keep: list
     return columns, n
 
 
-def _parse_row(rownum: int, rec: list[str], header: list[str], keep: list[int], kinds: dict[str, str],
-               pairs: list[tuple[str, str]], span: tuple[float, float],
-               problems: _Problems) -> tuple[dict[str, Any], bool]:
+def _parse_row(
+    rownum: int,
+    rec: list[str],
+    header: list[str],
+    keep: list[int],
+    kinds: dict[str, str],
+    pairs: list[tuple[str, str]],
+    span: tuple[float, float],
+    problems: _Problems,
+) -> tuple[dict[str, Any], bool]:
     """One row's values by column name (None where a cell is bad) and whether all were good."""
     values: dict[str, Any] = {}
     ok = True
@@ -285,8 +306,7 @@ def _parse_row(rownum: int, rec: list[str], header: list[str], keep: list[int], 
     return values, ok
 
 
-def _frame(spec: TableSpec, header: list[str], keep: list[int], columns: dict[str, list[Any]],
-           n: int) -> "pd.DataFrame":
+def _frame(spec: TableSpec, header: list[str], keep: list[int], columns: dict[str, list[Any]], n: int) -> pd.DataFrame:
     """The table: the spec's columns in order (absent ones empty), then the extra columns."""
     import pandas as pd
 
@@ -318,7 +338,7 @@ def table_error(label: str, problems: list[str]) -> TableError:
     return TableError("\n".join([head, *shown, *more]), problems)
 
 
-def _standard_series(kind: str, values: list[Any]) -> "pd.Series":
+def _standard_series(kind: str, values: list[Any]) -> pd.Series:
     import pandas as pd
 
     if kind == "id":
@@ -336,8 +356,14 @@ def _read(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], e
 RowCheck = Callable[[dict[str, Any]], Iterable[tuple[str, str]]]
 
 
-def read_table(path: str | os.PathLike, spec: TableSpec, *, span: tuple[float, float] = PRESSURE_SPAN_MPA,
-               id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
+def read_table(
+    path: str | os.PathLike,
+    spec: TableSpec,
+    *,
+    span: tuple[float, float] = PRESSURE_SPAN_MPA,
+    id_range: tuple[int, int] | None = None,
+    check: RowCheck | None = None,
+) -> pd.DataFrame:
     """Read and check a table of ``spec``; every problem in one :class:`TableError`.
 
     ``span`` bounds the "pressure" cells (MPa); ``id_range`` (low, high) also checks the
@@ -359,14 +385,15 @@ def read_table(path: str | os.PathLike, spec: TableSpec, *, span: tuple[float, f
     return _read(path, spec, span, _row_checks(spec, id_range, check))
 
 
-def _screen(spec: TableSpec, id_range: tuple[int, int] | None,
-            check: RowCheck | None) -> Callable[["pd.DataFrame"], bool] | None:
+def _screen(
+    spec: TableSpec, id_range: tuple[int, int] | None, check: RowCheck | None
+) -> Callable[[pd.DataFrame], bool] | None:
     """Whether any row of a parsed table may fail ``id_range`` or ``check`` (whole columns where it can)."""
     if id_range is None and check is None:
         return None
     own = getattr(check, "screen", None)
 
-    def screen(frame: "pd.DataFrame") -> bool:
+    def screen(frame: pd.DataFrame) -> bool:
         if id_range is not None and spec.id_column in frame.columns:
             ids = frame[spec.id_column]
             if ((ids < id_range[0]) | (ids > id_range[1])).any():
@@ -426,7 +453,7 @@ def _format(v: Any, kind: str | None) -> str:
     return str(v)
 
 
-def _format_frame(df: "pd.DataFrame", spec: TableSpec) -> tuple[list[str], list[list[str]]]:
+def _format_frame(df: pd.DataFrame, spec: TableSpec) -> tuple[list[str], list[list[str]]]:
     kinds = {c: k for c, k, _ in spec.columns}
     names = [str(c) for c in df.columns]
     presence = {c: p for c, _, p in spec.columns}
@@ -440,16 +467,15 @@ def _format_frame(df: "pd.DataFrame", spec: TableSpec) -> tuple[list[str], list[
         else:
             cols.append([""] * len(df))
     # Optional columns that are empty throughout stay out of the file.
-    drop = {
-        c for c, _, p in spec.columns if p == "omit-if-empty" and c in header and not any(cols[header.index(c)])
-    }
+    drop = {c for c, _, p in spec.columns if p == "omit-if-empty" and c in header and not any(cols[header.index(c)])}
     keep = [i for i, c in enumerate(header) if c not in drop]
     rows = [[cols[i][r] for i in keep] for r in range(len(df))]
     return [header[i] for i in keep], rows
 
 
-def write_table(df: "pd.DataFrame", path: str | os.PathLike, spec: TableSpec,
-                span: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
+def write_table(
+    df: pd.DataFrame, path: str | os.PathLike, spec: TableSpec, span: tuple[float, float] = PRESSURE_SPAN_MPA
+) -> None:
     """Write a table of ``spec``: its columns in order, then the extras; checked as it would be read."""
     label = str(path)
     names = [str(c) for c in df.columns]
@@ -458,9 +484,7 @@ def write_table(df: "pd.DataFrame", path: str | os.PathLike, spec: TableSpec,
         raise ConfigError(f"Cannot write {label}: the {spec.label} table has column {dup[0]} twice.")
     missing = [c for c, _, p in spec.columns if p == "required" and c not in names]
     if missing:
-        raise ConfigError(
-            f"Cannot write {label}: the {spec.label} table has no column {', '.join(missing)}."
-        )
+        raise ConfigError(f"Cannot write {label}: the {spec.label} table has no column {', '.join(missing)}.")
     header, rows = _format_frame(df, spec)
     # Check with the reader's rules, then write the canonical form of what was read.
     checked = _parse_records([header, *rows], spec, label, span)
@@ -469,7 +493,9 @@ def write_table(df: "pd.DataFrame", path: str | os.PathLike, spec: TableSpec,
     try:
         data = text.encode("utf-8")
     except UnicodeEncodeError as exc:
-        raise ConfigError(f"Cannot write {label}: the table holds text that is not valid Unicode ({exc.reason}).") from None
+        raise ConfigError(
+            f"Cannot write {label}: the table holds text that is not valid Unicode ({exc.reason})."
+        ) from None
     atomic_write(Path(path), data)
 
 

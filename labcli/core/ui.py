@@ -24,7 +24,8 @@ from __future__ import annotations
 import contextlib
 import math
 import sys
-from typing import IO, Any, Callable, Iterator
+from collections.abc import Callable, Iterator
+from typing import IO, Any
 
 from .steps import Ask, BeginTrial, Prompt
 
@@ -193,8 +194,7 @@ class RichUI:
 
     def settle_timeout(self, label: str, status: Any, criteria: Any) -> str:
         self.console.print(
-            f"[yellow]Not settled ({label}) after {status.elapsed_s:.1f} s:[/] "
-            + _esc(spreads_text(status, criteria))
+            f"[yellow]Not settled ({label}) after {status.elapsed_s:.1f} s:[/] " + _esc(spreads_text(status, criteria))
         )
         return self._choose("Accept these readings [a], wait longer [w] or redo the trial [r]?", "awr", "w")
 

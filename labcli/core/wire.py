@@ -22,9 +22,10 @@ from __future__ import annotations
 import re
 import time
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass
 from numbers import Integral
-from typing import Any, Iterable, Union
+from typing import Any
 
 import numpy as np
 
@@ -74,7 +75,7 @@ class Noise:
     reason: str
 
 
-Parsed = Union[Frame, LogLine, Reply, Noise]
+Parsed = Frame | LogLine | Reply | Noise
 
 # A value is an integer (raw ADC counts) or a decimal; nothing Python's int()
 # or float() would also swallow (spaces, '_', 'nan', 'inf') is on the wire.
@@ -208,11 +209,11 @@ class FrameBatch:
         return int(self.seq.shape[0])
 
     @classmethod
-    def empty(cls, n_channels: int = 0) -> "FrameBatch":
+    def empty(cls, n_channels: int = 0) -> FrameBatch:
         return cls(np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, n_channels), np.float64))
 
     @classmethod
-    def concat(cls, batches: Iterable["FrameBatch"], n_channels: int = 0) -> "FrameBatch":
+    def concat(cls, batches: Iterable[FrameBatch], n_channels: int = 0) -> FrameBatch:
         parts = [b for b in batches if len(b)]
         if not parts:
             return cls.empty(n_channels)
@@ -265,8 +266,14 @@ class StreamReader:
     stall and a stall is seen even when the host read late.
     """
 
-    def __init__(self, port: Any = None, n_channels: int | None = None, chunk: int = 65536,
-                 max_logs: int = 1000, stall_us: int = STALL_US) -> None:
+    def __init__(
+        self,
+        port: Any = None,
+        n_channels: int | None = None,
+        chunk: int = 65536,
+        max_logs: int = 1000,
+        stall_us: int = STALL_US,
+    ) -> None:
         if n_channels is not None and n_channels < 1:
             raise ValueError("a data line carries at least one value")
         self.port = port

@@ -35,8 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from rich.console import Console  # noqa: E402
 
 import labcli.core.sim.protocol_sim as protocol_sim  # noqa: E402
-from labcli.core.device import Device  # noqa: E402
 from labcli.core.acquisition import acquire  # noqa: E402
+from labcli.core.device import Device  # noqa: E402
 from labcli.core.ui import UnattendedUI  # noqa: E402
 
 

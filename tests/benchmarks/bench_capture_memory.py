@@ -64,9 +64,20 @@ def child(window_s: float, mode: str, rate: float, folder: str) -> None:
         ok = run.verify()["ok"]
         rec = run.read(1)
     frames = sum(len(rec["raw"][w]["seq"]) for w in ("baseline", "load"))
-    print(json.dumps({"status": outcome.status, "wall_s": wall, "before": before, "peak": peak, "ok": ok,
-                      "frames": frames, "bytes": path.stat().st_size, "checksums": [
-                          int(v) for k, v in sorted(run_checksums(path).items())]}))
+    print(
+        json.dumps(
+            {
+                "status": outcome.status,
+                "wall_s": wall,
+                "before": before,
+                "peak": peak,
+                "ok": ok,
+                "frames": frames,
+                "bytes": path.stat().st_size,
+                "checksums": [int(v) for k, v in sorted(run_checksums(path).items())],
+            }
+        )
+    )
     path.unlink()
 
 
@@ -79,8 +90,12 @@ def run_checksums(path: Path) -> dict[str, int]:
 
 
 def measure(window_s: float, mode: str, rate: float, folder: str) -> dict:
-    out = subprocess.run([sys.executable, __file__, "--child", f"{window_s}", mode, "--rate", f"{rate}",
-                          "--dir", folder], capture_output=True, text=True, check=False)
+    out = subprocess.run(
+        [sys.executable, __file__, "--child", f"{window_s}", mode, "--rate", f"{rate}", "--dir", folder],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if out.returncode != 0:
         raise SystemExit(f"{mode} {window_s:g} s failed:\n{out.stdout}{out.stderr}")
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -102,10 +117,14 @@ def main() -> None:
         child(float(a.child[0]), a.child[1], a.rate, folder)
         return
     windows = [float(w) for w in a.windows.split(",")]
-    print(f"One force trial, 6 channels at {a.rate:g} Hz, every capture window as long as shown; "
-          "peak resident memory over that before the trial (MiB), each in a fresh process.")
-    print(f"{'window':>8} {'frames/trial':>13} {'in memory':>11} {'streamed':>10} {'ratio':>8} "
-          f"{'B/frame in memory':>18} {'wall in memory / streamed':>26}")
+    print(
+        f"One force trial, 6 channels at {a.rate:g} Hz, every capture window as long as shown; "
+        "peak resident memory over that before the trial (MiB), each in a fresh process."
+    )
+    print(
+        f"{'window':>8} {'frames/trial':>13} {'in memory':>11} {'streamed':>10} {'ratio':>8} "
+        f"{'B/frame in memory':>18} {'wall in memory / streamed':>26}"
+    )
     results = []
     for w in windows:
         mem = measure(w, "in memory", a.rate, folder)
@@ -118,12 +137,16 @@ def main() -> None:
         gm, gs = (r["peak"] - r["before"] for r in (mem, st))
         n = st["frames"]
         results.append((w, gm, gs))
-        print(f"{label(w):>8} {n:>13,} {gm / MiB:>7.1f} MiB {gs / MiB:>6.1f} MiB {gm / max(gs, 1):>7.1f}x "
-              f"{gm / n:>18.0f} {mem['wall_s']:>15.1f} s / {st['wall_s']:.1f} s")
+        print(
+            f"{label(w):>8} {n:>13,} {gm / MiB:>7.1f} MiB {gs / MiB:>6.1f} MiB {gm / max(gs, 1):>7.1f}x "
+            f"{gm / n:>18.0f} {mem['wall_s']:>15.1f} s / {st['wall_s']:.1f} s"
+        )
     if len(results) > 1:
         (w0, m0, s0), (w1, m1, s1) = results[0], results[-1]
-        print(f"growth from {label(w0)} to {label(w1)} windows ({w1 / w0:g}x the frames): "
-              f"in memory {m1 / max(m0, 1):.1f}x, streamed {s1 / max(s0, 1):.2f}x")
+        print(
+            f"growth from {label(w0)} to {label(w1)} windows ({w1 / w0:g}x the frames): "
+            f"in memory {m1 / max(m0, 1):.1f}x, streamed {s1 / max(s0, 1):.2f}x"
+        )
     if not a.dir:
         os.rmdir(folder)
 

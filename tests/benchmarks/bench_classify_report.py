@@ -36,7 +36,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 
 BASELINE = """
 import sys, pandas as pd
@@ -70,8 +69,13 @@ def measure(args: list[str]) -> tuple[float, float]:
     """(wall seconds, peak RSS in MB) of a fresh Python running ``args``; stdout to /dev/null."""
     t0 = time.perf_counter()
     with open(os.devnull, "w") as null:
-        p = subprocess.run([sys.executable, "-c", PEAK, *args], stdout=null, stderr=subprocess.PIPE, text=True,
-                           env=dict(os.environ, COLUMNS="80"))
+        p = subprocess.run(
+            [sys.executable, "-c", PEAK, *args],
+            stdout=null,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=dict(os.environ, COLUMNS="80"),
+        )
     dt = time.perf_counter() - t0
     peaks = [line for line in p.stderr.splitlines() if line.startswith("PEAK_KB ")]
     if p.returncode != 0 or not peaks:
@@ -110,8 +114,7 @@ def report_stage(csv: Path, model_path: Path) -> tuple[float, float]:
 
     rep = classify_file(csv, model_path, method="bands")
     out = []
-    for fn in (lambda: write_report_json(rep, open(os.devnull, "w")),
-               lambda: json.dumps(report_to_dict(rep))):
+    for fn in (lambda: write_report_json(rep, open(os.devnull, "w")), lambda: json.dumps(report_to_dict(rep))):
         gc.collect()
         tracemalloc.start()
         base = tracemalloc.get_traced_memory()[0]
@@ -133,20 +136,33 @@ def main() -> None:
     for n in (int(float(s)) for s in args.sizes.split(",")):
         csv, model = inputs(folder, n)
         base_t, base_m = measure([BASELINE, str(csv), str(folder / "groupby.json")])
-        js_t, js_m = measure(["-m", "labcli", "classify", str(csv), "--model", str(model), "--method", "bands",
-                              "--json"])
+        js_t, js_m = measure(
+            ["-m", "labcli", "classify", str(csv), "--model", str(model), "--method", "bands", "--json"]
+        )
         hu_t, hu_m = measure(["-m", "labcli", "classify", str(csv), "--model", str(model), "--method", "bands"])
-        row = {"n": n, "csv_MB": csv.stat().st_size / 1e6, "baseline_s": base_t, "baseline_MB": base_m,
-               "json_s": js_t, "json_MB": js_m, "report_s": hu_t, "report_MB": hu_m}
+        row = {
+            "n": n,
+            "csv_MB": csv.stat().st_size / 1e6,
+            "baseline_s": base_t,
+            "baseline_MB": base_m,
+            "json_s": js_t,
+            "json_MB": js_m,
+            "report_s": hu_t,
+            "report_MB": hu_m,
+        }
         if not args.no_stage:
             row["stage_stream_MB"], row["stage_dict_MB"] = report_stage(csv, model)
         rows.append(row)
-        print(f"n = {n:>9,} pushes ({row['csv_MB']:.0f} MB CSV): baseline {base_t:6.2f} s {base_m:7.0f} MB | "
-              f"classify --json {js_t:6.2f} s {js_m:7.0f} MB ({js_m / base_m:.2f}x memory, {js_t / base_t:.1f}x time)"
-              f" | classify {hu_t:6.2f} s {hu_m:7.0f} MB ({hu_m / base_m:.2f}x memory, {hu_t / base_t:.1f}x time)")
+        print(
+            f"n = {n:>9,} pushes ({row['csv_MB']:.0f} MB CSV): baseline {base_t:6.2f} s {base_m:7.0f} MB | "
+            f"classify --json {js_t:6.2f} s {js_m:7.0f} MB ({js_m / base_m:.2f}x memory, {js_t / base_t:.1f}x time)"
+            f" | classify {hu_t:6.2f} s {hu_m:7.0f} MB ({hu_m / base_m:.2f}x memory, {hu_t / base_t:.1f}x time)"
+        )
         if "stage_stream_MB" in row:
-            print(f"    report stage alone (tracemalloc): streamed JSON {row['stage_stream_MB']:.1f} MB, "
-                  f"whole report as one dict {row['stage_dict_MB']:.1f} MB")
+            print(
+                f"    report stage alone (tracemalloc): streamed JSON {row['stage_stream_MB']:.1f} MB, "
+                f"whole report as one dict {row['stage_dict_MB']:.1f} MB"
+            )
         csv.unlink()
     print(json.dumps(rows))
 

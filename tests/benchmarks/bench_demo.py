@@ -37,7 +37,7 @@ IMPORTS = "import labcli.core.engine, labcli.core.store, labcli.papers.takuma201
 
 def wall(cmd: list[str], cwd: str) -> float:
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
     t = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed with exit code {proc.returncode}: {proc.stderr.strip()[-500:]}")
@@ -79,18 +79,23 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory(prefix="bench_demo_") as tmp:
         base = statistics.median(wall([sys.executable, "-c", IMPORTS], tmp) for _ in range(args.import_repeat))
-        print(f"baseline: python -c \"{IMPORTS}\": {base:.3f} s (median of {args.import_repeat})")
+        print(f'baseline: python -c "{IMPORTS}": {base:.3f} s (median of {args.import_repeat})')
 
         results: dict[str, list[tuple[float, float]]] = {}
         stages: list[dict[str, float]] = []
         for seed in seeds:
             if not args.skip_acquire:
                 folder = Path(tempfile.mkdtemp(dir=tmp))
-                t = wall(LABCLI + ["acquire", "run.h5", "--port", f"sim://?seed={seed}&clock=virtual", "--unattended"],
-                         str(folder))
+                t = wall(
+                    LABCLI + ["acquire", "run.h5", "--port", f"sim://?seed={seed}&clock=virtual", "--unattended"],
+                    str(folder),
+                )
                 results.setdefault("acquire", []).append((t, device_seconds(folder / "run.h5")))
-                print(f"seed {seed}: labcli acquire --unattended (108 trials): {t:.2f} s wall, "
-                      f"{results['acquire'][-1][1]:.0f} s of device time", flush=True)
+                print(
+                    f"seed {seed}: labcli acquire --unattended (108 trials): {t:.2f} s wall, "
+                    f"{results['acquire'][-1][1]:.0f} s of device time",
+                    flush=True,
+                )
             if not args.skip_demo:
                 folder = Path(tempfile.mkdtemp(dir=tmp))
                 t = wall(LABCLI + ["demo", "out", "--seed", str(seed)], str(folder))
@@ -112,9 +117,11 @@ def main() -> None:
         print(f"{label:<28} {t:>13.2f} {t / base:>18.1f} {dev:>9.0f} {dev / t:>13.0f}x")
     if stages:
         keys = [k for k in stages[0] if k != "total"]
-        print("demo stages (median s, in-process): "
-              + ", ".join(f"{k} {statistics.median(s[k] for s in stages):.2f}" for k in keys)
-              + f"; total {statistics.median(s['total'] for s in stages):.2f}")
+        print(
+            "demo stages (median s, in-process): "
+            + ", ".join(f"{k} {statistics.median(s[k] for s in stages):.2f}" for k in keys)
+            + f"; total {statistics.median(s['total'] for s in stages):.2f}"
+        )
         summary["demo_stages_s"] = {k: statistics.median(s[k] for s in stages) for k in stages[0]}
     if args.json:
         Path(args.json).write_text(json.dumps(summary, indent=1))

@@ -51,8 +51,10 @@ from labcli.core.wire import StreamReader  # noqa: E402
 
 LONG = "-DSEQ_START=1000000UL -DT_US_START=1000000000UL"
 INSTALL = "apt-get install gcc-avr avr-libc binutils-avr simavr libsimavr-dev libelf-dev"
-STOPPED = re.compile(r"stopped: (\d+) frames sent, (\d+) dropped \((\d+) uart full, (\d+) adc late, "
-                     r"(\d+) unformatted\), sampling (\d+) us")
+STOPPED = re.compile(
+    r"stopped: (\d+) frames sent, (\d+) dropped \((\d+) uart full, (\d+) adc late, "
+    r"(\d+) unformatted\), sampling (\d+) us"
+)
 
 
 @dataclass
@@ -71,8 +73,12 @@ class Probe:
 
 def build(folder: Path, baud: int, long_lines: bool) -> Path:
     defs = "-DRATE_MAX_HZ=5000" + (" " + LONG if long_lines else "")
-    subprocess.run(["make", "-C", str(ROOT / "firmware"), f"BUILD={folder}", f"BAUD={baud}", f"DEFS={defs}", "all"],
-                   check=True, capture_output=True, text=True)
+    subprocess.run(
+        ["make", "-C", str(ROOT / "firmware"), f"BUILD={folder}", f"BAUD={baud}", f"DEFS={defs}", "all"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     return folder / "labcli_rig.elf"
 
 
@@ -116,8 +122,18 @@ def probe(elf: Path, rate: int, seconds: float) -> Probe:
     stats = STOPPED.search(data.decode("ascii", "replace"))
     sent, _, uart_full, adc_late, unformatted, sampling = map(int, stats.groups())
     lines = [ln for ln in data.split(b"\n") if ln.startswith(b"$D,")]
-    return Probe(rate, len(batch), reader.counters["lost"], uart_full, adc_late, unformatted, sampling,
-                 sum(map(len, lines)) / len(lines) + 1, sim_per_wall, byte_us)
+    return Probe(
+        rate,
+        len(batch),
+        reader.counters["lost"],
+        uart_full,
+        adc_late,
+        unformatted,
+        sampling,
+        sum(map(len, lines)) / len(lines) + 1,
+        sim_per_wall,
+        byte_us,
+    )
 
 
 def highest(elf: Path, seconds: float, max_rate: int) -> tuple[Probe, Probe | None]:
@@ -141,8 +157,10 @@ def highest(elf: Path, seconds: float, max_rate: int) -> tuple[Probe, Probe | No
 def cause(p: Probe) -> str:
     """Why frames were lost at this rate, from the firmware's counters and its sampling time."""
     period_us = 1e6 / p.rate
-    detail = (f"{p.lost} lost: {p.uart_full} uart full, {p.adc_late} adc late, {p.unformatted} unformatted; "
-              f"sampling {p.sampling_us} us of a {period_us:.0f} us period")
+    detail = (
+        f"{p.lost} lost: {p.uart_full} uart full, {p.adc_late} adc late, {p.unformatted} unformatted; "
+        f"sampling {p.sampling_us} us of a {period_us:.0f} us period"
+    )
     if p.uart_full >= p.adc_late + p.unformatted:
         return f"baud ({detail})"
     # A frame still converting, or finished but not yet taken, when the next tick comes.
@@ -159,8 +177,10 @@ def main() -> None:
         print(f"skipped: needs gcc-avr, avr-libc and simavr ({INSTALL})")
         return
     print(f"Highest rate with 0 lost frames over {args.seconds:g} s of simulated time, 6 channels, 16 conversions each")
-    print(f"{'baud':>8} {'lines':<6} {'max Hz':>7} {'line B':>7} {'baud-limit Hz':>14} {'max/baud':>9} "
-          f"{'sampling us':>12} {'AVR-limit Hz':>13} {'max/AVR':>8} {'sim/wall':>9}  first loss")
+    print(
+        f"{'baud':>8} {'lines':<6} {'max Hz':>7} {'line B':>7} {'baud-limit Hz':>14} {'max/baud':>9} "
+        f"{'sampling us':>12} {'AVR-limit Hz':>13} {'max/AVR':>8} {'sim/wall':>9}  first loss"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for baud in map(int, args.bauds.split(",")):
             for long_lines in (False, True):
@@ -169,9 +189,12 @@ def main() -> None:
                 baud_limit = 1e6 / best.byte_us / best.line_bytes
                 avr_limit = 1e6 / best.sampling_us
                 loss = f"{first_bad.rate:g} Hz, {cause(first_bad)}" if first_bad else f"none up to {args.max_rate} Hz"
-                print(f"{baud:>8} {'long' if long_lines else 'fresh':<6} {best.rate:>7g} {best.line_bytes:>7.1f} "
-                      f"{baud_limit:>14.1f} {best.rate / baud_limit:>9.3f} {best.sampling_us:>12d} {avr_limit:>13.1f} "
-                      f"{best.rate / avr_limit:>8.3f} {best.sim_per_wall:>9.2f}  {loss}", flush=True)
+                print(
+                    f"{baud:>8} {'long' if long_lines else 'fresh':<6} {best.rate:>7g} {best.line_bytes:>7.1f} "
+                    f"{baud_limit:>14.1f} {best.rate / baud_limit:>9.3f} {best.sampling_us:>12d} {avr_limit:>13.1f} "
+                    f"{best.rate / avr_limit:>8.3f} {best.sim_per_wall:>9.2f}  {loss}",
+                    flush=True,
+                )
 
 
 if __name__ == "__main__":

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import argparse
 import re
-import select
 import resource
+import select
 import signal
 import subprocess
 import sys
@@ -53,8 +53,9 @@ def start_rig(rate: float, faults: str) -> tuple[subprocess.Popen, str]:
     if faults:
         cmd += ["--faults", faults]
     # stdin from /dev/null: the rig's operator console sees the end of its input at once.
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True,
-                            cwd=Path(__file__).resolve().parents[2])
+    proc = subprocess.Popen(
+        cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True, cwd=Path(__file__).resolve().parents[2]
+    )
     ready, _, _ = select.select([proc.stdout], [], [], START_S)
     line = proc.stdout.readline() if ready else ""
     m = re.match(r"Simulated rig on (\S+) ", line)
@@ -88,8 +89,16 @@ def run_labcli(path: str, rate: float, seconds: float) -> dict:
         frames += len(dev.stop())
         cpu, wall = time.process_time() - c0, time.monotonic() - w0
         c = dev.counters
-    return {"path": "labcli Device", "wall": wall, "cpu": cpu, "frames": frames, "lost": c["lost"],
-            "bad_checksum": c["bad_checksum"], "malformed": c["malformed"], "overlong": c["overlong"]}
+    return {
+        "path": "labcli Device",
+        "wall": wall,
+        "cpu": cpu,
+        "frames": frames,
+        "lost": c["lost"],
+        "bad_checksum": c["bad_checksum"],
+        "malformed": c["malformed"],
+        "overlong": c["overlong"],
+    }
 
 
 def run_readline(path: str, rate: float, seconds: float) -> dict:
@@ -126,8 +135,17 @@ def run_readline(path: str, rate: float, seconds: float) -> dict:
         cpu, wall = time.process_time() - c0, time.monotonic() - w0
     finally:
         port.close()
-    return {"path": "pyserial readline", "wall": wall, "cpu": cpu, "frames": frames, "lost": lost,
-            "bad_checksum": bad, "malformed": malformed, "overlong": 0, "stop_reply": stop_reply}
+    return {
+        "path": "pyserial readline",
+        "wall": wall,
+        "cpu": cpu,
+        "frames": frames,
+        "lost": lost,
+        "bad_checksum": bad,
+        "malformed": malformed,
+        "overlong": 0,
+        "stop_reply": stop_reply,
+    }
 
 
 def main() -> None:
@@ -152,18 +170,24 @@ def main() -> None:
     rig_cpu_s = rig_cpu.ru_utime + rig_cpu.ru_stime
 
     print(f"Rig wire link over a pty, {a.rate:g} Hz x 6 channels{', faults ' + a.faults if a.faults else ''}")
-    print(f"{'path':<18} {'wall s':>7} {'frames':>8} {'frames/s':>9} {'lost':>6} {'bad cs':>7} "
-          f"{'malformed':>9} {'CPU s':>7} {'CPU share':>9} {'CPU us/frame':>12}")
+    print(
+        f"{'path':<18} {'wall s':>7} {'frames':>8} {'frames/s':>9} {'lost':>6} {'bad cs':>7} "
+        f"{'malformed':>9} {'CPU s':>7} {'CPU share':>9} {'CPU us/frame':>12}"
+    )
     for r in rows:
         per = 1e6 * r["cpu"] / r["frames"] if r["frames"] else float("nan")
         r["per"] = per
-        print(f"{r['path']:<18} {r['wall']:7.1f} {r['frames']:8d} {r['frames'] / r['wall']:9.1f} {r['lost']:6d} "
-              f"{r['bad_checksum']:7d} {r['malformed']:9d} {r['cpu']:7.2f} {100 * r['cpu'] / r['wall']:8.2f}% "
-              f"{per:12.1f}")
+        print(
+            f"{r['path']:<18} {r['wall']:7.1f} {r['frames']:8d} {r['frames'] / r['wall']:9.1f} {r['lost']:6d} "
+            f"{r['bad_checksum']:7d} {r['malformed']:9d} {r['cpu']:7.2f} {100 * r['cpu'] / r['wall']:8.2f}% "
+            f"{per:12.1f}"
+        )
     if len(rows) == 2:
         print(f"CPU per frame, labcli / readline baseline: {rows[0]['per'] / rows[1]['per']:.3f}")
-    print(f"rig process (simulator, not the host): {rig_cpu_s:.2f} s CPU over {rig_wall:.1f} s "
-          f"({100 * rig_cpu_s / rig_wall:.1f} %)")
+    print(
+        f"rig process (simulator, not the host): {rig_cpu_s:.2f} s CPU over {rig_wall:.1f} s "
+        f"({100 * rig_cpu_s / rig_wall:.1f} %)"
+    )
     faults_line = next((x for x in out.splitlines() if x.startswith("Faults: ")), "")
     if faults_line:
         print(faults_line)

@@ -54,11 +54,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from labcli.core.protocol import load_protocol  # noqa: E402
 from labcli.papers.takuma2014.models.classify import classify_pushes  # noqa: E402
 from labcli.papers.takuma2014.models.metrics import evaluate  # noqa: E402
 from labcli.papers.takuma2014.models.synthetic import PAPER_GEOMETRY, add_sensor_noise, paper_trials  # noqa: E402
 from labcli.papers.takuma2014.models.takuma import TakumaModel  # noqa: E402
-from labcli.core.protocol import load_protocol  # noqa: E402
 from labcli.papers.takuma2014.protocol import load_plan  # noqa: E402
 from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
 from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
@@ -122,10 +122,13 @@ def main() -> None:
     bands = push.settings.push.stiffness_bands_N_per_m
     rig = SimRig(seed=1)
     push_model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(
-        simulate_weight_trials(rig, load_plan(force), calibration=force.calibration))
+        simulate_weight_trials(rig, load_plan(force), calibration=force.calibration)
+    )
     push_pool = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=10)
-    print(f"inputs: {POOL}-trial pool (Eqs. 34-37 exact), {len(push_pool)}-push pool from the simulated rig, "
-          f"built in {time.perf_counter() - t_setup:.1f} s")
+    print(
+        f"inputs: {POOL}-trial pool (Eqs. 34-37 exact), {len(push_pool)}-push pool from the simulated rig, "
+        f"built in {time.perf_counter() - t_setup:.1f} s"
+    )
 
     rng = np.random.default_rng(0)
     rows = []
@@ -150,21 +153,41 @@ def main() -> None:
         t_val = best(lambda: evaluate(model, val_table, mode="pressure-only"), repeat)
         t_cls = best(lambda: classify_pushes(pushes, push_model, bands=bands, method="bands"), repeat)
         t_arc = best(lambda: classify_pushes(archive, push_model, bands=bands, method="bands"), repeat)
-        rows.append({"n": n, "repeat": repeat, "lstsq": t_base, "fit": t_fit, "validate": t_val,
-                     "classify": t_cls, "archive": t_arc})
-        print(f"n = {n:>8,}: lstsq {t_base * 1e3:9.2f} ms, fit {t_fit * 1e3:9.2f} ms, "
-              f"validate {t_val * 1e3:9.2f} ms, classify {t_cls * 1e3:9.2f} ms, archive {t_arc * 1e3:9.2f} ms "
-              f"(best of {repeat})", flush=True)
+        rows.append(
+            {
+                "n": n,
+                "repeat": repeat,
+                "lstsq": t_base,
+                "fit": t_fit,
+                "validate": t_val,
+                "classify": t_cls,
+                "archive": t_arc,
+            }
+        )
+        print(
+            f"n = {n:>8,}: lstsq {t_base * 1e3:9.2f} ms, fit {t_fit * 1e3:9.2f} ms, "
+            f"validate {t_val * 1e3:9.2f} ms, classify {t_cls * 1e3:9.2f} ms, archive {t_arc * 1e3:9.2f} ms "
+            f"(best of {repeat})",
+            flush=True,
+        )
         if n != sizes[-1]:
             del fit_table, val_table, pushes, archive, designs
 
     steps = ("lstsq", "fit", "validate", "classify", "archive")
     print()
-    print(f"{'n':>9} | " + " | ".join(f"{s + ' s':>11} {'us/trial':>8}" for s in steps)
-          + " | " + " | ".join(f"{s + '/lstsq':>14}" for s in steps[1:]))
+    print(
+        f"{'n':>9} | "
+        + " | ".join(f"{s + ' s':>11} {'us/trial':>8}" for s in steps)
+        + " | "
+        + " | ".join(f"{s + '/lstsq':>14}" for s in steps[1:])
+    )
     for r in rows:
-        print(f"{r['n']:>9,} | " + " | ".join(f"{r[s]:>11.4g} {1e6 * r[s] / r['n']:>8.3g}" for s in steps)
-              + " | " + " | ".join(f"{r[s] / r['lstsq']:>14.3g}" for s in steps[1:]))
+        print(
+            f"{r['n']:>9,} | "
+            + " | ".join(f"{r[s]:>11.4g} {1e6 * r[s] / r['n']:>8.3g}" for s in steps)
+            + " | "
+            + " | ".join(f"{r[s] / r['lstsq']:>14.3g}" for s in steps[1:])
+        )
     ns = [r["n"] for r in rows]
     big = [i for i, n in enumerate(ns) if n >= 10_000]
     print()
@@ -181,8 +204,10 @@ def main() -> None:
         table_bytes = int(fit_table.memory_usage(deep=True).sum())
         push_bytes = int(pushes.memory_usage(deep=True).sum())
         print()
-        print(f"peak traced memory at n = {n:,} (tracemalloc; trial table {table_bytes / 1e6:.0f} MB, "
-              f"push table {push_bytes / 1e6:.0f} MB):")
+        print(
+            f"peak traced memory at n = {n:,} (tracemalloc; trial table {table_bytes / 1e6:.0f} MB, "
+            f"push table {push_bytes / 1e6:.0f} MB):"
+        )
         for name, fn, ref in (
             ("fit", lambda: TakumaModel(geometry=geometry, protocol="takuma2014").fit(fit_table), table_bytes),
             ("validate", lambda: evaluate(model, val_table, mode="pressure-only"), table_bytes),

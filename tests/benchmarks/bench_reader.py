@@ -85,7 +85,7 @@ def best_of(fns, repeat: int) -> list[tuple[float, int]]:
             t0 = time.perf_counter()
             results[i] = fn()
             best[i] = min(best[i], time.perf_counter() - t0)
-    return list(zip(best, results))
+    return list(zip(best, results, strict=False))
 
 
 def main() -> None:
@@ -96,12 +96,15 @@ def main() -> None:
     args = ap.parse_args()
 
     stream = make_stream(args.frames)
-    (t_naive, n_naive), (t_fast, n_fast) = best_of([lambda: naive(stream), lambda: reader(stream, args.chunk)],
-                                                   args.repeat)
+    (t_naive, n_naive), (t_fast, n_fast) = best_of(
+        [lambda: naive(stream), lambda: reader(stream, args.chunk)], args.repeat
+    )
     if n_naive != args.frames or n_fast != args.frames:
         raise SystemExit(f"frame counts disagree: naive {n_naive}, reader {n_fast}, expected {args.frames}")
     mb = len(stream) / 1e6
-    print(f"stream: {args.frames} frames x 6 channels, {mb:.1f} MB, fed in {args.chunk}-byte chunks, best of {args.repeat}")
+    print(
+        f"stream: {args.frames} frames x 6 channels, {mb:.1f} MB, fed in {args.chunk}-byte chunks, best of {args.repeat}"
+    )
     print(f"naive readline baseline : {n_naive / t_naive:12,.0f} frames/s  ({mb / t_naive:6.1f} MB/s)")
     print(f"StreamReader.feed       : {n_fast / t_fast:12,.0f} frames/s  ({mb / t_fast:6.1f} MB/s)")
     print(f"speed-up                : {t_naive / t_fast:12.1f} x")

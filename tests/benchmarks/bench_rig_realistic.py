@@ -119,8 +119,10 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="runs of each rig, alternating (default 3)")
     ap.add_argument("--parts", action="store_true", help="CPU time per part of the run (adds a little overhead)")
     args = ap.parse_args()
-    ports = {"realistic": f"sim://?seed={args.seed}&clock=virtual",
-             "ideal": f"sim://?seed={args.seed}&clock=virtual&ideal=1"}
+    ports = {
+        "realistic": f"sim://?seed={args.seed}&clock=virtual",
+        "ideal": f"sim://?seed={args.seed}&clock=virtual&ideal=1",
+    }
     meter = Meter() if args.parts else None
     if meter is not None:
         meter.install()
@@ -139,15 +141,18 @@ def main() -> None:
     for rig in ports:
         m = med[rig]
         print(f"{rig:10s} {m['wall']:9.2f} {m['cpu']:9.2f} {m['device']:11.0f} {1e3 * m['wall'] / m['device']:23.2f}")
-    print(f"realistic / ideal: wall {real['wall'] / ideal['wall']:.2f}, CPU {real['cpu'] / ideal['cpu']:.2f}, "
-          f"device time {real['device'] / ideal['device']:.2f}, "
-          f"wall per device second {(real['wall'] / real['device']) / (ideal['wall'] / ideal['device']):.2f}")
+    print(
+        f"realistic / ideal: wall {real['wall'] / ideal['wall']:.2f}, CPU {real['cpu'] / ideal['cpu']:.2f}, "
+        f"device time {real['device'] / ideal['device']:.2f}, "
+        f"wall per device second {(real['wall'] / real['device']) / (ideal['wall'] / ideal['device']):.2f}"
+    )
     if meter is not None:
         print("CPU per part (s, median):")
         print(f"  {'part':28s} {'realistic':>10s} {'ideal':>10s}")
         for label in PARTS:
-            r, i = (statistics.median(run["parts"].get(label, 0.0) for run in runs[rig])
-                    for rig in ("realistic", "ideal"))
+            r, i = (
+                statistics.median(run["parts"].get(label, 0.0) for run in runs[rig]) for rig in ("realistic", "ideal")
+            )
             print(f"  {label:28s} {r:10.2f} {i:10.2f}")
 
 

@@ -54,8 +54,10 @@ def main() -> None:
     diff = np.nanmax(np.abs(vectorised() - scalar()))
     t_vec = median_time(vectorised, args.repeat)
     t_sca = median_time(scalar, args.repeat)
-    print(f"grid {args.grid} x {args.grid}: scalar loop {t_sca * 1e3:.1f} ms, vectorised {t_vec * 1e3:.1f} ms, "
-          f"speed-up {t_sca / t_vec:.1f}x, max angle difference {np.degrees(diff):.2e} deg")
+    print(
+        f"grid {args.grid} x {args.grid}: scalar loop {t_sca * 1e3:.1f} ms, vectorised {t_vec * 1e3:.1f} ms, "
+        f"speed-up {t_sca / t_vec:.1f}x, max angle difference {np.degrees(diff):.2e} deg"
+    )
 
 
 if __name__ == "__main__":

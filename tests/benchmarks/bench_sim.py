@@ -23,8 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 import numpy as np  # noqa: E402
 
 from labcli.core.sim.firmware import format_frames  # noqa: E402
-from labcli.papers.takuma2014.sim.rig import SimRig  # noqa: E402
 from labcli.core.wire import format_frame  # noqa: E402
+from labcli.papers.takuma2014.sim.rig import SimRig  # noqa: E402
 
 
 def best(fn, repeat: int) -> tuple[float, object]:

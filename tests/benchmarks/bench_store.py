@@ -70,12 +70,25 @@ def make_records(n_trials: int, n: int, seed: int = 0) -> list[dict]:
         for w, key in enumerate(("baseline", "load")):
             counts = rng.integers(0, 4096, size=(n, 6)).astype(np.float64)
             t_us = (np.arange(n, dtype=np.int64) + (2 * i + w) * n) * 5000
-            raw[key] = {"seq": np.arange(n, dtype=np.int64) + (2 * i + w) * n, "t_us": t_us,
-                        "counts": counts, "si": _Protocol.calibration.to_si(counts)}
-        out.append({"trial": i, "P0_MPa": rng.uniform(0.1, 0.3, 4), "P_MPa": rng.uniform(0.1, 0.3, 4),
-                    "theta_rad": rng.uniform(-0.3, 0.3, 2), "force_N": rng.uniform(-2, 2, 2),
-                    "mass_kg": 0.2, "direction_rad": 0.5, "raw": raw,
-                    "settle": {"load": {"settled": True, "settle_time_s": 2.0, "criterion": "bench"}}})
+            raw[key] = {
+                "seq": np.arange(n, dtype=np.int64) + (2 * i + w) * n,
+                "t_us": t_us,
+                "counts": counts,
+                "si": _Protocol.calibration.to_si(counts),
+            }
+        out.append(
+            {
+                "trial": i,
+                "P0_MPa": rng.uniform(0.1, 0.3, 4),
+                "P_MPa": rng.uniform(0.1, 0.3, 4),
+                "theta_rad": rng.uniform(-0.3, 0.3, 2),
+                "force_N": rng.uniform(-2, 2, 2),
+                "mass_kg": 0.2,
+                "direction_rad": 0.5,
+                "raw": raw,
+                "settle": {"load": {"settled": True, "settle_time_s": 2.0, "criterion": "bench"}},
+            }
+        )
     return out
 
 
@@ -101,10 +114,10 @@ def run_plain(path: str, records: list[dict]) -> float:
                 n = len(w["seq"])
                 for ds in (time_ds, counts_ds, values_ds, seq_ds):
                     ds.resize(end + n, axis=0)
-                time_ds[end:end + n] = w["t_us"] * 1e-6
-                counts_ds[end:end + n] = w["counts"].astype(np.int32)
-                values_ds[end:end + n] = w["si"]
-                seq_ds[end:end + n] = w["seq"].astype(np.uint32)
+                time_ds[end : end + n] = w["t_us"] * 1e-6
+                counts_ds[end : end + n] = w["counts"].astype(np.int32)
+                values_ds[end : end + n] = w["si"]
+                seq_ds[end : end + n] = w["seq"].astype(np.uint32)
                 end += n
     return time.perf_counter() - t0
 
@@ -118,10 +131,14 @@ def main() -> None:
     args = ap.parse_args()
     folder = args.dir or tempfile.mkdtemp(prefix="bench_store_")
     os.makedirs(folder, exist_ok=True)
-    print(f"h5py {h5py.__version__}, HDF5 {h5py.version.hdf5_version}; {args.trials} trials x 2 windows x 6 channels; "
-          f"best of {args.repeat}; files in {folder}")
-    print(f"{'frames/window':>13} {'store fsync':>17} {'store no fsync':>17} {'plain h5py':>17} "
-          f"{'fsync/plain':>12} {'fsync/no-fsync':>15} {'ms/trial (fsync)':>17}")
+    print(
+        f"h5py {h5py.__version__}, HDF5 {h5py.version.hdf5_version}; {args.trials} trials x 2 windows x 6 channels; "
+        f"best of {args.repeat}; files in {folder}"
+    )
+    print(
+        f"{'frames/window':>13} {'store fsync':>17} {'store no fsync':>17} {'plain h5py':>17} "
+        f"{'fsync/plain':>12} {'fsync/no-fsync':>15} {'ms/trial (fsync)':>17}"
+    )
     sizes: list[tuple[int, float, float]] = []
     try:
         for n in (int(s) for s in args.samples.split(",")):
@@ -134,14 +151,20 @@ def main() -> None:
                 t_nosync = min(t_nosync, run_store(os.path.join(folder, "nosync.h5"), records, False))
                 t_plain = min(t_plain, run_plain(os.path.join(folder, "plain.h5"), records))
             rate = [samples / t for t in (t_sync, t_nosync, t_plain)]
-            print(f"{n:>13} {rate[0]:>11.3g} smp/s {rate[1]:>11.3g} smp/s {rate[2]:>11.3g} smp/s "
-                  f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t_sync / args.trials * 1e3:>14.1f} ms")
-            sizes.append((n, *(os.path.getsize(os.path.join(folder, f)) / args.trials for f in ("sync.h5", "plain.h5"))))
+            print(
+                f"{n:>13} {rate[0]:>11.3g} smp/s {rate[1]:>11.3g} smp/s {rate[2]:>11.3g} smp/s "
+                f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t_sync / args.trials * 1e3:>14.1f} ms"
+            )
+            sizes.append(
+                (n, *(os.path.getsize(os.path.join(folder, f)) / args.trials for f in ("sync.h5", "plain.h5")))
+            )
         for n, run_b, plain_b in sizes:
             # The frames' own bytes: time f8, seq u4, counts i4 x 6, values f8 x 6, two windows a trial.
             data_b = 2 * n * (8 + 4 + 4 * len(CHANNELS) + 8 * len(CHANNELS))
-            print(f"file size per trial at {n} frames/window: run file {run_b / 1e3:.1f} KB, plain h5py "
-                  f"{plain_b / 1e3:.1f} KB ({run_b / plain_b:.2f}x), the frames' own bytes {data_b / 1e3:.1f} KB")
+            print(
+                f"file size per trial at {n} frames/window: run file {run_b / 1e3:.1f} KB, plain h5py "
+                f"{plain_b / 1e3:.1f} KB ({run_b / plain_b:.2f}x), the frames' own bytes {data_b / 1e3:.1f} KB"
+            )
     finally:
         if args.dir is None:
             shutil.rmtree(folder, ignore_errors=True)

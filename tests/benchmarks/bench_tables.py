@@ -62,8 +62,22 @@ def write_table(n: int, path: Path) -> None:
     out["trial"] = np.arange(n)
     out = add_sensor_noise(out, seed=n, noise_counts=1.0)
     out["set"] = np.where(np.arange(n) < n * 4 // 5, "fit", "validation")
-    columns = ["trial", "set", "P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2",
-               "theta1_deg", "theta2_deg", "Fx_N", "Fy_N"]
+    columns = [
+        "trial",
+        "set",
+        "P_L10",
+        "P_R10",
+        "P_L20",
+        "P_R20",
+        "P_L1",
+        "P_R1",
+        "P_L2",
+        "P_R2",
+        "theta1_deg",
+        "theta2_deg",
+        "Fx_N",
+        "Fy_N",
+    ]
     out[columns].to_csv(path, index=False)
 
 
@@ -93,8 +107,11 @@ def child(step: str, side: str, csv: str, model: str, out: str) -> None:
     else:
         from labcli.cli import cli
 
-        args = {"fit": ["fit", csv, "-o", out, "--json"], "validate": ["validate", csv, "--model", model],
-                "import": ["import", csv, "-o", out, "--protocol", "takuma2014", "--force"]}[step]
+        args = {
+            "fit": ["fit", csv, "-o", out, "--json"],
+            "validate": ["validate", csv, "--model", model],
+            "import": ["import", csv, "-o", out, "--protocol", "takuma2014", "--force"],
+        }[step]
         import contextlib
         import io
 
@@ -120,8 +137,12 @@ def _geometry() -> dict:
 
 
 def once(step: str, side: str, csv: Path, model: Path, out: Path) -> dict:
-    res = subprocess.run([sys.executable, __file__, "--child", step, side, str(csv), str(model), str(out)],
-                         capture_output=True, text=True, check=True)
+    res = subprocess.run(
+        [sys.executable, __file__, "--child", step, side, str(csv), str(model), str(out)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
@@ -129,7 +150,7 @@ def paired(repeat: int, *sides: tuple) -> list[dict]:
     """Median seconds and peak of each side over ``repeat`` rounds, the sides alternating in each round."""
     runs: list[list[dict]] = [[] for _ in sides]
     for _ in range(repeat):
-        for got, args in zip(runs, sides):
+        for got, args in zip(runs, sides, strict=False):
             got.append(once(*args))
     return [{k: statistics.median(r[k] for r in got) for k in ("seconds", "peak")} for got in runs]
 
@@ -158,36 +179,51 @@ def main() -> None:
     import_sizes = sorted(int(float(s)) for s in args.import_sizes.split(",") if s)
     work = Path(tempfile.mkdtemp(prefix="labcli_bench_tables_"))
     figures: dict = {"sizes": sizes, "steps": {}, "import": {}}
-    print(f"{'n':>8} {'step':9} {'labcli s':>9} {'pandas s':>9} {'ratio':>6} "
-          f"{'labcli MiB':>10} {'pandas MiB':>10} {'ratio':>6} {'CSV MiB':>8} {'peak/CSV':>8}")
+    print(
+        f"{'n':>8} {'step':9} {'labcli s':>9} {'pandas s':>9} {'ratio':>6} "
+        f"{'labcli MiB':>10} {'pandas MiB':>10} {'ratio':>6} {'CSV MiB':>8} {'peak/CSV':>8}"
+    )
     for n in sizes:
         csv, model, out = work / f"t{n}.csv", work / f"m{n}.json", work / f"o{n}"
         write_table(n, csv)
         size = csv.stat().st_size
         for step in STEPS:
-            mine, base = paired(args.repeat, (step, "labcli", csv, model, model if step == "fit" else out),
-                                (step, "pandas", csv, model, out))
+            mine, base = paired(
+                args.repeat,
+                (step, "labcli", csv, model, model if step == "fit" else out),
+                (step, "pandas", csv, model, out),
+            )
             figures["steps"].setdefault(step, []).append({"n": n, "csv_bytes": size, "labcli": mine, "pandas": base})
-            print(f"{n:>8} {step:9} {mine['seconds']:>9.2f} {base['seconds']:>9.2f} "
-                  f"{mine['seconds'] / base['seconds']:>6.2f} {mib(mine['peak']):>10} {mib(base['peak']):>10} "
-                  f"{mine['peak'] / base['peak']:>6.2f} {mib(size):>8} {mine['peak'] / size:>8.2f}")
+            print(
+                f"{n:>8} {step:9} {mine['seconds']:>9.2f} {base['seconds']:>9.2f} "
+                f"{mine['seconds'] / base['seconds']:>6.2f} {mib(mine['peak']):>10} {mib(base['peak']):>10} "
+                f"{mine['peak'] / base['peak']:>6.2f} {mib(size):>8} {mine['peak'] / size:>8.2f}"
+            )
     for step, rows in figures["steps"].items():
         ns = [r["n"] for r in rows]
-        print(f"scaling exponent {step:9} time {slope(ns, [r['labcli']['seconds'] for r in rows]):.2f} "
-              f"(pandas {slope(ns, [r['pandas']['seconds'] for r in rows]):.2f}), peak memory "
-              f"{slope(ns, [r['labcli']['peak'] for r in rows]):.2f} "
-              f"(pandas {slope(ns, [r['pandas']['peak'] for r in rows]):.2f})")
+        print(
+            f"scaling exponent {step:9} time {slope(ns, [r['labcli']['seconds'] for r in rows]):.2f} "
+            f"(pandas {slope(ns, [r['pandas']['seconds'] for r in rows]):.2f}), peak memory "
+            f"{slope(ns, [r['labcli']['peak'] for r in rows]):.2f} "
+            f"(pandas {slope(ns, [r['pandas']['peak'] for r in rows]):.2f})"
+        )
     for n in import_sizes:
         csv, out = work / f"i{n}.csv", work / f"i{n}.h5"
         write_table(n, csv)
         whole, read = paired(args.repeat, ("import", "labcli", csv, csv, out), ("read", "labcli", csv, csv, out))
         per_trial = out.stat().st_size / n
-        figures["import"][n] = {"import": whole, "read": read, "file_bytes_per_trial": per_trial,
-                                "csv_bytes_per_trial": csv.stat().st_size / n}
-        print(f"import {n:>8} rows: {whole['seconds']:.2f} s ({whole['seconds'] / n * 1e6:.0f} us/row), peak "
-              f"{mib(whole['peak'])} MiB; of which reading the table {read['seconds']:.2f} s "
-              f"({whole['seconds'] / read['seconds']:.2f}x the read); run file {per_trial:.0f} bytes per trial "
-              f"(the CSV {csv.stat().st_size / n:.0f})")
+        figures["import"][n] = {
+            "import": whole,
+            "read": read,
+            "file_bytes_per_trial": per_trial,
+            "csv_bytes_per_trial": csv.stat().st_size / n,
+        }
+        print(
+            f"import {n:>8} rows: {whole['seconds']:.2f} s ({whole['seconds'] / n * 1e6:.0f} us/row), peak "
+            f"{mib(whole['peak'])} MiB; of which reading the table {read['seconds']:.2f} s "
+            f"({whole['seconds'] / read['seconds']:.2f}x the read); run file {per_trial:.0f} bytes per trial "
+            f"(the CSV {csv.stat().st_size / n:.0f})"
+        )
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=1))
     shutil.rmtree(work, ignore_errors=True)

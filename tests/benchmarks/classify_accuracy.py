@@ -23,9 +23,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import pandas as pd  # noqa: E402
 
+from labcli.core.protocol import load_protocol  # noqa: E402
 from labcli.papers.takuma2014.models.classify import classify_pushes  # noqa: E402
 from labcli.papers.takuma2014.models.takuma import TakumaModel  # noqa: E402
-from labcli.core.protocol import load_protocol  # noqa: E402
 from labcli.papers.takuma2014.protocol import load_plan  # noqa: E402
 from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
 from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
@@ -54,19 +54,28 @@ def main() -> None:
         table = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=args.pushes)
         for policy, params in POLICIES.items():
             for angles in ("pressure-only", "measured-angles"):
-                res = classify_pushes(table, model, params=params, angles=angles,
-                                      bands=push.settings.push.stiffness_bands_N_per_m)
+                res = classify_pushes(
+                    table, model, params=params, angles=angles, bands=push.settings.push.stiffness_bands_N_per_m
+                )
                 for o in res.objects.itertuples():
-                    rows.append({
-                        "policy": policy, "angles": angles, "object": o.object,
-                        "ratio": o.k_mean_N_per_m / o.true_k_N_per_m,
-                        "cv": o.k_std_N_per_m / o.k_mean_N_per_m,
-                        "correct": o.category == truth[o.object],
-                    })
+                    rows.append(
+                        {
+                            "policy": policy,
+                            "angles": angles,
+                            "object": o.object,
+                            "ratio": o.k_mean_N_per_m / o.true_k_N_per_m,
+                            "cv": o.k_std_N_per_m / o.k_mean_N_per_m,
+                            "correct": o.category == truth[o.object],
+                        }
+                    )
     df = pd.DataFrame(rows)
     out = df.groupby(["policy", "angles", "object"], sort=False).agg(
-        k_over_true=("ratio", "mean"), min=("ratio", "min"), max=("ratio", "max"),
-        cv_mean=("cv", "mean"), cv_max=("cv", "max"), categories_right=("correct", "mean"),
+        k_over_true=("ratio", "mean"),
+        min=("ratio", "min"),
+        max=("ratio", "max"),
+        cv_mean=("cv", "mean"),
+        cv_max=("cv", "max"),
+        categories_right=("correct", "mean"),
     )
     print(f"seeds {seeds.start}-{seeds.stop - 1}, {args.pushes} pushes per object, phi given")
     print(out.round(3).to_string())

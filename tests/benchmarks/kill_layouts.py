@@ -50,7 +50,6 @@ sys.path[:0] = [str(ROOT), str(SUPPORT), str(ROOT / "tests")]
 
 import h5py  # noqa: E402
 import numpy as np  # noqa: E402
-
 from records import CHANNELS, make_record, unwrap_s  # noqa: E402
 
 N_TRIALS = 1_000_000
@@ -65,9 +64,17 @@ W_FLOAT = ("settle_time_s", "waited_s", "pressure_spread_MPa", "angle_spread_rad
 
 def _columns() -> dict[str, tuple[tuple[int, ...], Any]]:
     cols: dict[str, tuple[tuple[int, ...], Any]] = {
-        "trial": ((), "i8"), "P0": ((4,), "f8"), "P": ((4,), "f8"), "theta": ((2,), "f8"), "pot0": ((2,), "f8"),
-        "F": ((2,), "f8"), "mass": ((), "f8"), "direction": ((), "f8"), "plan_mass_g": ((), "f8"),
-        "plan_direction_deg": ((), "f8"), "settle_time_s": ((), "f8"),
+        "trial": ((), "i8"),
+        "P0": ((4,), "f8"),
+        "P": ((4,), "f8"),
+        "theta": ((2,), "f8"),
+        "pot0": ((2,), "f8"),
+        "F": ((2,), "f8"),
+        "mass": ((), "f8"),
+        "direction": ((), "f8"),
+        "plan_mass_g": ((), "f8"),
+        "plan_direction_deg": ((), "f8"),
+        "settle_time_s": ((), "f8"),
     }
     cols.update({k: ((), f"S{n}") for k, n in TEXT.items()})
     for _, w in WINDOWS:
@@ -92,15 +99,22 @@ class RowWriter:
                 t = f.create_group("entry/trials")
                 t.attrs["committed"] = 0
                 for name, (shape, dtype) in _columns().items():
-                    t.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), dtype=dtype,
-                                     chunks=(row_chunk, *shape), **_OPTS)
+                    t.create_dataset(
+                        name,
+                        shape=(0, *shape),
+                        maxshape=(None, *shape),
+                        dtype=dtype,
+                        chunks=(row_chunk, *shape),
+                        **_OPTS,
+                    )
                 r = f.create_group("entry/raw")
                 r.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(frame_chunk,), **_OPTS)
                 r.create_dataset("seq", shape=(0,), maxshape=(None,), dtype="u4", chunks=(frame_chunk,), **_OPTS)
                 for c in CHANNELS:
                     for key in ("value", "raw_value"):
-                        r.create_dataset(f"{c}/{key}", shape=(0,), maxshape=(None,), dtype="f8",
-                                         chunks=(frame_chunk,), **_OPTS)
+                        r.create_dataset(
+                            f"{c}/{key}", shape=(0,), maxshape=(None,), dtype="f8", chunks=(frame_chunk,), **_OPTS
+                        )
                 f.flush()
                 os.fsync(f.id.get_vfd_handle())
             os.replace(tmp, path)
@@ -129,14 +143,27 @@ class RowWriter:
         return start, stop
 
     def write(self, rec: dict) -> None:
-        row: dict[str, Any] = {"trial": rec["trial"], "P0": rec["P0_MPa"], "P": rec["P_MPa"], "theta": rec["theta_rad"],
-                               "pot0": rec["pot0_rad"], "F": rec["force_N"], "mass": rec["mass_kg"],
-                               "direction": rec["direction_rad"], "plan_set": rec["plan"]["set"],
-                               "plan_mass_g": rec["plan"]["mass_g"], "plan_direction_deg": rec["plan"]["direction_deg"],
-                               "started": rec["started"], "ended": rec["ended"]}
+        row: dict[str, Any] = {
+            "trial": rec["trial"],
+            "P0": rec["P0_MPa"],
+            "P": rec["P_MPa"],
+            "theta": rec["theta_rad"],
+            "pot0": rec["pot0_rad"],
+            "F": rec["force_N"],
+            "mass": rec["mass_kg"],
+            "direction": rec["direction_rad"],
+            "plan_set": rec["plan"]["set"],
+            "plan_mass_g": rec["plan"]["mass_g"],
+            "plan_direction_deg": rec["plan"]["direction_deg"],
+            "started": rec["started"],
+            "ended": rec["ended"],
+        }
         load = rec["settle"]["load"]
-        row.update(accepted="auto" if load["settled"] else "timeout", settle_time_s=load["settle_time_s"],
-                   settle_criterion=load["criterion"])
+        row.update(
+            accepted="auto" if load["settled"] else "timeout",
+            settle_time_s=load["settle_time_s"],
+            settle_criterion=load["criterion"],
+        )
         for key, w in WINDOWS:
             row[f"{w}_start"], row[f"{w}_stop"] = self._append_frames(rec["raw"][key])
             s = rec["settle"][key]
@@ -174,21 +201,38 @@ def read_rows(path: str) -> dict[int, dict]:
             raw, settle = {}, {}
             for key, w in WINDOWS:
                 a, b = int(cols[f"{w}_start"][i]), int(cols[f"{w}_stop"][i])
-                raw[key] = {"t_s": r["time"][a:b], "seq": r["seq"][a:b],
-                            "counts": np.stack([r[f"{c}/raw_value"][a:b] for c in CHANNELS], axis=1),
-                            "si": np.stack([r[f"{c}/value"][a:b] for c in CHANNELS], axis=1)}
-                settle[key] = {"settled": bool(cols[f"{w}_settled"][i]),
-                               "criterion": cols[f"{w}_criterion"][i].decode(),
-                               "accepted": cols[f"{w}_accepted"][i].decode(),
-                               **{k: float(cols[f"{w}_{k}"][i]) for k in W_FLOAT}}
+                raw[key] = {
+                    "t_s": r["time"][a:b],
+                    "seq": r["seq"][a:b],
+                    "counts": np.stack([r[f"{c}/raw_value"][a:b] for c in CHANNELS], axis=1),
+                    "si": np.stack([r[f"{c}/value"][a:b] for c in CHANNELS], axis=1),
+                }
+                settle[key] = {
+                    "settled": bool(cols[f"{w}_settled"][i]),
+                    "criterion": cols[f"{w}_criterion"][i].decode(),
+                    "accepted": cols[f"{w}_accepted"][i].decode(),
+                    **{k: float(cols[f"{w}_{k}"][i]) for k in W_FLOAT},
+                }
             out[int(cols["trial"][i])] = {
-                "trial": int(cols["trial"][i]), "P0_MPa": cols["P0"][i], "P_MPa": cols["P"][i],
-                "theta_rad": cols["theta"][i], "pot0_rad": cols["pot0"][i], "force_N": cols["F"][i],
-                "mass_kg": float(cols["mass"][i]), "direction_rad": float(cols["direction"][i]),
-                "started": cols["started"][i].decode(), "ended": cols["ended"][i].decode(),
-                "accepted": cols["accepted"][i].decode(), "raw": raw, "settle": settle,
-                "plan": {"mass_g": float(cols["plan_mass_g"][i]), "set": cols["plan_set"][i].decode(),
-                         "direction_deg": float(cols["plan_direction_deg"][i])}}
+                "trial": int(cols["trial"][i]),
+                "P0_MPa": cols["P0"][i],
+                "P_MPa": cols["P"][i],
+                "theta_rad": cols["theta"][i],
+                "pot0_rad": cols["pot0"][i],
+                "force_N": cols["F"][i],
+                "mass_kg": float(cols["mass"][i]),
+                "direction_rad": float(cols["direction"][i]),
+                "started": cols["started"][i].decode(),
+                "ended": cols["ended"][i].decode(),
+                "accepted": cols["accepted"][i].decode(),
+                "raw": raw,
+                "settle": settle,
+                "plan": {
+                    "mass_g": float(cols["plan_mass_g"][i]),
+                    "set": cols["plan_set"][i].decode(),
+                    "direction_deg": float(cols["plan_direction_deg"][i]),
+                },
+            }
     return out
 
 
@@ -209,8 +253,9 @@ def open_writer(layout: str, path: str) -> Any:
         return RowWriter(path, aligned=False, row_chunk=64)
     if layout == "aligned":
         return RowWriter(path, aligned=True, row_chunk=1)
-    from labcli.core.store import RunFile
     from records import FakeDevice, FakeProtocol
+
+    from labcli.core.store import RunFile
 
     if os.path.exists(path):
         run = RunFile.open(path, "a")
@@ -255,8 +300,12 @@ def same(stored: dict, rec: dict) -> bool:
 
 def start(layout: str, path: str, n_samples: int) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(SUPPORT), str(ROOT / "tests")]))
-    p = subprocess.Popen([sys.executable, str(HERE), "--writer", layout, path, str(n_samples)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    p = subprocess.Popen(
+        [sys.executable, str(HERE), "--writer", layout, path, str(n_samples)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
     line = p.stdout.readline()
     if line != b"ready\n":
         p.kill()
@@ -321,13 +370,19 @@ def measure(layout: str, folder: Path, trials: int, n_samples: int) -> dict[str,
             torn_lost += lost
             torn_cases += lost > 0
     w.close()
-    return {"bytes_per_trial": size / trials, "ms_per_trial": elapsed / trials * 1e3,
-            "commits_rewriting_committed_data": rewrites, "commits_checked": checked, "torn_lost": torn_lost,
-            "torn_cases": torn_cases}
+    return {
+        "bytes_per_trial": size / trials,
+        "ms_per_trial": elapsed / trials * 1e3,
+        "commits_rewriting_committed_data": rewrites,
+        "commits_checked": checked,
+        "torn_lost": torn_lost,
+        "torn_cases": torn_cases,
+    }
 
 
-def _torn_write_loss(layout: str, folder: Path, before: bytes, after: bytes, hit: list[tuple[int, int]], k: int,
-                     n_samples: int) -> int:
+def _torn_write_loss(
+    layout: str, folder: Path, before: bytes, after: bytes, hit: list[tuple[int, int]], k: int, n_samples: int
+) -> int:
     """Committed trials lost when a kill tears the in-place rewrite after its first 4 KiB page.
 
     The torn file is the file after the commit with the old bytes back in every rewritten
@@ -380,15 +435,23 @@ def main() -> None:
     folder = Path(a.dir or tempfile.mkdtemp(prefix="kill-layouts-"))
     folder.mkdir(parents=True, exist_ok=True)
     print(f"kill -9 campaign: {a.kills} kills per layout, {a.samples} frames per window, seed {a.seed}, in {folder}")
-    print(f"{'layout':8} {'kills':>6} {'trials':>7} {'problems':>9} {'B/trial':>9} {'ms/trial':>9} "
-          f"{'commits rewriting committed data':>33} {'torn replays losing data':>25}")
+    print(
+        f"{'layout':8} {'kills':>6} {'trials':>7} {'problems':>9} {'B/trial':>9} {'ms/trial':>9} "
+        f"{'commits rewriting committed data':>33} {'torn replays losing data':>25}"
+    )
     for layout in a.layouts.split(","):
         m = measure(layout, folder, a.trials, a.samples)
-        c = campaign(layout, folder, a.kills, a.samples, a.seed) if a.kills else {"kills": 0, "trials": 0, "problems": []}
-        print(f"{layout:8} {c['kills']:6d} {c['trials']:7d} {len(c['problems']):9d} {m['bytes_per_trial']:9.0f} "
-              f"{m['ms_per_trial']:9.2f} {m['commits_rewriting_committed_data']:>20d} of {m['commits_checked']:<9d} "
-              f"{m['torn_cases']:>6d} ({m['torn_lost']} trials lost in all)",
-              flush=True)
+        c = (
+            campaign(layout, folder, a.kills, a.samples, a.seed)
+            if a.kills
+            else {"kills": 0, "trials": 0, "problems": []}
+        )
+        print(
+            f"{layout:8} {c['kills']:6d} {c['trials']:7d} {len(c['problems']):9d} {m['bytes_per_trial']:9.0f} "
+            f"{m['ms_per_trial']:9.2f} {m['commits_rewriting_committed_data']:>20d} of {m['commits_checked']:<9d} "
+            f"{m['torn_cases']:>6d} ({m['torn_lost']} trials lost in all)",
+            flush=True,
+        )
         for prob in c["problems"][:5]:
             print(f"    {prob}")
     if not a.dir:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-
 from sensing_accuracy import BENT_SUPPLY_MPA, _Recorder, trials
 
 
@@ -28,20 +27,25 @@ def run(seed: int, angles: str) -> tuple[int, int, int]:
     from labcli.papers.takuma2014.sim.rig import SimRig
 
     proto, table = trials("takuma2014-bent", seed, 8.0)
-    model = PostureModel(geometry=proto.settings.rig, protocol="takuma2014-stiffness",
-                         limits={q: np.inf for q in ("theta1", "theta2", "Fx", "Fy")}).fit(table)
+    model = PostureModel(
+        geometry=proto.settings.rig,
+        protocol="takuma2014-stiffness",
+        limits={q: np.inf for q in ("theta1", "theta2", "Fx", "Fy")},
+    ).fit(table)
     sp = load_protocol("takuma2014-stiffness")
     rig = _Recorder(SimRig(seed=seed, supply_MPa=BENT_SUPPLY_MPA))
     pushes = simulate_pushes(rig, calibration=sp.calibration, phi_known=False)
     pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
     base = np.array([np.asarray(sp.calibration.to_si(w), dtype=float).mean(axis=0)[pots] for w in rig.windows[0::2]])
     pushes["theta1_0_deg"], pushes["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
-    truth = dict(zip(pushes["object"], [sp.settings.push.category_of(k) for k in pushes["true_stiffness_N_per_m"]]))
+    truth = dict(
+        zip(pushes["object"], [sp.settings.push.category_of(k) for k in pushes["true_stiffness_N_per_m"]], strict=False)
+    )
     bands = {k: list(v) for k, v in sp.settings.push.stiffness_bands_N_per_m.items()}
     res = classify_pushes(pushes, model, bands=bands, method="bands", angles=angles, allow_unusable=True)
     ps, objs = (res.pushes, res.objects) if "push" in res.pushes.columns else (res.objects, res.pushes)
     used = int(objs["n_used"].sum())
-    right = int(sum(truth[o] == c for o, c in zip(objs["object"], objs["category"])))
+    right = int(sum(truth[o] == c for o, c in zip(objs["object"], objs["category"], strict=False)))
     return used, len(ps), right
 
 
@@ -53,8 +57,10 @@ def main() -> None:
     lo, hi = (int(s) for s in args.seeds.split("-"))
     for seed in range(lo, hi + 1):
         used, n, right = run(seed, args.angles)
-        print(f"seed {seed}: {used}/{n} pushes used ({100 * used / n:.0f} %), {right}/6 objects in category "
-              f"(target >= 80 %, 6/6)")
+        print(
+            f"seed {seed}: {used}/{n} pushes used ({100 * used / n:.0f} %), {right}/6 objects in category "
+            f"(target >= 80 %, 6/6)"
+        )
 
 
 if __name__ == "__main__":

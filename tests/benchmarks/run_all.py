@@ -21,9 +21,9 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 HERE = Path(__file__).resolve().parent
 
@@ -54,17 +54,24 @@ def p_reader(out: str, _: Path) -> tuple[str, str]:
 
 
 def p_store(out: str, _: Path) -> tuple[str, str]:
-    rows = re.findall(r"^\s*(\d+)\s+(\S+) smp/s\s+(\S+) smp/s\s+(\S+) smp/s\s+([\d.]+)\s+([\d.]+)\s+([\d.]+) ms", out, re.M)
+    rows = re.findall(
+        r"^\s*(\d+)\s+(\S+) smp/s\s+(\S+) smp/s\s+(\S+) smp/s\s+([\d.]+)\s+([\d.]+)\s+([\d.]+) ms", out, re.M
+    )
     if not rows:
         raise ValueError("no result row")
     n, sync, _, _, vs_plain, vs_nosync, ms = rows[-1]
-    size = grab(r"^file size per trial at (\d+) frames/window: run file ([\d.]+) KB, plain h5py ([\d.]+) KB "
-                r"\(([\d.]+)x\), the frames' own bytes ([\d.]+) KB", out)
-    return (f"{float(vs_plain):.2f} of plain h5py's rate ({float(vs_nosync):.2f} of no-fsync); file size per trial "
-            f"{size.group(4)}x plain h5py's",
-            f"{float(sync):.3g} samples/s, {ms} ms/trial at {n} frames/window; {size.group(2)} KB per trial "
-            f"(plain {size.group(3)} KB, the frames' own bytes {size.group(5)} KB, random counts) "
-            f"at {size.group(1)} frames/window")
+    size = grab(
+        r"^file size per trial at (\d+) frames/window: run file ([\d.]+) KB, plain h5py ([\d.]+) KB "
+        r"\(([\d.]+)x\), the frames' own bytes ([\d.]+) KB",
+        out,
+    )
+    return (
+        f"{float(vs_plain):.2f} of plain h5py's rate ({float(vs_nosync):.2f} of no-fsync); file size per trial "
+        f"{size.group(4)}x plain h5py's",
+        f"{float(sync):.3g} samples/s, {ms} ms/trial at {n} frames/window; {size.group(2)} KB per trial "
+        f"(plain {size.group(3)} KB, the frames' own bytes {size.group(5)} KB, random counts) "
+        f"at {size.group(1)} frames/window",
+    )
 
 
 def p_startup(out: str, _: Path) -> tuple[str, str]:
@@ -83,8 +90,10 @@ def p_acquire(out: str, _: Path) -> tuple[str, str]:
 def p_link(out: str, _: Path) -> tuple[str, str]:
     ratio = grab(r"CPU per frame, labcli / readline baseline: ([\d.]+)", out).group(1)
     m = grab(r"^labcli Device\s+([\d.]+)\s+(\d+)\s+([\d.]+)\s+(\d+)\s+\d+\s+\d+\s+[\d.]+\s+([\d.]+)%", out)
-    return (f"{ratio} of readline's CPU per frame; {m.group(4)} frames lost",
-            f"{m.group(3)} frames/s, host CPU {m.group(5)} %")
+    return (
+        f"{ratio} of readline's CPU per frame; {m.group(4)} frames lost",
+        f"{m.group(3)} frames/s, host CPU {m.group(5)} %",
+    )
 
 
 def p_sim(out: str, _: Path) -> tuple[str, str]:
@@ -107,8 +116,10 @@ def p_accuracy(out: str, _: Path) -> tuple[str, str]:
     ratios = [float(r[1]) for r in rows]
     right = min(float(r[6]) for r in rows)
     seeds = grab(r"^seeds (\S+), (\d+) pushes", out)
-    return (f"k / k_true {min(ratios):.3f} to {max(ratios):.3f}; categories right {100 * right:.0f} %",
-            f"seeds {seeds.group(1)}, {seeds.group(2)} pushes per object (accuracy, not time)")
+    return (
+        f"k / k_true {min(ratios):.3f} to {max(ratios):.3f}; categories right {100 * right:.0f} %",
+        f"seeds {seeds.group(1)}, {seeds.group(2)} pushes per object (accuracy, not time)",
+    )
 
 
 def p_models(_: str, path: Path) -> tuple[str, str]:
@@ -118,11 +129,13 @@ def p_models(_: str, path: Path) -> tuple[str, str]:
     s = d["slope_ge_1e4"]
     head = "; ".join(f"{k} {last[k] / last['lstsq']:.1f}x" for k in ("fit", "validate", "classify", "archive"))
     us = ", ".join(f"{k} {1e6 * last[k] / n:.2g}" for k in ("fit", "validate", "classify"))
-    ctx = (f"at n = {n:.0e}: {us} us/trial; growth exponent (n >= 1e4) "
-           + ", ".join(f"{k} {s[k]:.2f}" for k in ("lstsq", "fit", "validate", "classify", "archive")))
+    ctx = f"at n = {n:.0e}: {us} us/trial; growth exponent (n >= 1e4) " + ", ".join(
+        f"{k} {s[k]:.2f}" for k in ("lstsq", "fit", "validate", "classify", "archive")
+    )
     if d.get("peak_MB"):
-        ctx += "; peak memory " + ", ".join(f"{k} {v:.0f} MB ({d['peak_over_input'][k]:.1f}x input)"
-                                            for k, v in d["peak_MB"].items())
+        ctx += "; peak memory " + ", ".join(
+            f"{k} {v:.0f} MB ({d['peak_over_input'][k]:.1f}x input)" for k, v in d["peak_MB"].items()
+        )
     return head, ctx
 
 
@@ -138,54 +151,79 @@ def p_tables(_: str, path: Path) -> tuple[str, str]:
         a, b = rows[0], rows[-1]
         return math.log(b["labcli"][what] / a["labcli"][what]) / math.log(b["n"] / a["n"])
 
-    head = "; ".join(f"{k} {r['labcli']['seconds'] / r['pandas']['seconds']:.1f}x time, "
-                     f"{r['labcli']['peak'] / r['csv_bytes']:.1f}x the CSV" for k, r in last.items())
-    ctx = (f"at n = {n:.0e} ({last['fit']['csv_bytes'] / 2**20:.0f} MiB CSV), labcli vs baseline: "
-           + ", ".join(f"{k} {r['labcli']['seconds']:.1f} s vs {r['pandas']['seconds']:.1f} s, "
-                       f"{r['labcli']['peak'] / 2**20:.0f} vs {r['pandas']['peak'] / 2**20:.0f} MiB "
-                       f"({r['labcli']['peak'] / r['pandas']['peak']:.1f}x)" for k, r in last.items())
-           + (f"; exponent {steps['fit'][0]['n']:.0e} to {n:.0e}: " if len(steps["fit"]) > 1 else "; exponent: ")
-           + ", ".join(f"{k} {exponent(v, 'seconds'):.2f} (time) {exponent(v, 'peak'):.2f} (memory)"
-                       for k, v in steps.items()))
+    head = "; ".join(
+        f"{k} {r['labcli']['seconds'] / r['pandas']['seconds']:.1f}x time, "
+        f"{r['labcli']['peak'] / r['csv_bytes']:.1f}x the CSV"
+        for k, r in last.items()
+    )
+    ctx = (
+        f"at n = {n:.0e} ({last['fit']['csv_bytes'] / 2**20:.0f} MiB CSV), labcli vs baseline: "
+        + ", ".join(
+            f"{k} {r['labcli']['seconds']:.1f} s vs {r['pandas']['seconds']:.1f} s, "
+            f"{r['labcli']['peak'] / 2**20:.0f} vs {r['pandas']['peak'] / 2**20:.0f} MiB "
+            f"({r['labcli']['peak'] / r['pandas']['peak']:.1f}x)"
+            for k, r in last.items()
+        )
+        + (f"; exponent {steps['fit'][0]['n']:.0e} to {n:.0e}: " if len(steps["fit"]) > 1 else "; exponent: ")
+        + ", ".join(
+            f"{k} {exponent(v, 'seconds'):.2f} (time) {exponent(v, 'peak'):.2f} (memory)" for k, v in steps.items()
+        )
+    )
     for n_imp, r in d.get("import", {}).items():
-        ctx += (f"; import {int(n_imp):.0e} rows {r['import']['seconds']:.1f} s, {r['import']['peak'] / 2**20:.0f} MiB "
-                f"vs reading alone {r['read']['seconds']:.1f} s ({r['import']['seconds'] / r['read']['seconds']:.1f}x); "
-                f"run file {r['file_bytes_per_trial']:.0f} B per trial (CSV {r['csv_bytes_per_trial']:.0f} B)")
+        ctx += (
+            f"; import {int(n_imp):.0e} rows {r['import']['seconds']:.1f} s, {r['import']['peak'] / 2**20:.0f} MiB "
+            f"vs reading alone {r['read']['seconds']:.1f} s ({r['import']['seconds'] / r['read']['seconds']:.1f}x); "
+            f"run file {r['file_bytes_per_trial']:.0f} B per trial (CSV {r['csv_bytes_per_trial']:.0f} B)"
+        )
     return head, ctx
 
 
 def p_demo(_: str, path: Path) -> tuple[str, str]:
     d = json.loads(path.read_text())
     a, m = d["acquire"], d["demo"]
-    return (f"acquire {a['over_import']:.0f}x, demo {m['over_import']:.0f}x the import; "
-            f"acquire {a['device_over_wall']:.0f}x faster than real time",
-            f"acquire {a['wall_s']:.1f} s, demo {m['wall_s']:.1f} s, import {d['import_s']:.2f} s "
-            f"(median over seeds {d['seeds'][0]}-{d['seeds'][-1]})")
+    return (
+        f"acquire {a['over_import']:.0f}x, demo {m['over_import']:.0f}x the import; "
+        f"acquire {a['device_over_wall']:.0f}x faster than real time",
+        f"acquire {a['wall_s']:.1f} s, demo {m['wall_s']:.1f} s, import {d['import_s']:.2f} s "
+        f"(median over seeds {d['seeds'][0]}-{d['seeds'][-1]})",
+    )
 
 
 def p_classify_report(out: str, _: Path) -> tuple[str, str]:
     rows = json.loads(out.strip().splitlines()[-1])
     r = rows[-1]
-    stage = (f"; report stage alone: streamed {r['stage_stream_MB']:.0f} MB vs one dict {r['stage_dict_MB']:.0f} MB"
-             if "stage_stream_MB" in r else "")
-    return (f"--json {r['json_MB'] / r['baseline_MB']:.2f}x memory, {r['json_s'] / r['baseline_s']:.1f}x time; "
-            f"report {r['report_MB'] / r['baseline_MB']:.2f}x memory",
-            f"at n = {r['n']:.0e} pushes ({r['csv_MB']:.0f} MB CSV): baseline {r['baseline_MB']:.0f} MB "
-            f"{r['baseline_s']:.1f} s, --json {r['json_MB']:.0f} MB {r['json_s']:.1f} s{stage}")
+    stage = (
+        f"; report stage alone: streamed {r['stage_stream_MB']:.0f} MB vs one dict {r['stage_dict_MB']:.0f} MB"
+        if "stage_stream_MB" in r
+        else ""
+    )
+    return (
+        f"--json {r['json_MB'] / r['baseline_MB']:.2f}x memory, {r['json_s'] / r['baseline_s']:.1f}x time; "
+        f"report {r['report_MB'] / r['baseline_MB']:.2f}x memory",
+        f"at n = {r['n']:.0e} pushes ({r['csv_MB']:.0f} MB CSV): baseline {r['baseline_MB']:.0f} MB "
+        f"{r['baseline_s']:.1f} s, --json {r['json_MB']:.0f} MB {r['json_s']:.1f} s{stage}",
+    )
 
 
 def p_firmware(out: str, _: Path) -> tuple[str, str]:
     if out.startswith("skipped"):
         return "skipped", out.strip()
-    rows = {(m.group(1), m.group(2)): m for m in re.finditer(
-        r"^\s*(\d+) (fresh|long)\s+(\d+)\s+[\d.]+\s+([\d.]+)\s+([\d.]+)\s+\d+\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)",
-        out, re.M)}
+    rows = {
+        (m.group(1), m.group(2)): m
+        for m in re.finditer(
+            r"^\s*(\d+) (fresh|long)\s+(\d+)\s+[\d.]+\s+([\d.]+)\s+([\d.]+)\s+\d+\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)",
+            out,
+            re.M,
+        )
+    }
     slow, fast = rows[("115200", "long")], rows[("1000000", "long")]
     speeds = [float(m.group(8)) for m in rows.values()]
-    return (f"{slow.group(3)} Hz at 115200 ({slow.group(5)} of the baud limit), {fast.group(3)} Hz at 1000000 "
-            f"({fast.group(7)} of the AVR limit), long lines",
-            f"fresh lines {rows[('115200', 'fresh')].group(3)} / {rows[('1000000', 'fresh')].group(3)} Hz; "
-            f"simavr {min(speeds):.1f}-{max(speeds):.1f}x real time")
+    return (
+        f"{slow.group(3)} Hz at 115200 ({slow.group(5)} of the baud limit), {fast.group(3)} Hz at 1000000 "
+        f"({fast.group(7)} of the AVR limit), long lines",
+        f"fresh lines {rows[('115200', 'fresh')].group(3)} / {rows[('1000000', 'fresh')].group(3)} Hz; "
+        f"simavr {min(speeds):.1f}-{max(speeds):.1f}x real time",
+    )
 
 
 def p_capture_memory(out: str, _: Path) -> tuple[str, str]:
@@ -194,55 +232,135 @@ def p_capture_memory(out: str, _: Path) -> tuple[str, str]:
         raise ValueError("no result row")
     window, frames, mem, streamed, ratio = rows[-1]
     growth = grab(r"^growth from .*: in memory ([\d.]+)x, streamed ([\d.]+)x", out)
-    return (f"{ratio}x less peak memory at {window} windows ({streamed} MiB vs {mem} MiB)",
-            f"{frames} frames per trial; from {rows[0][0]} to {window} windows peak memory grows "
-            f"{growth.group(1)}x in memory, {growth.group(2)}x streamed")
+    return (
+        f"{ratio}x less peak memory at {window} windows ({streamed} MiB vs {mem} MiB)",
+        f"{frames} frames per trial; from {rows[0][0]} to {window} windows peak memory grows "
+        f"{growth.group(1)}x in memory, {growth.group(2)}x streamed",
+    )
 
 
 BENCHES = [
-    Bench("reader", "bench_reader.py", ["--frames", "50000", "--repeat", "3"],
-          "stream reader, 6-channel frames parsed from 4 KiB chunks", "readline + split + per-byte XOR", p_reader),
-    Bench("store", "bench_store.py", ["--trials", "20", "--samples", "400", "--repeat", "3"],
-          "trials into the HDF5 run file, fsync per trial", "plain h5py append, never flushed", p_store),
-    Bench("startup", "bench_startup.py", ["--repeat", "5"],
-          "`labcli --help` start-up", "`python -c pass`", p_startup),
-    Bench("acquire", "bench_acquire.py", [],
-          "unattended 108-trial run in-process (engine, settle, store)", "same frames through Device.read only",
-          p_acquire),
-    Bench("link", "bench_link.py", ["--seconds", "5", "--baseline-seconds", "5"],
-          "pty link at 1 kHz x 6 channels, host CPU per frame", "pyserial readline + parse_line", p_link),
-    Bench("sim", "bench_sim.py", ["--frames", "20000", "--repeat", "2"],
-          "simulated rig frame formatting, column-wise", "wire.format_frame per frame", p_sim),
-    Bench("rpam", "bench_rpam_solver.py", ["--grid", "11", "--repeat", "3"],
-          "rPAM joint map (Eq. 6), one vectorised call", "equilibrium_angle per pressure pair", p_rpam),
-    Bench("accuracy", "classify_accuracy.py", ["--seeds", "1-2", "--pushes", "5"],
-          "stiffness of the six simulated objects (default policy, pressure-only)", "true stiffness of the objects",
-          p_accuracy),
-    Bench("models", "bench_models.py", ["--sizes", "1e2,1e3,1e4,1e5", "--repeat", "3", "--repeat-large", "2"],
-          "fit / validate / classify (6 objects) / classify (n/10 objects), time over trials",
-          "numpy lstsq on the fit's design shapes, same n", p_models, json=True),
-    Bench("classify-report", "bench_classify_report.py", ["--sizes", "1e4", "--no-stage"],
-          "`labcli classify` on an archive of n pushes (n/10 objects): --json and the report, peak RSS",
-          "pandas read_csv + groupby(object) mean/sd, same CSV", p_classify_report),
-    Bench("firmware", "bench_firmware.py", ["--seconds", "2"],
-          "highest frame rate with 0 lost, the firmware on simavr, 115200 and 1000000 baud",
-          "baud limit (UART bytes/s over line length) and AVR limit (1 / sampling time per frame)", p_firmware),
-    Bench("tables", "bench_tables.py", ["--sizes", "1e4,1e5", "--import-sizes", "1e5", "--repeat", "1"],
-          "trial CSV: checked read, `labcli fit`, `labcli validate` (fresh process each, peak resident memory)",
-          "pandas `read_csv` (+ the four least-squares fits / evaluate)", p_tables, json=True),
-    Bench("capture-memory", "bench_capture_memory.py", ["--windows", "60,600"],
-          "one trial with long capture windows (1 kHz x 6 channels) streamed into the run file, peak RSS growth",
-          "the same engine gathering each window in memory, then writing the trial", p_capture_memory),
-    Bench("demo", "bench_demo.py", ["--seeds", "1", "--import-repeat", "5"],
-          "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
-          "`python -c \"import labcli.core.engine, labcli.core.store, labcli.papers.takuma2014.models.takuma\"`", p_demo, json=True),
+    Bench(
+        "reader",
+        "bench_reader.py",
+        ["--frames", "50000", "--repeat", "3"],
+        "stream reader, 6-channel frames parsed from 4 KiB chunks",
+        "readline + split + per-byte XOR",
+        p_reader,
+    ),
+    Bench(
+        "store",
+        "bench_store.py",
+        ["--trials", "20", "--samples", "400", "--repeat", "3"],
+        "trials into the HDF5 run file, fsync per trial",
+        "plain h5py append, never flushed",
+        p_store,
+    ),
+    Bench("startup", "bench_startup.py", ["--repeat", "5"], "`labcli --help` start-up", "`python -c pass`", p_startup),
+    Bench(
+        "acquire",
+        "bench_acquire.py",
+        [],
+        "unattended 108-trial run in-process (engine, settle, store)",
+        "same frames through Device.read only",
+        p_acquire,
+    ),
+    Bench(
+        "link",
+        "bench_link.py",
+        ["--seconds", "5", "--baseline-seconds", "5"],
+        "pty link at 1 kHz x 6 channels, host CPU per frame",
+        "pyserial readline + parse_line",
+        p_link,
+    ),
+    Bench(
+        "sim",
+        "bench_sim.py",
+        ["--frames", "20000", "--repeat", "2"],
+        "simulated rig frame formatting, column-wise",
+        "wire.format_frame per frame",
+        p_sim,
+    ),
+    Bench(
+        "rpam",
+        "bench_rpam_solver.py",
+        ["--grid", "11", "--repeat", "3"],
+        "rPAM joint map (Eq. 6), one vectorised call",
+        "equilibrium_angle per pressure pair",
+        p_rpam,
+    ),
+    Bench(
+        "accuracy",
+        "classify_accuracy.py",
+        ["--seeds", "1-2", "--pushes", "5"],
+        "stiffness of the six simulated objects (default policy, pressure-only)",
+        "true stiffness of the objects",
+        p_accuracy,
+    ),
+    Bench(
+        "models",
+        "bench_models.py",
+        ["--sizes", "1e2,1e3,1e4,1e5", "--repeat", "3", "--repeat-large", "2"],
+        "fit / validate / classify (6 objects) / classify (n/10 objects), time over trials",
+        "numpy lstsq on the fit's design shapes, same n",
+        p_models,
+        json=True,
+    ),
+    Bench(
+        "classify-report",
+        "bench_classify_report.py",
+        ["--sizes", "1e4", "--no-stage"],
+        "`labcli classify` on an archive of n pushes (n/10 objects): --json and the report, peak RSS",
+        "pandas read_csv + groupby(object) mean/sd, same CSV",
+        p_classify_report,
+    ),
+    Bench(
+        "firmware",
+        "bench_firmware.py",
+        ["--seconds", "2"],
+        "highest frame rate with 0 lost, the firmware on simavr, 115200 and 1000000 baud",
+        "baud limit (UART bytes/s over line length) and AVR limit (1 / sampling time per frame)",
+        p_firmware,
+    ),
+    Bench(
+        "tables",
+        "bench_tables.py",
+        ["--sizes", "1e4,1e5", "--import-sizes", "1e5", "--repeat", "1"],
+        "trial CSV: checked read, `labcli fit`, `labcli validate` (fresh process each, peak resident memory)",
+        "pandas `read_csv` (+ the four least-squares fits / evaluate)",
+        p_tables,
+        json=True,
+    ),
+    Bench(
+        "capture-memory",
+        "bench_capture_memory.py",
+        ["--windows", "60,600"],
+        "one trial with long capture windows (1 kHz x 6 channels) streamed into the run file, peak RSS growth",
+        "the same engine gathering each window in memory, then writing the trial",
+        p_capture_memory,
+    ),
+    Bench(
+        "demo",
+        "bench_demo.py",
+        ["--seeds", "1", "--import-repeat", "5"],
+        "`labcli demo` and `labcli acquire --unattended` as subprocesses, wall time",
+        '`python -c "import labcli.core.engine, labcli.core.store, labcli.papers.takuma2014.models.takuma"`',
+        p_demo,
+        json=True,
+    ),
 ]
 # The archive-scale figures (--scale): tables and import at 10^6 rows, classify at 10^6 pushes.
-SCALE_ARGS = {"tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
-              "classify-report": ["--sizes", "1e6", "--no-stage"]}
-FULL_ARGS = {"models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"], "demo": ["--seeds", "1-3"],
-             "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
-             "classify-report": ["--sizes", "1e5,1e6"], "capture-memory": ["--windows", "60,600,3600"]}
+SCALE_ARGS = {
+    "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
+    "classify-report": ["--sizes", "1e6", "--no-stage"],
+}
+FULL_ARGS = {
+    "models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"],
+    "demo": ["--seeds", "1-3"],
+    "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
+    "classify-report": ["--sizes", "1e5,1e6"],
+    "capture-memory": ["--windows", "60,600,3600"],
+}
 
 
 def _cpu_model() -> str:
@@ -258,8 +376,11 @@ def _cpu_model() -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="the scripts' own (longer) settings instead of quick ones")
-    ap.add_argument("--scale", action="store_true",
-                    help="archive sizes for the tables and classify-report benchmarks (10^6 rows; about 15 minutes)")
+    ap.add_argument(
+        "--scale",
+        action="store_true",
+        help="archive sizes for the tables and classify-report benchmarks (10^6 rows; about 15 minutes)",
+    )
     ap.add_argument("--only", default="", help="comma-separated names: " + ",".join(b.name for b in BENCHES))
     ap.add_argument("--out", default=None, help="also write the Markdown table to this file")
     ap.add_argument("--log-dir", default=None, help="where each script's output is kept")
@@ -282,8 +403,9 @@ def main() -> None:
         print(f"running {b.name}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         try:
-            proc = subprocess.run(cmd, cwd=HERE.parents[1], capture_output=True, text=True,
-                                  timeout=b.timeout_s * (3 if extra else 1))
+            proc = subprocess.run(
+                cmd, cwd=HERE.parents[1], capture_output=True, text=True, timeout=b.timeout_s * (3 if extra else 1)
+            )
             out, code = proc.stdout, proc.returncode
             (logs / f"{b.name}.log").write_text(out + proc.stderr)
         except subprocess.TimeoutExpired:

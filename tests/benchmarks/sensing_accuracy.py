@@ -63,8 +63,7 @@ def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = F
     rig = _Recorder(SimRig(seed=seed, **kw))
     table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=settle_s)
     pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
-    base = np.array([np.asarray(proto.calibration.to_si(w), dtype=float).mean(axis=0)[pots]
-                     for w in rig.windows[0::2]])
+    base = np.array([np.asarray(proto.calibration.to_si(w), dtype=float).mean(axis=0)[pots] for w in rig.windows[0::2]])
     table["theta1_0_deg"], table["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
     return proto, table
 
@@ -77,8 +76,10 @@ def measure(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = 
     proto, table = trials(protocol_name, seed, settle_s, ideal)
     rig = proto.settings.rig
     out = {}
-    for form, model in (("paper", TakumaModel(geometry=rig)),
-                        ("posture", PostureModel(geometry=rig, limits=limits_from_protocol(proto)))):
+    for form, model in (
+        ("paper", TakumaModel(geometry=rig)),
+        ("posture", PostureModel(geometry=rig, limits=limits_from_protocol(proto))),
+    ):
         ev = evaluate(model.fit(table), table)
         per_q = {}
         for q in QUANTITIES:
@@ -93,7 +94,7 @@ def measure(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = 
 
 def rms(x) -> float:
     x = np.concatenate(x) if x else np.array([])
-    return float(np.sqrt(np.mean(x ** 2))) if x.size else math.nan
+    return float(np.sqrt(np.mean(x**2))) if x.size else math.nan
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -101,8 +102,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 1,4,7")
     ap.add_argument("--settle", type=float, default=8.0, help="settling time per load, s (simulated)")
     ap.add_argument("--ideal", action="store_true", help="the rig with its non-idealities off")
-    ap.add_argument("--only", choices=("friction", "leak", "thermal", "backlash", "links"),
-                    help="the rig with this one non-ideality and no other")
+    ap.add_argument(
+        "--only",
+        choices=("friction", "leak", "thermal", "backlash", "links"),
+        help="the rig with this one non-ideality and no other",
+    )
     ap.add_argument("--bent-supply", help="the bent protocol's regulators, MPa: L1,R1,L2,R2")
     args = ap.parse_args(argv)
     global BENT_SUPPLY_MPA
@@ -118,8 +122,10 @@ def main(argv: list[str] | None = None) -> None:
         runs = [measure(protocol, s, args.settle, rig_kind) for s in seeds]
         rest = np.median([r["rest_deg"] for r in runs])
         print(f"\n{protocol}: {len(seeds)} seeds x 18 validation trials, rest theta2 {rest:.1f} deg (median)")
-        print(f"{'quantity':10s} {'form':8s} {'reported':>10s} {'RMSE rep.':>10s} {'RMSE all':>10s} "
-              f"{'min/seed':>9s} {'95% cover':>10s}")
+        print(
+            f"{'quantity':10s} {'form':8s} {'reported':>10s} {'RMSE rep.':>10s} {'RMSE all':>10s} "
+            f"{'min/seed':>9s} {'95% cover':>10s}"
+        )
         for q in QUANTITIES:
             unit = "deg" if q.startswith("theta") else "N"
             for form in ("paper", "posture"):
@@ -128,12 +134,16 @@ def main(argv: list[str] | None = None) -> None:
                 low = min(len(p["err_ok"]) for p in per)
                 inside = np.concatenate([p["inside"] for p in per])
                 cover = f"{100 * inside.mean():.1f} %" if inside.size else "-"
-                print(f"{q + ' ' + unit:10s} {form:8s} {n_ok:>5d}/{18 * len(seeds):<4d} "
-                      f"{rms([p['err_ok'] for p in per]):10.3g} {rms([p['err_all'] for p in per]):10.3g} "
-                      f"{low:>6d}/18 {cover:>10s}")
+                print(
+                    f"{q + ' ' + unit:10s} {form:8s} {n_ok:>5d}/{18 * len(seeds):<4d} "
+                    f"{rms([p['err_ok'] for p in per]):10.3g} {rms([p['err_all'] for p in per]):10.3g} "
+                    f"{low:>6d}/18 {cover:>10s}"
+                )
         inside = np.concatenate([r["posture"][q]["inside"] for r in runs for q in QUANTITIES])
-        print(f"posture form, all quantities: 95 % intervals cover {100 * inside.mean():.1f} % of "
-              f"{inside.size} reported validation errors (target 90-98 %)")
+        print(
+            f"posture form, all quantities: 95 % intervals cover {100 * inside.mean():.1f} % of "
+            f"{inside.size} reported validation errors (target 90-98 %)"
+        )
 
 
 if __name__ == "__main__":

@@ -11,16 +11,16 @@ from click.testing import CliRunner
 from rich.console import Console
 
 from labcli.cli import cli
-from labcli.core.device import Device
 from labcli.core.acquisition import resume_command
+from labcli.core.device import Device
 from labcli.core.engine import RunEngine
-from labcli.errors import DeviceDisconnected, DeviceTimeout
 from labcli.core.protocol import load_protocol
-from labcli.papers.takuma2014.protocol import load_plan
-from labcli.papers.takuma2014.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
 from labcli.core.store import RunFile
-from labcli.papers.takuma2014.records import load_trials
 from labcli.core.ui import UnattendedUI
+from labcli.errors import DeviceDisconnected, DeviceTimeout
+from labcli.papers.takuma2014.protocol import load_plan
+from labcli.papers.takuma2014.records import load_trials
+from labcli.papers.takuma2014.session import Baseline, Capture, Commit, G, HangWeight, Prompt, Window, force_session
 
 PROTOCOL = load_protocol("takuma2014")
 PLAN = load_plan(PROTOCOL)
@@ -28,7 +28,9 @@ PLAN = load_plan(PROTOCOL)
 PRESSURE_NOISE_MPA = 0.5 * 5.0 / 16380
 ANGLE_NOISE_DEG = 0.7 * 340 / 4095
 
-SMALL_PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n4,validation,400,-150\n"
+SMALL_PLAN = (
+    "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n4,validation,400,-150\n"
+)
 
 
 def quiet_ui():
@@ -38,8 +40,9 @@ def quiet_ui():
 def open_run(path, port, plan=PLAN):
     dev = Device.open(port)
     store = RunFile.create(path, protocol=PROTOCOL, device_info=dev.info, port=port, plan=plan)
-    engine = RunEngine(dev, store, PROTOCOL, quiet_ui(), run_path=str(path),
-                       resume_command=resume_command(str(path), port))
+    engine = RunEngine(
+        dev, store, PROTOCOL, quiet_ui(), run_path=str(path), resume_command=resume_command(str(path), port)
+    )
     return dev, store, engine
 
 
@@ -100,7 +103,9 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
             assert np.allclose(PROTOCOL.calibration.to_si(w["counts"]), w["si"])
             assert np.allclose(np.diff(w["t_s"]), 0.005)
         assert rec["settle"]["load"]["settled"] is True
-        assert rec["settle"]["load"]["criterion"].startswith("range of 10 block means over 1 s and the tail extrapolated from 3 windows below 0.31 kPa")
+        assert rec["settle"]["load"]["criterion"].startswith(
+            "range of 10 block means over 1 s and the tail extrapolated from 3 windows below 0.31 kPa"
+        )
         assert rec["settle"]["load"]["settle_time_s"] >= 0
 
 
@@ -142,8 +147,9 @@ def test_a_silent_rig_mid_trial_is_reported_with_the_resume_command(tmp_path):
     port = "sim://?seed=5&clock=virtual"
     dev = Device.open(port, timeout=0.3)  # the device's own silence limit, wall clock
     store = RunFile.create(path, protocol=PROTOCOL, device_info=dev.info, port=port, plan=PLAN.iloc[:3])
-    engine = RunEngine(dev, store, PROTOCOL, quiet_ui(), run_path=str(path),
-                       resume_command=resume_command(str(path), port))
+    engine = RunEngine(
+        dev, store, PROTOCOL, quiet_ui(), run_path=str(path), resume_command=resume_command(str(path), port)
+    )
 
     def fall_silent_in_trial_2(step, reply):
         if isinstance(step, Prompt) and isinstance(step.action, HangWeight) and engine._trial.trial == 2:
@@ -235,8 +241,9 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
     trial = "\n\n"  # weight hung, weight removed
     answers = setup + trial + "r\n" + trial + "a\n" + trial + "s\n" + trial + "q\n"
     runner = CliRunner()
-    result = runner.invoke(cli, ["acquire", str(path), "--port", port, "--plan", str(plan),
-                                 "--operator", "kim"], input=answers)
+    result = runner.invoke(
+        cli, ["acquire", str(path), "--port", port, "--plan", str(plan), "--operator", "kim"], input=answers
+    )
     assert result.exit_code == 0, result.output
     out = result.output
     assert "Trial 1/4 (fit): hang 200 g, pulley direction -60 deg, then press Enter" in out
@@ -251,8 +258,7 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
     with RunFile.open(path) as run:
         assert run.attrs["operator"] == "kim"
 
-    result = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume"],
-                           input=setup + (trial + "a\n") * 3)
+    result = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume"], input=setup + (trial + "a\n") * 3)
     assert result.exit_code == 0, result.output
     assert "Trial 2/4 (fit): hang 500 g, pulley direction 30 deg, then press Enter" in result.output
     assert "Trial 1/4" not in result.output
@@ -262,8 +268,9 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
     assert df["set"].tolist() == ["fit", "fit", "validation", "validation"]
     # The first session's trial is untouched (its set came with the split at the end).
     assert df.drop(columns="set").iloc[0].equals(first.drop(columns="set").iloc[0])
-    assert df["Fy_N"].tolist() == pytest.approx([0.2 * G * math.sin(math.radians(-60)), 0.5 * G * 0.5,
-                                                  0.3 * G * 0.5, 0.4 * G * -0.5])
+    assert df["Fy_N"].tolist() == pytest.approx(
+        [0.2 * G * math.sin(math.radians(-60)), 0.5 * G * 0.5, 0.3 * G * 0.5, 0.4 * G * -0.5]
+    )
     result = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume"])
     assert result.exit_code == 0
     assert result.output == f"All 4 planned trials are already stored in {path}; nothing to resume.\n"
@@ -274,8 +281,9 @@ def test_typed_loads_without_a_plan_are_checked(tmp_path):
     answers = "\n\n" + "5000\n250 g\n400\n45\n" + "\n\na\n" + "\n"
     # The ideal rig: the check is of the typed loads; on the default rig sleeve friction and the
     # potentiometers' play hide most of a 250 g deflection (tests/test_nonideal.py has those).
-    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=8&clock=virtual&ideal=1",
-                                      "--no-plan"], input=answers)
+    result = CliRunner().invoke(
+        cli, ["acquire", str(path), "--port", "sim://?seed=8&clock=virtual&ideal=1", "--no-plan"], input=answers
+    )
     assert result.exit_code == 0, result.output
     assert "The mass must be from 1 g to 2000 g, got 5000 g." in result.output
     assert "The direction must be from -180 deg to 180 deg, got 400 deg." in result.output
@@ -315,14 +323,27 @@ def test_contradictory_options_are_refused(tmp_path, args, message):
 
 
 def test_setup_check_names_the_mismatching_channels(tmp_path):
-    text = PROTOCOL.text.replace('channels = ["P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2"]',
-                                 'channels = ["P_L1", "P_R1", "P_L2", "P_R2", "POT2", "POT1"]')
+    text = PROTOCOL.text.replace(
+        'channels = ["P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2"]',
+        'channels = ["P_L1", "P_R1", "P_L2", "P_R2", "POT2", "POT1"]',
+    )
     proto = tmp_path / "swapped.toml"
     proto.write_text(text)
     (tmp_path / "takuma2014-plan.csv").write_text(SMALL_PLAN)
-    result = CliRunner().invoke(cli, ["acquire", str(tmp_path / "r.h5"), "--port", "sim://?seed=1",
-                                      "--protocol", str(proto), "--plan", str(tmp_path / "takuma2014-plan.csv"),
-                                      "--unattended"])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "acquire",
+            str(tmp_path / "r.h5"),
+            "--port",
+            "sim://?seed=1",
+            "--protocol",
+            str(proto),
+            "--plan",
+            str(tmp_path / "takuma2014-plan.csv"),
+            "--unattended",
+        ],
+    )
     assert result.exit_code == 1
     assert result.output == (
         "Error: The rig on sim://?seed=1 reports channels P_L1,P_R1,P_L2,P_R2,POT1,POT2 but protocol "
@@ -353,8 +374,11 @@ def test_typed_push_session_on_the_simulated_rig(tmp_path):
     # Push 1: 10 mm along 0 deg typed instead of Enter, then Enter to push; every push: release, review.
     pushes = "10 0\n\n\n\n" + "\n\n\n" * 9
     answers = "\n\n" + obj + pushes + "\n"
-    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=9&clock=virtual",
-                                      "--protocol", "takuma2014-stiffness"], input=answers)
+    result = CliRunner().invoke(
+        cli,
+        ["acquire", str(path), "--port", "sim://?seed=9&clock=virtual", "--protocol", "takuma2014-stiffness"],
+        input=answers,
+    )
     assert result.exit_code == 0, result.output
     assert "Push 1/10 of pet-1: push pet-1 by 10 mm along 0 deg, then press Enter" in result.output
     assert "Push 2/10 of pet-1: push pet-1 by 8 mm along an unknown direction, then press Enter" in result.output
@@ -367,7 +391,7 @@ def test_typed_push_session_on_the_simulated_rig(tmp_path):
     assert df["phi_deg"].iloc[0] == 0 and df["phi_deg"].iloc[1:].isna().all()
     assert df["true_stiffness_N_per_m"].tolist() == [400.0] * 10
     # Pushing the object in changes the pressures.
-    dp = (df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy())
+    dp = df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()
     assert np.abs(dp).max(axis=1).min() > 0.001
 
 
@@ -375,8 +399,12 @@ def test_settle_timeout_offers_wait_longer_and_accept(tmp_path):
     import re
 
     text = PROTOCOL.text
-    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "1.0"),
-                       ("pressure_spread_MPa", "0.000001")):  # 1 Pa: never met, so every wait times out
+    for key, value in (
+        ("window_s", "0.2"),
+        ("hold_s", "0.2"),
+        ("timeout_s", "1.0"),
+        ("pressure_spread_MPa", "0.000001"),
+    ):  # 1 Pa: never met, so every wait times out
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
     proto = tmp_path / "strict.toml"
@@ -384,19 +412,34 @@ def test_settle_timeout_offers_wait_longer_and_accept(tmp_path):
     plan = tmp_path / "takuma2014-plan.csv"
     plan.write_text(SMALL_PLAN)
     path = tmp_path / "run.h5"
-    answers = ("\n" + "a\n" + "\n"  # supply air, accept its timeout, close valves
-               + "a\n" + "\n" + "w\n" + "a\n" + "\n" + "a\n"  # trial 1: baseline accepted, load waited then accepted
-               + "q\n")  # trial 2: quit at the baseline timeout
-    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=4&clock=virtual",
-                                      "--protocol", str(proto), "--plan", str(plan)], input=answers)
+    answers = (
+        "\n"
+        + "a\n"
+        + "\n"  # supply air, accept its timeout, close valves
+        + "a\n"
+        + "\n"
+        + "w\n"
+        + "a\n"
+        + "\n"
+        + "a\n"  # trial 1: baseline accepted, load waited then accepted
+        + "q\n"
+    )  # trial 2: quit at the baseline timeout
+    result = CliRunner().invoke(
+        cli,
+        ["acquire", str(path), "--port", "sim://?seed=4&clock=virtual", "--protocol", str(proto), "--plan", str(plan)],
+        input=answers,
+    )
     assert result.exit_code == 0, result.output
     assert result.output.count("Accept these readings [a], wait longer [w] or redo the trial [r]? (w):") == 5
     assert "Not settled (load) after 1.0 s:" in result.output
     assert "Not settled (load) after 2.0 s:" in result.output
     assert "load: accepted without settling after 2.00 s" in result.output
     flat = " ".join(result.output.split())
-    assert re.search(r"Not settled \(load\) after 2\.0 s: pressure spread \d+\.\d\d kPa \(limit 0\.001 kPa\), "
-                     r"angle spread \d\.\d{3} deg \(limit 0\.1 deg\), quiet for 0\.0 s of 0\.2 s", flat)
+    assert re.search(
+        r"Not settled \(load\) after 2\.0 s: pressure spread \d+\.\d\d kPa \(limit 0\.001 kPa\), "
+        r"angle spread \d\.\d{3} deg \(limit 0\.1 deg\), quiet for 0\.0 s of 0\.2 s",
+        flat,
+    )
     with RunFile.open(path) as run:
         assert run.completed_ids() == [1]
         rec = run.read(1)
@@ -409,21 +452,38 @@ def test_settle_timeout_offers_wait_longer_and_accept(tmp_path):
 
 def test_unattended_push_run_pushes_the_six_reference_objects(tmp_path):
     path = tmp_path / "push.h5"
-    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", "sim://?seed=12&clock=virtual",
-                                      "--protocol", "takuma2014-stiffness", "--unattended"])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "acquire",
+            str(path),
+            "--port",
+            "sim://?seed=12&clock=virtual",
+            "--protocol",
+            "takuma2014-stiffness",
+            "--unattended",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert f"Session complete: 60 pushes stored in {path} (60 this session, " in result.output
     with RunFile.open(path) as run:
         df = run.table()
-    assert df["object"].tolist() == [n for n in ("pet-1", "pet-2", "pet-3", "can-al-1", "can-al-2", "can-steel-1")
-                                     for _ in range(10)]
+    assert df["object"].tolist() == [
+        n for n in ("pet-1", "pet-2", "pet-3", "can-al-1", "can-al-2", "can-steel-1") for _ in range(10)
+    ]
     assert df.groupby("object")["category"].first().to_dict() == {
-        "pet-1": "soft", "pet-2": "soft", "pet-3": "soft", "can-al-1": "medium", "can-al-2": "medium",
-        "can-steel-1": "hard"}
+        "pet-1": "soft",
+        "pet-2": "soft",
+        "pet-3": "soft",
+        "can-al-1": "medium",
+        "can-al-2": "medium",
+        "can-steel-1": "hard",
+    }
     # A stiffer object pushed the same distance loads the arm more: compare the PET bottles' and
     # the aluminium cans' pressure changes per millimetre of push.
-    dp = np.abs(df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy()
-                - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()).sum(axis=1) / (df["d_m"] * 1e3)
+    dp = np.abs(
+        df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()
+    ).sum(axis=1) / (df["d_m"] * 1e3)
     per_object = dp.groupby(df["object"]).mean()
     assert per_object[["can-al-1", "can-al-2"]].min() > per_object[["pet-1", "pet-2", "pet-3"]].max()
 
@@ -446,6 +506,8 @@ def test_resume_accepts_the_plan_the_run_began_with_and_refuses_another(tmp_path
     before = run.read_bytes()
     r = CliRunner().invoke(cli, ["acquire", str(run), "--port", port, "--plan", str(other), "--unattended", "--resume"])
     assert r.exit_code == 1
-    assert r.output.endswith(f"Error: {other} is not the plan {run} began with; drop --plan to resume with the "
-                             "run's own plan, or start a new run for the new one.\n")
+    assert r.output.endswith(
+        f"Error: {other} is not the plan {run} began with; drop --plan to resume with the "
+        "run's own plan, or start a new run for the new one.\n"
+    )
     assert run.read_bytes() == before

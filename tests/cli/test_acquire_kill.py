@@ -35,14 +35,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from support.long_capture import write_long_protocol
+from support.records import stored_trials
 
 from labcli.core.acquisition import acquire
 from labcli.core.protocol import load_protocol
-from labcli.papers.takuma2014.protocol import load_plan
 from labcli.core.store import RunFile
-
-from support.long_capture import write_long_protocol
-from support.records import stored_trials
+from labcli.papers.takuma2014.protocol import load_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED = 21
@@ -70,17 +69,28 @@ class Acquire:
     """One ``labcli acquire`` process; stdout and stderr collected as they come."""
 
     def __init__(self, args: list[str]) -> None:
-        env = dict(os.environ, PYTHONUNBUFFERED="1", COLUMNS="200",
-                   PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+        env = dict(
+            os.environ,
+            PYTHONUNBUFFERED="1",
+            COLUMNS="200",
+            PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+        )
         self.t0 = time.monotonic()
-        self.proc = subprocess.Popen([sys.executable, "-m", "labcli", "acquire", *args], cwd=ROOT, env=env,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "labcli", "acquire", *args],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
         self.out: list[str] = []
         self.err: list[str] = []
         self.ready = threading.Event()
         self.t_ready: float | None = None
-        self._threads = [threading.Thread(target=self._pump, args=(self.proc.stdout, self.out), daemon=True),
-                         threading.Thread(target=self._pump, args=(self.proc.stderr, self.err), daemon=True)]
+        self._threads = [
+            threading.Thread(target=self._pump, args=(self.proc.stdout, self.out), daemon=True),
+            threading.Thread(target=self._pump, args=(self.proc.stderr, self.err), daemon=True),
+        ]
         for t in self._threads:
             t.start()
 
@@ -137,13 +147,15 @@ def resume_sentence(path: Path) -> str:
 class Campaign:
     """Kill runs of one plan; check every file after every kill; count where the kills landed."""
 
-    def __init__(self, tmp_path: Path, plan_rows: list[tuple[int, str, float, float]],
-                 protocol: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self, tmp_path: Path, plan_rows: list[tuple[int, str, float, float]], protocol: tuple[str, ...] = ()
+    ) -> None:
         self.tmp = tmp_path
         self.protocol = protocol  # ("--protocol", path) for a run of another protocol than takuma2014
         self.plan = tmp_path / "plan.csv"
-        self.plan.write_text("trial,set,mass_g,direction_deg\n"
-                             + "".join(f"{t},{s},{m:g},{d:g}\n" for t, s, m, d in plan_rows))
+        self.plan.write_text(
+            "trial,set,mass_g,direction_deg\n" + "".join(f"{t},{s},{m:g},{d:g}\n" for t, s, m, d in plan_rows)
+        )
         self.ids = [r[0] for r in plan_rows]
         self.fit = [r[0] for r in plan_rows if r[1] == "fit"]
         self.validation = [r[0] for r in plan_rows if r[1] == "validation"]
@@ -227,7 +239,7 @@ class Campaign:
             assert len(run.table()) == len(ids)
         # Trials are recorded in plan order, each once.
         assert ids == self.ids[: len(ids)], ids
-        assert incomplete in ([], self.ids[len(ids): len(ids) + 1]), incomplete
+        assert incomplete in ([], self.ids[len(ids) : len(ids) + 1]), incomplete
         assert set(seen) <= set(ids), "a trial complete before the kill was lost"
         data = trial_data(path)
         for t in ids:
@@ -262,8 +274,11 @@ class Campaign:
         last = proc.stderr.strip().splitlines()[-1]
         n = len(ids)
         safe = f"{n} trial{'' if n == 1 else 's'} stored in {path} {'is' if n == 1 else 'are'} safe"
-        m = re.fullmatch(rf"Interrupted during (trial (\d+), which was discarded|the pause between trials|the setup); "
-                         rf"{re.escape(safe)}\. {re.escape(resume_sentence(path))}", last)
+        m = re.fullmatch(
+            rf"Interrupted during (trial (\d+), which was discarded|the pause between trials|the setup); "
+            rf"{re.escape(safe)}\. {re.escape(resume_sentence(path))}",
+            last,
+        )
         assert m, last
         if m.group(2) is not None:
             assert int(m.group(2)) == self.ids[n]  # the trial in progress is the first one missing
@@ -288,8 +303,15 @@ class Campaign:
 
 def plan_rows(n: int, n_validation: int) -> list[tuple[int, str, float, float]]:
     rows = load_plan(load_protocol("takuma2014")).head(n).to_dict("records")
-    return [(int(r["trial"]), "validation" if i >= n - n_validation else "fit", float(r["mass_g"]),
-             float(r["direction_deg"])) for i, r in enumerate(rows)]
+    return [
+        (
+            int(r["trial"]),
+            "validation" if i >= n - n_validation else "fit",
+            float(r["mass_g"]),
+            float(r["direction_deg"]),
+        )
+        for i, r in enumerate(rows)
+    ]
 
 
 # ---------------------------------------------------------------- tests
@@ -318,8 +340,10 @@ def test_ctrl_c_during_the_setup_check_leaves_no_file_and_says_so(tmp_path, monk
     path = tmp_path / "run.h5"
     outcome = acquire(path, PORT, protocol="takuma2014", unattended=True, ui=quiet())
     assert outcome.exit_code == 130
-    assert outcome.message == (f"Interrupted during the setup, before anything was written to {path}; "
-                               "run the same command again to start the run.")
+    assert outcome.message == (
+        f"Interrupted during the setup, before anything was written to {path}; "
+        "run the same command again to start the run."
+    )
     assert not path.exists()
 
 
@@ -347,14 +371,16 @@ def ctrl_c_inside(monkeypatch, name: str, when=lambda *a: True) -> None:
 
 def test_ctrl_c_during_a_write_stores_the_trial_whole_and_says_so(tmp_path, monkeypatch):
     plan = tmp_path / "plan.csv"
-    plan.write_text("trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n"
-                    "4,validation,400,-150\n")
+    plan.write_text(
+        "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n4,validation,400,-150\n"
+    )
     path = tmp_path / "run.h5"
     ctrl_c_inside(monkeypatch, "write", lambda record: record["trial"] == 3)
     outcome = acquire(path, PORT, protocol="takuma2014", plan=plan, unattended=True, ui=quiet())
     assert outcome.exit_code == 130
-    assert outcome.message == (f"Interrupted during the pause between trials; 3 trials stored in {path} are safe. "
-                               f"{resume_sentence(path)}")
+    assert outcome.message == (
+        f"Interrupted during the pause between trials; 3 trials stored in {path} are safe. {resume_sentence(path)}"
+    )
     with RunFile.open(path) as run:
         assert run.completed_ids() == [1, 2, 3] and run.incomplete_ids() == [] and run.split() is None
 

@@ -38,8 +38,14 @@ def quick_protocol(tmp_path: Path) -> Path:
     text = load_protocol("takuma2014").text
     # Limits for the short window: its 0.02 s block means (4 samples) carry about twice the noise
     # of the shipped 0.1 s ones, which one count would not leave still for long.
-    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "20.0"), ("capture_s", "0.2"),
-                       ("pressure_spread_MPa", "0.001"), ("angle_spread_deg", "0.3")):
+    for key, value in (
+        ("window_s", "0.2"),
+        ("hold_s", "0.2"),
+        ("timeout_s", "20.0"),
+        ("capture_s", "0.2"),
+        ("pressure_spread_MPa", "0.001"),
+        ("angle_spread_deg", "0.3"),
+    ):
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
     path = tmp_path / "quick.toml"
@@ -52,11 +58,19 @@ class Session:
     """One ``labcli acquire`` process with a person at its prompts."""
 
     def __init__(self, args: list[str], cwd: Path = ROOT) -> None:
-        env = dict(os.environ, COLUMNS="300", PYTHONUNBUFFERED="1",
-                   PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+        env = dict(
+            os.environ,
+            COLUMNS="300",
+            PYTHONUNBUFFERED="1",
+            PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
+        )
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "labcli", "acquire", *args], cwd=cwd, env=env,
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+            [sys.executable, "-m", "labcli", "acquire", *args],
+            cwd=cwd,
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
         )
         self.out = ""
         self._pos = 0
@@ -139,7 +153,7 @@ def test_a_person_redoes_skips_quits_is_interrupted_and_resumes(tmp_path, rig_on
 
     # Session 1: redo trial 1 then accept it, skip trial 2, quit at trial 3's load prompt.
     s = Session([str(run), "--port", port, "--protocol", str(proto), "--plan", str(tmp_path / "takuma2014-plan.csv")])
-    s.expect(f"channels P_L1,P_R1,P_L2,P_R2,POT1,POT2 match protocol takuma2014; readings in range.")
+    s.expect("channels P_L1,P_R1,P_L2,P_R2,POT1,POT2 match protocol takuma2014; readings in range.")
     do_setup(s, rig)
     do_trial(s, rig, "Trial 1/3 (fit)", 200, -60, "r")
     do_trial(s, rig, "Trial 1/3 (fit)", 200, -60, "a")
@@ -147,8 +161,9 @@ def test_a_person_redoes_skips_quits_is_interrupted_and_resumes(tmp_path, rig_on
     s.expect("Trial 3/3 (validation): hang 300 g, pulley direction 150 deg, then press Enter (q to quit):")
     s.type("q")
     assert s.finish() == 0
-    s.expect(f"Stopped at your request during trial 3, which was not stored; 1 trial stored in {run}. "
-             f"Resume with: {resume}")
+    s.expect(
+        f"Stopped at your request during trial 3, which was not stored; 1 trial stored in {run}. Resume with: {resume}"
+    )
     assert load_trials(run)["trial"].tolist() == [1]
 
     # Session 2: trial 2 accepted, then Ctrl-C while trial 3 settles under its load.
@@ -161,8 +176,9 @@ def test_a_person_redoes_skips_quits_is_interrupted_and_resumes(tmp_path, rig_on
     time.sleep(0.3)
     s.proc.send_signal(signal.SIGINT)
     assert s.finish() == 130
-    s.expect(f"Interrupted during trial 3, which was discarded; 2 trials stored in {run} are safe. "
-             f"Resume with: {resume}")
+    s.expect(
+        f"Interrupted during trial 3, which was discarded; 2 trials stored in {run} are safe. Resume with: {resume}"
+    )
     rig.remove_weight()
     with RunFile.open(run) as f:
         assert f.completed_ids() == [1, 2] and f.incomplete_ids() == [] and f.split() is None

@@ -35,8 +35,15 @@ CASES = all_cases()
 
 def labcli(*args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
     env = dict(os.environ, COLUMNS="400", PYTHONWARNINGS="ignore")
-    return subprocess.run([sys.executable, "-m", "labcli", *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=timeout, env=env, stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        [sys.executable, "-m", "labcli", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=env,
+        stdin=subprocess.DEVNULL,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -48,8 +55,9 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from labcli.papers.takuma2014.tables import write_trial_csv
 
     w = tmp_path_factory.mktemp("world")
-    table = pd.concat([paper_trials(12, seed=1), paper_trials(4, seed=2, set_name="validation", start_id=13)],
-                      ignore_index=True)
+    table = pd.concat(
+        [paper_trials(12, seed=1), paper_trials(4, seed=2, set_name="validation", start_id=13)], ignore_index=True
+    )
     write_trial_csv(table, w / "trials.csv")
     shutil.copy(PROTOCOLS / "takuma2014.toml", w / "good.toml")
     shutil.copy(PROTOCOLS / "takuma2014-plan.csv", w / "takuma2014-plan.csv")
@@ -69,8 +77,14 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def digest(folder: Path) -> dict[str, str]:
     """Every regular file's hash, and what else is there (a named pipe stays one)."""
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file()
-            else "fifo" if p.is_fifo() else "dir" for p in sorted(folder.rglob("*"))}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        if p.is_file()
+        else "fifo"
+        if p.is_fifo()
+        else "dir"
+        for p in sorted(folder.rglob("*"))
+    }
 
 
 def expected_stderr(case: Case, world: Path, port: str | None) -> str:
@@ -134,11 +148,34 @@ def test_bad_input(case: Case, world: Path, tmp_path: Path) -> None:
 def test_the_table_covers_every_entry_point() -> None:
     assert len(CASES) >= 30 and len({c.id for c in CASES}) == len(CASES)
     entries = {c.entry for c in CASES}
-    assert entries == {"protocol TOML", "plan CSV", "trial CSV", "push CSV", "point CSV", "HDF5 file", "model JSON",
-                       "CLI argument", "port", "run file", "standard input", "rig", "output path"}
+    assert entries == {
+        "protocol TOML",
+        "plan CSV",
+        "trial CSV",
+        "push CSV",
+        "point CSV",
+        "HDF5 file",
+        "model JSON",
+        "CLI argument",
+        "port",
+        "run file",
+        "standard input",
+        "rig",
+        "output path",
+    }
     commands = {c.args[0] for c in CASES}
-    assert commands >= {"acquire", "fit", "validate", "classify", "optimize", "split", "inspect", "export",
-                        "import", "monitor"}
+    assert commands >= {
+        "acquire",
+        "fit",
+        "validate",
+        "classify",
+        "optimize",
+        "split",
+        "inspect",
+        "export",
+        "import",
+        "monitor",
+    }
 
 
 # --------------------------------------------------------------------------- a run held open elsewhere
@@ -166,8 +203,9 @@ def test_a_run_open_for_reading_elsewhere_is_reported_as_such(world: Path, tmp_p
     shutil.copytree(world, here)
     with h5py.File(here / "run.h5", "r"):
         r = labcli("fit", "run.h5", "--form", "paper", cwd=here)
-    assert r.stderr == ("Error: run.h5 is open in another program (a viewer, or a run still recording); "
-                        "close it there and try again.\n")
+    assert r.stderr == (
+        "Error: run.h5 is open in another program (a viewer, or a run still recording); close it there and try again.\n"
+    )
 
 
 def test_a_failing_fit_leaves_an_existing_model_and_the_run_as_they_were(world: Path, tmp_path: Path) -> None:

@@ -22,8 +22,7 @@ from labcli.core.protocol import load_protocol
 from labcli.core.store import import_table
 from labcli.papers.takuma2014.models.classify import classify_file, stiffness_settings
 from labcli.papers.takuma2014.models.stiffness import REASON_UNOBSERVED_DIRECTION, StiffnessParams
-from labcli.papers.takuma2014.models.takuma import (DEFAULT_MAX_AMPLIFICATION, TakumaModel,
-                                                        force_amplification)
+from labcli.papers.takuma2014.models.takuma import DEFAULT_MAX_AMPLIFICATION, TakumaModel, force_amplification
 from labcli.papers.takuma2014.protocol import load_plan
 from labcli.papers.takuma2014.sim import physics as ph
 from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
@@ -64,11 +63,16 @@ def lab(tmp_path_factory):
         SimObject("ref-steel-a", "steel", 0.037, 6500.0, 0.020, "reference"),
         SimObject("ref-steel-b", "steel", 0.037, 9000.0, 0.020, "reference"),
     ]
-    ref = simulate_pushes(rig, refs, calibration=push.calibration, pushes_per_object=5, labelled=True,
-                          first_push=1001)
+    ref = simulate_pushes(rig, refs, calibration=push.calibration, pushes_per_object=5, labelled=True, first_push=1001)
     write_push_csv(ref, d / "refs.csv")
-    return {"dir": d, "model": d / "model.json", "pushes": d / "pushes.csv", "refs": d / "refs.csv",
-            "table": table, "push_protocol": push}
+    return {
+        "dir": d,
+        "model": d / "model.json",
+        "pushes": d / "pushes.csv",
+        "refs": d / "refs.csv",
+        "table": table,
+        "push_protocol": push,
+    }
 
 
 def run(*args):
@@ -107,9 +111,22 @@ def test_json_carries_every_push_with_its_geometry(lab):
     assert len(data["pushes"]) == 60
     h2, h3 = 0.130, 0.065
     table = lab["table"]
-    for p, row in zip(data["pushes"], table.itertuples()):
-        for key in ("theta1_deg", "theta2_deg", "Fx_N", "Fy_N", "xc_mm", "yc_mm", "phi_deg", "xo_mm", "yo_mm",
-                    "delta_x_mm", "k_N_per_m", "flagged", "reason"):
+    for p, row in zip(data["pushes"], table.itertuples(), strict=False):
+        for key in (
+            "theta1_deg",
+            "theta2_deg",
+            "Fx_N",
+            "Fy_N",
+            "xc_mm",
+            "yc_mm",
+            "phi_deg",
+            "xo_mm",
+            "yo_mm",
+            "delta_x_mm",
+            "k_N_per_m",
+            "flagged",
+            "reason",
+        ):
             assert key in p
         assert p["push"] == row.push and p["object"] == row.object and not p["flagged"]
         assert p["phi_deg"] == pytest.approx(row.phi_deg) and not p["phi_solved"]
@@ -142,8 +159,19 @@ def test_rich_report_has_units_and_the_numbers_of_the_json(lab):
     res = run("classify", lab["pushes"], "--model", lab["model"])
     assert res.exit_code == 0, res.output
     data = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--json").output)
-    for header in ("theta1 [deg]", "Fx [N]", "C [mm]", "phi [deg]", "O2 [mm]", "delta_x [mm]", "k_o [N/m]",
-                   "mean k_o [N/m]", "sd [N/m]", "true k_o [N/m]", "confidence"):
+    for header in (
+        "theta1 [deg]",
+        "Fx [N]",
+        "C [mm]",
+        "phi [deg]",
+        "O2 [mm]",
+        "delta_x [mm]",
+        "k_o [N/m]",
+        "mean k_o [N/m]",
+        "sd [N/m]",
+        "true k_o [N/m]",
+        "confidence",
+    ):
         assert header in res.output
     assert "Objects: category by stiffness bands of the protocol" in res.output
     # At 80 columns the objects' table comes in column groups, each starting with the object's name.
@@ -191,8 +219,9 @@ def test_run_file_gives_the_same_answer_as_the_csv(lab, tmp_path):
 
 
 def test_measured_angles_agree_with_pressure_only(lab):
-    a = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--json",
-                       "--angles", "measured-angles").output)
+    a = json.loads(
+        run("classify", lab["pushes"], "--model", lab["model"], "--json", "--angles", "measured-angles").output
+    )
     assert a["angles"] == "measured-angles"
     for o in a["objects"]:
         assert o["category"] == truth()[o["object"]][0]
@@ -321,9 +350,11 @@ class _Proto:
 
 
 def test_stiffness_settings_from_a_protocol_table():
-    params, force = stiffness_settings(_Proto({"stiffness": {"force_protocol": "takuma2014",
-                                                             "singular_component": "exclude",
-                                                             "min_deformation_m": 2e-4}}))
+    params, force = stiffness_settings(
+        _Proto(
+            {"stiffness": {"force_protocol": "takuma2014", "singular_component": "exclude", "min_deformation_m": 2e-4}}
+        )
+    )
     assert force == "takuma2014"
     assert params == StiffnessParams(singular_component="exclude", min_deformation_m=2e-4)
     assert stiffness_settings(_Proto({})) == (StiffnessParams(), None)
@@ -383,8 +414,9 @@ def test_demo_objects_deform_measurably_and_stay_in_the_protocol_range():
 def test_the_report_piped_at_80_columns_is_plain_and_whole(lab):
     import re
 
-    r = CliRunner(env={"COLUMNS": "80"}).invoke(cli, ["classify", str(lab["pushes"]), "--model", str(lab["model"]),
-                                                      "--method", "bands"])
+    r = CliRunner(env={"COLUMNS": "80"}).invoke(
+        cli, ["classify", str(lab["pushes"]), "--model", str(lab["model"]), "--method", "bands"]
+    )
     assert r.exit_code == 0, r.output
     assert not re.search("[\u2500-\u257f]", r.stdout)
     assert not re.search(r"[0-9.+\-]\u2026", r.stdout) and "pet\u2026" not in r.stdout
@@ -397,8 +429,9 @@ def test_categories_report_their_evidence(lab, tmp_path):
     """Every object carries its distance to each class, and "uncertain" exactly when the rule says so."""
     push = lab["push_protocol"]
     odd = [SimObject("between-1", "PET", 0.033, 1000.0, 0.010, "unknown")]
-    write_push_csv(simulate_pushes(SimRig(seed=SEED), odd, calibration=push.calibration, first_push=2001),
-                   tmp_path / "odd.csv")
+    write_push_csv(
+        simulate_pushes(SimRig(seed=SEED), odd, calibration=push.calibration, first_push=2001), tmp_path / "odd.csv"
+    )
     r = run("classify", tmp_path / "odd.csv", "--model", lab["model"], "--reference", lab["refs"], "--json")
     assert r.exit_code == 0, r.output
     objects = {o["object"]: o for o in json.loads(r.stdout)["objects"]}
@@ -452,17 +485,20 @@ def test_many_pushes_are_summarised_per_object_and_listed_on_request(lab, tmp_pa
     write_push_csv(many, tmp_path / "many.csv")
     r = run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands")
     assert r.exit_code == 0, r.output
-    assert "120 pushes of many.csv (angles and force from the pressures) on 6 objects; list them with --pushes." \
+    assert (
+        "120 pushes of many.csv (angles and force from the pressures) on 6 objects; list them with --pushes."
         in r.stdout
+    )
     assert "theta1 [deg]" not in r.stdout and "Objects: category by" in r.stdout
     listed = run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands", "--pushes")
     assert "theta1 [deg]" in listed.stdout and "1060 " in listed.stdout
-    data = json.loads(run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands",
-                          "--json").stdout)
+    data = json.loads(
+        run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands", "--json").stdout
+    )
     assert data["n_pushes"] == 120 and len(data["pushes"]) == 120 and len(data["objects"]) == 6
     small = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--method", "bands", "--json").stdout)
     # the same objects from twice the same pushes: the same means, the streamed JSON the same fields
-    for a, b in zip(small["objects"], data["objects"]):
+    for a, b in zip(small["objects"], data["objects"], strict=False):
         assert a["object"] == b["object"] and a["k_mean_N_per_m"] == pytest.approx(b["k_mean_N_per_m"])
         assert b["n"] == 2 * a["n"]
     assert set(data["pushes"][0]) == set(small["pushes"][0])

@@ -57,7 +57,5 @@ def test_help_imports_no_heavy_module():
 
 
 def test_python_dash_m_runs_the_same_cli():
-    out = subprocess.run(
-        [sys.executable, "-m", "labcli", "--version"], capture_output=True, text=True, check=True
-    )
+    out = subprocess.run([sys.executable, "-m", "labcli", "--version"], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == f"labcli, version {labcli.__version__}"

@@ -18,11 +18,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from test_acquire_pty import REVIEW, Session
 
 from labcli.core.store import RunFile
 from labcli.core.store.verify import verify
-
-from test_acquire_pty import REVIEW, Session
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM = "sim://?seed=2&clock=virtual"
@@ -32,8 +31,15 @@ BUSY = "Error: run.h5 is open in another program (a viewer, or a run still recor
 
 def start(*args: str, cwd: Path) -> subprocess.Popen:
     env = dict(os.environ, COLUMNS="300", PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.Popen([sys.executable, "-m", "labcli", *args], cwd=cwd, env=env, stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "labcli", *args],
+        cwd=cwd,
+        env=env,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def finish(proc: subprocess.Popen) -> tuple[int, str, str]:
@@ -58,11 +64,14 @@ def answer_trial(s: Session, label: str, *, prompted: bool = False) -> None:
 
 # What each writer is told while the run records: the lock's one sentence, naming the file.
 WRITERS = {
-    "acquire --force": (["acquire", "run.h5", "--force", "--port", "sim://?seed=5&clock=virtual", "--unattended",
-                         "--plan", "plan.csv"],
-                        f"{BUSY}; --force never replaces a run another program has open."),
-    "import --force": (["import", "t.csv", "-o", "run.h5", "--force", "--protocol", "takuma2014"],
-                       f"{BUSY}; --force never replaces a run another program has open."),
+    "acquire --force": (
+        ["acquire", "run.h5", "--force", "--port", "sim://?seed=5&clock=virtual", "--unattended", "--plan", "plan.csv"],
+        f"{BUSY}; --force never replaces a run another program has open.",
+    ),
+    "import --force": (
+        ["import", "t.csv", "-o", "run.h5", "--force", "--protocol", "takuma2014"],
+        f"{BUSY}; --force never replaces a run another program has open.",
+    ),
     "fit": (["fit", "run.h5", "--form", "paper"], f"{BUSY}."),
     "split": (["split", "run.h5", "--fit", "1", "--validation", "0"], f"{BUSY}."),
 }
@@ -82,8 +91,10 @@ def test_writers_are_refused_readers_served_and_the_live_run_completes(tmp_path,
         s.expect("Trial 2/3 (fit): hang")  # trial 1 is committed; the run waits at the rig, file open
         before = sha(run)
         procs = {name: start(*args, cwd=tmp_path) for name, (args, _) in WRITERS.items()}
-        readers = {"inspect": start("inspect", "run.h5", "--json", cwd=tmp_path),
-                   "export": start("export", "run.h5", "-o", "so-far.csv", cwd=tmp_path)}
+        readers = {
+            "inspect": start("inspect", "run.h5", "--json", cwd=tmp_path),
+            "export": start("export", "run.h5", "-o", "so-far.csv", cwd=tmp_path),
+        }
         results = {name: finish(p) for name, p in {**procs, **readers}.items()}
         assert s.proc.poll() is None, "the recording ended before the others had acted"
         got = {name: results[name][0:3:2] for name in WRITERS}
@@ -123,17 +134,30 @@ def race(tmp_path: Path, seeds: tuple[int, int]) -> None:
     (tmp_path / "plan.csv").write_text(PLAN.splitlines()[0] + "\n" + PLAN.splitlines()[1] + "\n")
     run = tmp_path / "new.h5"
     run.unlink(missing_ok=True)
-    procs = [start("acquire", "new.h5", "--port", f"sim://?seed={seed}&clock=virtual", "--unattended",
-                   "--plan", "plan.csv", cwd=tmp_path) for seed in seeds]
+    procs = [
+        start(
+            "acquire",
+            "new.h5",
+            "--port",
+            f"sim://?seed={seed}&clock=virtual",
+            "--unattended",
+            "--plan",
+            "plan.csv",
+            cwd=tmp_path,
+        )
+        for seed in seeds
+    ]
     results = [finish(p) for p in procs]
     codes = sorted(code for code, _, _ in results)
     assert codes == [0, 1], results
-    (_, won, _), = [r for r in results if r[0] == 0]
-    (_, _, lost), = [r for r in results if r[0] == 1]
+    ((_, won, _),) = [r for r in results if r[0] == 0]
+    ((_, _, lost),) = [r for r in results if r[0] == 1]
     assert "Session complete: 1 trial stored in new.h5" in won
-    assert lost in ("Error: new.h5 already exists; continue it with --resume, or pass --force to overwrite it.\n",
-                    "Error: new.h5 is open in another program (a viewer, or a run still recording); close it "
-                    "there and try again.\n"), lost
+    assert lost in (
+        "Error: new.h5 already exists; continue it with --resume, or pass --force to overwrite it.\n",
+        "Error: new.h5 is open in another program (a viewer, or a run still recording); close it "
+        "there and try again.\n",
+    ), lost
     whole(run, [1])
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".labcli-")] == []  # no builder's leftovers
 

@@ -31,9 +31,11 @@ def ideal_demo_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo-ideal") / "out"
     acquire = demo.acquire_unattended
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(demo, "acquire_unattended",
-                   lambda path, port, *a, **kw: acquire(path, port if "ideal=1" in port else port + "&ideal=1",
-                                                        *a, **kw))
+        mp.setattr(
+            demo,
+            "acquire_unattended",
+            lambda path, port, *a, **kw: acquire(path, port if "ideal=1" in port else port + "&ideal=1", *a, **kw),
+        )
         result = CliRunner().invoke(cli, ["demo", str(out), "--seed", "3"])
     assert result.exit_code == 0, result.output
     with RunFile.open(out / "force.h5") as f:

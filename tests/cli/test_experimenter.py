@@ -16,23 +16,33 @@ import pytest
 
 pexpect = pytest.importorskip("pexpect", reason="pip install pexpect (the test extras)")
 
-from labcli.papers.takuma2014.records import load_trials  # noqa: E402
-
 from test_acquire_pty import REVIEW, quick_protocol, rig_on_pty  # noqa: E402,F401 (a fixture)
+
+from labcli.papers.takuma2014.records import load_trials  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 # Seven trials teach the session what a load does on this rig (by trial 8 it is sure that 1000 g
 # at -30 deg bends the lower joint by at least 8 deg); trial 8 is the one the experimenter never
 # loads, trial 9 the one whose weight is left hanging.
 LEARN = ((800, -60), (800, 30), (800, 150), (800, -150), (1000, -60), (800, -90), (800, 90))
-PLAN = ("trial,set,mass_g,direction_deg\n" + "".join(f"{i},fit,{m},{d}\n" for i, (m, d) in enumerate(LEARN, 1))
-        + "8,validation,1000,-30\n9,validation,800,-60\n10,validation,500,150\n")
+PLAN = (
+    "trial,set,mass_g,direction_deg\n"
+    + "".join(f"{i},fit,{m},{d}\n" for i, (m, d) in enumerate(LEARN, 1))
+    + "8,validation,1000,-30\n9,validation,800,-60\n10,validation,500,150\n"
+)
 
 
-def spawn(args: list[str]) -> "pexpect.spawn":
+def spawn(args: list[str]) -> pexpect.spawn:
     env = dict(os.environ, COLUMNS="300", PYTHONUNBUFFERED="1")
-    child = pexpect.spawn(sys.executable, ["-m", "labcli", "acquire", *args], cwd=str(ROOT), env=env,
-                          encoding="utf-8", timeout=30, dimensions=(50, 300))
+    child = pexpect.spawn(
+        sys.executable,
+        ["-m", "labcli", "acquire", *args],
+        cwd=str(ROOT),
+        env=env,
+        encoding="utf-8",
+        timeout=30,
+        dimensions=(50, 300),
+    )
     return child
 
 
@@ -74,8 +84,10 @@ def test_enter_twice_without_the_weight_never_stores_the_trial_and_a_weight_left
     child.send("\r\r")
     child.expect_exact("Trial 8/10 (validation): remove the weight, then press Enter")
     child.sendline("")
-    child.expect("check that the load was applied as the prompt said, then redo the trial \\(Enter\\), or accept it "
-                 "as it is \\(a\\)")
+    child.expect(
+        "check that the load was applied as the prompt said, then redo the trial \\(Enter\\), or accept it "
+        "as it is \\(a\\)"
+    )
     child.expect_exact("Accept [a], redo [r], skip [s] or quit [q]? (r):")
     child.sendline("")  # Enter alone: the default, redo
     trial(child, rig, "Trial 8/10 (validation)", 1000, -30)
@@ -86,8 +98,9 @@ def test_enter_twice_without_the_weight_never_stores_the_trial_and_a_weight_left
     trial(child, rig, "Trial 9/10 (validation)", 800, -60, remove=False)
     child.expect_exact(REVIEW)
     child.sendline("a")
-    child.expect("The readings have not returned since the last load: they are still \\d+% of the way to the "
-                 "loaded ones")
+    child.expect(
+        "The readings have not returned since the last load: they are still \\d+% of the way to the loaded ones"
+    )
     child.expect_exact("the last weight may still hang on the pulley")
     rig.remove_weight()
     child.sendline("")
@@ -112,9 +125,15 @@ def quick_push_protocol(tmp_path: Path, pushes: int) -> Path:
     from labcli.core.protocol import load_protocol
 
     text = load_protocol("takuma2014-stiffness").text
-    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "20.0"), ("capture_s", "0.2"),
-                       ("pressure_spread_MPa", "0.001"), ("angle_spread_deg", "0.3"),
-                       ("pushes_per_object", str(pushes))):
+    for key, value in (
+        ("window_s", "0.2"),
+        ("hold_s", "0.2"),
+        ("timeout_s", "20.0"),
+        ("capture_s", "0.2"),
+        ("pressure_spread_MPa", "0.001"),
+        ("angle_spread_deg", "0.3"),
+        ("pushes_per_object", str(pushes)),
+    ):
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
     path = tmp_path / "push.toml"
@@ -148,8 +167,10 @@ def test_a_two_object_push_session_asks_per_push_at_most_three_answers(tmp_path,
     child.expect_exact("then press Enter (q to quit):")
     rig.close_valves()
     t.answer("")
-    objects = (("pet-1", "33", "soft", "10", "30", 0.033, 0.010, 30.0, 300.0),
-               ("can-2", "40", "hard", "", "", 0.040, 0.010, 30.0, 3000.0))  # Enter keeps pet-1's d and phi
+    objects = (
+        ("pet-1", "33", "soft", "10", "30", 0.033, 0.010, 30.0, 300.0),
+        ("can-2", "40", "hard", "", "", 0.040, 0.010, 30.0, 3000.0),
+    )  # Enter keeps pet-1's d and phi
     per_push = []
     for i, (name, r_mm, cat, d_mm, phi, R, d, phi_deg, k) in enumerate(objects, start=1):
         t.answer(f"Object {i}: name", name)

@@ -7,11 +7,10 @@ import sys
 
 import pandas as pd
 import pytest
+from cli.test_store_commands import invoke, make_run
 
 import labcli
 from labcli.core import table_meta
-
-from cli.test_store_commands import invoke, make_run
 
 PRESSURES = ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2")
 
@@ -83,6 +82,7 @@ def test_parquet_without_pyarrow_is_one_sentence(run_path, tmp_path, monkeypatch
     out = tmp_path / "t.parquet"
     res = invoke("export", run_path, "-o", out)
     assert res.exit_code == 1
-    assert res.output == ("Error: writing parquet needs pyarrow, which is not installed; install it with "
-                          "pip install 'labcli[parquet]'.\n")
+    assert res.output == (
+        "Error: writing parquet needs pyarrow, which is not installed; install it with pip install 'labcli[parquet]'.\n"
+    )
     assert not out.exists()

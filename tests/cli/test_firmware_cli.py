@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from support.firmware_build import ROOT
 
 from labcli.cli import cli
 from labcli.core.device import Device
@@ -37,7 +38,6 @@ from labcli.core.sim.hil_port import HilSerial
 from labcli.core.sim.hil_pty import serve_firmware_pty
 from labcli.core.sim.url import accepted_form
 from labcli.core.store import RunFile
-from support.firmware_build import ROOT
 
 PLAN4 = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n4,validation,1000,-120\n"
 ENV = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
@@ -77,8 +77,14 @@ def test_monitor_reads_the_rig_through_the_firmware(firmware_elf):
         # bends joint 1 by about 2.5 deg (30 counts) and raises P_L1 by about 7 kPa (22 counts).
         rig.hang_weight(1.0, 0.0)
         time.sleep(1.0)  # the rig is still again
-        proc = subprocess.run([sys.executable, "-m", "labcli", "monitor", "--port", server.path, "--seconds", "3",
-                               "--json"], cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+        proc = subprocess.run(
+            [sys.executable, "-m", "labcli", "monitor", "--port", server.path, "--seconds", "3", "--json"],
+            cwd=ROOT,
+            env=ENV,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         t_end = server.link.avr_time_s
         fed = server.link.fed()
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -124,8 +130,20 @@ def test_unattended_acquire_through_the_firmware(firmware_elf, tmp_path, monkeyp
     (tmp_path / "plan.csv").write_text(PLAN4)
     run = tmp_path / "run.h5"
     url = f"sim://?firmware={firmware_elf}&seed=4&tau=0.1"
-    result = CliRunner().invoke(cli, ["acquire", str(run), "--port", url, "--unattended", "--protocol",
-                                      str(quick_protocol(tmp_path)), "--plan", str(tmp_path / "plan.csv")])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "acquire",
+            str(run),
+            "--port",
+            url,
+            "--unattended",
+            "--protocol",
+            str(quick_protocol(tmp_path)),
+            "--plan",
+            str(tmp_path / "plan.csv"),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert f"Session complete: 4 trials stored in {run}" in result.output
     assert link_counters["frames"] > 0
@@ -151,14 +169,24 @@ def test_sim_pty_firmware_serves_the_board_and_leaves_nothing_running(firmware_e
     own.mkdir()
     for name in ("labcli_rig.elf", "labcli_hil"):
         shutil.copy2(firmware_elf.with_name(name), own / name)
-    proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--firmware", str(own / "labcli_rig.elf")],
-                            cwd=ROOT, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "labcli", "sim", "--pty", "--firmware", str(own / "labcli_rig.elf")],
+        cwd=ROOT,
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         first = proc.stdout.readline()
         path = first.split()[3].rstrip(",")
         assert first == f"Simulated rig on {path}, firmware {own / 'labcli_rig.elf'} on simavr (Ctrl-C to stop)\n"
         with Device.open(path, boot_wait=0) as dev:
-            assert (dev.info.device, dev.info.firmware, dev.info.channels) == ("mckibben-2dof", "1.0-avr", FIRMWARE_CHANNELS)
+            assert (dev.info.device, dev.info.firmware, dev.info.channels) == (
+                "mckibben-2dof",
+                "1.0-avr",
+                FIRMWARE_CHANNELS,
+            )
             dev.set_rate(100)
             dev.start()
             n = sum(len(dev.read(timeout=0.25)) for _ in range(4))
@@ -191,39 +219,56 @@ def processes_running(path: Path) -> list[str]:
 def test_a_file_that_is_not_firmware_is_named(firmware_elf, tmp_path):
     (tmp_path / "labcli_rig.elf").write_text("not an ELF file\n")
     shutil.copy2(firmware_elf.with_name("labcli_hil"), tmp_path / "labcli_hil")
-    result = CliRunner().invoke(cli, ["monitor", "--port", f"sim://?firmware={tmp_path / 'labcli_rig.elf'}",
-                                      "--seconds", "1"])
+    result = CliRunner().invoke(
+        cli, ["monitor", "--port", f"sim://?firmware={tmp_path / 'labcli_rig.elf'}", "--seconds", "1"]
+    )
     assert result.exit_code == 1
-    assert result.output == ("Error: The simulated board running labcli_rig.elf did not start: "
-                             "cannot read the firmware ELF.\n")
+    assert result.output == (
+        "Error: The simulated board running labcli_rig.elf did not start: cannot read the firmware ELF.\n"
+    )
 
 
 # ---------------------------------------------------------------- no simulator needed
 
 
-@pytest.mark.parametrize("option, why", [
-    ("rate=100", "option 'rate' in sim:// URL does not go with firmware=: the firmware powers up at its own "
-                 "rate and takes RATE from the host"),
-    ("faults=drop:0.1", "option 'faults' in sim:// URL does not go with firmware=: the firmware's link is what "
-                        "its UART makes"),
-])
+@pytest.mark.parametrize(
+    "option, why",
+    [
+        (
+            "rate=100",
+            "option 'rate' in sim:// URL does not go with firmware=: the firmware powers up at its own "
+            "rate and takes RATE from the host",
+        ),
+        (
+            "faults=drop:0.1",
+            "option 'faults' in sim:// URL does not go with firmware=: the firmware's link is what its UART makes",
+        ),
+    ],
+)
 def test_firmware_model_options_are_refused_with_a_firmware(option, why):
     port = f"sim://?firmware=fw.elf&{option}"
     result = CliRunner().invoke(cli, ["monitor", "--port", port, "--seconds", "1"])
     assert result.exit_code == 1
-    assert result.output == f"Error: Cannot open serial port {port}: {why}; expected {accepted_form()}. Check the URL's options.\n"
+    assert (
+        result.output
+        == f"Error: Cannot open serial port {port}: {why}; expected {accepted_form()}. Check the URL's options.\n"
+    )
 
 
 def test_an_empty_firmware_option_is_refused():
     result = CliRunner().invoke(cli, ["monitor", "--port", "sim://?firmware=", "--seconds", "1"])
     assert result.exit_code == 1
-    assert result.output == ("Error: Cannot open serial port sim://?firmware=: option 'firmware' in sim:// URL must be "
-                             f"the path of a firmware ELF, got ''; expected {accepted_form()}. Check the URL's options.\n")
+    assert result.output == (
+        "Error: Cannot open serial port sim://?firmware=: option 'firmware' in sim:// URL must be "
+        f"the path of a firmware ELF, got ''; expected {accepted_form()}. Check the URL's options.\n"
+    )
 
 
 def test_missing_builds_say_how_to_make_them(tmp_path):
-    hint = ("build it with `make -C firmware` (needs gcc-avr, avr-libc, simavr, libsimavr-dev and libelf-dev: "
-            "apt-get install gcc-avr avr-libc binutils-avr simavr libsimavr-dev libelf-dev).")
+    hint = (
+        "build it with `make -C firmware` (needs gcc-avr, avr-libc, simavr, libsimavr-dev and libelf-dev: "
+        "apt-get install gcc-avr avr-libc binutils-avr simavr libsimavr-dev libelf-dev)."
+    )
     missing = tmp_path / "none.elf"
     result = CliRunner().invoke(cli, ["monitor", "--port", f"sim://?firmware={missing}", "--seconds", "1"])
     assert (result.exit_code, result.output) == (1, f"Error: No firmware at {missing}: {hint}\n")
@@ -235,18 +280,31 @@ def test_missing_builds_say_how_to_make_them(tmp_path):
 
 
 def test_the_firmware_needs_the_rig_it_was_written_for(tmp_path):
-    result = CliRunner().invoke(cli, ["monitor", "--port", f"sim://?firmware={tmp_path / 'x.elf'}&mode=rpam",
-                                      "--seconds", "1"])
+    result = CliRunner().invoke(
+        cli, ["monitor", "--port", f"sim://?firmware={tmp_path / 'x.elf'}&mode=rpam", "--seconds", "1"]
+    )
     assert result.exit_code == 1
-    assert result.output == ("Error: The firmware reads P_L1,P_R1,P_L2,P_R2,POT1,POT2 on A0-A5, but the simulated rig "
-                             "rpam-joint-sim has channels P_A,P_B,POT,LEN: run it with mode=mckibben.\n")
+    assert result.output == (
+        "Error: The firmware reads P_L1,P_R1,P_L2,P_R2,POT1,POT2 on A0-A5, but the simulated rig "
+        "rpam-joint-sim has channels P_A,P_B,POT,LEN: run it with mode=mckibben.\n"
+    )
 
 
-@pytest.mark.parametrize("args, option, why", [
-    (["--rate", "500"], "'--rate'", "the firmware powers up at its own rate and takes RATE from the host; "
-                                    "drop --rate with --firmware"),
-    (["--faults", "drop:0.1"], "'--faults'", "the firmware's link is what its UART makes; drop --faults with --firmware"),
-])
+@pytest.mark.parametrize(
+    "args, option, why",
+    [
+        (
+            ["--rate", "500"],
+            "'--rate'",
+            "the firmware powers up at its own rate and takes RATE from the host; drop --rate with --firmware",
+        ),
+        (
+            ["--faults", "drop:0.1"],
+            "'--faults'",
+            "the firmware's link is what its UART makes; drop --faults with --firmware",
+        ),
+    ],
+)
 def test_sim_refuses_options_of_the_firmware_model(args, option, why):
     result = CliRunner().invoke(cli, ["sim", "--pty", "--firmware", "fw.elf", *args])
     assert result.exit_code == 2

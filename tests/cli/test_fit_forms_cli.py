@@ -16,8 +16,9 @@ from labcli.papers.takuma2014.tables import write_trial_csv
 
 @pytest.fixture()
 def csv(tmp_path: Path) -> Path:
-    table = pd.concat([paper_trials(90, seed=1), paper_trials(18, seed=2, set_name="validation", start_id=91)],
-                      ignore_index=True)
+    table = pd.concat(
+        [paper_trials(90, seed=1), paper_trials(18, seed=2, set_name="validation", start_id=91)], ignore_index=True
+    )
     p = tmp_path / "trials.csv"
     write_trial_csv(table, p)
     return p
@@ -73,8 +74,10 @@ def test_fit_form_paper_keeps_eqs_34_37(csv: Path) -> None:
 def test_max_amplification_belongs_to_the_paper_form(csv: Path) -> None:
     r = run("fit", csv, "--max-amplification", "50")
     assert r.exit_code == 1
-    assert r.output == ("Error: --max-amplification is the paper form's cut near theta2 = 0; the posture form "
-                        "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out.\n")
+    assert r.output == (
+        "Error: --max-amplification is the paper form's cut near theta2 = 0; the posture form "
+        "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out.\n"
+    )
     assert run("fit", csv, "--form", "paper", "--max-amplification", "50").exit_code == 0
 
 

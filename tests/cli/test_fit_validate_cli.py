@@ -74,8 +74,7 @@ def test_validate_reports_metrics_flags_and_figure(csv: Path, tmp_path: Path) ->
     r = run("validate", csv, "--plot", png)
     assert r.exit_code == 0, r.output
     assert "pressure-only" in r.output and "theta1 [deg]" in r.output and "Fy [N]" in r.output
-    assert ("trial 109: Fy = — (theta2 too close to 0 for this force component (Jacobian near "
-            "singular))") in r.output
+    assert ("trial 109: Fy = — (theta2 too close to 0 for this force component (Jacobian near singular))") in r.output
     assert f"Figure 7 written to {png}." in r.output
     assert png.read_bytes()[:4] == b"\x89PNG"
     for line in r.output.splitlines():
@@ -112,13 +111,15 @@ def test_fit_and_validate_on_a_run_file_record_the_model(tmp_path: Path, table: 
     path = tmp_path / "run.h5"
     with RunFile.create(path, protocol=load_protocol("takuma2014"), operator="test") as rf:
         for _, r in table.iterrows():
-            rf.write({
-                "trial": int(r.trial),
-                "P0_MPa": r[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy(float),
-                "P_MPa": r[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy(float),
-                "theta_rad": np.radians(r[["theta1_deg", "theta2_deg"]].to_numpy(float)),
-                "force_N": r[["Fx_N", "Fy_N"]].to_numpy(float),
-            })
+            rf.write(
+                {
+                    "trial": int(r.trial),
+                    "P0_MPa": r[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy(float),
+                    "P_MPa": r[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy(float),
+                    "theta_rad": np.radians(r[["theta1_deg", "theta2_deg"]].to_numpy(float)),
+                    "force_N": r[["Fx_N", "Fy_N"]].to_numpy(float),
+                }
+            )
         rf.set_split(table.trial[table.set == "fit"], table.trial[table.set == "validation"])
     r = run("fit", path, "--form", "paper")
     assert r.exit_code == 0, r.output
@@ -131,17 +132,21 @@ def test_fit_and_validate_on_a_run_file_record_the_model(tmp_path: Path, table: 
     assert json.loads(r.output)["metrics"]["theta1"]["n"] == 20
     r = run("fit", path, "--form", "paper", "--protocol", "other")
     assert r.exit_code == 1
-    assert r.output == (f"Error: {path} was recorded with protocol 'takuma2014'; --protocol applies to "
-                        "trial CSV files only, so leave it out for a run file.\n")
+    assert r.output == (
+        f"Error: {path} was recorded with protocol 'takuma2014'; --protocol applies to "
+        "trial CSV files only, so leave it out for a run file.\n"
+    )
 
 
 # ----------------------------------------------------------------------------- errors
 
+
 def test_validate_without_a_model_file(csv: Path) -> None:
     r = run("validate", csv)
     assert r.exit_code == 1
-    assert r.output == (f"Error: The model file {csv.parent / 'trials.model.json'} does not exist; "
-                        "write one with `labcli fit`.\n")
+    assert r.output == (
+        f"Error: The model file {csv.parent / 'trials.model.json'} does not exist; write one with `labcli fit`.\n"
+    )
 
 
 def test_validate_with_a_model_of_another_protocol(csv: Path, tmp_path: Path) -> None:
@@ -153,8 +158,10 @@ def test_validate_with_a_model_of_another_protocol(csv: Path, tmp_path: Path) ->
     other.write_text(json.dumps(d))
     r = run("validate", csv, "--model", other)
     assert r.exit_code == 1
-    assert r.output == (f"Error: The model file {other} was fitted for protocol 'rig-b' but {csv} uses "
-                        "protocol 'takuma2014'; fit a model on a run of this protocol.\n")
+    assert r.output == (
+        f"Error: The model file {other} was fitted for protocol 'rig-b' but {csv} uses "
+        "protocol 'takuma2014'; fit a model on a run of this protocol.\n"
+    )
 
 
 def test_validate_with_no_validation_trials(tmp_path: Path, table: pd.DataFrame) -> None:
@@ -163,8 +170,10 @@ def test_validate_with_no_validation_trials(tmp_path: Path, table: pd.DataFrame)
     assert run("fit", p, "--form", "paper").exit_code == 0
     r = run("validate", p)
     assert r.exit_code == 1
-    assert r.output == (f"Error: {p} has no validation trials (no row with set = 'validation'); assign "
-                        "trials with `labcli split` (or fill the `set` column).\n")
+    assert r.output == (
+        f"Error: {p} has no validation trials (no row with set = 'validation'); assign "
+        "trials with `labcli split` (or fill the `set` column).\n"
+    )
 
 
 def test_fit_with_too_few_trials(tmp_path: Path, table: pd.DataFrame) -> None:
@@ -172,8 +181,10 @@ def test_fit_with_too_few_trials(tmp_path: Path, table: pd.DataFrame) -> None:
     write_trial_csv(table.head(5), p)
     r = run("fit", p, "--form", "paper")
     assert r.exit_code == 1
-    assert r.output == (f"Error: The Fx equation needs at least 7 usable fit trials for its 6 "
-                        f"coefficients, but {p} has 5; record more fit trials.\n")
+    assert r.output == (
+        f"Error: The Fx equation needs at least 7 usable fit trials for its 6 "
+        f"coefficients, but {p} has 5; record more fit trials.\n"
+    )
 
 
 def test_bad_plot_extension_and_missing_run(csv: Path, tmp_path: Path) -> None:
@@ -183,5 +194,4 @@ def test_bad_plot_extension_and_missing_run(csv: Path, tmp_path: Path) -> None:
     assert r.output == f"Error: The plot file {tmp_path / 'fig.jpg'} must end in .png, .pdf or .svg.\n"
     r = run("fit", tmp_path / "nothing.csv", "--form", "paper")
     assert r.exit_code == 1
-    assert r.output == (f"Error: {tmp_path / 'nothing.csv'} does not exist; pass a run file (.h5) or a "
-                        "trial CSV.\n")
+    assert r.output == (f"Error: {tmp_path / 'nothing.csv'} does not exist; pass a run file (.h5) or a trial CSV.\n")

@@ -27,10 +27,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from labcli.cli import cli
-from labcli.errors import ConfigError, StoreError
 from labcli.core.protocol import load_protocol
 from labcli.core.store import MAX_ID, RunFile, import_table, storable_cells
 from labcli.core.tables import TableError
+from labcli.errors import ConfigError, StoreError
 from labcli.papers.takuma2014.tables import TRIAL, read_trial_csv, write_trial_csv
 
 STANDARD = list(TRIAL.names)
@@ -45,9 +45,38 @@ PROTOCOL = load_protocol("takuma2014")
 # column (test_bad_input.py, case trial-nul-in-extra); JUNK below puts it in now and then.
 TEXT = st.text(alphabet=st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00"), max_size=10)
 JUNK = st.one_of(
-    st.sampled_from(["", " ", "nan", "NaN", "inf", "-inf", "1e400", "-0", "0", "1.5", "-3", "0x10", "1,5",
-                     "1_000", "１２", "fit", "validation", "FIT", "\"", "'", "\r", "\n", "a\nb", "1e-400",
-                     "9" * 30, "0.5 ", " 0.5", "a\x00b"]),
+    st.sampled_from(
+        [
+            "",
+            " ",
+            "nan",
+            "NaN",
+            "inf",
+            "-inf",
+            "1e400",
+            "-0",
+            "0",
+            "1.5",
+            "-3",
+            "0x10",
+            "1,5",
+            "1_000",
+            "１２",
+            "fit",
+            "validation",
+            "FIT",
+            '"',
+            "'",
+            "\r",
+            "\n",
+            "a\nb",
+            "1e-400",
+            "9" * 30,
+            "0.5 ",
+            " 0.5",
+            "a\x00b",
+        ]
+    ),
     TEXT,
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
     st.integers(-(2**70), 2**70).map(str),
@@ -66,8 +95,9 @@ def good_cell(column: str, trial: int) -> st.SearchStrategy[str]:
     if column in ("Fx_N", "Fy_N"):
         return st.floats(min_value=-1e3, max_value=1e3, allow_subnormal=False).map(repr)
     # angles; a direction of -180 reads back as 180, the same direction
-    return st.floats(min_value=-180, max_value=180, exclude_min=column == "direction_deg",
-                     allow_subnormal=False).map(repr)
+    return st.floats(min_value=-180, max_value=180, exclude_min=column == "direction_deg", allow_subnormal=False).map(
+        repr
+    )
 
 
 @st.composite
@@ -89,9 +119,14 @@ def tables(draw, valid: bool = False) -> tuple[str, bool]:
     id_values = st.integers(0, MAX_ID) if valid or draw(st.integers(0, 3)) else st.integers(-5, 2**40)
     ids = draw(st.lists(id_values, min_size=n, max_size=n, unique=damage != 3))
     rows = []
-    clean = (damage == 0 and len(set(header)) == len(header) and set(REQUIRED) <= set(header)
-             and ("mass_g" in header) == ("direction_deg" in header)
-             and ("theta1_0_deg" in header) == ("theta2_0_deg" in header) and all(0 <= t <= MAX_ID for t in ids))
+    clean = (
+        damage == 0
+        and len(set(header)) == len(header)
+        and set(REQUIRED) <= set(header)
+        and ("mass_g" in header) == ("direction_deg" in header)
+        and ("theta1_0_deg" in header) == ("theta2_0_deg" in header)
+        and all(0 <= t <= MAX_ID for t in ids)
+    )
     for i in range(n):
         row = []
         for c in header:
@@ -113,8 +148,7 @@ def tables(draw, valid: bool = False) -> tuple[str, bool]:
 
 def _line(fields: list[str]) -> str:
     # RFC 4180 quoting; csv.writer leaves a lone '\r' unquoted, which every reader takes for a line break.
-    return ",".join('"' + f.replace('"', '""') + '"' if any(ch in f for ch in ',"\r\n') else f
-                    for f in fields) + "\n"
+    return ",".join('"' + f.replace('"', '""') + '"' if any(ch in f for ch in ',"\r\n') else f for f in fields) + "\n"
 
 
 PROBLEM = re.compile(r"^(?P<file>.+?):row (?P<row>\d+)(, column (?P<col>[^:]+))?: (?P<msg>[^\n]+)\.$")
@@ -129,8 +163,10 @@ def check_outcome(text: str, folder: Path) -> None:
     except TableError as e:
         lines = str(e).split("\n")
         n = len(e.problems)
-        assert lines[0] == (f"{src} has {n} problem{'s' if n != 1 else ''} "
-                            "(rows counted as a spreadsheet shows them, the header included):")
+        assert lines[0] == (
+            f"{src} has {n} problem{'s' if n != 1 else ''} "
+            "(rows counted as a spreadsheet shows them, the header included):"
+        )
         for p in e.problems:
             m = PROBLEM.match(p)
             assert m and m["file"] == str(src), p
@@ -153,8 +189,10 @@ def check_outcome(text: str, folder: Path) -> None:
         assert not out.exists() and not Path(str(out) + ".importing").exists()
         with pytest.raises(TableError) as e:
             read_trial_csv(src, check=storable_cells)
-        assert all(PROBLEM.match(p) and p.endswith("holds a NUL character, which a run file cannot store; "
-                                                   "remove it.") for p in e.value.problems), e.value.problems
+        assert all(
+            PROBLEM.match(p) and p.endswith("holds a NUL character, which a run file cannot store; remove it.")
+            for p in e.value.problems
+        ), e.value.problems
         assert len(e.value.problems) == len(nul)
         return
     outside = [int(t) for t in df["trial"] if not 0 <= t <= MAX_ID]
@@ -167,16 +205,23 @@ def check_outcome(text: str, folder: Path) -> None:
         assert not out.exists() and not Path(str(out) + ".importing").exists()
         with pytest.raises(TableError) as e:
             read_trial_csv(src, id_range=(0, MAX_ID))
-        assert any(re.fullmatch(rf"{re.escape(str(src))}:row \d+, column trial: -?\d+ is outside the trial ids "
-                                rf"a run file holds, 0 to {MAX_ID}\.", p) for p in e.value.problems)
+        assert any(
+            re.fullmatch(
+                rf"{re.escape(str(src))}:row \d+, column trial: -?\d+ is outside the trial ids "
+                rf"a run file holds, 0 to {MAX_ID}\.",
+                p,
+            )
+            for p in e.value.problems
+        )
         return
     try:
         run = import_table(df, out, protocol=PROTOCOL, source="t.csv")
     except StoreError as e:
         # A value no rig can produce (a joint turned past a full turn): refused by the run file in
         # one sentence naming the record, the value and the range; no file is made.
-        m = re.fullmatch(r"trial (\d+): .+ reads (\S+) (\S+), outside the physically possible (\S+) to (\S+) \3\.",
-                         str(e))
+        m = re.fullmatch(
+            r"trial (\d+): .+ reads (\S+) (\S+), outside the physically possible (\S+) to (\S+) \3\.", str(e)
+        )
         assert m, str(e)
         assert not float(m[4]) <= float(m[2]) <= float(m[5])
         assert not out.exists()
@@ -202,7 +247,7 @@ def check_outcome(text: str, folder: Path) -> None:
     if len(df):  # an extra column is kept per record: with no record there is nothing to keep
         assert [c for c in back.columns if c not in STANDARD] == extras
     for c in extras if len(df) else []:
-        assert [(_same(a, b)) for a, b in zip(back[c].tolist(), df[c].tolist())] == [True] * len(df), c
+        assert [(_same(a, b)) for a, b in zip(back[c].tolist(), df[c].tolist(), strict=False)] == [True] * len(df), c
     # From here the file is in its canonical form: export -> import -> export changes no byte.
     first, second, again = folder / "a.csv", folder / "b.csv", folder / "again.h5"
     write_trial_csv(back, first)
@@ -217,16 +262,18 @@ def _same(a, b) -> bool:
     return a == b
 
 
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                                                   HealthCheck.too_slow])
+@settings(
+    max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow]
+)
 @given(tables())
 def test_arbitrary_rows_import_or_fail_with_row_and_column(tmp_path_factory, case) -> None:
     text, _ = case
     check_outcome(text, tmp_path_factory.mktemp("fz"))
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                                                  HealthCheck.too_slow])
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow]
+)
 @given(tables(valid=True))
 def test_valid_rows_always_import(tmp_path_factory, case) -> None:
     text, clean = case
@@ -250,8 +297,9 @@ def test_arbitrary_bytes_are_a_table_or_one_sentence(tmp_path_factory, data: byt
         assert "\n" not in str(e) and str(src) in str(e), str(e)
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                                                  HealthCheck.too_slow])
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow]
+)
 @given(tables())
 def test_the_import_command_never_crashes(tmp_path_factory, case) -> None:
     """The command itself, in process, with exceptions not caught by the runner."""
@@ -259,10 +307,11 @@ def test_the_import_command_never_crashes(tmp_path_factory, case) -> None:
     folder = tmp_path_factory.mktemp("cli")
     src, out = folder / "t.csv", folder / "t.h5"
     src.write_text(text, encoding="utf-8", newline="")
-    r = CliRunner().invoke(cli, ["import", str(src), "-o", str(out), "--protocol", "takuma2014"],
-                           catch_exceptions=False)
+    r = CliRunner().invoke(
+        cli, ["import", str(src), "-o", str(out), "--protocol", "takuma2014"], catch_exceptions=False
+    )
     if r.exit_code == 0:
-        assert r.output.startswith(f"Imported ") and out.exists()
+        assert r.output.startswith("Imported ") and out.exists()
         assert RunFile.open(out).completed_ids() is not None
     else:
         assert r.exit_code == 1 and not out.exists() and not clean
@@ -279,17 +328,23 @@ def test_a_ragged_row_and_a_bad_cell_are_both_named(tmp_path: Path) -> None:
     src.write_text(f"{header}\n{good}\n{bad}\n3,fit,0.2\n")
     with pytest.raises(TableError) as e:
         read_trial_csv(src)
-    assert e.value.problems == [f"{src}:row 3, column theta1_deg: 'one' is not a number.",
-                                f"{src}:row 4: has 3 values but the header has 14 columns."]
+    assert e.value.problems == [
+        f"{src}:row 3, column theta1_deg: 'one' is not a number.",
+        f"{src}:row 4: has 3 values but the header has 14 columns.",
+    ]
 
 
 def test_an_id_a_run_file_cannot_hold_is_named_by_row_and_column(tmp_path: Path) -> None:
     header = ",".join(STANDARD[:14])
     src = tmp_path / "t.csv"
-    src.write_text(f"{header}\n5,fit," + ",".join(["0.2"] * 8) + ",1.0,2.0,0.5,-0.5\n"
-                   f"1000000,fit," + ",".join(["0.2"] * 8) + ",1.0,2.0,0.5,-0.5\n")
-    r = CliRunner().invoke(cli, ["import", str(src), "-o", str(tmp_path / "t.h5"), "--protocol", "takuma2014"],
-                           catch_exceptions=False)
+    src.write_text(
+        f"{header}\n5,fit," + ",".join(["0.2"] * 8) + ",1.0,2.0,0.5,-0.5\n"
+        "1000000,fit," + ",".join(["0.2"] * 8) + ",1.0,2.0,0.5,-0.5\n"
+    )
+    r = CliRunner().invoke(
+        cli, ["import", str(src), "-o", str(tmp_path / "t.h5"), "--protocol", "takuma2014"], catch_exceptions=False
+    )
     assert r.exit_code == 1 and not (tmp_path / "t.h5").exists()
-    assert r.output.splitlines()[1] == (f"{src}:row 3, column trial: 1000000 is outside the trial ids a run "
-                                        "file holds, 0 to 999999.")
+    assert r.output.splitlines()[1] == (
+        f"{src}:row 3, column trial: 1000000 is outside the trial ids a run file holds, 0 to 999999."
+    )

@@ -16,17 +16,23 @@ import sys
 import time
 from pathlib import Path
 
-from labcli.core.store import RunFile
-
 from support.big_table import big_table
+
+from labcli.core.store import RunFile
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def start_import(csv: Path, out: str, cwd: Path) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.Popen([sys.executable, "-m", "labcli", "import", str(csv), "-o", out, "--protocol", "takuma2014"],
-                            cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "labcli", "import", str(csv), "-o", out, "--protocol", "takuma2014"],
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def partials(folder: Path) -> set[str]:
@@ -60,9 +66,24 @@ def test_a_killed_imports_file_is_cleaned_at_the_next_start_and_a_live_ones_kept
         killed.wait(60)
         assert partials(out) == {dead, live} and not (out / "killed.h5").exists()
 
-        r = subprocess.run([sys.executable, "-m", "labcli", "import", str(ROOT / "sample_runs" / "trials.csv"),
-                            "-o", "next.h5", "--protocol", "takuma2014"], cwd=out, capture_output=True, text=True,
-                           env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=120)
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "labcli",
+                "import",
+                str(ROOT / "sample_runs" / "trials.csv"),
+                "-o",
+                "next.h5",
+                "--protocol",
+                "takuma2014",
+            ],
+            cwd=out,
+            capture_output=True,
+            text=True,
+            env=dict(os.environ, PYTHONPATH=str(ROOT)),
+            timeout=120,
+        )
         assert r.returncode == 0, r.stderr
         assert partials(out) == {live}  # the killed import's file is gone; the paused builder still holds its own
     finally:

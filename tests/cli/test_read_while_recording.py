@@ -11,22 +11,26 @@ from pathlib import Path
 import labcli
 
 ROOT = Path(__file__).resolve().parents[2]
-READ = ("import sys, labcli; t = labcli.load_trials(sys.argv[1]); "
-        "print(len(t), int(t['trial'].max()) if len(t) else 0)")
+READ = "import sys, labcli; t = labcli.load_trials(sys.argv[1]); print(len(t), int(t['trial'].max()) if len(t) else 0)"
 
 
 def test_a_reader_process_loads_the_completed_trials_while_the_run_goes_on(tmp_path):
     run = tmp_path / "run.h5"
-    writer = subprocess.Popen([sys.executable, "-m", "labcli", "acquire", str(run), "--port", "sim://?seed=2",
-                               "--unattended"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                              text=True)
+    writer = subprocess.Popen(
+        [sys.executable, "-m", "labcli", "acquire", str(run), "--port", "sim://?seed=2", "--unattended"],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     seen = []
     try:
         deadline = time.monotonic() + 120
         while writer.poll() is None and time.monotonic() < deadline:
             if run.exists():
-                r = subprocess.run([sys.executable, "-c", READ, str(run)], cwd=ROOT, capture_output=True,
-                                   text=True, timeout=60)
+                r = subprocess.run(
+                    [sys.executable, "-c", READ, str(run)], cwd=ROOT, capture_output=True, text=True, timeout=60
+                )
                 if r.returncode == 0:
                     n, last = map(int, r.stdout.split())
                     assert n == last  # trials 1..n, each whole: no partial trial is ever read

@@ -46,7 +46,7 @@ def test_python_example_runs_and_predicts_the_stored_angles():
     err = np.degrees(pred["theta1_rad"]) - trials["theta1_deg"].to_numpy()
     # deg: the sample run comes from the default (realistic) rig, whose 0.2 deg potentiometer play
     # and sleeve friction put the angles' error near 0.14 deg; a broken example is off by degrees.
-    assert np.sqrt(np.mean(err ** 2)) < 0.25
+    assert np.sqrt(np.mean(err**2)) < 0.25
 
 
 def runnable_blocks() -> list[list[str]]:
@@ -70,7 +70,8 @@ def runnable_blocks() -> list[list[str]]:
 def outputs(cmd: str) -> list[str]:
     args = shlex.split(cmd)
     return [args[i + 1] for i, a in enumerate(args[:-1]) if a in ("-o", "--plot")] + (
-        [args[2]] if args[1] == "acquire" else [])
+        [args[2]] if args[1] == "acquire" else []
+    )
 
 
 @pytest.mark.parametrize("block", runnable_blocks(), ids=lambda b: b[0][:40])
@@ -82,8 +83,9 @@ def test_shell_blocks_run_as_written(block, tmp_path):
             (tmp_path / cmd.split()[2]).mkdir(parents=True)
             continue
         args = shlex.split(cmd.replace("sample_runs/", f"{sample}/"))
-        r = subprocess.run([sys.executable, "-m", "labcli", *args[1:]], cwd=tmp_path,
-                           capture_output=True, text=True, timeout=300)
+        r = subprocess.run(
+            [sys.executable, "-m", "labcli", *args[1:]], cwd=tmp_path, capture_output=True, text=True, timeout=300
+        )
         assert r.returncode == 0, (cmd, r.stdout[-2000:], r.stderr[-2000:])
         assert "Traceback" not in r.stderr
         for out in outputs(cmd):
@@ -101,8 +103,13 @@ def test_there_are_runnable_blocks():
 
 def test_example_outputs_stay_in_one_ignored_folder():
     # Every file a README example writes lands under out/, which .gitignore covers.
-    written = [o for block in code_blocks("sh") for line in block.splitlines()
-               if line.startswith("labcli ") for o in outputs(line.split("#", 1)[0].strip())]
+    written = [
+        o
+        for block in code_blocks("sh")
+        for line in block.splitlines()
+        if line.startswith("labcli ")
+        for o in outputs(line.split("#", 1)[0].strip())
+    ]
     assert written and all(o.startswith("out/") for o in written), written
     assert "/out/" in (ROOT / ".gitignore").read_text().split()
 

@@ -26,23 +26,24 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from rich.console import Console
+from support.records import stored_trials
 
 from labcli.cli import cli
-from labcli.core.device import Device
 from labcli.core.acquisition import acquire
-from labcli.errors import DeviceDisconnected
+from labcli.core.device import Device
 from labcli.core.protocol import load_protocol
-from labcli.papers.takuma2014.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
 from labcli.core.sim.pty import serve_pty
 from labcli.core.store import RunFile
-
-from support.records import stored_trials
 from labcli.core.ui import RichUI
+from labcli.errors import DeviceDisconnected
+from labcli.papers.takuma2014.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
 
 SEED = 5
 PORT = f"sim://?seed={SEED}&clock=virtual"
-PLAN = ("trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,fit,300,150\n"
-        "4,fit,800,0\n5,validation,400,90\n6,validation,600,-150\n")
+PLAN = (
+    "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,fit,300,150\n"
+    "4,fit,800,0\n5,validation,400,90\n6,validation,600,-150\n"
+)
 # START commands before the loss: setup check, air supply, then baseline and load of
 # trials 1 and 2, then trial 3's baseline; the 8th START begins trial 3's loaded wait.
 LOSE_AT_START = 8
@@ -173,8 +174,7 @@ def plan_file(tmp_path_factory) -> Path:
 def reference(tmp_path_factory, plan_file) -> dict[int, dict[str, Any]]:
     """The same seed and plan, never interrupted."""
     path = tmp_path_factory.mktemp("ref") / "ref.h5"
-    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", PORT, "--plan", str(plan_file),
-                                      "--unattended"])
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", PORT, "--plan", str(plan_file), "--unattended"])
     assert result.exit_code == 0, result.output
     return datasets_only(trial_data(path))
 
@@ -186,8 +186,7 @@ def lost_and_resumed(tmp_path_factory, plan_file):
     path = tmp_path_factory.mktemp("lost") / "run.h5"
     try:
         lose_rig_at_start(mp, LOSE_AT_START)
-        lost = CliRunner().invoke(cli, ["acquire", str(path), "--port", PORT, "--plan", str(plan_file),
-                                        "--unattended"])
+        lost = CliRunner().invoke(cli, ["acquire", str(path), "--port", PORT, "--plan", str(plan_file), "--unattended"])
     finally:
         mp.undo()
     with RunFile.open(path) as run:
@@ -195,8 +194,15 @@ def lost_and_resumed(tmp_path_factory, plan_file):
     before = trial_data(path)
     command = lost.output.rsplit("resume with: ", 1)[-1].strip()
     resumed = CliRunner().invoke(cli, shlex.split(command)[1:])
-    return {"path": path, "lost": lost, "state": state, "before": before, "command": command,
-            "resumed": resumed, "after": trial_data(path)}
+    return {
+        "path": path,
+        "lost": lost,
+        "state": state,
+        "before": before,
+        "command": command,
+        "resumed": resumed,
+        "after": trial_data(path),
+    }
 
 
 # ---------------------------------------------------------------- unattended: exit, then resume
@@ -238,7 +244,8 @@ def test_the_printed_command_completes_the_run_and_leaves_earlier_trials_untouch
 
 
 def test_attended_run_waits_for_the_rig_and_redoes_the_trial_from_its_baseline(
-        tmp_path, monkeypatch, plan_file, reference, lost_and_resumed):
+    tmp_path, monkeypatch, plan_file, reference, lost_and_resumed
+):
     path = tmp_path / "run.h5"
     opened = lose_rig_at_start(monkeypatch, LOSE_AT_START)
     person = Person()
@@ -247,8 +254,10 @@ def test_attended_run_waits_for_the_rig_and_redoes_the_trial_from_its_baseline(
     assert outcome.message.startswith(f"Session complete: 6 trials stored in {path} (6 this session, ")
     assert len(opened) == 2  # the port was opened again, by its name
     text = person.text
-    assert (f"Warning: The rig on {PORT} was disconnected during trial 3, which was not stored; it will be "
-            "redone from its baseline once the rig is back.") in text
+    assert (
+        f"Warning: The rig on {PORT} was disconnected during trial 3, which was not stored; it will be "
+        "redone from its baseline once the rig is back."
+    ) in text
     assert f"Rig lost on {PORT}; reconnect it and press Enter to retry (q to quit):" in text
     # The setup is redone (the rig was power-cycled), then trial 3 from its baseline.
     assert person.prompts.count("Supply compressed air to the four actuators, then press Enter") == 2
@@ -270,8 +279,10 @@ def test_attended_run_waits_for_a_silent_rig_too(tmp_path, monkeypatch, plan_fil
     outcome = acquire(path, PORT, protocol="takuma2014", plan=plan_file, ui=person, device_timeout=0.3)
     assert outcome.status == "finished", person.out.getvalue()
     assert len(opened) == 2
-    assert (f"Warning: The rig on {PORT} stopped sending data during trial 3, which was not stored; it will be "
-            "redone from its baseline once the rig is back.") in person.text
+    assert (
+        f"Warning: The rig on {PORT} stopped sending data during trial 3, which was not stored; it will be "
+        "redone from its baseline once the rig is back."
+    ) in person.text
     assert_run_complete(path, 6, [1, 2, 3, 4], [5, 6])
     got = datasets_only(trial_data(path))
     resumed = datasets_only(lost_and_resumed["after"])
@@ -301,8 +312,7 @@ def test_attended_run_stopped_at_the_reconnect_prompt_says_how_to_resume(tmp_pat
 def test_a_rig_lost_during_the_setup_check_of_a_new_run_leaves_no_file(tmp_path, monkeypatch, plan_file):
     path = tmp_path / "run.h5"
     lose_rig_at_start(monkeypatch, 1)
-    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", PORT, "--plan", str(plan_file),
-                                      "--unattended"])
+    result = CliRunner().invoke(cli, ["acquire", str(path), "--port", PORT, "--plan", str(plan_file), "--unattended"])
     assert result.exit_code == 1
     assert result.output == (
         f"Error: The rig on {PORT} was disconnected during the setup, before anything was written to "
@@ -345,8 +355,14 @@ def quick_protocol(tmp_path: Path) -> Path:
     text = load_protocol("takuma2014").text
     # Limits for the short window: its 0.02 s block means (4 samples) carry about twice the noise
     # of the shipped 0.1 s ones, which one count would not leave still for long.
-    for key, value in (("window_s", "0.2"), ("hold_s", "0.2"), ("timeout_s", "20.0"), ("capture_s", "0.2"),
-                       ("pressure_spread_MPa", "0.001"), ("angle_spread_deg", "0.3")):
+    for key, value in (
+        ("window_s", "0.2"),
+        ("hold_s", "0.2"),
+        ("timeout_s", "20.0"),
+        ("capture_s", "0.2"),
+        ("pressure_spread_MPa", "0.001"),
+        ("angle_spread_deg", "0.3"),
+    ):
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
     path = tmp_path / "quick.toml"
@@ -388,10 +404,14 @@ def test_pty_rig_replugged_while_the_run_waits(tmp_path, socket):
     assert outcome.status == "finished", person.out.getvalue()
     assert events == ["unplugged", "retried", "replugged"]
     text = person.text
-    assert (f"Warning: The rig on {socket.path} was disconnected during trial 2, which was not stored; it will "
-            "be redone from its baseline once the rig is back.") in text
-    assert (f"Warning: Cannot open serial port {socket.path}: no such device. Check the cable and run "
-            "`labcli ports` to list ports.") in text
+    assert (
+        f"Warning: The rig on {socket.path} was disconnected during trial 2, which was not stored; it will "
+        "be redone from its baseline once the rig is back."
+    ) in text
+    assert (
+        f"Warning: Cannot open serial port {socket.path}: no such device. Check the cable and run "
+        "`labcli ports` to list ports."
+    ) in text
     assert text.count(f"Rig lost on {socket.path}; reconnect it and press Enter to retry (q to quit):") == 2
     assert_run_complete(path, 2, [1], [2])
     with RunFile.open(path) as run:

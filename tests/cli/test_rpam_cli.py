@@ -20,8 +20,13 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 def small_protocol(folder: Path, name: str, **replace: str) -> Path:
     text = SHIPPED.read_text(encoding="utf-8")
-    edits = {'name = "rpam2015"': f'name = "{name}"', "pressure_count = 20": "pressure_count = 4",
-             "Pa_count = 11": "Pa_count = 3", "Pb_count = 11": "Pb_count = 3", **replace}
+    edits = {
+        'name = "rpam2015"': f'name = "{name}"',
+        "pressure_count = 20": "pressure_count = 4",
+        "Pa_count = 11": "Pa_count = 3",
+        "Pb_count = 11": "Pb_count = 3",
+        **replace,
+    }
     for old, new in edits.items():
         assert text.count(old) == 1, old
         text = text.replace(old, new)
@@ -31,8 +36,14 @@ def small_protocol(folder: Path, name: str, **replace: str) -> Path:
 
 
 def run(path: Path, protocol: Path, experiment: str) -> Path:
-    outcome = acquire(path, "sim://?mode=rpam&seed=4&clock=virtual", protocol=str(protocol), experiment=experiment,
-                      unattended=True, ui=UnattendedUI(console=Console(file=io.StringIO())))
+    outcome = acquire(
+        path,
+        "sim://?mode=rpam&seed=4&clock=virtual",
+        protocol=str(protocol),
+        experiment=experiment,
+        unattended=True,
+        ui=UnattendedUI(console=Console(file=io.StringIO())),
+    )
     assert outcome.status == "finished", outcome.message
     return path
 
@@ -41,8 +52,7 @@ def run(path: Path, protocol: Path, experiment: str) -> Path:
 def runs(tmp_path_factory):
     d = tmp_path_factory.mktemp("rpam")
     proto = small_protocol(d, "rpam-small")
-    return {"stretch": run(d / "stretch.h5", proto, "stretch"), "joint": run(d / "joint.h5", proto, "joint"),
-            "dir": d}
+    return {"stretch": run(d / "stretch.h5", proto, "stretch"), "joint": run(d / "joint.h5", proto, "joint"), "dir": d}
 
 
 def invoke(*args: str):
@@ -57,11 +67,17 @@ def test_demo_runs_the_rpam_chain_and_reports_it(tmp_path):
     result = invoke("demo", out, "--protocol", "rpam2015", "--seed", "2")
     assert result.exit_code == 0, result.output
     text = result.output
-    assert text.startswith("labcli demo --protocol rpam2015 on the simulated rPAM rig (seed 2): "
-                           "120 stretch-test points, 121 joint-map points, ")
-    for needle in ("Eq. 7 stretch correction F_stretch(lambda) fitted on 120 points", "rig's truth (N)",
-                   "Joint map against the model (Fig. 8)", "Link optimisation (Section IV) at Pa = 96 kPa, "
-                   "Pb = 41 kPa with the fitted F_stretch", str(out / "fig8-joint-map.png")):
+    assert text.startswith(
+        "labcli demo --protocol rpam2015 on the simulated rPAM rig (seed 2): "
+        "120 stretch-test points, 121 joint-map points, "
+    )
+    for needle in (
+        "Eq. 7 stretch correction F_stretch(lambda) fitted on 120 points",
+        "rig's truth (N)",
+        "Joint map against the model (Fig. 8)",
+        "Link optimisation (Section IV) at Pa = 96 kPa, Pb = 41 kPa with the fitted F_stretch",
+        str(out / "fig8-joint-map.png"),
+    ):
         assert needle in text
     s = json.loads((out / "rpam-summary.json").read_text())
     # The fit finds the simulated rig's own correction, within its uncertainty (99.9 % limit 18.5).
@@ -86,7 +102,8 @@ def test_demo_runs_the_rpam_chain_and_reports_it(tmp_path):
     again = invoke("demo", out, "--protocol", "rpam2015")
     assert again.exit_code == 1 and again.output == (
         f"Error: {out} already holds rPAM demo output (stretch.h5, stretch.model.json, fig6-stretch.png, ...); "
-        "pass --force to overwrite it or choose another directory.\n")
+        "pass --force to overwrite it or choose another directory.\n"
+    )
 
 
 def test_demo_refuses_an_unknown_protocol(tmp_path):
@@ -104,26 +121,31 @@ def test_fit_prints_the_cubic_with_units_and_records_it(runs):
     assert "c3" in result.output and "24 points (20 degrees of freedom)" in result.output
     assert result.output.rstrip().endswith(
         f"Model written to {model} and recorded in {runs['stretch']} under /models/rpam-small-stretch; "
-        f"compare a joint map with it: labcli validate JOINT.h5 --model {model}")
+        f"compare a joint map with it: labcli validate JOINT.h5 --model {model}"
+    )
     assert json.loads(model.read_text())["kind"] == "rpam-stretch-fit"
 
 
 def test_validate_without_a_stretch_model_uses_the_protocols_own(runs):
     result = invoke("validate", runs["joint"])
     assert result.exit_code == 0, result.output
-    assert "F_stretch coefficients c0..c3 = [+8, -14, +4, +2] N, from the protocol's [stretch_correction] " \
-           "(no --model given)." in result.output
+    assert (
+        "F_stretch coefficients c0..c3 = [+8, -14, +4, +2] N, from the protocol's [stretch_correction] "
+        "(no --model given)." in result.output
+    )
 
 
 def test_validate_needs_a_stretch_model_when_the_protocol_has_none(tmp_path):
-    proto = small_protocol(tmp_path, "rpam-nocorr", **{"coefficients_N = [8.0, -14.0, 4.0, 2.0]":
-                                                       "coefficients_N = [0.0, 0.0, 0.0, 0.0]"})
+    proto = small_protocol(
+        tmp_path, "rpam-nocorr", **{"coefficients_N = [8.0, -14.0, 4.0, 2.0]": "coefficients_N = [0.0, 0.0, 0.0, 0.0]"}
+    )
     joint = run(tmp_path / "joint.h5", proto, "joint")
     result = invoke("validate", joint)
     assert result.exit_code == 1 and result.output == (
         f"Error: {joint}'s protocol has no stretch correction (its coefficients are all 0 N), so the model with "
         "and without it would agree; fit one to a stretch-test run with labcli fit STRETCH.h5 and pass it with "
-        "--model STRETCH.model.json.\n")
+        "--model STRETCH.model.json.\n"
+    )
 
 
 def _takuma_model(tmp_path: Path) -> Path:
@@ -132,31 +154,60 @@ def _takuma_model(tmp_path: Path) -> Path:
     return p
 
 
-@pytest.mark.parametrize("args, message", [
-    (lambda r, t: ["fit", r["joint"]],
-     lambda r, t: f"{r['joint']} is a joint-map run (kind rpam-joint); labcli fit fits the stretch correction to a "
-                  "stretch-test run (labcli acquire --experiment stretch), and labcli validate compares a joint map "
-                  "with the model."),
-    (lambda r, t: ["validate", r["stretch"]],
-     lambda r, t: f"{r['stretch']} is a stretch-test run (kind rpam-stretch); labcli validate compares a joint-map "
-                  f"run with the model: fit this one with labcli fit {r['stretch']} and pass the model it writes to "
-                  "labcli validate JOINT.h5 --model."),
-    (lambda r, t: ["validate", r["joint"], "--model", t / "none.json"],
-     lambda r, t: f"Model file {t / 'none.json'} does not exist; fit the stretch test first with labcli fit "
-                  "STRETCH.h5, which writes STRETCH.model.json."),
-    (lambda r, t: ["validate", r["joint"], "--model", _takuma_model(t)],
-     lambda r, t: f"Model file {t / 'takuma.model.json'} is not a stretch fit (kind 'takuma2014-regression'); a "
-                  "joint map is compared with the stretch correction labcli fit writes for a stretch-test run."),
-    (lambda r, t: ["validate", r["joint"], "--mode", "measured-angles"],
-     lambda r, t: "--mode applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out."),
-    (lambda r, t: ["fit", r["stretch"], "--max-amplification", "50"],
-     lambda r, t: "--max-amplification applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out."),
-    (lambda r, t: ["fit", r["stretch"], "--protocol", "rpam2015"],
-     lambda r, t: f"{r['stretch']} was recorded with protocol 'rpam-small'; --protocol applies to trial CSV "
-                  "files only, so leave it out for a run file."),
-    (lambda r, t: ["fit", r["stretch"], "--plot", t / "fig.jpg"],
-     lambda r, t: f"The plot file {t / 'fig.jpg'} must end in .png, .pdf or .svg."),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            lambda r, t: ["fit", r["joint"]],
+            lambda r, t: (
+                f"{r['joint']} is a joint-map run (kind rpam-joint); labcli fit fits the stretch correction to a "
+                "stretch-test run (labcli acquire --experiment stretch), and labcli validate compares a joint map "
+                "with the model."
+            ),
+        ),
+        (
+            lambda r, t: ["validate", r["stretch"]],
+            lambda r, t: (
+                f"{r['stretch']} is a stretch-test run (kind rpam-stretch); labcli validate compares a joint-map "
+                f"run with the model: fit this one with labcli fit {r['stretch']} and pass the model it writes to "
+                "labcli validate JOINT.h5 --model."
+            ),
+        ),
+        (
+            lambda r, t: ["validate", r["joint"], "--model", t / "none.json"],
+            lambda r, t: (
+                f"Model file {t / 'none.json'} does not exist; fit the stretch test first with labcli fit "
+                "STRETCH.h5, which writes STRETCH.model.json."
+            ),
+        ),
+        (
+            lambda r, t: ["validate", r["joint"], "--model", _takuma_model(t)],
+            lambda r, t: (
+                f"Model file {t / 'takuma.model.json'} is not a stretch fit (kind 'takuma2014-regression'); a "
+                "joint map is compared with the stretch correction labcli fit writes for a stretch-test run."
+            ),
+        ),
+        (
+            lambda r, t: ["validate", r["joint"], "--mode", "measured-angles"],
+            lambda r, t: "--mode applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out.",
+        ),
+        (
+            lambda r, t: ["fit", r["stretch"], "--max-amplification", "50"],
+            lambda r, t: "--max-amplification applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out.",
+        ),
+        (
+            lambda r, t: ["fit", r["stretch"], "--protocol", "rpam2015"],
+            lambda r, t: (
+                f"{r['stretch']} was recorded with protocol 'rpam-small'; --protocol applies to trial CSV "
+                "files only, so leave it out for a run file."
+            ),
+        ),
+        (
+            lambda r, t: ["fit", r["stretch"], "--plot", t / "fig.jpg"],
+            lambda r, t: f"The plot file {t / 'fig.jpg'} must end in .png, .pdf or .svg.",
+        ),
+    ],
+)
 def test_rpam_fit_and_validate_errors(runs, tmp_path, args, message):
     result = invoke(*args(runs, tmp_path))
     assert result.exit_code == 1 and result.output == f"Error: {message(runs, tmp_path)}\n"
@@ -166,8 +217,10 @@ def test_plot_on_a_force_run_points_to_validate(tmp_path):
     csv = tmp_path / "t.csv"
     csv.write_text("trial,set\n")
     result = invoke("fit", csv, "--plot", tmp_path / "f.png")
-    assert result.output == ("Error: --plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; for a "
-                             "force run draw Figure 7 with labcli validate --plot.\n")
+    assert result.output == (
+        "Error: --plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; for a "
+        "force run draw Figure 7 with labcli validate --plot.\n"
+    )
 
 
 # --------------------------------------------------------------------------- --set on an analysis
@@ -190,8 +243,10 @@ def test_set_changes_the_model_for_this_analysis_only(runs):
 def test_set_with_an_unknown_key_names_the_choices(runs):
     result = invoke("fit", runs["stretch"], "--set", "actuator.L0_mm=0.08")
     assert result.exit_code == 1
-    assert result.output == ("Error: Unknown protocol key 'actuator.L0_mm' in --set; keys under actuator: "
-                             "A0_m2, L0_m, n_turns, prestretch, thread_length_m.\n")
+    assert result.output == (
+        "Error: Unknown protocol key 'actuator.L0_mm' in --set; keys under actuator: "
+        "A0_m2, L0_m, n_turns, prestretch, thread_length_m.\n"
+    )
 
 
 def test_set_is_refused_on_a_force_run(tmp_path):
@@ -203,8 +258,10 @@ def test_set_is_refused_on_a_force_run(tmp_path):
     for cmd in ("fit", "validate"):
         result = invoke(cmd, csv, "--set", "actuator.L0_m=0.08")
         assert result.exit_code == 1
-        assert result.output == ("Error: --set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
-                                 "run's model is fitted from its trials, so leave --set out.\n")
+        assert result.output == (
+            "Error: --set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
+            "run's model is fitted from its trials, so leave --set out.\n"
+        )
 
 
 @pytest.mark.parametrize("args", [("fit", "stretch"), ("validate", "joint")])

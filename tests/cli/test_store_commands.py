@@ -9,13 +9,12 @@ import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from support.records import FakeDevice, make_record
 
 import labcli
 from labcli.cli import cli
 from labcli.core.protocol import load_protocol
 from labcli.core.store import RunFile
-
-from support.records import FakeDevice, make_record
 
 
 def invoke(*args):
@@ -23,8 +22,13 @@ def invoke(*args):
 
 
 def make_run(path, n=30, protocol=None, drift=False):
-    with RunFile.create(str(path), protocol=protocol or load_protocol("takuma2014"), device_info=FakeDevice(),
-                        port="sim://?seed=1", operator="ada") as run:
+    with RunFile.create(
+        str(path),
+        protocol=protocol or load_protocol("takuma2014"),
+        device_info=FakeDevice(),
+        port="sim://?seed=1",
+        operator="ada",
+    ) as run:
         for i in range(1, n + 1):
             rec = make_record(i)
             if drift:
@@ -73,8 +77,9 @@ def test_split_defaults_from_the_runs_protocol(tmp_path):
 def test_split_more_than_completed(run_path):
     res = invoke("split", run_path, "--fit", 90, "--validation", 18)
     assert res.exit_code == 1
-    assert res.output == (f"Error: {run_path}: the run has 30 completed trials, fewer than the 108 asked for "
-                          "(90 fit + 18 validation).\n")
+    assert res.output == (
+        f"Error: {run_path}: the run has 30 completed trials, fewer than the 108 asked for (90 fit + 18 validation).\n"
+    )
 
 
 def test_split_missing_file(tmp_path):
@@ -98,8 +103,10 @@ def test_export_import_export_is_byte_identical(run_path, tmp_path):
     assert invoke("export", imported, "-o", second).exit_code == 0
     assert first.read_bytes() == second.read_bytes()
     header = first.read_text().splitlines()[0]
-    assert header == ("trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,"
-                      "mass_g,direction_deg,theta1_0_deg,theta2_0_deg")
+    assert header == (
+        "trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,"
+        "mass_g,direction_deg,theta1_0_deg,theta2_0_deg"
+    )
     with RunFile.open(str(imported)) as run:
         assert run.attrs["imported"] is True and run.attrs["source"] == "a.csv"
         assert run.attrs["protocol"] == "takuma2014" and run.protocol_text == load_protocol("takuma2014").text
@@ -162,9 +169,20 @@ def test_push_run_export_import(tmp_path):
     rec = make_record(1)
     with RunFile.create(path, protocol=proto, device_info=FakeDevice()) as run:
         for i, (obj, phi) in enumerate([("pet-1", None), ("can-al-1", math.radians(12.5)), ("can-steel-1", 0.0)]):
-            run.write({"push": i + 1, "object": obj, "R_m": 0.033, "d_m": 0.004 + 0.001 * i, "phi_rad": phi,
-                            "category": "" if i == 0 else "hard", "P0_MPa": rec["P0_MPa"], "P_MPa": rec["P_MPa"],
-                            "raw": rec["raw"], "settle": rec["settle"]})
+            run.write(
+                {
+                    "push": i + 1,
+                    "object": obj,
+                    "R_m": 0.033,
+                    "d_m": 0.004 + 0.001 * i,
+                    "phi_rad": phi,
+                    "category": "" if i == 0 else "hard",
+                    "P0_MPa": rec["P0_MPa"],
+                    "P_MPa": rec["P_MPa"],
+                    "raw": rec["raw"],
+                    "settle": rec["settle"],
+                }
+            )
     a, b = tmp_path / "a.csv", tmp_path / "b.csv"
     res = invoke("export", path, "-o", a)
     assert res.exit_code == 0 and res.output == f"Wrote 3 pushes from {path} to {a}.\n"
@@ -188,11 +206,15 @@ def test_load_trials_api_reads_run_files(run_path, tmp_path):
 
 def test_rest_posture_and_wrapped_direction_round_trip(tmp_path):
     """theta1_0_deg/theta2_0_deg are stored as pot0 (rad) and come back; a direction of 200 deg comes back -160."""
-    header = ("trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,"
-              "mass_g,direction_deg,theta1_0_deg,theta2_0_deg")
-    rows = ["1,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,200,12.5,-30",
-            "2,validation,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,-90,,",
-            "3,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,270,0,170"]
+    header = (
+        "trial,set,P_L10,P_R10,P_L20,P_R20,P_L1,P_R1,P_L2,P_R2,theta1_deg,theta2_deg,Fx_N,Fy_N,"
+        "mass_g,direction_deg,theta1_0_deg,theta2_0_deg"
+    )
+    rows = [
+        "1,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,200,12.5,-30",
+        "2,validation,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,-90,,",
+        "3,fit,0.2,0.2,0.25,0.25,0.21,0.19,0.26,0.24,1.5,-2,0.98,0,100,270,0,170",
+    ]
     src, run, out = tmp_path / "t.csv", tmp_path / "t.h5", tmp_path / "out.csv"
     src.write_text("\n".join([header, *rows]) + "\n")
     assert invoke("import", src, "-o", run, "--protocol", "takuma2014").exit_code == 0
@@ -242,10 +264,10 @@ def test_inspect_numbers(tmp_path):
     out = res.output
     assert "  trials      30 complete, 1 incomplete (31)\n" in out
     assert "  split       20 fit, 6 validation, 4 unassigned (sequential)\n" in out
-    assert ("  settling    median 3.50 s, max 5.00 s over 30 trials; 6 accepted on timeout "
-            "(4, 9, 14, 19, 24, 29)\n") in out
-    assert ("    P_R2  first 0.2996 MPa, last 0.2880 MPa, slope -0.400 kPa/trial, "
-            "max deviation 11.600 kPa\n") in out
+    assert (
+        "  settling    median 3.50 s, max 5.00 s over 30 trials; 6 accepted on timeout (4, 9, 14, 19, 24, 29)\n"
+    ) in out
+    assert ("    P_R2  first 0.2996 MPa, last 0.2880 MPa, slope -0.400 kPa/trial, max deviation 11.600 kPa\n") in out
 
 
 def test_inspect_errors(tmp_path):
@@ -254,14 +276,16 @@ def test_inspect_errors(tmp_path):
         f.attrs["schema"] = "something-else"
     res = invoke("inspect", other)
     assert res.exit_code == 1
-    assert res.output == (f"Error: {other} is an HDF5 file but not a labcli run file (schema 'something-else', "
-                          "expected 'labcli-run').\n")
+    assert res.output == (
+        f"Error: {other} is an HDF5 file but not a labcli run file (schema 'something-else', expected 'labcli-run').\n"
+    )
     text = tmp_path / "notes.txt"
     text.write_text("hello\n")
     res = invoke("inspect", text)
     assert res.exit_code == 1
-    assert res.output == (f"Error: {text} is not an HDF5 file; run files are written by 'labcli acquire' "
-                          "or 'labcli import'.\n")
+    assert res.output == (
+        f"Error: {text} is not an HDF5 file; run files are written by 'labcli acquire' or 'labcli import'.\n"
+    )
 
 
 def test_inspect_imported_run_without_settle_times(tmp_path):
@@ -277,7 +301,9 @@ def test_inspect_imported_run_without_settle_times(tmp_path):
     assert res.exit_code == 0
     assert "  settling    no settle times recorded\n" in res.output
     assert "  split       1 fit, 0 validation, 1 unassigned (imported)\n" in res.output
-    assert "    P_L1  first 0.2000 MPa, last 0.2010 MPa, slope +1.000 kPa/trial, max deviation 1.000 kPa\n" in res.output
+    assert (
+        "    P_L1  first 0.2000 MPa, last 0.2010 MPa, slope +1.000 kPa/trial, max deviation 1.000 kPa\n" in res.output
+    )
 
 
 # ------------------------------------------------------------------ with the acquisition engine
@@ -325,27 +351,41 @@ from hypothesis import strategies as st  # noqa: E402
 _deg = st.floats(-180, 180, allow_nan=False)
 _direction = st.floats(-180, 180, exclude_min=True)  # -180 is read as 180, the same direction
 _mpa = st.floats(0.01, 0.99, allow_nan=False)
-_row = st.tuples(st.lists(_mpa, min_size=8, max_size=8), _deg, _deg, st.floats(-50, 50, allow_nan=False),
-                 st.floats(0.001, 5000), _direction)
+_row = st.tuples(
+    st.lists(_mpa, min_size=8, max_size=8),
+    _deg,
+    _deg,
+    st.floats(-50, 50, allow_nan=False),
+    st.floats(0.001, 5000),
+    _direction,
+)
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(rows=st.lists(_row, min_size=1, max_size=3))
 def test_any_table_round_trips_byte_identical(tmp_path_factory, rows):
     """Any table, once in a run file, exports to bytes that survive import -> export exactly."""
-    from labcli.papers.takuma2014.tables import read_trial_csv, write_trial_csv
     import pandas as pd
 
+    from labcli.papers.takuma2014.tables import read_trial_csv, write_trial_csv
+
     d = tmp_path_factory.mktemp("rt")
-    df = pd.DataFrame({
-        "trial": list(range(1, len(rows) + 1)),
-        "set": ["fit"] * len(rows),
-        **{c: [r[0][j] for r in rows] for j, c in enumerate(
-            ["P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2"])},
-        "theta1_deg": [r[1] for r in rows], "theta2_deg": [r[2] for r in rows],
-        "Fx_N": [r[3] for r in rows], "Fy_N": [-r[3] for r in rows],
-        "mass_g": [r[4] for r in rows], "direction_deg": [r[5] for r in rows],
-    })
+    df = pd.DataFrame(
+        {
+            "trial": list(range(1, len(rows) + 1)),
+            "set": ["fit"] * len(rows),
+            **{
+                c: [r[0][j] for r in rows]
+                for j, c in enumerate(["P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2"])
+            },
+            "theta1_deg": [r[1] for r in rows],
+            "theta2_deg": [r[2] for r in rows],
+            "Fx_N": [r[3] for r in rows],
+            "Fy_N": [-r[3] for r in rows],
+            "mass_g": [r[4] for r in rows],
+            "direction_deg": [r[5] for r in rows],
+        }
+    )
     source = d / "source.csv"
     write_trial_csv(df, source)
     assert invoke("import", source, "-o", d / "r1.h5", "--protocol", "takuma2014").exit_code == 0

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 import re
-import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -16,7 +15,7 @@ from labcli.core.report import print_table
 from labcli.papers.takuma2014.models.synthetic import paper_trials
 from labcli.papers.takuma2014.tables import write_trial_csv
 
-BOX = re.compile("[\u2500-\u257f]")        # box-drawing characters
+BOX = re.compile("[\u2500-\u257f]")  # box-drawing characters
 CUT_NUMBER = re.compile(r"[0-9.+\-]\u2026")  # a number cut short: "0.009…", "+0.00…", "18…"
 
 
@@ -27,8 +26,9 @@ def run80(*args):
 @pytest.fixture(scope="module")
 def world(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("t80")
-    table = pd.concat([paper_trials(30, seed=1), paper_trials(8, seed=2, set_name="validation", start_id=31)],
-                      ignore_index=True)
+    table = pd.concat(
+        [paper_trials(30, seed=1), paper_trials(8, seed=2, set_name="validation", start_id=31)], ignore_index=True
+    )
     write_trial_csv(table, d / "trials.csv")
     assert run80("import", d / "trials.csv", "-o", d / "run.h5", "--protocol", "takuma2014").exit_code == 0
     return d
@@ -40,12 +40,15 @@ def assert_whole_and_plain(text: str) -> None:
     assert not CUT_NUMBER.search(text), "a number cut short"
 
 
-@pytest.mark.parametrize("args", [
-    ("fit", "{d}/run.h5"),
-    ("validate", "{d}/run.h5"),
-    ("validate", "{d}/run.h5", "--mode", "measured-angles"),
-    ("inspect", "{d}/run.h5"),
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("fit", "{d}/run.h5"),
+        ("validate", "{d}/run.h5"),
+        ("validate", "{d}/run.h5", "--mode", "measured-angles"),
+        ("inspect", "{d}/run.h5"),
+    ],
+)
 def test_force_reports_piped_at_80_columns(world: Path, args) -> None:
     if args[0] != "fit":
         assert run80("fit", world / "run.h5").exit_code == 0

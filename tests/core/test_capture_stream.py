@@ -56,7 +56,7 @@ def test_the_writer_stores_every_frame_given_in_blocks_of_any_size(tmp_path, fak
         w = run.begin_window("trial 1")
         at = 0
         for b in blocks:
-            w.append(t[at:at + b], seq[at:at + b], counts[at:at + b], si[at:at + b])
+            w.append(t[at : at + b], seq[at : at + b], counts[at : at + b], si[at : at + b])
             at += b
             # Whole chunks are in the file as soon as they fill; at most a chunk is held.
             assert w.stop - w.start == at // chunk * chunk and len(w) == at
@@ -149,13 +149,16 @@ def test_a_streamed_trial_stores_the_frames_the_rig_sent_and_verifies(tmp_path):
         w = rec["raw"][name]
         assert len(w["seq"]) == 6000
         # Where the rig sent this window's first frame (each streaming start restarts its counter).
-        at = [i for i in np.flatnonzero(seq == w["seq"][0])
-              if np.array_equal(t_us[i:i + 6000] % (1 << 32), np.rint(w["t_s"] * 1e6).astype(np.int64) % (1 << 32))]
+        at = [
+            i
+            for i in np.flatnonzero(seq == w["seq"][0])
+            if np.array_equal(t_us[i : i + 6000] % (1 << 32), np.rint(w["t_s"] * 1e6).astype(np.int64) % (1 << 32))
+        ]
         assert len(at) == 1, name
         i = at[0]
-        np.testing.assert_array_equal(w["seq"], seq[i:i + 6000])
-        np.testing.assert_array_equal(w["counts"], values[i:i + 6000])
-        np.testing.assert_array_equal(w["si"], protocol.calibration.to_si(values[i:i + 6000]))
+        np.testing.assert_array_equal(w["seq"], seq[i : i + 6000])
+        np.testing.assert_array_equal(w["counts"], values[i : i + 6000])
+        np.testing.assert_array_equal(w["si"], protocol.calibration.to_si(values[i : i + 6000]))
 
 
 def test_streamed_and_in_memory_capture_store_the_same_trial(tmp_path):
@@ -193,7 +196,7 @@ def test_a_redone_window_stays_unreferenced_and_the_trial_takes_the_last(tmp_pat
         assert run.completed_ids() == [1] and run.incomplete_ids() == []
         assert run.verify()["ok"]
         rec = run.read(1)
-        for name, w in zip(("baseline", "load"), second):
+        for name, w in zip(("baseline", "load"), second, strict=False):
             np.testing.assert_array_equal(rec["raw"][name]["t_s"], run.frames(w.start, w.stop)["t_s"])
         assert extent >= second[1].stop > first[1].stop  # the redone frames lie before, in no record
 
@@ -237,7 +240,7 @@ class PeakRSS:
         with open("/proc/self/statm") as f:
             return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
-    def __enter__(self) -> "PeakRSS":
+    def __enter__(self) -> PeakRSS:
         self._before = self.rss()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._sample, daemon=True)
@@ -281,7 +284,9 @@ def test_memory_stays_flat_when_the_window_is_ten_times_longer(tmp_path):
     # Streamed: the same trial with 10x the frames peaks within 1 MiB of Python allocations
     # and 4 MiB of resident memory (HDF5 keeps freed chunk buffers on its own free lists, up to
     # its limits: about 1 MiB more per 10 minutes of frames at 1 kHz) of the short one.
-    print(f"peaks (traced, resident) MiB: streamed {[x / MiB for x in short]} -> {[x / MiB for x in long]}, "
-          f"in memory {[x / MiB for x in mem_short]} -> {[x / MiB for x in mem_long]}")
+    print(
+        f"peaks (traced, resident) MiB: streamed {[x / MiB for x in short]} -> {[x / MiB for x in long]}, "
+        f"in memory {[x / MiB for x in mem_short]} -> {[x / MiB for x in mem_long]}"
+    )
     assert long[0] - short[0] < 1 * MiB, (short, long)
     assert long[1] - short[1] < 4 * MiB, (short, long)

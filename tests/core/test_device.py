@@ -7,8 +7,8 @@ import time
 
 import numpy as np
 import pytest
-
 from support.firmware import REFERENCE_CHANNELS, REFERENCE_COUNTS, FakeFirmware
+
 from labcli.core.device import Device, DeviceInfo
 from labcli.errors import DeviceDisconnected, DeviceError, DeviceNotFound, DeviceTimeout
 

@@ -15,7 +15,6 @@ Identities (see ``labcli.core.sim.faults``):
 from __future__ import annotations
 
 import json
-import os
 import re
 import signal
 import subprocess
@@ -31,13 +30,13 @@ from hypothesis import strategies as st
 
 from labcli.cli import cli
 from labcli.core.device import Device
-from labcli.errors import DeviceTimeout
+from labcli.core.sim import register
 from labcli.core.sim.faults import FAULTS_FORM, FaultInjector, FaultSpec, FaultSpecError
 from labcli.core.sim.firmware import Firmware
 from labcli.core.sim.pty import serve_pty
-from labcli.papers.takuma2014.sim.rig import SimRig
-from labcli.core.sim import register
 from labcli.core.wire import FrameBatch, StreamReader
+from labcli.errors import DeviceTimeout
+from labcli.papers.takuma2014.sim.rig import SimRig
 
 register()
 
@@ -71,8 +70,17 @@ def assert_yields_exactly_the_intact_frames(batch: FrameBatch, inj: FaultInjecto
 
 def test_grammar_round_trips_and_takes_plain_data():
     spec = FaultSpec.parse(ALL)
-    assert spec == FaultSpec(checksum=0.01, garbage=0.005, truncate=0.005, overlong=0.001, drop=0.01,
-                             stall=0.001, stall_s=2.5, burst=0.001, burst_frames=50)
+    assert spec == FaultSpec(
+        checksum=0.01,
+        garbage=0.005,
+        truncate=0.005,
+        overlong=0.001,
+        drop=0.01,
+        stall=0.001,
+        stall_s=2.5,
+        burst=0.001,
+        burst_frames=50,
+    )
     assert FaultSpec.parse(spec.to_text()) == spec
     assert FaultSpec.from_data(spec.as_dict()) == spec
     assert FaultSpec.parse("stall:0.5").stall_s == 1.0 and FaultSpec.parse("burst:0.1").burst_frames == 50
@@ -167,8 +175,12 @@ def test_stalls_are_device_time_gaps_of_exactly_their_length():
     # (b - a) periods plus every stall before a frame in (a, b].
     dseq = np.diff(batch.seq)
     excess_us = np.diff(batch.t_us) - dseq * 1000
-    want_us = np.array([sum(stalls.get(s, 0.0) for s in range(a + 1, b + 1)) * 1e6
-                        for a, b in zip(batch.seq[:-1].tolist(), batch.seq[1:].tolist())])
+    want_us = np.array(
+        [
+            sum(stalls.get(s, 0.0) for s in range(a + 1, b + 1)) * 1e6
+            for a, b in zip(batch.seq[:-1].tolist(), batch.seq[1:].tolist(), strict=False)
+        ]
+    )
     assert np.abs(excess_us - want_us).max() <= 1  # microsecond rounding of t_us
     assert (excess_us > 0.5e6).sum() == sum(1 for s in stalls if batch.seq[0] < s <= batch.seq[-1])
 
@@ -198,15 +210,25 @@ def test_output_does_not_depend_on_how_the_host_reads():
 def specs(draw):
     rate = st.sampled_from([0.0, 0.001, 0.02, 0.2, 1.0])
     return FaultSpec(
-        checksum=draw(rate), garbage=draw(rate), truncate=draw(rate), overlong=draw(rate), drop=draw(rate),
-        stall=draw(rate), stall_s=draw(st.sampled_from([0.001, 0.3])), burst=draw(rate),
+        checksum=draw(rate),
+        garbage=draw(rate),
+        truncate=draw(rate),
+        overlong=draw(rate),
+        drop=draw(rate),
+        stall=draw(rate),
+        stall_s=draw(st.sampled_from([0.001, 0.3])),
+        burst=draw(rate),
         burst_frames=draw(st.integers(2, 300)),
     )
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(spec=specs(), seed=st.integers(0, 2**31), blocks=st.lists(st.integers(1, 700), min_size=1, max_size=6),
-       cuts=st.lists(st.integers(1, 5000), min_size=1, max_size=8))
+@given(
+    spec=specs(),
+    seed=st.integers(0, 2**31),
+    blocks=st.lists(st.integers(1, 700), min_size=1, max_size=6),
+    cuts=st.lists(st.integers(1, 5000), min_size=1, max_size=8),
+)
 def test_random_faults_never_make_the_reader_yield_a_frame_the_rig_did_not_send(spec, seed, blocks, cuts):
     inj = FaultInjector(spec, seed=seed, record=True)
     fw = Firmware(SimRig(seed=seed % 7, noise=2.0), 1000, faults=inj)
@@ -220,7 +242,7 @@ def test_random_faults_never_make_the_reader_yield_a_frame_the_rig_did_not_send(
     batches, pos, i = [], 0, 0
     while pos < len(data):  # the host's reads split lines anywhere
         step = cuts[i % len(cuts)]
-        batches.append(reader.feed(bytes(data[pos:pos + step])))
+        batches.append(reader.feed(bytes(data[pos : pos + step])))
         pos, i = pos + step, i + 1
     batch = FrameBatch.concat(batches, 6)
     assert_yields_exactly_the_intact_frames(batch, inj)
@@ -265,7 +287,7 @@ def test_short_stalls_are_silences_on_the_wall_clock():
         dev.stop()
     stalled = [s for s, _ in inj.stalls if s <= arrivals[-1][1]]
     assert len(stalled) >= 1
-    silences = [(b[0] - a[0], b[1]) for a, b in zip(arrivals, arrivals[1:]) if b[0] - a[0] > 0.2]
+    silences = [(b[0] - a[0], b[1]) for a, b in zip(arrivals, arrivals[1:], strict=False) if b[0] - a[0] > 0.2]
     assert [s for _, s in silences] == stalled  # each silence ends with the stalled frame
     assert all(0.25 < gap < 0.45 for gap, _ in silences)
 
@@ -277,8 +299,9 @@ def test_monitor_over_a_pty_reports_exactly_the_injected_faults():
     spec = "checksum:0.01,garbage:0.01,truncate:0.01,overlong:0.003,drop:0.01,stall:0.001@0.2,burst:0.002@50"
     server = serve_pty(seed=12, rate=1000, faults=spec)
     try:
-        result = CliRunner().invoke(cli, ["monitor", "--port", server.path, "--seconds", "2", "--json",
-                                          "--rate", "1000", "--boot-wait", "0"])
+        result = CliRunner().invoke(
+            cli, ["monitor", "--port", server.path, "--seconds", "2", "--json", "--rate", "1000", "--boot-wait", "0"]
+        )
     finally:
         server.stop()
     assert result.exit_code == 0, result.output
@@ -294,14 +317,27 @@ def test_monitor_over_a_pty_reports_exactly_the_injected_faults():
 
 def test_sim_command_prints_what_a_host_must_count():
     proc = subprocess.Popen(
-        [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "6", "--rate", "1000",
-         "--faults", "checksum:0.02,garbage:0.01,truncate:0.01,overlong:0.005,drop:0.02"],
-        stdout=subprocess.PIPE, text=True,
+        [
+            sys.executable,
+            "-m",
+            "labcli",
+            "sim",
+            "--pty",
+            "--seed",
+            "6",
+            "--rate",
+            "1000",
+            "--faults",
+            "checksum:0.02,garbage:0.01,truncate:0.01,overlong:0.005,drop:0.02",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
     )
     try:
         path = re.match(r"Simulated rig on (\S+) ", proc.stdout.readline()).group(1)
-        result = CliRunner().invoke(cli, ["monitor", "--port", path, "--seconds", "1", "--json",
-                                          "--rate", "1000", "--boot-wait", "0"])
+        result = CliRunner().invoke(
+            cli, ["monitor", "--port", path, "--seconds", "1", "--json", "--rate", "1000", "--boot-wait", "0"]
+        )
     finally:
         proc.send_signal(signal.SIGINT)
         out, _ = proc.communicate(timeout=10)

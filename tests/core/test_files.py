@@ -23,6 +23,8 @@ def test_a_name_past_the_limit_is_refused_in_one_sentence_and_nothing_is_made(tm
     path = tmp_path / ("m" * limit + ".json")
     with pytest.raises(ConfigError) as e:
         atomic_write(path, b"{}", what="the model to ")
-    assert str(e.value) == (f"Cannot write the model to {path}: the file name is too long ({limit + 5} bytes; this file "
-                            f"system allows at most {limit}), so choose a shorter name.")
+    assert str(e.value) == (
+        f"Cannot write the model to {path}: the file name is too long ({limit + 5} bytes; this file "
+        f"system allows at most {limit}), so choose a shorter name."
+    )
     assert list(tmp_path.iterdir()) == []

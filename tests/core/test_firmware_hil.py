@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 import serial
+from support.firmware_build import make
 
 from labcli.core.device import Device
 from labcli.core.sim import register
 from labcli.core.sim.hil import FIRMWARE_CHANNELS, HilLink
 from labcli.core.wire import StreamReader
-from support.firmware_build import make
 
 
 def test_the_firmware_answers_every_command_on_the_board(firmware_elf):
@@ -43,7 +43,10 @@ def test_the_firmware_answers_every_command_on_the_board(firmware_elf):
         assert ask("HELLO") == ["ERR unknown command 'HELLO'"]
         assert ask("x" * 300) == ["ERR command longer than 63 bytes"]
         assert ask("RATE 100\r") == ["OK RATE 100"]
-        assert ask("START", 2) == ["OK START", "# streaming 6 channels at 100 Hz, ADC clock 250 kHz, 16 conversions per value"]
+        assert ask("START", 2) == [
+            "OK START",
+            "# streaming 6 channels at 100 Hz, ADC clock 250 kHz, 16 conversions per value",
+        ]
         frames = read_lines(port, 20)
         assert all(line.startswith("$D,") for line in frames)
         stopped = ask("STOP", 1)

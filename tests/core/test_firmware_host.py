@@ -16,9 +16,9 @@ import subprocess
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from support.firmware_build import make, need_avr_tools, need_host_compiler
 
 from labcli.core.wire import Frame, Reply, checksum, format_frame, parse_line
-from support.firmware_build import make, need_avr_tools, need_host_compiler
 
 U32 = st.integers(0, 2**32 - 1)
 
@@ -75,7 +75,7 @@ def test_c_checksum_agrees_with_labcli(tool, payload):
 
 def test_c_checksum_flags_every_single_bit_error(tool):
     line = tool.ask("F 123 4567 1556 1560 1549 1551 2048 2047").encode()
-    body = line[1:line.index(b"*")]
+    body = line[1 : line.index(b"*")]
     for i in range(len(body)):
         for bit in range(8):
             spoiled = bytearray(body)
@@ -121,4 +121,3 @@ def test_firmware_builds_clean_and_fits_the_chip(tmp_path):
     assert data < 1024  # static RAM, half of the 2 KiB: the rest is stack
     hex_lines = (tmp_path / "labcli_rig.hex").read_text().splitlines()
     assert hex_lines[-1] == ":00000001FF"  # an Intel HEX file avrdude can flash
-

@@ -28,16 +28,22 @@ def frame_lines(draw) -> bytes:
     """Correctly signed data lines with arbitrary fields: seq and t_us anywhere, odd value counts."""
     seq = draw(st.one_of(st.integers(0, U32 - 1), st.integers(-5, 2**70)))
     t_us = draw(st.one_of(st.integers(0, U32 - 1), st.integers(-5, 2**70)))
-    vals = draw(st.lists(st.one_of(st.integers(-(2**64), 2**64), st.floats().map(repr).map(str)),
-                         min_size=0, max_size=8))
+    vals = draw(
+        st.lists(st.one_of(st.integers(-(2**64), 2**64), st.floats().map(repr).map(str)), min_size=0, max_size=8)
+    )
     fields = [b"D", str(seq).encode(), str(t_us).encode(), *[str(v).encode() for v in vals]]
     return signed(b",".join(fields))
 
 
-STREAM = st.lists(st.one_of(frame_lines(), st.binary(max_size=60), st.just(b"\n"),
-                            st.builds(lambda s, t: format_frame(s, t, [1, 2]), st.integers(0, U32 - 1),
-                                      st.integers(0, U32 - 1))),
-                  max_size=40).map(b"".join)
+STREAM = st.lists(
+    st.one_of(
+        frame_lines(),
+        st.binary(max_size=60),
+        st.just(b"\n"),
+        st.builds(lambda s, t: format_frame(s, t, [1, 2]), st.integers(0, U32 - 1), st.integers(0, U32 - 1)),
+    ),
+    max_size=40,
+).map(b"".join)
 
 
 def check_batch(batch: FrameBatch, k: int | None) -> None:
@@ -59,14 +65,19 @@ def check_counters(r: StreamReader, fed: int, frames: int) -> None:
 
 
 @settings(max_examples=200, deadline=None)
-@given(STREAM, st.lists(st.integers(1, 400), max_size=10), st.one_of(st.none(), st.integers(1, 8)),
-       st.one_of(st.none(), st.floats(0.01, 1e6)), st.integers(0, 10**9))
+@given(
+    STREAM,
+    st.lists(st.integers(1, 400), max_size=10),
+    st.one_of(st.none(), st.integers(1, 8)),
+    st.one_of(st.none(), st.floats(0.01, 1e6)),
+    st.integers(0, 10**9),
+)
 def test_stall_accounting_never_raises_on_arbitrary_frames(stream, sizes, k, rate, stall_us) -> None:
     r = StreamReader(n_channels=k, stall_us=stall_us)
     r.set_rate(rate)
     frames, pos = 0, 0
     for size in sizes + [len(stream)]:
-        batch = r.feed(stream[pos:pos + size])
+        batch = r.feed(stream[pos : pos + size])
         check_batch(batch, k)
         frames += len(batch)
         pos += size

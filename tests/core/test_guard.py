@@ -30,8 +30,9 @@ PROTOCOL = load_protocol("takuma2014")
 WATCH = Watch.of(PROTOCOL)
 ROOT = Path(__file__).resolve().parents[2]
 # Per newton of (Fx, Fy): four pressures (MPa) and two deflections (rad), about the simulated rig's.
-M = np.array([[1.0e-3, 0.2e-3], [-1.0e-3, -0.1e-3], [1.2e-3, 0.3e-3], [-1.1e-3, -0.2e-3],
-              [-2.4e-2, 0.1e-2], [0.3e-2, 0.2e-2]])
+M = np.array(
+    [[1.0e-3, 0.2e-3], [-1.0e-3, -0.1e-3], [1.2e-3, 0.3e-3], [-1.1e-3, -0.2e-3], [-2.4e-2, 0.1e-2], [0.3e-2, 0.2e-2]]
+)
 P0 = np.array([0.30, 0.31, 0.29, 0.32, 0.0, 0.0])
 
 
@@ -115,8 +116,10 @@ def test_the_weak_response_sentence_names_the_channel_and_the_numbers():
     text = weak_response(WATCH, window(P0), window(P0), guard.model().predict(F))
     # POT1 should move by M[4] @ F = -0.1262 rad = -7.23 deg; less 3 floors (0.1 deg each) widened by
     # the leverage h = 0.324 of this load among the 12 training loads: 7.23 - 0.3 * sqrt(1.324) = 6.88 deg.
-    assert text == ("the readings moved by 0% of what this run's earlier trials say this load surely does "
-                    "(POT1 +0.00 deg, at least -6.88 deg expected)")
+    assert text == (
+        "the readings moved by 0% of what this run's earlier trials say this load surely does "
+        "(POT1 +0.00 deg, at least -6.88 deg expected)"
+    )
 
 
 def test_least_expected_drops_what_the_trials_scatter_over():
@@ -134,7 +137,8 @@ def test_a_weight_left_hanging_is_seen_at_the_next_baseline_but_friction_and_a_l
     # Judged on the pressures; the largest change, P_R1 under 800 g at -60 deg:
     # -1.0e-3 * 3.923 N - 0.1e-3 * -6.794 N = -3.244e-3 MPa = -3.24 kPa.
     assert still_loaded(WATCH, base, loaded, window(P0 + M @ F)) == (
-        "they are still 100% of the way to the loaded ones (P_R1 -3.24 kPa from the baseline, -3.24 kPa under the load)")
+        "they are still 100% of the way to the loaded ones (P_R1 -3.24 kPa from the baseline, -3.24 kPa under the load)"
+    )
     # Potentiometer play and sleeve friction: the pressures are back, the angles still where the load left them.
     assert still_loaded(WATCH, base, loaded, window(np.r_[P0[:4], (P0 + M @ F)[4:]])) is None
     # Friction leaves the arm a few percent short of its old posture.
@@ -181,10 +185,12 @@ def test_supply_problems_say_what_is_wrong():
     assert supply_problem(names, [0.001, 0.0, 0.002, -0.001], 0.1) == (
         "After the air supply P_L1 reads 0.001 MPa, P_R1 reads 0.000 MPa, P_L2 reads 0.002 MPa, P_R2 reads "
         "-0.001 MPa, below the 0.1 MPa the protocol asks for (acquisition.supply_min_MPa): check the compressor, "
-        "the regulator and that the valves are open.")
+        "the regulator and that the valves are open."
+    )
     assert supply_problem(names, [0.30, 0.002, 0.29, 0.30], 0.1) == (
         "After the air supply P_R1 reads 0.002 MPa while the others read about 0.30 MPa: check that actuator's "
-        "tube, fitting and valve.")
+        "tube, fitting and valve."
+    )
 
 
 def test_on_the_simulated_rigs_sample_run_no_trial_is_flagged_and_most_missing_loads_would_be():
@@ -196,8 +202,9 @@ def test_on_the_simulated_rigs_sample_run_no_trial_is_flagged_and_most_missing_l
     flagged, caught, caught_heavy, heavy = 0, 0, 0, 0
     for r in table.to_dict("records"):
         base = window([r["P_L10"], r["P_R10"], r["P_L20"], r["P_R20"], 0.0, 0.0])
-        loaded = window([r["P_L1"], r["P_R1"], r["P_L2"], r["P_R2"],
-                         math.radians(r["theta1_deg"]), math.radians(r["theta2_deg"])])
+        loaded = window(
+            [r["P_L1"], r["P_R1"], r["P_L2"], r["P_R2"], math.radians(r["theta1_deg"]), math.radians(r["theta2_deg"])]
+        )
         F = (r["Fx_N"], r["Fy_N"])
         prediction = guard.model().predict(F)
         flagged += weak_response(WATCH, base, loaded, prediction) is not None

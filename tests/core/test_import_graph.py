@@ -40,7 +40,7 @@ def test_no_import_cycle():
         path.append(node)
         for nxt in sorted(GRAPH.get(node, ())):
             if state.get(nxt) == 1:
-                cycle = path[path.index(nxt):] + [nxt]
+                cycle = path[path.index(nxt) :] + [nxt]
                 pytest.fail("import cycle: " + " -> ".join(cycle))
             if nxt not in state:
                 visit(nxt)
@@ -65,13 +65,17 @@ def test_core_imports_only_the_core_and_errors(name):
 @pytest.mark.parametrize("name", sorted(n for n in MODULES if paper_of(n)))
 def test_a_paper_imports_the_core_errors_and_itself_only(name):
     own = f"labcli.papers.{paper_of(name)}"
-    outside = {m for m in GRAPH[name]
-               if not (m == "labcli.errors" or m.startswith("labcli.core") or m == own or m.startswith(own + "."))}
+    outside = {
+        m
+        for m in GRAPH[name]
+        if not (m == "labcli.errors" or m.startswith("labcli.core") or m == own or m.startswith(own + "."))
+    }
     assert not outside, f"{name} imports {sorted(outside)}"
 
 
-@pytest.mark.parametrize("name", sorted(n for n in MODULES if n.startswith("labcli.commands") or n == "labcli.cli"
-                                        or n == "labcli"))
+@pytest.mark.parametrize(
+    "name", sorted(n for n in MODULES if n.startswith("labcli.commands") or n == "labcli.cli" or n == "labcli")
+)
 def test_commands_reach_a_paper_only_through_the_registry(name):
     papers = {m for m in GRAPH[name] if paper_of(m) or m == "labcli.papers"}
     assert not papers, f"{name} imports {sorted(papers)}"

@@ -44,8 +44,13 @@ def test_depth_is_counted_without_recursion_and_strings_do_not_count():
 def test_long_id_lists_go_on_one_line_and_the_value_is_unchanged():
     from labcli.core.jsontext import LONG_LIST, dumps_indented
 
-    doc = {"fitted_trials": list(range(LONG_LIST + 1)), "short": [1, 2], "mixed": [1.5] * (LONG_LIST + 1),
-           "text": "long-list-0", "nested": {"ids": [list(range(3 * LONG_LIST))]}}
+    doc = {
+        "fitted_trials": list(range(LONG_LIST + 1)),
+        "short": [1, 2],
+        "mixed": [1.5] * (LONG_LIST + 1),
+        "text": "long-list-0",
+        "nested": {"ids": [list(range(3 * LONG_LIST))]},
+    }
     text = dumps_indented(doc)
     assert json.loads(text) == doc
     lines = text.splitlines()

@@ -17,10 +17,9 @@ import time
 from pathlib import Path
 
 import pytest
+from support.records import assert_record_stored, make_record
 
 from labcli.core.store import RunFile
-
-from support.records import assert_record_stored, make_record
 
 WRITER = Path(__file__).resolve().parents[1] / "support" / "records.py"
 ROOT = Path(__file__).resolve().parents[2]
@@ -29,8 +28,12 @@ N_TRIALS = 1_000_000  # never reached: the writer is always killed first
 
 def start_writer(path: str, n_samples: int) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.Popen([sys.executable, str(WRITER), path, str(N_TRIALS), str(n_samples)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    proc = subprocess.Popen(
+        [sys.executable, str(WRITER), path, str(N_TRIALS), str(n_samples)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
     line = proc.stdout.readline()
     if line != b"ready\n":
         proc.kill()
@@ -39,8 +42,9 @@ def start_writer(path: str, n_samples: int) -> subprocess.Popen:
     return proc
 
 
-def kill_loop(path: str, kills: int, n_samples: int, seed: int, max_delay_s: float,
-              require_progress: bool = True) -> None:
+def kill_loop(
+    path: str, kills: int, n_samples: int, seed: int, max_delay_s: float, require_progress: bool = True
+) -> None:
     rng = random.Random(seed)
     verified: set[int] = set()
     for k in range(kills):
@@ -100,8 +104,12 @@ def test_kill_during_create_leaves_no_half_run(tmp_path):
     for k in range(5):
         path = str(tmp_path / f"run{k}.h5")
         env = dict(os.environ, PYTHONPATH=str(ROOT))
-        proc = subprocess.Popen([sys.executable, str(WRITER), path, str(N_TRIALS), "50"],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        proc = subprocess.Popen(
+            [sys.executable, str(WRITER), path, str(N_TRIALS), "50"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
         time.sleep(rng.uniform(0.2, 1.0))  # somewhere in interpreter start-up, create, or the first trials
         proc.send_signal(signal.SIGKILL)
         proc.wait()

@@ -12,8 +12,8 @@ import pytest
 from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from support.firmware import REFERENCE_CHANNELS, REFERENCE_COUNTS, FakeFirmware
+
 from labcli.cli import cli
 from labcli.core.device import Device
 from labcli.core.monitoring import RunningStats, channel_scale, watch
@@ -52,7 +52,7 @@ def test_monitor_json_reports_exactly_the_injected_faults():
     assert summary["frames_per_s"] == pytest.approx(250, rel=0.1)
     assert commands[-3:] == ["RATE 250", "START", "STOP"]
     assert list(summary["channels"]) == list(REFERENCE_CHANNELS)
-    for name, counts in zip(REFERENCE_CHANNELS, REFERENCE_COUNTS):
+    for name, counts in zip(REFERENCE_CHANNELS, REFERENCE_COUNTS, strict=False):
         value, unit = reference_si(name, counts)
         assert summary["channels"][name]["unit"] == unit
         assert summary["channels"][name]["mean"] == pytest.approx(value, abs=1e-12)
@@ -186,11 +186,16 @@ def test_ports_lists_a_serving_simulated_rig_marked_as_such(monkeypatch, tmp_pat
     monkeypatch.setenv("LABCLI_RUNTIME_DIR", str(tmp_path))
     usb = SimpleNamespace(device="/dev/ttyUSB0", description="FT232R USB UART", hwid="USB VID:PID=0403:6001")
     monkeypatch.setattr(list_ports, "comports", lambda: [usb])
-    (tmp_path / "sim-999999999.json").write_text(json.dumps(
-        {"device": "/dev/pts/999", "pid": 999999999, "description": "simulated rig of a killed server"}))
-    proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3"],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-                            env={**os.environ, "LABCLI_RUNTIME_DIR": str(tmp_path)})
+    (tmp_path / "sim-999999999.json").write_text(
+        json.dumps({"device": "/dev/pts/999", "pid": 999999999, "description": "simulated rig of a killed server"})
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "LABCLI_RUNTIME_DIR": str(tmp_path)},
+    )
     try:
         path = proc.stdout.readline().split()[3]
         deadline = time.monotonic() + 10.0  # the note is written just after the banner
@@ -215,7 +220,8 @@ def test_ports_lists_a_serving_simulated_rig_marked_as_such(monkeypatch, tmp_pat
     assert proc.returncode == 0
     assert list(tmp_path.iterdir()) == []  # the note goes with the server
     assert CliRunner().invoke(cli, ["ports"]).output.splitlines()[1:] == [
-        "/dev/ttyUSB0  FT232R USB UART  USB VID:PID=0403:6001"]
+        "/dev/ttyUSB0  FT232R USB UART  USB VID:PID=0403:6001"
+    ]
 
 
 def test_monitor_on_the_simulated_rig():

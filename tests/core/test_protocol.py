@@ -13,9 +13,9 @@ import pytest
 
 from labcli.core import protocol as protocol_mod
 from labcli.core.calibration import format_value, from_display, to_display
-from labcli.errors import ConfigError
 from labcli.core.paper import ProtocolKind
 from labcli.core.protocol import kinds, load_protocol, loads_protocol, shipped_protocols
+from labcli.errors import ConfigError
 from labcli.papers.takuma2014.protocol import COEFFICIENT_NAMES, load_plan
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -92,11 +92,24 @@ def test_force_protocol_values_from_the_paper() -> None:
     assert tuple(p.settings.paper_coefficients) == COEFFICIENT_NAMES
     # Section 3.3 as printed; Eq. 35's minus before beta_theta2_R2 is read as a misprint.
     printed = {
-        "beta_theta1_L1": 0.136, "beta_theta1_R1": -1.587, "beta_theta2_L1": 1.359,
-        "beta_theta2_R1": 1.094, "beta_theta2_L2": 0.766, "beta_theta2_R2": -2.972,
-        "beta_Fx1": -75.906, "beta_Fx2": -5.538, "beta_Fx3": -2201.033, "beta_Fx4": -131.738,
-        "beta_Fx5": 1.545, "beta_Fx6": -21.865, "beta_Fy1": 1.309, "beta_Fy2": -75.973,
-        "beta_Fy3": -642.995, "beta_Fy4": -393.750, "beta_Fy5": 1.196, "beta_Fy6": -21.697,
+        "beta_theta1_L1": 0.136,
+        "beta_theta1_R1": -1.587,
+        "beta_theta2_L1": 1.359,
+        "beta_theta2_R1": 1.094,
+        "beta_theta2_L2": 0.766,
+        "beta_theta2_R2": -2.972,
+        "beta_Fx1": -75.906,
+        "beta_Fx2": -5.538,
+        "beta_Fx3": -2201.033,
+        "beta_Fx4": -131.738,
+        "beta_Fx5": 1.545,
+        "beta_Fx6": -21.865,
+        "beta_Fy1": 1.309,
+        "beta_Fy2": -75.973,
+        "beta_Fy3": -642.995,
+        "beta_Fy4": -393.750,
+        "beta_Fy5": 1.196,
+        "beta_Fy6": -21.697,
     }
     for k, v in printed.items():
         assert p.settings.paper_coefficients[k] == v, k
@@ -246,7 +259,9 @@ def test_wrong_type(tmp_path: Path) -> None:
     assert error_of(p) == f"{p}: key 'rig.h1_m' must be a number in m, not the string '0.355'."
     p = write_variant(tmp_path, "fit = 90", "fit = 90.0")
     assert error_of(p) == f"{p}: key 'trials.fit' must be an integer, not the number 90.0."
-    text = FORCE_TEXT.replace("[settling]", "[settling_old]").replace('kind = "force"\n', 'kind = "force"\nsettling = 3\n')
+    text = FORCE_TEXT.replace("[settling]", "[settling_old]").replace(
+        'kind = "force"\n', 'kind = "force"\nsettling = 3\n'
+    )
     p = tmp_path / "rig.toml"
     p.write_text(text, encoding="utf-8")
     assert error_of(p) == f"{p}: key 'settling' must be a table [settling], not the integer 3."
@@ -374,8 +389,12 @@ def test_plan_must_exist_and_match_the_trial_counts(tmp_path: Path) -> None:
 def test_a_new_kind_is_an_entry_in_the_schema_data(monkeypatch: pytest.MonkeyPatch) -> None:
     from labcli.core import registry
 
-    kind = ProtocolKind("demo-kind", {"rig": ("required", protocol_mod.OPEN)}, extra_sections=True,
-                        build=lambda checked, chk, path: {"rig": checked["rig"]})
+    kind = ProtocolKind(
+        "demo-kind",
+        {"rig": ("required", protocol_mod.OPEN)},
+        extra_sections=True,
+        build=lambda checked, chk, path: {"rig": checked["rig"]},
+    )
     installed = registry.protocol_kinds
     monkeypatch.setattr(registry, "protocol_kinds", lambda: {**installed(), "demo-kind": kind})
     p = loads_protocol('name = "x"\nkind = "demo-kind"\n[rig]\nL2_m = 0.1048\n[stretch]\npayloads_kg = [0.1, 0.2]\n')
@@ -413,7 +432,7 @@ def test_plan_design() -> None:
     assert plan["trial"].tolist() == list(range(1, 109))
     assert plan["set"].tolist() == ["fit"] * 90 + ["validation"] * 18  # sequential split
     fit, val = plan.iloc[:90], plan.iloc[90:]
-    fit_pairs = set(zip(fit.mass_g, fit.direction_deg))
+    fit_pairs = set(zip(fit.mass_g, fit.direction_deg, strict=False))
     masses = sorted(set(fit.mass_g))
     directions = sorted(set(fit.direction_deg))
     # fit: the full 9 x 10 grid, every pair once
@@ -425,7 +444,7 @@ def test_plan_design() -> None:
     left = sorted((d % 360) for d in directions if not -90 < d < 90)
     assert right == [-60, -30, 0, 30, 60] and left == [120, 150, 180, 210, 240]
     # validation: same ranges, never a fit mass, never a fit direction
-    for m, d in zip(val.mass_g, val.direction_deg):
+    for m, d in zip(val.mass_g, val.direction_deg, strict=False):
         assert (m, d) not in fit_pairs
         assert 50 < m < 1000 and m not in masses
         assert d not in directions
@@ -434,7 +453,7 @@ def test_plan_design() -> None:
         assert min(side) < dd < max(side)
     # each validation mass once per side
     for side_test in (lambda d: -90 < d < 90, lambda d: not -90 < d < 90):
-        vm = sorted(m for m, d in zip(val.mass_g, val.direction_deg) if side_test(d))
+        vm = sorted(m for m, d in zip(val.mass_g, val.direction_deg, strict=False) if side_test(d))
         assert len(vm) == 9 and len(set(vm)) == 9
     # grouped by pulley position: each direction is one contiguous block
     for block in (fit, val):
@@ -451,9 +470,30 @@ from hypothesis import strategies as st  # noqa: E402
 
 _VALUE_LINES = [i for i, line in enumerate(FORCE_TEXT.splitlines()) if re.match(r"^[A-Za-z_0-9]+ = ", line)]
 _TOML_VALUES = st.one_of(
-    st.sampled_from(['"x"', '""', "0", "-1", "1e999", "nan", "-inf", "true", "[]", "[1, 2]", "[1, nan]",
-                     "[-inf, 1.0]", '["a", "a"]', "{a = 1}", "1979-05-27", "07:32:00", "0.0", "4095", "[0.0, 1.0, 2.0]"]),
-    st.integers(-10**20, 10**20).map(str),
+    st.sampled_from(
+        [
+            '"x"',
+            '""',
+            "0",
+            "-1",
+            "1e999",
+            "nan",
+            "-inf",
+            "true",
+            "[]",
+            "[1, 2]",
+            "[1, nan]",
+            "[-inf, 1.0]",
+            '["a", "a"]',
+            "{a = 1}",
+            "1979-05-27",
+            "07:32:00",
+            "0.0",
+            "4095",
+            "[0.0, 1.0, 2.0]",
+        ]
+    ),
+    st.integers(-(10**20), 10**20).map(str),
     st.floats(allow_nan=False, allow_infinity=False).map(repr),
     st.text(alphabet="abcPL12_ -", max_size=8).map(lambda s: '"' + s + '"'),
 )

@@ -23,7 +23,9 @@ PLAN = "trial,set,mass_g,direction_deg\n1,fit,800,-60\n2,fit,500,30\n"
 
 
 def flag(rate_hz: float) -> str:
-    return f"the rig streams at {rate_hz:.4g} Hz by its own clock, not the 200 Hz it confirmed; check its firmware's timer"
+    return (
+        f"the rig streams at {rate_hz:.4g} Hz by its own clock, not the 200 Hz it confirmed; check its firmware's timer"
+    )
 
 
 def test_the_rig_confirms_the_rate_asked_and_stamps_frames_at_its_own():
@@ -45,8 +47,10 @@ def test_the_rig_confirms_the_rate_asked_and_stamps_frames_at_its_own():
 def test_a_rate_factor_out_of_range_is_refused_with_the_accepted_form(value):
     with pytest.raises(serial.SerialException) as e:
         serial.serial_for_url(f"sim://?ratefactor={value}")
-    assert str(e.value) == (f"option 'ratefactor' in sim:// URL must be a number within 0.01..100, got '{value}'; "
-                            f"expected {accepted_form()}")
+    assert str(e.value) == (
+        f"option 'ratefactor' in sim:// URL must be a number within 0.01..100, got '{value}'; "
+        f"expected {accepted_form()}"
+    )
 
 
 def test_the_compiled_firmware_takes_no_rate_factor():
@@ -54,14 +58,21 @@ def test_the_compiled_firmware_takes_no_rate_factor():
         firmware_options("sim://?firmware=rig.elf&ratefactor=10")
 
 
-@pytest.mark.parametrize("factor, flagged", [(10, True), (0.1, True), (1 + 0.8 * RATE_TOLERANCE, False),
-                                             (1 + 1.2 * RATE_TOLERANCE, True)])
+@pytest.mark.parametrize(
+    "factor, flagged", [(10, True), (0.1, True), (1 + 0.8 * RATE_TOLERANCE, False), (1 + 1.2 * RATE_TOLERANCE, True)]
+)
 def test_a_stream_off_its_rate_warns_once_and_flags_every_trial(tmp_path, quiet_ui, factor, flagged):
     (tmp_path / "plan.csv").write_text(PLAN)
     run = tmp_path / "run.h5"
     ui = quiet_ui()
-    outcome = acquire(run, f"sim://?seed=1&clock=virtual&ratefactor={factor}", protocol="takuma2014",
-                      plan=tmp_path / "plan.csv", unattended=True, ui=ui)
+    outcome = acquire(
+        run,
+        f"sim://?seed=1&clock=virtual&ratefactor={factor}",
+        protocol="takuma2014",
+        plan=tmp_path / "plan.csv",
+        unattended=True,
+        ui=ui,
+    )
     assert outcome.exit_code == 0, outcome.message
     said = ui.console.file.getvalue()
     with RunFile.open(run) as f:

@@ -7,15 +7,23 @@ import math
 import numpy as np
 import pytest
 
-from labcli.core.settle import (BLOCKS, TAIL_MAX, TAIL_WINDOWS, SettleCriteria, SettleDetector, TimeUnwrapper,
-                                remaining_tail)
+from labcli.core.settle import (
+    BLOCKS,
+    TAIL_MAX,
+    TAIL_WINDOWS,
+    SettleCriteria,
+    SettleDetector,
+    TimeUnwrapper,
+    remaining_tail,
+)
 
 RATE = 200.0
 TAU = 1.0  # s, first-order lag time constant
 STEP_MPA = 0.02  # 20 kPa pressure step
 STEP_RAD = math.radians(4.0)
-CRIT = SettleCriteria(window_s=1.0, hold_s=2.0, pressure_spread_MPa=0.002,
-                      angle_spread_rad=math.radians(0.5), timeout_s=30.0)
+CRIT = SettleCriteria(
+    window_s=1.0, hold_s=2.0, pressure_spread_MPa=0.002, angle_spread_rad=math.radians(0.5), timeout_s=30.0
+)
 
 
 def lag(t: np.ndarray, step: float) -> np.ndarray:
@@ -38,7 +46,7 @@ def run(t, si, chunk=37, crit=CRIT):
     det = SettleDetector(crit, [0, 1, 2, 3], [4, 5])
     history = []
     for a in range(0, len(t), chunk):
-        s = det.update(t[a:a + chunk], si[a:a + chunk])
+        s = det.update(t[a : a + chunk], si[a : a + chunk])
         history.append(s)
         if s.settled or s.timed_out:
             break
@@ -65,8 +73,10 @@ def analytic_quiet_start(crit: SettleCriteria) -> float:
         spread = mean(T - w, b) - mean(T - b, b)
         d2 = mean(T - 2 * w, w) - mean(T - w, w)
         tail = d2 * min(r / (1 - r), TAIL_MAX)
-        if max(spread, tail) * STEP_MPA < crit.pressure_spread_MPa and \
-                max(spread, tail) * STEP_RAD < crit.angle_spread_rad:
+        if (
+            max(spread, tail) * STEP_MPA < crit.pressure_spread_MPa
+            and max(spread, tail) * STEP_RAD < crit.angle_spread_rad
+        ):
             return T
         k += 1
 
@@ -107,8 +117,9 @@ def thermal_signals(duration_s: float, excess_mpa: float, tau_th: float, noise_m
 def test_a_slow_thermal_tail_is_waited_out_not_accepted_by_its_small_spread():
     # The air's excess pressure after a fast load relaxes over seconds: its spread over a
     # 1 s window is a fraction of what is left, so a spread rule alone accepts it too early.
-    crit = SettleCriteria(window_s=1.0, hold_s=2.0, pressure_spread_MPa=0.00025,
-                          angle_spread_rad=math.radians(0.1), timeout_s=60.0)
+    crit = SettleCriteria(
+        window_s=1.0, hold_s=2.0, pressure_spread_MPa=0.00025, angle_spread_rad=math.radians(0.1), timeout_s=60.0
+    )
     excess = 0.0015  # 1.5 kPa: the rig's overshoot after 1 kg
     settle = {}
     for tau_th in (2.0, 3.0, 4.0):
@@ -120,8 +131,9 @@ def test_a_slow_thermal_tail_is_waited_out_not_accepted_by_its_small_spread():
         # Spread alone: the first window whose block-mean range is under the threshold.
         b = crit.window_s / BLOCKS
         means = [si[(t >= k * b) & (t < (k + 1) * b), 0].mean() for k in range(int(40 / b))]
-        spread_ok = next(k for k in range(BLOCKS, len(means))
-                         if np.ptp(means[k - BLOCKS:k]) < crit.pressure_spread_MPa)
+        spread_ok = next(
+            k for k in range(BLOCKS, len(means)) if np.ptp(means[k - BLOCKS : k]) < crit.pressure_spread_MPa
+        )
         assert excess * np.interp(spread_ok * b, t, heat) > 1.5 * crit.pressure_spread_MPa  # too early
         settle[tau_th] = final.settle_time_s
     # The wait grows with the thermal time constant as the excess's own decay does:
@@ -133,7 +145,7 @@ def test_a_slow_thermal_tail_is_waited_out_not_accepted_by_its_small_spread():
 def test_the_tail_estimate_is_aitkens_limit_of_an_exponential():
     A, B, C = (np.array([1 - math.exp(-k / 2.0)]) for k in (0, 1, 2))
     r = math.exp(-1 / 2.0)
-    limit_left = (1.0 - C[0])
+    limit_left = 1.0 - C[0]
     assert remaining_tail(A, B, C)[0] == pytest.approx(min(limit_left, TAIL_MAX * (C - B)[0]), rel=1e-12)
     # A creep (no decay) counts TAIL_MAX steps; a hump (no trend) counts its larger step.
     assert remaining_tail(np.array([0.0]), np.array([1.0]), np.array([2.0]))[0] == TAIL_MAX
@@ -143,8 +155,9 @@ def test_the_tail_estimate_is_aitkens_limit_of_an_exponential():
 
 def test_sensor_noise_does_not_hold_a_settled_leaking_rig_back():
     # A leak of 2 kPa/min (a creep) plus sensor noise: settles at the earliest time.
-    crit = SettleCriteria(window_s=1.0, hold_s=2.0, pressure_spread_MPa=0.0003,
-                          angle_spread_rad=math.radians(0.1), timeout_s=30.0)
+    crit = SettleCriteria(
+        window_s=1.0, hold_s=2.0, pressure_spread_MPa=0.0003, angle_spread_rad=math.radians(0.1), timeout_s=30.0
+    )
     t = np.arange(int(20 * RATE)) / RATE
     si = np.zeros((len(t), 6))
     # The rig's pressure noise: 0.5 count rms plus rounding, 0.18 kPa.
@@ -211,10 +224,10 @@ def test_timeout_when_the_joint_keeps_creeping_and_wait_longer():
     det.extend_timeout()
     assert not det.status.timed_out
     rest = np.searchsorted(t, final.elapsed_s, side="right")
-    s = det.update(t[rest:rest + int(4 * RATE)], si[rest:rest + int(4 * RATE)])
+    s = det.update(t[rest : rest + int(4 * RATE)], si[rest : rest + int(4 * RATE)])
     assert not s.timed_out and not s.settled
     for a in range(rest + int(4 * RATE), len(t), 50):
-        s = det.update(t[a:a + 50], si[a:a + 50])
+        s = det.update(t[a : a + 50], si[a : a + 50])
         if s.timed_out:
             break
     # One more timeout of 5 s.

@@ -18,10 +18,10 @@ from click.testing import CliRunner
 
 from labcli.cli import cli
 from labcli.core.device import Device
-from labcli.errors import DeviceTimeout
-from labcli.core.sim.pty import serve_pty
 from labcli.core.sim import register
+from labcli.core.sim.pty import serve_pty
 from labcli.core.wire import STALL_US, U32, FrameBatch, StreamReader, format_frame
+from labcli.errors import DeviceTimeout
 
 register()
 
@@ -30,7 +30,7 @@ def expected_stalls(seqs: np.ndarray, stalls: list[tuple[int, float]], stall_us:
     """Gaps between consecutive received frames holding injected stall time above ``stall_us``."""
     by_seq = dict(stalls)
     count, total = 0, 0.0
-    for a, b in zip(seqs[:-1].tolist(), seqs[1:].tolist()):
+    for a, b in zip(seqs[:-1].tolist(), seqs[1:].tolist(), strict=False):
         s = sum(by_seq.get(q, 0.0) for q in range(a + 1, b + 1))
         if s * 1e6 > stall_us:
             count += 1
@@ -80,7 +80,7 @@ def test_a_gap_counts_only_beyond_the_threshold_and_only_once_the_rate_is_known(
     r2 = StreamReader(n_channels=2)
     r2.set_rate(200)
     for i in range(len(data)):
-        r2.feed(data[i:i + 1])
+        r2.feed(data[i : i + 1])
     assert r2.stalls == 1
 
     r.reset_counters()
@@ -151,8 +151,9 @@ def test_a_stall_longer_than_the_silence_timeout_is_a_device_timeout_then_counts
 def test_monitor_reports_stalls_in_json_and_text_exactly():
     server = serve_pty(seed=12, rate=1000, faults="stall:0.003@0.3")
     try:
-        result = CliRunner().invoke(cli, ["monitor", "--port", server.path, "--seconds", "2", "--json",
-                                          "--rate", "1000", "--boot-wait", "0"])
+        result = CliRunner().invoke(
+            cli, ["monitor", "--port", server.path, "--seconds", "2", "--json", "--rate", "1000", "--boot-wait", "0"]
+        )
         last_seq = server.firmware.seq - 1  # every frame made was sent: no other fault
         stalls = list(server.faults.stalls)
     finally:
@@ -165,8 +166,9 @@ def test_monitor_reports_stalls_in_json_and_text_exactly():
 
     server = serve_pty(seed=12, rate=1000, faults="stall:0.003@0.3")
     try:
-        result = CliRunner().invoke(cli, ["monitor", "--port", server.path, "--seconds", "1.5",
-                                          "--rate", "1000", "--boot-wait", "0"])
+        result = CliRunner().invoke(
+            cli, ["monitor", "--port", server.path, "--seconds", "1.5", "--rate", "1000", "--boot-wait", "0"]
+        )
         last_seq = server.firmware.seq - 1
         stalls = list(server.faults.stalls)
     finally:
@@ -179,8 +181,9 @@ def test_monitor_reports_stalls_in_json_and_text_exactly():
 
 
 def test_monitor_without_stalls_says_zero():
-    result = CliRunner().invoke(cli, ["monitor", "--port", "sim://?seed=2&clock=virtual", "--seconds", "0.3",
-                                      "--json", "--rate", "500"])
+    result = CliRunner().invoke(
+        cli, ["monitor", "--port", "sim://?seed=2&clock=virtual", "--seconds", "0.3", "--json", "--rate", "500"]
+    )
     assert result.exit_code == 0, result.output
     summary = json.loads(result.output)
     assert summary["stalls"] == 0 and summary["frames"] > 1000

@@ -10,16 +10,16 @@ import shutil
 import h5py
 import numpy as np
 import pytest
-
-from labcli.errors import ConfigError, LabcliWarning, StoreError
-from labcli.core.store import SCHEMA_VERSION, RunFile, choose_split, import_table, to_edge
-
 from support.records import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
+
+from labcli.core.store import SCHEMA_VERSION, RunFile, choose_split, import_table, to_edge
+from labcli.errors import ConfigError, LabcliWarning, StoreError
 
 
 def new_run(path, **kw) -> RunFile:
-    return RunFile.create(path, protocol=FakeProtocol(), device_info=FakeDevice(), port="sim://?seed=1",
-                          operator="ada", **kw)
+    return RunFile.create(
+        path, protocol=FakeProtocol(), device_info=FakeDevice(), port="sim://?seed=1", operator="ada", **kw
+    )
 
 
 @pytest.fixture
@@ -64,8 +64,14 @@ def test_large_raw_windows_are_compressed_and_read_back_exactly(tmp_path):
         assert_record_stored(run.read(2), small)
     unfiltered = []
     with h5py.File(path, "r") as f:
-        f.visititems(lambda name, obj: unfiltered.append(name) if isinstance(obj, h5py.Dataset) and not (
-            obj.compression == "gzip" and obj.shuffle and obj.fletcher32 and obj.chunks) else None)
+        f.visititems(
+            lambda name, obj: (
+                unfiltered.append(name)
+                if isinstance(obj, h5py.Dataset)
+                and not (obj.compression == "gzip" and obj.shuffle and obj.fletcher32 and obj.chunks)
+                else None
+            )
+        )
     assert unfiltered == []
 
 
@@ -75,8 +81,11 @@ def test_every_dataset_has_units(run_path):
         run.record_model("takuma", '{"a": 1}')
     missing = []
     with h5py.File(run_path, "r") as f:
-        f.visititems(lambda name, obj: missing.append(name)
-                     if isinstance(obj, h5py.Dataset) and "units" not in obj.attrs else None)
+        f.visititems(
+            lambda name, obj: (
+                missing.append(name) if isinstance(obj, h5py.Dataset) and "units" not in obj.attrs else None
+            )
+        )
         n = []
         f.visititems(lambda name, obj: n.append(name) if isinstance(obj, h5py.Dataset) else None)
     assert missing == []
@@ -88,7 +97,12 @@ def test_root_metadata(run_path):
         a = run.attrs
         assert a["schema"] == "labcli-run" and a["schema_version"] == SCHEMA_VERSION
         assert a["kind"] == "force" and a["protocol"] == "bench"
-        assert (a["device"], a["firmware"], a["port"], a["operator"]) == ("mckibben-2dof", "1.0", "sim://?seed=1", "ada")
+        assert (a["device"], a["firmware"], a["port"], a["operator"]) == (
+            "mckibben-2dof",
+            "1.0",
+            "sim://?seed=1",
+            "ada",
+        )
         assert a["channels"] == list(CHANNELS)
         started = datetime.datetime.fromisoformat(a["started"])  # ISO 8601, microseconds and UTC offset
         assert started.utcoffset() is not None and "." in a["started"]
@@ -105,9 +119,26 @@ def test_trial_table_columns_and_units(run_path):
     with RunFile.open(run_path, "a") as run:
         run.set_split([1, 2, 3], [4], "manual")
         df = run.table()
-    assert list(df.columns) == ["trial", "set", "P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2",
-                                "theta1_deg", "theta2_deg", "Fx_N", "Fy_N", "mass_g", "direction_deg",
-                                "theta1_0_deg", "theta2_0_deg"]
+    assert list(df.columns) == [
+        "trial",
+        "set",
+        "P_L10",
+        "P_R10",
+        "P_L20",
+        "P_R20",
+        "P_L1",
+        "P_R1",
+        "P_L2",
+        "P_R2",
+        "theta1_deg",
+        "theta2_deg",
+        "Fx_N",
+        "Fy_N",
+        "mass_g",
+        "direction_deg",
+        "theta1_0_deg",
+        "theta2_0_deg",
+    ]
     assert df["trial"].tolist() == list(range(1, 13))
     assert df["set"].tolist()[:5] == ["fit", "fit", "fit", "validation", ""]
     rec = make_record(7)
@@ -152,8 +183,9 @@ def test_open_not_hdf5(tmp_path):
     path.write_text("trial,set\n1,fit\n")
     with pytest.raises(StoreError) as e:
         RunFile.open(str(path))
-    assert str(e.value) == (f"{path} is not an HDF5 file; run files are written by 'labcli acquire' "
-                            "or 'labcli import'.")
+    assert str(e.value) == (
+        f"{path} is not an HDF5 file; run files are written by 'labcli acquire' or 'labcli import'."
+    )
 
 
 def test_open_other_schema(tmp_path):
@@ -162,14 +194,16 @@ def test_open_other_schema(tmp_path):
         f.create_dataset("x", data=[1, 2, 3])
     with pytest.raises(StoreError) as e:
         RunFile.open(path)
-    assert str(e.value) == (f"{path} is an HDF5 file but not a labcli run file (no schema attribute, "
-                            "expected 'labcli-run').")
+    assert str(e.value) == (
+        f"{path} is an HDF5 file but not a labcli run file (no schema attribute, expected 'labcli-run')."
+    )
     with h5py.File(path, "a") as f:
         f.attrs["schema"] = "nexus-scan"
     with pytest.raises(StoreError) as e:
         RunFile.open(path)
-    assert str(e.value) == (f"{path} is an HDF5 file but not a labcli run file (schema 'nexus-scan', "
-                            "expected 'labcli-run').")
+    assert str(e.value) == (
+        f"{path} is an HDF5 file but not a labcli run file (schema 'nexus-scan', expected 'labcli-run')."
+    )
 
 
 def test_open_newer_schema(run_path):
@@ -177,8 +211,10 @@ def test_open_newer_schema(run_path):
         f.attrs["schema_version"] = SCHEMA_VERSION + 1
     with pytest.raises(StoreError) as e:
         RunFile.open(run_path)
-    assert str(e.value) == (f"{run_path} uses run-file schema version {SCHEMA_VERSION + 1}, newer than this "
-                            f"labcli reads ({SCHEMA_VERSION}); upgrade labcli.")
+    assert str(e.value) == (
+        f"{run_path} uses run-file schema version {SCHEMA_VERSION + 1}, newer than this "
+        f"labcli reads ({SCHEMA_VERSION}); upgrade labcli."
+    )
 
 
 @pytest.mark.parametrize("keep", [0.5, 0.9])
@@ -235,8 +271,9 @@ def test_bad_record_writes_nothing(run_path):
     with RunFile.open(run_path, "a") as run:
         with pytest.raises(StoreError) as e:
             run.write(rec)
-        assert str(e.value) == ("trial 20 record: 'P_MPa' must hold 4 values (loaded pressures "
-                                "P_L1,P_R1,P_L2,P_R2 in MPa), got shape (3,).")
+        assert str(e.value) == (
+            "trial 20 record: 'P_MPa' must hold 4 values (loaded pressures P_L1,P_R1,P_L2,P_R2 in MPa), got shape (3,)."
+        )
         rec = make_record(20)
         rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"][:, :5]
         with pytest.raises(StoreError, match=r"the loaded window must hold n frames of 6 channels"):
@@ -315,9 +352,19 @@ def test_push_run_round_trip(tmp_path):
     proto = FakeProtocol(name="bench-push", kind="push")
     path = str(tmp_path / "push.h5")
     rec = make_record(1)
-    push = {"push": 3, "object": "can-al-1", "R_m": 0.033, "d_m": 0.008, "phi_rad": None, "category": "medium",
-            "true_stiffness_N_per_m": 2500.0, "P0_MPa": rec["P0_MPa"], "P_MPa": rec["P_MPa"],
-            "raw": rec["raw"], "settle": rec["settle"]}
+    push = {
+        "push": 3,
+        "object": "can-al-1",
+        "R_m": 0.033,
+        "d_m": 0.008,
+        "phi_rad": None,
+        "category": "medium",
+        "true_stiffness_N_per_m": 2500.0,
+        "P0_MPa": rec["P0_MPa"],
+        "P_MPa": rec["P_MPa"],
+        "raw": rec["raw"],
+        "settle": rec["settle"],
+    }
     with RunFile.create(path, protocol=proto, device_info=FakeDevice()) as run:
         run.write(push)
         run.write({**push, "push": 4, "phi_rad": math.radians(10.0), "true_stiffness_N_per_m": None})
@@ -327,8 +374,23 @@ def test_push_run_round_trip(tmp_path):
         assert math.isnan(back["phi_rad"]) and back["R_m"] == 0.033 and back["object"] == "can-al-1"
         np.testing.assert_array_equal(back["raw"]["load"]["si"], rec["raw"]["load"]["si"])
         df = run.table()
-    assert list(df.columns) == ["push", "object", "R_m", "d_m", "phi_deg", "P_L10", "P_R10", "P_L20", "P_R20",
-                                "P_L1", "P_R1", "P_L2", "P_R2", "category", "true_stiffness_N_per_m"]
+    assert list(df.columns) == [
+        "push",
+        "object",
+        "R_m",
+        "d_m",
+        "phi_deg",
+        "P_L10",
+        "P_R10",
+        "P_L20",
+        "P_R20",
+        "P_L1",
+        "P_R1",
+        "P_L2",
+        "P_R2",
+        "category",
+        "true_stiffness_N_per_m",
+    ]
     assert math.isnan(df.phi_deg[0]) and df.phi_deg[1] == 10.0
     assert df.true_stiffness_N_per_m[0] == 2500.0 and math.isnan(df.true_stiffness_N_per_m[1])
 

@@ -15,18 +15,23 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+from support.records import FakeDevice, FakeProtocol, make_record
 
 from labcli.core.store import RunFile
-
-from support.records import FakeDevice, FakeProtocol, make_record
 
 ROOT = Path(__file__).resolve().parents[2]
 CHECKER = ROOT / "tests" / "support" / "bitflip.py"
 
 
 def small_run(path: str) -> None:
-    with RunFile.create(path, protocol=FakeProtocol(), device_info=FakeDevice(), port="sim://?seed=1",
-                        operator="ada", plan={"trial": [0, 1, 2, 3], "mass_g": [50.0, 100.0, 150.0, 200.0]}) as run:
+    with RunFile.create(
+        path,
+        protocol=FakeProtocol(),
+        device_info=FakeDevice(),
+        port="sim://?seed=1",
+        operator="ada",
+        plan={"trial": [0, 1, 2, 3], "mass_g": [50.0, 100.0, 150.0, 200.0]},
+    ) as run:
         for i in range(4):
             run.write({**make_record(i, 20), "flags": [f"Note {i} about this trial."]})
         run.set_split([0, 1, 2], [3], "sequential")
@@ -37,8 +42,13 @@ def campaign(tmp_path: Path, seed: int, flips: int) -> Counter:
     good = str(tmp_path / "good.h5")
     small_run(good)
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + str(ROOT / "tests"))
-    p = subprocess.run([sys.executable, str(CHECKER), good, str(tmp_path / "flipped.h5"), str(seed), str(flips)],
-                       capture_output=True, text=True, env=env, timeout=600)
+    p = subprocess.run(
+        [sys.executable, str(CHECKER), good, str(tmp_path / "flipped.h5"), str(seed), str(flips)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
     lines = [json.loads(x) for x in p.stdout.splitlines()]
     assert p.returncode == 0 and len(lines) == flips, (p.returncode, p.stderr[-2000:], lines[-1:])
     bad = [x for x in lines if x["outcome"] in ("traceback", "changed")]

@@ -30,8 +30,15 @@ def labcli(*args: str, cwd: Path, limit: int | None = None) -> subprocess.Comple
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
     env = dict(os.environ, PYTHONPATH=str(ROOT), COLUMNS="200")
-    return subprocess.run([sys.executable, "-m", "labcli", *args], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=300, preexec_fn=preexec)
+    return subprocess.run(
+        [sys.executable, "-m", "labcli", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=preexec,
+    )
 
 
 def sha(path: Path) -> str:
@@ -41,8 +48,9 @@ def sha(path: Path) -> str:
 @pytest.fixture(scope="module")
 def imported(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("full")
-    r = labcli("import", str(ROOT / "sample_runs" / "trials.csv"), "-o", "run.h5", "--protocol", "takuma2014",
-               cwd=folder)
+    r = labcli(
+        "import", str(ROOT / "sample_runs" / "trials.csv"), "-o", "run.h5", "--protocol", "takuma2014", cwd=folder
+    )
     assert r.returncode == 0, r.stderr
     return folder / "run.h5"
 
@@ -72,14 +80,28 @@ def test_acquire_reaching_the_limit_mid_window_keeps_the_trials_before_and_resum
     from support.long_capture import write_long_protocol
 
     write_long_protocol(tmp_path, 30.0)
-    (tmp_path / "plan.csv").write_text("trial,set,mass_g,direction_deg\n1,fit,800,-60\n2,fit,500,-60\n"
-                                       "3,validation,1000,-60\n")
+    (tmp_path / "plan.csv").write_text(
+        "trial,set,mass_g,direction_deg\n1,fit,800,-60\n2,fit,500,-60\n3,validation,1000,-60\n"
+    )
     port = "sim://?seed=21&clock=virtual"
-    r = labcli("acquire", "run.h5", "--port", port, "--unattended", "--plan", "plan.csv", "--protocol", "long.toml",
-               cwd=tmp_path, limit=1_700_000)
+    r = labcli(
+        "acquire",
+        "run.h5",
+        "--port",
+        port,
+        "--unattended",
+        "--plan",
+        "plan.csv",
+        "--protocol",
+        "long.toml",
+        cwd=tmp_path,
+        limit=1_700_000,
+    )
     assert r.returncode == 1, (r.stdout, r.stderr)
-    assert r.stderr == ("Error: run.h5 cannot grow past the file size limit of 1.7 MB (ulimit -f), so trial 2 was "
-                        "not written; the 1 trial stored before is intact. Raise the limit, then try again.\n")
+    assert r.stderr == (
+        "Error: run.h5 cannot grow past the file size limit of 1.7 MB (ulimit -f), so trial 2 was "
+        "not written; the 1 trial stored before is intact. Raise the limit, then try again.\n"
+    )
     run = tmp_path / "run.h5"
     with RunFile.open(run) as f:
         assert f.completed_ids() == [1] and f.incomplete_ids() == []
@@ -107,8 +129,11 @@ def full_disk(tmp_path):
 
     def make(run: Path) -> tuple[Path, Path]:
         size = (run.stat().st_size // 4096 + 64) * 4096
-        r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", f"labcli-{uuid.uuid4().hex[:8]}",
-                            str(where)], capture_output=True, text=True)
+        r = subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", f"size={size}", f"labcli-{uuid.uuid4().hex[:8]}", str(where)],
+            capture_output=True,
+            text=True,
+        )
         if r.returncode != 0:
             pytest.skip(f"cannot mount a tmpfs here ({(r.stderr or r.stdout).strip() or 'mount failed'})")
         mounted.append(where)

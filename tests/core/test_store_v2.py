@@ -10,25 +10,27 @@ from types import SimpleNamespace
 
 import h5py
 import pytest
-
-from labcli.errors import StoreError
-from labcli.core.store import RunFile
-
 from support.records import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
+
+from labcli.core.store import RunFile
+from labcli.errors import StoreError
 
 ROOT = Path(__file__).resolve().parents[2]
 V1 = ROOT / "tests" / "data" / "v1"
 
 
 def new_run(path, **kw) -> RunFile:
-    return RunFile.create(path, protocol=FakeProtocol(), device_info=FakeDevice(), port="sim://?seed=1",
-                          operator="ada", **kw)
+    return RunFile.create(
+        path, protocol=FakeProtocol(), device_info=FakeDevice(), port="sim://?seed=1", operator="ada", **kw
+    )
 
 
 def test_flags_are_kept_as_sentences(tmp_path):
     path = str(tmp_path / "run.h5")
-    flags = ["The rig streamed at 180 Hz, 10% below the commanded 200 Hz.",
-             "Pressures moved less than the noise predicts, so the weight may not have been hung."]
+    flags = [
+        "The rig streamed at 180 Hz, 10% below the commanded 200 Hz.",
+        "Pressures moved less than the noise predicts, so the weight may not have been hung.",
+    ]
     with new_run(path) as run:
         run.write({**make_record(1), "flags": flags})
         run.write(make_record(2))
@@ -38,9 +40,14 @@ def test_flags_are_kept_as_sentences(tmp_path):
         assert_record_stored(run.read(1), make_record(1))
 
 
-@pytest.mark.parametrize("flags, why", [(["two\nlines"], "flag 1 is more than one line"),
-                                        (["fine.", ""], "flag 2 is empty"),
-                                        ([3], "flag 1 is int, not text")])
+@pytest.mark.parametrize(
+    "flags, why",
+    [
+        (["two\nlines"], "flag 1 is more than one line"),
+        (["fine.", ""], "flag 2 is empty"),
+        ([3], "flag 1 is int, not text"),
+    ],
+)
 def test_bad_flags_are_refused_and_nothing_written(tmp_path, flags, why):
     path = str(tmp_path / "run.h5")
     with new_run(path) as run:
@@ -51,13 +58,20 @@ def test_bad_flags_are_refused_and_nothing_written(tmp_path, flags, why):
 
 
 def identity(device="mckibben-2dof", firmware="1.0"):
-    return SimpleNamespace(device=device, firmware=firmware, channels=CHANNELS,
-                           gain=(0.001,) * 6, offset=(-0.25,) * 6)
+    return SimpleNamespace(device=device, firmware=firmware, channels=CHANNELS, gain=(0.001,) * 6, offset=(-0.25,) * 6)
 
 
 def info(rig, **kw):
-    base = dict(started="2026-11-24T01:00:00.000001+00:00", port="/dev/ttyACM0", baud=115200, rig=rig,
-                operator="ada", command="labcli acquire run.h5 --port /dev/ttyACM0", resumed=False, other_rig=False)
+    base = dict(
+        started="2026-11-24T01:00:00.000001+00:00",
+        port="/dev/ttyACM0",
+        baud=115200,
+        rig=rig,
+        operator="ada",
+        command="labcli acquire run.h5 --port /dev/ttyACM0",
+        resumed=False,
+        other_rig=False,
+    )
     return SimpleNamespace(**{**base, **kw})
 
 
@@ -79,16 +93,31 @@ def test_session_log_round_trip(tmp_path):
     with RunFile.open(path) as run:
         s1, s2 = run.sessions()
         rig = run.rig_identity()
-    assert (s1["number"], s1["port"], s1["baud"], s1["device"], s1["firmware"]) == (1, "/dev/ttyACM0", 115200,
-                                                                                     "mckibben-2dof", "1.0")
+    assert (s1["number"], s1["port"], s1["baud"], s1["device"], s1["firmware"]) == (
+        1,
+        "/dev/ttyACM0",
+        115200,
+        "mckibben-2dof",
+        "1.0",
+    )
     assert s1["channels"] == list(CHANNELS) and s1["calibration"]["offset"] == [-0.25] * 6
     assert (s1["added"], s1["redone"], s1["skipped"], s1["how"]) == ([1, 2], [2], [3], "quit")
     assert s1["started"] == "2026-11-24T01:00:00.000001+00:00" and s1["ended"] > s1["started"]
     assert s1["operator"] == "ada" and not s1["resumed"]
     assert (s2["baud"], s2["added"], s2["how"], s2["ended"], s2["resumed"], s2["other_rig"]) == (
-        1_000_000, [3], None, "", True, True)
-    assert (rig.device, rig.firmware, tuple(rig.channels), tuple(rig.gain)) == ("mckibben-2dof", "1.1", CHANNELS,
-                                                                                (0.001,) * 6)
+        1_000_000,
+        [3],
+        None,
+        "",
+        True,
+        True,
+    )
+    assert (rig.device, rig.firmware, tuple(rig.channels), tuple(rig.gain)) == (
+        "mckibben-2dof",
+        "1.1",
+        CHANNELS,
+        (0.001,) * 6,
+    )
 
 
 def test_session_end_is_checked(tmp_path):
@@ -202,6 +231,7 @@ def test_nexus_the_way_h5py_users_read_it(tmp_path):
                 strings.extend(str(x) for x in np.atleast_1d(v))
             if isinstance(obj, h5py.Dataset):
                 units[name] = obj.attrs["units"]
+
         f.visititems(visit)
     assert all("," not in u for u in units.values()), units  # one unit per dataset
     assert not [s for s in strings if str(tmp_path) in s]  # no path of the writer's machine
@@ -209,7 +239,6 @@ def test_nexus_the_way_h5py_users_read_it(tmp_path):
 
 def _rewrite(path: Path, name: str, how: str) -> None:
     """Replace dataset ``name`` by a copy cut to half its rows, of another type, or scaled 1000x."""
-    import numpy as np
 
     with h5py.File(path, "r+") as f:
         data, attrs = f[name][()], dict(f[name].attrs)
@@ -239,11 +268,17 @@ def test_a_dataset_rewritten_by_hand_is_caught_never_a_traceback(tmp_path, name,
     shutil.copyfile(ROOT / "sample_runs" / "force.h5", run)
     _rewrite(run, name, how)
     model = ROOT / "sample_runs" / "force.model.json"
-    for args in (["inspect", run], ["export", run, "-o", tmp_path / "t.csv"], ["fit", run, "-o", tmp_path / "m.json"],
-                 ["validate", run, "--model", model], ["inspect", run, "--verify"]):
+    for args in (
+        ["inspect", run],
+        ["export", run, "-o", tmp_path / "t.csv"],
+        ["fit", run, "-o", tmp_path / "m.json"],
+        ["validate", run, "--model", model],
+        ["inspect", run, "--verify"],
+    ):
         result = CliRunner().invoke(cli, [str(a) for a in args])
         assert result.exception is None or isinstance(result.exception, SystemExit), (args, result.output)
         assert "Traceback" not in result.output
     # --verify names it: damaged records, or a table no run file keeps ("changed by another program").
-    assert result.exit_code == 1 and ("damaged" in result.output or "changed by another program" in result.output), \
+    assert result.exit_code == 1 and ("damaged" in result.output or "changed by another program" in result.output), (
         result.output
+    )

@@ -54,42 +54,48 @@ def test_a_clean_table_is_read_whole_column(tmp_path: Path) -> None:
     assert df is not None and df["trial"].tolist() == [1, 2, 3, 4, 5] and df["note"].tolist() == ["n"] * 5
 
 
-@pytest.mark.parametrize("text", [
-    f"{HEADER}\n{ROW.rsplit(',', 2)[0]}\n",                       # short row: the two optional cells missing
-    f"{HEADER}\n{ROW},5\n",                                       # long first row (pandas would shift it)
-    f"{HEADER}\n{ROW}\n{ROW.replace('1,fit', '2,fit', 1)},5\n",   # long later row
-    f"{HEADER}\n{ROW.replace(',0.98,', ',True,')}\n",             # pandas reads True as 1.0
-    f"{HEADER}\n{ROW.replace(',100,0', ',100,false')}\n",
-    f"{HEADER}\n{ROW.replace(',100,0', ',nan,nan')}\n",           # text NaN where an empty cell is allowed
-    f"{HEADER}\n{ROW.replace(',100,0', ',inf,0')}\n",
-    HEADER + "\n" + ROW.replace(",fit,", ',"fit",') + "\n",      # quoting
-    f"{HEADER}\n{ROW.replace(',fit,', ', fit,')}\n",              # spaces around a set
-    f"{HEADER}\r{ROW}\r",                                         # old Mac line ends
-    f"\n{HEADER}\n{ROW}\n",                                       # blank line before the header
-    f"{HEADER},\n{ROW},\n",                                       # an unnamed trailing column
-    f"{HEADER}\n{ROW}\n{ROW}\n",                                  # a repeated id
-    f"{HEADER}\n{ROW.replace(',1.5,', ',1e400,')}\n",
-    f"{HEADER}\n{ROW.replace(',1.5,', ',400,')}\n",               # beyond a joint angle
-    f"{HEADER}\n{ROW.replace(',100,0', ',100,')}\n",              # a pair half given
-    f"{HEADER}\n{ROW.replace('1,fit', '3.5,fit', 1)}\n",          # an id that is not an integer
-    HEADER + "\n" + ROW.replace(",fit,", ",a\x00b,") + "\n",
-])
+@pytest.mark.parametrize(
+    "text",
+    [
+        f"{HEADER}\n{ROW.rsplit(',', 2)[0]}\n",  # short row: the two optional cells missing
+        f"{HEADER}\n{ROW},5\n",  # long first row (pandas would shift it)
+        f"{HEADER}\n{ROW}\n{ROW.replace('1,fit', '2,fit', 1)},5\n",  # long later row
+        f"{HEADER}\n{ROW.replace(',0.98,', ',True,')}\n",  # pandas reads True as 1.0
+        f"{HEADER}\n{ROW.replace(',100,0', ',100,false')}\n",
+        f"{HEADER}\n{ROW.replace(',100,0', ',nan,nan')}\n",  # text NaN where an empty cell is allowed
+        f"{HEADER}\n{ROW.replace(',100,0', ',inf,0')}\n",
+        HEADER + "\n" + ROW.replace(",fit,", ',"fit",') + "\n",  # quoting
+        f"{HEADER}\n{ROW.replace(',fit,', ', fit,')}\n",  # spaces around a set
+        f"{HEADER}\r{ROW}\r",  # old Mac line ends
+        f"\n{HEADER}\n{ROW}\n",  # blank line before the header
+        f"{HEADER},\n{ROW},\n",  # an unnamed trailing column
+        f"{HEADER}\n{ROW}\n{ROW}\n",  # a repeated id
+        f"{HEADER}\n{ROW.replace(',1.5,', ',1e400,')}\n",
+        f"{HEADER}\n{ROW.replace(',1.5,', ',400,')}\n",  # beyond a joint angle
+        f"{HEADER}\n{ROW.replace(',100,0', ',100,')}\n",  # a pair half given
+        f"{HEADER}\n{ROW.replace('1,fit', '3.5,fit', 1)}\n",  # an id that is not an integer
+        HEADER + "\n" + ROW.replace(",fit,", ",a\x00b,") + "\n",
+    ],
+)
 def test_anything_the_rules_might_judge_otherwise_goes_cell_by_cell(tmp_path: Path, text: str) -> None:
     p = put(tmp_path, text)
     assert table_fast.read_fast(p, TRIAL, PRESSURE_SPAN_MPA, None) is None
     agree(p)
 
 
-@pytest.mark.parametrize("text", [
-    f"\ufeff{HEADER}\r\n{ROW}\r\n",
-    f"{HEADER}\n{ROW}\n\n\n{ROW.replace('1,fit', '2,fit', 1)}\n\n",
-    f"{HEADER}\n{ROW}",
-    f"{HEADER}\n",
-    f" trial ,{HEADER[6:]}\n{ROW}\n",
-    f"{HEADER}\n{ROW.replace(',100,0', ',,')}\n",
-    f"{HEADER}\n{ROW.replace(',100,0', ',100,200')}\n",           # a direction, wrapped to -160
-    f"{HEADER}\n{ROW.replace('1,fit', '3.0,fit', 1)}\n",          # an integer id written as a number
-])
+@pytest.mark.parametrize(
+    "text",
+    [
+        f"\ufeff{HEADER}\r\n{ROW}\r\n",
+        f"{HEADER}\n{ROW}\n\n\n{ROW.replace('1,fit', '2,fit', 1)}\n\n",
+        f"{HEADER}\n{ROW}",
+        f"{HEADER}\n",
+        f" trial ,{HEADER[6:]}\n{ROW}\n",
+        f"{HEADER}\n{ROW.replace(',100,0', ',,')}\n",
+        f"{HEADER}\n{ROW.replace(',100,0', ',100,200')}\n",  # a direction, wrapped to -160
+        f"{HEADER}\n{ROW.replace('1,fit', '3.0,fit', 1)}\n",  # an integer id written as a number
+    ],
+)
 def test_clean_variants_are_read_whole_column_and_agree(tmp_path: Path, text: str) -> None:
     df = agree(put(tmp_path, text))
     assert df is not None
@@ -120,8 +126,35 @@ NUMBER_TEXT = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
     st.floats(min_value=-200, max_value=200).map(lambda v: f"{v:.3f}"),
     st.integers(-10, 10**6).map(str),
-    st.sampled_from(["", " ", "0", "1", "-0", "1.", ".5", "1e3", "+2", " 0.5", "0.5 ", "True", "false", "nan", "NaN",
-                     "inf", "-Infinity", "1e400", "0x10", "1_000", "NA", "null", "fit", "validation", "x"]),
+    st.sampled_from(
+        [
+            "",
+            " ",
+            "0",
+            "1",
+            "-0",
+            "1.",
+            ".5",
+            "1e3",
+            "+2",
+            " 0.5",
+            "0.5 ",
+            "True",
+            "false",
+            "nan",
+            "NaN",
+            "inf",
+            "-Infinity",
+            "1e400",
+            "0x10",
+            "1_000",
+            "NA",
+            "null",
+            "fit",
+            "validation",
+            "x",
+        ]
+    ),
 )
 TEXT = st.text(alphabet=st.characters(blacklist_categories=("Cs",)), max_size=6)
 CELL = st.one_of(NUMBER_TEXT, NUMBER_TEXT, TEXT)
@@ -185,8 +218,7 @@ def test_cells_of_a_table_are_read_whole_column_or_refused_alike(tmp_path: Path)
 def test_the_words_true_and_false_inside_a_name_or_a_cell_keep_the_whole_column_read(tmp_path: Path) -> None:
     # pandas turns a whole cell true/false into 1/0; a column named true_stiffness_N_per_m or an
     # object called falsework is no such cell, and must not send a million rows cell by cell.
-    text = (f"{HEADER},true_stiffness_N_per_m,note\n{ROW},420.0,falsework\n"
-            f"{ROW.replace('1,fit', '2,fit', 1)},,untrue\n")
+    text = f"{HEADER},true_stiffness_N_per_m,note\n{ROW},420.0,falsework\n{ROW.replace('1,fit', '2,fit', 1)},,untrue\n"
     df = agree(put(tmp_path, text))
     assert df is not None and df["note"].tolist() == ["falsework", "untrue"]
     for cell in ("true", " FALSE", "True "):

@@ -14,9 +14,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from labcli.errors import ConfigError
 from labcli.core.store import runfile
 from labcli.core.tables import MAX_LISTED, TableError
+from labcli.errors import ConfigError
 from labcli.papers.takuma2014.records import load_pushes, load_trials
 from labcli.papers.takuma2014.tables import (
     PUSH,
@@ -51,7 +51,10 @@ def problems_of(fn, path: Path) -> str:
 
 
 def test_reads_a_valid_trial_table_with_types(tmp_path: Path) -> None:
-    p = put(tmp_path, f"{HEADER},note\n{GOOD_ROW},first\n" + GOOD_ROW.replace("1,fit", "2,", 1).replace(",100,0", ",,") + ",\n")
+    p = put(
+        tmp_path,
+        f"{HEADER},note\n{GOOD_ROW},first\n" + GOOD_ROW.replace("1,fit", "2,", 1).replace(",100,0", ",,") + ",\n",
+    )
     df = read_trial_csv(p)
     assert list(df.columns) == list(TRIAL.names) + ["note"]
     assert df["trial"].dtype == np.int64 and df["trial"].tolist() == [1, 2]
@@ -69,17 +72,19 @@ def test_every_problem_is_reported_with_row_and_column(tmp_path: Path) -> None:
         GOOD_ROW.replace("1,fit", "1,validation", 1).replace(",0.0,100,0", ",nan,-5,0"),
     ]
     p = put(tmp_path, HEADER + "\n" + "\n".join(rows) + "\n")
-    assert problems_of(read_trial_csv, p) == "\n".join([
-        f"{p} has 8 problems (rows counted as a spreadsheet shows them, the header included):",
-        f"{p}:row 3, column set: 'train' must be fit, validation or empty (unassigned).",
-        f"{p}:row 3, column P_R10: 0 MPa is not a positive gauge pressure.",
-        f"{p}:row 3, column P_R1: 1.19 MPa is outside the sensor span 0 to 1 MPa.",
-        f"{p}:row 3, column Fx_N: 'x' is not a number.",
-        f"{p}:row 3, column direction_deg: is empty but mass_g is given; give both or neither.",
-        f"{p}:row 4, column Fy_N: 'nan' is not a number.",
-        f"{p}:row 4, column mass_g: -5 must be greater than 0.",
-        f"{p}:row 4, column trial: trial 1 is already used on row 2.",
-    ])
+    assert problems_of(read_trial_csv, p) == "\n".join(
+        [
+            f"{p} has 8 problems (rows counted as a spreadsheet shows them, the header included):",
+            f"{p}:row 3, column set: 'train' must be fit, validation or empty (unassigned).",
+            f"{p}:row 3, column P_R10: 0 MPa is not a positive gauge pressure.",
+            f"{p}:row 3, column P_R1: 1.19 MPa is outside the sensor span 0 to 1 MPa.",
+            f"{p}:row 3, column Fx_N: 'x' is not a number.",
+            f"{p}:row 3, column direction_deg: is empty but mass_g is given; give both or neither.",
+            f"{p}:row 4, column Fy_N: 'nan' is not a number.",
+            f"{p}:row 4, column mass_g: -5 must be greater than 0.",
+            f"{p}:row 4, column trial: trial 1 is already used on row 2.",
+        ]
+    )
 
 
 def test_problems_are_collected_in_a_table_error(tmp_path: Path) -> None:
@@ -142,7 +147,9 @@ def test_bom_crlf_and_spaces_are_accepted(tmp_path: Path) -> None:
 
 
 def test_whole_file_errors(tmp_path: Path) -> None:
-    assert problems_of(read_trial_csv, tmp_path / "none.csv") == f"{tmp_path / 'none.csv'} does not exist; check the path."
+    assert (
+        problems_of(read_trial_csv, tmp_path / "none.csv") == f"{tmp_path / 'none.csv'} does not exist; check the path."
+    )
     p = put(tmp_path, "\n\n")
     assert problems_of(read_trial_csv, p) == (
         f"{p} has no header row; the first line must name the columns (trial, P_L10, P_R10, P_L20, P_R20, "
@@ -152,9 +159,13 @@ def test_whole_file_errors(tmp_path: Path) -> None:
     p.write_bytes(b"trial,obj\xe9t\n")
     assert problems_of(read_trial_csv, p) == f"{p} is not UTF-8 text (bad byte at offset 9); save it as CSV UTF-8."
     p = put(tmp_path, HEADER.replace(",", ";") + "\n" + GOOD_ROW.replace(",", ";") + "\n")
-    assert problems_of(read_trial_csv, p).splitlines()[1].endswith(
-        "required column is missing from the header (the header is one column: is the file separated by ';' "
-        "or tabs instead of commas?)."
+    assert (
+        problems_of(read_trial_csv, p)
+        .splitlines()[1]
+        .endswith(
+            "required column is missing from the header (the header is one column: is the file separated by ';' "
+            "or tabs instead of commas?)."
+        )
     )
     p = put(tmp_path, f'{HEADER}\n1,"fit\n')
     assert problems_of(read_trial_csv, p).startswith(f"{p}:row 2: not valid CSV (")
@@ -200,7 +211,9 @@ def test_push_table(tmp_path: Path) -> None:
 
 
 def test_extra_columns_become_numbers_only_when_nothing_is_lost(tmp_path: Path) -> None:
-    p = put(tmp_path, f"{HEADER},a,b,c,d\n{GOOD_ROW},007,1.50,1.5,3\n{GOOD_ROW.replace('1,fit', '2,fit', 1)},8,2.0,,4\n")
+    p = put(
+        tmp_path, f"{HEADER},a,b,c,d\n{GOOD_ROW},007,1.50,1.5,3\n{GOOD_ROW.replace('1,fit', '2,fit', 1)},8,2.0,,4\n"
+    )
     df = read_trial_csv(p)
     assert df["a"].tolist() == ["007", "8"]  # a leading zero is kept as text
     assert df["b"].tolist() == ["1.50", "2.0"]
@@ -235,7 +248,8 @@ def test_a_plan_direction_is_any_angle_wrapped(tmp_path: Path) -> None:
     assert plan["direction_deg"].tolist() == [-160.0, -90.0, -90.0, 180.0, 180.0]  # (-180, 180]
     p = put(tmp_path, "trial,set,mass_g,direction_deg\n1,fit,50,721\n", "far.csv")
     assert problems_of(load_plan, p).splitlines()[1:] == [
-        f"{p}:row 2, column direction_deg: 721 deg is outside the range of a direction, -720 to 720 deg."]
+        f"{p}:row 2, column direction_deg: 721 deg is outside the range of a direction, -720 to 720 deg."
+    ]
 
 
 def test_plan_round_trip(tmp_path: Path) -> None:
@@ -286,7 +300,7 @@ def test_floats_are_written_repr_exact(tmp_path: Path) -> None:
     df["theta1_deg"] = [-1e-300]
     out = tmp_path / "t.csv"
     write_trial_csv(df, out)
-    row = dict(zip(*[r.split(",") for r in out.read_text().splitlines()]))
+    row = dict(zip(*[r.split(",") for r in out.read_text().splitlines()], strict=False))
     assert row["Fx_N"] == "0.30000000000000004" and row["theta1_deg"] == "-1e-300"
     back = read_trial_csv(out)
     assert back["Fx_N"].iloc[0] == 0.1 + 0.2
@@ -343,8 +357,14 @@ def test_h5_paths_go_to_the_run_file(monkeypatch: pytest.MonkeyPatch, tmp_path: 
     monkeypatch.setattr(runfile, "RunFile", FakeRun)
     assert load_trials(tmp_path / "run.h5")["trial"].tolist() == [1]
     assert load_pushes(tmp_path / "run.H5")["push"].tolist() == [1]
-    assert calls == [("open", str(tmp_path / "run.h5")), ("table", "force"), "close",
-                     ("open", str(tmp_path / "run.H5")), ("table", "push"), "close"]
+    assert calls == [
+        ("open", str(tmp_path / "run.h5")),
+        ("table", "force"),
+        "close",
+        ("open", str(tmp_path / "run.H5")),
+        ("table", "push"),
+        "close",
+    ]
     p = put(tmp_path, f"{HEADER}\n{GOOD_ROW}\n")
     assert load_trials(p)["trial"].tolist() == [1]
 
@@ -373,19 +393,25 @@ def trial_tables(draw) -> pd.DataFrame:
     n = draw(st.integers(0, 8))
     ids = draw(st.lists(st.integers(-(2**62), 2**62), min_size=n, max_size=n, unique=True))
     df = pd.DataFrame({"trial": pd.Series(ids, dtype="int64")})
-    df["set"] = pd.Series(draw(st.lists(st.sampled_from(["fit", "validation", ""]), min_size=n, max_size=n)), dtype=object)
+    df["set"] = pd.Series(
+        draw(st.lists(st.sampled_from(["fit", "validation", ""]), min_size=n, max_size=n)), dtype=object
+    )
     for c in ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2"):
         df[c] = pd.Series(draw(st.lists(PRESSURE, min_size=n, max_size=n)), dtype="float64")
     for c, values in (("theta1_deg", ANGLE), ("theta2_deg", ANGLE), ("Fx_N", FORCE), ("Fy_N", FORCE)):
         df[c] = pd.Series(draw(st.lists(values, min_size=n, max_size=n)), dtype="float64")
-    pairs = draw(st.lists(st.one_of(st.none(), st.tuples(st.floats(min_value=1e-3, max_value=1e5), DIRECTION)),
-                          min_size=n, max_size=n))
+    pairs = draw(
+        st.lists(
+            st.one_of(st.none(), st.tuples(st.floats(min_value=1e-3, max_value=1e5), DIRECTION)), min_size=n, max_size=n
+        )
+    )
     df["mass_g"] = pd.Series([math.nan if p is None else p[0] for p in pairs], dtype="float64")
     df["direction_deg"] = pd.Series([math.nan if p is None else p[1] for p in pairs], dtype="float64")
     _rest_posture(draw, df, n)
     if draw(st.booleans()):
-        df["temperature_C"] = pd.Series(draw(st.lists(st.one_of(ANY_FLOAT, st.just(math.nan)), min_size=n, max_size=n)),
-                                        dtype="float64")
+        df["temperature_C"] = pd.Series(
+            draw(st.lists(st.one_of(ANY_FLOAT, st.just(math.nan)), min_size=n, max_size=n)), dtype="float64"
+        )
     if draw(st.booleans()):
         df["note"] = pd.Series(draw(st.lists(NOTE, min_size=n, max_size=n)), dtype=object)
     return df
@@ -397,18 +423,25 @@ def push_tables(draw) -> pd.DataFrame:
     ids = draw(st.lists(st.integers(0, 10**9), min_size=n, max_size=n, unique=True))
     df = pd.DataFrame({"push": pd.Series(ids, dtype="int64")})
     df["object"] = pd.Series(draw(st.lists(NOTE, min_size=n, max_size=n)), dtype=object)
-    df["R_m"] = pd.Series(draw(st.lists(st.floats(min_value=1e-6, max_value=1.0), min_size=n, max_size=n)), dtype="float64")
-    df["d_m"] = pd.Series(draw(st.lists(st.floats(min_value=0.0, max_value=0.1), min_size=n, max_size=n)), dtype="float64")
-    df["phi_deg"] = pd.Series(draw(st.lists(st.one_of(DIRECTION, st.just(math.nan)), min_size=n, max_size=n)),
-                              dtype="float64")
+    df["R_m"] = pd.Series(
+        draw(st.lists(st.floats(min_value=1e-6, max_value=1.0), min_size=n, max_size=n)), dtype="float64"
+    )
+    df["d_m"] = pd.Series(
+        draw(st.lists(st.floats(min_value=0.0, max_value=0.1), min_size=n, max_size=n)), dtype="float64"
+    )
+    df["phi_deg"] = pd.Series(
+        draw(st.lists(st.one_of(DIRECTION, st.just(math.nan)), min_size=n, max_size=n)), dtype="float64"
+    )
     for c in ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2"):
         df[c] = pd.Series(draw(st.lists(PRESSURE, min_size=n, max_size=n)), dtype="float64")
-    df["category"] = pd.Series(draw(st.lists(st.sampled_from(["", "soft", "hard", "can, steel"]), min_size=n, max_size=n)),
-                               dtype=object)
+    df["category"] = pd.Series(
+        draw(st.lists(st.sampled_from(["", "soft", "hard", "can, steel"]), min_size=n, max_size=n)), dtype=object
+    )
     _rest_posture(draw, df, n)
     if draw(st.booleans()):
         df["true_stiffness_N_per_m"] = pd.Series(
-            draw(st.lists(st.floats(min_value=0, max_value=1e6), min_size=n, max_size=n)), dtype="float64")
+            draw(st.lists(st.floats(min_value=0, max_value=1e6), min_size=n, max_size=n)), dtype="float64"
+        )
     return df
 
 
@@ -417,8 +450,9 @@ def _canonical(df: pd.DataFrame, names: tuple[str, ...], optional: tuple[str, ..
     out = df.copy()
     for c in optional:
         if c not in out.columns:
-            out[c] = pd.Series([empty_text if c == "category" else math.nan] * len(out),
-                               dtype=object if c == "category" else "float64")
+            out[c] = pd.Series(
+                [empty_text if c == "category" else math.nan] * len(out), dtype=object if c == "category" else "float64"
+            )
     for c in out.columns:
         if c not in names and not any(v == v and v != "" for v in out[c]):
             out[c] = pd.Series([math.nan] * len(out), dtype="float64")  # an empty column has no type

@@ -14,11 +14,11 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from support import toy
 
 from labcli.core import registry
 from labcli.core.protocol import load_protocol
 from labcli.core.store import RunFile
-from support import toy
 
 PORT = f"sim://?mode={toy.MODE}&seed=3&clock=virtual"
 
@@ -49,8 +49,10 @@ def test_its_protocol_is_checked_by_the_core_loader_with_its_own_sections(toy_pa
     bad.write_text(toy.PROTOCOL_TEXT.replace("masses_g = [200.0, 500.0]", "masses_g = [200.0]"), encoding="utf-8")
     with pytest.raises(Exception) as e:
         load_protocol(bad)
-    assert str(e.value) == (f"{bad}: key 'load.masses_g' must be a list of two numbers [low, high] in g "
-                            "(the two trials' masses), not the list [200.0].")
+    assert str(e.value) == (
+        f"{bad}: key 'load.masses_g' must be a list of two numbers [low, high] in g "
+        "(the two trials' masses), not the list [200.0]."
+    )
 
 
 def test_acquire_records_two_trials_on_its_own_simulated_rig(acquired):
@@ -99,8 +101,7 @@ def test_inspect_describes_the_run(acquired, invoke):
 
 
 def test_a_real_port_or_an_unknown_mode_is_refused_in_its_words(toy_paper, tmp_path, invoke):
-    result = invoke("acquire", tmp_path / "x.h5", "--protocol", toy_paper, "--port", "sim://?mode=toys",
-                    "--unattended")
+    result = invoke("acquire", tmp_path / "x.h5", "--protocol", toy_paper, "--port", "sim://?mode=toys", "--unattended")
     assert result.exit_code == 1
     assert "option 'mode' in sim:// URL must be one of mckibben, rpam, toy, got 'toys'" in result.output
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support.firmware import data_line, xor_checksum
 
 from labcli.core.wire import (
     MAX_LINE,
@@ -21,8 +22,6 @@ from labcli.core.wire import (
     format_log,
     parse_line,
 )
-
-from support.firmware import data_line, xor_checksum
 
 u32 = st.integers(0, U32 - 1)
 counts = st.integers(-(10**15) + 1, 10**15 - 1)
@@ -53,7 +52,7 @@ def test_format_then_parse_round_trips(seq, t_us, vals):
         return
     parsed = parse_line(line, len(vals))
     assert parsed == Frame(seq, t_us, tuple(vals))
-    assert all(type(a) is type(b) for a, b in zip(parsed.values, vals))  # ints stay ints
+    assert all(type(a) is type(b) for a, b in zip(parsed.values, vals, strict=False))  # ints stay ints
 
 
 @given(u32, u32, st.lists(st.integers(0, 4095), min_size=1, max_size=8))
@@ -194,7 +193,7 @@ def run_reader(chunks, k=None):
 
 def assert_agrees(stream: bytes, cuts: list[int], k: int | None = None) -> StreamReader:
     cuts = sorted(set(c for c in cuts if 0 < c < len(stream)))
-    chunks = [stream[a:b] for a, b in zip([0] + cuts, cuts + [len(stream)])]
+    chunks = [stream[a:b] for a, b in zip([0] + cuts, cuts + [len(stream)], strict=False)]
     r, seq, t, vals = run_reader(chunks, k)
     frames, counters, logs, replies = reference(stream, k)
     assert r.counters == counters
@@ -219,9 +218,24 @@ def streams(draw):
     seq = draw(u32)
     parts = []
     for _ in range(draw(st.integers(0, 40))):
-        kind = draw(st.sampled_from(
-            ["good"] * 6 + ["decimal", "gap", "corrupt", "cut", "junk", "log", "reply", "long", "wrongk", "bigint", "protocolish"]
-        ))
+        kind = draw(
+            st.sampled_from(
+                ["good"] * 6
+                + [
+                    "decimal",
+                    "gap",
+                    "corrupt",
+                    "cut",
+                    "junk",
+                    "log",
+                    "reply",
+                    "long",
+                    "wrongk",
+                    "bigint",
+                    "protocolish",
+                ]
+            )
+        )
         vals = draw(st.lists(st.integers(0, 4095), min_size=k, max_size=k))
         if kind == "good":
             parts.append(_good(seq, vals, draw(st.booleans())))
@@ -289,7 +303,8 @@ SAMPLE = (
     + b"#boot done\r\n"
     + _good(8, [1, 2, 3, 4, 5, 6], crlf=True)
     + b"OK START\n"
-    + _good(9, [10, 20, 30, 40, 50, 60])[:-3] + b"00\n"  # corrupted checksum
+    + _good(9, [10, 20, 30, 40, 50, 60])[:-3]
+    + b"00\n"  # corrupted checksum
     + b"\x00\xffjunk\n"
     + _good(11, [0, 0, 0, 0, 0, 4095])
 )
@@ -297,8 +312,9 @@ SAMPLE = (
 
 def test_split_at_every_byte_position_gives_the_same_result():
     whole = assert_agrees(SAMPLE, [])
-    assert whole.counters == dict(frames=3, lost=2, bad_checksum=1, malformed=1, log_lines=1, overlong=0,
-                                  replies=1, bytes=len(SAMPLE))
+    assert whole.counters == dict(
+        frames=3, lost=2, bad_checksum=1, malformed=1, log_lines=1, overlong=0, replies=1, bytes=len(SAMPLE)
+    )
     for i in range(1, len(SAMPLE)):
         r = assert_agrees(SAMPLE, [i], k=6)
         assert r.counters == whole.counters

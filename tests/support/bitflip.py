@@ -49,7 +49,7 @@ def equal(a, b) -> bool:
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(equal(a[k], b[k]) for k in a)
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(equal(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(equal(x, y) for x, y in zip(a, b, strict=False))
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         a, b = np.asarray(a), np.asarray(b)
         return a.shape == b.shape and a.dtype == b.dtype and bool(np.array_equal(a, b, equal_nan=a.dtype.kind == "f"))
@@ -64,8 +64,9 @@ def subset_equal(got: dict, good: dict) -> bool:
         if not key.startswith("record "):
             continue
         want = good.get(key)
-        if want is None or not equal({k: x for k, x in v.items() if k != "raw"},
-                                     {k: x for k, x in want.items() if k != "raw"}):
+        if want is None or not equal(
+            {k: x for k, x in v.items() if k != "raw"}, {k: x for k, x in want.items() if k != "raw"}
+        ):
             return False
         if not all(equal(w, want["raw"].get(name)) for name, w in v["raw"].items()):  # a window may be left out
             return False

@@ -49,7 +49,7 @@ def xor_checksum(body: bytes) -> int:
 def data_line(seq: int, t_us: int, values, eol: bytes = b"\n") -> bytes:
     body = "D,%d,%d,%s" % (seq % 2**32, t_us % 2**32, ",".join(str(v) for v in values))
     raw = body.encode("ascii")
-    return b"$" + raw + ("*%02x" % xor_checksum(raw)).encode("ascii") + eol
+    return b"$" + raw + (f"*{xor_checksum(raw):02x}").encode("ascii") + eol
 
 
 class FakeFirmware:
@@ -107,7 +107,7 @@ class FakeFirmware:
 
     # -- lifecycle ----------------------------------------------------------
 
-    def __enter__(self) -> "FakeFirmware":
+    def __enter__(self) -> FakeFirmware:
         self.start()
         return self
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -44,22 +44,25 @@ def _run_ok(cmd: list[str], stdin: str = "") -> bool:
         return False
 
 
-@lru_cache(maxsize=None)
+@cache
 def _have_host() -> bool:
     return bool(shutil.which("make") and shutil.which("cc"))
 
 
-@lru_cache(maxsize=None)
+@cache
 def _have_avr() -> bool:
-    return (_have_host() and all(shutil.which(t) for t in ("avr-gcc", "avr-objcopy", "avr-size"))
-            and _run_ok(["avr-gcc", "-mmcu=atmega328p", "-E", "-x", "c", "-"], "#include <avr/io.h>\n"))
+    return (
+        _have_host()
+        and all(shutil.which(t) for t in ("avr-gcc", "avr-objcopy", "avr-size"))
+        and _run_ok(["avr-gcc", "-mmcu=atmega328p", "-E", "-x", "c", "-"], "#include <avr/io.h>\n")
+    )
 
 
-@lru_cache(maxsize=None)
+@cache
 def _have_simavr() -> bool:
-    return (_have_avr()
-            and _run_ok(["cc", "-x", "c", "-fsyntax-only", "-I/usr/include/simavr", "-"],
-                        "#include <sim_avr.h>\n#include <libelf.h>\n"))
+    return _have_avr() and _run_ok(
+        ["cc", "-x", "c", "-fsyntax-only", "-I/usr/include/simavr", "-"], "#include <sim_avr.h>\n#include <libelf.h>\n"
+    )
 
 
 def _need(have: bool, what: str, install: str) -> None:

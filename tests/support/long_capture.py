@@ -57,8 +57,9 @@ def write_long_protocol(folder: Path, capture_s: float, rate_hz: float = RATE_HZ
 def long_protocol(capture_s: float, rate_hz: float = RATE_HZ) -> Protocol:
     """The takuma2014 protocol capturing ``capture_s`` seconds per window at ``rate_hz``."""
     p = load_protocol("takuma2014")
-    return dataclasses.replace(p, rate_hz=float(rate_hz),
-                               settling=dataclasses.replace(p.settling, capture_s=float(capture_s)))
+    return dataclasses.replace(
+        p, rate_hz=float(rate_hz), settling=dataclasses.replace(p.settling, capture_s=float(capture_s))
+    )
 
 
 class InMemoryEngine(RunEngine):
@@ -71,8 +72,9 @@ class InMemoryEngine(RunEngine):
         return window
 
 
-def record_trial(path: Path, capture_s: float, *, in_memory: bool = False, seed: int = 1,
-                 rate_hz: float = RATE_HZ) -> Outcome:
+def record_trial(
+    path: Path, capture_s: float, *, in_memory: bool = False, seed: int = 1, rate_hz: float = RATE_HZ
+) -> Outcome:
     """Record plan trial 1 of takuma2014 into a new run file at ``path`` with windows of ``capture_s``."""
     protocol = long_protocol(capture_s, rate_hz)
     plan = load_plan(load_protocol("takuma2014")).iloc[:1]
@@ -80,8 +82,13 @@ def record_trial(path: Path, capture_s: float, *, in_memory: bool = False, seed:
     try:
         with RunFile.create(path, protocol=protocol, device_info=dev.info, port=port(seed), plan=plan) as run:
             engine = (InMemoryEngine if in_memory else RunEngine)(
-                dev, run, protocol, UnattendedUI(console=Console(file=io.StringIO(), width=200)),
-                run_path=str(path), resume_command=f"labcli acquire {path} --resume")
+                dev,
+                run,
+                protocol,
+                UnattendedUI(console=Console(file=io.StringIO(), width=200)),
+                run_path=str(path),
+                resume_command=f"labcli acquire {path} --resume",
+            )
             return engine.run(force_session(protocol, plan))
     finally:
         dev.close()

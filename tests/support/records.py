@@ -77,10 +77,22 @@ def make_record(i: int, n: int = 50) -> dict:
         "ended": f"2024-05-01T09:{i % 60:02d}:30Z",
         "plan": {"mass_g": mass * 1e3, "direction_deg": 15.0 * (i % 24), "set": "fit" if i % 6 else "validation"},
         "settle": {
-            "baseline": {"settled": True, "settle_time_s": 1.5 + i % 3, "waited_s": 3.0,
-                         "pressure_spread_MPa": 0.001, "angle_spread_rad": 0.002, "criterion": "spread < 1 kPa for 2 s"},
-            "load": {"settled": i % 5 != 4, "settle_time_s": 2.0 + (i % 4), "waited_s": 6.0,
-                     "pressure_spread_MPa": 0.0015, "angle_spread_rad": 0.0025, "criterion": "spread < 1 kPa for 2 s"},
+            "baseline": {
+                "settled": True,
+                "settle_time_s": 1.5 + i % 3,
+                "waited_s": 3.0,
+                "pressure_spread_MPa": 0.001,
+                "angle_spread_rad": 0.002,
+                "criterion": "spread < 1 kPa for 2 s",
+            },
+            "load": {
+                "settled": i % 5 != 4,
+                "settle_time_s": 2.0 + (i % 4),
+                "waited_s": 6.0,
+                "pressure_spread_MPa": 0.0015,
+                "angle_spread_rad": 0.0025,
+                "criterion": "spread < 1 kPa for 2 s",
+            },
         },
         "raw": {"baseline": make_window(rng, n, t0, seq0), "load": make_window(rng, n, t0 + 10_000_000, seq0 + n)},
     }

@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -138,8 +139,12 @@ class Hang:
 
 TOY_TABLE = TableSpec(
     label="trial",
-    columns=(("trial", "id", "required"), ("mass_g", "positive", "required"),
-             ("P_MPa", "pressure", "required"), ("theta_deg", "float", "required")),
+    columns=(
+        ("trial", "id", "required"),
+        ("mass_g", "positive", "required"),
+        ("P_MPa", "pressure", "required"),
+        ("theta_deg", "float", "required"),
+    ),
     id_column="trial",
 )
 
@@ -151,32 +156,47 @@ class ToyTrials(BaseRecordType):
     noun = "trial"
     plural = "trials"
     table_spec = TOY_TABLE
-    columns = (Column("P", "MPa", bounds=(-1.0, 10.0), what="pressure under the load"),
-               Column("theta", "rad", bounds=(-math.pi, math.pi), what="deflection"),
-               Column("mass", "kg", bounds=(0.0, 100.0), what="mass hung"))
+    columns = (
+        Column("P", "MPa", bounds=(-1.0, 10.0), what="pressure under the load"),
+        Column("theta", "rad", bounds=(-math.pi, math.pi), what="deflection"),
+        Column("mass", "kg", bounds=(0.0, 100.0), what="mass hung"),
+    )
     signal = "theta"
 
     def check(self, record: Mapping[str, Any], label: str, run: Any) -> dict[str, Any]:
-        return {"P": scalar(record, "P_MPa", label), "theta": scalar(record, "theta_rad", label),
-                "mass": scalar(record, "mass_kg", label)}
+        return {
+            "P": scalar(record, "P_MPa", label),
+            "theta": scalar(record, "theta_rad", label),
+            "mass": scalar(record, "mass_kg", label),
+        }
 
     def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
-        return {"trial": int(row["trial"]), "P_MPa": float(row["P"]), "theta_rad": float(row["theta"]),
-                "mass_kg": float(row["mass"])}
+        return {
+            "trial": int(row["trial"]),
+            "P_MPa": float(row["P"]),
+            "theta_rad": float(row["theta"]),
+            "mass_kg": float(row["mass"]),
+        }
 
     def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
         import pandas as pd
 
-        return pd.DataFrame({
-            "trial": pd.Series(ids, dtype="int64"),
-            "mass_g": to_edge(np.asarray(cols["mass"], dtype=float) * 1e3),
-            "P_MPa": np.asarray(cols["P"], dtype=float),
-            "theta_deg": to_edge(np.degrees(np.asarray(cols["theta"], dtype=float))),
-        })
+        return pd.DataFrame(
+            {
+                "trial": pd.Series(ids, dtype="int64"),
+                "mass_g": to_edge(np.asarray(cols["mass"], dtype=float) * 1e3),
+                "P_MPa": np.asarray(cols["P"], dtype=float),
+                "theta_deg": to_edge(np.degrees(np.asarray(cols["theta"], dtype=float))),
+            }
+        )
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
-        return {"trial": int(row["trial"]), "P_MPa": row["P_MPa"], "theta_rad": math.radians(row["theta_deg"]),
-                "mass_kg": row["mass_g"] * 1e-3}
+        return {
+            "trial": int(row["trial"]),
+            "P_MPa": row["P_MPa"],
+            "theta_rad": math.radians(row["theta_deg"]),
+            "mass_kg": row["mass_g"] * 1e-3,
+        }
 
 
 # --------------------------------------------------------------------------- session
@@ -199,9 +219,14 @@ def toy_session(protocol: Any, completed: Any = ()) -> Any:
         loaded = yield Capture(capture_s)
         yield Prompt(f"{label}: take the weight off, then press Enter", Hang(0.0))
         b, m = base.mean(), loaded.mean()
-        record = {"trial": trial, "P_MPa": float(m[0]), "theta_rad": float(m[1] - b[1]), "mass_kg": mass,
-                  "settle": {"baseline": settle_b.as_dict(), "load": settle_l.as_dict()},
-                  "raw": {"baseline": base.as_dict(), "load": loaded.as_dict()}}
+        record = {
+            "trial": trial,
+            "P_MPa": float(m[0]),
+            "theta_rad": float(m[1] - b[1]),
+            "mass_kg": mass,
+            "settle": {"baseline": settle_b.as_dict(), "load": settle_l.as_dict()},
+            "raw": {"baseline": base.as_dict(), "load": loaded.as_dict()},
+        }
         yield Review({"trial": str(trial), "P (MPa)": f"{record['P_MPa']:.4f}"})
         yield Commit(record)
         done.add(trial)
@@ -228,15 +253,21 @@ class ToyPaper:
     name = "toy"
     title = "A 1-DoF toy rig"
     paper = "none: defined in the tests"
-    protocol_kinds = {KIND: ProtocolKind(
-        name=KIND,
-        sections={"device": ("required", "device"), "acquisition": ("required", "acquisition"),
-                  "channels": ("required", "channel-map"), "settling": ("required", "settling"),
-                  "load": ("required", "toy-load")},
-        specs={"toy-load": {"masses_g": {"type": "pair", "unit": "g", "help": "the two trials' masses"}}},
-        channel_roles=ChannelRoles(actuators=("A",), joints=(1,)),
-        build=lambda checked, chk, path: dict(checked["load"]),
-    )}
+    protocol_kinds = {
+        KIND: ProtocolKind(
+            name=KIND,
+            sections={
+                "device": ("required", "device"),
+                "acquisition": ("required", "acquisition"),
+                "channels": ("required", "channel-map"),
+                "settling": ("required", "settling"),
+                "load": ("required", "toy-load"),
+            },
+            specs={"toy-load": {"masses_g": {"type": "pair", "unit": "g", "help": "the two trials' masses"}}},
+            channel_roles=ChannelRoles(actuators=("A",), joints=(1,)),
+            build=lambda checked, chk, path: dict(checked["load"]),
+        )
+    }
     shipped_protocols = ()
     run_kinds = (KIND,)
     sim_modes = (MODE,)
@@ -247,12 +278,14 @@ class ToyPaper:
     def record_type(self, run_kind: str) -> ToyTrials:
         return ToyTrials()
 
-    def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0,
-                 tau_s: float = 0.7) -> ToyRig:
+    def make_rig(
+        self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7
+    ) -> ToyRig:
         return ToyRig(seed=seed, noise=noise)
 
-    def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
-                     run_path: str = "") -> Any:
+    def run_protocol(
+        self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
+    ) -> Any:
         return protocol
 
     def import_protocol(self, protocol: Any, choice: str | None, name: str) -> Any:

@@ -17,7 +17,8 @@ from __future__ import annotations
 import math
 import os
 import sys
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import h5py
 import numpy as np
@@ -41,8 +42,15 @@ def _unwrap(t_us: Any) -> np.ndarray:
     return (t + np.concatenate([[0], np.cumsum(np.diff(t) < 0)]) * (1 << 32)) * 1e-6
 
 
-def create(path: str, *, protocol_text: str = 'name = "bench"\nkind = "force"\n', protocol: str = "bench",
-           kind: str = "force", operator: str = "v1", plan: Mapping[str, list] | None = None) -> None:
+def create(
+    path: str,
+    *,
+    protocol_text: str = 'name = "bench"\nkind = "force"\n',
+    protocol: str = "bench",
+    kind: str = "force",
+    operator: str = "v1",
+    plan: Mapping[str, list] | None = None,
+) -> None:
     """A new, empty version-1 run of force trials (the reference rig's channels and calibration)."""
     tmp = path + ".creating"
     with h5py.File(tmp, "w", fs_strategy="none") as f:
@@ -66,8 +74,9 @@ def create(path: str, *, protocol_text: str = 'name = "bench"\nkind = "force"\n'
             g.attrs["NX_class"], g.attrs["columns"] = "NXcollection", list(plan)
             for name, values in plan.items():
                 if all(isinstance(v, str) for v in values):
-                    g.create_dataset(name, data=np.array(values, dtype=object),
-                                     dtype=h5py.string_dtype("utf-8")).attrs["units"] = ""
+                    g.create_dataset(name, data=np.array(values, dtype=object), dtype=h5py.string_dtype("utf-8")).attrs[
+                        "units"
+                    ] = ""
                 else:
                     _dataset(g, name, np.asarray(values), "1" if name == "trial" else "")
         for name in ("trials", "split", "models"):
@@ -116,7 +125,7 @@ class Writer:
         os.fsync(self.f.id.get_vfd_handle())
         self.f.close()
 
-    def __enter__(self) -> "Writer":
+    def __enter__(self) -> Writer:
         return self
 
     def __exit__(self, *exc: Any) -> None:

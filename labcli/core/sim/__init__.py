@@ -41,9 +41,17 @@ def default_mode() -> str:
     return registry.default_sim_mode()
 
 
-def make_rig(mode: str | None = None, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7,
-             **options: Any) -> Any:
+def make_rig(
+    mode: str | None = None,
+    *,
+    seed: int = 0,
+    noise: float = 1.0,
+    drift: float = 0.0,
+    tau_s: float = 0.7,
+    **options: Any,
+) -> Any:
     """Build the simulated rig named ``mode`` (None: the default rig); ``options`` are the rig's
     own (its paper's ``sim_options``, parsed).  ValueError for an unknown mode."""
-    return registry.make_rig(mode or registry.default_sim_mode(), seed=seed, noise=noise, drift=drift, tau_s=tau_s,
-                             **options)
+    return registry.make_rig(
+        mode or registry.default_sim_mode(), seed=seed, noise=noise, drift=drift, tau_s=tau_s, **options
+    )

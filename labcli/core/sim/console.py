@@ -27,8 +27,9 @@ import math
 import os
 import select
 import shlex
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, TextIO
+from typing import Any, TextIO
 
 
 class ConsoleError(ValueError):
@@ -48,7 +49,7 @@ def numbers(args: list[str], names: tuple[str, ...], usage: str) -> list[float]:
     if len(args) != len(names):
         raise ConsoleError(f"usage: {usage}")
     out = []
-    for name, a in zip(names, args):
+    for name, a in zip(names, args, strict=False):
         try:
             v = float(a)
         except ValueError:

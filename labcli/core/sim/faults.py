@@ -115,7 +115,7 @@ class FaultSpec:
         return any(getattr(self, kind) > 0 for kind in KINDS)
 
     @classmethod
-    def parse(cls, text: str) -> "FaultSpec":
+    def parse(cls, text: str) -> FaultSpec:
         """``"checksum:0.01,stall:0.001@2.5"`` -> FaultSpec; :class:`FaultSpecError` if malformed."""
         kw: dict[str, Any] = {}
         for item in filter(None, (s.strip() for s in text.split(","))):
@@ -139,7 +139,7 @@ class FaultSpec:
         return cls(**kw)
 
     @classmethod
-    def from_data(cls, data: "FaultSpec | str | dict | None") -> "FaultSpec":
+    def from_data(cls, data: FaultSpec | str | dict | None) -> FaultSpec:
         """A FaultSpec from itself, its text form, or a dict of its fields (plain data)."""
         if data is None:
             return cls()
@@ -222,8 +222,7 @@ class FaultInjector:
     ``OK STOP`` and :meth:`skipped` for frames lost to a full buffer.
     """
 
-    def __init__(self, spec: "FaultSpec | str | dict", seed: int = 0, n_channels: int = 6,
-                 record: bool = False) -> None:
+    def __init__(self, spec: FaultSpec | str | dict, seed: int = 0, n_channels: int = 6, record: bool = False) -> None:
         self.spec = FaultSpec.from_data(spec)
         self.seed = int(seed)
         self.n_channels = int(n_channels)
@@ -324,7 +323,7 @@ class FaultInjector:
             a = np.frombuffer(block, np.uint8)
             nl = np.flatnonzero(a == 10)
             pos = 0
-            for slot, hit in zip(slots.tolist(), rows):
+            for slot, hit in zip(slots.tolist(), rows, strict=False):
                 i = slot - first
                 start = int(nl[i - 1]) + 1 if i else 0
                 stop = int(nl[i]) + 1
@@ -438,13 +437,13 @@ class FaultInjector:
             total = int(rng.integers(MAX_LINE + 4, 601))
             body += rng.integers(0x21, 0x7F, total - len(body)).astype(np.uint8).tobytes()
         elif rng.random() < 0.5:  # truncate: the tail is lost
-            del body[int(rng.integers(1, len(body))):]
+            del body[int(rng.integers(1, len(body))) :]
         else:  # truncate: a run inside the line is lost, '*HH' survives
             a = int(rng.integers(1, star))
             k = int(rng.integers(1, min(8, star - a) + 1))
-            while isinstance(parse_line(bytes(body[:a] + body[a + k:]), self.n_channels), Frame):
+            while isinstance(parse_line(bytes(body[:a] + body[a + k :]), self.n_channels), Frame):
                 k += 1  # the XOR checksum cannot see this loss: lose one more byte
-            del body[a:a + k]
+            del body[a : a + k]
         out = bytes(body)
         self._count(out)
         return out + b"\n"
@@ -473,9 +472,10 @@ class FaultInjector:
         """Every frame made since ``record`` was set, with its fate (``FATE_NAMES``)."""
         k = self.n_channels
         if not self._rec:
-            return Emitted(np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, k), np.int64),
-                           np.empty(0, np.int8))
-        seq, t_us, values, fate = (np.concatenate(x) for x in zip(*self._rec))
+            return Emitted(
+                np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, k), np.int64), np.empty(0, np.int8)
+            )
+        seq, t_us, values, fate = (np.concatenate(x) for x in zip(*self._rec, strict=False))
         return Emitted(seq, t_us, values, fate)
 
     def summary(self) -> str:

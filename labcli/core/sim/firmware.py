@@ -102,9 +102,7 @@ class Firmware:
             return f"OK RATE {hz:g}\n".encode()
         if text == "START":
             self.streaming = True
-            return b"OK START\n" + format_log(
-                f"streaming {len(self.rig.channels)} channels at {self.rate_hz:g} Hz"
-            )
+            return b"OK START\n" + format_log(f"streaming {len(self.rig.channels)} channels at {self.rate_hz:g} Hz")
         if text == "STOP":
             self.streaming = False
             held = self.faults.flush() if self.faults is not None else b""

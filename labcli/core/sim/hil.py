@@ -41,8 +41,9 @@ import subprocess
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -51,8 +52,10 @@ from . import make_rig, modes
 
 FIRMWARE_CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")  # A0..A5
 HARNESS_NAME = "labcli_hil"
-BUILD_HINT = ("build it with `make -C firmware` (needs gcc-avr, avr-libc, simavr, libsimavr-dev and libelf-dev: "
-              "apt-get install gcc-avr avr-libc binutils-avr simavr libsimavr-dev libelf-dev)")
+BUILD_HINT = (
+    "build it with `make -C firmware` (needs gcc-avr, avr-libc, simavr, libsimavr-dev and libelf-dev: "
+    "apt-get install gcc-avr avr-libc binutils-avr simavr libsimavr-dev libelf-dev)"
+)
 SLICE_MS = 1
 IN_FLIGHT = {"wall": 3, "demand": 8}  # batches the harness may hold beyond the one it runs
 VREF = 5.0
@@ -88,9 +91,19 @@ def _wrong_rig(rig: Any) -> FirmwareSimError:
 class HilLink:
     """One run of the firmware on simavr, fed by ``rig`` (see the module docstring)."""
 
-    def __init__(self, rig: Any, elf: str | os.PathLike, *, pacing: str = "wall", seed: int = 0,
-                 adc_noise_lsb: float = 0.5, on_bytes: Callable[[bytes], None] | None = None,
-                 record: bool = False, batch_ms: int = 10, lead_s: float = 0.02) -> None:
+    def __init__(
+        self,
+        rig: Any,
+        elf: str | os.PathLike,
+        *,
+        pacing: str = "wall",
+        seed: int = 0,
+        adc_noise_lsb: float = 0.5,
+        on_bytes: Callable[[bytes], None] | None = None,
+        record: bool = False,
+        batch_ms: int = 10,
+        lead_s: float = 0.02,
+    ) -> None:
         if pacing not in ("wall", "demand"):
             raise ValueError("pacing is 'wall' or 'demand'")
         if tuple(rig.channels) != FIRMWARE_CHANNELS:
@@ -118,9 +131,22 @@ class HilLink:
         self._wake_lock = threading.Lock()
         self._wake_r, self._wake_w = os.pipe()
         self._proc = subprocess.Popen(
-            [str(harness), "--channels", str(len(FIRMWARE_CHANNELS)), "--slice-us", str(SLICE_MS * 1000),
-             "--seed", str(int(seed)), "--adc-noise-lsb", repr(float(adc_noise_lsb)), str(self.elf)],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0,
+            [
+                str(harness),
+                "--channels",
+                str(len(FIRMWARE_CHANNELS)),
+                "--slice-us",
+                str(SLICE_MS * 1000),
+                "--seed",
+                str(int(seed)),
+                "--adc-noise-lsb",
+                repr(float(adc_noise_lsb)),
+                str(self.elf),
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            bufsize=0,
         )
         self._out = self._proc.stdout.fileno()
         self._buf = bytearray()
@@ -206,7 +232,7 @@ class HilLink:
         with self._write_lock:
             fd = self._proc.stdin.fileno()
             while data:
-                data = data[os.write(fd, data):]
+                data = data[os.write(fd, data) :]
 
     def _drain_stderr(self) -> None:
         for line in self._proc.stderr:
@@ -243,7 +269,7 @@ class HilLink:
             kind, n = _HEAD.unpack_from(buf, pos)
             if len(buf) - pos - _HEAD.size < n:
                 break
-            yield kind, bytes(buf[pos + _HEAD.size: pos + _HEAD.size + n])
+            yield kind, bytes(buf[pos + _HEAD.size : pos + _HEAD.size + n])
             pos += _HEAD.size + n
         del buf[:pos]
 

@@ -51,8 +51,14 @@ class HilSerial(SimulatedPort):
         opts = self._open_rig()
         pacing = "wall" if opts["clock"] == "wall" else "demand"
         self._rx.clear()
-        self.link = HilLink(self.rig, opts["firmware"], pacing=pacing, seed=opts["seed"], on_bytes=self._on_bytes,
-                            record=self.record_feed)
+        self.link = HilLink(
+            self.rig,
+            opts["firmware"],
+            pacing=pacing,
+            seed=opts["seed"],
+            on_bytes=self._on_bytes,
+            record=self.record_feed,
+        )
         self.is_open = True
 
     def close(self) -> None:

@@ -48,8 +48,15 @@ class HilPtyServer:
             tty.setraw(self._slave)
             os.set_blocking(self._master, False)
             self.path = os.ttyname(self._slave)
-            self.link = HilLink(rig, elf, pacing="wall", seed=seed, adc_noise_lsb=adc_noise_lsb,
-                                on_bytes=self._from_device, record=record)
+            self.link = HilLink(
+                rig,
+                elf,
+                pacing="wall",
+                seed=seed,
+                adc_noise_lsb=adc_noise_lsb,
+                on_bytes=self._from_device,
+                record=record,
+            )
         except BaseException:
             self._close_fds()
             raise
@@ -92,7 +99,7 @@ class HilPtyServer:
         self.link.stop()
         self._close_fds()
 
-    def __enter__(self) -> "HilPtyServer":
+    def __enter__(self) -> HilPtyServer:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -132,16 +139,26 @@ class HilPtyServer:
             with self._out_lock:
                 if self._out:
                     try:
-                        del self._out[:os.write(self._master, self._out)]
+                        del self._out[: os.write(self._master, self._out)]
                     except BlockingIOError:
                         pass
                     except OSError:
                         return
 
 
-def serve_firmware_pty(elf, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau: float = 0.7,
-                       mode: str | None = None, rig=None, adc_noise_lsb: float = 0.5,
-                       record: bool = False, **rig_options) -> HilPtyServer:
+def serve_firmware_pty(
+    elf,
+    *,
+    seed: int = 0,
+    noise: float = 1.0,
+    drift: float = 0.0,
+    tau: float = 0.7,
+    mode: str | None = None,
+    rig=None,
+    adc_noise_lsb: float = 0.5,
+    record: bool = False,
+    **rig_options,
+) -> HilPtyServer:
     """Serve the firmware ``elf`` on simavr on a new pty, fed by the rig of ``mode`` (None: the default rig).
 
     ``record`` keeps every sample fed to the board (``server.link.fed()``); ``rig_options``

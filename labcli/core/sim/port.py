@@ -11,7 +11,8 @@ asserted, RI as not, and setting RTS, DTR or a break does nothing.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
@@ -41,8 +42,14 @@ class SimulatedPort(SerialBase):
             raise SerialException("Port must be configured before it can be used.")
         opts = self.from_url(self._port)
         if self.rig is None or opts != self.options:
-            self.rig = make_rig(opts["mode"], seed=opts["seed"], noise=opts["noise"],
-                                drift=opts["drift"], tau_s=opts["tau"], **rig_options(opts))
+            self.rig = make_rig(
+                opts["mode"],
+                seed=opts["seed"],
+                noise=opts["noise"],
+                drift=opts["drift"],
+                tau_s=opts["tau"],
+                **rig_options(opts),
+            )
         self.options = opts
         return opts
 

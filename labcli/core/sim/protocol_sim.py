@@ -96,7 +96,9 @@ class Serial(SimulatedPort):
         # The rig is physical: reopening the port reboots the firmware, not the rig.
         opts = self._open_rig()
         spec = opts["faults"]
-        self.faults = None if spec is None else FaultInjector(spec, seed=opts["seed"], n_channels=len(self.rig.channels))
+        self.faults = (
+            None if spec is None else FaultInjector(spec, seed=opts["seed"], n_channels=len(self.rig.channels))
+        )
         self.firmware = Firmware(self.rig, opts["rate"], faults=self.faults, rate_factor=opts["ratefactor"])
         self._unplugged = False
         self._wall0 = time.monotonic() - self.rig.time_s

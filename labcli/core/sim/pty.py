@@ -101,7 +101,7 @@ class PtyServer:
         """Block until stopped (or ``timeout``); True if stopped."""
         return self._stop.wait(timeout)
 
-    def __enter__(self) -> "PtyServer":
+    def __enter__(self) -> PtyServer:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -113,7 +113,6 @@ class PtyServer:
         fw = self.firmware
         t0 = self._t0
         pace_t0, sent = time.monotonic(), 0
-        cmd = bytearray()
         while not self._stop.is_set():
             try:
                 readable, _, _ = select.select([self._master], [], [], POLL_S)
@@ -168,9 +167,17 @@ class PtyServer:
             self._out += frames
 
 
-def serve_pty(seed: int = 0, rate: float = 200.0, noise: float = 1.0, drift: float = 0.0,
-              tau: float = 0.7, mode: str | None = None, rig=None,
-              faults: "FaultSpec | str | dict | None" = None, **rig_options) -> PtyServer:
+def serve_pty(
+    seed: int = 0,
+    rate: float = 200.0,
+    noise: float = 1.0,
+    drift: float = 0.0,
+    tau: float = 0.7,
+    mode: str | None = None,
+    rig=None,
+    faults: FaultSpec | str | dict | None = None,
+    **rig_options,
+) -> PtyServer:
     """Start serving a simulated rig on a new pseudo-terminal; returns the running server.
 
     ``faults`` (a :class:`~labcli.core.sim.faults.FaultSpec`, its text form or a

@@ -15,9 +15,9 @@ import contextlib
 import json
 import os
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 
 @dataclass(frozen=True)
@@ -46,8 +46,9 @@ def announce(device: str, description: str) -> Iterator[Path | None]:
     note = runtime_dir() / f"sim-{os.getpid()}.json"
     try:
         note.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
-        note.write_text(json.dumps({"device": device, "pid": os.getpid(), "description": description}),
-                        encoding="utf-8")
+        note.write_text(
+            json.dumps({"device": device, "pid": os.getpid(), "description": description}), encoding="utf-8"
+        )
     except OSError:
         note = None
     try:

@@ -132,9 +132,7 @@ def parse_sim_url(url: str) -> dict:
         try:
             opts[key] = parser(raw) if eq else parser("")
         except FaultSpecError as e:
-            raise SimURLError(
-                f"option 'faults' in sim:// URL: {e.detail}; expected faults={FAULTS_FORM}"
-            ) from None
+            raise SimURLError(f"option 'faults' in sim:// URL: {e.detail}; expected faults={FAULTS_FORM}") from None
         except ValueError:
             raise SimURLError(
                 f"option '{key}' in sim:// URL must be {what() if callable(what) else what}, got '{raw}'; "
@@ -145,8 +143,10 @@ def parse_sim_url(url: str) -> dict:
     takes = registry.sim_options(opts["mode"])
     for key in own:
         if key in seen and key not in takes:
-            raise SimURLError(f"option '{key}' in sim:// URL applies to mode={'|'.join(registry.modes_taking(key))} "
-                              f"only; expected {accepted_form()}")
+            raise SimURLError(
+                f"option '{key}' in sim:// URL applies to mode={'|'.join(registry.modes_taking(key))} "
+                f"only; expected {accepted_form()}"
+            )
     return opts
 
 

@@ -9,5 +9,18 @@ from .runfile import RESUME_OR_FORCE, RunFile, load_table
 from .split import choose_split
 from .view import MAX_ID
 
-__all__ = ["MAX_ID", "RESUME_OR_FORCE", "SCHEMA", "SCHEMA_VERSION", "RunFile", "StoredWindow",
-           "WindowWriter", "choose_split", "import_csv", "import_table", "load_table", "storable_cells", "to_edge"]
+__all__ = [
+    "MAX_ID",
+    "RESUME_OR_FORCE",
+    "SCHEMA",
+    "SCHEMA_VERSION",
+    "RunFile",
+    "StoredWindow",
+    "WindowWriter",
+    "choose_split",
+    "import_csv",
+    "import_table",
+    "load_table",
+    "storable_cells",
+    "to_edge",
+]

@@ -15,7 +15,7 @@ A row's checksum is never 0: 0 is the fill value of unwritten rows (see
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -60,8 +60,10 @@ def fold(parts: Sequence[np.ndarray | Repeated], positions: np.ndarray) -> np.nd
     n = len(positions)
     h = _BASIS ^ (positions.astype(np.uint64) * _STEP)
     if n == 1:  # one long entry (a blob of ids): word after word in Python ints, not 1-element arrays
-        return np.array([_fold_one(int(h[0]), [words(p.row if isinstance(p, Repeated) else p, 1)[0] for p in parts])],
-                        dtype=np.uint64)
+        return np.array(
+            [_fold_one(int(h[0]), [words(p.row if isinstance(p, Repeated) else p, 1)[0] for p in parts])],
+            dtype=np.uint64,
+        )
     for part in parts:
         if isinstance(part, Repeated):
             h = _fold_same(h, words(part.row, 1)[0] if n else np.empty(0, dtype="<u8"))

@@ -23,8 +23,9 @@ so that one damaged row does not take the rows sharing its chunk with it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import h5py
 import numpy as np
@@ -56,8 +57,15 @@ def h5_dtype(c: Column) -> Any:
 
 def create_dataset(g: h5py.Group, c: Column, chunk: int, length: int = 0) -> h5py.Dataset:
     """A resizable dataset for column ``c`` (``length`` rows, chunked by ``chunk`` rows), with its units."""
-    ds = g.create_dataset(c.name, shape=(length, *c.shape), maxshape=(None, *c.shape), dtype=h5_dtype(c),
-                          chunks=(chunk, *c.shape), fillvalue=fill_value(c), **FILTERS)
+    ds = g.create_dataset(
+        c.name,
+        shape=(length, *c.shape),
+        maxshape=(None, *c.shape),
+        dtype=h5_dtype(c),
+        chunks=(chunk, *c.shape),
+        fillvalue=fill_value(c),
+        **FILTERS,
+    )
     ds.attrs["units"] = c.units
     if c.components:
         ds.attrs["components"] = list(c.components)
@@ -105,7 +113,7 @@ def read_rows(ds: h5py.Dataset, a: int, b: int) -> tuple[np.ndarray, np.ndarray]
         have = max(a, int(ds.shape[0]))
         out, bad = np.zeros((b - a, *ds.shape[1:]), dtype=ds.dtype), np.ones(b - a, dtype=bool)
         if have > a:
-            out[:have - a], bad[:have - a] = read_rows(ds, a, have)
+            out[: have - a], bad[: have - a] = read_rows(ds, a, have)
         return out, bad
     try:
         return ds[a:b], np.zeros(b - a, dtype=bool)
@@ -117,10 +125,10 @@ def read_rows(ds: h5py.Dataset, a: int, b: int) -> tuple[np.ndarray, np.ndarray]
     for lo in range(a - a % chunk, b, chunk):
         s, e = max(lo, a), min(lo + chunk, b)
         try:
-            out[s - a:e - a] = ds[s:e]
+            out[s - a : e - a] = ds[s:e]
         except (OSError, ValueError, RuntimeError):
-            out[s - a:e - a] = np.zeros((e - s, *ds.shape[1:]), dtype=ds.dtype)
-            bad[s - a:e - a] = True
+            out[s - a : e - a] = np.zeros((e - s, *ds.shape[1:]), dtype=ds.dtype)
+            bad[s - a : e - a] = True
     return out, bad
 
 
@@ -143,8 +151,15 @@ class Table:
         self.chunk = int(g.attrs["chunk_rows"])
 
     @classmethod
-    def create(cls, parent: h5py.Group, name: str, columns: Sequence[Column], chunk_rows: int,
-               nx_class: str = "NXcollection", length: int = 0) -> "Table":
+    def create(
+        cls,
+        parent: h5py.Group,
+        name: str,
+        columns: Sequence[Column],
+        chunk_rows: int,
+        nx_class: str = "NXcollection",
+        length: int = 0,
+    ) -> Table:
         g = parent.create_group(name)
         g.attrs["NX_class"] = nx_class
         g.attrs["columns"] = [c.name for c in columns]
@@ -187,8 +202,9 @@ class Table:
         """Where the next rows go: after the committed rows, at a chunk boundary."""
         return -(-self.committed // self.chunk) * self.chunk
 
-    def prepared(self, columns: Mapping[str, Column], values: Mapping[str, Any], n: int,
-                 unwritten_fill: bool = False) -> list[np.ndarray | Repeated]:
+    def prepared(
+        self, columns: Mapping[str, Column], values: Mapping[str, Any], n: int, unwritten_fill: bool = False
+    ) -> list[np.ndarray | Repeated]:
         """Every column's ``n`` values as stored (fill where ``values`` lacks the column).
 
         ``unwritten_fill``: a column ``values`` lacks is a :class:`Repeated` fill, which
@@ -196,8 +212,10 @@ class Table:
         compressed row by row).
         """
         if unwritten_fill:
-            return [fixed(columns[name], values[name], n) if name in values else
-                    Repeated(fixed(columns[name], None, 1), n) for name in self.names]
+            return [
+                fixed(columns[name], values[name], n) if name in values else Repeated(fixed(columns[name], None, 1), n)
+                for name in self.names
+            ]
         return [fixed(columns[name], values.get(name), n) for name in self.names]
 
     def write(self, arrays: list[np.ndarray], n: int) -> tuple[int, int]:
@@ -207,7 +225,7 @@ class Table:
         """
         start = self.next_start()
         checks = row_checksums(arrays, start)
-        for name, arr in zip(self.names, arrays):
+        for name, arr in zip(self.names, arrays, strict=False):
             ds = self.ds[name]
             if isinstance(arr, Repeated) and start >= ds.shape[0]:
                 grow(ds, start + n)  # rows never written before read as the dataset's fill value
@@ -228,8 +246,13 @@ class Table:
         damaged: list[tuple[int, str]] = []
         lo, hi = span if span is not None else (0, self.committed)
         if span is None and not self.committed_ok:
-            damaged.append((-1, "its committed row count does not match its checksum; every row that checks out "
-                                "is read, a last write that never finished included"))
+            damaged.append(
+                (
+                    -1,
+                    "its committed row count does not match its checksum; every row that checks out "
+                    "is read, a last write that never finished included",
+                )
+            )
         extents = {int(ds.shape[0]) for ds in self.ds.values()}
         if hi > min(extents):
             damaged.append((min(extents), f"the table says {hi} rows are committed but holds {min(extents)}"))
@@ -249,7 +272,10 @@ class Table:
             rows.append(np.flatnonzero(keep) + a)
             for name in want:
                 out[name].append(values[name][keep])
-        cols = {name: (np.concatenate(parts) if parts else
-                       np.empty((0, *self.ds[name].shape[1:]), dtype=self.ds[name].dtype))
-                for name, parts in out.items()}
+        cols = {
+            name: (
+                np.concatenate(parts) if parts else np.empty((0, *self.ds[name].shape[1:]), dtype=self.ds[name].dtype)
+            )
+            for name, parts in out.items()
+        }
         return Rows(np.concatenate(rows) if rows else np.empty(0, dtype=np.int64), cols, damaged)

@@ -21,8 +21,10 @@ samples read back on demand.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager as ContextManager
 from dataclasses import dataclass, field
-from typing import Any, Callable, ContextManager, Sequence
+from typing import Any
 
 import h5py
 import numpy as np
@@ -42,8 +44,9 @@ def chunk_frames(frames_per_window: float) -> int:
     return int(min(4096, max(64, 2 ** math.ceil(math.log2(want)))))
 
 
-def create(entry: h5py.Group, channels: Sequence[str], units: Sequence[str], gain: np.ndarray, offset: np.ndarray,
-           chunk: int) -> h5py.Group:
+def create(
+    entry: h5py.Group, channels: Sequence[str], units: Sequence[str], gain: np.ndarray, offset: np.ndarray, chunk: int
+) -> h5py.Group:
     """The empty ``raw`` group of a new run (see the module docstring)."""
     g = entry.create_group("raw")
     g.attrs["NX_class"] = "NXcollection"
@@ -51,7 +54,7 @@ def create(entry: h5py.Group, channels: Sequence[str], units: Sequence[str], gai
     g.attrs["chunk_frames"] = np.int64(chunk)
     time = create_dataset(g, TIME, chunk)
     create_dataset(g, Column("seq", "1", kind="uint", what="frame counter as sent"), chunk)
-    for j, (name, unit) in enumerate(zip(channels, units)):
+    for j, (name, unit) in enumerate(zip(channels, units, strict=False)):
         c = g.create_group(name)
         c.attrs["NX_class"] = "NXlog"
         c.attrs["channel"] = name
@@ -66,8 +69,12 @@ def create(entry: h5py.Group, channels: Sequence[str], units: Sequence[str], gai
 
 def window_parts(time: np.ndarray, seq: np.ndarray, counts: np.ndarray, si: np.ndarray) -> list[np.ndarray]:
     """The arrays a window's checksum folds, frame by frame."""
-    return [np.asarray(time, dtype="<f8"), np.asarray(seq, dtype="<u8"), np.asarray(si, dtype="<f8"),
-            np.asarray(counts, dtype="<f8")]
+    return [
+        np.asarray(time, dtype="<f8"),
+        np.asarray(seq, dtype="<u8"),
+        np.asarray(si, dtype="<f8"),
+        np.asarray(counts, dtype="<f8"),
+    ]
 
 
 def _uncached(g: h5py.Group, name: str) -> h5py.Dataset:
@@ -164,7 +171,7 @@ class Stats:
         n = self.n + nb
         delta = mb - self.mean
         self.mean = self.mean + delta * (nb / n)
-        self.m2 = self.m2 + m2b + delta ** 2 * (self.n * nb / n)
+        self.m2 = self.m2 + m2b + delta**2 * (self.n * nb / n)
         self.n = n
 
     def means(self, k: int) -> np.ndarray:
@@ -242,8 +249,14 @@ class WindowWriter:
     frames in memory.  :meth:`finish` writes the rest.
     """
 
-    def __init__(self, run: Any, frames: Frames, reserve: Callable[[int], None], flush: Callable[[], None],
-                 writing: Callable[[], ContextManager[None]]) -> None:
+    def __init__(
+        self,
+        run: Any,
+        frames: Frames,
+        reserve: Callable[[int], None],
+        flush: Callable[[], None],
+        writing: Callable[[], ContextManager[None]],
+    ) -> None:
         self.run = run
         self._frames = frames
         self._reserve = reserve
@@ -284,7 +297,7 @@ class WindowWriter:
 
     def _write(self, n: int) -> None:
         """Write the first ``n`` frames held."""
-        held = [np.concatenate(a) if len(self._held) > 1 else a[0] for a in zip(*self._held)]
+        held = [np.concatenate(a) if len(self._held) > 1 else a[0] for a in zip(*self._held, strict=False)]
         block = [a[:n] for a in held]
         rest = [a[n:] for a in held]
         self._held = [tuple(rest)] if len(rest[0]) else []
@@ -293,7 +306,9 @@ class WindowWriter:
         self._reserve(n * (8 * (2 + 2 * len(self._frames.channels))))
         with self._writing():
             self._frames.write(self.stop, time, seq, counts, si)
-        self._sum = (self._sum + int(frames_checksum(window_parts(time, seq, counts, si), self.stop - self.start))) % MOD
+        self._sum = (
+            self._sum + int(frames_checksum(window_parts(time, seq, counts, si), self.stop - self.start))
+        ) % MOD
         self._stats.add(si)
         self.stop += n
 

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from typing import Any, Mapping, Sequence, TypedDict
+from collections.abc import Mapping, Sequence
+from typing import Any, TypedDict
 
 import h5py
 import numpy as np
@@ -118,8 +119,7 @@ _RAW_COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": Tru
 _RAW_MIN_VALUES = 1000
 
 
-def dataset(g: h5py.Group, key: str, data: Any, units: str, *, raw: bool = False,
-             **attrs: Any) -> h5py.Dataset:
+def dataset(g: h5py.Group, key: str, data: Any, units: str, *, raw: bool = False, **attrs: Any) -> h5py.Dataset:
     arr = np.asarray(data)
     opts = _RAW_COMPRESSION if raw and arr.size >= _RAW_MIN_VALUES else {}
     ds = g.create_dataset(key, data=arr, **opts)
@@ -139,8 +139,15 @@ def text_dataset(g: h5py.Group, key: str, value: str, **attrs: Any) -> h5py.Data
 
 def column_units(name: str, ids: Sequence[str] = ()) -> str:
     """The units of a table column named in the exchange style (``mass_g``, ``Fx_N``); ids are "1"."""
-    for suffix, units in (("_g", "g"), ("_deg", "deg"), ("_N_per_m", "N/m"), ("_N", "N"), ("_m", "m"),
-                          ("_MPa", "MPa"), ("_s", "s")):
+    for suffix, units in (
+        ("_g", "g"),
+        ("_deg", "deg"),
+        ("_N_per_m", "N/m"),
+        ("_N", "N"),
+        ("_m", "m"),
+        ("_MPa", "MPa"),
+        ("_s", "s"),
+    ):
         if name.endswith(suffix):
             return units
     if name in ids:
@@ -207,13 +214,20 @@ def window_arrays(raw: Mapping, k: int, label: str, which: str) -> dict[str, np.
             f"(seq (n,), counts (n,{k}), si (n,{k})), got seq {seq.shape}, counts {counts.shape}, si {si.shape}."
         )
     counts_f = counts.astype(np.float64)
-    if np.all(np.isfinite(counts_f)) and np.all(counts_f == np.rint(counts_f)) and (
-        counts_f.size == 0 or np.abs(counts_f).max() < 2**31
+    if (
+        np.all(np.isfinite(counts_f))
+        and np.all(counts_f == np.rint(counts_f))
+        and (counts_f.size == 0 or np.abs(counts_f).max() < 2**31)
     ):
         counts_out = counts_f.astype(np.int32)
     else:
         counts_out = counts_f  # decimals as sent: kept exactly rather than rounded
-    return {"time": time, "counts": counts_out, "values": si, "seq": (seq.astype(np.int64) % (1 << 32)).astype(np.uint32)}
+    return {
+        "time": time,
+        "counts": counts_out,
+        "values": si,
+        "seq": (seq.astype(np.int64) % (1 << 32)).astype(np.uint32),
+    }
 
 
 def settle_attrs(info: Mapping | None) -> dict[str, Any]:
@@ -247,8 +261,11 @@ def checked_common(record: Mapping, k: int, label: str) -> tuple[dict[str, Any],
     accepted = str(record.get("accepted", load.get("accepted", "auto" if record.get("raw") else "imported")))
     if accepted not in ACCEPTED:
         raise StoreError(f"{label} record: 'accepted' must be one of {', '.join(ACCEPTED)}, got {accepted!r}.")
-    attrs = {"settle_time_s": float(load.get("settle_time_s", math.nan)),
-             "settle_criterion": str(load.get("criterion", "")), "accepted": accepted}
+    attrs = {
+        "settle_time_s": float(load.get("settle_time_s", math.nan)),
+        "settle_criterion": str(load.get("criterion", "")),
+        "accepted": accepted,
+    }
     windows: list[Window] = []
     for key, raw_w in (record.get("raw") or {}).items():
         if key not in WINDOW_GROUPS:
@@ -256,8 +273,7 @@ def checked_common(record: Mapping, k: int, label: str) -> tuple[dict[str, Any],
         name = WINDOW_GROUPS[key]
         if any(name == w[0] for w in windows):
             raise StoreError(f"{label} record: 'raw' gives the {name} window twice.")
-        windows.append((name, window_arrays(raw_w, k, label, name),
-                        settle_attrs(settle.get(key) or settle.get(name))))
+        windows.append((name, window_arrays(raw_w, k, label, name), settle_attrs(settle.get(key) or settle.get(name))))
     return attrs, windows
 
 

@@ -9,8 +9,9 @@ kept as extra columns of the run's record table.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -42,9 +43,11 @@ def _any_nul(frame: Any) -> bool:
     """Whether any text cell of a table holds a NUL (whole columns; the row check then names them)."""
     import pandas as pd
 
-    return any(frame[c].astype(str).str.contains("\x00", regex=False).any()
-               for c in frame.columns if not (pd.api.types.is_numeric_dtype(frame[c])
-                                              or pd.api.types.is_bool_dtype(frame[c])))
+    return any(
+        frame[c].astype(str).str.contains("\x00", regex=False).any()
+        for c in frame.columns
+        if not (pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]))
+    )
 
 
 storable_cells.screen = _any_nul  # type: ignore[attr-defined]
@@ -70,8 +73,9 @@ def _check_storable(df: Any, id_col: str) -> None:
     """Refuse, before any file is made, a table holding text a run file cannot store."""
     for c in df.columns:
         if "\x00" in str(c):
-            raise ConfigError(f"the column name {str(c)!r} holds a NUL character, which a run file cannot "
-                              "store; rename the column.")
+            raise ConfigError(
+                f"the column name {str(c)!r} holds a NUL character, which a run file cannot store; rename the column."
+            )
     if not _any_nul(df):
         return
     for c in df.columns:
@@ -85,8 +89,9 @@ def _check_storable(df: Any, id_col: str) -> None:
             raise ConfigError(f"{id_col} {rid}, column {c}: {NUL_PROBLEM}.")
 
 
-def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool = False, source: str = "",
-                 operator: str = "") -> RunFile:
+def import_table(
+    df: Any, path: str | os.PathLike, *, protocol: Any, force: bool = False, source: str = "", operator: str = ""
+) -> RunFile:
     """Build a run file without raw windows from a table (DataFrame) of ``protocol``'s records.
 
     ``protocol``: the protocol the run records with (its kind the run's, e.g. an rPAM
@@ -108,9 +113,19 @@ def import_table(df: Any, path: str | os.PathLike, *, protocol: Any, force: bool
     fit, val = rt.import_split(df)
     columns = rt.from_table(df, protocol)
     extra_cols, extra_values = _extras(df, [c for c in df.columns if c not in rt.known_columns])
-    run = RunFile.create(path, protocol=protocol, force=force, imported=True, source=source, operator=operator,
-                         extras=extra_cols, rows_hint=len(df), staged=True, command_line=None,
-                         exists_hint="use --force to overwrite it")
+    run = RunFile.create(
+        path,
+        protocol=protocol,
+        force=force,
+        imported=True,
+        source=source,
+        operator=operator,
+        extras=extra_cols,
+        rows_hint=len(df),
+        staged=True,
+        command_line=None,
+        exists_hint="use --force to overwrite it",
+    )
     try:
         run.append({**columns, **extra_values})  # accepted: "imported", RunFile.append's default
         if fit or val:
@@ -131,13 +146,17 @@ class Imported:
     split: dict[str, Any] | None
 
     def sentence(self, table: str, output: str) -> str:
-        split = "" if self.split is None else (f" (split: {len(self.split['fit'])} fit, "
-                                               f"{len(self.split['validation'])} validation)")
+        split = (
+            ""
+            if self.split is None
+            else (f" (split: {len(self.split['fit'])} fit, {len(self.split['validation'])} validation)")
+        )
         return f"Imported {self.record_type.count(self.n)} from {table} into {output}{split}."
 
 
-def import_csv(table: str, output: str, *, protocol: str, experiment: str | None = None, operator: str = "",
-               force: bool = False) -> Imported:
+def import_csv(
+    table: str, output: str, *, protocol: str, experiment: str | None = None, operator: str = "", force: bool = False
+) -> Imported:
     """``labcli import``: read and check TABLE under ``protocol`` (its ``experiment``), build OUTPUT."""
     # A run file in OUTPUT's place is the import's business (replaced only with force, never while written).
     check_output(output, inputs=(table, protocol), replaces_runs=True)
@@ -145,7 +164,8 @@ def import_csv(table: str, output: str, *, protocol: str, experiment: str | None
     _, run_protocol = import_protocol(base, experiment, protocol)
     rt = record_type(run_protocol.kind)
     df = rt.read_csv(table, id_range=(0, MAX_ID), check=storable_cells)
-    with import_table(df, output, protocol=run_protocol, force=force, source=os.path.basename(table),
-                      operator=operator) as run:
+    with import_table(
+        df, output, protocol=run_protocol, force=force, source=os.path.basename(table), operator=operator
+    ) as run:
         split = run.split()
     return Imported(len(df), rt, split)

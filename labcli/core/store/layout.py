@@ -36,7 +36,8 @@ import shlex
 import socket
 import sys
 import uuid
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import h5py
 import numpy as np
@@ -64,27 +65,31 @@ def text_column(name: str, width: int, what: str = "") -> Column:
 
 def common_columns(id_column: str) -> list[Column]:
     """What every record has, before its record type's columns."""
-    return [Column(id_column, "1", kind="int", what=f"{id_column} id"),
-            text_column("started", TIME_WIDTH, "when the record began (ISO 8601)"),
-            text_column("ended", TIME_WIDTH, "when the record was stored (ISO 8601)"),
-            text_column("accepted", 8, "how it was accepted: auto, timeout, operator or imported"),
-            text_column("flags", FLAGS_WIDTH, "what was noticed about the record, one sentence per line")]
+    return [
+        Column(id_column, "1", kind="int", what=f"{id_column} id"),
+        text_column("started", TIME_WIDTH, "when the record began (ISO 8601)"),
+        text_column("ended", TIME_WIDTH, "when the record was stored (ISO 8601)"),
+        text_column("accepted", 8, "how it was accepted: auto, timeout, operator or imported"),
+        text_column("flags", FLAGS_WIDTH, "what was noticed about the record, one sentence per line"),
+    ]
 
 
 def window_columns() -> list[Column]:
     """Per raw window: its frames in /entry/raw, their checksum, and how its equilibrium was reached."""
     cols = []
     for w in WINDOWS:
-        cols += [Column(f"{w}_start", "1", kind="int", what=f"first frame of the {w} window in raw/"),
-                 Column(f"{w}_stop", "1", kind="int", what=f"frame after the last of the {w} window"),
-                 Column(f"{w}_checksum", "1", kind="uint", what=f"checksum of the {w} window's frames"),
-                 Column(f"{w}_settled", "1", kind="flag", what="1 settled, 0 timed out, -1 not recorded"),
-                 Column(f"{w}_settle_time_s", "s", optional=True, what="time to equilibrium"),
-                 Column(f"{w}_waited_s", "s", optional=True, what="time waited in all"),
-                 Column(f"{w}_pressure_spread_MPa", "MPa", optional=True, what="pressure spread at equilibrium"),
-                 Column(f"{w}_angle_spread_rad", "rad", optional=True, what="angle spread at equilibrium"),
-                 text_column(f"{w}_criterion", 192, "the equilibrium criterion"),
-                 text_column(f"{w}_accepted", 8, "auto, timeout or operator")]
+        cols += [
+            Column(f"{w}_start", "1", kind="int", what=f"first frame of the {w} window in raw/"),
+            Column(f"{w}_stop", "1", kind="int", what=f"frame after the last of the {w} window"),
+            Column(f"{w}_checksum", "1", kind="uint", what=f"checksum of the {w} window's frames"),
+            Column(f"{w}_settled", "1", kind="flag", what="1 settled, 0 timed out, -1 not recorded"),
+            Column(f"{w}_settle_time_s", "s", optional=True, what="time to equilibrium"),
+            Column(f"{w}_waited_s", "s", optional=True, what="time waited in all"),
+            Column(f"{w}_pressure_spread_MPa", "MPa", optional=True, what="pressure spread at equilibrium"),
+            Column(f"{w}_angle_spread_rad", "rad", optional=True, what="angle spread at equilibrium"),
+            text_column(f"{w}_criterion", 192, "the equilibrium criterion"),
+            text_column(f"{w}_accepted", 8, "auto, timeout or operator"),
+        ]
     return cols
 
 
@@ -106,30 +111,48 @@ def extra_column(name: str, values: Sequence[Any]) -> Column:
     return text_column(name, width, "imported column")
 
 
-SPLIT_COLUMNS = [text_column("strategy", 32), Column("seed", "1", kind="int"), text_column("created", TIME_WIDTH),
-                 Column("fit_start", "1", kind="int"), Column("fit_stop", "1", kind="int"),
-                 Column("validation_start", "1", kind="int"), Column("validation_stop", "1", kind="int"),
-                 Column("ids_checksum", "1", kind="uint")]
-MODEL_COLUMNS = [text_column("name", 64), text_column("created", TIME_WIDTH), text_column("labcli_version", 32),
-                 Column("json_start", "1", kind="int"), Column("json_stop", "1", kind="int"),
-                 Column("json_checksum", "1", kind="uint")]
+SPLIT_COLUMNS = [
+    text_column("strategy", 32),
+    Column("seed", "1", kind="int"),
+    text_column("created", TIME_WIDTH),
+    Column("fit_start", "1", kind="int"),
+    Column("fit_stop", "1", kind="int"),
+    Column("validation_start", "1", kind="int"),
+    Column("validation_stop", "1", kind="int"),
+    Column("ids_checksum", "1", kind="uint"),
+]
+MODEL_COLUMNS = [
+    text_column("name", 64),
+    text_column("created", TIME_WIDTH),
+    text_column("labcli_version", 32),
+    Column("json_start", "1", kind="int"),
+    Column("json_stop", "1", kind="int"),
+    Column("json_checksum", "1", kind="uint"),
+]
 
 
 def session_columns(k: int) -> list[Column]:
     """The session log: one row per event; ``k`` channels for the calibration in force."""
-    return [Column("session", "1", kind="int", what="session number, from 1"),
-            text_column("event", 16, "begin, added, redone, skipped or end"),
-            text_column("time", TIME_WIDTH),
-            Column("record", "1", kind="int", what="the record an added/redone/skipped event is about"),
-            text_column("port", 256), Column("baud", "1", kind="int"),
-            text_column("device", 64), text_column("firmware", 64), text_column("channels", 256),
-            Column("gain", "1/count", shape=(k,), optional=True, what="calibration gain per channel (SI unit per count)"),
-            Column("offset", "", shape=(k,), optional=True, what="calibration offset per channel (SI)"),
-            text_column("command_line", 1024), text_column("host_name", 128), text_column("operator", 128),
-            Column("resumed", "1", kind="flag", what="1 when the session resumed the run, else 0"),
-            Column("other_rig", "1", kind="flag", what="1 when resumed on another rig (--allow-other-rig)"),
-            text_column("how", 16, "finished, quit, interrupted, rig lost, no input, ..."),
-            text_column("note", 512)]
+    return [
+        Column("session", "1", kind="int", what="session number, from 1"),
+        text_column("event", 16, "begin, added, redone, skipped or end"),
+        text_column("time", TIME_WIDTH),
+        Column("record", "1", kind="int", what="the record an added/redone/skipped event is about"),
+        text_column("port", 256),
+        Column("baud", "1", kind="int"),
+        text_column("device", 64),
+        text_column("firmware", 64),
+        text_column("channels", 256),
+        Column("gain", "1/count", shape=(k,), optional=True, what="calibration gain per channel (SI unit per count)"),
+        Column("offset", "", shape=(k,), optional=True, what="calibration offset per channel (SI)"),
+        text_column("command_line", 1024),
+        text_column("host_name", 128),
+        text_column("operator", 128),
+        Column("resumed", "1", kind="flag", what="1 when the session resumed the run, else 0"),
+        Column("other_rig", "1", kind="flag", what="1 when resumed on another rig (--allow-other-rig)"),
+        text_column("how", 16, "finished, quit, interrupted, rig lost, no input, ..."),
+        text_column("note", 512),
+    ]
 
 
 def blob(parent: h5py.Group, name: str, dtype: str, chunk: int, units: str, what: str) -> h5py.Dataset:
@@ -140,8 +163,13 @@ def blob(parent: h5py.Group, name: str, dtype: str, chunk: int, units: str, what
 
 
 def versions() -> dict[str, str]:
-    return {"python": platform.python_version(), "numpy": np.__version__, "h5py": h5py.version.version,
-            "hdf5": h5py.version.hdf5_version, "labcli": __version__}
+    return {
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "h5py": h5py.version.version,
+        "hdf5": h5py.version.hdf5_version,
+        "labcli": __version__,
+    }
 
 
 def command_line(argv: Sequence[str] | None = None) -> str:
@@ -158,8 +186,9 @@ def command_line(argv: Sequence[str] | None = None) -> str:
 def text_dataset(parent: h5py.Group, key: str, value: str, **attrs: Any) -> h5py.Dataset:
     """A text as a one-element fixed-length UTF-8 dataset (chunked, so Fletcher32 covers it)."""
     data = value.encode("utf-8")
-    ds = parent.create_dataset(key, shape=(1,), dtype=h5py.string_dtype("utf-8", length=max(1, len(data))),
-                               chunks=(1,), **FILTERS)
+    ds = parent.create_dataset(
+        key, shape=(1,), dtype=h5py.string_dtype("utf-8", length=max(1, len(data))), chunks=(1,), **FILTERS
+    )
     ds[0] = data
     ds.attrs["units"] = ""
     for k, v in attrs.items():
@@ -192,10 +221,27 @@ def plan_columns(plan: Mapping[str, Sequence[Any]], id_column: str) -> tuple[lis
     return cols, values
 
 
-def initialise(f: h5py.File, *, path: str, protocol: Any, rt: RecordType, kind: str, channels: Sequence[str],
-               device_info: Any, port: str, operator: str, plan: Any, imported: bool, source: str,
-               started: str | None, command: str | None, chunk_rows: int, chunk_frames: int,
-               extras: Sequence[Column], calibration: tuple[np.ndarray, np.ndarray, list[str]]) -> None:
+def initialise(
+    f: h5py.File,
+    *,
+    path: str,
+    protocol: Any,
+    rt: RecordType,
+    kind: str,
+    channels: Sequence[str],
+    device_info: Any,
+    port: str,
+    operator: str,
+    plan: Any,
+    imported: bool,
+    source: str,
+    started: str | None,
+    command: str | None,
+    chunk_rows: int,
+    chunk_frames: int,
+    extras: Sequence[Column],
+    calibration: tuple[np.ndarray, np.ndarray, list[str]],
+) -> None:
     """Build the structure of a new run in ``f`` (empty tables, metadata, protocol, plan)."""
     a = f.attrs
     a["NX_class"], a["default"] = "NXroot", "entry"
@@ -205,12 +251,21 @@ def initialise(f: h5py.File, *, path: str, protocol: Any, rt: RecordType, kind: 
     a["HDF5_Version"], a["h5py_version"] = h5py.version.hdf5_version, h5py.version.version
     e = f.create_group("entry")
     e.attrs["NX_class"], e.attrs["default"] = "NXentry", rt.collection
-    meta = {"kind": kind, "protocol": str(getattr(protocol, "name", "")), "run_uid": str(uuid.uuid4()),
-            "start_time": started or now_iso(), "program_name": "labcli", "program_version": __version__,
-            "command_line": command_line() if command is None else command, "host_name": socket.gethostname(),
-            "operator": str(operator or ""), "device": str(getattr(device_info, "device", "") or ""),
-            "firmware": str(getattr(device_info, "firmware", "") or ""),
-            "port": str(port or getattr(device_info, "port", "") or ""), "source": os.path.basename(str(source))}
+    meta = {
+        "kind": kind,
+        "protocol": str(getattr(protocol, "name", "")),
+        "run_uid": str(uuid.uuid4()),
+        "start_time": started or now_iso(),
+        "program_name": "labcli",
+        "program_version": __version__,
+        "command_line": command_line() if command is None else command,
+        "host_name": socket.gethostname(),
+        "operator": str(operator or ""),
+        "device": str(getattr(device_info, "device", "") or ""),
+        "firmware": str(getattr(device_info, "firmware", "") or ""),
+        "port": str(port or getattr(device_info, "port", "") or ""),
+        "source": os.path.basename(str(source)),
+    }
     for key, value in meta.items():
         e.attrs[key] = value
     e.attrs["channels"] = list(channels)
@@ -220,8 +275,14 @@ def initialise(f: h5py.File, *, path: str, protocol: Any, rt: RecordType, kind: 
     for key, value in versions().items():
         v.attrs[key] = value
     proto_path = getattr(protocol, "path", None)
-    text_dataset(e, "protocol", str(getattr(protocol, "text", "")), name=str(getattr(protocol, "name", "")),
-                 kind=kind, file_name=os.path.basename(str(proto_path)) if proto_path else "")
+    text_dataset(
+        e,
+        "protocol",
+        str(getattr(protocol, "text", "")),
+        name=str(getattr(protocol, "name", "")),
+        kind=kind,
+        file_name=os.path.basename(str(proto_path)) if proto_path else "",
+    )
     if plan is not None:
         cols = plan.to_dict("list") if hasattr(plan, "to_dict") else dict(plan)
         pc, values = plan_columns(cols, rt.id_column)

@@ -26,7 +26,8 @@ A session without an ``end`` row ended without a word (a kill, a power cut).
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import h5py
 import numpy as np
@@ -71,15 +72,23 @@ def _s(v: Any) -> str:
 # --------------------------------------------------------------------------- split
 
 
-def split_row(g: h5py.Group, fit: Sequence[int], validation: Sequence[int], strategy: str,
-              seed: int | None) -> dict[str, Any]:
+def split_row(
+    g: h5py.Group, fit: Sequence[int], validation: Sequence[int], strategy: str, seed: int | None
+) -> dict[str, Any]:
     """Write the split's ids to the blob; the row that refers to them (not yet committed)."""
     ids = np.asarray([*fit, *validation], dtype=np.int64)
     start, stop, checksum = blob_write(g["ids"], ids)
     mid = start + len(fit)
-    return {"strategy": strategy, "seed": -1 if seed is None else int(seed), "created": now_iso(),
-            "fit_start": start, "fit_stop": mid, "validation_start": mid, "validation_stop": stop,
-            "ids_checksum": checksum}
+    return {
+        "strategy": strategy,
+        "seed": -1 if seed is None else int(seed),
+        "created": now_iso(),
+        "fit_start": start,
+        "fit_stop": mid,
+        "validation_start": mid,
+        "validation_stop": stop,
+        "ids_checksum": checksum,
+    }
 
 
 def read_split(t: Table) -> tuple[dict[str, Any] | None, list[str]]:
@@ -94,9 +103,13 @@ def read_split(t: Table) -> tuple[dict[str, Any] | None, list[str]]:
             problems.append(f"the ids of split {i + 1} do not match their checksum")
             continue
         seed = int(c["seed"][i])
-        return {"fit": [int(x) for x in ids[: m - a]], "validation": [int(x) for x in ids[m - a:]],
-                "strategy": _s(c["strategy"][i]), "seed": None if seed < 0 else seed,
-                "created": _s(c["created"][i])}, problems
+        return {
+            "fit": [int(x) for x in ids[: m - a]],
+            "validation": [int(x) for x in ids[m - a :]],
+            "strategy": _s(c["strategy"][i]),
+            "seed": None if seed < 0 else seed,
+            "created": _s(c["created"][i]),
+        }, problems
     return None, problems
 
 
@@ -106,8 +119,14 @@ def read_split(t: Table) -> tuple[dict[str, Any] | None, list[str]]:
 def model_row(g: h5py.Group, name: str, json_text: str, version: str) -> dict[str, Any]:
     data = np.frombuffer(json_text.encode("utf-8"), dtype=np.uint8)
     start, stop, checksum = blob_write(g["json"], data)
-    return {"name": name, "created": now_iso(), "labcli_version": version, "json_start": start, "json_stop": stop,
-            "json_checksum": checksum}
+    return {
+        "name": name,
+        "created": now_iso(),
+        "labcli_version": version,
+        "json_start": start,
+        "json_stop": stop,
+        "json_checksum": checksum,
+    }
 
 
 def read_models(t: Table) -> tuple[dict[str, str], list[str]]:
@@ -132,14 +151,23 @@ def read_models(t: Table) -> tuple[dict[str, str], list[str]]:
 def begin_event(number: int, info: Any, host_name: str) -> dict[str, Any]:
     """The ``begin`` row of session ``number`` from a :class:`labcli.core.sessionlog.SessionInfo`."""
     rig = info.rig
-    return {"session": number, "event": "begin", "time": cut(str(info.started or now_iso()), 40),
-            "port": cut(info.port, 256), "baud": -1 if info.baud is None else int(info.baud),
-            "device": cut(rig.device, 64), "firmware": cut(rig.firmware, 64),
-            "channels": cut(",".join(rig.channels), 256),
-            "gain": np.asarray(rig.gain or np.nan, dtype=float), "offset": np.asarray(rig.offset or np.nan, dtype=float),
-            "command_line": cut(getattr(info, "command", ""), 1024), "host_name": cut(host_name, 128),
-            "operator": cut(getattr(info, "operator", ""), 128), "resumed": int(bool(getattr(info, "resumed", False))),
-            "other_rig": int(bool(getattr(info, "other_rig", False)))}
+    return {
+        "session": number,
+        "event": "begin",
+        "time": cut(str(info.started or now_iso()), 40),
+        "port": cut(info.port, 256),
+        "baud": -1 if info.baud is None else int(info.baud),
+        "device": cut(rig.device, 64),
+        "firmware": cut(rig.firmware, 64),
+        "channels": cut(",".join(rig.channels), 256),
+        "gain": np.asarray(rig.gain or np.nan, dtype=float),
+        "offset": np.asarray(rig.offset or np.nan, dtype=float),
+        "command_line": cut(getattr(info, "command", ""), 1024),
+        "host_name": cut(host_name, 128),
+        "operator": cut(getattr(info, "operator", ""), 128),
+        "resumed": int(bool(getattr(info, "resumed", False))),
+        "other_rig": int(bool(getattr(info, "other_rig", False))),
+    }
 
 
 def record_event(number: int, event: str, rid: int) -> dict[str, Any]:
@@ -170,21 +198,46 @@ def read_sessions(t: Table) -> tuple[list[dict[str, Any]], list[str]]:
     sessions: dict[int, dict[str, Any]] = {}
     for i in range(len(rows.rows)):
         n, event = int(c["session"][i]), _s(c["event"][i])
-        s = sessions.setdefault(n, {"number": n, "started": "", "ended": "", "how": None, "note": "",
-                                    "port": "", "baud": None, "device": "", "firmware": "", "channels": [],
-                                    "calibration": None, "command_line": "", "host_name": "", "operator": "",
-                                    "resumed": False, "other_rig": False,
-                                    "added": [], "redone": [], "skipped": []})
+        s = sessions.setdefault(
+            n,
+            {
+                "number": n,
+                "started": "",
+                "ended": "",
+                "how": None,
+                "note": "",
+                "port": "",
+                "baud": None,
+                "device": "",
+                "firmware": "",
+                "channels": [],
+                "calibration": None,
+                "command_line": "",
+                "host_name": "",
+                "operator": "",
+                "resumed": False,
+                "other_rig": False,
+                "added": [],
+                "redone": [],
+                "skipped": [],
+            },
+        )
         if event == "begin":
             baud = int(c["baud"][i])
-            s.update(started=_s(c["time"][i]), port=_s(c["port"][i]), baud=None if baud < 0 else baud,
-                     device=_s(c["device"][i]), firmware=_s(c["firmware"][i]),
-                     channels=[x for x in _s(c["channels"][i]).split(",") if x],
-                     calibration={"gain": [float(x) for x in c["gain"][i]],
-                                  "offset": [float(x) for x in c["offset"][i]]},
-                     command_line=_s(c["command_line"][i]), host_name=_s(c["host_name"][i]),
-                     operator=_s(c["operator"][i]), resumed=int(c["resumed"][i]) == 1,
-                     other_rig=int(c["other_rig"][i]) == 1)
+            s.update(
+                started=_s(c["time"][i]),
+                port=_s(c["port"][i]),
+                baud=None if baud < 0 else baud,
+                device=_s(c["device"][i]),
+                firmware=_s(c["firmware"][i]),
+                channels=[x for x in _s(c["channels"][i]).split(",") if x],
+                calibration={"gain": [float(x) for x in c["gain"][i]], "offset": [float(x) for x in c["offset"][i]]},
+                command_line=_s(c["command_line"][i]),
+                host_name=_s(c["host_name"][i]),
+                operator=_s(c["operator"][i]),
+                resumed=int(c["resumed"][i]) == 1,
+                other_rig=int(c["other_rig"][i]) == 1,
+            )
         elif event in ("added", "redone", "skipped"):
             s[event].append(int(c["record"][i]))
         elif event == "end":

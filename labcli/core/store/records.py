@@ -9,7 +9,8 @@ read back and tabled, and its CSV table spec (:mod:`labcli.core.tables`).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any, Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
 
 from ..paper import Column
 from ..report import records_line, settling_line, split_line
@@ -75,15 +76,21 @@ class BaseRecordType(ABC):
                 if c.kind == "text":
                     out[c.name] = [str(r.get(c.name, "")) for r in rows]
                 else:
-                    out[c.name] = np.array([r[c.name] if c.name in r else np.full(c.shape, np.nan) for r in rows],
-                                           dtype=c.dtype).reshape(len(rows), *c.shape)
+                    out[c.name] = np.array(
+                        [r[c.name] if c.name in r else np.full(c.shape, np.nan) for r in rows], dtype=c.dtype
+                    ).reshape(len(rows), *c.shape)
         return out
 
     def import_split(self, table: Any) -> tuple[list[int], list[int]]:
         return [], []
 
-    def read_csv(self, path: Any, *, id_range: tuple[int, int] | None = None,
-                 check: Callable[[dict[str, Any]], Iterable[tuple[str, str]]] | None = None) -> Any:
+    def read_csv(
+        self,
+        path: Any,
+        *,
+        id_range: tuple[int, int] | None = None,
+        check: Callable[[dict[str, Any]], Iterable[tuple[str, str]]] | None = None,
+    ) -> Any:
         return read_table(path, self.table_spec, id_range=id_range, check=check)
 
     def write_csv(self, table: Any, path: Any) -> None:

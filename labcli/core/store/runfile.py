@@ -44,26 +44,36 @@ import math
 import os
 import time
 import warnings
+from collections.abc import Iterable, Iterator, Mapping
 from types import SimpleNamespace
-from typing import Any, Iterable, Iterator, Mapping
+from typing import Any
 
 import h5py
 import numpy as np
 
 from ...errors import DiskFull, LabcliError, LabcliWarning, StoreError
-from ..paper import Column, RecordType
 from ..files import RUN_FILE_SUFFIXES
+from ..paper import Column, RecordType
 from ..registry import record_type
 from ..version import __version__
-from . import logs
+from . import logs, space
 from . import split as _split
-from . import space
 from .checksum import row_checksums
 from .columns import Table, fixed
 from .frames import Frames, StoredWindow, WindowWriter, chunk_frames, counts_out
-from .h5 import WINDOW_GROUPS, calibration_arrays, plain, settle_attrs, text, utc_now, window_arrays
-from .layout import (SCHEMA, SCHEMA_VERSION, WINDOWS, common_columns, extra_column, initialise, now_iso,
-                     record_columns, session_columns, window_columns)
+from .h5 import WINDOW_GROUPS, calibration_arrays, plain, settle_attrs, text, window_arrays
+from .layout import (
+    SCHEMA,
+    SCHEMA_VERSION,
+    WINDOWS,
+    common_columns,
+    extra_column,
+    initialise,
+    now_iso,
+    record_columns,
+    session_columns,
+    window_columns,
+)
 from .summary import summarise
 from .v1 import V1Run
 from .view import MAX_ID, Records, decode, from_v1, from_v2, out_of_bounds
@@ -142,8 +152,9 @@ class RunFile:
         try:
             self.record_type: RecordType = record_type(kind)
         except LabcliError:
-            raise StoreError(f"{path} is a run of kind '{kind}', which no installed paper reads; "
-                             "install the paper that recorded it.") from None
+            raise StoreError(
+                f"{path} is a run of kind '{kind}', which no installed paper reads; install the paper that recorded it."
+            ) from None
         if self.version == 1:
             self._v1 = V1Run(h5, self.record_type)
         else:
@@ -166,8 +177,11 @@ class RunFile:
                 continue
             ds = self._table.ds[name]
             kind = {"i": "int", "f": "float", "S": "text"}.get(ds.dtype.kind, "text")
-            out.append(Column(name, text(ds.attrs.get("units", "")), kind=kind, width=ds.dtype.itemsize,
-                              optional=kind != "int"))
+            out.append(
+                Column(
+                    name, text(ds.attrs.get("units", "")), kind=kind, width=ds.dtype.itemsize, optional=kind != "int"
+                )
+            )
         return out
 
     def _check_columns(self) -> None:
@@ -176,16 +190,20 @@ class RunFile:
         for c in (*common_columns(rt.id_column), *rt.columns, *window_columns()):
             where = f"/entry/{rt.collection}/{c.name}"
             if c.name not in self._table.ds:
-                raise StoreError(f"{self.path} lacks the dataset {where}; the file was changed by another program "
-                                 "or is damaged.")
+                raise StoreError(
+                    f"{self.path} lacks the dataset {where}; the file was changed by another program or is damaged."
+                )
             ds = self._table.ds[c.name]
             want = c.dtype
             if ds.shape[1:] != c.shape or ds.dtype.kind != want.kind or ds.dtype.itemsize != want.itemsize:
                 got = f"shape {ds.shape} of {ds.dtype}"
-                raise StoreError(f"{self.path}: the dataset {where} holds {got} where a run file keeps (n, "
-                                 f"{', '.join(map(str, c.shape))}{',' if len(c.shape) == 1 else ''}) of {want}"
-                                 .replace("(n, )", "(n,)")
-                                 + f" ({c.what or c.name}); the file was changed by another program.")
+                raise StoreError(
+                    f"{self.path}: the dataset {where} holds {got} where a run file keeps (n, "
+                    f"{', '.join(map(str, c.shape))}{',' if len(c.shape) == 1 else ''}) of {want}".replace(
+                        "(n, )", "(n,)"
+                    )
+                    + f" ({c.what or c.name}); the file was changed by another program."
+                )
 
     # ----------------------------------------------------------- open / create
 
@@ -210,7 +228,7 @@ class RunFile:
         rows_hint: int = 0,
         calibration: tuple[Any, Any, list[str]] | None = None,
         staged: bool = False,
-    ) -> "RunFile":
+    ) -> RunFile:
         """Create a new run file for ``protocol`` (a :class:`labcli.core.protocol.Protocol`).
 
         ``kind``: the run kind (default: the protocol's); ``device_info``: the rig's
@@ -240,10 +258,26 @@ class RunFile:
             raise StoreError(f"cannot create {path}: {e}.") from None
         try:
             space.reserve(f.id.get_vfd_handle(), 0, 1 << 20, path, "the new run", "no file was made")
-            initialise(f, path=path, protocol=protocol, rt=rt, kind=kind, channels=channels, device_info=device_info,
-                       port=port, operator=operator, plan=plan, imported=imported, source=source, started=started,
-                       command=command_line, chunk_rows=_row_chunk(rows_hint),
-                       chunk_frames=chunk_frames(_frames_per_window(protocol)), extras=list(extras), calibration=cal)
+            initialise(
+                f,
+                path=path,
+                protocol=protocol,
+                rt=rt,
+                kind=kind,
+                channels=channels,
+                device_info=device_info,
+                port=port,
+                operator=operator,
+                plan=plan,
+                imported=imported,
+                source=source,
+                started=started,
+                command=command_line,
+                chunk_rows=_row_chunk(rows_hint),
+                chunk_frames=chunk_frames(_frames_per_window(protocol)),
+                extras=list(extras),
+                calibration=cal,
+            )
             f.attrs["metadata_checksum"] = np.uint64(metadata_checksum(f))
             f.flush()
             os.fsync(f.id.get_vfd_handle())
@@ -284,7 +318,7 @@ class RunFile:
                 pass
 
     @classmethod
-    def open(cls, path: str | os.PathLike, mode: str = "r") -> "RunFile":
+    def open(cls, path: str | os.PathLike, mode: str = "r") -> RunFile:
         """Open an existing run file for reading (``"r"``) or adding to it (``"a"``).
 
         Reading takes no lock: a run being recorded can be read (what is committed so far).
@@ -364,8 +398,10 @@ class RunFile:
         except (TypeError, ValueError):
             raise StoreError(f"{path} has no valid schema_version attribute; the file is damaged.") from None
         if version > SCHEMA_VERSION:
-            raise StoreError(f"{path} uses run-file schema version {version}, newer than this labcli reads "
-                             f"({SCHEMA_VERSION}); upgrade labcli.")
+            raise StoreError(
+                f"{path} uses run-file schema version {version}, newer than this labcli reads "
+                f"({SCHEMA_VERSION}); upgrade labcli."
+            )
         if version < 1:
             raise StoreError(f"{path} has schema_version {version}, which no labcli wrote; the file is damaged.")
         return version
@@ -399,8 +435,10 @@ class RunFile:
 
     def _check_metadata(self) -> None:
         if not self._metadata_ok():
-            self._warn(f"{self.path}: the run's metadata (the attributes of its groups and datasets) do not match "
-                       "their checksum; the file was changed after it was written, so check what it says.")
+            self._warn(
+                f"{self.path}: the run's metadata (the attributes of its groups and datasets) do not match "
+                "their checksum; the file was changed after it was written, so check what it says."
+            )
 
     def close(self) -> None:
         if self._staged is not None:
@@ -424,7 +462,7 @@ class RunFile:
             return
         self._f.close()
 
-    def __enter__(self) -> "RunFile":
+    def __enter__(self) -> RunFile:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -447,8 +485,13 @@ class RunFile:
             return self._v1.attrs()
         root = {k: plain(v) for k, v in self._f.attrs.items() if k not in MUTABLE_ATTRS}
         e = {k: plain(v) for k, v in self._entry.attrs.items()}
-        out = {"schema": root.get("schema"), "schema_version": root.get("schema_version"),
-               "labcli_version": e.get("program_version", ""), "started": e.get("start_time", ""), **e}
+        out = {
+            "schema": root.get("schema"),
+            "schema_version": root.get("schema_version"),
+            "labcli_version": e.get("program_version", ""),
+            "started": e.get("start_time", ""),
+            **e,
+        }
         out["versions"] = {k: plain(v) for k, v in self._entry["versions"].attrs.items() if k != "NX_class"}
         out["file_name"], out["file_time"] = root.get("file_name", ""), root.get("file_time", "")
         out.pop("NX_class", None)
@@ -471,8 +514,9 @@ class RunFile:
         try:
             return self._entry["protocol"][0].decode("utf-8")
         except (OSError, ValueError, KeyError, UnicodeDecodeError):
-            raise StoreError(f"{self.path}: its copy of the protocol is damaged (it fails its checksum); "
-                             "use a backup copy.") from None
+            raise StoreError(
+                f"{self.path}: its copy of the protocol is damaged (it fails its checksum); use a backup copy."
+            ) from None
 
     def calibration(self) -> dict[str, Any]:
         """Per-channel gain (SI/count), offset (SI) and units as stored."""
@@ -496,8 +540,10 @@ class RunFile:
         t = Table(self._entry["plan"])
         rows = t.read()
         if rows.damaged:
-            self._warn(f"{self.path}: its plan is damaged (row {rows.damaged[0][0]} fails its checksum); "
-                       "the rows that check out are used.")
+            self._warn(
+                f"{self.path}: its plan is damaged (row {rows.damaged[0][0]} fails its checksum); "
+                "the rows that check out are used."
+            )
         cols = {}
         for name in t.names:
             v = decode(rows.cols[name])
@@ -530,11 +576,17 @@ class RunFile:
         return f"the {self.record_type.count(n)} stored before {'is' if n == 1 else 'are'} intact"
 
     def _reserve(self, nbytes: int, doing: str) -> None:
-        space.reserve(self._f.id.get_vfd_handle(), int(self._f.id.get_filesize()), int(nbytes), self.path, doing,
-                      self._kept())
+        space.reserve(
+            self._f.id.get_vfd_handle(), int(self._f.id.get_filesize()), int(nbytes), self.path, doing, self._kept()
+        )
 
-    def _commit(self, writes: list[tuple[Table, dict[str, Any], int]], frames: int = 0,
-                doing: str = "the change", unwritten_fill: bool = False) -> list[tuple[int, int]]:
+    def _commit(
+        self,
+        writes: list[tuple[Table, dict[str, Any], int]],
+        frames: int = 0,
+        doing: str = "the change",
+        unwritten_fill: bool = False,
+    ) -> list[tuple[int, int]]:
         """Write rows into tables in one commit (see the module docstring); their ``[start, stop)``.
 
         ``writes``: (table, column values, number of rows); the session log's waiting events
@@ -547,7 +599,7 @@ class RunFile:
         with self._writing(doing):
             spans = [t.write(arrs, n) for t, arrs, n in arrays]
             self._sync()
-            for (t, _, _), (_, stop) in zip(arrays, spans):
+            for (t, _, _), (_, stop) in zip(arrays, spans, strict=False):
                 t.commit(stop)
             self._sync()
         self._pending.clear()
@@ -562,8 +614,9 @@ class RunFile:
             raise
         except OSError as e:
             self._broken = True
-            raise StoreError(f"{self.path} could not be written ({e.strerror or e}), so {doing} was not stored; "
-                             f"{self._kept()}.") from None
+            raise StoreError(
+                f"{self.path} could not be written ({e.strerror or e}), so {doing} was not stored; {self._kept()}."
+            ) from None
 
     def _table_columns(self, t: Table) -> dict[str, Column]:
         if t is self._table:
@@ -578,8 +631,10 @@ class RunFile:
         if not self._pending:
             return []
         cols = {c.name: [e.get(c.name) for e in self._pending] for c in session_columns(len(self.channels))}
-        values = {name: (None if all(v is None for v in vs) else [self._fill_none(name, v) for v in vs])
-                  for name, vs in cols.items()}
+        values = {
+            name: (None if all(v is None for v in vs) else [self._fill_none(name, v) for v in vs])
+            for name, vs in cols.items()
+        }
         return [(self._sessions_t, {k: v for k, v in values.items() if v is not None}, len(self._pending))]
 
     def _fill_none(self, name: str, v: Any) -> Any:
@@ -597,8 +652,10 @@ class RunFile:
                 continue
             size = len(str(v).encode("utf-8"))
             if size > c.width:
-                raise StoreError(f"{label} record: '{name}' is {size} bytes of text; a run file keeps at most "
-                                 f"{c.width} there, so shorten it.")
+                raise StoreError(
+                    f"{label} record: '{name}' is {size} bytes of text; a run file keeps at most "
+                    f"{c.width} there, so shorten it."
+                )
 
     def _row(self, record: Mapping, label: str, rid: int) -> dict[str, Any]:
         """Every column of one record but its windows' frames, checked before anything is written."""
@@ -609,16 +666,29 @@ class RunFile:
         load = settle_attrs(windows.get("loaded"))
         accepted = str(record.get("accepted", load.get("accepted", "auto" if record.get("raw") else "imported")))
         if accepted not in ("auto", "timeout", "operator", "imported"):
-            raise StoreError(f"{label} record: 'accepted' must be one of auto, timeout, operator, imported, "
-                             f"got {accepted!r}.")
-        row.update({rt.id_column: rid, "started": str(record.get("started", "") or ""),
-                    "ended": str(record.get("ended", "") or now_iso()), "accepted": accepted,
-                    "flags": _joined_flags(record.get("flags"), label)})
+            raise StoreError(
+                f"{label} record: 'accepted' must be one of auto, timeout, operator, imported, got {accepted!r}."
+            )
+        row.update(
+            {
+                rt.id_column: rid,
+                "started": str(record.get("started", "") or ""),
+                "ended": str(record.get("ended", "") or now_iso()),
+                "accepted": accepted,
+                "flags": _joined_flags(record.get("flags"), label),
+            }
+        )
         for name in WINDOWS:
             s = settle_attrs(windows.get(name))
             row[f"{name}_settled"] = -1 if "settled" not in s else int(s["settled"])
-            for key in ("settle_time_s", "waited_s", "pressure_spread_MPa", "angle_spread_rad", "criterion",
-                        "accepted"):
+            for key in (
+                "settle_time_s",
+                "waited_s",
+                "pressure_spread_MPa",
+                "angle_spread_rad",
+                "criterion",
+                "accepted",
+            ):
                 if key in s:
                     row[f"{name}_{key}"] = s[key]
         extra = record.get("extra") or {}
@@ -627,8 +697,10 @@ class RunFile:
             raise StoreError(f"{label} record: the run file has no column {unknown[0]!r} for it.")
         row.update(extra)
         self._texts_fit(row, label)
-        bad = out_of_bounds(rt.columns, {c.name: np.asarray([row[c.name]]) for c in rt.columns
-                                         if c.name in row and c.kind in ("float", "int")})
+        bad = out_of_bounds(
+            rt.columns,
+            {c.name: np.asarray([row[c.name]]) for c in rt.columns if c.name in row and c.kind in ("float", "int")},
+        )
         if bad:
             raise StoreError(f"{label} record: {bad[0]}.")
         return row
@@ -720,8 +792,9 @@ class RunFile:
             raise StoreError(f"{what} {int(uniq[counts > 1][0])} appears twice; ids must be unique.")
         already = sorted(set(uniq.tolist()) & self._ids())
         if already:
-            raise StoreError(f"{what} {already[0]} is already complete in {self.path}; a stored record is never "
-                             "overwritten.")
+            raise StoreError(
+                f"{what} {already[0]} is already complete in {self.path}; a stored record is never overwritten."
+            )
         unknown = [k for k in columns if k not in self._columns]
         if unknown:
             raise StoreError(f"the run file has no column {unknown[0]!r}.")
@@ -734,8 +807,10 @@ class RunFile:
                 longest = max((len(x) for x in enc), default=0)
                 if longest > c.width:
                     i = next(i for i, x in enumerate(enc) if len(x) == longest)
-                    raise StoreError(f"{what} {int(ids[i])}: '{name}' is {longest} bytes of text; a run file keeps "
-                                     f"at most {c.width} there, so shorten it.")
+                    raise StoreError(
+                        f"{what} {int(ids[i])}: '{name}' is {longest} bytes of text; a run file keeps "
+                        f"at most {c.width} there, so shorten it."
+                    )
                 arr = np.array(enc, dtype=c.dtype)
             values[name] = arr
         missing = [c.name for c in rt.columns if not c.optional and c.name not in values]
@@ -766,8 +841,13 @@ class RunFile:
         """
         self._check_writable()
         self._to_v2(doing)
-        return WindowWriter(self, self._frames, lambda nbytes: self._reserve(nbytes, doing),
-                            lambda: self._flush_frames(doing), lambda: self._writing(doing))
+        return WindowWriter(
+            self,
+            self._frames,
+            lambda nbytes: self._reserve(nbytes, doing),
+            lambda: self._flush_frames(doing),
+            lambda: self._writing(doing),
+        )
 
     def _flush_frames(self, doing: str) -> None:
         """Push a window's frames written so far out of HDF5's caches (to the OS; the commit fsyncs)."""
@@ -780,15 +860,19 @@ class RunFile:
             raise StoreError(f"{self.path} keeps its raw windows per record (schema 1); use read().")
         w, whole = self._frames.read(start, stop)
         if not whole:
-            raise StoreError(f"{self.path}: raw frames {start} to {stop} cannot all be read (damaged); "
-                             "labcli inspect --verify names the records they belong to.")
+            raise StoreError(
+                f"{self.path}: raw frames {start} to {stop} cannot all be read (damaged); "
+                "labcli inspect --verify names the records they belong to."
+            )
         w["counts"] = counts_out(w["counts"])
         return w
 
     def _to_v2(self, doing: str) -> None:
         if self.version == 1:
-            raise StoreError(f"{self.path} is a version 1 run file open for reading; open it with mode 'a' "
-                             f"(which copies it into version 2) to add {doing}.")
+            raise StoreError(
+                f"{self.path} is a version 1 run file open for reading; open it with mode 'a' "
+                f"(which copies it into version 2) to add {doing}."
+            )
 
     # ----------------------------------------------------------- reading records
 
@@ -803,8 +887,9 @@ class RunFile:
             return self._records
         for attempt in range(READ_RETRIES):
             try:
-                rec = from_v1(self._v1, self.record_type) if self.version == 1 else from_v2(self._table,
-                                                                                            self.record_type)
+                rec = (
+                    from_v1(self._v1, self.record_type) if self.version == 1 else from_v2(self._table, self.record_type)
+                )
             except (OSError, KeyError, ValueError, RuntimeError, TypeError):
                 rec = None
             busy = self._mode == "r" and (rec is None or rec.damaged) and space.writer_holds(self.path)
@@ -836,9 +921,11 @@ class RunFile:
     def _damage_sentence(self, damaged: list[tuple[str, str]]) -> str:
         first = "; ".join(f"{what}: {why}" for what, why in damaged[:3])
         more = f" (and {len(damaged) - 3} more)" if len(damaged) > 3 else ""
-        return (f"{self.path}: {len(damaged)} damaged {'record is' if len(damaged) == 1 else 'records are'} left out "
-                f"({first}{more}); the file changed after it was written. "
-                "`labcli inspect --verify` lists everything damaged.")
+        return (
+            f"{self.path}: {len(damaged)} damaged {'record is' if len(damaged) == 1 else 'records are'} left out "
+            f"({first}{more}); the file changed after it was written. "
+            "`labcli inspect --verify` lists everything damaged."
+        )
 
     def completed_ids(self) -> list[int]:
         """Ids of the complete records (trials, pushes, points: the run's kind), in recording order."""
@@ -885,9 +972,16 @@ class RunFile:
             s = self._settle(row, name)
             if s:
                 settle[key] = s
-        out = {**self.record_type.read(row), "started": str(row["started"]), "ended": str(row["ended"]),
-               "accepted": str(row["accepted"]), "order": self._order_of(rec, i), "raw": raw, "settle": settle,
-               "extra": {name: self._extra_value(row[name]) for name in rec.extras}}
+        out = {
+            **self.record_type.read(row),
+            "started": str(row["started"]),
+            "ended": str(row["ended"]),
+            "accepted": str(row["accepted"]),
+            "order": self._order_of(rec, i),
+            "raw": raw,
+            "settle": settle,
+            "extra": {name: self._extra_value(row[name]) for name in rec.extras},
+        }
         out["flags"] = split_flags(row.get("flags", ""))
         return out
 
@@ -931,8 +1025,9 @@ class RunFile:
         except StoreError:
             w, ok, total = None, False, None
         if w is None or not ok or total != int(rec.cols[f"{name}_checksum"][i]):
-            self._warn(f"{self.path}: the {name} window of {what} is damaged (its frames fail their checksum) "
-                       "and is left out.")
+            self._warn(
+                f"{self.path}: the {name} window of {what} is damaged (its frames fail their checksum) and is left out."
+            )
             return None
         w["counts"] = counts_out(w["counts"])
         return w
@@ -948,8 +1043,11 @@ class RunFile:
         """
         rt = kind or self.record_type
         if rt.kind != self.record_type.kind:
-            return rt.table(self, [], {c.name: np.empty((0, *c.shape), dtype=object if c.kind == "text" else c.dtype)
-                                       for c in rt.columns})
+            return rt.table(
+                self,
+                [],
+                {c.name: np.empty((0, *c.shape), dtype=object if c.kind == "text" else c.dtype) for c in rt.columns},
+            )
         rec = self.records()
         df = rt.table(self, list(rec.ids), rec.cols)
         for name in rec.extras:
@@ -959,14 +1057,19 @@ class RunFile:
 
     # ----------------------------------------------------------- split and models
 
-    def set_split(self, fit_ids: Iterable[int], validation_ids: Iterable[int], strategy: str = "manual",
-                  seed: int | None = None) -> None:
+    def set_split(
+        self, fit_ids: Iterable[int], validation_ids: Iterable[int], strategy: str = "manual", seed: int | None = None
+    ) -> None:
         """Store which complete records fit and which validate (the split in force from now on)."""
         self._check_writable()
         fit, val = _split.checked(self.path, self._split_ids(), fit_ids, validation_ids)
         self._to_v2("a split")
-        self._commit_with_blob(self._split_t, lambda: logs.split_row(self._split_t.g, fit, val, str(strategy), seed),
-                               8 * (len(fit) + len(val)), "the split")
+        self._commit_with_blob(
+            self._split_t,
+            lambda: logs.split_row(self._split_t.g, fit, val, str(strategy), seed),
+            8 * (len(fit) + len(val)),
+            "the split",
+        )
 
     def _commit_with_blob(self, t: Table, make_row: Any, nbytes: int, doing: str) -> None:
         """Commit one row of ``t`` whose data (a split's ids, a model's JSON) ``make_row`` writes first.
@@ -987,8 +1090,9 @@ class RunFile:
         """The fit and validation counts of the run's embedded protocol (its settings' ``default_split``)."""
         return _split.default_sizes(self.protocol_text, self.path)
 
-    def assign_split(self, n_fit: int | None, n_validation: int | None, strategy: str = "sequential",
-                     seed: int | None = None) -> dict[str, Any]:
+    def assign_split(
+        self, n_fit: int | None, n_validation: int | None, strategy: str = "sequential", seed: int | None = None
+    ) -> dict[str, Any]:
         """Choose (see :func:`~labcli.core.store.split.choose_split`) and store a split; returns :meth:`split`.
 
         A count left None comes from the run's protocol (:meth:`split_sizes`).
@@ -1020,9 +1124,12 @@ class RunFile:
         if not name or "/" in name or name.startswith(".") or len(name.encode()) > 64:
             raise StoreError(f"model name {name!r} must be non-empty, at most 64 bytes and contain no '/'.")
         self._to_v2("a model")
-        self._commit_with_blob(self._models_t, lambda: logs.model_row(self._models_t.g, name, str(json_text),
-                                                                      __version__),
-                               len(json_text.encode()), f"the model {name}")
+        self._commit_with_blob(
+            self._models_t,
+            lambda: logs.model_row(self._models_t.g, name, str(json_text), __version__),
+            len(json_text.encode()),
+            f"the model {name}",
+        )
 
     def models(self) -> dict[str, str]:
         """Model name -> JSON text, as recorded (the last of each name)."""
@@ -1111,8 +1218,13 @@ class RunFile:
             if s["started"]:
                 cal = s["calibration"] or {"gain": [], "offset": []}
                 keep = all(math.isfinite(x) for x in (*cal["gain"], *cal["offset"]))
-                fields = {"device": s["device"], "firmware": s["firmware"], "channels": tuple(s["channels"]),
-                          "gain": tuple(cal["gain"]) if keep else (), "offset": tuple(cal["offset"]) if keep else ()}
+                fields = {
+                    "device": s["device"],
+                    "firmware": s["firmware"],
+                    "channels": tuple(s["channels"]),
+                    "gain": tuple(cal["gain"]) if keep else (),
+                    "offset": tuple(cal["offset"]) if keep else (),
+                }
                 return _rig_identity(fields)
         return None
 
@@ -1132,7 +1244,7 @@ class RunFile:
     # ----------------------------------------------------------- schema 1
 
     @classmethod
-    def _upgrade(cls, path: str) -> "RunFile":
+    def _upgrade(cls, path: str) -> RunFile:
         """Copy a version-1 run into version 2 (in a new file put in its place), open for writing."""
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", LabcliWarning)
@@ -1151,21 +1263,40 @@ class RunFile:
         return new
 
     @classmethod
-    def _copy_v1(cls, old: "RunFile", path: str) -> "RunFile":
+    def _copy_v1(cls, old: RunFile, path: str) -> RunFile:
         a = old.attrs
         rec = old.records()
         cal = old.calibration()
-        proto = SimpleNamespace(name=a.get("protocol", ""), text=old.protocol_text, kind=old.kind, path=None,
-                                channels=old.channels, calibration=None)
+        proto = SimpleNamespace(
+            name=a.get("protocol", ""),
+            text=old.protocol_text,
+            kind=old.kind,
+            path=None,
+            channels=old.channels,
+            calibration=None,
+        )
         extras = [extra_column(name, list(rec.cols[name])) for name in rec.extras]
-        device = SimpleNamespace(device=a.get("device", ""), firmware=a.get("firmware", ""),
-                                 channels=old.channels, port=a.get("port", ""))
-        new = cls.create(path, protocol=proto, device_info=device, port=a.get("port", ""),
-                         operator=a.get("operator", ""), plan=old.plan_table(), force=True,
-                         imported=bool(a.get("imported", False)), source=a.get("source", ""),
-                         started=a.get("started", ""), kind=old.kind, command_line="",
-                         extras=extras, rows_hint=len(rec.ids),
-                         calibration=(cal["gain"], cal["offset"], list(cal["units"])), staged=True)
+        device = SimpleNamespace(
+            device=a.get("device", ""), firmware=a.get("firmware", ""), channels=old.channels, port=a.get("port", "")
+        )
+        new = cls.create(
+            path,
+            protocol=proto,
+            device_info=device,
+            port=a.get("port", ""),
+            operator=a.get("operator", ""),
+            plan=old.plan_table(),
+            force=True,
+            imported=bool(a.get("imported", False)),
+            source=a.get("source", ""),
+            started=a.get("started", ""),
+            kind=old.kind,
+            command_line="",
+            extras=extras,
+            rows_hint=len(rec.ids),
+            calibration=(cal["gain"], cal["offset"], list(cal["units"])),
+            staged=True,
+        )
         try:
             for rid in rec.ids:
                 new.write(old.read(rid))
@@ -1189,8 +1320,10 @@ def _joined_flags(flags: Any, label: str) -> str:
         if not isinstance(flag, str):
             raise StoreError(f"{label} record: flag {k} is {type(flag).__name__}, not text; a flag is one sentence.")
         if "\n" in flag or "\r" in flag or not flag.strip():
-            raise StoreError(f"{label} record: flag {k} is {'empty' if not flag.strip() else 'more than one line'}; "
-                             "a flag is one sentence.")
+            raise StoreError(
+                f"{label} record: flag {k} is {'empty' if not flag.strip() else 'more than one line'}; "
+                "a flag is one sentence."
+            )
     return "\n".join(items)
 
 

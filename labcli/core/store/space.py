@@ -30,7 +30,7 @@ import resource
 import secrets
 import signal
 import threading
-from typing import Iterator
+from collections.abc import Iterator
 
 from ...errors import DiskFull, StoreError
 from ..files import check_writable_name, kind_of
@@ -38,7 +38,7 @@ from ..files import check_writable_name, kind_of
 PARTIAL_PREFIX = ".labcli-"
 PARTIAL_SUFFIX = ".partial"
 SLACK = 256 * 1024  # room kept past each write for HDF5's own bookkeeping (B-tree nodes, headers)
-BUSY = ("is open in another program (a viewer, or a run still recording); close it there and try again")
+BUSY = "is open in another program (a viewer, or a run still recording); close it there and try again"
 
 
 def mb(n: float) -> str:
@@ -70,23 +70,31 @@ def reserve(fd: int, end: int, need: int, path: str, doing: str, kept: str) -> N
     need += SLACK
     limit = file_size_limit()
     if limit is not None and end + need > limit:
-        raise DiskFull(f"{path} cannot grow past the file size limit of {mb(limit)} (ulimit -f), so {doing} was "
-                       f"not written; {kept}. Raise the limit, then try again.")
+        raise DiskFull(
+            f"{path} cannot grow past the file size limit of {mb(limit)} (ulimit -f), so {doing} was "
+            f"not written; {kept}. Raise the limit, then try again."
+        )
     try:
         os.posix_fallocate(fd, end, need)
         return
     except OSError as e:
         code = e.errno
     if code in (errno.ENOSPC, errno.EDQUOT):
-        raise DiskFull(f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
-                       f"{kept}. Free some space, then try again.")
+        raise DiskFull(
+            f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
+            f"{kept}. Free some space, then try again."
+        )
     if code == errno.EFBIG:
-        raise DiskFull(f"{path} cannot grow past the file size limit (ulimit -f), so {doing} was not written; "
-                       f"{kept}. Raise the limit, then try again.")
+        raise DiskFull(
+            f"{path} cannot grow past the file size limit (ulimit -f), so {doing} was not written; "
+            f"{kept}. Raise the limit, then try again."
+        )
     # A file system without fallocate: judge by the free space it reports.
     if free_bytes(path) < need:
-        raise DiskFull(f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
-                       f"{kept}. Free some space, then try again.")
+        raise DiskFull(
+            f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
+            f"{kept}. Free some space, then try again."
+        )
 
 
 def check_new_file(path: str) -> None:

@@ -8,7 +8,8 @@ column of the exchange table).
 
 from __future__ import annotations
 
-from typing import Any, Iterable, Sequence
+from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -16,8 +17,9 @@ from ...errors import ConfigError, StoreError
 from ..protocol import loads_protocol
 
 
-def choose_split(ids: Sequence[int], n_fit: int, n_validation: int, strategy: str = "sequential",
-                 seed: int | None = None) -> tuple[list[int], list[int]]:
+def choose_split(
+    ids: Sequence[int], n_fit: int, n_validation: int, strategy: str = "sequential", seed: int | None = None
+) -> tuple[list[int], list[int]]:
     """Pick fit and validation ids from ``ids`` (in recording order).
 
     ``sequential``: the first ``n_fit`` ids fit, the next ``n_validation``
@@ -25,7 +27,9 @@ def choose_split(ids: Sequence[int], n_fit: int, n_validation: int, strategy: st
     (0 when None), each set listed in recording order.
     """
     if n_fit < 1 or n_validation < 0:
-        raise ConfigError(f"the fit set needs at least 1 trial and the validation set 0 or more, got {n_fit} and {n_validation}.")
+        raise ConfigError(
+            f"the fit set needs at least 1 trial and the validation set 0 or more, got {n_fit} and {n_validation}."
+        )
     need = n_fit + n_validation
     if need > len(ids):
         raise ConfigError(
@@ -43,8 +47,9 @@ def choose_split(ids: Sequence[int], n_fit: int, n_validation: int, strategy: st
     raise ConfigError(f"unknown split strategy {strategy!r}; use sequential or random.")
 
 
-def choose(ids: Sequence[int], n_fit: int, n_validation: int, strategy: str, seed: int | None,
-           path: str) -> tuple[list[int], list[int]]:
+def choose(
+    ids: Sequence[int], n_fit: int, n_validation: int, strategy: str, seed: int | None, path: str
+) -> tuple[list[int], list[int]]:
     """:func:`choose_split`, its sentences naming the run file."""
     try:
         return choose_split(ids, n_fit, n_validation, strategy, seed)
@@ -60,13 +65,15 @@ def default_sizes(protocol_text: str, path: str) -> tuple[int, int]:
         settings = None
     sizes = getattr(settings, "default_split", None)
     if sizes is None:
-        raise ConfigError(f"{path}: the run's protocol gives no fit and validation counts; "
-                          "give --fit and --validation.")
+        raise ConfigError(
+            f"{path}: the run's protocol gives no fit and validation counts; give --fit and --validation."
+        )
     return int(sizes[0]), int(sizes[1])
 
 
-def checked(path: str, complete: Iterable[int], fit_ids: Iterable[int],
-            validation_ids: Iterable[int]) -> tuple[list[int], list[int]]:
+def checked(
+    path: str, complete: Iterable[int], fit_ids: Iterable[int], validation_ids: Iterable[int]
+) -> tuple[list[int], list[int]]:
     """The fit and validation ids of a split, refused in one sentence unless each is a complete record once."""
     fit = [int(i) for i in fit_ids]
     val = [int(i) for i in validation_ids]

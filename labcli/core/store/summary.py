@@ -6,7 +6,6 @@ the baseline's drift over a McKibben run, an rPAM run's grid).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -51,7 +50,9 @@ def summarise(run: Any) -> dict[str, Any]:
     s = run.split()
     if s is not None:
         out["split"] = {
-            "strategy": s["strategy"], "seed": s["seed"], "fit": len(s["fit"]),
+            "strategy": s["strategy"],
+            "seed": s["seed"],
+            "fit": len(s["fit"]),
             "validation": len(s["validation"]),
             "unassigned": len(set(ids) - set(s["fit"]) - set(s["validation"])) if rt.splits else 0,
         }
@@ -69,5 +70,5 @@ def _settling(ids: list[int], cols: dict[str, Any]) -> dict[str, Any]:
         "median_s": float(np.median(finite)) if finite.size else None,
         "max_s": float(np.max(finite)) if finite.size else None,
         "timeout_accepted": int(sum(x == "timeout" for x in accepted)),
-        "timeout_ids": [i for i, x in zip(ids, accepted) if x == "timeout"],
+        "timeout_ids": [i for i, x in zip(ids, accepted, strict=False) if x == "timeout"],
     }

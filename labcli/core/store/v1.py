@@ -149,9 +149,13 @@ class V1Run:
     def _row(self, g: h5py.Group) -> tuple[dict[str, Any], str | None]:
         rt = self.rt
         a = g.attrs
-        row: dict[str, Any] = {rt.id_column: int(a[rt.id_column]), "started": text(a.get("started", "")),
-                               "ended": text(a.get("ended", "")), "accepted": text(a.get("accepted", "")),
-                               "flags": ""}
+        row: dict[str, Any] = {
+            rt.id_column: int(a[rt.id_column]),
+            "started": text(a.get("started", "")),
+            "ended": text(a.get("ended", "")),
+            "accepted": text(a.get("accepted", "")),
+            "flags": "",
+        }
         for c in rt.columns:
             value, problem = _value(g, c)
             if problem:
@@ -196,9 +200,13 @@ class V1Run:
             return None
         g = self.f["split"]
         seed = int(g.attrs.get("seed", -1))
-        return {"fit": [int(i) for i in g["fit"][()]], "validation": [int(i) for i in g["validation"][()]],
-                "strategy": text(g.attrs.get("strategy", "")), "seed": None if seed < 0 else seed,
-                "created": text(g.attrs.get("created", ""))}
+        return {
+            "fit": [int(i) for i in g["fit"][()]],
+            "validation": [int(i) for i in g["validation"][()]],
+            "strategy": text(g.attrs.get("strategy", "")),
+            "seed": None if seed < 0 else seed,
+            "created": text(g.attrs.get("created", "")),
+        }
 
     def models(self) -> dict[str, str]:
         if "models" not in self.f:

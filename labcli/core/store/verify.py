@@ -40,8 +40,13 @@ def verify(run: Any) -> dict[str, Any]:
                     windows += 1
                 elif len(caught) > before:
                     problems.append(f"{run.record_type.noun} {rec.ids[i]}: its {name} window fails its checksum")
-        for what, read in (("split", run.split), ("models", run.models), ("sessions", run.sessions),
-                           ("plan", run.plan_table), ("protocol", lambda: run.protocol_text)):
+        for what, read in (
+            ("split", run.split),
+            ("models", run.models),
+            ("sessions", run.sessions),
+            ("plan", run.plan_table),
+            ("protocol", lambda: run.protocol_text),
+        ):
             try:
                 read()
             except LabcliError as e:

@@ -10,8 +10,9 @@ record type declares for a column (:func:`out_of_bounds`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -72,7 +73,7 @@ def out_of_bounds(columns: Sequence[Column], cols: dict[str, np.ndarray]) -> dic
             lo, hi = c.bounds
             with np.errstate(invalid="ignore"):
                 problem |= finite & ((flat < lo) | (flat > hi))
-        for i, j in zip(*np.nonzero(problem)):
+        for i, j in zip(*np.nonzero(problem), strict=False):
             if int(i) in bad:
                 continue
             x = flat[i, j]
@@ -82,14 +83,13 @@ def out_of_bounds(columns: Sequence[Column], cols: dict[str, np.ndarray]) -> dic
                 bad[int(i)] = f"{where} is {x}, not a number it can hold"
             else:
                 lo, hi = c.bounds
-                bad[int(i)] = (f"{where} reads {x:.6g}{units}, outside the physically possible "
-                               f"{lo:g} to {hi:g}{units}")
+                bad[int(i)] = f"{where} reads {x:.6g}{units}, outside the physically possible {lo:g} to {hi:g}{units}"
     return bad
 
 
 def _keep(records: Records, keep: np.ndarray) -> None:
-    records.ids = [i for i, k in zip(records.ids, keep) if k]
-    records.sources = [s for s, k in zip(records.sources, keep) if k]
+    records.ids = [i for i, k in zip(records.ids, keep, strict=False) if k]
+    records.sources = [s for s, k in zip(records.sources, keep, strict=False) if k]
     records.cols = {name: v[keep] for name, v in records.cols.items()}
 
 
@@ -147,8 +147,9 @@ def from_v1(backend: Any, rt: RecordType) -> Records:
             cols[c.name] = np.array(["" if v is None else str(v) for v in values], dtype=object).reshape(len(rows))
         else:
             fill = fill_value(c)
-            cols[c.name] = np.array([np.full(c.shape, fill) if v is None else v for v in values],
-                                    dtype=c.dtype).reshape(len(rows), *c.shape)
+            cols[c.name] = np.array(
+                [np.full(c.shape, fill) if v is None else v for v in values], dtype=c.dtype
+            ).reshape(len(rows), *c.shape)
     for name in extras:
         values = [row.get("extra", {}).get(name, math.nan) for row in rows]
         cols[name] = np.array(values, dtype=object)

@@ -19,7 +19,7 @@ from .protocol import EXPERIMENTS, KINDS
 class Rpam2015:
     name = "rpam2015"
     title = "rPAM antagonistic 1-DoF joint: stretch test, joint map, link optimisation"
-    paper = "\"Optimized Design of a Rigid Kinematic Module for Antagonistic Soft Actuation\", 2015"
+    paper = '"Optimized Design of a Rigid Kinematic Module for Antagonistic Soft Actuation", 2015'
     protocol_kinds = KINDS
     shipped_protocols = ("rpam2015",)
     run_kinds = tuple(EXPERIMENTS.values())
@@ -33,14 +33,14 @@ class Rpam2015:
 
         return RECORD_TYPES[run_kind]
 
-    def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0,
-                 tau_s: float = 0.7) -> Any:
+    def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7) -> Any:
         from .sim.rig import RpamRig
 
         return RpamRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s)
 
-    def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
-                     run_path: str = "") -> Any:
+    def run_protocol(
+        self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
+    ) -> Any:
         from .session import acquisition_protocol
 
         return acquisition_protocol(protocol, choice, stored_kind=stored_kind, run_path=run_path)

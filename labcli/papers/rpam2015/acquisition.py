@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 from ...core.paper import AcquireOptions, Session
 from ...errors import ConfigError
@@ -24,14 +25,18 @@ class PointAcquisition:
     def already_done(self, run: Any, path: str) -> str | None:
         points = self.protocol.settings.points
         if points and {p.point for p in points} <= set(run.completed_ids()):
-            return (f"All {len(points)} points of the {self.protocol.settings.title} are already stored "
-                    f"in {path}; nothing to resume.")
+            return (
+                f"All {len(points)} points of the {self.protocol.settings.title} are already stored "
+                f"in {path}; nothing to resume."
+            )
         return None
 
 
 def acquisition(protocol: Any, options: AcquireOptions) -> PointAcquisition:
     """Plan a run of an rPAM protocol's chosen experiment."""
     if options.resume is None and (options.plan is not None or options.no_plan):
-        raise ConfigError("--plan and --no-plan apply to force protocols; an rPAM experiment runs the "
-                          "grid of its protocol's [experiments] table.")
+        raise ConfigError(
+            "--plan and --no-plan apply to force protocols; an rPAM experiment runs the "
+            "grid of its protocol's [experiments] table."
+        )
     return PointAcquisition(protocol, protocol.kind)

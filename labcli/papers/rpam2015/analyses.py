@@ -33,12 +33,14 @@ def check_force_only_options(typed: frozenset[str], *names: str) -> None:
     """Refuse options of the McKibben path typed for an rPAM run (``--max-amplification``, ``--mode``)."""
     for name in names:
         if name in typed:
-            raise ModelError(f"--{name.replace('_', '-')} applies to force runs (Eqs. 34-37), not to rPAM runs; "
-                             "leave it out.")
+            raise ModelError(
+                f"--{name.replace('_', '-')} applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out."
+            )
 
 
-def _read_run(path: Path, protocol: str | None,
-              overrides: tuple[str, ...] = ()) -> tuple[str, Any, dict[str, Any], str, str]:
+def _read_run(
+    path: Path, protocol: str | None, overrides: tuple[str, ...] = ()
+) -> tuple[str, Any, dict[str, Any], str, str]:
     """(kind, point table, raw protocol TOML, protocol name, where) of an rPAM run.
 
     ``overrides`` (``--set key=value``) change the run's stored protocol for this analysis only;
@@ -50,8 +52,10 @@ def _read_run(path: Path, protocol: str | None,
         text = run.protocol_text
         table = run.table()
     if protocol is not None and protocol != name:
-        raise ConfigError(f"{path} was recorded with protocol '{name}'; --protocol applies to "
-                          "trial CSV files only, so leave it out for a run file.")
+        raise ConfigError(
+            f"{path} was recorded with protocol '{name}'; --protocol applies to "
+            "trial CSV files only, so leave it out for a run file."
+        )
     raw = stored_protocol(text, path)
     where = f"{path} (protocol)"
     if overrides:
@@ -74,12 +78,25 @@ class StretchFitResult:
     plot: Path | None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"model_path": str(self.model_path), "recorded_in_run": True, "model_name": self.model_name,
-                "plot": str(self.plot) if self.plot else None, "fit": self.fit.to_dict()}
+        return {
+            "model_path": str(self.model_path),
+            "recorded_in_run": True,
+            "model_name": self.model_name,
+            "plot": str(self.plot) if self.plot else None,
+            "fit": self.fit.to_dict(),
+        }
 
 
-def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, plot: Path | None = None,
-        overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset(), **_: Any) -> StretchFitResult:
+def fit(
+    run: Path,
+    *,
+    output: Path | None = None,
+    protocol: str | None = None,
+    plot: Path | None = None,
+    overrides: tuple[str, ...] = (),
+    typed: frozenset[str] = frozenset(),
+    **_: Any,
+) -> StretchFitResult:
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
     check_force_only_options(typed, "max_amplification", "form")
     out = output or default_model_path(run)
@@ -119,33 +136,49 @@ class JointMapValidation:
 
     def to_dict(self) -> dict[str, Any]:
         out = self.result.to_dict()
-        out.update(run=str(self.run), model=str(self.model_path) if self.model_path else None,
-                   plot=str(self.plot) if self.plot else None)
+        out.update(
+            run=str(self.run),
+            model=str(self.model_path) if self.model_path else None,
+            plot=str(self.plot) if self.plot else None,
+        )
         return out
 
 
 def load_stretch_model(path: Path) -> Any:
     """A stretch fit (``labcli fit`` on a stretch-test run) or a bare stretch correction, from JSON."""
     if not path.is_file():
-        raise ConfigError(f"Model file {path} does not exist; fit the stretch test first with "
-                          "labcli fit STRETCH.h5, which writes STRETCH.model.json.")
+        raise ConfigError(
+            f"Model file {path} does not exist; fit the stretch test first with "
+            "labcli fit STRETCH.h5, which writes STRETCH.model.json."
+        )
     try:
         text = path.read_text(encoding="utf-8")
         d = loads_bounded(text)
     except (OSError, UnicodeDecodeError, ValueError):  # ValueError: bad JSON, or nested too deep
-        raise ConfigError(f"Model file {path} is not a JSON stretch fit; give the file labcli fit wrote "
-                          "for a stretch-test run.") from None
+        raise ConfigError(
+            f"Model file {path} is not a JSON stretch fit; give the file labcli fit wrote for a stretch-test run."
+        ) from None
     kind = d.get("kind") if isinstance(d, dict) else None
     if kind == "rpam-stretch-fit":
         return StretchFit.from_dict(d)
     if kind == "rpam-stretch-correction":
         return StretchCorrection.from_dict(d)
-    raise ConfigError(f"Model file {path} is not a stretch fit (kind {kind!r}); a joint map is compared with "
-                      "the stretch correction labcli fit writes for a stretch-test run.")
+    raise ConfigError(
+        f"Model file {path} is not a stretch fit (kind {kind!r}); a joint map is compared with "
+        "the stretch correction labcli fit writes for a stretch-test run."
+    )
 
 
-def validate(run: Path, *, model_path: Path | None = None, protocol: str | None = None, plot: Path | None = None,
-             overrides: tuple[str, ...] = (), typed: frozenset[str] = frozenset(), **_: Any) -> JointMapValidation:
+def validate(
+    run: Path,
+    *,
+    model_path: Path | None = None,
+    protocol: str | None = None,
+    plot: Path | None = None,
+    overrides: tuple[str, ...] = (),
+    typed: frozenset[str] = frozenset(),
+    **_: Any,
+) -> JointMapValidation:
     """Compare a joint-map run with the model without and with the stretch correction (Fig. 8).
 
     The correction is the fit in ``model_path`` or, without one, the protocol's own
@@ -185,15 +218,22 @@ def show_validation(result: JointMapValidation, *, as_json: bool = False) -> Non
 # --------------------------------------------------------------------------- optimize
 
 
-def optimize(protocol: str, *, seed: int | None = None, pa_kpa: float | None = None, pb_kpa: float | None = None,
-             overrides: tuple[str, ...] = (), progress: bool = True, **_: Any) -> Any:
+def optimize(
+    protocol: str,
+    *,
+    seed: int | None = None,
+    pa_kpa: float | None = None,
+    pb_kpa: float | None = None,
+    overrides: tuple[str, ...] = (),
+    progress: bool = True,
+    **_: Any,
+) -> Any:
     """Maximise the joint angle over L1, L2, L3 (g1-g7, K_min, the toggle margin); a live line
     on stderr while it runs."""
     if not progress:
         return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa)
     with report.optimize_progress() as show:
-        return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa,
-                                 progress=show)
+        return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa, progress=show)
 
 
 def show_optimum(result: Any, *, as_json: bool = False) -> None:

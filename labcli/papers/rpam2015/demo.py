@@ -41,10 +41,24 @@ from .sim.rig import RpamRig
 from .tables import write_point_csv
 
 PROTOCOL = "rpam2015"
-STAGES = ("acquire stretch test", "fit stretch correction", "acquire joint map", "validate joint map",
-          "optimise links", "export")
-OUTPUTS = ("stretch.h5", "stretch.model.json", "fig6-stretch.png", "joint.h5", "fig8-joint-map.png",
-           "stretch.csv", "joint-map.csv", "rpam-summary.json")
+STAGES = (
+    "acquire stretch test",
+    "fit stretch correction",
+    "acquire joint map",
+    "validate joint map",
+    "optimise links",
+    "export",
+)
+OUTPUTS = (
+    "stretch.h5",
+    "stretch.model.json",
+    "fig6-stretch.png",
+    "joint.h5",
+    "fig8-joint-map.png",
+    "stretch.csv",
+    "joint-map.csv",
+    "rpam-summary.json",
+)
 
 
 @dataclass
@@ -60,18 +74,20 @@ class RpamDemoResult:
     notes: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
-        return _nan_to_none({
-            "protocol": PROTOCOL,
-            "outdir": str(self.outdir),
-            "seed": self.seed,
-            "files": {k: str(v) for k, v in self.files.items()},
-            "timings_s": self.timings_s,
-            "points": self.points,
-            "stretch": self.stretch,
-            "joint_map": self.joint_map,
-            "optimum": self.optimum,
-            "notes": self.notes,
-        })
+        return _nan_to_none(
+            {
+                "protocol": PROTOCOL,
+                "outdir": str(self.outdir),
+                "seed": self.seed,
+                "files": {k: str(v) for k, v in self.files.items()},
+                "timings_s": self.timings_s,
+                "points": self.points,
+                "stretch": self.stretch,
+                "joint_map": self.joint_map,
+                "optimum": self.optimum,
+                "notes": self.notes,
+            }
+        )
 
 
 def _nan_to_none(x: Any) -> Any:
@@ -85,28 +101,33 @@ def _nan_to_none(x: Any) -> Any:
 
 
 def _summary(s: dict[str, Any]) -> dict[str, Any]:
-    keep = ("n_compared", "n_toggle", "n_on_stop", "rmse_deg", "max_abs_error_deg", "max_error_at_kPa",
-            "rmse_all_deg")
+    keep = ("n_compared", "n_toggle", "n_on_stop", "rmse_deg", "max_abs_error_deg", "max_error_at_kPa", "rmse_all_deg")
     return {k: s[k] for k in keep}
 
 
-def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
-                  progress: Progress | None = None) -> RpamDemoResult:
+def run_rpam_demo(
+    outdir: str | Path, *, seed: int = 1, force: bool = False, progress: Progress | None = None
+) -> RpamDemoResult:
     """Stretch test, fit, joint map, validation, optimisation on the simulated rPAM rig, into ``outdir``."""
     out = Path(outdir)
     check_outdir(out, OUTPUTS, force, what="rPAM demo")
     out.mkdir(parents=True, exist_ok=True)
     files = {
-        "stretch_run": out / "stretch.h5", "stretch_model": out / "stretch.model.json",
-        "figure6": out / "fig6-stretch.png", "joint_run": out / "joint.h5",
-        "figure8": out / "fig8-joint-map.png", "stretch_csv": out / "stretch.csv",
-        "joint_csv": out / "joint-map.csv", "summary": out / "rpam-summary.json",
+        "stretch_run": out / "stretch.h5",
+        "stretch_model": out / "stretch.model.json",
+        "figure6": out / "fig6-stretch.png",
+        "joint_run": out / "joint.h5",
+        "figure8": out / "fig8-joint-map.png",
+        "stretch_csv": out / "stretch.csv",
+        "joint_csv": out / "joint-map.csv",
+        "summary": out / "rpam-summary.json",
     }
     port = simulated_port(seed, "rpam")
     stages = Stages(STAGES, progress)
     with stages.run(0, "acquire_stretch"):
-        acquire_unattended(files["stretch_run"], port, "stretch test", STAGES[0], progress,
-                           protocol=PROTOCOL, experiment="stretch")
+        acquire_unattended(
+            files["stretch_run"], port, "stretch test", STAGES[0], progress, protocol=PROTOCOL, experiment="stretch"
+        )
     with stages.run(1, "fit"):
         proto = load_protocol(PROTOCOL)
         protocol_ref = (str(proto.path), dict(proto.sections))
@@ -117,8 +138,9 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         figure_stretch(fit, files["figure6"])
     with stages.run(2, "acquire_joint"):
         # The same seed is the same rig: the correction fitted above belongs to these actuators.
-        acquire_unattended(files["joint_run"], port, "joint map", STAGES[2], progress,
-                           protocol=PROTOCOL, experiment="joint")
+        acquire_unattended(
+            files["joint_run"], port, "joint map", STAGES[2], progress, protocol=PROTOCOL, experiment="joint"
+        )
     with stages.run(3, "validate"):
         with RunFile.open(files["joint_run"]) as run:
             joint_table = run.table()
@@ -131,11 +153,18 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         write_point_csv(stretch_table, files["stretch_csv"], "stretch")
         write_point_csv(joint_table, files["joint_csv"], "joint")
     result = RpamDemoResult(
-        outdir=out, seed=seed, files=files, timings_s=stages.done(),
+        outdir=out,
+        seed=seed,
+        files=files,
+        timings_s=stages.done(),
         points={"stretch": int(len(stretch_table)), "joint_map": int(len(joint_table))},
         stretch=_stretch_summary(fit, seed),
-        joint_map={"without": _summary(fitted.summary["without"]), "with_default": _summary(default.summary["with"]),
-                   "with_fitted": _summary(fitted.summary["with"]), "toggle_deg": fitted.toggle_deg},
+        joint_map={
+            "without": _summary(fitted.summary["without"]),
+            "with_default": _summary(default.summary["with"]),
+            "with_fitted": _summary(fitted.summary["with"]),
+            "toggle_deg": fitted.toggle_deg,
+        },
         optimum={k: optimum[k] for k in _OPTIMUM_KEYS},
         notes=[*_NOTES, _paper_note(optimum["paper"]), *_stop_note(fitted.summary["with"]["n_on_stop"])],
     )
@@ -143,9 +172,29 @@ def run_rpam_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     return result
 
 
-_OPTIMUM_KEYS = ("L1_m", "L2_m", "L3_m", "alpha_deg", "toggle_deg", "toggle_margin_deg", "stiffness_Nm_per_rad",
-                 "min_stiffness_Nm_per_rad", "L_a_m", "L_b_m", "F_a_N", "F_b_N", "arm_a_m", "arm_b_m",
-                 "active_constraints", "rounded", "paper", "Pa_kPa", "Pb_kPa", "seed", "generations")
+_OPTIMUM_KEYS = (
+    "L1_m",
+    "L2_m",
+    "L3_m",
+    "alpha_deg",
+    "toggle_deg",
+    "toggle_margin_deg",
+    "stiffness_Nm_per_rad",
+    "min_stiffness_Nm_per_rad",
+    "L_a_m",
+    "L_b_m",
+    "F_a_N",
+    "F_b_N",
+    "arm_a_m",
+    "arm_b_m",
+    "active_constraints",
+    "rounded",
+    "paper",
+    "Pa_kPa",
+    "Pb_kPa",
+    "seed",
+    "generations",
+)
 _NOTES = (
     "The paper prints no F_stretch coefficients; the protocol's default is an assumed placeholder, "
     "and the simulated rig's actuators follow it scaled by a seeded factor, which the fit recovers.",
@@ -157,19 +206,25 @@ _NOTES = (
 def _paper_note(paper: dict[str, Any]) -> str:
     """The paper's design as our model sees it (``OptimumResult.to_dict()["paper"]``)."""
     if paper["balanced"]:
-        return (f"With the same model the paper's design balances at {paper['alpha_deg']:.1f} deg "
-                f"({paper['stiffness_Nm_per_rad']:.3f} N m/rad).")
-    return ("With the same model the paper's design has no balance at these pressures: actuator a still pushes "
-            f"when b's line reaches the pivot, and the joint runs onto its toggle at {paper['toggle_deg']:.1f} deg.")
+        return (
+            f"With the same model the paper's design balances at {paper['alpha_deg']:.1f} deg "
+            f"({paper['stiffness_Nm_per_rad']:.3f} N m/rad)."
+        )
+    return (
+        "With the same model the paper's design has no balance at these pressures: actuator a still pushes "
+        f"when b's line reaches the pivot, and the joint runs onto its toggle at {paper['toggle_deg']:.1f} deg."
+    )
 
 
 def _stop_note(on_stop: int) -> list[str]:
     """Joint-map points measured on the stop where the model balances, if there were any."""
     if not on_stop:
         return []
-    return [(f"{on_stop} joint-map points sat" if on_stop > 1 else "1 joint-map point sat")
-            + " on the stand's stop where the model balances: the joint came from the stop and stayed there (the "
-            "paper's toggle between two states). Such points stay out of the RMSE and count in the RMSE with toggles."]
+    return [
+        (f"{on_stop} joint-map points sat" if on_stop > 1 else "1 joint-map point sat")
+        + " on the stand's stop where the model balances: the joint came from the stop and stayed there (the "
+        "paper's toggle between two states). Such points stay out of the RMSE and count in the RMSE with toggles."
+    ]
 
 
 def _stretch_summary(fit: Any, seed: int) -> dict[str, Any]:
@@ -178,11 +233,15 @@ def _stretch_summary(fit: Any, seed: int) -> dict[str, Any]:
     truth = [float(v) for v in RpamRig(seed=seed).true_stretch_coefficients_N["A"]]
     d = np.asarray(m.coefficients_N) - np.asarray(truth)
     return {
-        "coefficients_N": list(m.coefficients_N), "std_errors_N": list(m.std_errors_N),
-        "ci95_N": [list(p) for p in m.ci95_N], "r2": m.r2, "rmse_N": m.rmse_N,
-        "n_points": m.n_points, "lambda_range": list(m.lambda_range),
+        "coefficients_N": list(m.coefficients_N),
+        "std_errors_N": list(m.std_errors_N),
+        "ci95_N": [list(p) for p in m.ci95_N],
+        "r2": m.r2,
+        "rmse_N": m.rmse_N,
+        "n_points": m.n_points,
+        "lambda_range": list(m.lambda_range),
         "protocol_default_N": list(fit.default_coefficients_N),
         "true_N": truth,
-        "deviation_in_se": [float(x / s) for x, s in zip(d, m.std_errors_N)],
+        "deviation_in_se": [float(x / s) for x, s in zip(d, m.std_errors_N, strict=False)],
         "chi2_4dof": float(d @ np.linalg.solve(np.asarray(m.covariance_N2), d)),
     }

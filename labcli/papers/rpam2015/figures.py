@@ -80,7 +80,7 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
         "with": _model_title("b", "model with $F_{stretch}$", result.summary["with"]),
     }
     filled = None
-    for ax, name in zip(axes[:2], ("without", "with")):
+    for ax, name in zip(axes[:2], ("without", "with"), strict=False):
         filled = _draw_model(ax, PA, PB, models[name], scale)
         ax.set_title(titles[name], fontsize=10)
     _draw_measured(axes[2], result, scale)
@@ -91,11 +91,26 @@ def figure8(result: Any, path: str | Path, *, title: str | None = None, step_deg
     cax = fig.add_axes([0.915, 0.12, 0.015, 0.68])
     cb = fig.colorbar(filled, cax=cax, ticks=scale.lines)
     cb.set_label("joint angle $\\alpha$ (deg)")
-    fig.legend(handles=[Patch(facecolor="0.85", hatch="//", edgecolor="0.4",
-                              label=f"model runs onto the toggle (|$\\alpha$| → {result.toggle_deg:.1f}°)")],
-               loc="lower center", ncol=1, frameon=False, fontsize=9)
-    fig.suptitle(title or "Joint angle over actuator pressures: model without and with the stretch "
-                 "correction against the measured map (Fig. 8)", fontsize=11)
+    fig.legend(
+        handles=[
+            Patch(
+                facecolor="0.85",
+                hatch="//",
+                edgecolor="0.4",
+                label=f"model runs onto the toggle (|$\\alpha$| → {result.toggle_deg:.1f}°)",
+            )
+        ],
+        loc="lower center",
+        ncol=1,
+        frameon=False,
+        fontsize=9,
+    )
+    fig.suptitle(
+        title
+        or "Joint angle over actuator pressures: model without and with the stretch "
+        "correction against the measured map (Fig. 8)",
+        fontsize=11,
+    )
     fig.subplots_adjust(bottom=0.16)
     save(fig, out)
     return out
@@ -153,13 +168,11 @@ def _draw_measured(ax: Any, result: Any, scale: _Scale) -> None:
         gpa, gpb, cells = g
         GA, GB = np.meshgrid(gpa * kpa, gpb * kpa)
         ax.contourf(GA, GB, scale.clip(cells["measured"]), levels=scale.levels, cmap=_CMAP, norm=scale.norm)
-        cs = ax.contour(GA, GB, cells["measured"], levels=scale.lines, colors="k", linewidths=0.7,
-                        linestyles="solid")
+        cs = ax.contour(GA, GB, cells["measured"], levels=scale.lines, colors="k", linewidths=0.7, linestyles="solid")
     else:
         tri = Triangulation(result.Pa_MPa * kpa, result.Pb_MPa * kpa)
         ax.tricontourf(tri, scale.clip(result.measured_deg), levels=scale.levels, cmap=_CMAP, norm=scale.norm)
-        cs = ax.tricontour(tri, result.measured_deg, levels=scale.lines, colors="k", linewidths=0.7,
-                           linestyles="solid")
+        cs = ax.tricontour(tri, result.measured_deg, levels=scale.lines, colors="k", linewidths=0.7, linestyles="solid")
     ax.clabel(cs, fmt=_deg_label, fontsize=8, inline=True)
     ax.plot(result.Pa_MPa * kpa, result.Pb_MPa * kpa, ".", color="k", markersize=2, alpha=0.45)
     ax.set_title(f"(c) measured\n{result.Pa_MPa.size} points", fontsize=10)
@@ -202,8 +215,16 @@ def figure_stretch(fit: Any, path: str | Path, *, title: str | None = None) -> P
     c, se = m.coefficients_N, m.std_errors_N
     text = "\n".join(f"$c_{k}$ = {c[k]:+.3f} ± {se[k]:.3f} N" for k in range(len(c)))
     text += f"\n$R^2$ = {m.r2:.4f}, RMSE = {m.rmse_N:.3f} N"
-    ax.text(0.98, 0.03, text, transform=ax.transAxes, ha="right", va="bottom", fontsize=9,
-            bbox={"boxstyle": "round", "facecolor": "white", "alpha": 0.85, "edgecolor": "0.7"})
+    ax.text(
+        0.98,
+        0.03,
+        text,
+        transform=ax.transAxes,
+        ha="right",
+        va="bottom",
+        fontsize=9,
+        bbox={"boxstyle": "round", "facecolor": "white", "alpha": 0.85, "edgecolor": "0.7"},
+    )
     ax.set_title("(a) stretch force against stretch (Eq. 7, Fig. 6)", fontsize=10)
 
     from matplotlib import colormaps
@@ -219,7 +240,6 @@ def figure_stretch(fit: Any, path: str | Path, *, title: str | None = None) -> P
     ax2.grid(True, alpha=0.3)
     ax2.legend(title="payload", fontsize=8, title_fontsize=8, loc="best")
     ax2.set_title("(b) residuals of the fit by payload", fontsize=10)
-    fig.suptitle(title or f"Stretch test: $L_0$ = {fit.L0_m * 1e3:.0f} mm, "
-                 f"$\\lambda$ {lo:.2f}–{hi:.2f}", fontsize=11)
+    fig.suptitle(title or f"Stretch test: $L_0$ = {fit.L0_m * 1e3:.0f} mm, $\\lambda$ {lo:.2f}–{hi:.2f}", fontsize=11)
     save(fig, out)
     return out

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ...core.paper import ProtocolKind
-from ...core.protocol import SHIPPED_DIR, OPEN, ProtocolFileError, load_protocol, loads_protocol, shipped_protocols
+from ...core.protocol import OPEN, SHIPPED_DIR, ProtocolFileError, load_protocol, loads_protocol, shipped_protocols
 from ...errors import ConfigError
 
 EXPERIMENTS: dict[str, str] = {"stretch": "rpam-stretch", "joint": "rpam-joint"}
@@ -52,8 +52,9 @@ def resolve_protocol_path(path_or_name: str | Path) -> Path:
     shipped = SHIPPED_DIR / f"{p.name}.toml"
     if shipped.is_file():
         return shipped
-    raise ConfigError(f"No protocol named '{path_or_name}'; give a .toml path or a shipped name "
-                      f"({', '.join(shipped_protocols())}).")
+    raise ConfigError(
+        f"No protocol named '{path_or_name}'; give a .toml path or a shipped name ({', '.join(shipped_protocols())})."
+    )
 
 
 def where(path: str | Path) -> str:
@@ -75,8 +76,9 @@ def read_rpam_protocol(path_or_name: str | Path) -> tuple[Path, dict[str, Any]]:
         if e.problem == "syntax":
             raise ConfigError(f"Protocol file {path} is not valid TOML: {e.detail}.") from None
         if e.problem == "kind":
-            raise ConfigError(f"Protocol file {where(path)} has kind = {e.detail!r}; "
-                              "the rPAM model needs kind = \"rpam\".") from None
+            raise ConfigError(
+                f'Protocol file {where(path)} has kind = {e.detail!r}; the rPAM model needs kind = "rpam".'
+            ) from None
         if e.problem == "unreadable":
             raise ConfigError(f"Cannot read protocol file {path}: {e.detail}.") from None
         raise

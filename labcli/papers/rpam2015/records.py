@@ -19,8 +19,9 @@ joint-map points ``alpha_rad`` and optionally ``P0_MPa`` (2,), ``pot0_rad``, ``L
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -30,23 +31,45 @@ from ...core.report import ids_text, settling_line
 from ...core.store.h5 import nan_if_empty, scalar, to_edge, vector
 from ...core.store.records import BaseRecordType
 from ...core.tables import TableSpec
-from .session import acquisition_protocol
 from ...errors import LabcliError, StoreError
+from .session import acquisition_protocol
 from .tables import POINT_SPECS
 
 # key in the record -> (column, units)
-_DATASETS = {"mass_kg": ("mass", "kg"), "L_m": ("L", "m"), "lambda": ("lambda", "1"),
-             "alpha_rad": ("alpha", "rad"), "pot0_rad": ("pot0", "rad")}
+_DATASETS = {
+    "mass_kg": ("mass", "kg"),
+    "L_m": ("L", "m"),
+    "lambda": ("lambda", "1"),
+    "alpha_rad": ("alpha", "rad"),
+    "pot0_rad": ("pot0", "rad"),
+}
 _PRESSURE_BOUNDS = (-1.0, 10.0)  # MPa gauge: far beyond any rPAM; a value outside marks a changed file
-_BOUNDS = {"mass": (0.0, 1e4), "L": (-10.0, 10.0), "lambda": (-1e3, 1e3), "alpha": (-2 * math.pi, 2 * math.pi),
-           "pot0": (-2 * math.pi, 2 * math.pi)}
-_WHAT = {"mass": "payload", "L": "actuator A's length", "lambda": "stretch L / L0", "alpha": "joint deflection",
-         "pot0": "baseline potentiometer angle"}
+_BOUNDS = {
+    "mass": (0.0, 1e4),
+    "L": (-10.0, 10.0),
+    "lambda": (-1e3, 1e3),
+    "alpha": (-2 * math.pi, 2 * math.pi),
+    "pot0": (-2 * math.pi, 2 * math.pi),
+}
+_WHAT = {
+    "mass": "payload",
+    "L": "actuator A's length",
+    "lambda": "stretch L / L0",
+    "alpha": "joint deflection",
+    "pot0": "baseline potentiometer angle",
+}
 COLUMNS = (
     Column("experiment", "", kind="text", width=8, what="stretch test or joint map"),
     Column("P", "MPa", shape=(2,), components=("P_A", "P_B"), bounds=_PRESSURE_BOUNDS, what="pressures"),
-    Column("P0", "MPa", shape=(2,), components=("P_A", "P_B"), bounds=_PRESSURE_BOUNDS, optional=True,
-           what="baseline pressures"),
+    Column(
+        "P0",
+        "MPa",
+        shape=(2,),
+        components=("P_A", "P_B"),
+        bounds=_PRESSURE_BOUNDS,
+        optional=True,
+        what="baseline pressures",
+    ),
     *(Column(name, units, bounds=_BOUNDS[name], optional=True, what=_WHAT[name]) for name, units in _DATASETS.values()),
     Column("plan_mass_g", "g", bounds=(0.0, 1e7), optional=True, what="set payload"),
     Column("plan_P_A_kPa", "kPa", bounds=(-1e4, 1e4), optional=True, what="set P_A"),
@@ -82,10 +105,14 @@ class PointRecords(BaseRecordType):
 
     def check(self, record: Mapping[str, Any], label: str, run: Any) -> dict[str, Any]:
         if record.get("experiment", self.experiment) != self.experiment:
-            raise StoreError(f"{label}: a {record['experiment']} point cannot go into {getattr(run, 'path', 'this run')}, "
-                             f"a {self.kind} run.")
-        row: dict[str, Any] = {"experiment": self.experiment,
-                               "P": vector(record, "P_MPa", 2, "pressures P_A, P_B in MPa", label)}
+            raise StoreError(
+                f"{label}: a {record['experiment']} point cannot go into {getattr(run, 'path', 'this run')}, "
+                f"a {self.kind} run."
+            )
+        row: dict[str, Any] = {
+            "experiment": self.experiment,
+            "P": vector(record, "P_MPa", 2, "pressures P_A, P_B in MPa", label),
+        }
         if "P0_MPa" in record:
             row["P0"] = vector(record, "P0_MPa", 2, "baseline pressures P_A, P_B in MPa", label)
         needed = ("mass_kg", "L_m", "lambda") if self.experiment == "stretch" else ("alpha_rad",)
@@ -99,8 +126,9 @@ class PointRecords(BaseRecordType):
                 row[_DATASETS[key][0]] = scalar(record, key, label)
         for k, v in (record.get("plan") or {}).items():
             if f"plan_{k}" not in {c.name for c in COLUMNS}:
-                raise StoreError(f"{label} record: its set values have {k!r}; a point's are mass_g, P_A_kPa and "
-                                 "P_B_kPa.")
+                raise StoreError(
+                    f"{label} record: its set values have {k!r}; a point's are mass_g, P_A_kPa and P_B_kPa."
+                )
             row[f"plan_{k}"] = float(v)
         return row
 
@@ -111,8 +139,11 @@ class PointRecords(BaseRecordType):
         for key, (name, _) in _DATASETS.items():
             if math.isfinite(float(row[name])):
                 rec[key] = float(row[name])
-        rec["plan"] = {key: float(row[f"plan_{key}"]) for key in ("mass_g", "P_A_kPa", "P_B_kPa")
-                       if math.isfinite(float(row[f"plan_{key}"]))}
+        rec["plan"] = {
+            key: float(row[f"plan_{key}"])
+            for key in ("mass_g", "P_A_kPa", "P_B_kPa")
+            if math.isfinite(float(row[f"plan_{key}"]))
+        }
         return rec
 
     def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
@@ -157,8 +188,11 @@ class PointRecords(BaseRecordType):
         def value(key: str) -> float:
             return nan_if_empty(row.get(key))
 
-        record: dict[str, Any] = {"point": int(row["point"]), "experiment": self.experiment,
-                                  "P_MPa": [value("P_A"), value("P_B")]}
+        record: dict[str, Any] = {
+            "point": int(row["point"]),
+            "experiment": self.experiment,
+            "P_MPa": [value("P_A"), value("P_B")],
+        }
         keys = (("mass_g",) if self.experiment == "stretch" else ()) + ("P_A_kPa", "P_B_kPa")
         plan = {key: value(f"set_{key}") for key in keys}
         record["plan"] = {k: v for k, v in plan.items() if math.isfinite(v)}
@@ -228,16 +262,22 @@ class PointRecords(BaseRecordType):
         r = summary["rpam"]
         incomplete = f" ({ids_text(summary['incomplete_ids'])})" if summary["incomplete"] else ""
         of = "" if r["planned"] is None else f" of {r['planned']} planned"
-        lines = [f"  experiment  {r['title']}",
-                 f"  points      {summary['complete']}{of} complete, {summary['incomplete']} incomplete{incomplete}"]
+        lines = [
+            f"  experiment  {r['title']}",
+            f"  points      {summary['complete']}{of} complete, {summary['incomplete']} incomplete{incomplete}",
+        ]
         if r["missing_ids"]:
-            lines.append(f"  to record   {len(r['missing_ids'])} points ({ids_text(r['missing_ids'])}); "
-                         "labcli acquire --resume records them")
+            lines.append(
+                f"  to record   {len(r['missing_ids'])} points ({ids_text(r['missing_ids'])}); "
+                "labcli acquire --resume records them"
+            )
         lines.append(f"  pressures   P_A {_range(r['P_A_kPa'], 'kPa')}, P_B {_range(r['P_B_kPa'], 'kPa')} (measured)")
         if r["experiment"] == "stretch":
             payloads = ", ".join(f"{m:g}" for m in r["payloads_g"])
-            lines.append(f"  payloads    {payloads + ' g' if payloads else 'none'}; "
-                         f"stretch lambda {_range(r['lambda'], '(L / L0)', '.3f')}")
+            lines.append(
+                f"  payloads    {payloads + ' g' if payloads else 'none'}; "
+                f"stretch lambda {_range(r['lambda'], '(L / L0)', '.3f')}"
+            )
         else:
             lines.append(f"  deflection  alpha {_range(r['alpha_deg'], 'deg', '+.1f')} from the vented baseline")
         return lines + [settling_line(summary)]

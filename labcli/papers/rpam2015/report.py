@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import contextlib
 import math
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from ...core.report import cell, print_table, report_console
 
@@ -22,27 +23,42 @@ def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Pat
 
     m = fit.model
     con = report_console()
-    table = Table(title="Eq. 7 stretch correction F_stretch = c0 + c1 lambda + c2 lambda^2 + c3 lambda^3 (N)",
-                  title_justify="left", box=box.SIMPLE_HEAD)
+    table = Table(
+        title="Eq. 7 stretch correction F_stretch = c0 + c1 lambda + c2 lambda^2 + c3 lambda^3 (N)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+    )
     for col in ("coefficient", "fitted (N)", "std. error (N)", "95% interval (N)", "protocol's default (N)"):
         table.add_column(col, justify="left" if col == "coefficient" else "right")
-    for k, (c, se, (lo, hi), d) in enumerate(zip(m.coefficients_N, m.std_errors_N, m.ci95_N,
-                                                   fit.default_coefficients_N)):
+    for k, (c, se, (lo, hi), d) in enumerate(
+        zip(m.coefficients_N, m.std_errors_N, m.ci95_N, fit.default_coefficients_N, strict=False)
+    ):
         table.add_row(f"c{k}", f"{c:+.4f}", f"{se:.4f}", f"[{lo:+.4f}, {hi:+.4f}]", f"{d:+.4g}")
     print_table(con, table)
-    con.print(f"  {m.n_points} points ({m.dof} degrees of freedom), lambda {m.lambda_range[0]:.3f} to "
-              f"{m.lambda_range[1]:.3f}; R^2 {m.r2:.5f}, RMSE {m.rmse_N:.3f} N", soft_wrap=True)
+    con.print(
+        f"  {m.n_points} points ({m.dof} degrees of freedom), lambda {m.lambda_range[0]:.3f} to "
+        f"{m.lambda_range[1]:.3f}; R^2 {m.r2:.5f}, RMSE {m.rmse_N:.3f} N",
+        soft_wrap=True,
+    )
     if fit.skipped_rows:
-        con.print(f"  {len(fit.skipped_rows)} point(s) without a reading left out: "
-                  + ", ".join(map(str, fit.skipped_rows)), soft_wrap=True)
+        con.print(
+            f"  {len(fit.skipped_rows)} point(s) without a reading left out: " + ", ".join(map(str, fit.skipped_rows)),
+            soft_wrap=True,
+        )
     if plot is not None:
         con.print(f"Stretch-test figure (Fig. 6) written to {plot}.", soft_wrap=True)
-    con.print(f"Model written to {out} and recorded in {run} under /models/{model_name}; compare a joint map "
-              f"with it: labcli validate JOINT.h5 --model {out}", soft_wrap=True)
+    con.print(
+        f"Model written to {out} and recorded in {run} under /models/{model_name}; compare a joint map "
+        f"with it: labcli validate JOINT.h5 --model {out}",
+        soft_wrap=True,
+    )
 
 
-_SOURCE = {"protocol": "the protocol's [stretch_correction] (no --model given)",
-           "fit": "the stretch fit in {model}", "given": "the coefficients given"}
+_SOURCE = {
+    "protocol": "the protocol's [stretch_correction] (no --model given)",
+    "fit": "the stretch fit in {model}",
+    "given": "the coefficients given",
+}
 
 
 def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path | None) -> None:
@@ -51,27 +67,48 @@ def print_joint_map(result: Any, run: Path, model_path: Path | None, plot: Path 
     from rich.table import Table
 
     con = report_console()
-    table = Table(title=f"Joint map of {run.name} against the model (Fig. 8); errors are model - measured",
-                  title_justify="left", box=box.SIMPLE_HEAD)
-    for col in ("F_stretch", "points compared", "toggles", "on the stop", "RMSE (deg)", "max |error| (deg)",
-                "at Pa, Pb (kPa)", "RMSE with toggles (deg)"):
+    table = Table(
+        title=f"Joint map of {run.name} against the model (Fig. 8); errors are model - measured",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+    )
+    for col in (
+        "F_stretch",
+        "points compared",
+        "toggles",
+        "on the stop",
+        "RMSE (deg)",
+        "max |error| (deg)",
+        "at Pa, Pb (kPa)",
+        "RMSE with toggles (deg)",
+    ):
         table.add_column(col, justify="left" if col == "F_stretch" else "right")
     for name in ("without", "with"):
         s = result.summary[name]
         at = s["max_error_at_kPa"]
         where = "—" if not all(_finite(v) for v in at) else f"{at[0]:.0f}, {at[1]:.0f}"
-        table.add_row(name, str(s["n_compared"]), str(s["n_toggle"]), str(s.get("n_on_stop", 0)),
-                      cell(s["rmse_deg"], ".2f"), cell(s["max_abs_error_deg"], ".2f"), where,
-                      cell(s["rmse_all_deg"], ".2f"))
+        table.add_row(
+            name,
+            str(s["n_compared"]),
+            str(s["n_toggle"]),
+            str(s.get("n_on_stop", 0)),
+            cell(s["rmse_deg"], ".2f"),
+            cell(s["max_abs_error_deg"], ".2f"),
+            where,
+            cell(s["rmse_all_deg"], ".2f"),
+        )
     print_table(con, table)
     c = ", ".join(f"{v:+.4g}" for v in result.actuator.stretch_coefficients_N)
     source = _SOURCE.get(result.correction_source, result.correction_source).format(model=model_path)
     con.print(f"  F_stretch coefficients c0..c3 = [{c}] N, from {source}.", soft_wrap=True)
-    con.print(f"  'toggles': points where the model has no balance below the toggle angle "
-              f"{result.toggle_deg:.1f} deg (the joint runs onto it); 'on the stop': points where the joint was "
-              "measured on its stop although the model balances (it came from the stop and stayed, the paper's "
-              "toggle). Both stay out of the RMSE; the last column counts every point, a toggle at the toggle "
-              "angle.", soft_wrap=True)
+    con.print(
+        f"  'toggles': points where the model has no balance below the toggle angle "
+        f"{result.toggle_deg:.1f} deg (the joint runs onto it); 'on the stop': points where the joint was "
+        "measured on its stop although the model balances (it came from the stop and stayed, the paper's "
+        "toggle). Both stay out of the RMSE; the last column counts every point, a toggle at the toggle "
+        "angle.",
+        soft_wrap=True,
+    )
     if plot is not None:
         con.print(f"Figure 8 written to {plot}.", soft_wrap=True)
 
@@ -103,9 +140,12 @@ def optimize_progress() -> Iterator[Any]:
 
     def report(generation: int, best: dict[str, float]) -> None:
         alpha = best["alpha_deg"]
-        text = "no feasible design yet" if alpha != alpha else (
-            f"best alpha {alpha:5.2f} deg at L1 {best['L1_m']:.4f}, L2 {best['L2_m']:.4f}, "
-            f"L3 {best['L3_m']:.4f} m"
+        text = (
+            "no feasible design yet"
+            if alpha != alpha
+            else (
+                f"best alpha {alpha:5.2f} deg at L1 {best['L1_m']:.4f}, L2 {best['L2_m']:.4f}, L3 {best['L3_m']:.4f} m"
+            )
         )
         progress.update(task, completed=generation, total=best["maxiter"], best=text)
 
@@ -151,18 +191,25 @@ def print_optimum(d: dict[str, Any]) -> None:
         f"  {'':34s}{'labcli':>10s}{'paper' if paper else '':>10s}",
     ]
     for label, key, scale, spec in _OPTIMUM_ROWS:
-        lines.append(f"  {label:34s}{_design_cell(rounded, key, scale, spec):>10s}"
-                     f"{_design_cell(paper, key, scale, spec) if paper else '':>10s}")
+        lines.append(
+            f"  {label:34s}{_design_cell(rounded, key, scale, spec):>10s}"
+            f"{_design_cell(paper, key, scale, spec) if paper else '':>10s}"
+        )
     lines.append("")
     active = d["active_constraints"]
     lines.append("Active at the optimum: " + ("; ".join(active) if active else "none (interior optimum)") + ".")
     if paper is not None:
-        verdict = ("meets g1-g7, the toggle margin and K_min" if paper["feasible"]
-                   else "misses " + "; ".join(paper["violated_constraints"]))
+        verdict = (
+            "meets g1-g7, the toggle margin and K_min"
+            if paper["feasible"]
+            else "misses " + "; ".join(paper["violated_constraints"])
+        )
         lines.append(f"The paper's design {verdict}.")
         if paper["reported_alpha_deg"] is not None:
-            lines.append(f"The paper reports alpha = {paper['reported_alpha_deg']:g} deg for it, "
-                         "with its own, unpublished actuator constants.")
+            lines.append(
+                f"The paper reports alpha = {paper['reported_alpha_deg']:g} deg for it, "
+                "with its own, unpublished actuator constants."
+            )
     print("\n".join(lines))
 
 
@@ -176,43 +223,84 @@ def print_demo(res: Any) -> None:
 
     con = report_console(markup=True)
     s = res.stretch
-    con.print(f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
-              f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "
-              f"{res.timings_s['total']:.1f} s.", soft_wrap=True)
+    con.print(
+        f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
+        f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "
+        f"{res.timings_s['total']:.1f} s.",
+        soft_wrap=True,
+    )
 
-    coef = Table(title=f"Eq. 7 stretch correction F_stretch(lambda) fitted on {s['n_points']} points "
-                       f"(lambda {s['lambda_range'][0]:.2f}-{s['lambda_range'][1]:.2f})",
-                 title_justify="left", box=box.SIMPLE_HEAD)
-    for col in ("coefficient", "fitted (N)", "std. error (N)", "rig's truth (N)", "fit - truth (s.e.)",
-                "protocol default (N)"):
+    coef = Table(
+        title=f"Eq. 7 stretch correction F_stretch(lambda) fitted on {s['n_points']} points "
+        f"(lambda {s['lambda_range'][0]:.2f}-{s['lambda_range'][1]:.2f})",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+    )
+    for col in (
+        "coefficient",
+        "fitted (N)",
+        "std. error (N)",
+        "rig's truth (N)",
+        "fit - truth (s.e.)",
+        "protocol default (N)",
+    ):
         coef.add_column(col, justify="left" if col == "coefficient" else "right")
     for k in range(4):
-        coef.add_row(f"c{k}", f"{s['coefficients_N'][k]:+.3f}", f"{s['std_errors_N'][k]:.3f}",
-                     f"{s['true_N'][k]:+.3f}", f"{s['deviation_in_se'][k]:+.2f}",
-                     f"{s['protocol_default_N'][k]:+.3g}")
+        coef.add_row(
+            f"c{k}",
+            f"{s['coefficients_N'][k]:+.3f}",
+            f"{s['std_errors_N'][k]:.3f}",
+            f"{s['true_N'][k]:+.3f}",
+            f"{s['deviation_in_se'][k]:+.2f}",
+            f"{s['protocol_default_N'][k]:+.3g}",
+        )
     print_table(con, coef)
-    con.print(f"R^2 {s['r2']:.5f}, RMSE {s['rmse_N']:.3f} N; chi^2 of the truth against the fit's covariance "
-              f"{s['chi2_4dof']:.2f} (4 degrees of freedom; 18.5 is the 99.9 % limit).", soft_wrap=True)
+    con.print(
+        f"R^2 {s['r2']:.5f}, RMSE {s['rmse_N']:.3f} N; chi^2 of the truth against the fit's covariance "
+        f"{s['chi2_4dof']:.2f} (4 degrees of freedom; 18.5 is the 99.9 % limit).",
+        soft_wrap=True,
+    )
 
-    jm = Table(title=f"Joint map against the model (Fig. 8), errors model - measured; toggle angle "
-                     f"{res.joint_map['toggle_deg']:.1f} deg",
-               title_justify="left", box=box.SIMPLE_HEAD)
-    for col in ("F_stretch", "points compared", "toggles", "RMSE (deg)", "max |error| (deg)",
-                "RMSE with toggles (deg)"):
+    jm = Table(
+        title=f"Joint map against the model (Fig. 8), errors model - measured; toggle angle "
+        f"{res.joint_map['toggle_deg']:.1f} deg",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+    )
+    for col in (
+        "F_stretch",
+        "points compared",
+        "toggles",
+        "RMSE (deg)",
+        "max |error| (deg)",
+        "RMSE with toggles (deg)",
+    ):
         jm.add_column(col, justify="left" if col == "F_stretch" else "right", no_wrap=col == "F_stretch")
     for key, label in (("without", "none"), ("with_default", "protocol's"), ("with_fitted", "fitted")):
         r = res.joint_map[key]
-        jm.add_row(label, str(r["n_compared"]), str(r["n_toggle"]), cell(r["rmse_deg"], ".2f"),
-                   cell(r["max_abs_error_deg"], ".2f"), cell(r["rmse_all_deg"], ".2f"))
+        jm.add_row(
+            label,
+            str(r["n_compared"]),
+            str(r["n_toggle"]),
+            cell(r["rmse_deg"], ".2f"),
+            cell(r["max_abs_error_deg"], ".2f"),
+            cell(r["rmse_all_deg"], ".2f"),
+        )
     print_table(con, jm)
-    con.print("Toggles: pressure pairs where the model has no balance below the toggle angle; they stay out "
-              "of the RMSE and count at the toggle angle in the last column.", soft_wrap=True)
+    con.print(
+        "Toggles: pressure pairs where the model has no balance below the toggle angle; they stay out "
+        "of the RMSE and count at the toggle angle in the last column.",
+        soft_wrap=True,
+    )
 
     o = res.optimum
-    con.print(f"Link optimisation (Section IV) at Pa = {o['Pa_kPa']:g} kPa, Pb = {o['Pb_kPa']:g} kPa with the "
-              f"fitted F_stretch: alpha = {o['alpha_deg']:.2f} deg at L1 = {o['L1_m']:.4f} m, "
-              f"L2 = {o['L2_m']:.4f} m, L3 = {o['L3_m']:.4f} m (toggle {o['toggle_deg']:.2f} deg; "
-              f"{'; '.join(o['active_constraints']) or 'no constraint at its bound'}).", soft_wrap=True)
+    con.print(
+        f"Link optimisation (Section IV) at Pa = {o['Pa_kPa']:g} kPa, Pb = {o['Pb_kPa']:g} kPa with the "
+        f"fitted F_stretch: alpha = {o['alpha_deg']:.2f} deg at L1 = {o['L1_m']:.4f} m, "
+        f"L2 = {o['L2_m']:.4f} m, L3 = {o['L3_m']:.4f} m (toggle {o['toggle_deg']:.2f} deg; "
+        f"{'; '.join(o['active_constraints']) or 'no constraint at its bound'}).",
+        soft_wrap=True,
+    )
     for note in res.notes:
         con.print(note, soft_wrap=True)
     con.print("Files:", soft_wrap=True)

@@ -36,8 +36,9 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Generator, Iterable
 from dataclasses import dataclass, replace
-from typing import Any, Generator, Iterable
+from typing import Any
 
 import numpy as np
 
@@ -166,8 +167,9 @@ def experiment_of_kind(kind: str) -> str | None:
     return KINDS.get(kind)
 
 
-def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str | None = None,
-                         run_path: str = "") -> Any:
+def acquisition_protocol(
+    base: Any, experiment: str | None, *, stored_kind: str | None = None, run_path: str = ""
+) -> Any:
     """Check the choice of experiment and build the protocol an rPAM run records with.
 
     ``stored_kind``: the kind of the run being resumed (its experiment is then fixed).
@@ -176,8 +178,10 @@ def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str 
     """
     name = getattr(base, "name", "the protocol")
     if getattr(base, "kind", "") != "rpam":
-        raise ConfigError(f"--experiment picks one experiment of an rPAM protocol; {name} is of kind "
-                          f"'{getattr(base, 'kind', '')}', so leave --experiment out.")
+        raise ConfigError(
+            f"--experiment picks one experiment of an rPAM protocol; {name} is of kind "
+            f"'{getattr(base, 'kind', '')}', so leave --experiment out."
+        )
     if experiment is not None and experiment not in EXPERIMENTS:
         raise ConfigError(f"--experiment must be stretch or joint, not '{experiment}'.")
     if stored_kind is not None:
@@ -185,17 +189,22 @@ def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str 
         if stored is None:
             raise ConfigError(f"{run_path} is a run of kind '{stored_kind}', which protocol {name} cannot continue.")
         if experiment is not None and experiment != stored:
-            raise ConfigError(f"{run_path} records the {stored} experiment, not {experiment}; "
-                              "drop --experiment to resume it.")
+            raise ConfigError(
+                f"{run_path} records the {stored} experiment, not {experiment}; drop --experiment to resume it."
+            )
         experiment = stored
     if experiment is None:
-        raise ConfigError(f"Protocol {name} holds two experiments: choose one with --experiment stretch "
-                          "(the stretch test, Figs. 5-6) or --experiment joint (the joint map, Fig. 8).")
+        raise ConfigError(
+            f"Protocol {name} holds two experiments: choose one with --experiment stretch "
+            "(the stretch test, Figs. 5-6) or --experiment joint (the joint map, Fig. 8)."
+        )
     label = str(getattr(base, "path", None) or name)
     raw = dict(getattr(base, "sections", {}) or {})
     if getattr(base, "settling", None) is None:
-        raise ConfigError(f"{label}: labcli acquire needs a [settling] table (window_s, hold_s, "
-                          "pressure_spread_MPa, angle_spread_deg, timeout_s, capture_s).")
+        raise ConfigError(
+            f"{label}: labcli acquire needs a [settling] table (window_s, hold_s, "
+            "pressure_spread_MPa, angle_spread_deg, timeout_s, capture_s)."
+        )
     if getattr(base, "rate_hz", None) is None:
         raise ConfigError(f"{label}: labcli acquire needs [acquisition] rate_hz.")
     calibration, device, length_spread = _sensors(raw, label)
@@ -209,7 +218,11 @@ def acquisition_protocol(base: Any, experiment: str | None, *, stored_kind: str 
         grid = itertools.product(*rpam.joint_map_plan(raw, label))
         points = [PlannedPoint(i, float(a), float(b)) for i, (a, b) in enumerate(grid, start=1)]
     return replace(
-        base, kind=EXPERIMENTS[experiment], calibration=calibration, channels=calibration.names, device=device,
+        base,
+        kind=EXPERIMENTS[experiment],
+        calibration=calibration,
+        channels=calibration.names,
+        device=device,
         settling=replace(base.settling, length_spread_m=length_spread),
         settings=RpamRun(experiment, tuple(points), act.L0_m),
     )
@@ -219,8 +232,10 @@ def _sensors(raw: dict[str, Any], label: str) -> tuple[Any, Any, float]:
     """Calibration, device spec and length settling limit (m) from the ``[sensors]`` table."""
     s = raw.get("sensors")
     if not isinstance(s, dict):
-        raise ConfigError(f"{label}: labcli acquire needs a [sensors] table naming the DAQ (device, channels) "
-                          "and calibrating each channel.")
+        raise ConfigError(
+            f"{label}: labcli acquire needs a [sensors] table naming the DAQ (device, channels) "
+            "and calibrating each channel."
+        )
 
     def bad(key: str, need: str, value: Any) -> ConfigError:
         return ConfigError(f"{label}: key 'sensors.{key}' must be {need}, not {value!r}.")
@@ -233,8 +248,10 @@ def _sensors(raw: dict[str, Any], label: str) -> tuple[Any, Any, float]:
         raise bad("channels", "a list of distinct channel names in data-line order", names)
     missing = [c for c in CHANNELS if c not in names]
     if missing:
-        raise ConfigError(f"{label}: key 'sensors.channels' must include {', '.join(CHANNELS)}; "
-                          f"{', '.join(missing)} {'is' if len(missing) == 1 else 'are'} missing.")
+        raise ConfigError(
+            f"{label}: key 'sensors.channels' must include {', '.join(CHANNELS)}; "
+            f"{', '.join(missing)} {'is' if len(missing) == 1 else 'are'} missing."
+        )
     lo_adc, hi_adc = s.get("adc_min_counts", 0), s.get("adc_max_counts", 4095)
     channels = []
     length_spread = None
@@ -256,17 +273,28 @@ def _sensors(raw: dict[str, Any], label: str) -> tuple[Any, Any, float]:
         if not (isinstance(rng, list) and len(rng) == 2 and all(_number(v) for v in rng) and rng[0] < rng[1]):
             raise bad(f"{n}.range", "[low, high] with low < high", rng)
         f = UNIT_FACTORS[q][unit]
-        channels.append(Channel(name=n, quantity=q, gain=float(gain) * f, zero_counts=float(zero),
-                                range=(float(rng[0]) * f, float(rng[1]) * f), unit_in_file=unit))
+        channels.append(
+            Channel(
+                name=n,
+                quantity=q,
+                gain=float(gain) * f,
+                zero_counts=float(zero),
+                range=(float(rng[0]) * f, float(rng[1]) * f),
+                unit_in_file=unit,
+            )
+        )
         if q == "length":
             spread = c.get("settle_spread_mm")
             if not _number(spread) or spread <= 0:
                 raise bad(f"{n}.settle_spread_mm", "a positive number of mm (the length's settling limit)", spread)
             length_spread = float(spread) * 1e-3 if length_spread is None else min(length_spread, float(spread) * 1e-3)
-    if [ch.quantity for ch in channels if ch.name in CHANNELS] != ["pressure", "pressure", "angle", "length"] or \
-            [ch.name for ch in channels if ch.name in CHANNELS] != list(CHANNELS):
-        raise ConfigError(f"{label}: channels {', '.join(CHANNELS)} of [sensors] must be, in this order, "
-                          "two pressures, an angle and a length.")
+    if [ch.quantity for ch in channels if ch.name in CHANNELS] != ["pressure", "pressure", "angle", "length"] or [
+        ch.name for ch in channels if ch.name in CHANNELS
+    ] != list(CHANNELS):
+        raise ConfigError(
+            f"{label}: channels {', '.join(CHANNELS)} of [sensors] must be, in this order, "
+            "two pressures, an angle and a length."
+        )
     cal = Calibration(tuple(channels), (float(lo_adc), float(hi_adc)))
     return cal, DeviceSpec(device, tuple(names), float(lo_adc), float(hi_adc)), float(length_spread)
 
@@ -300,8 +328,10 @@ def vent_prompt(label: str) -> str:
     return f"{label}: vent both actuators (P_A = P_B = 0 kPa) for the baseline, then press Enter"
 
 
-MOUNT_STRETCH_TEXT = ("Take actuator A off the joint and hang it on the stretch stand, "
-                      "draw-wire sensor on its end caps, vented and without payload, then press Enter")
+MOUNT_STRETCH_TEXT = (
+    "Take actuator A off the joint and hang it on the stretch stand, "
+    "draw-wire sensor on its end caps, vented and without payload, then press Enter"
+)
 MOUNT_JOINT_TEXT = "Mount actuators A and B on the joint's swivel plates, both vented, then press Enter"
 UNLOAD_STRETCH_TEXT = "Take the payload off actuator A and vent it, then press Enter"
 VENT_TEXT = "Vent both actuators, then press Enter"
@@ -333,8 +363,9 @@ def stretch_record(p: PlannedPoint, window: Window, settle: SettleReport, protoc
     }
 
 
-def joint_record(p: PlannedPoint, baseline: Window, loaded: Window, settle_b: SettleReport,
-                 settle_l: SettleReport, protocol: Any) -> dict:
+def joint_record(
+    p: PlannedPoint, baseline: Window, loaded: Window, settle_b: SettleReport, settle_l: SettleReport, protocol: Any
+) -> dict:
     """One joint-map point: pressures and the deflection from the vented baseline, SI."""
     c = _cols(protocol)
     b = baseline.mean()

@@ -60,8 +60,9 @@ def _spec(experiment: str) -> TableSpec:
     return spec
 
 
-def read_point_csv(path: str | os.PathLike, experiment: str, *, id_range: tuple[int, int] | None = None,
-                   check: RowCheck | None = None) -> "pd.DataFrame":
+def read_point_csv(
+    path: str | os.PathLike, experiment: str, *, id_range: tuple[int, int] | None = None, check: RowCheck | None = None
+) -> pd.DataFrame:
     """Read and check the point table of an rPAM experiment (``"stretch"`` or ``"joint"``).
 
     The columns are those ``labcli export`` writes for the run; pressures in MPa, ``L_m``
@@ -70,6 +71,6 @@ def read_point_csv(path: str | os.PathLike, experiment: str, *, id_range: tuple[
     return read_table(path, _spec(experiment), id_range=id_range, check=check)
 
 
-def write_point_csv(df: "pd.DataFrame", path: str | os.PathLike, experiment: str) -> None:
+def write_point_csv(df: pd.DataFrame, path: str | os.PathLike, experiment: str) -> None:
     """Write an rPAM point table (stretch test or joint map) in the run file's column order."""
     write_table(df, path, _spec(experiment))

@@ -19,8 +19,10 @@ from .sim.options import SIM_OPTIONS
 class Takuma2014:
     name = "takuma2014"
     title = "Pressure-based force, angle and stiffness sensing, 2-DoF McKibben joint"
-    paper = ("Takuma, Takamine & Masuda, \"Sustainable multi-modal sensing by a single sensor utilizing "
-             "the passivity of an elastic actuator\", Actuators 2014")
+    paper = (
+        'Takuma, Takamine & Masuda, "Sustainable multi-modal sensing by a single sensor utilizing '
+        'the passivity of an elastic actuator", Actuators 2014'
+    )
     protocol_kinds = KINDS
     shipped_protocols = ("takuma2014", "takuma2014-stiffness")
     run_kinds = ("force", "push")
@@ -34,14 +36,16 @@ class Takuma2014:
 
         return RECORD_TYPES[run_kind]
 
-    def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0,
-                 tau_s: float = 0.7, **options: Any) -> Any:
+    def make_rig(
+        self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7, **options: Any
+    ) -> Any:
         from .sim.options import build_rig
 
         return build_rig(seed=seed, noise=noise, drift=drift, tau_s=tau_s, **options)
 
-    def run_protocol(self, protocol: Any, choice: str | None, *, stored_kind: str | None = None,
-                     run_path: str = "") -> Any:
+    def run_protocol(
+        self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
+    ) -> Any:
         return protocol  # a force or push run records with its protocol as it is
 
     def import_protocol(self, protocol: Any, choice: str | None, name: str) -> Any:

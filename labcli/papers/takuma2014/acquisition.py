@@ -3,8 +3,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 from ...core.paper import AcquireOptions, Session
 from ...errors import ConfigError
@@ -34,9 +35,10 @@ class ForceAcquisition:
             return None
         if run.split() is None:
             # Stopped between the last trial and the split: finish the job.
-            sets = dict(zip(plan["trial"].astype(int), plan["set"]))
-            run.set_split([t for t, v in sets.items() if v == "fit"],
-                          [t for t, v in sets.items() if v == "validation"], "plan")
+            sets = dict(zip(plan["trial"].astype(int), plan["set"], strict=False))
+            run.set_split(
+                [t for t, v in sets.items() if v == "fit"], [t for t, v in sets.items() if v == "validation"], "plan"
+            )
         return f"All {len(plan)} planned trials are already stored in {path}; nothing to resume."
 
 
@@ -79,21 +81,25 @@ def _push_acquisition(protocol: Any, options: AcquireOptions) -> PushAcquisition
     push = protocol.settings.push
     table = options.resume.plan_table() if options.resume is not None else None
     if options.plan is not None:
-        table = load_push_plan(options.plan, distance_range_m=(push.distance_min_m, push.distance_max_m)
-                               if push is not None else None)
+        table = load_push_plan(
+            options.plan, distance_range_m=(push.distance_min_m, push.distance_max_m) if push is not None else None
+        )
     if table is not None and len(table):
         objects, ids = plan_objects(table)
         if options.unattended:
             bare = [o.spec.name for o in objects if o.spec.stiffness_N_per_m is None]
             if bare:
-                raise ConfigError(f"--unattended pushes simulated objects, whose stiffness the plan must give: "
-                                  f"column stiffness_N_per_m is empty for {', '.join(bare)}.")
+                raise ConfigError(
+                    f"--unattended pushes simulated objects, whose stiffness the plan must give: "
+                    f"column stiffness_N_per_m is empty for {', '.join(bare)}."
+                )
         return PushAcquisition(protocol, objects, plan=table, ids=ids)
     if options.unattended:
         # The simulated rig's reference objects (three PET bottles, two aluminium
         # cans, one steel can), labelled with their categories.
-        return PushAcquisition(protocol, demo_plan(pushes_per_object=push.pushes_per_object if push else 10,
-                                                   labelled=True))
+        return PushAcquisition(
+            protocol, demo_plan(pushes_per_object=push.pushes_per_object if push else 10, labelled=True)
+        )
     return PushAcquisition(protocol)
 
 
@@ -102,7 +108,7 @@ def _history(run: Any, protocol: Any) -> tuple:
     pressure (MPa) and joint angle (rad) the load check watches, in the protocol's channel order."""
     import math
 
-    watched = [c for c, u in zip(protocol.channels, protocol.calibration.units) if u in ("MPa", "rad")]
+    watched = [c for c, u in zip(protocol.channels, protocol.calibration.units, strict=False) if u in ("MPa", "rad")]
     out = []
     for row in run.table().to_dict("records"):
         change = {p: row[p] - row[p + "0"] for p in PRESSURE_NAMES}
@@ -120,8 +126,11 @@ def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | Pu
     plan = _plan(protocol, options)
     if options.unattended and plan is None:
         if options.resume is not None:
-            how = ("it was imported from a table" if options.resume.attrs.get("imported")
-                   else "it was recorded with --no-plan")
+            how = (
+                "it was imported from a table"
+                if options.resume.attrs.get("imported")
+                else "it was recorded with --no-plan"
+            )
             raise ConfigError(
                 f"{options.path} has no plan ({how}), so --unattended has nothing to follow; "
                 "resume it without --unattended and type each load."

@@ -27,14 +27,17 @@ from .figures import figure7, figure9
 from .models.classify import classify_file, flag_summary, object_items, push_items, report_header, write_report_json
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
-from .models.posture import FORM as POSTURE, PostureModel, force_model_from_json, limits_from_protocol, load_force_model
+from .models.posture import FORM as POSTURE
+from .models.posture import PostureModel, force_model_from_json, limits_from_protocol, load_force_model
 from .models.takuma import ANGLE_COLUMNS, EQUATIONS, FORCE_COLUMNS, TERMS, TakumaModel, cap
 
 FORMS = (POSTURE, "paper")  # labcli fit --form; the first is the default
 
 # Options of the rPAM analyses that mean nothing to a force run (``--set``, ``--plot`` of fit).
-SET_REFUSED = ("--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
-               "run's model is fitted from its trials, so leave --set out.")
+SET_REFUSED = (
+    "--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
+    "run's model is fitted from its trials, so leave --set out."
+)
 
 
 @dataclass
@@ -48,24 +51,40 @@ class FitResult:
     paper: dict[str, float]
 
     def to_dict(self) -> dict[str, Any]:
-        return {"model_path": str(self.model_path), "recorded_in_run": self.recorded,
-                "model": self.model.to_dict(), "paper_coefficients": self.paper}
+        return {
+            "model_path": str(self.model_path),
+            "recorded_in_run": self.recorded,
+            "model": self.model.to_dict(),
+            "paper_coefficients": self.paper,
+        }
 
 
-def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, max_amplification: float = 100.0,
-        form: str = POSTURE, plot: Path | None = None, overrides: tuple[str, ...] = (),
-        typed: frozenset[str] = frozenset()) -> FitResult:
+def fit(
+    run: Path,
+    *,
+    output: Path | None = None,
+    protocol: str | None = None,
+    max_amplification: float = 100.0,
+    form: str = POSTURE,
+    plot: Path | None = None,
+    overrides: tuple[str, ...] = (),
+    typed: frozenset[str] = frozenset(),
+) -> FitResult:
     """Fit a force model (``form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it."""
     if overrides:
         raise ConfigError(SET_REFUSED)
     if plot is not None:
-        raise ConfigError("--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
-                          "for a force run draw Figure 7 with labcli validate --plot.")
+        raise ConfigError(
+            "--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
+            "for a force run draw Figure 7 with labcli validate --plot."
+        )
     if form not in FORMS:
         raise ConfigError(f"Unknown model form '{form}'; use {' or '.join(FORMS)}.")
     if form == POSTURE and "max_amplification" in typed:
-        raise ConfigError("--max-amplification is the paper form's cut near theta2 = 0; the posture form "
-                          "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out.")
+        raise ConfigError(
+            "--max-amplification is the paper form's cut near theta2 = 0; the posture form "
+            "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out."
+        )
     out_path = output or default_model_path(run)
     check_fit_paths(run, out_path)
     src = load_trial_source(run, protocol)
@@ -79,8 +98,12 @@ def fit(run: Path, *, output: Path | None = None, protocol: str | None = None, m
 
 
 # The column each equation is fitted to, named in the refusal of a fit that overflowed.
-TARGET_COLUMNS = {"theta1": ANGLE_COLUMNS[0], "theta2": ANGLE_COLUMNS[1], "Fx": FORCE_COLUMNS[0],
-                  "Fy": FORCE_COLUMNS[1]}
+TARGET_COLUMNS = {
+    "theta1": ANGLE_COLUMNS[0],
+    "theta2": ANGLE_COLUMNS[1],
+    "Fx": FORCE_COLUMNS[0],
+    "Fy": FORCE_COLUMNS[1],
+}
 
 
 def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
@@ -90,23 +113,28 @@ def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
     values finite one by one whose squares or products overflow (Fx_N = 1e308).
     """
     for eq in EQUATIONS:
-        bad = [k for k in TERMS[eq]
-               if not all(math.isfinite(v) for v in (model.coefficients[k], model.standard_errors[k],
-                                                    *model.ci95[k]))]
+        bad = [
+            k
+            for k in TERMS[eq]
+            if not all(math.isfinite(v) for v in (model.coefficients[k], model.standard_errors[k], *model.ci95[k]))
+        ]
         if bad:
             col = TARGET_COLUMNS[eq]
             values = np.abs(np.asarray(table[col], dtype=float))
             largest = float(np.nanmax(values)) if np.isfinite(values).any() else math.nan
-            raise ModelError(f"The {eq} fit on {source} gives no finite value for {', '.join(bad)}: "
-                             f"its numbers overflow (largest |{col}| is {largest:g} {col.rsplit('_', 1)[1]}); "
-                             f"check the table for values beyond what the rig measures.")
+            raise ModelError(
+                f"The {eq} fit on {source} gives no finite value for {', '.join(bad)}: "
+                f"its numbers overflow (largest |{col}| is {largest:g} {col.rsplit('_', 1)[1]}); "
+                f"check the table for values beyond what the rig measures."
+            )
 
 
 def _fit_form(form: str, src: Any, source: str, max_amplification: float = 100.0) -> TakumaModel | PostureModel:
     rig, name = src.protocol.settings.rig, src.protocol.name
     if form == POSTURE:
         return PostureModel(geometry=rig, protocol=name, limits=limits_from_protocol(src.protocol)).fit(
-            src.table, source=source)
+            src.table, source=source
+        )
     return TakumaModel(geometry=rig, protocol=name, max_amplification=max_amplification).fit(src.table, source=source)
 
 
@@ -134,13 +162,18 @@ class ValidationResult:
 
     def to_dict(self) -> dict[str, Any]:
         out = evaluation_to_dict(self.evaluation)
-        out.update(run=str(self.run), model=self.model_label or str(self.model_path),
-                   plot=str(self.plot) if self.plot else None, warnings=list(self.warnings))
+        out.update(
+            run=str(self.run),
+            model=self.model_label or str(self.model_path),
+            plot=str(self.plot) if self.plot else None,
+            warnings=list(self.warnings),
+        )
         return out
 
 
-def model_for_run(run: Path, model_path: Path | None, is_run: bool,
-                  name: str) -> tuple[TakumaModel | PostureModel, str]:
+def model_for_run(
+    run: Path, model_path: Path | None, is_run: bool, name: str
+) -> tuple[TakumaModel | PostureModel, str]:
     """The model to apply to ``run`` and where it came from (a label for the report).
 
     ``--model`` when given; else the sidecar ``RUN.model.json``; else, for a run file, the
@@ -154,8 +187,10 @@ def model_for_run(run: Path, model_path: Path | None, is_run: bool,
     with RunFile.open(run) as rf:
         recorded = rf.models()
     if name not in recorded:
-        raise ModelError(f"The model file {side} does not exist and {run} records no model under /models/{name}; "
-                         f"write one with `labcli fit {run}`.")
+        raise ModelError(
+            f"The model file {side} does not exist and {run} records no model under /models/{name}; "
+            f"write one with `labcli fit {run}`."
+        )
     label = f"{run}:/models/{name}"
     return force_model_from_json(recorded[name], name=f"the model {label}"), label
 
@@ -175,9 +210,17 @@ def overlap(model: TakumaModel | PostureModel, src: Any) -> list[int]:
     return sorted(val[idranges.contains(fitted, val)].tolist())
 
 
-def validate(run: Path, *, model_path: Path | None = None, mode: str = "pressure-only", plot: Path | None = None,
-             protocol: str | None = None, overrides: tuple[str, ...] = (), allow_overlap: bool = False,
-             typed: frozenset[str] = frozenset()) -> ValidationResult:
+def validate(
+    run: Path,
+    *,
+    model_path: Path | None = None,
+    mode: str = "pressure-only",
+    plot: Path | None = None,
+    protocol: str | None = None,
+    overrides: tuple[str, ...] = (),
+    allow_overlap: bool = False,
+    typed: frozenset[str] = frozenset(),
+) -> ValidationResult:
     """Accuracy of a fitted model on the validation trials of a run file or trial CSV (Figure 7).
 
     Refuses when validation trials were used in the fit (unless ``allow_overlap``); warns when
@@ -187,18 +230,22 @@ def validate(run: Path, *, model_path: Path | None = None, mode: str = "pressure
         raise ConfigError(SET_REFUSED)
     src = load_trial_source(run, protocol)
     model, label = model_for_run(run, model_path, src.is_run, src.protocol.name)
-    model.check_compatible(src.protocol.name, src.protocol.settings.rig,
-                           model_name=f"the model {label}" if ":/models/" in label else f"the model file {label}",
-                           run_name=str(run))
+    model.check_compatible(
+        src.protocol.name,
+        src.protocol.settings.rig,
+        model_name=f"the model {label}" if ":/models/" in label else f"the model file {label}",
+        run_name=str(run),
+    )
     warnings = [w for w in [rig_warning(cap(label), model.fitted_on, str(run), src.identity)] if w]
     shared = overlap(model, src)
     if shared:
         n_val = int((src.table["set"].astype(str) == "validation").sum())
-        what = (f"{len(shared)} of the {n_val} validation trials of {run} ({ids_text(shared)}) "
-                f"were used to fit {label}")
+        what = f"{len(shared)} of the {n_val} validation trials of {run} ({ids_text(shared)}) were used to fit {label}"
         if not allow_overlap:
-            raise ModelError(f"{what}, so the validation would test the model on its own data; refit after the "
-                             f"split (`labcli fit {run}`), or pass --allow-overlap to validate anyway.")
+            raise ModelError(
+                f"{what}, so the validation would test the model on its own data; refit after the "
+                f"split (`labcli fit {run}`), or pass --allow-overlap to validate anyway."
+            )
         warnings.append(f"{what}; their errors measure the fit, not a prediction (--allow-overlap).")
     ev = evaluate(model, src.table, mode=mode, source=str(run))
     ev["forms"] = side_by_side(model, ev, src, mode, str(run))
@@ -227,8 +274,7 @@ def show_validation(result: ValidationResult, *, as_json: bool = False) -> None:
     if as_json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
         return
-    report.print_validation(result.evaluation, result.model_label or str(result.model_path), result.run,
-                            result.plot)
+    report.print_validation(result.evaluation, result.model_label or str(result.model_path), result.run, result.plot)
 
 
 @dataclass
@@ -244,9 +290,17 @@ class ClassificationResult:
         return data
 
 
-def classify(pushes: Path, *, model_path: Path, reference: Path | None = None, method: str = "auto",
-             angles: str = "pressure-only", plot: Path | None = None, protocol: str | None = None,
-             typed: frozenset[str] = frozenset()) -> ClassificationResult:
+def classify(
+    pushes: Path,
+    *,
+    model_path: Path,
+    reference: Path | None = None,
+    method: str = "auto",
+    angles: str = "pressure-only",
+    plot: Path | None = None,
+    protocol: str | None = None,
+    typed: frozenset[str] = frozenset(),
+) -> ClassificationResult:
     """Stiffness and category of each object pushed in a push run or push CSV (Figure 9)."""
     result = classify_file(pushes, model_path, reference=reference, protocol=protocol, method=method, angles=angles)
     if plot is not None:
@@ -269,5 +323,6 @@ def show_classification(result: ClassificationResult, *, as_json: bool = False, 
     rep = result.report
     data = {**report_header(rep), "objects": object_items(rep)}
     listed = pushes or data["n_pushes"] <= PUSH_LIST_LIMIT
-    report.print_classification(data, result.plot, list(push_items(rep)) if listed else None,
-                                flag_summary(rep.result.pushes))
+    report.print_classification(
+        data, result.plot, list(push_items(rep)) if listed else None, flag_summary(rep.result.pushes)
+    )

@@ -48,13 +48,31 @@ BENT_PROTOCOL = "takuma2014-bent"
 BENT_SUPPLY = "0.15,0.15,0.45,0.15"
 
 # Stage names in order, for progress displays.
-STAGES = ("acquire force trials", "fit", "validate", "the same trials on the ideal rig", "acquire pushes",
-          "classify", "bent arm", "export")
+STAGES = (
+    "acquire force trials",
+    "fit",
+    "validate",
+    "the same trials on the ideal rig",
+    "acquire pushes",
+    "classify",
+    "bent arm",
+    "export",
+)
 IDEAL = "&ideal=1"  # the sim:// option that turns every non-ideality of the rig off
 
-OUTPUTS = ("force.h5", "force.model.json", "fig7-accuracy.png", "pushes.h5",
-           "fig9-stiffness.png", "bent.h5", "bent.model.json", "fig7-bent.png",
-           "trials.csv", "pushes.csv", "summary.json")
+OUTPUTS = (
+    "force.h5",
+    "force.model.json",
+    "fig7-accuracy.png",
+    "pushes.h5",
+    "fig9-stiffness.png",
+    "bent.h5",
+    "bent.model.json",
+    "fig7-bent.png",
+    "trials.csv",
+    "pushes.csv",
+    "summary.json",
+)
 
 
 @dataclass
@@ -89,18 +107,23 @@ class DemoResult:
         }
 
 
-def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
-             progress: Progress | None = None) -> DemoResult:
+def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False, progress: Progress | None = None) -> DemoResult:
     """Acquire, fit, validate, push and classify on the simulated rig; write everything to ``outdir``."""
     out = Path(outdir)
     check_outdir(out, OUTPUTS, force)
     out.mkdir(parents=True, exist_ok=True)
     files = {
-        "force_run": out / "force.h5", "model": out / "force.model.json",
-        "figure7": out / "fig7-accuracy.png", "push_run": out / "pushes.h5",
-        "figure9": out / "fig9-stiffness.png", "trials_csv": out / "trials.csv",
-        "pushes_csv": out / "pushes.csv", "summary": out / "summary.json",
-        "bent_run": out / "bent.h5", "bent_model": out / "bent.model.json", "figure7_bent": out / "fig7-bent.png",
+        "force_run": out / "force.h5",
+        "model": out / "force.model.json",
+        "figure7": out / "fig7-accuracy.png",
+        "push_run": out / "pushes.h5",
+        "figure9": out / "fig9-stiffness.png",
+        "trials_csv": out / "trials.csv",
+        "pushes_csv": out / "pushes.csv",
+        "summary": out / "summary.json",
+        "bent_run": out / "bent.h5",
+        "bent_model": out / "bent.model.json",
+        "figure7_bent": out / "fig7-bent.png",
     }
     stages = Stages(STAGES, progress)
     port = simulated_port(seed)
@@ -109,7 +132,8 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
     with stages.run(1, "fit"):
         src = load_trial_source(files["force_run"])
         model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name).fit(
-            src.table, source=str(files["force_run"]))
+            src.table, source=str(files["force_run"])
+        )
         model.fitted_on = src.identity
         save_model(model.to_json(), files["model"], run=files["force_run"], name=model.protocol)
     with stages.run(2, "validate"):
@@ -128,8 +152,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False,
         report = classify_file(files["push_run"], model, method="bands")
         figure9(report, files["figure9"])
     with stages.run(6, "bent_arm"):
-        forms = {FORCE_PROTOCOL: _both_forms(src, model),
-                 BENT_PROTOCOL: _bent_arm(port, files, progress)}
+        forms = {FORCE_PROTOCOL: _both_forms(src, model), BENT_PROTOCOL: _bent_arm(port, files, progress)}
     with stages.run(7):
         write_trial_csv(src.table, files["trials_csv"])
         write_push_csv(load_pushes(files["push_run"]), files["pushes_csv"])
@@ -156,20 +179,24 @@ def _accuracy(evaluation: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
 
 def _posture(src: Any, run: Path) -> PostureModel:
-    return PostureModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name,
-                        limits=limits_from_protocol(src.protocol)).fit(src.table, source=str(run))
+    return PostureModel(
+        geometry=src.protocol.settings.rig, protocol=src.protocol.name, limits=limits_from_protocol(src.protocol)
+    ).fit(src.table, source=str(run))
 
 
 def _both_forms(src: Any, paper_model: TakumaModel) -> dict[str, Any]:
     """Both forms' validation metrics on the straight protocol's run."""
-    return {"posture": _accuracy(evaluate(_posture(src, Path(src.path)), src.table, "pressure-only")),
-            "paper": _accuracy(evaluate(paper_model, src.table, "pressure-only"))}
+    return {
+        "posture": _accuracy(evaluate(_posture(src, Path(src.path)), src.table, "pressure-only")),
+        "paper": _accuracy(evaluate(paper_model, src.table, "pressure-only")),
+    }
 
 
 def _bent_arm(port: str, files: dict[str, Path], progress: Progress | None) -> dict[str, Any]:
     """The bent-rest protocol: acquired, the posture form fitted and saved, Figure 7, both forms' metrics."""
-    acquire_unattended(files["bent_run"], f"{port}&supply={BENT_SUPPLY}", "bent-arm run", STAGES[6],
-                       progress, protocol=BENT_PROTOCOL)
+    acquire_unattended(
+        files["bent_run"], f"{port}&supply={BENT_SUPPLY}", "bent-arm run", STAGES[6], progress, protocol=BENT_PROTOCOL
+    )
     bent = load_trial_source(files["bent_run"])
     model = _posture(bent, files["bent_run"])
     save_model(model.to_json(), files["bent_model"], run=files["bent_run"], name=model.protocol)
@@ -179,24 +206,47 @@ def _bent_arm(port: str, files: dict[str, Path], progress: Progress | None) -> d
     return {"posture": _accuracy(evaluation), "paper": _accuracy(evaluate(paper, bent.table, "pressure-only"))}
 
 
-def _result(out: Path, seed: int, files: dict[str, Path], timings: dict[str, float], src: Any, model: Any,
-            evaluation: dict[str, Any], report: Any) -> DemoResult:
+def _result(
+    out: Path,
+    seed: int,
+    files: dict[str, Path],
+    timings: dict[str, float],
+    src: Any,
+    model: Any,
+    evaluation: dict[str, Any],
+    report: Any,
+) -> DemoResult:
     """The demo's numbers as plain data: coefficients against the paper's, accuracy, objects."""
     paper = dict(src.protocol.settings.paper_coefficients or {})
     coefficients = [
-        {"name": name, "value": float(value), "standard_error": float(model.standard_errors[name]),
-         "paper": paper.get(name)}
+        {
+            "name": name,
+            "value": float(value),
+            "standard_error": float(model.standard_errors[name]),
+            "paper": paper.get(name),
+        }
         for name, value in model.coefficients.items()
     ]
     accuracy = _accuracy(evaluation)
     rep = report.to_dict()
     sets = src.table["set"].value_counts().to_dict()
     return DemoResult(
-        outdir=out, seed=seed, files=files, timings_s=timings,
-        trials={"fit": int(sets.get("fit", 0)), "validation": int(sets.get("validation", 0)),
-                "pushes": len(rep["pushes"]), "pushes_flagged": sum(p["flagged"] for p in rep["pushes"])},
-        coefficients=coefficients, accuracy=accuracy, objects=rep["objects"],
+        outdir=out,
+        seed=seed,
+        files=files,
+        timings_s=timings,
+        trials={
+            "fit": int(sets.get("fit", 0)),
+            "validation": int(sets.get("validation", 0)),
+            "pushes": len(rep["pushes"]),
+            "pushes_flagged": sum(p["flagged"] for p in rep["pushes"]),
+        },
+        coefficients=coefficients,
+        accuracy=accuracy,
+        objects=rep["objects"],
         classify_method=rep["method"],
-        notes=["Coefficients use the plus-sign reading with the paper's beta_theta2_R2 = -2.972 as listed "
-               "(Eq. 35's printed minus is a misprint; docs/errata.md)."],
+        notes=[
+            "Coefficients use the plus-sign reading with the paper's beta_theta2_R2 = -2.972 as listed "
+            "(Eq. 35's printed minus is a misprint; docs/errata.md)."
+        ],
     )

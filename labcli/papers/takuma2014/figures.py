@@ -40,9 +40,8 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
     fig = new_figure(8.0, 8.4)
     axes = fig.subplots(2, 2)
     mode = evaluation.get("mode", "pressure-only")
-    how = ("forces from the calculated angles" if mode == "pressure-only"
-           else "forces from the measured angles")
-    for ax, (q, label, unit) in zip(axes.flat, FIGURE7_PANELS):
+    how = "forces from the calculated angles" if mode == "pressure-only" else "forces from the measured angles"
+    for ax, (q, label, unit) in zip(axes.flat, FIGURE7_PANELS, strict=False):
         obs = np.asarray(evaluation["observed"][q], dtype=float)
         calc = np.asarray(evaluation["calculated"][q], dtype=float)
         ok = np.asarray(evaluation["ok"][q], dtype=bool) & np.isfinite(obs) & np.isfinite(calc)
@@ -55,12 +54,30 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
         pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.1
         lo, hi = lo - pad, hi + pad
         ax.plot([lo, hi], [lo, hi], color="0.35", lw=1.0, zorder=1, label="observed = calculated")
-        ax.scatter(obs[ok], calc[ok], s=26, marker="o", facecolor="tab:blue", edgecolor="navy",
-                   lw=0.6, zorder=3, label="validation trial")
+        ax.scatter(
+            obs[ok],
+            calc[ok],
+            s=26,
+            marker="o",
+            facecolor="tab:blue",
+            edgecolor="navy",
+            lw=0.6,
+            zorder=3,
+            label="validation trial",
+        )
         if bad.any():
             pinned = np.clip(np.nan_to_num(calc[bad], nan=lo), lo, hi)
-            ax.scatter(obs[bad], pinned, s=40, marker="^", facecolor="none", edgecolor="tab:red",
-                       lw=1.2, zorder=4, label="flagged (not in metrics)")
+            ax.scatter(
+                obs[bad],
+                pinned,
+                s=40,
+                marker="^",
+                facecolor="none",
+                edgecolor="tab:red",
+                lw=1.2,
+                zorder=4,
+                label="flagged (not in metrics)",
+            )
         ax.set_xlim(lo, hi)
         ax.set_ylim(lo, hi)
         ax.set_aspect("equal", adjustable="box")
@@ -70,18 +87,27 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
         ax.set_title(label, loc="left", fontsize=11)
         ax.grid(True, color="0.9", lw=0.6, zorder=0)
         m = evaluation["metrics"][q]
-        text = (f"RMSE {fmt(m.get('rmse'))} {unit}\n"
-                f"max |err| {fmt(m.get('max_abs'))} {unit}\n"
-                f"bias {fmt(m.get('bias'), 2)} {unit}\n"
-                f"$R^2$ {'—' if m.get('r2') is None else format(m['r2'], '.4f')}   n = {m.get('n', 0)}")
+        text = (
+            f"RMSE {fmt(m.get('rmse'))} {unit}\n"
+            f"max |err| {fmt(m.get('max_abs'))} {unit}\n"
+            f"bias {fmt(m.get('bias'), 2)} {unit}\n"
+            f"$R^2$ {'—' if m.get('r2') is None else format(m['r2'], '.4f')}   n = {m.get('n', 0)}"
+        )
         if m.get("n_flagged"):
             text += f"\nflagged {m['n_flagged']}"
-        ax.text(0.03, 0.97, text, transform=ax.transAxes, va="top", ha="left", fontsize=8,
-                bbox=dict(boxstyle="round,pad=0.3", facecolor="white", edgecolor="0.7", alpha=0.9))
+        ax.text(
+            0.03,
+            0.97,
+            text,
+            transform=ax.transAxes,
+            va="top",
+            ha="left",
+            fontsize=8,
+            bbox=dict(boxstyle="round,pad=0.3", facecolor="white", edgecolor="0.7", alpha=0.9),
+        )
         if bad.any():
             ax.legend(loc="lower right", fontsize=7, frameon=True)
-    fig.suptitle(title or f"Accuracy of contact information (Figure 7): validation trials, {how}",
-                 fontsize=11)
+    fig.suptitle(title or f"Accuracy of contact information (Figure 7): validation trials, {how}", fontsize=11)
     fig.tight_layout()
     save(fig, p)
     return p
@@ -118,8 +144,10 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     pushes, objects, model = res.pushes, res.objects, res.model
     names = [str(o) for o in objects["object"]]
     order = _category_order(model)
-    style = {c: (FIGURE9_COLOURS[i % len(FIGURE9_COLOURS)], FIGURE9_MARKERS[i % len(FIGURE9_MARKERS)])
-             for i, c in enumerate(order)}
+    style = {
+        c: (FIGURE9_COLOURS[i % len(FIGURE9_COLOURS)], FIGURE9_MARKERS[i % len(FIGURE9_MARKERS)])
+        for i, c in enumerate(order)
+    }
     fig = new_figure(max(6.5, 1.05 * len(names) + 2.5), 5.2)
     ax = fig.add_subplot(1, 1, 1)
     ax.set_yscale("log")
@@ -133,8 +161,9 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     ticks = []
     for i, row in enumerate(objects.to_dict("records")):
         sel = obj_col == str(row["object"])
-        ticks.append(_draw_object(ax, i, row, k_all[sel], flags[sel], style, used_labels, (lo, y_lo, y_hi),
-                                  many=len(names) > 8))
+        ticks.append(
+            _draw_object(ax, i, row, k_all[sel], flags[sel], style, used_labels, (lo, y_lo, y_hi), many=len(names) > 8)
+        )
     ax.set_xticks(range(len(names)))
     ax.set_xticklabels(ticks, fontsize=8)
     ax.set_xlim(-0.6, len(names) - 0.4)
@@ -143,15 +172,12 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     ax.set_xlabel("sample object")
     ax.grid(True, which="major", axis="y", color="0.88", lw=0.6, zorder=0)
     ax.grid(True, which="minor", axis="y", color="0.94", lw=0.4, zorder=0)
-    how = ("bands from the protocol" if model.method == "bands"
-           else "nearest reference class in ln $k_o$")
+    how = "bands from the protocol" if model.method == "bands" else "nearest reference class in ln $k_o$"
     handles, labels = ax.get_legend_handles_labels()
     rank = {c: i for i, c in enumerate(order)}
-    pairs = sorted(zip(handles, labels), key=lambda hl: rank.get(hl[1], len(rank)))
-    ax.legend([h for h, _ in pairs], [lab for _, lab in pairs], loc="upper left", fontsize=8, frameon=True,
-              ncol=2)
-    fig.suptitle(title or f"Acquired stiffness of the sample objects (Figure 9): categories by {how}",
-                 fontsize=11)
+    pairs = sorted(zip(handles, labels, strict=False), key=lambda hl: rank.get(hl[1], len(rank)))
+    ax.legend([h for h, _ in pairs], [lab for _, lab in pairs], loc="upper left", fontsize=8, frameon=True, ncol=2)
+    fig.suptitle(title or f"Acquired stiffness of the sample objects (Figure 9): categories by {how}", fontsize=11)
     fig.tight_layout()
     save(fig, p)
     return p
@@ -171,8 +197,9 @@ def _stiffness_span(k_all: Any, objects: Any) -> tuple[float, float]:
     return lo, hi
 
 
-def _draw_categories(ax: Any, model: Any, order: list[str], style: dict[str, tuple[str, str]], y_lo: float,
-                     y_hi: float) -> None:
+def _draw_categories(
+    ax: Any, model: Any, order: list[str], style: dict[str, tuple[str, str]], y_lo: float, y_hi: float
+) -> None:
     """What the categories mean, behind the data: the bands, or each reference class's mean ± sd."""
     if model.method == "bands":
         for cat in order:
@@ -185,8 +212,16 @@ def _draw_categories(ax: Any, model: Any, order: list[str], style: dict[str, tup
             ax.axhspan(bottom, top, color=colour, alpha=0.07, lw=0, zorder=0)
             if math.isfinite(b_hi) and y_lo < b_hi < y_hi:
                 ax.axhline(b_hi, color="0.6", lw=0.8, ls="--", zorder=1)
-            ax.text(1.01, math.sqrt(bottom * top), f"{cat}\nband", transform=ax.get_yaxis_transform(),
-                    ha="left", va="center", fontsize=8, color=colour)
+            ax.text(
+                1.01,
+                math.sqrt(bottom * top),
+                f"{cat}\nband",
+                transform=ax.get_yaxis_transform(),
+                ha="left",
+                va="center",
+                fontsize=8,
+                color=colour,
+            )
         return
     sd = float(model.std_log_k)
     for cat in order:
@@ -194,8 +229,16 @@ def _draw_categories(ax: Any, model: Any, order: list[str], style: dict[str, tup
         colour = style[cat][0]
         ax.axhspan(math.exp(mu - sd), math.exp(mu + sd), color=colour, alpha=0.08, lw=0, zorder=0)
         ax.axhline(math.exp(mu), color=colour, lw=0.9, ls=":", zorder=1)
-        ax.text(1.01, math.exp(mu), f"{cat}\nreference\nmean ± sd", transform=ax.get_yaxis_transform(),
-                ha="left", va="center", fontsize=8, color=colour)
+        ax.text(
+            1.01,
+            math.exp(mu),
+            f"{cat}\nreference\nmean ± sd",
+            transform=ax.get_yaxis_transform(),
+            ha="left",
+            va="center",
+            fontsize=8,
+            color=colour,
+        )
 
 
 def _once(used: set[str], key: str, label: str) -> str | None:
@@ -206,8 +249,18 @@ def _once(used: set[str], key: str, label: str) -> str | None:
     return label
 
 
-def _draw_object(ax: Any, i: int, row: dict[str, Any], k: Any, fl: Any, style: dict[str, tuple[str, str]],
-                 used: set[str], span: tuple[float, float, float], *, many: bool) -> str:
+def _draw_object(
+    ax: Any,
+    i: int,
+    row: dict[str, Any],
+    k: Any,
+    fl: Any,
+    style: dict[str, tuple[str, str]],
+    used: set[str],
+    span: tuple[float, float, float],
+    *,
+    many: bool,
+) -> str:
     """One object's pushes, mean ± sd, true stiffness and category at x = ``i``; returns its tick label."""
     import numpy as np
 
@@ -220,23 +273,59 @@ def _draw_object(ax: Any, i: int, row: dict[str, Any], k: Any, fl: Any, style: d
     n = len(k)
     dx = (np.arange(n) - (n - 1) / 2) * (0.32 / max(n - 1, 1)) - 0.1
     good = visible & ~fl
-    ax.scatter(i + dx[good], k[good], s=30, marker=marker, facecolor=colour, edgecolor="black", lw=0.5,
-               zorder=3, label=_once(used, cat, cat) if cat else None)
+    ax.scatter(
+        i + dx[good],
+        k[good],
+        s=30,
+        marker=marker,
+        facecolor=colour,
+        edgecolor="black",
+        lw=0.5,
+        zorder=3,
+        label=_once(used, cat, cat) if cat else None,
+    )
     bad = visible & fl
     if bad.any():
-        ax.scatter(i + dx[bad], np.clip(k[bad], y_lo * 1.05, y_hi / 1.05), s=34, marker=marker,
-                   facecolor="none", edgecolor=colour, lw=1.2, zorder=3,
-                   label=_once(used, "flagged", "flagged push (not in mean)"))
+        ax.scatter(
+            i + dx[bad],
+            np.clip(k[bad], y_lo * 1.05, y_hi / 1.05),
+            s=34,
+            marker=marker,
+            facecolor="none",
+            edgecolor=colour,
+            lw=1.2,
+            zorder=3,
+            label=_once(used, "flagged", "flagged push (not in mean)"),
+        )
     mean, sd = row.get("k_mean_N_per_m"), row.get("k_std_N_per_m")
     if mean is not None and np.isfinite(mean):
         err = sd if sd is not None and np.isfinite(sd) else 0.0
         lower = min(err, mean * 0.999)  # a log axis cannot show mean - sd <= 0
-        ax.errorbar([i + 0.3], [mean], yerr=[[lower], [err]], fmt="_", ms=14, mew=2.0, color="black",
-                    ecolor="black", elinewidth=1.3, capsize=4, zorder=4, label=_once(used, "mean", "mean ± sd"))
+        ax.errorbar(
+            [i + 0.3],
+            [mean],
+            yerr=[[lower], [err]],
+            fmt="_",
+            ms=14,
+            mew=2.0,
+            color="black",
+            ecolor="black",
+            elinewidth=1.3,
+            capsize=4,
+            zorder=4,
+            label=_once(used, "mean", "mean ± sd"),
+        )
     t = row.get("true_k_N_per_m")
     if t is not None and np.isfinite(t):
-        ax.plot([i - 0.32, i + 0.42], [t, t], color="0.25", lw=1.0, ls=(0, (4, 2)), zorder=2,
-                label=_once(used, "true", "true k (simulated rig)"))
+        ax.plot(
+            [i - 0.32, i + 0.42],
+            [t, t],
+            color="0.25",
+            lw=1.0,
+            ls=(0, (4, 2)),
+            zorder=2,
+            label=_once(used, "true", "true k (simulated rig)"),
+        )
     conf = row.get("confidence")
     evidence = str(row.get("evidence") or "")
     text = cat if cat else "no category"
@@ -245,10 +334,21 @@ def _draw_object(ax: Any, i: int, row: dict[str, Any], k: Any, fl: Any, style: d
     if evidence:  # the report's evidence: "uncertain" (outside every class, or two close), "in-sample"
         text = f"uncertain\n({cat})" if evidence == "uncertain" and cat else text + f"\n{evidence}"
     top = np.nanmax(k[visible]) if visible.any() else (mean if mean is not None and np.isfinite(mean) else lo)
-    ax.annotate(text, (i, min(top * 1.25, y_hi / 1.3)), ha="center", va="bottom", fontsize=8,
-                color=colour if cat else "0.3", fontweight="bold")
+    ax.annotate(
+        text,
+        (i, min(top * 1.25, y_hi / 1.3)),
+        ha="center",
+        va="bottom",
+        fontsize=8,
+        color=colour if cat else "0.3",
+        fontweight="bold",
+    )
     n_flag = int(row.get("n_flagged", 0))
     given = str(row.get("known_category") or "")
     ref_text = f"ref. {given}" if many else f"reference ({given})"  # room per tick
-    return (f"{name}\n" + (f"{ref_text}\n" if given else "")
-            + f"n = {int(row.get('n_pushes', n))}" + (f", {n_flag} flagged" if n_flag else ""))
+    return (
+        f"{name}\n"
+        + (f"{ref_text}\n" if given else "")
+        + f"n = {int(row.get('n_pushes', n))}"
+        + (f", {n_flag} flagged" if n_flag else "")
+    )

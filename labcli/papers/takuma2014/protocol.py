@@ -20,8 +20,12 @@ from ...errors import ConfigError
 from .tables import load_plan as read_plan
 
 COEFFICIENT_NAMES: tuple[str, ...] = (
-    "beta_theta1_L1", "beta_theta1_R1",
-    "beta_theta2_L1", "beta_theta2_R1", "beta_theta2_L2", "beta_theta2_R2",
+    "beta_theta1_L1",
+    "beta_theta1_R1",
+    "beta_theta2_L1",
+    "beta_theta2_R1",
+    "beta_theta2_L2",
+    "beta_theta2_R2",
     *(f"beta_Fx{i}" for i in range(1, 7)),
     *(f"beta_Fy{i}" for i in range(1, 7)),
 )
@@ -164,7 +168,7 @@ def _push(p: dict[str, Any], bands_raw: dict[str, Any], chk: Any) -> PushSetting
         if lo < 0:
             chk.fail(f"key 'stiffness_bands_N_per_m.{name}' must start at 0 or above, not {show_value([lo, hi])}.")
     ordered = sorted(bands.items(), key=lambda kv: kv[1][0])
-    for (n1, (_, h1)), (n2, (l2, _)) in zip(ordered, ordered[1:]):
+    for (n1, (_, h1)), (n2, (l2, _)) in zip(ordered, ordered[1:], strict=False):
         if l2 < h1:
             chk.fail(
                 f"key 'stiffness_bands_N_per_m.{n2}' must not overlap band {n1} "

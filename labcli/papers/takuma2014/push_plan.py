@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import math
 import os
-from typing import TYPE_CHECKING, Any, Iterable
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 from ...core.tables import TableSpec, fmt_number, read_table, table_error
 from .push_session import PlannedObject
@@ -52,7 +53,7 @@ PUSH_PLAN = TableSpec(
 PER_OBJECT = ("R_mm", "category", "stiffness_N_per_m")
 
 
-def load_push_plan(path: str | os.PathLike, *, distance_range_m: tuple[float, float] | None = None) -> "pd.DataFrame":
+def load_push_plan(path: str | os.PathLike, *, distance_range_m: tuple[float, float] | None = None) -> pd.DataFrame:
     """Read and check a push plan; every problem is named by file, row and column."""
 
     def limits(values: dict[str, Any]) -> Iterable[tuple[str, str]]:
@@ -60,7 +61,10 @@ def load_push_plan(path: str | os.PathLike, *, distance_range_m: tuple[float, fl
         if distance_range_m is not None and isinstance(d, float):
             lo, hi = (v * 1e3 for v in distance_range_m)
             if not lo <= d <= hi:
-                yield "d_mm", f"{fmt_number(d)} mm is outside the protocol's range {fmt_number(lo)} to {fmt_number(hi)} mm"
+                yield (
+                    "d_mm",
+                    f"{fmt_number(d)} mm is outside the protocol's range {fmt_number(lo)} to {fmt_number(hi)} mm",
+                )
 
     plan = read_table(path, PUSH_PLAN, check=limits)
     problems = list(_object_problems(plan, str(path)))
@@ -69,7 +73,7 @@ def load_push_plan(path: str | os.PathLike, *, distance_range_m: tuple[float, fl
     return plan
 
 
-def _object_problems(plan: "pd.DataFrame", label: str) -> Iterable[str]:
+def _object_problems(plan: pd.DataFrame, label: str) -> Iterable[str]:
     """Each object's rows together, with the same radius, category and stiffness on each."""
     first: dict[str, dict[str, Any]] = {}
     previous = None
@@ -81,8 +85,10 @@ def _object_problems(plan: "pd.DataFrame", label: str) -> Iterable[str]:
         elif name in first:
             for col in PER_OBJECT:
                 if not _same(row[col], first[name][col]):
-                    yield (f"{label}:row {rownum}, column {col}: {_cell(row[col])} differs from {name}'s "
-                           f"{_cell(first[name][col])} on row {first[name]['_row']}; an object has one {col}.")
+                    yield (
+                        f"{label}:row {rownum}, column {col}: {_cell(row[col])} differs from {name}'s "
+                        f"{_cell(first[name][col])} on row {first[name]['_row']}; an object has one {col}."
+                    )
         else:
             first[name] = {**row, "_row": rownum}
         previous = name
@@ -100,7 +106,7 @@ def _cell(v: Any) -> str:
     return repr(v) if v != "" else "empty"
 
 
-def plan_objects(plan: "pd.DataFrame") -> tuple[list[PlannedObject], list[int]]:
+def plan_objects(plan: pd.DataFrame) -> tuple[list[PlannedObject], list[int]]:
     """The objects of a plan with their pushes, and the push ids in the order they are run."""
     objects: list[PlannedObject] = []
     ids: list[int] = []
@@ -111,8 +117,12 @@ def plan_objects(plan: "pd.DataFrame") -> tuple[list[PlannedObject], list[int]]:
         if objects and objects[-1].spec.name == row["object"]:
             objects[-1] = PlannedObject(objects[-1].spec, (*objects[-1].pushes, spec))
         else:
-            obj = ObjectSpec(str(row["object"]), float(row["R_mm"]) * 1e-3, str(row.get("category") or ""),
-                             None if _missing(stiffness) else float(stiffness))
+            obj = ObjectSpec(
+                str(row["object"]),
+                float(row["R_mm"]) * 1e-3,
+                str(row.get("category") or ""),
+                None if _missing(stiffness) else float(stiffness),
+            )
             objects.append(PlannedObject(obj, (spec,)))
         ids.append(int(row["push"]))
     return objects, ids

@@ -17,9 +17,10 @@ unattended run.
 from __future__ import annotations
 
 import re
+from collections.abc import Generator, Iterable, Sequence
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Generator, Iterable, Sequence
+from typing import Any
 
 from ...core.guard import Guard
 from ...core.steps import Ask, BeginTrial, Field, Finish, Prompt, SettleReport, Step, Window
@@ -80,8 +81,10 @@ def parse_push_change(text: str, keep_phi: float | None, distance_range_m: tuple
     lo, hi = (v * 1e3 for v in distance_range_m)
     m = re.fullmatch(r"\s*(\S+?)\s*(?:mm)?(?:\s+(\S+?)\s*(?:deg)?)?\s*", text)
     if not m:
-        raise ValueError(f"'{text.strip()}' is not a push: type the distance in mm and the direction in deg, "
-                         "e.g. 12 30, or press Enter.")
+        raise ValueError(
+            f"'{text.strip()}' is not a push: type the distance in mm and the direction in deg, "
+            "e.g. 12 30, or press Enter."
+        )
     distance = parse_length_mm(m.group(1), "push distance", lo, hi)
     phi = keep_phi if m.group(2) is None else parse_direction_deg(m.group(2), allow_unknown=True)
     return PushSpec(distance, phi)
@@ -92,22 +95,42 @@ def ask_object(index: int, distance_range_m: tuple[float, float], last: PushSpec
     direction (Enter keeps the last object's)."""
     lo, hi = (v * 1e3 for v in distance_range_m)
     d_keep = "" if last is None else f"; Enter keeps {last.distance_m * 1e3:.4g}"
-    phi_keep = ("unknown" if last is None or last.phi_rad is None else fmt_deg(last.phi_rad))
-    return Ask((
-        Field("name", f"Object {index}: name (e.g. pet-1; Enter when all objects are done, q to quit):",
-              stop_if_empty=True),
-        Field("radius_m", lambda a: f"{a['name']}: radius R in mm:",
-              partial(parse_length_mm, what="radius", lo_mm=0.0, hi_mm=500.0)),
-        Field("category", lambda a: f"{a['name']}: category (soft, medium, hard, a name, or Enter if unknown):"),
-        Field("distance_m", lambda a: f"{a['name']}: push distance d in mm for its pushes, {lo:g} to {hi:g}{d_keep}:",
-              partial(parse_length_mm, what="push distance", lo_mm=lo, hi_mm=hi),
-              **({} if last is None else {"default": last.distance_m})),
-        Field("phi_rad", lambda a: f"{a['name']}: push direction phi in deg for its pushes (? if unknown; "
-                                   f"Enter keeps {phi_keep}):",
-              partial(parse_direction_deg, allow_unknown=True), default=None if last is None else last.phi_rad),
-        Field("stiffness_N_per_m", lambda a: f"{a['name']}: stiffness of the simulated object in N/m:",
-              parse_stiffness, simulated_only=True),
-    ))
+    phi_keep = "unknown" if last is None or last.phi_rad is None else fmt_deg(last.phi_rad)
+    return Ask(
+        (
+            Field(
+                "name",
+                f"Object {index}: name (e.g. pet-1; Enter when all objects are done, q to quit):",
+                stop_if_empty=True,
+            ),
+            Field(
+                "radius_m",
+                lambda a: f"{a['name']}: radius R in mm:",
+                partial(parse_length_mm, what="radius", lo_mm=0.0, hi_mm=500.0),
+            ),
+            Field("category", lambda a: f"{a['name']}: category (soft, medium, hard, a name, or Enter if unknown):"),
+            Field(
+                "distance_m",
+                lambda a: f"{a['name']}: push distance d in mm for its pushes, {lo:g} to {hi:g}{d_keep}:",
+                partial(parse_length_mm, what="push distance", lo_mm=lo, hi_mm=hi),
+                **({} if last is None else {"default": last.distance_m}),
+            ),
+            Field(
+                "phi_rad",
+                lambda a: (
+                    f"{a['name']}: push direction phi in deg for its pushes (? if unknown; Enter keeps {phi_keep}):"
+                ),
+                partial(parse_direction_deg, allow_unknown=True),
+                default=None if last is None else last.phi_rad,
+            ),
+            Field(
+                "stiffness_N_per_m",
+                lambda a: f"{a['name']}: stiffness of the simulated object in N/m:",
+                parse_stiffness,
+                simulated_only=True,
+            ),
+        )
+    )
 
 
 # --------------------------------------------------------------------------- records
@@ -158,8 +181,9 @@ class _Pushing:
     guard: Guard
 
 
-def _push(ctx: _Pushing, push_id: int, label: str, obj: ObjectSpec, spec: PushSpec,
-          changeable: bool) -> Generator[Step, Any, bool]:
+def _push(
+    ctx: _Pushing, push_id: int, label: str, obj: ObjectSpec, spec: PushSpec, changeable: bool
+) -> Generator[Step, Any, bool]:
     """One push until stored (True) or skipped (False); a changeable push's prompt takes a new
     distance and direction typed instead of Enter, and the push starts again with them."""
     while True:
@@ -167,16 +191,28 @@ def _push(ctx: _Pushing, push_id: int, label: str, obj: ObjectSpec, spec: PushSp
         text = push_prompt(label, obj.name, spec.distance_m, spec.phi_rad)
         change = None
         if changeable:
-            change = Field("push", "", partial(parse_push_change, keep_phi=spec.phi_rad, distance_range_m=ctx.d_range),
-                           again=f"{text} (or type another distance in mm and direction in deg) (q to quit):")
+            change = Field(
+                "push",
+                "",
+                partial(parse_push_change, keep_phi=spec.phi_rad, distance_range_m=ctx.d_range),
+                again=f"{text} (or type another distance in mm and direction in deg) (q to quit):",
+            )
             text += CHANGE_OFFER
         release = Prompt(release_prompt(label, obj.name), ReleaseObject())
         result = yield from _trial(
-            ctx.capture_s, Prompt(text, act, change), release,
-            lambda base, loaded, wait_b, wait_l, s=spec: push_record(push_id, obj, s, base, loaded, wait_b, wait_l,
-                                                                     ctx.cmap),
-            Checked(ctx.guard, (spec.distance_m,), (obj.name, spec.phi_rad), release,
-                    f"{obj.name} may still press on the tip"),
+            ctx.capture_s,
+            Prompt(text, act, change),
+            release,
+            lambda base, loaded, wait_b, wait_l, s=spec: push_record(
+                push_id, obj, s, base, loaded, wait_b, wait_l, ctx.cmap
+            ),
+            Checked(
+                ctx.guard,
+                (spec.distance_m,),
+                (obj.name, spec.phi_rad),
+                release,
+                f"{obj.name} may still press on the tip",
+            ),
         )
         if isinstance(result, bool):
             return result
@@ -200,9 +236,12 @@ def push_session(
     """
     push = protocol.settings.push
     per_object = push.pushes_per_object if push is not None else 10
-    ctx = _Pushing(float(protocol.settling.capture_s), ChannelMap.from_channels(protocol.channels),
-                   (push.distance_min_m, push.distance_max_m) if push is not None else (0.002, 0.020),
-                   Guard(protocol))
+    ctx = _Pushing(
+        float(protocol.settling.capture_s),
+        ChannelMap.from_channels(protocol.channels),
+        (push.distance_min_m, push.distance_max_m) if push is not None else (0.002, 0.020),
+        Guard(protocol),
+    )
     done = set(int(t) for t in completed)
     fixed = list(objects or [])
     total = sum(len(o.pushes) for o in fixed) if fixed else 0
@@ -221,8 +260,10 @@ def push_session(
             if answer is None:
                 break
             last = PushSpec(answer["distance_m"], answer["phi_rad"])
-            planned = PlannedObject(ObjectSpec(answer["name"], answer["radius_m"], answer["category"],
-                                               answer.get("stiffness_N_per_m")), (last,) * per_object)
+            planned = PlannedObject(
+                ObjectSpec(answer["name"], answer["radius_m"], answer["category"], answer.get("stiffness_N_per_m")),
+                (last,) * per_object,
+            )
             next_id = max(done, default=0) + 1
         index += 1
         obj = planned.spec

@@ -20,15 +20,16 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
 from ...core.bounds import wrap_degrees_array
 from ...core.paper import Column
 from ...core.report import records_line, settling_line, split_line
-from ...core.store.h5 import missing, nan_if_empty, scalar, to_edge, vector
 from ...core.store import load_table
+from ...core.store.h5 import missing, nan_if_empty, scalar, to_edge, vector
 from ...core.store.records import BaseRecordType
 from ...errors import ConfigError, StoreError
 from .tables import BASELINE, LOADED, PUSH, REST, TRIAL
@@ -45,13 +46,15 @@ DEG_BOUNDS = (-1e4, 1e4)  # deg, a direction typed in a plan
 
 
 def _pressure(name: str, what: str, optional: bool = False) -> Column:
-    return Column(name, "MPa", shape=(4,), components=PRESSURE_NAMES, bounds=PRESSURE_BOUNDS, optional=optional,
-                  what=what)
+    return Column(
+        name, "MPa", shape=(4,), components=PRESSURE_NAMES, bounds=PRESSURE_BOUNDS, optional=optional, what=what
+    )
 
 
 def _angles(name: str, what: str, optional: bool = False) -> Column:
-    return Column(name, "rad", shape=(2,), components=("theta1", "theta2"), bounds=ANGLE_BOUNDS, optional=optional,
-                  what=what)
+    return Column(
+        name, "rad", shape=(2,), components=("theta1", "theta2"), bounds=ANGLE_BOUNDS, optional=optional, what=what
+    )
 
 
 class _McKibbenRecords(BaseRecordType):
@@ -77,8 +80,13 @@ class _McKibbenRecords(BaseRecordType):
         return {"baseline_drift": drift, "baseline_leak": _leak(run, ids, cols, p0)}
 
     def inspect_lines(self, summary: dict[str, Any]) -> list[str]:
-        return [records_line(summary), split_line(summary), settling_line(summary), *drift_lines(summary),
-                *leak_lines(summary)]
+        return [
+            records_line(summary),
+            split_line(summary),
+            settling_line(summary),
+            *drift_lines(summary),
+            *leak_lines(summary),
+        ]
 
     @staticmethod
     def _rest_posture(df: Any, cols: Mapping[str, Any], n: int) -> None:
@@ -120,9 +128,11 @@ def drift_lines(s: dict[str, Any]) -> list[str]:
         return ["  baseline drift  needs at least 2 complete records"]
     lines = [f"  baseline drift over {s['complete']} {rec} (recording order):"]
     for name, d in drift.items():
-        lines.append(f"    {name:<5} first {d['first_MPa']:.4f} MPa, last {d['last_MPa']:.4f} MPa, "
-                     f"slope {d['slope_kPa_per_trial']:+.3f} kPa/{rec[:-1] if rec == 'trials' else 'push'}, "
-                     f"max deviation {d['max_deviation_kPa']:.3f} kPa")
+        lines.append(
+            f"    {name:<5} first {d['first_MPa']:.4f} MPa, last {d['last_MPa']:.4f} MPa, "
+            f"slope {d['slope_kPa_per_trial']:+.3f} kPa/{rec[:-1] if rec == 'trials' else 'push'}, "
+            f"max deviation {d['max_deviation_kPa']:.3f} kPa"
+        )
     return lines
 
 
@@ -178,8 +188,10 @@ def leak_lines(s: dict[str, Any]) -> list[str]:
     if not leak:
         return []
     rates = ", ".join(f"{name} {v:.2f}" for name, v in leak["loss_kPa_per_min"].items())
-    return [f"  leak        baseline pressure lost over {leak['span_s'] / 60:.1f} min of device time, valves closed:",
-            f"    {rates} kPa/min"]
+    return [
+        f"  leak        baseline pressure lost over {leak['span_s'] / 60:.1f} min of device time, valves closed:",
+        f"    {rates} kPa/min",
+    ]
 
 
 class TrialRecords(_McKibbenRecords):
@@ -219,8 +231,9 @@ class TrialRecords(_McKibbenRecords):
             plan["set"] = record["set"]
         unknown = [k for k in plan if k not in ("set", "mass_g", "direction_deg")]
         if unknown:
-            raise StoreError(f"{label} record: its plan row has {unknown[0]!r}; a trial's plan gives set, mass_g "
-                             "and direction_deg.")
+            raise StoreError(
+                f"{label} record: its plan row has {unknown[0]!r}; a trial's plan gives set, mass_g and direction_deg."
+            )
         for key, v in plan.items():
             row[f"plan_{key}"] = str(v) if key == "set" else scalar(plan, key, label)
         return row
@@ -228,8 +241,12 @@ class TrialRecords(_McKibbenRecords):
     def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
         rec: dict[str, Any] = {
             "trial": int(row["trial"]),
-            "P0_MPa": np.asarray(row["P0"]), "P_MPa": np.asarray(row["P"]), "theta_rad": np.asarray(row["theta"]),
-            "force_N": np.asarray(row["F"]), "mass_kg": float(row["mass"]), "direction_rad": float(row["direction"]),
+            "P0_MPa": np.asarray(row["P0"]),
+            "P_MPa": np.asarray(row["P"]),
+            "theta_rad": np.asarray(row["theta"]),
+            "force_N": np.asarray(row["F"]),
+            "mass_kg": float(row["mass"]),
+            "direction_rad": float(row["direction"]),
             "plan": _plan(row, {"set": "plan_set", "mass_g": "plan_mass_g", "direction_deg": "plan_direction_deg"}),
         }
         if _finite(row["pot0"]):
@@ -246,8 +263,9 @@ class TrialRecords(_McKibbenRecords):
         p = np.asarray(cols["P"], dtype=np.float64).reshape(n, 4)
         theta = np.asarray(cols["theta"], dtype=np.float64).reshape(n, 2)
         force = np.asarray(cols["F"], dtype=np.float64).reshape(n, 2)
-        df = pd.DataFrame({"trial": np.asarray(ids, dtype=np.int64),
-                           "set": pd.Series([sets.get(t, "") for t in ids], dtype=object)})
+        df = pd.DataFrame(
+            {"trial": np.asarray(ids, dtype=np.int64), "set": pd.Series([sets.get(t, "") for t in ids], dtype=object)}
+        )
         for j, name in enumerate(BASELINE):
             df[name] = p0[:, j]
         for j, name in enumerate(LOADED):
@@ -268,7 +286,8 @@ class TrialRecords(_McKibbenRecords):
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
         return {
             "trial": int(row["trial"]),
-            "P0_MPa": [row[c] for c in BASELINE], "P_MPa": [row[c] for c in LOADED],
+            "P0_MPa": [row[c] for c in BASELINE],
+            "P_MPa": [row[c] for c in LOADED],
             "theta_rad": [math.radians(row["theta1_deg"]), math.radians(row["theta2_deg"])],
             "force_N": [row["Fx_N"], row["Fy_N"]],
             "mass_kg": nan_if_empty(row.get("mass_g")) * 1e-3,
@@ -279,14 +298,16 @@ class TrialRecords(_McKibbenRecords):
     def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
         """The trial table's rows as columns, all at once (what :meth:`from_row` gives row by row)."""
         n = len(table)
-        cols = {"trial": table["trial"].to_numpy(dtype=np.int64),
-                "P0": table[list(BASELINE)].to_numpy(dtype=np.float64),
-                "P": table[list(LOADED)].to_numpy(dtype=np.float64),
-                "theta": np.radians(table[["theta1_deg", "theta2_deg"]].to_numpy(dtype=np.float64)),
-                "F": table[["Fx_N", "Fy_N"]].to_numpy(dtype=np.float64),
-                "mass": _numbers(table, "mass_g", n) * 1e-3,
-                "direction": np.radians(_numbers(table, "direction_deg", n)),
-                **self._rest_columns(table, n)}
+        cols = {
+            "trial": table["trial"].to_numpy(dtype=np.int64),
+            "P0": table[list(BASELINE)].to_numpy(dtype=np.float64),
+            "P": table[list(LOADED)].to_numpy(dtype=np.float64),
+            "theta": np.radians(table[["theta1_deg", "theta2_deg"]].to_numpy(dtype=np.float64)),
+            "F": table[["Fx_N", "Fy_N"]].to_numpy(dtype=np.float64),
+            "mass": _numbers(table, "mass_g", n) * 1e-3,
+            "direction": np.radians(_numbers(table, "direction_deg", n)),
+            **self._rest_columns(table, n),
+        }
         return cols
 
     def import_split(self, table: Any) -> tuple[list[int], list[int]]:
@@ -362,9 +383,14 @@ class PushRecords(_McKibbenRecords):
         row = self._pressures(record, label, "pressures with the object pushed in, MPa")
         if "object" not in record:
             raise StoreError(f"{label} record lacks 'object' (the object name).")
-        row.update(R=scalar(record, "R_m", label), d=scalar(record, "d_m", label), phi=scalar(record, "phi_rad", label),
-                   true_stiffness=scalar(record, "true_stiffness_N_per_m", label),
-                   object=str(record["object"]), category=str(record.get("category", "") or ""))
+        row.update(
+            R=scalar(record, "R_m", label),
+            d=scalar(record, "d_m", label),
+            phi=scalar(record, "phi_rad", label),
+            true_stiffness=scalar(record, "true_stiffness_N_per_m", label),
+            object=str(record["object"]),
+            category=str(record.get("category", "") or ""),
+        )
         if "theta_rad" in record:
             row["theta"] = vector(record, "theta_rad", 2, "joint deflections in rad", label)
         if "pot0_rad" in record:
@@ -372,14 +398,22 @@ class PushRecords(_McKibbenRecords):
         return row
 
     def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
-        optional = {key: np.asarray(row[name]) for key, name in (("theta_rad", "theta"), ("pot0_rad", "pot0"))
-                    if _finite(row[name])}
+        optional = {
+            key: np.asarray(row[name])
+            for key, name in (("theta_rad", "theta"), ("pot0_rad", "pot0"))
+            if _finite(row[name])
+        }
         return {
             **optional,
-            "push": int(row["push"]), "object": str(row["object"]), "category": str(row["category"]),
-            "R_m": float(row["R"]), "d_m": float(row["d"]), "phi_rad": float(row["phi"]),
+            "push": int(row["push"]),
+            "object": str(row["object"]),
+            "category": str(row["category"]),
+            "R_m": float(row["R"]),
+            "d_m": float(row["d"]),
+            "phi_rad": float(row["phi"]),
             "true_stiffness_N_per_m": float(row["true_stiffness"]),
-            "P0_MPa": np.asarray(row["P0"]), "P_MPa": np.asarray(row["P"]),
+            "P0_MPa": np.asarray(row["P0"]),
+            "P_MPa": np.asarray(row["P"]),
         }
 
     def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
@@ -389,11 +423,15 @@ class PushRecords(_McKibbenRecords):
         n = len(ids)
         p0 = np.asarray(cols["P0"], dtype=np.float64).reshape(n, 4)
         p = np.asarray(cols["P"], dtype=np.float64).reshape(n, 4)
-        df = pd.DataFrame({"push": np.asarray(ids, dtype=np.int64),
-                           "object": pd.Series([str(x) for x in cols["object"]], dtype=object),
-                           "R_m": np.asarray(cols["R"], dtype=np.float64),
-                           "d_m": np.asarray(cols["d"], dtype=np.float64),
-                           "phi_deg": wrap_degrees_array(to_edge(np.degrees(np.asarray(cols["phi"], dtype=np.float64))))})
+        df = pd.DataFrame(
+            {
+                "push": np.asarray(ids, dtype=np.int64),
+                "object": pd.Series([str(x) for x in cols["object"]], dtype=object),
+                "R_m": np.asarray(cols["R"], dtype=np.float64),
+                "d_m": np.asarray(cols["d"], dtype=np.float64),
+                "phi_deg": wrap_degrees_array(to_edge(np.degrees(np.asarray(cols["phi"], dtype=np.float64)))),
+            }
+        )
         for j, name in enumerate(BASELINE):
             df[name] = p0[:, j]
         for j, name in enumerate(LOADED):
@@ -407,12 +445,15 @@ class PushRecords(_McKibbenRecords):
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
         return {
-            "push": int(row["push"]), "object": str(row["object"]),
-            "R_m": float(row["R_m"]), "d_m": float(row["d_m"]),
+            "push": int(row["push"]),
+            "object": str(row["object"]),
+            "R_m": float(row["R_m"]),
+            "d_m": float(row["d_m"]),
             "phi_rad": math.radians(nan_if_empty(row.get("phi_deg"))),
             "category": "" if missing(row.get("category")) else str(row["category"]),
             "true_stiffness_N_per_m": nan_if_empty(row.get("true_stiffness_N_per_m")),
-            "P0_MPa": [row[c] for c in BASELINE], "P_MPa": [row[c] for c in LOADED],
+            "P0_MPa": [row[c] for c in BASELINE],
+            "P_MPa": [row[c] for c in LOADED],
             **self._rest_from_row(row),
         }
 

@@ -21,9 +21,10 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Generator, Iterable, Sequence
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Generator, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -96,8 +97,9 @@ class PushObject:
         # simulated rig: it pushes along the normal (phi = 0) then.
         phi = 0.0 if self.phi_rad is None else self.phi_rad
         if self.stiffness_N_per_m is None:
-            raise ValueError("the object's stiffness is not given (a push plan's stiffness_N_per_m), and the "
-                             "simulated rig needs it")
+            raise ValueError(
+                "the object's stiffness is not given (a push plan's stiffness_N_per_m), and the simulated rig needs it"
+            )
         rig.push_object(self.radius_m, self.distance_m, phi, self.stiffness_N_per_m)
 
 
@@ -161,8 +163,11 @@ def planned_trials(plan: Any) -> list[PlannedTrial]:
                 set=str(r.get("set", "") or ""),
                 mass_kg=float(r["mass_g"]) * 1e-3,
                 direction_rad=math.radians(float(r["direction_deg"])),
-                plan_row={"set": str(r.get("set", "") or ""), "mass_g": float(r["mass_g"]),
-                          "direction_deg": float(r["direction_deg"])},
+                plan_row={
+                    "set": str(r.get("set", "") or ""),
+                    "mass_g": float(r["mass_g"]),
+                    "direction_deg": float(r["direction_deg"]),
+                },
             )
         )
     return out
@@ -247,13 +252,16 @@ class ChannelMap:
     pot: tuple[int, ...]
 
     @classmethod
-    def from_channels(cls, channels: Sequence[str]) -> "ChannelMap":
+    def from_channels(cls, channels: Sequence[str]) -> ChannelMap:
         names = list(channels)
         missing = [n for n in PRESSURE_NAMES + POT_NAMES if n not in names]
         if missing:
             raise ValueError(
-                "the protocol's channels lack " + ", ".join(missing)
-                + " (need " + ",".join(PRESSURE_NAMES + POT_NAMES) + ")"
+                "the protocol's channels lack "
+                + ", ".join(missing)
+                + " (need "
+                + ",".join(PRESSURE_NAMES + POT_NAMES)
+                + ")"
             )
         return cls(tuple(names.index(n) for n in PRESSURE_NAMES), tuple(names.index(n) for n in POT_NAMES))
 
@@ -306,7 +314,7 @@ def summary_row(record: dict) -> dict[str, str]:
         row["d (mm)"] = f"{record['d_m'] * 1e3:.4g}"
         phi = record.get("phi_rad")
         row["phi (deg)"] = "unknown" if phi is None or not np.isfinite(phi) else f"{math.degrees(phi):.4g}"
-    for name, a, c in zip(PRESSURE_NAMES, p0, p):
+    for name, a, c in zip(PRESSURE_NAMES, p0, p, strict=False):
         row[f"{name} (MPa)"] = f"{a:.4f}->{c:.4f}"
     if "theta_rad" in record:
         row["theta1 (deg)"] = f"{math.degrees(record['theta_rad'][0]):+.3f}"
@@ -322,18 +330,32 @@ def summary_row(record: dict) -> dict[str, str]:
 # --------------------------------------------------------------------------- questions
 
 
-def ask_load(trial: int, total: int, mass_range_g: tuple[float, float] = (1.0, 2000.0),
-             direction_range_deg: tuple[float, float] = (-180.0, 180.0)) -> Ask:
+def ask_load(
+    trial: int,
+    total: int,
+    mass_range_g: tuple[float, float] = (1.0, 2000.0),
+    direction_range_deg: tuple[float, float] = (-180.0, 180.0),
+) -> Ask:
     """No plan: the mass (g) and pulley direction (deg) of the next trial; Enter ends the run."""
     head = f"Trial {trial}/{total}"
     lo, hi = mass_range_g
     dlo, dhi = direction_range_deg
-    return Ask((
-        Field("mass_kg", f"{head}: mass to hang in g, {lo:g} to {hi:g} (Enter when the run is complete, q to quit):",
-              partial(parse_mass_g, lo_g=lo, hi_g=hi), again=f"{head}: mass to hang in g:", stop_if_empty=True),
-        Field("direction_rad", f"{head}: pulley direction in deg, counter-clockwise from +x ({dlo:g} to {dhi:g}):",
-              partial(parse_direction_deg, lo_deg=dlo, hi_deg=dhi)),
-    ))
+    return Ask(
+        (
+            Field(
+                "mass_kg",
+                f"{head}: mass to hang in g, {lo:g} to {hi:g} (Enter when the run is complete, q to quit):",
+                partial(parse_mass_g, lo_g=lo, hi_g=hi),
+                again=f"{head}: mass to hang in g:",
+                stop_if_empty=True,
+            ),
+            Field(
+                "direction_rad",
+                f"{head}: pulley direction in deg, counter-clockwise from +x ({dlo:g} to {dhi:g}):",
+                partial(parse_direction_deg, lo_deg=dlo, hi_deg=dhi),
+            ),
+        )
+    )
 
 
 # --------------------------------------------------------------------------- sessions
@@ -371,8 +393,9 @@ class Checked:
     forgotten: str  # "a weight may still hang on the pulley"
 
 
-def _trial(capture_s: float, load: Prompt, unload: Prompt, record_of: Any,
-           checked: Checked | None = None) -> Generator[Step, Any, Any]:
+def _trial(
+    capture_s: float, load: Prompt, unload: Prompt, record_of: Any, checked: Checked | None = None
+) -> Generator[Step, Any, Any]:
     """One trial or push until accepted (True) or skipped (False).
 
     Baseline at equilibrium, the load, equilibrium, capture, the unload, then the review;
@@ -391,8 +414,9 @@ def _trial(capture_s: float, load: Prompt, unload: Prompt, record_of: Any,
         if checked is not None:
             left = checked.guard.after_baseline(base)
             if left is not None:
-                yield Problem(f"The readings have not returned since the last load: {left}; "
-                              f"{checked.forgotten}.", checked.undo)
+                yield Problem(
+                    f"The readings have not returned since the last load: {left}; {checked.forgotten}.", checked.undo
+                )
                 continue
         typed = yield load
         if typed is not None:
@@ -405,8 +429,14 @@ def _trial(capture_s: float, load: Prompt, unload: Prompt, record_of: Any,
         weak = checked.guard.after_load(checked.load, base, loaded, checked.key) if checked else None
         yield unload
         record = record_of(base, loaded, wait_b, wait_l)
-        warnings = (f"{weak[:1].upper()}{weak[1:]}: check that the load was applied as the prompt said, then "
-                    "redo the trial (Enter), or accept it as it is (a).",) if weak else ()
+        warnings = (
+            (
+                f"{weak[:1].upper()}{weak[1:]}: check that the load was applied as the prompt said, then "
+                "redo the trial (Enter), or accept it as it is (a).",
+            )
+            if weak
+            else ()
+        )
         decision = yield Review(summary_row(record), warnings, "redo" if weak else "accept")
         if decision == "redo":
             continue
@@ -484,13 +514,21 @@ def force_session(
         remove = Prompt(remove_prompt(label), RemoveWeight())
         stored = yield from _trial(
             capture_s,
-            Prompt(load_prompt(label, planned.mass_kg, planned.direction_rad),
-                   HangWeight(planned.mass_kg, planned.direction_rad)),
+            Prompt(
+                load_prompt(label, planned.mass_kg, planned.direction_rad),
+                HangWeight(planned.mass_kg, planned.direction_rad),
+            ),
             remove,
             lambda base, loaded, wait_b, wait_l, p=planned: force_record(
-                p.trial, p.set, p.mass_kg, p.direction_rad, base, loaded, wait_b, wait_l, cmap, p.plan_row),
-            Checked(guard, force_vector(planned.mass_kg, planned.direction_rad), None, remove,
-                    "the last weight may still hang on the pulley"),
+                p.trial, p.set, p.mass_kg, p.direction_rad, base, loaded, wait_b, wait_l, cmap, p.plan_row
+            ),
+            Checked(
+                guard,
+                force_vector(planned.mass_kg, planned.direction_rad),
+                None,
+                remove,
+                "the last weight may still hang on the pulley",
+            ),
         )
         (done.add if stored else skipped.append)(planned.trial)
 

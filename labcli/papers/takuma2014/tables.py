@@ -8,7 +8,8 @@ forces in N, angles in degrees, masses in grams.
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Any, Iterable
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 from ...core.tables import PRESSURE_SPAN_MPA, RowCheck, TableSpec, fmt_number, read_table, write_table
 
@@ -69,8 +70,13 @@ PLAN = TableSpec(
 )
 
 
-def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
-                   id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
+def read_trial_csv(
+    path: str | os.PathLike,
+    *,
+    span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
+    id_range: tuple[int, int] | None = None,
+    check: RowCheck | None = None,
+) -> pd.DataFrame:
     """Read and check a trial table (``docs/table-formats.md``); every problem in one TableError.
 
     ``id_range`` (low, high) also checks the trial ids, e.g. against what a run file can hold;
@@ -80,8 +86,13 @@ def read_trial_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = P
     return read_table(path, TRIAL, span=span_MPa, id_range=id_range, check=check)
 
 
-def read_push_csv(path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
-                  id_range: tuple[int, int] | None = None, check: RowCheck | None = None) -> "pd.DataFrame":
+def read_push_csv(
+    path: str | os.PathLike,
+    *,
+    span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA,
+    id_range: tuple[int, int] | None = None,
+    check: RowCheck | None = None,
+) -> pd.DataFrame:
     """Read and check a push table; ``phi_deg`` is NaN where the file leaves it empty."""
     return read_table(path, PUSH, span=span_MPa, id_range=id_range, check=check)
 
@@ -91,7 +102,7 @@ def load_plan(
     *,
     mass_range_g: tuple[float, float] | None = None,
     direction_range_deg: tuple[float, float] | None = None,
-) -> "pd.DataFrame":
+) -> pd.DataFrame:
     """Read and check a plan (``trial, set, mass_g, direction_deg``), optionally against limits.
 
     Problems name the file, the row as a spreadsheet numbers it (header = row 1)
@@ -103,29 +114,35 @@ def load_plan(
         if mass_range_g is not None and isinstance(m, float):
             lo, hi = mass_range_g
             if not lo <= m <= hi:
-                yield "mass_g", (f"{fmt_number(m)} g is outside the protocol's range "
-                                 f"{fmt_number(lo)} to {fmt_number(hi)} g")
+                yield (
+                    "mass_g",
+                    (f"{fmt_number(m)} g is outside the protocol's range {fmt_number(lo)} to {fmt_number(hi)} g"),
+                )
         if direction_range_deg is not None and isinstance(d, float):
             lo, hi = direction_range_deg
             if not lo <= d <= hi:
-                yield "direction_deg", (f"{fmt_number(d)} deg is outside the protocol's range "
-                                        f"{fmt_number(lo)} to {fmt_number(hi)} deg")
+                yield (
+                    "direction_deg",
+                    (f"{fmt_number(d)} deg is outside the protocol's range {fmt_number(lo)} to {fmt_number(hi)} deg"),
+                )
 
     return read_table(path, PLAN, check=limits)
 
 
-def write_trial_csv(df: "pd.DataFrame", path: str | os.PathLike, *,
-                    span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
+def write_trial_csv(
+    df: pd.DataFrame, path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA
+) -> None:
     """Write a trial table: standard columns in ``docs/table-formats.md`` order, then extras."""
     write_table(df, path, TRIAL, span_MPa)
 
 
-def write_push_csv(df: "pd.DataFrame", path: str | os.PathLike, *,
-                   span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA) -> None:
+def write_push_csv(
+    df: pd.DataFrame, path: str | os.PathLike, *, span_MPa: tuple[float, float] = PRESSURE_SPAN_MPA
+) -> None:
     """Write a push table: standard columns in ``docs/table-formats.md`` order, then extras."""
     write_table(df, path, PUSH, span_MPa)
 
 
-def write_plan_csv(df: "pd.DataFrame", path: str | os.PathLike) -> None:
+def write_plan_csv(df: pd.DataFrame, path: str | os.PathLike) -> None:
     """Write a plan (``trial, set, mass_g, direction_deg``)."""
     write_table(df, path, PLAN)

@@ -14,8 +14,8 @@ from click.testing import CliRunner
 from labcli.cli import cli
 from labcli.errors import ConfigError, ModelError
 from labcli.papers.rpam2015.models import rpam
-from labcli.papers.rpam2015.protocol import read_rpam_protocol
 from labcli.papers.rpam2015.models import rpam_optimize as ro
+from labcli.papers.rpam2015.protocol import read_rpam_protocol
 
 PATH, RAW = read_rpam_protocol("rpam2015")
 ACT = rpam.actuator_from_protocol(RAW, PATH)
@@ -56,21 +56,30 @@ def test_shipped_optimum_is_a_joint_that_holds(shipped):
     # The stiffness is what the torque does next to the balance, and both arms are positive.
     h = 1e-3
     assert float(rpam.joint_torque(shipped.alpha_rad + h, 0.096, 0.041, g, ACT)) == pytest.approx(
-        -d["stiffness_Nm_per_rad"] * h, rel=0.02)
+        -d["stiffness_Nm_per_rad"] * h, rel=0.02
+    )
     ma, mb = rpam.moment_arms(shipped.alpha_rad, g)
     assert (d["arm_a_m"], d["arm_b_m"]) == pytest.approx((float(ma), float(mb)), rel=1e-12)
     assert ma > 0 and mb > 0 and d["F_a_N"] > 0 and d["F_b_N"] > 0
     assert d["F_a_N"] * d["arm_a_m"] == pytest.approx(d["F_b_N"] * d["arm_b_m"], rel=1e-9)  # g1
     # g2-g7 all hold.
-    for v, (lo, hi) in ((g.L1_m, BOUNDS.L1_m), (g.L2_m, BOUNDS.L2_m), (g.L3_m, BOUNDS.L3_m),
-                        (d["L_a_m"], BOUNDS.actuator_length_m), (d["L_b_m"], BOUNDS.actuator_length_m),
-                        (d["alpha_deg"], BOUNDS.alpha_deg)):
+    for v, (lo, hi) in (
+        (g.L1_m, BOUNDS.L1_m),
+        (g.L2_m, BOUNDS.L2_m),
+        (g.L3_m, BOUNDS.L3_m),
+        (d["L_a_m"], BOUNDS.actuator_length_m),
+        (d["L_b_m"], BOUNDS.actuator_length_m),
+        (d["alpha_deg"], BOUNDS.alpha_deg),
+    ):
         assert lo - 1e-12 <= v <= hi + 1e-12
 
 
 def test_shipped_optimum_is_held_by_g5_and_k_min_with_l3_at_its_lower_bound(shipped):
-    assert shipped.active == ["g4: L3 at lower bound 0.03 m", "g5: L_a at upper bound 0.14 m",
-                              "K_min: stiffness at its minimum 0.07 N m/rad"]
+    assert shipped.active == [
+        "g4: L3 at lower bound 0.03 m",
+        "g5: L_a at upper bound 0.14 m",
+        "K_min: stiffness at its minimum 0.07 N m/rad",
+    ]
     # Actuator a still pushes at g5's 0.14 m: at 96 kPa it would extend to 0.145 m unloaded,
     # so g5, not the toggle, caps the angle.
     assert float(rpam.loaded_length(0.096, 0.0, ACT)) > 0.145
@@ -112,8 +121,10 @@ def test_a_design_too_sensitive_to_print_is_refused():
     fake = ro.DesignReport(**{**r.__dict__, "alpha_rad": r.alpha_rad + math.radians(1.0)})
     with pytest.raises(ModelError) as e:
         ro.round_design(fake, ACT, BOUNDS, SETTINGS)
-    assert str(e.value).startswith(f"The optimum (alpha = {fake.alpha_deg:.2f} deg) is too sensitive to build: "
-                                   "on a 0.1 mm grid the best design balances at ")
+    assert str(e.value).startswith(
+        f"The optimum (alpha = {fake.alpha_deg:.2f} deg) is too sensitive to build: "
+        "on a 0.1 mm grid the best design balances at "
+    )
     assert str(e.value).endswith("; raise optimize.min_stiffness_Nm_per_rad.")
 
 
@@ -147,10 +158,14 @@ def test_toggle_margin_option_keeps_the_optimum_away_from_the_toggle():
 
 
 def test_design_cost_ranks_feasible_then_violating_then_toggling():
-    X = np.array([[0.0304, 0.1124, 0.0302],   # the printed optimum: feasible
-                  [0.0304, 0.1122, 0.0300],   # turns further, but too soft: misses K_min only
-                  [0.0574, 0.1394, 0.0323],   # actuator a longer than g5's 0.14 m
-                  [0.03, 0.1048, 0.06]]).T    # the paper's design: runs onto the toggle
+    X = np.array(
+        [
+            [0.0304, 0.1124, 0.0302],  # the printed optimum: feasible
+            [0.0304, 0.1122, 0.0300],  # turns further, but too soft: misses K_min only
+            [0.0574, 0.1394, 0.0323],  # actuator a longer than g5's 0.14 m
+            [0.03, 0.1048, 0.06],
+        ]
+    ).T  # the paper's design: runs onto the toggle
     cost = ro.design_cost(X, ACT, BOUNDS, SETTINGS)
     r = [ro.evaluate_design(rpam.JointGeometry(*x), ACT, BOUNDS, SETTINGS) for x in X.T]
     assert r[0].feasible and cost[0] == pytest.approx(-r[0].alpha_deg, abs=1e-12)
@@ -166,17 +181,23 @@ def test_design_cost_ranks_feasible_then_violating_then_toggling():
 def test_active_constraints_names_each_bound_met():
     g = rpam.JointGeometry(0.03, 0.1, 0.0599)
     act = ro.active_constraints(g, 45.0, 0.1400, 0.0701, BOUNDS, 0.005)
-    assert act == ["g2: L1 at lower bound 0.03 m", "g4: L3 at upper bound 0.06 m",
-                   "g5: L_a at upper bound 0.14 m", "g6: L_b at lower bound 0.07 m"]
+    assert act == [
+        "g2: L1 at lower bound 0.03 m",
+        "g4: L3 at upper bound 0.06 m",
+        "g5: L_a at upper bound 0.14 m",
+        "g6: L_b at lower bound 0.07 m",
+    ]
     assert ro.active_constraints(g, 45.0, 0.1, 0.1, BOUNDS, 1e-6) == ["g2: L1 at lower bound 0.03 m"]
 
 
 def test_impossible_pressures_are_reported():
     with pytest.raises(ModelError) as e:
         ro.optimize_protocol("rpam2015", overrides=QUICK, Pa_kPa=30, Pb_kPa=96)
-    assert str(e.value) == ("No link lengths within g2-g4 give a balanced joint (g1) that also meets g5-g7, a toggle "
-                            "margin of 1 deg and a stiffness of 0.07 N m/rad at Pa = 30 kPa, Pb = 96 kPa; check the "
-                            "pressures and the actuator constants.")
+    assert str(e.value) == (
+        "No link lengths within g2-g4 give a balanced joint (g1) that also meets g5-g7, a toggle "
+        "margin of 1 deg and a stiffness of 0.07 N m/rad at Pa = 30 kPa, Pb = 96 kPa; check the "
+        "pressures and the actuator constants."
+    )
 
 
 def test_bad_optimizer_settings_are_one_sentence():
@@ -189,16 +210,32 @@ def test_bad_optimizer_settings_are_one_sentence():
         for value in ("0.0", "-0.1"):
             with pytest.raises(ConfigError) as e:
                 ro.optimize_protocol("rpam2015", overrides=(f"optimize.{key}={value}",))
-            assert str(e.value) == (f"Protocol key 'optimize.{key}' in protocol rpam2015 with --set "
-                                    f"optimize.{key}={value} must be a positive number, got {float(value)!r}.")
+            assert str(e.value) == (
+                f"Protocol key 'optimize.{key}' in protocol rpam2015 with --set "
+                f"optimize.{key}={value} must be a positive number, got {float(value)!r}."
+            )
 
 
 # --------------------------------------------------------------------------- command line
 
 
 def test_cli_json_reports_the_optimum_and_honours_overrides():
-    args = ["optimize", "--seed", "3", "--json", "--pa", "90", "--pb", "41", "--set", QUICK[0], "--set", QUICK[1],
-            "--set", "optimize.min_stiffness_Nm_per_rad=0.1"]
+    args = [
+        "optimize",
+        "--seed",
+        "3",
+        "--json",
+        "--pa",
+        "90",
+        "--pb",
+        "41",
+        "--set",
+        QUICK[0],
+        "--set",
+        QUICK[1],
+        "--set",
+        "optimize.min_stiffness_Nm_per_rad=0.1",
+    ]
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 0, result.output
     d = json.loads(result.stdout)
@@ -230,15 +267,29 @@ def test_cli_text_output_has_units():
     result = CliRunner().invoke(cli, ["optimize", "--seed", "1", "--set", QUICK[0], "--set", QUICK[1]])
     assert result.exit_code == 0, result.output
     lines = result.stdout.splitlines()
-    assert re.fullmatch(r"Optimum at Pa = 96 kPa, Pb = 41 kPa \(seed 1, 40 generations\): alpha = \d+\.\d\d deg, "
-                        r"stiffness 0\.\d{4} N m/rad \(K_min 0\.07\), \d+\.\d\d deg short of the toggle\.", lines[0])
+    assert re.fullmatch(
+        r"Optimum at Pa = 96 kPa, Pb = 41 kPa \(seed 1, 40 generations\): alpha = \d+\.\d\d deg, "
+        r"stiffness 0\.\d{4} N m/rad \(K_min 0\.07\), \d+\.\d\d deg short of the toggle\.",
+        lines[0],
+    )
     assert lines[1] == "Links to 0.1 mm as printed, beside the paper's design (Section IV) with the same model:"
     assert lines[3].split() == ["labcli", "paper"]
     rows = {line[:36].strip(): line[36:].split() for line in lines[4:17]}
-    assert list(rows) == ["L1 (m)", "L2 (m)", "L3 (m)", "alpha (deg)", "toggle atan(L2/L3) (deg)",
-                          "margin to the toggle (deg)", "stiffness -dtau/dalpha (N m/rad)", "L_a (m)", "L_b (m)",
-                          "push of a, F_a (N)", "push of b, F_b (N)", "moment arm of a, m_a (mm)",
-                          "moment arm of b, m_b (mm)"]
+    assert list(rows) == [
+        "L1 (m)",
+        "L2 (m)",
+        "L3 (m)",
+        "alpha (deg)",
+        "toggle atan(L2/L3) (deg)",
+        "margin to the toggle (deg)",
+        "stiffness -dtau/dalpha (N m/rad)",
+        "L_a (m)",
+        "L_b (m)",
+        "push of a, F_a (N)",
+        "push of b, F_b (N)",
+        "moment arm of a, m_a (mm)",
+        "moment arm of b, m_b (mm)",
+    ]
     assert rows["L2 (m)"][1] == "0.1048" and rows["alpha (deg)"][1] == "toggles"
     assert rows["toggle atan(L2/L3) (deg)"][1] == "60.21" and rows["push of a, F_a (N)"][1] == "—"
     for v in rows.values():
@@ -251,11 +302,16 @@ def test_cli_text_output_has_units():
 def test_cli_unknown_key_is_one_clear_line():
     result = CliRunner().invoke(cli, ["optimize", "--set", "actuator.L0=0.08"])
     assert result.exit_code == 1
-    assert result.output == ("Error: Unknown protocol key 'actuator.L0' in --set; keys under actuator: "
-                             "A0_m2, L0_m, n_turns, prestretch, thread_length_m.\n")
+    assert result.output == (
+        "Error: Unknown protocol key 'actuator.L0' in --set; keys under actuator: "
+        "A0_m2, L0_m, n_turns, prestretch, thread_length_m.\n"
+    )
 
 
 def test_cli_missing_protocol_is_one_clear_line():
     result = CliRunner().invoke(cli, ["optimize", "--protocol", "nosuch"])
     assert result.exit_code == 1
-    assert result.output == "Error: No protocol named 'nosuch'; give a .toml path or a shipped name (rpam2015, takuma2014, takuma2014-bent, takuma2014-stiffness).\n"
+    assert (
+        result.output
+        == "Error: No protocol named 'nosuch'; give a .toml path or a shipped name (rpam2015, takuma2014, takuma2014-bent, takuma2014-stiffness).\n"
+    )

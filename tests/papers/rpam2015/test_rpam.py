@@ -88,11 +88,18 @@ def test_hoop_threads_give_the_end_cap_force_on_the_whole_cage():
     assert cage == pytest.approx(31.4159, abs=1e-3)
     # A wall of section A0 inside the cage takes nothing off the gas's share: its volume is
     # fixed, so the gas volume changes as the cage's (no P A0 / lambda term).
-    act = rpam.Actuator(L0_m=L, A0_m2=5e-5, n_turns=1e5, thread_length_m=math.hypot(2 * math.pi * r * 1e5, L),
-                        ogden_mu_MPa=(0.1,), ogden_alpha=(2.0,))
+    act = rpam.Actuator(
+        L0_m=L,
+        A0_m2=5e-5,
+        n_turns=1e5,
+        thread_length_m=math.hypot(2 * math.pi * r * 1e5, L),
+        ogden_mu_MPa=(0.1,),
+        ogden_alpha=(2.0,),
+    )
     for lam in (1.0, 1.5, 2.0):
         assert rpam.constraint_force(P, lam * L, act) == pytest.approx(
-            rpam.helical_tension(P, lam * L, act.n_turns, act.thread_length_m), rel=1e-12)
+            rpam.helical_tension(P, lam * L, act.n_turns, act.thread_length_m), rel=1e-12
+        )
 
 
 def test_helical_term_is_minus_p_dv_dl_and_scales_as_an_area():
@@ -147,10 +154,12 @@ def test_shipped_ogden_constants_follow_the_cited_dragon_skin_10_fit_in_every_mo
     for name, (I1, half_dI1, k) in modes.items():
         x = I1 - 3
         yeoh = 2 * half_dI1 * (0.036 + 2 * 2.5e-4 * x + 3 * 2.3e-5 * x**2)
-        ogden = sum(2 * m / a * (lam ** (a - 1) - lam ** (-k * a - 1)) for m, a in zip(mu, al))
+        ogden = sum(2 * m / a * (lam ** (a - 1) - lam ** (-k * a - 1)) for m, a in zip(mu, al, strict=False))
         assert np.max(np.abs(ogden / yeoh - 1)) < 0.08, name
     nominal = rpam.material_force(lam, ACT) / ACT.A0_m2 / 1e6
-    assert nominal == pytest.approx(sum(2 * m / a * (lam ** (a - 1) - lam ** (-a / 2 - 1)) for m, a in zip(mu, al)))
+    assert nominal == pytest.approx(
+        sum(2 * m / a * (lam ** (a - 1) - lam ** (-a / 2 - 1)) for m, a in zip(mu, al, strict=False))
+    )
     at_100 = float(rpam.material_force(2.0, ACT)) / ACT.A0_m2 / 1e6
     assert at_100 == pytest.approx(22 * 0.00689476, rel=0.2)  # datasheet 100% modulus, 22 psi
 
@@ -166,8 +175,9 @@ def test_stretch_correction_is_clamped_and_fits_back():
     assert rpam.fit_stretch_correction(lam, force) == pytest.approx(coef, abs=1e-8)
     with pytest.raises(ModelError) as e:
         rpam.fit_stretch_correction([1.0, 1.1, 1.1, 1.2], [0, 1, 1, 2])
-    assert str(e.value) == ("The stretch correction is a cubic and needs at least 4 distinct stretches; "
-                            "the stretch test gave 3.")
+    assert str(e.value) == (
+        "The stretch correction is a cubic and needs at least 4 distinct stretches; the stretch test gave 3."
+    )
 
 
 # --------------------------------------------------------------------------- balance
@@ -215,7 +225,9 @@ def test_solved_angle_satisfies_eq6_with_heron_arms_and_brent_agrees():
     assert float(grid.alpha_rad[0, 0]) == pytest.approx(alpha, abs=1e-12)
     # Stable: torque drives the joint back from either side, and the stiffness says so.
     h = 1e-4
-    assert rpam.joint_torque(alpha - h, 0.08, 0.06, PAPER, ACT) > 0 > rpam.joint_torque(alpha + h, 0.08, 0.06, PAPER, ACT)
+    assert (
+        rpam.joint_torque(alpha - h, 0.08, 0.06, PAPER, ACT) > 0 > rpam.joint_torque(alpha + h, 0.08, 0.06, PAPER, ACT)
+    )
     K = float(rpam.joint_stiffness(alpha, 0.08, 0.06, PAPER, ACT))
     assert K > 0
     assert float(rpam.joint_torque(alpha + h, 0.08, 0.06, PAPER, ACT)) == pytest.approx(-K * h, rel=1e-3)
@@ -252,8 +264,10 @@ def test_joint_map_matches_the_scalar_solver_and_marks_toggles():
 def test_no_equilibrium_is_a_clear_error():
     with pytest.raises(ModelError) as e:
         rpam.equilibrium_angle(0.138, 0.0, PAPER, ACT)
-    assert str(e.value) == ("The joint has no equilibrium below its toggle angle 60.2 deg at Pa = 138 kPa, "
-                            "Pb = 0 kPa: it runs onto the toggle (check the pressures and links).")
+    assert str(e.value) == (
+        "The joint has no equilibrium below its toggle angle 60.2 deg at Pa = 138 kPa, "
+        "Pb = 0 kPa: it runs onto the toggle (check the pressures and links)."
+    )
 
 
 # --------------------------------------------------------------------------- protocol file
@@ -277,8 +291,10 @@ def test_overrides_set_values_and_reject_unknown_keys():
     assert out["ogden"]["alpha"] == [1.5, 5, -2]
     with pytest.raises(ConfigError) as e:
         rpam.apply_overrides(RAW, ["actuator.L0=0.08"])
-    assert str(e.value) == ("Unknown protocol key 'actuator.L0' in --set; keys under actuator: "
-                            "A0_m2, L0_m, n_turns, prestretch, thread_length_m.")
+    assert str(e.value) == (
+        "Unknown protocol key 'actuator.L0' in --set; keys under actuator: "
+        "A0_m2, L0_m, n_turns, prestretch, thread_length_m."
+    )
     with pytest.raises(ConfigError) as e:
         rpam.apply_overrides(RAW, ["ogden.alpha=[1, 2]"])
     assert str(e.value) == "--set ogden.alpha=[1, 2]: expected a list of 3 values like the protocol's [1.3, 5.0, -2.0]."
@@ -295,14 +311,18 @@ def test_bad_protocol_values_are_one_sentence(tmp_path):
     bad = rpam.apply_overrides(RAW, ["ogden.mu_MPa=[0.1004, 0.00281, -0.03314]"])
     with pytest.raises(ConfigError) as e:
         rpam.actuator_from_protocol(bad, "p.toml")
-    assert str(e.value) == ("Ogden constants in p.toml need mu_i > 0 and alpha_i != 0 for every term (Eq. 3's "
-                            "convention; a negative mu_i makes the wall unstable outside uniaxial tension).")
+    assert str(e.value) == (
+        "Ogden constants in p.toml need mu_i > 0 and alpha_i != 0 for every term (Eq. 3's "
+        "convention; a negative mu_i makes the wall unstable outside uniaxial tension)."
+    )
     bad = rpam.apply_overrides(RAW, ["actuator.A0_m2=5e-4"])
     with pytest.raises(ConfigError) as e:
         rpam.actuator_from_protocol(bad, "p.toml")
-    assert str(e.value) == ("Protocol key 'actuator.A0_m2' in p.toml must be less than the cage's section at rest, "
-                            "pi r^2 = 0.0004909 m^2 (r from actuator.n_turns and thread_length_m): the wall lies "
-                            "inside the thread cage.")
+    assert str(e.value) == (
+        "Protocol key 'actuator.A0_m2' in p.toml must be less than the cage's section at rest, "
+        "pi r^2 = 0.0004909 m^2 (r from actuator.n_turns and thread_length_m): the wall lies "
+        "inside the thread cage."
+    )
     bad = rpam.apply_overrides(RAW, ["actuator.thread_length_m=0.05"])
     with pytest.raises(ConfigError) as e:
         rpam.actuator_from_protocol(bad, "p.toml")
@@ -340,7 +360,9 @@ def test_joint_map_plan_spans_the_papers_pressures():
     bad = rpam.apply_overrides(RAW, ["experiments.joint_map.Pa_count=0"])
     with pytest.raises(ConfigError) as e:
         rpam.joint_map_plan(bad, "p.toml")
-    assert str(e.value) == "Protocol key 'experiments.joint_map.Pa_count' in p.toml must be a whole number of at least 1."
+    assert (
+        str(e.value) == "Protocol key 'experiments.joint_map.Pa_count' in p.toml must be a whole number of at least 1."
+    )
 
 
 def test_fast_arms_in_the_torque_match_the_cross_products():

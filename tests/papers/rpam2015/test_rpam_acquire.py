@@ -19,13 +19,13 @@ from scipy import stats
 
 from labcli.cli import cli
 from labcli.core.acquisition import acquire
-from labcli.errors import ConfigError, StoreError
 from labcli.core.protocol import load_protocol
-from labcli.papers.takuma2014.session import Baseline, Capture, Prompt
-from labcli.papers.rpam2015.session import acquisition_protocol, rpam_session
-from labcli.papers.rpam2015.sim.rig import RpamRig
 from labcli.core.store import RunFile
 from labcli.core.ui import UnattendedUI
+from labcli.errors import ConfigError, StoreError
+from labcli.papers.rpam2015.session import acquisition_protocol, rpam_session
+from labcli.papers.rpam2015.sim.rig import RpamRig
+from labcli.papers.takuma2014.session import Baseline, Capture, Prompt
 
 SHIPPED = Path(__file__).resolve().parents[3] / "protocols" / "rpam2015.toml"
 CHI2_999 = float(stats.chi2.ppf(0.999, 4))
@@ -41,8 +41,13 @@ def quiet_ui() -> UnattendedUI:
 def small_protocol(tmp_path: Path, *, name: str = "rpam-small", **replace: str) -> Path:
     """The shipped protocol with 3 pressures per payload and a 3 x 3 joint map (plus edits)."""
     text = SHIPPED.read_text(encoding="utf-8")
-    edits = {'name = "rpam2015"': f'name = "{name}"', "pressure_count = 20": "pressure_count = 3",
-             "Pa_count = 11": "Pa_count = 3", "Pb_count = 11": "Pb_count = 3", **replace}
+    edits = {
+        'name = "rpam2015"': f'name = "{name}"',
+        "pressure_count = 20": "pressure_count = 3",
+        "Pa_count = 11": "Pa_count = 3",
+        "Pb_count = 11": "Pb_count = 3",
+        **replace,
+    }
     for old, new in edits.items():
         assert text.count(old) == 1, old
         text = text.replace(old, new)
@@ -83,8 +88,15 @@ def run_experiment(path: Path, experiment: str, seed: int, protocol: str = "rpam
 
     device.Device.open = staticmethod(grab)
     try:
-        outcome = acquire(path, f"sim://?mode=rpam&seed={seed}&clock=virtual", protocol=protocol,
-                          experiment=experiment, unattended=True, ui=quiet_ui(), subscribers=(rec,))
+        outcome = acquire(
+            path,
+            f"sim://?mode=rpam&seed={seed}&clock=virtual",
+            protocol=protocol,
+            experiment=experiment,
+            unattended=True,
+            ui=quiet_ui(),
+            subscribers=(rec,),
+        )
     finally:
         device.Device.open = original
     assert outcome.status == "finished", outcome.message
@@ -116,7 +128,9 @@ def test_stretch_points_are_what_the_rig_did(stretch_run):
     assert table["point"].tolist() == list(range(1, 121)) and summary["records"] == "points"
     # The prompts, as a person at the stand reads them: payload x pressure, grams and kPa.
     assert rec.prompts[0].startswith("Take actuator A off the joint and hang it on the stretch stand")
-    assert "Point 7/120 (stretch): leave actuator A without a payload, set P_A = 60 kPa, then press Enter" in rec.prompts
+    assert (
+        "Point 7/120 (stretch): leave actuator A without a payload, set P_A = 60 kPa, then press Enter" in rec.prompts
+    )
     assert "Point 27/120 (stretch): hang 100 g on actuator A, set P_A = 60 kPa, then press Enter" in rec.prompts
     assert rec.prompts[-1] == "Take the payload off actuator A and vent it, then press Enter"
     truth_L = np.array([s["length_m"] for s in rec.captures])
@@ -160,7 +174,10 @@ def test_joint_points_are_deflections_from_the_vented_baseline(joint_run):
         table = run.table()
     assert len(table) == 121 and list(table.columns[:4]) == ["point", "P_A", "P_B", "alpha_deg"]
     assert "Point 12/121 (joint map): set P_A = 50.7 kPa and P_B = 41 kPa, then press Enter" in rec.prompts
-    assert "Point 12/121 (joint map): vent both actuators (P_A = P_B = 0 kPa) for the baseline, then press Enter" in rec.prompts
+    assert (
+        "Point 12/121 (joint map): vent both actuators (P_A = P_B = 0 kPa) for the baseline, then press Enter"
+        in rec.prompts
+    )
     base = np.array([s["alpha_rad"] for s in rec.baselines])
     cap = np.array([s["alpha_rad"] for s in rec.captures])
     # The potentiometer's offset (0.5 deg rms) cancels: what is stored is the true deflection.
@@ -168,8 +185,9 @@ def test_joint_points_are_deflections_from_the_vented_baseline(joint_run):
     assert np.max(np.abs(err)) < 6 * POT_NOISE_DEG * math.sqrt(2 / 50) + 0.1
     assert abs(math.degrees(rec.rig.pot_offset_rad)) > 0.05
     np.testing.assert_allclose(table["P_A0"], 0.0, atol=1e-3)
-    np.testing.assert_allclose(table[["P_A", "P_B"]].to_numpy(),
-                               table[["set_P_A_kPa", "set_P_B_kPa"]].to_numpy() * 1e-3, atol=1e-3)
+    np.testing.assert_allclose(
+        table[["P_A", "P_B"]].to_numpy(), table[["set_P_A_kPa", "set_P_B_kPa"]].to_numpy() * 1e-3, atol=1e-3
+    )
 
 
 def test_labcli_validate_with_the_fitted_correction_beats_the_model_without(stretch_run, joint_run, tmp_path):
@@ -186,7 +204,7 @@ def test_labcli_validate_with_the_fitted_correction_beats_the_model_without(stre
     assert s["with"]["max_abs_error_deg"] < s["without"]["max_abs_error_deg"]
     assert fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and fig.stat().st_size > 50_000
     text = runner.invoke(cli, ["validate", str(joint_run[0]), "--model", str(model)]).output
-    assert f"from the stretch fit in {model}." in text and f"Figure 8" not in text
+    assert f"from the stretch fit in {model}." in text and "Figure 8" not in text
 
 
 # --------------------------------------------------------------------------- resume, errors, settling
@@ -204,8 +222,15 @@ def test_an_interrupted_joint_map_resumes_where_it_stopped(tmp_path):
             if len(captures) == 5:
                 raise KeyboardInterrupt
 
-    outcome = acquire(path, port, protocol=str(proto), experiment="joint", unattended=True, ui=quiet_ui(),
-                      subscribers=(interrupt_in_point_5,))
+    outcome = acquire(
+        path,
+        port,
+        protocol=str(proto),
+        experiment="joint",
+        unattended=True,
+        ui=quiet_ui(),
+        subscribers=(interrupt_in_point_5,),
+    )
     assert outcome.status == "interrupted" and outcome.exit_code == 130
     assert outcome.message == (
         f"Interrupted during point 5, which was discarded; 4 points stored in {path} are safe. "
@@ -214,8 +239,9 @@ def test_an_interrupted_joint_map_resumes_where_it_stopped(tmp_path):
     runner = CliRunner()
     result = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume", "--unattended"])
     assert result.exit_code == 0, result.output
-    assert result.output.endswith(f"Session complete: 9 points stored in {path} (5 this session, "
-                                  + result.output.rsplit("this session, ", 1)[1])
+    assert result.output.endswith(
+        f"Session complete: 9 points stored in {path} (5 this session, " + result.output.rsplit("this session, ", 1)[1]
+    )
     with RunFile.open(path) as run:
         assert run.completed_ids() == list(range(1, 10)) and run.incomplete_ids() == []
         table = run.table()
@@ -223,55 +249,107 @@ def test_an_interrupted_joint_map_resumes_where_it_stopped(tmp_path):
     again = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume"])
     assert again.output == f"All 9 points of the joint map are already stored in {path}; nothing to resume.\n"
     other = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume", "--experiment", "stretch"])
-    assert other.output == (f"Error: {path} records the joint experiment, not stretch; "
-                            "drop --experiment to resume it.\n")
+    assert other.output == (
+        f"Error: {path} records the joint experiment, not stretch; drop --experiment to resume it.\n"
+    )
 
 
-@pytest.mark.parametrize("args, message", [
-    ([], "Protocol rpam2015 holds two experiments: choose one with --experiment stretch (the stretch test, "
-         "Figs. 5-6) or --experiment joint (the joint map, Fig. 8)."),
-    (["--experiment", "stretch", "--plan", "plan.csv"],
-     "--plan and --no-plan apply to force protocols; an rPAM experiment runs the grid of its protocol's "
-     "[experiments] table."),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            [],
+            "Protocol rpam2015 holds two experiments: choose one with --experiment stretch (the stretch test, "
+            "Figs. 5-6) or --experiment joint (the joint map, Fig. 8).",
+        ),
+        (
+            ["--experiment", "stretch", "--plan", "plan.csv"],
+            "--plan and --no-plan apply to force protocols; an rPAM experiment runs the grid of its protocol's "
+            "[experiments] table.",
+        ),
+    ],
+)
 def test_acquire_rpam_errors(tmp_path, args, message):
-    result = CliRunner().invoke(cli, ["acquire", str(tmp_path / "r.h5"), "--protocol", "rpam2015",
-                                      "--port", "sim://?mode=rpam&clock=virtual", "--unattended", *args])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "acquire",
+            str(tmp_path / "r.h5"),
+            "--protocol",
+            "rpam2015",
+            "--port",
+            "sim://?mode=rpam&clock=virtual",
+            "--unattended",
+            *args,
+        ],
+    )
     assert result.exit_code == 1 and result.output == f"Error: {message}\n"
     assert not (tmp_path / "r.h5").exists()
 
 
 def test_experiment_with_a_force_protocol_is_refused(tmp_path):
-    result = CliRunner().invoke(cli, ["acquire", str(tmp_path / "r.h5"), "--experiment", "joint",
-                                      "--port", "sim://?clock=virtual", "--unattended"])
-    assert result.output == ("Error: --experiment picks one experiment of an rPAM protocol; takuma2014 is of kind "
-                             "'force', so leave --experiment out.\n")
+    result = CliRunner().invoke(
+        cli,
+        ["acquire", str(tmp_path / "r.h5"), "--experiment", "joint", "--port", "sim://?clock=virtual", "--unattended"],
+    )
+    assert result.output == (
+        "Error: --experiment picks one experiment of an rPAM protocol; takuma2014 is of kind "
+        "'force', so leave --experiment out.\n"
+    )
 
 
 def test_the_mckibben_rig_fails_the_rpam_setup_check(tmp_path):
-    result = CliRunner().invoke(cli, ["acquire", str(tmp_path / "r.h5"), "--protocol", "rpam2015",
-                                      "--experiment", "joint", "--port", "sim://?clock=virtual", "--unattended"])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "acquire",
+            str(tmp_path / "r.h5"),
+            "--protocol",
+            "rpam2015",
+            "--experiment",
+            "joint",
+            "--port",
+            "sim://?clock=virtual",
+            "--unattended",
+        ],
+    )
     assert result.output == (
         "Error: The device on sim://?clock=virtual is 'mckibben-2dof-sim', but protocol rpam2015 is for "
-        "'rpam-joint': connect that rig, or pass the matching --protocol.\n")
+        "'rpam-joint': connect that rig, or pass the matching --protocol.\n"
+    )
     assert not (tmp_path / "r.h5").exists()
 
 
 def test_the_length_is_judged_for_settling(tmp_path):
     # A length limit below the draw wire's own noise can never be met: every point times out.
-    proto = small_protocol(tmp_path, name="rpam-strict", **{"settle_spread_mm = 0.15": "settle_spread_mm = 0.001",
-                                                            "timeout_s = 30.0": "timeout_s = 12.0"})
+    proto = small_protocol(
+        tmp_path,
+        name="rpam-strict",
+        **{"settle_spread_mm = 0.15": "settle_spread_mm = 0.001", "timeout_s = 30.0": "timeout_s = 12.0"},
+    )
     path = tmp_path / "s.h5"
-    outcome = acquire(path, "sim://?mode=rpam&seed=2&clock=virtual", protocol=str(proto), experiment="stretch",
-                      unattended=True, ui=quiet_ui())
+    outcome = acquire(
+        path,
+        "sim://?mode=rpam&seed=2&clock=virtual",
+        protocol=str(proto),
+        experiment="stretch",
+        unattended=True,
+        ui=quiet_ui(),
+    )
     assert outcome.status == "finished"
     with RunFile.open(path) as run:
         s = run.summary()["settle"]
     assert s["timeout_accepted"] == 18 == s["n"]
     # The same protocol with the shipped limit settles every point from the data.
     loose = small_protocol(tmp_path, name="rpam-loose", **{"timeout_s = 30.0": "timeout_s = 12.0"})
-    acquire(tmp_path / "l.h5", "sim://?mode=rpam&seed=2&clock=virtual", protocol=str(loose),
-            experiment="stretch", unattended=True, ui=quiet_ui())
+    acquire(
+        tmp_path / "l.h5",
+        "sim://?mode=rpam&seed=2&clock=virtual",
+        protocol=str(loose),
+        experiment="stretch",
+        unattended=True,
+        ui=quiet_ui(),
+    )
     with RunFile.open(tmp_path / "l.h5") as run:
         assert run.summary()["settle"]["timeout_accepted"] == 0
 
@@ -298,9 +376,28 @@ def test_store_refuses_points_of_the_other_experiment(tmp_path):
         with pytest.raises(StoreError) as e:
             run.write({"point": 1, "experiment": "stretch", "P_MPa": [0.1, 0.0], "mass_kg": 0.1, "L_m": 0.1})
         assert str(e.value) == "point 1 record lacks a finite 'lambda', which a stretch point needs."
-        run.write({"point": 2, "experiment": "stretch", "P_MPa": [0.1, 0.0], "mass_kg": 0.25,
-                         "L_m": 0.1, "lambda": 0.1 / 0.07, "plan": {"mass_g": 250.0, "P_A_kPa": 100.0}})
+        run.write(
+            {
+                "point": 2,
+                "experiment": "stretch",
+                "P_MPa": [0.1, 0.0],
+                "mass_kg": 0.25,
+                "L_m": 0.1,
+                "lambda": 0.1 / 0.07,
+                "plan": {"mass_g": 250.0, "P_A_kPa": 100.0},
+            }
+        )
         t = run.table()
         assert run.completed_ids() == [2]
-    assert t.to_dict("records") == [{"point": 2, "mass_g": 250.0, "P_A": 0.1, "P_B": 0.0, "L_m": 0.1,
-                                     "lambda": 0.1 / 0.07, "set_mass_g": 250.0, "set_P_A_kPa": 100.0}]
+    assert t.to_dict("records") == [
+        {
+            "point": 2,
+            "mass_g": 250.0,
+            "P_A": 0.1,
+            "P_B": 0.0,
+            "L_m": 0.1,
+            "lambda": 0.1 / 0.07,
+            "set_mass_g": 250.0,
+            "set_P_A_kPa": 100.0,
+        }
+    ]

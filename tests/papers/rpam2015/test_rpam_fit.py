@@ -8,15 +8,19 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-from support.rpam_runs import PATH, RAW, joint_table, stretch_table
 from scipy import stats
+from support.rpam_runs import PATH, RAW, joint_table, stretch_table
 
 from labcli.errors import ConfigError, ModelError
 from labcli.papers.rpam2015.figures import figure8, figure_stretch
 from labcli.papers.rpam2015.models import rpam
 from labcli.papers.rpam2015.models.rpam_fit import (
-    JointMapResult, StretchCorrection, StretchFit, analyse_joint_map, analyse_stretch,
-    correction_actuator, stretch_forces,
+    JointMapResult,
+    StretchCorrection,
+    StretchFit,
+    analyse_joint_map,
+    analyse_stretch,
+    correction_actuator,
 )
 from labcli.papers.rpam2015.sim.rig import RpamRig
 
@@ -70,8 +74,9 @@ def test_each_point_is_eq7_force_balance(stretch_run):
     p = {k: np.asarray(v) for k, v in fit.points.items()}
     np.testing.assert_allclose(p["F_ext_N"], p["mass_kg"] * 9.80665)
     np.testing.assert_allclose(p["F_ext_N"], p["F_cons_N"] + p["F_int_N"] + p["F_stretch_N"], atol=1e-12)
-    np.testing.assert_allclose(p["F_stretch_N"], rpam.stretch_residual(p["P_MPa"], p["L_m"], p["mass_kg"], ACT),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        p["F_stretch_N"], rpam.stretch_residual(p["P_MPa"], p["L_m"], p["mass_kg"], ACT), atol=1e-12
+    )
     np.testing.assert_allclose(p["lambda"], p["L_m"] / 0.07)
     np.testing.assert_allclose(p["residual_N"], p["F_stretch_N"] - p["fitted_N"], atol=1e-12)
 
@@ -104,8 +109,9 @@ def test_stretch_table_may_give_kg_and_lambda():
     P = np.tile(np.linspace(0, 0.15, 6), 3)
     L = rpam.loaded_length(P, mass, ACT)
     a = analyse_stretch({"mass_g": mass * 1e3, "P_A": P, "L_m": L + 1e-5 * rng.standard_normal(L.size)})
-    b = analyse_stretch(pd.DataFrame({"payload_kg": mass, "P_MPa": P,
-                                      "lambda": (L + 1e-5 * rng.standard_normal(L.size)) / ACT.L0_m}))
+    b = analyse_stretch(
+        pd.DataFrame({"payload_kg": mass, "P_MPa": P, "lambda": (L + 1e-5 * rng.standard_normal(L.size)) / ACT.L0_m})
+    )
     # The protocol's model produced these lengths: the fit finds its own default correction
     # (clamped at lambda 2.2 in the model, so compare inside the clamp).
     lam = np.linspace(1.0, 2.2, 20)
@@ -125,26 +131,42 @@ def test_missing_values_are_skipped_and_listed():
     assert fit.points["row"] == [10, 11, 12, 13, 14, 15]
 
 
-@pytest.mark.parametrize("table, message", [
-    ({"mass_g": [], "P_A": [], "L_m": []},
-     "The stretch table is empty; run the stretch test (payloads x pressures) first."),
-    ({"mass_g": [0.0], "P_A": [0.1]},
-     "The stretch table needs a column 'L_m' or 'lambda'; it has mass_g, P_A."),
-    ({"mass_g": [0, 100, 200, 300], "P_A": [0.1] * 4, "L_m": [0.08, 0.09, 0.1, 0.11]},
-     "The stretch correction is a cubic and needs at least 5 points at 4 or more distinct stretches; "
-     "the stretch test gave 4 points at 4 distinct stretches."),
-    ({"mass_g": [0, 100, 200, 300, 400, 500], "P_A": [0.1] * 6, "L_m": [0.08, 0.08, 0.09, 0.09, 0.1, 0.1]},
-     "The stretch correction is a cubic and needs at least 5 points at 4 or more distinct stretches; "
-     "the stretch test gave 6 points at 3 distinct stretches."),
-    ({"mass_g": [0, -100], "P_A": [0.1, 0.1], "L_m": [0.08, 0.09]},
-     "Row 1 of the stretch table has payload = -0.1; a payload cannot be negative."),
-    ({"mass_g": [0, 100], "P_A": [0.1, 0.1], "L_m": [0.08, 0.0]},
-     "Row 1 of the stretch table has length = 0; an actuator length must be positive (m)."),
-    ({"mass_g": [float("nan")] * 2, "P_A": [0.1, 0.1], "L_m": [0.08, 0.09]},
-     "Every one of the 2 rows of the stretch table misses a payload, pressure or length."),
-    ({"mass_g": ["a", "b"], "P_A": [0.1, 0.1], "L_m": [0.08, 0.09]},
-     "Column 'mass_g' of the stretch table must hold numbers."),
-])
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        (
+            {"mass_g": [], "P_A": [], "L_m": []},
+            "The stretch table is empty; run the stretch test (payloads x pressures) first.",
+        ),
+        ({"mass_g": [0.0], "P_A": [0.1]}, "The stretch table needs a column 'L_m' or 'lambda'; it has mass_g, P_A."),
+        (
+            {"mass_g": [0, 100, 200, 300], "P_A": [0.1] * 4, "L_m": [0.08, 0.09, 0.1, 0.11]},
+            "The stretch correction is a cubic and needs at least 5 points at 4 or more distinct stretches; "
+            "the stretch test gave 4 points at 4 distinct stretches.",
+        ),
+        (
+            {"mass_g": [0, 100, 200, 300, 400, 500], "P_A": [0.1] * 6, "L_m": [0.08, 0.08, 0.09, 0.09, 0.1, 0.1]},
+            "The stretch correction is a cubic and needs at least 5 points at 4 or more distinct stretches; "
+            "the stretch test gave 6 points at 3 distinct stretches.",
+        ),
+        (
+            {"mass_g": [0, -100], "P_A": [0.1, 0.1], "L_m": [0.08, 0.09]},
+            "Row 1 of the stretch table has payload = -0.1; a payload cannot be negative.",
+        ),
+        (
+            {"mass_g": [0, 100], "P_A": [0.1, 0.1], "L_m": [0.08, 0.0]},
+            "Row 1 of the stretch table has length = 0; an actuator length must be positive (m).",
+        ),
+        (
+            {"mass_g": [float("nan")] * 2, "P_A": [0.1, 0.1], "L_m": [0.08, 0.09]},
+            "Every one of the 2 rows of the stretch table misses a payload, pressure or length.",
+        ),
+        (
+            {"mass_g": ["a", "b"], "P_A": [0.1, 0.1], "L_m": [0.08, 0.09]},
+            "Column 'mass_g' of the stretch table must hold numbers.",
+        ),
+    ],
+)
 def test_stretch_errors_are_one_sentence(table, message):
     with pytest.raises(ModelError) as e:
         analyse_stretch(table)
@@ -152,7 +174,9 @@ def test_stretch_errors_are_one_sentence(table, message):
 
 
 def test_unfitted_and_foreign_records_are_refused():
-    with pytest.raises(ModelError, match="^The stretch correction has not been fitted; fit it to a stretch test first.$"):
+    with pytest.raises(
+        ModelError, match="^The stretch correction has not been fitted; fit it to a stretch test first.$"
+    ):
         StretchCorrection().predict(1.5)
     with pytest.raises(ModelError) as e:
         StretchFit.from_json('{"kind": "rpam-joint-map"}')
@@ -260,8 +284,7 @@ def test_grid_recovers_the_plan_from_noisy_pressures(joint_run):
     assert cells["measured"].shape == (11, 11)
     # Rows index Pb, columns Pa: raising Pa (left to right) raises the angle.
     assert cells["measured"][0, -2] > cells["measured"][0, 0]
-    scattered = analyse_joint_map({"P_A": [0.05, 0.06, 0.07], "P_B": [0.05, 0.05, 0.06],
-                                   "alpha_deg": [0.0, 5.0, 3.0]})
+    scattered = analyse_joint_map({"P_A": [0.05, 0.06, 0.07], "P_B": [0.05, 0.05, 0.06], "alpha_deg": [0.0, 5.0, 3.0]})
     assert scattered.grid() is None
 
 
@@ -277,17 +300,28 @@ def test_joint_map_json_round_trip(joint_run):
     assert back.actuator == res.actuator and back.geometry == res.geometry
 
 
-@pytest.mark.parametrize("table, message", [
-    ({"P_A": [], "P_B": [], "alpha_deg": []},
-     "The joint-map table is empty; measure the joint over a Pa x Pb grid first."),
-    ({"P_A": [0.05], "alpha_deg": [1.0]},
-     "The joint-map table needs a column 'P_B' or 'Pb_MPa'; it has P_A, alpha_deg."),
-    ({"P_A": [0.05, -0.01], "P_B": [0.05, 0.05], "alpha_deg": [0.0, 1.0]},
-     "Row 1 of the joint-map table has P_A = -0.01; the rPAM works with gauge pressures of 0 MPa or more, "
-     "so a reading below -5 kPa points to a pressure sensor or its calibration."),
-    ({"P_A": [0.05], "P_B": [0.05], "alpha_deg": [float("nan")]},
-     "Every one of the 1 rows of the joint-map table misses a pressure or an angle."),
-])
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        (
+            {"P_A": [], "P_B": [], "alpha_deg": []},
+            "The joint-map table is empty; measure the joint over a Pa x Pb grid first.",
+        ),
+        (
+            {"P_A": [0.05], "alpha_deg": [1.0]},
+            "The joint-map table needs a column 'P_B' or 'Pb_MPa'; it has P_A, alpha_deg.",
+        ),
+        (
+            {"P_A": [0.05, -0.01], "P_B": [0.05, 0.05], "alpha_deg": [0.0, 1.0]},
+            "Row 1 of the joint-map table has P_A = -0.01; the rPAM works with gauge pressures of 0 MPa or more, "
+            "so a reading below -5 kPa points to a pressure sensor or its calibration.",
+        ),
+        (
+            {"P_A": [0.05], "P_B": [0.05], "alpha_deg": [float("nan")]},
+            "Every one of the 1 rows of the joint-map table misses a pressure or an angle.",
+        ),
+    ],
+)
 def test_joint_map_errors_are_one_sentence(table, message):
     with pytest.raises(ModelError) as e:
         analyse_joint_map(table)

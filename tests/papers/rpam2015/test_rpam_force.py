@@ -60,9 +60,11 @@ def test_vented_and_stretched_it_is_eq3_exactly():
 def test_on_the_cage_the_gas_term_is_eq2_rederived_without_a_wall_term():
     L = np.linspace(0.07, 0.14, 8)
     for P in (0.041, 0.096, 0.138):
-        np.testing.assert_allclose(rpam.constraint_force(P, L, ACT),
-                                   P * MPA * (3 * L**2 - ACT.thread_length_m**2) / (4 * math.pi * ACT.n_turns**2),
-                                   rtol=1e-13)
+        np.testing.assert_allclose(
+            rpam.constraint_force(P, L, ACT),
+            P * MPA * (3 * L**2 - ACT.thread_length_m**2) / (4 * math.pi * ACT.n_turns**2),
+            rtol=1e-13,
+        )
         # ... and the wall's part does not depend on the pressure while the cage holds it.
         np.testing.assert_allclose(rpam.wall_force(P, L, ACT), rpam.wall_force(0.041, L, ACT), rtol=1e-12)
     assert float(rpam.wall_force(0.096, ACT.L0_m, ACT)) == pytest.approx(0.0, abs=1e-9)
@@ -74,7 +76,10 @@ def test_hoop_threads_and_a_thin_wall_give_planar_ogden_extension():
     r, L0, A0 = 0.0125, 0.07, 1e-9  # a vanishingly thin wall (13 nm)
     act = replace(ACT, L0_m=L0, A0_m2=A0, n_turns=1e5, thread_length_m=math.hypot(2 * math.pi * r * 1e5, L0))
     lam = np.array([1.2, 1.6, 2.0, 2.5])
-    planar = sum(2 * m * MPA * A0 / a * (lam ** (a - 1) - lam ** (-a - 1)) for m, a in zip(act.ogden_mu_MPa, act.ogden_alpha))
+    planar = sum(
+        2 * m * MPA * A0 / a * (lam ** (a - 1) - lam ** (-a - 1))
+        for m, a in zip(act.ogden_mu_MPa, act.ogden_alpha, strict=False)
+    )
     np.testing.assert_allclose(rpam.wall_force(0.1, lam * L0, act), planar, rtol=1e-5)
     # Stiffer than Eq. 3's uniaxial wall: 4 mu A0 against 3 mu A0 per unit stretch at rest.
     h = 1e-5
@@ -97,7 +102,13 @@ def test_thick_neo_hookean_wall_on_the_cage_matches_its_closed_form_energy():
         ro2 = float(rf.cage_radius_sq(L, act))
         ri2 = ro2 - act.A0_m2 / (math.pi * lam)
         A = ro2 - Ro2 / lam
-        U = mu * MPA / 2 * act.L0_m * (act.A0_m2 * (lam**2 + 2 / lam - 3) + math.pi * A * math.log(Ro2 * ri2 / (Ri2 * ro2)))
+        U = (
+            mu
+            * MPA
+            / 2
+            * act.L0_m
+            * (act.A0_m2 * (lam**2 + 2 / lam - 3) + math.pi * A * math.log(Ro2 * ri2 / (Ri2 * ro2)))
+        )
         gas_volume = math.pi * ro2 * L - act.A0_m2 * act.L0_m
         assert float(rf.potential_energy(P, L, act)) + P * MPA * gas_volume == pytest.approx(U, rel=1e-7)
 

@@ -11,11 +11,17 @@ from support.imports import MODULES, reachable
 from support.rpam_runs import capture
 
 from labcli.core.device import Device
-from labcli.papers.rpam2015.models import rpam
 from labcli.core.sim import make_rig, modes
+from labcli.papers.rpam2015.models import rpam
 from labcli.papers.rpam2015.protocol import read_rpam_protocol
 from labcli.papers.rpam2015.sim.rig import (
-    ADC_MAX, CALIBRATION, CHANNELS, STOP_MARGIN_DEG, RpamRig, counts_to_si, si_to_counts,
+    ADC_MAX,
+    CALIBRATION,
+    CHANNELS,
+    STOP_MARGIN_DEG,
+    RpamRig,
+    counts_to_si,
+    si_to_counts,
 )
 
 KPA = 1e-3
@@ -142,8 +148,9 @@ def test_the_rigs_cross_product_torque_is_eq6_with_the_models_moment_arms():
     La, Lb = rpam.actuator_lengths(alpha, GEOM)
     np.testing.assert_allclose(rig.links.lengths(alpha), (La, Lb), rtol=1e-13)
     for pa, pb in ((0.041, 0.041), (0.096, 0.041), (0.0, 0.138)):
-        np.testing.assert_allclose(rig.joint_torque(alpha, pa, pb), rpam.joint_torque(alpha, pa, pb, GEOM, ACT),
-                                   rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(
+            rig.joint_torque(alpha, pa, pb), rpam.joint_torque(alpha, pa, pb, GEOM, ACT), rtol=1e-7, atol=1e-9
+        )
     assert rig.toggle_rad == pytest.approx(float(rpam.toggle_angle(GEOM)), abs=1e-15)
 
 
@@ -203,8 +210,9 @@ def test_stretch_stand_length_is_the_loaded_length_of_the_true_actuator():
     # The true correction is never clamped: at lambda beyond the protocol's range it still grows.
     tube = rig.tubes[0]
     coef = rig.true_stretch_coefficients_N["A"]
-    assert float(tube.tension(0.1, 3.0 * tube.L0_m) - rpam.external_force(0.1, 3.0 * tube.L0_m, ACT, stretch=False)) == \
-        pytest.approx(np.polyval(coef[::-1], 3.0), abs=1e-6)
+    assert float(
+        tube.tension(0.1, 3.0 * tube.L0_m) - rpam.external_force(0.1, 3.0 * tube.L0_m, ACT, stretch=False)
+    ) == pytest.approx(np.polyval(coef[::-1], 3.0), abs=1e-6)
 
 
 def test_heavier_payload_and_higher_pressure_both_lengthen_the_actuator():

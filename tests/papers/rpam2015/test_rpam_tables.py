@@ -23,13 +23,13 @@ from rich.console import Console
 
 from labcli.cli import cli
 from labcli.core.acquisition import acquire
-from labcli.errors import ConfigError
 from labcli.core.protocol import load_protocol
-from labcli.papers.rpam2015.session import acquisition_protocol
 from labcli.core.store import RunFile, columns, import_table
 from labcli.core.tables import TableError
-from labcli.papers.rpam2015.tables import read_point_csv
 from labcli.core.ui import UnattendedUI
+from labcli.errors import ConfigError
+from labcli.papers.rpam2015.session import acquisition_protocol
+from labcli.papers.rpam2015.tables import read_point_csv
 
 SHIPPED = Path(__file__).resolve().parents[3] / "protocols" / "rpam2015.toml"
 STRETCH_HEADER = "point,mass_g,P_A,P_B,L_m,lambda,set_mass_g,set_P_A_kPa,set_P_B_kPa"
@@ -40,8 +40,12 @@ TABLE_HEAD = "has 1 problem (rows counted as a spreadsheet shows them, the heade
 def small_protocol(folder: Path) -> Path:
     """The shipped protocol with 4 pressures per payload (24 points) and a 3 x 3 joint map."""
     text = SHIPPED.read_text(encoding="utf-8")
-    for old, new in {'name = "rpam2015"': 'name = "rpam-small"', "pressure_count = 20": "pressure_count = 4",
-                     "Pa_count = 11": "Pa_count = 3", "Pb_count = 11": "Pb_count = 3"}.items():
+    for old, new in {
+        'name = "rpam2015"': 'name = "rpam-small"',
+        "pressure_count = 20": "pressure_count = 4",
+        "Pa_count = 11": "Pa_count = 3",
+        "Pb_count = 11": "Pb_count = 3",
+    }.items():
         assert text.count(old) == 1, old
         text = text.replace(old, new)
     path = folder / "rpam-small.toml"
@@ -56,8 +60,14 @@ def runs(tmp_path_factory):
     out = {"dir": d, "protocol": proto}
     for experiment in ("stretch", "joint"):
         path = d / f"{experiment}.h5"
-        outcome = acquire(path, "sim://?mode=rpam&seed=5&clock=virtual", protocol=str(proto), experiment=experiment,
-                          unattended=True, ui=UnattendedUI(console=Console(file=io.StringIO())))
+        outcome = acquire(
+            path,
+            "sim://?mode=rpam&seed=5&clock=virtual",
+            protocol=str(proto),
+            experiment=experiment,
+            unattended=True,
+            ui=UnattendedUI(console=Console(file=io.StringIO())),
+        )
         assert outcome.status == "finished", outcome.message
         out[experiment] = path
     return out
@@ -80,8 +90,10 @@ def table_of(path: Path) -> pd.DataFrame:
 # --------------------------------------------------------------------------- export
 
 
-@pytest.mark.parametrize("experiment, header, n, title", [("stretch", STRETCH_HEADER, 24, "stretch test"),
-                                                          ("joint", JOINT_HEADER, 9, "joint map")])
+@pytest.mark.parametrize(
+    "experiment, header, n, title",
+    [("stretch", STRETCH_HEADER, 24, "stretch test"), ("joint", JOINT_HEADER, 9, "joint map")],
+)
 def test_export_writes_every_point_of_the_run(runs, tmp_path, experiment, header, n, title):
     csv = tmp_path / f"{experiment}.csv"
     r = invoke("export", runs[experiment], "-o", csv)
@@ -116,7 +128,9 @@ def test_export_import_export_is_byte_identical(runs, tmp_path, experiment):
 def test_an_imported_stretch_test_fits_exactly_as_the_recorded_one(runs, tmp_path):
     csv, imported = tmp_path / "s.csv", tmp_path / "s.h5"
     assert invoke("export", runs["stretch"], "-o", csv).exit_code == 0
-    assert invoke("import", csv, "-o", imported, "--protocol", runs["protocol"], "--experiment", "stretch").exit_code == 0
+    assert (
+        invoke("import", csv, "-o", imported, "--protocol", runs["protocol"], "--experiment", "stretch").exit_code == 0
+    )
     fits = []
     for run in (runs["stretch"], imported):
         r = invoke("fit", run, "-o", tmp_path / f"{Path(run).stem}.json", "--json")
@@ -136,7 +150,10 @@ def test_an_imported_joint_map_validates_as_the_recorded_one(runs, tmp_path):
         assert r.exit_code == 0, r.output
         results.append(json.loads(r.output))
     # Every number of the comparison (RMSE, toggles, per-point errors) is the same.
-    a, b = (json.dumps(r, sort_keys=True).replace(str(p), "RUN") for r, p in zip(results, (runs["joint"], imported)))
+    a, b = (
+        json.dumps(r, sort_keys=True).replace(str(p), "RUN")
+        for r, p in zip(results, (runs["joint"], imported), strict=False)
+    )
     assert a == b and "rmse" in a
 
 
@@ -176,18 +193,32 @@ def test_a_joint_table_without_baseline_or_length_keeps_what_it_has(tmp_path):
         assert f["entry/points/alpha"][list(f["entry/points/point"][:]).index(3)] == math.radians(-30.5)
 
 
-@pytest.mark.parametrize("experiment, text, problem", [
-    ("joint", "point,P_A,P_B,alpha_deg,P_A0\n1,0.05,0.05,1.0,0.0\n",
-     "j.csv:row 1, column P_B0: is missing from the header but P_A0 is there; give both columns or neither."),
-    ("stretch", "point,mass_g,P_A,P_B,L_m\n1,-100,0.05,0.0,0.09\n",
-     "j.csv:row 2, column mass_g: -100 must be 0 or more."),
-    ("stretch", "point,mass_g,P_A,P_B,L_m\n1000000,100,0.05,0.0,0.09\n",
-     "j.csv:row 2, column point: 1000000 is outside the point ids a run file holds, 0 to 999999."),
-    ("joint", "point,P_A,P_B,alpha_deg,note\n1,0.05,0.05,1.0,a\x00b\n",
-     "j.csv:row 2, column note: holds a NUL character, which a run file cannot store; remove it."),
-    ("joint", "point,P_A,P_B,alpha_deg\n1,0.05,high,1.0\n",
-     "j.csv:row 2, column P_B: 'high' is not a number."),
-])
+@pytest.mark.parametrize(
+    "experiment, text, problem",
+    [
+        (
+            "joint",
+            "point,P_A,P_B,alpha_deg,P_A0\n1,0.05,0.05,1.0,0.0\n",
+            "j.csv:row 1, column P_B0: is missing from the header but P_A0 is there; give both columns or neither.",
+        ),
+        (
+            "stretch",
+            "point,mass_g,P_A,P_B,L_m\n1,-100,0.05,0.0,0.09\n",
+            "j.csv:row 2, column mass_g: -100 must be 0 or more.",
+        ),
+        (
+            "stretch",
+            "point,mass_g,P_A,P_B,L_m\n1000000,100,0.05,0.0,0.09\n",
+            "j.csv:row 2, column point: 1000000 is outside the point ids a run file holds, 0 to 999999.",
+        ),
+        (
+            "joint",
+            "point,P_A,P_B,alpha_deg,note\n1,0.05,0.05,1.0,a\x00b\n",
+            "j.csv:row 2, column note: holds a NUL character, which a run file cannot store; remove it.",
+        ),
+        ("joint", "point,P_A,P_B,alpha_deg\n1,0.05,high,1.0\n", "j.csv:row 2, column P_B: 'high' is not a number."),
+    ],
+)
 def test_bad_point_tables_are_refused_by_row_and_column(tmp_path, monkeypatch, experiment, text, problem):
     monkeypatch.chdir(tmp_path)
     Path("j.csv").write_text(text)
@@ -197,10 +228,13 @@ def test_bad_point_tables_are_refused_by_row_and_column(tmp_path, monkeypatch, e
 
 
 def test_experiment_with_a_force_protocol_is_refused(tmp_path):
-    r = invoke("import", tmp_path / "x.csv", "-o", tmp_path / "x.h5", "--protocol", "takuma2014",
-               "--experiment", "joint")
-    assert r.exit_code == 1 and r.output == ("Error: --experiment picks one experiment of an rPAM protocol; "
-                                             "takuma2014 is of kind 'force', so leave --experiment out.\n")
+    r = invoke(
+        "import", tmp_path / "x.csv", "-o", tmp_path / "x.h5", "--protocol", "takuma2014", "--experiment", "joint"
+    )
+    assert r.exit_code == 1 and r.output == (
+        "Error: --experiment picks one experiment of an rPAM protocol; "
+        "takuma2014 is of kind 'force', so leave --experiment out.\n"
+    )
 
 
 def test_read_point_csv_names_the_experiments(tmp_path):
@@ -216,10 +250,18 @@ def test_read_point_csv_names_the_experiments(tmp_path):
 
 
 def test_import_table_refuses_nul_before_making_a_file(tmp_path):
-    df = pd.DataFrame({"trial": [1, 2], "set": ["fit", "fit"], **{c: [0.2, 0.2] for c in (
-        "P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2")},
-        "theta1_deg": [1.0, 2.0], "theta2_deg": [0.5, 0.5], "Fx_N": [0.0, 0.0], "Fy_N": [-1.0, -2.0],
-        "note": ["ok", "x\x00y"]})
+    df = pd.DataFrame(
+        {
+            "trial": [1, 2],
+            "set": ["fit", "fit"],
+            **{c: [0.2, 0.2] for c in ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2")},
+            "theta1_deg": [1.0, 2.0],
+            "theta2_deg": [0.5, 0.5],
+            "Fx_N": [0.0, 0.0],
+            "Fy_N": [-1.0, -2.0],
+            "note": ["ok", "x\x00y"],
+        }
+    )
     proto = load_protocol("takuma2014")
     with pytest.raises(ConfigError) as e:
         import_table(df, tmp_path / "r.h5", protocol=proto)
@@ -227,8 +269,9 @@ def test_import_table_refuses_nul_before_making_a_file(tmp_path):
     df = df.rename(columns={"note": "no\x00te"}).assign(**{"no\x00te": ["a", "b"]})
     with pytest.raises(ConfigError) as e:
         import_table(df, tmp_path / "r.h5", protocol=proto)
-    assert str(e.value) == ("the column name 'no\\x00te' holds a NUL character, which a run file cannot store; "
-                            "rename the column.")
+    assert str(e.value) == (
+        "the column name 'no\\x00te' holds a NUL character, which a run file cannot store; rename the column."
+    )
     assert list(tmp_path.iterdir()) == []
 
 
@@ -251,8 +294,9 @@ def test_inspect_shows_the_experiment_its_coverage_and_settling(runs):
         f"{t['lambda'].max():.3f} (L / L0)",
     ]
     st = s["settle"]
-    assert lines[9] == (f"  settling    median {st['median_s']:.2f} s, max {st['max_s']:.2f} s over 24 points; "
-                        "0 accepted on timeout")
+    assert lines[9] == (
+        f"  settling    median {st['median_s']:.2f} s, max {st['max_s']:.2f} s over 24 points; 0 accepted on timeout"
+    )
     # The payloads are the protocol's; the pressure sweep reaches its top, 190 kPa, within the sensor's noise.
     assert s["rpam"]["payloads_g"] == [0.0, 100.0, 200.0, 300.0, 1000.0, 1300.0]
     assert s["rpam"]["P_A_kPa"][1] == pytest.approx(190.0, abs=0.5)
@@ -266,8 +310,15 @@ def test_inspect_a_joint_map_cut_short(runs, tmp_path):
     full = table_of(runs["joint"])
     with RunFile.create(path, protocol=proto, port="sim://") as run:
         for row in full.head(4).itertuples():
-            run.write({"point": row.point, "experiment": "joint", "P_MPa": [row.P_A, row.P_B],
-                             "alpha_rad": math.radians(row.alpha_deg), "settle": {"load": {"settle_time_s": 2.5}}})
+            run.write(
+                {
+                    "point": row.point,
+                    "experiment": "joint",
+                    "P_MPa": [row.P_A, row.P_B],
+                    "alpha_rad": math.radians(row.alpha_deg),
+                    "settle": {"load": {"settle_time_s": 2.5}},
+                }
+            )
         # what a kill during the fifth write leaves: its row written, never committed
         with mock.patch.object(columns.Table, "commit", side_effect=KeyboardInterrupt):
             with pytest.raises(KeyboardInterrupt):

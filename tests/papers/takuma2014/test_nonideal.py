@@ -48,9 +48,16 @@ def session_digest(url: str) -> str:
     h = hashlib.sha256()
     h.update(port.read(port.in_waiting))
     port.write(b"START\n")
-    steps = [rig.supply_air, rig.close_valves, lambda: rig.hang_weight(0.5, np.radians(30)), rig.remove_weight,
-             lambda: rig.hang_weight(1.0, np.radians(-120)), rig.remove_weight,
-             lambda: rig.push_object(0.033, 0.010, np.radians(10), 420.0), rig.release_object]
+    steps = [
+        rig.supply_air,
+        rig.close_valves,
+        lambda: rig.hang_weight(0.5, np.radians(30)),
+        rig.remove_weight,
+        lambda: rig.hang_weight(1.0, np.radians(-120)),
+        rig.remove_weight,
+        lambda: rig.push_object(0.033, 0.010, np.radians(10), 420.0),
+        rig.release_object,
+    ]
     for act in steps:
         act()
         h.update(port.read(60_000))
@@ -60,13 +67,18 @@ def session_digest(url: str) -> str:
     return h.hexdigest()
 
 
-@pytest.mark.parametrize("url,digest", [
-    # Recorded from the rig before the non-idealities and the paper-scale retune existed
-    # (then simply sim://?seed=1 and sim://?seed=7&noise=2&tau=0.5).
-    ("sim://?seed=1&ideal=1&design=thin", "69ead969c4b47b520aed1de6e8e63144afce3f4d15e4d73e4c695620483b5ae7"),
-    ("sim://?seed=7&noise=2&tau=0.5&ideal=1&design=thin",
-     "c2daaca6bef81cc75fb2a74dbddb66b09dc398b883fab2b6d453d335bb6dfa0e"),
-])
+@pytest.mark.parametrize(
+    "url,digest",
+    [
+        # Recorded from the rig before the non-idealities and the paper-scale retune existed
+        # (then simply sim://?seed=1 and sim://?seed=7&noise=2&tau=0.5).
+        ("sim://?seed=1&ideal=1&design=thin", "69ead969c4b47b520aed1de6e8e63144afce3f4d15e4d73e4c695620483b5ae7"),
+        (
+            "sim://?seed=7&noise=2&tau=0.5&ideal=1&design=thin",
+            "c2daaca6bef81cc75fb2a74dbddb66b09dc398b883fab2b6d453d335bb6dfa0e",
+        ),
+    ],
+)
 def test_ideal_thin_rig_reproduces_the_earlier_rig_byte_for_byte(url, digest):
     assert session_digest(url) == digest
 
@@ -98,17 +110,26 @@ def test_default_rig_is_realistic_and_each_switch_turns_its_effect_off():
         NonIdeal(leak=-1)
 
 
-@pytest.mark.parametrize("url,message", [
-    ("sim://?ideal=yes", "option 'ideal' in sim:// URL must be 0 or 1, got 'yes'"),
-    ("sim://?friction=-0.5", "option 'friction' in sim:// URL must be a number >= 0, got '-0.5'"),
-    ("sim://?supply=0.3,0.3", "option 'supply' in sim:// URL must be one or four pressures in MPa within "
-                              "0..1, comma-separated, got '0.3,0.3'"),
-    ("sim://?supply=1.5", "option 'supply' in sim:// URL must be one or four pressures in MPa within "
-                          "0..1, comma-separated, got '1.5'"),
-    ("sim://?design=fat", "option 'design' in sim:// URL must be one of paper, thin, got 'fat'"),
-    ("sim://?mode=rpam&leak=1", "option 'leak' in sim:// URL applies to mode=mckibben only"),
-    ("sim://?hysteresis=1", "unknown option 'hysteresis' in sim:// URL"),
-])
+@pytest.mark.parametrize(
+    "url,message",
+    [
+        ("sim://?ideal=yes", "option 'ideal' in sim:// URL must be 0 or 1, got 'yes'"),
+        ("sim://?friction=-0.5", "option 'friction' in sim:// URL must be a number >= 0, got '-0.5'"),
+        (
+            "sim://?supply=0.3,0.3",
+            "option 'supply' in sim:// URL must be one or four pressures in MPa within "
+            "0..1, comma-separated, got '0.3,0.3'",
+        ),
+        (
+            "sim://?supply=1.5",
+            "option 'supply' in sim:// URL must be one or four pressures in MPa within "
+            "0..1, comma-separated, got '1.5'",
+        ),
+        ("sim://?design=fat", "option 'design' in sim:// URL must be one of paper, thin, got 'fat'"),
+        ("sim://?mode=rpam&leak=1", "option 'leak' in sim:// URL applies to mode=mckibben only"),
+        ("sim://?hysteresis=1", "unknown option 'hysteresis' in sim:// URL"),
+    ],
+)
 def test_rig_options_are_checked_with_the_accepted_form(url, message):
     from labcli.core.sim.url import accepted_form
 
@@ -125,9 +146,14 @@ def test_load_unload_load_cycle_leaves_a_loop_of_the_configured_size():
     rig = settled(only(friction=1.0), seed=5)
     p = rig.params
     positions = {}
-    for name, action in (("rest", None), ("+x", lambda: rig.hang_weight(0.6, 0.0)), ("rest+x", rig.remove_weight),
-                         ("-x", lambda: rig.hang_weight(0.6, math.pi)), ("rest-x", rig.remove_weight),
-                         ("+x again", lambda: rig.hang_weight(0.6, 0.0))):
+    for name, action in (
+        ("rest", None),
+        ("+x", lambda: rig.hang_weight(0.6, 0.0)),
+        ("rest+x", rig.remove_weight),
+        ("-x", lambda: rig.hang_weight(0.6, math.pi)),
+        ("rest-x", rig.remove_weight),
+        ("+x again", lambda: rig.hang_weight(0.6, 0.0)),
+    ):
         if action:
             action()
             rig.advance(15)
@@ -159,9 +185,15 @@ def test_friction_scales_the_loop_and_zero_friction_has_none():
     gaps = []
     for scale in (0.0, 1.0, 2.0):
         rig = settled(only(friction=scale), seed=5)
-        rig.hang_weight(0.6, 0.0); rig.advance(15); rig.remove_weight(); rig.advance(15)
+        rig.hang_weight(0.6, 0.0)
+        rig.advance(15)
+        rig.remove_weight()
+        rig.advance(15)
         a = rig.true_state()["theta_rad"]
-        rig.hang_weight(0.6, math.pi); rig.advance(15); rig.remove_weight(); rig.advance(15)
+        rig.hang_weight(0.6, math.pi)
+        rig.advance(15)
+        rig.remove_weight()
+        rig.advance(15)
         gaps.append(rig.true_state()["theta_rad"][0] - a[0])
     assert gaps[0] == pytest.approx(0.0, abs=1e-7)  # what 15 s of lag leaves
     assert gaps[2] == pytest.approx(2 * gaps[1], rel=0.1)
@@ -195,7 +227,8 @@ def test_closed_chamber_leaks_at_the_configured_rate():
     drop_kPa_per_min = (p0 - p1) / 1e3 / 5
     assert np.all((drop_kPa_per_min > 0.3) & (drop_kPa_per_min < 4))  # "over minutes"
     # Open valves: the regulator makes up the leak.
-    rig.supply_air(); rig.advance(30)
+    rig.supply_air()
+    rig.advance(30)
     assert rig.true_state()["pressures_MPa"] == pytest.approx([0.3] * 4, abs=1e-9)
     assert rig.time_s > t0
 
@@ -270,20 +303,30 @@ def unattended_load_settles(tmp_path, url):
 
     protocol = load_protocol("takuma2014")
     plan_csv = tmp_path / "heavy.csv"
-    plan_csv.write_text("trial,set,mass_g,direction_deg\n"
-                        + "".join(f"{i},fit,{m},{d}\n" for i, (m, d) in enumerate(HEAVY_LOADS, 1)))
+    plan_csv.write_text(
+        "trial,set,mass_g,direction_deg\n" + "".join(f"{i},fit,{m},{d}\n" for i, (m, d) in enumerate(HEAVY_LOADS, 1))
+    )
     plan, run_path = load_plan(plan_csv), tmp_path / f"run-{len(list(tmp_path.iterdir()))}.h5"
     dev = Device.open(url)
     store = RunFile.create(run_path, protocol=protocol, device_info=dev.info, port=url, plan=plan)
-    engine = RunEngine(dev, store, protocol, UnattendedUI(console=Console(file=io.StringIO())),
-                       run_path=str(run_path), resume_command="")
+    engine = RunEngine(
+        dev,
+        store,
+        protocol,
+        UnattendedUI(console=Console(file=io.StringIO())),
+        run_path=str(run_path),
+        resume_command="",
+    )
     rig, at_accept, excess = dev.rig, {}, []
 
     def watch(step, reply):
         if isinstance(step, WaitSettle) and step.label == "load":
             st = rig.true_state()
-            at_accept.update(time_s=st["time_s"], tau_s=st["nonideal"]["thermal_tau_s"],
-                             excess=np.abs(st["pressures_MPa"] - st["pressures_isothermal_MPa"]).max())
+            at_accept.update(
+                time_s=st["time_s"],
+                tau_s=st["nonideal"]["thermal_tau_s"],
+                excess=np.abs(st["pressures_MPa"] - st["pressures_isothermal_MPa"]).max(),
+            )
         elif isinstance(step, Capture) and at_accept:
             # The rig's clock ran past the decision (the frames read ahead); the excess decays
             # with the thermal time constant, so step back to the decision, the capture's first frame.
@@ -331,16 +374,19 @@ def test_stored_settle_times_reflect_the_thermal_time_constant(tmp_path, monkeyp
 def test_potentiometer_backlash_lags_by_half_the_play_on_the_side_of_the_last_motion():
     rig = settled(only(backlash=1.0), seed=7)
     half = ni.BACKLASH_RAD / 2
-    rig.hang_weight(0.8, 0.0); rig.advance(15)
+    rig.hang_weight(0.8, 0.0)
+    rig.advance(15)
     st = rig.true_state()
     moved = st["theta_rad"] - rig.true_state()["rest_theta_rad"]
     assert np.all(moved < -2 * half)
     assert st["pot_shaft_rad"] - st["theta_rad"] == pytest.approx([half, half], abs=1e-12)  # lags behind
-    rig.remove_weight(); rig.advance(15)
+    rig.remove_weight()
+    rig.advance(15)
     st = rig.true_state()
     assert st["pot_shaft_rad"] - st["theta_rad"] == pytest.approx([-half, -half], abs=1e-12)
     _, counts = rig.samples(1, 200)
     from labcli.papers.takuma2014.sim.rig import angle_to_counts
+
     assert counts[0, 4:] == pytest.approx(np.rint(angle_to_counts(st["pot_shaft_rad"] + rig.pot_offset_rad)))
 
 
@@ -348,11 +394,13 @@ def test_link_weight_is_an_inverted_pendulum():
     g = ph.Geometry()
     m = np.array(ni.LINK_MASS_KG)
     t = np.array([0.2, -0.3])
+
     # Against an independent sum of m g dy/dtheta over the two centres of mass.
     def pot(th):
         y1 = 0.5 * g.h2 * np.cos(th[0])
         y2 = g.h2 * np.cos(th[0]) + 0.5 * g.h3 * np.cos(th[0] + th[1])
         return ph.G * (m[0] * y1 + m[1] * y2)
+
     fd = np.array([(pot(t + d) - pot(t - d)) / 2e-6 for d in np.eye(2) * 1e-6])
     assert ph.link_weight_torques(t, g, m) == pytest.approx(-fd, rel=1e-6)
     assert ph.link_weight_torques(np.zeros(2), g, m) == pytest.approx([0, 0])
@@ -368,13 +416,17 @@ def test_link_weight_is_an_inverted_pendulum():
 
 def test_unequal_inside_supply_bends_the_rest_posture_and_true_state_reports_it():
     rig = SimRig(seed=1, noise=0, supply_MPa=(0.30, 0.30, 0.40, 0.20))
-    rig.supply_air(); rig.advance(15); rig.close_valves(); rig.advance(5)
+    rig.supply_air()
+    rig.advance(15)
+    rig.close_valves()
+    rig.advance(5)
     st = rig.true_state()
     assert st["supply_MPa"] == pytest.approx([0.3, 0.3, 0.4, 0.2])
     assert st["pressures_MPa"][2:] == pytest.approx([0.4, 0.2], abs=0.005)  # less the leak so far
     assert 10 < np.degrees(st["rest_theta_rad"][1]) < 20
     assert st["rest_theta_rad"] == pytest.approx(st["theta_rad"], abs=1e-4)  # 5 s of lag after closing
-    rig.hang_weight(0.5, 0.0); rig.advance(10)
+    rig.hang_weight(0.5, 0.0)
+    rig.advance(10)
     st2 = rig.true_state()
     assert st2["rest_theta_rad"] == pytest.approx(st["rest_theta_rad"])  # the trial's baseline
     assert abs(st2["theta_rad"][1] - st["theta_rad"][1]) > np.radians(0.3)

@@ -43,7 +43,10 @@ def test_paths_at_rest_are_h1_and_h1_plus_h2():
 def test_paths_match_points_in_the_plane(theta):
     # Independent construction from anchor, guide and attachment points.
     t1, t2 = theta
-    rot = lambda a, v: np.array([np.cos(a) * v[0] - np.sin(a) * v[1], np.sin(a) * v[0] + np.cos(a) * v[1]])
+
+    def rot(a, v):
+        return np.array([np.cos(a) * v[0] - np.sin(a) * v[1], np.sin(a) * v[0] + np.cos(a) * v[1]])
+
     g = GEOM
     joint2 = rot(t1, (0, g.h2))
     want = []
@@ -108,7 +111,9 @@ def test_pressurised_actuator_contracts_and_stretching_raises_tension():
     b, n, kr, Lr = p.b[0], p.n[0], p.k_rubber[0], p.L_rubber[0]
     from scipy.optimize import brentq
 
-    free = lambda P: brentq(lambda L: ph.mckibben_tension(L, P, b, n, kr, Lr), b / np.sqrt(3) * 0.9, b * 0.999)
+    def free(P):
+        return brentq(lambda L: ph.mckibben_tension(L, P, b, n, kr, Lr), b / np.sqrt(3) * 0.9, b * 0.999)
+
     assert free(3e5) < free(1e5) < free(0.0) == pytest.approx(Lr)
     L = np.linspace(0.2, 0.24, 9)
     T = ph.mckibben_tension(L, 3e5, b, n, kr, Lr)

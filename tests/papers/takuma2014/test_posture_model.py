@@ -12,7 +12,14 @@ import pytest
 from labcli.errors import ModelError
 from labcli.papers.takuma2014.models.geometry import contact_point
 from labcli.papers.takuma2014.models.posture import (
-    TORQUE_TERMS, PostureModel, force_from_torque, load_force_model, load_torque, loo_residuals, torque_features)
+    TORQUE_TERMS,
+    PostureModel,
+    force_from_torque,
+    load_force_model,
+    load_torque,
+    loo_residuals,
+    torque_features,
+)
 from labcli.papers.takuma2014.models.takuma import TakumaModel
 
 H2, H3 = 0.130, 0.065
@@ -77,14 +84,20 @@ def exact_table(n: int, theta0_deg: tuple[float, float], seed: int = 0, noise: f
     th0 = np.radians(np.tile(theta0_deg, (n, 1)))
     F = force_from_torque(th0 + dth, tau, H2, H3)
     sets = np.where(np.arange(n) < int(0.8 * n), "fit", "validation")
-    return pd.DataFrame({
-        "trial": np.arange(1, n + 1), "set": sets,
-        **{c: P0[:, k] for k, c in enumerate(("P_L10", "P_R10", "P_L20", "P_R20"))},
-        **{c: P[:, k] for k, c in enumerate(("P_L1", "P_R1", "P_L2", "P_R2"))},
-        "theta1_deg": np.degrees(dth[:, 0]), "theta2_deg": np.degrees(dth[:, 1]),
-        "Fx_N": F[:, 0], "Fy_N": F[:, 1],
-        "theta1_0_deg": theta0_deg[0], "theta2_0_deg": theta0_deg[1],
-    })
+    return pd.DataFrame(
+        {
+            "trial": np.arange(1, n + 1),
+            "set": sets,
+            **{c: P0[:, k] for k, c in enumerate(("P_L10", "P_R10", "P_L20", "P_R20"))},
+            **{c: P[:, k] for k, c in enumerate(("P_L1", "P_R1", "P_L2", "P_R2"))},
+            "theta1_deg": np.degrees(dth[:, 0]),
+            "theta2_deg": np.degrees(dth[:, 1]),
+            "Fx_N": F[:, 0],
+            "Fy_N": F[:, 1],
+            "theta1_0_deg": theta0_deg[0],
+            "theta2_0_deg": theta0_deg[1],
+        }
+    )
 
 
 def test_round_trip_on_exact_geometry_data_recovers_the_forces():
@@ -168,8 +181,9 @@ def test_fitted_trials_are_ranges_and_older_one_by_one_lists_still_read(tmp_path
     path.write_text(json.dumps(d))
     with pytest.raises(ModelError) as e:
         load_force_model(path)
-    assert str(e.value).endswith("key 'fitted_trials' must list whole trial numbers, or [first, last] ranges of "
-                                 "them; refit with `labcli fit`.")
+    assert str(e.value).endswith(
+        "key 'fitted_trials' must list whole trial numbers, or [first, last] ranges of them; refit with `labcli fit`."
+    )
 
 
 def test_too_few_fit_trials_name_the_paper_form():
@@ -190,7 +204,9 @@ def test_torque_terms_the_data_do_not_support_are_left_out():
     t = exact_table(200, (0.0, 14.0), seed=3)
     rng = np.random.default_rng(4)
     dP = t[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy() - t[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy()
-    tau = dP @ np.array([[30.0, -5.0], [-28.0, 4.0], [6.0, 9.0], [-5.0, -10.0]]) + 2e-3 * rng.standard_normal((len(t), 2))
+    tau = dP @ np.array([[30.0, -5.0], [-28.0, 4.0], [6.0, 9.0], [-5.0, -10.0]]) + 2e-3 * rng.standard_normal(
+        (len(t), 2)
+    )
     th = np.radians(t[["theta1_0_deg", "theta2_0_deg"]].to_numpy() + t[["theta1_deg", "theta2_deg"]].to_numpy())
     t["Fx_N"], t["Fy_N"] = force_from_torque(th, tau, H2, H3).T
     model = PostureModel(geometry=GEOMETRY).fit(t, choose_routes=False)
@@ -311,10 +327,12 @@ def test_routes_round_trip_and_bad_routes_are_one_sentence(bent_rig_table, tmp_p
     for key in ("theta1_rad", "Fx_N"):
         np.testing.assert_array_equal(back.predict_table(v)[key], model.predict_table(v)[key])
     d = json.loads(path.read_text())
-    for change, message in (({"routes": {"theta1": "direct"}}, "key 'routes' must map theta1"),
-                            ({"paper_variance": {}}, "key 'paper_variance' must give a finite variance"),
-                            ({"paper_variance": {"theta1": 10 ** 400}}, "key 'paper_variance' must give a finite"),
-                            ({"paper_model": None}, "routes theta1.* to the paper's form but holds no 'paper_model'")):
+    for change, message in (
+        ({"routes": {"theta1": "direct"}}, "key 'routes' must map theta1"),
+        ({"paper_variance": {}}, "key 'paper_variance' must give a finite variance"),
+        ({"paper_variance": {"theta1": 10**400}}, "key 'paper_variance' must give a finite"),
+        ({"paper_model": None}, "routes theta1.* to the paper's form but holds no 'paper_model'"),
+    ):
         path.write_text(json.dumps(d | change))
         with pytest.raises(ModelError, match=message):
             load_force_model(path)
@@ -334,7 +352,7 @@ def test_theta1_has_its_own_equation_from_the_paper_s_terms():
     v = t[t.set == "validation"]
     out = model.predict_table(v)
     err = np.radians(v.theta1_deg.to_numpy()) - out["theta1_rad"]
-    assert np.sqrt(np.mean(err ** 2)) < 3e-4 and np.all(out["se"]["theta1"] > 1.5e-4)
+    assert np.sqrt(np.mean(err**2)) < 3e-4 and np.all(out["se"]["theta1"] > 1.5e-4)
     d = model.to_dict()
     d["theta1_xtx_inv"] = [[1.0]]
     with pytest.raises(ModelError, match="the theta1 equation .* is incomplete or not finite"):
@@ -354,12 +372,12 @@ def test_block_factors_give_the_held_out_residuals_of_a_refit_per_block():
     edges = np.linspace(0, n, CV_FOLDS + 1).astype(int)
     for cols in ([0, 1, 2, 3, 4], [1, 3]):
         held = np.empty_like(Y)
-        for lo, hi in zip(edges[:-1], edges[1:]):
+        for lo, hi in zip(edges[:-1], edges[1:], strict=False):
             train = np.r_[0:lo, hi:n]
             beta, *_ = np.linalg.lstsq(X[train][:, cols], Y[train], rcond=None)
             held[lo:hi] = Y[lo:hi] - X[lo:hi][:, cols] @ beta
         np.testing.assert_allclose(blocks.cv_cov(cols), held.T @ held, rtol=1e-9)
-        assert blocks.cv_error(cols) == pytest.approx(float(np.sum(held ** 2)), rel=1e-9)
+        assert blocks.cv_error(cols) == pytest.approx(float(np.sum(held**2)), rel=1e-9)
 
 
 def test_the_fit_from_block_factors_matches_least_squares_on_the_whole_design():
@@ -369,8 +387,9 @@ def test_the_fit_from_block_factors_matches_least_squares_on_the_whole_design():
     n, p = 500, 4
     X = rng.normal(size=(n, p))
     Y = X @ np.array([[1.0, -2.0], [0.5, 0.0], [0.0, 3.0], [-1.0, 1.0]]) + rng.normal(scale=0.1, size=(n, 2))
-    fit = _shared_lstsq(_Blocks.build(n, p, lambda lo, hi: np.column_stack([X[lo:hi], Y[lo:hi]])),
-                        list(range(p)), "test")
+    fit = _shared_lstsq(
+        _Blocks.build(n, p, lambda lo, hi: np.column_stack([X[lo:hi], Y[lo:hi]])), list(range(p)), "test"
+    )
     beta, *_ = np.linalg.lstsq(X, Y, rcond=None)
     np.testing.assert_allclose(fit.beta, beta, rtol=1e-10)
     np.testing.assert_allclose(fit.xtx_inv, np.linalg.inv(X.T @ X), rtol=1e-10)

@@ -16,8 +16,20 @@ PORT = "sim://?seed=1&clock=virtual"
 
 def acquire(tmp_path, rows: str, name="pp.csv"):
     (tmp_path / name).write_text(HEADER + rows)
-    return CliRunner().invoke(cli, ["acquire", str(tmp_path / "p.h5"), "--protocol", "takuma2014-stiffness",
-                                    "--plan", str(tmp_path / name), "--unattended", "--port", PORT])
+    return CliRunner().invoke(
+        cli,
+        [
+            "acquire",
+            str(tmp_path / "p.h5"),
+            "--protocol",
+            "takuma2014-stiffness",
+            "--plan",
+            str(tmp_path / name),
+            "--unattended",
+            "--port",
+            PORT,
+        ],
+    )
 
 
 def test_the_plan_is_stored_as_typed_in_si_with_an_unknown_direction_kept_unknown(tmp_path):
@@ -35,5 +47,6 @@ def test_an_object_with_two_radii_is_refused_naming_the_rows(tmp_path):
     result = acquire(tmp_path, "1,pet-1,33,10,0,soft,300\n2,pet-1,35,12,,soft,300\n")
     assert result.exit_code == 1
     assert result.output.splitlines()[-1] == (
-        f"{tmp_path / 'pp.csv'}:row 3, column R_mm: 35 differs from pet-1's 33 on row 2; an object has one R_mm.")
+        f"{tmp_path / 'pp.csv'}:row 3, column R_mm: 35 differs from pet-1's 33 on row 2; an object has one R_mm."
+    )
     assert not (tmp_path / "p.h5").exists()

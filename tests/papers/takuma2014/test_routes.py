@@ -14,9 +14,12 @@ from labcli.papers.takuma2014.models.posture import PostureModel
 
 def cv_errors(e_po: dict[str, np.ndarray], e_pa: dict[str, np.ndarray]) -> dict[str, dict[str, np.ndarray]]:
     """held_out_errors' layout: every trial reported by both forms."""
-    return {"posture": e_po, "paper": e_pa,
-            "posture_ok": {q: np.ones(len(v), bool) for q, v in e_po.items()},
-            "paper_ok": {q: np.ones(len(v), bool) for q, v in e_pa.items()}}
+    return {
+        "posture": e_po,
+        "paper": e_pa,
+        "posture_ok": {q: np.ones(len(v), bool) for q, v in e_po.items()},
+        "paper_ok": {q: np.ones(len(v), bool) for q, v in e_pa.items()},
+    }
 
 
 def test_the_stacking_weight_is_the_least_squares_weight_and_stays_in_0_1():
@@ -42,8 +45,9 @@ def test_independent_errors_blend_with_inverse_variance_weights():
     rng = np.random.default_rng(2)
     n = 200_000
     e_po, e_pa = 0.3 * rng.standard_normal(n), 0.4 * rng.standard_normal(n)
-    routes, stats, blends = rt.choose_routes(cv_errors({q: e_po for q in rt.QUANTITIES},
-                                                       {q: e_pa for q in rt.QUANTITIES}), {})
+    routes, stats, blends = rt.choose_routes(
+        cv_errors({q: e_po for q in rt.QUANTITIES}, {q: e_pa for q in rt.QUANTITIES}), {}
+    )
     assert set(routes.values()) == {"blend"}
     w = blends["Fx"]["posture_weight"]
     assert w == pytest.approx(0.16 / 0.25, abs=0.01)
@@ -85,8 +89,12 @@ def test_the_paper_form_takes_no_part_where_it_misses_a_trial_or_is_over_the_lim
 def test_a_weight_within_snap_of_0_or_1_is_the_one_form_alone():
     rng = np.random.default_rng(5)
     e_pa = rng.standard_normal(90)
-    routes, _, blends = rt.choose_routes(cv_errors({q: 1e-4 * e_pa + 1e-3 * rng.standard_normal(90)
-                                                    for q in rt.QUANTITIES}, {q: e_pa for q in rt.QUANTITIES}), {})
+    routes, _, blends = rt.choose_routes(
+        cv_errors(
+            {q: 1e-4 * e_pa + 1e-3 * rng.standard_normal(90) for q in rt.QUANTITIES}, {q: e_pa for q in rt.QUANTITIES}
+        ),
+        {},
+    )
     assert set(routes.values()) == {"posture"} and blends == {}
 
 
@@ -117,8 +125,9 @@ def test_a_blended_quantity_is_the_weighted_sum_and_round_trips(straight_rig_tab
     w = model.blends[q]["posture_weight"]
     assert 0.01 < w < 0.99
     ok = np.asarray(paper["ok"][q], bool)
-    np.testing.assert_allclose(out[rt.VALUE_KEYS[q]][ok],
-                               w * plain[rt.VALUE_KEYS[q]][ok] + (1 - w) * paper[rt.VALUE_KEYS[q]][ok], rtol=1e-12)
+    np.testing.assert_allclose(
+        out[rt.VALUE_KEYS[q]][ok], w * plain[rt.VALUE_KEYS[q]][ok] + (1 - w) * paper[rt.VALUE_KEYS[q]][ok], rtol=1e-12
+    )
     assert out["routes"][q] == "blend" and out["blends"][q] == model.blends[q]
     # The file keeps the weights; a bad one is one sentence.
     path = tmp_path / "m.json"
@@ -126,9 +135,14 @@ def test_a_blended_quantity_is_the_weighted_sum_and_round_trips(straight_rig_tab
     back = PostureModel.from_dict(json.loads(path.read_text()))
     np.testing.assert_array_equal(back.predict_table(v)[rt.VALUE_KEYS[q]], out[rt.VALUE_KEYS[q]])
     d = json.loads(path.read_text())
-    for change in ({"blends": {}}, {"blends": {**d["blends"], q: {"posture_weight": 1.5, "error_correlation": 0.0}}},
-                   {"blends": {**d["blends"], q: {"posture_weight": 0.5}}}):
+    for change in (
+        {"blends": {}},
+        {"blends": {**d["blends"], q: {"posture_weight": 1.5, "error_correlation": 0.0}}},
+        {"blends": {**d["blends"], q: {"posture_weight": 0.5}}},
+    ):
         with pytest.raises(ModelError) as e:
             PostureModel.from_dict(d | change)
-        assert str(e.value) == ("The model: key 'blends' must give each blended quantity, and no other, a "
-                                "posture_weight in [0, 1] and an error_correlation in [-1, 1]; refit with `labcli fit`.")
+        assert str(e.value) == (
+            "The model: key 'blends' must give each blended quantity, and no other, a "
+            "posture_weight in [0, 1] and an error_correlation in [-1, 1]; refit with `labcli fit`."
+        )

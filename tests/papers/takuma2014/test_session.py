@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from labcli.core.protocol import load_protocol
-from labcli.papers.takuma2014.protocol import load_plan
 from labcli.core.steps import (
     Ask,
     Baseline,
@@ -23,9 +22,11 @@ from labcli.core.steps import (
     WaitSettle,
     Window,
 )
+from labcli.papers.takuma2014.protocol import load_plan
+from labcli.papers.takuma2014.push_session import PlannedObject, parse_push_change, push_session
 from labcli.papers.takuma2014.session import (
-    G,
     CloseValves,
+    G,
     HangWeight,
     Load,
     ObjectSpec,
@@ -39,7 +40,6 @@ from labcli.papers.takuma2014.session import (
     parse_length_mm,
     parse_mass_g,
 )
-from labcli.papers.takuma2014.push_session import PlannedObject, parse_push_change, push_session
 
 PROTOCOL = load_protocol("takuma2014")
 STIFFNESS = load_protocol("takuma2014-stiffness")
@@ -115,8 +115,13 @@ def answer(step, loads, objects):
     if obj is None:
         return None
     spec, push = obj
-    return {"name": spec.name, "radius_m": spec.radius_m, "category": spec.category,
-            "distance_m": push.distance_m, "phi_rad": push.phi_rad}
+    return {
+        "name": spec.name,
+        "radius_m": spec.radius_m,
+        "category": spec.category,
+        "distance_m": push.distance_m,
+        "phi_rad": push.phi_rad,
+    }
 
 
 def of(steps, kind):
@@ -146,9 +151,19 @@ def test_the_shipped_plan_as_steps():
     assert prompts[-1] == "Trial 108/108 (validation): remove the weight, then press Enter"
     # Every trial runs the same sequence, in this order.
     first = steps.index(of(steps, BeginTrial)[11])
-    kinds = [type(s).__name__ for s in steps[first:first + 10]]
-    assert kinds == ["BeginTrial", "WaitSettle", "Baseline", "Prompt", "WaitSettle", "Capture",
-                     "Prompt", "Review", "Commit", "BeginTrial"]
+    kinds = [type(s).__name__ for s in steps[first : first + 10]]
+    assert kinds == [
+        "BeginTrial",
+        "WaitSettle",
+        "Baseline",
+        "Prompt",
+        "WaitSettle",
+        "Capture",
+        "Prompt",
+        "Review",
+        "Commit",
+        "BeginTrial",
+    ]
     hang = steps[first + 3].action
     assert steps[first + 6].action == RemoveWeight()
     assert hang == HangWeight(pytest.approx(0.2), pytest.approx(math.radians(-120)))
@@ -256,8 +271,14 @@ def test_push_session_asks_per_object_what_is_per_object_and_per_push_only_a_cha
     assert "Push 10/10 of pet-1: move pet-1 back until it just touches the contact point, then press Enter" in prompts
     obj_asked = asks(steps, "name")
     assert len(obj_asked) == 2  # the second answer (none) ends the session
-    assert [f.key for f in obj_asked[0].fields] == ["name", "radius_m", "category", "distance_m", "phi_rad",
-                                                    "stiffness_N_per_m"]
+    assert [f.key for f in obj_asked[0].fields] == [
+        "name",
+        "radius_m",
+        "category",
+        "distance_m",
+        "phi_rad",
+        "stiffness_N_per_m",
+    ]
     d_field = obj_asked[0].fields[3]
     assert d_field.prompt({"name": "pet-1"}) == "pet-1: push distance d in mm for its pushes, 2 to 20:"
     assert not d_field.has_default  # the first object has no distance to keep
@@ -274,10 +295,12 @@ def test_push_session_asks_per_object_what_is_per_object_and_per_push_only_a_cha
 
 
 def test_a_typed_push_change_is_checked():
-    assert parse_push_change("12", math.radians(30), (0.002, 0.02)) == PushSpec(pytest.approx(0.012),
-                                                                               pytest.approx(math.radians(30)))
-    assert parse_push_change("12 mm -45 deg", None, (0.002, 0.02)) == PushSpec(pytest.approx(0.012),
-                                                                              pytest.approx(math.radians(-45)))
+    assert parse_push_change("12", math.radians(30), (0.002, 0.02)) == PushSpec(
+        pytest.approx(0.012), pytest.approx(math.radians(30))
+    )
+    assert parse_push_change("12 mm -45 deg", None, (0.002, 0.02)) == PushSpec(
+        pytest.approx(0.012), pytest.approx(math.radians(-45))
+    )
     assert parse_push_change("8 ?", 0.5, (0.002, 0.02)) == PushSpec(pytest.approx(0.008), None)
     with pytest.raises(ValueError, match=r"^The push distance must be from 2 mm to 20 mm, got 25 mm\.$"):
         parse_push_change("25 0", None, (0.002, 0.02))

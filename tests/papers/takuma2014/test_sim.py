@@ -22,8 +22,14 @@ from labcli.papers.takuma2014.sim.rig import SimRig
 
 register()
 
-CAL_P = lambda c: (np.asarray(c) * 5.0 / 4095 - 1.0) / 4.0  # reference calibration, MPa
-CAL_DEG = lambda c: (np.asarray(c) - 2048) * 340 / 4095
+
+def CAL_P(c):
+    return (np.asarray(c) * 5.0 / 4095 - 1.0) / 4.0  # reference calibration, MPa
+
+
+def CAL_DEG(c):
+    return (np.asarray(c) - 2048) * 340 / 4095
+
 
 EXPECTED_FORM = (
     "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X]"
@@ -88,8 +94,11 @@ def test_zero_load_gives_zero_deflection_and_baseline_pressures():
 def test_boyle_invariant_holds_after_closing_through_loads_and_transients():
     rig = settled_rig(seed=5)
     n0 = boyle_amount(rig, rig.true_state())
-    for action in (lambda: rig.hang_weight(0.8, np.radians(160)), rig.remove_weight,
-                   lambda: rig.push_object(0.03, 0.008, 0.2, 1500.0)):
+    for action in (
+        lambda: rig.hang_weight(0.8, np.radians(160)),
+        rig.remove_weight,
+        lambda: rig.push_object(0.03, 0.008, 0.2, 1500.0),
+    ):
         action()
         for dt in (0.1, 0.4, 5.0):
             rig.advance(dt)
@@ -243,7 +252,7 @@ def test_firmware_seq_and_time_wrap_at_2_32():
     assert [f.seq for f in fr] == [(1 << 32) - 2, (1 << 32) - 1, 0, 1, 2]
     t = [f.t_us for f in fr]
     assert t[0] > t[1] or t[1] > t[2]  # wrapped within these frames
-    assert all((b - a) % (1 << 32) == 1000 for a, b in zip(t, t[1:]))
+    assert all((b - a) % (1 << 32) == 1000 for a, b in zip(t, t[1:], strict=False))
 
 
 @pytest.mark.parametrize("n", [1, 63, 64, 3000])
@@ -257,7 +266,9 @@ def test_block_formatting_is_byte_identical_to_the_wire_codec(n):
     values = rng.integers(0, 4096, (n, 6))
     values[0] = 0
     seq[-1] = 0
-    want = b"".join(format_frame(int(a), int(b), [int(v) for v in row]) for a, b, row in zip(seq, t_us, values))
+    want = b"".join(
+        format_frame(int(a), int(b), [int(v) for v in row]) for a, b, row in zip(seq, t_us, values, strict=False)
+    )
     assert format_frames(seq, t_us, values) == want
 
 
@@ -345,7 +356,7 @@ def test_virtual_port_has_no_stale_backlog_when_the_operator_acts():
     after = frames_of(seen[seen.rfind(b"\n") + 1 :] + port.read(4000))
     before_hook = [f for f in after if f.t_us / 1e6 <= t_hook + 1e-6]
     assert before_hook == after[: len(before_hook)] and len(before_hook) <= 3
-    pots = np.array([f.values[4] for f in after[len(before_hook):]])
+    pots = np.array([f.values[4] for f in after[len(before_hook) :]])
     assert pots[-1] < pots[0] - 10  # every later frame shows the arm moving
 
 
@@ -413,7 +424,7 @@ def test_protocol_over_pty():
         time.sleep(0.4)
         fr = frames_of(port.read(port.in_waiting))
         assert len(fr) > 50
-        assert all(b.seq == a.seq + 1 for a, b in zip(fr, fr[1:]))
+        assert all(b.seq == a.seq + 1 for a, b in zip(fr, fr[1:], strict=False))
         assert set(np.diff([f.t_us for f in fr])) == {2500}
         port.write(b"STOP\n")
         time.sleep(0.1)
@@ -432,9 +443,13 @@ def assert_stopped_cleanly(proc: subprocess.Popen) -> None:
 
 @pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 def test_sim_command_serves_a_pty_until_sigterm():
-    proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "4"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            cwd=os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "4"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))),
+    )
     try:
         first = proc.stdout.readline()
         assert first.startswith("Simulated rig on /dev/") and first.endswith(" (Ctrl-C to stop)\n")
@@ -467,9 +482,15 @@ def test_sim_command_without_pty_says_what_to_add():
 def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
     # Two terminals, no Python: `labcli sim --pty` takes the operator's lines on stdin while a
     # serial program reads the port.  The readings must move as the physics says.
-    proc = subprocess.Popen([sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3", "--rate", "100"],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            bufsize=1, cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3", "--rate", "100"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        bufsize=1,
+        cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+    )
 
     def say(line: str) -> str:
         proc.stdin.write(line + "\n")
@@ -478,8 +499,7 @@ def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
 
     def state() -> dict:
         fields = dict(f.split("=", 1) for f in say("state").split()[1:] if "=" in f)
-        return {k: np.array(v.split(","), dtype=float) for k, v in fields.items()
-                if k in ("theta_deg", "P_MPa", "F_N")}
+        return {k: np.array(v.split(","), dtype=float) for k, v in fields.items() if k in ("theta_deg", "P_MPa", "F_N")}
 
     try:
         path = proc.stdout.readline().split()[3]
@@ -510,8 +530,9 @@ def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
             assert dp_true[0] > 0.002 and dp_true[1] < -0.002  # L1 up, R1 down (Boyle)
             assert CAL_P(after[:4]) - CAL_P(before[:4]) == pytest.approx(dp_true, abs=0.0005)
             assert say("remove").startswith("ok remove")
-            assert say("push tin 3 0") == ("error: unknown object 'tin'; known: pet-1, pet-2, pet-3, "
-                                           "can-al-1, can-al-2, can-steel-1")
+            assert say("push tin 3 0") == (
+                "error: unknown object 'tin'; known: pet-1, pet-2, pet-3, can-al-1, can-al-2, can-steel-1"
+            )
             assert say("hang heavy 0") == "error: mass must be a number, got 'heavy'; usage: hang GRAMS DEG"
             port.write(b"STOP\n")
         assert say("quit") == "ok quit"
@@ -522,15 +543,15 @@ def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
 
 
 def test_sim_command_refuses_a_rate_beyond_the_readers_limit():
-    from labcli.core.sim.firmware import RATE_MAX, RATE_MIN
-
     from labcli.cli import cli
     from labcli.commands.sim import sim
+    from labcli.core.sim.firmware import RATE_MAX, RATE_MIN
 
     result = CliRunner().invoke(cli, ["sim", "--pty", "--rate", "60000"])
     assert result.exit_code == 2
     assert result.output.splitlines()[-1] == (
-        "Error: Invalid value for '--rate': 60000.0 is not in the range 1<=x<=50000.")
+        "Error: Invalid value for '--rate': 60000.0 is not in the range 1<=x<=50000."
+    )
     # The command's bounds (kept literal so that --help imports no numpy) are the firmware's.
     rate = next(p for p in sim.params if p.name == "rate")
     assert (rate.type.min, rate.type.max) == (RATE_MIN, RATE_MAX)
@@ -560,7 +581,7 @@ def test_a_host_that_falls_behind_loses_frames_but_still_gets_ok_stop():
             seqs = [parse_line(line + b"\n", 6).seq for line in data.split(b"\n") if line.startswith(b"$D")]
             # Frames arrive whole and in order, with a gap where new ones were dropped (the host
             # may drain some backlog before STOP is read); every frame made was sent or counted dropped.
-            assert seqs[0] == 0 and all(b > a for a, b in zip(seqs, seqs[1:]))
+            assert seqs[0] == 0 and all(b > a for a, b in zip(seqs, seqs[1:], strict=False))
             assert len(seqs) + server.dropped_frames == server.firmware.count
     finally:
         server.stop()

@@ -234,11 +234,22 @@ def test_one_singular_force_component_is_rebuilt_along_o2_c():
     assert e.note[0] == "force from Fx along O2 -> C (Fy near singular)"
     assert e.F[0] == pytest.approx(F, rel=1e-7) and e.k[0] == pytest.approx(k_o, rel=1e-7)
     # the model's Fy as it is gives a wrong stiffness
-    accepted = estimate(th, wrong, phi=phi, model_flags=flags,
-                        params=StiffnessParams(singular_component="exclude", accept_model_flags=("singular-jacobian",)))
+    accepted = estimate(
+        th,
+        wrong,
+        phi=phi,
+        model_flags=flags,
+        params=StiffnessParams(singular_component="exclude", accept_model_flags=("singular-jacobian",)),
+    )
     assert abs(accepted.k[0] / k_o - 1) > 0.05
-    strict = estimate(th, wrong, phi=phi, model_flags=flags, force_ok=[[True, False]],
-                      params=StiffnessParams(singular_component="exclude"))
+    strict = estimate(
+        th,
+        wrong,
+        phi=phi,
+        model_flags=flags,
+        force_ok=[[True, False]],
+        params=StiffnessParams(singular_component="exclude"),
+    )
     assert strict.flag[0] and strict.reason[0] == "model: singular-jacobian"
     # phi unknown: the direction is what is missing
     e = estimate(th, wrong, model_flags=flags, force_ok=[[True, False]])
@@ -253,8 +264,14 @@ def test_one_singular_force_component_is_rebuilt_along_o2_c():
     # so Fy carries only |u_y| ~ 0.2 of it, below min_projection
     e = estimate(th, wrong, phi=phi, model_flags=flags, force_ok=[[False, True]])
     assert e.flag[0] and e.reason[0] == REASON_PROJECTION
-    e = estimate(th, np.array([F[0], 0.8]), phi=phi, model_flags=flags, force_ok=[[False, True]],
-                 params=StiffnessParams(min_projection=0.0))
+    e = estimate(
+        th,
+        np.array([F[0], 0.8]),
+        phi=phi,
+        model_flags=flags,
+        force_ok=[[False, True]],
+        params=StiffnessParams(min_projection=0.0),
+    )
     assert e.k[0] == pytest.approx(k_o * 0.8 / F[1], rel=1e-7)  # Fy scaled up along the same direction
     with pytest.raises(ConfigError) as err:
         estimate(th, F, phi=phi, model_flags=flags, force_ok=[True, False])
@@ -350,7 +367,9 @@ def test_deformation_sensitivity_to_the_joint_angles():
         for j in range(2):
             dth = np.zeros(2)
             dth[j] = h
-            grad.append((estimate(th + dth, F, phi=phi).delta_x[0] - estimate(th - dth, F, phi=phi).delta_x[0]) / (2 * h))
+            grad.append(
+                (estimate(th + dth, F, phi=phi).delta_x[0] - estimate(th - dth, F, phi=phi).delta_x[0]) / (2 * h)
+            )
         assert e.dx_theta_gain[0] == pytest.approx(math.hypot(*grad), rel=1e-5)
     # With phi given, 0.1 degree of angle error is ~0.3 mm of tip travel, a
     # sizeable part of a 1.5 mm deformation:
@@ -381,8 +400,13 @@ def test_ambiguous_push_keeps_the_smallest_phi():
 
 def test_bad_push_geometry_is_a_config_error():
     with pytest.raises(ConfigError) as err:
-        estimate_pushes([0.1, 0.1], [0.2, 0.2], [-1, -1], [0, 0], [0.03, -0.01], 0.01, None, h2=H2, h3=H3, push_ids=[4, 5])
-    assert str(err.value) == "Push 5: object radius R_m must be a positive number of metres, got -0.01; check the push table."
+        estimate_pushes(
+            [0.1, 0.1], [0.2, 0.2], [-1, -1], [0, 0], [0.03, -0.01], 0.01, None, h2=H2, h3=H3, push_ids=[4, 5]
+        )
+    assert (
+        str(err.value)
+        == "Push 5: object radius R_m must be a positive number of metres, got -0.01; check the push table."
+    )
     with pytest.raises(ConfigError) as err:
         estimate_pushes([0.1, 0.1], [0.2, 0.2], [-1, -1], [0, 0], [0.03, 0.03, 0.03], 0.01, None, h2=H2, h3=H3)
     assert str(err.value) == "R_m has 3 values for 2 pushes; give one per push or a single m value."
@@ -448,7 +472,11 @@ def test_stiffness_bands():
     assert json.loads(text)["bands"]["hard"] == [3000.0, None]
     assert CategoryModel.from_json(text).bands == model.bands
     gap = CategoryModel.from_bands({"soft": [0, 800], "hard": [3000, None]}).predict([[1500.0]])
-    assert gap.category == [""] and gap.confidence[0] == 0 and gap.note == ["median stiffness 1500 N/m lies outside every band"]
+    assert (
+        gap.category == [""]
+        and gap.confidence[0] == 0
+        and gap.note == ["median stiffness 1500 N/m lies outside every band"]
+    )
     # One wild push (a phi solved wrong) does not carry the object: its mean, 5412 N/m, is in
     # the hard band, its median in the soft one.
     wild = model.predict([[500.0, 550.0, 600.0, 20000.0]])
@@ -459,7 +487,10 @@ def test_stiffness_bands():
     "bands, message",
     [
         ({"soft": [800, 0]}, "Stiffness band 'soft' must satisfy 0 <= lower < upper (N/m), got [800, 0]."),
-        ({"soft": [0, 900], "medium": [800, 3000]}, "Stiffness bands 'soft' and 'medium' overlap; make each band's lower bound the previous upper bound or more."),
+        (
+            {"soft": [0, 900], "medium": [800, 3000]},
+            "Stiffness bands 'soft' and 'medium' overlap; make each band's lower bound the previous upper bound or more.",
+        ),
         ({"soft": [0]}, "Stiffness band 'soft' must be [lower, upper] in N/m, got [0]."),
         ({"soft": [0, "lots"]}, "The upper bound of stiffness band 'soft' must be a number in N/m, got 'lots'."),
         ({}, "Stiffness bands must be a non-empty table of name = [lower, upper] in N/m."),
@@ -540,19 +571,36 @@ def push_table(objects, rng, known_phi=False):
             i = len(truth)
             truth.append((th, F))
             rows.append(
-                {"push": i + 1, "object": obj, "R_m": CAN_R, "d_m": PUSH_D,
-                 "phi_deg": math.degrees(phi) if known_phi else np.nan,
-                 "P_L10": 0.3, "P_R10": 0.3, "P_L20": 0.3, "P_R20": 0.3,
-                 "P_L1": float(i), "P_R1": 0.3, "P_L2": 0.3, "P_R2": 0.3,
-                 "category": category, "true_stiffness_N_per_m": k_o}
+                {
+                    "push": i + 1,
+                    "object": obj,
+                    "R_m": CAN_R,
+                    "d_m": PUSH_D,
+                    "phi_deg": math.degrees(phi) if known_phi else np.nan,
+                    "P_L10": 0.3,
+                    "P_R10": 0.3,
+                    "P_L20": 0.3,
+                    "P_R20": 0.3,
+                    "P_L1": float(i),
+                    "P_R1": 0.3,
+                    "P_L2": 0.3,
+                    "P_R2": 0.3,
+                    "category": category,
+                    "true_stiffness_N_per_m": k_o,
+                }
             )
     return pd.DataFrame(rows), truth
 
 
 OBJECTS = [
-    ("pet-1", 500.0, "soft"), ("pet-2", 550.0, "soft"), ("can-al-1", 2500.0, "medium"),
-    ("can-al-2", 2200.0, "medium"), ("can-steel-1", 9000.0, "hard"), ("can-steel-2", 8000.0, "hard"),
-    ("unknown-a", 2300.0, ""), ("unknown-b", 480.0, ""),
+    ("pet-1", 500.0, "soft"),
+    ("pet-2", 550.0, "soft"),
+    ("can-al-1", 2500.0, "medium"),
+    ("can-al-2", 2200.0, "medium"),
+    ("can-steel-1", 9000.0, "hard"),
+    ("can-steel-2", 8000.0, "hard"),
+    ("unknown-a", 2300.0, ""),
+    ("unknown-b", 480.0, ""),
 ]
 
 
@@ -594,7 +642,9 @@ def test_classify_pushes_bands_and_flagged_objects():
     )
     with pytest.raises(ModelError) as err:
         classify_pushes(table, ForwardModel(truth, flags), h2=H2, h3=H3, bands=bands)
-    assert str(err.value) == "Object 'pet-2' has no usable push: all 4 are flagged (most often: model: singular-jacobian)."
+    assert (
+        str(err.value) == "Object 'pet-2' has no usable push: all 4 are flagged (most often: model: singular-jacobian)."
+    )
     res = classify_pushes(table, ForwardModel(truth, flags), h2=H2, h3=H3, bands=bands, allow_unusable=True)
     objs = res.objects.set_index("object")
     assert res.method == "bands"
@@ -680,8 +730,9 @@ def test_true_state_of_the_simulated_rig_gives_its_object_stiffness():
         F = s["force_N"]
         assert abs(math.degrees(base["theta_rad"][1])) > 0.3  # it does lean
         for phi in (math.radians(phi_deg), None):
-            e = estimate_pushes(dth[0], dth[1], F[0], F[1], CAN_R, PUSH_D, phi, h2=g.h2, h3=g.h3,
-                                theta0=base["theta_rad"])
+            e = estimate_pushes(
+                dth[0], dth[1], F[0], F[1], CAN_R, PUSH_D, phi, h2=g.h2, h3=g.h3, theta0=base["theta_rad"]
+            )
             assert e.k[0] == pytest.approx(k_o, rel=1e-5)
             assert e.phi[0] == pytest.approx(math.radians(phi_deg), abs=1e-6)
 
@@ -714,25 +765,52 @@ def test_simulated_rig_end_to_end_from_pressures():
             rig.hang_weight(m, math.radians(direction))
             s = _settle(rig)
             dth = np.degrees(s["theta_rad"] - base["theta_rad"])
-            trials.append({"trial": len(trials) + 1, "set": "fit", **dict(zip(p0_cols, base["pressures_MPa"])),
-                           **dict(zip(p_cols, s["pressures_MPa"])), "theta1_deg": dth[0], "theta2_deg": dth[1],
-                           "Fx_N": s["force_N"][0], "Fy_N": s["force_N"][1]})
+            trials.append(
+                {
+                    "trial": len(trials) + 1,
+                    "set": "fit",
+                    **dict(zip(p0_cols, base["pressures_MPa"], strict=False)),
+                    **dict(zip(p_cols, s["pressures_MPa"], strict=False)),
+                    "theta1_deg": dth[0],
+                    "theta2_deg": dth[1],
+                    "Fx_N": s["force_N"][0],
+                    "Fy_N": s["force_N"][1],
+                }
+            )
     model = takuma.TakumaModel(geometry={"h1": g.h1, "h2": g.h2, "h3": g.h3, "r1": g.r1, "r2": g.r2})
     model.fit(pd.DataFrame(trials))
-    objects = [("pet-1", 450, "soft"), ("pet-2", 600, "soft"), ("al-1", 1800, "medium"), ("al-2", 2600, "medium"),
-               ("steel-1", 7000, "hard"), ("steel-2", 9500, "hard"), ("x-soft", 520, ""), ("x-med", 2100, ""),
-               ("x-hard", 8000, "")]
+    objects = [
+        ("pet-1", 450, "soft"),
+        ("pet-2", 600, "soft"),
+        ("al-1", 1800, "medium"),
+        ("al-2", 2600, "medium"),
+        ("steel-1", 7000, "hard"),
+        ("steel-2", 9500, "hard"),
+        ("x-soft", 520, ""),
+        ("x-med", 2100, ""),
+        ("x-hard", 8000, ""),
+    ]
     rows = []
     for name, k_o, category in objects:
         for phi_deg in (-20, 0, 25):
             base = _sim_baseline(rig)
             rig.push_object(CAN_R, PUSH_D, math.radians(phi_deg), k_o)
             s = _settle(rig)
-            rows.append({"push": len(rows) + 1, "object": name, "R_m": CAN_R, "d_m": PUSH_D, "phi_deg": phi_deg,
-                         **dict(zip(p0_cols, base["pressures_MPa"])), **dict(zip(p_cols, s["pressures_MPa"])),
-                         "category": category, "true_stiffness_N_per_m": k_o,
-                         "theta10_deg": math.degrees(base["theta_rad"][0]),
-                         "theta20_deg": math.degrees(base["theta_rad"][1])})
+            rows.append(
+                {
+                    "push": len(rows) + 1,
+                    "object": name,
+                    "R_m": CAN_R,
+                    "d_m": PUSH_D,
+                    "phi_deg": phi_deg,
+                    **dict(zip(p0_cols, base["pressures_MPa"], strict=False)),
+                    **dict(zip(p_cols, s["pressures_MPa"], strict=False)),
+                    "category": category,
+                    "true_stiffness_N_per_m": k_o,
+                    "theta10_deg": math.degrees(base["theta_rad"][0]),
+                    "theta20_deg": math.degrees(base["theta_rad"][1]),
+                }
+            )
     table = pd.DataFrame(rows)
     with pytest.raises(ModelError) as err:
         classify_pushes(table, model, h2=g.h2, h3=g.h3, params={"singular_component": "exclude"})
@@ -742,8 +820,9 @@ def test_simulated_rig_end_to_end_from_pressures():
     )
     projected = classify_pushes(table, model)  # h2, h3 from the model
     assert (projected.pushes["note"] == "force from Fx along O2 -> C (Fy near singular)").all()
-    accepted = classify_pushes(table, model, params={"singular_component": "exclude",
-                                                     "accept_model_flags": ["singular-jacobian"]})
+    accepted = classify_pushes(
+        table, model, params={"singular_component": "exclude", "accept_model_flags": ["singular-jacobian"]}
+    )
     assert (accepted.pushes["note"] == "accepted model flag: singular-jacobian").all()
     for res in (projected, accepted):
         objs = res.objects.set_index("object")

@@ -17,10 +17,24 @@ import pytest
 from labcli.core import idranges
 from labcli.errors import ConfigError, ModelError
 from labcli.papers.takuma2014.models.metrics import error_metrics, evaluate, evaluation_to_dict
-from labcli.papers.takuma2014.models.synthetic import (ANGLE_LSB_DEG, PAPER_GEOMETRY, PRESSURE_LSB_MPA,
-                                     add_sensor_noise, paper_trials)
-from labcli.papers.takuma2014.models.takuma import (COEFFICIENT_NAMES, PAPER_COEFFICIENTS, TERMS, TakumaModel, fit,
-                                  force_amplification, jacobian_cond, jstar, theta2_threshold)
+from labcli.papers.takuma2014.models.synthetic import (
+    ANGLE_LSB_DEG,
+    PAPER_GEOMETRY,
+    PRESSURE_LSB_MPA,
+    add_sensor_noise,
+    paper_trials,
+)
+from labcli.papers.takuma2014.models.takuma import (
+    COEFFICIENT_NAMES,
+    PAPER_COEFFICIENTS,
+    TERMS,
+    TakumaModel,
+    fit,
+    force_amplification,
+    jacobian_cond,
+    jstar,
+    theta2_threshold,
+)
 
 G = PAPER_GEOMETRY
 H2, H3 = G["h2"], G["h3"]
@@ -51,11 +65,16 @@ def paper_model() -> TakumaModel:
 
 
 def printed_jacobian(t1: float, t2: float) -> np.ndarray:
-    return np.array([[-H2 * math.cos(t1) - H3 * math.cos(t1 + t2), -H3 * math.cos(t1 + t2)],
-                     [-H2 * math.sin(t1) - H3 * math.sin(t1 + t2), -H3 * math.sin(t1 + t2)]])
+    return np.array(
+        [
+            [-H2 * math.cos(t1) - H3 * math.cos(t1 + t2), -H3 * math.cos(t1 + t2)],
+            [-H2 * math.sin(t1) - H3 * math.sin(t1 + t2), -H3 * math.sin(t1 + t2)],
+        ]
+    )
 
 
 # ----------------------------------------------------------------------------- geometry
+
 
 def test_jstar_is_the_inverse_transpose_of_the_printed_jacobian() -> None:
     rng = np.random.default_rng(0)
@@ -75,7 +94,7 @@ def test_jacobian_condition_number_and_singular_threshold() -> None:
     thr = theta2_threshold(H2, H3, 100.0)
     assert jacobian_cond(np.array(thr), H2, H3) == pytest.approx(100.0, rel=1e-9)
     # small-angle closed form: |sin theta2*| = ((h2+h3)^2 + h3^2) k / ((k^2+1) h2 h3)
-    approx = ((H2 + H3) ** 2 + H3 ** 2) * 100.0 / ((100.0 ** 2 + 1) * H2 * H3)
+    approx = ((H2 + H3) ** 2 + H3**2) * 100.0 / ((100.0**2 + 1) * H2 * H3)
     assert math.sin(thr) == pytest.approx(approx, rel=1e-3)
     assert math.degrees(thr) == pytest.approx(2.86, abs=0.01)
 
@@ -89,19 +108,25 @@ def test_synthetic_trials_obey_the_paper_equations(clean: pd.DataFrame) -> None:
         u, dP = P0 / P - 1, P0 - P
         assert math.sin(t1) == pytest.approx(b["beta_theta1_L1"] * u[0] + b["beta_theta1_R1"] * u[1], abs=1e-11)
         # Eq. 31's plus sign with Section 3.3's -2.972 (Eq. 35's printed minus is a misprint).
-        s2 = (1.359 * u[0] + 1.094 * u[1] + 0.766 * u[2] + (-2.972) * u[3])
+        s2 = 1.359 * u[0] + 1.094 * u[1] + 0.766 * u[2] + (-2.972) * u[3]
         assert math.sin(t2) == pytest.approx(s2, abs=1e-11)
         js = np.linalg.inv(printed_jacobian(t1, t2)).T
         c1, c2 = math.cos(t1), math.cos(t2)
         for row, eq, col in ((0, "Fx", "Fx_N"), (1, "Fy", "Fy_N")):
             k = [b[n] for n in TERMS[eq]]
-            F = (k[0] * js[row, 0] * c1 * dP[0] + k[1] * js[row, 0] * c1 * dP[1]
-                 + k[2] * js[row, 0] * (c1 - c2) * dP[2] + k[3] * js[row, 0] * (c1 - c2) * dP[3]
-                 + k[4] * js[row, 1] * c2 * dP[2] + k[5] * js[row, 1] * c2 * dP[3])
+            F = (
+                k[0] * js[row, 0] * c1 * dP[0]
+                + k[1] * js[row, 0] * c1 * dP[1]
+                + k[2] * js[row, 0] * (c1 - c2) * dP[2]
+                + k[3] * js[row, 0] * (c1 - c2) * dP[3]
+                + k[4] * js[row, 1] * c2 * dP[2]
+                + k[5] * js[row, 1] * c2 * dP[3]
+            )
             assert F == pytest.approx(r[col], abs=1e-9)
 
 
 # ----------------------------------------------------------------------------- fitting
+
 
 def test_zero_noise_recovers_the_paper_coefficients_exactly(clean: pd.DataFrame) -> None:
     m = fit(clean, G)
@@ -114,8 +139,7 @@ def test_zero_noise_recovers_the_paper_coefficients_exactly(clean: pd.DataFrame)
     assert m.fit_stats["Fx"]["dof"] == 84 and m.fit_stats["theta1"]["dof"] == 88
 
 
-def test_quantised_data_give_the_paper_coefficients_within_their_standard_errors(
-        noisy_model: TakumaModel) -> None:
+def test_quantised_data_give_the_paper_coefficients_within_their_standard_errors(noisy_model: TakumaModel) -> None:
     m = noisy_model
     for name in COEFFICIENT_NAMES:
         se = m.standard_errors[name]
@@ -154,12 +178,12 @@ def test_covariance_is_symmetric_and_carries_the_standard_errors(noisy_model: Ta
     for eq, names in TERMS.items():
         cov = np.array(noisy_model.covariance[eq])
         np.testing.assert_allclose(cov, cov.T, rtol=1e-10, atol=0)
-        np.testing.assert_allclose(np.sqrt(np.diag(cov)),
-                                   [noisy_model.standard_errors[n] for n in names], rtol=1e-12)
+        np.testing.assert_allclose(np.sqrt(np.diag(cov)), [noisy_model.standard_errors[n] for n in names], rtol=1e-12)
         assert np.all(np.linalg.eigvalsh(cov) > 0)
 
 
 # ----------------------------------------------------------------------------- validation
+
 
 def _propagated_rmse(model: TakumaModel, table: pd.DataFrame, mode: str) -> dict[str, float]:
     """RMSE expected from 12-bit rounding of the 8 pressures (and of the observed angle)."""
@@ -192,9 +216,9 @@ def _propagated_rmse(model: TakumaModel, table: pd.DataFrame, mode: str) -> dict
 
 
 @pytest.mark.parametrize("mode", ["pressure-only", "measured-angles"])
-def test_validation_errors_sit_at_the_quantisation_noise_floor(noisy_model: TakumaModel,
-                                                               validation: pd.DataFrame,
-                                                               mode: str) -> None:
+def test_validation_errors_sit_at_the_quantisation_noise_floor(
+    noisy_model: TakumaModel, validation: pd.DataFrame, mode: str
+) -> None:
     ev = evaluate(noisy_model, validation, mode=mode)
     expected = _propagated_rmse(paper_model(), validation, mode)
     for q in ("theta1", "theta2", "Fx", "Fy"):
@@ -227,6 +251,7 @@ def test_error_metrics_known_answer() -> None:
 
 
 # ----------------------------------------------------------------------------- edge cases
+
 
 def test_force_amplification_per_component() -> None:
     th = np.radians([[7.0, 0.8], [-5.0, -1.5], [0.0, 0.5], [3.0, 20.0], [7.0, 0.1]])
@@ -289,16 +314,20 @@ def test_bad_pressures_are_flagged_not_propagated() -> None:
 def test_too_few_fit_trials(clean: pd.DataFrame) -> None:
     with pytest.raises(ModelError) as e:
         fit(clean.head(6), G, source="run.h5")
-    assert str(e.value) == ("The Fx equation needs at least 7 usable fit trials for its 6 coefficients, "
-                            "but run.h5 has 6; record more fit trials.")
+    assert str(e.value) == (
+        "The Fx equation needs at least 7 usable fit trials for its 6 coefficients, "
+        "but run.h5 has 6; record more fit trials."
+    )
 
 
 def test_too_few_after_singular_exclusions(clean: pd.DataFrame) -> None:
     near = paper_trials(2, seed=4, noise=False, start_id=900, theta2_values_deg=[0.8, -1.5])
     with pytest.raises(ModelError) as e:
         fit(pd.concat([clean.head(6), near]), G, source="run.h5")
-    assert str(e.value).startswith("The Fy equation needs at least 7 usable fit trials for its 6 "
-                                   "coefficients, but run.h5 has 6 (2 excluded: singular Jacobian: ")
+    assert str(e.value).startswith(
+        "The Fy equation needs at least 7 usable fit trials for its 6 "
+        "coefficients, but run.h5 has 6 (2 excluded: singular Jacobian: "
+    )
 
 
 def test_a_term_that_never_varies_is_reported(clean: pd.DataFrame) -> None:
@@ -306,8 +335,10 @@ def test_a_term_that_never_varies_is_reported(clean: pd.DataFrame) -> None:
     t["P_L1"] = t["P_L10"]
     with pytest.raises(ModelError) as e:
         fit(t, G)
-    assert str(e.value) == ("The theta1 fit cannot determine beta_theta1_L1: its term is zero in every "
-                            "usable fit trial; record fit trials that load every actuator.")
+    assert str(e.value) == (
+        "The theta1 fit cannot determine beta_theta1_L1: its term is zero in every "
+        "usable fit trial; record fit trials that load every actuator."
+    )
 
 
 def test_collinear_features_are_reported(clean: pd.DataFrame) -> None:
@@ -317,10 +348,13 @@ def test_collinear_features_are_reported(clean: pd.DataFrame) -> None:
         fit(t, G)
     msg = str(e.value)
     assert msg.startswith("The theta1 design matrix is collinear (condition number ")
-    assert msg.endswith("> 1e+08, weakest direction mostly beta_theta1_L1); record fit trials with "
-                        "more varied force directions and postures.") or msg.endswith(
+    assert msg.endswith(
+        "> 1e+08, weakest direction mostly beta_theta1_L1); record fit trials with "
+        "more varied force directions and postures."
+    ) or msg.endswith(
         "> 1e+08, weakest direction mostly beta_theta1_R1); record fit trials with more varied "
-        "force directions and postures.")
+        "force directions and postures."
+    )
 
 
 def test_no_fit_trials_and_empty_validation_set(clean: pd.DataFrame, noisy_model: TakumaModel) -> None:
@@ -328,25 +362,32 @@ def test_no_fit_trials_and_empty_validation_set(clean: pd.DataFrame, noisy_model
     t["set"] = ""
     with pytest.raises(ModelError) as e:
         fit(t, G, source="trials.csv")
-    assert str(e.value) == ("trials.csv has no fit trials (no row with set = 'fit'); assign trials with "
-                            "`labcli split` (or fill the `set` column).")
+    assert str(e.value) == (
+        "trials.csv has no fit trials (no row with set = 'fit'); assign trials with "
+        "`labcli split` (or fill the `set` column)."
+    )
     with pytest.raises(ModelError) as e:
         evaluate(noisy_model, clean, source="run.h5")
-    assert str(e.value) == ("run.h5 has no validation trials (no row with set = 'validation'); assign "
-                            "trials with `labcli split` (or fill the `set` column).")
+    assert str(e.value) == (
+        "run.h5 has no validation trials (no row with set = 'validation'); assign "
+        "trials with `labcli split` (or fill the `set` column)."
+    )
 
 
 def test_model_from_another_protocol_or_geometry_is_refused(noisy_model: TakumaModel) -> None:
     with pytest.raises(ModelError) as e:
         noisy_model.check_compatible("rpam2015", G, model_name="the model file m.json", run_name="run.h5")
-    assert str(e.value) == ("The model file m.json was fitted for protocol 'takuma2014' but run.h5 uses "
-                            "protocol 'rpam2015'; fit a model on a run of this protocol.")
+    assert str(e.value) == (
+        "The model file m.json was fitted for protocol 'takuma2014' but run.h5 uses "
+        "protocol 'rpam2015'; fit a model on a run of this protocol."
+    )
     other = dict(G, h3_m=0.08)
     other.pop("h3")
     with pytest.raises(ModelError) as e:
         noisy_model.check_compatible("takuma2014", other, model_name="the model file m.json", run_name="run.h5")
-    assert str(e.value) == ("The model file m.json was fitted for h3 = 0.065 m but run.h5 has h3 = 0.08 m; "
-                            "fit a model for this rig.")
+    assert str(e.value) == (
+        "The model file m.json was fitted for h3 = 0.065 m but run.h5 has h3 = 0.08 m; fit a model for this rig."
+    )
     noisy_model.check_compatible("takuma2014", {f"{k}_m": v for k, v in G.items()})
 
 
@@ -364,6 +405,7 @@ def test_unfitted_model_and_bad_modes() -> None:
 
 # ----------------------------------------------------------------------------- JSON
 
+
 def test_json_round_trip_is_exact(noisy_model: TakumaModel) -> None:
     text = noisy_model.to_json()
     back = TakumaModel.from_json(text)
@@ -375,24 +417,32 @@ def test_json_round_trip_is_exact(noisy_model: TakumaModel) -> None:
     assert d["coefficients"]["beta_theta2_R2"] == noisy_model.coefficients["beta_theta2_R2"]
     assert d["settings"]["theta2_threshold_deg"] == pytest.approx(2.86, abs=0.01)
     assert "-2.972" in d["sign_convention"]
-    np.testing.assert_array_equal(back.predict([[0.3] * 4], [[0.31, 0.29, 0.3, 0.305]])["Fx_N"],
-                                  noisy_model.predict([[0.3] * 4], [[0.31, 0.29, 0.3, 0.305]])["Fx_N"])
+    np.testing.assert_array_equal(
+        back.predict([[0.3] * 4], [[0.31, 0.29, 0.3, 0.305]])["Fx_N"],
+        noisy_model.predict([[0.3] * 4], [[0.31, 0.29, 0.3, 0.305]])["Fx_N"],
+    )
 
 
 def test_json_that_is_not_a_model_is_refused(tmp_path) -> None:
     with pytest.raises(ModelError) as e:
         TakumaModel.from_json('{"schema": "labcli-run"}', name="the model file x.json")
-    assert str(e.value) == ("The model file x.json is not a labcli Takuma model (schema 'labcli-run', "
-                            "expected 'labcli-takuma-model'); pass a file written by `labcli fit`.")
+    assert str(e.value) == (
+        "The model file x.json is not a labcli Takuma model (schema 'labcli-run', "
+        "expected 'labcli-takuma-model'); pass a file written by `labcli fit`."
+    )
     with pytest.raises(ModelError) as e:
         TakumaModel.from_json("{not json", name="the model file x.json")
-    assert str(e.value) == "The model file x.json is not valid JSON (line 1, column 2: Expecting property name enclosed in double quotes)."
+    assert (
+        str(e.value)
+        == "The model file x.json is not valid JSON (line 1, column 2: Expecting property name enclosed in double quotes)."
+    )
     with pytest.raises(ModelError) as e:
         TakumaModel.load(tmp_path / "none.json")
     assert str(e.value) == f"The model file {tmp_path / 'none.json'} does not exist; write one with `labcli fit`."
 
 
 # ----------------------------------------------------------------------------- Figure 7
+
 
 def test_figure7_png_and_pdf(noisy_model: TakumaModel, validation: pd.DataFrame, tmp_path) -> None:
     from labcli.papers.takuma2014.figures import figure7
@@ -426,8 +476,11 @@ def test_a_fit_whose_numbers_overflow_is_refused_before_anything_is_written():
     table.loc[1, "Fx_N"] = 1e308
     with np.errstate(all="ignore"):
         model = TakumaModel(geometry=PAPER_GEOMETRY).fit(table)
-    with pytest.raises(ModelError, match=r"^The Fx fit on t\.csv gives no finite value for beta_Fx1, .*"
-                                         r"largest \|Fx_N\| is 1e\+308 N\); check the table"):
+    with pytest.raises(
+        ModelError,
+        match=r"^The Fx fit on t\.csv gives no finite value for beta_Fx1, .*"
+        r"largest \|Fx_N\| is 1e\+308 N\); check the table",
+    ):
         refuse_non_finite(model, table, "t.csv")
     healthy = TakumaModel(geometry=PAPER_GEOMETRY).fit(paper_trials(12, seed=1))
     refuse_non_finite(healthy, table, "t.csv")  # finite coefficients pass whatever the table holds
@@ -435,8 +488,8 @@ def test_a_fit_whose_numbers_overflow_is_refused_before_anything_is_written():
 
 @pytest.mark.parametrize("n_flagged", [3, 61])
 def test_the_validation_report_lists_few_flagged_trials_and_counts_many_by_reason(capsys, n_flagged):
-    from labcli.papers.takuma2014.report import FLAGGED_LIST_LIMIT, _print_flagged
     from labcli.core.report import report_console
+    from labcli.papers.takuma2014.report import FLAGGED_LIST_LIMIT, _print_flagged
 
     n = 100
     flags = [["uncertain"] if i < n_flagged else [] for i in range(n)]

@@ -79,9 +79,10 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 
@@ -207,8 +208,7 @@ def _moment_arms_closed(alpha: Any, geom: JointGeometry, La: Any, Lb: Any) -> tu
     # The cross products of moment_arms() written out (L1 a_y / L_a, L1 b_y / L_b): the
     # solver calls this thousands of times and the stacked points cost more than the maths.
     s, c = np.sin(alpha), np.cos(alpha)
-    return (geom.L1_m * (geom.L2_m * c + geom.L3_m * s) / La,
-            geom.L1_m * (geom.L2_m * c - geom.L3_m * s) / Lb)
+    return (geom.L1_m * (geom.L2_m * c + geom.L3_m * s) / La, geom.L1_m * (geom.L2_m * c - geom.L3_m * s) / Lb)
 
 
 # --------------------------------------------------------------------------- actuator force
@@ -242,7 +242,7 @@ def material_force(lam: Any, act: Actuator) -> np.ndarray:
     """Eq. 3: Ogden uniaxial wall force in N (tension +), the free wall's at P = 0."""
     lam = np.asarray(lam, dtype=float)
     total = np.zeros_like(lam)
-    for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha):
+    for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha, strict=False):
         total = total + 2 * mu * _MPA * act.A0_m2 / a * (lam ** (a - 1) - lam ** (-a / 2 - 1))
     return total
 
@@ -268,9 +268,7 @@ def push_force(P_MPa: Any, L: Any, act: Actuator, *, stretch: bool = True) -> np
     return -external_force(P_MPa, L, act, stretch=stretch)
 
 
-def loaded_length(
-    P_MPa: Any, mass_kg: Any, act: Actuator, *, stretch: bool = True, iterations: int = 80
-) -> np.ndarray:
+def loaded_length(P_MPa: Any, mass_kg: Any, act: Actuator, *, stretch: bool = True, iterations: int = 80) -> np.ndarray:
     """Length (m) of a hanging actuator carrying ``mass_kg`` at pressure P (stretch test).
 
     Solves ``F_ext(L) = m g`` by bisection on ``L0/2 .. 4 L0`` (vectorised; the lower end
@@ -333,7 +331,13 @@ def joint_torque(
 
 
 def joint_stiffness(
-    alpha: Any, Pa_MPa: Any, Pb_MPa: Any, geom: JointGeometry, act: Actuator, *, stretch: bool = True,
+    alpha: Any,
+    Pa_MPa: Any,
+    Pb_MPa: Any,
+    geom: JointGeometry,
+    act: Actuator,
+    *,
+    stretch: bool = True,
     step_rad: float = 1e-6,
 ) -> np.ndarray:
     """Joint stiffness ``-d tau / d alpha`` (N m/rad) by a central difference of Eq. 6.
@@ -410,9 +414,14 @@ def solve_equilibrium(
     idx = np.flatnonzero(has & ~stable_centre)
     alpha = np.full(Pa.shape, np.nan)
     alpha[idx] = _refine(
-        lambda x, i: joint_torque(x, Pa[idx][i], Pb[idx][i], JointGeometry(L1[idx][i], L2[idx][i], L3[idx][i]),
-                                  act, stretch=stretch),
-        lo[idx], hi[idx], tau[idx, np.maximum(k[idx] - 1, 0)], tau[idx, k[idx]], iterations,
+        lambda x, i: joint_torque(
+            x, Pa[idx][i], Pb[idx][i], JointGeometry(L1[idx][i], L2[idx][i], L3[idx][i]), act, stretch=stretch
+        ),
+        lo[idx],
+        hi[idx],
+        tau[idx, np.maximum(k[idx] - 1, 0)],
+        tau[idx, k[idx]],
+        iterations,
     )
     alpha[stable_centre] = 0.0
     status = np.where(np.isfinite(alpha), OK, TOGGLE)
@@ -562,7 +571,11 @@ def _same_kind(old: Any, new: Any) -> bool:
     if _is_number(old):
         return _is_number(new)
     if isinstance(old, list):
-        return isinstance(new, list) and len(new) == len(old) and all(_same_kind(o, n) for o, n in zip(old, new))
+        return (
+            isinstance(new, list)
+            and len(new) == len(old)
+            and all(_same_kind(o, n) for o, n in zip(old, new, strict=False))
+        )
     return type(old) is type(new)
 
 
@@ -602,7 +615,9 @@ def _nums(raw: dict[str, Any], dotted: str, path: Path | str, n: int | None = No
 def _range(raw: dict[str, Any], dotted: str, path: Path | str) -> tuple[float, float]:
     lo, hi = _nums(raw, dotted, path, 2)
     if not lo < hi:
-        raise ConfigError(f"Protocol key '{dotted}' in {where(path)} must be [low, high] with low < high, got {[lo, hi]}.")
+        raise ConfigError(
+            f"Protocol key '{dotted}' in {where(path)} must be [low, high] with low < high, got {[lo, hi]}."
+        )
     return lo, hi
 
 
@@ -616,12 +631,16 @@ def actuator_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
     mu = _nums(raw, "ogden.mu_MPa", path)
     al = _nums(raw, "ogden.alpha", path)
     if len(mu) != len(al) or not mu:
-        raise ConfigError(f"Protocol keys 'ogden.mu_MPa' and 'ogden.alpha' in {where(path)} must be lists of the same length.")
+        raise ConfigError(
+            f"Protocol keys 'ogden.mu_MPa' and 'ogden.alpha' in {where(path)} must be lists of the same length."
+        )
     # Eq. 3's convention: W = sum 2 mu_i / alpha_i^2 (l1^alpha_i + l2^alpha_i + l3^alpha_i - 3),
     # convex (stable in every mode, not only in uniaxial tension) when every mu_i > 0.
     if any(a == 0 for a in al) or any(m <= 0 for m in mu):
-        raise ConfigError(f"Ogden constants in {where(path)} need mu_i > 0 and alpha_i != 0 for every term "
-                          "(Eq. 3's convention; a negative mu_i makes the wall unstable outside uniaxial tension).")
+        raise ConfigError(
+            f"Ogden constants in {where(path)} need mu_i > 0 and alpha_i != 0 for every term "
+            "(Eq. 3's convention; a negative mu_i makes the wall unstable outside uniaxial tension)."
+        )
     act = Actuator(
         L0_m=_num(raw, "actuator.L0_m", path),
         A0_m2=_num(raw, "actuator.A0_m2", path),
@@ -651,9 +670,13 @@ def _grid(raw: dict[str, Any], table: str, prefix: str, path: Path | str) -> np.
     stop = _num(raw, f"{table}.{prefix}_stop_kPa", path, positive=False)
     count = _get(raw, f"{table}.{prefix}_count", path)
     if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-        raise ConfigError(f"Protocol key '{table}.{prefix}_count' in {where(path)} must be a whole number of at least 1.")
+        raise ConfigError(
+            f"Protocol key '{table}.{prefix}_count' in {where(path)} must be a whole number of at least 1."
+        )
     if start < 0 or stop < start:
-        raise ConfigError(f"Protocol keys '{table}.{prefix}_start_kPa/_stop_kPa' in {where(path)} must satisfy 0 <= start <= stop.")
+        raise ConfigError(
+            f"Protocol keys '{table}.{prefix}_start_kPa/_stop_kPa' in {where(path)} must satisfy 0 <= start <= stop."
+        )
     return np.linspace(start, stop, count) * 1e-3
 
 
@@ -661,7 +684,9 @@ def stretch_test_plan(raw: dict[str, Any], path: Path | str = "<protocol>") -> t
     """Payloads (kg) x pressures (MPa) of the stretch test (Fig. 5), as two 1-D arrays."""
     masses = np.asarray(_nums(raw, "experiments.stretch_test.payloads_g", path)) * 1e-3
     if np.any(masses < 0):
-        raise ConfigError(f"Protocol key 'experiments.stretch_test.payloads_g' in {where(path)} must not hold negative masses.")
+        raise ConfigError(
+            f"Protocol key 'experiments.stretch_test.payloads_g' in {where(path)} must not hold negative masses."
+        )
     return masses, _grid(raw, "experiments.stretch_test", "pressure", path)
 
 

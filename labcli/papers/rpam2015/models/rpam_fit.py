@@ -77,14 +77,15 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from ....core.jsontext import MAX_DEPTH, JSONDepthError, loads_bounded
-from ....errors import ConfigError, ModelError
+from ....errors import ModelError
 from ..protocol import read_rpam_protocol
 from . import rpam
 
@@ -95,8 +96,10 @@ STOP_BAND_DEG = 2.0
 _MIN_POINTS = DEGREE + 2  # a cubic plus at least one degree of freedom for its uncertainty
 # A vented actuator reads a little below 0 through sensor noise; far below is a fault.
 _NEGATIVE_P_MPA = 0.005
-_NEGATIVE_P_TEXT = ("the rPAM works with gauge pressures of 0 MPa or more, so a reading below -5 kPa "
-                    "points to a pressure sensor or its calibration")
+_NEGATIVE_P_TEXT = (
+    "the rPAM works with gauge pressures of 0 MPa or more, so a reading below -5 kPa "
+    "points to a pressure sensor or its calibration"
+)
 
 
 # --------------------------------------------------------------------------- tables and records
@@ -194,7 +197,7 @@ class StretchCorrection:
     def fitted(self) -> bool:
         return len(self.coefficients_N) == self.degree + 1
 
-    def fit(self, lam: Any, force_N: Any) -> "StretchCorrection":
+    def fit(self, lam: Any, force_N: Any) -> StretchCorrection:
         """Fit the cubic through ``(lambda, F_stretch)``; returns ``self``."""
         from scipy import stats
 
@@ -240,7 +243,7 @@ class StretchCorrection:
         ss_tot = float(((force - force.mean()) ** 2).sum())
         self.coefficients_N = tuple(_floats(coef))
         self.std_errors_N = tuple(_floats(se))
-        self.ci95_N = tuple((float(c - tq * s), float(c + tq * s)) for c, s in zip(coef, se))
+        self.ci95_N = tuple((float(c - tq * s), float(c + tq * s)) for c, s in zip(coef, se, strict=False))
         self.covariance_N2 = tuple(tuple(_floats(row)) for row in cov)
         self.r2 = 1.0 - float(resid @ resid) / ss_tot if ss_tot > 0 else float("nan")
         self.rmse_N = math.sqrt(float(resid @ resid) / lam.size)
@@ -271,24 +274,28 @@ class StretchCorrection:
         return mid - half, mid + half
 
     def to_dict(self) -> dict[str, Any]:
-        return _nan_to_none({
-            "kind": "rpam-stretch-correction",
-            "degree": self.degree,
-            "coefficients_N": list(self.coefficients_N),
-            "std_errors_N": list(self.std_errors_N),
-            "ci95_N": [list(p) for p in self.ci95_N],
-            "covariance_N2": [list(r) for r in self.covariance_N2],
-            "r2": self.r2,
-            "rmse_N": self.rmse_N,
-            "n_points": self.n_points,
-            "dof": self.dof,
-            "lambda_range": list(self.lambda_range),
-        })
+        return _nan_to_none(
+            {
+                "kind": "rpam-stretch-correction",
+                "degree": self.degree,
+                "coefficients_N": list(self.coefficients_N),
+                "std_errors_N": list(self.std_errors_N),
+                "ci95_N": [list(p) for p in self.ci95_N],
+                "covariance_N2": [list(r) for r in self.covariance_N2],
+                "r2": self.r2,
+                "rmse_N": self.rmse_N,
+                "n_points": self.n_points,
+                "dof": self.dof,
+                "lambda_range": list(self.lambda_range),
+            }
+        )
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "StretchCorrection":
+    def from_dict(cls, d: Mapping[str, Any]) -> StretchCorrection:
         if d.get("kind") != "rpam-stretch-correction":
-            raise ModelError(f"Expected a stretch correction (kind 'rpam-stretch-correction'), got kind {d.get('kind')!r}.")
+            raise ModelError(
+                f"Expected a stretch correction (kind 'rpam-stretch-correction'), got kind {d.get('kind')!r}."
+            )
         try:
             d = _none_to_nan(dict(d))
             return cls(
@@ -310,7 +317,7 @@ class StretchCorrection:
         return json.dumps(self.to_dict(), indent=2)
 
     @classmethod
-    def from_json(cls, text: str) -> "StretchCorrection":
+    def from_json(cls, text: str) -> StretchCorrection:
         return cls.from_dict(_loads(text, "stretch correction"))
 
 
@@ -320,7 +327,9 @@ def _loads(text: str, what: str) -> dict[str, Any]:
     except json.JSONDecodeError as e:
         raise ModelError(f"The {what} record is not valid JSON ({e.msg} at line {e.lineno}).") from None
     except JSONDepthError as e:
-        raise ModelError(f"The {what} record nests {e.depth} levels deep, beyond the {MAX_DEPTH} it can have.") from None
+        raise ModelError(
+            f"The {what} record nests {e.depth} levels deep, beyond the {MAX_DEPTH} it can have."
+        ) from None
     if not isinstance(d, dict):
         raise ModelError(f"The {what} record must be a JSON object.")
     return d
@@ -343,8 +352,9 @@ class StretchFit:
 
     def apply_to(self, act: rpam.Actuator) -> rpam.Actuator:
         """``act`` with this fit's coefficients and the stretch range it was fitted on."""
-        return replace(act, stretch_coefficients_N=self.model.coefficients_N,
-                       stretch_lambda_range=self.model.lambda_range)
+        return replace(
+            act, stretch_coefficients_N=self.model.coefficients_N, stretch_lambda_range=self.model.lambda_range
+        )
 
     def overrides(self) -> list[str]:
         """``key=value`` assignments for :func:`labcli.papers.rpam2015.models.rpam.apply_overrides` (or ``--set``)."""
@@ -353,19 +363,21 @@ class StretchFit:
         return [f"stretch_correction.coefficients_N=[{c}]", f"stretch_correction.lambda_range=[{lo!r}, {hi!r}]"]
 
     def to_dict(self) -> dict[str, Any]:
-        return _nan_to_none({
-            "kind": "rpam-stretch-fit",
-            "protocol": self.protocol,
-            "L0_m": self.L0_m,
-            "default_coefficients_N": list(self.default_coefficients_N),
-            "default_lambda_range": list(self.default_lambda_range),
-            "model": self.model.to_dict(),
-            "skipped_rows": list(self.skipped_rows),
-            "points": {k: list(v) for k, v in self.points.items()},
-        })
+        return _nan_to_none(
+            {
+                "kind": "rpam-stretch-fit",
+                "protocol": self.protocol,
+                "L0_m": self.L0_m,
+                "default_coefficients_N": list(self.default_coefficients_N),
+                "default_lambda_range": list(self.default_lambda_range),
+                "model": self.model.to_dict(),
+                "skipped_rows": list(self.skipped_rows),
+                "points": {k: list(v) for k, v in self.points.items()},
+            }
+        )
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "StretchFit":
+    def from_dict(cls, d: Mapping[str, Any]) -> StretchFit:
         if d.get("kind") != "rpam-stretch-fit":
             raise ModelError(f"Expected a stretch-test analysis (kind 'rpam-stretch-fit'), got kind {d.get('kind')!r}.")
         try:
@@ -385,7 +397,7 @@ class StretchFit:
         return json.dumps(self.to_dict(), indent=2)
 
     @classmethod
-    def from_json(cls, text: str) -> "StretchFit":
+    def from_json(cls, text: str) -> StretchFit:
         return cls.from_dict(_loads(text, "stretch-test analysis"))
 
 
@@ -396,16 +408,19 @@ def stretch_forces(mass_kg: Any, P_MPa: Any, L_m: Any, act: rpam.Actuator) -> di
     F_ext = mass * rpam.G_N_PER_KG
     F_cons = rpam.constraint_force(P, L, act)
     F_int = rpam.wall_force(P, L, act)
-    return {"lambda": lam, "F_ext_N": F_ext, "F_cons_N": F_cons, "F_int_N": F_int,
-            "F_stretch_N": F_ext - F_cons - F_int}
+    return {
+        "lambda": lam,
+        "F_ext_N": F_ext,
+        "F_cons_N": F_cons,
+        "F_int_N": F_int,
+        "F_stretch_N": F_ext - F_cons - F_int,
+    }
 
 
 def _bad_row(what: str, rows: np.ndarray, mask: np.ndarray, column: str, need: str, values: np.ndarray) -> None:
     if mask.any():
         i = int(np.flatnonzero(mask)[0])
-        raise ModelError(
-            f"Row {int(rows[i])} of the {what} table has {column} = {values[i]:g}; {need}."
-        )
+        raise ModelError(f"Row {int(rows[i])} of the {what} table has {column} = {values[i]:g}; {need}.")
 
 
 def analyse_stretch(table: Any, protocol: Any = "rpam2015") -> StretchFit:
@@ -447,10 +462,15 @@ def analyse_stretch(table: Any, protocol: Any = "rpam2015") -> StretchFit:
         "fitted_N": _floats(fitted),
         "residual_N": _floats(f["F_stretch_N"] - fitted),
     }
-    return StretchFit(model=model, points=points, protocol=path, L0_m=act.L0_m,
-                      default_coefficients_N=act.stretch_coefficients_N,
-                      default_lambda_range=act.stretch_lambda_range,
-                      skipped_rows=[int(v) for v in rows[~ok]])
+    return StretchFit(
+        model=model,
+        points=points,
+        protocol=path,
+        L0_m=act.L0_m,
+        default_coefficients_N=act.stretch_coefficients_N,
+        default_lambda_range=act.stretch_lambda_range,
+        skipped_rows=[int(v) for v in rows[~ok]],
+    )
 
 
 # --------------------------------------------------------------------------- joint map
@@ -492,39 +512,46 @@ class JointMapResult:
         if pa.size < 2 or pb.size < 2 or np.any(count == 0):
             return None
         out = {}
-        for name, v in (("measured", self.measured_deg), ("without", self.model_deg["without"]),
-                        ("with", self.model_deg["with"])):
+        for name, v in (
+            ("measured", self.measured_deg),
+            ("without", self.model_deg["without"]),
+            ("with", self.model_deg["with"]),
+        ):
             acc = np.zeros((pb.size, pa.size))
             np.add.at(acc, (j, i), v)
             out[name] = acc / count
         return pa, pb, out
 
     def to_dict(self) -> dict[str, Any]:
-        return _nan_to_none({
-            "kind": "rpam-joint-map",
-            "protocol": self.protocol,
-            "geometry": self.geometry.to_dict(),
-            "toggle_deg": self.toggle_deg,
-            "actuator": self.actuator.to_dict(),
-            "correction": {"coefficients_N": list(self.actuator.stretch_coefficients_N),
-                           "lambda_range": list(self.actuator.stretch_lambda_range),
-                           "source": self.correction_source},
-            "summary": self.summary,
-            "skipped_rows": list(self.skipped_rows),
-            "points": {
-                "row": [int(v) for v in self.rows],
-                "P_A_MPa": _floats(self.Pa_MPa),
-                "P_B_MPa": _floats(self.Pb_MPa),
-                "measured_deg": _floats(self.measured_deg),
-                "without_deg": _floats(self.model_deg["without"]),
-                "with_deg": _floats(self.model_deg["with"]),
-                "without_toggle": [bool(v) for v in self.toggle["without"]],
-                "with_toggle": [bool(v) for v in self.toggle["with"]],
-            },
-        })
+        return _nan_to_none(
+            {
+                "kind": "rpam-joint-map",
+                "protocol": self.protocol,
+                "geometry": self.geometry.to_dict(),
+                "toggle_deg": self.toggle_deg,
+                "actuator": self.actuator.to_dict(),
+                "correction": {
+                    "coefficients_N": list(self.actuator.stretch_coefficients_N),
+                    "lambda_range": list(self.actuator.stretch_lambda_range),
+                    "source": self.correction_source,
+                },
+                "summary": self.summary,
+                "skipped_rows": list(self.skipped_rows),
+                "points": {
+                    "row": [int(v) for v in self.rows],
+                    "P_A_MPa": _floats(self.Pa_MPa),
+                    "P_B_MPa": _floats(self.Pb_MPa),
+                    "measured_deg": _floats(self.measured_deg),
+                    "without_deg": _floats(self.model_deg["without"]),
+                    "with_deg": _floats(self.model_deg["with"]),
+                    "without_toggle": [bool(v) for v in self.toggle["without"]],
+                    "with_toggle": [bool(v) for v in self.toggle["with"]],
+                },
+            }
+        )
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "JointMapResult":
+    def from_dict(cls, d: Mapping[str, Any]) -> JointMapResult:
         if d.get("kind") != "rpam-joint-map":
             raise ModelError(f"Expected a joint-map analysis (kind 'rpam-joint-map'), got kind {d.get('kind')!r}.")
         try:
@@ -553,7 +580,7 @@ class JointMapResult:
         return json.dumps(self.to_dict(), indent=2)
 
     @classmethod
-    def from_json(cls, text: str) -> "JointMapResult":
+    def from_json(cls, text: str) -> JointMapResult:
         return cls.from_dict(_loads(text, "joint-map analysis"))
 
 
@@ -579,14 +606,16 @@ def correction_actuator(act: rpam.Actuator, correction: Any) -> tuple[rpam.Actua
         return act, "protocol"
     if isinstance(correction, Mapping):
         kind = correction.get("kind")
-        correction = (StretchFit.from_dict(correction) if kind == "rpam-stretch-fit"
-                      else StretchCorrection.from_dict(correction))
+        correction = (
+            StretchFit.from_dict(correction) if kind == "rpam-stretch-fit" else StretchCorrection.from_dict(correction)
+        )
     if isinstance(correction, StretchFit):
         return correction.apply_to(act), "fit"
     if isinstance(correction, StretchCorrection):
         correction._check()
-        return replace(act, stretch_coefficients_N=correction.coefficients_N,
-                       stretch_lambda_range=correction.lambda_range), "fit"
+        return replace(
+            act, stretch_coefficients_N=correction.coefficients_N, stretch_lambda_range=correction.lambda_range
+        ), "fit"
     try:
         coef = tuple(float(v) for v in correction)
     except (TypeError, ValueError):
@@ -596,17 +625,30 @@ def correction_actuator(act: rpam.Actuator, correction: Any) -> tuple[rpam.Actua
     return replace(act, stretch_coefficients_N=coef), "given"
 
 
-def _summary(Pa: np.ndarray, Pb: np.ndarray, measured: np.ndarray, model: np.ndarray,
-             toggle: np.ndarray, limit: np.ndarray, toggle_deg: float) -> dict[str, Any]:
+def _summary(
+    Pa: np.ndarray,
+    Pb: np.ndarray,
+    measured: np.ndarray,
+    model: np.ndarray,
+    toggle: np.ndarray,
+    limit: np.ndarray,
+    toggle_deg: float,
+) -> dict[str, Any]:
     on_stop = np.isfinite(model) & (np.abs(measured) >= toggle_deg - STOP_BAND_DEG)
     both = np.isfinite(model) & np.isfinite(measured) & ~on_stop
     err = model[both] - measured[both]
-    out: dict[str, Any] = {"n_compared": int(both.sum()), "n_toggle": int(toggle.sum()),
-                           "n_on_stop": int(on_stop.sum())}
+    out: dict[str, Any] = {
+        "n_compared": int(both.sum()),
+        "n_toggle": int(toggle.sum()),
+        "n_on_stop": int(on_stop.sum()),
+    }
     if err.size:
         k = int(np.argmax(np.abs(err)))
-        out.update(rmse_deg=float(np.sqrt(np.mean(err**2))), max_abs_error_deg=float(abs(err[k])),
-                   max_error_at_kPa=[float(Pa[both][k] * 1e3), float(Pb[both][k] * 1e3)])
+        out.update(
+            rmse_deg=float(np.sqrt(np.mean(err**2))),
+            max_abs_error_deg=float(abs(err[k])),
+            max_error_at_kPa=[float(Pa[both][k] * 1e3), float(Pb[both][k] * 1e3)],
+        )
     else:
         out.update(rmse_deg=float("nan"), max_abs_error_deg=float("nan"), max_error_at_kPa=[float("nan")] * 2)
     filled = np.where(toggle, limit, model)
@@ -615,8 +657,9 @@ def _summary(Pa: np.ndarray, Pb: np.ndarray, measured: np.ndarray, model: np.nda
     return out
 
 
-def model_angles(Pa_MPa: Any, Pb_MPa: Any, geom: rpam.JointGeometry, act: rpam.Actuator, *,
-                 stretch: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def model_angles(
+    Pa_MPa: Any, Pb_MPa: Any, geom: rpam.JointGeometry, act: rpam.Actuator, *, stretch: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Model angles (deg, NaN at the toggle), toggle flags and the toggle-side limit (deg)."""
     eq = rpam.solve_equilibrium(Pa_MPa, Pb_MPa, geom, act, stretch=stretch)
     toggle = eq.status == rpam.TOGGLE
@@ -655,6 +698,17 @@ def analyse_joint_map(table: Any, protocol: Any = "rpam2015", correction: Any = 
         a, t, limit = model_angles(Pa, Pb, geom, act, stretch=stretch)
         model[name], toggles[name] = a, t
         summary[name] = _summary(Pa, Pb, meas, a, t, limit, toggle_deg)
-    return JointMapResult(protocol=path, geometry=geom, actuator=act, correction_source=source, rows=kept,
-                          Pa_MPa=Pa, Pb_MPa=Pb, measured_deg=meas, model_deg=model, toggle=toggles,
-                          summary=summary, skipped_rows=[int(v) for v in rows[~ok]])
+    return JointMapResult(
+        protocol=path,
+        geometry=geom,
+        actuator=act,
+        correction_source=source,
+        rows=kept,
+        Pa_MPa=Pa,
+        Pb_MPa=Pb,
+        measured_deg=meas,
+        model_deg=model,
+        toggle=toggles,
+        summary=summary,
+        skipped_rows=[int(v) for v in rows[~ok]],
+    )

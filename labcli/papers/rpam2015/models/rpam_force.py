@@ -132,8 +132,9 @@ def _power(x: np.ndarray, a: float, logs: dict[str, np.ndarray], key: str) -> np
     return np.exp(a * logs[key])
 
 
-def _wall(L: np.ndarray, ro2: np.ndarray, act: WallAndCage, energy: bool = False
-          ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+def _wall(
+    L: np.ndarray, ro2: np.ndarray, act: WallAndCage, energy: bool = False
+) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """``(U, dU/dL at fixed r_o^2, dU/d(r_o^2) at fixed L)`` by quadrature over R^2.
 
     NaN where the wall would fill the lumen (a very short actuator): the model stops there.
@@ -151,7 +152,7 @@ def _wall(L: np.ndarray, ro2: np.ndarray, act: WallAndCage, energy: bool = False
     sum_l = np.zeros(u.shape)
     sum_t = np.zeros(u.shape)
     W = np.zeros(u.shape) if energy else None
-    for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha):
+    for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha, strict=False):
         ca = 2 * mu * _MPA / a
         pl = _power(lam, a, logs, "l")
         pt = _power(lt, a, logs, "t")
@@ -196,8 +197,7 @@ def _free_radius_sq(P: np.ndarray, L: np.ndarray, act: WallAndCage, hi: np.ndarr
     return out
 
 
-def _settled(P: np.ndarray, L: np.ndarray, act: WallAndCage
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _settled(P: np.ndarray, L: np.ndarray, act: WallAndCage) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(r_o^2, on_cage, dU/dL, dU/d(r_o^2))`` at the wall's equilibrium radius."""
     rc2 = cage_radius_sq(L, act)
     _, dU_dL, dU_dro2 = (np.array(v, dtype=float) for v in _wall(L, rc2, act))

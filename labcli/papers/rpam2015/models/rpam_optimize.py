@@ -29,9 +29,10 @@ optimum) and the paper's published design evaluated with the same model.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -180,22 +181,26 @@ class OptimumResult:
         d = self.optimum.to_dict()
         for key in ("balanced", "violated_constraints", "feasible"):
             del d[key]  # an optimum always balances and meets its constraints
-        return _nan_to_none({
-            **d,
-            "Pa_kPa": s.Pa_MPa * 1e3,
-            "Pb_kPa": s.Pb_MPa * 1e3,
-            "min_stiffness_Nm_per_rad": s.min_stiffness_Nm_per_rad,
-            "min_toggle_margin_deg": s.min_toggle_margin_deg,
-            "rounded": {"resolution_m": ROUND_M, **self.rounded.to_dict()},
-            "paper": None if self.paper is None else {"reported_alpha_deg": s.paper_alpha_deg, **self.paper.to_dict()},
-            "seed": s.seed,
-            "popsize": s.popsize,
-            "maxiter": s.maxiter,
-            "stretch_correction": s.stretch_correction,
-            "generations": self.nit,
-            "evaluations": self.nfev,
-            "message": self.message,
-        })
+        return _nan_to_none(
+            {
+                **d,
+                "Pa_kPa": s.Pa_MPa * 1e3,
+                "Pb_kPa": s.Pb_MPa * 1e3,
+                "min_stiffness_Nm_per_rad": s.min_stiffness_Nm_per_rad,
+                "min_toggle_margin_deg": s.min_toggle_margin_deg,
+                "rounded": {"resolution_m": ROUND_M, **self.rounded.to_dict()},
+                "paper": None
+                if self.paper is None
+                else {"reported_alpha_deg": s.paper_alpha_deg, **self.paper.to_dict()},
+                "seed": s.seed,
+                "popsize": s.popsize,
+                "maxiter": s.maxiter,
+                "stretch_correction": s.stretch_correction,
+                "generations": self.nit,
+                "evaluations": self.nfev,
+                "message": self.message,
+            }
+        )
 
 
 def _nan_to_none(x: Any) -> Any:
@@ -225,18 +230,22 @@ def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
         if not isinstance(v, int) or isinstance(v, bool):
             raise ConfigError(f"Protocol key 'optimize.{key}' in {rpam.where(path)} must be a whole number, got {v!r}.")
         if key == "seed" and not 0 <= v <= 2**32 - 1:  # the range the search's random generator takes
-            raise ConfigError(f"Protocol key 'optimize.seed' in {rpam.where(path)} must be from 0 to "
-                              f"{2**32 - 1}, got {v}.")
+            raise ConfigError(
+                f"Protocol key 'optimize.seed' in {rpam.where(path)} must be from 0 to {2**32 - 1}, got {v}."
+            )
         if key != "seed" and v < 1:
-            raise ConfigError(f"Protocol key 'optimize.{key}' in {rpam.where(path)} must be a whole number "
-                              f"of at least 1, got {v!r}.")
+            raise ConfigError(
+                f"Protocol key 'optimize.{key}' in {rpam.where(path)} must be a whole number of at least 1, got {v!r}."
+            )
     stretch = rpam._get(raw, "optimize.stretch_correction", path)
     if not isinstance(stretch, bool):
         raise ConfigError(f"Protocol key 'optimize.stretch_correction' in {rpam.where(path)} must be true or false.")
     opt = raw.get("optimize", {})
     paper = rpam._nums(raw, "optimize.paper_links_m", path, 3) if "paper_links_m" in opt else None
     if paper is not None and min(paper) <= 0:
-        raise ConfigError(f"Protocol key 'optimize.paper_links_m' in {rpam.where(path)} must hold three positive lengths.")
+        raise ConfigError(
+            f"Protocol key 'optimize.paper_links_m' in {rpam.where(path)} must hold three positive lengths."
+        )
     settings = OptimizeSettings(
         Pa_MPa=rpam._num(raw, "optimize.Pa_kPa", path, positive=False) / 1e3,
         Pb_MPa=rpam._num(raw, "optimize.Pb_kPa", path, positive=False) / 1e3,
@@ -257,8 +266,9 @@ def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>")
     return bounds, settings
 
 
-def _shortfalls(alpha_deg: Any, toggle_deg: Any, L_a: Any, L_b: Any, stiffness: Any, bounds: Bounds,
-                settings: OptimizeSettings) -> dict[str, np.ndarray]:
+def _shortfalls(
+    alpha_deg: Any, toggle_deg: Any, L_a: Any, L_b: Any, stiffness: Any, bounds: Bounds, settings: OptimizeSettings
+) -> dict[str, np.ndarray]:
     """How far a balanced design misses g5-g7, the toggle margin and K_min (0 where met).
 
     In each constraint's own unit: m (g5, g6), deg (g7, margin), N m/rad (K_min).
@@ -290,11 +300,15 @@ def _balance(X: np.ndarray, act: rpam.Actuator, settings: OptimizeSettings) -> d
     eq = rpam.solve_equilibrium(*P, geom, act, stretch=stretch)
     ma, mb = rpam.moment_arms(eq.alpha_rad, geom)
     return {
-        "alpha_rad": eq.alpha_rad, "toggle_rad": eq.toggle_rad, "L_a_m": eq.L_a_m, "L_b_m": eq.L_b_m,
+        "alpha_rad": eq.alpha_rad,
+        "toggle_rad": eq.toggle_rad,
+        "L_a_m": eq.L_a_m,
+        "L_b_m": eq.L_b_m,
         "stiffness": rpam.joint_stiffness(eq.alpha_rad, *P, geom, act, stretch=stretch),
         "F_a_N": rpam.push_force(P[0], eq.L_a_m, act, stretch=stretch),
         "F_b_N": rpam.push_force(P[1], eq.L_b_m, act, stretch=stretch),
-        "arm_a_m": ma, "arm_b_m": mb,
+        "arm_a_m": ma,
+        "arm_b_m": mb,
     }
 
 
@@ -303,9 +317,7 @@ def _misses(b: dict[str, np.ndarray], bounds: Bounds, settings: OptimizeSettings
     return _shortfalls(alpha, np.degrees(b["toggle_rad"]), b["L_a_m"], b["L_b_m"], b["stiffness"], bounds, settings)
 
 
-def design_cost(
-    x: np.ndarray, act: rpam.Actuator, bounds: Bounds, settings: OptimizeSettings
-) -> np.ndarray:
+def design_cost(x: np.ndarray, act: rpam.Actuator, bounds: Bounds, settings: OptimizeSettings) -> np.ndarray:
     """Cost of designs ``x = (L1, L2, L3)``, shape ``(3,)`` or ``(3, S)``: -alpha_deg or a penalty."""
     x = np.asarray(x, dtype=float)
     single = x.ndim == 1
@@ -313,25 +325,40 @@ def design_cost(
     alpha = np.degrees(b["alpha_rad"])
     miss = _misses(b, bounds, settings)
     # Scale so that 1 mm, 1 deg and a tenth of K_min weigh alike.
-    violation = (1e3 * (miss["g5"] + miss["g6"]) + miss["g7"] + miss["margin"]
-                 + 10 * miss["K_min"] / settings.min_stiffness_Nm_per_rad)
+    violation = (
+        1e3 * (miss["g5"] + miss["g6"])
+        + miss["g7"]
+        + miss["margin"]
+        + 10 * miss["K_min"] / settings.min_stiffness_Nm_per_rad
+    )
     cost = np.where(violation > 0, _VIOLATION_COST + violation, -alpha)
     cost = np.where(np.isfinite(alpha), cost, _TOGGLE_COST)
     return cost[0] if single else cost
 
 
-def evaluate_design(geom: rpam.JointGeometry, act: rpam.Actuator, bounds: Bounds,
-                    settings: OptimizeSettings) -> DesignReport:
+def evaluate_design(
+    geom: rpam.JointGeometry, act: rpam.Actuator, bounds: Bounds, settings: OptimizeSettings
+) -> DesignReport:
     """Balance, stiffness, forces and arms of one design, and the constraints it meets or misses."""
     b = {k: float(v[0]) for k, v in _balance(np.array([[geom.L1_m], [geom.L2_m], [geom.L3_m]]), act, settings).items()}
     K, La, Lb = b["stiffness"], b["L_a_m"], b["L_b_m"]
     report = DesignReport(
-        geometry=geom, alpha_rad=b["alpha_rad"], toggle_rad=b["toggle_rad"], stiffness_Nm_per_rad=K,
-        L_a_m=La, L_b_m=Lb, F_a_N=b["F_a_N"], F_b_N=b["F_b_N"], arm_a_m=b["arm_a_m"], arm_b_m=b["arm_b_m"],
-        active=[], violated=[],
+        geometry=geom,
+        alpha_rad=b["alpha_rad"],
+        toggle_rad=b["toggle_rad"],
+        stiffness_Nm_per_rad=K,
+        L_a_m=La,
+        L_b_m=Lb,
+        F_a_N=b["F_a_N"],
+        F_b_N=b["F_b_N"],
+        arm_a_m=b["arm_a_m"],
+        arm_b_m=b["arm_b_m"],
+        active=[],
+        violated=[],
     )
-    box = [(f"g{i + 2}", name, getattr(geom, f"{name}_m"), getattr(bounds, f"{name}_m"))
-           for i, name in enumerate(_LINKS)]
+    box = [
+        (f"g{i + 2}", name, getattr(geom, f"{name}_m"), getattr(bounds, f"{name}_m")) for i, name in enumerate(_LINKS)
+    ]
     for g, name, v, (lo, hi) in box:
         if not lo - 1e-12 <= v <= hi + 1e-12:
             report.violated.append(f"{g}: {name} = {v:.4f} m outside {lo:g}-{hi:g} m")
@@ -380,8 +407,7 @@ def active_constraints(
     return out
 
 
-def round_design(optimum: DesignReport, act: rpam.Actuator, bounds: Bounds,
-                 settings: OptimizeSettings) -> DesignReport:
+def round_design(optimum: DesignReport, act: rpam.Actuator, bounds: Bounds, settings: OptimizeSettings) -> DesignReport:
     """The design as printed: links on the :data:`ROUND_M` grid, evaluated.
 
     At the optimum the stiffness and length constraints are typically active, so rounding
@@ -397,7 +423,7 @@ def round_design(optimum: DesignReport, act: rpam.Actuator, bounds: Bounds,
     grid = (centre[:, None] + steps) / _STEPS_PER_M
     box = (bounds.L1_m, bounds.L2_m, bounds.L3_m)
     nearest = np.all(steps == 0, axis=0)
-    keep = np.all([(lo <= x) & (x <= hi) for x, (lo, hi) in zip(grid, box)], axis=0) | nearest
+    keep = np.all([(lo <= x) & (x <= hi) for x, (lo, hi) in zip(grid, box, strict=False)], axis=0) | nearest
     grid, nearest = grid[:, keep], nearest[keep]
     cost = design_cost(grid, act, bounds, settings)
     pick = int(np.argmin(cost)) if cost.min() <= 0 else int(np.flatnonzero(nearest)[0])

@@ -170,8 +170,7 @@ class RpamRig(SimClock):
             scales = np.ones(2)
             self.pot_offset_rad = 0.0
         # The true correction holds everywhere (no clamp), so a fit over any range sees a cubic.
-        self.tubes = tuple(replace(nominal, stretch_N=tuple(float(s * c) for c in nominal.stretch_N))
-                           for s in scales)
+        self.tubes = tuple(replace(nominal, stretch_N=tuple(float(s * c) for c in nominal.stretch_N)) for s in scales)
         self.toggle_rad = links.toggle_rad
         self.stop_rad = self.toggle_rad - math.radians(STOP_MARGIN_DEG)
         self._friction = (FRICTION_FORCE_N, FRICTION_TORQUE_NM) if variation else (0.0, 0.0)
@@ -187,8 +186,7 @@ class RpamRig(SimClock):
         self.experiment = experiment
         self._setpoint = np.zeros(2)
         self._payload_kg = 0.0
-        self._seg = _Segment(0.0, self.tau_s, np.zeros(2), np.zeros(2), 0.0, 0.0,
-                             nominal.L0_m, nominal.L0_m, "ok")
+        self._seg = _Segment(0.0, self.tau_s, np.zeros(2), np.zeros(2), 0.0, 0.0, nominal.L0_m, nominal.L0_m, "ok")
         self._change(initial=True)
 
     # ------------------------------------------------------------ state
@@ -233,7 +231,8 @@ class RpamRig(SimClock):
                 "payload_kg": self._payload_kg,
                 "setpoints_MPa": self._setpoint.copy(),
                 "target_alpha_rad": s.alpha_to,
-                "target_length_m": s.len_to if self.experiment == "stretch"
+                "target_length_m": s.len_to
+                if self.experiment == "stretch"
                 else float(self.links.lengths(s.alpha_to)[0]),
                 "status": s.status,
                 "stop_rad": self.stop_rad,
@@ -300,8 +299,17 @@ class RpamRig(SimClock):
             tau = self.tau_s * (1.0 if initial else jitter)
             if initial:  # power-up: already settled
                 p_now, alpha_now, len_now = self._setpoint.copy(), alpha_to, len_to
-            self._seg = _Segment(self._t, tau, np.asarray(p_now, float).copy(), self._setpoint.copy(),
-                                 float(alpha_now), alpha_to, float(len_now), len_to, status)
+            self._seg = _Segment(
+                self._t,
+                tau,
+                np.asarray(p_now, float).copy(),
+                self._setpoint.copy(),
+                float(alpha_now),
+                alpha_to,
+                float(len_now),
+                len_to,
+                status,
+            )
 
     # ------------------------------------------------------------ operator
 
@@ -360,13 +368,21 @@ class RpamRig(SimClock):
 
     def ideal_counts(self, p_MPa: Any, alpha: Any, length: Any, t: Any) -> np.ndarray:
         """Noise-free, unrounded counts (n, 4) for states at times ``t`` (drift included)."""
-        si = np.column_stack([np.asarray(p_MPa)[:, 0], np.asarray(p_MPa)[:, 1],
-                              np.asarray(alpha) + self.pot_offset_rad, np.asarray(length)])
+        si = np.column_stack(
+            [
+                np.asarray(p_MPa)[:, 0],
+                np.asarray(p_MPa)[:, 1],
+                np.asarray(alpha) + self.pot_offset_rad,
+                np.asarray(length),
+            ]
+        )
         out = si_to_counts(si)
         if self.drift:
             tt = np.asarray(t)[:, None]
-            out += self.drift * self._drift_amp * (
-                np.sin(2 * np.pi * tt / self._drift_period + self._drift_phase) - np.sin(self._drift_phase)
+            out += (
+                self.drift
+                * self._drift_amp
+                * (np.sin(2 * np.pi * tt / self._drift_period + self._drift_phase) - np.sin(self._drift_phase))
             )
         return out
 

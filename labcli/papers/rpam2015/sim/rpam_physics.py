@@ -75,7 +75,7 @@ class Tube:
 
     def _t(self, stretch: np.ndarray) -> np.ndarray:
         """``sum 2 mu_i / alpha_i * stretch^alpha_i`` in Pa (the Ogden stress without p)."""
-        return sum(2 * mu * _MPA / a * stretch**a for mu, a in zip(self.mu_MPa, self.alpha))
+        return sum(2 * mu * _MPA / a * stretch**a for mu, a in zip(self.mu_MPa, self.alpha, strict=False))
 
     def _integrals(self, L: np.ndarray, r_o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(pi int (2 t_ax - t_hoop - t_rad) r dr, int (t_hoop - t_rad) / r dr)`` over the wall."""
@@ -157,13 +157,18 @@ class Links:
         """(a_low, a_up, b_low, b_up), each ``(..., 2)``: the upper plate turned clockwise by alpha."""
         alpha = np.asarray(alpha, dtype=float)
         c, s = np.cos(alpha), np.sin(alpha)
+
         # The plate's rest points (-L3, L2) and (L3, L2) under the clockwise rotation.
         def turn(x: float, y: float) -> np.ndarray:
             return np.stack([x * c + y * s, -x * s + y * c], axis=-1)
 
         zero = np.zeros(alpha.shape)
-        return (np.stack([zero - self.L1_m, zero], axis=-1), turn(-self.L3_m, self.L2_m),
-                np.stack([zero + self.L1_m, zero], axis=-1), turn(self.L3_m, self.L2_m))
+        return (
+            np.stack([zero - self.L1_m, zero], axis=-1),
+            turn(-self.L3_m, self.L2_m),
+            np.stack([zero + self.L1_m, zero], axis=-1),
+            turn(self.L3_m, self.L2_m),
+        )
 
     def lengths(self, alpha: Any) -> tuple[np.ndarray, np.ndarray]:
         a_low, a_up, b_low, b_up = self.mounts(alpha)
@@ -185,7 +190,13 @@ def read_stand(protocol: str | Path) -> tuple[Path, Links, Tube]:
     path, t = read_rpam_protocol(protocol)
     j, a, o, c = t["joint"], t["actuator"], t["ogden"], t["stretch_correction"]
     links = Links(float(j["L1_m"]), float(j["L2_m"]), float(j["L3_m"]))
-    tube = Tube(L0_m=float(a["L0_m"]), A0_m2=float(a["A0_m2"]), n_turns=float(a["n_turns"]),
-                thread_length_m=float(a["thread_length_m"]), mu_MPa=tuple(float(v) for v in o["mu_MPa"]),
-                alpha=tuple(float(v) for v in o["alpha"]), stretch_N=tuple(float(v) for v in c["coefficients_N"]))
+    tube = Tube(
+        L0_m=float(a["L0_m"]),
+        A0_m2=float(a["A0_m2"]),
+        n_turns=float(a["n_turns"]),
+        thread_length_m=float(a["thread_length_m"]),
+        mu_MPa=tuple(float(v) for v in o["mu_MPa"]),
+        alpha=tuple(float(v) for v in o["alpha"]),
+        stretch_N=tuple(float(v) for v in c["coefficients_N"]),
+    )
     return path, links, tube

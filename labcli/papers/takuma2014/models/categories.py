@@ -48,8 +48,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -69,7 +70,7 @@ class CategoryPrediction:
     z: np.ndarray
     method: str
     note: list[str]
-    evidence: list[str] = field(default_factory=list)       # "uncertain" or ""
+    evidence: list[str] = field(default_factory=list)  # "uncertain" or ""
     distances: list[dict[str, float]] = field(default_factory=list)  # per object: z to each class
 
 
@@ -109,9 +110,11 @@ def parse_bands(bands: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
             )
         out[str(name)] = (lo, hi)
     ordered = sorted(out.items(), key=lambda item: item[1][0])
-    for (a, (_, a_hi)), (b, (b_lo, _)) in zip(ordered, ordered[1:]):
+    for (a, (_, a_hi)), (b, (b_lo, _)) in zip(ordered, ordered[1:], strict=False):
         if b_lo < a_hi:
-            raise ConfigError(f"Stiffness bands {a!r} and {b!r} overlap; make each band's lower bound the previous upper bound or more.")
+            raise ConfigError(
+                f"Stiffness bands {a!r} and {b!r} overlap; make each band's lower bound the previous upper bound or more."
+            )
     return out
 
 
@@ -134,15 +137,17 @@ class CategoryModel:
             raise ConfigError(f"Unknown category method {self.method!r}; use 'reference' or 'bands'.")
 
     @classmethod
-    def from_bands(cls, bands: Mapping[str, Any]) -> "CategoryModel":
+    def from_bands(cls, bands: Mapping[str, Any]) -> CategoryModel:
         return cls(method="bands", bands=parse_bands(bands))
 
-    def fit(self, k: Sequence[float] | np.ndarray, labels: Sequence[str]) -> "CategoryModel":
+    def fit(self, k: Sequence[float] | np.ndarray, labels: Sequence[str]) -> CategoryModel:
         """Fit class statistics from reference pushes' stiffness ``k`` (N/m, already unflagged) and labels."""
         if self.method != "reference":
             raise ModelError("Only the reference method is fitted; stiffness bands are given, not fitted.")
         k = np.asarray(k, dtype=float).reshape(-1)
-        labels = ["" if lab is None or (isinstance(lab, float) and math.isnan(lab)) else str(lab).strip() for lab in labels]
+        labels = [
+            "" if lab is None or (isinstance(lab, float) and math.isnan(lab)) else str(lab).strip() for lab in labels
+        ]
         if len(labels) != k.size:
             raise ModelError(f"Got {k.size} stiffness values but {len(labels)} category labels.")
         names = sorted({lab for lab in labels if lab})
@@ -183,7 +188,9 @@ class CategoryModel:
         self.std_log_k = max(pooled, self.min_std_log_k)
         return self
 
-    def predict(self, samples: Sequence[Sequence[float] | np.ndarray], names: Sequence[str] | None = None) -> CategoryPrediction:
+    def predict(
+        self, samples: Sequence[Sequence[float] | np.ndarray], names: Sequence[str] | None = None
+    ) -> CategoryPrediction:
         """Categorise objects, each given by its unflagged stiffness samples (N/m)."""
         if self.method == "reference" and not self.classes:
             raise ModelError("The category model has no classes; fit it on reference pushes before classifying.")
@@ -225,8 +232,9 @@ class CategoryModel:
                 notes.append(note)
                 evidence.append("uncertain" if not cat or near else "")
             distances.append(dist)
-        return CategoryPrediction(category=cats, confidence=conf, z=zs, method=self.method, note=notes,
-                                  evidence=evidence, distances=distances)
+        return CategoryPrediction(
+            category=cats, confidence=conf, z=zs, method=self.method, note=notes, evidence=evidence, distances=distances
+        )
 
     def _reference_distances(self, k: np.ndarray) -> dict[str, float]:
         """z of the object's mean ln k from each class mean, in class spreads (signed)."""
@@ -273,14 +281,17 @@ class CategoryModel:
             "method": "reference",
             "min_std_log_k": self.min_std_log_k,
             "std_log_k": self.std_log_k,
-            "classes": {n: {**s, "std_log_k": None if math.isnan(s["std_log_k"]) else s["std_log_k"]} for n, s in self.classes.items()},
+            "classes": {
+                n: {**s, "std_log_k": None if math.isnan(s["std_log_k"]) else s["std_log_k"]}
+                for n, s in self.classes.items()
+            },
         }
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2, sort_keys=True)
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "CategoryModel":
+    def from_dict(cls, data: Mapping[str, Any]) -> CategoryModel:
         method = data.get("method")
         if method == "bands":
             return cls.from_bands(data.get("bands") or {})
@@ -300,10 +311,13 @@ class CategoryModel:
                     "The reference category parameters need classes with mean_log_k and n, and std_log_k."
                 ) from None
             return cls(
-                method="reference", classes=classes, min_std_log_k=float(data.get("min_std_log_k", 0.05)), std_log_k=spread
+                method="reference",
+                classes=classes,
+                min_std_log_k=float(data.get("min_std_log_k", 0.05)),
+                std_log_k=spread,
             )
         raise ConfigError(f"Unknown category method {method!r} in the category parameters; use 'reference' or 'bands'.")
 
     @classmethod
-    def from_json(cls, text: str) -> "CategoryModel":
+    def from_json(cls, text: str) -> CategoryModel:
         return cls.from_dict(json.loads(text))

@@ -25,21 +25,22 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, Iterator, Mapping
+from typing import IO, Any
 
 import numpy as np
 
-from ....errors import ConfigError, ModelError
 from ....core.files import RUN_FILE_SUFFIXES
 from ....core.protocol import load_protocol, loads_protocol, shipped_protocols
 from ....core.provenance import rig_warning, run_identity, table_identity
 from ....core.store import RunFile
+from ....errors import ConfigError, ModelError
 from ..records import load_pushes
 from .categories import CategoryModel
-from .stiffness import PushEstimates, StiffnessParams, estimate_pushes, object_stats
 from .posture import PostureModel, load_force_model
+from .stiffness import PushEstimates, StiffnessParams, estimate_pushes, object_stats
 from .takuma import TakumaModel, cap
 
 P0_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
@@ -77,7 +78,9 @@ def _column(df: Any, name: str) -> np.ndarray:
     values = np.asarray(df[name], dtype=float)
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
-        raise ConfigError(f"Push {df['push'].iloc[bad[0]]}: column {name!r} is empty or not a number; check the push table.")
+        raise ConfigError(
+            f"Push {df['push'].iloc[bad[0]]}: column {name!r} is empty or not a number; check the push table."
+        )
     return values
 
 
@@ -108,7 +111,9 @@ def _length(model: Any, key: str, value: float | None) -> float:
     except (TypeError, ValueError):
         length = math.nan
     if not (math.isfinite(length) and length > 0):
-        raise ConfigError(f"The rig length {key} must be a positive number of metres (got {value!r}); check the protocol's [rig] table.")
+        raise ConfigError(
+            f"The rig length {key} must be a positive number of metres (got {value!r}); check the protocol's [rig] table."
+        )
     return length
 
 
@@ -156,10 +161,20 @@ def classify_pushes(
         force_ok = np.column_stack([np.asarray(ok["Fx"], dtype=bool), np.asarray(ok["Fy"], dtype=bool)])
     phi = np.radians(np.asarray(table["phi_deg"], dtype=float)) if "phi_deg" in table.columns else None
     est: PushEstimates = estimate_pushes(
-        theta[:, 0], theta[:, 1], Fx, Fy,
-        _column(table, "R_m"), _column(table, "d_m"), phi,
-        h2=h2, h3=h3, theta0=theta0, params=params,
-        model_flags=pred.get("flags"), model_reasons=pred.get("reasons"), force_ok=force_ok,
+        theta[:, 0],
+        theta[:, 1],
+        Fx,
+        Fy,
+        _column(table, "R_m"),
+        _column(table, "d_m"),
+        phi,
+        h2=h2,
+        h3=h3,
+        theta0=theta0,
+        params=params,
+        model_flags=pred.get("flags"),
+        model_reasons=pred.get("reasons"),
+        force_ok=force_ok,
         push_ids=table["push"].tolist(),
     )
 
@@ -173,14 +188,22 @@ def classify_pushes(
         method = "reference" if any(known.values()) else "bands"
     cat_model = _category_model(method, bands, est.k, use, labels)
     true_k = np.asarray(table[TRUE_K], dtype=float) if TRUE_K in table.columns else None
-    rows = [_object_row(name, members[name], known[name], est, use, labels, cat_model, true_k, allow_unusable)
-            for name in objects]
+    rows = [
+        _object_row(name, members[name], known[name], est, use, labels, cat_model, true_k, allow_unusable)
+        for name in objects
+    ]
 
     push_cols = [c for c in ("push", "object", "category", "source", TRUE_K) if c in table.columns]
-    model_cols = pd.DataFrame({
-        "R_m": _column(table, "R_m"), "d_m": _column(table, "d_m"),
-        "theta1_deg": np.degrees(theta[:, 0]), "theta2_deg": np.degrees(theta[:, 1]), "Fx_N": Fx, "Fy_N": Fy,
-    })
+    model_cols = pd.DataFrame(
+        {
+            "R_m": _column(table, "R_m"),
+            "d_m": _column(table, "d_m"),
+            "theta1_deg": np.degrees(theta[:, 0]),
+            "theta2_deg": np.degrees(theta[:, 1]),
+            "Fx_N": Fx,
+            "Fy_N": Fy,
+        }
+    )
     pushes = pd.concat([table[push_cols], model_cols, est.to_frame()], axis=1)
     return ClassifyResult(pushes=pushes, objects=pd.DataFrame(rows), model=cat_model, params=params)
 
@@ -213,8 +236,9 @@ def _rest_posture(table: Any) -> np.ndarray | None:
     return None
 
 
-def _posture_and_force(table: Any, model: Any, angles: str,
-                       theta0: np.ndarray | None = None) -> tuple[np.ndarray, Mapping[str, Any]]:
+def _posture_and_force(
+    table: Any, model: Any, angles: str, theta0: np.ndarray | None = None
+) -> tuple[np.ndarray, Mapping[str, Any]]:
     """The joint angles (rad, per push) and the model's prediction, from the pressures or the pots.
 
     The posture-aware form also takes the rest posture (its Jacobian is evaluated there).
@@ -249,8 +273,9 @@ def _known_categories(objects: list[str], members: Mapping[str, np.ndarray], lab
     return known
 
 
-def _category_model(method: str, bands: Mapping[str, Any] | None, k: np.ndarray, use: np.ndarray,
-                    labels: np.ndarray) -> CategoryModel:
+def _category_model(
+    method: str, bands: Mapping[str, Any] | None, k: np.ndarray, use: np.ndarray, labels: np.ndarray
+) -> CategoryModel:
     if method == "bands":
         if not bands:
             raise ModelError(
@@ -264,8 +289,17 @@ def _category_model(method: str, bands: Mapping[str, Any] | None, k: np.ndarray,
     return CategoryModel("reference").fit(np.where(use, k, np.nan)[ref], list(labels[ref]))
 
 
-def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use: np.ndarray, labels: np.ndarray,
-                cat_model: CategoryModel, true_k: np.ndarray | None, allow_unusable: bool) -> dict[str, Any]:
+def _object_row(
+    name: str,
+    sel: np.ndarray,
+    known: str,
+    est: PushEstimates,
+    use: np.ndarray,
+    labels: np.ndarray,
+    cat_model: CategoryModel,
+    true_k: np.ndarray | None,
+    allow_unusable: bool,
+) -> dict[str, Any]:
     """One object's statistics over its unflagged pushes, its category and how sure that is."""
     stats = object_stats(est.k[sel], est.flag[sel] | ~np.isfinite(est.k[sel]))
     row: dict[str, Any] = {"object": name, "known_category": known, **stats}
@@ -277,8 +311,15 @@ def _object_row(name: str, sel: np.ndarray, known: str, est: PushEstimates, use:
         top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
         if not allow_unusable:
             raise ModelError(f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top}).")
-        row.update(category="", confidence=0.0, z=math.nan, method=cat_model.method, note=f"no usable push ({top})",
-                   evidence="uncertain", z_by_category={})
+        row.update(
+            category="",
+            confidence=0.0,
+            z=math.nan,
+            method=cat_model.method,
+            note=f"no usable push ({top})",
+            evidence="uncertain",
+            z_by_category={},
+        )
         return row
     scorer, note = cat_model, ""
     if cat_model.method == "reference" and known:
@@ -366,8 +407,11 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
                 theta.append(np.degrees(rec["theta_rad"]) if "theta_rad" in rec else (math.nan, math.nan))
             theta = np.asarray(theta, dtype=float).reshape(-1, 2)
             table["theta1_deg"], table["theta2_deg"] = theta[:, 0], theta[:, 1]
-    proto = (loads_protocol(text, source=f"{p} (embedded protocol)") if text.strip()
-             else load_protocol(name or DEFAULT_PUSH_PROTOCOL))
+    proto = (
+        loads_protocol(text, source=f"{p} (embedded protocol)")
+        if text.strip()
+        else load_protocol(name or DEFAULT_PUSH_PROTOCOL)
+    )
     return PushSource(p, table, proto, True, identity)
 
 
@@ -388,8 +432,9 @@ def stiffness_settings(protocol: Any) -> tuple[StiffnessParams, str | None]:
     return StiffnessParams.from_dict(raw, where=where), force_protocol
 
 
-def check_force_model(model: Any, protocol: Any, *, model_name: str, run_name: str,
-                      force_protocol: str | None = None) -> None:
+def check_force_model(
+    model: Any, protocol: Any, *, model_name: str, run_name: str, force_protocol: str | None = None
+) -> None:
     """ModelError unless ``model`` was fitted on a force run of the rig these pushes were made on."""
     if force_protocol is not None and model.protocol != force_protocol:
         raise ModelError(
@@ -477,19 +522,25 @@ def classify_file(
         model_path = Path(model)
         fmodel = load_force_model(model_path)
     model_name = f"the model file {model_path}" if model_path is not None else "the model"
-    check_force_model(fmodel, src.protocol, model_name=model_name, run_name=str(src.path),
-                      force_protocol=force_protocol)
+    check_force_model(
+        fmodel, src.protocol, model_name=model_name, run_name=str(src.path), force_protocol=force_protocol
+    )
     # Pushes are read under a push protocol, the model under a force one: the rig is compared, not the text.
-    warnings = [w for w in [rig_warning(cap(model_name), fmodel.fitted_on, str(src.path), src.identity,
-                                        protocol_text=False)] if w]
+    warnings = [
+        w
+        for w in [rig_warning(cap(model_name), fmodel.fitted_on, str(src.path), src.identity, protocol_text=False)]
+        if w
+    ]
     table = src.table
     ref_path = None
     if reference is not None:
         ref_path = Path(reference)
-        ref = load_push_source(ref_path, protocol if not src.is_run else None,
-                               measured_angles=angles == "measured-angles")
-        check_force_model(fmodel, ref.protocol, model_name=model_name, run_name=str(ref_path),
-                          force_protocol=force_protocol)
+        ref = load_push_source(
+            ref_path, protocol if not src.is_run else None, measured_angles=angles == "measured-angles"
+        )
+        check_force_model(
+            fmodel, ref.protocol, model_name=model_name, run_name=str(ref_path), force_protocol=force_protocol
+        )
         table = _merge_reference(table, ref.table, str(ref_path))
     if method == "reference" and not (_labels(table) != "").any():
         raise ModelError(
@@ -501,7 +552,12 @@ def classify_file(
     bands = push.stiffness_bands_N_per_m if push is not None else None
     try:
         result = classify_pushes(
-            table, fmodel, params=params, bands=bands or None, method=method, angles=angles,
+            table,
+            fmodel,
+            params=params,
+            bands=bands or None,
+            method=method,
+            angles=angles,
             allow_unusable=allow_unusable,
         )
     except ModelError as e:
@@ -521,14 +577,25 @@ def _num(x: Any, scale: float = 1.0) -> float | None:
 
 PUSH_FIELDS: tuple[tuple[str, str, float], ...] = (
     # (output key, pushes-frame column, scale to the output unit)
-    ("R_mm", "R_m", 1e3), ("d_mm", "d_m", 1e3),
-    ("theta1_deg", "theta1_deg", 1.0), ("theta2_deg", "theta2_deg", 1.0),
-    ("Fx_N", "Fx_N", 1.0), ("Fy_N", "Fy_N", 1.0),
-    ("Fx_used_N", "Fx_used_N", 1.0), ("Fy_used_N", "Fy_used_N", 1.0), ("force_N", "force_N", 1.0),
-    ("xc_mm", "xc_m", 1e3), ("yc_mm", "yc_m", 1e3), ("phi_deg", "phi_deg", 1.0),
-    ("xo_mm", "xo_m", 1e3), ("yo_mm", "yo_m", 1e3), ("delta_x_mm", "delta_x_m", 1e3),
-    ("k_N_per_m", "k_N_per_m", 1.0), ("direction_error_deg", "direction_error_deg", 1.0),
-    ("phi_gain", "phi_gain", 1.0), ("dx_theta_gain_mm_per_deg", "dx_theta_gain_m_per_rad", 1e3 * math.pi / 180),
+    ("R_mm", "R_m", 1e3),
+    ("d_mm", "d_m", 1e3),
+    ("theta1_deg", "theta1_deg", 1.0),
+    ("theta2_deg", "theta2_deg", 1.0),
+    ("Fx_N", "Fx_N", 1.0),
+    ("Fy_N", "Fy_N", 1.0),
+    ("Fx_used_N", "Fx_used_N", 1.0),
+    ("Fy_used_N", "Fy_used_N", 1.0),
+    ("force_N", "force_N", 1.0),
+    ("xc_mm", "xc_m", 1e3),
+    ("yc_mm", "yc_m", 1e3),
+    ("phi_deg", "phi_deg", 1.0),
+    ("xo_mm", "xo_m", 1e3),
+    ("yo_mm", "yo_m", 1e3),
+    ("delta_x_mm", "delta_x_m", 1e3),
+    ("k_N_per_m", "k_N_per_m", 1.0),
+    ("direction_error_deg", "direction_error_deg", 1.0),
+    ("phi_gain", "phi_gain", 1.0),
+    ("dx_theta_gain_mm_per_deg", "dx_theta_gain_m_per_rad", 1e3 * math.pi / 180),
 )
 
 
@@ -553,7 +620,7 @@ def push_items(report: ClassifyReport, chunk: int = 10_000) -> Iterator[dict[str
     """Every push as plain data, a chunk of rows at a time (memory stays flat for any number of pushes)."""
     df = report.result.pushes
     for start in range(0, len(df), chunk):
-        for row in df.iloc[start:start + chunk].to_dict("records"):
+        for row in df.iloc[start : start + chunk].to_dict("records"):
             yield _push_item(row)
 
 
@@ -566,12 +633,19 @@ def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
             "object": str(row["object"]),
             "role": "reference" if row.get("known_category") else "unknown",
             "category_given": str(row.get("known_category") or ""),
-            "n": int(row["n_pushes"]), "n_used": int(row["n_used"]), "n_flagged": int(row["n_flagged"]),
-            "k_mean_N_per_m": _num(row["k_mean_N_per_m"]), "k_sd_N_per_m": _num(row["k_std_N_per_m"]),
+            "n": int(row["n_pushes"]),
+            "n_used": int(row["n_used"]),
+            "n_flagged": int(row["n_flagged"]),
+            "k_mean_N_per_m": _num(row["k_mean_N_per_m"]),
+            "k_sd_N_per_m": _num(row["k_std_N_per_m"]),
             "k_median_N_per_m": _num(row["k_median_N_per_m"]),
-            "log_k_mean": _num(row["log_k_mean"]), "log_k_sd": _num(row["log_k_std"]),
-            "category": str(row.get("category") or ""), "confidence": _num(row.get("confidence")),
-            "z": _num(row.get("z")), "method": str(row.get("method") or res.method), "note": str(row.get("note") or ""),
+            "log_k_mean": _num(row["log_k_mean"]),
+            "log_k_sd": _num(row["log_k_std"]),
+            "category": str(row.get("category") or ""),
+            "confidence": _num(row.get("confidence")),
+            "z": _num(row.get("z")),
+            "method": str(row.get("method") or res.method),
+            "note": str(row.get("note") or ""),
             "evidence": str(row.get("evidence") or ""),
             "z_by_category": {str(c): _num(v) for c, v in dict(row.get("z_by_category") or {}).items()},
         }
@@ -604,8 +678,11 @@ def flag_summary(pushes: Any) -> dict[str, Any]:
     flagged = pushes["flag"].to_numpy(dtype=bool)
     reasons = pushes.loc[flagged, "reason"].astype(str).value_counts()
     notes = pushes.loc[~flagged & (pushes["note"].astype(str) != ""), "note"].astype(str).value_counts()
-    return {"n_flagged": int(flagged.sum()), "reasons": {str(k): int(v) for k, v in reasons.items()},
-            "notes": {str(k): int(v) for k, v in notes.items()}}
+    return {
+        "n_flagged": int(flagged.sum()),
+        "reasons": {str(k): int(v) for k, v in reasons.items()},
+        "notes": {str(k): int(v) for k, v in notes.items()},
+    }
 
 
 def report_to_dict(report: ClassifyReport) -> dict[str, Any]:

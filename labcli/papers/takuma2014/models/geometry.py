@@ -56,9 +56,9 @@ def jstar(theta: np.ndarray, h2: float, h3: float) -> np.ndarray:
 
 def _smax2_det(theta2: np.ndarray, h2: float, h3: float) -> tuple[np.ndarray, np.ndarray]:
     """Largest squared singular value of J and |det J|; both depend on theta2 only."""
-    frob2 = h2 ** 2 + 2.0 * h3 ** 2 + 2.0 * h2 * h3 * np.cos(theta2)
+    frob2 = h2**2 + 2.0 * h3**2 + 2.0 * h2 * h3 * np.cos(theta2)
     det = np.abs(h2 * h3 * np.sin(theta2))
-    smax2 = 0.5 * (frob2 + np.sqrt(np.maximum(frob2 ** 2 - 4.0 * det ** 2, 0.0)))
+    smax2 = 0.5 * (frob2 + np.sqrt(np.maximum(frob2**2 - 4.0 * det**2, 0.0)))
     return smax2, det
 
 

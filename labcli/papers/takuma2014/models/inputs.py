@@ -23,9 +23,9 @@ DEFAULT_PROTOCOL = "takuma2014"
 @dataclass
 class TrialSource:
     path: Path
-    table: Any            # the trial table (pandas DataFrame, contract columns)
-    protocol: Any         # labcli.core.protocol.Protocol
-    is_run: bool          # True for a run file, False for a CSV
+    table: Any  # the trial table (pandas DataFrame, contract columns)
+    protocol: Any  # labcli.core.protocol.Protocol
+    is_run: bool  # True for a run file, False for a CSV
     identity: dict = field(default_factory=dict)  # core.provenance: the data, the rig, the protocol
 
     @property
@@ -48,18 +48,27 @@ def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSou
             name = str(run.attrs.get("protocol", ""))
             identity = run_identity(run, p)
         if protocol is not None and protocol != name:
-            raise ConfigError(f"{p} was recorded with protocol '{name}'; --protocol applies to "
-                              "trial CSV files only, so leave it out for a run file.")
-        proto = (loads_protocol(text, source=f"{p} (embedded protocol)") if text.strip()
-                 else load_protocol(name or DEFAULT_PROTOCOL))
+            raise ConfigError(
+                f"{p} was recorded with protocol '{name}'; --protocol applies to "
+                "trial CSV files only, so leave it out for a run file."
+            )
+        proto = (
+            loads_protocol(text, source=f"{p} (embedded protocol)")
+            if text.strip()
+            else load_protocol(name or DEFAULT_PROTOCOL)
+        )
         if proto.kind != "force":
-            raise ConfigError(f"{p} is a run of kind '{proto.kind}' (protocol '{proto.name}'), not a force run; "
-                              "fit and validate read the trials of a force run such as one recorded "
-                              f"with protocol {DEFAULT_PROTOCOL}.")
+            raise ConfigError(
+                f"{p} is a run of kind '{proto.kind}' (protocol '{proto.name}'), not a force run; "
+                "fit and validate read the trials of a force run such as one recorded "
+                f"with protocol {DEFAULT_PROTOCOL}."
+            )
         return TrialSource(p, _read_table(p), proto, True, identity)
     proto = load_protocol(protocol or DEFAULT_PROTOCOL)
     if proto.kind != "force":
         # A model fitted under a push or rPAM protocol would be refused by every later check.
-        raise ConfigError(f"--protocol {protocol} is of kind '{proto.kind}'; a trial CSV is read with a "
-                          f"force protocol such as {DEFAULT_PROTOCOL}.")
+        raise ConfigError(
+            f"--protocol {protocol} is of kind '{proto.kind}'; a trial CSV is read with a "
+            f"force protocol such as {DEFAULT_PROTOCOL}."
+        )
     return TrialSource(p, _read_table(p), proto, False, table_identity(p, proto))

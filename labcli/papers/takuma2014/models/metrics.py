@@ -12,7 +12,8 @@ reported trials whose error lies inside the estimate's 95 % interval (+-1.96 sta
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -42,21 +43,19 @@ def error_metrics(observed: Any, calculated: Any) -> dict[str, Any]:
     if n == 0:
         return out
     err = calc - obs
-    rmse = float(np.sqrt(np.mean(err ** 2)))
-    out.update(rmse=rmse, mae=float(np.mean(np.abs(err))), max_abs=float(np.max(np.abs(err))),
-               bias=float(np.mean(err)))
+    rmse = float(np.sqrt(np.mean(err**2)))
+    out.update(rmse=rmse, mae=float(np.mean(np.abs(err))), max_abs=float(np.max(np.abs(err))), bias=float(np.mean(err)))
     spread = float(np.max(obs) - np.min(obs))
     out["range"] = spread
     ss_tot = float(np.sum((obs - obs.mean()) ** 2))
     if ss_tot > 0:
-        out["r2"] = 1.0 - float(np.sum(err ** 2)) / ss_tot
+        out["r2"] = 1.0 - float(np.sum(err**2)) / ss_tot
     if spread > 0:
         out["pct_range"] = 100.0 * rmse / spread
     return out
 
 
-def evaluate(model: TakumaModel, table: Any, mode: str = "pressure-only",
-             source: str = "the run") -> dict[str, Any]:
+def evaluate(model: TakumaModel, table: Any, mode: str = "pressure-only", source: str = "the run") -> dict[str, Any]:
     """Predict the validation trials of ``table`` and measure the errors.
 
     Returns ``{"mode", "trial", "observed", "calculated", "ok", "flags", "metrics"}``:
@@ -69,13 +68,14 @@ def evaluate(model: TakumaModel, table: Any, mode: str = "pressure-only",
     rows = select_set(table, "validation", source)
     pred = model.predict_table(rows, mode=mode)
     calculated = {
-        "theta1": np.degrees(pred["theta1_rad"]), "theta2": np.degrees(pred["theta2_rad"]),
-        "Fx": np.asarray(pred["Fx_N"], dtype=float), "Fy": np.asarray(pred["Fy_N"], dtype=float),
+        "theta1": np.degrees(pred["theta1_rad"]),
+        "theta2": np.degrees(pred["theta2_rad"]),
+        "Fx": np.asarray(pred["Fx_N"], dtype=float),
+        "Fy": np.asarray(pred["Fy_N"], dtype=float),
     }
     observed = {}
     for q, (col, _, _) in QUANTITIES.items():
-        observed[q] = (np.asarray(rows[col], dtype=float) if col in rows.columns
-                       else np.full(len(rows), np.nan))
+        observed[q] = np.asarray(rows[col], dtype=float) if col in rows.columns else np.full(len(rows), np.nan)
     metrics: dict[str, dict[str, Any]] = {}
     se = _standard_errors(pred)
     for q, (_, unit, _) in QUANTITIES.items():
@@ -91,13 +91,22 @@ def evaluate(model: TakumaModel, table: Any, mode: str = "pressure-only",
             m["coverage95"] = float(np.mean(inside[use])) if use.any() else None
         metrics[q] = m
     if all(metrics[q]["n"] == 0 for q in QUANTITIES):
-        raise ModelError(f"No validation trial of {source} gives a usable prediction "
-                         f"({_flag_summary(pred['flags'])}); check the pressures and the model.")
+        raise ModelError(
+            f"No validation trial of {source} gives a usable prediction "
+            f"({_flag_summary(pred['flags'])}); check the pressures and the model."
+        )
     return {
-        "mode": mode, "form": getattr(model, "form", "paper"), "trial": np.asarray(pred["trial"], dtype=int),
-        "observed": observed, "calculated": calculated, "se": se,
+        "mode": mode,
+        "form": getattr(model, "form", "paper"),
+        "trial": np.asarray(pred["trial"], dtype=int),
+        "observed": observed,
+        "calculated": calculated,
+        "se": se,
         "ok": {q: np.asarray(pred["ok"][q], dtype=bool) for q in QUANTITIES},
-        "flags": pred["flags"], "metrics": metrics, "routes": pred.get("routes"), "blends": pred.get("blends"),
+        "flags": pred["flags"],
+        "metrics": metrics,
+        "routes": pred.get("routes"),
+        "blends": pred.get("blends"),
     }
 
 
@@ -108,8 +117,10 @@ def _standard_errors(pred: Mapping[str, Any]) -> dict[str, np.ndarray] | None:
     """The prediction's standard errors in degrees / N, when its form gives them."""
     if "se" not in pred:
         return None
-    return {q: (np.degrees(pred["se"][q]) if q.startswith("theta") else np.asarray(pred["se"][q], dtype=float))
-            for q in QUANTITIES}
+    return {
+        q: (np.degrees(pred["se"][q]) if q.startswith("theta") else np.asarray(pred["se"][q], dtype=float))
+        for q in QUANTITIES
+    }
 
 
 def _flag_summary(flags: list[list[str]]) -> str:
@@ -131,24 +142,26 @@ def evaluation_to_dict(ev: dict[str, Any]) -> dict[str, Any]:
     """Plain-JSON view: metrics, and per trial observed / calculated (null when flagged)."""
     trials = []
     for i, t in enumerate(ev["trial"]):
-        trials.append({
-            "trial": int(t),
-            "observed": {q: _num(ev["observed"][q][i]) for q in QUANTITIES},
-            "calculated": {q: (_num(ev["calculated"][q][i]) if ev["ok"][q][i] else None)
-                           for q in QUANTITIES},
-            "flags": [{"flag": f, "reason": FLAG_TEXT.get(f, f)} for f in ev["flags"][i]],
-        })
+        trials.append(
+            {
+                "trial": int(t),
+                "observed": {q: _num(ev["observed"][q][i]) for q in QUANTITIES},
+                "calculated": {q: (_num(ev["calculated"][q][i]) if ev["ok"][q][i] else None) for q in QUANTITIES},
+                "flags": [{"flag": f, "reason": FLAG_TEXT.get(f, f)} for f in ev["flags"][i]],
+            }
+        )
         if ev.get("se") is not None:
             trials[-1]["standard_error"] = {q: _num(ev["se"][q][i]) for q in QUANTITIES}
     units = {q: QUANTITIES[q][1] for q in QUANTITIES}
-    metrics = {q: {k: (_num(v) if isinstance(v, float) else v) for k, v in m.items()}
-               for q, m in ev["metrics"].items()}
+    metrics = {q: {k: (_num(v) if isinstance(v, float) else v) for k, v in m.items()} for q, m in ev["metrics"].items()}
     out = {"mode": ev["mode"], "form": ev.get("form", "paper"), "units": units, "metrics": metrics, "trials": trials}
     if ev.get("routes"):
         out["routes"] = dict(ev["routes"])
     if ev.get("blends"):
         out["blends"] = {q: dict(b) for q, b in ev["blends"].items()}
     if "forms" in ev:
-        out["forms"] = {f: {q: {k: (_num(v) if isinstance(v, float) else v) for k, v in m.items()}
-                            for q, m in ms.items()} for f, ms in ev["forms"].items()}
+        out["forms"] = {
+            f: {q: {k: (_num(v) if isinstance(v, float) else v) for k, v in m.items()} for q, m in ms.items()}
+            for f, ms in ev["forms"].items()
+        }
     return out

@@ -59,9 +59,10 @@ Units: pressures MPa, angles rad, torques N m, forces N.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, NoReturn
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -70,17 +71,31 @@ from ....core.jsontext import dumps_indented
 from ....errors import ModelError
 from . import routes as rt
 from .geometry import jacobian
-from .takuma import (ANGLE_COLUMNS, BASELINE_COLUMNS, FORCE_COLUMNS, LOADED_COLUMNS, SCHEMA, SCHEMA_VERSION,
-                     TakumaModel, _clean, cap, normalise_geometry, pressure_arrays, set_mask)
+from .takuma import (
+    ANGLE_COLUMNS,
+    BASELINE_COLUMNS,
+    FORCE_COLUMNS,
+    LOADED_COLUMNS,
+    SCHEMA,
+    SCHEMA_VERSION,
+    TakumaModel,
+    _clean,
+    cap,
+    normalise_geometry,
+    pressure_arrays,
+    set_mask,
+)
 
 FORM = "posture"
 REST_COLUMNS = ("theta1_0_deg", "theta2_0_deg")
 ACTUATORS = ("L1", "R1", "L2", "R2")
 ANGLE_LINEAR = tuple(f"u_{a}" for a in ACTUATORS)
 ANGLE_QUADRATIC = tuple(f"u_{ACTUATORS[i]}*u_{ACTUATORS[j]}" for i in range(4) for j in range(i, 4))
-TORQUE_TERMS = (tuple(f"dP_{a}" for a in ACTUATORS)
-                + tuple(f"dP_{a}*dtheta{l}" for a in ACTUATORS for l in (1, 2))
-                + ("dtheta1", "dtheta2"))
+TORQUE_TERMS = (
+    tuple(f"dP_{a}" for a in ACTUATORS)
+    + tuple(f"dP_{a}*dtheta{j}" for a in ACTUATORS for j in (1, 2))
+    + ("dtheta1", "dtheta2")
+)
 # Standard errors above these flag an estimate (the protocol's [sensing] keys override them):
 # 1 N tells the plan's 50-1000 g loads (0.5-9.8 N) apart by about 2 N at 95 %; 0.5 deg is several
 # times the potentiometers' backlash.
@@ -99,6 +114,7 @@ def limits_from_protocol(protocol: Any) -> dict[str, float]:
 
 
 # --------------------------------------------------------------------------- features
+
 
 def angle_features(P0: np.ndarray, P: np.ndarray, terms: tuple[str, ...]) -> np.ndarray:
     """Columns ``terms`` (names from ANGLE_LINEAR + ANGLE_QUADRATIC) of u = P0/P - 1, (n, len(terms))."""
@@ -145,8 +161,8 @@ CV_MIN_GAIN = 0.10
 class _Shared:
     """Least squares of several responses on one design: coefficients, (X^T X)^-1, residual covariance."""
 
-    beta: np.ndarray       # (p, k)
-    xtx_inv: np.ndarray    # (p, p)
+    beta: np.ndarray  # (p, k)
+    xtx_inv: np.ndarray  # (p, p)
     resid_cov: np.ndarray  # (k, k)
     dof: int
 
@@ -162,17 +178,17 @@ class _Blocks:
     """
 
     factors: list[np.ndarray]  # one (<= p + k, p + k) R per block
-    p: int                     # columns of X; Y is the last k columns
-    n: int                     # trials
-    width: int                 # p + k
-    rows: Any = None           # rows(lo, hi): the rows again, for leave-one-out residuals
+    p: int  # columns of X; Y is the last k columns
+    n: int  # trials
+    width: int  # p + k
+    rows: Any = None  # rows(lo, hi): the rows again, for leave-one-out residuals
 
     @classmethod
-    def build(cls, n: int, p: int, block: Any) -> "_Blocks":
+    def build(cls, n: int, p: int, block: Any) -> _Blocks:
         """``block(lo, hi)`` gives the rows lo..hi of [X | Y]; blocks are contiguous (a plan groups
         its trials by pulley position), as many as CV_FOLDS."""
         edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
-        factors = [np.linalg.qr(block(lo, hi), mode="r") for lo, hi in zip(edges[:-1], edges[1:])]
+        factors = [np.linalg.qr(block(lo, hi), mode="r") for lo, hi in zip(edges[:-1], edges[1:], strict=False)]
         return cls(factors, p, n, factors[0].shape[1] if factors else p, block)
 
     def _train(self, held: int, cols: list[int]) -> np.ndarray:
@@ -202,7 +218,7 @@ class _Blocks:
         ys = self.responses(ys)
         edges = np.linspace(0, self.n, len(self.factors) + 1).astype(int)
         out = np.zeros((len(ys), len(ys)))
-        for lo, hi in zip(edges[:-1], edges[1:]):
+        for lo, hi in zip(edges[:-1], edges[1:], strict=False):
             z = self.rows(lo, hi)
             loo = loo_residuals(z[:, xs], z[:, ys] - z[:, xs] @ beta, xtx_inv)
             out += loo.T @ loo
@@ -213,27 +229,30 @@ class _Blocks:
         return np.linalg.qr(np.vstack(self.factors), mode="r")
 
 
-def _shared_lstsq(blocks: _Blocks, xs: list[int], what: str, by_trial: bool = False,
-                  ys: list[int] | None = None) -> _Shared:
+def _shared_lstsq(
+    blocks: _Blocks, xs: list[int], what: str, by_trial: bool = False, ys: list[int] | None = None
+) -> _Shared:
     """Least squares of Y (or its columns ``ys``) on the columns ``xs`` of X, from the blocks' R factors."""
     n, p = blocks.n, len(xs)
     if n <= p:
-        raise ModelError(f"The posture form's {what} fit needs more than {p} usable fit trials, got {n}; "
-                         "record more fit trials, or fit the paper's Eqs. 34-37 with --form paper.")
+        raise ModelError(
+            f"The posture form's {what} fit needs more than {p} usable fit trials, got {n}; "
+            "record more fit trials, or fit the paper's Eqs. 34-37 with --form paper."
+        )
     R = blocks.whole()
     X, Y = R[:, xs], R[:, blocks.responses(ys)]
     scale = np.linalg.norm(X, axis=0)  # the columns' norms over the trials: Q keeps lengths
     if not np.all(scale > 0):
-        raise ModelError(f"The {what} fit has a term that is zero in every fit trial; "
-                         "record fit trials that load every actuator.")
+        raise ModelError(
+            f"The {what} fit has a term that is zero in every fit trial; record fit trials that load every actuator."
+        )
     U, s, Vt = np.linalg.svd(X / scale, full_matrices=False)
     if not s[-1] > s[0] * 1e-12:
-        raise ModelError(f"The {what} design matrix is singular; record fit trials with more "
-                         "varied force directions.")
+        raise ModelError(f"The {what} design matrix is singular; record fit trials with more varied force directions.")
     beta = (Vt.T @ ((U.T @ Y) / s[:, None])) / scale[:, None]
     resid = Y - X @ beta  # the residuals' Gram matrix, the trials' own through Q
     dof = n - p
-    xtx_inv = ((Vt.T / s ** 2) @ Vt) / np.outer(scale, scale)
+    xtx_inv = ((Vt.T / s**2) @ Vt) / np.outer(scale, scale)
     # The residual covariance from held-out residuals when that is larger than the in-sample
     # one: friction's hysteresis and the pots' play leave errors a trial's own fit partly
     # absorbs.  Divided by 1 + p/n because prediction adds the coefficients' share (1 + h)
@@ -264,12 +283,16 @@ ANGLE_TERMS = ANGLE_LINEAR + ANGLE_QUADRATIC
 
 def angle_blocks(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray) -> _Blocks:
     """The blocks of [every angle term | dtheta] (ANGLE_TERMS, then the two deflections)."""
-    return _Blocks.build(len(P), len(ANGLE_TERMS), lambda lo, hi: np.column_stack(
-        [angle_features(P0[lo:hi], P[lo:hi], ANGLE_TERMS), dtheta[lo:hi]]))
+    return _Blocks.build(
+        len(P),
+        len(ANGLE_TERMS),
+        lambda lo, hi: np.column_stack([angle_features(P0[lo:hi], P[lo:hi], ANGLE_TERMS), dtheta[lo:hi]]),
+    )
 
 
-def select_angle_terms(blocks: _Blocks, base: tuple[str, ...] = ANGLE_LINEAR,
-                       ys: list[int] | None = None) -> tuple[str, ...]:
+def select_angle_terms(
+    blocks: _Blocks, base: tuple[str, ...] = ANGLE_LINEAR, ys: list[int] | None = None
+) -> tuple[str, ...]:
     """The ``base`` terms and the others that lower the cross-validated error, added greedily.
 
     ``ys``: the deflections the terms must predict together (default both).  Cross-validation over
@@ -297,6 +320,7 @@ def select_torque_terms(blocks: _Blocks) -> tuple[str, ...]:
     together, each relative to its error with the pressure drops alone: the sum does not depend
     on their units, and tau1's lever is longer than tau2's.
     """
+
     def held_out(terms: tuple[str, ...] | list[str]) -> np.ndarray:
         return np.diag(blocks.cv_cov([TORQUE_TERMS.index(t) for t in terms]))
 
@@ -345,6 +369,7 @@ THETA1_BASE = ("u_L1", "u_R1")
 
 # --------------------------------------------------------------------------- the model
 
+
 @dataclass
 class PostureModel:
     """Torques at the true posture, forces by (J^T)^-1, every estimate with its standard error.
@@ -359,7 +384,7 @@ class PostureModel:
     protocol: str = "takuma2014"
     limits: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_LIMITS))
     angle_terms: tuple[str, ...] = ()
-    angle_coefficients: list[list[float]] = field(default_factory=list)   # (p_a, 2)
+    angle_coefficients: list[list[float]] = field(default_factory=list)  # (p_a, 2)
     angle_xtx_inv: list[list[float]] = field(default_factory=list)
     angle_resid_cov: list[list[float]] = field(default_factory=list)
     # The torque terms kept (select_torque_terms); absent in older files: all 14 of TORQUE_TERMS.
@@ -400,7 +425,7 @@ class PostureModel:
         return bool(self.torque_coefficients) and bool(self.angle_coefficients)
 
     # ---------------------------------------------------------------- fitting
-    def fit(self, table: Any, source: str = "the trial table", choose_routes: bool = True) -> "PostureModel":
+    def fit(self, table: Any, source: str = "the trial table", choose_routes: bool = True) -> PostureModel:
         """Least squares on the table's fit trials (``set == 'fit'``); returns self, fitted.
 
         ``choose_routes`` also fits the paper's Eqs. 34-37 and picks, per quantity, the posture
@@ -418,8 +443,12 @@ class PostureModel:
 
     def _fit_posture(self, table: Any, source: str) -> None:
         a = table_arrays(table, set_mask(table, "fit", source))
-        use = (np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1) & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
-               & np.all(np.isfinite(a["dtheta"]), axis=1) & np.all(np.isfinite(a["F"]), axis=1))
+        use = (
+            np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1)
+            & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
+            & np.all(np.isfinite(a["dtheta"]), axis=1)
+            & np.all(np.isfinite(a["F"]), axis=1)
+        )
         if not use.all():
             a = {k: v[use] for k, v in a.items()}
         P0, P, th0, dth, F = (a[k] for k in ("P0", "P", "theta0", "dtheta", "F"))
@@ -432,8 +461,16 @@ class PostureModel:
         own = _shared_lstsq(angles, [ANGLE_TERMS.index(t) for t in self.theta1_terms], "deflection", ys=theta1)
         self.theta1_coefficients, self.theta1_xtx_inv = own.beta[:, 0].tolist(), own.xtx_inv.tolist()
         self.theta1_resid_var = float(own.resid_cov[0, 0])
-        torques = _Blocks.build(len(P), len(TORQUE_TERMS), lambda lo, hi: np.column_stack(
-            [torque_features(P0[lo:hi] - P[lo:hi], dth[lo:hi]), load_torque(th0[lo:hi] + dth[lo:hi], F[lo:hi], h2, h3)]))
+        torques = _Blocks.build(
+            len(P),
+            len(TORQUE_TERMS),
+            lambda lo, hi: np.column_stack(
+                [
+                    torque_features(P0[lo:hi] - P[lo:hi], dth[lo:hi]),
+                    load_torque(th0[lo:hi] + dth[lo:hi], F[lo:hi], h2, h3),
+                ]
+            ),
+        )
         # In TORQUE_TERMS' order: a file with all 14 reads the same as one written before the choice.
         self.torque_terms = tuple(sorted(select_torque_terms(torques), key=TORQUE_TERMS.index))
         tq = _shared_lstsq(torques, [TORQUE_TERMS.index(t) for t in self.torque_terms], "torque", by_trial=True)
@@ -441,22 +478,28 @@ class PostureModel:
         self.angle_resid_cov = ang.resid_cov.tolist()
         self.torque_coefficients, self.torque_xtx_inv = tq.beta.tolist(), tq.xtx_inv.tolist()
         self.torque_resid_cov = tq.resid_cov.tolist()
-        self.force_prior_sd = np.sqrt(np.mean(F ** 2, axis=0)).tolist()
+        self.force_prior_sd = np.sqrt(np.mean(F**2, axis=0)).tolist()
         self.fitted_trials = idranges.to_ranges(a["trial"])
         self.fit_stats = {
-            "n": len(P), "angle_dof": ang.dof, "torque_dof": tq.dof,
+            "n": len(P),
+            "angle_dof": ang.dof,
+            "torque_dof": tq.dof,
             "theta0_deg": np.degrees(np.median(th0, axis=0)).tolist(),
-            "angle_rmse_deg": [math.degrees(math.sqrt(self.theta1_resid_var)),
-                               math.degrees(math.sqrt(ang.resid_cov[1, 1]))],
+            "angle_rmse_deg": [
+                math.degrees(math.sqrt(self.theta1_resid_var)),
+                math.degrees(math.sqrt(ang.resid_cov[1, 1])),
+            ],
             "torque_rmse_Nm": np.sqrt(np.diag(tq.resid_cov)).tolist(),
         }
         self.source = source
 
     def _choose_routes(self, table: Any, source: str) -> None:
         """Cross-validate both forms on the fit trials; keep the paper's where it predicts better."""
-        def posture_only(rows: Any) -> "PostureModel":
-            return PostureModel(geometry=self.geometry, protocol=self.protocol,
-                                limits=self.limits).fit(rows, choose_routes=False)
+
+        def posture_only(rows: Any) -> PostureModel:
+            return PostureModel(geometry=self.geometry, protocol=self.protocol, limits=self.limits).fit(
+                rows, choose_routes=False
+            )
 
         def paper(rows: Any) -> TakumaModel:
             return TakumaModel(geometry=self.geometry, protocol=self.protocol).fit(rows)
@@ -493,8 +536,9 @@ class PostureModel:
         cov = (1.0 + h)[:, None, None] * np.asarray(self.angle_resid_cov)[None]
         return X @ np.asarray(self.angle_coefficients), cov
 
-    def _theta1(self, P0: np.ndarray, P: np.ndarray, shared: np.ndarray,
-                shared_var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _theta1(
+        self, P0: np.ndarray, P: np.ndarray, shared: np.ndarray, shared_var: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The reported theta1 (rad) and its variance from its own equation (the shared design's if none)."""
         if not self.theta1_terms:
             return shared, shared_var
@@ -521,12 +565,17 @@ class PostureModel:
             return np.einsum("nij,nj->ni", A, tau), np.einsum("nij,njk,nlk->nil", A, S, A)
         # Gain form of the posterior (P J (J^T P J + S)^-1): stable when S is tiny or J^T singular.
         prior = np.diag(np.asarray(self.force_prior_sd) ** 2)
-        K = np.einsum("ij,nkj,nkl->nil", prior, JT,
-                      np.linalg.pinv(np.einsum("nij,jk,nlk->nil", JT, prior, JT) + S, hermitian=True))
+        K = np.einsum(
+            "ij,nkj,nkl->nil",
+            prior,
+            JT,
+            np.linalg.pinv(np.einsum("nij,jk,nlk->nil", JT, prior, JT) + S, hermitian=True),
+        )
         return np.einsum("nij,nj->ni", K, tau), prior - np.einsum("nij,njk,kl->nil", K, JT, prior)
 
-    def predict(self, P0: Any, P: Any, theta0: Any = None, mode: str = "pressure-only",
-                theta: Any = None) -> dict[str, Any]:
+    def predict(
+        self, P0: Any, P: Any, theta0: Any = None, mode: str = "pressure-only", theta: Any = None
+    ) -> dict[str, Any]:
         """Deflections (rad), forces (N) and their standard errors from pressures (MPa, (n, 4)).
 
         ``theta0`` (n, 2) rad is the rest posture (default 0, 0).  ``mode="measured-angles"``
@@ -558,8 +607,12 @@ class PostureModel:
             raise ModelError(f"Unknown prediction mode '{mode}'; use pressure-only or measured-angles.")
         F, cov_F = self._force_covariance(P0 - P, th0, dth_f, cov_f)
         # The gain form can leave a rounding-level negative variance where the data fix F exactly.
-        se = {"theta1": np.sqrt(var1), "theta2": np.sqrt(cov_a[:, 1, 1]),
-              "Fx": np.sqrt(np.maximum(cov_F[:, 0, 0], 0.0)), "Fy": np.sqrt(np.maximum(cov_F[:, 1, 1], 0.0))}
+        se = {
+            "theta1": np.sqrt(var1),
+            "theta2": np.sqrt(cov_a[:, 1, 1]),
+            "Fx": np.sqrt(np.maximum(cov_F[:, 0, 0], 0.0)),
+            "Fy": np.sqrt(np.maximum(cov_F[:, 1, 1], 0.0)),
+        }
         value = {"theta1": theta1, "theta2": dth[:, 1], "Fx": F[:, 0], "Fy": F[:, 1]}
         valid = {q: known if q in ("Fx", "Fy") else np.ones(n, bool) for q in se}
         self._paper_routes(P0, P, mode, theta, value, se, valid, flags)
@@ -570,28 +623,52 @@ class PostureModel:
             for i in np.flatnonzero(~within & ~bad):
                 if "uncertain" not in flags[i]:
                     flags[i].append("uncertain")
-        return {"theta1_rad": value["theta1"], "theta2_rad": value["theta2"], "Fx_N": value["Fx"],
-                "Fy_N": value["Fy"], "se": se, "ok": ok, "flags": flags, "mode": mode, "form": FORM,
-                "theta0_rad": th0, "routes": {q: self.route(q) for q in rt.QUANTITIES},
-                "blends": {q: dict(b) for q, b in self.blends.items()}}
+        return {
+            "theta1_rad": value["theta1"],
+            "theta2_rad": value["theta2"],
+            "Fx_N": value["Fx"],
+            "Fy_N": value["Fy"],
+            "se": se,
+            "ok": ok,
+            "flags": flags,
+            "mode": mode,
+            "form": FORM,
+            "theta0_rad": th0,
+            "routes": {q: self.route(q) for q in rt.QUANTITIES},
+            "blends": {q: dict(b) for q, b in self.blends.items()},
+        }
 
-    def _paper_routes(self, P0: np.ndarray, P: np.ndarray, mode: str, theta: Any, value: dict[str, np.ndarray],
-                      se: dict[str, np.ndarray], valid: dict[str, np.ndarray], flags: list[list[str]]) -> None:
+    def _paper_routes(
+        self,
+        P0: np.ndarray,
+        P: np.ndarray,
+        mode: str,
+        theta: Any,
+        value: dict[str, np.ndarray],
+        se: dict[str, np.ndarray],
+        valid: dict[str, np.ndarray],
+        flags: list[list[str]],
+    ) -> None:
         """Put the paper's estimates (or the blends with them), standard errors and flags in place."""
         paper = self.paper
         mine = [q for q in rt.QUANTITIES if self.route(q) != rt.POSTURE]
         if paper is None or not mine:
             return
         pred = paper.predict(P0, P, mode=mode, theta=theta)
-        th_force = (np.column_stack([pred["theta1_rad"], pred["theta2_rad"]]) if mode == "pressure-only"
-                    else np.nan_to_num(np.atleast_2d(np.asarray(theta, dtype=float)), nan=0.0))
+        th_force = (
+            np.column_stack([pred["theta1_rad"], pred["theta2_rad"]])
+            if mode == "pressure-only"
+            else np.nan_to_num(np.atleast_2d(np.asarray(theta, dtype=float)), nan=0.0)
+        )
         paper_se = rt.paper_standard_errors(paper, pred, P0, P, th_force, self.paper_variance)
         for q in mine:
             v_pa, ok_pa = np.asarray(pred[rt.VALUE_KEYS[q]], dtype=float), np.asarray(pred["ok"][q], dtype=bool)
             if self.route(q) == rt.BLEND:
                 # Where the paper's form has no estimate the posture form's stands alone.
                 b = self.blends[q]
-                v, s = rt.blend_estimate(b["posture_weight"], b["error_correlation"], value[q], se[q], v_pa, paper_se[q])
+                v, s = rt.blend_estimate(
+                    b["posture_weight"], b["error_correlation"], value[q], se[q], v_pa, paper_se[q]
+                )
                 both = ok_pa & np.isfinite(v) & np.isfinite(s)
                 value[q], se[q] = np.where(both, v, value[q]), np.where(both, s, se[q])
                 continue
@@ -602,8 +679,9 @@ class PostureModel:
                 if why in pred["flags"][i] and why not in flags[i]:
                     flags[i].append(why)
 
-    def _force_covariance(self, dP: np.ndarray, th0: np.ndarray, dth: np.ndarray,
-                          cov_dth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _force_covariance(
+        self, dP: np.ndarray, th0: np.ndarray, dth: np.ndarray, cov_dth: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Forces and their covariance: torque error through (J^T)^-1, angle error through dF/d(dtheta)."""
         F, cov = self._forces(dP, th0, dth)
         step = 1e-6
@@ -621,93 +699,154 @@ class PostureModel:
     def predict_table(self, table: Any, mode: str = "pressure-only") -> dict[str, Any]:
         """``predict`` on a trial table (rest posture from theta1_0_deg, theta2_0_deg; absent = 0)."""
         a = table_arrays(table)
-        out = self.predict(a["P0"], a["P"], a["theta0"], mode=mode,
-                           theta=a["dtheta"] if mode == "measured-angles" else None)
+        out = self.predict(
+            a["P0"], a["P"], a["theta0"], mode=mode, theta=a["dtheta"] if mode == "measured-angles" else None
+        )
         out["trial"] = a["trial"]
         return out
 
-    def check_compatible(self, protocol: str, geometry: Mapping[str, Any],
-                         model_name: str = "the model", run_name: str = "the run") -> None:
+    def check_compatible(
+        self, protocol: str, geometry: Mapping[str, Any], model_name: str = "the model", run_name: str = "the run"
+    ) -> None:
         """ModelError unless the run has this model's protocol name and rig geometry."""
         TakumaModel.check_compatible(self, protocol, geometry, model_name, run_name)  # type: ignore[arg-type]
 
     # ---------------------------------------------------------------- plain data
     def to_dict(self) -> dict[str, Any]:
-        return _clean({
-            "schema": SCHEMA, "version": SCHEMA_VERSION,
-            "form": FORM, "protocol": self.protocol, "geometry": self.geometry,
-            "units": {"pressure": "MPa (gauge)", "angle": "rad", "torque": "N m", "force": "N"},
-            "limits": self.limits,
-            "angle_terms": list(self.angle_terms), "angle_coefficients": self.angle_coefficients,
-            "angle_xtx_inv": self.angle_xtx_inv, "angle_resid_cov": self.angle_resid_cov,
-            "theta1_terms": list(self.theta1_terms), "theta1_coefficients": self.theta1_coefficients,
-            "theta1_xtx_inv": self.theta1_xtx_inv, "theta1_resid_var": self.theta1_resid_var,
-            "torque_terms": list(self.torque_terms), "torque_coefficients": self.torque_coefficients,
-            "torque_xtx_inv": self.torque_xtx_inv, "torque_resid_cov": self.torque_resid_cov,
-            "force_prior_sd": self.force_prior_sd, "fit_stats": self.fit_stats, "fitted_trials": self.fitted_trials, "source": self.source,
-            "fitted_on": self.fitted_on, "routes": {q: self.route(q) for q in rt.QUANTITIES},
-            "paper_model": self.paper_model, "paper_variance": self.paper_variance, "blends": self.blends,
-        })
+        return _clean(
+            {
+                "schema": SCHEMA,
+                "version": SCHEMA_VERSION,
+                "form": FORM,
+                "protocol": self.protocol,
+                "geometry": self.geometry,
+                "units": {"pressure": "MPa (gauge)", "angle": "rad", "torque": "N m", "force": "N"},
+                "limits": self.limits,
+                "angle_terms": list(self.angle_terms),
+                "angle_coefficients": self.angle_coefficients,
+                "angle_xtx_inv": self.angle_xtx_inv,
+                "angle_resid_cov": self.angle_resid_cov,
+                "theta1_terms": list(self.theta1_terms),
+                "theta1_coefficients": self.theta1_coefficients,
+                "theta1_xtx_inv": self.theta1_xtx_inv,
+                "theta1_resid_var": self.theta1_resid_var,
+                "torque_terms": list(self.torque_terms),
+                "torque_coefficients": self.torque_coefficients,
+                "torque_xtx_inv": self.torque_xtx_inv,
+                "torque_resid_cov": self.torque_resid_cov,
+                "force_prior_sd": self.force_prior_sd,
+                "fit_stats": self.fit_stats,
+                "fitted_trials": self.fitted_trials,
+                "source": self.source,
+                "fitted_on": self.fitted_on,
+                "routes": {q: self.route(q) for q in rt.QUANTITIES},
+                "paper_model": self.paper_model,
+                "paper_variance": self.paper_variance,
+                "blends": self.blends,
+            }
+        )
 
     def to_json(self) -> str:
         """The model as JSON (schema ``labcli-takuma-model``, form ``posture``)."""
         return dumps_indented(self.to_dict(), allow_nan=False) + "\n"
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "PostureModel":
-        required = ("protocol", "geometry", "angle_terms", "angle_coefficients", "angle_xtx_inv",
-                    "angle_resid_cov", "torque_coefficients", "torque_xtx_inv", "torque_resid_cov")
+    def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> PostureModel:
+        required = (
+            "protocol",
+            "geometry",
+            "angle_terms",
+            "angle_coefficients",
+            "angle_xtx_inv",
+            "angle_resid_cov",
+            "torque_coefficients",
+            "torque_xtx_inv",
+            "torque_resid_cov",
+        )
         missing = [k for k in required if k not in d]
         if missing:
             raise ModelError(f"{cap(name)} lacks the key(s) {', '.join(missing)}; refit with `labcli fit`.")
         torque_terms = d.get("torque_terms", list(TORQUE_TERMS))
         torque_terms = torque_terms if isinstance(torque_terms, list) else [torque_terms]
-        unknown = ([str(t) for t in d["angle_terms"] if t not in ANGLE_TERMS]
-                   + [str(t) for t in torque_terms if t not in TORQUE_TERMS])
+        unknown = [str(t) for t in d["angle_terms"] if t not in ANGLE_TERMS] + [
+            str(t) for t in torque_terms if t not in TORQUE_TERMS
+        ]
         if unknown or not torque_terms or len(set(torque_terms)) < len(torque_terms):
-            raise ModelError(f"{cap(name)} names terms this labcli does not know "
-                             f"({', '.join(unknown) or 'torque_terms'}); refit with `labcli fit`.")
-        shapes = {"angle_coefficients": (len(d["angle_terms"]), 2), "angle_xtx_inv": (len(d["angle_terms"]),) * 2,
-                  "angle_resid_cov": (2, 2), "torque_coefficients": (len(torque_terms), 2),
-                  "torque_xtx_inv": (len(torque_terms),) * 2, "torque_resid_cov": (2, 2)}
+            raise ModelError(
+                f"{cap(name)} names terms this labcli does not know "
+                f"({', '.join(unknown) or 'torque_terms'}); refit with `labcli fit`."
+            )
+        shapes = {
+            "angle_coefficients": (len(d["angle_terms"]), 2),
+            "angle_xtx_inv": (len(d["angle_terms"]),) * 2,
+            "angle_resid_cov": (2, 2),
+            "torque_coefficients": (len(torque_terms), 2),
+            "torque_xtx_inv": (len(torque_terms),) * 2,
+            "torque_resid_cov": (2, 2),
+        }
         for key, shape in shapes.items():
             try:
                 arr = np.asarray(d[key], dtype=float)
             except (TypeError, ValueError):
                 arr = np.empty(0)
             if arr.shape != shape or not np.all(np.isfinite(arr)):
-                raise ModelError(f"{cap(name)}: key '{key}' must be a {shape[0]} x {shape[1]} table of finite "
-                                 "numbers; refit with `labcli fit`.")
+                raise ModelError(
+                    f"{cap(name)}: key '{key}' must be a {shape[0]} x {shape[1]} table of finite "
+                    "numbers; refit with `labcli fit`."
+                )
         _check_theta1(d, name)
         prior = d.get("force_prior_sd", [])
-        if prior and not (isinstance(prior, list) and len(prior) == 2
-                          and all(isinstance(v, (int, float)) and v > 0 for v in prior)):
-            raise ModelError(f"{cap(name)}: key 'force_prior_sd' must list two positive forces in N; "
-                             "refit with `labcli fit`.")
+        if prior and not (
+            isinstance(prior, list) and len(prior) == 2 and all(isinstance(v, (int, float)) and v > 0 for v in prior)
+        ):
+            raise ModelError(
+                f"{cap(name)}: key 'force_prior_sd' must list two positive forces in N; refit with `labcli fit`."
+            )
         routes, variance, blends = _routes_from_dict(d, name)
 
         def bad(key: str, what: str) -> NoReturn:
             raise ModelError(f"{cap(name)}: key '{key}' {what}; refit with `labcli fit`.")
 
         fitted = idranges.parse(d.get("fitted_trials", []), "fitted_trials", bad)
-        keys = required + ("limits", "force_prior_sd", "fit_stats", "source", "fitted_on",
-                           "theta1_terms", "theta1_coefficients", "theta1_xtx_inv", "theta1_resid_var")
-        model = cls(**{k: d[k] for k in keys if k in d}, torque_terms=tuple(torque_terms),
-                    fitted_trials=fitted, routes=routes, paper_variance=variance, blends=blends,
-                    paper_model=d.get("paper_model") if variance else None)
+        keys = required + (
+            "limits",
+            "force_prior_sd",
+            "fit_stats",
+            "source",
+            "fitted_on",
+            "theta1_terms",
+            "theta1_coefficients",
+            "theta1_xtx_inv",
+            "theta1_resid_var",
+        )
+        model = cls(
+            **{k: d[k] for k in keys if k in d},
+            torque_terms=tuple(torque_terms),
+            fitted_trials=fitted,
+            routes=routes,
+            paper_variance=variance,
+            blends=blends,
+            paper_model=d.get("paper_model") if variance else None,
+        )
         if variance:
             model._paper = TakumaModel.from_dict(d["paper_model"], name=f"{name}'s paper-form part")
         return model
 
 
-def _routes_from_dict(d: Mapping[str, Any],
-                      name: str) -> tuple[dict[str, str], dict[str, float], dict[str, dict[str, float]]]:
+def _routes_from_dict(
+    d: Mapping[str, Any], name: str
+) -> tuple[dict[str, str], dict[str, float], dict[str, dict[str, float]]]:
     """The routes, paper-form variances and blends of a model file, checked (absent: the posture form throughout)."""
     routes = d.get("routes") or {}
-    if not (isinstance(routes, Mapping) and set(routes) <= set(rt.QUANTITIES)
-            and all(r in (rt.POSTURE, rt.PAPER, rt.BLEND) for r in routes.values())):
-        raise ModelError(f"{cap(name)}: key 'routes' must map theta1, theta2, Fx, Fy to 'posture', "
-                         "'paper' or 'blend'; refit with `labcli fit`.")
+    if not (
+        isinstance(routes, Mapping)
+        and set(routes) <= set(rt.QUANTITIES)
+        and all(r in (rt.POSTURE, rt.PAPER, rt.BLEND) for r in routes.values())
+    ):
+        raise ModelError(
+            f"{cap(name)}: key 'routes' must map theta1, theta2, Fx, Fy to 'posture', "
+            "'paper' or 'blend'; refit with `labcli fit`."
+        )
     variance = d.get("paper_variance") or {}
     paper_q = sorted(q for q, r in routes.items() if r != rt.POSTURE)
 
@@ -718,21 +857,37 @@ def _routes_from_dict(d: Mapping[str, Any],
             return False
 
     if not (isinstance(variance, Mapping) and sorted(variance) == paper_q and all(map(finite, variance.values()))):
-        raise ModelError(f"{cap(name)}: key 'paper_variance' must give a finite variance for each quantity "
-                         "routed to the paper's form or blended with it, and no other; refit with `labcli fit`.")
+        raise ModelError(
+            f"{cap(name)}: key 'paper_variance' must give a finite variance for each quantity "
+            "routed to the paper's form or blended with it, and no other; refit with `labcli fit`."
+        )
     if paper_q and not isinstance(d.get("paper_model"), Mapping):
-        raise ModelError(f"{cap(name)} routes {', '.join(paper_q)} to the paper's form but holds no "
-                         "'paper_model'; refit with `labcli fit`.")
+        raise ModelError(
+            f"{cap(name)} routes {', '.join(paper_q)} to the paper's form but holds no "
+            "'paper_model'; refit with `labcli fit`."
+        )
     blends = d.get("blends") or {}
     blend_q = sorted(q for q, r in routes.items() if r == rt.BLEND)
-    if not (isinstance(blends, Mapping) and sorted(blends) == blend_q
-            and all(isinstance(b, Mapping) and set(b) == {"posture_weight", "error_correlation"}
-                    and finite(b["posture_weight"], 0.0, 1.0) and finite(b["error_correlation"], -1.0, 1.0)
-                    for b in blends.values())):
-        raise ModelError(f"{cap(name)}: key 'blends' must give each blended quantity, and no other, a "
-                         "posture_weight in [0, 1] and an error_correlation in [-1, 1]; refit with `labcli fit`.")
-    return (dict(routes), {q: float(v) for q, v in variance.items()},
-            {q: {k: float(v) for k, v in b.items()} for q, b in blends.items()})
+    if not (
+        isinstance(blends, Mapping)
+        and sorted(blends) == blend_q
+        and all(
+            isinstance(b, Mapping)
+            and set(b) == {"posture_weight", "error_correlation"}
+            and finite(b["posture_weight"], 0.0, 1.0)
+            and finite(b["error_correlation"], -1.0, 1.0)
+            for b in blends.values()
+        )
+    ):
+        raise ModelError(
+            f"{cap(name)}: key 'blends' must give each blended quantity, and no other, a "
+            "posture_weight in [0, 1] and an error_correlation in [-1, 1]; refit with `labcli fit`."
+        )
+    return (
+        dict(routes),
+        {q: float(v) for q, v in variance.items()},
+        {q: {k: float(v) for k, v in b.items()} for q, b in blends.items()},
+    )
 
 
 def _check_theta1(d: Mapping[str, Any], name: str) -> None:
@@ -747,14 +902,23 @@ def _check_theta1(d: Mapping[str, Any], name: str) -> None:
         var = float(d.get("theta1_resid_var"))
     except (TypeError, ValueError, OverflowError):
         beta, inv, var = np.empty(0), np.empty(0), math.nan
-    if not (p > 0 and all(t in ANGLE_LINEAR + ANGLE_QUADRATIC for t in terms) and beta.shape == (p,)
-            and inv.shape == (p, p) and np.all(np.isfinite(beta)) and np.all(np.isfinite(inv))
-            and math.isfinite(var) and var >= 0):
-        raise ModelError(f"{cap(name)}: the theta1 equation (keys theta1_terms, theta1_coefficients, "
-                         "theta1_xtx_inv, theta1_resid_var) is incomplete or not finite; refit with `labcli fit`.")
+    if not (
+        p > 0
+        and all(t in ANGLE_LINEAR + ANGLE_QUADRATIC for t in terms)
+        and beta.shape == (p,)
+        and inv.shape == (p, p)
+        and np.all(np.isfinite(beta))
+        and np.all(np.isfinite(inv))
+        and math.isfinite(var)
+        and var >= 0
+    ):
+        raise ModelError(
+            f"{cap(name)}: the theta1 equation (keys theta1_terms, theta1_coefficients, "
+            "theta1_xtx_inv, theta1_resid_var) is incomplete or not finite; refit with `labcli fit`."
+        )
 
 
-def load_force_model(path: Any) -> "TakumaModel | PostureModel":
+def load_force_model(path: Any) -> TakumaModel | PostureModel:
     """A model file of either form: ``form = "posture"`` or the paper's Eqs. 34-37 (the default)."""
     p = Path(path)
     try:
@@ -764,7 +928,7 @@ def load_force_model(path: Any) -> "TakumaModel | PostureModel":
     return force_model_from_json(text, name=f"the model file {p}")
 
 
-def force_model_from_json(text: str, name: str = "the model") -> "TakumaModel | PostureModel":
+def force_model_from_json(text: str, name: str = "the model") -> TakumaModel | PostureModel:
     """A model of either form from its JSON text (a file's, or one a run file records)."""
     from ....core.jsontext import JSONDepthError, loads_bounded
 
@@ -794,10 +958,17 @@ def table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.nda
 
     missing = [c for c in BASELINE_COLUMNS + LOADED_COLUMNS if c not in table.columns]
     if missing:
-        raise ModelError(f"The trial table lacks the column(s) {', '.join(missing)}; "
-                         "see the trial-table format (P_L10..P_R20, P_L1..P_R2 in MPa).")
+        raise ModelError(
+            f"The trial table lacks the column(s) {', '.join(missing)}; "
+            "see the trial-table format (P_L10..P_R20, P_L1..P_R2 in MPa)."
+        )
     rest = col(REST_COLUMNS, 0.0)
     trial = np.asarray(table["trial"])
-    return {"trial": (trial if rows is None else trial[rows]).astype(int), "P0": col(BASELINE_COLUMNS),
-            "P": col(LOADED_COLUMNS), "theta0": np.deg2rad(np.where(np.isfinite(rest), rest, 0.0)),
-            "dtheta": np.deg2rad(col(ANGLE_COLUMNS)), "F": col(FORCE_COLUMNS)}
+    return {
+        "trial": (trial if rows is None else trial[rows]).astype(int),
+        "P0": col(BASELINE_COLUMNS),
+        "P": col(LOADED_COLUMNS),
+        "theta0": np.deg2rad(np.where(np.isfinite(rest), rest, 0.0)),
+        "dtheta": np.deg2rad(col(ANGLE_COLUMNS)),
+        "F": col(FORCE_COLUMNS),
+    }

@@ -40,7 +40,8 @@ Units: pressures MPa, angles rad, forces N.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Mapping
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -72,11 +73,12 @@ def route_sample(fit_index: np.ndarray) -> np.ndarray:
 
 def _blocks(n: int) -> list[np.ndarray]:
     edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
-    return [np.arange(lo, hi) for lo, hi in zip(edges[:-1], edges[1:]) if hi > lo]
+    return [np.arange(lo, hi) for lo, hi in zip(edges[:-1], edges[1:], strict=False) if hi > lo]
 
 
-def held_out_errors(fit_rows: Any, fit_posture: Callable[[Any], Any],
-                    fit_paper: Callable[[Any], TakumaModel]) -> dict[str, dict[str, np.ndarray]]:
+def held_out_errors(
+    fit_rows: Any, fit_posture: Callable[[Any], Any], fit_paper: Callable[[Any], TakumaModel]
+) -> dict[str, dict[str, np.ndarray]]:
     """Per form and quantity: held-out errors (rad, N) of the fit trials and whether each was reported.
 
     ``fit_rows`` are the table's fit trials in recorded order; each contiguous block is left out
@@ -86,10 +88,14 @@ def held_out_errors(fit_rows: Any, fit_posture: Callable[[Any], Any],
     n = len(fit_rows)
     out: dict[str, dict[str, np.ndarray]] = {
         key: {q: np.full(n, np.nan) if not key.endswith("_ok") else np.zeros(n, bool) for q in QUANTITIES}
-        for key in (POSTURE, PAPER, POSTURE + "_ok", PAPER + "_ok")}
-    truth = {"theta1": np.deg2rad(np.asarray(fit_rows["theta1_deg"], dtype=float)),
-             "theta2": np.deg2rad(np.asarray(fit_rows["theta2_deg"], dtype=float)),
-             "Fx": np.asarray(fit_rows["Fx_N"], dtype=float), "Fy": np.asarray(fit_rows["Fy_N"], dtype=float)}
+        for key in (POSTURE, PAPER, POSTURE + "_ok", PAPER + "_ok")
+    }
+    truth = {
+        "theta1": np.deg2rad(np.asarray(fit_rows["theta1_deg"], dtype=float)),
+        "theta2": np.deg2rad(np.asarray(fit_rows["theta2_deg"], dtype=float)),
+        "Fx": np.asarray(fit_rows["Fx_N"], dtype=float),
+        "Fy": np.asarray(fit_rows["Fy_N"], dtype=float),
+    }
     for block in _blocks(n):
         train = fit_rows.iloc[np.setdiff1d(np.arange(n), block)]
         test = fit_rows.iloc[block]
@@ -117,8 +123,9 @@ def error_correlation(e_posture: np.ndarray, e_paper: np.ndarray) -> float:
     return float(np.clip(np.sum(a * b) / norm, -1.0, 1.0)) if norm > 0 else 0.0
 
 
-def choose_routes(cv: Mapping[str, Mapping[str, np.ndarray]],
-                  limits: Mapping[str, float]) -> tuple[dict[str, str], dict[str, Any], dict[str, dict[str, float]]]:
+def choose_routes(
+    cv: Mapping[str, Mapping[str, np.ndarray]], limits: Mapping[str, float]
+) -> tuple[dict[str, str], dict[str, Any], dict[str, dict[str, float]]]:
     """The route per quantity, the cross-validation's figures, and each blend's weight and correlation.
 
     Returns ``routes`` (``posture``, ``paper`` or ``blend`` per quantity), ``stats`` (held-out RMSE
@@ -141,15 +148,22 @@ def choose_routes(cv: Mapping[str, Mapping[str, np.ndarray]],
         routes[q] = POSTURE if w >= 1.0 - SNAP else PAPER if w <= SNAP else BLEND
         if routes[q] == BLEND:
             blends[q] = {"posture_weight": w, "error_correlation": error_correlation(e_po, e_pa)}
-        rmse = (lambda e: float(np.sqrt(np.mean(e ** 2)))) if both.any() else (lambda e: None)
-        stats[q] = {"n_both": int(both.sum()), "rmse_posture": rmse(e_po), "rmse_paper": rmse(e_pa),
-                    "rmse_stacked": rmse(w * e_po + (1.0 - w) * e_pa), "posture_weight": w,
-                    "reported_posture": int(ok_po.sum()), "reported_paper": int(ok_pa.sum())}
+        rmse = (lambda e: float(np.sqrt(np.mean(e**2)))) if both.any() else (lambda e: None)
+        stats[q] = {
+            "n_both": int(both.sum()),
+            "rmse_posture": rmse(e_po),
+            "rmse_paper": rmse(e_pa),
+            "rmse_stacked": rmse(w * e_po + (1.0 - w) * e_pa),
+            "posture_weight": w,
+            "reported_posture": int(ok_po.sum()),
+            "reported_paper": int(ok_pa.sum()),
+        }
     return routes, stats, blends
 
 
-def blend_estimate(w: float, rho: float, v_po: np.ndarray, s_po: np.ndarray,
-                   v_pa: np.ndarray, s_pa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def blend_estimate(
+    w: float, rho: float, v_po: np.ndarray, s_po: np.ndarray, v_pa: np.ndarray, s_pa: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """The stacked estimate w v_po + (1 - w) v_pa and its standard error (module docstring)."""
     var = (w * s_po) ** 2 + ((1.0 - w) * s_pa) ** 2 + 2.0 * w * (1.0 - w) * rho * s_po * s_pa
     return w * v_po + (1.0 - w) * v_pa, np.sqrt(np.maximum(var, 0.0))
@@ -162,19 +176,25 @@ def paper_residual_variances(cv: Mapping[str, Mapping[str, np.ndarray]], routes:
     for q, route in routes.items():
         if route != POSTURE:
             err = cv[PAPER][q][cv[PAPER + "_ok"][q] & np.isfinite(cv[PAPER][q])]
-            out[q] = float(np.mean(err ** 2))
+            out[q] = float(np.mean(err**2))
     return out
 
 
-def paper_standard_errors(paper: TakumaModel, pred: Mapping[str, Any], P0: np.ndarray, P: np.ndarray,
-                          theta_force: np.ndarray, variances: Mapping[str, float]) -> dict[str, np.ndarray]:
+def paper_standard_errors(
+    paper: TakumaModel,
+    pred: Mapping[str, Any],
+    P0: np.ndarray,
+    P: np.ndarray,
+    theta_force: np.ndarray,
+    variances: Mapping[str, float],
+) -> dict[str, np.ndarray]:
     """Standard errors (rad, N) of the paper's form for the quantities in ``variances``: held-out
     residual plus the coefficients' share."""
     u = pressure_ratio_features(P0, P)
     g = paper.geometry
     forces = [q for q in ("Fx", "Fy") if q in variances]  # a force design only where one is asked for
     with np.errstate(divide="ignore", invalid="ignore"):
-        designs = dict(zip(forces, force_design(P0, P, theta_force, g["h2"], g["h3"], forces)))
+        designs = dict(zip(forces, force_design(P0, P, theta_force, g["h2"], g["h3"], forces), strict=False))
     designs.update(theta1=u[:, :2], theta2=u)
     out = {}
     for q, var in variances.items():

@@ -77,8 +77,9 @@ only.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, fields
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -86,7 +87,9 @@ from ....errors import ConfigError
 from .geometry import contact_point, jacobian
 
 # Reasons are fixed sentences so that tables and tests can match them.
-REASON_NO_PHI = "no push direction makes the force point from the object's centre to the contact point with a positive deformation"
+REASON_NO_PHI = (
+    "no push direction makes the force point from the object's centre to the contact point with a positive deformation"
+)
 REASON_NO_DEFORMATION = "deformation is not positive (the contact point lies outside the object)"
 REASON_SMALL_DEFORMATION = "deformation is below the resolution min_deformation_m"
 REASON_SINGULAR = "pose is near singular (|sin theta2| below singular_sin_theta2), so the force estimate is unreliable"
@@ -142,16 +145,14 @@ class StiffnessParams:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any] | None, where: str = "the stiffness parameters") -> "StiffnessParams":
+    def from_dict(cls, data: Mapping[str, Any] | None, where: str = "the stiffness parameters") -> StiffnessParams:
         """Build from a mapping (e.g. a protocol's ``[stiffness]`` table); unknown keys are errors."""
         if not data:
             return cls()
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
-            raise ConfigError(
-                f"Unknown key {unknown[0]!r} in {where}; accepted keys are {', '.join(sorted(known))}."
-            )
+            raise ConfigError(f"Unknown key {unknown[0]!r} in {where}; accepted keys are {', '.join(sorted(known))}.")
         values: dict[str, Any] = {}
         for key, value in data.items():
             if key == "accept_model_flags":
@@ -254,7 +255,9 @@ def object_centre(
     (2,)); None is the paper's upright (0, h2 + h3).
     """
     R, d, phi = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (R, d, phi)))
-    x0, y0 = (0.0, h2 + h3) if C0 is None else (np.asarray(C0, dtype=float)[..., 0], np.asarray(C0, dtype=float)[..., 1])
+    x0, y0 = (
+        (0.0, h2 + h3) if C0 is None else (np.asarray(C0, dtype=float)[..., 0], np.asarray(C0, dtype=float)[..., 1])
+    )
     return np.stack(np.broadcast_arrays(x0 + R - d * np.cos(phi), y0 - d * np.sin(phi)), axis=-1).reshape(-1, 2)
 
 
@@ -329,15 +332,17 @@ def _flags_from_model(flags: Any, reasons: Any, n: int) -> list[list[str]] | Non
     """
     if flags is None:
         return None
-    items = list(flags.reshape(-1)) if isinstance(flags, np.ndarray) and flags.ndim <= 1 else (
-        None if isinstance(flags, np.ndarray) else list(flags)
+    items = (
+        list(flags.reshape(-1))
+        if isinstance(flags, np.ndarray) and flags.ndim <= 1
+        else (None if isinstance(flags, np.ndarray) else list(flags))
     )
     if items is None or len(items) != n:
         got = np.shape(flags) if items is None else (len(items),)
         raise ConfigError(f"Model flags have shape {got}, expected ({n},) for {n} pushes.")
     given = list(np.asarray(reasons, dtype=object).reshape(n)) if reasons is not None else [""] * n
     out: list[list[str]] = []
-    for item, why in zip(items, given):
+    for item, why in zip(items, given, strict=False):
         if isinstance(item, (list, tuple, set)):  # TakumaModel.predict's form first: one test per push
             out.append(list(filter(None, map(str, item))))
         elif item is None or (isinstance(item, float) and math.isnan(item)):
@@ -394,8 +399,9 @@ def estimate_pushes(
     handled = np.zeros(n, dtype=bool)  # singular-jacobian dealt with by the policy
     unobserved = np.zeros(n, dtype=bool)  # phi to solve but the force direction is unknown
     if force_ok is not None and model is not None and params.singular_component == "project":
-        F, handled, unobserved = _project_singular(F, force_ok, model, known, C, object_centre(R, d, phi_in, h2, h3, C0),
-                                       params, reasons, notes, n)
+        F, handled, unobserved = _project_singular(
+            F, force_ok, model, known, C, object_centre(R, d, phi_in, h2, h3, C0), params, reasons, notes, n
+        )
     force = np.hypot(F[:, 0], F[:, 1])
     sol = solve_phi(C, F, R, d, h2, h3, C0)
     phi_out = np.where(known, phi_in, np.where(unobserved, np.nan, sol.phi))
@@ -418,17 +424,28 @@ def estimate_pushes(
 
     reason = np.array(list(map("; ".join, reasons)), dtype=object)
     return PushEstimates(
-        C=C, phi=phi_out, phi_solved=~known, n_phi_solutions=n_sol.astype(int), O2=O2, delta_x=delta_x,
-        force=force, k=k, direction_error=direction_error,
+        C=C,
+        phi=phi_out,
+        phi_solved=~known,
+        n_phi_solutions=n_sol.astype(int),
+        O2=O2,
+        delta_x=delta_x,
+        force=force,
+        k=k,
+        direction_error=direction_error,
         phi_gain=np.where(known | unobserved, np.nan, sol.phi_gain),
         dx_gain=np.where(known | unobserved, np.nan, sol.dx_gain),
         dx_theta_gain=np.hypot(dx_theta[:, 0], dx_theta[:, 1]),
-        flag=reason != "", reason=reason, note=np.array(list(map("; ".join, notes)), dtype=object), F=F,
+        flag=reason != "",
+        reason=reason,
+        note=np.array(list(map("; ".join, notes)), dtype=object),
+        F=F,
     )
 
 
-def _push_inputs(theta1: Any, theta2: Any, Fx: Any, Fy: Any, R: Any, d: Any, phi: Any, theta0: Any,
-                 push_ids: Sequence[Any] | None) -> tuple[np.ndarray, ...]:
+def _push_inputs(
+    theta1: Any, theta2: Any, Fx: Any, Fy: Any, R: Any, d: Any, phi: Any, theta0: Any, push_ids: Sequence[Any] | None
+) -> tuple[np.ndarray, ...]:
     """The pushes' inputs as arrays of one value per push, checked (ConfigError naming the push)."""
     t1 = np.atleast_1d(np.asarray(theta1, dtype=float))
     n = t1.shape[0]
@@ -439,7 +456,9 @@ def _push_inputs(theta1: Any, theta2: Any, Fx: Any, Fy: Any, R: Any, d: Any, phi
         if arr.ndim == 0:
             arr = np.full(n, float(arr))
         if arr.shape != (n,):
-            raise ConfigError(f"{name} has {arr.size} values for {n} pushes; give one per push or a single {unit} value.")
+            raise ConfigError(
+                f"{name} has {arr.size} values for {n} pushes; give one per push or a single {unit} value."
+            )
         return arr
 
     t2 = vec("theta2", theta2, "rad")
@@ -461,9 +480,20 @@ def _push_inputs(theta1: Any, theta2: Any, Fx: Any, Fy: Any, R: Any, d: Any, phi
     return t1, t2, F, R, d, phi_in, base
 
 
-def _deformation_per_angle(a1: np.ndarray, a2: np.ndarray, h2: float, h3: float, R: np.ndarray, C0: Any,
-                           O2: np.ndarray, g: np.ndarray, dist: np.ndarray, F: np.ndarray, force: np.ndarray,
-                           known: np.ndarray) -> np.ndarray:
+def _deformation_per_angle(
+    a1: np.ndarray,
+    a2: np.ndarray,
+    h2: float,
+    h3: float,
+    R: np.ndarray,
+    C0: Any,
+    O2: np.ndarray,
+    g: np.ndarray,
+    dist: np.ndarray,
+    F: np.ndarray,
+    force: np.ndarray,
+    known: np.ndarray,
+) -> np.ndarray:
     """d delta_x / d theta (m/rad, per push): how an angle error moves the deformation.
 
     Through C alone for a given phi (-n^T J, n the unit vector O2 -> C); for a solved phi,
@@ -482,9 +512,18 @@ def _add(reasons: list[list[str]], mask: np.ndarray, text: str) -> None:
         reasons[i].append(text)
 
 
-def _flag(reasons: list[list[str]], finite_in: np.ndarray, force: np.ndarray, known: np.ndarray,
-          unobserved: np.ndarray, n_solutions: np.ndarray, phi_out: np.ndarray, delta_x: np.ndarray,
-          direction_error: np.ndarray, params: StiffnessParams) -> None:
+def _flag(
+    reasons: list[list[str]],
+    finite_in: np.ndarray,
+    force: np.ndarray,
+    known: np.ndarray,
+    unobserved: np.ndarray,
+    n_solutions: np.ndarray,
+    phi_out: np.ndarray,
+    delta_x: np.ndarray,
+    direction_error: np.ndarray,
+    params: StiffnessParams,
+) -> None:
     """Why a push's stiffness cannot be trusted: inputs, force, direction, deformation."""
     _add(reasons, ~finite_in, REASON_INPUT)
     _add(reasons, finite_in & (force < params.min_force_N), REASON_SMALL_FORCE)
@@ -492,18 +531,28 @@ def _flag(reasons: list[list[str]], finite_in: np.ndarray, force: np.ndarray, kn
     has_phi = np.isfinite(phi_out)
     with np.errstate(invalid="ignore"):
         _add(reasons, finite_in & has_phi & (delta_x <= 0), REASON_NO_DEFORMATION)
-        _add(reasons, finite_in & has_phi & (delta_x > 0) & (delta_x < params.min_deformation_m),
-             REASON_SMALL_DEFORMATION)
         _add(
             reasons,
-            finite_in & known & (force >= params.min_force_N)
+            finite_in & has_phi & (delta_x > 0) & (delta_x < params.min_deformation_m),
+            REASON_SMALL_DEFORMATION,
+        )
+        _add(
+            reasons,
+            finite_in
+            & known
+            & (force >= params.min_force_N)
             & (np.abs(direction_error) > math.radians(params.max_direction_error_deg)),
             REASON_DIRECTION,
         )
 
 
-def _flag_model(reasons: list[list[str]], notes: list[list[str]], model: list[list[str]], handled: np.ndarray,
-                params: StiffnessParams) -> None:
+def _flag_model(
+    reasons: list[list[str]],
+    notes: list[list[str]],
+    model: list[list[str]],
+    handled: np.ndarray,
+    params: StiffnessParams,
+) -> None:
     """The model's own flags: kept as reasons, or noted where the settings accept them."""
     accepted = set(params.accept_model_flags)
     for i, names in enumerate(model):
@@ -560,7 +609,7 @@ def _project_singular(
     for i in np.flatnonzero(one & known & ~good):
         reasons[i].append(REASON_PROJECTION)
     text = [f"force from {names[k]} along O2 -> C ({names[1 - k]} near singular)" for k in (0, 1)]
-    for i, k in zip(np.flatnonzero(project).tolist(), c[project].tolist()):
+    for i, k in zip(np.flatnonzero(project).tolist(), c[project].tolist(), strict=False):
         notes[i].append(text[k])
     return F, one, unobserved
 

@@ -10,16 +10,29 @@ potentiometer angles (about 340 deg over the 12-bit range).
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
-from .takuma import (ANGLE_COLUMNS as ANGLES, BASELINE_COLUMNS as BASELINE,
-                     LOADED_COLUMNS as LOADED, PAPER_COEFFICIENTS, TERMS, force_design,
-                     pressure_ratio_features)
+from .takuma import (
+    ANGLE_COLUMNS as ANGLES,
+)
+from .takuma import (
+    BASELINE_COLUMNS as BASELINE,
+)
+from .takuma import (
+    LOADED_COLUMNS as LOADED,
+)
+from .takuma import (
+    PAPER_COEFFICIENTS,
+    TERMS,
+    force_design,
+    pressure_ratio_features,
+)
 
 PAPER_GEOMETRY: dict[str, float] = {"h1": 0.355, "h2": 0.130, "h3": 0.065, "r1": 0.075, "r2": 0.035}
-PRESSURE_LSB_MPA = 5.0 / 4095.0 / 4.0   # one ADC count through V = 4 P + 1
+PRESSURE_LSB_MPA = 5.0 / 4095.0 / 4.0  # one ADC count through V = 4 P + 1
 ANGLE_LSB_DEG = 340.0 / 4095.0
 
 
@@ -40,14 +53,22 @@ def add_sensor_noise(table: Any, seed: int = 0, noise_counts: float = 0.0) -> An
     return out
 
 
-def paper_trials(n: int, *, seed: int = 0, noise: bool = True, set_name: str = "fit",
-                 start_id: int = 1, noise_counts: float = 0.0,
-                 coefficients: Mapping[str, float] = PAPER_COEFFICIENTS,
-                 geometry: Mapping[str, float] = PAPER_GEOMETRY,
-                 theta1_deg: tuple[float, float] = (-8.0, 8.0),
-                 theta2_deg: tuple[float, float] = (5.0, 25.0),
-                 force_N: float = 5.0, baseline_MPa: tuple[float, float] = (0.28, 0.32),
-                 theta2_values_deg: Any = None) -> Any:
+def paper_trials(
+    n: int,
+    *,
+    seed: int = 0,
+    noise: bool = True,
+    set_name: str = "fit",
+    start_id: int = 1,
+    noise_counts: float = 0.0,
+    coefficients: Mapping[str, float] = PAPER_COEFFICIENTS,
+    geometry: Mapping[str, float] = PAPER_GEOMETRY,
+    theta1_deg: tuple[float, float] = (-8.0, 8.0),
+    theta2_deg: tuple[float, float] = (5.0, 25.0),
+    force_N: float = 5.0,
+    baseline_MPa: tuple[float, float] = (0.28, 0.32),
+    theta2_values_deg: Any = None,
+) -> Any:
     """A trial-table DataFrame of ``n`` trials that satisfy Eqs. 34-37.
 
     ``theta2_deg`` is the range of |theta2| (its sign is random); ``theta2_values_deg`` pins
@@ -81,10 +102,9 @@ def paper_trials(n: int, *, seed: int = 0, noise: bool = True, set_name: str = "
         Xfx, Xfy = force_design(np.zeros((4, 4)), -eye, np.repeat(theta, 4, axis=0), h2, h3)
         A = np.vstack([Xfx @ b["Fx"], Xfy @ b["Fy"]])
 
-        def equations(dP: np.ndarray) -> np.ndarray:
+        def equations(dP: np.ndarray, P0=P0, t1=t1, t2=t2, A=A, F=F) -> np.ndarray:
             u = pressure_ratio_features(P0[None, :], (P0 - dP)[None, :])[0]
-            return np.array([u[:2] @ b["theta1"] - np.sin(t1), u @ b["theta2"] - np.sin(t2),
-                             *(A @ dP - F)])
+            return np.array([u[:2] @ b["theta1"] - np.sin(t1), u @ b["theta2"] - np.sin(t2), *(A @ dP - F)])
 
         # Start from the linearised system (u ~ dP / P0), which is close for loads of this size.
         lin = np.vstack([np.r_[b["theta1"], 0.0, 0.0] / P0, b["theta2"] / P0, A])
@@ -107,10 +127,22 @@ def paper_trials(n: int, *, seed: int = 0, noise: bool = True, set_name: str = "
     P0 = np.array([r[3] for r in rows])
     P = np.array([r[4] for r in rows])
     th = np.degrees(np.column_stack([t1, t2]))
-    df = pd.DataFrame({
-        "trial": np.arange(start_id, start_id + n), "set": set_name,
-        "P_L10": P0[:, 0], "P_R10": P0[:, 1], "P_L20": P0[:, 2], "P_R20": P0[:, 3],
-        "P_L1": P[:, 0], "P_R1": P[:, 1], "P_L2": P[:, 2], "P_R2": P[:, 3],
-        "theta1_deg": th[:, 0], "theta2_deg": th[:, 1], "Fx_N": F[:, 0], "Fy_N": F[:, 1],
-    })
+    df = pd.DataFrame(
+        {
+            "trial": np.arange(start_id, start_id + n),
+            "set": set_name,
+            "P_L10": P0[:, 0],
+            "P_R10": P0[:, 1],
+            "P_L20": P0[:, 2],
+            "P_R20": P0[:, 3],
+            "P_L1": P[:, 0],
+            "P_R1": P[:, 1],
+            "P_L2": P[:, 2],
+            "P_R2": P[:, 3],
+            "theta1_deg": th[:, 0],
+            "theta2_deg": th[:, 1],
+            "Fx_N": F[:, 0],
+            "Fy_N": F[:, 1],
+        }
+    )
     return add_sensor_noise(df, seed + 1, noise_counts) if noise else df

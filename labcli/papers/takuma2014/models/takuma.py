@@ -43,9 +43,10 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, NoReturn, Sequence
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -69,17 +70,30 @@ COEFFICIENT_NAMES: tuple[str, ...] = tuple(n for eq in EQUATIONS for n in TERMS[
 
 # Section 3.3 of the paper as listed, plus-sign reading (Eq. 35's minus before beta_theta2R2 is a misprint).
 PAPER_COEFFICIENTS: dict[str, float] = {
-    "beta_theta1_L1": 0.136, "beta_theta1_R1": -1.587,
-    "beta_theta2_L1": 1.359, "beta_theta2_R1": 1.094,
-    "beta_theta2_L2": 0.766, "beta_theta2_R2": -2.972,
-    "beta_Fx1": -75.906, "beta_Fx2": -5.538, "beta_Fx3": -2201.033,
-    "beta_Fx4": -131.738, "beta_Fx5": 1.545, "beta_Fx6": -21.865,
-    "beta_Fy1": 1.309, "beta_Fy2": -75.973, "beta_Fy3": -642.995,
-    "beta_Fy4": -393.750, "beta_Fy5": 1.196, "beta_Fy6": -21.697,
+    "beta_theta1_L1": 0.136,
+    "beta_theta1_R1": -1.587,
+    "beta_theta2_L1": 1.359,
+    "beta_theta2_R1": 1.094,
+    "beta_theta2_L2": 0.766,
+    "beta_theta2_R2": -2.972,
+    "beta_Fx1": -75.906,
+    "beta_Fx2": -5.538,
+    "beta_Fx3": -2201.033,
+    "beta_Fx4": -131.738,
+    "beta_Fx5": 1.545,
+    "beta_Fx6": -21.865,
+    "beta_Fy1": 1.309,
+    "beta_Fy2": -75.973,
+    "beta_Fy3": -642.995,
+    "beta_Fy4": -393.750,
+    "beta_Fy5": 1.196,
+    "beta_Fy6": -21.697,
 }
-SIGN_NOTE = ("plus-sign reading: every coefficient multiplies its term with +, the paper's "
-             "beta_theta2R2 = -2.972 as listed (the minus Eq. 35 prints before it is a misprint: "
-             "fed the rig's pressures, -2.972 gives theta2 x1.4 of the truth, +2.972 gives x-0.7)")
+SIGN_NOTE = (
+    "plus-sign reading: every coefficient multiplies its term with +, the paper's "
+    "beta_theta2R2 = -2.972 as listed (the minus Eq. 35 prints before it is a misprint: "
+    "fed the rig's pressures, -2.972 gives theta2 x1.4 of the truth, +2.972 gives x-0.7)"
+)
 
 BASELINE_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
 LOADED_COLUMNS = ("P_L1", "P_R1", "P_L2", "P_R2")
@@ -87,7 +101,10 @@ ANGLE_COLUMNS = ("theta1_deg", "theta2_deg")
 FORCE_COLUMNS = ("Fx_N", "Fy_N")
 
 UNITS = {
-    "pressure": "MPa (gauge)", "length": "m", "angle": "rad", "force": "N",
+    "pressure": "MPa (gauge)",
+    "length": "m",
+    "angle": "rad",
+    "force": "N",
     "angle_coefficients": "1 (sine per unit pressure ratio)",
     "force_coefficients": "N m / MPa",
 }
@@ -111,6 +128,7 @@ FLAG_TEXT = {
 
 # --------------------------------------------------------------------------- features
 
+
 def pressure_ratio_features(P0: np.ndarray, P: np.ndarray) -> np.ndarray:
     """``u_ij = P_ij0 / P_ij - 1`` for (n, 4) arrays in the order L1, R1, L2, R2."""
     P0 = np.asarray(P0, dtype=float)
@@ -123,8 +141,7 @@ def pressure_arrays(P0: Any, P: Any) -> tuple[np.ndarray, np.ndarray]:
     P0 = np.atleast_2d(np.asarray(P0, dtype=float))
     P = np.atleast_2d(np.asarray(P, dtype=float))
     if P0.shape != P.shape or P0.shape[1] != 4:
-        raise ModelError(f"Pressures must be (n, 4) arrays in the order L1, R1, L2, R2; "
-                         f"got {P0.shape} and {P.shape}.")
+        raise ModelError(f"Pressures must be (n, 4) arrays in the order L1, R1, L2, R2; got {P0.shape} and {P.shape}.")
     return P0, P
 
 
@@ -144,8 +161,9 @@ def theta2_threshold(h2: float, h3: float, max_cond: float) -> float:
     return hi
 
 
-def force_design(P0: np.ndarray, P: np.ndarray, theta: np.ndarray, h2: float, h3: float,
-                 equations: Sequence[str] = ("Fx", "Fy")) -> tuple[np.ndarray, ...]:
+def force_design(
+    P0: np.ndarray, P: np.ndarray, theta: np.ndarray, h2: float, h3: float, equations: Sequence[str] = ("Fx", "Fy")
+) -> tuple[np.ndarray, ...]:
     """Design matrices (n, 6) of Eqs. 36 and 37 (those of ``equations``), columns beta_F*1..6."""
     dP = np.asarray(P0, dtype=float) - np.asarray(P, dtype=float)
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
@@ -155,8 +173,9 @@ def force_design(P0: np.ndarray, P: np.ndarray, theta: np.ndarray, h2: float, h3
     def rows(ja: np.ndarray, jb: np.ndarray) -> np.ndarray:
         # Written into one array: six (n,) temporaries and a stacked copy were 2x the design.
         X = np.empty((len(dP), 6))
-        for k, (weight, drop) in enumerate(((ja * c1, 0), (ja * c1, 1), (ja * (c1 - c2), 2),
-                                            (ja * (c1 - c2), 3), (jb * c2, 2), (jb * c2, 3))):
+        for k, (weight, drop) in enumerate(
+            ((ja * c1, 0), (ja * c1, 1), (ja * (c1 - c2), 2), (ja * (c1 - c2), 3), (jb * c2, 2), (jb * c2, 3))
+        ):
             np.multiply(weight, dP[:, drop], out=X[:, k])
         return X
 
@@ -165,6 +184,7 @@ def force_design(P0: np.ndarray, P: np.ndarray, theta: np.ndarray, h2: float, h3
 
 
 # --------------------------------------------------------------------------- tables and least squares
+
 
 def normalise_geometry(geometry: Mapping[str, Any]) -> dict[str, float]:
     """Geometry dict in m with keys h1, h2, h3, r1, r2 (h2, h3 required; ``_m`` suffix accepted)."""
@@ -176,8 +196,10 @@ def normalise_geometry(geometry: Mapping[str, Any]) -> dict[str, float]:
                 break
     for key in ("h2", "h3"):
         if key not in out or not (math.isfinite(out[key]) and out[key] > 0):
-            raise ModelError(f"The rig geometry needs a positive length '{key}' in m "
-                             f"(got {dict(geometry)!r}); check the protocol's [rig] table.")
+            raise ModelError(
+                f"The rig geometry needs a positive length '{key}' in m "
+                f"(got {dict(geometry)!r}); check the protocol's [rig] table."
+            )
     return out
 
 
@@ -186,8 +208,10 @@ def _table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.nd
     taken column by column so the table itself is never copied."""
     missing = [c for c in ("trial",) + BASELINE_COLUMNS + LOADED_COLUMNS if c not in table.columns]
     if missing:
-        raise ModelError(f"The trial table lacks the column(s) {', '.join(missing)}; "
-                         "see the trial-table format (P_L10..P_R20, P_L1..P_R2 in MPa).")
+        raise ModelError(
+            f"The trial table lacks the column(s) {', '.join(missing)}; "
+            "see the trial-table format (P_L10..P_R20, P_L1..P_R2 in MPa)."
+        )
     n = len(table) if rows is None else int(np.count_nonzero(rows))
 
     def values(c: str, dtype: Any = float) -> np.ndarray:
@@ -219,7 +243,7 @@ def set_mask(table: Any, name: str, source: str = "the trial table") -> np.ndarr
     else:
         mask = np.zeros(len(table), dtype=bool)
     if not mask.any():
-        hint = ("assign trials with `labcli split` (or fill the `set` column)")
+        hint = "assign trials with `labcli split` (or fill the `set` column)"
         raise ModelError(f"{cap(source)} has no {name} trials (no row with set = '{name}'); {hint}.")
     return mask
 
@@ -243,14 +267,15 @@ class _LstsqResult:
 QR_BLOCK = 32_768
 
 
-def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str,
-           max_cond: float) -> _LstsqResult:
+def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str, max_cond: float) -> _LstsqResult:
     n, p = X.shape
     scale = np.linalg.norm(X, axis=0)
     zero = [names[k] for k in range(p) if not scale[k] > 0]
     if zero:
-        raise ModelError(f"The {equation} fit cannot determine {', '.join(zero)}: its term is zero "
-                         "in every usable fit trial; record fit trials that load every actuator.")
+        raise ModelError(
+            f"The {equation} fit cannot determine {', '.join(zero)}: its term is zero "
+            "in every usable fit trial; record fit trials that load every actuator."
+        )
     # Column scaling makes the condition number measure collinearity, not units.  [X y] = Q R
     # (Householder QR), so X's singular values and directions are those of R's first p
     # columns and U^T y = U_R^T (Q^T y).  R is built from the R's of row blocks (the R of
@@ -268,17 +293,19 @@ def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str,
     cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
     if not cond <= max_cond:
         worst = names[int(np.argmax(np.abs(Vt[-1])))]
-        raise ModelError(f"The {equation} design matrix is collinear (condition number "
-                         f"{cond:.3g} > {max_cond:.3g}, weakest direction mostly {worst}); "
-                         "record fit trials with more varied force directions and postures.")
+        raise ModelError(
+            f"The {equation} design matrix is collinear (condition number "
+            f"{cond:.3g} > {max_cond:.3g}, weakest direction mostly {worst}); "
+            "record fit trials with more varied force directions and postures."
+        )
     bs = Vt.T @ ((U.T @ R[:p, p]) / s)
     beta = bs / scale
     fitted = X @ beta
     resid = y - fitted
     dof = n - p
     sigma = math.sqrt(float(resid @ resid) / dof)
-    cov_s = (Vt.T / s ** 2) @ Vt
-    cov = sigma ** 2 * cov_s / np.outer(scale, scale)
+    cov_s = (Vt.T / s**2) @ Vt
+    cov = sigma**2 * cov_s / np.outer(scale, scale)
     return _LstsqResult(beta, cov, fitted, cond, sigma, dof)
 
 
@@ -296,10 +323,14 @@ def _rmse(obs: np.ndarray, calc: np.ndarray) -> float:
 def _equation_stats(eq: str, res: Any, y: np.ndarray, theta: np.ndarray, n: int, tq: float) -> dict[str, Any]:
     """How well one equation fits: in its own space (sin theta, N) and natively (deg, N)."""
     st: dict[str, Any] = {
-        "n": n, "dof": res.dof, "design_cond": res.cond,
+        "n": n,
+        "dof": res.dof,
+        "design_cond": res.cond,
         "ill_conditioned": bool(res.cond > WARN_DESIGN_COND),
-        "sigma": res.sigma, "t_975": tq,
-        "r2": _r2(y, res.fitted), "rmse": _rmse(y, res.fitted),
+        "sigma": res.sigma,
+        "t_975": tq,
+        "r2": _r2(y, res.fitted),
+        "rmse": _rmse(y, res.fitted),
     }
     if eq.startswith("theta"):
         st["space"] = f"sin({eq})"
@@ -345,6 +376,7 @@ def _clean(value: Any) -> Any:
 
 # --------------------------------------------------------------------------- the model
 
+
 @dataclass
 class TakumaModel:
     """Eqs. 34-37 with their 18 coefficients; parameters are plain data that serialise to JSON.
@@ -384,7 +416,7 @@ class TakumaModel:
         """|theta2| below which cond(J) exceeds max_amplification (stand-in posture at theta2 = 0)."""
         return theta2_threshold(self.geometry["h2"], self.geometry["h3"], self.max_amplification)
 
-    def fit(self, table: Any, source: str = "the trial table") -> "TakumaModel":
+    def fit(self, table: Any, source: str = "the trial table") -> TakumaModel:
         """Least squares on the table's ``set == 'fit'`` rows; returns self, fitted."""
         # scipy.special alone: scipy.stats would add a second to every `labcli fit` for one quantile.
         from scipy.special import stdtrit
@@ -403,9 +435,12 @@ class TakumaModel:
                 return u[:, :2] if eq == "theta1" else u
             with np.errstate(divide="ignore", invalid="ignore"):
                 return force_design(P0, P, np.nan_to_num(theta, nan=1.0), h2, h3, (eq,))[0]
+
         targets = {
-            "theta1": np.sin(theta[:, 0]), "theta2": np.sin(theta[:, 1]),
-            "Fx": F[:, 0], "Fy": F[:, 1],
+            "theta1": np.sin(theta[:, 0]),
+            "theta2": np.sin(theta[:, 1]),
+            "Fx": F[:, 0],
+            "Fy": F[:, 1],
         }
 
         coefs: dict[str, float] = {}
@@ -422,9 +457,11 @@ class TakumaModel:
             if n < p + 1:
                 why = sorted(set(reasons[eq].values()))
                 detail = f" ({len(reasons[eq])} excluded: {'; '.join(why)})" if why else ""
-                raise ModelError(f"The {eq} equation needs at least {p + 1} usable fit trials for "
-                                 f"its {p} coefficients, but {source} has {n}{detail}; "
-                                 "record more fit trials.")
+                raise ModelError(
+                    f"The {eq} equation needs at least {p + 1} usable fit trials for "
+                    f"its {p} coefficients, but {source} has {n}{detail}; "
+                    "record more fit trials."
+                )
             X, y = (design(eq), targets[eq]) if use.all() else (design(eq)[use], targets[eq][use])
             res = _lstsq(X, y, names, eq, self.max_design_cond)
             tq = float(stdtrit(res.dof, 0.975))
@@ -446,13 +483,18 @@ class TakumaModel:
         self.labcli_version = __version__
         return self
 
-    def _exclusions(self, trial: np.ndarray, P0: np.ndarray, P: np.ndarray, theta: np.ndarray,
-                    F: np.ndarray) -> dict[str, dict[int, str]]:
+    def _exclusions(
+        self, trial: np.ndarray, P0: np.ndarray, P: np.ndarray, theta: np.ndarray, F: np.ndarray
+    ) -> dict[str, dict[int, str]]:
         """Per equation, the fit trials it leaves out and why (a sentence per trial)."""
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         reasons: dict[str, dict[int, str]] = {eq: {} for eq in EQUATIONS}
-        bad_p = ~(np.all(np.isfinite(P0), axis=1) & np.all(np.isfinite(P), axis=1)
-                  & np.all(P0 > 0, axis=1) & np.all(P > 0, axis=1))
+        bad_p = ~(
+            np.all(np.isfinite(P0), axis=1)
+            & np.all(np.isfinite(P), axis=1)
+            & np.all(P0 > 0, axis=1)
+            & np.all(P > 0, axis=1)
+        )
         for eq in EQUATIONS:
             for t in trial[bad_p]:
                 reasons[eq][int(t)] = "a pressure is missing or not positive"
@@ -474,17 +516,16 @@ class TakumaModel:
                 elif not amp[i, k] <= self.max_amplification:
                     reasons[eq][int(t)] = (
                         f"singular Jacobian: |theta2| = {abs(math.degrees(theta[i, 1])):.2f} deg, "
-                        f"{eq} amplification {amp[i, k]:.3g} > {self.max_amplification:g}")
+                        f"{eq} amplification {amp[i, k]:.3g} > {self.max_amplification:g}"
+                    )
         return reasons
 
     # ---------------------------------------------------------------- prediction
     def _require_fitted(self) -> None:
         if not self.is_fitted:
-            raise ModelError("The model has no coefficients yet; fit it on a run first "
-                             "(`labcli fit RUN.h5`).")
+            raise ModelError("The model has no coefficients yet; fit it on a run first (`labcli fit RUN.h5`).")
 
-    def predict(self, P0: Any, P: Any, mode: str = "pressure-only",
-                theta: Any = None) -> dict[str, Any]:
+    def predict(self, P0: Any, P: Any, mode: str = "pressure-only", theta: Any = None) -> dict[str, Any]:
         """Angles (rad) and forces (N) from pressures (MPa, (n, 4) in the order L1, R1, L2, R2).
 
         ``mode="pressure-only"`` takes the angles of Eqs. 34-35 into Eqs. 36-37;
@@ -498,15 +539,20 @@ class TakumaModel:
         n = len(P)
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         flags: list[list[str]] = [[] for _ in range(n)]
-        bad_p = ~(np.all(np.isfinite(P0), axis=1) & np.all(np.isfinite(P), axis=1)
-                  & np.all(P0 > 0, axis=1) & np.all(P > 0, axis=1))
+        bad_p = ~(
+            np.all(np.isfinite(P0), axis=1)
+            & np.all(np.isfinite(P), axis=1)
+            & np.all(P0 > 0, axis=1)
+            & np.all(P > 0, axis=1)
+        )
         # Bad rows get a neutral surrogate (no load) so the arithmetic stays finite.
         P0s = np.where(bad_p[:, None], 1.0, P0)
         Ps = np.where(bad_p[:, None], 1.0, P)
         u = pressure_ratio_features(P0s, Ps)
         b = self.coefficients
-        s = np.column_stack([u[:, :2] @ np.array([b[k] for k in TERMS["theta1"]]),
-                             u @ np.array([b[k] for k in TERMS["theta2"]])])
+        s = np.column_stack(
+            [u[:, :2] @ np.array([b[k] for k in TERMS["theta1"]]), u @ np.array([b[k] for k in TERMS["theta2"]])]
+        )
         clipped = np.abs(s) > 1.0
         th = np.arcsin(np.clip(s, -1.0, 1.0))
         ok_t = ~clipped & ~bad_p[:, None]
@@ -532,7 +578,7 @@ class TakumaModel:
             ok_source = known & ~bad_p
 
         amp = force_amplification(th_force, h2, h3)
-        singular = ~(amp <= self.max_amplification)          # (n, 2): Fx, Fy
+        singular = ~(amp <= self.max_amplification)  # (n, 2): Fx, Fy
         for i in np.flatnonzero(singular.any(axis=1) & ok_source):
             flags[i].append("singular-jacobian")
         bx, by = (np.array([b[k] for k in TERMS[eq]]) for eq in ("Fx", "Fy"))
@@ -548,94 +594,129 @@ class TakumaModel:
             F = np.where(bad, np.column_stack([Sx @ bx, Sy @ by]), F)
         ok_f = ok_source[:, None] & ~singular
         return {
-            "theta1_rad": th[:, 0], "theta2_rad": th[:, 1], "Fx_N": F[:, 0], "Fy_N": F[:, 1],
+            "theta1_rad": th[:, 0],
+            "theta2_rad": th[:, 1],
+            "Fx_N": F[:, 0],
+            "Fy_N": F[:, 1],
             "ok": {"theta1": ok_t[:, 0], "theta2": ok_t[:, 1], "Fx": ok_f[:, 0], "Fy": ok_f[:, 1]},
-            "flags": flags, "amplification": amp, "jacobian_cond": jacobian_cond(th_force[:, 1], h2, h3),
+            "flags": flags,
+            "amplification": amp,
+            "jacobian_cond": jacobian_cond(th_force[:, 1], h2, h3),
             "mode": mode,
         }
 
     def predict_table(self, table: Any, mode: str = "pressure-only") -> dict[str, Any]:
         """``predict`` on a trial table (measured angles taken from theta1_deg, theta2_deg)."""
         a = _table_arrays(table)
-        out = self.predict(a["P0"], a["P"], mode=mode,
-                           theta=a["theta"] if mode == "measured-angles" else None)
+        out = self.predict(a["P0"], a["P"], mode=mode, theta=a["theta"] if mode == "measured-angles" else None)
         out["trial"] = a["trial"]
         return out
 
     # ---------------------------------------------------------------- compatibility
-    def check_compatible(self, protocol: str, geometry: Mapping[str, Any],
-                         model_name: str = "the model", run_name: str = "the run") -> None:
+    def check_compatible(
+        self, protocol: str, geometry: Mapping[str, Any], model_name: str = "the model", run_name: str = "the run"
+    ) -> None:
         """ModelError unless the run has this model's protocol name and rig geometry."""
         if protocol != self.protocol:
-            raise ModelError(f"{cap(model_name)} was fitted for protocol '{self.protocol}' but {run_name} "
-                             f"uses protocol '{protocol}'; fit a model on a run of this protocol.")
+            raise ModelError(
+                f"{cap(model_name)} was fitted for protocol '{self.protocol}' but {run_name} "
+                f"uses protocol '{protocol}'; fit a model on a run of this protocol."
+            )
         other = normalise_geometry(geometry)
         for key in GEOMETRY_KEYS:
-            if key in self.geometry and key in other and not math.isclose(
-                    self.geometry[key], other[key], rel_tol=1e-9, abs_tol=1e-12):
-                raise ModelError(f"{cap(model_name)} was fitted for {key} = {self.geometry[key]:g} m but "
-                                 f"{run_name} has {key} = {other[key]:g} m; fit a model for this rig.")
+            if (
+                key in self.geometry
+                and key in other
+                and not math.isclose(self.geometry[key], other[key], rel_tol=1e-9, abs_tol=1e-12)
+            ):
+                raise ModelError(
+                    f"{cap(model_name)} was fitted for {key} = {self.geometry[key]:g} m but "
+                    f"{run_name} has {key} = {other[key]:g} m; fit a model for this rig."
+                )
 
     # ---------------------------------------------------------------- JSON
     def to_dict(self) -> dict[str, Any]:
-        return _clean({
-            "schema": SCHEMA, "version": SCHEMA_VERSION,
-            "units": UNITS, "sign_convention": SIGN_NOTE,
-            "equations": {eq: list(TERMS[eq]) for eq in EQUATIONS},
-            "protocol": self.protocol, "geometry": self.geometry,
-            "settings": {"max_amplification": self.max_amplification,
-                         "max_design_cond": self.max_design_cond,
-                         "theta2_threshold_deg": math.degrees(self.theta2_threshold_rad)},
-            "coefficients": self.coefficients, "standard_errors": self.standard_errors,
-            "ci95": self.ci95, "covariance": self.covariance, "fit_stats": self.fit_stats,
-            "fitted_trials": self.fitted_trials, "excluded_trials": self.excluded_trials,
-            "source": self.source, "labcli_version": self.labcli_version, "fitted_on": self.fitted_on,
-            "form": "paper",
-        })
+        return _clean(
+            {
+                "schema": SCHEMA,
+                "version": SCHEMA_VERSION,
+                "units": UNITS,
+                "sign_convention": SIGN_NOTE,
+                "equations": {eq: list(TERMS[eq]) for eq in EQUATIONS},
+                "protocol": self.protocol,
+                "geometry": self.geometry,
+                "settings": {
+                    "max_amplification": self.max_amplification,
+                    "max_design_cond": self.max_design_cond,
+                    "theta2_threshold_deg": math.degrees(self.theta2_threshold_rad),
+                },
+                "coefficients": self.coefficients,
+                "standard_errors": self.standard_errors,
+                "ci95": self.ci95,
+                "covariance": self.covariance,
+                "fit_stats": self.fit_stats,
+                "fitted_trials": self.fitted_trials,
+                "excluded_trials": self.excluded_trials,
+                "source": self.source,
+                "labcli_version": self.labcli_version,
+                "fitted_on": self.fitted_on,
+                "form": "paper",
+            }
+        )
 
     def to_json(self) -> str:
         """The model as JSON (schema ``labcli-takuma-model``); floats round-trip exactly."""
         return dumps_indented(self.to_dict(), allow_nan=False) + "\n"
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> "TakumaModel":
+    def from_dict(cls, d: Mapping[str, Any], name: str = "the model") -> TakumaModel:
         if not isinstance(d, Mapping):
-            raise ModelError(f"{cap(name)} is not a labcli Takuma model (it holds {json_kind(d)}, not an "
-                             f"object with schema {SCHEMA!r}); pass a file written by `labcli fit`.")
+            raise ModelError(
+                f"{cap(name)} is not a labcli Takuma model (it holds {json_kind(d)}, not an "
+                f"object with schema {SCHEMA!r}); pass a file written by `labcli fit`."
+            )
         if d.get("schema") != SCHEMA:
-            raise ModelError(f"{cap(name)} is not a labcli Takuma model (schema {d.get('schema')!r}, "
-                             f"expected {SCHEMA!r}); pass a file written by `labcli fit`.")
+            raise ModelError(
+                f"{cap(name)} is not a labcli Takuma model (schema {d.get('schema')!r}, "
+                f"expected {SCHEMA!r}); pass a file written by `labcli fit`."
+            )
         if d.get("version") != SCHEMA_VERSION:
-            raise ModelError(f"{cap(name)} has model version {d.get('version')!r}; this labcli reads "
-                             f"version {SCHEMA_VERSION}.")
+            raise ModelError(
+                f"{cap(name)} has model version {d.get('version')!r}; this labcli reads version {SCHEMA_VERSION}."
+            )
         if d.get("form", "paper") != "paper":
-            raise ModelError(f"{cap(name)} holds the {d.get('form')!r} form, not the paper's Eqs. 34-37; "
-                             "this step needs a model from `labcli fit --form paper`.")
+            raise ModelError(
+                f"{cap(name)} holds the {d.get('form')!r} form, not the paper's Eqs. 34-37; "
+                "this step needs a model from `labcli fit --form paper`."
+            )
         model = cls(**_model_fields(d, cap(name)))
         unknown = [k for k in model.coefficients if k not in COEFFICIENT_NAMES]
         if unknown:
             what = "an unknown coefficient" if len(unknown) == 1 else "unknown coefficients"
-            raise ModelError(f"{cap(name)} has {what}, {', '.join(unknown)} (Eqs. 34-37 have "
-                             f"{COEFFICIENT_NAMES[0]} to {COEFFICIENT_NAMES[-1]}); refit with `labcli fit`.")
+            raise ModelError(
+                f"{cap(name)} has {what}, {', '.join(unknown)} (Eqs. 34-37 have "
+                f"{COEFFICIENT_NAMES[0]} to {COEFFICIENT_NAMES[-1]}); refit with `labcli fit`."
+            )
         missing = [k for k in COEFFICIENT_NAMES if k not in model.coefficients]
         if missing:
-            raise ModelError(f"{cap(name)} lacks the coefficient(s) {', '.join(missing)}; "
-                             "refit with `labcli fit`.")
+            raise ModelError(f"{cap(name)} lacks the coefficient(s) {', '.join(missing)}; refit with `labcli fit`.")
         return model
 
     @classmethod
-    def from_json(cls, text: str, name: str = "the model") -> "TakumaModel":
+    def from_json(cls, text: str, name: str = "the model") -> TakumaModel:
         try:
             d = loads_bounded(text)
         except json.JSONDecodeError as e:
             raise ModelError(f"{cap(name)} is not valid JSON (line {e.lineno}, column {e.colno}: {e.msg}).") from None
         except JSONDepthError as e:
-            raise ModelError(f"{cap(name)} nests {e.depth} levels deep, beyond the {MAX_DEPTH} a model file "
-                             "can have; pass the .json file `labcli fit` wrote.") from None
+            raise ModelError(
+                f"{cap(name)} nests {e.depth} levels deep, beyond the {MAX_DEPTH} a model file "
+                "can have; pass the .json file `labcli fit` wrote."
+            ) from None
         return cls.from_dict(d, name)
 
     @classmethod
-    def load(cls, path: Any) -> "TakumaModel":
+    def load(cls, path: Any) -> TakumaModel:
         """Read a model JSON file (ModelError if missing or not a model)."""
         p = Path(path)
         try:
@@ -645,8 +726,10 @@ class TakumaModel:
         except IsADirectoryError:
             raise ModelError(f"The model file {p} is a folder; pass the .json file `labcli fit` wrote.") from None
         except UnicodeDecodeError as e:
-            raise ModelError(f"The model file {p} is not UTF-8 text (bad byte at offset {e.start}); "
-                             "pass the .json file `labcli fit` wrote.") from None
+            raise ModelError(
+                f"The model file {p} is not UTF-8 text (bad byte at offset {e.start}); "
+                "pass the .json file `labcli fit` wrote."
+            ) from None
         except OSError as e:
             raise ModelError(f"The model file {p} cannot be read ({e.strerror or e}).") from None
         return cls.from_json(text, name=f"The model file {p}")
@@ -658,6 +741,7 @@ class TakumaModel:
 # --------------------------------------------------------------------------- reading a model file
 # A model file is typed by hand now and then, or comes from another program: every field is
 # checked by name, so a damaged file gives one sentence naming the key, never a traceback.
+
 
 def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
     """Constructor arguments of TakumaModel from a model dict, each checked by key."""
@@ -707,31 +791,49 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
     fitted: dict[str, list[int]] = {}
     for k, v in obj("fitted_trials", d.get("fitted_trials", {})).items():
         fitted[k] = idranges.parse(v, f"fitted_trials.{k}", bad)
-    excluded = {k: list(seq(f"excluded_trials.{k}", v))
-                for k, v in obj("excluded_trials", d.get("excluded_trials", {})).items()}
+    excluded = {
+        k: list(seq(f"excluded_trials.{k}", v)) for k, v in obj("excluded_trials", d.get("excluded_trials", {})).items()
+    }
     return dict(
-        geometry=geometry, protocol=d["protocol"],
-        max_amplification=max_amp, max_design_cond=max_cond,
+        geometry=geometry,
+        protocol=d["protocol"],
+        max_amplification=max_amp,
+        max_design_cond=max_cond,
         coefficients={k: num(f"coefficients.{k}", v) for k, v in obj("coefficients", d["coefficients"]).items()},
-        standard_errors={k: num(f"standard_errors.{k}", v, finite=False, allow_null=True)
-                         for k, v in obj("standard_errors", d.get("standard_errors", {})).items()},
-        ci95={k: [num(f"ci95.{k}", x, finite=False, allow_null=True) for x in seq(f"ci95.{k}", v)]
-              for k, v in obj("ci95", d.get("ci95", {})).items()},
-        covariance={k: [[num(f"covariance.{k}", x, finite=False, allow_null=True) for x in seq(f"covariance.{k}", r)]
-                        for r in seq(f"covariance.{k}", v)]
-                    for k, v in obj("covariance", d.get("covariance", {})).items()},
+        standard_errors={
+            k: num(f"standard_errors.{k}", v, finite=False, allow_null=True)
+            for k, v in obj("standard_errors", d.get("standard_errors", {})).items()
+        },
+        ci95={
+            k: [num(f"ci95.{k}", x, finite=False, allow_null=True) for x in seq(f"ci95.{k}", v)]
+            for k, v in obj("ci95", d.get("ci95", {})).items()
+        },
+        covariance={
+            k: [
+                [num(f"covariance.{k}", x, finite=False, allow_null=True) for x in seq(f"covariance.{k}", r)]
+                for r in seq(f"covariance.{k}", v)
+            ]
+            for k, v in obj("covariance", d.get("covariance", {})).items()
+        },
         fit_stats={k: dict(v) for k, v in stats.items()},
-        fitted_trials=fitted, excluded_trials=excluded,
-        source=str(d.get("source", "")), labcli_version=str(d.get("labcli_version", "")),
+        fitted_trials=fitted,
+        excluded_trials=excluded,
+        source=str(d.get("source", "")),
+        labcli_version=str(d.get("labcli_version", "")),
         fitted_on=dict(obj("fitted_on", d.get("fitted_on", {}))),
     )
 
 
-def fit(table: Any, geometry: Mapping[str, Any], *, protocol: str = "takuma2014",
-        max_amplification: float = DEFAULT_MAX_AMPLIFICATION,
-        max_design_cond: float = DEFAULT_MAX_DESIGN_COND,
-        source: str = "the trial table") -> TakumaModel:
+def fit(
+    table: Any,
+    geometry: Mapping[str, Any],
+    *,
+    protocol: str = "takuma2014",
+    max_amplification: float = DEFAULT_MAX_AMPLIFICATION,
+    max_design_cond: float = DEFAULT_MAX_DESIGN_COND,
+    source: str = "the trial table",
+) -> TakumaModel:
     """Fit Eqs. 34-37 to the table's fit trials and return the model."""
-    return TakumaModel(geometry=dict(geometry), protocol=protocol,
-                       max_amplification=max_amplification,
-                       max_design_cond=max_design_cond).fit(table, source=source)
+    return TakumaModel(
+        geometry=dict(geometry), protocol=protocol, max_amplification=max_amplification, max_design_cond=max_design_cond
+    ).fit(table, source=source)

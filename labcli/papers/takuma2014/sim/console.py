@@ -40,10 +40,12 @@ def describe_state(st: dict[str, Any]) -> str:
         what = f"push {load['distance_m'] * 1e3:g} mm at {math.degrees(load['phi_rad']):g} deg"
     else:
         what = "none"
-    return (f"state t={st['time_s']:.3f} s valves={st['valves']} load={what}"
-            f" theta_deg={_fmt(np.degrees(st['theta_rad']), 3)}"
-            f" rest_deg={_fmt(np.degrees(st['rest_theta_rad']), 3)}"
-            f" P_MPa={_fmt(st['pressures_MPa'], 4)} F_N={_fmt(st['force_N'], 3)}")
+    return (
+        f"state t={st['time_s']:.3f} s valves={st['valves']} load={what}"
+        f" theta_deg={_fmt(np.degrees(st['theta_rad']), 3)}"
+        f" rest_deg={_fmt(np.degrees(st['rest_theta_rad']), 3)}"
+        f" P_MPa={_fmt(st['pressures_MPa'], 4)} F_N={_fmt(st['force_N'], 3)}"
+    )
 
 
 def _supply(rig: Any, args: list[str]) -> str:

@@ -12,12 +12,13 @@ is the CSV exchange table of ``docs/table-formats.md``.  ``labcli acquire`` on a
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable, Sequence
+from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
-from .physics import G
 from .objects import DEMO_OBJECTS, DEMO_PHI_DEG, SimObject
+from .physics import G
 
 
 def _window(rig: Any, calibration: Any, n: int, rate_hz: float) -> np.ndarray:
@@ -63,14 +64,20 @@ def simulate_weight_trials(
         loaded = _window(rig, calibration, n, rate_hz)
         rig.remove_weight()
         dth = np.degrees(loaded[a_idx] - base[a_idx])
-        rows.append({
-            "trial": int(r.trial), "set": str(r.set),
-            **dict(zip(("P_L10", "P_R10", "P_L20", "P_R20"), base[p_idx])),
-            **dict(zip(("P_L1", "P_R1", "P_L2", "P_R2"), loaded[p_idx])),
-            "theta1_deg": dth[0], "theta2_deg": dth[1],
-            "Fx_N": m * G * math.cos(direction), "Fy_N": m * G * math.sin(direction),
-            "mass_g": float(r.mass_g), "direction_deg": float(r.direction_deg),
-        })
+        rows.append(
+            {
+                "trial": int(r.trial),
+                "set": str(r.set),
+                **dict(zip(("P_L10", "P_R10", "P_L20", "P_R20"), base[p_idx], strict=False)),
+                **dict(zip(("P_L1", "P_R1", "P_L2", "P_R2"), loaded[p_idx], strict=False)),
+                "theta1_deg": dth[0],
+                "theta2_deg": dth[1],
+                "Fx_N": m * G * math.cos(direction),
+                "Fy_N": m * G * math.sin(direction),
+                "mass_g": float(r.mass_g),
+                "direction_deg": float(r.direction_deg),
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -119,14 +126,21 @@ def simulate_pushes(
             loaded = window()
             rig.release_object()
             dth = np.degrees(loaded[a_idx] - base[a_idx])
-            rows.append({
-                "push": push, "object": obj.name, "R_m": obj.radius_m, "d_m": obj.distance_m,
-                "phi_deg": phi if phi_known else math.nan,
-                **dict(zip(("P_L10", "P_R10", "P_L20", "P_R20"), base[p_idx])),
-                **dict(zip(("P_L1", "P_R1", "P_L2", "P_R2"), loaded[p_idx])),
-                "category": obj.category if labelled else "",
-                "true_stiffness_N_per_m": obj.stiffness_N_per_m,
-                "theta1_deg": dth[0], "theta2_deg": dth[1], "true_phi_deg": phi,
-            })
+            rows.append(
+                {
+                    "push": push,
+                    "object": obj.name,
+                    "R_m": obj.radius_m,
+                    "d_m": obj.distance_m,
+                    "phi_deg": phi if phi_known else math.nan,
+                    **dict(zip(("P_L10", "P_R10", "P_L20", "P_R20"), base[p_idx], strict=False)),
+                    **dict(zip(("P_L1", "P_R1", "P_L2", "P_R2"), loaded[p_idx], strict=False)),
+                    "category": obj.category if labelled else "",
+                    "true_stiffness_N_per_m": obj.stiffness_N_per_m,
+                    "theta1_deg": dth[0],
+                    "theta2_deg": dth[1],
+                    "true_phi_deg": phi,
+                }
+            )
             push += 1
     return pd.DataFrame(rows)

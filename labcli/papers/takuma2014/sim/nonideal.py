@@ -76,7 +76,7 @@ class NonIdeal:
                 raise ValueError(f"the {f.name} scale must be a number >= 0, got {v!r}")
 
     @classmethod
-    def ideal(cls) -> "NonIdeal":
+    def ideal(cls) -> NonIdeal:
         """Every effect off: the ideal model."""
         return cls(**{f.name: 0.0 for f in fields(cls)})
 
@@ -109,8 +109,9 @@ def friction_forces(theta, params: ph.RigParams, chambers: ph.Chambers, fraction
     return fraction * p * np.abs(ph.mckibben_dvolume(L, params.b, params.n))
 
 
-def friction_equilibrium(params: ph.RigParams, chambers: ph.Chambers, load, theta_from,
-                         fraction: float) -> ph.Equilibrium:
+def friction_equilibrium(
+    params: ph.RigParams, chambers: ph.Chambers, load, theta_from, fraction: float
+) -> ph.Equilibrium:
     """Where the arm stops when it starts at ``theta_from`` with sleeve friction.
 
     Each actuator's friction force (fixed at its ``theta_from`` value) opposes
@@ -141,8 +142,7 @@ def friction_equilibrium(params: ph.RigParams, chambers: ph.Chambers, load, thet
         # Friction resists each actuator's motion: a stretching one pulls harder, a shortening
         # one less.  Started from the last posture found (the frictionless one first): friction
         # moves the arm by a fraction of a degree from it, so Newton needs a step or two.
-        result = ph.solve_equilibrium(params, chambers, load, theta0=result.theta_rad,
-                                      extra_tension_N=ff * sign)
+        result = ph.solve_equilibrium(params, chambers, load, theta0=result.theta_rad, extra_tension_N=ff * sign)
         step = result.theta_rad - theta_from
         if float(step @ (free.theta_rad - theta_from)) <= 0:
             return _held(params, chambers, load, theta_from)
@@ -158,9 +158,15 @@ def _held(params, chambers, load, theta) -> ph.Equilibrium:
     L = ph.actuator_lengths(theta, params)
     p = chambers.gauge(L, params)
     T = ph.mckibben_tension(L, p, params.b, params.n, params.k_rubber, params.L_rubber)
-    return ph.Equilibrium(theta_rad=np.array(theta, dtype=float), pressures_MPa=p / 1e6,
-                          force_N=load.force(theta, params.geometry), tensions_N=T, lengths_m=L,
-                          residual_Nm=0.0, stable=True)
+    return ph.Equilibrium(
+        theta_rad=np.array(theta, dtype=float),
+        pressures_MPa=p / 1e6,
+        force_N=load.force(theta, params.geometry),
+        tensions_N=T,
+        lengths_m=L,
+        residual_Nm=0.0,
+        stable=True,
+    )
 
 
 # ---------------------------------------------------------------- thermal

@@ -30,8 +30,9 @@ Plain data: :data:`DEMO_OBJECTS` lists :class:`SimObject` rows,
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 from ..push_session import PlannedObject
 from ..session import ObjectSpec, PushSpec
@@ -59,29 +60,53 @@ class SimObject:
 
 DEMO_OBJECTS: tuple[SimObject, ...] = (
     SimObject(
-        "pet-1", "PET", 0.033, 420.0, 0.010,
+        "pet-1",
+        "PET",
+        0.033,
+        420.0,
+        0.010,
         "500 ml water bottle, 66 mm across; assumed 0.3-0.6 N/mm, the range of an empty capped "
         "thin-wall (0.3 mm) PET bottle pressed at mid-height",
     ),
     SimObject(
-        "pet-2", "PET", 0.0325, 520.0, 0.010,
+        "pet-2",
+        "PET",
+        0.0325,
+        520.0,
+        0.010,
         "500 ml soft-drink bottle, 65 mm across, slightly thicker wall; assumed, as pet-1",
     ),
     SimObject(
-        "pet-3", "PET", 0.035, 610.0, 0.010,
+        "pet-3",
+        "PET",
+        0.035,
+        610.0,
+        0.010,
         "600 ml bottle with ribs, 70 mm across; assumed, ribs stiffen it towards the top of the PET range",
     ),
     SimObject(
-        "can-al-1", "aluminium", 0.033, 1800.0, 0.015,
+        "can-al-1",
+        "aluminium",
+        0.033,
+        1800.0,
+        0.015,
         "350 ml aluminium drink can, 66 mm across, 0.1 mm wall; assumed 1.5-3 N/mm for an empty "
         "opened can pressed between its rims",
     ),
     SimObject(
-        "can-al-2", "aluminium", 0.033, 2400.0, 0.015,
+        "can-al-2",
+        "aluminium",
+        0.033,
+        2400.0,
+        0.015,
         "250 ml slim aluminium can, 66 mm body; assumed, the shorter body is stiffer between the rims",
     ),
     SimObject(
-        "can-steel-1", "steel", 0.037, 8000.0, 0.020,
+        "can-steel-1",
+        "steel",
+        0.037,
+        8000.0,
+        0.020,
         "tinplate food can (74 mm across, 0.2 mm beaded wall); assumed 8 N/mm, near the upper end of "
         "what this arm resolves (a real steel can may be stiffer still)",
     ),

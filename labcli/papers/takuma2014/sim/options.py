@@ -57,8 +57,17 @@ SIM_OPTIONS = {
 }
 
 
-def build_rig(*, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7,
-              ideal: bool = False, supply: Any = None, design: str | None = None, **scales: float) -> Any:
+def build_rig(
+    *,
+    seed: int = 0,
+    noise: float = 1.0,
+    drift: float = 0.0,
+    tau_s: float = 0.7,
+    ideal: bool = False,
+    supply: Any = None,
+    design: str | None = None,
+    **scales: float,
+) -> Any:
     """The McKibben rig with these options (parsed values of :data:`SIM_OPTIONS`; None: the default)."""
     from dataclasses import replace
 
@@ -71,5 +80,6 @@ def build_rig(*, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: f
     base = NonIdeal.ideal() if ideal else NonIdeal()
     extra = {} if supply is None else {"supply_MPa": supply}
     nonideal = replace(base, **{k: v for k, v in scales.items() if v is not None})
-    return SimRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s, nonideal=nonideal, design=design or "paper",
-                  **extra)
+    return SimRig(
+        seed=seed, noise=noise, drift=drift, tau_s=tau_s, nonideal=nonideal, design=design or "paper", **extra
+    )

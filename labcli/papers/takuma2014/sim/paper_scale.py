@@ -45,8 +45,12 @@ def paper_ratios(rig: Any, reading: str = "eq31", settle_s: float = 15.0) -> dic
     table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=settle_s)
     model = TakumaModel(geometry=proto.settings.rig, protocol=proto.name, coefficients=coefficients)
     out = model.predict_table(table, mode="measured-angles")
-    truth = {"theta1": np.radians(table["theta1_deg"].to_numpy()), "theta2": np.radians(table["theta2_deg"].to_numpy()),
-             "Fx": table["Fx_N"].to_numpy(), "Fy": table["Fy_N"].to_numpy()}
+    truth = {
+        "theta1": np.radians(table["theta1_deg"].to_numpy()),
+        "theta2": np.radians(table["theta2_deg"].to_numpy()),
+        "Fx": table["Fx_N"].to_numpy(),
+        "Fy": table["Fy_N"].to_numpy(),
+    }
     pred = {"theta1": out["theta1_rad"], "theta2": out["theta2_rad"], "Fx": out["Fx_N"], "Fy": out["Fy_N"]}
     result = {}
     for q in QUANTITIES:
@@ -57,8 +61,13 @@ def paper_ratios(rig: Any, reading: str = "eq31", settle_s: float = 15.0) -> dic
             q25, med, q75 = np.percentile(r, [25, 50, 75])
         else:
             q25 = med = q75 = float("nan")
-        result[q] = {"n": int(use.sum()), "median": float(med), "q25": float(q25), "q75": float(q75),
-                     "flagged": int((~out["ok"][q]).sum())}
+        result[q] = {
+            "n": int(use.sum()),
+            "median": float(med),
+            "q25": float(q25),
+            "q75": float(q75),
+            "flagged": int((~out["ok"][q]).sum()),
+        }
     return result
 
 
@@ -68,13 +77,18 @@ def main(argv: list[str]) -> None:
 
     seeds = [int(a) for a in argv] or [1, 2, 3, 4, 5]
     print("prediction / truth with the paper's Section 3.3 coefficients, median [interquartile] (n, flagged)")
-    for label, kw in (("realistic", {}), ("ideal", {"nonideal": NonIdeal.ideal()}),
-                      ("thin, ideal", {"nonideal": NonIdeal.ideal(), "design": "thin"})):
+    for label, kw in (
+        ("realistic", {}),
+        ("ideal", {"nonideal": NonIdeal.ideal()}),
+        ("thin, ideal", {"nonideal": NonIdeal.ideal(), "design": "thin"}),
+    ):
         for reading in ("eq31", "eq35"):
             for seed in seeds:
                 res = paper_ratios(SimRig(seed=seed, **kw), reading)
-                cells = "  ".join(f"{q} {v['median']:+.2f} [{v['q25']:+.2f},{v['q75']:+.2f}] ({v['n']},{v['flagged']})"
-                                  for q, v in res.items())
+                cells = "  ".join(
+                    f"{q} {v['median']:+.2f} [{v['q25']:+.2f},{v['q75']:+.2f}] ({v['n']},{v['flagged']})"
+                    for q, v in res.items()
+                )
                 print(f"{label:12s} {reading:4s} seed {seed}: {cells}")
 
 

@@ -136,8 +136,8 @@ heat and backlash live in the simulated rig (:mod:`.nonideal`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Sequence
 
 import numpy as np
 
@@ -276,8 +276,9 @@ def _jacobian_transpose_times(theta, geom: Geometry, F) -> np.ndarray:
     c12, s12 = np.cos(t1 + t2), np.sin(t1 + t2)
     h2, h3 = geom.h2, geom.h3
     Fx, Fy = F[..., 0], F[..., 1]
-    return np.stack([(-h2 * c1 - h3 * c12) * Fx + (-h2 * s1 - h3 * s12) * Fy,
-                     (-h3 * c12) * Fx + (-h3 * s12) * Fy], axis=-1)
+    return np.stack(
+        [(-h2 * c1 - h3 * c12) * Fx + (-h2 * s1 - h3 * s12) * Fy, (-h3 * c12) * Fx + (-h3 * s12) * Fy], axis=-1
+    )
 
 
 def actuator_lengths(theta, params: RigParams) -> np.ndarray:
@@ -302,9 +303,7 @@ def mckibben_dvolume(L, b, n):
 
 def mckibben_tension(L, p_gauge_pa, b, n, k_rubber, L_rubber):
     """Tension (N): ``P (3 L^2 - b^2) / (4 pi n^2) + k_rubber (L - L_rubber)``."""
-    return -np.asarray(p_gauge_pa) * mckibben_dvolume(L, b, n) + k_rubber * (
-        np.asarray(L) - L_rubber
-    )
+    return -np.asarray(p_gauge_pa) * mckibben_dvolume(L, b, n) + k_rubber * (np.asarray(L) - L_rubber)
 
 
 def braid_angle(L, b):
@@ -334,11 +333,11 @@ class Chambers:
     amount: np.ndarray | None = None  # Pa m^3 (absolute)
 
     @staticmethod
-    def open(gauge_pa) -> "Chambers":
+    def open(gauge_pa) -> Chambers:
         return Chambers("open", gauge_pa=np.broadcast_to(np.asarray(gauge_pa, float), (4,)).copy())
 
     @staticmethod
-    def closed_at(lengths, gauge_pa, params: RigParams) -> "Chambers":
+    def closed_at(lengths, gauge_pa, params: RigParams) -> Chambers:
         """Close the valves with the actuators at ``lengths`` and pressures ``gauge_pa``."""
         V = mckibben_volume(lengths, params.b, params.n)
         return Chambers("closed", amount=(np.asarray(gauge_pa, float) + P_ATM) * (V + params.V_dead))
@@ -390,8 +389,10 @@ class Push:
 
     def center(self, geom: Geometry) -> np.ndarray:
         c0 = np.array(self.touch if self.touch is not None else (0.0, geom.h2 + geom.h3))
-        return c0 + np.array([self.radius_m, 0.0]) - self.distance_m * np.array(
-            [np.cos(self.phi_rad), np.sin(self.phi_rad)]
+        return (
+            c0
+            + np.array([self.radius_m, 0.0])
+            - self.distance_m * np.array([np.cos(self.phi_rad), np.sin(self.phi_rad)])
         )
 
     def force(self, theta, geom: Geometry) -> np.ndarray:
@@ -422,8 +423,7 @@ def link_weight_torques(theta, geom: Geometry, link_mass_kg) -> np.ndarray:
     return np.stack([q1, q2], axis=-1)
 
 
-def generalised_forces(theta, params: RigParams, chambers: Chambers, load,
-                       extra_tension_N=None) -> np.ndarray:
+def generalised_forces(theta, params: RigParams, chambers: Chambers, load, extra_tension_N=None) -> np.ndarray:
     """Residual of virtual work ``J^T F - sum T grad s`` (N m), shape ``(..., 2)``.
 
     The links' weight enters when ``params.link_mass_kg`` is non-zero;
@@ -463,8 +463,9 @@ class Equilibrium:
 _STENCIL = np.array([[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
 
 
-def _residual_and_stiffness(theta, params: RigParams, chambers: Chambers, load, extra_tension_N=None,
-                            h: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+def _residual_and_stiffness(
+    theta, params: RigParams, chambers: Chambers, load, extra_tension_N=None, h: float = 1e-6
+) -> tuple[np.ndarray, np.ndarray]:
     """The residual (2,) and ``K = -d(residual)/d theta`` (2, 2) at ``theta``, from one batch.
 
     The five postures go through :func:`generalised_forces` together (every
@@ -474,8 +475,9 @@ def _residual_and_stiffness(theta, params: RigParams, chambers: Chambers, load, 
     return r[0], -np.stack([r[1] - r[2], r[3] - r[4]], axis=-1) / (2 * h)
 
 
-def stiffness_matrix(theta, params: RigParams, chambers: Chambers, load, h: float = 1e-6,
-                     extra_tension_N=None) -> np.ndarray:
+def stiffness_matrix(
+    theta, params: RigParams, chambers: Chambers, load, h: float = 1e-6, extra_tension_N=None
+) -> np.ndarray:
     """``K = -d(residual)/d theta`` by central differences (N m/rad)."""
     return _residual_and_stiffness(theta, params, chambers, load, extra_tension_N, h)[1]
 
@@ -589,12 +591,20 @@ class Design:
 
 
 # The default: the paper's test bed (see the module docstring for the figures used).
-PAPER_SCALE = Design(pairs={1: (0.220, 41.0, 0.013), 2: (0.220, 41.0, 0.009)}, k_rubber=700.0,
-                     rubber_prestretch=0.005, v_dead=(15.0e-6, 6.0e-6))
+PAPER_SCALE = Design(
+    pairs={1: (0.220, 41.0, 0.013), 2: (0.220, 41.0, 0.009)},
+    k_rubber=700.0,
+    rubber_prestretch=0.005,
+    v_dead=(15.0e-6, 6.0e-6),
+)
 # The tuning before the paper-scale retune: thin, soft muscles (0.6-13 deg for 50-1000 g).
 # Kept so that runs recorded on it (``sim://?design=thin&ideal=1``) can be reproduced.
-THIN_MUSCLES = Design(pairs={1: (0.220, 41.0, 0.006), 2: (0.220, 37.0, 0.006)}, k_rubber=100.0,
-                      rubber_prestretch=0.005, v_dead=(3.0e-6, 3.0e-6))
+THIN_MUSCLES = Design(
+    pairs={1: (0.220, 41.0, 0.006), 2: (0.220, 37.0, 0.006)},
+    k_rubber=100.0,
+    rubber_prestretch=0.005,
+    v_dead=(3.0e-6, 3.0e-6),
+)
 DESIGNS = {"paper": PAPER_SCALE, "thin": THIN_MUSCLES}
 # Kept under their old names for callers that read them.
 K_RUBBER = PAPER_SCALE.k_rubber
@@ -606,8 +616,9 @@ def supply_array(supply_MPa) -> np.ndarray:
     return np.broadcast_to(np.asarray(supply_MPa, dtype=float) * 1e6, (4,)).copy()
 
 
-def nominal_params(geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA,
-                   design: Design | str = PAPER_SCALE) -> RigParams:
+def nominal_params(
+    geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA, design: Design | str = PAPER_SCALE
+) -> RigParams:
     """The symmetric design rig (no actuator-to-actuator variation).
 
     ``supply_MPa`` is one gauge pressure or four (L1, R1, L2, R2); ``design`` a
@@ -634,8 +645,9 @@ def nominal_params(geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA,
     )
 
 
-def varied_params(seed: int, geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA,
-                  design: Design | str = PAPER_SCALE) -> RigParams:
+def varied_params(
+    seed: int, geometry: Geometry | None = None, supply_MPa=SUPPLY_MPA, design: Design | str = PAPER_SCALE
+) -> RigParams:
     """A hand-built rig: each actuator differs from the design by a few percent.
 
     Mounting lengths are the nominal ones (where the design actuator carries

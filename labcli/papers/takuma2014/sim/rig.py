@@ -162,9 +162,21 @@ class SimRig(SimClock):
         self._t_closed = 0.0
         chambers = ph.Chambers.open(np.zeros(4))
         eq = ph.solve_equilibrium(self.params, chambers, ph.NoLoad())
-        self._seg = _Segment(0.0, self.tau_s, eq.theta_rad, eq.theta_rad, np.zeros(4), np.zeros(4),
-                             chambers, ph.NoLoad(), eq, x0=np.zeros(4), dlnV=np.zeros(4), kappa1=0.0,
-                             shaft0=eq.theta_rad.copy())
+        self._seg = _Segment(
+            0.0,
+            self.tau_s,
+            eq.theta_rad,
+            eq.theta_rad,
+            np.zeros(4),
+            np.zeros(4),
+            chambers,
+            ph.NoLoad(),
+            eq,
+            x0=np.zeros(4),
+            dlnV=np.zeros(4),
+            kappa1=0.0,
+            shaft0=eq.theta_rad.copy(),
+        )
         self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
 
@@ -271,12 +283,27 @@ class SimRig(SimClock):
             tau = self.tau_s * float(np.clip(np.exp(0.15 * self._event_rng.standard_normal()), 0.7, 1.4))
             dlnV, kappa1 = np.zeros(4), 0.0
             if chambers.state == "closed" and (self._kappa1 or np.any(x_now)):
-                vol = lambda th: ph.mckibben_volume(ph.actuator_lengths(th, self.params), self.params.b,
-                                                    self.params.n) + self.params.V_dead
+
+                def vol(th: np.ndarray) -> np.ndarray:
+                    p = self.params
+                    return ph.mckibben_volume(ph.actuator_lengths(th, p), p.b, p.n) + p.V_dead
+
                 dlnV, kappa1 = np.log(vol(eq.theta_rad)) - np.log(vol(theta_now)), self._kappa1
-            self._seg = _Segment(self._t, tau, theta_now, eq.theta_rad, p_now, np.asarray(p_to, float),
-                                 chambers, load, eq, x0=x_now, dlnV=dlnV, kappa1=kappa1,
-                                 shaft0=np.asarray(shaft_now, float))
+            self._seg = _Segment(
+                self._t,
+                tau,
+                theta_now,
+                eq.theta_rad,
+                p_now,
+                np.asarray(p_to, float),
+                chambers,
+                load,
+                eq,
+                x0=x_now,
+                dlnV=dlnV,
+                kappa1=kappa1,
+                shaft0=np.asarray(shaft_now, float),
+            )
             if isinstance(load, ph.NoLoad):
                 self._rest_theta = eq.theta_rad.copy()
             if valves is not None:
@@ -322,8 +349,9 @@ class SimRig(SimClock):
         with self._lock:
             theta_now, _ = self._state_at(self._t)
             touch = tuple(float(v) for v in ph.contact_point(theta_now, self.params.geometry))
-            self._change(load=ph.Push(float(radius_m), float(distance_m), float(phi_rad),
-                                      float(stiffness_N_per_m), touch))
+            self._change(
+                load=ph.Push(float(radius_m), float(distance_m), float(phi_rad), float(stiffness_N_per_m), touch)
+            )
 
     def release_object(self) -> None:
         """Withdraw the object (no-op if none is pushed)."""
@@ -340,8 +368,10 @@ class SimRig(SimClock):
         out[:, 4:] = angle_to_counts(np.asarray(theta) + self.pot_offset_rad)
         if self.drift:
             tt = np.asarray(t)[:, None]
-            out += self.drift * self._drift_amp * (
-                np.sin(2 * np.pi * tt / self._drift_period + self._drift_phase) - np.sin(self._drift_phase)
+            out += (
+                self.drift
+                * self._drift_amp
+                * (np.sin(2 * np.pi * tt / self._drift_period + self._drift_phase) - np.sin(self._drift_phase))
             )
         return out
 
@@ -371,8 +401,10 @@ def _load_text(load) -> str:
     if isinstance(load, ph.Weight):
         return f"{load.mass_kg * 1e3:g} g hanging at {np.degrees(load.direction_rad):g} deg"
     if isinstance(load, ph.Push):
-        return (f"an object of radius {load.radius_m * 1e3:g} mm pushed {load.distance_m * 1e3:g} mm"
-                f" at {np.degrees(load.phi_rad):g} deg")
+        return (
+            f"an object of radius {load.radius_m * 1e3:g} mm pushed {load.distance_m * 1e3:g} mm"
+            f" at {np.degrees(load.phi_rad):g} deg"
+        )
     return "no load"
 
 
