@@ -63,7 +63,7 @@ def export(run: str, output: str, fmt: str | None) -> None:
         if not parquet:
             check_output(output + SIDECAR_SUFFIX, inputs=(run,))
         with RunFile.open(run) as rf:
-            records, df = rf.record_type, rf.table()
+            records, df = rf.record_type, rf.records.table()
             table_meta.describe(df, records.table_spec, table_meta.provenance(rf.attrs, run))
         if parquet:
             table_meta.write_parquet(df, output)

@@ -48,8 +48,8 @@ def split(run: str, n_fit: int | None, n_validation: int | None, strategy: str, 
         raise click.UsageError("--seed applies only to --strategy random.")
     try:
         with RunFile.open(run, "a") as rf:
-            s = rf.assign_split(n_fit, n_validation, strategy, seed)
-            total = len(rf.completed_ids())
+            s = rf.split.assign(n_fit, n_validation, strategy, seed)
+            total = len(rf.records.ids())
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     how = strategy if strategy == "sequential" else f"random, seed {s['seed']}"

@@ -129,7 +129,7 @@ def _resume(path: str, protocol: str | None, options: AcquireOptions) -> tuple[A
                 )
         done = acq.already_done(existing, path)
         if done is not None:
-            outcome = Outcome("finished", done, 0, len(existing.completed_ids()))
+            outcome = Outcome("finished", done, 0, len(existing.records.ids()))
             existing.close()
             return acq, existing, outcome, given
     except BaseException:
@@ -243,7 +243,7 @@ def acquire(
             other = check_rig(
                 store, path, device.info, (given or acq.protocol).calibration, allow_other=allow_other_rig
             )
-        completed = list(store.completed_ids()) if store is not None else []
+        completed = list(store.records.ids()) if store is not None else []
         if store is None:
             store = _creator(path, acq, device.info, port, operator, force)
         engine = _engine(

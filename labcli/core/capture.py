@@ -1,7 +1,7 @@
 """Capture windows taken as they arrive, never held whole in memory.
 
 A ``Baseline`` or ``Capture`` step inside a trial streams its frames into the run file
-(:meth:`labcli.core.store.RunFile.begin_window`, which holds at most one chunk of frames
+(``run.windows.begin``, which holds at most one chunk of frames
 before writing it); the session is handed a :class:`~labcli.core.store.StoredWindow`: where
 the frames lie in the file, their checksum, and their running mean and variance per
 channel.  Outside a trial (the air supply's check, before the run file exists) nothing of

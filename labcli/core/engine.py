@@ -41,7 +41,7 @@ import numpy as np
 from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceError, DeviceTimeout, DiskFull
 from . import interrupts
 from .capture import WindowSink
-from .sessionlog import NoSessionLog, SessionInfo, SessionLog, session_log
+from .sessionlog import NoSessionLog, SessionInfo, SessionLog
 from .settle import SettleCriteria, SettleDetector, TimeUnwrapper
 from .steps import (
     Ask,
@@ -172,8 +172,8 @@ class RunEngine:
         if not self._logging:
             self._logging = True
             if self._session is not None:  # without a session's facts there is nothing to log
-                self._log = session_log(self._store)
-                self._log.begin_session(self._session)
+                self._log = self._store.sessions
+                self._log.begin(self._session)
         return self._store
 
     @property
@@ -283,13 +283,13 @@ class RunEngine:
             self._skipped.append(rid)
             self._trial = None
             if self._logging:
-                self._log.trial_skipped(rid)
+                self._log.skipped(rid)
         elif self._logging:
-            self._log.trial_redone(rid)
+            self._log.redone(rid)
         self._flags = []
 
     def _done_ids(self) -> list[int]:
-        stored = list(self._store.completed_ids()) if self._store is not None else []
+        stored = list(self._store.records.ids()) if self._store is not None else []
         return stored + [t for t in self._skipped if t not in stored]
 
     def _wait_for_rig(self, e: Exception, reopen: Callable[[], Any]) -> bool:
@@ -331,7 +331,7 @@ class RunEngine:
     def _complete(self) -> int:
         if self._store is None:
             return 0
-        return len(list(self._store.completed_ids()))
+        return len(list(self._store.records.ids()))
 
     def _current(self) -> str:
         if self._trial is not None:
@@ -470,7 +470,7 @@ class RunEngine:
         """
         k = len(self.protocol.channels)
         sink = WindowSink(
-            k, self.store.begin_window(f"{self._noun} {self._trial.trial}") if self._trial is not None else None
+            k, self.store.windows.begin(f"{self._noun} {self._trial.trial}") if self._trial is not None else None
         )
         self._stream(duration_s, sink.add)
         window = sink.finish()
@@ -584,12 +584,12 @@ class RunEngine:
         if self._flags:
             record["flags"] = [*record.get("flags", ()), *self._flags]
         with _sigint_deferred():
-            self.store.write(record)
+            self.store.records.write(record)
             # Inside the deferral, so a Ctrl-C held during the write finds the trial stored.
             self._stored += 1
             self._trial_walls.append(time.monotonic() - self._trial_wall_start)
             if self._trial is not None:
-                self._log.trial_added(self._trial.trial)
+                self._log.added(self._trial.trial)
             self._trial = None
             self._flags = []
         return None
@@ -665,10 +665,10 @@ class RunEngine:
         with _sigint_deferred():  # a Ctrl-C now finds the split whole and the run finished
             if step.split:
                 # Only stored trials join (a session restarted after a lost rig counts skips as done).
-                stored = set(self.store.completed_ids())
+                stored = set(self.store.records.ids())
                 fit = sorted(t for t, s in step.split.items() if s == "fit" and t in stored)
                 val = sorted(t for t, s in step.split.items() if s == "validation" and t in stored)
-                self.store.set_split(fit, val, "plan")
+                self.store.split.set(fit, val, "plan")
             self._finished = True
 
     # ------------------------------------------------------------------ setup

@@ -48,7 +48,7 @@ def save_model(text: str, path: str | Path, *, run: str | Path | None = None, na
     with RunFile.open(run, "a") as rf:
         restore = replace_restorably(path, data, what="the model to ")
         try:
-            rf.record_model(name, text)
+            rf.models.record(name, text)
         except BaseException:
             restore()
             raise

@@ -46,7 +46,7 @@ def run_identity(run: Any, path: str | Path) -> dict[str, Any]:
         "port": a.get("port", ""),
         "calibration": {"gain": [float(x) for x in cal["gain"]], "offset": [float(x) for x in cal["offset"]]},
     }
-    latest = run.rig_identity() if hasattr(run, "rig_identity") else None
+    latest = run.sessions.rig_identity()
     if latest is not None:  # the rig of the run's latest session (a resumed run may have moved rigs)
         rig.update(device=latest.device, firmware=latest.firmware)
         if latest.gain:

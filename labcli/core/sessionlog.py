@@ -3,13 +3,13 @@
 A run may take several sessions (a quit, a Ctrl-C, a lost rig, the next morning), so the
 run file keeps a log of them: when each began and ended, on which port and rig, at which
 baud rate, which records it added, redid and skipped, and how it ended.  The engine
-reports to any store that offers :class:`SessionLog`; a store that does not gets
-:class:`NoSessionLog` and the run is recorded as before.
+reports to the run file's ``run.sessions`` (:class:`SessionLog`); a session started without
+the facts a log records (a test driving the engine) reports to :class:`NoSessionLog`.
 
 :class:`RigIdentity` is what identifies a rig to a resumed run: the ``ID?`` reply's device
 and firmware, the channel names, and the calibration (gain and offset per channel, SI).
 :func:`recorded_identity` reads it from a run file: the identity of the rig that recorded
-its latest session where the store keeps a session log, else what every run file has
+its latest session where the run logged one, else what every run file has
 recorded since its creation (root attributes ``device``, ``firmware``, ``channels`` and the
 ``calibration`` group).
 """
@@ -101,16 +101,16 @@ class SessionInfo:
 class SessionLog(Protocol):
     """What the engine tells a run file about each session (the run file's session-log API)."""
 
-    def begin_session(self, info: SessionInfo) -> None:
+    def begin(self, info: SessionInfo) -> None:
         """A session starts writing to the run (before its first record)."""
 
-    def trial_added(self, rid: int) -> None:
+    def added(self, rid: int) -> None:
         """Record ``rid`` was stored whole by this session."""
 
-    def trial_redone(self, rid: int) -> None:
+    def redone(self, rid: int) -> None:
         """The experimenter (or a check) redid record ``rid`` before storing it."""
 
-    def trial_skipped(self, rid: int) -> None:
+    def skipped(self, rid: int) -> None:
         """Record ``rid`` was skipped: not stored by this session."""
 
     def end(self, how: str) -> None:
@@ -121,18 +121,18 @@ class SessionLog(Protocol):
 
 
 class NoSessionLog:
-    """For a store without a session log: every report is dropped."""
+    """For a session without the facts a log records: every report is dropped."""
 
-    def begin_session(self, info: SessionInfo) -> None:
+    def begin(self, info: SessionInfo) -> None:
         pass
 
-    def trial_added(self, rid: int) -> None:
+    def added(self, rid: int) -> None:
         pass
 
-    def trial_redone(self, rid: int) -> None:
+    def redone(self, rid: int) -> None:
         pass
 
-    def trial_skipped(self, rid: int) -> None:
+    def skipped(self, rid: int) -> None:
         pass
 
     def end(self, how: str) -> None:
@@ -142,14 +142,9 @@ class NoSessionLog:
         return None
 
 
-def session_log(store: Any) -> SessionLog:
-    """The store itself when it keeps a session log, else :class:`NoSessionLog`."""
-    return store if isinstance(store, SessionLog) else NoSessionLog()
-
-
 def recorded_identity(run: Any) -> RigIdentity:
     """The rig a run file was recorded on (its latest session's, else the one that created it)."""
-    latest = session_log(run).rig_identity()
+    latest = run.sessions.rig_identity()
     if latest is not None:
         return latest
     attrs = run.attrs

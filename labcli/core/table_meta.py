@@ -194,7 +194,7 @@ def load_described(path: str | os.PathLike, kind: Any) -> Any:
     name = os.path.basename(os.fspath(path))
     if os.fspath(path).lower().endswith(RUN_FILE_SUFFIXES):
         with RunFile.open(path) as run:
-            df = run.table(kind)
+            df = run.records.table(kind)
             prov = provenance(run.attrs, path)
     else:
         df = kind.read_csv(path)

@@ -62,7 +62,7 @@ def child(window_s: float, mode: str, rate: float, folder: str) -> None:
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     with RunFile.open(path) as run:
         ok = run.verify()["ok"]
-        rec = run.read(1)
+        rec = run.records.read(1)
     frames = sum(len(rec["raw"][w]["seq"]) for w in ("baseline", "load"))
     print(
         json.dumps(

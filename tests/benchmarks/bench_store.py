@@ -97,7 +97,7 @@ def run_store(path: str, records: list[dict], sync: bool) -> float:
     with RunFile.create(path, protocol=_Protocol(), device_info=_Device(), force=True) as run:
         run.sync_each_record = sync
         for rec in records:
-            run.write(rec)
+            run.records.write(rec)
     return time.perf_counter() - t0
 
 

@@ -261,8 +261,20 @@ def open_writer(layout: str, path: str) -> Any:
         run = RunFile.open(path, "a")
     else:
         run = RunFile.create(path, protocol=FakeProtocol(), device_info=FakeDevice(), port="sim://", operator="kill")
-    run.done = set(run.completed_ids())
-    return run
+    return V2Writer(run)
+
+
+class V2Writer:
+    """The run file as the campaign drives every layout: ``write(record)``, ``done``, ``f``, ``close()``."""
+
+    def __init__(self, run: Any) -> None:
+        self.run, self.f, self.done = run, run.h5, set(run.records.ids())
+
+    def write(self, rec: dict) -> None:
+        self.run.records.write(rec)
+
+    def close(self) -> None:
+        self.run.close()
 
 
 def writer_main(layout: str, path: str, n_samples: int) -> None:
@@ -282,7 +294,7 @@ def committed(layout: str, path: str) -> dict[int, dict]:
     from labcli.core.store import RunFile
 
     with RunFile.open(path) as run:
-        return {i: run.read(i) for i in run.completed_ids()}
+        return {i: run.records.read(i) for i in run.records.ids()}
 
 
 def same(stored: dict, rec: dict) -> bool:

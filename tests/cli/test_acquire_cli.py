@@ -90,10 +90,10 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
     assert row12["mass_g"] == 200 and row12["direction_deg"] == -120
 
     with RunFile.open(path) as run:
-        split = run.split()
+        split = run.split.get()
         assert split["strategy"] == "plan" and split["fit"] == list(range(1, 91))
         assert split["validation"] == list(range(91, 109))
-        rec = run.read(12)
+        rec = run.records.read(12)
         for name in ("baseline", "load"):
             w = rec["raw"][name]
             n = len(w["seq"])
@@ -117,8 +117,8 @@ def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path):
 
     def unplug_in_trial_3(step, reply):
         if isinstance(step, Commit) and step.record["trial"] == 2:
-            snapshot["table"] = store.table()
-            snapshot["raw2"] = store.read(2)["raw"]["load"]["counts"].copy()
+            snapshot["table"] = store.records.table()
+            snapshot["raw2"] = store.records.read(2)["raw"]["load"]["counts"].copy()
         if isinstance(step, Capture) and engine._trial.trial == 3:
             dev.serial.unplug()
 
@@ -133,9 +133,9 @@ def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path):
         f"labcli acquire {path} --port '{port}' --resume"
     )
     with RunFile.open(path) as run:
-        assert run.completed_ids() == [1, 2] and run.incomplete_ids() == []
-        assert run.table().equals(snapshot["table"])
-        assert np.array_equal(run.read(2)["raw"]["load"]["counts"], snapshot["raw2"])
+        assert run.records.ids() == [1, 2] and run.records.incomplete_ids() == []
+        assert run.records.table().equals(snapshot["table"])
+        assert np.array_equal(run.records.read(2)["raw"]["load"]["counts"], snapshot["raw2"])
     # The command the message gives continues the run at trial 3.
     result = CliRunner().invoke(cli, ["acquire", str(path), "--port", port, "--resume", "--unattended"])
     assert result.exit_code == 0, result.output
@@ -198,7 +198,7 @@ def test_ctrl_c_discards_the_current_trial_and_says_how_to_resume(tmp_path):
         f"Resume with: labcli acquire {path} --port '{port}' --resume"
     )
     with RunFile.open(path) as run:
-        assert run.completed_ids() == [1, 2] and run.incomplete_ids() == []
+        assert run.records.ids() == [1, 2] and run.records.incomplete_ids() == []
 
 
 class _CtrlCInFinaliser:
@@ -228,7 +228,7 @@ def test_ctrl_c_landing_in_a_finaliser_is_not_lost(tmp_path, capsys):
     assert outcome.message.startswith("Interrupted during trial 3, which was discarded; 2 trials stored")
     assert "Exception ignored" not in capsys.readouterr().err
     with RunFile.open(path) as run:
-        assert run.completed_ids() == [1, 2]
+        assert run.records.ids() == [1, 2]
 
 
 def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
@@ -384,7 +384,7 @@ def test_typed_push_session_on_the_simulated_rig(tmp_path):
     assert "Push 2/10 of pet-1: push pet-1 by 8 mm along an unknown direction, then press Enter" in result.output
     assert f"Session complete: 10 pushes stored in {path} (10 this session, " in result.output
     with RunFile.open(path) as run:
-        df = run.table()
+        df = run.records.table()
     assert df["push"].tolist() == list(range(1, 11))
     assert set(df["object"]) == {"pet-1"} and set(df["category"]) == {"soft"}
     assert df["R_m"].iloc[0] == pytest.approx(0.033) and df["d_m"].tolist() == pytest.approx([0.010] + [0.008] * 9)
@@ -441,8 +441,8 @@ def test_settle_timeout_offers_wait_longer_and_accept(tmp_path):
         flat,
     )
     with RunFile.open(path) as run:
-        assert run.completed_ids() == [1]
-        rec = run.read(1)
+        assert run.records.ids() == [1]
+        rec = run.records.read(1)
     load = rec["settle"]["load"]
     assert load["settled"] is False and load["accepted"] == "timeout"
     assert load["waited_s"] == pytest.approx(2.0, abs=0.05)
@@ -467,7 +467,7 @@ def test_unattended_push_run_pushes_the_six_reference_objects(tmp_path):
     assert result.exit_code == 0, result.output
     assert f"Session complete: 60 pushes stored in {path} (60 this session, " in result.output
     with RunFile.open(path) as run:
-        df = run.table()
+        df = run.records.table()
     assert df["object"].tolist() == [
         n for n in ("pet-1", "pet-2", "pet-3", "can-al-1", "can-al-2", "can-steel-1") for _ in range(10)
     ]

@@ -41,6 +41,8 @@ from support.records import stored_trials
 from labcli.core.acquisition import acquire
 from labcli.core.protocol import load_protocol
 from labcli.core.store import RunFile
+from labcli.core.store.records import Records
+from labcli.core.store.split import Splits
 from labcli.papers.takuma2014.protocol import load_plan
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -218,7 +220,7 @@ class Campaign:
         for _ in range(5):
             if path.exists():
                 with RunFile.open(path) as run:
-                    if len(run.completed_ids()) == len(self.ids) and run.split() is not None:
+                    if len(run.records.ids()) == len(self.ids) and run.split.get() is not None:
                         break
             pristine = not path.exists()
             proc = Acquire(run_args(path, self.plan, self.protocol))
@@ -234,9 +236,9 @@ class Campaign:
             assert not seen, "a file with complete trials vanished"
             return []
         with RunFile.open(path) as run:
-            ids = run.completed_ids()
-            incomplete = run.incomplete_ids()
-            assert len(run.table()) == len(ids)
+            ids = run.records.ids()
+            incomplete = run.records.incomplete_ids()
+            assert len(run.records.table()) == len(ids)
         # Trials are recorded in plan order, each once.
         assert ids == self.ids[: len(ids)], ids
         assert incomplete in ([], self.ids[len(ids) : len(ids) + 1]), incomplete
@@ -266,7 +268,7 @@ class Campaign:
             return "acquiring a trial" if said[0] else "air supply, valves or acquiring a trial"
         assert proc.reviews == new + 1, (proc.reviews, new, proc.stdout)
         with RunFile.open(path) as run:
-            on_disk = bool(run.incomplete_ids())
+            on_disk = bool(run.records.incomplete_ids())
         return "writing a trial (incomplete group on disk)" if on_disk else "writing a trial"
 
     def check_sigint(self, proc: Acquire, rc: int, path: Path, ids: list[int]) -> None:
@@ -285,11 +287,11 @@ class Campaign:
 
     def check_complete(self, path: Path, seen: dict[int, dict[str, Any]]) -> None:
         with RunFile.open(path) as run:
-            assert sorted(run.completed_ids()) == self.ids
-            split = run.split()
+            assert sorted(run.records.ids()) == self.ids
+            split = run.split.get()
             assert split is not None and split["strategy"] == "plan"
             assert split["fit"] == self.fit and split["validation"] == self.validation
-            table = run.table()
+            table = run.records.table()
         assert table["trial"].tolist() == self.ids
         assert table["set"].tolist() == ["fit" if t in self.fit else "validation" for t in self.ids]
         data = trial_data(path)
@@ -357,16 +359,16 @@ def quiet():
     return UnattendedUI(console=Console(file=io.StringIO()))
 
 
-def ctrl_c_inside(monkeypatch, name: str, when=lambda *a: True) -> None:
-    """Press Ctrl-C (a real SIGINT to this process) as ``RunFile.<name>`` starts."""
-    real = getattr(RunFile, name)
+def ctrl_c_inside(monkeypatch, facet: type, name: str, when=lambda *a: True) -> None:
+    """Press Ctrl-C (a real SIGINT to this process) as ``<facet>.<name>`` of a run file starts."""
+    real = getattr(facet, name)
 
     def pressed(self, *args, **kwargs):
         if when(*args):
             os.kill(os.getpid(), signal.SIGINT)
         return real(self, *args, **kwargs)
 
-    monkeypatch.setattr(RunFile, name, pressed)
+    monkeypatch.setattr(facet, name, pressed)
 
 
 def test_ctrl_c_during_a_write_stores_the_trial_whole_and_says_so(tmp_path, monkeypatch):
@@ -375,26 +377,26 @@ def test_ctrl_c_during_a_write_stores_the_trial_whole_and_says_so(tmp_path, monk
         "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n4,validation,400,-150\n"
     )
     path = tmp_path / "run.h5"
-    ctrl_c_inside(monkeypatch, "write", lambda record: record["trial"] == 3)
+    ctrl_c_inside(monkeypatch, Records, "write", lambda record: record["trial"] == 3)
     outcome = acquire(path, PORT, protocol="takuma2014", plan=plan, unattended=True, ui=quiet())
     assert outcome.exit_code == 130
     assert outcome.message == (
         f"Interrupted during the pause between trials; 3 trials stored in {path} are safe. {resume_sentence(path)}"
     )
     with RunFile.open(path) as run:
-        assert run.completed_ids() == [1, 2, 3] and run.incomplete_ids() == [] and run.split() is None
+        assert run.records.ids() == [1, 2, 3] and run.records.incomplete_ids() == [] and run.split.get() is None
 
 
 def test_ctrl_c_while_the_split_is_written_finishes_the_run(tmp_path, monkeypatch):
     plan = tmp_path / "plan.csv"
     plan.write_text("trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,validation,500,30\n")
     path = tmp_path / "run.h5"
-    ctrl_c_inside(monkeypatch, "set_split")
+    ctrl_c_inside(monkeypatch, Splits, "set")
     outcome = acquire(path, PORT, protocol="takuma2014", plan=plan, unattended=True, ui=quiet())
     assert outcome.exit_code == 0
     assert outcome.message.startswith(f"Session complete: 2 trials stored in {path} (2 this session, ")
     with RunFile.open(path) as run:
-        assert run.split()["fit"] == [1] and run.split()["validation"] == [2]
+        assert run.split.get()["fit"] == [1] and run.split.get()["validation"] == [2]
 
 
 def uncommitted_frames(path: Path) -> tuple[int, int]:
@@ -452,7 +454,7 @@ def test_kills_in_the_middle_of_a_streamed_capture_window(tmp_path):
         assert proc.wait() == 0, proc.stdout + proc.stderr
         c.check(path, seen, False)
         with RunFile.open(path) as run:
-            if len(run.completed_ids()) == len(c.ids):
+            if len(run.records.ids()) == len(c.ids):
                 break
     c.check_complete(path, seen)
     with RunFile.open(path) as run:

@@ -181,7 +181,7 @@ def test_a_person_redoes_skips_quits_is_interrupted_and_resumes(tmp_path, rig_on
     )
     rig.remove_weight()
     with RunFile.open(run) as f:
-        assert f.completed_ids() == [1, 2] and f.incomplete_ids() == [] and f.split() is None
+        assert f.records.ids() == [1, 2] and f.records.incomplete_ids() == [] and f.split.get() is None
 
     # Session 3: the rest, then the plan's split.
     s = Session([str(run), "--port", port, "--resume"])
@@ -198,7 +198,7 @@ def test_a_person_redoes_skips_quits_is_interrupted_and_resumes(tmp_path, rig_on
     assert math.copysign(1, df["theta1_deg"][0]) != math.copysign(1, df["theta1_deg"][2])
     with RunFile.open(run) as f:
         assert f.attrs["port"] == port
-        assert f.read(1)["raw"]["load"]["counts"].shape == (40, 6)  # 0.2 s at 200 Hz
+        assert f.records.read(1)["raw"]["load"]["counts"].shape == (40, 6)  # 0.2 s at 200 Hz
 
 
 def test_unattended_is_refused_on_a_real_port(tmp_path, rig_on_pty):

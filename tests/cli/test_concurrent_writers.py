@@ -124,7 +124,7 @@ def test_writers_are_refused_readers_served_and_the_live_run_completes(tmp_path,
 def whole(run: Path, ids: list[int]) -> None:
     """The run opens with exactly ``ids`` complete, and every record and raw window checks out."""
     with RunFile.open(run) as f:
-        assert f.completed_ids() == ids
+        assert f.records.ids() == ids
         checked = verify(f)
     assert checked["ok"] and checked["records"] == len(ids), checked
 

@@ -107,7 +107,7 @@ def stopped_part_way(folder: Path, r: subprocess.CompletedProcess, reason: str, 
     kept = int(m[2])
     assert int(m[1]) == kept + 1 and 0 < kept < N_TRIALS
     with RunFile.open(folder / "run.h5") as f:
-        assert f.completed_ids() == list(range(1, kept + 1))
+        assert f.records.ids() == list(range(1, kept + 1))
         checked = verify(f)
     assert checked["ok"] and checked["records"] == kept, checked
     assert not [p for p in folder.iterdir() if p.name.startswith(".labcli-")]
@@ -127,7 +127,7 @@ def test_acquire_under_a_file_size_limit_keeps_its_trials_and_resumes_once_the_l
     assert r.returncode == 0, r.stderr
     assert f"Session complete: {N_TRIALS} trials stored in run.h5 ({N_TRIALS - kept} this session" in r.stdout
     with RunFile.open(tmp_path / "run.h5") as f:
-        assert f.completed_ids() == list(range(1, N_TRIALS + 1))
+        assert f.records.ids() == list(range(1, N_TRIALS + 1))
 
 
 def test_acquire_on_a_full_disk_keeps_its_trials(small_disk):

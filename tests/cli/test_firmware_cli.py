@@ -151,9 +151,9 @@ def test_unattended_acquire_through_the_firmware(firmware_elf, tmp_path, monkeyp
         assert link_counters[counter] == 0, counter
     fed = ports[0].link.fed()
     with RunFile.open(run) as f:
-        assert f.completed_ids() == [1, 2, 3, 4]
+        assert f.records.ids() == [1, 2, 3, 4]
         for trial in (1, 2, 3, 4):
-            rec = f.read(trial)
+            rec = f.records.read(trial)
             assert rec["theta_rad"][0] != 0
             for window in rec["raw"].values():
                 assert np.all(np.diff(window["seq"].astype(np.int64)) == 1)  # nothing lost

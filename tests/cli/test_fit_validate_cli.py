@@ -111,7 +111,7 @@ def test_fit_and_validate_on_a_run_file_record_the_model(tmp_path: Path, table: 
     path = tmp_path / "run.h5"
     with RunFile.create(path, protocol=load_protocol("takuma2014"), operator="test") as rf:
         for _, r in table.iterrows():
-            rf.write(
+            rf.records.write(
                 {
                     "trial": int(r.trial),
                     "P0_MPa": r[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy(float),
@@ -120,13 +120,13 @@ def test_fit_and_validate_on_a_run_file_record_the_model(tmp_path: Path, table: 
                     "force_N": r[["Fx_N", "Fy_N"]].to_numpy(float),
                 }
             )
-        rf.set_split(table.trial[table.set == "fit"], table.trial[table.set == "validation"])
+        rf.split.set(table.trial[table.set == "fit"], table.trial[table.set == "validation"])
     r = run("fit", path, "--form", "paper")
     assert r.exit_code == 0, r.output
     assert f"recorded in {path} under /models/takuma2014" in r.output
     saved = (tmp_path / "run.model.json").read_text()
     with RunFile.open(path) as rf:
-        assert rf.models()["takuma2014"] == saved
+        assert rf.models.all()["takuma2014"] == saved
     r = run("validate", path, "--json")
     assert r.exit_code == 0, r.output
     assert json.loads(r.output)["metrics"]["theta1"]["n"] == 20

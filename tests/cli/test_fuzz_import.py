@@ -227,7 +227,7 @@ def check_outcome(text: str, folder: Path) -> None:
         assert not out.exists()
         return
     with run:
-        back = run.table()
+        back = run.records.table()
     assert list(back["trial"]) == list(df["trial"])
     assert list(back["set"]) == list(df["set"])
     for c in EXACT:
@@ -252,7 +252,7 @@ def check_outcome(text: str, folder: Path) -> None:
     first, second, again = folder / "a.csv", folder / "b.csv", folder / "again.h5"
     write_trial_csv(back, first)
     with import_table(read_trial_csv(first), again, protocol=PROTOCOL, source="a.csv", force=True) as run:
-        write_trial_csv(run.table(), second)
+        write_trial_csv(run.records.table(), second)
     assert first.read_bytes() == second.read_bytes()
 
 
@@ -312,7 +312,7 @@ def test_the_import_command_never_crashes(tmp_path_factory, case) -> None:
     )
     if r.exit_code == 0:
         assert r.output.startswith("Imported ") and out.exists()
-        assert RunFile.open(out).completed_ids() is not None
+        assert RunFile.open(out).records.ids() is not None
     else:
         assert r.exit_code == 1 and not out.exists() and not clean
         lines = r.output.splitlines()

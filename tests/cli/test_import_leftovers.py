@@ -93,4 +93,4 @@ def test_a_killed_imports_file_is_cleaned_at_the_next_start_and_a_live_ones_kept
     assert partials(out) == set()
     assert sorted(p.name for p in out.iterdir()) == ["next.h5", "paused.h5"]
     with RunFile.open(out / "paused.h5") as f:
-        assert len(f.completed_ids()) == n
+        assert len(f.records.ids()) == n

@@ -156,9 +156,9 @@ def act(rig: Any, action: Any) -> None:
 
 def assert_run_complete(path: Path, n: int, fit: list[int], validation: list[int]) -> None:
     with RunFile.open(path) as run:
-        assert run.completed_ids() == list(range(1, n + 1))
-        assert run.incomplete_ids() == []
-        split = run.split()
+        assert run.records.ids() == list(range(1, n + 1))
+        assert run.records.incomplete_ids() == []
+        split = run.split.get()
         assert split["strategy"] == "plan"
         assert split["fit"] == fit and split["validation"] == validation
 
@@ -190,7 +190,7 @@ def lost_and_resumed(tmp_path_factory, plan_file):
     finally:
         mp.undo()
     with RunFile.open(path) as run:
-        state = (run.completed_ids(), run.incomplete_ids(), run.split())
+        state = (run.records.ids(), run.records.incomplete_ids(), run.split.get())
     before = trial_data(path)
     command = lost.output.rsplit("resume with: ", 1)[-1].strip()
     resumed = CliRunner().invoke(cli, shlex.split(command)[1:])
@@ -234,7 +234,7 @@ def test_the_printed_command_completes_the_run_and_leaves_earlier_trials_untouch
         assert after[t] == r["before"][t]  # datasets and attributes, byte for byte
     # Trial 3 was measured whole in the resumed session: both windows full, from its own baseline.
     with RunFile.open(path) as run:
-        rec = run.read(3)
+        rec = run.records.read(3)
     for name in ("baseline", "load"):
         seq = rec["raw"][name]["seq"].astype(np.int64)
         assert len(seq) == 200 and np.all(np.diff(seq) == 1)
@@ -306,7 +306,7 @@ def test_attended_run_stopped_at_the_reconnect_prompt_says_how_to_resume(tmp_pat
         f"labcli acquire {path} --port '{PORT}' --resume"
     )
     with RunFile.open(path) as run:
-        assert run.completed_ids() == [1, 2] and run.incomplete_ids() == []
+        assert run.records.ids() == [1, 2] and run.records.incomplete_ids() == []
 
 
 def test_a_rig_lost_during_the_setup_check_of_a_new_run_leaves_no_file(tmp_path, monkeypatch, plan_file):
@@ -415,8 +415,8 @@ def test_pty_rig_replugged_while_the_run_waits(tmp_path, socket):
     assert text.count(f"Rig lost on {socket.path}; reconnect it and press Enter to retry (q to quit):") == 2
     assert_run_complete(path, 2, [1], [2])
     with RunFile.open(path) as run:
-        df = run.table()
-        seq = run.read(2)["raw"]["load"]["seq"].astype(np.int64)
+        df = run.records.table()
+        seq = run.records.read(2)["raw"]["load"]["seq"].astype(np.int64)
     assert len(seq) >= 40 and np.all(np.diff(seq) == 1)  # 0.2 s at 200 Hz, whole, from the new rig
     # The person hung what the prompts said on whichever rig was plugged in: the joints bent as
     # the paper-scale rig bends under 200 g at -60 deg and 500 g at 30 deg (0.27 and 1.12 deg).

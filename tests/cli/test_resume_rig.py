@@ -100,7 +100,7 @@ def test_the_session_log_hears_every_session_and_how_it_ended(tmp_path):
     path = tmp_path / "run.h5"
     store, outcome = partial_run(path, LoggingRunFile)
     assert outcome.stored == 2
-    [session] = store.sessions
+    [session] = store.sessions.heard
     assert session["info"].port == PORT and session["info"].baud == 115200
     assert session["info"].rig.device == "mckibben-2dof-sim"
     assert session["added"] == [1, 2] and session["redone"] == [] and session["ended"] == "finished"

@@ -33,7 +33,7 @@ def make_run(path, n=30, protocol=None, drift=False):
             rec = make_record(i)
             if drift:
                 rec["P0_MPa"] = np.array([0.2 + 0.0002 * i, 0.25, 0.2, 0.3 - 0.0004 * i])
-            run.write(rec)
+            run.records.write(rec)
     return str(path)
 
 
@@ -50,10 +50,10 @@ def test_split_sequential(run_path):
     assert res.exit_code == 0, res.output
     assert res.output == f"{run_path}: 20 fit, 6 validation, 4 unassigned of 30 completed trials (sequential).\n"
     with RunFile.open(run_path) as run:
-        s = run.split()
+        s = run.split.get()
         assert s["fit"] == list(range(1, 21)) and s["validation"] == list(range(21, 27))
         assert s["strategy"] == "sequential" and s["seed"] is None
-        assert run.table()["set"].tolist() == ["fit"] * 20 + ["validation"] * 6 + [""] * 4
+        assert run.records.table()["set"].tolist() == ["fit"] * 20 + ["validation"] * 6 + [""] * 4
 
 
 def test_split_random_is_reproducible(run_path, tmp_path):
@@ -62,9 +62,11 @@ def test_split_random_is_reproducible(run_path, tmp_path):
         res = invoke("split", p, "--fit", 20, "--validation", 6, "--strategy", "random", "--seed", 11)
         assert res.exit_code == 0 and "(random, seed 11)." in res.output
     with RunFile.open(run_path) as a, RunFile.open(other) as b:
-        assert a.split()["fit"] == b.split()["fit"] and a.split()["validation"] == b.split()["validation"]
-        assert a.split()["fit"] != list(range(1, 21))
-        assert a.split()["seed"] == 11
+        assert (
+            a.split.get()["fit"] == b.split.get()["fit"] and a.split.get()["validation"] == b.split.get()["validation"]
+        )
+        assert a.split.get()["fit"] != list(range(1, 21))
+        assert a.split.get()["seed"] == 11
 
 
 def test_split_defaults_from_the_runs_protocol(tmp_path):
@@ -110,11 +112,11 @@ def test_export_import_export_is_byte_identical(run_path, tmp_path):
     with RunFile.open(str(imported)) as run:
         assert run.attrs["imported"] is True and run.attrs["source"] == "a.csv"
         assert run.attrs["protocol"] == "takuma2014" and run.protocol_text == load_protocol("takuma2014").text
-        assert run.read(7)["raw"] == {}
+        assert run.records.read(7)["raw"] == {}
         # SI inside: degrees and grams came back as rad and kg
         rec = make_record(7)
-        assert run.read(7)["theta_rad"][0] == pytest.approx(rec["theta_rad"][0], rel=1e-11)
-        assert run.read(7)["mass_kg"] == pytest.approx(rec["mass_kg"], rel=1e-12)
+        assert run.records.read(7)["theta_rad"][0] == pytest.approx(rec["theta_rad"][0], rel=1e-11)
+        assert run.records.read(7)["mass_kg"] == pytest.approx(rec["mass_kg"], rel=1e-12)
     with h5py.File(str(imported), "r") as f:
         assert f["entry/trials/theta"].attrs["units"] == "rad"
 
@@ -156,7 +158,7 @@ def test_import_refuses_overwrite(run_path, tmp_path):
     assert res.exit_code == 1
     assert res.output == f"Error: {run_path} already exists; use --force to overwrite it.\n"
     with RunFile.open(run_path) as run:  # untouched, raw windows still there
-        assert run.read(3)["raw"]["load"]["counts"].shape == (50, 6)
+        assert run.records.read(3)["raw"]["load"]["counts"].shape == (50, 6)
     res = invoke("import", csv, "-o", run_path, "--protocol", "takuma2014", "--force")
     assert res.exit_code == 0
     with RunFile.open(run_path) as run:
@@ -169,7 +171,7 @@ def test_push_run_export_import(tmp_path):
     rec = make_record(1)
     with RunFile.create(path, protocol=proto, device_info=FakeDevice()) as run:
         for i, (obj, phi) in enumerate([("pet-1", None), ("can-al-1", math.radians(12.5)), ("can-steel-1", 0.0)]):
-            run.write(
+            run.records.write(
                 {
                     "push": i + 1,
                     "object": obj,
@@ -219,8 +221,8 @@ def test_rest_posture_and_wrapped_direction_round_trip(tmp_path):
     src.write_text("\n".join([header, *rows]) + "\n")
     assert invoke("import", src, "-o", run, "--protocol", "takuma2014").exit_code == 0
     with RunFile.open(run) as f:
-        assert np.allclose(f.read(1)["pot0_rad"], [math.radians(12.5), math.radians(-30)], rtol=1e-15)
-        assert "pot0_rad" not in f.read(2)
+        assert np.allclose(f.records.read(1)["pot0_rad"], [math.radians(12.5), math.radians(-30)], rtol=1e-15)
+        assert "pot0_rad" not in f.records.read(2)
     df = labcli.load_trials(run)
     assert df["theta1_0_deg"].tolist()[::2] == [12.5, 0.0] and df["theta2_0_deg"].tolist()[::2] == [-30.0, 170.0]
     assert math.isnan(df.loc[1, "theta1_0_deg"]) and math.isnan(df.loc[1, "theta2_0_deg"])
@@ -242,7 +244,7 @@ def test_inspect_numbers(tmp_path):
     # An interrupted trial, as a kill between writing its row and committing it leaves it.
     with RunFile.open(path, "a") as run, mock.patch.object(columns.Table, "commit", side_effect=KeyboardInterrupt):
         with pytest.raises(KeyboardInterrupt):
-            run.write(make_record(31))
+            run.records.write(make_record(31))
     assert invoke("split", path, "--fit", 20, "--validation", 6).exit_code == 0
     res = invoke("inspect", path, "--json")
     assert res.exit_code == 0
@@ -326,7 +328,7 @@ def test_acquired_run_on_the_simulated_rig(tmp_path):
     assert df.loc[1, "Fx_N"] == pytest.approx(0.3 * g * math.cos(math.pi / 4), rel=1e-12)
     assert df.loc[2, "Fy_N"] == pytest.approx(0.1 * g, rel=1e-12)
     with RunFile.open(str(run)) as rf:
-        t = rf.read(2)
+        t = rf.records.read(2)
         load = t["raw"]["load"]
         assert load["counts"].dtype == np.int32 and load["counts"].shape[1] == 6 and len(load["seq"]) > 10
         # SI values are the protocol's calibration of the counts as sent

@@ -52,8 +52,8 @@ def test_the_writer_stores_every_frame_given_in_blocks_of_any_size(tmp_path, fak
     n = sum(blocks)
     t, seq, counts, si = frames(rng, n)
     with RunFile.create(tmp_path / "run.h5", protocol=fake_protocol) as run:
-        chunk = run._frames.chunk
-        w = run.begin_window("trial 1")
+        chunk = run.tables.frames.chunk
+        w = run.windows.begin("trial 1")
         at = 0
         for b in blocks:
             w.append(t[at : at + b], seq[at : at + b], counts[at : at + b], si[at : at + b])
@@ -62,13 +62,13 @@ def test_the_writer_stores_every_frame_given_in_blocks_of_any_size(tmp_path, fak
             assert w.stop - w.start == at // chunk * chunk and len(w) == at
         stored = w.finish()
         assert (stored.start, stored.stop) == (0, n)
-        back = run.frames(stored.start, stored.stop)
+        back = run.windows.frames(stored.start, stored.stop)
         np.testing.assert_array_equal(back["t_s"], t)
         np.testing.assert_array_equal(back["seq"], seq)
         np.testing.assert_array_equal(back["counts"], counts)
         np.testing.assert_array_equal(back["si"], si)
         assert stored.checksum == int(frames_checksum(window_parts(t, seq.astype(np.uint64), counts, si), 0)) % MOD
-        assert run._frames.checksum(stored.start, stored.stop)[0] == stored.checksum
+        assert run.tables.frames.checksum(stored.start, stored.stop)[0] == stored.checksum
         np.testing.assert_allclose(stored.mean(), si.mean(axis=0), rtol=1e-12)
         if n > 1:
             np.testing.assert_allclose(stored.var(ddof=1), si.var(axis=0, ddof=1), rtol=1e-9)
@@ -78,7 +78,7 @@ def test_the_writer_stores_every_frame_given_in_blocks_of_any_size(tmp_path, fak
         with pytest.raises(StoreError, match="this window is finished; begin another one to add frames"):
             w.append(t[:1], seq[:1], counts[:1], si[:1])
         # The next window starts at a fresh chunk, past every frame written.
-        assert run.begin_window().start == -(-n // chunk) * chunk
+        assert run.windows.begin().start == -(-n // chunk) * chunk
 
 
 def test_the_gap_tally_gives_numpys_median_of_the_gaps_fed_in_blocks():
@@ -144,7 +144,7 @@ def test_a_streamed_trial_stores_the_frames_the_rig_sent_and_verifies(tmp_path):
     values = np.concatenate([np.asarray(b.values, dtype=float) for b in dev.batches])
     with RunFile.open(path) as run:
         assert run.verify() == {"ok": True, "records": 1, "windows": 2, "problems": []}
-        rec = run.read(1)
+        rec = run.records.read(1)
     for name in ("baseline", "load"):
         w = rec["raw"][name]
         assert len(w["seq"]) == 6000
@@ -188,16 +188,16 @@ def test_a_redone_window_stays_unreferenced_and_the_trial_takes_the_last(tmp_pat
         seen: list = []
         engine.subscribe(lambda step, reply: seen.append(reply) if isinstance(step, (Baseline, Capture)) else None)
         assert engine.run(_two_window_trials(protocol, redo=True)).stored == 1
-        extent = run._frames.extent
+        extent = run.tables.frames.extent
     dev.close()
     first, second = seen[:2], seen[2:]
     assert [w.start for w in first + second] == sorted(w.start for w in first + second)
     with RunFile.open(path) as run:
-        assert run.completed_ids() == [1] and run.incomplete_ids() == []
+        assert run.records.ids() == [1] and run.records.incomplete_ids() == []
         assert run.verify()["ok"]
-        rec = run.read(1)
+        rec = run.records.read(1)
         for name, w in zip(("baseline", "load"), second, strict=False):
-            np.testing.assert_array_equal(rec["raw"][name]["t_s"], run.frames(w.start, w.stop)["t_s"])
+            np.testing.assert_array_equal(rec["raw"][name]["t_s"], run.windows.frames(w.start, w.stop)["t_s"])
         assert extent >= second[1].stop > first[1].stop  # the redone frames lie before, in no record
 
 

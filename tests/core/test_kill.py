@@ -52,10 +52,10 @@ def kill_loop(
         if k == 0:
             # While a writer holds the file, a reader opens it and sees only whole trials.
             with RunFile.open(path) as run:
-                seen = run.completed_ids()
+                seen = run.records.ids()
                 assert seen == list(range(len(seen)))
                 for i in seen:
-                    assert_record_stored(run.read(i), make_record(i, n_samples))
+                    assert_record_stored(run.records.read(i), make_record(i, n_samples))
         if require_progress:
             # one trial stored by this writer first, so every round adds to what must survive
             assert proc.stdout.readline().startswith(b"stored ")
@@ -64,21 +64,21 @@ def kill_loop(
         proc.wait()
         assert proc.returncode == -signal.SIGKILL, proc.stderr.read().decode()
         with RunFile.open(path) as run:
-            ids = run.completed_ids()
+            ids = run.records.ids()
             # the writer always writes the first missing id, so complete ids are dense
             assert ids == list(range(len(ids)))
             assert verified <= set(ids), "a trial complete before the kill was lost"
             for i in sorted(set(ids) - verified):
-                assert_record_stored(run.read(i), make_record(i, n_samples))
+                assert_record_stored(run.records.read(i), make_record(i, n_samples))
             verified |= set(ids)
-            incomplete = run.incomplete_ids()
+            incomplete = run.records.incomplete_ids()
             assert incomplete in ([], [len(ids)])
-            assert len(run.table()) == len(ids)
-            assert run.first_incomplete(range(N_TRIALS)) == len(ids)
+            assert len(run.records.table()) == len(ids)
+            assert run.records.first_incomplete(range(N_TRIALS)) == len(ids)
     # At the end, everything once complete is still intact (later writes touched nothing).
     with RunFile.open(path) as run:
-        for i in run.completed_ids():
-            assert_record_stored(run.read(i), make_record(i, n_samples))
+        for i in run.records.ids():
+            assert_record_stored(run.records.read(i), make_record(i, n_samples))
     if require_progress:
         assert len(verified) >= kills
 
@@ -116,5 +116,5 @@ def test_kill_during_create_leaves_no_half_run(tmp_path):
         if os.path.exists(path):
             with RunFile.open(path) as run:
                 assert run.attrs["schema"] == "labcli-run"
-                for i in run.completed_ids():
-                    assert_record_stored(run.read(i), make_record(i, 50))
+                for i in run.records.ids():
+                    assert_record_stored(run.records.read(i), make_record(i, 50))

@@ -76,8 +76,8 @@ def test_a_stream_off_its_rate_warns_once_and_flags_every_trial(tmp_path, quiet_
     assert outcome.exit_code == 0, outcome.message
     said = ui.console.file.getvalue()
     with RunFile.open(run) as f:
-        assert f.completed_ids() == [1, 2]
-        flags = [f.read(i).get("flags", []) for i in (1, 2)]
+        assert f.records.ids() == [1, 2]
+        flags = [f.records.read(i).get("flags", []) for i in (1, 2)]
     rate = 200.0 * factor
     warning = f"{flag(rate)}; each trial recorded so carries a flag"
     if flagged:

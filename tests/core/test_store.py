@@ -27,7 +27,7 @@ def run_path(tmp_path):
     path = str(tmp_path / "run.h5")
     with new_run(path) as run:
         for i in range(1, 13):
-            run.write(make_record(i))
+            run.records.write(make_record(i))
     return path
 
 
@@ -35,10 +35,10 @@ def test_record_round_trip_values_and_dtypes(tmp_path):
     path = str(tmp_path / "run.h5")
     rec = make_record(3)
     with new_run(path) as run:
-        run.write(rec)
+        run.records.write(rec)
     with RunFile.open(path) as run:
-        assert run.completed_ids() == [3]
-        assert_record_stored(run.read(3), rec)
+        assert run.records.ids() == [3]
+        assert_record_stored(run.records.read(3), rec)
     with h5py.File(path, "r") as f:  # records are rows of run-wide columns, windows ranges of raw frames
         t, raw = f["entry/trials"], f["entry/raw"]
         assert t.attrs["committed"] == 1 and t["trial"][0] == 3
@@ -57,11 +57,11 @@ def test_large_raw_windows_are_compressed_and_read_back_exactly(tmp_path):
     path = str(tmp_path / "run.h5")
     big, small = make_record(1, n=200), make_record(2, n=50)
     with new_run(path) as run:
-        run.write(big)
-        run.write(small)
+        run.records.write(big)
+        run.records.write(small)
     with RunFile.open(path) as run:
-        assert_record_stored(run.read(1), big)
-        assert_record_stored(run.read(2), small)
+        assert_record_stored(run.records.read(1), big)
+        assert_record_stored(run.records.read(2), small)
     unfiltered = []
     with h5py.File(path, "r") as f:
         f.visititems(
@@ -77,8 +77,8 @@ def test_large_raw_windows_are_compressed_and_read_back_exactly(tmp_path):
 
 def test_every_dataset_has_units(run_path):
     with RunFile.open(run_path, "a") as run:
-        run.set_split([1, 2], [3], "sequential")
-        run.record_model("takuma", '{"a": 1}')
+        run.split.set([1, 2], [3], "sequential")
+        run.models.record("takuma", '{"a": 1}')
     missing = []
     with h5py.File(run_path, "r") as f:
         f.visititems(
@@ -117,8 +117,8 @@ def test_root_metadata(run_path):
 
 def test_trial_table_columns_and_units(run_path):
     with RunFile.open(run_path, "a") as run:
-        run.set_split([1, 2, 3], [4], "manual")
-        df = run.table()
+        run.split.set([1, 2, 3], [4], "manual")
+        df = run.records.table()
     assert list(df.columns) == [
         "trial",
         "set",
@@ -166,9 +166,9 @@ def test_overwrite_refused_with_exact_message(run_path):
         new_run(run_path)
     assert str(e.value) == f"{run_path} already exists; continue it with --resume, or pass --force to overwrite it."
     with RunFile.open(run_path) as run:
-        assert len(run.completed_ids()) == 12
+        assert len(run.records.ids()) == 12
     with new_run(run_path, force=True) as run:
-        assert run.completed_ids() == []
+        assert run.records.ids() == []
 
 
 def test_open_missing(tmp_path):
@@ -243,15 +243,15 @@ def leave_uncommitted_row(path: str, trial: int, garbage: float) -> None:
 def test_incomplete_trial_ignored_then_superseded_on_resume(run_path):
     leave_uncommitted_row(run_path, 13, 9.0)
     with RunFile.open(run_path, "a") as run:
-        assert run.completed_ids() == list(range(1, 13))
-        assert 13 not in run.table()["trial"].tolist()
-        assert run.first_incomplete(range(1, 20)) == 13
-        run.write(make_record(13))
-        assert run.incomplete_ids() == []
-        assert run.first_incomplete(range(1, 20)) == 14
+        assert run.records.ids() == list(range(1, 13))
+        assert 13 not in run.records.table()["trial"].tolist()
+        assert run.records.first_incomplete(range(1, 20)) == 13
+        run.records.write(make_record(13))
+        assert run.records.incomplete_ids() == []
+        assert run.records.first_incomplete(range(1, 20)) == 14
     with RunFile.open(run_path) as run:
-        assert run.first_incomplete(range(1, 14)) is None
-        assert_record_stored(run.read(13), make_record(13))
+        assert run.records.first_incomplete(range(1, 14)) is None
+        assert_record_stored(run.records.read(13), make_record(13))
         assert run.summary()["complete"] == 13
     with h5py.File(run_path, "r") as f:
         assert f["entry/trials"].attrs["committed"] >= 13
@@ -260,9 +260,9 @@ def test_incomplete_trial_ignored_then_superseded_on_resume(run_path):
 def test_complete_trial_never_overwritten(run_path):
     with RunFile.open(run_path, "a") as run:
         with pytest.raises(StoreError) as e:
-            run.write(make_record(5))
+            run.records.write(make_record(5))
         assert str(e.value) == f"trial 5 is already complete in {run_path}; a stored record is never overwritten."
-        assert_record_stored(run.read(5), make_record(5))
+        assert_record_stored(run.records.read(5), make_record(5))
 
 
 def test_bad_record_writes_nothing(run_path):
@@ -270,21 +270,21 @@ def test_bad_record_writes_nothing(run_path):
     rec["P_MPa"] = [0.1, 0.2, 0.3]
     with RunFile.open(run_path, "a") as run:
         with pytest.raises(StoreError) as e:
-            run.write(rec)
+            run.records.write(rec)
         assert str(e.value) == (
             "trial 20 record: 'P_MPa' must hold 4 values (loaded pressures P_L1,P_R1,P_L2,P_R2 in MPa), got shape (3,)."
         )
         rec = make_record(20)
         rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"][:, :5]
         with pytest.raises(StoreError, match=r"the loaded window must hold n frames of 6 channels"):
-            run.write(rec)
-        assert run.incomplete_ids() == [] and 20 not in run.completed_ids()
+            run.records.write(rec)
+        assert run.records.incomplete_ids() == [] and 20 not in run.records.ids()
 
 
 def test_read_only_refuses_writes(run_path):
     with RunFile.open(run_path) as run:
         with pytest.raises(StoreError) as e:
-            run.write(make_record(30))
+            run.records.write(make_record(30))
     assert str(e.value) == f"{run_path} is open read-only; open it with mode 'a' to add records."
 
 
@@ -292,8 +292,8 @@ def test_decimal_counts_kept_exactly(tmp_path):
     rec = make_record(2)
     rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"] + 0.25
     with new_run(str(tmp_path / "d.h5")) as run:
-        run.write(rec)
-        back = run.read(2)
+        run.records.write(rec)
+        back = run.records.read(2)
     assert back["raw"]["load"]["counts"].dtype == np.float64
     np.testing.assert_array_equal(back["raw"]["load"]["counts"], rec["raw"]["load"]["counts"])
 
@@ -301,9 +301,9 @@ def test_decimal_counts_kept_exactly(tmp_path):
 def test_recording_order_not_id_order(tmp_path):
     with new_run(str(tmp_path / "o.h5")) as run:
         for i in (5, 2, 9, 1):
-            run.write(make_record(i))
-        assert run.completed_ids() == [5, 2, 9, 1]
-        assert choose_split(run.completed_ids(), 2, 1) == ([5, 2], [9])
+            run.records.write(make_record(i))
+        assert run.records.ids() == [5, 2, 9, 1]
+        assert choose_split(run.records.ids(), 2, 1) == ([5, 2], [9])
 
 
 def test_choose_split_random_is_seeded_and_disjoint():
@@ -322,20 +322,20 @@ def test_choose_split_random_is_seeded_and_disjoint():
 def test_set_split_checks_ids(run_path):
     with RunFile.open(run_path, "a") as run:
         with pytest.raises(StoreError, match=r"^trial 3 cannot be in both the fit and the validation set\.$"):
-            run.set_split([1, 3], [3])
+            run.split.set([1, 3], [3])
         with pytest.raises(StoreError, match=r"^trial 44 is not a complete trial in .*run\.h5, so it cannot join"):
-            run.set_split([1, 44], [2])
-        s = run.assign_split(8, 4, "random", 3)
+            run.split.set([1, 44], [2])
+        s = run.split.assign(8, 4, "random", 3)
         assert s["strategy"] == "random" and s["seed"] == 3
         assert sorted(s["fit"] + s["validation"]) == list(range(1, 13))
 
 
 def test_models_round_trip(run_path):
     with RunFile.open(run_path, "a") as run:
-        run.record_model("takuma2014", '{"beta_Fx1": 1.5}')
-        run.record_model("takuma2014", '{"beta_Fx1": 2.5}')
+        run.models.record("takuma2014", '{"beta_Fx1": 1.5}')
+        run.models.record("takuma2014", '{"beta_Fx1": 2.5}')
     with RunFile.open(run_path) as run:
-        assert run.models() == {"takuma2014": '{"beta_Fx1": 2.5}'}
+        assert run.models.all() == {"takuma2014": '{"beta_Fx1": 2.5}'}
 
 
 def test_plan_stored_as_columns(tmp_path):
@@ -366,14 +366,14 @@ def test_push_run_round_trip(tmp_path):
         "settle": rec["settle"],
     }
     with RunFile.create(path, protocol=proto, device_info=FakeDevice()) as run:
-        run.write(push)
-        run.write({**push, "push": 4, "phi_rad": math.radians(10.0), "true_stiffness_N_per_m": None})
+        run.records.write(push)
+        run.records.write({**push, "push": 4, "phi_rad": math.radians(10.0), "true_stiffness_N_per_m": None})
     with RunFile.open(path) as run:
-        assert run.kind == "push" and run.completed_ids() == [3, 4]
-        back = run.read(3)
+        assert run.kind == "push" and run.records.ids() == [3, 4]
+        back = run.records.read(3)
         assert math.isnan(back["phi_rad"]) and back["R_m"] == 0.033 and back["object"] == "can-al-1"
         np.testing.assert_array_equal(back["raw"]["load"]["si"], rec["raw"]["load"]["si"])
-        df = run.table()
+        df = run.records.table()
     assert list(df.columns) == [
         "push",
         "object",
@@ -397,16 +397,16 @@ def test_push_run_round_trip(tmp_path):
 
 def test_import_table_round_trip_and_refusal(run_path, tmp_path):
     with RunFile.open(run_path, "a") as run:
-        run.set_split(list(range(1, 10)), [10, 11], "sequential")
-        df = run.table()
+        run.split.set(list(range(1, 10)), [10, 11], "sequential")
+        df = run.records.table()
     df["operator_note"] = ["ok"] * 12
     df["rep"] = list(range(12))
     out = str(tmp_path / "imp.h5")
     with import_table(df, out, protocol=FakeProtocol(), source="t.csv") as run:
         assert run.attrs["imported"] is True and run.attrs["source"] == "t.csv"
-        assert run.split()["strategy"] == "imported"
-        back = run.table()
-        assert run.read(4)["raw"] == {} and run.read(4)["accepted"] == "imported"
+        assert run.split.get()["strategy"] == "imported"
+        back = run.records.table()
+        assert run.records.read(4)["raw"] == {} and run.records.read(4)["accepted"] == "imported"
     assert back.equals(df)
     with pytest.raises(StoreError) as e:
         import_table(df, out, protocol=FakeProtocol())
@@ -426,7 +426,7 @@ def test_summary_drift_and_settling(tmp_path):
         for i in range(10):
             rec = make_record(i)
             rec["P0_MPa"] = np.array([0.2 + 0.0005 * i, 0.2, 0.2 - 0.001 * i, 0.2])  # 0.5 kPa/trial, -1 kPa/trial
-            run.write(rec)
+            run.records.write(rec)
         s = run.summary()
     d = s["baseline_drift"]
     assert d["P_L1"]["slope_kPa_per_trial"] == pytest.approx(0.5)
@@ -444,22 +444,22 @@ def test_file_is_default_libver_and_reopens_for_append(run_path):
     with h5py.File(run_path, "r") as f:
         assert f.libver[0] == "earliest"
     with RunFile.open(run_path, "a") as run:
-        run.write(make_record(40))
+        run.records.write(make_record(40))
     shutil.copy(run_path, run_path + ".copy")
     with RunFile.open(run_path + ".copy") as run:
-        assert run.completed_ids()[-1] == 40
+        assert run.records.ids()[-1] == 40
 
 
 def test_torn_uncommitted_row_is_ignored_and_written_over(run_path):
     """A kill mid-write can leave any bytes past ``@committed``: never read, and the next commit goes on."""
     leave_uncommitted_row(run_path, 5, float("nan"))  # a repeated id and nonsense values: never counted
     with RunFile.open(run_path, "a") as run:
-        assert run.completed_ids() == list(range(1, 13))
-        run.write(make_record(13))
+        assert run.records.ids() == list(range(1, 13))
+        run.records.write(make_record(13))
     with RunFile.open(run_path) as run:
-        assert run.table()["trial"].tolist() == list(range(1, 14))
-        assert_record_stored(run.read(5), make_record(5))
-        assert_record_stored(run.read(13), make_record(13))
+        assert run.records.table()["trial"].tolist() == list(range(1, 14))
+        assert_record_stored(run.records.read(5), make_record(5))
+        assert_record_stored(run.records.read(13), make_record(13))
 
 
 def chunk_offset(path: str, dataset: str, row: int) -> int:
@@ -479,9 +479,9 @@ def test_a_damaged_record_is_named_and_left_out(run_path):
         fh.write(bytes([b[0] ^ 0x10]))
     with pytest.warns(LabcliWarning) as caught:
         with RunFile.open(run_path) as run:
-            ids = run.completed_ids()
+            ids = run.records.ids()
             for i in ids:
-                assert_record_stored(run.read(i), make_record(i))
+                assert_record_stored(run.records.read(i), make_record(i))
             report = run.verify()
     assert ids == [1, 2, 3, *range(5, 13)]
     assert any("trial 4" in str(w.message) and "damaged" in str(w.message) for w in caught)
@@ -490,11 +490,11 @@ def test_a_damaged_record_is_named_and_left_out(run_path):
 
 def test_a_new_split_is_in_force_and_the_old_one_kept(run_path):
     with RunFile.open(run_path, "a") as run:
-        run.assign_split(8, 4, "random", 1)
-        first = run.split()
+        run.split.assign(8, 4, "random", 1)
+        first = run.split.get()
     with RunFile.open(run_path, "a") as run:
-        run.assign_split(8, 4, "random", 2)
-        second = run.split()
+        run.split.assign(8, 4, "random", 2)
+        second = run.split.get()
     with h5py.File(run_path, "r") as f:  # splits are appended: the history stays, the last is in force
         assert f["entry/split"].attrs["committed"] == 2
     assert first["fit"] != second["fit"] and second["seed"] == 2
@@ -529,12 +529,12 @@ def test_checksums_of_repeated_fill_and_of_one_long_entry_equal_the_spelt_out_fo
 
 def test_a_bulk_import_leaves_columns_without_values_unwritten_and_they_read_as_their_fill(run_path, tmp_path):
     with RunFile.open(run_path, "a") as run:
-        df = run.table()
+        df = run.records.table()
     out = str(tmp_path / "imp.h5")
     with import_table(df, out, protocol=FakeProtocol(), source="t.csv") as run:
         assert run.verify()["ok"] is True
-        back = run.table()
-        rec = run.read(int(df.trial[0]))
+        back = run.records.table()
+        rec = run.records.read(int(df.trial[0]))
         assert rec["flags"] == [] and rec["accepted"] == "imported"
     assert back.equals(df)
     with h5py.File(out, "r") as f:

@@ -33,9 +33,9 @@ def small_run(path: str) -> None:
         plan={"trial": [0, 1, 2, 3], "mass_g": [50.0, 100.0, 150.0, 200.0]},
     ) as run:
         for i in range(4):
-            run.write({**make_record(i, 20), "flags": [f"Note {i} about this trial."]})
-        run.set_split([0, 1, 2], [3], "sequential")
-        run.record_model("takuma2014", '{"beta": [1.0, 2.0]}')
+            run.records.write({**make_record(i, 20), "flags": [f"Note {i} about this trial."]})
+        run.split.set([0, 1, 2], [3], "sequential")
+        run.models.record("takuma2014", '{"beta": [1.0, 2.0]}')
 
 
 def campaign(tmp_path: Path, seed: int, flips: int) -> Counter:

@@ -61,7 +61,7 @@ def test_no_room_leaves_the_run_as_it_was(imported, tmp_path, command):
     run.write_bytes(imported.read_bytes())
     before = sha(run)
     with RunFile.open(run) as f:
-        ids = f.completed_ids()
+        ids = f.records.ids()
     r = labcli(*command, cwd=tmp_path, limit=run.stat().st_size + 4096)
     assert r.returncode == 1, (r.stdout, r.stderr)
     lines = r.stderr.strip().splitlines()
@@ -70,7 +70,7 @@ def test_no_room_leaves_the_run_as_it_was(imported, tmp_path, command):
     assert f"the {len(ids)} trials stored before are intact" in lines[0]
     assert sha(run) == before
     with RunFile.open(run) as f:
-        assert f.completed_ids() == ids
+        assert f.records.ids() == ids
     r = labcli(*command, cwd=tmp_path)  # with room again, the same command works
     assert r.returncode == 0, r.stderr
 
@@ -104,15 +104,15 @@ def test_acquire_reaching_the_limit_mid_window_keeps_the_trials_before_and_resum
     )
     run = tmp_path / "run.h5"
     with RunFile.open(run) as f:
-        assert f.completed_ids() == [1] and f.incomplete_ids() == []
+        assert f.records.ids() == [1] and f.records.incomplete_ids() == []
         assert f.verify() == {"ok": True, "records": 1, "windows": 2, "problems": []}
-        assert f.sessions()[-1]["how"] == "disk full"
+        assert f.sessions.all()[-1]["how"] == "disk full"
     with h5py.File(run, "r") as f:  # trial 2's frames streamed before the limit lie past trial 1's
         assert f["entry/raw/time"].shape[0] > f["entry/trials/loaded_stop"][0] + 4096
     r = labcli("acquire", "run.h5", "--port", port, "--unattended", "--resume", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     with RunFile.open(run) as f:
-        assert f.completed_ids() == [1, 2, 3]
+        assert f.records.ids() == [1, 2, 3]
         assert f.verify() == {"ok": True, "records": 3, "windows": 6, "problems": []}
 
 
@@ -159,7 +159,7 @@ def test_a_full_disk_leaves_the_run_as_it_was(imported, full_disk, command):
     run, filler = full_disk(imported)
     before = sha(run)
     with RunFile.open(run) as f:
-        ids = f.completed_ids()
+        ids = f.records.ids()
     r = labcli(*command, cwd=run.parent)
     assert r.returncode == 1, (r.stdout, r.stderr)
     lines = r.stderr.strip().splitlines()
@@ -172,7 +172,7 @@ def test_a_full_disk_leaves_the_run_as_it_was(imported, full_disk, command):
         assert f"the {len(ids)} trials stored before are intact" in lines[0]
     assert sha(run) == before
     with RunFile.open(run) as f:
-        assert f.completed_ids() == ids
+        assert f.records.ids() == ids
     filler.unlink()  # with room again (and a disk the size of a lab's), the same command works
     subprocess.run(["mount", "-o", "remount,size=64m", str(run.parent)], check=True, capture_output=True)
     assert labcli(*command, cwd=run.parent).returncode == 0

@@ -32,12 +32,12 @@ def test_flags_are_kept_as_sentences(tmp_path):
         "Pressures moved less than the noise predicts, so the weight may not have been hung.",
     ]
     with new_run(path) as run:
-        run.write({**make_record(1), "flags": flags})
-        run.write(make_record(2))
+        run.records.write({**make_record(1), "flags": flags})
+        run.records.write(make_record(2))
     with RunFile.open(path) as run:
-        assert run.read(1)["flags"] == flags
-        assert run.read(2)["flags"] == []
-        assert_record_stored(run.read(1), make_record(1))
+        assert run.records.read(1)["flags"] == flags
+        assert run.records.read(2)["flags"] == []
+        assert_record_stored(run.records.read(1), make_record(1))
 
 
 @pytest.mark.parametrize(
@@ -52,9 +52,9 @@ def test_bad_flags_are_refused_and_nothing_written(tmp_path, flags, why):
     path = str(tmp_path / "run.h5")
     with new_run(path) as run:
         with pytest.raises(StoreError) as e:
-            run.write({**make_record(1), "flags": flags})
+            run.records.write({**make_record(1), "flags": flags})
         assert str(e.value) == f"trial 1 record: {why}; a flag is one sentence."
-        assert run.completed_ids() == []
+        assert run.records.ids() == []
 
 
 def identity(device="mckibben-2dof", firmware="1.0"):
@@ -78,21 +78,21 @@ def info(rig, **kw):
 def test_session_log_round_trip(tmp_path):
     path = str(tmp_path / "run.h5")
     with new_run(path) as run:
-        assert run.rig_identity() is None  # no session yet: the caller falls back on the run's metadata
-        run.begin_session(info(identity()))
-        run.write(make_record(1))
-        run.trial_added(1)  # already logged with the record: not twice
-        run.trial_redone(2)
-        run.write(make_record(2))
-        run.trial_skipped(3)
-        run.end("quit")
+        assert run.sessions.rig_identity() is None  # no session yet: the caller falls back on the run's metadata
+        run.sessions.begin(info(identity()))
+        run.records.write(make_record(1))
+        run.sessions.added(1)  # already logged with the record: not twice
+        run.sessions.redone(2)
+        run.records.write(make_record(2))
+        run.sessions.skipped(3)
+        run.sessions.end("quit")
     with RunFile.open(path, "a") as run:
-        run.begin_session(info(identity(firmware="1.1"), baud=1_000_000, resumed=True, other_rig=True))
-        run.write(make_record(3))
+        run.sessions.begin(info(identity(firmware="1.1"), baud=1_000_000, resumed=True, other_rig=True))
+        run.records.write(make_record(3))
         # no end: a kill or a power cut
     with RunFile.open(path) as run:
-        s1, s2 = run.sessions()
-        rig = run.rig_identity()
+        s1, s2 = run.sessions.all()
+        rig = run.sessions.rig_identity()
     assert (s1["number"], s1["port"], s1["baud"], s1["device"], s1["firmware"]) == (
         1,
         "/dev/ttyACM0",
@@ -123,11 +123,11 @@ def test_session_log_round_trip(tmp_path):
 def test_session_end_is_checked(tmp_path):
     with new_run(str(tmp_path / "run.h5")) as run:
         with pytest.raises(StoreError) as e:
-            run.end("finished")
+            run.sessions.end("finished")
         assert str(e.value) == f"no session is open in {tmp_path / 'run.h5'}; there is none to end."
-        run.begin_session(info(identity()))
+        run.sessions.begin(info(identity()))
         with pytest.raises(StoreError) as e:
-            run.end("bored")
+            run.sessions.end("bored")
         assert str(e.value).startswith("a session ends as one of finished, quit, interrupted")
 
 
@@ -177,16 +177,16 @@ def test_adding_to_a_version_1_file_copies_it_into_version_2(tmp_path):
     path = str(tmp_path / "force.h5")
     shutil.copy(V1 / "force.h5", path)
     with RunFile.open(path) as run:
-        before = run.table()
-        ids = run.completed_ids()
-        models = run.models()
+        before = run.records.table()
+        ids = run.records.ids()
+        models = run.models.all()
     with RunFile.open(path, "a") as run:
         assert run.version == 2
-        run.write(make_record(200))
+        run.records.write(make_record(200))
     with RunFile.open(path) as run:
-        assert run.completed_ids() == ids + [200]
-        assert run.table().iloc[: len(ids)].equals(before)
-        assert run.models() == models
+        assert run.records.ids() == ids + [200]
+        assert run.records.table().iloc[: len(ids)].equals(before)
+        assert run.models.all() == models
     with h5py.File(path, "r") as f:
         assert f.attrs["schema_version"] == 2
     assert not [p for p in os.listdir(tmp_path) if p != "force.h5"]  # no partial file left behind
@@ -195,8 +195,8 @@ def test_adding_to_a_version_1_file_copies_it_into_version_2(tmp_path):
 def test_sample_runs_still_read():
     for name in ("force", "pushes", "stretch", "joint"):
         with RunFile.open(ROOT / "sample_runs" / f"{name}.h5") as run:
-            assert len(run.completed_ids()) > 0
-            assert len(run.table()) == len(run.completed_ids())
+            assert len(run.records.ids()) > 0
+            assert len(run.records.table()) == len(run.records.ids())
 
 
 def test_nexus_the_way_h5py_users_read_it(tmp_path):
@@ -208,8 +208,8 @@ def test_nexus_the_way_h5py_users_read_it(tmp_path):
     path = tmp_path / "deep" / "run.h5"
     path.parent.mkdir()
     with new_run(str(path)) as run:
-        run.write(make_record(1))
-        run.write(make_record(2))
+        run.records.write(make_record(1))
+        run.records.write(make_record(2))
     strings: list[str] = []
     units: dict[str, str] = {}
     with h5py.File(path, "r") as f:

@@ -344,6 +344,10 @@ def test_h5_paths_go_to_the_run_file(monkeypatch: pytest.MonkeyPatch, tmp_path: 
             calls.append(("open", str(path)))
             return cls()
 
+        @property
+        def records(self):
+            return self
+
         def table(self, kind):
             calls.append(("table", kind.kind))
             return pd.DataFrame({kind.id_column: [1]})

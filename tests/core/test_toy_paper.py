@@ -59,9 +59,9 @@ def test_acquire_records_two_trials_on_its_own_simulated_rig(acquired):
     run, result = acquired
     assert f"Session complete: 2 trials stored in {run}" in result.output
     with RunFile.open(run) as rf:
-        assert rf.kind == "toy" and rf.channels == ("P", "ANG") and rf.completed_ids() == [1, 2]
+        assert rf.kind == "toy" and rf.channels == ("P", "ANG") and rf.records.ids() == [1, 2]
         for trial, mass in ((1, 0.2), (2, 0.5)):
-            rec = rf.read(trial)
+            rec = rf.records.read(trial)
             # The rig's physics, read back through its ADC: 0.05 MPa and 10 deg per kg.
             assert rec["mass_kg"] == mass
             assert rec["P_MPa"] == pytest.approx(toy.P_REST_MPA + toy.P_PER_KG * mass, abs=2e-4)
@@ -107,7 +107,7 @@ def test_a_real_port_or_an_unknown_mode_is_refused_in_its_words(toy_paper, tmp_p
 
 
 def test_a_record_type_must_give_its_four_hooks():
-    from labcli.core.store.records import BaseRecordType
+    from labcli.core.store.record_type import BaseRecordType
 
     class Half(BaseRecordType):
         def check(self, record, label, run):

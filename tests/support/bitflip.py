@@ -33,12 +33,12 @@ def snapshot(path: str) -> dict:
 
     out: dict = {}
     with RunFile.open(path) as run:
-        out["table"] = run.table().to_dict("list")
-        for i in run.completed_ids():
-            out[f"record {i}"] = run.read(i)
-        out["split"] = run.split()
-        out["models"] = run.models()
-        out["sessions"] = run.sessions()
+        out["table"] = run.records.table().to_dict("list")
+        for i in run.records.ids():
+            out[f"record {i}"] = run.records.read(i)
+        out["split"] = run.split.get()
+        out["models"] = run.models.all()
+        out["sessions"] = run.sessions.all()
         out["protocol"] = run.protocol_text
         out["attrs"] = run.attrs
         out["verify"] = run.verify()["ok"]

@@ -133,9 +133,9 @@ def stored_trials(path, attrs: bool = True) -> dict:
 
     out: dict = {}
     with RunFile.open(path) as run:
-        for t in run.completed_ids():
+        for t in run.records.ids():
             items: dict = {}
-            for key, value in run.read(t).items():
+            for key, value in run.records.read(t).items():
                 if key in ("started", "ended", "order", "settle", "accepted", "flags", "extra"):
                     if attrs:
                         items["@" + key] = repr(value)
@@ -163,10 +163,10 @@ def writer(path: str, n_trials: int, n_samples: int) -> None:
     print("ready", flush=True)
     with run:
         while True:
-            nxt = run.first_incomplete(range(n_trials))
+            nxt = run.records.first_incomplete(range(n_trials))
             if nxt is None:
                 break
-            run.write(make_record(nxt, n_samples))
+            run.records.write(make_record(nxt, n_samples))
             print(f"stored {nxt}", flush=True)
     print("done", flush=True)
 

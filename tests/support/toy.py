@@ -33,7 +33,7 @@ from labcli.core.steps import (
     WaitSettle,
 )
 from labcli.core.store.h5 import scalar, to_edge
-from labcli.core.store.records import BaseRecordType
+from labcli.core.store.record_type import BaseRecordType
 from labcli.core.tables import TableSpec
 
 KIND = "toy"

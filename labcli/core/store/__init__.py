@@ -1,12 +1,13 @@
-"""The HDF5 run file: :class:`RunFile` (crash-safe records of any paper), its split,
-the models fitted on it, its session log, and runs built from tables (:func:`import_table`)."""
+"""The HDF5 run file: :class:`RunFile` (crash-safe records of any paper) and its facets
+(``run.records``, ``run.windows``, ``run.split``, ``run.models``, ``run.sessions``), and runs
+built from tables (:func:`import_table`)."""
 
 from .frames import StoredWindow, WindowWriter
 from .h5 import to_edge
 from .importing import import_csv, import_table, storable_cells
 from .layout import SCHEMA, SCHEMA_VERSION
 from .runfile import RESUME_OR_FORCE, RunFile, load_table
-from .split import choose_split
+from .split import Split, choose_split
 from .view import MAX_ID
 
 __all__ = [
@@ -15,6 +16,7 @@ __all__ = [
     "SCHEMA",
     "SCHEMA_VERSION",
     "RunFile",
+    "Split",
     "StoredWindow",
     "WindowWriter",
     "choose_split",

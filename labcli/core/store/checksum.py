@@ -98,7 +98,7 @@ def _fold_same(h: np.ndarray, w: np.ndarray) -> np.ndarray:
     return h
 
 
-def row_checksums(parts: Sequence[np.ndarray], first_row: int) -> np.ndarray:
+def row_checksums(parts: Sequence[np.ndarray | Repeated], first_row: int) -> np.ndarray:
     """Checksums of rows ``first_row, first_row + 1, ...`` of a table, given its columns' values."""
     n = len(parts[0]) if parts else 0
     h = fold(parts, np.arange(first_row, first_row + n, dtype=np.uint64))

@@ -218,7 +218,7 @@ class Table:
             ]
         return [fixed(columns[name], values.get(name), n) for name in self.names]
 
-    def write(self, arrays: list[np.ndarray], n: int) -> tuple[int, int]:
+    def write(self, arrays: Sequence[np.ndarray | Repeated], n: int) -> tuple[int, int]:
         """Write ``n`` rows (from :meth:`prepared`) after the committed ones; returns ``[start, stop)``.
 
         They are not part of the table until :meth:`commit`.

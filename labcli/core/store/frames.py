@@ -180,7 +180,9 @@ class Stats:
 
     def variances(self, k: int, ddof: int = 0) -> np.ndarray:
         """Variance per channel with ``ddof`` delta degrees of freedom (NaN without more frames than ``ddof``)."""
-        return self.m2 / (self.n - ddof) if self.n > ddof else np.full(k, np.nan)
+        if self.m2 is None or self.n <= ddof:
+            return np.full(k, np.nan)
+        return np.asarray(self.m2 / (self.n - ddof))
 
 
 @dataclass
@@ -217,7 +219,7 @@ class StoredWindow:
         return {"stored": self}
 
     def _samples(self) -> dict[str, np.ndarray]:
-        return self.run.frames(self.start, self.stop)
+        return self.run.windows.frames(self.start, self.stop)
 
     @property
     def seq(self) -> np.ndarray:
@@ -241,7 +243,7 @@ class StoredWindow:
 
 
 class WindowWriter:
-    """One raw window being written block by block (:meth:`RunFile.begin_window`).
+    """One raw window being written block by block (``run.windows.begin``).
 
     Frames are held until they fill whole chunks, which are then written and flushed (not
     synced: nothing of the window counts until a record that references it is committed),

@@ -214,6 +214,7 @@ def window_arrays(raw: Mapping, k: int, label: str, which: str) -> dict[str, np.
             f"(seq (n,), counts (n,{k}), si (n,{k})), got seq {seq.shape}, counts {counts.shape}, si {si.shape}."
         )
     counts_f = counts.astype(np.float64)
+    counts_out: np.ndarray
     if (
         np.all(np.isfinite(counts_f))
         and np.all(counts_f == np.rint(counts_f))

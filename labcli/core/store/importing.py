@@ -17,11 +17,13 @@ import numpy as np
 
 from ...errors import ConfigError, StoreError
 from ..files import check_output
+from ..paper import Column
 from ..protocol import load_protocol
 from ..registry import import_protocol, record_type
 from .h5 import nan_if_empty
 from .layout import extra_column
 from .runfile import RunFile
+from .split import Split
 from .view import MAX_ID
 
 NUL_PROBLEM = "holds a NUL character, which a run file cannot store; remove it"
@@ -55,7 +57,8 @@ storable_cells.screen = _any_nul  # type: ignore[attr-defined]
 
 def _extras(df: Any, names: Sequence[str]) -> tuple[list[Any], dict[str, Any]]:
     """The run-file columns and values of an imported table's columns labcli does not know."""
-    columns, values = [], {}
+    columns: list[Column] = []
+    values: dict[str, Any] = {}
     for name in names:
         raw = df[name].tolist()
         c = extra_column(str(name), raw)
@@ -97,7 +100,7 @@ def import_table(
     ``protocol``: the protocol the run records with (its kind the run's, e.g. an rPAM
     protocol with its paper chosen).  A table naming fit and validation sets (a trial
     table's ``set`` column) gives the split (strategy ``imported``).  The records go in as
-    one bulk commit (:meth:`RunFile.append`) into a file built under a temporary name and
+    one bulk commit (``run.records.append``) into a file built under a temporary name and
     put in place only when whole, so a failed or killed import leaves an existing file
     untouched (and the next start removes the temporary file).  Returns the run, open.
     """
@@ -127,9 +130,9 @@ def import_table(
         exists_hint="use --force to overwrite it",
     )
     try:
-        run.append({**columns, **extra_values})  # accepted: "imported", RunFile.append's default
+        run.records.append({**columns, **extra_values})  # accepted: "imported", records.append's default
         if fit or val:
-            run.set_split(fit, val, "imported")
+            run.split.set(fit, val, "imported")
         run.publish()
     except BaseException:
         run.discard()
@@ -143,7 +146,7 @@ class Imported:
 
     n: int
     record_type: Any
-    split: dict[str, Any] | None
+    split: Split | None
 
     def sentence(self, table: str, output: str) -> str:
         split = (
@@ -167,5 +170,5 @@ def import_csv(
     with import_table(
         df, output, protocol=run_protocol, force=force, source=os.path.basename(table), operator=operator
     ) as run:
-        split = run.split()
+        split = run.split.get()
     return Imported(len(df), rt, split)

@@ -200,7 +200,8 @@ def plan_columns(plan: Mapping[str, Sequence[Any]], id_column: str) -> tuple[lis
     """Columns and values of a plan table (text, whole numbers or numbers, as the values are)."""
     from .h5 import column_units
 
-    cols, values = [], {}
+    cols: list[Column] = []
+    values: dict[str, Any] = {}
     for name, vals in plan.items():
         vals = list(vals)
         if vals and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in vals):

@@ -1,106 +1,250 @@
-"""What most record types share: CSV through their table spec, no split, plain inspect lines.
+"""``run.records``: the records of a run, written whole and read back checked.
 
-A paper's record type (:class:`labcli.core.paper.RecordType`) may derive from
-:class:`BaseRecordType` and give only what is its own: where its records live, the columns a
-record holds, how one is checked and turned into a row (:meth:`~BaseRecordType.check`),
-read back and tabled, and its CSV table spec (:mod:`labcli.core.tables`).
+:meth:`Records.write` takes the record a session commits (SI) and :meth:`Records.read`
+gives it back; :meth:`Records.append` takes many records as columns at once (imports: a
+million rows in seconds); :meth:`Records.table` gives the CSV exchange table, in the units
+people type, degrees and grams rounded to 12 significant digits
+(:func:`~labcli.core.store.h5.to_edge`), which makes table -> run file -> table exact.  What
+a record holds is its record type's business (:class:`labcli.core.paper.RecordType`); the
+run file writes the columns every record shares (:mod:`.rows`).
+
+Reading gives only committed records and checks each one's checksum; a record that fails
+it, or holds a value no rig can produce, is named in a
+:class:`~labcli.errors.LabcliWarning` (once) and left out.  A reader that meets a commit
+under way (a torn read while another process writes) reads again, afresh.
+
+>>> with RunFile.open("run.h5") as run:       # doctest: +SKIP
+...     run.records.ids()[:3], run.records.read(12)["P_MPa"]
 """
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterable, Mapping
-from typing import Any
+import time
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any
 
-from ..paper import Column
-from ..report import records_line, settling_line, split_line
-from ..tables import TableSpec, read_table, write_table
+import numpy as np
+
+from ...errors import StoreError
+from ..paper import RecordType
+from . import space
+from .rows import bulk_values, record_id, record_row, settle_of, split_flags
+from .view import RecordColumns, from_v1, from_v2
+from .writer import Write
+
+if TYPE_CHECKING:
+    from .runfile import RunFile
+
+READ_RETRIES = 8  # torn reads while a writer commits: tries before the damage is believed
 
 
-class BaseRecordType(ABC):
-    """Defaults of :class:`labcli.core.paper.RecordType` (a subclass sets the attributes and
-    defines the four abstract methods; Python refuses to make one that lacks any)."""
+class Records:
+    """``run.records`` (see the module docstring)."""
 
-    kind: str
-    collection: str
-    id_column: str
-    noun: str
-    plural: str
-    qualifier: str = ""
-    splits: bool = False
-    table_spec: TableSpec
-    columns: tuple[Column, ...] = ()
-    signal: str = ""
+    def __init__(self, run: RunFile) -> None:
+        self._run = run
+        self._cols: RecordColumns | None = None  # the last read, until something is written
+        self._done: set[int] | None = None  # ids complete in the file
+        self._order: list[int] | None = None  # ... in recording order
 
-    @property
-    def known_columns(self) -> frozenset[str]:
-        return frozenset(self.table_spec.names)
+    # ------------------------------------------------------------ writing
+    def write(self, record: Mapping[str, Any]) -> None:
+        """Write one record of the run's kind whole; it counts only once it is committed.
 
-    def count(self, n: int) -> str:
-        """``3 points of the joint map``: a number of records in a sentence."""
-        return f"{n} {self.noun if n == 1 else self.plural}{self.qualifier}"
+        ``record``: what the run's record type takes (the session's ``Commit``, or an
+        imported table row), plus what every record may carry: ``started``/``ended`` (ISO
+        8601; ``ended`` defaults to now), ``settle`` (``{"baseline": ..., "load": ...}``),
+        ``raw`` (the windows: arrays, or the :class:`~.frames.StoredWindow` the engine
+        streamed), ``accepted``, ``flags`` (a list of one-sentence notes), ``extra``
+        (imported columns).  Raises StoreError if the record is already complete in the file
+        or is malformed (nothing is written then), DiskFull if there is no room for it
+        (nothing is written then either).
+        """
+        run = self._run
+        rt = run.record_type
+        run.writer.check()
+        rid, label = record_id(record, rt.id_column)
+        run.check_v2(label)
+        if rid in self._ids():
+            raise StoreError(f"{label} is already complete in {run.path}; a stored record is never overwritten.")
+        tables = run.tables
+        row = record_row(rt, tables.columns, record, label, rid, run)
+        windows = run.windows.checked(record, label)
+        where, frames = run.windows.store(windows, label)
+        row.update(where)
+        undo = run.sessions.stage_added(rid)  # the session log's "added", committed with the record
+        try:
+            run.writer.commit(
+                [Write(tables.records, tables.columns, {k: [v] for k, v in row.items()}, 1)], frames, label
+            )
+        except BaseException:
+            undo()
+            raise
+        self._written([rid])
 
-    # -- what subclasses give
-    @abstractmethod
-    def check(self, record: Mapping[str, Any], label: str, run: Any) -> Mapping[str, Any]:
-        """One record checked before it is written, as the row to store."""
+    def append(self, columns: Mapping[str, Any]) -> int:
+        """Commit many records at once, given as columns (the bulk write of ``labcli import``).
 
-    @abstractmethod
-    def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
-        """A stored row turned back into a record."""
+        ``columns``: column name -> values over the records (sequence or array, first axis
+        the records): the id column, the record type's columns (optional ones may be left
+        out), and any of ``started``, ``ended``, ``accepted``, ``flags`` and the table's
+        extra columns.  Checked whole first (ids new and unique, values of the right shape
+        and in range, texts short enough); then one commit.  Returns the number of records.
+        About a million trial rows take a few seconds (``tests/benchmarks/bench_store.py``).
+        """
+        run = self._run
+        rt = run.record_type
+        run.writer.check()
+        run.check_v2("the records")
+        ids = np.asarray(columns[rt.id_column], dtype=np.int64).reshape(-1)
+        n = ids.shape[0]
+        tables = run.tables
+        values = bulk_values(rt, tables.columns, columns, ids, self._ids(), run.path)
+        run.writer.commit(
+            [Write(tables.records, tables.columns, values, n)], 0, f"the batch of {rt.count(n)}", unwritten_fill=True
+        )
+        self._written(ids.tolist())
+        return n
 
-    @abstractmethod
-    def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
-        """The exchange table of the records ``ids``."""
+    def _written(self, ids: list[int]) -> None:
+        self._cols = None
+        self._ids().update(int(i) for i in ids)
+        self._recorded().extend(int(i) for i in ids)
 
-    @abstractmethod
-    def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
-        """A table row turned into a record."""
+    # ------------------------------------------------------------ reading
+    def columns(self) -> RecordColumns:
+        """The good records, as columns; damaged ones named in a warning (once) and left out."""
+        if self._cols is not None:
+            return self._cols
+        run = self._run
+        rec = None
+        for attempt in range(READ_RETRIES):
+            try:
+                rec = (
+                    from_v1(run.v1, run.record_type)
+                    if run.v1 is not None
+                    else from_v2(run.tables.records, run.record_type)
+                )
+            except (OSError, KeyError, ValueError, RuntimeError, TypeError):
+                rec = None
+            busy = run.mode == "r" and (rec is None or rec.damaged) and space.writer_holds(run.path)
+            if busy and attempt + 1 < READ_RETRIES:
+                time.sleep(0.02 * (attempt + 1))  # a commit under way: read again, afresh
+                run.reopen()
+                continue
+            break
+        if rec is None:
+            raise StoreError(f"{run.path} is damaged or truncated and HDF5 cannot read it; use a backup copy.")
+        if rec.damaged:
+            run.warn(damage_sentence(run.path, rec.damaged))
+        self._cols = rec
+        self._done = set(rec.ids)
+        self._order = list(rec.ids)
+        return rec
 
-    # -- defaults
-    def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
-        """Every row through :meth:`from_row` and :meth:`check`, gathered into columns.
+    def _ids(self) -> set[int]:
+        if self._done is None:
+            self._done = set(self.ids())
+        return self._done
 
-        Correct for any record type; a record type whose tables run to many rows gives a
-        vectorised version (the trial table does)."""
-        import numpy as np
+    def _recorded(self) -> list[int]:
+        if self._order is None:
+            self.columns()
+        assert self._order is not None
+        return self._order
 
-        rows = []
-        for row in table.to_dict("records"):
-            record = self.from_row(row, protocol)
-            rid = int(record[self.id_column])
-            rows.append({**self.check(record, f"{self.noun} {rid}", None), self.id_column: rid})
-        out: dict[str, Any] = {}
-        for c in (Column(self.id_column, "1", kind="int"), *self.columns):
-            if any(c.name in r for r in rows):
-                if c.kind == "text":
-                    out[c.name] = [str(r.get(c.name, "")) for r in rows]
-                else:
-                    out[c.name] = np.array(
-                        [r[c.name] if c.name in r else np.full(c.shape, np.nan) for r in rows], dtype=c.dtype
-                    ).reshape(len(rows), *c.shape)
-        return out
+    def ids(self) -> list[int]:
+        """Ids of the complete records (trials, pushes, points: the run's kind), in recording order."""
+        if self._cols is None and self._order is not None:
+            return list(self._order)
+        return list(self.columns().ids)
 
-    def import_split(self, table: Any) -> tuple[list[int], list[int]]:
-        return [], []
+    def __len__(self) -> int:
+        return len(self.ids())
 
-    def read_csv(
-        self,
-        path: Any,
-        *,
-        id_range: tuple[int, int] | None = None,
-        check: Callable[[dict[str, Any]], Iterable[tuple[str, str]]] | None = None,
-    ) -> Any:
-        return read_table(path, self.table_spec, id_range=id_range, check=check)
+    def __contains__(self, rid: object) -> bool:
+        return isinstance(rid, (int, np.integer)) and int(rid) in self._ids()
 
-    def write_csv(self, table: Any, path: Any) -> None:
-        write_table(table, path, self.table_spec)
+    def incomplete_ids(self) -> list[int]:
+        """Ids with only an interrupted write (a kill's leftovers), never counted."""
+        done = self._ids()
+        return sorted(i for i in self.columns().incomplete if i not in done)
 
-    def summarise(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> dict[str, Any]:
-        return {}
+    def first_incomplete(self, plan_ids: Iterable[int]) -> int | None:
+        """The first id of ``plan_ids`` not yet complete in the file (None: all done)."""
+        done = self._ids()
+        for i in plan_ids:
+            if int(i) not in done:
+                return int(i)
+        return None
 
-    def inspect_lines(self, summary: dict[str, Any]) -> list[str]:
-        lines = [records_line(summary)]
-        if self.splits:
-            lines.append(split_line(summary))
-        return lines + [settling_line(summary)]
+    def damaged(self) -> list[tuple[str, str]]:
+        """(what, why) of every record left out as damaged."""
+        return list(self.columns().damaged)
+
+    def read(self, rid: int) -> dict[str, Any]:
+        """One complete record back as the writer gave it (SI), with its windows as stored.
+
+        A window whose frames fail their checksum is left out with a warning.
+        """
+        run = self._run
+        rec = self.columns()
+        i = rec.position(int(rid))
+        if i is None:
+            raise StoreError(f"{run.record_type.noun} {rid} is not a complete record in {run.path}.")
+        row = {name: v[i] for name, v in rec.cols.items()}
+        raw, settle = {}, {}
+        for name, key in (("baseline", "baseline"), ("loaded", "load")):
+            w = run.windows.of_record(rec, i, name)
+            if w is not None:
+                raw[key] = w
+            s = settle_of(row, name)
+            if s:
+                settle[key] = s
+        return {
+            **run.record_type.read(row),
+            "started": str(row["started"]),
+            "ended": str(row["ended"]),
+            "accepted": str(row["accepted"]),
+            # Where it was recorded: its table row (schema 2), which a damaged record before
+            # it does not shift; its position among the good records (schema 1).
+            "order": int(rec.sources[i]) if run.v1 is None else i,
+            "raw": raw,
+            "settle": settle,
+            "extra": {name: _plain(row[name]) for name in rec.extras},
+            "flags": split_flags(row.get("flags", "")),
+        }
+
+    def table(self, kind: RecordType | None = None) -> Any:
+        """The CSV exchange table of the complete records (DataFrame), in recording order.
+
+        The record type's columns, then the columns of an imported table labcli does not
+        know.  ``kind``: another record type to read (a run holds only its own kind's records,
+        so another kind gives an empty table).
+        """
+        run = self._run
+        rt = kind or run.record_type
+        if rt.kind != run.record_type.kind:
+            empty = {c.name: np.empty((0, *c.shape), dtype=object if c.kind == "text" else c.dtype) for c in rt.columns}
+            return rt.table(run, [], empty)
+        rec = self.columns()
+        df = rt.table(run, list(rec.ids), rec.cols)
+        for name in rec.extras:
+            v = rec.cols[name]
+            df[name] = [x.item() if isinstance(x, np.generic) else x for x in v] if v.dtype == object else v
+        return df
+
+
+def _plain(v: Any) -> Any:
+    return v.item() if isinstance(v, (np.integer, np.floating, np.bool_)) else v
+
+
+def damage_sentence(path: str, damaged: list[tuple[str, str]]) -> str:
+    """The warning that names the damaged records left out."""
+    first = "; ".join(f"{what}: {why}" for what, why in damaged[:3])
+    more = f" (and {len(damaged) - 3} more)" if len(damaged) > 3 else ""
+    return (
+        f"{path}: {len(damaged)} damaged {'record is' if len(damaged) == 1 else 'records are'} left out "
+        f"({first}{more}); the file changed after it was written. "
+        "`labcli inspect --verify` lists everything damaged."
+    )

@@ -114,7 +114,7 @@ def partial_path(path: str, what: str) -> str:
 
 def clean_partials(folder: str) -> list[str]:
     """Remove the ``.partial`` files of builders that are gone; returns what was removed."""
-    removed = []
+    removed: list[str] = []
     try:
         names = os.listdir(folder)
     except OSError:

@@ -1,20 +1,149 @@
-"""Which records fit a model and which validate it: choosing a split and checking one.
+"""Which records fit a model and which validate it: ``run.split``, the run file's split log.
 
 The split is a run's own decision (``labcli split``, the plan's sets at the end of a run,
-an imported table's ``set`` column), kept in the run file's split log
-(:mod:`labcli.core.store.logs`) and read by everything that fits or validates (the ``set``
-column of the exchange table).
+an imported table's ``set`` column), kept in the run file's split log and read by
+everything that fits or validates (the ``set`` column of the exchange table).  The log is
+an append-only table (:mod:`.columns`), one row per split assigned; a split's ids live in a
+blob beside it (:mod:`.blobs`).  The last row that checks out is the split in force;
+earlier ones stay, as the run's history.
+
+>>> run.split.assign(90, 18)              # doctest: +SKIP
+>>> run.split.get()["fit"][:3]            # doctest: +SKIP
+[1, 2, 3]
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, TypedDict
 
+import h5py
 import numpy as np
 
 from ...errors import ConfigError, StoreError
 from ..protocol import loads_protocol
+from .blobs import blob_read, blob_write, cell_text
+from .columns import Table
+from .layout import SPLIT_COLUMNS, now_iso
+
+if TYPE_CHECKING:
+    from .runfile import RunFile
+
+
+class Split(TypedDict):
+    """A split as stored: the fit and validation ids (recording order), how it was chosen, when."""
+
+    fit: list[int]
+    validation: list[int]
+    strategy: str  # sequential, random, manual, plan, imported
+    seed: int | None  # the random split's seed (None for the others)
+    created: str  # ISO 8601
+
+
+class Splits:
+    """``run.split``: the split in force, and assigning a new one (see the module docstring)."""
+
+    def __init__(self, run: RunFile) -> None:
+        self._run = run
+
+    def get(self) -> Split | None:
+        """The split in force, or None when the run has none."""
+        run = self._run
+        if run.v1 is not None:
+            return run.v1.split()
+        s, problems = read_split(run.tables.split)
+        if problems:
+            run.warn(f"{run.path}: {problems[0]}; the last split that checks out is used.")
+        return s
+
+    def set_of(self) -> dict[int, str]:
+        """Record id -> "fit" / "validation" from the split in force (unassigned ids absent)."""
+        return set_of(self.get())
+
+    def sizes(self) -> tuple[int, int]:
+        """The fit and validation counts of the run's embedded protocol (its settings' ``default_split``)."""
+        return default_sizes(self._run.protocol_text, self._run.path)
+
+    def set(
+        self, fit_ids: Iterable[int], validation_ids: Iterable[int], strategy: str = "manual", seed: int | None = None
+    ) -> None:
+        """Store which complete records fit and which validate (the split in force from now on)."""
+        run = self._run
+        run.writer.check()
+        fit, val = checked(run.path, self._candidates(), fit_ids, validation_ids)
+        run.check_v2("a split")
+        t = run.tables.split
+        run.writer.commit_row(
+            t,
+            {c.name: c for c in SPLIT_COLUMNS},
+            lambda: split_row(t.g, fit, val, str(strategy), seed),
+            8 * (len(fit) + len(val)),
+            "the split",
+        )
+
+    def assign(
+        self, n_fit: int | None, n_validation: int | None, strategy: str = "sequential", seed: int | None = None
+    ) -> Split:
+        """Choose (see :func:`choose_split`) and store a split; returns it as :meth:`get` reads it back.
+
+        A count left None comes from the run's protocol (:meth:`sizes`).
+        """
+        if n_fit is None or n_validation is None:
+            default_fit, default_validation = self.sizes()
+            n_fit = default_fit if n_fit is None else n_fit
+            n_validation = default_validation if n_validation is None else n_validation
+        fit, val = choose(self._candidates(), n_fit, n_validation, strategy, seed, self._run.path)
+        self.set(fit, val, strategy, (0 if seed is None else seed) if strategy == "random" else None)
+        split = self.get()
+        if split is None:
+            raise StoreError(f"{self._run.path}: the split just stored cannot be read back; the file is damaged.")
+        return split
+
+    def _candidates(self) -> list[int]:
+        """The records a split may hold: the complete ones, if the record type splits at all."""
+        return self._run.records.ids() if self._run.record_type.splits else []
+
+
+def split_row(
+    g: h5py.Group, fit: Sequence[int], validation: Sequence[int], strategy: str, seed: int | None
+) -> dict[str, object]:
+    """Write the split's ids to the blob; the row that refers to them (not yet committed)."""
+    ids = np.asarray([*fit, *validation], dtype=np.int64)
+    start, stop, checksum = blob_write(g["ids"], ids)
+    mid = start + len(fit)
+    return {
+        "strategy": strategy,
+        "seed": -1 if seed is None else int(seed),
+        "created": now_iso(),
+        "fit_start": start,
+        "fit_stop": mid,
+        "validation_start": mid,
+        "validation_stop": stop,
+        "ids_checksum": checksum,
+    }
+
+
+def read_split(t: Table) -> tuple[Split | None, list[str]]:
+    """The split in force (the last good row) and what was found damaged."""
+    rows = t.read()
+    problems = [f"split row {r}: {why}" for r, why in rows.damaged]
+    c = rows.cols
+    for i in range(len(rows.rows) - 1, -1, -1):
+        a, m, b = int(c["fit_start"][i]), int(c["fit_stop"][i]), int(c["validation_stop"][i])
+        ids = blob_read(t.g["ids"], a, b, int(c["ids_checksum"][i]))
+        if ids is None:
+            problems.append(f"the ids of split {i + 1} do not match their checksum")
+            continue
+        seed = int(c["seed"][i])
+        split: Split = {
+            "fit": [int(x) for x in ids[: m - a]],
+            "validation": [int(x) for x in ids[m - a :]],
+            "strategy": cell_text(c["strategy"][i]),
+            "seed": None if seed < 0 else seed,
+            "created": cell_text(c["created"][i]),
+        }
+        return split, problems
+    return None, problems
 
 
 def choose_split(
@@ -89,7 +218,7 @@ def checked(
     return fit, val
 
 
-def set_of(split: dict[str, Any] | None) -> dict[int, str]:
+def set_of(split: Split | None) -> dict[int, str]:
     """Record id -> "fit" / "validation" (unassigned ids absent)."""
     if split is None:
         return {}

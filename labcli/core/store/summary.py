@@ -6,18 +6,21 @@ the baseline's drift over a McKibben run, an rPAM run's grid).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from .runfile import RunFile
 
-def summarise(run: Any) -> dict[str, Any]:
+
+def summarise(run: RunFile) -> dict[str, Any]:
     """The summary of an open :class:`~labcli.core.store.RunFile` as plain data (JSON-ready)."""
     rt = run.record_type
     a = run.attrs
-    rec = run.records()
+    rec = run.records.columns()
     ids = list(rec.ids)
-    incomplete = run.incomplete_ids()
+    incomplete = run.records.incomplete_ids()
     plan = run.plan_table()
     out: dict[str, Any] = {
         "path": run.path,
@@ -40,14 +43,14 @@ def summarise(run: Any) -> dict[str, Any]:
         "split": None,
         "baseline_drift": None,  # how the baseline moved over the records, where the record type says
         "settle": None,
-        "models": run.model_names(),
+        "models": run.models.names(),
     }
     if run.version >= 2:
         out["run_uid"] = a.get("run_uid", "")
-        out["sessions"] = len(run.sessions())
+        out["sessions"] = len(run.sessions.all())
     if rec.damaged:
         out["damaged"] = [f"{what}: {why}" for what, why in rec.damaged]
-    s = run.split()
+    s = run.split.get()
     if s is not None:
         out["split"] = {
             "strategy": s["strategy"],

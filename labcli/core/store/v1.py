@@ -22,7 +22,7 @@ its record type's columns, is damaged: named and left out, never a traceback.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
@@ -30,6 +30,9 @@ import numpy as np
 from ..paper import Column, RecordType
 from .h5 import plain, read_columns, text
 from .layout import WINDOWS
+
+if TYPE_CHECKING:
+    from .split import Split
 
 
 def _value(g: h5py.Group, c: Column) -> tuple[Any, str | None]:
@@ -116,7 +119,7 @@ class V1Run:
                 fallback = int(key.split(".")[0])
             except ValueError:
                 continue
-            visit(lambda key=key: parent[key], fallback)
+            visit(lambda key=key: parent[key], fallback)  # type: ignore[index]  # keys come from parent
         try:
             refs = self.f["index"][()] if "index" in self.f else []
         except Exception:
@@ -131,12 +134,15 @@ class V1Run:
     def records(self) -> tuple[list[int], list[dict[str, Any]], list[tuple[int, str]], list[int], list[str]]:
         """(ids, rows, damaged (id, why), incomplete ids, extra column names) in recording order."""
         found, incomplete = self._groups()
-        ids, rows, damaged, extras = [], [], [], {}
+        ids: list[int] = []
+        rows: list[dict[str, Any]] = []
+        damaged: list[tuple[int, str]] = []
+        extras: dict[str, None] = {}
         for _, rid, g in found:
             try:
                 row, problem = self._row(g)
             except Exception:  # noqa: BLE001 - a damaged group can fail in any way
-                row, problem = None, "its group cannot be read"
+                row, problem = {}, "its group cannot be read"
             if problem:
                 damaged.append((rid, problem))
                 continue
@@ -195,7 +201,7 @@ class V1Run:
         return {"t_s": w["time"][()], "counts": w["counts"][()], "si": w["values"][()], "seq": w["seq"][()]}
 
     # ------------------------------------------------------------ split and models
-    def split(self) -> dict[str, Any] | None:
+    def split(self) -> Split | None:
         if "split" not in self.f or "fit" not in self.f["split"]:
             return None
         g = self.f["split"]

@@ -9,19 +9,22 @@ shape and range.
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ...errors import LabcliError, LabcliWarning
 from .columns import Table
 
+if TYPE_CHECKING:
+    from .runfile import RunFile
 
-def verify(run: Any) -> dict[str, Any]:
+
+def verify(run: RunFile) -> dict[str, Any]:
     """``{"ok", "records", "windows", "problems": [sentence, ...]}`` for an open run file."""
     problems: list[str] = []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LabcliWarning)
         try:
-            rec = run.records()
+            rec = run.records.columns()
         except LabcliError as e:
             return {"ok": False, "records": 0, "windows": 0, "problems": [str(e)]}
         problems += [f"{what}: {why}" for what, why in rec.damaged]
@@ -32,7 +35,7 @@ def verify(run: Any) -> dict[str, Any]:
                     continue
                 before = len(caught)
                 try:
-                    w = run._window(rec, i, name)
+                    w = run.windows.of_record(rec, i, name)
                 except Exception:  # noqa: BLE001 - a damaged schema-1 group can fail in any way
                     problems.append(f"{run.record_type.noun} {rec.ids[i]}: its {name} window cannot be read")
                     continue
@@ -41,9 +44,9 @@ def verify(run: Any) -> dict[str, Any]:
                 elif len(caught) > before:
                     problems.append(f"{run.record_type.noun} {rec.ids[i]}: its {name} window fails its checksum")
         for what, read in (
-            ("split", run.split),
-            ("models", run.models),
-            ("sessions", run.sessions),
+            ("split", run.split.get),
+            ("models", run.models.all),
+            ("sessions", run.sessions.all),
             ("plan", run.plan_table),
             ("protocol", lambda: run.protocol_text),
         ):
@@ -51,10 +54,10 @@ def verify(run: Any) -> dict[str, Any]:
                 read()
             except LabcliError as e:
                 problems.append(f"{what}: {e}")
-        if run.version >= 2 and "plan" in run._entry:
-            problems += [f"plan row {r}: {why}" for r, why in Table(run._entry["plan"]).read().damaged]
-    for w in caught:
-        message = str(w.message)
+        if run.version >= 2 and "plan" in run.h5["entry"]:
+            problems += [f"plan row {r}: {why}" for r, why in Table(run.h5["entry/plan"]).read().damaged]
+    for warning in caught:
+        message = str(warning.message)
         if "metadata" in message or "split" in message or "model" in message or "session" in message:
             problems.append(message.split(": ", 1)[-1])
     return {"ok": not problems, "records": len(rec.ids), "windows": windows, "problems": list(dict.fromkeys(problems))}

@@ -2,7 +2,7 @@
 
 :func:`from_v2` reads the record table (rows checked against their checksums, :mod:`.columns`);
 :func:`from_v1` gathers the groups of a version-1 file (:mod:`.v1`).  Both give a
-:class:`Records`: ids in recording order, every column as an array over them, and the
+:class:`RecordColumns`: ids in recording order, every column as an array over them, and the
 records found damaged with the reason, which include values outside the physical range the
 record type declares for a column (:func:`out_of_bounds`).
 """
@@ -24,7 +24,7 @@ MAX_ID = 999_999
 
 
 @dataclass
-class Records:
+class RecordColumns:
     """The good records of a run: ids, columns (text as str), and where each came from."""
 
     ids: list[int]
@@ -81,19 +81,19 @@ def out_of_bounds(columns: Sequence[Column], cols: dict[str, np.ndarray]) -> dic
             units = f" {c.units}" if c.units not in ("", "1") else ""
             if not math.isfinite(x):
                 bad[int(i)] = f"{where} is {x}, not a number it can hold"
-            else:
+            elif c.bounds is not None:
                 lo, hi = c.bounds
                 bad[int(i)] = f"{where} reads {x:.6g}{units}, outside the physically possible {lo:g} to {hi:g}{units}"
     return bad
 
 
-def _keep(records: Records, keep: np.ndarray) -> None:
+def _keep(records: RecordColumns, keep: np.ndarray) -> None:
     records.ids = [i for i, k in zip(records.ids, keep, strict=False) if k]
     records.sources = [s for s, k in zip(records.sources, keep, strict=False) if k]
     records.cols = {name: v[keep] for name, v in records.cols.items()}
 
 
-def check(records: Records, rt: RecordType, noun: str) -> Records:
+def check(records: RecordColumns, rt: RecordType, noun: str) -> RecordColumns:
     """Leave out (and name) records whose values cannot be right: out of range, bad ids, repeated ids."""
     n = len(records.ids)
     if not n:
@@ -112,7 +112,7 @@ def check(records: Records, rt: RecordType, noun: str) -> Records:
     return records
 
 
-def from_v2(t: Table, rt: RecordType) -> Records:
+def from_v2(t: Table, rt: RecordType) -> RecordColumns:
     """The committed records of a version-2 record table, checked."""
     rows = t.read()
     ids = [int(i) for i in rows.cols[rt.id_column]]
@@ -122,7 +122,7 @@ def from_v2(t: Table, rt: RecordType) -> Records:
     extras = [name for name in t.names if name not in known]
     tail = t.read(want=[rt.id_column], span=(t.committed, t.extent)) if t.extent > t.committed else None
     incomplete = sorted({int(i) for i in tail.cols[rt.id_column]} - set(ids)) if tail is not None else []
-    return check(Records(ids, cols, [int(r) for r in rows.rows], damaged, incomplete, extras), rt, rt.noun)
+    return check(RecordColumns(ids, cols, [int(r) for r in rows.rows], damaged, incomplete, extras), rt, rt.noun)
 
 
 def _row_name(t: Table, rt: RecordType, r: int) -> str:
@@ -136,7 +136,7 @@ def _row_name(t: Table, rt: RecordType, r: int) -> str:
     return f"row {r}, {rt.noun} {rid} by its id" if 0 <= rid <= MAX_ID else f"row {r}"
 
 
-def from_v1(backend: Any, rt: RecordType) -> Records:
+def from_v1(backend: Any, rt: RecordType) -> RecordColumns:
     """The complete records of a version-1 file, gathered into columns and checked."""
     ids, rows, damaged, incomplete, extras = backend.records()
     columns = [*common_columns(rt.id_column), *rt.columns, *window_columns()]
@@ -154,4 +154,4 @@ def from_v1(backend: Any, rt: RecordType) -> Records:
         values = [row.get("extra", {}).get(name, math.nan) for row in rows]
         cols[name] = np.array(values, dtype=object)
     named = [(f"{rt.noun} {rid}", why) for rid, why in damaged]
-    return check(Records(ids, cols, rows, named, incomplete, extras), rt, rt.noun)
+    return check(RecordColumns(ids, cols, rows, named, incomplete, extras), rt, rt.noun)

@@ -24,7 +24,7 @@ class PointAcquisition:
 
     def already_done(self, run: Any, path: str) -> str | None:
         points = self.protocol.settings.points
-        if points and {p.point for p in points} <= set(run.completed_ids()):
+        if points and {p.point for p in points} <= set(run.records.ids()):
             return (
                 f"All {len(points)} points of the {self.protocol.settings.title} are already stored "
                 f"in {path}; nothing to resume."

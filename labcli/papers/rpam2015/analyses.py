@@ -50,7 +50,7 @@ def _read_run(
         kind = run.kind
         name = str(run.attrs.get("protocol", ""))
         text = run.protocol_text
-        table = run.table()
+        table = run.records.table()
     if protocol is not None and protocol != name:
         raise ConfigError(
             f"{path} was recorded with protocol '{name}'; --protocol applies to "

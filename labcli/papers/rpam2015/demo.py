@@ -132,7 +132,7 @@ def run_rpam_demo(
         proto = load_protocol(PROTOCOL)
         protocol_ref = (str(proto.path), dict(proto.sections))
         with RunFile.open(files["stretch_run"]) as run:
-            stretch_table = run.table()
+            stretch_table = run.records.table()
         fit = analyse_stretch(stretch_table, protocol_ref)
         save_model(fit.to_json(), files["stretch_model"], run=files["stretch_run"], name=f"{PROTOCOL}-stretch")
         figure_stretch(fit, files["figure6"])
@@ -143,7 +143,7 @@ def run_rpam_demo(
         )
     with stages.run(3, "validate"):
         with RunFile.open(files["joint_run"]) as run:
-            joint_table = run.table()
+            joint_table = run.records.table()
         fitted = analyse_joint_map(joint_table, protocol_ref, fit)
         default = analyse_joint_map(joint_table, protocol_ref, None)
         figure8(fitted, files["figure8"])

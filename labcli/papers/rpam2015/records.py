@@ -9,7 +9,7 @@ The columns of a point in its run's table (SI: MPa gauge, rad, m, kg)::
                      pot0 rad of the baseline, L m
     (a column a point does not use holds NaN)
 
-The record a session commits (and ``RunFile.write`` takes): ``point`` (id), ``experiment``
+The record a session commits (and ``run.records.write`` takes): ``point`` (id), ``experiment``
 (as the run's kind says), ``P_MPa`` (2,); stretch points ``mass_kg``, ``L_m``, ``lambda``;
 joint-map points ``alpha_rad`` and optionally ``P0_MPa`` (2,), ``pot0_rad``, ``L_m``;
 ``plan`` (the set values: ``mass_g``, ``P_A_kPa``, ``P_B_kPa``); then ``settle``, ``raw``,
@@ -29,7 +29,7 @@ from ...core.paper import Column
 from ...core.protocol import loads_protocol
 from ...core.report import ids_text, settling_line
 from ...core.store.h5 import nan_if_empty, scalar, to_edge, vector
-from ...core.store.records import BaseRecordType
+from ...core.store.record_type import BaseRecordType
 from ...core.tables import TableSpec
 from ...errors import LabcliError, StoreError
 from .session import acquisition_protocol

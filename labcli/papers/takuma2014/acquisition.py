@@ -31,12 +31,12 @@ class ForceAcquisition:
 
     def already_done(self, run: Any, path: str) -> str | None:
         plan = self.plan
-        if plan is None or not len(plan) or run.first_incomplete(plan["trial"]) is not None:
+        if plan is None or not len(plan) or run.records.first_incomplete(plan["trial"]) is not None:
             return None
-        if run.split() is None:
+        if run.split.get() is None:
             # Stopped between the last trial and the split: finish the job.
             sets = dict(zip(plan["trial"].astype(int), plan["set"], strict=False))
-            run.set_split(
+            run.split.set(
                 [t for t, v in sets.items() if v == "fit"], [t for t, v in sets.items() if v == "validation"], "plan"
             )
         return f"All {len(plan)} planned trials are already stored in {path}; nothing to resume."
@@ -110,7 +110,7 @@ def _history(run: Any, protocol: Any) -> tuple:
 
     watched = [c for c, u in zip(protocol.channels, protocol.calibration.units, strict=False) if u in ("MPa", "rad")]
     out = []
-    for row in run.table().to_dict("records"):
+    for row in run.records.table().to_dict("records"):
         change = {p: row[p] - row[p + "0"] for p in PRESSURE_NAMES}
         change.update(POT1=math.radians(row["theta1_deg"]), POT2=math.radians(row["theta2_deg"]))
         values = [change.get(c, math.nan) for c in watched]

@@ -185,7 +185,7 @@ def model_for_run(
     if side.exists() or not is_run:
         return load_force_model(side), str(side)
     with RunFile.open(run) as rf:
-        recorded = rf.models()
+        recorded = rf.models.all()
     if name not in recorded:
         raise ModelError(
             f"The model file {side} does not exist and {run} records no model under /models/{name}; "

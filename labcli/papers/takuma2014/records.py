@@ -30,7 +30,7 @@ from ...core.paper import Column
 from ...core.report import records_line, settling_line, split_line
 from ...core.store import load_table
 from ...core.store.h5 import missing, nan_if_empty, scalar, to_edge, vector
-from ...core.store.records import BaseRecordType
+from ...core.store.record_type import BaseRecordType
 from ...errors import ConfigError, StoreError
 from .tables import BASELINE, LOADED, PUSH, REST, TRIAL
 
@@ -144,11 +144,11 @@ def _baseline_times(run: Any, rid: int, i: int, cols: Mapping[str, Any]) -> Any:
     """Device times (s) of a record's baseline window, None without one.
 
     Read as a range of the run's raw frames where the run file keeps them so (schema 2: no
-    need to decode the whole record), else through :meth:`RunFile.read`."""
+    need to decode the whole record), else through ``run.records.read``."""
     if getattr(run, "version", 1) >= 2 and "baseline_start" in cols:
         a, b = int(cols["baseline_start"][i]), int(cols["baseline_stop"][i])
-        return None if a < 0 else run.frames(a, b)["t_s"]
-    window = run.read(rid)["raw"].get("baseline")
+        return None if a < 0 else run.windows.frames(a, b)["t_s"]
+    window = run.records.read(rid)["raw"].get("baseline")
     return None if window is None else window["t_s"]
 
 
@@ -257,7 +257,7 @@ class TrialRecords(_McKibbenRecords):
         """The trial table (docs/table-formats.md): MPa, N, degrees and grams; ``set`` from the split."""
         import pandas as pd
 
-        sets = run.set_of()
+        sets = run.split.set_of()
         n = len(ids)
         p0 = np.asarray(cols["P0"], dtype=np.float64).reshape(n, 4)
         p = np.asarray(cols["P"], dtype=np.float64).reshape(n, 4)

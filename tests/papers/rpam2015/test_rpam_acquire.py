@@ -122,7 +122,7 @@ def test_stretch_points_are_what_the_rig_did(stretch_run):
     path, rec = stretch_run
     with RunFile.open(path) as run:
         assert run.kind == "rpam-stretch" and run.attrs["device"] == "rpam-joint-sim"
-        table = run.table()
+        table = run.records.table()
         summary = run.summary()
     assert list(table.columns[:6]) == ["point", "mass_g", "P_A", "P_B", "L_m", "lambda"]
     assert table["point"].tolist() == list(range(1, 121)) and summary["records"] == "points"
@@ -162,7 +162,7 @@ def test_labcli_fit_recovers_the_rigs_true_correction(stretch_run, tmp_path):
     assert m["n_points"] == 120 and m["r2"] > 0.999
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with RunFile.open(path) as run:
-        assert json.loads(run.models()["rpam2015-stretch"]) == json.loads((tmp_path / "s.json").read_text())
+        assert json.loads(run.models.all()["rpam2015-stretch"]) == json.loads((tmp_path / "s.json").read_text())
 
 
 # --------------------------------------------------------------------------- joint map
@@ -171,7 +171,7 @@ def test_labcli_fit_recovers_the_rigs_true_correction(stretch_run, tmp_path):
 def test_joint_points_are_deflections_from_the_vented_baseline(joint_run):
     path, rec = joint_run
     with RunFile.open(path) as run:
-        table = run.table()
+        table = run.records.table()
     assert len(table) == 121 and list(table.columns[:4]) == ["point", "P_A", "P_B", "alpha_deg"]
     assert "Point 12/121 (joint map): set P_A = 50.7 kPa and P_B = 41 kPa, then press Enter" in rec.prompts
     assert (
@@ -243,8 +243,8 @@ def test_an_interrupted_joint_map_resumes_where_it_stopped(tmp_path):
         f"Session complete: 9 points stored in {path} (5 this session, " + result.output.rsplit("this session, ", 1)[1]
     )
     with RunFile.open(path) as run:
-        assert run.completed_ids() == list(range(1, 10)) and run.incomplete_ids() == []
-        table = run.table()
+        assert run.records.ids() == list(range(1, 10)) and run.records.incomplete_ids() == []
+        table = run.records.table()
     assert table["set_P_A_kPa"].tolist() == [41.0] * 3 + [89.5] * 3 + [138.0] * 3
     again = runner.invoke(cli, ["acquire", str(path), "--port", port, "--resume"])
     assert again.output == f"All 9 points of the joint map are already stored in {path}; nothing to resume.\n"
@@ -371,12 +371,12 @@ def test_store_refuses_points_of_the_other_experiment(tmp_path):
     proto = acquisition_protocol(load_protocol("rpam2015"), "stretch")
     with RunFile.create(tmp_path / "s.h5", protocol=proto) as run:
         with pytest.raises(StoreError) as e:
-            run.write({"point": 1, "experiment": "joint", "P_MPa": [0.1, 0.0], "alpha_rad": 0.1})
+            run.records.write({"point": 1, "experiment": "joint", "P_MPa": [0.1, 0.0], "alpha_rad": 0.1})
         assert str(e.value) == f"point 1: a joint point cannot go into {tmp_path / 's.h5'}, a rpam-stretch run."
         with pytest.raises(StoreError) as e:
-            run.write({"point": 1, "experiment": "stretch", "P_MPa": [0.1, 0.0], "mass_kg": 0.1, "L_m": 0.1})
+            run.records.write({"point": 1, "experiment": "stretch", "P_MPa": [0.1, 0.0], "mass_kg": 0.1, "L_m": 0.1})
         assert str(e.value) == "point 1 record lacks a finite 'lambda', which a stretch point needs."
-        run.write(
+        run.records.write(
             {
                 "point": 2,
                 "experiment": "stretch",
@@ -387,8 +387,8 @@ def test_store_refuses_points_of_the_other_experiment(tmp_path):
                 "plan": {"mass_g": 250.0, "P_A_kPa": 100.0},
             }
         )
-        t = run.table()
-        assert run.completed_ids() == [2]
+        t = run.records.table()
+        assert run.records.ids() == [2]
     assert t.to_dict("records") == [
         {
             "point": 2,

@@ -84,7 +84,7 @@ def kpa(p_MPa: float) -> str:
 
 def table_of(path: Path) -> pd.DataFrame:
     with RunFile.open(path) as run:
-        return run.table()
+        return run.records.table()
 
 
 # --------------------------------------------------------------------------- export
@@ -120,7 +120,7 @@ def test_export_import_export_is_byte_identical(runs, tmp_path, experiment):
     assert r.output == f"Imported {n} points of the {title} from {first} into {imported}.\n"
     with RunFile.open(imported) as run:
         assert run.kind == f"rpam-{experiment}" and run.attrs["imported"] and run.attrs["protocol"] == "rpam-small"
-        assert run.completed_ids() == list(range(1, n + 1))
+        assert run.records.ids() == list(range(1, n + 1))
     assert invoke("export", imported, "-o", second).exit_code == 0
     assert first.read_bytes() == second.read_bytes()
 
@@ -310,7 +310,7 @@ def test_inspect_a_joint_map_cut_short(runs, tmp_path):
     full = table_of(runs["joint"])
     with RunFile.create(path, protocol=proto, port="sim://") as run:
         for row in full.head(4).itertuples():
-            run.write(
+            run.records.write(
                 {
                     "point": row.point,
                     "experiment": "joint",
@@ -322,7 +322,7 @@ def test_inspect_a_joint_map_cut_short(runs, tmp_path):
         # what a kill during the fifth write leaves: its row written, never committed
         with mock.patch.object(columns.Table, "commit", side_effect=KeyboardInterrupt):
             with pytest.raises(KeyboardInterrupt):
-                run.write({"point": 5, "experiment": "joint", "P_MPa": [0.01, 0.01], "alpha_rad": 0.0})
+                run.records.write({"point": 5, "experiment": "joint", "P_MPa": [0.01, 0.01], "alpha_rad": 0.0})
     r = invoke("inspect", path)
     assert r.exit_code == 0, r.output
     lines = r.output.splitlines()

@@ -339,7 +339,7 @@ def unattended_load_settles(tmp_path, url):
     store.close()
     dev.close()
     with RunFile.open(run_path) as run:
-        settles = [run.read(i)["settle"]["load"] for i in run.completed_ids()]
+        settles = [run.records.read(i)["settle"]["load"] for i in run.records.ids()]
     assert all(s["settled"] for s in settles)  # none timed out
     return np.array([s["settle_time_s"] for s in settles]), np.array(excess)
 

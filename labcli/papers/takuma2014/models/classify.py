@@ -398,12 +398,12 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
                 f"{p} is a {kind} run (protocol '{name}'), not a push run; classify reads the pushes of a "
                 "stiffness run such as one recorded with protocol takuma2014-stiffness."
             )
-        table = run.table()
+        table = run.records.table()
         identity = run_identity(run, p)
         if measured_angles and not all(c in table.columns for c in THETA_COLUMNS):
             theta = []
             for pid in table["push"]:
-                rec = run.read(int(pid))
+                rec = run.records.read(int(pid))
                 theta.append(np.degrees(rec["theta_rad"]) if "theta_rad" in rec else (math.nan, math.nan))
             theta = np.asarray(theta, dtype=float).reshape(-1, 2)
             table["theta1_deg"], table["theta2_deg"] = theta[:, 0], theta[:, 1]

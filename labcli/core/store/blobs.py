@@ -1,0 +1,47 @@
+"""Blobs: what a log row refers to (a split's ids, a model's JSON), kept beside its table.
+
+A blob is a one-dimensional dataset that only grows; each piece is written at its next
+chunk boundary (so no chunk holding a committed piece is written again, :mod:`.columns`),
+before the row that refers to it, and the row keeps the piece's ``[start, stop)`` and
+checksum.  A piece that no longer matches its checksum reads as None.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import h5py
+import numpy as np
+
+from .checksum import row_checksums
+from .columns import append
+from .h5 import text
+
+
+def blob_write(ds: h5py.Dataset, values: np.ndarray) -> tuple[int, int, int]:
+    """Append ``values`` to a blob at its next chunk boundary: (start, stop, checksum)."""
+    chunk = ds.chunks[0]
+    start = -(-int(ds.shape[0]) // chunk) * chunk
+    append(ds, start, np.asarray(values, dtype=ds.dtype))
+    return start, start + len(values), blob_checksum(values)
+
+
+def blob_checksum(values: np.ndarray) -> int:
+    v = np.ascontiguousarray(values)
+    return int(row_checksums([v.view(np.uint8).reshape(1, -1)], 0)[0])
+
+
+def blob_read(ds: h5py.Dataset, start: int, stop: int, checksum: int) -> np.ndarray | None:
+    """The blob's values ``[start, stop)``, or None when they do not match their checksum."""
+    try:
+        if not 0 <= start <= stop <= ds.shape[0]:
+            return None
+        values = ds[start:stop]
+    except (OSError, ValueError, RuntimeError):
+        return None
+    return values if blob_checksum(values) == int(checksum) else None
+
+
+def cell_text(v: Any) -> str:
+    """A text cell of a log table as str (fixed-length bytes lose their padding)."""
+    return text(v).rstrip("\x00") if isinstance(v, (bytes, np.bytes_)) else str(v)

@@ -1,0 +1,183 @@
+"""Opening a run file: what is checked before HDF5 is trusted with it, and the metadata's checksum.
+
+A path that is not a run file (missing, a folder, a device, not HDF5, another program's
+HDF5, a schema newer than this labcli) is refused in one sentence before anything reads it.
+Readers open without HDF5's file lock (so a run can be read while it is recorded); writers
+take it (:mod:`.space` says why one lock serves every writer).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ...errors import StoreError
+from ..paper import Column, RecordType
+from . import space
+from .checksum import row_checksums
+from .columns import Table
+from .frames import Frames
+from .h5 import text
+from .layout import SCHEMA, SCHEMA_VERSION, common_columns, record_columns, window_columns
+
+# Attributes a commit changes in place: left out of the metadata's checksum.
+MUTABLE_ATTRS = ("committed", "committed_checksum", "metadata_checksum")
+
+
+def metadata_checksum(f: h5py.File) -> int:
+    """A checksum over every attribute in the file but the commit counters (fixed at creation)."""
+    parts: list[bytes] = []
+
+    def add(name: str, obj: Any) -> None:
+        for key in sorted(obj.attrs):
+            if key in MUTABLE_ATTRS:
+                continue
+            v = np.asarray(obj.attrs[key])
+            if v.dtype.kind == "O":
+                data = b"\x1f".join(x.encode("utf-8") if isinstance(x, str) else bytes(x) for x in v.ravel())
+            else:
+                data = v.tobytes()
+            parts.append(f"{name}@{key}:{v.dtype.str}:".encode() + data)
+
+    add("/", f)
+    f.visititems(add)
+    blob = np.frombuffer(b"\x1e".join(parts), dtype=np.uint8)
+    return int(row_checksums([blob.reshape(1, -1)], 0)[0])
+
+
+def metadata_ok(f: h5py.File) -> bool:
+    """Whether a schema-2 file's attributes match the checksum taken when it was created."""
+    try:
+        return int(f.attrs["metadata_checksum"]) == metadata_checksum(f)
+    except Exception:  # noqa: BLE001 - a damaged attribute can fail in any way
+        return False
+
+
+def check_openable(path: str, mode: str) -> None:
+    """Refuse, in one sentence, a path that cannot be a run file open in ``mode``."""
+    if not os.path.exists(path):
+        raise StoreError(f"{path} does not exist; check the path.")
+    if os.path.isdir(path):
+        raise StoreError(f"{path} is a directory, not a run file.")
+    what = space.kind_of(path)
+    if what:
+        raise StoreError(f"{path} is {what}, not a run file.")
+    if not os.access(path, os.R_OK) or (mode == "a" and not os.access(path, os.W_OK)):
+        raise StoreError(f"{path} cannot be {'read' if mode == 'r' else 'written'}: permission denied.")
+    try:
+        is_hdf5 = h5py.is_hdf5(path)
+    except OSError:
+        is_hdf5 = False
+    if not is_hdf5:
+        raise StoreError(f"{path} is not an HDF5 file; run files are written by 'labcli acquire' or 'labcli import'.")
+
+
+def open_error(path: str, e: OSError) -> str:
+    """The sentence for an HDF5 file that would not open."""
+    if "unable to lock file" in str(e).lower():
+        # A write lock is refused while anyone holds the file, a reader included.
+        return f"{path} {space.BUSY}."
+    return f"{path} is damaged or truncated and HDF5 cannot open it; use a backup copy."
+
+
+def check_schema(f: h5py.File, path: str) -> int:
+    """The file's schema version, refused in one sentence unless this labcli reads it."""
+    schema, version = f.attrs.get("schema"), f.attrs.get("schema_version")
+    if schema is None or text(schema) != SCHEMA:
+        found = "no schema attribute" if schema is None else f"schema {text(schema)!r}"
+        raise StoreError(f"{path} is an HDF5 file but not a labcli run file ({found}, expected '{SCHEMA}').")
+    try:
+        version = int(version)
+    except (TypeError, ValueError):
+        raise StoreError(f"{path} has no valid schema_version attribute; the file is damaged.") from None
+    if version > SCHEMA_VERSION:
+        raise StoreError(
+            f"{path} uses run-file schema version {version}, newer than this labcli reads "
+            f"({SCHEMA_VERSION}); upgrade labcli."
+        )
+    if version < 1:
+        raise StoreError(f"{path} has schema_version {version}, which no labcli wrote; the file is damaged.")
+    return version
+
+
+def h5open(path: str, mode: str) -> h5py.File:
+    """The HDF5 file: a reader without the lock, a writer with it (where the file system has locks)."""
+    if mode == "r":
+        try:
+            return h5py.File(path, "r", locking=False)
+        except OSError as e:
+            if "locking flag" not in str(e):
+                raise
+            return h5py.File(path, "r")  # already open in this process (as a writer): share it
+    try:
+        return h5py.File(path, "a")
+    except OSError as e:
+        msg = str(e).lower()
+        # errno 11: another process holds the lock.  Any other lock failure means a file
+        # system without locks (some network mounts), where HDF5 advises opening without.
+        if "unable to lock file" in msg and "errno = 11" not in msg:
+            return h5py.File(path, "a", locking=False)
+        raise
+
+
+@dataclass
+class Tables:
+    """The open tables of a schema-2 run (opened afresh when a reader reopens the file)."""
+
+    records: Table
+    columns: dict[str, Column]  # the record table's columns, its imported extras included
+    frames: Frames
+    split: Table
+    models: Table
+    sessions: Table
+
+
+def open_tables(entry: h5py.Group, rt: RecordType, path: str) -> Tables:
+    """The tables of a schema-2 run's ``/entry``, its record table's columns checked."""
+    records = Table(entry[rt.collection])
+    _check_columns(records, rt, path)
+    return Tables(
+        records,
+        {c.name: c for c in record_columns(rt, _extra_columns(records, rt))},
+        Frames(entry["raw"]),
+        Table(entry["split"]),
+        Table(entry["models"]),
+        Table(entry["sessions"]),
+    )
+
+
+def _extra_columns(table: Table, rt: RecordType) -> list[Column]:
+    """The columns an imported table brought (what the record type does not know), as stored."""
+    known = {c.name for c in (*common_columns(rt.id_column), *rt.columns, *window_columns())}
+    out = []
+    for name in table.names:
+        if name in known:
+            continue
+        ds = table.ds[name]
+        kind = {"i": "int", "f": "float", "S": "text"}.get(ds.dtype.kind, "text")
+        units = text(ds.attrs.get("units", ""))
+        out.append(Column(name, units, kind=kind, width=ds.dtype.itemsize, optional=kind != "int"))
+    return out
+
+
+def _check_columns(table: Table, rt: RecordType, path: str) -> None:
+    """Refuse, naming the dataset, a record table whose columns another program changed."""
+    for c in (*common_columns(rt.id_column), *rt.columns, *window_columns()):
+        where = f"/entry/{rt.collection}/{c.name}"
+        if c.name not in table.ds:
+            raise StoreError(
+                f"{path} lacks the dataset {where}; the file was changed by another program or is damaged."
+            )
+        ds = table.ds[c.name]
+        want = c.dtype
+        if ds.shape[1:] != c.shape or ds.dtype.kind != want.kind or ds.dtype.itemsize != want.itemsize:
+            got = f"shape {ds.shape} of {ds.dtype}"
+            raise StoreError(
+                f"{path}: the dataset {where} holds {got} where a run file keeps (n, "
+                f"{', '.join(map(str, c.shape))}{',' if len(c.shape) == 1 else ''}) of {want}".replace("(n, )", "(n,)")
+                + f" ({c.what or c.name}); the file was changed by another program."
+            )
