@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -13,7 +14,7 @@ import pytest
 from support.records import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
 
 from labcli.core.store import RunFile
-from labcli.errors import StoreError
+from labcli.errors import LabcliWarning, StoreError
 
 ROOT = Path(__file__).resolve().parents[2]
 V1 = ROOT / "tests" / "data" / "v1"
@@ -268,6 +269,10 @@ def test_a_dataset_rewritten_by_hand_is_caught_never_a_traceback(tmp_path, name,
     shutil.copyfile(ROOT / "sample_runs" / "force.h5", run)
     _rewrite(run, name, how)
     model = ROOT / "sample_runs" / "force.model.json"
+    # Rescaled trial columns leave every row failing its checksum: each reader says so in one
+    # warning naming the rows and leaves them out (--verify lists them instead); a cut or retyped
+    # dataset ends every command in an error and no warning.
+    rows_damaged = how == "scale" and name.startswith("entry/trials/")
     for args in (
         ["inspect", run],
         ["export", run, "-o", tmp_path / "t.csv"],
@@ -275,7 +280,13 @@ def test_a_dataset_rewritten_by_hand_is_caught_never_a_traceback(tmp_path, name,
         ["validate", run, "--model", model],
         ["inspect", run, "--verify"],
     ):
-        result = CliRunner().invoke(cli, [str(a) for a in args])
+        expected = (
+            pytest.warns(LabcliWarning, match=r"run\.h5: 108 damaged records are left out \(row 0, trial 1")
+            if rows_damaged and "--verify" not in args
+            else contextlib.nullcontext()
+        )
+        with expected:
+            result = CliRunner().invoke(cli, [str(a) for a in args])
         assert result.exception is None or isinstance(result.exception, SystemExit), (args, result.output)
         assert "Traceback" not in result.output
     # --verify names it: damaged records, or a table no run file keeps ("changed by another program").
