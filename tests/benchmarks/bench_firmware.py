@@ -32,6 +32,7 @@ Needs gcc-avr, avr-libc and simavr (see firmware/README.md).
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import shutil
 import subprocess
@@ -172,7 +173,9 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=5.0, help="simulated seconds per probe")
     ap.add_argument("--bauds", default="115200,1000000")
     ap.add_argument("--max-rate", type=int, default=2000)
+    ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
+    figures: dict = {"simulated seconds per probe": args.seconds}
     if not (shutil.which("avr-gcc") and shutil.which("make") and Path("/usr/include/simavr/sim_avr.h").exists()):
         print(f"skipped: needs gcc-avr, avr-libc and simavr ({INSTALL})")
         return
@@ -195,6 +198,18 @@ def main() -> None:
                     f"{best.rate / avr_limit:>8.3f} {best.sim_per_wall:>9.2f}  {loss}",
                     flush=True,
                 )
+                key = f"{baud} {'long' if long_lines else 'fresh'}"
+                figures[f"{key} max Hz"] = best.rate
+                figures[f"{key} line bytes"] = best.line_bytes
+                figures[f"{key} baud limit Hz"] = baud_limit
+                figures[f"{key} AVR limit Hz"] = avr_limit
+                figures[f"{key} sampling ms"] = best.sampling_us / 1e3
+                figures[f"{key} sim per wall"] = best.sim_per_wall
+                figures[f"{baud} UART bytes per s"] = 1e6 / best.byte_us
+    if args.figures:
+        speeds = [v for k, v in figures.items() if k.endswith("sim per wall")]
+        figures["sim per wall min"], figures["sim per wall max"] = min(speeds), max(speeds)
+        Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n")
 
 
 if __name__ == "__main__":

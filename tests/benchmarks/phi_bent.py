@@ -8,12 +8,14 @@ phi from the force direction (Eqs. 39-41 as docs/errata.md reads them) and categ
 stiffness protocol's bands.  The force model's standard-error limits are lifted here, because
 the stiffness estimate has its own flags.
 
-    python tests/benchmarks/phi_bent.py [--seeds 1-3] [--angles pressure-only|measured-angles]
+    python tests/benchmarks/phi_bent.py [--seeds 1-3] [--angles pressure-only|measured-angles] [--figures FILE.json]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+from pathlib import Path
 
 import numpy as np
 from sensing_accuracy import BENT_SUPPLY_MPA, _Recorder, trials
@@ -53,14 +55,30 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1-3")
     ap.add_argument("--angles", default="pressure-only", choices=["pressure-only", "measured-angles"])
+    ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
     lo, hi = (int(s) for s in args.seeds.split("-"))
+    rows = []
     for seed in range(lo, hi + 1):
         used, n, right = run(seed, args.angles)
+        rows.append((used, n, right))
         print(
             f"seed {seed}: {used}/{n} pushes used ({100 * used / n:.0f} %), {right}/6 objects in category "
             f"(target >= 80 %, 6/6)"
         )
+    if args.figures:
+        figures = {
+            "seeds": args.seeds,
+            "angles": args.angles,
+            "pushes per seed": rows[0][1],
+            "pushes used min": min(u for u, _, _ in rows),
+            "pushes used max": max(u for u, _, _ in rows),
+            "pushes used pct min": min(100 * u / n for u, n, _ in rows),
+            "pushes used pct max": max(100 * u / n for u, n, _ in rows),
+            "objects right min": min(r for _, _, r in rows),
+            "seeds with every object right": sum(r == 6 for _, _, r in rows),
+        }
+        Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n")
 
 
 if __name__ == "__main__":

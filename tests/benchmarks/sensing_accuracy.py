@@ -9,11 +9,12 @@ reported trials and over all trials, and for the posture form the coverage of it
 (share of reported validation errors within +-1.96 standard errors, pooled over seeds).
 
     python tests/benchmarks/sensing_accuracy.py [--seeds 1-10] [--settle 8] [--ideal | --only EFFECT]
-                                                [--bent-supply 0.3,0.3,0.4,0.2]
+                                                [--bent-supply 0.3,0.3,0.4,0.2] [--figures FILE.json]
 
 ``--ideal`` turns the rig's non-idealities off (friction, leak, heat, backlash, link weight);
 ``--only friction`` (or leak, thermal, backlash, links) keeps that one alone, to see what each costs.
 ``--bent-supply`` runs the bent protocol at other regulator settings (MPa, L1,R1,L2,R2).
+``--figures`` also writes every printed figure to a flat JSON object {name: value} (the docs' figures).
 
 The baseline is the paper's form on the same trials; the sensing targets are printed beside.
 """
@@ -21,7 +22,9 @@ The baseline is the paper's form on the same trials; the sensing targets are pri
 from __future__ import annotations
 
 import argparse
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -108,6 +111,7 @@ def main(argv: list[str] | None = None) -> None:
         help="the rig with this one non-ideality and no other",
     )
     ap.add_argument("--bent-supply", help="the bent protocol's regulators, MPa: L1,R1,L2,R2")
+    ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args(argv)
     global BENT_SUPPLY_MPA
     if args.bent_supply:
@@ -118,9 +122,11 @@ def main(argv: list[str] | None = None) -> None:
         seeds = list(range(lo, hi + 1))
     else:
         seeds = [int(s) for s in args.seeds.split(",")]
+    figures: dict = {"seeds": args.seeds, "validation trials": 18 * len(seeds)}
     for protocol in ("takuma2014", "takuma2014-bent"):
         runs = [measure(protocol, s, args.settle, rig_kind) for s in seeds]
         rest = np.median([r["rest_deg"] for r in runs])
+        figures[f"{protocol} rest theta2 deg"] = float(rest)
         print(f"\n{protocol}: {len(seeds)} seeds x 18 validation trials, rest theta2 {rest:.1f} deg (median)")
         print(
             f"{'quantity':10s} {'form':8s} {'reported':>10s} {'RMSE rep.':>10s} {'RMSE all':>10s} "
@@ -134,6 +140,13 @@ def main(argv: list[str] | None = None) -> None:
                 low = min(len(p["err_ok"]) for p in per)
                 inside = np.concatenate([p["inside"] for p in per])
                 cover = f"{100 * inside.mean():.1f} %" if inside.size else "-"
+                key = f"{protocol} {form} {q}"
+                figures[f"{key} reported"] = n_ok
+                figures[f"{key} reported min per seed"] = low
+                figures[f"{key} rmse"] = rms([p["err_ok"] for p in per])
+                figures[f"{key} rmse all"] = rms([p["err_all"] for p in per])
+                if inside.size:
+                    figures[f"{key} cover pct"] = 100 * float(inside.mean())
                 print(
                     f"{q + ' ' + unit:10s} {form:8s} {n_ok:>5d}/{18 * len(seeds):<4d} "
                     f"{rms([p['err_ok'] for p in per]):10.3g} {rms([p['err_all'] for p in per]):10.3g} "
@@ -144,6 +157,10 @@ def main(argv: list[str] | None = None) -> None:
             f"posture form, all quantities: 95 % intervals cover {100 * inside.mean():.1f} % of "
             f"{inside.size} reported validation errors (target 90-98 %)"
         )
+        figures[f"{protocol} posture all cover pct"] = 100 * float(inside.mean())
+    if args.figures:
+        clean = {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in figures.items()}
+        Path(args.figures).write_text(json.dumps(clean, indent=1) + "\n")
 
 
 if __name__ == "__main__":
