@@ -19,9 +19,14 @@ Ranges = list[list[int]]  # sorted, disjoint, non-adjacent [first, last] pairs
 
 def to_ranges(ids: Any) -> Ranges:
     """The distinct trial numbers ``ids`` as sorted inclusive ``[first, last]`` pairs."""
-    a = np.unique(np.asarray(ids, dtype=np.int64))
+    a = np.asarray(ids, dtype=np.int64).ravel()
     if not a.size:
         return []
+    # Not np.unique: numpy 2 hashes, 427 ms on 8 x 10^5 sorted ids where checking the order takes 1 ms.
+    # A table lists its trials in order, so the sort is nearly always skipped.
+    if not np.all(a[1:] > a[:-1]):
+        a = np.sort(a)
+        a = a[np.r_[True, a[1:] != a[:-1]]]
     cut = np.flatnonzero(np.diff(a) != 1)
     return np.column_stack([np.r_[a[0], a[cut + 1]], np.r_[a[cut], a[-1]]]).tolist()
 

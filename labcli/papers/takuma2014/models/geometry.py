@@ -69,10 +69,13 @@ def jacobian_cond(theta2: np.ndarray, h2: float, h3: float) -> np.ndarray:
         return np.where(det > 0, smax2 / det, np.inf)
 
 
-def force_amplification(theta: np.ndarray, h2: float, h3: float) -> np.ndarray:
-    """Per-component amplification ``||row_k (J^-1)^T|| ||J||`` (n, 2) for Fx, Fy (inf if singular)."""
+def force_amplification(theta: np.ndarray, h2: float, h3: float, js: np.ndarray | None = None) -> np.ndarray:
+    """Per-component amplification ``||row_k (J^-1)^T|| ||J||`` (n, 2) for Fx, Fy (inf if singular).
+
+    ``js``: ``jstar(theta, h2, h3)`` when the caller has it already.
+    """
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
     smax2, det = _smax2_det(theta[:, 1], h2, h3)
     with np.errstate(invalid="ignore"):
-        amp = np.linalg.norm(jstar(theta, h2, h3), axis=2) * np.sqrt(smax2)[:, None]
+        amp = np.linalg.norm(jstar(theta, h2, h3) if js is None else js, axis=2) * np.sqrt(smax2)[:, None]
     return np.where(det[:, None] > 0, amp, np.inf)

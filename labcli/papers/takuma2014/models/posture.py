@@ -182,6 +182,7 @@ class _Blocks:
     n: int  # trials
     width: int  # p + k
     rows: Any = None  # rows(lo, hi): the rows again, for leave-one-out residuals
+    _folds: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
     @classmethod
     def build(cls, n: int, p: int, block: Any) -> _Blocks:
@@ -191,22 +192,44 @@ class _Blocks:
         factors = [np.linalg.qr(block(lo, hi), mode="r") for lo, hi in zip(edges[:-1], edges[1:], strict=False)]
         return cls(factors, p, n, factors[0].shape[1] if factors else p, block)
 
-    def _train(self, held: int, cols: list[int]) -> np.ndarray:
-        return np.vstack([r[:, cols] for f, r in enumerate(self.factors) if f != held])
-
     def responses(self, ys: list[int] | None = None) -> list[int]:
         """The columns of the responses: ``ys`` or all of Y."""
         return list(range(self.p, self.width)) if ys is None else list(ys)
 
+    def folds(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per fold f, zero-padded to (folds, p + k, p + k): the R of every other block's rows (the
+        fold's training set), the block's own R (its held-out trials), and the training rows' count.
+
+        Computed once: the term selection scores dozens of column subsets on the same folds, and a
+        subset's least squares on the training R's columns is the one on the training trials
+        (zero rows add nothing).
+        """
+        if self._folds is None:
+            k, w = len(self.factors), self.width
+            train, held, rows = np.zeros((k, w, w)), np.zeros((k, w, w)), np.zeros(k, dtype=np.int64)
+            for f, r in enumerate(self.factors):
+                stacked = np.vstack([g for i, g in enumerate(self.factors) if i != f])
+                t = np.linalg.qr(stacked, mode="r")
+                train[f, : len(t)], held[f, : len(r)], rows[f] = t, r, len(stacked)
+            self._folds = (train, held, rows)
+        return self._folds
+
     def cv_cov(self, xs: list[int], ys: list[int] | None = None) -> np.ndarray:
-        """Summed outer product of the held-out residuals, (k, k): each block predicted by a fit on the others."""
+        """Summed outer product of the held-out residuals, (k, k): each block predicted by a fit on the others.
+
+        Every fold at once: the training least squares by the SVD of the fold's training R
+        (``numpy.linalg.lstsq``'s own method and cut-off for small singular values, on the
+        matrix it would have reduced to), the held-out residuals from the block's R.
+        """
         ys = self.responses(ys)
-        out = np.zeros((len(ys), len(ys)))
-        for f, r in enumerate(self.factors):
-            beta, *_ = np.linalg.lstsq(self._train(f, xs), self._train(f, ys), rcond=None)
-            e = r[:, ys] - r[:, xs] @ beta
-            out += e.T @ e
-        return out
+        train, held, rows = self.folds()
+        U, s, Vt = np.linalg.svd(train[:, :, xs], full_matrices=False)
+        # lstsq (rcond=None) takes singular values below eps * max(rows, columns) * the largest as 0.
+        keep = s > np.finfo(float).eps * np.maximum(rows, len(xs))[:, None] * s[:, :1]
+        inv = np.divide(1.0, s, out=np.zeros_like(s), where=keep)
+        beta = np.swapaxes(Vt, 1, 2) @ (inv[:, :, None] * (np.swapaxes(U, 1, 2) @ train[:, :, ys]))
+        e = held[:, :, ys] - held[:, :, xs] @ beta
+        return np.einsum("fwi,fwj->ij", e, e)
 
     def cv_error(self, xs: list[int], ys: list[int] | None = None) -> float:
         """Summed squared held-out error of the contiguous-block cross-validation."""
@@ -425,14 +448,18 @@ class PostureModel:
         return bool(self.torque_coefficients) and bool(self.angle_coefficients)
 
     # ---------------------------------------------------------------- fitting
-    def fit(self, table: Any, source: str = "the trial table", choose_routes: bool = True) -> PostureModel:
+    def fit(
+        self, table: Any, source: str = "the trial table", choose_routes: bool = True, *, record_trials: bool = True
+    ) -> PostureModel:
         """Least squares on the table's fit trials (``set == 'fit'``); returns self, fitted.
 
         ``choose_routes`` also fits the paper's Eqs. 34-37 and picks, per quantity, the posture
         form, the paper's or their blend by the cross-validated error on the fit trials
-        (models/routes.py).
+        (models/routes.py).  ``record_trials=False`` leaves ``fitted_trials`` empty: the route
+        choice's cross-validation fits predict one block and are thrown away, and on a random
+        split listing their trials was a tenth of the fit.
         """
-        self._fit_posture(table, source)
+        self._fit_posture(table, source, record_trials)
         self.routes, self.paper_model, self.paper_variance, self.blends = {}, None, {}, {}
         self._paper = None
         if choose_routes:
@@ -441,7 +468,7 @@ class PostureModel:
             self._choose_routes(table, source)
         return self
 
-    def _fit_posture(self, table: Any, source: str) -> None:
+    def _fit_posture(self, table: Any, source: str, record_trials: bool = True) -> None:
         a = table_arrays(table, set_mask(table, "fit", source))
         use = (
             np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1)
@@ -479,7 +506,7 @@ class PostureModel:
         self.torque_coefficients, self.torque_xtx_inv = tq.beta.tolist(), tq.xtx_inv.tolist()
         self.torque_resid_cov = tq.resid_cov.tolist()
         self.force_prior_sd = np.sqrt(np.mean(F**2, axis=0)).tolist()
-        self.fitted_trials = idranges.to_ranges(a["trial"])
+        self.fitted_trials = idranges.to_ranges(a["trial"]) if record_trials else []
         self.fit_stats = {
             "n": len(P),
             "angle_dof": ang.dof,
@@ -498,16 +525,16 @@ class PostureModel:
 
         def posture_only(rows: Any) -> PostureModel:
             return PostureModel(geometry=self.geometry, protocol=self.protocol, limits=self.limits).fit(
-                rows, choose_routes=False
+                rows, choose_routes=False, record_trials=False
             )
 
-        def paper(rows: Any) -> TakumaModel:
-            return TakumaModel(geometry=self.geometry, protocol=self.protocol).fit(rows)
+        def paper(rows: Any, record_trials: bool = False) -> TakumaModel:
+            return TakumaModel(geometry=self.geometry, protocol=self.protocol).fit(rows, record_trials=record_trials)
 
         try:
             rows = rt.route_sample(np.flatnonzero(set_mask(table, "fit", source)))
             cv = rt.held_out_errors(table.iloc[rows], posture_only, paper)
-            full = paper(table)
+            full = paper(table, record_trials=True)
         except ModelError:
             # Too few trials, or a block whose absence leaves a design singular: the posture form alone.
             self.routes = {q: rt.POSTURE for q in rt.QUANTITIES}

@@ -55,6 +55,7 @@ from ....core.jsontext import MAX_DEPTH, JSONDepthError, dumps_indented, json_ki
 from ....core.version import __version__
 from ....errors import ModelError
 from .geometry import force_amplification, jacobian_cond, jstar
+from .student_t import t_975
 
 SCHEMA = "labcli-takuma-model"
 SCHEMA_VERSION = 1
@@ -162,20 +163,28 @@ def theta2_threshold(h2: float, h3: float, max_cond: float) -> float:
 
 
 def force_design(
-    P0: np.ndarray, P: np.ndarray, theta: np.ndarray, h2: float, h3: float, equations: Sequence[str] = ("Fx", "Fy")
+    P0: np.ndarray,
+    P: np.ndarray,
+    theta: np.ndarray,
+    h2: float,
+    h3: float,
+    equations: Sequence[str] = ("Fx", "Fy"),
+    js: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
-    """Design matrices (n, 6) of Eqs. 36 and 37 (those of ``equations``), columns beta_F*1..6."""
+    """Design matrices (n, 6) of Eqs. 36 and 37 (those of ``equations``), columns beta_F*1..6.
+
+    ``js``: ``jstar(theta, h2, h3)`` when the caller has it already (the fit needs it three times).
+    """
     dP = np.asarray(P0, dtype=float) - np.asarray(P, dtype=float)
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
     c1, c2 = np.cos(theta[:, 0]), np.cos(theta[:, 1])
-    js = jstar(theta, h2, h3)
+    js = jstar(theta, h2, h3) if js is None else js
 
     def rows(ja: np.ndarray, jb: np.ndarray) -> np.ndarray:
         # Written into one array: six (n,) temporaries and a stacked copy were 2x the design.
         X = np.empty((len(dP), 6))
-        for k, (weight, drop) in enumerate(
-            ((ja * c1, 0), (ja * c1, 1), (ja * (c1 - c2), 2), (ja * (c1 - c2), 3), (jb * c2, 2), (jb * c2, 3))
-        ):
+        outer, inner, lower = ja * c1, ja * (c1 - c2), jb * c2  # each weight serves two pressure drops
+        for k, (weight, drop) in enumerate(((outer, 0), (outer, 1), (inner, 2), (inner, 3), (lower, 2), (lower, 3))):
             np.multiply(weight, dP[:, drop], out=X[:, k])
         return X
 
@@ -416,15 +425,19 @@ class TakumaModel:
         """|theta2| below which cond(J) exceeds max_amplification (stand-in posture at theta2 = 0)."""
         return theta2_threshold(self.geometry["h2"], self.geometry["h3"], self.max_amplification)
 
-    def fit(self, table: Any, source: str = "the trial table") -> TakumaModel:
-        """Least squares on the table's ``set == 'fit'`` rows; returns self, fitted."""
-        # scipy.special alone: scipy.stats would add a second to every `labcli fit` for one quantile.
-        from scipy.special import stdtrit
+    def fit(self, table: Any, source: str = "the trial table", *, record_trials: bool = True) -> TakumaModel:
+        """Least squares on the table's ``set == 'fit'`` rows; returns self, fitted.
 
+        ``record_trials=False`` leaves ``fitted_trials`` empty (a fit made only to predict, as
+        the posture form's route choice makes ten).
+        """
         a = _table_arrays(table, set_mask(table, "fit", source))
         trial, P0, P, theta, F = a["trial"], a["P0"], a["P"], a["theta"], a["F"]
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
-        reasons = self._exclusions(trial, P0, P, theta, F)
+        theta_known = np.nan_to_num(theta, nan=1.0)  # a stand-in where an angle is missing: such trials are left out
+        with np.errstate(divide="ignore", invalid="ignore"):
+            js = jstar(theta_known, h2, h3)  # (J^-1)^T once, for the exclusions and both force designs
+        reasons = self._exclusions(trial, P0, P, theta, F, js)
         with np.errstate(divide="ignore", invalid="ignore"):
             u = pressure_ratio_features(P0, P)
 
@@ -434,7 +447,7 @@ class TakumaModel:
             if eq.startswith("theta"):
                 return u[:, :2] if eq == "theta1" else u
             with np.errstate(divide="ignore", invalid="ignore"):
-                return force_design(P0, P, np.nan_to_num(theta, nan=1.0), h2, h3, (eq,))[0]
+                return force_design(P0, P, theta_known, h2, h3, (eq,), js)[0]
 
         targets = {
             "theta1": np.sin(theta[:, 0]),
@@ -464,7 +477,7 @@ class TakumaModel:
                 )
             X, y = (design(eq), targets[eq]) if use.all() else (design(eq)[use], targets[eq][use])
             res = _lstsq(X, y, names, eq, self.max_design_cond)
-            tq = float(stdtrit(res.dof, 0.975))
+            tq = t_975(res.dof)
             se = np.sqrt(np.maximum(np.diag(res.cov), 0.0))
             for k, name in enumerate(names):
                 coefs[name] = float(res.beta[k])
@@ -472,7 +485,8 @@ class TakumaModel:
                 ci[name] = [float(res.beta[k] - tq * se[k]), float(res.beta[k] + tq * se[k])]
             covs[eq] = res.cov.tolist()
             stats_out[eq] = _equation_stats(eq, res, y, theta if use.all() else theta[use], n, tq)
-            fitted_ids[eq] = idranges.to_ranges(trial if use.all() else trial[use])
+            if record_trials:
+                fitted_ids[eq] = idranges.to_ranges(trial if use.all() else trial[use])
             excluded[eq] = [{"trial": t, "reason": r} for t, r in sorted(reasons[eq].items())]
             del X, y, res  # before the next equation's design is built
 
@@ -484,9 +498,10 @@ class TakumaModel:
         return self
 
     def _exclusions(
-        self, trial: np.ndarray, P0: np.ndarray, P: np.ndarray, theta: np.ndarray, F: np.ndarray
+        self, trial: np.ndarray, P0: np.ndarray, P: np.ndarray, theta: np.ndarray, F: np.ndarray, js: np.ndarray
     ) -> dict[str, dict[int, str]]:
-        """Per equation, the fit trials it leaves out and why (a sentence per trial)."""
+        """Per equation, the fit trials it leaves out and why (a sentence per trial); ``js`` is (J^-1)^T at
+        the trials' angles (any stand-in where one is missing: such a trial is left out by that alone)."""
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         reasons: dict[str, dict[int, str]] = {eq: {} for eq in EQUATIONS}
         bad_p = ~(
@@ -503,7 +518,7 @@ class TakumaModel:
                 reasons[eq][int(t)] = f"{ANGLE_COLUMNS[k]} is missing"
         angles_known = np.all(np.isfinite(theta), axis=1)
         theta2_threshold(h2, h3, self.max_amplification)  # a bound <= 1 is refused here
-        amp = force_amplification(np.where(angles_known[:, None], theta, 0.0), h2, h3)
+        amp = force_amplification(np.where(angles_known[:, None], theta, 0.0), h2, h3, js)
         for k, eq in enumerate(("Fx", "Fy")):
             # A sentence per excluded trial only; the usable ones are settled by one mask.
             usable = angles_known & np.isfinite(F[:, k]) & (amp[:, k] <= self.max_amplification)
@@ -577,13 +592,15 @@ class TakumaModel:
             th_force = np.where(known[:, None], th_meas, 0.0)
             ok_source = known & ~bad_p
 
-        amp = force_amplification(th_force, h2, h3)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            js = jstar(th_force, h2, h3)
+        amp = force_amplification(th_force, h2, h3, js)
         singular = ~(amp <= self.max_amplification)  # (n, 2): Fx, Fy
         for i in np.flatnonzero(singular.any(axis=1) & ok_source):
             flags[i].append("singular-jacobian")
         bx, by = (np.array([b[k] for k in TERMS[eq]]) for eq in ("Fx", "Fy"))
         with np.errstate(divide="ignore", invalid="ignore"):
-            Xfx, Xfy = force_design(P0s, Ps, th_force, h2, h3)
+            Xfx, Xfy = force_design(P0s, Ps, th_force, h2, h3, js=js)
             F = np.column_stack([Xfx @ bx, Xfy @ by])
         bad = ~np.isfinite(F)
         if bad.any():
