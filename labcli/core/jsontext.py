@@ -56,6 +56,11 @@ def nesting_depth(text: str) -> int:
     brackets = _BRACKETS.sub("", _STRING.sub("", text))
     if not brackets:
         return 0
+    if len(brackets) > 10_000:  # a model of a random split has 10^6 brackets: counted whole-array
+        import numpy as np
+
+        codes = np.frombuffer(brackets.encode("ascii"), dtype=np.uint8)
+        return int(np.max(np.cumsum(np.where((codes == ord("[")) | (codes == ord("{")), 1, -1))))
     return max(accumulate(1 if c in "[{" else -1 for c in brackets))
 
 
@@ -103,13 +108,23 @@ def json_kind(v: Any) -> str:
 LONG_LIST = 100  # a list of more whole numbers than this goes on one line of indented JSON
 
 
+class PlainList(list):  # type: ignore[type-arg]
+    """A list whose items are plain JSON already (numbers, strings, lists of them): written as it is.
+
+    :func:`dumps_indented` puts a long one on one line without looking at its items, and a
+    model's ``to_dict`` keeps it without cleaning them (:class:`labcli.core.idranges.Ranges`).
+    """
+
+
 def dumps_indented(value: Any, *, allow_nan: bool = True) -> str:
-    """``json.dumps(value, indent=2)``, with each long list of whole numbers (trial ids) on one line.
+    """``json.dumps(value, indent=2)``, with each long list of whole numbers (trial ids) or :class:`PlainList`
+    (trial ranges) on one line.
 
     A list of many ids one per line would make a document mostly line breaks, and indented
-    output goes through json's pure-Python encoder, item by item.  Model files now list their
-    fitted trials as ranges (:mod:`labcli.core.idranges`), so this guards a document that
-    still holds such a list.  The same JSON value either way.
+    output goes through json's pure-Python encoder, item by item.  Model files list their fitted
+    trials as ranges (:mod:`labcli.core.idranges`): one pair for a contiguous split, but 10^5
+    for a random split of an archive, which the indented encoder took seven seconds to write
+    one number a line.  The same JSON value either way.
     """
     long_lists: list[list[int]] = []
     mark = f"long-list-{secrets.token_hex(8)}-"  # a fresh mark: no text in the document can hold it
@@ -118,7 +133,7 @@ def dumps_indented(value: Any, *, allow_nan: bool = True) -> str:
         if isinstance(v, dict):
             return {k: swap(x) for k, x in v.items()}
         if isinstance(v, (list, tuple)):
-            if len(v) > LONG_LIST and all(type(x) is int for x in v):
+            if len(v) > LONG_LIST and (isinstance(v, PlainList) or all(type(x) is int for x in v)):
                 long_lists.append(list(v))
                 return f"{mark}{len(long_lists) - 1}"
             return [swap(x) for x in v]

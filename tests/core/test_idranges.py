@@ -61,9 +61,25 @@ def test_pairs_are_merged_without_listing_them():
         [[1, "2"]],
         [1, [2, 3]],
         [10**30],
+        [[0, 4], [6, True]],
+        [[0, 4], [6, 10**30]],
+        [[0, 4], [6, 2.0]],
     ],
 )
 def test_anything_else_is_refused_in_the_callers_words(value):
     with pytest.raises(Bad) as e:
         idranges.parse(value, "fitted_trials.Fx", bad)
     assert str(e.value) == "fitted_trials.Fx must list whole trial numbers, or [first, last] ranges of them"
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_ranges_as_written_read_back_as_themselves_and_others_are_merged(seed):
+    # Ranges as to_ranges writes them take the whole-array path; shuffled, overlapping or
+    # touching pairs the one-by-one merge: both give to_ranges' answer for the same members.
+    rng = np.random.default_rng(seed)
+    ids = np.flatnonzero(rng.random(3000) < 0.8)
+    written = idranges.to_ranges(ids)
+    assert idranges.parse([list(r) for r in written], "k", bad) == written
+    pairs = [list(r) for r in written] + [[int(a), int(a) + int(rng.integers(0, 3))] for a in ids[::7]]
+    rng.shuffle(pairs)
+    assert idranges.parse(pairs, "k", bad) == idranges.to_ranges(sorted(members(pairs)))

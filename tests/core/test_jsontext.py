@@ -64,3 +64,37 @@ def test_numbers_that_fit_parse_as_plain_json_and_huge_ones_are_still_marked():
     assert loads_bounded('{"a": [1, 2.5e300, -7]}') == {"a": [1, 2.5e300, -7]}
     out = loads_bounded('{"a": [1, 9e999], "b": "1e999"}')
     assert out["a"][0] == 1 and isinstance(out["a"][1], OutOfRange) and out["b"] == "1e999"
+
+
+def test_long_texts_count_their_depth_whole_array_as_short_ones_do_char_by_char():
+    import random
+
+    def depth(text: str) -> int:  # the highest running count of open brackets, one bracket at a time
+        runs, run = [], 0
+        for c in text:
+            if c in "[]{}":
+                run += 1 if c in "[{" else -1
+                runs.append(run)
+        return max(runs) if runs else 0
+
+    rng = random.Random(4)
+    for size in (60, 30_000):  # below and above the whole-array length
+        for _ in range(20):
+            text = "".join(rng.choice("[]{}x ") for _ in range(size))
+            assert nesting_depth(text) == depth(text)
+    deep = "[" * 20_000 + "{}" + "]" * 20_000
+    assert nesting_depth(deep) == depth(deep) == 20_001
+    assert nesting_depth('["[[[[", ' * 3_000 + "1" + "]" * 3_000) == 3_000  # brackets in strings do not count
+
+
+def test_trial_ranges_go_on_one_line_and_read_back_as_written():
+    from labcli.core import idranges
+    from labcli.core.jsontext import LONG_LIST, dumps_indented
+
+    ids = [t for t in range(12 * LONG_LIST) if t % 6 != 5]  # every sixth trial held out: 2 x LONG_LIST pairs
+    ranges = idranges.to_ranges(ids)
+    text = dumps_indented({"fitted_trials": ranges, "few": idranges.to_ranges([1, 2, 3, 7])})
+    assert '"fitted_trials": [[0, 4], [6, 10], [12, 16]' in text
+    assert '"few": [\n    [\n      1,' in text  # a short list keeps json's own layout
+    back = json.loads(text)
+    assert idranges.parse(back["fitted_trials"], "fitted_trials", None) == ranges == back["fitted_trials"]

@@ -51,7 +51,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from ....core import idranges
-from ....core.jsontext import MAX_DEPTH, JSONDepthError, dumps_indented, json_kind, loads_bounded
+from ....core.jsontext import MAX_DEPTH, JSONDepthError, PlainList, dumps_indented, json_kind, loads_bounded
 from ....core.version import __version__
 from ....errors import ModelError
 from .geometry import force_amplification, jacobian_cond, jstar
@@ -369,6 +369,8 @@ def _clean(value: Any) -> Any:
     """Plain JSON types: numpy scalars to Python, non-finite floats to None."""
     if isinstance(value, dict):
         return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, PlainList):  # trial ranges: plain already, however many
+        return type(value)(value)
     if isinstance(value, (list, tuple)):
         if all(type(v) is int for v in value):  # trial ids: already plain, however many
             return list(value)
