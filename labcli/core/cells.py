@@ -44,21 +44,56 @@ class TableSpec:
 
 
 def infer_extra_column(cells: list[str]) -> pd.Series:
-    """Numbers only when every cell reads back to exactly its own text (nothing lost); empty: NaN."""
+    """Numbers only when every cell reads back to exactly its own text (nothing lost); empty: NaN.
+
+    Whole columns at a time: ``str(int(c)) == c`` and ``repr(float(c)) == c`` hold exactly for
+    the cells the per-cell rules accept (:func:`_is_canonical_int`, :func:`_is_canonical_float`),
+    and mapped over a column they cost a tenth of a regex per cell (10^5 pushes with four extra
+    columns: a second of ``classify``).
+    """
     import pandas as pd
 
     filled = [c for c in cells if c != ""]
     if not filled:
         # No value says what the column is; missing numbers, as pandas reads it.
         return pd.Series([math.nan] * len(cells), dtype="float64")
-    if len(filled) == len(cells) and all(_is_canonical_int(c) for c in filled):
-        return pd.Series([int(c) for c in cells], dtype="int64")
-    if all(_is_canonical_float(c) for c in filled):
-        return pd.Series([float(c) if c else math.nan for c in cells], dtype="float64")
+    if len(filled) == len(cells):
+        ints = _canonical_ints(filled)
+        if ints is not None:
+            return pd.Series(ints, dtype="int64")
+    values = _canonical_floats(filled)
+    if values is not None:
+        if len(filled) < len(cells):
+            it = iter(values)
+            values = [next(it) if c else math.nan for c in cells]
+        return pd.Series(values, dtype="float64")
     return pd.Series(cells, dtype=object)
 
 
+def _canonical_ints(cells: list[str]) -> list[int] | None:
+    """The cells as ints when every one is an integer's own decimal text within int64, else None."""
+    try:  # fails at the first cell that is no integer; anything int() reads otherwise fails the comparison
+        values = list(map(int, cells))
+    except (TypeError, ValueError):
+        return None
+    if list(map(str, values)) != cells or max(map(abs, values)) > INT64_MAX:
+        return None
+    return values
+
+
+def _canonical_floats(cells: list[str]) -> list[float] | None:
+    """The cells as floats when every one is a finite float's own repr, else None."""
+    try:
+        values = list(map(float, cells))
+    except (TypeError, ValueError):
+        return None
+    if not all(map(math.isfinite, values)) or list(map(repr, values)) != cells:
+        return None
+    return values
+
+
 def _is_canonical_int(s: str) -> bool:
+    """The rule for one cell (the whole-column check above holds exactly where this does)."""
     if not re.fullmatch(r"-?[0-9]+", s):
         return False
     v = int(s)
@@ -66,6 +101,7 @@ def _is_canonical_int(s: str) -> bool:
 
 
 def _is_canonical_float(s: str) -> bool:
+    """The rule for one cell (the whole-column check above holds exactly where this does)."""
     if not NUMBER.fullmatch(s):
         return False
     v = float(s)

@@ -236,6 +236,63 @@ class CategoryModel:
             category=cats, confidence=conf, z=zs, method=self.method, note=notes, evidence=evidence, distances=distances
         )
 
+    def predict_groups(
+        self, k: np.ndarray, group: np.ndarray, n_groups: int, names: Sequence[str] | None = None
+    ) -> CategoryPrediction:
+        """:meth:`predict` of every group of ``k`` (objects numbered 0 .. n_groups - 1) at once.
+
+        The same numbers and words as ``predict([k[group == g] for g in range(n_groups)])``: the
+        bands are scored whole-array (:func:`~.stiffness.groups_by_size` keeps each object's
+        sums numpy's own), the reference method object by object.
+        """
+        from .stiffness import groups_by_size
+
+        k, group = np.asarray(k, dtype=float).reshape(-1), np.asarray(group).reshape(-1)
+        keep = np.isfinite(k) & (k > 0)
+        if self.method != "bands" or not np.all(np.bincount(group[keep], minlength=n_groups) > 0):
+            order = np.argsort(group, kind="stable")
+            cuts = np.cumsum(np.bincount(group, minlength=n_groups))[:-1]
+            return self.predict(np.split(k[order], cuts), names)
+        median, spread, inside = np.empty(n_groups), np.empty(n_groups), np.full((n_groups, len(self.bands)), 0.0)
+        for ids, rows in groups_by_size(k[keep], group[keep], n_groups):
+            median[ids] = np.median(rows, axis=1)
+            spread[ids] = np.log(rows).std(axis=1, ddof=1) if rows.shape[1] > 1 else 0.0
+            for b, (lo, hi) in enumerate(self.bands.values()):
+                inside[ids, b] = np.mean((rows >= lo) & (rows < hi), axis=1)
+        return self._bands_prediction(median, np.maximum(spread, self.min_std_log_k), inside)
+
+    def _bands_prediction(self, median: np.ndarray, spread: np.ndarray, inside: np.ndarray) -> CategoryPrediction:
+        """The bands' verdicts from each object's median, spread of ln k and share of pushes in each band."""
+        bands = list(self.bands.items())
+        m = np.log(median)
+        dist = np.zeros((len(median), len(bands)))
+        for b, (_, (lo, hi)) in enumerate(bands):
+            below = math.log(lo) - m if lo > 0 else np.full(len(m), -math.inf)
+            above = m - math.log(hi) if math.isfinite(hi) else np.full(len(m), -math.inf)
+            dist[:, b] = np.maximum(np.maximum(below, above), 0.0) / spread
+        holding = np.column_stack([(lo <= median) & (median < hi) for _, (lo, hi) in bands])
+        first = np.where(holding.any(axis=1), np.argmax(holding, axis=1), -1)
+        names = [name for name, _ in bands]
+        cats, notes, evidence = [], [], []
+        for i, b in enumerate(first.tolist()):
+            cat = names[b] if b >= 0 else ""
+            near = [n for j, n in enumerate(names) if n != cat and dist[i, j] < BAND_CLOSE_Z]
+            note = "" if cat else f"median stiffness {float(median[i]):.0f} N/m lies outside every band"
+            cats.append(cat)
+            notes.append(f"within one spread of band {near[0]!r}" if cat and near else note)
+            evidence.append("uncertain" if not cat or near else "")
+        conf = np.where(first >= 0, inside[np.arange(len(first)), np.maximum(first, 0)], 0.0)
+        distances = [dict(zip(names, row, strict=True)) for row in dist.tolist()]
+        return CategoryPrediction(
+            category=cats,
+            confidence=conf,
+            z=np.full(len(median), np.nan),
+            method=self.method,
+            note=notes,
+            evidence=evidence,
+            distances=distances,
+        )
+
     def _reference_distances(self, k: np.ndarray) -> dict[str, float]:
         """z of the object's mean ln k from each class mean, in class spreads (signed)."""
         m = float(np.log(k).mean())

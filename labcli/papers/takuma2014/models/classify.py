@@ -23,9 +23,10 @@ the JSON of the command, with mm, deg, N and N/m in the key names.
 
 from __future__ import annotations
 
+import json
 import math
 from collections import Counter
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -40,7 +41,7 @@ from ....errors import ConfigError, ModelError
 from ..records import load_pushes
 from .categories import CategoryModel
 from .posture import PostureModel, load_force_model
-from .stiffness import PushEstimates, StiffnessParams, estimate_pushes, object_stats
+from .stiffness import PushEstimates, StiffnessParams, estimate_pushes, groups_by_size, object_stats_many
 from .takuma import TakumaModel, cap
 
 P0_COLUMNS = ("P_L10", "P_R10", "P_L20", "P_R20")
@@ -179,19 +180,19 @@ def classify_pushes(
     )
 
     labels = _labels(table)
-    objects = [str(o) for o in pd.unique(table["object"].astype(str))]
-    # Row numbers of every object in one pass; a mask per object would cost objects x pushes.
-    members = pd.Series(np.arange(len(table))).groupby(table["object"].astype(str).to_numpy(), sort=False).indices
-    known = _known_categories(objects, members, labels)
+    # Each push's object as a number (in order of first appearance) and every object's rows in one
+    # pass; a mask per object would cost objects x pushes.
+    codes, uniques = pd.factorize(table["object"].astype(str).to_numpy())
+    objects = [str(o) for o in uniques]
+    members = pd.Series(np.arange(len(table))).groupby(codes, sort=False).indices
+    known = _known_categories(objects, {name: members[g] for g, name in enumerate(objects)}, labels)
     use = ~est.flag & np.isfinite(est.k)
     if method == "auto":
         method = "reference" if any(known.values()) else "bands"
     cat_model = _category_model(method, bands, est.k, use, labels)
     true_k = np.asarray(table[TRUE_K], dtype=float) if TRUE_K in table.columns else None
-    rows = [
-        _object_row(name, members[name], known[name], est, use, labels, cat_model, true_k, allow_unusable)
-        for name in objects
-    ]
+    objs = _Objects(objects, codes, members, [known[name] for name in objects])
+    rows = _object_rows(objs, est, use, labels, cat_model, true_k, allow_unusable)
 
     push_cols = [c for c in ("push", "object", "category", "source", TRUE_K) if c in table.columns]
     model_cols = pd.DataFrame(
@@ -289,7 +290,106 @@ def _category_model(
     return CategoryModel("reference").fit(np.where(use, k, np.nan)[ref], list(labels[ref]))
 
 
-def _object_row(
+@dataclass(frozen=True)
+class _Objects:
+    """The pushed objects: names in order of first appearance, each push's object number, each
+    object's push rows, and the category its pushes give ("" for an unknown object)."""
+
+    names: list[str]
+    codes: np.ndarray
+    members: Mapping[int, np.ndarray]
+    known: list[str]
+
+
+def _object_rows(
+    objs: _Objects,
+    est: PushEstimates,
+    use: np.ndarray,
+    labels: np.ndarray,
+    cat_model: CategoryModel,
+    true_k: np.ndarray | None,
+    allow_unusable: bool,
+) -> list[dict[str, Any]]:
+    """Every object's statistics over its unflagged pushes, its category and how sure that is.
+
+    The statistics and the bands' verdicts come whole-array (:func:`object_stats_many`,
+    :meth:`CategoryModel.predict_groups`: the numbers :func:`object_stats` and ``predict`` give
+    one object at a time); a reference object is judged against the other references.
+    """
+    n = len(objs.names)
+    stats = object_stats_many(est.k, est.flag | ~np.isfinite(est.k), objs.codes, n)
+    n_use = np.bincount(objs.codes[use], minlength=n)
+    scored = np.flatnonzero(stats["n_used"] > 0)
+    verdicts = None
+    if cat_model.method == "bands":
+        number = np.full(n, -1)
+        number[scored] = np.arange(len(scored))
+        pick = use & (number[objs.codes] >= 0)
+        verdicts = cat_model.predict_groups(est.k[pick], number[objs.codes[pick]], len(scored))
+    mean_true = _group_nanmean(true_k, objs.codes, n) if true_k is not None else None
+    rows = []
+    for g, name in enumerate(objs.names):
+        row: dict[str, Any] = {"object": name, "known_category": objs.known[g]}
+        row.update({key: _plain(key, values[g]) for key, values in stats.items()})
+        if mean_true is not None:
+            row["true_k_N_per_m"] = float(mean_true[g])
+        sel = objs.members[g]
+        if n_use[g] == 0:
+            row.update(_unusable(name, sel, est, cat_model, allow_unusable))
+        elif stats["n_used"][g] == 0:
+            cat_model.predict([est.k[sel[use[sel]]]], names=[name])  # raises: no finite positive stiffness
+        elif verdicts is not None:
+            row.update(_verdict(verdicts, int(np.searchsorted(scored, g))))
+        else:
+            row.update(_reference_verdict(name, sel, objs.known[g], est, use, labels, cat_model))
+        rows.append(row)
+    return rows
+
+
+def _plain(key: str, value: Any) -> int | float:
+    return int(value) if key.startswith("n_") else float(value)
+
+
+def _group_nanmean(values: np.ndarray, codes: np.ndarray, n: int) -> np.ndarray:
+    """np.nanmean of each object's values (row by row: numpy's own sums for each object)."""
+    out = np.full(n, math.nan)
+    for ids, rows in groups_by_size(values, codes, n):
+        out[ids] = np.nanmean(rows, axis=1)
+    return out
+
+
+def _unusable(name: str, sel: np.ndarray, est: PushEstimates, cat_model: CategoryModel, allow: bool) -> dict[str, Any]:
+    """An object whose pushes are all flagged: ModelError, or (``allow``) a row that says why."""
+    counts = Counter(r for r in est.reason[sel] if r)
+    top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
+    if not allow:
+        raise ModelError(f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top}).")
+    return {
+        "category": "",
+        "confidence": 0.0,
+        "z": math.nan,
+        "method": cat_model.method,
+        "note": f"no usable push ({top})",
+        "evidence": "uncertain",
+        "z_by_category": {},
+    }
+
+
+def _verdict(p: Any, i: int, note: str = "", in_sample: bool = False) -> dict[str, Any]:
+    """Object ``i`` of a :class:`CategoryPrediction` as the row's category fields."""
+    return {
+        "category": p.category[i],
+        "confidence": float(p.confidence[i]),
+        "z": float(p.z[i]),
+        "method": p.method,
+        "note": "; ".join(t for t in (note, p.note[i]) if t),
+        # in-sample first: a class scored against its own only reference proves nothing
+        "evidence": "in-sample" if in_sample else p.evidence[i],
+        "z_by_category": p.distances[i],
+    }
+
+
+def _reference_verdict(
     name: str,
     sel: np.ndarray,
     known: str,
@@ -297,32 +397,10 @@ def _object_row(
     use: np.ndarray,
     labels: np.ndarray,
     cat_model: CategoryModel,
-    true_k: np.ndarray | None,
-    allow_unusable: bool,
 ) -> dict[str, Any]:
-    """One object's statistics over its unflagged pushes, its category and how sure that is."""
-    stats = object_stats(est.k[sel], est.flag[sel] | ~np.isfinite(est.k[sel]))
-    row: dict[str, Any] = {"object": name, "known_category": known, **stats}
-    if true_k is not None:
-        row["true_k_N_per_m"] = float(np.nanmean(true_k[sel]))
-    samples = est.k[sel[use[sel]]]
-    if samples.size == 0:
-        counts = Counter(r for r in est.reason[sel] if r)
-        top = counts.most_common(1)[0][0] if counts else "no finite stiffness"
-        if not allow_unusable:
-            raise ModelError(f"Object {name!r} has no usable push: all {len(sel)} are flagged (most often: {top}).")
-        row.update(
-            category="",
-            confidence=0.0,
-            z=math.nan,
-            method=cat_model.method,
-            note=f"no usable push ({top})",
-            evidence="uncertain",
-            z_by_category={},
-        )
-        return row
+    """A category from the reference objects; a reference object is judged against the other references."""
     scorer, note = cat_model, ""
-    if cat_model.method == "reference" and known:
+    if known:
         # A reference object is judged against the other references, where there are some of its category.
         others = use & (labels != "")
         others[sel] = False
@@ -335,18 +413,8 @@ def _object_row(
                 note = ""
             except ModelError:
                 pass  # too few references left without this object: keep the in-sample answer
-    p = scorer.predict([samples], names=[name])
-    row.update(
-        category=p.category[0],
-        confidence=float(p.confidence[0]),
-        z=float(p.z[0]),
-        method=p.method,
-        note="; ".join(t for t in (note, p.note[0]) if t),
-        # in-sample first: a class scored against its own only reference proves nothing
-        evidence="in-sample" if note.startswith("in-sample") else p.evidence[0],
-        z_by_category=p.distances[0],
-    )
-    return row
+    p = scorer.predict([est.k[sel[use[sel]]]], names=[name])
+    return _verdict(p, 0, note, in_sample=note.startswith("in-sample"))
 
 
 # --------------------------------------------------------------------------- from files
@@ -624,6 +692,88 @@ def push_items(report: ClassifyReport, chunk: int = 10_000) -> Iterator[dict[str
             yield _push_item(row)
 
 
+def push_lines(report: ClassifyReport, chunk: int = 10_000) -> Iterator[list[str]]:
+    """``json.dumps(item)`` of every :func:`push_items` item, the same text, a chunk of pushes at a time.
+
+    Written column by column: each number's ``repr`` once, each distinct text's JSON once, then one
+    %-format per push.  One ``json.dumps`` and twenty conversions per push were half of ``classify
+    --json`` on 10^5 pushes.  A chunk with a number JSON cannot hold (a scaled value overflowing)
+    goes item by item, which refuses it as before.
+    """
+    df = report.result.pushes
+    fields = _line_fields(df)
+    template = "{" + ", ".join(f"{json.dumps(key)}: %s" for key, _ in fields) + "}"
+    for start in range(0, len(df), chunk):
+        part = df.iloc[start : start + chunk]
+        try:
+            columns = [convert(part) for _, convert in fields]
+        except OverflowError:
+            yield [json.dumps(item, allow_nan=False) for item in _chunk_items(part)]
+            continue
+        yield [template % values for values in zip(*columns, strict=True)]
+
+
+def _line_fields(df: Any) -> list[tuple[str, Callable[[Any], list[str]]]]:
+    """The keys of a push item in order, each with the JSON texts of its values for a chunk of rows."""
+
+    def ints(col: str) -> Callable[[Any], list[str]]:
+        return lambda part: list(map(str, map(int, part[col].tolist())))
+
+    def flags(col: str) -> Callable[[Any], list[str]]:
+        return lambda part: ["true" if v else "false" for v in part[col].tolist()]
+
+    def texts(col: str, given: bool = False) -> Callable[[Any], list[str]]:
+        def convert(part: Any) -> list[str]:
+            if col not in part.columns:
+                return ['""'] * len(part)
+            codes, uniques = _factorize(part[col])
+            words = [json.dumps((v if isinstance(v, str) else "") if given else str(v)) for v in uniques]
+            return [words[c] for c in codes.tolist()]
+
+        return convert
+
+    def numbers(col: str, scale: float = 1.0) -> Callable[[Any], list[str]]:
+        def convert(part: Any) -> list[str]:
+            if col not in part.columns:
+                return ["null"] * len(part)
+            v = np.asarray(part[col], dtype=float)
+            finite = np.isfinite(v)
+            with np.errstate(over="ignore"):
+                scaled = v * scale
+            if not np.all(np.isfinite(scaled[finite])):
+                raise OverflowError(col)
+            # json's own C encoder prints each float (its repr) in one call; NaN and inf become null.
+            texts = json.dumps(scaled.tolist())[1:-1].split(", ") if len(v) else []
+            for i in np.flatnonzero(~finite).tolist():
+                texts[i] = "null"
+            return texts
+
+        return convert
+
+    fields = [("push", ints("push")), ("object", texts("object"))]
+    if "source" in df.columns:
+        fields.append(("source", texts("source")))
+    fields.append(("category_given", texts("category", given=True)))
+    fields += [(key, numbers(col, scale)) for key, col, scale in PUSH_FIELDS]
+    fields += [("phi_solved", flags("phi_solved")), ("n_phi_solutions", ints("n_phi_solutions"))]
+    fields += [("flagged", flags("flag")), ("reason", texts("reason")), ("note", texts("note"))]
+    if TRUE_K in df.columns:
+        fields.append(("true_k_N_per_m", numbers(TRUE_K)))
+    return fields
+
+
+def _factorize(values: Any) -> tuple[np.ndarray, Any]:
+    """Codes and distinct values (a missing value one of them), so each distinct text is converted once."""
+    import pandas as pd
+
+    return pd.factorize(values, use_na_sentinel=False)
+
+
+def _chunk_items(part: Any) -> Iterator[dict[str, Any]]:
+    for row in part.to_dict("records"):
+        yield _push_item(row)
+
+
 def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
     """Every object's summary as plain data (one per object: small)."""
     res = report.result
@@ -692,15 +842,13 @@ def report_to_dict(report: ClassifyReport) -> dict[str, Any]:
 
 def write_report_json(report: ClassifyReport, out: IO[str], extra: Mapping[str, Any] | None = None) -> None:
     """The JSON of :func:`report_to_dict`, streamed: one push per line, never all pushes in memory at once."""
-    import json
-
     head = {**report_header(report), **(extra or {})}
     out.write("{\n")
     for key, value in head.items():
         out.write(f"  {json.dumps(key)}: {json.dumps(value, allow_nan=False)},\n")
     out.write('  "objects": ' + json.dumps(object_items(report), allow_nan=False) + ',\n  "pushes": [')
     sep = "\n    "
-    for item in push_items(report):
-        out.write(sep + json.dumps(item, allow_nan=False))
+    for lines in push_lines(report):
+        out.write(sep + ",\n    ".join(lines))
         sep = ",\n    "
     out.write("\n  ]\n}\n")

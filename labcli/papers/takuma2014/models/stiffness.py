@@ -77,7 +77,7 @@ only.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
@@ -629,4 +629,40 @@ def object_stats(k: np.ndarray, flag: np.ndarray) -> dict[str, float]:
         "log_k_mean": float(np.log(used).mean()) if n_used else math.nan,
         "log_k_std": float(np.log(used).std(ddof=1)) if n_used > 1 else math.nan,
     }
+    return out
+
+
+def groups_by_size(values: np.ndarray, group: np.ndarray, n_groups: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Every group's values as one row, the groups of one size together: (group numbers, (m, size) rows).
+
+    A row holds its group's values in their order, contiguous, so numpy reduces it along the row
+    exactly as it reduces that group alone (the same pairwise sums, bit for bit): ten thousand
+    objects' statistics in a few calls instead of a few calls each.
+    """
+    order = np.argsort(group, kind="stable")
+    counts = np.bincount(group, minlength=n_groups)
+    starts = np.cumsum(counts) - counts
+    v = values[order]
+    for size in np.unique(counts[counts > 0]).tolist():
+        ids = np.flatnonzero(counts == size)
+        yield ids, v[starts[ids][:, None] + np.arange(size)]
+
+
+def object_stats_many(k: np.ndarray, flag: np.ndarray, group: np.ndarray, n_groups: int) -> dict[str, np.ndarray]:
+    """:func:`object_stats` of every group (objects numbered 0 .. n_groups - 1) at once, one array per key."""
+    k = np.asarray(k, dtype=float)
+    good = ~np.asarray(flag, dtype=bool) & np.isfinite(k) & (k > 0)
+    n = np.bincount(group, minlength=n_groups)
+    used = np.bincount(group[good], minlength=n_groups)
+    out = {"n_pushes": n, "n_used": used, "n_flagged": n - used}
+    for key in ("k_mean_N_per_m", "k_std_N_per_m", "k_median_N_per_m", "log_k_mean", "log_k_std"):
+        out[key] = np.full(n_groups, math.nan)
+    for ids, rows in groups_by_size(k[good], group[good], n_groups):
+        logs = np.log(rows)
+        out["k_mean_N_per_m"][ids] = rows.mean(axis=1)
+        out["k_median_N_per_m"][ids] = np.median(rows, axis=1)
+        out["log_k_mean"][ids] = logs.mean(axis=1)
+        if rows.shape[1] > 1:
+            out["k_std_N_per_m"][ids] = rows.std(axis=1, ddof=1)
+            out["log_k_std"][ids] = logs.std(axis=1, ddof=1)
     return out
