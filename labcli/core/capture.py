@@ -1,26 +1,24 @@
 """Capture windows taken as they arrive, never held whole in memory.
 
 A ``Baseline`` or ``Capture`` step inside a trial streams its frames into the run file
-(``run.windows.begin``, which holds at most one chunk of frames
-before writing it); the session is handed a :class:`~labcli.core.store.StoredWindow`: where
-the frames lie in the file, their checksum, and their running mean and variance per
-channel.  Outside a trial (the air supply's check, before the run file exists) nothing of
-a window is stored, so it is only summarised (:class:`WindowSummary`).  Either way the
-memory a capture window takes does not grow with its length, and what the session and the
-engine read from it (means, variances, the frame rate) is computed block by block.
+(``run.windows.begin``, which holds at most one chunk of frames before writing it); the
+session is handed the stored :class:`~labcli.core.window.Window`: where the frames lie in
+the file, their checksum, and their running mean and variance per channel.  Outside a
+trial (the air supply's check, before the run file exists) nothing of a window is stored,
+so only its statistics are kept (:meth:`Window.summary <labcli.core.window.Window.summary>`).
+Either way the memory a capture window takes does not grow with its length, and what the
+session and the engine read from it (means, variances, the frame rate) is computed block by
+block.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
-from .steps import Window
-from .store.frames import Stats
+from .store.frames import WindowWriter
+from .window import Stats, Window
 
 GAP_DIGITS = 4  # significant digits kept of each gap between frames (us) in the rate's tally
 
@@ -68,51 +66,28 @@ class GapTally:
         return (lo + hi) / 2 * 1e-6
 
 
-@dataclass
-class WindowSummary:
-    """A window read outside a trial: how many frames, their mean and variance per channel (SI); nothing stored."""
-
-    channels: int
-    stats: Stats = field(default_factory=Stats)
-
-    def __len__(self) -> int:
-        return self.stats.n
-
-    def mean(self) -> np.ndarray:
-        return self.stats.means(self.channels)
-
-    def var(self, ddof: int = 0) -> np.ndarray:
-        return self.stats.variances(self.channels, ddof)
-
-    def std(self) -> np.ndarray:
-        return np.sqrt(self.var())
-
-    def as_dict(self) -> dict[str, Any]:
-        raise ConfigError(
-            "a window read outside a trial is not kept in the run file, so no record can take it: "
-            "begin the trial (BeginTrial) before its Baseline or Capture."
-        )
-
-
 class WindowSink:
     """Where the frames of one Baseline or Capture go as they arrive.
 
     ``writer``: the run file's :class:`~labcli.core.store.WindowWriter` (inside a trial), or
-    None to summarise only.  ``channels``: how many.  :meth:`finish` gives the window the
-    session is handed; :attr:`gaps` the frame rate's tally.
+    None to keep the statistics only.  ``channels``: how many.  :meth:`finish` gives the
+    window the session is handed; :attr:`gaps` the frame rate's tally.
     """
 
-    def __init__(self, channels: int, writer: Any = None) -> None:
+    def __init__(self, channels: int, writer: WindowWriter | None = None) -> None:
         self.writer = writer
         self.gaps = GapTally()
-        self._summary = WindowSummary(channels)
+        self._channels = channels
+        self._stats = Stats()
 
     def add(self, w: Window) -> None:
+        """Take in a block of frames (held in memory)."""
         self.gaps.add(w.t_s)
         if self.writer is not None:
             self.writer.append(w.t_s, w.seq, w.counts, w.si)
         else:
-            self._summary.stats.add(w.si)
+            self._stats.add(w.si)
 
-    def finish(self) -> Any:
-        return self.writer.finish() if self.writer is not None else self._summary
+    def finish(self) -> Window:
+        """The window: stored in the run file, or (outside a trial) its statistics only."""
+        return self.writer.finish() if self.writer is not None else Window.summary(self._channels, self._stats)

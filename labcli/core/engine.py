@@ -433,11 +433,11 @@ class RunEngine:
             if len(batch):
                 self._check_clock(np.asarray(batch.t_us, dtype=np.int64))
                 counts = np.asarray(batch.values, dtype=float)
-                return Window(
-                    seq=np.asarray(batch.seq, dtype=np.int64),
+                return Window.of(
+                    np.asarray(batch.seq, dtype=np.int64),
+                    counts,
+                    np.asarray(self.protocol.calibration.to_si(counts), dtype=float),
                     t_us=np.asarray(batch.t_us, dtype=np.int64),
-                    counts=counts,
-                    si=np.asarray(self.protocol.calibration.to_si(counts), dtype=float),
                     t_s=self._unwrap(batch.t_us),
                 )
 
@@ -743,13 +743,11 @@ def _count(n: int, noun: str) -> str:
 
 
 def _slice(w: Window, a: int, b: int) -> Window:
-    return Window(w.seq[a:b], w.t_us[a:b], w.counts[a:b], w.si[a:b], w.t_s[a:b])
+    return w[a:b]
 
 
 def _concat(parts: list[Window]) -> Window:
-    if len(parts) == 1:
-        return parts[0]
-    return Window(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("seq", "t_us", "counts", "si", "t_s")))
+    return Window.concat(parts)
 
 
 @contextlib.contextmanager

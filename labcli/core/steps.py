@@ -31,27 +31,47 @@ step               reply
                    answer was empty and its field says that ends the questions
 ``BeginTrial``     ``None``
 ``WaitSettle``     :class:`SettleReport`, or ``"redo"``
-``Baseline``       a :class:`CapturedWindow`
-``Capture``        a :class:`CapturedWindow`
+``Baseline``       a :class:`~labcli.core.window.Window`
+``Capture``        a :class:`~labcli.core.window.Window`
 ``Review``         ``"accept"``, ``"redo"`` or ``"skip"`` (quit ends the session)
 ``Commit``         ``None``
 ``Finish``         ``None``
 =================  ==========================================================
 
-A captured window is read through :class:`CapturedWindow` only (its length, per-channel
-mean and variance, and ``as_dict()`` for the record's ``raw``): the engine streams a
-window into the run file as it arrives and hands back a
-:class:`~labcli.core.store.StoredWindow` (or, outside a trial, a summary), so a window of any
-length takes the same memory; a test may send a :class:`Window` of samples instead.
+A captured window is one :class:`~labcli.core.window.Window` from the engine to the run
+file: the engine streams it into the run file as its frames arrive and hands the session
+the stored window (or, outside a trial, its statistics only), so a window of any length
+takes the same memory; the session reads its length and per-channel mean and variance and
+puts the window itself in the record's ``raw``.  A test may send a window held in memory
+(:meth:`Window.of <labcli.core.window.Window.of>`) instead.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
-import numpy as np
+from .record import Record, Settle
+from .window import Window
+
+__all__ = [
+    "Ask",
+    "Baseline",
+    "BeginTrial",
+    "Capture",
+    "Commit",
+    "Field",
+    "Finish",
+    "Problem",
+    "Prompt",
+    "Review",
+    "SettleReport",
+    "SetupCheck",
+    "Step",
+    "WaitSettle",
+    "Window",  # what Baseline and Capture reply (labcli.core.window)
+]
 
 # --------------------------------------------------------------------------- steps
 
@@ -173,9 +193,10 @@ class Problem:
 
 @dataclass(frozen=True)
 class Commit:
-    """Store one finished record whole (its record type is the run's)."""
+    """Store one finished record whole (its record type is the run's; a paper types its records
+    by deriving from :class:`~labcli.core.record.Record`)."""
 
-    record: dict
+    record: Record
 
 
 @dataclass(frozen=True)
@@ -192,47 +213,10 @@ Step = SetupCheck | Prompt | Ask | BeginTrial | WaitSettle | Baseline | Capture 
 # --------------------------------------------------------------------------- replies
 
 
-class CapturedWindow(Protocol):
-    """What a session may read of a Baseline's or Capture's window."""
-
-    def __len__(self) -> int: ...
-
-    def mean(self) -> np.ndarray:
-        """Mean per channel, SI."""
-
-    def var(self, ddof: int = 0) -> np.ndarray:
-        """Variance per channel, SI squared."""
-
-    def as_dict(self) -> dict[str, Any]:
-        """What a record's ``raw`` takes for this window."""
-
-
-@dataclass
-class Window:
-    """Raw samples of one capture window, as received, plus their SI values."""
-
-    seq: np.ndarray  # (n,) int64
-    t_us: np.ndarray  # (n,) int64, device clock as sent (wraps at 2**32)
-    counts: np.ndarray  # (n, k) float64, values as sent
-    si: np.ndarray  # (n, k) float64, MPa / rad / m per the protocol's calibration
-    t_s: np.ndarray  # (n,) float64, unwrapped device time
-
-    def __len__(self) -> int:
-        return len(self.seq)
-
-    def mean(self) -> np.ndarray:
-        return self.si.mean(axis=0)
-
-    def var(self, ddof: int = 0) -> np.ndarray:
-        """Variance per channel, SI squared (``ddof`` as numpy's)."""
-        return self.si.var(axis=0, ddof=ddof)
-
-    def as_dict(self) -> dict[str, np.ndarray]:
-        return {"seq": self.seq, "t_us": self.t_us, "counts": self.counts, "si": self.si, "t_s": self.t_s}
-
-
 @dataclass(frozen=True)
 class SettleReport:
+    """How a window's equilibrium was reached (the reply of :class:`WaitSettle`)."""
+
     settled: bool  # False: timed out and accepted by the experimenter
     settle_time_s: float  # device time from the start of the wait to equilibrium
     waited_s: float  # device time spent waiting in all
@@ -240,7 +224,8 @@ class SettleReport:
     angle_spread_rad: float
     criterion: str
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> Settle:
+        """What a record's ``settle`` keeps of it."""
         return {
             "settled": self.settled,
             "settle_time_s": self.settle_time_s,

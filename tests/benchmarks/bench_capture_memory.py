@@ -63,7 +63,7 @@ def child(window_s: float, mode: str, rate: float, folder: str) -> None:
     with RunFile.open(path) as run:
         ok = run.verify()["ok"]
         rec = run.records.read(1)
-    frames = sum(len(rec["raw"][w]["seq"]) for w in ("baseline", "load"))
+    frames = sum(len(rec["raw"][w].seq) for w in ("baseline", "load"))
     print(
         json.dumps(
             {

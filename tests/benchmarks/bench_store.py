@@ -111,13 +111,13 @@ def run_plain(path: str, records: list[dict]) -> float:
         end = 0
         for rec in records:
             for w in rec["raw"].values():
-                n = len(w["seq"])
+                n = len(w.seq)
                 for ds in (time_ds, counts_ds, values_ds, seq_ds):
                     ds.resize(end + n, axis=0)
-                time_ds[end : end + n] = w["t_us"] * 1e-6
-                counts_ds[end : end + n] = w["counts"].astype(np.int32)
-                values_ds[end : end + n] = w["si"]
-                seq_ds[end : end + n] = w["seq"].astype(np.uint32)
+                time_ds[end : end + n] = w.t_us * 1e-6
+                counts_ds[end : end + n] = w.counts.astype(np.int32)
+                values_ds[end : end + n] = w.si
+                seq_ds[end : end + n] = w.seq.astype(np.uint32)
                 end += n
     return time.perf_counter() - t0
 

@@ -52,6 +52,8 @@ import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 from records import CHANNELS, make_record, unwrap_s  # noqa: E402
 
+from labcli.core.window import Window  # noqa: E402
+
 N_TRIALS = 1_000_000
 TEXT = {"plan_set": 16, "started": 32, "ended": 32, "accepted": 8, "settle_criterion": 128}
 WINDOWS = (("baseline", "baseline"), ("load", "loaded"))
@@ -126,13 +128,13 @@ class RowWriter:
         self.done = set(int(i) for i in self.t["trial"][:n])
 
     def _append_frames(self, raw: dict) -> tuple[int, int]:
-        n = len(raw["seq"])
+        n = len(raw.seq)
         end = self.r["time"].shape[0]
         start = -(-end // self.chunk) * self.chunk if self.aligned else end
         stop = start + n
-        counts = np.asarray(raw["counts"], dtype=np.float64)
-        si = np.asarray(raw["si"], dtype=np.float64)
-        arrays = {"time": unwrap_s(raw["t_us"]), "seq": np.asarray(raw["seq"], dtype=np.int64).astype(np.uint32)}
+        counts = np.asarray(raw.counts, dtype=np.float64)
+        si = np.asarray(raw.si, dtype=np.float64)
+        arrays = {"time": unwrap_s(raw.t_us), "seq": np.asarray(raw.seq, dtype=np.int64).astype(np.uint32)}
         for j, c in enumerate(CHANNELS):
             arrays[f"{c}/value"] = si[:, j]
             arrays[f"{c}/raw_value"] = counts[:, j]
@@ -201,12 +203,12 @@ def read_rows(path: str) -> dict[int, dict]:
             raw, settle = {}, {}
             for key, w in WINDOWS:
                 a, b = int(cols[f"{w}_start"][i]), int(cols[f"{w}_stop"][i])
-                raw[key] = {
-                    "t_s": r["time"][a:b],
-                    "seq": r["seq"][a:b],
-                    "counts": np.stack([r[f"{c}/raw_value"][a:b] for c in CHANNELS], axis=1),
-                    "si": np.stack([r[f"{c}/value"][a:b] for c in CHANNELS], axis=1),
-                }
+                raw[key] = Window.of(
+                    r["seq"][a:b],
+                    np.stack([r[f"{c}/raw_value"][a:b] for c in CHANNELS], axis=1),
+                    np.stack([r[f"{c}/value"][a:b] for c in CHANNELS], axis=1),
+                    t_s=r["time"][a:b],
+                )
                 settle[key] = {
                     "settled": bool(cols[f"{w}_settled"][i]),
                     "criterion": cols[f"{w}_criterion"][i].decode(),

@@ -96,12 +96,12 @@ def test_unattended_108_trials_agree_with_what_the_rig_applied(tmp_path):
         rec = run.records.read(12)
         for name in ("baseline", "load"):
             w = rec["raw"][name]
-            n = len(w["seq"])
+            n = len(w.seq)
             assert n == 200  # capture_s 1 s at 200 Hz
-            assert np.all(np.diff(w["seq"].astype(np.int64)) == 1)
-            assert w["counts"].shape == (n, 6) and w["si"].shape == (n, 6)
-            assert np.allclose(PROTOCOL.calibration.to_si(w["counts"]), w["si"])
-            assert np.allclose(np.diff(w["t_s"]), 0.005)
+            assert np.all(np.diff(w.seq.astype(np.int64)) == 1)
+            assert w.counts.shape == (n, 6) and w.si.shape == (n, 6)
+            assert np.allclose(PROTOCOL.calibration.to_si(w.counts), w.si)
+            assert np.allclose(np.diff(w.t_s), 0.005)
         assert rec["settle"]["load"]["settled"] is True
         assert rec["settle"]["load"]["criterion"].startswith(
             "range of 10 block means over 1 s and the tail extrapolated from 3 windows below 0.31 kPa"
@@ -118,7 +118,7 @@ def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path):
     def unplug_in_trial_3(step, reply):
         if isinstance(step, Commit) and step.record["trial"] == 2:
             snapshot["table"] = store.records.table()
-            snapshot["raw2"] = store.records.read(2)["raw"]["load"]["counts"].copy()
+            snapshot["raw2"] = store.records.read(2)["raw"]["load"].counts.copy()
         if isinstance(step, Capture) and engine._trial.trial == 3:
             dev.serial.unplug()
 
@@ -135,7 +135,7 @@ def test_rig_unplugged_mid_trial_leaves_the_file_as_it_was(tmp_path):
     with RunFile.open(path) as run:
         assert run.records.ids() == [1, 2] and run.records.incomplete_ids() == []
         assert run.records.table().equals(snapshot["table"])
-        assert np.array_equal(run.records.read(2)["raw"]["load"]["counts"], snapshot["raw2"])
+        assert np.array_equal(run.records.read(2)["raw"]["load"].counts, snapshot["raw2"])
     # The command the message gives continues the run at trial 3.
     result = CliRunner().invoke(cli, ["acquire", str(path), "--port", port, "--resume", "--unattended"])
     assert result.exit_code == 0, result.output
@@ -358,7 +358,7 @@ def test_setup_check_says_which_reading_is_out_of_range():
     engine._pcols, engine._acols = [0, 1, 2, 3], [4, 5]
     counts = np.tile([1556, 1560, 0, 1551, 2048, 3900], (10, 1)).astype(float)  # P_L2 unplugged, POT2 at 154 deg
     si = PROTOCOL.calibration.to_si(counts)
-    w = Window(np.arange(10), np.arange(10) * 5000, counts, si, np.arange(10) * 0.005)
+    w = Window.of(np.arange(10), counts, si, t_us=np.arange(10) * 5000, t_s=np.arange(10) * 0.005)
     assert engine._check_readings(w) == [
         "P_L2 reads -0.250 to -0.250 MPa, outside the sensor span 0 to 1 MPa (check that sensor's cable and supply)",
         "POT2 reads 153.8 to 153.8 deg, outside the plausible -90 to 90 deg (check the potentiometer's wiring "

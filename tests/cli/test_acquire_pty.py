@@ -198,7 +198,7 @@ def test_a_person_redoes_skips_quits_is_interrupted_and_resumes(tmp_path, rig_on
     assert math.copysign(1, df["theta1_deg"][0]) != math.copysign(1, df["theta1_deg"][2])
     with RunFile.open(run) as f:
         assert f.attrs["port"] == port
-        assert f.records.read(1)["raw"]["load"]["counts"].shape == (40, 6)  # 0.2 s at 200 Hz
+        assert f.records.read(1)["raw"]["load"].counts.shape == (40, 6)  # 0.2 s at 200 Hz
 
 
 def test_unattended_is_refused_on_a_real_port(tmp_path, rig_on_pty):

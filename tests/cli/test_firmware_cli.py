@@ -156,11 +156,11 @@ def test_unattended_acquire_through_the_firmware(firmware_elf, tmp_path, monkeyp
             rec = f.records.read(trial)
             assert rec["theta_rad"][0] != 0
             for window in rec["raw"].values():
-                assert np.all(np.diff(window["seq"].astype(np.int64)) == 1)  # nothing lost
-                assert np.allclose(np.diff(window["t_s"]), 1 / 200.0, rtol=0, atol=1e-9)  # 200 Hz, to the microsecond
-                t = window["t_s"]
+                assert np.all(np.diff(window.seq.astype(np.int64)) == 1)  # nothing lost
+                assert np.allclose(np.diff(window.t_s), 1 / 200.0, rtol=0, atol=1e-9)  # 200 Hz, to the microsecond
+                t = window.t_s
                 truth = fed_mean(fed, t[0] - 0.001, t[-1] + 0.003)  # each frame samples for 3 ms after its tick
-                got = window["counts"].mean(axis=0)
+                got = window.counts.mean(axis=0)
                 assert np.all(np.abs(got - truth) <= 1.0), (trial, got, truth)
 
 

@@ -236,7 +236,7 @@ def test_the_printed_command_completes_the_run_and_leaves_earlier_trials_untouch
     with RunFile.open(path) as run:
         rec = run.records.read(3)
     for name in ("baseline", "load"):
-        seq = rec["raw"][name]["seq"].astype(np.int64)
+        seq = rec["raw"][name].seq.astype(np.int64)
         assert len(seq) == 200 and np.all(np.diff(seq) == 1)
 
 
@@ -416,7 +416,7 @@ def test_pty_rig_replugged_while_the_run_waits(tmp_path, socket):
     assert_run_complete(path, 2, [1], [2])
     with RunFile.open(path) as run:
         df = run.records.table()
-        seq = run.records.read(2)["raw"]["load"]["seq"].astype(np.int64)
+        seq = run.records.read(2)["raw"]["load"].seq.astype(np.int64)
     assert len(seq) >= 40 and np.all(np.diff(seq) == 1)  # 0.2 s at 200 Hz, whole, from the new rig
     # The person hung what the prompts said on whichever rig was plugged in: the joints bent as
     # the paper-scale rig bends under 200 g at -60 deg and 500 g at 30 deg (0.27 and 1.12 deg).

@@ -158,7 +158,7 @@ def test_import_refuses_overwrite(run_path, tmp_path):
     assert res.exit_code == 1
     assert res.output == f"Error: {run_path} already exists; use --force to overwrite it.\n"
     with RunFile.open(run_path) as run:  # untouched, raw windows still there
-        assert run.records.read(3)["raw"]["load"]["counts"].shape == (50, 6)
+        assert run.records.read(3)["raw"]["load"].counts.shape == (50, 6)
     res = invoke("import", csv, "-o", run_path, "--protocol", "takuma2014", "--force")
     assert res.exit_code == 0
     with RunFile.open(run_path) as run:
@@ -330,12 +330,12 @@ def test_acquired_run_on_the_simulated_rig(tmp_path):
     with RunFile.open(str(run)) as rf:
         t = rf.records.read(2)
         load = t["raw"]["load"]
-        assert load["counts"].dtype == np.int32 and load["counts"].shape[1] == 6 and len(load["seq"]) > 10
+        assert load.counts.dtype == np.int32 and load.counts.shape[1] == 6 and len(load.seq) > 10
         # SI values are the protocol's calibration of the counts as sent
-        np.testing.assert_allclose(load["si"], rf_cal(rf, load["counts"]), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(load.si, rf_cal(rf, load.counts), rtol=0, atol=1e-12)
         # the summary pressures are the means of the windows
-        np.testing.assert_allclose(t["P_MPa"], load["si"][:, :4].mean(axis=0), rtol=1e-12)
-        assert np.all(np.diff(load["t_s"]) > 0) and np.all(np.diff(load["seq"].astype(np.int64)) == 1)
+        np.testing.assert_allclose(t["P_MPa"], load.si[:, :4].mean(axis=0), rtol=1e-12)
+        assert np.all(np.diff(load.t_s) > 0) and np.all(np.diff(load.seq.astype(np.int64)) == 1)
         assert t["accepted"] in ("auto", "timeout") and t["settle"]["load"]["criterion"]
     res = invoke("acquire", run, "--port", "sim://?seed=2", "--unattended", "--plan", plan)
     assert res.exit_code == 1

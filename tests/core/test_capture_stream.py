@@ -21,15 +21,16 @@ import tracemalloc
 import numpy as np
 import pytest
 from support.long_capture import CHANNELS, long_protocol, port, record_trial
-from support.records import stored_trials
+from support.records import make_record, stored_trials
 
 from labcli.core.capture import GapTally, WindowSink
 from labcli.core.device import Device
 from labcli.core.engine import RunEngine
-from labcli.core.steps import Baseline, BeginTrial, Capture, Commit, Finish, SettleReport, SetupCheck, Window
+from labcli.core.steps import Baseline, BeginTrial, Capture, Commit, Finish, SettleReport, SetupCheck
 from labcli.core.store import RunFile
 from labcli.core.store.checksum import frames_checksum
 from labcli.core.store.frames import MOD, window_parts
+from labcli.core.window import Window
 from labcli.errors import ConfigError, StoreError
 from labcli.papers.takuma2014.session import ChannelMap, force_record
 
@@ -61,14 +62,15 @@ def test_the_writer_stores_every_frame_given_in_blocks_of_any_size(tmp_path, fak
             # Whole chunks are in the file as soon as they fill; at most a chunk is held.
             assert w.stop - w.start == at // chunk * chunk and len(w) == at
         stored = w.finish()
-        assert (stored.start, stored.stop) == (0, n)
-        back = run.windows.frames(stored.start, stored.stop)
-        np.testing.assert_array_equal(back["t_s"], t)
-        np.testing.assert_array_equal(back["seq"], seq)
-        np.testing.assert_array_equal(back["counts"], counts)
-        np.testing.assert_array_equal(back["si"], si)
-        assert stored.checksum == int(frames_checksum(window_parts(t, seq.astype(np.uint64), counts, si), 0)) % MOD
-        assert run.tables.frames.checksum(stored.start, stored.stop)[0] == stored.checksum
+        at = stored.stored
+        assert (at.start, at.stop) == (0, n) and at.source is run.windows
+        back = run.windows.frames(at.start, at.stop)
+        np.testing.assert_array_equal(back.t_s, t)
+        np.testing.assert_array_equal(back.seq, seq)
+        np.testing.assert_array_equal(back.counts, counts)
+        np.testing.assert_array_equal(back.si, si)
+        assert at.checksum == int(frames_checksum(window_parts(t, seq.astype(np.uint64), counts, si), 0)) % MOD
+        assert run.tables.frames.checksum(at.start, at.stop)[0] == at.checksum
         np.testing.assert_allclose(stored.mean(), si.mean(axis=0), rtol=1e-12)
         if n > 1:
             np.testing.assert_allclose(stored.var(ddof=1), si.var(axis=0, ddof=1), rtol=1e-9)
@@ -96,19 +98,25 @@ def test_the_gap_tally_gives_numpys_median_of_the_gaps_fed_in_blocks():
     assert np.isnan(GapTally().median_s())
 
 
-def test_a_window_outside_a_trial_is_summarised_and_cannot_be_stored():
+def test_a_window_outside_a_trial_is_summarised_and_cannot_be_stored(tmp_path, fake_protocol):
     rng = np.random.default_rng(5)
     t, seq, counts, si = frames(rng, 5000)
     sink = WindowSink(CHANNELS)
     for a in range(0, 5000, 700):
         b = min(a + 700, 5000)
-        sink.add(Window(seq[a:b], np.rint(t[a:b] * 1e6).astype(np.int64), counts[a:b], si[a:b], t[a:b]))
+        sink.add(Window.of(seq[a:b], counts[a:b], si[a:b], t_s=t[a:b]))
     w = sink.finish()
-    assert len(w) == 5000
+    assert len(w) == 5000 and not w.kept and w.stored is None
     np.testing.assert_allclose(w.mean(), si.mean(axis=0), rtol=1e-12)
     np.testing.assert_allclose(w.std(), si.std(axis=0), rtol=1e-9)
     with pytest.raises(ConfigError, match="a window read outside a trial is not kept in the run file"):
-        w.as_dict()
+        w.si
+    record = make_record(1)
+    record["raw"]["load"] = w
+    with RunFile.create(tmp_path / "run.h5", protocol=fake_protocol) as run:
+        with pytest.raises(ConfigError, match="a window read outside a trial is not kept in the run file"):
+            run.records.write(record)
+        assert run.records.ids() == [] and run.windows.extent == 0  # nothing written, not even the baseline
 
 
 # ---------------------------------------------------------------- the engine
@@ -147,18 +155,18 @@ def test_a_streamed_trial_stores_the_frames_the_rig_sent_and_verifies(tmp_path):
         rec = run.records.read(1)
     for name in ("baseline", "load"):
         w = rec["raw"][name]
-        assert len(w["seq"]) == 6000
+        assert len(w.seq) == 6000
         # Where the rig sent this window's first frame (each streaming start restarts its counter).
         at = [
             i
-            for i in np.flatnonzero(seq == w["seq"][0])
-            if np.array_equal(t_us[i : i + 6000] % (1 << 32), np.rint(w["t_s"] * 1e6).astype(np.int64) % (1 << 32))
+            for i in np.flatnonzero(seq == w.seq[0])
+            if np.array_equal(t_us[i : i + 6000] % (1 << 32), np.rint(w.t_s * 1e6).astype(np.int64) % (1 << 32))
         ]
         assert len(at) == 1, name
         i = at[0]
-        np.testing.assert_array_equal(w["seq"], seq[i : i + 6000])
-        np.testing.assert_array_equal(w["counts"], values[i : i + 6000])
-        np.testing.assert_array_equal(w["si"], protocol.calibration.to_si(values[i : i + 6000]))
+        np.testing.assert_array_equal(w.seq, seq[i : i + 6000])
+        np.testing.assert_array_equal(w.counts, values[i : i + 6000])
+        np.testing.assert_array_equal(w.si, protocol.calibration.to_si(values[i : i + 6000]))
 
 
 def test_streamed_and_in_memory_capture_store_the_same_trial(tmp_path):
@@ -188,17 +196,17 @@ def test_a_redone_window_stays_unreferenced_and_the_trial_takes_the_last(tmp_pat
         seen: list = []
         engine.subscribe(lambda step, reply: seen.append(reply) if isinstance(step, (Baseline, Capture)) else None)
         assert engine.run(_two_window_trials(protocol, redo=True)).stored == 1
-        extent = run.tables.frames.extent
+        extent = run.windows.extent
     dev.close()
     first, second = seen[:2], seen[2:]
-    assert [w.start for w in first + second] == sorted(w.start for w in first + second)
+    assert [w.stored.start for w in first + second] == sorted(w.stored.start for w in first + second)
     with RunFile.open(path) as run:
         assert run.records.ids() == [1] and run.records.incomplete_ids() == []
         assert run.verify()["ok"]
         rec = run.records.read(1)
         for name, w in zip(("baseline", "load"), second, strict=False):
-            np.testing.assert_array_equal(rec["raw"][name]["t_s"], run.windows.frames(w.start, w.stop)["t_s"])
-        assert extent >= second[1].stop > first[1].stop  # the redone frames lie before, in no record
+            np.testing.assert_array_equal(rec["raw"][name].t_s, run.windows.frames(w.stored.start, w.stored.stop).t_s)
+        assert extent >= second[1].stored.stop > first[1].stored.stop  # the redone frames lie before, in no record
 
 
 def _two_window_trials(protocol, redo: bool):

@@ -41,7 +41,7 @@ def window(values, n=200, noise=None, rng=None):
     if noise is not None:
         si = si + rng.normal(0.0, noise, si.shape)
     t = np.arange(n) / 200.0
-    return Window(np.arange(n), (t * 1e6).astype(np.int64), si.copy(), si, t)
+    return Window.of(np.arange(n), si.copy(), si, t_us=(t * 1e6).astype(np.int64), t_s=t)
 
 
 def force(mass_g, direction_deg):

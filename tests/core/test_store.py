@@ -13,6 +13,7 @@ import pytest
 from support.records import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
 
 from labcli.core.store import SCHEMA_VERSION, RunFile, choose_split, import_table, to_edge
+from labcli.core.window import Window
 from labcli.errors import ConfigError, LabcliWarning, StoreError
 
 
@@ -275,7 +276,8 @@ def test_bad_record_writes_nothing(run_path):
             "trial 20 record: 'P_MPa' must hold 4 values (loaded pressures P_L1,P_R1,P_L2,P_R2 in MPa), got shape (3,)."
         )
         rec = make_record(20)
-        rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"][:, :5]
+        w = rec["raw"]["load"]
+        rec["raw"]["load"] = Window.of(w.seq, w.counts[:, :5], w.si, t_us=w.t_us)
         with pytest.raises(StoreError, match=r"the loaded window must hold n frames of 6 channels"):
             run.records.write(rec)
         assert run.records.incomplete_ids() == [] and 20 not in run.records.ids()
@@ -290,12 +292,13 @@ def test_read_only_refuses_writes(run_path):
 
 def test_decimal_counts_kept_exactly(tmp_path):
     rec = make_record(2)
-    rec["raw"]["load"]["counts"] = rec["raw"]["load"]["counts"] + 0.25
+    w = rec["raw"]["load"]
+    rec["raw"]["load"] = Window.of(w.seq, w.counts + 0.25, w.si, t_us=w.t_us)
     with new_run(str(tmp_path / "d.h5")) as run:
         run.records.write(rec)
         back = run.records.read(2)
-    assert back["raw"]["load"]["counts"].dtype == np.float64
-    np.testing.assert_array_equal(back["raw"]["load"]["counts"], rec["raw"]["load"]["counts"])
+    assert back["raw"]["load"].counts.dtype == np.float64
+    np.testing.assert_array_equal(back["raw"]["load"].counts, rec["raw"]["load"].counts)
 
 
 def test_recording_order_not_id_order(tmp_path):
@@ -372,7 +375,7 @@ def test_push_run_round_trip(tmp_path):
         assert run.kind == "push" and run.records.ids() == [3, 4]
         back = run.records.read(3)
         assert math.isnan(back["phi_rad"]) and back["R_m"] == 0.033 and back["object"] == "can-al-1"
-        np.testing.assert_array_equal(back["raw"]["load"]["si"], rec["raw"]["load"]["si"])
+        np.testing.assert_array_equal(back["raw"]["load"].si, rec["raw"]["load"].si)
         df = run.records.table()
     assert list(df.columns) == [
         "push",

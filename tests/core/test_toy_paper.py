@@ -66,7 +66,7 @@ def test_acquire_records_two_trials_on_its_own_simulated_rig(acquired):
             assert rec["mass_kg"] == mass
             assert rec["P_MPa"] == pytest.approx(toy.P_REST_MPA + toy.P_PER_KG * mass, abs=2e-4)
             assert rec["theta_rad"] == pytest.approx(toy.ANGLE_PER_KG_RAD * mass, abs=math.radians(0.02))
-            assert set(rec["raw"]) == {"baseline", "load"} and rec["raw"]["load"]["counts"].shape[1] == 2
+            assert set(rec["raw"]) == {"baseline", "load"} and rec["raw"]["load"].counts.shape[1] == 2
             assert rec["settle"]["load"]["settled"] is True
 
 

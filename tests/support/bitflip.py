@@ -46,6 +46,10 @@ def snapshot(path: str) -> dict:
 
 
 def equal(a, b) -> bool:
+    from labcli.core.window import Window
+
+    if isinstance(a, Window) and isinstance(b, Window):
+        return all(equal(getattr(a, k), getattr(b, k)) for k in ("seq", "t_s", "counts", "si"))
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(equal(a[k], b[k]) for k in a)
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):

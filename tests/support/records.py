@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from labcli.core.window import Window
+
 CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
 
 
@@ -49,11 +51,11 @@ class FakeDevice:
     port: str = "sim://?seed=1"
 
 
-def make_window(rng: np.random.Generator, n: int, t0_us: int, seq0: int) -> dict:
+def make_window(rng: np.random.Generator, n: int, t0_us: int, seq0: int) -> Window:
     counts = rng.integers(1000, 3000, size=(n, len(CHANNELS))).astype(np.float64)
     t_us = (t0_us + 5000 * np.arange(n, dtype=np.int64)) % (1 << 32)
     seq = (seq0 + np.arange(n, dtype=np.int64)) % (1 << 32)
-    return {"seq": seq, "t_us": t_us, "counts": counts, "si": LinearCalibration().to_si(counts)}
+    return Window.of(seq, counts, LinearCalibration().to_si(counts), t_us=t_us)
 
 
 def make_record(i: int, n: int = 50) -> dict:
@@ -115,10 +117,10 @@ def assert_record_stored(stored: dict, rec: dict) -> None:
     assert stored["accepted"] == ("auto" if rec["settle"]["load"]["settled"] else "timeout")
     for key in ("baseline", "load"):
         w, r = stored["raw"][key], rec["raw"][key]
-        np.testing.assert_array_equal(w["t_s"], unwrap_s(r["t_us"]))
-        np.testing.assert_array_equal(w["counts"], r["counts"])
-        np.testing.assert_array_equal(w["si"], r["si"])
-        np.testing.assert_array_equal(w["seq"], r["seq"])
+        np.testing.assert_array_equal(w.t_s, unwrap_s(r.t_us))
+        np.testing.assert_array_equal(w.counts, r.counts)
+        np.testing.assert_array_equal(w.si, r.si)
+        np.testing.assert_array_equal(w.seq, r.seq)
         s = stored["settle"][key]
         for name, value in rec["settle"][key].items():
             assert s[name] == value, (key, name)
@@ -140,9 +142,9 @@ def stored_trials(path, attrs: bool = True) -> dict:
                     if attrs:
                         items["@" + key] = repr(value)
                 elif key == "raw":
-                    for window, arrays in sorted(value.items()):
-                        for name, a in sorted(arrays.items()):
-                            a = np.asarray(a)
+                    for window, w in sorted(value.items()):
+                        for name in ("counts", "seq", "si", "t_s"):
+                            a = np.asarray(getattr(w, name))
                             items[f"raw/{window}/{name}"] = (a.dtype.str, a.shape, a.tobytes())
                 elif isinstance(value, dict) or np.asarray(value).dtype == object:
                     items[key] = repr(value)

@@ -225,7 +225,7 @@ def toy_session(protocol: Any, completed: Any = ()) -> Any:
             "theta_rad": float(m[1] - b[1]),
             "mass_kg": mass,
             "settle": {"baseline": settle_b.as_dict(), "load": settle_l.as_dict()},
-            "raw": {"baseline": base.as_dict(), "load": loaded.as_dict()},
+            "raw": {"baseline": base, "load": loaded},
         }
         yield Review({"trial": str(trial), "P (MPa)": f"{record['P_MPa']:.4f}"})
         yield Commit(record)

@@ -170,13 +170,13 @@ class Writer:
                 continue
             w = g.create_group(gname)
             w.attrs["NX_class"], w.attrs["channels"] = "NXlog", list(CHANNELS)
-            counts = np.asarray(raw["counts"], dtype=np.float64)
+            counts = np.asarray(raw.counts, dtype=np.float64)
             if np.all(counts == np.rint(counts)):
                 counts = counts.astype(np.int32)
-            _dataset(w, "time", _unwrap(raw["t_us"]), "s", raw=True)
+            _dataset(w, "time", _unwrap(raw.t_us), "s", raw=True)
             _dataset(w, "counts", counts, "counts", raw=True)
-            _dataset(w, "values", np.asarray(raw["si"], dtype=np.float64), VALUE_UNITS, raw=True)
-            _dataset(w, "seq", (np.asarray(raw["seq"], dtype=np.int64) % (1 << 32)).astype(np.uint32), "1", raw=True)
+            _dataset(w, "values", np.asarray(raw.si, dtype=np.float64), VALUE_UNITS, raw=True)
+            _dataset(w, "seq", (np.asarray(raw.seq, dtype=np.int64) % (1 << 32)).astype(np.uint32), "1", raw=True)
             for k, v in _settle((rec.get("settle") or {}).get(key)).items():
                 w.attrs[k] = v
         if complete:

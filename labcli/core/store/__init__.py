@@ -2,7 +2,7 @@
 (``run.records``, ``run.windows``, ``run.split``, ``run.models``, ``run.sessions``), and runs
 built from tables (:func:`import_table`)."""
 
-from .frames import StoredWindow, WindowWriter
+from .frames import WindowWriter
 from .h5 import to_edge
 from .importing import import_csv, import_table, storable_cells
 from .layout import SCHEMA, SCHEMA_VERSION
@@ -17,7 +17,6 @@ __all__ = [
     "SCHEMA_VERSION",
     "RunFile",
     "Split",
-    "StoredWindow",
     "WindowWriter",
     "choose_split",
     "import_csv",

@@ -13,9 +13,9 @@ window and the next boundary are never written; they cost nothing compressed.
 
 A window is written as it arrives (:class:`WindowWriter`): frames go into the file as soon
 as they fill a chunk, and only that chunk and the window's running statistics stay in
-memory, so a capture window of any length takes the same memory.  :class:`StoredWindow` is
-what the engine hands the session in place of the samples: its mean and spread, and the
-samples read back on demand.
+memory, so a capture window of any length takes the same memory.  What the writer finishes
+is a :class:`~labcli.core.window.Window` stored in the file: what the engine hands the
+session in place of the samples (its mean and spread; the samples read back on demand).
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager as ContextManager
-from dataclasses import dataclass, field
 from typing import Any
 
 import h5py
@@ -31,6 +30,7 @@ import numpy as np
 
 from ...errors import StoreError
 from ..paper import Column
+from ..window import FrameSource, Stats, Stored, Window
 from .checksum import frames_checksum
 from .columns import append, create_dataset, read_rows
 
@@ -151,99 +151,9 @@ def counts_out(counts: np.ndarray) -> np.ndarray:
     return c
 
 
-@dataclass
-class Stats:
-    """Running count, mean and sum of squared deviations per channel (Chan et al.'s pairwise update)."""
-
-    n: int = 0
-    mean: np.ndarray | None = None
-    m2: np.ndarray | None = None
-
-    def add(self, x: np.ndarray) -> None:
-        nb = x.shape[0]
-        if nb == 0:
-            return
-        mb = x.mean(axis=0)
-        m2b = ((x - mb) ** 2).sum(axis=0)
-        if self.n == 0:
-            self.n, self.mean, self.m2 = nb, mb, m2b
-            return
-        n = self.n + nb
-        delta = mb - self.mean
-        self.mean = self.mean + delta * (nb / n)
-        self.m2 = self.m2 + m2b + delta**2 * (self.n * nb / n)
-        self.n = n
-
-    def means(self, k: int) -> np.ndarray:
-        """Mean per channel (``k`` of them; NaN before any frame)."""
-        return np.array(self.mean) if self.n else np.full(k, np.nan)
-
-    def variances(self, k: int, ddof: int = 0) -> np.ndarray:
-        """Variance per channel with ``ddof`` delta degrees of freedom (NaN without more frames than ``ddof``)."""
-        if self.m2 is None or self.n <= ddof:
-            return np.full(k, np.nan)
-        return np.asarray(self.m2 / (self.n - ddof))
-
-
-@dataclass
-class StoredWindow:
-    """A raw window already in the run file: what the engine returns for a Baseline or Capture.
-
-    It offers what a session uses of :class:`labcli.core.steps.Window`: ``len()``,
-    :meth:`mean`, :meth:`var` and :meth:`std` (per channel, SI), :meth:`as_dict` (what a
-    record's ``raw`` takes); ``seq``, ``t_us``, ``t_s``, ``counts`` and ``si`` read the
-    samples back from the file when asked (the whole window at once).
-    """
-
-    run: Any
-    start: int
-    stop: int
-    checksum: int
-    stats: Stats = field(default_factory=Stats)
-
-    def __len__(self) -> int:
-        return self.stop - self.start
-
-    def mean(self) -> np.ndarray:
-        return self.stats.means(len(self.run.channels))
-
-    def var(self, ddof: int = 0) -> np.ndarray:
-        """Variance per channel, SI squared (``ddof`` as numpy's)."""
-        return self.stats.variances(len(self.run.channels), ddof)
-
-    def std(self) -> np.ndarray:
-        """Population standard deviation per channel, SI."""
-        return np.sqrt(self.var())
-
-    def as_dict(self) -> dict[str, Any]:
-        return {"stored": self}
-
-    def _samples(self) -> dict[str, np.ndarray]:
-        return self.run.windows.frames(self.start, self.stop)
-
-    @property
-    def seq(self) -> np.ndarray:
-        return self._samples()["seq"].astype(np.int64)
-
-    @property
-    def t_s(self) -> np.ndarray:
-        return self._samples()["t_s"]
-
-    @property
-    def t_us(self) -> np.ndarray:
-        return (np.rint(self._samples()["t_s"] * 1e6).astype(np.int64)) % (1 << 32)
-
-    @property
-    def counts(self) -> np.ndarray:
-        return self._samples()["counts"]
-
-    @property
-    def si(self) -> np.ndarray:
-        return self._samples()["si"]
-
-
 class WindowWriter:
-    """One raw window being written block by block (``run.windows.begin``).
+    """One raw window being written block by block (``run.windows.begin``); ``source``: where
+    the finished window's frames are read back from (the run file's ``run.windows``).
 
     Frames are held until they fill whole chunks, which are then written and flushed (not
     synced: nothing of the window counts until a record that references it is committed),
@@ -253,13 +163,13 @@ class WindowWriter:
 
     def __init__(
         self,
-        run: Any,
+        source: FrameSource,
         frames: Frames,
         reserve: Callable[[int], None],
         flush: Callable[[], None],
         writing: Callable[[], ContextManager[None]],
     ) -> None:
-        self.run = run
+        self.source = source
         self._frames = frames
         self._reserve = reserve
         self._flush = flush
@@ -314,9 +224,10 @@ class WindowWriter:
         self._stats.add(si)
         self.stop += n
 
-    def finish(self) -> StoredWindow:
-        """Write what is held and close the window; the :class:`StoredWindow` a record's ``raw`` takes."""
+    def finish(self) -> Window:
+        """Write what is held and close the window; the stored :class:`~labcli.core.window.Window` a record's ``raw`` takes."""
         if self._open and self._n_held:
             self._write(self._n_held)
         self._open = False
-        return StoredWindow(self.run, self.start, self.stop, self._sum, self._stats)
+        stored = Stored(self.source, self.start, self.stop, self._sum)
+        return Window(len(self._frames.channels), stats=self._stats, stored=stored)

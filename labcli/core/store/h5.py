@@ -1,4 +1,4 @@
-"""HDF5 plumbing of the run file: datasets with units, text, columns, raw windows, settling.
+"""HDF5 plumbing of the run file: values checked and read back, units, settling, calibration.
 
 Record types (the papers' :class:`labcli.core.paper.RecordType`) check their
 records with :func:`vector` and :func:`scalar` and read values back with :func:`text`
@@ -8,52 +8,17 @@ with the helpers below, so every dataset carries its ``units`` attribute.
 
 from __future__ import annotations
 
-import datetime as _dt
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any, TypedDict
+from typing import Any, cast
 
 import h5py
 import numpy as np
 
 from ...errors import StoreError
+from ..record import ACCEPTED, Settle
 
-ACCEPTED = ("auto", "timeout", "operator", "imported")
 EDGE_DIGITS = 12
-# A record's raw windows: key in the record -> group name in the file.
-WINDOW_GROUPS = {"baseline": "baseline", "load": "loaded", "loaded": "loaded"}
-
-
-class RawWindow(TypedDict, total=False):
-    """One capture window as received (``labcli.papers.takuma2014.session.Window.as_dict()``).
-
-    ``seq`` (n,) frame counters, ``t_us`` (n,) device clock (wraps at 2**32),
-    ``counts`` (n, k) values as sent, ``si`` (n, k) calibrated SI values;
-    ``t_s`` (n,) unwrapped device time in s, optional (derived from ``t_us``).
-    """
-
-    seq: Any
-    t_us: Any
-    counts: Any
-    si: Any
-    t_s: Any
-
-
-class SettleInfo(TypedDict, total=False):
-    """How a window's equilibrium was reached (``labcli.core.settle.SettleReport.as_dict()``)."""
-
-    settled: bool  # False: timed out and accepted
-    settle_time_s: float
-    waited_s: float
-    pressure_spread_MPa: float
-    angle_spread_rad: float
-    criterion: str
-    accepted: str  # overrides the auto/timeout reading of ``settled`` (e.g. "operator")
-
-
-def utc_now() -> str:
-    """The current time as ISO 8601 UTC with a Z suffix, to the second."""
-    return _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
 
 def to_edge(values: Any) -> np.ndarray:
@@ -112,31 +77,6 @@ def scalar(record: Mapping, key: str, label: str, *, default: float = math.nan) 
         raise StoreError(f"{label} record: '{key}' must be a number, got {v!r}.") from None
 
 
-# Raw windows of a few hundred samples a channel are most of a run's data; byte-shuffled
-# gzip shrinks the large ones about fourfold at a cost far below the fsync each trial pays.
-# Below about a thousand values a chunk index costs more than it saves: those stay contiguous.
-_RAW_COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
-_RAW_MIN_VALUES = 1000
-
-
-def dataset(g: h5py.Group, key: str, data: Any, units: str, *, raw: bool = False, **attrs: Any) -> h5py.Dataset:
-    arr = np.asarray(data)
-    opts = _RAW_COMPRESSION if raw and arr.size >= _RAW_MIN_VALUES else {}
-    ds = g.create_dataset(key, data=arr, **opts)
-    ds.attrs["units"] = units
-    for k, v in attrs.items():
-        ds.attrs[k] = v
-    return ds
-
-
-def text_dataset(g: h5py.Group, key: str, value: str, **attrs: Any) -> h5py.Dataset:
-    ds = g.create_dataset(key, data=value, dtype=h5py.string_dtype("utf-8"))
-    ds.attrs["units"] = ""
-    for k, v in attrs.items():
-        ds.attrs[k] = v
-    return ds
-
-
 def column_units(name: str, ids: Sequence[str] = ()) -> str:
     """The units of a table column named in the exchange style (``mass_g``, ``Fx_N``); ids are "1"."""
     for suffix, units in (
@@ -155,27 +95,6 @@ def column_units(name: str, ids: Sequence[str] = ()) -> str:
     return ""
 
 
-def write_columns(g: h5py.Group, columns: Mapping[str, Any], order: Sequence[str], ids: Sequence[str] = ()) -> None:
-    """Store table columns as one dataset each (text or float64/int64); ``ids`` name id columns."""
-    g.attrs["columns"] = list(order)
-    for name in order:
-        values = list(columns[name])
-        if values and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in values):
-            dataset(g, name, np.asarray(values, dtype=np.int64), column_units(name, ids))
-            continue
-        if not any(isinstance(v, str) for v in values):
-            try:
-                arr = np.asarray([math.nan if v is None else float(v) for v in values], dtype=np.float64)
-            except (TypeError, ValueError):
-                pass
-            else:
-                dataset(g, name, arr, column_units(name, ids))
-                continue
-        texts = ["" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v) for v in values]
-        ds = g.create_dataset(name, data=np.array(texts, dtype=object), dtype=h5py.string_dtype("utf-8"))
-        ds.attrs["units"] = ""
-
-
 def read_columns(g: h5py.Group) -> dict[str, list]:
     out: dict[str, list] = {}
     for name in [text(c) for c in g.attrs.get("columns", list(g))]:
@@ -187,51 +106,8 @@ def read_columns(g: h5py.Group) -> dict[str, list]:
     return out
 
 
-def unwrap_us(t_us: np.ndarray) -> np.ndarray:
-    """Device time in s from a 32-bit microsecond clock that wraps."""
-    t = np.asarray(t_us, dtype=np.int64)
-    if t.size == 0:
-        return np.zeros(0, dtype=np.float64)
-    steps = np.diff(t)
-    wraps = np.concatenate([[0], np.cumsum(steps < 0)])
-    return (t + wraps * (1 << 32)) * 1e-6
-
-
-def window_arrays(raw: Mapping, k: int, label: str, which: str) -> dict[str, np.ndarray]:
-    missing = [key for key in ("seq", "counts", "si") if key not in raw]
-    if "t_s" not in raw and "t_us" not in raw:
-        missing.append("t_us")
-    if missing:
-        raise StoreError(f"{label} record: the {which} window lacks {', '.join(missing)}.")
-    seq = np.asarray(raw["seq"])
-    n = seq.shape[0] if seq.ndim == 1 else -1
-    counts = np.asarray(raw["counts"])
-    si = np.asarray(raw["si"], dtype=np.float64)
-    time = np.asarray(raw["t_s"], dtype=np.float64) if "t_s" in raw else unwrap_us(raw["t_us"])
-    if n < 0 or counts.shape != (n, k) or si.shape != (n, k) or time.shape != (n,):
-        raise StoreError(
-            f"{label} record: the {which} window must hold n frames of {k} channels "
-            f"(seq (n,), counts (n,{k}), si (n,{k})), got seq {seq.shape}, counts {counts.shape}, si {si.shape}."
-        )
-    counts_f = counts.astype(np.float64)
-    counts_out: np.ndarray
-    if (
-        np.all(np.isfinite(counts_f))
-        and np.all(counts_f == np.rint(counts_f))
-        and (counts_f.size == 0 or np.abs(counts_f).max() < 2**31)
-    ):
-        counts_out = counts_f.astype(np.int32)
-    else:
-        counts_out = counts_f  # decimals as sent: kept exactly rather than rounded
-    return {
-        "time": time,
-        "counts": counts_out,
-        "values": si,
-        "seq": (seq.astype(np.int64) % (1 << 32)).astype(np.uint32),
-    }
-
-
-def settle_attrs(info: Mapping | None) -> dict[str, Any]:
+def settle_attrs(info: Mapping[str, Any] | None) -> Settle:
+    """How a window settled (a record's ``settle`` entry), checked and in the types the file keeps."""
     if not info:
         return {}
     out: dict[str, Any] = {}
@@ -249,33 +125,7 @@ def settle_attrs(info: Mapping | None) -> dict[str, Any]:
         if accepted not in ACCEPTED:
             raise StoreError(f"settle 'accepted' must be one of {', '.join(ACCEPTED)}, got {accepted!r}.")
         out["accepted"] = accepted
-    return out
-
-
-Window = tuple[str, dict[str, np.ndarray], dict[str, Any]]  # group name, arrays, settle attributes
-
-
-def checked_common(record: Mapping, k: int, label: str) -> tuple[dict[str, Any], list[Window]]:
-    """The record's settle attributes and raw windows, checked and converted before anything touches the file."""
-    settle = record.get("settle") or {}
-    load = settle_attrs(settle.get("load") or settle.get("loaded"))
-    accepted = str(record.get("accepted", load.get("accepted", "auto" if record.get("raw") else "imported")))
-    if accepted not in ACCEPTED:
-        raise StoreError(f"{label} record: 'accepted' must be one of {', '.join(ACCEPTED)}, got {accepted!r}.")
-    attrs = {
-        "settle_time_s": float(load.get("settle_time_s", math.nan)),
-        "settle_criterion": str(load.get("criterion", "")),
-        "accepted": accepted,
-    }
-    windows: list[Window] = []
-    for key, raw_w in (record.get("raw") or {}).items():
-        if key not in WINDOW_GROUPS:
-            raise StoreError(f"{label} record: unknown window {key!r} in 'raw' (use baseline and load).")
-        name = WINDOW_GROUPS[key]
-        if any(name == w[0] for w in windows):
-            raise StoreError(f"{label} record: 'raw' gives the {name} window twice.")
-        windows.append((name, window_arrays(raw_w, k, label, name), settle_attrs(settle.get(key) or settle.get(name))))
-    return attrs, windows
+    return cast(Settle, out)  # the keys above are Settle's
 
 
 def calibration_arrays(protocol: Any, k: int) -> tuple[np.ndarray, np.ndarray, list[str]]:

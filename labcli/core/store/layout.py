@@ -222,6 +222,25 @@ def plan_columns(plan: Mapping[str, Sequence[Any]], id_column: str) -> tuple[lis
     return cols, values
 
 
+def _plan_table(e: h5py.Group, plan: Any, id_column: str) -> None:
+    """The plan table (a DataFrame or a dict of columns), written and committed whole."""
+    cols = plan.to_dict("list") if hasattr(plan, "to_dict") else dict(plan)
+    pc, values = plan_columns(cols, id_column)
+    n = len(next(iter(values.values()), []))
+    t = Table.create(e, "plan", pc, chunk_rows=max(1, n))
+    t.commit(t.write(t.prepared({c.name: c for c in pc}, values, n), n)[1])
+
+
+def _record_table(e: h5py.Group, rt: RecordType, extras: Sequence[Column], chunk_rows: int) -> None:
+    """The empty record table, an NXdata group whose signal is the record type's."""
+    columns = record_columns(rt, extras)
+    t = Table.create(e, rt.collection, columns, chunk_rows, nx_class="NXdata")
+    t.g.attrs["signal"] = rt.signal
+    shape = next((c.shape for c in columns if c.name == rt.signal), ())
+    t.g.attrs["axes"] = [rt.id_column] + ["."] * len(shape)
+    t.g.attrs[f"{rt.id_column}_indices"] = np.int64(0)
+
+
 def initialise(
     f: h5py.File,
     *,
@@ -285,17 +304,8 @@ def initialise(
         file_name=os.path.basename(str(proto_path)) if proto_path else "",
     )
     if plan is not None:
-        cols = plan.to_dict("list") if hasattr(plan, "to_dict") else dict(plan)
-        pc, values = plan_columns(cols, rt.id_column)
-        t = Table.create(e, "plan", pc, chunk_rows=max(1, len(next(iter(values.values()), []))))
-        n = len(next(iter(values.values()), []))
-        t.commit(t.write(t.prepared({c.name: c for c in pc}, values, n), n)[1])
-    columns = record_columns(rt, extras)
-    t = Table.create(e, rt.collection, columns, chunk_rows, nx_class="NXdata")
-    t.g.attrs["signal"] = rt.signal
-    shape = next((c.shape for c in columns if c.name == rt.signal), ())
-    t.g.attrs["axes"] = [rt.id_column] + ["."] * len(shape)
-    t.g.attrs[f"{rt.id_column}_indices"] = np.int64(0)
+        _plan_table(e, plan, rt.id_column)
+    _record_table(e, rt, extras, chunk_rows)
     gain, offset, units = calibration
     create_frames(e, channels, units, gain, offset, chunk_frames)
     s = Table.create(e, "split", SPLIT_COLUMNS, 1)

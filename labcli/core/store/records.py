@@ -21,12 +21,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from ...errors import StoreError
 from ..paper import RecordType
+from ..record import Record, Settle, StoredRecord
+from ..window import Window
 from . import space
 from .rows import bulk_values, record_id, record_row, settle_of, split_flags
 from .view import RecordColumns, from_v1, from_v2
@@ -48,17 +50,17 @@ class Records:
         self._order: list[int] | None = None  # ... in recording order
 
     # ------------------------------------------------------------ writing
-    def write(self, record: Mapping[str, Any]) -> None:
+    def write(self, record: Record) -> None:
         """Write one record of the run's kind whole; it counts only once it is committed.
 
         ``record``: what the run's record type takes (the session's ``Commit``, or an
-        imported table row), plus what every record may carry: ``started``/``ended`` (ISO
-        8601; ``ended`` defaults to now), ``settle`` (``{"baseline": ..., "load": ...}``),
-        ``raw`` (the windows: arrays, or the :class:`~.frames.StoredWindow` the engine
-        streamed), ``accepted``, ``flags`` (a list of one-sentence notes), ``extra``
-        (imported columns).  Raises StoreError if the record is already complete in the file
-        or is malformed (nothing is written then), DiskFull if there is no room for it
-        (nothing is written then either).
+        imported table row), plus what every record may carry (:class:`~labcli.core.record.Record`):
+        ``started``/``ended`` (ISO 8601; ``ended`` defaults to now), ``settle``
+        (``{"baseline": ..., "load": ...}``), ``raw`` (its windows, each a
+        :class:`~labcli.core.window.Window` the engine streamed into this file, or held in memory), ``accepted``,
+        ``flags`` (a list of one-sentence notes), ``extra`` (imported columns).  Raises
+        StoreError if the record is already complete in the file or is malformed (nothing is
+        written then), DiskFull if there is no room for it (nothing is written then either).
         """
         run = self._run
         rt = run.record_type
@@ -182,10 +184,12 @@ class Records:
         """(what, why) of every record left out as damaged."""
         return list(self.columns().damaged)
 
-    def read(self, rid: int) -> dict[str, Any]:
-        """One complete record back as the writer gave it (SI), with its windows as stored.
+    def read(self, rid: int) -> StoredRecord:
+        """One complete record back as the writer gave it (SI), with its windows (read into memory).
 
-        A window whose frames fail their checksum is left out with a warning.
+        The record type's values (:meth:`labcli.core.paper.RecordType.read`) and every key of
+        :class:`~labcli.core.record.StoredRecord`.  A window whose frames fail their checksum is
+        left out with a warning.
         """
         run = self._run
         rec = self.columns()
@@ -193,7 +197,8 @@ class Records:
         if i is None:
             raise StoreError(f"{run.record_type.noun} {rid} is not a complete record in {run.path}.")
         row = {name: v[i] for name, v in rec.cols.items()}
-        raw, settle = {}, {}
+        raw: dict[str, Window] = {}
+        settle: dict[str, Settle] = {}
         for name, key in (("baseline", "baseline"), ("loaded", "load")):
             w = run.windows.of_record(rec, i, name)
             if w is not None:
@@ -201,8 +206,7 @@ class Records:
             s = settle_of(row, name)
             if s:
                 settle[key] = s
-        return {
-            **run.record_type.read(row),
+        common: StoredRecord = {
             "started": str(row["started"]),
             "ended": str(row["ended"]),
             "accepted": str(row["accepted"]),
@@ -214,6 +218,8 @@ class Records:
             "extra": {name: _plain(row[name]) for name in rec.extras},
             "flags": split_flags(row.get("flags", "")),
         }
+        # The record type's values first, as the writer gave them: a TypedDict of its kind.
+        return cast(StoredRecord, {**run.record_type.read(row), **common})
 
     def table(self, kind: RecordType | None = None) -> Any:
         """The CSV exchange table of the complete records (DataFrame), in recording order.

@@ -11,16 +11,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from ...errors import StoreError
 from ..paper import Column, RecordType
+from ..record import ACCEPTED, Settle
 from .columns import fixed
-from .h5 import ACCEPTED, WINDOW_GROUPS, settle_attrs
+from .h5 import settle_attrs
 from .layout import WINDOWS, now_iso
 from .view import MAX_ID, out_of_bounds
+from .windows import WINDOW_GROUPS
 
 SETTLE_NUMBERS = ("settle_time_s", "waited_s", "pressure_spread_MPa", "angle_spread_rad")
 SETTLE_TEXTS = ("criterion", "accepted")
@@ -58,7 +60,7 @@ def record_row(
         }
     )
     for name in WINDOWS:
-        s = settle_attrs(windows.get(name))
+        s: Mapping[str, Any] = settle_attrs(windows.get(name))
         row[f"{name}_settled"] = -1 if "settled" not in s else int(s["settled"])
         for key in (*SETTLE_NUMBERS, *SETTLE_TEXTS):
             if key in s:
@@ -113,7 +115,7 @@ def split_flags(value: Any) -> list[str]:
     return v.split("\n") if v else []
 
 
-def settle_of(row: Mapping[str, Any], name: str) -> dict[str, Any]:
+def settle_of(row: Mapping[str, Any], name: str) -> Settle:
     """How window ``name`` ("baseline", "loaded") of a stored row settled; {} when not recorded."""
     s: dict[str, Any] = {}
     settled = int(row.get(f"{name}_settled", -1))
@@ -127,7 +129,7 @@ def settle_of(row: Mapping[str, Any], name: str) -> dict[str, Any]:
         t = str(row.get(f"{name}_{key}", ""))
         if t:
             s[key] = t
-    return s
+    return cast(Settle, s)  # the keys above are Settle's
 
 
 def bulk_values(

@@ -170,13 +170,7 @@ class RunFile:
         name and appears at ``path`` only at :meth:`publish`.
         """
         path = os.fspath(path)
-        space.check_new_file(path)
-        if os.path.lexists(path) and not force:
-            raise StoreError(f"{path} already exists; {exists_hint}.")
-        if force and os.path.lexists(path) and space.writer_holds(path):
-            raise StoreError(f"{path} {space.BUSY}; --force never replaces a run another program has open.")
-        space.clean_partials(os.path.dirname(os.path.abspath(path)))
-        space.ignore_file_size_signal()
+        _check_new(path, force, exists_hint)
         kind = kind or str(getattr(protocol, "kind", "force"))
         rt = record_type(kind)
         channels = [str(c) for c in (getattr(device_info, "channels", ()) or getattr(protocol, "channels", ()))]
@@ -429,6 +423,18 @@ class RunFile:
         from .verify import verify
 
         return verify(self)
+
+
+def _check_new(path: str, force: bool, exists_hint: str) -> None:
+    """Refuse, in one sentence, a new run at ``path`` (a name, a folder, a file in the way), and
+    clean the leftovers of builders that are gone."""
+    space.check_new_file(path)
+    if os.path.lexists(path) and not force:
+        raise StoreError(f"{path} already exists; {exists_hint}.")
+    if force and os.path.lexists(path) and space.writer_holds(path):
+        raise StoreError(f"{path} {space.BUSY}; --force never replaces a run another program has open.")
+    space.clean_partials(os.path.dirname(os.path.abspath(path)))
+    space.ignore_file_size_signal()
 
 
 def _open_h5(path: str, mode: str) -> h5py.File:

@@ -28,6 +28,7 @@ import h5py
 import numpy as np
 
 from ..paper import Column, RecordType
+from ..window import Window
 from .h5 import plain, read_columns, text
 from .layout import WINDOWS
 
@@ -193,12 +194,13 @@ class V1Run:
         row["_group"] = g
         return row, None
 
-    def window(self, row: dict[str, Any], name: str) -> dict[str, np.ndarray] | None:
+    def window(self, row: dict[str, Any], name: str) -> Window | None:
+        """The ``name`` window ("baseline", "loaded") of a record's group, read into memory."""
         g = row["_group"]
         if name not in g:
             return None
         w = g[name]
-        return {"t_s": w["time"][()], "counts": w["counts"][()], "si": w["values"][()], "seq": w["seq"][()]}
+        return Window.of(w["seq"][()], w["counts"][()], w["values"][()], t_s=w["time"][()])
 
     # ------------------------------------------------------------ split and models
     def split(self) -> Split | None:

@@ -2,34 +2,43 @@
 
 The engine streams a window into the file as its frames arrive (:meth:`Windows.begin`, a
 :class:`~.frames.WindowWriter`); a record then refers to it by ``[start, stop)`` and the
-checksum of its frames.  A window handed to :meth:`~.records.Records.write` as arrays (a
-test's, a schema-1 file being copied) is written the same way at the commit.  Reading a
-record's window checks its frames against that checksum: a damaged window is named in a
-warning and left out.
+checksum of its frames.  A window handed to ``run.records.write`` with its frames in memory
+(a test's, a schema-1 file being copied, one read from another run file) is written the
+same way at the commit.  Reading a record's window checks its frames against that checksum:
+a damaged window is named in a warning and left out.  Every window is a
+:class:`~labcli.core.window.Window`.
 
 >>> w = run.windows.begin("trial 12")         # doctest: +SKIP
 >>> w.append(t_s, seq, counts, si)            # doctest: +SKIP
->>> stored = w.finish()                       # what the record's ``raw`` takes
+>>> stored = w.finish()                       # the Window a record's ``raw`` takes
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from ...errors import StoreError
-from .frames import StoredWindow, WindowWriter, counts_out
-from .h5 import WINDOW_GROUPS, window_arrays
+from ...errors import ConfigError, StoreError
+from ..window import NOT_KEPT, Stored, Window
+from .frames import WindowWriter, counts_out
 
 if TYPE_CHECKING:
     from .runfile import RunFile
     from .view import RecordColumns
 
-# A record's windows as checked before anything is written: column prefix, and the window
-# already in the file or the arrays to write.
-Checked = list[tuple[str, Any]]
+# A record's windows: key in the record -> column prefix in the file (group name in schema 1).
+WINDOW_GROUPS = {"baseline": "baseline", "load": "loaded", "loaded": "loaded"}
+
+
+class Frames(NamedTuple):
+    """A window's frames as the writer takes them, checked (:func:`checked_frames`)."""
+
+    time: np.ndarray  # (n,) s, the rig's clock unwrapped
+    seq: np.ndarray  # (n,) uint32
+    counts: np.ndarray  # (n, k) as sent
+    values: np.ndarray  # (n, k) SI
 
 
 class Windows:
@@ -43,24 +52,24 @@ class Windows:
 
         ``append(time, seq, counts, si)`` adds each block (whole chunks of frames go into the
         file and are flushed as they fill, not yet part of any record); ``finish()`` returns the
-        :class:`StoredWindow` a record's ``raw`` then takes.  A window no record takes (a redo,
-        a kill) stays unused: it lies past every committed window and the next one starts
-        after it.
+        stored :class:`~labcli.core.window.Window` a record's ``raw`` then takes.  A window no
+        record takes (a redo, a kill) stays unused: it lies past every committed window and the
+        next one starts after it.
         """
         run = self._run
         run.writer.check()
         run.check_v2(doing)
         w = run.writer
         return WindowWriter(
-            run,
+            self,
             run.tables.frames,
             lambda nbytes: w.reserve(nbytes, doing),
             lambda: w.flush(doing),
             lambda: w.writing(doing),
         )
 
-    def frames(self, start: int, stop: int) -> dict[str, np.ndarray]:
-        """Raw frames ``[start, stop)``: ``t_s``, ``seq``, ``counts``, ``si``; StoreError when any cannot be read."""
+    def frames(self, start: int, stop: int) -> Window:
+        """Raw frames ``[start, stop)`` read into memory; StoreError when any cannot be read."""
         run = self._run
         if run.v1 is not None:
             raise StoreError(f"{run.path} keeps its raw windows per record (schema 1); use records.read().")
@@ -70,18 +79,17 @@ class Windows:
                 f"{run.path}: raw frames {start} to {stop} cannot all be read (damaged); "
                 "labcli inspect --verify names the records they belong to."
             )
-        w["counts"] = counts_out(w["counts"])
-        return w
+        return Window.of(w["seq"], counts_out(w["counts"]), w["si"], t_s=w["t_s"])
 
     @property
     def extent(self) -> int:
-        """Frames written so far (committed or not): where the next window starts, rounded up to a chunk."""
+        """Frames written so far, committed or not (the next window starts past them, at a chunk boundary)."""
         run = self._run
-        return 0 if run.tables is None else run.tables.frames.extent
+        return 0 if run.v1 is not None else run.tables.frames.extent
 
-    def of_record(self, rec: RecordColumns, i: int, name: str) -> dict[str, np.ndarray] | None:
-        """The ``name`` window ("baseline", "loaded") of record ``i`` of ``rec``; None when it has
-        none, or (with a warning) when its frames fail their checksum."""
+    def of_record(self, rec: RecordColumns, i: int, name: str) -> Window | None:
+        """The ``name`` window ("baseline", "loaded") of record ``i`` of ``rec``, read into memory; None
+        when it has none, or (with a warning) when its frames fail their checksum."""
         run = self._run
         if run.v1 is not None:
             return run.v1.window(rec.sources[i], name)
@@ -89,48 +97,70 @@ class Windows:
         if a < 0:
             return None
         frames = run.tables.frames
+        checksum = int(rec.cols[f"{name}_checksum"][i])
         try:
             w, ok = frames.read(a, b)
             total, _ = frames.checksum(a, b)
         except StoreError:
             w, ok, total = None, False, None
-        if w is None or not ok or total != int(rec.cols[f"{name}_checksum"][i]):
+        if w is None or not ok or total != checksum:
             what = f"{run.record_type.noun} {rec.ids[i]}"
             run.warn(
                 f"{run.path}: the {name} window of {what} is damaged (its frames fail their checksum) and is left out."
             )
             return None
-        w["counts"] = counts_out(w["counts"])
-        return w
+        window = Window.of(w["seq"], counts_out(w["counts"]), w["si"], t_s=w["t_s"])
+        window.stored = Stored(self, a, b, checksum)
+        return window
 
-    def checked(self, record: Mapping[str, Any], label: str) -> Checked:
-        """The record's raw windows, checked before anything is written (see :data:`Checked`)."""
-        out: Checked = []
+    def checked(self, record: Mapping[str, Any], label: str) -> list[tuple[str, Window | Frames]]:
+        """The record's windows, checked before anything is written: column prefix, and the window
+        already in this file or the frames to write."""
+        out: list[tuple[str, Window | Frames]] = []
         k = len(self._run.channels)
-        for key, raw in (record.get("raw") or {}).items():
+        for key, w in (record.get("raw") or {}).items():
             if key not in WINDOW_GROUPS:
                 raise StoreError(f"{label} record: unknown window {key!r} in 'raw' (use baseline and load).")
             name = WINDOW_GROUPS[key]
-            if any(name == w[0] for w in out):
+            if any(name == have for have, _ in out):
                 raise StoreError(f"{label} record: 'raw' gives the {name} window twice.")
-            stored = raw.get("stored") if isinstance(raw, Mapping) else None
-            if isinstance(stored, StoredWindow):
-                if stored.run is not self._run:
-                    raise StoreError(f"{label} record: its {name} window was written into another run file.")
-                out.append((name, stored))
+            if not isinstance(w, Window):
+                raise StoreError(f"{label} record: its {name} window is a {type(w).__name__}, not a Window.")
+            if w.stored is not None and w.stored.source is self:
+                out.append((name, w))
+            elif w.kept:
+                out.append((name, checked_frames(w, k, label, name)))
             else:
-                out.append((name, window_arrays(raw, k, label, name)))
+                raise ConfigError(NOT_KEPT)
         return out
 
-    def store(self, checked: Checked, label: str) -> tuple[dict[str, int], int]:
-        """Write the windows given as arrays; the record's window columns and the bytes of frames written."""
+    def store(self, checked: list[tuple[str, Window | Frames]], label: str) -> tuple[dict[str, int], int]:
+        """Write the windows given as frames; the record's window columns and the bytes of frames written."""
         row: dict[str, int] = {}
         nbytes = 0
         for name, w in checked:
-            if not isinstance(w, StoredWindow):
-                nbytes += len(w["seq"]) * 8 * (2 + 2 * len(self._run.channels))
+            if isinstance(w, Frames):
+                nbytes += len(w.seq) * 8 * (2 + 2 * len(self._run.channels))
                 writer = self.begin(doing=label)
-                writer.append(w["time"], w["seq"], w["counts"], w["values"])
+                writer.append(w.time, w.seq, w.counts, w.values)
                 w = writer.finish()
-            row.update({f"{name}_start": w.start, f"{name}_stop": w.stop, f"{name}_checksum": w.checksum})
+            assert w.stored is not None
+            s = w.stored
+            row.update({f"{name}_start": s.start, f"{name}_stop": s.stop, f"{name}_checksum": s.checksum})
         return row, nbytes
+
+
+def checked_frames(w: Window, k: int, label: str, which: str) -> Frames:
+    """A window's frames as the writer takes them, refused in one sentence unless shaped n x ``k``."""
+    seq = np.asarray(w.seq)
+    n = seq.shape[0] if seq.ndim == 1 else -1
+    counts = np.asarray(w.counts)
+    si = np.asarray(w.si, dtype=np.float64)
+    time = np.asarray(w.t_s, dtype=np.float64)
+    if n < 0 or counts.shape != (n, k) or si.shape != (n, k) or time.shape != (n,):
+        raise StoreError(
+            f"{label} record: the {which} window must hold n frames of {k} channels "
+            f"(seq (n,), counts (n,{k}), si (n,{k})), got seq {seq.shape}, counts {counts.shape}, si {si.shape}."
+        )
+    seq32 = (seq.astype(np.int64) % (1 << 32)).astype(np.uint32)
+    return Frames(time, seq32, counts_out(counts), si)  # decimals as sent are kept exactly, not rounded

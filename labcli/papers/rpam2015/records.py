@@ -21,12 +21,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
 from ...core.paper import Column
 from ...core.protocol import loads_protocol
+from ...core.record import Record
 from ...core.report import ids_text, settling_line
 from ...core.store.h5 import nan_if_empty, scalar, to_edge, vector
 from ...core.store.record_type import BaseRecordType
@@ -34,6 +35,27 @@ from ...core.tables import TableSpec
 from ...errors import LabcliError, StoreError
 from .session import acquisition_protocol
 from .tables import POINT_SPECS
+
+# The stretch ratio L / L0 under its key "lambda", which a class body cannot spell.
+_Stretch = TypedDict("_Stretch", {"lambda": float}, total=False)
+
+
+class _PointOptional(Record, _Stretch, total=False):
+    mass_kg: float  # stretch: the payload
+    L_m: float  # actuator A's length (stretch; the joint map's when measured)
+    P0_MPa: np.ndarray  # joint map: (2,) baseline pressures
+    pot0_rad: float  # joint map: the baseline angle
+    alpha_rad: float  # joint map: the deflection from the vented baseline
+    plan: dict[str, float]  # the set values: mass_g, P_A_kPa, P_B_kPa
+
+
+class PointRecord(_PointOptional):
+    """A point of the stretch test or the joint map as a session commits it (SI)."""
+
+    point: int
+    experiment: str  # "stretch" or "joint", as the run's kind says
+    P_MPa: np.ndarray  # (2,) P_A, P_B
+
 
 # key in the record -> (column, units)
 _DATASETS = {

@@ -38,7 +38,7 @@ import itertools
 import math
 from collections.abc import Generator, Iterable
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -61,6 +61,9 @@ from ...core.steps import (
 from ...errors import ConfigError
 from .models import rpam
 from .protocol import EXPERIMENTS
+
+if TYPE_CHECKING:
+    from .records import PointRecord  # which imports this module
 
 KINDS: dict[str, str] = {v: k for k, v in EXPERIMENTS.items()}
 CHANNELS = ("P_A", "P_B", "POT", "LEN")
@@ -345,7 +348,7 @@ def _cols(protocol: Any) -> dict[str, int]:
     return {n: names.index(n) for n in CHANNELS}
 
 
-def stretch_record(p: PlannedPoint, window: Window, settle: SettleReport, protocol: Any) -> dict:
+def stretch_record(p: PlannedPoint, window: Window, settle: SettleReport, protocol: Any) -> PointRecord:
     """One stretch-test point, SI, with its raw window (what the store writes)."""
     c = _cols(protocol)
     m = window.mean()
@@ -359,13 +362,13 @@ def stretch_record(p: PlannedPoint, window: Window, settle: SettleReport, protoc
         "lambda": L / protocol.settings.L0_m,
         "plan": p.plan_row(),
         "settle": {"load": settle.as_dict()},
-        "raw": {"load": window.as_dict()},
+        "raw": {"load": window},
     }
 
 
 def joint_record(
     p: PlannedPoint, baseline: Window, loaded: Window, settle_b: SettleReport, settle_l: SettleReport, protocol: Any
-) -> dict:
+) -> PointRecord:
     """One joint-map point: pressures and the deflection from the vented baseline, SI."""
     c = _cols(protocol)
     b = baseline.mean()
@@ -380,11 +383,11 @@ def joint_record(
         "L_m": float(m[c["LEN"]]),
         "plan": p.plan_row(),
         "settle": {"baseline": settle_b.as_dict(), "load": settle_l.as_dict()},
-        "raw": {"baseline": baseline.as_dict(), "load": loaded.as_dict()},
+        "raw": {"baseline": baseline, "load": loaded},
     }
 
 
-def point_row(record: dict) -> dict[str, str]:
+def point_row(record: PointRecord) -> dict[str, str]:
     """The point as people read it (kPa, g, mm, deg), for the review."""
     row = {"point": str(record["point"])}
     p = record["P_MPa"]

@@ -24,6 +24,7 @@ from typing import Any
 
 from ...core.guard import Guard
 from ...core.steps import Ask, BeginTrial, Field, Finish, Prompt, SettleReport, Step, Window
+from .records import PushRecord
 from .session import (
     ChannelMap,
     Checked,
@@ -145,11 +146,11 @@ def push_record(
     settle_baseline: SettleReport,
     settle_load: SettleReport,
     cmap: ChannelMap,
-) -> dict:
+) -> PushRecord:
     """One push of the stiffness experiment (Section 4), SI, with both raw windows."""
     b = baseline.mean()
     m = loaded.mean()
-    record = {
+    record: PushRecord = {
         "push": int(push),
         "object": obj.name,
         "R_m": float(obj.radius_m),
@@ -161,7 +162,7 @@ def push_record(
         "pot0_rad": b[list(cmap.pot)],
         "theta_rad": m[list(cmap.pot)] - b[list(cmap.pot)],
         "settle": {"baseline": settle_baseline.as_dict(), "load": settle_load.as_dict()},
-        "raw": {"baseline": baseline.as_dict(), "load": loaded.as_dict()},
+        "raw": {"baseline": baseline, "load": loaded},
     }
     if obj.stiffness_N_per_m is not None:
         record["true_stiffness_N_per_m"] = float(obj.stiffness_N_per_m)

@@ -27,6 +27,7 @@ import numpy as np
 
 from ...core.bounds import wrap_degrees_array
 from ...core.paper import Column
+from ...core.record import Record
 from ...core.report import records_line, settling_line, split_line
 from ...core.store import load_table
 from ...core.store.h5 import missing, nan_if_empty, scalar, to_edge, vector
@@ -43,6 +44,43 @@ ANGLE_BOUNDS = (-TWO_PI, TWO_PI)  # rad: a joint cannot turn more than a full tu
 FORCE_BOUNDS = (-1e5, 1e5)  # N
 LENGTH_BOUNDS = (-10.0, 10.0)  # m
 DEG_BOUNDS = (-1e4, 1e4)  # deg, a direction typed in a plan
+
+
+class _TrialOptional(Record, total=False):
+    set: str  # the plan's set (fit, validation)
+    pot0_rad: np.ndarray  # (2,) baseline potentiometer angles
+    plan: dict[str, Any]  # the plan row it followed: set, mass_g, direction_deg
+
+
+class TrialRecord(_TrialOptional):
+    """A force/angle trial as a session commits it (SI), beside what every record carries."""
+
+    trial: int
+    P0_MPa: np.ndarray  # (4,) baseline pressures P_L1, P_R1, P_L2, P_R2
+    P_MPa: np.ndarray  # (4,) pressures under the load
+    theta_rad: np.ndarray  # (2,) joint deflections under the load
+    force_N: np.ndarray  # (2,) Fx, Fy at the contact point
+    mass_kg: float  # the pulley load (NaN when not a pulley load)
+    direction_rad: float
+
+
+class _PushOptional(Record, total=False):
+    true_stiffness_N_per_m: float  # the simulated object's (absent at a real rig)
+
+
+class PushRecord(_PushOptional):
+    """An object push (Section 4) as a session commits it (SI), beside what every record carries."""
+
+    push: int
+    object: str
+    category: str
+    R_m: float  # the object's radius
+    d_m: float  # how far it was pushed
+    phi_rad: float  # the push direction (NaN: unknown)
+    P0_MPa: np.ndarray  # (4,)
+    P_MPa: np.ndarray  # (4,)
+    pot0_rad: np.ndarray  # (2,)
+    theta_rad: np.ndarray  # (2,)
 
 
 def _pressure(name: str, what: str, optional: bool = False) -> Column:
@@ -147,9 +185,9 @@ def _baseline_times(run: Any, rid: int, i: int, cols: Mapping[str, Any]) -> Any:
     need to decode the whole record), else through ``run.records.read``."""
     if getattr(run, "version", 1) >= 2 and "baseline_start" in cols:
         a, b = int(cols["baseline_start"][i]), int(cols["baseline_stop"][i])
-        return None if a < 0 else run.windows.frames(a, b)["t_s"]
+        return None if a < 0 else run.windows.frames(a, b).t_s
     window = run.records.read(rid)["raw"].get("baseline")
-    return None if window is None else window["t_s"]
+    return None if window is None else window.t_s
 
 
 def _leak(run: Any, ids: list[int], cols: Mapping[str, Any], p0: Any) -> dict[str, Any] | None:
@@ -218,7 +256,7 @@ class TrialRecords(_McKibbenRecords):
     )
 
     def check(self, record: Mapping[str, Any], label: str, run: Any) -> dict[str, Any]:
-        """A trial (keys of ``TrialRecord`` in the run file's docs), checked before anything is written."""
+        """A trial (:class:`TrialRecord`), checked before anything is written."""
         row = self._pressures(record, label, "loaded pressures P_L1,P_R1,P_L2,P_R2 in MPa")
         row["theta"] = vector(record, "theta_rad", 2, "joint deflections in rad", label)
         row["F"] = vector(record, "force_N", 2, "Fx, Fy in N", label)

@@ -46,6 +46,7 @@ from ...core.steps import (
     WaitSettle,
     Window,
 )
+from .records import TrialRecord
 
 G = 9.80665  # standard gravity, m/s^2 (docs/table-formats.md)
 
@@ -277,7 +278,7 @@ def force_record(
     settle_load: SettleReport,
     cmap: ChannelMap,
     plan_row: dict | None = None,
-) -> dict:
+) -> TrialRecord:
     """One force/angle trial, SI, with both raw windows (what the store writes)."""
     b = baseline.mean()
     m = loaded.mean()
@@ -286,7 +287,7 @@ def force_record(
     pot0 = b[list(cmap.pot)]
     theta = m[list(cmap.pot)] - pot0
     weight = mass_kg * G
-    return {
+    record: TrialRecord = {
         "trial": int(trial),
         "set": set_,
         "P0_MPa": p0,
@@ -297,9 +298,11 @@ def force_record(
         "mass_kg": float(mass_kg),
         "direction_rad": float(direction_rad),
         "settle": {"baseline": settle_baseline.as_dict(), "load": settle_load.as_dict()},
-        "raw": {"baseline": baseline.as_dict(), "load": loaded.as_dict()},
-        **({"plan": dict(plan_row)} if plan_row else {}),
+        "raw": {"baseline": baseline, "load": loaded},
     }
+    if plan_row:
+        record["plan"] = dict(plan_row)
+    return record
 
 
 def summary_row(record: dict) -> dict[str, str]:

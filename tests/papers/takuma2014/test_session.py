@@ -58,7 +58,7 @@ def window(p_mpa, pot_rad, n=20, t0=0.0):
     si = np.tile(np.concatenate([p_mpa, pot_rad]), (n, 1))
     counts = PROTOCOL.calibration.to_counts(si)
     t_s = t0 + np.arange(n) / 200.0
-    return Window(np.arange(n, dtype=np.int64), (t_s * 1e6).astype(np.int64), counts, si, t_s)
+    return Window.of(np.arange(n, dtype=np.int64), counts, si, t_us=(t_s * 1e6).astype(np.int64), t_s=t_s)
 
 
 SETTLED = SettleReport(True, 3.1, 3.1, 0.0004, 0.0002, "rule")
@@ -187,7 +187,7 @@ def test_trial_record_holds_the_load_the_baseline_and_the_deflection():
     assert rec["pot0_rad"] == pytest.approx(POT_BASE)
     assert rec["plan"] == {"set": "fit", "mass_g": 200.0, "direction_deg": -120.0}
     assert set(rec["raw"]) == {"baseline", "load"}
-    assert rec["raw"]["load"]["counts"].shape == (20, 6)
+    assert rec["raw"]["load"].counts.shape == (20, 6)
     assert rec["settle"]["load"]["settle_time_s"] == 3.1
 
 
