@@ -14,6 +14,7 @@ from labcli.core.device import Device
 from labcli.core.sim import make_rig, modes
 from labcli.papers.rpam2015.models import rpam
 from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.sim import rpam_physics as physics
 from labcli.papers.rpam2015.sim.rig import (
     ADC_MAX,
     CALIBRATION,
@@ -131,15 +132,15 @@ def test_the_rigs_own_stress_integration_gives_the_models_energy_force():
     # energy and gas volume over R^2, models/rpam_force.py), the rig integrates the
     # wall's Cauchy stresses over the current radius and adds the thread's statics.
     rig = RpamRig(seed=0, variation=False)
-    tube = rig.tubes[0]
+    tube = rig.actuators[0]
     L = np.linspace(0.05, 0.20, 31)
     for p in (0.0, 0.002, 0.006, 0.041, 0.096, 0.138, 0.19):  # slack cage below ~10 kPa, then on it
         model = rpam.external_force(p, L, model_actuator(rig))
-        np.testing.assert_allclose(tube.tension(p, L), model, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(physics.tension(tube, p, L), model, rtol=1e-6, atol=1e-6)
     # The printed Eq. 2's wall term is what the stresses rule out: about P A0 / lambda apart.
     lam = 0.1336 / ACT.L0_m
     old = float(rpam.external_force(0.096, 0.1336, ACT)) + 0.096e6 * ACT.A0_m2 / lam
-    assert float(tube.tension(0.096, 0.1336)) == pytest.approx(old - 10.4, abs=0.05)
+    assert float(physics.tension(tube, 0.096, 0.1336)) == pytest.approx(old - 10.4, abs=0.05)
 
 
 def test_the_rigs_cross_product_torque_is_eq6_with_the_models_moment_arms():
@@ -208,10 +209,10 @@ def test_stretch_stand_length_is_the_loaded_length_of_the_true_actuator():
         assert math.degrees(v[2]) == pytest.approx(0.0, abs=0.05)  # joint locked on the stand
     assert rig.true_state()["lambda"] > 2.0
     # The true correction is never clamped: at lambda beyond the protocol's range it still grows.
-    tube = rig.tubes[0]
+    tube = rig.actuators[0]
     coef = rig.true_stretch_coefficients_N["A"]
     assert float(
-        tube.tension(0.1, 3.0 * tube.L0_m) - rpam.external_force(0.1, 3.0 * tube.L0_m, ACT, stretch=False)
+        physics.tension(tube, 0.1, 3.0 * tube.L0_m) - rpam.external_force(0.1, 3.0 * tube.L0_m, ACT, stretch=False)
     ) == pytest.approx(np.polyval(coef[::-1], 3.0), abs=1e-6)
 
 

@@ -88,6 +88,7 @@ import numpy as np
 
 from ....core.protocol import tomllib
 from ....errors import ConfigError, ModelError
+from ..actuator import Actuator
 from ..protocol import where  # how a message names the protocol
 from . import rpam_force
 
@@ -111,33 +112,6 @@ class JointGeometry:
 
     def to_dict(self) -> dict[str, float]:
         return asdict(self)
-
-
-@dataclass(frozen=True)
-class Actuator:
-    """One rPAM: undeformed length, wall section, thread cage, Ogden wall, stretch fit."""
-
-    L0_m: float
-    A0_m2: float
-    n_turns: float
-    thread_length_m: float
-    ogden_mu_MPa: tuple[float, ...]
-    ogden_alpha: tuple[float, ...]
-    stretch_coefficients_N: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
-    stretch_lambda_range: tuple[float, float] = (1.0, 2.2)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
-
-    @property
-    def rest_radius_m(self) -> float:
-        """Radius of the thread cage at L = L0."""
-        return thread_radius(self.L0_m, self.n_turns, self.thread_length_m)
-
-    @property
-    def rest_helix_angle_rad(self) -> float:
-        """Thread angle from the actuator axis at L = L0 (90 deg would be pure hoops)."""
-        return math.acos(self.L0_m / self.thread_length_m)
 
 
 # --------------------------------------------------------------------------- geometry

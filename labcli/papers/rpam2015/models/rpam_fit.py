@@ -51,7 +51,7 @@ NaN is written as ``null``):
 
     {"kind": "rpam-joint-map", "protocol": path,
      "geometry": {"L1_m", "L2_m", "L3_m"}, "toggle_deg": float,
-     "actuator": <rpam.Actuator.to_dict()>,          # correction included
+     "actuator": <Actuator.to_dict()>,          # correction included
      "correction": {"coefficients_N": [...4], "lambda_range": [lo, hi],
                     "source": "protocol" | "fit" | "given"},
      "summary": {"without": S, "with": S},
@@ -78,7 +78,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -86,6 +86,7 @@ import numpy as np
 
 from ....core.jsontext import MAX_DEPTH, JSONDepthError, loads_bounded
 from ....errors import ModelError
+from ..actuator import Actuator
 from ..protocol import read_rpam_protocol
 from . import rpam
 
@@ -350,11 +351,9 @@ class StretchFit:
     default_lambda_range: tuple[float, float] = (1.0, 2.2)
     skipped_rows: list[int] = field(default_factory=list)
 
-    def apply_to(self, act: rpam.Actuator) -> rpam.Actuator:
+    def apply_to(self, act: Actuator) -> Actuator:
         """``act`` with this fit's coefficients and the stretch range it was fitted on."""
-        return replace(
-            act, stretch_coefficients_N=self.model.coefficients_N, stretch_lambda_range=self.model.lambda_range
-        )
+        return act.with_stretch_correction(self.model.coefficients_N, self.model.lambda_range)
 
     def overrides(self) -> list[str]:
         """``key=value`` assignments for :func:`labcli.papers.rpam2015.models.rpam.apply_overrides` (or ``--set``)."""
@@ -401,7 +400,7 @@ class StretchFit:
         return cls.from_dict(_loads(text, "stretch-test analysis"))
 
 
-def stretch_forces(mass_kg: Any, P_MPa: Any, L_m: Any, act: rpam.Actuator) -> dict[str, np.ndarray]:
+def stretch_forces(mass_kg: Any, P_MPa: Any, L_m: Any, act: Actuator) -> dict[str, np.ndarray]:
     """Eq. 7 per point: ``F_ext = m g``, ``F_cons``, ``F_int`` and ``F_stretch = F_ext - F_cons - F_int`` (N)."""
     mass, P, L = (np.asarray(v, dtype=float) for v in (mass_kg, P_MPa, L_m))
     lam = L / act.L0_m
@@ -482,7 +481,7 @@ class JointMapResult:
 
     protocol: str
     geometry: rpam.JointGeometry
-    actuator: rpam.Actuator
+    actuator: Actuator
     correction_source: str
     rows: np.ndarray
     Pa_MPa: np.ndarray
@@ -556,8 +555,7 @@ class JointMapResult:
             raise ModelError(f"Expected a joint-map analysis (kind 'rpam-joint-map'), got kind {d.get('kind')!r}.")
         try:
             p = d["points"]
-            a = dict(d["actuator"])
-            act = rpam.Actuator(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in a.items()})
+            act = Actuator.from_dict(d["actuator"])
             arr = lambda k: np.asarray(_none_to_nan(list(p[k])), dtype=float)  # noqa: E731
             return cls(
                 protocol=str(d["protocol"]),
@@ -596,7 +594,7 @@ def _grid_lines(values: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]
     return means, labels
 
 
-def correction_actuator(act: rpam.Actuator, correction: Any) -> tuple[rpam.Actuator, str]:
+def correction_actuator(act: Actuator, correction: Any) -> tuple[Actuator, str]:
     """``act`` with ``correction`` applied, and where it came from ("protocol", "fit", "given").
 
     ``correction``: None (the protocol's own), a :class:`StretchFit`, a fitted
@@ -613,16 +611,14 @@ def correction_actuator(act: rpam.Actuator, correction: Any) -> tuple[rpam.Actua
         return correction.apply_to(act), "fit"
     if isinstance(correction, StretchCorrection):
         correction._check()
-        return replace(
-            act, stretch_coefficients_N=correction.coefficients_N, stretch_lambda_range=correction.lambda_range
-        ), "fit"
+        return act.with_stretch_correction(correction.coefficients_N, correction.lambda_range), "fit"
     try:
         coef = tuple(float(v) for v in correction)
     except (TypeError, ValueError):
         coef = ()
     if len(coef) != DEGREE + 1 or not all(math.isfinite(c) for c in coef):
         raise ModelError("A stretch correction is four finite coefficients c0..c3 in N, a stretch fit, or None.")
-    return replace(act, stretch_coefficients_N=coef), "given"
+    return act.with_stretch_correction(coef), "given"
 
 
 def _summary(
@@ -658,7 +654,7 @@ def _summary(
 
 
 def model_angles(
-    Pa_MPa: Any, Pb_MPa: Any, geom: rpam.JointGeometry, act: rpam.Actuator, *, stretch: bool
+    Pa_MPa: Any, Pb_MPa: Any, geom: rpam.JointGeometry, act: Actuator, *, stretch: bool
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Model angles (deg, NaN at the toggle), toggle flags and the toggle-side limit (deg)."""
     eq = rpam.solve_equilibrium(Pa_MPa, Pb_MPa, geom, act, stretch=stretch)

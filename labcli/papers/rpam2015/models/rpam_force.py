@@ -74,9 +74,11 @@ Equilibrium (dPi = 0 for every admissible variation)
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
+
+from ..actuator import Actuator
 
 _MPA = 1e6  # Pa per MPa
 QUADRATURE_NODES = 6
@@ -84,18 +86,7 @@ _X, _W = np.polynomial.legendre.leggauss(QUADRATURE_NODES)
 _BISECTIONS = 60  # halvings of the free-branch bracket: far below double precision
 
 
-class WallAndCage(Protocol):
-    """What the force needs of an actuator (:class:`.rpam.Actuator` has it)."""
-
-    L0_m: float
-    A0_m2: float
-    n_turns: float
-    thread_length_m: float
-    ogden_mu_MPa: tuple[float, ...]
-    ogden_alpha: tuple[float, ...]
-
-
-def cage_radius_sq(L: Any, act: WallAndCage) -> np.ndarray:
+def cage_radius_sq(L: Any, act: Actuator) -> np.ndarray:
     """``r_c(L)^2`` (m^2): squared radius of the thread cage at length L."""
     L = np.asarray(L, dtype=float)
     return (act.thread_length_m**2 - L**2) / (4 * np.pi**2 * act.n_turns**2)
@@ -108,7 +99,7 @@ def cage_gas_force(P_MPa: Any, L: Any, n_turns: float, thread_length_m: float) -
     return P * (3 * L**2 - thread_length_m**2) / (4 * np.pi * n_turns**2)
 
 
-def wall_radii_sq(act: WallAndCage) -> tuple[float, float]:
+def wall_radii_sq(act: Actuator) -> tuple[float, float]:
     """``(R_i^2, R_o^2)`` (m^2): the wall's rest radii, the outer one on the cage."""
     Ro2 = float(cage_radius_sq(act.L0_m, act))
     return Ro2 - act.A0_m2 / np.pi, Ro2
@@ -133,7 +124,7 @@ def _power(x: np.ndarray, a: float, logs: dict[str, np.ndarray], key: str) -> np
 
 
 def _wall(
-    L: np.ndarray, ro2: np.ndarray, act: WallAndCage, energy: bool = False
+    L: np.ndarray, ro2: np.ndarray, act: Actuator, energy: bool = False
 ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
     """``(U, dU/dL at fixed r_o^2, dU/d(r_o^2) at fixed L)`` by quadrature over R^2.
 
@@ -171,14 +162,14 @@ def _wall(
     return U, dU_dL, dU_dro2
 
 
-def liftoff_pressure(L: Any, act: WallAndCage) -> np.ndarray:
+def liftoff_pressure(L: Any, act: Actuator) -> np.ndarray:
     """``P_lift(L)`` (MPa): the least pressure that holds the wall on the cage at length L."""
     L = np.asarray(L, dtype=float)
     _, _, dU_dro2 = _wall(L, cage_radius_sq(L, act), act)
     return dU_dro2 / (np.pi * L) / _MPA
 
 
-def _free_radius_sq(P: np.ndarray, L: np.ndarray, act: WallAndCage, hi: np.ndarray) -> np.ndarray:
+def _free_radius_sq(P: np.ndarray, L: np.ndarray, act: Actuator, hi: np.ndarray) -> np.ndarray:
     """r_o^2 of a free (slack-cage) tube: the root of ``dU/d(r_o^2) = P pi L`` below ``hi``.
 
     The root lies between the homogeneous state ``R_o^2 / lambda`` (its P = 0 root, exact)
@@ -197,7 +188,7 @@ def _free_radius_sq(P: np.ndarray, L: np.ndarray, act: WallAndCage, hi: np.ndarr
     return out
 
 
-def _settled(P: np.ndarray, L: np.ndarray, act: WallAndCage) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _settled(P: np.ndarray, L: np.ndarray, act: Actuator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(r_o^2, on_cage, dU/dL, dU/d(r_o^2))`` at the wall's equilibrium radius."""
     rc2 = cage_radius_sq(L, act)
     _, dU_dL, dU_dro2 = (np.array(v, dtype=float) for v in _wall(L, rc2, act))
@@ -216,13 +207,13 @@ def _broadcast(P_MPa: Any, L: Any) -> tuple[np.ndarray, np.ndarray]:
     return np.array(P, dtype=float), np.array(L, dtype=float)
 
 
-def wall_state(P_MPa: Any, L: Any, act: WallAndCage) -> tuple[np.ndarray, np.ndarray]:
+def wall_state(P_MPa: Any, L: Any, act: Actuator) -> tuple[np.ndarray, np.ndarray]:
     """``(r_o^2, on_cage)``: the wall's outer radius squared (m^2) and whether the cage holds it."""
     ro2, on_cage, _, _ = _settled(*_broadcast(P_MPa, L), act)
     return ro2, on_cage
 
 
-def force_parts(P_MPa: Any, L: Any, act: WallAndCage) -> tuple[np.ndarray, np.ndarray]:
+def force_parts(P_MPa: Any, L: Any, act: Actuator) -> tuple[np.ndarray, np.ndarray]:
     """``(F_gas, F_wall)`` (N, tension +): the gas's and the wall's parts of ``dPi/dL``.
 
     On the cage ``F_gas`` is :func:`cage_gas_force` (Eq. 2 re-derived) and ``F_wall`` is
@@ -237,13 +228,13 @@ def force_parts(P_MPa: Any, L: Any, act: WallAndCage) -> tuple[np.ndarray, np.nd
     return gas, wall
 
 
-def internal_force(P_MPa: Any, L: Any, act: WallAndCage) -> np.ndarray:
+def internal_force(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:
     """``dPi/dL`` without the load (N, tension +): the load that holds the actuator at L under P."""
     gas, wall = force_parts(P_MPa, L, act)
     return gas + wall
 
 
-def potential_energy(P_MPa: Any, L: Any, act: WallAndCage) -> np.ndarray:
+def potential_energy(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:
     """``U - P V_g`` (J) at the wall's equilibrium radius: minus its L-derivative is the push."""
     P, L = _broadcast(P_MPa, L)
     ro2, _, _, _ = _settled(P, L, act)

@@ -40,7 +40,7 @@ towards it as a first-order lag (time constant ``tau_s``, with about 15 % seeded
 change); pressures follow their regulators with the same lag.
 
 * Each actuator's force comes from the Cauchy stresses of its thick Ogden wall and the
-  statics of its thread cage (:class:`~.rpam_physics.Tube`), plus its own true
+  statics of its thread cage (:func:`~.rpam_physics.tension`), plus its own true
   ``F_stretch``.
 * Stretch stand: the hanging actuator settles where its tension equals ``m g``.
 * Joint: the torque on the upper plate is the cross product of each upper mount's
@@ -70,13 +70,14 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ....core.sim.clock import SimClock
+from . import rpam_physics as physics
 from .rpam_physics import G_N_PER_KG, read_stand
 
 CHANNELS = ("P_A", "P_B", "POT", "LEN")
@@ -156,7 +157,7 @@ class RpamRig(SimClock):
         path, links, nominal = read_stand(protocol)
         self.protocol_path = path
         self.links = links
-        self.nominal_tube = nominal
+        self.nominal_actuator = nominal
         self.seed = int(seed)
         self.noise = float(noise)
         self.drift = float(drift)
@@ -170,7 +171,9 @@ class RpamRig(SimClock):
             scales = np.ones(2)
             self.pot_offset_rad = 0.0
         # The true correction holds everywhere (no clamp), so a fit over any range sees a cubic.
-        self.tubes = tuple(replace(nominal, stretch_N=tuple(float(s * c) for c in nominal.stretch_N)) for s in scales)
+        self.actuators = tuple(
+            nominal.with_stretch_correction([float(s * c) for c in nominal.stretch_coefficients_N]) for s in scales
+        )
         self.toggle_rad = links.toggle_rad
         self.stop_rad = self.toggle_rad - math.radians(STOP_MARGIN_DEG)
         self._friction = (FRICTION_FORCE_N, FRICTION_TORQUE_NM) if variation else (0.0, 0.0)
@@ -194,7 +197,7 @@ class RpamRig(SimClock):
     @property
     def true_stretch_coefficients_N(self) -> dict[str, tuple[float, ...]]:
         """The rig's true ``F_stretch`` cubic per actuator (c0..c3, N)."""
-        return {"A": self.tubes[0].stretch_N, "B": self.tubes[1].stretch_N}
+        return {"A": self.actuators[0].stretch_coefficients_N, "B": self.actuators[1].stretch_coefficients_N}
 
     def _state_at(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pressures (..., 2) MPa, joint angle (...) rad, actuator a's length (...) m at times t."""
@@ -227,7 +230,7 @@ class RpamRig(SimClock):
                 "pressures_MPa": p.copy(),
                 "alpha_rad": float(alpha),
                 "length_m": float(length),
-                "lambda": float(length) / self.nominal_tube.L0_m,
+                "lambda": float(length) / self.nominal_actuator.L0_m,
                 "payload_kg": self._payload_kg,
                 "setpoints_MPa": self._setpoint.copy(),
                 "target_alpha_rad": s.alpha_to,
@@ -246,7 +249,8 @@ class RpamRig(SimClock):
     def joint_torque(self, alpha: Any, pa_MPa: float, pb_MPa: float) -> np.ndarray:
         """Eq. 6 residual (N m) of the true rig, each actuator with its own correction; > 0 raises alpha."""
         La, Lb = self.links.lengths(alpha)
-        return self.links.torque(alpha, self.tubes[0].push(pa_MPa, La), self.tubes[1].push(pb_MPa, Lb))
+        a, b = self.actuators
+        return self.links.torque(alpha, physics.push(a, pa_MPa, La), physics.push(b, pb_MPa, Lb))
 
     def _joint_balance(self, alpha0: float, pa: float, pb: float, friction: float) -> tuple[float, str]:
         from scipy.optimize import brentq
@@ -274,7 +278,7 @@ class RpamRig(SimClock):
 
     def _stretch_length(self, p_MPa: float, mass_kg: float, friction_N: float) -> float:
         # Friction carries part of the load: the actuator settles where its tension is m g - F_f.
-        L = self.tubes[0].hanging_length(p_MPa, mass_kg * G_N_PER_KG - friction_N)
+        L = physics.hanging_length(self.actuators[0], p_MPa, mass_kg * G_N_PER_KG - friction_N)
         if not math.isfinite(L):
             raise ValueError(
                 f"the simulated stretch stand finds no length for {mass_kg * 1e3:g} g at "

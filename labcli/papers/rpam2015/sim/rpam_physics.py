@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from ..actuator import Actuator
 from ..protocol import read_rpam_protocol
 
 G_N_PER_KG = 9.80665
@@ -50,94 +51,95 @@ _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(16)
 _BISECTIONS = 60
 
 
-@dataclass(frozen=True)
-class Tube:
-    """One actuator as the stand builds it: wall, thread cage and its true stretch force."""
+def cage_radius(act: Actuator, L: Any) -> np.ndarray:
+    """Radius (m) of n turns of the thread wound round a cylinder of length L."""
+    L = np.asarray(L, dtype=float)
+    return np.sqrt(act.thread_length_m**2 - L**2) / (2 * math.pi * act.n_turns)
 
-    L0_m: float
-    A0_m2: float
-    n_turns: float
-    thread_length_m: float
-    mu_MPa: tuple[float, ...]
-    alpha: tuple[float, ...]
-    stretch_N: tuple[float, ...]  # c0..c3 of the stretch force, N
 
-    def cage_radius(self, L: Any) -> np.ndarray:
-        """Radius (m) of n turns of the thread wound round a cylinder of length L."""
-        L = np.asarray(L, dtype=float)
-        return np.sqrt(self.thread_length_m**2 - L**2) / (2 * math.pi * self.n_turns)
+def rest_radii(act: Actuator) -> tuple[float, float]:
+    """(inner, outer) radius of the wall at rest (m); the outer one fills the cage."""
+    Ro = float(cage_radius(act, act.L0_m))
+    return math.sqrt(Ro**2 - act.A0_m2 / math.pi), Ro
 
-    @property
-    def rest_radii(self) -> tuple[float, float]:
-        """(inner, outer) radius of the wall at rest (m); the outer one fills the cage."""
-        Ro = float(self.cage_radius(self.L0_m))
-        return math.sqrt(Ro**2 - self.A0_m2 / math.pi), Ro
 
-    def _t(self, stretch: np.ndarray) -> np.ndarray:
-        """``sum 2 mu_i / alpha_i * stretch^alpha_i`` in Pa (the Ogden stress without p)."""
-        return sum(2 * mu * _MPA / a * stretch**a for mu, a in zip(self.mu_MPa, self.alpha, strict=False))
+def _t(act: Actuator, stretch: np.ndarray) -> np.ndarray:
+    """``sum 2 mu_i / alpha_i * stretch^alpha_i`` in Pa (the Ogden stress without p)."""
+    total = np.zeros(np.shape(stretch))
+    for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha, strict=True):
+        total = total + 2 * mu * _MPA / a * stretch**a
+    return total
 
-    def _integrals(self, L: np.ndarray, r_o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(pi int (2 t_ax - t_hoop - t_rad) r dr, int (t_hoop - t_rad) / r dr)`` over the wall."""
-        Ri, Ro = self.rest_radii
-        lam = (L / self.L0_m)[..., None]
-        r_o = r_o[..., None]
-        r_i = np.sqrt(np.clip(r_o**2 - (Ro**2 - Ri**2) / lam, 0.0, None))
-        r = 0.5 * (r_o + r_i) + 0.5 * (r_o - r_i) * _NODES
-        dr = 0.5 * (r_o - r_i) * _WEIGHTS
-        R = np.sqrt(Ro**2 - lam * (r_o**2 - r**2))
-        hoop = r / R
-        t_ax, t_hoop, t_rad = self._t(lam), self._t(hoop), self._t(1.0 / (lam * hoop))
-        axial = math.pi * np.sum((2 * t_ax - t_hoop - t_rad) * r * dr, axis=-1)
-        radial = np.sum((t_hoop - t_rad) / r * dr, axis=-1)
-        return axial, radial
 
-    def tension(self, P_MPa: Any, L: Any) -> np.ndarray:
-        """Load (N, tension +) that holds the tube at length L under gauge pressure P."""
-        P, L = (np.array(v, dtype=float) for v in np.broadcast_arrays(np.asarray(P_MPa, float), np.asarray(L, float)))
-        P = P * _MPA
-        r_c = self.cage_radius(L)
-        axial, radial = self._integrals(L, r_c)
-        p_c = P - radial
-        F = np.array(axial - math.pi * p_c * r_c**2 + p_c * L**2 / (2 * math.pi * self.n_turns**2), dtype=float)
-        slack = p_c < 0
-        if slack.any():
-            F[slack] = self._free_tension(P[slack], L[slack], r_c[slack])
-        lam = L / self.L0_m
-        return F + np.polynomial.polynomial.polyval(lam, self.stretch_N)
+def _integrals(act: Actuator, L: np.ndarray, r_o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(pi int (2 t_ax - t_hoop - t_rad) r dr, int (t_hoop - t_rad) / r dr)`` over the wall."""
+    Ri, Ro = rest_radii(act)
+    lam = (L / act.L0_m)[..., None]
+    r_o = r_o[..., None]
+    r_i = np.sqrt(np.clip(r_o**2 - (Ro**2 - Ri**2) / lam, 0.0, None))
+    r = 0.5 * (r_o + r_i) + 0.5 * (r_o - r_i) * _NODES
+    dr = 0.5 * (r_o - r_i) * _WEIGHTS
+    R = np.sqrt(Ro**2 - lam * (r_o**2 - r**2))
+    hoop = r / R
+    t_ax, t_hoop, t_rad = _t(act, lam), _t(act, hoop), _t(act, 1.0 / (lam * hoop))
+    axial = math.pi * np.sum((2 * t_ax - t_hoop - t_rad) * r * dr, axis=-1)
+    radial = np.sum((t_hoop - t_rad) / r * dr, axis=-1)
+    return axial, radial
 
-    def _free_tension(self, P: np.ndarray, L: np.ndarray, r_c: np.ndarray) -> np.ndarray:
-        # The slack cage: the tube inflates until its outer surface is free (p_c = 0),
-        # between the unloaded tube's radius R_o / sqrt(lambda) and the cage.
-        # Vented, it is the unloaded tube's radius itself (t_hoop = t_rad throughout).
-        _, Ro = self.rest_radii
-        lo = Ro / np.sqrt(L / self.L0_m)
-        hi = np.where(P > 0, r_c, lo)
-        for _ in range(_BISECTIONS if np.any(P > 0) else 0):
-            mid = 0.5 * (lo + hi)
-            inflated = self._integrals(L, mid)[1] > P  # p_c < 0: smaller than that
-            lo, hi = np.where(inflated, lo, mid), np.where(inflated, mid, hi)
-        return self._integrals(L, 0.5 * (lo + hi))[0]
 
-    def push(self, P_MPa: Any, L: Any) -> np.ndarray:
-        """Force (N) the tube exerts on its mounts, positive when it pushes them apart."""
-        return -self.tension(P_MPa, L)
+def tension(act: Actuator, P_MPa: Any, L: Any) -> np.ndarray:
+    """Load (N, tension +) that holds the actuator at length L under gauge pressure P.
 
-    def hanging_length(self, P_MPa: float, load_N: float) -> float:
-        """Length (m) at which the tube carries ``load_N`` under P; NaN when it cannot."""
-        from scipy.optimize import brentq
+    Its stretch force is the cubic of ``act.stretch_coefficients_N`` at every stretch: the
+    stand's correction is the truth, which no fit range limits.
+    """
+    P, L = (np.array(v, dtype=float) for v in np.broadcast_arrays(np.asarray(P_MPa, float), np.asarray(L, float)))
+    P = P * _MPA
+    r_c = cage_radius(act, L)
+    axial, radial = _integrals(act, L, r_c)
+    p_c = P - radial
+    F = np.array(axial - math.pi * p_c * r_c**2 + p_c * L**2 / (2 * math.pi * act.n_turns**2), dtype=float)
+    slack = p_c < 0
+    if slack.any():
+        F[slack] = _free_tension(act, P[slack], L[slack], r_c[slack])
+    lam = L / act.L0_m
+    return F + np.polynomial.polynomial.polyval(lam, act.stretch_coefficients_N)
 
-        Ri, Ro = self.rest_radii
-        # Shortened, the wall thickens until it fills the cage; stay clear of that.
-        lo = self.L0_m * max(0.5, 1.05 * (1 - (Ri / Ro) ** 2))
-        hi = 4.0 * self.L0_m
 
-        def f(L: float) -> float:
-            return float(self.tension(P_MPa, L)) - load_N
+def _free_tension(act: Actuator, P: np.ndarray, L: np.ndarray, r_c: np.ndarray) -> np.ndarray:
+    # The slack cage: the tube inflates until its outer surface is free (p_c = 0),
+    # between the unloaded tube's radius R_o / sqrt(lambda) and the cage.
+    # Vented, it is the unloaded tube's radius itself (t_hoop = t_rad throughout).
+    _, Ro = rest_radii(act)
+    lo = Ro / np.sqrt(L / act.L0_m)
+    hi = np.where(P > 0, r_c, lo)
+    for _ in range(_BISECTIONS if np.any(P > 0) else 0):
+        mid = 0.5 * (lo + hi)
+        inflated = _integrals(act, L, mid)[1] > P  # p_c < 0: smaller than that
+        lo, hi = np.where(inflated, lo, mid), np.where(inflated, mid, hi)
+    return _integrals(act, L, 0.5 * (lo + hi))[0]
 
-        if f(lo) > 0 or f(hi) < 0:
-            return float("nan")
-        return float(brentq(f, lo, hi, xtol=1e-13))
+
+def push(act: Actuator, P_MPa: Any, L: Any) -> np.ndarray:
+    """Force (N) the actuator exerts on its mounts, positive when it pushes them apart."""
+    return -tension(act, P_MPa, L)
+
+
+def hanging_length(act: Actuator, P_MPa: float, load_N: float) -> float:
+    """Length (m) at which the actuator carries ``load_N`` under P; NaN when it cannot."""
+    from scipy.optimize import brentq
+
+    Ri, Ro = rest_radii(act)
+    # Shortened, the wall thickens until it fills the cage; stay clear of that.
+    lo = act.L0_m * max(0.5, 1.05 * (1 - (Ri / Ro) ** 2))
+    hi = 4.0 * act.L0_m
+
+    def f(L: float) -> float:
+        return float(tension(act, P_MPa, L)) - load_N
+
+    if f(lo) > 0 or f(hi) < 0:
+        return float("nan")
+    return float(brentq(f, lo, hi, xtol=1e-13))
 
 
 @dataclass(frozen=True)
@@ -177,26 +179,27 @@ class Links:
     def torque(self, alpha: Any, push_a: Any, push_b: Any) -> np.ndarray:
         """Clockwise torque (N m) on the upper plate about the pivot from the two pushes."""
         a_low, a_up, b_low, b_up = self.mounts(alpha)
-        total = 0.0
-        for low, up, push in ((a_low, a_up, push_a), (b_low, b_up, push_b)):
+        total: Any = 0.0
+        for low, up, force in ((a_low, a_up, push_a), (b_low, b_up, push_b)):
             d = up - low
-            F = np.asarray(push, dtype=float)[..., None] * d / np.linalg.norm(d, axis=-1, keepdims=True)
+            F = np.asarray(force, dtype=float)[..., None] * d / np.linalg.norm(d, axis=-1, keepdims=True)
             total = total + (up[..., 0] * F[..., 1] - up[..., 1] * F[..., 0])
         return -total  # z-torque is counter-clockwise positive
 
 
-def read_stand(protocol: str | Path) -> tuple[Path, Links, Tube]:
-    """The stand's links and its nominal tube from an rPAM protocol (shipped name or path)."""
+def read_stand(protocol: str | Path) -> tuple[Path, Links, Actuator]:
+    """The stand's links and its nominal actuator from an rPAM protocol (shipped name or path)."""
     path, t = read_rpam_protocol(protocol)
     j, a, o, c = t["joint"], t["actuator"], t["ogden"], t["stretch_correction"]
     links = Links(float(j["L1_m"]), float(j["L2_m"]), float(j["L3_m"]))
-    tube = Tube(
+    act = Actuator(
         L0_m=float(a["L0_m"]),
         A0_m2=float(a["A0_m2"]),
         n_turns=float(a["n_turns"]),
         thread_length_m=float(a["thread_length_m"]),
-        mu_MPa=tuple(float(v) for v in o["mu_MPa"]),
-        alpha=tuple(float(v) for v in o["alpha"]),
-        stretch_N=tuple(float(v) for v in c["coefficients_N"]),
+        ogden_mu_MPa=tuple(float(v) for v in o["mu_MPa"]),
+        ogden_alpha=tuple(float(v) for v in o["alpha"]),
+        stretch_coefficients_N=tuple(float(v) for v in c["coefficients_N"]),
+        stretch_lambda_range=(float(c["lambda_range"][0]), float(c["lambda_range"][1])),
     )
-    return path, links, tube
+    return path, links, act
