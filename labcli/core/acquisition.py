@@ -24,13 +24,14 @@ from typing import Any
 
 from ..errors import ConfigError, DeviceError, StoreError
 from .device import Device
-from .engine import SILENT_S, Outcome, RunEngine, utc_now_us
+from .engine import SILENT_S, Outcome, RunEngine
 from .paper import AcquireOptions
 from .protocol import load_protocol, loads_protocol
 from .registry import record_type, run_protocol
 from .sessionlog import RigIdentity, SessionInfo, describe, recorded_identity
 from .store import RESUME_OR_FORCE, RunFile
 from .store.space import check_new_file
+from .timestamps import utc_now
 from .ui import RichUI, UnattendedUI
 
 DEFAULT_BAUD = 115200  # the wire protocol's default
@@ -314,7 +315,7 @@ def _engine(
         path, link.port, unattended=unattended, rate_hz=rate_hz, baud=link.baud, other_rig=opts.other_rig
     )
     info = SessionInfo(
-        utc_now_us(),
+        utc_now(),
         link.port,
         link.baud,
         RigIdentity.of(device.info, acq.protocol.calibration),

@@ -26,7 +26,6 @@ baseline); an unattended one ends with the command that resumes it.
 from __future__ import annotations
 
 import contextlib
-import datetime as dt
 import math
 import signal
 import threading
@@ -58,17 +57,8 @@ from .steps import (
     WaitSettle,
     Window,
 )
+from .timestamps import utc_now
 from .ui import InputEnded, QuitRequested
-
-
-def utc_now() -> str:
-    return dt.datetime.now(dt.timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
-
-
-def utc_now_us() -> str:
-    """ISO 8601 UTC with microseconds (the session log's times)."""
-    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="microseconds").replace("+00:00", "Z")
-
 
 SILENT_S = 5.0  # wall-clock seconds without a frame before the rig counts as silent
 SETUP_S = 0.5  # device seconds of readings for the setup check

@@ -29,7 +29,6 @@ file (:mod:`.runfile`) reads and adds to it.
 
 from __future__ import annotations
 
-import datetime as _dt
 import os
 import platform
 import shlex
@@ -43,6 +42,7 @@ import h5py
 import numpy as np
 
 from ..paper import Column, RecordType
+from ..timestamps import utc_now
 from ..version import __version__
 from .columns import FILTERS, Table
 from .frames import create as create_frames
@@ -52,11 +52,6 @@ SCHEMA_VERSION = 2
 WINDOWS = ("baseline", "loaded")  # a record's raw windows: group names of schema 1, column prefixes here
 TIME_WIDTH = 40
 FLAGS_WIDTH = 1024  # bytes of the flags column: a few one-sentence notes per record
-
-
-def now_iso() -> str:
-    """The current time as ISO 8601 with microseconds and the UTC offset (``+00:00``)."""
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="microseconds")
 
 
 def text_column(name: str, width: int, what: str = "") -> Column:
@@ -266,7 +261,7 @@ def initialise(
     a = f.attrs
     a["NX_class"], a["default"] = "NXroot", "entry"
     a["schema"], a["schema_version"] = SCHEMA, SCHEMA_VERSION
-    a["file_name"], a["file_time"] = os.path.basename(path), now_iso()
+    a["file_name"], a["file_time"] = os.path.basename(path), utc_now()
     a["creator"] = f"labcli {__version__}"
     a["HDF5_Version"], a["h5py_version"] = h5py.version.hdf5_version, h5py.version.version
     e = f.create_group("entry")
@@ -275,7 +270,7 @@ def initialise(
         "kind": kind,
         "protocol": str(getattr(protocol, "name", "")),
         "run_uid": str(uuid.uuid4()),
-        "start_time": started or now_iso(),
+        "start_time": started or utc_now(),
         "program_name": "labcli",
         "program_version": __version__,
         "command_line": command_line() if command is None else command,

@@ -18,10 +18,11 @@ import h5py
 import numpy as np
 
 from ...errors import StoreError
+from ..timestamps import utc_now
 from ..version import __version__
 from .blobs import blob_read, blob_write, cell_text
 from .columns import Table
-from .layout import MODEL_COLUMNS, now_iso
+from .layout import MODEL_COLUMNS
 
 if TYPE_CHECKING:
     from .runfile import RunFile
@@ -76,7 +77,7 @@ def model_row(g: h5py.Group, name: str, json_text: str, version: str) -> dict[st
     start, stop, checksum = blob_write(g["json"], data)
     return {
         "name": name,
-        "created": now_iso(),
+        "created": utc_now(),
         "labcli_version": version,
         "json_start": start,
         "json_stop": stop,

@@ -18,9 +18,10 @@ import numpy as np
 from ...errors import StoreError
 from ..paper import Column, RecordType
 from ..record import ACCEPTED, Settle
+from ..timestamps import utc_now
 from .columns import fixed
 from .h5 import settle_attrs
-from .layout import WINDOWS, now_iso
+from .layout import WINDOWS
 from .view import MAX_ID, out_of_bounds
 from .windows import WINDOW_GROUPS
 
@@ -54,7 +55,7 @@ def record_row(
         {
             rt.id_column: rid,
             "started": str(record.get("started", "") or ""),
-            "ended": str(record.get("ended", "") or now_iso()),
+            "ended": str(record.get("ended", "") or utc_now()),
             "accepted": accepted,
             "flags": joined_flags(record.get("flags"), label),
         }
@@ -156,7 +157,7 @@ def bulk_values(
     if bad:
         i = min(bad)
         raise StoreError(f"{what} {int(ids[i])}: {bad[i]}.")
-    values.setdefault("ended", np.full(n, now_iso().encode(), dtype=columns["ended"].dtype))
+    values.setdefault("ended", np.full(n, utc_now().encode(), dtype=columns["ended"].dtype))
     if "accepted" not in values:
         values["accepted"] = np.full(n, b"imported", dtype=columns["accepted"].dtype)
     return values

@@ -33,9 +33,10 @@ import numpy as np
 
 from ...errors import StoreError
 from ..sessionlog import RigIdentity, SessionInfo
+from ..timestamps import utc_now
 from .blobs import cell_text
 from .columns import Table, fill_value
-from .layout import now_iso, session_columns
+from .layout import session_columns
 from .writer import Write
 
 if TYPE_CHECKING:
@@ -204,7 +205,7 @@ def begin_event(number: int, info: SessionInfo, host_name: str) -> dict[str, Any
     return {
         "session": number,
         "event": "begin",
-        "time": cut(str(info.started or now_iso()), 40),
+        "time": cut(str(info.started or utc_now()), 40),
         "port": cut(info.port, 256),
         "baud": -1 if info.baud is None else int(info.baud),
         "device": cut(rig.device, 64),
@@ -222,14 +223,14 @@ def begin_event(number: int, info: SessionInfo, host_name: str) -> dict[str, Any
 
 def record_event(number: int, event: str, rid: int) -> dict[str, Any]:
     """An ``added``, ``redone`` or ``skipped`` row of session ``number``."""
-    return {"session": number, "event": event, "time": now_iso(), "record": int(rid)}
+    return {"session": number, "event": event, "time": utc_now(), "record": int(rid)}
 
 
 def end_event(number: int, how: str) -> dict[str, Any]:
     """The ``end`` row of session ``number``: how it ended (one of :data:`HOW`)."""
     if how not in HOW:
         raise StoreError(f"a session ends as one of {', '.join(HOW)}, not {how!r}.")
-    return {"session": number, "event": "end", "time": now_iso(), "how": how}
+    return {"session": number, "event": "end", "time": utc_now(), "how": how}
 
 
 def cut(s: Any, width: int) -> str:

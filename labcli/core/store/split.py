@@ -22,9 +22,10 @@ import numpy as np
 
 from ...errors import ConfigError, StoreError
 from ..protocol import loads_protocol
+from ..timestamps import utc_now
 from .blobs import blob_read, blob_write, cell_text
 from .columns import Table
-from .layout import SPLIT_COLUMNS, now_iso
+from .layout import SPLIT_COLUMNS
 
 if TYPE_CHECKING:
     from .runfile import RunFile
@@ -114,7 +115,7 @@ def split_row(
     return {
         "strategy": strategy,
         "seed": -1 if seed is None else int(seed),
-        "created": now_iso(),
+        "created": utc_now(),
         "fit_start": start,
         "fit_stop": mid,
         "validation_start": mid,
