@@ -25,3 +25,25 @@ def test_the_shipped_protocols_are_the_top_level_folder():
     assert set(CONFIG["package-data"]["labcli.protocols"]) == {"*.toml", "*.csv"}
     shipped = {p.suffix for p in (ROOT / "protocols").iterdir() if p.is_file()}
     assert shipped <= {".toml", ".csv", ".py"}, "a shipped file of another type needs its pattern in package-data"
+
+
+def test_the_version_is_written_in_one_place():
+    import importlib.metadata
+    import re
+
+    import labcli
+    from labcli.core import version
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    assert "version" not in project and "version" in project["dynamic"]
+    assert CONFIG["dynamic"]["version"] == {"attr": "labcli.core.version.__version__"}
+    assert labcli.__version__ is version.__version__
+    assert re.fullmatch(r"\d+\.\d+\.\d+", version.__version__)
+    # The installed metadata was read from that one place when the package was built.
+    assert importlib.metadata.version("labcli") == version.__version__
+    written = [
+        p.relative_to(ROOT).as_posix()
+        for p in (ROOT / "labcli").rglob("*.py")
+        if re.search(rf"['\"]{re.escape(version.__version__)}['\"]", p.read_text(encoding="utf-8"))
+    ]
+    assert written == ["labcli/core/version.py"]
