@@ -63,7 +63,8 @@ no friction, no offsets.
 
 Sensors: Gaussian noise of 0.5 count (pressures), 0.7 count (potentiometers) rms times
 ``noise``, rounded and clipped to 0..4095; ``drift`` adds slow zero drift (sinusoids of a
-few counts, periods 10-40 min).
+few counts, periods 10-40 min); the McKibben rig's front end
+(:class:`labcli.core.sim.sensors.SensorFrontEnd`, ``rig.sensors``).
 """
 
 from __future__ import annotations
@@ -77,6 +78,7 @@ from typing import Any
 import numpy as np
 
 from ....core.sim.clock import SimClock
+from ....core.sim.sensors import Linear, SensorChannel, SensorFrontEnd
 from . import rpam_physics as physics
 from .rpam_physics import G_N_PER_KG, read_stand
 
@@ -87,6 +89,7 @@ POT_SPAN_DEG = 340.0
 LEN_SPAN_M = 0.300
 STOP_MARGIN_DEG = 1.0
 NOISE_COUNTS = np.array([0.5, 0.5, 0.7, 0.7])
+DRIFT_COUNTS = np.array([3.0, 3.0, 2.0, 2.0])  # zero drift at drift = 1
 STRETCH_SCALE_RMS = 0.05
 FRICTION_FORCE_N = 0.15
 FRICTION_TORQUE_NM = 0.002
@@ -101,8 +104,9 @@ CALIBRATION: dict[str, dict[str, Any]] = {
     "POT": {"quantity": "angle", "unit": "rad", "gain": math.radians(POT_SPAN_DEG) / ADC_MAX, "zero_counts": 2048.0},
     "LEN": {"quantity": "length", "unit": "m", "gain": LEN_SPAN_M / ADC_MAX, "zero_counts": 0.0},
 }
-_GAIN = np.array([CALIBRATION[c]["gain"] for c in CHANNELS])
-_ZERO = np.array([CALIBRATION[c]["zero_counts"] for c in CHANNELS])
+TRANSFERS = tuple(Linear(CALIBRATION[c]["gain"], CALIBRATION[c]["zero_counts"]) for c in CHANNELS)
+_GAIN = np.array([t.gain for t in TRANSFERS])
+_ZERO = np.array([t.zero_counts for t in TRANSFERS])
 
 
 def counts_to_si(counts: Any) -> np.ndarray:
@@ -159,8 +163,6 @@ class RpamRig(SimClock):
         self.links = links
         self.nominal_actuator = nominal
         self.seed = int(seed)
-        self.noise = float(noise)
-        self.drift = float(drift)
         self.tau_s = float(tau_s)
         self.variation = bool(variation)
         srng = np.random.default_rng([self.seed, 3])
@@ -177,11 +179,23 @@ class RpamRig(SimClock):
         self.toggle_rad = links.toggle_rad
         self.stop_rad = self.toggle_rad - math.radians(STOP_MARGIN_DEG)
         self._friction = (FRICTION_FORCE_N, FRICTION_TORQUE_NM) if variation else (0.0, 0.0)
-        self._noise_rng = np.random.default_rng([self.seed, 1])
         self._event_rng = np.random.default_rng([self.seed, 2])
-        self._drift_amp = np.array([3.0, 3.0, 2.0, 2.0])  # counts at drift = 1
-        self._drift_period = srng.uniform(600.0, 2400.0, 4)
-        self._drift_phase = srng.uniform(0.0, 2 * np.pi, 4)
+        # The potentiometer's mechanical offset is the one fixed sensor error (the pressure
+        # sensors are taken as zeroed); the drift is drawn after it, from the same generator.
+        offsets = (0.0, 0.0, self.pot_offset_rad, 0.0)
+        self.sensors = SensorFrontEnd(
+            [
+                SensorChannel(name, transfer, float(sd), float(amp), offset)
+                for name, transfer, sd, amp, offset in zip(
+                    CHANNELS, TRANSFERS, NOISE_COUNTS, DRIFT_COUNTS, offsets, strict=True
+                )
+            ],
+            noise=noise,
+            drift=drift,
+            noise_rng=np.random.default_rng([self.seed, 1]),
+            drift_rng=srng,
+            rails=(0, ADC_MAX),
+        )
         self._lock = threading.RLock()
         self._t = 0.0
         if experiment not in EXPERIMENTS:
@@ -191,6 +205,16 @@ class RpamRig(SimClock):
         self._payload_kg = 0.0
         self._seg = _Segment(0.0, self.tau_s, np.zeros(2), np.zeros(2), 0.0, 0.0, nominal.L0_m, nominal.L0_m, "ok")
         self._change(initial=True)
+
+    @property
+    def noise(self) -> float:
+        """The sensors' noise, a multiple of their datasheet figures."""
+        return self.sensors.noise
+
+    @property
+    def drift(self) -> float:
+        """The sensors' zero drift, a multiple of its nominal amplitude."""
+        return self.sensors.drift
 
     # ------------------------------------------------------------ state
 
@@ -370,25 +394,15 @@ class RpamRig(SimClock):
 
     # ------------------------------------------------------------ sensors
 
+    @staticmethod
+    def _sensed(p_MPa: Any, alpha: Any, length: Any) -> np.ndarray:
+        """What the sensors see, channel order, SI: P_A, P_B (MPa), the joint angle (rad), L_a (m)."""
+        p = np.asarray(p_MPa)
+        return np.column_stack([p[:, 0], p[:, 1], np.asarray(alpha), np.asarray(length)])
+
     def ideal_counts(self, p_MPa: Any, alpha: Any, length: Any, t: Any) -> np.ndarray:
-        """Noise-free, unrounded counts (n, 4) for states at times ``t`` (drift included)."""
-        si = np.column_stack(
-            [
-                np.asarray(p_MPa)[:, 0],
-                np.asarray(p_MPa)[:, 1],
-                np.asarray(alpha) + self.pot_offset_rad,
-                np.asarray(length),
-            ]
-        )
-        out = si_to_counts(si)
-        if self.drift:
-            tt = np.asarray(t)[:, None]
-            out += (
-                self.drift
-                * self._drift_amp
-                * (np.sin(2 * np.pi * tt / self._drift_period + self._drift_phase) - np.sin(self._drift_phase))
-            )
-        return out
+        """Noise-free, unrounded counts (n, 4) for states at times ``t`` (offset and drift included)."""
+        return self.sensors.ideal_counts(self._sensed(p_MPa, alpha, length), t)
 
     def samples(self, n: int, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
         """``n`` ADC samples at ``rate_hz``: ``(t_us int64 (n,), counts int64 (n, 4))``.
@@ -402,9 +416,6 @@ class RpamRig(SimClock):
                 return np.zeros(0, np.int64), np.zeros((0, 4), np.int64)
             t = self._t + np.arange(1, n + 1) / float(rate_hz)
             p, alpha, length = self._state_at(t)
-            x = self.ideal_counts(p, alpha, length, t)
-            if self.noise:
-                x = x + self.noise * NOISE_COUNTS * self._noise_rng.standard_normal((n, 4))
-            counts = np.clip(np.rint(x), 0, ADC_MAX).astype(np.int64)
+            counts = self.sensors.read(self._sensed(p, alpha, length), t)
             self._t = float(t[-1])
             return np.rint(t * 1e6).astype(np.int64), counts

@@ -25,7 +25,8 @@ and 0.7 count (potentiometer) rms times ``noise``, rounded and clipped to
 mechanical offset (1.5 deg rms) and each pressure sensor a zero offset
 (1.5 kPa rms), and the actuators differ (:func:`labcli.papers.takuma2014.sim.physics.varied_params`).
 ``drift`` scales sensor zero drift (slow sinusoids of a few counts, periods of
-10-40 min).
+10-40 min).  Both rigs read their sensors through one front end,
+:class:`labcli.core.sim.sensors.SensorFrontEnd` (``rig.sensors``).
 
 ``nonideal`` (:class:`labcli.papers.takuma2014.sim.nonideal.NonIdeal`, on at typical levels by
 default) adds sleeve friction with hysteresis, a leak of the closed chambers,
@@ -46,6 +47,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ....core.sim.clock import SimClock
+from ....core.sim.sensors import SensorChannel, SensorFrontEnd
 from . import nonideal as ni
 from . import physics as ph
 
@@ -55,6 +57,9 @@ VREF = 5.0
 POT_SPAN_DEG = 340.0
 PRESSURE_NOISE_COUNTS = 0.5
 POT_NOISE_COUNTS = 0.7
+# Zero drift at drift = 1 (counts): the pressure sensors a little more than the potentiometers.
+PRESSURE_DRIFT_COUNTS = 3.0
+POT_DRIFT_COUNTS = 2.0
 
 
 def pressure_to_counts(p_MPa):
@@ -126,8 +131,6 @@ class SimRig(SimClock):
         if np.any(supply < 0) or np.any(supply > 1.0e6):
             raise ValueError("supply pressures must be within 0..1 MPa gauge (the sensors' span)")
         self.seed = int(seed)
-        self.noise = float(noise)
-        self.drift = float(drift)
         self.tau_s = float(tau_s)
         self.variation = bool(variation)
         self.nonideal = ni.NonIdeal() if nonideal is None else nonideal
@@ -146,7 +149,6 @@ class SimRig(SimClock):
         self._backlash = ni.BACKLASH_RAD * self.nonideal.backlash
         self._leak_rate = ni.leak_factors(self.seed, self.nonideal.leak)
         self._lock = threading.RLock()
-        self._noise_rng = np.random.default_rng([self.seed, 1])
         self._event_rng = np.random.default_rng([self.seed, 2])
         srng = np.random.default_rng([self.seed, 3])
         if variation:
@@ -155,9 +157,23 @@ class SimRig(SimClock):
         else:
             self.pot_offset_rad = np.zeros(2)
             self.sensor_offset_MPa = np.zeros(4)
-        self._drift_amp = np.array([3.0, 3.0, 3.0, 3.0, 2.0, 2.0])  # counts at drift = 1
-        self._drift_period = srng.uniform(600.0, 2400.0, 6)
-        self._drift_phase = srng.uniform(0.0, 2 * np.pi, 6)
+        pressures = [
+            SensorChannel(name, pressure_to_counts, PRESSURE_NOISE_COUNTS, PRESSURE_DRIFT_COUNTS, float(off))
+            for name, off in zip(CHANNELS[:4], self.sensor_offset_MPa, strict=True)
+        ]
+        pots = [
+            SensorChannel(name, angle_to_counts, POT_NOISE_COUNTS, POT_DRIFT_COUNTS, float(off))
+            for name, off in zip(CHANNELS[4:], self.pot_offset_rad, strict=True)
+        ]
+        # The drift's periods and phases are drawn after the offsets, from the same generator.
+        self.sensors = SensorFrontEnd(
+            pressures + pots,
+            noise=noise,
+            drift=drift,
+            noise_rng=np.random.default_rng([self.seed, 1]),
+            drift_rng=srng,
+            rails=(0, ADC_MAX),
+        )
         self._t = 0.0
         self._t_closed = 0.0
         chambers = ph.Chambers.open(np.zeros(4))
@@ -179,6 +195,16 @@ class SimRig(SimClock):
         )
         self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
+
+    @property
+    def noise(self) -> float:
+        """The sensors' noise, a multiple of their datasheet figures."""
+        return self.sensors.noise
+
+    @property
+    def drift(self) -> float:
+        """The sensors' zero drift, a multiple of its nominal amplitude."""
+        return self.sensors.drift
 
     # ------------------------------------------------------------ state
 
@@ -360,20 +386,14 @@ class SimRig(SimClock):
 
     # ------------------------------------------------------------ sensors
 
+    @staticmethod
+    def _sensed(theta, p_gauge_pa) -> np.ndarray:
+        """What the sensors see, channel order, SI: gauge pressures (MPa), then shaft angles (rad)."""
+        return np.concatenate([np.asarray(p_gauge_pa) / 1e6, np.asarray(theta)], axis=-1)
+
     def ideal_counts(self, theta, p_gauge_pa, t) -> np.ndarray:
-        """Noise-free, unrounded counts (n, 6) for states at times ``t`` (drift included)."""
-        n = np.shape(t)[0]
-        out = np.empty((n, 6))
-        out[:, :4] = pressure_to_counts(np.asarray(p_gauge_pa) / 1e6 + self.sensor_offset_MPa)
-        out[:, 4:] = angle_to_counts(np.asarray(theta) + self.pot_offset_rad)
-        if self.drift:
-            tt = np.asarray(t)[:, None]
-            out += (
-                self.drift
-                * self._drift_amp
-                * (np.sin(2 * np.pi * tt / self._drift_period + self._drift_phase) - np.sin(self._drift_phase))
-            )
-        return out
+        """Noise-free, unrounded counts (n, 6) for states at times ``t`` (offsets and drift included)."""
+        return self.sensors.ideal_counts(self._sensed(theta, p_gauge_pa), t)
 
     def samples(self, n: int, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
         """``n`` ADC samples at ``rate_hz``: ``(t_us int64 (n,), counts int64 (n, 6))``.
@@ -388,11 +408,7 @@ class SimRig(SimClock):
             if n == 0:
                 return np.zeros(0, np.int64), np.zeros((0, 6), np.int64)
             theta, p = self._state_at(t)
-            x = self.ideal_counts(self._shaft_at(t, theta), p, t)
-            if self.noise:
-                sd = self.noise * np.array([PRESSURE_NOISE_COUNTS] * 4 + [POT_NOISE_COUNTS] * 2)
-                x = x + sd * self._noise_rng.standard_normal((n, 6))
-            counts = np.clip(np.rint(x), 0, ADC_MAX).astype(np.int64)
+            counts = self.sensors.read(self._sensed(self._shaft_at(t, theta), p), t)
             self._t = float(t[-1])
             return np.rint(t * 1e6).astype(np.int64), counts
 
