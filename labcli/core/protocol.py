@@ -28,7 +28,7 @@ import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -37,7 +37,9 @@ else:  # pragma: no cover - exercised on 3.10 only
 
 from ..errors import ConfigError
 from . import registry
-from .calibration import UNIT_FACTORS, Calibration, Channel
+from .calibration import Calibration
+from .channels import CHANNEL_MAP, DEVICE_KEYS, DeviceSpec, calibration, channel_spec, device_spec
+from .keyspecs import OPEN, Checker, describe, kind_of, show
 from .paper import ChannelRoles, ProtocolKind
 
 
@@ -55,18 +57,11 @@ def _shipped_dir() -> Path:
 SHIPPED_DIR = _shipped_dir()  # the shipped protocol files (names for load_protocol)
 
 # ---------------------------------------------------------------------------
-# Schema, as plain data.
-#
-# A key spec: {"type": ..., "unit": ..., "check": ..., "optional": bool, "help": ...}
-#   type   "str" | "int" | "number" | "str-list" | "pair"   (pair: [low, high])
-#   check  None | "positive" | "nonnegative" | "nonzero" | "unique" |
-#          "increasing" | ["min", v] | ["one-of", [values]]
-# A section spec is a dict of key specs, OPEN (any keys, kept as a plain dict),
-# or one of the names in a kind's ``tables_of`` (a table whose keys are free names,
-# each value checked against another spec).
+# Schema, as plain data (the key-spec language: :mod:`labcli.core.keyspecs`).  A section
+# spec is a table spec, OPEN (kept as written), or one of the names in a kind's
+# ``tables_of`` (a table whose keys are free names, each value checked against another spec).
 # ---------------------------------------------------------------------------
 
-OPEN = "open"
 
 # A serial link of 1 Mbaud carries about 2,000 frames a second of six channels; no serial
 # rig streams 10,000.
@@ -80,10 +75,6 @@ DEFAULT_SUPPLY_MIN_MPA = 0.1
 # TOML integers are 64-bit; deeper nesting than this is no protocol file.
 MAX_INT = 2**63 - 1
 MAX_DEPTH = 16
-# A potentiometer turns less than this (ten-turn pots exist); a joint angle stays within a turn.
-MAX_POT_SPAN_DEG = 3600.0
-MAX_ANGLE_DEG = 360.0
-
 TOP_LEVEL: dict[str, dict[str, Any]] = {
     "name": {"type": "str", "check": "identifier", "help": "the protocol's name"},
     "kind": {"type": "str", "help": "the protocol kind"},
@@ -93,12 +84,7 @@ TOP_LEVEL: dict[str, dict[str, Any]] = {
 }
 
 SECTIONS: dict[str, Any] = {
-    "device": {
-        "name": {"type": "str", "help": "the device name the ID? reply carries"},
-        "channels": {"type": "str-list", "check": "unique", "help": "the channel names in data-line order"},
-        "adc_min_counts": {"type": "number", "unit": "counts"},
-        "adc_max_counts": {"type": "number", "unit": "counts"},
-    },
+    "device": DEVICE_KEYS,
     "acquisition": {
         "rate_hz": {"type": "number", "unit": "Hz", "check": "positive", "max": MAX_RATE_HZ},
         "supply_min_MPa": {
@@ -121,68 +107,15 @@ SECTIONS: dict[str, Any] = {
     },
 }
 
-# The [channels] section: a table per channel, keyed by channel name.
-CHANNEL_MAP = "channel-map"
-
-
-def _or(values: Any) -> str:
-    items = [str(v) for v in values]
-    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
-
-
-def channel_spec(roles: ChannelRoles | None) -> dict[str, Any]:
-    """The key specs of one ``[channels.NAME]`` table under a kind's channel roles."""
-    actuator: dict[str, Any] = {"type": "str", "optional": True}
-    joint: dict[str, Any] = {"type": "int", "optional": True}
-    if roles is not None and roles.actuators:
-        actuator.update(
-            check=["one-of", list(roles.actuators)], help=f"the actuator of a pressure channel: {_or(roles.actuators)}"
-        )
-    if roles is not None and roles.joints:
-        joint.update(check=["one-of", list(roles.joints)], help=f"the joint of an angle channel: {_or(roles.joints)}")
-    return {
-        "quantity": {"type": "str", "check": ["one-of", list(UNIT_FACTORS)]},
-        "actuator": actuator,
-        "joint": joint,
-        "unit": {"type": "str"},
-        "gain": {"type": "number", "unit": "unit per count", "check": "nonzero"},
-        "zero_counts": {"type": "number", "unit": "counts"},
-        "range": {"type": "pair", "check": "increasing", "help": "[low, high] in the channel's unit"},
-    }
-
 
 def kinds() -> dict[str, ProtocolKind]:
     """Every protocol kind the installed papers read (through the registry)."""
     return registry.protocol_kinds()
 
 
-_TYPE_TEXT = {
-    "str": "a string",
-    "int": "an integer",
-    "number": "a number",
-    "str-list": "a list of strings",
-    "pair": "a list of two numbers [low, high]",
-    "table": "a table",
-}
-
-
 # ---------------------------------------------------------------------------
 # Loaded form
 # ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class DeviceSpec:
-    """What ``ID?`` must answer."""
-
-    name: str
-    channels: tuple[str, ...]
-    adc_min_counts: float = 0.0
-    adc_max_counts: float = 4095.0
-
-    def matches(self, device_name: str) -> bool:
-        """True for the expected name or the same name with a ``-sim`` suffix."""
-        return device_name in (self.name, self.name + "-sim")
 
 
 @dataclass(frozen=True)
@@ -305,7 +238,6 @@ def loads_protocol(
     are resolved against ``path``'s folder when a path is given; ``kinds`` as for
     :func:`load_protocol`.
     """
-    chk = Checker(source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -317,11 +249,26 @@ def loads_protocol(
             "syntax",
             "nesting",
         ) from None
+    return check_document(data, source=source, text=text, path=path, kinds=kinds)
+
+
+def check_document(
+    data: dict[str, Any],
+    *,
+    source: str = "<protocol>",
+    text: str = "",
+    path: Path | None = None,
+    kinds: tuple[str, ...] | None = None,
+) -> Protocol:
+    """Check a protocol given as plain data (a TOML document as read, or one changed after
+    reading: ``--set`` values), as :func:`loads_protocol` checks its text; ``text``: the file
+    verbatim, when there is one."""
+    chk = Checker(source)
     _check_values(data, chk)
     found = data.get("kind")
     if kinds is not None and found not in kinds:
         raise ProtocolFileError(
-            f"{source}: key 'kind' must be one of {', '.join(kinds)}, not {_show(found)}.", "kind", found
+            f"{source}: key 'kind' must be one of {', '.join(kinds)}, not {show(found)}.", "kind", found
         )
     return _build(data, text, chk, path)
 
@@ -361,141 +308,6 @@ def _sentence_body(s: str) -> str:
     return s[:1].lower() + s[1:] if s[:1].isupper() and not s[:2].isupper() else s
 
 
-class Checker:
-    """Checks values against key specs; every failure is one ConfigError naming the source."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, message: str) -> NoReturn:
-        raise ConfigError(f"{self.source}: {message}")
-
-    # one value against one key spec
-    def value(self, v: Any, spec: dict[str, Any], key: str) -> Any:
-        t = spec["type"]
-        if t == "str":
-            if not isinstance(v, str):
-                self._wrong(v, spec, key)
-        elif t == "int":
-            if isinstance(v, bool) or not isinstance(v, int):
-                self._wrong(v, spec, key)
-        elif t == "number":
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                self._wrong(v, spec, key)
-            if not math.isfinite(v):
-                self.fail(f"key '{key}' must be a finite number, not {_show(v)}.")
-            v = float(v)
-        elif t == "str-list":
-            if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
-                self._wrong(v, spec, key)
-            if not v:
-                self.fail(f"key '{key}' must list at least one name.")
-        elif t == "pair":
-            if (
-                not isinstance(v, list)
-                or len(v) != 2
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
-            ):
-                self._wrong(v, spec, key)
-            if any(math.isnan(x) for x in v):
-                self.fail(f"key '{key}' must be two numbers, not {_show(v)}.")
-            if v[0] == -math.inf:
-                self.fail(f"key '{key}' must have a finite low end, not {_show(v)}.")
-            v = [float(x) for x in v]
-        self._check(v, spec.get("check"), key)
-        if "max" in spec and v > spec["max"]:
-            unit = f" {spec['unit']}" if spec.get("unit") else ""
-            self.fail(f"key '{key}' must be at most {spec['max']:g}{unit}, not {_show(v)}.")
-        return v
-
-    def _wrong(self, v: Any, spec: dict[str, Any], key: str) -> NoReturn:
-        self.fail(f"key '{key}' must be {_describe(spec)}, not {_kind_of(v)} {_show(v)}.")
-
-    def _check(self, v: Any, check: Any, key: str) -> None:
-        if check is None:
-            return
-        bad = None
-        if check == "positive" and not v > 0:
-            bad = "greater than 0"
-        elif check == "nonnegative" and not v >= 0:
-            bad = "at least 0"
-        elif check == "nonzero" and v == 0:
-            bad = "non-zero"
-        elif check == "nonempty" and not v.strip():
-            bad = "a non-empty string"
-        elif check == "identifier" and not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", v):
-            bad = "letters, digits, '-', '_' or '.'"
-        elif check == "unique" and len(set(v)) != len(v):
-            dup = sorted({x for x in v if v.count(x) > 1})
-            self.fail(f"key '{key}' must list each name once, but {', '.join(dup)} repeats.")
-        elif check == "increasing" and not v[0] < v[1]:
-            bad = "[low, high] with low < high"
-        elif isinstance(check, list) and check[0] == "min" and not v >= check[1]:
-            bad = f"at least {check[1]}"
-        elif isinstance(check, list) and check[0] == "one-of" and v not in check[1]:
-            bad = f"one of {', '.join(str(x) for x in check[1])}"
-        if bad is not None:
-            self.fail(f"key '{key}' must be {bad}, not {_show(v)}.")
-
-    # a table against a dict of key specs; returns the checked, converted values
-    def table(self, data: Any, spec: dict[str, Any], prefix: str) -> dict[str, Any]:
-        if not isinstance(data, dict):
-            self.fail(f"key '{prefix.rstrip('.')}' must be a table, not {_kind_of(data)} {_show(data)}.")
-        for k in data:
-            if k not in spec:
-                self.fail(f"unknown key '{prefix}{k}'; the keys allowed there are {', '.join(spec)}.")
-        out: dict[str, Any] = {}
-        for k, kspec in spec.items():
-            if k not in data:
-                if not kspec.get("optional"):
-                    self.fail(f"missing key '{prefix}{k}', expected {_describe(kspec)}.")
-                continue
-            out[k] = self.value(data[k], kspec, prefix + k)
-        return out
-
-
-def _describe(spec: dict[str, Any]) -> str:
-    text = _TYPE_TEXT[spec["type"]]
-    unit = spec.get("unit")
-    if unit:
-        text += f" in {unit}"
-    if spec.get("help"):
-        text += f" ({spec['help']})"
-    return text
-
-
-def _kind_of(v: Any) -> str:
-    if isinstance(v, bool):
-        return "the boolean"
-    if isinstance(v, int):
-        return "the integer"
-    if isinstance(v, float):
-        return "the number"
-    if isinstance(v, str):
-        return "the string"
-    if isinstance(v, list):
-        return "the list"
-    if isinstance(v, dict):
-        return "a table"
-    return "the date/time"
-
-
-def _show(v: Any) -> str:
-    if isinstance(v, dict):
-        return "{" + ", ".join(list(v)[:4]) + (", ..." if len(v) > 4 else "") + "}"
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        s = v if len(v) <= 40 else v[:37] + "..."
-        return repr(s)
-    if isinstance(v, float):
-        return repr(v)
-    if isinstance(v, list):
-        s = "[" + ", ".join(_show(x) for x in v[:6]) + (", ..." if len(v) > 6 else "") + "]"
-        return s
-    return str(v)
-
-
 def _kind(
     scalars: dict[str, Any], tables: dict[str, Any], all_kinds: dict[str, ProtocolKind], chk: Checker
 ) -> ProtocolKind:
@@ -503,10 +315,10 @@ def _kind(
     if "kind" in scalars:
         kind = chk.value(scalars["kind"], TOP_LEVEL["kind"], "kind")
         if kind not in all_kinds:
-            chk.fail(f"key 'kind' must be one of {', '.join(all_kinds)}, not {_show(kind)}.")
+            chk.fail(f"key 'kind' must be one of {', '.join(all_kinds)}, not {show(kind)}.")
         return all_kinds[kind]
     if "kind" in tables:
-        chk.fail(f"key 'kind' must be a string (the protocol kind), not a table {_show(tables['kind'])}.")
+        chk.fail(f"key 'kind' must be a string (the protocol kind), not a table {show(tables['kind'])}.")
     chk.fail(f"missing key 'kind', expected a string (one of {', '.join(all_kinds)}).")
 
 
@@ -514,14 +326,14 @@ def _check_top(scalars: dict[str, Any], tables: dict[str, Any], spec: ProtocolKi
     """The top-level keys, and no table the kind does not know."""
     for k in scalars:
         if k in spec.sections:
-            chk.fail(f"key '{k}' must be a table [{k}], not {_kind_of(scalars[k])} {_show(scalars[k])}.")
+            chk.fail(f"key '{k}' must be a table [{k}], not {kind_of(scalars[k])} {show(scalars[k])}.")
         if k not in TOP_LEVEL:
             allowed = list(TOP_LEVEL) + [f"[{s}]" for s in spec.sections]
             chk.fail(f"unknown key '{k}'; the keys allowed there are {', '.join(allowed)}.")
     top = chk.table(scalars, TOP_LEVEL, "")
     for k, v in tables.items():
         if k not in spec.sections and k in TOP_LEVEL:
-            chk.fail(f"key '{k}' must be {_describe(TOP_LEVEL[k])}, not a table {_show(v)}.")
+            chk.fail(f"key '{k}' must be {describe(TOP_LEVEL[k])}, not a table {show(v)}.")
         if k not in spec.sections and not spec.extra_sections:
             allowed = list(TOP_LEVEL) + [f"[{s}]" for s in spec.sections]
             chk.fail(f"unknown key '{k}'; the keys allowed there are {', '.join(allowed)}.")
@@ -540,7 +352,7 @@ def _check_sections(data: dict[str, Any], spec: ProtocolKind, chk: Checker) -> d
             continue
         raw = data[sec]
         if not isinstance(raw, dict):
-            chk.fail(f"key '{sec}' must be a table [{sec}], not {_kind_of(raw)} {_show(raw)}.")
+            chk.fail(f"key '{sec}' must be a table [{sec}], not {kind_of(raw)} {show(raw)}.")
         if spec_name == OPEN:
             checked[sec] = raw
         elif spec_name in tables_of:
@@ -561,22 +373,17 @@ def _check_sections(data: dict[str, Any], spec: ProtocolKind, chk: Checker) -> d
 def _device(
     checked: dict[str, Any], roles: ChannelRoles | None, chk: Checker
 ) -> tuple[DeviceSpec | None, Calibration | None]:
-    device = calibration = None
+    device = cal = None
     if "device" in checked:
         d = checked["device"]
-        if not d["adc_min_counts"] < d["adc_max_counts"]:
-            chk.fail(
-                f"key 'device.adc_max_counts' must be greater than device.adc_min_counts "
-                f"({_show(d['adc_min_counts'])}), not {_show(d['adc_max_counts'])}."
-            )
-        device = DeviceSpec(d["name"], tuple(d["channels"]), d["adc_min_counts"], d["adc_max_counts"])
+        device = device_spec(d["name"], d["channels"], (d["adc_min_counts"], d["adc_max_counts"]), chk, "device")
     if "channels" in checked:
         if device is None:
             chk.fail("missing key 'device', expected a table [device] listing the channel order.")
-        calibration = _calibration(checked["channels"], device, roles, chk)
+        cal = calibration(checked["channels"], device, roles, chk)
     elif device is not None:
         chk.fail("missing key 'channels', expected one [channels.NAME] table per channel of device.channels.")
-    return device, calibration
+    return device, cal
 
 
 def _settling(checked: dict[str, Any], chk: Checker) -> Settling | None:
@@ -586,7 +393,7 @@ def _settling(checked: dict[str, Any], chk: Checker) -> Settling | None:
     if not s["timeout_s"] > s["window_s"] + s["hold_s"]:
         chk.fail(
             f"key 'settling.timeout_s' must be longer than window_s + hold_s "
-            f"({_show(s['window_s'] + s['hold_s'])} s), not {_show(s['timeout_s'])}."
+            f"({show(s['window_s'] + s['hold_s'])} s), not {show(s['timeout_s'])}."
         )
     return Settling(
         window_s=s["window_s"],
@@ -605,7 +412,7 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
     spec = _kind(scalars, tables, kinds(), chk)
     top = _check_top(scalars, tables, spec, chk)
     checked = _check_sections(data, spec, chk)
-    device, calibration = _device(checked, spec.channel_roles, chk)
+    device, cal = _device(checked, spec.channel_roles, chk)
     settling = _settling(checked, chk)
     settings = spec.build(checked, chk, path) if spec.build is not None else None
     return Protocol(
@@ -613,8 +420,8 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
         kind=spec.name,
         path=path,
         text=text,
-        channels=calibration.names if calibration is not None else (),
-        calibration=calibration,
+        channels=cal.names if cal is not None else (),
+        calibration=cal,
         settling=settling,
         rate_hz=checked.get("acquisition", {}).get("rate_hz"),
         supply_min_MPa=checked.get("acquisition", {}).get("supply_min_MPa", DEFAULT_SUPPLY_MIN_MPA),
@@ -625,119 +432,3 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
         source=top.get("source", ""),
         document=copy.deepcopy(data),
     )
-
-
-def _calibration(
-    chans: dict[str, dict[str, Any]], device: DeviceSpec, roles: ChannelRoles | None, chk: Checker
-) -> Calibration:
-    listed = list(device.channels)
-    missing = [c for c in listed if c not in chans]
-    if missing:
-        chk.fail(f"missing key 'channels.{missing[0]}', expected a table describing a channel of device.channels.")
-    extra = [c for c in chans if c not in listed]
-    if extra:
-        chk.fail(
-            f"unknown key 'channels.{extra[0]}'; the keys allowed there are the names in device.channels "
-            f"({', '.join(listed)})."
-        )
-    out = [_channel(name, chans[name], device, roles, chk) for name in listed]
-    for what, attr in (("actuator", "actuator"), ("joint", "joint")):
-        seen: dict[Any, str] = {}
-        for ch in out:
-            v = getattr(ch, attr)
-            if v is None:
-                continue
-            if v in seen:
-                chk.fail(
-                    f"key 'channels.{ch.name}.{attr}' repeats {_show(v)}, already the {what} of "
-                    f"channels.{seen[v]}; each {what} has one channel."
-                )
-            seen[v] = ch.name
-    for a in roles.actuators if roles is not None else ():
-        if not any(ch.actuator == a for ch in out):
-            chk.fail(f"key 'channels' must give a pressure channel for actuator {a} (actuator = \"{a}\").")
-    for j in roles.joints if roles is not None else ():
-        if not any(ch.joint == j for ch in out):
-            chk.fail(f"key 'channels' must give an angle channel for joint {j} (joint = {j}).")
-    return Calibration(tuple(out), (device.adc_min_counts, device.adc_max_counts))
-
-
-def _channel(name: str, c: dict[str, Any], device: DeviceSpec, roles: ChannelRoles | None, chk: Checker) -> Channel:
-    """One checked ``[channels.NAME]`` table: its role, unit, and a span the ADC can represent."""
-    q = c["quantity"]
-    key = f"channels.{name}"
-    if q == "pressure":
-        if "actuator" not in c:
-            chk.fail(f"missing key '{key}.actuator', expected {_describe(channel_spec(roles)['actuator'])}.")
-        if "joint" in c:
-            chk.fail(
-                f"unknown key '{key}.joint' for a pressure channel; the keys allowed there are "
-                "quantity, actuator, unit, gain, zero_counts, range."
-            )
-    else:
-        if "joint" not in c:
-            chk.fail(f"missing key '{key}.joint', expected {_describe(channel_spec(roles)['joint'])}.")
-        if "actuator" in c:
-            chk.fail(
-                f"unknown key '{key}.actuator' for an angle channel; the keys allowed there are "
-                "quantity, joint, unit, gain, zero_counts, range."
-            )
-    factors = UNIT_FACTORS[q]
-    if c["unit"] not in factors:
-        article = "an" if q[0] in "aeiou" else "a"
-        chk.fail(
-            f"key '{key}.unit' must be one of {', '.join(factors)} for {article} {q} channel, not {_show(c['unit'])}."
-        )
-    lo, hi = c["range"]
-    if q == "pressure" and lo < 0:
-        chk.fail(f"key '{key}.range' must start at 0 or above (gauge pressure), not {_show(c['range'])}.")
-    if not math.isfinite(hi):
-        chk.fail(f"key '{key}.range' must have a finite high end, not {_show(c['range'])}.")
-    # The sensor span must be representable: its ends, in counts, inside the ADC range.
-    lo_adc, hi_adc = device.adc_min_counts, device.adc_max_counts
-    ends = sorted((lo / c["gain"] + c["zero_counts"], hi / c["gain"] + c["zero_counts"]))
-    tol = 1e-6 * max(1.0, abs(hi_adc - lo_adc))
-    if ends[0] < lo_adc - tol or ends[1] > hi_adc + tol:
-        chk.fail(
-            f"key '{key}.gain' with zero_counts {_show(c['zero_counts'])} maps the range "
-            f"{_fmt_num(lo)} to {_fmt_num(hi)} {c['unit']} to counts {_fmt_num(ends[0])} to {_fmt_num(ends[1])}, "
-            f"outside the ADC range {_fmt_num(lo_adc)} to {_fmt_num(hi_adc)}; check gain, zero_counts and range."
-        )
-    f = factors[c["unit"]]
-    if q == "angle":
-        problem = angle_scale_problem(c["unit"], c["gain"] * f, (lo * f, hi * f), hi_adc - lo_adc)
-        if problem:
-            chk.fail(f"key '{key}.unit' is {c['unit']}, but {problem}; check the unit (deg or rad).")
-    return Channel(
-        name=name,
-        quantity=q,
-        gain=c["gain"] * f,
-        zero_counts=c["zero_counts"],
-        range=(lo * f, hi * f),
-        unit_in_file=c["unit"],
-        actuator=c.get("actuator"),
-        joint=c.get("joint"),
-    )
-
-
-def angle_scale_problem(unit: str, gain_rad: float, range_rad: tuple[float, float], adc_span: float) -> str | None:
-    """What makes an angle channel's calibration implausible (a unit of rad where deg was meant), or None."""
-    lo, hi = (math.degrees(x) for x in range_rad)
-    if max(abs(lo), abs(hi)) > MAX_ANGLE_DEG + 1e-9:
-        return f"its range {lo:.6g} to {hi:.6g} deg goes beyond a full turn"
-    span = abs(math.degrees(gain_rad)) * adc_span
-    if span > MAX_POT_SPAN_DEG:
-        return f"its gain makes the ADC's span {span:.6g} deg ({abs(math.degrees(gain_rad)):.3g} deg a count), beyond a ten-turn potentiometer"
-    return None
-
-
-def _fmt_num(x: float) -> str:
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return f"{x:.6g}"
-
-
-# Helpers for the papers' own section checks (their ProtocolKind.build hooks).
-show_value = _show
-describe_spec = _describe
-fmt_num = _fmt_num

@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from labcli.papers.rpam2015.models import rpam
-from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.protocol import load_rpam
 
 
 def median_time(fn, repeat: int) -> float:
@@ -33,9 +33,8 @@ def main() -> None:
     parser.add_argument("--grid", type=int, default=21)
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
-    path, raw = read_rpam_protocol("rpam2015")
-    act = rpam.actuator_from_protocol(raw, path)
-    geom = rpam.geometry_from_protocol(raw, path)
+    settings = load_rpam("rpam2015").settings
+    act, geom = settings.actuator, settings.geometry
     P = np.linspace(0.041, 0.138, args.grid)
 
     def vectorised():

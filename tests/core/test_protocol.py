@@ -403,9 +403,34 @@ def test_a_new_kind_is_an_entry_in_the_schema_data(monkeypatch: pytest.MonkeyPat
     assert p.calibration is None and p.channels == ()
 
 
-def test_rpam_kinds_keep_their_own_sections_as_plain_dicts() -> None:
-    p = loads_protocol('name = "rpam"\nkind = "rpam"\n[rig]\nL3_m = 0.06\n[optimize]\nangle_deg = 58.4\n')
-    assert p.sections == {"rig": {"L3_m": 0.06}, "optimize": {"angle_deg": 58.4}}
+def test_rpam_sections_are_declared_as_key_specs_like_every_kinds() -> None:
+    # An rPAM protocol's tables are checked as the McKibben rig's are: no table or key unknown ...
+    with pytest.raises(ConfigError) as e:
+        loads_protocol('name = "rpam"\nkind = "rpam"\n[rig]\nL3_m = 0.06\n')
+    assert str(e.value) == (
+        "<protocol>: unknown key 'rig'; the keys allowed there are name, kind, title, source, paper, [joint], "
+        "[actuator], [ogden], [stretch_correction], [pressure], [experiments], [optimize], [sensors], "
+        "[acquisition], [settling]."
+    )
+    text = (PROTOCOLS / "rpam2015.toml").read_text(encoding="utf-8")
+    with pytest.raises(ConfigError) as e:
+        loads_protocol(text.replace("[optimize]\n", "[optimize]\nangle_deg = 58.4\n"))
+    assert str(e.value).startswith("<protocol>: unknown key 'optimize.angle_deg'; the keys allowed there are Pa_kPa, ")
+    # ... its DAQ's channels go through the core's channel map ...
+    with pytest.raises(ConfigError) as e:
+        loads_protocol(text.replace('unit = "mm"', 'unit = "deg"'))
+    assert str(e.value) == "<protocol>: key 'sensors.LEN.unit' must be one of m, mm for a length channel, not 'deg'."
+    with pytest.raises(ConfigError) as e:
+        loads_protocol(text.replace("zero_counts = 2048.0", "zero_counts = 3500.0"))
+    assert str(e.value) == (
+        "<protocol>: key 'sensors.POT.gain' with zero_counts 3500.0 maps the range -90 to 90 deg to counts "
+        "2416.03 to 4583.97, outside the ADC range 0 to 4095; check gain, zero_counts and range."
+    )
+    # ... and the file's tables are kept as written beside the typed settings they give.
+    p = loads_protocol(text)
+    assert p.sections["joint"]["L1_m"] == 0.03 and p.settings.geometry.L1_m == 0.03
+    assert p.settings.sensors.calibration.names == ("P_A", "P_B", "POT", "LEN")
+    assert p.settings.sensors.calibration.units == ("MPa", "MPa", "rad", "m")
 
 
 # ---------------------------------------------------------------- the plan

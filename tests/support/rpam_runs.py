@@ -10,11 +10,12 @@ import math
 
 import numpy as np
 
-from labcli.papers.rpam2015.models import rpam
-from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.protocol import load_rpam
 from labcli.papers.rpam2015.sim.rig import RpamRig, counts_to_si
 
-PATH, RAW = read_rpam_protocol("rpam2015")
+PROTOCOL = load_rpam("rpam2015")
+SETTINGS = PROTOCOL.settings
+PATH, RAW = PROTOCOL.path, PROTOCOL.document
 SETTLE_S = 8.0  # at least 8 time constants of the rig's lag (0.7 s, up to 1.4x)
 CAPTURE = 50  # samples averaged per point
 RATE_HZ = 100.0
@@ -30,7 +31,7 @@ def capture(rig: RpamRig, settle_s: float = SETTLE_S, n: int = CAPTURE) -> np.nd
 def stretch_table(rig: RpamRig) -> dict[str, list[float]]:
     """The protocol's stretch test (payloads x pressures) on ``rig``'s stretch stand."""
     rig.set_experiment("stretch")
-    masses, pressures = rpam.stretch_test_plan(RAW, PATH)
+    masses, pressures = np.array(SETTINGS.stretch_test.payloads_kg), np.array(SETTINGS.stretch_test.pressures_MPa)
     rows: dict[str, list[float]] = {"point": [], "mass_g": [], "P_A": [], "L_m": []}
     for m in masses:
         rig.hang_payload(float(m))
@@ -49,7 +50,7 @@ def stretch_table(rig: RpamRig) -> dict[str, list[float]]:
 def joint_table(rig: RpamRig, Pa=None, Pb=None) -> dict[str, list[float]]:
     """The joint map over the protocol's Pa x Pb grid, venting between points."""
     rig.set_experiment("joint")
-    grid_a, grid_b = rpam.joint_map_plan(RAW, PATH)
+    grid_a, grid_b = np.array(SETTINGS.joint_map.Pa_MPa), np.array(SETTINGS.joint_map.Pb_MPa)
     Pa = grid_a if Pa is None else Pa
     Pb = grid_b if Pb is None else Pb
     rows: dict[str, list[float]] = {"point": [], "P_A": [], "P_B": [], "alpha_deg": []}

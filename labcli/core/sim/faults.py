@@ -62,7 +62,7 @@ from ..wire import MAX_LINE, U32, Frame, Noise, noise_counter, parse_line
 from .firmware import format_frames
 
 FRAME_FAULTS = ("drop", "overlong", "truncate", "checksum")  # order of precedence
-KINDS = ("checksum", "garbage", "truncate", "overlong", "drop", "stall", "burst")
+FAULT_KINDS = ("checksum", "garbage", "truncate", "overlong", "drop", "stall", "burst")
 FAULTS_FORM = (
     "KIND:RATE[@X][,KIND:RATE[@X]...] with KIND one of checksum, garbage, truncate, overlong, drop, "
     "stall@SECONDS, burst@FRAMES and RATE a probability per frame within 0..1 "
@@ -101,7 +101,7 @@ class FaultSpec:
     burst_frames: int = DEFAULT_BURST_FRAMES
 
     def __post_init__(self) -> None:
-        for kind in KINDS:
+        for kind in FAULT_KINDS:
             p = getattr(self, kind)
             if not (isinstance(p, (int, float)) and 0.0 <= p <= 1.0):
                 raise FaultSpecError(f"rate of '{kind}' must be a number within 0..1, got {p!r}")
@@ -112,7 +112,7 @@ class FaultSpec:
 
     @property
     def active(self) -> bool:
-        return any(getattr(self, kind) > 0 for kind in KINDS)
+        return any(getattr(self, kind) > 0 for kind in FAULT_KINDS)
 
     @classmethod
     def parse(cls, text: str) -> FaultSpec:
@@ -121,7 +121,7 @@ class FaultSpec:
         for item in filter(None, (s.strip() for s in text.split(","))):
             kind, colon, rest = item.partition(":")
             kind = kind.strip()
-            if kind not in KINDS:
+            if kind not in FAULT_KINDS:
                 raise FaultSpecError(f"unknown fault '{kind}'")
             if not colon:
                 raise FaultSpecError(f"'{item}' is not KIND:RATE[@X]")
@@ -155,7 +155,7 @@ class FaultSpec:
     def to_text(self) -> str:
         """The grammar form (``parse(to_text())`` round-trips); empty when no fault is set."""
         out = []
-        for kind in KINDS:
+        for kind in FAULT_KINDS:
             p = getattr(self, kind)
             if p > 0:
                 item = f"{kind}:{p:g}"
@@ -230,7 +230,7 @@ class FaultInjector:
         self._p = np.zeros(len(_ROW))
         for kind, row in _ROW.items():
             self._p[row] = getattr(self.spec, kind)
-        self.injected: dict[str, float] = {kind: 0 for kind in KINDS}
+        self.injected: dict[str, float] = {kind: 0 for kind in FAULT_KINDS}
         self.injected["stall_s"] = 0.0
         self.noise: dict[str, int] = {"bad_checksum": 0, "malformed": 0, "overlong": 0}
         self.frames = 0  # frames made

@@ -13,14 +13,14 @@ from typing import Any
 
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
 from ...errors import ConfigError
-from .protocol import EXPERIMENTS, KINDS
+from .protocol import EXPERIMENTS, PROTOCOL_KINDS
 
 
 class Rpam2015:
     name = "rpam2015"
     title = "rPAM antagonistic 1-DoF joint: stretch test, joint map, link optimisation"
     paper = '"Optimized Design of a Rigid Kinematic Module for Antagonistic Soft Actuation", 2015'
-    protocol_kinds = KINDS
+    protocol_kinds = PROTOCOL_KINDS
     shipped_protocols = ("rpam2015",)
     run_kinds = tuple(EXPERIMENTS.values())
     sim_modes = ("rpam",)

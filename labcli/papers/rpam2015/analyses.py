@@ -19,14 +19,14 @@ from typing import Any
 
 from ...core.jsontext import loads_bounded
 from ...core.modelfile import check_fit_paths, default_model_path, save_model
+from ...core.protocol import Protocol
 from ...core.store import RunFile
 from ...errors import ConfigError, ModelError
 from . import report
 from .figures import figure8, figure_stretch
-from .models import rpam
 from .models.rpam_fit import StretchCorrection, StretchFit, analyse_joint_map, analyse_stretch
 from .models.rpam_optimize import optimize_protocol
-from .protocol import stored_protocol
+from .protocol import checked_actuator, stored_protocol, with_overrides
 
 
 def check_force_only_options(typed: frozenset[str], *names: str) -> None:
@@ -38,10 +38,8 @@ def check_force_only_options(typed: frozenset[str], *names: str) -> None:
             )
 
 
-def _read_run(
-    path: Path, protocol: str | None, overrides: tuple[str, ...] = ()
-) -> tuple[str, Any, dict[str, Any], str, str]:
-    """(kind, point table, raw protocol TOML, protocol name, where) of an rPAM run.
+def _read_run(path: Path, protocol: str | None, overrides: tuple[str, ...] = ()) -> tuple[str, Any, Protocol, str, str]:
+    """(kind, point table, its protocol, protocol name, where) of an rPAM run.
 
     ``overrides`` (``--set key=value``) change the run's stored protocol for this analysis only;
     ``where`` names the protocol in messages, with the overrides when there are any.
@@ -56,12 +54,10 @@ def _read_run(
             f"{path} was recorded with protocol '{name}'; --protocol applies to "
             "trial CSV files only, so leave it out for a run file."
         )
-    raw = stored_protocol(text, path)
-    where = f"{path} (protocol)"
-    if overrides:
-        raw = rpam.apply_overrides(raw, overrides)
-        where += f" with --set {' '.join(overrides)}"
-    return kind, table, raw, name, where
+    label = f"{path} (protocol)"
+    proto = with_overrides(stored_protocol(text, path), overrides, label, shown=overrides)
+    where = f"{label} with --set {' '.join(overrides)}" if overrides else label
+    return kind, table, proto, name, where
 
 
 # --------------------------------------------------------------------------- fit
@@ -101,13 +97,13 @@ def fit(
     check_force_only_options(typed, "max_amplification", "form")
     out = output or default_model_path(run)
     check_fit_paths(run, out)
-    kind, table, raw, name, where = _read_run(run, protocol, overrides)
+    kind, table, proto, name, where = _read_run(run, protocol, overrides)
     if kind != "rpam-stretch":
         raise ConfigError(
             f"{run} is a joint-map run (kind {kind}); labcli fit fits the stretch correction to a stretch-test "
             "run (labcli acquire --experiment stretch), and labcli validate compares a joint map with the model."
         )
-    stretch = analyse_stretch(table, (where, raw))
+    stretch = analyse_stretch(table, (where, proto))
     if plot is not None:
         figure_stretch(stretch, plot)
     model_name = f"{name or 'rpam'}-stretch"
@@ -185,7 +181,7 @@ def validate(
     ``[stretch_correction]``; a protocol whose correction is zero needs a fit.
     """
     check_force_only_options(typed, "mode")
-    kind, table, raw, _, where = _read_run(run, protocol, overrides)
+    kind, table, proto, _, where = _read_run(run, protocol, overrides)
     if kind != "rpam-joint":
         raise ConfigError(
             f"{run} is a stretch-test run (kind {kind}); labcli validate compares a joint-map run with the model: "
@@ -195,14 +191,14 @@ def validate(
     if model_path is not None:
         correction = load_stretch_model(model_path)
     else:
-        act = rpam.actuator_from_protocol(raw, where)
+        act = checked_actuator(proto.settings, where)
         if not any(act.stretch_coefficients_N):
             raise ConfigError(
                 f"{run}'s protocol has no stretch correction (its coefficients are all 0 N), so the model with "
                 "and without it would agree; fit one to a stretch-test run with labcli fit STRETCH.h5 and pass "
                 "it with --model STRETCH.model.json."
             )
-    result = analyse_joint_map(table, (where, raw), correction)
+    result = analyse_joint_map(table, (where, proto), correction)
     if plot is not None:
         figure8(result, plot)
     return JointMapValidation(result, run, model_path, plot)

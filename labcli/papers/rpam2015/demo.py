@@ -130,7 +130,7 @@ def run_rpam_demo(
         )
     with stages.run(1, "fit"):
         proto = load_protocol(PROTOCOL)
-        protocol_ref = (str(proto.path), dict(proto.sections))
+        protocol_ref = proto
         with RunFile.open(files["stretch_run"]) as run:
             stretch_table = run.records.table()
         fit = analyse_stretch(stretch_table, protocol_ref)

@@ -26,10 +26,11 @@ runs (``act_on(rig)``).
 
 The protocol's ``[sensors]`` table names the DAQ (``device``, ``channels``) and calibrates
 its four channels (``P_A``, ``P_B`` pressures, ``POT`` the joint angle, ``LEN`` actuator
-A's length); :func:`acquisition_protocol` turns the protocol into the one a run records
-with: its kind the run's (``rpam-stretch`` / ``rpam-joint``), its calibration, channels
-and device from ``[sensors]``, the length's settling limit in its settling, and the
-chosen experiment's grid in its settings (:class:`RpamRun`).
+A's length), checked by the core's channel map when the protocol loads
+(:mod:`labcli.papers.rpam2015.protocol`); :func:`acquisition_protocol` turns the protocol
+into the one a run records with: its kind the run's (``rpam-stretch`` / ``rpam-joint``),
+its calibration, channels and device from ``[sensors]``, the length's settling limit in
+its settling, and the chosen experiment's grid in its settings (:class:`RpamRun`).
 """
 
 from __future__ import annotations
@@ -42,8 +43,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ...core.calibration import UNIT_FACTORS, Calibration, Channel
-from ...core.protocol import DeviceSpec
 from ...core.steps import (
     Baseline,
     BeginTrial,
@@ -59,14 +58,14 @@ from ...core.steps import (
     Window,
 )
 from ...errors import ConfigError
-from .models import rpam
-from .protocol import EXPERIMENTS
+from .protocol import CHANNELS, EXPERIMENTS, checked_actuator
+from .settings import RpamSettings, Sensors
 
 if TYPE_CHECKING:
     from .records import PointRecord  # which imports this module
 
-KINDS: dict[str, str] = {v: k for k, v in EXPERIMENTS.items()}
-CHANNELS = ("P_A", "P_B", "POT", "LEN")
+# The experiment each rPAM run kind records: rpam-stretch -> stretch.
+EXPERIMENT_OF_RUN_KIND: dict[str, str] = {v: k for k, v in EXPERIMENTS.items()}
 _TITLE = {"stretch": "stretch", "joint": "joint map"}
 
 
@@ -167,7 +166,7 @@ class RpamRun:
 
 def experiment_of_kind(kind: str) -> str | None:
     """``rpam-stretch`` -> ``stretch``, ``rpam-joint`` -> ``joint``, else None."""
-    return KINDS.get(kind)
+    return EXPERIMENT_OF_RUN_KIND.get(kind)
 
 
 def acquisition_protocol(
@@ -202,7 +201,21 @@ def acquisition_protocol(
             "(the stretch test, Figs. 5-6) or --experiment joint (the joint map, Fig. 8)."
         )
     label = str(getattr(base, "path", None) or name)
-    raw = dict(getattr(base, "sections", {}) or {})
+    settings, sensors = _needs(base, label)
+    act = checked_actuator(settings, label)
+    return replace(
+        base,
+        kind=EXPERIMENTS[experiment],
+        calibration=sensors.calibration,
+        channels=sensors.calibration.names,
+        device=sensors.device,
+        settling=replace(base.settling, length_spread_m=sensors.length_spread_m),
+        settings=RpamRun(experiment, tuple(_points(settings, experiment, label)), act.L0_m),
+    )
+
+
+def _needs(base: Any, label: str) -> tuple[RpamSettings, Sensors]:
+    """The settings of an rPAM protocol that acquisition needs: settling, rate and DAQ."""
     if getattr(base, "settling", None) is None:
         raise ConfigError(
             f"{label}: labcli acquire needs a [settling] table (window_s, hold_s, "
@@ -210,100 +223,32 @@ def acquisition_protocol(
         )
     if getattr(base, "rate_hz", None) is None:
         raise ConfigError(f"{label}: labcli acquire needs [acquisition] rate_hz.")
-    calibration, device, length_spread = _sensors(raw, label)
-    act = rpam.actuator_from_protocol(raw, label)
-    # Points are numbered in the order they are run: the first set value outermost.
-    if experiment == "stretch":
-        masses, pressures = rpam.stretch_test_plan(raw, label)
-        grid = itertools.product(masses, pressures)
-        points = [PlannedPoint(i, float(p), 0.0, float(m)) for i, (m, p) in enumerate(grid, start=1)]
-    else:
-        grid = itertools.product(*rpam.joint_map_plan(raw, label))
-        points = [PlannedPoint(i, float(a), float(b)) for i, (a, b) in enumerate(grid, start=1)]
-    return replace(
-        base,
-        kind=EXPERIMENTS[experiment],
-        calibration=calibration,
-        channels=calibration.names,
-        device=device,
-        settling=replace(base.settling, length_spread_m=length_spread),
-        settings=RpamRun(experiment, tuple(points), act.L0_m),
-    )
-
-
-def _sensors(raw: dict[str, Any], label: str) -> tuple[Any, Any, float]:
-    """Calibration, device spec and length settling limit (m) from the ``[sensors]`` table."""
-    s = raw.get("sensors")
-    if not isinstance(s, dict):
+    settings: RpamSettings = base.settings
+    if settings.sensors is None:
         raise ConfigError(
             f"{label}: labcli acquire needs a [sensors] table naming the DAQ (device, channels) "
             "and calibrating each channel."
         )
+    return settings, settings.sensors
 
-    def bad(key: str, need: str, value: Any) -> ConfigError:
-        return ConfigError(f"{label}: key 'sensors.{key}' must be {need}, not {value!r}.")
 
-    device = s.get("device")
-    if not isinstance(device, str) or not device:
-        raise bad("device", "the device name the ID? reply carries", device)
-    names = s.get("channels")
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names) or len(set(names)) != len(names):
-        raise bad("channels", "a list of distinct channel names in data-line order", names)
-    missing = [c for c in CHANNELS if c not in names]
-    if missing:
-        raise ConfigError(
-            f"{label}: key 'sensors.channels' must include {', '.join(CHANNELS)}; "
-            f"{', '.join(missing)} {'is' if len(missing) == 1 else 'are'} missing."
-        )
-    lo_adc, hi_adc = s.get("adc_min_counts", 0), s.get("adc_max_counts", 4095)
-    channels = []
-    length_spread = None
-    for n in names:
-        c = s.get(n)
-        if not isinstance(c, dict):
-            raise ConfigError(f"{label}: missing table [sensors.{n}] calibrating channel {n}.")
-        q = c.get("quantity")
-        if q not in UNIT_FACTORS:
-            raise bad(f"{n}.quantity", "one of " + ", ".join(UNIT_FACTORS), q)
-        unit = c.get("unit")
-        if unit not in UNIT_FACTORS[q]:
-            raise bad(f"{n}.unit", f"one of {', '.join(UNIT_FACTORS[q])} for a {q} channel", unit)
-        gain, zero, rng = c.get("gain"), c.get("zero_counts"), c.get("range")
-        if not _number(gain) or gain == 0:
-            raise bad(f"{n}.gain", "a non-zero number", gain)
-        if not _number(zero):
-            raise bad(f"{n}.zero_counts", "a number", zero)
-        if not (isinstance(rng, list) and len(rng) == 2 and all(_number(v) for v in rng) and rng[0] < rng[1]):
-            raise bad(f"{n}.range", "[low, high] with low < high", rng)
-        f = UNIT_FACTORS[q][unit]
-        channels.append(
-            Channel(
-                name=n,
-                quantity=q,
-                gain=float(gain) * f,
-                zero_counts=float(zero),
-                range=(float(rng[0]) * f, float(rng[1]) * f),
-                unit_in_file=unit,
+def _points(settings: RpamSettings, experiment: str, label: str) -> list[PlannedPoint]:
+    """The experiment's grid, numbered in the order it is run: the first set value outermost."""
+    if experiment == "stretch":
+        if settings.stretch_test is None:
+            raise ConfigError(
+                f"{label}: the stretch test needs an [experiments.stretch_test] table "
+                "(payloads_g, pressure_start_kPa, pressure_stop_kPa, pressure_count)."
             )
-        )
-        if q == "length":
-            spread = c.get("settle_spread_mm")
-            if not _number(spread) or spread <= 0:
-                raise bad(f"{n}.settle_spread_mm", "a positive number of mm (the length's settling limit)", spread)
-            length_spread = float(spread) * 1e-3 if length_spread is None else min(length_spread, float(spread) * 1e-3)
-    if [ch.quantity for ch in channels if ch.name in CHANNELS] != ["pressure", "pressure", "angle", "length"] or [
-        ch.name for ch in channels if ch.name in CHANNELS
-    ] != list(CHANNELS):
+        grid = itertools.product(settings.stretch_test.payloads_kg, settings.stretch_test.pressures_MPa)
+        return [PlannedPoint(i, p, 0.0, m) for i, (m, p) in enumerate(grid, start=1)]
+    if settings.joint_map is None:
         raise ConfigError(
-            f"{label}: channels {', '.join(CHANNELS)} of [sensors] must be, in this order, "
-            "two pressures, an angle and a length."
+            f"{label}: the joint map needs an [experiments.joint_map] table "
+            "(Pa_start_kPa, Pa_stop_kPa, Pa_count and the same for Pb)."
         )
-    cal = Calibration(tuple(channels), (float(lo_adc), float(hi_adc)))
-    return cal, DeviceSpec(device, tuple(names), float(lo_adc), float(hi_adc)), float(length_spread)
-
-
-def _number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    grid = itertools.product(settings.joint_map.Pa_MPa, settings.joint_map.Pb_MPa)
+    return [PlannedPoint(i, a, b) for i, (a, b) in enumerate(grid, start=1)]
 
 
 # --------------------------------------------------------------------------- text

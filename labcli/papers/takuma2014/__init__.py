@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
-from .protocol import KINDS
+from .protocol import PROTOCOL_KINDS
 from .sim.options import SIM_OPTIONS
 
 
@@ -23,7 +23,7 @@ class Takuma2014:
         'Takuma, Takamine & Masuda, "Sustainable multi-modal sensing by a single sensor utilizing '
         'the passivity of an elastic actuator", Actuators 2014'
     )
-    protocol_kinds = KINDS
+    protocol_kinds = PROTOCOL_KINDS
     shipped_protocols = ("takuma2014", "takuma2014-stiffness")
     run_kinds = ("force", "push")
     sim_modes = ("mckibben",)

@@ -1,6 +1,6 @@
 """The McKibben rig's protocol kinds, ``force`` and ``push``, as plain data for the loader.
 
-:data:`KINDS` tells :mod:`labcli.core.protocol` which sections a ``takuma2014`` or
+:data:`PROTOCOL_KINDS` tells :mod:`labcli.core.protocol` which sections a ``takuma2014`` or
 ``takuma2014-stiffness`` protocol holds and how each key is checked; :func:`build`
 turns the checked sections into :class:`McKibbenSettings` (``Protocol.settings``):
 the rig's geometry (m), the trial counts and plan, the limits of typed loads (grams and
@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ...core.keyspecs import OPEN, fmt_num, show
 from ...core.paper import ChannelRoles, ProtocolKind
-from ...core.protocol import OPEN, fmt_num, show_value
 from ...errors import ConfigError
 from .tables import load_plan as read_plan
 
@@ -142,17 +142,17 @@ def _force_limits(f: dict[str, Any], chk: Any) -> ForceLimits:
     if not f["mass_max_g"] > f["mass_min_g"]:
         chk.fail(
             f"key 'force.mass_max_g' must be greater than force.mass_min_g "
-            f"({show_value(f['mass_min_g'])}), not {show_value(f['mass_max_g'])}."
+            f"({show(f['mass_min_g'])}), not {show(f['mass_max_g'])}."
         )
     if not f["direction_max_deg"] > f["direction_min_deg"]:
         chk.fail(
             f"key 'force.direction_max_deg' must be greater than force.direction_min_deg "
-            f"({show_value(f['direction_min_deg'])}), not {show_value(f['direction_max_deg'])}."
+            f"({show(f['direction_min_deg'])}), not {show(f['direction_max_deg'])}."
         )
     if f["direction_max_deg"] - f["direction_min_deg"] > 360:
         chk.fail(
             "key 'force.direction_max_deg' must be at most 360 deg above force.direction_min_deg, "
-            f"not {show_value(f['direction_max_deg'])}."
+            f"not {show(f['direction_max_deg'])}."
         )
     return ForceLimits(**f)
 
@@ -161,12 +161,12 @@ def _push(p: dict[str, Any], bands_raw: dict[str, Any], chk: Any) -> PushSetting
     if not p["distance_max_m"] > p["distance_min_m"]:
         chk.fail(
             f"key 'push.distance_max_m' must be greater than push.distance_min_m "
-            f"({show_value(p['distance_min_m'])}), not {show_value(p['distance_max_m'])}."
+            f"({show(p['distance_min_m'])}), not {show(p['distance_max_m'])}."
         )
     bands = {k: (v[0], v[1]) for k, v in bands_raw.items()}
     for name, (lo, hi) in bands.items():
         if lo < 0:
-            chk.fail(f"key 'stiffness_bands_N_per_m.{name}' must start at 0 or above, not {show_value([lo, hi])}.")
+            chk.fail(f"key 'stiffness_bands_N_per_m.{name}' must start at 0 or above, not {show([lo, hi])}.")
     ordered = sorted(bands.items(), key=lambda kv: kv[1][0])
     for (n1, (_, h1)), (n2, (l2, _)) in zip(ordered, ordered[1:], strict=False):
         if l2 < h1:
@@ -191,7 +191,7 @@ def build(checked: dict[str, Any], chk: Any, path: Path | None) -> McKibbenSetti
 
 _ROLES = ChannelRoles(actuators=ACTUATORS, joints=JOINTS)
 
-KINDS: dict[str, ProtocolKind] = {
+PROTOCOL_KINDS: dict[str, ProtocolKind] = {
     "force": ProtocolKind(
         name="force",
         sections={

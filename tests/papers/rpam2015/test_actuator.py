@@ -11,11 +11,12 @@ import pytest
 from labcli.errors import ModelError
 from labcli.papers.rpam2015.actuator import Actuator
 from labcli.papers.rpam2015.models import rpam, rpam_fit
-from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.protocol import load_rpam
 from labcli.papers.rpam2015.sim.rig import RpamRig
 
-PATH, RAW = read_rpam_protocol("rpam2015")
-ACT = rpam.actuator_from_protocol(RAW, PATH)
+PROTOCOL = load_rpam("rpam2015")
+PATH, RAW = PROTOCOL.path, PROTOCOL.document
+ACT = PROTOCOL.settings.actuator
 
 
 def test_the_model_the_fits_and_the_stand_use_one_type():

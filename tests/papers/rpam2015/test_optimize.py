@@ -12,14 +12,16 @@ import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
+from labcli.core.protocol import check_document
 from labcli.errors import ConfigError, ModelError
 from labcli.papers.rpam2015.models import rpam
 from labcli.papers.rpam2015.models import rpam_optimize as ro
-from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.protocol import load_rpam
 
-PATH, RAW = read_rpam_protocol("rpam2015")
-ACT = rpam.actuator_from_protocol(RAW, PATH)
-BOUNDS, SETTINGS = ro.settings_from_protocol(RAW, PATH)
+PROTOCOL = load_rpam("rpam2015")
+PATH, RAW = PROTOCOL.path, PROTOCOL.document
+ACT = PROTOCOL.settings.actuator
+BOUNDS, SETTINGS = ro.optimizer_settings(PROTOCOL.settings, str(PATH))
 QUICK = ("optimize.popsize=6", "optimize.maxiter=40")
 
 
@@ -203,17 +205,28 @@ def test_impossible_pressures_are_reported():
 def test_bad_optimizer_settings_are_one_sentence():
     with pytest.raises(ConfigError) as e:
         ro.optimize_protocol("rpam2015", overrides=("optimize.popsize=2.5",))
-    assert str(e.value).startswith("Protocol key 'optimize.popsize' in ")
-    assert str(e.value).endswith("must be a whole number, got 2.5.")
+    assert str(e.value) == (
+        "Protocol rpam2015 with --set optimize.popsize=2.5: key 'optimize.popsize' must be an integer, "
+        "not the number 2.5."
+    )
     # A joint with no stiffness, or one allowed onto the toggle, holds nothing.
     for key in ("min_stiffness_Nm_per_rad", "min_toggle_margin_deg"):
         for value in ("0.0", "-0.1"):
             with pytest.raises(ConfigError) as e:
                 ro.optimize_protocol("rpam2015", overrides=(f"optimize.{key}={value}",))
             assert str(e.value) == (
-                f"Protocol key 'optimize.{key}' in protocol rpam2015 with --set "
-                f"optimize.{key}={value} must be a positive number, got {float(value)!r}."
+                f"Protocol rpam2015 with --set optimize.{key}={value}: key 'optimize.{key}' must be "
+                f"greater than 0, not {float(value)!r}."
             )
+    # A protocol from before the stiffness constraint loads, and the optimiser asks for it.
+    older = load_rpam("rpam2015").document
+    del older["optimize"]["min_stiffness_Nm_per_rad"]
+    with pytest.raises(ConfigError) as e:
+        ro.optimizer_settings(check_document(older, source="old.toml").settings, "old.toml")
+    assert str(e.value) == (
+        "old.toml: missing key 'optimize.min_stiffness_Nm_per_rad', expected a number in N m/rad "
+        "(the least joint stiffness at the balance)."
+    )
 
 
 # --------------------------------------------------------------------------- command line
@@ -313,5 +326,6 @@ def test_cli_missing_protocol_is_one_clear_line():
     assert result.exit_code == 1
     assert (
         result.output
-        == "Error: No protocol named 'nosuch'; give a .toml path or a shipped name (rpam2015, takuma2014, takuma2014-bent, takuma2014-stiffness).\n"
+        == "Error: There is no shipped protocol named 'nosuch'; shipped protocols are rpam2015, takuma2014, "
+        "takuma2014-bent, takuma2014-stiffness, or give the path of a .toml file.\n"
     )

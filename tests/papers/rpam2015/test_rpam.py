@@ -2,19 +2,23 @@
 
 from __future__ import annotations
 
+import copy
 import math
+from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from labcli.core.protocol import check_document
 from labcli.errors import ConfigError, ModelError
 from labcli.papers.rpam2015.models import rpam
-from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.protocol import apply_overrides, checked_actuator, load_rpam
 
-PATH, RAW = read_rpam_protocol("rpam2015")
-ACT = rpam.actuator_from_protocol(RAW, PATH)
+PROTOCOL = load_rpam("rpam2015")
+PATH, RAW = PROTOCOL.path, PROTOCOL.document
+ACT = PROTOCOL.settings.actuator
 PAPER = rpam.JointGeometry(0.03, 0.1048, 0.06)
 KPA = 1e-3  # MPa per kPa
 
@@ -274,74 +278,92 @@ def test_no_equilibrium_is_a_clear_error():
 
 
 def test_shipped_protocol_holds_the_papers_numbers():
-    g = rpam.geometry_from_protocol(RAW)
+    s = PROTOCOL.settings
+    g = s.geometry
     assert (g.L1_m, g.L2_m, g.L3_m) == (0.03, 0.1048, 0.06)
-    assert RAW["joint"]["bounds"]["L2_m"] == [0.07, 0.14]
-    assert RAW["joint"]["bounds"]["actuator_length_m"] == [0.07, 0.14]
-    assert (RAW["optimize"]["Pa_kPa"], RAW["optimize"]["Pb_kPa"]) == (96.0, 41.0)
+    assert s.bounds.L2_m == (0.07, 0.14) and s.bounds.actuator_length_m == (0.07, 0.14)
+    assert (s.optimize.Pa_MPa, s.optimize.Pb_MPa) == (0.096, 0.041)
     assert RAW["pressure"]["joint_map_kPa"] == [41.0, 138.0]
-    assert RAW["experiments"]["stretch_test"]["payloads_g"][-1] == 1300.0
+    assert s.stretch_test.payloads_kg[-1] == pytest.approx(1.3)
     # The thread cage and the pitch agree: 5 mm over 70 mm.
     assert ACT.L0_m / ACT.n_turns == pytest.approx(0.005)
 
 
 def test_overrides_set_values_and_reject_unknown_keys():
-    out = rpam.apply_overrides(RAW, ["actuator.L0_m=0.08", "ogden.alpha=[1.5, 5, -2]"])
+    out = apply_overrides(RAW, ["actuator.L0_m=0.08", "ogden.alpha=[1.5, 5, -2]"])
     assert out["actuator"]["L0_m"] == 0.08 and RAW["actuator"]["L0_m"] == 0.07
     assert out["ogden"]["alpha"] == [1.5, 5, -2]
+    assert check_document(out).settings.actuator.ogden_alpha == (1.5, 5.0, -2.0)
     with pytest.raises(ConfigError) as e:
-        rpam.apply_overrides(RAW, ["actuator.L0=0.08"])
+        apply_overrides(RAW, ["actuator.L0=0.08"])
     assert str(e.value) == (
         "Unknown protocol key 'actuator.L0' in --set; keys under actuator: "
         "A0_m2, L0_m, n_turns, prestretch, thread_length_m."
     )
     with pytest.raises(ConfigError) as e:
-        rpam.apply_overrides(RAW, ["ogden.alpha=[1, 2]"])
+        apply_overrides(RAW, ["ogden.alpha=[1, 2]"])
     assert str(e.value) == "--set ogden.alpha=[1, 2]: expected a list of 3 values like the protocol's [1.3, 5.0, -2.0]."
     with pytest.raises(ConfigError) as e:
-        rpam.apply_overrides(RAW, ["joint"])
+        apply_overrides(RAW, ["joint"])
     assert str(e.value) == "--set needs key=value (for example actuator.L0_m=0.08), got 'joint'."
     with pytest.raises(ConfigError) as e:
-        rpam.apply_overrides(RAW, ["joint.bounds=1"])
+        apply_overrides(RAW, ["joint.bounds=1"])
     assert str(e.value).startswith("Protocol key 'joint.bounds' is a table; --set one of its keys: L1_m")
+
+
+def actuator_of(assignment: str) -> Any:
+    """The actuator of the shipped protocol with one value changed, as the model takes it."""
+    return checked_actuator(check_document(apply_overrides(RAW, [assignment]), source="p.toml").settings, "p.toml")
 
 
 def test_bad_protocol_values_are_one_sentence(tmp_path):
     # A uniaxial-only fit can have a negative modulus; in Eq. 3's convention that is unstable.
-    bad = rpam.apply_overrides(RAW, ["ogden.mu_MPa=[0.1004, 0.00281, -0.03314]"])
     with pytest.raises(ConfigError) as e:
-        rpam.actuator_from_protocol(bad, "p.toml")
+        actuator_of("ogden.mu_MPa=[0.1004, 0.00281, -0.03314]")
     assert str(e.value) == (
-        "Ogden constants in p.toml need mu_i > 0 and alpha_i != 0 for every term (Eq. 3's "
+        "p.toml: the Ogden constants need mu_i > 0 and alpha_i != 0 for every term (Eq. 3's "
         "convention; a negative mu_i makes the wall unstable outside uniaxial tension)."
     )
-    bad = rpam.apply_overrides(RAW, ["actuator.A0_m2=5e-4"])
     with pytest.raises(ConfigError) as e:
-        rpam.actuator_from_protocol(bad, "p.toml")
+        actuator_of("actuator.A0_m2=5e-4")
     assert str(e.value) == (
-        "Protocol key 'actuator.A0_m2' in p.toml must be less than the cage's section at rest, "
+        "p.toml: key 'actuator.A0_m2' must be less than the cage's section at rest, "
         "pi r^2 = 0.0004909 m^2 (r from actuator.n_turns and thread_length_m): the wall lies "
         "inside the thread cage."
     )
-    bad = rpam.apply_overrides(RAW, ["actuator.thread_length_m=0.05"])
     with pytest.raises(ConfigError) as e:
-        rpam.actuator_from_protocol(bad, "p.toml")
+        actuator_of("actuator.thread_length_m=0.05")
     assert "must exceed actuator.L0_m" in str(e.value)
+    # Types and signs are the loader's: the same sentences as every protocol's.
+    with pytest.raises(ConfigError) as e:
+        actuator_of("actuator.L0_m=-0.07")
+    assert str(e.value) == "p.toml: key 'actuator.L0_m' must be greater than 0, not -0.07."
+    odd = copy.deepcopy(RAW)
+    odd["ogden"]["alpha"] = [1.3, 5.0, True]
+    with pytest.raises(ConfigError) as e:
+        check_document(odd, source="p.toml")
+    assert str(e.value) == (
+        "p.toml: key 'ogden.alpha' must be a list of numbers (Eq. 3's exponents), not the list [1.3, 5.0, true]."
+    )
     f = tmp_path / "other.toml"
     f.write_text('kind = "force"\n')
     with pytest.raises(ConfigError) as e:
-        read_rpam_protocol(f)
+        load_rpam(f)
     assert str(e.value) == f"Protocol file {f} has kind = 'force'; the rPAM model needs kind = \"rpam\"."
+    with pytest.raises(ConfigError) as e:
+        load_rpam("takuma2014")
+    assert str(e.value) == "Protocol takuma2014 has kind = 'force'; the rPAM model needs kind = \"rpam\"."
     f.write_text("kind = [\n")
     with pytest.raises(ConfigError) as e:
-        read_rpam_protocol(f)
-    assert str(e.value).startswith(f"Protocol file {f} is not valid TOML:")
+        load_rpam(f)
+    assert str(e.value) == f"{f}: TOML syntax error at line 2 (end of file): invalid value."
 
 
 def test_stretch_test_round_trip_recovers_the_correction():
     # Lengths the model predicts for the stretch-test grid, fed back as measurements,
     # give back the stretch force and a cubic fit returns the shipped coefficients.
-    masses, pressures = rpam.stretch_test_plan(RAW, PATH)
+    grid = PROTOCOL.settings.stretch_test
+    masses, pressures = np.array(grid.payloads_kg), np.array(grid.pressures_MPa)
     assert masses.tolist() == pytest.approx([0, 0.1, 0.2, 0.3, 1.0, 1.3])
     assert pressures[0] == 0.0 and pressures[-1] == pytest.approx(0.190) and len(pressures) == 20
     M, P = np.meshgrid(masses, pressures)
@@ -354,14 +376,22 @@ def test_stretch_test_round_trip_recovers_the_correction():
 
 
 def test_joint_map_plan_spans_the_papers_pressures():
-    Pa, Pb = rpam.joint_map_plan(RAW, PATH)
+    grid = PROTOCOL.settings.joint_map
+    Pa, Pb = np.array(grid.Pa_MPa), np.array(grid.Pb_MPa)
     assert Pa[0] == pytest.approx(0.041) and Pa[-1] == pytest.approx(0.138) and len(Pa) == 11
+    # np.linspace's spacing, to the last bit (the set values the rig is driven to).
+    np.testing.assert_array_equal(Pa, np.linspace(41.0, 138.0, 11) * 1e-3)
     np.testing.assert_array_equal(Pa, Pb)
-    bad = rpam.apply_overrides(RAW, ["experiments.joint_map.Pa_count=0"])
+    bad = apply_overrides(RAW, ["experiments.joint_map.Pa_count=0"])
     with pytest.raises(ConfigError) as e:
-        rpam.joint_map_plan(bad, "p.toml")
+        check_document(bad, source="p.toml")
+    assert str(e.value) == "p.toml: key 'experiments.joint_map.Pa_count' must be at least 1, not 0."
+    bad = apply_overrides(RAW, ["experiments.joint_map.Pb_stop_kPa=40.0"])
+    with pytest.raises(ConfigError) as e:
+        check_document(bad, source="p.toml")
     assert (
-        str(e.value) == "Protocol key 'experiments.joint_map.Pa_count' in p.toml must be a whole number of at least 1."
+        str(e.value)
+        == "p.toml: key 'experiments.joint_map.Pb_stop_kPa' must be at least Pb_start_kPa (41.0), not 40.0."
     )
 
 

@@ -9,8 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats
-from support.rpam_runs import PATH, RAW, joint_table, stretch_table
+from support.rpam_runs import RAW, SETTINGS, joint_table, stretch_table
 
+from labcli.core.protocol import check_document
 from labcli.errors import ConfigError, ModelError
 from labcli.papers.rpam2015.figures import figure8, figure_stretch
 from labcli.papers.rpam2015.models import rpam
@@ -22,9 +23,10 @@ from labcli.papers.rpam2015.models.rpam_fit import (
     analyse_stretch,
     correction_actuator,
 )
+from labcli.papers.rpam2015.protocol import apply_overrides
 from labcli.papers.rpam2015.sim.rig import RpamRig
 
-ACT = rpam.actuator_from_protocol(RAW, PATH)
+ACT = SETTINGS.actuator
 CHI2_999 = float(stats.chi2.ppf(0.999, 4))
 
 
@@ -187,7 +189,7 @@ def test_unfitted_and_foreign_records_are_refused():
     with pytest.raises(ModelError) as e:
         correction_actuator(ACT, [1.0, 2.0])
     assert str(e.value) == "A stretch correction is four finite coefficients c0..c3 in N, a stretch fit, or None."
-    with pytest.raises(ConfigError, match="No protocol named 'nope'"):
+    with pytest.raises(ConfigError, match="There is no shipped protocol named 'nope'"):
         analyse_stretch({"mass_g": [0], "P_A": [0], "L_m": [0.07]}, "nope")
 
 
@@ -204,8 +206,7 @@ def test_stretch_json_round_trip(stretch_run):
     m2 = StretchCorrection.from_json(fit.model.to_json())
     assert m2 == fit.model
     # The fit plugs into the protocol through --set style overrides.
-    raw = rpam.apply_overrides(RAW, fit.overrides())
-    act = rpam.actuator_from_protocol(raw, PATH)
+    act = check_document(apply_overrides(RAW, fit.overrides())).settings.actuator
     assert act.stretch_coefficients_N == pytest.approx(fit.model.coefficients_N)
     assert act == fit.apply_to(ACT)
 
@@ -255,7 +256,7 @@ def test_a_joint_measured_on_its_stop_where_the_model_balances_counts_apart():
     # Three pairs measured where the model says, one where the joint sat on its stop
     # (0.8 deg short of the toggle) although the model balances there: the paper's toggle
     # between two states, not a balance error.
-    geom = rpam.geometry_from_protocol(RAW, PATH)
+    geom = SETTINGS.geometry
     Pa, Pb = np.array([0.05, 0.06, 0.07, 0.08]), np.array([0.05, 0.05, 0.05, 0.06])
     model = np.degrees(rpam.solve_equilibrium(Pa, Pb, geom, ACT).alpha_rad)
     assert np.all(np.isfinite(model))
@@ -278,7 +279,7 @@ def test_grid_recovers_the_plan_from_noisy_pressures(joint_run):
     g = res.grid()
     assert g is not None
     pa, pb, cells = g
-    Pa, Pb = rpam.joint_map_plan(RAW, PATH)
+    Pa, Pb = np.array(SETTINGS.joint_map.Pa_MPa), np.array(SETTINGS.joint_map.Pb_MPa)
     np.testing.assert_allclose(pa, Pa, atol=0.5e-3)
     np.testing.assert_allclose(pb, Pb, atol=0.5e-3)
     assert cells["measured"].shape == (11, 11)

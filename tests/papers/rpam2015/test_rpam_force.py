@@ -10,10 +10,11 @@ import pytest
 
 from labcli.papers.rpam2015.models import rpam
 from labcli.papers.rpam2015.models import rpam_force as rf
-from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.protocol import load_rpam
 
-PATH, RAW = read_rpam_protocol("rpam2015")
-ACT = rpam.actuator_from_protocol(RAW, PATH)
+PROTOCOL = load_rpam("rpam2015")
+PATH, RAW = PROTOCOL.path, PROTOCOL.document
+ACT = PROTOCOL.settings.actuator
 MPA = 1e6
 
 

@@ -13,7 +13,7 @@ from support.rpam_runs import capture
 from labcli.core.device import Device
 from labcli.core.sim import make_rig, modes
 from labcli.papers.rpam2015.models import rpam
-from labcli.papers.rpam2015.protocol import read_rpam_protocol
+from labcli.papers.rpam2015.protocol import load_rpam
 from labcli.papers.rpam2015.sim import rpam_physics as physics
 from labcli.papers.rpam2015.sim.rig import (
     ADC_MAX,
@@ -28,9 +28,9 @@ from labcli.papers.rpam2015.sim.rig import (
 KPA = 1e-3
 SIM, MODEL = "labcli.papers.rpam2015.sim", "labcli.papers.rpam2015.models"
 # The model the rig is there to check, built from the same protocol.
-PATH, RAW = read_rpam_protocol("rpam2015")
-GEOM = rpam.geometry_from_protocol(RAW, PATH)
-ACT = rpam.actuator_from_protocol(RAW, PATH)
+SETTINGS = load_rpam("rpam2015").settings
+GEOM = SETTINGS.geometry
+ACT = SETTINGS.actuator
 
 
 def model_actuator(rig: RpamRig, which: str = "A") -> rpam.Actuator:

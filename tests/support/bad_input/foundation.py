@@ -513,10 +513,7 @@ CASES: list[Case] = [
         "CLI argument",
         "negative length by --set (optimize)",
         ["optimize", "--set", "actuator.L0_m=-1"],
-        [
-            "Protocol key 'actuator.L0_m' in protocol rpam2015 with --set actuator.L0_m=-1 must be "
-            "a positive number, got -1."
-        ],
+        ["Protocol rpam2015 with --set actuator.L0_m=-1: key 'actuator.L0_m' must be greater than 0, not -1.0."],
     ),
     Case(
         "arg-optimize-negative-pa",

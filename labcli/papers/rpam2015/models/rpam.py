@@ -77,19 +77,16 @@ Stretch test (Fig. 5, 6)
 
 from __future__ import annotations
 
-import copy
 import math
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ....core.protocol import tomllib
-from ....errors import ConfigError, ModelError
+from ....errors import ModelError
 from ..actuator import Actuator
-from ..protocol import where  # how a message names the protocol
+from ..joint import JointGeometry
 from . import rpam_force
 
 G_N_PER_KG = 9.80665
@@ -97,21 +94,6 @@ _MPA = 1e6  # Pa per MPa: forces are P[MPa] * area[m^2] * 1e6
 
 # Status codes of the equilibrium solver: arrays of small ints vectorise.
 OK, TOGGLE, BAD_INPUT = 0, 1, 2
-
-
-# --------------------------------------------------------------------------- parameters
-
-
-@dataclass(frozen=True)
-class JointGeometry:
-    """Link lengths of the 1-DoF joint (Fig. 4), metres."""
-
-    L1_m: float
-    L2_m: float
-    L3_m: float
-
-    def to_dict(self) -> dict[str, float]:
-        return asdict(self)
 
 
 # --------------------------------------------------------------------------- geometry
@@ -487,183 +469,3 @@ def joint_map(
     Pa = np.asarray(list(Pa_MPa), dtype=float)
     Pb = np.asarray(list(Pb_MPa), dtype=float)
     return solve_equilibrium(Pa[:, None], Pb[None, :], geom, act, stretch=stretch)
-
-
-# --------------------------------------------------------------------------- protocol file
-
-
-def _parse_value(text: str) -> Any:
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
-def _leaf_keys(d: dict[str, Any], prefix: str = "") -> list[str]:
-    out = []
-    for k, v in d.items():
-        key = f"{prefix}{k}"
-        out.extend(_leaf_keys(v, key + ".") if isinstance(v, dict) else [key])
-    return out
-
-
-def apply_overrides(raw: dict[str, Any], assignments: Iterable[str]) -> dict[str, Any]:
-    """Copy of ``raw`` with ``key.path=value`` assignments applied (values as TOML literals).
-
-    Only existing keys can be set, and a number can only replace a number (a list a list of
-    the same length), so a typo is reported instead of silently ignored.
-    """
-    out = copy.deepcopy(raw)
-    for item in assignments:
-        if "=" not in item:
-            raise ConfigError(f"--set needs key=value (for example actuator.L0_m=0.08), got '{item}'.")
-        key, text = (s.strip() for s in item.split("=", 1))
-        parts = key.split(".")
-        node: Any = out
-        for i, part in enumerate(parts):
-            if not isinstance(node, dict) or part not in node:
-                where = ".".join(parts[:i]) or "the top level"
-                known = ", ".join(sorted(node)) if isinstance(node, dict) else "none (it is a value)"
-                raise ConfigError(f"Unknown protocol key '{key}' in --set; keys under {where}: {known}.")
-            if i < len(parts) - 1:
-                node = node[part]
-        old = node[parts[-1]]
-        if isinstance(old, dict):
-            raise ConfigError(f"Protocol key '{key}' is a table; --set one of its keys: {', '.join(sorted(old))}.")
-        new = _parse_value(text)
-        if not _same_kind(old, new):
-            raise ConfigError(f"--set {key}={text}: expected {_describe(old)} like the protocol's {old!r}.")
-        node[parts[-1]] = new
-    return out
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _same_kind(old: Any, new: Any) -> bool:
-    if _is_number(old):
-        return _is_number(new)
-    if isinstance(old, list):
-        return (
-            isinstance(new, list)
-            and len(new) == len(old)
-            and all(_same_kind(o, n) for o, n in zip(old, new, strict=False))
-        )
-    return type(old) is type(new)
-
-
-def _describe(v: Any) -> str:
-    if _is_number(v):
-        return "a number"
-    if isinstance(v, list):
-        return f"a list of {len(v)} values"
-    return f"a {type(v).__name__}"
-
-
-def _get(raw: dict[str, Any], dotted: str, path: Path | str) -> Any:
-    node: Any = raw
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            raise ConfigError(f"Protocol key '{dotted}' is missing from {where(path)}.")
-        node = node[part]
-    return node
-
-
-def _num(raw: dict[str, Any], dotted: str, path: Path | str, *, positive: bool = True) -> float:
-    v = _get(raw, dotted, path)
-    if not _is_number(v) or not math.isfinite(v) or (positive and v <= 0):
-        need = "a positive number" if positive else "a number"
-        raise ConfigError(f"Protocol key '{dotted}' in {where(path)} must be {need}, got {v!r}.")
-    return float(v)
-
-
-def _nums(raw: dict[str, Any], dotted: str, path: Path | str, n: int | None = None) -> tuple[float, ...]:
-    v = _get(raw, dotted, path)
-    if not isinstance(v, list) or not all(_is_number(x) for x in v) or (n is not None and len(v) != n):
-        need = f"a list of {n} numbers" if n else "a list of numbers"
-        raise ConfigError(f"Protocol key '{dotted}' in {where(path)} must be {need}, got {v!r}.")
-    return tuple(float(x) for x in v)
-
-
-def _range(raw: dict[str, Any], dotted: str, path: Path | str) -> tuple[float, float]:
-    lo, hi = _nums(raw, dotted, path, 2)
-    if not lo < hi:
-        raise ConfigError(
-            f"Protocol key '{dotted}' in {where(path)} must be [low, high] with low < high, got {[lo, hi]}."
-        )
-    return lo, hi
-
-
-def geometry_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>") -> JointGeometry:
-    """The joint's link lengths from the ``[joint]`` table."""
-    return JointGeometry(_num(raw, "joint.L1_m", path), _num(raw, "joint.L2_m", path), _num(raw, "joint.L3_m", path))
-
-
-def actuator_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>") -> Actuator:
-    """The actuator's parameters from the ``[actuator]``, ``[ogden]`` and ``[stretch_correction]`` tables."""
-    mu = _nums(raw, "ogden.mu_MPa", path)
-    al = _nums(raw, "ogden.alpha", path)
-    if len(mu) != len(al) or not mu:
-        raise ConfigError(
-            f"Protocol keys 'ogden.mu_MPa' and 'ogden.alpha' in {where(path)} must be lists of the same length."
-        )
-    # Eq. 3's convention: W = sum 2 mu_i / alpha_i^2 (l1^alpha_i + l2^alpha_i + l3^alpha_i - 3),
-    # convex (stable in every mode, not only in uniaxial tension) when every mu_i > 0.
-    if any(a == 0 for a in al) or any(m <= 0 for m in mu):
-        raise ConfigError(
-            f"Ogden constants in {where(path)} need mu_i > 0 and alpha_i != 0 for every term "
-            "(Eq. 3's convention; a negative mu_i makes the wall unstable outside uniaxial tension)."
-        )
-    act = Actuator(
-        L0_m=_num(raw, "actuator.L0_m", path),
-        A0_m2=_num(raw, "actuator.A0_m2", path),
-        n_turns=_num(raw, "actuator.n_turns", path),
-        thread_length_m=_num(raw, "actuator.thread_length_m", path),
-        ogden_mu_MPa=mu,
-        ogden_alpha=al,
-        stretch_coefficients_N=_nums(raw, "stretch_correction.coefficients_N", path, 4),
-        stretch_lambda_range=_range(raw, "stretch_correction.lambda_range", path),
-    )
-    if act.thread_length_m <= act.L0_m:
-        raise ConfigError(
-            f"Protocol key 'actuator.thread_length_m' in {where(path)} must exceed actuator.L0_m: "
-            "a thread shorter than the actuator cannot wind round it."
-        )
-    if act.A0_m2 >= np.pi * act.rest_radius_m**2:
-        raise ConfigError(
-            f"Protocol key 'actuator.A0_m2' in {where(path)} must be less than the cage's section at rest, "
-            f"pi r^2 = {np.pi * act.rest_radius_m**2:.4g} m^2 (r from actuator.n_turns and thread_length_m): "
-            "the wall lies inside the thread cage."
-        )
-    return act
-
-
-def _grid(raw: dict[str, Any], table: str, prefix: str, path: Path | str) -> np.ndarray:
-    start = _num(raw, f"{table}.{prefix}_start_kPa", path, positive=False)
-    stop = _num(raw, f"{table}.{prefix}_stop_kPa", path, positive=False)
-    count = _get(raw, f"{table}.{prefix}_count", path)
-    if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-        raise ConfigError(
-            f"Protocol key '{table}.{prefix}_count' in {where(path)} must be a whole number of at least 1."
-        )
-    if start < 0 or stop < start:
-        raise ConfigError(
-            f"Protocol keys '{table}.{prefix}_start_kPa/_stop_kPa' in {where(path)} must satisfy 0 <= start <= stop."
-        )
-    return np.linspace(start, stop, count) * 1e-3
-
-
-def stretch_test_plan(raw: dict[str, Any], path: Path | str = "<protocol>") -> tuple[np.ndarray, np.ndarray]:
-    """Payloads (kg) x pressures (MPa) of the stretch test (Fig. 5), as two 1-D arrays."""
-    masses = np.asarray(_nums(raw, "experiments.stretch_test.payloads_g", path)) * 1e-3
-    if np.any(masses < 0):
-        raise ConfigError(
-            f"Protocol key 'experiments.stretch_test.payloads_g' in {where(path)} must not hold negative masses."
-        )
-    return masses, _grid(raw, "experiments.stretch_test", "pressure", path)
-
-
-def joint_map_plan(raw: dict[str, Any], path: Path | str = "<protocol>") -> tuple[np.ndarray, np.ndarray]:
-    """Pressures Pa and Pb (MPa) of the joint map (Fig. 8), as two 1-D arrays."""
-    return _grid(raw, "experiments.joint_map", "Pa", path), _grid(raw, "experiments.joint_map", "Pb", path)

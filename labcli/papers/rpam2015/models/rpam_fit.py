@@ -85,9 +85,11 @@ from typing import Any
 import numpy as np
 
 from ....core.jsontext import MAX_DEPTH, JSONDepthError, loads_bounded
+from ....core.protocol import check_document
 from ....errors import ModelError
 from ..actuator import Actuator
-from ..protocol import read_rpam_protocol
+from ..protocol import PROTOCOL_KINDS, checked_actuator, load_rpam
+from ..settings import RpamSettings
 from . import rpam
 
 DEGREE = 3
@@ -106,16 +108,17 @@ _NEGATIVE_P_TEXT = (
 # --------------------------------------------------------------------------- tables and records
 
 
-def _protocol(protocol: Any) -> tuple[str, dict[str, Any]]:
-    """(path text, raw TOML dict) from a name, a path, a raw dict or an object with ``.path``."""
+def _protocol(protocol: Any) -> tuple[str, RpamSettings]:
+    """(how messages name it, its settings) of an rPAM protocol given as a shipped name or a
+    path, a loaded protocol, a protocol document (plain data), or a ``(name, protocol)`` pair."""
+    label = None
+    if isinstance(protocol, tuple) and len(protocol) == 2:
+        label, protocol = str(protocol[0]), protocol[1]
     if isinstance(protocol, Mapping):
-        return "<protocol>", dict(protocol)
-    if isinstance(protocol, tuple) and len(protocol) == 2 and isinstance(protocol[1], Mapping):
-        return str(protocol[0]), dict(protocol[1])
-    if hasattr(protocol, "path") and not isinstance(protocol, (str, Path)):
-        protocol = protocol.path
-    path, raw = read_rpam_protocol(protocol)
-    return str(path), raw
+        protocol = check_document(dict(protocol), source=label or "<protocol>", kinds=tuple(PROTOCOL_KINDS))
+    elif isinstance(protocol, (str, Path)):
+        protocol = load_rpam(protocol)
+    return label or protocol.source_label, protocol.settings
 
 
 def _columns(table: Any) -> list[str]:
@@ -428,8 +431,8 @@ def analyse_stretch(table: Any, protocol: Any = "rpam2015") -> StretchFit:
     ``table`` has ``mass_g`` (or ``payload_kg``), ``P_A`` (or ``P_MPa``) in MPa and ``L_m``
     (or ``lambda``); ``protocol`` gives the actuator (a shipped name, a path, a raw dict).
     """
-    path, raw = _protocol(protocol)
-    act = rpam.actuator_from_protocol(raw, path)
+    path, settings = _protocol(protocol)
+    act = checked_actuator(settings, path)
     cols = _columns(table)
     mass = _column(table, "stretch", (("mass_g", 1e-3), ("payload_kg", 1.0), ("mass_kg", 1.0)), cols)
     P = _column(table, "stretch", (("P_A", 1.0), ("P_MPa", 1.0)), cols)
@@ -669,9 +672,9 @@ def analyse_joint_map(table: Any, protocol: Any = "rpam2015", correction: Any = 
     ``table`` has ``P_A``, ``P_B`` (MPa) and ``alpha_deg``; ``correction`` as in
     :func:`correction_actuator` (None: the protocol's ``[stretch_correction]``).
     """
-    path, raw = _protocol(protocol)
-    geom = rpam.geometry_from_protocol(raw, path)
-    act, source = correction_actuator(rpam.actuator_from_protocol(raw, path), correction)
+    path, settings = _protocol(protocol)
+    geom = settings.geometry
+    act, source = correction_actuator(checked_actuator(settings, path), correction)
     cols = _columns(table)
     Pa = _column(table, "joint-map", (("P_A", 1.0), ("Pa_MPa", 1.0)), cols)
     Pb = _column(table, "joint-map", (("P_B", 1.0), ("Pb_MPa", 1.0)), cols)

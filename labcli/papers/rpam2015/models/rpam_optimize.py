@@ -36,8 +36,10 @@ from typing import Any
 
 import numpy as np
 
-from ....errors import ConfigError, ModelError
-from ..protocol import read_rpam_protocol
+from ....core.keyspecs import Checker, show
+from ....errors import ModelError
+from ..protocol import checked_actuator, load_rpam, named, with_overrides
+from ..settings import Bounds, OptimizeSettings, RpamSettings
 from . import rpam
 
 _TOGGLE_COST = 1000.0
@@ -46,37 +48,6 @@ _STEPS_PER_M = 10_000  # the printed design: links to 0.1 mm
 ROUND_M = 1 / _STEPS_PER_M
 ROUNDING_TOLERANCE_DEG = 0.5
 _LINKS = ("L1", "L2", "L3")
-
-
-@dataclass(frozen=True)
-class Bounds:
-    """g2-g7 of Section IV, SI except the angle bounds (degrees, as printed)."""
-
-    L1_m: tuple[float, float]
-    L2_m: tuple[float, float]
-    L3_m: tuple[float, float]
-    actuator_length_m: tuple[float, float]
-    alpha_deg: tuple[float, float]
-
-
-@dataclass(frozen=True)
-class OptimizeSettings:
-    """Pressures of the optimisation, the holding constraints and the differential-evolution settings."""
-
-    Pa_MPa: float
-    Pb_MPa: float
-    seed: int
-    popsize: int = 20
-    maxiter: int = 300
-    tol: float = 1e-6
-    mutation: tuple[float, float] = (0.5, 1.0)
-    recombination: float = 0.7
-    active_tolerance: float = 0.005
-    stretch_correction: bool = True
-    min_toggle_margin_deg: float = 1.0
-    min_stiffness_Nm_per_rad: float = 0.07
-    paper_links_m: tuple[float, float, float] | None = None
-    paper_alpha_deg: float | None = None
 
 
 @dataclass
@@ -211,59 +182,26 @@ def _nan_to_none(x: Any) -> Any:
     return x
 
 
-def settings_from_protocol(raw: dict[str, Any], path: Path | str = "<protocol>") -> tuple[Bounds, OptimizeSettings]:
-    """The ``[joint.bounds]`` and ``[optimize]`` tables as typed settings."""
-    r = rpam._range
-    bounds = Bounds(
-        L1_m=r(raw, "joint.bounds.L1_m", path),
-        L2_m=r(raw, "joint.bounds.L2_m", path),
-        L3_m=r(raw, "joint.bounds.L3_m", path),
-        actuator_length_m=r(raw, "joint.bounds.actuator_length_m", path),
-        alpha_deg=r(raw, "joint.bounds.alpha_deg", path),
-    )
-    if any(lo <= 0 for lo in (bounds.L1_m[0], bounds.L2_m[0], bounds.L3_m[0])):
-        raise ConfigError(f"Link-length bounds in {rpam.where(path)} must be positive.")
-    seed = rpam._get(raw, "optimize.seed", path)
-    popsize = rpam._get(raw, "optimize.popsize", path)
-    maxiter = rpam._get(raw, "optimize.maxiter", path)
-    for key, v in (("seed", seed), ("popsize", popsize), ("maxiter", maxiter)):
-        if not isinstance(v, int) or isinstance(v, bool):
-            raise ConfigError(f"Protocol key 'optimize.{key}' in {rpam.where(path)} must be a whole number, got {v!r}.")
-        if key == "seed" and not 0 <= v <= 2**32 - 1:  # the range the search's random generator takes
-            raise ConfigError(
-                f"Protocol key 'optimize.seed' in {rpam.where(path)} must be from 0 to {2**32 - 1}, got {v}."
-            )
-        if key != "seed" and v < 1:
-            raise ConfigError(
-                f"Protocol key 'optimize.{key}' in {rpam.where(path)} must be a whole number of at least 1, got {v!r}."
-            )
-    stretch = rpam._get(raw, "optimize.stretch_correction", path)
-    if not isinstance(stretch, bool):
-        raise ConfigError(f"Protocol key 'optimize.stretch_correction' in {rpam.where(path)} must be true or false.")
-    opt = raw.get("optimize", {})
-    paper = rpam._nums(raw, "optimize.paper_links_m", path, 3) if "paper_links_m" in opt else None
-    if paper is not None and min(paper) <= 0:
-        raise ConfigError(
-            f"Protocol key 'optimize.paper_links_m' in {rpam.where(path)} must hold three positive lengths."
+def optimizer_settings(settings: RpamSettings, source: str) -> tuple[Bounds, OptimizeSettings]:
+    """The protocol's ``[joint.bounds]`` and ``[optimize]``, refused in one sentence (naming
+    ``source``) when they are missing or allow a joint that holds nothing."""
+    chk = Checker(source)
+    if settings.bounds is None:
+        chk.fail("missing key 'joint.bounds', expected a table (the link and angle bounds g2-g7 of Section IV).")
+    o = settings.optimize
+    if o is None:
+        chk.fail("missing key 'optimize', expected a table [optimize] (the pressures and settings of the search).")
+    if o.min_stiffness_Nm_per_rad is None:
+        chk.fail(
+            "missing key 'optimize.min_stiffness_Nm_per_rad', expected a number in N m/rad "
+            "(the least joint stiffness at the balance)."
         )
-    settings = OptimizeSettings(
-        Pa_MPa=rpam._num(raw, "optimize.Pa_kPa", path, positive=False) / 1e3,
-        Pb_MPa=rpam._num(raw, "optimize.Pb_kPa", path, positive=False) / 1e3,
-        seed=seed,
-        popsize=popsize,
-        maxiter=maxiter,
-        tol=rpam._num(raw, "optimize.tol", path),
-        mutation=rpam._nums(raw, "optimize.mutation", path, 2),  # type: ignore[arg-type]
-        recombination=rpam._num(raw, "optimize.recombination", path),
-        active_tolerance=rpam._num(raw, "optimize.active_tolerance", path),
-        stretch_correction=stretch,
-        # Both must be positive: a design at the toggle or with no stiffness holds nothing.
-        min_toggle_margin_deg=rpam._num(raw, "optimize.min_toggle_margin_deg", path),
-        min_stiffness_Nm_per_rad=rpam._num(raw, "optimize.min_stiffness_Nm_per_rad", path),
-        paper_links_m=paper,  # type: ignore[arg-type]
-        paper_alpha_deg=rpam._num(raw, "optimize.paper_alpha_deg", path) if "paper_alpha_deg" in opt else None,
-    )
-    return bounds, settings
+    # Both must be positive: a design at the toggle or with no stiffness holds nothing.
+    for key in ("min_toggle_margin_deg", "min_stiffness_Nm_per_rad"):
+        value = getattr(o, key)
+        if not value > 0:
+            chk.fail(f"key 'optimize.{key}' must be greater than 0, not {show(value)}.")
+    return settings.bounds, o
 
 
 def _shortfalls(
@@ -284,7 +222,7 @@ def _shortfalls(
         "g6": outside(L_b, lo, hi),
         "g7": outside(alpha_deg, a_lo, a_hi),
         "margin": np.clip(settings.min_toggle_margin_deg - (toggle_deg - alpha_deg), 0.0, None),
-        "K_min": np.clip(settings.min_stiffness_Nm_per_rad - stiffness, 0.0, None),
+        "K_min": np.clip(settings.k_min - stiffness, 0.0, None),
     }
 
 
@@ -325,12 +263,7 @@ def design_cost(x: np.ndarray, act: rpam.Actuator, bounds: Bounds, settings: Opt
     alpha = np.degrees(b["alpha_rad"])
     miss = _misses(b, bounds, settings)
     # Scale so that 1 mm, 1 deg and a tenth of K_min weigh alike.
-    violation = (
-        1e3 * (miss["g5"] + miss["g6"])
-        + miss["g7"]
-        + miss["margin"]
-        + 10 * miss["K_min"] / settings.min_stiffness_Nm_per_rad
-    )
+    violation = 1e3 * (miss["g5"] + miss["g6"]) + miss["g7"] + miss["margin"] + 10 * miss["K_min"] / settings.k_min
     cost = np.where(violation > 0, _VIOLATION_COST + violation, -alpha)
     cost = np.where(np.isfinite(alpha), cost, _TOGGLE_COST)
     return cost[0] if single else cost
@@ -372,14 +305,14 @@ def evaluate_design(
         "g6": f"g6: L_b = {Lb:.4f} m outside {lo:g}-{hi:g} m",
         "g7": f"g7: alpha = {report.alpha_deg:.2f} deg outside {bounds.alpha_deg[0]:g}-{bounds.alpha_deg[1]:g} deg",
         "margin": f"toggle margin {report.toggle_margin_deg:.2f} deg below {settings.min_toggle_margin_deg:g} deg",
-        "K_min": f"K_min: stiffness {K:.4f} N m/rad below {settings.min_stiffness_Nm_per_rad:g} N m/rad",
+        "K_min": f"K_min: stiffness {K:.4f} N m/rad below {settings.k_min:g} N m/rad",
     }
     report.violated.extend(texts[k] for k, v in miss.items() if float(v) > 0)
     report.active.extend(active_constraints(geom, report.alpha_deg, La, Lb, bounds, settings.active_tolerance))
     # The holding constraints, within the same relative tolerance of their bound.
     tol = settings.active_tolerance
-    if abs(K - settings.min_stiffness_Nm_per_rad) <= tol * settings.min_stiffness_Nm_per_rad:
-        report.active.append(f"K_min: stiffness at its minimum {settings.min_stiffness_Nm_per_rad:g} N m/rad")
+    if abs(K - settings.k_min) <= tol * settings.k_min:
+        report.active.append(f"K_min: stiffness at its minimum {settings.k_min:g} N m/rad")
     if abs(report.toggle_margin_deg - settings.min_toggle_margin_deg) <= tol * max(settings.min_toggle_margin_deg, 1.0):
         report.active.append(f"toggle margin at its minimum {settings.min_toggle_margin_deg:g} deg")
     return report
@@ -491,7 +424,7 @@ def optimize_joint(
     if not res.fun <= 0:
         raise ModelError(
             f"No link lengths within g2-g4 give a balanced joint (g1) that also meets g5-g7, a toggle margin of "
-            f"{settings.min_toggle_margin_deg:g} deg and a stiffness of {settings.min_stiffness_Nm_per_rad:g} N m/rad "
+            f"{settings.min_toggle_margin_deg:g} deg and a stiffness of {settings.k_min:g} N m/rad "
             f"at Pa = {settings.Pa_MPa * 1e3:g} kPa, Pb = {settings.Pb_MPa * 1e3:g} kPa; "
             "check the pressures and the actuator constants."
         )
@@ -523,7 +456,7 @@ def optimize_protocol(
     progress: Progress | None = None,
 ) -> OptimumResult:
     """Load an rPAM protocol, apply ``key=value`` overrides, and optimise its joint."""
-    path, raw = read_rpam_protocol(path_or_name)
+    base = load_rpam(path_or_name)
     extra = list(overrides)
     if seed is not None:
         extra.append(f"optimize.seed={int(seed)}")
@@ -531,9 +464,10 @@ def optimize_protocol(
         extra.append(f"optimize.Pa_kPa={float(Pa_kPa)!r}")
     if Pb_kPa is not None:
         extra.append(f"optimize.Pb_kPa={float(Pb_kPa)!r}")
-    raw = rpam.apply_overrides(raw, extra)
     # A value set on the command line is not in the file: say so when it is the one refused.
-    where = f"{rpam.where(path)} with --set {' '.join(overrides)}" if overrides else path
-    act = rpam.actuator_from_protocol(raw, where)
-    bounds, settings = settings_from_protocol(raw, where)
+    label = named(base.path) if overrides else base.source_label
+    proto = with_overrides(base, extra, label, shown=overrides)
+    source = f"{label} with --set {' '.join(overrides)}" if overrides else label
+    act = checked_actuator(proto.settings, source)
+    bounds, settings = optimizer_settings(proto.settings, source)
     return optimize_joint(act, bounds, settings, progress=progress)

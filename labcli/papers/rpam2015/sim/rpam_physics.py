@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from ..actuator import Actuator
-from ..protocol import read_rpam_protocol
+from ..protocol import load_rpam
 
 G_N_PER_KG = 9.80665
 _MPA = 1e6
@@ -189,17 +189,6 @@ class Links:
 
 def read_stand(protocol: str | Path) -> tuple[Path, Links, Actuator]:
     """The stand's links and its nominal actuator from an rPAM protocol (shipped name or path)."""
-    path, t = read_rpam_protocol(protocol)
-    j, a, o, c = t["joint"], t["actuator"], t["ogden"], t["stretch_correction"]
-    links = Links(float(j["L1_m"]), float(j["L2_m"]), float(j["L3_m"]))
-    act = Actuator(
-        L0_m=float(a["L0_m"]),
-        A0_m2=float(a["A0_m2"]),
-        n_turns=float(a["n_turns"]),
-        thread_length_m=float(a["thread_length_m"]),
-        ogden_mu_MPa=tuple(float(v) for v in o["mu_MPa"]),
-        ogden_alpha=tuple(float(v) for v in o["alpha"]),
-        stretch_coefficients_N=tuple(float(v) for v in c["coefficients_N"]),
-        stretch_lambda_range=(float(c["lambda_range"][0]), float(c["lambda_range"][1])),
-    )
-    return path, links, act
+    proto = load_rpam(protocol)
+    g = proto.settings.geometry
+    return Path(proto.source_label), Links(g.L1_m, g.L2_m, g.L3_m), proto.settings.actuator
