@@ -170,12 +170,6 @@ def _moment_arms_closed(alpha: Any, geom: JointGeometry, La: Any, Lb: Any) -> tu
 # --------------------------------------------------------------------------- actuator force
 
 
-def thread_radius(L: Any, n_turns: float, thread_length_m: float) -> np.ndarray:
-    """Radius (m) of the thread cage of n turns of a thread of length b at length L."""
-    L = np.asarray(L, dtype=float)
-    return np.sqrt(np.clip(thread_length_m**2 - L**2, 0.0, None)) / (2 * np.pi * n_turns)
-
-
 def helical_tension(P_MPa: Any, L: Any, n_turns: float, thread_length_m: float) -> np.ndarray:
     """McKibben cage term ``-P dV/dL = P (3 L^2 - b^2) / (4 pi n^2)`` in N (tension +)."""
     return rpam_force.cage_gas_force(P_MPa, L, n_turns, thread_length_m)

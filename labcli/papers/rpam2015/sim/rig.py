@@ -158,8 +158,7 @@ class RpamRig(SimClock):
     ) -> None:
         if noise < 0 or drift < 0 or not tau_s > 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
-        path, links, nominal = read_stand(protocol)
-        self.protocol_path = path
+        links, nominal = read_stand(protocol)
         self.links = links
         self.nominal_actuator = nominal
         self.seed = int(seed)

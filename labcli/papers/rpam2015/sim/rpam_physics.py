@@ -187,8 +187,8 @@ class Links:
         return -total  # z-torque is counter-clockwise positive
 
 
-def read_stand(protocol: str | Path) -> tuple[Path, Links, Actuator]:
+def read_stand(protocol: str | Path) -> tuple[Links, Actuator]:
     """The stand's links and its nominal actuator from an rPAM protocol (shipped name or path)."""
-    proto = load_rpam(protocol)
-    g = proto.settings.geometry
-    return Path(proto.source_label), Links(g.L1_m, g.L2_m, g.L3_m), proto.settings.actuator
+    settings = load_rpam(protocol).settings
+    g = settings.geometry
+    return Links(g.L1_m, g.L2_m, g.L3_m), settings.actuator

@@ -606,9 +606,6 @@ THIN_MUSCLES = Design(
     v_dead=(3.0e-6, 3.0e-6),
 )
 DESIGNS = {"paper": PAPER_SCALE, "thin": THIN_MUSCLES}
-# Kept under their old names for callers that read them.
-K_RUBBER = PAPER_SCALE.k_rubber
-RUBBER_PRESTRETCH = PAPER_SCALE.rubber_prestretch
 
 
 def supply_array(supply_MPa) -> np.ndarray:
