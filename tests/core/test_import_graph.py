@@ -25,9 +25,9 @@ def paper_of(name: str) -> str | None:
 
 
 def test_the_graph_sees_function_level_and_relative_imports():
-    # commands import the core inside their functions; the rPAM model names its protocol module relatively.
+    # commands import the core inside their functions; the rPAM model names its actuator module relatively.
     assert "labcli.core.acquisition" in GRAPH["labcli.commands.acquire"]
-    assert "labcli.papers.rpam2015.protocol" in GRAPH["labcli.papers.rpam2015.models.rpam"]
+    assert "labcli.papers.rpam2015.actuator" in GRAPH["labcli.papers.rpam2015.models.rpam"]
     assert "labcli.papers.takuma2014.analyses" in GRAPH["labcli.papers.takuma2014"]
     # A facet names its run file for the type checker only: an edge of the graph, not of the runtime's.
     assert "labcli.core.store.runfile" in GRAPH["labcli.core.store.records"]

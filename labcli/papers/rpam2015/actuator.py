@@ -10,10 +10,12 @@ to a stretch test over a range of stretches.
 
 Units are the toolkit's SI: lengths in m, areas in m^2, forces in N; the Ogden moduli in
 MPa, the unit of every pressure in labcli.  The type knows nothing of protocol files or JSON
-documents beyond its own fields: :func:`labcli.papers.rpam2015.protocol.load_rpam` builds it
-from a protocol's ``[actuator]``, ``[ogden]`` and ``[stretch_correction]`` tables,
-:meth:`Actuator.from_dict` from the ``actuator`` record a model file keeps, and
-:meth:`Actuator.with_stretch_correction` puts a fitted correction on it.
+documents beyond its own fields: :func:`labcli.papers.rpam2015.protocol.actuator_of` gives a
+protocol's (its ``build`` makes one of the ``[actuator]``, ``[ogden]`` and
+``[stretch_correction]`` tables: ``Protocol.settings.actuator``), :meth:`Actuator.from_dict`
+reads the ``actuator`` record a model file keeps (a joint-map analysis's), and
+:meth:`Actuator.with_stretch_correction` puts a fitted correction on it (what a stretch
+fit's ``apply_to`` does).
 """
 
 from __future__ import annotations

@@ -341,6 +341,13 @@ def checked_actuator(settings: RpamSettings, source: str) -> Actuator:
     return settings.actuator
 
 
+def actuator_of(protocol: str | Path | Protocol) -> Actuator:
+    """The actuator of an rPAM protocol: a shipped name (``"rpam2015"``), a path, or a loaded
+    protocol; refused in one sentence when the model cannot build it."""
+    proto = protocol if isinstance(protocol, Protocol) else load_rpam(protocol)
+    return checked_actuator(proto.settings, proto.source_label)
+
+
 # --------------------------------------------------------------------------- --set
 
 

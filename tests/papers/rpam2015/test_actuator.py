@@ -11,7 +11,7 @@ import pytest
 from labcli.errors import ModelError
 from labcli.papers.rpam2015.actuator import Actuator
 from labcli.papers.rpam2015.models import rpam, rpam_fit
-from labcli.papers.rpam2015.protocol import load_rpam
+from labcli.papers.rpam2015.protocol import actuator_of, load_rpam
 from labcli.papers.rpam2015.sim.rig import RpamRig
 
 PROTOCOL = load_rpam("rpam2015")
@@ -28,6 +28,13 @@ def test_the_model_the_fits_and_the_stand_use_one_type():
     assert nominal == ACT
     with pytest.raises(FrozenInstanceError):
         ACT.L0_m = 0.08  # type: ignore[misc]
+
+
+def test_a_protocols_actuator_by_name_by_path_or_loaded():
+    assert actuator_of("rpam2015") == actuator_of(PATH) == actuator_of(PROTOCOL) == ACT
+    assert (ACT.L0_m, ACT.A0_m2, ACT.n_turns, ACT.thread_length_m) == (0.07, 2.0735e-4, 14.0, 1.10178)
+    assert ACT.ogden_mu_MPa == (0.06707, 0.004111, 0.002247) and ACT.ogden_alpha == (1.3, 5.0, -2.0)
+    assert ACT.stretch_coefficients_N == (8.0, -14.0, 4.0, 2.0) and ACT.stretch_lambda_range == (1.0, 2.2)
 
 
 def test_rest_geometry_follows_from_the_cage():
