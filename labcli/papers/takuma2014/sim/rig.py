@@ -150,30 +150,7 @@ class SimRig(SimClock):
         self._leak_rate = ni.leak_factors(self.seed, self.nonideal.leak)
         self._lock = threading.RLock()
         self._event_rng = np.random.default_rng([self.seed, 2])
-        srng = np.random.default_rng([self.seed, 3])
-        if variation:
-            self.pot_offset_rad = np.radians(1.5) * srng.standard_normal(2)
-            self.sensor_offset_MPa = 0.0015 * srng.standard_normal(4)
-        else:
-            self.pot_offset_rad = np.zeros(2)
-            self.sensor_offset_MPa = np.zeros(4)
-        pressures = [
-            SensorChannel(name, pressure_to_counts, PRESSURE_NOISE_COUNTS, PRESSURE_DRIFT_COUNTS, float(off))
-            for name, off in zip(CHANNELS[:4], self.sensor_offset_MPa, strict=True)
-        ]
-        pots = [
-            SensorChannel(name, angle_to_counts, POT_NOISE_COUNTS, POT_DRIFT_COUNTS, float(off))
-            for name, off in zip(CHANNELS[4:], self.pot_offset_rad, strict=True)
-        ]
-        # The drift's periods and phases are drawn after the offsets, from the same generator.
-        self.sensors = SensorFrontEnd(
-            pressures + pots,
-            noise=noise,
-            drift=drift,
-            noise_rng=np.random.default_rng([self.seed, 1]),
-            drift_rng=srng,
-            rails=(0, ADC_MAX),
-        )
+        self.sensors = self._sensor_front_end(noise, drift)
         self._t = 0.0
         self._t_closed = 0.0
         chambers = ph.Chambers.open(np.zeros(4))
@@ -195,6 +172,32 @@ class SimRig(SimClock):
         )
         self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
+
+    def _sensor_front_end(self, noise: float, drift: float) -> SensorFrontEnd:
+        """The sensors and their fixed errors: offsets drawn first, then the drift, from one seed."""
+        srng = np.random.default_rng([self.seed, 3])
+        if self.variation:
+            self.pot_offset_rad = np.radians(1.5) * srng.standard_normal(2)
+            self.sensor_offset_MPa = 0.0015 * srng.standard_normal(4)
+        else:
+            self.pot_offset_rad = np.zeros(2)
+            self.sensor_offset_MPa = np.zeros(4)
+        pressures = [
+            SensorChannel(name, pressure_to_counts, PRESSURE_NOISE_COUNTS, PRESSURE_DRIFT_COUNTS, float(off))
+            for name, off in zip(CHANNELS[:4], self.sensor_offset_MPa, strict=True)
+        ]
+        pots = [
+            SensorChannel(name, angle_to_counts, POT_NOISE_COUNTS, POT_DRIFT_COUNTS, float(off))
+            for name, off in zip(CHANNELS[4:], self.pot_offset_rad, strict=True)
+        ]
+        return SensorFrontEnd(
+            pressures + pots,
+            noise=noise,
+            drift=drift,
+            noise_rng=np.random.default_rng([self.seed, 1]),
+            drift_rng=srng,
+            rails=(0, ADC_MAX),
+        )
 
     @property
     def noise(self) -> float:
