@@ -34,9 +34,16 @@ from ._options import FiniteRange
     show_default=True,
     help="Scale of the sensor noise (1 = 0.5 count pressure, 0.7 count angle rms).",
 )
-@click.option("--drift", type=FiniteRange(min=0), default=0.0, show_default=True, help="Scale of sensor zero drift.")
 @click.option(
-    "--ideal", is_flag=True, help="Turn every non-ideality off (friction, leak, thermal, backlash, link weight)."
+    "--drift",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Scale of sensor zero drift (1 = a few counts over 10-40 min).  [default: the rig's own]",
+)
+@click.option(
+    "--ideal",
+    is_flag=True,
+    help="Turn every non-ideality off (friction, leak, heat, play, link weight, sensor errors).",
 )
 @click.option(
     "--friction",
@@ -58,6 +65,42 @@ from ._options import FiniteRange
 )
 @click.option(
     "--links", type=FiniteRange(min=0), default=None, help="Scale of the links' own weight (1 = 80 g and 30 g)."
+)
+@click.option(
+    "--contact",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Scale of the friction where the tip presses a pushed object (1 = a coefficient of 0.3).",
+)
+@click.option(
+    "--pulley",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Scale of the weight pulley's friction (1 = 2 % of the pull).",
+)
+@click.option(
+    "--potscale",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Scale of the potentiometers' gain error (1 = 1 % rms).",
+)
+@click.option(
+    "--potlin",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Scale of the potentiometers' non-linearity (1 = 0.5 % of the span at most).",
+)
+@click.option(
+    "--repeat",
+    type=FiniteRange(min=0),
+    default=None,
+    help="Scale of the pressure sensors' non-repeatability (1 = 0.2 % of full scale as three sd).",
+)
+@click.option(
+    "--realism",
+    type=click.Choice(["literature", "kind"]),
+    default=None,
+    help="Levels of the non-idealities: the literature's, or the kinder rig of earlier runs.",
 )
 @click.option(
     "--supply",
@@ -101,6 +144,12 @@ def sim(
     thermal: float | None,
     backlash: float | None,
     links: float | None,
+    contact: float | None,
+    pulley: float | None,
+    potscale: float | None,
+    potlin: float | None,
+    repeat: float | None,
+    realism: str | None,
     supply: str | None,
     design: str,
 ) -> None:
@@ -145,6 +194,12 @@ def sim(
         "thermal": thermal,
         "backlash": backlash,
         "links": links,
+        "contact": contact,
+        "pulley": pulley,
+        "potscale": potscale,
+        "potlin": potlin,
+        "repeat": repeat,
+        "realism": realism,
         "supply": supply_MPa,
         "design": design,
     }

@@ -284,9 +284,10 @@ class Paper(Protocol):
     def record_type(self, run_kind: str) -> RecordType:
         """The record type of one of :attr:`run_kinds`."""
 
-    def make_rig(self, mode: str, *, seed: int, noise: float, drift: float, tau_s: float, **options: Any) -> Any:
+    def make_rig(self, mode: str, *, seed: int, noise: float, drift: float | None, tau_s: float, **options: Any) -> Any:
         """A simulated rig for one of :attr:`sim_modes` (see :mod:`labcli.core.sim`); ``options``
-        are parsed values of :attr:`sim_options`, only those given."""
+        are parsed values of :attr:`sim_options`, only those given; ``drift`` None: the rig's own
+        default."""
 
     def run_protocol(
         self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""

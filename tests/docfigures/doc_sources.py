@@ -112,7 +112,18 @@ def constants() -> dict[str, Any]:
         out[f"objects.{o.name}.stiffness_N_per_m"] = o.stiffness_N_per_m
         out[f"objects.{o.name}.push_mm"] = rounded(o.distance_m * 1e3)
         out[f"objects.{o.name}.radius_mm"] = rounded(o.radius_m * 1e3)
-    out["nonideal.friction_pct"] = ni.FRICTION_FRACTION * 100
+    # The default rig's levels (sim/nonideal.py: the default realism's), then each realism's.
+    default = ni.NonIdeal().magnitudes()
+    out["nonideal.friction_pct"] = rounded(default["friction_fraction"] * 100)
+    for realism in ni.REALISMS:
+        m = ni.NonIdeal(realism=realism).magnitudes()
+        out[f"nonideal.{realism}.friction_pct"] = rounded(m["friction_fraction"] * 100)
+        out[f"nonideal.{realism}.drift"] = m["drift"]
+    out["nonideal.contact_mu"] = ni.CONTACT_MU
+    out["nonideal.pulley_pct"] = rounded(ni.PULLEY_LOSS * 100)
+    out["nonideal.pot_scale_pct"] = rounded(ni.POT_SCALE_SD * 100)
+    out["nonideal.pot_linearity_pct"] = rounded(ni.POT_LINEARITY * 100)
+    out["nonideal.repeat_kPa"] = rounded(ni.PRESSURE_REPEAT_SD_MPA * 1e3)
     out["nonideal.leak_tau_h"] = ni.LEAK_TAU_S / 3600
     out["nonideal.leak_spread_pct"] = ni.LEAK_SPREAD * 100
     out["nonideal.kappa"] = ni.KAPPA
@@ -482,6 +493,21 @@ SOURCES: dict[str, Source] = {
         ),
         Source(
             "firmware", "benchmark", "the firmware's highest rate on simavr", script="bench_firmware.py", runs={"": ()}
+        ),
+        Source(
+            "sensitivity",
+            "benchmark",
+            "every headline sensing figure from half to four times the literature's friction, noise x1-30, "
+            "leak x0-3, repeatability x0-2 and on the kind rig, seeds 11-15",
+            script="sensitivity.py",
+            runs={"": ()},
+        ),
+        Source(
+            "baseline-estimator-new-rig",
+            "benchmark",
+            "the estimators of the commit it names on the literature's rig, held-out seeds 11-30",
+            script="baseline_estimator.py",
+            runs={"": ()},
         ),
     )
 }

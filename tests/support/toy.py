@@ -279,7 +279,7 @@ class ToyPaper:
         return ToyTrials()
 
     def make_rig(
-        self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7
+        self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float | None = None, tau_s: float = 0.7
     ) -> ToyRig:
         return ToyRig(seed=seed, noise=noise)
 

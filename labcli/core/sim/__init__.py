@@ -46,12 +46,13 @@ def make_rig(
     *,
     seed: int = 0,
     noise: float = 1.0,
-    drift: float = 0.0,
+    drift: float | None = None,
     tau_s: float = 0.7,
     **options: Any,
 ) -> Any:
     """Build the simulated rig named ``mode`` (None: the default rig); ``options`` are the rig's
-    own (its paper's ``sim_options``, parsed).  ValueError for an unknown mode."""
+    own (its paper's ``sim_options``, parsed); ``drift`` None is the rig's own default.
+    ValueError for an unknown mode."""
     return registry.make_rig(
         mode or registry.default_sim_mode(), seed=seed, noise=noise, drift=drift, tau_s=tau_s, **options
     )

@@ -10,7 +10,7 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
 * ``seed`` (0): seeds the actuators, sensor offsets, noise and settling times;
 * ``rate`` (200): sample rate at power-up, Hz (1..50000; ``RATE`` changes it);
 * ``noise`` (1): scale of the sensor noise (0.5 count pressure, 0.7 count pot rms);
-* ``drift`` (0): scale of sensor zero drift;
+* ``drift`` (the rig's own default when not given): scale of sensor zero drift;
 * ``clock``: ``virtual`` (default) advances device time only as the host reads,
   so hours of protocol run in seconds: while streaming, a read never waits
   (frames are sampled when read; ``in_waiting`` offers about 1 s of device

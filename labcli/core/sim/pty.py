@@ -171,7 +171,7 @@ def serve_pty(
     seed: int = 0,
     rate: float = 200.0,
     noise: float = 1.0,
-    drift: float = 0.0,
+    drift: float | None = None,
     tau: float = 0.7,
     mode: str | None = None,
     rig=None,

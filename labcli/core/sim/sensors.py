@@ -7,7 +7,9 @@ channel (:class:`SensorChannel`)::
 
 * ``transfer``: the sensor and the ADC, SI value -> ideal (unrounded) counts; the inverse
   of the channel's calibration (:class:`Linear`: ``value / gain + zero_counts``, as a
-  protocol's ``[channels.NAME]`` table writes it);
+  protocol's ``[channels.NAME]`` table writes it), or a sensor that departs from it
+  (:class:`GainLinearity`: its gain off by a few percent, its output bent off the straight
+  line, as a potentiometer's datasheet states its independent linearity);
 * ``offset``: the sensor's fixed error in SI (a pressure sensor's zero, a potentiometer
   mounted a little off), drawn by the rig;
 * drift: a slow sinusoid per channel, ``drift * drift_counts * (sin(2 pi t / T + phi) -
@@ -17,7 +19,9 @@ channel (:class:`SensorChannel`)::
 
 ``noise`` and ``drift`` scale every channel's figures at once (the ``sim://`` options of
 the same names).  The front end draws from generators the rig hands it, in a fixed order,
-so a seed gives the same counts every time.
+so a seed gives the same counts every time.  A transducer's non-repeatability (a reading that
+comes back elsewhere after an excursion, :func:`repeat_error`) depends on the rig's history,
+so the rig adds it to the true value it hands over.
 """
 
 from __future__ import annotations
@@ -50,6 +54,69 @@ class Linear:
     def to_si(self, counts: np.ndarray) -> np.ndarray:
         """The calibration: counts back to the SI value."""
         return (np.asarray(counts, dtype=float) - self.zero_counts) * self.gain
+
+
+# Harmonics of a non-linearity's shape: a bow and an S over the span, the two shapes a
+# potentiometer's deviation from its best line mostly takes.
+LINEARITY_HARMONICS = 2
+_GRID = np.linspace(0.0, 1.0, 2001)
+
+
+@dataclass(frozen=True)
+class GainLinearity:
+    """A sensor whose reading departs from its nominal transfer ``inner``: ``inner(reading(v))``.
+
+    ``reading(v) = v (1 + scale_error) + linearity * span * shape(v / span + 1/2)`` for values
+    ``v`` (SI) about the middle of a range ``span`` wide: the gain is off by ``scale_error``
+    (a potentiometer's effective electrical angle is not the nominal one the host calibrates
+    with) and the output bends off the straight line by at most ``linearity`` of the span
+    (the datasheet's independent linearity); ``shape`` is a sum of ``sin(h pi u)``, zero at
+    both ends of the range, scaled to a largest magnitude of 1.
+    """
+
+    inner: Transfer
+    span: float
+    scale_error: float
+    linearity: float
+    coeffs: tuple[float, ...]
+
+    @classmethod
+    def seeded(
+        cls, rng: np.random.Generator, inner: Transfer, span: float, scale_sd: float, linearity: float
+    ) -> GainLinearity:
+        """A scale error ~ N(0, ``scale_sd``) and a shape of its own (three draws)."""
+        scale = float(scale_sd * rng.standard_normal())
+        raw = rng.standard_normal(LINEARITY_HARMONICS)
+        h = np.arange(1, LINEARITY_HARMONICS + 1)
+        peak = float(np.abs(np.sin(np.pi * np.outer(_GRID, h)) @ raw).max())
+        return cls(inner, float(span), scale, float(linearity), tuple(float(c) for c in raw / peak))
+
+    def deviation(self, value: np.ndarray) -> np.ndarray:
+        """The non-linearity alone at ``value`` (SI)."""
+        u = np.asarray(value, dtype=float) / self.span + 0.5
+        h = np.arange(1, LINEARITY_HARMONICS + 1)
+        return self.linearity * self.span * (np.sin(np.pi * u[..., None] * h) @ np.asarray(self.coeffs))
+
+    def reading(self, value: np.ndarray) -> np.ndarray:
+        """The value as the host reads it through the nominal calibration (SI)."""
+        v = np.asarray(value, dtype=float)
+        return v * (1.0 + self.scale_error) + self.deviation(v)
+
+    def slope(self, value: np.ndarray, step: float = 1e-6) -> np.ndarray:
+        """``d reading / d value``: 1 plus the scale error a small change at ``value`` sees."""
+        v = np.asarray(value, dtype=float)
+        return (self.reading(v + step) - self.reading(v - step)) / (2 * step)
+
+    def __call__(self, value: np.ndarray) -> np.ndarray:
+        return self.inner(self.reading(value))
+
+
+def repeat_error(rng: np.random.Generator, sd: float, k: int) -> np.ndarray:
+    """One new reading's non-repeatability on each of ``k`` transducers (SI, N(0, ``sd``));
+    zeros, without drawing, when ``sd`` is 0."""
+    if not sd:
+        return np.zeros(k)
+    return sd * rng.standard_normal(k)
 
 
 @dataclass(frozen=True)

@@ -97,7 +97,7 @@ OPTIONS = {
     "seed": (_whole, 0, "a whole number >= 0"),
     "rate": (_rate, 200.0, f"a number of Hz within {RATE_MIN:g}..{RATE_MAX:g}"),
     "noise": (_nonneg, 1.0, "a number >= 0"),
-    "drift": (_nonneg, 0.0, "a number >= 0"),
+    "drift": (_nonneg, None, "a number >= 0"),  # None: the rig's own default
     "clock": (_clock, "virtual", "'virtual' or 'wall'"),
     "tau": (_positive, 0.7, "a number of seconds > 0"),
     "ratefactor": (_factor, 1.0, f"a number within {FACTOR_MIN:g}..{FACTOR_MAX:g}"),

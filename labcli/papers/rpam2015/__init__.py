@@ -33,10 +33,12 @@ class Rpam2015:
 
         return RECORD_TYPES[run_kind]
 
-    def make_rig(self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7) -> Any:
+    def make_rig(
+        self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float | None = None, tau_s: float = 0.7
+    ) -> Any:
         from .sim.rig import RpamRig
 
-        return RpamRig(seed=seed, noise=noise, drift=drift, tau_s=tau_s)
+        return RpamRig(seed=seed, noise=noise, drift=drift or 0.0, tau_s=tau_s)
 
     def run_protocol(
         self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""

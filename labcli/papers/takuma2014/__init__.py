@@ -37,7 +37,14 @@ class Takuma2014:
         return RECORD_TYPES[run_kind]
 
     def make_rig(
-        self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float = 0.0, tau_s: float = 0.7, **options: Any
+        self,
+        mode: str,
+        *,
+        seed: int = 0,
+        noise: float = 1.0,
+        drift: float | None = None,
+        tau_s: float = 0.7,
+        **options: Any,
     ) -> Any:
         from .sim.options import build_rig
 

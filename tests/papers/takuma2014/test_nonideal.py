@@ -167,7 +167,7 @@ def test_load_unload_load_cycle_leaves_a_loop_of_the_configured_size():
     e0 = ph.solve_equilibrium(p, ph.Chambers.open(p.supply_pa))
     closed = rig._seg.chambers
     theta = positions["rest+x"]
-    f = ni.friction_forces(theta, p, closed, ni.FRICTION_FRACTION)
+    f = ni.friction_forces(theta, p, closed, rig.nonideal.magnitudes()["friction_fraction"])
     grad = ph.path_gradients(theta, p.geometry)
     torque = 2 * np.abs(grad).T @ f  # N m, both joints
     K = ph.stiffness_matrix(theta, p, closed, ph.NoLoad())

@@ -1,8 +1,9 @@
 """The McKibben rig's own ``sim://`` options, and the rig they build.
 
-Each non-ideality (:mod:`.nonideal`) has a scale (1 = its typical level, 0 = off);
-``ideal=1`` turns all five off, and a scale given beside it still applies
-(``ideal=1&leak=1`` is the ideal rig with a leak).  ``supply`` is the regulator
+Each non-ideality (:mod:`.nonideal`) has a scale (1 = its level, 0 = off);
+``realism`` picks the levels and default scales (``literature`` or ``kind``, the rig as it was
+before the literature's levels, byte for byte); ``ideal=1`` turns every effect off, and a scale
+given beside it still applies (``ideal=1&leak=1`` is the ideal rig with a leak).  ``supply`` is the regulator
 pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuators
 (``paper``, the paper-scale default, or ``thin``, the earlier soft tuning;
 ``design=thin&ideal=1`` reproduces its frames exactly).
@@ -17,7 +18,8 @@ from typing import Any
 
 from ....core.paper import SimOption
 
-SCALES = ("friction", "leak", "thermal", "backlash", "links")
+SCALES = ("friction", "leak", "thermal", "backlash", "links", "contact", "pulley", "potscale", "potlin", "repeat")
+REALISM_NAMES = ("literature", "kind")  # nonideal.REALISMS (a test holds them equal)
 DESIGN_NAMES = ("paper", "thin")  # the keys of physics.DESIGNS (a test holds them equal)
 SUPPLY_FORM = "one or four pressures in MPa within 0..1, comma-separated"
 
@@ -43,6 +45,12 @@ def parse_supply(text: str) -> tuple[float, ...]:
     return values if len(values) == 4 else values * 4
 
 
+def parse_realism(text: str) -> str:
+    if text not in REALISM_NAMES:
+        raise ValueError
+    return text
+
+
 def parse_design(text: str) -> str:
     if text not in DESIGN_NAMES:
         raise ValueError
@@ -54,6 +62,7 @@ SIM_OPTIONS = {
     **{name: SimOption(parse_scale, "X", "a number >= 0") for name in SCALES},
     "supply": SimOption(parse_supply, "MPA[,MPA,MPA,MPA]", SUPPLY_FORM),
     "design": SimOption(parse_design, "|".join(DESIGN_NAMES), "one of " + ", ".join(DESIGN_NAMES)),
+    "realism": SimOption(parse_realism, "|".join(REALISM_NAMES), "one of " + ", ".join(REALISM_NAMES)),
 }
 
 
@@ -61,14 +70,17 @@ def build_rig(
     *,
     seed: int = 0,
     noise: float = 1.0,
-    drift: float = 0.0,
+    drift: float | None = None,
     tau_s: float = 0.7,
     ideal: bool = False,
     supply: Any = None,
     design: str | None = None,
+    realism: str | None = None,
     **scales: float,
 ) -> Any:
-    """The McKibben rig with these options (parsed values of :data:`SIM_OPTIONS`; None: the default)."""
+    """The McKibben rig with these options (parsed values of :data:`SIM_OPTIONS`; None: the default).
+
+    ``drift`` None takes the realism's default (``ideal`` turns it off with the rest)."""
     from dataclasses import replace
 
     from .nonideal import NonIdeal
@@ -77,9 +89,13 @@ def build_rig(
     unknown = set(scales) - set(SCALES)
     if unknown:
         raise ValueError(f"the McKibben rig has no option {sorted(unknown)[0]!r}")
-    base = NonIdeal.ideal() if ideal else NonIdeal()
+    from .nonideal import REALISM_DEFAULT
+
+    level = realism or REALISM_DEFAULT
+    base = NonIdeal.ideal(level) if ideal else NonIdeal(realism=level)
     extra = {} if supply is None else {"supply_MPa": supply}
-    nonideal = replace(base, **{k: v for k, v in scales.items() if v is not None})
+    given: dict[str, Any] = {k: v for k, v in scales.items() if v is not None}
+    nonideal = replace(base, **given)
     return SimRig(
         seed=seed, noise=noise, drift=drift, tau_s=tau_s, nonideal=nonideal, design=design or "paper", **extra
     )

@@ -361,13 +361,20 @@ class NoLoad:
 
 @dataclass(frozen=True)
 class Weight:
-    """A weight on a pulley: constant force ``m g (cos dir, sin dir)`` at the tip."""
+    """A weight on a pulley: constant force ``m g (cos dir, sin dir)`` at the tip.
+
+    ``loss``: the share of the pull the pulley's friction holds back.  The weight settles
+    downwards as the arm yields to it, so the friction acts against its descent and the tip
+    feels ``(1 - loss) m g``.
+    """
 
     mass_kg: float
     direction_rad: float
+    loss: float = 0.0
 
     def force(self, theta, geom: Geometry) -> np.ndarray:
-        f = self.mass_kg * G * np.array([np.cos(self.direction_rad), np.sin(self.direction_rad)])
+        pull = self.mass_kg * G if not self.loss else self.mass_kg * G * (1.0 - self.loss)
+        f = pull * np.array([np.cos(self.direction_rad), np.sin(self.direction_rad)])
         return np.broadcast_to(f, np.shape(theta)[:-1] + (2,)).copy()
 
 
@@ -379,6 +386,13 @@ class Push:
     ``C0 = (0, h2 + h3)`` when the baseline posture is straight) with its centre
     at ``touch + (R, 0)``; pushed, the centre is ``O2 = O1 - d (cos phi, sin phi)``
     (Eq. 39).  The tip feels ``k_o (R - |O2 C|) unit(C - O2)`` while it is inside.
+
+    ``friction_mu`` adds Coulomb friction at the contact: the tip slips over the surface by
+    ``s`` (its displacement from the surface point it first touched, which moves with the
+    object, along the surface's tangent), and the surface drags it back with
+    ``mu N tanh(k_t s / (mu N))``, ``N`` the normal force: stuck (a tangential spring ``k_t``)
+    for small slips, sliding at ``mu N`` beyond.  ``k_t`` is ``tangential_ratio`` times ``k_o``.
+    The force on the tip is then not along the radius, which Eq. 38 assumes.
     """
 
     radius_m: float
@@ -386,6 +400,8 @@ class Push:
     phi_rad: float
     stiffness_N_per_m: float
     touch: tuple[float, float] | None = None
+    friction_mu: float = 0.0
+    tangential_ratio: float = 1.0
 
     def center(self, geom: Geometry) -> np.ndarray:
         c0 = np.array(self.touch if self.touch is not None else (0.0, geom.h2 + geom.h3))
@@ -402,7 +418,19 @@ class Push:
         depth = np.clip(self.radius_m - dist, 0.0, None)
         with np.errstate(invalid="ignore", divide="ignore"):
             f = self.stiffness_N_per_m * depth * v / dist
+            if self.friction_mu:
+                f = f + self._drag(c, v / dist, self.stiffness_N_per_m * depth, geom)
         return np.where(depth > 0, f, 0.0)
+
+    def _drag(self, c: np.ndarray, n: np.ndarray, normal: np.ndarray, geom: Geometry) -> np.ndarray:
+        """The contact's friction on the tip at ``c`` (..., 2): unit normal ``n``, normal force ``normal``."""
+        t = np.stack([-n[..., 1], n[..., 0]], axis=-1)  # the surface's tangent
+        # The surface point the tip first touched, carried along with the object (O1 -> O2).
+        first = self.center(geom) - np.array([self.radius_m, 0.0])
+        slip = np.sum((c - first) * t, axis=-1, keepdims=True)
+        limit = self.friction_mu * normal
+        k_t = self.tangential_ratio * self.stiffness_N_per_m
+        return -limit * np.tanh(k_t * slip / np.maximum(limit, 1e-12)) * t
 
 
 # ---------------------------------------------------------------- statics

@@ -25,13 +25,17 @@ and 0.7 count (potentiometer) rms times ``noise``, rounded and clipped to
 mechanical offset (1.5 deg rms) and each pressure sensor a zero offset
 (1.5 kPa rms), and the actuators differ (:func:`labcli.papers.takuma2014.sim.physics.varied_params`).
 ``drift`` scales sensor zero drift (slow sinusoids of a few counts, periods of
-10-40 min).  Both rigs read their sensors through one front end,
+10-40 min); None takes the non-idealities' own default (1 on the literature's rig, 0 on the
+kind one).  Both rigs read their sensors through one front end,
 :class:`labcli.core.sim.sensors.SensorFrontEnd` (``rig.sensors``).
 
-``nonideal`` (:class:`labcli.papers.takuma2014.sim.nonideal.NonIdeal`, on at typical levels by
-default) adds sleeve friction with hysteresis, a leak of the closed chambers,
+``nonideal`` (:class:`labcli.papers.takuma2014.sim.nonideal.NonIdeal`, on at the levels of its
+``realism`` by default) adds sleeve friction with hysteresis, a leak of the closed chambers,
 thermal relaxation after fast loads, potentiometer backlash and the links'
-weight; ``NonIdeal.ideal()`` turns them off, and the rig then computes exactly
+weight, friction at a pushed object's contact and in the weight's pulley, and the sensors'
+errors: the potentiometers' scale and linearity (:class:`labcli.core.sim.sensors.GainLinearity`)
+and the pressure sensors' repeatability (a new error drawn at every change of the rig, settling
+with it); ``NonIdeal.ideal()`` turns them off, and the rig then computes exactly
 what it computed before they existed (same parameters, same frames).  The
 leak moves the pressures at once; its small effect on posture enters at the
 next operator action.  ``design`` picks the actuators (:data:`labcli.papers.takuma2014.sim.physics.DESIGNS`:
@@ -47,7 +51,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ....core.sim.clock import SimClock
-from ....core.sim.sensors import SensorChannel, SensorFrontEnd
+from ....core.sim.sensors import GainLinearity, SensorChannel, SensorFrontEnd, Transfer, repeat_error
 from . import nonideal as ni
 from . import physics as ph
 
@@ -89,6 +93,8 @@ class _Segment:
     dlnV: np.ndarray  # change of ln(V + V_dead) the lag drives (closed chambers)
     kappa1: float  # kappa - 1 of the fast compression (0: isothermal)
     shaft0: np.ndarray  # potentiometer shaft angles at t0 (backlash)
+    repeat_from: np.ndarray  # the pressure sensors' non-repeatability at t0 (MPa)
+    repeat_to: np.ndarray  # the one the new readings settle to (MPa)
 
 
 class SimRig(SimClock):
@@ -116,7 +122,7 @@ class SimRig(SimClock):
         self,
         seed: int = 0,
         noise: float = 1.0,
-        drift: float = 0.0,
+        drift: float | None = None,
         params: ph.RigParams | None = None,
         *,
         variation: bool = True,
@@ -125,7 +131,7 @@ class SimRig(SimClock):
         nonideal: ni.NonIdeal | None = None,
         design: str | ph.Design = "paper",
     ) -> None:
-        if noise < 0 or drift < 0 or tau_s <= 0:
+        if noise < 0 or (drift is not None and drift < 0) or tau_s <= 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
         supply = ph.supply_array(supply_MPa)
         if np.any(supply < 0) or np.any(supply > 1.0e6):
@@ -134,6 +140,8 @@ class SimRig(SimClock):
         self.tau_s = float(tau_s)
         self.variation = bool(variation)
         self.nonideal = ni.NonIdeal() if nonideal is None else nonideal
+        if drift is not None:
+            self.nonideal = replace(self.nonideal, drift=float(drift))
         if params is None:
             params = (
                 ph.varied_params(self.seed, supply_MPa=supply_MPa, design=design)
@@ -143,14 +151,18 @@ class SimRig(SimClock):
             if self.nonideal.links:
                 params = replace(params, link_mass_kg=np.array(ni.LINK_MASS_KG) * self.nonideal.links)
         self.params = params
-        self._friction = ni.FRICTION_FRACTION * self.nonideal.friction
+        levels = self.nonideal.magnitudes()
+        self._friction = float(levels["friction_fraction"])
+        self._contact_mu, self._pulley_loss = float(levels["contact_mu"]), float(levels["pulley_loss"])
+        self._repeat_sd = float(levels["pressure_repeat_sd_MPa"])
+        self._repeat_rng = np.random.default_rng([self.seed, 5])  # its own stream: the kind rig's stay as they were
         self._kappa1 = (ni.KAPPA - 1.0) * self.nonideal.thermal
         self._thermal_tau = ni.THERMAL_TAU_S  # read when the rig is built (a test may set another)
         self._backlash = ni.BACKLASH_RAD * self.nonideal.backlash
         self._leak_rate = ni.leak_factors(self.seed, self.nonideal.leak)
         self._lock = threading.RLock()
         self._event_rng = np.random.default_rng([self.seed, 2])
-        self.sensors = self._sensor_front_end(noise, drift)
+        self.sensors = self._sensor_front_end(noise, self.nonideal.drift)
         self._t = 0.0
         self._t_closed = 0.0
         chambers = ph.Chambers.open(np.zeros(4))
@@ -169,6 +181,8 @@ class SimRig(SimClock):
             dlnV=np.zeros(4),
             kappa1=0.0,
             shaft0=eq.theta_rad.copy(),
+            repeat_from=np.zeros(4),
+            repeat_to=np.zeros(4),
         )
         self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
@@ -187,8 +201,8 @@ class SimRig(SimClock):
             for name, off in zip(CHANNELS[:4], self.sensor_offset_MPa, strict=True)
         ]
         pots = [
-            SensorChannel(name, angle_to_counts, POT_NOISE_COUNTS, POT_DRIFT_COUNTS, float(off))
-            for name, off in zip(CHANNELS[4:], self.pot_offset_rad, strict=True)
+            SensorChannel(name, transfer, POT_NOISE_COUNTS, POT_DRIFT_COUNTS, float(off))
+            for name, off, transfer in zip(CHANNELS[4:], self.pot_offset_rad, self._pot_transfers(), strict=True)
         ]
         return SensorFrontEnd(
             pressures + pots,
@@ -198,6 +212,32 @@ class SimRig(SimClock):
             drift_rng=srng,
             rails=(0, ADC_MAX),
         )
+
+    def _pot_transfers(self) -> list[Transfer]:
+        """Each potentiometer's transfer: the nominal one, or with its scale and linearity errors
+        (drawn from a stream of their own; a rig without ``variation`` has exact ones)."""
+        levels = self.nonideal.magnitudes()
+        scale_sd, linearity = float(levels["pot_scale_sd"]), float(levels["pot_linearity"])
+        if not self.variation or not (scale_sd or linearity):
+            return [angle_to_counts, angle_to_counts]
+        rng = np.random.default_rng([self.seed, 6])
+        span = np.radians(POT_SPAN_DEG)
+        return [GainLinearity.seeded(rng, angle_to_counts, span, scale_sd, linearity) for _ in range(2)]
+
+    def pot_reading(self, angle_rad: np.ndarray) -> np.ndarray:
+        """What the potentiometers read (rad, ``(..., 2)``) for shaft angles from their electrical centres."""
+        a = np.asarray(angle_rad, dtype=float)
+        out = a.copy()
+        for j, c in enumerate(self.sensors.channels[4:]):
+            if isinstance(c.transfer, GainLinearity):
+                out[..., j] = c.transfer.reading(a[..., j])
+        return out
+
+    def pot_slope(self, angle_rad: np.ndarray, step: float = 1e-6) -> np.ndarray:
+        """``d reading / d angle`` of each potentiometer (``(..., 2)``): 1 plus the scale error a
+        small deflection at ``angle_rad`` (from the electrical centres) reads with."""
+        a = np.asarray(angle_rad, dtype=float)
+        return (self.pot_reading(a + step) - self.pot_reading(a - step)) / (2 * step)
 
     @property
     def noise(self) -> float:
@@ -240,6 +280,13 @@ class SimRig(SimClock):
         """Potentiometer shaft angles (..., 2) for joint angles ``theta`` at times ``t`` (backlash)."""
         return ni.play(self._seg.shaft0, theta, self._backlash)
 
+    def _repeat_at(self, t) -> np.ndarray:
+        """The pressure sensors' non-repeatability (MPa, ``(..., 4)``) at times ``t``: the new
+        readings' error settles with the posture's lag."""
+        s = self._seg
+        w = np.exp(-np.clip(np.asarray(t, dtype=float) - s.t0, 0.0, None) / s.tau)[..., None]
+        return s.repeat_to + (s.repeat_from - s.repeat_to) * w
+
     def _thermal_at(self, t) -> np.ndarray:
         """Gas temperature excess ``T/T0 - 1`` of each chamber at times ``t`` (``(..., 4)``)."""
         s = self._seg
@@ -259,7 +306,9 @@ class SimRig(SimClock):
         is settling to), i.e. the absolute angles of the current baseline;
         ``pressures_isothermal_MPa`` (4,) what the pressures relax to once the
         air has the wall's temperature; ``pot_shaft_rad`` (2,) where the
-        potentiometers' shafts stand (backlash); ``supply_MPa`` (4,) the
+        potentiometers' shafts stand (backlash); ``pot_slope`` (2,) what a small
+        deflection reads per radian there (1 plus the scale and linearity error);
+        ``repeat_MPa`` (4,) the pressure sensors' non-repeatability now; ``supply_MPa`` (4,) the
         regulator settings; ``nonideal`` the configured magnitudes.
         """
         with self._lock:
@@ -280,6 +329,8 @@ class SimRig(SimClock):
                 "rest_theta_rad": self._rest_theta.copy(),
                 "pressures_isothermal_MPa": p_iso / 1e6,
                 "pot_shaft_rad": self._shaft_at(self._t, theta),
+                "pot_slope": self.pot_slope(theta + self.pot_offset_rad),
+                "repeat_MPa": self._repeat_at(self._t),
                 "supply_MPa": self.params.supply_pa / 1e6,
                 "nonideal": {**self.nonideal.magnitudes(), "thermal_tau_s": self._thermal_tau},
             }
@@ -292,6 +343,7 @@ class SimRig(SimClock):
             s = self._seg
             x_now = self._thermal_at(self._t)
             shaft_now = self._shaft_at(self._t, theta_now)
+            repeat_now = self._repeat_at(self._t)
             if chambers is None:
                 chambers = s.chambers
                 if chambers.state == "closed" and np.any(self._leak_rate):
@@ -332,6 +384,8 @@ class SimRig(SimClock):
                 dlnV=dlnV,
                 kappa1=kappa1,
                 shaft0=np.asarray(shaft_now, float),
+                repeat_from=repeat_now,
+                repeat_to=repeat_error(self._repeat_rng, self._repeat_sd, 4),
             )
             if isinstance(load, ph.NoLoad):
                 self._rest_theta = eq.theta_rad.copy()
@@ -364,7 +418,7 @@ class SimRig(SimClock):
         """Hang ``mass_kg`` from the tip over a pulley pulling along ``direction_rad`` (replaces any load)."""
         if not mass_kg >= 0:
             raise ValueError("mass must be >= 0 kg")
-        self._change(load=ph.Weight(float(mass_kg), float(direction_rad)))
+        self._change(load=ph.Weight(float(mass_kg), float(direction_rad), loss=self._pulley_loss))
 
     def remove_weight(self) -> None:
         """Take the weight off (no-op if none hangs)."""
@@ -378,9 +432,16 @@ class SimRig(SimClock):
         with self._lock:
             theta_now, _ = self._state_at(self._t)
             touch = tuple(float(v) for v in ph.contact_point(theta_now, self.params.geometry))
-            self._change(
-                load=ph.Push(float(radius_m), float(distance_m), float(phi_rad), float(stiffness_N_per_m), touch)
+            push = ph.Push(
+                float(radius_m),
+                float(distance_m),
+                float(phi_rad),
+                float(stiffness_N_per_m),
+                touch,
+                friction_mu=self._contact_mu,
+                tangential_ratio=ni.CONTACT_STIFFNESS,
             )
+            self._change(load=push)
 
     def release_object(self) -> None:
         """Withdraw the object (no-op if none is pushed)."""
@@ -411,6 +472,8 @@ class SimRig(SimClock):
             if n == 0:
                 return np.zeros(0, np.int64), np.zeros((0, 6), np.int64)
             theta, p = self._state_at(t)
+            if self._repeat_sd:
+                p = p + self._repeat_at(t) * 1e6
             counts = self.sensors.read(self._sensed(self._shaft_at(t, theta), p), t)
             self._t = float(t[-1])
             return np.rint(t * 1e6).astype(np.int64), counts
@@ -429,7 +492,12 @@ def _load_text(load) -> str:
 
 def _describe(load, geom) -> dict:
     if isinstance(load, ph.Weight):
-        return {"kind": "weight", "mass_kg": load.mass_kg, "direction_rad": load.direction_rad}
+        return {
+            "kind": "weight",
+            "mass_kg": load.mass_kg,
+            "direction_rad": load.direction_rad,
+            "pulley_loss": load.loss,
+        }
     if isinstance(load, ph.Push):
         return {
             "kind": "push",
@@ -438,5 +506,6 @@ def _describe(load, geom) -> dict:
             "phi_rad": load.phi_rad,
             "stiffness_N_per_m": load.stiffness_N_per_m,
             "center_m": load.center(geom).tolist(),
+            "contact_mu": load.friction_mu,
         }
     return {"kind": "none"}
