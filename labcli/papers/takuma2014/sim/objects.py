@@ -6,20 +6,33 @@ stiffnesses, so the catalogue below takes radii from common real objects and
 lateral stiffnesses from what such objects have when a rounded tip presses
 the middle of their side; every stiffness is an assumption, stated per object.
 
-Why these push distances.  The simulated arm is soft: with the valves closed
-its tip yields about 186 N/m along x (pushing a rigid object 10 mm moves the
-tip 10 mm for 1.86 N; ``tests/cli/test_classify_cli.py`` measures it).  Arm and
-object act as springs in series, so an object of stiffness k_o pushed by d
-deforms by about ``d k_tip / (k_tip + k_o)``: 2.7 mm for a bottle (500 N/m)
-pushed 10 mm, but only 0.45 mm for the steel can (8000 N/m) pushed 20 mm, the
-top of the protocol's range (``[push] distance_max_m``).  Stiffer objects
-therefore get longer pushes (10, 15, 20 mm for PET, aluminium, steel).  The
-pressure-only angles err by about 0.01 deg rms on the simulated rig, some
-0.03 mm at the 0.195 m lever, plus a model error of the paper's regression
-that grows with the deflection; against the steel can's 0.45 mm this leaves
-k_o some 6 % high with 8 % spread per push (``tests/benchmarks/classify_accuracy.py``).
-Much stiffer than 1e4 N/m the deformation at 20 mm shrinks towards that error
-and this arm stops telling objects apart.
+Why these push distances.  The arm is soft against these objects: on the paper-scale rig
+(:mod:`labcli.papers.takuma2014.sim.physics`, design values, 0.30 MPa, valves closed) its tip
+yields 604 N/m along x when upright (518 N/m resting bent on the bent protocol's supply).  Arm
+and object act as springs in series, so an object of stiffness k_o pushed by d along x deforms by
+``d k_tip / (k_tip + k_o)`` and the tip feels ``k_o`` times that (Eq. 38).  Solved exactly on the
+design rig (:data:`DEFORMATION_M`, ``tests/papers/takuma2014/test_objects.py`` holds the physics
+to it and to the closed form):
+
+=============  ============  =======  ============  ==========  ===============
+object         k_o (N/m)     d (mm)   deformation   force (N)   tip deflection
+=============  ============  =======  ============  ==========  ===============
+pet-1          420           10       5.90 mm       2.48        4.1 mm
+pet-2          520           10       5.38 mm       2.79        4.6 mm
+pet-3          610           10       4.98 mm       3.04        5.0 mm
+can-al-1       1800          15       3.78 mm       6.80        11.2 mm
+can-al-2       2400          15       3.02 mm       7.26        12.0 mm
+can-steel-1    8000          20       1.41 mm       11.30       18.6 mm
+=============  ============  =======  ============  ==========  ===============
+
+A stiffer object deforms less at the same push, so the stiffer ones get longer pushes (10, 15,
+20 mm for PET, aluminium, steel; 20 mm is the top of the protocol's range,
+``[push] distance_max_m``).  The steel can's 1.41 mm is what the pressure-only angles must
+resolve: the tip sits 0.195 m from the bottom joint, so an error of 0.1 deg in the angles
+misplaces the contact by about 0.34 mm, a quarter of the deformation, while the bottles'
+5-6 mm hardly notice it.  Much stiffer than 1e4 N/m the deformation at 20 mm shrinks towards
+the angles' error and this arm stops telling objects apart.  (Before the paper-scale retune the
+thin-muscle rig's tip yielded 186 N/m and the steel can deformed 0.45 mm.)
 
 Plain data: :data:`DEMO_OBJECTS` lists :class:`SimObject` rows,
 :data:`DEMO_PHI_DEG` the push directions cycled through for each object;
@@ -111,6 +124,17 @@ DEMO_OBJECTS: tuple[SimObject, ...] = (
         "what this arm resolves (a real steel can may be stiffer still)",
     ),
 )
+
+# Deformation (m) of each object pushed its distance along x into the tip of the design rig
+# (0.30 MPa, valves closed, upright): the table above.
+DEFORMATION_M: dict[str, float] = {
+    "pet-1": 5.90e-3,
+    "pet-2": 5.38e-3,
+    "pet-3": 4.98e-3,
+    "can-al-1": 3.78e-3,
+    "can-al-2": 3.02e-3,
+    "can-steel-1": 1.41e-3,
+}
 
 # Push directions (deg) cycled through an object's pushes: the paper's arbitrary
 # directions, kept inside +-30 deg where the pushed object still meets the tip
