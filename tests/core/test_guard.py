@@ -9,6 +9,7 @@ the committed sample run of the simulated rig.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -216,3 +217,132 @@ def test_on_the_simulated_rigs_sample_run_no_trial_is_flagged_and_most_missing_l
         guard.learn(F, base, loaded)
     assert flagged == 0
     assert caught >= 50 and caught_heavy >= 0.8 * heavy
+
+
+# ---------------------------------------------------------------- friction against a weight left on
+#
+# A rig with sleeve friction in the guard's terms: two posture coordinates (rad) move the four
+# pressures through G (MPa per rad, the size of the simulated rig's closed-chamber response); a
+# load moves the frictionless posture by D @ F (rad per N); friction stops the arm at the edge
+# of a band of half-width BAND about the frictionless posture, on the side it came from, or
+# holds it where it is when the load's own move stays within the band (stiction).
+G = np.array([[0.050, 0.010], [-0.050, -0.008], [0.020, 0.060], [-0.018, -0.060]])
+D = np.array([[-0.0040, 0.0005], [-0.0100, 0.0020]])
+BAND = np.array([0.004, 0.010])
+
+
+def sleeves(mean):
+    """The physical bound of the McKibben plug-in: friction may move a chamber's pressure
+    between two baselines by 2 x 5 % of what it holds (labcli.papers.takuma2014.friction)."""
+    return np.where(np.arange(6) < 4, 0.1 * np.clip(mean, 0, None), 0.0)
+
+
+def reading(posture, leak=0.0):
+    return window(np.r_[P0[:4] + G @ posture - leak, posture])
+
+
+class FrictionRig:
+    """Unloaded postures within the friction band; a trial's load, loaded and next baseline."""
+
+    def __init__(self, leak_per_trial=0.0):
+        self.rest = np.zeros(2)  # where the last unload left the arm
+        self.leak, self.n = leak_per_trial, 0
+
+    def trial(self, F):
+        free = D @ np.asarray(F)
+        loaded = self.rest + free  # the loaded posture (stopping short is within the noise here)
+        # Unloaded, the arm moves back towards 0 and stops at the band's edge on the load's side.
+        back = np.where(np.abs(loaded) > BAND, np.sign(loaded) * BAND, loaded)
+        base = reading(self.rest, self.leak * self.n)
+        self.n += 1
+        self.rest = back
+        return base, reading(loaded, self.leak * (self.n - 0.5))
+
+
+def run_through(guard, rig, loads):
+    for F in loads:
+        base, loaded = rig.trial(F)
+        assert guard.after_baseline(base) is None
+        guard.after_load(F, base, loaded)
+        guard.learn(F, base, loaded)
+    return base, loaded
+
+
+LOADS = [force(m, d) for m, d in ((600, -60), (800, 30), (400, 150), (1000, -150), (300, 90), (800, -90)) * 2]
+
+
+def test_friction_keeping_most_of_a_loads_response_is_not_a_weight_left_on():
+    guard, rig = Guard(PROTOCOL, hold_prior=sleeves), FrictionRig(leak_per_trial=0.0004)
+    run_through(guard, rig, LOADS)
+    # The arm rests at one edge of the band; a load moves it 2.4 band widths the other way, and
+    # unloaded it stops at the far edge: 2 of the 2.4 remain, 83 % of the response, which the
+    # earlier rule called a weight still hanging.  The run has seen friction move the baselines
+    # that far, so the guard does not.
+    side = np.array([1.0, 1.0])
+    rig.rest = -BAND * side
+    F = np.linalg.solve(D, 2.4 * BAND * side)
+    base, loaded = rig.trial(F)
+    assert guard.after_baseline(base) is None
+    guard.after_load(F, base, loaded)
+    now = rig.trial(force(800, 150))[0]
+    r = WATCH.change(base, loaded)[:4]
+    assert (WATCH.change(base, now)[:4] + 0.0004) @ r / (r @ r) > 0.8
+    assert guard.after_baseline(now) is None
+
+
+def test_a_heavy_weight_left_on_is_caught_through_friction_and_the_sentence_says_so():
+    guard, rig = Guard(PROTOCOL, hold_prior=sleeves), FrictionRig(leak_per_trial=0.0004)
+    run_through(guard, rig, LOADS)
+    F = force(1000, -60)
+    base, loaded = rig.trial(F)
+    assert guard.after_baseline(base) is None
+    guard.after_load(F, base, loaded)
+    text = guard.after_baseline(window(loaded.si[0] - np.r_[[0.0004] * 4, 0, 0]))  # one trial's leak later
+    assert text is not None
+    assert re.fullmatch(
+        r"they are still \d+% of the way to the loaded ones beyond the \d+% friction can leave "
+        r"\(P_\w+ [+-]\d+\.\d\d kPa from the baseline, [+-]\d+\.\d\d kPa under the load\)",
+        text,
+    ), text
+    share, allowed = (int(v) for v in re.findall(r"(\d+)%", text))
+    assert share >= 95 and 0 < allowed < 50
+
+
+def test_until_the_run_has_shown_its_friction_only_the_physical_bound_judges():
+    from labcli.core.guard import HOLD_MIN_MOVES
+
+    # The issue's case, at the rig's second load: 65 % of a 2.6 kPa response is still there
+    # after the weight came off.  Without a physical bound the earlier rule calls it loaded.
+    r = np.r_[0.0, 0.0, -0.00262, 0.00250, 0.0, 0.0]
+    base, loaded, now = window(P0), window(P0 + r), window(P0 + 0.65 * r)
+    bare = Guard(PROTOCOL)
+    bare.after_baseline(base)
+    bare.after_load(force(500, 0), base, loaded)
+    assert bare.after_baseline(now) is not None
+
+    bounded = Guard(PROTOCOL, hold_prior=sleeves)
+    bounded.after_baseline(base)
+    bounded.after_load(force(500, 0), base, loaded)
+    assert bounded.after_baseline(now) is None
+    assert len(bounded.baselines._moves) < HOLD_MIN_MOVES
+
+
+def test_the_leaks_drift_is_the_median_move_so_friction_does_not_pass_for_a_leak():
+    from labcli.core.guard import BaselineHistory
+
+    h = BaselineHistory(WATCH)
+    leak = np.r_[-0.0005, -0.0004, -0.0006, -0.0005, 0, 0]
+    # Friction alternates the baseline by +-2 kPa on L1 and R1 as the loads change side.
+    swing = np.r_[0.002, -0.002, 0.0, 0.0, 0, 0]
+    for n in range(9):
+        h.add(window(P0 + n * leak + (swing if n % 2 else 0.0)))
+    assert h.drift()[2:4] == pytest.approx(leak[2:4], abs=1e-12)  # chambers friction did not swing
+    assert h.drift()[:2] == pytest.approx(leak[:2], abs=0.0011)  # the median, not the last move
+    assert np.abs(h.drift()[:2] - leak[:2]).max() < 0.5 * 0.002
+    # The hold along a direction: 1.5 times the largest projection of a move less the drift;
+    # L1's moves less the drift reach the swing of 2 kPa.
+    along = h.hold(window(P0))
+    offsets = np.array(h._moves) - h.drift()
+    w = np.r_[1000.0, 0, 0, 0, 0, 0]  # per MPa, on L1 alone
+    assert along(w) == pytest.approx(1.5 * 1000 * np.abs(offsets[:, 0]).max())
+    assert 1.5 * 2.0 < along(w) < 1.5 * 2.6

@@ -37,6 +37,7 @@ from .session import (
     fmt_deg,
     parse_direction_deg,
     parse_length_mm,
+    session_guard,
 )
 
 
@@ -241,7 +242,7 @@ def push_session(
         float(protocol.settling.capture_s),
         ChannelMap.from_channels(protocol.channels),
         (push.distance_min_m, push.distance_max_m) if push is not None else (0.002, 0.020),
-        Guard(protocol),
+        session_guard(protocol),
     )
     done = set(int(t) for t in completed)
     fixed = list(objects or [])

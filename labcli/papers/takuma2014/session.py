@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ...core.guard import Guard, supply_problem
+from ...core.guard import Guard, Watch, supply_problem
 from ...core.steps import (
     Ask,
     Baseline,
@@ -384,6 +384,14 @@ def _pressurise(protocol: Any) -> Generator[Step, Any, None]:
     yield Prompt(CLOSE_TEXT, CloseValves())
 
 
+def session_guard(protocol: Any) -> Guard:
+    """The checks of one session, with the sleeves' friction as the bound of what an unloaded
+    baseline may keep (:mod:`labcli.papers.takuma2014.friction`)."""
+    from .friction import baseline_hold
+
+    return Guard(protocol, hold_prior=baseline_hold(Watch.of(protocol).units))
+
+
 @dataclass(frozen=True)
 class Checked:
     """What the checks of one trial need: the guard, the trial's load vector and its model's key,
@@ -485,7 +493,7 @@ def force_session(
     """
     capture_s = float(protocol.settling.capture_s)
     cmap = ChannelMap.from_channels(protocol.channels)
-    guard = Guard(protocol)
+    guard = session_guard(protocol)
     for force, change in history:
         guard.model().add(force, change)
     done = set(int(t) for t in completed)
