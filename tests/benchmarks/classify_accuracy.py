@@ -42,6 +42,67 @@ POLICIES = {
 }
 
 
+def trials_and_pushes(seed: int, pushes: int = 10, rig_kw: dict | None = None):
+    """On one rig of seed ``seed``: the force protocol's trial table, then the demo objects' push
+    table with each push's rest posture (``rig_kw``: more keyword arguments of the rig)."""
+    import numpy as np
+
+    force, push = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
+    rig = _Windows(SimRig(seed=seed, **(rig_kw or {})))
+    pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
+
+    def rest_columns(df, calibration) -> None:  # each row's baseline potentiometers, as a run file has them
+        base = np.array([np.asarray(calibration.to_si(w), dtype=float).mean(axis=0)[pots] for w in rig.windows[0::2]])
+        df["theta1_0_deg"], df["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
+        rig.windows.clear()
+
+    trials = simulate_weight_trials(rig, load_plan(force), calibration=force.calibration)
+    rest_columns(trials, force.calibration)
+    table = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=pushes)
+    rest_columns(table, push.calibration)
+    return trials, table
+
+
+class _Windows:
+    """The rig with every sample window kept (baseline, loaded, baseline, ...)."""
+
+    def __init__(self, rig):
+        self._rig, self.windows = rig, []
+
+    def __getattr__(self, name):
+        return getattr(self._rig, name)
+
+    def samples(self, n, rate_hz):
+        out = self._rig.samples(n, rate_hz)
+        self.windows.append(out[1])
+        return out
+
+
+def classify_rows(trials, table, model, policy: str = "project", angles: str = "pressure-only") -> list[dict]:
+    """Per object: k / k_true, the category, whether it is right, its confidence."""
+    push = load_protocol("takuma2014-stiffness")
+    truth = {o.name: o.category for o in DEMO_OBJECTS}
+    res = classify_pushes(
+        table,
+        model,
+        params=POLICIES[policy],
+        angles=angles,
+        bands=push.settings.push.stiffness_bands_N_per_m,
+        allow_unusable=True,  # an object with every push flagged: no category (a wrong one, in the counts)
+    )
+    return [
+        {
+            "object": o.object,
+            "ratio": o.k_mean_N_per_m / o.true_k_N_per_m,
+            "cv": o.k_std_N_per_m / o.k_mean_N_per_m,
+            "category": o.category,
+            "correct": o.category == truth[o.object],
+            "confidence": float(o.confidence) if o.confidence is not None else float("nan"),
+        }
+        for o in res.objects.itertuples()
+    ]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10")
@@ -61,30 +122,15 @@ def main() -> None:
         rig_kw["nonideal"] = NonIdeal(**{**NonIdeal.ideal().as_dict(), args.only: 1.0})
     lo, _, hi = args.seeds.partition("-")
     seeds = range(int(lo), int(hi or lo) + 1)
-    force, push = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
-    truth = {o.name: o.category for o in DEMO_OBJECTS}
+    force = load_protocol("takuma2014")
     rows = []
     for seed in seeds:
-        rig = SimRig(seed=seed, **rig_kw)
-        trials = simulate_weight_trials(rig, load_plan(force), calibration=force.calibration)
+        trials, table = trials_and_pushes(seed, args.pushes, rig_kw=rig_kw)
         model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(trials)
-        table = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=args.pushes)
-        for policy, params in POLICIES.items():
+        for policy in POLICIES:
             for angles in ("pressure-only", "measured-angles"):
-                res = classify_pushes(
-                    table, model, params=params, angles=angles, bands=push.settings.push.stiffness_bands_N_per_m
-                )
-                for o in res.objects.itertuples():
-                    rows.append(
-                        {
-                            "policy": policy,
-                            "angles": angles,
-                            "object": o.object,
-                            "ratio": o.k_mean_N_per_m / o.true_k_N_per_m,
-                            "cv": o.k_std_N_per_m / o.k_mean_N_per_m,
-                            "correct": o.category == truth[o.object],
-                        }
-                    )
+                for row in classify_rows(trials, table, model, policy, angles):
+                    rows.append({"policy": policy, "angles": angles, **row})
     df = pd.DataFrame(rows)
     out = df.groupby(["policy", "angles", "object"], sort=False).agg(
         k_over_true=("ratio", "mean"),

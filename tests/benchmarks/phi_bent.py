@@ -21,21 +21,23 @@ import numpy as np
 from sensing_accuracy import BENT_SUPPLY_MPA, _Recorder, trials
 
 
-def run(seed: int, angles: str) -> tuple[int, int, int]:
+def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, int]:
+    """Pushes used, pushes, objects in their category on seed ``seed``'s bent rig (``rig_kw``: more
+    keyword arguments of the rig, as a sweep sets them)."""
     from labcli.core.protocol import load_protocol
     from labcli.papers.takuma2014.models.classify import classify_pushes
     from labcli.papers.takuma2014.models.posture import PostureModel
     from labcli.papers.takuma2014.sim.drive import simulate_pushes
     from labcli.papers.takuma2014.sim.rig import SimRig
 
-    proto, table = trials("takuma2014-bent", seed, 8.0)
+    proto, table = trials("takuma2014-bent", seed, 8.0, rig_kw=rig_kw)
     model = PostureModel(
         geometry=proto.settings.rig,
         protocol="takuma2014-stiffness",
         limits={q: np.inf for q in ("theta1", "theta2", "Fx", "Fy")},
     ).fit(table)
     sp = load_protocol("takuma2014-stiffness")
-    rig = _Recorder(SimRig(seed=seed, supply_MPa=BENT_SUPPLY_MPA))
+    rig = _Recorder(SimRig(seed=seed, **{"supply_MPa": BENT_SUPPLY_MPA, **(rig_kw or {})}))
     pushes = simulate_pushes(rig, calibration=sp.calibration, phi_known=False)
     pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
     base = np.array([np.asarray(sp.calibration.to_si(w), dtype=float).mean(axis=0)[pots] for w in rig.windows[0::2]])

@@ -48,8 +48,10 @@ class _Recorder:
         return out
 
 
-def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False):
-    """The protocol's trial table on the simulated rig, with the rest posture columns (deg)."""
+def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False, rig_kw: dict | None = None):
+    """The protocol's trial table on the simulated rig, with the rest posture columns (deg).
+
+    ``rig_kw``: more keyword arguments of the rig (``nonideal``, ``noise``, ...), as a sweep sets them."""
     from labcli.core.protocol import load_protocol
     from labcli.papers.takuma2014.protocol import load_plan
     from labcli.papers.takuma2014.sim.drive import simulate_weight_trials
@@ -59,6 +61,7 @@ def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = F
     from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
     kw = {"supply_MPa": BENT_SUPPLY_MPA} if protocol_name.endswith("bent") else {}
+    kw.update(rig_kw or {})
     if ideal is True:
         kw["nonideal"] = NonIdeal.ideal()
     elif ideal:  # one effect alone, the others off
@@ -71,12 +74,14 @@ def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = F
     return proto, table
 
 
-def measure(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False) -> dict:
+def measure(
+    protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False, rig_kw: dict | None = None
+) -> dict:
     from labcli.papers.takuma2014.models.metrics import evaluate
     from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
     from labcli.papers.takuma2014.models.takuma import TakumaModel
 
-    proto, table = trials(protocol_name, seed, settle_s, ideal)
+    proto, table = trials(protocol_name, seed, settle_s, ideal, rig_kw)
     rig = proto.settings.rig
     out = {}
     for form, model in (

@@ -1,0 +1,208 @@
+"""Accuracy, not time: every headline sensing figure across the rig's harshness, with its spread over seeds.
+
+The levels depart one at a time from the literature's rig (the default; sim/nonideal.py,
+docs/rig-realism.md): sleeve friction x0.5-4, the sensors' white noise x1-30 (``noise``, per
+sample; the pressure sensors' repeatability stays at its level), the chambers' leak x0-3, the
+repeatability x0 and x2 (x2: the datasheet's bound as three standard deviations), and the kind rig
+the earlier figures were measured on.  Per level and rig seed (:mod:`study`): theta1, theta2, Fx,
+Fy RMSE on the straight and the bent protocol for both forms (over the reported trials, and over
+all), trials reported, the posture form's 95 % coverage per quantity, and the six demo objects'
+k / k_true and category (straight arm, phi given, bands; the paper's form as the README demo uses
+it, and the posture form), the steel can among them.
+
+    python tests/benchmarks/sensitivity.py --quick               # 2 seeds, the sweep's ends: minutes
+    nice python tests/benchmarks/sensitivity.py                  # the full sweep: seeds 11-15, all levels
+    nice python tests/benchmarks/sensitivity.py --cache /tmp/s.jsonl --jobs 1 &    # in the background,
+                                                                 # resumable: done (level, seed) pairs are kept
+
+Held-out seeds (11 and up) by default: nothing here is tuned.  It prints a headline table (the
+posture form, mean over seeds +- sd) and every figure per level, and writes them all as one flat
+JSON object ``{"LEVEL/FIGURE/STAT": value}`` (default docs/figures/sensitivity.json) for the docs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import study  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+LEVELS: dict[str, dict[str, Any]] = {
+    "literature": {},
+    "kind": {"realism": "kind"},
+    "friction x0.5": {"friction": 0.5},
+    "friction x2": {"friction": 2.0},
+    "friction x4": {"friction": 4.0},
+    "noise x3": {"noise": 3.0},
+    "noise x10": {"noise": 10.0},
+    "noise x30": {"noise": 30.0},
+    "leak x0": {"leak": 0.0},
+    "leak x3": {"leak": 3.0},
+    "repeat x0": {"repeat": 0.0},
+    "repeat x2": {"repeat": 2.0},
+}
+QUICK_LEVELS = ("literature", "friction x0.5", "friction x4", "noise x30", "leak x3")
+HEADLINE = (  # (column, figure, scale, format) of the headline table
+    ("th1 str", "straight/posture/theta1/rmse", 1, "{:.3f}"),
+    ("th2 str", "straight/posture/theta2/rmse", 1, "{:.3f}"),
+    ("Fx str", "straight/posture/Fx/rmse", 1, "{:.2f}"),
+    ("th1 bent", "bent/posture/theta1/rmse", 1, "{:.3f}"),
+    ("th2 bent", "bent/posture/theta2/rmse", 1, "{:.3f}"),
+    ("Fx bent", "bent/posture/Fx/rmse", 1, "{:.2f}"),
+    ("Fy bent", "bent/posture/Fy/rmse", 1, "{:.2f}"),
+    ("Fy n/18", "bent/posture/Fy/reported", 1, "{:.1f}"),
+    ("Fx cover", "bent/posture/Fx/coverage", 100, "{:.0f}%"),
+    ("steel k/k", "objects/paper/can-steel-1/k_over_true", 1, "{:.2f}"),
+    ("PET-1 k/k", "objects/paper/pet-1/k_over_true", 1, "{:.2f}"),
+)
+
+
+def seeds_of(text: str) -> list[int]:
+    if "-" in text:
+        lo, hi = (int(s) for s in text.split("-"))
+        return list(range(lo, hi + 1))
+    return [int(s) for s in text.split(",")]
+
+
+def load_cache(path: Path | None) -> dict[tuple[str, int], dict[str, float]]:
+    done: dict[tuple[str, int], dict[str, float]] = {}
+    if path is not None and path.exists():
+        for line in path.read_text().splitlines():
+            if line.strip():
+                rec = json.loads(line)
+                done[(rec["level"], int(rec["seed"]))] = rec["figures"]
+    return done
+
+
+def _run(job: tuple[str, int, int]) -> tuple[str, int, dict[str, float]]:
+    level, seed, pushes = job
+    return level, seed, study.per_seed(study.measure_level(LEVELS[level], seed, pushes))
+
+
+def gather(levels: list[str], seeds: list[int], pushes: int, cache: Path | None, jobs: int) -> dict:
+    """Per level and seed, the figures (from the cache where done); appends new ones to it."""
+    done = load_cache(cache)
+    todo = [(lv, s, pushes) for lv in levels for s in seeds if (lv, s) not in done]
+    if jobs > 1:
+        from multiprocessing import Pool
+
+        with Pool(jobs) as pool:
+            results = pool.imap_unordered(_run, todo)
+            for level, seed, figs in results:
+                _keep(done, cache, level, seed, figs)
+    else:
+        for job in todo:
+            _keep(done, cache, *_run(job))
+    return {lv: {s: done[(lv, s)] for s in seeds} for lv in levels}
+
+
+def _keep(done: dict, cache: Path | None, level: str, seed: int, figs: dict[str, float]) -> None:
+    done[(level, seed)] = figs
+    print(f"  measured {level}, seed {seed}", file=sys.stderr, flush=True)
+    if cache is not None:
+        with cache.open("a") as f:
+            f.write(json.dumps({"level": level, "seed": seed, "figures": figs}) + "\n")
+
+
+def summarise(per_level: dict[str, dict[int, dict[str, float]]]) -> dict[str, float]:
+    """``LEVEL/FIGURE/mean|sd|min|max`` over seeds (NaN seeds left out; ``n`` counts the rest)."""
+    out: dict[str, float] = {}
+    for level, by_seed in per_level.items():
+        names = sorted({k for figs in by_seed.values() for k in figs})
+        for name in names:
+            v = np.array([figs.get(name, math.nan) for figs in by_seed.values()], dtype=float)
+            v = v[np.isfinite(v)]
+            stats = {"n": float(v.size)}
+            if v.size:
+                stats.update(mean=float(v.mean()), sd=float(v.std(ddof=1)) if v.size > 1 else 0.0)
+                stats.update(min=float(v.min()), max=float(v.max()))
+            for stat, value in stats.items():
+                out[f"{level}/{name}/{stat}"] = value
+    return out
+
+
+def headline(summary: dict[str, float], levels: list[str]) -> str:
+    cols = [c for c, *_ in HEADLINE]
+    lines = ["| level | " + " | ".join(cols) + " | objects right (paper form) |", "|---" * (len(cols) + 2) + "|"]
+    for level in levels:
+        cells = []
+        for _, fig, scale, fmt in HEADLINE:
+            m, sd = summary.get(f"{level}/{fig}/mean"), summary.get(f"{level}/{fig}/sd")
+            cells.append("-" if m is None else f"{fmt.format(scale * m)} ± {fmt.format(scale * sd).rstrip('%')}")
+        right = [summary.get(f"{level}/objects/paper/{o}/correct/mean", math.nan) for o in _objects()]
+        cells.append(f"{np.nansum(right):.1f}/6")
+        lines.append(f"| {level} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _objects() -> list[str]:
+    from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS
+
+    return [o.name for o in DEMO_OBJECTS]
+
+
+def details(summary: dict[str, float], levels: list[str]) -> str:
+    names = sorted({k.rsplit("/", 1)[0].split("/", 1)[1] for k in summary})
+    lines = []
+    for name in names:
+        cells = []
+        for level in levels:
+            m, sd = summary.get(f"{level}/{name}/mean"), summary.get(f"{level}/{name}/sd")
+            cells.append(f"{level}: " + ("-" if m is None else f"{m:.4g} ± {sd:.2g}"))
+        lines.append(f"{name:44s} " + "; ".join(cells))
+    return "\n".join(lines)
+
+
+def commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    except OSError:
+        return ""
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help=f"seeds 11-12, levels {', '.join(QUICK_LEVELS)}, 5 pushes")
+    ap.add_argument("--seeds", default=None, help="rig seeds, e.g. 11-15 or 11,14 (default 11-15; --quick 11-12)")
+    ap.add_argument("--levels", default=None, help="comma-separated level names (default: all)")
+    ap.add_argument("--pushes", type=int, default=None, help="pushes per object (default 10; --quick 5)")
+    ap.add_argument("--cache", type=Path, default=None, help="JSON-lines file of measured (level, seed) pairs")
+    ap.add_argument("--jobs", type=int, default=1, help="processes (default 1: the machine is shared)")
+    ap.add_argument(
+        "--json", "--figures", dest="json", type=Path, default=ROOT / "docs" / "figures" / "sensitivity.json"
+    )
+    args = ap.parse_args(argv)
+    levels = args.levels.split(",") if args.levels else list(QUICK_LEVELS if args.quick else LEVELS)
+    unknown = [lv for lv in levels if lv not in LEVELS]
+    if unknown:
+        raise SystemExit(f"unknown level {unknown[0]!r}; levels: {', '.join(LEVELS)}")
+    seeds = seeds_of(args.seeds or ("11-12" if args.quick else "11-15"))
+    pushes = args.pushes or (5 if args.quick else 10)
+    head = commit()  # the code measured is the code at the start
+    summary = summarise(gather(levels, seeds, pushes, args.cache, args.jobs))
+    print(f"\nseeds {seeds[0]}-{seeds[-1]} ({len(seeds)}), {pushes} pushes per object; posture form unless named")
+    print(headline(summary, levels))
+    print("\nEvery figure, mean ± sd over seeds:")
+    print(details(summary, levels))
+    meta = {
+        "meta/commit": head,
+        "meta/seeds": f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else str(seeds),
+        "meta/pushes_per_object": pushes,
+        **{f"meta/level/{lv}": json.dumps(LEVELS[lv], sort_keys=True) for lv in levels},
+    }
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps({**meta, **summary}, indent=1, sort_keys=True) + "\n")
+    print(f"\nwrote {args.json}")
+
+
+if __name__ == "__main__":
+    main()
