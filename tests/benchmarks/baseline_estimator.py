@@ -105,6 +105,10 @@ def figures(raw: dict[int, dict[str, Any]]) -> dict[str, Any]:
         for k, v in raw[s].items():
             if k.startswith(("objects/", "phi_blank/")):
                 out[f"{k}/seed{s}"] = v
+    if all("phi_blank/used" in raw[s] for s in seeds):
+        out["phi_blank/used/total"] = int(sum(raw[s]["phi_blank/used"] for s in seeds))
+        out["phi_blank/pushes/total"] = int(sum(raw[s]["phi_blank/pushes"] for s in seeds))
+        out["phi_blank/all_six/seeds"] = int(sum(raw[s]["phi_blank/right"] == 6 for s in seeds))
     for form in study.FORMS:
         for name in {k.split("/")[2] for k in raw[seeds[0]] if k.startswith("objects/")}:
             ratios = np.array([raw[s][f"objects/{form}/{name}/k_over_true"] for s in seeds], dtype=float)

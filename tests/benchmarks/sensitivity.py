@@ -190,7 +190,8 @@ def main(argv: list[str] | None = None) -> None:
     head = commit()  # the code measured is the code at the start
     summary = summarise(gather(levels, seeds, pushes, args.cache, args.jobs))
     print(f"\nseeds {seeds[0]}-{seeds[-1]} ({len(seeds)}), {pushes} pushes per object; posture form unless named")
-    print(headline(summary, levels))
+    table = headline(summary, levels)
+    print(table)
     print("\nEvery figure, mean ± sd over seeds:")
     print(details(summary, levels))
     meta = {
@@ -198,6 +199,7 @@ def main(argv: list[str] | None = None) -> None:
         "meta/seeds": f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else str(seeds),
         "meta/pushes_per_object": pushes,
         **{f"meta/level/{lv}": json.dumps(LEVELS[lv], sort_keys=True) for lv in levels},
+        "headline": table,  # the pages show it whole (docs/rig-realism.md)
     }
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps({**meta, **summary}, indent=1, sort_keys=True) + "\n")

@@ -151,6 +151,20 @@ def constants() -> dict[str, Any]:
     out["design.dead_mL.outside"], out["design.dead_mL.inside"] = (rounded(v * 1e6) for v in design.v_dead)
     out["rig.pressure_noise_counts"] = sim_rig.PRESSURE_NOISE_COUNTS
     out["rig.pot_noise_counts"] = sim_rig.POT_NOISE_COUNTS
+    # The zero drift at drift = 1 in counts and in the units the pages read (the reference
+    # calibration: 5 V / 4095 counts / 4 V per MPa; 340 deg / 4095 counts).
+    out["rig.pressure_drift_counts"] = sim_rig.PRESSURE_DRIFT_COUNTS
+    out["rig.pot_drift_counts"] = sim_rig.POT_DRIFT_COUNTS
+    out["rig.pressure_drift_kPa"] = rounded(sim_rig.PRESSURE_DRIFT_COUNTS * 5 / 4095 / 4 * 1e3)
+    out["rig.pot_drift_deg"] = rounded(sim_rig.POT_DRIFT_COUNTS * 340 / 4095)
+    out["nonideal.repeat_bound_kPa"] = rounded(ni.PRESSURE_REPEAT_SD_MPA * 6 * 1e3)
+    out["nonideal.contact_tilt_deg"] = rounded(math.degrees(math.atan(ni.CONTACT_MU)))
+    out["nonideal.contact_k_high_pct"] = rounded((math.hypot(1, ni.CONTACT_MU) - 1) * 100)
+    out["nonideal.pot_linearity_deg"] = rounded(ni.POT_LINEARITY * 340)
+    from labcli.papers.takuma2014 import friction as takuma_friction
+
+    out["friction.max_pct"] = rounded(takuma_friction.SLEEVE_FRICTION_MAX * 100)
+    out["friction.bound_kPa_at_supply"] = rounded(2 * takuma_friction.SLEEVE_FRICTION_MAX * physics.SUPPLY_MPA * 1e3)
     import inspect
 
     out["rig.tau_s"] = inspect.signature(sim_rig.SimRig).parameters["tau_s"].default
