@@ -161,6 +161,12 @@ def constants() -> dict[str, Any]:
     out["nonideal.contact_tilt_deg"] = rounded(math.degrees(math.atan(ni.CONTACT_MU)))
     out["nonideal.contact_k_high_pct"] = rounded((math.hypot(1, ni.CONTACT_MU) - 1) * 100)
     out["nonideal.pot_linearity_deg"] = rounded(ni.POT_LINEARITY * 340)
+    from labcli.papers.takuma2014 import units as takuma_units
+
+    out["units.force_tolerance_pct"] = rounded(takuma_units.FORCE_TOLERANCE * 100)
+    out["units.radian_like_deg"] = takuma_units.RADIAN_LIKE_DEG
+    out["units.radian_load_N"] = takuma_units.RADIAN_LOAD_N
+    out["units.atmosphere_band_kPa"] = rounded(takuma_units.ATMOSPHERE_BAND_MPA * 1e3)
     from labcli.papers.takuma2014 import friction as takuma_friction
 
     out["friction.max_pct"] = rounded(takuma_friction.SLEEVE_FRICTION_MAX * 100)

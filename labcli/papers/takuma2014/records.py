@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ...core.bounds import wrap_degrees_array
+from ...core.files import RUN_FILE_SUFFIXES
 from ...core.paper import Column
 from ...core.record import Record
 from ...core.report import records_line, settling_line, split_line
@@ -500,10 +501,19 @@ RECORD_TYPES = {"force": TrialRecords(), "push": PushRecords()}
 
 
 def load_trials(path: str | os.PathLike) -> Any:
-    """The trial table (DataFrame) of a run file (``.h5``) or a trial CSV."""
-    return load_table(path, RECORD_TYPES["force"])
+    """The trial table (DataFrame) of a run file (``.h5``) or a trial CSV (checked against its units)."""
+    return _checked(path, load_table(path, RECORD_TYPES["force"]))
 
 
 def load_pushes(path: str | os.PathLike) -> Any:
-    """The push table (DataFrame) of a run file (``.h5``) or a push CSV."""
-    return load_table(path, RECORD_TYPES["push"])
+    """The push table (DataFrame) of a run file (``.h5``) or a push CSV (checked against its units)."""
+    return _checked(path, load_table(path, RECORD_TYPES["push"]))
+
+
+def _checked(path: str | os.PathLike, table: Any) -> Any:
+    """A CSV's table read against its units (:mod:`.units`): a run file was written in SI by labcli."""
+    if os.fspath(path).lower().endswith(RUN_FILE_SUFFIXES):
+        return table
+    from .units import check_units
+
+    return check_units(table, os.fspath(path))
