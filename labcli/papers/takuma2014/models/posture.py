@@ -96,6 +96,13 @@ TORQUE_TERMS = (
     + tuple(f"dP_{a}*dtheta{j}" for a in ACTUATORS for j in (1, 2))
     + ("dtheta1", "dtheta2")
 )
+# Sleeve friction's share of the load torque (PostureModel(friction=True), :func:`friction_columns`):
+# one term per actuator pair, offered to the torque fit beside TORQUE_TERMS.
+FRICTION_TERMS = ("friction1", "friction2")
+KNOWN_TORQUE_TERMS = TORQUE_TERMS + FRICTION_TERMS
+# A motion this large (rad) is a motion: the friction's sign follows it; below it tanh fades the
+# term out, where the pots' play (0.2 deg) and the angle estimate's error hide its direction.
+FRICTION_MOTION_RAD = math.radians(0.1)
 # Standard errors above these flag an estimate (the protocol's [sensing] keys override them):
 # 1 N tells the plan's 50-1000 g loads (0.5-9.8 N) apart by about 2 N at 95 %; 0.5 deg is several
 # times the potentiometers' backlash.
@@ -127,14 +134,80 @@ def angle_features(P0: np.ndarray, P: np.ndarray, terms: tuple[str, ...]) -> np.
     return np.column_stack(cols) if cols else np.empty((len(u), 0))
 
 
-def torque_features(dP: np.ndarray, dtheta: np.ndarray, terms: tuple[str, ...] = TORQUE_TERMS) -> np.ndarray:
-    """Columns ``terms`` (default all 14 of TORQUE_TERMS) from pressure drops (n, 4) MPa and
-    deflections (n, 2) rad."""
+def torque_features(
+    dP: np.ndarray,
+    dtheta: np.ndarray,
+    terms: tuple[str, ...] = TORQUE_TERMS,
+    motion_in: np.ndarray | None = None,
+    motion_sd: np.ndarray | None = None,
+) -> np.ndarray:
+    """Columns ``terms`` (default all 14 of TORQUE_TERMS; FRICTION_TERMS too) from pressure drops
+    (n, 4) MPa and deflections (n, 2) rad; ``motion_in`` (n, 2) rad, the joints' motion into the
+    baseline, for the friction terms (:func:`friction_columns`; None: unknown), ``motion_sd`` (2,)
+    rad the standard error of the pairs' motions when they are estimated."""
     dP = np.atleast_2d(dP)
     dtheta = np.atleast_2d(dtheta)
     products = (dP[:, :, None] * dtheta[:, None, :]).reshape(len(dP), 8)
     every = np.column_stack([dP, products, dtheta])
-    return every if tuple(terms) == TORQUE_TERMS else every[:, [TORQUE_TERMS.index(t) for t in terms]]
+    if tuple(terms) == TORQUE_TERMS:
+        return every
+    if any(t in FRICTION_TERMS for t in terms):
+        every = np.column_stack([every, friction_columns(dtheta, motion_in, motion_sd)])
+    return every[:, [KNOWN_TORQUE_TERMS.index(t) for t in terms]]
+
+
+def pair_motion(dtheta: np.ndarray) -> np.ndarray:
+    """How far each actuator pair's tendons move for a joint motion (n, 2) rad, in units of its
+    pulley radius: the outside pair spans the bottom joint only, the inside pair both (Eqs. 4-7:
+    its path changes by r2 (dtheta1 + dtheta2))."""
+    d = np.atleast_2d(np.asarray(dtheta, dtype=float))
+    return np.column_stack([d[:, 0], d[:, 0] + d[:, 1]])
+
+
+def friction_columns(
+    dtheta: np.ndarray, motion_in: np.ndarray | None = None, motion_sd: np.ndarray | None = None
+) -> np.ndarray:
+    """The friction terms (n, 2): per pair, the sign of its motion under the load less the sign of
+    its motion into the baseline, each faded in over FRICTION_MOTION_RAD.
+
+    A sleeve's Coulomb friction (a share of its pressure force, Tondu & Lopez 2000) opposes the
+    actuator's motion, and an arm that moved stops with it at its limit: under the load it holds
+    against the deflection, at the baseline against the motion that brought the arm back from
+    the previous load.  The pressures see the tension less that friction, so the load torque is the
+    pressures' torque plus a pair's friction torque times (sign now - sign before).  The
+    magnitude (about the share times the pressure force times the pulley radius) is the term's
+    coefficient, fitted; an arm that did not move leaves the term near 0, friction unknown.
+
+    Where the motions are estimated from the pressures (``motion_sd``, the pairs' standard
+    errors), a sign is as likely wrong as the estimate is uncertain: each sign is replaced by its
+    expectation, erf(m / sqrt(2 (sd^2 + fade^2))), the fade FRICTION_MOTION_RAD standing in for tanh's.
+    """
+    from scipy.special import erf
+
+    width = np.sqrt(
+        2.0 * (np.asarray(0.0 if motion_sd is None else motion_sd, dtype=float) ** 2 + FRICTION_MOTION_RAD**2)
+    )
+
+    def sign(m: np.ndarray) -> np.ndarray:
+        return erf(np.nan_to_num(pair_motion(m), nan=0.0) / width)
+
+    now = sign(dtheta)
+    return now if motion_in is None else now - sign(motion_in)
+
+
+def motion_into_baseline(trial: np.ndarray, theta0: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
+    """Each trial's joint motion (n, 2) rad from the previous trial's loaded posture (the previous
+    trial id in the table: theta0 + dtheta) to its own baseline posture; 0 for the first trial and
+    where a posture is unknown."""
+    trial = np.asarray(trial)
+    order = np.argsort(trial, kind="stable")
+    th0 = np.asarray(theta0, dtype=float)[order]
+    loaded = th0 + np.asarray(dtheta, dtype=float)[order]
+    moved = np.zeros_like(th0)
+    moved[1:] = th0[1:] - loaded[:-1]
+    out = np.empty_like(moved)
+    out[order] = np.nan_to_num(moved, nan=0.0)
+    return out
 
 
 def load_torque(theta: np.ndarray, F: np.ndarray, h2: float, h3: float) -> np.ndarray:
@@ -336,7 +409,7 @@ def select_angle_terms(
 TORQUE_BASE = TORQUE_TERMS[:4]
 
 
-def select_torque_terms(blocks: _Blocks) -> tuple[str, ...]:
+def select_torque_terms(blocks: _Blocks, names: tuple[str, ...] = TORQUE_TERMS) -> tuple[str, ...]:
     """The pressure drops and the other torque terms that lower the held-out error, added greedily.
 
     Both torques share one design, so a term is judged by the two torques' held-out errors
@@ -345,14 +418,14 @@ def select_torque_terms(blocks: _Blocks) -> tuple[str, ...]:
     """
 
     def held_out(terms: tuple[str, ...] | list[str]) -> np.ndarray:
-        return np.diag(blocks.cv_cov([TORQUE_TERMS.index(t) for t in terms]))
+        return np.diag(blocks.cv_cov([names.index(t) for t in terms]))
 
     if len(TORQUE_BASE) >= _room(blocks.n):
         return TORQUE_BASE  # too few trials to judge any term (the fit itself says so)
     base = held_out(TORQUE_BASE)
     if not np.all(base > 0):
         return TORQUE_BASE  # the pressure drops already predict exactly
-    return _grow(TORQUE_BASE, TORQUE_TERMS, lambda terms: float(np.sum(held_out(terms) / base)), blocks.n)
+    return _grow(TORQUE_BASE, names, lambda terms: float(np.sum(held_out(terms) / base)), blocks.n)
 
 
 def _room(n: int) -> int:
@@ -433,6 +506,9 @@ class PostureModel:
     paper_variance: dict[str, float] = field(default_factory=dict)
     blends: dict[str, dict[str, float]] = field(default_factory=dict)
     fitted_on: dict[str, Any] | None = None  # the run it was fitted on (labcli.core.provenance)
+    # Offer the sleeves' friction terms (FRICTION_TERMS) to the torque fit: a fit option; the
+    # terms kept are in torque_terms like any other.
+    friction: bool = False
 
     form = FORM
 
@@ -469,7 +545,7 @@ class PostureModel:
         return self
 
     def _fit_posture(self, table: Any, source: str, record_trials: bool = True) -> None:
-        a = table_arrays(table, set_mask(table, "fit", source))
+        a = table_arrays(table, set_mask(table, "fit", source), motion=self.friction)
         use = (
             np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1)
             & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
@@ -479,6 +555,7 @@ class PostureModel:
         if not use.all():
             a = {k: v[use] for k, v in a.items()}
         P0, P, th0, dth, F = (a[k] for k in ("P0", "P", "theta0", "dtheta", "F"))
+        moved = a.get("motion_in", np.zeros((len(P), 2)))
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         angles = angle_blocks(P0, P, dth)
         self.angle_terms = select_angle_terms(angles)
@@ -488,19 +565,20 @@ class PostureModel:
         own = _shared_lstsq(angles, [ANGLE_TERMS.index(t) for t in self.theta1_terms], "deflection", ys=theta1)
         self.theta1_coefficients, self.theta1_xtx_inv = own.beta[:, 0].tolist(), own.xtx_inv.tolist()
         self.theta1_resid_var = float(own.resid_cov[0, 0])
+        names = KNOWN_TORQUE_TERMS if self.friction else TORQUE_TERMS
         torques = _Blocks.build(
             len(P),
-            len(TORQUE_TERMS),
+            len(names),
             lambda lo, hi: np.column_stack(
                 [
-                    torque_features(P0[lo:hi] - P[lo:hi], dth[lo:hi]),
+                    torque_features(P0[lo:hi] - P[lo:hi], dth[lo:hi], names, moved[lo:hi]),
                     load_torque(th0[lo:hi] + dth[lo:hi], F[lo:hi], h2, h3),
                 ]
             ),
         )
         # In TORQUE_TERMS' order: a file with all 14 reads the same as one written before the choice.
-        self.torque_terms = tuple(sorted(select_torque_terms(torques), key=TORQUE_TERMS.index))
-        tq = _shared_lstsq(torques, [TORQUE_TERMS.index(t) for t in self.torque_terms], "torque", by_trial=True)
+        self.torque_terms = tuple(sorted(select_torque_terms(torques, names), key=names.index))
+        tq = _shared_lstsq(torques, [names.index(t) for t in self.torque_terms], "torque", by_trial=True)
         self.angle_coefficients, self.angle_xtx_inv = ang.beta.tolist(), ang.xtx_inv.tolist()
         self.angle_resid_cov = ang.resid_cov.tolist()
         self.torque_coefficients, self.torque_xtx_inv = tq.beta.tolist(), tq.xtx_inv.tolist()
@@ -524,9 +602,9 @@ class PostureModel:
         """Cross-validate both forms on the fit trials; keep the paper's where it predicts better."""
 
         def posture_only(rows: Any) -> PostureModel:
-            return PostureModel(geometry=self.geometry, protocol=self.protocol, limits=self.limits).fit(
-                rows, choose_routes=False, record_trials=False
-            )
+            return PostureModel(
+                geometry=self.geometry, protocol=self.protocol, limits=self.limits, friction=self.friction
+            ).fit(rows, choose_routes=False, record_trials=False)
 
         def paper(rows: Any, record_trials: bool = False) -> TakumaModel:
             return TakumaModel(geometry=self.geometry, protocol=self.protocol).fit(rows, record_trials=record_trials)
@@ -573,14 +651,21 @@ class PostureModel:
         h = np.einsum("ni,ij,nj->n", X, np.asarray(self.theta1_xtx_inv), X)
         return X @ np.asarray(self.theta1_coefficients), self.theta1_resid_var * (1.0 + h)
 
-    def _forces(self, dP: np.ndarray, theta0: np.ndarray, dth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _forces(
+        self,
+        dP: np.ndarray,
+        theta0: np.ndarray,
+        dth: np.ndarray,
+        motion_in: np.ndarray | None = None,
+        motion_sd: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Forces (n, 2) and their covariance from the torque error alone (n, 2, 2).
 
         tau = J^T F + e with e ~ N(0, (1 + h) S_tau); with the fit loads' spread as a prior on F
         (``force_prior_sd``) the estimate is the posterior mean, which is (J^T)^-1 tau wherever the
         torques determine F and stays bounded along a straight arm, where they do not.
         """
-        X = torque_features(dP, dth, self.torque_terms)
+        X = torque_features(dP, dth, self.torque_terms, motion_in, motion_sd)
         tau = X @ np.asarray(self.torque_coefficients)
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         th = theta0 + dth
@@ -600,13 +685,28 @@ class PostureModel:
         )
         return np.einsum("nij,nj->ni", K, tau), prior - np.einsum("nij,njk,kl->nil", K, JT, prior)
 
+    def pair_motion_sd(self) -> np.ndarray:
+        """The standard error (2,) rad of the pairs' motions (:func:`pair_motion`) estimated from pressures."""
+        c = np.asarray(self.angle_resid_cov, dtype=float)
+        if c.shape != (2, 2):
+            return np.zeros(2)
+        return np.sqrt(np.maximum([c[0, 0], c[0, 0] + c[1, 1] + 2.0 * c[0, 1]], 0.0))
+
     def predict(
-        self, P0: Any, P: Any, theta0: Any = None, mode: str = "pressure-only", theta: Any = None
+        self,
+        P0: Any,
+        P: Any,
+        theta0: Any = None,
+        mode: str = "pressure-only",
+        theta: Any = None,
+        motion_in: Any = None,
     ) -> dict[str, Any]:
         """Deflections (rad), forces (N) and their standard errors from pressures (MPa, (n, 4)).
 
         ``theta0`` (n, 2) rad is the rest posture (default 0, 0).  ``mode="measured-angles"``
         uses the measured deflections ``theta`` for the forces instead of the estimated ones.
+        ``motion_in`` (n, 2) rad, the joints' motion into each baseline
+        (:func:`motion_into_baseline`), for a model with friction terms (None: unknown).
         """
         if not self.is_fitted:
             raise ModelError("The model has no coefficients yet; fit it on a run first (`labcli fit RUN.h5`).")
@@ -632,7 +732,10 @@ class PostureModel:
             known, dth_f, cov_f = np.ones(n, bool), dth, cov_a
         else:
             raise ModelError(f"Unknown prediction mode '{mode}'; use pressure-only or measured-angles.")
-        F, cov_F = self._force_covariance(P0 - P, th0, dth_f, cov_f)
+        moved = None if motion_in is None else np.broadcast_to(np.asarray(motion_in, dtype=float), (n, 2))
+        F, cov_F = self._force_covariance(
+            P0 - P, th0, dth_f, cov_f, moved, self.pair_motion_sd() if mode == "pressure-only" else None
+        )
         # The gain form can leave a rounding-level negative variance where the data fix F exactly.
         se = {
             "theta1": np.sqrt(var1),
@@ -707,16 +810,25 @@ class PostureModel:
                     flags[i].append(why)
 
     def _force_covariance(
-        self, dP: np.ndarray, th0: np.ndarray, dth: np.ndarray, cov_dth: np.ndarray
+        self,
+        dP: np.ndarray,
+        th0: np.ndarray,
+        dth: np.ndarray,
+        cov_dth: np.ndarray,
+        motion_in: np.ndarray | None = None,
+        motion_sd: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Forces and their covariance: torque error through (J^T)^-1, angle error through dF/d(dtheta)."""
-        F, cov = self._forces(dP, th0, dth)
+        F, cov = self._forces(dP, th0, dth, motion_in, motion_sd)
         step = 1e-6
         G = np.empty((len(F), 2, 2))
         for k in range(2):
             d = np.zeros(2)
             d[k] = step
-            G[:, :, k] = (self._forces(dP, th0, dth + d)[0] - self._forces(dP, th0, dth - d)[0]) / (2 * step)
+            G[:, :, k] = (
+                self._forces(dP, th0, dth + d, motion_in, motion_sd)[0]
+                - self._forces(dP, th0, dth - d, motion_in, motion_sd)[0]
+            ) / (2 * step)
         cov = cov + np.einsum("nij,njk,nlk->nil", G, cov_dth, G)
         if not self.force_prior_sd:
             # A straight arm: without a prior the force along it is not determined at all.
@@ -726,8 +838,21 @@ class PostureModel:
     def predict_table(self, table: Any, mode: str = "pressure-only") -> dict[str, Any]:
         """``predict`` on a trial table (rest posture from theta1_0_deg, theta2_0_deg; absent = 0)."""
         a = table_arrays(table)
+        moved = None
+        if any(t in FRICTION_TERMS for t in self.torque_terms):
+            # The motion into each baseline from the previous trial's loaded posture: its
+            # deflection as this prediction sees it (estimated from the pressures unless measured).
+            est = self._angles(*pressure_arrays(a["P0"], a["P"]))[0]
+            seen = a["dtheta"] if mode == "measured-angles" else est
+            seen = np.where(np.isfinite(seen), seen, est)
+            moved = motion_into_baseline(a["trial"], a["theta0"], seen)
         out = self.predict(
-            a["P0"], a["P"], a["theta0"], mode=mode, theta=a["dtheta"] if mode == "measured-angles" else None
+            a["P0"],
+            a["P"],
+            a["theta0"],
+            mode=mode,
+            theta=a["dtheta"] if mode == "measured-angles" else None,
+            motion_in=moved,
         )
         out["trial"] = a["trial"]
         return out
@@ -796,7 +921,7 @@ class PostureModel:
         torque_terms = d.get("torque_terms", list(TORQUE_TERMS))
         torque_terms = torque_terms if isinstance(torque_terms, list) else [torque_terms]
         unknown = [str(t) for t in d["angle_terms"] if t not in ANGLE_TERMS] + [
-            str(t) for t in torque_terms if t not in TORQUE_TERMS
+            str(t) for t in torque_terms if t not in KNOWN_TORQUE_TERMS
         ]
         if unknown or not torque_terms or len(set(torque_terms)) < len(torque_terms):
             raise ModelError(
@@ -968,11 +1093,12 @@ def force_model_from_json(text: str, name: str = "the model") -> TakumaModel | P
     return TakumaModel.from_json(text, name=name)
 
 
-def table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def table_arrays(table: Any, rows: np.ndarray | None = None, motion: bool = False) -> dict[str, np.ndarray]:
     """Trial ids, pressures (MPa), rest posture and deflections (rad), forces (N) of a trial table.
 
     ``rows``: a boolean mask of the rows wanted (default all), taken column by column so
-    the table itself is never copied.
+    the table itself is never copied.  ``motion``: also each trial's measured motion into its
+    baseline (``motion_in``, :func:`motion_into_baseline`).
     """
     n = len(table) if rows is None else int(np.count_nonzero(rows))
 
@@ -991,7 +1117,7 @@ def table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.nda
         )
     rest = col(REST_COLUMNS, 0.0)
     trial = np.asarray(table["trial"])
-    return {
+    out = {
         "trial": (trial if rows is None else trial[rows]).astype(int),
         "P0": col(BASELINE_COLUMNS),
         "P": col(LOADED_COLUMNS),
@@ -999,3 +1125,19 @@ def table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.nda
         "dtheta": np.deg2rad(col(ANGLE_COLUMNS)),
         "F": col(FORCE_COLUMNS),
     }
+    if motion:
+        # From every row: the previous trial of a fit trial may be one that ``rows`` leaves out.
+        def whole(names: tuple[str, ...], default: float) -> np.ndarray:
+            return np.column_stack(
+                [
+                    np.asarray(table[c], dtype=float) if c in table.columns else np.full(len(table), default)
+                    for c in names
+                ]
+            )
+
+        r = whole(REST_COLUMNS, 0.0)
+        moved = motion_into_baseline(
+            trial, np.deg2rad(np.where(np.isfinite(r), r, 0.0)), np.deg2rad(whole(ANGLE_COLUMNS, math.nan))
+        )
+        out["motion_in"] = moved if rows is None else moved[rows]
+    return out
