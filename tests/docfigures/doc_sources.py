@@ -523,6 +523,13 @@ SOURCES: dict[str, Source] = {
             runs={"": ()},
         ),
         Source(
+            "friction-estimator",
+            "benchmark",
+            "the posture form with and without the sleeves' friction terms on the literature's rig, seeds 11-30",
+            script="friction_estimator.py",
+            runs={"": ()},
+        ),
+        Source(
             "baseline-estimator-new-rig",
             "benchmark",
             "the estimators of the commit it names on the literature's rig, held-out seeds 11-30",
