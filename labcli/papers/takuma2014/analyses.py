@@ -250,7 +250,7 @@ def validate(
     ev = evaluate(model, src.table, mode=mode, source=str(run))
     ev["forms"] = side_by_side(model, ev, src, mode, str(run))
     if plot is not None:
-        figure7(ev, plot)
+        figure7(ev, plot, run=str(run), protocol=src.protocol.name, form=getattr(model, "form", "paper"))
     return ValidationResult(ev, Path(model_path or default_model_path(run)), run, plot, label, warnings)
 
 

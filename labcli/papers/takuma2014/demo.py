@@ -138,7 +138,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False, progress
         save_model(model.to_json(), files["model"], run=files["force_run"], name=model.protocol)
     with stages.run(2, "validate"):
         evaluation = evaluate(model, src.table, "pressure-only", source=str(files["force_run"]))
-        figure7(evaluation, files["figure7"])
+        figure7(evaluation, files["figure7"], run=str(files["force_run"]), protocol=src.protocol.name, form="paper")
     with stages.run(3, "ideal_rig"):
         ideal = _ideal_rig_accuracy(port + IDEAL, progress)
     with stages.run(4, "acquire_pushes"):
@@ -201,7 +201,7 @@ def _bent_arm(port: str, files: dict[str, Path], progress: Progress | None) -> d
     model = _posture(bent, files["bent_run"])
     save_model(model.to_json(), files["bent_model"], run=files["bent_run"], name=model.protocol)
     evaluation = evaluate(model, bent.table, "pressure-only", source=str(files["bent_run"]))
-    figure7(evaluation, files["figure7_bent"])
+    figure7(evaluation, files["figure7_bent"], run=str(files["bent_run"]), protocol=bent.protocol.name, form=model.form)
     paper = TakumaModel(geometry=bent.protocol.settings.rig, protocol=bent.protocol.name).fit(bent.table)
     return {"posture": _accuracy(evaluation), "paper": _accuracy(evaluate(paper, bent.table, "pressure-only"))}
 

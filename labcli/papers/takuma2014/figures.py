@@ -28,35 +28,95 @@ FIGURE7_PANELS = (
 FIGURE7_SYMBOLS = {"theta1": "\\theta_1", "theta2": "\\theta_2", "Fx": "F_x", "Fy": "F_y"}
 
 
-def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None = None) -> Path:
-    """Draw the paper's Figure 7 from :func:`labcli.papers.takuma2014.models.metrics.evaluate` and save it.
-
-    Flagged trials (prediction not trustworthy, left out of the metrics) are drawn as open
-    red markers at their stand-in values, pinned to the frame when they fall outside it.
-    """
-    import numpy as np
-
-    p = check_path(path)
-    fig = new_figure(8.0, 8.4)
-    axes = fig.subplots(2, 2)
+def figure7_title(
+    evaluation: dict[str, Any], run: str | None = None, protocol: str | None = None, form: str | None = None
+) -> str:
+    """Figure 7's title: what it shows, the run, its protocol and the model form that made the estimates."""
     mode = evaluation.get("mode", "pressure-only")
     how = "forces from the calculated angles" if mode == "pressure-only" else "forces from the measured angles"
+    about = [f"run {Path(str(run)).name}" if run else "", f"protocol {protocol}" if protocol else ""]
+    about.append({"posture": "posture form", "paper": "the paper's Eqs. 34-37"}.get(str(form), str(form or "")))
+    named = ", ".join(a for a in about if a)
+    return f"Figure 7: validation trials, {how}" + (f"\n{named}" if named else "")
+
+
+def figure7_panel(evaluation: dict[str, Any], q: str) -> dict[str, Any]:
+    """One panel's data: the reported trials with their 95 % error bars, the flagged ones where their
+    estimates lie (the frame holds every finite point; none is clipped), the frame, and a note when
+    no trial is reported (on a straight arm Fy: the force along the arm makes no torque)."""
+    import numpy as np
+
+    obs = np.asarray(evaluation["observed"][q], dtype=float)
+    calc = np.asarray(evaluation["calculated"][q], dtype=float)
+    flag_ok = np.asarray(evaluation["ok"][q], dtype=bool)
+    ok = flag_ok & np.isfinite(obs) & np.isfinite(calc)
+    bad = ~flag_ok & np.isfinite(obs) & np.isfinite(calc)
+    se = evaluation.get("se")
+    err = 1.96 * np.asarray(se[q], dtype=float)[ok] if se is not None else None
+    if err is not None:
+        err = np.where(np.isfinite(err), err, 0.0)
+    ends = [obs[ok | bad], calc[ok | bad]]
+    if err is not None:
+        ends += [calc[ok] - err, calc[ok] + err]
+    shown = np.concatenate(ends) if ends else np.empty(0)
+    lo, hi = (float(shown.min()), float(shown.max())) if shown.size else (-1.0, 1.0)
+    pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.1
+    m = evaluation["metrics"][q]
+    note = ""
+    if not m.get("n") and m.get("n_flagged"):
+        note = "none reported: every trial's standard error\nis over the protocol's limit"
+        if q == "Fy":
+            note += "\n(a straight arm: a force along it\nmakes no torque)"
+    return {
+        "observed": obs[ok],
+        "calculated": calc[ok],
+        "error_95": err,
+        "flagged_observed": obs[bad],
+        "flagged_calculated": calc[bad],
+        "limits": (lo - pad, hi + pad),
+        "note": note,
+        "no_estimate": int((~flag_ok & np.isfinite(obs) & ~np.isfinite(calc)).sum()),
+    }
+
+
+def figure7(
+    evaluation: dict[str, Any],
+    path: str | Path,
+    *,
+    title: str | None = None,
+    run: str | None = None,
+    protocol: str | None = None,
+    form: str | None = None,
+) -> Path:
+    """Draw the paper's Figure 7 from :func:`labcli.papers.takuma2014.models.metrics.evaluate` and save it.
+
+    The title names the run, its protocol and the model form (:func:`figure7_title`); each reported
+    trial carries its 95 % interval (1.96 standard errors) where the form gives them, and flagged
+    trials (left out of the metrics) are open red markers where their estimates lie, inside the
+    frame (:func:`figure7_panel`).
+    """
+    p = check_path(path)
+    fig = new_figure(8.0, 8.6)
+    axes = fig.subplots(2, 2)
     for ax, (q, label, unit) in zip(axes.flat, FIGURE7_PANELS, strict=False):
-        obs = np.asarray(evaluation["observed"][q], dtype=float)
-        calc = np.asarray(evaluation["calculated"][q], dtype=float)
-        ok = np.asarray(evaluation["ok"][q], dtype=bool) & np.isfinite(obs) & np.isfinite(calc)
-        bad = ~np.asarray(evaluation["ok"][q], dtype=bool) & np.isfinite(obs)
-        shown = np.concatenate([obs[np.isfinite(obs)], calc[ok]])
-        if shown.size:
-            lo, hi = float(shown.min()), float(shown.max())
-        else:
-            lo, hi = -1.0, 1.0
-        pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.1
-        lo, hi = lo - pad, hi + pad
+        panel = figure7_panel(evaluation, q)
+        lo, hi = panel["limits"]
         ax.plot([lo, hi], [lo, hi], color="0.35", lw=1.0, zorder=1, label="observed = calculated")
+        if panel["error_95"] is not None and len(panel["observed"]):
+            ax.errorbar(
+                panel["observed"],
+                panel["calculated"],
+                yerr=panel["error_95"],
+                fmt="none",
+                ecolor="tab:blue",
+                elinewidth=0.7,
+                alpha=0.6,
+                zorder=2,
+                label="95 % interval",
+            )
         ax.scatter(
-            obs[ok],
-            calc[ok],
+            panel["observed"],
+            panel["calculated"],
             s=26,
             marker="o",
             facecolor="tab:blue",
@@ -65,11 +125,11 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
             zorder=3,
             label="validation trial",
         )
-        if bad.any():
-            pinned = np.clip(np.nan_to_num(calc[bad], nan=lo), lo, hi)
+        flagged = len(panel["flagged_observed"]) > 0
+        if flagged:
             ax.scatter(
-                obs[bad],
-                pinned,
+                panel["flagged_observed"],
+                panel["flagged_calculated"],
                 s=40,
                 marker="^",
                 facecolor="none",
@@ -95,6 +155,10 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
         )
         if m.get("n_flagged"):
             text += f"\nflagged {m['n_flagged']}"
+        if panel["no_estimate"]:
+            text += f" ({panel['no_estimate']} without an estimate, not drawn)"
+        if panel["note"]:
+            text += "\n" + panel["note"]
         ax.text(
             0.03,
             0.97,
@@ -105,9 +169,9 @@ def figure7(evaluation: dict[str, Any], path: str | Path, *, title: str | None =
             fontsize=8,
             bbox=dict(boxstyle="round,pad=0.3", facecolor="white", edgecolor="0.7", alpha=0.9),
         )
-        if bad.any():
+        if flagged or panel["error_95"] is not None:
             ax.legend(loc="lower right", fontsize=7, frameon=True)
-    fig.suptitle(title or f"Accuracy of contact information (Figure 7): validation trials, {how}", fontsize=11)
+    fig.suptitle(title or figure7_title(evaluation, run, protocol, form), fontsize=11)
     fig.tight_layout()
     save(fig, p)
     return p

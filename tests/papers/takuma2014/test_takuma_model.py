@@ -505,3 +505,32 @@ def test_the_validation_report_lists_few_flagged_trials_and_counts_many_by_reaso
         assert f"{n_flagged} of {n} trials flagged" in out and "--json lists every trial" in out
         assert f"  {n_flagged} x " in out and "trials 1000, 1001, 1002" in out and f"({n_flagged - 10} more)" in out
         assert "  1 x " in out  # the bad pressure, on trial 1000 alone
+
+
+def test_figure7_names_its_run_and_shows_intervals_and_every_flagged_trial(validation: pd.DataFrame) -> None:
+    """The posture form's straight-arm run: Fy flagged on every trial, drawn where it lies, explained."""
+    from labcli.papers.takuma2014.figures import figure7_panel, figure7_title
+    from labcli.papers.takuma2014.models.posture import PostureModel
+
+    rows = paper_trials(90, seed=1)
+    model = PostureModel(geometry=G).fit(rows)
+    ev = evaluate(model, validation)
+    title = figure7_title(ev, "runs/force.h5", "takuma2014", model.form)
+    assert title.endswith("run force.h5, protocol takuma2014, posture form")
+    assert "calculated angles" in title
+    fx = figure7_panel(ev, "Fx")
+    assert fx["error_95"] is not None and len(fx["error_95"]) == len(fx["observed"]) > 0
+    assert np.allclose(fx["error_95"], 1.96 * np.asarray(ev["se"]["Fx"])[ev["ok"]["Fx"]])
+    lo, hi = fx["limits"]
+    assert lo <= np.min(fx["calculated"] - fx["error_95"]) and np.max(fx["calculated"] + fx["error_95"]) <= hi
+    # The paper's form near a straight upper joint flags Fy: drawn where the estimates lie.
+    near = paper_trials(2, seed=4, set_name="validation", start_id=900, theta2_values_deg=[0.8, -1.5])
+    ev = evaluate(fit(rows, G), pd.concat([validation, near]))
+    fy = figure7_panel(ev, "Fy")
+    flagged = np.concatenate([fy["flagged_observed"], fy["flagged_calculated"]])
+    lo, hi = fy["limits"]
+    assert len(fy["flagged_observed"]) == 2 and lo <= flagged.min() and flagged.max() <= hi
+    assert fy["error_95"] is None and fy["note"] == ""  # the paper's form gives no standard errors
+    # No trial reported at all: the panel says why.
+    ev["metrics"]["Fy"] = {**ev["metrics"]["Fy"], "n": 0, "n_flagged": 62}
+    assert "straight arm" in figure7_panel(ev, "Fy")["note"]
