@@ -79,8 +79,14 @@ def objects(seed: int, kw: dict[str, Any], pushes: int) -> dict[str, Any]:
         "posture": PostureModel(geometry=force.settings.rig, limits=limits_from_protocol(force)),
     }
     out: dict[str, Any] = {}
+    from labcli.errors import ModelError
+
     for form, model in models.items():
-        for row in classify_rows(trials, table, model.fit(trials)):
+        try:
+            rows = classify_rows(trials, table, model.fit(trials))
+        except ModelError:
+            continue  # this form cannot be fitted at this level: its objects stay unmeasured
+        for row in rows:
             key = f"objects/{form}/{row['object']}"
             out[f"{key}/k_over_true"] = float(row["ratio"])
             out[f"{key}/category"] = row["category"] or ""
