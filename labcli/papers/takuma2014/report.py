@@ -310,6 +310,7 @@ def print_classification(
         ]
         objects.add_row(*row)
     print_table(con, objects)
+    con.print(method_sentence(data), soft_wrap=True)
     unit = "class spreads of ln k" if data["method"] == "reference" else "the object's spread of ln k outside each band"
     con.print(f"Distance to each category (z, in {unit}):", soft_wrap=True)
     for o in data["objects"]:
@@ -369,6 +370,32 @@ def _print_pushes(con: Any, pushes: list[dict[str, Any]], title: str) -> None:
             "flagged" if p["flagged"] else "",
         )
     print_table(con, table)
+
+
+def method_sentence(data: dict[str, Any]) -> str:
+    """Which method made the categories and why, in one sentence (the same pushes classified by the
+    other method can land elsewhere: the demo uses the protocol's bands)."""
+    objects = data.get("objects", [])
+    refs = [o for o in objects if o.get("role") == "reference"]
+    if data.get("method") == "reference":
+        given: dict[str, int] = {}
+        for o in refs:
+            given[str(o.get("category_given"))] = given.get(str(o.get("category_given")), 0) + 1
+        alone = [c for c, n in given.items() if n == 1]
+        why = (
+            f"Categories by reference objects: {len(refs)} of the objects carry a category "
+            f"({', '.join(f'{c} {n}' for c, n in sorted(given.items()))}), and auto takes them when any push does"
+        )
+        if refs and len(refs) == len(objects):
+            why += "; every object is a reference, so each category largely repeats its own label"
+        if alone:
+            why += f" ({', '.join(sorted(alone))}: one reference, in-sample)"
+        return why + ". --method bands judges each object by the protocol's stiffness bands instead, as the demo does."
+    return (
+        "Categories by the protocol's stiffness bands: each object's median k_o against fixed limits "
+        "(no push carries a category, or --method bands); labelled reference objects (a category "
+        "column, or --reference) would classify by them instead."
+    )
 
 
 def category_text(o: dict[str, Any]) -> str:
