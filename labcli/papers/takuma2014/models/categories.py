@@ -29,9 +29,10 @@ Two methods, and every result says which one was used:
     band.  Medians outside every band give the category "" and confidence 0.
     The median, not the mean: a push whose phi was solved wrong (phi moves by
     about R/d times the force direction's error) gives a wild stiffness, and on
-    the bent arm one such push lifted a soft object's mean into the medium band
-    (tests/benchmarks/phi_bent.py: 6/6 objects in category on 4 of 10 seeds by
-    the mean, 10 of 10 by the median).
+    the bent arm one such push lifted a soft object's mean into the medium band.
+    Chosen on rig seeds 1-10; on the held-out seeds 11-30, pushes on the bent arm
+    with phi left blank put all six objects in their category on 12 of 20 seeds by
+    the mean, 20 of 20 by the median (tests/benchmarks/heldout_choices.py median).
 
 Either way each object also gets its evidence: the distance to every class (z above;
 for bands, how far ln of its median lies outside each band in its own spread of ln k), and
