@@ -24,11 +24,12 @@ from typing import Any
 
 from ..errors import ConfigError, DeviceError, StoreError
 from .device import Device
-from .engine import SILENT_S, Outcome, RunEngine
+from .engine import SILENT_S, NewRun, Outcome, RunEngine
 from .paper import AcquireOptions
 from .protocol import load_protocol, loads_protocol
 from .registry import record_type, run_protocol
 from .sessionlog import RigIdentity, SessionInfo, describe, recorded_identity
+from .simoperator import Connection, connect
 from .store import RESUME_OR_FORCE, RunFile
 from .store.space import check_new_file
 from .timestamps import utc_now
@@ -177,14 +178,21 @@ class Link:
     def open(self) -> Device:
         return Device.open(self.port, baudrate=self.baud, timeout=self.timeout)
 
+    def connect(self) -> Connection:
+        """The rig opened, with who acts at it when it is simulated (:mod:`.simoperator`)."""
+        return connect(self.open())
+
 
 @dataclass(frozen=True)
 class SessionOptions:
-    """What the session log records beside the link and the rig."""
+    """What the session log records beside the link and the rig, and how the session runs."""
 
     operator: str = ""
     resumed: bool = False
     other_rig: bool = False
+    unattended: bool = False
+    rate_hz: float | None = None
+    silent_s: float = SILENT_S
 
 
 def acquire(
@@ -219,120 +227,93 @@ def acquire(
     _check_options(resume, force, plan, no_plan)
     options = AcquireOptions(path, plan=plan, no_plan=no_plan, experiment=experiment, unattended=unattended)
     link = Link(port, baud, device_timeout)
-    store: Any = None
+    existing: RunFile | None = None
     given = None
     if resume:
-        acq, store, finished, given = _resume(path, protocol, options)
+        acq, existing, finished, given = _resume(path, protocol, options)
         if finished is not None:
             return finished
     else:
         acq = _plan_new(path, protocol, options, force)
     try:
-        device = link.open()
+        rig = link.connect()
     except BaseException:
-        if store is not None:
-            store.close()
+        if existing is not None:
+            existing.close()
         raise
     try:
-        if unattended and device.rig is None:
+        if unattended and rig.operator is None:
             raise ConfigError(
                 f"--unattended drives the simulated rig only, and {port} is a real port: "
                 "run without --unattended and follow the prompts."
             )
         other = []
-        if store is not None:
+        if existing is not None:
             other = check_rig(
-                store, path, device.info, (given or acq.protocol).calibration, allow_other=allow_other_rig
+                existing, path, rig.device.info, (given or acq.protocol).calibration, allow_other=allow_other_rig
             )
-        completed = list(store.records.ids()) if store is not None else []
-        if store is None:
-            store = _creator(path, acq, device.info, port, operator, force)
-        engine = _engine(
-            device,
-            store,
-            acq,
-            ui,
-            link,
-            path,
-            unattended,
-            rate_hz,
-            silent_s,
-            SessionOptions(operator, resume, bool(other)),
+        # A resumed run is open already; a new one is created when its first trial begins.
+        run = (
+            existing
+            if existing is not None
+            else NewRun(path, acq.protocol, acq.kind, rig.device.info, port, operator, acq.plan, force)
         )
+        opts = SessionOptions(operator, resume, bool(other), unattended, rate_hz, silent_s)
+        engine = _engine(rig, run, acq, ui, link, path, opts)
         if other:
             engine.ui.warn(f"continuing {path} on another rig ({describe(other)}), as --allow-other-rig allows")
         for cb in subscribers:
             engine.subscribe(cb)
-        try:
-            return engine.run(acq.session(completed), restart=acq.session, reopen=link.open)
-        finally:
-            # The session is over (finished, quit, interrupted or the rig lost): a Ctrl-C now
-            # has nothing left to stop, and must not cut the file's close short.
-            with sigint_ignored():
-                if engine.store_created:
-                    engine.store.close()
-                if engine.device is not device:  # reopened after the rig was lost
-                    with contextlib.suppress(Exception):
-                        engine.device.close()
+        completed = existing.records.ids() if existing is not None else []
+        return _run(engine, acq, completed, link, rig.device)
     finally:
         with contextlib.suppress(Exception):
-            device.close()
-        if store is not None and not callable(store):
-            store.close()
+            rig.device.close()
+        if existing is not None:
+            existing.close()
 
 
-def _creator(path: str, acq: Any, info: Any, port: str, operator: str, force: bool) -> Callable[[], RunFile]:
-    """Creates the run file on first use, so a session that fails its setup check leaves none."""
-
-    def create() -> RunFile:
-        return RunFile.create(
-            path,
-            protocol=acq.protocol,
-            kind=acq.kind,
-            device_info=info,
-            port=port,
-            operator=operator,
-            plan=acq.plan,
-            force=force,
-        )
-
-    return create
+def _run(engine: RunEngine, acq: Any, completed: list[int], link: Link, device: Device) -> Outcome:
+    """The session on the engine to its end; then the run file closed, whatever happened."""
+    try:
+        return engine.run(acq.session(completed), restart=acq.session, reopen=link.connect)
+    finally:
+        # The session is over (finished, quit, interrupted or the rig lost): a Ctrl-C now
+        # has nothing left to stop, and must not cut the file's close short.
+        with sigint_ignored():
+            if engine.run_file is not None:
+                engine.run_file.close()
+            if engine.device is not device:  # reopened after the rig was lost
+                with contextlib.suppress(Exception):
+                    engine.device.close()
 
 
 def _engine(
-    device: Any,
-    store: Any,
-    acq: Any,
-    ui: Any,
-    link: Link,
-    path: str,
-    unattended: bool,
-    rate_hz: float | None,
-    silent_s: float,
-    opts: SessionOptions,
+    rig: Connection, run: RunFile | NewRun, acq: Any, ui: Any, link: Link, path: str, opts: SessionOptions
 ) -> RunEngine:
     command = resume_command(
-        path, link.port, unattended=unattended, rate_hz=rate_hz, baud=link.baud, other_rig=opts.other_rig
+        path, link.port, unattended=opts.unattended, rate_hz=opts.rate_hz, baud=link.baud, other_rig=opts.other_rig
     )
     info = SessionInfo(
         utc_now(),
         link.port,
         link.baud,
-        RigIdentity.of(device.info, acq.protocol.calibration),
+        RigIdentity.of(rig.device.info, acq.protocol.calibration),
         opts.operator,
         command,
         opts.resumed,
         opts.other_rig,
     )
     return RunEngine(
-        device,
-        store,
+        rig.device,
+        run,
         acq.protocol,
-        ui or (UnattendedUI() if unattended else RichUI()),
+        ui or (UnattendedUI() if opts.unattended else RichUI()),
         run_path=path,
         resume_command=command,
-        rate_hz=rate_hz,
-        silent_s=silent_s,
+        simulated_operator=rig.operator,
+        rate_hz=opts.rate_hz,
+        silent_s=opts.silent_s,
         noun=record_type(acq.kind).noun,
         session=info,
     )

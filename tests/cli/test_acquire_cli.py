@@ -15,6 +15,8 @@ from labcli.core.acquisition import resume_command
 from labcli.core.device import Device
 from labcli.core.engine import RunEngine
 from labcli.core.protocol import load_protocol
+from labcli.core.setupcheck import check_readings
+from labcli.core.simoperator import operator_for
 from labcli.core.store import RunFile
 from labcli.core.ui import UnattendedUI
 from labcli.errors import DeviceDisconnected, DeviceTimeout
@@ -41,7 +43,13 @@ def open_run(path, port, plan=PLAN):
     dev = Device.open(port)
     store = RunFile.create(path, protocol=PROTOCOL, device_info=dev.info, port=port, plan=plan)
     engine = RunEngine(
-        dev, store, PROTOCOL, quiet_ui(), run_path=str(path), resume_command=resume_command(str(path), port)
+        dev,
+        store,
+        PROTOCOL,
+        quiet_ui(),
+        run_path=str(path),
+        resume_command=resume_command(str(path), port),
+        simulated_operator=operator_for(dev),
     )
     return dev, store, engine
 
@@ -148,7 +156,13 @@ def test_a_silent_rig_mid_trial_is_reported_with_the_resume_command(tmp_path):
     dev = Device.open(port, timeout=0.3)  # the device's own silence limit, wall clock
     store = RunFile.create(path, protocol=PROTOCOL, device_info=dev.info, port=port, plan=PLAN.iloc[:3])
     engine = RunEngine(
-        dev, store, PROTOCOL, quiet_ui(), run_path=str(path), resume_command=resume_command(str(path), port)
+        dev,
+        store,
+        PROTOCOL,
+        quiet_ui(),
+        run_path=str(path),
+        resume_command=resume_command(str(path), port),
+        simulated_operator=operator_for(dev),
     )
 
     def fall_silent_in_trial_2(step, reply):
@@ -353,13 +367,10 @@ def test_setup_check_names_the_mismatching_channels(tmp_path):
 
 
 def test_setup_check_says_which_reading_is_out_of_range():
-    engine = RunEngine.__new__(RunEngine)
-    engine.protocol = PROTOCOL
-    engine._pcols, engine._acols = [0, 1, 2, 3], [4, 5]
     counts = np.tile([1556, 1560, 0, 1551, 2048, 3900], (10, 1)).astype(float)  # P_L2 unplugged, POT2 at 154 deg
     si = PROTOCOL.calibration.to_si(counts)
     w = Window.of(np.arange(10), counts, si, t_us=np.arange(10) * 5000, t_s=np.arange(10) * 0.005)
-    assert engine._check_readings(w) == [
+    assert check_readings(w, PROTOCOL, [0, 1, 2, 3], [4, 5]) == [
         "P_L2 reads -0.250 to -0.250 MPa, outside the sensor span 0 to 1 MPa (check that sensor's cable and supply)",
         "POT2 reads 153.8 to 153.8 deg, outside the plausible -90 to 90 deg (check the potentiometer's wiring "
         "and centring)",

@@ -16,6 +16,7 @@ from labcli.core.device import Device
 from labcli.core.engine import RunEngine
 from labcli.core.protocol import load_protocol
 from labcli.core.sessionlog import RigIdentity, SessionInfo
+from labcli.core.simoperator import operator_for
 from labcli.core.store import RunFile
 from labcli.core.ui import UnattendedUI
 from labcli.papers.takuma2014.protocol import load_plan
@@ -39,6 +40,7 @@ def partial_run(path, store_wrap=lambda s: s, trials=2):
         UnattendedUI(console=Console(file=io.StringIO(), width=200)),
         run_path=str(path),
         resume_command=resume_command(str(path), PORT),
+        simulated_operator=operator_for(dev),
         session=info,
     )
     outcome = engine.run(force_session(PROTOCOL, PLAN.iloc[:trials]))

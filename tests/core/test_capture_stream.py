@@ -26,6 +26,7 @@ from support.records import make_record, stored_trials
 from labcli.core.capture import GapTally, WindowSink
 from labcli.core.device import Device
 from labcli.core.engine import RunEngine
+from labcli.core.simoperator import operator_for
 from labcli.core.steps import Baseline, BeginTrial, Capture, Commit, Finish, SettleReport, SetupCheck
 from labcli.core.store import RunFile
 from labcli.core.store.checksum import frames_checksum
@@ -143,7 +144,15 @@ def test_a_streamed_trial_stores_the_frames_the_rig_sent_and_verifies(tmp_path):
     dev = Recording(Device.open(port(4)))
     path = tmp_path / "run.h5"
     with RunFile.create(path, protocol=protocol, device_info=dev.info, port=port(4)) as run:
-        engine = RunEngine(dev, run, protocol, _quiet(), run_path=str(path), resume_command="resume")
+        engine = RunEngine(
+            dev,
+            run,
+            protocol,
+            _quiet(),
+            run_path=str(path),
+            resume_command="resume",
+            simulated_operator=operator_for(dev),
+        )
         outcome = engine.run(_two_window_trials(protocol, redo=False))
     dev.close()
     assert outcome.status == "finished" and outcome.stored == 1
@@ -192,7 +201,15 @@ def test_a_redone_window_stays_unreferenced_and_the_trial_takes_the_last(tmp_pat
     dev = Device.open(port(6))
     path = tmp_path / "run.h5"
     with RunFile.create(path, protocol=protocol, device_info=dev.info, port=port(6)) as run:
-        engine = RunEngine(dev, run, protocol, _quiet(), run_path=str(path), resume_command="resume")
+        engine = RunEngine(
+            dev,
+            run,
+            protocol,
+            _quiet(),
+            run_path=str(path),
+            resume_command="resume",
+            simulated_operator=operator_for(dev),
+        )
         seen: list = []
         engine.subscribe(lambda step, reply: seen.append(reply) if isinstance(step, (Baseline, Capture)) else None)
         assert engine.run(_two_window_trials(protocol, redo=True)).stored == 1

@@ -12,10 +12,10 @@ import pytest
 import serial
 
 from labcli.core.acquisition import acquire
-from labcli.core.engine import RATE_TOLERANCE
 from labcli.core.sim import register
 from labcli.core.sim.url import accepted_form, firmware_options
 from labcli.core.store import RunFile
+from labcli.core.stream import RATE_TOLERANCE
 from labcli.core.wire import parse_line
 
 register()

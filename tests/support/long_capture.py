@@ -28,6 +28,7 @@ from rich.console import Console
 from labcli.core.device import Device
 from labcli.core.engine import Outcome, RunEngine
 from labcli.core.protocol import Protocol, load_protocol
+from labcli.core.simoperator import operator_for
 from labcli.core.store import RunFile
 from labcli.core.ui import UnattendedUI
 from labcli.papers.takuma2014.protocol import load_plan
@@ -66,7 +67,7 @@ class InMemoryEngine(RunEngine):
     """The engine capturing as it did before windows were streamed: each window whole in memory."""
 
     def _capture(self, duration_s: float) -> Any:
-        window = self._collect(duration_s)
+        window = self.stream.collect(duration_s)
         gap = float(np.median(np.diff(window.t_s))) if len(window) > 1 else math.nan
         self._check_rate(len(window), gap)
         return window
@@ -88,6 +89,7 @@ def record_trial(
                 UnattendedUI(console=Console(file=io.StringIO(), width=200)),
                 run_path=str(path),
                 resume_command=f"labcli acquire {path} --resume",
+                simulated_operator=operator_for(dev),
             )
             return engine.run(force_session(protocol, plan))
     finally:

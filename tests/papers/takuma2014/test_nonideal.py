@@ -295,6 +295,7 @@ def unattended_load_settles(tmp_path, url):
     from labcli.core.device import Device
     from labcli.core.engine import RunEngine
     from labcli.core.protocol import load_protocol
+    from labcli.core.simoperator import operator_for
     from labcli.core.steps import Capture, WaitSettle
     from labcli.core.store import RunFile
     from labcli.core.ui import UnattendedUI
@@ -316,6 +317,7 @@ def unattended_load_settles(tmp_path, url):
         UnattendedUI(console=Console(file=io.StringIO())),
         run_path=str(run_path),
         resume_command="",
+        simulated_operator=operator_for(dev),
     )
     rig, at_accept, excess = dev.rig, {}, []
 
