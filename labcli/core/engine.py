@@ -180,7 +180,7 @@ class RunEngine:
             assert self._new_run is not None
             with _sigint_deferred():  # Ctrl-C during the creation: the file exists whole, or not at all
                 self.run_file = self._new_run.create()
-            self._begin_log(self.run_file)
+                self._begin_log(self.run_file)
         return self.run_file
 
     def _begin_log(self, run: RunFile) -> None:
