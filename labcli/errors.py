@@ -36,6 +36,10 @@ class DeviceTimeout(DeviceError):
         self.what = what
 
 
+class DeviceUnsupported(DeviceError):
+    """The board lacks what a command needs (a wire-protocol 1.0 board asked to move its valves)."""
+
+
 class DeviceDisconnected(DeviceError):
     """The device vanished mid-stream (unplugged, port closed)."""
 

@@ -48,7 +48,8 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False) -> Any:
     link = Text(
         f"{snap.frames_per_s:.1f} frames/s · {c['frames']} frames · {c['lost']} lost · "
         f"{c['bad_checksum']} bad checksum · {c['malformed']} malformed · {c['overlong']} overlong · "
-        f"{c.get('stalls', 0)} stalls · {c['log_lines']} log lines · {snap.elapsed_s:.1f} s"
+        f"{c.get('stalls', 0)} stalls · {c['log_lines']} log lines · {c.get('events', 0)} events · "
+        f"{snap.elapsed_s:.1f} s"
     )
     return Group(table, link)
 
@@ -163,7 +164,7 @@ def _print_summary(summary: Any, scale: Any) -> None:
         f"({summary.frames_per_s:.1f} frames/s at {summary.rate_hz:g} Hz set), "
         f"{c.get('stalls', 0)} stalls, {c['lost']} lost, "
         f"{c['bad_checksum']} bad checksum, {c['malformed']} malformed, {c['overlong']} overlong, "
-        f"{c['log_lines']} log lines."
+        f"{c['log_lines']} log lines, {c.get('events', 0)} events."
     )
     shown_mean = scale.to_display(summary.mean)
     shown_std = scale.to_display(summary.std)

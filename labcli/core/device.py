@@ -11,6 +11,12 @@ typed :class:`~labcli.errors.DeviceError` naming the port and what to check.
         dev.start()
         batch = dev.read(timeout=1.0)     # FrameBatch of raw counts
         dev.stop()
+
+The handshake also asks ``CAPS?``: a wire-protocol 1.1 board names its valves, pressure
+limit, events and model (:class:`~labcli.core.board.BoardCaps`), a 1.0 board answers ``ERR``
+and is driven as before.  The valve, pressure-limit and baseline commands
+(:meth:`Device.set_valves`, :meth:`Device.set_pressure_limit`, :meth:`Device.take_baseline`)
+refuse a board without them in one sentence.
 """
 
 from __future__ import annotations
@@ -22,7 +28,9 @@ from typing import Any
 
 import serial
 
-from ..errors import DeviceDisconnected, DeviceError, DeviceNotFound, DeviceTimeout
+from ..errors import DeviceDisconnected, DeviceError, DeviceNotFound, DeviceTimeout, DeviceUnsupported
+from .board import V1, VALVE_LETTERS, BoardCaps, parse_states
+from .boardlines import Estimate, Event
 from .sim import register as register_url_handlers
 from .wire import FrameBatch, StreamReader, format_command
 
@@ -97,6 +105,7 @@ class Device:
         self._last_frame = time.monotonic()
         self._noise_at_frame: dict[str, int] = {}  # noise counters when the last frame came
         self.info: DeviceInfo | None = None
+        self.caps: BoardCaps = V1  # what the board offers beyond wire protocol 1.0 (CAPS?)
         self._other_reply: str | None = None  # last non-ID answer during the handshake
 
     # -- opening ---------------------------------------------------------------
@@ -181,8 +190,25 @@ class Device:
         # replies; STOP on an idle board is answered too, so always send it.
         # (A firmware that answers ERR when idle is in a known state as well.)
         self._command("STOP", expect="OK STOP", accept_err=True)
+        self.caps = self._ask_caps()
         self._backlog.clear()
         self._reader.reset_counters()
+
+    def _ask_caps(self) -> BoardCaps:
+        """A 1.1 board's capabilities; a 1.0 board (``ERR``, or no answer at all) offers none."""
+        try:
+            reply = self._command("CAPS?", expect="CAPS", accept_err=True)
+        except DeviceTimeout:
+            return V1
+        if reply.startswith("ERR"):
+            return V1
+        try:
+            return BoardCaps.parse(reply)
+        except ValueError:
+            raise DeviceError(
+                f"The device on {self.name} answered CAPS? with {reply!r}, not CAPS,<version>,<capability>,... "
+                "Check that its firmware speaks wire protocol 1.1."
+            ) from None
 
     def _handshake_failed(self, wait: float) -> None:
         reader = self._reader
@@ -319,7 +345,7 @@ class Device:
         while True:
             while self._reader.replies:
                 text = self._reader.replies.popleft()
-                if text == expect or text.startswith(expect + " "):
+                if text == expect or text.startswith((expect + " ", expect + ",")):
                     return text
                 if text.startswith("ERR"):
                     if accept_err:
@@ -337,6 +363,93 @@ class Device:
             batch = self._pump(min(remaining, 0.2))
             if len(batch):
                 self._backlog.append(batch)  # frames around a command are kept, never dropped
+
+    # -- wire protocol 1.1: valves, pressure limit, events, the board's model ------
+
+    def _need(self, what: str, have: bool) -> None:
+        if have:
+            return
+        fw = self.info.firmware if self.info else "?"
+        if self.caps.protocol == "1.0":
+            raise DeviceUnsupported(
+                f"The board on {self.name} (firmware {fw}) speaks wire protocol 1.0, which has no {what}; "
+                "flash firmware 1.1 (`labcli flash`) or do it by hand at the rig."
+            )
+        raise DeviceUnsupported(
+            f"The board on {self.name} (firmware {fw}, wire protocol {self.caps.protocol}) offers no {what} "
+            f"(its CAPS? reply: {self.caps.format()!r}); do it by hand at the rig."
+        )
+
+    def _states(self, reply: str, command: str) -> dict[str, str]:
+        try:
+            return parse_states(reply.split()[2], self.caps.valves)
+        except (IndexError, ValueError):
+            raise DeviceError(
+                f"The device on {self.name} answered {reply!r} to {command}, expected 'OK VALVE <states>'. "
+                "Check that its firmware speaks wire protocol 1.1."
+            ) from None
+
+    def set_valves(self, state: str, channel: str | None = None) -> dict[str, str]:
+        """Put one chamber's valve (``channel``, a pressure channel's name) or all of them in
+        ``state`` (``supply``, ``hold`` or ``vent``); returns every valve's state as the board set it."""
+        self._need("valve control", bool(self.caps.valves))
+        if state not in VALVE_LETTERS:
+            raise ValueError(f"a valve state is supply, hold or vent, not {state!r}")
+        if channel is not None and channel not in self.caps.valves:
+            raise DeviceError(
+                f"The board on {self.name} has no valve on {channel}; its valves serve {', '.join(self.caps.valves)}."
+            )
+        command = f"VALVE {channel or 'ALL'} {state.upper()}"
+        return self._states(self._command(command, expect="OK VALVE"), command)
+
+    def valve_states(self) -> dict[str, str]:
+        """Every valve's state, asked of the board (``VALVE?``)."""
+        self._need("valve control", bool(self.caps.valves))
+        return self._states(self._command("VALVE?", expect="OK VALVE"), "VALVE?")
+
+    def set_pressure_limit(self, counts: int | list[int]) -> tuple[int, ...]:
+        """The board's over-pressure limit in raw counts, one for every valve's channel or one each
+        (``board.limit_counts`` converts MPa); the board keeps it through resets.  Returns the limits set."""
+        self._need("pressure limit", self.caps.pmax)
+        values = [counts] if isinstance(counts, int) else list(counts)
+        reply = self._command("PMAX " + " ".join(str(int(c)) for c in values), expect="OK PMAX")
+        return self._limits(reply)
+
+    def pressure_limit(self) -> tuple[int, ...]:
+        """The board's over-pressure limit per valve channel, raw counts (``PMAX?``)."""
+        self._need("pressure limit", self.caps.pmax)
+        return self._limits(self._command("PMAX?", expect="OK PMAX"))
+
+    def _limits(self, reply: str) -> tuple[int, ...]:
+        try:
+            return tuple(int(v) for v in reply.split()[2:])
+        except ValueError:
+            raise DeviceError(
+                f"The device on {self.name} answered {reply!r}, expected 'OK PMAX <counts>...'."
+            ) from None
+
+    def take_baseline(self) -> None:
+        """Have the board's model retake its baseline (its ``BASELINE`` event follows when taken)."""
+        self._need("model baseline", self.caps.baseline)
+        self._command("BASELINE", expect="OK BASELINE")
+
+    def stream_estimates(self, every: int = 1) -> int:
+        """Have the board send an estimate line after every ``every``-th data line (0: none)."""
+        self._need("model estimates", bool(self.caps.estimates))
+        reply = self._command(f"EST {int(every)}", expect="OK EST")
+        return int(reply.split()[2])
+
+    def take_events(self) -> list[Event]:
+        """The board's event lines received since the last call, oldest first."""
+        out = list(self._reader.events)
+        self._reader.events.clear()
+        return out
+
+    def take_estimates(self) -> list[Estimate]:
+        """The board's estimate lines received since the last call, oldest first."""
+        out = list(self._reader.estimates)
+        self._reader.estimates.clear()
+        return out
 
     # -- port I/O --------------------------------------------------------------
 

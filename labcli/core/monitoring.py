@@ -140,6 +140,8 @@ class MonitorSummary:
             "malformed": c["malformed"],
             "overlong": c["overlong"],
             "log_lines": c["log_lines"],
+            "events": c.get("events", 0),
+            "estimates": c.get("estimates", 0),
             "interrupted": self.interrupted,
             "channels": {
                 name: {"mean": num(m), "std": num(s), "unit": u}

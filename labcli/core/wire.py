@@ -1,11 +1,16 @@
-"""Codec and stream reader for the rig wire protocol, version 1 (``docs/wire-protocol.md``).
+"""Codec and stream reader for the rig wire protocol, versions 1.0 and 1.1 (``docs/wire-protocol.md``).
 
 A line from the device is one of:
 
 * :class:`Frame`   ``$D,<seq>,<t_us>,<v1>,...,<vN>*<HH>`` with a valid XOR checksum;
+* :class:`Event`   ``$E,<n>,<t_us>,<KIND>,...*<HH>``, a 1.1 board's event (valves, over-pressure, reset);
+* :class:`Estimate` ``$S,<seq>,<t_us>,<v1>,...,<flags>*<HH>``, a 1.1 board's model estimates;
 * :class:`LogLine` ``#<free text>`` from the firmware;
-* :class:`Reply`   ``ID,...``, ``OK ...`` or ``ERR ...``, the answer to a command;
+* :class:`Reply`   ``ID,...``, ``CAPS,...``, ``OK ...`` or ``ERR ...``, the answer to a command;
 * :class:`Noise`   anything else, with the reason it was rejected.
+
+A 1.0 host met ``$E`` and ``$S`` lines as noise; they are told apart here (their fields in
+:mod:`labcli.core.boardlines`), counted, and kept for the device (``events``, ``estimates``).
 
 Nothing here raises on bad input: noise is a value, so the stream reader can
 count it and move on.
@@ -28,6 +33,8 @@ from numbers import Integral
 from typing import Any
 
 import numpy as np
+
+from .boardlines import ESTIMATE_KIND, EVENT_KIND, Estimate, Event, parse_board_fields
 
 MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
 OVERLONG = f"line longer than {MAX_LINE} bytes"  # Noise reasons the reader counts apart
@@ -75,7 +82,7 @@ class Noise:
     reason: str
 
 
-Parsed = Frame | LogLine | Reply | Noise
+Parsed = Frame | Event | Estimate | LogLine | Reply | Noise
 
 # A value is an integer (raw ADC counts) or a decimal; nothing Python's int()
 # or float() would also swallow (spaces, '_', 'nan', 'inf') is on the wire.
@@ -97,7 +104,7 @@ def _number(field: bytes) -> float | int:
 
 
 def _is_reply(line: bytes) -> bool:
-    if line.startswith(b"ID,"):
+    if line.startswith((b"ID,", b"CAPS,")):
         return True
     for word in (b"OK", b"ERR"):
         if line == word or line.startswith(word + b" "):
@@ -144,8 +151,11 @@ def _parse_data(line: bytes, n_channels: int | None) -> Parsed:
     if checksum(payload) != want:
         return Noise(line, BAD_CHECKSUM)
     fields = payload.split(b",")
+    if fields[0] in (EVENT_KIND, ESTIMATE_KIND):
+        board = parse_board_fields(fields)
+        return Noise(line, board) if isinstance(board, str) else board
     if fields[0] != b"D":
-        return Noise(line, "data line does not start with '$D,'")
+        return Noise(line, "data line does not start with '$D,', '$E,' or '$S,'")
     if len(fields) < 4:
         return Noise(line, "data line has no values")
     if n_channels is not None and len(fields) - 3 != n_channels:
@@ -226,7 +236,8 @@ class FrameBatch:
         )
 
 
-COUNTER_NAMES = ("frames", "lost", "bad_checksum", "malformed", "log_lines", "overlong", "replies", "bytes")
+_V1_COUNTERS = ("frames", "lost", "bad_checksum", "malformed", "log_lines", "overlong", "replies", "bytes")
+COUNTER_NAMES = _V1_COUNTERS + ("events", "estimates")  # a 1.1 board's $E and $S lines
 
 _HEXVAL = np.full(256, -1, np.int16)
 for _i, _c in enumerate(b"0123456789abcdef"):
@@ -252,6 +263,8 @@ class StreamReader:
     channel count from the first valid frame; later frames with another count
     are malformed.
 
+    A 1.1 board's event and estimate lines are counted and kept in ``events`` and
+    ``estimates`` (bounded; the device takes them).
     A line longer than ``MAX_LINE`` is counted once as ``overlong`` and skipped
     up to the next ``\\n``.  Lost frames are counted from gaps in ``seq``
     (modulo 2**32); a backwards jump (firmware restarted) resynchronises
@@ -282,6 +295,8 @@ class StreamReader:
         self.counters: dict[str, int] = dict.fromkeys(COUNTER_NAMES, 0)
         self.replies: deque[str] = deque(maxlen=256)
         self.logs: deque[str] = deque(maxlen=max_logs)
+        self.events: deque[Event] = deque(maxlen=1024)  # a 1.1 board's, until the device takes them
+        self.estimates: deque[Estimate] = deque(maxlen=4096)
         self.noise: deque[tuple[str, bytes]] = deque(maxlen=32)  # (reason, first bytes) for diagnostics
         self.lines = 0  # complete lines consumed, overlong runs included
         self._pending = b""
@@ -433,6 +448,12 @@ class StreamReader:
         elif isinstance(parsed, Reply):
             self.counters["replies"] += 1
             self.replies.append(parsed.text)
+        elif isinstance(parsed, Event):
+            self.counters["events"] += 1
+            self.events.append(parsed)
+        elif isinstance(parsed, Estimate):
+            self.counters["estimates"] += 1
+            self.estimates.append(parsed)
         elif isinstance(parsed, Noise):
             self.counters[noise_counter(parsed.reason)] += 1
             self.noise.append((parsed.reason, parsed.line[:64]))

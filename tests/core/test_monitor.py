@@ -66,7 +66,7 @@ def test_monitor_table_output_has_units_and_the_summary_line():
         result = CliRunner().invoke(cli, ["monitor", "--port", fw.port, "--seconds", "0.6"])
     assert result.exit_code == 0, result.output
     last = [line for line in result.output.splitlines() if line.startswith(fw.port)][-1]
-    assert ", 3 lost, 0 bad checksum, 0 malformed, 0 overlong, 0 log lines." in last
+    assert ", 3 lost, 0 bad checksum, 0 malformed, 0 overlong, 0 log lines, 0 events." in last
     pot2_deg = (2300 - 2048) * 340 / 4095
     assert f"POT2  mean {pot2_deg:.2f} deg  std 0.000 deg" in result.output
     p_l1 = (1556 * 5.0 / 4095 - 1.0) / 4.0

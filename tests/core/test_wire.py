@@ -8,6 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from support.firmware import data_line, xor_checksum
 
+from labcli.core.boardlines import Estimate, Event, format_estimate, format_event
 from labcli.core.wire import (
     MAX_LINE,
     U32,
@@ -84,7 +85,7 @@ def _maybe_signed(draw):
 @settings(max_examples=250)
 def test_arbitrary_bytes_never_raise_and_frames_are_genuine(line, k):
     parsed = parse_line(line, k)
-    assert isinstance(parsed, (Frame, LogLine, Reply, Noise))
+    assert isinstance(parsed, (Frame, Event, Estimate, LogLine, Reply, Noise))
     if isinstance(parsed, Frame):
         stripped = line.rstrip(b"\n")
         stripped = stripped[:-1] if stripped.endswith(b"\r") else stripped
@@ -119,7 +120,17 @@ def test_noise_reasons(line, reason):
     "body, reason",
     [
         ("D,1,2", "data line has no values"),
-        ("X,1,2,3", "data line does not start with '$D,'"),
+        ("X,1,2,3", "data line does not start with '$D,', '$E,' or '$S,'"),
+        ("E,1,2", "event line has no kind"),
+        ("E,1,x,VALVE", "event number or t_us is not an unsigned 32-bit integer"),
+        ("E,4294967296,2,VALVE", "event number or t_us is not an unsigned 32-bit integer"),
+        ("E,1,2,valve", "event kind is not upper-case letters"),
+        ("E,1,2,VALVE,S S", "event field holds characters outside letters, digits and _.:+-"),
+        ("S,1,2,0", "estimate line has no values"),
+        ("S,1,-2,0.1,0", "seq or t_us is not an unsigned 32-bit integer"),
+        ("S,1,2,0.1,-1", "estimate flags are not an unsigned 32-bit integer"),
+        ("S,1,2,0.1,nan,0", "an estimate is not a finite number"),
+        ("S,1,2,1e999,0", "an estimate is not a finite number"),
         ("D,+1,2,3", "seq or t_us is not an unsigned integer"),
         ("D,4294967296,2,3", "seq or t_us outside unsigned 32-bit range"),
         ("D,1,2,nan", "a value is not a finite number"),
@@ -133,6 +144,24 @@ def test_signed_lines_with_bad_fields_are_noise(body, reason):
     line = b"$" + body.encode() + b"*%02x" % checksum(body.encode())
     parsed = parse_line(line, 1 if body.endswith("3,4") else None)
     assert isinstance(parsed, Noise) and parsed.reason == reason
+
+
+def test_event_and_estimate_lines_round_trip():
+    line = format_event(7, 12345, "VALVE", ["SSHV", "host"])
+    assert line == b"$E,7,12345,VALVE,SSHV,host*%02X\n" % checksum(b"E,7,12345,VALVE,SSHV,host")
+    assert parse_line(line) == Event(7, 12345, "VALVE", ("SSHV", "host"))
+    assert parse_line(format_event(0, 0, "RESET", ["wdt"]), 6) == Event(0, 0, "RESET", ("wdt",))  # not a frame's count
+    est = parse_line(format_estimate(9, 5000, [0.0123456, -0.5, 1.25, -3e-7], 513))
+    assert est == Estimate(9, 5000, (0.0123456, -0.5, 1.25, -3e-7), 513)
+    assert est.flag_names == ["theta1-uncertain", "loaded"]
+    assert parse_line(b"CAPS,1.1,valves=P_L1:P_R1,pmax") == Reply("CAPS,1.1,valves=P_L1:P_R1,pmax")
+
+
+@given(u32, u32, st.lists(st.floats(allow_nan=False, allow_infinity=False, width=32), min_size=1, max_size=6), u32)
+def test_estimates_round_trip_to_six_digits(seq, t_us, vals, flags):
+    got = parse_line(format_estimate(seq, t_us, vals, flags))
+    assert isinstance(got, Estimate) and (got.seq, got.t_us, got.flags) == (seq, t_us, flags)
+    np.testing.assert_allclose(got.values, vals, rtol=1e-5, atol=0)
 
 
 def test_logs_replies_and_commands():
@@ -153,7 +182,8 @@ def reference(stream: bytes, k: int | None = None) -> tuple[list[Frame], dict[st
     """What the reader must produce: parse_line on every complete line, seq gaps counted mod 2**32."""
     *complete, tail = stream.split(b"\n")
     c = dict(frames=0, lost=0, bad_checksum=0, malformed=0, log_lines=0, overlong=0, replies=0, bytes=len(stream))
-    frames, logs, replies = [], [], []
+    c.update(events=0, estimates=0)
+    frames, logs, replies, board = [], [], [], []
     last = None
     for line in complete:
         p = parse_line(line, k)
@@ -171,6 +201,9 @@ def reference(stream: bytes, k: int | None = None) -> tuple[list[Frame], dict[st
         elif isinstance(p, Reply):
             c["replies"] += 1
             replies.append(p.text)
+        elif isinstance(p, (Event, Estimate)):
+            c["events" if isinstance(p, Event) else "estimates"] += 1
+            board.append(p)
         elif p.reason == "bad checksum":
             c["bad_checksum"] += 1
         elif p.reason.startswith("line longer"):
@@ -179,7 +212,7 @@ def reference(stream: bytes, k: int | None = None) -> tuple[list[Frame], dict[st
             c["malformed"] += 1
     if len(tail) > MAX_LINE + 1:  # already known to be overlong ('\r' may still come)
         c["overlong"] += 1
-    return frames, c, logs, replies
+    return frames, c, logs, replies, board
 
 
 def run_reader(chunks, k=None):
@@ -195,7 +228,7 @@ def assert_agrees(stream: bytes, cuts: list[int], k: int | None = None) -> Strea
     cuts = sorted(set(c for c in cuts if 0 < c < len(stream)))
     chunks = [stream[a:b] for a, b in zip([0] + cuts, cuts + [len(stream)], strict=False)]
     r, seq, t, vals = run_reader(chunks, k)
-    frames, counters, logs, replies = reference(stream, k)
+    frames, counters, logs, replies, board = reference(stream, k)
     assert r.counters == counters
     assert seq.tolist() == [f.seq for f in frames]
     assert t.tolist() == [f.t_us for f in frames]
@@ -204,6 +237,8 @@ def assert_agrees(stream: bytes, cuts: list[int], k: int | None = None) -> Strea
     if frames:
         np.testing.assert_array_equal(got, want)
     assert list(r.logs) == logs and list(r.replies) == replies
+    assert list(r.events) == [b for b in board if isinstance(b, Event)]
+    assert list(r.estimates) == [b for b in board if isinstance(b, Estimate)]
     return r
 
 
@@ -233,6 +268,9 @@ def streams(draw):
                     "wrongk",
                     "bigint",
                     "protocolish",
+                    "event",
+                    "estimate",
+                    "boardcut",
                 ]
             )
         )
@@ -268,6 +306,13 @@ def streams(draw):
             parts.append(b"y" * draw(st.integers(250, 700)) + draw(st.sampled_from([b"\n", b"\r\n", b""])))
         elif kind == "wrongk":
             parts.append(_good(seq, vals + [1]))
+        elif kind == "event":
+            parts.append(format_event(draw(u32), seq * 5000, draw(st.sampled_from(["VALVE", "PMAX", "RESET"])), vals))
+        elif kind == "estimate":
+            parts.append(format_estimate(max(seq - 1, 0), seq * 5000, [v / 1000 - 2 for v in vals], draw(u32)))
+        elif kind == "boardcut":
+            line = format_estimate(seq, 0, [0.5] * k, 0)
+            parts.append(line[: draw(st.integers(0, len(line) - 1))])
         else:
             parts.append(draw(_maybe_signed()) + b"\n")
         seq %= U32
@@ -306,6 +351,8 @@ SAMPLE = (
     + _good(9, [10, 20, 30, 40, 50, 60])[:-3]
     + b"00\n"  # corrupted checksum
     + b"\x00\xffjunk\n"
+    + format_event(3, 50000, "PMAX", ["P_L1", 3200])
+    + format_estimate(9, 45000, [0.01, -0.02, 1.5, -0.25], 0)
     + _good(11, [0, 0, 0, 0, 0, 4095])
 )
 
@@ -314,7 +361,7 @@ def test_split_at_every_byte_position_gives_the_same_result():
     whole = assert_agrees(SAMPLE, [])
     assert whole.counters == dict(
         frames=3, lost=2, bad_checksum=1, malformed=1, log_lines=1, overlong=0, replies=1, bytes=len(SAMPLE)
-    )
+    ) | dict(events=1, estimates=1)
     for i in range(1, len(SAMPLE)):
         r = assert_agrees(SAMPLE, [i], k=6)
         assert r.counters == whole.counters

@@ -302,7 +302,7 @@ class FaultInjector:
 
     def _make(self, fw: Any, first: int, end: int, slots: np.ndarray, rows: np.ndarray) -> bytes:
         m = end - first
-        t_us, counts = fw.rig.samples(m, fw.stream_hz)
+        t_us, counts = fw.sample(m, fw.stream_hz)
         seq = (fw.seq + np.arange(m, dtype=np.int64)) % U32
         t_us = t_us % U32
         fw.seq = int((fw.seq + m) % U32)

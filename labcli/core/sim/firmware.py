@@ -1,4 +1,4 @@
-"""Firmware of the simulated rig: the device side of the rig wire protocol, version 1.
+"""Firmware of the simulated rig: the device side of the rig wire protocol, version 1.1 (or 1.0).
 
 :class:`Firmware` turns host command bytes into reply bytes and, while
 streaming, turns the rig's ADC samples into data lines.  It knows nothing of
@@ -6,7 +6,9 @@ time sources: the ``sim://`` port (virtual or wall clock) and the pty server
 decide how many frames are due and ask for them with :meth:`Firmware.frames`.
 
 Commands (one per line, ``\\r`` tolerated): ``ID?``, ``RATE <hz>`` (1..50000),
-``START``, ``STOP``; anything else is answered with ``ERR ...``.  ``seq`` counts
+``START``, ``STOP``, and those of wire protocol 1.1 (``CAPS?``, ``VALVE``, ``PMAX``: the
+valves, the pressure limit and the event lines of :mod:`.valves`); anything else is answered
+with ``ERR ...``.  ``version="1.0"`` makes a 1.0 board (``sim://?fw=1.0``).  ``seq`` counts
 data lines since power-up and ``t_us`` is the rig's clock, both unsigned 32-bit
 and wrapping.
 
@@ -19,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..wire import MAX_LINE, U32, checksum, format_log
+from .valves import BoardValves
 
 RATE_MIN = 1.0
 # As far as the host's stream reader goes: it spends 6-8 us of CPU per 6-channel frame
@@ -36,7 +39,9 @@ _OVERLONG = f"ERR line longer than {MAX_LINE} bytes\n".encode()
 class Firmware:
     """Device-side protocol state machine over a rig (see :mod:`labcli.core.sim`)."""
 
-    def __init__(self, rig, rate_hz: float = 200.0, faults=None, rate_factor: float = 1.0) -> None:
+    def __init__(
+        self, rig, rate_hz: float = 200.0, faults=None, rate_factor: float = 1.0, version: str = "1.1"
+    ) -> None:
         if not RATE_MIN <= rate_hz <= RATE_MAX:
             raise ValueError(f"rate must be within {RATE_MIN:g}..{RATE_MAX:g} Hz")
         if not FACTOR_MIN <= rate_factor <= FACTOR_MAX:
@@ -50,6 +55,9 @@ class Firmware:
         self.stall: tuple[float, int] | None = None  # (seconds, frames not made), see frames()
         self.streaming = False
         self._pending = bytearray()
+        self.board = BoardValves(rig, version)
+        self.version = version
+        self._seen: tuple[np.ndarray, np.ndarray] | None = None  # the last frames sampled: (t_us, counts)
 
     @property
     def stream_hz(self) -> float:
@@ -60,7 +68,12 @@ class Firmware:
 
     def banner(self) -> bytes:
         """The log line printed at power-up."""
-        return format_log(f"{self.rig.device} {self.rig.firmware} ready, {len(self.rig.channels)} channels")
+        return format_log(f"{self.rig.device} {self.firmware_version} ready, {len(self.rig.channels)} channels")
+
+    @property
+    def firmware_version(self) -> str:
+        """What ``ID?`` names as the firmware: the rig's, or 1.0 for a 1.0 board."""
+        return "1.0" if self.version == "1.0" else self.rig.firmware
 
     def receive(self, data: bytes) -> bytes:
         """Feed bytes written by the host; return the reply lines they cause."""
@@ -90,7 +103,7 @@ class Firmware:
         word, _, arg = text.partition(" ")
         arg = arg.strip()
         if text == "ID?":
-            return ("ID," + ",".join([self.rig.device, self.rig.firmware, *self.rig.channels]) + "\n").encode()
+            return ("ID," + ",".join([self.rig.device, self.firmware_version, *self.rig.channels]) + "\n").encode()
         if word == "RATE":
             try:
                 hz = float(arg)
@@ -107,10 +120,22 @@ class Firmware:
             self.streaming = False
             held = self.faults.flush() if self.faults is not None else b""
             return held + b"OK STOP\n"
+        reply = self.board.command(word, arg, self._now_us())
+        if reply is not None:
+            return reply
         shown = text if len(text) <= 40 else text[:40] + "..."
         return f"ERR unknown command '{shown}'\n".encode("ascii", "replace")
 
     # ------------------------------------------------------------ device -> host
+
+    def _now_us(self) -> int:
+        return int(round(self.rig.time_s * 1e6)) % U32
+
+    def sample(self, n: int, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+        """The rig's next ``n`` samples (advancing its clock), kept for the pressure-limit check."""
+        t_us, counts = self.rig.samples(n, rate_hz)
+        self._seen = (t_us % U32, counts)
+        return t_us, counts
 
     def frames(self, n: int) -> bytes:
         """``n`` data lines (advancing the rig's clock); empty when not streaming.
@@ -118,12 +143,29 @@ class Firmware:
         With a fault injector a stall can end the block early: ``stall`` is
         then ``(seconds, frames not made)`` for the caller's pacing (see
         :meth:`take_stall`), and the rig's clock has run on by the stall.
+        Event lines of the pressure limit follow the frames that crossed it.
         """
         if n <= 0 or not self.streaming:
             return b""
-        if self.faults is not None:
-            return self.faults.emit(self, n)
-        t_us, counts = self.rig.samples(n, self.stream_hz)
+        out = bytearray()
+        left = n
+        before, self.stall = self.stall, None
+        while left > 0:
+            k = min(left, self.board.check_every(self.stream_hz) or left)
+            out += self.faults.emit(self, k) if self.faults is not None else self._frames(k)
+            left -= k
+            if self._seen is not None:
+                out += self.board.check(*self._seen)
+                self._seen = None
+            if self.stall is not None:
+                self.stall = (self.stall[0], self.stall[1] + left)
+                break
+        if self.stall is None:
+            self.stall = before
+        return bytes(out)
+
+    def _frames(self, n: int) -> bytes:
+        t_us, counts = self.sample(n, self.stream_hz)
         seq = (self.seq + np.arange(n, dtype=np.int64)) % U32
         self.seq = int((self.seq + n) % U32)
         self.count += n

@@ -5,7 +5,7 @@ in ``serial.protocol_handler_packages``, see :func:`labcli.core.sim.register`)
 returns a port with the pyserial API whose other end runs the simulated
 firmware (:mod:`labcli.core.sim.firmware`) over a simulated rig.
 
-URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X][&mode=NAME][&faults=SPEC][&firmware=ELF][&RIG_OPTION=...]``
+URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X][&mode=NAME][&faults=SPEC][&fw=1.0|1.1][&firmware=ELF][&RIG_OPTION=...]``
 
 * ``seed`` (0): seeds the actuators, sensor offsets, noise and settling times;
 * ``rate`` (200): sample rate at power-up, Hz (1..50000; ``RATE`` changes it);
@@ -25,6 +25,9 @@ URL: ``sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S
   own clock stamping each frame as it is made; 0.01..100;
 * ``mode`` (the default rig, mckibben): which rig model (:func:`labcli.core.sim.modes`, one per
   paper's simulated rig);
+* ``fw`` (1.1): the wire protocol version the firmware model speaks; ``fw=1.0`` is a board
+  without valves, pressure limit or event lines (:mod:`labcli.core.sim.valves`), to test a
+  host against both;
 * ``faults`` (none): a noisy link, ``KIND:RATE[@X],...`` per
   :mod:`labcli.core.sim.faults`, e.g. ``faults=checksum:0.01,drop:0.01,stall:0.001@2.5``;
   drawn from ``seed``.  ``port.faults`` is then the
@@ -99,7 +102,9 @@ class Serial(SimulatedPort):
         self.faults = (
             None if spec is None else FaultInjector(spec, seed=opts["seed"], n_channels=len(self.rig.channels))
         )
-        self.firmware = Firmware(self.rig, opts["rate"], faults=self.faults, rate_factor=opts["ratefactor"])
+        self.firmware = Firmware(
+            self.rig, opts["rate"], faults=self.faults, rate_factor=opts["ratefactor"], version=opts["fw"]
+        )
         self._unplugged = False
         self._wall0 = time.monotonic() - self.rig.time_s
         self.is_open = True

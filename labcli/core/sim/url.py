@@ -26,7 +26,7 @@ def accepted_form() -> str:
     own = "".join(f"[&{name}={opt.form}]" for name, opt in registry.sim_options().items())
     return (
         "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X]"
-        f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...][&firmware=ELF]{own}"
+        f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...][&fw=1.0|1.1][&firmware=ELF]{own}"
     )
 
 
@@ -86,6 +86,12 @@ def _faults(text: str) -> FaultSpec | None:
     return spec if spec.active else None
 
 
+def _fw(text: str) -> str:
+    if text not in ("1.0", "1.1"):
+        raise ValueError
+    return text
+
+
 def _firmware(text: str) -> str:
     if not text:
         raise ValueError
@@ -103,6 +109,7 @@ OPTIONS = {
     "ratefactor": (_factor, 1.0, f"a number within {FACTOR_MIN:g}..{FACTOR_MAX:g}"),
     "mode": (_mode, None, lambda: "one of " + ", ".join(modes())),  # None: the default rig
     "faults": (_faults, None, "KIND:RATE[@X],..."),
+    "fw": (_fw, "1.1", "the wire protocol version the board speaks, 1.0 or 1.1"),
     "firmware": (_firmware, None, "the path of a firmware ELF"),
 }
 
@@ -159,6 +166,7 @@ NOT_WITH_FIRMWARE = {
     "rate": "the firmware powers up at its own rate and takes RATE from the host",
     "ratefactor": "the firmware's timer is what its code sets",
     "faults": "the firmware's link is what its UART makes",
+    "fw": "the firmware's protocol version is what its code speaks",
 }
 
 

@@ -33,7 +33,7 @@ def CAL_DEG(c):
 
 EXPECTED_FORM = (
     "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X]"
-    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&firmware=ELF][&ideal=0|1][&friction=X][&leak=X]"
+    "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&fw=1.0|1.1][&firmware=ELF][&ideal=0|1][&friction=X][&leak=X]"
     "[&thermal=X][&backlash=X][&links=X][&contact=X][&pulley=X][&potscale=X][&potlin=X][&repeat=X]"
     "[&supply=MPA[,MPA,MPA,MPA]][&design=paper|thin][&realism=literature|kind]"
 )
@@ -229,7 +229,7 @@ def test_unreachable_load_is_a_clear_error():
 
 def test_firmware_replies():
     fw = Firmware(SimRig(seed=0), 200)
-    assert fw.receive(b"ID?\n") == b"ID,mckibben-2dof-sim,1.0,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n"
+    assert fw.receive(b"ID?\n") == b"ID,mckibben-2dof-sim,1.1,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n"
     assert fw.receive(b"RATE 500\r\n") == b"OK RATE 500\n"
     assert fw.receive(b"RATE 0\n") == b"ERR RATE must be within 1..50000 Hz, got 0\n"
     # Up to the stream reader's measured limit (tests/benchmarks/bench_link.py), not beyond.
@@ -302,9 +302,9 @@ def test_url_rejects_malformed_values(url, message):
 
 def test_protocol_over_sim_url():
     port = serial.serial_for_url("sim://?seed=3&rate=250&noise=1", timeout=1.0)
-    assert port.readline() == b"#mckibben-2dof-sim 1.0 ready, 6 channels\n"
+    assert port.readline() == b"#mckibben-2dof-sim 1.1 ready, 6 channels\n"
     port.write(b"ID?\n")
-    assert port.read(port.in_waiting) == b"ID,mckibben-2dof-sim,1.0,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n"
+    assert port.read(port.in_waiting) == b"ID,mckibben-2dof-sim,1.1,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n"
     port.write(b"RATE 100\n")
     assert port.readline() == b"OK RATE 100\n"
     port.rig.supply_air()
@@ -416,7 +416,7 @@ def test_protocol_over_pty():
     with serve_pty(seed=2, rate=200) as server:
         port = serial.Serial(server.path, timeout=1.0)
         port.write(b"ID?\n")
-        assert reply(port) == b"ID,mckibben-2dof-sim,1.0,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n"
+        assert reply(port) == b"ID,mckibben-2dof-sim,1.1,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n"
         port.write(b"RATE 400\n")
         assert reply(port) == b"OK RATE 400\n"
         server.rig.supply_air()
@@ -457,7 +457,7 @@ def test_sim_command_serves_a_pty_until_sigterm():
         path = first.split()[3]
         with serial.Serial(path, timeout=2.0) as port:
             port.write(b"ID?\n")
-            assert reply(port).startswith(b"ID,mckibben-2dof-sim,1.0,")
+            assert reply(port).startswith(b"ID,mckibben-2dof-sim,1.1,")
         proc.send_signal(signal.SIGTERM)
         assert_stopped_cleanly(proc)
     finally:

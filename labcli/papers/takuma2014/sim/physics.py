@@ -326,11 +326,28 @@ def boyle_beta(L, params: RigParams) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Chambers:
-    """Valve state: ``open`` holds ``gauge_pa``; ``closed`` keeps ``amount`` = P_abs (V + V_dead)."""
+    """Valve state: ``open`` holds ``gauge_pa``; ``closed`` keeps ``amount`` = P_abs (V + V_dead);
+    ``mixed`` does the one for the chambers ``held`` and the other for the rest."""
 
-    state: str  # "open" | "closed"
+    state: str  # "open" | "closed" | "mixed"
     gauge_pa: np.ndarray | None = None
     amount: np.ndarray | None = None  # Pa m^3 (absolute)
+    held: np.ndarray | None = None  # (4,) bool, mixed only
+
+    @staticmethod
+    def mixed(held, gauge_pa, amount) -> Chambers:
+        """Chambers ``held`` keep their ``amount``, the others hold ``gauge_pa`` (open or closed when all agree)."""
+        held = np.asarray(held, bool)
+        if not held.any():
+            return Chambers.open(gauge_pa)
+        if held.all():
+            return Chambers("closed", amount=np.asarray(amount, float).copy())
+        return Chambers(
+            "mixed",
+            gauge_pa=np.where(held, 0.0, gauge_pa),
+            amount=np.where(held, amount, 0.0),
+            held=held.copy(),
+        )
 
     @staticmethod
     def open(gauge_pa) -> Chambers:
@@ -342,12 +359,20 @@ class Chambers:
         V = mckibben_volume(lengths, params.b, params.n)
         return Chambers("closed", amount=(np.asarray(gauge_pa, float) + P_ATM) * (V + params.V_dead))
 
+    @property
+    def held_mask(self) -> np.ndarray:
+        """Which chambers keep their air, (4,) bool."""
+        if self.state == "mixed":
+            return np.asarray(self.held, bool)
+        return np.full(4, self.state == "closed")
+
     def gauge(self, lengths, params: RigParams) -> np.ndarray:
         """Gauge pressures (Pa) at the given actuator lengths (``(..., 4)``)."""
         if self.state == "open":
-            return np.broadcast_to(self.gauge_pa, np.shape(lengths)).astype(float)
+            return np.broadcast_to(np.asarray(self.gauge_pa), np.shape(lengths)).astype(float)
         V = mckibben_volume(lengths, params.b, params.n)
-        return self.amount / (V + params.V_dead) - P_ATM
+        closed = np.asarray(self.amount) / (V + params.V_dead) - P_ATM
+        return closed if self.state == "closed" else np.where(self.held_mask, closed, np.asarray(self.gauge_pa))
 
 
 # ---------------------------------------------------------------- loads

@@ -17,6 +17,13 @@ per change).  With the valves open the pressures follow the regulator with the
 same lag; with them closed the pressures follow the posture through Boyle's
 law, so angles and pressures are always consistent.
 
+Each chamber has its own valve (``valve_channels``, the pressure channels in order), which a
+wire-protocol 1.1 board drives through :meth:`SimRig.set_valves`: ``supply`` (open to the
+regulator), ``hold`` (closed) or ``vent`` (open to the atmosphere), one per chamber; the hand
+operations ``supply_air``, ``close_valves`` and ``vent`` set all four at once.  A valve acts at
+once, as the hand operations do: the pressures of an opened chamber follow the regulator (or the
+atmosphere) with the same lag.  A closed chamber in a mixed state leaks but has no thermal tail.
+
 Sensors: pressure counts per the reference calibration
 ``P[MPa] = (counts * 5 / 4095 - 1) / 4`` and potentiometer counts per
 ``deg = (counts - 2048) * 340 / 4095``, Gaussian noise of 0.5 count (pressure)
@@ -108,8 +115,9 @@ class SimRig(SimClock):
     """
 
     channels: tuple[str, ...] = CHANNELS
+    valve_channels: tuple[str, ...] = CHANNELS[:4]  # a valve per chamber (wire protocol 1.1)
     device = "mckibben-2dof-sim"
-    firmware = "1.0"
+    firmware = "1.1"
 
     @property
     def console_commands(self) -> dict:
@@ -186,6 +194,7 @@ class SimRig(SimClock):
         )
         self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
+        self._valve_states: tuple[str, ...] = ("vent",) * 4
 
     def _sensor_front_end(self, noise: float, drift: float) -> SensorFrontEnd:
         """The sensors and their fixed errors: offsets drawn first, then the drift, from one seed."""
@@ -267,12 +276,14 @@ class SimRig(SimClock):
             if not isothermal and (s.kappa1 or np.any(s.x0)):
                 p_abs = p_abs * (1.0 + self._thermal_at(t))
             p = p_abs - ph.P_ATM
+            if s.chambers.state == "mixed":
+                p = np.where(s.chambers.held_mask, p, s.p_to + (s.p_from - s.p_to) * w)
         return theta, p
 
     def _leak_factor(self, t):
         """Fraction of each closed chamber's air left at times ``t`` (``(..., 4)``)."""
         t = np.asarray(t, dtype=float)
-        if not np.any(self._leak_rate) or self._seg.chambers.state != "closed":
+        if not np.any(self._leak_rate) or self._seg.chambers.state == "open":
             return np.ones(t.shape + (4,))
         return np.exp(-(t - self._t_closed)[..., None] * self._leak_rate)
 
@@ -301,6 +312,7 @@ class SimRig(SimClock):
         gauge L1 R1 L2 R2, ``force_N`` (2,) on the contact point, ``time_s``;
         also ``valves`` ("vented" | "open" | "closed"), ``contact_m`` (2,),
         ``target_theta_rad`` (2,) the equilibrium being approached, ``tau_s``,
+        ``valve_states`` (4,) each chamber's ("supply" | "hold" | "vent"),
         ``load`` (dict describing the load) and ``residual_Nm`` of the target;
         ``rest_theta_rad`` (2,) the unloaded posture the arm last rested at (or
         is settling to), i.e. the absolute angles of the current baseline;
@@ -321,6 +333,7 @@ class SimRig(SimClock):
                 "force_N": np.asarray(s.load.force(theta, self.params.geometry), dtype=float),
                 "time_s": self._t,
                 "valves": self._valves,
+                "valve_states": self._valve_states,
                 "contact_m": ph.contact_point(theta, self.params.geometry),
                 "target_theta_rad": s.target.theta_rad.copy(),
                 "tau_s": s.tau,
@@ -346,9 +359,9 @@ class SimRig(SimClock):
             repeat_now = self._repeat_at(self._t)
             if chambers is None:
                 chambers = s.chambers
-                if chambers.state == "closed" and np.any(self._leak_rate):
+                if chambers.state != "open" and np.any(self._leak_rate):
                     # Fold the leak so far into the amount of air; posture sees it from now on.
-                    chambers = ph.Chambers("closed", amount=chambers.amount * self._leak_factor(self._t))
+                    chambers = replace(chambers, amount=chambers.amount * self._leak_factor(self._t))
                     self._t_closed = self._t
             else:
                 x_now = np.zeros(4)  # new air from the regulator (or none): at the wall's temperature
@@ -361,6 +374,8 @@ class SimRig(SimClock):
                     " the load is beyond the rig's range"
                 ) from None
             p_to = chambers.gauge_pa if chambers.state == "open" else eq.pressures_MPa * 1e6
+            if chambers.state == "mixed":
+                p_to = np.where(chambers.held_mask, np.asarray(p_to), np.asarray(chambers.gauge_pa))
             tau = self.tau_s * float(np.clip(np.exp(0.15 * self._event_rng.standard_normal()), 0.7, 1.4))
             dlnV, kappa1 = np.zeros(4), 0.0
             if chambers.state == "closed" and (self._kappa1 or np.any(x_now)):
@@ -399,6 +414,7 @@ class SimRig(SimClock):
         if np.any(p < 0) or np.any(p > 1.0e6):
             raise ValueError("supply pressures must be within 0..1 MPa gauge (the sensors' span)")
         self._change(chambers=ph.Chambers.open(p), valves="open")
+        self._valve_states = ("supply",) * 4
 
     def close_valves(self) -> None:
         """Close the valves: from now on each chamber keeps its air (Boyle's law)."""
@@ -409,10 +425,44 @@ class SimRig(SimClock):
             L = ph.actuator_lengths(theta_now, self.params)
             self._t_closed = self._t
             self._change(chambers=ph.Chambers.closed_at(L, p_now, self.params), valves="closed")
+            self._valve_states = ("hold",) * 4
 
     def vent(self) -> None:
         """Open the valves to atmosphere: the rig goes limp (rubber only)."""
         self._change(chambers=ph.Chambers.open(np.zeros(4)), valves="vented")
+        self._valve_states = ("vent",) * 4
+
+    @property
+    def valve_states(self) -> tuple[str, ...]:
+        """Each chamber's valve: ``supply``, ``hold`` or ``vent`` (L1, R1, L2, R2)."""
+        return self._valve_states
+
+    def set_valves(self, states) -> None:
+        """Set each chamber's valve (four of ``supply``, ``hold``, ``vent``, L1 R1 L2 R2), as a board does.
+
+        A chamber already closed keeps its air; one closed now keeps what it has.
+        """
+        states = tuple(states)
+        if len(states) != 4 or not set(states) <= {"supply", "hold", "vent"}:
+            raise ValueError(f"valve states are four of supply, hold, vent; got {states!r}")
+        with self._lock:
+            if states == self._valve_states:
+                return
+            if len(set(states)) == 1:
+                {"supply": self.supply_air, "hold": self.close_valves, "vent": self.vent}[states[0]]()
+                return
+            theta_now, p_now = self._state_at(self._t)
+            s = self._seg
+            held_before = s.chambers.held_mask
+            L = ph.actuator_lengths(theta_now, self.params)
+            amount = np.asarray(ph.Chambers.closed_at(L, p_now, self.params).amount)
+            if held_before.any():
+                amount = np.where(held_before, np.asarray(s.chambers.amount) * self._leak_factor(self._t), amount)
+            held = np.array([v == "hold" for v in states])
+            gauge = np.where(np.array([v == "supply" for v in states]), self.params.supply_pa, 0.0)
+            self._t_closed = self._t
+            self._change(chambers=ph.Chambers.mixed(held, gauge, amount), valves="mixed")
+            self._valve_states = states
 
     def hang_weight(self, mass_kg: float, direction_rad: float) -> None:
         """Hang ``mass_kg`` from the tip over a pulley pulling along ``direction_rad`` (replaces any load)."""
