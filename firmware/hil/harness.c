@@ -28,6 +28,8 @@
  *   'T'  uint64 cycle count: the AVR has run to the end of one 'V' message's slices
  *   'U'  bytes the AVR's UART sent (device -> host), before each 'T' and every 1 KiB
  *   'B'  text, when the firmware sets a baud rate: "baud=117647.06 byte_us=85.000"
+ *   'P'  uint64 cycle count, port letter, value: the firmware wrote PORTB or PORTD
+ *        (the valves' pins), once at the value it wrote
  *   'E'  text: why the simulation ended (the firmware stopped or crashed); exit status 2
  *
  * The ADC.  simavr reads an input in millivolts and converts it as
@@ -53,6 +55,7 @@
 #include <unistd.h>
 
 #include "avr_adc.h"
+#include "avr_ioport.h"
 #include "avr_uart.h"
 #include "sim_avr.h"
 #include "sim_elf.h"
@@ -193,6 +196,20 @@ static void on_adc_start(struct avr_irq_t *irq, uint32_t value, void *param)
     uint32_t code = x < 0 ? 0 : x > 1023 ? 1023 : (uint32_t)x;
     uint32_t mv = (code * opt.vref_mv + 1022) / 1023; /* simavr: floor(mv * 1023 / Vref) == code */
     avr_raise_irq(adc_in[e.mux.src], mv);
+}
+
+/* ------------------------------------------------------------------ pins */
+
+static void on_port_write(struct avr_irq_t *irq, uint32_t value, void *param)
+{
+    (void)irq;
+    uint8_t msg[10];
+    uint64_t cycle = avr->cycle;
+    memcpy(msg, &cycle, 8); /* little-endian host */
+    msg[8] = (uint8_t)(uintptr_t)param;
+    msg[9] = (uint8_t)value;
+    flush_uart(); /* bytes sent before the pins moved reach the driver first */
+    send('P', msg, sizeof msg);
 }
 
 /* ------------------------------------------------------------------ UART */
@@ -452,6 +469,10 @@ static void setup(void)
     avr_register_io_write(avr, u->ubrrl.reg, on_ubrr_write, u);
     for (unsigned ch = 0; ch < opt.channels; ch++)
         adc_in[ch] = avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + ch);
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('B'), IOPORT_IRQ_REG_PORT), on_port_write,
+                            (void *)(uintptr_t)'B');
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_IOPORT_GETIRQ('D'), IOPORT_IRQ_REG_PORT), on_port_write,
+                            (void *)(uintptr_t)'D');
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_OUT_TRIGGER), on_adc_start, NULL);
 }
 

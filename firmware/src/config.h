@@ -19,9 +19,55 @@
 
 /* The reference rig (docs/wire-protocol.md): four pressures on A0-A3, two potentiometers on A4-A5. */
 #define DEVICE_NAME "mckibben-2dof"
+#ifdef WIRE_PROTOCOL_1_0
+/* A 1.0 board (no 1.1 command, no event line), built for the tests of a 1.1 host against one. */
 #define FIRMWARE_VERSION "1.0-avr"
+#define WIRE_1_1 0
+#else
+#define FIRMWARE_VERSION "1.1-avr"
+#define WIRE_1_1 1
+#endif
+#define PROTOCOL_VERSION "1.1"
 #define CHANNEL_NAMES "P_L1,P_R1,P_L2,P_R2,POT1,POT2"
 #define N_CHANNELS 6
+
+/*
+ * Valves (wire protocol 1.1): one per chamber, on the first N_VALVES channels (the pressures),
+ * each made of two coils, inlet (to the regulator) and exhaust (to the atmosphere):
+ * SUPPLY = inlet open, HOLD = both closed, VENT = exhaust open; never both open.
+ * A pin high energises its coil through a driver (README: Valves).  D10 opens the main supply
+ * valve while any chamber is supplied, and the Uno's LED (D13) shows it.
+ *
+ *   chamber  inlet      exhaust
+ *   P_L1     D2  PD2    D3  PD3
+ *   P_R1     D4  PD4    D5  PD5
+ *   P_L2     D6  PD6    D7  PD7
+ *   P_R2     D8  PB0    D9  PB1
+ *   main supply D10 PB2, LED D13 PB5
+ *
+ * labcli.core.sim.hil reads the same map off the simulated pins (VALVE_PINS there).
+ */
+#define N_VALVES 4
+#define VALVE_NAMES "P_L1:P_R1:P_L2:P_R2"
+/* Each chamber's coils as bits of PORTD and PORTB, in VALVE_NAMES order. */
+#define VALVE_INLET_D {_BV(2), _BV(4), _BV(6), 0}
+#define VALVE_INLET_B {0, 0, 0, _BV(0)}
+#define VALVE_EXHAUST_D {_BV(3), _BV(5), _BV(7), 0}
+#define VALVE_EXHAUST_B {0, 0, 0, _BV(1)}
+#define VALVE_MAIN_B _BV(2) /* main supply valve */
+#define VALVE_LED_B _BV(5)  /* the Uno's LED */
+
+/* The pressure limit at power-up until a PMAX is stored in EEPROM: 0.7 MPa on the reference
+ * calibration (819 + 0.7 / (5 / 16380) counts), the AVR's and the simulated board's default. */
+#ifndef PMAX_DEFAULT_COUNTS
+#define PMAX_DEFAULT_COUNTS 3112U
+#endif
+
+/* Not streaming, the pressures are still sampled for the limit, at about this rate (Hz). */
+#define IDLE_CHECK_HZ 50UL
+
+/* The watchdog: 1 s without the main loop vents every chamber (its interrupt), 1 s more resets. */
+#define WATCHDOG_MS 1000
 
 /* 16 conversions per value: 4^2 samples buy 2 bits on top of the ADC's 10 (see proto_counts). */
 #define OVERSAMPLE 16

@@ -1,5 +1,5 @@
 /*
- * The rig wire protocol, version 1, device side (see proto.h).
+ * The rig wire protocol, version 1.1, device side (see proto.h).
  *
  * No printf: avr-libc's vfprintf would cost more flash than the rest of the
  * firmware, and 32-bit division is slow on an 8-bit core, so numbers are
@@ -153,6 +153,9 @@ void proto_rate_settings(uint32_t mhz, struct proto_rate *rate)
             break;
     }
     rate->adc_ps_log2 = ps;
+    /* Idle: the limit is checked at IDLE_CHECK_HZ or the rate, whichever is lower. */
+    uint32_t every = (rate->mhz + IDLE_CHECK_HZ * 1000UL - 1) / (IDLE_CHECK_HZ * 1000UL);
+    rate->idle_every = (uint8_t)(every < 1 ? 1 : every > 255 ? 255 : every);
 }
 
 /* ---- text helpers ---- */
@@ -164,6 +167,11 @@ static char *put_str(char *p, const char *s)
     while ((c = FLASH_CHAR(s++)))
         *p++ = c;
     return p;
+}
+
+char *proto_put_pstr(char *out, const char *pstr)
+{
+    return put_str(out, pstr);
 }
 
 /* Millihertz as "200", "12.5" or "333.333". */
@@ -251,6 +259,14 @@ void proto_init(struct proto_state *st)
 {
     proto_rate_settings(RATE_DEFAULT_MHZ, &st->rate);
     st->streaming = 0;
+    for (uint8_t i = 0; i < N_VALVES; i++) {
+        st->valve[i] = VALVE_HOLD;
+        st->valve_next[i] = VALVE_HOLD;
+        st->pmax[i] = PMAX_DEFAULT_COUNTS;
+    }
+    st->est_every = 0;
+    st->model = 0;
+    st->estimates = 0;
 }
 
 static uint8_t rate_command(struct proto_state *st, const char *arg, char *reply)
@@ -281,6 +297,231 @@ static uint8_t rate_command(struct proto_state *st, const char *arg, char *reply
     p = put_mhz(p, st->rate.mhz);
     end_line(p);
     return PROTO_RATE;
+}
+
+/* ---- wire protocol 1.1 commands ---- */
+
+static const char VALVE_NAME_LIST[] PROGMEM = VALVE_NAMES;
+
+char *proto_put_valve_name(char *out, uint8_t valve)
+{
+    const char *s = VALVE_NAME_LIST;
+    for (uint8_t k = 0; k < valve; s++)
+        if (FLASH_CHAR(s) == ':')
+            k++;
+    char c;
+    while ((c = FLASH_CHAR(s++)) && c != ':')
+        *out++ = c;
+    return out;
+}
+
+/* The valve named by the word at *p ("ALL": N_VALVES), or 0xFF; *p moves past the word. */
+static uint8_t valve_of(const char **p)
+{
+    const char *w = *p;
+    uint8_t n = 0;
+    while (w[n] && !is_space(w[n]))
+        n++;
+    *p = w + n;
+    if (n == 3 && w[0] == 'A' && w[1] == 'L' && w[2] == 'L')
+        return N_VALVES;
+    for (uint8_t k = 0; k < N_VALVES; k++) {
+        char name[CMD_MAX];
+        char *end = proto_put_valve_name(name, k);
+        if ((uint8_t)(end - name) == n) {
+            uint8_t i = 0;
+            while (i < n && name[i] == w[i])
+                i++;
+            if (i == n)
+                return k;
+        }
+    }
+    return 0xFF;
+}
+
+static char upper(char c)
+{
+    return (c >= 'a' && c <= 'z') ? (char)(c - 32) : c;
+}
+
+/* SUPPLY, HOLD or VENT (any case) as its letter, or 0. */
+static uint8_t state_of(const char *w)
+{
+    static const char WORDS[] PROGMEM = "SUPPLY\0HOLD\0VENT\0";
+    const char *x = WORDS;
+    for (uint8_t k = 0; k < 3; k++) {
+        uint8_t i = 0;
+        while (FLASH_CHAR(x + i) && upper(w[i]) == FLASH_CHAR(x + i))
+            i++;
+        if (!FLASH_CHAR(x + i) && !w[i])
+            return (uint8_t)FLASH_CHAR(x);
+        while (FLASH_CHAR(x++))
+            ;
+    }
+    return 0;
+}
+
+static char *put_states(char *p, const uint8_t *states)
+{
+    for (uint8_t i = 0; i < N_VALVES; i++)
+        *p++ = (char)states[i];
+    return p;
+}
+
+static uint8_t valve_command(struct proto_state *st, const char *arg, char *reply)
+{
+    const char *p = arg;
+    uint8_t which = valve_of(&p);
+    while (is_space(*p))
+        p++;
+    uint8_t state = state_of(p);
+    if (which == 0xFF || !state) {
+        char *q = put_str(reply, PSTR("ERR VALVE needs <"));
+        for (uint8_t k = 0; k < N_VALVES; k++) {
+            q = proto_put_valve_name(q, k);
+            *q++ = '|';
+        }
+        q = put_str(q, PSTR("ALL> <SUPPLY|HOLD|VENT>, got '"));
+        q = put_shown(q, arg, 40);
+        *q++ = '\'';
+        end_line(q);
+        return PROTO_REPLY;
+    }
+    for (uint8_t k = 0; k < N_VALVES; k++)
+        st->valve_next[k] = (which == N_VALVES || which == k) ? state : st->valve[k];
+    end_line(put_states(put_str(reply, PSTR("OK VALVE ")), st->valve_next));
+    return PROTO_VALVE;
+}
+
+static void pmax_reply(const struct proto_state *st, char *reply)
+{
+    char *p = put_str(reply, PSTR("OK PMAX"));
+    for (uint8_t k = 0; k < N_VALVES; k++) {
+        *p++ = ' ';
+        p = proto_put_u32(p, st->pmax[k]);
+    }
+    end_line(p);
+}
+
+/* Whole counts 0..4095 separated by spaces: how many (at most max) into v, or 0xFF if malformed. */
+static uint8_t parse_counts(const char *p, uint16_t *v, uint8_t max)
+{
+    uint8_t n = 0;
+    for (;;) {
+        while (is_space(*p))
+            p++;
+        if (!*p)
+            return n;
+        uint16_t x = 0;
+        uint8_t digits = 0;
+        for (; *p >= '0' && *p <= '9'; p++, digits++)
+            if (x <= 4095)
+                x = (uint16_t)(x * 10 + (*p - '0'));
+        if (!digits || x > 4095 || (*p && !is_space(*p)) || n == max)
+            return 0xFF;
+        v[n++] = x;
+    }
+}
+
+static uint8_t pmax_command(struct proto_state *st, const char *arg, char *reply)
+{
+    uint16_t v[N_VALVES];
+    uint8_t n = parse_counts(arg, v, N_VALVES);
+    if (n != 1 && n != N_VALVES) {
+        char *p = put_str(reply, PSTR("ERR PMAX needs one limit or "));
+        p = proto_put_u32(p, N_VALVES);
+        p = put_str(p, PSTR(", in counts 0..4095, got '"));
+        p = put_shown(p, arg, 40);
+        *p++ = '\'';
+        end_line(p);
+        return PROTO_REPLY;
+    }
+    for (uint8_t k = 0; k < N_VALVES; k++)
+        st->pmax[k] = v[n == 1 ? 0 : k];
+    pmax_reply(st, reply);
+    return PROTO_PMAX;
+}
+
+static uint8_t no_model(char *reply, const char *what_pstr)
+{
+    end_line(put_str(put_str(reply, PSTR("ERR this board carries no model, so no ")), what_pstr));
+    return PROTO_REPLY;
+}
+
+static uint8_t est_command(struct proto_state *st, const char *arg, char *reply)
+{
+    uint16_t v[1];
+    if (!st->model)
+        return no_model(reply, PSTR("EST"));
+    if (parse_counts(arg, v, 1) != 1 || v[0] > 255) {
+        char *p = put_str(reply, PSTR("ERR EST needs a whole number of data lines 0..255, got '"));
+        p = put_shown(p, arg, 20);
+        *p++ = '\'';
+        end_line(p);
+        return PROTO_REPLY;
+    }
+    st->est_every = (uint8_t)v[0];
+    end_line(proto_put_u32(put_str(reply, PSTR("OK EST ")), st->est_every));
+    return PROTO_REPLY;
+}
+
+static void caps_reply(const struct proto_state *st, char *reply)
+{
+    char *p = put_str(reply, PSTR("CAPS," PROTOCOL_VERSION ",valves=" VALVE_NAMES ",pmax,events,wdt="));
+    p = proto_put_u32(p, WATCHDOG_MS);
+    if (st->model) {
+        p = put_str(p, PSTR(",est="));
+        p = put_shown(p, st->estimates, 40);
+        p = put_str(p, PSTR(",model="));
+        p = put_shown(p, st->model, 16);
+        p = put_str(p, PSTR(",baseline"));
+    }
+    end_line(p);
+}
+
+/* The command word's argument: after "WORD" and spaces, or 0 when text is not that word. */
+static const char *argument(const char *text, const char *word_pstr)
+{
+    const char *t = text;
+    char c;
+    while ((c = FLASH_CHAR(word_pstr++)))
+        if (*t++ != c)
+            return 0;
+    if (*t && !is_space(*t))
+        return 0;
+    while (is_space(*t))
+        t++;
+    return t;
+}
+
+static uint8_t command_1_1(struct proto_state *st, const char *text, char *reply)
+{
+    const char *arg;
+    if (text_eq(text, PSTR("CAPS?"))) {
+        caps_reply(st, reply);
+        return PROTO_REPLY;
+    }
+    if (text_eq(text, PSTR("VALVE?"))) {
+        end_line(put_states(put_str(reply, PSTR("OK VALVE ")), st->valve));
+        return PROTO_REPLY;
+    }
+    if ((arg = argument(text, PSTR("VALVE"))))
+        return valve_command(st, arg, reply);
+    if (text_eq(text, PSTR("PMAX?"))) {
+        pmax_reply(st, reply);
+        return PROTO_REPLY;
+    }
+    if ((arg = argument(text, PSTR("PMAX"))))
+        return pmax_command(st, arg, reply);
+    if ((arg = argument(text, PSTR("EST"))))
+        return est_command(st, arg, reply);
+    if (text_eq(text, PSTR("BASELINE"))) {
+        if (!st->model)
+            return no_model(reply, PSTR("BASELINE"));
+        end_line(put_str(reply, PSTR("OK BASELINE")));
+        return PROTO_BASELINE;
+    }
+    return PROTO_NONE;
 }
 
 uint8_t proto_command(struct proto_state *st, const char *line, char *reply)
@@ -320,6 +561,9 @@ uint8_t proto_command(struct proto_state *st, const char *line, char *reply)
             arg++;
         return rate_command(st, arg, reply);
     }
+    uint8_t action = WIRE_1_1 ? command_1_1(st, text, reply) : PROTO_NONE;
+    if (action != PROTO_NONE)
+        return action;
     char *p = put_str(reply, PSTR("ERR unknown command '"));
     p = put_shown(p, text, 40);
     *p++ = '\'';
@@ -373,4 +617,113 @@ void proto_stop_log(char *out, const struct proto_stats *s)
     p = put_str(p, PSTR(" unformatted), sampling "));
     p = proto_put_u32(p, s->sampling_us_max);
     end_line(put_str(p, PSTR(" us per frame at most")));
+}
+
+/* ---- wire protocol 1.1 lines ---- */
+
+/* "*HH\n" after the payload out[1..p), and the NUL; the line's length. */
+static uint8_t sign(char *out, char *p)
+{
+    uint8_t cs = proto_checksum(out + 1, (uint8_t)(p - out - 1));
+    *p++ = '*';
+    *p++ = hex_digit(cs >> 4);
+    *p++ = hex_digit(cs & 15);
+    *p++ = '\n';
+    *p = '\0';
+    return (uint8_t)(p - out);
+}
+
+static char *event_head(char *out, uint32_t n, uint32_t t_us, const char *kind_pstr)
+{
+    char *p = put_str(out, PSTR("$E,"));
+    p = proto_put_u32(p, n);
+    *p++ = ',';
+    p = proto_put_u32(p, t_us);
+    *p++ = ',';
+    return put_str(p, kind_pstr);
+}
+
+uint8_t proto_event_valve(char *out, uint32_t n, uint32_t t_us, const uint8_t *states, const char *cause_pstr)
+{
+    char *p = event_head(out, n, t_us, PSTR("VALVE,"));
+    p = put_states(p, states);
+    *p++ = ',';
+    return sign(out, put_str(p, cause_pstr));
+}
+
+uint8_t proto_event_pmax(char *out, uint32_t n, uint32_t t_us, uint8_t valve, uint16_t counts)
+{
+    char *p = proto_put_valve_name(event_head(out, n, t_us, PSTR("PMAX,")), valve);
+    *p++ = ',';
+    return sign(out, proto_put_u32(p, counts));
+}
+
+uint8_t proto_event_reset(char *out, uint32_t n, uint32_t t_us, const char *cause_pstr)
+{
+    return sign(out, put_str(event_head(out, n, t_us, PSTR("RESET,")), cause_pstr));
+}
+
+uint8_t proto_event_baseline(char *out, uint32_t n, uint32_t t_us, const char *cause_pstr, const uint32_t *sum,
+                             uint16_t count)
+{
+    char *p = put_str(event_head(out, n, t_us, PSTR("BASELINE,")), cause_pstr);
+    for (uint8_t i = 0; i < N_CHANNELS; i++) {
+        /* Whole counts and rounded hundredths apart: sum * 100 would overflow 32 bits. */
+        uint32_t whole = count ? sum[i] / count : 0;
+        uint32_t cents = count ? ((sum[i] % count) * 100UL + count / 2) / count : 0;
+        if (cents >= 100) {
+            whole++;
+            cents -= 100;
+        }
+        *p++ = ',';
+        p = proto_put_u32(p, whole);
+        *p++ = '.';
+        *p++ = (char)('0' + cents / 10);
+        *p++ = (char)('0' + cents % 10);
+    }
+    return sign(out, p);
+}
+
+/* v / 10^d with d decimals (d <= 9), "-0.000123" style. */
+static char *put_fixed(char *p, int32_t v, uint8_t d)
+{
+    uint32_t mag = v < 0 ? (uint32_t)(-(v + 1)) + 1U : (uint32_t)v;
+    if (v < 0)
+        *p++ = '-';
+    uint32_t scale = d ? FLASH_U32(&POW10[9 - d]) : 1UL;
+    p = proto_put_u32(p, mag / scale);
+    if (d) {
+        uint32_t frac = mag % scale;
+        *p++ = '.';
+        for (uint32_t pw = scale / 10; pw; pw /= 10) {
+            uint8_t digit = (uint8_t)(frac / pw);
+            *p++ = (char)('0' + digit);
+            frac -= digit * pw;
+        }
+    }
+    return p;
+}
+
+uint8_t proto_format_estimate(char *out, uint32_t seq, uint32_t t_us, const int32_t *values, const uint8_t *decimals,
+                              uint8_t n, uint16_t flags)
+{
+    char *p = put_str(out, PSTR("$S,"));
+    p = proto_put_u32(p, seq);
+    *p++ = ',';
+    p = proto_put_u32(p, t_us);
+    for (uint8_t k = 0; k < n; k++) {
+        *p++ = ',';
+        p = put_fixed(p, values[k], decimals[k]);
+    }
+    *p++ = ',';
+    return sign(out, proto_put_u32(p, flags));
+}
+
+uint8_t proto_over_limit(const struct proto_state *st, const uint16_t *counts)
+{
+    uint8_t over = 0;
+    for (uint8_t k = 0; k < N_VALVES; k++)
+        if (counts[k] > st->pmax[k] && st->valve[k] != VALVE_VENT)
+            over |= (uint8_t)(1U << k);
+    return over;
 }

@@ -1,8 +1,9 @@
 /*
- * The rig wire protocol, version 1, device side: everything that needs no hardware.
+ * The rig wire protocol, version 1.1, device side: everything that needs no hardware.
  *
- * Frame formatting, the XOR checksum, the command line assembler and parser, and
- * the arithmetic from a commanded RATE to timer and ADC settings.  Compiled for
+ * Frame, event and estimate line formatting, the XOR checksum, the command line assembler
+ * and parser (valves, pressure limit and model commands included), the pressure-limit check,
+ * and the arithmetic from a commanded RATE to timer and ADC settings.  Compiled for
  * the board and for the host alike (plain C99, <stdint.h> only), so the host
  * tests (firmware/test/) check exactly the code the board runs.
  */
@@ -53,6 +54,7 @@ struct proto_rate {
     uint16_t base;
     uint16_t extra;    /* how many of them are base + 1 */
     uint8_t adc_ps_log2; /* ADC clock = F_CPU >> adc_ps_log2 (ADPS bits) */
+    uint8_t idle_every;  /* not streaming, one period in idle_every is sampled (the limit's check) */
 };
 
 /* Timer and ADC settings for a requested rate (millihertz, > 0). */
@@ -60,13 +62,33 @@ void proto_rate_settings(uint32_t mhz, struct proto_rate *rate);
 
 /* ---- commands ---- */
 
-enum proto_action { PROTO_NONE = 0, PROTO_REPLY, PROTO_RATE, PROTO_START, PROTO_STOP };
+enum proto_action {
+    PROTO_NONE = 0,
+    PROTO_REPLY,
+    PROTO_RATE,
+    PROTO_START,
+    PROTO_STOP,
+    PROTO_VALVE,    /* st->valve_next holds the valves wanted; the reply is ready */
+    PROTO_PMAX,     /* st->pmax changed (to store) */
+    PROTO_BASELINE, /* the model is to retake its baseline */
+};
+
+#define VALVE_SUPPLY 'S'
+#define VALVE_HOLD 'H'
+#define VALVE_VENT 'V'
 
 struct proto_state {
     struct proto_rate rate;
     uint8_t streaming;
+    uint8_t valve[N_VALVES];      /* the valves as they are ('S', 'H', 'V'); the caller keeps it */
+    uint8_t valve_next[N_VALVES]; /* what a VALVE command asks for */
+    uint16_t pmax[N_VALVES];      /* the pressure limit, counts */
+    uint8_t est_every;            /* an estimate line after every n-th data line (0: none) */
+    const char *model;            /* the model's id (RAM), or 0 for a board without a model */
+    const char *estimates;        /* its quantities, "theta1:theta2:Fx:Fy" (RAM) */
 };
 
+/* Rate at power-up, valves holding, the default limit, no model. */
 void proto_init(struct proto_state *st);
 
 /* Answer one command line (NUL-terminated, no '\n').  reply (>= PROTO_REPLY_MAX) gets the
@@ -89,5 +111,32 @@ struct proto_stats {
     uint16_t sampling_us_max; /* longest time from a frame's tick to its last conversion */
 };
 void proto_stop_log(char *out, const struct proto_stats *stats);
+
+/* ---- wire protocol 1.1: events, estimates, the limit ---- */
+
+/* Longest event line: "$E," n "," t_us ",BASELINE,release" then N_CHANNELS x ",4294967295.99" "*HH\n". */
+#define PROTO_EVENT_MAX (3 + 10 + 1 + 10 + 17 + N_CHANNELS * 14 + 4 + 1)
+#define PROTO_ESTIMATE_MAX (3 + 10 + 1 + 10 + 4 * 13 + 6 + 4 + 1)
+
+/* Event lines (the event number n, the board's clock t_us); each returns the line's length. */
+uint8_t proto_event_valve(char *out, uint32_t n, uint32_t t_us, const uint8_t *states, const char *cause_pstr);
+uint8_t proto_event_pmax(char *out, uint32_t n, uint32_t t_us, uint8_t valve, uint16_t counts);
+uint8_t proto_event_reset(char *out, uint32_t n, uint32_t t_us, const char *cause_pstr);
+/* The mean counts of every channel, sum / count, to two decimals. */
+uint8_t proto_event_baseline(char *out, uint32_t n, uint32_t t_us, const char *cause_pstr, const uint32_t *sum,
+                             uint16_t count);
+
+/* An estimate line: values[k] / 10^decimals[k], then the flags. */
+uint8_t proto_format_estimate(char *out, uint32_t seq, uint32_t t_us, const int32_t *values, const uint8_t *decimals,
+                              uint8_t n, uint16_t flags);
+
+/* Which valves (bit k: valve k) read above their limit and are not venting. */
+uint8_t proto_over_limit(const struct proto_state *st, const uint16_t *counts);
+
+/* A string from flash (PSTR on the board) into out; returns the end. */
+char *proto_put_pstr(char *out, const char *pstr);
+
+/* The name of valve k (a pressure channel's) into out; returns the end. */
+char *proto_put_valve_name(char *out, uint8_t valve);
 
 #endif

@@ -8,9 +8,10 @@
  * ticks that actually elapsed: it stays exact across RATE changes and wraps
  * at 2^32 us like the protocol's t_us.
  *
- * A frame's conversions go into `sampling`; the main loop copies it out
- * (sampler_take) before the next tick may reuse it, else that next frame is
- * dropped ("unformatted").
+ * A frame's conversions go into the next free slot of a queue of FRAME_QUEUE
+ * frames; the main loop copies them out (sampler_take), oldest first.  A tick
+ * that finds the queue full drops its frame ("unformatted"): the main loop,
+ * busy with a model estimate, may fall a few frames behind without loss.
  *
  * Single-conversion mode, one conversion started by the previous one's
  * interrupt: the channel is chosen before each start, so no conversion has to
@@ -44,13 +45,14 @@ static uint32_t ticks_total;    /* free-running tick count, for the sampling tim
 static uint32_t seq = SEQ_START;
 static volatile uint8_t streaming;
 
-/* ADC state: the frame being sampled, then (frame_done) waiting for the main loop. */
+/* ADC state: the frame being sampled (queue[q_head]), then queued for the main loop. */
+#define FRAME_QUEUE 4
 static volatile uint8_t adc_busy;
-static volatile uint8_t frame_done;
+static struct frame queue[FRAME_QUEUE];
+static uint32_t queue_tick[FRAME_QUEUE];
+static volatile uint8_t q_head, q_count; /* next slot to sample into; frames finished, waiting */
 static uint8_t adc_ch, adc_n;
 static uint16_t adc_acc;
-static struct frame sampling;
-static uint32_t sampling_tick;
 
 static volatile uint32_t n_adc_late, n_unformatted;
 static volatile uint16_t sampling_us_max;
@@ -92,7 +94,6 @@ void sampler_start(void)
     n_adc_late = 0;
     n_unformatted = 0;
     sampling_us_max = 0;
-    frame_done = 0;
     streaming = 1;
     sei();
 }
@@ -101,36 +102,53 @@ void sampler_stop(void)
 {
     cli();
     streaming = 0;
-    if (adc_busy) {
-        /* Let the conversion under way finish unheard; its frame is not sent. */
-        ADCSRA &= (uint8_t)~_BV(ADIE);
-        adc_busy = 0;
-    }
-    frame_done = 0;
+    /* Frames under way or queued still go through the limit check, but are not sent. */
+    for (uint8_t i = 0; i < FRAME_QUEUE; i++)
+        queue[i].streamed = 0;
     sei();
 }
 
-/* Timer ticks since the frame's tick (the timer interrupt may be pending). Interrupts off. */
-static uint32_t ticks_since_tick(void)
+/* The free-running tick count now (the timer interrupt may be pending).  Interrupts off. */
+static uint32_t ticks_now(void)
 {
     uint16_t tcnt = TCNT1;
     uint32_t now = ticks_total + tcnt;
     if ((TIFR1 & _BV(OCF1A)) && tcnt < OCR1A / 2)
         now += OCR1A + 1UL;
-    return now - sampling_tick;
+    return now;
+}
+
+uint32_t sampler_ticks(void)
+{
+    uint8_t sreg = SREG;
+    cli();
+    uint32_t now = ticks_now();
+    SREG = sreg;
+    return now;
+}
+
+uint32_t sampler_now_us(void)
+{
+    uint8_t sreg = SREG;
+    cli();
+    uint32_t now = t_us + (uint32_t)(((uint16_t)t_ticks + TCNT1) / TICKS_PER_US);
+    SREG = sreg;
+    return now;
 }
 
 uint8_t sampler_take(struct frame *out)
 {
     uint8_t got = 0;
     cli();
-    if (frame_done) {
-        *out = sampling;
-        frame_done = 0;
+    if (q_count) {
+        /* The oldest finished frame: q_count behind the slot being sampled (or the next one). */
+        uint8_t tail = (uint8_t)((q_head + FRAME_QUEUE - q_count) % FRAME_QUEUE);
+        *out = queue[tail];
+        q_count--;
         got = 1;
         /* From the tick to the hand-over: the conversions, plus however long the main loop took. */
-        uint32_t us = ticks_since_tick() / TICKS_PER_US;
-        if (us > sampling_us_max)
+        uint32_t us = (ticks_now() - queue_tick[tail]) / TICKS_PER_US;
+        if (out->streamed && us > sampling_us_max)
             sampling_us_max = us > 0xFFFF ? 0xFFFF : (uint16_t)us;
     }
     sei();
@@ -146,23 +164,31 @@ void sampler_stats(struct proto_stats *stats)
     sei();
 }
 
-/* A frame period begins: its seq is used whatever becomes of the frame. */
+/* A frame period begins: a streamed frame's seq is used whatever becomes of the frame. */
+static uint8_t idle_count;
+
 static void frame_tick(void)
 {
-    if (!streaming)
-        return;
-    uint32_t s = seq++;
+    uint8_t on = streaming;
+    uint32_t s = seq;
+    if (on)
+        seq++;
+    else if (++idle_count < rate_now.idle_every)
+        return; /* idle: the limit needs only a few checks a second */
+    idle_count = 0;
     if (adc_busy) {
-        n_adc_late++; /* the previous frame's conversions are still running */
+        n_adc_late += on; /* the previous frame's conversions are still running */
         return;
     }
-    if (frame_done) {
-        n_unformatted++; /* the main loop has not taken the previous frame yet */
+    if (q_count >= FRAME_QUEUE) {
+        n_unformatted += on; /* the main loop has fallen FRAME_QUEUE frames behind */
         return;
     }
-    sampling.seq = s;
-    sampling.t_us = t_us;
-    sampling_tick = ticks_total;
+    struct frame *f = &queue[q_head];
+    f->seq = s;
+    f->t_us = t_us;
+    f->streamed = on;
+    queue_tick[q_head] = ticks_total;
     adc_ch = 0;
     adc_n = 0;
     adc_acc = 0;
@@ -198,7 +224,7 @@ ISR(ADC_vect)
         ADCSRA |= _BV(ADSC);
         return;
     }
-    sampling.sum[adc_ch] = acc;
+    queue[q_head].sum[adc_ch] = acc;
     adc_acc = 0;
     adc_n = 0;
     if (++adc_ch < N_CHANNELS) {
@@ -207,6 +233,7 @@ ISR(ADC_vect)
         return;
     }
     adc_busy = 0;
-    frame_done = 1;
+    q_head = (uint8_t)((q_head + 1) % FRAME_QUEUE);
+    q_count++;
     event_post(EVENT_FRAME);
 }

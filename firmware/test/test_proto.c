@@ -145,6 +145,13 @@ static void test_rate_settings(void)
     CHECK(r.adc_ps_log2 == 6);
     proto_rate_settings(50000, &r);
     CHECK(r.adc_ps_log2 == 7);
+    CHECK(r.idle_every == 1); /* 50 Hz: every period checked when idle */
+    proto_rate_settings(200000, &r);
+    CHECK(r.idle_every == 4);
+    proto_rate_settings(201000, &r);
+    CHECK(r.idle_every == 5); /* never less often than IDLE_CHECK_HZ */
+    proto_rate_settings(1000, &r);
+    CHECK(r.idle_every == 1);
 }
 
 static void expect(struct proto_state *st, const char *cmd, uint8_t action, const char *reply)
@@ -160,8 +167,8 @@ static void test_commands(void)
     struct proto_state st;
     proto_init(&st);
     CHECK(st.rate.mhz == 200000 && !st.streaming);
-    expect(&st, "ID?", PROTO_REPLY, "ID,mckibben-2dof,1.0-avr,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n");
-    expect(&st, "  ID?\t", PROTO_REPLY, "ID,mckibben-2dof,1.0-avr,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n");
+    expect(&st, "ID?", PROTO_REPLY, "ID,mckibben-2dof,1.1-avr,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n");
+    expect(&st, "  ID?\t", PROTO_REPLY, "ID,mckibben-2dof,1.1-avr,P_L1,P_R1,P_L2,P_R2,POT1,POT2\n");
     expect(&st, "", PROTO_NONE, "");
     expect(&st, "   ", PROTO_NONE, "");
     expect(&st, "RATE 100", PROTO_RATE, "OK RATE 100\n");
@@ -211,7 +218,7 @@ static void test_log_lines(void)
     proto_init(&st);
     proto_banner(out);
     char want[PROTO_REPLY_MAX];
-    snprintf(want, sizeof want, "# mckibben-2dof 1.0-avr ready, 6 channels, %lu baud\n", (unsigned long)BAUD);
+    snprintf(want, sizeof want, "# mckibben-2dof 1.1-avr ready, 6 channels, %lu baud\n", (unsigned long)BAUD);
     proto_banner(out);
     CHECK_STR(out, want);
     proto_start_log(out, &st);
@@ -225,6 +232,90 @@ static void test_log_lines(void)
     CHECK(strlen(out) < PROTO_REPLY_MAX);
 }
 
+static void test_valves_and_limits(void)
+{
+    struct proto_state st;
+    proto_init(&st);
+    CHECK(st.valve[0] == 'H' && st.valve[3] == 'H' && st.pmax[2] == 3112 && !st.est_every);
+    expect(&st, "CAPS?", PROTO_REPLY, "CAPS,1.1,valves=P_L1:P_R1:P_L2:P_R2,pmax,events,wdt=1000\n");
+    expect(&st, "VALVE?", PROTO_REPLY, "OK VALVE HHHH\n");
+    expect(&st, "VALVE P_L2 VENT", PROTO_VALVE, "OK VALVE HHVH\n");
+    CHECK(!memcmp(st.valve_next, "HHVH", 4) && !memcmp(st.valve, "HHHH", 4)); /* the caller applies it */
+    memcpy(st.valve, "SSSV", 4);
+    expect(&st, "VALVE ALL hold", PROTO_VALVE, "OK VALVE HHHH\n");
+    expect(&st, "VALVE   P_R1\tSupply", PROTO_VALVE, "OK VALVE SSSV\n");
+    expect(&st, "VALVE?", PROTO_REPLY, "OK VALVE SSSV\n");
+    const char *need = "ERR VALVE needs <P_L1|P_R1|P_L2|P_R2|ALL> <SUPPLY|HOLD|VENT>, got '";
+    char want[PROTO_REPLY_MAX];
+    const char *bad[] = {"P_X VENT", "ALL", "ALL OPEN", "P_L VENT", "P_L11 VENT", "ALL VENTS", ""};
+    for (unsigned i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char cmd[CMD_MAX];
+        snprintf(cmd, sizeof cmd, "VALVE %s", bad[i]);
+        snprintf(want, sizeof want, "%s%s'\n", need, bad[i]);
+        expect(&st, cmd, PROTO_REPLY, want);
+    }
+    expect(&st, "VALVES", PROTO_REPLY, "ERR unknown command 'VALVES'\n");
+    expect(&st, "PMAX?", PROTO_REPLY, "OK PMAX 3112 3112 3112 3112\n");
+    expect(&st, "PMAX 2000", PROTO_PMAX, "OK PMAX 2000 2000 2000 2000\n");
+    expect(&st, "PMAX 1 20 300 4095", PROTO_PMAX, "OK PMAX 1 20 300 4095\n");
+    const char *bad_pmax[] = {"", "1 2", "4096", "-1", "1.5", "1 2 3 4 5", "0x10", "99999999999"};
+    for (unsigned i = 0; i < sizeof bad_pmax / sizeof bad_pmax[0]; i++) {
+        char cmd[CMD_MAX];
+        snprintf(cmd, sizeof cmd, "PMAX %s", bad_pmax[i]);
+        snprintf(want, sizeof want, "ERR PMAX needs one limit or 4, in counts 0..4095, got '%s'\n", bad_pmax[i]);
+        expect(&st, cmd, PROTO_REPLY, want);
+    }
+    CHECK(st.pmax[0] == 1 && st.pmax[3] == 4095); /* refused limits leave the limits alone */
+    expect(&st, "EST 1", PROTO_REPLY, "ERR this board carries no model, so no EST\n");
+    expect(&st, "BASELINE", PROTO_REPLY, "ERR this board carries no model, so no BASELINE\n");
+    st.model = "3f09a1c2";
+    st.estimates = "theta1:theta2:Fx:Fy";
+    expect(&st, "CAPS?", PROTO_REPLY,
+           "CAPS,1.1,valves=P_L1:P_R1:P_L2:P_R2,pmax,events,wdt=1000,est=theta1:theta2:Fx:Fy,model=3f09a1c2,"
+           "baseline\n");
+    expect(&st, "EST 4", PROTO_REPLY, "OK EST 4\n");
+    CHECK(st.est_every == 4);
+    expect(&st, "EST 256", PROTO_REPLY, "ERR EST needs a whole number of data lines 0..255, got '256'\n");
+    expect(&st, "BASELINE", PROTO_BASELINE, "OK BASELINE\n");
+
+    /* The limit: above it and not venting. */
+    uint16_t counts[N_CHANNELS] = {2, 20, 301, 4095, 0, 0};
+    memcpy(st.valve, "SSSS", 4);
+    CHECK(proto_over_limit(&st, counts) == 0x5); /* 2 > 1 and 301 > 300; 20 and 4095 are at, not above */
+    memcpy(st.valve, "SSVH", 4);
+    CHECK(proto_over_limit(&st, counts) == 0x1); /* a venting chamber is left alone */
+}
+
+static void test_event_and_estimate_lines(void)
+{
+    char out[PROTO_EVENT_MAX];
+    uint8_t n = proto_event_valve(out, 7, 12345, (const uint8_t *)"SSHV", "host");
+    CHECK_STR(out, "$E,7,12345,VALVE,SSHV,host*39\n");
+    CHECK(n == strlen(out));
+    proto_event_pmax(out, 0, 4294967295UL, 3, 3200);
+    CHECK(!strncmp(out, "$E,0,4294967295,PMAX,P_R2,3200*", 31));
+    proto_event_reset(out, 1, 0, "wdt");
+    CHECK(!strncmp(out, "$E,1,0,RESET,wdt*", 17));
+    const uint32_t sum[N_CHANNELS] = {155600, 3, 0, 4294967295UL, 2, 99999};
+    n = proto_event_baseline(out, 4294967295UL, 4294967295UL, "release", sum, 100);
+    CHECK(!strncmp(out, "$E,4294967295,4294967295,BASELINE,release,1556.00,0.03,0.00,42949672.95,0.02,999.99*",
+                   84));
+    CHECK(n == strlen(out) && n < PROTO_EVENT_MAX);
+    const uint32_t thirds[N_CHANNELS] = {2, 1, 5, 3, 3, 0}; /* over 3 samples: 0.67, 0.33, 1.67, 1, 1, 0 */
+    proto_event_baseline(out, 0, 0, "host", thirds, 3);
+    CHECK(!strncmp(out, "$E,0,0,BASELINE,host,0.67,0.33,1.67,1.00,1.00,0.00*", 51));
+
+    char est[PROTO_ESTIMATE_MAX];
+    const int32_t v[4] = {123, -5, -2147483647L - 1, 2147483647L};
+    const uint8_t d[4] = {6, 6, 4, 0};
+    n = proto_format_estimate(est, 9, 5000, v, d, 4, 513);
+    CHECK(!strncmp(est, "$S,9,5000,0.000123,-0.000005,-214748.3648,2147483647,513*", 57));
+    CHECK(n == strlen(est) && n < PROTO_ESTIMATE_MAX);
+    const int32_t w[2] = {31415926, -1000000};
+    proto_format_estimate(est, 0, 0, w, d, 2, 0);
+    CHECK(!strncmp(est, "$S,0,0,31.415926,-1.000000,0*", 29));
+}
+
 int main(void)
 {
     test_checksum_and_frame();
@@ -234,6 +325,8 @@ int main(void)
     test_rate_settings();
     test_commands();
     test_log_lines();
+    test_valves_and_limits();
+    test_event_and_estimate_lines();
     if (failures) {
         printf("%d of %d checks failed\n", failures, checks);
         return 1;

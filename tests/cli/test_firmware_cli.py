@@ -89,7 +89,7 @@ def test_monitor_reads_the_rig_through_the_firmware(firmware_elf):
         fed = server.link.fed()
     assert proc.returncode == 0, proc.stdout + proc.stderr
     summary = json.loads(proc.stdout)
-    assert summary["device"] == "mckibben-2dof" and summary["firmware"] == "1.0-avr"
+    assert summary["device"] == "mckibben-2dof" and summary["firmware"] == "1.1-avr"
     for counter in ("lost", "bad_checksum", "malformed", "overlong", "stalls"):
         assert summary[counter] == 0, counter
     assert summary["rate_hz"] == 200.0
@@ -184,7 +184,7 @@ def test_sim_pty_firmware_serves_the_board_and_leaves_nothing_running(firmware_e
         with Device.open(path, boot_wait=0) as dev:
             assert (dev.info.device, dev.info.firmware, dev.info.channels) == (
                 "mckibben-2dof",
-                "1.0-avr",
+                "1.1-avr",
                 FIRMWARE_CHANNELS,
             )
             dev.set_rate(100)

@@ -30,13 +30,13 @@ def test_the_firmware_answers_every_command_on_the_board(firmware_elf):
     register()
     with serial.serial_for_url(f"sim://?firmware={firmware_elf}", timeout=0.05) as port:
         lines = read_lines(port, 1)
-        assert lines == ["# mckibben-2dof 1.0-avr ready, 6 channels, 115200 baud"]  # the power-up banner
+        assert lines == ["# mckibben-2dof 1.1-avr ready, 6 channels, 115200 baud"]  # the power-up banner
 
         def ask(command: str, n: int = 1) -> list[str]:
             port.write(command.encode("latin-1") + b"\n")
             return read_lines(port, n)
 
-        assert ask("ID?") == ["ID,mckibben-2dof,1.0-avr,P_L1,P_R1,P_L2,P_R2,POT1,POT2"]
+        assert ask("ID?") == ["ID,mckibben-2dof,1.1-avr,P_L1,P_R1,P_L2,P_R2,POT1,POT2"]
         assert ask("RATE 1000") == ["ERR RATE must be within 1..202 Hz at 115200 baud, got 1000"]
         assert ask("RATE 12.5") == ["OK RATE 12.5"]
         assert ask("RATE 33.3333") == ["OK RATE 33.333"]

@@ -25,8 +25,15 @@ a small harness (``firmware/hil/harness.c``, built next to the ELF as
 * **Bytes.**  What the firmware sends goes to ``on_bytes`` (device to host);
   :meth:`HilLink.write` sends host bytes to the AVR's UART.
 
+* **Valves.**  The harness reports every write of the firmware to PORTB and PORTD; the
+  link reads the valves' coils off them (:data:`VALVE_PINS`, the map of
+  ``firmware/src/config.h``) and sets the rig's valves (``rig.set_valves``) when they
+  change.  The rig is up to ``IN_FLIGHT`` batches ahead of the AVR, so a valve acts on the
+  rig up to that much later than the firmware switched it (at most 90 ms of simulated time).
+
 ``record=True`` keeps every fed sample (``fed()``: AVR time in microseconds
-and the rig's counts) so tests can hold the firmware's frames against the rig.
+and the rig's counts) so tests can hold the firmware's frames against the rig;
+``pins()`` always lists every port write (AVR time, port, value).
 The rig must have the firmware's six channels, in its order (``FIRMWARE_CHANNELS``: the
 reference rig's names, compiled into the firmware); the ``sim://`` mode whose rig has them
 is found through the registry, like any ``mode=``.
@@ -51,6 +58,9 @@ from ...errors import DeviceError
 from . import make_rig, modes
 
 FIRMWARE_CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")  # A0..A5
+# Each chamber's coils (firmware/src/config.h): port, inlet bit, exhaust bit; and the main supply valve.
+VALVE_PINS = (("D", 2, 3), ("D", 4, 5), ("D", 6, 7), ("B", 0, 1))
+MAIN_SUPPLY_PIN = ("B", 2)
 HARNESS_NAME = "labcli_hil"
 BUILD_HINT = (
     "build it with `make -C firmware` (needs gcc-avr, avr-libc, simavr, libsimavr-dev and libelf-dev: "
@@ -61,6 +71,7 @@ IN_FLIGHT = {"wall": 3, "demand": 8}  # batches the harness may hold beyond the 
 VREF = 5.0
 ADC_MAX = 4095  # the rig's counts are the protocol's: V = counts * 5 / 4095
 START_TIMEOUT_S = 10.0
+CPU_HZ = 16_000_000  # the harness's default --freq
 _HEAD = struct.Struct("<cI")
 
 
@@ -125,6 +136,9 @@ class HilLink:
         self._batches_done = 0
         self._horizon_s = 0.0
         self._record: list[tuple[np.ndarray, np.ndarray]] | None = [] if record else None
+        self._ports = {"B": 0, "D": 0}
+        self._pins: list[tuple[float, str, int]] = []
+        self.valve_states: tuple[str, ...] = ("hold",) * len(VALVE_PINS)  # the pins at power-up
         self._stderr: deque[str] = deque(maxlen=20)
         self._write_lock = threading.Lock()
         self._stop = threading.Event()
@@ -193,6 +207,10 @@ class HilLink:
         if not parts:
             return np.zeros(0, np.int64), np.zeros((0, len(FIRMWARE_CHANNELS)), np.int64)
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+    def pins(self) -> list[tuple[float, str, int]]:
+        """Every write of the firmware to PORTB or PORTD: (AVR time s, ``"B"`` or ``"D"``, value)."""
+        return list(self._pins)
 
     def failure(self) -> str:
         """Why the simulation ended, as one sentence."""
@@ -300,8 +318,25 @@ class HilLink:
             self._batches_done += 1
         elif kind == b"B":
             self.uart = payload.decode("ascii", "replace")
+        elif kind == b"P":
+            self._port_write(payload)
         elif kind == b"E":
             self.error = payload.decode("utf-8", "replace")
+
+    def _port_write(self, payload: bytes) -> None:
+        cycle, port, value = struct.unpack("<QcB", payload)
+        name = port.decode("ascii")
+        self._ports[name] = value
+        self._pins.append((cycle / CPU_HZ, name, value))
+        main = self._ports[MAIN_SUPPLY_PIN[0]] >> MAIN_SUPPLY_PIN[1] & 1
+        states = []
+        for p, inlet, exhaust in VALVE_PINS:
+            bits = self._ports[p]
+            states.append("vent" if bits >> exhaust & 1 else "supply" if bits >> inlet & 1 and main else "hold")
+        if tuple(states) != self.valve_states:
+            self.valve_states = tuple(states)
+            if hasattr(self.rig, "set_valves"):
+                self.rig.set_valves(states)
 
     def _may_send(self) -> bool:
         if self._batches_sent - self._batches_done > self._in_flight:
