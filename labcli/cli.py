@@ -34,6 +34,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "import": ("labcli.commands.import_", "import_", "Build a run file from a trial or push CSV table."),
     "monitor": ("labcli.commands.monitor", "monitor", "Show live calibrated readings and link statistics."),
     "ports": ("labcli.commands.ports", "ports", "List the serial ports on this machine."),
+    "export-model": (
+        "labcli.commands.export_model",
+        "export_model",
+        "Write a fitted model as C for the rig firmware (estimates on the chip).",
+    ),
     "sim": ("labcli.commands.sim", "sim", "Serve the simulated rig on a pseudo-terminal."),
 }
 

@@ -666,20 +666,14 @@ uint8_t proto_event_reset(char *out, uint32_t n, uint32_t t_us, const char *caus
 uint8_t proto_event_baseline(char *out, uint32_t n, uint32_t t_us, const char *cause_pstr, const uint32_t *sum,
                              uint16_t count)
 {
+    /* The frames and each channel's sum of counts, not rounded means: the host divides and so
+     * works from the very baseline the chip does. */
     char *p = put_str(event_head(out, n, t_us, PSTR("BASELINE,")), cause_pstr);
+    *p++ = ',';
+    p = proto_put_u32(p, count);
     for (uint8_t i = 0; i < N_CHANNELS; i++) {
-        /* Whole counts and rounded hundredths apart: sum * 100 would overflow 32 bits. */
-        uint32_t whole = count ? sum[i] / count : 0;
-        uint32_t cents = count ? ((sum[i] % count) * 100UL + count / 2) / count : 0;
-        if (cents >= 100) {
-            whole++;
-            cents -= 100;
-        }
         *p++ = ',';
-        p = proto_put_u32(p, whole);
-        *p++ = '.';
-        *p++ = (char)('0' + cents / 10);
-        *p++ = (char)('0' + cents % 10);
+        p = proto_put_u32(p, sum[i]);
     }
     return sign(out, p);
 }

@@ -114,15 +114,15 @@ void proto_stop_log(char *out, const struct proto_stats *stats);
 
 /* ---- wire protocol 1.1: events, estimates, the limit ---- */
 
-/* Longest event line: "$E," n "," t_us ",BASELINE,release" then N_CHANNELS x ",4294967295.99" "*HH\n". */
-#define PROTO_EVENT_MAX (3 + 10 + 1 + 10 + 17 + N_CHANNELS * 14 + 4 + 1)
+/* Longest event line: "$E," n "," t_us ",BASELINE,release," frames then N_CHANNELS x ",4294967295" "*HH\n". */
+#define PROTO_EVENT_MAX (3 + 10 + 1 + 10 + 18 + 5 + N_CHANNELS * 11 + 4 + 1)
 #define PROTO_ESTIMATE_MAX (3 + 10 + 1 + 10 + 4 * 13 + 6 + 4 + 1)
 
 /* Event lines (the event number n, the board's clock t_us); each returns the line's length. */
 uint8_t proto_event_valve(char *out, uint32_t n, uint32_t t_us, const uint8_t *states, const char *cause_pstr);
 uint8_t proto_event_pmax(char *out, uint32_t n, uint32_t t_us, uint8_t valve, uint16_t counts);
 uint8_t proto_event_reset(char *out, uint32_t n, uint32_t t_us, const char *cause_pstr);
-/* The mean counts of every channel, sum / count, to two decimals. */
+/* A baseline of count frames: count, then every channel's sum of counts. */
 uint8_t proto_event_baseline(char *out, uint32_t n, uint32_t t_us, const char *cause_pstr, const uint32_t *sum,
                              uint16_t count);
 

@@ -28,7 +28,7 @@ VALVE_WORDS = {v: k for k, v in VALVE_LETTERS.items()}
 EVENT_VALVE = "VALVE"  # $E,...,VALVE,<states>,<cause>
 EVENT_PMAX = "PMAX"  # $E,...,PMAX,<channel>,<counts>
 EVENT_RESET = "RESET"  # $E,...,RESET,<cause>
-EVENT_BASELINE = "BASELINE"  # $E,...,BASELINE,<cause>,<mean counts per channel>...
+EVENT_BASELINE = "BASELINE"  # $E,...,BASELINE,<cause>,<frames>,<sum of counts per channel>...
 
 
 @dataclass(frozen=True)
@@ -113,3 +113,11 @@ def limit_counts(pmax_mpa: float, gains: Sequence[float], zeros: Sequence[float]
             raise ValueError("a pressure limit needs a finite limit and a positive gain per channel")
         out.append(int(min(adc_max, max(0, math.floor(zero + pmax_mpa / gain)))))
     return out
+
+
+def baseline_counts(fields: Sequence[str]) -> list[float]:
+    """The mean counts per channel of a ``BASELINE`` event's fields (cause, frames, sums); ValueError if malformed."""
+    frames = int(fields[1])
+    if frames <= 0 or len(fields) < 3:
+        raise ValueError("a BASELINE event names its frames and at least one channel's sum")
+    return [int(x) / frames for x in fields[2:]]

@@ -92,6 +92,14 @@ def record_type(kind: str) -> RecordType:
     return for_run_kind(kind).record_type(kind)
 
 
+def for_model_schema(schema: str) -> Paper:
+    """The paper whose model files carry ``schema`` (a paper lists them in ``model_schemas``)."""
+    for e in papers():
+        if schema in getattr(e, "model_schemas", ()):
+            return e
+    raise ConfigError(f"No installed paper writes models of schema {schema!r}; pass a .json file `labcli fit` wrote.")
+
+
 def for_shipped_protocol(name: str) -> Paper:
     """The paper that ships the protocol file ``name`` (e.g. ``takuma2014``)."""
     for e in papers():

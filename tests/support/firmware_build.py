@@ -85,13 +85,17 @@ def need_simavr() -> None:
     _need(_mode() != "absent" and _have_simavr(), "the AVR toolchain and simavr", AVR_INSTALL)
 
 
-def make(build: Path, *targets: str, defs: str = "", baud: int | None = None) -> str:
-    """``make -C firmware BUILD=build targets``; its output, asserted free of compiler warnings."""
+def make(build: Path, *targets: str, defs: str = "", baud: int | None = None, model: Path | None = None) -> str:
+    """``make -C firmware BUILD=build targets``; its output, asserted free of compiler warnings.
+
+    ``model``: a header from ``labcli export-model`` (``MODEL=``), for the estimates on the chip."""
     cmd = ["make", "-C", str(FIRMWARE), f"BUILD={build}", *targets]
     if defs:
         cmd.append(f"DEFS={defs}")
     if baud is not None:
         cmd.append(f"BAUD={baud}")
+    if model is not None:
+        cmd.append(f"MODEL={Path(model).resolve()}")
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out

@@ -30,6 +30,7 @@ class Takuma2014:
     default_sim_mode = "mckibben"
     sim_options = SIM_OPTIONS
     demo_protocol = "takuma2014"
+    model_schemas = ("labcli-takuma-model",)  # what `labcli fit` writes (models/takuma.py SCHEMA)
 
     def record_type(self, run_kind: str) -> RecordType:
         from .records import RECORD_TYPES
@@ -64,6 +65,10 @@ class Takuma2014:
         return acquisition(protocol, options)
 
     def analysis(self, name: str) -> Analysis | None:
+        if name == "export-model":
+            from .models import export_c  # numpy only
+
+            return Analysis(export_c.export, export_c.show)
         if name not in ("fit", "validate", "classify"):
             return None
         from . import analyses  # numpy, pandas: only once an analysis runs

@@ -1,0 +1,164 @@
+"""Estimates on the chip: the firmware built with a fitted model (make MODEL=...) on simavr, against the host.
+
+The sample force run is refitted (the posture form with three blends: the heaviest model the
+chip computes), exported (``labcli export-model``) and built in.  On the simulated rig the board
+takes its baseline once the pressures are steady, then a weight is hung; every estimate line the
+board sends is held against ``PostureModel.predict`` on the very counts of its data line and of
+the baseline it reported (the BASELINE event's means): within 1 % of each quantity's range, the
+flags alike.  Also: CAPS names the model, BASELINE retakes it, a release retakes it.
+"""
+
+from __future__ import annotations
+
+import shutil
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from support.firmware_build import make, need_simavr
+
+from labcli.cli import cli
+from labcli.core.board import baseline_counts
+from labcli.core.boardlines import ESTIMATE_FLAGS, Estimate, Event
+from labcli.core.calibration import Calibration
+from labcli.core.protocol import load_protocol
+from labcli.core.sim.hil import HilLink
+from labcli.core.wire import Frame, LogLine, Reply, parse_line
+from labcli.papers.takuma2014.models.posture import PostureModel, load_force_model
+from labcli.papers.takuma2014.sim.rig import SimRig
+
+ROOT = Path(__file__).resolve().parents[2]
+QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
+LOADED = 512
+
+
+@pytest.fixture(scope="module")
+def model_board(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(firmware ELF with the model, the model file)."""
+    need_simavr()
+    d = tmp_path_factory.mktemp("firmware-model")
+    shutil.copy(ROOT / "sample_runs" / "force.h5", d / "force.h5")
+    assert CliRunner().invoke(cli, ["fit", str(d / "force.h5"), "-o", str(d / "model.json")]).exit_code == 0
+    assert CliRunner().invoke(cli, ["export-model", str(d / "model.json"), "--c", str(d / "model.h")]).exit_code == 0
+    make(d / "build", "all", model=d / "model.h")
+    return d / "build" / "labcli_rig.elf", d / "model.json"
+
+
+class Board:
+    def __init__(self, elf: Path, rig: SimRig) -> None:
+        self._lock = threading.Lock()
+        self._bytes = bytearray()
+        self.link = HilLink(rig, elf, pacing="demand", on_bytes=self._take)
+
+    def _take(self, data: bytes) -> None:
+        with self._lock:
+            self._bytes += data
+
+    def send(self, *commands: str) -> None:
+        for c in commands:
+            self.link.write(c.encode() + b"\n")
+
+    def run(self, seconds: float) -> None:
+        end = self.link.avr_time_s + seconds
+        deadline = time.monotonic() + 240
+        while self.link.avr_time_s < end and time.monotonic() < deadline:
+            self.link.demand(0.05)
+            time.sleep(0.005)
+        assert self.link.avr_time_s >= end, "the simulation did not keep up"
+
+    def lines(self) -> list:
+        with self._lock:
+            data = bytes(self._bytes)
+        return [parse_line(line, 6) for line in data.split(b"\n")[:-1]]
+
+
+def host_estimates(model: PostureModel, cal: Calibration, base: Event, counts: np.ndarray):
+    """The host's predict on the board's counts and the board's baseline (its BASELINE event's sums over its
+    frames): values, standard errors, and whether a blend sits on its switch (the paper's force amplification
+    within 0.1 % of its bound, where 32-bit floats may take the other side)."""
+    means = np.array(baseline_counts(base.fields))
+    si0 = cal.to_si(means[None, :])[0]
+    si = cal.to_si(counts)
+    P0, th0 = np.tile(si0[:4], (len(si), 1)), np.tile(si0[4:], (len(si), 1))
+    out = model.predict(P0, si[:, :4], th0)
+    values = np.column_stack([out[k] for k in ("theta1_rad", "theta2_rad", "Fx_N", "Fy_N")])
+    se = np.column_stack([out["se"][q] for q in QUANTITIES])
+    paper = model.paper
+    amp = paper.predict(P0, si[:, :4])["amplification"] if paper is not None else np.zeros((len(si), 2))
+    switch = np.any(np.abs(amp - (paper.max_amplification if paper else 1.0)) < 1e-3 * 100.0, axis=1)
+    return values, se, switch
+
+
+def test_the_chip_estimates_what_the_host_predicts(model_board):
+    elf, model_path = model_board
+    model = load_force_model(model_path)
+    assert isinstance(model, PostureModel)
+    rig = SimRig(seed=3, tau_s=0.3)
+    rig.supply_air()
+    rig.advance(3.0)
+    rig.close_valves()
+    rig.advance(1.0)
+    board = Board(elf, rig)
+    try:
+        board.run(0.05)
+        board.send("CAPS?", "RATE 50", "EST 1", "START")
+        board.run(1.6)  # the first baseline: two steady windows and half a second of frames
+        rig.hang_weight(0.5, np.radians(20))
+        board.run(1.5)
+        board.send("BASELINE")  # under the load, by the host's word: the estimates go back to zero
+        board.run(1.0)
+        board.send("STOP")
+        board.run(0.1)
+        lines = board.lines()
+    finally:
+        board.link.stop()
+    replies = [p.text for p in lines if isinstance(p, Reply)]
+    assert replies[0].startswith("CAPS,1.1,valves=P_L1:P_R1:P_L2:P_R2,pmax,events,wdt=1000,est=theta1:theta2:Fx:Fy,")
+    assert f"model={__import__('hashlib').sha256(model_path.read_bytes()).hexdigest()[:8]},baseline" in replies[0]
+    assert replies[1:] == ["OK RATE 50", "OK EST 1", "OK START", "OK BASELINE", "OK STOP"]
+    events = [p for p in lines if isinstance(p, Event)]
+    assert [(e.kind, e.fields[0]) for e in events] == [("BASELINE", "start"), ("BASELINE", "host")]
+    frames = {p.seq: p for p in lines if isinstance(p, Frame)}
+    estimates = [p for p in lines if isinstance(p, Estimate)]
+    assert len(estimates) >= 0.9 * len(frames) >= 0.9 * 4 * 50  # at 50 Hz the chip keeps up
+    assert all(e.flags == ESTIMATE_FLAGS_BIT["no-baseline"] for e in estimates if e.t_us < events[0].t_us)
+
+    cal = load_protocol("takuma2014").calibration
+    got, want, se_all, flags = [], [], [], []
+    for e, base in ((e, _base_of(e, events)) for e in estimates):
+        if base is None:
+            continue
+        values, se, switch = host_estimates(model, cal, base, np.array([frames[e.seq].values]))
+        if switch[0]:
+            continue
+        got.append(e.values)
+        want.append(values[0])
+        se_all.append(se[0])
+        flags.append(e.flags)
+    got, want, se_all, flags = map(np.array, (got, want, se_all, flags))
+    assert len(got) > 100
+    span = np.ptp(want, axis=0)
+    assert span[2] > 3.0  # the weight's Fx: the run spans a load, not only noise
+    err = np.abs(got - want)
+    # Within 1 % of each quantity's range over the run, or the line's 6 (angles) and 4 (forces) decimals.
+    assert np.all(err.max(axis=0) <= np.maximum(0.01 * span, [1e-6, 1e-6, 1e-4, 1e-4])), err.max(axis=0) / span
+    limits = np.array([model.limits[q] for q in QUANTITIES])
+    want_bits = (~(se_all <= limits)).astype(int) @ np.array([1, 2, 4, 8])
+    borderline = np.any(np.abs(se_all - limits) <= 1e-3 * limits, axis=1)
+    assert np.all(((flags & ~LOADED) == want_bits) | borderline)
+    assert np.any(flags & LOADED)  # the weight was seen as a load
+    logs = [p.text for p in lines if isinstance(p, LogLine)]
+    stats = next(t for t in logs if t.startswith("estimates:"))
+    assert stats.endswith(" lines dropped (uart full)") and " 0 lines dropped" in stats
+
+
+ESTIMATE_FLAGS_BIT = {name: bit for bit, name in ESTIMATE_FLAGS.items()}
+
+
+def _base_of(e: Estimate, events: list[Event]) -> Event | None:
+    """The baseline an estimate was computed against: the last one taken before its frame."""
+    taken = [b for b in events if b.kind == "BASELINE" and b.t_us <= e.t_us]
+    return taken[-1] if taken and not e.flags & ESTIMATE_FLAGS_BIT["no-baseline"] else None

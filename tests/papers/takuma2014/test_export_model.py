@@ -1,0 +1,190 @@
+"""A fitted model as C (``labcli export-model``) computes what the host's predict computes.
+
+The header is built into the firmware's model code on the host (``make -C firmware
+MODEL=... host-tools``: the same C the chip runs, in the host's 32-bit floats, behind the pipe
+of firmware/test/model_tool.c) and held against ``PostureModel.predict`` / ``TakumaModel.predict``
+(pressure-only, as ``labcli validate`` applies a model) on random pressures and rest postures and
+on the edge cases: bad pressures, the paper's clipped angles, a straight arm.  Three models: the
+posture form with blends (the sample force run refitted), the bent protocol's (the paper's angles
+with the posture form's forces) and the paper's form alone (the sample model file).  The chip
+itself, on simavr, is in tests/core/test_firmware_model.py.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from support.firmware_build import FIRMWARE, make, need_host_compiler
+
+from labcli.cli import cli
+from labcli.core.boardlines import ESTIMATE_FLAGS
+from labcli.papers.takuma2014.models.posture import PostureModel, load_force_model
+
+ROOT = Path(__file__).resolve().parents[3]
+QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
+BITS = {name: bit for bit, name in ESTIMATE_FLAGS.items()}
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Model files of each form: fitted here from the sample runs, and the sample paper-form model."""
+    d = tmp_path_factory.mktemp("models")
+    out = {"paper": ROOT / "sample_runs" / "force.model.json"}
+    for name in ("force", "bent"):
+        run = d / f"{name}.h5"
+        shutil.copy(ROOT / "sample_runs" / f"{name}.h5", run)
+        result = CliRunner().invoke(cli, ["fit", str(run), "-o", str(d / f"{name}.json")])
+        assert result.exit_code == 0, result.output
+        out[name] = d / f"{name}.json"
+    return out
+
+
+def model_tool(model: Path, build: Path) -> Path:
+    need_host_compiler()
+    header = build / "model.h"
+    result = CliRunner().invoke(cli, ["export-model", str(model), "--c", str(header)])
+    assert result.exit_code == 0, result.output
+    make(build, str(build / "host" / "model_tool"), defs="", model=header)
+    return build / "host" / "model_tool"
+
+
+def chip(tool: Path, P0: np.ndarray, P: np.ndarray, th0: np.ndarray) -> np.ndarray:
+    """(n, 9): theta1, theta2, Fx, Fy, their standard errors, flags."""
+    lines = "".join("P " + " ".join(f"{v:.9g}" for v in np.r_[P0[i], P[i], th0[i]]) + "\n" for i in range(len(P0)))
+    out = subprocess.run([str(tool)], input=lines, capture_output=True, text=True, timeout=60, check=True).stdout
+    return np.array([[float(x) for x in row.split()] for row in out.splitlines()])
+
+
+def inputs(seed: int, n: int = 1500) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    P0 = rng.uniform(0.12, 0.45, (n, 4))
+    P = P0 * (1.0 + rng.normal(0.0, 0.03, (n, 4)))
+    th0 = rng.normal(0.0, 0.3, (n, 2))
+    # Edge cases: bad pressures, a pressure at the chambers' floor, a straight arm, huge drops.
+    P0[0, 1], P[1, 2], P[2, 0], P0[3] = 0.0, -0.1, np.nan, P[3]
+    th0[4] = 0.0
+    P[5] = P0[5] * [0.5, 1.6, 0.4, 1.9]
+    return P0, P, th0
+
+
+def host(model_path: Path, P0: np.ndarray, P: np.ndarray, th0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Values (n, 4), standard errors (n, 4; zeros for the paper's form) and the flag bits, from the host."""
+    m = load_force_model(model_path)
+    if isinstance(m, PostureModel):
+        out = m.predict(P0, P, th0)
+        se = np.column_stack([out["se"][q] for q in QUANTITIES])
+        limits = np.array([m.limits[q] for q in QUANTITIES])
+    else:
+        out = m.predict(P0, P)
+        se, limits = np.zeros((len(P0), 4)), np.full(4, np.inf)
+    values = np.column_stack([out[k] for k in ("theta1_rad", "theta2_rad", "Fx_N", "Fy_N")])
+    bits = np.zeros(len(P0), np.int64)
+    bad = np.array(["bad-pressure" in f for f in out["flags"]])
+    for q, name in enumerate(QUANTITIES):
+        bits |= np.where(~bad & ~(se[:, q] <= limits[q]), BITS[f"{name}-uncertain"], 0)
+    for i, flags in enumerate(out["flags"]):
+        for name in ("bad-pressure", "theta1-clipped", "theta2-clipped", "singular-jacobian"):
+            if name in flags:
+                bits[i] |= BITS[name]
+    return values, se, bits
+
+
+@pytest.mark.parametrize("form", ["force", "bent", "paper"])
+def test_the_chips_model_computes_the_hosts_predictions(form, models, tmp_path):
+    tool = model_tool(models[form], tmp_path)
+    P0, P, th0 = inputs(seed={"force": 1, "bent": 2, "paper": 3}[form])
+    got = chip(tool, P0, P, th0)
+    values, se, bits = host(models[form], P0, P, th0)
+    ok = np.all(np.isfinite(values), axis=1)
+    span = values[ok].max(axis=0) - values[ok].min(axis=0)
+    err = np.abs(got[ok, :4] - values[ok])
+    # The target: 1 % of each quantity's range.  Near a straight arm the paper's (J^-1)^T grows as
+    # 1/sin(theta2) and so does the float's rounding (0.8 % of Fy's range, seen, where the host
+    # flags the estimate singular); on the estimates the host does not flag, a few 1e-5 of it.
+    assert np.all(err.max(axis=0) <= 1e-2 * span), (err.max(axis=0) / span, form)
+    clean = ok & ((bits & (BITS["singular-jacobian"] | BITS["bad-pressure"])) == 0)
+    assert np.all(np.abs(got[clean, :4] - values[clean]).max(axis=0) <= 1e-3 * span)
+    assert np.all(np.isfinite(got[:, :4]))  # never a nan or inf on the wire, as the host's predict
+    # Flags: the same bits, but where a standard error sits within float rounding of its limit.
+    m = load_force_model(models[form])
+    limits = np.array([getattr(m, "limits", {}).get(q, np.inf) for q in QUANTITIES])
+    differ = got[:, 8].astype(np.int64) != bits
+    borderline = np.any(np.abs(se - limits) <= 1e-4 * limits, axis=1)
+    assert not np.any(differ & ~borderline), np.flatnonzero(differ & ~borderline)[:5]
+    if isinstance(m, PostureModel):
+        rel = np.abs(got[ok, 4:8] - se[ok]) / np.maximum(se[ok], 1e-12)
+        assert np.nanmax(np.where(np.isfinite(se[ok]), rel, 0.0)) < 1e-2  # the chip's closed-form dF/dtheta
+    assert bits[0] == bits[1] == bits[2] == BITS["bad-pressure"] == got[0, 8] == got[1, 8] == got[2, 8]
+
+
+def test_the_header_names_its_model_and_calibration(models, tmp_path):
+    header = tmp_path / "model.h"
+    result = CliRunner().invoke(cli, ["export-model", str(models["bent"]), "--c", str(header)])
+    assert result.exit_code == 0, result.output
+    text = header.read_text()
+    m = load_force_model(models["bent"])
+    assert isinstance(m, PostureModel)
+    import hashlib
+
+    digest = hashlib.sha256(models["bent"].read_bytes()).hexdigest()
+    assert f'#define MODEL_ID "{digest[:8]}"' in text and digest in text
+    assert result.output.splitlines()[0] == (
+        f"Wrote {header}: the posture model {models['bent']} (id {digest[:8]}; "
+        f"{', '.join(f'{q} {m.route(q)}' for q in QUANTITIES)}), calibration of protocol {m.protocol}."
+    )
+    assert f"#define MODEL_NT {len(m.torque_terms)} /* torque terms: {', '.join(m.torque_terms)} */" in text
+    # The reference calibration: 5/16380 MPa per count from 819 counts, 340 deg over 4095 counts.
+    assert "MODEL_GAIN[6] = {0.000305250305f, 0.000305250305f, 0.000305250305f, 0.000305250305f, 0.00144911342f" in text
+    assert "MODEL_ZERO[6] = {819.0f, 819.0f, 819.0f, 819.0f, 2048.0f, 2048.0f};" in text
+
+
+@pytest.mark.parametrize(
+    "make_file, message",
+    [
+        (lambda p: None, "Error: The model file {p} does not exist; write one with `labcli fit`."),
+        (
+            lambda p: p.write_text("[1, 2"),
+            "Error: {p} is not a model file (not JSON text); pass the .json file `labcli fit` wrote.",
+        ),
+        (
+            lambda p: p.write_text('{"kind": "rpam-stretch-fit"}'),
+            "Error: {p} names no model schema (it holds an object without a 'schema' key), so no paper reads it; "
+            "pass the model .json file `labcli fit` wrote for a force run.",
+        ),
+        (
+            lambda p: p.write_text('{"schema": "someone-elses-model"}'),
+            "Error: No installed paper writes models of schema 'someone-elses-model'; pass a .json file "
+            "`labcli fit` wrote.",
+        ),
+        (
+            lambda p: p.write_text('{"schema": "labcli-takuma-model", "version": 1, "form": "paper"}'),
+            "Error: The model file {p} lacks the key 'protocol'; refit with `labcli fit`.",
+        ),
+    ],
+)
+def test_bad_model_files_are_refused_in_one_sentence(make_file, message, tmp_path):
+    p = tmp_path / "m.json"
+    make_file(p)
+    result = CliRunner().invoke(cli, ["export-model", str(p), "--c", str(tmp_path / "model.h")])
+    assert result.exit_code == 1
+    assert result.output == message.format(p=p) + "\n"
+    assert not (tmp_path / "model.h").exists()
+
+
+def test_the_firmware_makefile_refuses_a_missing_model(tmp_path):
+    need_host_compiler()
+    proc = subprocess.run(
+        ["make", "-C", str(FIRMWARE), f"BUILD={tmp_path}", f"MODEL={tmp_path / 'none.h'}", "host-tools"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode != 0
+    assert f"MODEL={tmp_path / 'none.h'}: no such file (write one with labcli export-model M.json --c model.h)" in (
+        proc.stderr
+    )
