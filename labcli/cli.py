@@ -33,7 +33,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "export": ("labcli.commands.export", "export", "Write a run's trial or push table as CSV."),
     "import": ("labcli.commands.import_", "import_", "Build a run file from a trial or push CSV table."),
     "monitor": ("labcli.commands.monitor", "monitor", "Show live calibrated readings and link statistics."),
-    "ports": ("labcli.commands.ports", "ports", "List the serial ports on this machine."),
+    "ports": ("labcli.commands.ports", "ports", "List the serial ports and which board each looks like."),
+    "flash": ("labcli.commands.flash", "flash", "Write the rig firmware onto a board with avrdude."),
     "export-model": (
         "labcli.commands.export_model",
         "export_model",

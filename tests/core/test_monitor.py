@@ -152,10 +152,11 @@ def test_ports_lists_device_description_and_hwid(monkeypatch, tmp_path):
     monkeypatch.setattr(list_ports, "comports", lambda: fake)
     result = CliRunner().invoke(cli, ["ports"])
     assert result.exit_code == 0
+    # Without USB ids (pyserial leaves vid and pid None for ports it cannot place) no board is named.
     assert result.output.splitlines() == [
-        "DEVICE        DESCRIPTION      HWID",
-        "/dev/ttyACM0  Arduino Uno      USB VID:PID=2341:0043",
-        "/dev/ttyUSB0  FT232R USB UART  USB VID:PID=0403:6001",
+        "DEVICE        BOARD  DESCRIPTION      HWID",
+        "/dev/ttyACM0  -      Arduino Uno      USB VID:PID=2341:0043",
+        "/dev/ttyUSB0  -      FT232R USB UART  USB VID:PID=0403:6001",
     ]
 
 
@@ -205,10 +206,12 @@ def test_ports_lists_a_serving_simulated_rig_marked_as_such(monkeypatch, tmp_pat
         assert result.exit_code == 0
         description = "simulated rig mckibben-2dof-sim (labcli sim --pty, seed 3, firmware model)"
         width = max(len(path), len("/dev/ttyUSB0"))
+        board = "labcli simulated rig"
         assert result.output.splitlines() == [
-            f"{'DEVICE':<{width}}  {'DESCRIPTION':<{len(description)}}  HWID",
-            f"{'/dev/ttyUSB0':<{width}}  {'FT232R USB UART':<{len(description)}}  USB VID:PID=0403:6001",
-            f"{path:<{width}}  {description}  sim pid {proc.pid}",
+            f"{'DEVICE':<{width}}  {'BOARD':<{len(board)}}  {'DESCRIPTION':<{len(description)}}  HWID",
+            f"{'/dev/ttyUSB0':<{width}}  {'-':<{len(board)}}  {'FT232R USB UART':<{len(description)}}  "
+            "USB VID:PID=0403:6001",
+            f"{path:<{width}}  {board}  {description}  sim pid {proc.pid}",
         ]
         assert not (tmp_path / "sim-999999999.json").exists()
         proc.stdin.write("quit\n")
@@ -220,7 +223,7 @@ def test_ports_lists_a_serving_simulated_rig_marked_as_such(monkeypatch, tmp_pat
     assert proc.returncode == 0
     assert list(tmp_path.iterdir()) == []  # the note goes with the server
     assert CliRunner().invoke(cli, ["ports"]).output.splitlines()[1:] == [
-        "/dev/ttyUSB0  FT232R USB UART  USB VID:PID=0403:6001"
+        "/dev/ttyUSB0  -      FT232R USB UART  USB VID:PID=0403:6001"
     ]
 
 
