@@ -24,6 +24,7 @@ from labcli.cli import cli
 from labcli.core.board import baseline_counts
 from labcli.core.boardlines import ESTIMATE_FLAGS, Estimate, Event
 from labcli.core.calibration import Calibration
+from labcli.core.device import Device
 from labcli.core.protocol import load_protocol
 from labcli.core.sim.hil import HilLink
 from labcli.core.wire import Frame, LogLine, Reply, parse_line
@@ -162,3 +163,27 @@ def _base_of(e: Estimate, events: list[Event]) -> Event | None:
     """The baseline an estimate was computed against: the last one taken before its frame."""
     taken = [b for b in events if b.kind == "BASELINE" and b.t_us <= e.t_us]
     return taken[-1] if taken and not e.flags & ESTIMATE_FLAGS_BIT["no-baseline"] else None
+
+
+def test_the_device_asks_the_board_for_its_estimates(model_board):
+    elf, model_path = model_board
+    with Device.open(f"sim://?firmware={elf}&seed=3&tau=0.3") as dev:
+        assert dev.caps.estimates == QUANTITIES and dev.caps.baseline and len(dev.caps.model) == 8
+        dev.set_valves("supply")  # the board's valves fill the chambers, then hold their air
+        dev.set_valves("hold")
+        dev.set_rate(50)
+        assert dev.stream_estimates(2) == 2
+        dev.start()
+        n = 0
+        while n < 100:
+            n += len(dev.read(1.0))
+        dev.take_baseline()
+        while n < 150:
+            n += len(dev.read(1.0))
+        dev.stop()
+        estimates, events = dev.take_estimates(), dev.take_events()
+    assert [e.fields for e in events if e.kind == "VALVE"] == [("SSSS", "host"), ("HHHH", "host")]
+    assert [e.fields[0] for e in events if e.kind == "BASELINE"] == ["start", "host"]
+    assert 60 <= len(estimates) <= 80  # one every second data line
+    assert all(b.seq - a.seq == 2 for a, b in zip(estimates, estimates[1:], strict=False))
+    assert dev.counters["estimates"] == len(estimates) and dev.counters["malformed"] == 0
