@@ -61,8 +61,8 @@ def test_resume_on_another_rig_is_refused_naming_what_differs(tmp_path):
         result = CliRunner().invoke(cli, ["acquire", str(path), "--port", fw.port, "--resume"], input="")
     assert result.exit_code == 1
     assert result.output == (
-        f"Error: {path} was recorded on mckibben-2dof-sim (firmware 1.0), but the rig on {fw.port} has device "
-        "'mckibben-2dof', not 'mckibben-2dof-sim' and firmware '2.1', not '1.0': resume on the rig that began the "
+        f"Error: {path} was recorded on mckibben-2dof-sim (firmware 1.1), but the rig on {fw.port} has device "
+        "'mckibben-2dof', not 'mckibben-2dof-sim' and firmware '2.1', not '1.1': resume on the rig that began the "
         "run, or pass --allow-other-rig to continue it on this one.\n"
     )
     assert digest(path) == before
@@ -78,7 +78,7 @@ def test_allow_other_rig_continues_with_a_warning_and_keeps_the_flag_in_the_resu
     text = " ".join(result.output.split())
     assert (
         f"continuing {path} on another rig (device 'mckibben-2dof', not 'mckibben-2dof-sim' and firmware "
-        "'2.1', not '1.0'), as --allow-other-rig allows"
+        "'2.1', not '1.1'), as --allow-other-rig allows"
     ) in text
     # No one answered the prompts: the session ends for want of input, and the line that continues the
     # run carries the baud rate and the flag.
