@@ -437,7 +437,10 @@ class Device:
         """Have the board send an estimate line after every ``every``-th data line (0: none)."""
         self._need("model estimates", bool(self.caps.estimates))
         reply = self._command(f"EST {int(every)}", expect="OK EST")
-        return int(reply.split()[2])
+        try:
+            return int(reply.split()[2])
+        except (IndexError, ValueError):
+            raise DeviceError(f"The device on {self.name} answered {reply!r}, expected 'OK EST <n>'.") from None
 
     def take_events(self) -> list[Event]:
         """The board's event lines received since the last call, oldest first."""

@@ -26,6 +26,7 @@ Needs gcc-avr, avr-libc and simavr (firmware/README.md).
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import shutil
 import struct
@@ -245,7 +246,9 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=3.0, help="simulated seconds each rate is held")
     ap.add_argument("--bauds", default="115200,1000000")
     ap.add_argument("--models", default="force,bent,paper")
+    ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
+    figures: dict = {"simulated seconds per probe": args.seconds}
     if not (shutil.which("avr-gcc") and Path("/usr/include/simavr/sim_avr.h").exists()):
         sys.exit(
             "needs gcc-avr, avr-libc and simavr: apt-get install gcc-avr avr-libc binutils-avr simavr libsimavr-dev"
@@ -254,6 +257,7 @@ def main() -> None:
         work = Path(tmp)
         plain = sizes(build(work, None, 115200) / "labcli_rig.elf")
         print(f"firmware without a model: flash {plain[0]} B, RAM {plain[1]} B (of 32768 and 2048)")
+        figures.update({"none flash B": plain[0], "none RAM B": plain[1]})
         for name, path in model_files(work, args.models.split(",")).items():
             built = build(work, path, 115200)
             flash, ram = sizes(built / "labcli_rig.elf")
@@ -265,7 +269,18 @@ def main() -> None:
                 f"({c[2]:.0f} cycles) or {est / c[16]:.0f} sinf ({c[16]:.0f}); add {c[4]:.0f}, divide {c[8]:.0f}, "
                 f"sqrt {c[32]:.0f} cycles"
             )
+            figures.update(
+                {
+                    f"{name} flash B": flash,
+                    f"{name} RAM B": ram,
+                    f"{name} cycles": est,
+                    f"{name} ms": est / 16e3,
+                    f"{name} multiplies": est / c[2],
+                }
+            )
             pct, flags, n = agreement(built / "labcli_rig.elf", path)
+            figures.update({f"{name} {q} difference %": float(v) for q, v in zip(QUANTITIES, pct, strict=True)})
+            figures[f"{name} flags alike %"] = 100 * flags
             print(
                 f"  agreement over {n} estimates: largest difference "
                 + ", ".join(f"{q} {v:.4f} %" for q, v in zip(QUANTITIES, pct, strict=True))
@@ -274,10 +289,13 @@ def main() -> None:
             for baud in (int(b) for b in args.bauds.split(",")):
                 elf = build(work, path, baud, "-DRATE_MAX_HZ=2000") / "labcli_rig.elf"
                 rate, why = highest_rate(elf, args.seconds, 400.0)
+                figures[f"{name} {baud} max Hz"] = rate
                 print(
                     f"  {baud} baud: every frame estimated and sent up to {rate:g} Hz "
                     f"(baseline 1 / estimate time: {16e6 / est:.0f} Hz); above: {why}"
                 )
+    if args.figures:
+        Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n", encoding="utf-8")
 
 
 if __name__ == "__main__":

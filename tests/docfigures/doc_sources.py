@@ -536,5 +536,12 @@ SOURCES: dict[str, Source] = {
             script="baseline_estimator.py",
             runs={"": ()},
         ),
+        Source(
+            "firmware-model",
+            "benchmark",
+            "estimates on the chip: sizes, cycles, the highest rate, agreement with the host, on simavr",
+            script="bench_firmware_model.py",
+            runs={"": ()},
+        ),
     )
 }

@@ -586,3 +586,33 @@ def test_a_host_that_falls_behind_loses_frames_but_still_gets_ok_stop():
             assert len(seqs) + server.dropped_frames == server.firmware.count
     finally:
         server.stop()
+
+
+def test_each_chambers_valve_on_its_own():
+    """A held chamber keeps its air (Boyle) while the others follow the regulator or the atmosphere."""
+    rig = SimRig(seed=2, nonideal=NonIdeal.ideal(), tau_s=0.3)
+    rig.supply_air()
+    rig.advance(3.0)
+    rig.set_valves(["hold", "supply", "supply", "vent"])
+    assert rig.true_state()["valves"] == "mixed" and rig.valve_states == ("hold", "supply", "supply", "vent")
+    rig.advance(3.0)
+    p = rig.true_state()["pressures_MPa"]
+    assert abs(p[3]) < 1e-3 and np.allclose(p[1:3], 0.30, atol=1e-3)
+    rig.hang_weight(0.8, 0.0)
+    rig.advance(3.0)
+    st = rig.true_state()
+    assert np.allclose(st["pressures_MPa"][1:3], 0.30, atol=1e-3)  # open to the regulator: held at its pressure
+    # The held chamber's air is what it was: P_abs (V + V_dead) unchanged as the arm moved.
+    L = ph.actuator_lengths(st["theta_rad"], rig.params)
+    V = ph.mckibben_volume(L, rig.params.b, rig.params.n) + rig.params.V_dead
+    amount_now = (st["pressures_MPa"][0] * 1e6 + ph.P_ATM) * V[0]
+    assert abs(st["pressures_MPa"][0] - 0.30) > 1e-3  # it moved with the arm
+    rig.set_valves(["hold"] * 4)
+    assert rig.true_state()["valves"] == "closed"
+    rig.advance(1.0)
+    st = rig.true_state()
+    L = ph.actuator_lengths(st["theta_rad"], rig.params)
+    V = ph.mckibben_volume(L, rig.params.b, rig.params.n) + rig.params.V_dead
+    assert (st["pressures_MPa"][0] * 1e6 + ph.P_ATM) * V[0] == pytest.approx(amount_now, rel=1e-9)
+    with pytest.raises(ValueError):
+        rig.set_valves(["open"] * 4)

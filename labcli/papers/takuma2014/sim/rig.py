@@ -310,7 +310,7 @@ class SimRig(SimClock):
 
         Keys: ``theta_rad`` (2,) absolute joint angles, ``pressures_MPa`` (4,)
         gauge L1 R1 L2 R2, ``force_N`` (2,) on the contact point, ``time_s``;
-        also ``valves`` ("vented" | "open" | "closed"), ``contact_m`` (2,),
+        also ``valves`` ("vented" | "open" | "closed" | "mixed"), ``contact_m`` (2,),
         ``target_theta_rad`` (2,) the equilibrium being approached, ``tau_s``,
         ``valve_states`` (4,) each chamber's ("supply" | "hold" | "vent"),
         ``load`` (dict describing the load) and ``residual_Nm`` of the target;
