@@ -353,8 +353,10 @@ static void paper_posture_of(const float *sn, struct paper_posture *pp)
     pp->c2 = c2;
     pp->s2 = sn[1];
     /* c1 - c2 from the sines: near a straight rest both cosines are 1 - tiny, and their difference,
-     * which Eq. 36's largest coefficient multiplies, would keep only a digit or two. */
-    pp->dc = (sn[1] * sn[1] - sn[0] * sn[0]) / (t.c1 + c2);
+     * which Eq. 36's largest coefficient multiplies, would keep only a digit or two.
+     * Both angles clipped at +-90 deg leave both cosines 0: their difference is 0, not 0/0. */
+    float csum = t.c1 + c2;
+    pp->dc = csum > 0.0f ? (sn[1] * sn[1] - sn[0] * sn[0]) / csum : 0.0f;
     float inv = 1.0f / (MODEL_H2 * MODEL_H3 * sn[1]);
     pp->js[0][0] = J[1][1] * inv;
     pp->js[0][1] = -J[1][0] * inv;
