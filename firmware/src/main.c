@@ -138,6 +138,26 @@ static void set_valves(const uint8_t *wanted, const char *cause_pstr)
 #endif
 }
 
+/* A chamber the host left supplying this long since its last VALVE command is held by the board:
+ * a host that dies while the chambers fill never leaves them on the regulator unattended. */
+#ifndef SUPPLY_MAX_MS
+#define SUPPLY_MAX_MS 60000UL
+#endif
+static uint32_t supplied_at_us; /* the host's last VALVE command (sampler clock) */
+
+static void check_supply(uint32_t t_us)
+{
+    if (!memchr(state.valve, VALVE_SUPPLY, N_VALVES))
+        return;
+    /* Signed: a frame whose conversions began before the command is not after it (wraps after 35 min). */
+    if ((int32_t)(t_us - supplied_at_us) < (int32_t)(SUPPLY_MAX_MS * 1000UL))
+        return;
+    uint8_t wanted[N_VALVES];
+    for (uint8_t k = 0; k < N_VALVES; k++)
+        wanted[k] = state.valve[k] == VALVE_SUPPLY ? VALVE_HOLD : state.valve[k];
+    set_valves(wanted, PSTR("timeout"));
+}
+
 /* Vent every valve reading above its limit, with a PMAX event each. */
 static void check_limit(const uint16_t *counts)
 {
@@ -175,6 +195,8 @@ static void handle_frame(const struct frame *f)
     for (uint8_t i = 0; i < N_CHANNELS; i++)
         counts[i] = proto_counts(f->sum[i]);
     check_limit(counts);
+    if (WIRE_1_1)
+        check_supply(f->t_us);
     if (f->streamed)
         send_frame(f, counts);
 #ifdef MODEL_HEADER
@@ -228,6 +250,7 @@ static void command(const char *cmd)
         char reply[PROTO_REPLY_MAX];
         memcpy(reply, text, sizeof reply); /* the event is formatted in text first */
         set_valves(state.valve_next, PSTR("host"));
+        supplied_at_us = sampler_now_us();
         uart_write_wait(reply);
         return;
     }

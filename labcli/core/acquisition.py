@@ -214,13 +214,15 @@ def acquire(
     silent_s: float = SILENT_S,
     baud: int = DEFAULT_BAUD,
     allow_other_rig: bool = False,
+    valves: str | None = None,
 ) -> Outcome:
     """Run ``labcli acquire``: open the rig and the run file, build the session, run it.
 
     ``protocol``: a shipped name or a .toml path (a new run needs one; a resumed run
     carries its own, and a name given must match it; its calibration is then this rig's,
     checked against the run's).  ``allow_other_rig``: resume on a rig other than the
-    run's.  Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the
+    run's.  ``valves``: ``"hand"`` keeps the prompts on a board that drives its valves (the
+    protocol's ``acquisition.valves`` otherwise, :mod:`labcli.core.air`).  Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the
     person at the rig can fix; returns the :class:`Outcome` otherwise.
     """
     path = str(path)
@@ -259,7 +261,7 @@ def acquire(
             else NewRun(path, acq.protocol, acq.kind, rig.device.info, port, operator, acq.plan, force)
         )
         opts = SessionOptions(operator, resume, bool(other), unattended, rate_hz, silent_s)
-        engine = _engine(rig, run, acq, ui, link, path, opts)
+        engine = _engine(rig, run, acq, ui, link, path, opts, valves)
         if other:
             engine.ui.warn(f"continuing {path} on another rig ({describe(other)}), as --allow-other-rig allows")
         for cb in subscribers:
@@ -289,7 +291,14 @@ def _run(engine: RunEngine, acq: Any, completed: list[int], link: Link, device: 
 
 
 def _engine(
-    rig: Connection, run: RunFile | NewRun, acq: Any, ui: Any, link: Link, path: str, opts: SessionOptions
+    rig: Connection,
+    run: RunFile | NewRun,
+    acq: Any,
+    ui: Any,
+    link: Link,
+    path: str,
+    opts: SessionOptions,
+    valves: str | None = None,
 ) -> RunEngine:
     command = resume_command(
         path, link.port, unattended=opts.unattended, rate_hz=opts.rate_hz, baud=link.baud, other_rig=opts.other_rig
@@ -316,4 +325,5 @@ def _engine(
         silent_s=opts.silent_s,
         noun=record_type(acq.kind).noun,
         session=info,
+        valves=valves,
     )

@@ -40,7 +40,13 @@ def simulated_port(seed: int, mode: str | None = None) -> str:
 
 
 def acquire_unattended(path: Path, port: str, what: str, stage: str, progress: Progress | None, **options: Any) -> None:
-    """One unattended run on the simulated rig, overwriting ``path``; StoreError if it stops early."""
+    """One unattended run on the simulated rig, overwriting ``path``; StoreError if it stops early.
+
+    The valves are the simulated operator's (supplied once, held for the whole run), as on the
+    papers' rigs, so the demos' figures are those of the papers' protocols; ``labcli acquire`` on
+    the same ``sim://`` board drives them by command (labcli.core.air).
+    """
+    options.setdefault("valves", "hand")
     outcome = acquire(path, port, unattended=True, force=True, ui=ProgressUI(stage, progress), **options)
     if outcome.exit_code:
         raise StoreError(f"The simulated {what} stopped early: {outcome.message}")

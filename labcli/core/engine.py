@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceError, DeviceTimeout, DiskFull
 from . import interrupts
+from .air import SlopeSums
 from .capture import WindowSink
 from .outcome import Outcome, Where, ended, plural, rig_lost
 from .reconnect import wait_for_rig
@@ -55,11 +56,15 @@ from .steps import (
     Capture,
     Commit,
     Finish,
+    Hold,
+    HoldReport,
+    Note,
     Problem,
     Prompt,
     Review,
     SettleReport,
     SetupCheck,
+    Valves,
     WaitSettle,
 )
 from .store import RunFile
@@ -109,7 +114,8 @@ class RunEngine:
     first record begins; ``ui``: :class:`labcli.core.ui.RichUI` or
     :class:`labcli.core.ui.UnattendedUI`; ``resume_command``: the exact command line that
     continues this run, quoted in every "how to resume" sentence; ``simulated_operator``: who
-    does what the prompts ask at a simulated rig (None: a person at a real one).
+    does what the prompts ask at a simulated rig (None: a person at a real one); ``valves``:
+    ``"hand"`` keeps the prompts on a board that could drive its valves (default: the protocol's).
     Subscribers (``subscribe``) see every step and its reply, for logging and tests.
     With ``session`` (port, baud, rig, ...), the run file's session log
     (``run.sessions``) is told how the session began, what it did and how it ended.
@@ -129,6 +135,7 @@ class RunEngine:
         silent_s: float = SILENT_S,
         noun: str = "trial",
         session: SessionInfo | None = None,
+        valves: str | None = None,
     ) -> None:
         self._new_run = run if isinstance(run, NewRun) else None
         self.run_file: RunFile | None = None if isinstance(run, NewRun) else run
@@ -162,6 +169,8 @@ class RunEngine:
         self._log: SessionLog = NoSessionLog()
         self._rate_warned: set[float] = set()
         self._flags: list[str] = []  # what the stream did wrong during the trial in progress
+        self._valves_driven = False  # the board's valves were set by command: set them to rest at the end
+        self._valves_mode = valves  # "hand" overrides the protocol's acquisition.valves
 
     @property
     def device(self) -> Any:
@@ -225,6 +234,7 @@ class RunEngine:
             how = "disk full"
             raise
         finally:
+            self._rest_valves()
             self._log.end(how)
 
     def _run(self, session: Generator[Any, Any, None], restart: Any, reopen: Any) -> Outcome:
@@ -362,6 +372,14 @@ class RunEngine:
             return self._commit(step)
         if isinstance(step, Finish):
             return self._finish(step)
+        if isinstance(step, Valves):
+            return self._set_valves(step.state)
+        if isinstance(step, Note):
+            self.ui.info(step.text)
+            return None
+        if isinstance(step, Hold):
+            self.stream.start()
+            return self._hold(step.duration_s)
         raise TypeError(f"unknown step {step!r}")
 
     def _prompt(self, step: Prompt) -> Any:
@@ -490,6 +508,35 @@ class RunEngine:
                 val = sorted(t for t, s in step.split.items() if s == "validation" and t in stored)
                 run.split.set(fit, val, "plan")
             self._finished = True
+
+    # ------------------------------------------------------------------ valves (labcli.core.air)
+    def _set_valves(self, state: str) -> dict[str, str] | None:
+        """The board's valves set to ``state`` by command, or None when they are the experimenter's."""
+        air = getattr(self.protocol, "air", None)
+        caps = getattr(self.device, "caps", None)
+        mode = self._valves_mode or (air.valves if air is not None else "hand")
+        if mode == "hand" or caps is None or not caps.valves:
+            return None
+        states = self.device.set_valves(state)
+        self._valves_driven = True
+        return dict(states)
+
+    def _rest_valves(self) -> None:
+        """However the session ended, valves it drove are left as the protocol says (hold or vent),
+        never supplying; a board that is gone is left to its own pressure limit."""
+        if not self._valves_driven:
+            return
+        with contextlib.suppress(Exception):
+            self.device.set_valves(self.protocol.air.end_valves)
+
+    def _hold(self, duration_s: float) -> HoldReport:
+        """Each channel's least-squares slope (SI per s) and mean over ``duration_s`` of device time."""
+        sums = SlopeSums(len(self.protocol.channels))
+        self.stream.stream(
+            duration_s, lambda w: sums.add(np.asarray(w.t_s, dtype=float), np.asarray(w.si, dtype=float))
+        )
+        slope, mean = sums.result()
+        return HoldReport(slope, mean, sums.n, duration_s)
 
     # ------------------------------------------------------------------ setup
     def _setup_check(self) -> None:

@@ -41,6 +41,16 @@ Of the weights left on it names 59 % on the kind rig (26 % at four times its fri
 literature's 24 % upright and 29 % bent (the heavier loads), 42 % at half its friction, 10 % at
 twice it and none at four times, where friction can hold the arm wherever a plan load leaves it.
 
+* **the seal** (:func:`unsealed_response`, needing no earlier trial): a sealed chamber's
+  pressure follows its volume (Boyle's law), so a load that moves the joints by at least
+  :data:`SEAL_ANGLE_FLOORS` floors while every pressure stays within a tenth of that many floors
+  (:data:`SEAL_SHARE`) is a load on chambers that are not sealed: valves left open to the
+  regulator, or open to the air with the supply off.  On the simulated rig 800 g moves the sealed
+  chambers by 5-9 kPa and the joints by 2-5 deg (about 2 pressure floors per angle floor); left
+  open, the pressures move by nothing at all while the joints move a little further.  The review
+  names it and offers redo as its default, from the very first trial, with or without valve
+  control.
+
 Noise floors.  A change on one channel counts only beyond its floor, the largest of: the
 settling criterion's spread for the channel's quantity (how far the protocol lets a still
 signal wander), one ADC count, and four standard errors of the difference of the two
@@ -77,6 +87,11 @@ RETURN_FLOORS = 8.0
 DRIFT_MOVES = 8  # the leak's drift per trial: the median of the last this many baseline moves
 HOLD_MIN_MOVES = 8  # baseline moves seen before the run's own bound on friction's offsets is used
 HOLD_MARGIN = 1.5  # the largest friction offset seen between baselines, times this, bounds the next
+# The seal check: the joints moved by this many floors or more (0.5 deg on the paper's protocol) ...
+SEAL_ANGLE_FLOORS = 5.0
+# ... and the pressures by less than this share of it, in floors: sealed chambers move about 2 pressure
+# floors per angle floor on the simulated rig, 20 times this.
+SEAL_SHARE = 0.1
 SE_FLOORS = 4.0  # standard errors of a difference of means that count as noise
 MIN_DOF = 2  # trials beyond the load's dimension before a prediction is made (to measure their scatter)
 MIN_SPAN = 0.2  # smallest / largest singular value of the loads: directions at least ~23 deg apart
@@ -218,6 +233,39 @@ def weak_response(
     )
 
 
+def unsealed_response(watch: Watch, baseline: Any, loaded: Any, supply_min_MPa: float | None = None) -> str | None:
+    """The sentence when a load moved the joints but not the pressures: the chambers are not sealed.
+
+    Judged without any earlier trial (see the module docstring); ``supply_min_MPa`` tells a supply
+    that is off (the chambers at the atmosphere's pressure) from valves left open to the regulator.
+    """
+    p = watch.pressures
+    a = np.array([u == "rad" for u in watch.units], dtype=bool)
+    if not (p.any() and a.any()):
+        return None
+    f = watch.floors(baseline, loaded)
+    seen = watch.change(baseline, loaded)
+    angles = float(np.linalg.norm(seen[a] / f[a]))
+    if angles < SEAL_ANGLE_FLOORS or float(np.linalg.norm(seen[p] / f[p])) >= SEAL_SHARE * angles:
+        return None
+    c = list(watch.cols)
+    before, after = baseline.mean()[c], loaded.mean()[c]
+    i = int(np.flatnonzero(p)[np.argmax(np.abs(seen[p]))])  # the pressure that moved most, and still did not
+    j = int(np.flatnonzero(a)[np.argmax(np.abs(seen[a]))])
+    moved = (
+        f"{watch.names[i]} {before[i]:.4f} -> {after[i]:.4f} MPa while {watch.names[j]} moved "
+        f"{math.degrees(seen[j]):+.2f} deg"
+    )
+    low = supply_min_MPa is not None and float(np.max(before[p])) < supply_min_MPa
+    why = (
+        "the chambers are at the atmosphere's pressure: supply air, then close the valves"
+        if low
+        else "sealed chambers would have followed the load, so a valve is open: close the valves "
+        "so that the actuators are sealed"
+    )
+    return f"the pressures did not respond to the load ({moved}); {why}"
+
+
 def still_loaded(
     watch: Watch,
     baseline: Any,
@@ -301,6 +349,10 @@ class BaselineHistory:
             self._moves.append(np.asarray(self.watch.change(self._last, baseline), dtype=float))
         self._last = baseline
 
+    def restart(self) -> None:
+        """The next baseline follows a supply (or valves closed at last): its move is not counted."""
+        self._last = None
+
     def drift(self) -> np.ndarray | None:
         """The leak's move per trial: the median of the last :data:`DRIFT_MOVES` baseline moves
         (friction's offsets change sign with the loads' directions; a leak's does not)."""
@@ -339,6 +391,8 @@ class Guard:
 
     def __init__(self, protocol: Any, hold_prior: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         self.watch = Watch.of(protocol)
+        self.supply_min_MPa: float | None = getattr(protocol, "supply_min_MPa", None)
+        self.unsealed = False  # the last load's finding was the seal's (its sentence says what to do)
         self._models: dict[Hashable, ResponseModel] = {}
         self._last: tuple[Any, Any] | None = None
         self.baselines = BaselineHistory(self.watch, hold_prior)
@@ -352,7 +406,16 @@ class Guard:
 
     def after_load(self, load: Sequence[float], baseline: Any, loaded: Any, key: Hashable = None) -> str | None:
         self._last = (baseline, loaded)
+        unsealed = unsealed_response(self.watch, baseline, loaded, self.supply_min_MPa)
+        self.unsealed = unsealed is not None
+        if unsealed is not None:
+            return unsealed
         return weak_response(self.watch, baseline, loaded, self.model(key).predict(load))
+
+    def resupplied(self) -> None:
+        """The chambers were supplied again, or closed at last: the jump to the next baseline is no
+        leak, nor friction.  The moves measured before are kept: a supply changes neither."""
+        self.baselines.restart()
 
     def after_baseline(self, baseline: Any) -> str | None:
         """Does the new baseline still carry the last load?  (Forgets the last load once it has not.)

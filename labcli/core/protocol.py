@@ -37,6 +37,8 @@ else:  # pragma: no cover - exercised on 3.10 only
 
 from ..errors import ConfigError
 from . import registry
+from .air import ACQUISITION_KEYS as AIR_KEYS
+from .air import AirSettings
 from .calibration import Calibration
 from .channels import CHANNEL_MAP, DEVICE_KEYS, DeviceSpec, calibration, channel_spec, device_spec
 from .keyspecs import OPEN, Checker, describe, kind_of, show
@@ -94,6 +96,7 @@ SECTIONS: dict[str, Any] = {
             "optional": True,
             "help": "gauge pressure every actuator must reach once air is supplied",
         },
+        **AIR_KEYS,
     },
     # Times are bounded so that a window's samples fit in memory and a wait ends: at most
     # MAX_RATE_HZ x 60 s = 600,000 frames a window.
@@ -157,6 +160,7 @@ class Protocol:
     title: str = ""
     source: str = ""
     supply_min_MPa: float = DEFAULT_SUPPLY_MIN_MPA
+    air: AirSettings = field(default_factory=AirSettings)  # the valves' use (labcli.core.air)
     document: dict[str, Any] = field(default_factory=dict, repr=False)  # the whole file as plain data
 
     @property
@@ -425,6 +429,7 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
         settling=settling,
         rate_hz=checked.get("acquisition", {}).get("rate_hz"),
         supply_min_MPa=checked.get("acquisition", {}).get("supply_min_MPa", DEFAULT_SUPPLY_MIN_MPA),
+        air=AirSettings.of(checked.get("acquisition", {}), settling.pressure_spread_MPa if settling else None),
         device=device,
         sections=copy.deepcopy(tables),
         settings=settings,

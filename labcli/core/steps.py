@@ -36,6 +36,11 @@ step               reply
 ``Review``         ``"accept"``, ``"redo"`` or ``"skip"`` (quit ends the session)
 ``Commit``         ``None``
 ``Finish``         ``None``
+``Valves``         ``{channel: state}`` as the board set its valves, or ``None``
+                   when the valves are the experimenter's (a 1.0 board, a board
+                   without valves, a protocol that says ``valves = "hand"``)
+``Hold``           a :class:`HoldReport`: each channel's slope over the window
+``Note``           ``None``
 =================  ==========================================================
 
 A captured window is one :class:`~labcli.core.window.Window` from the engine to the run
@@ -63,12 +68,16 @@ __all__ = [
     "Commit",
     "Field",
     "Finish",
+    "Hold",
+    "HoldReport",
+    "Note",
     "Problem",
     "Prompt",
     "Review",
     "SettleReport",
     "SetupCheck",
     "Step",
+    "Valves",
     "WaitSettle",
     "Window",  # what Baseline and Capture reply (labcli.core.window)
 ]
@@ -207,7 +216,44 @@ class Finish:
     skipped: tuple[int, ...] = ()
 
 
-Step = SetupCheck | Prompt | Ask | BeginTrial | WaitSettle | Baseline | Capture | Review | Problem | Commit | Finish
+@dataclass(frozen=True)
+class Valves:
+    """Set every chamber's valve to ``state`` (``supply``, ``hold`` or ``vent``) by command, when the
+    board drives them (:mod:`labcli.core.air`); the reply says whether it did."""
+
+    state: str
+
+
+@dataclass(frozen=True)
+class Note:
+    """Tell the experimenter what the session does on its own (no answer is awaited)."""
+
+    text: str
+
+
+@dataclass(frozen=True)
+class Hold:
+    """Watch the readings for ``duration_s`` of device time and fit each channel's slope (the hold check)."""
+
+    duration_s: float
+
+
+Step = (
+    SetupCheck
+    | Prompt
+    | Ask
+    | BeginTrial
+    | WaitSettle
+    | Baseline
+    | Capture
+    | Review
+    | Problem
+    | Commit
+    | Finish
+    | Valves
+    | Hold
+    | Note
+)
 
 
 # --------------------------------------------------------------------------- replies
@@ -234,3 +280,14 @@ class SettleReport:
             "angle_spread_rad": self.angle_spread_rad,
             "criterion": self.criterion,
         }
+
+
+@dataclass(frozen=True)
+class HoldReport:
+    """What the readings did over a :class:`Hold`: per channel (SI), the least-squares slope per
+    second and the mean, over ``frames`` frames spanning ``duration_s`` of device time."""
+
+    slope_per_s: Any  # numpy (k,)
+    mean: Any  # numpy (k,)
+    frames: int
+    duration_s: float

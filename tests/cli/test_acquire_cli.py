@@ -251,7 +251,7 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
     plan = tmp_path / "plan.csv"
     plan.write_text(SMALL_PLAN)
     port = "sim://?seed=7&clock=virtual"
-    setup = "\n\n"  # air supplied, valves closed
+    setup = ""  # the simulated board supplies and holds the chambers by command: no air prompts
     trial = "\n\n"  # weight hung, weight removed
     answers = setup + trial + "r\n" + trial + "a\n" + trial + "s\n" + trial + "q\n"
     runner = CliRunner()
@@ -292,7 +292,8 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
 
 def test_typed_loads_without_a_plan_are_checked(tmp_path):
     path = tmp_path / "run.h5"
-    answers = "\n\n" + "5000\n250 g\n400\n45\n" + "\n\na\n" + "\n"
+    # The simulated board supplies and holds by command: the first answers are the typed load's.
+    answers = "5000\n250 g\n400\n45\n" + "\n\na\n" + "\n"
     # The ideal rig: the check is of the typed loads; on the default rig sleeve friction and the
     # potentiometers' play hide most of a 250 g deflection (tests/test_nonideal.py has those).
     result = CliRunner().invoke(
@@ -384,7 +385,7 @@ def test_typed_push_session_on_the_simulated_rig(tmp_path):
     obj = "pet-1\n33\nsoft\n8\n?\n400\n"
     # Push 1: 10 mm along 0 deg typed instead of Enter, then Enter to push; every push: release, review.
     pushes = "10 0\n\n\n\n" + "\n\n\n" * 9
-    answers = "\n\n" + obj + pushes + "\n"
+    answers = obj + pushes + "\n"  # no air prompts: the simulated board supplies and holds by command
     result = CliRunner().invoke(
         cli,
         ["acquire", str(path), "--port", "sim://?seed=9&clock=virtual", "--protocol", "takuma2014-stiffness"],
@@ -437,7 +438,17 @@ def test_settle_timeout_offers_wait_longer_and_accept(tmp_path):
     )  # trial 2: quit at the baseline timeout
     result = CliRunner().invoke(
         cli,
-        ["acquire", str(path), "--port", "sim://?seed=4&clock=virtual", "--protocol", str(proto), "--plan", str(plan)],
+        # a 1.0 board: the air supply's wait is the person's, as the answers above have it
+        [
+            "acquire",
+            str(path),
+            "--port",
+            "sim://?seed=4&clock=virtual&fw=1.0",
+            "--protocol",
+            str(proto),
+            "--plan",
+            str(plan),
+        ],
         input=answers,
     )
     assert result.exit_code == 0, result.output

@@ -48,6 +48,9 @@ def quick_protocol(tmp_path: Path) -> Path:
     ):
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
+    # The person at the rig supplies and closes the valves (the prompts these tests answer), though
+    # the simulated board could drive them (tests/cli/test_valves_pty.py drives them).
+    text = text.replace("rate_hz = 200.0\n", 'rate_hz = 200.0\nvalves = "hand"\n')
     path = tmp_path / "quick.toml"
     path.write_text(text)
     (tmp_path / "takuma2014-plan.csv").write_text(PLAN)

@@ -136,6 +136,8 @@ def quick_push_protocol(tmp_path: Path, pushes: int) -> Path:
     ):
         text, n = re.subn(rf"(?m)^{key} = .*$", f"{key} = {value}", text)
         assert n == 1
+    text, n = re.subn(r"(?m)^rate_hz = .*$", lambda m: m.group(0) + '\nvalves = "hand"', text)  # the person's valves
+    assert n == 1
     path = tmp_path / "push.toml"
     path.write_text(text)
     return path

@@ -39,7 +39,9 @@ from labcli.errors import DeviceDisconnected
 from labcli.papers.takuma2014.session import CloseValves, HangWeight, Prompt, RemoveWeight, SupplyAir
 
 SEED = 5
-PORT = f"sim://?seed={SEED}&clock=virtual"
+# A 1.0 board: the experimenter supplies and closes the valves (the prompts this file counts);
+# LOSE_AT_START counts the stream's STARTs of that session.
+PORT = f"sim://?seed={SEED}&clock=virtual&fw=1.0"
 PLAN = (
     "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,fit,300,150\n"
     "4,fit,800,0\n5,validation,400,90\n6,validation,600,-150\n"
@@ -400,7 +402,7 @@ def test_pty_rig_replugged_while_the_run_waits(tmp_path, socket):
         person.rig = socket.server.rig if socket.server is not None else None
 
     person = Person(socket.server.rig, on_prompt=hands)
-    outcome = acquire(path, socket.path, protocol=str(proto), plan=tmp_path / "plan.csv", ui=person)
+    outcome = acquire(path, socket.path, protocol=str(proto), plan=tmp_path / "plan.csv", ui=person, valves="hand")
     assert outcome.status == "finished", person.out.getvalue()
     assert events == ["unplugged", "retried", "replugged"]
     text = person.text
@@ -438,7 +440,7 @@ def test_pty_rig_lost_then_resumed_by_the_printed_command_on_a_new_server(tmp_pa
 
     person = Person(socket.server.rig, on_prompt=hands)
     with pytest.raises(DeviceDisconnected) as e:
-        acquire(path, socket.path, protocol=str(proto), plan=tmp_path / "plan.csv", ui=person)
+        acquire(path, socket.path, protocol=str(proto), plan=tmp_path / "plan.csv", ui=person, valves="hand")
     command = f"labcli acquire {path} --port {socket.path} --resume"
     assert str(e.value) == (
         f"The rig on {socket.path} was disconnected during trial 2; that trial was not stored and the "

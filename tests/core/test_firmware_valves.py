@@ -42,6 +42,13 @@ def v1_elf(tmp_path_factory: pytest.TempPathFactory, firmware_elf: Path) -> Path
     return build / "labcli_rig.elf"
 
 
+@pytest.fixture(scope="session")
+def quick_supply_elf(tmp_path_factory: pytest.TempPathFactory, firmware_elf: Path) -> Path:
+    build = tmp_path_factory.mktemp("firmware-supply")
+    make(build, "all", defs="-DSUPPLY_MAX_MS=500")  # the shipped board's 60 s, shortened
+    return build / "labcli_rig.elf"
+
+
 class Board:
     """A HilLink whose bytes are collected; ``run(s)`` lets ``s`` of simulated time pass."""
 
@@ -157,6 +164,27 @@ def test_the_chip_vents_an_over_pressure_with_the_host_silent(firmware_elf):
         board.send("PMAX?")
         board.run(0.1)
         assert [p.text for p in board.lines() if isinstance(p, Reply)][-1] == f"OK PMAX {limit} {limit} {limit} {limit}"
+    finally:
+        board.close()
+
+
+def test_the_board_holds_chambers_the_host_left_supplying(quick_supply_elf):
+    """A host that dies while the chambers fill: 0.5 s (60 s shipped) after its last VALVE command
+    the board holds every supplied chamber by itself, with a VALVE event of cause timeout."""
+    rig = SimRig(seed=4, tau_s=0.3)  # vented
+    board = Board(quick_supply_elf, rig)
+    try:
+        board.run(0.1)
+        board.send("VALVE ALL SUPPLY")
+        board.run(0.3)
+        board.send("VALVE P_R2 VENT")  # a VALVE command starts the time again
+        board.run(1.0)  # the host says nothing more
+        valve = [e for e in board.events() if e.kind == "VALVE"]
+        assert [e.fields for e in valve] == [("SSSS", "host"), ("SSSV", "host"), ("HHHV", "timeout")]
+        waited = (valve[2].t_us - valve[1].t_us) * 1e-6
+        assert 0.5 <= waited <= 0.5 + 0.03  # checked on each 50 Hz sample (20 ms apart), idle as here
+        assert rig.valve_states == ("hold", "hold", "hold", "vent")
+        assert rig.true_state()["pressures_MPa"][:3].min() > 0.2  # held with the air they had
     finally:
         board.close()
 

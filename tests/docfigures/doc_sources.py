@@ -537,6 +537,13 @@ SOURCES: dict[str, Source] = {
             runs={"": ()},
         ),
         Source(
+            "air",
+            "benchmark",
+            "the baseline drift of a 108-trial run with and without re-pressurising, and its accuracy",
+            script="bench_air.py",
+            runs={"": ()},
+        ),
+        Source(
             "firmware-model",
             "benchmark",
             "estimates on the chip: sizes, cycles, the highest rate, agreement with the host, on simavr",

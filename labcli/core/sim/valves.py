@@ -14,6 +14,9 @@ simulated rig (``supply_air``, ``close_valves``, ``vent``, the console's) are th
 overriding the board, and the board reads them back, without an event line.  The limit is checked on the frames made while
 streaming, once per block of frames, or every 20 ms of rig time while a chamber is supplied or
 near the limit; an idle simulated board does not check it (the AVR firmware always does).
+A chamber the host left supplying for ``supply_max_s`` (60 s of rig time) is held by the board,
+with a ``VALVE`` event of cause ``timeout``: a host killed while the chambers fill does not leave
+them on the regulator.
 """
 
 from __future__ import annotations
@@ -30,6 +33,9 @@ VERSIONS = ("1.0", "1.1")
 # 0.7 MPa on the reference calibration (819 + 0.7 / (5 / 16380)): the AVR firmware's default too.
 PMAX_DEFAULT_COUNTS = 3112
 ADC_MAX = 4095
+# A chamber supplied this long (rig time) since the host's last VALVE command is held by the board
+# itself: a host that dies while the chambers fill never leaves them supplying unattended.
+SUPPLY_MAX_S = 60.0
 NEAR_LIMIT = 0.9  # above this share of the limit, frames are checked every CHECK_S
 CHECK_S = 0.02
 
@@ -47,6 +53,8 @@ class BoardValves:
         self.pmax = np.full(len(self.valves), PMAX_DEFAULT_COUNTS, dtype=np.int64)
         self.n_events = 0
         self._near = False  # the last frames checked came near the limit
+        self.supply_max_s = SUPPLY_MAX_S
+        self._supplied_us: int | None = None  # rig time (us, unwrapped) of the host's last VALVE with a supply
 
     @property
     def states(self) -> list[str]:
@@ -84,6 +92,7 @@ class BoardValves:
         state = parts[1].lower()
         new = [state if parts[0] in ("ALL", name) else old for name, old in zip(self.valves, self.states, strict=True)]
         events = self._set(new, "host", t_us)
+        self._supplied_us = int(round(self.rig.time_s * 1e6)) if "supply" in self.states else None
         return events + f"OK VALVE {format_states(self.states)}\n".encode()
 
     def _pmax_reply(self) -> bytes:
@@ -117,9 +126,21 @@ class BoardValves:
         return max(1, int(round(rate_hz * CHECK_S)))
 
     def check(self, t_us: np.ndarray, counts: np.ndarray) -> bytes:
-        """Vent every chamber whose pressure went above the limit in these frames; their event lines."""
+        """Vent every chamber whose pressure went above the limit in these frames, and hold the
+        chambers supplied for longer than ``supply_max_s``; their event lines."""
         if not self.valves or not len(counts):
             return b""
+        return self._check_limit(t_us, counts) + self._check_supply(int(t_us[-1]))
+
+    def _check_supply(self, t_us: int) -> bytes:
+        if self._supplied_us is None or "supply" not in self.states:
+            return b""
+        if self.rig.time_s * 1e6 - self._supplied_us < self.supply_max_s * 1e6:
+            return b""
+        self._supplied_us = None
+        return self._set(["hold" if v == "supply" else v for v in self.states], "timeout", t_us)
+
+    def _check_limit(self, t_us: np.ndarray, counts: np.ndarray) -> bytes:
         p = np.asarray(counts)[:, self.index]
         self._near = bool(np.any(p[-1] > NEAR_LIMIT * self.pmax))
         over = (p > self.pmax) & np.array([s != "vent" for s in self.states])

@@ -18,10 +18,11 @@ from __future__ import annotations
 
 import re
 from collections.abc import Generator, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any
 
+from ...core.air import AirDrift
 from ...core.guard import Guard
 from ...core.steps import Ask, BeginTrial, Field, Finish, Prompt, SettleReport, Step, Window
 from .records import PushRecord
@@ -181,6 +182,7 @@ class _Pushing:
     cmap: ChannelMap
     d_range: tuple[float, float]
     guard: Guard
+    air: AirDrift | None = None  # a board that drives its valves: re-pressurise on drift
 
 
 def _push(
@@ -215,6 +217,7 @@ def _push(
                 release,
                 f"{obj.name} may still press on the tip",
             ),
+            ctx.air,
         )
         if isinstance(result, bool):
             return result
@@ -248,7 +251,8 @@ def push_session(
     fixed = list(objects or [])
     total = sum(len(o.pushes) for o in fixed) if fixed else 0
 
-    yield from _pressurise(protocol)
+    air = yield from _pressurise(protocol)
+    ctx = replace(ctx, air=air)
 
     skipped: list[int] = []
     next_id = 1

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core.air import AirDrift, hold_problem
 from ...core.guard import Guard, Watch, supply_problem
 from ...core.steps import (
     Ask,
@@ -37,12 +38,15 @@ from ...core.steps import (
     Commit,
     Field,
     Finish,
+    Hold,
+    Note,
     Problem,
     Prompt,
     Review,
     SettleReport,
     SetupCheck,
     Step,
+    Valves,
     WaitSettle,
     Window,
 )
@@ -364,12 +368,23 @@ def ask_load(
 # --------------------------------------------------------------------------- sessions
 
 
-def _pressurise(protocol: Any) -> Generator[Step, Any, None]:
-    """Setup check, air supply (held until the pressures settle, then checked), valves closed."""
+FIX_AIR_TEXT = "Fix what the check found, then press Enter: the board supplies the air again"
+
+
+def _pressurise(protocol: Any) -> Generator[Step, Any, AirDrift | None]:
+    """Setup check, air supply (held until the pressures settle, then checked), valves closed.
+
+    A board that drives its valves (the ``Valves`` step's reply) supplies and holds by command,
+    and the held chambers are watched for ``hold_check_s`` (:func:`labcli.core.air.hold_problem`)
+    before the first trial; the drift tracker it returns has the trials re-pressurise.  Otherwise
+    the prompts ask the experimenter, and None is returned.
+    """
     capture_s = float(protocol.settling.capture_s)
     cols = [i for i, u in enumerate(protocol.calibration.units) if u == "MPa"]
     names = [protocol.channels[i] for i in cols]
     yield SetupCheck()
+    if (yield Valves("supply")) is not None:
+        return (yield from _pressurise_by_command(protocol, capture_s, cols, names))
     problem = None
     while True:
         supply = Prompt(SUPPLY_TEXT, SupplyAir())
@@ -382,6 +397,40 @@ def _pressurise(protocol: Any) -> Generator[Step, Any, None]:
         if problem is None:
             break
     yield Prompt(CLOSE_TEXT, CloseValves())
+    return None
+
+
+def _pressurise_by_command(
+    protocol: Any, capture_s: float, cols: list[int], names: list[str]
+) -> Generator[Step, Any, AirDrift]:
+    """Supplied by command (the Valves step already sent): settle, check the supply, hold, the hold check."""
+    air = protocol.air
+    while True:
+        if (yield WaitSettle("air supply")) == "redo":
+            continue
+        readings = yield Baseline(capture_s)
+        problem = supply_problem(names, readings.mean()[cols], protocol.supply_min_MPa)
+        yield Valves("hold")
+        if problem is None:
+            # The arm and the air come to rest on the closed chambers first: then what is left is the leak.
+            yield WaitSettle("hold")
+            hold = yield Hold(air.hold_check_s)
+            problem = hold_problem(names, hold.slope_per_s[cols], air)
+        if problem is None:
+            return AirDrift(names, cols, air)
+        yield Problem(problem, Prompt(FIX_AIR_TEXT))
+        yield Valves("supply")
+
+
+def _resupply(air: AirDrift, why: str, guard: Guard | None) -> Generator[Step, Any, None]:
+    """The chambers drifted: supply by command until the pressures settle, then hold again."""
+    yield Note(f"{why[:1].upper()}{why[1:]}.")
+    yield Valves("supply")
+    yield WaitSettle("air supply")
+    yield Valves("hold")
+    air.supplied()
+    if guard is not None:
+        guard.resupplied()
 
 
 def session_guard(protocol: Any) -> Guard:
@@ -405,7 +454,12 @@ class Checked:
 
 
 def _trial(
-    capture_s: float, load: Prompt, unload: Prompt, record_of: Any, checked: Checked | None = None
+    capture_s: float,
+    load: Prompt,
+    unload: Prompt,
+    record_of: Any,
+    checked: Checked | None = None,
+    air: AirDrift | None = None,
 ) -> Generator[Step, Any, Any]:
     """One trial or push until accepted (True) or skipped (False).
 
@@ -415,7 +469,9 @@ def _trial(
     With ``checked``, a baseline that still carries the last load asks for it to be taken
     off, and a load the readings did not follow makes redo the review's default.  A load
     prompt answered with new values (its ``change``) returns them: nothing was loaded, and
-    the caller starts the trial again with them.
+    the caller starts the trial again with them.  With ``air`` (a board that drives its valves),
+    a baseline that drifted past the protocol's limit since the last supply has the chambers
+    supplied and held again, and the baseline retaken.
     """
     while True:
         wait_b = yield WaitSettle("baseline")
@@ -429,6 +485,11 @@ def _trial(
                     f"The readings have not returned since the last load: {left}; {checked.forgotten}.", checked.undo
                 )
                 continue
+        if air is not None:
+            drifted = air.check(base)
+            if drifted is not None:
+                yield from _resupply(air, drifted, checked.guard if checked is not None else None)
+                continue
         typed = yield load
         if typed is not None:
             return typed
@@ -440,15 +501,20 @@ def _trial(
         weak = checked.guard.after_load(checked.load, base, loaded, checked.key) if checked else None
         yield unload
         record = record_of(base, loaded, wait_b, wait_l)
+        fix = (
+            ""
+            if checked is not None and checked.guard.unsealed
+            else ": check that the load was applied as the prompt said"
+        )
         warnings = (
-            (
-                f"{weak[:1].upper()}{weak[1:]}: check that the load was applied as the prompt said, then "
-                "redo the trial (Enter), or accept it as it is (a).",
-            )
+            (f"{weak[:1].upper()}{weak[1:]}{fix}, then redo the trial (Enter), or accept it as it is (a).",)
             if weak
             else ()
         )
         decision = yield Review(summary_row(record), warnings, "redo" if weak else "accept")
+        if weak and checked is not None and checked.guard.unsealed:
+            # The valves are closed from now on: the baselines before say nothing of the leak.
+            checked.guard.resupplied()
         if decision == "redo":
             continue
         if decision == "skip":
@@ -505,7 +571,7 @@ def force_session(
         trials = protocol.settings.trials
         total = target or (int(trials.fit) + int(trials.validation) if trials is not None else 0)
 
-    yield from _pressurise(protocol)
+    air = yield from _pressurise(protocol)
 
     skipped: list[int] = []
     while not rows or remaining:
@@ -540,6 +606,7 @@ def force_session(
                 remove,
                 "the last weight may still hang on the pulley",
             ),
+            air,
         )
         (done.add if stored else skipped.append)(planned.trial)
 

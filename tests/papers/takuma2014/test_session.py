@@ -19,6 +19,7 @@ from labcli.core.steps import (
     Review,
     SettleReport,
     SetupCheck,
+    Valves,
     WaitSettle,
     Window,
 )
@@ -136,11 +137,14 @@ def asks(steps, key):
 def test_the_shipped_plan_as_steps():
     steps = drive(force_session(PROTOCOL, plan()))
     assert isinstance(steps[0], SetupCheck)
-    assert steps[1] == Prompt("Supply compressed air to the four actuators, then press Enter", SupplyAir())
+    # The board is asked to supply first; answered None (no valve control), the prompts ask for it.
+    assert steps[1] == Valves("supply")
+    assert steps[2] == Prompt("Supply compressed air to the four actuators, then press Enter", SupplyAir())
     # The valves close only once the supplied pressures have settled and been read (the supply check).
-    assert steps[2] == WaitSettle("air supply")
-    assert steps[3] == Baseline(1.0)
-    assert steps[4] == Prompt("Close the valves so that the actuators are sealed, then press Enter", CloseValves())
+    assert steps[3] == WaitSettle("air supply")
+    assert steps[4] == Baseline(1.0)
+    assert steps[5] == Prompt("Close the valves so that the actuators are sealed, then press Enter", CloseValves())
+    assert len(of(steps, Valves)) == 1  # never asked again: the prompts have the valves
     commits = of(steps, Commit)
     assert [c.record["trial"] for c in commits] == list(range(1, 109))
     assert len(of(steps, BeginTrial)) == 108

@@ -26,8 +26,8 @@ CASES: list[Case] = [
     Case(
         "stdin-eof",
         "standard input",
-        "input ends at the first prompt (`</dev/null`)",
-        ["acquire", "new.h5", "--port", SIM],
+        "input ends at the first prompt (`</dev/null`; a 1.0 board: the air supply's)",
+        ["acquire", "new.h5", "--port", SIM + "&fw=1.0"],
         [
             "No input (standard input ended) during the setup, before anything was written to new.h5; run the "
             "command where someone at the rig can answer its prompts."

@@ -6,7 +6,8 @@ before the literature's levels, byte for byte); ``ideal=1`` turns every effect o
 given beside it still applies (``ideal=1&leak=1`` is the ideal rig with a leak).  ``supply`` is the regulator
 pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuators
 (``paper``, the paper-scale default, or ``thin``, the earlier soft tuning;
-``design=thin&ideal=1`` reproduces its frames exactly).
+``design=thin&ideal=1`` reproduces its frames exactly); ``valves=open`` leaves the valves open to
+the regulator whatever closes them (an operator who forgot, a valve stuck open).
 
 This module imports nothing heavy: the experiment's declaration reads :data:`SIM_OPTIONS`.
 """
@@ -51,6 +52,13 @@ def parse_realism(text: str) -> str:
     return text
 
 
+def parse_valves(text: str) -> bool:
+    """``open``: the valves stay open to the regulator whatever closes them (True); ``ok``: False."""
+    if text not in ("ok", "open"):
+        raise ValueError
+    return text == "open"
+
+
 def parse_design(text: str) -> str:
     if text not in DESIGN_NAMES:
         raise ValueError
@@ -63,6 +71,7 @@ SIM_OPTIONS = {
     "supply": SimOption(parse_supply, "MPA[,MPA,MPA,MPA]", SUPPLY_FORM),
     "design": SimOption(parse_design, "|".join(DESIGN_NAMES), "one of " + ", ".join(DESIGN_NAMES)),
     "realism": SimOption(parse_realism, "|".join(REALISM_NAMES), "one of " + ", ".join(REALISM_NAMES)),
+    "valves": SimOption(parse_valves, "ok|open", "ok or open"),
 }
 
 
@@ -76,6 +85,7 @@ def build_rig(
     supply: Any = None,
     design: str | None = None,
     realism: str | None = None,
+    valves: bool = False,
     **scales: float,
 ) -> Any:
     """The McKibben rig with these options (parsed values of :data:`SIM_OPTIONS`; None: the default).
@@ -97,5 +107,12 @@ def build_rig(
     given: dict[str, Any] = {k: v for k, v in scales.items() if v is not None}
     nonideal = replace(base, **given)
     return SimRig(
-        seed=seed, noise=noise, drift=drift, tau_s=tau_s, nonideal=nonideal, design=design or "paper", **extra
+        seed=seed,
+        noise=noise,
+        drift=drift,
+        tau_s=tau_s,
+        nonideal=nonideal,
+        design=design or "paper",
+        valves_open=bool(valves),
+        **extra,
     )

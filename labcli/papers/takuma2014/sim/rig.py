@@ -47,7 +47,10 @@ what it computed before they existed (same parameters, same frames).  The
 leak moves the pressures at once; its small effect on posture enters at the
 next operator action.  ``design`` picks the actuators (:data:`labcli.papers.takuma2014.sim.physics.DESIGNS`:
 ``"paper"``, the paper-scale default, or ``"thin"``, the earlier soft tuning);
-``supply_MPa`` is one supply pressure or four (L1, R1, L2, R2).
+``supply_MPa`` is one supply pressure or four (L1, R1, L2, R2).  ``valves_open`` leaves every
+valve open to the regulator whatever closes it (by hand or by the board, whose commanded states
+``valve_states`` still reports): the operator's mistake of the two-terminal walk-through, where
+each load leaves the pressures where they were.
 """
 
 from __future__ import annotations
@@ -138,6 +141,7 @@ class SimRig(SimClock):
         supply_MPa=ph.SUPPLY_MPA,
         nonideal: ni.NonIdeal | None = None,
         design: str | ph.Design = "paper",
+        valves_open: bool = False,
     ) -> None:
         if noise < 0 or (drift is not None and drift < 0) or tau_s <= 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
@@ -195,6 +199,10 @@ class SimRig(SimClock):
         self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
         self._valve_states: tuple[str, ...] = ("vent",) * 4
+        # The valves as commanded (by hand or by the board); with ``valves_open`` a held chamber
+        # stays open to the regulator, as when the operator leaves the valves open.
+        self.valves_open = bool(valves_open)
+        self._commanded: tuple[str, ...] = self._valve_states
 
     def _sensor_front_end(self, noise: float, drift: float) -> SensorFrontEnd:
         """The sensors and their fixed errors: offsets drawn first, then the drift, from one seed."""
@@ -414,11 +422,14 @@ class SimRig(SimClock):
         if np.any(p < 0) or np.any(p > 1.0e6):
             raise ValueError("supply pressures must be within 0..1 MPa gauge (the sensors' span)")
         self._change(chambers=ph.Chambers.open(p), valves="open")
-        self._valve_states = ("supply",) * 4
+        self._valve_states = self._commanded = ("supply",) * 4
 
     def close_valves(self) -> None:
         """Close the valves: from now on each chamber keeps its air (Boyle's law)."""
         with self._lock:
+            self._commanded = ("hold",) * 4
+            if self.valves_open:
+                return
             if self._seg.chambers.state == "closed":
                 return  # closing a closed valve changes nothing
             theta_now, p_now = self._state_at(self._t)
@@ -430,12 +441,12 @@ class SimRig(SimClock):
     def vent(self) -> None:
         """Open the valves to atmosphere: the rig goes limp (rubber only)."""
         self._change(chambers=ph.Chambers.open(np.zeros(4)), valves="vented")
-        self._valve_states = ("vent",) * 4
+        self._valve_states = self._commanded = ("vent",) * 4
 
     @property
     def valve_states(self) -> tuple[str, ...]:
-        """Each chamber's valve: ``supply``, ``hold`` or ``vent`` (L1, R1, L2, R2)."""
-        return self._valve_states
+        """Each chamber's valve as commanded: ``supply``, ``hold`` or ``vent`` (L1, R1, L2, R2)."""
+        return self._commanded
 
     def set_valves(self, states) -> None:
         """Set each chamber's valve (four of ``supply``, ``hold``, ``vent``, L1 R1 L2 R2), as a board does.
@@ -446,10 +457,15 @@ class SimRig(SimClock):
         if len(states) != 4 or not set(states) <= {"supply", "hold", "vent"}:
             raise ValueError(f"valve states are four of supply, hold, vent; got {states!r}")
         with self._lock:
+            commanded = states
+            if self.valves_open:
+                states = tuple("supply" if v == "hold" else v for v in states)
+            self._commanded = commanded
             if states == self._valve_states:
                 return
             if len(set(states)) == 1:
                 {"supply": self.supply_air, "hold": self.close_valves, "vent": self.vent}[states[0]]()
+                self._commanded = commanded
                 return
             theta_now, p_now = self._state_at(self._t)
             s = self._seg
@@ -463,6 +479,7 @@ class SimRig(SimClock):
             self._t_closed = self._t
             self._change(chambers=ph.Chambers.mixed(held, gauge, amount), valves="mixed")
             self._valve_states = states
+            self._commanded = commanded
 
     def hang_weight(self, mass_kg: float, direction_rad: float) -> None:
         """Hang ``mass_kg`` from the tip over a pulley pulling along ``direction_rad`` (replaces any load)."""
