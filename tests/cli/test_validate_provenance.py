@@ -116,7 +116,10 @@ def test_no_model_anywhere(here: Path) -> None:
 
 def test_a_model_of_another_simulated_rig_gets_a_warning(here: Path) -> None:
     model = json.loads((here / "run.model.json").read_text())
-    model["fitted_on"].update(device="mckibben-2dof-sim", firmware="1.0", sim_seed=1, run="force1.h5")
+    from labcli.papers.takuma2014.sim.rig import SimRig
+
+    # The same simulated rig and firmware, another seed.
+    model["fitted_on"].update(device="mckibben-2dof-sim", firmware=SimRig.firmware, sim_seed=1, run="force1.h5")
     (here / "m1.json").write_text(json.dumps(model))
     r = run("validate", here / "acq3.h5", "--model", here / "m1.json")
     assert r.exit_code == 0, r.output
