@@ -18,6 +18,7 @@ from rich.console import Console
 from labcli.core.device import Device
 from labcli.core.engine import RunEngine
 from labcli.core.protocol import load_protocol
+from labcli.core.simoperator import operator_for
 from labcli.core.steps import Hold, HoldReport, Note, Prompt, Valves
 from labcli.core.store import RunFile
 from labcli.core.ui import UnattendedUI
@@ -65,7 +66,15 @@ def run(tmp_path: Path, url: str, *, protocol=PROTOCOL, loads=LOADS, ui=None, wa
     ui = ui or Person()
     ui.dev = dev
     store = RunFile.create(run_path, protocol=protocol, device_info=dev.info, port=url, plan=plan)
-    engine = RunEngine(dev, store, protocol, ui, run_path=str(run_path), resume_command="labcli acquire --resume")
+    engine = RunEngine(
+        dev,
+        store,
+        protocol,
+        ui,
+        run_path=str(run_path),
+        resume_command="labcli acquire --resume",
+        simulated_operator=operator_for(dev),
+    )
     seen: list = []
     engine.subscribe(lambda step, reply: seen.append((step, reply)))
     if watch is not None:
