@@ -1,23 +1,15 @@
-"""What the commands share beyond click: which options the person typed, option types they all use."""
+"""What the commands share beyond click: option types they all use, the options of every command
+that opens a port, and the default seed of the simulated rig."""
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import click
-from click.core import ParameterSource
 
-
-def typed_options(*names: str) -> frozenset[str]:
-    """The options among ``names`` (parameter names) given on the command line, not left at their default.
-
-    A paper refuses an option that means nothing to its runs only when it was typed.
-    """
-    ctx = click.get_current_context(silent=True)
-    if ctx is None:
-        return frozenset()
-    return frozenset(n for n in names if ctx.get_parameter_source(n) == ParameterSource.COMMANDLINE)
+F = TypeVar("F", bound=Callable[..., Any])
 
 
 class FiniteRange(click.FloatRange):
@@ -35,3 +27,30 @@ FINITE = FiniteRange()  # any finite number
 # The serial link's speed: the wire protocol's default, and what USB-serial bridges offer.
 BAUD = click.IntRange(50, 12_000_000)
 BAUD_HELP = "Serial speed of the rig's link, bits per second  [default: 115200, the wire protocol's]"
+TIMEOUT_S = 2.0  # the wait for the rig's answers, and the silence tolerated while streaming
+
+# labcli sim and labcli demo serve the same simulated rig unless told otherwise.
+SEED = 1
+
+
+def port_options(f: F) -> F:
+    """``-p/--port``, ``--baud`` and ``--timeout``: spelled and meaning the same on every command that opens a port."""
+    f = click.option(
+        "--timeout",
+        type=FiniteRange(min=0, min_open=True),
+        default=TIMEOUT_S,
+        show_default=True,
+        help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.",
+    )(f)
+    f = click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)(f)
+    return click.option(  # type: ignore[no-any-return]
+        "-p",
+        "--port",
+        required=True,
+        help="Serial port (/dev/ttyUSB0, COM3) or pyserial URL (sim://?seed=1&clock=virtual).",
+    )(f)
+
+
+def seed_option(help: str) -> Callable[[F], F]:
+    """``--seed`` of the simulated rig, defaulting to :data:`SEED` (``labcli sim`` and ``labcli demo``)."""
+    return click.option("--seed", type=click.IntRange(min=0), default=SEED, show_default=True, help=help)

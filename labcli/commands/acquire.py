@@ -7,15 +7,14 @@ import signal
 import click
 
 from ..errors import LabcliError
-from ._options import BAUD, BAUD_HELP, FiniteRange
-
-DEFAULT_PROTOCOL = "takuma2014"  # a new run without --protocol
+from ._declared import experiment_option, protocol_option
+from ._options import FiniteRange, port_options
 
 
 @click.command()
 @click.argument("run", metavar="RUN.h5", type=click.Path(dir_okay=False))
-@click.option("--port", required=True, help="Serial port (/dev/ttyUSB0, COM3) or URL (sim://?seed=1&clock=virtual).")
-@click.option("--protocol", default=None, help="Shipped protocol name or .toml path  [default: takuma2014]")
+@port_options
+@protocol_option("acquire", "Shipped protocol name or .toml path  [default: {default}]")
 @click.option(
     "--plan",
     "plan",
@@ -35,21 +34,17 @@ DEFAULT_PROTOCOL = "takuma2014"  # a new run without --protocol
     default=None,
     help="Frames per second  [default: the protocol's rate_hz]",
 )
-@click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)
 @click.option(
     "--allow-other-rig",
     is_flag=True,
     help="With --resume: continue on a rig other than the one the run was recorded on.",
 )
-@click.option(
-    "--experiment",
-    type=click.Choice(["stretch", "joint"]),
-    default=None,
-    help="rPAM protocols: the stretch test (Figs. 5-6) or the joint map (Fig. 8).",
-)
+@experiment_option("Which experiment of {holders} to record: {choices}.")
 def acquire(
     run: str,
     port: str,
+    baud: int,
+    timeout: float,
     protocol: str | None,
     plan: str | None,
     no_plan: bool,
@@ -58,7 +53,6 @@ def acquire(
     force: bool,
     unattended: bool,
     rate: float | None,
-    baud: int,
     allow_other_rig: bool,
     experiment: str | None,
 ) -> None:
@@ -77,7 +71,7 @@ def acquire(
         labcli acquire run.h5 --port /dev/ttyUSB0 --operator kim
         labcli acquire run.h5 --port /dev/ttyUSB0 --resume
         labcli acquire sim.h5 --port 'sim://?seed=1&clock=virtual' --unattended
-        labcli acquire stretch.h5 --protocol rpam2015 --experiment stretch \
+        labcli acquire stretch.h5 --protocol rpam2015 --experiment stretch \\
             --port 'sim://?mode=rpam&clock=virtual' --unattended
     """
     from ..core.acquisition import acquire as run_acquisition  # heavy: when the command runs, not for --help
@@ -86,7 +80,7 @@ def acquire(
         outcome = run_acquisition(
             run,
             port,
-            protocol=protocol if protocol is not None or resume else DEFAULT_PROTOCOL,
+            protocol=protocol,
             plan=plan,
             no_plan=no_plan,
             operator=operator,
@@ -96,6 +90,7 @@ def acquire(
             rate_hz=rate,
             experiment=experiment,
             baud=baud,
+            device_timeout=timeout,
             allow_other_rig=allow_other_rig,
         )
     except LabcliError as e:

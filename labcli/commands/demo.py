@@ -8,23 +8,22 @@ from pathlib import Path
 
 import click
 
-from ..core.registry import demo_protocols, for_shipped_protocol
+from ..core.registry import default_protocol, demo_protocols, for_shipped_protocol
 from ..errors import LabcliError
-
-DEFAULT_PROTOCOL = "takuma2014"
+from ._options import seed_option
 
 
 @click.command("demo")
 @click.argument("outdir", default="labcli-demo", type=click.Path(file_okay=False, path_type=Path))
-@click.option("--seed", type=int, default=1, show_default=True, help="Seed of the simulated rig.")
+@seed_option("Seed of the simulated rig (labcli sim serves the same rig by default).")
 @click.option("--force", is_flag=True, help="Overwrite earlier demo output in OUTDIR.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @click.option(
     "--protocol",
-    type=click.Choice(demo_protocols(DEFAULT_PROTOCOL)),
-    default=DEFAULT_PROTOCOL,
+    type=click.Choice(demo_protocols()),
+    default=default_protocol("demo"),
     show_default=True,
-    help="Which paper: the McKibben joint (takuma2014) or the rPAM joint (rpam2015).",
+    help="Which paper's demo: the demo protocol it ships.",
 )
 def demo(outdir: Path, seed: int, force: bool, as_json: bool, protocol: str) -> None:
     """Run the whole paper on the simulated rig: no hardware, no questions.

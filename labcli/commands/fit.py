@@ -7,14 +7,12 @@ from pathlib import Path
 
 import click
 
-from ..core.dispatch import for_analysis
+from ..core.options import Typed
 from ..errors import LabcliError
-from ._options import typed_options
-
-DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol is not given
+from ._declared import paper_command, protocol_option
 
 
-@click.command("fit")
+@paper_command("fit")
 @click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
     "-o",
@@ -23,59 +21,19 @@ DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol
     default=None,
     help="Model JSON to write [default: RUN.model.json beside the run].",
 )
-@click.option(
-    "--protocol",
-    default=None,
-    help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.",
-)
-@click.option(
-    "--max-amplification",
-    type=click.FloatRange(min=1, min_open=True),
-    default=100.0,
-    show_default=True,
-    help="Leave a posture out of the Fx (Fy) fit when that force's error amplification near theta2 = 0 exceeds this.",
-)
-@click.option(
-    "--form",
-    type=click.Choice(["posture", "paper"]),
-    default="posture",
-    show_default=True,
-    help="posture: torques at the arm's rest posture plus deflection, forces by (J^T)^-1, with "
-    "standard errors; paper: Eqs. 34-37 exactly as printed, beside the paper's coefficients.",
-)
+@protocol_option("fit", "Protocol of a trial CSV (name or .toml) [default: {default}]; run files carry their own.")
 @click.option("--json", "as_json", is_flag=True, help="Print the model and the paper's values as JSON.")
-@click.option(
-    "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="rPAM stretch-test runs: write the stretch test's figure (Fig. 6) to this .png, .pdf or .svg.",
-)
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
-    "(repeatable; the run file keeps its own).",
-)
-def fit(
-    run: Path,
-    output: Path | None,
-    protocol: str | None,
-    max_amplification: float,
-    form: str,
-    as_json: bool,
-    plot: Path | None,
-    overrides: tuple[str, ...],
-) -> None:
-    """Fit a force model to the fit trials of RUN.
+def fit(run: Path, output: Path | None, protocol: str | None, as_json: bool, typed: Typed) -> None:
+    """Fit a model to the fit trials of RUN, with the analysis of the paper that recorded it.
 
-    RUN is a run file (.h5) or a trial CSV.  The default form regresses the joint torques at
-    the arm's true posture (rest posture from the potentiometers plus the deflection) and gives
-    every estimate a standard error; --form paper fits the paper's Eqs. 34-37 as printed and
-    prints each coefficient with its standard error, 95% interval and the paper's value
-    (Section 3.3).  Saves the model JSON and records it in the run file.  On an rPAM stretch-test run it fits the cubic stretch
-    correction F_stretch(lambda) of the rPAM paper's Eq. 7 instead, with its uncertainty.
+    RUN is a run file (.h5) or a trial CSV.  On a force run (takuma2014) the default form
+    regresses the joint torques at the arm's true posture (rest posture from the
+    potentiometers plus the deflection) and gives every estimate a standard error; --form
+    paper fits the paper's Eqs. 34-37 as printed and prints each coefficient with its
+    standard error, 95% interval and the paper's value (Section 3.3).  Saves the model JSON
+    and records it in the run file.  On an rPAM stretch-test run (rpam2015) it fits the cubic
+    stretch correction F_stretch(lambda) of the rPAM paper's Eq. 7 instead, with its
+    uncertainty.  Each paper's own options are listed under its name below.
 
     \b
     Example:
@@ -84,18 +42,11 @@ def fit(
         labcli fit trials.csv --protocol takuma2014 -o model.json --json
         labcli fit stretch.h5 --plot fig6-stretch.png
     """
+    from ..core.dispatch import prepare
+
     try:
-        analysis = for_analysis("fit", inputs=[run], default_protocol=DEFAULT_PROTOCOL).analysis("fit")
-        result = analysis.run(
-            run,
-            output=output,
-            protocol=protocol,
-            max_amplification=max_amplification,
-            form=form,
-            plot=plot,
-            overrides=overrides,
-            typed=typed_options("max_amplification", "form"),
-        )
+        job = prepare("fit", typed, inputs=[run])
+        result = job.analysis.run(run, job.options, output=output, protocol=protocol)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
-    analysis.show(result, as_json=as_json)
+    job.analysis.show(result, as_json=as_json)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ..errors import LabcliError
+from ._declared import RegistryHelpOption, experiment_option, shipped_protocols
 
 
 @click.command("import")
@@ -14,14 +15,11 @@ from ..errors import LabcliError
     "--protocol",
     "protocol_name",
     required=True,
-    help="Protocol name (e.g. takuma2014) or TOML file; its kind decides trial, push or point table.",
+    cls=RegistryHelpOption,
+    template="Protocol name ({shipped}) or TOML file; its kind decides trial, push or point table.",
+    fill=shipped_protocols,
 )
-@click.option(
-    "--experiment",
-    type=click.Choice(["stretch", "joint"]),
-    default=None,
-    help="rPAM protocols only: the experiment TABLE holds (stretch test or joint map).",
-)
+@experiment_option("For {holders}: the experiment TABLE holds, {choices}.")
 @click.option("--operator", default="", help="Who recorded the data.")
 @click.option("--force", is_flag=True, help="Overwrite OUTPUT if it exists.")
 def import_(table: str, output: str, protocol_name: str, experiment: str | None, operator: str, force: bool) -> None:

@@ -8,7 +8,8 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
-from ._options import BAUD, BAUD_HELP, FiniteRange
+from ._declared import protocol_option
+from ._options import FiniteRange, port_options
 
 
 def _reading(value: float, unit: str, extra_digits: int = 0) -> str:
@@ -55,7 +56,7 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False) -> Any:
 
 
 @click.command()
-@click.option("--port", "-p", required=True, help="Serial port or pyserial URL, e.g. /dev/ttyUSB0, COM3, sim://.")
+@port_options
 @click.option(
     "--rate",
     type=FiniteRange(min=0, min_open=True),
@@ -69,18 +70,8 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False) -> Any:
     help="Stop after this many seconds  [default: run until Ctrl-C]",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON summary instead of the live table.")
-@click.option(
-    "--protocol",
-    default="takuma2014",
-    show_default=True,
-    help="Protocol name or .toml file whose calibration converts counts to MPa and rad.",
-)
-@click.option(
-    "--timeout",
-    type=FiniteRange(min=0, min_open=True),
-    default=2.0,
-    show_default=True,
-    help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.",
+@protocol_option(
+    "monitor", "Protocol name or .toml file whose calibration converts counts to MPa and rad  [default: {default}]"
 )
 @click.option(
     "--boot-wait",
@@ -88,16 +79,15 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False) -> Any:
     default=None,
     help="Extra seconds for a board that resets when the port opens  [default: 2 for serial ports, 0 for URLs]",
 )
-@click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)
 def monitor(
     port: str,
+    baud: int,
+    timeout: float,
     rate: float | None,
     seconds: float | None,
     as_json: bool,
-    protocol: str,
-    timeout: float,
+    protocol: str | None,
     boot_wait: float | None,
-    baud: int,
 ) -> None:
     """Show live calibrated readings (MPa, deg) and link statistics from a rig.
 
@@ -118,13 +108,14 @@ def monitor(
     from ..core.device import Device  # heavy: when the command runs, not for --help
     from ..core.monitoring import channel_scale, watch
     from ..core.protocol import load_protocol
+    from ..core.registry import default_protocol
 
     url = port
     if port.startswith("sim://") and "clock=" not in port:
         # A live display wants the simulated rig paced like hardware, not as fast as it is read.
         url += ("&" if "?" in port else "?") + "clock=wall"
     try:
-        proto = load_protocol(protocol)
+        proto = load_protocol(protocol or default_protocol("monitor"))
         rate_hz = rate if rate is not None else float(proto.rate_hz)
         # Errors speak of the port as the user typed it, not of the paced URL.
         with Device.open(url, baudrate=baud, timeout=timeout, boot_wait=boot_wait, name=port) as dev:

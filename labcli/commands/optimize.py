@@ -4,71 +4,15 @@ from __future__ import annotations
 
 import click
 
-from ..core.dispatch import for_analysis
+from ..core.options import Typed
 from ..errors import LabcliError
-
-DEFAULT_PROTOCOL = "rpam2015"
-
-
-def _kpa(value: float | None, name: str) -> float | None:
-    if value is not None and not value == value:  # NaN typed on the command line
-        raise click.BadParameter("must be a number of kPa", param_hint=name)
-    if value is not None and not 0 <= value < float("inf"):
-        # Gauge pressure: a muscle cannot be driven below atmosphere.
-        raise click.BadParameter(f"{value:g} is not a gauge pressure; give 0 kPa or more.", param_hint=name)
-    return value
+from ._declared import paper_command, protocol_option
 
 
-SEED_MAX = 2**32 - 1  # the search's random generator takes seeds 0 to 2**32 - 1
-
-
-def _seed(ctx: click.Context, param: click.Parameter, value: int | None) -> int | None:
-    if value is not None and not 0 <= value <= SEED_MAX:
-        raise click.BadParameter(f"{value} is outside the seed's range; give a whole number from 0 to {SEED_MAX}.")
-    return value
-
-
-@click.command()
-@click.option(
-    "--protocol",
-    "protocol",
-    default=DEFAULT_PROTOCOL,
-    show_default=True,
-    help="rPAM protocol: a .toml path or a shipped name.",
-)
-@click.option("--seed", type=int, default=None, callback=_seed, help="Seed of the search (default: the protocol's).")
-@click.option(
-    "--pa",
-    "pa_kpa",
-    type=float,
-    default=None,
-    metavar="KPA",
-    help="Pressure of actuator a, kPa (default: the protocol's, 96).",
-)
-@click.option(
-    "--pb",
-    "pb_kpa",
-    type=float,
-    default=None,
-    metavar="KPA",
-    help="Pressure of actuator b, kPa (default: the protocol's, 41).",
-)
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="Override any protocol value, e.g. --set actuator.L0_m=0.08 (repeatable).",
-)
+@paper_command("optimize")
+@protocol_option("optimize", "Protocol to optimise: a .toml path or a shipped name  [default: {default}]")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
-def optimize(
-    protocol: str,
-    seed: int | None,
-    pa_kpa: float | None,
-    pb_kpa: float | None,
-    overrides: tuple[str, ...],
-    as_json: bool,
-) -> None:
+def optimize(protocol: str | None, as_json: bool, typed: Typed) -> None:
     """Maximise the joint angle of an rPAM joint over L1, L2, L3 (Section IV, g1-g7).
 
     Differential evolution, seeded and reproducible, stands in for the paper's genetic
@@ -84,11 +28,11 @@ def optimize(
         labcli optimize --pa 110 --pb 41 --set actuator.L0_m=0.08 --json
         labcli optimize --set optimize.min_stiffness_Nm_per_rad=0.2
     """
-    _kpa(pa_kpa, "--pa")
-    _kpa(pb_kpa, "--pb")
+    from ..core.dispatch import prepare
+
     try:
-        analysis = for_analysis("optimize", default_protocol=DEFAULT_PROTOCOL).analysis("optimize")
-        result = analysis.run(protocol, seed=seed, pa_kpa=pa_kpa, pb_kpa=pb_kpa, overrides=overrides)
+        job = prepare("optimize", typed, protocol=protocol)
+        result = job.analysis.run(job.protocol, job.options)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
-    analysis.show(result, as_json=as_json)
+    job.analysis.show(result, as_json=as_json)

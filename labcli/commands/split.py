@@ -14,14 +14,14 @@ from ..errors import LabcliError
     "n_fit",
     type=int,
     default=None,
-    help="Trials in the fit set [default: the run's protocol, 90 for takuma2014].",
+    help="Trials in the fit set [default: the run's protocol's].",
 )
 @click.option(
     "--validation",
     "n_validation",
     type=int,
     default=None,
-    help="Trials in the validation set [default: the run's protocol, 18 for takuma2014].",
+    help="Trials in the validation set [default: the run's protocol's].",
 )
 @click.option(
     "--strategy",

@@ -7,69 +7,21 @@ from pathlib import Path
 
 import click
 
-from ..core.dispatch import for_analysis
+from ..core.options import Typed
 from ..errors import LabcliError
-from ._options import typed_options
-
-DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol is not given
+from ._declared import paper_command, protocol_option
 
 
-@click.command("validate")
+@paper_command("validate")
 @click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "--model",
-    "model_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Model JSON from `labcli fit` [default: RUN.model.json beside the run].",
-)
-@click.option(
-    "--mode",
-    type=click.Choice(["pressure-only", "measured-angles"]),
-    default="pressure-only",
-    show_default=True,
-    help="Angles for the force equations: from the pressures (Eqs. 34-35) or the potentiometers.",
-)
-@click.option(
-    "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Write Figure 7 (observed vs calculated) to this .png, .pdf or .svg file.",
-)
-@click.option(
-    "--protocol",
-    default=None,
-    help="Protocol of a trial CSV (name or .toml) [default: takuma2014]; run files carry their own.",
-)
-@click.option(
-    "--allow-overlap",
-    is_flag=True,
-    help="Validate even when validation trials were used to fit the model (a warning says how many).",
-)
+@protocol_option("validate", "Protocol of a trial CSV (name or .toml) [default: {default}]; run files carry their own.")
 @click.option(
     "--json",
     "as_json",
     is_flag=True,
     help="Print the metrics and every validation trial's observed and calculated values as JSON.",
 )
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
-    "(repeatable; the run file keeps its own).",
-)
-def validate(
-    run: Path,
-    model_path: Path | None,
-    mode: str,
-    plot: Path | None,
-    protocol: str | None,
-    allow_overlap: bool,
-    as_json: bool,
-    overrides: tuple[str, ...],
-) -> None:
+def validate(run: Path, protocol: str | None, as_json: bool, typed: Typed) -> None:
     """Check a fitted model on the validation trials of RUN (the paper's Figure 7).
 
     RUN is a run file (.h5) or a trial CSV.  The model is --model, else RUN.model.json beside
@@ -80,7 +32,8 @@ def validate(
     theta2 (deg) and Fx, Fy (N).
     On an rPAM joint-map run it compares the measured angles with the model without and
     with the stretch correction (--model: the stretch fit; default: the protocol's own),
-    and --plot draws the rPAM paper's Figure 8.
+    and --plot draws the rPAM paper's Figure 8.  Each paper's own options are listed under
+    its name below.
 
     \b
     Example:
@@ -88,18 +41,11 @@ def validate(
         labcli validate trials.csv --mode measured-angles --json
         labcli validate joint.h5 --model stretch.model.json --plot fig8.png
     """
+    from ..core.dispatch import prepare
+
     try:
-        analysis = for_analysis("validate", inputs=[run], default_protocol=DEFAULT_PROTOCOL).analysis("validate")
-        result = analysis.run(
-            run,
-            model_path=model_path,
-            mode=mode,
-            plot=plot,
-            protocol=protocol,
-            overrides=overrides,
-            allow_overlap=allow_overlap,
-            typed=typed_options("mode"),
-        )
+        job = prepare("validate", typed, inputs=[run])
+        result = job.analysis.run(run, job.options, protocol=protocol)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
-    analysis.show(result, as_json=as_json)
+    job.analysis.show(result, as_json=as_json)

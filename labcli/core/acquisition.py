@@ -27,7 +27,7 @@ from .device import Device
 from .engine import SILENT_S, NewRun, Outcome, RunEngine
 from .paper import AcquireOptions
 from .protocol import load_protocol, loads_protocol
-from .registry import record_type, run_protocol
+from .registry import default_protocol, record_type, run_protocol
 from .sessionlog import RigIdentity, SessionInfo, describe, recorded_identity
 from .simoperator import Connection, connect
 from .store import RESUME_OR_FORCE, RunFile
@@ -161,9 +161,7 @@ def _plan_new(path: str, protocol: str | None, options: AcquireOptions, force: b
     check_new_file(path)  # before the rig is woken: a name the file system refuses, a device, a folder
     if Path(path).exists() and not force:
         raise StoreError(f"{path} already exists; {RESUME_OR_FORCE}.")
-    if protocol is None:
-        raise ConfigError("labcli acquire needs a protocol for a new run: give --protocol NAME or FILE.")
-    paper, proto = run_protocol(load_protocol(protocol), options.experiment)
+    paper, proto = run_protocol(load_protocol(protocol or default_protocol("acquire")), options.experiment)
     return paper.acquisition(proto, options)
 
 
@@ -218,8 +216,8 @@ def acquire(
 ) -> Outcome:
     """Run ``labcli acquire``: open the rig and the run file, build the session, run it.
 
-    ``protocol``: a shipped name or a .toml path (a new run needs one; a resumed run
-    carries its own, and a name given must match it; its calibration is then this rig's,
+    ``protocol``: a shipped name or a .toml path (a new run without one records with the
+    default the registry names for ``acquire``; a resumed run carries its own, and a name given must match it; its calibration is then this rig's,
     checked against the run's).  ``allow_other_rig``: resume on a rig other than the
     run's.  ``valves``: ``"hand"`` keeps the prompts on a board that drives its valves (the
     protocol's ``acquisition.valves`` otherwise, :mod:`labcli.core.air`).  Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the

@@ -62,7 +62,7 @@ class Quantity:
 QUANTITIES: dict[str, Quantity] = {
     "angle": Quantity("deg", "a joint angle", -180.0, 180.0),
     "direction": Quantity("deg", "a direction", -720.0, 720.0, wrap=True),
-    "force": Quantity("N", "a force at the tip", -1000.0, 1000.0),
+    "tip-force": Quantity("N", "a force at the tip", -1000.0, 1000.0),
     "mass": Quantity("g", "a load", 0.0, 100_000.0, sign="positive"),
     "payload": Quantity("g", "a load", 0.0, 100_000.0, sign="nonnegative"),
     "length": Quantity("m", "a length on the bench", 0.0, 1.0, sign="positive"),

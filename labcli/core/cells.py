@@ -22,7 +22,7 @@ INT64_MAX = 2**63 - 1
 # Table descriptions (plain data): (column, kind, presence)
 #   kind: "id" (integer) | "set" (fit, validation or empty) | "set-required" | "name"
 #         (non-empty text) | "text" | "pressure" (gauge MPa in the sensor span) | a
-#         quantity of labcli.core.bounds ("angle", "force", "mass", ...: unit and physical
+#         quantity of labcli.core.bounds ("angle", "tip-force", "mass", ...: unit and physical
 #         range) | "float", "positive", "nonnegative" (any finite number, with that sign:
 #         for a table whose quantities have no entry there yet); a numeric kind ending in
 #         "-or-empty" also takes an empty cell (NaN).

@@ -8,8 +8,10 @@ must offer, and anything that offers it plugs in.
 
 * :class:`Paper`: the paper; its protocol kinds (plain data for the loader), the
   names of its shipped protocol files, its run kinds and their :class:`RecordType`, its
-  simulated rigs and their own ``sim://`` options (:class:`SimOption`), how it acquires
-  (:class:`Acquisition`), its analyses (:class:`Analysis`) and its demo (:class:`Demo`).
+  simulated rigs and their own options, how it acquires (:class:`Acquisition`), its
+  analyses (:class:`Analysis`) with the options each takes, the commands whose default
+  protocol it ships, and its demo (:class:`Demo`).  Options are declared as data
+  (:mod:`labcli.core.options`): a frozen dataclass per analysis and one for its rigs.
   Its module must import nothing heavy: the registry loads it to answer "which paper
   owns this kind", and heavy parts load on first use.
 * :class:`ProtocolKind`: the sections a protocol of one kind holds, as plain-data key
@@ -230,10 +232,14 @@ class Acquisition(Protocol):
 
 @dataclass(frozen=True)
 class Analysis:
-    """One analysis a command runs: ``run(**options) -> result``, ``show(result, as_json=...)``.
+    """One analysis a command runs: ``run(inputs, options, ...) -> result``, ``show(result, as_json=...)``.
 
-    ``run`` is a plain library function (raises :class:`~labcli.errors.LabcliError`);
-    ``show`` prints the result (the paper's report module).
+    ``run`` is a plain library function (raises :class:`~labcli.errors.LabcliError`): its
+    first arguments are the command's (the input path; the protocol for ``optimize``), then
+    the options object of the paper's declaration for that command
+    (``Paper.analysis_options[command]``), then the command's own keywords (``fit``:
+    ``output``, ``protocol``; ``validate`` and ``classify``: ``protocol``).  ``show``
+    prints the result (the paper's report module).
     """
 
     run: Callable[..., Any]
@@ -249,20 +255,6 @@ class Demo:
     show: Callable[[Any], None]
 
 
-@dataclass(frozen=True)
-class SimOption:
-    """One of a simulated rig's own ``sim://`` options (beside the core's seed, rate, noise, ...).
-
-    ``parse(text)`` gives the value the rig is built with (ValueError when malformed; the URL
-    and ``labcli sim`` then show ``what``); ``form`` is how the accepted form shows a value
-    (``0|1``, ``X``).  An option not given is not passed to the rig.
-    """
-
-    parse: Callable[[str], Any]
-    form: str
-    what: str
-
-
 # --------------------------------------------------------------------------- the paper
 
 
@@ -276,18 +268,21 @@ class Paper(Protocol):
     protocol_kinds: Mapping[str, ProtocolKind]
     shipped_protocols: tuple[str, ...]  # file stems in protocols/ this paper owns
     run_kinds: tuple[str, ...]
+    untagged_run_kind: str | None  # the kind of a run file naming none (early schema-1 files; one paper at most)
     sim_modes: tuple[str, ...]  # ``sim://?mode=`` values this paper's rigs answer to
     default_sim_mode: str | None  # the rig ``sim://`` gives without mode= (one paper at most)
-    sim_options: Mapping[str, SimOption]  # its rigs' own ``sim://`` options, passed to make_rig when given
+    sim_options: type | None  # its rigs' own options: a dataclass of labcli.core.options fields (None: none)
+    analysis_options: Mapping[str, type]  # command ("fit", ...) -> the options its analysis takes (a dataclass)
+    default_protocols: Mapping[str, str]  # command -> the shipped protocol it uses when nothing names one
     demo_protocol: str | None  # ``labcli demo --protocol NAME`` runs this paper's demo
 
     def record_type(self, run_kind: str) -> RecordType:
         """The record type of one of :attr:`run_kinds`."""
 
-    def make_rig(self, mode: str, *, seed: int, noise: float, drift: float | None, tau_s: float, **options: Any) -> Any:
+    def make_rig(self, mode: str, *, seed: int, noise: float, drift: float | None, tau_s: float, options: Any) -> Any:
         """A simulated rig for one of :attr:`sim_modes` (see :mod:`labcli.core.sim`); ``options``
-        are parsed values of :attr:`sim_options`, only those given; ``drift`` None: the rig's own
-        default."""
+        is an object of :attr:`sim_options` (None when the paper declares none); ``drift`` None:
+        the rig's own default."""
 
     def run_protocol(
         self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
@@ -302,7 +297,7 @@ class Paper(Protocol):
         """Plan one run of ``protocol`` (from :meth:`run_protocol`)."""
 
     def analysis(self, name: str) -> Analysis | None:
-        """The analysis ``name`` ("fit", "validate", "classify", "optimize", "export-model"), or None.
+        """The analysis of command ``name`` (one of :attr:`analysis_options`, or ``export-model``), or None.
 
         A paper whose fit writes model files lists their ``schema`` in an attribute
         ``model_schemas`` (a tuple, optional), so that a command given only a model file finds it

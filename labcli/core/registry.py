@@ -14,25 +14,37 @@ from importlib.metadata import entry_points
 from typing import Any
 
 from ..errors import ConfigError, LabcliError
-from .paper import Paper, ProtocolKind, RecordType, SimOption
+from .options import Option, build, declared
+from .paper import Paper, ProtocolKind, RecordType
 
 GROUP = "labcli.papers"
 
 _papers: dict[str, Paper] = {}
 _discovered = False
+_generation = 0  # bumped whenever the set of papers changes (commands cache the options they built)
 
 
 def register(paper: Paper) -> Paper:
     """Add a paper (replacing one of the same name); returns it."""
+    global _generation
     if not isinstance(paper, Paper):
         raise TypeError(f"{paper!r} does not implement labcli.core.paper.Paper")
     _papers[paper.name] = paper
+    _generation += 1
     return paper
 
 
 def unregister(name: str) -> None:
     """Remove a paper added with :func:`register` (a test cleaning up)."""
+    global _generation
     _papers.pop(name, None)
+    _generation += 1
+
+
+def generation() -> int:
+    """A number that changes whenever a paper is added or removed."""
+    _discover()
+    return _generation
 
 
 def _discover() -> None:
@@ -108,10 +120,44 @@ def for_shipped_protocol(name: str) -> Paper:
     raise ConfigError(f"No paper ships a protocol named '{name}'.")
 
 
-def demo_protocols(default: str) -> list[str]:
-    """Names ``labcli demo --protocol`` takes: ``default`` first, then the others in order."""
+def demo_protocols() -> list[str]:
+    """Names ``labcli demo --protocol`` takes: the default (:func:`default_protocol`) first, then the others."""
     names = [e.demo_protocol for e in papers() if e.demo_protocol]
+    default = default_protocol("demo")
     return [default] + sorted(n for n in names if n != default) if default in names else sorted(names)
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def default_protocol(command: str) -> str:
+    """The shipped protocol ``command`` uses when nothing names one (a table, a new run, ``optimize``).
+
+    Declared once, by the paper shipping it (``Paper.default_protocols``); exactly one paper may.
+    """
+    found = [(e.name, e.default_protocols[command]) for e in papers() if command in e.default_protocols]
+    if len(found) != 1:
+        who = ", ".join(f"{n} ({p})" for n, p in found) or "none"
+        raise ConfigError(f"Exactly one paper must name the default protocol of labcli {command}; found {who}.")
+    return found[0][1]
+
+
+def analysis_options(command: str) -> dict[str, type]:
+    """Paper name -> the options declaration of its analysis for ``command``, over the papers offering it."""
+    return {e.name: e.analysis_options[command] for e in papers() if command in e.analysis_options}
+
+
+def experiments() -> dict[str, str]:
+    """``--experiment`` choices (of protocols holding several) -> the run kind each records."""
+    return {c: kind for spec in protocol_kinds().values() for c, kind in spec.experiments.items()}
+
+
+def untagged_run_kind() -> str:
+    """The kind of a run file that names none (schema-1 files written before files named their kind)."""
+    found = [e.untagged_run_kind for e in papers() if e.untagged_run_kind]
+    if len(found) != 1:
+        raise ConfigError(f"Exactly one paper must name the kind of untagged run files; found {found or 'none'}.")
+    return found[0]
 
 
 def _unused_experiment_option(name: str, kind: str) -> ConfigError:
@@ -161,23 +207,48 @@ def default_sim_mode() -> str:
     return defaults[0]
 
 
-def sim_options(mode: str | None = None) -> dict[str, SimOption]:
-    """The rigs' own ``sim://`` options: those of the paper whose rig ``mode`` is, or (None) all."""
-    found: dict[str, SimOption] = {}
+def sim_owner(mode: str) -> Paper:
+    """The paper whose rig ``mode`` is (ValueError for an unknown mode)."""
     for e in papers():
-        if mode is None or mode in e.sim_modes:
-            found.update(e.sim_options)
+        if mode in e.sim_modes:
+            return e
+    raise ValueError(f"unknown simulated rig mode {mode!r}; known: {', '.join(sim_modes())}")
+
+
+def sim_options(mode: str | None = None) -> dict[str, Option]:
+    """The rigs' own declared options: those of the paper whose rig ``mode`` is, or (None) all."""
+    found: dict[str, Option] = {}
+    for e in papers():
+        if e.sim_options is not None and (mode is None or mode in e.sim_modes):
+            found.update((o.name, o) for o in declared(e.sim_options))
     return found
 
 
 def modes_taking(option: str) -> list[str]:
     """The ``sim://?mode=`` values whose rig takes the option ``option``, in name order."""
-    return sorted(m for e in papers() if option in e.sim_options for m in e.sim_modes)
+    return sorted(m for e in papers() if option in sim_options_of(e) for m in e.sim_modes)
 
 
-def make_rig(mode: str, **options: Any) -> Any:
-    """The simulated rig of ``mode`` (options: seed, noise, drift, tau_s and the rig's own)."""
-    for e in papers():
-        if mode in e.sim_modes:
-            return e.make_rig(mode, **options)
-    raise ValueError(f"unknown simulated rig mode {mode!r}; known: {', '.join(sim_modes())}")
+def sim_options_of(paper: Paper) -> dict[str, Option]:
+    """One paper's rig options by name."""
+    return {} if paper.sim_options is None else {o.name: o for o in declared(paper.sim_options)}
+
+
+def make_rig(
+    mode: str, *, seed: int = 0, noise: float = 1.0, drift: float | None = None, tau_s: float = 0.7, **values: Any
+) -> Any:
+    """The simulated rig of ``mode``; ``values`` are the rig's own options (name -> parsed value).
+
+    ValueError for an unknown mode or an option the rig does not declare.
+    """
+    owner = sim_owner(mode)
+    if owner.sim_options is None:
+        if values:
+            raise ValueError(f"the {mode} rig has no option {sorted(values)[0]!r}")
+        options = None
+    else:
+        unknown = sorted(set(values) - set(sim_options_of(owner)))
+        if unknown:
+            raise ValueError(f"the {mode} rig has no option {unknown[0]!r}")
+        options = build(owner.sim_options, values)
+    return owner.make_rig(mode, seed=seed, noise=noise, drift=drift, tau_s=tau_s, options=options)

@@ -189,11 +189,16 @@ def _takuma_model(tmp_path: Path) -> Path:
         ),
         (
             lambda r, t: ["validate", r["joint"], "--mode", "measured-angles"],
-            lambda r, t: "--mode applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out.",
+            lambda r, t: (
+                f"--mode is an option of takuma2014 runs; {r['joint']} is a run of kind rpam-joint (rpam2015)."
+            ),
         ),
         (
             lambda r, t: ["fit", r["stretch"], "--max-amplification", "50"],
-            lambda r, t: "--max-amplification applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out.",
+            lambda r, t: (
+                f"--max-amplification is an option of takuma2014 runs; {r['stretch']} is a run of kind "
+                "rpam-stretch (rpam2015)."
+            ),
         ),
         (
             lambda r, t: ["fit", r["stretch"], "--protocol", "rpam2015"],
@@ -213,14 +218,12 @@ def test_rpam_fit_and_validate_errors(runs, tmp_path, args, message):
     assert result.exit_code == 1 and result.output == f"Error: {message(runs, tmp_path)}\n"
 
 
-def test_plot_on_a_force_run_points_to_validate(tmp_path):
+def test_plot_on_a_force_table_is_refused_in_the_core_sentence(tmp_path):
     csv = tmp_path / "t.csv"
     csv.write_text("trial,set\n")
     result = invoke("fit", csv, "--plot", tmp_path / "f.png")
-    assert result.output == (
-        "Error: --plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; for a "
-        "force run draw Figure 7 with labcli validate --plot.\n"
-    )
+    # The core's one sentence for an option another paper declares (not a per-paper refusal).
+    assert result.output == f"Error: --plot is an option of rpam2015 runs; labcli fit reads {csv} with takuma2014.\n"
 
 
 # --------------------------------------------------------------------------- --set on an analysis
@@ -258,9 +261,8 @@ def test_set_is_refused_on_a_force_run(tmp_path):
     for cmd in ("fit", "validate"):
         result = invoke(cmd, csv, "--set", "actuator.L0_m=0.08")
         assert result.exit_code == 1
-        assert result.output == (
-            "Error: --set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
-            "run's model is fitted from its trials, so leave --set out.\n"
+        assert (
+            result.output == f"Error: --set is an option of rpam2015 runs; labcli {cmd} reads {csv} with takuma2014.\n"
         )
 
 

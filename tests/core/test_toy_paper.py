@@ -4,12 +4,20 @@ The toy paper (:mod:`support.toy`: a 1-DoF rig, one pressure and one angle, two
 trials) is registered at run time; nothing in labcli names it.  ``labcli acquire
 --unattended`` records it on its own simulated rig (``sim://?mode=toy``), ``labcli
 export`` writes its table and ``labcli inspect`` describes the run, each through the
-interfaces of :mod:`labcli.core.paper` only.
+interfaces of :mod:`labcli.core.paper` only.  Its own options (``compliance`` of its rig,
+``--through-origin`` of its fit) are declared as data and reach ``labcli fit``, ``labcli sim``
+and ``sim://`` with no line of the core or the commands naming them.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -118,3 +126,148 @@ def test_a_record_type_must_give_its_four_hooks():
 
     with pytest.raises(TypeError, match="abstract methods from_row, table"):
         Half()
+
+
+# --------------------------------------------------------------------------- options declared as data
+
+
+def acquire_toy(invoke, protocol, run, *extra_url: str):
+    url = "&".join([PORT, *extra_url])
+    result = invoke("acquire", run, "--protocol", protocol, "--port", url, "--unattended")
+    assert result.exit_code == 0, result.output
+    return run
+
+
+def test_its_rig_option_changes_the_physics_and_its_fit_option_the_fit(toy_paper, tmp_path, invoke):
+    # compliance= is the toy rig's own sim:// option; --through-origin the toy fit's own option.
+    run = acquire_toy(invoke, toy_paper, tmp_path / "stiff.h5", "compliance=20")
+    free = json.loads(invoke("fit", run, "--json").output)
+    assert free["slope_deg_per_kg"] == pytest.approx(20.0, abs=0.1)
+    assert abs(free["offset_deg"]) < 0.05 and free["offset_deg"] != 0.0
+    through = json.loads(invoke("fit", run, "--through-origin", "--json").output)
+    assert through["offset_deg"] == 0.0 and through["slope_deg_per_kg"] == pytest.approx(20.0, abs=0.1)
+    default = acquire_toy(invoke, toy_paper, tmp_path / "default.h5")
+    slope = json.loads(invoke("fit", default, "--through-origin", "--json").output)["slope_deg_per_kg"]
+    assert slope == pytest.approx(math.degrees(toy.ANGLE_PER_KG_RAD), abs=0.1)
+
+
+def test_options_of_other_papers_are_refused_in_the_core_sentence(toy_paper, tmp_path, invoke):
+    run = acquire_toy(invoke, toy_paper, tmp_path / "toy.h5")
+    result = invoke("fit", run, "--form", "paper")
+    assert result.exit_code == 1
+    assert result.output == f"Error: --form is an option of takuma2014 runs; {run} is a run of kind toy (toy).\n"
+    csv = tmp_path / "trials.csv"
+    csv.write_text("trial,set\n", encoding="utf-8")
+    result = invoke("fit", csv, "--through-origin")
+    assert result.exit_code == 1
+    assert (
+        result.output == f"Error: --through-origin is an option of toy runs; labcli fit reads {csv} with takuma2014.\n"
+    )
+    # A command the toy offers no analysis for does not take its options at all.
+    assert "No such option '--through-origin'" in invoke("validate", csv, "--through-origin").output
+
+
+def test_help_shows_its_options_under_its_name_only_while_registered(toy_paper, invoke):
+    shown = invoke("fit", "--help").output
+    assert "Options of toy (toy):" in shown
+    assert "--through-origin" in shown.split("Options of toy (toy):")[1]
+    assert "Options of the toy rig (--mode toy):" in invoke("sim", "--help").output
+    assert "[units: deg/kg; default: 10]" in " ".join(invoke("sim", "--help").output.split())
+    registry.unregister("toy")
+    try:
+        assert "--through-origin" not in invoke("fit", "--help").output
+        assert "No such option '--through-origin'" in invoke("fit", "x.csv", "--through-origin").output
+    finally:
+        registry.register(toy.ToyPaper())
+
+
+@pytest.mark.parametrize(
+    "url,message",
+    [
+        ("sim://?mode=toy&compliance=-1", "option 'compliance' in sim:// URL must be a number > 0, got '-1'"),
+        ("sim://?compliance=20", "option 'compliance' in sim:// URL applies to mode=toy only"),
+        ("sim://?compliance=20&mode=toy&ideal=1", "option 'ideal' in sim:// URL applies to mode=mckibben only"),
+    ],
+)
+def test_its_rig_option_is_read_from_the_url_with_its_declaration(toy_paper, url, message):
+    import serial
+
+    from labcli.core.sim import register
+    from labcli.core.sim.url import accepted_form
+
+    register()
+    with pytest.raises(ValueError) as e:
+        serial.serial_for_url(url)
+    assert str(e.value) == f"{message}; expected {accepted_form()}"
+    assert "[&compliance=X]" in accepted_form()
+
+
+def test_labcli_sim_refuses_another_rigs_option_in_the_core_sentence(toy_paper, invoke):
+    result = invoke("sim", "--pty", "--mode", "toy", "--ideal")
+    assert result.exit_code == 1
+    assert result.output == "Error: --ideal is an option of the mckibben rig; --mode toy serves the toy rig.\n"
+    result = invoke("sim", "--pty", "--compliance", "20")
+    assert (
+        result.output == "Error: --compliance is an option of the toy rig; --mode mckibben serves the mckibben rig.\n"
+    )
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+def test_labcli_sim_serves_the_toy_rig_with_its_option_and_console(tmp_path):
+    # The toy is registered in a process of its own (support.toy_main); the port and the console
+    # are the real ones: a pty read with pyserial, the operator's lines on standard input.
+    import serial
+
+    from labcli.core.wire import Frame, parse_line
+
+    tests = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tests), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "support.toy_main", "sim", "--pty", "--mode", "toy", "--compliance", "30"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        bufsize=1,
+        env=env,
+    )
+
+    def say(line: str) -> str:
+        proc.stdin.write(line + "\n")
+        proc.stdin.flush()
+        return proc.stdout.readline().rstrip("\n")
+
+    def mean_angle_deg(port: serial.Serial) -> float:
+        port.reset_input_buffer()
+        data, end = b"", time.monotonic() + 1.0
+        while time.monotonic() < end:
+            data += port.read(port.in_waiting or 1)
+        frames = [f for f in (parse_line(x) for x in data.split(b"\n")) if isinstance(f, Frame)]
+        assert len(frames) > 20
+        return float(np.mean([(f.values[1] - toy.A_ZERO) * 0.1 for f in frames[1:]]))
+
+    def reply(port: serial.Serial) -> bytes:
+        """The next line that is not a firmware log line (the boot banner comes first)."""
+        while (line := port.readline()).startswith(b"#"):
+            pass
+        return line
+
+    try:
+        path = proc.stdout.readline().split()[3]
+        with serial.Serial(path, timeout=2.0) as port:
+            port.write(b"ID?\n")
+            assert reply(port) == b"ID,toy-rig-sim,1.0,P,ANG\n"
+            port.write(b"START\n")
+            assert reply(port) == b"OK START\n"
+            rest = mean_angle_deg(port)
+            assert say("hang 500").startswith("ok hang 500 g")
+            assert mean_angle_deg(port) - rest == pytest.approx(15.0, abs=0.1)  # 30 deg/kg x 0.5 kg
+            assert say("hang heavy") == "error: mass must be a number, got 'heavy'; usage: hang GRAMS"
+            assert say("help") == "commands: hang GRAMS, wait SECONDS, help, quit"
+            port.write(b"STOP\n")
+        assert say("quit") == "ok quit"
+        out, err = proc.communicate(timeout=10)
+        assert proc.returncode == 0, err
+    finally:
+        if proc.poll() is None:
+            proc.kill()

@@ -5,7 +5,10 @@ and raises the actuator's pressure, both linearly in the mass.  A run is two tri
 two masses of the protocol's ``[load]`` table), each with a baseline, the weight, the
 equilibrium and a capture.  Everything a paper gives the core is here: the
 protocol kind, the record type (what a trial holds, its table, its ``labcli inspect``
-lines), the session, the simulated rig behind ``sim://?mode=toy`` and the registration.
+lines), the session, the simulated rig behind ``sim://?mode=toy`` with an option of its own
+(``compliance``) and a console action (``hang``), an analysis for ``labcli fit`` with an
+option of its own (``--through-origin``), and the registration.  Options are declared as
+data (:mod:`labcli.core.options`); no line of the core or the commands names them.
 """
 
 from __future__ import annotations
@@ -19,8 +22,10 @@ from typing import Any
 
 import numpy as np
 
+from labcli.core.options import number, switch
 from labcli.core.paper import AcquireOptions, Analysis, ChannelRoles, Column, Demo, ProtocolKind
 from labcli.core.sim.clock import SimClock
+from labcli.core.sim.console import ConsoleCommand, ConsoleError, numbers
 from labcli.core.steps import (
     Baseline,
     BeginTrial,
@@ -98,18 +103,37 @@ def write_protocol(folder: Path) -> Path:
 # --------------------------------------------------------------------------- the rig
 
 
+@dataclass(frozen=True)
+class ToyRigOptions:
+    """The toy rig's own option (``sim://?mode=toy&compliance=20``, ``labcli sim --mode toy --compliance 20``)."""
+
+    compliance: float | None = number(
+        help="How far the arm turns per kilogram hung.", units="deg/kg", minimum=0, above=True, default_text="10"
+    )
+
+
+def _hang(rig: Any, args: list[str]) -> str:
+    (grams,) = numbers(args, ("mass",), "hang GRAMS")
+    if grams < 0:
+        raise ConsoleError(f"mass must be >= 0 g, got {grams:g}")
+    rig.hang(grams / 1e3)
+    return f"ok hang {grams:g} g (t={rig.time_s:.3f} s)"
+
+
 class ToyRig(SimClock):
     """The simulated toy rig: what a weight does to the pressure and the angle, behind an ADC."""
 
     channels = ("P", "ANG")
     device = "toy-rig-sim"
     firmware = "1.0"
+    console_commands = {"hang": ConsoleCommand("hang GRAMS", _hang)}
 
-    def __init__(self, seed: int = 0, noise: float = 1.0) -> None:
+    def __init__(self, seed: int = 0, noise: float = 1.0, angle_per_kg_rad: float = ANGLE_PER_KG_RAD) -> None:
         self._t = 0.0
         self._lock = threading.RLock()
         self.mass_kg = 0.0
         self.noise = noise
+        self.angle_per_kg_rad = angle_per_kg_rad
         self._rng = np.random.default_rng(seed)
 
     def hang(self, mass_kg: float) -> None:
@@ -119,7 +143,7 @@ class ToyRig(SimClock):
         with self._lock:
             t = self._t + np.arange(1, n + 1) / float(rate_hz)
             p = P_REST_MPA + P_PER_KG * self.mass_kg
-            a = ANGLE_PER_KG_RAD * self.mass_kg
+            a = self.angle_per_kg_rad * self.mass_kg
             ideal = np.array([p / P_GAIN + P_ZERO, a / A_GAIN + A_ZERO])
             x = ideal + 0.3 * self.noise * self._rng.standard_normal((n, 2))
             self._t = float(t[-1]) if n else self._t
@@ -246,6 +270,49 @@ class ToyAcquisition:
         return None
 
 
+# --------------------------------------------------------------------------- the analysis
+
+
+@dataclass(frozen=True)
+class ToyFitOptions:
+    """``labcli fit`` on a toy run."""
+
+    through_origin: bool = switch(help="Fit the deflection as a line through the origin (no offset).")
+
+
+@dataclass(frozen=True)
+class ToyFit:
+    """The arm's compliance fitted on a toy run: deflection = slope * mass + offset."""
+
+    slope_deg_per_kg: float
+    offset_deg: float
+    trials: int
+
+
+def toy_fit(path: Path, options: ToyFitOptions, *, output: Path | None = None, protocol: str | None = None) -> ToyFit:
+    from labcli.core.store import RunFile
+
+    with RunFile.open(path) as run:
+        table = run.table()
+    mass = table["mass_g"].to_numpy(dtype=float) / 1e3
+    theta = table["theta_deg"].to_numpy(dtype=float)
+    if options.through_origin:
+        slope, offset = float(mass @ theta / (mass @ mass)), 0.0
+    else:
+        slope, offset = (float(v) for v in np.polyfit(mass, theta, 1))
+    return ToyFit(slope, offset, len(mass))
+
+
+def show_toy_fit(result: ToyFit, *, as_json: bool = False) -> None:
+    import json
+    from dataclasses import asdict
+
+    if as_json:
+        print(json.dumps(asdict(result)))
+    else:
+        print(f"deflection = {result.slope_deg_per_kg:.3f} deg/kg x mass + {result.offset_deg:.3f} deg")
+
+
 # --------------------------------------------------------------------------- the paper
 
 
@@ -270,18 +337,30 @@ class ToyPaper:
     }
     shipped_protocols = ()
     run_kinds = (KIND,)
+    untagged_run_kind = None
     sim_modes = (MODE,)
     default_sim_mode = None
-    sim_options: dict = {}  # its rig takes only the core's sim:// options
+    sim_options = ToyRigOptions
+    analysis_options = {"fit": ToyFitOptions}
+    default_protocols: dict[str, str] = {}
     demo_protocol = None
 
     def record_type(self, run_kind: str) -> ToyTrials:
         return ToyTrials()
 
     def make_rig(
-        self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float | None = None, tau_s: float = 0.7
+        self,
+        mode: str,
+        *,
+        seed: int = 0,
+        noise: float = 1.0,
+        drift: float | None = None,
+        tau_s: float = 0.7,
+        options: ToyRigOptions | None = None,
     ) -> ToyRig:
-        return ToyRig(seed=seed, noise=noise)
+        compliance = (options or ToyRigOptions()).compliance
+        per_kg = ANGLE_PER_KG_RAD if compliance is None else math.radians(compliance)
+        return ToyRig(seed=seed, noise=noise, angle_per_kg_rad=per_kg)
 
     def run_protocol(
         self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
@@ -295,7 +374,7 @@ class ToyPaper:
         return ToyAcquisition(protocol)
 
     def analysis(self, name: str) -> Analysis | None:
-        return None
+        return Analysis(toy_fit, show_toy_fit) if name == "fit" else None
 
     def demo(self) -> Demo | None:
         return None

@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 from .. import registry
+from ..options import Typed, bind
 
 PACKAGE = "labcli.core.sim"
 
@@ -51,8 +52,24 @@ def make_rig(
     **options: Any,
 ) -> Any:
     """Build the simulated rig named ``mode`` (None: the default rig); ``options`` are the rig's
-    own (its paper's ``sim_options``, parsed); ``drift`` None is the rig's own default.
-    ValueError for an unknown mode."""
+    own (declared by its paper's ``sim_options``; parsed values); ``drift`` None is the rig's own
+    default.  ValueError for an unknown mode or an option the rig does not declare."""
     return registry.make_rig(
         mode or registry.default_sim_mode(), seed=seed, noise=noise, drift=drift, tau_s=tau_s, **options
     )
+
+
+def rig_values(mode: str | None, typed: Typed) -> tuple[str, dict[str, Any]]:
+    """The rig ``mode`` names (None: the default) and the options typed for it (name -> value).
+
+    An option its rig does not declare is refused in one sentence (a ConfigError):
+    "--friction is an option of the mckibben rig; --mode rpam serves the rpam rig."
+    """
+    mode = mode or registry.default_sim_mode()
+    owner = registry.sim_owner(mode)
+
+    def owners(name: str) -> list[str]:
+        return [f"the {m} rig" for m in registry.modes_taking(name)]
+
+    bind(owner.sim_options, typed, owners=owners, subject=f"--mode {mode} serves the {mode} rig")
+    return mode, dict(typed.values)

@@ -1,9 +1,10 @@
 """The ``sim://`` URL's grammar: its options, their defaults and checks, and the accepted form
 every refusal shows.
 
-Beside the core's options each paper declares its rigs' own
-(:class:`labcli.core.paper.SimOption`, through the registry); one given with a
-``mode`` whose rig does not take it is refused.
+Beside the core's options each paper declares its rigs' own (``Paper.sim_options``, options
+declared as data: :mod:`labcli.core.options`, read through the registry); one given with a
+``mode`` whose rig does not take it is refused.  ``labcli sim`` builds its command-line
+options from the same declarations.
 
 The firmware model's port (:mod:`.protocol_sim`, where each option's meaning is written) and
 the compiled firmware on simavr (:mod:`.hil_port`, chosen by ``firmware=``) read the same URL.
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import math
 import urllib.parse
+from typing import Any
 
 from serial.serialutil import SerialException
 
@@ -23,7 +25,7 @@ from .firmware import FACTOR_MAX, FACTOR_MIN, RATE_MAX, RATE_MIN
 
 
 def accepted_form() -> str:
-    own = "".join(f"[&{name}={opt.form}]" for name, opt in registry.sim_options().items())
+    own = "".join(f"[&{name}={opt.metavar}]" for name, opt in registry.sim_options().items())
     return (
         "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X]"
         f"[&mode={'|'.join(modes())}][&faults=KIND:RATE[@X],...][&fw=1.0|1.1][&firmware=ELF]{own}"
@@ -114,46 +116,64 @@ OPTIONS = {
 }
 
 
-def parse_sim_url(url: str) -> dict:
-    """Options of a ``sim://`` URL with defaults filled in; :class:`SimURLError` if malformed."""
+def _query(url: str) -> dict[str, tuple[bool, str]]:
+    """The URL's options as typed: key -> (``=`` given, raw text); malformed, unknown or repeated keys refused."""
     parts = urllib.parse.urlsplit(url)
     if parts.scheme != "sim":
         raise SimURLError(f"'{url}' is not a sim:// URL; expected {accepted_form()}")
     if parts.netloc or parts.path not in ("", "/") or parts.fragment:
         extra = parts.netloc + parts.path + ("#" + parts.fragment if parts.fragment else "")
         raise SimURLError(f"unexpected '{extra}' in sim:// URL; expected {accepted_form()}")
-    own = registry.sim_options()
-    known = {**OPTIONS, **{name: (opt.parse, None, opt.what) for name, opt in own.items()}}
-    opts = {k: default for k, (_, default, _) in known.items()}
-    seen = set()
+    known = set(OPTIONS) | set(registry.sim_options())
+    typed: dict[str, tuple[bool, str]] = {}
     for item in filter(None, parts.query.split("&")):
         key, eq, raw = item.partition("=")
         key = urllib.parse.unquote(key)
-        raw = urllib.parse.unquote(raw)
         if key not in known:
             raise SimURLError(f"unknown option '{key}' in sim:// URL; expected {accepted_form()}")
-        if key in seen:
+        if key in typed:
             raise SimURLError(f"option '{key}' given twice in sim:// URL; expected {accepted_form()}")
-        seen.add(key)
-        parser, _, what = known[key]
-        try:
-            opts[key] = parser(raw) if eq else parser("")
-        except FaultSpecError as e:
-            raise SimURLError(f"option 'faults' in sim:// URL: {e.detail}; expected faults={FAULTS_FORM}") from None
-        except ValueError:
-            raise SimURLError(
-                f"option '{key}' in sim:// URL must be {what() if callable(what) else what}, got '{raw}'; "
-                f"expected {accepted_form()}"
-            ) from None
+        typed[key] = (bool(eq), urllib.parse.unquote(raw))
+    return typed
+
+
+def _value(key: str, parser: Any, what: Any, eq: bool, raw: str) -> Any:
+    try:
+        return parser(raw) if eq else parser("")
+    except FaultSpecError as e:
+        raise SimURLError(f"option 'faults' in sim:// URL: {e.detail}; expected faults={FAULTS_FORM}") from None
+    except ValueError:
+        raise SimURLError(
+            f"option '{key}' in sim:// URL must be {what() if callable(what) else what}, got '{raw}'; "
+            f"expected {accepted_form()}"
+        ) from None
+
+
+def parse_sim_url(url: str) -> dict:
+    """Options of a ``sim://`` URL with defaults filled in; :class:`SimURLError` if malformed.
+
+    The rig's own options are read with the declaration of the rig ``mode`` names (given in
+    any order); one that rig does not take is refused.
+    """
+    typed = _query(url)
+    opts: dict[str, Any] = {k: default for k, (_, default, _) in OPTIONS.items()}
+    for key, (eq, raw) in typed.items():
+        if key in OPTIONS:
+            parser, _, what = OPTIONS[key]
+            opts[key] = _value(key, parser, what, eq, raw)
     if opts["mode"] is None:
         opts["mode"] = default_mode()
     takes = registry.sim_options(opts["mode"])
-    for key in own:
-        if key in seen and key not in takes:
+    opts.update(dict.fromkeys(takes))
+    for key, (eq, raw) in typed.items():
+        if key in OPTIONS:
+            continue
+        if key not in takes:
             raise SimURLError(
                 f"option '{key}' in sim:// URL applies to mode={'|'.join(registry.modes_taking(key))} "
                 f"only; expected {accepted_form()}"
             )
+        opts[key] = _value(key, takes[key].read, takes[key].accepted, eq, raw)
     return opts
 
 

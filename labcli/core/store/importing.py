@@ -19,7 +19,7 @@ from ...errors import ConfigError, StoreError
 from ..files import check_output
 from ..paper import Column
 from ..protocol import load_protocol
-from ..registry import import_protocol, record_type
+from ..registry import import_protocol, record_type, untagged_run_kind
 from .h5 import nan_if_empty
 from .layout import extra_column
 from .runfile import RunFile
@@ -107,7 +107,7 @@ def import_table(
     path = os.fspath(path)
     if os.path.lexists(path) and not force:
         raise StoreError(f"{path} already exists; use --force to overwrite it.")
-    rt = record_type(str(getattr(protocol, "kind", "force")))
+    rt = record_type(str(getattr(protocol, "kind", "") or untagged_run_kind()))
     ids = df[rt.id_column]
     repeated = ids[ids.duplicated()]
     if len(repeated):

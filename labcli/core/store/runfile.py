@@ -52,7 +52,7 @@ import numpy as np
 from ...errors import LabcliError, LabcliWarning, StoreError
 from ..files import RUN_FILE_SUFFIXES
 from ..paper import Column, RecordType
-from ..registry import record_type
+from ..registry import record_type, untagged_run_kind
 from . import space
 from .columns import Table
 from .frames import chunk_frames
@@ -110,7 +110,7 @@ class RunFile:
         root = h5.attrs
         self.version = int(root.get("schema_version", 1))
         where = root if self.version == 1 else h5["entry"].attrs
-        kind = text(where.get("kind", "force"))
+        kind = text(where["kind"]) if "kind" in where else untagged_run_kind()
         self.channels: tuple[str, ...] = tuple(text(c) for c in where.get("channels", ()))
         try:
             self.record_type: RecordType = record_type(kind)
@@ -171,7 +171,7 @@ class RunFile:
         """
         path = os.fspath(path)
         _check_new(path, force, exists_hint)
-        kind = kind or str(getattr(protocol, "kind", "force"))
+        kind = kind or str(getattr(protocol, "kind", "") or untagged_run_kind())
         rt = record_type(kind)
         channels = [str(c) for c in (getattr(device_info, "channels", ()) or getattr(protocol, "channels", ()))]
         tmp = space.partial_path(path, "import" if imported else "create")

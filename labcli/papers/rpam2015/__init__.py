@@ -13,7 +13,9 @@ from typing import Any
 
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
 from ...errors import ConfigError
+from .options import DEFAULT_PROTOCOLS, OPTIONS, RPAM_PROTOCOL
 from .protocol import EXPERIMENTS, PROTOCOL_KINDS
+from .sim.options import RpamRigOptions
 
 
 class Rpam2015:
@@ -21,12 +23,15 @@ class Rpam2015:
     title = "rPAM antagonistic 1-DoF joint: stretch test, joint map, link optimisation"
     paper = '"Optimized Design of a Rigid Kinematic Module for Antagonistic Soft Actuation", 2015'
     protocol_kinds = PROTOCOL_KINDS
-    shipped_protocols = ("rpam2015",)
+    shipped_protocols = (RPAM_PROTOCOL,)
     run_kinds = tuple(EXPERIMENTS.values())
+    untagged_run_kind = None
     sim_modes = ("rpam",)
     default_sim_mode = None
-    sim_options: dict = {}  # its rig takes only the core's sim:// options
-    demo_protocol = "rpam2015"
+    sim_options = RpamRigOptions
+    analysis_options = OPTIONS
+    default_protocols = DEFAULT_PROTOCOLS
+    demo_protocol = RPAM_PROTOCOL
 
     def record_type(self, run_kind: str) -> RecordType:
         from .records import RECORD_TYPES
@@ -34,11 +39,22 @@ class Rpam2015:
         return RECORD_TYPES[run_kind]
 
     def make_rig(
-        self, mode: str, *, seed: int = 0, noise: float = 1.0, drift: float | None = None, tau_s: float = 0.7
+        self,
+        mode: str,
+        *,
+        seed: int = 0,
+        noise: float = 1.0,
+        drift: float | None = None,
+        tau_s: float = 0.7,
+        options: RpamRigOptions | None = None,
     ) -> Any:
         from .sim.rig import RpamRig
 
-        return RpamRig(seed=seed, noise=noise, drift=drift or 0.0, tau_s=tau_s)
+        o = options or RpamRigOptions()
+        experiment = o.experiment or "joint"  # the stand powers up on the joint unless told otherwise
+        return RpamRig(
+            seed=seed, noise=noise, drift=drift or 0.0, tau_s=tau_s, experiment=experiment, variation=not o.nominal
+        )
 
     def run_protocol(
         self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
@@ -64,7 +80,7 @@ class Rpam2015:
         return acquisition(protocol, options)
 
     def analysis(self, name: str) -> Analysis | None:
-        if name not in ("fit", "validate", "optimize"):
+        if name not in self.analysis_options:
             return None
         from . import analyses  # numpy, scipy: only once an analysis runs
 

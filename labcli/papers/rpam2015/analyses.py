@@ -6,7 +6,8 @@
   with that correction (Fig. 8);
 * :func:`optimize`: the link lengths that maximise the joint's travel (Section IV).
 
-Each is a plain function: plain arguments, a result back, :class:`~labcli.errors.LabcliError`
+Each is a plain function: the input, the options object the paper declares for the command
+(:mod:`.options`), the command's own keywords; a result back, :class:`~labcli.errors.LabcliError`
 with one sentence for anything a person can fix.  :mod:`.report` prints the results.
 """
 
@@ -21,21 +22,13 @@ from ...core.jsontext import loads_bounded
 from ...core.modelfile import check_fit_paths, default_model_path, save_model
 from ...core.protocol import Protocol
 from ...core.store import RunFile
-from ...errors import ConfigError, ModelError
+from ...errors import ConfigError
 from . import report
 from .figures import figure8, figure_stretch
 from .models.rpam_fit import StretchCorrection, StretchFit, analyse_joint_map, analyse_stretch
 from .models.rpam_optimize import optimize_protocol
+from .options import FitOptions, OptimizeOptions, ValidateOptions
 from .protocol import checked_actuator, stored_protocol, with_overrides
-
-
-def check_force_only_options(typed: frozenset[str], *names: str) -> None:
-    """Refuse options of the McKibben path typed for an rPAM run (``--max-amplification``, ``--mode``)."""
-    for name in names:
-        if name in typed:
-            raise ModelError(
-                f"--{name.replace('_', '-')} applies to force runs (Eqs. 34-37), not to rPAM runs; leave it out."
-            )
 
 
 def _read_run(path: Path, protocol: str | None, overrides: tuple[str, ...] = ()) -> tuple[str, Any, Protocol, str, str]:
@@ -83,21 +76,12 @@ class StretchFitResult:
         }
 
 
-def fit(
-    run: Path,
-    *,
-    output: Path | None = None,
-    protocol: str | None = None,
-    plot: Path | None = None,
-    overrides: tuple[str, ...] = (),
-    typed: frozenset[str] = frozenset(),
-    **_: Any,
-) -> StretchFitResult:
+def fit(run: Path, options: FitOptions, *, output: Path | None = None, protocol: str | None = None) -> StretchFitResult:
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
-    check_force_only_options(typed, "max_amplification", "form")
+    plot = options.plot
     out = output or default_model_path(run)
     check_fit_paths(run, out)
-    kind, table, proto, name, where = _read_run(run, protocol, overrides)
+    kind, table, proto, name, where = _read_run(run, protocol, options.overrides)
     if kind != "rpam-stretch":
         raise ConfigError(
             f"{run} is a joint-map run (kind {kind}); labcli fit fits the stretch correction to a stretch-test "
@@ -165,23 +149,14 @@ def load_stretch_model(path: Path) -> Any:
     )
 
 
-def validate(
-    run: Path,
-    *,
-    model_path: Path | None = None,
-    protocol: str | None = None,
-    plot: Path | None = None,
-    overrides: tuple[str, ...] = (),
-    typed: frozenset[str] = frozenset(),
-    **_: Any,
-) -> JointMapValidation:
+def validate(run: Path, options: ValidateOptions, *, protocol: str | None = None) -> JointMapValidation:
     """Compare a joint-map run with the model without and with the stretch correction (Fig. 8).
 
-    The correction is the fit in ``model_path`` or, without one, the protocol's own
+    The correction is the fit in ``options.model`` or, without one, the protocol's own
     ``[stretch_correction]``; a protocol whose correction is zero needs a fit.
     """
-    check_force_only_options(typed, "mode")
-    kind, table, proto, _, where = _read_run(run, protocol, overrides)
+    model_path, plot = options.model, options.plot
+    kind, table, proto, _, where = _read_run(run, protocol, options.overrides)
     if kind != "rpam-joint":
         raise ConfigError(
             f"{run} is a stretch-test run (kind {kind}); labcli validate compares a joint-map run with the model: "
@@ -214,22 +189,14 @@ def show_validation(result: JointMapValidation, *, as_json: bool = False) -> Non
 # --------------------------------------------------------------------------- optimize
 
 
-def optimize(
-    protocol: str,
-    *,
-    seed: int | None = None,
-    pa_kpa: float | None = None,
-    pb_kpa: float | None = None,
-    overrides: tuple[str, ...] = (),
-    progress: bool = True,
-    **_: Any,
-) -> Any:
+def optimize(protocol: str, options: OptimizeOptions, *, progress: bool = True) -> Any:
     """Maximise the joint angle over L1, L2, L3 (g1-g7, K_min, the toggle margin); a live line
     on stderr while it runs."""
+    o = options
     if not progress:
-        return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa)
+        return optimize_protocol(protocol, overrides=o.overrides, seed=o.seed, Pa_kPa=o.pa, Pb_kPa=o.pb)
     with report.optimize_progress() as show:
-        return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa, progress=show)
+        return optimize_protocol(protocol, overrides=o.overrides, seed=o.seed, Pa_kPa=o.pa, Pb_kPa=o.pb, progress=show)
 
 
 def show_optimum(result: Any, *, as_json: bool = False) -> None:

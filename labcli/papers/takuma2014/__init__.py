@@ -12,8 +12,9 @@ from __future__ import annotations
 from typing import Any
 
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
+from .options import DEFAULT_PROTOCOLS, OPTIONS, PUSH_PROTOCOL, TRIAL_PROTOCOL
 from .protocol import PROTOCOL_KINDS
-from .sim.options import SIM_OPTIONS
+from .sim.options import McKibbenRigOptions
 
 
 class Takuma2014:
@@ -24,12 +25,15 @@ class Takuma2014:
         'the passivity of an elastic actuator", Actuators 2014'
     )
     protocol_kinds = PROTOCOL_KINDS
-    shipped_protocols = ("takuma2014", "takuma2014-stiffness")
+    shipped_protocols = (TRIAL_PROTOCOL, PUSH_PROTOCOL)
     run_kinds = ("force", "push")
+    untagged_run_kind = "force"  # run files from before files named their kind held force trials
     sim_modes = ("mckibben",)
     default_sim_mode = "mckibben"
-    sim_options = SIM_OPTIONS
-    demo_protocol = "takuma2014"
+    sim_options = McKibbenRigOptions
+    analysis_options = OPTIONS
+    default_protocols = DEFAULT_PROTOCOLS
+    demo_protocol = TRIAL_PROTOCOL
     model_schemas = ("labcli-takuma-model",)  # what `labcli fit` writes (models/takuma.py SCHEMA)
 
     def record_type(self, run_kind: str) -> RecordType:
@@ -45,11 +49,11 @@ class Takuma2014:
         noise: float = 1.0,
         drift: float | None = None,
         tau_s: float = 0.7,
-        **options: Any,
+        options: McKibbenRigOptions | None = None,
     ) -> Any:
         from .sim.options import build_rig
 
-        return build_rig(seed=seed, noise=noise, drift=drift, tau_s=tau_s, **options)
+        return build_rig(seed=seed, noise=noise, drift=drift, tau_s=tau_s, options=options or McKibbenRigOptions())
 
     def run_protocol(
         self, protocol: Any, choice: str | None, *, stored_kind: str | None = None, run_path: str = ""
@@ -69,7 +73,7 @@ class Takuma2014:
             from .models import export_c  # numpy only
 
             return Analysis(export_c.export, export_c.show)
-        if name not in ("fit", "validate", "classify"):
+        if name not in self.analysis_options:
             return None
         from . import analyses  # numpy, pandas: only once an analysis runs
 

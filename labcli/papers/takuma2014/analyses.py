@@ -1,7 +1,7 @@
 """The McKibben paper's analyses, as ``labcli fit``, ``validate`` and ``classify`` run them.
 
-Each is a plain function: plain arguments (paths, options as typed), a result object
-back, :class:`~labcli.errors.LabcliError` with one sentence for anything a person can
+Each is a plain function: the input path, the options object the paper declares for the
+command (:mod:`.options`), the command's own keywords; a result object back, :class:`~labcli.errors.LabcliError` with one sentence for anything a person can
 fix.  :mod:`.report` prints the results; ``to_dict`` gives their ``--json`` form.
 """
 
@@ -30,14 +30,9 @@ from .models.metrics import evaluate, evaluation_to_dict
 from .models.posture import FORM as POSTURE
 from .models.posture import PostureModel, force_model_from_json, limits_from_protocol, load_force_model
 from .models.takuma import ANGLE_COLUMNS, EQUATIONS, FORCE_COLUMNS, TERMS, TakumaModel, cap
+from .options import FORMS, ClassifyOptions, FitOptions, ValidateOptions
 
-FORMS = (POSTURE, "paper")  # labcli fit --form; the first is the default
-
-# Options of the rPAM analyses that mean nothing to a force run (``--set``, ``--plot`` of fit).
-SET_REFUSED = (
-    "--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
-    "run's model is fitted from its trials, so leave --set out."
-)
+MAX_AMPLIFICATION = 100.0  # the paper form's cut when --max-amplification is not given
 
 
 @dataclass
@@ -59,28 +54,12 @@ class FitResult:
         }
 
 
-def fit(
-    run: Path,
-    *,
-    output: Path | None = None,
-    protocol: str | None = None,
-    max_amplification: float = 100.0,
-    form: str = POSTURE,
-    plot: Path | None = None,
-    overrides: tuple[str, ...] = (),
-    typed: frozenset[str] = frozenset(),
-) -> FitResult:
-    """Fit a force model (``form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it."""
-    if overrides:
-        raise ConfigError(SET_REFUSED)
-    if plot is not None:
-        raise ConfigError(
-            "--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
-            "for a force run draw Figure 7 with labcli validate --plot."
-        )
+def fit(run: Path, options: FitOptions, *, output: Path | None = None, protocol: str | None = None) -> FitResult:
+    """Fit a force model (``options.form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it."""
+    form = options.form
     if form not in FORMS:
         raise ConfigError(f"Unknown model form '{form}'; use {' or '.join(FORMS)}.")
-    if form == POSTURE and "max_amplification" in typed:
+    if form == POSTURE and options.max_amplification is not None:
         raise ConfigError(
             "--max-amplification is the paper form's cut near theta2 = 0; the posture form "
             "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out."
@@ -89,7 +68,7 @@ def fit(
     check_fit_paths(run, out_path)
     src = load_trial_source(run, protocol)
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
-        model = _fit_form(form, src, str(run), max_amplification)
+        model = _fit_form(form, src, str(run), options.max_amplification or MAX_AMPLIFICATION)
     if isinstance(model, TakumaModel):
         refuse_non_finite(model, src.table, str(run))
     model.fitted_on = src.identity
@@ -129,7 +108,9 @@ def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
             )
 
 
-def _fit_form(form: str, src: Any, source: str, max_amplification: float = 100.0) -> TakumaModel | PostureModel:
+def _fit_form(
+    form: str, src: Any, source: str, max_amplification: float = MAX_AMPLIFICATION
+) -> TakumaModel | PostureModel:
     rig, name = src.protocol.settings.rig, src.protocol.name
     if form == POSTURE:
         return PostureModel(geometry=rig, protocol=name, limits=limits_from_protocol(src.protocol)).fit(
@@ -210,24 +191,13 @@ def overlap(model: TakumaModel | PostureModel, src: Any) -> list[int]:
     return sorted(val[idranges.contains(fitted, val)].tolist())
 
 
-def validate(
-    run: Path,
-    *,
-    model_path: Path | None = None,
-    mode: str = "pressure-only",
-    plot: Path | None = None,
-    protocol: str | None = None,
-    overrides: tuple[str, ...] = (),
-    allow_overlap: bool = False,
-    typed: frozenset[str] = frozenset(),
-) -> ValidationResult:
+def validate(run: Path, options: ValidateOptions, *, protocol: str | None = None) -> ValidationResult:
     """Accuracy of a fitted model on the validation trials of a run file or trial CSV (Figure 7).
 
-    Refuses when validation trials were used in the fit (unless ``allow_overlap``); warns when
-    the model was fitted on another rig or under other protocol settings.
+    Refuses when validation trials were used in the fit (unless ``options.allow_overlap``); warns
+    when the model was fitted on another rig or under other protocol settings.
     """
-    if overrides:
-        raise ConfigError(SET_REFUSED)
+    model_path, mode, plot = options.model, options.mode, options.plot
     src = load_trial_source(run, protocol)
     model, label = model_for_run(run, model_path, src.is_run, src.protocol.name)
     model.check_compatible(
@@ -241,7 +211,7 @@ def validate(
     if shared:
         n_val = int((src.table["set"].astype(str) == "validation").sum())
         what = f"{len(shared)} of the {n_val} validation trials of {run} ({ids_text(shared)}) were used to fit {label}"
-        if not allow_overlap:
+        if not options.allow_overlap:
             raise ModelError(
                 f"{what}, so the validation would test the model on its own data; refit after the "
                 f"split (`labcli fit {run}`), or pass --allow-overlap to validate anyway."
@@ -283,6 +253,7 @@ class ClassificationResult:
 
     report: Any  # models.classify.ClassifyReport
     plot: Path | None
+    list_pushes: bool = False  # list every push in the report, however many
 
     def to_dict(self) -> dict[str, Any]:
         data = self.report.to_dict()
@@ -290,29 +261,20 @@ class ClassificationResult:
         return data
 
 
-def classify(
-    pushes: Path,
-    *,
-    model_path: Path,
-    reference: Path | None = None,
-    method: str = "auto",
-    angles: str = "pressure-only",
-    plot: Path | None = None,
-    protocol: str | None = None,
-    typed: frozenset[str] = frozenset(),
-) -> ClassificationResult:
+def classify(pushes: Path, options: ClassifyOptions, *, protocol: str | None = None) -> ClassificationResult:
     """Stiffness and category of each object pushed in a push run or push CSV (Figure 9)."""
-    result = classify_file(pushes, model_path, reference=reference, protocol=protocol, method=method, angles=angles)
-    if plot is not None:
-        figure9(result.result, plot)
-    return ClassificationResult(result, plot)
+    o = options
+    result = classify_file(pushes, o.model, reference=o.reference, protocol=protocol, method=o.method, angles=o.angles)
+    if o.plot is not None:
+        figure9(result.result, o.plot)
+    return ClassificationResult(result, o.plot, o.pushes)
 
 
 # The human report lists every push up to this many; beyond, a summary per object (--pushes lists them).
 PUSH_LIST_LIMIT = 60
 
 
-def show_classification(result: ClassificationResult, *, as_json: bool = False, pushes: bool = False) -> None:
+def show_classification(result: ClassificationResult, *, as_json: bool = False) -> None:
     """Print the classification: JSON streamed push by push, or the report (pushes listed when few)."""
     import sys
 
@@ -322,7 +284,7 @@ def show_classification(result: ClassificationResult, *, as_json: bool = False, 
         return
     rep = result.report
     data = {**report_header(rep), "objects": object_items(rep)}
-    listed = pushes or data["n_pushes"] <= PUSH_LIST_LIMIT
+    listed = result.list_pushes or data["n_pushes"] <= PUSH_LIST_LIMIT
     report.print_classification(
         data, result.plot, list(push_items(rep)) if listed else None, flag_summary(rep.result.pushes)
     )

@@ -29,8 +29,10 @@ CASES: list[Case] = [
         "protocol TOML",
         "unknown key",
         ["acquire", "new.h5", "--port", SIM, "--unattended", "--protocol", "p.toml"],
-        ["p.toml: unknown key 'acquisition.rate_hzz'; the keys allowed there are rate_hz, supply_min_MPa, valves, "
-         "end_valves, leak_max_kPa_per_min, hold_check_s, repressurise_kPa."],
+        [
+            "p.toml: unknown key 'acquisition.rate_hzz'; the keys allowed there are rate_hz, supply_min_MPa, valves, "
+            "end_valves, leak_max_kPa_per_min, hold_check_s, repressurise_kPa."
+        ],
         files={"p.toml": toml_edit("rate_hz = 200.0", "rate_hz = 200.0\nrate_hzz = 3")},
     ),
     Case(
@@ -521,7 +523,7 @@ CASES: list[Case] = [
         "CLI argument",
         "negative --pa (optimize)",
         ["optimize", "--pa", "-5"],
-        ["Invalid value for --pa: -5 is not a gauge pressure; give 0 kPa or more."],
+        ["Invalid value for '--pa': -5 is not a gauge pressure; give 0 kPa or more."],
         code=2,
         usage="optimize [OPTIONS]",
     ),

@@ -38,6 +38,7 @@ from ....core.protocol import load_protocol, loads_protocol, shipped_protocols
 from ....core.provenance import rig_warning, run_identity, table_identity
 from ....core.store import RunFile
 from ....errors import ConfigError, ModelError
+from ..options import PUSH_PROTOCOL
 from ..records import load_pushes
 from .categories import CategoryModel
 from .posture import PostureModel, load_force_model
@@ -419,7 +420,7 @@ def _reference_verdict(
 
 # --------------------------------------------------------------------------- from files
 
-DEFAULT_PUSH_PROTOCOL = "takuma2014-stiffness"
+DEFAULT_PUSH_PROTOCOL = PUSH_PROTOCOL  # the paper declares it (labcli classify's default)
 FORCE_PROTOCOL_KEY = "force_protocol"
 
 

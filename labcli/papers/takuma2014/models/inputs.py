@@ -15,9 +15,8 @@ from ....core.protocol import load_protocol, loads_protocol
 from ....core.provenance import run_identity, table_identity
 from ....core.store import RunFile
 from ....errors import ConfigError
+from ..options import TRIAL_PROTOCOL  # the paper declares it (fit and validate read a table with it)
 from ..records import load_trials
-
-DEFAULT_PROTOCOL = "takuma2014"
 
 
 @dataclass
@@ -55,20 +54,20 @@ def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSou
         proto = (
             loads_protocol(text, source=f"{p} (embedded protocol)")
             if text.strip()
-            else load_protocol(name or DEFAULT_PROTOCOL)
+            else load_protocol(name or TRIAL_PROTOCOL)
         )
         if proto.kind != "force":
             raise ConfigError(
                 f"{p} is a run of kind '{proto.kind}' (protocol '{proto.name}'), not a force run; "
                 "fit and validate read the trials of a force run such as one recorded "
-                f"with protocol {DEFAULT_PROTOCOL}."
+                f"with protocol {TRIAL_PROTOCOL}."
             )
         return TrialSource(p, _read_table(p), proto, True, identity)
-    proto = load_protocol(protocol or DEFAULT_PROTOCOL)
+    proto = load_protocol(protocol or TRIAL_PROTOCOL)
     if proto.kind != "force":
         # A model fitted under a push or rPAM protocol would be refused by every later check.
         raise ConfigError(
             f"--protocol {protocol} is of kind '{proto.kind}'; a trial CSV is read with a "
-            f"force protocol such as {DEFAULT_PROTOCOL}."
+            f"force protocol such as {TRIAL_PROTOCOL}."
         )
     return TrialSource(p, _read_table(p), proto, False, table_identity(p, proto))

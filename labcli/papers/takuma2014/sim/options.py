@@ -1,41 +1,31 @@
-"""The McKibben rig's own ``sim://`` options, and the rig they build.
+"""The McKibben rig's own options, declared as data (``sim://?leak=2``, ``labcli sim --leak 2``), and the
+rig they build.
 
 Each non-ideality (:mod:`.nonideal`) has a scale (1 = its level, 0 = off);
 ``realism`` picks the levels and default scales (``literature`` or ``kind``, the rig as it was
-before the literature's levels, byte for byte); ``ideal=1`` turns every effect off, and a scale
+before the literature's levels, byte for byte); ``ideal`` turns every effect off, and a scale
 given beside it still applies (``ideal=1&leak=1`` is the ideal rig with a leak).  ``supply`` is the regulator
 pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuators
 (``paper``, the paper-scale default, or ``thin``, the earlier soft tuning;
 ``design=thin&ideal=1`` reproduces its frames exactly); ``valves=open`` leaves the valves open to
-the regulator whatever closes them (an operator who forgot, a valve stuck open).
+the regulator whatever closes them (an operator who forgot, a valve stuck open).  An option
+left out (None) is the rig's own default.
 
-This module imports nothing heavy: the experiment's declaration reads :data:`SIM_OPTIONS`.
+This module imports nothing heavy: the paper's declaration reads :class:`McKibbenRigOptions`.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, fields
 from typing import Any
 
-from ....core.paper import SimOption
+from ....core.options import choice, number, switch, text
 
 SCALES = ("friction", "leak", "thermal", "backlash", "links", "contact", "pulley", "potscale", "potlin", "repeat")
 REALISM_NAMES = ("literature", "kind")  # nonideal.REALISMS (a test holds them equal)
 DESIGN_NAMES = ("paper", "thin")  # the keys of physics.DESIGNS (a test holds them equal)
 SUPPLY_FORM = "one or four pressures in MPa within 0..1, comma-separated"
-
-
-def parse_flag(text: str) -> bool:
-    if text not in ("0", "1"):
-        raise ValueError
-    return text == "1"
-
-
-def parse_scale(text: str) -> float:
-    v = float(text)
-    if not (math.isfinite(v) and v >= 0):
-        raise ValueError
-    return v
 
 
 def parse_supply(text: str) -> tuple[float, ...]:
@@ -46,73 +36,77 @@ def parse_supply(text: str) -> tuple[float, ...]:
     return values if len(values) == 4 else values * 4
 
 
-def parse_realism(text: str) -> str:
-    if text not in REALISM_NAMES:
-        raise ValueError
-    return text
+def _scale(what: str) -> Any:
+    return number(help=what, minimum=0)
 
 
-def parse_valves(text: str) -> bool:
-    """``open``: the valves stay open to the regulator whatever closes them (True); ``ok``: False."""
-    if text not in ("ok", "open"):
-        raise ValueError
-    return text == "open"
+@dataclass(frozen=True)
+class McKibbenRigOptions:
+    """The McKibben rig's own options (``sim://?mode=mckibben``, the default rig)."""
 
-
-def parse_design(text: str) -> str:
-    if text not in DESIGN_NAMES:
-        raise ValueError
-    return text
-
-
-SIM_OPTIONS = {
-    "ideal": SimOption(parse_flag, "0|1", "0 or 1"),
-    **{name: SimOption(parse_scale, "X", "a number >= 0") for name in SCALES},
-    "supply": SimOption(parse_supply, "MPA[,MPA,MPA,MPA]", SUPPLY_FORM),
-    "design": SimOption(parse_design, "|".join(DESIGN_NAMES), "one of " + ", ".join(DESIGN_NAMES)),
-    "realism": SimOption(parse_realism, "|".join(REALISM_NAMES), "one of " + ", ".join(REALISM_NAMES)),
-    "valves": SimOption(parse_valves, "ok|open", "ok or open"),
-}
+    ideal: bool = switch(help="Turn every non-ideality off (friction, leak, heat, play, link weight, sensor errors).")
+    friction: float | None = _scale("Scale of sleeve friction and hysteresis (1 = typical, 0 = off).")
+    leak: float | None = _scale("Scale of the closed chambers' leak (1 = about 1 kPa/min).")
+    thermal: float | None = _scale("Scale of the air's heating by a fast load (1 = adiabatic, relaxing over 3 s).")
+    backlash: float | None = _scale("Scale of the potentiometers' backlash (1 = 0.2 deg).")
+    links: float | None = _scale("Scale of the links' own weight (1 = 80 g and 30 g).")
+    contact: float | None = _scale(
+        "Scale of the friction where the tip presses a pushed object (1 = a coefficient of 0.3)."
+    )
+    pulley: float | None = _scale("Scale of the weight pulley's friction (1 = 2 % of the pull).")
+    potscale: float | None = _scale("Scale of the potentiometers' gain error (1 = 1 % rms).")
+    potlin: float | None = _scale("Scale of the potentiometers' non-linearity (1 = 0.5 % of the span at most).")
+    repeat: float | None = _scale(
+        "Scale of the pressure sensors' non-repeatability (1 = 0.2 % of full scale as three sd)."
+    )
+    supply: tuple[float, ...] | None = text(
+        help="Regulator pressure, gauge: one value or four (L1,R1,L2,R2).",
+        parse=parse_supply,
+        what=SUPPLY_FORM,
+        form="MPA[,MPA,MPA,MPA]",
+        units="MPa",
+        default_text="0.3",
+    )
+    design: str | None = choice(
+        DESIGN_NAMES, help="Actuators: paper-scale, or the earlier thin-muscle tuning.", default_text="paper"
+    )
+    realism: str | None = choice(
+        REALISM_NAMES,
+        help="Levels of the non-idealities: the literature's, or the kinder rig of earlier runs.",
+        default_text="kind",
+    )
+    valves: str | None = choice(
+        ("ok", "open"),
+        help="open: the valves stay open to the regulator whatever closes them (a valve stuck open).",
+        default_text="ok",
+    )
 
 
 def build_rig(
-    *,
-    seed: int = 0,
-    noise: float = 1.0,
-    drift: float | None = None,
-    tau_s: float = 0.7,
-    ideal: bool = False,
-    supply: Any = None,
-    design: str | None = None,
-    realism: str | None = None,
-    valves: bool = False,
-    **scales: float,
+    *, seed: int = 0, noise: float = 1.0, drift: float | None = None, tau_s: float = 0.7, options: McKibbenRigOptions
 ) -> Any:
-    """The McKibben rig with these options (parsed values of :data:`SIM_OPTIONS`; None: the default).
+    """The McKibben rig with these options (None: the rig's default).
 
     ``drift`` None takes the realism's default (``ideal`` turns it off with the rest)."""
     from dataclasses import replace
 
-    from .nonideal import NonIdeal
+    from . import physics
+    from .nonideal import REALISM_DEFAULT, NonIdeal
     from .rig import SimRig
 
-    unknown = set(scales) - set(SCALES)
-    if unknown:
-        raise ValueError(f"the McKibben rig has no option {sorted(unknown)[0]!r}")
-    from .nonideal import REALISM_DEFAULT
-
-    level = realism or REALISM_DEFAULT
-    base = NonIdeal.ideal(level) if ideal else NonIdeal(realism=level)
-    extra = {} if supply is None else {"supply_MPa": supply}
-    given: dict[str, Any] = {k: v for k, v in scales.items() if v is not None}
-    nonideal = replace(base, **given)
+    level = options.realism or REALISM_DEFAULT
+    base = NonIdeal.ideal(level) if options.ideal else NonIdeal(realism=level)
+    scales = {f.name: getattr(options, f.name) for f in fields(options) if f.name in SCALES}
+    nonideal = replace(base, **{k: v for k, v in scales.items() if v is not None})
+    supply = physics.SUPPLY_MPA if options.supply is None else options.supply
+    design = options.design or "paper"
     return SimRig(
         seed=seed,
         noise=noise,
         drift=drift,
         tau_s=tau_s,
+        supply_MPa=supply,
         nonideal=nonideal,
-        design=design or "paper",
-        valves_open=bool(valves),
-        **extra,
+        design=design,
+        valves_open=options.valves == "open",
     )

@@ -1,0 +1,34 @@
+"""The rPAM rig's own options, declared as data (``sim://?mode=rpam&experiment=stretch``,
+``labcli sim --mode rpam --experiment stretch``); the paper's ``make_rig`` builds the rig with them.
+
+``experiment`` is how the stand is rigged at power-up (the console's ``mount`` and an
+acquisition's prompts re-rig it): the joint map (actuators a and b on the joint) or the
+stretch test (actuator a hanging on the stand).  ``nominal`` gives the rig without its
+seeded variation: symmetric actuators with the protocol's stretch correction, no friction,
+no potentiometer offset.  An option left out is the rig's own default.
+
+This module imports nothing heavy: the paper's declaration reads :class:`RpamRigOptions`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ....core.options import choice, switch
+
+EXPERIMENTS = ("joint", "stretch")  # the rig's configurations (rig.EXPERIMENTS; a test holds them equal)
+
+
+@dataclass(frozen=True)
+class RpamRigOptions:
+    """The rPAM rig's own options (``sim://?mode=rpam``)."""
+
+    experiment: str | None = choice(
+        EXPERIMENTS,
+        help="How the stand is rigged at power-up: the joint (a and b on the swivel plates) or the "
+        "stretch test (actuator a hanging on the stand).",
+        default_text="joint",
+    )
+    nominal: bool = switch(
+        help="The nominal rig: symmetric actuators with the protocol's stretch correction, no friction, no offsets."
+    )

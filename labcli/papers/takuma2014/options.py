@@ -1,0 +1,89 @@
+"""What the McKibben paper's analyses may be asked, declared as data (:mod:`labcli.core.options`),
+and the commands whose default protocol it ships.
+
+One frozen dataclass per command: the commands add these options to their command line
+(``labcli fit --form paper``), the core refuses any other a person types for a force or
+push run, and the analysis receives the filled-in object (:mod:`.analyses`).  Imports
+nothing heavy: the paper's declaration reads it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from ...core.options import choice, number, path, switch
+
+# The shipped protocols labcli reads with when nothing names one: a trial table, a new run, the
+# monitor's calibration and the demo take the force protocol; a push table the stiffness protocol.
+TRIAL_PROTOCOL = "takuma2014"
+PUSH_PROTOCOL = "takuma2014-stiffness"
+DEFAULT_PROTOCOLS = {
+    "acquire": TRIAL_PROTOCOL,
+    "monitor": TRIAL_PROTOCOL,
+    "demo": TRIAL_PROTOCOL,
+    "fit": TRIAL_PROTOCOL,
+    "validate": TRIAL_PROTOCOL,
+    "classify": PUSH_PROTOCOL,
+}
+
+FORMS = ("posture", "paper")  # labcli fit --form; the first is the default (models.posture.FORM)
+ANGLES = ("pressure-only", "measured-angles")
+
+_ANGLES_HELP = "Angles for the force equations: from the pressures (Eqs. 34-35) or the potentiometers."
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """``labcli fit`` on a force run or trial table."""
+
+    form: str = choice(
+        FORMS,
+        FORMS[0],
+        help="posture: torques at the arm's rest posture plus deflection, forces by (J^T)^-1, with "
+        "standard errors; paper: Eqs. 34-37 exactly as printed, beside the paper's coefficients.",
+    )
+    max_amplification: float | None = number(
+        help="With --form paper: leave a posture out of the Fx (Fy) fit when that force's error "
+        "amplification near theta2 = 0 exceeds this.",
+        minimum=1,
+        above=True,
+        default_text="100",
+    )
+
+
+@dataclass(frozen=True)
+class ValidateOptions:
+    """``labcli validate`` on a force run or trial table (Figure 7)."""
+
+    model: Path | None = path(
+        help="Model JSON from `labcli fit`.",
+        default_text="RUN.model.json beside the run, else the model the run file records",
+    )
+    mode: str = choice(ANGLES, ANGLES[0], help=_ANGLES_HELP)
+    plot: Path | None = path(help="Write Figure 7 (observed vs calculated) to this .png, .pdf or .svg file.")
+    allow_overlap: bool = switch(
+        help="Validate even when validation trials were used to fit the model (a warning says how many)."
+    )
+
+
+@dataclass(frozen=True)
+class ClassifyOptions:
+    """``labcli classify`` on a push run or push table (Section 4, Figure 9)."""
+
+    model: Path = path(help="Model JSON from `labcli fit` on a force run of the same rig.", required=True)
+    reference: Path | None = path(help="Push run or CSV whose labelled pushes (category column) are reference objects.")
+    method: str = choice(
+        ("auto", "reference", "bands"),
+        "auto",
+        help="Categories from labelled reference objects, from the protocol's stiffness bands, "
+        "or reference objects when any push is labelled, else bands.",
+    )
+    angles: str = choice(
+        ANGLES, ANGLES[0], help="Joint angles from the pressures (Eqs. 34-35, the paper) or from the potentiometers."
+    )
+    plot: Path | None = path(help="Write Figure 9 (stiffness per object) to this .png, .pdf or .svg file.")
+    pushes: bool = switch(help="List every push in the report [default: only when there are 60 or fewer].")
+
+
+OPTIONS = {"fit": FitOptions, "validate": ValidateOptions, "classify": ClassifyOptions}
