@@ -145,6 +145,13 @@ class RpamRig(SimClock):
     device = "rpam-joint-sim"
     firmware = "1.0"
 
+    @property
+    def console_commands(self) -> dict:
+        """The operator's actions on ``labcli sim``'s console (:mod:`.console`)."""
+        from .console import COMMANDS
+
+        return COMMANDS
+
     def __init__(
         self,
         seed: int = 0,
