@@ -110,7 +110,10 @@ def _command(args: list[str]) -> click.Command:
 
 
 def _option_names(cmd: click.Command) -> set[str]:
-    return {o for p in cmd.params for o in (*p.opts, *p.secondary_opts)} | {"--help", "-h"}
+    # get_params: a command's own options and those the papers declare for it (labcli.core.options).
+    with click.Context(cmd) as ctx:
+        params = cmd.get_params(ctx)
+    return {o for p in params for o in (*p.opts, *p.secondary_opts)}
 
 
 @pytest.mark.parametrize("page, cmd", shell_commands(), ids=lambda x: x[:60] if isinstance(x, str) else None)
