@@ -138,16 +138,22 @@ def acquire_toy(invoke, protocol, run, *extra_url: str):
     return run
 
 
+def fitted(invoke, *args) -> dict:
+    result = invoke("fit", *args, "--json")
+    assert result.exit_code == 0, (result.output, result.exception)
+    return json.loads(result.output)
+
+
 def test_its_rig_option_changes_the_physics_and_its_fit_option_the_fit(toy_paper, tmp_path, invoke):
     # compliance= is the toy rig's own sim:// option; --through-origin the toy fit's own option.
     run = acquire_toy(invoke, toy_paper, tmp_path / "stiff.h5", "compliance=20")
-    free = json.loads(invoke("fit", run, "--json").output)
+    free = fitted(invoke, run)
     assert free["slope_deg_per_kg"] == pytest.approx(20.0, abs=0.1)
     assert abs(free["offset_deg"]) < 0.05 and free["offset_deg"] != 0.0
-    through = json.loads(invoke("fit", run, "--through-origin", "--json").output)
+    through = fitted(invoke, run, "--through-origin")
     assert through["offset_deg"] == 0.0 and through["slope_deg_per_kg"] == pytest.approx(20.0, abs=0.1)
     default = acquire_toy(invoke, toy_paper, tmp_path / "default.h5")
-    slope = json.loads(invoke("fit", default, "--through-origin", "--json").output)["slope_deg_per_kg"]
+    slope = fitted(invoke, default, "--through-origin")["slope_deg_per_kg"]
     assert slope == pytest.approx(math.degrees(toy.ANGLE_PER_KG_RAD), abs=0.1)
 
 

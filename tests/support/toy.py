@@ -293,7 +293,7 @@ def toy_fit(path: Path, options: ToyFitOptions, *, output: Path | None = None, p
     from labcli.core.store import RunFile
 
     with RunFile.open(path) as run:
-        table = run.table()
+        table = run.records.table()
     mass = table["mass_g"].to_numpy(dtype=float) / 1e3
     theta = table["theta_deg"].to_numpy(dtype=float)
     if options.through_origin:
