@@ -1,6 +1,6 @@
 """Bad-input cases of the analyses: model files with numbers or nesting no parser should meet,
 a model with a coefficient the equations do not have, an optimiser seed
-out of the generator's range."""
+out of the generator's range, an option another paper declares."""
 
 from __future__ import annotations
 
@@ -114,5 +114,19 @@ CASES: list[Case] = [
         ],
         code=2,
         usage="optimize [OPTIONS]",
+    ),
+    Case(
+        "arg-other-papers-option-run",
+        "CLI argument",
+        "an option another paper declares, on a force run (fit --set)",
+        ["fit", "run.h5", "--set", "actuator.L0_m=0.08"],
+        ["--set is an option of rpam2015 runs; run.h5 is a run of kind force (takuma2014)."],
+    ),
+    Case(
+        "arg-other-papers-option-table",
+        "CLI argument",
+        "an option another paper declares, on a trial table (fit --plot)",
+        ["fit", "trials.csv", "--plot", "fig6.png"],
+        ["--plot is an option of rpam2015 runs; labcli fit reads trials.csv with takuma2014."],
     ),
 ]
