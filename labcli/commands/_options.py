@@ -43,7 +43,7 @@ def port_options(f: F) -> F:
         help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.",
     )(f)
     f = click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)(f)
-    return click.option(  # type: ignore[no-any-return]
+    return click.option(
         "-p",
         "--port",
         required=True,

@@ -42,9 +42,14 @@ def demo(outdir: Path, seed: int, force: bool, as_json: bool, protocol: str) -> 
         labcli demo out/ --protocol rpam2015
     """
     try:
-        paper = for_shipped_protocol(protocol).demo()
+        owner = for_shipped_protocol(protocol)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
+    paper = owner.demo()
+    if paper is None:
+        raise click.ClickException(
+            f"{owner.name} has no demo; labcli demo --protocol takes {', '.join(demo_protocols())}."
+        )
     show = sys.stderr.isatty() and not as_json
 
     def progress(stage: str, done: int, total: int) -> None:

@@ -116,7 +116,9 @@ def monitor(
         url += ("&" if "?" in port else "?") + "clock=wall"
     try:
         proto = load_protocol(protocol or default_protocol("monitor"))
-        rate_hz = rate if rate is not None else float(proto.rate_hz)
+        rate_hz = rate if rate is not None else proto.rate_hz
+        if rate_hz is None:
+            raise click.ClickException(f"Protocol {proto.name} names no sample rate; give one with --rate HZ.")
         # Errors speak of the port as the user typed it, not of the paced URL.
         with Device.open(url, baudrate=baud, timeout=timeout, boot_wait=boot_wait, name=port) as dev:
             assert dev.info is not None

@@ -108,7 +108,7 @@ def json_kind(v: Any) -> str:
 LONG_LIST = 100  # a list of more whole numbers than this goes on one line of indented JSON
 
 
-class PlainList(list):  # type: ignore[type-arg]
+class PlainList(list):
     """A list whose items are plain JSON already (numbers, strings, lists of them): written as it is.
 
     :func:`dumps_indented` puts a long one on one line without looking at its items, and a

@@ -32,7 +32,10 @@ from __future__ import annotations
 from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+
+if TYPE_CHECKING:
+    from .tables import TableSpec
 
 # --------------------------------------------------------------------------- protocol files
 
@@ -122,16 +125,49 @@ class RecordType(Protocol):
     name to value (one record) or to an array over the records (``cols``).
     """
 
-    kind: str  # the run kind, e.g. "force"
-    collection: str  # the table records live in, e.g. "trials"
-    id_column: str  # the id column, e.g. "trial"
-    noun: str  # "trial" (for sentences)
-    plural: str  # "trials"
-    qualifier: str  # appended to counts in sentences, e.g. " of the joint map" ("" for none)
-    splits: bool  # records join the run's fit/validation split
-    known_columns: frozenset[str]  # table columns the record type stores (others are kept as extras)
-    columns: tuple[Column, ...]  # what one record holds besides what every record has
-    signal: str  # the column a NeXus reader plots (``@signal`` of the record table)
+    @property
+    def kind(self) -> str:
+        """The run kind, e.g. ``"force"``."""
+
+    @property
+    def collection(self) -> str:
+        """The table records live in, e.g. ``"trials"``."""
+
+    @property
+    def id_column(self) -> str:
+        """The id column, e.g. ``"trial"``."""
+
+    @property
+    def noun(self) -> str:
+        """``"trial"`` (for sentences)."""
+
+    @property
+    def plural(self) -> str:
+        """``"trials"``."""
+
+    @property
+    def qualifier(self) -> str:
+        """Appended to counts in sentences, e.g. ``" of the joint map"`` (``""`` for none)."""
+
+    @property
+    def splits(self) -> bool:
+        """Whether records join the run's fit/validation split."""
+
+    @property
+    def known_columns(self) -> frozenset[str]:
+        """Table columns the record type stores (others are kept as extras)."""
+
+    @property
+    def columns(self) -> tuple[Column, ...]:
+        """What one record holds besides what every record has."""
+
+    @property
+    def signal(self) -> str:
+        """The column a NeXus reader plots (``@signal`` of the record table)."""
+
+    @property
+    def table_spec(self) -> TableSpec:
+        """The CSV exchange table's columns, units and ranges (export, import, the sidecar)."""
 
     def count(self, n: int) -> str:
         """``3 points of the joint map``: a number of these records in a sentence."""

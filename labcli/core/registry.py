@@ -245,7 +245,7 @@ def make_rig(
     if owner.sim_options is None:
         if values:
             raise ValueError(f"the {mode} rig has no option {sorted(values)[0]!r}")
-        options = None
+        options: Any = None
     else:
         unknown = sorted(set(values) - set(sim_options_of(owner)))
         if unknown:

@@ -36,7 +36,9 @@ synthetic signals in tests.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -81,7 +83,7 @@ class SettleCriteria:
     @classmethod
     def from_settling(cls, settling: object) -> SettleCriteria:
         """Build from a protocol's ``settling`` section (attributes or a mapping)."""
-        get = settling.get if isinstance(settling, dict) else lambda k: getattr(settling, k)
+        get: Callable[[str], Any] = settling.get if isinstance(settling, dict) else lambda k: getattr(settling, k)
         return cls(
             window_s=float(get("window_s")),
             hold_s=float(get("hold_s")),

@@ -457,7 +457,7 @@ class FaultInjector:
         intact frame: a reader counts loss from seq gaps, so it cannot see
         destroyed frames before the first or after the last frame it gets.
         """
-        if self.first_intact is None:
+        if self.first_intact is None or self.last_intact is None:  # set together, by the first intact frame
             lost = 0
         else:
             lost = self.lost_between(self.first_intact, self.last_intact)

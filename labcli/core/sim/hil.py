@@ -162,7 +162,11 @@ class HilLink:
             stderr=subprocess.PIPE,
             bufsize=0,
         )
-        self._out = self._proc.stdout.fileno()
+        stdin, stdout, stderr = self._proc.stdin, self._proc.stdout, self._proc.stderr
+        if stdin is None or stdout is None or stderr is None:  # all three were asked for as PIPE
+            raise RuntimeError("the simavr harness started without its pipes")
+        self._pipe_in, self._pipe_out, self._pipe_err = stdin, stdout, stderr
+        self._out = stdout.fileno()
         self._buf = bytearray()
         threading.Thread(target=self._drain_stderr, name="labcli-hil-stderr", daemon=True).start()
         try:
@@ -218,7 +222,7 @@ class HilLink:
 
     def stop(self, timeout: float = 2.0) -> None:
         """Stop the harness (the AVR loses power); idempotent."""
-        if self._proc.stdout.closed:
+        if self._pipe_out.closed:
             return
         self._stop.set()
         self._wake()
@@ -227,7 +231,7 @@ class HilLink:
             thread.join(timeout)
         try:
             self._send(b"Q", b"")
-            self._proc.stdin.close()
+            self._pipe_in.close()
         except (OSError, ValueError):
             pass  # the harness has already gone
         try:
@@ -235,7 +239,7 @@ class HilLink:
         except subprocess.TimeoutExpired:
             self._proc.kill()
             self._proc.wait()
-        self._proc.stdout.close()
+        self._pipe_out.close()
         with self._wake_lock:
             if self._wake_w >= 0:
                 os.close(self._wake_r)
@@ -248,12 +252,12 @@ class HilLink:
     def _send(self, kind: bytes, payload: bytes) -> None:
         data = memoryview(_HEAD.pack(kind, len(payload)) + payload)
         with self._write_lock:
-            fd = self._proc.stdin.fileno()
+            fd = self._pipe_in.fileno()
             while data:
                 data = data[os.write(fd, data) :]
 
     def _drain_stderr(self) -> None:
-        for line in self._proc.stderr:
+        for line in self._pipe_err:
             self._stderr.append(line.decode("utf-8", "replace").rstrip())
 
     def _await_hello(self) -> None:

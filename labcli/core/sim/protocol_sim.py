@@ -134,6 +134,12 @@ class Serial(SimulatedPort):
         if self._unplugged:
             raise SerialException(UNPLUGGED)
 
+    def _open_firmware(self) -> Firmware:
+        """The firmware of the open port (None only before the first open)."""
+        if self.firmware is None:
+            raise PortNotOpenError()
+        return self.firmware
+
     # ------------------------------------------------------------ clocks
 
     @property
@@ -175,7 +181,7 @@ class Serial(SimulatedPort):
             self._pace_t0 += seconds
 
     def _next_due(self) -> float:
-        fw = self.firmware
+        fw = self._open_firmware()
         return self._pace_t0 + (self._pace_sent + 1) / fw.stream_hz
 
     # ------------------------------------------------------------ I/O
@@ -184,7 +190,7 @@ class Serial(SimulatedPort):
     def in_waiting(self) -> int:
         with self._cond:
             self._check()
-            fw = self.firmware
+            fw = self._open_firmware()
             if self._virtual and fw.streaming:
                 # A streaming virtual device always has the next block ready; it
                 # is sampled when read.
@@ -211,7 +217,7 @@ class Serial(SimulatedPort):
                     if deadline is not None and now >= deadline:
                         break
                     wake = deadline
-                    if self.firmware.streaming and not self._virtual:
+                    if self._open_firmware().streaming and not self._virtual:
                         nd = self._next_due()
                         wake = nd if wake is None else min(wake, nd)
                     self._cond.wait(None if wake is None else max(0.0, wake - now))
@@ -227,7 +233,7 @@ class Serial(SimulatedPort):
         with self._cond:
             self._check()
             data = to_bytes(data)
-            fw = self.firmware
+            fw = self._open_firmware()
             was_streaming, old_rate = fw.streaming, fw.rate_hz
             if not self._virtual:
                 self._pump()

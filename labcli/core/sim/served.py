@@ -43,10 +43,11 @@ def runtime_dir() -> Path:
 def announce(device: str, description: str) -> Iterator[Path | None]:
     """Leave the note for ``device`` while the block runs (None if the folder is not writable:
     the rig serves all the same, ``labcli ports`` just cannot list it)."""
-    note = runtime_dir() / f"sim-{os.getpid()}.json"
+    path = runtime_dir() / f"sim-{os.getpid()}.json"
+    note: Path | None = path
     try:
-        note.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
-        note.write_text(
+        path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+        path.write_text(
             json.dumps({"device": device, "pid": os.getpid(), "description": description}), encoding="utf-8"
         )
     except OSError:

@@ -26,11 +26,22 @@ class BaseRecordType(ABC):
     id_column: str
     noun: str
     plural: str
-    qualifier: str = ""
     splits: bool = False
-    table_spec: TableSpec
     columns: tuple[Column, ...] = ()
-    signal: str = ""
+
+    # Read-only here, as the Protocol has them: a subclass sets a class attribute, or a
+    # property when the value follows its instance (an rPAM run's experiment).
+    @property
+    def qualifier(self) -> str:
+        return ""
+
+    @property
+    def signal(self) -> str:
+        return ""
+
+    @property
+    def table_spec(self) -> TableSpec:
+        raise NotImplementedError(f"{type(self).__name__} names no table_spec")
 
     @property
     def known_columns(self) -> frozenset[str]:

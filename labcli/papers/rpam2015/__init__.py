@@ -9,6 +9,7 @@ what it needs when it is called: the sessions, the model, the figures and the si
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
@@ -84,11 +85,12 @@ class Rpam2015:
             return None
         from . import analyses  # numpy, scipy: only once an analysis runs
 
-        run, show = {
+        pairs: dict[str, tuple[Callable[..., Any], Callable[..., None]]] = {
             "fit": (analyses.fit, analyses.show_fit),
             "validate": (analyses.validate, analyses.show_validation),
             "optimize": (analyses.optimize, analyses.show_optimum),
-        }[name]
+        }
+        run, show = pairs[name]
         return Analysis(run, show)
 
     def demo(self) -> Demo | None:

@@ -9,6 +9,7 @@ what it needs when it is called: the sessions, models, figures and the simulated
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
@@ -77,11 +78,12 @@ class Takuma2014:
             return None
         from . import analyses  # numpy, pandas: only once an analysis runs
 
-        run, show = {
+        pairs: dict[str, tuple[Callable[..., Any], Callable[..., None]]] = {
             "fit": (analyses.fit, analyses.show_fit),
             "validate": (analyses.validate, analyses.show_validation),
             "classify": (analyses.classify, analyses.show_classification),
-        }[name]
+        }
+        run, show = pairs[name]
         return Analysis(run, show)
 
     def demo(self) -> Demo | None:

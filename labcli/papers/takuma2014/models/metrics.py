@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from ....errors import ModelError
-from .takuma import FLAG_TEXT, TakumaModel, select_set
+from .force_model import ForceModel
+from .takuma import FLAG_TEXT, select_set
 
 QUANTITIES: dict[str, tuple[str, str, str]] = {
     # name: (table column, unit, label)
@@ -55,7 +56,7 @@ def error_metrics(observed: Any, calculated: Any) -> dict[str, Any]:
     return out
 
 
-def evaluate(model: TakumaModel, table: Any, mode: str = "pressure-only", source: str = "the run") -> dict[str, Any]:
+def evaluate(model: ForceModel, table: Any, mode: str = "pressure-only", source: str = "the run") -> dict[str, Any]:
     """Predict the validation trials of ``table`` and measure the errors.
 
     Returns ``{"mode", "trial", "observed", "calculated", "ok", "flags", "metrics"}``:
