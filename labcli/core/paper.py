@@ -217,6 +217,41 @@ class RecordType(Protocol):
         """The record-specific lines of ``labcli inspect`` (records, split, settling, ...)."""
 
 
+# --------------------------------------------------------------------------- simulated rigs
+
+
+@runtime_checkable
+class SimulatedRig(Protocol):
+    """A paper's simulated rig, as the firmware model, the fault injector, the pty server and the
+    ``sim://`` handler use it (:mod:`labcli.core.sim`): named channels sampled on a clock that
+    runs only as it is read or advanced.  Operator actions are the rig's own methods."""
+
+    @property
+    def channels(self) -> Sequence[str]:
+        """The sensor channels, in the order of every frame's values."""
+
+    @property
+    def device(self) -> str:
+        """The device name the firmware reports (``ID?``)."""
+
+    @property
+    def firmware(self) -> str:
+        """The firmware version the device reports."""
+
+    @property
+    def time_s(self) -> float:
+        """The rig's simulated time, s."""
+
+    def samples(self, n: int, rate_hz: float) -> tuple[Any, Any]:
+        """``n`` ADC samples at ``rate_hz``: ``(t_us int64 (n,), counts int64 (n, channels))``."""
+
+    def advance(self, seconds: float) -> None:
+        """Let ``seconds`` of simulated time pass without sampling."""
+
+    def advance_to(self, time_s: float) -> None:
+        """Let simulated time run up to ``time_s`` (no-op if already past it)."""
+
+
 # --------------------------------------------------------------------------- acquisition
 
 
@@ -315,7 +350,9 @@ class Paper(Protocol):
     def record_type(self, run_kind: str) -> RecordType:
         """The record type of one of :attr:`run_kinds`."""
 
-    def make_rig(self, mode: str, *, seed: int, noise: float, drift: float | None, tau_s: float, options: Any) -> Any:
+    def make_rig(
+        self, mode: str, *, seed: int, noise: float, drift: float | None, tau_s: float, options: Any
+    ) -> SimulatedRig:
         """A simulated rig for one of :attr:`sim_modes` (see :mod:`labcli.core.sim`); ``options``
         is an object of :attr:`sim_options` (None when the paper declares none); ``drift`` None:
         the rig's own default."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
+from ...core.paper import AcquireOptions, Analysis, Demo, RecordType, SimulatedRig
 from ...errors import ConfigError
 from .options import DEFAULT_PROTOCOLS, OPTIONS, RPAM_PROTOCOL
 from .protocol import EXPERIMENTS, PROTOCOL_KINDS
@@ -48,7 +48,7 @@ class Rpam2015:
         drift: float | None = None,
         tau_s: float = 0.7,
         options: RpamRigOptions | None = None,
-    ) -> Any:
+    ) -> SimulatedRig:
         from .sim.rig import RpamRig
 
         o = options or RpamRigOptions()

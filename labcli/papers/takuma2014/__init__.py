@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from ...core.paper import AcquireOptions, Analysis, Demo, RecordType
+from ...core.paper import AcquireOptions, Analysis, Demo, RecordType, SimulatedRig
 from .options import DEFAULT_PROTOCOLS, OPTIONS, PUSH_PROTOCOL, TRIAL_PROTOCOL
 from .protocol import PROTOCOL_KINDS
 from .sim.options import McKibbenRigOptions
@@ -51,7 +51,7 @@ class Takuma2014:
         drift: float | None = None,
         tau_s: float = 0.7,
         options: McKibbenRigOptions | None = None,
-    ) -> Any:
+    ) -> SimulatedRig:
         from .sim.options import build_rig
 
         return build_rig(seed=seed, noise=noise, drift=drift, tau_s=tau_s, options=options or McKibbenRigOptions())

@@ -18,9 +18,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ....core.options import choice, number, switch, text
+
+if TYPE_CHECKING:
+    from .rig import SimRig
 
 SCALES = ("friction", "leak", "thermal", "backlash", "links", "contact", "pulley", "potscale", "potlin", "repeat")
 REALISM_NAMES = ("literature", "kind")  # nonideal.REALISMS (a test holds them equal)
@@ -84,7 +87,7 @@ class McKibbenRigOptions:
 
 def build_rig(
     *, seed: int = 0, noise: float = 1.0, drift: float | None = None, tau_s: float = 0.7, options: McKibbenRigOptions
-) -> Any:
+) -> SimRig:
     """The McKibben rig with these options (None: the rig's default).
 
     ``drift`` None takes the realism's default (``ideal`` turns it off with the rest)."""
