@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError, DeviceError, StoreError
-from .device import Device
+from .device import Device, RigLink
 from .engine import SILENT_S, NewRun, Outcome, RunEngine
 from .paper import AcquireOptions
 from .protocol import load_protocol, loads_protocol
@@ -273,7 +273,7 @@ def acquire(
             existing.close()
 
 
-def _run(engine: RunEngine, acq: Any, completed: list[int], link: Link, device: Device) -> Outcome:
+def _run(engine: RunEngine, acq: Any, completed: list[int], link: Link, device: RigLink) -> Outcome:
     """The session on the engine to its end; then the run file closed, whatever happened."""
     try:
         return engine.run(acq.session(completed), restart=acq.session, reopen=link.connect)

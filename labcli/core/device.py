@@ -24,7 +24,7 @@ from __future__ import annotations
 import errno
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import serial
 
@@ -86,6 +86,42 @@ def _open_error(port: str, exc: BaseException) -> DeviceNotFound:
     return DeviceNotFound(
         f"Cannot open serial port {port}: {text.rstrip('.')}. Check the cable and run `labcli ports` to list ports."
     )
+
+
+@runtime_checkable
+class RigLink(Protocol):
+    """What the engine, the monitor and the operator need of an open rig: the seam another
+    transport (a socket, a DAQ card's driver) plugs into.  :class:`Device` is the serial one."""
+
+    name: str  # how messages speak of the port
+    info: DeviceInfo | None  # what the rig said it is (None before the handshake)
+
+    @property
+    def rig(self) -> Any:
+        """The simulated rig behind the link (None at a real rig)."""
+
+    @property
+    def streaming(self) -> bool:
+        """Whether the rig is sending frames."""
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """Noise seen on the link so far: frames dropped, corrupt lines, ... by name."""
+
+    def set_rate(self, hz: float) -> float:
+        """Ask for a sample rate; the rate the rig runs at (Hz)."""
+
+    def start(self) -> None:
+        """Start streaming frames."""
+
+    def stop(self) -> FrameBatch:
+        """Stop streaming; the frames that were still on their way."""
+
+    def read(self, timeout: float = 1.0) -> FrameBatch:
+        """The frames that came within ``timeout`` seconds (DeviceTimeout on a silent rig)."""
+
+    def close(self) -> None:
+        """Release the link (idempotent)."""
 
 
 class Device:

@@ -42,6 +42,7 @@ from ..errors import ConfigError, DeviceClockError, DeviceDisconnected, DeviceEr
 from . import interrupts
 from .air import SlopeSums
 from .capture import WindowSink
+from .device import RigLink
 from .outcome import Outcome, Where, ended, plural, rig_lost
 from .reconnect import wait_for_rig
 from .record import Record
@@ -123,7 +124,7 @@ class RunEngine:
 
     def __init__(
         self,
-        device: Any,
+        device: RigLink,
         run: RunFile | NewRun,
         protocol: Any,
         ui: Any,

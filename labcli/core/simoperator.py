@@ -14,10 +14,13 @@ a test may hand the engine any object with :meth:`SimulatedOperator.act`.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Protocol
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from ..errors import ConfigError
 from .paper import RigAction
+
+if TYPE_CHECKING:
+    from .device import RigLink
 
 
 class SimulatedOperator(Protocol):
@@ -43,16 +46,16 @@ class RigOperator:
 class Connection(NamedTuple):
     """An open rig: its link (a :class:`labcli.core.device.Device`) and who acts at it when it is simulated."""
 
-    device: Any
+    device: RigLink
     operator: SimulatedOperator | None
 
 
-def operator_for(device: Any) -> SimulatedOperator | None:
+def operator_for(device: RigLink) -> SimulatedOperator | None:
     """The operator of the simulated rig behind ``device`` (a ``sim://`` port); None at a real port."""
     rig = device.rig
     return None if rig is None else RigOperator(rig)
 
 
-def connect(device: Any) -> Connection:
+def connect(device: RigLink) -> Connection:
     """``device`` with the operator of its simulated rig (None at a real port)."""
     return Connection(device, operator_for(device))
