@@ -166,7 +166,7 @@ class ResponseModel:
     def __len__(self) -> int:
         return len(self._loads)
 
-    def add(self, load: Sequence[float], change: Sequence[float]) -> None:
+    def add(self, load: Sequence[float], change: Sequence[float] | np.ndarray) -> None:
         self._loads.append(np.asarray(load, dtype=float))
         self._changes.append(np.asarray(change, dtype=float))
         self._stale = True

@@ -72,14 +72,14 @@ def _parse_cell(kind: str, s: str, span: tuple[float, float]) -> tuple[Any, str 
         t = s.strip()
         if re.fullmatch(r"[+-]?[0-9]+", t):
             # int() directly: going through float would round ids above 2**53.
-            v = int(t)
-            return (v, None) if abs(v) <= _INT64_MAX else (None, f"{_quote(s)} is too large for an integer id")
-        v, err = _parse_number(s)
-        if err:
-            return None, err.replace("a number", "an integer id")
-        if v != int(v) or abs(v) > _INT64_MAX:
+            whole = int(t)
+            return (whole, None) if abs(whole) <= _INT64_MAX else (None, f"{_quote(s)} is too large for an integer id")
+        x, err = _parse_number(s)
+        if err or x is None:
+            return None, (err or "").replace("a number", "an integer id")
+        if x != int(x) or abs(x) > _INT64_MAX:
             return None, f"{_quote(s)} is not an integer id"
-        return int(v), None
+        return int(x), None
     if kind in ("set", "set-required"):
         t = s.strip()
         if t in ("fit", "validation") or (t == "" and kind == "set"):
@@ -97,7 +97,7 @@ def _parse_cell(kind: str, s: str, span: tuple[float, float]) -> tuple[Any, str 
     if base != kind and s.strip() == "":
         return math.nan, None
     v, err = _parse_number(s)
-    if err:
+    if err or v is None:
         return None, err
     err = number_problem(base, v, span)
     if err:

@@ -69,7 +69,7 @@ class RpamDemoResult:
     timings_s: dict[str, float]
     points: dict[str, int]
     stretch: dict[str, Any]
-    joint_map: dict[str, dict[str, Any]]
+    joint_map: dict[str, Any]  # the summaries without and with the correction, and toggle_deg
     optimum: dict[str, Any]
     notes: list[str] = field(default_factory=list)
 

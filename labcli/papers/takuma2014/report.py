@@ -424,7 +424,7 @@ def print_demo(res: Any) -> None:
 
     coef = Table(title="Eqs. 34-37 fitted vs paper (3.3)", title_justify="left", box=box.SIMPLE_HEAD)
     for col, just in (("coefficient", "left"), ("fitted", "right"), ("std. error", "right"), ("paper", "right")):
-        coef.add_column(col, justify=just)
+        coef.add_column(col, justify="left" if just == "left" else "right")
     for c in res.coefficients:
         coef.add_row(c["name"], f"{c['value']:.4g}", f"{c['standard_error']:.2g}", cell(c["paper"], ".4g"))
     print_table(con, coef)

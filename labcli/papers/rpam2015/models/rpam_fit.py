@@ -455,7 +455,7 @@ def analyse_stretch(table: Any, protocol: Any = "rpam2015") -> StretchFit:
     f = stretch_forces(mass[ok], P[ok], L[ok], act)
     model = StretchCorrection().fit(f["lambda"], f["F_stretch_N"])
     fitted = model.predict(f["lambda"])
-    points = {
+    points: dict[str, list[Any]] = {
         "row": [int(v) for v in rows[ok]],
         "mass_kg": _floats(mass[ok]),
         "P_MPa": _floats(P[ok]),

@@ -82,7 +82,7 @@ def paper_trials(
     rng = np.random.default_rng(seed)
     h2, h3 = geometry["h2"], geometry["h3"]
     b = {eq: np.array([coefficients[k] for k in TERMS[eq]]) for eq in TERMS}
-    rows = []
+    rows: list[tuple[Any, ...]] = []
     attempts = 0
     while len(rows) < n:
         attempts += 1

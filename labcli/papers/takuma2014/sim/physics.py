@@ -539,7 +539,7 @@ def solve_equilibrium(
     params: RigParams,
     chambers: Chambers,
     load=None,
-    theta0: Sequence[float] | None = None,
+    theta0: Sequence[float] | np.ndarray | None = None,
     tol: float = 1e-10,
     extra_tension_N=None,
 ) -> Equilibrium:
