@@ -29,11 +29,21 @@ def params(name: str) -> dict[str, click.Parameter]:
     return {str(p.name): p for p in command(name).get_params(ctx)}
 
 
-PORT_COMMANDS = sorted(n for n in COMMANDS if "port" in params(n))
+# Every command naming a port; labcli flash hands its port to avrdude (the bootloader's own
+# --upload-baud, no rig link to time out), so the link's options are the others'.
+NAMING_A_PORT = sorted(n for n in COMMANDS if "port" in params(n))
+PORT_COMMANDS = [n for n in NAMING_A_PORT if n != "flash"]
 
 
 def test_the_commands_that_open_a_port_are_found():
+    assert NAMING_A_PORT == ["acquire", "flash", "monitor"]
     assert PORT_COMMANDS == ["acquire", "monitor"]
+
+
+@pytest.mark.parametrize("name", NAMING_A_PORT)
+def test_every_command_naming_a_port_spells_it_alike(name):
+    port = params(name)["port"]
+    assert sorted(port.opts) == ["--port", "-p"] and port.required
 
 
 def _shape(p: click.Parameter) -> tuple:
