@@ -422,6 +422,16 @@ def _pressurise_by_command(
         yield Valves("supply")
 
 
+def _relieve(air: AirDrift, guard: Guard | None) -> Generator[Step, Any, None]:
+    """Friction relief: a supply pulse of ``friction_relief_s``, then hold (a fresh supply each trial)."""
+    yield Valves("supply")
+    yield Hold(air.settings.friction_relief_s)
+    yield Valves("hold")
+    air.supplied()
+    if guard is not None:
+        guard.resupplied()
+
+
 def _resupply(air: AirDrift, why: str, guard: Guard | None) -> Generator[Step, Any, None]:
     """The chambers drifted: supply by command until the pressures settle, then hold again."""
     yield Note(f"{why[:1].upper()}{why[1:]}.")
@@ -474,6 +484,8 @@ def _trial(
     supplied and held again, and the baseline retaken.
     """
     while True:
+        if air is not None and air.settings.friction_relief_s > 0:
+            yield from _relieve(air, checked.guard if checked is not None else None)
         wait_b = yield WaitSettle("baseline")
         if wait_b == "redo":
             continue
