@@ -523,6 +523,13 @@ SOURCES: dict[str, Source] = {
             runs={"": ()},
         ),
         Source(
+            "band-confidence",
+            "benchmark",
+            "the bands' confidences of the posture form, wrong categories and their largest confidence, seeds 11-30",
+            script="band_confidence.py",
+            runs={"": ()},
+        ),
+        Source(
             "friction-estimator",
             "benchmark",
             "the posture form with and without the sleeves' friction terms on the literature's rig, seeds 11-30",
