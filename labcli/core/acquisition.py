@@ -254,6 +254,10 @@ def acquire(
             other = check_rig(
                 existing, path, rig.device.info, (given or acq.protocol).calibration, allow_other=allow_other_rig
             )
+        kept = ""
+        if existing is not None and not operator:
+            # A resumed run keeps who runs it: the latest session's operator, else the run's own.
+            operator = kept = recorded_operator(existing)
         # A resumed run is open already; a new one is created when its first trial begins.
         run = (
             existing
@@ -262,6 +266,8 @@ def acquire(
         )
         opts = SessionOptions(operator, resume, bool(other), unattended, rate_hz, silent_s)
         engine = _engine(rig, run, acq, ui, link, path, opts, valves)
+        if kept:
+            engine.ui.info(f"Operator {kept}, as the run recorded (--operator names another).")
         if other:
             engine.ui.warn(f"continuing {path} on another rig ({describe(other)}), as --allow-other-rig allows")
         for cb in subscribers:
@@ -288,6 +294,14 @@ def _run(engine: RunEngine, acq: Any, completed: list[int], link: Link, device: 
             if engine.device is not device:  # reopened after the rig was lost
                 with contextlib.suppress(Exception):
                     engine.device.close()
+
+
+def recorded_operator(run: Any) -> str:
+    """Who ran the run's latest session that named one (else the operator the run began with, or "")."""
+    for session in reversed(run.sessions.all()):
+        if session["operator"]:
+            return str(session["operator"])
+    return str(run.attrs.get("operator", "") or "")
 
 
 def _engine(

@@ -451,7 +451,12 @@ class RunEngine:
                 while True:
                     w = self.stream.next_block()
                     status = detector.update(w.t_s, w.si)
-                    show(status)
+                    key = show(status)  # q or r pressed during the wait acts now, not at the next question
+                    if key == "quit":
+                        raise QuitRequested("quit")
+                    if key == "redo":
+                        self.ui.info(f"  {label}: redone at your request (r)")
+                        return "redo"
                     if detector.consumed < len(w):
                         # Frames after the decision belong to what follows (capture, or more waiting).
                         self.stream.keep(w[detector.consumed :])
