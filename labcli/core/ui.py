@@ -55,6 +55,7 @@ def discard_typeahead(stream: Any) -> None:
 
 
 SETTLE_KEYS = "  (q quits, r redoes)"
+REVIEW_TEXT = "Accept [a], redo [r], skip [s], note [n] or quit [q]?"
 _SETTLE_KEYS = {"q": "quit", "r": "redo"}
 
 
@@ -152,6 +153,7 @@ class RichUI:
 
         self.console = console or Console(highlight=False)
         self._stdin = stdin
+        self.pending_note = ""  # typed at a review (n), taken by the engine with the record
 
     @property
     def _interactive(self) -> bool:
@@ -282,10 +284,23 @@ class RichUI:
         self.console.print(table)
         for w in warnings:
             self.warn(w)
-        return self._choose("Accept [a], redo [r], skip [s] or quit [q]?", "arsq", default[0])
+        what = next(iter(row), "record")  # "trial", "push", "point": the row's id column
+        while True:
+            choice = self._choose(REVIEW_TEXT, "arsnq", default[0])
+            if choice != "note":
+                return choice
+            text = self._ask(f"Note on this {what} (one line; Enter for none):").strip()
+            if text:
+                self.pending_note = text
+                self.console.print(f"  The note is stored with the {what} once it is accepted.", markup=False)
+
+    def take_note(self) -> str:
+        """The note typed at the last review (``n``), once; "" when none."""
+        note, self.pending_note = self.pending_note, ""
+        return note
 
     def _choose(self, text: str, keys: str, default: str) -> str:
-        words = {"a": "accept", "r": "redo", "s": "skip", "w": "wait", "q": "quit"}
+        words = {"a": "accept", "r": "redo", "s": "skip", "w": "wait", "q": "quit", "n": "note"}
         while True:
             answer = self._ask(f"{text} ({default}):").strip().lower() or default
             if answer[:1] in keys and (len(answer) == 1 or answer == words[answer[0]]):

@@ -59,6 +59,7 @@ from .frames import chunk_frames
 from .h5 import calibration_arrays, plain, text
 from .layout import initialise
 from .models import Models
+from .notes import Notes
 from .opening import (
     MUTABLE_ATTRS,
     Tables,
@@ -100,6 +101,7 @@ class RunFile:
     split: Splits
     models: Models
     sessions: Sessions
+    notes: Notes
 
     def __init__(self, h5: h5py.File, path: str, mode: str) -> None:
         self.h5 = h5
@@ -126,6 +128,7 @@ class RunFile:
         self.split = Splits(self)
         self.models = Models(self)
         self.sessions = Sessions(self)
+        self.notes = Notes(self)
         self.writer.riders = self.sessions
 
     @property
