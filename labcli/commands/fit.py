@@ -43,6 +43,11 @@ DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol
     help="posture: torques at the arm's rest posture plus deflection, forces by (J^T)^-1, with "
     "standard errors; paper: Eqs. 34-37 exactly as printed, beside the paper's coefficients.",
 )
+@click.option(
+    "--record/--no-record",
+    default=None,
+    help="Also keep the model in the run file as the one in force  [default: with no -o, yes; with -o, no]",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the model and the paper's values as JSON.")
 @click.option(
     "--plot",
@@ -67,6 +72,7 @@ def fit(
     as_json: bool,
     plot: Path | None,
     overrides: tuple[str, ...],
+    record: bool | None,
 ) -> None:
     """Fit a force model to the fit trials of RUN.
 
@@ -74,14 +80,18 @@ def fit(
     the arm's true posture (rest posture from the potentiometers plus the deflection) and gives
     every estimate a standard error; --form paper fits the paper's Eqs. 34-37 as printed and
     prints each coefficient with its standard error, 95% interval and the paper's value
-    (Section 3.3).  Saves the model JSON and records it in the run file.  On an rPAM stretch-test run it fits the cubic stretch
-    correction F_stretch(lambda) of the rPAM paper's Eq. 7 instead, with its uncertainty.
+    (Section 3.3).  Saves the model JSON beside the run (RUN.model.json) and records it in the
+    run file as the model in force; -o M.json writes M.json only, unless --record.  validate
+    applies an explicit --model, else the model the run records, else RUN.model.json.  On an
+    rPAM stretch-test run it fits the cubic stretch correction F_stretch(lambda) of the rPAM
+    paper's Eq. 7 instead, with its uncertainty.
 
     \b
     Example:
         labcli fit run.h5                  # writes run.model.json (posture form)
         labcli fit run.h5 --form paper     # Eqs. 34-37 beside the paper's coefficients
         labcli fit trials.csv --protocol takuma2014 -o model.json --json
+        labcli fit run.h5 --form paper -o paper.json   # the run file is not touched
         labcli fit stretch.h5 --plot fig6-stretch.png
     """
     try:
@@ -95,6 +105,7 @@ def fit(
             plot=plot,
             overrides=overrides,
             typed=typed_options("max_amplification", "form"),
+            record=record,
         )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None

@@ -21,7 +21,7 @@ DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol
     "model_path",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="Model JSON from `labcli fit` [default: RUN.model.json beside the run].",
+    help="Model JSON from `labcli fit`  [default: the model RUN records, else RUN.model.json beside it]",
 )
 @click.option(
     "--mode",
@@ -72,8 +72,9 @@ def validate(
 ) -> None:
     """Check a fitted model on the validation trials of RUN (the paper's Figure 7).
 
-    RUN is a run file (.h5) or a trial CSV.  The model is --model, else RUN.model.json beside
-    the run, else the model the run file records (/models/<protocol>); the report names it.
+    RUN is a run file (.h5) or a trial CSV.  The model is --model, else the model the run
+    file records in force (/models/<protocol>), else RUN.model.json beside the run; the
+    report names it.
     Validation trials the model was fitted on are refused unless --allow-overlap; a model
     fitted on another rig or under other protocol settings gets a warning.  Reports RMSE,
     MAE, max |error|, bias, R^2 and RMSE as a share of the observed range for theta1,

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ...core.jsontext import loads_bounded
-from ...core.modelfile import check_fit_paths, default_model_path, save_model
+from ...core.modelfile import check_fit_paths, model_destination, save_model
 from ...core.protocol import Protocol
 from ...core.store import RunFile
 from ...errors import ConfigError, ModelError
@@ -72,11 +72,12 @@ class StretchFitResult:
     run: Path
     model_name: str
     plot: Path | None
+    recorded: bool = True  # also recorded in the run file under /models/<model_name>
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "model_path": str(self.model_path),
-            "recorded_in_run": True,
+            "recorded_in_run": self.recorded,
             "model_name": self.model_name,
             "plot": str(self.plot) if self.plot else None,
             "fit": self.fit.to_dict(),
@@ -91,11 +92,12 @@ def fit(
     plot: Path | None = None,
     overrides: tuple[str, ...] = (),
     typed: frozenset[str] = frozenset(),
+    record: bool | None = None,
     **_: Any,
 ) -> StretchFitResult:
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
     check_force_only_options(typed, "max_amplification", "form")
-    out = output or default_model_path(run)
+    out, keep = model_destination(run, output, record, True)
     check_fit_paths(run, out)
     kind, table, proto, name, where = _read_run(run, protocol, overrides)
     if kind != "rpam-stretch":
@@ -107,15 +109,17 @@ def fit(
     if plot is not None:
         figure_stretch(stretch, plot)
     model_name = f"{name or 'rpam'}-stretch"
-    save_model(stretch.to_json(), out, run=run, name=model_name)
-    return StretchFitResult(stretch, out, run, model_name, plot)
+    save_model(stretch.to_json(), out, run=run, name=model_name, record=keep)
+    return StretchFitResult(stretch, out, run, model_name, plot, keep)
 
 
 def show_fit(result: StretchFitResult, *, as_json: bool = False) -> None:
     if as_json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
         return
-    report.print_stretch_fit(result.fit, result.model_path, result.run, result.model_name, result.plot)
+    report.print_stretch_fit(
+        result.fit, result.model_path, result.run, result.model_name, result.plot, recorded=result.recorded
+    )
 
 
 # --------------------------------------------------------------------------- validate

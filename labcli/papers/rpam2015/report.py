@@ -16,7 +16,9 @@ from typing import Any
 from ...core.report import cell, print_table, report_console
 
 
-def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Path | None) -> None:
+def print_stretch_fit(
+    fit: Any, out: Path, run: Path, model_name: str, plot: Path | None, *, recorded: bool = True
+) -> None:
     """The fitted cubic with its uncertainty, beside the protocol's default."""
     from rich import box
     from rich.table import Table
@@ -48,7 +50,9 @@ def print_stretch_fit(fit: Any, out: Path, run: Path, model_name: str, plot: Pat
     if plot is not None:
         con.print(f"Stretch-test figure (Fig. 6) written to {plot}.", soft_wrap=True)
     con.print(
-        f"Model written to {out} and recorded in {run} under /models/{model_name}; compare a joint map "
+        f"Model written to {out}"
+        + (f" and recorded in {run} under /models/{model_name}" if recorded else "")
+        + "; compare a joint map "
         f"with it: labcli validate JOINT.h5 --model {out}",
         soft_wrap=True,
     )

@@ -17,10 +17,9 @@ import numpy as np
 
 from ...core import idranges
 from ...core.jsontext import dumps_indented
-from ...core.modelfile import check_fit_paths, default_model_path, save_model
+from ...core.modelfile import check_fit_paths, default_model_path, model_destination, model_text, save_model
 from ...core.provenance import rig_warning, same_data
 from ...core.report import ids_text, print_warnings
-from ...core.store import RunFile
 from ...errors import ConfigError, ModelError
 from . import report
 from .figures import figure7, figure9
@@ -69,6 +68,7 @@ def fit(
     plot: Path | None = None,
     overrides: tuple[str, ...] = (),
     typed: frozenset[str] = frozenset(),
+    record: bool | None = None,
 ) -> FitResult:
     """Fit a force model (``form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it."""
     if overrides:
@@ -85,15 +85,15 @@ def fit(
             "--max-amplification is the paper form's cut near theta2 = 0; the posture form "
             "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out."
         )
-    out_path = output or default_model_path(run)
-    check_fit_paths(run, out_path)
     src = load_trial_source(run, protocol)
+    out_path, keep = model_destination(run, output, record, src.is_run)
+    check_fit_paths(run, out_path)
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
         model = _fit_form(form, src, str(run), max_amplification)
     if isinstance(model, TakumaModel):
         refuse_non_finite(model, src.table, str(run))
     model.fitted_on = src.identity
-    recorded = save_model(model.to_json(), out_path, run=run if src.is_run else None, name=model.protocol)
+    recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
     return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
 
 
@@ -176,23 +176,14 @@ def model_for_run(
 ) -> tuple[TakumaModel | PostureModel, str]:
     """The model to apply to ``run`` and where it came from (a label for the report).
 
-    ``--model`` when given; else the sidecar ``RUN.model.json``; else, for a run file, the
-    model the run records under ``/models/<name>`` (a run passed on without its sidecar).
+    One precedence (:data:`labcli.core.modelfile.MODEL_PRECEDENCE`): ``--model`` when given;
+    else the model a run file records in force under ``/models/<name>``; else the sidecar
+    ``RUN.model.json``.
     """
-    if model_path is not None:
-        return load_force_model(model_path), str(model_path)
-    side = default_model_path(run)
-    if side.exists() or not is_run:
-        return load_force_model(side), str(side)
-    with RunFile.open(run) as rf:
-        recorded = rf.models.all()
-    if name not in recorded:
-        raise ModelError(
-            f"The model file {side} does not exist and {run} records no model under /models/{name}; "
-            f"write one with `labcli fit {run}`."
-        )
-    label = f"{run}:/models/{name}"
-    return force_model_from_json(recorded[name], name=f"the model {label}"), label
+    text, label = model_text(run, model_path, is_run, name)
+    if text is None:
+        return load_force_model(Path(label)), label
+    return force_model_from_json(text, name=f"the model {label}"), label
 
 
 def overlap(model: TakumaModel | PostureModel, src: Any) -> list[int]:
