@@ -117,7 +117,7 @@ def test_the_realistic_rig_costs_accuracy(demo_out, ideal_demo_out):
 def test_demo_summary_shows_paper_values_and_units(demo_out):
     _, output = demo_out
     assert "-2201" in output  # beta_Fx3 beside the paper's value
-    assert "theta1 (deg)" in output and "Fx (N)" in output and "[N/m]" in output
+    assert "theta1 (deg)" in output and "Fx (N)" in output and "(N/m)" in output
 
 
 def test_demo_refuses_to_overwrite_without_force(demo_out):

@@ -142,8 +142,8 @@ def figure7(
         ax.set_ylim(lo, hi)
         ax.set_aspect("equal", adjustable="box")
         sym = FIGURE7_SYMBOLS[q]
-        ax.set_xlabel(f"observed ${sym}$ [{unit}]")
-        ax.set_ylabel(f"calculated ${sym}$ [{unit}]")
+        ax.set_xlabel(f"observed ${sym}$ ({unit})")
+        ax.set_ylabel(f"calculated ${sym}$ ({unit})")
         ax.set_title(label, loc="left", fontsize=11)
         ax.grid(True, color="0.9", lw=0.6, zorder=0)
         m = evaluation["metrics"][q]
@@ -232,7 +232,7 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     ax.set_xticklabels(ticks, fontsize=8)
     ax.set_xlim(-0.6, len(names) - 0.4)
     ax.set_ylim(y_lo, y_hi)
-    ax.set_ylabel("object stiffness $k_o$ [N/m]")
+    ax.set_ylabel("object stiffness $k_o$ (N/m)")
     ax.set_xlabel("sample object")
     ax.grid(True, which="major", axis="y", color="0.88", lw=0.6, zorder=0)
     ax.grid(True, which="minor", axis="y", color="0.94", lw=0.4, zorder=0)
