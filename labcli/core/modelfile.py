@@ -28,12 +28,13 @@ def default_model_path(run: str | Path) -> Path:
 
 
 MODEL_PRECEDENCE = (
-    "an explicit --model, else the model the run records in force (/models/<name>), "
-    "else RUN.model.json beside the run"
+    "an explicit --model, else the model the run records in force (/models/<name>), else RUN.model.json beside the run"
 )
 
 
-def model_destination(run: str | Path, output: str | Path | None, record: bool | None, is_run: bool) -> tuple[Path, bool]:
+def model_destination(
+    run: str | Path, output: str | Path | None, record: bool | None, is_run: bool
+) -> tuple[Path, bool]:
     """The model file a fit writes and whether the run records the model too.
 
     Without ``output``: ``RUN.model.json``, recorded in a run file.  With ``output``: that

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ...core.figures import source_line
 from ...core.jsontext import loads_bounded
 from ...core.modelfile import check_fit_paths, model_destination, save_model
 from ...core.protocol import Protocol
@@ -107,7 +108,7 @@ def fit(
         )
     stretch = analyse_stretch(table, (where, proto))
     if plot is not None:
-        figure_stretch(stretch, plot)
+        figure_stretch(stretch, plot, source=source_line(run, name or proto_name(proto), out))
     model_name = f"{name or 'rpam'}-stretch"
     save_model(stretch.to_json(), out, run=run, name=model_name, record=keep)
     return StretchFitResult(stretch, out, run, model_name, plot, keep)
@@ -204,7 +205,8 @@ def validate(
             )
     result = analyse_joint_map(table, (where, proto), correction)
     if plot is not None:
-        figure8(result, plot)
+        model = model_path if model_path is not None else "the protocol's stretch correction"
+        figure8(result, plot, source=source_line(run, proto_name(proto), model))
     return JointMapValidation(result, run, model_path, plot)
 
 
@@ -242,3 +244,8 @@ def show_optimum(result: Any, *, as_json: bool = False) -> None:
         print(json.dumps(d, indent=2))
         return
     report.print_optimum(d)
+
+
+def proto_name(proto: Any) -> str:
+    """A protocol's name for a figure's foot ("" when it has none)."""
+    return str(getattr(proto, "name", "") or "")

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ...core.demo import Progress, Stages, acquire_unattended, check_outdir, simulated_port
+from ...core.figures import source_line
 from ...core.modelfile import save_model
 from ...core.protocol import load_protocol
 from ...core.store import RunFile
@@ -135,7 +136,9 @@ def run_rpam_demo(
             stretch_table = run.records.table()
         fit = analyse_stretch(stretch_table, protocol_ref)
         save_model(fit.to_json(), files["stretch_model"], run=files["stretch_run"], name=f"{PROTOCOL}-stretch")
-        figure_stretch(fit, files["figure6"])
+        figure_stretch(
+            fit, files["figure6"], source=source_line(files["stretch_run"], PROTOCOL, files["stretch_model"])
+        )
     with stages.run(2, "acquire_joint"):
         # The same seed is the same rig: the correction fitted above belongs to these actuators.
         acquire_unattended(
@@ -146,7 +149,7 @@ def run_rpam_demo(
             joint_table = run.records.table()
         fitted = analyse_joint_map(joint_table, protocol_ref, fit)
         default = analyse_joint_map(joint_table, protocol_ref, None)
-        figure8(fitted, files["figure8"])
+        figure8(fitted, files["figure8"], source=source_line(files["joint_run"], PROTOCOL, files["stretch_model"]))
     with stages.run(4, "optimize"):
         optimum = optimize_protocol(PROTOCOL, overrides=fit.overrides()).to_dict()
     with stages.run(5):

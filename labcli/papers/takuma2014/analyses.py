@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ...core import idranges
+from ...core.figures import source_line
 from ...core.jsontext import dumps_indented
 from ...core.modelfile import check_fit_paths, default_model_path, model_destination, model_text, save_model
 from ...core.provenance import rig_warning, same_data
@@ -241,7 +242,14 @@ def validate(
     ev = evaluate(model, src.table, mode=mode, source=str(run))
     ev["forms"] = side_by_side(model, ev, src, mode, str(run))
     if plot is not None:
-        figure7(ev, plot, run=str(run), protocol=src.protocol.name, form=getattr(model, "form", "paper"))
+        figure7(
+            ev,
+            plot,
+            run=str(run),
+            protocol=src.protocol.name,
+            form=getattr(model, "form", "paper"),
+            source=source_line(run, src.protocol.name, label),
+        )
     return ValidationResult(ev, Path(model_path or default_model_path(run)), run, plot, label, warnings)
 
 
@@ -295,7 +303,8 @@ def classify(
     """Stiffness and category of each object pushed in a push run or push CSV (Figure 9)."""
     result = classify_file(pushes, model_path, reference=reference, protocol=protocol, method=method, angles=angles)
     if plot is not None:
-        figure9(result.result, plot)
+        prot = getattr(getattr(result, "protocol", None), "name", None) or protocol
+        figure9(result.result, plot, source=source_line(pushes, prot, model_path))
     return ClassificationResult(result, plot)
 
 

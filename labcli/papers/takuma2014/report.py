@@ -291,7 +291,9 @@ def print_classification(
     for o in data["objects"]:
         mean, sd = o["k_mean_N_per_m"], o["k_sd_N_per_m"]
         rel = 100 * sd / mean if mean and sd is not None else None
-        role = f"reference ({o['category_given']})" if o["role"] == "reference" else "unknown"
+        role = {"reference": f"reference ({o['category_given']})", "given": f"given: {o['category_given']}"}.get(
+            o["role"], "unknown"
+        )
         row = [
             o["object"],
             role,

@@ -267,8 +267,7 @@ def parse_load_change(
     m = re.fullmatch(r"\s*(\S+?)\s*(g|kg)?(?:[\s,]+(\S+?)\s*(deg)?)?\s*", text)
     if not m:
         raise ValueError(
-            f"'{text.strip()}' is not a load: type the mass in g and the direction in deg, e.g. 300 90, "
-            "or press Enter."
+            f"'{text.strip()}' is not a load: type the mass in g and the direction in deg, e.g. 300 90, or press Enter."
         )
     mass = parse_mass_g(m.group(1) + (m.group(2) or ""), *mass_range_g)
     if m.group(3) is None:

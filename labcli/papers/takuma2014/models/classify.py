@@ -855,7 +855,8 @@ def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
     for row in res.objects.to_dict("records"):
         item = {
             "object": str(row["object"]),
-            "role": "reference" if row.get("known_category") else "unknown",
+            # Under bands a known category is only compared with the bands' answer, not used to place them.
+            "role": ("reference" if res.method == "reference" else "given") if row.get("known_category") else "unknown",
             "category_given": str(row.get("known_category") or ""),
             "n": int(row["n_pushes"]),
             "n_used": int(row["n_used"]),
