@@ -92,7 +92,7 @@ class Rolling:
         n = self.n
         if not n:
             return np.full(self.k, np.nan)
-        return sum(b[2] for b in self._bins) / n
+        return np.asarray(sum(b[2] for b in self._bins) / n, dtype=float)
 
     @property
     def std(self) -> np.ndarray:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from ..errors import ConfigError
 from .files import RUN_FILE_SUFFIXES
@@ -129,7 +130,13 @@ def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, s
 
 
 def _split_table(
-    path: str, n_fit: int | None, n_val: int | None, strategy: str, seed: int | None, protocol: str, output: object
+    path: str,
+    n_fit: int | None,
+    n_val: int | None,
+    strategy: str,
+    seed: int | None,
+    protocol: str,
+    output: str | os.PathLike | None,
 ) -> SplitDone:
     from .protocol import load_protocol
     from .registry import record_type
@@ -139,7 +146,7 @@ def _split_table(
     if not Path(path).is_file():
         raise ConfigError(f"{path} does not exist or is not a file: give a run file (.h5) or a trial CSV.")
     proto = load_protocol(protocol)
-    kind = record_type(str(getattr(proto, "kind", "force")))
+    kind: Any = record_type(str(getattr(proto, "kind", "force")))  # a record type with a table spec
     if not kind.splits:
         raise ConfigError(
             f"protocol {proto.name} records {kind.plural}, which are not split; give the protocol of a trial table."

@@ -61,13 +61,13 @@ class StreamRecorder:
             raise StoreError(f"{self.path} cannot be created ({e.strerror or e}).") from None
         f = self.h5
         f.attrs.update({"NX_class": "NXroot", "default": "entry", "creator": f"labcli {__version__}"})
-        e = f.create_group("entry")
-        e.attrs.update({"NX_class": "NXentry", "default": "stream", "program_name": "labcli"})
-        e.attrs.update({"program_version": __version__, "start_time": utc_now(), "kind": "stream"})
-        e.attrs["channels"] = self.channels
+        entry = f.create_group("entry")
+        entry.attrs.update({"NX_class": "NXentry", "default": "stream", "program_name": "labcli"})
+        entry.attrs.update({"program_version": __version__, "start_time": utc_now(), "kind": "stream"})
+        entry.attrs["channels"] = self.channels
         for key, value in (attrs or {}).items():
-            e.attrs[key] = value
-        g = e.create_group("stream")
+            entry.attrs[key] = value
+        g = entry.create_group("stream")
         g.attrs.update({"NX_class": "NXdata", "signal": self.channels[0] if self.channels else "counts"})
         g.attrs["axes"] = "time"
         k = len(self.channels)
