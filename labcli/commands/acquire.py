@@ -77,7 +77,7 @@ def acquire(
         labcli acquire run.h5 --port /dev/ttyUSB0 --operator kim
         labcli acquire run.h5 --port /dev/ttyUSB0 --resume
         labcli acquire sim.h5 --port 'sim://?seed=1&clock=virtual' --unattended
-        labcli acquire stretch.h5 --protocol rpam2015 --experiment stretch \
+        labcli acquire stretch.h5 --protocol rpam2015 --experiment stretch \\
             --port 'sim://?mode=rpam&clock=virtual' --unattended
     """
     from ..core.acquisition import acquire as run_acquisition  # heavy: when the command runs, not for --help
