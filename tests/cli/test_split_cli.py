@@ -93,3 +93,31 @@ def test_one_trial_is_one_completed_trial(tmp_path):
     assert too_many.output == (
         f"Error: {run}: the run has 1 completed trial, fewer than the 2 asked for (2 fit + 0 validation).\n"
     )
+
+
+def test_verify_counts_one_raw_window_in_the_singular(tmp_path):
+    import numpy as np
+
+    from labcli.core.protocol import load_protocol
+    from labcli.core.window import Window
+
+    run = tmp_path / "w.h5"
+    proto = load_protocol("takuma2014")
+    si = np.tile([0.3, 0.3, 0.3, 0.3, 0.0, 0.0], (10, 1))
+    w = Window.of(
+        np.arange(10), proto.calibration.to_counts(si), si, t_us=np.arange(10) * 5000, t_s=np.arange(10) * 0.005
+    )
+    with RunFile.create(run, protocol=proto) as rf:
+        rf.records.write(
+            {
+                "trial": 1,
+                "P0_MPa": np.full(4, 0.3),
+                "P_MPa": np.full(4, 0.31),
+                "theta_rad": np.zeros(2),
+                "force_N": np.array([1.0, 0.0]),
+                "raw": {"load": w},
+            }
+        )
+    r = CliRunner().invoke(cli, ["inspect", str(run), "--verify"])
+    assert r.exit_code == 0, r.output
+    assert r.output == f"{run}: 1 trial and 1 raw window check out.\n"
