@@ -254,10 +254,7 @@ def acquire(
             other = check_rig(
                 existing, path, rig.device.info, (given or acq.protocol).calibration, allow_other=allow_other_rig
             )
-        kept = ""
-        if existing is not None and not operator:
-            # A resumed run keeps who runs it: the latest session's operator, else the run's own.
-            operator = kept = recorded_operator(existing)
+        operator, kept = kept_operator(existing, operator)
         # A resumed run is open already; a new one is created when its first trial begins.
         run = (
             existing
@@ -294,6 +291,14 @@ def _run(engine: RunEngine, acq: Any, completed: list[int], link: Link, device: 
             if engine.device is not device:  # reopened after the rig was lost
                 with contextlib.suppress(Exception):
                     engine.device.close()
+
+
+def kept_operator(run: Any, operator: str) -> tuple[str, str]:
+    """The session's operator and, when a resumed run kept its own (none was given), that one too."""
+    if run is None or operator:
+        return operator, ""
+    kept = recorded_operator(run)
+    return kept, kept
 
 
 def recorded_operator(run: Any) -> str:
