@@ -263,8 +263,7 @@ def acquire(
         )
         opts = SessionOptions(operator, resume, bool(other), unattended, rate_hz, silent_s)
         engine = _engine(rig, run, acq, ui, link, path, opts, valves)
-        if kept:
-            engine.ui.info(f"Operator {kept}, as the run recorded (--operator names another).")
+        _say_kept(engine, kept)
         if other:
             engine.ui.warn(f"continuing {path} on another rig ({describe(other)}), as --allow-other-rig allows")
         for cb in subscribers:
@@ -291,6 +290,11 @@ def _run(engine: RunEngine, acq: Any, completed: list[int], link: Link, device: 
             if engine.device is not device:  # reopened after the rig was lost
                 with contextlib.suppress(Exception):
                     engine.device.close()
+
+
+def _say_kept(engine: RunEngine, kept: str) -> None:
+    if kept:
+        engine.ui.info(f"Operator {kept}, as the run recorded (--operator names another).")
 
 
 def kept_operator(run: Any, operator: str) -> tuple[str, str]:

@@ -19,7 +19,7 @@ from labcli.papers.takuma2014.records import load_trials
 from labcli.papers.takuma2014.session import G, parse_direction_deg, parse_load_change
 
 IDEAL = "sim://?seed=8&clock=virtual&ideal=1"
-SETUP = "\n\n"  # air supplied, valves closed
+SETUP = ""  # no air prompts: the simulated board supplies and holds the air by command
 END = "End the run here with {} stored? y ends it, Enter goes on:"
 
 

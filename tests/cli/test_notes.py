@@ -97,7 +97,7 @@ def test_n_at_the_review_notes_the_trial(tmp_path):
     plan = tmp_path / "plan.csv"
     plan.write_text("trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,fit,300,90\n")
     run = tmp_path / "run.h5"
-    setup, trial = "\n\n", "\n\n"
+    setup, trial = "", "\n\n"  # the simulated board supplies and holds the air by command
     # Trial 1: n, a note, then accept.  Trial 2: a note, redo, accept (the note stays with it).
     # Trial 3: a note, then skip (the note becomes the run's, naming the trial).
     answers = (
