@@ -302,7 +302,7 @@ class Paper(Protocol):
         """Plan one run of ``protocol`` (from :meth:`run_protocol`)."""
 
     def analysis(self, name: str) -> Analysis | None:
-        """The analysis ``name`` ("fit", "validate", "classify", "optimize", "export-model"), or None.
+        """The analysis ``name`` ("fit", "validate", "classify", "predict", "optimize", "export-model"), or None.
 
         A paper whose fit writes model files lists their ``schema`` in an attribute
         ``model_schemas`` (a tuple, optional), so that a command given only a model file finds it

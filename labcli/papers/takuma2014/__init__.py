@@ -69,6 +69,10 @@ class Takuma2014:
             from .models import export_c  # numpy only
 
             return Analysis(export_c.export, export_c.show)
+        if name == "predict":
+            from . import predict
+
+            return Analysis(predict.predict_file, predict.show_predict)
         if name not in ("fit", "validate", "classify"):
             return None
         from . import analyses  # numpy, pandas: only once an analysis runs
@@ -79,6 +83,12 @@ class Takuma2014:
             "classify": (analyses.classify, analyses.show_classification),
         }[name]
         return Analysis(run, show)
+
+    def sensing_model(self, text: str, name: str) -> Any:
+        """The run-time estimator's view of a model file of this paper (None: not one of its files)."""
+        from .sensing import sensing_model
+
+        return sensing_model(text, name)
 
     def demo(self) -> Demo | None:
         from . import demo, report  # the whole toolkit: only once the demo runs

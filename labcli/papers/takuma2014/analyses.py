@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +24,7 @@ from ...core.report import ids_text, print_warnings
 from ...errors import ConfigError, ModelError
 from . import report
 from .figures import figure7, figure9
+from .models import leak
 from .models.classify import classify_file, flag_summary, object_items, push_items, report_header, write_report_json
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
@@ -70,8 +71,14 @@ def fit(
     overrides: tuple[str, ...] = (),
     typed: frozenset[str] = frozenset(),
     record: bool | None = None,
+    leak_correct: bool = False,
 ) -> FitResult:
-    """Fit a force model (``form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it."""
+    """Fit a force model (``form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it.
+
+    ``leak_correct``: move each trial's P0 along the run's leak to its loaded window first
+    (models/leak.py; off by default, where it measured worse on the simulated rig).  The model
+    file records which, and for a run file the trials' median baseline-to-capture gap.
+    """
     if overrides:
         raise ConfigError(SET_REFUSED)
     if plot is not None:
@@ -89,13 +96,28 @@ def fit(
     src = load_trial_source(run, protocol)
     out_path, keep = model_destination(run, output, record, src.is_run)
     check_fit_paths(run, out_path)
+    if leak_correct:
+        src = replace(src, table=leak.corrected(src.table, run, "fit --leak-correct"))
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
         model = _fit_form(form, src, str(run), max_amplification)
     if isinstance(model, TakumaModel):
         refuse_non_finite(model, src.table, str(run))
     model.fitted_on = src.identity
+    model.p0_leak_corrected = leak_correct
+    model.baseline_gap_s = leak.baseline_gap(run, _fit_ids(src.table)) if src.is_run else None
     recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
     return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
+
+
+def _fit_ids(table: Any) -> Any:
+    return table.loc[table["set"].astype(str) == "fit", "trial"] if "set" in table.columns else table["trial"]
+
+
+def leak_handled(model: Any, src: Any, run: Path) -> Any:
+    """The trial source as the model wants it: P0 moved along the leak when it was fitted so (models/leak.py)."""
+    if not getattr(model, "p0_leak_corrected", False):
+        return src
+    return replace(src, table=leak.corrected(src.table, run, "A model fitted on leak-corrected baselines"))
 
 
 # The column each equation is fitted to, named in the refusal of a fit that overflowed.
@@ -229,6 +251,7 @@ def validate(
         run_name=str(run),
     )
     warnings = [w for w in [rig_warning(cap(label), model.fitted_on, str(run), src.identity)] if w]
+    src = leak_handled(model, src, run)
     shared = overlap(model, src)
     if shared:
         n_val = int((src.table["set"].astype(str) == "validation").sum())

@@ -70,6 +70,7 @@ from ....core import idranges
 from ....core.jsontext import dumps_indented
 from ....errors import ModelError
 from . import routes as rt
+from .calibrated import baseline_dict, calibrated_range, check_baseline, check_range
 from .geometry import jacobian
 from .takuma import (
     ANGLE_COLUMNS,
@@ -511,6 +512,10 @@ class PostureModel:
     # Offer the sleeves' friction terms (FRICTION_TERMS) to the torque fit: a fit option; the
     # terms kept are in torque_terms like any other.
     friction: bool = False
+    # The fit trials' span, and how their P0 was taken (models/calibrated.py, models/leak.py).
+    calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
+    p0_leak_corrected: bool = False
+    baseline_gap_s: float | None = None
 
     form = FORM
 
@@ -599,6 +604,7 @@ class PostureModel:
             "torque_rmse_Nm": np.sqrt(np.diag(tq.resid_cov)).tolist(),
         }
         self.source = source
+        self.calibrated_range = calibrated_range(table, set_mask(table, "fit", source))
 
     def _choose_routes(self, table: Any, source: str) -> None:
         """Cross-validate both forms on the fit trials; keep the paper's where it predicts better."""
@@ -897,6 +903,8 @@ class PostureModel:
                 "paper_model": self.paper_model,
                 "paper_variance": self.paper_variance,
                 "blends": self.blends,
+                "calibrated_range": self.calibrated_range,
+                "baseline": baseline_dict(self.p0_leak_corrected, self.baseline_gap_s),
             }
         )
 
@@ -984,6 +992,8 @@ class PostureModel:
         )
         if variance:
             model._paper = TakumaModel.from_dict(d["paper_model"], name=f"{name}'s paper-form part")
+        model.calibrated_range = check_range(d.get("calibrated_range"), name)
+        model.p0_leak_corrected, model.baseline_gap_s = check_baseline(d.get("baseline"), name)
         return model
 
 
