@@ -8,6 +8,8 @@ pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuator
 (``paper``, the paper-scale default, or ``thin``, the earlier soft tuning;
 ``design=thin&ideal=1`` reproduces its frames exactly); ``valves=open`` leaves the valves open to
 the regulator whatever closes them (an operator who forgot, a valve stuck open).
+``script`` is a file of loads and pushes
+the rig acts out on its own clock, the truth kept beside the stream (:mod:`.script`).
 
 This module imports nothing heavy: the experiment's declaration reads :data:`SIM_OPTIONS`.
 """
@@ -65,6 +67,13 @@ def parse_design(text: str) -> str:
     return text
 
 
+def parse_script(text: str) -> Any:
+    """A sim script file's path, read and checked (:mod:`.script`; ValueError when it cannot be)."""
+    from .script import load_script
+
+    return load_script(text)
+
+
 SIM_OPTIONS = {
     "ideal": SimOption(parse_flag, "0|1", "0 or 1"),
     **{name: SimOption(parse_scale, "X", "a number >= 0") for name in SCALES},
@@ -72,6 +81,9 @@ SIM_OPTIONS = {
     "design": SimOption(parse_design, "|".join(DESIGN_NAMES), "one of " + ", ".join(DESIGN_NAMES)),
     "realism": SimOption(parse_realism, "|".join(REALISM_NAMES), "one of " + ", ".join(REALISM_NAMES)),
     "valves": SimOption(parse_valves, "ok|open", "ok or open"),
+    "script": SimOption(
+        parse_script, "FILE", "a sim script file that reads and checks (see the sensing page of the docs)"
+    ),
 }
 
 
@@ -86,6 +98,7 @@ def build_rig(
     design: str | None = None,
     realism: str | None = None,
     valves: bool = False,
+    script: Any = None,
     **scales: float,
 ) -> Any:
     """The McKibben rig with these options (parsed values of :data:`SIM_OPTIONS`; None: the default).
@@ -106,7 +119,7 @@ def build_rig(
     extra = {} if supply is None else {"supply_MPa": supply}
     given: dict[str, Any] = {k: v for k, v in scales.items() if v is not None}
     nonideal = replace(base, **given)
-    return SimRig(
+    rig = SimRig(
         seed=seed,
         noise=noise,
         drift=drift,
@@ -116,3 +129,8 @@ def build_rig(
         valves_open=bool(valves),
         **extra,
     )
+    if script is None:
+        return rig
+    from .scripted import ScriptedRig
+
+    return ScriptedRig(rig, script)
