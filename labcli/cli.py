@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "acquire": ("labcli.commands.acquire", "acquire", "Guide a run at the rig and record it into an HDF5 file."),
     "fit": ("labcli.commands.fit", "fit", "Fit the paper's regression (Eqs. 34-37) to a run's fit trials."),
     "validate": ("labcli.commands.validate", "validate", "Check a fitted model on the validation trials (Figure 7)."),
+    "predict": ("labcli.commands.predict", "predict", "Estimate angles and forces for new data with a fitted model."),
     "classify": (
         "labcli.commands.classify",
         "classify",
