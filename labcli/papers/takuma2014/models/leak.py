@@ -40,15 +40,18 @@ GAP_SAMPLE = 200  # records whose windows give the median gap (a large archive i
 
 
 def _window_time(run: Any, rec: Any, i: int, rid: int, name: str) -> float:
-    """Mean device time (s) of one record's window, NaN when it has none or it cannot be read."""
+    """Mean device time (s) of one record's window, NaN when it has none or it cannot be read.
+
+    Read as a range of the run's raw frames where the run file keeps them so (schema 2), else
+    through the record (as records.py reads the baselines' times for ``labcli inspect``)."""
     try:
         if getattr(run, "version", 1) >= 2 and f"{name}_start" in rec.cols:
             a, b = int(rec.cols[f"{name}_start"][i]), int(rec.cols[f"{name}_stop"][i])
             if a < 0 or b <= a:
                 return math.nan
-            return float(np.mean(run.frames(a, b)["t_s"]))
-        window = run.read(rid)["raw"].get("baseline" if name == "baseline" else "load")
-        return math.nan if window is None or not len(window["t_s"]) else float(np.mean(window["t_s"]))
+            return float(np.mean(run.windows.frames(a, b).t_s))
+        window = run.records.read(rid)["raw"].get("baseline" if name == "baseline" else "load")
+        return math.nan if window is None or not len(window.t_s) else float(np.mean(window.t_s))
     except StoreError:
         return math.nan
 
@@ -57,7 +60,7 @@ def window_times(path: str | Path, ids: Any = None, sample: int | None = None) -
     """Trial id -> (baseline window's, loaded window's mean device time, s), for the trials of a run
     file that have both; ``ids`` limits the trials, ``sample`` takes that many evenly spread."""
     with RunFile.open(path) as run:
-        rec = run.records()
+        rec = run.records.columns()
         order = list(rec.ids)
         pos = {rid: i for i, rid in enumerate(order)}
         want = order if ids is None else [int(t) for t in ids if int(t) in pos]
