@@ -23,6 +23,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "fit": ("labcli.commands.fit", "fit", "Fit the paper's regression (Eqs. 34-37) to a run's fit trials."),
     "validate": ("labcli.commands.validate", "validate", "Check a fitted model on the validation trials (Figure 7)."),
     "predict": ("labcli.commands.predict", "predict", "Estimate angles and forces for new data with a fitted model."),
+    "sense": ("labcli.commands.sense", "sense", "Estimate angles and forces live from a rig's pressures."),
     "classify": (
         "labcli.commands.classify",
         "classify",

@@ -63,6 +63,24 @@ class TakumaSensing:
     def geometry(self) -> dict[str, float]:
         return dict(self.model.geometry)
 
+    def push_hook(self, protocol: Any, plan_path: Any) -> Any:
+        """The settled-load hook that classifies the pushes of a push plan online (:mod:`.pushes`),
+        with ``protocol``'s stiffness bands and settings (ConfigError, TableError in one sentence)."""
+        from .push_plan import load_push_plan
+        from .pushes import PlannedPush, PushClassifier
+
+        plan = load_push_plan(plan_path)
+        pushes = [
+            PlannedPush(
+                str(row["object"]),
+                float(row["R_mm"]) * 1e-3,
+                float(row["d_mm"]) * 1e-3,
+                math.radians(float(row["phi_deg"])) if _given(row.get("phi_deg")) else math.nan,
+            )
+            for row in plan.to_dict("records")
+        ]
+        return PushClassifier.from_protocol(protocol, self.model, pushes)
+
     def predict(self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray) -> Prediction:
         """(n, 4) baselines and pressures (MPa), (n, 2) rest postures (rad): the model's estimate."""
         P0, P, rest = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (P0, P, rest))
@@ -123,6 +141,10 @@ def _beyond(x: np.ndarray, ranges: np.ndarray, least: Any = 0.0) -> np.ndarray:
     lo, hi = ranges[:, 0], ranges[:, 1]
     pad = np.maximum(MARGIN * (hi - lo), least)
     return (x < lo - pad) | (x > hi + pad)
+
+
+def _given(v: Any) -> bool:
+    return v is not None and v != "" and not (isinstance(v, float) and math.isnan(v))
 
 
 def _paper_variances(model: TakumaModel) -> dict[str, float]:
