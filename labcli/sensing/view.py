@@ -32,7 +32,7 @@ def spark(values: Any, width: int) -> str:
     if v.size > width:  # the last value of each of ``width`` equal stretches
         v = v[np.linspace(0, v.size - 1, width).round().astype(int)]
     lo, hi = float(v.min()), float(v.max())
-    k = np.zeros(v.size, dtype=int) if hi - lo <= 0 else np.rint((v - lo) / (hi - lo) * (len(BARS) - 2)).astype(int) + 1
+    k = np.ones(v.size, dtype=int) if hi - lo <= 0 else np.rint((v - lo) / (hi - lo) * (len(BARS) - 2)).astype(int) + 1
     return "".join(BARS[i] for i in k).rjust(width)
 
 
