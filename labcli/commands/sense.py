@@ -44,6 +44,13 @@ from ._options import BAUD, BAUD_HELP, FiniteRange
     help="A push plan: each settled push gives its object's stiffness and category (needs a push --protocol).",
 )
 @click.option(
+    "--record",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    metavar="RUN.h5",
+    help="A new run file: the raw frames, every estimate and every event, committed every second.",
+)
+@click.option(
     "--protocol",
     default=None,
     help="The session's protocol, name or .toml (a push protocol for --classify)  [default: the model's]",
@@ -81,6 +88,7 @@ def sense(
     every: int,
     publish: tuple[str, ...],
     classify: Path | None,
+    record: Path | None,
     protocol: str | None,
     rate: float | None,
     seconds: float | None,
@@ -105,6 +113,7 @@ def sense(
         labcli sense --port sim:// --model run.model.json
         labcli sense --port /dev/ttyUSB0 --model run.model.json --jsonl --every 5
         labcli sense --port sim:// --model run.model.json --publish tcp://127.0.0.1:5555 --jsonl out.jsonl
+        labcli sense --port /dev/ttyUSB0 --model run.model.json --record session.h5 --seconds 600
         labcli sense --port sim:// --model run.model.json --protocol takuma2014-stiffness --classify plan.csv
     """
     from ..sensing.sense import SenseOptions
@@ -112,7 +121,7 @@ def sense(
 
     opts = SenseOptions(
         port=port, model=model_path, protocol=protocol, rate_hz=rate, seconds=seconds, every=every,
-        jsonl=jsonl, publish=publish, classify=classify, timeout=timeout, boot_wait=boot_wait, baud=baud,
+        jsonl=jsonl, publish=publish, classify=classify, record=record, timeout=timeout, boot_wait=boot_wait, baud=baud,
     )  # fmt: skip
     to_stdout = jsonl == "-"
 

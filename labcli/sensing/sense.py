@@ -8,18 +8,19 @@ sentence, raised before the rig streams when it can be known then:
 * a ``protocol`` (the session's, e.g. a push protocol for ``classify``) that describes another
   rig than the model's (another calibration or geometry);
 * a rig whose channels lack one the model reads (:class:`~.inputs.Inputs`);
-* a TCP port in use, a file that cannot be written;
+* a TCP port in use, a file that cannot be written, a ``record`` file that exists already;
 * a stalled or unplugged rig while streaming (the device's own sentences).
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError, ModelError
+from ..errors import ConfigError, ModelError, StoreError
 from .estimator import Estimator
 from .live import LiveSummary, run
 from .model import load_model
@@ -39,6 +40,7 @@ class SenseOptions:
     jsonl: str | None = None  # "-": stdout; a path; None: none
     publish: tuple[str, ...] = ()  # tcp://HOST:PORT
     classify: Path | None = None  # a push plan: pushes classified online
+    record: Path | None = None  # a new run file: frames, estimates and events
     timeout: float = 2.0
     boot_wait: float | None = None
     baud: int = 115200
@@ -83,6 +85,15 @@ def prepare(opts: SenseOptions) -> tuple[Any, Any, Any]:
     return model, protocol, hook
 
 
+def _recorder(opts: SenseOptions, model: Any, protocol: Any, dev: Any) -> Any:
+    from ..core.monitoring import channel_scale
+    from .record import RunRecorder
+
+    assert dev.info is not None and opts.record is not None
+    scale = channel_scale(dev.info.channels, protocol.calibration)
+    return RunRecorder(opts.record, model=model, protocol=protocol, device_info=dev.info, port=opts.port, scale=scale)
+
+
 def open_outputs(opts: SenseOptions, notice: Callable[[str], None]) -> list[Output]:
     """The outputs asked for, opened (a TCP port bound) before the rig is."""
     outputs: list[Output] = []
@@ -116,6 +127,8 @@ def sense(
     if url.startswith("sim://") and "clock=" not in url:
         # A live session wants the simulated rig paced like hardware, not as fast as it is read.
         url += ("&" if "?" in url else "?") + "clock=wall"
+    if opts.record is not None and os.path.lexists(opts.record):
+        raise StoreError(f"{opts.record} already exists; choose a new file name for the session's run file.")
     outputs = open_outputs(opts, notice)
     try:
         with Device.open(
@@ -126,8 +139,19 @@ def sense(
             est = Estimator(
                 model, calibration=protocol.calibration, channels=dev.info.channels, rate_hz=actual, on_settled=hook
             )
-            on_batch = view(est, dev) if view is not None else None
-            summary = run(dev, est, outputs, seconds=opts.seconds, every=opts.every, on_batch=on_batch)
+            recorder = _recorder(opts, model, protocol, dev) if opts.record is not None else None
+            shown = view(est, dev) if view is not None else None
+            try:
+                takers = [f for f in (shown, recorder.take if recorder else None) if f is not None]
+
+                def on_batch(frames: Any, items: list[Any]) -> None:
+                    for take in takers:
+                        take(frames, items)
+
+                summary = run(dev, est, outputs, seconds=opts.seconds, every=opts.every, on_batch=on_batch)
+            finally:
+                if recorder is not None:
+                    recorder.close()  # what came before an error or Ctrl-C is kept too
             summary.rate_hz = actual
             return summary
     finally:

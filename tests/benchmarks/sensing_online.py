@@ -18,10 +18,14 @@ batches of one serial read (50 ms of frames).  Reported, pooled over the seeds:
 * time from a batch's arrival to its estimates (wall and CPU of ``Estimator.update``, median
   and p99) and CPU per frame at ``--rate`` and at 1 kHz (a shorter session on the first
   seed), each beside its baseline in the same run: ``StreamReader.feed`` of the same frames
-  (what reading them costs), one ``predict`` of one row (what validate pays per trial).
+  (what reading them costs), one ``predict`` of one row (what validate pays per trial);
+* from a batch's arrival to its estimates published as JSON lines to a file and to a TCP client
+  (``labcli.sensing.live.run``, what ``labcli sense`` runs), at ``--rate`` and 1 kHz on the
+  first seed, beside one ``predict`` of one row measured in the same run.
 
     python tests/benchmarks/sensing_online.py [--seeds 11-30] [--loads 40] [--idle-min 10]
         [--rate 200] [--rig "friction=2&leak=3"] [--jobs 2] [--fast-seconds 180] [--json out.json]
+        [--figures docs/figures/sensing-online.json]
 
 Tune on seeds 1-10, report on 11-30 (the defaults).  ``--rig`` takes the McKibben rig's own
 ``sim://`` options (the ones ``labcli sim --help`` lists), so the same figures can be measured
@@ -178,6 +182,88 @@ def fast_run(seed: int, a: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+class _BatchDevice:
+    """The scripted rig behind the Device calls labcli.sensing.live.run makes, one link read a batch."""
+
+    def __init__(self, rig: Any, rate_hz: float, batch: int) -> None:
+        self.rig, self.rate_hz, self.batch = rig, rate_hz, batch
+        self.streaming, self.seq = False, 0
+        self.counters: dict[str, int] = {}
+
+    def set_rate(self, hz: float) -> float:
+        return hz
+
+    def start(self) -> None:
+        self.streaming = True
+
+    def stop(self) -> Any:
+        from labcli.core.wire import FrameBatch
+
+        self.streaming = False
+        return FrameBatch.empty(len(self.rig.channels))
+
+    def read(self, timeout: float = 1.0) -> Any:
+        from labcli.core.wire import FrameBatch
+
+        t_us, counts = self.rig.samples(self.batch, self.rate_hz)
+        seq = np.arange(self.seq, self.seq + self.batch, dtype=np.int64)
+        self.seq += self.batch
+        return FrameBatch(seq, t_us, counts.astype(float))
+
+
+def publish_run(seed: int, a: dict[str, Any], rate_hz: float) -> dict[str, Any]:
+    """From a batch's arrival to its estimates published as JSON lines to a file and a TCP client
+    (what ``labcli sense --jsonl FILE --publish tcp://...`` does), through labcli.sensing.live.run;
+    beside it, in the same run, what reading the same frames costs and one predict of one row."""
+    import subprocess
+
+    from labcli.core.protocol import load_protocol
+    from labcli.papers.takuma2014.sensing import TakumaSensing
+    from labcli.papers.takuma2014.sim import scenario as sc
+    from labcli.papers.takuma2014.sim.scripted import ScriptedRig
+    from labcli.sensing import Estimator
+    from labcli.sensing.live import run
+    from labcli.sensing.publish import JsonLines, TcpPublisher
+
+    protocol = load_protocol("takuma2014")
+    opts = rig_options(a["rig"])
+    model = sc.calibrate(protocol, seed, opts)
+    n = max(1, int(a["fast_seconds"] // 36))
+    script = sc.random_script(seed, loads=n, idle_s=0.0)
+    rig = ScriptedRig(sc.build(seed, opts), script, record=False)
+    rig.advance_to(sc.SESSION_START_S)
+    batch = max(1, int(round(0.05 * rate_hz)))  # a read every 50 ms, as Device.read delivers them
+    dev = _BatchDevice(rig, rate_hz, batch)
+    est = Estimator(TakumaSensing(model), calibration=protocol.calibration, channels=rig.channels, rate_hz=rate_hz)
+    pub = TcpPublisher("tcp://127.0.0.1:0")
+    # The subscriber is another process, as a controller is (a thread here would contend for the GIL).
+    code = (
+        "import socket, sys\n"
+        f"s = socket.create_connection(('127.0.0.1', {pub.port}))\n"
+        "n = 0\n"
+        "while chunk := s.recv(1 << 16):\n"
+        "    n += chunk.count(b'\\n')\n"
+        "print(n)\n"
+    )
+    client = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    t_end = time.monotonic() + 30
+    while not pub.clients and time.monotonic() < t_end:
+        pub.poll()
+        time.sleep(0.01)
+    sink = JsonLines(open(os.devnull, "w", encoding="utf-8"), owned=True)  # noqa: SIM115
+    summary = run(dev, est, [sink, pub], seconds=script.end_s - sc.SESSION_START_S)
+    pub.close()
+    sink.close()
+    received = int(client.communicate(timeout=60)[0].strip() or 0)
+    lat = np.asarray(summary.latency_s)
+    return {
+        "rate_hz": rate_hz,
+        "published": summary.published,
+        "received": received,
+        "latency_ms": {"median": 1e3 * float(np.median(lat)), "p99": 1e3 * float(np.percentile(lat, 99))},
+    }
+
+
 def pool(results: list[dict[str, Any]]) -> dict[str, Any]:
     """Pooled figures over the seeds."""
     ch = [c for r in results for c in r["changes"] if c["size_N"] >= 1.0]
@@ -251,6 +337,57 @@ def fast_figures(f: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def figures(
+    p: dict[str, Any], fast: dict[str, Any] | None, published: list[dict[str, Any]], a: dict[str, Any]
+) -> dict[str, Any]:
+    """The flat figures docs/sensing.md quotes (docs/figures/sensing-online.json)."""
+    out: dict[str, Any] = {
+        "seeds": a["seeds"],
+        "loads per seed": a["loads"],
+        "idle min per seed": a["idle_min"],
+        "rate hz": a["rate"],
+        "loads 1N": p["loads_1N"],
+        "found": p["found"],
+        "found pct": 100.0 * p["found"] / p["loads_1N"] if p["loads_1N"] else math.nan,
+        "released": p["released"],
+        "onset latency median s": p["onset_latency_median_s"],
+        "onset latency p90 s": p["onset_latency_p90_s"],
+        "false idle": p["false_idle"],
+        "false all": p["false_all"],
+        "idle min": p["idle_min"],
+        "false per 10min": p["false_per_10min"],
+        "settled loads": p["settled_loads"],
+        "online settle median s": p["online_settle_median_s"],
+        "offline settle median s": p["offline_settle_median_s"],
+        "update wall p99 ms": p["latency_ms"]["wall_p99"],
+        "update wall median ms": p["latency_ms"]["wall_median"],
+        "cpu per frame us": p["cpu_per_frame_us"],
+        "core pct": 100.0 * p["core_share"],
+        "reader cpu per frame us": p["reader_cpu_per_frame_us"],
+        "predict ms": p["predict_ms"],
+    }
+    for q in QUANTITIES:
+        unit, k = SHOWN[q]
+        r = p["settled"][q]
+        out[f"{q} online rmse"] = k * r["online"]
+        out[f"{q} offline rmse"] = k * r["offline"]
+        out[f"{q} rmse ratio"] = r["ratio"]
+        out[f"{q} rmse n"] = r["n"]
+        out[f"{q} coverage pct"] = 100.0 * p["coverage"][q]
+    if fast is not None:
+        f = fast_figures(fast)
+        out["1khz cpu per frame us"] = f["cpu_per_frame_us"]
+        out["1khz core pct"] = 100.0 * f["core_share"]
+        out["1khz reader cpu per frame us"] = f["reader_cpu_per_frame_us"]
+        out["1khz update wall p99 ms"] = f["latency_ms"]["wall_p99"]
+    for pr in published:
+        key = f"publish {pr['rate_hz']:g}hz"
+        out[f"{key} median ms"] = pr["latency_ms"]["median"]
+        out[f"{key} p99 ms"] = pr["latency_ms"]["p99"]
+        out[f"{key} over predict"] = pr["latency_ms"]["p99"] / p["predict_ms"] if p["predict_ms"] else math.nan
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in out.items()}
+
+
 def ok(flag: bool) -> str:
     return "met" if flag else "**not met**"
 
@@ -321,6 +458,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--fast-seconds", type=float, default=180.0, help="device seconds of the 1 kHz session (0: none)")
     ap.add_argument("--json", default=None, help="write every figure (and per load) to this file")
+    ap.add_argument("--figures", default=None, help="write the figures the docs quote (flat JSON) to this file")
     args = ap.parse_args(argv)
     a = {
         "seeds": args.seeds,
@@ -337,9 +475,20 @@ def main(argv: list[str] | None = None) -> None:
     with get_context("spawn").Pool(max(1, args.jobs)) as workers:
         results = workers.map(one_seed, [(s, a) for s in seeds], chunksize=1)
     fast = fast_run(seeds[0], a) if args.fast_seconds > 0 else None
+    published = [publish_run(seeds[0], a, r) for r in (a["rate"], 1000.0)] if args.fast_seconds > 0 else []
     p = pool(results)
     print(report(p, fast, a))
+    for pr in published:
+        print(
+            f"| frame batch read to its estimate published (JSON lines to a file and a TCP client), "
+            f"{pr['rate_hz']:g} Hz | median {pr['latency_ms']['median']:.2f} ms, p99 {pr['latency_ms']['p99']:.2f} ms "
+            f"({pr['published']} estimates, {pr['received']} lines received) | p99 < 2 ms | "
+            f"{ok(pr['latency_ms']['p99'] < 2.0)} |"
+        )
     print(f"\n({time.time() - t0:.0f} s wall)")
+    if args.figures:
+        with open(args.figures, "w", encoding="utf-8") as fh:
+            json.dump(figures(p, fast, published, a), fh, indent=1, default=float)
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
             json.dump(

@@ -25,7 +25,7 @@ class Takuma2014:
     )
     protocol_kinds = PROTOCOL_KINDS
     shipped_protocols = ("takuma2014", "takuma2014-stiffness")
-    run_kinds = ("force", "push")
+    run_kinds = ("force", "push", "sense")
     sim_modes = ("mckibben",)
     default_sim_mode = "mckibben"
     sim_options = SIM_OPTIONS

@@ -46,6 +46,7 @@ class TakumaSensing:
     kinds: tuple[str, ...] = (STATE, STATE, LOAD, LOAD)
     actuators: tuple[str, ...] = ("L1", "R1", "L2", "R2")
     joints: tuple[int, ...] = (1, 2)
+    record_kind = "sense"  # the run kind of a live session's run file (.sense_records)
 
     def __init__(self, model: PostureModel | TakumaModel) -> None:
         if not model.is_fitted:
