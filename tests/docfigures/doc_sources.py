@@ -512,6 +512,13 @@ SOURCES: dict[str, Source] = {
             derive=classify_effects_derived,
         ),
         Source(
+            "sensing-online",
+            "benchmark",
+            "labcli sense's estimator on scripted sessions, held-out seeds 11-20",
+            script="sensing_online.py",
+            runs={"": ("--seeds", "11-20", "--loads", "20", "--idle-min", "5", "--jobs", "1", "--fast-seconds", "120")},
+        ),
+        Source(
             "firmware", "benchmark", "the firmware's highest rate on simavr", script="bench_firmware.py", runs={"": ()}
         ),
         Source(
