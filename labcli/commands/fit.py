@@ -63,6 +63,15 @@ DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol
     help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
     "(repeatable; the run file keeps its own).",
 )
+@click.option(
+    "--force",
+    "force",
+    type=click.Choice(["derived", "paper"]),
+    default=None,
+    help="rPAM runs: the reading of the actuator force (Eqs. 1-3): derived (the cage-held wall's energy and "
+    "the gas's virtual work) or paper (the lumen's free body: cage term + P A0/lambda + Eq. 3) "
+    "[default: the protocol's actuator.force_reading].",
+)
 def fit(
     run: Path,
     output: Path | None,
@@ -73,6 +82,7 @@ def fit(
     plot: Path | None,
     overrides: tuple[str, ...],
     record: bool | None,
+    force: str | None,
 ) -> None:
     """Fit a force model to the fit trials of RUN.
 
@@ -104,6 +114,7 @@ def fit(
             form=form,
             plot=plot,
             overrides=overrides,
+            force=force,
             typed=typed_options("max_amplification", "form"),
             record=record,
         )

@@ -60,6 +60,24 @@ def _seed(ctx: click.Context, param: click.Parameter, value: int | None) -> int 
     metavar="KEY=VALUE",
     help="Override any protocol value, e.g. --set actuator.L0_m=0.08 (repeatable).",
 )
+@click.option(
+    "--force",
+    "force",
+    type=click.Choice(["derived", "paper"]),
+    default=None,
+    help="Reading of the actuator force (Eqs. 1-3): derived (the cage-held wall's energy and the gas's "
+    "virtual work) or paper (the lumen's free body: cage term + P A0/lambda + Eq. 3) "
+    "[default: the protocol's actuator.force_reading].",
+)
+@click.option(
+    "--min-stiffness",
+    "min_stiffness",
+    type=float,
+    default=None,
+    metavar="NM_PER_RAD",
+    help="Least joint stiffness at the balance, N m/rad (default: the protocol's "
+    "optimize.min_stiffness_Nm_per_rad, 0.07).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON on stdout.")
 def optimize(
     protocol: str,
@@ -67,6 +85,8 @@ def optimize(
     pa_kpa: float | None,
     pb_kpa: float | None,
     overrides: tuple[str, ...],
+    force: str | None,
+    min_stiffness: float | None,
     as_json: bool,
 ) -> None:
     """Maximise the joint angle of an rPAM joint over L1, L2, L3 (Section IV, g1-g7).
@@ -82,13 +102,27 @@ def optimize(
     Example:
         labcli optimize --protocol protocols/rpam2015.toml --seed 1
         labcli optimize --pa 110 --pb 41 --set actuator.L0_m=0.08 --json
-        labcli optimize --set optimize.min_stiffness_Nm_per_rad=0.2
+        labcli optimize --force paper --min-stiffness 0.2
     """
     _kpa(pa_kpa, "--pa")
     _kpa(pb_kpa, "--pb")
+    if min_stiffness is not None and not (0 < min_stiffness < float("inf")):
+        # A joint with no stiffness holds nothing; nan compares as neither.
+        raise click.BadParameter(
+            f"{min_stiffness:g} is not a stiffness a joint can hold with; give a number of N m/rad above 0.",
+            param_hint="--min-stiffness",
+        )
     try:
         analysis = for_analysis("optimize", default_protocol=DEFAULT_PROTOCOL).analysis("optimize")
-        result = analysis.run(protocol, seed=seed, pa_kpa=pa_kpa, pb_kpa=pb_kpa, overrides=overrides)
+        result = analysis.run(
+            protocol,
+            seed=seed,
+            pa_kpa=pa_kpa,
+            pb_kpa=pb_kpa,
+            overrides=overrides,
+            force=force,
+            min_stiffness=min_stiffness,
+        )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     analysis.show(result, as_json=as_json)

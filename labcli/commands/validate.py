@@ -60,6 +60,15 @@ DEFAULT_PROTOCOL = "takuma2014"  # what a trial CSV is read with when --protocol
     help="rPAM runs: override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
     "(repeatable; the run file keeps its own).",
 )
+@click.option(
+    "--force",
+    "force",
+    type=click.Choice(["derived", "paper"]),
+    default=None,
+    help="rPAM runs: the reading of the actuator force (Eqs. 1-3): derived (the cage-held wall's energy and "
+    "the gas's virtual work) or paper (the lumen's free body: cage term + P A0/lambda + Eq. 3) "
+    "[default: the protocol's actuator.force_reading].",
+)
 def validate(
     run: Path,
     model_path: Path | None,
@@ -69,6 +78,7 @@ def validate(
     allow_overlap: bool,
     as_json: bool,
     overrides: tuple[str, ...],
+    force: str | None,
 ) -> None:
     """Check a fitted model on the validation trials of RUN (the paper's Figure 7).
 
@@ -98,6 +108,7 @@ def validate(
             plot=plot,
             protocol=protocol,
             overrides=overrides,
+            force=force,
             allow_overlap=allow_overlap,
             typed=typed_options("mode"),
         )

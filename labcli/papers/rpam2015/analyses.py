@@ -94,6 +94,7 @@ def fit(
     overrides: tuple[str, ...] = (),
     typed: frozenset[str] = frozenset(),
     record: bool | None = None,
+    force: str | None = None,
     **_: Any,
 ) -> StretchFitResult:
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
@@ -106,7 +107,7 @@ def fit(
             f"{run} is a joint-map run (kind {kind}); labcli fit fits the stretch correction to a stretch-test "
             "run (labcli acquire --experiment stretch), and labcli validate compares a joint map with the model."
         )
-    stretch = analyse_stretch(table, (where, proto))
+    stretch = analyse_stretch(table, (where, proto), force=force)
     if plot is not None:
         figure_stretch(stretch, plot, source=source_line(run, name or proto_name(proto), out))
     model_name = f"{name or 'rpam'}-stretch"
@@ -178,6 +179,7 @@ def validate(
     plot: Path | None = None,
     overrides: tuple[str, ...] = (),
     typed: frozenset[str] = frozenset(),
+    force: str | None = None,
     **_: Any,
 ) -> JointMapValidation:
     """Compare a joint-map run with the model without and with the stretch correction (Fig. 8).
@@ -203,7 +205,7 @@ def validate(
                 "and without it would agree; fit one to a stretch-test run with labcli fit STRETCH.h5 and pass "
                 "it with --model STRETCH.model.json."
             )
-    result = analyse_joint_map(table, (where, proto), correction)
+    result = analyse_joint_map(table, (where, proto), correction, force=force)
     if plot is not None:
         model = model_path if model_path is not None else "the protocol's stretch correction"
         figure8(result, plot, source=source_line(run, proto_name(proto), model))
@@ -228,14 +230,17 @@ def optimize(
     pb_kpa: float | None = None,
     overrides: tuple[str, ...] = (),
     progress: bool = True,
+    force: str | None = None,
+    min_stiffness: float | None = None,
     **_: Any,
 ) -> Any:
     """Maximise the joint angle over L1, L2, L3 (g1-g7, K_min, the toggle margin); a live line
     on stderr while it runs."""
+    kw = dict(overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa, force=force, min_stiffness=min_stiffness)
     if not progress:
-        return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa)
+        return optimize_protocol(protocol, **kw)  # type: ignore[arg-type]
     with report.optimize_progress() as show:
-        return optimize_protocol(protocol, overrides=overrides, seed=seed, Pa_kPa=pa_kpa, Pb_kPa=pb_kpa, progress=show)
+        return optimize_protocol(protocol, progress=show, **kw)  # type: ignore[arg-type]
 
 
 def show_optimum(result: Any, *, as_json: bool = False) -> None:

@@ -39,6 +39,10 @@ SET_REFUSED = (
     "--set changes rPAM model constants (e.g. --set actuator.L0_m=0.08); a force "
     "run's model is fitted from its trials, so leave --set out."
 )
+FORCE_REFUSED = (
+    "--force chooses the reading of an rPAM actuator's force (derived or paper); a force run's "
+    "muscles are fitted from its trials, so leave --force out."
+)
 
 
 @dataclass
@@ -72,6 +76,7 @@ def fit(
     typed: frozenset[str] = frozenset(),
     record: bool | None = None,
     leak_correct: bool = False,
+    force: str | None = None,
 ) -> FitResult:
     """Fit a force model (``form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it.
 
@@ -81,6 +86,8 @@ def fit(
     """
     if overrides:
         raise ConfigError(SET_REFUSED)
+    if force is not None:
+        raise ConfigError(FORCE_REFUSED)
     if plot is not None:
         raise ConfigError(
             "--plot draws the stretch test (Fig. 6) of an rPAM stretch-test run; "
@@ -234,6 +241,7 @@ def validate(
     overrides: tuple[str, ...] = (),
     allow_overlap: bool = False,
     typed: frozenset[str] = frozenset(),
+    force: str | None = None,
 ) -> ValidationResult:
     """Accuracy of a fitted model on the validation trials of a run file or trial CSV (Figure 7).
 
@@ -242,6 +250,8 @@ def validate(
     """
     if overrides:
         raise ConfigError(SET_REFUSED)
+    if force is not None:
+        raise ConfigError(FORCE_REFUSED)
     src = load_trial_source(run, protocol)
     model, label = model_for_run(run, model_path, src.is_run, src.protocol.name)
     model.check_compatible(
