@@ -505,8 +505,8 @@ CASES: list[Case] = [
         "unknown --set key (optimize)",
         ["optimize", "--set", "actuator.L0_mm=0.08"],
         [
-            "Unknown protocol key 'actuator.L0_mm' in --set; keys under actuator: A0_m2, L0_m, n_turns, "
-            "prestretch, thread_length_m."
+            "Unknown protocol key 'actuator.L0_mm' in --set; keys under actuator: A0_m2, L0_m, force_reading, "
+            "n_turns, prestretch, thread_length_m."
         ],
     ),
     Case(
