@@ -83,7 +83,7 @@ class Records:
         except BaseException:
             undo()
             raise
-        self._written([rid])
+        self._written([int(rid)])
 
     def write_many(self, records: Sequence[Record]) -> None:
         """Write several records of the run's kind, each whole with its windows, in one commit.
@@ -159,9 +159,10 @@ class Records:
         return n
 
     def _written(self, ids: list[int]) -> None:
+        """Note records committed; ``ids`` plain Python ints (an import's million: no conversion one by one)."""
         self._cols = None
-        self._ids().update(int(i) for i in ids)
-        self._recorded().extend(int(i) for i in ids)
+        self._ids().update(ids)
+        self._recorded().extend(ids)
 
     # ------------------------------------------------------------ reading
     def columns(self) -> RecordColumns:
