@@ -9,9 +9,11 @@ float64 and ``seq`` uint32 per frame, as the run file stores them.
 * ``store (fsync)``: ``RunFile.write`` as ``labcli acquire`` uses it: one
   group per trial with its summary datasets and attributes, flush + fsync,
   ``complete`` set, flush + fsync again.
-* ``store (no fsync)``: the same writes with the per-trial flush/fsync off (how
-  ``labcli import`` builds a file), to separate the cost of durability from the
-  cost of the layout.
+* ``store (no fsync)``: the same writes with ``os.fsync`` made a no-op for the run (the
+  flushes stay), to separate the cost of durability from the cost of the layout.  RunFile
+  has no switch for it (every commit syncs twice, by design): the benchmark counts the
+  calls, and prints them, so a row that says "no fsync" cannot quietly be the fsync path
+  (tests/benchmarks/test_bench_options.py holds each option to what it changes).
 * ``plain h5py``: the baseline a first version usually is: four resizable
   datasets in one file, each window appended with ``resize`` and a slice
   write, never flushed until the file is closed (closing is timed).  It does
@@ -25,12 +27,14 @@ measured in the same run on the same disk.  Last, the file size per trial of the
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -92,13 +96,38 @@ def make_records(n_trials: int, n: int, seed: int = 0) -> list[dict]:
     return out
 
 
-def run_store(path: str, records: list[dict], sync: bool) -> float:
-    t0 = time.perf_counter()
-    with RunFile.create(path, protocol=_Protocol(), device_info=_Device(), force=True) as run:
-        run.sync_each_record = sync
-        for rec in records:
-            run.records.write(rec)
-    return time.perf_counter() - t0
+@contextlib.contextmanager
+def fsyncs(enabled: bool) -> Iterator[list[int]]:
+    """Count the calls of ``os.fsync`` (and ``os.fdatasync``) in the block; ``enabled=False`` makes them no-ops."""
+    calls = [0]
+    real = {name: getattr(os, name) for name in ("fsync", "fdatasync") if hasattr(os, name)}
+
+    def counted(name: str) -> Callable[[int], None]:
+        def sync(fd: int) -> None:
+            calls[0] += 1
+            if enabled:
+                real[name](fd)
+
+        return sync
+
+    for name in real:
+        setattr(os, name, counted(name))
+    try:
+        yield calls
+    finally:
+        for name, fn in real.items():
+            setattr(os, name, fn)
+
+
+def run_store(path: str, records: list[dict], sync: bool) -> tuple[float, int]:
+    """Seconds to write ``records`` into a new run file, and the fsyncs made (skipped when not ``sync``)."""
+    with fsyncs(sync) as calls:
+        t0 = time.perf_counter()
+        with RunFile.create(path, protocol=_Protocol(), device_info=_Device(), force=True) as run:
+            for rec in records:
+                run.records.write(rec)
+        seconds = time.perf_counter() - t0
+    return seconds, calls[0]
 
 
 def run_plain(path: str, records: list[dict]) -> float:
@@ -122,6 +151,19 @@ def run_plain(path: str, records: list[dict]) -> float:
     return time.perf_counter() - t0
 
 
+def measure(folder: str, records: list[dict], repeat: int) -> dict[str, float]:
+    """Best seconds of each way over ``repeat`` interleaved rounds, and the fsyncs each store run made."""
+    best = {"sync": math.inf, "nosync": math.inf, "plain": math.inf}
+    made = {"sync": 0, "nosync": 0}
+    for _ in range(repeat):  # interleaved, so that a busy moment on the machine hits all three alike
+        for key, sync in (("sync", True), ("nosync", False)):
+            seconds, calls = run_store(os.path.join(folder, f"{key}.h5"), records, sync)
+            best[key] = min(best[key], seconds)
+            made[key] = calls if sync else 0  # the no-fsync run's calls were skipped
+        best["plain"] = min(best["plain"], run_plain(os.path.join(folder, "plain.h5"), records))
+    return {**best, **{f"fsyncs_{k}": v for k, v in made.items()}}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=60)
@@ -137,23 +179,18 @@ def main() -> None:
     )
     print(
         f"{'frames/window':>13} {'store fsync':>17} {'store no fsync':>17} {'plain h5py':>17} "
-        f"{'fsync/plain':>12} {'fsync/no-fsync':>15} {'ms/trial (fsync)':>17}"
+        f"{'fsync/plain':>12} {'fsync/no-fsync':>15} {'ms/trial (fsync)':>17} {'fsyncs/trial made':>20}"
     )
     sizes: list[tuple[int, float, float]] = []
     try:
         for n in (int(s) for s in args.samples.split(",")):
-            records = make_records(args.trials, n)
+            t = measure(folder, make_records(args.trials, n), args.repeat)
             samples = args.trials * 2 * n * len(CHANNELS)
-            # Interleaved so that a busy moment on the machine hits all three alike.
-            t_sync = t_nosync = t_plain = math.inf
-            for _ in range(args.repeat):
-                t_sync = min(t_sync, run_store(os.path.join(folder, "sync.h5"), records, True))
-                t_nosync = min(t_nosync, run_store(os.path.join(folder, "nosync.h5"), records, False))
-                t_plain = min(t_plain, run_plain(os.path.join(folder, "plain.h5"), records))
-            rate = [samples / t for t in (t_sync, t_nosync, t_plain)]
+            rate = [samples / t[k] for k in ("sync", "nosync", "plain")]
             print(
                 f"{n:>13} {rate[0]:>11.3g} smp/s {rate[1]:>11.3g} smp/s {rate[2]:>11.3g} smp/s "
-                f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t_sync / args.trials * 1e3:>14.1f} ms"
+                f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t['sync'] / args.trials * 1e3:>14.1f} ms "
+                f"{t['fsyncs_sync'] / args.trials:>8.1f} vs {t['fsyncs_nosync'] / args.trials:.1f}"
             )
             sizes.append(
                 (n, *(os.path.getsize(os.path.join(folder, f)) / args.trials for f in ("sync.h5", "plain.h5")))

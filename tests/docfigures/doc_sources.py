@@ -608,5 +608,19 @@ SOURCES: dict[str, Source] = {
             script="bench_firmware_model.py",
             runs={"": ()},
         ),
+        Source(
+            "tables",
+            "benchmark",
+            "fit, validate and import of trial CSVs of 10^4 to 10^6 rows beside pandas + numpy and bare h5py",
+            script="bench_tables.py",
+            runs={"": ("--sizes", "1e4,1e5,1e6", "--repeat", "5")},
+        ),
+        Source(
+            "classify-report",
+            "benchmark",
+            "classify --json on an archive of 10^5 pushes beside a pandas groupby",
+            script="bench_classify_report.py",
+            runs={"": ("--sizes", "1e5", "--repeat", "5")},
+        ),
     )
 }
