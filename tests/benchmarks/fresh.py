@@ -11,7 +11,9 @@ Every figure of ``bench_tables.py`` and ``bench_classify_report.py`` comes from 
   ``ru_maxrss`` of a child starts from the parent's peak);
 * labcli and its baseline alternate, round after round, the order flipping every round, so a
   busy moment lands on both; each figure is the median of the rounds, and the spread of the
-  per-round CPU ratios is printed beside it as the noise.
+  per-round CPU ratios is printed beside it as the noise;
+* each side runs once untimed before the rounds, so both read cached bytecode and a warm page
+  cache (``PYTHONDONTWRITEBYTECODE`` is dropped for the children: see ``UNSET``).
 """
 
 from __future__ import annotations
@@ -30,6 +32,11 @@ from pathlib import Path
 # Both sides run numpy's BLAS on one thread: idle-spinning BLAS threads on a loaded machine
 # made least-squares timings jump tenfold between runs (tests/benchmarks/README.md).
 ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "COLUMNS": "100"}
+# Both sides read their modules' cached bytecode, as any installed package does: numpy and pandas
+# come compiled, and labcli's own caches on its first run (the untimed warm-up).  A shell with
+# PYTHONDONTWRITEBYTECODE set would make labcli compile its 20,000 lines in every process, 0.4 s
+# of CPU no user pays twice.
+UNSET = ("PYTHONDONTWRITEBYTECODE",)
 
 # The child reports its own VmHWM at exit, then runs the script (or ``-m module``) it was given.
 _WRAPPER = """
@@ -67,7 +74,7 @@ def fresh(argv: Sequence[str], cwd: str | os.PathLike | None = None) -> Run:
             stdout=null,
             stderr=subprocess.PIPE,
             text=True,
-            env={**os.environ, **ENV},
+            env={**{k: v for k, v in os.environ.items() if k not in UNSET}, **ENV},
             cwd=cwd,
         )
     wall = time.perf_counter() - t0
@@ -118,8 +125,13 @@ class Pair:
 def interleaved(
     name: str, repeat: int, mine: Sequence[str], base: Sequence[str], cwd: str | os.PathLike | None = None
 ) -> Pair:
-    """``repeat`` rounds of labcli (``mine``) and its baseline (``base``), the order flipping every round."""
+    """``repeat`` rounds of labcli (``mine``) and its baseline (``base``), the order flipping every round.
+
+    Each side runs once untimed first: bytecode written, files in the page cache, for both alike.
+    """
     pair = Pair(name)
+    fresh(mine, cwd)
+    fresh(base, cwd)
     for k in range(repeat):
         if k % 2 == 0:
             pair.mine.append(fresh(mine, cwd))

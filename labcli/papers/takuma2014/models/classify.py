@@ -778,46 +778,55 @@ def push_lines(report: ClassifyReport, chunk: int = 10_000) -> Iterator[list[str
     fields = _line_fields(df)
     template = "{" + ", ".join(f"{json.dumps(key)}: %s" for key, _ in fields) + "}"
     for start in range(0, len(df), chunk):
-        part = df.iloc[start : start + chunk]
+        stop = min(start + chunk, len(df))
         try:
-            columns = [convert(part) for _, convert in fields]
+            columns = [convert(start, stop) for _, convert in fields]
         except OverflowError:
-            yield [json.dumps(item, allow_nan=False) for item in _chunk_items(part)]
+            yield [json.dumps(item, allow_nan=False) for item in _chunk_items(df.iloc[start:stop])]
             continue
         yield [template % values for values in zip(*columns, strict=True)]
 
 
-def _line_fields(df: Any) -> list[tuple[str, Callable[[Any], list[str]]]]:
-    """The keys of a push item in order, each with the JSON texts of its values for a chunk of rows."""
+Converter = Callable[[int, int], list[str]]  # rows [start, stop) of a column as JSON texts
 
-    def ints(col: str) -> Callable[[Any], list[str]]:
-        return lambda part: list(map(str, map(int, part[col].tolist())))
 
-    def flags(col: str) -> Callable[[Any], list[str]]:
-        return lambda part: ["true" if v else "false" for v in part[col].tolist()]
+def _line_fields(df: Any) -> list[tuple[str, Converter]]:
+    """The keys of a push item in order, each with the JSON texts of its values for rows [start, stop).
 
-    def texts(col: str, given: bool = False) -> Callable[[Any], list[str]]:
-        def convert(part: Any) -> list[str]:
-            if col not in part.columns:
-                return ['""'] * len(part)
-            codes, uniques = _factorize(part[col])
-            words = [json.dumps((v if isinstance(v, str) else "") if given else str(v)) for v in uniques]
-            return [words[c] for c in codes.tolist()]
+    The columns are taken once, as arrays (views of the frame's own), and cut per chunk.
+    """
 
-        return convert
+    def ints(col: str) -> Converter:
+        values = df[col].to_numpy()
+        return lambda a, b: list(map(str, map(int, values[a:b].tolist())))
 
-    def numbers(col: str, scale: float = 1.0) -> Callable[[Any], list[str]]:
-        def convert(part: Any) -> list[str]:
-            if col not in part.columns:
-                return ["null"] * len(part)
-            v = np.asarray(part[col], dtype=float)
+    def flags(col: str) -> Converter:
+        words = np.array(["false", "true"], dtype=object)
+        values = df[col].to_numpy()
+        return lambda a, b: words[np.asarray([bool(v) for v in values[a:b].tolist()], dtype=np.intp)].tolist()
+
+    def texts(col: str, given: bool = False) -> Converter:
+        if col not in df.columns:
+            return lambda a, b: ['""'] * (b - a)
+        codes, uniques = _factorize(df[col])
+        words = np.array(
+            [json.dumps((v if isinstance(v, str) else "") if given else str(v)) for v in uniques], dtype=object
+        )
+        return lambda a, b: words[codes[a:b]].tolist()
+
+    def numbers(col: str, scale: float = 1.0) -> Converter:
+        if col not in df.columns:
+            return lambda a, b: ["null"] * (b - a)
+        values = np.asarray(df[col], dtype=float)
+
+        def convert(a: int, b: int) -> list[str]:
+            v = values[a:b]
             finite = np.isfinite(v)
             with np.errstate(over="ignore"):
                 scaled = v * scale
             if not np.all(np.isfinite(scaled[finite])):
                 raise OverflowError(col)
-            # json's own C encoder prints each float (its repr) in one call; NaN and inf become null.
-            texts = json.dumps(scaled.tolist())[1:-1].split(", ") if len(v) else []
+            texts = list(map(float.__repr__, scaled.tolist()))  # json's own text of a float
             for i in np.flatnonzero(~finite).tolist():
                 texts[i] = "null"
             return texts
