@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import math
 import os
 import shutil
@@ -170,7 +171,9 @@ def main() -> None:
     ap.add_argument("--samples", default="400,4000", help="frames per window, comma-separated")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--dir", default=None, help="where to write (default: a temporary folder)")
+    ap.add_argument("--figures", default=None, help="write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
+    figures: dict[str, float | int | str] = {"trials": args.trials, "best of": args.repeat}
     folder = args.dir or tempfile.mkdtemp(prefix="bench_store_")
     os.makedirs(folder, exist_ok=True)
     print(
@@ -195,6 +198,11 @@ def main() -> None:
             sizes.append(
                 (n, *(os.path.getsize(os.path.join(folder, f)) / args.trials for f in ("sync.h5", "plain.h5")))
             )
+            for key, what in (("sync", "fsync"), ("nosync", "no fsync"), ("plain", "plain h5py")):
+                figures[f"{n} frames {what} ms per trial"] = round(t[key] / args.trials * 1e3, 3)
+            figures[f"{n} frames fsyncs per trial"] = t["fsyncs_sync"] / args.trials
+            figures[f"{n} frames no fsync fsyncs per trial"] = t["fsyncs_nosync"] / args.trials
+            figures[f"{n} frames fsync over no fsync"] = round(t["sync"] / t["nosync"], 3)
         for n, run_b, plain_b in sizes:
             # The frames' own bytes: time f8, seq u4, counts i4 x 6, values f8 x 6, two windows a trial.
             data_b = 2 * n * (8 + 4 + 4 * len(CHANNELS) + 8 * len(CHANNELS))
@@ -206,6 +214,8 @@ def main() -> None:
         if args.dir is None:
             shutil.rmtree(folder, ignore_errors=True)
     print("A 200 Hz rig produces 1200 samples/s (6 channels).")
+    if args.figures:
+        Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n")
 
 
 if __name__ == "__main__":

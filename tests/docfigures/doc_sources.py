@@ -616,6 +616,13 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--sizes", "1e4,1e5,1e6", "--repeat", "5")},
         ),
         Source(
+            "store",
+            "benchmark",
+            "trials into the run file with fsync, with os.fsync made a no-op, and bare h5py appends",
+            script="bench_store.py",
+            runs={"": ("--trials", "30", "--samples", "400,4000", "--repeat", "3")},
+        ),
+        Source(
             "classify-report",
             "benchmark",
             "classify --json on an archive of 10^5 pushes beside a pandas groupby",
