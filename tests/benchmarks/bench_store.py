@@ -44,6 +44,7 @@ import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 
 from labcli.core.store import RunFile  # noqa: E402
+from labcli.core.window import Window  # noqa: E402
 
 CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
 
@@ -73,14 +74,9 @@ def make_records(n_trials: int, n: int, seed: int = 0) -> list[dict]:
     for i in range(n_trials):
         raw = {}
         for w, key in enumerate(("baseline", "load")):
-            counts = rng.integers(0, 4096, size=(n, 6)).astype(np.float64)
-            t_us = (np.arange(n, dtype=np.int64) + (2 * i + w) * n) * 5000
-            raw[key] = {
-                "seq": np.arange(n, dtype=np.int64) + (2 * i + w) * n,
-                "t_us": t_us,
-                "counts": counts,
-                "si": _Protocol.calibration.to_si(counts),
-            }
+            counts = rng.integers(0, 4096, size=(n, 6), dtype=np.int64)
+            seq = np.arange(n, dtype=np.int64) + (2 * i + w) * n
+            raw[key] = Window.of(seq, counts, _Protocol.calibration.to_si(counts), t_us=seq * 5000)
         out.append(
             {
                 "trial": i,

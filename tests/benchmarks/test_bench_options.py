@@ -60,9 +60,7 @@ def test_the_no_fsync_row_reaches_no_disk_and_the_fsync_row_does(tmp_path: Path,
     for name in ("sync.h5", "nosync.h5"):  # and both wrote the same trials and frames
         with RunFile.open(tmp_path / name) as run:
             assert run.records.ids() == [0, 1, 2]
-            np.testing.assert_array_equal(
-                run.records.read(2)["raw"]["load"]["counts"], records[2]["raw"]["load"]["counts"]
-            )
+            np.testing.assert_array_equal(run.records.read(2)["raw"]["load"].counts, records[2]["raw"]["load"].counts)
 
 
 def test_the_store_rows_frames_and_trials_are_the_options(tmp_path: Path) -> None:
@@ -70,7 +68,7 @@ def test_the_store_rows_frames_and_trials_are_the_options(tmp_path: Path) -> Non
     t = store.measure(str(tmp_path), store.make_records(2, 30), repeat=1)
     assert t["fsyncs_sync"] >= 4 and t["fsyncs_nosync"] == 0
     with RunFile.open(tmp_path / "sync.h5") as run:
-        assert run.records.ids() == [0, 1] and run.records.read(1)["raw"]["baseline"]["counts"].shape == (30, 6)
+        assert run.records.ids() == [0, 1] and run.records.read(1)["raw"]["baseline"].counts.shape == (30, 6)
     with h5py.File(tmp_path / "plain.h5") as f:
         assert f["counts"].shape == (2 * 2 * 30, 6)
 
