@@ -14,6 +14,9 @@ float64 and ``seq`` uint32 per frame, as the run file stores them.
   has no switch for it (every commit syncs twice, by design): the benchmark counts the
   calls, and prints them, so a row that says "no fsync" cannot quietly be the fsync path
   (tests/benchmarks/test_bench_options.py holds each option to what it changes).
+* ``bare h5py, same filters, one fsync per trial``: the independent baseline of the write path
+  (the same four arrays, the run file's gzip 4, shuffle, Fletcher32 and chunk length, each
+  trial appended and then flushed and fsynced once); the run file is quoted as a ratio to it.
 * ``plain h5py``: the baseline a first version usually is: four resizable
   datasets in one file, each window appended with ``resize`` and a slice
   write, never flushed until the file is closed (closing is timed).  It does
@@ -148,9 +151,46 @@ def run_plain(path: str, records: list[dict]) -> float:
     return time.perf_counter() - t0
 
 
+# The run file's own filters, written out here so that the baseline imports nothing of labcli.
+FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}
+
+
+def run_durable(path: str, records: list[dict], chunk: int) -> float:
+    """Bare h5py as a careful user writes a crash-safe log: the same four arrays as ``plain``, with
+    the run file's filters and chunk length, each trial's two windows appended, then one flush and
+    one fsync per trial.  What a trial's durability costs at the least, with no layout of labcli's."""
+    t0 = time.perf_counter()
+    with h5py.File(path, "w") as f:
+        shapes = {"time": ((), "f8"), "counts": ((6,), "i4"), "values": ((6,), "f8"), "seq": ((), "u4")}
+        ds = {
+            k: f.create_dataset(k, shape=(0, *s), maxshape=(None, *s), dtype=t, chunks=(chunk, *s), **FILTERS)
+            for k, (s, t) in shapes.items()
+        }
+        end = 0
+        for rec in records:
+            for w in rec["raw"].values():
+                n = len(w.seq)
+                for d in ds.values():
+                    d.resize(end + n, axis=0)
+                ds["time"][end : end + n] = w.t_us * 1e-6
+                ds["counts"][end : end + n] = w.counts.astype(np.int32)
+                ds["values"][end : end + n] = w.si
+                ds["seq"][end : end + n] = w.seq.astype(np.uint32)
+                end += n
+            f.flush()
+            os.fsync(f.id.get_vfd_handle())
+    return time.perf_counter() - t0
+
+
+def chunk_of(frames_per_window: int) -> int:
+    """The run file's chunk length for windows of this many frames (a power of two, 64 to 4096)."""
+    return int(min(4096, max(64, 2 ** math.ceil(math.log2(max(1, frames_per_window))))))
+
+
 def measure(folder: str, records: list[dict], repeat: int) -> dict[str, float]:
     """Best seconds of each way over ``repeat`` interleaved rounds, and the fsyncs each store run made."""
-    best = {"sync": math.inf, "nosync": math.inf, "plain": math.inf}
+    best = {"sync": math.inf, "nosync": math.inf, "plain": math.inf, "durable": math.inf}
+    chunk = chunk_of(len(next(iter(records[0]["raw"].values())).seq))
     made = {"sync": 0, "nosync": 0}
     for _ in range(repeat):  # interleaved, so that a busy moment on the machine hits all three alike
         for key, sync in (("sync", True), ("nosync", False)):
@@ -158,6 +198,7 @@ def measure(folder: str, records: list[dict], repeat: int) -> dict[str, float]:
             best[key] = min(best[key], seconds)
             made[key] = calls if sync else 0  # the no-fsync run's calls were skipped
         best["plain"] = min(best["plain"], run_plain(os.path.join(folder, "plain.h5"), records))
+        best["durable"] = min(best["durable"], run_durable(os.path.join(folder, "durable.h5"), records, chunk))
     return {**best, **{f"fsyncs_{k}": v for k, v in made.items()}}
 
 
@@ -194,6 +235,13 @@ def main() -> None:
             sizes.append(
                 (n, *(os.path.getsize(os.path.join(folder, f)) / args.trials for f in ("sync.h5", "plain.h5")))
             )
+            print(
+                f"{'':>13} bare h5py, same filters and chunks, one fsync per trial: "
+                f"{t['durable'] / args.trials * 1e3:.2f} ms/trial; the run file takes "
+                f"{t['sync'] / t['durable']:.2f}x its time"
+            )
+            figures[f"{n} frames durable h5py ms per trial"] = round(t["durable"] / args.trials * 1e3, 3)
+            figures[f"{n} frames fsync over durable h5py"] = round(t["sync"] / t["durable"], 3)
             for key, what in (("sync", "fsync"), ("nosync", "no fsync"), ("plain", "plain h5py")):
                 figures[f"{n} frames {what} ms per trial"] = round(t[key] / args.trials * 1e3, 3)
             figures[f"{n} frames fsyncs per trial"] = t["fsyncs_sync"] / args.trials

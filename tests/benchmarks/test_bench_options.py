@@ -71,6 +71,18 @@ def test_the_store_rows_frames_and_trials_are_the_options(tmp_path: Path) -> Non
         assert run.records.ids() == [0, 1] and run.records.read(1)["raw"]["baseline"].counts.shape == (30, 6)
     with h5py.File(tmp_path / "plain.h5") as f:
         assert f["counts"].shape == (2 * 2 * 30, 6)
+    with h5py.File(tmp_path / "durable.h5") as f:  # the baseline holds the same frames, filtered as the run file
+        assert f["counts"].shape == (2 * 2 * 30, 6) and f["counts"].fletcher32 and f["counts"].compression == "gzip"
+        assert f["counts"].chunks == (64, 6)
+    assert t["durable"] > 0
+
+
+def test_the_durable_baseline_syncs_once_per_trial(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    store = bench("bench_store")
+    disk: list[int] = []
+    monkeypatch.setattr(os, "fsync", disk.append)
+    store.run_durable(str(tmp_path / "d.h5"), store.make_records(5, 20), store.chunk_of(20))
+    assert len(disk) == 5
 
 
 # --------------------------------------------------------------------------- bench_tables
