@@ -62,7 +62,7 @@ def test_the_catalogue_lists_every_run_and_changes_nothing(lab):
     assert (force["kind"], force["protocol"], force["rig"], force["status"]) == (
         "force",
         "takuma2014",
-        "mckibben-2dof-sim 1.0",
+        "mckibben-2dof-sim 1.1",
         "ok",
     )
     assert (force["complete"], force["planned"], force["models"]) == (108, 108, ["takuma2014"])
