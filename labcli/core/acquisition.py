@@ -25,6 +25,7 @@ from typing import Any
 from ..errors import ConfigError, DeviceError, StoreError
 from .device import Device
 from .engine import SILENT_S, NewRun, Outcome, RunEngine
+from .files import check_not_input
 from .paper import AcquireOptions
 from .protocol import load_protocol, loads_protocol
 from .registry import record_type, run_protocol
@@ -227,6 +228,7 @@ def acquire(
     """
     path = str(path)
     _check_options(resume, force, plan, no_plan)
+    check_not_input(path, (plan, protocol), "the run to ")  # --force replaces an earlier run, never an input
     options = AcquireOptions(path, plan=plan, no_plan=no_plan, experiment=experiment, unattended=unattended)
     link = Link(port, baud, device_timeout)
     existing: RunFile | None = None

@@ -73,16 +73,16 @@ def model_text(run: str | Path, explicit: str | Path | None, is_run: bool, name:
     return None, str(side)
 
 
-def check_fit_paths(run: str | Path, output: str | Path) -> None:
+def check_fit_paths(run: str | Path, output: str | Path, protocol: str | None = None) -> None:
     """Refuse, before fitting, what would stop the model being saved or would destroy data.
 
     A run another labcli process is writing is refused in the lock's one sentence (rather
     than fitted on the trials it has so far, and refused at the end); the model file may not
-    land on the input, on any other run file, or on anything but a regular file.
+    land on an input (the run or table, a protocol given as a file), on any other run file, or on anything but a regular file.
     """
     if space.writer_holds(str(run)):
         raise StoreError(f"{run} {space.BUSY}.")
-    check_output(output, inputs=(run,), what="the model to ")
+    check_output(output, inputs=(run, protocol), what="the model to ")
 
 
 def save_model(

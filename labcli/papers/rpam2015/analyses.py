@@ -100,7 +100,7 @@ def fit(
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
     check_force_only_options(typed, "max_amplification", "form")
     out, keep = model_destination(run, output, record, True)
-    check_fit_paths(run, out)
+    check_fit_paths(run, out, protocol)
     kind, table, proto, name, where = _read_run(run, protocol, overrides)
     if kind != "rpam-stretch":
         raise ConfigError(

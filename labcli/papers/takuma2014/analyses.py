@@ -102,7 +102,7 @@ def fit(
         )
     src = load_trial_source(run, protocol)
     out_path, keep = model_destination(run, output, record, src.is_run)
-    check_fit_paths(run, out_path)
+    check_fit_paths(run, out_path, protocol)
     if leak_correct:
         src = replace(src, table=leak.corrected(src.table, run, "fit --leak-correct"))
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
