@@ -100,9 +100,10 @@ def fit(
             "--max-amplification is the paper form's cut near theta2 = 0; the posture form "
             "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out."
         )
+    # Before the inputs are read: an output that is one of them is refused whatever else is wrong.
+    check_fit_paths(run, Path(output) if output is not None else default_model_path(run), protocol)
     src = load_trial_source(run, protocol)
     out_path, keep = model_destination(run, output, record, src.is_run)
-    check_fit_paths(run, out_path, protocol)
     if leak_correct:
         src = replace(src, table=leak.corrected(src.table, run, "fit --leak-correct"))
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
