@@ -78,11 +78,12 @@ def _protocol_name(arg: str) -> str:
     return Path(arg).stem if arg.endswith(".toml") else arg
 
 
-def _check_options(resume: bool, force: bool, plan: Any, no_plan: bool) -> None:
+def _check_options(path: str, resume: bool, force: bool, plan: Any, no_plan: bool, protocol: str | None) -> None:
     if resume and force:
         raise ConfigError("--resume continues a run and --force overwrites it: give one of them, not both.")
     if plan is not None and no_plan:
         raise ConfigError("--plan and --no-plan contradict each other: give one of them.")
+    check_not_input(path, (plan, protocol), "the run to ")  # --force replaces an earlier run, never an input
 
 
 def same_plan(a: Any, b: Any) -> bool:
@@ -227,8 +228,7 @@ def acquire(
     person at the rig can fix; returns the :class:`Outcome` otherwise.
     """
     path = str(path)
-    _check_options(resume, force, plan, no_plan)
-    check_not_input(path, (plan, protocol), "the run to ")  # --force replaces an earlier run, never an input
+    _check_options(path, resume, force, plan, no_plan, protocol)
     options = AcquireOptions(path, plan=plan, no_plan=no_plan, experiment=experiment, unattended=unattended)
     link = Link(port, baud, device_timeout)
     existing: RunFile | None = None
