@@ -35,3 +35,21 @@ FINITE = FiniteRange()  # any finite number
 # The serial link's speed: the wire protocol's default, and what USB-serial bridges offer.
 BAUD = click.IntRange(50, 12_000_000)
 BAUD_HELP = "Serial speed of the rig's link, bits per second  [default: 115200, the wire protocol's]"
+
+
+def streaming_link_options(f: Any) -> Any:
+    """--timeout, --boot-wait and --baud, as every command that streams from a rig spells them."""
+    f = click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)(f)
+    f = click.option(
+        "--boot-wait",
+        type=FiniteRange(min=0),
+        default=None,
+        help="Extra seconds for a board that resets when the port opens  [default: 2 for serial ports, 0 for URLs]",
+    )(f)
+    return click.option(
+        "--timeout",
+        type=FiniteRange(min=0, min_open=True),
+        default=2.0,
+        show_default=True,
+        help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.",
+    )(f)

@@ -9,7 +9,7 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
-from ._options import BAUD, BAUD_HELP, FiniteRange
+from ._options import FiniteRange, streaming_link_options
 
 
 def _reading(value: float, unit: str, extra_digits: int = 0) -> str:
@@ -92,20 +92,7 @@ def _std_display(scale: Any, mean: Any, std: Any) -> Any:
     show_default=True,
     help="Protocol name or .toml file whose calibration converts counts to MPa and rad.",
 )
-@click.option(
-    "--timeout",
-    type=FiniteRange(min=0, min_open=True),
-    default=2.0,
-    show_default=True,
-    help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.",
-)
-@click.option(
-    "--boot-wait",
-    type=FiniteRange(min=0),
-    default=None,
-    help="Extra seconds for a board that resets when the port opens  [default: 2 for serial ports, 0 for URLs]",
-)
-@click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)
+@streaming_link_options
 @click.option(
     "--window",
     "window_s",

@@ -9,7 +9,7 @@ from typing import Any
 import click
 
 from ..errors import LabcliError
-from ._options import BAUD, BAUD_HELP, FiniteRange
+from ._options import FiniteRange, streaming_link_options
 
 
 @click.command("sense")
@@ -67,20 +67,7 @@ from ._options import BAUD, BAUD_HELP, FiniteRange
     default=None,
     help="Stop after this many seconds of the rig's clock  [default: run until Ctrl-C]",
 )
-@click.option(
-    "--timeout",
-    type=FiniteRange(min=0, min_open=True),
-    default=2.0,
-    show_default=True,
-    help="Seconds to wait for the rig's answers, and of silence tolerated while streaming.",
-)
-@click.option(
-    "--boot-wait",
-    type=FiniteRange(min=0),
-    default=None,
-    help="Extra seconds for a board that resets when the port opens  [default: 2 for serial ports, 0 for URLs]",
-)
-@click.option("--baud", type=BAUD, default=115200, help=BAUD_HELP)
+@streaming_link_options
 def sense(
     port: str,
     model_path: Path,
