@@ -46,7 +46,7 @@ def note(run: str, text: str | None, record: int | None) -> None:
         click.echo(f"{run}: note on {about} kept ({added['time']}).")
         return
     if not notes:
-        click.echo(f"{run} has no notes; add one with: labcli note {run} \"...\"")
+        click.echo(f'{run} has no notes; add one with: labcli note {run} "..."')
     for n in notes:
         about = "run" if n["record"] is None else f"{noun} {n['record']}"
         click.echo(f"{n['time']}  {about}: {n['text']}")
