@@ -22,6 +22,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "acquire": ("labcli.commands.acquire", "acquire", "Guide a run at the rig and record it into an HDF5 file."),
     "fit": ("labcli.commands.fit", "fit", "Fit the paper's regression (Eqs. 34-37) to a run's fit trials."),
     "validate": ("labcli.commands.validate", "validate", "Check a fitted model on the validation trials (Figure 7)."),
+    "predict": ("labcli.commands.predict", "predict", "Estimate angles and forces for new data with a fitted model."),
+    "sense": ("labcli.commands.sense", "sense", "Estimate angles and forces live from a rig's pressures."),
     "classify": (
         "labcli.commands.classify",
         "classify",
@@ -30,6 +32,12 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "optimize": ("labcli.commands.optimize", "optimize", "Optimise an rPAM joint's link lengths for joint travel."),
     "split": ("labcli.commands.split", "split", "Assign a run's trials to the fit and validation sets."),
     "inspect": ("labcli.commands.inspect", "inspect", "Summarise a run file: trials, split, completeness, drift."),
+    "runs": (
+        "labcli.commands.runs",
+        "runs",
+        "List the run files under a folder: uid, protocol, rig, trials, split, status.",
+    ),
+    "note": ("labcli.commands.note", "note", "Keep a note about a run or one of its trials in the run file."),
     "export": ("labcli.commands.export", "export", "Write a run's trial or push table as CSV."),
     "import": ("labcli.commands.import_", "import_", "Build a run file from a trial or push CSV table."),
     "monitor": ("labcli.commands.monitor", "monitor", "Show live calibrated readings and link statistics."),

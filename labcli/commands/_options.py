@@ -54,3 +54,14 @@ def port_options(f: F) -> F:
 def seed_option(help: str) -> Callable[[F], F]:
     """``--seed`` of the simulated rig, defaulting to :data:`SEED` (``labcli sim`` and ``labcli demo``)."""
     return click.option("--seed", type=click.IntRange(min=0), default=SEED, show_default=True, help=help)
+
+
+def streaming_link_options(f: F) -> F:
+    """:func:`port_options` and ``--boot-wait``, as every command that streams from a rig spells them."""
+    f = click.option(
+        "--boot-wait",
+        type=FiniteRange(min=0),
+        default=None,
+        help="Extra seconds for a board that resets when the port opens  [default: 2 for serial ports, 0 for URLs]",
+    )(f)
+    return port_options(f)

@@ -23,7 +23,7 @@ from ._options import FiniteRange, port_options
     help="Plan CSV (trial,set,mass_g,direction_deg)  [default: the protocol's plan]",
 )
 @click.option("--no-plan", is_flag=True, help="Type each weight and direction at the rig instead.")
-@click.option("--operator", default="", help="Who runs the rig (stored in the file).")
+@click.option("--operator", default="", help="Who runs the rig, stored in the file  [default: a resumed run's own]")
 @click.option("--resume", is_flag=True, help="Continue RUN.h5 at its first trial not yet complete.")
 @click.option("--force", is_flag=True, help="Overwrite RUN.h5 if it exists.")
 @click.option("--unattended", is_flag=True, help="Simulated rig only: act out every prompt and accept every trial.")

@@ -27,7 +27,8 @@ def export(run: str, output: str, fmt: str | None) -> None:
     """Write RUN's table as CSV: trials, pushes for a push run, points for an rPAM run.
 
     Pressures in MPa, forces in N, angles in degrees, masses in grams; the
-    ``set`` column comes from the run's split.  ``labcli import`` reads the
+    ``set`` column comes from the run's split, a ``note`` column from the notes
+    on its trials (``labcli note``), when there are any.  ``labcli import`` reads the
     file back, and exporting the imported run gives the same bytes.
 
     Beside a CSV goes OUTPUT.json, its description in the Frictionless Table
@@ -55,6 +56,7 @@ def export(run: str, output: str, fmt: str | None) -> None:
     from ..core import table_meta  # heavy: when the command runs, not for --help
     from ..core.files import check_output
     from ..core.store import RunFile
+    from ..core.store.notes import with_notes
     from ..core.table_meta import SIDECAR_SUFFIX
 
     parquet = fmt == "parquet" or (fmt is None and output.lower().endswith((".parquet", ".pq")))
@@ -65,6 +67,7 @@ def export(run: str, output: str, fmt: str | None) -> None:
         with RunFile.open(run) as rf:
             records, df = rf.record_type, rf.records.table()
             table_meta.describe(df, records.table_spec, table_meta.provenance(rf.attrs, run))
+            with_notes(df, records.id_column, rf.notes.all())
         if parquet:
             table_meta.write_parquet(df, output)
         else:

@@ -7,6 +7,7 @@ import json
 import click
 
 from ..core.report import format_run_summary
+from ..core.words import count
 from ..errors import LabcliError
 
 
@@ -65,7 +66,7 @@ def _print_verify(run: str, report: dict, records, as_json: bool) -> None:
     if problems:
         raise click.ClickException(
             f"{run}: {len(problems)} damaged item{'' if len(problems) == 1 else 's'} found; "
-            f"{records.count(n)} and {w} raw windows check out."
+            f"{records.count(n)} and {count(w, 'raw window')} check out."
         )
     if not as_json:
-        click.echo(f"{run}: {records.count(n)} and {w} raw windows check out.")
+        click.echo(f"{run}: {records.count(n)} and {count(w, 'raw window')} check out.")

@@ -26,7 +26,7 @@ def optimize(protocol: str | None, as_json: bool, typed: Typed) -> None:
     Example:
         labcli optimize --protocol protocols/rpam2015.toml --seed 1
         labcli optimize --pa 110 --pb 41 --set actuator.L0_m=0.08 --json
-        labcli optimize --set optimize.min_stiffness_Nm_per_rad=0.2
+        labcli optimize --force paper --min-stiffness 0.2
     """
     from ..core.dispatch import prepare
 

@@ -1,4 +1,4 @@
-"""``labcli split``: assign a run's completed trials to the fit and validation sets."""
+"""``labcli split``: assign a run's (or a trial table's) completed trials to the fit and validation sets."""
 
 from __future__ import annotations
 
@@ -14,14 +14,14 @@ from ..errors import LabcliError
     "n_fit",
     type=int,
     default=None,
-    help="Trials in the fit set [default: the run's protocol's].",
+    help="Trials in the fit set  [default: the run's protocol's; a shorter run keeps its proportion]",
 )
 @click.option(
     "--validation",
     "n_validation",
     type=int,
     default=None,
-    help="Trials in the validation set [default: the run's protocol's].",
+    help="Trials in the validation set  [default: the run's protocol's; or the proportion]",
 )
 @click.option(
     "--strategy",
@@ -30,31 +30,48 @@ from ..errors import LabcliError
     show_default=True,
     help="sequential: first trials recorded fit, the next validate (the paper's); random: seeded draw.",
 )
-@click.option("--seed", type=int, default=None, help="Seed of the random draw [default: 0].")
-def split(run: str, n_fit: int | None, n_validation: int | None, strategy: str, seed: int | None) -> None:
-    """Assign RUN's completed trials to the fit and validation sets.
+@click.option("--seed", type=int, default=None, help="Seed of the random draw  [default: 0]")
+@click.option(
+    "--protocol",
+    default=None,
+    help="A trial CSV's protocol (name or .toml), for its default sizes  [default: takuma2014]; run files carry their own.",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="A trial CSV's table with its set column filled  [default: the CSV itself]",
+)
+def split(
+    run: str,
+    n_fit: int | None,
+    n_validation: int | None,
+    strategy: str,
+    seed: int | None,
+    protocol: str | None,
+    output: str | None,
+) -> None:
+    """Assign the completed trials of RUN (a run file or a trial CSV) to the fit and validation sets.
 
-    The split is stored in the run file (``/split``, with its strategy and
-    seed) and becomes the ``set`` column of the trial table.
+    A run file stores the split (``/split``, with its strategy and seed; earlier
+    splits stay as its history) and shows it as the ``set`` column of its trial
+    table.  A trial CSV gets its ``set`` column filled (in place, or in -o OUT.csv).
+    Without --fit and --validation the protocol's sizes are used (the paper's 90 +
+    18); a shorter run is split in the same proportion, and the output says so.
 
     \b
     Example (the paper's 90 fit + 18 validation trials):
-        labcli split run.h5 --fit 90 --validation 18
+        labcli split run.h5
         labcli split run.h5 --fit 90 --validation 18 --strategy random --seed 7
+        labcli split trials.csv -o trials-split.csv
     """
-    from ..core.store import RunFile  # heavy: when the command runs, not for --help
+    from ..core.splitting import split as split_run  # heavy: when the command runs, not for --help
 
     if seed is not None and strategy != "random":
         raise click.UsageError("--seed applies only to --strategy random.")
     try:
-        with RunFile.open(run, "a") as rf:
-            s = rf.split.assign(n_fit, n_validation, strategy, seed)
-            total = len(rf.records.ids())
+        done = split_run(run, n_fit, n_validation, strategy, seed, protocol=protocol, output=output)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
-    how = strategy if strategy == "sequential" else f"random, seed {s['seed']}"
-    unassigned = total - len(s["fit"]) - len(s["validation"])
-    click.echo(
-        f"{run}: {len(s['fit'])} fit, {len(s['validation'])} validation, "
-        f"{unassigned} unassigned of {total} completed trials ({how})."
-    )
+    click.echo(done.sentence())

@@ -24,8 +24,9 @@ from ._declared import paper_command, protocol_option
 def validate(run: Path, protocol: str | None, as_json: bool, typed: Typed) -> None:
     """Check a fitted model on the validation trials of RUN (the paper's Figure 7).
 
-    RUN is a run file (.h5) or a trial CSV.  The model is --model, else RUN.model.json beside
-    the run, else the model the run file records (/models/<protocol>); the report names it.
+    RUN is a run file (.h5) or a trial CSV.  The model is --model, else the model the run
+    file records in force (/models/<protocol>), else RUN.model.json beside the run; the
+    report names it.
     Validation trials the model was fitted on are refused unless --allow-overlap; a model
     fitted on another rig or under other protocol settings gets a warning.  Reports RMSE,
     MAE, max |error|, bias, R^2 and RMSE as a share of the observed range for theta1,

@@ -25,6 +25,7 @@ from typing import Any
 from ..errors import ConfigError, DeviceError, StoreError
 from .device import Device, RigLink
 from .engine import SILENT_S, NewRun, Outcome, RunEngine
+from .files import check_not_input
 from .paper import AcquireOptions
 from .protocol import load_protocol, loads_protocol
 from .registry import default_protocol, record_type, run_protocol
@@ -77,11 +78,12 @@ def _protocol_name(arg: str) -> str:
     return Path(arg).stem if arg.endswith(".toml") else arg
 
 
-def _check_options(resume: bool, force: bool, plan: Any, no_plan: bool) -> None:
+def _check_options(path: str, resume: bool, force: bool, plan: Any, no_plan: bool, protocol: str | None) -> None:
     if resume and force:
         raise ConfigError("--resume continues a run and --force overwrites it: give one of them, not both.")
     if plan is not None and no_plan:
         raise ConfigError("--plan and --no-plan contradict each other: give one of them.")
+    check_not_input(path, (plan, protocol), "the run to ")  # --force replaces an earlier run, never an input
 
 
 def same_plan(a: Any, b: Any) -> bool:
@@ -224,7 +226,7 @@ def acquire(
     person at the rig can fix; returns the :class:`Outcome` otherwise.
     """
     path = str(path)
-    _check_options(resume, force, plan, no_plan)
+    _check_options(path, resume, force, plan, no_plan, protocol)
     options = AcquireOptions(path, plan=plan, no_plan=no_plan, experiment=experiment, unattended=unattended)
     link = Link(port, baud, device_timeout)
     existing: RunFile | None = None
@@ -252,6 +254,7 @@ def acquire(
             other = check_rig(
                 existing, path, rig.device.info, (given or acq.protocol).calibration, allow_other=allow_other_rig
             )
+        operator, kept = kept_operator(existing, operator)
         # A resumed run is open already; a new one is created when its first trial begins.
         run = (
             existing
@@ -260,6 +263,7 @@ def acquire(
         )
         opts = SessionOptions(operator, resume, bool(other), unattended, rate_hz, silent_s)
         engine = _engine(rig, run, acq, ui, link, path, opts, valves)
+        _say_kept(engine, kept)
         if other:
             engine.ui.warn(f"continuing {path} on another rig ({describe(other)}), as --allow-other-rig allows")
         for cb in subscribers:
@@ -286,6 +290,27 @@ def _run(engine: RunEngine, acq: Any, completed: list[int], link: Link, device: 
             if engine.device is not device:  # reopened after the rig was lost
                 with contextlib.suppress(Exception):
                     engine.device.close()
+
+
+def _say_kept(engine: RunEngine, kept: str) -> None:
+    if kept:
+        engine.ui.info(f"Operator {kept}, as the run recorded (--operator names another).")
+
+
+def kept_operator(run: Any, operator: str) -> tuple[str, str]:
+    """The session's operator and, when a resumed run kept its own (none was given), that one too."""
+    if run is None or operator:
+        return operator, ""
+    kept = recorded_operator(run)
+    return kept, kept
+
+
+def recorded_operator(run: Any) -> str:
+    """Who ran the run's latest session that named one (else the operator the run began with, or "")."""
+    for session in reversed(run.sessions.all()):
+        if session["operator"]:
+            return str(session["operator"])
+    return str(run.attrs.get("operator", "") or "")
 
 
 def _engine(

@@ -19,6 +19,11 @@ reads what the chambers do (:class:`AirSettings` holds the protocol's limits):
   supplies and holds again and retakes the baseline.  The default limit is
   :data:`REPRESSURISE_FLOORS` pressure floors (the settling criterion's pressure spread, at least
   one count): ten times what the protocol calls still, 3.1 kPa on the paper's protocol.
+* **friction relief** (``friction_relief_s``, off by default): a supply pulse of that length, then
+  hold, before each trial's baseline, so that the arm leaves the friction band the last load left
+  it in.  On held-out seeds of the simulated rig it lowers every RMSE of the re-pressurising run
+  by 6-17 % (tests/benchmarks/bench_air.py, docs/at-the-rig.md); it stays off by default until it
+  is judged on the tuning seeds and on a real rig.
 * **the valves at the end** (``end_valves``): ``hold`` (the default) or ``vent``, set when the
   session ends, however it ends (finished, quit, Ctrl-C, an error); the board is never left
   supplying.  A board that loses its host keeps its pressure limit (``PMAX``) on its own.
@@ -72,6 +77,14 @@ ACQUISITION_KEYS: dict[str, dict[str, Any]] = {
         "optional": True,
         "help": "how long the hold check watches the held chambers",
     },
+    "friction_relief_s": {
+        "type": "number",
+        "unit": "s",
+        "check": "nonnegative",
+        "max": 10,
+        "optional": True,
+        "help": "a supply pulse this long before each baseline, to shake the sleeves' friction loose (0: none)",
+    },
     "repressurise_kPa": {
         "type": "number",
         "unit": "kPa",
@@ -92,6 +105,7 @@ class AirSettings:
     hold_check_s: float = DEFAULT_HOLD_CHECK_S
     repressurise_kPa: float = REPRESSURISE_FLOORS * COUNT_MPA * 1e3
     repressurise_default: bool = True  # the limit came from the sensor noise, not the protocol
+    friction_relief_s: float = 0.0
 
     @classmethod
     def of(cls, acquisition: dict[str, Any], pressure_floor_MPa: float | None) -> AirSettings:
@@ -105,6 +119,7 @@ class AirSettings:
             hold_check_s=float(acquisition.get("hold_check_s", DEFAULT_HOLD_CHECK_S)),
             repressurise_kPa=float(given) if given is not None else REPRESSURISE_FLOORS * floor * 1e3,
             repressurise_default=given is None,
+            friction_relief_s=float(acquisition.get("friction_relief_s", 0.0)),
         )
 
 

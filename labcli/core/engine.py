@@ -4,8 +4,7 @@ A paper's session of steps (:mod:`labcli.core.steps`) says *what* happens in a r
 this module does it: it reads frames from the rig (:mod:`labcli.core.stream`), judges
 equilibrium (:mod:`labcli.core.settle`), writes finished records to the run file
 (:class:`~labcli.core.store.RunFile`) and talks to the experimenter through a UI
-(:mod:`labcli.core.ui`).  At a simulated rig, the :class:`~labcli.core.simoperator.SimulatedOperator`
-it is given does what the prompts ask.
+(:mod:`labcli.core.ui`); at a simulated rig, the :class:`~.simoperator.SimulatedOperator` it is given acts.
 
 A trial's capture windows (``Baseline``, ``Capture``) are streamed into the run file as
 their frames arrive (:mod:`labcli.core.capture`), so memory stays flat however long a
@@ -172,6 +171,7 @@ class RunEngine:
         self._flags: list[str] = []  # what the stream did wrong during the trial in progress
         self._valves_driven = False  # the board's valves were set by command: set them to rest at the end
         self._valves_mode = valves  # "hand" overrides the protocol's acquisition.valves
+        self._note = ""  # the experimenter's note on the trial in progress (n at its review)
 
     @property
     def device(self) -> Any:
@@ -290,6 +290,9 @@ class RunEngine:
         assert self._trial is not None
         rid = self._trial.trial
         if reply == "skip":
+            if self._note:  # a skipped trial's note is the run's, naming it
+                self.open_run().notes.add(f"{self._noun} {rid} (skipped): {self._note}")
+                self._note = ""
             self._skipped.append(rid)
             self._trial = None
             self._log.skipped(rid)
@@ -368,7 +371,11 @@ class RunEngine:
             self.stream.start()
             return self._capture(step.capture_s)
         if isinstance(step, Review):
-            return self.ui.review(step.row, step.warnings, step.default)
+            decision = self.ui.review(step.row, step.warnings, step.default)
+            note = getattr(self.ui, "take_note", lambda: "")()
+            if note:  # typed at the review (n): kept through a redo, stored with the record
+                self._note = note
+            return decision
         if isinstance(step, Commit):
             return self._commit(step)
         if isinstance(step, Finish):
@@ -404,6 +411,7 @@ class RunEngine:
         self.open_run()  # the run file exists from the first trial on, so every resume hint works
         self._trial = step
         self._flags = []
+        self._note = ""
         self._trials_begun = True
         self._trial_wall_start = time.monotonic()
         self._trial_started = utc_now()
@@ -452,7 +460,12 @@ class RunEngine:
                 while True:
                     w = self.stream.next_block()
                     status = detector.update(w.t_s, w.si)
-                    show(status)
+                    key = show(status)  # q or r pressed during the wait acts now, not at the next question
+                    if key == "quit":
+                        raise QuitRequested("quit")
+                    if key == "redo":
+                        self.ui.info(f"  {label}: redone at your request (r)")
+                        return "redo"
                     if detector.consumed < len(w):
                         # Frames after the decision belong to what follows (capture, or more waiting).
                         self.stream.keep(w[detector.consumed :])
@@ -495,8 +508,11 @@ class RunEngine:
             self._trial_walls.append(time.monotonic() - self._trial_wall_start)
             if self._trial is not None:
                 self._log.added(self._trial.trial)
+                if self._note:  # typed at its review (n): the record's note, in the same deferral
+                    run.notes.add(self._note, record=self._trial.trial)
             self._trial = None
             self._flags = []
+            self._note = ""
 
     def _finish(self, step: Finish) -> None:
         self.stream.stop()

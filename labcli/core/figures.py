@@ -53,3 +53,25 @@ def fmt(x: Any, digits: int = 3) -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "—"
     return f"{x:.{digits}g}"
+
+
+def source_line(run: Any = None, protocol: Any = None, model: Any = None) -> str:
+    """``run force.h5 · protocol takuma2014 · model force.model.json``: what a figure was drawn from."""
+    parts = []
+    for what, value in (("run", run), ("protocol", protocol), ("model", model)):
+        if value is not None and str(value):
+            text = str(value)
+            # A path is named by its file name (a run inside: force.h5:/models/takuma2014).
+            parts.append(f"{what} {Path(text).name if '/' in text and ':/' not in text else _short(text)}")
+    return " · ".join(parts)
+
+
+def _short(text: str) -> str:
+    head, sep, tail = text.partition(":/")
+    return f"{Path(head).name}{sep}{tail}" if sep else text
+
+
+def caption(fig: Any, text: str) -> None:
+    """Write ``text`` (a :func:`source_line`) small at the figure's bottom left, so a figure names its origin."""
+    if text:
+        fig.text(0.005, 0.004, text, ha="left", va="bottom", fontsize=7, color="0.35")

@@ -76,7 +76,11 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
 
 
 def check_output(
-    path: str | os.PathLike, *, inputs: tuple[str | os.PathLike, ...] = (), what: str = "", replaces_runs: bool = False
+    path: str | os.PathLike,
+    *,
+    inputs: tuple[str | os.PathLike | None, ...] = (),
+    what: str = "",
+    replaces_runs: bool = False,
 ) -> None:
     """Refuse, in one sentence, an output path whose writing would destroy data.
 
@@ -84,18 +88,27 @@ def check_output(
     name); anything but a regular file; a run file (any HDF5 file), unless ``replaces_runs``
     (a command that builds runs, given ``--force``).  ``what`` names the content ("the model ").
     """
-    for source in inputs:
-        if same_file(path, source):
-            raise ConfigError(
-                f"Cannot write {what}{path}: it is this command's input, and writing there would "
-                "destroy it; choose another output name."
-            )
+    check_not_input(path, inputs, what)
     check_writable_name(path, what)
     if not replaces_runs and is_run_file(path):
         raise ConfigError(
             f"Cannot write {what}{path}: it is a run file (HDF5), and writing there would destroy its "
             "records; choose another output name."
         )
+
+
+def check_not_input(
+    path: str | os.PathLike, inputs: tuple[str | os.PathLike | None, ...], what: str = "", verb: str = "write"
+) -> None:
+    """Refuse, in one sentence, an output that is one of ``inputs`` (the same file by any name: a
+    symbolic or a hard link included), whatever ``--force`` says; None and names that are not
+    files (a shipped protocol's name) are skipped."""
+    for source in inputs:
+        if source is not None and same_file(path, source):
+            raise ConfigError(
+                f"Cannot {verb} {what}{path}: it is this command's input, and writing there would "
+                "destroy it; choose another output name."
+            )
 
 
 def check_writable_name(

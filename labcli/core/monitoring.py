@@ -1,10 +1,12 @@
-"""Watching a streaming rig: running per-channel statistics and link health.
+"""Watching a streaming rig: per-channel statistics (the whole run, and the last seconds) and link health.
 
 :func:`watch` starts the stream, reads until the time is up (or Ctrl-C),
 stops it and returns a :class:`MonitorSummary`; a callback sees a
-:class:`Snapshot` a few times per second for a live display.  Values are
-calibrated to SI (MPa, rad) with the protocol's calibration; channels the
-protocol does not know stay in raw counts.
+:class:`Snapshot` a few times per second for a live display, with the
+rolling statistics and traces of the last ``window_s`` seconds of the rig's
+clock (:class:`~labcli.core.rolling.Rolling`); another (``on_frames``) sees
+every batch, for a recording.  Values are calibrated to SI (MPa, rad) with the
+protocol's calibration; channels the protocol does not know stay in raw counts.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from .rolling import Rolling
+from .settle import TimeUnwrapper
 
 if TYPE_CHECKING:
     from .device import Device
@@ -99,8 +104,9 @@ class Snapshot:
     rate_hz: float  # as the firmware set it
     frames_per_s: float  # over the last second
     latest_si: np.ndarray  # mean of the last batch, per channel
-    stats: RunningStats
+    stats: RunningStats  # since the stream began
     counters: dict[str, int]
+    rolling: Rolling | None = None  # the last window_s seconds of the rig's clock
 
 
 @dataclass
@@ -158,15 +164,20 @@ def watch(
     seconds: float | None = None,
     on_update: Callable[[Snapshot], None] | None = None,
     refresh_s: float = 0.25,
+    window_s: float = 5.0,
+    on_frames: Callable[[FrameBatch, np.ndarray], None] | None = None,
 ) -> MonitorSummary:
     """Stream from ``dev`` for ``seconds`` (None: until Ctrl-C) and summarise.
 
-    The stream is always stopped on the way out, Ctrl-C included; frames in
+    ``window_s``: the rolling statistics' span; ``on_frames(batch, si)`` sees every batch
+    (a recording).  The stream is always stopped on the way out, Ctrl-C included; frames in
     flight before ``OK STOP`` count too.
     """
     actual = dev.set_rate(rate_hz) if rate_hz is not None else float("nan")
     k = len(scale.names)
     stats = RunningStats(k)
+    rolling = Rolling(k, window_s)
+    unwrap = TimeUnwrapper()
     latest = np.full(k, np.nan)
     recent: deque[tuple[float, int]] = deque()
     interrupted = False
@@ -176,7 +187,10 @@ def watch(
         if len(batch):
             si = scale.to_si(batch.values)
             stats.update(si)
+            rolling.add(unwrap(batch.t_us), si)
             latest = si.mean(axis=0)
+            if on_frames is not None:
+                on_frames(batch, si)
 
     dev.start()
     t0 = time.monotonic()
@@ -197,7 +211,7 @@ def watch(
                 if on_update is not None and now >= next_update:
                     span = now - recent[0][0] if len(recent) > 1 else 0.0
                     fps = (recent[-1][1] - recent[0][1]) / span if span > 0 else 0.0
-                    on_update(Snapshot(now - t0, actual, fps, latest, stats, dev.counters))
+                    on_update(Snapshot(now - t0, actual, fps, latest, stats, dev.counters, rolling))
                     next_update = now + refresh_s
         except KeyboardInterrupt:
             interrupted = True

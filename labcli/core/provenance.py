@@ -128,9 +128,19 @@ def rig_differences(fit: Mapping[str, Any], run: Mapping[str, Any], *, protocol_
 
 
 def rig_warning(
-    model_name: str, fit: Mapping[str, Any], run_name: str, run: Mapping[str, Any], *, protocol_text: bool = True
+    model_name: str,
+    fit: Mapping[str, Any] | None,
+    run_name: str,
+    run: Mapping[str, Any],
+    *,
+    protocol_text: bool = True,
 ) -> str | None:
-    """One sentence warning that a model is applied to a run from another rig or protocol, or None."""
+    """One sentence warning that a model is applied to a run from another rig or protocol, or None.
+
+    A model that does not say what it was fitted on (``fit`` None) has nothing to compare.
+    """
+    if not fit:
+        return None
     diffs = rig_differences(fit, run, protocol_text=protocol_text)
     if not diffs:
         return None

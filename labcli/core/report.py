@@ -118,6 +118,9 @@ def format_run_summary(s: dict[str, Any], record_lines: list[str]) -> str:
     lines.extend(record_lines)
     if s["models"]:
         lines.append(f"  models      {', '.join(s['models'])}")
+    for n in s.get("notes", ()):
+        about = "" if n["record"] is None else f"{n['about']}: "
+        lines.append(f"  note        {about}{n['text']} ({n['time'][:16].replace('T', ' ')})")
     return "\n".join(lines)
 
 

@@ -13,6 +13,9 @@ discards the trial in progress and says how to resume.  Input that ends (a close
 or exhausted standard input) raises :class:`InputEnded`, which the engine reports as
 such: nobody is there to answer.
 
+While the engine waits for equilibrium, q and r pressed on a terminal act at once (quit,
+redo the trial), read as single keys without Enter (:func:`settle_keys`).
+
 Keys typed ahead are discarded before every question on a terminal: an Enter pressed
 twice at "hang 500 g" must not also answer "remove the weight".  Each answer then comes
 from a key pressed after its question was shown, whose echo ends the question's line,
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import sys
 from collections.abc import Callable, Iterator
 from typing import IO, Any
@@ -48,6 +52,57 @@ def discard_typeahead(stream: Any) -> None:
         termios.tcflush(stream.fileno(), termios.TCIFLUSH)
     except (ImportError, AttributeError, ValueError, OSError):
         pass  # not a terminal after all, or no termios (Windows): nothing typed ahead to drop
+
+
+SETTLE_KEYS = "  (q quits, r redoes)"
+REVIEW_TEXT = "Accept [a], redo [r], skip [s], note [n] or quit [q]?"
+_SETTLE_KEYS = {"q": "quit", "r": "redo"}
+
+
+@contextlib.contextmanager
+def settle_keys(stream: Any) -> Iterator[Callable[[], str | None]]:
+    """``key()``: ``"quit"`` or ``"redo"`` once q or r was pressed on the terminal ``stream``, else None.
+
+    Only a terminal is read: keys come one at a time (cbreak mode, for the duration of the
+    block) and are read only when there; an answer piped in for a later question is never
+    taken.  Other keys pressed meanwhile are dropped, as typed-ahead keys are at a question.
+    """
+    fd = -1
+    try:
+        if stream is not None and stream.isatty():
+            fd = stream.fileno()
+    except (AttributeError, ValueError, OSError):
+        fd = -1
+    try:
+        import select
+        import termios
+        import tty
+    except ImportError:  # no termios (Windows): the wait reads no keys
+        fd = -1
+    if fd < 0:
+        yield lambda: None
+        return
+    saved = termios.tcgetattr(fd)
+    tty.setcbreak(fd, termios.TCSANOW)
+
+    def key() -> str | None:
+        try:
+            while select.select([fd], [], [], 0)[0]:
+                typed = os.read(fd, 64).decode(errors="replace").lower()
+                if not typed:
+                    return None
+                for ch in typed:
+                    if ch in _SETTLE_KEYS:
+                        return _SETTLE_KEYS[ch]
+        except OSError:
+            return None
+        return None
+
+    try:
+        yield key
+    finally:
+        with contextlib.suppress(termios.error, OSError):
+            termios.tcsetattr(fd, termios.TCSANOW, saved)
 
 
 def fmt_duration(seconds: float) -> str:
@@ -98,6 +153,7 @@ class RichUI:
 
         self.console = console or Console(highlight=False)
         self._stdin = stdin
+        self.pending_note = ""  # typed at a review (n), taken by the engine with the record
 
     @property
     def _interactive(self) -> bool:
@@ -120,12 +176,23 @@ class RichUI:
 
     @contextlib.contextmanager
     def settling(self, label: str, criteria: Any) -> Iterator[Any]:
-        """A live status line while the engine waits for equilibrium."""
-        if self.console.is_terminal:
-            with self.console.status(f"settling ({label})") as status:
-                yield lambda s: status.update(_esc(settle_text(label, s, criteria)))
-        else:
-            yield lambda s: None
+        """A live status line while the engine waits for equilibrium.
+
+        Yields ``show(status)``, which returns a key the experimenter pressed meanwhile on a
+        terminal: ``"quit"`` (q) or ``"redo"`` (r), else None.  The terminal reads single keys
+        for the wait (no Enter, no echo) and is put back as it was after it.
+        """
+        with settle_keys(self._stdin if self._stdin is not None else sys.stdin) as key:
+            if self.console.is_terminal:
+                with self.console.status(f"settling ({label})") as status:
+
+                    def show(s: Any) -> str | None:
+                        status.update(_esc(settle_text(label, s, criteria) + SETTLE_KEYS))
+                        return key()
+
+                    yield show
+            else:
+                yield lambda s: key()
 
     def settled(self, label: str, report: Any) -> None:
         what = "settled" if report.settled else "accepted without settling"
@@ -217,10 +284,23 @@ class RichUI:
         self.console.print(table)
         for w in warnings:
             self.warn(w)
-        return self._choose("Accept [a], redo [r], skip [s] or quit [q]?", "arsq", default[0])
+        what = next(iter(row), "record")  # "trial", "push", "point": the row's id column
+        while True:
+            choice = self._choose(REVIEW_TEXT, "arsnq", default[0])
+            if choice != "note":
+                return choice
+            text = self._ask(f"Note on this {what} (one line; Enter for none):").strip()
+            if text:
+                self.pending_note = text
+                self.console.print(f"  The note is stored with the {what} once it is accepted.", markup=False)
+
+    def take_note(self) -> str:
+        """The note typed at the last review (``n``), once; "" when none."""
+        note, self.pending_note = self.pending_note, ""
+        return note
 
     def _choose(self, text: str, keys: str, default: str) -> str:
-        words = {"a": "accept", "r": "redo", "s": "skip", "w": "wait", "q": "quit"}
+        words = {"a": "accept", "r": "redo", "s": "skip", "w": "wait", "q": "quit", "n": "note"}
         while True:
             answer = self._ask(f"{text} ({default}):").strip().lower() or default
             if answer[:1] in keys and (len(answer) == 1 or answer == words[answer[0]]):

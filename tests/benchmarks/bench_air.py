@@ -10,7 +10,9 @@ real serial code path:
   whenever a trial's baseline has drifted past ``acquisition.repressurise_kPa`` (its default,
   ten pressure floors: 3.1 kPa) since the last supply;
 * **without** (the baseline of the comparison): the same protocol with ``valves = "hand"``, the
-  chambers supplied once and held for the whole run, as the prompts of a 1.0 board have it.
+  chambers supplied once and held for the whole run, as the prompts of a 1.0 board have it;
+* **with friction relief**: re-pressurising, and a supply pulse of ``--relief`` s before every
+  baseline (``acquisition.friction_relief_s``).
 
 Figures: the largest drift of any chamber's stored baseline from the first trial's (kPa) in each
 run, the re-pressurisations made, and the posture form's RMSE on the 18 validation trials in each
@@ -62,6 +64,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="11,12,13", help="held-out seeds of the simulated rig")
     ap.add_argument("--leak", default="1", help="the rig's leak scale (1: about 1 kPa/min)")
+    ap.add_argument("--relief", default="0.5", help="the friction relief's supply pulse, s (a third run per seed)")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -75,15 +78,22 @@ def main() -> None:
         auto, hand = work / "auto.toml", work / "hand.toml"
         auto.write_text(shipped.text)
         hand.write_text(shipped.text.replace("rate_hz = 200.0\n", 'rate_hz = 200.0\nvalves = "hand"\n'))
+        relief = work / "relief.toml"
+        relief.write_text(
+            shipped.text.replace("rate_hz = 200.0\n", f"rate_hz = 200.0\nfriction_relief_s = {float(args.relief)}\n")
+        )
         for seed in seeds:
             url = f"sim://?seed={seed}&clock=virtual&leak={args.leak}"
             with_ = one_run(work, f"auto{seed}", auto, url)
             without = one_run(work, f"hand{seed}", hand, url)
-            rows.append((seed, with_, without))
+            relieved = one_run(work, f"relief{seed}", relief, url)
+            rows.append((seed, with_, without, relieved))
             print(
                 f"seed {seed}: baseline drift {with_['drift kPa']:.2f} kPa with re-pressurising "
                 f"({with_['supplies']} supplies), {without['drift kPa']:.2f} kPa without; RMSE with/without "
-                + ", ".join(f"{q} {with_[q + ' rmse']:.4g}/{without[q + ' rmse']:.4g}" for q in QUANTITIES),
+                + ", ".join(f"{q} {with_[q + ' rmse']:.4g}/{without[q + ' rmse']:.4g}" for q in QUANTITIES)
+                + "; with friction relief "
+                + ", ".join(f"{q} {relieved[q + ' rmse']:.4g}" for q in QUANTITIES),
                 flush=True,
             )
     for key in ("drift kPa", "supplies", *(f"{q} rmse" for q in QUANTITIES)):
@@ -93,8 +103,10 @@ def main() -> None:
         figures[f"without {key} min"] = float(min(b))
         figures[f"with {key} mean"] = float(np.mean(a))
         figures[f"without {key} mean"] = float(np.mean(b))
+        figures[f"relief {key} mean"] = float(np.mean([r[3][key] for r in rows]))
     for q in QUANTITIES:
         figures[f"{q} rmse ratio without/with"] = figures[f"without {q} rmse mean"] / figures[f"with {q} rmse mean"]
+        figures[f"{q} rmse ratio relief/with"] = figures[f"relief {q} rmse mean"] / figures[f"with {q} rmse mean"]
     print(json.dumps(figures, indent=1))
     if args.figures:
         Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n", encoding="utf-8")

@@ -1,89 +1,49 @@
-"""``labcli classify`` on an archive of n pushes: peak memory and time of the report, against pandas.
+"""``labcli classify --json`` on an archive of n pushes beside a pandas groupby that does the same by hand.
+
+Run:  python tests/benchmarks/bench_classify_report.py [--sizes 1e5] [--repeat 5] [--figures FILE.json] [--keep DIR]
 
 Input: the six demo objects pushed ten times each on the simulated rig, tiled to n pushes on
-n / 10 objects (an archive: every copy of the pool named apart), written as a push CSV, and
-a force model fitted on the shipped plan's weight trials through the same rig.
+n / 10 objects (an archive: every copy of the pool named apart), written as a push CSV, and a
+force model of the paper's form fitted on the shipped plan's weight trials through the same rig.
 
-Each command runs as a fresh subprocess; its peak resident memory is its own VmHWM read at
-exit, its time the wall time.  Measured side by side, same run, same CSV:
+Each side is a fresh process (tests/benchmarks/fresh.py: CPU time, wall time, peak resident
+memory; medians of ``--repeat`` interleaved rounds, the order flipping every round):
 
-* baseline: ``pandas.read_csv`` of the push CSV, ``groupby("object")`` mean and standard
-  deviation of every numeric column, written as JSON (what any script would do first);
-* ``classify --json``: every push's and every object's results, streamed to /dev/null;
-* ``classify``: the human report (a summary per object; pushes are not listed at this size).
+* ``classify --json``: ``labcli classify pushes.csv --model force.model.json --method bands
+  --json`` (the checked push table, the force model on every push, the stiffness with its flags
+  and gains, each object's statistics and band, every push and object streamed as JSON), stdout
+  to /dev/null;
+* baseline: ``baselines/classify_groupby.py``, what a user writes with pandas and numpy and no
+  labcli import: ``read_csv``, Eqs. 34-37 evaluated vectorised from the model file's
+  coefficients, Section 4's k = |F| / delta_x per push, ``groupby("object")`` for each object's
+  pushes, mean, sd and median of k and ln k and the band of the median, every push and object
+  written as JSON (pandas' ``to_json``).
 
-The ratio is classify / baseline; the target is --json within 3x at 10^6 pushes.  The
-CSV reading is the tables' (labcli.core.tables); the report stage is measured apart, in
-process, with tracemalloc: the streamed JSON against building the whole report as one dict.
-
-    python tests/benchmarks/bench_classify_report.py [--sizes 1e5,1e6] [--keep DIR]
+The ratio is classify's median over the baseline's: CPU first, then wall time and peak memory.
+The human report (``classify`` without ``--json``) is measured beside the same baseline with
+``--report``.
 """
 
 from __future__ import annotations
 
 import argparse
-import gc
 import json
-import os
-import subprocess
+import shutil
 import sys
 import tempfile
-import time
-import tracemalloc
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+import numpy as np
 
-import numpy as np  # noqa: E402
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parents[1]))
+sys.path.insert(0, str(HERE))
 
-BASELINE = """
-import sys, pandas as pd
-df = pd.read_csv(sys.argv[1])
-num = df.select_dtypes("number").columns.drop("push")
-out = df.groupby("object")[list(num)].agg(["mean", "std"])
-out.to_json(sys.argv[2])
-"""
-
-
-# Each command runs under this wrapper, which prints the process's own peak RSS (VmHWM) at exit.
-# ru_maxrss of a child is no use here: a forked child inherits the parent's high-water mark.
-PEAK = """
-import atexit, runpy, sys
-def peak():
-    for line in open("/proc/self/status"):
-        if line.startswith("VmHWM:"):
-            sys.stderr.write("PEAK_KB " + line.split()[1] + "\\n")
-atexit.register(peak)
-code = sys.argv[1]
-sys.argv = sys.argv[1:]
-if code == "-m":
-    sys.argv = sys.argv[1:]
-    runpy.run_module("labcli", run_name="__main__")
-else:
-    exec(compile(code, "<baseline>", "exec"))
-"""
-
-
-def measure(args: list[str]) -> tuple[float, float]:
-    """(wall seconds, peak RSS in MB) of a fresh Python running ``args``; stdout to /dev/null."""
-    t0 = time.perf_counter()
-    with open(os.devnull, "w") as null:
-        p = subprocess.run(
-            [sys.executable, "-c", PEAK, *args],
-            stdout=null,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=dict(os.environ, COLUMNS="80"),
-        )
-    dt = time.perf_counter() - t0
-    peaks = [line for line in p.stderr.splitlines() if line.startswith("PEAK_KB ")]
-    if p.returncode != 0 or not peaks:
-        raise SystemExit(f"{' '.join(args)} failed: {p.stderr}")
-    return dt, int(peaks[-1].split()[1]) / 1024
+from fresh import HEADER, interleaved, machine, row, write_figures  # noqa: E402
 
 
 def inputs(folder: Path, n: int) -> tuple[Path, Path]:
+    """The push CSV of n pushes and the force model file (made once per folder)."""
     from labcli.core.protocol import load_protocol
     from labcli.papers.takuma2014.models.takuma import TakumaModel
     from labcli.papers.takuma2014.protocol import load_plan
@@ -108,63 +68,50 @@ def inputs(folder: Path, n: int) -> tuple[Path, Path]:
     return csv, model_path
 
 
-def report_stage(csv: Path, model_path: Path) -> tuple[float, float]:
-    """Peak traced MB above the classification of the streamed JSON and of the whole-dict report."""
-    from labcli.papers.takuma2014.models.classify import classify_file, report_to_dict, write_report_json
+def baseline_args(csv: Path, model: Path) -> list[str]:
+    """The baseline script's arguments: the rig's h2, h3 and the protocol's bands, as a user copies them."""
+    from labcli.core.protocol import load_protocol
 
-    rep = classify_file(csv, model_path, method="bands")
-    out = []
-    for fn in (lambda: write_report_json(rep, open(os.devnull, "w")), lambda: json.dumps(report_to_dict(rep))):
-        gc.collect()
-        tracemalloc.start()
-        base = tracemalloc.get_traced_memory()[0]
-        fn()
-        out.append((tracemalloc.get_traced_memory()[1] - base) / 1e6)
-        tracemalloc.stop()
-    return out[0], out[1]
+    rig = load_protocol("takuma2014").settings.rig
+    bands = load_protocol("takuma2014-stiffness").settings.push.stiffness_bands_N_per_m
+    plain = {name: [lo, None if hi == float("inf") else hi] for name, (lo, hi) in dict(bands).items()}
+    return [str(HERE / "baselines" / "classify_groupby.py"), str(csv), str(model)] + [
+        str(rig["h2_m"]),
+        str(rig["h3_m"]),
+        json.dumps(plain),
+    ]
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sizes", default="1e5", help="comma-separated push counts (default 1e5; archive scale: 1e6)")
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="1e5", help="comma-separated push counts (archive scale: 1e6)")
+    ap.add_argument("--repeat", type=int, default=5, help="rounds per figure (the median is kept)")
+    ap.add_argument("--report", action="store_true", help="also the human report (classify without --json)")
+    ap.add_argument("--figures", default=None, help="write the figures to this JSON file ({name: value})")
     ap.add_argument("--keep", type=Path, default=None, help="folder for the CSVs (default: a temporary one)")
-    ap.add_argument("--no-stage", action="store_true", help="skip the in-process report-stage measurement")
     args = ap.parse_args()
     folder = args.keep or Path(tempfile.mkdtemp(prefix="bench-classify-"))
     folder.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for n in (int(float(s)) for s in args.sizes.split(",")):
-        csv, model = inputs(folder, n)
-        base_t, base_m = measure([BASELINE, str(csv), str(folder / "groupby.json")])
-        js_t, js_m = measure(
-            ["-m", "labcli", "classify", str(csv), "--model", str(model), "--method", "bands", "--json"]
-        )
-        hu_t, hu_m = measure(["-m", "labcli", "classify", str(csv), "--model", str(model), "--method", "bands"])
-        row = {
-            "n": n,
-            "csv_MB": csv.stat().st_size / 1e6,
-            "baseline_s": base_t,
-            "baseline_MB": base_m,
-            "json_s": js_t,
-            "json_MB": js_m,
-            "report_s": hu_t,
-            "report_MB": hu_m,
-        }
-        if not args.no_stage:
-            row["stage_stream_MB"], row["stage_dict_MB"] = report_stage(csv, model)
-        rows.append(row)
-        print(
-            f"n = {n:>9,} pushes ({row['csv_MB']:.0f} MB CSV): baseline {base_t:6.2f} s {base_m:7.0f} MB | "
-            f"classify --json {js_t:6.2f} s {js_m:7.0f} MB ({js_m / base_m:.2f}x memory, {js_t / base_t:.1f}x time)"
-            f" | classify {hu_t:6.2f} s {hu_m:7.0f} MB ({hu_m / base_m:.2f}x memory, {hu_t / base_t:.1f}x time)"
-        )
-        if "stage_stream_MB" in row:
-            print(
-                f"    report stage alone (tracemalloc): streamed JSON {row['stage_stream_MB']:.1f} MB, "
-                f"whole report as one dict {row['stage_dict_MB']:.1f} MB"
-            )
-        csv.unlink()
-    print(json.dumps(rows))
+    figures: dict = {**machine(), "rounds per figure": args.repeat}
+    print(f"medians of {args.repeat} interleaved rounds, fresh processes; CPU = user + system of the process")
+    print(HEADER)
+    try:
+        for n in (int(float(s)) for s in args.sizes.split(",")):
+            csv, model = inputs(folder, n)
+            figures[f"push csv {n:.0e} MiB"] = round(csv.stat().st_size / 2**20, 1)
+            command = ["-m", "labcli", "classify", str(csv), "--model", str(model), "--method", "bands"]
+            ways = [("classify --json", [*command, "--json"])] + ([("classify report", command)] if args.report else [])
+            for name, mine in ways:
+                pair = interleaved(f"{name} {n:.0e}", args.repeat, mine, baseline_args(csv, model))
+                print(row(pair), flush=True)
+                figures.update(pair.figures())
+            if args.keep is None:
+                csv.unlink()
+    finally:
+        if args.keep is None:
+            shutil.rmtree(folder, ignore_errors=True)
+    if args.figures:
+        write_figures(args.figures, figures)
 
 
 if __name__ == "__main__":

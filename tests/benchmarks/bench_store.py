@@ -9,9 +9,14 @@ float64 and ``seq`` uint32 per frame, as the run file stores them.
 * ``store (fsync)``: ``RunFile.write`` as ``labcli acquire`` uses it: one
   group per trial with its summary datasets and attributes, flush + fsync,
   ``complete`` set, flush + fsync again.
-* ``store (no fsync)``: the same writes with the per-trial flush/fsync off (how
-  ``labcli import`` builds a file), to separate the cost of durability from the
-  cost of the layout.
+* ``store (no fsync)``: the same writes with ``os.fsync`` made a no-op for the run (the
+  flushes stay), to separate the cost of durability from the cost of the layout.  RunFile
+  has no switch for it (every commit syncs twice, by design): the benchmark counts the
+  calls, and prints them, so a row that says "no fsync" cannot quietly be the fsync path
+  (tests/benchmarks/test_bench_options.py holds each option to what it changes).
+* ``bare h5py, same filters, one fsync per trial``: the independent baseline of the write path
+  (the same four arrays, the run file's gzip 4, shuffle, Fletcher32 and chunk length, each
+  trial appended and then flushed and fsynced once); the run file is quoted as a ratio to it.
 * ``plain h5py``: the baseline a first version usually is: four resizable
   datasets in one file, each window appended with ``resize`` and a slice
   write, never flushed until the file is closed (closing is timed).  It does
@@ -25,12 +30,15 @@ measured in the same run on the same disk.  Last, the file size per trial of the
 from __future__ import annotations
 
 import argparse
+import contextlib
+import json
 import math
 import os
 import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -39,6 +47,7 @@ import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 
 from labcli.core.store import RunFile  # noqa: E402
+from labcli.core.window import Window  # noqa: E402
 
 CHANNELS = ("P_L1", "P_R1", "P_L2", "P_R2", "POT1", "POT2")
 
@@ -68,14 +77,9 @@ def make_records(n_trials: int, n: int, seed: int = 0) -> list[dict]:
     for i in range(n_trials):
         raw = {}
         for w, key in enumerate(("baseline", "load")):
-            counts = rng.integers(0, 4096, size=(n, 6)).astype(np.float64)
-            t_us = (np.arange(n, dtype=np.int64) + (2 * i + w) * n) * 5000
-            raw[key] = {
-                "seq": np.arange(n, dtype=np.int64) + (2 * i + w) * n,
-                "t_us": t_us,
-                "counts": counts,
-                "si": _Protocol.calibration.to_si(counts),
-            }
+            counts = rng.integers(0, 4096, size=(n, 6), dtype=np.int64)
+            seq = np.arange(n, dtype=np.int64) + (2 * i + w) * n
+            raw[key] = Window.of(seq, counts, _Protocol.calibration.to_si(counts), t_us=seq * 5000)
         out.append(
             {
                 "trial": i,
@@ -92,13 +96,38 @@ def make_records(n_trials: int, n: int, seed: int = 0) -> list[dict]:
     return out
 
 
-def run_store(path: str, records: list[dict], sync: bool) -> float:
-    t0 = time.perf_counter()
-    with RunFile.create(path, protocol=_Protocol(), device_info=_Device(), force=True) as run:
-        run.sync_each_record = sync
-        for rec in records:
-            run.records.write(rec)
-    return time.perf_counter() - t0
+@contextlib.contextmanager
+def fsyncs(enabled: bool) -> Iterator[list[int]]:
+    """Count the calls of ``os.fsync`` (and ``os.fdatasync``) in the block; ``enabled=False`` makes them no-ops."""
+    calls = [0]
+    real = {name: getattr(os, name) for name in ("fsync", "fdatasync") if hasattr(os, name)}
+
+    def counted(name: str) -> Callable[[int], None]:
+        def sync(fd: int) -> None:
+            calls[0] += 1
+            if enabled:
+                real[name](fd)
+
+        return sync
+
+    for name in real:
+        setattr(os, name, counted(name))
+    try:
+        yield calls
+    finally:
+        for name, fn in real.items():
+            setattr(os, name, fn)
+
+
+def run_store(path: str, records: list[dict], sync: bool) -> tuple[float, int]:
+    """Seconds to write ``records`` into a new run file, and the fsyncs made (skipped when not ``sync``)."""
+    with fsyncs(sync) as calls:
+        t0 = time.perf_counter()
+        with RunFile.create(path, protocol=_Protocol(), device_info=_Device(), force=True) as run:
+            for rec in records:
+                run.records.write(rec)
+        seconds = time.perf_counter() - t0
+    return seconds, calls[0]
 
 
 def run_plain(path: str, records: list[dict]) -> float:
@@ -122,13 +151,66 @@ def run_plain(path: str, records: list[dict]) -> float:
     return time.perf_counter() - t0
 
 
+# The run file's own filters, written out here so that the baseline imports nothing of labcli.
+FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}
+
+
+def run_durable(path: str, records: list[dict], chunk: int) -> float:
+    """Bare h5py as a careful user writes a crash-safe log: the same four arrays as ``plain``, with
+    the run file's filters and chunk length, each trial's two windows appended, then one flush and
+    one fsync per trial.  What a trial's durability costs at the least, with no layout of labcli's."""
+    t0 = time.perf_counter()
+    with h5py.File(path, "w") as f:
+        shapes = {"time": ((), "f8"), "counts": ((6,), "i4"), "values": ((6,), "f8"), "seq": ((), "u4")}
+        ds = {
+            k: f.create_dataset(k, shape=(0, *s), maxshape=(None, *s), dtype=t, chunks=(chunk, *s), **FILTERS)
+            for k, (s, t) in shapes.items()
+        }
+        end = 0
+        for rec in records:
+            for w in rec["raw"].values():
+                n = len(w.seq)
+                for d in ds.values():
+                    d.resize(end + n, axis=0)
+                ds["time"][end : end + n] = w.t_us * 1e-6
+                ds["counts"][end : end + n] = w.counts.astype(np.int32)
+                ds["values"][end : end + n] = w.si
+                ds["seq"][end : end + n] = w.seq.astype(np.uint32)
+                end += n
+            f.flush()
+            os.fsync(f.id.get_vfd_handle())
+    return time.perf_counter() - t0
+
+
+def chunk_of(frames_per_window: int) -> int:
+    """The run file's chunk length for windows of this many frames (a power of two, 64 to 4096)."""
+    return int(min(4096, max(64, 2 ** math.ceil(math.log2(max(1, frames_per_window))))))
+
+
+def measure(folder: str, records: list[dict], repeat: int) -> dict[str, float]:
+    """Best seconds of each way over ``repeat`` interleaved rounds, and the fsyncs each store run made."""
+    best = {"sync": math.inf, "nosync": math.inf, "plain": math.inf, "durable": math.inf}
+    chunk = chunk_of(len(next(iter(records[0]["raw"].values())).seq))
+    made = {"sync": 0, "nosync": 0}
+    for _ in range(repeat):  # interleaved, so that a busy moment on the machine hits all three alike
+        for key, sync in (("sync", True), ("nosync", False)):
+            seconds, calls = run_store(os.path.join(folder, f"{key}.h5"), records, sync)
+            best[key] = min(best[key], seconds)
+            made[key] = calls if sync else 0  # the no-fsync run's calls were skipped
+        best["plain"] = min(best["plain"], run_plain(os.path.join(folder, "plain.h5"), records))
+        best["durable"] = min(best["durable"], run_durable(os.path.join(folder, "durable.h5"), records, chunk))
+    return {**best, **{f"fsyncs_{k}": v for k, v in made.items()}}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=60)
     ap.add_argument("--samples", default="400,4000", help="frames per window, comma-separated")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--dir", default=None, help="where to write (default: a temporary folder)")
+    ap.add_argument("--figures", default=None, help="write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
+    figures: dict[str, float | int | str] = {"trials": args.trials, "best of": args.repeat}
     folder = args.dir or tempfile.mkdtemp(prefix="bench_store_")
     os.makedirs(folder, exist_ok=True)
     print(
@@ -137,27 +219,34 @@ def main() -> None:
     )
     print(
         f"{'frames/window':>13} {'store fsync':>17} {'store no fsync':>17} {'plain h5py':>17} "
-        f"{'fsync/plain':>12} {'fsync/no-fsync':>15} {'ms/trial (fsync)':>17}"
+        f"{'fsync/plain':>12} {'fsync/no-fsync':>15} {'ms/trial (fsync)':>17} {'fsyncs/trial made':>20}"
     )
     sizes: list[tuple[int, float, float]] = []
     try:
         for n in (int(s) for s in args.samples.split(",")):
-            records = make_records(args.trials, n)
+            t = measure(folder, make_records(args.trials, n), args.repeat)
             samples = args.trials * 2 * n * len(CHANNELS)
-            # Interleaved so that a busy moment on the machine hits all three alike.
-            t_sync = t_nosync = t_plain = math.inf
-            for _ in range(args.repeat):
-                t_sync = min(t_sync, run_store(os.path.join(folder, "sync.h5"), records, True))
-                t_nosync = min(t_nosync, run_store(os.path.join(folder, "nosync.h5"), records, False))
-                t_plain = min(t_plain, run_plain(os.path.join(folder, "plain.h5"), records))
-            rate = [samples / t for t in (t_sync, t_nosync, t_plain)]
+            rate = [samples / t[k] for k in ("sync", "nosync", "plain")]
             print(
                 f"{n:>13} {rate[0]:>11.3g} smp/s {rate[1]:>11.3g} smp/s {rate[2]:>11.3g} smp/s "
-                f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t_sync / args.trials * 1e3:>14.1f} ms"
+                f"{rate[0] / rate[2]:>12.3f} {rate[0] / rate[1]:>15.3f} {t['sync'] / args.trials * 1e3:>14.1f} ms "
+                f"{t['fsyncs_sync'] / args.trials:>8.1f} vs {t['fsyncs_nosync'] / args.trials:.1f}"
             )
             sizes.append(
                 (n, *(os.path.getsize(os.path.join(folder, f)) / args.trials for f in ("sync.h5", "plain.h5")))
             )
+            print(
+                f"{'':>13} bare h5py, same filters and chunks, one fsync per trial: "
+                f"{t['durable'] / args.trials * 1e3:.2f} ms/trial; the run file takes "
+                f"{t['sync'] / t['durable']:.2f}x its time"
+            )
+            figures[f"{n} frames durable h5py ms per trial"] = round(t["durable"] / args.trials * 1e3, 3)
+            figures[f"{n} frames fsync over durable h5py"] = round(t["sync"] / t["durable"], 3)
+            for key, what in (("sync", "fsync"), ("nosync", "no fsync"), ("plain", "plain h5py")):
+                figures[f"{n} frames {what} ms per trial"] = round(t[key] / args.trials * 1e3, 3)
+            figures[f"{n} frames fsyncs per trial"] = t["fsyncs_sync"] / args.trials
+            figures[f"{n} frames no fsync fsyncs per trial"] = t["fsyncs_nosync"] / args.trials
+            figures[f"{n} frames fsync over no fsync"] = round(t["sync"] / t["nosync"], 3)
         for n, run_b, plain_b in sizes:
             # The frames' own bytes: time f8, seq u4, counts i4 x 6, values f8 x 6, two windows a trial.
             data_b = 2 * n * (8 + 4 + 4 * len(CHANNELS) + 8 * len(CHANNELS))
@@ -169,6 +258,8 @@ def main() -> None:
         if args.dir is None:
             shutil.rmtree(folder, ignore_errors=True)
     print("A 200 Hz rig produces 1200 samples/s (6 channels).")
+    if args.figures:
+        Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -1,58 +1,80 @@
-"""Trial tables at archive scale: reading, fit, validate and import of a CSV, against pandas in the same run.
+"""Trial tables at archive scale: ``labcli fit``, ``validate`` and ``import`` of a CSV beside what a user writes.
 
-Run:  python tests/benchmarks/bench_tables.py [--sizes 1e5,1e6] [--repeat 3] [--import-sizes 1e6]
+Run:  python tests/benchmarks/bench_tables.py [--sizes 1e4,1e5,1e6] [--splits contiguous,interleaved]
+                                              [--steps fit,validate,import] [--repeat 5] [--figures FILE.json]
 
 Inputs, written once before any timing: a trial CSV of n rows cycled from 2000 trials of
-:func:`labcli.papers.takuma2014.models.synthetic.paper_trials` (Eqs. 34-37 exact) with one
-ADC count of fresh sensor noise, every row renumbered 0 .. n - 1 (the ids a run file holds);
-the first 4/5 ``set = fit``, the rest ``validation``; written by pandas (``repr`` floats), about
-240 bytes a row.
+:func:`labcli.papers.takuma2014.models.synthetic.paper_trials` (Eqs. 34-37 exact) with one ADC
+count of fresh sensor noise, the rows numbered 0 .. n - 1, about 240 bytes a row.  Two shapes
+of the split: ``contiguous`` (the first 4/5 of the rows fit, the rest validation) and
+``interleaved`` (every sixth trial in the validation set, as a random split gives).
 
-Each figure is one fresh Python process (so peak memory is that process's own high-water mark,
-interpreter and imports included, and start-up is paid by both sides alike); the median of
-``--repeat`` runs is kept, the two sides alternating so that a busy moment hits both:
+Each path is a fresh process beside its independent baseline, a script under
+tests/benchmarks/baselines/ written as a user would, with no labcli import:
 
-* ``read``: ``read_trial_csv`` (the checked reader) against ``pandas.read_csv``;
-* ``fit``: ``labcli fit t.csv -o m.json --json`` (the command, in process: its default posture
-  form, the model file and the JSON printed) against ``pandas.read_csv`` plus ``TakumaModel.fit``
-  (the four least-squares fits of Eqs. 34-37, the archive-scale baseline);
-* ``validate``: ``labcli validate t.csv --model m.json`` (the report; it also fits the other form
-  for its side-by-side table) against ``pandas.read_csv`` plus ``metrics.evaluate`` of the same
-  model;
-* ``import``: ``labcli import t.csv -o t.h5`` at ``--import-sizes`` (one bulk write into the run
-  file), against ``read_trial_csv`` of the same table, so that the share of the time spent
-  reading the table and writing the run file shows; and the run file's size per trial.
+* ``fit``: ``labcli fit t.csv -o m.json`` (the default posture form, its route choice, the
+  model file) against ``baselines/paper_lstsq.py fit``: ``pandas.read_csv`` and numpy ``lstsq``
+  of the same four regressions (Eqs. 34-37) on the fit rows;
+* ``validate``: ``labcli validate t.csv --model m.json`` (the model's accuracy on the validation
+  trials beside the paper's form fitted on the fit trials) against ``paper_lstsq.py validate``:
+  ``read_csv``, the four regressions on the fit rows, their predictions of the validation rows
+  (angles from the pressures, forces at those angles) and the error measures;
+* ``import``: ``labcli import t.csv -o t.h5`` (the checked table into a crash-safe run file)
+  against ``baselines/import_h5py.py``: ``read_csv`` and one gzip-1 h5py dataset per column.
 
-Printed: seconds and peak MiB per step beside the baseline and the ratios; peak memory as a
-multiple of the CSV's size; the scaling exponent (log-log slope from the smallest to the
-largest n) of time and of peak memory.
+Every figure is the median of ``--repeat`` rounds, labcli and the baseline alternating (the
+order flips every round); the ratio is labcli's median over the baseline's, CPU time first (the
+figure a shared machine disturbs least), then wall time and peak resident memory; the spread of
+the per-round CPU ratios is the noise.  Last, the growth exponent of labcli's CPU time from the
+smallest to the largest n (log-log slope; 1 is linear), and from 10^5 up when measured.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
-import resource
 import shutil
-import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+sys.path.insert(0, str(HERE))
+
+from fresh import HEADER, Pair, interleaved, machine, row, write_figures  # noqa: E402
 
 POOL = 2000
-STEPS = ("read", "fit", "validate")
+STEPS = ("fit", "validate", "import")
+SPLITS = ("contiguous", "interleaved")
+COLUMNS = [
+    "trial",
+    "set",
+    "P_L10",
+    "P_R10",
+    "P_L20",
+    "P_R20",
+    "P_L1",
+    "P_R1",
+    "P_L2",
+    "P_R2",
+    "theta1_deg",
+    "theta2_deg",
+    "Fx_N",
+    "Fy_N",
+]
 
 
-def write_table(n: int, path: Path) -> None:
+def validation_rows(n: int, split: str) -> object:
+    """Which of n rows are validation trials: the last fifth, or every sixth."""
+    import numpy as np
+
+    rows = np.arange(n)
+    return rows >= n * 4 // 5 if split == "contiguous" else rows % 6 == 5
+
+
+def write_table(n: int, path: Path, split: str = "contiguous") -> None:
     import numpy as np
 
     from labcli.papers.takuma2014.models.synthetic import add_sensor_noise, paper_trials
@@ -61,172 +83,110 @@ def write_table(n: int, path: Path) -> None:
     out = pool.iloc[np.arange(n) % POOL].reset_index(drop=True)
     out["trial"] = np.arange(n)
     out = add_sensor_noise(out, seed=n, noise_counts=1.0)
-    out["set"] = np.where(np.arange(n) < n * 4 // 5, "fit", "validation")
-    columns = [
-        "trial",
-        "set",
-        "P_L10",
-        "P_R10",
-        "P_L20",
-        "P_R20",
-        "P_L1",
-        "P_R1",
-        "P_L2",
-        "P_R2",
-        "theta1_deg",
-        "theta2_deg",
-        "Fx_N",
-        "Fy_N",
-    ]
-    out[columns].to_csv(path, index=False)
+    out["set"] = np.where(validation_rows(n, split), "validation", "fit")
+    out[COLUMNS].to_csv(path, index=False)
 
 
-# ------------------------------------------------------------------ one step in a fresh process
-
-
-def child(step: str, side: str, csv: str, model: str, out: str) -> None:
-    t0 = time.perf_counter()
-    if side == "pandas":
-        import pandas as pd
-
-        df = pd.read_csv(csv)
-        if step in ("fit", "validate"):
-            from labcli.papers.takuma2014.models.takuma import TakumaModel
-
-            if step == "fit":
-                TakumaModel(geometry=_geometry(), protocol="takuma2014").fit(df)
-            else:
-                from labcli.papers.takuma2014.models.metrics import evaluate
-                from labcli.papers.takuma2014.models.posture import load_force_model
-
-                evaluate(load_force_model(model), df)
-    elif step == "read":
-        from labcli.papers.takuma2014.tables import read_trial_csv
-
-        read_trial_csv(csv)
-    else:
-        from labcli.cli import cli
-
-        args = {
-            "fit": ["fit", csv, "-o", out, "--json"],
-            "validate": ["validate", csv, "--model", model],
-            "import": ["import", csv, "-o", out, "--protocol", "takuma2014", "--force"],
-        }[step]
-        import contextlib
-        import io
-
-        with contextlib.redirect_stdout(io.StringIO()):
-            cli.main(args, standalone_mode=False)
-    seconds = time.perf_counter() - t0
-    peak = _high_water()
-    print(json.dumps({"seconds": seconds, "peak": peak}))
-
-
-def _high_water() -> int:
-    """This process's peak resident bytes: VmHWM starts afresh at exec (ru_maxrss keeps the parent's peak)."""
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmHWM:"):
-            return int(line.split()[1]) * 1024
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-
-
-def _geometry() -> dict:
+def geometry() -> tuple[str, str]:
+    """h2, h3 in m, as the baselines take them (a user copies them from the rig)."""
     from labcli.core.protocol import load_protocol
 
-    return dict(load_protocol("takuma2014").settings.rig)
+    rig = load_protocol("takuma2014").settings.rig
+    return str(rig["h2_m"]), str(rig["h3_m"])
 
 
-def once(step: str, side: str, csv: Path, model: Path, out: Path) -> dict:
-    res = subprocess.run(
-        [sys.executable, __file__, "--child", step, side, str(csv), str(model), str(out)],
-        capture_output=True,
-        text=True,
-        check=True,
+def commands(step: str, csv: Path, work: Path) -> tuple[list[str], list[str]]:
+    """labcli's command and its baseline's, as ``python`` arguments."""
+    h2, h3 = geometry()
+    model = work / f"{csv.stem}.model.json"
+    base = HERE / "baselines"
+    if step == "fit":
+        return (
+            ["-m", "labcli", "fit", str(csv), "-o", str(model)],
+            [str(base / "paper_lstsq.py"), "fit", str(csv), h2, h3],
+        )
+    if step == "validate":
+        return (
+            ["-m", "labcli", "validate", str(csv), "--model", str(model)],
+            [str(base / "paper_lstsq.py"), "validate", str(csv), h2, h3],
+        )
+    out = work / f"{csv.stem}.h5"
+    return (
+        ["-m", "labcli", "import", str(csv), "-o", str(out), "--protocol", "takuma2014", "--force"],
+        [str(base / "import_h5py.py"), str(csv), str(work / f"{csv.stem}.baseline.h5")],
     )
-    return json.loads(res.stdout.strip().splitlines()[-1])
 
 
-def paired(repeat: int, *sides: tuple) -> list[dict]:
-    """Median seconds and peak of each side over ``repeat`` rounds, the sides alternating in each round."""
-    runs: list[list[dict]] = [[] for _ in sides]
-    for _ in range(repeat):
-        for got, args in zip(runs, sides, strict=False):
-            got.append(once(*args))
-    return [{k: statistics.median(r[k] for r in got) for k in ("seconds", "peak")} for got in runs]
+def slope(n0: int, t0: float, n1: int, t1: float) -> float:
+    return math.log(t1 / t0) / math.log(n1 / n0)
 
 
-def slope(x: list[float], y: list[float]) -> float:
-    return math.log(y[-1] / y[0]) / math.log(x[-1] / x[0]) if len(x) > 1 else math.nan
+def exponents(pairs: dict[tuple[str, str, int], Pair], sizes: list[int]) -> dict[str, float]:
+    """Growth exponents of labcli's CPU time and peak memory, per step and split."""
+    out: dict[str, float] = {}
+    for step, split in sorted({(s, p) for s, p, _ in pairs}):
+        ns = [n for n in sizes if (step, split, n) in pairs]
+        if len(ns) < 2:
+            continue
+        spans = [(ns[0], ns[-1])] + ([(100_000, ns[-1])] if 100_000 in ns and ns[0] < 100_000 < ns[-1] else [])
+        for a, b in spans:
+            pa, pb = pairs[step, split, a], pairs[step, split, b]
+            for key, what in (("cpu_s", "cpu"), ("peak_mib", "memory")):
+                e = slope(a, pa.median("labcli", key), b, pb.median("labcli", key))
+                out[f"{step} {split} {what} growth exponent {a:.0e} to {b:.0e}"] = round(e, 3)
+    return out
 
 
-def mib(b: float) -> str:
-    return f"{b / 2**20:.0f}"
-
-
-# Over 80 lines: one benchmark from its options to its printed table, each step a row of it.
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", default="1e5,1e6", help="rows of the trial CSV, comma-separated")
-    ap.add_argument("--import-sizes", default="1e6", help="rows imported into a run file, comma-separated")
-    ap.add_argument("--repeat", type=int, default=3, help="fresh processes per figure (the median is kept)")
-    ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    ap.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
+    ap.add_argument("--sizes", default="1e4,1e5,1e6", help="rows of the trial CSV, comma-separated")
+    ap.add_argument("--splits", default=",".join(SPLITS), help="contiguous, interleaved or both")
+    ap.add_argument("--steps", default=",".join(STEPS), help="fit, validate, import (comma-separated)")
+    ap.add_argument("--repeat", type=int, default=5, help="rounds per figure (the median is kept)")
+    ap.add_argument("--figures", default=None, help="write the figures to this JSON file ({name: value})")
+    ap.add_argument("--keep", type=Path, default=None, help="folder for the tables (default: a temporary one)")
     args = ap.parse_args()
-    if args.child:
-        child(*args.child)
-        return
     sizes = sorted(int(float(s)) for s in args.sizes.split(","))
-    import_sizes = sorted(int(float(s)) for s in args.import_sizes.split(",") if s)
-    work = Path(tempfile.mkdtemp(prefix="labcli_bench_tables_"))
-    figures: dict = {"sizes": sizes, "steps": {}, "import": {}}
-    print(
-        f"{'n':>8} {'step':9} {'labcli s':>9} {'pandas s':>9} {'ratio':>6} "
-        f"{'labcli MiB':>10} {'pandas MiB':>10} {'ratio':>6} {'CSV MiB':>8} {'peak/CSV':>8}"
-    )
-    for n in sizes:
-        csv, model, out = work / f"t{n}.csv", work / f"m{n}.json", work / f"o{n}"
-        write_table(n, csv)
-        size = csv.stat().st_size
-        for step in STEPS:
-            mine, base = paired(
-                args.repeat,
-                (step, "labcli", csv, model, model if step == "fit" else out),
-                (step, "pandas", csv, model, out),
-            )
-            figures["steps"].setdefault(step, []).append({"n": n, "csv_bytes": size, "labcli": mine, "pandas": base})
-            print(
-                f"{n:>8} {step:9} {mine['seconds']:>9.2f} {base['seconds']:>9.2f} "
-                f"{mine['seconds'] / base['seconds']:>6.2f} {mib(mine['peak']):>10} {mib(base['peak']):>10} "
-                f"{mine['peak'] / base['peak']:>6.2f} {mib(size):>8} {mine['peak'] / size:>8.2f}"
-            )
-    for step, rows in figures["steps"].items():
-        ns = [r["n"] for r in rows]
-        print(
-            f"scaling exponent {step:9} time {slope(ns, [r['labcli']['seconds'] for r in rows]):.2f} "
-            f"(pandas {slope(ns, [r['pandas']['seconds'] for r in rows]):.2f}), peak memory "
-            f"{slope(ns, [r['labcli']['peak'] for r in rows]):.2f} "
-            f"(pandas {slope(ns, [r['pandas']['peak'] for r in rows]):.2f})"
-        )
-    for n in import_sizes:
-        csv, out = work / f"i{n}.csv", work / f"i{n}.h5"
-        write_table(n, csv)
-        whole, read = paired(args.repeat, ("import", "labcli", csv, csv, out), ("read", "labcli", csv, csv, out))
-        per_trial = out.stat().st_size / n
-        figures["import"][n] = {
-            "import": whole,
-            "read": read,
-            "file_bytes_per_trial": per_trial,
-            "csv_bytes_per_trial": csv.stat().st_size / n,
-        }
-        print(
-            f"import {n:>8} rows: {whole['seconds']:.2f} s ({whole['seconds'] / n * 1e6:.0f} us/row), peak "
-            f"{mib(whole['peak'])} MiB; of which reading the table {read['seconds']:.2f} s "
-            f"({whole['seconds'] / read['seconds']:.2f}x the read); run file {per_trial:.0f} bytes per trial "
-            f"(the CSV {csv.stat().st_size / n:.0f})"
-        )
-    if args.json:
-        Path(args.json).write_text(json.dumps(figures, indent=1))
-    shutil.rmtree(work, ignore_errors=True)
+    splits = [s for s in args.splits.split(",") if s]
+    steps = [s for s in args.steps.split(",") if s]
+    for name, chosen, known in (("split", splits, SPLITS), ("step", steps, STEPS)):
+        bad = sorted(set(chosen) - set(known))
+        if bad:
+            raise SystemExit(f"unknown {name} {bad[0]!r}; choose from {', '.join(known)}")
+    work = args.keep or Path(tempfile.mkdtemp(prefix="labcli_bench_tables_"))
+    work.mkdir(parents=True, exist_ok=True)
+    figures: dict = {**machine(), "rounds per figure": args.repeat}
+    pairs: dict[tuple[str, str, int], Pair] = {}
+    print(f"medians of {args.repeat} interleaved rounds, fresh processes; CPU = user + system of the process")
+    print(HEADER)
+    try:
+        for n in sizes:
+            for split in splits:
+                csv = work / f"t{n}-{split}.csv"
+                write_table(n, csv, split)
+                figures[f"csv {n:.0e} {split} MiB"] = round(csv.stat().st_size / 2**20, 1)
+                for step in steps:
+                    if step == "validate" and "fit" not in steps:
+                        from fresh import fresh
+
+                        fresh(commands("fit", csv, work)[0])  # the model validate checks
+                    mine, base = commands(step, csv, work)
+                    pair = interleaved(f"{step} {n:.0e} {split}", args.repeat, mine, base)
+                    pairs[step, split, n] = pair
+                    print(row(pair), flush=True)
+                    figures.update(pair.figures())
+                if args.keep is None:
+                    for f in work.glob(f"t{n}-{split}*"):
+                        f.unlink()
+    finally:
+        if args.keep is None:
+            shutil.rmtree(work, ignore_errors=True)
+    growth = exponents(pairs, sizes)
+    for name, value in growth.items():
+        print(f"{name}: {value:.2f}")
+    figures.update(growth)
+    if args.figures:
+        write_figures(args.figures, figures)
 
 
 if __name__ == "__main__":

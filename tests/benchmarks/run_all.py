@@ -38,6 +38,7 @@ class Bench:
     parse: Callable[[str, Path], tuple[str, str]]  # (stdout, json path) -> (headline, context)
     json: bool = False
     timeout_s: float = 900.0
+    json_flag: str = "--json"  # how the script is asked for its figures file
 
 
 def grab(pattern: str, text: str, flags: int = re.M) -> re.Match:
@@ -140,41 +141,20 @@ def p_models(_: str, path: Path) -> tuple[str, str]:
 
 
 def p_tables(_: str, path: Path) -> tuple[str, str]:
+    """bench_tables.py's figures (--figures): each path's CPU ratio at the largest size, then wall, memory, growth."""
     d = json.loads(path.read_text())
-    steps = d["steps"]
-    last = {k: v[-1] for k, v in steps.items()}
-    n = last["fit"]["n"]
-
-    def exponent(rows: list, what: str) -> float:
-        import math
-
-        a, b = rows[0], rows[-1]
-        return math.log(b["labcli"][what] / a["labcli"][what]) / math.log(b["n"] / a["n"])
-
-    head = "; ".join(
-        f"{k} {r['labcli']['seconds'] / r['pandas']['seconds']:.1f}x time, "
-        f"{r['labcli']['peak'] / r['csv_bytes']:.1f}x the CSV"
-        for k, r in last.items()
+    ratios = {k[: -len(" cpu ratio")]: v for k, v in d.items() if k.endswith(" cpu ratio")}
+    n = max(float(k.split()[1]) for k in ratios)
+    last = {k: v for k, v in ratios.items() if float(k.split()[1]) == n}
+    head = "; ".join(f"{k.replace(f' {k.split()[1]}', '')} {v:.2f}x CPU" for k, v in last.items())
+    ctx = f"at n = {n:.0e} against pandas + numpy / bare h5py (tests/benchmarks/baselines/), median of {d['rounds per figure']}: "
+    ctx += ", ".join(
+        f"{k.split()[0]} {k.split()[2]} wall {d[k + ' wall ratio']:.2f}x, memory {d[k + ' peak memory ratio']:.2f}x"
+        for k in last
     )
-    ctx = (
-        f"at n = {n:.0e} ({last['fit']['csv_bytes'] / 2**20:.0f} MiB CSV), labcli vs baseline: "
-        + ", ".join(
-            f"{k} {r['labcli']['seconds']:.1f} s vs {r['pandas']['seconds']:.1f} s, "
-            f"{r['labcli']['peak'] / 2**20:.0f} vs {r['pandas']['peak'] / 2**20:.0f} MiB "
-            f"({r['labcli']['peak'] / r['pandas']['peak']:.1f}x)"
-            for k, r in last.items()
-        )
-        + (f"; exponent {steps['fit'][0]['n']:.0e} to {n:.0e}: " if len(steps["fit"]) > 1 else "; exponent: ")
-        + ", ".join(
-            f"{k} {exponent(v, 'seconds'):.2f} (time) {exponent(v, 'peak'):.2f} (memory)" for k, v in steps.items()
-        )
-    )
-    for n_imp, r in d.get("import", {}).items():
-        ctx += (
-            f"; import {int(n_imp):.0e} rows {r['import']['seconds']:.1f} s, {r['import']['peak'] / 2**20:.0f} MiB "
-            f"vs reading alone {r['read']['seconds']:.1f} s ({r['import']['seconds'] / r['read']['seconds']:.1f}x); "
-            f"run file {r['file_bytes_per_trial']:.0f} B per trial (CSV {r['csv_bytes_per_trial']:.0f} B)"
-        )
+    growth = {k: v for k, v in d.items() if "cpu growth exponent" in k}
+    if growth:
+        ctx += "; CPU growth exponents " + ", ".join(f"{k.split(' cpu')[0]} {v:.2f}" for k, v in growth.items())
     return head, ctx
 
 
@@ -189,19 +169,15 @@ def p_demo(_: str, path: Path) -> tuple[str, str]:
     )
 
 
-def p_classify_report(out: str, _: Path) -> tuple[str, str]:
-    rows = json.loads(out.strip().splitlines()[-1])
-    r = rows[-1]
-    stage = (
-        f"; report stage alone: streamed {r['stage_stream_MB']:.0f} MB vs one dict {r['stage_dict_MB']:.0f} MB"
-        if "stage_stream_MB" in r
-        else ""
-    )
+def p_classify_report(_: str, path: Path) -> tuple[str, str]:
+    """bench_classify_report.py's figures (--figures): CPU, wall and memory ratios at the largest size."""
+    d = json.loads(path.read_text())
+    names = [k[: -len(" cpu ratio")] for k in d if k.endswith(" cpu ratio")]
+    k = names[-1]
     return (
-        f"--json {r['json_MB'] / r['baseline_MB']:.2f}x memory, {r['json_s'] / r['baseline_s']:.1f}x time; "
-        f"report {r['report_MB'] / r['baseline_MB']:.2f}x memory",
-        f"at n = {r['n']:.0e} pushes ({r['csv_MB']:.0f} MB CSV): baseline {r['baseline_MB']:.0f} MB "
-        f"{r['baseline_s']:.1f} s, --json {r['json_MB']:.0f} MB {r['json_s']:.1f} s{stage}",
+        f"--json {d[k + ' cpu ratio']:.2f}x CPU, {d[k + ' wall ratio']:.2f}x wall, {d[k + ' peak memory ratio']:.2f}x memory",
+        f"{k}: labcli {d[k + ' labcli cpu s']:.2f} s CPU, {d[k + ' labcli peak memory MiB']:.0f} MiB; baseline "
+        f"{d[k + ' baseline cpu s']:.2f} s, {d[k + ' baseline peak memory MiB']:.0f} MiB (median of {d['rounds per figure']})",
     )
 
 
@@ -309,10 +285,12 @@ BENCHES = [
     Bench(
         "classify-report",
         "bench_classify_report.py",
-        ["--sizes", "1e4", "--no-stage"],
-        "`labcli classify` on an archive of n pushes (n/10 objects): --json and the report, peak RSS",
-        "pandas read_csv + groupby(object) mean/sd, same CSV",
+        ["--sizes", "1e4", "--repeat", "1"],
+        "`labcli classify --json` on an archive of n pushes (n/10 objects), fresh processes: CPU, wall, peak RSS",
+        "pandas read_csv + Eqs. 34-37 vectorised + groupby(object), to JSON (baselines/classify_groupby.py)",
         p_classify_report,
+        json=True,
+        json_flag="--figures",
     ),
     Bench(
         "firmware",
@@ -325,11 +303,13 @@ BENCHES = [
     Bench(
         "tables",
         "bench_tables.py",
-        ["--sizes", "1e4,1e5", "--import-sizes", "1e5", "--repeat", "1"],
-        "trial CSV: checked read, `labcli fit`, `labcli validate` (fresh process each, peak resident memory)",
-        "pandas `read_csv` (+ the four least-squares fits / evaluate)",
+        ["--sizes", "1e4,1e5", "--repeat", "1"],
+        "trial CSV: `labcli fit`, `validate`, `import`, contiguous and interleaved splits (fresh processes: CPU, wall, "
+        "peak RSS)",
+        "pandas read_csv + numpy lstsq of Eqs. 34-37 (+ their validation), read_csv + bare h5py (baselines/)",
         p_tables,
         json=True,
+        json_flag="--figures",
     ),
     Bench(
         "capture-memory",
@@ -351,14 +331,14 @@ BENCHES = [
 ]
 # The archive-scale figures (--scale): tables and import at 10^6 rows, classify at 10^6 pushes.
 SCALE_ARGS = {
-    "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
-    "classify-report": ["--sizes", "1e6", "--no-stage"],
+    "tables": ["--sizes", "1e5,1e6", "--repeat", "3"],
+    "classify-report": ["--sizes", "1e5,1e6", "--repeat", "3"],
 }
 FULL_ARGS = {
     "models": ["--sizes", "1e2,1e3,1e4,1e5,1e6"],
     "demo": ["--seeds", "1-3"],
-    "tables": ["--sizes", "1e5,1e6", "--import-sizes", "1e6", "--repeat", "3"],
-    "classify-report": ["--sizes", "1e5,1e6"],
+    "tables": ["--sizes", "1e4,1e5,1e6", "--repeat", "5"],
+    "classify-report": ["--sizes", "1e5", "--repeat", "5"],
     "capture-memory": ["--windows", "60,600,3600"],
 }
 
@@ -399,7 +379,7 @@ def main() -> None:
         cmd = [sys.executable, str(HERE / b.script)] + (extra or (FULL_ARGS.get(b.name, []) if args.full else b.quick))
         json_path = logs / f"{b.name}.json"
         if b.json:
-            cmd += ["--json", str(json_path)]
+            cmd += [b.json_flag, str(json_path)]
         print(f"running {b.name}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         try:

@@ -293,7 +293,7 @@ def test_typed_session_with_redo_skip_quit_then_resume(tmp_path):
 def test_typed_loads_without_a_plan_are_checked(tmp_path):
     path = tmp_path / "run.h5"
     # The simulated board supplies and holds by command: the first answers are the typed load's.
-    answers = "5000\n250 g\n400\n45\n" + "\n\na\n" + "\n"
+    answers = "5000\n250 g\nnorth\n45\n" + "\n\na\n" + "\ny\n"
     # The ideal rig: the check is of the typed loads; on the default rig sleeve friction and the
     # potentiometers' play hide most of a 250 g deflection (tests/test_nonideal.py has those).
     result = CliRunner().invoke(
@@ -301,8 +301,8 @@ def test_typed_loads_without_a_plan_are_checked(tmp_path):
     )
     assert result.exit_code == 0, result.output
     assert "The mass must be from 1 g to 2000 g, got 5000 g." in result.output
-    assert "The direction must be from -180 deg to 180 deg, got 400 deg." in result.output
-    assert "Trial 1/108: hang 250 g, pulley direction 45 deg, then press Enter" in result.output
+    assert "'north' is not a direction: type degrees counter-clockwise from +x, e.g. 45 deg." in result.output
+    assert "Trial 1/108: hang 250 g, pulley direction 45 deg, then press Enter (or type another" in result.output
     df = load_trials(path)
     assert df["trial"].tolist() == [1] and df["set"].tolist() == [""]
     assert df["Fx_N"].iloc[0] == pytest.approx(0.25 * G / math.sqrt(2))

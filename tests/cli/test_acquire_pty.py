@@ -30,7 +30,7 @@ from labcli.papers.takuma2014.records import load_trials
 
 ROOT = Path(__file__).resolve().parents[2]
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n"
-REVIEW = "Accept [a], redo [r], skip [s] or quit [q]? (a):"
+REVIEW = "Accept [a], redo [r], skip [s], note [n] or quit [q]? (a):"
 
 
 def quick_protocol(tmp_path: Path) -> Path:

@@ -160,16 +160,16 @@ def test_rich_report_has_units_and_the_numbers_of_the_json(lab):
     assert res.exit_code == 0, res.output
     data = json.loads(run("classify", lab["pushes"], "--model", lab["model"], "--json").output)
     for header in (
-        "theta1 [deg]",
-        "Fx [N]",
-        "C [mm]",
-        "phi [deg]",
-        "O2 [mm]",
-        "delta_x [mm]",
-        "k_o [N/m]",
-        "mean k_o [N/m]",
-        "sd [N/m]",
-        "true k_o [N/m]",
+        "theta1 (deg)",
+        "Fx (N)",
+        "C (mm)",
+        "phi (deg)",
+        "O2 (mm)",
+        "delta_x (mm)",
+        "k_o (N/m)",
+        "mean k_o (N/m)",
+        "sd (N/m)",
+        "true k_o (N/m)",
         "confidence",
     ):
         assert header in res.output
@@ -489,9 +489,9 @@ def test_many_pushes_are_summarised_per_object_and_listed_on_request(lab, tmp_pa
         "120 pushes of many.csv (angles and force from the pressures) on 6 objects; list them with --pushes."
         in r.stdout
     )
-    assert "theta1 [deg]" not in r.stdout and "Objects: category by" in r.stdout
+    assert "theta1 (deg)" not in r.stdout and "Objects: category by" in r.stdout
     listed = run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands", "--pushes")
-    assert "theta1 [deg]" in listed.stdout and "1060 " in listed.stdout
+    assert "theta1 (deg)" in listed.stdout and "1060 " in listed.stdout
     data = json.loads(
         run("classify", tmp_path / "many.csv", "--model", lab["model"], "--method", "bands", "--json").stdout
     )

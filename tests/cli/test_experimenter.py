@@ -88,7 +88,7 @@ def test_enter_twice_without_the_weight_never_stores_the_trial_and_a_weight_left
         "check that the load was applied as the prompt said, then redo the trial \\(Enter\\), or accept it "
         "as it is \\(a\\)"
     )
-    child.expect_exact("Accept [a], redo [r], skip [s] or quit [q]? (r):")
+    child.expect_exact("Accept [a], redo [r], skip [s], note [n] or quit [q]? (r):")
     child.sendline("")  # Enter alone: the default, redo
     trial(child, rig, "Trial 8/10 (validation)", 1000, -30)
     child.expect_exact(REVIEW)

@@ -73,7 +73,7 @@ def test_validate_reports_metrics_flags_and_figure(csv: Path, tmp_path: Path) ->
     png = tmp_path / "fig7.png"
     r = run("validate", csv, "--plot", png)
     assert r.exit_code == 0, r.output
-    assert "pressure-only" in r.output and "theta1 [deg]" in r.output and "Fy [N]" in r.output
+    assert "pressure-only" in r.output and "theta1 (deg)" in r.output and "Fy (N)" in r.output
     assert ("trial 109: Fy = — (theta2 too close to 0 for this force component (Jacobian near singular))") in r.output
     assert f"Figure 7 written to {png}." in r.output
     assert png.read_bytes()[:4] == b"\x89PNG"

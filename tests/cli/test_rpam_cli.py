@@ -96,6 +96,14 @@ def test_demo_runs_the_rpam_chain_and_reports_it(tmp_path):
     assert o["toggle_deg"] - o["alpha_deg"] >= 1.0 and o["L_a_m"] <= 0.14 + 1e-12
     assert abs(o["rounded"]["alpha_deg"] - o["alpha_deg"]) <= 0.5 and o["rounded"]["feasible"]
     assert o["paper"]["L2_m"] == 0.1048 and "Link optimisation" in text and "paper's design" in text
+    # Both readings of the force through the chain: the stand follows the derived force, so the
+    # paper reading explains its stretch test and its joint map worse, and each optimum is its own.
+    r = s["readings"]
+    assert r["derived"]["optimum"]["alpha_deg"] == pytest.approx(o["alpha_deg"], abs=1e-9)
+    assert r["paper"]["stretch_rmse_N"] > 3 * r["derived"]["stretch_rmse_N"]
+    assert r["paper"]["joint_map_with_fitted"]["rmse_deg"] > r["derived"]["joint_map_with_fitted"]["rmse_deg"]
+    assert r["paper"]["optimum"]["min_stiffness_Nm_per_rad"] == 0.2
+    assert "Both readings of the actuator force (--force)" in text
     for name in ("fig6-stretch.png", "fig8-joint-map.png"):
         assert (out / name).read_bytes()[:8] == PNG
     assert (out / "joint-map.csv").read_text().splitlines()[0].startswith("point,P_A,P_B,alpha_deg,")
@@ -248,7 +256,7 @@ def test_set_with_an_unknown_key_names_the_choices(runs):
     assert result.exit_code == 1
     assert result.output == (
         "Error: Unknown protocol key 'actuator.L0_mm' in --set; keys under actuator: "
-        "A0_m2, L0_m, n_turns, prestretch, thread_length_m.\n"
+        "A0_m2, L0_m, force_reading, n_turns, prestretch, thread_length_m.\n"
     )
 
 
@@ -277,3 +285,58 @@ def test_rpam_reports_stay_whole_and_plain_at_80_columns(runs, args, tmp_path):
     assert result.exit_code == 0, result.output
     assert not re.search("[\u2500-\u257f]", result.output), "box drawing in piped output"
     assert not re.search(r"[0-9.+\-]\u2026", result.output), "a number cut short"
+
+
+# --------------------------------------------------------------------------- --force (the reading of the actuator force)
+
+
+def test_force_reading_is_chosen_recorded_and_kept_with_its_fit(runs, tmp_path):
+    paper_model = tmp_path / "stretch-paper.model.json"
+    fitted = invoke("fit", runs["stretch"], "--force", "paper", "-o", paper_model)
+    assert fitted.exit_code == 0, fitted.output
+    d = json.loads(paper_model.read_text())
+    assert d["force_reading"] == "paper"
+    # The correction is what the reading leaves unexplained: under the paper reading it differs.
+    derived_model = tmp_path / "stretch-derived.model.json"
+    assert invoke("fit", runs["stretch"], "-o", derived_model).exit_code == 0
+    dd = json.loads(derived_model.read_text())
+    assert dd["force_reading"] == "derived"
+    assert d["model"]["coefficients_N"] != pytest.approx(dd["model"]["coefficients_N"], abs=0.1)
+    # validate follows the fit's reading, and records it.
+    v = invoke("validate", runs["joint"], "--model", paper_model, "--json")
+    assert v.exit_code == 0, v.output
+    vd = json.loads(v.output)
+    assert vd["force_reading"] == "paper" and vd["actuator"]["force_reading"] == "paper"
+    plain = json.loads(invoke("validate", runs["joint"], "--json").output)
+    assert plain["force_reading"] == "derived"
+    assert (
+        json.loads(invoke("validate", runs["joint"], "--json", "--force", "paper").output)["force_reading"] == "paper"
+    )
+    # A fit made under one reading is not compared under the other.
+    wrong = invoke("validate", runs["joint"], "--model", paper_model, "--force", "derived")
+    assert wrong.exit_code == 1 and wrong.output == (
+        "Error: The stretch fit was made with the paper force reading, so its correction belongs to it; "
+        "compare with --force paper, or fit the stretch test again with --force derived.\n"
+    )
+
+
+def test_force_is_refused_on_a_force_run_and_checked_on_an_rpam_run(runs, tmp_path):
+    from labcli.papers.takuma2014.models.synthetic import paper_trials
+    from labcli.papers.takuma2014.tables import write_trial_csv
+
+    csv = tmp_path / "trials.csv"
+    write_trial_csv(paper_trials(20, noise=False), csv)
+    for cmd in ("fit", "validate"):
+        result = invoke(cmd, csv, "--force", "paper")
+        assert result.exit_code == 1
+        # The core's one sentence for another paper's option (no per-paper refusal tables).
+        assert (
+            result.output
+            == f"Error: --force is an option of rpam2015 runs; labcli {cmd} reads {csv} with takuma2014.\n"
+        )
+    from labcli.papers.rpam2015.actuator import FORCE_READINGS
+    from labcli.papers.rpam2015.options import FORCE_READINGS as DECLARED
+
+    assert DECLARED == FORCE_READINGS  # the declaration imports nothing heavy, so it repeats them
+    bad = invoke("fit", runs["stretch"], "--force", "printed")
+    assert bad.exit_code == 2 and "'printed' is not one of 'derived', 'paper'" in bad.output

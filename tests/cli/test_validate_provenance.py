@@ -49,7 +49,8 @@ def here(fitted: Path, tmp_path: Path) -> Path:
 def test_a_clean_split_validates_and_names_its_model(here: Path) -> None:
     r = run("validate", here / "run.h5")
     assert r.exit_code == 0, r.output
-    assert f"model: {here / 'run.model.json'}" in r.stdout and r.stderr == ""
+    # The model the run records is applied before the file beside it (the same JSON here).
+    assert f"model: {here / 'run.h5'}:/models/takuma2014" in r.stdout and r.stderr == ""
 
 
 def test_validation_trials_used_in_the_fit_are_refused(here: Path) -> None:
@@ -67,7 +68,7 @@ def test_validation_trials_used_in_the_fit_are_refused(here: Path) -> None:
     assert {3, 5, 6, 10, 12} <= fitted  # the split put five of the model's own fit trials in validation
     assert r.stderr == (
         f"Error: 5 of the 8 validation trials of {here / 'run.h5'} ({shared}) were used to fit "
-        f"{here / 'run.model.json'}, so the validation would test the model on its own data; "
+        f"{here / 'run.h5'}:/models/takuma2014, so the validation would test the model on its own data; "
         f"refit after the split (`labcli fit {here / 'run.h5'}`), or pass --allow-overlap to "
         "validate anyway.\n"
     )
@@ -109,8 +110,8 @@ def test_no_model_anywhere(here: Path) -> None:
     r = run("validate", here / "bare.h5")
     assert r.exit_code == 1
     assert r.stderr == (
-        f"Error: The model file {here / 'bare.model.json'} does not exist and {here / 'bare.h5'} "
-        f"records no model under /models/takuma2014; write one with `labcli fit {here / 'bare.h5'}`.\n"
+        f"Error: {here / 'bare.h5'} records no model under /models/takuma2014 and the model file "
+        f"{here / 'bare.model.json'} does not exist; write one with `labcli fit {here / 'bare.h5'}`.\n"
     )
 
 

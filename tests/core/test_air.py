@@ -56,6 +56,7 @@ def test_the_protocols_air_settings_and_their_defaults():
         ('end_valves = "supply"', "key 'acquisition.end_valves' must be one of hold, vent, not 'supply'."),
         ("leak_max_kPa_per_min = -1", "key 'acquisition.leak_max_kPa_per_min' must be greater than 0, not -1.0."),
         ("hold_check_s = 1000", "key 'acquisition.hold_check_s' must be at most 600 s, not 1000.0."),
+        ("friction_relief_s = -0.5", "key 'acquisition.friction_relief_s' must be at least 0, not -0.5."),
     ],
 )
 def test_bad_air_settings_are_refused_in_one_sentence(tmp_path, line, message):

@@ -8,7 +8,9 @@ layer                       may import
 ==========================  ================================================================
 labcli.errors               nothing from labcli
 labcli.core.*               labcli.errors, labcli.core.*
-labcli.papers.<p>.*    labcli.errors, labcli.core.*, its own subpackage
+labcli.sensing.*            labcli.errors, labcli.core.*, labcli.sensing.*: never a paper (its
+                            models come through the registry, ``Paper.sensing_model``)
+labcli.papers.<p>.*         labcli.errors, labcli.core.*, labcli.sensing.*, its own subpackage
 labcli.commands.*, cli      anything but a paper: papers only through the registry
 ==========================  ================================================================
 """
@@ -67,13 +69,34 @@ def test_core_imports_only_the_core_and_errors(name):
     assert not outside, f"{name} imports {sorted(outside)}"
 
 
+@pytest.mark.parametrize("name", sorted(n for n in MODULES if n.startswith("labcli.sensing")))
+def test_sensing_imports_the_core_errors_and_itself_only(name):
+    outside = {
+        m
+        for m in GRAPH[name]
+        if not (m == "labcli.errors" or m.startswith("labcli.core") or m.startswith("labcli.sensing"))
+    }
+    assert not outside, f"{name} imports {sorted(outside)}"
+
+
+def test_the_sensing_layer_exists_and_the_core_does_not_reach_it():
+    assert "labcli.sensing.estimator" in GRAPH["labcli.sensing"]
+    assert not any(m.startswith("labcli.sensing") for n in MODULES if n.startswith("labcli.core") for m in GRAPH[n])
+
+
 @pytest.mark.parametrize("name", sorted(n for n in MODULES if paper_of(n)))
-def test_a_paper_imports_the_core_errors_and_itself_only(name):
+def test_a_paper_imports_the_core_sensing_errors_and_itself_only(name):
     own = f"labcli.papers.{paper_of(name)}"
     outside = {
         m
         for m in GRAPH[name]
-        if not (m == "labcli.errors" or m.startswith("labcli.core") or m == own or m.startswith(own + "."))
+        if not (
+            m == "labcli.errors"
+            or m.startswith("labcli.core")
+            or m.startswith("labcli.sensing")
+            or m == own
+            or m.startswith(own + ".")
+        )
     }
     assert not outside, f"{name} imports {sorted(outside)}"
 

@@ -103,14 +103,12 @@ def test_every_time_in_existing_files_reads(path):
 
 
 def test_a_trial_that_began_in_the_older_form_ended_after_it_began():
-    # sample_runs/force.h5 holds both forms side by side: started '...47Z', ended
-    # '...47.819444+00:00'.  As text the start sorts after the end ('Z' > '.'); read, it does not.
-    with h5py.File(ROOT / "sample_runs" / "force.h5", "r") as f:
-        started = [s.decode() for s in f["entry/trials/started"][()]]
-        ended = [s.decode() for s in f["entry/trials/ended"][()]]
-    assert started[0].endswith("Z") and not ended[0].endswith("Z")
-    assert any(s > e for s, e in zip(started, ended, strict=True))  # the text comparison is wrong
-    assert all(parse_utc(s) <= parse_utc(e) for s, e in zip(started, ended, strict=True))
+    # Files written before one clock hold starts in the older form ('...47Z') beside ends in
+    # today's ('...47.819444+00:00').  As text the start sorts after the end ('Z' > '.'); read, it does not.
+    started, ended = "2026-11-26T13:54:47Z", "2026-11-26T13:54:47.819444+00:00"
+    assert started > ended  # the text comparison is wrong
+    assert parse_utc(started) < parse_utc(ended)
+    assert (parse_utc(ended) - parse_utc(started)).total_seconds() == pytest.approx(0.819444)
 
 
 def test_a_new_run_writes_every_time_in_the_one_format(toy_paper, tmp_path, invoke):

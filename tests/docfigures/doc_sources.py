@@ -306,6 +306,43 @@ def optimize() -> dict[str, Any]:
     return fig
 
 
+def rpam_force() -> dict[str, Any]:
+    """The two readings of the rPAM's force on the shipped actuator: a few values the page quotes."""
+    from labcli.papers.rpam2015.models import rpam
+    from labcli.papers.rpam2015.protocol import actuator_of
+
+    act = actuator_of("rpam2015")
+    L, P = 0.1336, 0.096  # actuator a's length at the paper's optimum, and the optimiser's Pa
+    fig: dict[str, Any] = {
+        "cage term at L_a 0.1336 m, 96 kPa N": rounded(float(rpam.constraint_force(P, L, act))),
+        "P A0 over lambda at L_a 0.1336 m, 96 kPa N": rounded(P * 1e6 * act.A0_m2 / (L / act.L0_m)),
+    }
+    for reading in ("derived", "paper"):
+        a = act.with_force_reading(reading)
+        fig[f"{reading}.free length 96 kPa m"] = rounded(float(rpam.loaded_length(P, 0.0, a)), 4)
+    return fig
+
+
+READING_K_MIN = ("0.07", "0.1", "0.15", "0.2", "0.25", "0.3", "0.4")
+
+
+def optimize_readings() -> dict[str, Any]:
+    """``labcli optimize --force derived|paper --min-stiffness K --seed 1`` over K_min 0.07-0.4."""
+    fig: dict[str, Any] = {}
+    for reading in ("derived", "paper"):
+        for k_min in READING_K_MIN:
+            args = ("optimize", "--force", reading, "--min-stiffness", k_min, "--seed", "1", "--json")
+            d = json.loads(labcli(*args))
+            key = f"{reading}.K_min {k_min}"
+            for name in ("alpha_deg", "toggle_margin_deg", "stiffness_Nm_per_rad"):
+                fig[f"{key}.{name}"] = rounded(d[name])
+            for name in ("L1_m", "L2_m", "L3_m"):
+                fig[f"{key}.{name}"] = rounded(d[name], 4)
+            fig[f"{key}.paper design alpha_deg"] = rounded(d["paper"]["alpha_deg"])
+            fig[f"{key}.paper design feasible"] = d["paper"]["feasible"]
+    return fig
+
+
 def paper_scale() -> dict[str, Any]:
     """The paper's Section 3.3 coefficients on the simulated rig's pressures (sim/paper_scale.py), seeds 1-3."""
     from labcli.core.protocol import load_protocol
@@ -464,9 +501,16 @@ SOURCES: dict[str, Source] = {
     s.name: s
     for s in (
         Source("constants", "fast", "protocol files and code: geometry, calibration, the rig's levels", constants),
+        Source("rpam-force", "fast", "the two readings of the rPAM's force on the shipped actuator", rpam_force),
         Source("demo", "slow", "labcli demo --seed 1 (summary, transcript, inspect of its force run)", demo),
         Source("rpam-demo", "slow", "labcli demo --protocol rpam2015 --seed 1", rpam_demo),
         Source("optimize", "slow", "labcli optimize --seed 1, and with other K_min and L3", optimize),
+        Source(
+            "optimize-readings",
+            "slow",
+            "labcli optimize --force derived|paper --min-stiffness 0.07-0.4 --seed 1",
+            optimize_readings,
+        ),
         Source("paper-scale", "slow", "the paper's coefficients on the simulated rig, seeds 1-3", paper_scale),
         Source("synthetic", "slow", "fit and validate on trials from the paper's own equations", synthetic),
         Source(
@@ -512,6 +556,13 @@ SOURCES: dict[str, Source] = {
             derive=classify_effects_derived,
         ),
         Source(
+            "sensing-online",
+            "benchmark",
+            "labcli sense's estimator on scripted sessions, held-out seeds 11-20",
+            script="sensing_online.py",
+            runs={"": ("--seeds", "11-20", "--loads", "20", "--idle-min", "5", "--jobs", "1", "--fast-seconds", "120")},
+        ),
+        Source(
             "firmware", "benchmark", "the firmware's highest rate on simavr", script="bench_firmware.py", runs={"": ()}
         ),
         Source(
@@ -520,6 +571,13 @@ SOURCES: dict[str, Source] = {
             "every headline sensing figure from half to four times the literature's friction, noise x1-30, "
             "leak x0-3, repeatability x0-2 and on the kind rig, seeds 11-15",
             script="sensitivity.py",
+            runs={"": ()},
+        ),
+        Source(
+            "band-confidence",
+            "benchmark",
+            "the bands' confidences of the posture form, wrong categories and their largest confidence, seeds 11-30",
+            script="band_confidence.py",
             runs={"": ()},
         ),
         Source(
@@ -549,6 +607,27 @@ SOURCES: dict[str, Source] = {
             "estimates on the chip: sizes, cycles, the highest rate, agreement with the host, on simavr",
             script="bench_firmware_model.py",
             runs={"": ()},
+        ),
+        Source(
+            "tables",
+            "benchmark",
+            "fit, validate and import of trial CSVs of 10^4 to 10^6 rows beside pandas + numpy and bare h5py",
+            script="bench_tables.py",
+            runs={"": ("--sizes", "1e4,1e5,1e6", "--repeat", "5")},
+        ),
+        Source(
+            "store",
+            "benchmark",
+            "trials into the run file with fsync, with os.fsync made a no-op, and bare h5py appends",
+            script="bench_store.py",
+            runs={"": ("--trials", "30", "--samples", "400,4000", "--repeat", "3")},
+        ),
+        Source(
+            "classify-report",
+            "benchmark",
+            "classify --json on an archive of 10^5 pushes beside a pandas groupby",
+            script="bench_classify_report.py",
+            runs={"": ("--sizes", "1e5", "--repeat", "5")},
         ),
     )
 }

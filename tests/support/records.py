@@ -1,9 +1,10 @@
 """Deterministic records and a stand-in protocol for the run-file tests.
 
 Also the writer process of the kill tests:
-``python tests/support/records.py RUN.h5 N_TRIALS N_SAMPLES`` writes trials
+``python tests/support/records.py RUN.h5 N_TRIALS N_SAMPLES [KILL_AT_WRITE]`` writes trials
 0..N-1 of :func:`make_record`, resuming a file that exists, and prints
-"ready" once the file is open and "stored N" after each trial.
+"ready" once the file is open and "stored N" after each trial (killed at its
+KILL_AT_WRITE-th write to the file: :func:`kill_at_write`).
 """
 
 from __future__ import annotations
@@ -173,5 +174,28 @@ def writer(path: str, n_trials: int, n_samples: int) -> None:
     print("done", flush=True)
 
 
+def kill_at_write(n: int) -> None:
+    """SIGKILL this process at its ``n``-th ``os.pwrite`` (every byte a writer puts in a run file goes
+    through one: :mod:`labcli.core.store.journal`), the way ``strace -e inject=pwrite64:signal=KILL``
+    would; with ``n`` 0, print how many there were when the process ends."""
+    import atexit
+    import signal
+
+    calls = [0]
+    pwrite = os.pwrite
+
+    def counted(fd, data, offset):
+        calls[0] += 1
+        if calls[0] == n:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return pwrite(fd, data, offset)
+
+    os.pwrite = counted
+    if n == 0:
+        atexit.register(lambda: print(f"writes {calls[0]}", flush=True))
+
+
 if __name__ == "__main__":
+    if len(sys.argv) > 4:
+        kill_at_write(int(sys.argv[4]))
     writer(sys.argv[1], int(sys.argv[2]), int(sys.argv[3]))

@@ -79,6 +79,8 @@ def fixed(c: Column, values: Any, n: int) -> np.ndarray:
     if values is None:
         return np.full((n, *c.shape), fill_value(c), dtype=c.dtype)
     if c.kind == "text":
+        if isinstance(values, np.ndarray) and values.dtype == c.dtype:
+            return values.reshape(n)  # already the stored bytes (an import's columns, made whole-array)
         a = np.asarray(values, dtype=object).reshape(n)
         return np.array([v if isinstance(v, bytes) else str(v).encode("utf-8") for v in a], dtype=c.dtype)
     return np.asarray(values, dtype=c.dtype).reshape(n, *c.shape)

@@ -22,6 +22,7 @@ from .checksum import row_checksums
 from .columns import Table
 from .frames import Frames
 from .h5 import text
+from .journal import JournalFile, journal_path, lock, recover, replay
 from .layout import SCHEMA, SCHEMA_VERSION, common_columns, record_columns, window_columns
 
 # Attributes a commit changes in place: left out of the metadata's checksum.
@@ -105,22 +106,28 @@ def check_schema(f: h5py.File, path: str) -> int:
 
 
 def h5open(path: str, mode: str) -> h5py.File:
-    """The HDF5 file: a reader without the lock, a writer with it (where the file system has locks)."""
+    """The HDF5 file: a reader without the lock, a writer locked and journaled (:func:`open_writer`)."""
     if mode == "r":
+        recover(path)  # a journal a killed writer left: replayed first, by whoever comes (when it may write)
         try:
             return h5py.File(path, "r", locking=False)
         except OSError as e:
             if "locking flag" not in str(e):
                 raise
             return h5py.File(path, "r")  # already open in this process (as a writer): share it
+    return open_writer(path)[0]
+
+
+def open_writer(path: str) -> tuple[h5py.File, JournalFile]:
+    """An existing run file open for writing: locked (as HDF5 locks), written through a :class:`JournalFile`."""
+    fd = os.open(path, os.O_RDWR)
     try:
-        return h5py.File(path, "a")
-    except OSError as e:
-        msg = str(e).lower()
-        # errno 11: another process holds the lock.  Any other lock failure means a file
-        # system without locks (some network mounts), where HDF5 advises opening without.
-        if "unable to lock file" in msg and "errno = 11" not in msg:
-            return h5py.File(path, "a", locking=False)
+        lock(fd, path, space.BUSY)
+        replay(fd, journal_path(path))
+        io = JournalFile(fd, path)
+        return h5py.File(io, "r+"), io
+    except BaseException:
+        os.close(fd)
         raise
 
 

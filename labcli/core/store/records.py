@@ -20,7 +20,7 @@ under way (a torn read while another process writes) reads again, afresh.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -30,6 +30,7 @@ from ..paper import RecordType
 from ..record import Record, Settle, StoredRecord
 from ..window import Window
 from . import space
+from .columns import fill_value
 from .rows import bulk_values, record_id, record_row, settle_of, split_flags
 from .view import RecordColumns, from_v1, from_v2
 from .writer import Write
@@ -82,7 +83,56 @@ class Records:
         except BaseException:
             undo()
             raise
-        self._written([rid])
+        self._written([int(rid)])
+
+    def write_many(self, records: Sequence[Record]) -> None:
+        """Write several records of the run's kind, each whole with its windows, in one commit.
+
+        What :meth:`write` does for one record, for a stream that commits what it gathered
+        every second or so (``labcli sense --record``): every record is checked before
+        anything is written; their windows' frames are written, then the rows and the moved
+        ``@committed`` in one commit, so a kill leaves all of them or none.  The records must
+        give the same columns.
+        """
+        if not records:
+            return
+        run = self._run
+        rt = run.record_type
+        run.writer.check()
+        run.check_v2("the records")
+        tables = run.tables
+        have = self._ids()
+        rows, checked, ids = [], [], []
+        for record in records:
+            rid, label = record_id(record, rt.id_column)
+            if rid in have or rid in ids:
+                raise StoreError(f"{label} is already complete in {run.path}; a stored record is never overwritten.")
+            rows.append(record_row(rt, tables.columns, record, label, rid, run))
+            checked.append((run.windows.checked(record, label), label))
+            ids.append(rid)
+        keys = set(rows[0])
+        if any(set(r) != keys for r in rows[1:]):
+            raise StoreError(f"the batch of {rt.count(len(rows))} does not give the same columns for each record.")
+        nbytes = 0
+        for row, (windows, label) in zip(rows, checked, strict=True):
+            where, frames = run.windows.store(windows, label)
+            row.update(where)
+            nbytes += frames
+        undos = [run.sessions.stage_added(rid) for rid in ids]
+        # A record without a window (an event among estimates) holds the fill a lone write gives it.
+        names = sorted({k for r in rows for k in r})
+        values = {k: [r[k] if k in r else fill_value(tables.columns[k]) for r in rows] for k in names}
+        try:
+            run.writer.commit(
+                [Write(tables.records, tables.columns, values, len(rows))],
+                nbytes,
+                f"the batch of {rt.count(len(rows))}",
+            )
+        except BaseException:
+            for undo in reversed(undos):
+                undo()
+            raise
+        self._written(ids)
 
     def append(self, columns: Mapping[str, Any]) -> int:
         """Commit many records at once, given as columns (the bulk write of ``labcli import``).
@@ -109,9 +159,10 @@ class Records:
         return n
 
     def _written(self, ids: list[int]) -> None:
+        """Note records committed; ``ids`` plain Python ints (an import's million: no conversion one by one)."""
         self._cols = None
-        self._ids().update(int(i) for i in ids)
-        self._recorded().extend(int(i) for i in ids)
+        self._ids().update(ids)
+        self._recorded().extend(ids)
 
     # ------------------------------------------------------------ reading
     def columns(self) -> RecordColumns:

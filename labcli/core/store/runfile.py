@@ -23,8 +23,9 @@ as they are (:mod:`.v1`); opening one for writing copies it into version 2 first
 (:mod:`.upgrade`).
 
 **Commit.**  Every change is one commit through one write path (:mod:`.writer`): room
-reserved, rows written past the committed ones, flush and fsync, ``@committed`` moved,
-flush and fsync again.  A kill or a power cut at any point leaves what was committed before.
+reserved, rows written past the committed ones, ``@committed`` moved, then one checkpoint
+through the journal (:mod:`.journal`).  A kill or a power cut at any point leaves what was
+committed before.
 
 **Readers** (``RunFile.open(path)``) open without HDF5's file lock, read only committed
 rows and check every row's checksum, so a run can be read while it is recorded; a torn read
@@ -57,8 +58,10 @@ from . import space
 from .columns import Table
 from .frames import chunk_frames
 from .h5 import calibration_arrays, plain, text
+from .journal import JournalFile, lock
 from .layout import initialise
 from .models import Models
+from .notes import Notes
 from .opening import (
     MUTABLE_ATTRS,
     Tables,
@@ -69,6 +72,7 @@ from .opening import (
     metadata_ok,
     open_error,
     open_tables,
+    open_writer,
 )
 from .records import READ_RETRIES, Records
 from .sessions import Sessions
@@ -100,11 +104,13 @@ class RunFile:
     split: Splits
     models: Models
     sessions: Sessions
+    notes: Notes
 
-    def __init__(self, h5: h5py.File, path: str, mode: str) -> None:
+    def __init__(self, h5: h5py.File, path: str, mode: str, io: JournalFile | None = None) -> None:
         self.h5 = h5
         self.path = path
         self.mode = mode
+        self.io = io  # a writer's file, under HDF5 (:mod:`.journal`)
         self._tmp: str | None = None
         self._staged: tuple[bool, str] | None = None
         root = h5.attrs
@@ -120,12 +126,13 @@ class RunFile:
             ) from None
         self.v1: V1Run | None = V1Run(h5, self.record_type) if self.version == 1 else None
         self._tables: Tables | None = None if self.version == 1 else open_tables(h5["entry"], self.record_type, path)
-        self.writer = Writer(path, mode, lambda: self.h5, self._kept)
+        self.writer = Writer(path, mode, lambda: self.h5, self._kept, lambda: self.io)
         self.records = Records(self)
         self.windows = Windows(self)
         self.split = Splits(self)
         self.models = Models(self)
         self.sessions = Sessions(self)
+        self.notes = Notes(self)
         self.writer.riders = self.sessions
 
     @property
@@ -175,12 +182,9 @@ class RunFile:
         rt = record_type(kind)
         channels = [str(c) for c in (getattr(device_info, "channels", ()) or getattr(protocol, "channels", ()))]
         tmp = space.partial_path(path, "import" if imported else "create")
+        f, io = _new_file(tmp, path)
         try:
-            f = h5py.File(tmp, "w", fs_strategy="none")
-        except OSError as e:
-            raise StoreError(f"cannot create {path}: {e}.") from None
-        try:
-            space.reserve(f.id.get_vfd_handle(), 0, 1 << 20, path, "the new run", "no file was made")
+            space.reserve(io.fd, 0, 1 << 20, path, "the new run", "no file was made")
             initialise(
                 f,
                 path=path,
@@ -203,10 +207,11 @@ class RunFile:
             )
             f.attrs["metadata_checksum"] = np.uint64(metadata_checksum(f))
             f.flush()
-            os.fsync(f.id.get_vfd_handle())
-            run = cls(f, path, "a")
+            io.checkpoint()
+            run = cls(f, path, "a", io)
         except BaseException:
             f.close()
+            io.close()
             os.unlink(tmp)
             raise
         run._tmp = tmp
@@ -227,6 +232,8 @@ class RunFile:
             self.discard()
             raise
         self._staged = self._tmp = None
+        if self.io is not None:
+            self.io.start_journal(self.path)
 
     def discard(self) -> None:
         """Close a staged file without putting it in place, and remove it."""
@@ -234,6 +241,9 @@ class RunFile:
         self._staged = self._tmp = None
         if self.h5.id.valid:
             self.h5.close()
+        if self.io is not None:
+            self.io.close()
+            self.io = None
         if tmp:
             try:
                 os.unlink(tmp)
@@ -253,18 +263,24 @@ class RunFile:
         if mode not in ("r", "a"):
             raise ValueError(f"mode must be 'r' or 'a', got {mode!r}")
         check_openable(path, mode)
-        f = _open_h5(path, mode)
+        f, io = _open_h5(path, mode)
+
+        def shut() -> None:
+            f.close()
+            if io is not None:
+                io.close()
+
         try:
             version = check_schema(f, path)
             if version == 1 and mode == "a":
-                f.close()
+                shut()
                 return upgrade(cls, path)
-            run = cls(f, path, mode)
+            run = cls(f, path, mode, io)
         except StoreError:
-            f.close()
+            shut()
             raise
         except Exception:  # noqa: BLE001 - a damaged file can fail in any way
-            f.close()
+            shut()
             raise StoreError(f"{path} is damaged or truncated and HDF5 cannot read it; use a backup copy.") from None
         if mode == "a":
             space.ignore_file_size_signal()
@@ -299,19 +315,27 @@ class RunFile:
             return
         if not self.h5.id.valid:
             return
-        if self.mode == "r" or self.writer.broken:
+        if self.mode == "r":
             self.h5.close()
+            return
+        io = self.io
+        if self.writer.broken:  # what HDF5 writes as it closes is its half-written state: dropped
+            self.h5.close()
+            if io is not None:
+                io.discard()
+                io.close()
             return
         if self.sessions.waiting:
             self.writer.commit([])
         self.writer.sync()
-        end = int(self.h5.id.get_filesize())
         self.h5.close()
-        try:  # give back the space reserved past the end (a kill leaves it, harmlessly)
-            if os.path.getsize(self.path) > end:
-                os.truncate(self.path, end)
-        except OSError:
-            pass
+        if io is None:
+            return
+        try:
+            io.checkpoint()  # what HDF5 writes as it closes (the superblock's flags)
+        except OSError:  # no room for it: the file stays as the last commit left it, whole
+            io.discard()
+        io.close(io.recorded_end())  # the room reserved past the end given back (a kill leaves it, harmlessly)
 
     def __enter__(self) -> RunFile:
         return self
@@ -437,11 +461,27 @@ def _check_new(path: str, force: bool, exists_hint: str) -> None:
     space.ignore_file_size_signal()
 
 
-def _open_h5(path: str, mode: str) -> h5py.File:
+def _new_file(tmp: str, path: str) -> tuple[h5py.File, JournalFile]:
+    """A new HDF5 file at ``tmp`` (to be put in place at ``path``), locked by its builder."""
+    try:
+        fd = os.open(tmp, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+    except OSError as e:
+        raise StoreError(f"cannot create {path}: {e.strerror or e}.") from None
+    io = JournalFile(fd, tmp, journaled=False)  # built whole before it is put in place: no journal yet
+    try:
+        lock(fd, tmp, space.BUSY)  # the builder is at work: clean_partials leaves it
+        return h5py.File(io, "w", fs_strategy="none"), io
+    except BaseException:
+        io.close()
+        os.unlink(tmp)
+        raise
+
+
+def _open_h5(path: str, mode: str) -> tuple[h5py.File, JournalFile | None]:
     """Open with HDF5, retrying a reader that met a writer mid-commit; StoreError when it will not open."""
     for attempt in range(READ_RETRIES):
         try:
-            return h5open(path, mode)
+            return open_writer(path) if mode == "a" else (h5open(path, mode), None)
         except OSError as e:
             message = open_error(path, e)
             if mode == "r" and attempt + 1 < READ_RETRIES and space.writer_holds(path):

@@ -79,22 +79,27 @@ def reserve(fd: int, end: int, need: int, path: str, doing: str, kept: str) -> N
         return
     except OSError as e:
         code = e.errno
-    if code in (errno.ENOSPC, errno.EDQUOT):
-        raise DiskFull(
-            f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
-            f"{kept}. Free some space, then try again."
-        )
-    if code == errno.EFBIG:
-        raise DiskFull(
-            f"{path} cannot grow past the file size limit (ulimit -f), so {doing} was not written; "
-            f"{kept}. Raise the limit, then try again."
-        )
+    if code in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+        raise no_room(code, path, doing, kept)
     # A file system without fallocate: judge by the free space it reports.
     if free_bytes(path) < need:
         raise DiskFull(
             f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
             f"{kept}. Free some space, then try again."
         )
+
+
+def no_room(code: int | None, path: str, doing: str, kept: str) -> DiskFull:
+    """The one sentence for a write refused for want of room (``code``: ENOSPC, EDQUOT or EFBIG)."""
+    if code == errno.EFBIG:
+        return DiskFull(
+            f"{path} cannot grow past the file size limit (ulimit -f), so {doing} was not written; "
+            f"{kept}. Raise the limit, then try again."
+        )
+    return DiskFull(
+        f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
+        f"{kept}. Free some space, then try again."
+    )
 
 
 def check_new_file(path: str) -> None:

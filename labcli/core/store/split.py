@@ -23,6 +23,7 @@ import numpy as np
 from ...errors import ConfigError, StoreError
 from ..protocol import loads_protocol
 from ..timestamps import utc_now
+from ..words import count
 from .blobs import blob_read, blob_write, cell_text
 from .columns import Table
 from .layout import SPLIT_COLUMNS
@@ -163,7 +164,7 @@ def choose_split(
     need = n_fit + n_validation
     if need > len(ids):
         raise ConfigError(
-            f"the run has {len(ids)} completed trials, fewer than the {need} asked for "
+            f"the run has {count(len(ids), 'completed trial')}, fewer than the {need} asked for "
             f"({n_fit} fit + {n_validation} validation)."
         )
     ids = [int(i) for i in ids]

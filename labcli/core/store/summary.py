@@ -48,6 +48,11 @@ def summarise(run: RunFile) -> dict[str, Any]:
     if run.version >= 2:
         out["run_uid"] = a.get("run_uid", "")
         out["sessions"] = len(run.sessions.all())
+        notes = run.notes.all()
+        if notes:  # only an annotated run says so: the summary of any other is as it was
+            out["notes"] = [
+                {**n, "about": "the run" if n["record"] is None else f"{rt.noun} {n['record']}"} for n in notes
+            ]
     if rec.damaged:
         out["damaged"] = [f"{what}: {why}" for what, why in rec.damaged]
     s = run.split.get()

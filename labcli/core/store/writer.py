@@ -8,13 +8,15 @@ log's events) is one commit, and every commit goes through :meth:`Writer.commit`
 2. raw frames (already written by a :class:`~.frames.WindowWriter`) and rows are written
    after the committed ones at fresh chunk boundaries (:meth:`.columns.Table.write`, which
    resizes each column and writes into it);
-3. the file is flushed and fsynced;
-4. each table's ``@committed`` is set to its new end (in place);
-5. the file is flushed and fsynced again.
+3. each table's ``@committed`` is set to its new end (in place);
+4. HDF5 flushes, and the file takes everything as one checkpoint (:mod:`.journal`): what
+   HDF5 rewrote in place (its headers and B-tree nodes, the superblock, ``@committed``)
+   reaches the file through a journal, after the new bytes it points at are on disk.
 
-Two syncs suffice because the new rows only count once ``@committed`` says so; what a kill
-or a power cut interrupts before that is ignored, and the next commit writes over it.
-Nothing committed is ever written again (:mod:`.columns` says why that needs fresh chunks).
+The new rows only count once ``@committed`` says so, and the checkpoint makes HDF5's
+bookkeeping change whole or not at all; what a kill or a power cut interrupts before that
+is ignored, and the next commit writes over it.  Nothing committed is ever written again
+(:mod:`.columns` says why that needs fresh chunks).
 
 A failed HDF5 write (an I/O error) marks the file broken: nothing more is written to it
 and closing it does not flush HDF5's half-written state.  The session log's events that
@@ -24,7 +26,7 @@ ride on the next commit (:mod:`.sessions`) join whichever commit comes first.
 from __future__ import annotations
 
 import contextlib
-import os
+import errno
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -35,6 +37,7 @@ from ...errors import DiskFull, StoreError
 from ..paper import Column
 from . import space
 from .columns import Table
+from .journal import JournalFile
 
 
 @dataclass(frozen=True)
@@ -64,13 +67,21 @@ class Writer:
     trials stored before are intact"), for the one sentence that says so.
     """
 
-    def __init__(self, path: str, mode: str, file: Callable[[], h5py.File], kept: Callable[[], str]) -> None:
+    def __init__(
+        self,
+        path: str,
+        mode: str,
+        file: Callable[[], h5py.File],
+        kept: Callable[[], str],
+        io: Callable[[], JournalFile | None],
+    ) -> None:
         self.path = path
         self.mode = mode
         self.broken = False
         self.riders: Riders | None = None
         self._file = file
         self._kept = kept
+        self._io = io
 
     def check(self) -> None:
         """Refuse a write to a file open read-only, or one that met a write error."""
@@ -79,21 +90,36 @@ class Writer:
         if self.broken:
             raise StoreError(f"{self.path} met a write error earlier; close it and open it again.")
 
-    def sync(self) -> None:
-        """Push everything written so far to the disk (flush, then fsync)."""
-        f = self._file()
-        f.flush()
-        os.fsync(f.id.get_vfd_handle())
+    def sync(self, doing: str = "the change") -> None:
+        """Push everything written so far to the disk, as one change (flush, then a checkpoint).
+
+        A checkpoint refused for want of room (its journal) leaves the file as the last one left
+        it; HDF5's state in memory is ahead of it, so nothing more is written through it.
+        """
+        self._file().flush()
+        try:
+            self._journal().checkpoint()
+        except OSError as e:
+            if e.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+                raise
+            self.broken = True
+            raise space.no_room(e.errno, self.path, doing, self._kept()) from None
 
     def flush(self, doing: str) -> None:
-        """Push a window's frames written so far out of HDF5's caches (to the OS; the commit fsyncs)."""
+        """Push a window's frames written so far into the file, where a viewer sees them (a checkpoint)."""
         with self.writing(doing):
-            self._file().flush()
+            self.sync(doing)
 
     def reserve(self, nbytes: int, doing: str) -> None:
         """Make sure ``nbytes`` more can be written, or raise DiskFull naming ``doing`` and what is safe."""
-        f = self._file()
-        space.reserve(f.id.get_vfd_handle(), int(f.id.get_filesize()), int(nbytes), self.path, doing, self._kept())
+        io = self._journal()
+        space.reserve(io.fd, io.end(), int(nbytes), self.path, doing, self._kept())
+
+    def _journal(self) -> JournalFile:
+        io = self._io()
+        if io is None:
+            raise StoreError(f"{self.path} is open read-only; open it with mode 'a' to add records.")
+        return io
 
     @contextlib.contextmanager
     def writing(self, doing: str) -> Iterator[None]:
@@ -122,10 +148,9 @@ class Writer:
         self.reserve(sum(a.nbytes for _, arrs, _ in arrays for a in arrs) + frames, doing)
         with self.writing(doing):
             spans = [t.write(arrs, n) for t, arrs, n in arrays]
-            self.sync()
             for (t, _, _), (_, stop) in zip(arrays, spans, strict=True):
                 t.commit(stop)
-            self.sync()
+            self.sync(doing)
         if self.riders is not None:
             self.riders.committed()
         return spans[: len(writes)]

@@ -29,6 +29,10 @@ from ...errors import ModelError
 
 # Eq. 7's correction is a cubic: four coefficients c0..c3.
 STRETCH_TERMS = 4
+# The two readings of Eqs. 1-3 (:mod:`labcli.papers.rpam2015.models.rpam_force`): the force
+# derived from the wall's strain energy and the gas's virtual work, and the paper's lumen
+# free body (cage term + P A0 / lambda + uniaxial Eq. 3).
+FORCE_READINGS = ("derived", "paper")
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,10 @@ class Actuator:
     tension +); ``stretch_lambda_range``: the stretches ``[low, high]`` the cubic was fitted on
     (the model holds its end values outside; the simulated stand, whose correction is the
     truth, does not).
+    ``force_reading``: which reading of Eqs. 1-3 gives the actuator's force, ``"derived"``
+    (the potential of the cage-held wall and the gas) or ``"paper"`` (the lumen's free body
+    with the uniaxial Eq. 3); see :mod:`labcli.papers.rpam2015.models.rpam_force`.  Moduli
+    and corrections fitted under one reading belong to it, so it travels with them.
     """
 
     L0_m: float
@@ -55,6 +63,7 @@ class Actuator:
     ogden_alpha: tuple[float, ...]
     stretch_coefficients_N: tuple[float, ...] = (0.0,) * STRETCH_TERMS
     stretch_lambda_range: tuple[float, float] = (1.0, 2.2)
+    force_reading: str = "derived"
 
     @property
     def rest_radius_m(self) -> float:
@@ -79,6 +88,10 @@ class Actuator:
             out.append(
                 "the Ogden constants need mu_i > 0 and alpha_i != 0 for every term (Eq. 3's convention; "
                 "a negative mu_i makes the wall unstable outside uniaxial tension)"
+            )
+        if self.force_reading not in FORCE_READINGS:
+            out.append(
+                f"key 'actuator.force_reading' must be one of {', '.join(FORCE_READINGS)}, not {self.force_reading!r}"
             )
         if len(self.stretch_coefficients_N) != STRETCH_TERMS:
             out.append(f"key 'stretch_correction.coefficients_N' must hold {STRETCH_TERMS} coefficients c0..c3 in N")
@@ -107,6 +120,14 @@ class Actuator:
         lo, hi = (float(v) for v in lambda_range)
         return replace(self, stretch_coefficients_N=coef, stretch_lambda_range=(lo, hi))
 
+    def with_force_reading(self, reading: str | None) -> Actuator:
+        """This actuator read the other way (``"derived"`` or ``"paper"``); itself for None."""
+        if reading is None or reading == self.force_reading:
+            return self
+        if reading not in FORCE_READINGS:
+            raise ModelError(f"The actuator's force is read as {' or '.join(FORCE_READINGS)}, not {reading!r}.")
+        return replace(self, force_reading=reading)
+
     def to_dict(self) -> dict[str, Any]:
         """The fields as JSON values (tuples as lists), the ``actuator`` record of a model file."""
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
@@ -125,6 +146,8 @@ class Actuator:
                 ogden_alpha=tuple(float(v) for v in d["ogden_alpha"]),
                 stretch_coefficients_N=tuple(float(v) for v in d["stretch_coefficients_N"]),
                 stretch_lambda_range=_pair(d["stretch_lambda_range"]),
+                # Records written before the paper's reading existed were all derived.
+                force_reading=str(d.get("force_reading", "derived")),
             )
         except (KeyError, TypeError, ValueError) as e:
             raise ModelError(f"The actuator record is incomplete or malformed ({e!s}).") from None

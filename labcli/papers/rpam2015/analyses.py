@@ -18,8 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ...core.figures import source_line
 from ...core.jsontext import loads_bounded
-from ...core.modelfile import check_fit_paths, default_model_path, save_model
+from ...core.modelfile import check_fit_paths, model_destination, save_model
 from ...core.protocol import Protocol
 from ...core.store import RunFile
 from ...errors import ConfigError
@@ -65,41 +66,51 @@ class StretchFitResult:
     run: Path
     model_name: str
     plot: Path | None
+    recorded: bool = True  # also recorded in the run file under /models/<model_name>
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "model_path": str(self.model_path),
-            "recorded_in_run": True,
+            "recorded_in_run": self.recorded,
             "model_name": self.model_name,
             "plot": str(self.plot) if self.plot else None,
             "fit": self.fit.to_dict(),
         }
 
 
-def fit(run: Path, options: FitOptions, *, output: Path | None = None, protocol: str | None = None) -> StretchFitResult:
+def fit(
+    run: Path,
+    options: FitOptions,
+    *,
+    output: Path | None = None,
+    protocol: str | None = None,
+    record: bool | None = None,
+) -> StretchFitResult:
     """Fit the stretch correction to a stretch-test run; write the fit and record it in the run."""
-    plot = options.plot
-    out = output or default_model_path(run)
-    check_fit_paths(run, out)
-    kind, table, proto, name, where = _read_run(run, protocol, options.overrides)
+    plot, overrides, force = options.plot, options.overrides, options.force
+    out, keep = model_destination(run, output, record, True)
+    check_fit_paths(run, out, protocol)
+    kind, table, proto, name, where = _read_run(run, protocol, overrides)
     if kind != "rpam-stretch":
         raise ConfigError(
             f"{run} is a joint-map run (kind {kind}); labcli fit fits the stretch correction to a stretch-test "
             "run (labcli acquire --experiment stretch), and labcli validate compares a joint map with the model."
         )
-    stretch = analyse_stretch(table, (where, proto))
+    stretch = analyse_stretch(table, (where, proto), force=force)
     if plot is not None:
-        figure_stretch(stretch, plot)
+        figure_stretch(stretch, plot, source=source_line(run, name or proto_name(proto), out))
     model_name = f"{name or 'rpam'}-stretch"
-    save_model(stretch.to_json(), out, run=run, name=model_name)
-    return StretchFitResult(stretch, out, run, model_name, plot)
+    save_model(stretch.to_json(), out, run=run, name=model_name, record=keep)
+    return StretchFitResult(stretch, out, run, model_name, plot, keep)
 
 
 def show_fit(result: StretchFitResult, *, as_json: bool = False) -> None:
     if as_json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
         return
-    report.print_stretch_fit(result.fit, result.model_path, result.run, result.model_name, result.plot)
+    report.print_stretch_fit(
+        result.fit, result.model_path, result.run, result.model_name, result.plot, recorded=result.recorded
+    )
 
 
 # --------------------------------------------------------------------------- validate
@@ -155,7 +166,7 @@ def validate(run: Path, options: ValidateOptions, *, protocol: str | None = None
     The correction is the fit in ``options.model`` or, without one, the protocol's own
     ``[stretch_correction]``; a protocol whose correction is zero needs a fit.
     """
-    model_path, plot = options.model, options.plot
+    model_path, plot, force = options.model, options.plot, options.force
     kind, table, proto, _, where = _read_run(run, protocol, options.overrides)
     if kind != "rpam-joint":
         raise ConfigError(
@@ -173,9 +184,10 @@ def validate(run: Path, options: ValidateOptions, *, protocol: str | None = None
                 "and without it would agree; fit one to a stretch-test run with labcli fit STRETCH.h5 and pass "
                 "it with --model STRETCH.model.json."
             )
-    result = analyse_joint_map(table, (where, proto), correction)
+    result = analyse_joint_map(table, (where, proto), correction, force=force)
     if plot is not None:
-        figure8(result, plot)
+        model = model_path if model_path is not None else "the protocol's stretch correction"
+        figure8(result, plot, source=source_line(run, proto_name(proto), model))
     return JointMapValidation(result, run, model_path, plot)
 
 
@@ -193,10 +205,13 @@ def optimize(protocol: str, options: OptimizeOptions, *, progress: bool = True) 
     """Maximise the joint angle over L1, L2, L3 (g1-g7, K_min, the toggle margin); a live line
     on stderr while it runs."""
     o = options
+    kw = dict(
+        overrides=o.overrides, seed=o.seed, Pa_kPa=o.pa, Pb_kPa=o.pb, force=o.force, min_stiffness=o.min_stiffness
+    )
     if not progress:
-        return optimize_protocol(protocol, overrides=o.overrides, seed=o.seed, Pa_kPa=o.pa, Pb_kPa=o.pb)
+        return optimize_protocol(protocol, **kw)  # type: ignore[arg-type]
     with report.optimize_progress() as show:
-        return optimize_protocol(protocol, overrides=o.overrides, seed=o.seed, Pa_kPa=o.pa, Pb_kPa=o.pb, progress=show)
+        return optimize_protocol(protocol, progress=show, **kw)  # type: ignore[arg-type]
 
 
 def show_optimum(result: Any, *, as_json: bool = False) -> None:
@@ -205,3 +220,8 @@ def show_optimum(result: Any, *, as_json: bool = False) -> None:
         print(json.dumps(d, indent=2))
         return
     report.print_optimum(d)
+
+
+def proto_name(proto: Any) -> str:
+    """A protocol's name for a figure's foot ("" when it has none)."""
+    return str(getattr(proto, "name", "") or "")

@@ -14,11 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ...core.options import BadValue, integer, number, path, text
+from ...core.options import BadValue, choice, integer, number, path, text
 
 RPAM_PROTOCOL = "rpam2015"
 DEFAULT_PROTOCOLS = {"optimize": RPAM_PROTOCOL}  # labcli optimize without --protocol
 
+FORCE_READINGS = ("derived", "paper")  # actuator.FORCE_READINGS (a test holds them equal)
 SEED_MAX = 2**32 - 1  # the search's random generator takes seeds 0 to 2**32 - 1
 
 
@@ -44,6 +45,24 @@ def overrides(help: str) -> Any:
     return text((), help=help, form="KEY=VALUE", repeat=True, flag="--set")
 
 
+def parse_stiffness(text: str) -> float:
+    """A joint stiffness in N m/rad: a joint with none holds nothing (nan compares as neither)."""
+    value = float(text)
+    if not 0 < value < math.inf:
+        raise BadValue(f"{value:g} is not a stiffness a joint can hold with; give a number of N m/rad above 0.")
+    return value
+
+
+def force_reading() -> Any:
+    """``--force derived|paper``: the reading of the actuator force (Eqs. 1-3)."""
+    return choice(
+        FORCE_READINGS,
+        help="The reading of the actuator force (Eqs. 1-3): derived (the cage-held wall's energy and the gas's "
+        "virtual work) or paper (the lumen's free body: cage term + P A0/lambda + Eq. 3).",
+        default_text="the protocol's actuator.force_reading",
+    )
+
+
 _SET_HELP = (
     "Override a protocol value for this analysis, e.g. --set actuator.A0_m2=2.2e-4 "
     "(repeatable; the run file keeps its own)."
@@ -56,6 +75,7 @@ class FitOptions:
 
     plot: Path | None = path(help="Write the stretch test's figure (Fig. 6) to this .png, .pdf or .svg file.")
     overrides: tuple[str, ...] = overrides(_SET_HELP)
+    force: str | None = force_reading()
 
 
 @dataclass(frozen=True)
@@ -67,6 +87,7 @@ class ValidateOptions:
     )
     plot: Path | None = path(help="Write Fig. 8 (the joint map against the model) to this .png, .pdf or .svg file.")
     overrides: tuple[str, ...] = overrides(_SET_HELP)
+    force: str | None = force_reading()
 
 
 @dataclass(frozen=True)
@@ -81,6 +102,14 @@ class OptimizeOptions:
         help="Pressure of actuator b.", units="kPa", parse=parse_kpa, form="KPA", default_text="the protocol's, 41"
     )
     overrides: tuple[str, ...] = overrides("Override any protocol value, e.g. --set actuator.L0_m=0.08 (repeatable).")
+    force: str | None = force_reading()
+    min_stiffness: float | None = number(
+        help="Least joint stiffness at the balance.",
+        units="N m/rad",
+        parse=parse_stiffness,
+        form="NM_PER_RAD",
+        default_text="the protocol's optimize.min_stiffness_Nm_per_rad, 0.07",
+    )
 
 
 OPTIONS = {"fit": FitOptions, "validate": ValidateOptions, "optimize": OptimizeOptions}

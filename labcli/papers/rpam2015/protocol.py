@@ -36,7 +36,7 @@ from ...core.protocol import (
     tomllib,
 )
 from ...errors import ConfigError
-from .actuator import STRETCH_TERMS, Actuator
+from .actuator import FORCE_READINGS, STRETCH_TERMS, Actuator
 from .joint import JointGeometry
 from .settings import Bounds, JointMapGrid, OptimizeSettings, RpamSettings, Sensors, StretchTestGrid
 
@@ -92,6 +92,13 @@ SPECS: dict[str, Any] = {
         "A0_m2": {"type": "number", "unit": "m2", "check": "positive"},
         "n_turns": {"type": "number", "check": "positive"},
         "thread_length_m": _LENGTH,
+        # A protocol written before the paper's reading existed is read as it was: derived.
+        "force_reading": {
+            "type": "str",
+            "check": ["one-of", list(FORCE_READINGS)],
+            "default": "derived",
+            "help": "which reading of Eqs. 1-3 gives the actuator's force",
+        },
     },
     "ogden": {
         "mu_MPa": {"type": "number-list", "unit": "MPa", "help": "Eq. 3's moduli"},
@@ -257,6 +264,7 @@ def build(checked: dict[str, Any], chk: Checker, path: Path | None) -> RpamSetti
         ogden_alpha=tuple(o["alpha"]),
         stretch_coefficients_N=tuple(c["coefficients_N"]),
         stretch_lambda_range=(c["lambda_range"][0], c["lambda_range"][1]),
+        force_reading=a["force_reading"],
     )
     stretch, joint = _grids(checked.get("experiments", {}), chk)
     return RpamSettings(

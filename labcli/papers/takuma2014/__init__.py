@@ -27,7 +27,7 @@ class Takuma2014:
     )
     protocol_kinds = PROTOCOL_KINDS
     shipped_protocols = (TRIAL_PROTOCOL, PUSH_PROTOCOL)
-    run_kinds = ("force", "push")
+    run_kinds = ("force", "push", "sense")
     untagged_run_kind = "force"  # run files from before files named their kind held force trials
     sim_modes = ("mckibben",)
     default_sim_mode = "mckibben"
@@ -74,6 +74,10 @@ class Takuma2014:
             from .models import export_c  # numpy only
 
             return Analysis(export_c.export, export_c.show)
+        if name == "predict":
+            from . import predict
+
+            return Analysis(predict.predict_file, predict.show_predict)
         if name not in self.analysis_options:
             return None
         from . import analyses  # numpy, pandas: only once an analysis runs
@@ -85,6 +89,12 @@ class Takuma2014:
         }
         run, show = pairs[name]
         return Analysis(run, show)
+
+    def sensing_model(self, text: str, name: str) -> Any:
+        """The run-time estimator's view of a model file of this paper (None: not one of its files)."""
+        from .sensing import sensing_model
+
+        return sensing_model(text, name)
 
     def demo(self) -> Demo | None:
         from . import demo, report  # the whole toolkit: only once the demo runs

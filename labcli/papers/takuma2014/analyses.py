@@ -9,21 +9,22 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ...core import idranges
+from ...core.figures import source_line
 from ...core.jsontext import dumps_indented
-from ...core.modelfile import check_fit_paths, default_model_path, save_model
+from ...core.modelfile import check_fit_paths, default_model_path, model_destination, model_text, save_model
 from ...core.provenance import rig_warning, same_data
 from ...core.report import ids_text, print_warnings
-from ...core.store import RunFile
 from ...errors import ConfigError, ModelError
 from . import report
 from .figures import figure7, figure9
+from .models import leak
 from .models.classify import classify_file, flag_summary, object_items, push_items, report_header, write_report_json
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
@@ -54,8 +55,21 @@ class FitResult:
         }
 
 
-def fit(run: Path, options: FitOptions, *, output: Path | None = None, protocol: str | None = None) -> FitResult:
-    """Fit a force model (``options.form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it."""
+def fit(
+    run: Path,
+    options: FitOptions,
+    *,
+    output: Path | None = None,
+    protocol: str | None = None,
+    record: bool | None = None,
+    leak_correct: bool = False,
+) -> FitResult:
+    """Fit a force model (``options.form``: posture-aware, or the paper's Eqs. 34-37) to a run's fit trials; save it.
+
+    ``leak_correct``: move each trial's P0 along the run's leak to its loaded window first
+    (models/leak.py; off by default, where it measured worse on the simulated rig).  The model
+    file records which, and for a run file the trials' median baseline-to-capture gap.
+    """
     form = options.form
     if form not in FORMS:
         raise ConfigError(f"Unknown model form '{form}'; use {' or '.join(FORMS)}.")
@@ -64,16 +78,32 @@ def fit(run: Path, options: FitOptions, *, output: Path | None = None, protocol:
             "--max-amplification is the paper form's cut near theta2 = 0; the posture form "
             "flags by standard error ([sensing] in the protocol), so add --form paper or leave it out."
         )
-    out_path = output or default_model_path(run)
-    check_fit_paths(run, out_path)
+    # Before the inputs are read: an output that is one of them is refused whatever else is wrong.
+    check_fit_paths(run, Path(output) if output is not None else default_model_path(run), protocol)
     src = load_trial_source(run, protocol)
+    out_path, keep = model_destination(run, output, record, src.is_run)
+    if leak_correct:
+        src = replace(src, table=leak.corrected(src.table, run, "fit --leak-correct"))
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
         model = _fit_form(form, src, str(run), options.max_amplification or MAX_AMPLIFICATION)
     if isinstance(model, TakumaModel):
         refuse_non_finite(model, src.table, str(run))
     model.fitted_on = src.identity
-    recorded = save_model(model.to_json(), out_path, run=run if src.is_run else None, name=model.protocol)
+    model.p0_leak_corrected = leak_correct
+    model.baseline_gap_s = leak.baseline_gap(run, _fit_ids(src.table)) if src.is_run else None
+    recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
     return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
+
+
+def _fit_ids(table: Any) -> Any:
+    return table.loc[table["set"].astype(str) == "fit", "trial"] if "set" in table.columns else table["trial"]
+
+
+def leak_handled(model: Any, src: Any, run: Path) -> Any:
+    """The trial source as the model wants it: P0 moved along the leak when it was fitted so (models/leak.py)."""
+    if not getattr(model, "p0_leak_corrected", False):
+        return src
+    return replace(src, table=leak.corrected(src.table, run, "A model fitted on leak-corrected baselines"))
 
 
 # The column each equation is fitted to, named in the refusal of a fit that overflowed.
@@ -157,23 +187,14 @@ def model_for_run(
 ) -> tuple[TakumaModel | PostureModel, str]:
     """The model to apply to ``run`` and where it came from (a label for the report).
 
-    ``--model`` when given; else the sidecar ``RUN.model.json``; else, for a run file, the
-    model the run records under ``/models/<name>`` (a run passed on without its sidecar).
+    One precedence (:data:`labcli.core.modelfile.MODEL_PRECEDENCE`): ``--model`` when given;
+    else the model a run file records in force under ``/models/<name>``; else the sidecar
+    ``RUN.model.json``.
     """
-    if model_path is not None:
-        return load_force_model(model_path), str(model_path)
-    side = default_model_path(run)
-    if side.exists() or not is_run:
-        return load_force_model(side), str(side)
-    with RunFile.open(run) as rf:
-        recorded = rf.models.all()
-    if name not in recorded:
-        raise ModelError(
-            f"The model file {side} does not exist and {run} records no model under /models/{name}; "
-            f"write one with `labcli fit {run}`."
-        )
-    label = f"{run}:/models/{name}"
-    return force_model_from_json(recorded[name], name=f"the model {label}"), label
+    text, label = model_text(run, model_path, is_run, name)
+    if text is None:
+        return load_force_model(Path(label)), label
+    return force_model_from_json(text, name=f"the model {label}"), label
 
 
 def overlap(model: TakumaModel | PostureModel, src: Any) -> list[int]:
@@ -207,6 +228,7 @@ def validate(run: Path, options: ValidateOptions, *, protocol: str | None = None
         run_name=str(run),
     )
     warnings = [w for w in [rig_warning(cap(label), model.fitted_on, str(run), src.identity)] if w]
+    src = leak_handled(model, src, run)
     shared = overlap(model, src)
     if shared:
         n_val = int((src.table["set"].astype(str) == "validation").sum())
@@ -220,7 +242,14 @@ def validate(run: Path, options: ValidateOptions, *, protocol: str | None = None
     ev = evaluate(model, src.table, mode=mode, source=str(run))
     ev["forms"] = side_by_side(model, ev, src, mode, str(run))
     if plot is not None:
-        figure7(ev, plot, run=str(run), protocol=src.protocol.name, form=getattr(model, "form", "paper"))
+        figure7(
+            ev,
+            plot,
+            run=str(run),
+            protocol=src.protocol.name,
+            form=getattr(model, "form", "paper"),
+            source=source_line(run, src.protocol.name, label),
+        )
     return ValidationResult(ev, Path(model_path or default_model_path(run)), run, plot, label, warnings)
 
 
@@ -266,7 +295,8 @@ def classify(pushes: Path, options: ClassifyOptions, *, protocol: str | None = N
     o = options
     result = classify_file(pushes, o.model, reference=o.reference, protocol=protocol, method=o.method, angles=o.angles)
     if o.plot is not None:
-        figure9(result.result, o.plot)
+        prot = getattr(getattr(result, "protocol", None), "name", None) or protocol
+        figure9(result.result, o.plot, source=source_line(pushes, prot, o.model))
     return ClassificationResult(result, o.plot, o.pushes)
 
 

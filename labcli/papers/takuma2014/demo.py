@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from ...core.demo import Progress, Stages, acquire_unattended, check_outdir, simulated_port
+from ...core.figures import source_line
 from ...core.modelfile import save_model
 from .figures import figure7, figure9
 from .models.classify import classify_file
@@ -138,7 +139,14 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False, progress
         save_model(model.to_json(), files["model"], run=files["force_run"], name=model.protocol)
     with stages.run(2, "validate"):
         evaluation = evaluate(model, src.table, "pressure-only", source=str(files["force_run"]))
-        figure7(evaluation, files["figure7"], run=str(files["force_run"]), protocol=src.protocol.name, form="paper")
+        figure7(
+            evaluation,
+            files["figure7"],
+            run=str(files["force_run"]),
+            protocol=src.protocol.name,
+            form="paper",
+            source=source_line(files["force_run"], src.protocol.name, files["model"]),
+        )
     with stages.run(3, "ideal_rig"):
         ideal = _ideal_rig_accuracy(port + IDEAL, progress)
     with stages.run(4, "acquire_pushes"):
@@ -150,7 +158,7 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False, progress
         # the run (their true class), and judging each against labels that include its own
         # would be circular for the lone steel can.
         report = classify_file(files["push_run"], model, method="bands")
-        figure9(report, files["figure9"])
+        figure9(report, files["figure9"], source=source_line(files["push_run"], PUSH_PROTOCOL, files["model"]))
     with stages.run(6, "bent_arm"):
         forms = {FORCE_PROTOCOL: _both_forms(src, model), BENT_PROTOCOL: _bent_arm(port, files, progress)}
     with stages.run(7):
@@ -201,7 +209,14 @@ def _bent_arm(port: str, files: dict[str, Path], progress: Progress | None) -> d
     model = _posture(bent, files["bent_run"])
     save_model(model.to_json(), files["bent_model"], run=files["bent_run"], name=model.protocol)
     evaluation = evaluate(model, bent.table, "pressure-only", source=str(files["bent_run"]))
-    figure7(evaluation, files["figure7_bent"], run=str(files["bent_run"]), protocol=bent.protocol.name, form=model.form)
+    figure7(
+        evaluation,
+        files["figure7_bent"],
+        run=str(files["bent_run"]),
+        protocol=bent.protocol.name,
+        form=model.form,
+        source=source_line(files["bent_run"], bent.protocol.name, files["bent_model"]),
+    )
     paper = TakumaModel(geometry=bent.protocol.settings.rig, protocol=bent.protocol.name).fit(bent.table)
     return {"posture": _accuracy(evaluation), "paper": _accuracy(evaluate(paper, bent.table, "pressure-only"))}
 

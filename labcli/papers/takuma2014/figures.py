@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ...core.figures import check_path, fmt, new_figure, save
+from ...core.figures import caption, check_path, fmt, new_figure, save
 
 # --------------------------------------------------------------------------------------
 # Figure 7 (Takuma et al. 2014): accuracy of contact information on the validation trials.
@@ -87,10 +87,12 @@ def figure7(
     run: str | None = None,
     protocol: str | None = None,
     form: str | None = None,
+    source: str = "",
 ) -> Path:
     """Draw the paper's Figure 7 from :func:`labcli.papers.takuma2014.models.metrics.evaluate` and save it.
 
-    The title names the run, its protocol and the model form (:func:`figure7_title`); each reported
+    ``source``: what it was drawn from, the model included (:func:`labcli.core.figures.source_line`),
+    written at its foot.  The title names the run, its protocol and the model form (:func:`figure7_title`); each reported
     trial carries its 95 % interval (1.96 standard errors) where the form gives them, and flagged
     trials (left out of the metrics) are open red markers where their estimates lie, inside the
     frame (:func:`figure7_panel`).
@@ -142,8 +144,8 @@ def figure7(
         ax.set_ylim(lo, hi)
         ax.set_aspect("equal", adjustable="box")
         sym = FIGURE7_SYMBOLS[q]
-        ax.set_xlabel(f"observed ${sym}$ [{unit}]")
-        ax.set_ylabel(f"calculated ${sym}$ [{unit}]")
+        ax.set_xlabel(f"observed ${sym}$ ({unit})")
+        ax.set_ylabel(f"calculated ${sym}$ ({unit})")
         ax.set_title(label, loc="left", fontsize=11)
         ax.grid(True, color="0.9", lw=0.6, zorder=0)
         m = evaluation["metrics"][q]
@@ -172,7 +174,8 @@ def figure7(
         if flagged or panel["error_95"] is not None:
             ax.legend(loc="lower right", fontsize=7, frameon=True)
     fig.suptitle(title or figure7_title(evaluation, run, protocol, form), fontsize=11)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.02, 1, 1))
+    caption(fig, source)
     save(fig, p)
     return p
 
@@ -195,8 +198,12 @@ def _category_order(model: Any) -> list[str]:
     return [n for n, _ in sorted(model.classes.items(), key=lambda kv: kv[1]["mean_log_k"])]
 
 
-def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
+def figure9(result: Any, path: str | Path, *, title: str | None = None, source: str = "") -> Path:
     """Draw the paper's Figure 9 from a classify result and save it.
+
+    An object's tick names its known category as a reference object's (reference method) or
+    as the category it was given (bands method, where it is compared with the bands, not
+    used to place them).  ``source``: what it was drawn from, written at its foot.
 
     ``result`` is a :class:`labcli.papers.takuma2014.models.classify.ClassifyResult` (or a
     ``ClassifyReport``, whose ``result`` is used).
@@ -226,23 +233,39 @@ def figure9(result: Any, path: str | Path, *, title: str | None = None) -> Path:
     for i, row in enumerate(objects.to_dict("records")):
         sel = obj_col == str(row["object"])
         ticks.append(
-            _draw_object(ax, i, row, k_all[sel], flags[sel], style, used_labels, (lo, y_lo, y_hi), many=len(names) > 8)
+            _draw_object(
+                ax,
+                i,
+                row,
+                k_all[sel],
+                flags[sel],
+                style,
+                used_labels,
+                (lo, y_lo, y_hi),
+                many=len(names) > 8,
+                method=model.method,
+            )
         )
     ax.set_xticks(range(len(names)))
     ax.set_xticklabels(ticks, fontsize=8)
     ax.set_xlim(-0.6, len(names) - 0.4)
     ax.set_ylim(y_lo, y_hi)
-    ax.set_ylabel("object stiffness $k_o$ [N/m]")
+    ax.set_ylabel("object stiffness $k_o$ (N/m)")
     ax.set_xlabel("sample object")
     ax.grid(True, which="major", axis="y", color="0.88", lw=0.6, zorder=0)
     ax.grid(True, which="minor", axis="y", color="0.94", lw=0.4, zorder=0)
-    how = "bands from the protocol" if model.method == "bands" else "nearest reference class in ln $k_o$"
+    how = (
+        "the protocol's stiffness bands (each object's given category under its name)"
+        if model.method == "bands"
+        else "nearest reference class in ln $k_o$"
+    )
     handles, labels = ax.get_legend_handles_labels()
     rank = {c: i for i, c in enumerate(order)}
     pairs = sorted(zip(handles, labels, strict=False), key=lambda hl: rank.get(hl[1], len(rank)))
     ax.legend([h for h, _ in pairs], [lab for _, lab in pairs], loc="upper left", fontsize=8, frameon=True, ncol=2)
-    fig.suptitle(title or f"Acquired stiffness of the sample objects (Figure 9): categories by {how}", fontsize=11)
-    fig.tight_layout()
+    fig.suptitle(title or f"Acquired stiffness of the sample objects (Figure 9)\ncategories by {how}", fontsize=11)
+    fig.tight_layout(rect=(0, 0.025, 1, 1))
+    caption(fig, source)
     save(fig, p)
     return p
 
@@ -324,6 +347,7 @@ def _draw_object(
     span: tuple[float, float, float],
     *,
     many: bool,
+    method: str = "reference",
 ) -> str:
     """One object's pushes, mean ± sd, true stiffness and category at x = ``i``; returns its tick label."""
     import numpy as np
@@ -409,7 +433,10 @@ def _draw_object(
     )
     n_flag = int(row.get("n_flagged", 0))
     given = str(row.get("known_category") or "")
-    ref_text = f"ref. {given}" if many else f"reference ({given})"  # room per tick
+    if method == "reference":  # a reference object places its category's class
+        ref_text = f"ref. {given}" if many else f"reference ({given})"  # room per tick
+    else:  # bands: the category it was given, beside the one the bands gave it
+        ref_text = f"given {given}" if many else f"given: {given}"
     return (
         f"{name}\n"
         + (f"{ref_text}\n" if given else "")

@@ -25,6 +25,7 @@ DEFAULT_PROTOCOLS = {
     "fit": TRIAL_PROTOCOL,
     "validate": TRIAL_PROTOCOL,
     "classify": PUSH_PROTOCOL,
+    "predict": TRIAL_PROTOCOL,
 }
 
 FORMS = ("posture", "paper")  # labcli fit --form; the first is the default (models.posture.FORM)
@@ -58,7 +59,7 @@ class ValidateOptions:
 
     model: Path | None = path(
         help="Model JSON from `labcli fit`.",
-        default_text="RUN.model.json beside the run, else the model the run file records",
+        default_text="the model RUN records, else RUN.model.json beside it",
     )
     mode: str = choice(ANGLES, ANGLES[0], help=_ANGLES_HELP)
     plot: Path | None = path(help="Write Figure 7 (observed vs calculated) to this .png, .pdf or .svg file.")
@@ -86,4 +87,10 @@ class ClassifyOptions:
     pushes: bool = switch(help="List every push in the report [default: only when there are 60 or fewer].")
 
 
-OPTIONS = {"fit": FitOptions, "validate": ValidateOptions, "classify": ClassifyOptions}
+@dataclass(frozen=True)
+class PredictOptions:
+    """``labcli predict`` on a table of new pressures or a run file: the model file is the core's
+    ``--model``; the paper asks nothing more."""
+
+
+OPTIONS = {"fit": FitOptions, "validate": ValidateOptions, "classify": ClassifyOptions, "predict": PredictOptions}

@@ -34,6 +34,7 @@ from ...core.store import load_table
 from ...core.store.h5 import missing, nan_if_empty, scalar, to_edge, vector
 from ...core.store.record_type import BaseRecordType
 from ...errors import ConfigError, StoreError
+from .sense_records import SenseRecords
 from .tables import BASELINE, LOADED, PUSH, REST, TRIAL
 
 PRESSURE_NAMES = LOADED  # P_L1, P_R1, P_L2, P_R2
@@ -497,7 +498,7 @@ class PushRecords(_McKibbenRecords):
         }
 
 
-RECORD_TYPES = {"force": TrialRecords(), "push": PushRecords()}
+RECORD_TYPES = {"force": TrialRecords(), "push": PushRecords(), "sense": SenseRecords()}
 
 
 def load_trials(path: str | os.PathLike) -> Any:

@@ -181,7 +181,7 @@ def print_forms(forms: dict[str, dict[str, Any]], where: str = "the same validat
             table.add_column(f"{form} {col}", justify="right")
     table.add_column("posture 95% cover", justify="right")
     for q, (_, unit, _) in QUANTITIES.items():
-        row = [f"{q} [{unit}]"]
+        row = [f"{q} ({unit})"]
         for m in forms.values():
             row += [str(m[q]["n"]), cell(m[q]["rmse"], ".3g"), cell(m[q]["rmse_all"], ".3g")]
         cover = forms.get("posture", {}).get(q, {}).get("coverage95")
@@ -203,7 +203,7 @@ def print_validation(ev: dict[str, Any], model: str, run: Path, plot: Path | Non
     for q, (_, unit, _) in QUANTITIES.items():
         m = ev["metrics"][q]
         table.add_row(
-            f"{q} [{unit}]",
+            f"{q} ({unit})",
             str(m["n"]),
             cell(m["rmse"], ".3g"),
             cell(m["mae"], ".3g"),
@@ -283,15 +283,17 @@ def print_classification(
     ]
     objects = Table(title=f"Objects: category by {method}", title_justify="left", box=box.SIMPLE_HEAD)
     has_true = any("true_k_N_per_m" in o for o in data["objects"])
-    ocols = ["object", "role", "n", "flagged", "mean k_o [N/m]", "sd [N/m]", "sd [%]"]
-    ocols += ["true k_o [N/m]"] if has_true else []
+    ocols = ["object", "role", "n", "flagged", "mean k_o (N/m)", "sd (N/m)", "sd (%)"]
+    ocols += ["true k_o (N/m)"] if has_true else []
     ocols += ["category", "confidence", "method"]
     for c in ocols:
         objects.add_column(c, justify="left" if c in ("object", "role", "category", "method") else "right")
     for o in data["objects"]:
         mean, sd = o["k_mean_N_per_m"], o["k_sd_N_per_m"]
         rel = 100 * sd / mean if mean and sd is not None else None
-        role = f"reference ({o['category_given']})" if o["role"] == "reference" else "unknown"
+        role = {"reference": f"reference ({o['category_given']})", "given": f"given: {o['category_given']}"}.get(
+            o["role"], "unknown"
+        )
         row = [
             o["object"],
             role,
@@ -340,15 +342,15 @@ def _print_pushes(con: Any, pushes: list[dict[str, Any]], title: str) -> None:
     cols = (
         "push",
         "object",
-        "theta1 [deg]",
-        "theta2 [deg]",
-        "Fx [N]",
-        "Fy [N]",
-        "C [mm]",
-        "phi [deg]",
-        "O2 [mm]",
-        "delta_x [mm]",
-        "k_o [N/m]",
+        "theta1 (deg)",
+        "theta2 (deg)",
+        "Fx (N)",
+        "Fy (N)",
+        "C (mm)",
+        "phi (deg)",
+        "O2 (mm)",
+        "delta_x (mm)",
+        "k_o (N/m)",
         "",
     )
     for c in cols:
@@ -477,9 +479,9 @@ def print_demo(res: Any) -> None:
     for col in (
         "object",
         "pushes used",
-        "k mean [N/m]",
-        "k sd [N/m]",
-        "true k [N/m]",
+        "k mean (N/m)",
+        "k sd (N/m)",
+        "true k (N/m)",
         "category",
         "confidence",
         "true category",

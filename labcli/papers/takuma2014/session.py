@@ -50,6 +50,7 @@ from ...core.steps import (
     WaitSettle,
     Window,
 )
+from ...core.words import count
 from .records import TrialRecord
 
 G = 9.80665  # standard gravity, m/s^2 (docs/table-formats.md)
@@ -219,10 +220,29 @@ def parse_mass_g(text: str, lo_g: float = 1.0, hi_g: float = 2000.0) -> float:
     return value * 1e-3
 
 
+def wrap_direction_deg(value: float, lo_deg: float = -180.0, hi_deg: float = 180.0) -> float | None:
+    """``value`` (deg) turned by whole turns into [lo_deg, hi_deg]: 270 is -90; None when no turn fits.
+
+    A direction is an angle on a circle (docs/table-formats.md): any number names one, and
+    the one typed is kept when it is in range already; otherwise the turn nearest to it.
+    """
+    if not math.isfinite(value):
+        return None
+    for turns in sorted(range(-(int(abs(value)) // 360) - 2, int(abs(value)) // 360 + 3), key=abs):
+        turned = value + 360.0 * turns
+        if lo_deg <= turned <= hi_deg:
+            return turned
+    return None
+
+
 def parse_direction_deg(
     text: str, lo_deg: float = -180.0, hi_deg: float = 180.0, *, allow_unknown: bool = False
 ) -> float | None:
-    """Parse a typed direction in degrees into rad; "?" or nothing is unknown when allowed."""
+    """Parse a typed direction in degrees into rad; "?" or nothing is unknown when allowed.
+
+    Directions wrap: 270 is -90 (:func:`wrap_direction_deg`); one that no whole turn brings
+    into [lo_deg, hi_deg] is refused with the range.
+    """
     t = text.strip()
     if allow_unknown and t.lower() in ("?", "unknown", ""):
         return None
@@ -230,9 +250,31 @@ def parse_direction_deg(
     if not m:
         raise ValueError(f"'{t}' is not a direction: type degrees counter-clockwise from +x, e.g. 45 deg.")
     value = float(m.group(1))
-    if not lo_deg <= value <= hi_deg:
-        raise ValueError(f"The direction must be from {lo_deg:g} deg to {hi_deg:g} deg, got {value:g} deg.")
-    return math.radians(value)
+    wrapped = wrap_direction_deg(value, lo_deg, hi_deg)
+    if wrapped is None:
+        raise ValueError(
+            f"The direction must be from {lo_deg:g} deg to {hi_deg:g} deg (or a whole turn from there), "
+            f"got {value:g} deg."
+        )
+    return math.radians(wrapped)
+
+
+def parse_load_change(
+    text: str, keep_direction_rad: float, mass_range_g: tuple[float, float], direction_range_deg: tuple[float, float]
+) -> Load:
+    """A load typed instead of Enter: ``MASS`` (g, the direction kept) or ``MASS DIRECTION``
+    (g and deg, e.g. ``300 90`` or ``300 g 90 deg``)."""
+    m = re.fullmatch(r"\s*(\S+?)\s*(g|kg)?(?:[\s,]+(\S+?)\s*(deg)?)?\s*", text)
+    if not m:
+        raise ValueError(
+            f"'{text.strip()}' is not a load: type the mass in g and the direction in deg, e.g. 300 90, or press Enter."
+        )
+    mass = parse_mass_g(m.group(1) + (m.group(2) or ""), *mass_range_g)
+    if m.group(3) is None:
+        return Load(mass, keep_direction_rad)
+    direction = parse_direction_deg(m.group(3), *direction_range_deg)
+    assert direction is not None  # "unknown" is not allowed for a pulley
+    return Load(mass, direction)
 
 
 def parse_length_mm(text: str, what: str, lo_mm: float = 0.0, hi_mm: float = 500.0) -> float:
@@ -358,11 +400,38 @@ def ask_load(
             ),
             Field(
                 "direction_rad",
-                f"{head}: pulley direction in deg, counter-clockwise from +x ({dlo:g} to {dhi:g}):",
+                f"{head}: pulley direction in deg, counter-clockwise from +x ({dlo:g} to {dhi:g}, whole turns wrap):",
                 partial(parse_direction_deg, lo_deg=dlo, hi_deg=dhi),
             ),
         )
     )
+
+
+LOAD_CHANGE_OFFER = " (or type another mass in g and direction in deg, e.g. 300 90)"
+
+
+def confirm_end(stored: int) -> Ask:
+    """After an empty answer to the mass: end the run only on y (Enter goes on with the next load)."""
+    return Ask(
+        (
+            Field(
+                "end",
+                f"End the run here with {count(stored, 'trial')} stored? y ends it, Enter goes on:",
+                parse_yes,
+                default=False,
+            ),
+        )
+    )
+
+
+def parse_yes(text: str) -> bool:
+    """y/yes is True, n/no False; anything else is asked again."""
+    t = text.strip().lower()
+    if t in ("y", "yes"):
+        return True
+    if t in ("n", "no"):
+        return False
+    raise ValueError(f"Type y to end the run or press Enter to go on, not '{text.strip()}'.")
 
 
 # --------------------------------------------------------------------------- sessions
@@ -422,6 +491,16 @@ def _pressurise_by_command(
         yield Valves("supply")
 
 
+def _relieve(air: AirDrift, guard: Guard | None) -> Generator[Step, Any, None]:
+    """Friction relief: a supply pulse of ``friction_relief_s``, then hold (a fresh supply each trial)."""
+    yield Valves("supply")
+    yield Hold(air.settings.friction_relief_s)
+    yield Valves("hold")
+    air.supplied()
+    if guard is not None:
+        guard.resupplied()
+
+
 def _resupply(air: AirDrift, why: str, guard: Guard | None) -> Generator[Step, Any, None]:
     """The chambers drifted: supply by command until the pressures settle, then hold again."""
     yield Note(f"{why[:1].upper()}{why[1:]}.")
@@ -474,6 +553,8 @@ def _trial(
     supplied and held again, and the baseline retaken.
     """
     while True:
+        if air is not None and air.settings.friction_relief_s > 0:
+            yield from _relieve(air, checked.guard if checked is not None else None)
         wait_b = yield WaitSettle("baseline")
         if wait_b == "redo":
             continue
@@ -574,6 +655,8 @@ def force_session(
     air = yield from _pressurise(protocol)
 
     skipped: list[int] = []
+    limits = _load_limits(protocol)
+    typed: Load | None = None  # a load typed at the hang prompt instead of Enter (no plan)
     while not rows or remaining:
         if rows:
             planned = remaining.pop(0)
@@ -582,19 +665,43 @@ def force_session(
             # Ids stay dense: a skipped trial's id is used by the next load.
             next_id = max(done, default=0) + 1
             shown_total = max(total, len(done) + 1)
-            load = yield ask_load(next_id, shown_total, *_load_limits(protocol))
-            if load is None:
-                break
-            planned = PlannedTrial(next_id, "", load["mass_kg"], load["direction_rad"])
+            if typed is None:
+                load = yield ask_load(next_id, shown_total, *limits)
+                if load is None:
+                    # An Enter alone may be a slip: the run ends only when the experimenter says so.
+                    if (yield confirm_end(len(done)))["end"]:
+                        break
+                    continue
+                typed = Load(load["mass_kg"], load["direction_rad"])
+            planned = PlannedTrial(next_id, "", typed.mass_kg, typed.direction_rad)
+            typed = None
             label = trial_label(next_id, shown_total, "")
         yield BeginTrial(planned.trial, planned.set, len(done) + 1, total, label)
         remove = Prompt(remove_prompt(label), RemoveWeight())
+        hang = Prompt(
+            load_prompt(label, planned.mass_kg, planned.direction_rad),
+            HangWeight(planned.mass_kg, planned.direction_rad),
+        )
+        if not rows:
+            # A load typed by hand can be typed again at its prompt (after a redo, say) instead of Enter.
+            hang = Prompt(
+                hang.text + LOAD_CHANGE_OFFER,
+                hang.action,
+                Field(
+                    "load",
+                    "",
+                    partial(
+                        parse_load_change,
+                        keep_direction_rad=planned.direction_rad,
+                        mass_range_g=limits[0],
+                        direction_range_deg=limits[1],
+                    ),
+                    again=f"{hang.text}{LOAD_CHANGE_OFFER} (q to quit):",
+                ),
+            )
         stored = yield from _trial(
             capture_s,
-            Prompt(
-                load_prompt(label, planned.mass_kg, planned.direction_rad),
-                HangWeight(planned.mass_kg, planned.direction_rad),
-            ),
+            hang,
             remove,
             lambda base, loaded, wait_b, wait_l, p=planned: force_record(
                 p.trial, p.set, p.mass_kg, p.direction_rad, base, loaded, wait_b, wait_l, cmap, p.plan_row
@@ -608,6 +715,9 @@ def force_session(
             ),
             air,
         )
+        if isinstance(stored, Load):  # a new load typed instead of hanging this one: the trial again with it
+            typed = stored
+            continue
         (done.add if stored else skipped.append)(planned.trial)
 
     split = None

@@ -285,7 +285,10 @@ def test_cli_text_output_has_units():
         r"stiffness 0\.\d{4} N m/rad \(K_min 0\.07\), \d+\.\d\d deg short of the toggle\.",
         lines[0],
     )
-    assert lines[1] == "Links to 0.1 mm as printed, beside the paper's design (Section IV) with the same model:"
+    assert lines[1] == (
+        "Links to 0.1 mm as printed, beside the paper's design (Section IV) with the same model "
+        "(actuator force read as derived):"
+    )
     assert lines[3].split() == ["labcli", "paper"]
     rows = {line[:36].strip(): line[36:].split() for line in lines[4:17]}
     assert list(rows) == [
@@ -312,12 +315,47 @@ def test_cli_text_output_has_units():
     assert lines[20] == "The paper reports alpha = 58.4 deg for it, with its own, unpublished actuator constants."
 
 
+@pytest.fixture(scope="module")
+def paper_reading():
+    """The paper's reading of the force at K_min 0.2 N m/rad, on the command line (seed 1)."""
+    args = ["optimize", "--force", "paper", "--min-stiffness", "0.2", "--seed", "1", "--json"]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 0, result.output
+    return json.loads(result.stdout)
+
+
+def test_the_paper_reading_reproduces_the_papers_pattern(paper_reading):
+    d = paper_reading
+    assert d["force_reading"] == "paper" and d["min_stiffness_Nm_per_rad"] == 0.2
+    # Section IV: alpha 58.4 deg with L1 at its lower bound and L3 at its upper bound.
+    assert d["alpha_deg"] == pytest.approx(58.4, abs=1.5)
+    assert d["L1_m"] == pytest.approx(0.03, abs=2e-3) and d["L3_m"] == pytest.approx(0.06, abs=2e-3)
+    assert d["L2_m"] == pytest.approx(0.1048, abs=4e-3)
+    assert "g2: L1 at lower bound 0.03 m" in d["active_constraints"]
+    assert d["stiffness_Nm_per_rad"] >= 0.2
+    # The balance it reports is the paper reading's, not the derived one's.
+    g = rpam.JointGeometry(d["L1_m"], d["L2_m"], d["L3_m"])
+    paper_act = ACT.with_force_reading("paper")
+    assert math.degrees(rpam.equilibrium_angle(0.096, 0.041, g, paper_act)) == pytest.approx(d["alpha_deg"], abs=1e-9)
+    # Under that reading the paper's own design balances and holds.
+    assert d["paper"]["balanced"] and d["paper"]["feasible"]
+
+
+def test_a_bad_min_stiffness_is_one_sentence():
+    for value in ("0", "-1", "nan"):
+        result = CliRunner().invoke(cli, ["optimize", "--min-stiffness", value])
+        assert result.exit_code == 2
+        assert "is not a stiffness a joint can hold with; give a number of N m/rad above 0." in result.output
+    result = CliRunner().invoke(cli, ["optimize", "--force", "printed"])
+    assert result.exit_code == 2 and "'printed' is not one of 'derived', 'paper'" in result.output
+
+
 def test_cli_unknown_key_is_one_clear_line():
     result = CliRunner().invoke(cli, ["optimize", "--set", "actuator.L0=0.08"])
     assert result.exit_code == 1
     assert result.output == (
         "Error: Unknown protocol key 'actuator.L0' in --set; keys under actuator: "
-        "A0_m2, L0_m, n_turns, prestretch, thread_length_m.\n"
+        "A0_m2, L0_m, force_reading, n_turns, prestretch, thread_length_m.\n"
     )
 
 

@@ -298,7 +298,7 @@ def test_overrides_set_values_and_reject_unknown_keys():
         apply_overrides(RAW, ["actuator.L0=0.08"])
     assert str(e.value) == (
         "Unknown protocol key 'actuator.L0' in --set; keys under actuator: "
-        "A0_m2, L0_m, n_turns, prestretch, thread_length_m."
+        "A0_m2, L0_m, force_reading, n_turns, prestretch, thread_length_m."
     )
     with pytest.raises(ConfigError) as e:
         apply_overrides(RAW, ["ogden.alpha=[1, 2]"])

@@ -148,7 +148,9 @@ def test_stretch_points_are_what_the_rig_did(stretch_run):
 def test_labcli_fit_recovers_the_rigs_true_correction(stretch_run, tmp_path):
     path, rec = stretch_run
     plot = tmp_path / "fig6.png"
-    result = CliRunner().invoke(cli, ["fit", str(path), "-o", str(tmp_path / "s.json"), "--plot", str(plot), "--json"])
+    result = CliRunner().invoke(
+        cli, ["fit", str(path), "-o", str(tmp_path / "s.json"), "--plot", str(plot), "--json", "--record"]
+    )
     assert result.exit_code == 0, result.output
     out = json.loads(result.output)
     m = out["fit"]["model"]

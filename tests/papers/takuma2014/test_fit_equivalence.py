@@ -125,3 +125,42 @@ def test_route_choice_fits_leave_out_only_the_trial_list() -> None:
     unlisted = TakumaModel(geometry=GEOMETRY).fit(table, record_trials=False)
     assert unlisted.fitted_trials == {} and listed.fitted_trials["Fx"][:2] == [[0, 4], [6, 10]]
     assert unlisted.coefficients == listed.coefficients and unlisted.ci95 == listed.ci95
+
+
+@pytest.mark.parametrize("n", [1, 108, 5000])
+def test_the_2x2_products_are_einsum_s_to_rounding(n: int) -> None:
+    from labcli.papers.takuma2014.models.posture import einsum_2x2
+
+    rng = np.random.default_rng(n)
+    JT = np.swapaxes(rng.normal(size=(n, 2, 2)), 1, 2)  # a view, as the posterior takes J^T
+    prior, M, S, tau = (
+        np.diag(rng.uniform(0.5, 2.0, 2) ** 2),
+        rng.normal(size=(n, 2, 2)),
+        rng.normal(size=(n, 2, 2)),
+        rng.normal(size=(n, 2)),
+    )
+    for spec, ops in [
+        ("nij,nj->ni", (M, tau)),
+        ("nij,njk,nlk->nil", (M, S, M)),
+        ("ij,nkj,nkl->nil", (prior, JT, M)),
+        ("nij,jk,nlk->nil", (JT, prior, JT)),
+        ("nij,njk,kl->nil", (M, JT, prior)),
+    ]:
+        np.testing.assert_allclose(einsum_2x2(spec, *ops), np.einsum(spec, *ops), rtol=1e-13, atol=1e-14)
+
+
+def test_predictions_and_routes_are_those_of_numpy_s_einsum(monkeypatch: pytest.MonkeyPatch) -> None:
+    from labcli.papers.takuma2014.models import posture
+
+    table = trial_table(600, 9, "interleaved")
+    now = PostureModel(geometry=GEOMETRY).fit(table)
+    out = now.predict_table(table)
+    monkeypatch.setattr(posture, "einsum_2x2", np.einsum)
+    before = PostureModel(geometry=GEOMETRY).fit(table)
+    assert_same(model_figures(now), model_figures(before))
+    was = before.predict_table(table)
+    for key in ("theta1_rad", "theta2_rad", "Fx_N", "Fy_N"):
+        np.testing.assert_allclose(out[key], was[key], rtol=1e-12, atol=1e-15)
+    for q in out["se"]:
+        np.testing.assert_allclose(out["se"][q], was["se"][q], rtol=1e-12, atol=1e-15)
+        assert np.array_equal(out["ok"][q], was["ok"][q])

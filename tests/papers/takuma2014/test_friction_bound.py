@@ -84,6 +84,7 @@ def test_a_weight_left_on_the_literatures_rig_is_caught(tmp_path):
 
     from labcli.core.device import Device
     from labcli.core.engine import RunEngine
+    from labcli.core.simoperator import operator_for
     from labcli.core.store import RunFile
     from labcli.core.ui import UnattendedUI
     from labcli.errors import DeviceError
@@ -100,7 +101,15 @@ def test_a_weight_left_on_the_literatures_rig_is_caught(tmp_path):
     plan = read_plan(csv)
     store = RunFile.create(tmp_path / "run.h5", protocol=protocol, device_info=dev.info, port=url, plan=plan)
     ui = UnattendedUI(console=Console(file=io.StringIO()))
-    engine = RunEngine(dev, store, protocol, ui, run_path=str(tmp_path / "run.h5"), resume_command="")
+    engine = RunEngine(
+        dev,
+        store,
+        protocol,
+        ui,
+        run_path=str(tmp_path / "run.h5"),
+        resume_command="",
+        simulated_operator=operator_for(dev),
+    )
     rig, removals = dev.rig, []
     remove = rig.remove_weight
 

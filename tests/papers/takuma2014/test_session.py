@@ -108,6 +108,8 @@ def drive(session, review=lambda step, n: "accept", loads=None, objects=None, ch
 def answer(step, loads, objects):
     """The experimenter's typed answers to an Ask, as the UI returns them (SI)."""
     asked = step.fields[0].key
+    if asked == "end":  # an empty mass confirmed: the run ends
+        return {"end": True}
     if asked == "mass_kg":
         load = loads.pop(0) if loads else None
         return None if load is None else {"mass_kg": load.mass_kg, "direction_rad": load.direction_rad}
@@ -231,13 +233,16 @@ def test_without_a_plan_the_experimenter_types_each_load():
     # The protocol's limits for typed loads, in the prompts and in the parsers.
     mass, direction = loads_asked[0].fields
     assert "1 to 2000 (Enter when the run is complete" in mass.prompt and mass.stop_if_empty
-    assert "(-180 to 180)" in direction.prompt
+    assert "(-180 to 180, whole turns wrap)" in direction.prompt
     with pytest.raises(ValueError, match="from 1 g to 2000 g"):
         mass.parse("2500")
     assert direction.parse("-45") == pytest.approx(math.radians(-45))
     prompts = [s.text for s in of(steps, Prompt)]
-    assert "Trial 1/108: hang 150 g, pulley direction 30 deg, then press Enter" in prompts
-    assert "Trial 2/108: hang 500 g, pulley direction -45 deg, then press Enter" in prompts
+    offer = " (or type another mass in g and direction in deg, e.g. 300 90)"
+    assert "Trial 1/108: hang 150 g, pulley direction 30 deg, then press Enter" + offer in prompts
+    assert "Trial 2/108: hang 500 g, pulley direction -45 deg, then press Enter" + offer in prompts
+    # The empty third answer is confirmed before the run ends.
+    assert asks(steps, "end")[0].fields[0].prompt == "End the run here with 2 trials stored? y ends it, Enter goes on:"
     recs = [c.record for c in of(steps, Commit)]
     assert [r["trial"] for r in recs] == [1, 2] and recs[0]["set"] == ""
     assert recs[1]["force_N"] == pytest.approx([0.5 * G / math.sqrt(2), -0.5 * G / math.sqrt(2)])
@@ -253,8 +258,11 @@ def test_typed_values_are_checked_with_units_in_the_message():
     with pytest.raises(ValueError, match=r"^'heavy' is not a mass: type a number of grams, e\.g\. 200 g\.$"):
         parse_mass_g("heavy")
     assert parse_direction_deg("45 deg") == pytest.approx(math.pi / 4)
-    with pytest.raises(ValueError, match=r"^The direction must be from -180 deg to 180 deg, got 270 deg\.$"):
-        parse_direction_deg("270")
+    assert parse_direction_deg("270") == pytest.approx(-math.pi / 2)  # directions wrap
+    with pytest.raises(
+        ValueError, match=r"^'up' is not a direction: type degrees counter-clockwise from \+x, e\.g\. 45 deg\.$"
+    ):
+        parse_direction_deg("up")
     assert parse_direction_deg("?", allow_unknown=True) is None
     assert parse_length_mm("10", "push distance", 2, 20) == pytest.approx(0.010)
     with pytest.raises(ValueError, match=r"^The push distance must be from 2 mm to 20 mm, got 25 mm\.$"):

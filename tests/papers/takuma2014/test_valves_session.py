@@ -208,3 +208,17 @@ def test_an_interrupted_session_leaves_the_board_as_the_protocol_says_never_supp
         assert dev.valve_states() == {c: end for c in ("P_L1", "P_R1", "P_L2", "P_R2")}
     finally:
         dev.close()
+
+
+def test_friction_relief_pulses_the_supply_before_every_baseline(tmp_path):
+    protocol = protocol_with(tmp_path, friction_relief_s=0.5)
+    assert protocol.air.friction_relief_s == 0.5 and PROTOCOL.air.friction_relief_s == 0.0  # off unless asked
+    outcome, seen, dev, path = run(tmp_path, "sim://?seed=11&clock=virtual", protocol=protocol, loads=LOADS[:2])
+    dev.close()
+    assert outcome.status == "finished" and outcome.stored == 2
+    # The setup's supply and hold, then a pulse before each trial's baseline (none redone here).
+    assert [s.state for s, _ in seen if isinstance(s, Valves)] == ["supply", "hold"] * 3
+    assert [s.duration_s for s, _ in seen if isinstance(s, Hold)] == [5.0, 0.5, 0.5]
+    df = load_trials(path)
+    dP = (df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()) * 1e3
+    assert np.abs(dP).max(axis=1).min() > 2.0  # held after each pulse: the loads still move the pressures

@@ -31,7 +31,7 @@ CASES: list[Case] = [
         ["acquire", "new.h5", "--port", SIM, "--unattended", "--protocol", "p.toml"],
         [
             "p.toml: unknown key 'acquisition.rate_hzz'; the keys allowed there are rate_hz, supply_min_MPa, valves, "
-            "end_valves, leak_max_kPa_per_min, hold_check_s, repressurise_kPa."
+            "end_valves, leak_max_kPa_per_min, hold_check_s, friction_relief_s, repressurise_kPa."
         ],
         files={"p.toml": toml_edit("rate_hz = 200.0", "rate_hz = 200.0\nrate_hzz = 3")},
     ),
@@ -507,8 +507,8 @@ CASES: list[Case] = [
         "unknown --set key (optimize)",
         ["optimize", "--set", "actuator.L0_mm=0.08"],
         [
-            "Unknown protocol key 'actuator.L0_mm' in --set; keys under actuator: A0_m2, L0_m, n_turns, "
-            "prestretch, thread_length_m."
+            "Unknown protocol key 'actuator.L0_mm' in --set; keys under actuator: A0_m2, L0_m, force_reading, "
+            "n_turns, prestretch, thread_length_m."
         ],
     ),
     Case(

@@ -121,6 +121,28 @@ CASES: list[Case] = [
         [f"Cannot write trials.csv: {OWN_INPUT}"],
     ),
     Case(
+        "out-acquire-onto-plan",
+        "output path",
+        "a run acquired onto its own plan, with --force",
+        ["acquire", "plan.csv", "--force", "--plan", "plan.csv", "--port", SIM, "--unattended"],
+        [f"Cannot write the run to plan.csv: {OWN_INPUT}"],
+        files={"plan.csv": b"trial,set,mass_g,direction_deg\n1,fit,800,-60\n"},
+    ),
+    Case(
+        "out-acquire-onto-protocol",
+        "output path",
+        "a run acquired onto its own protocol, with --force",
+        ["acquire", "good.toml", "--force", "--protocol", "good.toml", "--port", SIM, "--unattended"],
+        [f"Cannot write the run to good.toml: {OWN_INPUT}"],
+    ),
+    Case(
+        "out-fit-onto-protocol",
+        "output path",
+        "the model written onto the protocol file it is fitted with",
+        ["fit", "trials.csv", "--protocol", "good.toml", "-o", "good.toml"],
+        [f"Cannot write the model to good.toml: {OWN_INPUT}"],
+    ),
+    Case(
         "out-export-onto-run",
         "output path",
         "export onto another run file",

@@ -31,10 +31,15 @@ Moment arms (Eq. 5)
 Actuator force (Eqs. 1-3, 7), tension-positive as in Eq. 1
     ``F_ext = F_cons + F_int + F_stretch`` is the tensile load that holds the actuator at
     length L under gauge pressure P; the force it exerts on the joint (its push) is
-    ``-F_ext``.  ``F_cons + F_int`` is derived once, from the potential of the
-    helix-constrained Ogden wall and the gas
-    (:mod:`labcli.papers.rpam2015.models.rpam_force`, where the derivation is written
-    out).  In brief, while the gas holds the wall on the thread cage
+    ``-F_ext``.  ``F_cons + F_int`` has two readings, named by ``act.force_reading``
+    (:mod:`labcli.papers.rpam2015.models.rpam_force`, where both derivations are written
+    out).  The paper's (``"paper"``) is the lumen's free body,
+
+        F_cons = P (3 L^2 - b^2) / (4 pi n^2) + P A0 / lambda,     F_int = Eq. 3 (uniaxial),
+
+    and the derived one (``"derived"``, the default) comes from the potential of the
+    helix-constrained Ogden wall and the gas.  In brief, while the gas holds the wall on the
+    thread cage
     (every pressure above about 10 kPa for the shipped actuator):
 
         F_cons = -P dV_c/dL = P (3 L^2 - b^2) / (4 pi n^2),     F_int = dU_wall/dL,
@@ -189,12 +194,9 @@ def wall_force(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:
 
 
 def material_force(lam: Any, act: Actuator) -> np.ndarray:
-    """Eq. 3: Ogden uniaxial wall force in N (tension +), the free wall's at P = 0."""
-    lam = np.asarray(lam, dtype=float)
-    total = np.zeros_like(lam)
-    for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha, strict=False):
-        total = total + 2 * mu * _MPA * act.A0_m2 / a * (lam ** (a - 1) - lam ** (-a / 2 - 1))
-    return total
+    """Eq. 3: Ogden uniaxial wall force in N (tension +): the paper reading's wall, and the
+    derived reading's free wall at P = 0."""
+    return rpam_force.uniaxial_force(lam, act)
 
 
 def stretch_force(lam: Any, act: Actuator) -> np.ndarray:

@@ -353,6 +353,7 @@ class StretchFit:
     default_coefficients_N: tuple[float, ...]
     default_lambda_range: tuple[float, float] = (1.0, 2.2)
     skipped_rows: list[int] = field(default_factory=list)
+    force_reading: str = "derived"
 
     def apply_to(self, act: Actuator) -> Actuator:
         """``act`` with this fit's coefficients and the stretch range it was fitted on."""
@@ -369,6 +370,7 @@ class StretchFit:
             {
                 "kind": "rpam-stretch-fit",
                 "protocol": self.protocol,
+                "force_reading": self.force_reading,
                 "L0_m": self.L0_m,
                 "default_coefficients_N": list(self.default_coefficients_N),
                 "default_lambda_range": list(self.default_lambda_range),
@@ -391,6 +393,8 @@ class StretchFit:
                 default_coefficients_N=tuple(float(v) for v in d["default_coefficients_N"]),
                 default_lambda_range=tuple(float(v) for v in d["default_lambda_range"]),  # type: ignore[arg-type]
                 skipped_rows=[int(v) for v in d.get("skipped_rows", [])],
+                # Fits written before the paper's reading existed were all derived.
+                force_reading=str(d.get("force_reading", "derived")),
             )
         except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise ModelError(f"The stretch-test analysis record is incomplete or malformed ({e!s}).") from None
@@ -425,14 +429,16 @@ def _bad_row(what: str, rows: np.ndarray, mask: np.ndarray, column: str, need: s
         raise ModelError(f"Row {int(rows[i])} of the {what} table has {column} = {values[i]:g}; {need}.")
 
 
-def analyse_stretch(table: Any, protocol: Any = "rpam2015") -> StretchFit:
+def analyse_stretch(table: Any, protocol: Any = "rpam2015", force: str | None = None) -> StretchFit:
     """Analyse a stretch test: per-point ``F_stretch`` (Eq. 7) and the fitted cubic (Fig. 6).
 
     ``table`` has ``mass_g`` (or ``payload_kg``), ``P_A`` (or ``P_MPa``) in MPa and ``L_m``
-    (or ``lambda``); ``protocol`` gives the actuator (a shipped name, a path, a raw dict).
+    (or ``lambda``); ``protocol`` gives the actuator (a shipped name, a path, a raw dict);
+    ``force`` reads its force ``"derived"`` or ``"paper"`` (default: the protocol's).  The
+    correction is what the reading leaves unexplained, so it belongs to that reading.
     """
     path, settings = _protocol(protocol)
-    act = checked_actuator(settings, path)
+    act = checked_actuator(settings, path).with_force_reading(force)
     cols = _columns(table)
     mass = _column(table, "stretch", (("mass_g", 1e-3), ("payload_kg", 1.0), ("mass_kg", 1.0)), cols)
     P = _column(table, "stretch", (("P_A", 1.0), ("P_MPa", 1.0)), cols)
@@ -472,6 +478,7 @@ def analyse_stretch(table: Any, protocol: Any = "rpam2015") -> StretchFit:
         default_coefficients_N=act.stretch_coefficients_N,
         default_lambda_range=act.stretch_lambda_range,
         skipped_rows=[int(v) for v in rows[~ok]],
+        force_reading=act.force_reading,
     )
 
 
@@ -529,6 +536,7 @@ class JointMapResult:
             {
                 "kind": "rpam-joint-map",
                 "protocol": self.protocol,
+                "force_reading": self.actuator.force_reading,
                 "geometry": self.geometry.to_dict(),
                 "toggle_deg": self.toggle_deg,
                 "actuator": self.actuator.to_dict(),
@@ -666,15 +674,31 @@ def model_angles(
     return eq.alpha_deg, toggle, side * np.degrees(eq.toggle_rad)
 
 
-def analyse_joint_map(table: Any, protocol: Any = "rpam2015", correction: Any = None) -> JointMapResult:
+def analyse_joint_map(
+    table: Any, protocol: Any = "rpam2015", correction: Any = None, force: str | None = None
+) -> JointMapResult:
     """Compare a measured joint map (Fig. 8 c) with the model without and with ``F_stretch``.
 
     ``table`` has ``P_A``, ``P_B`` (MPa) and ``alpha_deg``; ``correction`` as in
-    :func:`correction_actuator` (None: the protocol's ``[stretch_correction]``).
+    :func:`correction_actuator` (None: the protocol's ``[stretch_correction]``); ``force``
+    reads the actuator's force ``"derived"`` or ``"paper"`` (default: the stretch fit's
+    reading when ``correction`` is one, else the protocol's).  A stretch fit made under the
+    other reading is refused: its correction is what that reading left unexplained.
     """
     path, settings = _protocol(protocol)
     geom = settings.geometry
-    act, source = correction_actuator(checked_actuator(settings, path), correction)
+    if isinstance(correction, Mapping) and correction.get("kind") == "rpam-stretch-fit":
+        correction = StretchFit.from_dict(correction)
+    if isinstance(correction, StretchFit):
+        if force is not None and force != correction.force_reading:
+            raise ModelError(
+                f"The stretch fit was made with the {correction.force_reading} force reading, so its correction "
+                f"belongs to it; compare with --force {correction.force_reading}, or fit the stretch test again "
+                f"with --force {force}."
+            )
+        force = correction.force_reading
+    base = checked_actuator(settings, path).with_force_reading(force)
+    act, source = correction_actuator(base, correction)
     cols = _columns(table)
     Pa = _column(table, "joint-map", (("P_A", 1.0), ("Pa_MPa", 1.0)), cols)
     Pb = _column(table, "joint-map", (("P_B", 1.0), ("Pb_MPa", 1.0)), cols)

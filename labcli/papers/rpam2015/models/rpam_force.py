@@ -1,9 +1,42 @@
-"""The rPAM's axial force, derived once from its potential energy (Eqs. 1-3 of the rPAM paper).
+"""The rPAM's axial force in its two readings (Eqs. 1-3 of the rPAM paper).
 
 The paper adds a helical constraint force (Eq. 2, misprinted) to the uniaxial Ogden force of
-the wall (Eq. 3).  Both come out of one potential, derived here;
-:mod:`labcli.papers.rpam2015.models.rpam` calls these functions and adds Eq. 7's
-empirical stretch correction.
+the wall (Eq. 3).  Eq. 2 can be read two ways, and the reading decides the joint's optimum
+(``docs/rpam.md``), so both are here, named, and an actuator says which one it is read with
+(``Actuator.force_reading``); :mod:`labcli.papers.rpam2015.models.rpam` calls these
+functions and adds Eq. 7's empirical stretch correction.
+
+``"derived"``
+    The force as the L-derivative of one potential, the Ogden strain energy of the wall held
+    by the cage plus the gas's virtual work (below, from "The actuator" on).  It changes the
+    paper's model in two ways: the wall's force is that of a cage-held, near-planar wall
+    (``4 mu A0`` per unit stretch at rest) instead of Eq. 3's uniaxial one (``3 mu A0``),
+    and Eq. 2's ``A0 / lambda`` term is gone (the wall keeps its volume, so the gas's
+    volume changes exactly as the cage's).
+
+``"paper"``
+    The paper's own model, read as the free body of the lumen: cut the actuator across the
+    lumen and the gas pushes the end cap over the lumen's section ``pi r_c^2 - A0 / lambda``
+    (the wall's section at stretch lambda is ``A0 / lambda`` by incompressibility), the
+    thread, carrying the full hoop load ``P r_c`` per unit length, pulls
+    ``P L^2 / (2 pi n^2)`` (the virtual work of its lateral surface), and the wall adds its
+    uniaxial force, Eq. 3 as printed:
+
+        F = P (3 L^2 - b^2) / (4 pi n^2) + P A0 / lambda + sum 2 mu_i A0 / alpha_i
+            (lambda^(alpha_i - 1) - lambda^(-alpha_i / 2 - 1)),
+
+    since ``P L^2 / (2 pi n^2) - P pi r_c^2 = P (3 L^2 - b^2) / (4 pi n^2)``.  It is Eq. 2
+    with the printed "1" read as ``b^2 / (4 pi n^2)`` and the printed ``- A0 / lambda``
+    read as ``+ A0 / lambda`` (the printed sign makes the wall pull the lumen shut, and its
+    optimum has neither L1 nor L3 at the bound the paper reports).  It is conservative too: ``F = dPi/dL`` with
+    ``Pi = A0 L0 W_u(lambda) - P (V_c(L) - A0 L0 ln lambda)``, ``W_u = sum 2 mu_i /
+    alpha_i^2 (lambda^alpha_i + 2 lambda^(-alpha_i / 2) - 3)`` the uniaxial energy
+    (:func:`paper_potential_energy`).  What the free body leaves out is that the
+    pressurised wall carries a radial stress of -P at the lumen (hence an axial stress
+    shifted by about -P over its section, which cancels the ``A0 / lambda`` term) and that
+    the cage holds its hoop stretch; the derived reading keeps both.  The two readings agree
+    on a vented, stretched actuator (both Eq. 3) and differ by ``P A0 / lambda`` in the gas
+    term and by the planar-vs-uniaxial wall elsewhere.
 
 The actuator
     A silicone tube (wall section ``A0``, rest length ``L0``, incompressible) inside a cage of
@@ -213,13 +246,38 @@ def wall_state(P_MPa: Any, L: Any, act: Actuator) -> tuple[np.ndarray, np.ndarra
     return ro2, on_cage
 
 
-def force_parts(P_MPa: Any, L: Any, act: Actuator) -> tuple[np.ndarray, np.ndarray]:
-    """``(F_gas, F_wall)`` (N, tension +): the gas's and the wall's parts of ``dPi/dL``.
+def uniaxial_force(lam: Any, act: Actuator) -> np.ndarray:
+    """Eq. 3: the uniaxial Ogden force of the wall (N, tension +) at stretch lambda."""
+    lam = np.asarray(lam, dtype=float)
+    total = np.zeros_like(lam)
+    for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha, strict=False):
+        total = total + 2 * mu * _MPA * act.A0_m2 / a * (lam ** (a - 1) - lam ** (-a / 2 - 1))
+    return total
 
-    On the cage ``F_gas`` is :func:`cage_gas_force` (Eq. 2 re-derived) and ``F_wall`` is
-    ``dU/dL`` along the cage; on the free branch they are ``-P pi r_o^2`` and ``dU/dL`` at
-    fixed r_o.  Only their sum is a measurable force.
+
+def force_parts(P_MPa: Any, L: Any, act: Actuator) -> tuple[np.ndarray, np.ndarray]:
+    """``(F_gas, F_wall)`` (N, tension +) in the actuator's reading (``act.force_reading``).
+
+    Derived: on the cage ``F_gas`` is :func:`cage_gas_force` (Eq. 2 re-derived) and
+    ``F_wall`` is ``dU/dL`` along the cage; on the free branch they are ``-P pi r_o^2`` and
+    ``dU/dL`` at fixed r_o.  Paper: ``F_gas`` is the cage term plus ``P A0 / lambda`` and
+    ``F_wall`` is Eq. 3 (:func:`paper_force_parts`).  Only their sum is a measurable force.
     """
+    if act.force_reading == "paper":
+        return paper_force_parts(P_MPa, L, act)
+    return derived_force_parts(P_MPa, L, act)
+
+
+def paper_force_parts(P_MPa: Any, L: Any, act: Actuator) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's reading: ``(cage term + P A0 / lambda, Eq. 3)`` (N, tension +), the lumen's free body."""
+    P, L = _broadcast(P_MPa, L)
+    lam = L / act.L0_m
+    gas = cage_gas_force(P, L, act.n_turns, act.thread_length_m) + P * _MPA * act.A0_m2 / lam
+    return gas, uniaxial_force(lam, act)
+
+
+def derived_force_parts(P_MPa: Any, L: Any, act: Actuator) -> tuple[np.ndarray, np.ndarray]:
+    """The derived reading: ``(F_gas, F_wall)`` (N, tension +), the parts of ``dPi/dL`` above."""
     P, L = _broadcast(P_MPa, L)
     ro2, on_cage, dU_dL, dU_dro2 = _settled(P, L, act)
     drc2_dL = -L / (2 * np.pi**2 * act.n_turns**2)
@@ -235,8 +293,29 @@ def internal_force(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:
 
 
 def potential_energy(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:
-    """``U - P V_g`` (J) at the wall's equilibrium radius: minus its L-derivative is the push."""
+    """The potential (J) of the actuator's reading: its L-derivative is the force, minus it the push.
+
+    Derived: ``U - P V_g`` at the wall's equilibrium radius; paper: :func:`paper_potential_energy`.
+    """
+    if act.force_reading == "paper":
+        return paper_potential_energy(P_MPa, L, act)
     P, L = _broadcast(P_MPa, L)
     ro2, _, _, _ = _settled(P, L, act)
     U, _, _ = _wall(L, ro2, act, energy=True)
     return U - P * _MPA * (np.pi * ro2 * L - act.A0_m2 * act.L0_m)
+
+
+def paper_potential_energy(P_MPa: Any, L: Any, act: Actuator) -> np.ndarray:
+    """``A0 L0 W_u(lambda) - P (V_c(L) - A0 L0 ln lambda)`` (J): the paper's reading as a potential.
+
+    ``W_u`` is the uniaxial Ogden energy whose derivative is Eq. 3; the ``ln lambda`` term is
+    what ``P A0 / lambda`` integrates to, a lumen that loses ``A0 L0 ln lambda`` of volume to
+    a wall that does not in fact grow.
+    """
+    P, L = _broadcast(P_MPa, L)
+    lam = L / act.L0_m
+    W = np.zeros_like(lam)
+    for mu, a in zip(act.ogden_mu_MPa, act.ogden_alpha, strict=False):
+        W = W + 2 * mu * _MPA / a**2 * (lam**a + 2 * lam ** (-a / 2) - 3)
+    V_c = np.pi * cage_radius_sq(L, act) * L
+    return act.A0_m2 * act.L0_m * W - P * _MPA * (V_c - act.A0_m2 * act.L0_m * np.log(lam))

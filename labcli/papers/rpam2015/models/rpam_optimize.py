@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -122,6 +122,7 @@ class OptimumResult:
     nfev: int
     message: str
     history: list[dict[str, float]] = field(default_factory=list)
+    force_reading: str = "derived"
 
     @property
     def geometry(self) -> rpam.JointGeometry:
@@ -167,6 +168,7 @@ class OptimumResult:
                 "popsize": s.popsize,
                 "maxiter": s.maxiter,
                 "stretch_correction": s.stretch_correction,
+                "force_reading": self.force_reading,
                 "generations": self.nit,
                 "evaluations": self.nfev,
                 "message": self.message,
@@ -443,6 +445,7 @@ def optimize_joint(
         nfev=int(res.nfev),
         message=str(res.message),
         history=history,
+        force_reading=act.force_reading,
     )
 
 
@@ -453,9 +456,15 @@ def optimize_protocol(
     seed: int | None = None,
     Pa_kPa: float | None = None,
     Pb_kPa: float | None = None,
+    force: str | None = None,
+    min_stiffness: float | None = None,
     progress: Progress | None = None,
 ) -> OptimumResult:
-    """Load an rPAM protocol, apply ``key=value`` overrides, and optimise its joint."""
+    """Load an rPAM protocol, apply ``key=value`` overrides, and optimise its joint.
+
+    ``force`` reads the actuator's force the other way (``"derived"`` or ``"paper"``,
+    default the protocol's); ``min_stiffness`` (N m/rad) replaces the protocol's K_min.
+    """
     base = load_rpam(path_or_name)
     extra = list(overrides)
     if seed is not None:
@@ -468,6 +477,19 @@ def optimize_protocol(
     label = named(base.path) if overrides else base.source_label
     proto = with_overrides(base, extra, label, shown=overrides)
     source = f"{label} with --set {' '.join(overrides)}" if overrides else label
-    act = checked_actuator(proto.settings, source)
+    act = checked_actuator(proto.settings, source).with_force_reading(force)
+    if min_stiffness is not None:
+        if not (math.isfinite(min_stiffness) and min_stiffness > 0):
+            raise ModelError(
+                f"--min-stiffness must be greater than 0 N m/rad, not {min_stiffness:g}: a joint with no stiffness "
+                "holds nothing."
+            )
+        if proto.settings.optimize is not None:
+            proto = replace(
+                proto,
+                settings=replace(
+                    proto.settings, optimize=replace(proto.settings.optimize, min_stiffness_Nm_per_rad=min_stiffness)
+                ),
+            )
     bounds, settings = optimizer_settings(proto.settings, source)
     return optimize_joint(act, bounds, settings, progress=progress)

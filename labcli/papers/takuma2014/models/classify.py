@@ -194,6 +194,8 @@ def classify_pushes(
     true_k = np.asarray(table[TRUE_K], dtype=float) if TRUE_K in table.columns else None
     objs = _Objects(objects, codes, members, [known[name] for name in objects])
     rows = _object_rows(objs, est, use, labels, cat_model, true_k, allow_unusable)
+    if cat_model.method == "bands":
+        _band_confidence(rows, objs, est, use, cat_model, log_k_standard_errors(pred, est, force_ok))
 
     push_cols = [c for c in ("push", "object", "category", "source", TRUE_K) if c in table.columns]
     model_cols = pd.DataFrame(
@@ -345,6 +347,78 @@ def _object_rows(
             row.update(_reference_verdict(name, sel, objs.known[g], est, use, labels, cat_model))
         rows.append(row)
     return rows
+
+
+def log_k_standard_errors(
+    pred: Mapping[str, Any], est: PushEstimates, force_ok: np.ndarray | None
+) -> np.ndarray | None:
+    """Each push's standard error of ln k_o from the model's own standard errors (None when the
+    model gives none, as the paper's Eqs. 34-37 do).
+
+    k_o = |F| / delta_x, so (se ln k)^2 = (se |F| / |F|)^2 + (se delta_x / delta_x)^2.  The
+    deformation's error is the angles' through d delta_x / d theta (``dx_theta_gain``); the
+    angles' standard errors come from the calibration's held-out residuals, so they carry the
+    labels' play, scale error and thermal tail as the fit saw them.  Where one force component is
+    unobservable (a straight arm's Fy) the force was rebuilt from the other along the push, and
+    its relative error is that component's.
+    """
+    se = pred.get("se")
+    if not isinstance(se, Mapping) or not all(q in se for q in ("theta1", "theta2", "Fx", "Fy")):
+        return None
+    t1, t2, fx, fy = (np.asarray(se[q], dtype=float) for q in ("theta1", "theta2", "Fx", "Fy"))
+    F = est.F if est.F is not None else np.full((len(est), 2), np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel_f = np.hypot(fx, fy) / est.force
+        if force_ok is not None:
+            rel_f = np.where(~force_ok[:, 1] & force_ok[:, 0], fx / np.abs(F[:, 0]), rel_f)
+            rel_f = np.where(~force_ok[:, 0] & force_ok[:, 1], fy / np.abs(F[:, 1]), rel_f)
+        rel_x = est.dx_theta_gain * np.hypot(t1, t2) / est.delta_x
+    return np.hypot(rel_f, rel_x)
+
+
+def _band_confidence(
+    rows: list[dict[str, Any]],
+    objs: _Objects,
+    est: PushEstimates,
+    use: np.ndarray,
+    cat_model: CategoryModel,
+    se_log_k: np.ndarray | None,
+) -> None:
+    """A band's confidence from the object's stiffness and its standard error, where the model gives one.
+
+    The pushes' spread says how repeatable the object's k is, not how right: the calibration's
+    error is shared by every push of the object.  So an object's ln k carries the median of its
+    pushes' standard errors (:func:`log_k_standard_errors`) whole, plus the pushes' spread over
+    the square root of their number; the confidence is the probability, under a normal ln k, that
+    its stiffness lies in the band it was put in.  A steel can read a third low sits in the band
+    below with its pushes all agreeing, and is no longer reported there with confidence 1.
+    """
+    from scipy.stats import norm
+
+    if se_log_k is None:
+        return
+    for g, row in enumerate(rows):
+        sel = objs.members[g]
+        sel = sel[use[sel]]
+        band = cat_model.bands.get(row.get("category", ""))
+        k = est.k[sel]
+        if band is None or not len(k):
+            continue
+        spread = float(np.log(k).std(ddof=1)) if len(k) > 1 else 0.0
+        shared = float(np.nanmedian(se_log_k[sel]))
+        sd = math.hypot(shared if math.isfinite(shared) else 0.0, spread / math.sqrt(len(k)))
+        m = math.log(float(np.median(k)))
+        lo, hi = band
+        upper = (
+            1.0
+            if not math.isfinite(hi)
+            else float(norm.cdf((math.log(hi) - m) / sd))
+            if sd > 0
+            else float(m < math.log(hi))
+        )
+        lower = 0.0 if lo <= 0 else float(norm.cdf((math.log(lo) - m) / sd)) if sd > 0 else float(m < math.log(lo))
+        row["confidence"] = max(0.0, upper - lower)
+        row["log_k_se"] = sd
 
 
 def _plain(key: str, value: Any) -> int | float:
@@ -705,46 +779,55 @@ def push_lines(report: ClassifyReport, chunk: int = 10_000) -> Iterator[list[str
     fields = _line_fields(df)
     template = "{" + ", ".join(f"{json.dumps(key)}: %s" for key, _ in fields) + "}"
     for start in range(0, len(df), chunk):
-        part = df.iloc[start : start + chunk]
+        stop = min(start + chunk, len(df))
         try:
-            columns = [convert(part) for _, convert in fields]
+            columns = [convert(start, stop) for _, convert in fields]
         except OverflowError:
-            yield [json.dumps(item, allow_nan=False) for item in _chunk_items(part)]
+            yield [json.dumps(item, allow_nan=False) for item in _chunk_items(df.iloc[start:stop])]
             continue
         yield [template % values for values in zip(*columns, strict=True)]
 
 
-def _line_fields(df: Any) -> list[tuple[str, Callable[[Any], list[str]]]]:
-    """The keys of a push item in order, each with the JSON texts of its values for a chunk of rows."""
+Converter = Callable[[int, int], list[str]]  # rows [start, stop) of a column as JSON texts
 
-    def ints(col: str) -> Callable[[Any], list[str]]:
-        return lambda part: list(map(str, map(int, part[col].tolist())))
 
-    def flags(col: str) -> Callable[[Any], list[str]]:
-        return lambda part: ["true" if v else "false" for v in part[col].tolist()]
+def _line_fields(df: Any) -> list[tuple[str, Converter]]:
+    """The keys of a push item in order, each with the JSON texts of its values for rows [start, stop).
 
-    def texts(col: str, given: bool = False) -> Callable[[Any], list[str]]:
-        def convert(part: Any) -> list[str]:
-            if col not in part.columns:
-                return ['""'] * len(part)
-            codes, uniques = _factorize(part[col])
-            words = [json.dumps((v if isinstance(v, str) else "") if given else str(v)) for v in uniques]
-            return [words[c] for c in codes.tolist()]
+    The columns are taken once, as arrays (views of the frame's own), and cut per chunk.
+    """
 
-        return convert
+    def ints(col: str) -> Converter:
+        values = df[col].to_numpy()
+        return lambda a, b: list(map(str, map(int, values[a:b].tolist())))
 
-    def numbers(col: str, scale: float = 1.0) -> Callable[[Any], list[str]]:
-        def convert(part: Any) -> list[str]:
-            if col not in part.columns:
-                return ["null"] * len(part)
-            v = np.asarray(part[col], dtype=float)
+    def flags(col: str) -> Converter:
+        words = np.array(["false", "true"], dtype=object)
+        values = df[col].to_numpy()
+        return lambda a, b: words[np.asarray([bool(v) for v in values[a:b].tolist()], dtype=np.intp)].tolist()
+
+    def texts(col: str, given: bool = False) -> Converter:
+        if col not in df.columns:
+            return lambda a, b: ['""'] * (b - a)
+        codes, uniques = _factorize(df[col])
+        words = np.array(
+            [json.dumps((v if isinstance(v, str) else "") if given else str(v)) for v in uniques], dtype=object
+        )
+        return lambda a, b: words[codes[a:b]].tolist()
+
+    def numbers(col: str, scale: float = 1.0) -> Converter:
+        if col not in df.columns:
+            return lambda a, b: ["null"] * (b - a)
+        values = np.asarray(df[col], dtype=float)
+
+        def convert(a: int, b: int) -> list[str]:
+            v = values[a:b]
             finite = np.isfinite(v)
             with np.errstate(over="ignore"):
                 scaled = v * scale
             if not np.all(np.isfinite(scaled[finite])):
                 raise OverflowError(col)
-            # json's own C encoder prints each float (its repr) in one call; NaN and inf become null.
-            texts = json.dumps(scaled.tolist())[1:-1].split(", ") if len(v) else []
+            texts = list(map(float.__repr__, scaled.tolist()))  # json's own text of a float
             for i in np.flatnonzero(~finite).tolist():
                 texts[i] = "null"
             return texts
@@ -782,7 +865,8 @@ def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
     for row in res.objects.to_dict("records"):
         item = {
             "object": str(row["object"]),
-            "role": "reference" if row.get("known_category") else "unknown",
+            # Under bands a known category is only compared with the bands' answer, not used to place them.
+            "role": ("reference" if res.method == "reference" else "given") if row.get("known_category") else "unknown",
             "category_given": str(row.get("known_category") or ""),
             "n": int(row["n_pushes"]),
             "n_used": int(row["n_used"]),
@@ -802,6 +886,8 @@ def object_items(report: ClassifyReport) -> list[dict[str, Any]]:
         }
         if "true_k_N_per_m" in row:
             item["true_k_N_per_m"] = _num(row["true_k_N_per_m"])
+        if "log_k_se" in row:
+            item["log_k_se"] = _num(row["log_k_se"])  # the standard error behind a band's confidence
         objects.append(item)
     return objects
 

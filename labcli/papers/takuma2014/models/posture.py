@@ -58,6 +58,7 @@ Units: pressures MPa, angles rad, torques N m, forces N.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -70,6 +71,7 @@ from ....core import idranges
 from ....core.jsontext import dumps_indented
 from ....errors import ModelError
 from . import routes as rt
+from .calibrated import baseline_dict, calibrated_range, check_baseline, check_range
 from .geometry import jacobian
 from .takuma import (
     ANGLE_COLUMNS,
@@ -214,6 +216,35 @@ def load_torque(theta: np.ndarray, F: np.ndarray, h2: float, h3: float) -> np.nd
     """tau = J(theta)^T F (n, 2) in N m for absolute angles theta (n, 2) rad and forces (n, 2) N."""
     J = jacobian(theta[:, 0], theta[:, 1], h2, h3)
     return np.einsum("nij,ni->nj", J, F)
+
+
+def einsum_2x2(spec: str, *operands: np.ndarray) -> np.ndarray:
+    """``np.einsum(spec, *operands)`` for the force posterior's per-trial 2 x 2 products, term by term.
+
+    ``n`` indexes the trials; every other index runs over 0, 1.  Each output element is the sum
+    over the other indices in index order, each term the operands' product left to right: einsum's
+    own arithmetic, whose loop order (and so the last bit) varies with the operands' layout;
+    tests/papers/takuma2014/test_fit_equivalence.py holds the two to rounding and the fits' routes
+    to the same choices.  numpy's general loop took a second over the 200,000 predictions of an
+    archive's validation, these whole-array steps a tenth of that.
+    """
+    inputs, output = spec.split("->")
+    subs = inputs.split(",")
+    summed = sorted(set("".join(subs)) - set(output) - {"n"})
+    free = [c for c in output if c != "n"]
+    n = next(op.shape[sub.index("n")] for sub, op in zip(subs, operands, strict=True) if "n" in sub)
+    out = np.empty((n, *(2,) * len(free)))
+    for values in itertools.product((0, 1), repeat=len(free)):
+        total = None
+        for more in itertools.product((0, 1), repeat=len(summed)):
+            at = dict(zip(free, values, strict=True)) | dict(zip(summed, more, strict=True))
+            term = None
+            for sub, op in zip(subs, operands, strict=True):
+                factor = op[tuple(slice(None) if c == "n" else at[c] for c in sub)]
+                term = factor if term is None else term * factor
+            total = term if total is None else total + term
+        out[(slice(None), *values)] = total
+    return out
 
 
 def force_from_torque(theta: np.ndarray, tau: np.ndarray, h2: float, h3: float) -> np.ndarray:
@@ -511,6 +542,10 @@ class PostureModel:
     # Offer the sleeves' friction terms (FRICTION_TERMS) to the torque fit: a fit option; the
     # terms kept are in torque_terms like any other.
     friction: bool = False
+    # The fit trials' span, and how their P0 was taken (models/calibrated.py, models/leak.py).
+    calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
+    p0_leak_corrected: bool = False
+    baseline_gap_s: float | None = None
 
     form = FORM
 
@@ -599,6 +634,7 @@ class PostureModel:
             "torque_rmse_Nm": np.sqrt(np.diag(tq.resid_cov)).tolist(),
         }
         self.source = source
+        self.calibrated_range = calibrated_range(table, set_mask(table, "fit", source))
 
     def _choose_routes(self, table: Any, source: str) -> None:
         """Cross-validate both forms on the fit trials; keep the paper's where it predicts better."""
@@ -660,8 +696,9 @@ class PostureModel:
         dth: np.ndarray,
         motion_in: np.ndarray | None = None,
         motion_sd: np.ndarray | None = None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Forces (n, 2) and their covariance from the torque error alone (n, 2, 2).
+        want_cov: bool = True,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Forces (n, 2) and their covariance from the torque error alone (n, 2, 2; None unless ``want_cov``).
 
         tau = J^T F + e with e ~ N(0, (1 + h) S_tau); with the fit loads' spread as a prior on F
         (``force_prior_sd``) the estimate is the posterior mean, which is (J^T)^-1 tau wherever the
@@ -676,16 +713,17 @@ class PostureModel:
         S = (1.0 + h)[:, None, None] * np.asarray(self.torque_resid_cov)[None]
         if not self.force_prior_sd:
             A = np.linalg.pinv(JT)
-            return np.einsum("nij,nj->ni", A, tau), np.einsum("nij,njk,nlk->nil", A, S, A)
+            return einsum_2x2("nij,nj->ni", A, tau), einsum_2x2("nij,njk,nlk->nil", A, S, A) if want_cov else None
         # Gain form of the posterior (P J (J^T P J + S)^-1): stable when S is tiny or J^T singular.
         prior = np.diag(np.asarray(self.force_prior_sd) ** 2)
-        K = np.einsum(
+        K = einsum_2x2(
             "ij,nkj,nkl->nil",
             prior,
             JT,
-            np.linalg.pinv(np.einsum("nij,jk,nlk->nil", JT, prior, JT) + S, hermitian=True),
+            np.linalg.pinv(einsum_2x2("nij,jk,nlk->nil", JT, prior, JT) + S, hermitian=True),
         )
-        return np.einsum("nij,nj->ni", K, tau), prior - np.einsum("nij,njk,kl->nil", K, JT, prior)
+        F = einsum_2x2("nij,nj->ni", K, tau)
+        return F, prior - einsum_2x2("nij,njk,kl->nil", K, JT, prior) if want_cov else None
 
     def pair_motion_sd(self) -> np.ndarray:
         """The standard error (2,) rad of the pairs' motions (:func:`pair_motion`) estimated from pressures."""
@@ -822,16 +860,16 @@ class PostureModel:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Forces and their covariance: torque error through (J^T)^-1, angle error through dF/d(dtheta)."""
         F, cov = self._forces(dP, th0, dth, motion_in, motion_sd)
+        assert cov is not None
         step = 1e-6
         G = np.empty((len(F), 2, 2))
         for k in range(2):
             d = np.zeros(2)
             d[k] = step
-            G[:, :, k] = (
-                self._forces(dP, th0, dth + d, motion_in, motion_sd)[0]
-                - self._forces(dP, th0, dth - d, motion_in, motion_sd)[0]
-            ) / (2 * step)
-        cov = cov + np.einsum("nij,njk,nlk->nil", G, cov_dth, G)
+            ahead = self._forces(dP, th0, dth + d, motion_in, motion_sd, want_cov=False)[0]
+            behind = self._forces(dP, th0, dth - d, motion_in, motion_sd, want_cov=False)[0]
+            G[:, :, k] = (ahead - behind) / (2 * step)
+        cov = cov + einsum_2x2("nij,njk,nlk->nil", G, cov_dth, G)
         if not self.force_prior_sd:
             # A straight arm: without a prior the force along it is not determined at all.
             cov[np.abs(np.sin(th0[:, 1] + dth[:, 1])) < 1e-9] = np.inf
@@ -897,6 +935,8 @@ class PostureModel:
                 "paper_model": self.paper_model,
                 "paper_variance": self.paper_variance,
                 "blends": self.blends,
+                "calibrated_range": self.calibrated_range,
+                "baseline": baseline_dict(self.p0_leak_corrected, self.baseline_gap_s),
             }
         )
 
@@ -984,6 +1024,8 @@ class PostureModel:
         )
         if variance:
             model._paper = TakumaModel.from_dict(d["paper_model"], name=f"{name}'s paper-form part")
+        model.calibrated_range = check_range(d.get("calibrated_range"), name)
+        model.p0_leak_corrected, model.baseline_gap_s = check_baseline(d.get("baseline"), name)
         return model
 
 

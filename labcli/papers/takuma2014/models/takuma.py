@@ -413,6 +413,10 @@ class TakumaModel:
     source: str = ""
     labcli_version: str = ""
     fitted_on: dict[str, Any] = field(default_factory=dict)  # the fit run's identity (core.provenance)
+    # The fit trials' span, and how their P0 was taken (models/calibrated.py, models/leak.py).
+    calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
+    p0_leak_corrected: bool = False
+    baseline_gap_s: float | None = None
 
     def __post_init__(self) -> None:
         self.geometry = normalise_geometry(self.geometry)
@@ -497,6 +501,9 @@ class TakumaModel:
         self.fitted_trials, self.excluded_trials = fitted_ids, excluded
         self.source = str(source)
         self.labcli_version = __version__
+        from .calibrated import calibrated_range
+
+        self.calibrated_range = calibrated_range(table, set_mask(table, "fit", source))
         return self
 
     def _exclusions(
@@ -680,6 +687,8 @@ class TakumaModel:
                 "labcli_version": self.labcli_version,
                 "fitted_on": self.fitted_on,
                 "form": "paper",
+                "calibrated_range": self.calibrated_range,
+                "baseline": {"p0_leak_corrected": self.p0_leak_corrected, "gap_s": self.baseline_gap_s},
             }
         )
 
@@ -708,7 +717,11 @@ class TakumaModel:
                 f"{cap(name)} holds the {d.get('form')!r} form, not the paper's Eqs. 34-37; "
                 "this step needs a model from `labcli fit --form paper`."
             )
+        from .calibrated import check_baseline, check_range
+
         model = cls(**_model_fields(d, cap(name)))
+        model.calibrated_range = check_range(d.get("calibrated_range"), name)
+        model.p0_leak_corrected, model.baseline_gap_s = check_baseline(d.get("baseline"), name)
         unknown = [k for k in model.coefficients if k not in COEFFICIENT_NAMES]
         if unknown:
             what = "an unknown coefficient" if len(unknown) == 1 else "unknown coefficients"

@@ -8,8 +8,9 @@ given beside it still applies (``ideal=1&leak=1`` is the ideal rig with a leak).
 pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuators
 (``paper``, the paper-scale default, or ``thin``, the earlier soft tuning;
 ``design=thin&ideal=1`` reproduces its frames exactly); ``valves=open`` leaves the valves open to
-the regulator whatever closes them (an operator who forgot, a valve stuck open).  An option
-left out (None) is the rig's own default.
+the regulator whatever closes them (an operator who forgot, a valve stuck open).  ``script`` is a
+file of loads and pushes the rig acts out on its own clock, the truth kept beside the stream
+(:mod:`.script`).  An option left out (None) is the rig's own default.
 
 This module imports nothing heavy: the paper's declaration reads :class:`McKibbenRigOptions`.
 """
@@ -24,6 +25,7 @@ from ....core.options import choice, number, switch, text
 
 if TYPE_CHECKING:
     from .rig import SimRig
+    from .scripted import ScriptedRig
 
 SCALES = ("friction", "leak", "thermal", "backlash", "links", "contact", "pulley", "potscale", "potlin", "repeat")
 REALISM_NAMES = ("literature", "kind")  # nonideal.REALISMS (a test holds them equal)
@@ -37,6 +39,13 @@ def parse_supply(text: str) -> tuple[float, ...]:
     if len(values) not in (1, 4) or not all(math.isfinite(v) and 0 <= v <= 1 for v in values):
         raise ValueError
     return values if len(values) == 4 else values * 4
+
+
+def parse_script(text: str) -> Any:
+    """A sim script file's path, read and checked (:mod:`.script`; ValueError when it cannot be)."""
+    from .script import load_script
+
+    return load_script(text)
 
 
 def _scale(what: str) -> Any:
@@ -83,11 +92,17 @@ class McKibbenRigOptions:
         help="open: the valves stay open to the regulator whatever closes them (a valve stuck open).",
         default_text="ok",
     )
+    script: Any = text(
+        help="A file of loads and pushes the rig acts out on its own clock, the truth kept beside the stream.",
+        parse=parse_script,
+        what="a sim script file that reads and checks (see the sensing page of the docs)",
+        form="FILE",
+    )
 
 
 def build_rig(
     *, seed: int = 0, noise: float = 1.0, drift: float | None = None, tau_s: float = 0.7, options: McKibbenRigOptions
-) -> SimRig:
+) -> SimRig | ScriptedRig:
     """The McKibben rig with these options (None: the rig's default).
 
     ``drift`` None takes the realism's default (``ideal`` turns it off with the rest)."""
@@ -103,7 +118,7 @@ def build_rig(
     nonideal = replace(base, **{k: v for k, v in scales.items() if v is not None})
     supply = physics.SUPPLY_MPA if options.supply is None else options.supply
     design = options.design or "paper"
-    return SimRig(
+    rig = SimRig(
         seed=seed,
         noise=noise,
         drift=drift,
@@ -113,3 +128,8 @@ def build_rig(
         design=design,
         valves_open=options.valves == "open",
     )
+    if options.script is None:
+        return rig
+    from .scripted import ScriptedRig
+
+    return ScriptedRig(rig, options.script)

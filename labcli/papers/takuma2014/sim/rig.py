@@ -268,12 +268,17 @@ class SimRig(SimClock):
 
     # ------------------------------------------------------------ state
 
+    def _theta_at(self, t):
+        """Posture (..., 2) at times ``t`` of the current segment (``inf``: where it settles)."""
+        s = self._seg
+        w = np.exp(-np.clip(np.asarray(t, dtype=float) - s.t0, 0.0, None) / s.tau)[..., None]
+        return s.theta_to + (s.theta_from - s.theta_to) * w, w
+
     def _state_at(self, t, isothermal: bool = False):
         """Posture (..., 2), gauge pressures Pa (..., 4) at times ``t``."""
         s = self._seg
         t = np.asarray(t, dtype=float)
-        w = np.exp(-np.clip(t - s.t0, 0.0, None) / s.tau)[..., None]
-        theta = s.theta_to + (s.theta_from - s.theta_to) * w
+        theta, w = self._theta_at(t)
         if s.chambers.state == "open":
             p = s.p_to + (s.p_from - s.p_to) * w
         else:
@@ -355,6 +360,18 @@ class SimRig(SimClock):
                 "supply_MPa": self.params.supply_pa / 1e6,
                 "nonideal": {**self.nonideal.magnitudes(), "thermal_tau_s": self._thermal_tau},
             }
+
+    def truth_at(self, t) -> dict:
+        """The truth at times ``t`` (s) of the current segment, for scripted runs and checks.
+
+        ``deflection_rad`` (n, 2): the joint angles less the rest posture the arm last rested at
+        (what the models estimate); ``force_N`` (n, 2) on the tip; ``theta_rad`` (n, 2) absolute.
+        ``t = inf`` gives where the segment settles.
+        """
+        with self._lock:
+            theta, _ = self._theta_at(np.atleast_1d(np.asarray(t, dtype=float)))
+            force = np.asarray(self._seg.load.force(theta, self.params.geometry), dtype=float)
+            return {"deflection_rad": theta - self._rest_theta, "force_N": force, "theta_rad": theta}
 
     # ------------------------------------------------------------ operator
 

@@ -1,0 +1,168 @@
+"""``labcli split`` as one library call: a run file's split, or a trial CSV's ``set`` column.
+
+A run file keeps every split it was given (:mod:`labcli.core.store.split`); a CSV holds
+only its ``set`` column, which is rewritten in place (or to ``output``), its sidecar with it.
+
+Sizes left out come from the protocol (the paper's 90 fit + 18 validation); a run shorter
+than that is split in the protocol's proportion (12 trials: 10 fit + 2 validation), and the
+result says so.  Given one count, the other is what the protocol says or what is left.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError
+from .files import RUN_FILE_SUFFIXES
+from .words import count
+
+
+@dataclass(frozen=True)
+class SplitDone:
+    """What a split did: the sizes, how they were chosen, where it went."""
+
+    path: str
+    fit: int
+    validation: int
+    total: int  # complete records (rows of a table)
+    strategy: str
+    seed: int | None
+    sizes: str  # how sizes not given were chosen ("" when both were given or the protocol's fit)
+    written: str = ""  # the CSV written (a table's split); "" for a run file
+
+    def sentence(self) -> str:
+        how = self.strategy if self.seed is None else f"{self.strategy}, seed {self.seed}"
+        unassigned = self.total - self.fit - self.validation
+        where = self.path if not self.written else f"{self.path} -> {self.written} (its set column)"
+        text = (
+            f"{where}: {self.fit} fit, {self.validation} validation, {unassigned} unassigned "
+            f"of {count(self.total, 'completed trial')} ({how})."
+        )
+        return text + (f" {self.sizes[:1].upper()}{self.sizes[1:]}." if self.sizes else "")
+
+
+def split_sizes(
+    n: int, defaults: tuple[int, int] | None, n_fit: int | None, n_validation: int | None, path: str
+) -> tuple[int, int, str]:
+    """The fit and validation sizes for ``n`` complete records, and how any not given were chosen.
+
+    ``defaults``: the protocol's (fit, validation), None when it gives none.
+    """
+    if n_fit is not None and n_validation is not None:
+        return n_fit, n_validation, ""
+    if defaults is None:
+        raise ConfigError(f"{path}: the protocol gives no fit and validation counts; give --fit and --validation.")
+    d_fit, d_val = defaults
+    if n_fit is None and n_validation is None:
+        if n >= d_fit + d_val:
+            return d_fit, d_val, ""
+        if n < 2:
+            raise ConfigError(
+                f"{path} has {count(n, 'completed trial')}; a split needs at least 2 (1 fit, 1 validation)."
+            )
+        val = min(n - 1, max(1, round(n * d_val / (d_fit + d_val))))
+        return (
+            n - val,
+            val,
+            f"the protocol's {d_fit} fit + {d_val} validation need {d_fit + d_val} trials and there are {n}, "
+            "so the sizes keep its proportion (--fit and --validation choose others)",
+        )
+    if n_fit is not None and not 1 <= n_fit <= n:
+        return n_fit, d_val, ""  # refused by the split itself, in its own words
+    if n_validation is not None and not 0 <= n_validation < n:
+        return d_fit, n_validation, ""
+    if n_fit is not None:
+        val = max(0, min(d_val, n - n_fit))
+        return n_fit, val, "" if val == d_val else f"{val} validation: the trials left after {n_fit} fit"
+    assert n_validation is not None
+    fit = min(d_fit, n - n_validation)
+    return fit, n_validation, "" if fit == d_fit else f"{fit} fit: the trials left after {n_validation} validation"
+
+
+def split(
+    path: str | os.PathLike,
+    n_fit: int | None = None,
+    n_validation: int | None = None,
+    strategy: str = "sequential",
+    seed: int | None = None,
+    *,
+    protocol: str | None = None,
+    output: str | os.PathLike | None = None,
+) -> SplitDone:
+    """Assign the fit and validation sets of a run file (stored in it) or a trial CSV (its ``set`` column).
+
+    ``protocol``: a CSV's protocol (name or .toml; default takuma2014), for its default
+    sizes and its table; a run file carries its own.  ``output``: where a CSV's split goes
+    (default: the CSV itself).  Raises :class:`~labcli.errors.LabcliError` in one sentence.
+    """
+    p = os.fspath(path)
+    if seed is not None and strategy != "random":
+        raise ConfigError("--seed applies only to --strategy random.")
+    if p.lower().endswith(RUN_FILE_SUFFIXES):
+        if protocol is not None or output is not None:
+            raise ConfigError(
+                f"{p} is a run file, which carries its protocol and keeps its split: drop --protocol and -o."
+            )
+        return _split_run(p, n_fit, n_validation, strategy, seed)
+    return _split_table(p, n_fit, n_validation, strategy, seed, protocol or "takuma2014", output)
+
+
+def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, seed: int | None) -> SplitDone:
+    from .store import RunFile
+    from .store.split import default_sizes
+
+    with RunFile.open(path, "a") as rf:
+        ids = rf.records.ids() if rf.record_type.splits else []
+        if not rf.record_type.splits:
+            raise ConfigError(
+                f"{path} holds {rf.record_type.plural}, which are not split into fit and validation sets."
+            )
+        try:
+            defaults: tuple[int, int] | None = default_sizes(rf.protocol_text, path)
+        except ConfigError:
+            defaults = None
+        fit, val, note = split_sizes(len(ids), defaults, n_fit, n_val, path)
+        s = rf.split.assign(fit, val, strategy, seed)
+    return SplitDone(path, len(s["fit"]), len(s["validation"]), len(ids), strategy, s["seed"], note)
+
+
+def _split_table(
+    path: str,
+    n_fit: int | None,
+    n_val: int | None,
+    strategy: str,
+    seed: int | None,
+    protocol: str,
+    output: str | os.PathLike | None,
+) -> SplitDone:
+    from .protocol import load_protocol
+    from .registry import record_type
+    from .store.split import choose
+    from .table_meta import SIDECAR_SUFFIX, load_described, write_sidecar
+
+    if not Path(path).is_file():
+        raise ConfigError(f"{path} does not exist or is not a file: give a run file (.h5) or a trial CSV.")
+    proto = load_protocol(protocol)
+    kind: Any = record_type(str(getattr(proto, "kind", "force")))  # a record type with a table spec
+    if not kind.splits:
+        raise ConfigError(
+            f"protocol {proto.name} records {kind.plural}, which are not split; give the protocol of a trial table."
+        )
+    df = load_described(path, kind)
+    ids = [int(i) for i in df[kind.id_column]]
+    fit_n, val_n, note = split_sizes(len(ids), getattr(proto.settings, "default_split", None), n_fit, n_val, path)
+    fit, val = choose(ids, fit_n, val_n, strategy, seed, path)
+    sets = {i: "fit" for i in fit} | {i: "validation" for i in val}
+    had = "set" in df.columns and any(str(v) for v in df["set"])
+    df["set"] = [sets.get(i, "") for i in ids]
+    out = os.fspath(output) if output is not None else path
+    kind.write_csv(df, out)
+    if os.path.exists(path + SIDECAR_SUFFIX):  # the table's description follows it
+        write_sidecar(df, kind.table_spec, out)
+    if had and out == path:
+        note = (note + "; " if note else "") + "the set column it had is replaced"
+    used_seed = (0 if seed is None else seed) if strategy == "random" else None
+    return SplitDone(path, len(fit), len(val), len(ids), strategy, used_seed, note, out)

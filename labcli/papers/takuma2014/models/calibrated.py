@@ -1,0 +1,98 @@
+"""What a model file says about the data it was fitted on, beyond its coefficients.
+
+* ``calibrated_range``: the span of the fit trials' inputs and answers (baseline pressures P0
+  and pressure drops P0 - P in MPa per actuator, rest posture, deflections in deg, forces in N),
+  so that an estimate from inputs outside them can be flagged ``out-of-range``
+  (:mod:`..sensing`);
+* ``baseline``: how the fit trials' P0 was taken (:mod:`.leak`): ``p0_leak_corrected`` and the
+  median baseline-to-capture ``gap_s`` (null when the trials carried no window times).
+
+Both are optional: a model file written before them reads as "no range known" and "P0 as
+measured, gap unknown".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ....errors import ModelError
+from ..tables import BASELINE as BASELINE_COLUMNS
+from ..tables import LOADED as LOADED_COLUMNS
+from ..tables import REST
+
+ANGLE_COLUMNS = ("theta1_deg", "theta2_deg")
+FORCE_COLUMNS = ("Fx_N", "Fy_N")
+RANGE_KEYS = {"P0_MPa": 4, "dP_MPa": 4, "rest_deg": 2, "theta_deg": 2, "F_N": 2}
+
+
+def calibrated_range(table: Any, rows: np.ndarray) -> dict[str, list[list[float]]]:
+    """[min, max] per component of each of :data:`RANGE_KEYS` over the ``rows`` (a mask) of a trial table."""
+
+    def cols(names: tuple[str, ...]) -> np.ndarray | None:
+        if not all(c in table.columns for c in names):
+            return None
+        return np.column_stack([np.asarray(table[c], dtype=float)[rows] for c in names])
+
+    P0, P = cols(BASELINE_COLUMNS), cols(LOADED_COLUMNS)
+    parts = {
+        "P0_MPa": P0,
+        "dP_MPa": None if P0 is None or P is None else P0 - P,
+        "rest_deg": cols(REST),
+        "theta_deg": cols(ANGLE_COLUMNS),
+        "F_N": cols(FORCE_COLUMNS),
+    }
+    out = {}
+    for key, x in parts.items():
+        if x is None:
+            continue
+        ok = np.all(np.isfinite(x), axis=1)
+        if ok.any():
+            out[key] = [[float(lo), float(hi)] for lo, hi in zip(x[ok].min(axis=0), x[ok].max(axis=0), strict=True)]
+    return out
+
+
+def check_range(value: Any, name: str) -> dict[str, list[list[float]]]:
+    """A model file's ``calibrated_range``, checked (ModelError naming the key)."""
+    if value is None:
+        return {}
+    bad = not isinstance(value, Mapping) or not set(value) <= set(RANGE_KEYS)
+    for key, n in RANGE_KEYS.items():
+        if bad or key not in value:
+            continue
+        try:
+            a = np.asarray(value[key], dtype=float)
+        except (TypeError, ValueError):
+            bad = True
+            continue
+        bad = a.shape != (n, 2) or not np.all(np.isfinite(a)) or bool(np.any(a[:, 0] > a[:, 1]))
+    if bad:
+        raise ModelError(
+            f"{name[:1].upper()}{name[1:]}: key 'calibrated_range' must map "
+            f"{', '.join(RANGE_KEYS)} to [min, max] pairs of finite numbers; refit with `labcli fit`."
+        )
+    return {k: [[float(lo), float(hi)] for lo, hi in v] for k, v in value.items()}
+
+
+def check_baseline(value: Any, name: str) -> tuple[bool, float | None]:
+    """A model file's ``baseline`` (``p0_leak_corrected``, ``gap_s``), checked; absent: (False, None)."""
+    if value is None:
+        return False, None
+    corrected = value.get("p0_leak_corrected", False) if isinstance(value, Mapping) else None
+    gap = value.get("gap_s") if isinstance(value, Mapping) else None
+    gap_ok = gap is None or (
+        isinstance(gap, (int, float)) and not isinstance(gap, bool) and math.isfinite(gap) and gap >= 0
+    )
+    if not isinstance(corrected, bool) or not gap_ok or not set(value) <= {"p0_leak_corrected", "gap_s"}:
+        raise ModelError(
+            f"{name[:1].upper()}{name[1:]}: key 'baseline' must hold p0_leak_corrected (true or false) and "
+            "gap_s (seconds, or null); refit with `labcli fit`."
+        )
+    return corrected, None if gap is None else float(gap)
+
+
+def baseline_dict(corrected: bool, gap_s: float | None) -> dict[str, Any]:
+    return {"p0_leak_corrected": bool(corrected), "gap_s": gap_s}

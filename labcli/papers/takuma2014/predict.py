@@ -1,0 +1,153 @@
+"""Estimates for new data: a table of pressures (and rest postures), or a run file's records, and a model.
+
+:func:`predict_file` is ``labcli predict``'s whole work: every row's theta1, theta2 (deg),
+Fx, Fy (N), each with its standard error, and its flags, from the model applied exactly as
+``labcli validate`` applies it (:class:`.sensing.TakumaSensing`, through
+:func:`labcli.sensing.offline.predict_rows`).  The table needs the pressures only
+(``P_L10..P_R20``, ``P_L1..P_R2`` in MPa) and takes the rest posture (``theta1_0_deg,
+theta2_0_deg``) when it has one; the truth (``theta1_deg, theta2_deg, Fx_N, Fy_N``), ids and
+any other columns are carried through, before the estimates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...core.cells import TableSpec
+from ...core.files import RUN_FILE_SUFFIXES, atomic_write, check_output
+from ...core.tables import read_table
+from ...errors import ConfigError
+from ...sensing.offline import predict_rows
+from .models.posture import load_force_model
+from .options import PredictOptions
+from .sensing import TakumaSensing
+from .tables import BASELINE, LOADED, REST, REST_POSTURE
+
+TRUTH = ("theta1_deg", "theta2_deg", "Fx_N", "Fy_N")
+
+# New data: the pressures are required; ids, the rest posture and the truth when known.
+NEW_DATA = TableSpec(
+    label="row",
+    columns=(
+        ("trial", "id", "omit-if-empty"),
+        *((c, "pressure", "required") for c in BASELINE + LOADED),
+        *REST_POSTURE,
+        ("theta1_deg", "angle-or-empty", "omit-if-empty"),
+        ("theta2_deg", "angle-or-empty", "omit-if-empty"),
+        ("Fx_N", "force-or-empty", "omit-if-empty"),
+        ("Fy_N", "force-or-empty", "omit-if-empty"),
+    ),
+    id_column="trial",
+    pairs=(REST,),
+)
+
+
+@dataclass
+class PredictResult:
+    """The table of estimates (DataFrame), where it went, the model used, what to beware of."""
+
+    table: Any
+    output: Path | None
+    model: str
+    rows: int
+    flagged: dict[str, int] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "output": str(self.output) if self.output else None,
+            "model": self.model,
+            "rows": self.rows,
+            "flagged": dict(self.flagged),
+        }
+
+
+def read_rows(path: Path) -> Any:
+    """The rows of a run file (its trials or pushes) or of a CSV table of new data (DataFrame)."""
+    if not path.exists():
+        raise ConfigError(f"{path} does not exist; pass a table (.csv) of pressures or a run file (.h5).")
+    if path.suffix.lower() in RUN_FILE_SUFFIXES:
+        from ...core.store import RunFile
+        from .records import load_pushes, load_trials
+
+        with RunFile.open(path) as run:
+            kind = run.kind
+        if kind not in ("force", "push"):
+            raise ConfigError(
+                f"{path} is a run of kind '{kind}'; predict reads the trials or pushes of a McKibben run."
+            )
+        return load_trials(path) if kind == "force" else load_pushes(path)
+    return read_table(path, NEW_DATA)
+
+
+def estimate_table(rows: Any, model: TakumaSensing) -> Any:
+    """The rows with each one's estimates beside them (module docstring)."""
+    import pandas as pd
+
+    P0 = np.column_stack([np.asarray(rows[c], dtype=float) for c in BASELINE])
+    P = np.column_stack([np.asarray(rows[c], dtype=float) for c in LOADED])
+    if all(c in rows.columns for c in REST):
+        rest = np.radians(np.column_stack([np.asarray(rows[c], dtype=float) for c in REST]))
+        rest = np.where(np.isfinite(rest), rest, 0.0)  # an empty rest posture: the arm at (0, 0), as validate reads it
+    else:
+        rest = np.zeros((len(rows), 2))
+    est = predict_rows(model, P0, P, rest)
+    rows = rows.reset_index(drop=True)
+    empty = [c for c in TRUTH if c in rows.columns and not np.isfinite(np.asarray(rows[c], dtype=float)).any()]
+    carried = rows.drop(columns=empty).rename(columns={c: f"{c}_true" for c in TRUTH if c in rows.columns})
+    return pd.concat([carried, pd.DataFrame(est.columns())], axis=1)
+
+
+def predict_file(
+    table: Path, options: PredictOptions | None = None, *, model_path: Path, output: Path | None = None
+) -> PredictResult:
+    """Estimates for every row of ``table`` (a CSV of new data, or a run file) with the model file
+    ``model_path``; written as CSV to ``output`` when given."""
+    if output is not None:
+        check_output(output, inputs=(table, model_path), what="the estimates to ")
+    model = TakumaSensing(load_force_model(model_path))
+    rows = read_rows(Path(table))
+    if table.suffix.lower() in RUN_FILE_SUFFIXES:
+        _check_rig(model, table, model_path)
+    out = estimate_table(rows, model)
+    flagged = {}
+    for f in ("unobservable", "out-of-range", "bad-input"):
+        n = int(sum(1 for v in out["flags"] if f in v))
+        if n:
+            flagged[f] = n
+    if output is not None:
+        atomic_write(output, out.to_csv(index=False, float_format="%.10g").encode("utf-8"), what="the estimates to ")
+    return PredictResult(out, output, str(model_path), len(out), flagged)
+
+
+def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> None:
+    """A run of another protocol or rig than the model's is refused, as validate and classify refuse it."""
+    from ...core.protocol import loads_protocol
+    from ...core.store import RunFile
+    from .models.classify import check_force_model
+
+    with RunFile.open(run) as rf:
+        kind, text = rf.kind, rf.protocol_text
+    if not text.strip():
+        return  # a run without its protocol (imported from a table): nothing to compare
+    protocol = loads_protocol(text, source=f"{run} (embedded protocol)")
+    name = f"the model file {model_path}"
+    if kind == "force":
+        model.model.check_compatible(protocol.name, protocol.settings.rig, model_name=name, run_name=str(run))
+    else:
+        check_force_model(model.model, protocol, model_name=name, run_name=str(run))
+
+
+def show_predict(result: PredictResult, *, as_json: bool = False) -> None:
+    """One line: how many rows, where they went, how many are flagged."""
+    import json
+
+    if as_json:
+        print(json.dumps(result.to_dict(), indent=2))
+        return
+    where = f" to {result.output}" if result.output else ""
+    flags = ", ".join(f"{n} {f}" for f, n in result.flagged.items())
+    print(f"Estimated {result.rows} rows with {result.model}{where}" + (f" ({flags})." if flags else "."))

@@ -1,0 +1,164 @@
+"""The McKibben paper's fitted models as :class:`labcli.sensing.SensingModel`: what the run-time
+estimator applies.
+
+Each form is applied exactly as ``labcli validate`` applies it, by the model's own
+``predict`` in the pressure-only mode: the posture-aware form (``models/posture.py``, routes
+and blends included) with the rest posture, the paper's Eqs. 34-37 (``models/takuma.py``)
+without.  The adapter only reshapes what ``predict`` returns:
+
+* values and standard errors (n, 4) for theta1, theta2 (rad, the deflections from the rest
+  posture) and Fx, Fy (N).  The posture form gives its own standard errors; the paper's form
+  has none, so it gets the held-out form of them the posture form uses for its paper routes
+  (``routes.paper_standard_errors``) with each equation's fit residual as the variance;
+* flags: ``bad-pressure`` is ``bad-input``; a quantity the model does not report (its
+  standard error over the protocol's ``[sensing]`` limit, the paper form's near-singular
+  Jacobian or clipped arcsine) is ``unobservable:q``; inputs or estimates outside what the
+  fit trials covered (the model file's ``calibrated_range``, with 10 % of each span as margin,
+  at least 10 % of the level for the baseline pressures and 2 deg for the rest posture) are
+  ``out-of-range`` (an input) or ``out-of-range:q`` (an estimate).
+
+Angles are ``state`` quantities (the arm as it is now), forces ``load`` quantities (the cause,
+estimated from the pressures the rig settles to).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ...errors import ModelError
+from ...sensing.model import BAD_INPUT, LOAD, OUT_OF_RANGE, STATE, UNOBSERVABLE, Prediction
+from .models import routes as rt
+from .models.posture import PostureModel, force_model_from_json
+from .models.takuma import SCHEMA, TakumaModel
+
+QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
+MARGIN = 0.10  # share of a calibrated span allowed beyond its ends
+
+
+class TakumaSensing:
+    """A posture-aware or paper-form model as the estimator sees it (module docstring)."""
+
+    quantities: tuple[str, ...] = QUANTITIES
+    units: tuple[str, ...] = ("rad", "rad", "N", "N")
+    kinds: tuple[str, ...] = (STATE, STATE, LOAD, LOAD)
+    actuators: tuple[str, ...] = ("L1", "R1", "L2", "R2")
+    joints: tuple[int, ...] = (1, 2)
+    record_kind = "sense"  # the run kind of a live session's run file (.sense_records)
+
+    def __init__(self, model: PostureModel | TakumaModel) -> None:
+        if not model.is_fitted:
+            raise ModelError("The model has no coefficients yet; fit it on a run first (`labcli fit RUN.h5`).")
+        self.model = model
+        self.protocol = model.protocol
+        self.form = getattr(model, "form", "paper")
+        self.p0_leak_corrected = bool(getattr(model, "p0_leak_corrected", False))
+        gap = getattr(model, "baseline_gap_s", None)
+        self.baseline_gap_s = float(gap) if gap is not None else None
+        self.calibrated_range: dict[str, Any] = dict(getattr(model, "calibrated_range", None) or {})
+        self._paper_var = _paper_variances(model) if isinstance(model, TakumaModel) else None
+
+    @property
+    def geometry(self) -> dict[str, float]:
+        return dict(self.model.geometry)
+
+    def push_hook(self, protocol: Any, plan_path: Any) -> Any:
+        """The settled-load hook that classifies the pushes of a push plan online (:mod:`.pushes`),
+        with ``protocol``'s stiffness bands and settings (ConfigError, TableError in one sentence)."""
+        from .push_plan import load_push_plan
+        from .pushes import PlannedPush, PushClassifier
+
+        plan = load_push_plan(plan_path)
+        pushes = [
+            PlannedPush(
+                str(row["object"]),
+                float(row["R_mm"]) * 1e-3,
+                float(row["d_mm"]) * 1e-3,
+                math.radians(float(row["phi_deg"])) if _given(row.get("phi_deg")) else math.nan,
+            )
+            for row in plan.to_dict("records")
+        ]
+        return PushClassifier.from_protocol(protocol, self.model, pushes)
+
+    def predict(self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray) -> Prediction:
+        """(n, 4) baselines and pressures (MPa), (n, 2) rest postures (rad): the model's estimate."""
+        P0, P, rest = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (P0, P, rest))
+        if isinstance(self.model, PostureModel):
+            out = self.model.predict(P0, P, rest, mode="pressure-only")
+            se = np.column_stack([out["se"][q] for q in QUANTITIES])
+        else:
+            out = self.model.predict(P0, P, mode="pressure-only")
+            th = np.column_stack([out["theta1_rad"], out["theta2_rad"]])
+            s = rt.paper_standard_errors(self.model, out, P0, P, th, self._paper_var or {})
+            se = np.column_stack([s[q] for q in QUANTITIES])
+        values = np.column_stack([out[rt.VALUE_KEYS[q]] for q in QUANTITIES])
+        return Prediction(values, se, self._flags(out, P0, P, rest, values))
+
+    def _flags(
+        self, out: dict[str, Any], P0: np.ndarray, P: np.ndarray, rest: np.ndarray, values: np.ndarray
+    ) -> list[tuple[str, ...]]:
+        n = len(values)
+        bad = np.array(["bad-pressure" in f for f in out["flags"]])
+        ok = np.column_stack([np.asarray(out["ok"][q], dtype=bool) for q in QUANTITIES])
+        inputs_out, values_out = self._outside(P0, P, rest, values)
+        names = np.array(
+            [OUT_OF_RANGE] + [f"{UNOBSERVABLE}:{q}" for q in QUANTITIES] + [f"{OUT_OF_RANGE}:{q}" for q in QUANTITIES]
+        )
+        raised = np.column_stack([inputs_out, ~ok, values_out & ok])
+        return [(BAD_INPUT,) if bad[i] else tuple(names[raised[i]].tolist()) for i in range(n)]
+
+    def _outside(
+        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, values: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Rows whose inputs, and estimates whose values, lie outside the calibrated range."""
+        n = len(values)
+        cr = self.calibrated_range
+        inputs = np.zeros(n, bool)
+        for key, x, scale in (("P0_MPa", P0, 1.0), ("dP_MPa", P0 - P, 1.0), ("rest_deg", rest, 180 / math.pi)):
+            if key in cr:
+                ranges = np.asarray(cr[key], dtype=float)
+                inputs |= _beyond(x * scale, ranges, MIN_PAD.get(key, lambda r: 0.0)(ranges)).any(axis=1)
+        est = np.zeros((n, 4), bool)
+        if "theta_deg" in cr:
+            est[:, :2] = _beyond(np.degrees(values[:, :2]), np.asarray(cr["theta_deg"], dtype=float))
+        if "F_N" in cr:
+            est[:, 2:] = _beyond(values[:, 2:], np.asarray(cr["F_N"], dtype=float))
+        return inputs, est
+
+
+# The least margin of an input's range: the baseline pressures may drift by a tenth of their level (the
+# leak over a session), the rest posture by 2 deg (friction leaves it a little elsewhere after every load).
+MIN_PAD = {
+    "P0_MPa": lambda r: MARGIN * np.abs(r).max(axis=1),
+    "rest_deg": lambda r: 2.0,
+}
+
+
+def _beyond(x: np.ndarray, ranges: np.ndarray, least: Any = 0.0) -> np.ndarray:
+    """(n, m) True where x lies outside [lo, hi] (ranges (m, 2)) by more than MARGIN of the span
+    (``least`` at least)."""
+    lo, hi = ranges[:, 0], ranges[:, 1]
+    pad = np.maximum(MARGIN * (hi - lo), least)
+    return (x < lo - pad) | (x > hi + pad)
+
+
+def _given(v: Any) -> bool:
+    return v is not None and v != "" and not (isinstance(v, float) and math.isnan(v))
+
+
+def _paper_variances(model: TakumaModel) -> dict[str, float]:
+    """Each equation's fit residual (sin theta, N) squared: the paper form's error scale."""
+    out = {}
+    for q in QUANTITIES:
+        rmse = model.fit_stats.get(q, {}).get("rmse")
+        out[q] = float(rmse) ** 2 if isinstance(rmse, (int, float)) and math.isfinite(rmse) else 0.0
+    return out
+
+
+def sensing_model(text: str, name: str) -> TakumaSensing | None:
+    """The sensing model of a model file's JSON, None when it is no McKibben model."""
+    if f'"{SCHEMA}"' not in text:
+        return None
+    return TakumaSensing(force_model_from_json(text, name=name))

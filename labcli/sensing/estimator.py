@@ -1,0 +1,477 @@
+"""The run-time estimator: frames in, estimates and events out, no I/O.
+
+::
+
+    est = Estimator(model, calibration=protocol.calibration, channels=device.info.channels, rate_hz=200)
+    for item in est.update(device.read()):     # raw FrameBatch, as the reader delivers it
+        ...                                     # Estimate (one per block) or Event (load, settled, release)
+
+The estimator walks through :data:`~.results.STATES`: ``starting`` (learning the baseline),
+``idle`` (tracking it, :mod:`.baseline`, and watching for a change, :mod:`.detector`),
+``loading`` (a load came on: its response is fitted, :mod:`.transient`), ``loaded`` (it has
+settled), ``releasing`` (it came off; once settled the baseline is set anew and the rig is
+idle again).  Every block gives one :class:`~.results.Estimate` (:mod:`.evaluate`).
+
+Baseline P0 and the leak.  The model gets the baseline line at the block's time when it was
+fitted on leak-corrected baselines (``model.p0_leak_corrected``).  A model fitted on
+baselines as measured, ``baseline_gap_s`` before their loaded capture, gets the line as it
+stood that long before the block: the same leak the fit saw.  With neither known (older model
+files), the baseline at the load's start, as a trial's baseline window would have it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import replace
+from typing import Any, Protocol
+
+import numpy as np
+
+from .baseline import TrendTracker
+from .blocks import BlockAverager, Blocks
+from .config import EstimatorConfig
+from .detector import ChangeDetector, whiten
+from .evaluate import Inputs2, evaluate
+from .excursion import Excursion
+from .inputs import DeviceClock, Inputs
+from .model import BASELINE, TRANSIENT, SensingModel, check_model
+from .results import IDLE, LOAD, LOADED, LOADING, RELEASE, RELEASING, SETTLED, STARTING, Estimate, Event
+from .transient import ResponseFit, Step, lag, onset
+
+MAX_VAR = 0.05**2  # MPa^2: an input known to no better than 50 kPa is simply not known
+
+
+class SettledHook(Protocol):
+    """Called with each settled load's estimate and the rest posture (rad); returns the data of an
+    event of its ``kind`` (a push's stiffness), or None."""
+
+    kind: str
+
+    def __call__(self, estimate: Estimate, rest: np.ndarray) -> dict[str, Any] | None: ...
+
+
+class Estimator:
+    """Incremental estimates from a stream of frames (module docstring).
+
+    ``calibration`` (a protocol's) and ``channels`` (the device's, in data-line order) say how
+    raw frames become SI; without a calibration :meth:`update_si` takes SI values in the model's
+    order (pressures in MPa, then the rest-posture angles in rad).  ``rate_hz``: the frame rate
+    (None: read from the first frames' times).  ``on_settled``: a :class:`SettledHook`.
+    """
+
+    def __init__(
+        self,
+        model: SensingModel,
+        *,
+        calibration: Any = None,
+        channels: Sequence[str] | None = None,
+        rate_hz: float | None = None,
+        config: EstimatorConfig | None = None,
+        on_settled: SettledHook | None = None,
+    ) -> None:
+        self.model = check_model(model)
+        self.config = config or EstimatorConfig()
+        self.inputs = (
+            Inputs.from_calibration(calibration, model, channels) if calibration is not None else Inputs.identity(model)
+        )
+        self.on_settled = on_settled
+        self.rate_hz = rate_hz
+        self._clock = DeviceClock()
+        self._count = 0  # frames given without their seq (update_si)
+        self.reset()
+
+    # ------------------------------------------------------------------ public
+    def reset(self) -> None:
+        """Forget everything: the next frames start a new baseline."""
+        c, k, p = self.config, self.inputs.width, self.inputs.n_pressures
+        self.state = STARTING
+        self._blocks: BlockAverager | None = None
+        self._held: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._last_t = -math.inf
+        q_level = np.array([c.level_q] * p + [c.angle_level_q] * (k - p))
+        q_slope = np.array([c.slope_q] * p + [c.slope_q * 1e-6] * (k - p))
+        slope_sd = np.array([c.slope_sd] * p + [1e-6] * (k - p))
+        self.tracker = TrendTracker(q_level, q_slope, slope_sd)
+        self.detector = ChangeDetector(c.windows, c.threshold, p - 1)
+        self._history: deque[tuple[float, np.ndarray, np.ndarray, Any, np.ndarray]] = deque(
+            maxlen=max(8, int(round(c.history_s / c.block_s)))
+        )
+        self._r: np.ndarray | None = None  # block-mean noise variance per channel
+        self._spreads: deque[np.ndarray] = deque(maxlen=max(8, int(round(10.0 / c.block_s))))  # the last 10 s
+        self._excess = 1.0  # idle innovations' variance over the predicted one
+        self._prev_y: np.ndarray | None = None
+        self._started = 0.0
+        self._exc: Excursion | None = None
+        self._tails: list[Step] = []  # finished changes whose settled value the baseline holds
+        self._rest = np.zeros(k - p)
+        self._p0_onset = np.zeros(p)
+
+    def update(self, frames: Any) -> list[Estimate | Event]:
+        """Take frames as the reader delivers them (a :class:`~labcli.core.wire.FrameBatch`, or
+        :class:`~labcli.core.wire.Frame` objects): the estimates of the blocks they complete
+        and the events found, in time order (a block's events before its estimate)."""
+        seq, t_us, values = _arrays(frames)
+        if not len(seq):
+            return []
+        return self.update_si(self._clock.seconds(t_us), self.inputs.si(values), seq)
+
+    def update_si(self, t_s: Any, values: Any, seq: Any = None) -> list[Estimate | Event]:
+        """As :meth:`update`, from device times (s) and SI values in the model's order (n, k)."""
+        t = np.asarray(t_s, dtype=float).reshape(-1)
+        x = np.asarray(values, dtype=float).reshape(len(t), self.inputs.width)
+        s = self._count + np.arange(len(t), dtype=np.int64) if seq is None else np.asarray(seq, dtype=np.int64)
+        self._count += len(t)
+        if not len(t):
+            return []
+        if t[0] < self._last_t:  # the firmware restarted: its clock began again
+            self.reset()
+        self._last_t = float(t[-1])
+        blocks = self._block(t, s, x)
+        out: list[Estimate | Event] = []
+        for i in range(len(blocks) if blocks is not None else 0):
+            out.extend(self._step(blocks, i))  # type: ignore[arg-type]
+        return out
+
+    @property
+    def rest(self) -> np.ndarray:
+        """The rest posture the estimates refer to (rad, the model's joints)."""
+        if self._exc is None and self.tracker.t is not None:
+            return self.tracker.x[self.inputs.n_pressures :, 0].copy()
+        return self._rest.copy()
+
+    # ------------------------------------------------------------------ blocks
+    def _block(self, t: np.ndarray, seq: np.ndarray, x: np.ndarray) -> Blocks | None:
+        if self._blocks is None:
+            self._held.append((t, seq, x))
+            t_all = np.concatenate([h[0] for h in self._held])
+            if self.rate_hz is None:
+                if len(t_all) < 2 or not np.any(np.diff(t_all) > 0):
+                    return None
+                self.rate_hz = 1.0 / float(np.median(np.diff(t_all)[np.diff(t_all) > 0]))
+            size = max(1, int(round(self.config.block_s * self.rate_hz)))
+            self._blocks = BlockAverager(self.inputs.width, size)
+            held, self._held = self._held, []
+            t, seq, x = (np.concatenate([h[j] for h in held]) for j in range(3))
+        return self._blocks.push(t, seq, x)
+
+    def _step(self, b: Blocks, i: int) -> list[Estimate | Event]:
+        tc, t, seq = float(b.tc[i]), float(b.t[i]), int(b.seq[i])
+        tails, tail_var = self._tails_at(tc)
+        y = b.mean[i] - tails
+        if self.state in (STARTING, IDLE):
+            self._learn_noise(b.var[i], b.mean[i])
+        r = self._noise() + tail_var
+        if self.state in (STARTING, IDLE):
+            events = self._watch(tc, seq, y, r)
+        elif self.state in (LOADING, LOADED):
+            events = self._follow(tc, seq, y, r)
+        else:
+            events = self._release(tc, y, r)
+        est = self._estimate(tc, t, seq, y, r)
+        out: list[Estimate | Event] = []
+        for ev in events:
+            if ev.kind == SETTLED:
+                ev = replace(ev, estimate=est)
+                out.append(ev)
+                if self.on_settled is not None:
+                    data = self.on_settled(est, self._rest.copy())
+                    if data is not None:
+                        out.append(Event(self.on_settled.kind, ev.t_device_s, ev.t_detected_s, seq, est, data))
+            else:
+                out.append(ev)
+        out.append(est)
+        return out
+
+    # ------------------------------------------------------------------ noise
+    def _learn_noise(self, var: np.ndarray, y: np.ndarray) -> None:
+        """The noise of a block mean: the median over the last blocks of the spread of each one's
+        frames (or of successive blocks' difference, with one frame a block).  A median: a block
+        that holds the start of a change, or the air being supplied, does not count."""
+        if np.all(np.isfinite(var)):
+            obs = var
+        elif self._prev_y is not None:
+            obs = 0.5 * (y - self._prev_y) ** 2
+        else:
+            obs = None
+        self._prev_y = y.copy()
+        if obs is None:
+            return
+        self._spreads.append(obs)
+        self._r = np.median(np.array(self._spreads), axis=0)
+
+    def _noise(self) -> np.ndarray:
+        size = self._blocks.size if self._blocks is not None else 1
+        floor = 1e-14 + self.inputs.resolution**2 / (12.0 * size)  # the ADC's rounding, averaged
+        base = self._r if self._r is not None else np.full(self.inputs.width, 1e-8)
+        return np.maximum(base * self._excess, floor)
+
+    # ------------------------------------------------------------------ idle
+    def _watch(self, tc: float, seq: int, y: np.ndarray, r: np.ndarray) -> list[Event]:
+        """Starting or idle: follow the baseline, and look for a change in it."""
+        p, tr = self.inputs.n_pressures, self.tracker
+        if tr.t is None:
+            tr.start(tc, y, 4 * r)
+            self._started = tc
+            return []
+        level, lvar = tr.at(tc)
+        e, v = y - level, r + lvar
+        if self.state == STARTING:
+            if np.any(np.abs(e[:p]) > 6 * np.sqrt(v[:p])):
+                tr.start(tc, y, 4 * r)  # still moving (air being supplied): begin again
+                self._started = tc
+                self._spreads.clear()
+            else:
+                tr.update(tc, y, r)
+            if tc - self._started >= self.config.warmup_s:
+                self.state = IDLE
+                self.detector.reset()
+                self._history.clear()
+            return []
+        z = whiten(e[:p], v[:p])
+        self._history.append((tc, y.copy(), r.copy(), tr.snapshot(), z))
+        if self.detector.push(z, self._wander(v)):
+            return self._begin(tc, seq)
+        tr.update(tc, y, r)
+        ratio = float(np.mean(np.minimum(e[:p] ** 2 / v[:p], 25.0)))
+        a = min(1.0, self.config.block_s / 60.0)
+        self._excess = float(np.clip(self._excess + a * (ratio - self._excess), 1.0, 25.0))
+        return []
+
+    def _wander(self, var: np.ndarray) -> float:
+        """The baseline's wander in the detector's whitened units (:meth:`ChangeDetector.push`)."""
+        p = self.inputs.n_pressures
+        return float(self.config.wander_MPa / np.sqrt(np.mean(var[:p])))
+
+    def _new_fit(self, t0: float) -> ResponseFit:
+        c = self.config
+        k, p = self.inputs.width, self.inputs.n_pressures
+        return ResponseFit(
+            t0,
+            k,
+            taus=c.tau_s * np.asarray(c.tau_factors),
+            shifts=c.block_s * np.asarray(c.onset_shifts_blocks),
+            thermal_tau=c.thermal_tau_s,
+            kappas=np.asarray(c.thermal_kappas),
+            capacity=max(4, int(round(c.fit_span_s / c.block_s))),
+            heated=(np.arange(k) < p).astype(float),
+            shared=np.arange(k) < p,
+            shape_sd=c.shape_sd,
+        )
+
+    def _begin(self, tc: float, seq: int) -> list[Event]:
+        """A load came on: place its start, rewind the baseline to it, start fitting its response."""
+        hist = list(self._history)
+        tcs = np.array([h[0] for h in hist])
+        t0, _ = onset(tcs, np.array([h[4] for h in hist]), self.config.tau_s, self.config.block_s)
+        i0 = int(np.searchsorted(tcs, t0, side="right"))
+        self.tracker.restore(hist[i0][3])
+        blocks = [(h[0], h[1] - self.tracker.at(h[0])[0], h[2]) for h in hist[i0:]]
+        return self._begin_at(t0, blocks, tc, seq)
+
+    def _begin_at(
+        self, t0: float, blocks: list[tuple[float, np.ndarray, np.ndarray]], tc: float, seq: int
+    ) -> list[Event]:
+        """Start an excursion at ``t0`` (the tracker frozen there) with the blocks seen since (tc, change, var)."""
+        level0, _ = self.tracker.at(t0)
+        p = self.inputs.n_pressures
+        self._rest, self._p0_onset = level0[p:].copy(), level0[:p].copy()
+        fit = self._new_fit(t0)
+        for block in blocks:
+            fit.add(*block)
+        if fit.n:
+            fit.solve()
+        self._exc = Excursion(t0, LOAD, fit)
+        self.state = LOADING
+        self.detector.reset()
+        return [Event(LOAD, t0, tc, seq)]
+
+    # ------------------------------------------------------------------ loaded
+    def _follow(self, tc: float, seq: int, y: np.ndarray, r: np.ndarray) -> list[Event]:
+        """Loading or loaded: fit the response, watch for the next change, say when settled."""
+        exc, c, p = self._exc, self.config, self.inputs.n_pressures
+        assert exc is not None
+        b, _ = self.tracker.at(tc)
+        e = y - b - exc.finished(tc)
+        fit = exc.fit
+        if fit.result is not None and tc - fit.t0 > c.release_guard_s:
+            step = fit.step()
+            res = e - step.at(tc)
+            # The fitted shape is not exact: a share of the change it describes counts as noise.
+            shape = (c.shape_error * exc.settled_total()) ** 2
+            pvar = np.minimum(exc.transient_var(tc, c.shape_sd) + shape, MAX_VAR)
+            z = whiten(res[:p], (r + pvar)[:p])
+            exc.residuals.append((tc, z, res[:p]))
+            if exc.pending is None and self.detector.push(z, self._wander(r + pvar)):
+                exc.pending = tc
+            if exc.pending is not None:
+                # A change is under way: its first blocks say little of what it is; wait for a few.
+                exc.held.append((tc, e, r))
+                return self._change(tc, seq, r) if tc - exc.pending >= c.classify_s - 1e-9 else []
+        fit.add(tc, e, r)
+        fit.solve()
+        if self.state == LOADING and self._settled(tc):
+            self.state = LOADED
+            return [Event(SETTLED, tc, tc, seq)]
+        return []
+
+    def _change(self, tc: float, seq: int, r: np.ndarray) -> list[Event]:
+        """A change while loaded: the release (it takes the load back) or another load."""
+        exc, c, p = self._exc, self.config, self.inputs.n_pressures
+        assert exc is not None
+        tcs = np.array([h[0] for h in exc.residuals])
+        t1, _ = onset(tcs, np.array([h[1] for h in exc.residuals]), c.tau_s, c.block_s)
+        # The change's size, as a lagged step from t1 on, against what is on the rig, both whitened alike.
+        phi = lag(tcs - t1, c.tau_s)
+        step = phi @ np.array([h[2] for h in exc.residuals]) / max(float(phi @ phi), 1e-300)
+        amp, total = whiten(step, r[:p]), whiten(exc.settled_total()[:p], r[:p])
+        # A release takes back what is on the rig: the change points the way back to the baseline.
+        # Its size, read from the first blocks of a lagged change, is only roughly known (the heat
+        # makes it look larger): up to release_overshoot times the load's.
+        size, load = float(np.linalg.norm(amp)), float(np.linalg.norm(total))
+        back = -float(amp @ total) / max(size * load, 1e-300)
+        kind = RELEASE if back >= c.release_cosine and size <= c.release_overshoot * load else LOAD
+        if kind == LOAD and self.state == LOADED and np.max(np.abs(exc.settled_total()[:p])) < c.small_load_MPa:
+            return self._restart(t1, tc, seq)
+        dropped = exc.finish(t1) + exc.held
+        exc.kind, exc.fit = kind, self._new_fit(t1)
+        last = exc.steps[-1] if exc.steps else None
+        for td, e_old, var in dropped:
+            exc.fit.add(td, e_old - (last.at(td) if last is not None else 0.0), var)
+        if exc.fit.n:
+            exc.fit.solve()
+        exc.residuals.clear()
+        exc.held.clear()
+        exc.pending = None
+        exc.settled_since = None
+        self.detector.reset()
+        self.state = RELEASING if kind == RELEASE else LOADING
+        return [Event(kind, t1, tc, seq)]
+
+    def _restart(self, t1: float, tc: float, seq: int) -> list[Event]:
+        """A load on top of one too small to have shown its release (sleeve friction holds the arm
+        through such a release): the rig is taken to rest where it stood just before, and the
+        change is a new load from there, as a trial's baseline window would have it."""
+        exc = self._exc
+        assert exc is not None
+        dropped = exc.finish(t1) + exc.held
+        last = exc.steps[-1]
+        b, bvar = self.tracker.at(t1)
+        total = sum((s.A for s in exc.steps), np.zeros(self.inputs.width))
+        extra = exc.step_var if exc.step_var is not None else 0.0
+        self.tracker.reset(t1, b + total, np.minimum(bvar + extra, MAX_VAR))
+        self._tails.extend(exc.steps)
+        self._exc = None
+        self._history.clear()
+        # In the new reference (the old line plus every step, the steps' unfinished parts as tails)
+        # a dropped block's change is its old change less the last step's response.
+        blocks = [(td, e_old - last.at(td), var) for td, e_old, var in dropped]
+        return self._begin_at(t1, blocks, tc, seq)
+
+    def _settled(self, tc: float) -> bool:
+        """Has the active change's uncertainty about where it settles stayed small for a while?"""
+        exc, c, p = self._exc, self.config, self.inputs.n_pressures
+        assert exc is not None
+        if exc.fit.result is None or tc - exc.fit.t0 < c.min_settle_s:
+            return False
+        if np.all(np.sqrt(exc.transient_var(tc, c.shape_sd)[:p]) <= c.settle_MPa):
+            if exc.settled_since is None:
+                exc.settled_since = tc
+            return tc - exc.settled_since >= c.settle_hold_s - 1e-9
+        exc.settled_since = None
+        return False
+
+    # ------------------------------------------------------------------ release
+    def _release(self, tc: float, y: np.ndarray, r: np.ndarray) -> list[Event]:
+        """Releasing: fit the way back; once settled, the baseline is set anew there."""
+        exc = self._exc
+        assert exc is not None
+        b, bvar = self.tracker.at(tc)
+        exc.fit.add(tc, y - b - exc.finished(tc), r)
+        exc.fit.solve()
+        if not self._settled(tc):
+            return []
+        var = bvar + exc.transient_var(tc, self.config.shape_sd) + (exc.step_var if exc.step_var is not None else 0.0)
+        self.tracker.reset(tc, b + exc.settled_total(), np.minimum(var, MAX_VAR))
+        self._tails.extend([*exc.steps, exc.fit.step()])
+        self._exc = None
+        self.state = IDLE
+        self.detector.reset()
+        self._history.clear()
+        return []
+
+    def _tails_at(self, tc: float) -> tuple[np.ndarray, np.ndarray]:
+        """What finished changes still add to the pressures (their lag and heat) and its variance,
+        dropping spent ones."""
+        c = self.config
+        keep = [s for s in self._tails if tc - s.t0 < 6 * (c.thermal_tau_s + c.tau_s * max(c.tau_factors))]
+        self._tails = keep
+        out, var = np.zeros(self.inputs.width), np.zeros(self.inputs.width)
+        for s in keep:
+            out -= s.remaining(tc)
+            var += s.remaining_var(tc, c.shape_error)
+        return out, var
+
+    # ------------------------------------------------------------------ estimates
+    def _p0(self, line_now: np.ndarray) -> np.ndarray:
+        """The baseline the model is given (module docstring, "Baseline P0 and the leak")."""
+        p = self.inputs.n_pressures
+        if self.model.p0_leak_corrected:
+            return line_now
+        gap = self.model.baseline_gap_s
+        if gap is not None:
+            return line_now - self.tracker.slope[:p] * gap
+        return self._p0_onset if self._exc is not None else line_now
+
+    def _estimate(self, tc: float, t: float, seq: int, y: np.ndarray, r: np.ndarray) -> Estimate:
+        p, exc = self.inputs.n_pressures, self._exc
+        if self.tracker.t is None:
+            level, lvar = y, 4 * r
+        else:
+            level, lvar = self.tracker.at(tc)
+        P0 = self._p0(level[:p])
+        if exc is None:
+            var = np.minimum(r[:p] + lvar[:p], MAX_VAR)
+            x = Inputs2(P0, level[p:], y[:p], var, y[:p], var)
+        else:
+            # The block's mean is the pressures at its middle; the estimate is stamped at its end:
+            # the fitted changes carry the lagged part over that half block, the heat is taken out.
+            heat_now = exc.finished_heat(tc) + (exc.fit.step().heat_at(tc) if exc.fit.result else 0.0)
+            carry = exc.finished_lag(tc, t) + (exc.fit.step().lag_between(tc, t) if exc.fit.result else 0.0)
+            heat_now = heat_now - carry
+            var_state = np.minimum(r[:p] + lvar[:p] + exc.heat_var(tc)[:p], MAX_VAR)
+            if exc.fit.result is None:
+                P_load, var_load = y[:p], np.full(p, MAX_VAR)
+            else:
+                P_load = level[:p] + exc.settled_total()[:p]
+                extra = exc.step_var[:p] if exc.step_var is not None else 0.0
+                var_load = np.minimum(exc.transient_var(tc, self.config.shape_sd)[:p] + extra + r[:p] / 4, MAX_VAR)
+            x = Inputs2(P0, self._rest, y[:p] - heat_now[:p], var_state, P_load, var_load)
+        values, se, flags = evaluate(self.model, x)
+        extra_flags = {STARTING: (BASELINE,), LOADING: (TRANSIENT,), RELEASING: (TRANSIENT,)}.get(self.state, ())
+        m = self.model
+        return Estimate(
+            seq,
+            t,
+            self.state,
+            dict(zip(m.quantities, values.tolist(), strict=True)),
+            dict(zip(m.quantities, se.tolist(), strict=True)),
+            dict(zip(m.quantities, m.units, strict=True)),
+            tuple(extra_flags) + tuple(flags),
+        )
+
+
+def _arrays(frames: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """seq, t_us, values of a FrameBatch or of an iterable of Frame objects."""
+    if hasattr(frames, "seq") and hasattr(frames, "values") and isinstance(frames.seq, np.ndarray):
+        return frames.seq, frames.t_us, frames.values
+    items: Iterable[Any] = list(frames)
+    rows = [f for f in items if hasattr(f, "values")]
+    if not rows:
+        return np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 0))
+    return (
+        np.array([f.seq for f in rows], dtype=np.int64),
+        np.array([f.t_us for f in rows], dtype=np.int64),
+        np.array([f.values for f in rows], dtype=float),
+    )

@@ -1,0 +1,145 @@
+"""The seam between the estimator and a paper's fitted model.
+
+The estimator (:mod:`.estimator`) knows nothing of McKibben muscles: it tracks pressures,
+finds loads in them and asks a :class:`SensingModel` what a pair of pressure vectors means.
+A paper provides the model (``Paper.sensing_model``, found through the registry by
+:func:`load_model`), built from the model file its ``fit`` wrote and applied exactly as its
+``validate`` applies it.
+
+A model declares, as plain data:
+
+* ``quantities``, their SI ``units`` and their ``kinds``: a ``"state"`` quantity describes
+  the rig as it is now (a joint angle: it follows the pressures through the muscles' lag),
+  a ``"load"`` quantity the cause (a force: constant from the moment a weight hangs, so it is
+  estimated from the pressures the rig is settling to);
+* ``actuators`` and ``joints``: the channel roles it reads (a protocol's
+  ``[channels.NAME]`` tables name them), pressures first, then the rest posture;
+* ``p0_leak_corrected`` and ``baseline_gap_s``: how the trials it was fitted on measured
+  their baseline pressure P0 (see :mod:`.estimator`, "Baseline").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from ..errors import ModelError
+
+STATE = "state"
+LOAD = "load"
+
+# Flags a model (or the estimator) attaches to an estimate; per quantity they read "NAME:q".
+UNOBSERVABLE = "unobservable"  # the pressures do not determine this component (its SE is over the model's limit)
+OUT_OF_RANGE = "out-of-range"  # inputs or estimate beyond what the model was fitted on
+BAD_INPUT = "bad-input"  # a pressure missing, not positive, or outside its sensor's span
+TRANSIENT = "transient"  # the rig has not settled since the last change: the SE includes the lag and heat
+BASELINE = "no-baseline"  # the baseline is still being learnt (first seconds, or after a change it could not follow)
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """What a model says about ``n`` rows of inputs: values and standard errors (n, q) in SI,
+    and per row the flags (``"unobservable:Fy"``, ``"out-of-range:Fx"``, ``"bad-input"``)."""
+
+    values: np.ndarray
+    se: np.ndarray
+    flags: list[tuple[str, ...]]
+
+
+@runtime_checkable
+class SensingModel(Protocol):
+    """A fitted model the estimator can apply (a paper's adapter around its model file)."""
+
+    quantities: tuple[str, ...]  # e.g. ("theta1", "theta2", "Fx", "Fy")
+    units: tuple[str, ...]  # SI: "rad", "N"
+    kinds: tuple[str, ...]  # STATE or LOAD per quantity
+    actuators: tuple[str, ...]  # pressure channel roles, in the order of predict's columns
+    joints: tuple[int, ...]  # rest-posture channel roles (angles), in the order of predict's columns
+    protocol: str  # the protocol the model was fitted under (its calibration converts the rig's counts)
+    p0_leak_corrected: bool
+    baseline_gap_s: float | None  # median baseline-to-capture time of the fit trials (None: not known)
+
+    def predict(self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray) -> Prediction:
+        """Rows of baseline pressures ``P0`` and pressures ``P`` (n, len(actuators)), MPa, and rest
+        postures ``rest`` (n, len(joints)), rad: the estimate of each row."""
+
+
+@runtime_checkable
+class SensingPaper(Protocol):
+    """A paper whose model files the estimator can use (the optional part of ``Paper``)."""
+
+    name: str
+
+    def sensing_model(self, text: str, name: str) -> SensingModel | None:
+        """The model in ``text`` (a model file's JSON; ``name`` names it in sentences), or None
+        when the text is not one of this paper's models."""
+
+
+def load_model(path: str | Path) -> SensingModel:
+    """The sensing model of a model file, from whichever installed paper wrote it (ModelError)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ModelError(f"The model file {p} does not exist; write one with `labcli fit`.") from None
+    except IsADirectoryError:
+        raise ModelError(f"The model file {p} is a folder; pass the .json file `labcli fit` wrote.") from None
+    except UnicodeDecodeError:
+        raise ModelError(f"The model file {p} is not UTF-8 text; pass the .json file `labcli fit` wrote.") from None
+    except OSError as e:
+        raise ModelError(f"The model file {p} cannot be read ({e.strerror or e}).") from None
+    return model_from_text(text, f"the model file {p}")
+
+
+def model_from_text(text: str, name: str = "the model") -> SensingModel:
+    """The sensing model of a model file's JSON text (a file's, or one a run records)."""
+    from ..core import registry
+
+    for paper in registry.papers():
+        if isinstance(paper, SensingPaper):
+            model = paper.sensing_model(text, name)
+            if model is not None:
+                return model
+    raise ModelError(
+        f"{name[:1].upper()}{name[1:]} is not a model any installed paper can estimate with; "
+        "pass the .json file `labcli fit` wrote."
+    )
+
+
+REQUIRED = (
+    "quantities",
+    "units",
+    "kinds",
+    "actuators",
+    "joints",
+    "protocol",
+    "p0_leak_corrected",
+    "baseline_gap_s",
+    "predict",
+)
+
+
+def check_model(model: Any) -> SensingModel:
+    """``model`` if it offers what the estimator needs, else ModelError naming what is missing."""
+    missing = [a for a in REQUIRED if not hasattr(model, a)]
+    if missing:
+        raise ModelError(f"{type(model).__name__} is not a sensing model (it lacks {', '.join(sorted(missing))}).")
+    n = len(model.quantities)
+    if not (len(model.units) == len(model.kinds) == n and all(k in (STATE, LOAD) for k in model.kinds)):
+        raise ModelError("A sensing model needs one unit and one kind ('state' or 'load') per quantity.")
+    return model
+
+
+def flag_names(flags: Sequence[str]) -> Mapping[str, tuple[str, ...]]:
+    """``("unobservable:Fy", "transient")`` -> ``{"unobservable": ("Fy",), "transient": ()}``."""
+    out: dict[str, list[str]] = {}
+    for f in flags:
+        name, _, q = f.partition(":")
+        out.setdefault(name, [])
+        if q:
+            out[name].append(q)
+    return {k: tuple(v) for k, v in out.items()}

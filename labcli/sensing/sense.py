@@ -1,0 +1,159 @@
+"""``labcli sense`` as a library call: open the rig, build the estimator, stream to the outputs.
+
+:func:`sense` takes plain data (:class:`SenseOptions`) and returns the session's
+:class:`~.live.LiveSummary`; every refusal is a :class:`~labcli.errors.LabcliError` of one
+sentence, raised before the rig streams when it can be known then:
+
+* a model file no installed paper reads, or naming a protocol that does not exist;
+* a ``protocol`` (the session's, e.g. a push protocol for ``classify``) that describes another
+  rig than the model's (another calibration or geometry);
+* a rig whose channels lack one the model reads (:class:`~.inputs.Inputs`);
+* a TCP port in use, a file that cannot be written, a ``record`` file that exists already;
+* a stalled or unplugged rig while streaming (the device's own sentences).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError, ModelError, StoreError
+from .estimator import Estimator
+from .live import LiveSummary, run
+from .model import load_model
+from .publish import JsonLines, Output, TcpPublisher
+
+
+@dataclass(frozen=True)
+class SenseOptions:
+    """What a live session is asked for (the command's options, as plain data)."""
+
+    port: str
+    model: Path
+    protocol: str | None = None  # None: the model's own
+    rate_hz: float | None = None  # None: the protocol's
+    seconds: float | None = None  # device time; None: until Ctrl-C
+    every: int = 1
+    jsonl: str | None = None  # "-": stdout; a path; None: none
+    publish: tuple[str, ...] = ()  # tcp://HOST:PORT
+    classify: Path | None = None  # a push plan: pushes classified online
+    record: Path | None = None  # a new run file: frames, estimates and events
+    timeout: float = 2.0
+    boot_wait: float | None = None
+    baud: int = 115200
+
+
+def same_rig(model_protocol: Any, protocol: Any) -> None:
+    """ModelError unless ``protocol`` describes the rig ``model_protocol`` does (calibration, geometry)."""
+
+    def rig(p: Any) -> tuple[Any, Any]:
+        channels = getattr(getattr(p, "calibration", None), "channels", None) or ()
+        cal = tuple((c.name, c.gain, c.zero_counts) for c in channels)
+        geometry = getattr(getattr(p, "settings", None), "rig", None)
+        return cal, dict(geometry) if isinstance(geometry, dict) else geometry
+
+    if rig(model_protocol) != rig(protocol):
+        raise ModelError(
+            f"The model was fitted on the rig of protocol {model_protocol.name}, and {protocol.name} describes "
+            "another rig (its calibration or geometry differ); fit a model on this rig, or use a protocol of the "
+            "model's rig."
+        )
+
+
+def prepare(opts: SenseOptions) -> tuple[Any, Any, Any]:
+    """The sensing model, the protocol whose calibration it reads, and the settled-load hook (or None)."""
+    from ..core.protocol import load_protocol
+
+    model = load_model(opts.model)
+    try:
+        own = load_protocol(model.protocol)
+    except ConfigError as e:
+        raise ModelError(f"The model file {opts.model} names the protocol {model.protocol!r}, which {e}") from None
+    protocol = own
+    if opts.protocol is not None:
+        protocol = load_protocol(opts.protocol)
+        same_rig(own, protocol)
+    hook = None
+    if opts.classify is not None:
+        make = getattr(model, "push_hook", None)
+        if make is None:
+            raise ModelError(f"The model file {opts.model} is of a paper that classifies no pushes online.")
+        hook = make(protocol, opts.classify)
+    return model, protocol, hook
+
+
+def _recorder(opts: SenseOptions, model: Any, protocol: Any, dev: Any) -> Any:
+    from ..core.monitoring import channel_scale
+    from .record import RunRecorder
+
+    assert dev.info is not None and opts.record is not None
+    scale = channel_scale(dev.info.channels, protocol.calibration)
+    return RunRecorder(opts.record, model=model, protocol=protocol, device_info=dev.info, port=opts.port, scale=scale)
+
+
+def open_outputs(opts: SenseOptions, notice: Callable[[str], None]) -> list[Output]:
+    """The outputs asked for, opened (a TCP port bound) before the rig is."""
+    outputs: list[Output] = []
+    try:
+        for url in opts.publish:
+            pub = TcpPublisher(url, notice=notice)
+            notice(f"Publishing JSON lines on {pub.url}.")
+            outputs.append(pub)
+        if opts.jsonl is not None:
+            outputs.append(JsonLines.to(opts.jsonl))
+    except BaseException:
+        for out in outputs:
+            out.close()
+        raise
+    return outputs
+
+
+def sense(
+    opts: SenseOptions,
+    *,
+    notice: Callable[[str], None] = lambda text: None,
+    view: Callable[[Estimator, Any], Callable[[Any, list[Any]], None]] | None = None,
+) -> LiveSummary:
+    """Run a live session (module docstring).  ``view(estimator, device)`` gives the ``on_batch``
+    callback of a live display; ``notice`` takes one-sentence messages (clients, the port bound)."""
+    from ..core.device import Device
+
+    model, protocol, hook = prepare(opts)
+    rate = float(opts.rate_hz if opts.rate_hz is not None else protocol.rate_hz)
+    url = opts.port
+    if url.startswith("sim://") and "clock=" not in url:
+        # A live session wants the simulated rig paced like hardware, not as fast as it is read.
+        url += ("&" if "?" in url else "?") + "clock=wall"
+    if opts.record is not None and os.path.lexists(opts.record):
+        raise StoreError(f"{opts.record} already exists; choose a new file name for the session's run file.")
+    outputs = open_outputs(opts, notice)
+    try:
+        with Device.open(
+            url, baudrate=opts.baud, timeout=opts.timeout, boot_wait=opts.boot_wait, name=opts.port
+        ) as dev:
+            assert dev.info is not None
+            actual = dev.set_rate(rate)
+            est = Estimator(
+                model, calibration=protocol.calibration, channels=dev.info.channels, rate_hz=actual, on_settled=hook
+            )
+            recorder = _recorder(opts, model, protocol, dev) if opts.record is not None else None
+            shown = view(est, dev) if view is not None else None
+            try:
+                takers = [f for f in (shown, recorder.take if recorder else None) if f is not None]
+
+                def on_batch(frames: Any, items: list[Any]) -> None:
+                    for take in takers:
+                        take(frames, items)
+
+                summary = run(dev, est, outputs, seconds=opts.seconds, every=opts.every, on_batch=on_batch)
+            finally:
+                if recorder is not None:
+                    recorder.close()  # what came before an error or Ctrl-C is kept too
+            summary.rate_hz = actual
+            return summary
+    finally:
+        for out in outputs:
+            out.close()

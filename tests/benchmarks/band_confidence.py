@@ -1,0 +1,63 @@
+"""Accuracy, not time: do the bands' confidences know when a category is wrong?
+
+For each held-out rig seed, on the kind rig (the default) and the literature's, the six demo
+objects pushed ten times each on the straight arm with phi given, classified by the protocol's
+bands with the posture form (whose standard errors make each confidence, models/classify.py
+``_band_confidence``).  Reported per rig: the objects put in the wrong category and the largest
+confidence among them, and how many right ones carry a confidence under 0.9.
+
+    nice python tests/benchmarks/band_confidence.py [--seeds 11-30] [--figures OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import study  # noqa: E402
+from sensitivity import seeds_of  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+RIGS = {"kind": {"realism": "kind"}, "literature": {}}
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="11-30")
+    ap.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures" / "band-confidence.json")
+    args = ap.parse_args(argv)
+    seeds = seeds_of(args.seeds)
+    out: dict[str, object] = {"meta/seeds": args.seeds}
+    for rig, level in RIGS.items():
+        kw = study.rig_kw(level)
+        wrong: list[tuple[int, str, str, float]] = []
+        right: list[float] = []
+        for s in seeds:
+            figs = study.objects(s, kw, 10)
+            for key, ok in figs.items():
+                if key.startswith("objects/posture/") and key.endswith("/correct"):
+                    base = key[: -len("/correct")]
+                    conf = float(figs[f"{base}/confidence"])
+                    if ok:
+                        right.append(conf)
+                    else:
+                        wrong.append((s, base.split("/")[2], str(figs[f"{base}/category"]), conf))
+        out[f"{rig}/objects"] = len(right) + len(wrong)
+        out[f"{rig}/wrong"] = len(wrong)
+        out[f"{rig}/wrong_max_confidence"] = max((w[3] for w in wrong), default=0.0)
+        out[f"{rig}/right_below_0.9"] = sum(c < 0.9 for c in right)
+        print(
+            f"{rig}: {len(wrong)} of {len(right) + len(wrong)} objects in the wrong category, confidence at most "
+            f"{out[f'{rig}/wrong_max_confidence']:.2f} ({wrong}); {out[f'{rig}/right_below_0.9']} right ones under 0.9"
+        )
+    args.figures.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {args.figures}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,201 @@
+"""The benchmarks measure what they say: each option changes what runs, each baseline does the work it stands for.
+
+No timing here (no test asserts a time): call counts, files and numbers.  A benchmark option
+that stopped reaching the code (bench_store's "no fsync" row once set an attribute RunFile no
+longer read, and measured the fsync path twice) fails one of these.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+
+from labcli.core.protocol import load_protocol
+from labcli.core.store import RunFile
+from labcli.papers.takuma2014.models.metrics import evaluate
+from labcli.papers.takuma2014.models.synthetic import paper_trials
+from labcli.papers.takuma2014.models.takuma import TERMS, TakumaModel
+
+HERE = Path(__file__).resolve().parent
+RIG = dict(load_protocol("takuma2014").settings.rig)
+
+
+def bench(name: str) -> ModuleType:
+    sys.path.insert(0, str(HERE))
+    return importlib.import_module(name)
+
+
+def baseline(script: str, *args: object) -> str:
+    """A baseline script's stdout (it imports no labcli: run as the benchmark runs it)."""
+    out = subprocess.run(
+        [sys.executable, str(HERE / "baselines" / script), *map(str, args)], capture_output=True, text=True, check=True
+    )
+    return out.stdout
+
+
+# --------------------------------------------------------------------------- bench_store
+
+
+def test_the_no_fsync_row_reaches_no_disk_and_the_fsync_row_does(tmp_path: Path, monkeypatch) -> None:
+    store = bench("bench_store")
+    disk: list[int] = []
+    monkeypatch.setattr(os, "fsync", disk.append)  # the real fsync, as the run file would reach it
+    records = store.make_records(3, 40)
+    _, made = store.run_store(str(tmp_path / "sync.h5"), records, True)
+    assert made == len(disk) >= 2 * len(records)  # every commit syncs twice
+    disk.clear()
+    _, skipped = store.run_store(str(tmp_path / "nosync.h5"), records, False)
+    assert disk == [] and skipped >= 2 * len(records)  # the same calls, none of them reaching the disk
+    for name in ("sync.h5", "nosync.h5"):  # and both wrote the same trials and frames
+        with RunFile.open(tmp_path / name) as run:
+            assert run.records.ids() == [0, 1, 2]
+            np.testing.assert_array_equal(run.records.read(2)["raw"]["load"].counts, records[2]["raw"]["load"].counts)
+
+
+def test_the_store_rows_frames_and_trials_are_the_options(tmp_path: Path) -> None:
+    store = bench("bench_store")
+    t = store.measure(str(tmp_path), store.make_records(2, 30), repeat=1)
+    assert t["fsyncs_sync"] >= 4 and t["fsyncs_nosync"] == 0
+    with RunFile.open(tmp_path / "sync.h5") as run:
+        assert run.records.ids() == [0, 1] and run.records.read(1)["raw"]["baseline"].counts.shape == (30, 6)
+    with h5py.File(tmp_path / "plain.h5") as f:
+        assert f["counts"].shape == (2 * 2 * 30, 6)
+    with h5py.File(tmp_path / "durable.h5") as f:  # the baseline holds the same frames, filtered as the run file
+        assert f["counts"].shape == (2 * 2 * 30, 6) and f["counts"].fletcher32 and f["counts"].compression == "gzip"
+        assert f["counts"].chunks == (64, 6)
+    assert t["durable"] > 0
+
+
+def test_the_durable_baseline_syncs_once_per_trial(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    store = bench("bench_store")
+    disk: list[int] = []
+    monkeypatch.setattr(os, "fsync", disk.append)
+    store.run_durable(str(tmp_path / "d.h5"), store.make_records(5, 20), store.chunk_of(20))
+    assert len(disk) == 5
+
+
+# --------------------------------------------------------------------------- bench_tables
+
+
+@pytest.mark.parametrize("split, every", [("contiguous", None), ("interleaved", 6)])
+def test_the_split_option_gives_the_split_it_names(tmp_path: Path, split: str, every: int | None) -> None:
+    tables = bench("bench_tables")
+    tables.write_table(600, tmp_path / "t.csv", split)
+    s = pd.read_csv(tmp_path / "t.csv")["set"].to_numpy()
+    held = np.flatnonzero(s == "validation")
+    if every:
+        np.testing.assert_array_equal(held, np.arange(every - 1, 600, every))
+    else:
+        np.testing.assert_array_equal(held, np.arange(480, 600))
+
+
+def test_each_step_runs_its_own_command_beside_its_own_baseline(tmp_path: Path) -> None:
+    tables = bench("bench_tables")
+    csv = tmp_path / "t.csv"
+    seen = {step: tables.commands(step, csv, tmp_path) for step in tables.STEPS}
+    assert [mine[2] for mine, _ in seen.values()] == ["fit", "validate", "import"]
+    assert seen["fit"][1][1] == "fit" and seen["validate"][1][1] == "validate"
+    assert Path(seen["import"][1][0]).name == "import_h5py.py"
+    for _, base in seen.values():  # independent of labcli: none of its code in the baseline
+        assert not re.search(r"^\s*(import|from)\s+labcli", Path(base[0]).read_text(), re.M)
+
+
+@pytest.fixture(scope="module")
+def trial_csv(tmp_path_factory) -> Path:
+    table = paper_trials(400, seed=4, noise=True)
+    table["trial"] = np.arange(len(table))
+    table["set"] = np.where(np.arange(len(table)) % 6 == 5, "validation", "fit")
+    path = tmp_path_factory.mktemp("tables") / "t.csv"
+    table.to_csv(path, index=False)
+    return path
+
+
+def test_the_fit_baseline_is_the_four_regressions_labcli_fits(trial_csv: Path) -> None:
+    got = json.loads(baseline("paper_lstsq.py", "fit", trial_csv, RIG["h2_m"], RIG["h3_m"]))
+    model = TakumaModel(geometry=RIG).fit(pd.read_csv(trial_csv))
+    for eq, names in TERMS.items():
+        np.testing.assert_allclose(got[eq], [model.coefficients[k] for k in names], rtol=1e-9)
+
+
+def test_the_validate_baseline_measures_what_labcli_measures(trial_csv: Path) -> None:
+    got = json.loads(baseline("paper_lstsq.py", "validate", trial_csv, RIG["h2_m"], RIG["h3_m"]))
+    table = pd.read_csv(trial_csv)
+    ev = evaluate(TakumaModel(geometry=RIG).fit(table), table)
+    assert all(m["n_flagged"] == 0 for m in ev["metrics"].values())  # no trial left out: the same trials
+    for q, col in (("theta1", "theta1_deg"), ("theta2", "theta2_deg"), ("Fx", "Fx_N"), ("Fy", "Fy_N")):
+        for measure in ("rmse", "mae", "max_abs", "bias", "r2"):
+            assert got[col][measure] == pytest.approx(ev["metrics"][q][measure], rel=1e-7, abs=1e-12)
+
+
+def test_the_import_baseline_writes_every_column(tmp_path: Path, trial_csv: Path) -> None:
+    baseline("import_h5py.py", trial_csv, tmp_path / "t.h5")
+    table = pd.read_csv(trial_csv)
+    with h5py.File(tmp_path / "t.h5") as f:
+        assert set(f) == set(table.columns) and f["Fx_N"].compression == "gzip"
+        np.testing.assert_array_equal(f["Fx_N"][:], table["Fx_N"].to_numpy())
+        assert f["set"][5] == b"validation"
+
+
+# --------------------------------------------------------------------------- bench_classify_report
+
+
+def test_the_classify_baseline_evaluates_the_same_force_model(tmp_path: Path) -> None:
+    model = TakumaModel(geometry=RIG).fit(paper_trials(300, seed=2, theta2_deg=(5.0, 20.0)))
+    model.save(tmp_path / "m.json")
+    rng = np.random.default_rng(1)
+    n = 40
+    base = rng.uniform(0.28, 0.32, (n, 4))
+    loaded = base * rng.uniform(0.97, 1.03, (n, 4))
+    table = pd.DataFrame(
+        np.column_stack([base, loaded]), columns=["P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2"]
+    )
+    table.insert(0, "push", np.arange(1, n + 1))
+    table.insert(1, "object", [f"o{i % 4}" for i in range(n)])
+    table["R_m"], table["d_m"], table["phi_deg"] = 0.033, 0.01, 0.0
+    table.to_csv(tmp_path / "p.csv", index=False)
+    bands = json.dumps({"soft": [0, 1000], "hard": [1000, None]})
+    out = json.loads(
+        baseline("classify_groupby.py", tmp_path / "p.csv", tmp_path / "m.json", RIG["h2_m"], RIG["h3_m"], bands)
+    )
+    pred = model.predict(base, loaded)
+    ok = np.asarray(pred["ok"]["Fx"]) & np.asarray(pred["ok"]["Fy"])  # where labcli gives the model's own value
+    got = pd.DataFrame(out["pushes"])
+    np.testing.assert_allclose(got["Fx_N"][ok], pred["Fx_N"][ok], rtol=1e-8)
+    np.testing.assert_allclose(got["Fy_N"][ok], pred["Fy_N"][ok], rtol=1e-8)
+    assert [o["object"] for o in out["objects"]] == ["o0", "o1", "o2", "o3"] and all(
+        o["n"] == 10 for o in out["objects"]
+    )
+
+
+# --------------------------------------------------------------------------- fresh.py
+
+
+def test_fresh_processes_are_measured_themselves_not_the_parent(tmp_path: Path) -> None:
+    fresh = bench("fresh")
+    spin = tmp_path / "spin.py"
+    spin.write_text("import time\nt = time.process_time()\nwhile time.process_time() - t < 0.3: pass\n")
+    hold = tmp_path / "hold.py"
+    hold.write_text("b = bytearray(300 * 2**20)\nb[::4096] = b'x' * len(b[::4096])\n")
+    idle = tmp_path / "idle.py"
+    idle.write_text("pass\n")
+    ballast = bytearray(400 * 2**20)  # the parent's own peak must not show in a child's
+    ballast[::4096] = b"x" * len(ballast[::4096])
+    runs = {p.stem: fresh.fresh([str(p)]) for p in (spin, hold, idle)}
+    assert runs["spin"].cpu_s >= 0.3 > runs["idle"].cpu_s
+    assert runs["hold"].peak_mib >= 300 > runs["idle"].peak_mib + 250
+    assert runs["idle"].peak_mib < 100
+    pair = fresh.interleaved("t", 3, [str(idle)], [str(spin)])
+    assert len(pair.mine) == len(pair.base) == 3 and pair.ratio("cpu_s") < 0.5
+    assert set(pair.figures()) >= {"t cpu ratio", "t labcli peak memory MiB", "t baseline wall s"}
+    del ballast

@@ -1,0 +1,83 @@
+"""A band's confidence from the object's stiffness and its standard error (models/classify.py)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from labcli.core.protocol import load_protocol
+from labcli.papers.takuma2014.models.classify import classify_pushes, log_k_standard_errors
+from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
+from labcli.papers.takuma2014.models.takuma import TakumaModel
+from labcli.papers.takuma2014.records import load_pushes, load_trials
+from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+@pytest.fixture(scope="module")
+def sample():
+    trials = load_trials(ROOT / "sample_runs" / "trials.csv")
+    pushes = load_pushes(ROOT / "sample_runs" / "pushes.csv")
+    force, stiff = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
+    bands = stiff.settings.push.stiffness_bands_N_per_m
+    return trials, pushes, force, bands
+
+
+def _classify(model, pushes, bands):
+    kw = {"bands": bands} if bands else {}
+    return {r["object"]: r for r in classify_pushes(pushes, model, method="bands", **kw).objects.to_dict("records")}
+
+
+def test_a_wrong_band_is_not_reported_with_high_confidence(sample) -> None:
+    """The sample run's steel can reads under half its stiffness with the posture form: 'medium',
+    every push agreeing, so the pushes' share alone said 100 %; its standard error says otherwise."""
+    trials, pushes, force, bands = sample
+    model = PostureModel(geometry=force.settings.rig, limits=limits_from_protocol(force)).fit(trials)
+    rows = _classify(model, pushes, bands)
+    truth = {o.name: o for o in DEMO_OBJECTS}
+    steel = rows["can-steel-1"]
+    assert steel["category"] != truth["can-steel-1"].category
+    assert steel["confidence"] < 0.9
+    for name, row in rows.items():
+        assert 0.02 < row["log_k_se"] < 0.5  # a few to tens of percent on k
+        if row["category"] == truth[name].category and name.startswith("pet"):
+            assert row["confidence"] > 0.99  # deep inside their band
+
+
+def test_the_paper_form_gives_no_standard_errors_and_keeps_the_pushes_share(sample) -> None:
+    trials, pushes, force, bands = sample
+    model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(trials)
+    rows = _classify(model, pushes, bands)
+    assert all("log_k_se" not in r or not np.isfinite(r["log_k_se"]) for r in rows.values())
+    assert rows["can-steel-1"]["confidence"] == 1.0  # every push in the band it was put in
+
+
+def test_log_k_standard_error_adds_force_and_deformation_in_quadrature() -> None:
+    class Est:
+        force = np.array([10.0, 10.0])
+        delta_x = np.array([0.002, 0.002])
+        dx_theta_gain = np.array([0.1, 0.1])  # m/rad
+        F = np.array([[6.0, 8.0], [6.0, 8.0]])
+
+        def __len__(self) -> int:
+            return 2
+
+    th = math.radians(0.5)
+    pred = {
+        "se": {
+            "theta1": np.array([th, th]),
+            "theta2": np.array([0.0, 0.0]),
+            "Fx": np.array([0.3, 0.3]),
+            "Fy": np.array([0.4, 0.4]),
+        }
+    }
+    ok = np.array([[True, True], [True, False]])  # the second push's Fy unobservable: |F| from Fx
+    se = log_k_standard_errors(pred, Est(), ok)
+    rel_x = 0.1 * th / 0.002
+    assert se[0] == pytest.approx(math.hypot(0.5 / 10.0, rel_x))
+    assert se[1] == pytest.approx(math.hypot(0.3 / 6.0, rel_x))
+    assert log_k_standard_errors({"theta1_rad": np.zeros(2)}, Est(), ok) is None

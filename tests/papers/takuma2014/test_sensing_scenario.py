@@ -1,0 +1,128 @@
+"""The run-time estimator on scripted sessions of the simulated rig (a short tests/benchmarks/sensing_online.py).
+
+* on the ideal rig, a step load: the settled estimate is the model's own answer to the true
+  pressures (the closed form the estimator must converge to);
+* on the default rig (friction, leak, heat, backlash, link weight), a few loads: every one
+  found, settled and released, no false event, settled errors as the offline protocol's on the
+  same loads, intervals that hold the truth.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from labcli.core.protocol import load_protocol
+from labcli.papers.takuma2014.sensing import TakumaSensing
+from labcli.papers.takuma2014.sim import scenario as sc
+from labcli.papers.takuma2014.sim.script import parse_script
+from labcli.sensing import LOAD, RELEASE, SETTLED, Estimate, Event
+from labcli.sensing.scoring import score
+
+QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
+
+
+@pytest.fixture(scope="module")
+def protocol():
+    return load_protocol("takuma2014")
+
+
+@pytest.fixture(scope="module")
+def model(protocol):
+    """The model `labcli fit` would write for the default rig of seed 3 (the shipped plan, 108 trials)."""
+    return sc.calibrate(protocol, 3)
+
+
+def script(loads, idle_s=60.0, hold_s=14.0, first_s=30.0):
+    rows, t = [], first_s
+    for mass_g, direction in loads:
+        rows.append({"at_s": t, "hold_s": hold_s, "mass_g": mass_g, "direction_deg": direction})
+        t += hold_s + 16.0
+    idle = [{"from_s": t, "to_s": t + idle_s}]
+    return parse_script({"air": {"supply_s": 0.0, "close_s": 6.0}, "load": rows, "idle": idle})
+
+
+def test_on_the_ideal_rig_a_step_load_settles_on_the_models_answer_to_the_true_pressures(protocol):
+    ideal = {"ideal": True}
+    model = sc.calibrate(protocol, 4, ideal)
+    sens = TakumaSensing(model)
+    # 80 s of rest before the load: the baseline's slope is learnt well (it is extrapolated under the load).
+    s = sc.run_session(model, protocol, script([(700.0, -30.0)], 1.0, 30.0, 90.0), 4, rig_options=ideal)
+    ests = [i for i in s.items if isinstance(i, Estimate)]
+    assert [e.kind for e in s.items if isinstance(e, Event)] == [LOAD, SETTLED, RELEASE]
+    # The true pressures before and under the load (the rig's own, isothermal once settled).
+    cal = protocol.calibration
+    pc = [cal.index(n) for n in ("P_L1", "P_R1", "P_L2", "P_R2")]
+    ac = [cal.index(n) for n in ("POT1", "POT2")]
+    before = (s.t_s > 85.0) & (s.t_s <= 90.0)
+    under = (s.t_s > 115.0) & (s.t_s <= 120.0)
+    exact = sens.predict(
+        s.si[before][:, pc].mean(axis=0)[None],
+        s.si[under][:, pc].mean(axis=0)[None],
+        s.si[before][:, ac].mean(axis=0)[None],
+    )
+    late = [e for e in ests if 115.0 < e.t_device_s <= 120.0]
+    for j, q in enumerate(QUANTITIES):
+        got = np.mean([e.values[q] for e in late])
+        se = np.mean([e.se[q] for e in late])
+        assert abs(got - exact.values[0, j]) < 0.5 * se, q
+    truth = s.changes[0]
+    assert math.hypot(*(late[-1].values[q] for q in ("Fx", "Fy"))) == pytest.approx(
+        math.hypot(*truth["force_N"]), rel=0.05
+    )
+
+
+def test_on_the_default_rig_loads_are_found_settled_and_released_as_the_offline_protocol_measures_them(protocol, model):
+    seed = 3
+    loads = [(800.0, -60.0), (400.0, 150.0), (1000.0, 30.0), (300.0, -120.0)]  # 3-10 N, away from the arm
+    sess = sc.run_session(model, protocol, script(loads), seed)
+    changes = sc.true_changes(sess)
+    result = score(sess.items, sess.truth_t, sess.truth, changes, QUANTITIES, idle=[(150.0, 210.0)])
+    assert all(c.detected_s is not None and c.detected_s - c.on_s < 0.5 for c in result.changes)
+    assert all(c.released_s is not None and c.released_s - c.off_s < 0.5 for c in result.changes)
+    assert result.false_events == 0
+    offline = sc.offline_twin(TakumaSensing(model), protocol, sess)
+    for j, q in enumerate(QUANTITIES[:3]):  # Fy: unobservable on the upright arm, offline as online
+        use = [(c, o) for c, o in zip(result.changes, offline, strict=True) if o and c.settled_sq is not None]
+        online = math.sqrt(np.mean([c.settled_sq[j] for c, _ in use]))
+        off = math.sqrt(np.mean([(o["values"][j] - o["truth"][j]) ** 2 for _, o in use]))
+        slack = math.radians(0.05) if q.startswith("theta") else 0.05
+        assert online <= 1.5 * off + slack, (q, online, off)
+    # The intervals hold the truth about as often as the model's own hold the offline protocol's
+    # (on the default rig its angle errors run above their standard errors: tests/benchmarks/sensing_online.py).
+    for q, least in (("theta1", 0.8), ("theta2", 0.8), ("Fx", 0.9)):
+        assert least <= result.coverage[q] <= 1.0, (q, result.coverage[q])
+
+
+def test_pushes_give_their_objects_stiffness_and_category_as_each_settles(protocol, model):
+    from labcli.papers.takuma2014.pushes import PlannedPush, PushClassifier
+    from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS
+
+    objects = {o.name: o for o in DEMO_OBJECTS}
+    # Soft and medium: the steel can deforms by 1.4 mm, where this arm's angle errors set its stiffness.
+    plan = [("pet-1", 0.0), ("can-al-1", 15.0), ("pet-1", -15.0)]
+    rows, t = [], 30.0
+    for name, phi in plan:
+        o = objects[name]
+        rows.append(
+            {"at_s": t, "hold_s": 15.0, "object": name, "radius_mm": o.radius_m * 1e3,
+             "distance_mm": o.distance_m * 1e3, "phi_deg": phi, "stiffness_N_per_m": o.stiffness_N_per_m}
+        )  # fmt: skip
+        t += 35.0
+    hook = PushClassifier.from_protocol(
+        load_protocol("takuma2014-stiffness"),
+        model,
+        [PlannedPush(n, objects[n].radius_m, objects[n].distance_m, math.radians(phi)) for n, phi in plan],
+    )
+    push_script = parse_script({"air": {"supply_s": 0.0, "close_s": 6.0}, "push": rows})
+    s = sc.run_session(model, protocol, push_script, 3, on_settled=hook)
+    pushes = [e for e in s.items if isinstance(e, Event) and e.kind == "push"]
+    assert [p.data["object"] for p in pushes] == [n for n, _ in plan]  # one result per push, in order
+    for p, (name, _) in zip(pushes, plan, strict=True):
+        o = objects[name]
+        assert p.data["category"] == o.category
+        assert p.data["k_N_per_m"] == pytest.approx(o.stiffness_N_per_m, rel=0.35)
+        assert p.t_device_s < rows[pushes.index(p)]["at_s"] + 15.0  # while the object is still pushed
+    assert pushes[-1].data["object_category"] == "soft" and "object_k_median_N_per_m" in pushes[-1].as_json()
