@@ -12,8 +12,7 @@ from ..errors import LabcliError
 from ._options import FiniteRange, streaming_link_options
 
 
-@click.command("sense")
-@streaming_link_options
+@click.command()
 @click.option(
     "--model",
     "model_path",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ..errors import LabcliError
+from ._declared import protocol_option
 
 
 @click.command("split")
@@ -31,10 +32,9 @@ from ..errors import LabcliError
     help="sequential: first trials recorded fit, the next validate (the paper's); random: seeded draw.",
 )
 @click.option("--seed", type=int, default=None, help="Seed of the random draw  [default: 0]")
-@click.option(
-    "--protocol",
-    default=None,
-    help="A trial CSV's protocol (name or .toml), for its default sizes  [default: takuma2014]; run files carry their own.",
+@protocol_option(
+    "split",
+    "A trial CSV's protocol (name or .toml), for its default sizes  [default: {default}]; run files carry their own.",
 )
 @click.option(
     "-o",

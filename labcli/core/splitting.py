@@ -94,7 +94,7 @@ def split(
 ) -> SplitDone:
     """Assign the fit and validation sets of a run file (stored in it) or a trial CSV (its ``set`` column).
 
-    ``protocol``: a CSV's protocol (name or .toml; default takuma2014), for its default
+    ``protocol``: a CSV's protocol (name or .toml; default the registry's for ``split``), for its default
     sizes and its table; a run file carries its own.  ``output``: where a CSV's split goes
     (default: the CSV itself).  Raises :class:`~labcli.errors.LabcliError` in one sentence.
     """
@@ -107,7 +107,9 @@ def split(
                 f"{p} is a run file, which carries its protocol and keeps its split: drop --protocol and -o."
             )
         return _split_run(p, n_fit, n_validation, strategy, seed)
-    return _split_table(p, n_fit, n_validation, strategy, seed, protocol or "takuma2014", output)
+    from .registry import default_protocol
+
+    return _split_table(p, n_fit, n_validation, strategy, seed, protocol or default_protocol("split"), output)
 
 
 def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, seed: int | None) -> SplitDone:
@@ -146,7 +148,7 @@ def _split_table(
     if not Path(path).is_file():
         raise ConfigError(f"{path} does not exist or is not a file: give a run file (.h5) or a trial CSV.")
     proto = load_protocol(protocol)
-    kind: Any = record_type(str(getattr(proto, "kind", "force")))  # a record type with a table spec
+    kind: Any = record_type(proto.kind)  # a record type with a table spec
     if not kind.splits:
         raise ConfigError(
             f"protocol {proto.name} records {kind.plural}, which are not split; give the protocol of a trial table."

@@ -54,6 +54,10 @@ def test_the_check_knows_the_installed_papers():
 @pytest.mark.parametrize("path", PAPER_FREE, ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_no_string_names_a_run_kind_or_a_paper(path):
     kinds, own = paper_names()
+    if path.name == "cli.py":
+        from labcli.cli import COMMANDS
+
+        kinds -= set(COMMANDS)  # `labcli sense` writes runs of kind sense: the table names the command
     word = re.compile(r"(?<![\w-])(" + "|".join(map(re.escape, own)) + r")(?![\w-])")
     found = [f"{line}: {text!r}" for line, text in strings(path) if text in kinds or word.search(text)]
     assert not found, f"{path.relative_to(PACKAGE)} names what a paper owns: {found}"

@@ -26,6 +26,7 @@ DEFAULT_PROTOCOLS = {
     "validate": TRIAL_PROTOCOL,
     "classify": PUSH_PROTOCOL,
     "predict": TRIAL_PROTOCOL,
+    "split": TRIAL_PROTOCOL,
 }
 
 FORMS = ("posture", "paper")  # labcli fit --form; the first is the default (models.posture.FORM)
