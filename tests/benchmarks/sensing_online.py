@@ -79,7 +79,7 @@ def rig_options(text: str) -> dict[str, Any]:
         key, _, raw = item.partition("=")
         if key not in known:
             sys.exit(f"--rig: unknown option {key!r}; known: {', '.join(sorted(known))}")
-        out[key] = known[key].parse(urllib.parse.unquote(raw))
+        out[key] = known[key].read(urllib.parse.unquote(raw))
     return out
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import importlib
 import os
 import time
+from pathlib import Path
 
 import click
 import pytest
@@ -17,6 +18,8 @@ from click.testing import CliRunner
 
 from labcli.cli import COMMANDS, cli
 from labcli.commands import _options
+
+MODEL = Path(__file__).resolve().parents[2] / "sample_runs" / "force.model.json"
 
 
 def command(name: str) -> click.Command:
@@ -36,8 +39,8 @@ PORT_COMMANDS = [n for n in NAMING_A_PORT if n != "flash"]
 
 
 def test_the_commands_that_open_a_port_are_found():
-    assert NAMING_A_PORT == ["acquire", "flash", "monitor"]
-    assert PORT_COMMANDS == ["acquire", "monitor"]
+    assert NAMING_A_PORT == ["acquire", "flash", "monitor", "sense"]
+    assert PORT_COMMANDS == ["acquire", "monitor", "sense"]
 
 
 @pytest.mark.parametrize("name", NAMING_A_PORT)
@@ -70,6 +73,11 @@ def test_port_baud_and_timeout_are_the_same_everywhere(name):
     assert mine["timeout"].default == _options.TIMEOUT_S and mine["baud"].default == 115200
 
 
+def required_args(name: str, tmp_path: Path) -> list[str]:
+    """What a command needs besides the port to reach it: acquire its run file, sense its model."""
+    return {"acquire": [str(tmp_path / "r.h5")], "sense": ["--model", str(MODEL)]}.get(name, [])
+
+
 @pytest.mark.parametrize("name", PORT_COMMANDS)
 @pytest.mark.parametrize(
     "args,message",
@@ -80,7 +88,7 @@ def test_port_baud_and_timeout_are_the_same_everywhere(name):
     ],
 )
 def test_bad_port_options_get_the_same_sentence_from_every_command(name, args, message, tmp_path):
-    extra = [str(tmp_path / "r.h5")] if name == "acquire" else []
+    extra = required_args(name, tmp_path)
     result = CliRunner().invoke(cli, [name, *extra, "-p", "sim://", *args])
     assert result.exit_code == 2 and result.output.splitlines()[-1] == f"Error: {message}"
 
@@ -93,7 +101,7 @@ def test_the_timeout_reaches_the_link(name, tmp_path):
     master, slave = os.openpty()
     try:
         port = os.ttyname(slave)
-        extra = [str(tmp_path / "r.h5")] if name == "acquire" else []
+        extra = required_args(name, tmp_path)
         t0 = time.monotonic()
         result = CliRunner().invoke(cli, [name, *extra, "-p", port, "--timeout", "0.3"])
         took = time.monotonic() - t0

@@ -289,7 +289,14 @@ class ToyFit:
     trials: int
 
 
-def toy_fit(path: Path, options: ToyFitOptions, *, output: Path | None = None, protocol: str | None = None) -> ToyFit:
+def toy_fit(
+    path: Path,
+    options: ToyFitOptions,
+    *,
+    output: Path | None = None,
+    protocol: str | None = None,
+    record: bool | None = None,
+) -> ToyFit:
     from labcli.core.store import RunFile
 
     with RunFile.open(path) as run:

@@ -130,11 +130,13 @@ def test_a_leak_corrected_fit_of_a_run_is_applied_with_corrected_baselines(tmp_p
     from labcli.papers.takuma2014.analyses import fit, leak_handled
     from labcli.papers.takuma2014.models import leak
     from labcli.papers.takuma2014.models.inputs import load_trial_source
+    from labcli.papers.takuma2014.options import FitOptions
 
     run = tmp_path / "force.h5"
     shutil.copy(SAMPLES / "force.h5", run)
-    plain = fit(run, output=tmp_path / "plain.json", form="paper").model
-    corrected = fit(run, output=tmp_path / "corrected.json", form="paper", leak_correct=True).model
+    paper = FitOptions(form="paper")
+    plain = fit(run, paper, output=tmp_path / "plain.json").model
+    corrected = fit(run, paper, output=tmp_path / "corrected.json", leak_correct=True).model
     assert plain.p0_leak_corrected is False and corrected.p0_leak_corrected is True
     assert 5.0 < plain.baseline_gap_s < 30.0  # the protocol's wait for equilibrium and a capture
     assert corrected.baseline_gap_s == pytest.approx(plain.baseline_gap_s)
@@ -150,5 +152,5 @@ def test_a_leak_corrected_fit_of_a_run_is_applied_with_corrected_baselines(tmp_p
     csv = tmp_path / "trials.csv"
     RECORD_TYPES["force"].write_csv(load_trials(run), csv)
     with pytest.raises(ConfigError) as e:
-        fit(csv, output=tmp_path / "x.json", leak_correct=True)
+        fit(csv, FitOptions(), output=tmp_path / "x.json", leak_correct=True)
     assert str(e.value).startswith("fit --leak-correct needs each trial's baseline and loaded window times")

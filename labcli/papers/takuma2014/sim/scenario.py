@@ -30,10 +30,11 @@ SESSION_START_S = 10.0  # the estimator starts once the rig is pressurised (air 
 
 
 def build(seed: int, rig_options: dict[str, Any] | None = None) -> Any:
-    """The simulated rig of ``seed`` with the given ``sim://`` options (parsed values)."""
-    from .options import build_rig
+    """The simulated rig of ``seed`` with the given ``sim://`` options (name -> parsed value)."""
+    from ....core.options import build as build_options
+    from .options import McKibbenRigOptions, build_rig
 
-    return build_rig(seed=seed, **(rig_options or {}))
+    return build_rig(seed=seed, options=build_options(McKibbenRigOptions, rig_options or {}))
 
 
 class _Windows:
