@@ -1,4 +1,5 @@
-"""``labcli export``: a run's table (trials, pushes, rPAM points, ...) as CSV (with its sidecar) or parquet."""
+"""``labcli export``: a run's table (trials, pushes, rPAM points, ...) as CSV (with its sidecar), parquet,
+Excel or MATLAB, as OUTPUT's extension says (:mod:`labcli.core.exports`)."""
 
 from __future__ import annotations
 
@@ -19,24 +20,33 @@ from ..errors import LabcliError
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(["csv", "parquet"]),
+    type=click.Choice(["csv", "parquet", "xlsx", "mat"]),
     default=None,
-    help="Table format [default: parquet for a .parquet OUTPUT, else csv].",
+    help="Table format [default: OUTPUT's extension: .csv, .parquet, .xlsx or .mat].",
 )
-def export(run: str, output: str, fmt: str | None) -> None:
-    """Write RUN's table as CSV: trials, pushes for a push run, points for an rPAM run.
+@click.option(
+    "--all-columns",
+    is_flag=True,
+    help="Add what every record carries: when it began and was stored, how it was accepted, its "
+    "flags, and how each window settled (times in s).",
+)
+def export(run: str, output: str, fmt: str | None, all_columns: bool) -> None:
+    """Write RUN's table: trials, pushes for a push run, points for an rPAM run.
+
+    The format follows OUTPUT's extension: .csv (with OUTPUT.json beside it,
+    its description in the Frictionless Table Schema style: each column's type
+    and unit, and where the rows came from), .parquet (pip install
+    'labcli[parquet]'), .xlsx (a workbook with a row of units under the names
+    and a provenance sheet; pip install 'labcli[xlsx]') or .mat (a MATLAB
+    struct named as the table, with units and provenance beside it).
 
     Pressures in MPa, forces in N, angles in degrees, masses in grams; the
     ``set`` column comes from the run's split, a ``note`` column from the notes
-    on its trials (``labcli note``), when there are any.  ``labcli import`` reads the
-    file back, and exporting the imported run gives the same bytes.
-
-    Beside a CSV goes OUTPUT.json, its description in the Frictionless Table
-    Schema style: each column's type and unit, and where the rows came from
-    (run uid where recorded, protocol, device, labcli version, run file).
-    ``labcli.load_trials`` reads it back into the DataFrame's attrs.  With
-    --format parquet (needs pyarrow: pip install 'labcli[parquet]') the same
-    description goes into the parquet file's own metadata.
+    on its trials (``labcli note``), when there are any.  ``labcli import`` reads
+    a CSV back, and exporting the imported run gives the same bytes (with
+    --all-columns too: the flags, times and settling go back into the run).
+    ``labcli.load_trials`` reads a CSV's description back into the DataFrame's
+    attrs; a parquet file carries the same description in its own metadata.
 
     \b
     An rPAM run (rpam2015) gives one row per point, in recording order:
@@ -50,29 +60,29 @@ def export(run: str, output: str, fmt: str | None) -> None:
     \b
     Example:
         labcli export run.h5 -o trials.csv
-        labcli export stretch.h5 -o stretch.csv
-        labcli export run.h5 -o trials.parquet
+        labcli export run.h5 -o trials.xlsx --all-columns
+        labcli export run.h5 -o trials.mat
+        labcli export stretch.h5 -o stretch.parquet
     """
-    from ..core import table_meta  # heavy: when the command runs, not for --help
+    from ..core import exports, table_meta  # heavy: when the command runs, not for --help
     from ..core.files import check_output
     from ..core.store import RunFile
     from ..core.store.notes import with_notes
+    from ..core.store.records import ALL_COLUMNS
     from ..core.table_meta import SIDECAR_SUFFIX
 
-    parquet = fmt == "parquet" or (fmt is None and output.lower().endswith((".parquet", ".pq")))
     try:
-        check_output(output, inputs=(run,))
-        if not parquet:
+        check_output(output, inputs=(run,))  # writing over the input is the graver mistake: said first
+        fmt = exports.format_of(output, fmt)
+        if fmt == "csv":
             check_output(output + SIDECAR_SUFFIX, inputs=(run,))
         with RunFile.open(run) as rf:
-            records, df = rf.record_type, rf.records.table()
+            records, df = rf.record_type, rf.records.table(all_columns=all_columns)
             table_meta.describe(df, records.table_spec, table_meta.provenance(rf.attrs, run))
             with_notes(df, records.id_column, rf.notes.all())
-        if parquet:
-            table_meta.write_parquet(df, output)
-        else:
-            records.write_csv(df, output)
-            table_meta.write_sidecar(df, records.table_spec, output)
+        if all_columns:
+            df.attrs["units"].update({c.name: c.units for c in ALL_COLUMNS if c.units not in ("", "1")})
+        exports.write(df, records.table_spec, records.collection, output, fmt, records.write_csv)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     click.echo(f"Wrote {records.count(len(df))} from {run} to {output}.")

@@ -95,14 +95,27 @@ def _field_type(dtype: Any) -> str:
     return {"i": "integer", "u": "integer", "f": "number", "b": "boolean"}.get(kind, "string")
 
 
-def sidecar(df: Any, spec: TableSpec, csv_path: str | os.PathLike) -> dict[str, Any]:
-    """The Frictionless tabular-data-resource description of ``df`` written as ``csv_path``."""
+def sidecar(df: Any, spec: TableSpec, csv_path: str | os.PathLike, header: list[str] | None = None) -> dict[str, Any]:
+    """The Frictionless tabular-data-resource description of ``df`` written as ``csv_path``.
+
+    ``header``: the columns as the CSV has them (the writer puts the spec's columns first and
+    leaves out empty optional ones); the fields follow it, as Frictionless checks them by position.
+    """
     unit = df.attrs.get("units", {})
+    names = [str(c) for c in df.columns]
+    kinds = {c: kind for c, kind, _ in spec.columns}
     fields = []
-    for c in df.columns:
-        field: dict[str, Any] = {"name": str(c), "type": _field_type(df[c].dtype)}
-        if unit.get(c):
-            field["unit"] = unit[c]
+    for name in names if header is None else header:
+        if name in kinds:
+            kind = kinds[name].removesuffix("-or-empty")
+            typ = (
+                "integer" if kind == "id" else "string" if kind in ("set", "set-required", "name", "text") else "number"
+            )
+        else:
+            typ = _field_type(df[df.columns[names.index(name)]].dtype) if name in names else "string"
+        field: dict[str, Any] = {"name": name, "type": typ}
+        if unit.get(name):
+            field["unit"] = unit[name]
         fields.append(field)
     return {
         "profile": "tabular-data-resource",
@@ -120,8 +133,17 @@ def write_sidecar(df: Any, spec: TableSpec, csv_path: str | os.PathLike) -> str:
     from .files import atomic_write
 
     path = os.fspath(csv_path) + SIDECAR_SUFFIX
-    atomic_write(path, (json.dumps(sidecar(df, spec, csv_path), indent=1) + "\n").encode("utf-8"))
+    meta = sidecar(df, spec, csv_path, header=csv_header(csv_path))
+    atomic_write(path, (json.dumps(meta, indent=1) + "\n").encode("utf-8"))
     return path
+
+
+def csv_header(csv_path: str | os.PathLike) -> list[str]:
+    """The column names of a CSV file, as its first line has them."""
+    import csv
+
+    with open(csv_path, encoding="utf-8", newline="") as fh:
+        return next(csv.reader(fh), [])
 
 
 def read_sidecar(csv_path: str | os.PathLike) -> dict[str, Any] | None:

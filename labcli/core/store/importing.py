@@ -20,8 +20,9 @@ from ..files import check_output
 from ..paper import Column
 from ..protocol import load_protocol
 from ..registry import import_protocol, record_type, untagged_run_kind
-from .h5 import nan_if_empty
+from .h5 import missing, nan_if_empty
 from .layout import extra_column
+from .records import ALL_COLUMNS
 from .runfile import RunFile
 from .split import Split
 from .view import MAX_ID
@@ -72,6 +73,23 @@ def _extras(df: Any, names: Sequence[str]) -> tuple[list[Any], dict[str, Any]]:
     return columns, values
 
 
+def _carried(df: Any) -> dict[str, Any]:
+    """What every record carries, from the columns of an ``--all-columns`` export (times, how it was
+    accepted, flags, settling), as the run file keeps it; empty cells read as not recorded."""
+    out: dict[str, Any] = {}
+    for c in ALL_COLUMNS:
+        if c.name not in df.columns:
+            continue
+        raw = df[c.name].tolist()
+        if c.kind == "text":
+            out[c.name] = ["" if missing(v) else str(v) for v in raw]
+        elif c.kind == "flag":
+            out[c.name] = np.asarray([-1 if missing(v) else int(float(v)) for v in raw], dtype=np.int8)
+        else:
+            out[c.name] = np.asarray([nan_if_empty(v) for v in raw], dtype=np.float64)
+    return out
+
+
 def _check_storable(df: Any, id_col: str) -> None:
     """Refuse, before any file is made, a table holding text a run file cannot store."""
     for c in df.columns:
@@ -114,8 +132,9 @@ def import_table(
         raise ConfigError(f"{rt.id_column} {int(repeated.iloc[0])} appears twice in the table; ids must be unique.")
     _check_storable(df, rt.id_column)
     fit, val = rt.import_split(df)
-    columns = rt.from_table(df, protocol)
-    extra_cols, extra_values = _extras(df, [c for c in df.columns if c not in rt.known_columns])
+    columns = {**rt.from_table(df, protocol), **_carried(df)}
+    carried = {c.name for c in ALL_COLUMNS}
+    extra_cols, extra_values = _extras(df, [c for c in df.columns if c not in rt.known_columns and c not in carried])
     run = RunFile.create(
         path,
         protocol=protocol,

@@ -31,6 +31,7 @@ from ..record import Record, Settle, StoredRecord
 from ..window import Window
 from . import space
 from .columns import fill_value
+from .layout import common_columns, window_columns
 from .rows import bulk_values, record_id, record_row, settle_of, split_flags
 from .view import RecordColumns, from_v1, from_v2
 from .writer import Write
@@ -39,6 +40,11 @@ if TYPE_CHECKING:
     from .runfile import RunFile
 
 READ_RETRIES = 8  # torn reads while a writer commits: tries before the damage is believed
+# What every record carries beyond its exchange table (``table(all_columns=True)``, ``labcli export
+# --all-columns``): named as the run file's own columns, so ``labcli import`` takes them back.
+ALL_COLUMNS = tuple(
+    c for c in (*common_columns("id")[1:], *window_columns()) if not c.name.endswith(("_start", "_stop", "_checksum"))
+)
 
 
 class Records:
@@ -272,12 +278,14 @@ class Records:
         # The record type's values first, as the writer gave them: a TypedDict of its kind.
         return cast(StoredRecord, {**run.record_type.read(row), **common})
 
-    def table(self, kind: RecordType | None = None) -> Any:
+    def table(self, kind: RecordType | None = None, all_columns: bool = False) -> Any:
         """The CSV exchange table of the complete records (DataFrame), in recording order.
 
         The record type's columns, then the columns of an imported table labcli does not
-        know.  ``kind``: another record type to read (a run holds only its own kind's records,
-        so another kind gives an empty table).
+        know; with ``all_columns``, then what every record carries (:data:`ALL_COLUMNS`: when
+        it began and was stored, how it was accepted, its flags, how each window settled).
+        ``kind``: another record type to read (a run holds only its own kind's records, so
+        another kind gives an empty table).
         """
         run = self._run
         rt = kind or run.record_type
@@ -289,6 +297,12 @@ class Records:
         for name in rec.extras:
             v = rec.cols[name]
             df[name] = [x.item() if isinstance(x, np.generic) else x for x in v] if v.dtype == object else v
+        if all_columns:
+            for c in ALL_COLUMNS:
+                v = rec.cols[c.name]
+                df[c.name] = (
+                    [str(x) for x in v] if c.kind == "text" else v.astype(np.int64 if c.kind == "flag" else v.dtype)
+                )
         return df
 
 
