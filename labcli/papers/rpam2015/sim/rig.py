@@ -56,8 +56,8 @@ tell it from the protocol's default.  Every change also draws a friction offset 
 paper's "variable friction in the joints"): about 0.15 N on the hanging actuator and
 2 mN m on the joint, the scatter of Fig. 6 and of the measured map.  The potentiometer has
 a seeded mechanical offset (0.5 deg rms).  The pressure sensors are taken as zeroed and
-the rest of the actuator (wall section, thread cage, Ogden wall) as the protocol says,
-so every discrepancy a fit sees comes from the stretch correction, friction and noise.
+the rest of the actuator (wall section, thread cage, Ogden wall, the reading of its force)
+as the protocol says, so every discrepancy a fit sees comes from the stretch correction, friction and noise.
 ``variation=False`` gives the nominal rig: symmetric actuators with the protocol's cubic,
 no friction, no offsets.
 
@@ -71,7 +71,7 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +79,7 @@ import numpy as np
 
 from ....core.sim.clock import SimClock
 from ....core.sim.sensors import Linear, SensorChannel, SensorFrontEnd
+from ..actuator import FORCE_READINGS
 from . import rpam_physics as physics
 from .rpam_physics import G_N_PER_KG, read_stand
 
@@ -137,8 +138,10 @@ class _Segment:
 class RpamRig(SimClock):
     """Physical model of the rPAM joint and stretch stand with operator hooks and an ADC.
 
-    ``RpamRig(seed=0, noise=1.0, drift=0.0, experiment="joint", protocol="rpam2015")``.
-    Starts vented (both pressures 0), no payload, at its balance.
+    ``RpamRig(seed=0, noise=1.0, drift=0.0, experiment="joint", protocol="rpam2015")``;
+    ``force_reading`` builds its actuators on the other reading of the force than the
+    protocol's (:mod:`.rpam_physics`), so a model can be checked against a stand it was not
+    built on.  Starts vented (both pressures 0), no payload, at its balance.
     """
 
     channels: tuple[str, ...] = CHANNELS
@@ -162,10 +165,15 @@ class RpamRig(SimClock):
         protocol: str | Path = "rpam2015",
         variation: bool = True,
         tau_s: float = 0.7,
+        force_reading: str | None = None,
     ) -> None:
         if noise < 0 or drift < 0 or not tau_s > 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
         links, nominal = read_stand(protocol)
+        if force_reading is not None:
+            if force_reading not in FORCE_READINGS:
+                raise ValueError(f"force_reading must be one of {', '.join(FORCE_READINGS)}")
+            nominal = replace(nominal, force_reading=force_reading)
         self.links = links
         self.nominal_actuator = nominal
         self.seed = int(seed)

@@ -30,6 +30,17 @@ Force balance of an end cap (tension F positive)
     with ``r_o`` the cage radius while ``p_c >= 0``; below that the cage is slack and r_o is
     where ``p_c = 0``.  The empirical stretch force (Eq. 7) is added on top, never clamped.
 
+The paper's reading (an actuator whose ``force_reading`` is ``"paper"``)
+    A stand whose actuators follow the paper's lumen free body, so that a model built on the
+    derived force can be checked against a stand it was not built on (and the paper's model
+    against one it was).  Its forces are summed here term by term on the cut through the
+    lumen, not taken from the paper reading's potential as the model does: the gas pushes the
+    end cap over the lumen, ``-P (pi r_c^2 - A0 / lambda)`` (the wall's section at stretch
+    lambda is ``A0 / lambda``); the thread carries the whole hoop load ``P r_c`` per unit
+    length and pulls ``P L^2 / (2 pi n^2)``; the wall adds its uniaxial Cauchy stress
+    ``sum 2 mu_i / alpha_i (lambda^alpha_i - lambda^(-alpha_i / 2))`` over its current section
+    ``A0 / lambda``.  The cage holds at every pressure (the paper's model has no slack branch).
+
 Units: SI, pressures in MPa (gauge) as at the regulators.
 """
 
@@ -96,14 +107,26 @@ def tension(act: Actuator, P_MPa: Any, L: Any) -> np.ndarray:
     P, L = (np.array(v, dtype=float) for v in np.broadcast_arrays(np.asarray(P_MPa, float), np.asarray(L, float)))
     P = P * _MPA
     r_c = cage_radius(act, L)
+    lam = L / act.L0_m
+    if act.force_reading == "paper":
+        return _lumen_free_body(act, P, L, r_c) + np.polynomial.polynomial.polyval(lam, act.stretch_coefficients_N)
     axial, radial = _integrals(act, L, r_c)
     p_c = P - radial
     F = np.array(axial - math.pi * p_c * r_c**2 + p_c * L**2 / (2 * math.pi * act.n_turns**2), dtype=float)
     slack = p_c < 0
     if slack.any():
         F[slack] = _free_tension(act, P[slack], L[slack], r_c[slack])
-    lam = L / act.L0_m
     return F + np.polynomial.polynomial.polyval(lam, act.stretch_coefficients_N)
+
+
+def _lumen_free_body(act: Actuator, P: np.ndarray, L: np.ndarray, r_c: np.ndarray) -> np.ndarray:
+    """The paper's reading: end cap on the lumen + the thread's pull + the uniaxial wall (N, P in Pa)."""
+    lam = L / act.L0_m
+    wall_section = act.A0_m2 / lam
+    end_cap = -P * (math.pi * r_c**2 - wall_section)
+    thread = P * L**2 / (2 * math.pi * act.n_turns**2)
+    stress = _t(act, lam) - _t(act, lam**-0.5)  # uniaxial: the lateral stretches are 1 / sqrt(lambda)
+    return np.asarray(end_cap + thread + stress * wall_section, dtype=float)
 
 
 def _free_tension(act: Actuator, P: np.ndarray, L: np.ndarray, r_c: np.ndarray) -> np.ndarray:
