@@ -220,7 +220,7 @@ def test_the_registry_answers_from_the_declarations():
     assert set(registry.analysis_options("optimize")) == {"rpam2015"}
     assert registry.default_protocol("optimize") == "rpam2015"
     assert registry.experiments() == {"stretch": "rpam-stretch", "joint": "rpam-joint"}
-    assert set(registry.sim_options("rpam")) == {"experiment", "nominal"}
+    assert set(registry.sim_options("rpam")) == {"experiment", "nominal", "reading"}
     assert registry.modes_taking("supply") == ["mckibben"]
     with pytest.raises(ConfigError, match="Exactly one paper must name the default protocol of labcli no-such-command"):
         registry.default_protocol("no-such-command")

@@ -54,7 +54,13 @@ class Rpam2015:
         o = options or RpamRigOptions()
         experiment = o.experiment or "joint"  # the stand powers up on the joint unless told otherwise
         return RpamRig(
-            seed=seed, noise=noise, drift=drift or 0.0, tau_s=tau_s, experiment=experiment, variation=not o.nominal
+            seed=seed,
+            noise=noise,
+            drift=drift or 0.0,
+            tau_s=tau_s,
+            experiment=experiment,
+            variation=not o.nominal,
+            force_reading=o.reading,
         )
 
     def run_protocol(

@@ -23,6 +23,7 @@ from labcli.cli import cli
 from labcli.core.sim import register
 from labcli.core.sim.console import execute
 from labcli.core.wire import Frame, parse_line
+from labcli.papers.rpam2015.actuator import FORCE_READINGS
 from labcli.papers.rpam2015.sim import options as rig_options
 from labcli.papers.rpam2015.sim.rig import EXPERIMENTS, RpamRig, counts_to_si
 
@@ -31,6 +32,16 @@ register()
 
 def test_the_declared_configurations_are_the_rigs():
     assert set(rig_options.EXPERIMENTS) == set(EXPERIMENTS)
+    assert rig_options.FORCE_READINGS == FORCE_READINGS
+
+
+def test_the_url_builds_the_stand_on_the_reading_it_names():
+    with serial.serial_for_url("sim://?mode=rpam&reading=paper&seed=2") as port:
+        assert {a.force_reading for a in port.rig.actuators} == {"paper"}
+    with serial.serial_for_url("sim://?mode=rpam&seed=2") as port:
+        assert {a.force_reading for a in port.rig.actuators} == {"derived"}  # the protocol's
+    with pytest.raises(ValueError, match="option 'reading' in sim:// URL must be one of derived, paper, got 'printed'"):
+        serial.serial_for_url("sim://?mode=rpam&reading=printed")
 
 
 def test_the_url_builds_the_rig_its_options_name():

@@ -5,7 +5,9 @@
 acquisition's prompts re-rig it): the joint map (actuators a and b on the joint) or the
 stretch test (actuator a hanging on the stand).  ``nominal`` gives the rig without its
 seeded variation: symmetric actuators with the protocol's stretch correction, no friction,
-no potentiometer offset.  An option left out is the rig's own default.
+no potentiometer offset.  ``reading`` builds the stand's actuators on one reading of the force
+(``sim://?mode=rpam&reading=paper``), so a joint map measured on it checks a model built on the
+other reading against physics it was not built on.  An option left out is the rig's own default.
 
 This module imports nothing heavy: the paper's declaration reads :class:`RpamRigOptions`.
 """
@@ -17,6 +19,7 @@ from dataclasses import dataclass
 from ....core.options import choice, switch
 
 EXPERIMENTS = ("joint", "stretch")  # the rig's configurations (rig.EXPERIMENTS; a test holds them equal)
+FORCE_READINGS = ("derived", "paper")  # actuator.FORCE_READINGS (a test holds them equal)
 
 
 @dataclass(frozen=True)
@@ -31,4 +34,10 @@ class RpamRigOptions:
     )
     nominal: bool = switch(
         help="The nominal rig: symmetric actuators with the protocol's stretch correction, no friction, no offsets."
+    )
+    reading: str | None = choice(
+        FORCE_READINGS,
+        help="The reading of the actuator force the stand's actuators follow: derived (the cage-held wall's "
+        "energy and the gas's virtual work) or paper (the lumen's free body).",
+        default_text="the protocol's actuator.force_reading",
     )
