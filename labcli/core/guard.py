@@ -61,9 +61,18 @@ Why a real rig does not trip it.  Sleeve friction and hysteresis make a response
 from the linear prediction by a few percent of the load, noise by a floor; both show in the
 trials' scatter about the fit, which widens the prediction error and so shrinks the sure
 part, and what is left must still be missed by three quarters.  A loaded trial lands near
-1 on that scale, one without its load near 0.  The check stays silent until the run has
-two trials more than the load has components, in directions at least ~23 deg apart, and for
-loads too light to move the readings clearly (50 g on a stiff rig).  A chamber leak moves all
+1 on that scale, one without its load near 0 (the share counted is the readings' change along
+the sure change, so that noise and a leak across it count for nothing).  The run's trials predict
+a load from the third trial along a direction already pulled (the loads' main direction alone
+while they span no more, :data:`OFF_SPAN`), and every direction once they span it; loads too
+light to move the readings clearly (50 g on a stiff rig) are not judged.
+
+Before that, the prior (:class:`ResponsePrior`, the paper's; for the McKibben rig a force model,
+:mod:`labcli.papers.takuma2014.guard_prior`) says what share of the load the readings account
+for, and the least share a loaded trial shows: trial 1 with no weight hung is caught by it.  A
+trial warned of leaves the next baseline checked against where the run's unloaded arm rests
+(:func:`off_stored_baselines`, the angles), as is the first baseline after a resume, against
+the run's stored baselines: a weight still hanging is named.  A chamber leak moves all
 pressures one way while a load moves the two actuators of a pair opposite ways, so a leak
 projects little onto a load's response in the removal check.
 """
@@ -73,7 +82,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -97,6 +106,15 @@ MIN_DOF = 2  # trials beyond the load's dimension before a prediction is made (t
 MIN_SPAN = 0.2  # smallest / largest singular value of the loads: directions at least ~23 deg apart
 SURE_SD = 3.0  # prediction errors taken off a prediction before it is relied on
 MAX_LEVERAGE = 0.95  # a trial the fit must pass through (leverage ~1) says nothing of the scatter
+# The prior (before the run's own trials can predict a load): the readings must account for at least
+# this share of the load, as the prior's model reads them; a share it judges only where this share
+# of the load is at least PRIOR_NOISE times what one noise floor on every channel makes of it.
+PRIOR_SHARE = 0.1
+PRIOR_NOISE = 2.0
+# The first baseline after a resume: an angle this many floors beyond the band the run's stored
+# baselines lie in (times HOLD_MARGIN, about their median) is a load still carried.
+RESUME_FLOORS = 4.0
+OFF_SPAN = 0.2  # a load more than this share off the explored directions (~12 deg) is not predicted from them
 
 
 @dataclass(frozen=True)
@@ -160,7 +178,7 @@ class ResponseModel:
     def __init__(self) -> None:
         self._loads: list[np.ndarray] = []
         self._changes: list[np.ndarray] = []
-        self._fit: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._fit: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._stale = True
 
     def __len__(self) -> int:
@@ -171,33 +189,45 @@ class ResponseModel:
         self._changes.append(np.asarray(change, dtype=float))
         self._stale = True
 
-    def _solve(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    def _solve(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
         L = np.array(self._loads)
-        if not len(L) or len(L) < L.shape[1] + MIN_DOF:
+        if not len(L):
             return None
-        s = np.linalg.svd(L, compute_uv=False)
-        if not s[0] > 0 or s[-1] / s[0] < MIN_SPAN:
+        _, s, vt = np.linalg.svd(L, full_matrices=False)
+        if not s[0] > 0:
             return None
-        inv = np.linalg.inv(L.T @ L)
+        # The directions of load space the trials explored well: the whole space once the loads
+        # span it, else their main direction alone (the shipped plan's first nine trials all pull
+        # at -60 deg), so that a load along it is judged from the third trial on.
+        k = int(np.sum(s / s[0] >= MIN_SPAN))
+        basis = vt[:k].T  # (load dims, k)
+        X = L @ basis
+        if len(X) < k + MIN_DOF:
+            return None
+        inv = np.linalg.inv(X.T @ X)
         # A direction only one trial explored is fitted exactly whatever the rig did: no scatter known there.
-        if np.einsum("ij,jk,ik->i", L, inv, L).max() > MAX_LEVERAGE:
+        if np.einsum("ij,jk,ik->i", X, inv, X).max() > MAX_LEVERAGE:
             return None
         C = np.array(self._changes)
-        M, *_ = np.linalg.lstsq(L, C, rcond=None)
-        resid = C - L @ M
-        sd = np.sqrt((resid**2).sum(axis=0) / (len(L) - L.shape[1]))
-        return M.T, sd, inv
+        M, *_ = np.linalg.lstsq(X, C, rcond=None)
+        resid = C - X @ M
+        sd = np.sqrt((resid**2).sum(axis=0) / (len(X) - k))
+        return M.T, sd, inv, basis
 
     def predict(self, load: Sequence[float]) -> tuple[np.ndarray, np.ndarray, float] | None:
         """The change this load should cause (SI, per watched channel), the trials' scatter about
-        the fit (SI, per channel) and the load's leverage; None while unknown."""
+        the fit (SI, per channel) and the load's leverage; None while unknown, or for a load off
+        the directions the trials explored (more than :data:`OFF_SPAN` of it outside them)."""
         if self._stale:
             self._fit, self._stale = self._solve(), False
         if self._fit is None:
             return None
-        M, sd, inv = self._fit
+        M, sd, inv, basis = self._fit
         x = np.asarray(load, dtype=float)
-        return M @ x, sd, float(x @ inv @ x)
+        z = basis.T @ x
+        if np.linalg.norm(x - basis @ z) > OFF_SPAN * np.linalg.norm(x):
+            return None
+        return M @ z, sd, float(z @ inv @ z)
 
 
 def least_expected(prediction: tuple[np.ndarray, np.ndarray, float], floors: np.ndarray) -> np.ndarray:
@@ -223,7 +253,8 @@ def weak_response(
     if size < EXPECT_FLOORS:
         return None
     seen = watch.change(baseline, loaded)
-    share = float(np.linalg.norm(seen / f)) / size
+    # The share of the sure change the readings made along it: noise and the leak across it do not count.
+    share = max(0.0, float((seen / f) @ e)) / size**2
     if share >= WEAK_FRACTION:
         return None
     j = int(np.argmax(np.abs(e)))
@@ -311,6 +342,64 @@ def still_loaded(
     )
 
 
+class ResponsePrior(Protocol):
+    """What a load should do before the run's own trials can say: the share of ``load`` that the
+    readings account for (1 as expected, 0 nothing), and the share below which the readings are
+    surely not loaded, or None where this load cannot be judged (too light for the noise)."""
+
+    def __call__(
+        self, load: Sequence[float], baseline: Any, loaded: Any, floors: np.ndarray
+    ) -> PriorReading | None: ...
+
+
+@dataclass(frozen=True)
+class PriorReading:
+    """What a prior made of one trial: the share of the load its model reads in the readings,
+    the share below which the trial is not loaded, and how it says what it read (a sentence part)."""
+
+    share: float
+    least: float
+    seen: str
+
+
+def prior_response(watch: Watch, prior: ResponsePrior, load: Sequence[float], baseline: Any, loaded: Any) -> str | None:
+    """The sentence when the prior reads less than its least share of the load in the readings."""
+    reading = prior(load, baseline, loaded, watch.floors(baseline, loaded))
+    if reading is None or reading.share >= reading.least:
+        return None
+    return (
+        f"the readings account for {reading.share:.0%} of this load ({reading.seen}), where the rig's "
+        f"physics says at least {reading.least:.0%}"
+    )
+
+
+def off_stored_baselines(
+    watch: Watch, stored: np.ndarray, now: Any, which: str = "the first baseline since the run was resumed"
+) -> str | None:
+    """The sentence when a resumed run's first baseline has an angle outside the band its stored
+    baselines lie in (:data:`HOLD_MARGIN` times their largest distance from their median, plus
+    :data:`RESUME_FLOORS` floors): the arm is not where an unloaded arm of this run rests.
+
+    The angles alone judge: the chambers are supplied again at a resume, so their pressures
+    start afresh, while a weight still hanging bends the arm whatever the air does."""
+    a = np.array([u == "rad" for u in watch.units], dtype=bool)
+    if not a.any():
+        return None
+    c = list(watch.cols)
+    mean = np.asarray(now.mean()[c], dtype=float)
+    middle = np.median(stored, axis=0)
+    band = HOLD_MARGIN * np.abs(stored - middle).max(axis=0) + RESUME_FLOORS * watch.floors(now)
+    off = np.where(a, np.abs(mean - middle) - band, -np.inf)
+    j = int(np.argmax(off))
+    if not off[j] > 0:
+        return None
+    return (
+        f"{which} has {watch.names[j]} at {math.degrees(mean[j]):+.2f} deg, "
+        f"outside the {math.degrees(band[j]):.2f} deg about {math.degrees(middle[j]):+.2f} deg where the run's "
+        f"{len(stored)} stored baselines lie"
+    )
+
+
 def supply_problem(names: Sequence[str], pressures_MPa: Sequence[float], minimum_MPa: float) -> str | None:
     """What is wrong with the supplied pressures (each channel at least ``minimum_MPa``), or None."""
     p = np.asarray(pressures_MPa, dtype=float)
@@ -342,12 +431,14 @@ class BaselineHistory:
         self.prior = prior
         self._last: Any = None
         self._moves: list[np.ndarray] = []
+        self.means: list[np.ndarray] = []  # the accepted baselines' means (SI, per watched channel)
 
     def add(self, baseline: Any) -> None:
         """An accepted baseline: its move from the one before joins the history."""
         if self._last is not None:
             self._moves.append(np.asarray(self.watch.change(self._last, baseline), dtype=float))
         self._last = baseline
+        self.means.append(np.asarray(baseline.mean()[list(self.watch.cols)], dtype=float))
 
     def restart(self) -> None:
         """The next baseline follows a supply (or valves closed at last): its move is not counted."""
@@ -389,13 +480,30 @@ class Guard:
     """The checks of one session: a response model per kind of load (``key``), the last loaded
     trial and the accepted baselines (``hold_prior``: see :class:`BaselineHistory`)."""
 
-    def __init__(self, protocol: Any, hold_prior: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
+    def __init__(
+        self,
+        protocol: Any,
+        hold_prior: Callable[[np.ndarray], np.ndarray] | None = None,
+        prior: ResponsePrior | None = None,
+    ) -> None:
         self.watch = Watch.of(protocol)
         self.supply_min_MPa: float | None = getattr(protocol, "supply_min_MPa", None)
         self.unsealed = False  # the last load's finding was the seal's (its sentence says what to do)
         self._models: dict[Hashable, ResponseModel] = {}
         self._last: tuple[Any, Any] | None = None
         self.baselines = BaselineHistory(self.watch, hold_prior)
+        self.prior = prior
+        self._stored: np.ndarray | None = (
+            None  # baselines the next one is checked against (resumed, or after a warning)
+        )
+        self._which = ""
+
+    def resumed(self, baselines: Sequence[Sequence[float]]) -> None:
+        """The run was resumed: ``baselines`` are its stored trials' baselines (SI, per watched
+        channel); the first new baseline is checked against the band they lie in."""
+        b = np.asarray(baselines, dtype=float)
+        self._stored = b if b.ndim == 2 and len(b) >= 2 and b.shape[1] == len(self.watch.cols) else None
+        self._which = "the first baseline since the run was resumed"
 
     def model(self, key: Hashable = None) -> ResponseModel:
         return self._models.setdefault(key, ResponseModel())
@@ -410,7 +518,16 @@ class Guard:
         self.unsealed = unsealed is not None
         if unsealed is not None:
             return unsealed
-        return weak_response(self.watch, baseline, loaded, self.model(key).predict(load))
+        prediction = self.model(key).predict(load)
+        if prediction is None and self.prior is not None and key is None:
+            weak = prior_response(self.watch, self.prior, load, baseline, loaded)
+        else:
+            weak = weak_response(self.watch, baseline, loaded, prediction)
+        if weak is not None and len(self.baselines.means) >= 2 and self._stored is None:
+            # A load the readings did not follow may be on the pulley yet (an Enter out of step):
+            # the next baseline is checked against where this run's unloaded arm rests.
+            self._stored, self._which = np.array(self.baselines.means), "the baseline after that trial"
+        return weak
 
     def resupplied(self) -> None:
         """The chambers were supplied again, or closed at last: the jump to the next baseline is no
@@ -426,6 +543,11 @@ class Guard:
         (tests/core/test_guard.py).
         """
         finding = None
+        if self._stored is not None:
+            finding = off_stored_baselines(self.watch, self._stored, baseline, self._which)
+            if finding is not None:
+                return finding
+            self._stored = None
         if self._last is not None:
             h = self.baselines
             finding = still_loaded(self.watch, *self._last, baseline, h.drift(), h.hold(baseline))

@@ -64,7 +64,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="11,12,13", help="held-out seeds of the simulated rig")
     ap.add_argument("--leak", default="1", help="the rig's leak scale (1: about 1 kPa/min)")
-    ap.add_argument("--relief", default="0.5", help="the friction relief's supply pulse, s (a third run per seed)")
+    ap.add_argument(
+        "--relief",
+        default="0.5",
+        help="the friction relief's supply pulse, s (a run per value and seed; comma-separated)",
+    )
+    ap.add_argument("--no-hand", action="store_true", help="leave out the runs without re-pressurising")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -78,35 +83,53 @@ def main() -> None:
         auto, hand = work / "auto.toml", work / "hand.toml"
         auto.write_text(shipped.text)
         hand.write_text(shipped.text.replace("rate_hz = 200.0\n", 'rate_hz = 200.0\nvalves = "hand"\n'))
-        relief = work / "relief.toml"
-        relief.write_text(
-            shipped.text.replace("rate_hz = 200.0\n", f"rate_hz = 200.0\nfriction_relief_s = {float(args.relief)}\n")
-        )
+        pulses = [float(x) for x in args.relief.split(",")]
+        reliefs = []
+        for x in pulses:
+            reliefs.append(work / f"relief{x:g}.toml")
+            reliefs[-1].write_text(
+                shipped.text.replace("rate_hz = 200.0\n", f"rate_hz = 200.0\nfriction_relief_s = {x}\n")
+            )
         for seed in seeds:
             url = f"sim://?seed={seed}&clock=virtual&leak={args.leak}"
             with_ = one_run(work, f"auto{seed}", auto, url)
-            without = one_run(work, f"hand{seed}", hand, url)
-            relieved = one_run(work, f"relief{seed}", relief, url)
+            without = None if args.no_hand else one_run(work, f"hand{seed}", hand, url)
+            relieved = [one_run(work, f"{r.stem}-{seed}", r, url) for r in reliefs]
             rows.append((seed, with_, without, relieved))
             print(
                 f"seed {seed}: baseline drift {with_['drift kPa']:.2f} kPa with re-pressurising "
-                f"({with_['supplies']} supplies), {without['drift kPa']:.2f} kPa without; RMSE with/without "
-                + ", ".join(f"{q} {with_[q + ' rmse']:.4g}/{without[q + ' rmse']:.4g}" for q in QUANTITIES)
-                + "; with friction relief "
-                + ", ".join(f"{q} {relieved[q + ' rmse']:.4g}" for q in QUANTITIES),
+                f"({with_['supplies']} supplies)"
+                + ("" if without is None else f", {without['drift kPa']:.2f} kPa without")
+                + "; RMSE with "
+                + ", ".join(f"{q} {with_[q + ' rmse']:.4g}" for q in QUANTITIES)
+                + (
+                    ""
+                    if without is None
+                    else "; without " + ", ".join(f"{q} {without[q + ' rmse']:.4g}" for q in QUANTITIES)
+                )
+                + "".join(
+                    f"; relief {x:g} s " + ", ".join(f"{q} {r[q + ' rmse']:.4g}" for q in QUANTITIES)
+                    for x, r in zip(pulses, relieved, strict=True)
+                ),
                 flush=True,
             )
     for key in ("drift kPa", "supplies", *(f"{q} rmse" for q in QUANTITIES)):
         a = [r[1][key] for r in rows]
-        b = [r[2][key] for r in rows]
         figures[f"with {key} max"] = float(max(a))
-        figures[f"without {key} min"] = float(min(b))
         figures[f"with {key} mean"] = float(np.mean(a))
-        figures[f"without {key} mean"] = float(np.mean(b))
-        figures[f"relief {key} mean"] = float(np.mean([r[3][key] for r in rows]))
+        if not args.no_hand:
+            b = [r[2][key] for r in rows]
+            figures[f"without {key} min"] = float(min(b))
+            figures[f"without {key} mean"] = float(np.mean(b))
+        for i, x in enumerate(pulses):
+            name = "relief" if i == 0 else f"relief {x:g} s"
+            figures[f"{name} {key} mean"] = float(np.mean([r[3][i][key] for r in rows]))
     for q in QUANTITIES:
-        figures[f"{q} rmse ratio without/with"] = figures[f"without {q} rmse mean"] / figures[f"with {q} rmse mean"]
-        figures[f"{q} rmse ratio relief/with"] = figures[f"relief {q} rmse mean"] / figures[f"with {q} rmse mean"]
+        if not args.no_hand:
+            figures[f"{q} rmse ratio without/with"] = figures[f"without {q} rmse mean"] / figures[f"with {q} rmse mean"]
+        for i, x in enumerate(pulses):
+            name = "relief" if i == 0 else f"relief {x:g} s"
+            figures[f"{q} rmse ratio {name}/with"] = figures[f"{name} {q} rmse mean"] / figures[f"with {q} rmse mean"]
     print(json.dumps(figures, indent=1))
     if args.figures:
         Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n", encoding="utf-8")

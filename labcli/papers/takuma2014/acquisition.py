@@ -25,9 +25,12 @@ class ForceAcquisition:
     plan: Any
     kind: str = "force"
     history: tuple = ()  # (force N, change SI) of the trials a resumed run already holds
+    baselines: tuple = ()  # their baselines (SI, the load check's watched channels)
 
     def session(self, completed: Sequence[int]) -> Session:
-        return force_session(self.protocol, self.plan, completed=completed, history=self.history)
+        return force_session(
+            self.protocol, self.plan, completed=completed, history=self.history, baselines=self.baselines
+        )
 
     def already_done(self, run: Any, path: str) -> str | None:
         plan = self.plan
@@ -119,6 +122,22 @@ def _history(run: Any, protocol: Any) -> tuple:
     return tuple(out)
 
 
+def _baselines(run: Any, protocol: Any) -> tuple:
+    """A resumed run's stored baselines: each pressure (MPa) and joint angle (rad) the load check
+    watches, in the protocol's channel order."""
+    import math
+
+    watched = [c for c, u in zip(protocol.channels, protocol.calibration.units, strict=False) if u in ("MPa", "rad")]
+    out = []
+    for row in run.records.table().to_dict("records"):
+        base = {p: row[p + "0"] for p in PRESSURE_NAMES}
+        base.update(POT1=math.radians(row["theta1_0_deg"]), POT2=math.radians(row["theta2_0_deg"]))
+        values = [base.get(c, math.nan) for c in watched]
+        if all(math.isfinite(v) for v in values):
+            out.append(tuple(values))
+    return tuple(out)
+
+
 def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | PushAcquisition:
     """Plan a run of a ``force`` or ``push`` protocol."""
     if protocol.kind == "push":
@@ -136,5 +155,8 @@ def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | Pu
                 "resume it without --unattended and type each load."
             )
         raise ConfigError("--unattended needs a plan to follow: drop --no-plan, or give --plan FILE.")
-    history = _history(options.resume, protocol) if options.resume is not None else ()
-    return ForceAcquisition(protocol, plan, history=history)
+    if options.resume is None:
+        return ForceAcquisition(protocol, plan)
+    return ForceAcquisition(
+        protocol, plan, history=_history(options.resume, protocol), baselines=_baselines(options.resume, protocol)
+    )

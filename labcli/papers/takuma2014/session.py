@@ -514,10 +514,12 @@ def _resupply(air: AirDrift, why: str, guard: Guard | None) -> Generator[Step, A
 
 def session_guard(protocol: Any) -> Guard:
     """The checks of one session, with the sleeves' friction as the bound of what an unloaded
-    baseline may keep (:mod:`labcli.papers.takuma2014.friction`)."""
+    baseline may keep (:mod:`labcli.papers.takuma2014.friction`) and the protocol's paper
+    coefficients as what a load must do before the run's trials say (:mod:`.guard_prior`)."""
     from .friction import baseline_hold
+    from .guard_prior import ModelPrior
 
-    return Guard(protocol, hold_prior=baseline_hold(Watch.of(protocol).units))
+    return Guard(protocol, hold_prior=baseline_hold(Watch.of(protocol).units), prior=ModelPrior.of(protocol))
 
 
 @dataclass(frozen=True)
@@ -562,9 +564,12 @@ def _trial(
         if checked is not None:
             left = checked.guard.after_baseline(base)
             if left is not None:
-                yield Problem(
-                    f"The readings have not returned since the last load: {left}; {checked.forgotten}.", checked.undo
+                lead = (
+                    "The arm is not where it rests unloaded"
+                    if left.startswith(("the first baseline since", "the baseline after that trial"))
+                    else "The readings have not returned since the last load"
                 )
+                yield Problem(f"{lead}: {left}; {checked.forgotten}.", checked.undo)
                 continue
         if air is not None:
             drifted = air.check(base)
@@ -628,6 +633,7 @@ def force_session(
     completed: Iterable[int] = (),
     target: int | None = None,
     history: Iterable[tuple[Sequence[float], Sequence[float]]] = (),
+    baselines: Sequence[Sequence[float]] = (),
 ) -> Generator[Step, Any, None]:
     """The force/angle calibration session of Section 3.2 (one trial per plan row).
 
@@ -636,13 +642,17 @@ def force_session(
     ``target``: the number of trials announced when there is no plan
     (default: the protocol's fit + validation counts);
     ``history``: (force N, change of the watched channels SI) of trials already stored,
-    from which the load check learns what a load does on this rig.
+    from which the load check learns what a load does on this rig;
+    ``baselines``: the watched channels' baselines (SI) of those trials, against which the first
+    new baseline is checked for a weight still hanging.
     """
     capture_s = float(protocol.settling.capture_s)
     cmap = ChannelMap.from_channels(protocol.channels)
     guard = session_guard(protocol)
     for force, change in history:
         guard.model().add(force, change)
+    if len(baselines):
+        guard.resumed(baselines)
     done = set(int(t) for t in completed)
     rows = planned_trials(plan)
     remaining = [r for r in rows if r.trial not in done]
