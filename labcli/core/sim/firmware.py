@@ -23,6 +23,8 @@ import numpy as np
 from ..wire import MAX_LINE, U32, checksum, format_log
 from .valves import BoardValves
 
+IDLE_HZ = 50.0  # an idle board's sampling for its checks (the AVR firmware's idle loop)
+
 RATE_MIN = 1.0
 # As far as the host's stream reader goes: it spends 6-8 us of CPU per 6-channel frame
 # (tests/benchmarks/bench_link.py), so 50 kHz (2.5 MB/s over a pty) takes a third to two
@@ -170,6 +172,20 @@ class Firmware:
         self.seq = int((self.seq + n) % U32)
         self.count += n
         return format_frames(seq, t_us % U32, counts)
+
+    def idle(self, until_s: float) -> bytes:
+        """An idle board's own time, up to rig time ``until_s``: while a chamber is supplied (or near
+        its limit) it samples at ``IDLE_HZ`` for its checks, as the AVR firmware does between
+        commands, so a host that is gone (killed, unplugged) never leaves the chambers supplying;
+        otherwise the rig's clock just moves on.  The event lines those checks make."""
+        out = bytearray()
+        step = 1.0 / IDLE_HZ
+        while self.board.check_every(IDLE_HZ) is not None and self.rig.time_s + step <= until_s:
+            t_us, counts = self.rig.samples(1, IDLE_HZ)
+            out += self.board.check(np.asarray(t_us) % U32, counts)
+        if self.rig.time_s < until_s:
+            self.rig.advance_to(until_s)
+        return bytes(out)
 
     def take_stall(self) -> tuple[float, int] | None:
         """The stall that ended the last :meth:`frames` block early, once; else None."""

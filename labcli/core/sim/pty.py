@@ -135,6 +135,9 @@ class PtyServer:
                     self._out += fw.receive(data)
                     if fw.streaming and (not was_streaming or fw.rate_hz != old_rate):
                         pace_t0, sent = now, 0
+            if not fw.streaming:
+                # The board's own checks go on with nobody asking (a host killed while it supplied).
+                self._out += fw.idle(now - t0)
             if fw.streaming:
                 due = int((now - pace_t0) * fw.stream_hz) - sent
                 if due > 0:

@@ -13,7 +13,8 @@ The board's valve states are the rig's (``rig.valve_states``): the hand operatio
 simulated rig (``supply_air``, ``close_valves``, ``vent``, the console's) are the operator
 overriding the board, and the board reads them back, without an event line.  The limit is checked on the frames made while
 streaming, once per block of frames, or every 20 ms of rig time while a chamber is supplied or
-near the limit; an idle simulated board does not check it (the AVR firmware always does).
+near the limit; an idle simulated board checks at 50 Hz while a chamber is supplied or near the
+limit (:meth:`labcli.core.sim.firmware.Firmware.idle`: the pty server runs it with the wall clock).
 A chamber the host left supplying for ``supply_max_s`` (60 s of rig time) is held by the board,
 with a ``VALVE`` event of cause ``timeout``: a host killed while the chambers fill does not leave
 them on the regulator.
