@@ -114,6 +114,7 @@ PRIOR_NOISE = 2.0
 # The first baseline after a resume: an angle this many floors beyond the band the run's stored
 # baselines lie in (times HOLD_MARGIN, about their median) is a load still carried.
 RESUME_FLOORS = 4.0
+MIN_BASELINES = 5  # baselines that show where the run's unloaded arm rests (friction's band among them)
 OFF_SPAN = 0.2  # a load more than this share off the explored directions (~12 deg) is not predicted from them
 
 
@@ -502,7 +503,7 @@ class Guard:
         """The run was resumed: ``baselines`` are its stored trials' baselines (SI, per watched
         channel); the first new baseline is checked against the band they lie in."""
         b = np.asarray(baselines, dtype=float)
-        self._stored = b if b.ndim == 2 and len(b) >= 2 and b.shape[1] == len(self.watch.cols) else None
+        self._stored = b if b.ndim == 2 and len(b) >= MIN_BASELINES and b.shape[1] == len(self.watch.cols) else None
         self._which = "the first baseline since the run was resumed"
 
     def model(self, key: Hashable = None) -> ResponseModel:
@@ -523,7 +524,7 @@ class Guard:
             weak = prior_response(self.watch, self.prior, load, baseline, loaded)
         else:
             weak = weak_response(self.watch, baseline, loaded, prediction)
-        if weak is not None and len(self.baselines.means) >= 2 and self._stored is None:
+        if weak is not None and len(self.baselines.means) >= MIN_BASELINES and self._stored is None:
             # A load the readings did not follow may be on the pulley yet (an Enter out of step):
             # the next baseline is checked against where this run's unloaded arm rests.
             self._stored, self._which = np.array(self.baselines.means), "the baseline after that trial"
