@@ -47,6 +47,7 @@ def print_stretch_fit(
             f"  {len(fit.skipped_rows)} point(s) without a reading left out: " + ", ".join(map(str, fit.skipped_rows)),
             soft_wrap=True,
         )
+    print_actuator_fit(con, fit)
     if plot is not None:
         con.print(f"Stretch-test figure (Fig. 6) written to {plot}.", soft_wrap=True)
     con.print(
@@ -56,6 +57,60 @@ def print_stretch_fit(
         f"with it: labcli validate JOINT.h5 --model {out}",
         soft_wrap=True,
     )
+
+
+# How each fitted parameter of the actuator is printed: (label, unit, factor from SI, format).
+_ACTUATOR_ROWS = {"L0_m": ("free length L0", "mm", 1e3, ".2f"), "radius_m": ("rest radius r", "mm", 1e3, ".3f")}
+
+
+def print_actuator_fit(con: Any, fit: Any) -> None:
+    """The lab's actuator fitted to the stretch test (Ogden moduli, L0, r), with standard errors."""
+    from rich import box
+    from rich.table import Table
+
+    a = fit.actuator_fit
+    if a is None:
+        con.print(f"  The actuator itself is not fitted: {fit.actuator_note}", soft_wrap=True)
+        return
+    table = Table(
+        title=f"The lab's actuator fitted to the same points ({a.force_reading} reading; the cubic refitted "
+        "with it, in the model file)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+    )
+    for col in ("parameter", "fitted", "std. error", "protocol's", "determined"):
+        table.add_column(col, justify="left" if col == "parameter" else "right")
+    determined = a.determined
+    for i, name in enumerate(a.moduli):
+        exponent = fit_exponent(a, i)
+        table.add_row(
+            f"mu_{i + 1} (alpha {exponent:g}), MPa",
+            f"{a.value(name):.5f}",
+            f"{a.std_error(name):.5f}",
+            f"{a.protocol_values[name]:.5f}",
+            "yes" if determined[name] else "no",
+        )
+    for name, g in a.geometry.items():
+        label, unit, k, fmt = _ACTUATOR_ROWS[name]
+        table.add_row(
+            f"{label}, {unit}",
+            f"{g['value'] * k:{fmt}}" if g["fitted"] else f"{g['protocol'] * k:{fmt}} (kept)",
+            f"{g['std_error'] * k:{fmt}}",
+            f"{g['protocol'] * k:{fmt}}",
+            "yes" if g["fitted"] else "no",
+        )
+    print_table(con, table)
+    con.print(f"  RMSE {a.rmse_N:.3f} N over {a.n_points} points ({a.dof} degrees of freedom).", soft_wrap=True)
+    for g in a.geometry.values():
+        if not g["fitted"]:
+            con.print(f"  {g['note']}", soft_wrap=True)
+    for note in a.notes:
+        con.print(f"  {note}", soft_wrap=True)
+
+
+def fit_exponent(a: Any, i: int) -> float:
+    """The i-th Ogden exponent of a fitted actuator (held at the protocol's by the fit)."""
+    return float(a.actuator.ogden_alpha[i])
 
 
 _SOURCE = {

@@ -8,6 +8,10 @@ Two calls, one per experiment of the rPAM joint paper:
   from one potential in :mod:`labcli.papers.rpam2015.models.rpam_force`), and fits the cubic
   ``F_stretch(lambda) = c0 + c1 lambda + c2 lambda^2 + c3 lambda^3`` by least squares with
   standard errors, 95 % intervals, R^2 and RMSE (:class:`StretchCorrection`).
+* the same call fits the lab's own actuator to the same points
+  (:func:`~.rpam_actuator_fit.fit_actuator`): the Ogden moduli of Eq. 3 with the cubic, and
+  the free length and radius when the data support them, each with its standard error
+  (``StretchFit.actuator_fit``; ``labcli optimize --actuator`` designs with it).
 * :func:`analyse_joint_map` compares a measured map of joint angles over (Pa, Pb) with
   the model's angles without and with the correction (Eq. 6 solved on the valid branch
   for every point at once), and flags where the model runs onto the toggle angle.
@@ -44,6 +48,8 @@ NaN is written as ``null``):
      "default_lambda_range": [lo, hi],     # ... and the stretches it holds for
      "model": <StretchCorrection.to_dict()>,
      "skipped_rows": [int, ...],
+     "actuator_fit": <ActuatorFit.to_dict()> | null,   # the lab's actuator, below
+     "actuator_note": str,                 # why there is none ("" when there is)
      "points": {"row", "mass_kg", "P_MPa", "L_m", "lambda", "F_ext_N", "F_cons_N",
                 "F_int_N", "F_stretch_N", "fitted_N", "residual_N": [...]}}
 
@@ -91,6 +97,7 @@ from ..actuator import Actuator
 from ..protocol import PROTOCOL_KINDS, checked_actuator, load_rpam
 from ..settings import RpamSettings
 from . import rpam
+from .rpam_actuator_fit import ActuatorFit, fit_actuator
 
 DEGREE = 3
 # A joint measured this close to its toggle angle rests on its stop, not at a balance: the
@@ -354,6 +361,10 @@ class StretchFit:
     default_lambda_range: tuple[float, float] = (1.0, 2.2)
     skipped_rows: list[int] = field(default_factory=list)
     force_reading: str = "derived"
+    # The lab's actuator fitted to the same points (Ogden moduli, cubic, L0 and radius when the
+    # data support them); None, with the reason in actuator_note, when the points are too few.
+    actuator_fit: ActuatorFit | None = None
+    actuator_note: str = ""
 
     def apply_to(self, act: Actuator) -> Actuator:
         """``act`` with this fit's coefficients and the stretch range it was fitted on."""
@@ -376,6 +387,8 @@ class StretchFit:
                 "default_lambda_range": list(self.default_lambda_range),
                 "model": self.model.to_dict(),
                 "skipped_rows": list(self.skipped_rows),
+                "actuator_fit": self.actuator_fit.to_dict() if self.actuator_fit is not None else None,
+                "actuator_note": self.actuator_note,
                 "points": {k: list(v) for k, v in self.points.items()},
             }
         )
@@ -395,6 +408,9 @@ class StretchFit:
                 skipped_rows=[int(v) for v in d.get("skipped_rows", [])],
                 # Fits written before the paper's reading existed were all derived.
                 force_reading=str(d.get("force_reading", "derived")),
+                # ... and before the actuator was fitted, had none.
+                actuator_fit=ActuatorFit.from_dict(d["actuator_fit"]) if d.get("actuator_fit") else None,
+                actuator_note=str(d.get("actuator_note", "")),
             )
         except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise ModelError(f"The stretch-test analysis record is incomplete or malformed ({e!s}).") from None
@@ -460,6 +476,11 @@ def analyse_stretch(table: Any, protocol: Any = "rpam2015", force: str | None = 
         raise ModelError(f"Every one of the {n} rows of the stretch table misses a payload, pressure or length.")
     f = stretch_forces(mass[ok], P[ok], L[ok], act)
     model = StretchCorrection().fit(f["lambda"], f["F_stretch_N"])
+    actuator_fit, actuator_note = None, ""
+    try:
+        actuator_fit = fit_actuator(mass[ok], P[ok], L[ok], act)
+    except ModelError as e:
+        actuator_note = str(e)
     fitted = model.predict(f["lambda"])
     points: dict[str, list[Any]] = {
         "row": [int(v) for v in rows[ok]],
@@ -479,6 +500,8 @@ def analyse_stretch(table: Any, protocol: Any = "rpam2015", force: str | None = 
         default_lambda_range=act.stretch_lambda_range,
         skipped_rows=[int(v) for v in rows[~ok]],
         force_reading=act.force_reading,
+        actuator_fit=actuator_fit,
+        actuator_note=actuator_note,
     )
 
 
