@@ -23,7 +23,7 @@ TABLE_HEAD = "has 1 problem (rows counted as a spreadsheet shows them, the heade
 SIM_URL_FORM = (
     "sim://[?seed=N][&rate=HZ][&noise=X][&drift=X][&clock=virtual|wall][&tau=S][&ratefactor=X]"
     "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&fw=1.0|1.1][&firmware=ELF][&experiment=joint|stretch]"
-    "[&nominal=0|1][&ideal=0|1][&friction=X][&leak=X][&thermal=X][&backlash=X][&links=X][&contact=X][&pulley=X]"
+    "[&nominal=0|1][&reading=derived|paper][&ideal=0|1][&friction=X][&leak=X][&thermal=X][&backlash=X][&links=X][&contact=X][&pulley=X]"
     "[&potscale=X][&potlin=X][&repeat=X][&supply=MPA[,MPA,MPA,MPA]][&design=paper|thin][&realism=literature|kind]"
     "[&valves=ok|open][&script=FILE]"
 )
