@@ -138,9 +138,10 @@ def _summary_line(s: Any) -> str:
     head = f"{stopped.get(s.stopped, 'stopped')} after {s.device_s:.1f} s of the rig's clock: {s.frames} frames"
     if not s.published:
         return f"{head}, {s.estimates} estimates, {events}."
+    board = f", {s.paired} with the board's own beside them" if s.board else ""
     return (
-        f"{head}, {s.estimates} estimates ({s.published} published), {events}; from a batch of frames read to "
-        f"its estimate published: median {lat['median']:.2f} ms, p99 {lat['p99']:.2f} ms."
+        f"{head}, {s.estimates} estimates ({s.published} published{board}), {events}; from a batch of frames read "
+        f"to its estimate published: median {lat['median']:.2f} ms, p99 {lat['p99']:.2f} ms."
     )
 
 
@@ -160,7 +161,10 @@ class _live_view:  # noqa: N801 - used as the view factory
         console = Console()
         plain = not console.is_terminal
         info = dev.info
+        from ..sensing.live import board_names
+
         view = LiveView(estimator, f"{info.device} on {self.port}")
+        view.board_names = board_names(dev)  # a board with its own model: its estimates beside the host's
         self.live = Live(console=console, refresh_per_second=4, transient=False, auto_refresh=False)
         self.live.start()
         last = [0.0]
@@ -175,6 +179,7 @@ class _live_view:  # noqa: N801 - used as the view factory
                 self.live.update(view.render(plain), refresh=True)
 
         self._final = lambda: self.live.update(view.render(plain), refresh=True)
+        on_batch.on_board = view.take_board  # type: ignore[attr-defined]
         return on_batch
 
     def stop(self) -> None:

@@ -18,6 +18,11 @@ the stream on the way out in every case.
 The time from a batch's arrival (``read`` returning it) to each of its estimates being
 published is kept per estimate (:attr:`LiveSummary.latency_s`), so that what a controller
 waits for is measured where it happens.
+
+A board that carries a model of its own (wire protocol 1.1, ``CAPS?`` naming ``est=...``) is asked
+for an estimate line per data frame; each of the host's estimates then carries the board's of the
+same frame (``seq``) beside it, as ``"board"`` in its JSON line (:func:`board_fields`), and
+``on_board`` sees every board estimate as it arrives (a live view's second column).
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,7 +38,7 @@ import numpy as np
 
 from .inputs import DeviceClock
 from .publish import Output
-from .results import Estimate, Event
+from .results import DISPLAY, Estimate, Event
 
 READ_S = 0.05  # the longest a read waits for frames: Ctrl-C and the view stay responsive
 
@@ -53,6 +58,8 @@ class LiveSummary:
     stopped: str = ""  # "seconds", "interrupted" or "error"
     rate_hz: float = math.nan
     counters: dict[str, int] = field(default_factory=dict)
+    board: int = 0  # the board's own estimates received (a board with a model)
+    paired: int = 0  # host estimates published with the board's of the same frame beside them
 
     def latency_ms(self) -> dict[str, float]:
         lat = np.asarray(self.latency_s) * 1e3
@@ -72,14 +79,41 @@ class LiveSummary:
             "latency_ms": {k: round(v, 3) for k, v in self.latency_ms().items()},
             "stopped": self.stopped,
             "counters": dict(self.counters),
+            "board_estimates": self.board,
+            "paired": self.paired,
         }
 
 
-def line_of(item: Estimate | Event) -> str:
-    """One JSON line: the item's fields and ``t_host_s`` (Unix time, s)."""
+BOARD_KEEP = 4096  # board estimates kept for pairing, newest (the host's lag a block behind at most)
+
+
+def board_fields(names: Sequence[str], board: Any, units: Mapping[str, str]) -> dict[str, Any]:
+    """The board's estimate (a ``$S`` line, SI) as people read it, keyed as the host's are
+    (``theta1_deg``, ``Fx_N``, ...; ``units``: each quantity's SI unit, an angle's ``rad`` when the
+    host's model does not name it), and its ``flags`` by name."""
+    out: dict[str, Any] = {}
+    for name, v in zip(names, board.values, strict=False):
+        si = units.get(name, "rad" if name.startswith("theta") else "N")
+        unit, k = DISPLAY.get(si, (si, 1.0))
+        out[f"{name}_{unit}"] = round(float(v) * k, 6)
+    out["flags"] = board.flag_names
+    return out
+
+
+def line_of(item: Estimate | Event, board: dict[str, Any] | None = None) -> str:
+    """One JSON line: the item's fields, ``board`` (the board's estimate of the same frame, when
+    there is one) and ``t_host_s`` (Unix time, s)."""
     obj = item.as_json()
+    if board is not None:
+        obj["board"] = board
     obj["t_host_s"] = round(time.time(), 6)
     return json.dumps(obj, separators=(", ", ": "), allow_nan=False)
+
+
+def board_names(dev: Any) -> tuple[str, ...]:
+    """The quantities the board's own model estimates (empty: none, or a 1.0 board)."""
+    caps = getattr(dev, "caps", None)
+    return tuple(getattr(caps, "estimates", ()) or ())
 
 
 def run(
@@ -91,10 +125,12 @@ def run(
     seconds: float | None = None,
     every: int = 1,
     on_batch: Callable[[Any, list[Estimate | Event]], None] | None = None,
+    on_board: Callable[[Any], None] | None = None,
 ) -> LiveSummary:
     """Stream from ``dev`` through ``estimator`` to ``outputs`` (module docstring).
 
-    ``on_batch(frames, items)`` is called after each batch's lines went out (a live view).
+    ``on_batch(frames, items)`` is called after each batch's lines went out (a live view);
+    ``on_board(estimate)`` with each of the board's own estimates (``$S`` lines), when it has a model.
     Errors of the device propagate after the stream is stopped; the summary so far is on the
     error as ``exc.summary``.
     """
@@ -105,6 +141,16 @@ def run(
     first: float | None = None
     shown = 0  # estimates seen, for --every
     w0, c0 = time.perf_counter(), time.process_time()
+    names = board_names(dev)
+    model = getattr(estimator, "model", None)
+    units = dict(zip(getattr(model, "quantities", ()), getattr(model, "units", ()), strict=False))
+    if names:
+        dev.stream_estimates(1)
+    boards: dict[int, Any] = {}
+
+    def board_of(seq: int) -> dict[str, Any] | None:
+        got = boards.get(seq)
+        return None if got is None else board_fields(names, got, units)
 
     def take(batch: Any, arrived: float) -> bool:
         """Feed one batch; True once ``seconds`` of device time have passed."""
@@ -122,6 +168,14 @@ def run(
             batch, t = type(batch)(batch.seq[:k], batch.t_us[:k], batch.values[:k]), t[:k]
         summary.frames += len(batch)
         summary.device_s = float(t[-1]) - first
+        if names:
+            for b in dev.take_estimates():
+                boards[b.seq] = b
+                summary.board += 1
+                if on_board is not None:
+                    on_board(b)
+            while len(boards) > BOARD_KEEP:
+                del boards[next(iter(boards))]
         items = estimator.update(batch)
         for item in items:
             if isinstance(item, Event):
@@ -132,11 +186,13 @@ def run(
                 publish = shown % every == 0
                 shown += 1
             if publish and outputs:
-                line = line_of(item)
+                board = board_of(item.seq) if names and isinstance(item, Estimate) else None
+                line = line_of(item, board)
                 for out in outputs:
                     out.publish(line)
                 if isinstance(item, Estimate):
                     summary.published += 1
+                    summary.paired += board is not None
                     summary.latency_s.append(time.perf_counter() - arrived)
         if on_batch is not None:
             on_batch(batch, items)

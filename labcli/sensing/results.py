@@ -25,7 +25,7 @@ LOAD = "load"
 SETTLED = "settled"
 RELEASE = "release"
 
-_DISPLAY = {"rad": ("deg", 180.0 / math.pi), "N": ("N", 1.0), "MPa": ("MPa", 1.0), "m": ("mm", 1e3)}
+DISPLAY = {"rad": ("deg", 180.0 / math.pi), "N": ("N", 1.0), "MPa": ("MPa", 1.0), "m": ("mm", 1e3)}
 
 
 def _num(x: float, digits: int = 6) -> float | None:
@@ -54,7 +54,7 @@ class Estimate:
         """``{"seq", "t_device_s", "state", "theta1_deg", "theta1_deg_se", ..., "flags"}``."""
         out: dict[str, Any] = {"seq": self.seq, "t_device_s": _num(self.t_device_s), "state": self.state}
         for q, v in self.values.items():
-            unit, factor = _DISPLAY.get(self.units[q], (self.units[q], 1.0))
+            unit, factor = DISPLAY.get(self.units[q], (self.units[q], 1.0))
             out[f"{q}_{unit}"] = _num(v * factor)
             out[f"{q}_{unit}_se"] = _num(self.se[q] * factor)
         out["flags"] = list(self.flags)

@@ -148,7 +148,15 @@ def sense(
                     for take in takers:
                         take(frames, items)
 
-                summary = run(dev, est, outputs, seconds=opts.seconds, every=opts.every, on_batch=on_batch)
+                summary = run(
+                    dev,
+                    est,
+                    outputs,
+                    seconds=opts.seconds,
+                    every=opts.every,
+                    on_batch=on_batch,
+                    on_board=getattr(shown, "on_board", None),
+                )
             finally:
                 if recorder is not None:
                     recorder.close()  # what came before an error or Ctrl-C is kept too

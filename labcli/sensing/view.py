@@ -51,6 +51,12 @@ class LiveView:
         self.latest: Estimate | None = None
         self.events: deque[Event] = deque(maxlen=4)
         self.frames = 0
+        self.board: dict[str, float] = {}  # the board's latest own estimate (SI), when it has a model
+        self.board_names: tuple[str, ...] = ()
+
+    def take_board(self, estimate: Any) -> None:
+        """One of the board's own estimates (a ``$S`` line, SI, in ``board_names`` order)."""
+        self.board = dict(zip(self.board_names, estimate.values, strict=False))
 
     def take(self, frames: Any, items: list[Estimate | Event]) -> None:
         """One batch and what the estimator made of it (:func:`.live.run`'s ``on_batch``)."""
@@ -86,18 +92,23 @@ class LiveView:
         if e is not None:
             head.append(f" · t {e.t_device_s:.1f} s (device) · {self.frames} frames")
         table = Table(box=None if plain else box.SIMPLE_HEAD, title_justify="left")
-        for heading in ("quantity", "estimate", "95 % interval", "flags", "last 30 s"):
-            table.add_column(heading, justify="right" if heading in ("estimate", "95 % interval") else "left")
+        headings = ["quantity", "estimate", "95 % interval", *(["board"] if self.board_names else []), "flags"]
+        for heading in (*headings, "last 30 s"):
+            table.add_column(heading, justify="right" if heading in ("estimate", "95 % interval", "board") else "left")
         for q, unit in zip(self.est.model.quantities, self.est.model.units, strict=True):
             shown, k, digits = _SHOW.get(unit, (unit, 1.0, 3))
+            on_board = []
+            if self.board_names:
+                b = self.board.get(q)
+                on_board = [f"{b * k:.{digits}f} {shown}" if b is not None and math.isfinite(b) else "—"]
             if e is None:
-                table.add_row(q, "", "", "", "")
+                table.add_row(q, "", "", *on_board, "", "")
                 continue
             v, se = e.values[q] * k, e.se[q] * k
             flags = ",".join(f for f in e.flags if f.endswith(f":{q}") or ":" not in f)
             value = f"{v:.{digits}f} {shown}" if math.isfinite(v) else "—"
             interval = f"± {Z95 * se:.{digits}f} {shown}" if math.isfinite(se) else "—"
-            table.add_row(q, value, interval, flags, spark(np.asarray(self._q[q]) * k, self.width - 8))
+            table.add_row(q, value, interval, *on_board, flags, spark(np.asarray(self._q[q]) * k, self.width - 8))
         plot = Table(box=None, show_header=False)
         plot.add_column("channel")
         plot.add_column("range", justify="right")
