@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 from typing import Any
 
 import click
@@ -51,6 +52,8 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False, plot: bool = 
             _reading(shown_mean[j], unit),
             _reading(abs(shown_std[j]), unit, 1),
         )
+    if snap.board is not None:
+        _board_rows(table, snap.board)
     c = snap.counters
     link = Text(
         f"{snap.frames_per_s:.1f} frames/s · {c['frames']} frames · {c['lost']} lost · "
@@ -65,6 +68,25 @@ def _render(snap: Any, scale: Any, info: Any, plain: bool = False, plot: bool = 
 
         parts.append(trace_table(rolling, scale.names, scale.display_units, 40, scale.to_display))
     return Group(*parts)
+
+
+def _board_shown(value: float, unit: str) -> str:
+    if not math.isfinite(value):
+        return "—"
+    return f"{math.degrees(value):.2f} deg" if unit == "rad" else f"{value:.2f} {unit}"
+
+
+def _board_rows(table: Any, board: Any) -> None:
+    """The board's own estimates as rows of the live table: now, and mean and std since the start."""
+    mean, std = board.stats.mean, board.stats.std
+    for j, (name, unit) in enumerate(zip(board.names, board.units, strict=True)):
+        seen = board.stats.n > 0
+        table.add_row(
+            f"{name} (board)",
+            _board_shown(board.latest[j], unit),
+            _board_shown(mean[j], unit) + " (since start)" if seen else "—",
+            _board_shown(std[j], unit) if seen else "—",
+        )
 
 
 def _std_display(scale: Any, mean: Any, std: Any) -> Any:
@@ -231,3 +253,10 @@ def _print_summary(summary: Any, scale: Any) -> None:
             f"  {name:<{width}}  mean {_reading(shown_mean[j], unit)}  std {_reading(abs(shown_std[j]), unit, 1)} "
             "over the run"
         )
+    board = summary.board
+    if board is not None and board.stats.n:
+        for j, (name, unit) in enumerate(zip(board.names, board.units, strict=True)):
+            click.echo(
+                f"  {name} (board's model)  mean {_board_shown(board.stats.mean[j], unit)}  "
+                f"std {_board_shown(board.stats.std[j], unit)} over {board.stats.n} estimates"
+            )

@@ -7,6 +7,10 @@ rolling statistics and traces of the last ``window_s`` seconds of the rig's
 clock (:class:`~labcli.core.rolling.Rolling`); another (``on_frames``) sees
 every batch, for a recording.  Values are calibrated to SI (MPa, rad) with the
 protocol's calibration; channels the protocol does not know stay in raw counts.
+
+A board that carries its own model (wire protocol 1.1, ``CAPS?`` naming ``est=...``) is asked
+for an estimate line per frame, and its estimates are watched as the channels are: the latest,
+and their mean and standard deviation since the stream began (SI: rad, N), beside the readings.
 """
 
 from __future__ import annotations
@@ -107,6 +111,37 @@ class Snapshot:
     stats: RunningStats  # since the stream began
     counters: dict[str, int]
     rolling: Rolling | None = None  # the last window_s seconds of the rig's clock
+    board: BoardWatch | None = None  # the board's own estimates, when it has a model
+
+
+class BoardWatch:
+    """The board's own estimates (``$S`` lines) of a stream: the latest and running statistics (SI)."""
+
+    def __init__(self, names: Sequence[str]) -> None:
+        self.names = tuple(names)
+        self.units = tuple("rad" if n.startswith("theta") else "N" for n in self.names)
+        self.stats = RunningStats(len(self.names))
+        self.latest = np.full(len(self.names), np.nan)
+
+    def add(self, estimates: Sequence[Any]) -> None:
+        rows = [e.values for e in estimates if len(e.values) == len(self.names)]
+        if rows:
+            x = np.asarray(rows, dtype=float)
+            self.stats.update(x)
+            self.latest = x[-1]
+
+    def to_json(self) -> dict[str, Any]:
+        """Per quantity: mean and std since the stream began (SI) and the unit; ``n`` estimates."""
+        mean = self.stats.mean if self.stats.n else np.full(len(self.names), np.nan)
+        std = self.stats.std if self.stats.n else np.full(len(self.names), np.nan)
+        out: dict[str, Any] = {"n": self.stats.n}
+        for name, m, sd, u in zip(self.names, mean, std, self.units, strict=True):
+            out[name] = {
+                "mean": float(m) if math.isfinite(m) else None,
+                "std": float(sd) if math.isfinite(sd) else None,
+                "unit": u,
+            }
+        return out
 
 
 @dataclass
@@ -122,6 +157,7 @@ class MonitorSummary:
     mean: np.ndarray
     std: np.ndarray
     interrupted: bool = False
+    board: BoardWatch | None = None
 
     @property
     def frames_per_s(self) -> float:
@@ -153,6 +189,7 @@ class MonitorSummary:
                 name: {"mean": num(m), "std": num(s), "unit": u}
                 for name, m, s, u in zip(self.channels, self.mean, self.std, self.units, strict=False)
             },
+            **({"board_estimates": self.board.to_json()} if self.board is not None else {}),
         }
 
 
@@ -181,9 +218,15 @@ def watch(
     latest = np.full(k, np.nan)
     recent: deque[tuple[float, int]] = deque()
     interrupted = False
+    names = tuple(getattr(getattr(dev, "caps", None), "estimates", ()) or ())
+    board = BoardWatch(names) if names else None
+    if board is not None:
+        dev.stream_estimates(1)
 
     def take(batch: FrameBatch) -> None:
         nonlocal latest
+        if board is not None:
+            board.add(dev.take_estimates())
         if len(batch):
             si = scale.to_si(batch.values)
             stats.update(si)
@@ -211,7 +254,7 @@ def watch(
                 if on_update is not None and now >= next_update:
                     span = now - recent[0][0] if len(recent) > 1 else 0.0
                     fps = (recent[-1][1] - recent[0][1]) / span if span > 0 else 0.0
-                    on_update(Snapshot(now - t0, actual, fps, latest, stats, dev.counters, rolling))
+                    on_update(Snapshot(now - t0, actual, fps, latest, stats, dev.counters, rolling, board))
                     next_update = now + refresh_s
         except KeyboardInterrupt:
             interrupted = True
@@ -232,4 +275,5 @@ def watch(
         mean=stats.mean if stats.n else np.full(k, np.nan),
         std=stats.std if stats.n else np.full(k, np.nan),
         interrupted=interrupted,
+        board=board,
     )
