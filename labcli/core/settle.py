@@ -149,12 +149,12 @@ class SettleDetector:
         if self._lcols and not (length_spread_m and length_spread_m > 0):
             raise ValueError(f"settling length_spread_m must be positive, got {length_spread_m!r}")
         # Lands the length limit on the angle limit, so one motion spread covers both.
-        self._length_scale = criteria.angle_spread_rad / length_spread_m if self._lcols else 0.0
+        self._length_scale = criteria.angle_spread_rad / length_spread_m if self._lcols and length_spread_m else 0.0
         self._block_s = criteria.window_s / BLOCKS
         self._timeout_s = criteria.timeout_s
         self._t0: float | None = None
         self._block_index = 0
-        self._sum: np.ndarray | None = None
+        self._sum = np.zeros(0)  # the open block's running sum (sized by the first samples)
         self._count = 0
         self._means = np.zeros((0, 0))  # the last TAIL_WINDOWS * BLOCKS block means, oldest first
         self._quiet_since: float | None = None  # block-end time when the quiet run began
@@ -290,7 +290,7 @@ class SettleDetector:
             float(spread_a[j]),
             quiet_s,
             settled,
-            self._quiet_since if settled else float("nan"),
+            self._quiet_since if settled and self._quiet_since is not None else float("nan"),
             False,
         )
         return j if settled else None

@@ -558,7 +558,7 @@ def _digits_to_batch(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, k: int) -> t
     first = np.cumsum(lens) - lens
     b = a[np.repeat(lo - first, lens) + np.arange(total, dtype=np.int64)]
     seppos = np.flatnonzero((b == 44) | (b == 42))  # n * (k + 2) separators, one ending each field
-    flen = np.empty_like(seppos)
+    flen: np.ndarray = np.empty_like(seppos)
     flen[0] = seppos[0]
     flen[1:] = seppos[1:] - seppos[:-1] - 1
     flen = flen.reshape(n, k + 2)

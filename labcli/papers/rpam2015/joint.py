@@ -9,6 +9,10 @@ the simulated stand read the same links; the optimiser searches over them.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 @dataclass(frozen=True)
@@ -19,9 +23,9 @@ class JointGeometry:
     broadcast together.
     """
 
-    L1_m: float
-    L2_m: float
-    L3_m: float
+    L1_m: float | np.ndarray
+    L2_m: float | np.ndarray
+    L3_m: float | np.ndarray
 
-    def to_dict(self) -> dict[str, float]:
+    def to_dict(self) -> dict[str, float | np.ndarray]:
         return asdict(self)

@@ -116,7 +116,7 @@ def ask_object(index: int, distance_range_m: tuple[float, float], last: PushSpec
                 "distance_m",
                 lambda a: f"{a['name']}: push distance d in mm for its pushes, {lo:g} to {hi:g}{d_keep}:",
                 partial(parse_length_mm, what="push distance", lo_mm=lo, hi_mm=hi),
-                **({} if last is None else {"default": last.distance_m}),
+                **({} if last is None else {"default": last.distance_m}),  # type: ignore[arg-type]
             ),
             Field(
                 "phi_rad",

@@ -592,7 +592,7 @@ def _trial(
             if checked is not None and checked.guard.unsealed
             else ": check that the load was applied as the prompt said"
         )
-        warnings = (
+        warnings: tuple[str, ...] = (
             (f"{weak[:1].upper()}{weak[1:]}{fix}, then redo the trial (Enter), or accept it as it is (a).",)
             if weak
             else ()

@@ -142,10 +142,10 @@ def _power(x: np.ndarray, a: float, logs: dict[str, np.ndarray], key: str) -> np
     """``x ** a``; by repeated products for a whole exponent (the solver's hot loop spends
     most of its time here, and a product costs a small fraction of an ``exp``)."""
     if a == int(a) and 0 < abs(a) <= 16:
-        n, base, out = abs(int(a)), x, None
+        n, base, out = abs(int(a)), x, np.ones_like(x)
         while n:
             if n & 1:
-                out = base if out is None else out * base
+                out = out * base
             n >>= 1
             if n:
                 base = base * base

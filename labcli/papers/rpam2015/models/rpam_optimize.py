@@ -326,9 +326,9 @@ def active_constraints(
     """Names like ``"g2: L1 at lower bound 0.03 m"`` for every bound met within ``tol`` of its range."""
     out = []
     checks = (
-        ("g2", "L1", geom.L1_m, bounds.L1_m, "m"),
-        ("g3", "L2", geom.L2_m, bounds.L2_m, "m"),
-        ("g4", "L3", geom.L3_m, bounds.L3_m, "m"),
+        ("g2", "L1", float(geom.L1_m), bounds.L1_m, "m"),
+        ("g3", "L2", float(geom.L2_m), bounds.L2_m, "m"),
+        ("g4", "L3", float(geom.L3_m), bounds.L3_m, "m"),
         ("g5", "L_a", L_a, bounds.actuator_length_m, "m"),
         ("g6", "L_b", L_b, bounds.actuator_length_m, "m"),
         ("g7", "alpha", alpha_deg, bounds.alpha_deg, "deg"),

@@ -340,7 +340,7 @@ class RpamRig(SimClock):
             jitter = float(np.clip(np.exp(0.15 * self._event_rng.standard_normal()), 0.7, 1.4))
             tau = self.tau_s * (1.0 if initial else jitter)
             if initial:  # power-up: already settled
-                p_now, alpha_now, len_now = self._setpoint.copy(), alpha_to, len_to
+                p_now, alpha_now, len_now = self._setpoint.copy(), np.asarray(alpha_to), np.asarray(len_to)
             self._seg = _Segment(
                 self._t,
                 tau,

@@ -109,7 +109,7 @@ def _length(model: Any, key: str, value: float | None) -> float:
         geometry = getattr(model, "geometry", None) or {}
         value = geometry.get(key, geometry.get(f"{key}_m"))
     try:
-        length = float(value)
+        length = float(value)  # type: ignore[arg-type]  # None: the TypeError below
     except (TypeError, ValueError):
         length = math.nan
     if not (math.isfinite(length) and length > 0):
@@ -544,11 +544,11 @@ def load_push_source(path: Any, protocol: str | None = None, *, measured_angles:
         table = run.records.table()
         identity = run_identity(run, p)
         if measured_angles and not all(c in table.columns for c in THETA_COLUMNS):
-            theta = []
+            rows: list[Any] = []
             for pid in table["push"]:
-                rec = run.records.read(int(pid))
-                theta.append(np.degrees(rec["theta_rad"]) if "theta_rad" in rec else (math.nan, math.nan))
-            theta = np.asarray(theta, dtype=float).reshape(-1, 2)
+                rec: dict[str, Any] = dict(run.records.read(int(pid)))
+                rows.append(np.degrees(rec["theta_rad"]) if "theta_rad" in rec else (math.nan, math.nan))
+            theta = np.asarray(rows, dtype=float).reshape(-1, 2)
             table["theta1_deg"], table["theta2_deg"] = theta[:, 0], theta[:, 1]
     proto = (
         loads_protocol(text, source=f"{p} (embedded protocol)")

@@ -85,6 +85,7 @@ from .takuma import (
     cap,
     normalise_geometry,
     pressure_arrays,
+    qr_r,
     set_mask,
 )
 
@@ -243,7 +244,8 @@ def einsum_2x2(spec: str, *operands: np.ndarray) -> np.ndarray:
                 factor = op[tuple(slice(None) if c == "n" else at[c] for c in sub)]
                 term = factor if term is None else term * factor
             total = term if total is None else total + term
-        out[(slice(None), *values)] = total
+        key: tuple[Any, ...] = (slice(None), *values)
+        out[key] = total
     return out
 
 
@@ -293,7 +295,7 @@ class _Blocks:
         """``block(lo, hi)`` gives the rows lo..hi of [X | Y]; blocks are contiguous (a plan groups
         its trials by pulley position), as many as CV_FOLDS."""
         edges = np.linspace(0, n, min(CV_FOLDS, n) + 1).astype(int)
-        factors = [np.linalg.qr(block(lo, hi), mode="r") for lo, hi in zip(edges[:-1], edges[1:], strict=False)]
+        factors = [qr_r(block(lo, hi)) for lo, hi in zip(edges[:-1], edges[1:], strict=False)]
         return cls(factors, p, n, factors[0].shape[1] if factors else p, block)
 
     def responses(self, ys: list[int] | None = None) -> list[int]:
@@ -313,7 +315,7 @@ class _Blocks:
             train, held, rows = np.zeros((k, w, w)), np.zeros((k, w, w)), np.zeros(k, dtype=np.int64)
             for f, r in enumerate(self.factors):
                 stacked = np.vstack([g for i, g in enumerate(self.factors) if i != f])
-                t = np.linalg.qr(stacked, mode="r")
+                t = qr_r(stacked)
                 train[f, : len(t)], held[f, : len(r)], rows[f] = t, r, len(stacked)
             self._folds = (train, held, rows)
         return self._folds
@@ -353,7 +355,7 @@ class _Blocks:
 
     def whole(self) -> np.ndarray:
         """One R of all the trials' [X | Y]."""
-        return np.linalg.qr(np.vstack(self.factors), mode="r")
+        return qr_r(np.vstack(self.factors))
 
 
 def _shared_lstsq(
@@ -1095,7 +1097,7 @@ def _check_theta1(d: Mapping[str, Any], name: str) -> None:
     try:
         beta = np.asarray(d.get("theta1_coefficients"), dtype=float)
         inv = np.asarray(d.get("theta1_xtx_inv"), dtype=float)
-        var = float(d.get("theta1_resid_var"))
+        var = float(d.get("theta1_resid_var"))  # type: ignore[arg-type]  # None: the TypeError below
     except (TypeError, ValueError, OverflowError):
         beta, inv, var = np.empty(0), np.empty(0), math.nan
     if not (

@@ -46,7 +46,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, NoReturn, cast
 
 import numpy as np
 
@@ -128,6 +128,11 @@ FLAG_TEXT = {
 
 
 # --------------------------------------------------------------------------- features
+
+
+def qr_r(a: np.ndarray) -> np.ndarray:
+    """The R factor of ``a`` (numpy's ``qr(mode="r")``, an array despite what its stubs say)."""
+    return cast(np.ndarray, np.linalg.qr(a, mode="r"))
 
 
 def pressure_ratio_features(P0: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -289,14 +294,14 @@ def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str, ma
     # (Householder QR), so X's singular values and directions are those of R's first p
     # columns and U^T y = U_R^T (Q^T y).  R is built from the R's of row blocks (the R of
     # their stacked R's is [X y]'s, up to signs), so no (n, p) array besides the design itself.
-    parts = []
+    parts: list[np.ndarray] = []
     for lo in range(0, n, QR_BLOCK):
         hi = min(n, lo + QR_BLOCK)
         Z = np.empty((hi - lo, p + 1), order="F")  # LAPACK's own order: no further copy
         np.divide(X[lo:hi], scale, out=Z[:, :p])
         Z[:, p] = y[lo:hi]
-        parts.append(np.linalg.qr(Z, mode="r"))
-    R = parts[0] if len(parts) == 1 else np.linalg.qr(np.vstack(parts), mode="r")
+        parts.append(qr_r(Z))
+    R = parts[0] if len(parts) == 1 else qr_r(np.vstack(parts))
     del Z, parts
     U, s, Vt = np.linalg.svd(R[:p, :p])
     cond = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
@@ -467,7 +472,7 @@ class TakumaModel:
         ci: dict[str, list[float]] = {}
         covs: dict[str, list[list[float]]] = {}
         stats_out: dict[str, dict[str, Any]] = {}
-        fitted_ids: dict[str, list[int]] = {}
+        fitted_ids: dict[str, list[list[int]]] = {}
         excluded: dict[str, list[dict[str, Any]]] = {}
         for eq in EQUATIONS:
             names = TERMS[eq]

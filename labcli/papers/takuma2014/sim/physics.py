@@ -138,6 +138,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -178,7 +179,7 @@ class RigParams:
 
     def to_dict(self) -> dict:
         """Plain-data form (JSON-serialisable)."""
-        out = {"geometry": vars(self.geometry).copy()}
+        out: dict[str, Any] = {"geometry": vars(self.geometry).copy()}
         for k in ("b", "n", "k_rubber", "L_rubber", "L_mount", "V_dead", "supply_pa", "link_mass_kg"):
             out[k] = [float(v) for v in getattr(self, k)]
         return out
@@ -609,7 +610,7 @@ def _newton(params, chambers, load, x, tol: float, extra_tension_N=None, iters: 
             t *= 0.5
             if t <= 1e-6:
                 return x, nr, K
-            xn, Kn = x + t * dx, None
+            xn, Kn = x + t * dx, None  # type: ignore[assignment]  # no stiffness at a halved step
             rn = generalised_forces(xn, params, chambers, load, extra_tension_N)
             nn = float(np.max(np.abs(rn)))
         x, r, nr = xn, rn, nn

@@ -97,7 +97,7 @@ class _Segment:
     p_from: np.ndarray  # gauge Pa (used with open valves)
     p_to: np.ndarray
     chambers: ph.Chambers
-    load: object
+    load: ph.NoLoad | ph.Weight | ph.Push
     target: ph.Equilibrium
     x0: np.ndarray  # gas temperature excess T/T0 - 1 at t0 (closed chambers)
     dlnV: np.ndarray  # change of ln(V + V_dead) the lag drives (closed chambers)
@@ -515,13 +515,13 @@ class SimRig(SimClock):
             raise ValueError("object radius and stiffness must be > 0 and the push distance >= 0")
         with self._lock:
             theta_now, _ = self._state_at(self._t)
-            touch = tuple(float(v) for v in ph.contact_point(theta_now, self.params.geometry))
+            cx, cy = (float(v) for v in ph.contact_point(theta_now, self.params.geometry))
             push = ph.Push(
                 float(radius_m),
                 float(distance_m),
                 float(phi_rad),
                 float(stiffness_N_per_m),
-                touch,
+                (cx, cy),
                 friction_mu=self._contact_mu,
                 tangential_ratio=ni.CONTACT_STIFFNESS,
             )
