@@ -106,7 +106,6 @@ LONG_PAPER_FUNCTIONS = frozenset(
         "labcli/papers/takuma2014/figures.py:_draw_object",
         "labcli/papers/takuma2014/models/classify.py:classify_pushes",
         "labcli/papers/takuma2014/models/stiffness.py:estimate_pushes",
-        "labcli/papers/takuma2014/models/synthetic.py:paper_trials",
         "labcli/papers/takuma2014/models/takuma.py:predict",
         "labcli/papers/takuma2014/report.py:print_demo",
         "labcli/papers/takuma2014/session.py:force_session",

@@ -76,11 +76,7 @@ def paper_trials(
     have no finite value).  Draws whose pressures have no
     solution in (0.05, 0.95) MPa are redrawn, so the table always has ``n`` rows.
     """
-    import pandas as pd
-    from scipy.optimize import fsolve
-
     rng = np.random.default_rng(seed)
-    h2, h3 = geometry["h2"], geometry["h3"]
     b = {eq: np.array([coefficients[k] for k in TERMS[eq]]) for eq in TERMS}
     rows: list[tuple[Any, ...]] = []
     attempts = 0
@@ -96,30 +92,49 @@ def paper_trials(
             t2 = np.radians(rng.choice([-1.0, 1.0]) * rng.uniform(*theta2_deg))
         F = rng.uniform(-force_N, force_N, 2)
         P0 = rng.uniform(*baseline_MPa, 4)
-        theta = np.array([[t1, t2]])
-        # Forces are linear in dP once the angles are fixed: row vectors a, c with F = [a; c] dP.
-        eye = np.eye(4)
-        Xfx, Xfy = force_design(np.zeros((4, 4)), -eye, np.repeat(theta, 4, axis=0), h2, h3)
-        A = np.vstack([Xfx @ b["Fx"], Xfy @ b["Fy"]])
+        P = _loaded_pressures(t1, t2, F, P0, b, geometry)
+        if P is not None:
+            rows.append((t1, t2, F, P0, P))
+    df = _trial_frame(rows, start_id, set_name)
+    return add_sensor_noise(df, seed + 1, noise_counts) if noise else df
 
-        def equations(dP: np.ndarray, P0=P0, t1=t1, t2=t2, A=A, F=F) -> np.ndarray:
-            u = pressure_ratio_features(P0[None, :], (P0 - dP)[None, :])[0]
-            return np.array([u[:2] @ b["theta1"] - np.sin(t1), u @ b["theta2"] - np.sin(t2), *(A @ dP - F)])
 
-        # Start from the linearised system (u ~ dP / P0), which is close for loads of this size.
-        lin = np.vstack([np.r_[b["theta1"], 0.0, 0.0] / P0, b["theta2"] / P0, A])
-        try:
-            start = np.linalg.solve(lin, np.r_[np.sin(t1), np.sin(t2), F])
-        except np.linalg.LinAlgError:
-            continue
-        if np.any(P0 - start < 0.0):
-            continue
-        # Success is judged by the residual below; full_output keeps fsolve quiet about slow progress.
-        dP = fsolve(equations, start, xtol=1e-13, full_output=True)[0]
-        P = P0 - dP
-        if np.max(np.abs(equations(dP))) > 1e-12 or np.any(P < 0.05) or np.any(P > 0.95):
-            continue
-        rows.append((t1, t2, F, P0, P))
+def _loaded_pressures(
+    t1: float, t2: float, F: np.ndarray, P0: np.ndarray, b: dict[str, np.ndarray], geometry: Mapping[str, float]
+) -> np.ndarray | None:
+    """The loaded pressures that satisfy Eqs. 34-37 for this posture, force and baseline; None when
+    none lies in (0.05, 0.95) MPa."""
+    from scipy.optimize import fsolve
+
+    theta = np.array([[t1, t2]])
+    # Forces are linear in dP once the angles are fixed: row vectors a, c with F = [a; c] dP.
+    eye = np.eye(4)
+    Xfx, Xfy = force_design(np.zeros((4, 4)), -eye, np.repeat(theta, 4, axis=0), geometry["h2"], geometry["h3"])
+    A = np.vstack([Xfx @ b["Fx"], Xfy @ b["Fy"]])
+
+    def equations(dP: np.ndarray) -> np.ndarray:
+        u = pressure_ratio_features(P0[None, :], (P0 - dP)[None, :])[0]
+        return np.array([u[:2] @ b["theta1"] - np.sin(t1), u @ b["theta2"] - np.sin(t2), *(A @ dP - F)])
+
+    # Start from the linearised system (u ~ dP / P0), which is close for loads of this size.
+    lin = np.vstack([np.r_[b["theta1"], 0.0, 0.0] / P0, b["theta2"] / P0, A])
+    try:
+        start = np.linalg.solve(lin, np.r_[np.sin(t1), np.sin(t2), F])
+    except np.linalg.LinAlgError:
+        return None
+    if np.any(P0 - start < 0.0):
+        return None
+    # Success is judged by the residual below; full_output keeps fsolve quiet about slow progress.
+    dP = fsolve(equations, start, xtol=1e-13, full_output=True)[0]
+    P = P0 - dP
+    if np.max(np.abs(equations(dP))) > 1e-12 or np.any(P < 0.05) or np.any(P > 0.95):
+        return None
+    return P
+
+
+def _trial_frame(rows: list[tuple[Any, ...]], start_id: int, set_name: str) -> Any:
+    """The trial table of the solved trials ``(t1, t2, F, P0, P)``, numbered from ``start_id``."""
+    import pandas as pd
 
     t1 = np.array([r[0] for r in rows])
     t2 = np.array([r[1] for r in rows])
@@ -127,9 +142,9 @@ def paper_trials(
     P0 = np.array([r[3] for r in rows])
     P = np.array([r[4] for r in rows])
     th = np.degrees(np.column_stack([t1, t2]))
-    df = pd.DataFrame(
+    return pd.DataFrame(
         {
-            "trial": np.arange(start_id, start_id + n),
+            "trial": np.arange(start_id, start_id + len(rows)),
             "set": set_name,
             "P_L10": P0[:, 0],
             "P_R10": P0[:, 1],
@@ -145,4 +160,3 @@ def paper_trials(
             "Fy_N": F[:, 1],
         }
     )
-    return add_sensor_noise(df, seed + 1, noise_counts) if noise else df
