@@ -262,18 +262,32 @@ def watch(
         elapsed = time.monotonic() - t0
         if dev.streaming:
             take(dev.stop())
+    return _summary(dev, scale, actual, elapsed, stats, interrupted, board)
+
+
+def _summary(
+    dev: Device,
+    scale: ChannelScale,
+    rate_hz: float,
+    elapsed: float,
+    stats: RunningStats,
+    interrupted: bool,
+    board: BoardWatch | None,
+) -> MonitorSummary:
+    """What :func:`watch` saw, once the stream has stopped."""
     info = dev.info
+    nan = np.full(len(scale.names), np.nan)
     return MonitorSummary(
         port=dev.port,
         device=info.device if info else "",
         firmware=info.firmware if info else "",
-        rate_hz=actual,
+        rate_hz=rate_hz,
         seconds=elapsed,
         counters=dev.counters,
         channels=scale.names,
         units=scale.units,
-        mean=stats.mean if stats.n else np.full(k, np.nan),
-        std=stats.std if stats.n else np.full(k, np.nan),
+        mean=stats.mean if stats.n else nan,
+        std=stats.std if stats.n else nan,
         interrupted=interrupted,
         board=board,
     )
