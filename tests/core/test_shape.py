@@ -102,16 +102,12 @@ def test_no_function_of_the_run_file_or_the_engine_is_over_80_lines(path):
 LONG_PAPER_FUNCTIONS = frozenset(
     {
         "labcli/papers/rpam2015/report.py:print_demo",
-        "labcli/papers/takuma2014/figures.py:figure7",
         "labcli/papers/takuma2014/figures.py:_draw_object",
         "labcli/papers/takuma2014/models/classify.py:classify_pushes",
         "labcli/papers/takuma2014/models/stiffness.py:estimate_pushes",
-        "labcli/papers/takuma2014/models/takuma.py:predict",
-        "labcli/papers/takuma2014/report.py:print_demo",
         "labcli/papers/takuma2014/session.py:force_session",
         "labcli/papers/rpam2015/figures.py:figure8",
         "labcli/papers/rpam2015/figures.py:figure_stretch",
-        "labcli/papers/takuma2014/models/posture.py:from_dict",
         "labcli/sensing/live.py:run",
     }
 )

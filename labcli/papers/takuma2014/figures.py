@@ -79,6 +79,64 @@ def figure7_panel(evaluation: dict[str, Any], q: str) -> dict[str, Any]:
     }
 
 
+def _figure7_points(ax: Any, panel: dict[str, Any]) -> bool:
+    """One panel's validation trials with their 95 % intervals, and the flagged ones; whether any were."""
+    if panel["error_95"] is not None and len(panel["observed"]):
+        ax.errorbar(
+            panel["observed"],
+            panel["calculated"],
+            yerr=panel["error_95"],
+            fmt="none",
+            ecolor="tab:blue",
+            elinewidth=0.7,
+            alpha=0.6,
+            zorder=2,
+            label="95 % interval",
+        )
+    ax.scatter(
+        panel["observed"],
+        panel["calculated"],
+        s=26,
+        marker="o",
+        facecolor="tab:blue",
+        edgecolor="navy",
+        lw=0.6,
+        zorder=3,
+        label="validation trial",
+    )
+    flagged = len(panel["flagged_observed"]) > 0
+    if flagged:
+        ax.scatter(
+            panel["flagged_observed"],
+            panel["flagged_calculated"],
+            s=40,
+            marker="^",
+            facecolor="none",
+            edgecolor="tab:red",
+            lw=1.2,
+            zorder=4,
+            label="flagged (not in metrics)",
+        )
+    return flagged
+
+
+def _figure7_metrics(m: dict[str, Any], panel: dict[str, Any], unit: str) -> str:
+    """The box of one Figure 7 panel: RMSE, max |err|, bias, R^2, n, and what was left out."""
+    text = (
+        f"RMSE {fmt(m.get('rmse'))} {unit}\n"
+        f"max |err| {fmt(m.get('max_abs'))} {unit}\n"
+        f"bias {fmt(m.get('bias'), 2)} {unit}\n"
+        f"$R^2$ {'—' if m.get('r2') is None else format(m['r2'], '.4f')}   n = {m.get('n', 0)}"
+    )
+    if m.get("n_flagged"):
+        text += f"\nflagged {m['n_flagged']}"
+    if panel["no_estimate"]:
+        text += f" ({panel['no_estimate']} without an estimate, not drawn)"
+    if panel["note"]:
+        text += "\n" + panel["note"]
+    return text
+
+
 def figure7(
     evaluation: dict[str, Any],
     path: str | Path,
@@ -104,42 +162,7 @@ def figure7(
         panel = figure7_panel(evaluation, q)
         lo, hi = panel["limits"]
         ax.plot([lo, hi], [lo, hi], color="0.35", lw=1.0, zorder=1, label="observed = calculated")
-        if panel["error_95"] is not None and len(panel["observed"]):
-            ax.errorbar(
-                panel["observed"],
-                panel["calculated"],
-                yerr=panel["error_95"],
-                fmt="none",
-                ecolor="tab:blue",
-                elinewidth=0.7,
-                alpha=0.6,
-                zorder=2,
-                label="95 % interval",
-            )
-        ax.scatter(
-            panel["observed"],
-            panel["calculated"],
-            s=26,
-            marker="o",
-            facecolor="tab:blue",
-            edgecolor="navy",
-            lw=0.6,
-            zorder=3,
-            label="validation trial",
-        )
-        flagged = len(panel["flagged_observed"]) > 0
-        if flagged:
-            ax.scatter(
-                panel["flagged_observed"],
-                panel["flagged_calculated"],
-                s=40,
-                marker="^",
-                facecolor="none",
-                edgecolor="tab:red",
-                lw=1.2,
-                zorder=4,
-                label="flagged (not in metrics)",
-            )
+        flagged = _figure7_points(ax, panel)
         ax.set_xlim(lo, hi)
         ax.set_ylim(lo, hi)
         ax.set_aspect("equal", adjustable="box")
@@ -148,23 +171,10 @@ def figure7(
         ax.set_ylabel(f"calculated ${sym}$ ({unit})")
         ax.set_title(label, loc="left", fontsize=11)
         ax.grid(True, color="0.9", lw=0.6, zorder=0)
-        m = evaluation["metrics"][q]
-        text = (
-            f"RMSE {fmt(m.get('rmse'))} {unit}\n"
-            f"max |err| {fmt(m.get('max_abs'))} {unit}\n"
-            f"bias {fmt(m.get('bias'), 2)} {unit}\n"
-            f"$R^2$ {'—' if m.get('r2') is None else format(m['r2'], '.4f')}   n = {m.get('n', 0)}"
-        )
-        if m.get("n_flagged"):
-            text += f"\nflagged {m['n_flagged']}"
-        if panel["no_estimate"]:
-            text += f" ({panel['no_estimate']} without an estimate, not drawn)"
-        if panel["note"]:
-            text += "\n" + panel["note"]
         ax.text(
             0.03,
             0.97,
-            text,
+            _figure7_metrics(evaluation["metrics"][q], panel, unit),
             transform=ax.transAxes,
             va="top",
             ha="left",

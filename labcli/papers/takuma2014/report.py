@@ -410,6 +410,35 @@ def category_text(o: dict[str, Any]) -> str:
     return cat or "—"
 
 
+def _accuracy_table(accuracy: dict[str, Any], ideal: dict[str, Any] | None) -> Any:
+    """The demo's accuracy on the validation trials, the ideal rig's RMSE beside it when measured."""
+    from rich import box
+    from rich.table import Table
+
+    acc = Table(
+        title="Accuracy on the validation trials, pressure-only (Figure 7)", title_justify="left", box=box.SIMPLE_HEAD
+    )
+    cols = ("quantity", "n", "RMSE", "max |error|", "R^2", "RMSE / range", "flagged") + (
+        ("ideal rig RMSE",) if ideal else ()
+    )
+    for col in cols:
+        acc.add_column(col, justify="left" if col == "quantity" else "right")
+    for q, m in accuracy.items():
+        row = [
+            f"{q} ({m['unit']})",
+            str(m["n"]),
+            cell(m["rmse"], ".3g"),
+            cell(m["max_abs"], ".3g"),
+            cell(m["r2"], ".4f"),
+            cell(m["pct_range"], ".2f") + " %",
+            str(m["n_flagged"]),
+        ]
+        if ideal:
+            row.append(cell(ideal[q]["rmse"], ".3g") if q in ideal else "—")
+        acc.add_row(*row)
+    return acc
+
+
 def print_demo(res: Any) -> None:
     """The demo's summary as tables (rich), units on every number."""
     from rich import box
@@ -436,30 +465,8 @@ def print_demo(res: Any) -> None:
         soft_wrap=True,
     )
 
-    acc = Table(
-        title="Accuracy on the validation trials, pressure-only (Figure 7)", title_justify="left", box=box.SIMPLE_HEAD
-    )
     ideal = res.accuracy_ideal
-    cols = ("quantity", "n", "RMSE", "max |error|", "R^2", "RMSE / range", "flagged") + (
-        ("ideal rig RMSE",) if ideal else ()
-    )
-    for col in cols:
-        acc.add_column(col, justify="left" if col == "quantity" else "right")
-    for q, m in res.accuracy.items():
-        unit = m["unit"]
-        row = [
-            f"{q} ({unit})",
-            str(m["n"]),
-            cell(m["rmse"], ".3g"),
-            cell(m["max_abs"], ".3g"),
-            cell(m["r2"], ".4f"),
-            cell(m["pct_range"], ".2f") + " %",
-            str(m["n_flagged"]),
-        ]
-        if ideal:
-            row.append(cell(ideal[q]["rmse"], ".3g") if q in ideal else "—")
-        acc.add_row(*row)
-    print_table(con, acc)
+    print_table(con, _accuracy_table(res.accuracy, ideal))
     if ideal:
         con.print(
             "The default rig has sleeve friction, chamber leaks, thermal relaxation, potentiometer backlash "

@@ -972,24 +972,7 @@ class PostureModel:
                 f"{cap(name)} names terms this labcli does not know "
                 f"({', '.join(unknown) or 'torque_terms'}); refit with `labcli fit`."
             )
-        shapes = {
-            "angle_coefficients": (len(d["angle_terms"]), 2),
-            "angle_xtx_inv": (len(d["angle_terms"]),) * 2,
-            "angle_resid_cov": (2, 2),
-            "torque_coefficients": (len(torque_terms), 2),
-            "torque_xtx_inv": (len(torque_terms),) * 2,
-            "torque_resid_cov": (2, 2),
-        }
-        for key, shape in shapes.items():
-            try:
-                arr = np.asarray(d[key], dtype=float)
-            except (TypeError, ValueError):
-                arr = np.empty(0)
-            if arr.shape != shape or not np.all(np.isfinite(arr)):
-                raise ModelError(
-                    f"{cap(name)}: key '{key}' must be a {shape[0]} x {shape[1]} table of finite "
-                    "numbers; refit with `labcli fit`."
-                )
+        _check_tables(d, len(d["angle_terms"]), len(torque_terms), name)
         _check_theta1(d, name)
         prior = d.get("force_prior_sd", [])
         if prior and not (
@@ -1086,6 +1069,28 @@ def _routes_from_dict(
         {q: float(v) for q, v in variance.items()},
         {q: {k: float(v) for k, v in b.items()} for q, b in blends.items()},
     )
+
+
+def _check_tables(d: Mapping[str, Any], n_angle: int, n_torque: int, name: str) -> None:
+    """The model file's coefficient and covariance tables: each of its shape, finite."""
+    shapes = {
+        "angle_coefficients": (n_angle, 2),
+        "angle_xtx_inv": (n_angle,) * 2,
+        "angle_resid_cov": (2, 2),
+        "torque_coefficients": (n_torque, 2),
+        "torque_xtx_inv": (n_torque,) * 2,
+        "torque_resid_cov": (2, 2),
+    }
+    for key, shape in shapes.items():
+        try:
+            arr = np.asarray(d[key], dtype=float)
+        except (TypeError, ValueError):
+            arr = np.empty(0)
+        if arr.shape != shape or not np.all(np.isfinite(arr)):
+            raise ModelError(
+                f"{cap(name)}: key '{key}' must be a {shape[0]} x {shape[1]} table of finite "
+                "numbers; refit with `labcli fit`."
+            )
 
 
 def _check_theta1(d: Mapping[str, Any], name: str) -> None:

@@ -130,6 +130,20 @@ FLAG_TEXT = {
 # --------------------------------------------------------------------------- features
 
 
+def _measured_angles(theta: Any, n: int, flags: list[list[str]], bad_p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The measured angles ``theta`` ((n, 2), rad) the force equations take in the measured-angles
+    mode, 0 where missing (flagged), and which rows they make trustworthy."""
+    if theta is None:
+        raise ModelError("The measured-angles mode needs the measured joint angles.")
+    th_meas = np.atleast_2d(np.asarray(theta, dtype=float))
+    if th_meas.shape != (n, 2):
+        raise ModelError(f"Measured angles must be an (n, 2) array; got {th_meas.shape}.")
+    known = np.all(np.isfinite(th_meas), axis=1)
+    for i in np.flatnonzero(~known):
+        flags[i].append("missing-angle")
+    return np.where(known[:, None], th_meas, 0.0), known & ~bad_p
+
+
 def qr_r(a: np.ndarray) -> np.ndarray:
     """The R factor of ``a`` (numpy's ``qr(mode="r")``, an array despite what its stubs say)."""
     return cast(np.ndarray, np.linalg.qr(a, mode="r"))
@@ -595,16 +609,7 @@ class TakumaModel:
         if mode == "pressure-only":
             th_force, ok_source = th, ok_t[:, 0] & ok_t[:, 1]
         else:
-            if theta is None:
-                raise ModelError("The measured-angles mode needs the measured joint angles.")
-            th_meas = np.atleast_2d(np.asarray(theta, dtype=float))
-            if th_meas.shape != (n, 2):
-                raise ModelError(f"Measured angles must be an (n, 2) array; got {th_meas.shape}.")
-            known = np.all(np.isfinite(th_meas), axis=1)
-            for i in np.flatnonzero(~known):
-                flags[i].append("missing-angle")
-            th_force = np.where(known[:, None], th_meas, 0.0)
-            ok_source = known & ~bad_p
+            th_force, ok_source = _measured_angles(theta, n, flags, bad_p)
 
         with np.errstate(divide="ignore", invalid="ignore"):
             js = jstar(th_force, h2, h3)
