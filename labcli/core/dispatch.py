@@ -103,11 +103,12 @@ def prepare(command: str, typed: Typed, *, inputs: Sequence[str | Path] = (), pr
 
 def for_model_file(path: str | Path, analysis: str) -> Paper:
     """The paper that wrote the model file ``path`` (its ``schema``), offering the analysis ``analysis``."""
+    from .files import read_input
     from .jsontext import JSONDepthError, json_kind, loads_bounded
 
     p = Path(path)
     try:
-        d = loads_bounded(p.read_text(encoding="utf-8"))
+        d = loads_bounded(read_input(p, "a model file", label=f"The model file {p}").decode("utf-8"))
     except FileNotFoundError:
         raise ConfigError(f"The model file {p} does not exist; write one with `labcli fit`.") from None
     except (OSError, UnicodeDecodeError, ValueError, JSONDepthError):

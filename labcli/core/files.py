@@ -21,6 +21,12 @@ HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"  # the first bytes of every HDF5 file labc
 TMP_STEM = 200  # bytes of the name kept in a temporary file's name, so that any legal name has one
 
 
+def stored_text(s: str) -> str:
+    """``s`` as text a run file (UTF-8) can hold: the bytes of a file name that are not UTF-8,
+    which Python keeps as lone surrogates, written as ``\\xff`` escapes; the rest as it reads."""
+    return s.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+
+
 def name_too_long(path: str | os.PathLike) -> str | None:
     """The words for a file name longer than its file system allows (None when it fits)."""
     path = os.fspath(path)
@@ -57,15 +63,126 @@ def kind_of(path: str | os.PathLike) -> str | None:
     return "not a regular file"
 
 
+MB = 1_000_000
+INPUT_LIMITS = {  # the largest input of each kind labcli reads (bytes); far above any real one
+    "a protocol file": 1 * MB,
+    "a plan": 64 * MB,
+    "a table": 1000 * MB,  # 10^6 trials are ~150 MB
+    "a model file": 64 * MB,
+    "a firmware image": 16 * MB,
+    "a sim script": 1 * MB,
+}
+
+
+def _size_words(n: int) -> str:
+    return f"{n / MB:.3g} MB" if n >= MB else f"{n} bytes"
+
+
+def _open_input(path: str | os.PathLike, what: str, label: str, error: type[Exception]) -> tuple[int, int]:
+    """An open descriptor on the regular file ``path`` and its size; ``error`` for anything else.
+
+    Opened without blocking, so that a FIFO with no writer is refused at once instead of
+    waiting; a folder raises IsADirectoryError and a missing file FileNotFoundError, as
+    ``open`` does, so that callers keep their own sentences for those.
+    """
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise IsADirectoryError(21, "Is a directory", os.fspath(path))
+        if not stat.S_ISREG(st.st_mode):
+            kind = kind_of(path) or "not a regular file"
+            raise error(
+                f"{label} is {kind}, not a regular file; labcli reads {what} only from a regular file, "
+                "so give the path of one."
+            )
+        limit = INPUT_LIMITS[what]
+        if st.st_size > limit:
+            raise error(_too_big(label, st.st_size, what, limit))
+        return fd, st.st_size
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def _too_big(label: str, size: int | None, what: str, limit: int) -> str:
+    """``size`` None: the file grew past the bound while it was read."""
+    limit_words = f"the {_size_words(limit)} {what} may be"
+    if size is None:
+        return f"{label} grew past {limit_words} while it was read; check that it is the right file."
+    return f"{label} is {_size_words(size)}, larger than {limit_words}; check that it is the right file."
+
+
+def check_input(
+    path: str | os.PathLike, what: str, *, label: str | None = None, error: type[Exception] = ConfigError
+) -> None:
+    """Refuse, in one sentence, an input that is not a regular file (a FIFO, a device such as
+    /dev/zero, a socket) or is larger than :data:`INPUT_LIMITS` allows ``what`` to be.
+
+    A missing path or a folder raise FileNotFoundError or IsADirectoryError, as ``open`` does.
+    """
+    fd, _ = _open_input(path, what, os.fspath(path) if label is None else label, error)
+    os.close(fd)
+
+
+def read_input(
+    path: str | os.PathLike, what: str, *, label: str | None = None, error: type[Exception] = ConfigError
+) -> bytes:
+    """The bytes of the input ``path``, checked as :func:`check_input` does and read with its bound
+    (a file that grows past it while read is refused too)."""
+    label = os.fspath(path) if label is None else label
+    fd, _ = _open_input(path, what, label, error)
+    limit = INPUT_LIMITS[what]
+    chunks: list[bytes] = []
+    got = 0
+    try:
+        while True:
+            block = os.read(fd, min(1 << 20, limit + 1 - got))
+            if not block:
+                return b"".join(chunks)
+            chunks.append(block)
+            got += len(block)
+            if got > limit:
+                raise error(_too_big(label, None, what, limit))
+    finally:
+        os.close(fd)
+
+
 def is_run_file(path: str | os.PathLike) -> bool:
     """Whether ``path`` is a regular file that starts as an HDF5 file does (a run file, or other HDF5 data)."""
     if kind_of(path) is not None:
         return False
     try:
-        with open(path, "rb") as fh:
-            return fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO swapped in after the check never blocks
     except OSError:
         return False
+    try:
+        return os.read(fd, len(HDF5_SIGNATURE)) == HDF5_SIGNATURE
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
+def is_model_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` holds a model a paper wrote: a JSON object naming its ``schema`` or ``kind``."""
+    from .jsontext import loads_bounded
+
+    try:
+        d = loads_bounded(read_input(path, "a model file").decode("utf-8"))
+    except (OSError, LabcliError, ValueError, RecursionError):
+        return False
+    return isinstance(d, dict) and (isinstance(d.get("schema"), str) or isinstance(d.get("kind"), str))
+
+
+def check_model_output(path: str | os.PathLike) -> None:
+    """Refuse to replace a file that is there and is not a model (a table, notes, a plan): a fit
+    replaces only an earlier model; an empty file holds nothing to lose."""
+    if os.path.isfile(path) and os.path.getsize(path) > 0 and not is_model_file(path):
+        raise ConfigError(
+            f"Cannot write the model to {path}: it is not a model file, and fit replaces only a model "
+            "it wrote earlier; choose another output name."
+        )
 
 
 def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError, DeviceError, DeviceNotFound
+from .files import read_input
 
 AVRDUDE = "avrdude"
 INSTALL_HINT = "install it with `apt-get install avrdude` (the Debian and Ubuntu package avrdude)"
@@ -46,8 +47,7 @@ class FlashResult:
 def image_format(image: Path) -> str:
     """avrdude's format letter for ``image`` (``e`` ELF, ``i`` Intel HEX); ConfigError for anything else."""
     try:
-        with open(image, "rb") as f:
-            head = f.read(20)
+        head = read_input(image, "a firmware image", label=f"The firmware image {image}")[:20]
     except FileNotFoundError:
         raise ConfigError(f"No firmware image at {image}; build one with `make -C firmware`.") from None
     except IsADirectoryError:

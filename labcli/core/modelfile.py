@@ -17,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import ConfigError, ModelError, StoreError
-from .files import atomic_write, check_output, replace_restorably
+from .files import atomic_write, check_model_output, check_output, replace_restorably
 from .store import RunFile, space
 
 
@@ -83,6 +83,7 @@ def check_fit_paths(run: str | Path, output: str | Path, protocol: str | None = 
     if space.writer_holds(str(run)):
         raise StoreError(f"{run} {space.BUSY}.")
     check_output(output, inputs=(run, protocol), what="the model to ")
+    check_model_output(output)
 
 
 def save_model(

@@ -41,6 +41,7 @@ from .air import ACQUISITION_KEYS as AIR_KEYS
 from .air import AirSettings
 from .calibration import Calibration
 from .channels import CHANNEL_MAP, DEVICE_KEYS, DeviceSpec, calibration, channel_spec, device_spec
+from .files import read_input
 from .keyspecs import OPEN, Checker, describe, kind_of, show
 from .paper import ChannelRoles, ProtocolKind
 
@@ -214,13 +215,13 @@ def load_protocol(path_or_name: str | Path, *, kinds: tuple[str, ...] | None = N
             )
     else:
         path = Path(path_or_name)
-        if not path.is_file():
+        if not path.exists():
             hint = ""
             if (SHIPPED_DIR / path.name).is_file() and path.suffix == ".toml":
                 hint = f" (the shipped protocol of that name is loaded with the bare name {path.stem})"
             raise ProtocolFileError(f"Protocol file {arg} does not exist; check the path{hint}.", "missing", arg)
     try:
-        raw = path.read_bytes()
+        raw = read_input(path, "a protocol file", label=f"Protocol file {arg}")
     except OSError as exc:
         raise ProtocolFileError(
             f"Protocol file {arg} cannot be read ({exc.strerror or exc}).", "unreadable", exc.strerror or str(exc)

@@ -17,9 +17,10 @@ import os
 from collections.abc import Mapping
 from typing import Any
 
-from ..errors import ConfigError
+from ..errors import ConfigError, LabcliError
 from .bounds import QUANTITIES
 from .cells import TableSpec
+from .files import read_input
 
 SIDECAR_SUFFIX = ".json"  # t.csv -> t.csv.json
 PARQUET_INSTALL = "pip install 'labcli[parquet]'"
@@ -150,14 +151,13 @@ def read_sidecar(csv_path: str | os.PathLike) -> dict[str, Any] | None:
     """The provenance and units a CSV's sidecar gives (None without a readable one beside it)."""
     path = os.fspath(csv_path) + SIDECAR_SUFFIX
     try:
-        with open(path, encoding="utf-8") as fh:
-            meta = json.load(fh)
+        meta = json.loads(read_input(path, "a table").decode("utf-8"))
         fields = meta["schema"]["fields"]
         return {
             "units": {f["name"]: f["unit"] for f in fields if f.get("unit")},
             "provenance": dict(meta.get("labcli", {}).get("provenance", {})),
         }
-    except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError):
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError, LabcliError):
         return None
 
 

@@ -34,7 +34,7 @@ from .bounds import PRESSURE_SPAN_MPA, QUANTITIES, fmt_number, number_problem, w
 from .cells import INT64_MAX as _INT64_MAX
 from .cells import NUMBER as _NUMBER
 from .cells import TableSpec, infer_extra_column
-from .files import atomic_write
+from .files import atomic_write, check_input, read_input
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -118,9 +118,13 @@ _fmt = fmt_number
 # ---------------------------------------------------------------------------
 
 
-def _records(path: Path, label: str) -> list[list[str]]:
+def _table_kind(spec: TableSpec | None) -> str:
+    return "a plan" if spec is not None and spec.label.endswith("plan") else "a table"
+
+
+def _records(path: Path, label: str, spec: TableSpec | None = None) -> list[list[str]]:
     try:
-        raw = path.read_bytes()
+        raw = read_input(path, _table_kind(spec), label=label)
     except FileNotFoundError:
         raise ConfigError(f"{label} does not exist; check the path.") from None
     except IsADirectoryError:
@@ -350,7 +354,7 @@ def _standard_series(kind: str, values: list[Any]) -> pd.Series:
 
 def _read(path: str | os.PathLike, spec: TableSpec, span: tuple[float, float], extra_checks=None):
     label = str(path)
-    return _parse_records(_records(Path(path), label), spec, label, span, extra_checks)
+    return _parse_records(_records(Path(path), label, spec), spec, label, span, extra_checks)
 
 
 RowCheck = Callable[[dict[str, Any]], Iterable[tuple[str, str]]]
@@ -379,9 +383,14 @@ def read_table(
     """
     from .table_fast import read_fast
 
-    fast = read_fast(path, spec, span, _screen(spec, id_range, check))
-    if fast is not None:
-        return fast
+    try:
+        check_input(path, _table_kind(spec))  # a FIFO or a device refused before any reader waits on it
+    except OSError:
+        pass  # a missing file or a folder: the cell-by-cell reader's sentences
+    else:
+        fast = read_fast(path, spec, span, _screen(spec, id_range, check))
+        if fast is not None:
+            return fast
     return _read(path, spec, span, _row_checks(spec, id_range, check))
 
 

@@ -81,9 +81,11 @@ class SensingPaper(Protocol):
 
 def load_model(path: str | Path) -> SensingModel:
     """The sensing model of a model file, from whichever installed paper wrote it (ModelError)."""
+    from ..core.files import read_input
+
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_input(p, "a model file", label=f"The model file {p}", error=ModelError).decode("utf-8")
     except FileNotFoundError:
         raise ModelError(f"The model file {p} does not exist; write one with `labcli fit`.") from None
     except IsADirectoryError:

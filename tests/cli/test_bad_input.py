@@ -126,7 +126,7 @@ def run_case(case: Case, world: Path, tmp_path: Path) -> tuple[subprocess.Comple
         finally:
             server.stop()
     else:
-        result = labcli(*case.args, cwd=here)
+        result = labcli(*case.args, cwd=here, timeout=case.timeout)
     return result, expected_stderr(case, here, port), before, digest(here)
 
 

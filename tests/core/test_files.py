@@ -28,3 +28,62 @@ def test_a_name_past_the_limit_is_refused_in_one_sentence_and_nothing_is_made(tm
         f"system allows at most {limit}), so choose a shorter name."
     )
     assert list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- inputs bounded and regular
+
+
+def test_an_input_is_read_whole_under_its_bound(tmp_path):
+    from labcli.core.files import read_input
+
+    p = tmp_path / "p.toml"
+    p.write_bytes(b"x" * 1000)
+    assert read_input(p, "a protocol file") == b"x" * 1000
+
+
+def test_an_input_past_its_bound_is_refused_naming_both_sizes(tmp_path, monkeypatch):
+    from labcli.core import files
+
+    monkeypatch.setitem(files.INPUT_LIMITS, "a model file", 2_000_000)
+    p = tmp_path / "m.json"
+    with open(p, "wb") as f:
+        f.truncate(3_500_000)  # sparse: the size is there without the bytes
+    with pytest.raises(ConfigError) as e:
+        files.read_input(p, "a model file")
+    assert str(e.value) == (
+        f"{p} is 3.5 MB, larger than the 2 MB a model file may be; check that it is the right file."
+    )
+
+
+def test_a_file_that_grows_past_its_bound_while_read_is_refused(tmp_path, monkeypatch):
+    """/proc files say 0 bytes and then give more: the bound holds on what is read, not on st_size."""
+    from labcli.core import files
+
+    monkeypatch.setitem(files.INPUT_LIMITS, "a table", 100)
+    with pytest.raises(ConfigError) as e:
+        files.read_input("/proc/self/maps", "a table", label="maps")
+    assert (
+        str(e.value)
+        == "maps grew past the 100 bytes a table may be while it was read; check that it is the right file."
+    )
+
+
+def test_a_fifo_with_no_writer_is_refused_at_once_and_a_folder_is_a_folder(tmp_path):
+    from labcli.core.files import check_input, read_input
+
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(ConfigError, match="is a FIFO"):
+        read_input(fifo, "a table")  # would wait for a writer forever if opened blocking
+    with pytest.raises(IsADirectoryError):
+        check_input(tmp_path, "a table")
+    with pytest.raises(FileNotFoundError):
+        check_input(tmp_path / "missing.csv", "a table")
+
+
+def test_text_with_bytes_that_are_not_utf8_is_stored_with_escapes():
+    from labcli.core.files import stored_text
+
+    name = os.fsdecode(b"run\xff\xfe.h5")
+    assert stored_text(name) == "run\\xff\\xfe.h5"
+    assert stored_text("r\u00e9sum\u00e9.h5") == "r\u00e9sum\u00e9.h5"

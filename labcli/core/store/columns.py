@@ -30,6 +30,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from ..files import stored_text
 from ..paper import Column
 from .checksum import Repeated, row_checksums
 
@@ -82,7 +83,7 @@ def fixed(c: Column, values: Any, n: int) -> np.ndarray:
         if isinstance(values, np.ndarray) and values.dtype == c.dtype:
             return values.reshape(n)  # already the stored bytes (an import's columns, made whole-array)
         a = np.asarray(values, dtype=object).reshape(n)
-        return np.array([v if isinstance(v, bytes) else str(v).encode("utf-8") for v in a], dtype=c.dtype)
+        return np.array([v if isinstance(v, bytes) else stored_text(str(v)).encode("utf-8") for v in a], dtype=c.dtype)
     return np.asarray(values, dtype=c.dtype).reshape(n, *c.shape)
 
 

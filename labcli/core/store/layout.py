@@ -41,6 +41,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from ..files import stored_text
 from ..paper import Column, RecordType
 from ..timestamps import utc_now
 from ..version import __version__
@@ -175,19 +176,19 @@ def command_line(argv: Sequence[str] | None = None) -> str:
     words = ["labcli"] if os.path.basename(argv[0]) in ("labcli", "__main__.py", "-m") else [os.path.basename(argv[0])]
     for a in argv[1:]:
         words.append(os.path.basename(a) if os.path.isabs(a) or os.sep in a and os.path.exists(a) else a)
-    return shlex.join(words)
+    return stored_text(shlex.join(words))
 
 
 def text_dataset(parent: h5py.Group, key: str, value: str, **attrs: Any) -> h5py.Dataset:
     """A text as a one-element fixed-length UTF-8 dataset (chunked, so Fletcher32 covers it)."""
-    data = value.encode("utf-8")
+    data = stored_text(value).encode("utf-8")
     ds = parent.create_dataset(
         key, shape=(1,), dtype=h5py.string_dtype("utf-8", length=max(1, len(data))), chunks=(1,), **FILTERS
     )
     ds[0] = data
     ds.attrs["units"] = ""
     for k, v in attrs.items():
-        ds.attrs[k] = v
+        ds.attrs[k] = stored_text(v) if isinstance(v, str) else v
     return ds
 
 
@@ -261,7 +262,7 @@ def initialise(
     a = f.attrs
     a["NX_class"], a["default"] = "NXroot", "entry"
     a["schema"], a["schema_version"] = SCHEMA, SCHEMA_VERSION
-    a["file_name"], a["file_time"] = os.path.basename(path), utc_now()
+    a["file_name"], a["file_time"] = stored_text(os.path.basename(path)), utc_now()
     a["creator"] = f"labcli {__version__}"
     a["HDF5_Version"], a["h5py_version"] = h5py.version.hdf5_version, h5py.version.version
     e = f.create_group("entry")
@@ -282,7 +283,7 @@ def initialise(
         "source": os.path.basename(str(source)),
     }
     for key, value in meta.items():
-        e.attrs[key] = value
+        e.attrs[key] = stored_text(value)
     e.attrs["channels"] = list(channels)
     e.attrs["imported"] = bool(imported)
     v = e.create_group("versions")

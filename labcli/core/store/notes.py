@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, TypedDict
 import numpy as np
 
 from ...errors import StoreError
+from ..files import stored_text
 from ..paper import Column
 from ..timestamps import utc_now
 from .blobs import cell_text
@@ -93,7 +94,7 @@ class Notes:
         run = self._run
         run.writer.check()
         run.check_v2("a note")
-        text = " ".join(str(text).split())  # one line: a note is a sentence or a paragraph, not a layout
+        text = " ".join(stored_text(str(text)).split())  # one line: a note is a sentence or a paragraph, not a layout
         if not text:
             raise StoreError("a note needs some text; nothing was added.")
         size = len(text.encode("utf-8"))

@@ -16,6 +16,7 @@ from typing import Any, cast
 import numpy as np
 
 from ...errors import StoreError
+from ..files import stored_text
 from ..paper import Column, RecordType
 from ..record import ACCEPTED, Settle
 from ..timestamps import utc_now
@@ -86,7 +87,7 @@ def _texts_fit(columns: Mapping[str, Column], values: Mapping[str, Any], label: 
         c = columns.get(name)
         if c is None or c.kind != "text" or v is None:
             continue
-        size = len(str(v).encode("utf-8"))
+        size = len(stored_text(str(v)).encode("utf-8"))
         if size > c.width:
             raise StoreError(
                 f"{label} record: '{name}' is {size} bytes of text; a run file keeps at most "
@@ -178,7 +179,7 @@ def _check_ids(what: str, ids: np.ndarray, done: set[int], path: str) -> None:
 def _texts(c: Column, v: Any, n: int, ids: np.ndarray, what: str) -> np.ndarray:
     """A text column's values as the fixed-width bytes it stores, refused when one is too long."""
     arr = np.asarray(v, dtype=object).reshape(n)
-    enc = [x if isinstance(x, bytes) else ("" if x is None else str(x)).encode("utf-8") for x in arr]
+    enc = [x if isinstance(x, bytes) else stored_text("" if x is None else str(x)).encode("utf-8") for x in arr]
     longest = max((len(x) for x in enc), default=0)
     if longest > c.width:
         i = next(i for i, x in enumerate(enc) if len(x) == longest)

@@ -51,7 +51,7 @@ import h5py
 import numpy as np
 
 from ...errors import LabcliError, LabcliWarning, StoreError
-from ..files import RUN_FILE_SUFFIXES
+from ..files import RUN_FILE_SUFFIXES, is_run_file
 from ..paper import Column, RecordType
 from ..registry import record_type, untagged_run_kind
 from . import space
@@ -457,6 +457,11 @@ def _check_new(path: str, force: bool, exists_hint: str) -> None:
         raise StoreError(f"{path} already exists; {exists_hint}.")
     if force and os.path.lexists(path) and space.writer_holds(path):
         raise StoreError(f"{path} {space.BUSY}; --force never replaces a run another program has open.")
+    if force and os.path.isfile(path) and os.path.getsize(path) > 0 and not is_run_file(path):
+        raise StoreError(
+            f"Cannot replace {path}: it is not a run file, and --force replaces only a run file (an earlier "
+            "output of acquire or import); choose another output name."
+        )
     space.clean_partials(os.path.dirname(os.path.abspath(path)))
     space.ignore_file_size_signal()
 

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any, TypedDict
 import numpy as np
 
 from ...errors import StoreError
+from ..files import stored_text
 from ..sessionlog import RigIdentity, SessionInfo
 from ..timestamps import utc_now
 from .blobs import cell_text
@@ -235,9 +236,10 @@ def end_event(number: int, how: str) -> dict[str, Any]:
 
 def cut(s: Any, width: int) -> str:
     """``s`` as text of at most ``width`` UTF-8 bytes (ending in "..." when cut)."""
-    data = str(s).encode("utf-8")
+    s = stored_text(str(s))
+    data = s.encode("utf-8")
     if len(data) <= width:
-        return str(s)
+        return s
     return data[: width - 3].decode("utf-8", "ignore") + "..."
 
 

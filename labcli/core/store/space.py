@@ -147,7 +147,7 @@ def clean_partials(folder: str) -> list[str]:
 def writer_holds(path: str) -> bool:
     """True while another process writes ``path`` (it holds the exclusive lock)."""
     try:
-        fd = os.open(path, os.O_RDONLY)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO given as a run never blocks here
     except OSError:
         return False
     try:

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ...core.figures import source_line
+from ...core.files import read_input
 from ...core.jsontext import loads_bounded
 from ...core.modelfile import check_fit_paths, model_destination, save_model
 from ...core.protocol import Protocol
@@ -143,7 +144,7 @@ def load_stretch_model(path: Path) -> Any:
             "labcli fit STRETCH.h5, which writes STRETCH.model.json."
         )
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_input(path, "a model file", label=f"Model file {path}").decode("utf-8")
         d = loads_bounded(text)
     except (OSError, UnicodeDecodeError, ValueError):  # ValueError: bad JSON, or nested too deep
         raise ConfigError(

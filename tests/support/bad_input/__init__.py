@@ -43,6 +43,7 @@ class Case:
     firmware: dict | None = None  # or serve support.firmware.FakeFirmware(**firmware) there instead
     xfail: str | None = None  # a bug in a module still being edited (see the report)
     fifos: tuple[str, ...] = ()  # named pipes made in the folder (never opened: a reader would wait)
+    timeout: float = 120  # seconds before the case counts as a hang (special files: a few)
 
 
 def toml_edit(old: str, new: str) -> Callable[[Path], bytes]:

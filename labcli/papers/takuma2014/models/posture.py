@@ -1123,9 +1123,11 @@ def _check_theta1(d: Mapping[str, Any], name: str) -> None:
 
 def load_force_model(path: Any) -> TakumaModel | PostureModel:
     """A model file of either form: ``form = "posture"`` or the paper's Eqs. 34-37 (the default)."""
+    from ....core.files import read_input
+
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_input(p, "a model file", label=f"The model file {p}", error=ModelError).decode("utf-8")
     except (OSError, UnicodeDecodeError):
         return TakumaModel.load(p)  # its one-sentence errors for a missing or unreadable file
     return force_model_from_json(text, name=f"the model file {p}")

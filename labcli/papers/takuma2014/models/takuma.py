@@ -760,9 +760,11 @@ class TakumaModel:
     @classmethod
     def load(cls, path: Any) -> TakumaModel:
         """Read a model JSON file (ModelError if missing or not a model)."""
+        from ....core.files import read_input
+
         p = Path(path)
         try:
-            text = p.read_text(encoding="utf-8")
+            text = read_input(p, "a model file", label=f"The model file {p}", error=ModelError).decode("utf-8")
         except FileNotFoundError:
             raise ModelError(f"The model file {p} does not exist; write one with `labcli fit`.") from None
         except IsADirectoryError:

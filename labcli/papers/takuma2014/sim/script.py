@@ -109,9 +109,11 @@ class Script:
 
 def load_script(path: str | Path) -> Script:
     """Read and check a script file (ScriptError with one sentence)."""
+    from ....core.files import read_input
+
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_input(p, "a sim script", label=f"The sim script {p}", error=ScriptError).decode("utf-8")
     except (OSError, UnicodeDecodeError) as e:
         raise ScriptError(f"The sim script {p} cannot be read ({getattr(e, 'strerror', None) or e}).") from None
     try:
