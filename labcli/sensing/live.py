@@ -116,6 +116,90 @@ def board_names(dev: Any) -> tuple[str, ...]:
     return tuple(getattr(caps, "estimates", ()) or ())
 
 
+class _Stream:
+    """One session's state between batches: the device clock, the board's estimates kept for
+    pairing, the --every count, and the summary being filled."""
+
+    def __init__(
+        self,
+        dev: Any,
+        estimator: Any,
+        outputs: Sequence[Output],
+        *,
+        seconds: float | None,
+        every: int,
+        on_batch: Callable[[Any, list[Estimate | Event]], None] | None,
+        on_board: Callable[[Any], None] | None,
+    ) -> None:
+        self.dev, self.estimator, self.outputs = dev, estimator, outputs
+        self.seconds, self.every, self.on_batch, self.on_board = seconds, every, on_batch, on_board
+        self.summary = LiveSummary()
+        self.clock = DeviceClock()
+        self.first: float | None = None
+        self.shown = 0  # estimates seen, for --every
+        self.names = board_names(dev)
+        model = getattr(estimator, "model", None)
+        self.units = dict(zip(getattr(model, "quantities", ()), getattr(model, "units", ()), strict=False))
+        self.boards: dict[int, Any] = {}
+
+    def _board_of(self, seq: int) -> dict[str, Any] | None:
+        got = self.boards.get(seq)
+        return None if got is None else board_fields(self.names, got, self.units)
+
+    def _take_board(self) -> None:
+        for b in self.dev.take_estimates():
+            self.boards[b.seq] = b
+            self.summary.board += 1
+            if self.on_board is not None:
+                self.on_board(b)
+        while len(self.boards) > BOARD_KEEP:
+            del self.boards[next(iter(self.boards))]
+
+    def _publish(self, items: list[Estimate | Event], arrived: float) -> None:
+        summary = self.summary
+        for item in items:
+            if isinstance(item, Event):
+                summary.events[item.kind] = summary.events.get(item.kind, 0) + 1
+                publish = True
+            else:
+                summary.estimates += 1
+                publish = self.shown % self.every == 0
+                self.shown += 1
+            if publish and self.outputs:
+                board = self._board_of(item.seq) if self.names and isinstance(item, Estimate) else None
+                line = line_of(item, board)
+                for out in self.outputs:
+                    out.publish(line)
+                if isinstance(item, Estimate):
+                    summary.published += 1
+                    summary.paired += board is not None
+                    summary.latency_s.append(time.perf_counter() - arrived)
+
+    def take(self, batch: Any, arrived: float) -> bool:
+        """Feed one batch; True once ``seconds`` of device time have passed."""
+        if not len(batch):
+            return False
+        t = self.clock.seconds(batch.t_us)
+        first = self.first = float(t[0]) if self.first is None else self.first
+        seconds = self.seconds
+        done = seconds is not None and float(t[-1]) - first >= seconds
+        if done:  # the frames past the end are left unread, whatever the size of the link's batches
+            assert seconds is not None
+            k = int(np.searchsorted(t - first, seconds, side="right"))
+            if k == 0:
+                return True
+            batch, t = type(batch)(batch.seq[:k], batch.t_us[:k], batch.values[:k]), t[:k]
+        self.summary.frames += len(batch)
+        self.summary.device_s = float(t[-1]) - first
+        if self.names:
+            self._take_board()
+        items = self.estimator.update(batch)
+        self._publish(items, arrived)
+        if self.on_batch is not None:
+            self.on_batch(batch, items)
+        return done
+
+
 def run(
     dev: Any,
     estimator: Any,
@@ -134,76 +218,19 @@ def run(
     Errors of the device propagate after the stream is stopped; the summary so far is on the
     error as ``exc.summary``.
     """
-    summary = LiveSummary()
+    stream = _Stream(dev, estimator, outputs, seconds=seconds, every=every, on_batch=on_batch, on_board=on_board)
+    summary = stream.summary
     if rate_hz is not None:
         summary.rate_hz = dev.set_rate(rate_hz)
-    clock = DeviceClock()
-    first: float | None = None
-    shown = 0  # estimates seen, for --every
     w0, c0 = time.perf_counter(), time.process_time()
-    names = board_names(dev)
-    model = getattr(estimator, "model", None)
-    units = dict(zip(getattr(model, "quantities", ()), getattr(model, "units", ()), strict=False))
-    if names:
+    if stream.names:
         dev.stream_estimates(1)
-    boards: dict[int, Any] = {}
-
-    def board_of(seq: int) -> dict[str, Any] | None:
-        got = boards.get(seq)
-        return None if got is None else board_fields(names, got, units)
-
-    def take(batch: Any, arrived: float) -> bool:
-        """Feed one batch; True once ``seconds`` of device time have passed."""
-        nonlocal first, shown
-        if not len(batch):
-            return False
-        t = clock.seconds(batch.t_us)
-        first = float(t[0]) if first is None else first
-        done = seconds is not None and float(t[-1]) - first >= seconds
-        if done:  # the frames past the end are left unread, whatever the size of the link's batches
-            assert seconds is not None
-            k = int(np.searchsorted(t - first, seconds, side="right"))
-            if k == 0:
-                return True
-            batch, t = type(batch)(batch.seq[:k], batch.t_us[:k], batch.values[:k]), t[:k]
-        summary.frames += len(batch)
-        summary.device_s = float(t[-1]) - first
-        if names:
-            for b in dev.take_estimates():
-                boards[b.seq] = b
-                summary.board += 1
-                if on_board is not None:
-                    on_board(b)
-            while len(boards) > BOARD_KEEP:
-                del boards[next(iter(boards))]
-        items = estimator.update(batch)
-        for item in items:
-            if isinstance(item, Event):
-                summary.events[item.kind] = summary.events.get(item.kind, 0) + 1
-                publish = True
-            else:
-                summary.estimates += 1
-                publish = shown % every == 0
-                shown += 1
-            if publish and outputs:
-                board = board_of(item.seq) if names and isinstance(item, Estimate) else None
-                line = line_of(item, board)
-                for out in outputs:
-                    out.publish(line)
-                if isinstance(item, Estimate):
-                    summary.published += 1
-                    summary.paired += board is not None
-                    summary.latency_s.append(time.perf_counter() - arrived)
-        if on_batch is not None:
-            on_batch(batch, items)
-        return done
-
     dev.start()
     try:
         try:
             while True:
                 batch = dev.read(timeout=READ_S)
-                if take(batch, time.perf_counter()):
+                if stream.take(batch, time.perf_counter()):
                     summary.stopped = "seconds"
                     break
         except KeyboardInterrupt:
@@ -219,7 +246,7 @@ def run(
             except Exception:  # noqa: BLE001 - the rig is gone: what it sent is already taken
                 rest = None
             if rest is not None and summary.stopped == "interrupted":
-                take(rest, time.perf_counter())
+                stream.take(rest, time.perf_counter())
         summary.wall_s = time.perf_counter() - w0
         summary.cpu_s = time.process_time() - c0
         summary.counters = dict(dev.counters)

@@ -108,7 +108,6 @@ LONG_PAPER_FUNCTIONS = frozenset(
         "labcli/papers/takuma2014/session.py:force_session",
         "labcli/papers/rpam2015/figures.py:figure8",
         "labcli/papers/rpam2015/figures.py:figure_stretch",
-        "labcli/sensing/live.py:run",
     }
 )
 
