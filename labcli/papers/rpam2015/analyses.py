@@ -26,6 +26,7 @@ from ...core.protocol import Protocol
 from ...core.store import RunFile
 from ...errors import ConfigError
 from . import report
+from .actuator import Actuator
 from .figures import figure8, figure_stretch
 from .models.rpam_fit import StretchCorrection, StretchFit, analyse_joint_map, analyse_stretch
 from .models.rpam_optimize import optimize_protocol
@@ -206,13 +207,60 @@ def optimize(protocol: str, options: OptimizeOptions, *, progress: bool = True) 
     """Maximise the joint angle over L1, L2, L3 (g1-g7, K_min, the toggle margin); a live line
     on stderr while it runs."""
     o = options
+    fitted = (str(o.actuator), load_fitted_actuator(o.actuator)) if o.actuator is not None else None
     kw = dict(
-        overrides=o.overrides, seed=o.seed, Pa_kPa=o.pa, Pb_kPa=o.pb, force=o.force, min_stiffness=o.min_stiffness
+        overrides=o.overrides,
+        seed=o.seed,
+        Pa_kPa=o.pa,
+        Pb_kPa=o.pb,
+        force=o.force,
+        min_stiffness=o.min_stiffness,
+        actuator=fitted,
     )
     if not progress:
         return optimize_protocol(protocol, **kw)  # type: ignore[arg-type]
     with report.optimize_progress() as show:
         return optimize_protocol(protocol, progress=show, **kw)  # type: ignore[arg-type]
+
+
+def load_fitted_actuator(path: Path) -> Actuator:
+    """The lab's actuator fitted in a stretch fit (``labcli fit`` on a stretch-test run), for
+    ``labcli optimize --actuator``; :class:`ConfigError` in one sentence for any other file."""
+    if not path.is_file():
+        raise ConfigError(
+            f"Actuator file {path} does not exist; fit the stretch test first with labcli fit STRETCH.h5, "
+            "which writes STRETCH.model.json."
+        )
+    try:
+        d = loads_bounded(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):  # ValueError: bad JSON, or nested too deep
+        raise ConfigError(
+            f"Actuator file {path} is not a JSON stretch fit; give the file labcli fit wrote for an rPAM "
+            "stretch-test run."
+        ) from None
+    kind = d.get("kind", d.get("schema")) if isinstance(d, dict) else None
+    if kind != "rpam-stretch-fit":
+        what = _OTHER_MODELS.get(str(kind), f"a file of kind {kind!r}")
+        raise ConfigError(
+            f"Actuator file {path} is {what}, not a stretch fit of the rPAM paper; --actuator takes the file "
+            "labcli fit writes for an rPAM stretch-test run."
+        )
+    fit = StretchFit.from_dict(d)
+    if fit.actuator_fit is None:
+        why = fit.actuator_note.rstrip(".") if fit.actuator_note else "written before labcli fit fitted one"
+        raise ConfigError(
+            f"Actuator file {path} holds a stretch correction but no fitted actuator ({why}); fit the stretch-test "
+            "run again with labcli fit."
+        )
+    return fit.actuator_fit.actuator
+
+
+# What a model file of another kind is, for the sentence that refuses it as --actuator.
+_OTHER_MODELS = {
+    "labcli-takuma-model": "a force model of the McKibben paper (takuma2014)",
+    "rpam-joint-map": "a joint-map analysis",
+    "rpam-stretch-correction": "a bare stretch correction without the actuator it was fitted with",
+}
 
 
 def show_optimum(result: Any, *, as_json: bool = False) -> None:

@@ -110,6 +110,11 @@ class OptimizeOptions:
         form="NM_PER_RAD",
         default_text="the protocol's optimize.min_stiffness_Nm_per_rad, 0.07",
     )
+    actuator: Path | None = path(
+        help="Design with the lab's own actuator: the stretch fit `labcli fit` wrote for a stretch-test run "
+        "(its Ogden moduli, free length, radius and stretch correction).",
+        default_text="the protocol's [actuator], [ogden] and [stretch_correction]",
+    )
 
 
 OPTIONS = {"fit": FitOptions, "validate": ValidateOptions, "optimize": OptimizeOptions}

@@ -255,6 +255,13 @@ def print_optimum(d: dict[str, Any]) -> None:
             f"{_design_cell(paper, key, scale, spec) if paper else '':>10s}"
         )
     lines.append("")
+    source, act = d.get("actuator_source", "protocol"), d.get("actuator")
+    if source != "protocol" and act is not None:
+        mu = ", ".join(f"{v:.4g}" for v in act["ogden_mu_MPa"])
+        lines.append(
+            f"Actuator: the lab's, fitted in {source}: Ogden moduli {mu} MPa, L0 = {act['L0_m'] * 1e3:.2f} mm, "
+            f"thread {act['thread_length_m']:.4f} m in {act['n_turns']:g} turns, its own stretch correction."
+        )
     active = d["active_constraints"]
     lines.append("Active at the optimum: " + ("; ".join(active) if active else "none (interior optimum)") + ".")
     if paper is not None:

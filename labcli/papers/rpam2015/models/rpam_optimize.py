@@ -123,6 +123,9 @@ class OptimumResult:
     message: str
     history: list[dict[str, float]] = field(default_factory=list)
     force_reading: str = "derived"
+    # Where the actuator came from: "protocol", or the stretch fit (a path) it was fitted in.
+    actuator_source: str = "protocol"
+    actuator: rpam.Actuator | None = None
 
     @property
     def geometry(self) -> rpam.JointGeometry:
@@ -169,6 +172,8 @@ class OptimumResult:
                 "maxiter": s.maxiter,
                 "stretch_correction": s.stretch_correction,
                 "force_reading": self.force_reading,
+                "actuator_source": self.actuator_source,
+                "actuator": self.actuator.to_dict() if self.actuator is not None else None,
                 "generations": self.nit,
                 "evaluations": self.nfev,
                 "message": self.message,
@@ -446,6 +451,7 @@ def optimize_joint(
         message=str(res.message),
         history=history,
         force_reading=act.force_reading,
+        actuator=act,
     )
 
 
@@ -459,12 +465,29 @@ def optimize_protocol(
     force: str | None = None,
     min_stiffness: float | None = None,
     progress: Progress | None = None,
+    actuator: tuple[str, rpam.Actuator] | None = None,
 ) -> OptimumResult:
     """Load an rPAM protocol, apply ``key=value`` overrides, and optimise its joint.
 
     ``force`` reads the actuator's force the other way (``"derived"`` or ``"paper"``,
-    default the protocol's); ``min_stiffness`` (N m/rad) replaces the protocol's K_min.
+    default the protocol's); ``min_stiffness`` (N m/rad) replaces the protocol's K_min;
+    ``actuator`` is ``(where it was fitted, the lab's fitted actuator)``, which replaces the
+    protocol's actuator, Ogden wall and stretch correction, reading included.
     """
+    if actuator is not None:
+        where, fitted = actuator
+        mixed = [a for a in overrides if a.split("=", 1)[0].strip().split(".", 1)[0] in _ACTUATOR_TABLES]
+        if mixed:
+            raise ModelError(
+                f"--set {mixed[0]} changes the protocol's actuator, which the fitted actuator of {where} replaces; "
+                "leave out one or the other."
+            )
+        if force is not None and force != fitted.force_reading:
+            raise ModelError(
+                f"The actuator of {where} was fitted with the {fitted.force_reading} force reading, so its moduli "
+                f"belong to it; optimise with --force {fitted.force_reading}, or fit the stretch test again with "
+                f"--force {force}."
+            )
     base = load_rpam(path_or_name)
     extra = list(overrides)
     if seed is not None:
@@ -478,6 +501,8 @@ def optimize_protocol(
     proto = with_overrides(base, extra, label, shown=overrides)
     source = f"{label} with --set {' '.join(overrides)}" if overrides else label
     act = checked_actuator(proto.settings, source).with_force_reading(force)
+    if actuator is not None:
+        act = actuator[1]
     if min_stiffness is not None:
         if not (math.isfinite(min_stiffness) and min_stiffness > 0):
             raise ModelError(
@@ -492,4 +517,11 @@ def optimize_protocol(
                 ),
             )
     bounds, settings = optimizer_settings(proto.settings, source)
-    return optimize_joint(act, bounds, settings, progress=progress)
+    result = optimize_joint(act, bounds, settings, progress=progress)
+    if actuator is not None:
+        result.actuator_source = actuator[0]
+    return result
+
+
+# The protocol's tables the fitted actuator of --actuator replaces.
+_ACTUATOR_TABLES = ("actuator", "ogden", "stretch_correction")
