@@ -226,13 +226,13 @@ def optimize(protocol: str, options: OptimizeOptions, *, progress: bool = True) 
 def load_fitted_actuator(path: Path) -> Actuator:
     """The lab's actuator fitted in a stretch fit (``labcli fit`` on a stretch-test run), for
     ``labcli optimize --actuator``; :class:`ConfigError` in one sentence for any other file."""
-    if not path.is_file():
+    if not path.exists():
         raise ConfigError(
             f"Actuator file {path} does not exist; fit the stretch test first with labcli fit STRETCH.h5, "
             "which writes STRETCH.model.json."
         )
     try:
-        d = loads_bounded(path.read_text(encoding="utf-8"))
+        d = loads_bounded(read_input(path, "a model file", label=f"Actuator file {path}").decode("utf-8"))
     except (OSError, UnicodeDecodeError, ValueError):  # ValueError: bad JSON, or nested too deep
         raise ConfigError(
             f"Actuator file {path} is not a JSON stretch fit; give the file labcli fit wrote for an rPAM "
