@@ -149,6 +149,26 @@ def test_the_2x2_products_are_einsum_s_to_rounding(n: int) -> None:
         np.testing.assert_allclose(einsum_2x2(spec, *ops), np.einsum(spec, *ops), rtol=1e-13, atol=1e-14)
 
 
+def test_the_2x2_products_of_a_few_rows_are_those_of_many_to_the_bit() -> None:
+    """A few rows (the run-time estimator's) are gathered at once, many taken column by column:
+    the same products summed in the same order, so the same bits."""
+    from labcli.papers.takuma2014.models.posture import GATHER_ROWS, einsum_2x2
+
+    rng = np.random.default_rng(7)
+    n = GATHER_ROWS + 40
+    M, S, tau = rng.normal(size=(n, 2, 2)), rng.normal(size=(n, 2, 2)), rng.normal(size=(n, 2))
+    prior = np.diag(rng.uniform(0.5, 2.0, 2) ** 2)
+    for spec, ops in [
+        ("nij,nj->ni", (M, tau)),
+        ("nij,njk,nlk->nil", (M, S, M)),
+        ("ij,nkj,nkl->nil", (prior, M, S)),
+        ("nij,njk,kl->nil", (M, S, prior)),
+    ]:
+        many = einsum_2x2(spec, *ops)
+        few = einsum_2x2(spec, *(op if op.ndim == 2 and op is prior else op[:9] for op in ops))
+        assert np.array_equal(few, many[:9])
+
+
 def test_predictions_and_routes_are_those_of_numpy_s_einsum(monkeypatch: pytest.MonkeyPatch) -> None:
     from labcli.papers.takuma2014.models import posture
 

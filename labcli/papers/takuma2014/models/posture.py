@@ -58,6 +58,7 @@ Units: pressures MPa, angles rad, torques N m, forces N.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Mapping
@@ -222,31 +223,69 @@ def load_torque(theta: np.ndarray, F: np.ndarray, h2: float, h3: float) -> np.nd
 def einsum_2x2(spec: str, *operands: np.ndarray) -> np.ndarray:
     """``np.einsum(spec, *operands)`` for the force posterior's per-trial 2 x 2 products, term by term.
 
-    ``n`` indexes the trials; every other index runs over 0, 1.  Each output element is the sum
-    over the other indices in index order, each term the operands' product left to right: einsum's
-    own arithmetic, whose loop order (and so the last bit) varies with the operands' layout;
-    tests/papers/takuma2014/test_fit_equivalence.py holds the two to rounding and the fits' routes
-    to the same choices.  numpy's general loop took a second over the 200,000 predictions of an
-    archive's validation, these whole-array steps a tenth of that.
+    ``n`` indexes the trials (the first index of an operand that has it); every other index runs
+    over 0, 1.  Each output element is the sum over the other indices in index order, each term
+    the operands' product left to right: einsum's own arithmetic, whose loop order (and so the
+    last bit) varies with the operands' layout; tests/papers/takuma2014/test_fit_equivalence.py
+    holds the two to rounding and the fits' routes to the same choices.  numpy's general loop
+    took a second over the 200,000 predictions of an archive's validation, a column product per
+    term a tenth of that.  For a few rows (the run-time estimator's, a dozen calls per estimate)
+    every term of every output element is gathered at once (:func:`_plan_2x2`) and multiplied
+    and summed in the same order: a dozen whole-array steps instead of a hundred.
     """
+    subs, shape, gathers = _plan_2x2(spec)
+    n = next(op.shape[0] for sub, op in zip(subs, operands, strict=True) if sub.startswith("n"))
+    flats = [
+        np.asarray(op, dtype=float).reshape((n, -1) if sub.startswith("n") else (1, -1))
+        for sub, op in zip(subs, operands, strict=True)
+    ]
+    if n > GATHER_ROWS:  # many trials: one element at a time, each term a column product
+        out = np.empty((n, len(gathers[0])))
+        for o in range(out.shape[1]):
+            total = None
+            for t in range(gathers[0].shape[1]):
+                term = None
+                for flat, idx in zip(flats, gathers, strict=True):
+                    factor = flat[:, idx[o, t]]
+                    term = factor if term is None else term * factor
+                total = term if total is None else total + term
+            out[:, o] = total
+        return out.reshape((n, *shape))
+    factors = [flat[:, idx] for flat, idx in zip(flats, gathers, strict=True)]  # (n or 1, outputs, terms)
+    term = factors[0]
+    for f in factors[1:]:
+        term = term * f
+    summed = term[:, :, 0]
+    for j in range(1, term.shape[2]):
+        summed = summed + term[:, :, j]
+    return np.broadcast_to(summed, (n, summed.shape[1])).reshape((n, *shape)).copy()
+
+
+GATHER_ROWS = 256  # up to this many trials every term is gathered at once; beyond, column by column
+
+
+@functools.cache
+def _plan_2x2(spec: str) -> tuple[tuple[str, ...], tuple[int, ...], tuple[np.ndarray, ...]]:
+    """For :func:`einsum_2x2`: the operands' subscripts, the output's 2 x 2 shape, and per operand
+    the flat index (its trial axis left out) of each output element's terms, (outputs, terms)."""
     inputs, output = spec.split("->")
-    subs = inputs.split(",")
+    subs = tuple(inputs.split(","))
+    if any("n" in sub[1:] for sub in subs) or "n" in output[1:] or not output.startswith("n"):
+        raise ValueError(f"einsum_2x2 takes the trial index n first, got {spec!r}")
     summed = sorted(set("".join(subs)) - set(output) - {"n"})
     free = [c for c in output if c != "n"]
-    n = next(op.shape[sub.index("n")] for sub, op in zip(subs, operands, strict=True) if "n" in sub)
-    out = np.empty((n, *(2,) * len(free)))
-    for values in itertools.product((0, 1), repeat=len(free)):
-        total = None
-        for more in itertools.product((0, 1), repeat=len(summed)):
-            at = dict(zip(free, values, strict=True)) | dict(zip(summed, more, strict=True))
-            term = None
-            for sub, op in zip(subs, operands, strict=True):
-                factor = op[tuple(slice(None) if c == "n" else at[c] for c in sub)]
-                term = factor if term is None else term * factor
-            total = term if total is None else total + term
-        key: tuple[Any, ...] = (slice(None), *values)
-        out[key] = total
-    return out
+    gathers = []
+    for sub in subs:
+        axes = [c for c in sub if c != "n"]
+        rows = []
+        for values in itertools.product((0, 1), repeat=len(free)):
+            row = []
+            for more in itertools.product((0, 1), repeat=len(summed)):
+                at = dict(zip(free, values, strict=True)) | dict(zip(summed, more, strict=True))
+                row.append(sum(at[c] << (len(axes) - 1 - k) for k, c in enumerate(axes)))
+            rows.append(row)
+        gathers.append(np.array(rows, dtype=np.intp))
+    return subs, (2,) * len(free), tuple(gathers)
 
 
 def force_from_torque(theta: np.ndarray, tau: np.ndarray, h2: float, h3: float) -> np.ndarray:
@@ -861,15 +900,17 @@ class PostureModel:
         motion_sd: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Forces and their covariance: torque error through (J^T)^-1, angle error through dF/d(dtheta)."""
-        F, cov = self._forces(dP, th0, dth, motion_in, motion_sd)
-        assert cov is not None
-        step = 1e-6
-        G = np.empty((len(F), 2, 2))
+        # The forces at the angles and a step either side of each, in one call (five blocks of rows).
+        n, step = len(dP), 1e-6
+        d = np.array([[0.0, 0.0], [step, 0.0], [-step, 0.0], [0.0, step], [0.0, -step]])
+        moved = None if motion_in is None else np.tile(motion_in, (5, 1))
+        F5, cov5 = self._forces(
+            np.tile(dP, (5, 1)), np.tile(th0, (5, 1)), np.tile(dth, (5, 1)) + np.repeat(d, n, axis=0), moved, motion_sd
+        )
+        assert cov5 is not None
+        F, cov, G = F5[:n], cov5[:n], np.empty((n, 2, 2))
         for k in range(2):
-            d = np.zeros(2)
-            d[k] = step
-            ahead = self._forces(dP, th0, dth + d, motion_in, motion_sd, want_cov=False)[0]
-            behind = self._forces(dP, th0, dth - d, motion_in, motion_sd, want_cov=False)[0]
+            ahead, behind = F5[(1 + 2 * k) * n : (2 + 2 * k) * n], F5[(2 + 2 * k) * n : (3 + 2 * k) * n]
             G[:, :, k] = (ahead - behind) / (2 * step)
         cov = cov + einsum_2x2("nij,njk,nlk->nil", G, cov_dth, G)
         if not self.force_prior_sd:
