@@ -10,7 +10,9 @@ order), and per scripted change when it came on and off and how large it was.
   ``release`` event is false.  Latency: detection time less the true time.
 * Settled error: every estimate from a load's ``settled`` event to its release, against the
   truth at that estimate's time; per change the mean square, then the root of the mean over
-  changes (so a long hold does not outweigh a short one).
+  changes (so a long hold does not outweigh a short one).  An estimate flagged
+  ``unobservable:q`` reports no q and is left out of q's; a change none of whose settled
+  estimates reports q has no q (NaN), and is left out of q's mean.
 * Coverage: the share of estimates whose 95 % interval (+-1.96 standard errors) holds the
   truth, per quantity, over every estimate after the baseline was learnt, transients included;
   an estimate flagged ``unobservable:q`` reports no q and is left out of q's.
@@ -113,6 +115,7 @@ def score(
     true_at = truth[idx] if len(t_truth) else np.empty((0, len(quantities)))
     values = np.array([[e.values[q] for q in quantities] for e in ests])
     ses = np.array([[e.se[q] for q in quantities] for e in ests])
+    reports = np.array([[f"{UNOBSERVABLE}:{q}" not in e.flags for q in quantities] for e in ests], dtype=bool)
     for i, c in enumerate(changes):
         c.detected_s = hits[i].t_detected_s if i in hits else None
         c.released_s = rels[i].t_detected_s if i in rels else None
@@ -122,10 +125,10 @@ def score(
             end = c.released_s if c.released_s is not None else c.off_s
             sel = (t_est >= c.settled_s) & (t_est < min(end, c.off_s))
             if sel.any():
-                c.settled_sq = np.mean((values[sel] - true_at[sel]) ** 2, axis=0)
+                c.settled_sq = _settled_sq(values[sel] - true_at[sel], reports[sel])
     cov, cov_n = _coverage(ests, values, ses, true_at, quantities)
     sq = [c.settled_sq for c in changes if c.settled_sq is not None]
-    rmse = np.sqrt(np.mean(sq, axis=0)) if sq else np.full(len(quantities), np.nan)
+    rmse = _root_mean(sq, len(quantities))
     false = false_on + false_off
     return Score(
         list(changes),
@@ -137,6 +140,22 @@ def score(
         dict(zip(quantities, rmse.tolist(), strict=True)),
         len(sq),
     )
+
+
+def _settled_sq(err: np.ndarray, reports: np.ndarray) -> np.ndarray:
+    """Per quantity, the mean square of the errors (n, q) of the estimates that report it (NaN: none does)."""
+    with np.errstate(invalid="ignore"):
+        return (np.where(reports, err, 0.0) ** 2).sum(axis=0) / reports.sum(axis=0)
+
+
+def _root_mean(sq: Sequence[np.ndarray], q: int) -> np.ndarray:
+    """The root of the mean over changes, per quantity, of the changes that report it (NaN: none)."""
+    if not sq:
+        return np.full(q, np.nan)
+    a = np.array(sq, dtype=float)
+    n = np.isfinite(a).sum(axis=0)
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.where(np.isfinite(a), a, 0.0).sum(axis=0) / n)
 
 
 def _coverage(
@@ -175,9 +194,7 @@ def pooled(scores: Sequence[Score], quantities: Sequence[str], min_size: float =
         "onset_latency_p90_s": float(np.percentile(on, 90)) if on else float("nan"),
         "release_latency_median_s": float(np.median(off)) if off else float("nan"),
         "coverage": cov,
-        "settled_rmse": dict(
-            zip(quantities, (np.sqrt(np.mean(sq, axis=0)) if sq else [np.nan] * len(quantities)), strict=True)
-        ),
+        "settled_rmse": dict(zip(quantities, _root_mean(sq, len(quantities)).tolist(), strict=True)),
         "settled_n": len(sq),
     }
 

@@ -107,7 +107,7 @@ def one_seed(job: tuple[int, dict[str, Any]]) -> dict[str, Any]:
             "released_s": c.released_s,
             "off_s": c.off_s,
             "settled_s": c.settled_s,
-            "online_sq": None if c.settled_sq is None else c.settled_sq.tolist(),
+            "online_sq": None if c.settled_sq is None else [float(v) for v in c.settled_sq],
             "offline": None,
         }
         if off is not None:
@@ -273,7 +273,8 @@ def pool(results: list[dict[str, Any]]) -> dict[str, Any]:
     both = [c for r in results for c in r["changes"] if c["online_sq"] is not None and c["offline"] is not None]
     rmse = {}
     for j, q in enumerate(QUANTITIES):
-        use = [c for c in both if c["offline"]["reported"][j]]
+        # Both ways must report q: a change whose online estimates are all flagged has no online q.
+        use = [c for c in both if c["offline"]["reported"][j] and math.isfinite(c["online_sq"][j])]
         on = math.sqrt(np.mean([c["online_sq"][j] for c in use])) if use else math.nan
         off = math.sqrt(np.mean([c["offline"]["sq"][j] for c in use])) if use else math.nan
         rmse[q] = {"online": on, "offline": off, "ratio": on / off if off else math.nan, "n": len(use)}
