@@ -2,9 +2,10 @@
 the last events, and a rolling plot of the pressures and the estimates.
 
 Drawn with rich (imported here, and this module only by the command that shows it, so
-``labcli --help`` stays light).  The rolling plot is one line of block characters per trace
-over the last ``window_s`` of device time, each scaled to its own range, the range printed
-beside it.
+``labcli --help`` stays light).  The rolling plot is ``labcli monitor``'s own widget
+(:mod:`labcli.core.rolling`): the pressures and the estimates over the last ``window_s`` of
+device time in bins of a tenth of a second, one line of block characters per trace, each
+scaled to its own range, the range printed beside it.
 """
 
 from __future__ import annotations
@@ -15,25 +16,12 @@ from typing import Any
 
 import numpy as np
 
+from ..core.rolling import Rolling, spark, trace_table
 from .inputs import DeviceClock
 from .results import Estimate, Event
 
-BARS = " ▁▂▃▄▅▆▇█"
 Z95 = 1.959964  # the two-sided 95 % interval of a normal error
 _SHOW = {"rad": ("deg", 180.0 / math.pi, 2), "N": ("N", 1.0, 2)}
-
-
-def spark(values: Any, width: int) -> str:
-    """``values`` as ``width`` block characters, low to high over their own range."""
-    v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    if not v.size:
-        return " " * width
-    if v.size > width:  # the last value of each of ``width`` equal stretches
-        v = v[np.linspace(0, v.size - 1, width).round().astype(int)]
-    lo, hi = float(v.min()), float(v.max())
-    k = np.ones(v.size, dtype=int) if hi - lo <= 0 else np.rint((v - lo) / (hi - lo) * (len(BARS) - 2)).astype(int) + 1
-    return "".join(BARS[i] for i in k).rjust(width)
 
 
 class LiveView:
@@ -46,8 +34,8 @@ class LiveView:
         self.names = [n for n in estimator.inputs.names[: estimator.inputs.n_pressures]]
         self._clock = DeviceClock()
         self.window_s = window_s
-        self._p: deque[tuple[float, np.ndarray]] = deque()  # (device time, batch mean kPa)
-        self._q: dict[str, deque[float]] = {q: deque(maxlen=int(window_s * 10)) for q in estimator.model.quantities}
+        self.pressures = Rolling(len(self.names), window_s)  # kPa
+        self.estimates = Rolling(len(estimator.model.quantities), window_s)  # SI, at each estimate's time
         self.latest: Estimate | None = None
         self.events: deque[Event] = deque(maxlen=4)
         self.frames = 0
@@ -62,23 +50,15 @@ class LiveView:
         """One batch and what the estimator made of it (:func:`.live.run`'s ``on_batch``)."""
         if len(frames):
             t = self._clock.seconds(frames.t_us)
-            si = self.est.inputs.si(frames.values)[:, : self.est.inputs.n_pressures] * 1e3
-            # A tenth of a second per point, whatever the size of the batches the link delivers.
-            edges = np.arange(t[0], t[-1] + 0.1, 0.1)
-            idx = np.searchsorted(edges, t, side="right")
-            for k in np.unique(idx):
-                sel = idx == k
-                self._p.append((float(t[sel][-1]), si[sel].mean(axis=0)))
-            while self._p and self._p[0][0] < self._p[-1][0] - self.window_s:
-                self._p.popleft()
+            self.pressures.add(t, self.est.inputs.si(frames.values)[:, : self.est.inputs.n_pressures] * 1e3)
             self.frames += len(frames)
+        quantities = self.est.model.quantities
         for item in items:
             if isinstance(item, Event):
                 self.events.append(item)
             else:
                 self.latest = item
-                for q, v in item.values.items():
-                    self._q[q].append(v)
+                self.estimates.add(np.array([item.t_device_s]), np.array([[item.values[q] for q in quantities]]))
 
     def render(self, plain: bool = False) -> Any:
         from rich import box
@@ -93,9 +73,9 @@ class LiveView:
             head.append(f" · t {e.t_device_s:.1f} s (device) · {self.frames} frames")
         table = Table(box=None if plain else box.SIMPLE_HEAD, title_justify="left")
         headings = ["quantity", "estimate", "95 % interval", *(["board"] if self.board_names else []), "flags"]
-        for heading in (*headings, "last 30 s"):
+        for heading in (*headings, f"last {self.window_s:g} s"):
             table.add_column(heading, justify="right" if heading in ("estimate", "95 % interval", "board") else "left")
-        for q, unit in zip(self.est.model.quantities, self.est.model.units, strict=True):
+        for j, (q, unit) in enumerate(zip(self.est.model.quantities, self.est.model.units, strict=True)):
             shown, k, digits = _SHOW.get(unit, (unit, 1.0, 3))
             on_board = []
             if self.board_names:
@@ -108,16 +88,8 @@ class LiveView:
             flags = ",".join(f for f in e.flags if f.endswith(f":{q}") or ":" not in f)
             value = f"{v:.{digits}f} {shown}" if math.isfinite(v) else "—"
             interval = f"± {Z95 * se:.{digits}f} {shown}" if math.isfinite(se) else "—"
-            table.add_row(q, value, interval, *on_board, flags, spark(np.asarray(self._q[q]) * k, self.width - 8))
-        plot = Table(box=None, show_header=False)
-        plot.add_column("channel")
-        plot.add_column("range", justify="right")
-        plot.add_column("trace")
-        p = np.asarray([v for _, v in self._p])
-        for j, name in enumerate(self.names):
-            trace = p[:, j] if p.size else np.empty(0)
-            rng = f"{trace.min():.1f}..{trace.max():.1f} kPa" if trace.size else ""
-            plot.add_row(name, rng, spark(trace, self.width))
+            table.add_row(q, value, interval, *on_board, flags, spark(self.estimates.trace(j) * k, self.width - 8))
+        plot = trace_table(self.pressures, self.names, ["kPa"] * len(self.names), self.width)
         events = Text(
             "events: "
             + (" · ".join(f"{ev.kind} at {ev.t_device_s:.1f} s" for ev in self.events) if self.events else "none yet")

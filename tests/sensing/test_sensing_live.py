@@ -12,12 +12,12 @@ from support.sensing import LinearModel
 
 from labcli.core.device import Device
 from labcli.core.protocol import load_protocol
+from labcli.core.rolling import spark
 from labcli.errors import ConfigError, DeviceDisconnected
 from labcli.sensing import Estimator
 from labcli.sensing.live import line_of, run
 from labcli.sensing.publish import JsonLines, TcpPublisher, parse_tcp
 from labcli.sensing.results import Estimate, Event
-from labcli.sensing.view import spark
 
 
 def read_lines(sock: socket.socket, n: int, timeout: float = 5.0) -> list[str]:
@@ -160,3 +160,37 @@ def test_spark_scales_each_trace_to_its_own_range():
     assert spark([5, 5, 5], 4) == " ▁▁▁"
     assert spark([], 3) == "   "
     assert len(spark(np.arange(1000.0), 30)) == 30
+
+
+def test_the_live_view_plots_the_pressures_with_monitors_rolling_widget():
+    """The view's pressure traces are the shared widget's (labcli/core/rolling.py): each channel's
+    range over the window is that of its frames' means per tenth of a second of device time."""
+    from rich.console import Console
+
+    from labcli.core import rolling
+    from labcli.sensing import view as view_module
+    from labcli.sensing.inputs import DeviceClock
+    from labcli.sensing.view import LiveView
+
+    assert view_module.spark is rolling.spark  # no second copy of the widget
+    frames = []
+    with Device.open("sim://?seed=3&clock=virtual") as dev:
+        est = Estimator(LinearModel(), calibration=load_protocol("takuma2014").calibration, channels=dev.info.channels)
+        view = LiveView(est, "rig", window_s=5.0)
+
+        def both(batch, items):
+            frames.append(batch)
+            view.take(batch, items)
+
+        run(dev, est, [], seconds=3.0, on_batch=both)
+    t = DeviceClock().seconds(np.concatenate([f.t_us for f in frames]))
+    kpa = est.inputs.si(np.concatenate([f.values for f in frames]))[:, : est.inputs.n_pressures] * 1e3
+    bins = np.floor(t / 0.1).astype(int)
+    console = Console(width=200, record=True)
+    console.print(view.render(plain=True))
+    text = console.export_text()
+    assert "last 5 s" in text
+    for j, name in enumerate(view.names):
+        means = np.array([kpa[bins == b, j].mean() for b in np.unique(bins)])
+        line = next(line for line in text.splitlines() if line.strip().startswith(name))
+        assert f"{means.min():.2f}..{means.max():.2f} kPa" in line, (line, means.min(), means.max())
