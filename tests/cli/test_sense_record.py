@@ -116,3 +116,25 @@ def test_a_sigkill_mid_session_loses_at_most_the_last_second(tmp_path):
     # What the file holds is what was published, in order, and it reaches to within a second of the end.
     assert [round(r["t_device_s"], 6) for r in kept] == [p["t_device_s"] for p in published[: len(kept)]]
     assert published[-1]["t_device_s"] - kept[-1]["t_device_s"] <= 1.1
+
+
+def test_a_stalled_rig_ends_in_one_sentence_and_a_run_file_that_verifies(tmp_path):
+    run_path, lines_path = tmp_path / "s.h5", tmp_path / "s.jsonl"
+    port = "sim://?seed=1&clock=wall&faults=stall:0.001@3"  # a 3 s silence after a few seconds of estimates
+    result = CliRunner().invoke(
+        cli,
+        ["sense", "--port", port, "--model", str(MODEL), "--timeout", "0.5", "--jsonl", str(lines_path),
+         "--record", str(run_path)],
+    )  # fmt: skip
+    assert result.exit_code == 1
+    assert result.stderr.splitlines()[-1] == (
+        f"Error: No data from {port} for 0.5 s while streaming. Check the cable and that the rig is powered."
+    )
+    assert "Traceback" not in result.output
+    verify = CliRunner().invoke(cli, ["inspect", str(run_path), "--verify"])
+    assert verify.exit_code == 0, verify.output
+    published = [json.loads(line) for line in lines_path.read_text().splitlines()]
+    with RunFile.open(run_path) as run:
+        kept = [run.records.read(i) for i in run.records.ids()]
+    # Everything published before the rig went quiet is in the file, in order (the error's stop commits it).
+    assert published and [round(r["t_device_s"], 6) for r in kept] == [p["t_device_s"] for p in published]
