@@ -74,6 +74,8 @@ def test_the_store_rows_frames_and_trials_are_the_options(tmp_path: Path) -> Non
     with h5py.File(tmp_path / "durable.h5") as f:  # the baseline holds the same frames, filtered as the run file
         assert f["counts"].shape == (2 * 2 * 30, 6) and f["counts"].fletcher32 and f["counts"].compression == "gzip"
         assert f["counts"].chunks == (64, 6)
+    with h5py.File(tmp_path / "sync.h5") as f:  # ... and the run file the same chunk length as the baseline
+        assert f["entry/raw/time"].chunks == (store.chunk_of(30),)
     assert t["durable"] > 0
 
 

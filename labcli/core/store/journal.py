@@ -12,9 +12,12 @@ signature.  So a writer does not give HDF5 the file; it gives it a :class:`Journ
   last checkpoint (nothing on disk points there yet: new chunks, new nodes, new headers);
 * keeps in memory, in 4 KiB pages, every write to bytes before that end (the bookkeeping
   that points at the new things), and reads see those pages;
-* at :meth:`JournalFile.checkpoint`: fsyncs the file (the new things are on disk), writes
-  the pages to the journal next to the run (``.<name>.labcli-journal``, with the file's
-  identity and a checksum) and fsyncs it, then copies them into the file and fsyncs again.
+* at :meth:`JournalFile.checkpoint`: fsyncs the file (the new things are on disk, and the
+  pages the last checkpoint copied in), writes the pages to the journal next to the run
+  (``.<name>.labcli-journal``, with the file's identity and a checksum) and fsyncs it, then
+  copies them into the file.  Those copies are made durable by the next checkpoint's first
+  fsync (or at close), before the journal that holds them is overwritten or removed: two
+  fsyncs a checkpoint, not three.
 
 A kill before the journal is whole leaves the file as the last checkpoint left it (the
 torn journal fails its checksum and is dropped); a kill after it is replayed by whoever
@@ -81,6 +84,7 @@ class JournalFile:
         self.journaled = journaled
         self.durable_end = self._recorded_end() if journaled else 0
         self.written_end = 0  # the furthest byte written (the room to reserve starts there)
+        self.copied = False  # pages copied in since the last fsync: the journal still holds them
 
     # ------------------------------------------------------------ what h5py's driver calls
 
@@ -141,6 +145,7 @@ class JournalFile:
     def checkpoint(self) -> None:
         """Make everything written so far durable, as one change (see the module docstring)."""
         os.fsync(self.fd)
+        self.copied = False
         if not self.pages:
             self.durable_end = self._recorded_end() if self.journaled else 0
             return
@@ -163,7 +168,7 @@ class JournalFile:
             _sync_folder(where)
         for p in order:
             _pwrite_all(self.fd, self.pages[p], p * PAGE)
-        os.fsync(self.fd)
+        self.copied = True  # synced by the next checkpoint's first fsync, or at close
         self.pages.clear()
         self.durable_end = self._recorded_end()
 
@@ -179,6 +184,9 @@ class JournalFile:
 
     def close(self, end: int | None = None) -> None:
         """Remove the journal (the last checkpoint is in the file), give back the room past ``end``."""
+        if self.copied:
+            os.fsync(self.fd)  # the journal goes only once what it holds is durable in the file
+            self.copied = False
         with contextlib.suppress(FileNotFoundError):
             os.unlink(journal_path(self.path))
         if end is not None and self.size() > end:

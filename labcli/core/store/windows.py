@@ -47,14 +47,15 @@ class Windows:
     def __init__(self, run: RunFile) -> None:
         self._run = run
 
-    def begin(self, doing: str = "a raw window") -> WindowWriter:
+    def begin(self, doing: str = "a raw window", flush: bool = True) -> WindowWriter:
         """Start a raw window written as it arrives (the engine's Baseline and Capture).
 
         ``append(time, seq, counts, si)`` adds each block (whole chunks of frames go into the
         file and are flushed as they fill, not yet part of any record); ``finish()`` returns the
         stored :class:`~labcli.core.window.Window` a record's ``raw`` then takes.  A window no
         record takes (a redo, a kill) stays unused: it lies past every committed window and the
-        next one starts after it.
+        next one starts after it.  ``flush=False``: the chunks are not flushed as they fill (a
+        window already whole in memory, written just before the commit that syncs it).
         """
         run = self._run
         run.writer.check()
@@ -64,7 +65,7 @@ class Windows:
             self,
             run.tables.frames,
             lambda nbytes: w.reserve(nbytes, doing),
-            lambda: w.flush(doing),
+            (lambda: w.flush(doing)) if flush else (lambda: None),
             lambda: w.writing(doing),
         )
 
@@ -141,7 +142,8 @@ class Windows:
         for name, w in checked:
             if isinstance(w, Frames):
                 nbytes += len(w.seq) * 8 * (2 + 2 * len(self._run.channels))
-                writer = self.begin(doing=label)
+                # Whole in memory: its chunks need no checkpoint of their own, the commit syncs them.
+                writer = self.begin(doing=label, flush=False)
                 writer.append(w.time, w.seq, w.counts, w.values)
                 w = writer.finish()
             assert w.stored is not None
