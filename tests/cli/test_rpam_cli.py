@@ -104,6 +104,19 @@ def test_demo_runs_the_rpam_chain_and_reports_it(tmp_path):
     assert r["paper"]["joint_map_with_fitted"]["rmse_deg"] > r["derived"]["joint_map_with_fitted"]["rmse_deg"]
     assert r["paper"]["optimum"]["min_stiffness_Nm_per_rad"] == 0.2
     assert "Both readings of the actuator force (--force)" in text
+    # The joint-map check on a stand of each reading (the protocol's F_stretch, which the stands
+    # scale by a seeded factor): each model finds its own stand's map within 1-2 deg and misses
+    # the other's by several times that (seed 2: 0.97 / 4.78 and 1.68 / 5.61 deg), so it can fail.
+    by = s["joint_map_by_stand"]
+    for stand, other in (("derived", "paper"), ("paper", "derived")):
+        own, cross = by[stand][stand]["rmse_deg"], by[stand][other]["rmse_deg"]
+        assert own < 2.5 and cross > 4.0 and cross > 2.5 * own
+    assert "The joint-map check on a stand of each reading" in text
+    assert (out / "joint-paper-stand.h5").is_file()
+    # The lab's actuator fitted to the stretch test: the stand's (the protocol's) within 3 s.e.
+    act = s["actuator"]["parameters"]
+    assert act["mu_1"]["determined"] and act["radius_m"]["determined"]
+    assert all(abs(r["deviation_in_se"]) < 3 for r in act.values())
     for name in ("fig6-stretch.png", "fig8-joint-map.png"):
         assert (out / name).read_bytes()[:8] == PNG
     assert (out / "joint-map.csv").read_text().splitlines()[0].startswith("point,P_A,P_B,alpha_deg,")

@@ -9,7 +9,8 @@ have after the two experiments:
 2. ``stretch.model.json`` and ``fig6-stretch.png``: the cubic ``F_stretch(lambda)`` of
    Eq. 7 fitted with its uncertainty (``labcli fit stretch.h5 --plot``).
 3. ``joint.h5``: the joint map (Fig. 8), Pa x Pb over 41-138 kPa, same rig
-   (``--experiment joint``).
+   (``--experiment joint``); and ``joint-paper-stand.h5``, the same map on the stand built on the
+   paper's reading of the force (``sim://?mode=rpam&reading=paper``).
 4. ``fig8-joint-map.png``: the map against the model without the correction, with the
    protocol's default one and with the fitted one (``labcli validate joint.h5 --model``).
 5. The link optimisation of Section IV with the fitted correction (``labcli optimize``): the
@@ -19,7 +20,11 @@ have after the two experiments:
    under each (the derived reading at the protocol's K_min, the paper's at
    :data:`PAPER_READING_K_MIN`, where it gives the paper's pattern).  The stand's physics is the
    derived force computed another way, so the paper reading's joint-map error shows what the
-   check says of a model it was not built on.
+   check says of a model it was not built on; the map on the paper-reading stand is checked
+   against both readings too (with the protocol's F_stretch, the stands' own), so each check
+   can fail, and does, on the stand of the other reading.
+   The stretch fit also fits the lab's actuator (Ogden moduli, free length, radius), and the
+   summary sets it beside the stand's (the protocol's) actuator, in standard errors.
 6. ``stretch.csv``, ``joint-map.csv`` and ``rpam-summary.json``.
 
 The simulated rig's true correction is known (it is seeded), so the summary also says
@@ -42,6 +47,7 @@ from ...core.modelfile import save_model
 from ...core.protocol import load_protocol
 from ...core.store import RunFile
 from .figures import figure8, figure_stretch
+from .models.rpam_actuator_fit import GEOMETRY
 from .models.rpam_fit import analyse_joint_map, analyse_stretch
 from .models.rpam_optimize import optimize_protocol
 from .sim.rig import RpamRig
@@ -64,6 +70,7 @@ OUTPUTS = (
     "stretch.model.json",
     "fig6-stretch.png",
     "joint.h5",
+    "joint-paper-stand.h5",
     "fig8-joint-map.png",
     "stretch.csv",
     "joint-map.csv",
@@ -83,6 +90,9 @@ class RpamDemoResult:
     optimum: dict[str, Any]
     notes: list[str] = field(default_factory=list)
     readings: dict[str, dict[str, Any]] = field(default_factory=dict)
+    actuator: dict[str, Any] = field(default_factory=dict)
+    # Joint-map errors with the protocol's F_stretch: {stand's reading: {model's reading: summary}}.
+    joint_map_by_stand: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return _nan_to_none(
@@ -97,6 +107,8 @@ class RpamDemoResult:
                 "joint_map": self.joint_map,
                 "optimum": self.optimum,
                 "readings": self.readings,
+                "actuator": self.actuator,
+                "joint_map_by_stand": self.joint_map_by_stand,
                 "notes": self.notes,
             }
         )
@@ -129,6 +141,7 @@ def run_rpam_demo(
         "stretch_model": out / "stretch.model.json",
         "figure6": out / "fig6-stretch.png",
         "joint_run": out / "joint.h5",
+        "joint_paper_stand_run": out / "joint-paper-stand.h5",
         "figure8": out / "fig8-joint-map.png",
         "stretch_csv": out / "stretch.csv",
         "joint_csv": out / "joint-map.csv",
@@ -156,12 +169,31 @@ def run_rpam_demo(
         acquire_unattended(
             files["joint_run"], port, "joint map", STAGES[2], progress, protocol=PROTOCOL, experiment="joint"
         )
+        paper_port = port.replace("mode=rpam&", "mode=rpam&reading=paper&")
+        acquire_unattended(
+            files["joint_paper_stand_run"],
+            paper_port,
+            "joint map on the paper-reading stand",
+            STAGES[2],
+            progress,
+            protocol=PROTOCOL,
+            experiment="joint",
+        )
     with stages.run(3, "validate"):
         with RunFile.open(files["joint_run"]) as run:
             joint_table = run.records.table()
         fitted = analyse_joint_map(joint_table, protocol_ref, fit)
         default = analyse_joint_map(joint_table, protocol_ref, None)
         paper_map = analyse_joint_map(joint_table, protocol_ref, paper_fit)
+        with RunFile.open(files["joint_paper_stand_run"]) as run:
+            paper_stand_table = run.records.table()
+        by_stand = {
+            stand: {
+                reading: _summary(analyse_joint_map(table, protocol_ref, None, force=reading).summary["with"])
+                for reading in ("derived", "paper")
+            }
+            for stand, table in (("derived", joint_table), ("paper", paper_stand_table))
+        }
         figure8(fitted, files["figure8"], source=source_line(files["joint_run"], PROTOCOL, files["stretch_model"]))
     with stages.run(4, "optimize"):
         optimum = optimize_protocol(PROTOCOL, overrides=fit.overrides()).to_dict()
@@ -178,6 +210,8 @@ def run_rpam_demo(
         timings_s=stages.done(),
         points={"stretch": int(len(stretch_table)), "joint_map": int(len(joint_table))},
         stretch=_stretch_summary(fit, seed),
+        actuator=_actuator_summary(fit),
+        joint_map_by_stand=by_stand,
         joint_map={
             "without": _summary(fitted.summary["without"]),
             "with_default": _summary(default.summary["with"]),
@@ -279,3 +313,29 @@ def _stretch_summary(fit: Any, seed: int) -> dict[str, Any]:
         "deviation_in_se": [float(x / s) for x, s in zip(d, m.std_errors_N, strict=False)],
         "chi2_4dof": float(d @ np.linalg.solve(np.asarray(m.covariance_N2), d)),
     }
+
+
+def _actuator_summary(fit: Any) -> dict[str, Any]:
+    """The lab's actuator fitted to the stretch test, beside the stand's own (the protocol's)."""
+    a = fit.actuator_fit
+    if a is None:
+        return {"fitted": False, "note": fit.actuator_note}
+    stand = RpamRig(variation=False).actuators[0]
+    truth = {f"mu_{i + 1}": mu for i, mu in enumerate(stand.ogden_mu_MPa)}
+    truth.update(L0_m=stand.L0_m, radius_m=stand.rest_radius_m)
+    rows = {}
+    for name in (*a.moduli, *GEOMETRY):
+        if name in a.names:
+            value, se = a.value(name), a.std_error(name)
+        else:  # held at the protocol's: the data did not support it
+            g = a.geometry[name]
+            value, se = g["protocol"], g["std_error"]
+        rows[name] = {
+            "value": value,
+            "std_error": se,
+            "true": truth[name],
+            "deviation_in_se": (value - truth[name]) / se if se > 0 else float("nan"),
+            "fitted": name in a.names,
+            "determined": a.determined.get(name, name in a.names),
+        }
+    return {"fitted": True, "parameters": rows, "rmse_N": a.rmse_N, "notes": list(a.notes)}

@@ -396,8 +396,62 @@ def print_demo(res: Any) -> None:
             "protocol's F_stretch, labcli optimize --force paper --min-stiffness 0.2 gives the paper's pattern.",
             soft_wrap=True,
         )
+    if res.joint_map_by_stand:
+        st = Table(
+            title="The joint-map check on a stand of each reading (protocol's F_stretch): RMSE (deg), points compared",
+            title_justify="left",
+            box=box.SIMPLE_HEAD,
+        )
+        st.add_column("stand's force", justify="left")
+        for reading in ("derived", "paper"):
+            st.add_column(f"{reading} model", justify="right")
+        for stand, row in res.joint_map_by_stand.items():
+            st.add_row(
+                stand, *(f"{cell(row[r]['rmse_deg'], '.2f')} ({row[r]['n_compared']})" for r in ("derived", "paper"))
+            )
+        print_table(con, st)
+        con.print(
+            "Each model finds the map of the stand built on its own reading and misses the other's: the check "
+            "tells the two forces apart, so it checks the model, not only the code.",
+            soft_wrap=True,
+        )
+    if res.actuator.get("fitted"):
+        _print_demo_actuator(con, res.actuator)
     for note in res.notes:
         con.print(note, soft_wrap=True)
     con.print("Files:", soft_wrap=True)
     for path in res.files.values():
         con.print(f"  {path}", soft_wrap=True, markup=False)
+
+
+_DEMO_ACTUATOR_ROWS = {
+    "L0_m": ("free length L0", "mm", 1e3, ".2f"),
+    "radius_m": ("rest radius r", "mm", 1e3, ".3f"),
+}
+
+
+def _print_demo_actuator(con: Any, a: dict[str, Any]) -> None:
+    """The lab's actuator fitted to the demo's stretch test beside the stand's."""
+    from rich import box
+    from rich.table import Table
+
+    t = Table(
+        title="The actuator fitted to the stretch test (labcli fit), beside the stand's",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+    )
+    for col in ("parameter", "fitted", "s.e.", "stand's", "off (s.e.)", "determined"):
+        t.add_column(col, justify="left" if col == "parameter" else "right")
+    for name, r in a["parameters"].items():
+        label, unit, k, fmt = _DEMO_ACTUATOR_ROWS.get(name, (name, "MPa", 1.0, ".5f"))
+        t.add_row(
+            f"{label}, {unit}",
+            f"{r['value'] * k:{fmt}}" + ("" if r["fitted"] else " (kept)"),
+            f"{r['std_error'] * k:{fmt}}",
+            f"{r['true'] * k:{fmt}}",
+            cell(r["deviation_in_se"], "+.2f"),
+            "yes" if r["determined"] else "no",
+        )
+    print_table(con, t)
+    for note in a["notes"]:
+        con.print(note, soft_wrap=True)
