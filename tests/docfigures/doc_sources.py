@@ -534,6 +534,13 @@ SOURCES: dict[str, Source] = {
             derive=effects_derived,
         ),
         Source(
+            "rpam-sensitivity",
+            "benchmark",
+            "the rPAM optimum against a lab's actuator spread, held-out seeds 11-30",
+            script="rpam_sensitivity.py",
+            runs={"": ("--seeds", "11-30")},
+        ),
+        Source(
             "phi-bent",
             "benchmark",
             "pushes with phi blank on the bent arm, seeds 1-10",
