@@ -534,6 +534,13 @@ SOURCES: dict[str, Source] = {
             derive=effects_derived,
         ),
         Source(
+            "rpam-actuator-fit",
+            "benchmark",
+            "the rPAM actuator fitted to stretch runs of a resized stand, held-out seeds 11-30",
+            script="rpam_actuator_fit.py",
+            runs={"": ("--seeds", "11-30")},
+        ),
+        Source(
             "rpam-sensitivity",
             "benchmark",
             "the rPAM optimum against a lab's actuator spread, held-out seeds 11-30",
