@@ -33,7 +33,14 @@ from ._options import FiniteRange, streaming_link_options
     "--publish",
     multiple=True,
     metavar="tcp://HOST:PORT",
-    help="The same JSON lines to every client of this TCP port (port 0: any free port, printed); repeatable.",
+    help="The same JSON lines to every client of this TCP port (port 0: any free port, printed), or to the "
+    "subscribers of a ZeroMQ PUB socket at zmq+tcp://HOST:PORT (the zmq extra); repeatable.",
+)
+@click.option(
+    "--lsl",
+    default=None,
+    metavar="NAME",
+    help="The estimates as a Lab Streaming Layer stream NAME and the events as NAME-events (the lsl extra).",
 )
 @click.option(
     "--classify",
@@ -73,6 +80,7 @@ def sense(
     jsonl: str | None,
     every: int,
     publish: tuple[str, ...],
+    lsl: str | None,
     classify: Path | None,
     record: Path | None,
     protocol: str | None,
@@ -100,6 +108,7 @@ def sense(
         labcli sense --port /dev/ttyUSB0 --model run.model.json --jsonl --every 5
         labcli sense --port sim:// --model run.model.json --publish tcp://127.0.0.1:5555 --jsonl out.jsonl
         labcli sense --port /dev/ttyUSB0 --model run.model.json --record session.h5 --seconds 600
+        labcli sense --port /dev/ttyUSB0 --model run.model.json --publish zmq+tcp://*:5556 --lsl arm
         labcli sense --port sim:// --model run.model.json --protocol takuma2014-stiffness --classify plan.csv
     """
     from ..sensing.sense import SenseOptions
@@ -107,7 +116,7 @@ def sense(
 
     opts = SenseOptions(
         port=port, model=model_path, protocol=protocol, rate_hz=rate, seconds=seconds, every=every,
-        jsonl=jsonl, publish=publish, classify=classify, record=record, timeout=timeout, boot_wait=boot_wait, baud=baud,
+        jsonl=jsonl, publish=publish, lsl=lsl, classify=classify, record=record, timeout=timeout, boot_wait=boot_wait, baud=baud,
     )  # fmt: skip
     to_stdout = jsonl == "-"
 

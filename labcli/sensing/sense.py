@@ -9,6 +9,8 @@ sentence, raised before the rig streams when it can be known then:
   rig than the model's (another calibration or geometry);
 * a rig whose channels lack one the model reads (:class:`~.inputs.Inputs`);
 * a TCP port in use, a file that cannot be written, a ``record`` file that exists already;
+* a ZeroMQ or LSL output asked for without its optional package (:mod:`.outlets`: the sentence
+  names the extra to install);
 * a stalled or unplugged rig while streaming (the device's own sentences).
 """
 
@@ -21,10 +23,12 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError, ModelError, StoreError
+from .config import EstimatorConfig
 from .estimator import Estimator
 from .live import LiveSummary, run
 from .model import load_model
 from .publish import JsonLines, Output, TcpPublisher
+from .results import DISPLAY
 
 
 @dataclass(frozen=True)
@@ -38,7 +42,8 @@ class SenseOptions:
     seconds: float | None = None  # device time; None: until Ctrl-C
     every: int = 1
     jsonl: str | None = None  # "-": stdout; a path; None: none
-    publish: tuple[str, ...] = ()  # tcp://HOST:PORT
+    publish: tuple[str, ...] = ()  # tcp://HOST:PORT, or zmq+tcp://HOST:PORT (the zmq extra)
+    lsl: str | None = None  # an LSL outlet of this name (the lsl extra)
     classify: Path | None = None  # a push plan: pushes classified online
     record: Path | None = None  # a new run file: frames, estimates and events
     timeout: float = 2.0
@@ -94,14 +99,22 @@ def _recorder(opts: SenseOptions, model: Any, protocol: Any, dev: Any) -> Any:
     return RunRecorder(opts.record, model=model, protocol=protocol, device_info=dev.info, port=opts.port, scale=scale)
 
 
-def open_outputs(opts: SenseOptions, notice: Callable[[str], None]) -> list[Output]:
-    """The outputs asked for, opened (a TCP port bound) before the rig is."""
+def open_outputs(opts: SenseOptions, notice: Callable[[str], None], model: Any = None) -> list[Output]:
+    """The outputs asked for, opened (a TCP port bound) before the rig is; ``model``: the quantities
+    an LSL outlet's channels carry."""
+    from .outlets import LslOutlet, ZmqPublisher
+
     outputs: list[Output] = []
     try:
         for url in opts.publish:
-            pub = TcpPublisher(url, notice=notice)
+            pub: TcpPublisher | ZmqPublisher
+            pub = ZmqPublisher(url) if url.startswith("zmq+") else TcpPublisher(url, notice=notice)
             notice(f"Publishing JSON lines on {pub.url}.")
             outputs.append(pub)
+        if opts.lsl is not None:
+            keys = [f"{q}_{DISPLAY.get(u, (u, 1.0))[0]}" for q, u in zip(model.quantities, model.units, strict=True)]
+            outputs.append(LslOutlet(opts.lsl, keys, 1.0 / (EstimatorConfig().block_s * opts.every)))
+            notice(f"Streaming the estimates on LSL as {opts.lsl} (events as {opts.lsl}-events).")
         if opts.jsonl is not None:
             outputs.append(JsonLines.to(opts.jsonl))
     except BaseException:
@@ -129,7 +142,7 @@ def sense(
         url += ("&" if "?" in url else "?") + "clock=wall"
     if opts.record is not None and os.path.lexists(opts.record):
         raise StoreError(f"{opts.record} already exists; choose a new file name for the session's run file.")
-    outputs = open_outputs(opts, notice)
+    outputs = open_outputs(opts, notice, model)
     try:
         with Device.open(
             url, baudrate=opts.baud, timeout=opts.timeout, boot_wait=opts.boot_wait, name=opts.port
