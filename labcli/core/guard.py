@@ -111,8 +111,8 @@ MAX_LEVERAGE = 0.95  # a trial the fit must pass through (leverage ~1) says noth
 # of the load is at least PRIOR_NOISE times what one noise floor on every channel makes of it.
 PRIOR_SHARE = 0.1
 PRIOR_NOISE = 2.0
-# The first baseline after a resume: an angle this many floors beyond the band the run's stored
-# baselines lie in (times HOLD_MARGIN, about their median) is a load still carried.
+# The first baseline after a resume (or after a warned trial): an angle this many floors beyond the
+# band the run's baselines lie in (HOLD_MARGIN times their spread about their median) is a load still carried.
 RESUME_FLOORS = 4.0
 MIN_BASELINES = 5  # baselines that show where the run's unloaded arm rests (friction's band among them)
 OFF_SPAN = 0.2  # a load more than this share off the explored directions (~12 deg) is not predicted from them

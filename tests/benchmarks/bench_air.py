@@ -70,11 +70,14 @@ def main() -> None:
         help="the friction relief's supply pulse, s (a run per value and seed; comma-separated)",
     )
     ap.add_argument("--no-hand", action="store_true", help="leave out the runs without re-pressurising")
+    ap.add_argument("--rig", default="", help="more sim:// options of the rig, e.g. friction=0 (default: none)")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
     shipped = load_protocol("takuma2014")
     figures: dict = {"seeds": args.seeds, "leak": float(args.leak), "limit kPa": shipped.air.repressurise_kPa}
+    if args.rig:
+        figures["rig"] = args.rig
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -83,7 +86,7 @@ def main() -> None:
         auto, hand = work / "auto.toml", work / "hand.toml"
         auto.write_text(shipped.text)
         hand.write_text(shipped.text.replace("rate_hz = 200.0\n", 'rate_hz = 200.0\nvalves = "hand"\n'))
-        pulses = [float(x) for x in args.relief.split(",")]
+        pulses = [float(x) for x in args.relief.split(",")] if args.relief not in ("", "none") else []
         reliefs = []
         for x in pulses:
             reliefs.append(work / f"relief{x:g}.toml")
@@ -91,7 +94,7 @@ def main() -> None:
                 shipped.text.replace("rate_hz = 200.0\n", f"rate_hz = 200.0\nfriction_relief_s = {x}\n")
             )
         for seed in seeds:
-            url = f"sim://?seed={seed}&clock=virtual&leak={args.leak}"
+            url = f"sim://?seed={seed}&clock=virtual&leak={args.leak}" + (f"&{args.rig}" if args.rig else "")
             with_ = one_run(work, f"auto{seed}", auto, url)
             without = None if args.no_hand else one_run(work, f"hand{seed}", hand, url)
             relieved = [one_run(work, f"{r.stem}-{seed}", r, url) for r in reliefs]

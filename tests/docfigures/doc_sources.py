@@ -616,6 +616,27 @@ SOURCES: dict[str, Source] = {
             runs={"": ()},
         ),
         Source(
+            "air-heldout",
+            "benchmark",
+            "re-pressurising and a 0.5 s friction relief against the chambers held once, held-out seeds 11-30",
+            script="bench_air.py",
+            runs={"": ("--seeds", ",".join(str(s) for s in range(11, 31)), "--relief", "0.5")},
+        ),
+        Source(
+            "air-nofriction",
+            "benchmark",
+            "re-pressurising against the chambers held once on the rig without sleeve friction, seeds 1-3",
+            script="bench_air.py",
+            runs={"": ("--seeds", "1,2,3", "--relief", "none", "--rig", "friction=0")},
+        ),
+        Source(
+            "guard",
+            "benchmark",
+            "the load check's false alarms on correct runs of the shipped plan, six rigs, seeds 1-10",
+            script="bench_guard.py",
+            runs={"": ("--seeds", "1-10")},
+        ),
+        Source(
             "firmware-model",
             "benchmark",
             "estimates on the chip: sizes, cycles, the highest rate, agreement with the host, on simavr",
