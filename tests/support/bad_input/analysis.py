@@ -116,6 +116,37 @@ CASES: list[Case] = [
         usage="optimize [OPTIONS]",
     ),
     Case(
+        "actuator-other-paper",
+        "model JSON",
+        "a McKibben force model as the rPAM actuator (optimize --actuator)",
+        ["optimize", "--actuator", "run.model.json"],
+        [
+            "Actuator file run.model.json is a force model of the McKibben paper (takuma2014), not a stretch fit "
+            "of the rPAM paper; --actuator takes the file labcli fit writes for an rPAM stretch-test run."
+        ],
+    ),
+    Case(
+        "actuator-other-kind",
+        "model JSON",
+        "a joint-map analysis as the rPAM actuator (optimize --actuator)",
+        ["optimize", "--actuator", "joint.json"],
+        [
+            "Actuator file joint.json is a joint-map analysis, not a stretch fit of the rPAM paper; --actuator "
+            "takes the file labcli fit writes for an rPAM stretch-test run."
+        ],
+        files={"joint.json": b'{"kind": "rpam-joint-map"}'},
+    ),
+    Case(
+        "actuator-missing",
+        "model JSON",
+        "a missing actuator file (optimize --actuator)",
+        ["optimize", "--actuator", "stretch.model.json"],
+        [
+            "Actuator file stretch.model.json does not exist; fit the stretch test first with labcli fit "
+            "STRETCH.h5, which writes STRETCH.model.json."
+        ],
+    ),
+    Case(
         "arg-other-papers-option-run",
         "CLI argument",
         "an option another paper declares, on a force run (fit --set)",
