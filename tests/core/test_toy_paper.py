@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from support import toy
+from support.procs import finish
 
 from labcli.core import registry
 from labcli.core.protocol import load_protocol
@@ -272,7 +273,7 @@ def test_labcli_sim_serves_the_toy_rig_with_its_option_and_console(tmp_path):
             assert say("help") == "commands: hang GRAMS, wait SECONDS, help, quit"
             port.write(b"STOP\n")
         assert say("quit") == "ok quit"
-        out, err = proc.communicate(timeout=10)
+        out, err = finish(proc)
         assert proc.returncode == 0, err
     finally:
         if proc.poll() is None:

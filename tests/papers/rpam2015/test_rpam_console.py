@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import serial
 from click.testing import CliRunner
+from support.procs import finish
 
 from labcli.cli import cli
 from labcli.core.sim import register
@@ -152,7 +153,7 @@ def test_labcli_sim_serves_the_rpam_stand_and_its_console_drives_it():
             assert (moved[0] * 1e3, moved[1] * 1e3) == pytest.approx((120.0, 40.0), abs=0.5)
             port.write(b"STOP\n")
         assert say("quit") == "ok quit"
-        out, err = proc.communicate(timeout=10)
+        out, err = finish(proc)
         assert proc.returncode == 0, err
         assert out == "Simulated rig stopped.\n"
     finally:

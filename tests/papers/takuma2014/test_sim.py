@@ -438,7 +438,9 @@ def test_protocol_over_pty():
 
 def assert_stopped_cleanly(proc: subprocess.Popen) -> None:
     """``labcli sim`` ended by itself (signal or ``quit``): exit 0 and its last line."""
-    out, err = proc.communicate(timeout=10)
+    from support.procs import finish
+
+    out, err = finish(proc)
     assert proc.returncode == 0, err
     assert out == "Simulated rig stopped.\n"
 
