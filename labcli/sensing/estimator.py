@@ -36,7 +36,7 @@ from .detector import ChangeDetector, whiten
 from .evaluate import Inputs2, evaluate
 from .excursion import Excursion
 from .inputs import DeviceClock, Inputs
-from .model import BASELINE, TRANSIENT, SensingModel, check_model
+from .model import BASELINE, STATE, TRANSIENT, SensingModel, check_model
 from .results import IDLE, LOAD, LOADED, LOADING, RELEASE, RELEASING, SETTLED, STARTING, Estimate, Event
 from .transient import ResponseFit, Step, lag, onset
 
@@ -77,6 +77,7 @@ class Estimator:
             Inputs.from_calibration(calibration, model, channels) if calibration is not None else Inputs.identity(model)
         )
         self.on_settled = on_settled
+        self._state_kind = np.array([k == STATE for k in self.model.kinds])
         self.rate_hz = rate_hz
         self._clock = DeviceClock()
         self._count = 0  # frames given without their seq (update_si)
@@ -449,6 +450,8 @@ class Estimator:
                 var_load = np.minimum(exc.transient_var(tc, self.config.shape_sd)[:p] + extra + r[:p] / 4, MAX_VAR)
             x = Inputs2(P0, self._rest, y[:p] - heat_now[:p], var_state, P_load, var_load)
         values, se, flags = evaluate(self.model, x)
+        if exc is not None:  # a load is on: the angles' standard error as the rig shows it (config)
+            se = np.where(self._state_kind, se * self.config.loaded_state_se_factor, se)
         extra_flags = {STARTING: (BASELINE,), LOADING: (TRANSIENT,), RELEASING: (TRANSIENT,)}.get(self.state, ())
         m = self.model
         return Estimate(

@@ -572,9 +572,9 @@ SOURCES: dict[str, Source] = {
         Source(
             "sensing-online",
             "benchmark",
-            "labcli sense's estimator on scripted sessions, held-out seeds 11-20",
+            "labcli sense's estimator on scripted sessions, held-out seeds 11-30",
             script="sensing_online.py",
-            runs={"": ("--seeds", "11-20", "--loads", "20", "--idle-min", "5", "--jobs", "1", "--fast-seconds", "120")},
+            runs={"": ("--seeds", "11-30", "--loads", "10", "--idle-min", "3", "--jobs", "2", "--fast-seconds", "120")},
         ),
         Source(
             "firmware", "benchmark", "the firmware's highest rate on simavr", script="bench_firmware.py", runs={"": ()}
