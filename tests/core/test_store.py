@@ -49,7 +49,7 @@ def test_record_round_trip_values_and_dtypes(tmp_path):
         a, b = int(t["loaded_start"][0]), int(t["loaded_stop"][0])
         assert b - a == 50
         assert raw["time"].dtype == np.float64 and raw["seq"].dtype == np.uint64
-        assert raw["P_L1/raw_value"].dtype == np.float64 and raw["P_L1/value"].attrs["units"] == "MPa"
+        assert raw["P_L1/raw_value"].dtype == np.int32 and raw["P_L1/value"].attrs["units"] == "MPa"
         assert raw["POT1/value"].attrs["units"] == "rad"  # one unit per dataset, never comma-joined
         assert raw["P_L1"].attrs["NX_class"] == "NXlog" and t.attrs["NX_class"] == "NXdata"
 

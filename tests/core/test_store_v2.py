@@ -293,3 +293,53 @@ def test_a_dataset_rewritten_by_hand_is_caught_never_a_traceback(tmp_path, name,
     assert result.exit_code == 1 and ("damaged" in result.output or "changed by another program" in result.output), (
         result.output
     )
+
+
+def test_counts_are_stored_as_integers_and_decimals_apart(tmp_path):
+    """New files keep counts as int32; a window of decimals beside whole ones keeps both exactly."""
+    import numpy as np
+
+    from labcli.core.window import Window
+
+    path = str(tmp_path / "run.h5")
+    whole, decimal, after = make_record(1), make_record(2), make_record(3)
+    w = decimal["raw"]["load"]
+    decimal["raw"]["load"] = Window.of(w.seq, w.counts + 0.25, w.si, t_us=w.t_us)
+    with new_run(path) as run:
+        for rec in (whole, decimal, after):
+            run.records.write(rec)
+    with h5py.File(path) as f:
+        assert f["entry/raw/P_L1/raw_value"].dtype == np.int32
+    with RunFile.open(path) as run:
+        report = run.verify()
+        assert report["ok"] and report["windows"] == 6, report["problems"]
+        for rec in (whole, decimal, after):
+            back = run.records.read(rec["trial"])
+            for key in ("baseline", "load"):
+                np.testing.assert_array_equal(back["raw"][key].counts, rec["raw"][key].counts)
+        assert run.records.read(1)["raw"]["load"].counts.dtype == np.int32
+        assert run.records.read(2)["raw"]["load"].counts.dtype == np.float64
+
+
+def test_a_schema_2_file_of_float64_counts_still_reads(tmp_path):
+    """tests/data/v2/float-counts.h5, written before counts were stored as integers."""
+    import numpy as np
+
+    src = ROOT / "tests" / "data" / "v2" / "float-counts.h5"
+    path = tmp_path / "old.h5"
+    shutil.copy(src, path)
+    with h5py.File(path) as f:
+        assert f["entry/raw/P_L1/raw_value"].dtype == np.float64 and "raw_decimal" not in f["entry/raw/P_L1"]
+    with RunFile.open(path) as run:
+        assert run.records.ids() == [1, 2] and run.verify()["ok"]
+        for i in (1, 2):
+            back, want = run.records.read(i), make_record(i, n=40)
+            for key in ("baseline", "load"):
+                assert back["raw"][key].counts.dtype == np.int32
+                np.testing.assert_array_equal(back["raw"][key].counts, want["raw"][key].counts)
+    with RunFile.open(path, mode="a") as run:  # and takes more trials, in its own layout
+        run.records.write(make_record(3, n=40))
+    with RunFile.open(path) as run:
+        np.testing.assert_array_equal(
+            run.records.read(3)["raw"]["load"].counts, make_record(3, n=40)["raw"]["load"].counts
+        )

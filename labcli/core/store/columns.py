@@ -56,13 +56,14 @@ def h5_dtype(c: Column) -> Any:
     return c.dtype
 
 
-def create_dataset(g: h5py.Group, c: Column, chunk: int, length: int = 0) -> h5py.Dataset:
-    """A resizable dataset for column ``c`` (``length`` rows, chunked by ``chunk`` rows), with its units."""
+def create_dataset(g: h5py.Group, c: Column, chunk: int, length: int = 0, dtype: Any = None) -> h5py.Dataset:
+    """A resizable dataset for column ``c`` (``length`` rows, chunked by ``chunk`` rows), with its units;
+    ``dtype``: a narrower one than the column's kind stores (raw counts as int32)."""
     ds = g.create_dataset(
         c.name,
         shape=(length, *c.shape),
         maxshape=(None, *c.shape),
-        dtype=h5_dtype(c),
+        dtype=h5_dtype(c) if dtype is None else dtype,
         chunks=(chunk, *c.shape),
         fillvalue=fill_value(c),
         **FILTERS,
@@ -95,14 +96,19 @@ def grow(ds: h5py.Dataset, rows: int) -> None:
 
 def append(ds: h5py.Dataset, start: int, arr: np.ndarray) -> None:
     """Write ``arr`` at rows ``[start, start + len(arr))`` of ``ds``, growing it to hold them."""
+    # Through the low-level id: a commit makes about a hundred of these, and each of h5py's
+    # ``Dataset.shape`` and ``dtype`` makes objects of its own.
     n = arr.shape[0]
-    if start + n > ds.shape[0]:
-        ds.id.set_extent((start + n, *ds.shape[1:]))
+    dsid = ds.id
+    fspace = dsid.get_space()
+    shape = fspace.shape
+    if start + n > shape[0]:
+        dsid.set_extent((start + n, *shape[1:]))
+        fspace = dsid.get_space()
     if n == 0:
         return
-    fspace = ds.id.get_space()
     fspace.select_hyperslab((start,) + (0,) * (arr.ndim - 1), arr.shape)
-    ds.id.write(h5py.h5s.create_simple(arr.shape), fspace, np.ascontiguousarray(arr, dtype=ds.dtype))
+    dsid.write(h5py.h5s.create_simple(arr.shape), fspace, np.ascontiguousarray(arr, dtype=dsid.dtype))
 
 
 def read_rows(ds: h5py.Dataset, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:

@@ -2,9 +2,13 @@
 
 ``/entry/raw`` holds the device time (``time``, s, unwrapped) and frame counter (``seq``) of
 every frame stored, and per channel an NXlog group (``raw/P_L1``) with the calibrated
-``value`` (SI) and the ``raw_value`` as sent (counts; float64, so that a device sending
-decimals is kept exactly), its ``time`` a link to the shared one, and the channel's
-calibration (``gain``, ``offset``).  A record refers to its windows by ``[start, stop)``
+``value`` (SI) and the ``raw_value`` as sent (counts, int32), its ``time`` a link to the
+shared one, and the channel's calibration (``gain``, ``offset``).  A window whose counts are
+not all whole int32 numbers (a device sending decimals) keeps them exactly in the channel's
+``raw_decimal`` (float64), written for that window's frames only, whose ``raw_value`` holds
+:data:`DECIMAL` (never a whole count, see :func:`_whole`); ``raw_decimal`` is never written
+for any other frame and costs nothing.  Files written before counts were stored as
+integers hold float64 ``raw_value`` and no ``raw_decimal``; they read the same.  A record refers to its windows by ``[start, stop)``
 and a checksum over the window's frames (:func:`~labcli.core.store.checksum.frames_checksum`).
 
 A window starts at a chunk boundary: the frames of a committed window share no chunk with
@@ -36,6 +40,7 @@ from .columns import append, create_dataset, read_rows
 
 TIME = Column("time", "s", what="device time, unwrapped")
 MOD = 1 << 64
+DECIMAL = np.int32(-(2**31))  # raw_value of a frame whose counts are in raw_decimal
 
 
 def chunk_frames(frames_per_window: float) -> int:
@@ -60,7 +65,10 @@ def create(
         c.attrs["channel"] = name
         c["time"] = time  # a second name for the shared dataset (NXlog's own time axis)
         create_dataset(c, Column("value", unit, what=f"{name}, calibrated"), chunk)
-        create_dataset(c, Column("raw_value", "counts", what=f"{name} as sent"), chunk)
+        create_dataset(
+            c, Column("raw_value", "counts", kind="int", what=f"{name} as sent"), chunk, dtype=np.dtype("<i4")
+        )
+        create_dataset(c, Column("raw_decimal", "counts", what=f"{name} as sent, where not whole"), chunk)
         for key, v, u in (("gain", gain[j], f"{unit}/count" if unit else "1/count"), ("offset", offset[j], unit)):
             ds = create_dataset(c, Column(key, u), 1, length=1)
             ds[0] = v
@@ -99,6 +107,9 @@ class Frames:
         self.time, self.seq = _uncached(g, "time"), _uncached(g, "seq")
         self.value = [_uncached(g, f"{c}/value") for c in self.channels]
         self.raw_value = [_uncached(g, f"{c}/raw_value") for c in self.channels]
+        # Integer counts (and the decimals apart) since raw counts are stored as integers; float64 before.
+        self.integer = bool(self.channels) and self.raw_value[0].dtype.kind == "i"
+        self.raw_decimal = [_uncached(g, f"{c}/raw_decimal") for c in self.channels] if self.integer else []
 
     @property
     def extent(self) -> int:
@@ -111,9 +122,14 @@ class Frames:
         """Frames at ``start`` (every array grows to end after them)."""
         append(self.time, start, np.asarray(time, dtype="<f8"))
         append(self.seq, start, np.asarray(seq, dtype="<u8"))
+        whole = not self.integer or _whole(counts)
         for j in range(len(self.channels)):
             append(self.value[j], start, np.ascontiguousarray(si[:, j], dtype="<f8"))
-            append(self.raw_value[j], start, np.ascontiguousarray(counts[:, j], dtype="<f8"))
+            if whole:
+                append(self.raw_value[j], start, np.ascontiguousarray(counts[:, j], dtype=self.raw_value[j].dtype))
+            else:  # the decimals as sent, exactly, where raw_value says so
+                append(self.raw_value[j], start, np.full(len(counts), DECIMAL, dtype="<i4"))
+                append(self.raw_decimal[j], start, np.ascontiguousarray(counts[:, j], dtype="<f8"))
 
     def read(self, a: int, b: int) -> tuple[dict[str, np.ndarray], bool]:
         """Frames ``[a, b)`` as ``t_s``, ``seq``, ``counts`` (n, k), ``si`` (n, k); and whether all read."""
@@ -121,15 +137,20 @@ class Frames:
             raise StoreError(f"frames {a} to {b} lie outside the {self.extent} frames stored")
         ok = True
 
-        def get(ds: h5py.Dataset) -> np.ndarray:
+        def get(ds: h5py.Dataset, stop: int = b) -> np.ndarray:
             nonlocal ok
-            values, bad = read_rows(ds, a, b)
+            values, bad = read_rows(ds, a, stop)
             ok = ok and not bad.any()
             return values
 
         t, seq = get(self.time), get(self.seq)
         si = np.stack([get(d) for d in self.value], axis=1) if self.channels else np.zeros((b - a, 0))
         counts = np.stack([get(d) for d in self.raw_value], axis=1) if self.channels else np.zeros((b - a, 0))
+        upto = min(b, self.raw_decimal[0].shape[0]) if self.integer else a
+        if upto > a:  # a window here sent decimals: they end where raw_decimal ends
+            decimal = np.full(counts.shape, np.nan)
+            decimal[: upto - a] = np.stack([get(d, upto) for d in self.raw_decimal], axis=1)
+            counts = np.where(counts == DECIMAL, decimal, counts)
         return {"t_s": t, "seq": seq.astype(np.uint32), "counts": counts, "si": si}, ok
 
     def checksum(self, a: int, b: int, block: int = 1 << 16) -> tuple[int, bool]:
@@ -141,6 +162,12 @@ class Frames:
             ok = ok and good
             total = (total + int(frames_checksum(window_parts(w["t_s"], w["seq"], w["counts"], w["si"]), lo - a))) % MOD
         return total, ok
+
+
+def _whole(counts: np.ndarray) -> bool:
+    """Whether every count is a whole number int32 holds (what devices send)."""
+    c = np.asarray(counts, dtype=np.float64)
+    return c.size == 0 or bool(np.all(c == np.rint(c)) and np.abs(c).max() < 2**31)
 
 
 def counts_out(counts: np.ndarray) -> np.ndarray:
