@@ -243,7 +243,7 @@ def test_unknown_section(tmp_path: Path) -> None:
 
 
 def test_missing_key(tmp_path: Path) -> None:
-    p = write_variant(tmp_path, "hold_s = 2.0\n", "")
+    p = write_variant(tmp_path, "hold_s = 12.0\n", "")
     assert error_of(p) == f"{p}: missing key 'settling.hold_s', expected a number in s."
 
 
@@ -279,8 +279,8 @@ def test_bad_values(tmp_path: Path) -> None:
     assert error_of(p) == f"{p}: key 'trials.fit' must be at least 1, not 0."
     p = write_variant(tmp_path, 'kind = "force"', 'kind = "forse"')
     assert error_of(p) == f"{p}: key 'kind' must be one of force, push, rpam, not 'forse'."
-    p = write_variant(tmp_path, "timeout_s = 30.0", "timeout_s = 2.5")
-    assert error_of(p) == f"{p}: key 'settling.timeout_s' must be longer than window_s + hold_s (3.0 s), not 2.5."
+    p = write_variant(tmp_path, "timeout_s = 45.0", "timeout_s = 2.5")
+    assert error_of(p) == f"{p}: key 'settling.timeout_s' must be longer than window_s + hold_s (13.0 s), not 2.5."
     p = write_variant(tmp_path, 'unit = "deg"', 'unit = "V"')
     assert error_of(p) == f"{p}: key 'channels.POT1.unit' must be one of rad, deg for an angle channel, not 'V'."
     p = write_variant(tmp_path, 'unit = "MPa"', 'unit = "deg"')

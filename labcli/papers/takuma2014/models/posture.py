@@ -686,7 +686,10 @@ class PostureModel:
             ).fit(rows, choose_routes=False, record_trials=False)
 
         def paper(rows: Any, record_trials: bool = False) -> TakumaModel:
-            return TakumaModel(geometry=self.geometry, protocol=self.protocol).fit(rows, record_trials=record_trials)
+            # The labels as read: the posture form fits them so, and both forms are judged on them.
+            return TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="none").fit(
+                rows, record_trials=record_trials
+            )
 
         try:
             rows = rt.route_sample(np.flatnonzero(set_mask(table, "fit", source)))

@@ -113,6 +113,8 @@ GEOMETRY_KEYS = ("h1", "h2", "h3", "r1", "r2")
 
 DEFAULT_MAX_AMPLIFICATION = 100.0
 DEFAULT_MAX_DESIGN_COND = 1e8
+# Fewer fit trials than this: the play is not estimated (its column would eat a tenth of the data).
+MIN_PLAY_TRIALS = 20
 # Above this (column-scaled) condition number the fit is kept but marked ill-conditioned.
 WARN_DESIGN_COND = 1e4
 
@@ -436,6 +438,10 @@ class TakumaModel:
     calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
     p0_leak_corrected: bool = False
     baseline_gap_s: float | None = None
+    # The potentiometers' play fitted with Eqs. 34-35 (models/labels.py): "fit" estimates it,
+    # "none" takes the readings as they are.  ``play`` holds what the fit estimated.
+    label_play: str = "fit"
+    play: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.geometry = normalise_geometry(self.geometry)
@@ -456,13 +462,18 @@ class TakumaModel:
         ``record_trials=False`` leaves ``fitted_trials`` empty (a fit made only to predict, as
         the posture form's route choice makes ten).
         """
-        a = _table_arrays(table, set_mask(table, "fit", source))
+        fit_rows = set_mask(table, "fit", source)
+        table, stuck = self._unplayed(table, fit_rows)
+        a = _table_arrays(table, fit_rows)
         trial, P0, P, theta, F = a["trial"], a["P0"], a["P"], a["theta"], a["F"]
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         theta_known = np.nan_to_num(theta, nan=1.0)  # a stand-in where an angle is missing: such trials are left out
         with np.errstate(divide="ignore", invalid="ignore"):
             js = jstar(theta_known, h2, h3)  # (J^-1)^T once, for the exclusions and both force designs
         reasons = self._exclusions(trial, P0, P, theta, F, js)
+        for eq, ids in stuck.items():
+            for t in ids:
+                reasons[eq].setdefault(t, "the potentiometer's reading did not leave its play")
         with np.errstate(divide="ignore", invalid="ignore"):
             u = pressure_ratio_features(P0, P)
 
@@ -524,6 +535,34 @@ class TakumaModel:
 
         self.calibrated_range = calibrated_range(table, set_mask(table, "fit", source))
         return self
+
+    def _unplayed(self, table: Any, fit_rows: np.ndarray) -> tuple[Any, dict[str, list[int]]]:
+        """The table with its angle labels corrected for the potentiometers' play (fitted here with
+        Eqs. 34-35's designs, models/labels.py), and per angle equation the trials left out as read
+        inside the play.  ``label_play="none"``, or too few fit trials, leaves the labels as read."""
+        from .labels import fit_play
+
+        self.play = {}
+        if self.label_play == "none" or int(np.count_nonzero(fit_rows)) < MIN_PLAY_TRIALS:
+            return table, {}
+        a = _table_arrays(table)
+        if not np.all(np.isfinite(a["P0"]) & np.isfinite(a["P"]) & (a["P"] > 0)):
+            return table, {}
+        u = pressure_ratio_features(a["P0"], a["P"])
+        order = np.argsort(a["trial"], kind="stable")
+        out = table.copy()
+        stuck: dict[str, list[int]] = {}
+        widths, ses, trailing = [], [], []
+        for k, eq in enumerate(("theta1", "theta2")):
+            design = u[:, :2] if eq == "theta1" else u
+            res, corrected = fit_play(design, a["theta"][:, k], order, np.asarray(fit_rows, bool), a["trial"])
+            out[ANGLE_COLUMNS[k]] = np.degrees(corrected)
+            stuck[eq] = list(res.stuck)
+            widths.append(math.degrees(res.play_rad))
+            ses.append(math.degrees(res.se_rad))
+            trailing.append(res.trailing)
+        self.play = {"play_deg": widths, "se_deg": ses, "trailing_trials": trailing, "inside_play": stuck}
+        return out, stuck
 
     def _exclusions(
         self, trial: np.ndarray, P0: np.ndarray, P: np.ndarray, theta: np.ndarray, F: np.ndarray, js: np.ndarray
@@ -699,6 +738,7 @@ class TakumaModel:
                 "form": "paper",
                 "calibrated_range": self.calibrated_range,
                 "baseline": {"p0_leak_corrected": self.p0_leak_corrected, "gap_s": self.baseline_gap_s},
+                "labels": {"play": self.label_play, **self.play},
             }
         )
 
@@ -732,6 +772,7 @@ class TakumaModel:
         model = cls(**_model_fields(d, cap(name)))
         model.calibrated_range = check_range(d.get("calibrated_range"), name)
         model.p0_leak_corrected, model.baseline_gap_s = check_baseline(d.get("baseline"), name)
+        model.label_play, model.play = _labels(d.get("labels"), name)
         unknown = [k for k in model.coefficients if k not in COEFFICIENT_NAMES]
         if unknown:
             what = "an unknown coefficient" if len(unknown) == 1 else "unknown coefficients"
@@ -780,6 +821,18 @@ class TakumaModel:
 
     def save(self, path: Any) -> None:
         Path(path).write_text(self.to_json(), encoding="utf-8")
+
+
+def _labels(value: Any, name: str) -> tuple[str, dict[str, Any]]:
+    """A model file's ``labels``: how its angle labels were taken (absent in older files: as read)."""
+    if value is None:
+        return "none", {}
+    if not isinstance(value, Mapping) or value.get("play") not in ("fit", "none"):
+        raise ModelError(
+            f"{cap(name)} has a bad 'labels' entry (expected play 'fit' or 'none'); refit with `labcli fit`."
+        )
+    rest = {k: v for k, v in value.items() if k != "play"}
+    return str(value["play"]), rest
 
 
 # --------------------------------------------------------------------------- reading a model file

@@ -1,0 +1,138 @@
+"""Calibration labels without the potentiometers' play (models/labels.py, TakumaModel.fit)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from labcli.core.protocol import load_protocol
+from labcli.errors import ModelError
+from labcli.papers.takuma2014.models.labels import apply_play, fit_play, play_states
+from labcli.papers.takuma2014.models.takuma import TakumaModel
+from labcli.papers.takuma2014.protocol import load_plan
+from labcli.papers.takuma2014.sim.drive import simulate_weight_trials
+from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+from labcli.papers.takuma2014.sim.rig import SimRig
+
+B = math.radians(0.2)
+
+
+def _read(d_true: np.ndarray, b: float) -> np.ndarray:
+    """What a shaft with play b reads for these load-unload deflections (a direct hysteron)."""
+    joint, shaft, out = 0.0, 0.0, []
+    for d in d_true:
+        before = shaft
+        shaft = min(max(shaft, joint + d - b / 2), joint + d + b / 2)
+        out.append(shaft - before)
+        shaft = min(max(shaft, joint - b / 2), joint + b / 2)
+    return np.array(out)
+
+
+def test_states_read_short_by_the_whole_play_after_a_load_the_same_way():
+    d = np.array([1.0, 1.0, -1.0, -1.0, 1.0]) * math.radians(1.0)
+    c, trailing = play_states(d, B)
+    # From the centre: half the play; then the same way again: all of it; a reversal: none.
+    np.testing.assert_allclose(c, [0.5, 1.0, 0.0, -1.0, 0.0])
+    assert trailing.tolist() == [True, True, False, True, False]
+    np.testing.assert_allclose(_read(d, B), d - B * c, atol=1e-15)
+
+
+def test_a_deflection_inside_the_play_reads_nothing():
+    d = np.array([1.0, 0.1]) * math.radians(1.0)  # the second, 0.1 deg, is inside 0.2 deg of play
+    assert _read(d, B)[1] == 0.0
+    c, _ = play_states(d, B)
+    assert c[1] == pytest.approx(d[1] / B)
+
+
+def test_fit_play_recovers_the_play_and_the_true_deflections():
+    rng = np.random.default_rng(5)
+    n = 120
+    design = rng.normal(0.0, 0.01, (n, 2))
+    slope = np.array([1.5, -0.8])
+    d_true = np.arcsin(design @ slope)
+    read = _read(d_true, B) + rng.normal(0.0, math.radians(0.005), n)
+    order = np.arange(n)
+    res, corrected = fit_play(design, read, order, np.ones(n, bool), np.arange(1, n + 1))
+    assert res.play_rad == pytest.approx(B, rel=0.05)
+    assert res.se_rad < 0.1 * B
+    keep = ~np.isin(np.arange(1, n + 1), res.stuck)
+    assert np.sqrt(np.mean((corrected - d_true)[keep] ** 2)) < math.radians(0.01)
+    # The readings as read are biased towards zero by a share of the play; the corrected ones are not.
+    assert np.mean(np.abs(read)) < np.mean(np.abs(d_true)) - 0.3 * B
+    assert abs(np.mean(np.abs(corrected[keep])) - np.mean(np.abs(d_true[keep]))) < 0.05 * B
+
+
+def test_no_play_is_fitted_as_none():
+    rng = np.random.default_rng(6)
+    n = 100
+    design = rng.normal(0.0, 0.01, (n, 2))
+    d_true = np.arcsin(design @ np.array([1.5, -0.8]))
+    res, corrected = fit_play(design, d_true, np.arange(n), np.ones(n, bool), np.arange(1, n + 1))
+    assert res.play_rad < 1e-6
+    np.testing.assert_allclose(corrected, d_true, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def play_only_trials():
+    """The plan's trials on a rig whose only non-ideality is the potentiometers' play."""
+    proto = load_protocol("takuma2014")
+    scales = {**NonIdeal.ideal().as_dict(), "backlash": 1.0}
+    rig = SimRig(seed=2, nonideal=NonIdeal(**scales))
+    return proto, simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=6.0)
+
+
+def test_the_fit_estimates_the_rigs_play_and_unbiases_the_angles(play_only_trials):
+    proto, table = play_only_trials
+    fitted = TakumaModel(geometry=proto.settings.rig, protocol=proto.name).fit(table)
+    as_read = TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play="none").fit(table)
+    # The simulated rig's play is 0.2 deg full width on each potentiometer.
+    assert fitted.play["play_deg"] == pytest.approx([0.2, 0.2], abs=0.03)
+    assert all(se < 0.03 for se in fitted.play["se_deg"])
+    assert as_read.play == {}
+    # Read as they are, the labels make every pressure-derived deflection short, by a share of the play.
+    ours, theirs = fitted.predict_table(table), as_read.predict_table(table)
+    for q in ("theta1_rad", "theta2_rad"):
+        gain = np.mean(np.abs(ours[q])) - np.mean(np.abs(theirs[q]))
+        assert math.radians(0.04) < gain < math.radians(0.2)
+    excluded = {e["trial"] for e in fitted.excluded_trials["theta1"]}
+    inside = set(fitted.play["inside_play"]["theta1"])
+    assert inside <= excluded
+    assert all(
+        e["reason"] == "the potentiometer's reading did not leave its play"
+        for e in fitted.excluded_trials["theta1"]
+        if e["trial"] in inside
+    )
+
+
+def test_no_play_on_the_ideal_rig():
+    proto = load_protocol("takuma2014")
+    rig = SimRig(seed=3, nonideal=NonIdeal.ideal())
+    table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=6.0)
+    model = TakumaModel(geometry=proto.settings.rig, protocol=proto.name).fit(table)
+    assert max(model.play["play_deg"]) < 0.02
+
+
+def test_the_model_file_says_what_it_estimated(play_only_trials):
+    proto, table = play_only_trials
+    model = TakumaModel(geometry=proto.settings.rig, protocol=proto.name).fit(table)
+    d = model.to_dict()
+    assert d["labels"]["play"] == "fit"
+    assert d["labels"]["play_deg"] == model.play["play_deg"]
+    back = TakumaModel.from_json(model.to_json())
+    assert back.label_play == "fit" and back.play["play_deg"] == model.play["play_deg"]
+    older = {k: v for k, v in d.items() if k != "labels"}
+    assert TakumaModel.from_dict(older).label_play == "none"
+    with pytest.raises(ModelError, match="bad 'labels' entry"):
+        TakumaModel.from_dict({**d, "labels": {"play": "maybe"}})
+
+
+def test_apply_play_corrects_validation_labels_the_same_way(play_only_trials):
+    proto, table = play_only_trials
+    model = TakumaModel(geometry=proto.settings.rig, protocol=proto.name).fit(table)
+    widths = tuple(math.radians(w) for w in model.play["play_deg"])
+    fixed = apply_play(table, widths)
+    assert (np.abs(fixed["theta1_deg"]) >= np.abs(table["theta1_deg"]) - 1e-12).all()
+    assert not fixed["theta1_deg"].equals(table["theta1_deg"])
+    assert apply_play(table, (0.0, 0.0))["theta2_deg"].equals(table["theta2_deg"])
