@@ -99,7 +99,7 @@ def test_categories_and_stiffness_match_the_simulated_objects(lab):
         assert o["k_mean_N_per_m"] == pytest.approx(k_true, rel=K_TOLERANCE)
         assert o["true_k_N_per_m"] == k_true
         assert (o["n"], o["n_flagged"], o["method"], o["role"]) == (10, 0, "bands", "unknown")
-        assert o["confidence"] == 1.0
+        assert o["confidence"] > 0.99  # the error budget (models/budget.py): deep inside the band
         # the spread is that of the pushes: a few percent, the steel can's the widest
         assert 0 < o["k_sd_N_per_m"] < 0.12 * o["k_mean_N_per_m"]
     assert {o.category for o in DEMO_OBJECTS} == set(CATEGORY_OF_MATERIAL.values())

@@ -43,6 +43,9 @@ def lab() -> dict[str, Any]:
     rig = SimRig(seed=1, nonideal=NonIdeal.ideal())
     trials = simulate_weight_trials(rig, load_plan(force).iloc[::2], calibration=force.calibration)
     model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(trials)
+    # Without its fit statistics the model has no error budget (models/budget.py), so the bands'
+    # confidences are the pushes' shares, which the one-object-at-a-time code below rebuilds.
+    model.fit_stats = {}
     pool = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=6, labelled=True)
     rng = np.random.default_rng(5)
     n = 25 * len(pool)

@@ -130,6 +130,7 @@ def classify_pushes(
     method: str = "auto",
     angles: str = "pressure-only",
     allow_unusable: bool = False,
+    settle_s: float | None = None,
 ) -> ClassifyResult:
     """Stiffness per push, statistics and category per object, from a push table.
 
@@ -145,7 +146,9 @@ def classify_pushes(
     theta2_deg``, for the contact point and the force).  Optional columns
     ``theta10_deg, theta20_deg`` give the absolute baseline posture.
     Raises :class:`ModelError` if an object has no usable push, unless
-    ``allow_unusable`` (its row then has no category and says why).
+    ``allow_unusable`` (its row then has no category and says why).  ``settle_s``: the push
+    protocol's earliest acceptance of equilibrium, the thermal tail's term in the paper form's
+    error budget (models/budget.py).
     """
     import pandas as pd
 
@@ -195,7 +198,9 @@ def classify_pushes(
     objs = _Objects(objects, codes, members, [known[name] for name in objects])
     rows = _object_rows(objs, est, use, labels, cat_model, true_k, allow_unusable)
     if cat_model.method == "bands":
-        _band_confidence(rows, objs, est, use, cat_model, log_k_standard_errors(pred, est, force_ok))
+        _band_confidence(
+            rows, objs, est, use, cat_model, log_k_standard_errors(_with_budget(pred, model, settle_s), est, force_ok)
+        )
 
     push_cols = [c for c in ("push", "object", "category", "source", TRUE_K) if c in table.columns]
     model_cols = pd.DataFrame(
@@ -347,6 +352,16 @@ def _object_rows(
             row.update(_reference_verdict(name, sel, objs.known[g], est, use, labels, cat_model))
         rows.append(row)
     return rows
+
+
+def _with_budget(pred: Mapping[str, Any], model: Any, settle_s: float | None) -> Mapping[str, Any]:
+    """The prediction with standard errors: the model's own, or the paper form's error budget."""
+    if isinstance(pred.get("se"), Mapping) or not isinstance(model, TakumaModel):
+        return pred
+    from .budget import paper_form_errors
+
+    se = paper_form_errors(model, pred, settle_s)
+    return pred if se is None else {**pred, "se": se}
 
 
 def log_k_standard_errors(
@@ -702,12 +717,19 @@ def classify_file(
             method=method,
             angles=angles,
             allow_unusable=allow_unusable,
+            settle_s=_earliest_settle(src.protocol),
         )
     except ModelError as e:
         if warnings:  # a model of another rig is the likeliest cause: say so with the failure
             raise ModelError(f"{e} {warnings[0]}") from None
         raise
     return ClassifyReport(result, src.path, model_path, ref_path, src.protocol, angles, force_protocol, warnings)
+
+
+def _earliest_settle(protocol: Any) -> float | None:
+    """Three windows and the hold: when the protocol's settling rule accepts equilibrium at the earliest (s)."""
+    st = getattr(protocol, "settling", None)
+    return None if st is None else 3.0 * float(st.window_s) + float(st.hold_s)
 
 
 def _num(x: Any, scale: float = 1.0) -> float | None:
