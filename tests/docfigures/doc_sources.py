@@ -595,6 +595,13 @@ SOURCES: dict[str, Source] = {
             runs={"": ()},
         ),
         Source(
+            "classify-heldout",
+            "benchmark",
+            "the demo's path (force and push runs, paper form, bands) with the play fitted and as read, seeds 11-30",
+            script="classify_heldout.py",
+            runs={"": ("--seeds", "11-30")},
+        ),
+        Source(
             "friction-estimator",
             "benchmark",
             "the posture form with and without the sleeves' friction terms on the literature's rig, seeds 11-30",

@@ -346,6 +346,25 @@ def _once(used: set[str], key: str, label: str) -> str | None:
     return label
 
 
+def _draw_interval(ax: Any, i: int, row: dict[str, Any], used: set[str]) -> None:
+    """The object's 95 % interval of k from its standard error of ln k (the bands' confidence comes
+    from it), beside the pushes: median x exp(+-1.96 se)."""
+    se, median = row.get("log_k_se"), row.get("k_median_N_per_m")
+    if se is None or median is None or not (math.isfinite(se) and math.isfinite(median) and median > 0):
+        return
+    lo, hi = median * math.exp(-1.96 * se), median * math.exp(1.96 * se)
+    ax.plot([i + 0.42, i + 0.42], [lo, hi], color="0.15", lw=3.0, alpha=0.45, solid_capstyle="butt", zorder=4)
+    ax.plot(
+        [i + 0.42],
+        [median],
+        marker="o",
+        ms=4,
+        color="0.15",
+        zorder=5,
+        label=_once(used, "interval", "median, 95 % interval (standard error)"),
+    )
+
+
 def _draw_object(
     ax: Any,
     i: int,
@@ -413,6 +432,7 @@ def _draw_object(
             zorder=4,
             label=_once(used, "mean", "mean ± sd"),
         )
+    _draw_interval(ax, i, row, used)
     t = row.get("true_k_N_per_m")
     if t is not None and np.isfinite(t):
         ax.plot(

@@ -97,6 +97,7 @@ def test_log_k_standard_error_adds_force_and_deformation_in_quadrature() -> None
     ok = np.array([[True, True], [True, False]])  # the second push's Fy unobservable: |F| from Fx
     se = log_k_standard_errors(pred, Est(), ok)
     rel_x = 0.1 * th / 0.002
-    assert se[0] == pytest.approx(math.hypot(0.5 / 10.0, rel_x))
+    # |F|'s error is each component's along F: (6 x 0.3, 8 x 0.4) / 10 N, a share of 10 N.
+    assert se[0] == pytest.approx(math.hypot(math.hypot(6 * 0.3, 8 * 0.4) / 100.0, rel_x))
     assert se[1] == pytest.approx(math.hypot(0.3 / 6.0, rel_x))
     assert log_k_standard_errors({"theta1_rad": np.zeros(2)}, Est(), ok) is None

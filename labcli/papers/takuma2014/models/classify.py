@@ -370,7 +370,8 @@ def log_k_standard_errors(
     """Each push's standard error of ln k_o from the model's own standard errors (None when the
     model gives none, as the paper's Eqs. 34-37 do).
 
-    k_o = |F| / delta_x, so (se ln k)^2 = (se |F| / |F|)^2 + (se delta_x / delta_x)^2.  The
+    k_o = |F| / delta_x, so (se ln k)^2 = (se |F| / |F|)^2 + (se delta_x / delta_x)^2, with
+    se |F| = |(Fx se Fx, Fy se Fy)| / |F| (each component's error along the force).  The
     deformation's error is the angles' through d delta_x / d theta (``dx_theta_gain``); the
     angles' standard errors come from the calibration's held-out residuals, so they carry the
     labels' play, scale error and thermal tail as the fit saw them.  Where one force component is
@@ -383,7 +384,9 @@ def log_k_standard_errors(
     t1, t2, fx, fy = (np.asarray(se[q], dtype=float) for q in ("theta1", "theta2", "Fx", "Fy"))
     F = est.F if est.F is not None else np.full((len(est), 2), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
-        rel_f = np.hypot(fx, fy) / est.force
+        # |F|'s error is each component's along F: (Fx se_x, Fy se_y) / |F|, not the errors' norm
+        # (on an upright arm Fy's error is several newtons while Fy itself is a small share of |F|).
+        rel_f = np.hypot(F[:, 0] * fx, F[:, 1] * fy) / est.force**2
         if force_ok is not None:
             rel_f = np.where(~force_ok[:, 1] & force_ok[:, 0], fx / np.abs(F[:, 0]), rel_f)
             rel_f = np.where(~force_ok[:, 0] & force_ok[:, 1], fy / np.abs(F[:, 1]), rel_f)
