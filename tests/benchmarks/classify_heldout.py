@@ -108,7 +108,7 @@ def summarise(raw: dict[int, dict[str, Any]]) -> dict[str, Any]:
             figures[f"{est} {name} k/k_true median"] = med
             figures[f"{est} {name} k/k_true ci95 lo"], figures[f"{est} {name} k/k_true ci95 hi"] = lo, hi
             figures[f"{est} {name} right"] = right
-            figures[f"{est} {name} right ci95 lo"], figures[f"{est} {name} right ci95 hi"] = wlo, whi
+            figures[f"{est} {name} right ci95 lo"], figures[f"{est} {name} right ci95 hi"] = max(wlo, 0.0), whi
         plays = np.array([raw[s][est]["play_deg"] for s in sorted(raw)], dtype=float)
         for k, v in enumerate(np.median(plays, axis=0)):
             figures[f"{est} play_deg theta{k + 1} median"] = float(v)

@@ -142,27 +142,29 @@ def test_demo_into_a_file_is_one_sentence(tmp_path):
     assert str(f) in result.output
 
 
-def test_inspect_sees_the_leak_the_rig_was_given(demo_out, ideal_demo_out):
-    # The valves stay closed over the 108 trials (some 40 min of device time), so each chamber's
-    # baseline falls at its leak rate: the absolute pressure over the leak's time constant, each
-    # chamber its own seeded rate (sim/nonideal.py).  Friction scatters the baselines by a fraction
-    # of a kPa, the leak moves them by tens.
+def test_the_demo_holds_its_operating_point_while_the_rig_leaks(demo_out, ideal_demo_out):
+    # The chambers leak at their seeded rates (tens of kPa over the run's device time), and the
+    # demo's force run re-pressurises once any chamber's baseline has drifted past the limit
+    # (labcli.core.air), so every baseline stays within that limit of the supplied pressure: the
+    # model is fitted at one operating point and the pushes are measured at it.
     import numpy as np
 
+    from labcli.core.air import REPRESSURISE_FLOORS
+    from labcli.core.protocol import load_protocol
     from labcli.papers.takuma2014.records import load_trials
     from labcli.papers.takuma2014.sim import nonideal as ni
     from labcli.papers.takuma2014.sim.physics import P_ATM
 
     out, _ = demo_out
+    p0 = load_trials(out / "force.h5")[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()  # MPa gauge
+    configured = (p0.mean(axis=0) * 1e6 + P_ATM) * ni.leak_factors(3, 1.0) * 60 / 1e3  # kPa/min
+    assert np.all(configured > 0.3)
+    settling = load_protocol("takuma2014").settling
+    limit_kPa = REPRESSURISE_FLOORS * settling.pressure_spread_MPa * 1e3
+    drift_kPa = np.abs(p0 - p0[0]) * 1e3
+    assert drift_kPa.max() < limit_kPa + 1.0, drift_kPa.max(axis=0)
     result = CliRunner().invoke(cli, ["inspect", str(out / "force.h5"), "--json"])
     assert result.exit_code == 0, result.output
-    s = json.loads(result.output)
-    seen = np.array(list(s["baseline_leak"]["loss_kPa_per_min"].values()))
-    assert s["baseline_leak"]["span_s"] > 20 * 60
-    p0 = load_trials(out / "force.h5")[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()  # MPa gauge
-    configured = (p0.mean(axis=0) * 1e6 + P_ATM) * ni.leak_factors(3, 1.0) * 60 / 1e3
-    assert np.all(configured > 0.3)
-    assert seen == pytest.approx(configured, rel=0.15)
     # The ideal rig does not leak: what inspect sees there is the scatter's slope alone.
     result = CliRunner().invoke(cli, ["inspect", str(ideal_demo_out[0] / "force.h5")])
     assert result.exit_code == 0, result.output

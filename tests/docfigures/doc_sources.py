@@ -161,6 +161,21 @@ def constants() -> dict[str, Any]:
     out["nonideal.contact_tilt_deg"] = rounded(math.degrees(math.atan(ni.CONTACT_MU)))
     out["nonideal.contact_k_high_pct"] = rounded((math.hypot(1, ni.CONTACT_MU) - 1) * 100)
     out["nonideal.pot_linearity_deg"] = rounded(ni.POT_LINEARITY * 340)
+    # Calibration without label bias (docs/calibration-labels.md): the settle, the budget's terms.
+    from labcli.papers.takuma2014.models import budget, labels
+    from labcli.papers.takuma2014.sim.objects import DEFORMATION_M
+
+    settling = force.settling
+    assert settling is not None
+    earliest = 3 * settling.window_s + settling.hold_s
+    out["takuma2014.settling.hold_s"] = settling.hold_s
+    out["takuma2014.settling.earliest_s"] = earliest
+    out["takuma2014.settling.time_constants"] = rounded(earliest / budget.THERMAL_TAU_S)
+    out["budget.pot_scale_pct"] = rounded(budget.POT_SCALE_SD * 100)
+    out["budget.thermal_tau_s"] = budget.THERMAL_TAU_S
+    out["budget.tail_pct"] = rounded(budget.tail_share(earliest) * 100)
+    out["labels.stuck_share_pct"] = rounded(labels.STUCK_SHARE * 100)
+    out["objects.can-steel-1.deformation_mm"] = rounded(DEFORMATION_M["can-steel-1"] * 1e3)
     from labcli.papers.takuma2014 import units as takuma_units
 
     out["units.force_tolerance_pct"] = rounded(takuma_units.FORCE_TOLERANCE * 100)

@@ -70,12 +70,31 @@ def print_fit(model: Any, paper: dict[str, float], out_path: Path, recorded: str
                 con.print(f"    ... and {len(excluded) - 12} more (see the model file)")
         con.print()
     con.print(f"Sign: {SIGN_NOTE}.", soft_wrap=True)
+    play = play_sentence(model)
+    if play:
+        con.print(play, soft_wrap=True)
     con.print(
         f"Each force fit leaves out postures near the straight arm (theta2 = 0) where that "
         f"component's amplification ||row of (J^-1)^T|| ||J|| exceeds {model.max_amplification:g}.",
         soft_wrap=True,
     )
     con.print(f"Model written to {out_path}{recorded}.", soft_wrap=True)
+
+
+def play_sentence(model: Any) -> str:
+    """What the fit estimated of the potentiometers' play (models/labels.py), in one sentence."""
+    play = getattr(model, "play", None) or {}
+    if not play.get("play_deg"):
+        return "Angle labels taken as the potentiometers read them (no play fitted)."
+    widths = ", ".join(
+        f"theta{k + 1} {w:.3f} +- {se:.3f} deg"
+        for k, (w, se) in enumerate(zip(play["play_deg"], play["se_deg"], strict=True))
+    )
+    inside = sum(len(v) for v in play.get("inside_play", {}).values())
+    return (
+        f"Potentiometer play fitted with Eqs. 34-35 (full width, standard error): {widths}; the angle labels "
+        f"are corrected for it, and {inside} reading(s) inside the play are left out of the angle fits."
+    )
 
 
 def print_posture_fit(model: Any, out_path: Path, recorded: str) -> None:

@@ -1,6 +1,8 @@
 """Accuracy of the fitted regression on the validation trials (the paper's Figure 7).
 
-Errors are ``calculated - observed`` in degrees for the angles and newtons for the forces.
+Errors are ``calculated - observed`` in degrees for the angles and newtons for the forces.  A
+paper-form model fitted with the potentiometers' play (models/labels.py) is judged against the
+validation labels corrected for the same play.
 Trials whose prediction is flagged (clipped arcsin, near-singular Jacobian, bad pressure, or in
 the posture-aware form a standard error over the protocol's limit) are counted apart and left out
 of the measures, so one bad posture cannot hide or dominate the accuracy of the rest.
@@ -56,6 +58,18 @@ def error_metrics(observed: Any, calculated: Any) -> dict[str, Any]:
     return out
 
 
+def _unplayed(model: Any, table: Any) -> Any:
+    """The table's angle labels corrected for the play the model fitted (models/labels.py), so that
+    its predictions are judged against the labels it was fitted to; as read otherwise.  The states
+    run over the whole table in trial order, as in the fit."""
+    widths = (getattr(model, "play", None) or {}).get("play_deg")
+    if not widths or not all(isinstance(w, (int, float)) and math.isfinite(w) for w in widths):
+        return table
+    from .labels import apply_play
+
+    return apply_play(table, (math.radians(widths[0]), math.radians(widths[1])))
+
+
 def evaluate(model: ForceModel, table: Any, mode: str = "pressure-only", source: str = "the run") -> dict[str, Any]:
     """Predict the validation trials of ``table`` and measure the errors.
 
@@ -66,7 +80,7 @@ def evaluate(model: ForceModel, table: Any, mode: str = "pressure-only", source:
     """
     if mode not in MODES:
         raise ModelError(f"Unknown validation mode '{mode}'; use pressure-only or measured-angles.")
-    rows = select_set(table, "validation", source)
+    rows = select_set(_unplayed(model, table), "validation", source)
     pred = model.predict_table(rows, mode=mode)
     calculated = {
         "theta1": np.degrees(pred["theta1_rad"]),
