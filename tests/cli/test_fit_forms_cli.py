@@ -51,7 +51,9 @@ def test_fit_defaults_to_the_posture_form_and_validate_shows_both_forms(csv: Pat
     assert model["fit_stats"]["routes_cv"]["Fx"]["reported_posture"] == 0
     for q in ("Fx", "Fy"):
         assert d["metrics"][q]["n"] == d["forms"]["paper"][q]["n"] == 18
-        assert d["metrics"][q]["rmse"] == pytest.approx(d["forms"]["paper"][q]["rmse"], rel=1e-12)
+        # The forms table's paper form fits the potentiometers' play (none in these data: its fitted
+        # width is noise), the posture form's paper route the labels as read: nearly the same fit.
+        assert d["metrics"][q]["rmse"] == pytest.approx(d["forms"]["paper"][q]["rmse"], rel=0.02)
     for t in d["trials"]:
         for q in ("Fx", "Fy"):
             assert (t["calculated"][q] is None) == (t["standard_error"][q] > 1.0), t
