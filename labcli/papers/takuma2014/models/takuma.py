@@ -115,6 +115,7 @@ DEFAULT_MAX_AMPLIFICATION = 100.0
 DEFAULT_MAX_DESIGN_COND = 1e8
 # Fewer fit trials than this: the play is not estimated (its column would eat a tenth of the data).
 MIN_PLAY_TRIALS = 20
+MAX_PLAY_TRIALS = 20_000
 # Above this (column-scaled) condition number the fit is kept but marked ill-conditioned.
 WARN_DESIGN_COND = 1e4
 
@@ -543,7 +544,13 @@ class TakumaModel:
         from .labels import fit_play
 
         self.play = {}
-        if self.label_play == "none" or int(np.count_nonzero(fit_rows)) < MIN_PLAY_TRIALS:
+        n_fit = int(np.count_nonzero(fit_rows))
+        if self.label_play == "none" or n_fit < MIN_PLAY_TRIALS:
+            return table, {}
+        if n_fit > MAX_PLAY_TRIALS:
+            # The shaft's states are a pass in trial order per joint; an archive this size is many
+            # runs joined, not one sequence of loads, and its labels are taken as read.
+            self.play = {"skipped": f"{n_fit} fit trials, more than the {MAX_PLAY_TRIALS} of one run's sequence"}
             return table, {}
         a = _table_arrays(table)
         if not np.all(np.isfinite(a["P0"]) & np.isfinite(a["P"]) & (a["P"] > 0)):
