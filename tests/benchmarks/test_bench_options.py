@@ -79,6 +79,21 @@ def test_the_store_rows_frames_and_trials_are_the_options(tmp_path: Path) -> Non
     assert t["durable"] > 0
 
 
+def test_processes_runs_that_many_fresh_processes_and_takes_medians(tmp_path: Path) -> None:
+    out = tmp_path / "figures.json"
+    script = HERE / "bench_store.py"
+    args = ["--trials", "2", "--samples", "30", "--repeat", "1", "--processes", "3", "--figures", str(out)]
+    printed = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True, check=True).stdout
+    figures = json.loads(out.read_text())
+    assert figures["processes"] == 3 and printed.count("bare h5py, same filters") == 3
+    each = re.search(r"by frames/window: 30: \[([^\]]*)\]", printed)
+    assert each is not None
+    ratios = [float(x) for x in each.group(1).split(",")]
+    assert len(ratios) == 3 and figures["30 frames fsync over durable h5py"] == pytest.approx(
+        sorted(ratios)[1], abs=1e-3
+    )
+
+
 def test_the_durable_baseline_syncs_once_per_trial(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     store = bench("bench_store")
     disk: list[int] = []
