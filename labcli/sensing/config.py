@@ -63,7 +63,7 @@ class EstimatorConfig:
     # rig's error: sleeve friction and backlash leave the arm a little elsewhere each time, and
     # the fit's trials average that out.  It is scaled by this factor while a load is on (tuned on
     # seeds 1-10 for 95 % intervals that hold the truth 90-98 % of the time, transients included).
-    loaded_state_se_factor: float = 1.25
+    loaded_state_se_factor: float = 1.4
 
     def __post_init__(self) -> None:
         for f in fields(self):
