@@ -8,8 +8,12 @@ into a one-line :class:`click.ClickException`.
 
 from __future__ import annotations
 
+import codecs
 import importlib
+import io
+import os
 import signal
+import sys
 import warnings
 
 import click
@@ -98,11 +102,108 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
         _python_show_warning(message, category, filename, lineno, file, line)
 
 
+def _text_errors(err: UnicodeError) -> tuple[str | bytes, int]:
+    """What a stream cannot encode: a file name's raw bytes back as they were (Python keeps them
+    as lone surrogates; ``ls`` shows them so), anything else as a ``\\u00b0`` escape; never a traceback."""
+    if isinstance(err, UnicodeEncodeError):
+        bad = err.object[err.start : err.end]
+        if all("\udc80" <= c <= "\udcff" for c in bad):
+            return bad.encode("utf-8", "surrogateescape"), err.end
+    return codecs.backslashreplace_errors(err)
+
+
+class OutputUnwritable(Exception):
+    """Standard output refused a write (a full disk or /dev/full, a closed pipe's end)."""
+
+    def __init__(self, strerror: str) -> None:
+        super().__init__(strerror)
+        self.strerror = strerror
+
+
+class _GuardedOutput(io.RawIOBase):
+    """Standard output's descriptor, whose failed write stops the command in one sentence; the
+    bytes still buffered after that are dropped instead of failing again at exit."""
+
+    def __init__(self, fd: int) -> None:
+        super().__init__()
+        self._fd = fd
+        self.failed = False
+
+    def writable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self._fd
+
+    def isatty(self) -> bool:
+        return os.isatty(self._fd)
+
+    def write(self, data) -> int:  # noqa: ANN001 - a bytes-like object, as RawIOBase.write takes
+        if self.failed:
+            return len(data)
+        try:
+            return os.write(self._fd, data)
+        except OSError as e:
+            self.failed = True
+            raise OutputUnwritable(e.strerror or str(e)) from None
+
+
+def _guard_streams() -> None:
+    codecs.register_error("labcli-text", _text_errors)
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper):
+            stream.reconfigure(errors="labcli-text")
+    out = sys.stdout
+    if isinstance(out, io.TextIOWrapper) and out.fileno() == 1:
+        out.flush()
+        sys.stdout = io.TextIOWrapper(
+            io.BufferedWriter(_GuardedOutput(1)),
+            encoding=out.encoding,
+            errors="labcli-text",
+            line_buffering=out.line_buffering or out.isatty(),
+        )
+
+
 def main() -> None:
     warnings.showwarning = _show_warning
     try:
+        _guard_streams()
+    except (OSError, ValueError):
+        pass  # streams of an embedding program: left as they are
+    try:
         cli(prog_name="labcli", obj={"own_process": True})
+    except Exception as e:
+        if isinstance(e, OutputUnwritable):
+            _output_unwritable(e)
+        if not isinstance(e, (OSError, RuntimeError, KeyError)) or not _from_hdf5(e):
+            raise
+        why = str(e).strip("'\"").split(" (")[0] or type(e).__name__
+        click.echo(
+            f"Error: a run file is damaged and HDF5 cannot read part of it ({why}); check it with "
+            "labcli inspect --verify, and use a backup copy.",
+            err=True,
+        )
+        sys.exit(1)
     finally:
         # The command has ended in its own words: a Ctrl-C while the interpreter then shuts down
         # could only print a stray "Exception ignored ... KeyboardInterrupt" from its clean-up.
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _from_hdf5(e: BaseException) -> bool:
+    """Whether ``e`` came out of h5py reading a file (a damaged one: labcli's own errors are sentences)."""
+    tb = e.__traceback__
+    while tb is not None:
+        if "h5py" in tb.tb_frame.f_code.co_filename.replace("\\", "/").split("/"):
+            return True
+        tb = tb.tb_next
+    return False
+
+
+def _output_unwritable(e: OutputUnwritable) -> None:
+    click.echo(
+        f"Error: standard output cannot take what labcli writes ({e.strerror}); send it to a file "
+        "on a disk with room, or to the terminal.",
+        err=True,
+    )
+    sys.exit(1)

@@ -163,7 +163,7 @@ def monitor(
         labcli monitor --port sim:// --plot --window 10 --record stream.h5
     """
     from ..core.device import Device  # heavy: when the command runs, not for --help
-    from ..core.monitoring import channel_scale, watch
+    from ..core.monitoring import calibrated, channel_scale, watch
     from ..core.protocol import load_protocol
     from ..core.registry import default_protocol
 
@@ -172,7 +172,7 @@ def monitor(
         # A live display wants the simulated rig paced like hardware, not as fast as it is read.
         url += ("&" if "?" in port else "?") + "clock=wall"
     try:
-        proto = load_protocol(protocol or default_protocol("monitor"))
+        proto = calibrated(load_protocol(protocol or default_protocol("monitor")))
         rate_hz = rate if rate is not None else proto.rate_hz
         if rate_hz is None:
             raise click.ClickException(f"Protocol {proto.name} names no sample rate; give one with --rate HZ.")

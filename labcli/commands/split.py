@@ -31,7 +31,7 @@ from ._declared import protocol_option
     show_default=True,
     help="sequential: first trials recorded fit, the next validate (the paper's); random: seeded draw.",
 )
-@click.option("--seed", type=int, default=None, help="Seed of the random draw  [default: 0]")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=None, help="Seed of the random draw  [default: 0]")
 @protocol_option(
     "split",
     "A trial CSV's protocol (name or .toml), for its default sizes  [default: {default}]; run files carry their own.",

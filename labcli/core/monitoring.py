@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..errors import ConfigError
 from .rolling import Rolling
 from .settle import TimeUnwrapper
 
@@ -68,6 +69,20 @@ class ChannelScale:
     display_units: tuple[str, ...]  # MPa, deg, counts
     to_si: Callable[[np.ndarray], np.ndarray]
     to_display: Callable[[np.ndarray], np.ndarray]
+
+
+def calibrated(protocol: Any) -> Any:
+    """``protocol``, or for one holding several experiments (rPAM's joint map and stretch test)
+    the first experiment's, whose calibration reads the rig's channels."""
+    if protocol.calibration is not None:
+        return protocol
+    from .registry import protocol_kinds, run_protocol
+
+    for choice in protocol_kinds()[protocol.kind].experiments:
+        chosen = run_protocol(protocol, choice)[1]
+        if chosen.calibration is not None:
+            return chosen
+    raise ConfigError(f"Protocol {protocol.name} calibrates no channels, so the monitor cannot show readings.")
 
 
 def channel_scale(channels: Sequence[str], calibration: Any) -> ChannelScale:

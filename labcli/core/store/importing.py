@@ -21,13 +21,14 @@ from ..paper import Column
 from ..protocol import load_protocol
 from ..registry import import_protocol, record_type, untagged_run_kind
 from .h5 import missing, nan_if_empty
-from .layout import extra_column
+from .layout import extra_column, extra_key
 from .records import ALL_COLUMNS
 from .runfile import RunFile
 from .split import Split
 from .view import MAX_ID
 
 NUL_PROBLEM = "holds a NUL character, which a run file cannot store; remove it"
+CELL_BYTES = 16_384  # a text column is stored fixed-width, its type in a header HDF5 caps at 64 KB
 
 
 def storable_cells(row: Mapping[str, Any]) -> Iterable[tuple[str, str]]:
@@ -40,6 +41,12 @@ def storable_cells(row: Mapping[str, Any]) -> Iterable[tuple[str, str]]:
     for column, value in row.items():
         if isinstance(value, str) and "\x00" in value:
             yield str(column), NUL_PROBLEM
+        elif isinstance(value, str) and len(value) > CELL_BYTES // 4 and len(value.encode("utf-8")) > CELL_BYTES:
+            yield (
+                str(column),
+                f"holds {len(value.encode('utf-8'))} bytes of text, more than the {CELL_BYTES} a run file "
+                "keeps in one cell; shorten it",
+            )
 
 
 def _any_nul(frame: Any) -> bool:
@@ -48,6 +55,7 @@ def _any_nul(frame: Any) -> bool:
 
     return any(
         frame[c].astype(str).str.contains("\x00", regex=False).any()
+        or frame[c].astype(str).str.len().max() > CELL_BYTES // 4
         for c in frame.columns
         if not (pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]))
     )
@@ -62,14 +70,15 @@ def _extras(df: Any, names: Sequence[str]) -> tuple[list[Any], dict[str, Any]]:
     values: dict[str, Any] = {}
     for name in names:
         raw = df[name].tolist()
-        c = extra_column(str(name), raw)
+        key = extra_key(str(name))
+        c = extra_column(key, raw)
         columns.append(c)
         if c.kind == "text":
-            values[str(name)] = ["" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v) for v in raw]
+            values[key] = ["" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v) for v in raw]
         elif c.kind == "int":
-            values[str(name)] = np.asarray(raw, dtype=np.int64)
+            values[key] = np.asarray(raw, dtype=np.int64)
         else:
-            values[str(name)] = np.asarray([nan_if_empty(v) for v in raw], dtype=np.float64)
+            values[key] = np.asarray([nan_if_empty(v) for v in raw], dtype=np.float64)
     return columns, values
 
 

@@ -94,6 +94,22 @@ def record_columns(rt: RecordType, extras: Sequence[Column] = ()) -> list[Column
     return [*common_columns(rt.id_column), *extras, *rt.columns, *window_columns()]
 
 
+EXTRA_PREFIX = "extra:"  # an imported table's own columns, in a namespace of their own
+
+
+def extra_key(name: str) -> str:
+    """The record table's name for an imported table's column ``name``: never one of the run
+    file's own columns (``P``, ``flags``, ...), never an HDF5 path (``.``, ``a/``)."""
+    return EXTRA_PREFIX + name.replace("%", "%25").replace("/", "%2F")
+
+
+def extra_name(key: str) -> str:
+    """The imported column's own name, back from :func:`extra_key` (older runs kept it as it was)."""
+    if not key.startswith(EXTRA_PREFIX):
+        return key
+    return key[len(EXTRA_PREFIX) :].replace("%2F", "/").replace("%25", "%")
+
+
 def extra_column(name: str, values: Sequence[Any]) -> Column:
     """The column for an imported table's column labcli does not know, from its values."""
     from .h5 import column_units

@@ -31,7 +31,7 @@ from ..record import Record, Settle, StoredRecord
 from ..window import Window
 from . import space
 from .columns import fill_value
-from .layout import common_columns, window_columns
+from .layout import common_columns, extra_name, window_columns
 from .rows import bulk_values, record_id, record_row, settle_of, split_flags
 from .view import RecordColumns, from_v1, from_v2
 from .writer import Write
@@ -272,7 +272,7 @@ class Records:
             "order": int(rec.sources[i]) if run.v1 is None else i,
             "raw": raw,
             "settle": settle,
-            "extra": {name: _plain(row[name]) for name in rec.extras},
+            "extra": {extra_name(name): _plain(row[name]) for name in rec.extras},
             "flags": split_flags(row.get("flags", "")),
         }
         # The record type's values first, as the writer gave them: a TypedDict of its kind.
@@ -296,7 +296,7 @@ class Records:
         df = rt.table(run, list(rec.ids), rec.cols)
         for name in rec.extras:
             v = rec.cols[name]
-            df[name] = [x.item() if isinstance(x, np.generic) else x for x in v] if v.dtype == object else v
+            df[extra_name(name)] = [x.item() if isinstance(x, np.generic) else x for x in v] if v.dtype == object else v
         if all_columns:
             for c in ALL_COLUMNS:
                 v = rec.cols[c.name]

@@ -297,7 +297,10 @@ class RunFile:
         return run
 
     def _metadata_ok(self) -> bool:
-        return self.version == 1 or metadata_ok(self.h5)
+        try:
+            return self.version == 1 or metadata_ok(self.h5)
+        except Exception:  # noqa: BLE001 - a damaged attribute or header can fail in any way
+            return False
 
     def reopen(self) -> None:
         """Read the file afresh (a reader that met a commit under way)."""
@@ -371,9 +374,8 @@ class RunFile:
         """The run's metadata as plain Python values (the root's attributes in version 1)."""
         if self.v1 is not None:
             return self.v1.attrs()
-        entry = self.h5["entry"]
-        root = {k: plain(v) for k, v in self.h5.attrs.items() if k not in MUTABLE_ATTRS}
-        e = {k: plain(v) for k, v in entry.attrs.items()}
+        root = {k: v for k, v in self._attrs_at("/").items() if k not in MUTABLE_ATTRS}
+        e = self._attrs_at("entry")
         out = {
             "schema": root.get("schema"),
             "schema_version": root.get("schema_version"),
@@ -381,11 +383,24 @@ class RunFile:
             "started": e.get("start_time", ""),
             **e,
         }
-        out["versions"] = {k: plain(v) for k, v in entry["versions"].attrs.items() if k != "NX_class"}
+        out["versions"] = {k: v for k, v in self._attrs_at("entry/versions").items() if k != "NX_class"}
         out["file_name"], out["file_time"] = root.get("file_name", ""), root.get("file_time", "")
         out.pop("NX_class", None)
         out.pop("default", None)
         return out
+
+    def _attrs_at(self, where: str) -> dict[str, Any]:
+        """The attributes of the group ``where`` as plain values; {} when the group is not there
+        (a run without its ``versions``); one sentence when HDF5 cannot read them (a damaged header)."""
+        try:
+            if where != "/" and where not in self.h5:
+                return {}
+            return {k: plain(v) for k, v in self.h5[where].attrs.items()}
+        except Exception:  # noqa: BLE001 - a damaged attribute or header can fail in any way
+            raise StoreError(
+                f"{self.path}: the run's metadata cannot be read (a damaged attribute of /{where.strip('/')}); "
+                "check the file with labcli inspect --verify and use a backup copy."
+            ) from None
 
     @property
     def kind(self) -> str:

@@ -20,7 +20,24 @@ if TYPE_CHECKING:
 
 def verify(run: RunFile) -> dict[str, Any]:
     """``{"ok", "records", "windows", "problems": [sentence, ...]}`` for an open run file."""
+    try:
+        return _verify(run)
+    except Exception as e:  # noqa: BLE001 - a damaged object header can fail in any way
+        why = str(e).strip("'\"").split(" (")[0] or type(e).__name__
+        return {
+            "ok": False,
+            "records": 0,
+            "windows": 0,
+            "problems": [f"the file's structure: HDF5 cannot read it ({why})"],
+        }
+
+
+def _verify(run: RunFile) -> dict[str, Any]:
     problems: list[str] = []
+    if not run._metadata_ok():  # warned of when the file was opened, before these checks began
+        problems.append(
+            "metadata: the attributes of the run's groups and datasets do not match their checksum, or cannot be read"
+        )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LabcliWarning)
         try:

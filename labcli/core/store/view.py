@@ -18,7 +18,7 @@ import numpy as np
 
 from ..paper import Column, RecordType
 from .columns import Table, fill_value
-from .layout import common_columns, window_columns
+from .layout import common_columns, extra_key, window_columns
 
 MAX_ID = 999_999
 
@@ -152,6 +152,6 @@ def from_v1(backend: Any, rt: RecordType) -> RecordColumns:
             ).reshape(len(rows), *c.shape)
     for name in extras:
         values = [row.get("extra", {}).get(name, math.nan) for row in rows]
-        cols[name] = np.array(values, dtype=object)
+        cols[extra_key(name)] = np.array(values, dtype=object)
     named = [(f"{rt.noun} {rid}", why) for rid, why in damaged]
-    return check(RecordColumns(ids, cols, rows, named, incomplete, extras), rt, rt.noun)
+    return check(RecordColumns(ids, cols, rows, named, incomplete, [extra_key(n) for n in extras]), rt, rt.noun)

@@ -161,3 +161,45 @@ CASES = [
         "earlier; choose another output name.",
     ),
 ]
+
+BIG_CELL = 50_000
+
+
+def _big_cell(world) -> bytes:
+    lines = (world / "trials.csv").read_text().splitlines()
+    rows = [lines[0] + ",note", *[r + "," + ("x" * BIG_CELL if i == 0 else "ok") for i, r in enumerate(lines[1:6])]]
+    return ("\n".join(rows) + "\n").encode()
+
+
+CASES += [
+    Case(
+        "import-text-cell-50kb",
+        "trial CSV",
+        "a 50 kB cell in an extra text column (import)",
+        ["import", "big.csv", "-o", "new.h5", "--protocol", "takuma2014"],
+        [
+            "big.csv has 1 problem (rows counted as a spreadsheet shows them, the header included):",
+            f"big.csv:row 2, column note: holds {BIG_CELL} bytes of text, more than the 16384 a run file keeps in "
+            "one cell; shorten it.",
+        ],
+        files={"big.csv": _big_cell},
+    ),
+    Case(
+        "split-seed-negative",
+        "CLI argument",
+        "--seed -1 (split)",
+        ["split", "acq.h5", "--strategy", "random", "--seed", "-1"],
+        ["Invalid value for '--seed': -1 is not in the range 0<=x<=4294967295."],
+        code=2,
+        usage="split [OPTIONS] RUN",
+    ),
+    Case(
+        "split-seed-huge",
+        "CLI argument",
+        "--seed 10**30 (split)",
+        ["split", "acq.h5", "--strategy", "random", "--seed", str(10**30)],
+        [f"Invalid value for '--seed': {10**30} is not in the range 0<=x<=4294967295."],
+        code=2,
+        usage="split [OPTIONS] RUN",
+    ),
+]
