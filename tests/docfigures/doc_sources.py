@@ -614,7 +614,7 @@ SOURCES: dict[str, Source] = {
             "benchmark",
             "the demo's path (force and push runs, paper form, bands) with the play fitted and as read, seeds 11-30",
             script="classify_heldout.py",
-            runs={"": ("--seeds", "11-30")},
+            runs={"": ("--seeds", "11-30"), "literature": ("--seeds", "11-15", "--realism", "literature")},
         ),
         Source(
             "friction-estimator",
