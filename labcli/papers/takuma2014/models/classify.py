@@ -411,32 +411,41 @@ def _band_confidence(
     its stiffness lies in the band it was put in.  A steel can read a third low sits in the band
     below with its pushes all agreeing, and is no longer reported there with confidence 1.
     """
-    from scipy.stats import norm
-
     if se_log_k is None:
         return
+    # Each object's used pushes as one row, objects of one size together (few numpy calls, not a few per object).
+    n_obj = len(rows)
+    codes = np.asarray(objs.codes)[use]
+    count = np.bincount(codes, minlength=n_obj)
+    median_k, spreads, shareds = (np.full(n_obj, math.nan) for _ in range(3))
+    for ids, k_rows in groups_by_size(est.k[use], codes, n_obj):
+        median_k[ids] = np.median(k_rows, axis=1)
+        spreads[ids] = np.log(k_rows).std(axis=1, ddof=1) if k_rows.shape[1] > 1 else 0.0
+    for ids, se_rows in groups_by_size(se_log_k[use], codes, n_obj):
+        shareds[ids] = np.nanmedian(se_rows, axis=1)
     for g, row in enumerate(rows):
-        sel = objs.members[g]
-        sel = sel[use[sel]]
         band = cat_model.bands.get(row.get("category", ""))
-        k = est.k[sel]
-        if band is None or not len(k):
+        if band is None or not count[g]:
             continue
-        spread = float(np.log(k).std(ddof=1)) if len(k) > 1 else 0.0
-        shared = float(np.nanmedian(se_log_k[sel]))
-        sd = math.hypot(shared if math.isfinite(shared) else 0.0, spread / math.sqrt(len(k)))
-        m = math.log(float(np.median(k)))
+        spread, shared = float(spreads[g]), float(shareds[g])
+        sd = math.hypot(shared if math.isfinite(shared) else 0.0, spread / math.sqrt(int(count[g])))
+        m = math.log(float(median_k[g]))
         lo, hi = band
         upper = (
             1.0
             if not math.isfinite(hi)
-            else float(norm.cdf((math.log(hi) - m) / sd))
+            else _normal_cdf((math.log(hi) - m) / sd)
             if sd > 0
             else float(m < math.log(hi))
         )
-        lower = 0.0 if lo <= 0 else float(norm.cdf((math.log(lo) - m) / sd)) if sd > 0 else float(m < math.log(lo))
+        lower = 0.0 if lo <= 0 else _normal_cdf((math.log(lo) - m) / sd) if sd > 0 else float(m < math.log(lo))
         row["confidence"] = max(0.0, upper - lower)
         row["log_k_se"] = sd
+
+
+def _normal_cdf(z: float) -> float:
+    """The standard normal's CDF at ``z`` (scipy's ``norm.cdf``, without its per-call cost: one per object)."""
+    return 0.5 * math.erfc(-z / math.sqrt(2.0))
 
 
 def _plain(key: str, value: Any) -> int | float:
