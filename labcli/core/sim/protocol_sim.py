@@ -64,6 +64,7 @@ from .url import parse_sim_url
 UNPLUGGED = "device reports readiness to read but returned no data"
 BLOCK_S = 1.0  # device time offered by in_waiting while streaming (virtual clock)
 MAX_BLOCK_FRAMES = 1500
+SILENT_LINK_S = 5.0  # device time of frames all lost after which a virtual read gives up, as a real one times out
 MAX_BUFFER = 1 << 22  # bytes held for the host before new frames are dropped (wall clock)
 
 
@@ -155,12 +156,18 @@ class Serial(SimulatedPort):
             # Only about what the host takes is sampled, so an operator action
             # after a read acts after the frames the host has seen (give or take
             # the couple of frames a real USB link also holds).
+            silent = 0  # frames sampled that left no byte on the link (every one dropped)
             while len(self._rx) < want_bytes:
-                n = -(-(want_bytes - len(self._rx)) // self._line_len)
-                chunk = fw.frames(max(1, min(n, 100_000)))
+                n = max(1, min(-(-(want_bytes - len(self._rx)) // self._line_len), 100_000))
+                chunk = fw.frames(n)
                 fw.take_stall()  # virtual clock: the stall is the gap the rig's clock already made
                 if chunk:
                     self._line_len = max(20, len(chunk) // max(1, chunk.count(b"\n")))
+                    silent = 0
+                else:
+                    silent += n
+                    if silent >= max(1.0, fw.stream_hz * SILENT_LINK_S):
+                        break  # a link that carries nothing: the host's read times out, as on a real port
                 self._rx += chunk
             return
         due = int((time.monotonic() - self._pace_t0) * fw.stream_hz) - self._pace_sent

@@ -203,3 +203,15 @@ CASES += [
         usage="split [OPTIONS] RUN",
     ),
 ]
+
+SILENT = SIM + "&faults=drop:1"
+CASES += [
+    case(
+        "rig-every-frame-dropped",
+        "rig",
+        "a link that delivers no frame (`faults=drop:1`), on the virtual clock",
+        ["acquire", "new.h5", "--port", SILENT, "--unattended", "--plan", "plan3.csv"],
+        f"The rig on {SILENT} stopped sending data during the setup, before anything was written to new.h5. "
+        "Check the cable and power, then run the same command again.",
+    ),
+]
