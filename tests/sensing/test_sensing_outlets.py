@@ -148,3 +148,38 @@ def test_an_lsl_inlet_reads_the_estimates_and_the_events():
         assert marker is not None and json.loads(marker[0]) == json.loads(EVENT)
     finally:
         outlet.close()
+
+
+def test_sense_publishes_on_zeromq_the_lines_its_file_has():
+    """The real command: a subscriber's messages are the JSON lines file's, from when it joined."""
+    zmq = pytest.importorskip("zmq")
+    import pathlib
+    import tempfile
+
+    root = pathlib.Path(__file__).resolve().parents[2]
+    url = f"zmq+tcp://127.0.0.1:{free_port()}"
+    sub = zmq.Context.instance().socket(zmq.SUB)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.setsockopt(zmq.RCVTIMEO, 20000)
+    sub.connect(url.removeprefix("zmq+"))  # before the command binds: ZeroMQ reconnects until it does
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) / "out.jsonl"
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "labcli", "sense", "--port", "sim://?seed=1&clock=wall", "--model",
+             str(root / "sample_runs" / "force.model.json"), "--seconds", "3", "--publish", url, "--jsonl", str(out)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        got: list[str] = []
+        try:
+            while True:
+                got.append(sub.recv().decode())
+                sub.setsockopt(zmq.RCVTIMEO, 3000)  # once the stream runs, silence means it ended
+        except zmq.Again:
+            pass
+        finally:
+            sub.close(0)
+            err = proc.communicate(timeout=60)[1]
+        assert proc.returncode == 0, err
+        assert f"Publishing JSON lines on {url}." in err
+        written = out.read_text().splitlines()
+    assert len(got) >= 10 and got == written[-len(got) :]
