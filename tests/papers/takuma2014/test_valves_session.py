@@ -102,8 +102,9 @@ def test_a_board_with_valves_is_supplied_held_and_checked_by_command(tmp_path):
         from labcli.papers.takuma2014.sim.physics import P_ATM
 
         given = (hold.mean[:4] * 1e6 + P_ATM) * ni.leak_factors(11, 1.0) * 60 / 1e3
-        # What is left of the arm's settling on the closed chambers adds up to half a kPa/min (seen 0.44).
-        assert np.all(-leak > given - 0.15) and np.all(-leak < given + 0.5), (leak, given)
+        # What is left of the arm's settling on the closed chambers moves the slope by up to half a
+        # kPa/min either way (seen +0.44 with a 5 s settle, -0.29 with the shipped 15 s one).
+        assert np.all(np.abs(-leak - given) < 0.5), (leak, given)
         # The board said so on the wire, and holds at the end (the protocol's end_valves).
         events = [(e.kind, tuple(e.fields)) for e in dev.take_events()]
         assert ("VALVE", ("SSSS", "host")) in events and ("VALVE", ("HHHH", "host")) in events
