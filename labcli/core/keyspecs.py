@@ -11,7 +11,7 @@ type
 check
     None | ``"positive"`` | ``"nonnegative"`` | ``"nonzero"`` | ``"nonempty"`` |
     ``"identifier"`` | ``"unique"`` | ``"increasing"`` | ``["min", v]`` | ``["one-of", [values]]``;
-    a ``number-list`` checks each of its numbers.  ``"max"``: an upper bound of a number.
+    a ``number-list`` checks each of its numbers.  ``"max"``: an upper bound of a number, ``"least"`` a lower one (a positive length too small to be meant).
 optional, default
     A key left out is an error unless it is ``optional`` or has a ``default`` (then the checked
     table holds the default).
@@ -95,6 +95,9 @@ class Checker:
             limit = spec["max"]
             text = f"{limit:g}" if isinstance(limit, float) else str(limit)
             self.fail(f"key '{key}' must be at most {text}{unit}, not {show(v)}.")
+        if "least" in spec and v < spec["least"]:  # a positive value too small to be meant
+            unit = f" {spec['unit']}" if spec.get("unit") else ""
+            self.fail(f"key '{key}' must be at least {spec['least']:g}{unit}, not {show(v)}.")
         return v
 
     def _pair(self, v: Any, spec: dict[str, Any], key: str) -> list[float]:

@@ -35,7 +35,9 @@ JOINTS: tuple[int, ...] = (1, 2)
 
 SECTIONS: dict[str, Any] = {
     "rig.mckibben-2dof": {
-        k: {"type": "number", "unit": "m", "check": "positive"} for k in ("h1_m", "h2_m", "h3_m", "r1_m", "r2_m")
+        # a link or pulley of the arm: from a millimetre to the metre the trial tables allow
+        k: {"type": "number", "unit": "m", "check": "positive", "least": 0.001, "max": 1.0}
+        for k in ("h1_m", "h2_m", "h3_m", "r1_m", "r2_m")
     },
     "trials": {
         "fit": {"type": "int", "check": ["min", 1]},

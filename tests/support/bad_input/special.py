@@ -5,7 +5,7 @@ because they are not an earlier output of the same kind."""
 
 from __future__ import annotations
 
-from support.bad_input import SIM, Case
+from support.bad_input import SIM, Case, toml_edit
 
 ORDER = 50
 QUICK = 30  # s: far beyond the second a refusal takes, far below a reader waiting forever
@@ -213,5 +213,24 @@ CASES += [
         ["acquire", "new.h5", "--port", SILENT, "--unattended", "--plan", "plan3.csv"],
         f"The rig on {SILENT} stopped sending data during the setup, before anything was written to new.h5. "
         "Check the cable and power, then run the same command again.",
+    ),
+]
+
+CASES += [
+    case(
+        "protocol-link-1e300-m",
+        "protocol TOML",
+        "a rig link of 1e300 m (fit)",
+        ["fit", "trials.csv", "--protocol", "p.toml"],
+        "p.toml: key 'rig.h1_m' must be at most 1 m, not 1e+300.",
+        files={"p.toml": toml_edit("h1_m = 0.355", "h1_m = 1e300")},
+    ),
+    case(
+        "protocol-pulley-1e-300-m",
+        "protocol TOML",
+        "a pulley radius of 1e-300 m (acquire)",
+        [*ACQUIRE, "--protocol", "p.toml"],
+        "p.toml: key 'rig.r1_m' must be at least 0.001 m, not 1e-300.",
+        files={"p.toml": toml_edit("r1_m = 0.075", "r1_m = 1e-300")},
     ),
 ]
