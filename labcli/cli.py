@@ -98,8 +98,10 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
     if issubclass(category, LabcliWarning):
         click.echo(f"Warning: {message}", err=True)
-    else:
+    elif sys.warnoptions:  # asked for (python -W, PYTHONWARNINGS): shown as Python shows them
         _python_show_warning(message, category, filename, lineno, file, line)
+    # otherwise a library's warning (numpy's overflow on an absurd rig option) is no sentence for
+    # the person at the rig: what it means reaches them as the command's own check
 
 
 def _text_errors(err: UnicodeError) -> tuple[str | bytes, int]:

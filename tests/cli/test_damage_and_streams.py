@@ -161,3 +161,13 @@ def test_monitor_reads_the_rpam_stand_with_the_rpam_protocol(tmp_path):
     text = json.dumps(summary)
     for channel in ("P_A", "P_B", "POT", "LEN"):
         assert channel in text
+
+
+def test_no_python_warning_reaches_the_user_from_an_absurd_rig_option(tmp_path):
+    """numpy overflows on sim://?noise=1e308: the command's own sentence, never a RuntimeWarning."""
+    (tmp_path / "plan3.csv").write_text(PLAN)
+    url = SIM + "&noise=1e308"
+    r = labcli("acquire", "r.h5", "--port", url, "--unattended", "--plan", "plan3.csv", cwd=tmp_path)
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert "Warning" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith("Error: ")
