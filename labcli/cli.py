@@ -166,8 +166,17 @@ def _guard_streams() -> None:
         )
 
 
+def _as_interrupt(signum: int, frame: object) -> None:
+    """SIGTERM and SIGHUP (a closed terminal, a stopping service) end a command as Ctrl-C does:
+    an acquisition stores what is whole, records how its session ended and says how to resume."""
+    raise KeyboardInterrupt
+
+
 def main() -> None:
     warnings.showwarning = _show_warning
+    for name in ("SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), _as_interrupt)
     try:
         _guard_streams()
     except (OSError, ValueError):

@@ -171,3 +171,37 @@ def test_no_python_warning_reaches_the_user_from_an_absurd_rig_option(tmp_path):
     assert r.returncode == 1 and "Traceback" not in r.stderr
     assert "Warning" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert r.stderr.startswith("Error: ")
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGHUP"])
+def test_sigterm_and_sighup_end_acquire_as_ctrl_c_does(tmp_path, sig):
+    """A stopping service or a closed terminal: one sentence and exit 130, not a silent death."""
+    import signal
+    import time
+
+    (tmp_path / "plan3.csv").write_text(PLAN)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "labcli",
+            "acquire",
+            "r.h5",
+            "--port",
+            "sim://?seed=1&clock=wall",
+            "--unattended",
+            "--plan",
+            "plan3.csv",
+        ],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+    )
+    time.sleep(3)
+    proc.send_signal(getattr(signal, sig))
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    assert err.splitlines()[-1].startswith("Interrupted during "), err
