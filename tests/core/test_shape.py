@@ -101,13 +101,10 @@ def test_no_function_of_the_run_file_or_the_engine_is_over_80_lines(path):
 # The papers' functions over the limit when it reached the whole tree: each is cut or stays here.
 LONG_PAPER_FUNCTIONS = frozenset(
     {
-        "labcli/papers/rpam2015/report.py:print_demo",
         "labcli/papers/takuma2014/figures.py:_draw_object",
         "labcli/papers/takuma2014/models/classify.py:classify_pushes",
         "labcli/papers/takuma2014/models/stiffness.py:estimate_pushes",
         "labcli/papers/takuma2014/session.py:force_session",
-        "labcli/papers/rpam2015/figures.py:figure8",
-        "labcli/papers/rpam2015/figures.py:figure_stretch",
     }
 )
 

@@ -39,6 +39,60 @@ def _deg_label(v: float) -> str:
 # --------------------------------------------------------------------------------------
 
 
+def _legend_handles(result: Any, toggles: bool) -> list[Any]:
+    """Panel (a)'s legend: measured and model contours, and the hatch where the model toggles."""
+    from matplotlib.artist import Artist
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles: list[Artist] = [
+        Line2D([], [], color="k", lw=1.0, label=f"measured ({result.Pa_MPa.size} points, labelled)"),
+        Line2D([], [], color="tab:red", lw=1.0, ls="dashed", label="model with $F_{stretch}$"),
+        Line2D([], [], color="tab:blue", lw=0.8, ls="dotted", label="model without $F_{stretch}$"),
+    ]
+    if toggles:
+        handles.append(
+            Patch(
+                facecolor="0.93",
+                hatch="/",
+                edgecolor="0.4",
+                label=f"model runs onto the toggle ({result.toggle_deg:.1f}°)",
+            )
+        )
+    return handles
+
+
+def _residual_map(fig: Any, ax: Any, result: Any) -> None:
+    """Panel (b) of Fig. 8: the corrected model minus the measured angle at every point."""
+    import numpy as np
+    from matplotlib.colors import TwoSlopeNorm
+
+    kpa = 1e3
+    # (b) the residual map at the measured points.
+    resid = np.asarray(result.model_deg["with"], dtype=float) - np.asarray(result.measured_deg, dtype=float)
+    ok = np.isfinite(resid)
+    # The scale covers 95 % of the residuals: one point far off does not grey out the rest (arrows say so).
+    top = max(float(np.percentile(np.abs(resid[ok]), 95)) if ok.any() else 1.0, 1e-3)
+    dots = ax.scatter(
+        result.Pa_MPa[ok] * kpa,
+        result.Pb_MPa[ok] * kpa,
+        c=resid[ok],
+        cmap=_CMAP,
+        norm=TwoSlopeNorm(0.0, -top, top),
+        s=46,
+        marker="s",
+        edgecolors="0.3",
+        linewidths=0.3,
+    )
+    if (~ok).any():
+        ax.plot(result.Pa_MPa[~ok] * kpa, result.Pb_MPa[~ok] * kpa, "x", color="0.4", markersize=5, label="toggles")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), fontsize=8, frameon=False)
+    ax.set_title("(b) residual: model with $F_{stretch}$ minus measured", fontsize=10)
+    cax = fig.add_axes([0.94, 0.2, 0.012, 0.64])
+    cb = fig.colorbar(dots, cax=cax, extend="both" if ok.any() and np.abs(resid[ok]).max() > top else "neither")
+    cb.set_label("model $-$ measured (deg)")
+
+
 def figure8(
     result: Any, path: str | Path, *, title: str | None = None, step_deg: float = 5.0, source: str = ""
 ) -> Path:
@@ -51,10 +105,6 @@ def figure8(
     symmetric about zero.  ``source``: what it was drawn from, written at its foot.
     """
     import numpy as np
-    from matplotlib.artist import Artist
-    from matplotlib.colors import TwoSlopeNorm
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch
 
     out = check_path(path)
     if result.Pa_MPa.size < 3:
@@ -98,45 +148,10 @@ def figure8(
         f"{_rmse_text('with $F_{stretch}$', s_with)}; {_rmse_text('without', s_without)}",
         fontsize=10,
     )
-    handles: list[Artist] = [
-        Line2D([], [], color="k", lw=1.0, label=f"measured ({result.Pa_MPa.size} points, labelled)"),
-        Line2D([], [], color="tab:red", lw=1.0, ls="dashed", label="model with $F_{stretch}$"),
-        Line2D([], [], color="tab:blue", lw=0.8, ls="dotted", label="model without $F_{stretch}$"),
-    ]
-    if nan.any():
-        handles.append(
-            Patch(
-                facecolor="0.93",
-                hatch="/",
-                edgecolor="0.4",
-                label=f"model runs onto the toggle ({result.toggle_deg:.1f}°)",
-            )
-        )
+    handles = _legend_handles(result, bool(nan.any()))
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
 
-    # (b) the residual map at the measured points.
-    resid = np.asarray(result.model_deg["with"], dtype=float) - np.asarray(result.measured_deg, dtype=float)
-    ok = np.isfinite(resid)
-    # The scale covers 95 % of the residuals: one point far off does not grey out the rest (arrows say so).
-    top = max(float(np.percentile(np.abs(resid[ok]), 95)) if ok.any() else 1.0, 1e-3)
-    dots = ax2.scatter(
-        result.Pa_MPa[ok] * kpa,
-        result.Pb_MPa[ok] * kpa,
-        c=resid[ok],
-        cmap=_CMAP,
-        norm=TwoSlopeNorm(0.0, -top, top),
-        s=46,
-        marker="s",
-        edgecolors="0.3",
-        linewidths=0.3,
-    )
-    if (~ok).any():
-        ax2.plot(result.Pa_MPa[~ok] * kpa, result.Pb_MPa[~ok] * kpa, "x", color="0.4", markersize=5, label="toggles")
-        ax2.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), fontsize=8, frameon=False)
-    ax2.set_title("(b) residual: model with $F_{stretch}$ minus measured", fontsize=10)
-    cax = fig.add_axes([0.94, 0.2, 0.012, 0.64])
-    cb = fig.colorbar(dots, cax=cax, extend="both" if ok.any() and np.abs(resid[ok]).max() > top else "neither")
-    cb.set_label("model $-$ measured (deg)")
+    _residual_map(fig, ax2, result)
     for a in (ax, ax2):
         a.set_xlabel("$P_a$ (kPa)")
         a.set_ylabel("$P_b$ (kPa)")
@@ -205,6 +220,24 @@ def _draw_measured_lines(ax: Any, result: Any, scale: _Scale) -> None:
 # --------------------------------------------------------------------------------------
 
 
+def _residuals_by_payload(ax: Any, lam: Any, res: Any, mass_g: Any) -> None:
+    """Panel (b) of the stretch test: the fit's residuals, one colour per payload."""
+    import numpy as np
+    from matplotlib import colormaps
+
+    cmap = colormaps["viridis"]
+    masses = np.unique(mass_g)
+    for k, mg in enumerate(masses):
+        sel = mass_g == mg
+        ax.plot(lam[sel], res[sel], "o", markersize=4, color=cmap(k / max(len(masses) - 1, 1)), label=f"{mg:g} g")
+    ax.axhline(0.0, color="k", linewidth=0.8)
+    ax.set_xlabel("stretch $\\lambda$")
+    ax.set_ylabel("residual (N)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(title="payload", fontsize=8, title_fontsize=8, loc="best")
+    ax.set_title("(b) residuals of the fit by payload", fontsize=10)
+
+
 def figure_stretch(fit: Any, path: str | Path, *, title: str | None = None, source: str = "") -> Path:
     """Draw the stretch test (Fig. 6) from a :class:`~labcli.papers.rpam2015.models.rpam_fit.StretchFit`.
 
@@ -268,20 +301,7 @@ def figure_stretch(fit: Any, path: str | Path, *, title: str | None = None, sour
         bbox={"boxstyle": "round", "facecolor": "white", "alpha": 0.85, "edgecolor": "0.7"},
     )
     ax.set_title("(a) stretch force against stretch (Eq. 7, Fig. 6)", fontsize=10)
-
-    from matplotlib import colormaps
-
-    cmap = colormaps["viridis"]
-    masses = np.unique(mass_g)
-    for k, mg in enumerate(masses):
-        sel = mass_g == mg
-        ax2.plot(lam[sel], res[sel], "o", markersize=4, color=cmap(k / max(len(masses) - 1, 1)), label=f"{mg:g} g")
-    ax2.axhline(0.0, color="k", linewidth=0.8)
-    ax2.set_xlabel("stretch $\\lambda$")
-    ax2.set_ylabel("residual (N)")
-    ax2.grid(True, alpha=0.3)
-    ax2.legend(title="payload", fontsize=8, title_fontsize=8, loc="best")
-    ax2.set_title("(b) residuals of the fit by payload", fontsize=10)
+    _residuals_by_payload(ax2, lam, res, mass_g)
     fig.suptitle(title or f"Stretch test: $L_0$ = {fit.L0_m * 1e3:.0f} mm, $\\lambda$ {lo:.2f}–{hi:.2f}", fontsize=11)
     caption(fig, source)
     save(fig, out)

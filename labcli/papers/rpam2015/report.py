@@ -282,19 +282,10 @@ def print_optimum(d: dict[str, Any]) -> None:
 # --------------------------------------------------------------------------- demo
 
 
-def print_demo(res: Any) -> None:
-    """The demo's summary as tables (rich), units on every number."""
+def _stretch_table(s: dict[str, Any]) -> Any:
+    """The demo's Eq. 7 stretch correction, each coefficient beside the rig's truth."""
     from rich import box
     from rich.table import Table
-
-    con = report_console(markup=True)
-    s = res.stretch
-    con.print(
-        f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
-        f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "
-        f"{res.timings_s['total']:.1f} s.",
-        soft_wrap=True,
-    )
 
     coef = Table(
         title=f"Eq. 7 stretch correction F_stretch(lambda) fitted on {s['n_points']} points "
@@ -320,16 +311,17 @@ def print_demo(res: Any) -> None:
             f"{s['deviation_in_se'][k]:+.2f}",
             f"{s['protocol_default_N'][k]:+.3g}",
         )
-    print_table(con, coef)
-    con.print(
-        f"R^2 {s['r2']:.5f}, RMSE {s['rmse_N']:.3f} N; chi^2 of the truth against the fit's covariance "
-        f"{s['chi2_4dof']:.2f} (4 degrees of freedom; 18.5 is the 99.9 % limit).",
-        soft_wrap=True,
-    )
+    return coef
+
+
+def _joint_map_table(joint_map: dict[str, Any]) -> Any:
+    """The demo's joint map against the model without, with the protocol's and with the fitted F_stretch."""
+    from rich import box
+    from rich.table import Table
 
     jm = Table(
         title=f"Joint map against the model (Fig. 8), errors model - measured; toggle angle "
-        f"{res.joint_map['toggle_deg']:.1f} deg",
+        f"{joint_map['toggle_deg']:.1f} deg",
         title_justify="left",
         box=box.SIMPLE_HEAD,
     )
@@ -343,7 +335,7 @@ def print_demo(res: Any) -> None:
     ):
         jm.add_column(col, justify="left" if col == "F_stretch" else "right", no_wrap=col == "F_stretch")
     for key, label in (("without", "none"), ("with_default", "protocol's"), ("with_fitted", "fitted")):
-        r = res.joint_map[key]
+        r = joint_map[key]
         jm.add_row(
             label,
             str(r["n_compared"]),
@@ -352,7 +344,56 @@ def print_demo(res: Any) -> None:
             cell(r["max_abs_error_deg"], ".2f"),
             cell(r["rmse_all_deg"], ".2f"),
         )
-    print_table(con, jm)
+    return jm
+
+
+def _print_by_stand(con: Any, by_stand: dict[str, Any]) -> None:
+    """The joint-map check on a stand of each reading: each model against each stand's map."""
+    from rich import box
+    from rich.table import Table
+
+    st = Table(
+        title="The joint-map check on a stand of each reading (protocol's F_stretch): RMSE (deg), points compared",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+    )
+    st.add_column("stand's force", justify="left")
+    for reading in ("derived", "paper"):
+        st.add_column(f"{reading} model", justify="right")
+    for stand, row in by_stand.items():
+        st.add_row(
+            stand, *(f"{cell(row[r]['rmse_deg'], '.2f')} ({row[r]['n_compared']})" for r in ("derived", "paper"))
+        )
+    print_table(con, st)
+    con.print(
+        "Each model finds the map of the stand built on its own reading and misses the other's: the check "
+        "tells the two forces apart, so it checks the model, not only the code.",
+        soft_wrap=True,
+    )
+
+
+def print_demo(res: Any) -> None:
+    """The demo's summary as tables (rich), units on every number."""
+    from rich import box
+    from rich.table import Table
+
+    con = report_console(markup=True)
+    s = res.stretch
+    con.print(
+        f"[bold]labcli demo --protocol rpam2015[/bold] on the simulated rPAM rig (seed {res.seed}): "
+        f"{res.points['stretch']} stretch-test points, {res.points['joint_map']} joint-map points, "
+        f"{res.timings_s['total']:.1f} s.",
+        soft_wrap=True,
+    )
+
+    print_table(con, _stretch_table(s))
+    con.print(
+        f"R^2 {s['r2']:.5f}, RMSE {s['rmse_N']:.3f} N; chi^2 of the truth against the fit's covariance "
+        f"{s['chi2_4dof']:.2f} (4 degrees of freedom; 18.5 is the 99.9 % limit).",
+        soft_wrap=True,
+    )
+
+    print_table(con, _joint_map_table(res.joint_map))
     con.print(
         "Toggles: pressure pairs where the model has no balance below the toggle angle; they stay out "
         "of the RMSE and count at the toggle angle in the last column.",
@@ -397,24 +438,7 @@ def print_demo(res: Any) -> None:
             soft_wrap=True,
         )
     if res.joint_map_by_stand:
-        st = Table(
-            title="The joint-map check on a stand of each reading (protocol's F_stretch): RMSE (deg), points compared",
-            title_justify="left",
-            box=box.SIMPLE_HEAD,
-        )
-        st.add_column("stand's force", justify="left")
-        for reading in ("derived", "paper"):
-            st.add_column(f"{reading} model", justify="right")
-        for stand, row in res.joint_map_by_stand.items():
-            st.add_row(
-                stand, *(f"{cell(row[r]['rmse_deg'], '.2f')} ({row[r]['n_compared']})" for r in ("derived", "paper"))
-            )
-        print_table(con, st)
-        con.print(
-            "Each model finds the map of the stand built on its own reading and misses the other's: the check "
-            "tells the two forces apart, so it checks the model, not only the code.",
-            soft_wrap=True,
-        )
+        _print_by_stand(con, res.joint_map_by_stand)
     if res.actuator.get("fitted"):
         _print_demo_actuator(con, res.actuator)
     for note in res.notes:
