@@ -8,12 +8,10 @@ short enough to see whole.  The limits:
 no class in labcli/core/store/ over                    400 lines
 no module of labcli/core/ over                         600 lines
 no function of core/store/ or the engine's modules over 80 lines
-no function of labcli/ over (but the papers' listed)   80 lines
+no function of labcli/ over                            80 lines
 =====================================================  =========
 
-The papers' functions over 80 lines today are listed in :data:`LONG_PAPER_FUNCTIONS`; the list
-only shrinks (a function cut under the limit must leave it, and none may join it).
-``python tests/core/test_shape.py`` prints what the whole tree still has to cut.  That no
+``python tests/core/test_shape.py`` prints any function of the tree over the limit.  That no
 module but one writes ``DEFAULT_PROTOCOL`` and that no core or command module names a paper's
 run kind are checked by tests/core/test_paper_names.py.
 """
@@ -98,41 +96,20 @@ def test_no_function_of_the_run_file_or_the_engine_is_over_80_lines(path):
     assert not long, f"{rel(path)}: {long}"
 
 
-# The papers' functions over the limit when it reached the whole tree: each is cut or stays here.
-LONG_PAPER_FUNCTIONS = frozenset(
-    {
-        "labcli/papers/takuma2014/figures.py:_draw_object",
-        "labcli/papers/takuma2014/models/classify.py:classify_pushes",
-        "labcli/papers/takuma2014/models/stiffness.py:estimate_pushes",
-        "labcli/papers/takuma2014/session.py:force_session",
-    }
-)
-
-
-def test_no_function_of_the_tree_is_over_80_lines_but_the_papers_listed():
-    long = {
-        f"{rel(path)}:{name}"
-        for path in sorted(PACKAGE.rglob("*.py"))
-        for name, n in functions(path)
-        if n > MAX_FUNCTION
-    }
-    assert long - LONG_PAPER_FUNCTIONS == set(), "over 80 lines (cut them)"
-    assert LONG_PAPER_FUNCTIONS - long == set(), "now under 80 lines: take them off LONG_PAPER_FUNCTIONS"
-    assert all(name.startswith(("labcli/papers/", "labcli/sensing/")) for name in LONG_PAPER_FUNCTIONS)
-
-
-def long_functions_elsewhere() -> list[str]:
-    """Functions over the limit outside what the checks above cover (the papers' today)."""
-    checked = {*STORE.glob("*.py"), *(CORE / name for name in ENGINE)}
+def long_functions() -> list[str]:
+    """Every function of the tree over the limit."""
     return [
         f"{rel(path)}:{name} ({n} lines)"
         for path in sorted(PACKAGE.rglob("*.py"))
-        if path not in checked
         for name, n in functions(path)
         if n > MAX_FUNCTION
     ]
 
 
-if __name__ == "__main__":  # python tests/core/test_shape.py: what the whole tree still has to cut
-    found = long_functions_elsewhere()
-    print(*found, f"{len(found)} functions over {MAX_FUNCTION} lines outside core/store/ and the engine", sep="\n")
+def test_no_function_of_the_tree_is_over_80_lines():
+    assert long_functions() == [], "over 80 lines (cut them)"
+
+
+if __name__ == "__main__":  # python tests/core/test_shape.py: what the tree still has to cut
+    found = long_functions()
+    print(*found, f"{len(found)} functions over {MAX_FUNCTION} lines", sep="\n")

@@ -365,6 +365,47 @@ def _draw_interval(ax: Any, i: int, row: dict[str, Any], used: set[str]) -> None
     )
 
 
+def _draw_mean(ax: Any, i: int, row: dict[str, Any], used: set[str]) -> Any:
+    """The object's mean stiffness ± sd beside its pushes; returns the mean (None when there is none)."""
+    import numpy as np
+
+    mean, sd = row.get("k_mean_N_per_m"), row.get("k_std_N_per_m")
+    if mean is not None and np.isfinite(mean):
+        err = sd if sd is not None and np.isfinite(sd) else 0.0
+        lower = min(err, mean * 0.999)  # a log axis cannot show mean - sd <= 0
+        ax.errorbar(
+            [i + 0.3],
+            [mean],
+            yerr=[[lower], [err]],
+            fmt="_",
+            ms=14,
+            mew=2.0,
+            color="black",
+            ecolor="black",
+            elinewidth=1.3,
+            capsize=4,
+            zorder=4,
+            label=_once(used, "mean", "mean ± sd"),
+        )
+    return mean
+
+
+def _object_tick(name: str, row: dict[str, Any], n: int, *, many: bool, method: str) -> str:
+    """An object's tick label: its name, the category it was given (as a reference's or not) and its pushes."""
+    n_flag = int(row.get("n_flagged", 0))
+    given = str(row.get("known_category") or "")
+    if method == "reference":  # a reference object places its category's class
+        ref_text = f"ref. {given}" if many else f"reference ({given})"  # room per tick
+    else:  # bands: the category it was given, beside the one the bands gave it
+        ref_text = f"given {given}" if many else f"given: {given}"
+    return (
+        f"{name}\n"
+        + (f"{ref_text}\n" if given else "")
+        + f"n = {int(row.get('n_pushes', n))}"
+        + (f", {n_flag} flagged" if n_flag else "")
+    )
+
+
 def _draw_object(
     ax: Any,
     i: int,
@@ -414,24 +455,7 @@ def _draw_object(
             zorder=3,
             label=_once(used, "flagged", "flagged push (not in mean)"),
         )
-    mean, sd = row.get("k_mean_N_per_m"), row.get("k_std_N_per_m")
-    if mean is not None and np.isfinite(mean):
-        err = sd if sd is not None and np.isfinite(sd) else 0.0
-        lower = min(err, mean * 0.999)  # a log axis cannot show mean - sd <= 0
-        ax.errorbar(
-            [i + 0.3],
-            [mean],
-            yerr=[[lower], [err]],
-            fmt="_",
-            ms=14,
-            mew=2.0,
-            color="black",
-            ecolor="black",
-            elinewidth=1.3,
-            capsize=4,
-            zorder=4,
-            label=_once(used, "mean", "mean ± sd"),
-        )
+    mean = _draw_mean(ax, i, row, used)
     _draw_interval(ax, i, row, used)
     t = row.get("true_k_N_per_m")
     if t is not None and np.isfinite(t):
@@ -461,15 +485,4 @@ def _draw_object(
         color=colour if cat else "0.3",
         fontweight="bold",
     )
-    n_flag = int(row.get("n_flagged", 0))
-    given = str(row.get("known_category") or "")
-    if method == "reference":  # a reference object places its category's class
-        ref_text = f"ref. {given}" if many else f"reference ({given})"  # room per tick
-    else:  # bands: the category it was given, beside the one the bands gave it
-        ref_text = f"given {given}" if many else f"given: {given}"
-    return (
-        f"{name}\n"
-        + (f"{ref_text}\n" if given else "")
-        + f"n = {int(row.get('n_pushes', n))}"
-        + (f", {n_flag} flagged" if n_flag else "")
-    )
+    return _object_tick(name, row, n, many=many, method=method)

@@ -626,6 +626,48 @@ def force_vector(mass_kg: float, direction_rad: float) -> tuple[float, float]:
     return (mass_kg * G * math.cos(direction_rad), mass_kg * G * math.sin(direction_rad))
 
 
+def _resumed_guard(protocol: Any, history: Iterable[Any], baselines: Sequence[Sequence[float]]) -> Any:
+    """The load check, taught what the trials already stored did and where their baselines lie."""
+    guard = session_guard(protocol)
+    for force, change in history:
+        guard.model().add(force, change)
+    if len(baselines):
+        guard.resumed(baselines)
+    return guard
+
+
+def _planned_total(protocol: Any, target: int | None) -> int:
+    """The trials announced when there is no plan: ``target``, else the protocol's fit + validation."""
+    trials = protocol.settings.trials
+    return target or (int(trials.fit) + int(trials.validation) if trials is not None else 0)
+
+
+def _hang_prompt(label: str, planned: Any, limits: Any, *, typed_by_hand: bool) -> Prompt:
+    """The prompt to hang the trial's weight; a load typed by hand (no plan) can be typed again
+    there (after a redo, say) instead of Enter."""
+    hang = Prompt(
+        load_prompt(label, planned.mass_kg, planned.direction_rad),
+        HangWeight(planned.mass_kg, planned.direction_rad),
+    )
+    if not typed_by_hand:
+        return hang
+    return Prompt(
+        hang.text + LOAD_CHANGE_OFFER,
+        hang.action,
+        Field(
+            "load",
+            "",
+            partial(
+                parse_load_change,
+                keep_direction_rad=planned.direction_rad,
+                mass_range_g=limits[0],
+                direction_range_deg=limits[1],
+            ),
+            again=f"{hang.text}{LOAD_CHANGE_OFFER} (q to quit):",
+        ),
+    )
+
+
 def force_session(
     protocol: Any,
     plan: Any = None,
@@ -648,19 +690,11 @@ def force_session(
     """
     capture_s = float(protocol.settling.capture_s)
     cmap = ChannelMap.from_channels(protocol.channels)
-    guard = session_guard(protocol)
-    for force, change in history:
-        guard.model().add(force, change)
-    if len(baselines):
-        guard.resumed(baselines)
+    guard = _resumed_guard(protocol, history, baselines)
     done = set(int(t) for t in completed)
     rows = planned_trials(plan)
     remaining = [r for r in rows if r.trial not in done]
-    if rows:
-        total = len(rows)
-    else:
-        trials = protocol.settings.trials
-        total = target or (int(trials.fit) + int(trials.validation) if trials is not None else 0)
+    total = len(rows) or _planned_total(protocol, target)
 
     air = yield from _pressurise(protocol)
 
@@ -688,27 +722,7 @@ def force_session(
             label = trial_label(next_id, shown_total, "")
         yield BeginTrial(planned.trial, planned.set, len(done) + 1, total, label)
         remove = Prompt(remove_prompt(label), RemoveWeight())
-        hang = Prompt(
-            load_prompt(label, planned.mass_kg, planned.direction_rad),
-            HangWeight(planned.mass_kg, planned.direction_rad),
-        )
-        if not rows:
-            # A load typed by hand can be typed again at its prompt (after a redo, say) instead of Enter.
-            hang = Prompt(
-                hang.text + LOAD_CHANGE_OFFER,
-                hang.action,
-                Field(
-                    "load",
-                    "",
-                    partial(
-                        parse_load_change,
-                        keep_direction_rad=planned.direction_rad,
-                        mass_range_g=limits[0],
-                        direction_range_deg=limits[1],
-                    ),
-                    again=f"{hang.text}{LOAD_CHANGE_OFFER} (q to quit):",
-                ),
-            )
+        hang = _hang_prompt(label, planned, limits, typed_by_hand=not rows)
         stored = yield from _trial(
             capture_s,
             hang,

@@ -119,6 +119,41 @@ def _length(model: Any, key: str, value: float | None) -> float:
     return length
 
 
+def _force_ok(pred: Mapping[str, Any]) -> np.ndarray | None:
+    """Which force components the model trusts, (n, 2), when it says (None: it does not)."""
+    ok = pred.get("ok")
+    if isinstance(ok, Mapping) and "Fx" in ok and "Fy" in ok:
+        return np.column_stack([np.asarray(ok["Fx"], dtype=bool), np.asarray(ok["Fy"], dtype=bool)])
+    return None
+
+
+def _estimate(
+    table: Any,
+    theta: np.ndarray,
+    Fx: np.ndarray,
+    Fy: np.ndarray,
+    pred: Mapping[str, Any],
+    force_ok: np.ndarray | None,
+    **geometry: Any,
+) -> PushEstimates:
+    """Each push's deformation, force along its direction and stiffness (Eqs. 38-42)."""
+    phi = np.radians(np.asarray(table["phi_deg"], dtype=float)) if "phi_deg" in table.columns else None
+    return estimate_pushes(
+        theta[:, 0],
+        theta[:, 1],
+        Fx,
+        Fy,
+        _column(table, "R_m"),
+        _column(table, "d_m"),
+        phi,
+        model_flags=pred.get("flags"),
+        model_reasons=pred.get("reasons"),
+        force_ok=force_ok,
+        push_ids=table["push"].tolist(),
+        **geometry,
+    )
+
+
 def classify_pushes(
     table: Any,
     model: Any,
@@ -160,28 +195,8 @@ def classify_pushes(
     theta0 = _rest_posture(table)
     theta, pred = _posture_and_force(table, model, angles, theta0)
     Fx, Fy = (np.asarray(_prediction(pred, q), dtype=float) for q in ("Fx", "Fy"))
-    ok = pred.get("ok")
-    force_ok = None
-    if isinstance(ok, Mapping) and "Fx" in ok and "Fy" in ok:
-        force_ok = np.column_stack([np.asarray(ok["Fx"], dtype=bool), np.asarray(ok["Fy"], dtype=bool)])
-    phi = np.radians(np.asarray(table["phi_deg"], dtype=float)) if "phi_deg" in table.columns else None
-    est: PushEstimates = estimate_pushes(
-        theta[:, 0],
-        theta[:, 1],
-        Fx,
-        Fy,
-        _column(table, "R_m"),
-        _column(table, "d_m"),
-        phi,
-        h2=h2,
-        h3=h3,
-        theta0=theta0,
-        params=params,
-        model_flags=pred.get("flags"),
-        model_reasons=pred.get("reasons"),
-        force_ok=force_ok,
-        push_ids=table["push"].tolist(),
-    )
+    force_ok = _force_ok(pred)
+    est = _estimate(table, theta, Fx, Fy, pred, force_ok, h2=h2, h3=h3, theta0=theta0, params=params)
 
     labels = _labels(table)
     # Each push's object as a number (in order of first appearance) and every object's rows in one

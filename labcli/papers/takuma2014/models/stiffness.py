@@ -354,6 +354,30 @@ def _flags_from_model(flags: Any, reasons: Any, n: int) -> list[list[str]] | Non
     return out
 
 
+def _deformation(
+    C: np.ndarray,
+    F: np.ndarray,
+    force: np.ndarray,
+    R: Any,
+    d: Any,
+    phi: np.ndarray,
+    h2: float,
+    h3: float,
+    C0: np.ndarray | None,
+) -> tuple[np.ndarray, ...]:
+    """Eqs. 38-42 for each push: the object's centre O2, the tip's offset g from it and its length,
+    the deformation delta_x = R - |g|, the stiffness k = |F| / delta_x, and the angle between the
+    force and the normal g (0 for the radial force Eq. 38 assumes)."""
+    O2 = object_centre(R, d, phi, h2, h3, C0)
+    g = C - O2
+    dist = np.hypot(g[:, 0], g[:, 1])
+    delta_x = R - dist
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = np.where(delta_x > 0, force / delta_x, np.nan)
+    direction_error = np.arctan2(g[:, 0] * F[:, 1] - g[:, 1] * F[:, 0], g[:, 0] * F[:, 0] + g[:, 1] * F[:, 1])
+    return O2, g, dist, delta_x, k, direction_error
+
+
 def estimate_pushes(
     theta1: Sequence[float] | np.ndarray,
     theta2: Sequence[float] | np.ndarray,
@@ -405,16 +429,9 @@ def estimate_pushes(
     force = np.hypot(F[:, 0], F[:, 1])
     sol = solve_phi(C, F, R, d, h2, h3, C0)
     phi_out = np.where(known, phi_in, np.where(unobserved, np.nan, sol.phi))
-    O2 = object_centre(R, d, phi_out, h2, h3, C0)
-    g = C - O2
-    dist = np.hypot(g[:, 0], g[:, 1])
-    delta_x = R - dist
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k = np.where(delta_x > 0, force / delta_x, np.nan)
-    direction_error = np.arctan2(g[:, 0] * F[:, 1] - g[:, 1] * F[:, 0], g[:, 0] * F[:, 0] + g[:, 1] * F[:, 1])
+    O2, g, dist, delta_x, k, direction_error = _deformation(C, F, force, R, d, phi_out, h2, h3, C0)
     n_sol = np.where(known, 1, np.where(unobserved, 0, sol.n_solutions))
     dx_theta = _deformation_per_angle(a1, a2, h2, h3, R, C0, O2, g, dist, F, force, known)
-
     finite_in = np.isfinite(t1) & np.isfinite(t2) & np.isfinite(F).all(axis=1)
     _flag(reasons, finite_in, force, known, unobserved, sol.n_solutions, phi_out, delta_x, direction_error, params)
     if model is None:
