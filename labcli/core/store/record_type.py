@@ -18,8 +18,9 @@ from ..tables import TableSpec, read_table, write_table
 
 
 class BaseRecordType(ABC):
-    """Defaults of :class:`labcli.core.paper.RecordType` (a subclass sets the attributes and
-    defines the four abstract methods; Python refuses to make one that lacks any)."""
+    """Defaults of :class:`labcli.core.paper.RecordType` (a subclass sets the attributes, names
+    its ``table_spec`` and defines the four abstract methods; Python refuses to make one that
+    lacks any)."""
 
     kind: str
     collection: str
@@ -40,8 +41,9 @@ class BaseRecordType(ABC):
         return ""
 
     @property
+    @abstractmethod
     def table_spec(self) -> TableSpec:
-        raise NotImplementedError(f"{type(self).__name__} names no table_spec")
+        """The CSV table of these records (:mod:`labcli.core.tables`): a class attribute or a property."""
 
     @property
     def known_columns(self) -> frozenset[str]:
