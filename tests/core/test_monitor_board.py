@@ -13,9 +13,8 @@ import math
 
 import numpy as np
 import pytest
+from support.boards import BoardWithModel
 
-from labcli.core.board import BoardCaps
-from labcli.core.boardlines import Estimate as BoardEstimate
 from labcli.core.device import Device
 from labcli.core.monitoring import channel_scale, watch
 from labcli.core.protocol import load_protocol
@@ -27,43 +26,11 @@ def values(seq: int) -> tuple[float, ...]:
     return (1e-4 * seq, -0.02, 0.5 + 1e-3 * seq, -1.0)  # rad, rad, N, N
 
 
-class BoardWithModel:
-    def __init__(self, dev: Device) -> None:
-        self.dev, self.caps, self.every, self._pending = dev, BoardCaps("1.1", estimates=NAMES), 0, []
-
-    def __getattr__(self, name: str):
-        return getattr(self.dev, name)
-
-    def stream_estimates(self, every: int = 1) -> int:
-        self.every = every
-        return every
-
-    def read(self, timeout: float = 0.05):
-        batch = self.dev.read(timeout=timeout)
-        if self.every:
-            self._pending += [
-                BoardEstimate(int(s), int(t), values(int(s)), 0) for s, t in zip(batch.seq, batch.t_us, strict=True)
-            ]
-        return batch
-
-    def stop(self):
-        batch = self.dev.stop()
-        if self.every and batch is not None:
-            self._pending += [
-                BoardEstimate(int(s), int(t), values(int(s)), 0) for s, t in zip(batch.seq, batch.t_us, strict=True)
-            ]
-        return batch
-
-    def take_estimates(self) -> list[BoardEstimate]:
-        out, self._pending = self._pending, []
-        return out
-
-
 def test_monitor_watches_the_boards_estimates_and_summarises_them():
     proto = load_protocol("takuma2014")
     snaps = []
     with Device.open("sim://?seed=3&clock=virtual") as raw:
-        dev = BoardWithModel(raw)
+        dev = BoardWithModel(raw, NAMES, values)
         scale = channel_scale(raw.info.channels, proto.calibration)
         summary = watch(dev, scale, rate_hz=200.0, seconds=0.3, on_update=snaps.append, refresh_s=0.05)
     assert dev.every == 1
@@ -86,7 +53,7 @@ def test_the_live_table_has_a_row_per_board_estimate():
     proto = load_protocol("takuma2014")
     snaps = []
     with Device.open("sim://?seed=3&clock=virtual") as raw:
-        dev = BoardWithModel(raw)
+        dev = BoardWithModel(raw, NAMES, values)
         scale = channel_scale(raw.info.channels, proto.calibration)
         watch(dev, scale, rate_hz=200.0, seconds=0.2, on_update=snaps.append, refresh_s=0.05)
         console = Console(width=200, record=True)

@@ -13,10 +13,9 @@ from __future__ import annotations
 import json
 import math
 
+from support.boards import BoardWithModel
 from support.sensing import LinearModel
 
-from labcli.core.board import BoardCaps
-from labcli.core.boardlines import Estimate as BoardEstimate
 from labcli.core.device import Device
 from labcli.core.protocol import load_protocol
 from labcli.sensing import Estimator
@@ -28,36 +27,6 @@ NAMES = ("x", "f")  # the board's model estimates the toy model's quantities
 
 def board_value(seq: int) -> tuple[float, float]:
     return (seq * 1e-4, -seq * 1e-3)  # rad, N
-
-
-class BoardWithModel:
-    """The simulated link, with a board that sends an estimate line per data frame once asked."""
-
-    def __init__(self, dev: Device) -> None:
-        self.dev = dev
-        self.caps = BoardCaps("1.1", estimates=NAMES)
-        self.every = 0
-        self._pending: list[BoardEstimate] = []
-
-    def __getattr__(self, name: str):
-        return getattr(self.dev, name)
-
-    def stream_estimates(self, every: int = 1) -> int:
-        self.every = every
-        return every
-
-    def read(self, timeout: float = 0.05):
-        batch = self.dev.read(timeout=timeout)
-        if self.every:
-            self._pending += [
-                BoardEstimate(int(s), int(t), board_value(int(s)), 0)
-                for s, t in zip(batch.seq, batch.t_us, strict=True)
-            ]
-        return batch
-
-    def take_estimates(self) -> list[BoardEstimate]:
-        out, self._pending = self._pending, []
-        return out
 
 
 class Sink:
@@ -74,7 +43,7 @@ class Sink:
 def test_each_host_estimate_carries_the_boards_of_the_same_frame():
     sink, seen = Sink(), []
     with Device.open("sim://?seed=2&clock=virtual") as raw:
-        dev = BoardWithModel(raw)
+        dev = BoardWithModel(raw, NAMES, board_value)
         est = Estimator(LinearModel(), calibration=load_protocol("takuma2014").calibration, channels=raw.info.channels)
         summary = run(dev, est, [sink], seconds=5.0, on_board=seen.append)
     assert dev.every == 1  # the board was asked for an estimate line per frame
@@ -106,7 +75,7 @@ def test_the_live_view_shows_the_boards_estimate_in_a_column_of_its_own():
         est = Estimator(LinearModel(), calibration=load_protocol("takuma2014").calibration, channels=raw.info.channels)
         view = LiveView(est, "rig")
         view.board_names = NAMES
-        run(BoardWithModel(raw), est, [], seconds=2.0, on_batch=view.take, on_board=view.take_board)
+        run(BoardWithModel(raw, NAMES, board_value), est, [], seconds=2.0, on_batch=view.take, on_board=view.take_board)
     console = Console(width=200, record=True)
     console.print(view.render(plain=True))
     text = console.export_text()
