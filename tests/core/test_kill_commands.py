@@ -95,40 +95,35 @@ def assert_intact_and_extendable(here: Path) -> None:
     assert r.returncode == 0, r.stdout + r.stderr
 
 
-def test_split_killed_at_chosen_writes_leaves_a_run_the_next_writer_extends(world, tmp_path):
-    args = ("split", "run.h5", "--fit", "14", "--validation", "6", "--strategy", "random", "--seed", "1")
+def killed_at_spread_writes(world, tmp_path, args: tuple[str, ...]):
+    """Each directory where ``labcli *args`` was killed at one of its spread writes."""
     total = writes_of(*args, cwd=fresh(world, tmp_path / "count"))
     assert total >= 3
     for write in spread(total):
         here = fresh(world, tmp_path / f"k{write}")
         r = run(write, *args, cwd=here)
         assert r.returncode == -signal.SIGKILL, (write, r.returncode, r.stderr)
+        yield here
+
+
+def test_split_killed_at_chosen_writes_leaves_a_run_the_next_writer_extends(world, tmp_path):
+    args = ("split", "run.h5", "--fit", "14", "--validation", "6", "--strategy", "random", "--seed", "1")
+    for here in killed_at_spread_writes(world, tmp_path, args):
         assert_intact_and_extendable(here)
 
 
 def test_fit_recording_its_model_killed_at_chosen_writes_leaves_a_run_the_next_writer_extends(world, tmp_path):
-    args = ("fit", "run.h5", "--form", "paper")
-    total = writes_of(*args, cwd=fresh(world, tmp_path / "count"))
-    assert total >= 3
-    for write in spread(total):
-        here = fresh(world, tmp_path / f"k{write}")
-        r = run(write, *args, cwd=here)
-        assert r.returncode == -signal.SIGKILL, (write, r.returncode, r.stderr)
+    for here in killed_at_spread_writes(world, tmp_path, ("fit", "run.h5", "--form", "paper")):
         assert_intact_and_extendable(here)
 
 
 def test_import_killed_at_chosen_writes_leaves_no_run_or_a_whole_one(world, tmp_path):
     args = ("import", "trials.csv", "-o", "new.h5", "--protocol", "takuma2014")
-    total = writes_of(*args, cwd=fresh(world, tmp_path / "count"))
-    assert total >= 3
-    for write in spread(total):
-        here = fresh(world, tmp_path / f"k{write}")
-        r = run(write, *args, cwd=here)
-        assert r.returncode == -signal.SIGKILL, (write, r.returncode, r.stderr)
+    for here in killed_at_spread_writes(world, tmp_path, args):
         if (here / "new.h5").exists():
             assert labcli("inspect", "--verify", "new.h5", cwd=here).returncode == 0
         r = labcli(*args, "--force", cwd=here)
-        assert r.returncode == 0, (write, r.stderr)
+        assert r.returncode == 0, (here.name, r.stderr)
         r = labcli("export", "new.h5", "-o", "again.csv", cwd=here)
         assert r.returncode == 0, r.stderr
         assert (here / "again.csv").read_text() == (here / "before.csv").read_text()
