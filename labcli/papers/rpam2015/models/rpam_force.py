@@ -142,13 +142,15 @@ def _power(x: np.ndarray, a: float, logs: dict[str, np.ndarray], key: str) -> np
     """``x ** a``; by repeated products for a whole exponent (the solver's hot loop spends
     most of its time here, and a product costs a small fraction of an ``exp``)."""
     if a == int(a) and 0 < abs(a) <= 16:
-        n, base, out = abs(int(a)), x, np.ones_like(x)
+        n, base = abs(int(a)), x
+        out: np.ndarray | None = None  # the first factor as it is: no product with ones in the hot loop
         while n:
             if n & 1:
-                out = out * base
+                out = base if out is None else out * base
             n >>= 1
             if n:
                 base = base * base
+        assert out is not None  # 0 < |a| here
         return out if a > 0 else 1.0 / out
     if key not in logs:
         with np.errstate(invalid="ignore", divide="ignore"):
