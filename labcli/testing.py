@@ -116,6 +116,7 @@ def check_options(paper: Paper) -> None:
     for command, cls in paper.analysis_options.items():
         default_options(paper, cls, f"labcli {command}")
     default_options(paper, paper.sim_options, "its simulated rigs")
+    default_options(paper, getattr(paper, "sensing_options", None), "labcli sense")
 
 
 def check_record_type(paper: Paper, kind: str) -> RecordType:

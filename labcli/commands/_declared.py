@@ -161,6 +161,18 @@ def analysis_groups(command: str) -> list[Group]:
     return out
 
 
+def sensing_groups() -> list[Group]:
+    """The options each paper declares for ``labcli sense`` with its model files, one group per paper."""
+    from ..core.options import declared
+    from ..sensing.model import sensing_papers
+
+    return [
+        Group(f"Options of {p.name} models", declared(p.sensing_options))
+        for p in sensing_papers()
+        if p.sensing_options is not None
+    ]
+
+
 def rig_groups() -> list[Group]:
     """The options each paper declares for its simulated rigs, one group per paper."""
     from ..core import registry
@@ -179,10 +191,18 @@ def _version() -> int:
     return registry.generation()
 
 
-def paper_command(name: str, groups: Callable[[], list[Group]] | None = None) -> Callable[[Callable[..., Any]], Any]:
-    """``@paper_command("fit")``: a click command taking the options the papers declare for ``name``."""
-    make = groups or (lambda: analysis_groups(name))
-    return click.command(name, cls=DeclaredCommand, groups=make, version=_version)
+def paper_command(
+    name: str | None = None, groups: Callable[[], list[Group]] | None = None
+) -> Callable[[Callable[..., Any]], Any]:
+    """``@paper_command("fit")``: a click command taking the options the papers declare for
+    ``name``'s analysis; ``@paper_command(groups=sensing_groups)``: those ``groups`` gives (the
+    command named after its function)."""
+    if groups is None:
+        if name is None:
+            raise TypeError("paper_command needs the analysis's name or the groups of options")
+        analysis = name
+        groups = lambda: analysis_groups(analysis)  # noqa: E731
+    return click.command(name, cls=DeclaredCommand, groups=groups, version=_version)
 
 
 def _default_protocol(command: str) -> dict[str, str]:

@@ -8,11 +8,13 @@ from typing import Any
 
 import click
 
+from ..core.options import Typed
 from ..errors import LabcliError
+from ._declared import paper_command, sensing_groups
 from ._options import FiniteRange, streaming_link_options
 
 
-@click.command()
+@paper_command(groups=sensing_groups)
 @click.option(
     "--model",
     "model_path",
@@ -89,6 +91,7 @@ def sense(
     timeout: float,
     boot_wait: float | None,
     baud: int,
+    typed: Typed,
 ) -> None:
     """Estimate joint angles and tip forces live from a rig's pressures with a fitted model.
 
@@ -98,7 +101,8 @@ def sense(
     Without --jsonl to stdout a live view shows them with 95 % intervals and a
     rolling plot; --jsonl and --publish send the same JSON lines (seq,
     t_device_s, t_host_s, state, theta1_deg, theta1_deg_se, ..., flags, and
-    {"event": ...} objects) to stdout, a file or TCP clients.  A sim:// port runs
+    {"event": ...} objects) to stdout, a file or TCP clients.  The options below the
+    command's own are those the model's paper declares.  A sim:// port runs
     on the wall clock unless its URL says clock=virtual.  Ctrl-C stops and prints
     the summary.
 
@@ -116,7 +120,7 @@ def sense(
 
     opts = SenseOptions(
         port=port, model=model_path, protocol=protocol, rate_hz=rate, seconds=seconds, every=every,
-        jsonl=jsonl, publish=publish, lsl=lsl, classify=classify, record=record, timeout=timeout, boot_wait=boot_wait, baud=baud,
+        jsonl=jsonl, publish=publish, lsl=lsl, classify=classify, record=record, timeout=timeout, boot_wait=boot_wait, baud=baud, model_options=typed,
     )  # fmt: skip
     to_stdout = jsonl == "-"
 

@@ -27,6 +27,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from ..core.options import OptionRefused, Typed, bind, names
 from ..errors import ModelError
 
 STATE = "state"
@@ -73,14 +74,19 @@ class SensingPaper(Protocol):
     """A paper whose model files the estimator can use (the optional part of ``Paper``)."""
 
     name: str
+    # What `labcli sense` may be asked of its models beside the core's own options: a dataclass of
+    # labcli.core.options fields (None: nothing), built into the command line like analysis_options.
+    sensing_options: type | None
 
-    def sensing_model(self, text: str, name: str) -> SensingModel | None:
+    def sensing_model(self, text: str, name: str, options: Any = None) -> SensingModel | None:
         """The model in ``text`` (a model file's JSON; ``name`` names it in sentences), or None
-        when the text is not one of this paper's models."""
+        when the text is not one of this paper's models; ``options`` an object of
+        :attr:`sensing_options` (None: its defaults)."""
 
 
-def load_model(path: str | Path) -> SensingModel:
-    """The sensing model of a model file, from whichever installed paper wrote it (ModelError)."""
+def load_model(path: str | Path, typed: Typed | None = None) -> SensingModel:
+    """The sensing model of a model file, from whichever installed paper wrote it (ModelError),
+    with the paper's declared options a person ``typed`` (:func:`model_from_text`)."""
     from ..core.files import read_input
 
     p = Path(path)
@@ -94,18 +100,39 @@ def load_model(path: str | Path) -> SensingModel:
         raise ModelError(f"The model file {p} is not UTF-8 text; pass the .json file `labcli fit` wrote.") from None
     except OSError as e:
         raise ModelError(f"The model file {p} cannot be read ({e.strerror or e}).") from None
-    return model_from_text(text, f"the model file {p}")
+    return model_from_text(text, f"the model file {p}", typed)
 
 
-def model_from_text(text: str, name: str = "the model") -> SensingModel:
-    """The sensing model of a model file's JSON text (a file's, or one a run records)."""
+def sensing_papers() -> list[SensingPaper]:
+    """The installed papers whose model files the estimator can use."""
     from ..core import registry
 
-    for paper in registry.papers():
-        if isinstance(paper, SensingPaper):
-            model = paper.sensing_model(text, name)
-            if model is not None:
-                return model
+    return [p for p in registry.papers() if isinstance(p, SensingPaper)]
+
+
+def model_from_text(text: str, name: str = "the model", typed: Typed | None = None) -> SensingModel:
+    """The sensing model of a model file's JSON text (a file's, or one a run records).
+
+    ``typed``: options the model's paper declares in ``sensing_options``; one it does not
+    declare is refused in one sentence (OptionRefused) naming the papers that do.
+    """
+    typed = typed or Typed()
+    papers = sensing_papers()
+
+    def owners(option: str) -> list[str]:
+        holders = [p.name for p in papers if p.sensing_options is not None and option in names(p.sensing_options)]
+        return [" and ".join(holders) + " models"] if holders else []
+
+    for paper in papers:
+        try:
+            options = bind(paper.sensing_options, typed, owners=owners, subject=f"{name} is a model of {paper.name}")
+        except OptionRefused:
+            if paper.sensing_model(text, name) is not None:  # its model: the refusal is the answer
+                raise
+            continue
+        model = paper.sensing_model(text, name, options)
+        if model is not None:
+            return model
     raise ModelError(
         f"{name[:1].upper()}{name[1:]} is not a model any installed paper can estimate with; "
         "pass the .json file `labcli fit` wrote."

@@ -18,10 +18,11 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..core.options import Typed
 from ..errors import ConfigError, ModelError, StoreError
 from .config import EstimatorConfig
 from .estimator import Estimator
@@ -49,6 +50,7 @@ class SenseOptions:
     timeout: float = 2.0
     boot_wait: float | None = None
     baud: int = 115200
+    model_options: Typed = field(default_factory=Typed)  # what the model's paper declares (sensing_options)
 
 
 def same_rig(model_protocol: Any, protocol: Any) -> None:
@@ -72,7 +74,7 @@ def prepare(opts: SenseOptions) -> tuple[Any, Any, Any]:
     """The sensing model, the protocol whose calibration it reads, and the settled-load hook (or None)."""
     from ..core.protocol import load_protocol
 
-    model = load_model(opts.model)
+    model = load_model(opts.model, opts.model_options)
     try:
         own = load_protocol(model.protocol)
     except ConfigError as e:

@@ -70,6 +70,7 @@ def _records(**changes):
         (_broken(run_kinds=()), "declares no run kind"),
         (_broken(analysis_options={"fit": dict}), "options of labcli fit must be a dataclass"),
         (_broken(analysis_options={"validate": toy.ToyFitOptions}), "gives no analysis for it"),
+        (_broken(sensing_options=dict), "options of labcli sense must be a dataclass"),
         (_broken(record_type=_records(kind="other")), "the record type of 'toy' says its kind is 'other'"),
         (_broken(record_type=_records(noun=3)), "has no noun of the right type"),
         (_broken(make_rig=_rig(_FrozenRig)), "the times of its toy rig's frames do not increase"),

@@ -278,3 +278,40 @@ def test_labcli_sim_serves_the_toy_rig_with_its_option_and_console(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_sense_runs_its_model_with_its_own_option(toy_paper, tmp_path, invoke):
+    """A toy model file reaches ``labcli sense`` through the registry (its ``model_schemas`` and
+    ``sensing_model``), and the toy's declared ``--weight-scale`` reaches the model."""
+    from labcli.core.options import Typed
+    from labcli.sensing import load_model
+
+    model = toy.write_model(tmp_path, toy_paper)
+    r = invoke("sense", "--help")
+    assert "Options of toy models:" in r.output and "--weight-scale" in r.output
+    r = invoke("sense", "--port", PORT, "--model", model, "--seconds", "4", "--jsonl", "--weight-scale", "2")
+    assert r.exit_code == 0, r.output
+    lines = [json.loads(line) for line in r.output.splitlines() if line.startswith("{")]
+    idle = [d for d in lines if d["state"] == "idle"]
+    assert len(lines) == 40 and len(idle) >= 10 and {d["state"] for d in lines} <= {"starting", "idle"}
+    assert all(d["flags"] == [] and abs(d["W_N"]) < 0.1 for d in idle)  # nothing hung: P sits on its baseline
+    one_kg = np.array([[toy.P_REST_MPA + toy.P_PER_KG]])
+    for scale in (1.0, 2.0):
+        m = load_model(model, Typed({"weight_scale": scale}, {}))
+        w = m.predict(np.array([[toy.P_REST_MPA]]), one_kg, np.zeros((1, 1))).values
+        assert w[0, 0] == pytest.approx(scale * toy.G)
+
+
+def test_sense_refuses_an_option_the_models_paper_does_not_declare(toy_paper, tmp_path, invoke):
+    toy_model = toy.write_model(tmp_path, toy_paper)
+    mck_model = Path(__file__).resolve().parents[2] / "sample_runs" / "force.model.json"
+    r = invoke("sense", "--port", PORT, "--model", toy_model, "--range-margin", "0.2")
+    assert r.exit_code == 1
+    assert r.output == (
+        f"Error: --range-margin is an option of takuma2014 models; the model file {toy_model} is a model of toy.\n"
+    )
+    r = invoke("sense", "--port", "sim://", "--model", mck_model, "--weight-scale", "2")
+    assert r.exit_code == 1
+    assert r.output == (
+        f"Error: --weight-scale is an option of toy models; the model file {mck_model} is a model of takuma2014.\n"
+    )

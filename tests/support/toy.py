@@ -13,6 +13,7 @@ data (:mod:`labcli.core.options`); no line of the core or the commands names the
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 from collections.abc import Mapping
@@ -320,6 +321,57 @@ def show_toy_fit(result: ToyFit, *, as_json: bool = False) -> None:
         print(f"deflection = {result.slope_deg_per_kg:.3f} deg/kg x mass + {result.offset_deg:.3f} deg")
 
 
+# --------------------------------------------------------------------------- the sensing model
+
+TOY_MODEL_SCHEMA = "toy-model"
+
+
+@dataclass(frozen=True)
+class ToySensingOptions:
+    """``labcli sense`` with a toy model file."""
+
+    weight_scale: float = number(1.0, help="Multiply every weight estimate by this.", minimum=0, above=True)
+
+
+class ToySensing:
+    """The weight on the arm from the pressure's rise over its baseline (the rig's 0.05 MPa per kg)."""
+
+    quantities = ("W",)
+    units = ("N",)
+    kinds = ("load",)
+    actuators = ("A",)
+    joints = (1,)
+    p0_leak_corrected = False
+    baseline_gap_s = None
+    record_kind = None
+
+    def __init__(self, protocol: str, scale: float) -> None:
+        self.protocol = protocol
+        self.scale = scale
+
+    def predict(self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray) -> Any:
+        from labcli.sensing.model import Prediction
+
+        w = self.scale * (np.asarray(P, float) - np.asarray(P0, float)) / P_PER_KG * G
+        return Prediction(w, np.full_like(w, 0.01), [() for _ in range(len(w))])
+
+
+def write_model(folder: Path, protocol: Path) -> Path:
+    path = folder / "toy.model.json"
+    path.write_text(json.dumps({"schema": TOY_MODEL_SCHEMA, "protocol": str(protocol)}), encoding="utf-8")
+    return path
+
+
+def toy_sensing_model(text: str, name: str, options: ToySensingOptions | None = None) -> ToySensing | None:
+    try:
+        d = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(d, dict) or d.get("schema") != TOY_MODEL_SCHEMA:
+        return None
+    return ToySensing(str(d["protocol"]), (options or ToySensingOptions()).weight_scale)
+
+
 # --------------------------------------------------------------------------- the paper
 
 
@@ -349,6 +401,8 @@ class ToyPaper:
     default_sim_mode = None
     sim_options = ToyRigOptions
     analysis_options = {"fit": ToyFitOptions}
+    sensing_options = ToySensingOptions
+    model_schemas = (TOY_MODEL_SCHEMA,)
     default_protocols: dict[str, str] = {}
     demo_protocol = None
 
@@ -385,3 +439,6 @@ class ToyPaper:
 
     def demo(self) -> Demo | None:
         return None
+
+    def sensing_model(self, text: str, name: str, options: ToySensingOptions | None = None) -> ToySensing | None:
+        return toy_sensing_model(text, name, options)

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType, SimulatedRig
-from .options import DEFAULT_PROTOCOLS, OPTIONS, PUSH_PROTOCOL, TRIAL_PROTOCOL
+from .options import DEFAULT_PROTOCOLS, OPTIONS, PUSH_PROTOCOL, TRIAL_PROTOCOL, SensingOptions
 from .protocol import PROTOCOL_KINDS
 from .sim.options import McKibbenRigOptions
 
@@ -33,6 +33,7 @@ class Takuma2014:
     default_sim_mode = "mckibben"
     sim_options = McKibbenRigOptions
     analysis_options = OPTIONS
+    sensing_options = SensingOptions  # labcli sense with one of its model files
     default_protocols = DEFAULT_PROTOCOLS
     demo_protocol = TRIAL_PROTOCOL
     model_schemas = ("labcli-takuma-model",)  # what `labcli fit` writes (models/takuma.py SCHEMA)
@@ -90,11 +91,11 @@ class Takuma2014:
         run, show = pairs[name]
         return Analysis(run, show)
 
-    def sensing_model(self, text: str, name: str) -> Any:
+    def sensing_model(self, text: str, name: str, options: SensingOptions | None = None) -> Any:
         """The run-time estimator's view of a model file of this paper (None: not one of its files)."""
         from .sensing import sensing_model
 
-        return sensing_model(text, name)
+        return sensing_model(text, name, options)
 
     def demo(self) -> Demo | None:
         from . import demo, report  # the whole toolkit: only once the demo runs

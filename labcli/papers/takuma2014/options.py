@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from ...core.options import choice, number, path, switch
 
@@ -88,10 +89,32 @@ class ClassifyOptions:
     pushes: bool = switch(help="List every push in the report [default: only when there are 60 or fewer].")
 
 
+RANGE_MARGIN = 0.10  # labcli predict / sense --range-margin (sensing.py's out-of-range flags)
+
+
+def _range_margin() -> Any:
+    return number(
+        RANGE_MARGIN,
+        help="How far an input or an estimate may lie beyond the span the fit trials covered, as a share of "
+        "that span, before it is flagged out-of-range.",
+        minimum=0,
+        maximum=10,
+    )
+
+
 @dataclass(frozen=True)
 class PredictOptions:
-    """``labcli predict`` on a table of new pressures or a run file: the model file is the core's
-    ``--model``; the paper asks nothing more."""
+    """``labcli predict`` on a table of new pressures or a run file (the model file is the core's
+    ``--model``)."""
+
+    range_margin: float = _range_margin()
+
+
+@dataclass(frozen=True)
+class SensingOptions:
+    """``labcli sense`` with one of this paper's model files (the core's own options aside)."""
+
+    range_margin: float = _range_margin()
 
 
 OPTIONS = {"fit": FitOptions, "validate": ValidateOptions, "classify": ClassifyOptions, "predict": PredictOptions}

@@ -108,7 +108,8 @@ def predict_file(
     ``model_path``; written as CSV to ``output`` when given."""
     if output is not None:
         check_output(output, inputs=(table, model_path), what="the estimates to ")
-    model = TakumaSensing(load_force_model(model_path))
+    margin = (options or PredictOptions()).range_margin
+    model = TakumaSensing(load_force_model(model_path), margin=margin)
     rows = read_rows(Path(table))
     if table.suffix.lower() in RUN_FILE_SUFFIXES:
         _check_rig(model, table, model_path)

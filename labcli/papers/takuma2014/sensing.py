@@ -13,8 +13,9 @@ without.  The adapter only reshapes what ``predict`` returns:
 * flags: ``bad-pressure`` is ``bad-input``; a quantity the model does not report (its
   standard error over the protocol's ``[sensing]`` limit, the paper form's near-singular
   Jacobian or clipped arcsine) is ``unobservable:q``; inputs or estimates outside what the
-  fit trials covered (the model file's ``calibrated_range``, with 10 % of each span as margin,
-  at least 10 % of the level for the baseline pressures and 2 deg for the rest posture) are
+  fit trials covered (the model file's ``calibrated_range``, with a share of each span as margin,
+  10 % unless ``--range-margin`` says otherwise, at least 10 % of the level for the baseline
+  pressures and 2 deg for the rest posture) are
   ``out-of-range`` (an input) or ``out-of-range:q`` (an estimate).
 
 Angles are ``state`` quantities (the arm as it is now), forces ``load`` quantities (the cause,
@@ -33,9 +34,10 @@ from ...sensing.model import BAD_INPUT, LOAD, OUT_OF_RANGE, STATE, UNOBSERVABLE,
 from .models import routes as rt
 from .models.posture import PostureModel, force_model_from_json
 from .models.takuma import SCHEMA, TakumaModel
+from .options import RANGE_MARGIN, SensingOptions
 
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
-MARGIN = 0.10  # share of a calibrated span allowed beyond its ends
+LEAK_PAD = 0.10  # share of the baseline pressures' level they may drift beyond their calibrated range
 
 
 class TakumaSensing:
@@ -48,10 +50,11 @@ class TakumaSensing:
     joints: tuple[int, ...] = (1, 2)
     record_kind = "sense"  # the run kind of a live session's run file (.sense_records)
 
-    def __init__(self, model: PostureModel | TakumaModel) -> None:
+    def __init__(self, model: PostureModel | TakumaModel, *, margin: float = RANGE_MARGIN) -> None:
         if not model.is_fitted:
             raise ModelError("The model has no coefficients yet; fit it on a run first (`labcli fit RUN.h5`).")
         self.model = model
+        self.margin = margin  # share of a calibrated span allowed beyond its ends
         self.protocol = model.protocol
         self.form = getattr(model, "form", "paper")
         self.p0_leak_corrected = bool(getattr(model, "p0_leak_corrected", False))
@@ -119,28 +122,29 @@ class TakumaSensing:
         for key, x, scale in (("P0_MPa", P0, 1.0), ("dP_MPa", P0 - P, 1.0), ("rest_deg", rest, 180 / math.pi)):
             if key in cr:
                 ranges = np.asarray(cr[key], dtype=float)
-                inputs |= _beyond(x * scale, ranges, MIN_PAD.get(key, lambda r: 0.0)(ranges)).any(axis=1)
+                least = MIN_PAD.get(key, lambda r: 0.0)(ranges)
+                inputs |= _beyond(x * scale, ranges, self.margin, least).any(axis=1)
         est = np.zeros((n, 4), bool)
         if "theta_deg" in cr:
-            est[:, :2] = _beyond(np.degrees(values[:, :2]), np.asarray(cr["theta_deg"], dtype=float))
+            est[:, :2] = _beyond(np.degrees(values[:, :2]), np.asarray(cr["theta_deg"], dtype=float), self.margin)
         if "F_N" in cr:
-            est[:, 2:] = _beyond(values[:, 2:], np.asarray(cr["F_N"], dtype=float))
+            est[:, 2:] = _beyond(values[:, 2:], np.asarray(cr["F_N"], dtype=float), self.margin)
         return inputs, est
 
 
 # The least margin of an input's range: the baseline pressures may drift by a tenth of their level (the
 # leak over a session), the rest posture by 2 deg (friction leaves it a little elsewhere after every load).
 MIN_PAD = {
-    "P0_MPa": lambda r: MARGIN * np.abs(r).max(axis=1),
+    "P0_MPa": lambda r: LEAK_PAD * np.abs(r).max(axis=1),
     "rest_deg": lambda r: 2.0,
 }
 
 
-def _beyond(x: np.ndarray, ranges: np.ndarray, least: Any = 0.0) -> np.ndarray:
-    """(n, m) True where x lies outside [lo, hi] (ranges (m, 2)) by more than MARGIN of the span
-    (``least`` at least)."""
+def _beyond(x: np.ndarray, ranges: np.ndarray, margin: float, least: Any = 0.0) -> np.ndarray:
+    """(n, m) True where x lies outside [lo, hi] (ranges (m, 2)) by more than ``margin`` of the
+    span (``least`` at least)."""
     lo, hi = ranges[:, 0], ranges[:, 1]
-    pad = np.maximum(MARGIN * (hi - lo), least)
+    pad = np.maximum(margin * (hi - lo), least)
     return (x < lo - pad) | (x > hi + pad)
 
 
@@ -157,8 +161,9 @@ def _paper_variances(model: TakumaModel) -> dict[str, float]:
     return out
 
 
-def sensing_model(text: str, name: str) -> TakumaSensing | None:
+def sensing_model(text: str, name: str, options: SensingOptions | None = None) -> TakumaSensing | None:
     """The sensing model of a model file's JSON, None when it is no McKibben model."""
     if f'"{SCHEMA}"' not in text:
         return None
-    return TakumaSensing(force_model_from_json(text, name=name))
+    margin = (options or SensingOptions()).range_margin
+    return TakumaSensing(force_model_from_json(text, name=name), margin=margin)

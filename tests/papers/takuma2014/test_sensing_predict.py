@@ -154,3 +154,28 @@ def test_a_leak_corrected_fit_of_a_run_is_applied_with_corrected_baselines(tmp_p
     with pytest.raises(ConfigError) as e:
         fit(csv, FitOptions(), output=tmp_path / "x.json", leak_correct=True)
     assert str(e.value).startswith("fit --leak-correct needs each trial's baseline and loaded window times")
+
+
+def test_the_range_margin_is_the_share_of_the_calibrated_span_allowed_beyond_it(fitted, invoke, tmp_path):
+    """``--range-margin`` (declared in the paper's options) moves the out-of-range edge: an
+    estimate just past the fit trials' largest Fx is flagged with no margin, not with the default."""
+    from labcli.core.options import Typed
+
+    d, csv, model_path, table = fitted
+    lo, hi = load_model(model_path).calibrated_range["F_N"][0]
+    beyond = hi + 0.05 * (hi - lo)  # inside the default 10 % margin, outside a margin of 0
+    for margin, flagged in ((0.0, True), (0.1, False)):
+        sens = load_model(model_path, Typed({"range_margin": margin}, {}))
+        assert sens.margin == margin
+        got = sens._outside(np.zeros((1, 4)), np.zeros((1, 4)), np.zeros((1, 2)), np.array([[0, 0, beyond, 0]]))
+        assert bool(got[1][0, 2]) is flagged
+    counts = {}
+    for margin in ("0", "0.1"):
+        r = invoke("predict", csv, "--model", model_path, "--range-margin", margin, "--json")
+        assert r.exit_code == 0, r.output
+        counts[margin] = json.loads(r.output)["flagged"].get("out-of-range", 0)
+    assert counts["0"] > counts["0.1"]  # the fit trials' own extremes sit on the span's edges
+    r = invoke("predict", csv, "--model", model_path, "--range-margin", "-1")
+    assert (
+        r.exit_code == 2 and "Error: Invalid value for '--range-margin': -1.0 is not in the range 0<=x<=10." in r.output
+    )
