@@ -27,9 +27,9 @@ from ..errors import ConfigError, ModelError, StoreError
 from .config import EstimatorConfig
 from .estimator import Estimator
 from .live import LiveSummary, run
-from .model import load_model
+from .model import BAD_INPUT, load_model
 from .publish import JsonLines, Output, TcpPublisher
-from .results import DISPLAY
+from .results import DISPLAY, Estimate
 
 
 @dataclass(frozen=True)
@@ -90,6 +90,37 @@ def prepare(opts: SenseOptions) -> tuple[Any, Any, Any]:
             raise ModelError(f"The model file {opts.model} is of a paper that classifies no pushes online.")
         hook = make(protocol, opts.classify)
     return model, protocol, hook
+
+
+UNSUPPLIED_S = 3.0  # rig seconds of estimates flagged bad-input from the start before the session says why
+
+
+class AirWatch:
+    """One sentence when a session's first estimates are all ``bad-input``: the pressures read as
+    no air (vented chambers, the supply off, a sensor unplugged), which the flags alone do not say."""
+
+    def __init__(self, notice: Callable[[str], None], after_s: float = UNSUPPLIED_S) -> None:
+        self.notice, self.after_s = notice, after_s
+        self.bad = 0
+        self.first: float | None = None  # the first estimate's time
+        self.done = False
+
+    def take(self, frames: Any, items: list[Any]) -> None:
+        for item in items:
+            if self.done or not isinstance(item, Estimate):
+                continue
+            if BAD_INPUT not in item.flags:
+                self.done = True  # air came: nothing to say
+                continue
+            self.bad += 1
+            self.first = item.t_device_s if self.first is None else self.first
+            if item.t_device_s - self.first >= self.after_s - 1e-6:  # a chamber still filling reads low a while
+                self.done = True
+                self.notice(
+                    f"The first {self.bad} estimates ({item.t_device_s - self.first:.1f} s of the rig's clock) are all "
+                    "flagged bad-input: the pressures read as no air. Supply the chambers and close their valves (at a simulated rig's "
+                    "console: `supply`, then `close`), or check the pressure sensors' wiring."
+                )
 
 
 def _recorder(opts: SenseOptions, model: Any, protocol: Any, dev: Any) -> Any:
@@ -157,7 +188,8 @@ def sense(
             recorder = _recorder(opts, model, protocol, dev) if opts.record is not None else None
             shown = view(est, dev) if view is not None else None
             try:
-                takers = [f for f in (shown, recorder.take if recorder else None) if f is not None]
+                air = AirWatch(notice)
+                takers = [f for f in (air.take, shown, recorder.take if recorder else None) if f is not None]
 
                 def on_batch(frames: Any, items: list[Any]) -> None:
                     for take in takers:

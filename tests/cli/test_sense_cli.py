@@ -66,6 +66,20 @@ def test_jsonl_finds_the_scripted_load_and_settles_on_its_force(stream):
     assert "1 load, 1 settled, 1 release" in result.stderr
 
 
+AIR_NOTICE = "flagged bad-input: the pressures read as no air. Supply the chambers and close their valves"
+
+
+def test_a_rig_without_air_is_told_once_and_a_supplied_one_not(stream):
+    """The simulated rig starts vented: the flags alone would say bad-input forever."""
+    result = sense("--port", "sim://?seed=1&clock=virtual", "--model", str(MODEL), "--seconds", "8", "--jsonl")
+    assert result.exit_code == 0, result.output
+    assert all("bad-input" in e["flags"] for e in lines_of(result.stdout))
+    said = [line for line in result.stderr.splitlines() if AIR_NOTICE in line]
+    assert len(said) == 1, result.stderr
+    assert said[0].startswith("The first 31 estimates (3.0 s of the rig's clock) are all flagged bad-input")
+    assert AIR_NOTICE not in stream[0].stderr  # the script supplies the chambers at 0 s
+
+
 def test_each_line_carries_the_fields_a_controller_reads(stream):
     _, lines = stream
     est = [e for e in lines if "state" in e]
