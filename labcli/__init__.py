@@ -4,6 +4,7 @@ The library is usable without the command line::
 
     import labcli
     df = labcli.load_trials("run.h5")      # the trial table as a DataFrame
+    df = labcli.read_run("any-run.h5")     # the records of a run of any kind; df.attrs["kind"]
 
 Heavy dependencies (numpy, pandas, h5py, scipy) are imported only by the
 functions that need them, so ``labcli --help`` stays fast.
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 from .core.version import __version__
 
-__all__ = ["__version__", "load_trials", "load_pushes"]
+__all__ = ["__version__", "load_trials", "load_pushes", "read_run"]
 
 
 def load_trials(path):
@@ -37,3 +38,15 @@ def load_pushes(path):
     from .core.table_meta import load_described
 
     return load_described(path, record_type("push"))
+
+
+def read_run(path, *, all_columns=False):
+    """Return the record table of a run file of any kind as a DataFrame.
+
+    ``df.attrs["kind"]`` is the run's kind ("force", "push", an rPAM stand's, "sense"),
+    ``df.attrs["units"]`` and ``df.attrs["provenance"]`` as :func:`load_trials`'s;
+    ``all_columns`` adds what every record carries (timestamps, acceptance, flags, settle times).
+    """
+    from .core.table_meta import read_run as read  # h5py, pandas: only here (see load_trials)
+
+    return read(path, all_columns=all_columns)

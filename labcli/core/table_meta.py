@@ -204,6 +204,25 @@ def read_parquet(path: str | os.PathLike) -> Any:
 # ------------------------------------------------------------------ load_trials / load_pushes
 
 
+def read_run(path: str | os.PathLike, *, all_columns: bool = False) -> Any:
+    """The record table of a run file of any kind (trials, pushes, an rPAM stand's records, a
+    sensing session's estimates) as a DataFrame; ``attrs``: ``kind``, ``units``, ``provenance``.
+
+    ``all_columns``: also what every record carries (when it began and was stored, how it was
+    accepted, its flags, how each window settled), as ``labcli export --all-columns`` writes.
+    """
+    from .store import RunFile
+
+    with RunFile.open(path) as run:
+        records = run.record_type
+        df = run.records.table(all_columns=all_columns)
+        prov = provenance(run.attrs, path)
+        kind = run.kind
+    df = describe(df, records.table_spec, prov)
+    df.attrs["kind"] = kind
+    return df
+
+
 def load_described(path: str | os.PathLike, kind: Any) -> Any:
     """The table of ``kind`` (a record type) from a run file or a CSV, with units and provenance in ``attrs``.
 
