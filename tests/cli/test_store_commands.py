@@ -118,7 +118,7 @@ def test_export_import_export_is_byte_identical(run_path, tmp_path):
         assert run.records.read(7)["theta_rad"][0] == pytest.approx(rec["theta_rad"][0], rel=1e-11)
         assert run.records.read(7)["mass_kg"] == pytest.approx(rec["mass_kg"], rel=1e-12)
     with h5py.File(str(imported), "r") as f:
-        assert f["entry/trials/theta"].attrs["units"] == "rad"
+        assert f["entry/trials/theta"].attrs["units"] == b"rad"
 
 
 def test_round_trip_keeps_extra_columns(tmp_path):

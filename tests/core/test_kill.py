@@ -166,7 +166,8 @@ def test_kill_at_every_write(tmp_path):
         path = str(tmp_path / f"run{write}.h5")
         kill_at(path, write)
         check_after_kill(path)
-        os.unlink(path)
+        if os.path.exists(path):  # a kill while the run was built under its temporary name leaves none
+            os.unlink(path)
 
 
 def test_kill_at_every_write_of_a_resume(tmp_path):

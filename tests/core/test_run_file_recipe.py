@@ -45,11 +45,22 @@ def test_the_recipe_runs_as_printed():
     assert "F_Fx" in out.stdout and len(out.stdout.splitlines()) == 6  # header and five trials
 
 
-@pytest.mark.parametrize("run,name", [("force.h5", "trials"), ("pushes.h5", "pushes")])
-def test_the_recipe_reads_what_labcli_reads(run, name):
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    from support.standards import make_runs
+
+    return make_runs(tmp_path_factory.mktemp("recipe"))
+
+
+@pytest.mark.parametrize(
+    "run,name",
+    [("force.h5", "trials"), ("pushes.h5", "pushes"), ("new:force", "trials"), ("new:push", "pushes")],
+)
+def test_the_recipe_reads_what_labcli_reads(run, name, request):
+    """The sample runs (schema 2: texts as str) and runs written today (schema 3: texts as bytes)."""
     from labcli.core.store import RunFile
 
-    path = ROOT / "sample_runs" / run
+    path = request.getfixturevalue("fresh")[run[4:]] if run.startswith("new:") else ROOT / "sample_runs" / run
     got = read_without_labcli(path, name)
     with RunFile.open(path) as rf:
         ids = rf.records.ids()
@@ -65,3 +76,5 @@ def test_the_recipe_reads_what_labcli_reads(run, name):
         np.testing.assert_array_equal([cols["F_Fx"][0], cols["F_Fy"][0]], first["force_N"])
     else:
         assert got["units"]["R"] == "m" and cols["R"][0] == first["R_m"] and cols["object"][0] == first["object"]
+    if run.startswith("new:") and name == "trials":  # the plan's set, under the NeXus-safe name of its dataset
+        assert cols["plan_set_"] == [first["plan"]["set"], "fit", "validation"]

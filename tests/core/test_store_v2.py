@@ -174,7 +174,7 @@ def test_version_1_files_read_as_labcli_0_1_read_them(invoke, name, tmp_path, mo
     assert got == (V1 / f"{name}.csv").read_text()
 
 
-def test_adding_to_a_version_1_file_copies_it_into_version_2(tmp_path):
+def test_adding_to_a_version_1_file_copies_it_into_the_current_schema(tmp_path):
     path = str(tmp_path / "force.h5")
     shutil.copy(V1 / "force.h5", path)
     with RunFile.open(path) as run:
@@ -182,20 +182,23 @@ def test_adding_to_a_version_1_file_copies_it_into_version_2(tmp_path):
         ids = run.records.ids()
         models = run.models.all()
     with RunFile.open(path, "a") as run:
-        assert run.version == 2
+        assert run.version == 3
         run.records.write(make_record(200))
     with RunFile.open(path) as run:
         assert run.records.ids() == ids + [200]
         assert run.records.table().iloc[: len(ids)].equals(before)
         assert run.models.all() == models
     with h5py.File(path, "r") as f:
-        assert f.attrs["schema_version"] == 2
+        assert f["entry/labcli"].attrs["schema_version"] == 3 and "schema_version" not in f.attrs
     assert not [p for p in os.listdir(tmp_path) if p != "force.h5"]  # no partial file left behind
 
 
 def test_sample_runs_still_read():
     for name in ("force", "pushes", "stretch", "joint"):
         with RunFile.open(ROOT / "sample_runs" / f"{name}.h5") as run:
+            assert run.version == 2  # metadata as /entry's attributes, read into the same keys as schema 3's
+            assert run.attrs["run_uid"] and run.attrs["start_time"] and run.attrs["protocol"]
+            assert run.protocol_text and len(run.calibration()["gain"]) == len(run.channels)
             assert len(run.records.ids()) > 0
             assert len(run.records.table()) == len(run.records.ids())
 
@@ -213,28 +216,45 @@ def test_nexus_the_way_h5py_users_read_it(tmp_path):
         run.records.write(make_record(2))
     strings: list[str] = []
     units: dict[str, str] = {}
-    with h5py.File(path, "r") as f:
-        assert f.attrs["NX_class"] == "NXroot" and f.attrs["file_name"] == "run.h5"
-        entry = f[f.attrs["default"]]
-        assert entry.attrs["NX_class"] == "NXentry"
-        assert uuid.UUID(entry.attrs["run_uid"]).version == 4
-        assert datetime.datetime.fromisoformat(entry.attrs["start_time"]).utcoffset() is not None
+    with h5py.File(path, "r") as f:  # texts are fixed-length UTF-8: h5py gives them as bytes
+        assert f.attrs["NX_class"] == b"NXroot" and f.attrs["file_name"] == b"run.h5"
+        entry = f[f.attrs["default"].decode()]
+        assert entry.attrs["NX_class"] == b"NXentry"
+        # NeXus terms as NeXus fields; labcli's own items in an NXcollection
+        assert uuid.UUID(entry["entry_identifier"][0].decode()).version == 4
+        assert datetime.datetime.fromisoformat(entry["start_time"][0].decode()).utcoffset() is not None
+        assert entry["program_name"][0] == b"labcli" and entry["program_name"].attrs["version"]
+        assert entry["instrument/name"][0] == b"mckibben-2dof" and entry["user"].attrs["NX_class"] == b"NXuser"
+        assert entry["labcli"].attrs["NX_class"] == b"NXcollection" and entry["labcli"].attrs["kind"] == b"force"
         assert set(entry["versions"].attrs) >= {"python", "numpy", "h5py", "hdf5", "labcli"}
-        data = entry[entry.attrs["default"]]
-        assert data.attrs["NX_class"] == "NXdata"
-        signal = data[data.attrs["signal"]]
-        assert signal.attrs["units"] == "MPa" and signal.shape == (2, 4)
-        np.testing.assert_array_equal(signal[1], make_record(2)["P_MPa"])
-        assert data.attrs["axes"][0] == "trial" and list(data["trial"][:]) == [1, 2]
+        table = entry["trials"]
+        assert table.attrs["NX_class"] == b"NXcollection"
+        assert table["P"].attrs["units"] == b"MPa" and table["P"].shape == (2, 4)
+        np.testing.assert_array_equal(table["P"][1], make_record(2)["P_MPa"])
+        assert list(table["trial"][:]) == [1, 2]
+        # the default plot: the pressures logged over the run against device time, the raw log's own data
+        plot = entry[entry.attrs["default"].decode()]
+        assert plot.attrs["NX_class"] == b"NXdata" and plot.attrs["signal"] == b"P_L1"
+        assert list(plot.attrs["axes"]) == [b"time"] and list(plot.attrs["auxiliary_signals"]) == [
+            b"P_R1",
+            b"P_L2",
+            b"P_R2",
+        ]
+        assert plot["P_L1"] == entry["raw/P_L1/value"] and plot["time"] == entry["raw/time"]  # the same datasets
+        assert plot["P_L1"].attrs["units"] == b"MPa" and plot["time"].attrs["units"] == b"s"
+        # the plan's set is no NeXus set point (a field plan_set would be one): stored as plan_set_
+        assert b"plan_set_" in list(table.attrs["columns"]) and "plan_set_" in table and "plan_set" not in table
 
         def visit(name, obj):
             for v in obj.attrs.values():
                 strings.extend(str(x) for x in np.atleast_1d(v))
             if isinstance(obj, h5py.Dataset):
-                units[name] = obj.attrs["units"]
+                if obj.dtype.kind != "S":  # a text has no unit
+                    units[name] = obj.attrs["units"].decode()
 
         f.visititems(visit)
-    assert all("," not in u for u in units.values()), units  # one unit per dataset
+    # one unit per dataset, but the session log's calibration per channel: each channel's
+    assert all("," not in u for k, u in units.items() if not k.startswith("entry/sessions/")), units
     assert not [s for s in strings if str(tmp_path) in s]  # no path of the writer's machine
 
 

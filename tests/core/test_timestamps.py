@@ -125,7 +125,7 @@ def test_a_new_run_writes_every_time_in_the_one_format(toy_paper, tmp_path, invo
     assert result.exit_code == 0, result.output
     times = stored_times(run)
     # The file's own times, each record's start and end, the session log's events.
-    assert {"/@file_time", "entry@start_time", "entry/trials/started", "entry/trials/ended"} <= set(times)
+    assert {"/@file_time", "entry/start_time", "entry/trials/started", "entry/trials/ended"} <= set(times)
     assert any(w.endswith("/time") for w in times), sorted(times)
     for where, values in times.items():
         for v in values:

@@ -4,6 +4,7 @@
   unattended on the simulated rig, virtual clock), an imported run and a schema-1 run upgraded
   by a write: every kind of file labcli writes today.  A new stream joins by adding its builder.
 * :func:`frictionless_problems`: what Frictionless finds wrong with a CSV's sidecar.
+* :func:`nxinspect_counts`, :func:`punx_errors`: what the NeXus validators find in a run file.
 
 The validator is a test extra (pyproject ``test``); a test that needs it skips, saying so,
 where it is not installed.
@@ -14,7 +15,11 @@ from __future__ import annotations
 import importlib.util
 import io
 import json
+import os
+import re
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -95,3 +100,52 @@ def frictionless_problems(sidecar: Path) -> list[str]:
 
     report = Resource(json.loads(sidecar.read_text()), basepath=str(sidecar.parent)).validate()
     return [e.message for e in report.errors] + [e.message for task in report.tasks for e in task.errors]
+
+
+# The NeXus validators are command-line tools with dependencies of their own (nxvalidate
+# 0.3.5b3, punx 0.3.5), so they live in any environment of the lab's choosing: on PATH, or in
+# the bin directory LABCLI_NEXUS_VALIDATORS names.  A test that needs one skips, saying so.
+VALIDATORS = {"nxinspect": "nxvalidate==0.3.5b3", "punx": "punx==0.3.5"}
+ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def validator(name: str) -> str:
+    """The path of the validator ``name``, or skip the calling test naming where to get it."""
+    folder = os.environ.get("LABCLI_NEXUS_VALIDATORS")
+    found = shutil.which(name, path=folder) if folder else shutil.which(name)
+    if found is None:
+        pytest.skip(
+            f"{name} is not installed (pip install '{VALIDATORS[name]}' into any environment, then put its "
+            "bin directory on PATH or in LABCLI_NEXUS_VALIDATORS)"
+        )
+    return found
+
+
+def _interpreter(script: str) -> str:
+    """The Python a console script runs in (its #! line)."""
+    first = Path(script).read_text(encoding="utf-8", errors="replace").splitlines()[0]
+    return first[2:].strip() if first.startswith("#!") else sys.executable
+
+
+def nxinspect_counts(path: Path) -> tuple[int, int, str]:
+    """nxvalidate's nxinspect on ``path``: (warnings, errors, its report).  nxinspect sizes its
+    output to the terminal, so it runs with a terminal size given (none exists under pytest)."""
+    script = validator("nxinspect")
+    code = (
+        "import os, sys; os.get_terminal_size = lambda *a: os.terminal_size((200, 50)); "
+        f"sys.argv = ['nxinspect', '-f', {str(path)!r}, '-w']; "
+        "from nxvalidate.scripts.nxinspect import main; main()"
+    )
+    out = subprocess.run([_interpreter(script), "-c", code], capture_output=True, text=True, timeout=300)
+    report = ANSI.sub("", out.stdout + out.stderr)
+    counts = {k: re.search(rf"Total number of {k}: (\d+)", report) for k in ("warnings", "errors")}
+    assert out.returncode == 0 and all(counts.values()), report[-2000:]
+    return int(counts["warnings"][1]), int(counts["errors"][1]), report  # type: ignore[index]
+
+
+def punx_errors(path: Path) -> tuple[int, str]:
+    """punx's ERROR count for ``path`` (its summary statistics), and the ERROR lines."""
+    out = subprocess.run([validator("punx"), "validate", str(path)], capture_output=True, text=True, timeout=300)
+    m = re.search(r"^ERROR\s+(\d+)\s", out.stdout, re.M)
+    assert out.returncode == 0 and m, (out.stdout + out.stderr)[-2000:]
+    return int(m[1]), "\n".join(x for x in out.stdout.splitlines() if " ERROR " in x)

@@ -31,13 +31,15 @@ def blob_checksum(values: np.ndarray) -> int:
     return int(row_checksums([v.view(np.uint8).reshape(1, -1)], 0)[0])
 
 
-def blob_read(ds: h5py.Dataset, start: int, stop: int, checksum: int) -> np.ndarray | None:
-    """The blob's values ``[start, stop)``, or None when they do not match their checksum."""
+def blob_read(g: h5py.Group, name: str, start: int, stop: int, checksum: int) -> np.ndarray | None:
+    """Values ``[start, stop)`` of the blob ``g[name]``, or None when they do not match their checksum
+    or HDF5 cannot read them (a damaged dataset header fails as KeyError or TypeError too)."""
     try:
+        ds = g[name]
         if not 0 <= start <= stop <= ds.shape[0]:
             return None
         values = ds[start:stop]
-    except (OSError, ValueError, RuntimeError):
+    except (OSError, ValueError, RuntimeError, KeyError, TypeError):
         return None
     return values if blob_checksum(values) == int(checksum) else None
 

@@ -19,6 +19,12 @@ Rows are never changed or removed.  A reader reads ``@committed`` first, then th
 checks each row's checksum: a row that fails it is damaged (named, left out), a row with
 checksum 0 is a gap.  A chunk whose Fletcher32 check fails is read again without the check,
 so that one damaged row does not take the rows sharing its chunk with it.
+
+A column whose name ends in a suffix NeXus reserves for a field's companions (``_set``,
+``_errors``, ``_weights``, ``_mask``: ``plan_set`` would read as the set point of a field
+``plan``) is stored as a dataset with one more ``_`` (``plan_set_``), and ``@columns`` names
+the datasets, so a reader with h5py alone finds each one; labcli reads it back under the
+column's own name.  Files of schema 2 and earlier hold the names as they are.
 """
 
 from __future__ import annotations
@@ -30,9 +36,11 @@ from typing import Any
 import h5py
 import numpy as np
 
+from ...errors import StoreError
 from ..files import stored_text
 from ..paper import Column
 from .checksum import Repeated, row_checksums
+from .h5 import column_name, h5_name, put
 
 FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}
 CHECKSUM = Column("checksum", "1", kind="uint", what="checksum of the row's other columns")
@@ -60,7 +68,7 @@ def create_dataset(g: h5py.Group, c: Column, chunk: int, length: int = 0, dtype:
     """A resizable dataset for column ``c`` (``length`` rows, chunked by ``chunk`` rows), with its units;
     ``dtype``: a narrower one than the column's kind stores (raw counts as int32)."""
     ds = g.create_dataset(
-        c.name,
+        h5_name(c.name),
         shape=(length, *c.shape),
         maxshape=(None, *c.shape),
         dtype=h5_dtype(c) if dtype is None else dtype,
@@ -68,11 +76,12 @@ def create_dataset(g: h5py.Group, c: Column, chunk: int, length: int = 0, dtype:
         fillvalue=fill_value(c),
         **FILTERS,
     )
-    ds.attrs["units"] = c.units
+    if c.kind != "text":  # a number has a unit ('1' for a count or an id); a text has none
+        put(ds, "units", c.units)
     if c.components:
-        ds.attrs["components"] = list(c.components)
+        put(ds, "components", list(c.components))
     if c.what:
-        ds.attrs["long_name"] = c.what
+        put(ds, "long_name", c.what)
     return ds
 
 
@@ -111,13 +120,26 @@ def append(ds: h5py.Dataset, start: int, arr: np.ndarray) -> None:
     dsid.write(h5py.h5s.create_simple(arr.shape), fspace, np.ascontiguousarray(arr, dtype=dsid.dtype))
 
 
+def _check_header(ds: h5py.Dataset) -> None:
+    """Refuse, in one sentence, a dataset whose type, shape or chunking HDF5 cannot read."""
+    try:
+        ds.dtype, ds.shape, ds.chunks  # noqa: B018 - each is read from the dataset's header
+    except Exception:  # noqa: BLE001 - a damaged header message can fail in any way
+        raise StoreError(
+            f"the dataset {ds.name} of the run file has a damaged header (HDF5 cannot read its type or "
+            "shape); check the file with labcli inspect --verify and use a backup copy."
+        ) from None
+
+
 def read_rows(ds: h5py.Dataset, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
     """Rows ``[a, b)`` of ``ds`` and a mask of rows that could not be read at all.
 
     When the whole range fails (a chunk failing its Fletcher32 check, or one HDF5 cannot
     decode), it is read again chunk by chunk, so that a damaged chunk takes only its own
     rows with it (h5py offers no way to read past a failed check); those rows are fill.
+    A dataset whose header HDF5 cannot read (its type or shape damaged) is one sentence.
     """
+    _check_header(ds)
     if ds.shape[0] < b:  # a dataset cut short (rewritten by hand): the rows it lacks are fill, unread
         have = max(a, int(ds.shape[0]))
         out, bad = np.zeros((b - a, *ds.shape[1:]), dtype=ds.dtype), np.ones(b - a, dtype=bool)
@@ -155,8 +177,9 @@ class Table:
 
     def __init__(self, g: h5py.Group) -> None:
         self.g = g
-        self.names: list[str] = [n.decode() if isinstance(n, bytes) else str(n) for n in g.attrs["columns"]]
-        self.ds: dict[str, h5py.Dataset] = {name: g[name] for name in [*self.names, CHECKSUM.name]}
+        stored = [n.decode() if isinstance(n, bytes) else str(n) for n in g.attrs["columns"]]
+        self.names: list[str] = [column_name(n) for n in stored]
+        self.ds: dict[str, h5py.Dataset] = {column_name(n): g[n] for n in [*stored, CHECKSUM.name]}
         self.chunk = int(g.attrs["chunk_rows"])
 
     @classmethod
@@ -170,8 +193,8 @@ class Table:
         length: int = 0,
     ) -> Table:
         g = parent.create_group(name)
-        g.attrs["NX_class"] = nx_class
-        g.attrs["columns"] = [c.name for c in columns]
+        put(g, "NX_class", nx_class)
+        put(g, "columns", [h5_name(c.name) for c in columns])
         g.attrs["chunk_rows"] = np.int64(chunk_rows)
         cls._set_committed(g, 0, create=True)
         for c in (*columns, CHECKSUM):

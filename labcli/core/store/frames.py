@@ -3,7 +3,8 @@
 ``/entry/raw`` holds the device time (``time``, s, unwrapped) and frame counter (``seq``) of
 every frame stored, and per channel an NXlog group (``raw/P_L1``) with the calibrated
 ``value`` (SI) and the ``raw_value`` as sent (counts, int32), its ``time`` a link to the
-shared one, and the channel's calibration (``gain``, ``offset``).  A window whose counts are
+shared one; the channel's calibration (``gain``, ``offset``) is in ``raw/calibration/<channel>``
+(in ``raw/<channel>`` up to schema 2).  A window whose counts are
 not all whole int32 numbers (a device sending decimals) keeps them exactly in the channel's
 ``raw_decimal`` (float64), written for that window's frames only, whose ``raw_value`` holds
 :data:`DECIMAL` (never a whole count, see :func:`_whole`); ``raw_decimal`` is never written
@@ -37,6 +38,7 @@ from ..paper import Column
 from ..window import FrameSource, Stats, Stored, Window
 from .checksum import frames_checksum
 from .columns import append, create_dataset, read_rows
+from .h5 import put
 
 TIME = Column("time", "s", what="device time, unwrapped")
 MOD = 1 << 64
@@ -54,23 +56,26 @@ def create(
 ) -> h5py.Group:
     """The empty ``raw`` group of a new run (see the module docstring)."""
     g = entry.create_group("raw")
-    g.attrs["NX_class"] = "NXcollection"
-    g.attrs["channels"] = list(channels)
+    put(g, "NX_class", "NXcollection")
+    put(g, "channels", list(channels))
     g.attrs["chunk_frames"] = np.int64(chunk)
     time = create_dataset(g, TIME, chunk)
     create_dataset(g, Column("seq", "1", kind="uint", what="frame counter as sent"), chunk)
+    calibration = g.create_group("calibration")  # NXlog defines no gain or offset: kept beside the logs
+    put(calibration, "NX_class", "NXcollection")
     for j, (name, unit) in enumerate(zip(channels, units, strict=False)):
         c = g.create_group(name)
-        c.attrs["NX_class"] = "NXlog"
-        c.attrs["channel"] = name
+        put(c, "NX_class", "NXlog")
         c["time"] = time  # a second name for the shared dataset (NXlog's own time axis)
         create_dataset(c, Column("value", unit, what=f"{name}, calibrated"), chunk)
         create_dataset(
             c, Column("raw_value", "counts", kind="int", what=f"{name} as sent"), chunk, dtype=np.dtype("<i4")
         )
         create_dataset(c, Column("raw_decimal", "counts", what=f"{name} as sent, where not whole"), chunk)
-        for key, v, u in (("gain", gain[j], f"{unit}/count" if unit else "1/count"), ("offset", offset[j], unit)):
-            ds = create_dataset(c, Column(key, u), 1, length=1)
+        cal = calibration.create_group(name)
+        put(cal, "NX_class", "NXcollection")
+        for key, v, u in (("gain", gain[j], f"{unit or '1'}/count"), ("offset", offset[j], unit or "1")):
+            ds = create_dataset(cal, Column(key, u), 1, length=1)
             ds[0] = v
     return g
 

@@ -19,6 +19,7 @@ from ...errors import StoreError
 from ..record import ACCEPTED, Settle
 
 EDGE_DIGITS = 12
+NEXUS_SUFFIXES = ("_set", "_errors", "_weights", "_mask")  # a field's companions in NeXus
 
 
 def to_edge(values: Any) -> np.ndarray:
@@ -51,6 +52,25 @@ def plain(v: Any) -> Any:
     if isinstance(v, np.floating):
         return float(v)
     return v
+
+
+def put(obj: Any, key: str, value: Any) -> None:
+    """Set attribute ``key`` of ``obj``; a text, or a list of texts, as fixed-length UTF-8.
+
+    h5py keeps a Python ``str`` as a variable-length string, whose bytes live in the file's
+    global heap: a heap's length field damaged by one flipped bit makes HDF5 read past its
+    buffer (a crash inside the library, no exception to catch).  A fixed-length text lives in
+    the object's header, where a damaged byte is a wrong value the metadata checksum finds.
+    """
+    if isinstance(value, (str, bytes)):
+        data = value.encode("utf-8") if isinstance(value, str) else value
+        obj.attrs.create(key, np.bytes_(data), dtype=h5py.string_dtype("utf-8", max(1, len(data))))
+    elif isinstance(value, (list, tuple)) and all(isinstance(v, (str, bytes)) for v in value):
+        items = [v.encode("utf-8") if isinstance(v, str) else v for v in value]
+        width = max([1, *map(len, items)])
+        obj.attrs.create(key, np.array(items, dtype=f"S{width}"), dtype=h5py.string_dtype("utf-8", width))
+    else:
+        obj.attrs[key] = value
 
 
 def vector(record: Mapping, key: str, n: int, what: str, label: str, *, finite: bool = True) -> np.ndarray:
@@ -95,14 +115,24 @@ def column_units(name: str, ids: Sequence[str] = ()) -> str:
     return ""
 
 
+def h5_name(name: str) -> str:
+    """The dataset name of column ``name`` (see :mod:`.columns`)."""
+    return f"{name}_" if name.endswith(NEXUS_SUFFIXES) else name
+
+
+def column_name(stored: str) -> str:
+    """The column a dataset ``stored`` holds: :func:`h5_name` undone."""
+    return stored[:-1] if stored.endswith(tuple(f"{s}_" for s in NEXUS_SUFFIXES)) else stored
+
+
 def read_columns(g: h5py.Group) -> dict[str, list]:
     out: dict[str, list] = {}
     for name in [text(c) for c in g.attrs.get("columns", list(g))]:
         ds = g[name]
         if h5py.check_string_dtype(ds.dtype) is not None:
-            out[name] = [text(v) for v in ds[()]]
+            out[column_name(name)] = [text(v) for v in ds[()]]
         else:
-            out[name] = ds[()].tolist()
+            out[column_name(name)] = ds[()].tolist()
     return out
 
 

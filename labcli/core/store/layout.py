@@ -47,9 +47,11 @@ from ..timestamps import utc_now
 from ..version import __version__
 from .columns import FILTERS, Table
 from .frames import create as create_frames
+from .h5 import put
+from .nexus import default_plot, write_metadata
 
 SCHEMA = "labcli-run"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 WINDOWS = ("baseline", "loaded")  # a record's raw windows: group names of schema 1, column prefixes here
 TIME_WIDTH = 40
 FLAGS_WIDTH = 1024  # bytes of the flags column: a few one-sentence notes per record
@@ -143,8 +145,15 @@ MODEL_COLUMNS = [
 ]
 
 
-def session_columns(k: int) -> list[Column]:
-    """The session log: one row per event; ``k`` channels for the calibration in force."""
+def per_channel(units: Sequence[str], suffix: str = "") -> str:
+    """One ``units`` attribute for a value per channel: the unit they share, else each channel's,
+    comma-separated in the channels' order."""
+    each = [f"{u or '1'}{suffix}" for u in units] or [f"1{suffix}"]
+    return each[0] if len(set(each)) == 1 else ",".join(each)
+
+
+def session_columns(k: int, units: Sequence[str] = ()) -> list[Column]:
+    """The session log: one row per event; ``k`` channels (of ``units``) for the calibration in force."""
     return [
         Column("session", "1", kind="int", what="session number, from 1"),
         text_column("event", 16, "begin, added, redone, skipped or end"),
@@ -155,8 +164,8 @@ def session_columns(k: int) -> list[Column]:
         text_column("device", 64),
         text_column("firmware", 64),
         text_column("channels", 256),
-        Column("gain", "1/count", shape=(k,), optional=True, what="calibration gain per channel (SI unit per count)"),
-        Column("offset", "", shape=(k,), optional=True, what="calibration offset per channel (SI)"),
+        Column("gain", per_channel(units, "/count"), shape=(k,), optional=True, what="calibration gain per channel"),
+        Column("offset", per_channel(units), shape=(k,), optional=True, what="calibration offset per channel"),
         text_column("command_line", 1024),
         text_column("host_name", 128),
         text_column("operator", 128),
@@ -169,8 +178,8 @@ def session_columns(k: int) -> list[Column]:
 
 def blob(parent: h5py.Group, name: str, dtype: str, chunk: int, units: str, what: str) -> h5py.Dataset:
     ds = parent.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(chunk,), **FILTERS)
-    ds.attrs["units"] = units
-    ds.attrs["long_name"] = what
+    put(ds, "units", units)
+    put(ds, "long_name", what)
     return ds
 
 
@@ -193,19 +202,6 @@ def command_line(argv: Sequence[str] | None = None) -> str:
     for a in argv[1:]:
         words.append(os.path.basename(a) if os.path.isabs(a) or os.sep in a and os.path.exists(a) else a)
     return stored_text(shlex.join(words))
-
-
-def text_dataset(parent: h5py.Group, key: str, value: str, **attrs: Any) -> h5py.Dataset:
-    """A text as a one-element fixed-length UTF-8 dataset (chunked, so Fletcher32 covers it)."""
-    data = stored_text(value).encode("utf-8")
-    ds = parent.create_dataset(
-        key, shape=(1,), dtype=h5py.string_dtype("utf-8", length=max(1, len(data))), chunks=(1,), **FILTERS
-    )
-    ds[0] = data
-    ds.attrs["units"] = ""
-    for k, v in attrs.items():
-        ds.attrs[k] = stored_text(v) if isinstance(v, str) else v
-    return ds
 
 
 def plan_columns(plan: Mapping[str, Sequence[Any]], id_column: str) -> tuple[list[Column], dict[str, Any]]:
@@ -244,13 +240,24 @@ def _plan_table(e: h5py.Group, plan: Any, id_column: str) -> None:
 
 
 def _record_table(e: h5py.Group, rt: RecordType, extras: Sequence[Column], chunk_rows: int) -> None:
-    """The empty record table, an NXdata group whose signal is the record type's."""
-    columns = record_columns(rt, extras)
-    t = Table.create(e, rt.collection, columns, chunk_rows, nx_class="NXdata")
-    t.g.attrs["signal"] = rt.signal
-    shape = next((c.shape for c in columns if c.name == rt.signal), ())
-    t.g.attrs["axes"] = [rt.id_column] + ["."] * len(shape)
-    t.g.attrs[f"{rt.id_column}_indices"] = np.int64(0)
+    """The empty record table: a collection of columns (NXdata would ask a plot of each of them)."""
+    Table.create(e, rt.collection, record_columns(rt, extras), chunk_rows)
+
+
+def _root(f: h5py.File, path: str) -> None:
+    """The root's attributes: NXroot's own terms (the file, its time, what wrote it)."""
+    root = {
+        "NX_class": "NXroot",
+        "default": "entry",
+        "file_name": stored_text(os.path.basename(path)),
+        "file_time": utc_now(),
+        "creator": "labcli",
+        "creator_version": __version__,
+        "HDF5_Version": h5py.version.hdf5_version,
+        "h5py_version": h5py.version.version,
+    }
+    for key, value in root.items():
+        put(f, key, value)
 
 
 def initialise(
@@ -275,53 +282,51 @@ def initialise(
     calibration: tuple[np.ndarray, np.ndarray, list[str]],
 ) -> None:
     """Build the structure of a new run in ``f`` (empty tables, metadata, protocol, plan)."""
-    a = f.attrs
-    a["NX_class"], a["default"] = "NXroot", "entry"
-    a["schema"], a["schema_version"] = SCHEMA, SCHEMA_VERSION
-    a["file_name"], a["file_time"] = stored_text(os.path.basename(path)), utc_now()
-    a["creator"] = f"labcli {__version__}"
-    a["HDF5_Version"], a["h5py_version"] = h5py.version.hdf5_version, h5py.version.version
+    _root(f, path)
     e = f.create_group("entry")
-    e.attrs["NX_class"], e.attrs["default"] = "NXentry", rt.collection
+    put(e, "NX_class", "NXentry")
+    name = str(getattr(protocol, "name", ""))
     meta = {
-        "kind": kind,
-        "protocol": str(getattr(protocol, "name", "")),
+        "title": f"{kind} run, protocol {name}" if name else f"{kind} run",
         "run_uid": str(uuid.uuid4()),
         "start_time": started or utc_now(),
         "program_name": "labcli",
         "program_version": __version__,
         "command_line": command_line() if command is None else command,
-        "host_name": socket.gethostname(),
         "operator": str(operator or ""),
         "device": str(getattr(device_info, "device", "") or ""),
+    }
+    own = {
+        "schema": SCHEMA,
+        "schema_version": np.int64(SCHEMA_VERSION),
+        "kind": kind,
+        "protocol": name,
+        "host_name": socket.gethostname(),
         "firmware": str(getattr(device_info, "firmware", "") or ""),
         "port": str(port or getattr(device_info, "port", "") or ""),
         "source": os.path.basename(str(source)),
+        "channels": [stored_text(c) for c in channels],
+        "imported": np.int8(bool(imported)),  # 0 or 1: HDF5 keeps a bool as an enum type other tools warn about
     }
-    for key, value in meta.items():
-        e.attrs[key] = stored_text(value)
-    e.attrs["channels"] = list(channels)
-    e.attrs["imported"] = bool(imported)
-    v = e.create_group("versions")
-    v.attrs["NX_class"] = "NXcollection"
-    for key, value in versions().items():
-        v.attrs[key] = value
     proto_path = getattr(protocol, "path", None)
-    text_dataset(
-        e,
-        "protocol",
-        str(getattr(protocol, "text", "")),
-        name=str(getattr(protocol, "name", "")),
-        kind=kind,
-        file_name=os.path.basename(str(proto_path)) if proto_path else "",
-    )
+    protocol_attrs = {
+        "name": name,
+        "kind": kind,
+        "file_name": os.path.basename(str(proto_path)) if proto_path else "",
+    }
+    write_metadata(e, meta, own, str(getattr(protocol, "text", "")), protocol_attrs)
+    v = e.create_group("versions")
+    put(v, "NX_class", "NXcollection")
+    for key, value in versions().items():
+        put(v, key, value)
     if plan is not None:
         _plan_table(e, plan, rt.id_column)
     _record_table(e, rt, extras, chunk_rows)
     gain, offset, units = calibration
     create_frames(e, channels, units, gain, offset, chunk_frames)
+    default_plot(e)
     s = Table.create(e, "split", SPLIT_COLUMNS, 1)
     blob(s.g, "ids", "<i8", 256, "1", "fit ids, then validation ids, of each split")
     m = Table.create(e, "models", MODEL_COLUMNS, 1)
-    blob(m.g, "json", "u1", 4096, "", "each model's JSON as UTF-8 bytes")
-    Table.create(e, "sessions", session_columns(len(channels)), 1)
+    blob(m.g, "json", "u1", 4096, "1", "each model's JSON as UTF-8 bytes")
+    Table.create(e, "sessions", session_columns(len(channels), units), 1)

@@ -93,7 +93,8 @@ def read_models(t: Table) -> tuple[dict[str, str], list[str]]:
     c = rows.cols
     for i in range(len(rows.rows)):
         name = cell_text(c["name"][i])
-        data = blob_read(t.g["json"], int(c["json_start"][i]), int(c["json_stop"][i]), int(c["json_checksum"][i]))
+        a, b = int(c["json_start"][i]), int(c["json_stop"][i])
+        data = blob_read(t.g, "json", a, b, int(c["json_checksum"][i]))
         if data is None:
             problems.append(
                 f"the JSON of model {name} recorded {cell_text(c['created'][i])} does not match its checksum"

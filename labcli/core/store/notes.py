@@ -28,6 +28,7 @@ from ..timestamps import utc_now
 from .blobs import cell_text
 from .columns import Table
 from .layout import TIME_WIDTH, text_column
+from .nexus import home
 from .opening import metadata_checksum, metadata_ok
 
 if TYPE_CHECKING:
@@ -120,7 +121,7 @@ class Notes:
         run.writer.reserve(64 * 1024, "the note")
         with run.writer.writing("the note"):
             t = Table.create(run.h5["entry"], GROUP, NOTE_COLUMNS, 16)
-            run.h5.attrs.modify("metadata_checksum", np.uint64(metadata_checksum(run.h5)))
+            home(run.h5).modify("metadata_checksum", np.uint64(metadata_checksum(run.h5)))
             run.writer.sync()
         return t
 

@@ -24,13 +24,15 @@ from .frames import Frames
 from .h5 import text
 from .journal import JournalFile, journal_path, lock, recover, replay
 from .layout import SCHEMA, SCHEMA_VERSION, common_columns, record_columns, window_columns
+from .nexus import field_parts, home
 
 # Attributes a commit changes in place: left out of the metadata's checksum.
 MUTABLE_ATTRS = ("committed", "committed_checksum", "metadata_checksum")
 
 
 def metadata_checksum(f: h5py.File) -> int:
-    """A checksum over every attribute in the file but the commit counters (fixed at creation)."""
+    """A checksum over every attribute in the file but the commit counters, and over the NeXus
+    metadata fields of schema 3 (all fixed at creation)."""
     parts: list[bytes] = []
 
     def add(name: str, obj: Any) -> None:
@@ -46,14 +48,15 @@ def metadata_checksum(f: h5py.File) -> int:
 
     add("/", f)
     f.visititems(add)
+    parts += field_parts(f)
     blob = np.frombuffer(b"\x1e".join(parts), dtype=np.uint8)
     return int(row_checksums([blob.reshape(1, -1)], 0)[0])
 
 
 def metadata_ok(f: h5py.File) -> bool:
-    """Whether a schema-2 file's attributes match the checksum taken when it was created."""
+    """Whether a file's metadata (schema 2 and later) match the checksum taken when it was created."""
     try:
-        return int(f.attrs["metadata_checksum"]) == metadata_checksum(f)
+        return int(home(f)["metadata_checksum"]) == metadata_checksum(f)
     except Exception:  # noqa: BLE001 - a damaged attribute can fail in any way
         return False
 
@@ -87,7 +90,8 @@ def open_error(path: str, e: OSError) -> str:
 
 def check_schema(f: h5py.File, path: str) -> int:
     """The file's schema version, refused in one sentence unless this labcli reads it."""
-    schema, version = f.attrs.get("schema"), f.attrs.get("schema_version")
+    where = home(f)  # the root up to schema 2, /entry/labcli from schema 3
+    schema, version = where.get("schema"), where.get("schema_version")
     if schema is None or text(schema) != SCHEMA:
         found = "no schema attribute" if schema is None else f"schema {text(schema)!r}"
         raise StoreError(f"{path} is an HDF5 file but not a labcli run file ({found}, expected '{SCHEMA}').")

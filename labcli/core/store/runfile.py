@@ -61,6 +61,7 @@ from .h5 import calibration_arrays, plain, text
 from .journal import JournalFile, lock
 from .layout import initialise
 from .models import Models
+from .nexus import PROTOCOL, home, read_metadata
 from .notes import Notes
 from .opening import (
     MUTABLE_ATTRS,
@@ -113,9 +114,9 @@ class RunFile:
         self.io = io  # a writer's file, under HDF5 (:mod:`.journal`)
         self._tmp: str | None = None
         self._staged: tuple[bool, str] | None = None
-        root = h5.attrs
+        root = home(h5)
         self.version = int(root.get("schema_version", 1))
-        where = root if self.version == 1 else h5["entry"].attrs
+        where = h5.attrs if self.version == 1 else root if self.version >= 3 else h5["entry"].attrs
         kind = text(where["kind"]) if "kind" in where else untagged_run_kind()
         self.channels: tuple[str, ...] = tuple(text(c) for c in where.get("channels", ()))
         try:
@@ -205,7 +206,7 @@ class RunFile:
                 extras=list(extras),
                 calibration=calibration or calibration_arrays(protocol, len(channels)),
             )
-            f.attrs["metadata_checksum"] = np.uint64(metadata_checksum(f))
+            home(f)["metadata_checksum"] = np.uint64(metadata_checksum(f))
             f.flush()
             io.checkpoint()
             run = cls(f, path, "a", io)
@@ -375,19 +376,32 @@ class RunFile:
         if self.v1 is not None:
             return self.v1.attrs()
         root = {k: v for k, v in self._attrs_at("/").items() if k not in MUTABLE_ATTRS}
-        e = self._attrs_at("entry")
+        e = {k: v for k, v in self._metadata().items() if k not in MUTABLE_ATTRS}
         out = {
-            "schema": root.get("schema"),
-            "schema_version": root.get("schema_version"),
+            "schema": root.get("schema", e.get("schema")),
+            "schema_version": root.get("schema_version", e.get("schema_version")),
             "labcli_version": e.get("program_version", ""),
             "started": e.get("start_time", ""),
             **e,
         }
         out["versions"] = {k: v for k, v in self._attrs_at("entry/versions").items() if k != "NX_class"}
         out["file_name"], out["file_time"] = root.get("file_name", ""), root.get("file_time", "")
-        out.pop("NX_class", None)
-        out.pop("default", None)
+        for key in ("NX_class", "default", "title"):
+            out.pop(key, None)
         return out
+
+    def _metadata(self) -> dict[str, Any]:
+        """The run's metadata: ``/entry``'s attributes up to schema 2, its NeXus fields and
+        ``/entry/labcli`` from schema 3; one sentence when HDF5 cannot read them."""
+        if self.version < 3:
+            return self._attrs_at("entry")
+        try:
+            return read_metadata(self.h5["entry"])
+        except Exception:  # noqa: BLE001 - a damaged attribute or field can fail in any way
+            raise StoreError(
+                f"{self.path}: the run's metadata cannot be read (a damaged field or attribute of /entry); "
+                "check the file with labcli inspect --verify and use a backup copy."
+            ) from None
 
     def _attrs_at(self, where: str) -> dict[str, Any]:
         """The attributes of the group ``where`` as plain values; {} when the group is not there
@@ -412,7 +426,8 @@ class RunFile:
         if self.v1 is not None:
             return self.v1.protocol_text()
         try:
-            return self.h5["entry/protocol"][0].decode("utf-8")
+            where = "entry/protocol" if self.version == 2 else f"entry/{PROTOCOL}"
+            return self.h5[where][0].decode("utf-8")
         except (OSError, ValueError, KeyError, UnicodeDecodeError):
             raise StoreError(
                 f"{self.path}: its copy of the protocol is damaged (it fails its checksum); use a backup copy."
@@ -423,8 +438,9 @@ class RunFile:
         if self.v1 is not None:
             return self.v1.calibration()
         raw = self.h5["entry/raw"]
-        gain = np.array([raw[c]["gain"][0] for c in self.channels])
-        offset = np.array([raw[c]["offset"][0] for c in self.channels])
+        cal = raw if self.version == 2 else raw["calibration"]
+        gain = np.array([cal[c]["gain"][0] for c in self.channels])
+        offset = np.array([cal[c]["offset"][0] for c in self.channels])
         units = tuple(text(raw[c]["value"].attrs["units"]) for c in self.channels)
         return {"channels": self.channels, "gain": gain, "offset": offset, "units": units}
 

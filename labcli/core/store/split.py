@@ -132,7 +132,7 @@ def read_split(t: Table) -> tuple[Split | None, list[str]]:
     c = rows.cols
     for i in range(len(rows.rows) - 1, -1, -1):
         a, m, b = int(c["fit_start"][i]), int(c["fit_stop"][i]), int(c["validation_stop"][i])
-        ids = blob_read(t.g["ids"], a, b, int(c["ids_checksum"][i]))
+        ids = blob_read(t.g, "ids", a, b, int(c["ids_checksum"][i]))
         if ids is None:
             problems.append(f"the ids of split {i + 1} do not match their checksum")
             continue

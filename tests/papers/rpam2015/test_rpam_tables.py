@@ -175,7 +175,7 @@ def test_a_stretch_table_without_lambda_gets_it_from_the_protocols_rest_length(t
     with h5py.File(out) as f:
         row = list(f["entry/points/point"][:]).index(1)
         assert f["entry/points/mass"][row] == pytest.approx(0.1, rel=1e-15)
-        assert f["entry/points/mass"].attrs["units"] == "kg"
+        assert f["entry/points/mass"].attrs["units"] == b"kg"
 
 
 def test_a_joint_table_without_baseline_or_length_keeps_what_it_has(tmp_path):
