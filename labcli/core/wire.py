@@ -17,7 +17,8 @@ count it and move on.
 
 :func:`parse_line` is the reference: short, line by line, obviously right.
 :class:`StreamReader` parses whole chunks at once with numpy for the common
-line (unsigned integer values) and hands every other line to
+line (unsigned integer values; a chunk of nothing else in one pass,
+:mod:`labcli.core.wirechunk`) and hands every other line to
 :func:`parse_line`, so both paths agree by construction on everything but the
 fast path's own checks, which the property tests compare line by line.
 """
@@ -35,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from .boardlines import ESTIMATE_KIND, EVENT_KIND, Estimate, Event, parse_board_fields
+from .wirechunk import whole_chunk
 
 MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
 OVERLONG = f"line longer than {MAX_LINE} bytes"  # Noise reasons the reader counts apart
@@ -403,10 +405,12 @@ class StreamReader:
                 offset = nl + 1
         if offset < len(block):
             rest = block[offset:] if offset else block
-            if rest.count(b"\n") < _MIN_VECTOR_LINES:
-                batches.append(self._parse_lines(rest))
-            else:
-                batches.append(self._parse_vectorised(rest))
+            n_lines = rest.count(b"\n")
+            clean = n_lines >= _MIN_VECTOR_LINES and whole_chunk(rest, n_lines, self.n_channels or 0, MAX_LINE)
+            if clean:
+                self.lines += n_lines
+            parse = self._parse_lines if n_lines < _MIN_VECTOR_LINES else self._parse_vectorised
+            batches.append(FrameBatch(*clean) if clean else parse(rest))
         batch = FrameBatch.concat(batches, self.n_channels or 0)
         self._count_frames(batch)
         return batch

@@ -1,15 +1,20 @@
 """End to end over a pseudo-terminal: the simulated rig at 1 kHz x 6 channels.
 
-Run:  python tests/benchmarks/bench_link.py [--seconds 60] [--baseline-seconds 10] [--rate 1000]
-                                       [--faults KIND:RATE[@X],...]
+Run:  python tests/benchmarks/bench_link.py [--seconds 10] [--rounds 5] [--rate 1000]
+                                       [--faults KIND:RATE[@X],...] [--figures FILE]
 
 The rig runs in its own process (``labcli sim --pty``, wall clock), as a
 microcontroller would; this process is the host.  Measured per path, over the
 same pty in the same run:
 
-* labcli: ``Device`` (the stream reader, chunked reads) for ``--seconds``;
-* baseline: pyserial ``readline()`` + :func:`labcli.core.wire.parse_line` per line,
-  what a first host usually looks like, for ``--baseline-seconds``.
+* labcli: ``Device`` (the stream reader, chunked reads);
+* baseline: a raw ``port.read(in_waiting)`` loop and the numpy parser of
+  ``bench_reader.py`` (non-digits blanked, one ``fromstring`` per read; no checksum, no
+  noise handling), the floor a host written by hand could reach.
+
+Each path runs in a fresh process (``--child``) for ``--seconds``; the two alternate for
+``--rounds`` rounds (the order flipping every round) and each figure is the median.  The
+host's CPU is the child's ``time.process_time`` over its reading loop.
 
 Every wait has a deadline: the rig's start (``START_S``), each read (0.25 s),
 the reply to ``STOP`` (``STOP_REPLY_S`` after it was sent, however far behind the
@@ -19,29 +24,32 @@ run fails (exit 1) when the labcli path loses frames without faults.  The simula
 
 Reported: frames, frames/s, lost frames (must be 0 without faults), and the
 host's CPU share (``time.process_time`` over wall time), plus the ratio of CPU
-per frame labcli / baseline, and the rig process's own CPU share
-(``getrusage(RUSAGE_CHILDREN)``).  With ``--faults`` only the labcli path runs
+per frame labcli / baseline (median of the rounds' ratios; the target is 2 or less),
+and the machine's load average.  With ``--faults`` only the labcli path runs
 and its counters are compared with what the rig reports it injected.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import re
 import resource
 import select
 import signal
+import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import serial  # noqa: E402
 
 from labcli.core.device import Device  # noqa: E402
-from labcli.core.wire import Frame, Noise, parse_line  # noqa: E402
 
 START_S = 15.0  # the rig process prints its port within this (imports on a busy machine)
 STOP_REPLY_S = 5.0  # OK STOP arrives within this after STOP, the backlog drained
@@ -101,15 +109,20 @@ def run_labcli(path: str, rate: float, seconds: float) -> dict:
     }
 
 
-def run_readline(path: str, rate: float, seconds: float) -> dict:
+def run_raw_numpy(path: str, rate: float, seconds: float) -> dict:
+    """Raw reads and the one-``fromstring`` parser: what the reader is held to."""
+    from bench_reader import K, numpy_rows  # the same parser as bench_reader's baseline
+
     port = serial.Serial(path, timeout=0.25)
     try:
         port.write(f"RATE {rate:g}\n".encode())
+        time.sleep(0.2)
         port.reset_input_buffer()
         c0, w0 = time.process_time(), time.monotonic()
         port.write(b"START\n")
-        frames = lost = bad = malformed = 0
+        frames = lost = 0
         last = None
+        pending = b""
         stop_deadline = None  # set when STOP is written
         stop_reply = False
         while True:
@@ -119,50 +132,74 @@ def run_readline(path: str, rate: float, seconds: float) -> dict:
                 stop_deadline = now + STOP_REPLY_S
             elif stop_deadline is not None and now > stop_deadline:
                 break  # the reply never came: reported below, not waited for
-            line = port.readline()
-            p = parse_line(line, 6)
-            if isinstance(p, Frame):
-                frames += 1
-                if last is not None:
-                    lost += (p.seq - last - 1) % (1 << 32)
-                last = p.seq
-            elif isinstance(p, Noise) and line:
-                bad += p.reason == "bad checksum"
-                malformed += p.reason != "bad checksum"
-            elif stop_deadline is not None and line.startswith(b"OK STOP"):
-                stop_reply = True
+            buf = pending + port.read(port.in_waiting or 1)
+            cut = buf.rfind(b"\n") + 1
+            pending = buf[cut:]
+            if not cut:
+                continue
+            block = buf[:cut]
+            if b"O" in block or b"#" in block:  # a reply ("OK START", "OK STOP") or a log line
+                stop_reply = stop_deadline is not None and b"OK STOP" in block
+                block = b"".join(x for x in block.splitlines(True) if x.startswith(b"$"))
+            rows = numpy_rows(block, K)
+            if len(rows):
+                seq = rows[:, 0]
+                frames += len(seq)
+                first = int(seq[0]) if last is None else last + 1
+                lost += int(seq[-1]) - first + 1 - len(seq)
+                last = int(seq[-1])
+            if stop_reply:
                 break
         cpu, wall = time.process_time() - c0, time.monotonic() - w0
     finally:
         port.close()
     return {
-        "path": "pyserial readline",
+        "path": "raw read + numpy",
         "wall": wall,
         "cpu": cpu,
         "frames": frames,
         "lost": lost,
-        "bad_checksum": bad,
-        "malformed": malformed,
+        "bad_checksum": 0,
+        "malformed": 0,
         "overlong": 0,
         "stop_reply": stop_reply,
     }
 
 
+def child(which: str, path: str, rate: float, seconds: float) -> None:
+    row = run_labcli(path, rate, seconds) if which == "labcli" else run_raw_numpy(path, rate, seconds)
+    print(json.dumps(row))
+
+
+def run_child(which: str, path: str, rate: float, seconds: float) -> dict:
+    cmd = [sys.executable, __file__, "--child", which, "--port", path, "--rate", f"{rate:g}"]
+    out = subprocess.run(cmd + ["--seconds", f"{seconds:g}"], check=True, capture_output=True, text=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=60.0, help="labcli path duration, s")
-    ap.add_argument("--baseline-seconds", type=float, default=10.0, help="readline baseline duration, s (0: skip)")
+    ap.add_argument("--seconds", type=float, default=10.0, help="duration of each path in each round, s")
+    ap.add_argument("--rounds", type=int, default=5, help="rounds, each path once a round (fresh processes)")
     ap.add_argument("--rate", type=float, default=1000.0, help="frames per second")
-    ap.add_argument("--faults", default="", help="fault specification for the rig (labcli path only)")
+    ap.add_argument("--faults", default="", help="fault specification for the rig (labcli path only, one round)")
+    ap.add_argument("--figures", default=None, help="write the figures to this JSON file ({name: value})")
+    ap.add_argument("--child", choices=("labcli", "raw"), help=argparse.SUPPRESS)
+    ap.add_argument("--port", help=argparse.SUPPRESS)
     a = ap.parse_args()
+    if a.child:
+        child(a.child, a.port, a.rate, a.seconds)
+        return
 
     t_start = time.monotonic()
+    load = os.getloadavg()
     proc, path = start_rig(a.rate, a.faults)
-    rows = []
+    rounds: list[list[dict]] = []
     try:
-        rows.append(run_labcli(path, a.rate, a.seconds))
-        if a.baseline_seconds > 0 and not a.faults:
-            rows.append(run_readline(path, a.rate, a.baseline_seconds))
+        for r in range(1 if a.faults else a.rounds):
+            order = ("labcli",) if a.faults else ("labcli", "raw") if r % 2 == 0 else ("raw", "labcli")
+            got = {w: run_child(w, path, a.rate, a.seconds) for w in order}
+            rounds.append([got[w] for w in ("labcli", "raw") if w in got])
     finally:
         out = stop_rig(proc)
     rig_wall = time.monotonic() - t_start
@@ -170,22 +207,42 @@ def main() -> None:
     rig_cpu_s = rig_cpu.ru_utime + rig_cpu.ru_stime
 
     print(f"Rig wire link over a pty, {a.rate:g} Hz x 6 channels{', faults ' + a.faults if a.faults else ''}")
+    print(f"{len(rounds)} round(s) of {a.seconds:g} s per path, fresh processes, interleaved; medians")
     print(
         f"{'path':<18} {'wall s':>7} {'frames':>8} {'frames/s':>9} {'lost':>6} {'bad cs':>7} "
         f"{'malformed':>9} {'CPU s':>7} {'CPU share':>9} {'CPU us/frame':>12}"
     )
-    for r in rows:
-        per = 1e6 * r["cpu"] / r["frames"] if r["frames"] else float("nan")
-        r["per"] = per
+    rows = []
+    for col in range(len(rounds[0])):
+        runs = [rd[col] for rd in rounds]
+        for rr in runs:
+            rr["per"] = 1e6 * rr["cpu"] / rr["frames"] if rr["frames"] else float("nan")
+        r = dict(runs[0])
+        for key in ("wall", "cpu", "frames", "per"):
+            r[key] = statistics.median(rr[key] for rr in runs)
+        for key in ("lost", "bad_checksum", "malformed", "overlong"):
+            r[key] = max(rr[key] for rr in runs)
+        r["stop_reply"] = all(rr.get("stop_reply", True) for rr in runs)
+        rows.append(r)
         print(
-            f"{r['path']:<18} {r['wall']:7.1f} {r['frames']:8d} {r['frames'] / r['wall']:9.1f} {r['lost']:6d} "
+            f"{r['path']:<18} {r['wall']:7.1f} {r['frames']:8.0f} {r['frames'] / r['wall']:9.1f} {r['lost']:6d} "
             f"{r['bad_checksum']:7d} {r['malformed']:9d} {r['cpu']:7.2f} {100 * r['cpu'] / r['wall']:8.2f}% "
-            f"{per:12.1f}"
+            f"{r['per']:12.1f}"
         )
+    figures: dict[str, float | str] = {}
     if len(rows) == 2:
-        print(f"CPU per frame, labcli / readline baseline: {rows[0]['per'] / rows[1]['per']:.3f}")
+        ratios = [rd[0]["per"] / rd[1]["per"] for rd in rounds]
+        ratio = statistics.median(ratios)
+        print(
+            f"CPU per frame, labcli / raw read + numpy parser: {ratio:.2f} "
+            f"(rounds {min(ratios):.2f}-{max(ratios):.2f}; target 2 or less)"
+        )
+        figures = {"labcli over raw numpy": round(ratio, 2), "labcli us per frame": round(rows[0]["per"], 1)}
+        figures["raw numpy us per frame"] = round(rows[1]["per"], 1)
+    load_after = os.getloadavg()
+    print(f"load average before {load[0]:.2f}, after {load_after[0]:.2f} (2 CPUs)")
     print(
-        f"rig process (simulator, not the host): {rig_cpu_s:.2f} s CPU over {rig_wall:.1f} s "
+        f"rig process (simulator, not the host) and the children: {rig_cpu_s:.2f} s CPU over {rig_wall:.1f} s "
         f"({100 * rig_cpu_s / rig_wall:.1f} %)"
     )
     faults_line = next((x for x in out.splitlines() if x.startswith("Faults: ")), "")
@@ -197,11 +254,24 @@ def main() -> None:
         want = tuple(int(x) for x in m.groups())
         print(f"host counters {'match' if got == want else 'DIFFER FROM'} the injected faults: {got} vs {want}")
     if not all(r.get("stop_reply", True) for r in rows):
-        # Reported, not waited for: a host slower than the link leaves a backlog behind the reply.
-        print(f"readline baseline: no 'OK STOP' within {STOP_REPLY_S:g} s of STOP (it fell behind the link)")
+        print(f"baseline: no 'OK STOP' within {STOP_REPLY_S:g} s of STOP (it fell behind the link)")
+    if a.figures and figures:
+        figures["load average"] = round(max(load[0], load_after[0]), 1)
+        figures["command"] = "python tests/benchmarks/bench_link.py " + " ".join(_without_figures(sys.argv[1:]))
+        Path(a.figures).write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n")
     if not a.faults and rows[0]["lost"]:
         print("FRAMES LOST without faults")
         sys.exit(1)
+
+
+def _without_figures(argv: list[str]) -> list[str]:
+    out = []
+    skip = False
+    for x in argv:
+        if not skip and x != "--figures" and not x.startswith("--figures="):
+            out.append(x)
+        skip = x == "--figures"
+    return out
 
 
 if __name__ == "__main__":

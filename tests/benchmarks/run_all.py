@@ -49,9 +49,11 @@ def grab(pattern: str, text: str, flags: int = re.M) -> re.Match:
 
 
 def p_reader(out: str, _: Path) -> tuple[str, str]:
-    speed = grab(r"speed-up\s*:\s*([\d.]+) x", out).group(1)
-    fps = grab(r"StreamReader\.feed\s*:\s*([\d,]+) frames/s", out).group(1)
-    return f"{speed}x faster", f"{fps} frames/s"
+    rows = re.findall(r"^\s*(\d+)\s+([\d,]+) fr/s\s+([\d,]+) fr/s\s+([\d.]+)x", out, re.M)
+    if not rows:
+        raise ValueError("no result row")
+    head = "; ".join(f"{r[3]}x the baseline's speed at {int(r[0]) // 1024} KiB" for r in rows)
+    return head, ", ".join(f"{r[2]} frames/s at {int(r[0]) // 1024} KiB" for r in rows)
 
 
 def p_store(out: str, _: Path) -> tuple[str, str]:
@@ -89,10 +91,10 @@ def p_acquire(out: str, _: Path) -> tuple[str, str]:
 
 
 def p_link(out: str, _: Path) -> tuple[str, str]:
-    ratio = grab(r"CPU per frame, labcli / readline baseline: ([\d.]+)", out).group(1)
+    ratio = grab(r"CPU per frame, labcli / raw read \+ numpy parser: ([\d.]+)", out).group(1)
     m = grab(r"^labcli Device\s+([\d.]+)\s+(\d+)\s+([\d.]+)\s+(\d+)\s+\d+\s+\d+\s+[\d.]+\s+([\d.]+)%", out)
     return (
-        f"{ratio} of readline's CPU per frame; {m.group(4)} frames lost",
+        f"{ratio}x the baseline's CPU per frame; {m.group(4)} frames lost",
         f"{m.group(3)} frames/s, host CPU {m.group(5)} %",
     )
 
@@ -219,9 +221,9 @@ BENCHES = [
     Bench(
         "reader",
         "bench_reader.py",
-        ["--frames", "50000", "--repeat", "3"],
-        "stream reader, 6-channel frames parsed from 4 KiB chunks",
-        "readline + split + per-byte XOR",
+        ["--frames", "50000", "--rounds", "3"],
+        "stream reader, 6-channel frames parsed from 4 KiB and 64 KiB chunks (CPU, fresh processes)",
+        "numpy: non-digits blanked, one fromstring per chunk, no checks",
         p_reader,
     ),
     Bench(
@@ -244,9 +246,9 @@ BENCHES = [
     Bench(
         "link",
         "bench_link.py",
-        ["--seconds", "5", "--baseline-seconds", "5"],
+        ["--seconds", "5", "--rounds", "3"],
         "pty link at 1 kHz x 6 channels, host CPU per frame",
-        "pyserial readline + parse_line",
+        "raw port.read + the numpy fromstring parser",
         p_link,
     ),
     Bench(

@@ -8,6 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from support.firmware import data_line, xor_checksum
 
+from labcli.core import wirechunk
 from labcli.core.boardlines import Estimate, Event, format_estimate, format_event
 from labcli.core.wire import (
     MAX_LINE,
@@ -335,6 +336,51 @@ def test_fast_path_agrees_with_parse_line_on_any_stream(case):
 def test_fast_path_agrees_with_parse_line_on_many_streams(case):
     stream, cuts, k = case
     assert_agrees(stream, cuts, k)
+
+
+@st.composite
+def clean_chunks(draw):
+    """Chunks of good frames (the whole-chunk path's case), then at most a few bytes changed."""
+    k = draw(st.integers(1, 14))
+    big = st.integers(0, 10 ** draw(st.sampled_from([4, 10, 18, 20])))
+    lines = []
+    for i in range(draw(st.integers(8, 30))):
+        seq = draw(st.one_of(st.just(i), u32, st.integers(U32, 10**12)))
+        vals = draw(st.lists(big, min_size=k, max_size=k))
+        body = b",".join([b"D", b"%d" % seq, b"%d" % draw(u32)] + [b"%d" % v for v in vals])
+        hh = b"%02x" % checksum(body) if draw(st.booleans()) else b"%02X" % checksum(body)
+        lines.append(b"$" + body + b"*" + hh + (b"\r\n" if draw(st.booleans()) else b"\n"))
+    stream = bytearray(b"".join(lines))
+    for _ in range(draw(st.integers(0, 2))):
+        i = draw(st.integers(0, len(stream) - 2))
+        stream[i] = draw(st.sampled_from(list(b"$D*,\r\n0123456789aAfF- .x#")) | st.integers(0, 255))
+    return bytes(stream), k
+
+
+@given(clean_chunks(), st.booleans())
+@settings(max_examples=400, suppress_health_check=[HealthCheck.too_slow])
+def test_whole_chunk_path_agrees_with_parse_line_after_any_damage(case, fixed_k):
+    stream, k = case
+    assert_agrees(stream, [], k if fixed_k else None)
+
+
+def test_whole_chunk_path_takes_a_clean_chunk_and_refuses_a_damaged_one():
+    k = 6
+    lines = [_good(i, [i, 4095, 0, 7, 10**17, 2048], crlf=i % 3 == 0) for i in range(20)]
+    block = b"".join(lines)
+    batch = wirechunk.whole_chunk(block, 20, k, MAX_LINE)
+    assert batch is not None and batch[0].tolist() == list(range(20))
+    assert batch[2][:, 4].tolist() == [1e17] * 20
+    for damaged in (
+        block.replace(b"4095", b"40a5", 1),  # a hex letter inside a value
+        block.replace(b",7,", b",-7,", 1),
+        block.replace(b",2048", b",", 1),
+        block.replace(lines[5], lines[5][:-1] + b"\r\r\n"),
+        block.replace(lines[6], lines[6][:-2] + b"0\n"),  # three checksum digits
+        block.replace(b"$D,3,", b"$D,4294967296,", 1),
+    ):
+        assert wirechunk.whole_chunk(damaged, 20, k, MAX_LINE) is None
+        assert_agrees(damaged, [], k)
 
 
 @given(st.binary(max_size=2000), st.lists(st.integers(0, 2000), max_size=20))

@@ -673,6 +673,20 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--sizes", "1e4,1e5,1e6", "--repeat", "5")},
         ),
         Source(
+            "reader",
+            "benchmark",
+            "the stream reader beside a one-fromstring numpy parser, 4 KiB and 64 KiB chunks, fresh processes",
+            script="bench_reader.py",
+            runs={"": ("--frames", "200000", "--rounds", "5")},
+        ),
+        Source(
+            "link",
+            "benchmark",
+            "the host's CPU per frame at 1 kHz over a pty beside raw reads and the numpy parser",
+            script="bench_link.py",
+            runs={"": ("--seconds", "10", "--rounds", "5")},
+        ),
+        Source(
             "store",
             "benchmark",
             "trials into the run file with fsync, with os.fsync made a no-op, and bare h5py appends",
