@@ -54,13 +54,25 @@ def fresh(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 @pytest.mark.parametrize(
     "run,name",
-    [("force.h5", "trials"), ("pushes.h5", "pushes"), ("new:force", "trials"), ("new:push", "pushes")],
+    [
+        ("force.h5", "trials"),
+        ("pushes.h5", "pushes"),
+        ("v2:float-counts.h5", "trials"),
+        ("new:force", "trials"),
+        ("new:push", "pushes"),
+    ],
 )
 def test_the_recipe_reads_what_labcli_reads(run, name, request):
-    """The sample runs (schema 2: texts as str) and runs written today (schema 3: texts as bytes)."""
+    """The sample runs, a file kept as schema 2 wrote it (texts as str) and runs written today
+    (schema 3: texts as bytes)."""
     from labcli.core.store import RunFile
 
-    path = request.getfixturevalue("fresh")[run[4:]] if run.startswith("new:") else ROOT / "sample_runs" / run
+    if run.startswith("new:"):
+        path = request.getfixturevalue("fresh")[run[4:]]
+    elif run.startswith("v2:"):
+        path = ROOT / "tests" / "data" / "v2" / run[3:]
+    else:
+        path = ROOT / "sample_runs" / run
     got = read_without_labcli(path, name)
     with RunFile.open(path) as rf:
         ids = rf.records.ids()
