@@ -30,6 +30,8 @@ def whole_chunk(block: bytes, n: int, k: int, max_line: int) -> tuple[np.ndarray
     crlf = block.count(b"\r")
     if fromstring is None or (crlf and block.count(b"\r\n") != crlf):
         return None
+    if not block.startswith(b"$D,") or block.count(b"\n$D,") != n - 1:
+        return None  # each line opens "$D,"
     # Neither digits, hex letters nor "\r": "$" k + 2 commas "*" "\n" a line, nothing else.
     if block.translate(None, _DIGITS_HEX_CR) != (b"$" + b"," * (k + 2) + b"*\n") * n:
         return None
@@ -39,19 +41,14 @@ def whole_chunk(block: bytes, n: int, k: int, max_line: int) -> tuple[np.ndarray
     nl = sep[:, k + 4]
     if sep[-1, k + 3] + 3 > nl[-1]:
         return None  # fewer than two checksum digits at the end
+    # At most max_line bytes before '\n' (a '\r' there is counted against it here).
+    if nl[0] > max_line or (nl[1:] - nl[:-1]).max(initial=0) > max_line + 1:
+        return None
     at = sep[:, _AT_COLUMNS[k]] + _AT_OFFSETS  # the 'D', both checksum digits, the byte after them
     got = a[at]
     xor = np.bitwise_xor.reduceat(a, sep[:, :: k + 3].ravel())[::2]  # '$' ^ the payload
     ok = xor == _CHECKSUM_OF[got[:, 1], got[:, 2]]
-    ok &= got[:, 0] == 68  # "$D,"
     ok &= got[:, 3] <= 13  # no third checksum digit
-    # Each line opens "$D,": its first comma 3 bytes after the last line's '\n'; at most max_line
-    # bytes long (a '\r' before its '\n' is counted against it here).
-    prev = np.empty(n, np.int64)  # the '\n' before each line
-    prev[0] = -1
-    prev[1:] = nl[:-1]
-    ok &= sep[:, 1] - prev == 3
-    ok &= nl - prev <= max_line + 1
     if not ok.all():
         return None
     blanked = bytearray(block)
@@ -63,9 +60,10 @@ def whole_chunk(block: bytes, n: int, k: int, max_line: int) -> tuple[np.ndarray
     if nums.shape[0] != n * (k + 2):
         return None
     nums = nums.reshape(n, k + 2)
-    top = nums.max(axis=0).tolist()  # fromstring saturates at 2**63 - 1 on a longer number
-    if top[0] >= _U32 or top[1] >= _U32 or max(top) == _I64_MAX:
-        return None
+    if nums.max() >= _U32:  # seq and t_us are unsigned 32-bit; a value may be larger
+        top = nums.max(axis=0).tolist()  # fromstring saturates at 2**63 - 1 on a longer number
+        if top[0] >= _U32 or top[1] >= _U32 or max(top) == _I64_MAX:
+            return None
     seq, t_us = nums[:, :2].T.copy()
     return seq, t_us, nums[:, 2:].astype(np.float64)
 
