@@ -8,7 +8,12 @@ phi from the force direction (Eqs. 39-41 as docs/errata.md reads them) and categ
 stiffness protocol's bands.  The force model's standard-error limits are lifted here, because
 the stiffness estimate has its own flags.
 
-    python tests/benchmarks/phi_bent.py [--seeds 1-3] [--angles pressure-only|measured-angles] [--figures FILE.json]
+``--rig second`` runs the same study on tests/support/second_rig.py, a forward model written from the
+paper's Eqs. 2-7 without the simulated rig's code (ideal braided muscles closed at rest, exact
+geometry a few per cent off the protocol's, potentiometer scale errors, 0.5 kPa pressure noise).
+
+    python tests/benchmarks/phi_bent.py [--seeds 1-3] [--angles pressure-only|measured-angles]
+                                        [--rig project|second] [--figures FILE.json]
 """
 
 from __future__ import annotations
@@ -19,6 +24,9 @@ from pathlib import Path
 
 import numpy as np
 from sensing_accuracy import BENT_SUPPLY_MPA, _Recorder, trials
+
+# The stiffness settings, as --max-phi-se sets them (None: the protocol's defaults).
+PARAMS: dict | None = None
 
 
 def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, int]:
@@ -46,23 +54,56 @@ def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, i
         zip(pushes["object"], [sp.settings.push.category_of(k) for k in pushes["true_stiffness_N_per_m"]], strict=False)
     )
     bands = {k: list(v) for k, v in sp.settings.push.stiffness_bands_N_per_m.items()}
-    res = classify_pushes(pushes, model, bands=bands, method="bands", angles=angles, allow_unusable=True)
+    res = classify_pushes(pushes, model, bands=bands, method="bands", angles=angles, allow_unusable=True, params=PARAMS)
     ps, objs = (res.pushes, res.objects) if "push" in res.pushes.columns else (res.objects, res.pushes)
     used = int(objs["n_used"].sum())
     right = int(sum(truth[o] == c for o, c in zip(objs["object"], objs["category"], strict=False)))
     return used, len(ps), right
 
 
+def run_second(seed: int, angles: str) -> tuple[int, int, int]:
+    """As :func:`run`, on the second forward model's bent arm (the bent plan, the six objects)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from support.second_rig import push_table, weight_trials
+
+    from labcli.core.protocol import load_protocol
+    from labcli.papers.takuma2014.models.classify import classify_pushes
+    from labcli.papers.takuma2014.models.posture import PostureModel
+    from labcli.papers.takuma2014.protocol import load_plan
+
+    proto = load_protocol("takuma2014-bent")
+    table = weight_trials(load_plan(proto), seed)
+    model = PostureModel(
+        geometry=proto.settings.rig,
+        protocol="takuma2014-stiffness",
+        limits={q: np.inf for q in ("theta1", "theta2", "Fx", "Fy")},
+    ).fit(table)
+    pushes = push_table(seed + 1000)
+    truth = dict(zip(pushes["object"], pushes["true_category"], strict=False))
+    bands = {k: list(v) for k, v in load_protocol("takuma2014-stiffness").settings.push.stiffness_bands_N_per_m.items()}
+    res = classify_pushes(pushes, model, bands=bands, method="bands", angles=angles, allow_unusable=True, params=PARAMS)
+    ps, objs = (res.pushes, res.objects) if "push" in res.pushes.columns else (res.objects, res.pushes)
+    right = int(sum(truth[o] == c for o, c in zip(objs["object"], objs["category"], strict=False)))
+    return int(objs["n_used"].sum()), len(ps), right
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1-3")
     ap.add_argument("--angles", default="pressure-only", choices=["pressure-only", "measured-angles"])
+    ap.add_argument("--rig", default="project", choices=["project", "second"])
+    ap.add_argument("--max-phi-se", type=float, help="max_phi_se_deg of the stiffness settings (deg)")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
+    global PARAMS
+    if args.max_phi_se is not None:
+        PARAMS = {"max_phi_se_deg": args.max_phi_se}
     lo, hi = (int(s) for s in args.seeds.split("-"))
     rows = []
     for seed in range(lo, hi + 1):
-        used, n, right = run(seed, args.angles)
+        used, n, right = (run_second if args.rig == "second" else run)(seed, args.angles)
         rows.append((used, n, right))
         print(
             f"seed {seed}: {used}/{n} pushes used ({100 * used / n:.0f} %), {right}/6 objects in category "
@@ -72,6 +113,7 @@ def main() -> None:
         figures = {
             "seeds": args.seeds,
             "angles": args.angles,
+            "rig": args.rig,
             "pushes per seed": rows[0][1],
             "pushes used min": min(u for u, _, _ in rows),
             "pushes used max": max(u for u, _, _ in rows),

@@ -570,6 +570,20 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--seeds", "1-10")},
         ),
         Source(
+            "phi-bent-heldout",
+            "benchmark",
+            "pushes with phi blank on the bent arm, held-out seeds 11-30",
+            script="phi_bent.py",
+            runs={"": ("--seeds", "11-30")},
+        ),
+        Source(
+            "phi-bent-second",
+            "benchmark",
+            "pushes with phi blank on the second forward model's bent arm, held-out seeds 11-30",
+            script="phi_bent.py",
+            runs={"": ("--seeds", "11-30", "--rig", "second")},
+        ),
+        Source(
             "classify-accuracy",
             "benchmark",
             "stiffness and categories over seeds 1-10",

@@ -836,3 +836,37 @@ def test_simulated_rig_end_to_end_from_pressures():
     res = classify_pushes(unknown, model, allow_unusable=True, method="bands", bands={"all": [0, None]})
     assert res.pushes["flag"].all()
     assert (res.pushes["reason"] == REASON_UNOBSERVED_DIRECTION).all()
+
+
+def test_a_solved_phi_carries_the_force_directions_standard_error():
+    """phi's standard error is phi_gain times the force direction's; a Monte Carlo over force
+    errors of that size spreads the solved phi by as much."""
+    theta0 = (0.0, math.radians(15.0))
+    th, F = forward(2000.0, CAN_R, PUSH_D, math.radians(20.0), theta0=theta0)
+    se = np.array([0.05, 0.08])  # N, Fx and Fy
+    e = estimate(th, F, theta0=theta0, force_se=[se])
+    se_alpha = math.hypot(F[1] * se[0], F[0] * se[1]) / (F @ F)
+    assert e.phi[0] == pytest.approx(math.radians(20.0), abs=1e-6)
+    assert e.phi_se[0] == pytest.approx(abs(e.phi_gain[0]) * se_alpha, rel=1e-12)
+    rng = np.random.default_rng(4)
+    noisy = F + rng.normal(0.0, 1.0, (4000, 2)) * se
+    many = estimate_pushes(
+        np.full(4000, th[0]), np.full(4000, th[1]), noisy[:, 0], noisy[:, 1], CAN_R, PUSH_D, h2=H2, h3=H3, theta0=theta0
+    )
+    assert np.nanstd(many.phi) == pytest.approx(e.phi_se[0], rel=0.1)
+    assert e.to_frame()["phi_se_deg"].iloc[0] == pytest.approx(math.degrees(e.phi_se[0]))
+
+
+def test_a_push_whose_direction_is_not_determined_is_left_out_with_the_reason():
+    theta0 = (0.0, math.radians(15.0))
+    th, F = forward(2000.0, CAN_R, PUSH_D, math.radians(20.0), theta0=theta0)
+    params = StiffnessParams(max_phi_se_deg=10.0)
+    fine = estimate(th, F, theta0=theta0, force_se=[[0.01, 0.01]], params=params)
+    vague = estimate(th, F, theta0=theta0, force_se=[[2.0, 2.0]], params=params)
+    assert not fine.flag[0] and math.degrees(fine.phi_se[0]) < 10.0
+    assert vague.flag[0] and "the push direction is not determined" in vague.reason[0]
+    assert math.degrees(vague.phi_se[0]) > 10.0 and np.isfinite(vague.k[0])  # kept, not used
+    given = estimate(th, F, phi=math.radians(20.0), theta0=theta0, force_se=[[2.0, 2.0]], params=params)
+    assert not given.flag[0] and math.isnan(given.phi_se[0])
+    with pytest.raises(ConfigError, match=r"Force standard errors have shape \(2,\), expected \(1, 2\)"):
+        estimate(th, F, theta0=theta0, force_se=[0.1, 0.1])

@@ -127,6 +127,14 @@ def _force_ok(pred: Mapping[str, Any]) -> np.ndarray | None:
     return None
 
 
+def _force_se(pred: Mapping[str, Any]) -> np.ndarray | None:
+    """The standard errors of Fx, Fy (n, 2) in N, when the prediction carries them."""
+    se = pred.get("se")
+    if not isinstance(se, Mapping) or "Fx" not in se or "Fy" not in se:
+        return None
+    return np.column_stack([np.asarray(se["Fx"], dtype=float), np.asarray(se["Fy"], dtype=float)])
+
+
 def _estimate(
     table: Any,
     theta: np.ndarray,
@@ -150,6 +158,7 @@ def _estimate(
         model_reasons=pred.get("reasons"),
         force_ok=force_ok,
         push_ids=table["push"].tolist(),
+        force_se=_force_se(pred),
         **geometry,
     )
 
@@ -196,6 +205,7 @@ def classify_pushes(
     theta, pred = _posture_and_force(table, model, angles, theta0)
     Fx, Fy = (np.asarray(_prediction(pred, q), dtype=float) for q in ("Fx", "Fy"))
     force_ok = _force_ok(pred)
+    pred = _with_budget(pred, model, settle_s)
     est = _estimate(table, theta, Fx, Fy, pred, force_ok, h2=h2, h3=h3, theta0=theta0, params=params)
 
     labels = _labels(table)
@@ -213,9 +223,7 @@ def classify_pushes(
     objs = _Objects(objects, codes, members, [known[name] for name in objects])
     rows = _object_rows(objs, est, use, labels, cat_model, true_k, allow_unusable)
     if cat_model.method == "bands":
-        _band_confidence(
-            rows, objs, est, use, cat_model, log_k_standard_errors(_with_budget(pred, model, settle_s), est, force_ok)
-        )
+        _band_confidence(rows, objs, est, use, cat_model, log_k_standard_errors(pred, est, force_ok))
 
     push_cols = [c for c in ("push", "object", "category", "source", TRUE_K) if c in table.columns]
     model_cols = pd.DataFrame(
@@ -787,6 +795,7 @@ PUSH_FIELDS: tuple[tuple[str, str, float], ...] = (
     ("k_N_per_m", "k_N_per_m", 1.0),
     ("direction_error_deg", "direction_error_deg", 1.0),
     ("phi_gain", "phi_gain", 1.0),
+    ("phi_se_deg", "phi_se_deg", 1.0),
     ("dx_theta_gain_mm_per_deg", "dx_theta_gain_m_per_rad", 1e3 * math.pi / 180),
 )
 

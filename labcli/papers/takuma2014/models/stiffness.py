@@ -103,6 +103,9 @@ REASON_UNOBSERVED_DIRECTION = (
 REASON_PROJECTION = (
     "the usable force component is below min_projection of the force along O2 -> C, or points against it"
 )
+REASON_UNDETERMINED_DIRECTION = (
+    "the push direction is not determined: the force direction's standard error makes phi's exceed max_phi_se_deg"
+)
 SINGULAR_FLAG = "singular-jacobian"
 # Flags that, with exactly one force component usable, name that component's loss: the paper
 # form's cut near theta2 = 0, and the posture-aware form's standard error over its limit.
@@ -128,7 +131,9 @@ class StiffnessParams:
     usable component along O2 -> C when phi is given, flagged when phi is
     solved) or ``"exclude"`` (flagged).  ``min_projection``: the smallest share
     |u_x| (or |u_y|) of the direction O2 -> C the usable component may carry,
-    since its error is divided by it.
+    since its error is divided by it.  ``max_phi_se_deg``: a solved phi whose standard error (the
+    force direction's, from the model's standard errors of Fx and Fy, times ``phi_gain``) exceeds
+    this is not determined, and its push is flagged; pushes without standard errors are not.
     """
 
     min_force_N: float = 0.05
@@ -138,6 +143,7 @@ class StiffnessParams:
     accept_model_flags: tuple[str, ...] = ()
     singular_component: str = "project"
     min_projection: float = 0.5
+    max_phi_se_deg: float = 90.0
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -192,7 +198,8 @@ class PushEstimates:
     ``flag`` is True for pushes not to be used and ``reason`` says why ("" if
     unflagged; several reasons joined by "; "); ``note`` lists accepted model
     flags and forces rebuilt from one component; ``F`` (n, 2) in N is the
-    force used (the model's, or the projected one).
+    force used (the model's, or the projected one); ``phi_se`` (rad) is a solved phi's standard
+    error from the force direction's (NaN where phi is given or no standard errors were given).
     """
 
     C: np.ndarray
@@ -211,6 +218,7 @@ class PushEstimates:
     reason: np.ndarray
     note: np.ndarray
     F: np.ndarray | None = None
+    phi_se: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.phi.shape[0])
@@ -228,6 +236,7 @@ class PushEstimates:
                 "yc_m": self.C[:, 1],
                 "phi_rad": self.phi,
                 "phi_deg": np.degrees(self.phi),
+                "phi_se_deg": np.degrees(self.phi_se) if self.phi_se is not None else np.full(len(self), np.nan),
                 "phi_solved": self.phi_solved,
                 "n_phi_solutions": self.n_phi_solutions,
                 "xo_m": self.O2[:, 0],
@@ -395,20 +404,19 @@ def estimate_pushes(
     model_reasons: Any = None,
     force_ok: Any = None,
     push_ids: Sequence[Any] | None = None,
+    force_se: Any = None,
 ) -> PushEstimates:
     """Stiffness of the pushed object for each push (Eqs. 38-42), with flags.
 
-    ``theta1, theta2`` (rad) are the estimated joint deflections and ``Fx, Fy``
-    (N) the estimated force for each push; ``R`` and ``d`` in m (scalars or per
-    push); ``phi`` in rad, NaN (or None for all) where unknown, then solved.
-    ``theta0`` is the absolute baseline posture ((2,) or (n, 2) rad; None: the
-    paper's upright arm).  ``model_flags`` (per push: list of flag names,
-    string or bool) replaces the built-in singular-pose check when given, since
-    the model knows where its estimate fails; names in
-    ``params.accept_model_flags`` do not exclude the push.  ``force_ok``
-    ((n, 2) bool: Fx, Fy usable, as ``TakumaModel.predict`` gives in ``ok``)
-    tells which component a ``singular-jacobian`` flag concerns; with it,
-    ``params.singular_component`` applies (see the module docstring).
+    ``theta1, theta2`` (rad) are the estimated joint deflections and ``Fx, Fy`` (N) the estimated
+    force for each push; ``R`` and ``d`` in m (scalars or per push); ``phi`` in rad, NaN (or None
+    for all) where unknown, then solved.  ``theta0`` is the absolute baseline posture ((2,) or
+    (n, 2) rad; None: the paper's upright arm).  ``model_flags`` (per push: list of flag names,
+    string or bool) replaces the built-in singular-pose check when given, since the model knows
+    where its estimate fails; names in ``params.accept_model_flags`` do not exclude the push.
+    ``force_ok`` ((n, 2) bool: Fx, Fy usable, as ``TakumaModel.predict`` gives in ``ok``) tells
+    which component a ``singular-jacobian`` flag concerns; with it, ``params.singular_component``
+    applies (see the module docstring).  ``force_se`` ((n, 2) N): Fx, Fy's standard errors.
     """
     params = params or StiffnessParams()
     t1, t2, F, R, d, phi_in, base = _push_inputs(theta1, theta2, Fx, Fy, R, d, phi, theta0, push_ids)
@@ -420,8 +428,8 @@ def estimate_pushes(
     model = _flags_from_model(model_flags, model_reasons, n)
     reasons: list[list[str]] = [[] for _ in range(n)]
     notes: list[list[str]] = [[] for _ in range(n)]
-    handled = np.zeros(n, dtype=bool)  # singular-jacobian dealt with by the policy
-    unobserved = np.zeros(n, dtype=bool)  # phi to solve but the force direction is unknown
+    # Pushes whose singular-jacobian the policy dealt with; pushes with phi to solve and no force direction.
+    handled, unobserved = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
     if force_ok is not None and model is not None and params.singular_component == "project":
         F, handled, unobserved = _project_singular(
             F, force_ok, model, known, C, object_centre(R, d, phi_in, h2, h3, C0), params, reasons, notes, n
@@ -430,34 +438,58 @@ def estimate_pushes(
     sol = solve_phi(C, F, R, d, h2, h3, C0)
     phi_out = np.where(known, phi_in, np.where(unobserved, np.nan, sol.phi))
     O2, g, dist, delta_x, k, direction_error = _deformation(C, F, force, R, d, phi_out, h2, h3, C0)
-    n_sol = np.where(known, 1, np.where(unobserved, 0, sol.n_solutions))
     dx_theta = _deformation_per_angle(a1, a2, h2, h3, R, C0, O2, g, dist, F, force, known)
     finite_in = np.isfinite(t1) & np.isfinite(t2) & np.isfinite(F).all(axis=1)
     _flag(reasons, finite_in, force, known, unobserved, sol.n_solutions, phi_out, delta_x, direction_error, params)
+    phi_gain = np.where(known | unobserved, np.nan, sol.phi_gain)
+    phi_se = _phi_standard_error(F, force_se, phi_gain, reasons, finite_in & np.isfinite(phi_out), params)
     if model is None:
         _add(reasons, finite_in & (np.abs(np.sin(a2)) < params.singular_sin_theta2), REASON_SINGULAR)
     else:
         _flag_model(reasons, notes, model, handled, params)
-
     reason = np.array(list(map("; ".join, reasons)), dtype=object)
     return PushEstimates(
         C=C,
         phi=phi_out,
         phi_solved=~known,
-        n_phi_solutions=n_sol.astype(int),
+        n_phi_solutions=np.where(known, 1, np.where(unobserved, 0, sol.n_solutions)).astype(int),
         O2=O2,
         delta_x=delta_x,
         force=force,
         k=k,
         direction_error=direction_error,
-        phi_gain=np.where(known | unobserved, np.nan, sol.phi_gain),
+        phi_gain=phi_gain,
         dx_gain=np.where(known | unobserved, np.nan, sol.dx_gain),
         dx_theta_gain=np.hypot(dx_theta[:, 0], dx_theta[:, 1]),
         flag=reason != "",
         reason=reason,
         note=np.array(list(map("; ".join, notes)), dtype=object),
         F=F,
+        phi_se=phi_se,
     )
+
+
+def _phi_standard_error(
+    F: np.ndarray, force_se: Any, phi_gain: np.ndarray, reasons: list[list[str]], solved: np.ndarray, params: Any
+) -> np.ndarray:
+    """A solved phi's standard error (rad): the force direction's times ``phi_gain``; pushes whose
+    error exceeds ``params.max_phi_se_deg`` get the reason that their direction is not determined.
+
+    The direction alpha = atan2(Fy, Fx) moves by (Fx dFy - Fy dFx) / |F|^2, so with independent
+    component errors se_alpha^2 = (Fy^2 se_x^2 + Fx^2 se_y^2) / |F|^4.  Where the ray from C grazes
+    the d-circle phi_gain is unbounded, and so is the error: such a push is not determined.
+    """
+    n = F.shape[0]
+    if force_se is None:
+        return np.full(n, np.nan)
+    se = np.asarray(force_se, dtype=float)
+    if se.shape != (n, 2):
+        raise ConfigError(f"Force standard errors have shape {se.shape}, expected ({n}, 2) for {n} pushes.")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        se_alpha = np.hypot(F[:, 1] * se[:, 0], F[:, 0] * se[:, 1]) / (F[:, 0] ** 2 + F[:, 1] ** 2)
+        phi_se = np.abs(phi_gain) * se_alpha
+        _add(reasons, solved & (phi_se > math.radians(params.max_phi_se_deg)), REASON_UNDETERMINED_DIRECTION)
+    return phi_se
 
 
 def _push_inputs(
