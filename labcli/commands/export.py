@@ -82,6 +82,7 @@ def export(run: str, output: str, fmt: str | None, all_columns: bool) -> None:
             with_notes(df, records.id_column, rf.notes.all())
         if all_columns:
             df.attrs["units"].update({c.name: c.units for c in ALL_COLUMNS if c.units not in ("", "1")})
+        exports.check_exportable(df, records.table_spec, run)
         exports.write(df, records.table_spec, records.collection, output, fmt, records.write_csv)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None

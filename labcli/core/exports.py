@@ -46,6 +46,26 @@ def format_of(output: str, fmt: str | None) -> str:
     return EXTENSIONS[ext]
 
 
+def check_exportable(df: Any, spec: TableSpec, run: str) -> None:
+    """ConfigError, naming the run and the record, when a record breaks the table's bounds.
+
+    The store refuses such a record (:func:`labcli.core.tables.frame_problems`); a run written
+    before it did may still hold one, and the message must name that run, not a table
+    that has not been written.
+    """
+    from .tables import frame_problems
+
+    problems = frame_problems(df[[c for c in df.columns if c in spec.names]], spec)
+    if problems:
+        i, col, msg = problems[0]
+        rid = df[spec.id_column].iloc[i] if 0 <= i < len(df) else "?"
+        more = f" ({len(problems)} values in all)" if len(problems) > 1 else ""
+        raise ConfigError(
+            f"{run}: {spec.id_column} {rid}, column {col}: {msg}{more}, which a {spec.label} table cannot hold, "
+            f"so the run cannot be exported; that reading is not physical: record the {spec.label} again."
+        )
+
+
 def write(
     df: Any, spec: TableSpec, name: str, output: str, fmt: str, csv_writer: Callable[[Any, str], None]
 ) -> list[str]:

@@ -159,10 +159,12 @@ class _Problems(list):
     def __init__(self, label: str) -> None:
         super().__init__()
         self.label = label
+        self.cells: list[tuple[int, str | None, str]] = []  # (spreadsheet row, column, message)
 
     def add(self, row: int, col: str | None, msg: str) -> None:
         where = f"{self.label}:row {row}" + (f", column {col}" if col is not None else "")
         self.append(f"{where}: {msg}.")
+        self.cells.append((row, col, msg))
 
 
 def _parse_records(
@@ -480,6 +482,23 @@ def _format_frame(df: pd.DataFrame, spec: TableSpec) -> tuple[list[str], list[li
     keep = [i for i, c in enumerate(header) if c not in drop]
     rows = [[cols[i][r] for i in keep] for r in range(len(df))]
     return [header[i] for i in keep], rows
+
+
+def frame_problems(
+    df: pd.DataFrame, spec: TableSpec, span: tuple[float, float] = PRESSURE_SPAN_MPA
+) -> list[tuple[int, str | None, str]]:
+    """What the reader of ``spec`` would refuse in ``df``: (row index in ``df``, column, why), in order.
+
+    The bounds of every table in one place: the store asks this of a record before writing it
+    and ``labcli export`` of a run before writing its table, so that what is stored is what
+    may be exported and imported again.
+    """
+    header, rows = _format_frame(df, spec)
+    problems = _Problems("")
+    hrow, names, data = _header([header, *rows], spec, "")
+    keep, pairs = _check_header(names, data, spec, hrow, problems)
+    _parse_rows(data, names, keep, pairs, spec, span, None, problems)
+    return [(row - hrow - 1, col, msg) for row, col, msg in problems.cells]
 
 
 def write_table(

@@ -29,6 +29,10 @@ class BaseRecordType(ABC):
     plural: str
     splits: bool = False
     columns: tuple[Column, ...] = ()
+    # The store checks each record's row against the exchange table's bounds before writing it
+    # (labcli.core.store.rows): what is stored is what may be exported.  A stream of estimates
+    # opts out: its standard errors may be infinite, and it is written at the stream's rate.
+    table_checked: bool = True
 
     # Read-only here, as the Protocol has them: a subclass sets a class attribute, or a
     # property when the value follows its instance (an rPAM run's experiment).

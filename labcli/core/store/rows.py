@@ -20,7 +20,7 @@ from ..files import stored_text
 from ..paper import Column, RecordType
 from ..record import ACCEPTED, Settle
 from ..timestamps import utc_now
-from .columns import fixed
+from .columns import fill_value, fixed
 from .h5 import settle_attrs
 from .layout import WINDOWS
 from .view import MAX_ID, out_of_bounds
@@ -79,7 +79,34 @@ def record_row(
     )
     if bad:
         raise StoreError(f"{label} record: {bad[0]}.")
+    _exportable(rt, row, rid, label, run)
     return row
+
+
+def _exportable(rt: RecordType, row: Mapping[str, Any], rid: int, label: str, run: Any) -> None:
+    """StoreError unless the record's row of the exchange table passes that table's own bounds.
+
+    The run file's column bounds are wide (they catch a changed file); the table's are the
+    physics of the bench.  A record outside them would be stored and then refused by
+    ``labcli export``, so it is refused here, before anything is written.
+    """
+    from ..tables import frame_problems
+
+    spec = getattr(rt, "table_spec", None)
+    if spec is None or not getattr(rt, "table_checked", True):
+        return
+    cols = {
+        c.name: np.asarray([row[c.name]]) if c.name in row else np.full((1, *c.shape), fill_value(c), dtype=object)
+        for c in rt.columns
+    }
+    problems = frame_problems(rt.table(run, [rid], cols), spec)
+    if problems:
+        _, col, msg = problems[0]
+        where = f"column {col}: " if col else ""
+        raise StoreError(
+            f"{label} was not stored: {where}{msg}, which a {spec.label} table cannot hold "
+            "(the rig or its link is not measuring)."
+        )
 
 
 def _texts_fit(columns: Mapping[str, Column], values: Mapping[str, Any], label: str) -> None:

@@ -69,6 +69,7 @@ class SenseRecords(BaseRecordType):
     """Estimates and events of a live session (module docstring)."""
 
     kind = "sense"
+    table_checked = False  # estimates at the stream's rate; a standard error may be infinite
     collection = "estimates"
     id_column = "record"
     noun = "estimate or event"

@@ -79,6 +79,7 @@ from .takuma import (
     BASELINE_COLUMNS,
     FORCE_COLUMNS,
     LOADED_COLUMNS,
+    MAX_COEFFICIENT,
     SCHEMA,
     SCHEMA_VERSION,
     TakumaModel,
@@ -1134,6 +1135,11 @@ def _check_tables(d: Mapping[str, Any], n_angle: int, n_torque: int, name: str) 
             raise ModelError(
                 f"{cap(name)}: key '{key}' must be a {shape[0]} x {shape[1]} table of finite "
                 "numbers; refit with `labcli fit`."
+            )
+        if key.endswith("_coefficients") and not np.all(np.abs(arr) <= MAX_COEFFICIENT):
+            raise ModelError(
+                f"{cap(name)}: key '{key}' holds {np.max(np.abs(arr)):g}, beyond the {MAX_COEFFICIENT:g} a "
+                "fitted coefficient can reach; refit with `labcli fit`."
             )
 
 

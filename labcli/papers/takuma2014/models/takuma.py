@@ -110,6 +110,10 @@ UNITS = {
     "force_coefficients": "N m / MPa",
 }
 GEOMETRY_KEYS = ("h1", "h2", "h3", "r1", "r2")
+# A coefficient maps MPa to rad or N: a fit on a bench rig gives at most a few 1e4 (the shipped
+# runs' largest is about 1e4 N/MPa^2); one beyond 1e6 is a damaged or hand-edited file, whose
+# estimates would overflow.
+MAX_COEFFICIENT = 1e6
 
 DEFAULT_MAX_AMPLIFICATION = 100.0
 DEFAULT_MAX_DESIGN_COND = 1e8
@@ -865,6 +869,12 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
             bad(key, f"must be a {'finite ' if finite else ''}number, not {json_kind(v)}")
         return float(v)
 
+    def coefficient(k: str, v: Any) -> float:
+        x = num(f"coefficients.{k}", v)
+        if not abs(x) <= MAX_COEFFICIENT:
+            bad(f"coefficients.{k}", f"is {x:g}, beyond the {MAX_COEFFICIENT:g} a fitted coefficient can reach")
+        return x
+
     def seq(key: str, v: Any) -> list[Any]:
         if not isinstance(v, list):
             bad(key, f"must be a list, not {json_kind(v)}")
@@ -903,7 +913,7 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
         protocol=d["protocol"],
         max_amplification=max_amp,
         max_design_cond=max_cond,
-        coefficients={k: num(f"coefficients.{k}", v) for k, v in obj("coefficients", d["coefficients"]).items()},
+        coefficients={k: coefficient(k, v) for k, v in obj("coefficients", d["coefficients"]).items()},
         standard_errors={
             k: num(f"standard_errors.{k}", v, finite=False, allow_null=True)
             for k, v in obj("standard_errors", d.get("standard_errors", {})).items()
