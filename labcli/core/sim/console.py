@@ -44,6 +44,9 @@ class ConsoleCommand:
     act: Callable[[Any, list[str]], str]
 
 
+MAX_WAIT_S = 3600.0  # one wait: an hour of the rig's clock (time.sleep refuses 1e20 s; nobody means it)
+
+
 def numbers(args: list[str], names: tuple[str, ...], usage: str) -> list[float]:
     """``args`` as finite numbers named ``names`` (ConsoleError with the usage otherwise)."""
     if len(args) != len(names):
@@ -70,7 +73,7 @@ def help_text(rig: Any) -> str:
     return "commands: " + ", ".join(usages)
 
 
-def execute(rig: Any, line: str, *, idle_wait: Callable[[float], None] | None = None) -> str:
+def execute(rig: Any, line: str, *, idle_wait: Callable[[float], object] | None = None) -> str:
     """Act on one console line and return the reply (``error: ...`` for a bad line).
 
     ``idle_wait(seconds)`` lets the clock run for ``wait`` (None: advance the rig's clock).
@@ -88,7 +91,7 @@ def execute(rig: Any, line: str, *, idle_wait: Callable[[float], None] | None = 
         return f"error: {e}"
 
 
-def _act(rig: Any, cmd: str, args: list[str], idle_wait: Callable[[float], None] | None) -> str:
+def _act(rig: Any, cmd: str, args: list[str], idle_wait: Callable[[float], object] | None) -> str:
     own = commands_of(rig)
     if cmd in own:
         return own[cmd].act(rig, args)
@@ -99,6 +102,10 @@ def _act(rig: Any, cmd: str, args: list[str], idle_wait: Callable[[float], None]
         (seconds,) = numbers(args, ("seconds",), "wait SECONDS")
         if seconds < 0:
             raise ConsoleError(f"seconds must be >= 0, got {seconds:g}")
+        if seconds > MAX_WAIT_S:
+            raise ConsoleError(
+                f"seconds must be at most {MAX_WAIT_S:g} (an hour), got {seconds:g}; wait again for longer"
+            )
         (idle_wait or rig.advance)(seconds)
         return f"ok wait {seconds:g} s (t={rig.time_s:.3f} s)"
     if cmd == "quit":

@@ -21,7 +21,6 @@ import errno
 import os
 import select
 import threading
-import time
 import tty
 
 from . import make_rig
@@ -68,7 +67,7 @@ class HilPtyServer:
 
         The link keeps the rig's clock with the wall clock, so ``wait`` just lets wall time pass.
         """
-        reply = execute(self.rig, line, idle_wait=time.sleep)
+        reply = execute(self.rig, line, idle_wait=self._stop.wait)  # a stop request ends a wait at once
         if reply == "ok quit":
             self.request_stop()
         return reply

@@ -78,7 +78,7 @@ class PtyServer:
         """Let ``seconds`` of wall time pass (the rig's clock follows the wall here)."""
         self.rig._lock.release()
         try:
-            time.sleep(seconds)
+            self._stop.wait(seconds)  # not time.sleep: Ctrl-C or SIGTERM (request_stop) ends the wait at once
         finally:
             self.rig._lock.acquire()
         self._sync()

@@ -619,3 +619,39 @@ def test_each_chambers_valve_on_its_own():
     assert (st["pressures_MPa"][0] * 1e6 + ph.P_ATM) * V[0] == pytest.approx(amount_now, rel=1e-9)
     with pytest.raises(ValueError):
         rig.set_valves(["open"] * 4)
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_console_wait_is_bounded_and_a_signal_ends_it_at_once(sig):
+    # `wait 1e20` traced back (time.sleep overflows) and during a wait Ctrl-C and SIGTERM were
+    # ignored until it ended: a wait is at most an hour, and a stop request ends it.
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        bufsize=1,
+    )
+    try:
+        assert proc.stdout.readline().startswith("Simulated rig on /dev/")
+        proc.stdin.write("wait 1e20\n")
+        proc.stdin.flush()
+        line = proc.stdout.readline()
+        while not line.startswith(("ok", "error")):  # the "Type operator actions" line on a terminal
+            line = proc.stdout.readline()
+        assert line == "error: seconds must be at most 3600 (an hour), got 1e+20; wait again for longer\n"
+        proc.stdin.write("wait 600\n")
+        proc.stdin.flush()
+        time.sleep(1.0)  # inside the wait
+        t0 = time.monotonic()
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=20)
+        assert time.monotonic() - t0 < 5.0
+        assert "Traceback" not in err
+        assert "Simulated rig stopped." in out
+        assert proc.returncode == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
