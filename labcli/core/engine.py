@@ -274,7 +274,7 @@ class RunEngine:
             session.close()
             self.stream.stop_quietly()
             if isinstance(e, InputEnded):
-                return self._outcome("no input", ())
+                return self._outcome("no input", (), why=e.why)
             if isinstance(e, QuitRequested):
                 return self._outcome("quit", ())
             if self._finished:  # Ctrl-C after the last step: the run is complete
@@ -348,8 +348,8 @@ class RunEngine:
             self._trial is not None,
         )
 
-    def _outcome(self, status: str, skipped: tuple[int, ...]) -> Outcome:
-        return ended(status, self._where(), self._stored, skipped, time.monotonic() - self._t_start)
+    def _outcome(self, status: str, skipped: tuple[int, ...], why: str = "ended") -> Outcome:
+        return ended(status, self._where(), self._stored, skipped, time.monotonic() - self._t_start, why)
 
     # ------------------------------------------------------------------ steps
     def _execute(self, step: Any) -> Any:

@@ -49,8 +49,11 @@ class Where:
         )
 
 
-def ended(status: str, where: Where, stored: int, skipped: tuple[int, ...], wall: float) -> Outcome:
-    """The :class:`Outcome` of a session that ended as ``status`` (``stored`` records this session)."""
+def ended(status: str, where: Where, stored: int, skipped: tuple[int, ...], wall: float, why: str = "ended") -> Outcome:
+    """The :class:`Outcome` of a session that ended as ``status`` (``stored`` records this session).
+
+    ``why``: for "no input", what standard input did ("ended", or flooded with no line end).
+    """
     n = count(where.complete, where.noun)
     if status == "finished":
         msg = f"Session complete: {n} stored in {where.run_path} ({stored} this session, {wall:.1f} s)."
@@ -60,7 +63,7 @@ def ended(status: str, where: Where, stored: int, skipped: tuple[int, ...], wall
                 f"not stored; record {'it' if len(skipped) == 1 else 'them'} with: {where.resume_command}"
             )
     elif not where.created:
-        msg = _before_the_file(status, where.run_path)
+        msg = _before_the_file(status, where.run_path, why)
     elif status == "quit":
         msg = (
             f"Stopped at your request during {where.current}, which was not stored; "
@@ -69,7 +72,8 @@ def ended(status: str, where: Where, stored: int, skipped: tuple[int, ...], wall
     elif status == "no input":
         lost = f", so {where.current} was not stored" if where.in_record else ""
         msg = (
-            f"No input: standard input ended at a question during {where.current}{lost}; {n} stored "
+            f"No input: standard input {why}{'' if why == 'ended' else ','} at a question during "
+            f"{where.current}{lost}; {n} stored "
             f"in {where.run_path}. Resume where someone at the rig can answer: {where.resume_command}"
         )
     else:
@@ -81,12 +85,12 @@ def ended(status: str, where: Where, stored: int, skipped: tuple[int, ...], wall
     return Outcome(status, msg, stored, where.complete, tuple(skipped), wall)
 
 
-def _before_the_file(status: str, run_path: str) -> str:
+def _before_the_file(status: str, run_path: str, how: str = "ended") -> str:
     """A session that ended during the setup, before its run file was created."""
     why = {
         "quit": "Stopped at your request",
         "interrupted": "Interrupted",
-        "no input": "No input (standard input ended)",
+        "no input": f"No input (standard input {how})",
     }[status]
     again = (
         "run the command where someone at the rig can answer its prompts"

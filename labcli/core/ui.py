@@ -41,6 +41,24 @@ class QuitRequested(Exception):
 class InputEnded(QuitRequested):
     """Standard input ended (or was closed) at a question: nobody is there to answer."""
 
+    why = "ended"  # how the outcome says it: "standard input {why} at a question"
+
+
+MAX_ANSWER_CHARS = 4096  # an answer is a typed line; a stream of bytes with no line end is no one typing
+
+
+class InputFlood(InputEnded):
+    """Standard input sent more than :data:`MAX_ANSWER_CHARS` with no line end (``</dev/zero``)."""
+
+    why = f"sent more than {MAX_ANSWER_CHARS} characters with no line end, as a device such as /dev/zero does"
+
+
+def _is_tty(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, OSError, ValueError):
+        return False
+
 
 def discard_typeahead(stream: Any) -> None:
     """Drop what was typed on a terminal but not yet read (harmless on anything else)."""
@@ -211,14 +229,21 @@ class RichUI:
         discard_typeahead(stream)
         self.console.print(_esc(text) + " ", end="", soft_wrap=True)
         try:
-            line = input() if self._stdin is None else stream.readline()
+            typed = self._stdin is None and _is_tty(stream)  # input(): line editing on a terminal
+            line = input() if typed else stream.readline(MAX_ANSWER_CHARS + 1)
+        except MemoryError:
+            self.console.print()
+            raise InputFlood("standard input floods") from None
         except (EOFError, RuntimeError, OSError, ValueError):
             # EOF, a lost sys.stdin (RuntimeError), a terminal that went away (OSError, EIO)
             self.console.print()
             raise InputEnded("standard input ended") from None
-        if self._stdin is not None and line == "":
+        if not typed and line == "":  # readline's end of input (input() raised EOFError instead)
             self.console.print()
             raise InputEnded("standard input ended")
+        if len(line) > MAX_ANSWER_CHARS:
+            self.console.print()
+            raise InputFlood("standard input floods")
         line = line.rstrip("\r\n")
         if not self._interactive:
             # Answers from a pipe or a script are not echoed by a terminal: echo them,

@@ -33,17 +33,18 @@ CASES = all_cases()
 # --------------------------------------------------------------------------- the world of files
 
 
-def labcli(*args: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+def labcli(*args: str, cwd: Path, timeout: float = 120, stdin: str | None = None) -> subprocess.CompletedProcess:
     env = dict(os.environ, COLUMNS="400", PYTHONWARNINGS="ignore")
-    return subprocess.run(
-        [sys.executable, "-m", "labcli", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        env=env,
-        stdin=subprocess.DEVNULL,
-    )
+    with open(stdin or os.devnull, "rb") as source:
+        return subprocess.run(
+            [sys.executable, "-m", "labcli", *args],
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env=env,
+            stdin=source,
+        )
 
 
 @pytest.fixture(scope="module")
@@ -126,7 +127,7 @@ def run_case(case: Case, world: Path, tmp_path: Path) -> tuple[subprocess.Comple
         finally:
             server.stop()
     else:
-        result = labcli(*case.args, cwd=here, timeout=case.timeout)
+        result = labcli(*case.args, cwd=here, timeout=case.timeout, stdin=case.stdin)
     return result, expected_stderr(case, here, port), before, digest(here)
 
 

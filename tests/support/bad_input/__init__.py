@@ -44,6 +44,7 @@ class Case:
     xfail: str | None = None  # a bug in a module still being edited (see the report)
     fifos: tuple[str, ...] = ()  # named pipes made in the folder (never opened: a reader would wait)
     timeout: float = 120  # seconds before the case counts as a hang (special files: a few)
+    stdin: str | None = None  # a file to give as standard input (default: /dev/null)
 
 
 def toml_edit(old: str, new: str) -> Callable[[Path], bytes]:

@@ -33,6 +33,19 @@ CASES: list[Case] = [
             "command where someone at the rig can answer its prompts."
         ],
     ),
+    Case(
+        "stdin-dev-zero",
+        "standard input",
+        "input that floods bytes with no line end (`</dev/zero`; a 1.0 board: the air supply's)",
+        ["acquire", "new.h5", "--port", SIM + "&fw=1.0"],
+        [
+            "No input (standard input sent more than 4096 characters with no line end, as a device such as "
+            "/dev/zero does) during the setup, before anything was written to new.h5; run the command where "
+            "someone at the rig can answer its prompts."
+        ],
+        stdin="/dev/zero",
+        timeout=60,
+    ),
     # ---- option values
     Case(
         "option-nan-seconds",
