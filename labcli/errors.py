@@ -36,6 +36,12 @@ class DeviceTimeout(DeviceError):
         self.what = what
 
 
+class DeviceRailed(DeviceTimeout):
+    """A capture window's counts sat at an end of the ADC's range on some channel: a sensor at its
+    rail, or a link sending counts no ADC gives.  No trial is stored from it, and waiting for the
+    rig to come back does not help (it never left)."""
+
+
 class DeviceUnsupported(DeviceError):
     """The board lacks what a command needs (a wire-protocol 1.0 board asked to move its valves)."""
 

@@ -253,6 +253,8 @@ def _print_summary(summary: Any, scale: Any) -> None:
             f"  {name:<{width}}  mean {_reading(shown_mean[j], unit)}  std {_reading(abs(shown_std[j]), unit, 1)} "
             "over the run"
         )
+    for text in summary.warnings:
+        click.echo(f"Warning: {text}.", err=True)
     board = summary.board
     if board is not None and board.stats.n:
         for j, (name, unit) in enumerate(zip(board.names, board.units, strict=True)):

@@ -66,6 +66,9 @@ class GapTally:
         return (lo + hi) / 2 * 1e-6
 
 
+RAILED_SHARE = 0.5  # a window is railed on a channel when most of its frames sit at an ADC end
+
+
 class WindowSink:
     """Where the frames of one Baseline or Capture go as they arrive.
 
@@ -74,19 +77,37 @@ class WindowSink:
     window the session is handed; :attr:`gaps` the frame rate's tally.
     """
 
-    def __init__(self, channels: int, writer: WindowWriter | None = None) -> None:
+    def __init__(
+        self, channels: int, writer: WindowWriter | None = None, adc: tuple[float, float] | None = None
+    ) -> None:
         self.writer = writer
         self.gaps = GapTally()
         self._channels = channels
         self._stats = Stats()
+        self._adc = adc
+        self._frames = 0
+        self._railed = np.zeros(channels, dtype=np.int64)  # frames at or beyond the ADC's ends, per channel
 
     def add(self, w: Window) -> None:
         """Take in a block of frames (held in memory)."""
         self.gaps.add(w.t_s)
+        if self._adc is not None and len(w):
+            counts = np.asarray(w.counts, dtype=float).reshape(len(w), -1)
+            lo, hi = self._adc
+            self._railed[: counts.shape[1]] += np.sum(~((counts > lo) & (counts < hi)), axis=0)
+            self._frames += len(w)
         if self.writer is not None:
             self.writer.append(w.t_s, w.seq, w.counts, w.si)
         else:
             self._stats.add(w.si)
+
+    def railed(self, share: float = RAILED_SHARE) -> list[int]:
+        """The channels whose counts sat at an end of the ADC's range (or beyond it) in more than
+        ``share`` of the window's frames: a sensor pinned at a rail or a link sending counts no ADC
+        gives, not a reading."""
+        if not self._frames:
+            return []
+        return [int(j) for j in np.flatnonzero(self._railed > share * self._frames)]
 
     def finish(self) -> Window:
         """The window: stored in the run file, or (outside a trial) its statistics only."""

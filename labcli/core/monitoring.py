@@ -69,6 +69,7 @@ class ChannelScale:
     display_units: tuple[str, ...]  # MPa, deg, counts
     to_si: Callable[[np.ndarray], np.ndarray]
     to_display: Callable[[np.ndarray], np.ndarray]
+    adc: tuple[float, float] | None = None  # the ADC's range in counts, when the calibration names it
 
 
 def calibrated(protocol: Any) -> Any:
@@ -114,7 +115,13 @@ def channel_scale(channels: Sequence[str], calibration: Any) -> ChannelScale:
         shown,
         lambda counts: _apply(calibration.to_si, counts),
         lambda si: _apply(calibration.to_display, si),
+        _adc_range(calibration),
     )
+
+
+def _adc_range(calibration: Any) -> tuple[float, float] | None:
+    rng = getattr(calibration, "adc_range", None)
+    return (float(rng[0]), float(rng[1])) if rng is not None else None
 
 
 @dataclass
@@ -173,6 +180,7 @@ class MonitorSummary:
     std: np.ndarray
     interrupted: bool = False
     board: BoardWatch | None = None
+    warnings: tuple[str, ...] = ()  # what the link did against physics (:func:`physics_warnings`)
 
     @property
     def frames_per_s(self) -> float:
@@ -200,6 +208,7 @@ class MonitorSummary:
             "events": c.get("events", 0),
             "estimates": c.get("estimates", 0),
             "interrupted": self.interrupted,
+            "warnings": list(self.warnings),
             "channels": {
                 name: {"mean": num(m), "std": num(s), "unit": u}
                 for name, m, s, u in zip(self.channels, self.mean, self.std, self.units, strict=False)
@@ -233,6 +242,7 @@ def watch(
     latest = np.full(k, np.nan)
     recent: deque[tuple[float, int]] = deque()
     interrupted = False
+    adc = AdcTally(scale.adc)
     names = tuple(getattr(getattr(dev, "caps", None), "estimates", ()) or ())
     board = BoardWatch(names) if names else None
     if board is not None:
@@ -243,9 +253,12 @@ def watch(
         if board is not None:
             board.add(dev.take_estimates())
         if len(batch):
+            adc.add(batch.values)
             si = scale.to_si(batch.values)
             stats.update(si)
-            rolling.add(unwrap(batch.t_us), si)
+            t = unwrap(batch.t_us)
+            adc.clock(t)
+            rolling.add(t, si)
             latest = si.mean(axis=0)
             if on_frames is not None:
                 on_frames(batch, si)
@@ -277,7 +290,94 @@ def watch(
         elapsed = time.monotonic() - t0
         if dev.streaming:
             take(dev.stop())
-    return _summary(dev, scale, actual, elapsed, stats, interrupted, board)
+    summary = _summary(dev, scale, actual, elapsed, stats, interrupted, board)
+    summary.warnings = tuple(physics_warnings(summary, adc))
+    return summary
+
+
+class AdcTally:
+    """Frames whose counts sat at an end of the ADC's range, or beyond it, per channel."""
+
+    def __init__(self, adc: tuple[float, float] | None) -> None:
+        self.adc = adc
+        self.frames = 0
+        self.railed: np.ndarray | None = None
+        self.outside: np.ndarray | None = None
+        self.t_first: float | None = None
+        self.t_last: float | None = None
+        self.timed = 0
+
+    def add(self, values: Any) -> None:
+        if self.adc is None:
+            return
+        v = np.asarray(values, dtype=float)
+        v = v.reshape(len(v), -1)
+        lo, hi = self.adc
+        if self.railed is None or self.outside is None:
+            self.railed = np.zeros(v.shape[1], dtype=np.int64)
+            self.outside = np.zeros(v.shape[1], dtype=np.int64)
+        with np.errstate(invalid="ignore"):
+            self.outside += np.sum(~((v >= lo) & (v <= hi)), axis=0)
+            self.railed += np.sum((v == lo) | (v == hi), axis=0)
+        self.frames += v.shape[0]
+
+    def clock(self, t_s: Any) -> None:
+        """The device's own times of a batch (s): the rate is judged on the rig's clock, not the host's."""
+        t = np.asarray(t_s, dtype=float)
+        if len(t):
+            self.t_first = float(t[0]) if self.t_first is None else self.t_first
+            self.t_last = float(t[-1])
+            self.timed += len(t)
+
+    @property
+    def device_rate(self) -> float:
+        """Frames per second of the device's clock (NaN until two frames span some time)."""
+        if self.t_first is None or self.t_last is None or not self.t_last > self.t_first:
+            return math.nan
+        return (self.timed - 1) / (self.t_last - self.t_first)
+
+
+RATE_FACTOR = 2.0  # a measured frame rate this far from the confirmed one is not the rig's rate
+MIN_FRAMES = 20  # fewer frames say too little of a rate
+
+
+def physics_warnings(summary: MonitorSummary, adc: AdcTally) -> list[str]:
+    """What the stream did against physics, one sentence each: no frame at all, a confirmed rate
+    the frames do not follow, counts outside the ADC's range or pinned at its ends, a ``seq`` jump
+    larger than the frames the rig could have sent in the time."""
+    out: list[str] = []
+    c = summary.counters
+    frames, seconds, rate = c["frames"], summary.seconds, summary.rate_hz
+    if frames == 0:
+        out.append(f"no frame arrived in {seconds:.1f} s, so there is no reading to show (mean and std are empty)")
+        return out
+    fps = adc.device_rate if math.isfinite(adc.device_rate) else summary.frames_per_s
+    if math.isfinite(rate) and not rate > 0:
+        out.append(f"the rig confirmed a rate of {rate:g} Hz, which no rig runs at; it sent {fps:.1f} frames/s")
+    elif math.isfinite(rate) and frames >= MIN_FRAMES and not rate / RATE_FACTOR <= fps <= rate * RATE_FACTOR:
+        out.append(
+            f"the rig confirmed {rate:g} Hz but sent {fps:.1f} frames/s by its own clock; its confirmation is not its rate"
+        )
+    span = max(seconds, (adc.t_last - adc.t_first) if adc.t_first is not None and adc.t_last is not None else 0.0)
+    possible = span * max(fps, rate if math.isfinite(rate) and rate > 0 else 0.0) * RATE_FACTOR + 10
+    if c["lost"] > possible:
+        out.append(
+            f"the frame numbers (seq) jumped by {c['lost']} in {seconds:.1f} s, more than the rig could send; "
+            "that is a corrupted seq, not lost frames"
+        )
+    if adc.adc is not None and adc.outside is not None and adc.railed is not None:
+        lo, hi = adc.adc
+        for j, name in enumerate(summary.channels):
+            if j >= len(adc.outside):
+                break
+            if adc.outside[j]:
+                out.append(
+                    f"{name} sent {adc.outside[j]} of {adc.frames} frames with counts outside the ADC's range "
+                    f"{lo:g} to {hi:g}: not readings"
+                )
+            elif adc.railed[j] > adc.frames / 2:
+                out.append(f"{name} sat at an end of the ADC's range ({lo:g} or {hi:g} counts): a sensor at its rail")
+    return out
 
 
 def _summary(

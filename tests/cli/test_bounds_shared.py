@@ -74,3 +74,22 @@ def test_frame_problems_is_the_table_readers_verdict(cells: dict, column: str | 
     assert [(i, c) for i, c, _ in problems] == [(0, column)]
     if why is not None:
         assert problems[0][2] == why
+
+
+def test_a_window_at_the_adc_rail_ends_acquire_in_one_sentence_and_stores_nothing_from_it(tmp_path: Path) -> None:
+    # thermal=1e300 drives the loaded pressures of trial 1 to the sensor's top (4095 counts, 1 MPa):
+    # inside every bound, but a rail, not a reading.
+    (tmp_path / "plan.csv").write_text(PLAN)
+    port = "sim://?seed=1&clock=virtual&thermal=1e300"
+    r = labcli("acquire", "r.h5", "--port", port, "--unattended", "--plan", "plan.csv", cwd=tmp_path)
+    assert "Traceback" not in r.stderr
+    assert r.returncode == 1
+    assert r.stderr.splitlines()[-1] == (
+        f"Error: The rig on {port} sent counts at an end of its ADC's range (0 or 4095) on P_L1, P_L2 for most "
+        "of a window (a sensor at its rail, not a reading) during trial 1; that trial was not stored and the 0 "
+        f"completed trials in r.h5 are unchanged. Check the cable and power, then resume with: labcli acquire "
+        f"r.h5 --port '{port}' --resume --unattended"
+    )
+    v = labcli("inspect", "r.h5", "--verify", cwd=tmp_path)
+    assert v.returncode == 0, v.stderr
+    assert "0 trials" in v.stdout
