@@ -19,6 +19,8 @@ class ConfigError(LabcliError):
 class DeviceError(LabcliError):
     """The rig could not be opened or did not behave as the wire protocol says."""
 
+    reconnects = True  # an attended session may wait for the rig to come back (False: it never left)
+
 
 class DeviceNotFound(DeviceError):
     """The serial port does not exist or cannot be opened."""
@@ -40,6 +42,8 @@ class DeviceRailed(DeviceTimeout):
     """A capture window's counts sat at an end of the ADC's range on some channel: a sensor at its
     rail, or a link sending counts no ADC gives.  No trial is stored from it, and waiting for the
     rig to come back does not help (it never left)."""
+
+    reconnects = False
 
 
 class DeviceUnsupported(DeviceError):

@@ -14,9 +14,11 @@ block.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
+from ..errors import DeviceRailed
 from .store.frames import WindowWriter
 from .window import Stats, Window
 
@@ -78,13 +80,18 @@ class WindowSink:
     """
 
     def __init__(
-        self, channels: int, writer: WindowWriter | None = None, adc: tuple[float, float] | None = None
+        self,
+        channels: int,
+        writer: WindowWriter | None = None,
+        adc: tuple[float, float] | None = None,
+        names: Sequence[str] = (),
     ) -> None:
         self.writer = writer
         self.gaps = GapTally()
         self._channels = channels
         self._stats = Stats()
         self._adc = adc
+        self._names = tuple(names)  # with ``adc``: a window at a rail ends in DeviceRailed naming them
         self._frames = 0
         self._railed = np.zeros(channels, dtype=np.int64)  # frames at or beyond the ADC's ends, per channel
 
@@ -109,6 +116,21 @@ class WindowSink:
             return []
         return [int(j) for j in np.flatnonzero(self._railed > share * self._frames)]
 
+    def check_rails(self, channels: Sequence[str]) -> None:
+        """DeviceRailed, naming the channels, when :meth:`railed` finds any."""
+        railed = self.railed()
+        if railed and self._adc is not None:
+            lo, hi = self._adc
+            names = ", ".join(channels[j] for j in railed)
+            raise DeviceRailed(
+                what=f"sent counts at an end of its ADC's range ({lo:g} or {hi:g}) on {names} for most of a "
+                "window (a sensor at its rail, not a reading)"
+            )
+
     def finish(self) -> Window:
-        """The window: stored in the run file, or (outside a trial) its statistics only."""
-        return self.writer.finish() if self.writer is not None else Window.summary(self._channels, self._stats)
+        """The window: stored in the run file, or (outside a trial) its statistics only; DeviceRailed
+        when it sat at a rail (:meth:`check_rails`; the frames stay in the file, unreferenced)."""
+        window = self.writer.finish() if self.writer is not None else Window.summary(self._channels, self._stats)
+        if self._names:
+            self.check_rails(self._names)
+        return window

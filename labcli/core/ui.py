@@ -53,6 +53,14 @@ class InputFlood(InputEnded):
     why = f"sent more than {MAX_ANSWER_CHARS} characters with no line end, as a device such as /dev/zero does"
 
 
+def _bounded_line(stream: Any) -> str:
+    """One line of at most ``MAX_ANSWER_CHARS + 1`` characters (a stream that takes no size: its line)."""
+    try:
+        return stream.readline(MAX_ANSWER_CHARS + 1)
+    except TypeError:  # an embedding program's stream object with a plain readline()
+        return stream.readline()
+
+
 def _is_tty(stream: Any) -> bool:
     try:
         return bool(stream.isatty())
@@ -230,7 +238,7 @@ class RichUI:
         self.console.print(_esc(text) + " ", end="", soft_wrap=True)
         try:
             typed = self._stdin is None and _is_tty(stream)  # input(): line editing on a terminal
-            line = input() if typed else stream.readline(MAX_ANSWER_CHARS + 1)
+            line = input() if typed else _bounded_line(stream)
         except MemoryError:
             self.console.print()
             raise InputFlood("standard input floods") from None

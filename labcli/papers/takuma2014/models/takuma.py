@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn, cast
@@ -851,6 +851,13 @@ def _labels(value: Any, name: str) -> tuple[str, dict[str, Any]]:
 # checked by name, so a damaged file gives one sentence naming the key, never a traceback.
 
 
+def _bounded(name: str, x: float, bad: Callable[[str, str], NoReturn]) -> float:
+    """A coefficient within :data:`MAX_COEFFICIENT` (``bad`` says otherwise)."""
+    if not abs(x) <= MAX_COEFFICIENT:
+        bad(f"coefficients.{name}", f"is {x:g}, beyond the {MAX_COEFFICIENT:g} a fitted coefficient can reach")
+    return x
+
+
 def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
     """Constructor arguments of TakumaModel from a model dict, each checked by key."""
 
@@ -868,12 +875,6 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or (finite and not math.isfinite(v)):
             bad(key, f"must be a {'finite ' if finite else ''}number, not {json_kind(v)}")
         return float(v)
-
-    def coefficient(k: str, v: Any) -> float:
-        x = num(f"coefficients.{k}", v)
-        if not abs(x) <= MAX_COEFFICIENT:
-            bad(f"coefficients.{k}", f"is {x:g}, beyond the {MAX_COEFFICIENT:g} a fitted coefficient can reach")
-        return x
 
     def seq(key: str, v: Any) -> list[Any]:
         if not isinstance(v, list):
@@ -908,12 +909,13 @@ def _model_fields(d: Mapping[str, Any], where: str) -> dict[str, Any]:
     excluded = {
         k: list(seq(f"excluded_trials.{k}", v)) for k, v in obj("excluded_trials", d.get("excluded_trials", {})).items()
     }
+    coefs = obj("coefficients", d["coefficients"])
     return dict(
         geometry=geometry,
         protocol=d["protocol"],
         max_amplification=max_amp,
         max_design_cond=max_cond,
-        coefficients={k: coefficient(k, v) for k, v in obj("coefficients", d["coefficients"]).items()},
+        coefficients={k: _bounded(k, num(f"coefficients.{k}", v), bad) for k, v in coefs.items()},
         standard_errors={
             k: num(f"standard_errors.{k}", v, finite=False, allow_null=True)
             for k, v in obj("standard_errors", d.get("standard_errors", {})).items()
