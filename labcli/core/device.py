@@ -124,6 +124,25 @@ class RigLink(Protocol):
         """Release the link (idempotent)."""
 
 
+class _Stamped:
+    """The port as the reader reads it, stamping ``arrived`` (``time.perf_counter()``) whenever a read
+    brings bytes: when the newest frame of a batch reached the host, before it is parsed."""
+
+    def __init__(self, port: Any) -> None:
+        self.port = port
+        self.arrived: float | None = None
+
+    @property
+    def in_waiting(self) -> int:
+        return int(self.port.in_waiting)
+
+    def read(self, size: int = 1) -> bytes:
+        data = self.port.read(size)
+        if data:
+            self.arrived = time.perf_counter()
+        return data
+
+
 class Device:
     """An open rig.  Use :meth:`open`; the constructor takes an already open serial object."""
 
@@ -135,7 +154,7 @@ class Device:
         self.name = port if name is None else name  # how messages speak of the port
         self.timeout = float(timeout)
         self.baudrate = baudrate
-        self._reader = StreamReader(ser)
+        self._reader = StreamReader(_Stamped(ser))
         self._backlog: list[FrameBatch] = []
         self._streaming = False
         self._last_frame = time.monotonic()
@@ -220,7 +239,7 @@ class Device:
             )
         self.info = DeviceInfo(fields[1].strip(), fields[2].strip(), channels, self.port)
         logs = self._reader.logs
-        self._reader = StreamReader(self._serial, n_channels=len(channels))
+        self._reader = StreamReader(_Stamped(self._serial), n_channels=len(channels))
         self._reader.logs.extend(logs)
         # A board left streaming by an earlier session must be quiet before commands get clean
         # replies; STOP on an idle board is answered too, so always send it.
@@ -292,6 +311,11 @@ class Device:
     @property
     def streaming(self) -> bool:
         return self._streaming
+
+    @property
+    def arrived(self) -> float | None:
+        """``time.perf_counter()`` when the bytes of the newest frame :meth:`read` returned reached the host."""
+        return self._reader.port.arrived
 
     @property
     def serial(self) -> Any:

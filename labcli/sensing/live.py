@@ -15,9 +15,11 @@ simulated rig on its virtual clock runs as fast as it is read), on Ctrl-C, or on
 device's error (a stalled or unplugged rig: :class:`~labcli.errors.DeviceError`), stopping
 the stream on the way out in every case.
 
-The time from a batch's arrival (``read`` returning it) to each of its estimates being
-published is kept per estimate (:attr:`LiveSummary.latency_s`), so that what a controller
-waits for is measured where it happens.
+The time from a batch's arrival to each of its estimates being published is kept per
+estimate (:attr:`LiveSummary.latency_s`), so that what a controller waits for is measured where
+it happens: from the moment the bytes of the batch's newest frame (the one that completes the
+block an estimate averages) were taken off the port, the device's ``arrived``, parsing included,
+to its JSON line written to every output (when ``read`` returned, for a device that does not say).
 
 A board that carries a model of its own (wire protocol 1.1, ``CAPS?`` naming ``est=...``) is asked
 for an estimate line per data frame; each of the host's estimates then carries the board's of the
@@ -200,6 +202,12 @@ class _Stream:
         return done
 
 
+def arrival(dev: Any) -> float:
+    """When the newest frame of ``dev``'s last read reached the host (``time.perf_counter()``)."""
+    got = getattr(dev, "arrived", None)
+    return float(got) if isinstance(got, float) else time.perf_counter()
+
+
 def run(
     dev: Any,
     estimator: Any,
@@ -230,7 +238,7 @@ def run(
         try:
             while True:
                 batch = dev.read(timeout=READ_S)
-                if stream.take(batch, time.perf_counter()):
+                if stream.take(batch, arrival(dev)):
                     summary.stopped = "seconds"
                     break
         except KeyboardInterrupt:

@@ -138,6 +138,26 @@ def test_the_loop_stops_on_the_rigs_clock_and_publishes_every_nth_estimate():
     assert not dev.streaming
 
 
+def test_latency_runs_from_the_frames_bytes_reaching_the_host_not_from_read_returning():
+    """A read that parses slowly (a long burst): its parsing counts, as the controller waits for it."""
+    sink = Sink()
+    with Device.open("sim://?seed=2&clock=virtual") as dev:
+        est = Estimator(LinearModel(), calibration=load_protocol("takuma2014").calibration, channels=dev.info.channels)
+        dev.set_rate(200)
+        real_read, stamps = dev.read, []
+
+        def read_then_parse_slowly(timeout: float = 1.0):
+            batch = real_read(timeout)
+            stamps.append(dev.arrived)
+            time.sleep(0.02)  # bytes in hand, frames not yet handed over
+            return batch
+
+        dev.read = read_then_parse_slowly
+        summary = run(dev, est, [sink], seconds=2.0)
+    assert all(isinstance(t, float) for t in stamps)
+    assert len(summary.latency_s) == 20 and min(summary.latency_s) >= 0.02
+
+
 def test_an_unplugged_rig_stops_the_loop_with_its_sentence_and_the_summary_so_far():
     sink = Sink()
     with Device.open("sim://?seed=2&clock=virtual") as dev:

@@ -106,9 +106,7 @@ class TakumaSensing:
         bad = np.array(["bad-pressure" in f for f in out["flags"]])
         ok = np.column_stack([np.asarray(out["ok"][q], dtype=bool) for q in QUANTITIES])
         inputs_out, values_out = self._outside(P0, P, rest, values)
-        names = np.array(
-            [OUT_OF_RANGE] + [f"{UNOBSERVABLE}:{q}" for q in QUANTITIES] + [f"{OUT_OF_RANGE}:{q}" for q in QUANTITIES]
-        )
+        names = FLAG_NAMES
         raised = np.column_stack([inputs_out, ~ok, values_out & ok])
         return [(BAD_INPUT,) if bad[i] else tuple(names[raised[i]].tolist()) for i in range(n)]
 
@@ -117,20 +115,36 @@ class TakumaSensing:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Rows whose inputs, and estimates whose values, lie outside the calibrated range."""
         n = len(values)
-        cr = self.calibrated_range
+        bounds = self._bounds()
         inputs = np.zeros(n, bool)
         for key, x, scale in (("P0_MPa", P0, 1.0), ("dP_MPa", P0 - P, 1.0), ("rest_deg", rest, 180 / math.pi)):
-            if key in cr:
-                ranges = np.asarray(cr[key], dtype=float)
-                least = MIN_PAD.get(key, lambda r: 0.0)(ranges)
-                inputs |= _beyond(x * scale, ranges, self.margin, least).any(axis=1)
+            if key in bounds:
+                inputs |= _outside_bounds(x * scale, *bounds[key]).any(axis=1)
         est = np.zeros((n, 4), bool)
-        if "theta_deg" in cr:
-            est[:, :2] = _beyond(np.degrees(values[:, :2]), np.asarray(cr["theta_deg"], dtype=float), self.margin)
-        if "F_N" in cr:
-            est[:, 2:] = _beyond(values[:, 2:], np.asarray(cr["F_N"], dtype=float), self.margin)
+        if "theta_deg" in bounds:
+            est[:, :2] = _outside_bounds(np.degrees(values[:, :2]), *bounds["theta_deg"])
+        if "F_N" in bounds:
+            est[:, 2:] = _outside_bounds(values[:, 2:], *bounds["F_N"])
         return inputs, est
 
+    def _bounds(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Each calibrated range's ends with its margin, (low, high), worked out once per margin:
+        the estimator asks every block."""
+        key = (self.margin, id(self.calibrated_range))
+        if getattr(self, "_bounds_key", None) != key:
+            out = {}
+            for name, raw in self.calibrated_range.items():
+                if name in ("P0_MPa", "dP_MPa", "rest_deg", "theta_deg", "F_N"):
+                    ranges = np.asarray(raw, dtype=float)
+                    out[name] = _limits(ranges, self.margin, MIN_PAD.get(name, lambda r: 0.0)(ranges))
+            self._bounds_cache, self._bounds_key = out, key
+        return self._bounds_cache
+
+
+# The flags an estimate row may raise, in the order of _flags' columns.
+FLAG_NAMES = np.array(
+    [OUT_OF_RANGE] + [f"{UNOBSERVABLE}:{q}" for q in QUANTITIES] + [f"{OUT_OF_RANGE}:{q}" for q in QUANTITIES]
+)
 
 # The least margin of an input's range: the baseline pressures may drift by a tenth of their level (the
 # leak over a session), the rest posture by 2 deg (friction leaves it a little elsewhere after every load).
@@ -140,12 +154,16 @@ MIN_PAD = {
 }
 
 
-def _beyond(x: np.ndarray, ranges: np.ndarray, margin: float, least: Any = 0.0) -> np.ndarray:
-    """(n, m) True where x lies outside [lo, hi] (ranges (m, 2)) by more than ``margin`` of the
-    span (``least`` at least)."""
+def _limits(ranges: np.ndarray, margin: float, least: Any = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The ends of [lo, hi] (ranges (m, 2)) moved out by ``margin`` of the span (``least`` at least)."""
     lo, hi = ranges[:, 0], ranges[:, 1]
     pad = np.maximum(margin * (hi - lo), least)
-    return (x < lo - pad) | (x > hi + pad)
+    return lo - pad, hi + pad
+
+
+def _outside_bounds(x: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """(n, m) True where x lies below ``low`` or above ``high``."""
+    return (x < low) | (x > high)
 
 
 def _given(v: Any) -> bool:
