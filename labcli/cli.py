@@ -172,8 +172,31 @@ def _as_interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+MIN_ADDRESS_SPACE_MIB = 448  # numpy, pandas, h5py and OpenBLAS's buffers: 342 MiB failed to load them, 488 MiB ran
+
+
+def _check_address_space() -> None:
+    """One sentence, before anything is read or written, when ``ulimit -v`` leaves too little to load
+    the libraries (they fail to load as ImportError, OpenBLAS's own abort or a segfault)."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, OSError, ValueError):
+        return
+    if soft != resource.RLIM_INFINITY and soft < MIN_ADDRESS_SPACE_MIB * 2**20:
+        click.echo(
+            f"Error: the address-space limit (ulimit -v) is {soft // 2**20} MiB, below the "
+            f"{MIN_ADDRESS_SPACE_MIB} MiB labcli needs to load numpy, pandas and HDF5; raise it "
+            "(ulimit -v unlimited) and run the command again. Nothing was read or written.",
+            err=True,
+        )
+        sys.exit(1)
+
+
 def main() -> None:
     warnings.showwarning = _show_warning
+    _check_address_space()
     for name in ("SIGTERM", "SIGHUP"):
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), _as_interrupt)
