@@ -96,6 +96,26 @@ def transcript(stdout: str) -> str:
 # ----------------------------------------------------------------------------- fast
 
 
+def _valve_times(sim_rig: Any) -> dict[str, Any]:
+    """The valves' orifice and how long the design rig's chambers take to fill and vent through it."""
+    from labcli.core.sim import orifice
+    from labcli.papers.takuma2014.sim import physics
+
+    p = physics.nominal_params()
+    k = sim_rig.VALVE.rate(physics.mckibben_volume(p.L_mount, p.b, p.n) + p.V_dead)
+    atm, source = physics.P_ATM, physics.SUPPLY_MPA * 1e6 + physics.P_ATM
+    fill = orifice.time_to(0.99 * (source - atm) + atm, atm, source, k, sim_rig.VALVE_B)
+    vent = orifice.time_to(0.01 * (source - atm) + atm, source, atm, k, sim_rig.VALVE_B)
+    out: dict[str, Any] = {"rig.valve_c_dm3_per_s_bar": sim_rig.VALVE_C_DM3_PER_S_BAR, "rig.valve_b": sim_rig.VALVE_B}
+    for name, i in (("outside", 0), ("inside", 2)):
+        out[f"rig.{name}_volume_mL"] = rounded(
+            float(p.V_dead[i] + physics.mckibben_volume(p.L_mount, p.b, p.n)[i]) * 1e6
+        )
+        out[f"rig.fill99_{name}_s"] = rounded(float(fill[i]))
+        out[f"rig.vent1_{name}_s"] = rounded(float(vent[i]))
+    return out
+
+
 def constants() -> dict[str, Any]:
     """Values the pages quote from the protocol files and the code (geometry, calibration, levels)."""
     from labcli.core.protocol import load_protocol
@@ -151,6 +171,7 @@ def constants() -> dict[str, Any]:
     out["design.dead_mL.outside"], out["design.dead_mL.inside"] = (rounded(v * 1e6) for v in design.v_dead)
     out["rig.pressure_noise_counts"] = sim_rig.PRESSURE_NOISE_COUNTS
     out["rig.pot_noise_counts"] = sim_rig.POT_NOISE_COUNTS
+    out.update(_valve_times(sim_rig))
     # The zero drift at drift = 1 in counts and in the units the pages read (the reference
     # calibration: 5 V / 4095 counts / 4 V per MPa; 340 deg / 4095 counts).
     out["rig.pressure_drift_counts"] = sim_rig.PRESSURE_DRIFT_COUNTS

@@ -5,7 +5,7 @@ degrees, millimetres and MPa gauge.
 =====================================  =============================================
 ``supply [P | P_L1 P_R1 P_L2 P_R2]``   open the valves at the regulator (MPa gauge;
                                        default: the rig's supply)
-``close``                              close the valves (each chamber keeps its air)
+``hold`` (or ``close``)                close the valves (each chamber keeps its air)
 ``vent``                               open the valves to the atmosphere
 ``hang MASS_G DIR_DEG``                hang a weight over the pulley along DIR_DEG
 ``remove``                             take the weight off
@@ -94,6 +94,7 @@ def _state(rig: Any, args: list[str]) -> str:
 
 COMMANDS = {
     "supply": ConsoleCommand("supply [MPA | MPA MPA MPA MPA]", _supply),
+    "hold": ConsoleCommand("hold", _plain("hold", "close_valves")),
     "close": ConsoleCommand("close", _plain("close", "close_valves")),
     "vent": ConsoleCommand("vent", _plain("vent", "vent")),
     "hang": ConsoleCommand("hang GRAMS DEG", _hang),

@@ -8,7 +8,9 @@ given beside it still applies (``ideal=1&leak=1`` is the ideal rig with a leak).
 pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuators
 (``paper``, the paper-scale default, or ``thin``, the earlier soft tuning;
 ``design=thin&ideal=1`` reproduces its frames exactly); ``valves=open`` leaves the valves open to
-the regulator whatever closes them (an operator who forgot, a valve stuck open).  ``script`` is a
+the regulator whatever closes them (an operator who forgot, a valve stuck open); ``valve_c`` and
+``valve_b`` the valves' orifice (ISO 6358 sonic conductance in dm^3/(s bar) and critical pressure
+ratio, :mod:`labcli.core.sim.orifice`), which set how long a supply or a vent takes.  ``script`` is a
 file of loads and pushes the rig acts out on its own clock, the truth kept beside the stream
 (:mod:`.script`).  An option left out (None) is the rig's own default.
 
@@ -92,6 +94,21 @@ class McKibbenRigOptions:
         help="open: the valves stay open to the regulator whatever closes them (a valve stuck open).",
         default_text="ok",
     )
+    valve_c: float | None = number(
+        help="Sonic conductance of each chamber's valve with its tubing (ISO 6358), for supply and vent.",
+        units="dm3/(s bar)",
+        minimum=0,
+        above=True,
+        maximum=10,
+        default_text="0.1",
+    )
+    valve_b: float | None = number(
+        help="Critical pressure ratio of each chamber's valve (ISO 6358): the flow is choked below it.",
+        minimum=0,
+        above=True,
+        maximum=0.95,
+        default_text="0.3",
+    )
     script: Any = text(
         help="A file of loads and pushes the rig acts out on its own clock, the truth kept beside the stream.",
         parse=parse_script,
@@ -118,6 +135,13 @@ def build_rig(
     nonideal = replace(base, **{k: v for k, v in scales.items() if v is not None})
     supply = physics.SUPPLY_MPA if options.supply is None else options.supply
     design = options.design or "paper"
+    valve = None
+    if options.valve_c is not None or options.valve_b is not None:
+        from ....core.sim.orifice import DM3_PER_S_BAR, Orifice
+        from .rig import VALVE_B, VALVE_C_DM3_PER_S_BAR
+
+        c = VALVE_C_DM3_PER_S_BAR if options.valve_c is None else options.valve_c
+        valve = Orifice(c * DM3_PER_S_BAR, VALVE_B if options.valve_b is None else options.valve_b)
     rig = SimRig(
         seed=seed,
         noise=noise,
@@ -127,6 +151,7 @@ def build_rig(
         nonideal=nonideal,
         design=design,
         valves_open=options.valves == "open",
+        valve=valve,
     )
     if options.script is None:
         return rig

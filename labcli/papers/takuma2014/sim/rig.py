@@ -13,16 +13,21 @@ Operator hooks (``supply_air``, ``close_valves``, ``hang_weight``, ...) act at
 the rig's current simulated time.  Each solves the new static equilibrium once
 (:func:`labcli.papers.takuma2014.sim.physics.solve_equilibrium`); the posture then relaxes towards it
 as a first-order lag with time constant ``tau`` (seeded jitter of about 15 %
-per change).  With the valves open the pressures follow the regulator with the
-same lag; with them closed the pressures follow the posture through Boyle's
+per change).  With the valves closed the pressures follow the posture through Boyle's
 law, so angles and pressures are always consistent.
 
 Each chamber has its own valve (``valve_channels``, the pressure channels in order), which a
 wire-protocol 1.1 board drives through :meth:`SimRig.set_valves`: ``supply`` (open to the
 regulator), ``hold`` (closed) or ``vent`` (open to the atmosphere), one per chamber; the hand
-operations ``supply_air``, ``close_valves`` and ``vent`` set all four at once.  A valve acts at
-once, as the hand operations do: the pressures of an opened chamber follow the regulator (or the
-atmosphere) with the same lag.  A closed chamber in a mixed state leaks but has no thermal tail.
+operations ``supply_air``, ``close_valves`` and ``vent`` set all four at once.  A valve switches
+at once; the air then takes time: an open chamber fills from the regulator (an ideal, relieving
+source at its set pressure) or empties to the atmosphere through the valve's orifice, ISO 6358
+flow (``valve``, :data:`VALVE` by default), isothermal, at the volume the chamber has when the
+valve acts (:mod:`labcli.core.sim.orifice`).  It reaches the regulator's pressure, or the
+atmosphere's, exactly and in a finite time: 0.46 s to 99 % of 0.3 MPa for an outside chamber,
+0.21 s for an inside one.  A chamber closed part way keeps the air it has.  The rig has no relief
+valve of its own: the pressure limit is the board's (:mod:`labcli.core.sim.valves`, ``PMAX``).
+A closed chamber in a mixed state leaks but has no thermal tail.
 
 Sensors: pressure counts per the reference calibration
 ``P[MPa] = (counts * 5 / 4095 - 1) / 4`` and potentiometer counts per
@@ -60,7 +65,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ....core.sim import orifice
 from ....core.sim.clock import SimClock
+from ....core.sim.orifice import Orifice
 from ....core.sim.sensors import GainLinearity, SensorChannel, SensorFrontEnd, Transfer, repeat_error
 from . import nonideal as ni
 from . import physics as ph
@@ -74,6 +81,13 @@ POT_NOISE_COUNTS = 0.7
 # Zero drift at drift = 1 (counts): the pressure sensors a little more than the potentiometers.
 PRESSURE_DRIFT_COUNTS = 3.0
 POT_DRIFT_COUNTS = 2.0
+# Each chamber's valve with its fittings and tubing (ISO 6358): 0.1 dm^3/(s bar) and b = 0.3, a
+# small 3/2 solenoid valve behind a metre of 4 mm tube.  It fills an outside chamber (44 mL with its
+# tubing) from vented to 99 % of 0.3 MPa in 0.46 s, an inside one (20 mL) in 0.21 s, and vents them
+# to within 1 % in 0.71 s and 0.33 s.
+VALVE_C_DM3_PER_S_BAR = 0.1
+VALVE_B = 0.3
+VALVE = Orifice(VALVE_C_DM3_PER_S_BAR * orifice.DM3_PER_S_BAR, VALVE_B)
 
 
 def pressure_to_counts(p_MPa):
@@ -105,6 +119,7 @@ class _Segment:
     shaft0: np.ndarray  # potentiometer shaft angles at t0 (backlash)
     repeat_from: np.ndarray  # the pressure sensors' non-repeatability at t0 (MPa)
     repeat_to: np.ndarray  # the one the new readings settle to (MPa)
+    flow_rate: np.ndarray  # each open chamber's orifice rate k = C R T0 rho0 / V (1/s), :mod:`.orifice`
 
 
 class SimRig(SimClock):
@@ -142,6 +157,7 @@ class SimRig(SimClock):
         nonideal: ni.NonIdeal | None = None,
         design: str | ph.Design = "paper",
         valves_open: bool = False,
+        valve: Orifice | None = None,
     ) -> None:
         if noise < 0 or (drift is not None and drift < 0) or tau_s <= 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
@@ -163,6 +179,7 @@ class SimRig(SimClock):
             if self.nonideal.links:
                 params = replace(params, link_mass_kg=np.array(ni.LINK_MASS_KG) * self.nonideal.links)
         self.params = params
+        self.valve = VALVE if valve is None else valve
         levels = self.nonideal.magnitudes()
         self._friction = float(levels["friction_fraction"])
         self._contact_mu, self._pulley_loss = float(levels["contact_mu"]), float(levels["pulley_loss"])
@@ -195,6 +212,7 @@ class SimRig(SimClock):
             shaft0=eq.theta_rad.copy(),
             repeat_from=np.zeros(4),
             repeat_to=np.zeros(4),
+            flow_rate=self._flow_rate(eq.theta_rad),
         )
         self._rest_theta = eq.theta_rad.copy()
         self._valves = "vented"
@@ -278,9 +296,9 @@ class SimRig(SimClock):
         """Posture (..., 2), gauge pressures Pa (..., 4) at times ``t``."""
         s = self._seg
         t = np.asarray(t, dtype=float)
-        theta, w = self._theta_at(t)
+        theta, _ = self._theta_at(t)
         if s.chambers.state == "open":
-            p = s.p_to + (s.p_from - s.p_to) * w
+            p = self._open_pressure(t)
         else:
             L = ph.actuator_lengths(theta, self.params)
             V = ph.mckibben_volume(L, self.params.b, self.params.n)
@@ -290,8 +308,29 @@ class SimRig(SimClock):
                 p_abs = p_abs * (1.0 + self._thermal_at(t))
             p = p_abs - ph.P_ATM
             if s.chambers.state == "mixed":
-                p = np.where(s.chambers.held_mask, p, s.p_to + (s.p_from - s.p_to) * w)
+                p = np.where(s.chambers.held_mask, p, self._open_pressure(t))
         return theta, p
+
+    def _open_pressure(self, t) -> np.ndarray:
+        """Gauge pressures (Pa, ``(..., 4)``) of the chambers open to the regulator or the atmosphere
+        at times ``t``: the air flows through each valve's orifice (:func:`.orifice.pressure_at`)."""
+        s = self._seg
+        p_abs = orifice.pressure_at(
+            np.asarray(t, dtype=float) - s.t0, s.p_from + ph.P_ATM, s.p_to + ph.P_ATM, s.flow_rate, self.valve.b
+        )
+        return p_abs - ph.P_ATM
+
+    def chamber_volumes(self, theta=None) -> np.ndarray:
+        """Each chamber's volume with its dead volume (m^3, ``(..., 4)``) at posture ``theta``
+        (absolute joint angles, rad; None: the posture now)."""
+        p = self.params
+        if theta is None:
+            theta = self.true_state()["theta_rad"]
+        return ph.mckibben_volume(ph.actuator_lengths(theta, p), p.b, p.n) + p.V_dead
+
+    def _flow_rate(self, theta) -> np.ndarray:
+        """Each chamber's orifice rate (1/s) at the volume it has at posture ``theta``."""
+        return self.valve.rate(self.chamber_volumes(theta))
 
     def _leak_factor(self, t):
         """Fraction of each closed chamber's air left at times ``t`` (``(..., 4)``)."""
@@ -426,6 +465,7 @@ class SimRig(SimClock):
                 shaft0=np.asarray(shaft_now, float),
                 repeat_from=repeat_now,
                 repeat_to=repeat_error(self._repeat_rng, self._repeat_sd, 4),
+                flow_rate=self._flow_rate(theta_now),
             )
             if isinstance(load, ph.NoLoad):
                 self._rest_theta = eq.theta_rad.copy()
