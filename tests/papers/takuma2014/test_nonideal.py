@@ -72,13 +72,14 @@ def session_digest(url: str) -> str:
     [
         # Recorded from the rig before the non-idealities and the paper-scale retune existed
         # (then simply sim://?seed=1 and sim://?seed=7&noise=2&tau=0.5), behind the board of
-        # the time: wire protocol 1.0 (a 1.1 board samples in shorter blocks while supplying).
+        # the time: wire protocol 1.0 (a 1.1 board samples in shorter blocks while supplying), and
+        # the valves of the time: a first-order lag, not an orifice (flow=lag).
         (
-            "sim://?seed=1&ideal=1&design=thin&fw=1.0",
+            "sim://?seed=1&ideal=1&design=thin&fw=1.0&flow=lag",
             "69ead969c4b47b520aed1de6e8e63144afce3f4d15e4d73e4c695620483b5ae7",
         ),
         (
-            "sim://?seed=7&noise=2&tau=0.5&ideal=1&design=thin&fw=1.0",
+            "sim://?seed=7&noise=2&tau=0.5&ideal=1&design=thin&fw=1.0&flow=lag",
             "c2daaca6bef81cc75fb2a74dbddb66b09dc398b883fab2b6d453d335bb6dfa0e",
         ),
     ],

@@ -34,14 +34,18 @@ register()
     [
         # Recorded from the default rig before the literature's levels existed (then simply
         # sim://?seed=1 and sim://?seed=3&supply=0.15,0.15,0.45,0.15), behind the board of the
-        # time: wire protocol 1.0 (a 1.1 board samples in shorter blocks while supplying).
-        ("sim://?seed=1&realism=kind&fw=1.0", "fe3ec5152fff499ae039be9460b63b75a60989a85b86fc51612e76484c1b69a3"),
+        # time: wire protocol 1.0 (a 1.1 board samples in shorter blocks while supplying), and the
+        # valves of the time: a first-order lag, not an orifice (flow=lag).
         (
-            "sim://?seed=3&supply=0.15,0.15,0.45,0.15&realism=kind&fw=1.0",
+            "sim://?seed=1&realism=kind&fw=1.0&flow=lag",
+            "fe3ec5152fff499ae039be9460b63b75a60989a85b86fc51612e76484c1b69a3",
+        ),
+        (
+            "sim://?seed=3&supply=0.15,0.15,0.45,0.15&realism=kind&fw=1.0&flow=lag",
             "e8ce0ac744e0de7bf5f92ea0a329b36b7ddf19c6d51842cc0a7d2d0b0a9d8f29",
         ),
         (
-            "sim://?seed=2&drift=1&noise=3&realism=kind&fw=1.0",
+            "sim://?seed=2&drift=1&noise=3&realism=kind&fw=1.0&flow=lag",
             "75f5697c4ee58c240cc066ad835a5f387a93ebb43f4a3f4ab01d39c14b983e9e",
         ),
     ],

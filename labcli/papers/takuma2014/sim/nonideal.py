@@ -12,8 +12,8 @@ Two sets of default scales (``realism``):
 * ``"kind"``: the rig as it was before those levels: sleeve friction at a quarter of the
   literature's level (0.5 % of the pressure force), no drift, and none of the effects added
   with them (contact and pulley friction, potentiometer scale and linearity errors, the
-  pressure sensors' repeatability).  It reproduces that rig's frames byte for byte, so that
-  figures measured on it can be remade (``sim://?realism=kind``).
+  pressure sensors' repeatability).  With the valves' earlier lag it reproduces that rig's frames
+  byte for byte, so that figures measured on it can be remade (``sim://?realism=kind&flow=lag``).
 
 A scale multiplies the realism's level: ``realism=kind&friction=2`` is twice the kind rig's
 friction (1 %), ``friction=2`` twice the literature's (4 %); an effect the kind rig lacks is

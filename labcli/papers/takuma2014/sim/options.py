@@ -3,14 +3,15 @@ rig they build.
 
 Each non-ideality (:mod:`.nonideal`) has a scale (1 = its level, 0 = off);
 ``realism`` picks the levels and default scales (``literature`` or ``kind``, the rig as it was
-before the literature's levels, byte for byte); ``ideal`` turns every effect off, and a scale
+before the literature's levels, byte for byte with ``flow=lag``); ``ideal`` turns every effect off, and a scale
 given beside it still applies (``ideal=1&leak=1`` is the ideal rig with a leak).  ``supply`` is the regulator
 pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuators
-(``paper``, the paper-scale default, or ``thin``, the earlier soft tuning;
-``design=thin&ideal=1`` reproduces its frames exactly); ``valves=open`` leaves the valves open to
+(``paper``, the paper-scale default, or ``thin``, the earlier soft tuning); ``valves=open`` leaves the valves open to
 the regulator whatever closes them (an operator who forgot, a valve stuck open); ``valve_c`` and
 ``valve_b`` the valves' orifice (ISO 6358 sonic conductance in dm^3/(s bar) and critical pressure
-ratio, :mod:`labcli.core.sim.orifice`), which set how long a supply or a vent takes.  ``script`` is a
+ratio, :mod:`labcli.core.sim.orifice`), which set how long a supply or a vent takes; ``flow=lag``
+the earlier rig's first-order lag instead of the orifice (``design=thin&ideal=1&flow=lag`` and
+``realism=kind&flow=lag`` reproduce the runs recorded before the orifice frame for frame).  ``script`` is a
 file of loads and pushes the rig acts out on its own clock, the truth kept beside the stream
 (:mod:`.script`).  An option left out (None) is the rig's own default.
 
@@ -109,6 +110,12 @@ class McKibbenRigOptions:
         maximum=0.95,
         default_text="0.3",
     )
+    flow: str | None = choice(
+        ("orifice", "lag"),
+        help="lag: open chambers follow the regulator with the arm's first-order lag, as the rig did "
+        "before its valves had orifices (reproduces runs recorded then).",
+        default_text="orifice",
+    )
     script: Any = text(
         help="A file of loads and pushes the rig acts out on its own clock, the truth kept beside the stream.",
         parse=parse_script,
@@ -152,6 +159,7 @@ def build_rig(
         design=design,
         valves_open=options.valves == "open",
         valve=valve,
+        flow=options.flow or "orifice",
     )
     if options.script is None:
         return rig

@@ -652,7 +652,7 @@ PAPER_SCALE = Design(
     v_dead=(15.0e-6, 6.0e-6),
 )
 # The tuning before the paper-scale retune: thin, soft muscles (0.6-13 deg for 50-1000 g).
-# Kept so that runs recorded on it (``sim://?design=thin&ideal=1``) can be reproduced.
+# Kept so that runs recorded on it (``sim://?design=thin&ideal=1&flow=lag``) can be reproduced.
 THIN_MUSCLES = Design(
     pairs={1: (0.220, 41.0, 0.006), 2: (0.220, 37.0, 0.006)},
     k_rubber=100.0,

@@ -25,7 +25,8 @@ source at its set pressure) or empties to the atmosphere through the valve's ori
 flow (``valve``, :data:`VALVE` by default), isothermal, at the volume the chamber has when the
 valve acts (:mod:`labcli.core.sim.orifice`).  It reaches the regulator's pressure, or the
 atmosphere's, exactly and in a finite time: 0.46 s to 99 % of 0.3 MPa for an outside chamber,
-0.21 s for an inside one.  A chamber closed part way keeps the air it has.  The rig has no relief
+0.21 s for an inside one.  A chamber closed part way keeps the air it has (``flow="lag"``: the earlier rig's first-order
+lag instead, which reproduces its runs frame for frame).  The rig has no relief
 valve of its own: the pressure limit is the board's (:mod:`labcli.core.sim.valves`, ``PMAX``).
 A closed chamber in a mixed state leaks but has no thermal tail.
 
@@ -88,6 +89,9 @@ POT_DRIFT_COUNTS = 2.0
 VALVE_C_DM3_PER_S_BAR = 0.1
 VALVE_B = 0.3
 VALVE = Orifice(VALVE_C_DM3_PER_S_BAR * orifice.DM3_PER_S_BAR, VALVE_B)
+# ``lag``: an open chamber follows its regulator with the posture's first-order lag, as the rig did
+# before the orifice, so that runs recorded then are reproduced frame for frame.
+FLOWS = ("orifice", "lag")
 
 
 def pressure_to_counts(p_MPa):
@@ -158,6 +162,7 @@ class SimRig(SimClock):
         design: str | ph.Design = "paper",
         valves_open: bool = False,
         valve: Orifice | None = None,
+        flow: str = "orifice",
     ) -> None:
         if noise < 0 or (drift is not None and drift < 0) or tau_s <= 0:
             raise ValueError("noise and drift must be >= 0 and tau_s > 0")
@@ -179,7 +184,10 @@ class SimRig(SimClock):
             if self.nonideal.links:
                 params = replace(params, link_mass_kg=np.array(ni.LINK_MASS_KG) * self.nonideal.links)
         self.params = params
+        if flow not in FLOWS:
+            raise ValueError(f"flow is one of {', '.join(FLOWS)}")
         self.valve = VALVE if valve is None else valve
+        self.flow = flow
         levels = self.nonideal.magnitudes()
         self._friction = float(levels["friction_fraction"])
         self._contact_mu, self._pulley_loss = float(levels["contact_mu"]), float(levels["pulley_loss"])
@@ -315,6 +323,9 @@ class SimRig(SimClock):
         """Gauge pressures (Pa, ``(..., 4)``) of the chambers open to the regulator or the atmosphere
         at times ``t``: the air flows through each valve's orifice (:func:`.orifice.pressure_at`)."""
         s = self._seg
+        if self.flow == "lag":
+            w = np.exp(-np.clip(np.asarray(t, dtype=float) - s.t0, 0.0, None) / s.tau)[..., None]
+            return s.p_to + (s.p_from - s.p_to) * w
         p_abs = orifice.pressure_at(
             np.asarray(t, dtype=float) - s.t0, s.p_from + ph.P_ATM, s.p_to + ph.P_ATM, s.flow_rate, self.valve.b
         )
