@@ -25,7 +25,7 @@ SIM_URL_FORM = (
     "[&mode=mckibben|rpam][&faults=KIND:RATE[@X],...][&fw=1.0|1.1][&firmware=ELF][&experiment=joint|stretch]"
     "[&nominal=0|1][&reading=derived|paper][&ideal=0|1][&friction=X][&leak=X][&thermal=X][&backlash=X][&links=X][&contact=X][&pulley=X]"
     "[&potscale=X][&potlin=X][&repeat=X][&supply=MPA[,MPA,MPA,MPA]][&design=paper|thin][&realism=literature|kind]"
-    "[&valves=ok|open][&script=FILE]"
+    "[&valves=ok|open][&valve_c=X][&valve_b=X][&flow=orifice|lag][&script=FILE]"
 )
 
 
