@@ -120,8 +120,8 @@ CASES: list[Case] = [
     Case(
         "rig-no-supply",
         "rig",
-        "no air supply (`sim://?tau=1e9`): refused before any trial",
-        ["acquire", "new.h5", "--port", SIM + "&tau=1e9", "--unattended"],
+        "no air supply (`sim://?supply=0`): refused before any trial",
+        ["acquire", "new.h5", "--port", SIM + "&supply=0", "--unattended"],
         [
             "After the air supply P_L1 reads -0.002 MPa, P_R1 reads -0.001 MPa, P_L2 reads 0.001 MPa, P_R2 reads "
             "0.003 MPa, below the 0.1 MPa the protocol asks for (acquisition.supply_min_MPa): check the compressor, "

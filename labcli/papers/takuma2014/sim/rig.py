@@ -184,10 +184,7 @@ class SimRig(SimClock):
             if self.nonideal.links:
                 params = replace(params, link_mass_kg=np.array(ni.LINK_MASS_KG) * self.nonideal.links)
         self.params = params
-        if flow not in FLOWS:
-            raise ValueError(f"flow is one of {', '.join(FLOWS)}")
-        self.valve = VALVE if valve is None else valve
-        self.flow = flow
+        self.valve, self.flow = VALVE if valve is None else valve, _checked_flow(flow)
         levels = self.nonideal.magnitudes()
         self._friction = float(levels["friction_fraction"])
         self._contact_mu, self._pulley_loss = float(levels["contact_mu"]), float(levels["pulley_loss"])
@@ -612,6 +609,12 @@ class SimRig(SimClock):
             counts = self.sensors.read(self._sensed(self._shaft_at(t, theta), p), t)
             self._t = float(t[-1])
             return np.rint(t * 1e6).astype(np.int64), counts
+
+
+def _checked_flow(flow: str) -> str:
+    if flow not in FLOWS:
+        raise ValueError(f"flow is one of {', '.join(FLOWS)}")
+    return flow
 
 
 def _load_text(load) -> str:
