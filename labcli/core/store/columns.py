@@ -180,6 +180,12 @@ class Table:
         stored = [n.decode() if isinstance(n, bytes) else str(n) for n in g.attrs["columns"]]
         self.names: list[str] = [column_name(n) for n in stored]
         self.ds: dict[str, h5py.Dataset] = {column_name(n): g[n] for n in [*stored, CHECKSUM.name]}
+        odd = [n for n, ds in self.ds.items() if not isinstance(ds, h5py.Dataset)]
+        if odd:  # a damaged object header can make HDF5 see a dataset as another kind of object
+            raise StoreError(
+                f"{g.name}/{h5_name(odd[0])} of the run file is no dataset (its header is damaged); check the file "
+                "with labcli inspect --verify and use a backup copy."
+            )
         self.chunk = int(g.attrs["chunk_rows"])
 
     @classmethod
@@ -297,7 +303,7 @@ class Table:
                 unreadable |= bad
             stored = values[CHECKSUM.name].astype(np.uint64)
             computed = row_checksums([values[name] for name in self.names], a)
-            gap = stored == 0
+            gap = (stored == 0) & ~bad  # a checksum that could not be read is no gap: its row is damaged
             wrong = ~gap & ((stored != computed) | unreadable)
             damaged += [(a + int(i), "its checksum does not match its values") for i in np.flatnonzero(wrong)]
             keep = ~gap & ~wrong
