@@ -627,6 +627,13 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--seeds", "11-30", "--loads", "10", "--idle-min", "3", "--jobs", "2", "--fast-seconds", "120")},
         ),
         Source(
+            "sensing-latency",
+            "benchmark",
+            "labcli sense's frame-to-published latency beside a bare read-and-write floor, held-out seeds 11-20",
+            script="sensing_online.py",
+            runs={"": ("--latency-only", "--seeds", "11-20", "--fast-seconds", "36")},
+        ),
+        Source(
             "firmware", "benchmark", "the firmware's highest rate on simavr", script="bench_firmware.py", runs={"": ()}
         ),
         Source(
