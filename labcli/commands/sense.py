@@ -153,8 +153,8 @@ def _summary_line(s: Any) -> str:
         return f"{head}, {s.estimates} estimates, {events}."
     board = f", {s.paired} with the board's own beside them" if s.board else ""
     return (
-        f"{head}, {s.estimates} estimates ({s.published} published{board}), {events}; from a batch of frames read "
-        f"to its estimate published: median {lat['median']:.2f} ms, p99 {lat['p99']:.2f} ms."
+        f"{head}, {s.estimates} estimates ({s.published} published{board}), {events}; from a frame's bytes at the host "
+        f"to its estimate's line written: median {lat['median']:.2f} ms, p99 {lat['p99']:.2f} ms."
     )
 
 

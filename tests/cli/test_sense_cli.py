@@ -105,7 +105,7 @@ def test_every_thins_the_estimates_but_keeps_every_event(tmp_path, stream):
     # A file output leaves stdout to the live view, which ends with the summary.
     assert "state releasing" in result.stdout and "Fx" in result.stdout
     assert re.search(
-        r"1 load, 1 settled, 1 release; from a batch of frames read to its estimate published: "
+        r"1 load, 1 settled, 1 release; from a frame's bytes at the host to its estimate's line written: "
         r"median [0-9.]+ ms, p99 [0-9.]+ ms\.\n$",
         result.stdout,
     ), result.stdout[-300:]
