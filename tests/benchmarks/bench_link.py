@@ -48,6 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import serial  # noqa: E402
+from fresh import command_line  # noqa: E402
 
 from labcli.core.device import Device  # noqa: E402
 
@@ -257,21 +258,11 @@ def main() -> None:
         print(f"baseline: no 'OK STOP' within {STOP_REPLY_S:g} s of STOP (it fell behind the link)")
     if a.figures and figures:
         figures["load average"] = round(max(load[0], load_after[0]), 1)
-        figures["command"] = "python tests/benchmarks/bench_link.py " + " ".join(_without_figures(sys.argv[1:]))
+        figures["command"] = command_line("bench_link.py", sys.argv[1:])
         Path(a.figures).write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n")
     if not a.faults and rows[0]["lost"]:
         print("FRAMES LOST without faults")
         sys.exit(1)
-
-
-def _without_figures(argv: list[str]) -> list[str]:
-    out = []
-    skip = False
-    for x in argv:
-        if not skip and x != "--figures" and not x.startswith("--figures="):
-            out.append(x)
-        skip = x == "--figures"
-    return out
 
 
 if __name__ == "__main__":

@@ -33,8 +33,10 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
+from fresh import command_line  # noqa: E402
 
 K = 6  # channels of the reference rig
 _DIGIT = np.zeros(256, bool)
@@ -163,19 +165,9 @@ def main() -> None:
     print("ratio: the baseline's CPU time over the reader's (above 1: the reader is faster)")
     print(f"load average before {load[0]:.2f}, after {load_after[0]:.2f} (2 CPUs)")
     figures["load average"] = round(max(load[0], load_after[0]), 1)
-    figures["command"] = "python tests/benchmarks/bench_reader.py " + " ".join(_without_figures(sys.argv[1:]))
+    figures["command"] = command_line("bench_reader.py", sys.argv[1:])
     if args.figures:
         Path(args.figures).write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n")
-
-
-def _without_figures(argv: list[str]) -> list[str]:
-    out = []
-    skip = False
-    for x in argv:
-        if not skip and x != "--figures" and not x.startswith("--figures="):
-            out.append(x)
-        skip = x == "--figures"
-    return out
 
 
 if __name__ == "__main__":

@@ -160,6 +160,17 @@ def row(pair: Pair) -> str:
     )
 
 
+def command_line(script: str, argv: Sequence[str]) -> str:
+    """The command that reruns ``script`` with ``argv``, less its ``--figures FILE`` (for a figure file)."""
+    out: list[str] = []
+    skip = False
+    for x in argv:
+        if not skip and x != "--figures" and not x.startswith("--figures="):
+            out.append(x)
+        skip = x == "--figures"
+    return " ".join(["python", f"tests/benchmarks/{script}", *out])
+
+
 def write_figures(path: str | os.PathLike, figures: Mapping[str, float | int | str]) -> None:
     """The figures as one flat JSON object, {name: value}, units in the names."""
     Path(path).parent.mkdir(parents=True, exist_ok=True)
