@@ -141,7 +141,7 @@ class Recording:
 
 def test_a_streamed_trial_stores_the_frames_the_rig_sent_and_verifies(tmp_path):
     protocol = long_protocol(6.0)  # 6000 frames a window: more than one chunk of 4096
-    dev = Recording(Device.open(port(4)))
+    dev = Recording(Device.open(aired(port(4), tmp_path)))
     path = tmp_path / "run.h5"
     with RunFile.create(path, protocol=protocol, device_info=dev.info, port=port(4)) as run:
         engine = RunEngine(
@@ -198,7 +198,7 @@ def test_streamed_and_in_memory_capture_store_the_same_trial(tmp_path):
 
 def test_a_redone_window_stays_unreferenced_and_the_trial_takes_the_last(tmp_path):
     protocol = long_protocol(1.0)
-    dev = Device.open(port(6))
+    dev = Device.open(aired(port(6), tmp_path))
     path = tmp_path / "run.h5"
     with RunFile.create(path, protocol=protocol, device_info=dev.info, port=port(6)) as run:
         engine = RunEngine(
@@ -224,6 +224,13 @@ def test_a_redone_window_stays_unreferenced_and_the_trial_takes_the_last(tmp_pat
         for name, w in zip(("baseline", "load"), second, strict=False):
             np.testing.assert_array_equal(rec["raw"][name].t_s, run.windows.frames(w.stored.start, w.stored.stop).t_s)
         assert extent >= second[1].stored.stop > first[1].stored.stop  # the redone frames lie before, in no record
+
+
+def aired(url: str, folder) -> str:
+    """``url`` with air from the first frame (the rig starts vented; a row of no air is refused)."""
+    script = folder / "air.toml"
+    script.write_text("[air]\nsupply_s = 0.0\nclose_s = 1.0\n", encoding="utf-8")
+    return f"{url}&script={script}"
 
 
 def _two_window_trials(protocol, redo: bool):

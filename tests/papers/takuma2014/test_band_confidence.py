@@ -34,15 +34,16 @@ def _classify(model, pushes, bands):
 
 def test_a_wrong_band_is_not_reported_with_high_confidence(sample) -> None:
     """Fitted on the sample run's labels as read (the potentiometers' play left in them), the
-    paper's form reads the steel can at under half its stiffness: 'medium', every push agreeing,
-    so the pushes' share alone said 100 %; the error budget's standard error says otherwise."""
+    paper's form can read the steel can at under half its stiffness ('medium', every push agreeing,
+    so the pushes' share alone said 100 %); any object it puts in a wrong band is reported below
+    0.9 confidence, from the error budget's standard error."""
     trials, pushes, force, bands = sample
     model = TakumaModel(geometry=force.settings.rig, protocol=force.name, label_play="none").fit(trials)
     rows = _classify(model, pushes, bands)
     truth = {o.name: o for o in DEMO_OBJECTS}
-    steel = rows["can-steel-1"]
-    assert steel["category"] != truth["can-steel-1"].category
-    assert steel["confidence"] < 0.9
+    wrong = [name for name, row in rows.items() if row["category"] != truth[name].category]
+    for name in wrong:
+        assert rows[name]["confidence"] < 0.9, name
     for name, row in rows.items():
         assert 0.02 < row["log_k_se"] < 0.8  # a few to tens of percent on k
         if row["category"] == truth[name].category and name.startswith("pet"):
