@@ -458,6 +458,35 @@ def test_file_is_default_libver_and_reopens_for_append(run_path):
         assert run.records.ids()[-1] == 40
 
 
+@pytest.mark.parametrize("torn", ["metadata", "records"])
+def test_a_reader_that_meets_a_commit_under_way_reads_the_run_again_as_the_schema_it_is(run_path, monkeypatch, torn):
+    """A torn read while a writer holds the file (its metadata or its record table, read while a
+    checkpoint copies HDF5's pages in) makes the reader open the file again: it must read the tables
+    again, not take a schema-3 run for a schema-1 one, whose group-per-record layout it lacks (0 trials)."""
+    from labcli.core.store import records, runfile, space
+
+    monkeypatch.setattr(space, "writer_holds", lambda path: True)
+    calls = []
+    if torn == "metadata":
+        real_ok = runfile.metadata_ok
+        monkeypatch.setattr(runfile, "metadata_ok", lambda f: bool(calls.append(1)) or len(calls) > 1 and real_ok(f))
+    else:
+        real_read = records.from_v2
+
+        def torn_once(t, rt):
+            calls.append(1)
+            if len(calls) == 1:
+                raise OSError("Can't read data (wrong B-tree signature)")
+            return real_read(t, rt)
+
+        monkeypatch.setattr(records, "from_v2", torn_once)
+    with RunFile.open(run_path) as run:
+        assert run.version == SCHEMA_VERSION
+        assert run.records.ids() == list(range(1, 13))
+        assert run.records.table()["trial"].tolist() == list(range(1, 13))
+    assert len(calls) >= 2  # the torn read was met, and read again
+
+
 def test_torn_uncommitted_row_is_ignored_and_written_over(run_path):
     """A kill mid-write can leave any bytes past ``@committed``: never read, and the next commit goes on."""
     leave_uncommitted_row(run_path, 5, float("nan"))  # a repeated id and nonsense values: never counted

@@ -307,10 +307,11 @@ class RunFile:
         """Read the file afresh (a reader that met a commit under way)."""
         self.h5.close()
         self.h5 = h5open(self.path, "r")
-        if self.version == 2:
-            self._tables = open_tables(self.h5["entry"], self.record_type, self.path)
-        else:
+        # Opened as __init__ opens it: every schema but the first keeps tables (schema 3 too).
+        if self.version == 1:
             self.v1 = V1Run(self.h5, self.record_type)
+        else:
+            self._tables = open_tables(self.h5["entry"], self.record_type, self.path)
 
     def close(self) -> None:
         """Commit what waits (the session log's last events), give back the room reserved, close."""
