@@ -20,10 +20,18 @@ without.  The adapter only reshapes what ``predict`` returns:
 
 Angles are ``state`` quantities (the arm as it is now), forces ``load`` quantities (the cause,
 estimated from the pressures the rig settles to).
+
+The estimator asks about a dozen-odd rows a block; for those (up to ``FAST_ROWS``) the posture
+form is applied by its compiled twin (``models/posture_fast.py``: everything that does not
+depend on the pressures worked out when the model is read), which gives the model's own
+estimates to rounding and hands the rows it does not cover back to ``predict``
+(tests/papers/takuma2014/test_sensing_fast.py).  ``TakumaSensing(model, fast=False)`` takes
+the model's own ``predict`` throughout.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -33,10 +41,14 @@ from ...errors import ModelError
 from ...sensing.model import BAD_INPUT, LOAD, OUT_OF_RANGE, STATE, UNOBSERVABLE, Prediction
 from .models import routes as rt
 from .models.posture import PostureModel, force_model_from_json
+from .models.posture_fast import CompiledPosture
 from .models.takuma import SCHEMA, TakumaModel
 from .options import RANGE_MARGIN, SensingOptions
 
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
+# Up to this many rows a call takes the compiled form (the estimator asks 9 or 18 a block); a table
+# (``labcli predict``) takes the model's own predict, validate's arithmetic to the last bit.
+FAST_ROWS = 64
 LEAK_PAD = 0.10  # share of the baseline pressures' level they may drift beyond their calibrated range
 
 
@@ -50,7 +62,7 @@ class TakumaSensing:
     joints: tuple[int, ...] = (1, 2)
     record_kind = "sense"  # the run kind of a live session's run file (.sense_records)
 
-    def __init__(self, model: PostureModel | TakumaModel, *, margin: float = RANGE_MARGIN) -> None:
+    def __init__(self, model: PostureModel | TakumaModel, *, margin: float = RANGE_MARGIN, fast: bool = True) -> None:
         if not model.is_fitted:
             raise ModelError("The model has no coefficients yet; fit it on a run first (`labcli fit RUN.h5`).")
         self.model = model
@@ -62,6 +74,9 @@ class TakumaSensing:
         self.baseline_gap_s = float(gap) if gap is not None else None
         self.calibrated_range: dict[str, Any] = dict(getattr(model, "calibrated_range", None) or {})
         self._paper_var = _paper_variances(model) if isinstance(model, TakumaModel) else None
+        # The posture form's predict worked out once for the estimator's few rows a call
+        # (models/posture_fast.py); ``fast=False`` keeps the table form (the reference) throughout.
+        self._compiled = CompiledPosture.compile(model) if fast and isinstance(model, PostureModel) else None
 
     @property
     def geometry(self) -> dict[str, float]:
@@ -88,6 +103,11 @@ class TakumaSensing:
     def predict(self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray) -> Prediction:
         """(n, 4) baselines and pressures (MPa), (n, 2) rest postures (rad): the model's estimate."""
         P0, P, rest = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (P0, P, rest))
+        few = self._compiled is not None and len(P) <= FAST_ROWS
+        fast = self._compiled.predict(P0, P, rest) if few else None  # type: ignore[union-attr]
+        if fast is not None:
+            values, se, ok = fast
+            return Prediction(values, se, self._raise(np.zeros(len(values), bool), ok, P0, P, rest, values))
         if isinstance(self.model, PostureModel):
             out = self.model.predict(P0, P, rest, mode="pressure-only")
             se = np.column_stack([out["se"][q] for q in QUANTITIES])
@@ -102,49 +122,80 @@ class TakumaSensing:
     def _flags(
         self, out: dict[str, Any], P0: np.ndarray, P: np.ndarray, rest: np.ndarray, values: np.ndarray
     ) -> list[tuple[str, ...]]:
-        n = len(values)
         bad = np.array(["bad-pressure" in f for f in out["flags"]])
         ok = np.column_stack([np.asarray(out["ok"][q], dtype=bool) for q in QUANTITIES])
+        return self._raise(bad, ok, P0, P, rest, values)
+
+    def _raise(
+        self, bad: np.ndarray, ok: np.ndarray, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, values: np.ndarray
+    ) -> list[tuple[str, ...]]:
+        """Each row's flags from its bad-input mark, the quantities the model reports (``ok``) and the ranges."""
         inputs_out, values_out = self._outside(P0, P, rest, values)
-        names = FLAG_NAMES
-        raised = np.column_stack([inputs_out, ~ok, values_out & ok])
-        return [(BAD_INPUT,) if bad[i] else tuple(names[raised[i]].tolist()) for i in range(n)]
+        raised = np.empty((len(ok), 9), bool)
+        raised[:, 0] = inputs_out
+        np.logical_not(ok, out=raised[:, 1:5])
+        np.logical_and(values_out, ok, out=raised[:, 5:])
+        code = raised @ FLAG_BITS
+        return [(BAD_INPUT,) if b else _flag_tuple(c) for b, c in zip(bad.tolist(), code.tolist(), strict=True)]
 
     def _outside(
         self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, values: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Rows whose inputs, and estimates whose values, lie outside the calibrated range."""
-        n = len(values)
-        bounds = self._bounds()
-        inputs = np.zeros(n, bool)
-        for key, x, scale in (("P0_MPa", P0, 1.0), ("dP_MPa", P0 - P, 1.0), ("rest_deg", rest, 180 / math.pi)):
-            if key in bounds:
-                inputs |= _outside_bounds(x * scale, *bounds[key]).any(axis=1)
-        est = np.zeros((n, 4), bool)
-        if "theta_deg" in bounds:
-            est[:, :2] = _outside_bounds(np.degrees(values[:, :2]), *bounds["theta_deg"])
-        if "F_N" in bounds:
-            est[:, 2:] = _outside_bounds(values[:, 2:], *bounds["F_N"])
-        return inputs, est
+        """Rows whose inputs, and estimates whose values, lie outside the calibrated range: the
+        inputs side by side (P0 and P0 - P in MPa, the rest posture in deg) against their ends, the
+        estimates (theta in deg, F in N) against theirs (a range the model file lacks: no end)."""
+        lo_in, hi_in, lo_est, hi_est = self._ends()
+        n, p = P0.shape
+        inputs = np.empty((n, 2 * p + rest.shape[1]))
+        inputs[:, :p] = P0
+        np.subtract(P0, P, out=inputs[:, p : 2 * p])
+        np.multiply(rest, 180 / math.pi, out=inputs[:, 2 * p :])
+        est = np.empty((n, 4))
+        np.degrees(values[:, :2], out=est[:, :2])
+        est[:, 2:] = values[:, 2:]
+        outside = np.any((inputs < lo_in) | (inputs > hi_in), axis=1)
+        return outside, (est < lo_est) | (est > hi_est)
 
-    def _bounds(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Each calibrated range's ends with its margin, (low, high), worked out once per margin:
-        the estimator asks every block."""
+    def _ends(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The calibrated ranges' ends with their margin, (low, high) of the inputs and of the
+        estimates in :meth:`_outside`'s order, worked out once per margin: the estimator asks every block."""
         key = (self.margin, id(self.calibrated_range))
-        if getattr(self, "_bounds_key", None) != key:
-            out = {}
-            for name, raw in self.calibrated_range.items():
-                if name in ("P0_MPa", "dP_MPa", "rest_deg", "theta_deg", "F_N"):
+        if getattr(self, "_ends_key", None) != key:
+            ends = []
+            for names, widths in ((INPUT_RANGES, (4, 4, 2)), (ESTIMATE_RANGES, (2, 2))):
+                lo, hi = [], []
+                for name, width in zip(names, widths, strict=True):
+                    raw = self.calibrated_range.get(name)
+                    if raw is None:
+                        lo.append(np.full(width, -np.inf))
+                        hi.append(np.full(width, np.inf))
+                        continue
                     ranges = np.asarray(raw, dtype=float)
-                    out[name] = _limits(ranges, self.margin, MIN_PAD.get(name, lambda r: 0.0)(ranges))
-            self._bounds_cache, self._bounds_key = out, key
-        return self._bounds_cache
+                    low, high = _limits(ranges, self.margin, MIN_PAD.get(name, lambda r: 0.0)(ranges))
+                    lo.append(low)
+                    hi.append(high)
+                ends += [np.concatenate(lo), np.concatenate(hi)]
+            self._ends_cache, self._ends_key = (ends[0], ends[1], ends[2], ends[3]), key
+        return self._ends_cache
 
+
+# The calibrated ranges the inputs and the estimates are held to, in _outside's order.
+INPUT_RANGES = ("P0_MPa", "dP_MPa", "rest_deg")
+ESTIMATE_RANGES = ("theta_deg", "F_N")
 
 # The flags an estimate row may raise, in the order of _flags' columns.
 FLAG_NAMES = np.array(
     [OUT_OF_RANGE] + [f"{UNOBSERVABLE}:{q}" for q in QUANTITIES] + [f"{OUT_OF_RANGE}:{q}" for q in QUANTITIES]
 )
+
+FLAG_BITS = 1 << np.arange(len(FLAG_NAMES))
+
+
+@functools.cache
+def _flag_tuple(code: int) -> tuple[str, ...]:
+    """The flags a row raises, from the bits of FLAG_BITS it sets (a few codes recur block after block)."""
+    return tuple(str(name) for k, name in enumerate(FLAG_NAMES) if code >> k & 1)
+
 
 # The least margin of an input's range: the baseline pressures may drift by a tenth of their level (the
 # leak over a session), the rest posture by 2 deg (friction leaves it a little elsewhere after every load).
@@ -159,11 +210,6 @@ def _limits(ranges: np.ndarray, margin: float, least: Any = 0.0) -> tuple[np.nda
     lo, hi = ranges[:, 0], ranges[:, 1]
     pad = np.maximum(margin * (hi - lo), least)
     return lo - pad, hi + pad
-
-
-def _outside_bounds(x: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """(n, m) True where x lies below ``low`` or above ``high``."""
-    return (x < low) | (x > high)
 
 
 def _given(v: Any) -> bool:
