@@ -78,7 +78,7 @@ def export(run: str, output: str, fmt: str | None, all_columns: bool) -> None:
             check_output(output + SIDECAR_SUFFIX, inputs=(run,))
         with RunFile.open(run) as rf:
             records, df = rf.record_type, rf.records.table(all_columns=all_columns)
-            table_meta.describe(df, records.table_spec, table_meta.provenance(rf.attrs, run))
+            table_meta.describe(df, records.table_spec, table_meta.run_provenance(rf, run))
             with_notes(df, records.id_column, rf.notes.all())
         if all_columns:
             df.attrs["units"].update({c.name: c.units for c in ALL_COLUMNS if c.units not in ("", "1")})

@@ -116,6 +116,8 @@ def format_run_summary(s: dict[str, Any], record_lines: list[str]) -> str:
     lines.append(f"  operator    {s['operator'] or '(not given)'}, started {s['started']}")
     lines.append(f"  channels    {', '.join(s['channels'])}")
     lines.extend(record_lines)
+    if s.get("unused_frames"):
+        lines.append(f"  raw         {s['unused_frames']['text']}")
     if s["models"]:
         lines.append(f"  models      {', '.join(s['models'])}")
     for n in s.get("notes", ()):

@@ -70,6 +70,18 @@ def provenance(attrs: Mapping[str, Any], path: str | os.PathLike) -> dict[str, A
     return out
 
 
+def run_provenance(run: Any, path: str | os.PathLike) -> dict[str, Any]:
+    """:func:`provenance` of an open run file, with its raw frames that belong to no record
+    (``unused_frames``: frames per reason, :mod:`labcli.core.store.unused`) when it has any."""
+    from .store.unused import counts
+
+    out = provenance(run.attrs, path)
+    unused = counts(run.windows.unused())
+    if unused:
+        out["unused_frames"] = unused
+    return out
+
+
 def _plain(v: Any) -> Any:
     """A JSON value from an HDF5 attribute (numpy scalars, arrays, bytes)."""
     if hasattr(v, "tolist"):
@@ -216,7 +228,7 @@ def read_run(path: str | os.PathLike, *, all_columns: bool = False) -> Any:
     with RunFile.open(path) as run:
         records = run.record_type
         df = run.records.table(all_columns=all_columns)
-        prov = provenance(run.attrs, path)
+        prov = run_provenance(run, path)
         kind = run.kind
     df = describe(df, records.table_spec, prov)
     df.attrs["kind"] = kind
@@ -236,7 +248,7 @@ def load_described(path: str | os.PathLike, kind: Any) -> Any:
     if os.fspath(path).lower().endswith(RUN_FILE_SUFFIXES):
         with RunFile.open(path) as run:
             df = run.records.table(kind)
-            prov = provenance(run.attrs, path)
+            prov = run_provenance(run, path)
     else:
         df = kind.read_csv(path)
         prov = dict((read_sidecar(path) or {}).get("provenance", {}))

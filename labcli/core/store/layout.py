@@ -12,6 +12,7 @@
         plan/                   the plan table (when there was a plan)
         trials/ (pushes/, points/)  NXdata  @signal @axes: the records, one row each
         raw/                    every raw frame: time, seq, and per channel an NXlog
+          unused/               ranges of frames no record takes, and why (redone, interrupted, ...)
         split/                  every split assigned, the last one in force; ids (m,)
         models/                 every model recorded, the last of each name in force; json (bytes)
         sessions/               the session log: one row per event (begin, added, redone, skipped, end)
@@ -134,6 +135,16 @@ SPLIT_COLUMNS = [
     Column("validation_start", "1", kind="int"),
     Column("validation_stop", "1", kind="int"),
     Column("ids_checksum", "1", kind="uint"),
+]
+# raw/unused: ranges of raw frames no record takes, and why (:mod:`.unused`).
+UNUSED = "unused"
+UNUSED_COLUMNS = [
+    Column("start", "1", kind="int", what="first frame of the range in raw/"),
+    Column("stop", "1", kind="int", what="frame after the last of the range"),
+    text_column("why", 16, "redone, skipped, retaken, interrupted or unknown"),
+    Column("record", "1", kind="int", what="the record the frames were taken for; -1: not known"),
+    Column("session", "1", kind="int", what="the session that marked them; -1: none"),
+    text_column("time", TIME_WIDTH, "when they were marked (ISO 8601)"),
 ]
 MODEL_COLUMNS = [
     text_column("name", 64),
@@ -323,7 +334,8 @@ def initialise(
         _plan_table(e, plan, rt.id_column)
     _record_table(e, rt, extras, chunk_rows)
     gain, offset, units = calibration
-    create_frames(e, channels, units, gain, offset, chunk_frames)
+    raw = create_frames(e, channels, units, gain, offset, chunk_frames)
+    Table.create(raw, UNUSED, UNUSED_COLUMNS, 16)
     default_plot(e)
     s = Table.create(e, "split", SPLIT_COLUMNS, 1)
     blob(s.g, "ids", "<i8", 256, "1", "fit ids, then validation ids, of each split")

@@ -38,6 +38,7 @@ from ..timestamps import utc_now
 from .blobs import cell_text
 from .columns import Table, fill_value
 from .layout import session_columns
+from .unused import mark as mark_unused
 from .writer import Write
 
 if TYPE_CHECKING:
@@ -93,7 +94,8 @@ class Sessions:
         sessions, _ = read_sessions(run.tables.sessions)
         number = max((s["number"] for s in sessions), default=0) + 1
         self._queued.append(begin_event(number, info, socket.gethostname()))
-        run.writer.commit([], 0, "the session's start")
+        marks = mark_unused(run, "interrupted", None, number, resuming=True)  # what a kill left
+        run.writer.commit([marks] if marks else [], 0, "the session's start")
         self._number, self._added = number, set()
 
     def added(self, rid: int) -> None:
@@ -101,12 +103,20 @@ class Sessions:
         self._note("added", rid)
 
     def redone(self, rid: int) -> None:
-        """Record ``rid`` is redone before it is stored (logged with the next commit)."""
+        """Record ``rid`` is redone before it is stored (logged with the next commit, or at once
+        with the marks of the raw frames it leaves, :mod:`.unused`)."""
         self._note("redone", rid)
+        self._mark("redone", rid)
 
     def skipped(self, rid: int) -> None:
-        """Record ``rid`` was skipped by this session (logged with the next commit)."""
+        """Record ``rid`` was skipped by this session (logged as :meth:`redone` is)."""
         self._note("skipped", rid)
+        self._mark("skipped", rid)
+
+    def _mark(self, why: str, rid: int) -> None:
+        marks = mark_unused(self._run, why, rid, self._number)
+        if marks is not None:
+            self._run.writer.commit([marks], 0, f"the marks of {self._run.record_type.noun} {rid}'s raw frames")
 
     def end(self, how: str) -> None:
         """The session ended: one of :data:`HOW`; committed at once.  A session with no end row
@@ -115,7 +125,8 @@ class Sessions:
         if number is None:
             raise StoreError(f"no session is open in {self._run.path}; there is none to end.")
         self._queued.append(end_event(number, how))
-        self._run.writer.commit([], 0, "the session's end")
+        marks = mark_unused(self._run, "interrupted", None, number)  # the windows of a record cut off
+        self._run.writer.commit([marks] if marks else [], 0, "the session's end")
         self._number = None
 
     def stage_added(self, rid: int) -> Callable[[], None]:

@@ -10,6 +10,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .unused import counts as unused_counts
+from .unused import describe
+
 if TYPE_CHECKING:
     from .runfile import RunFile
 
@@ -48,6 +51,10 @@ def summarise(run: RunFile) -> dict[str, Any]:
     if run.version >= 2:
         out["run_uid"] = a.get("run_uid", "")
         out["sessions"] = len(run.sessions.all())
+        unused = run.windows.unused()
+        if unused:  # raw frames of a redone, skipped or interrupted record: said, never read as one
+            by = unused_counts(unused)
+            out["unused_frames"] = {"total": sum(by.values()), "by_reason": by, "text": describe(unused, rt.noun)}
         notes = run.notes.all()
         if notes:  # only an annotated run says so: the summary of any other is as it was
             out["notes"] = [

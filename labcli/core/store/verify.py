@@ -64,6 +64,7 @@ def _verify(run: RunFile) -> dict[str, Any]:
             ("split", run.split.get),
             ("models", run.models.all),
             ("sessions", run.sessions.all),
+            ("unused raw frames", run.windows.unused),
             ("plan", run.plan_table),
             ("protocol", lambda: run.protocol_text),
         ):
@@ -75,6 +76,6 @@ def _verify(run: RunFile) -> dict[str, Any]:
             problems += [f"plan row {r}: {why}" for r, why in Table(run.h5["entry/plan"]).read().damaged]
     for warning in caught:
         message = str(warning.message)
-        if "metadata" in message or "split" in message or "model" in message or "session" in message:
+        if any(k in message for k in ("metadata", "split", "model", "session", "raw/unused")):
             problems.append(message.split(": ", 1)[-1])
     return {"ok": not problems, "records": len(rec.ids), "windows": windows, "problems": list(dict.fromkeys(problems))}

@@ -23,6 +23,7 @@ import numpy as np
 from ...errors import ConfigError, StoreError
 from ..window import NOT_KEPT, Stored, Window
 from .frames import WindowWriter, counts_out
+from .unused import Unused, unused
 
 if TYPE_CHECKING:
     from .runfile import RunFile
@@ -53,8 +54,8 @@ class Windows:
         ``append(time, seq, counts, si)`` adds each block (whole chunks of frames go into the
         file and are flushed as they fill, not yet part of any record); ``finish()`` returns the
         stored :class:`~labcli.core.window.Window` a record's ``raw`` then takes.  A window no
-        record takes (a redo, a kill) stays unused: it lies past every committed window and the
-        next one starts after it.  ``flush=False``: the chunks are not flushed as they fill (a
+        record takes (a redo, a kill) stays unused: it lies past every committed window, the
+        next one starts after it, and it is marked so (:meth:`unused`).  ``flush=False``: the chunks are not flushed as they fill (a
         window already whole in memory, written just before the commit that syncs it).
         """
         run = self._run
@@ -81,6 +82,10 @@ class Windows:
                 "labcli inspect --verify names the records they belong to."
             )
         return Window.of(w["seq"], counts_out(w["counts"]), w["si"], t_s=w["t_s"])
+
+    def unused(self) -> list[Unused]:
+        """The ranges of raw frames no committed record takes, and why (:mod:`.unused`)."""
+        return unused(self._run)
 
     @property
     def extent(self) -> int:
