@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from .boardlines import ESTIMATE_KIND, EVENT_KIND, Estimate, Event, parse_board_fields
-from .wirechunk import whole_chunk
+from .wirechunk import steps_bytes, whole_chunk
 
 MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
 OVERLONG = f"line longer than {MAX_LINE} bytes"  # Noise reasons the reader counts apart
@@ -393,16 +393,15 @@ class StreamReader:
         """Parse complete lines (``block`` ends with ``\\n``) and count loss across them."""
         batches: list[FrameBatch] = []
         offset = 0
-        if self.n_channels is None:
-            # The channel count comes from the first valid frame; until then go line by line.
-            while self.n_channels is None and offset < len(block):
-                nl = block.index(b"\n", offset)
-                parsed = self._classify(block[offset:nl])
-                self.lines += 1
-                if isinstance(parsed, Frame):
-                    self.n_channels = len(parsed.values)
-                    batches.append(_batch_of([parsed], self.n_channels))
-                offset = nl + 1
+        # The channel count comes from the first valid frame; until then go line by line.
+        while self.n_channels is None and offset < len(block):
+            nl = block.index(b"\n", offset)
+            parsed = self._classify(block[offset:nl])
+            self.lines += 1
+            if isinstance(parsed, Frame):
+                self.n_channels = len(parsed.values)
+                batches.append(_batch_of([parsed], self.n_channels))
+            offset = nl + 1
         if offset < len(block):
             rest = block[offset:] if offset else block
             n_lines = rest.count(b"\n")
@@ -411,7 +410,7 @@ class StreamReader:
                 self.lines += n_lines
             parse = self._parse_lines if n_lines < _MIN_VECTOR_LINES else self._parse_vectorised
             batches.append(FrameBatch(*clean) if clean else parse(rest))
-        batch = FrameBatch.concat(batches, self.n_channels or 0)
+        batch = batches[0] if len(batches) == 1 else FrameBatch.concat(batches, self.n_channels or 0)
         self._count_frames(batch)
         return batch
 
@@ -421,19 +420,19 @@ class StreamReader:
             return
         self.counters["frames"] += n
         seq = batch.seq
-        prev = np.empty_like(seq)
-        prev[0] = seq[0] - 1 if self._last_seq is None else self._last_seq
-        prev[1:] = seq[:-1]
-        gap = (seq - prev - 1) % U32
-        forward = gap < (U32 >> 1)
-        self.counters["lost"] += int(gap[forward].sum())
+        gap: np.ndarray | int = 0
+        forward: np.ndarray | bool = True  # one step each, on from the last frame (the common batch)
+        if self._last_seq is None or (seq - (self._last_seq + 1)).tobytes() != steps_bytes(n):
+            prev = np.concatenate(([seq[0] - 1 if self._last_seq is None else self._last_seq], seq[:-1]))
+            gaps = (seq - prev - 1) % U32
+            ahead = gaps < (U32 >> 1)
+            self.counters["lost"] += int(gaps[ahead].sum())
+            if self._last_seq is None:
+                ahead[0] = False  # the first frame since START has nothing before it
+            gap, forward = gaps, ahead
         if self.period_us is not None:
             t = batch.t_us
-            prev_t = np.empty_like(t)
-            prev_t[1:] = t[:-1]
-            prev_t[0] = t[0] if self._last_t_us is None else self._last_t_us
-            if self._last_seq is None:
-                forward[0] = False  # the first frame since START has nothing before it
+            prev_t = np.concatenate(([t[0] if self._last_t_us is None else self._last_t_us], t[:-1]))
             # t_us wraps like seq: differences modulo 2**32 stay right across the wrap.
             excess = (t - prev_t) % U32 - (gap + 1) * self.period_us
             stalled = forward & (excess > self.stall_us)

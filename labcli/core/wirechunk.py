@@ -7,6 +7,8 @@ goes to the reader's line-finding path and the reference parser.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 _U32 = 1 << 32  # seq and t_us are unsigned 32-bit (labcli.core.wire.U32)
@@ -18,45 +20,47 @@ def whole_chunk(block: bytes, n: int, k: int, max_line: int) -> tuple[np.ndarray
     ``block`` holds ``n`` complete lines; ``k`` values a line; ``max_line`` bytes at most before ``\\n``.
 
     The common chunk is nothing but ``$D,<seq>,<t_us>,<v1>,...,<vk>*<HH>`` lines of short
-    unsigned integers, so it is judged as a whole, with as few passes as numpy's fixed cost
-    per call allows at 4 KiB: the bytes left once digits and hex letters are deleted must be
-    the line pattern itself; one pass locates the separators (field widths, the checksum's
-    place), one reduction checks every checksum, one ``fromstring`` reads every number.  Any
-    line that fails sends the chunk to :meth:`labcli.core.wire.StreamReader._parse_vectorised`, which finds it
-    and hands it to :func:`labcli.core.wire.parse_line`: what is accepted here is exactly what
+    unsigned integers, so it is judged as a whole, in as few numpy calls as possible, since at
+    4 KiB each call's fixed cost outweighs its work: every ``\\r\\n`` becomes ``\\n`` (a ``\\r``
+    anywhere else then fails the next check); the bytes left once digits and hex letters are
+    deleted must be the line pattern itself; one pass finds the newlines, one gather reads the
+    ``$D,`` that opens each line, its ``*`` and both checksum digits, one reduction checks every
+    checksum, one ``fromstring`` reads every number.  Any line that fails sends the chunk to
+    :meth:`labcli.core.wire.StreamReader._parse_vectorised`, which finds it and hands it to
+    :func:`labcli.core.wire.parse_line`: what is accepted here is exactly what
     :func:`labcli.core.wire.parse_line` accepts as a frame (the property tests hold both to that).
     """
     fromstring = getattr(np, "fromstring", None)  # numpy's C text parser
-    crlf = block.count(b"\r")
-    if fromstring is None or (crlf and block.count(b"\r\n") != crlf):
+    # Neither digits nor hex letters: "$" k + 2 commas "*" "\n" a line (a '\r' before it), nothing else.
+    shape = block.translate(None, _DIGITS_HEX)
+    crlf = len(shape) - n * (k + 5)
+    if crlf:
+        shape = shape.translate(None, b"\r")  # where each '\r' sits is checked below
+    if fromstring is None or shape != _pattern(k, n):
         return None
-    if not block.startswith(b"$D,") or block.count(b"\n$D,") != n - 1:
-        return None  # each line opens "$D,"
-    # Neither digits, hex letters nor "\r": "$" k + 2 commas "*" "\n" a line, nothing else.
-    if block.translate(None, _DIGITS_HEX_CR) != (b"$" + b"," * (k + 2) + b"*\n") * n:
-        return None
+    block = b"\n" + block  # the newline before each line's first byte is then found with the others
     a = np.frombuffer(block, np.uint8)
-    low = a < 48  # '$' ',' '*' '\r' '\n': nothing else is left below '0', as shown above
-    sep = np.flatnonzero(low & (a != 13) if crlf else low).reshape(n, k + 5)  # '$' commas '*' '\n'
-    nl = sep[:, k + 4]
-    if sep[-1, k + 3] + 3 > nl[-1]:
-        return None  # fewer than two checksum digits at the end
-    # At most max_line bytes before '\n' (a '\r' there is counted against it here).
-    if nl[0] > max_line or (nl[1:] - nl[:-1]).max(initial=0) > max_line + 1:
+    bounds = (a == 10).nonzero()[0]  # n + 1: line i is a[bounds[i] + 1 : bounds[i + 1]]
+    if (bounds[1:] - bounds[:-1]).max() > max_line + 1:
         return None
-    at = sep[:, _AT_COLUMNS[k]] + _AT_OFFSETS  # the 'D', both checksum digits, the byte after them
+    # (6, n): where each line's '$' ',' 'D' (from the '\n' before it) '*' and checksum should be.
+    at = (np.ndarray((2, 3, n), np.int64, bounds, 0, _STRIDES) + _OFFSETS).reshape(6, n)
+    if crlf:  # each '\r' must sit just before a '\n', where parse_line strips one
+        cr = (a[at[5]] == 13).view(np.uint8)
+        if np.count_nonzero(cr) != crlf:
+            return None
+        at[3:] -= cr
     got = a[at]
-    xor = np.bitwise_xor.reduceat(a, sep[:, :: k + 3].ravel())[::2]  # '$' ^ the payload
-    ok = xor == _CHECKSUM_OF[got[:, 1], got[:, 2]]
-    ok &= got[:, 3] <= 13  # no third checksum digit
-    if not ok.all():
+    # Each line's bytes XOR the '\n' before it: the checksum table folds in all but the payload.
+    xor = np.bitwise_xor.reduceat(a[:-1], bounds[:-1])
+    want = _CHECKSUM_OF[cr, got[4], got[5]] if crlf else _CHECKSUM_LF[got[4], got[5]]
+    if got[:4].tobytes() != _head(n) or want.tobytes() != xor.tobytes():
         return None
-    blanked = bytearray(block)
-    np.frombuffer(blanked, np.uint8)[at[:, :3]] = 32  # 'D' and the checksums are not numbers to read
-    text = bytes(blanked).translate(_NUMBERS_ONLY)
+    text = bytearray(block.translate(_NUMBERS_ONLY))
+    np.frombuffer(text, np.uint8)[at[2:]] = 32  # 'D' and the checksums are not numbers to read
     if 0 in text:
         return None  # a hex letter inside a number
-    nums = fromstring(text, dtype=np.int64, sep=" ")  # an empty field shows as a missing number
+    nums = fromstring(bytes(text), dtype=np.int64, sep=" ")  # an empty field shows as a missing number
     if nums.shape[0] != n * (k + 2):
         return None
     nums = nums.reshape(n, k + 2)
@@ -68,23 +72,46 @@ def whole_chunk(block: bytes, n: int, k: int, max_line: int) -> tuple[np.ndarray
     return seq, t_us, nums[:, 2:].astype(np.float64)
 
 
-class _Columns(dict):  # k -> the sep columns of the 'D' ('$' + 1) and of '*' (+1, +2, +3)
-    def __missing__(self, k: int) -> np.ndarray:
-        self[k] = np.array([0, k + 3, k + 3, k + 3])
-        return self[k]
+def steps_bytes(n: int) -> bytes:
+    """``0, 1, ..., n - 1`` as int64 bytes: a batch's seq less its expected first, when none is lost."""
+    global _STEPS
+    if 8 * n > len(_STEPS):
+        _STEPS = np.arange(2 * n, dtype=np.int64).tobytes()
+    return _STEPS[: 8 * n]
 
 
-_AT_COLUMNS = _Columns()
-_AT_OFFSETS = np.array([1, 1, 2, 3])
+_STEPS = b""
+
+
+@functools.lru_cache(maxsize=64)
+def _pattern(k: int, n: int) -> bytes:
+    return (b"$" + b"," * (k + 2) + b"*\n") * n
+
+
+@functools.lru_cache(maxsize=64)
+def _head(n: int) -> bytes:
+    return b"$" * n + b"," * n + b"D" * n + b"*" * n
+
+
+# Rows of the per-line gather: from the '\n' before the line, its '$', the ',' after 'D' and
+# 'D'; from its own '\n', '*' and both checksum digits.  Rows 2-5 are blanked before the numbers
+# are read; rows 3-5 move back one byte on a line that ends "\r\n".
+_STRIDES = (8, 0, 8)  # bounds[i + j] for row block i, line j, as a view: no gather
+_OFFSETS = np.array([[[1], [3], [2]], [[-3], [-2], [-1]]])
 _I64_MAX = int(np.iinfo(np.int64).max)
 _HEXNUM = np.full(256, -1, np.int32)
 for _i, _c in enumerate(b"0123456789abcdef"):
     _HEXNUM[_c] = _i
 for _i, _c in enumerate(b"ABCDEF"):
     _HEXNUM[_c] = 10 + _i
-# The checksum two hex digits name, XOR '$' (the reduction starts at it); not hex: -1, no XOR's.
-_CHECKSUM_OF = np.where((_HEXNUM[:, None] >= 0) & (_HEXNUM[None, :] >= 0), (_HEXNUM[:, None] * 16 + _HEXNUM) ^ 36, -1)
+# What a line's bytes XOR the '\n' before it come to when its two checksum digits are right,
+# by [ends "\r\n", first digit, second digit]: the checksum they name (the payload's XOR) ^ '\n'
+# '$' '*' ^ both digits (^ '\r').  Only hex digits reach it (the line pattern and the '*' before
+# them see to that), so uint8 is enough.
+_DIGIT_PAIRS = np.arange(256)[:, None] ^ np.arange(256)
+_CHECKSUM_LF = (((_HEXNUM[:, None] * 16 + _HEXNUM) ^ 10 ^ 36 ^ 42 ^ _DIGIT_PAIRS) & 255).astype(np.uint8)
+_CHECKSUM_OF = np.stack([_CHECKSUM_LF, _CHECKSUM_LF ^ np.uint8(13)])
 _HEX_LETTERS = b"abcdefABCDEF"
-_DIGITS_HEX_CR = b"0123456789\r" + _HEX_LETTERS
+_DIGITS_HEX = b"0123456789" + _HEX_LETTERS
 # Digits stay, separators are blank; a hex letter left once 'D' and the checksums are blanked is 0.
 _NUMBERS_ONLY = bytes(c if 48 <= c <= 57 else 0 if c in _HEX_LETTERS else 32 for c in range(256))

@@ -106,6 +106,31 @@ def test_device_time_wraps_and_restarts_are_not_stalls():
     assert r.stalls == 1 and r.stalled_s == pytest.approx(0.4)
 
 
+@pytest.mark.parametrize("lines_per_read", [1, 3, 8, 40, 1000])
+def test_losses_and_stalls_do_not_depend_on_how_the_stream_is_cut(lines_per_read):
+    """Against the rule written frame by frame: runs of consecutive frames take a shortcut in the reader."""
+    period, rng = 1000, np.random.default_rng(5)
+    rows, seq, t = [], 0, 0
+    for _ in range(400):
+        step = 1 if rng.random() < 0.95 else int(rng.integers(2, 5))
+        seq, t = seq + step, t + step * period + (300_000 if rng.random() < 0.03 else 0)
+        rows.append((seq % U32, t % U32))
+    lost = stalls = 0
+    stalled_s = 0.0
+    for (a, ta), (b, tb) in zip(rows[:-1], rows[1:], strict=False):
+        lost += b - a - 1
+        excess = tb - ta - (b - a) * period
+        if excess > STALL_US:
+            stalls, stalled_s = stalls + 1, stalled_s + excess * 1e-6
+    r = StreamReader(n_channels=2)
+    r.set_rate(1000)
+    for i in range(0, len(rows), lines_per_read):
+        r.feed(frames(rows[i : i + lines_per_read]))
+    assert 5 < stalls and 5 < lost
+    assert (r.counters["frames"], r.counters["lost"], r.stalls) == (len(rows), lost, stalls)
+    assert r.stalled_s == pytest.approx(stalled_s, abs=1e-9)
+
+
 # ---------------------------------------------------------------- the simulated rig's injected stalls
 
 

@@ -378,6 +378,11 @@ def test_whole_chunk_path_takes_a_clean_chunk_and_refuses_a_damaged_one():
         block.replace(lines[5], lines[5][:-1] + b"\r\r\n"),
         block.replace(lines[6], lines[6][:-2] + b"0\n"),  # three checksum digits
         block.replace(b"$D,3,", b"$D,4294967296,", 1),
+        block.replace(lines[4], lines[4][:-3] + b"\r" + lines[4][-3:]),  # a '\r' inside the checksum
+        block.replace(lines[4], lines[4][:-4] + b"\r" + lines[4][-4:]),  # ... before it
+        block.replace(lines[4], b"\r" + lines[4]),  # ... before the '$'
+        block.replace(lines[4], lines[4].replace(b"$D,", b"$D,,", 1)),  # an empty field ...
+        block.replace(lines[4], lines[4].replace(b"$D,", b"x$D,", 1)),  # a byte before the '$'
     ):
         assert wirechunk.whole_chunk(damaged, 20, k, MAX_LINE) is None
         assert_agrees(damaged, [], k)
