@@ -21,7 +21,11 @@ batches of one serial read (50 ms of frames).  Reported, pooled over the seeds:
   (what reading them costs), one ``predict`` of one row (what validate pays per trial);
 * from a batch's arrival to its estimates published as JSON lines to a file and to a TCP client
   (``labcli.sensing.live.run``, what ``labcli sense`` runs), at ``--rate`` and 1 kHz on the
-  first seed, beside one ``predict`` of one row measured in the same run.
+  first seed, beside one ``predict`` of one row measured in the same run.  With ``--latency-only``,
+  on every seed, beside the floor (the same reads and writes without the estimator) and the
+  estimator's own model step per estimate (CPU of ``labcli.sensing.evaluate``: the sigma rows and
+  one model call, as the estimator makes it), the same blocks replayed afterwards through the
+  model's own predict (``TakumaSensing(fast=False)``) as its baseline.
 
     python tests/benchmarks/sensing_online.py [--seeds 11-30] [--loads 40] [--idle-min 10]
         [--rate 200] [--rig "friction=2&leak=3"] [--jobs 2] [--fast-seconds 180] [--json out.json]
@@ -287,15 +291,57 @@ def _session(seed: int, a: dict[str, Any], rate_hz: float, bare: bool) -> dict[s
         time.sleep(0.01)
     sink = JsonLines(open(os.devnull, "w", encoding="utf-8"), owned=True)  # noqa: SIM115
     seconds = script.end_s - sc.SESSION_START_S
+    costs: dict[str, list[float]] = {"estimate": [], "reference": []}
     if bare:
         lat, published = np.asarray(_bare(dev, [sink, pub], seconds)), None
     else:
-        summary = run(dev, est, [sink, pub], seconds=seconds)
+        with _timed_estimates(costs["estimate"]) as asked:
+            summary = run(dev, est, [sink, pub], seconds=seconds)
         lat, published = np.asarray(summary.latency_s), summary.published
     pub.close()
     sink.close()
     received = int(client.communicate(timeout=60)[0].strip() or 0)
-    return {"lat": lat, "published": published if published is not None else len(lat), "received": received}
+    if not bare:
+        costs["reference"] = _reference_costs(TakumaSensing(model, fast=False), asked)
+    return {"lat": lat, "published": published if published is not None else len(lat), "received": received, **costs}
+
+
+class _timed_estimates:
+    """The estimator's own model step per estimate (``labcli.sensing.evaluate``: the sigma rows and one
+    model call), CPU seconds into ``costs``, and each block's inputs kept to replay through the reference."""
+
+    def __init__(self, costs: list[float]) -> None:
+        self.costs, self.asked = costs, []
+
+    def __enter__(self) -> list[Any]:
+        import labcli.sensing.estimator as estimator
+
+        self.module, self.inner = estimator, estimator.evaluate
+
+        def timed(model: Any, x: Any) -> Any:
+            c0 = time.thread_time()
+            out = self.inner(model, x)
+            self.costs.append(time.thread_time() - c0)
+            self.asked.append(x)
+            return out
+
+        estimator.evaluate = timed
+        return self.asked
+
+    def __exit__(self, *exc: Any) -> None:
+        self.module.evaluate = self.inner
+
+
+def _reference_costs(reference: Any, asked: list[Any]) -> list[float]:
+    """CPU seconds of the same blocks' estimates by the model's own predict (the table form)."""
+    from labcli.sensing.evaluate import evaluate
+
+    out = []
+    for x in asked:
+        c0 = time.thread_time()
+        evaluate(reference, x)
+        out.append(time.thread_time() - c0)
+    return out
 
 
 def publish_run(seeds: list[int], a: dict[str, Any], rate_hz: float) -> dict[str, Any]:
@@ -308,6 +354,8 @@ def publish_run(seeds: list[int], a: dict[str, Any], rate_hz: float) -> dict[str
     bare = [_session(s, a, rate_hz, bare=True) for s in seeds]
     lat = np.concatenate([r["lat"] for r in full])
     floor = np.concatenate([r["lat"] for r in bare])
+    own = np.concatenate([r["estimate"] for r in full])
+    ref = np.concatenate([r["reference"] for r in full])
     return {
         "rate_hz": rate_hz,
         "seeds": seeds,
@@ -315,6 +363,8 @@ def publish_run(seeds: list[int], a: dict[str, Any], rate_hz: float) -> dict[str
         "received": sum(r["received"] for r in full),
         "latency_ms": {"median": 1e3 * float(np.median(lat)), "p99": 1e3 * float(np.percentile(lat, 99))},
         "floor_ms": {"median": 1e3 * float(np.median(floor)), "p99": 1e3 * float(np.percentile(floor, 99))},
+        "estimate_cpu_ms": {"median": 1e3 * float(np.median(own)), "p99": 1e3 * float(np.percentile(own, 99))},
+        "reference_cpu_ms": {"median": 1e3 * float(np.median(ref)), "p99": 1e3 * float(np.percentile(ref, 99))},
         "load_avg": [load0, os.getloadavg()[0]],
     }
 
@@ -506,12 +556,19 @@ def report(p: dict[str, Any], fast: dict[str, Any] | None, a: dict[str, Any]) ->
 def publish_line(pr: dict[str, Any]) -> str:
     """The latency row of the report, its floor and the load average beside it."""
     lat, floor = pr["latency_ms"], pr["floor_ms"]
+    own, ref = pr.get("estimate_cpu_ms"), pr.get("reference_cpu_ms")
+    cost = (
+        f"; the model step per estimate (CPU) median {own['median']:.3f} ms, p99 {own['p99']:.3f} ms, the same "
+        f"blocks by the model's own predict median {ref['median']:.3f} ms"
+        if own and ref
+        else ""
+    )
     return (
         f"| frame's bytes arrived to its block's estimate published (JSON lines to a file and a TCP client), "
         f"{pr['rate_hz']:g} Hz, seeds {pr['seeds'][0]}-{pr['seeds'][-1]} | median {lat['median']:.2f} ms, "
         f"p99 {lat['p99']:.2f} ms ({pr['published']} estimates, {pr['received']} lines received); floor (the same "
-        f"reads and writes, no estimator) median {floor['median']:.2f} ms, p99 {floor['p99']:.2f} ms; load average "
-        f"{pr['load_avg'][0]:.2f} -> {pr['load_avg'][1]:.2f} | p99 < 2 ms | {ok(lat['p99'] < 2.0)} |"
+        f"reads and writes, no estimator) median {floor['median']:.2f} ms, p99 {floor['p99']:.2f} ms{cost}; load "
+        f"average {pr['load_avg'][0]:.2f} -> {pr['load_avg'][1]:.2f} | p99 < 2 ms | {ok(lat['p99'] < 2.0)} |"
     )
 
 
@@ -525,6 +582,10 @@ def latency_figures(published: list[dict[str, Any]], a: dict[str, Any]) -> dict[
         out[f"{key} floor median ms"] = pr["floor_ms"]["median"]
         out[f"{key} floor p99 ms"] = pr["floor_ms"]["p99"]
         out[f"{key} over floor"] = pr["latency_ms"]["p99"] / pr["floor_ms"]["p99"]
+        out[f"{key} estimate cpu median ms"] = pr["estimate_cpu_ms"]["median"]
+        out[f"{key} estimate cpu p99 ms"] = pr["estimate_cpu_ms"]["p99"]
+        out[f"{key} reference estimate cpu median ms"] = pr["reference_cpu_ms"]["median"]
+        out[f"{key} estimate speedup"] = pr["reference_cpu_ms"]["median"] / pr["estimate_cpu_ms"]["median"]
         out[f"{key} estimates"] = pr["published"]
         out[f"{key} load avg"] = max(pr["load_avg"])
     return out
