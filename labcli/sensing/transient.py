@@ -28,6 +28,7 @@ standard error.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 from typing import Any
@@ -40,18 +41,31 @@ A_SPAN = 0.1  # MPa: no load moves a chamber's pressure by more (a prior so wide
 
 def lag(s: np.ndarray, tau: float | np.ndarray) -> np.ndarray:
     """``1 - exp(-s / tau)`` for ``s > 0``, else 0."""
+    if np.ndim(s) == 0 and np.ndim(tau) == 0 and float(tau) > 0:  # one time (the estimator's calls): floats
+        x = float(s)
+        return np.float64(-math.expm1(-x / float(tau)) if x > 0 else 0.0)
     s = np.asarray(s, dtype=float)
     return np.where(s > 0, -np.expm1(-np.maximum(s, 0.0) / tau), 0.0)
 
 
 def heat(s: np.ndarray, tau: float | np.ndarray, thermal_tau: float) -> np.ndarray:
     """The heat kernel (module docstring): 0 at the step, a hump, back to 0 after several ``thermal_tau``."""
+    if np.ndim(s) == 0 and np.ndim(tau) == 0 and float(tau) > 0 and thermal_tau > 0:
+        return np.float64(_heat_one(float(s), float(tau), thermal_tau))
     s = np.maximum(np.asarray(s, dtype=float), 0.0)
     tau = np.asarray(tau, dtype=float)
     near = np.abs(thermal_tau - tau) < 1e-9 * thermal_tau
     with np.errstate(divide="ignore", invalid="ignore"):
         g = thermal_tau / (thermal_tau - tau) * (np.exp(-s / thermal_tau) - np.exp(-s / tau))
     return np.where(near, s / tau * np.exp(-s / tau), g)
+
+
+def _heat_one(s: float, tau: float, thermal_tau: float) -> float:
+    """:func:`heat` at one time, in plain floats."""
+    s = s if s > 0.0 or s != s else 0.0  # np.maximum's: NaN stays NaN
+    if abs(thermal_tau - tau) < 1e-9 * thermal_tau:
+        return s / tau * math.exp(-s / tau)
+    return thermal_tau / (thermal_tau - tau) * (math.exp(-s / thermal_tau) - math.exp(-s / tau))
 
 
 @dataclass(frozen=True)
@@ -146,6 +160,7 @@ class ResponseFit:
         self.shape_sd = float(shape_sd)  # share of what the shape still carries counted as uncertain
         self.n = 0
         self.result: FitResult | None = None
+        self._reset_sums()
         self._shift = 0.0
         # After the span: the shape frozen, the level refined by sums over the later blocks (the last
         # TAIL_KEEP of them kept one by one, so a change found among them can take them back).
@@ -197,6 +212,7 @@ class ResponseFit:
             if keep < self.n:
                 self.n = keep
                 self._frozen = None
+                self._reset_sums()
         self.result = None
         return dropped[::-1]
 
@@ -231,16 +247,7 @@ class ResponseFit:
         variance holds the noise's share and the spread of the hypotheses that fit.
         """
         n = self.n
-        t, e, w = self._t[:n], self._e[:n], self._w[:n]
-        s = t[None, None, :] - (self.t0 + self.shifts)[None, :, None]
-        tau = self.taus[:, None, None]
-        phi, g = lag(s, tau), heat(s, tau, self.thermal_tau)  # (T, S, n)
-        Spp = np.einsum("tsn,tsn,nk->tsk", phi, phi, w)[None]
-        Spg = np.einsum("tsn,tsn,nk->tsk", phi, g, w)[None]
-        Sgg = np.einsum("tsn,tsn,nk->tsk", g, g, w)[None]
-        Spe = np.einsum("tsn,nk->tsk", phi, w * e)[None]
-        Sge = np.einsum("tsn,nk->tsk", g, w * e)[None]
-        See = np.sum(w * e * e, axis=0)
+        Spp, Spg, Sgg, Spe, Sge, See = self._sums()
         kap = self.kappas[:, None, None, None] * self.heated  # (K, 1, 1, k): no heat on unheated channels
         Sqq = Spp + 2 * kap * Spg + kap**2 * Sgg + 1.0 / A_SPAN**2  # (K, T, S, k)
         Sqe = Spe + kap * Sge
@@ -263,6 +270,35 @@ class ResponseFit:
         self._shift = float((marg.sum(axis=0) * self.shifts).sum())
         self.result = FitResult(Am, Bm, var_A, var_B, tau_w, misfit, n)
         return self.result
+
+    def _reset_sums(self) -> None:
+        T, S, k = len(self.taus), len(self.shifts), self._e.shape[1]
+        self._sums_n = 0
+        self._S = np.zeros((5, 1, T, S, k))  # Spp, Spg, Sgg, Spe, Sge, each (1, T, S, k)
+        self._See = np.zeros(k)
+
+    def _sums(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The least squares' sums over the span's blocks under every (lag, step time) hypothesis:
+        sum w phi^2, w phi g, w g^2, w phi e, w g e (1, T, S, k) and sum w e^2 (k,).
+
+        Kept from solve to solve: the fit is solved every block, so each block is summed in once
+        (all of them again after :meth:`truncate` takes some back), not the whole span every block.
+        """
+        lo, n = self._sums_n, self.n
+        if lo < n:
+            t, e, w = self._t[lo:n], self._e[lo:n], self._w[lo:n]
+            s = t[None, None, :] - (self.t0 + self.shifts)[None, :, None]
+            tau = self.taus[:, None, None]
+            phi, g = lag(s, tau), heat(s, tau, self.thermal_tau)  # (T, S, n - lo)
+            self._S[0, 0] += np.einsum("tsn,tsn,nk->tsk", phi, phi, w)
+            self._S[1, 0] += np.einsum("tsn,tsn,nk->tsk", phi, g, w)
+            self._S[2, 0] += np.einsum("tsn,tsn,nk->tsk", g, g, w)
+            self._S[3, 0] += np.einsum("tsn,nk->tsk", phi, w * e)
+            self._S[4, 0] += np.einsum("tsn,nk->tsk", g, w * e)
+            self._See += np.sum(w * e * e, axis=0)
+            self._sums_n = n
+        S = self._S
+        return S[0], S[1], S[2], S[3], S[4], self._See
 
     def step(self) -> Step:
         """The fitted response as a :class:`Step` (at the lag and step time found)."""
