@@ -80,3 +80,39 @@ def test_the_validators_would_see_what_they_object_to(runs, tmp_path):
     assert warnings > 0 and "plan_set" in report
     errors, lines = punx_errors(bad)
     assert errors > 0 and "@axes" in lines
+
+
+def test_ci_installs_the_validators_pinned_here_and_requires_them():
+    # .ci/run makes the validators' environment with .ci/validators and says they are required
+    # before it runs the README's test command, so a validator missing in CI fails, never skips.
+    from support.standards import ROOT, VALIDATORS
+
+    script = (ROOT / ".ci" / "validators").read_text()
+    for pin in VALIDATORS.values():
+        assert f"'{pin}'" in script
+    assert "nxvalidate==0.3.5b3" in VALIDATORS.values()  # a pre-release: only an exact pin installs it
+    run = (ROOT / ".ci" / "run").read_text().splitlines()
+    at = {
+        key: next(i for i, line in enumerate(run) if key in line and not line.lstrip().startswith("#"))
+        for key in (
+            ".ci/validators",
+            'LABCLI_NEXUS_VALIDATORS="$validators"',
+            "LABCLI_STANDARDS=required",
+            'bash -c "$cmd"',
+        )
+    }
+    assert at[".ci/validators"] < at["LABCLI_STANDARDS=required"] < at['bash -c "$cmd"']
+    assert "export" in run[at["LABCLI_STANDARDS=required"]]
+
+
+@pytest.mark.parametrize("required", [False, True])
+def test_a_missing_validator_skips_or_fails_where_required(monkeypatch, tmp_path, required):
+    from support.standards import need, validator
+
+    monkeypatch.setenv("LABCLI_NEXUS_VALIDATORS", str(tmp_path))  # a folder without them
+    monkeypatch.setenv("LABCLI_STANDARDS", "required" if required else "")
+    outcome = pytest.fail.Exception if required else pytest.skip.Exception
+    with pytest.raises(outcome, match=f"punx is not installed in {tmp_path}"):
+        validator("punx")
+    with pytest.raises(outcome, match="no_such_validator is not installed"):
+        need("no_such_validator_module", "no_such_validator")

@@ -30,10 +30,23 @@ ROOT = Path(__file__).resolve().parents[2]
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,200,0\n2,fit,300,45\n3,validation,100,90\n"
 
 
+def required() -> bool:
+    """Whether a validator that is not installed fails the test rather than skips it
+    (``LABCLI_STANDARDS=required``, as ``.ci/run`` sets)."""
+    return os.environ.get("LABCLI_STANDARDS", "") == "required"
+
+
+def _missing(message: str) -> None:
+    if required():
+        pytest.fail(f"{message}; LABCLI_STANDARDS=required", pytrace=False)
+    pytest.skip(message)
+
+
 def need(module: str, package: str) -> None:
-    """Skip the calling test, naming the package, where ``module`` cannot be imported."""
+    """Skip the calling test, naming the package, where ``module`` cannot be imported (fail it
+    where the validators are :func:`required`)."""
     if importlib.util.find_spec(module) is None:
-        pytest.skip(f"{package} is not installed (pip install '.[test]' brings it)")
+        _missing(f"{package} is not installed (pip install '.[test]' brings it)")
 
 
 def _ui() -> Any:
@@ -104,7 +117,8 @@ def frictionless_problems(sidecar: Path) -> list[str]:
 
 # The NeXus validators are command-line tools with dependencies of their own (nxvalidate
 # 0.3.5b3, punx 0.3.5), so they live in any environment of the lab's choosing: on PATH, or in
-# the bin directory LABCLI_NEXUS_VALIDATORS names.  A test that needs one skips, saying so.
+# the bin directory LABCLI_NEXUS_VALIDATORS names (.ci/validators DIR makes one).  A test that
+# needs one skips, saying so, or fails where they are required().
 VALIDATORS = {"nxinspect": "nxvalidate==0.3.5b3", "punx": "punx==0.3.5"}
 ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
@@ -114,10 +128,12 @@ def validator(name: str) -> str:
     folder = os.environ.get("LABCLI_NEXUS_VALIDATORS")
     found = shutil.which(name, path=folder) if folder else shutil.which(name)
     if found is None:
-        pytest.skip(
-            f"{name} is not installed (pip install '{VALIDATORS[name]}' into any environment, then put its "
-            "bin directory on PATH or in LABCLI_NEXUS_VALIDATORS)"
+        where = f"in {folder}" if folder else "on PATH"
+        _missing(
+            f"{name} is not installed {where} (pip install '{VALIDATORS[name]}' into any environment, or run "
+            ".ci/validators DIR, then put its bin directory on PATH or in LABCLI_NEXUS_VALIDATORS)"
         )
+    assert found is not None
     return found
 
 
