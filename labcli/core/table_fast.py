@@ -136,11 +136,30 @@ def _plain(data: bytes) -> bool:
     if b"u" in data or b"U" in data or b"s" in data or b"S" in data:
         low = data.lower()
         if b"true" in low or b"false" in low:
-            return _BOOLEAN_CELL.search(low) is None
+            return not _boolean_cell(low)
     return True
 
 
 _BOOLEAN_CELL = re.compile(rb"(?:^|,)[ \t]*(?:true|false)[ \t]*(?=,|\r?$)", re.M)
+
+
+def _boolean_cell(low: bytes, most: int = 64) -> bool:
+    """Whether a whole cell of ``low`` is true or false: the pattern tried on the lines that hold
+    either word only (a header's true_stiffness_N_per_m is one line, where the pattern over a
+    whole block cost a tenth of a second at 10^5 pushes), or on the block past ``most`` of them."""
+    lines: set[int] = set()
+    for word in (b"true", b"false"):
+        at = low.find(word)
+        while at >= 0:
+            lines.add(low.rfind(b"\n", 0, at) + 1)
+            if len(lines) > most:
+                return _BOOLEAN_CELL.search(low) is not None
+            at = low.find(word, at + len(word))
+    for start in lines:
+        end = low.find(b"\n", start)
+        if _BOOLEAN_CELL.search(low, start, len(low) if end < 0 else end):
+            return True
+    return False
 
 
 def _header_fits(header: list[str], spec: TableSpec) -> bool:

@@ -225,3 +225,19 @@ def test_the_words_true_and_false_inside_a_name_or_a_cell_keep_the_whole_column_
         p = put(tmp_path, f"{HEADER},true_stiffness_N_per_m,note\n{ROW},420.0,{cell}\n", "w.csv")
         assert table_fast.read_fast(p, TRIAL, PRESSURE_SPAN_MPA, None) is None
         agree(p)
+
+
+@given(
+    st.lists(
+        st.lists(
+            st.sampled_from(["true", "false", " true", "true\t", "untrue", "falsework", "1.5", "", "x"]), max_size=4
+        ),
+        max_size=80,
+    ),
+    st.sampled_from(["\n", "\r\n"]),
+)
+@settings(max_examples=300)
+def test_a_whole_true_or_false_cell_is_found_as_the_pattern_over_the_block_finds_it(rows, eol):
+    # The lines holding either word are tried one by one, or the whole block past 64 of them.
+    low = ("name,true_stiffness_N_per_m" + eol + "".join(",".join(r) + eol for r in rows)).encode()
+    assert table_fast._boolean_cell(low) == (table_fast._BOOLEAN_CELL.search(low) is not None)

@@ -3,7 +3,7 @@
 The objects' statistics and the bands' verdicts (:func:`object_stats_many`,
 :meth:`CategoryModel.predict_groups`) against :func:`object_stats` and ``predict`` one object at a
 time, as the report was built before; the streamed JSON's lines (:func:`push_lines`) against
-``json.dumps`` of each push's item.
+``json.dumps`` of each push's item; the objects' items (:func:`object_items`) against a row at a time.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -22,7 +23,9 @@ from labcli.errors import ModelError
 from labcli.papers.takuma2014.models.categories import CategoryModel
 from labcli.papers.takuma2014.models.classify import (
     ClassifyReport,
+    _num,
     classify_pushes,
+    object_items,
     push_items,
     push_lines,
     write_report_json,
@@ -151,3 +154,43 @@ def test_the_streamed_pushes_are_json_dumps_of_each_push_item(lab: dict[str, Any
     res.pushes.loc[5, "R_m"] = 1e306  # scaled to mm it overflows: refused as json.dumps refuses it
     with pytest.raises(ValueError, match="Out of range float values are not JSON compliant"):
         write_report_json(report, open("/dev/null", "w"))
+
+
+def _object_item(row: Mapping[str, Any], method: str) -> dict[str, Any]:
+    """One object's summary from its row, as the report made it before it went column by column."""
+    item = {
+        "object": str(row["object"]),
+        # Under bands a known category is only compared with the bands' answer, not used to place them.
+        "role": ("reference" if method == "reference" else "given") if row.get("known_category") else "unknown",
+        "category_given": str(row.get("known_category") or ""),
+        "n": int(row["n_pushes"]),
+        "n_used": int(row["n_used"]),
+        "n_flagged": int(row["n_flagged"]),
+        "k_mean_N_per_m": _num(row["k_mean_N_per_m"]),
+        "k_sd_N_per_m": _num(row["k_std_N_per_m"]),
+        "k_median_N_per_m": _num(row["k_median_N_per_m"]),
+        "log_k_mean": _num(row["log_k_mean"]),
+        "log_k_sd": _num(row["log_k_std"]),
+        "category": str(row.get("category") or ""),
+        "confidence": _num(row.get("confidence")),
+        "z": _num(row.get("z")),
+        "method": str(row.get("method") or method),
+        "note": str(row.get("note") or ""),
+        "evidence": str(row.get("evidence") or ""),
+        "z_by_category": {str(c): _num(v) for c, v in dict(row.get("z_by_category") or {}).items()},
+    }
+    if "true_k_N_per_m" in row:
+        item["true_k_N_per_m"] = _num(row["true_k_N_per_m"])
+    if "log_k_se" in row:
+        item["log_k_se"] = _num(row["log_k_se"])  # the standard error behind a band's confidence
+    return item
+
+
+def test_the_objects_items_are_what_each_row_gave(lab: dict[str, Any]) -> None:
+    res = classify_pushes(lab["table"], lab["model"], bands=lab["bands"], method="bands", allow_unusable=True)
+    report = ClassifyReport(res, "p.csv", "m.json", None, load_protocol("takuma2014-stiffness"), "pressure-only")
+    items = object_items(report)
+    assert items == [_object_item(row, res.method) for row in res.objects.to_dict("records")]
+    assert json.dumps(items) == json.dumps([_object_item(row, res.method) for row in res.objects.to_dict("records")])
+    assert any(i["k_mean_N_per_m"] is None for i in items) and any(i["role"] == "given" for i in items)
+    assert any(i["role"] == "unknown" for i in items) and any(i["z_by_category"] for i in items)

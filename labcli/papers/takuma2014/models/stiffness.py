@@ -349,6 +349,8 @@ def _flags_from_model(flags: Any, reasons: Any, n: int) -> list[list[str]] | Non
     if items is None or len(items) != n:
         got = np.shape(flags) if items is None else (len(items),)
         raise ConfigError(f"Model flags have shape {got}, expected ({n},) for {n} pushes.")
+    if all(isinstance(item, list) for item in items):  # TakumaModel.predict's form: most lists empty
+        return [list(filter(None, map(str, item))) if item else [] for item in items]
     given = list(np.asarray(reasons, dtype=object).reshape(n)) if reasons is not None else [""] * n
     out: list[list[str]] = []
     for item, why in zip(items, given, strict=False):
