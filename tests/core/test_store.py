@@ -458,33 +458,52 @@ def test_file_is_default_libver_and_reopens_for_append(run_path):
         assert run.records.ids()[-1] == 40
 
 
-@pytest.mark.parametrize("torn", ["metadata", "records"])
-def test_a_reader_that_meets_a_commit_under_way_reads_the_run_again_as_the_schema_it_is(run_path, monkeypatch, torn):
-    """A torn read while a writer holds the file (its metadata or its record table, read while a
-    checkpoint copies HDF5's pages in) makes the reader open the file again: it must read the tables
-    again, not take a schema-3 run for a schema-1 one, whose group-per-record layout it lacks (0 trials)."""
-    from labcli.core.store import records, runfile, space
+@pytest.mark.parametrize("torn", ["metadata", "records", "split"])
+@pytest.mark.parametrize("writer", ["holds the file", "let go while it was read"])
+def test_a_reader_that_meets_a_commit_under_way_reads_the_run_again_as_the_schema_it_is(
+    run_path, monkeypatch, torn, writer
+):
+    """A torn read while a writer holds the file (its metadata, its record table or its split, read
+    while a checkpoint copies HDF5's pages in) makes the reader open the file again: it must read the
+    tables again, not take a schema-3 run for a schema-1 one, whose group-per-record layout it lacks
+    (0 trials).  A writer that held the file when the reader opened it and has let go since (its
+    last commit tore the read, then it closed) counts as one at work."""
+    from labcli.core.store import records, runfile, space, split
 
-    monkeypatch.setattr(space, "writer_holds", lambda path: True)
-    calls = []
-    if torn == "metadata":
+    opened = []  # the writer let go once HDF5 had opened the file
+    real_open = runfile.h5open
+    monkeypatch.setattr(runfile, "h5open", lambda path, mode: opened.append(path) or real_open(path, mode))
+    holds = (lambda path: True) if writer == "holds the file" else (lambda path: not opened)
+    monkeypatch.setattr(space, "writer_holds", holds)
+    with RunFile.open(run_path, "a") as run:
+        run.split.set(range(1, 9), range(9, 13))
+    # What was read through the first opening is torn; the file opened again reads whole.
+    if torn == "split":
+        real_split = split.read_split
+
+        def torn_split(t):
+            got = real_split(t)
+            return (got[0], ["split row 0: its checksum does not match its values"]) if len(opened) < 2 else got
+
+        monkeypatch.setattr(split, "read_split", torn_split)
+    elif torn == "metadata":
         real_ok = runfile.metadata_ok
-        monkeypatch.setattr(runfile, "metadata_ok", lambda f: bool(calls.append(1)) or len(calls) > 1 and real_ok(f))
+        monkeypatch.setattr(runfile, "metadata_ok", lambda f: len(opened) > 1 and real_ok(f))
     else:
         real_read = records.from_v2
 
-        def torn_once(t, rt):
-            calls.append(1)
-            if len(calls) == 1:
+        def torn_records(t, rt):
+            if len(opened) < 2:
                 raise OSError("Can't read data (wrong B-tree signature)")
             return real_read(t, rt)
 
-        monkeypatch.setattr(records, "from_v2", torn_once)
+        monkeypatch.setattr(records, "from_v2", torn_records)
     with RunFile.open(run_path) as run:
         assert run.version == SCHEMA_VERSION
         assert run.records.ids() == list(range(1, 13))
         assert run.records.table()["trial"].tolist() == list(range(1, 13))
-    assert len(calls) >= 2  # the torn read was met, and read again
+        assert run.split.set_of() == {i: "fit" if i < 9 else "validation" for i in range(1, 13)}
+    assert len(opened) == 2  # the torn read was met, and the file read again once
 
 
 def test_torn_uncommitted_row_is_ignored_and_written_over(run_path):

@@ -9,8 +9,10 @@ take it (:mod:`.space` says why one lock serves every writer).
 from __future__ import annotations
 
 import os
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 import h5py
 import numpy as np
@@ -28,6 +30,45 @@ from .nexus import field_parts, home
 
 # Attributes a commit changes in place: left out of the metadata's checksum.
 MUTABLE_ATTRS = ("committed", "committed_checksum", "metadata_checksum")
+READ_RETRIES = 8  # torn reads while a writer commits: tries before the damage is believed
+# What HDF5 raises on a torn read (a B-tree node or an object header copied in beside old ones).
+READ_ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError)
+T = TypeVar("T")
+
+
+class Reopens(Protocol):
+    """A run file open for reading that can say whether a writer may have torn a read, and open afresh."""
+
+    def may_be_torn(self) -> bool:
+        """Whether a writer held the file at any time since it was opened (at its opening, or now)."""
+
+    def reopen(self) -> None:
+        """Open the file afresh."""
+
+
+def read_afresh(run: Reopens, read: Callable[[], T], torn: Callable[[T], bool]) -> T:
+    """``read()``, read again with the file opened afresh while it looks ``torn`` and a writer may have torn it.
+
+    A reader opens without the lock, and a writer's checkpoint copies HDF5's pages into the file
+    one at a time (:mod:`.journal`): a read that overlaps one can meet new pages beside old ones
+    (a metadata checksum, a row checksum or a Fletcher32 check that fails, a count past the rows,
+    or an error from HDF5).  A writer that held the file when it was opened counts as well as one
+    holding it now: its last commit may tear a read and the writer let go before the read ended.
+    An error HDF5 raises on the last try, or with no writer about, is raised.
+    """
+    for attempt in range(READ_RETRIES):
+        last = attempt + 1 == READ_RETRIES
+        try:
+            got = read()
+        except READ_ERRORS:
+            if last or not run.may_be_torn():
+                raise
+        else:
+            if last or not torn(got) or not run.may_be_torn():
+                return got
+        time.sleep(0.02 * (attempt + 1))  # a commit under way: read again, afresh
+        run.reopen()
+    raise AssertionError("unreachable")
 
 
 def metadata_checksum(f: h5py.File) -> int:

@@ -19,7 +19,6 @@ under way (a torn read while another process writes) reads again, afresh.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, cast
 
@@ -29,9 +28,9 @@ from ...errors import StoreError
 from ..paper import RecordType
 from ..record import Record, Settle, StoredRecord
 from ..window import Window
-from . import space
 from .columns import fill_value
 from .layout import common_columns, extra_name, window_columns
+from .opening import READ_ERRORS, read_afresh
 from .rows import bulk_values, record_id, record_row, settle_of, split_flags
 from .view import RecordColumns, from_v1, from_v2
 from .writer import Write
@@ -39,7 +38,6 @@ from .writer import Write
 if TYPE_CHECKING:
     from .runfile import RunFile
 
-READ_RETRIES = 8  # torn reads while a writer commits: tries before the damage is believed
 # What every record carries beyond its exchange table (``table(all_columns=True)``, ``labcli export
 # --all-columns``): named as the run file's own columns, so ``labcli import`` takes them back.
 ALL_COLUMNS = tuple(
@@ -176,24 +174,18 @@ class Records:
         if self._cols is not None:
             return self._cols
         run = self._run
-        rec = None
-        for attempt in range(READ_RETRIES):
-            try:
-                rec = (
-                    from_v1(run.v1, run.record_type)
-                    if run.v1 is not None
-                    else from_v2(run.tables.records, run.record_type)
-                )
-            except (OSError, KeyError, ValueError, RuntimeError, TypeError):
-                rec = None
-            busy = run.mode == "r" and (rec is None or rec.damaged) and space.writer_holds(run.path)
-            if busy and attempt + 1 < READ_RETRIES:
-                time.sleep(0.02 * (attempt + 1))  # a commit under way: read again, afresh
-                run.reopen()
-                continue
-            break
-        if rec is None:
-            raise StoreError(f"{run.path} is damaged or truncated and HDF5 cannot read it; use a backup copy.")
+
+        def read() -> RecordColumns:
+            return (
+                from_v1(run.v1, run.record_type) if run.v1 is not None else from_v2(run.tables.records, run.record_type)
+            )
+
+        try:
+            rec = read_afresh(run, read, lambda r: bool(r.damaged))
+        except READ_ERRORS:
+            raise StoreError(
+                f"{run.path} is damaged or truncated and HDF5 cannot read it; use a backup copy."
+            ) from None
         if rec.damaged:
             run.warn(damage_sentence(run.path, rec.damaged))
         self._cols = rec

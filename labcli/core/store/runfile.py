@@ -65,6 +65,7 @@ from .nexus import PROTOCOL, home, read_metadata
 from .notes import Notes
 from .opening import (
     MUTABLE_ATTRS,
+    READ_RETRIES,
     Tables,
     check_openable,
     check_schema,
@@ -74,8 +75,9 @@ from .opening import (
     open_error,
     open_tables,
     open_writer,
+    read_afresh,
 )
-from .records import READ_RETRIES, Records
+from .records import Records
 from .sessions import Sessions
 from .split import Splits
 from .summary import summarise
@@ -112,6 +114,7 @@ class RunFile:
         self.path = path
         self.mode = mode
         self.io = io  # a writer's file, under HDF5 (:mod:`.journal`)
+        self.held = False  # a reader's: whether a writer held the file when it was opened
         self._tmp: str | None = None
         self._staged: tuple[bool, str] | None = None
         root = home(h5)
@@ -264,33 +267,18 @@ class RunFile:
         if mode not in ("r", "a"):
             raise ValueError(f"mode must be 'r' or 'a', got {mode!r}")
         check_openable(path, mode)
-        f, io = _open_h5(path, mode)
-
-        def shut() -> None:
-            f.close()
-            if io is not None:
-                io.close()
-
-        try:
-            version = check_schema(f, path)
-            if version == 1 and mode == "a":
-                shut()
-                return upgrade(cls, path)
-            run = cls(f, path, mode, io)
-        except StoreError:
-            shut()
-            raise
-        except Exception:  # noqa: BLE001 - a damaged file can fail in any way
-            shut()
-            raise StoreError(f"{path} is damaged or truncated and HDF5 cannot read it; use a backup copy.") from None
+        for attempt in range(READ_RETRIES):
+            held = mode == "r" and space.writer_holds(path)  # before HDF5 reads a byte (see read_afresh)
+            try:
+                run = _open_run(cls, path, mode, held)
+                break
+            except StoreError:
+                if mode == "a" or attempt + 1 == READ_RETRIES or not (held or space.writer_holds(path)):
+                    raise
+            time.sleep(0.02 * (attempt + 1))  # a reader that met a commit under way: open afresh
         if mode == "a":
             space.ignore_file_size_signal()
-        for attempt in range(READ_RETRIES):
-            if run._metadata_ok() or mode == "a" or attempt + 1 == READ_RETRIES or not space.writer_holds(path):
-                break
-            time.sleep(0.02 * (attempt + 1))  # the writer may be mid-commit: read afresh
-            run.reopen()
-        if not run._metadata_ok():
+        if not read_afresh(run, run._metadata_ok, lambda ok: not ok):
             run.warn(
                 f"{path}: the run's metadata (the attributes of its groups and datasets) do not match "
                 "their checksum; the file was changed after it was written, so check what it says."
@@ -303,9 +291,14 @@ class RunFile:
         except Exception:  # noqa: BLE001 - a damaged attribute or header can fail in any way
             return False
 
+    def may_be_torn(self) -> bool:
+        """Whether a writer may have torn what this reader read: it held the file at the opening, or holds it now."""
+        return self.mode == "r" and (self.held or space.writer_holds(self.path))
+
     def reopen(self) -> None:
         """Read the file afresh (a reader that met a commit under way)."""
         self.h5.close()
+        self.held = space.writer_holds(self.path)
         self.h5 = h5open(self.path, "r")
         # Opened as __init__ opens it: every schema but the first keeps tables (schema 3 too).
         if self.version == 1:
@@ -514,18 +507,38 @@ def _new_file(tmp: str, path: str) -> tuple[h5py.File, JournalFile]:
         raise
 
 
+def _open_run(cls: type[RunFile], path: str, mode: str, held: bool) -> RunFile:
+    """The file open with HDF5 and its tables found (``held``: a writer held it as it was opened)."""
+    f, io = _open_h5(path, mode)
+
+    def shut() -> None:
+        f.close()
+        if io is not None:
+            io.close()
+
+    try:
+        version = check_schema(f, path)
+        if version == 1 and mode == "a":
+            shut()
+            return upgrade(cls, path)
+        run = cls(f, path, mode, io)
+    except StoreError:
+        shut()
+        raise
+    except Exception:  # noqa: BLE001 - a damaged file can fail in any way
+        shut()
+        raise StoreError(f"{path} is damaged or truncated and HDF5 cannot read it; use a backup copy.") from None
+    run.held = held
+    return run
+
+
 def _open_h5(path: str, mode: str) -> tuple[h5py.File, JournalFile | None]:
-    """Open with HDF5, retrying a reader that met a writer mid-commit; StoreError when it will not open."""
-    for attempt in range(READ_RETRIES):
-        try:
-            return open_writer(path) if mode == "a" else (h5open(path, mode), None)
-        except OSError as e:
-            message = open_error(path, e)
-            if mode == "r" and attempt + 1 < READ_RETRIES and space.writer_holds(path):
-                time.sleep(0.02 * (attempt + 1))  # the writer may be mid-commit
-                continue
-            raise StoreError(message) from None
-    raise AssertionError("unreachable")
+    """Open with HDF5 (a reader that met a writer mid-commit is retried by :meth:`RunFile.open`);
+    StoreError when it will not open."""
+    try:
+        return open_writer(path) if mode == "a" else (h5open(path, mode), None)
+    except OSError as e:
+        raise StoreError(open_error(path, e)) from None
 
 
 def _frames_per_window(protocol: Any) -> float:

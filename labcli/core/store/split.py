@@ -27,6 +27,7 @@ from ..words import count
 from .blobs import blob_read, blob_write, cell_text
 from .columns import Table
 from .layout import SPLIT_COLUMNS
+from .opening import read_afresh
 
 if TYPE_CHECKING:
     from .runfile import RunFile
@@ -53,7 +54,7 @@ class Splits:
         run = self._run
         if run.v1 is not None:
             return run.v1.split()
-        s, problems = read_split(run.tables.split)
+        s, problems = read_afresh(run, lambda: read_split(run.tables.split), lambda got: bool(got[1]))
         if problems:
             run.warn(f"{run.path}: {problems[0]}; the last split that checks out is used.")
         return s
