@@ -25,6 +25,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script: tests/ holds support/
+from support import procs
 from support.bad_input import PLAN_HEADER, PROTOCOLS, PUSH_HEADER, PUSH_ROW, SIM, Case, all_cases
 
 CASES = all_cases()
@@ -34,17 +35,7 @@ CASES = all_cases()
 
 
 def labcli(*args: str, cwd: Path, timeout: float = 120, stdin: str | None = None) -> subprocess.CompletedProcess:
-    env = dict(os.environ, COLUMNS="400", PYTHONWARNINGS="ignore")
-    with open(stdin or os.devnull, "rb") as source:
-        return subprocess.run(
-            [sys.executable, "-m", "labcli", *args],
-            cwd=cwd,
-            capture_output=True,
-            text=True,
-            timeout=timeout,
-            env=env,
-            stdin=source,
-        )
+    return procs.labcli(*args, cwd=cwd, timeout=timeout, stdin=stdin, env={"PYTHONWARNINGS": "ignore"})
 
 
 @pytest.fixture(scope="module")

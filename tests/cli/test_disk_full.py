@@ -16,18 +16,16 @@ file is given, which keeps each run to seconds.
 from __future__ import annotations
 
 import hashlib
-import os
 import re
 import resource
 import shutil
-import signal
 import subprocess
-import sys
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from support import procs
 from support.big_table import big_table
 
 from labcli.core.store import RunFile
@@ -44,22 +42,8 @@ LIMIT = 1600 * 1024  # room for the new run (its reserve) and about 17 trials at
 
 
 def labcli(*args: str, cwd: Path, limit: int | None = None) -> subprocess.CompletedProcess:
-    def preexec() -> None:
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        if limit is not None:
-            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-
-    env = dict(os.environ, PYTHONPATH=str(ROOT), COLUMNS="400")
-    return subprocess.run(
-        [sys.executable, "-m", "labcli", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        stdin=subprocess.DEVNULL,
-        preexec_fn=preexec,
-    )
+    limits = {resource.RLIMIT_FSIZE: limit} if limit is not None else {}
+    return procs.labcli(*args, cwd=cwd, timeout=300, env={"PYTHONPATH": str(ROOT)}, limits=limits)
 
 
 def listing(folder: Path) -> dict[str, str]:

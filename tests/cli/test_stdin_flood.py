@@ -7,29 +7,14 @@ sentence, the trials before it stored, the run verifies and resumes.
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
+
+from support.procs import labcli
 
 from labcli.core.ui import MAX_ANSWER_CHARS
 
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,300,-60\n2,fit,500,30\n3,validation,400,120\n"
 PORT = "sim://?seed=1&clock=virtual"
-
-
-def labcli(*args: str, cwd: Path, stdin: Path | None = None) -> subprocess.CompletedProcess:
-    env = dict(os.environ, COLUMNS="400")
-    with open(stdin or os.devnull, "rb") as source:
-        return subprocess.run(
-            [sys.executable, "-m", "labcli", *args],
-            cwd=cwd,
-            capture_output=True,
-            text=True,
-            timeout=120,
-            env=env,
-            stdin=source,
-        )
 
 
 def test_a_flood_on_standard_input_ends_in_one_sentence_and_loses_nothing(tmp_path: Path) -> None:

@@ -1,8 +1,49 @@
-"""Reading what a child process wrote, once it has ended."""
+"""Child processes of the tests: ``labcli`` run as people run it, and what a child wrote, once it has ended."""
 
 from __future__ import annotations
 
+import os
+import resource
+import signal
 import subprocess
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+
+
+def labcli(
+    *args: str,
+    cwd: Path,
+    stdin: str | os.PathLike | None = None,
+    timeout: float = 120,
+    env: Mapping[str, str] | None = None,
+    limits: Mapping[int, int] | None = None,
+) -> subprocess.CompletedProcess:
+    """``python -m labcli ARGS`` in ``cwd``, its output captured as text.
+
+    ``COLUMNS=400``, so that no sentence a test matches is wrapped; ``stdin``: a file read as
+    standard input (none: an empty one); ``env``: variables set beside the environment's;
+    ``limits``: resource limits set in the child (``resource.RLIMIT_FSIZE``: bytes, as ``ulimit -f``
+    sets them, with SIGXFSZ ignored as a shell leaves it; ``RLIMIT_NOFILE``: open files, as
+    ``ulimit -n``).
+    """
+
+    def preexec() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        for which, value in (limits or {}).items():
+            resource.setrlimit(which, (value, value))
+
+    with open(stdin or os.devnull, "rb") as source:
+        return subprocess.run(
+            [sys.executable, "-m", "labcli", *args],
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env={**os.environ, "COLUMNS": "400", **(env or {})},
+            stdin=source,
+            preexec_fn=preexec,
+        )
 
 
 def finish(proc: subprocess.Popen, timeout: float = 10.0) -> tuple[str, str]:
