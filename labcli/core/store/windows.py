@@ -23,6 +23,7 @@ import numpy as np
 from ...errors import ConfigError, StoreError
 from ..window import NOT_KEPT, Stored, Window
 from .frames import WindowWriter, counts_out
+from .opening import READ_ERRORS, read_afresh
 from .unused import Unused, unused
 
 if TYPE_CHECKING:
@@ -84,8 +85,18 @@ class Windows:
         return Window.of(w["seq"], counts_out(w["counts"]), w["si"], t_s=w["t_s"])
 
     def unused(self) -> list[Unused]:
-        """The ranges of raw frames no committed record takes, and why (:mod:`.unused`)."""
-        return unused(self._run)
+        """The ranges of raw frames no committed record takes, and why (:mod:`.unused`).
+
+        A run being recorded is read up to the frames its writer streams in now: a read torn by a
+        checkpoint (a chunk past the end the file had at its opening) is read again afresh."""
+        run = self._run
+        try:
+            return read_afresh(run, lambda: unused(run), lambda _: False)
+        except READ_ERRORS:
+            raise StoreError(
+                f"{run.path}: the raw frames no record takes cannot be read (damaged); "
+                "check the file with labcli inspect --verify and use a backup copy."
+            ) from None
 
     @property
     def extent(self) -> int:
