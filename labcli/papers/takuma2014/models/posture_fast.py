@@ -5,7 +5,7 @@ design is rebuilt from term names, every 2 x 2 product goes through :func:`.post
 and the paper's Eqs. 34-37 behind the blended quantities are a second model's ``predict``.
 On the dozen-odd rows the estimator asks about per estimate (a centre and a step either side of
 each pressure, :mod:`labcli.sensing.evaluate`) that is some 1,400 numpy calls, each on a
-handful of numbers.  :class:`CompiledPosture` works out once, when the model is read, what
+handful of numbers, where their cost is the call, not the arithmetic.  :class:`CompiledPosture` works out once, when the model is read, what
 does not depend on the pressures:
 
 * the angle designs as two gathers of ``[u, 1]`` (u = P0 / P - 1), so a linear term is
