@@ -9,6 +9,7 @@ into a one-line :class:`click.ClickException`.
 from __future__ import annotations
 
 import codecs
+import errno
 import importlib
 import io
 import os
@@ -194,9 +195,55 @@ def _check_address_space() -> None:
         sys.exit(1)
 
 
+MIN_OPEN_FILES = 32  # a run file and its journal, the rig's port, a figure's fonts: validate --plot needed 10
+
+
+def _open_files_limit() -> int | None:
+    """The soft limit on open files (``ulimit -n``), or None when there is none to read."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
+    except (ImportError, OSError, ValueError):
+        return None
+    return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
+def _check_open_files() -> None:
+    """One sentence, before anything is read or written, when ``ulimit -n`` leaves too few files:
+    a figure's fonts or a run's journal would fail half-way, after a model file was written."""
+    soft = _open_files_limit()
+    if soft is not None and soft < MIN_OPEN_FILES:
+        click.echo(
+            f"Error: the open-file limit (ulimit -n) is {soft}, below the {MIN_OPEN_FILES} files labcli may "
+            "hold open at once (a run file and its journal, the rig's port, a figure's fonts); raise it "
+            "(ulimit -n 1024) and run the command again. Nothing was read or written.",
+            err=True,
+        )
+        sys.exit(1)
+
+
+def _out_of_files(e: BaseException) -> None:
+    """Past the check above, a command that still ran out of open files (EMFILE, or the system's
+    table full, ENFILE) ends in one sentence naming the limit, not in a traceback or a damaged run."""
+    text = str(e)
+    if not isinstance(e, OSError) or not (
+        e.errno in (errno.EMFILE, errno.ENFILE) or "Too many open files" in text or "errno = 24" in text
+    ):
+        return
+    limit = _open_files_limit()
+    click.echo(
+        f"Error: labcli ran out of open files (the open-file limit, ulimit -n, is "
+        f"{'unlimited' if limit is None else limit}); raise it (ulimit -n 1024) and run the command again.",
+        err=True,
+    )
+    sys.exit(1)
+
+
 def main() -> None:
     warnings.showwarning = _show_warning
     _check_address_space()
+    _check_open_files()
     for name in ("SIGTERM", "SIGHUP"):
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), _as_interrupt)
@@ -209,6 +256,7 @@ def main() -> None:
     except Exception as e:
         if isinstance(e, OutputUnwritable):
             _output_unwritable(e)
+        _out_of_files(e)
         if not isinstance(e, (OSError, RuntimeError, KeyError)) or not _from_hdf5(e):
             raise
         why = str(e).strip("'\"").split(" (")[0] or type(e).__name__
