@@ -130,7 +130,8 @@ class _McKibbenRecords(BaseRecordType):
 
     @staticmethod
     def _rest_posture(df: Any, cols: Mapping[str, Any], n: int) -> None:
-        """The rest posture columns (deg) from each record's baseline angles ``pot0``, when any has them."""
+        """The rest posture columns (deg) from each record's baseline angles ``pot0``, when any has them
+        (``df`` a frame or the dict of columns it is made from)."""
         if "pot0" not in cols:
             return
         rest = np.degrees(np.asarray(cols["pot0"], dtype=np.float64).reshape(n, 2))
@@ -303,25 +304,28 @@ class TrialRecords(_McKibbenRecords):
         p = np.asarray(cols["P"], dtype=np.float64).reshape(n, 4)
         theta = np.asarray(cols["theta"], dtype=np.float64).reshape(n, 2)
         force = np.asarray(cols["F"], dtype=np.float64).reshape(n, 2)
-        df = pd.DataFrame(
-            {"trial": np.asarray(ids, dtype=np.int64), "set": pd.Series([sets.get(t, "") for t in ids], dtype=object)}
-        )
+        # The columns gathered first, the frame made once: a column set on a frame copies its
+        # blocks, and the store makes this table of one row for every trial it writes.
+        data: dict[str, Any] = {
+            "trial": np.asarray(ids, dtype=np.int64),
+            "set": pd.Series([sets.get(t, "") for t in ids], dtype=object),
+        }
         for j, name in enumerate(BASELINE):
-            df[name] = p0[:, j]
+            data[name] = p0[:, j]
         for j, name in enumerate(LOADED):
-            df[name] = p[:, j]
-        df["theta1_deg"] = to_edge(np.degrees(theta[:, 0]))
-        df["theta2_deg"] = to_edge(np.degrees(theta[:, 1]))
-        df["Fx_N"] = force[:, 0]
-        df["Fy_N"] = force[:, 1]
+            data[name] = p[:, j]
+        data["theta1_deg"] = to_edge(np.degrees(theta[:, 0]))
+        data["theta2_deg"] = to_edge(np.degrees(theta[:, 1]))
+        data["Fx_N"] = force[:, 0]
+        data["Fy_N"] = force[:, 1]
         mass = np.asarray(cols["mass"], dtype=np.float64) * 1e3
         direction = np.degrees(np.asarray(cols["direction"], dtype=np.float64))
         if np.any(np.isfinite(mass)):
-            df["mass_g"] = to_edge(mass)
+            data["mass_g"] = to_edge(mass)
         if np.any(np.isfinite(direction)):
-            df["direction_deg"] = wrap_degrees_array(to_edge(direction))
-        self._rest_posture(df, cols, n)
-        return df
+            data["direction_deg"] = wrap_degrees_array(to_edge(direction))
+        self._rest_posture(data, cols, n)
+        return pd.DataFrame(data)
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
         return {
