@@ -73,6 +73,10 @@ class DiskFull(StoreError):
     """The disk (or the file size limit, ``ulimit -f``) has no room for a write; nothing was changed."""
 
 
+class OutOfMemory(LabcliError):
+    """Memory ran out mid-session (a MemoryError): what was committed is whole, the sentence says how to resume."""
+
+
 class ModelError(LabcliError):
     """A model cannot be fitted or applied (too few trials, wrong protocol, ...)."""
 

@@ -42,7 +42,7 @@ from . import interrupts
 from .air import SlopeSums
 from .capture import WindowSink
 from .device import RigLink
-from .outcome import Outcome, Where, ended, plural, rig_lost
+from .outcome import Outcome, Where, ended, out_of_memory, plural, rig_lost
 from .reconnect import wait_for_rig
 from .record import Record
 from .sessionlog import NoSessionLog, SessionInfo, SessionLog
@@ -231,9 +231,9 @@ class RunEngine:
         except LOST_RIG:
             how = "rig lost"
             raise
-        except DiskFull:
-            how = "disk full"
-            raise
+        except (DiskFull, MemoryError) as e:  # no room or no memory: what is committed is whole
+            how = "disk full" if isinstance(e, DiskFull) else "out of memory"
+            raise e if isinstance(e, DiskFull) else out_of_memory(self._where()) from None
         finally:
             self._rest_valves()
             self._log.end(how)
@@ -280,7 +280,7 @@ class RunEngine:
             if self._finished:  # Ctrl-C after the last step: the run is complete
                 return self._outcome("finished", tuple(dict.fromkeys(self._skipped)))
             return self._outcome("interrupted", ())
-        except LOST_RIG:
+        except (*LOST_RIG, MemoryError):
             session.close()
             self.stream.stop_quietly()
             raise

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..errors import OutOfMemory
+
 
 @dataclass
 class Outcome:
@@ -111,6 +113,20 @@ def rig_lost(what: str, port: str, where: Where) -> str:
     return (
         f"The rig on {port} {what} during {where.current}; {lost}{where.stored()}. "
         f"Check the cable and power, then resume with: {where.resume_command}"
+    )
+
+
+def out_of_memory(where: Where) -> OutOfMemory:
+    """Memory ran out (a MemoryError) during the session: the error saying what is safe, and how to go on."""
+    if not where.created:
+        return OutOfMemory(
+            f"Memory ran out during the setup, before anything was written to {where.run_path}; "
+            "close other programs (or raise ulimit -v) and run the same command again."
+        )
+    lost = ", which was not stored" if where.in_record else ""
+    return OutOfMemory(
+        f"Memory ran out during {where.current}{lost}; {where.stored()}. "
+        f"Close other programs (or raise ulimit -v), then resume with: {where.resume_command}"
     )
 
 

@@ -45,7 +45,7 @@ from .writer import Write
 if TYPE_CHECKING:
     from .runfile import RunFile
 
-HOW = ("finished", "quit", "interrupted", "rig lost", "no input", "disk full", "error")
+HOW = ("finished", "quit", "interrupted", "rig lost", "no input", "disk full", "out of memory", "error")
 
 
 class Calibration(TypedDict):
@@ -125,6 +125,9 @@ class Sessions:
         number = self._number
         if number is None:
             raise StoreError(f"no session is open in {self._run.path}; there is none to end.")
+        if self._run.writer.broken:  # a write failed half-way (an I/O error, memory): nothing more is written
+            self._number = None
+            return
         self._queued.append(end_event(number, how))
         marks = mark_unused(self._run, "interrupted", None, number)  # the windows of a record cut off
         self._run.writer.commit([marks] if marks else [], 0, "the session's end")

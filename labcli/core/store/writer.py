@@ -18,7 +18,7 @@ bookkeeping change whole or not at all; what a kill or a power cut interrupts be
 is ignored, and the next commit writes over it.  Nothing committed is ever written again
 (:mod:`.columns` says why that needs fresh chunks).
 
-A failed HDF5 write (an I/O error) marks the file broken: nothing more is written to it
+A failed HDF5 write (an I/O error, or memory running out) marks the file broken: nothing more is written to it
 and closing it does not flush HDF5's half-written state.  The session log's events that
 ride on the next commit (:mod:`.sessions`) join whichever commit comes first.
 """
@@ -127,6 +127,9 @@ class Writer:
         try:
             yield
         except DiskFull:
+            raise
+        except MemoryError:  # HDF5's state may be half-written: never flushed into the file
+            self.broken = True
             raise
         except OSError as e:
             self.broken = True
