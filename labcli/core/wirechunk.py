@@ -44,7 +44,8 @@ def whole_chunk(block: bytes, n: int, k: int, max_line: int) -> tuple[np.ndarray
     if (bounds[1:] - bounds[:-1]).max() > max_line + 1:
         return None
     # (6, n): where each line's '$' ',' 'D' (from the '\n' before it) '*' and checksum should be.
-    at = (np.ndarray((2, 3, n), np.int64, bounds, 0, _STRIDES) + _OFFSETS).reshape(6, n)
+    step = bounds.itemsize  # bounds[i + j] for row block i, line j, as a view: no gather
+    at = (np.ndarray((2, 3, n), bounds.dtype, bounds, 0, (step, 0, step)) + _OFFSETS).reshape(6, n)
     if crlf:  # each '\r' must sit just before a '\n', where parse_line strips one
         cr = (a[at[5]] == 13).view(np.uint8)
         if np.count_nonzero(cr) != crlf:
@@ -96,7 +97,6 @@ def _head(n: int) -> bytes:
 # Rows of the per-line gather: from the '\n' before the line, its '$', the ',' after 'D' and
 # 'D'; from its own '\n', '*' and both checksum digits.  Rows 2-5 are blanked before the numbers
 # are read; rows 3-5 move back one byte on a line that ends "\r\n".
-_STRIDES = (8, 0, 8)  # bounds[i + j] for row block i, line j, as a view: no gather
 _OFFSETS = np.array([[[1], [3], [2]], [[-3], [-2], [-1]]])
 _I64_MAX = int(np.iinfo(np.int64).max)
 _HEXNUM = np.full(256, -1, np.int32)
