@@ -23,9 +23,10 @@ batches of one serial read (50 ms of frames).  Reported, pooled over the seeds:
   (``labcli.sensing.live.run``, what ``labcli sense`` runs), at ``--rate`` and 1 kHz on the
   first seed, beside one ``predict`` of one row measured in the same run.  With ``--latency-only``,
   on every seed, beside the floor (the same reads and writes without the estimator) and the
-  estimator's own model step per estimate (CPU of ``labcli.sensing.evaluate``: the sigma rows and
-  one model call, as the estimator makes it), the same blocks replayed afterwards through the
-  model's own predict (``TakumaSensing(fast=False)``) as its baseline.
+  estimator's own CPU per read that gives an estimate (``Estimator.update``) and its model step
+  per estimate (CPU of ``labcli.sensing.evaluate``: the sigma rows and one model call, as the
+  estimator makes it), the same blocks replayed afterwards through the model's own predict
+  (``TakumaSensing(fast=False)``) as its baseline.
 
     python tests/benchmarks/sensing_online.py [--seeds 11-30] [--loads 40] [--idle-min 10]
         [--rate 200] [--rig "friction=2&leak=3"] [--jobs 2] [--fast-seconds 180] [--json out.json]
@@ -291,10 +292,11 @@ def _session(seed: int, a: dict[str, Any], rate_hz: float, bare: bool) -> dict[s
         time.sleep(0.01)
     sink = JsonLines(open(os.devnull, "w", encoding="utf-8"), owned=True)  # noqa: SIM115
     seconds = script.end_s - sc.SESSION_START_S
-    costs: dict[str, list[float]] = {"estimate": [], "reference": []}
+    costs: dict[str, list[float]] = {"estimate": [], "reference": [], "update": []}
     if bare:
         lat, published = np.asarray(_bare(dev, [sink, pub], seconds)), None
     else:
+        est.update = _timed_update(est.update, costs["update"])  # type: ignore[method-assign]
         with _timed_estimates(costs["estimate"]) as asked:
             summary = run(dev, est, [sink, pub], seconds=seconds)
         lat, published = np.asarray(summary.latency_s), summary.published
@@ -304,6 +306,20 @@ def _session(seed: int, a: dict[str, Any], rate_hz: float, bare: bool) -> dict[s
     if not bare:
         costs["reference"] = _reference_costs(TakumaSensing(model, fast=False), asked)
     return {"lat": lat, "published": published if published is not None else len(lat), "received": received, **costs}
+
+
+def _timed_update(update: Any, costs: list[float]) -> Any:
+    """``Estimator.update`` timed: the CPU seconds of each read that gives an estimate into ``costs``
+    (the estimator's whole share of that estimate's latency: tracking, detection, the fit, the model)."""
+
+    def timed(frames: Any) -> Any:
+        c0 = time.thread_time()
+        out = update(frames)
+        if any(not hasattr(o, "kind") for o in out):
+            costs.append(time.thread_time() - c0)
+        return out
+
+    return timed
 
 
 class _timed_estimates:
@@ -355,6 +371,7 @@ def publish_run(seeds: list[int], a: dict[str, Any], rate_hz: float) -> dict[str
     lat = np.concatenate([r["lat"] for r in full])
     floor = np.concatenate([r["lat"] for r in bare])
     own = np.concatenate([r["estimate"] for r in full])
+    upd = np.concatenate([r["update"] for r in full])
     ref = np.concatenate([r["reference"] for r in full])
     return {
         "rate_hz": rate_hz,
@@ -365,6 +382,7 @@ def publish_run(seeds: list[int], a: dict[str, Any], rate_hz: float) -> dict[str
         "floor_ms": {"median": 1e3 * float(np.median(floor)), "p99": 1e3 * float(np.percentile(floor, 99))},
         "estimate_cpu_ms": {"median": 1e3 * float(np.median(own)), "p99": 1e3 * float(np.percentile(own, 99))},
         "reference_cpu_ms": {"median": 1e3 * float(np.median(ref)), "p99": 1e3 * float(np.percentile(ref, 99))},
+        "update_cpu_ms": {"median": 1e3 * float(np.median(upd)), "p99": 1e3 * float(np.percentile(upd, 99))},
         "load_avg": [load0, os.getloadavg()[0]],
     }
 
@@ -556,11 +574,12 @@ def report(p: dict[str, Any], fast: dict[str, Any] | None, a: dict[str, Any]) ->
 def publish_line(pr: dict[str, Any]) -> str:
     """The latency row of the report, its floor and the load average beside it."""
     lat, floor = pr["latency_ms"], pr["floor_ms"]
-    own, ref = pr.get("estimate_cpu_ms"), pr.get("reference_cpu_ms")
+    own, ref, upd = pr.get("estimate_cpu_ms"), pr.get("reference_cpu_ms"), pr.get("update_cpu_ms")
     cost = (
-        f"; the model step per estimate (CPU) median {own['median']:.3f} ms, p99 {own['p99']:.3f} ms, the same "
+        f"; the estimator's CPU per read that estimates median {upd['median']:.3f} ms, p99 {upd['p99']:.3f} ms, "
+        f"its model step median {own['median']:.3f} ms, p99 {own['p99']:.3f} ms, the same "
         f"blocks by the model's own predict median {ref['median']:.3f} ms"
-        if own and ref
+        if own and ref and upd
         else ""
     )
     return (
@@ -586,6 +605,8 @@ def latency_figures(published: list[dict[str, Any]], a: dict[str, Any]) -> dict[
         out[f"{key} estimate cpu p99 ms"] = pr["estimate_cpu_ms"]["p99"]
         out[f"{key} reference estimate cpu median ms"] = pr["reference_cpu_ms"]["median"]
         out[f"{key} estimate speedup"] = pr["reference_cpu_ms"]["median"] / pr["estimate_cpu_ms"]["median"]
+        out[f"{key} update cpu median ms"] = pr["update_cpu_ms"]["median"]
+        out[f"{key} update cpu p99 ms"] = pr["update_cpu_ms"]["p99"]
         out[f"{key} estimates"] = pr["published"]
         out[f"{key} load avg"] = max(pr["load_avg"])
     return out
