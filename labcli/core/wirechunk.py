@@ -38,8 +38,9 @@ def whole_chunk(block: bytes, n: int, k: int, max_line: int) -> tuple[np.ndarray
         shape = shape.translate(None, b"\r")  # where each '\r' sits is checked below
     if fromstring is None or shape != _pattern(k, n):
         return None
-    block = b"\n" + block  # the newline before each line's first byte is then found with the others
-    a = np.frombuffer(block, np.uint8)
+    buf = bytearray(b"\n")  # the newline before each line's first byte is then found with the others
+    buf += block
+    a = np.frombuffer(buf, np.uint8)
     bounds = (a == 10).nonzero()[0]  # n + 1: line i is a[bounds[i] + 1 : bounds[i + 1]]
     if (bounds[1:] - bounds[:-1]).max() > max_line + 1:
         return None
@@ -57,11 +58,13 @@ def whole_chunk(block: bytes, n: int, k: int, max_line: int) -> tuple[np.ndarray
     want = _CHECKSUM_OF[cr, got[4], got[5]] if crlf else _CHECKSUM_LF[got[4], got[5]]
     if got[:4].tobytes() != _head(n) or want.tobytes() != xor.tobytes():
         return None
-    text = bytearray(block.translate(_NUMBERS_ONLY))
-    np.frombuffer(text, np.uint8)[at[2:]] = 32  # 'D' and the checksums are not numbers to read
+    a[at[2:]] = 32  # 'D' and the checksums are not numbers to read
+    text = buf.translate(_NUMBERS_ONLY)
     if 0 in text:
         return None  # a hex letter inside a number
-    nums = fromstring(bytes(text), dtype=np.int64, sep=" ")  # an empty field shows as a missing number
+    digits = np.frombuffer(text, np.uint8)
+    digits.flags.writeable = False  # fromstring reads a read-only buffer: no copy to bytes
+    nums = fromstring(digits, dtype=np.int64, sep=" ")  # an empty field shows as a missing number
     if nums.shape[0] != n * (k + 2):
         return None
     nums = nums.reshape(n, k + 2)
