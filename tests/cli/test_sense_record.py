@@ -12,10 +12,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from labcli.cli import cli
 from labcli.core.store import RunFile
+from labcli.errors import StoreError
 
 ROOT = Path(__file__).resolve().parents[2]
 MODEL = ROOT / "sample_runs" / "force.model.json"
@@ -138,3 +140,71 @@ def test_a_stalled_rig_ends_in_one_sentence_and_a_run_file_that_verifies(tmp_pat
         kept = [run.records.read(i) for i in run.records.ids()]
     # Everything published before the rig went quiet is in the file, in order (the error's stop commits it).
     assert published and [round(r["t_device_s"], 6) for r in kept] == [p["t_device_s"] for p in published]
+
+
+ESTIMATE = {
+    "item": "estimate",
+    "seq": 19,
+    "t_device_s": 0.1,
+    "state": "free",
+    "theta_rad": [0.1, 0.2],
+    "theta_se_rad": [0.01, 0.02],
+    "force_N": [1.0, 2.0],
+    "force_se_N": [0.1, 0.2],
+}
+
+
+def sense_run(path: Path) -> RunFile:
+    from labcli.core.protocol import load_protocol
+
+    return RunFile.create(path, protocol=load_protocol("takuma2014"), kind="sense", port="sim://")
+
+
+def test_an_infinite_standard_error_is_stored_and_exported_as_an_empty_cell(tmp_path):
+    """The JSON lines publish an infinite standard error as null; the run's table holds an empty cell,
+    so the run exports (the table refused 'inf', and the whole run with it)."""
+    with sense_run(tmp_path / "s.h5") as run:
+        run.records.write_many(
+            [
+                {**ESTIMATE, "record": 1, "theta_se_rad": [0.01, math.inf], "force_se_N": [math.inf, 0.2]},
+                {"record": 2, "item": "load", "seq": 39, "t_device_s": 0.2, "data": {"t_detected_s": 0.2}},
+            ]
+        )
+    result = CliRunner().invoke(cli, ["export", str(tmp_path / "s.h5"), "-o", str(tmp_path / "s.csv")])
+    assert result.exit_code == 0, result.output
+    header, first, *_ = (tmp_path / "s.csv").read_text().splitlines()
+    row = dict(zip(header.split(","), first.split(","), strict=False))
+    assert (row["theta2_deg_se"], row["Fx_N_se"]) == ("", "")
+    assert math.isclose(float(row["theta1_deg_se"]), math.degrees(0.01), rel_tol=1e-11) and row["Fy_N_se"] == "0.2"
+    with RunFile.open(tmp_path / "s.h5") as run:
+        assert run.records.read(1)["force_se_N"][0] == math.inf  # the run file keeps what was estimated
+
+
+def test_a_sense_batch_goes_through_its_table_before_anything_is_written(tmp_path, monkeypatch):
+    """As acquire's trials do: every record of a batch is checked against the sense table's own
+    bounds (what export and import hold a sense table to), as one table; one refused, none stored."""
+    from labcli.core import tables
+
+    real = tables.frame_problems
+    seen = []
+
+    def refuse_the_second(df, spec, *args):
+        seen.append(len(df))
+        assert real(df, spec, *args) == []
+        return [(1, "Fx_N", "1e+99 N is not a force the rig can measure")]
+
+    path = tmp_path / "s.h5"
+    with sense_run(path) as run:
+        run.records.write_many([{**ESTIMATE, "record": 1}])
+        monkeypatch.setattr(tables, "frame_problems", refuse_the_second)
+        batch = [{**ESTIMATE, "record": i, "seq": 20 * i - 1} for i in (2, 3, 4)]
+        with pytest.raises(StoreError) as refused:
+            run.records.write_many(batch)
+        assert run.records.ids() == [1]
+    assert seen == [3]  # one table for the batch
+    assert str(refused.value) == (
+        "record 3 was not stored: column Fx_N: 1e+99 N is not a force the rig can measure, which a sense "
+        "table cannot hold (the rig or its link is not measuring)."
+    )
+    with RunFile.open(path) as run:
+        assert run.records.ids() == [1]

@@ -31,7 +31,7 @@ from ..window import Window
 from .columns import fill_value
 from .layout import common_columns, extra_name, window_columns
 from .opening import READ_ERRORS, read_afresh
-from .rows import bulk_values, record_id, record_row, settle_of, split_flags
+from .rows import bulk_values, exportable, record_id, record_row, settle_of, split_flags
 from .view import RecordColumns, from_v1, from_v2
 from .writer import Write
 
@@ -111,9 +111,10 @@ class Records:
             rid, label = record_id(record, rt.id_column)
             if rid in have or rid in ids:
                 raise StoreError(f"{label} is already complete in {run.path}; a stored record is never overwritten.")
-            rows.append(record_row(rt, tables.columns, record, label, rid, run))
+            rows.append(record_row(rt, tables.columns, record, label, rid, run, table_check=False))
             checked.append((run.windows.checked(record, label), label))
             ids.append(rid)
+        exportable(rt, rows, ids, [label for _, label in checked], run)
         keys = set(rows[0])
         if any(set(r) != keys for r in rows[1:]):
             raise StoreError(f"the batch of {rt.count(len(rows))} does not give the same columns for each record.")

@@ -10,7 +10,7 @@ a record that cannot be stored is refused in one sentence naming it.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, cast
 
 import numpy as np
@@ -42,9 +42,18 @@ def record_id(record: Mapping[str, Any], what: str) -> tuple[int, str]:
 
 
 def record_row(
-    rt: RecordType, columns: Mapping[str, Column], record: Mapping[str, Any], label: str, rid: int, run: Any
+    rt: RecordType,
+    columns: Mapping[str, Column],
+    record: Mapping[str, Any],
+    label: str,
+    rid: int,
+    run: Any,
+    table_check: bool = True,
 ) -> dict[str, Any]:
-    """Every column of one record but its windows' frames, checked before anything is written."""
+    """Every column of one record but its windows' frames, checked before anything is written.
+
+    ``table_check``: False when the caller checks a batch's rows against the table at once
+    (:func:`exportable`)."""
     row = dict(rt.check(record, label, run))
     settle = record.get("settle") or {}
     windows = {WINDOW_GROUPS[k]: v for k, v in settle.items() if k in WINDOW_GROUPS}
@@ -79,32 +88,39 @@ def record_row(
     )
     if bad:
         raise StoreError(f"{label} record: {bad[0]}.")
-    _exportable(rt, row, rid, label, run)
+    if table_check:
+        exportable(rt, [row], [rid], [label], run)
     return row
 
 
-def _exportable(rt: RecordType, row: Mapping[str, Any], rid: int, label: str, run: Any) -> None:
-    """StoreError unless the record's row of the exchange table passes that table's own bounds.
+def exportable(
+    rt: RecordType, rows: Sequence[Mapping[str, Any]], ids: Sequence[int], labels: Sequence[str], run: Any
+) -> None:
+    """StoreError unless the records' rows of the exchange table pass that table's own bounds.
 
     The run file's column bounds are wide (they catch a changed file); the table's are the
     physics of the bench.  A record outside them would be stored and then refused by
-    ``labcli export``, so it is refused here, before anything is written.
+    ``labcli export``, so it is refused here, before anything is written.  A batch (the
+    estimates ``labcli sense --record`` commits each second) is checked as one table.
     """
     from ..tables import frame_problems
 
     spec = getattr(rt, "table_spec", None)
-    if spec is None or not getattr(rt, "table_checked", True):
+    if spec is None or not getattr(rt, "table_checked", True) or not rows:
         return
     cols = {
-        c.name: np.asarray([row[c.name]]) if c.name in row else np.full((1, *c.shape), fill_value(c), dtype=object)
+        c.name: np.asarray(
+            [r[c.name] if c.name in r else np.full(c.shape, fill_value(c), dtype=object) for r in rows],
+            dtype=object if c.kind == "text" or any(c.name not in r for r in rows) else None,
+        )
         for c in rt.columns
     }
-    problems = frame_problems(rt.table(run, [rid], cols), spec)
+    problems = frame_problems(rt.table(run, list(ids), cols), spec)
     if problems:
-        _, col, msg = problems[0]
+        at, col, msg = problems[0]
         where = f"column {col}: " if col else ""
         raise StoreError(
-            f"{label} was not stored: {where}{msg}, which a {spec.label} table cannot hold "
+            f"{labels[at]} was not stored: {where}{msg}, which a {spec.label} table cannot hold "
             "(the rig or its link is not measuring)."
         )
 

@@ -65,11 +65,14 @@ def _pair(record: Mapping[str, Any], key: str, label: str) -> np.ndarray:
     return v
 
 
+def _finite(v: np.ndarray) -> np.ndarray:
+    return np.where(np.isfinite(v), v, np.nan)
+
+
 class SenseRecords(BaseRecordType):
     """Estimates and events of a live session (module docstring)."""
 
     kind = "sense"
-    table_checked = False  # estimates at the stream's rate; a standard error may be infinite
     collection = "estimates"
     id_column = "record"
     noun = "estimate or event"
@@ -135,8 +138,9 @@ class SenseRecords(BaseRecordType):
         df["t_device_s"] = np.asarray(cols["t_device"], dtype=np.float64)
         df["state"] = [str(x) for x in cols["state"]]
         for name, col, j, angle in QUANTITY_COLUMNS:
-            v = np.asarray(cols[col], dtype=np.float64).reshape(n, 2)[:, j]
-            se = np.asarray(cols[col + "_se"], dtype=np.float64).reshape(n, 2)[:, j]
+            # What the JSON lines publish as null (an infinite standard error) is an empty cell.
+            v = _finite(np.asarray(cols[col], dtype=np.float64).reshape(n, 2)[:, j])
+            se = _finite(np.asarray(cols[col + "_se"], dtype=np.float64).reshape(n, 2)[:, j])
             df[name] = to_edge(np.degrees(v)) if angle else v
             df[name + "_se"] = to_edge(np.degrees(se)) if angle else se
         flags = cols.get("flags")
