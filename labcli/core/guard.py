@@ -67,9 +67,12 @@ a load from the third trial along a direction already pulled (the loads' main di
 while they span no more, :data:`OFF_SPAN`), and every direction once they span it; loads too
 light to move the readings clearly (50 g on a stiff rig) are not judged.
 
-Before that, the prior (:class:`ResponsePrior`, the paper's; for the McKibben rig a force model,
-:mod:`labcli.papers.takuma2014.guard_prior`) says what share of the load the readings account
-for, and the least share a loaded trial shows: trial 1 with no weight hung is caught by it.  A
+Before that, the prior (:class:`ResponsePrior`, the paper's; for the McKibben rig the rig's
+statics less what friction can hold, :mod:`labcli.papers.takuma2014.guard_prior`) says what share
+of the load the readings account for, and the least share a loaded trial shows: trial 1 with no
+weight hung is caught by it.  A prediction of the run's own that is too vague to judge by is not
+handed to the prior: on a rig with more friction than the prior allows for, that multiplied its
+false alarms (docs/load-check.md).  A
 trial warned of leaves the next baseline checked against where the run's unloaded arm rests
 (:func:`off_stored_baselines`, the angles), as is the first baseline after a resume, against
 the run's stored baselines: a weight still hanging is named.  A chamber leak moves all
