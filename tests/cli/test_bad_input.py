@@ -27,6 +27,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script: tests/ holds support/
 from support import procs
 from support.bad_input import PLAN_HEADER, PROTOCOLS, PUSH_HEADER, PUSH_ROW, SIM, Case, all_cases
+from support.trial_tables import write_small_trial_table
 
 CASES = all_cases()
 
@@ -41,16 +42,8 @@ def labcli(*args: str, cwd: Path, timeout: float = 120, stdin: str | None = None
 @pytest.fixture(scope="module")
 def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Good files every case starts from: trials.csv, run.h5 + run.model.json, acq.h5, push.h5, ..."""
-    import pandas as pd
-
-    from labcli.papers.takuma2014.models.synthetic import paper_trials
-    from labcli.papers.takuma2014.tables import write_trial_csv
-
     w = tmp_path_factory.mktemp("world")
-    table = pd.concat(
-        [paper_trials(12, seed=1), paper_trials(4, seed=2, set_name="validation", start_id=13)], ignore_index=True
-    )
-    write_trial_csv(table, w / "trials.csv")
+    write_small_trial_table(w / "trials.csv")
     shutil.copy(PROTOCOLS / "takuma2014.toml", w / "good.toml")
     shutil.copy(PROTOCOLS / "takuma2014-plan.csv", w / "takuma2014-plan.csv")
     (w / "plan3.csv").write_text(PLAN_HEADER + "1,fit,500,-60\n2,fit,300,30\n3,validation,800,90\n")

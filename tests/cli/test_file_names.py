@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import h5py
+from support.trial_tables import write_small_trial_table
 
 SIM = "sim://?seed=1&clock=virtual"
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,500,-60\n2,fit,300,30\n3,validation,800,90\n"
@@ -64,12 +65,4 @@ def test_import_and_fit_take_a_table_and_a_run_whose_names_are_not_utf8(tmp_path
 
 
 def _write_trials(path: Path) -> None:
-    import pandas as pd
-
-    from labcli.papers.takuma2014.models.synthetic import paper_trials
-    from labcli.papers.takuma2014.tables import write_trial_csv
-
-    table = pd.concat(
-        [paper_trials(12, seed=1), paper_trials(4, seed=2, set_name="validation", start_id=13)], ignore_index=True
-    )
-    write_trial_csv(table, path)
+    write_small_trial_table(path)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from support.procs import labcli
+from support.trial_tables import write_small_trial_table
 
 from labcli import cli
 
@@ -30,16 +31,8 @@ SENTENCE = (
 @pytest.fixture(scope="module")
 def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A run imported from a trial table, its model fitted (run.model.json, recorded in run.h5), a plan."""
-    import pandas as pd
-
-    from labcli.papers.takuma2014.models.synthetic import paper_trials
-    from labcli.papers.takuma2014.tables import write_trial_csv
-
     w = tmp_path_factory.mktemp("world")
-    table = pd.concat(
-        [paper_trials(12, seed=1), paper_trials(4, seed=2, set_name="validation", start_id=13)], ignore_index=True
-    )
-    write_trial_csv(table, w / "trials.csv")
+    write_small_trial_table(w / "trials.csv")
     (w / "plan.csv").write_text(PLAN)
     for step in (("import", "trials.csv", "-o", "run.h5", "--protocol", "takuma2014"), ("fit", "run.h5")):
         assert labcli(*step, cwd=w).returncode == 0

@@ -7,14 +7,12 @@ import json
 import shutil
 from pathlib import Path
 
-import pandas as pd
 import pytest
 from click.testing import CliRunner
+from support.trial_tables import write_small_trial_table
 
 from labcli.cli import cli
 from labcli.core.provenance import rig_differences, rig_warning, same_data
-from labcli.papers.takuma2014.models.synthetic import paper_trials
-from labcli.papers.takuma2014.tables import write_trial_csv
 
 SIM3 = "sim://?seed=3&clock=virtual"
 
@@ -27,10 +25,7 @@ def run(*args, **kw):
 def fitted(tmp_path_factory) -> Path:
     """run.h5: 12 fit + 4 validation trials, its model fitted, beside it; acq3.h5 from sim seed 3."""
     d = tmp_path_factory.mktemp("prov")
-    table = pd.concat(
-        [paper_trials(12, seed=1), paper_trials(4, seed=2, set_name="validation", start_id=13)], ignore_index=True
-    )
-    write_trial_csv(table, d / "trials.csv")
+    write_small_trial_table(d / "trials.csv")
     assert run("import", d / "trials.csv", "-o", d / "run.h5", "--protocol", "takuma2014").exit_code == 0
     assert run("fit", d / "run.h5", "--form", "paper").exit_code == 0
     (d / "plan.csv").write_text("trial,set,mass_g,direction_deg\n1,fit,500,-60\n2,fit,300,30\n3,validation,800,90\n")
