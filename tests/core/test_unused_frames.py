@@ -221,13 +221,14 @@ def test_a_kill_while_the_marks_are_made_leaves_all_of_them_or_none(killed, tmp_
 
 
 def test_a_run_from_before_the_marks_is_given_them_and_still_checks_out(tmp_path):
-    # sample_runs/force.h5 has no raw/unused, and baselines its trials took again after the air was
-    # supplied again (unattended: never a redo).  Read, they are unmarked; resumed, they are marked
+    # tests/data/v3/force-before-marks.h5, the sample run as it was written before the marks (no
+    # raw/unused), has baselines its trials took again after the air was supplied again
+    # (unattended: never a redo).  Read, they are unmarked; resumed, they are marked
     # ``unknown`` (a run from before the marks cannot say redo from retake), a window left after the
     # last trial ``interrupted``, and the file's attribute checksum is taken again (a mismatch would
     # be a LabcliWarning, an error under pytest here).
     path = tmp_path / "force.h5"
-    shutil.copy(ROOT / "sample_runs" / "force.h5", path)
+    shutil.copy(ROOT / "tests" / "data" / "v3" / "force-before-marks.h5", path)
     with RunFile.open(path, "a") as run:
         old = run.windows.unused()
         assert "unused" not in run.h5["entry/raw"] and {u.why for u in old} == {UNMARKED}
