@@ -72,8 +72,7 @@ statics less what friction can hold, :mod:`labcli.papers.takuma2014.guard_prior`
 of the load the readings account for, and the least share a loaded trial shows: trial 1 with no
 weight hung is caught by it.  A prediction of the run's own that is too vague to judge by is not
 handed to the prior: on a rig with more friction than the prior allows for, that multiplied its
-false alarms (docs/load-check.md).  A
-trial warned of leaves the next baseline checked against where the run's unloaded arm rests
+false alarms (docs/load-check.md).  A trial warned of leaves the next baseline checked against where the run's unloaded arm rests
 (:func:`off_stored_baselines`, the angles), as is the first baseline after a resume, against
 the run's stored baselines: a weight still hanging is named.  A chamber leak moves all
 pressures one way while a load moves the two actuators of a pair opposite ways, so a leak

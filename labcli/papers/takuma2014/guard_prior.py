@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from ...core.guard import PRIOR_NOISE, PRIOR_SHARE, PriorReading, Watch
+from .models.geometry import jacobian
 
 # The rig's channels (as session.py names them; the session imports this module).
 PRESSURE_NAMES = ("P_L1", "P_R1", "P_L2", "P_R2")
@@ -117,21 +118,23 @@ class PhysicsPrior:
 
         self._ph = physics
         self.params = physics.nominal_params(physics.Geometry(**geometry))
-        names = list(Watch.of(protocol).names)
+        watch = Watch.of(protocol)
+        names = list(watch.names)
         self._p = [names.index(n) for n in PRESSURE_NAMES]
         self._a = [names.index(n) for n in POT_NAMES]
-        self._cols = list(Watch.of(protocol).cols)
+        self._cols = list(watch.cols)
 
     @classmethod
     def of(cls, protocol: Any) -> PhysicsPrior | None:
         """The prior for ``protocol``'s rig, None when the protocol lacks its geometry or channels."""
+        from ...errors import ModelError
         from .models.takuma import GEOMETRY_KEYS, normalise_geometry
 
         rig = getattr(getattr(protocol, "settings", None), "rig", None)
         try:
             names = Watch.of(protocol).names
             geometry = normalise_geometry(rig or {})
-        except Exception:  # noqa: BLE001 - any protocol this prior cannot read leaves it out
+        except (AttributeError, TypeError, ValueError, ModelError):
             return None
         if not all(n in names for n in PRESSURE_NAMES + POT_NAMES) or not all(k in geometry for k in GEOMETRY_KEYS):
             return None
@@ -144,7 +147,8 @@ class PhysicsPrior:
         L = ph.actuator_lengths(theta0, params)
         gauge = np.clip(P0_MPa, 0.0, None) * 1e6
         K = ph.stiffness_matrix(theta0, params, ph.Chambers.closed_at(L, gauge, params), ph.NoLoad())
-        tau = ph._jacobian_transpose_times(theta0, params.geometry, load)
+        g = params.geometry
+        tau = jacobian(theta0[0], theta0[1], g.h2, g.h3)[0].T @ load  # Section 2.2.2: tau = J^T F
         held = (
             2.0
             * FRICTION_SHARE

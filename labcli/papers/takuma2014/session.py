@@ -514,10 +514,10 @@ def _resupply(air: AirDrift, why: str, guard: Guard | None) -> Generator[Step, A
 
 def session_guard(protocol: Any) -> Guard:
     """The checks of one session, with the sleeves' friction as the bound of what an unloaded
-    baseline may keep (:mod:`labcli.papers.takuma2014.friction`) and the protocol's paper
-    coefficients as what a load must do before the run's trials say (:mod:`.guard_prior`): the
-    rig's statics where the protocol gives its geometry (a load they say friction may hold is not
-    judged by anything else), the paper's coefficients otherwise."""
+    baseline may keep (:mod:`labcli.papers.takuma2014.friction`), and what a load must do before
+    the run's trials say (:mod:`.guard_prior`): the rig's statics where the protocol gives its
+    geometry (a load they say friction may hold is judged by nothing else), the protocol's paper
+    coefficients otherwise."""
     from .friction import baseline_hold
     from .guard_prior import ModelPrior, PhysicsPrior
 
