@@ -9,27 +9,18 @@ in one sentence at ``acquire``, the run keeps what came before, and the run veri
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from support.procs import labcli
 
 from labcli.core.tables import frame_problems
 from labcli.papers.takuma2014.tables import TRIAL
 
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,300,-60\n2,fit,500,30\n3,validation,400,120\n"
-
-
-def labcli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = dict(os.environ, COLUMNS="400")
-    return subprocess.run(
-        [sys.executable, "-m", "labcli", *args], cwd=cwd, capture_output=True, text=True, timeout=120, env=env
-    )
 
 
 def test_acquire_refuses_a_trial_beyond_the_table_and_the_run_still_exports(tmp_path: Path) -> None:

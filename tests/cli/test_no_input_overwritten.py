@@ -6,10 +6,10 @@ from __future__ import annotations
 import hashlib
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from support import procs
 
 ROOT = Path(__file__).resolve().parents[2]
 SIM = "sim://?seed=1&clock=virtual"
@@ -18,8 +18,7 @@ PLAN = "trial,set,mass_g,direction_deg\n1,fit,800,-60\n2,fit,500,-60\n"
 
 
 def labcli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.run([sys.executable, "-m", "labcli", *args], cwd=cwd, capture_output=True, text=True, env=env)
+    return procs.labcli(*args, cwd=cwd, env={"PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")})
 
 
 def digest(folder: Path) -> dict[str, str]:

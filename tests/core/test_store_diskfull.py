@@ -11,13 +11,12 @@ resumes to the end once there is room.
 from __future__ import annotations
 
 import hashlib
-import os
 import resource
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from support import procs
 
 from labcli.core.store import RunFile
 
@@ -25,20 +24,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def labcli(*args: str, cwd: Path, limit: int | None = None) -> subprocess.CompletedProcess:
-    def preexec() -> None:
-        if limit is not None:
-            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-
-    env = dict(os.environ, PYTHONPATH=str(ROOT), COLUMNS="200")
-    return subprocess.run(
-        [sys.executable, "-m", "labcli", *args],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        preexec_fn=preexec,
-    )
+    limits = {} if limit is None else {resource.RLIMIT_FSIZE: limit}
+    return procs.labcli(*args, cwd=cwd, timeout=300, env={"PYTHONPATH": str(ROOT)}, limits=limits)
 
 
 def sha(path: Path) -> str:
