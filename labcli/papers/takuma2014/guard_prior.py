@@ -50,16 +50,28 @@ MIN_COMPONENT = 0.3  # a force component carrying less of the load than this say
 FRICTION_SHARE = 0.025
 
 
-class ModelPrior:
-    """The load check's prior from a fitted (or the paper's) Eq. 34-37 model on ``protocol``'s channels."""
+class _RigChannels:
+    """Where a prior finds the rig's pressures and angles among the protocol's watched channels."""
 
-    def __init__(self, protocol: Any, model: Any) -> None:
-        self.model = model
+    def __init__(self, protocol: Any) -> None:
         watch = Watch.of(protocol)
         names = list(watch.names)
         self._p = [names.index(n) for n in PRESSURE_NAMES]
         self._a = [names.index(n) for n in POT_NAMES]
         self._cols = list(watch.cols)
+
+    def _means(self, baseline: Any, loaded: Any) -> tuple[np.ndarray, np.ndarray]:
+        """The baseline's and the loaded window's means on the watched channels, SI."""
+        b = np.asarray(baseline.mean()[self._cols], dtype=float)
+        return b, np.asarray(loaded.mean()[self._cols], dtype=float)
+
+
+class ModelPrior(_RigChannels):
+    """The load check's prior from a fitted (or the paper's) Eq. 34-37 model on ``protocol``'s channels."""
+
+    def __init__(self, protocol: Any, model: Any) -> None:
+        super().__init__(protocol)
+        self.model = model
 
     @classmethod
     def of(cls, protocol: Any, coefficients: Mapping[str, float] | None = None) -> ModelPrior | None:
@@ -90,8 +102,7 @@ class ModelPrior:
         size = float(np.linalg.norm(F))
         if not size > 0:
             return None
-        b = np.asarray(baseline.mean()[self._cols], dtype=float)
-        m = np.asarray(loaded.mean()[self._cols], dtype=float)
+        b, m = self._means(baseline, loaded)
         P0, P, theta = b[self._p], m[self._p], m[self._a] - b[self._a]
         # The reading, then each pressure moved by one floor more: what noise makes of the force.
         P_all = np.vstack([P, P + np.diag(floors[self._p])])
@@ -109,7 +120,7 @@ class ModelPrior:
         return PriorReading(float(shares[k]), PRIOR_SHARE, seen)
 
 
-class PhysicsPrior:
+class PhysicsPrior(_RigChannels):
     """The load check's prior from the rig's statics (the module's docstring): the least motion of
     the joints a load must cause past the sleeves' friction, against the potentiometers'."""
 
@@ -118,11 +129,7 @@ class PhysicsPrior:
 
         self._ph = physics
         self.params = physics.nominal_params(physics.Geometry(**geometry))
-        watch = Watch.of(protocol)
-        names = list(watch.names)
-        self._p = [names.index(n) for n in PRESSURE_NAMES]
-        self._a = [names.index(n) for n in POT_NAMES]
-        self._cols = list(watch.cols)
+        super().__init__(protocol)
 
     @classmethod
     def of(cls, protocol: Any) -> PhysicsPrior | None:
@@ -162,8 +169,7 @@ class PhysicsPrior:
             return np.zeros(2)
 
     def __call__(self, load: Sequence[float], baseline: Any, loaded: Any, floors: np.ndarray) -> PriorReading | None:
-        b = np.asarray(baseline.mean()[self._cols], dtype=float)
-        m = np.asarray(loaded.mean()[self._cols], dtype=float)
+        b, m = self._means(baseline, loaded)
         if not (np.all(np.isfinite(b)) and np.all(np.isfinite(m))):
             return None
         least = self.least_motion(b[self._a], b[self._p], np.asarray(load, dtype=float))
