@@ -506,6 +506,80 @@ def test_a_reader_that_meets_a_commit_under_way_reads_the_run_again_as_the_schem
     assert len(opened) == 2  # the torn read was met, and the file read again once
 
 
+@pytest.mark.parametrize("torn", ["window", "frames", "attrs", "metadata", "calibration", "plan"])
+@pytest.mark.parametrize("writer", ["holds the file", "let go while it was read"])
+def test_a_reader_that_meets_a_commit_under_way_reads_windows_and_metadata_again(tmp_path, monkeypatch, torn, writer):
+    """A trial's raw frames and the run's metadata (its attributes, NeXus fields, calibration and
+    plan), read while a writer's checkpoint copies HDF5's pages in, are read again with the file
+    opened afresh: a torn read is neither a damaged window left out with a warning nor a sentence
+    saying the metadata cannot be read."""
+    from labcli.core.store import frames, runfile, space
+    from labcli.core.store.columns import Table
+
+    path = str(tmp_path / "run.h5")
+    plan = {"trial": [1, 2], "set": ["fit", "validation"], "mass_g": [200.0, 150.5], "direction_deg": [0.0, 90.0]}
+    rec = make_record(3)
+    with new_run(path, plan=plan) as run:
+        run.records.write(rec)
+    opened = []  # the writer let go once HDF5 had opened the file
+    real_open = runfile.h5open
+    monkeypatch.setattr(runfile, "h5open", lambda path, mode: opened.append(path) or real_open(path, mode))
+    holds = (lambda path: True) if writer == "holds the file" else (lambda path: not opened)
+    monkeypatch.setattr(space, "writer_holds", holds)
+
+    def first_opening() -> bool:  # what is read through the first opening is torn
+        return len(opened) < 2
+
+    def raise_when_torn(real):
+        def read(*a):
+            if first_opening():
+                raise OSError("Can't read data (wrong B-tree signature)")
+            return real(*a)
+
+        return read
+
+    with RunFile.open(path) as run:
+        cols = run.records.columns().cols
+        a, b = int(cols["loaded_start"][0]), int(cols["loaded_stop"][0])
+        if torn in ("window", "frames"):
+            real_rows = frames.read_rows
+
+            def torn_rows(ds, a, b):
+                values, bad = real_rows(ds, a, b)
+                return values, bad | first_opening()
+
+            monkeypatch.setattr(frames, "read_rows", torn_rows)
+        elif torn == "attrs":
+            monkeypatch.setattr(runfile, "plain", raise_when_torn(runfile.plain))
+        elif torn == "metadata":
+            monkeypatch.setattr(runfile, "read_metadata", raise_when_torn(runfile.read_metadata))
+        elif torn == "calibration":
+            monkeypatch.setattr(runfile, "text", raise_when_torn(runfile.text))
+        else:
+
+            class TornPlan(Table):
+                def read(self, *a, **kw):
+                    got = super().read(*a, **kw)
+                    if first_opening():
+                        got.damaged = [(0, "its checksum does not match its values")]
+                    return got
+
+            monkeypatch.setattr(runfile, "Table", TornPlan)
+        if torn == "window":
+            assert_record_stored(run.records.read(3), rec)
+        elif torn == "frames":
+            stored, w = rec["raw"]["load"], run.windows.frames(a, b)
+            assert np.array_equal(w.seq, stored.seq) and np.array_equal(w.si, stored.si)
+        elif torn in ("attrs", "metadata"):
+            attrs = run.attrs
+            assert attrs["operator"] == "ada" and attrs["schema_version"] == SCHEMA_VERSION
+        elif torn == "calibration":
+            assert run.calibration()["units"] == ("MPa",) * 4 + ("rad",) * 2
+        else:
+            assert run.plan_table().to_dict("list") == plan
+    assert len(opened) == 2  # the torn read was met, and the file read again once
+
+
 def test_torn_uncommitted_row_is_ignored_and_written_over(run_path):
     """A kill mid-write can leave any bytes past ``@committed``: never read, and the next commit goes on."""
     leave_uncommitted_row(run_path, 5, float("nan"))  # a repeated id and nonsense values: never counted

@@ -44,8 +44,8 @@ from __future__ import annotations
 import os
 import time
 import warnings
-from collections.abc import Iterable
-from typing import Any
+from collections.abc import Callable, Iterable
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
@@ -55,7 +55,7 @@ from ..files import RUN_FILE_SUFFIXES, is_run_file
 from ..paper import Column, RecordType
 from ..registry import record_type, untagged_run_kind
 from . import space
-from .columns import Table
+from .columns import Rows, Table
 from .frames import chunk_frames
 from .h5 import calibration_arrays, plain, text
 from .journal import JournalFile, lock
@@ -65,6 +65,7 @@ from .nexus import PROTOCOL, home, read_metadata
 from .notes import Notes
 from .opening import (
     MUTABLE_ATTRS,
+    READ_ERRORS,
     READ_RETRIES,
     Tables,
     check_openable,
@@ -86,6 +87,8 @@ from .v1 import V1Run
 from .view import decode
 from .windows import Windows
 from .writer import Writer
+
+T = TypeVar("T")
 
 # What to do about a run file that already exists where a new run would go.
 RESUME_OR_FORCE = "continue it with --resume, or pass --force to overwrite it"
@@ -390,7 +393,7 @@ class RunFile:
         if self.version < 3:
             return self._attrs_at("entry")
         try:
-            return read_metadata(self.h5["entry"])
+            return read_afresh(self, lambda: read_metadata(self.h5["entry"]), lambda _: False)
         except Exception:  # noqa: BLE001 - a damaged attribute or field can fail in any way
             raise StoreError(
                 f"{self.path}: the run's metadata cannot be read (a damaged field or attribute of /entry); "
@@ -400,14 +403,28 @@ class RunFile:
     def _attrs_at(self, where: str) -> dict[str, Any]:
         """The attributes of the group ``where`` as plain values; {} when the group is not there
         (a run without its ``versions``); one sentence when HDF5 cannot read them (a damaged header)."""
-        try:
+
+        def read() -> dict[str, Any]:
             if where != "/" and where not in self.h5:
                 return {}
             return {k: plain(v) for k, v in self.h5[where].attrs.items()}
+
+        try:  # a read torn by a writer's checkpoint is read again afresh (see read_afresh)
+            return read_afresh(self, read, lambda _: False)
         except Exception:  # noqa: BLE001 - a damaged attribute or header can fail in any way
             raise StoreError(
                 f"{self.path}: the run's metadata cannot be read (a damaged attribute of /{where.strip('/')}); "
                 "check the file with labcli inspect --verify and use a backup copy."
+            ) from None
+
+    def _read_afresh(self, read: Callable[[], T], what: str, torn: Callable[[T], bool] = lambda _: False) -> T:
+        """``read()`` through :func:`.opening.read_afresh`; one sentence naming ``what`` when HDF5 cannot read it."""
+        try:
+            return read_afresh(self, read, torn)
+        except READ_ERRORS:
+            raise StoreError(
+                f"{self.path}: {what} cannot be read (damaged); check the file with labcli inspect --verify "
+                "and use a backup copy."
             ) from None
 
     @property
@@ -419,10 +436,10 @@ class RunFile:
         """The protocol TOML embedded verbatim when the run was created."""
         if self.v1 is not None:
             return self.v1.protocol_text()
+        where = "entry/protocol" if self.version == 2 else f"entry/{PROTOCOL}"
         try:
-            where = "entry/protocol" if self.version == 2 else f"entry/{PROTOCOL}"
-            return self.h5[where][0].decode("utf-8")
-        except (OSError, ValueError, KeyError, UnicodeDecodeError):
+            return read_afresh(self, lambda: self.h5[where][0].decode("utf-8"), lambda _: False)
+        except (*READ_ERRORS, UnicodeDecodeError):
             raise StoreError(
                 f"{self.path}: its copy of the protocol is damaged (it fails its checksum); use a backup copy."
             ) from None
@@ -431,12 +448,7 @@ class RunFile:
         """Per-channel gain (SI/count), offset (SI) and units as stored."""
         if self.v1 is not None:
             return self.v1.calibration()
-        raw = self.h5["entry/raw"]
-        cal = raw if self.version == 2 else raw["calibration"]
-        gain = np.array([cal[c]["gain"][0] for c in self.channels])
-        offset = np.array([cal[c]["offset"][0] for c in self.channels])
-        units = tuple(text(raw[c]["value"].attrs["units"]) for c in self.channels)
-        return {"channels": self.channels, "gain": gain, "offset": offset, "units": units}
+        return self._read_afresh(lambda: _calibration(self.h5, self.version, self.channels), "its calibration")
 
     def plan_table(self) -> Any:
         """The plan table stored at creation (DataFrame), or None."""
@@ -445,10 +457,12 @@ class RunFile:
         if self.v1 is not None:
             plan = self.v1.plan()
             return None if plan is None else pd.DataFrame(plan)
-        if "plan" not in self.h5["entry"]:
+        got = self._read_afresh(
+            lambda: _plan(self.h5), "its plan", lambda got: got is not None and bool(got[1].damaged)
+        )
+        if got is None:
             return None
-        t = Table(self.h5["entry/plan"])
-        rows = t.read()
+        t, rows = got
         if rows.damaged:
             self.warn(
                 f"{self.path}: its plan is damaged (row {rows.damaged[0][0]} fails its checksum); "
@@ -539,6 +553,24 @@ def _open_h5(path: str, mode: str) -> tuple[h5py.File, JournalFile | None]:
         return open_writer(path) if mode == "a" else (h5open(path, mode), None)
     except OSError as e:
         raise StoreError(open_error(path, e)) from None
+
+
+def _calibration(h5: h5py.File, version: int, channels: tuple[str, ...]) -> dict[str, Any]:
+    """Per-channel gain, offset and units as a schema-2 or later file keeps them."""
+    raw = h5["entry/raw"]
+    cal = raw if version == 2 else raw["calibration"]
+    gain = np.array([cal[c]["gain"][0] for c in channels])
+    offset = np.array([cal[c]["offset"][0] for c in channels])
+    units = tuple(text(raw[c]["value"].attrs["units"]) for c in channels)
+    return {"channels": channels, "gain": gain, "offset": offset, "units": units}
+
+
+def _plan(h5: h5py.File) -> tuple[Table, Rows] | None:
+    """The plan's table and what a read of it found, or None when the run keeps no plan."""
+    if "plan" not in h5["entry"]:
+        return None
+    t = Table(h5["entry/plan"])
+    return t, t.read()
 
 
 def _frames_per_window(protocol: Any) -> float:

@@ -76,7 +76,10 @@ class Windows:
         run = self._run
         if run.v1 is not None:
             raise StoreError(f"{run.path} keeps its raw windows per record (schema 1); use records.read().")
-        w, whole = run.tables.frames.read(start, stop)
+        try:  # a read torn by a writer's checkpoint is read again afresh (:func:`.opening.read_afresh`)
+            w, whole = read_afresh(run, lambda: run.tables.frames.read(start, stop), lambda got: not got[1])
+        except READ_ERRORS:
+            w, whole = {}, False
         if not whole:
             raise StoreError(
                 f"{run.path}: raw frames {start} to {stop} cannot all be read (damaged); "
@@ -113,14 +116,18 @@ class Windows:
         a, b = int(rec.cols[f"{name}_start"][i]), int(rec.cols[f"{name}_stop"][i])
         if a < 0:
             return None
-        frames = run.tables.frames
         checksum = int(rec.cols[f"{name}_checksum"][i])
-        try:
+
+        def read() -> tuple[dict[str, np.ndarray], bool]:
+            frames = run.tables.frames  # the tables of the latest opening
             w, ok = frames.read(a, b)
-            total, _ = frames.checksum(a, b)
-        except StoreError:
-            w, ok, total = None, False, None
-        if w is None or not ok or total != checksum:
+            return w, ok and frames.checksum(a, b)[0] == checksum
+
+        try:  # a read torn by a writer's checkpoint is read again afresh (:func:`.opening.read_afresh`)
+            w, ok = read_afresh(run, read, lambda got: not got[1])
+        except (StoreError, *READ_ERRORS):
+            w, ok = None, False
+        if w is None or not ok:
             what = f"{run.record_type.noun} {rec.ids[i]}"
             run.warn(
                 f"{run.path}: the {name} window of {what} is damaged (its frames fail their checksum) and is left out."
