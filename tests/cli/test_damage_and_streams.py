@@ -15,23 +15,14 @@ from pathlib import Path
 
 import h5py
 import pytest
+from support import procs
 
 SIM = "sim://?seed=1&clock=virtual"
 PLAN = "trial,set,mass_g,direction_deg\n1,fit,500,-60\n2,fit,300,30\n3,validation,800,90\n"
 
 
 def labcli(*args: str, cwd: Path, env: dict | None = None, stdout=subprocess.PIPE) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "labcli", *args],
-        cwd=cwd,
-        stdout=stdout,
-        stderr=subprocess.PIPE,
-        text=True,
-        errors="surrogateescape",
-        timeout=120,
-        stdin=subprocess.DEVNULL,
-        env=dict(os.environ, **(env or {})),
-    )
+    return procs.labcli(*args, cwd=cwd, env=env, stdout=stdout, errors="surrogateescape")
 
 
 @pytest.fixture(scope="module")

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import h5py
+from support import procs
 from support.trial_tables import write_small_trial_table
 
 SIM = "sim://?seed=1&clock=virtual"
@@ -17,15 +17,7 @@ PLAN = "trial,set,mass_g,direction_deg\n1,fit,500,-60\n2,fit,300,30\n3,validatio
 
 
 def labcli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "labcli", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        errors="surrogateescape",
-        timeout=120,
-        stdin=subprocess.DEVNULL,
-    )
+    return procs.labcli(*args, cwd=cwd, errors="surrogateescape")
 
 
 def name(raw: bytes) -> str:

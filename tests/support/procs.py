@@ -9,6 +9,7 @@ import subprocess
 import sys
 from collections.abc import Mapping
 from pathlib import Path
+from typing import IO
 
 
 def labcli(
@@ -18,6 +19,8 @@ def labcli(
     timeout: float = 120,
     env: Mapping[str, str] | None = None,
     limits: Mapping[int, int] | None = None,
+    errors: str | None = None,
+    stdout: int | IO[str] = subprocess.PIPE,
 ) -> subprocess.CompletedProcess:
     """``python -m labcli ARGS`` in ``cwd``, its output captured as text.
 
@@ -25,7 +28,9 @@ def labcli(
     standard input (none: an empty one); ``env``: variables set beside the environment's;
     ``limits``: resource limits set in the child (``resource.RLIMIT_FSIZE``: bytes, as ``ulimit -f``
     sets them, with SIGXFSZ ignored as a shell leaves it; ``RLIMIT_NOFILE``: open files, as
-    ``ulimit -n``).
+    ``ulimit -n``); ``errors``: how the output is decoded (``"surrogateescape"`` keeps the bytes of a
+    file name that is not UTF-8 as the child wrote them; none: strict); ``stdout``: where standard
+    output goes (a file: not captured, as ``>/dev/full`` sends it), standard error captured always.
     """
 
     def preexec() -> None:
@@ -37,8 +42,10 @@ def labcli(
         return subprocess.run(
             [sys.executable, "-m", "labcli", *args],
             cwd=cwd,
-            capture_output=True,
+            stdout=stdout,
+            stderr=subprocess.PIPE,
             text=True,
+            errors=errors,
             timeout=timeout,
             env={**os.environ, "COLUMNS": "400", **(env or {})},
             stdin=source,
