@@ -70,9 +70,10 @@ light to move the readings clearly (50 g on a stiff rig) are not judged.
 Before that, the prior (:class:`ResponsePrior`, the paper's; for the McKibben rig the rig's
 statics less what friction can hold, :mod:`labcli.papers.takuma2014.guard_prior`) says what share
 of the load the readings account for, and the least share a loaded trial shows: trial 1 with no
-weight hung is caught by it.  A prediction of the run's own that is too vague to judge by is not
-handed to the prior: on a rig with more friction than the prior allows for, that multiplied its
-false alarms (docs/load-check.md).  A trial warned of leaves the next baseline checked against where the run's unloaded arm rests
+weight hung is caught by it.  A prediction of the run's own that is too vague to judge by is
+handed to the prior only once the run's trials have refined it (:attr:`ResponsePrior.refined`:
+for the McKibben rig, the friction they showed): with the prior's own allowance, on a rig with
+more friction than it allows for, that multiplied its false alarms (docs/load-check.md).  A trial warned of leaves the next baseline checked against where the run's unloaded arm rests
 (:func:`off_stored_baselines`, the angles), as is the first baseline after a resume, against
 the run's stored baselines: a weight still hanging is named.  A chamber leak moves all
 pressures one way while a load moves the two actuators of a pair opposite ways, so a leak
@@ -244,17 +245,21 @@ def least_expected(prediction: tuple[np.ndarray, np.ndarray, float], floors: np.
     return np.sign(mean) * np.maximum(0.0, np.abs(mean) - SURE_SD * err)
 
 
+def clear_enough(watch: Watch, baseline: Any, loaded: Any, prediction: tuple[np.ndarray, np.ndarray, float]) -> bool:
+    """Whether what the load surely causes (:func:`least_expected`) is clear enough to judge by."""
+    f = watch.floors(baseline, loaded)
+    return float(np.linalg.norm(least_expected(prediction, f) / f)) >= EXPECT_FLOORS
+
+
 def weak_response(
     watch: Watch, baseline: Any, loaded: Any, prediction: tuple[np.ndarray, np.ndarray, float] | None
 ) -> str | None:
     """The sentence when the readings moved by less than a quarter of what the load surely causes."""
-    if prediction is None:
+    if prediction is None or not clear_enough(watch, baseline, loaded, prediction):
         return None
     f = watch.floors(baseline, loaded)
     e = least_expected(prediction, f) / f
     size = float(np.linalg.norm(e))
-    if size < EXPECT_FLOORS:
-        return None
     seen = watch.change(baseline, loaded)
     # The share of the sure change the readings made along it: noise and the leak across it do not count.
     share = max(0.0, float((seen / f) @ e)) / size**2
@@ -353,6 +358,15 @@ class ResponsePrior(Protocol):
     def __call__(
         self, load: Sequence[float], baseline: Any, loaded: Any, floors: np.ndarray
     ) -> PriorReading | None: ...
+
+    @property
+    def refined(self) -> bool:
+        """Whether the run's own trials have refined the prior, so that it may judge a load the
+        trials alone predict too vaguely."""
+        ...
+
+    def learn(self, load: Sequence[float], baseline: Any, loaded: Any) -> None:
+        """A trial accepted without a warning (the prior may refine itself by it, or ignore it)."""
 
 
 @dataclass(frozen=True)
@@ -514,6 +528,8 @@ class Guard:
     def learn(self, load: Sequence[float], baseline: Any, loaded: Any, key: Hashable = None) -> None:
         """A trial accepted without a warning: its change per unit of load joins the model."""
         self.model(key).add(load, self.watch.change(baseline, loaded))
+        if key is None and self.prior is not None:
+            self.prior.learn(load, baseline, loaded)
 
     def after_load(self, load: Sequence[float], baseline: Any, loaded: Any, key: Hashable = None) -> str | None:
         self._last = (baseline, loaded)
@@ -522,7 +538,8 @@ class Guard:
         if unsealed is not None:
             return unsealed
         prediction = self.model(key).predict(load)
-        if prediction is None and self.prior is not None and key is None:
+        vague = prediction is None or not clear_enough(self.watch, baseline, loaded, prediction)
+        if self.prior is not None and key is None and (prediction is None or (vague and self.prior.refined)):
             weak = prior_response(self.watch, self.prior, load, baseline, loaded)
         else:
             weak = weak_response(self.watch, baseline, loaded, prediction)

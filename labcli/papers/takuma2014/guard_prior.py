@@ -14,7 +14,13 @@ trial is judged by the rig's statics where the protocol gives the rig's geometry
   pressure forces (times their moment arms) must move the joints; what it must move them by, the
   potentiometers read.  It judges the straight arm too, where no force can be read from the
   pressures (theta2 = 0), and from the first trial: the shipped protocols' 15 s settle leaves an
-  arm with no weight hung exactly where it was.
+  arm with no weight hung exactly where it was.  From :data:`LEARN_MIN` accepted trials on, the
+  friction allowed for is the run's own (:meth:`PhysicsPrior.learn`): the most friction any of
+  its trials showed, times :data:`LEARN_MARGIN`.  Refined so, the least motion is the run's own
+  prediction, judged as the run's trials judge theirs (four floors to judge, a quarter to pass),
+  and it also judges loads the run's trials predict too vaguely: a light load early in the run
+  (the shipped plan's trial 4, 300 g) on a rig with less friction than the literature's, whose
+  leak scatters the first trials' pressure responses.
 * :class:`ModelPrior`, a force model of the rig: an earlier run's fit (the model's coefficients),
   or the paper's own coefficients, which the protocol carries (``[paper_coefficients]``).  It
   reads the force in the trial's pressures and deflection (Eq. 36-37 with the measured angles); a
@@ -37,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from ...core.guard import PRIOR_NOISE, PRIOR_SHARE, PriorReading, Watch
+from ...core.guard import EXPECT_FLOORS, PRIOR_NOISE, PRIOR_SHARE, WEAK_FRACTION, PriorReading, Watch
 from .models.geometry import jacobian
 
 # The rig's channels (as session.py names them; the session imports this module).
@@ -48,6 +54,14 @@ MIN_COMPONENT = 0.3  # a force component carrying less of the load than this say
 # the literature's level (2 %, docs/rig-realism.md) with a quarter more.  Chosen on the tuning seeds
 # 1-2 of the literature's rig, where proper trials then read at least 0.26 of the least motion.
 FRICTION_SHARE = 0.025
+# Once the run has shown this many trials, the friction allowed for is the most any of them showed,
+# times the margin: a rig with less friction than the literature's (the default rig) has its light
+# loads judged too, one with more is not judged by more than it shows.  The first trial alone can
+# show one band instead of two (the arm starts where the rig was made, not where a load left it).
+LEARN_MIN = 2
+LEARN_MARGIN = 1.5
+SHARE_MAX = 0.2  # a trial that moved no further than this much friction allows shows at least it
+_SHARES = np.linspace(0.0, SHARE_MAX, 401)
 
 
 class _RigChannels:
@@ -93,6 +107,11 @@ class ModelPrior(_RigChannels):
         model = TakumaModel(geometry=rig, protocol=protocol.name, coefficients=dict(coefficients))
         return cls(protocol, model)
 
+    refined = False  # a model's coefficients are what they are: the run's trials do not change them
+
+    def learn(self, load: Sequence[float], baseline: Any, loaded: Any) -> None:
+        """Nothing: the run's own trials judge on their own as soon as they can."""
+
     def _forces(self, P0: np.ndarray, P: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         out = self.model.predict(P0, P, mode="measured-angles", theta=theta)
         return np.column_stack([out["Fx_N"], out["Fy_N"]]), np.column_stack([out["ok"]["Fx"], out["ok"]["Fy"]])
@@ -129,6 +148,7 @@ class PhysicsPrior(_RigChannels):
 
         self._ph = physics
         self.params = physics.nominal_params(physics.Geometry(**geometry))
+        self._shown: list[float] = []  # the friction share each accepted trial showed
         super().__init__(protocol)
 
     @classmethod
@@ -147,26 +167,81 @@ class PhysicsPrior(_RigChannels):
             return None
         return cls(protocol, {k: geometry[k] for k in GEOMETRY_KEYS})
 
-    def least_motion(self, theta0: np.ndarray, P0_MPa: np.ndarray, load: np.ndarray) -> np.ndarray:
-        """The joints' least deflection (rad) under ``load`` (N) from the baseline posture ``theta0``
-        (rad) with the chambers closed at ``P0_MPa`` (gauge)."""
+    def _statics(
+        self, theta0: np.ndarray, P0_MPa: np.ndarray, load: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """At the baseline posture ``theta0`` (rad) with the chambers closed at ``P0_MPa`` (gauge):
+        the closed rig's stiffness (N m/rad), the load's torque (N m) and the torque one unit of
+        friction share holds on each joint, twice over (N m)."""
         ph, params = self._ph, self.params
         L = ph.actuator_lengths(theta0, params)
         gauge = np.clip(P0_MPa, 0.0, None) * 1e6
         K = ph.stiffness_matrix(theta0, params, ph.Chambers.closed_at(L, gauge, params), ph.NoLoad())
         g = params.geometry
         tau = jacobian(theta0[0], theta0[1], g.h2, g.h3)[0].T @ load  # Section 2.2.2: tau = J^T F
-        held = (
-            2.0
-            * FRICTION_SHARE
-            * (gauge * np.abs(ph.mckibben_dvolume(L, params.b, params.n)))
-            @ np.abs(ph.path_gradients(theta0, params.geometry))
-        )
-        beyond = np.sign(tau) * np.clip(np.abs(tau) - held, 0.0, None)
+        held = 2.0 * (gauge * np.abs(ph.mckibben_dvolume(L, params.b, params.n))) @ np.abs(ph.path_gradients(theta0, g))
+        return K, tau, held
+
+    @staticmethod
+    def _motion(K: np.ndarray, tau: np.ndarray, held: np.ndarray, share: np.ndarray) -> np.ndarray:
+        """The joints' deflection (rad) past ``share`` of friction, for each share given: (n, 2)."""
+        beyond = np.sign(tau) * np.clip(np.abs(tau) - np.outer(share, held), 0.0, None)
         try:
-            return np.linalg.solve(K, beyond)
+            return np.linalg.solve(K, beyond.T).T
         except np.linalg.LinAlgError:
-            return np.zeros(2)
+            return np.zeros_like(beyond)
+
+    @property
+    def friction_share(self) -> float:
+        """The share of the actuators' pressure forces the sleeves are taken to hold: the run's
+        own once it has shown :data:`LEARN_MIN` trials (:meth:`learn`), else :data:`FRICTION_SHARE`."""
+        if len(self._shown) < LEARN_MIN:
+            return FRICTION_SHARE
+        return LEARN_MARGIN * max(self._shown)
+
+    @property
+    def refined(self) -> bool:
+        """Whether the run's own trials have set the friction allowed for (:meth:`learn`)."""
+        return len(self._shown) >= LEARN_MIN
+
+    def least_motion(self, theta0: np.ndarray, P0_MPa: np.ndarray, load: np.ndarray) -> np.ndarray:
+        """The joints' least deflection (rad) under ``load`` (N) from the baseline posture ``theta0``
+        (rad) with the chambers closed at ``P0_MPa`` (gauge), past :attr:`friction_share`."""
+        K, tau, held = self._statics(theta0, P0_MPa, load)
+        return self._motion(K, tau, held, np.array([self.friction_share]))[0]
+
+    def shown_share(self, theta0: np.ndarray, P0_MPa: np.ndarray, load: np.ndarray, moved: np.ndarray) -> float | None:
+        """The friction share that accounts for a trial's motion ``moved`` (rad): the least share at
+        which the statics bend the joints no further along the frictionless deflection than they
+        moved (0 when they moved as far or further; the share that holds the whole load when they
+        did not move that way at all); None where the load bends the joints by nothing to speak of."""
+        K, tau, held = self._statics(theta0, P0_MPa, load)
+        free = self._motion(K, tau, held, np.zeros(1))[0]
+        size = float(np.linalg.norm(free))
+        if not size > 0:
+            return None
+        along = free / size
+        past = self._motion(K, tau, held, _SHARES) @ along
+        # A joint that did not move, or moved back, shows only that friction held the whole load.
+        seen = max(0.0, float(moved @ along))
+        reached = np.flatnonzero(past <= seen)
+        return float(_SHARES[reached[0]]) if len(reached) else SHARE_MAX
+
+    def learn(self, load: Sequence[float], baseline: Any, loaded: Any) -> None:
+        """A trial accepted: the friction share its motion shows joins the run's (:attr:`friction_share`)."""
+        b, m = self._means(baseline, loaded)
+        self.learn_change(load, b, m - b)
+
+    def learn_change(
+        self, load: Sequence[float], base: Sequence[float] | np.ndarray, change: Sequence[float] | np.ndarray
+    ) -> None:
+        """:meth:`learn` from the baseline's and the change's values on the watched channels (SI)."""
+        b, c = np.asarray(base, dtype=float), np.asarray(change, dtype=float)
+        if not (np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
+            return
+        shown = self.shown_share(b[self._a], b[self._p], np.asarray(load, dtype=float), c[self._a])
+        if shown is not None:
+            self._shown.append(shown)
 
     def __call__(self, load: Sequence[float], baseline: Any, loaded: Any, floors: np.ndarray) -> PriorReading | None:
         b, m = self._means(baseline, loaded)
@@ -178,11 +253,15 @@ class PhysicsPrior(_RigChannels):
             return None
         along = least / size
         noise = float(np.sqrt(np.sum((floors[self._a] * along) ** 2)))
-        if not PRIOR_SHARE * size >= PRIOR_NOISE * noise:
+        # Refined by the run, the least motion is the run's own prediction, judged as the run's
+        # trials judge theirs; before that, a tenth of it must stand clear of the noise.
+        lowest, clear = (WEAK_FRACTION, EXPECT_FLOORS) if self.refined else (PRIOR_SHARE, PRIOR_NOISE / PRIOR_SHARE)
+        if not size >= clear * noise:
             return None
         moved = float((m[self._a] - b[self._a]) @ along)
+        past = "the friction this run's trials show" if self.refined else "the sleeves' friction"
         seen = (
             f"the joints moved {math.degrees(moved):.2f} deg of the at least {math.degrees(size):.2f} deg "
-            "it bends them past the sleeves' friction"
+            f"it bends them past {past}"
         )
-        return PriorReading(max(0.0, moved / size), PRIOR_SHARE, seen)  # a move the other way is none
+        return PriorReading(max(0.0, moved / size), lowest, seen)  # a move the other way is none

@@ -632,8 +632,13 @@ def force_vector(mass_kg: float, direction_rad: float) -> tuple[float, float]:
 def _resumed_guard(protocol: Any, history: Iterable[Any], baselines: Sequence[Sequence[float]]) -> Any:
     """The load check, taught what the trials already stored did and where their baselines lie."""
     guard = session_guard(protocol)
+    history = tuple(history)
     for force, change in history:
         guard.model().add(force, change)
+    learn = getattr(guard.prior, "learn_change", None)
+    if learn is not None and len(baselines) == len(history):  # the stored trials' rows, in order
+        for (force, change), base in zip(history, baselines, strict=True):
+            learn(force, base, change)
     if len(baselines):
         guard.resumed(baselines)
     return guard

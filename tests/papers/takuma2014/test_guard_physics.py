@@ -17,6 +17,7 @@ from labcli.papers.takuma2014.sim import physics as ph
 PROTOCOL = load_protocol("takuma2014")
 UPRIGHT = np.zeros(2)
 SUPPLY = np.full(4, 0.30)
+STEP = 1.01 * gp.SHARE_MAX / (len(gp._SHARES) - 1)  # the grid the friction a trial shows is read on
 
 
 def pull(mass_g: float, direction_deg: float) -> np.ndarray:
@@ -86,3 +87,97 @@ def test_a_trial_that_did_not_move_reads_nothing_and_one_that_did_reads_its_shar
 
 def test_a_protocol_of_another_rig_has_no_physics_prior():
     assert PhysicsPrior.of(load_protocol("rpam2015")) is None
+
+
+def test_the_friction_a_trial_shows_is_the_share_whose_statics_match_its_motion(prior, monkeypatch):
+    F = pull(800, -60)
+    for share in (0.004, 0.012, 0.03):
+        monkeypatch.setattr(gp, "FRICTION_SHARE", share)
+        moved = prior.least_motion(UPRIGHT, SUPPLY, F)
+        assert prior.shown_share(UPRIGHT, SUPPLY, F, moved) == pytest.approx(share, abs=STEP)
+    # A joint that moved as far as the frictionless rig, or further, shows none.
+    monkeypatch.setattr(gp, "FRICTION_SHARE", 0.0)
+    free = prior.least_motion(UPRIGHT, SUPPLY, F)
+    assert prior.shown_share(UPRIGHT, SUPPLY, F, 1.5 * free) == 0.0
+    # One that did not move (or moved back) shows the share that holds the whole load: its least
+    # motion there is nothing, and a hair less friction lets it move.
+    held = prior.shown_share(UPRIGHT, SUPPLY, F, -0.1 * free)
+    assert held == prior.shown_share(UPRIGHT, SUPPLY, F, np.zeros(2))
+    monkeypatch.setattr(gp, "FRICTION_SHARE", held)
+    assert np.all(prior.least_motion(UPRIGHT, SUPPLY, F) == 0.0)
+    monkeypatch.setattr(gp, "FRICTION_SHARE", held - STEP)
+    assert np.linalg.norm(prior.least_motion(UPRIGHT, SUPPLY, F)) > 0.0
+    assert prior.shown_share(UPRIGHT, SUPPLY, np.zeros(2), np.zeros(2)) is None  # no load, nothing shown
+
+
+def test_the_runs_trials_set_the_friction_allowed_for_from_the_second_on(prior):
+    F = pull(800, -60)
+    base = windows(UPRIGHT, SUPPLY)
+    assert not prior.refined and prior.friction_share == gp.FRICTION_SHARE
+    shown = []
+    for i, share in enumerate((0.002, 0.006, 0.004)):
+        K, tau, held = prior._statics(UPRIGHT, SUPPLY, F)
+        moved = prior._motion(K, tau, held, np.array([share]))[0]
+        prior.learn(F, base, windows(UPRIGHT + moved, SUPPLY, seed=i + 1))
+        shown.append(share)
+        if i + 1 < gp.LEARN_MIN:
+            assert not prior.refined and prior.friction_share == gp.FRICTION_SHARE
+        else:
+            assert prior.refined
+            assert prior.friction_share == pytest.approx(gp.LEARN_MARGIN * max(shown), abs=gp.LEARN_MARGIN * STEP)
+    # Less friction than the prior's own allowance: a light load is now judged, and its least
+    # motion is the statics past the run's friction.
+    assert prior.friction_share < gp.FRICTION_SHARE
+    light = prior.least_motion(UPRIGHT, SUPPLY, pull(300, -60))
+    assert np.linalg.norm(light) > 0.0
+    floors = Watch.of(PROTOCOL).floors(base, base)
+    missed = prior(pull(300, -60), base, windows(UPRIGHT, SUPPLY, seed=9), floors)
+    assert missed is not None and missed.share < missed.least == gp.WEAK_FRACTION
+    assert "past the friction this run's trials show" in missed.seen
+    done = prior(pull(300, -60), base, windows(UPRIGHT + light, SUPPLY, seed=10), floors)
+    assert done is not None and done.share == pytest.approx(1.0, abs=0.05)
+
+
+def test_a_rig_with_more_friction_than_the_prior_allows_for_is_judged_by_what_it_shows(prior):
+    # Trials that each moved only as far as 4 % friction lets them (it holds the upper joint): the
+    # allowance grows past the prior's own, so a trial moving that little is no alarm.
+    F = pull(800, -60)
+    base = windows(UPRIGHT, SUPPLY)
+    K, tau, held = prior._statics(UPRIGHT, SUPPLY, F)
+    moved = prior._motion(K, tau, held, np.array([0.04]))[0]
+    assert np.linalg.norm(moved) > 0.0
+    little = windows(UPRIGHT + 0.1 * moved, SUPPLY, seed=5)
+    floors = Watch.of(PROTOCOL).floors(base, base)
+    before = prior(F, base, little, floors)  # the prior's own allowance: too little motion
+    assert before is not None and before.share < before.least
+    for i in range(gp.LEARN_MIN):
+        prior.learn(F, base, windows(UPRIGHT + moved, SUPPLY, seed=i + 1))
+    assert prior.friction_share > gp.FRICTION_SHARE
+    after = prior(F, base, little, floors)
+    assert after is None or after.share >= after.least
+
+
+def test_a_resumed_run_allows_for_the_friction_its_stored_trials_showed():
+    """The stored trials' table teaches the resumed check what their windows taught the live one."""
+    from pathlib import Path
+
+    from labcli.core.store import RunFile
+    from labcli.papers.takuma2014.acquisition import _baselines, _history
+    from labcli.papers.takuma2014.session import _resumed_guard
+
+    run = RunFile.open(Path(__file__).resolve().parents[3] / "sample_runs" / "force.h5")
+    try:
+        table = run.records.table().head(12)
+        live = PhysicsPrior.of(PROTOCOL)
+        assert live is not None
+        for rid, fx, fy in zip(table["trial"], table["Fx_N"], table["Fy_N"], strict=True):
+            raw = run.records.read(int(rid))["raw"]
+            live.learn((fx, fy), raw["baseline"], raw["load"])
+        history, baselines = _history(run, PROTOCOL), _baselines(run, PROTOCOL)
+    finally:
+        run.close()
+    resumed = _resumed_guard(PROTOCOL, history[:12], baselines[:12]).prior
+    assert isinstance(resumed, PhysicsPrior) and resumed.refined
+    assert resumed.friction_share == pytest.approx(live.friction_share, abs=gp.LEARN_MARGIN * STEP)
+    # A table whose rows do not pair with the baselines teaches nothing.
+    assert not _resumed_guard(PROTOCOL, history[:12], baselines[:11]).prior.refined
