@@ -9,6 +9,7 @@ regular files are ever replaced, never a device node, a directory or a FIFO
 from __future__ import annotations
 
 import os
+import re
 import stat
 import tempfile
 from collections.abc import Callable
@@ -164,10 +165,24 @@ def is_run_file(path: str | os.PathLike) -> bool:
         os.close(fd)
 
 
+# How every model file labcli writes begins: an object whose first key names its schema (or kind).
+_MODEL_HEAD = re.compile(rb'\A\s*\{\s*"(?:schema|kind)"\s*:\s*"')
+
+
 def is_model_file(path: str | os.PathLike) -> bool:
-    """Whether ``path`` holds a model a paper wrote: a JSON object naming its ``schema`` or ``kind``."""
+    """Whether ``path`` holds a model a paper wrote: a JSON object naming its ``schema`` or ``kind``.
+
+    A file that opens as labcli's model files do is one without being parsed: a model fitted on a
+    random split of 10^6 trials is 15 MB, and reading it whole took a second of every refit.
+    """
     from .jsontext import loads_bounded
 
+    try:
+        with open(path, "rb") as f:
+            if _MODEL_HEAD.match(f.read(256)):
+                return True
+    except OSError:
+        return False
     try:
         d = loads_bounded(read_input(path, "a model file").decode("utf-8"))
     except (OSError, LabcliError, ValueError, RecursionError):

@@ -18,6 +18,8 @@ from collections.abc import Mapping
 from itertools import accumulate
 from typing import Any
 
+from .nogc import paused_gc
+
 MAX_DEPTH = 64  # labcli's own documents nest at most 5 deep (a covariance matrix in a model)
 _FLOAT_DIGITS = 308  # any integer of this many digits or fewer is below 1.8e308
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
@@ -81,9 +83,10 @@ def loads_bounded(text: str) -> Any:
     depth = nesting_depth(text)
     if depth > MAX_DEPTH:
         raise JSONDepthError(depth)
-    if _HUGE_NUMBER.search(text) is None:
-        return json.loads(text)  # no number of 309 digits or a 3-digit exponent: every one fits a float
-    return json.loads(text, parse_int=_int, parse_float=_float)
+    with paused_gc():  # a model file's 10^5 trial ranges are as many lists: no cycles among them
+        if _HUGE_NUMBER.search(text) is None:
+            return json.loads(text)  # no number of 309 digits or a 3-digit exponent: every one fits a float
+        return json.loads(text, parse_int=_int, parse_float=_float)
 
 
 def json_kind(v: Any) -> str:

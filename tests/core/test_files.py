@@ -87,3 +87,26 @@ def test_text_with_bytes_that_are_not_utf8_is_stored_with_escapes():
     name = os.fsdecode(b"run\xff\xfe.h5")
     assert stored_text(name) == "run\\xff\\xfe.h5"
     assert stored_text("r\u00e9sum\u00e9.h5") == "r\u00e9sum\u00e9.h5"
+
+
+@pytest.mark.parametrize(
+    ("text", "is_model"),
+    [
+        ('{\n  "schema": "labcli-takuma-model",\n  "version": 1', True),  # read by its opening alone
+        ('{"kind": "rpam-model"}', True),
+        ('{"version": 1, "schema": "labcli-takuma-model"}', True),  # schema later: parsed whole
+        ('{"version": 1, "note": "schema"}', False),
+        ('{"schema": 3}', False),
+        ("trial,set,P_L10\n1,fit,0.2\n", False),
+        ('["schema", "x"]', False),
+    ],
+)
+def test_a_model_file_is_told_from_other_files_by_its_opening_or_whole(tmp_path, text, is_model):
+    from labcli.core.files import check_model_output, is_model_file
+
+    p = tmp_path / "out.json"
+    p.write_text(text)
+    assert is_model_file(p) is is_model
+    if not is_model:
+        with pytest.raises(ConfigError, match="it is not a model file"):
+            check_model_output(p)

@@ -83,3 +83,35 @@ def test_ranges_as_written_read_back_as_themselves_and_others_are_merged(seed):
     pairs = [list(r) for r in written] + [[int(a), int(a) + int(rng.integers(0, 3))] for a in ids[::7]]
     rng.shuffle(pairs)
     assert idranges.parse(pairs, "k", bad) == idranges.to_ranges(sorted(members(pairs)))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_disjoint_pairs_in_any_order_merge_to_the_same_ranges(seed):
+    # Pairs that neither overlap nor touch take merge's whole-array path; its answer is the loop's.
+    rng = np.random.default_rng(seed)
+    written = idranges.to_ranges(np.flatnonzero(rng.random(2000) < 0.6))
+    shuffled = [list(r) for r in written]
+    rng.shuffle(shuffled)
+    assert idranges.merge(shuffled) == written
+    assert idranges.merge(shuffled + [[written[0][0], written[-1][1]]]) == [[written[0][0], written[-1][1]]]
+
+
+def test_the_collector_is_paused_only_inside_and_left_as_it_was():
+    import gc
+
+    from labcli.core.nogc import paused_gc
+
+    assert gc.isenabled()
+    with paused_gc():
+        assert not gc.isenabled()
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        with paused_gc():
+            pass
+        assert not gc.isenabled()  # a caller that had switched it off keeps it off
+    finally:
+        gc.enable()
+    with pytest.raises(ValueError), paused_gc():
+        raise ValueError
+    assert gc.isenabled()

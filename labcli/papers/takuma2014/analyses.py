@@ -139,14 +139,15 @@ def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
 
 
 def _fit_form(
-    form: str, src: Any, source: str, max_amplification: float = MAX_AMPLIFICATION
+    form: str, src: Any, source: str, max_amplification: float = MAX_AMPLIFICATION, *, record_trials: bool = True
 ) -> TakumaModel | PostureModel:
     rig, name = src.protocol.settings.rig, src.protocol.name
     if form == POSTURE:
         return PostureModel(geometry=rig, protocol=name, limits=limits_from_protocol(src.protocol)).fit(
-            src.table, source=source
+            src.table, source=source, record_trials=record_trials
         )
-    return TakumaModel(geometry=rig, protocol=name, max_amplification=max_amplification).fit(src.table, source=source)
+    model = TakumaModel(geometry=rig, protocol=name, max_amplification=max_amplification)
+    return model.fit(src.table, source=source, record_trials=record_trials)
 
 
 def show_fit(result: FitResult, *, as_json: bool = False) -> None:
@@ -262,7 +263,9 @@ def side_by_side(model: Any, ev: dict[str, Any], src: Any, mode: str, source: st
     forms = {ev["form"]: ev["metrics"]}
     other = "paper" if ev["form"] == POSTURE else POSTURE
     try:
-        forms[other] = evaluate(_fit_form(other, src, source), src.table, mode=mode, source=source)["metrics"]
+        # Fitted only to be measured: its trial list (a random split's 10^5 ranges) is not written.
+        fitted = _fit_form(other, src, source, record_trials=False)
+        forms[other] = evaluate(fitted, src.table, mode=mode, source=source)["metrics"]
     except ModelError:
         pass
     return {f: forms[f] for f in FORMS if f in forms}

@@ -70,6 +70,7 @@ import numpy as np
 
 from ....core import idranges
 from ....core.jsontext import dumps_indented
+from ....core.nogc import paused_gc
 from ....errors import ModelError
 from . import routes as rt
 from .calibrated import baseline_dict, calibrated_range, check_baseline, check_range
@@ -820,7 +821,8 @@ class PostureModel:
         bad = ~(np.all(np.isfinite(P0) & (P0 > 0), axis=1) & np.all(np.isfinite(P) & (P > 0), axis=1))
         P0 = np.where(bad[:, None], 1.0, P0)
         P = np.where(bad[:, None], 1.0, P)
-        flags: list[list[str]] = [["bad-pressure"] if b else [] for b in bad]
+        with paused_gc():  # a list per trial: 10^6 of them, no cycles
+            flags: list[list[str]] = [["bad-pressure"] if b else [] for b in bad.tolist()]
         dth, cov_a = self._angles(P0, P)
         theta1, var1 = self._theta1(P0, P, dth[:, 0], cov_a[:, 0, 0])
         if mode == "measured-angles":
