@@ -54,14 +54,18 @@ class BlockAverager:
         if not m:
             empty = np.empty((0, x.shape[1]))
             return Blocks(np.empty(0), np.empty(0), np.empty(0, np.int64), empty, empty.copy())
+        # np.add.reduce over the frames and a division: np.mean's own arithmetic, without its
+        # dispatch (the estimator cuts every read into blocks).
         xs = x[:cut].reshape(m, self.size, -1)
-        mean = xs.mean(axis=1)
+        mean = np.add.reduce(xs, axis=1) / self.size
         if self.size > 1:
-            var = ((xs - mean[:, None, :]) ** 2).sum(axis=1) / ((self.size - 1) * self.size)
+            dev = xs - mean[:, None, :]
+            var = np.add.reduce(dev * dev, axis=1) / ((self.size - 1) * self.size)
         else:
             var = np.full_like(mean, np.nan)
-        ends = np.arange(self.size - 1, cut, self.size)
-        return Blocks(t[ends], t[:cut].reshape(m, self.size).mean(axis=1), seq[ends], mean, var)
+        ends = slice(self.size - 1, cut, self.size)
+        tc = np.add.reduce(t[:cut].reshape(m, self.size), axis=1) / self.size
+        return Blocks(t[ends], tc, seq[ends], mean, var)
 
     @property
     def pending(self) -> int:

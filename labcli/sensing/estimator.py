@@ -41,6 +41,7 @@ from .results import IDLE, LOAD, LOADED, LOADING, RELEASE, RELEASING, SETTLED, S
 from .transient import ResponseFit, Step, lag, onset
 
 MAX_VAR = 0.05**2  # MPa^2: an input known to no better than 50 kPa is simply not known
+STATE_FLAGS = {STARTING: (BASELINE,), LOADING: (TRANSIENT,), RELEASING: (TRANSIENT,)}  # what a state adds to the flags
 
 
 class SettledHook(Protocol):
@@ -243,7 +244,7 @@ class Estimator:
     def _wander(self, var: np.ndarray) -> float:
         """The baseline's wander in the detector's whitened units (:meth:`ChangeDetector.push`)."""
         p = self.inputs.n_pressures
-        return float(self.config.wander_MPa / np.sqrt(np.mean(var[:p])))
+        return float(self.config.wander_MPa / math.sqrt(np.add.reduce(var[:p]) / p))  # np.mean's arithmetic
 
     def _new_fit(self, t0: float) -> ResponseFit:
         c = self.config
@@ -452,7 +453,7 @@ class Estimator:
         values, se, flags = evaluate(self.model, x)
         if exc is not None:  # a load is on: the angles' standard error as the rig shows it (config)
             se = np.where(self._state_kind, se * self.config.loaded_state_se_factor, se)
-        extra_flags = {STARTING: (BASELINE,), LOADING: (TRANSIENT,), RELEASING: (TRANSIENT,)}.get(self.state, ())
+        extra_flags = STATE_FLAGS.get(self.state, ())
         m = self.model
         return Estimate(
             seq,

@@ -18,6 +18,7 @@ change) does not feed the model pressures outside its world.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,17 +40,32 @@ class Inputs2:
     var_load: np.ndarray
 
 
+@functools.cache
+def _steps(p: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the sigma rows' steps go in a group's (1 + 2p, p) rows: rows up, rows down, channels."""
+    diagonal = np.arange(p)
+    return 1 + diagonal, 1 + p + diagonal, diagonal
+
+
+@functools.cache
+def _groups(kinds: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The row group each quantity is read from with one group and with two (the load's for a
+    ``load`` quantity), and the quantities' indices."""
+    load = np.array([k == LOAD for k in kinds])
+    return np.zeros(len(kinds), np.intp), np.where(load, 1, 0), np.arange(len(kinds))
+
+
 def _rows(P: np.ndarray, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per group (g, p): the centre, then + and - a step per channel, (g, 1 + 2p, p), and the steps (g, p)."""
     g, p = P.shape
-    h = np.clip(sd, 0.0, CAP_MPA)
-    eye = np.zeros((g, p, p))
-    diagonal = np.arange(p)
-    eye[:, diagonal, diagonal] = h
+    h = np.minimum(
+        np.maximum(sd, 0.0), CAP_MPA
+    )  # np.clip's, without its dispatch: the estimator calls this every block
+    up, down, channel = _steps(p)
     rows = np.empty((g, 1 + 2 * p, p))
-    rows[:, 0] = P
-    np.add(P[:, None, :], eye, out=rows[:, 1 : 1 + p])
-    np.subtract(P[:, None, :], eye, out=rows[:, 1 + p :])
+    rows[:] = P[:, None, :]
+    rows[:, up, channel] += h
+    rows[:, down, channel] -= h
     return rows, h
 
 
@@ -57,32 +73,45 @@ def evaluate(model: SensingModel, x: Inputs2) -> tuple[np.ndarray, np.ndarray, t
     """Values (q,), standard errors (q,) and flags of one block's estimate (module docstring).
 
     Both row groups (the state's, the load's) are built and read as one (groups, 1 + 2p, ...) array:
-    the estimator calls this once a block, and per-group loops were a fifth of the call."""
-    same = np.array_equal(x.P_state, x.P_load) and np.array_equal(x.var_state, x.var_load)
-    centres = np.array([x.P_state] if same else [x.P_state, x.P_load], dtype=float)
-    sd = np.sqrt(np.array([x.var_state] if same else [x.var_state, x.var_load], dtype=float))
-    rows, h = _rows(centres, sd)
+    the estimator calls this once a block, and on its dozen-odd rows each numpy call costs more
+    than its arithmetic, so what depends only on the model's kinds is worked out once."""
+    same = bool((x.P_state == x.P_load).all()) and bool((x.var_state == x.var_load).all())
+    if same:
+        centres, var = x.P_state[None, :], x.var_state[None, :]
+    else:
+        centres, var = np.stack((x.P_state, x.P_load)), np.stack((x.var_state, x.var_load))
+    sd = np.sqrt(np.asarray(var, dtype=float))
+    rows, h = _rows(np.asarray(centres, dtype=float), sd)
     g, n, p = rows.shape
     P = rows.reshape(g * n, p)
-    pred = model.predict(np.broadcast_to(x.P0, P.shape), P, np.broadcast_to(x.rest, (g * n, len(x.rest))))
-    load = np.array([k == LOAD for k in model.kinds])
-    group = np.where(load & (not same), 1, 0)  # the row group each quantity is read from
-    q_idx = np.arange(len(load))
+    P0 = np.empty((g * n, p))
+    P0[:] = x.P0
+    rest = np.empty((g * n, len(x.rest)))
+    rest[:] = x.rest
+    pred = model.predict(P0, P, rest)
+    one, two, q_idx = _groups(tuple(model.kinds))
+    group = one if same else two
     values = pred.values[group * n, q_idx]
     se_model = pred.se[group * n, q_idx]
     at = pred.values.reshape(g, n, -1)
-    up, down = at[:, 1 : 1 + p], at[:, 1 + p :]
+    # The central difference per channel (zero where a channel's step is none), read from each
+    # quantity's own group only: the other group's slopes are never asked for.
+    positive = h > 0
     with np.errstate(invalid="ignore", divide="ignore"):
-        slope = np.where(h[:, :, None] > 0, (up - down) / (2 * np.where(h > 0, h, 1.0))[:, :, None], 0.0)
-    var = ((slope * sd[:, :, None]) ** 2).sum(axis=1)[group, q_idx]
-    se = np.sqrt(se_model**2 + var)
+        slope = np.where(
+            positive[:, :, None],
+            (at[:, 1 : 1 + p] - at[:, 1 + p :]) / (2 * np.where(positive, h, 1.0))[:, :, None],
+            0.0,
+        )
+    var_q = np.square(slope * sd[:, :, None]).sum(axis=1)[group, q_idx]
+    se = np.sqrt(se_model**2 + var_q)
     flags = pred.flags[0] if same else _merge(pred.flags[0], pred.flags[n], model)
     return values, se, flags
 
 
 def _merge(state: tuple[str, ...], load: tuple[str, ...], model: SensingModel) -> tuple[str, ...]:
     """Flags naming a quantity from the row that quantity is read from; the others from both."""
-    kind = dict(zip(model.quantities, model.kinds, strict=True))
+    kind = _kind_of(tuple(model.quantities), tuple(model.kinds))
     out: list[str] = []
     for row, want in ((state, STATE), (load, LOAD)):
         for f in row:
@@ -92,3 +121,8 @@ def _merge(state: tuple[str, ...], load: tuple[str, ...], model: SensingModel) -
             if f not in out:
                 out.append(f)
     return tuple(out)
+
+
+@functools.cache
+def _kind_of(quantities: tuple[str, ...], kinds: tuple[str, ...]) -> dict[str, str]:
+    return dict(zip(quantities, kinds, strict=True))

@@ -28,6 +28,7 @@ standard error.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -80,16 +81,28 @@ class Step:
     var_A: np.ndarray | None = None
     var_B: np.ndarray | None = None
 
+    # Each method is asked about one time, every block: the kernels are taken in plain floats
+    # (lag's and heat's own one-time paths) rather than through their array forms.
+    def _lag(self, s: float) -> float:
+        if self.tau > 0:
+            return -math.expm1(-s / self.tau) if s > 0 else 0.0
+        return float(lag(np.array(s), self.tau))
+
+    def _heat(self, s: float) -> float:
+        if self.tau > 0 and self.thermal_tau > 0:
+            return _heat_one(s, self.tau, self.thermal_tau)
+        return float(heat(np.array(s), self.tau, self.thermal_tau))
+
     def at(self, t: float) -> np.ndarray:
         s = t - self.t0
-        return self.A * lag(np.array(s), self.tau) + self.B * heat(np.array(s), self.tau, self.thermal_tau)
+        return self.A * self._lag(s) + self.B * self._heat(s)
 
     def heat_at(self, t: float) -> np.ndarray:
-        return self.B * heat(np.array(t - self.t0), self.tau, self.thermal_tau)
+        return self.B * self._heat(t - self.t0)
 
     def lag_between(self, t_from: float, t_to: float) -> np.ndarray:
         """The lagged part's move from ``t_from`` to ``t_to``: ``A (lag(t_to) - lag(t_from))`` (k,)."""
-        return self.A * (lag(np.array(t_to - self.t0), self.tau) - lag(np.array(t_from - self.t0), self.tau))
+        return self.A * (self._lag(t_to - self.t0) - self._lag(t_from - self.t0))
 
     def remaining(self, t: float) -> np.ndarray:
         """What is still to come after ``t``: ``A`` minus the response so far."""
@@ -98,12 +111,12 @@ class Step:
     def unresolved(self, t: float) -> np.ndarray:
         """How much of the change its shape still has to carry after ``t``: the lag still to come and
         the heat still to leave, in size (they may cancel in :meth:`remaining`, not in doubt) (k,)."""
-        s = np.array(t - self.t0)
-        return np.abs(self.A * (1.0 - lag(s, self.tau))) + np.abs(self.B * heat(s, self.tau, self.thermal_tau))
+        s = t - self.t0
+        return np.abs(self.A * (1.0 - self._lag(s))) + np.abs(self.B * self._heat(s))
 
     def remaining_var(self, t: float, shape_error: float) -> np.ndarray:
         """The variance of :meth:`remaining`: the heat's amplitude, and a share of the rest for its shape."""
-        g = heat(np.array(t - self.t0), self.tau, self.thermal_tau)
+        g = self._heat(t - self.t0)
         var_B = self.var_B if self.var_B is not None else 0.0
         return var_B * g**2 + (shape_error * self.remaining(t)) ** 2
 
@@ -151,6 +164,11 @@ class ResponseFit:
         self.kappas = np.asarray(kappas, dtype=float)
         # The channels whose air heats (the pressures); a potentiometer's reading has no heat.
         self.heated = np.ones(k) if heated is None else np.asarray(heated, dtype=float)
+        # The heat shares per hypothesis and channel (K, 1, 1, k), and the multiples the solve takes
+        # of them: worked out once, the span is solved every block.
+        self._kap = self.kappas[:, None, None, None] * self.heated
+        self._kap2 = self._kap**2
+        self._two_kap = 2 * self._kap
         self._t = np.empty(capacity)
         self._e = np.empty((capacity, k))
         self._w = np.empty((capacity, k))  # 1 / variance
@@ -162,6 +180,7 @@ class ResponseFit:
         self.result: FitResult | None = None
         self._reset_sums()
         self._shift = 0.0
+        self._step: tuple[FitResult, float, Step] | None = None
         # After the span: the shape frozen, the level refined by sums over the later blocks (the last
         # TAIL_KEEP of them kept one by one, so a change found among them can take them back).
         self._frozen: FitResult | None = None
@@ -248,8 +267,8 @@ class ResponseFit:
         """
         n = self.n
         Spp, Spg, Sgg, Spe, Sge, See = self._sums()
-        kap = self.kappas[:, None, None, None] * self.heated  # (K, 1, 1, k): no heat on unheated channels
-        Sqq = Spp + 2 * kap * Spg + kap**2 * Sgg + 1.0 / A_SPAN**2  # (K, T, S, k)
+        kap = self._kap  # (K, 1, 1, k): no heat on unheated channels
+        Sqq = Spp + self._two_kap * Spg + self._kap2 * Sgg + 1.0 / A_SPAN**2  # (K, T, S, k)
         Sqe = Spe + kap * Sge
         A = Sqe / Sqq
         chi2 = (See - Sqe * A)[..., self.shared].sum(axis=-1)  # (K, T, S)
@@ -264,7 +283,9 @@ class ResponseFit:
         Bm = (wk * B).sum(axis=(0, 1, 2))
         best = np.unravel_index(int(np.argmin(chi2)), chi2.shape)
         var_A = (wk * (1.0 / Sqq + (A - Am) ** 2)).sum(axis=(0, 1, 2)) + _grid_var(A, best)
-        var_B = (wk * (kap**2 / Sqq + (B - Bm) ** 2)).sum(axis=(0, 1, 2)) + _grid_var(np.broadcast_to(B, A.shape), best)
+        var_B = (wk * (self._kap2 / Sqq + (B - Bm) ** 2)).sum(axis=(0, 1, 2)) + _grid_var(
+            np.broadcast_to(B, A.shape), best
+        )
         marg = wt.sum(axis=0)  # (T, S)
         tau_w = float(np.exp((marg.sum(axis=1) * np.log(self.taus)).sum()))
         self._shift = float((marg.sum(axis=0) * self.shifts).sum())
@@ -290,6 +311,14 @@ class ResponseFit:
             s = t[None, None, :] - (self.t0 + self.shifts)[None, :, None]
             tau = self.taus[:, None, None]
             phi, g = lag(s, tau), heat(s, tau, self.thermal_tau)  # (T, S, n - lo)
+            if n - lo == 1:  # one new block (every solve but the first after a truncate): plain products
+                kernels = np.stack((phi * phi, phi * g, g * g, phi, g))  # (5, T, S, 1)
+                we = w * e
+                self._S[:, 0] += kernels * np.stack((w, w, w, we, we))[:, None]
+                self._See += (w * e * e)[0]
+                self._sums_n = n
+                S = self._S
+                return S[0], S[1], S[2], S[3], S[4], self._See
             self._S[0, 0] += np.einsum("tsn,tsn,nk->tsk", phi, phi, w)
             self._S[1, 0] += np.einsum("tsn,tsn,nk->tsk", phi, g, w)
             self._S[2, 0] += np.einsum("tsn,tsn,nk->tsk", g, g, w)
@@ -301,28 +330,48 @@ class ResponseFit:
         return S[0], S[1], S[2], S[3], S[4], self._See
 
     def step(self) -> Step:
-        """The fitted response as a :class:`Step` (at the lag and step time found)."""
+        """The fitted response as a :class:`Step` (at the lag and step time found); the same object
+        until the fit changes (the estimator asks for it several times a block)."""
         r = self.result or self.solve()
+        cached = self._step
+        if cached is not None and cached[0] is r and cached[1] == self._shift:
+            return cached[2]
         inflate = max(1.0, r.misfit)
-        return Step(self.t0 + self._shift, r.A, r.B, r.tau, self.thermal_tau, r.var_A * inflate, r.var_B * inflate)
+        step = Step(self.t0 + self._shift, r.A, r.B, r.tau, self.thermal_tau, r.var_A * inflate, r.var_B * inflate)
+        self._step = (r, self._shift, step)
+        return step
 
 
 def _grid_var(values: np.ndarray, best: tuple[Any, ...]) -> np.ndarray:
     """The uncertainty a grid leaves between its points: along each axis, the value's change from
     the best point's neighbours as the variance of a uniform spread over one spacing ((k,))."""
-    out = np.zeros(values.shape[-1])
+    lo, hi, width = _neighbours(tuple(int(i) for i in best), values.shape[:3])
+    if not width.size:
+        return np.zeros(values.shape[-1])
+    step = (values[hi] - values[lo]) / width[:, None]  # (axes, k)
+    return np.add.reduce(step * step / 12.0, axis=0)  # the axes' shares summed in turn
+
+
+@functools.lru_cache(maxsize=4096)
+def _neighbours(
+    best: tuple[int, ...], shape: tuple[int, ...]
+) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...], np.ndarray]:
+    """The grid points either side of ``best`` along each axis of more than one point (index
+    arrays, one entry per axis) and their distance in points."""
+    lo_idx: list[list[int]] = [[] for _ in shape]
+    hi_idx: list[list[int]] = [[] for _ in shape]
+    width = []
     for axis, i in enumerate(best):
-        n = values.shape[axis]
+        n = shape[axis]
         if n < 2:
             continue
         lo, hi = max(i - 1, 0), min(i + 1, n - 1)
-        take = [slice(None) if a != axis else None for a in range(3)]
-        idx_lo, idx_hi = list(best), list(best)
-        idx_lo[axis], idx_hi[axis] = lo, hi
-        step = (values[tuple(idx_hi)] - values[tuple(idx_lo)]) / (hi - lo)
-        out += step**2 / 12.0
-        del take
-    return out
+        for a in range(len(shape)):
+            lo_idx[a].append(lo if a == axis else best[a])
+            hi_idx[a].append(hi if a == axis else best[a])
+        width.append(float(hi - lo))
+    to = lambda idx: tuple(np.array(x, dtype=np.intp) for x in idx)  # noqa: E731
+    return to(lo_idx), to(hi_idx), np.array(width)
 
 
 def onset(tc: np.ndarray, z: np.ndarray, tau: float, block_s: float) -> tuple[float, np.ndarray]:
