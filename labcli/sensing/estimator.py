@@ -82,6 +82,7 @@ class Estimator:
         self.rate_hz = rate_hz
         self._clock = DeviceClock()
         self._count = 0  # frames given without their seq (update_si)
+        self._floors: dict[int, np.ndarray] = {}  # the noise floor per block size (_noise)
         self.reset()
 
     # ------------------------------------------------------------------ public
@@ -101,7 +102,7 @@ class Estimator:
             maxlen=max(8, int(round(c.history_s / c.block_s)))
         )
         self._r: np.ndarray | None = None  # block-mean noise variance per channel
-        self._spreads: deque[np.ndarray] = deque(maxlen=max(8, int(round(10.0 / c.block_s))))  # the last 10 s
+        self._spreads = _Recent(max(8, int(round(10.0 / c.block_s))), k)  # the last 10 s
         self._excess = 1.0  # idle innovations' variance over the predicted one
         self._prev_y: np.ndarray | None = None
         self._started = 0.0
@@ -201,11 +202,15 @@ class Estimator:
         if obs is None:
             return
         self._spreads.append(obs)
-        self._r = np.median(np.array(self._spreads), axis=0)
+        self._r = self._spreads.median()
 
     def _noise(self) -> np.ndarray:
         size = self._blocks.size if self._blocks is not None else 1
-        floor = 1e-14 + self.inputs.resolution**2 / (12.0 * size)  # the ADC's rounding, averaged
+        floor = self._floors.get(size)
+        if floor is None:
+            floor = self._floors[size] = 1e-14 + self.inputs.resolution**2 / (
+                12.0 * size
+            )  # the ADC's rounding, averaged
         base = self._r if self._r is not None else np.full(self.inputs.width, 1e-8)
         return np.maximum(base * self._excess, floor)
 
@@ -464,6 +469,39 @@ class Estimator:
             dict(zip(m.quantities, m.units, strict=True)),
             tuple(extra_flags) + tuple(flags),
         )
+
+
+class _Recent:
+    """The last ``size`` vectors (k,) in a ring, and their median per channel (np.median's, the
+    ring's order aside, which a median does not see): the estimator asks for it every idle block."""
+
+    def __init__(self, size: int, k: int) -> None:
+        self._rows = np.empty((size, k))
+        self._n = 0
+        self._i = 0
+
+    def clear(self) -> None:
+        self._n = self._i = 0
+
+    def append(self, v: np.ndarray) -> None:
+        size = self._rows.shape[0]
+        self._rows[self._i] = v
+        self._i = (self._i + 1) % size
+        self._n = min(self._n + 1, size)
+
+    def __len__(self) -> int:
+        return self._n
+
+    def median(self) -> np.ndarray:
+        """np.median(rows, axis=0): the same partition, the middle one or the mean of the middle
+        two, NaN in a channel that holds one."""
+        n, h = self._n, self._n // 2
+        part = np.partition(self._rows[:n], [h, -1] if n % 2 else [h - 1, h, -1], axis=0)
+        mid = part[h].copy() if n % 2 else (part[h - 1] + part[h]) / 2.0
+        nan = np.isnan(part[-1])
+        if nan.any():
+            mid[nan] = np.nan
+        return mid
 
 
 def _arrays(frames: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

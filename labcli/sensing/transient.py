@@ -175,6 +175,9 @@ class ResponseFit:
         # The channels whose fit weighs the hypotheses (and whose misfit counts): the pressures;
         # a potentiometer's backlash makes its response no clean lag.
         self.shared = np.ones(k, bool) if shared is None else np.asarray(shared, dtype=bool)
+        # Those channels as a slice when they lead (the pressures before the angles): a view, not a copy.
+        lead = int(self.shared.sum())
+        self._shared_at: Any = slice(0, lead) if self.shared[:lead].all() else self.shared
         self.shape_sd = float(shape_sd)  # share of what the shape still carries counted as uncertain
         self.n = 0
         self.result: FitResult | None = None
@@ -271,21 +274,29 @@ class ResponseFit:
         Sqq = Spp + self._two_kap * Spg + self._kap2 * Sgg + 1.0 / A_SPAN**2  # (K, T, S, k)
         Sqe = Spe + kap * Sge
         A = Sqe / Sqq
-        chi2 = (See - Sqe * A)[..., self.shared].sum(axis=-1)  # (K, T, S)
+        chi2 = np.add.reduce((See - Sqe * A)[..., self._shared_at], axis=-1)  # (K, T, S)
         dof = max(1, (n - 3) * int(self.shared.sum()))
-        misfit = float(chi2.min()) / dof
+        least = chi2.min()
+        misfit = float(least) / dof
         # The noise scale is the best hypothesis's residual when that is above the blocks' own.
-        wt = np.exp(-0.5 * (chi2 - chi2.min()) / max(1.0, misfit))
+        wt = np.exp(-0.5 * (chi2 - least) / max(1.0, misfit))
         wt /= wt.sum()
         wk = wt[..., None]
-        Am = (wk * A).sum(axis=(0, 1, 2))
+        grid = (0, 1, 2)
+        Am = np.add.reduce(wk * A, axis=grid)
         B = kap * A
-        Bm = (wk * B).sum(axis=(0, 1, 2))
+        Bm = np.add.reduce(wk * B, axis=grid)
         best = np.unravel_index(int(np.argmin(chi2)), chi2.shape)
-        var_A = (wk * (1.0 / Sqq + (A - Am) ** 2)).sum(axis=(0, 1, 2)) + _grid_var(A, best)
-        var_B = (wk * (self._kap2 / Sqq + (B - Bm) ** 2)).sum(axis=(0, 1, 2)) + _grid_var(
-            np.broadcast_to(B, A.shape), best
-        )
+        spread = A - Am
+        spread *= spread
+        spread += 1.0 / Sqq
+        spread *= wk
+        var_A = np.add.reduce(spread, axis=grid) + _grid_var(A, best)
+        spread = B - Bm
+        spread *= spread
+        spread += self._kap2 / Sqq
+        spread *= wk
+        var_B = np.add.reduce(spread, axis=grid) + _grid_var(B, best)
         marg = wt.sum(axis=0)  # (T, S)
         tau_w = float(np.exp((marg.sum(axis=1) * np.log(self.taus)).sum()))
         self._shift = float((marg.sum(axis=0) * self.shifts).sum())

@@ -102,7 +102,7 @@ class TakumaSensing:
 
     def predict(self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray) -> Prediction:
         """(n, 4) baselines and pressures (MPa), (n, 2) rest postures (rad): the model's estimate."""
-        P0, P, rest = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (P0, P, rest))
+        P0, P, rest = _rows(P0), _rows(P), _rows(rest)
         few = self._compiled is not None and len(P) <= FAST_ROWS
         fast = self._compiled.predict(P0, P, rest) if few else None  # type: ignore[union-attr]
         if fast is not None:
@@ -153,7 +153,7 @@ class TakumaSensing:
         est = np.empty((n, 4))
         np.degrees(values[:, :2], out=est[:, :2])
         est[:, 2:] = values[:, 2:]
-        outside = np.any((inputs < lo_in) | (inputs > hi_in), axis=1)
+        outside = np.logical_or.reduce((inputs < lo_in) | (inputs > hi_in), axis=1)
         return outside, (est < lo_est) | (est > hi_est)
 
     def _ends(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -210,6 +210,13 @@ def _limits(ranges: np.ndarray, margin: float, least: Any = 0.0) -> tuple[np.nda
     lo, hi = ranges[:, 0], ranges[:, 1]
     pad = np.maximum(margin * (hi - lo), least)
     return lo - pad, hi + pad
+
+
+def _rows(a: Any) -> np.ndarray:
+    """``a`` as rows of floats (n, m): as it is when it is so already (the estimator's every block)."""
+    if type(a) is np.ndarray and a.ndim == 2 and a.dtype == np.float64:
+        return a
+    return np.atleast_2d(np.asarray(a, dtype=float))
 
 
 def _given(v: Any) -> bool:

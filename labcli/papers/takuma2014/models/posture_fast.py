@@ -88,6 +88,8 @@ class _Paper:
     weight: np.ndarray
     correlation: np.ndarray
     taken: np.ndarray  # the quantities on the paper's route
+    rest_weight: np.ndarray  # 1 - weight, and the blend's cross term 2 w (1 - w) rho (routes.blend_estimate's)
+    cross: np.ndarray
 
     @classmethod
     def of(cls, model: PostureModel) -> _Paper:
@@ -98,6 +100,8 @@ class _Paper:
         def cov(q: str, p: int) -> np.ndarray:
             return np.asarray(paper.covariance[q], dtype=float) if q in model.paper_variance else np.zeros((p, p))
 
+        weight = np.array([model.blends[q]["posture_weight"] for q in rt.QUANTITIES if model.route(q) == rt.BLEND])
+        rho = np.array([model.blends[q]["error_correlation"] for q in rt.QUANTITIES if model.route(q) == rt.BLEND])
         return cls(
             tuple(k for k, q in enumerate(rt.QUANTITIES) if model.route(q) != rt.POSTURE),
             np.array([b[t] for t in TERMS["theta1"]]),
@@ -108,9 +112,11 @@ class _Paper:
             np.array([model.paper_variance.get(q, 0.0) for q in rt.QUANTITIES], dtype=float),
             float(paper.max_amplification),
             np.array([k for k, q in enumerate(rt.QUANTITIES) if model.route(q) == rt.BLEND], dtype=np.intp),
-            np.array([model.blends[q]["posture_weight"] for q in rt.QUANTITIES if model.route(q) == rt.BLEND]),
-            np.array([model.blends[q]["error_correlation"] for q in rt.QUANTITIES if model.route(q) == rt.BLEND]),
+            weight,
+            rho,
             np.array([k for k, q in enumerate(rt.QUANTITIES) if model.route(q) == rt.PAPER], dtype=np.intp),
+            1.0 - weight,
+            2.0 * weight * (1.0 - weight) * rho,
         )
 
 
@@ -271,11 +277,15 @@ class CompiledPosture:
         v_pa, s_pa, ok_pa = paper
         pa = self.paper
         assert pa is not None
-        b, w, rho, r = pa.blended, pa.weight, pa.correlation, pa.taken
+        b, r = pa.blended, pa.taken
         if len(b):
-            v, sd = rt.blend_estimate(w, rho, values[:, b], se[:, b], v_pa[:, b], s_pa[:, b])  # type: ignore[arg-type]
+            # routes.blend_estimate's arithmetic, its constant factors worked out once (_Paper.of)
+            v_po, s_po, sb = values[:, b], se[:, b], s_pa[:, b]
+            var = (pa.weight * s_po) ** 2 + (pa.rest_weight * sb) ** 2 + pa.cross * s_po * sb
+            v = pa.weight * v_po + pa.rest_weight * v_pa[:, b]
+            sd = np.sqrt(np.maximum(var, 0.0))
             both = ok_pa[:, b] & np.isfinite(v) & np.isfinite(sd)
-            values[:, b], se[:, b] = np.where(both, v, values[:, b]), np.where(both, sd, se[:, b])
+            values[:, b], se[:, b] = np.where(both, v, v_po), np.where(both, sd, s_po)
         if len(r):
             values[:, r], se[:, r] = v_pa[:, r], s_pa[:, r]
             valid[:, r] &= ok_pa[:, r]
@@ -287,10 +297,13 @@ class CompiledPosture:
         pa = self.paper
         assert pa is not None
         n = len(u)
-        sines = (u[:, :2] @ pa.b1, u @ pa.b2)
-        ok_t = [~(np.abs(x) > 1.0) for x in sines]
-        th = [np.arcsin(np.clip(x, -1.0, 1.0)) for x in sines]
-        c1, c2, s2 = np.cos(th[0]), np.cos(th[1]), np.sin(th[1])
+        sines = np.empty((n, 2))
+        sines[:, 0] = u[:, :2] @ pa.b1
+        sines[:, 1] = u @ pa.b2
+        ok_t = ~(np.abs(sines) > 1.0)
+        th = np.arcsin(np.minimum(np.maximum(sines, -1.0), 1.0))  # np.clip's, without its dispatch
+        cos = np.cos(th)
+        c1, c2, s2 = cos[:, 0], cos[:, 1], np.sin(th[:, 1])
         det = self.h2 * self.h3 * s2
         if not (det != 0.0).all():
             return None
@@ -298,13 +311,13 @@ class CompiledPosture:
         for q in pa.quantities:
             if q < 2:
                 x = u[:, :2] if q == 0 else u
-                coef[:, q] = np.einsum("ni,ij,nj->n", x, pa.cov_theta[q], x) / np.maximum(np.cos(th[q]) ** 2, 1e-12)
-                v[:, q], ok[:, q] = th[q], ok_t[q]
+                coef[:, q] = np.einsum("ni,ij,nj->n", x, pa.cov_theta[q], x) / np.maximum(cos[:, q] ** 2, 1e-12)
+                v[:, q], ok[:, q] = th[:, q], ok_t[:, q]
                 continue
             X, amp = self._paper_design(q - 2, th, c1, c2, s2, det, dP)
             v[:, q] = X @ pa.forces[q - 2]
             coef[:, q] = np.einsum("ni,ij,nj->n", X, pa.cov_forces[q - 2], X)
-            ok[:, q] = ok_t[0] & ok_t[1] & (amp <= pa.max_amplification)
+            ok[:, q] = ok_t[:, 0] & ok_t[:, 1] & (amp <= pa.max_amplification)
         if not np.isfinite(v).all():
             return None
         return v, np.sqrt(pa.variance + np.where(np.isfinite(coef), np.maximum(coef, 0.0), np.inf)), ok
@@ -312,31 +325,38 @@ class CompiledPosture:
     def _paper_design(
         self,
         k: int,
-        th: list[np.ndarray],
+        th: np.ndarray,
         c1: np.ndarray,
         c2: np.ndarray,
         s2: np.ndarray,
         det: np.ndarray,
         dP: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Eq. 36's (k = 0) or Eq. 37's (k = 1) design (n, 6) at the paper's angles, and the force's
-        amplification (models/takuma.py: force_design, geometry.force_amplification)."""
+        """Eq. 36's (k = 0) or Eq. 37's (k = 1) design (n, 6) at the paper's angles (n, 2), and the
+        force's amplification (models/takuma.py: force_design, geometry.force_amplification)."""
         h2, h3 = self.h2, self.h3
-        t12 = th[0] + th[1]
+        t12 = th[:, 0] + th[:, 1]
         # Row k of (J^-1)^T = [[J11, -J10], [-J01, J00]] / det J (geometry.jstar).
         if k == 0:
             s12 = np.sin(t12)
-            ja, jb = -h3 * s12 / det, -(-h2 * np.sin(th[0]) - h3 * s12) / det
+            ja, jb = -h3 * s12 / det, -(-h2 * np.sin(th[:, 0]) - h3 * s12) / det
         else:
             c12 = np.cos(t12)
             ja, jb = -(-h3 * c12) / det, (-h2 * c1 - h3 * c12) / det
         frob2 = h2**2 + 2.0 * h3**2 + 2.0 * h2 * h3 * c2
         smax2 = 0.5 * (frob2 + np.sqrt(np.maximum(frob2**2 - 4.0 * np.abs(det) ** 2, 0.0)))
-        X = np.empty((len(dP), 6))
-        outer, inner, lower = ja * c1, ja * (c1 - c2), jb * c2
-        for col, (weight, drop) in enumerate(((outer, 0), (outer, 1), (inner, 2), (inner, 3), (lower, 2), (lower, 3))):
-            np.multiply(weight, dP[:, drop], out=X[:, col])
+        # The six columns: each a weight (outer, outer, inner, inner, lower, lower) times a pressure drop.
+        weights = np.empty((len(dP), 3))
+        np.multiply(ja, c1, out=weights[:, 0])
+        np.multiply(ja, c1 - c2, out=weights[:, 1])
+        np.multiply(jb, c2, out=weights[:, 2])
+        X = weights[:, _DESIGN_WEIGHT] * dP[:, _DESIGN_DROP]
         return X, np.sqrt(ja * ja + jb * jb) * np.sqrt(smax2)
+
+
+# Eqs. 36-37's design columns: which of (outer, inner, lower) and which pressure drop each multiplies.
+_DESIGN_WEIGHT = np.array([0, 0, 1, 1, 2, 2], dtype=np.intp)
+_DESIGN_DROP = np.array([0, 1, 2, 3, 2, 3], dtype=np.intp)
 
 
 def _flat(m: Any) -> tuple[float, float, float, float]:
