@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core.arrays import rows_all, stack_columns
 from ...core.bounds import wrap_degrees_array
 from ...core.files import RUN_FILE_SUFFIXES
 from ...core.paper import Column
@@ -135,7 +136,7 @@ class _McKibbenRecords(BaseRecordType):
         if "pot0" not in cols:
             return
         rest = np.degrees(np.asarray(cols["pot0"], dtype=np.float64).reshape(n, 2))
-        if np.any(np.all(np.isfinite(rest), axis=1)):
+        if np.any(rows_all(np.isfinite(rest))):
             for j, name in enumerate(REST):
                 df[name] = to_edge(rest[:, j])
 
@@ -150,8 +151,8 @@ class _McKibbenRecords(BaseRecordType):
         """``pot0`` (rad, NaN where a row gives no rest posture) from a table's rest columns, if it has them."""
         if not all(c in table for c in REST):
             return {}
-        rest = np.column_stack([_numbers(table, c, n) for c in REST])
-        rest[~np.all(np.isfinite(rest), axis=1)] = np.nan
+        rest = stack_columns([_numbers(table, c, n) for c in REST])
+        rest[~rows_all(np.isfinite(rest))] = np.nan
         return {"pot0": np.radians(rest)}
 
     @staticmethod

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core.arrays import rows_all, stack_columns
 from ...core.bounds import fmt_number
 from ...core.tables import table_error
 from ...errors import LabcliWarning
@@ -96,8 +97,8 @@ def force_findings(table: Any) -> list[Finding]:
     if n == 0:
         return []
     d = np.radians(direction[use])
-    e = (mass_g[use] / 1000.0 * G)[:, None] * np.column_stack([np.cos(d), np.sin(d)])
-    f = np.column_stack([fx[use], fy[use]])
+    e = (mass_g[use] / 1000.0 * G)[:, None] * stack_columns([np.cos(d), np.sin(d)])
+    f = stack_columns([fx[use], fy[use]])
     ok = _matches(f, e)
     need = max(MISTAKE_MIN_ROWS, math.ceil(MISTAKE_SHARE * n)) if n >= MISTAKE_MIN_ROWS else n
     for what, slip in _SLIPS:
@@ -134,8 +135,8 @@ def radian_findings(table: Any) -> list[Finding]:
         return []
     load = np.hypot(cols[2], cols[3])
     big = np.isfinite(load) & (load >= RADIAN_LOAD_N)
-    angles = np.abs(np.column_stack(cols[:2]))[big]
-    angles = angles[np.all(np.isfinite(angles), axis=1)]
+    angles = np.abs(stack_columns(cols[:2]))[big]
+    angles = angles[rows_all(np.isfinite(angles))]
     if len(angles) < MISTAKE_MIN_ROWS or np.max(angles) >= RADIAN_LIKE_DEG:
         return []
     return [
@@ -155,8 +156,8 @@ def pressure_findings(table: Any) -> list[Finding]:
     cols = [c for c in found if c is not None]
     if len(cols) < len(found):
         return []
-    p = np.column_stack(cols)
-    p = p[np.all(np.isfinite(p), axis=1)]
+    p = stack_columns(cols)
+    p = p[rows_all(np.isfinite(p))]
     if len(p) == 0 or not np.all(np.abs(p - ATMOSPHERE_MPA) <= ATMOSPHERE_BAND_MPA):
         return []
     return [

@@ -30,17 +30,21 @@ RANGE_KEYS = {"P0_MPa": 4, "dP_MPa": 4, "rest_deg": 2, "theta_deg": 2, "F_N": 2}
 
 
 def calibrated_range(table: Any, rows: np.ndarray) -> dict[str, list[list[float]]]:
-    """[min, max] per component of each of :data:`RANGE_KEYS` over the ``rows`` (a mask) of a trial table."""
+    """[min, max] per component of each of :data:`RANGE_KEYS` over the ``rows`` (a mask) of a trial table.
 
-    def cols(names: tuple[str, ...]) -> np.ndarray | None:
+    A key's span is over the rows where all its components are finite.  Worked one column at a
+    time: numpy's reductions along a 4-wide axis of an (n, 4) stack took a second at 10^6 trials.
+    """
+
+    def cols(names: tuple[str, ...]) -> list[np.ndarray] | None:
         if not all(c in table.columns for c in names):
             return None
-        return np.column_stack([np.asarray(table[c], dtype=float)[rows] for c in names])
+        return [np.asarray(table[c], dtype=float)[rows] for c in names]
 
     P0, P = cols(BASELINE_COLUMNS), cols(LOADED_COLUMNS)
     parts = {
         "P0_MPa": P0,
-        "dP_MPa": None if P0 is None or P is None else P0 - P,
+        "dP_MPa": None if P0 is None or P is None else [a - b for a, b in zip(P0, P, strict=True)],
         "rest_deg": cols(REST),
         "theta_deg": cols(ANGLE_COLUMNS),
         "F_N": cols(FORCE_COLUMNS),
@@ -49,9 +53,11 @@ def calibrated_range(table: Any, rows: np.ndarray) -> dict[str, list[list[float]
     for key, x in parts.items():
         if x is None:
             continue
-        ok = np.all(np.isfinite(x), axis=1)
-        if ok.any():
-            out[key] = [[float(lo), float(hi)] for lo, hi in zip(x[ok].min(axis=0), x[ok].max(axis=0), strict=True)]
+        ok = np.logical_and.reduce([np.isfinite(c) for c in x])
+        if ok.all():
+            out[key] = [[float(c.min()), float(c.max())] for c in x]
+        elif ok.any():
+            out[key] = [[float(c[ok].min()), float(c[ok].max())] for c in x]
     return out
 
 

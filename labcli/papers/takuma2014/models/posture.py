@@ -69,6 +69,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from ....core import idranges
+from ....core.arrays import rows_all, stack_columns
 from ....core.jsontext import dumps_indented
 from ....core.nogc import paused_gc
 from ....errors import ModelError
@@ -137,7 +138,7 @@ def angle_features(P0: np.ndarray, P: np.ndarray, terms: tuple[str, ...]) -> np.
     for t in terms:
         parts = [p[2:] for p in t.split("*")]
         cols.append(np.prod([u[:, idx[p]] for p in parts], axis=0))
-    return np.column_stack(cols) if cols else np.empty((len(u), 0))
+    return stack_columns(cols) if cols else np.empty((len(u), 0))
 
 
 def torque_features(
@@ -154,11 +155,11 @@ def torque_features(
     dP = np.atleast_2d(dP)
     dtheta = np.atleast_2d(dtheta)
     products = (dP[:, :, None] * dtheta[:, None, :]).reshape(len(dP), 8)
-    every = np.column_stack([dP, products, dtheta])
+    every = stack_columns([dP, products, dtheta])
     if tuple(terms) == TORQUE_TERMS:
         return every
     if any(t in FRICTION_TERMS for t in terms):
-        every = np.column_stack([every, friction_columns(dtheta, motion_in, motion_sd)])
+        every = stack_columns([every, friction_columns(dtheta, motion_in, motion_sd)])
     return every[:, [KNOWN_TORQUE_TERMS.index(t) for t in terms]]
 
 
@@ -167,7 +168,7 @@ def pair_motion(dtheta: np.ndarray) -> np.ndarray:
     pulley radius: the outside pair spans the bottom joint only, the inside pair both (Eqs. 4-7:
     its path changes by r2 (dtheta1 + dtheta2))."""
     d = np.atleast_2d(np.asarray(dtheta, dtype=float))
-    return np.column_stack([d[:, 0], d[:, 0] + d[:, 1]])
+    return stack_columns([d[:, 0], d[:, 0] + d[:, 1]])
 
 
 def friction_columns(
@@ -474,7 +475,7 @@ def angle_blocks(P0: np.ndarray, P: np.ndarray, dtheta: np.ndarray) -> _Blocks:
     return _Blocks.build(
         len(P),
         len(ANGLE_TERMS),
-        lambda lo, hi: np.column_stack([angle_features(P0[lo:hi], P[lo:hi], ANGLE_TERMS), dtheta[lo:hi]]),
+        lambda lo, hi: stack_columns([angle_features(P0[lo:hi], P[lo:hi], ANGLE_TERMS), dtheta[lo:hi]]),
     )
 
 
@@ -645,10 +646,10 @@ class PostureModel:
     def _fit_posture(self, table: Any, source: str, record_trials: bool = True) -> None:
         a = table_arrays(table, set_mask(table, "fit", source), motion=self.friction)
         use = (
-            np.all(np.isfinite(a["P0"]) & (a["P0"] > 0), axis=1)
-            & np.all(np.isfinite(a["P"]) & (a["P"] > 0), axis=1)
-            & np.all(np.isfinite(a["dtheta"]), axis=1)
-            & np.all(np.isfinite(a["F"]), axis=1)
+            rows_all(np.isfinite(a["P0"]) & (a["P0"] > 0))
+            & rows_all(np.isfinite(a["P"]) & (a["P"] > 0))
+            & rows_all(np.isfinite(a["dtheta"]))
+            & rows_all(np.isfinite(a["F"]))
         )
         if not use.all():
             a = {k: v[use] for k, v in a.items()}
@@ -667,7 +668,7 @@ class PostureModel:
         torques = _Blocks.build(
             len(P),
             len(names),
-            lambda lo, hi: np.column_stack(
+            lambda lo, hi: stack_columns(
                 [
                     torque_features(P0[lo:hi] - P[lo:hi], dth[lo:hi], names, moved[lo:hi]),
                     load_torque(th0[lo:hi] + dth[lo:hi], F[lo:hi], h2, h3),
@@ -818,7 +819,7 @@ class PostureModel:
         n = len(P)
         th0 = np.zeros((n, 2)) if theta0 is None else np.broadcast_to(np.asarray(theta0, dtype=float), (n, 2))
         th0 = np.where(np.isfinite(th0), th0, 0.0)
-        bad = ~(np.all(np.isfinite(P0) & (P0 > 0), axis=1) & np.all(np.isfinite(P) & (P > 0), axis=1))
+        bad = ~(rows_all(np.isfinite(P0) & (P0 > 0)) & rows_all(np.isfinite(P) & (P > 0)))
         P0 = np.where(bad[:, None], 1.0, P0)
         P = np.where(bad[:, None], 1.0, P)
         with paused_gc():  # a list per trial: 10^6 of them, no cycles
@@ -829,7 +830,7 @@ class PostureModel:
             if theta is None:
                 raise ModelError("The measured-angles mode needs the measured joint angles.")
             meas = np.atleast_2d(np.asarray(theta, dtype=float))
-            known = np.all(np.isfinite(meas), axis=1)
+            known = rows_all(np.isfinite(meas))
             for i in np.flatnonzero(~known):
                 flags[i].append("missing-angle")
             dth_f, cov_f = np.where(known[:, None], meas, dth), np.where(known[:, None, None], 0.0, cov_a)
@@ -891,7 +892,7 @@ class PostureModel:
             return
         pred = paper.predict(P0, P, mode=mode, theta=theta)
         th_force = (
-            np.column_stack([pred["theta1_rad"], pred["theta2_rad"]])
+            stack_columns([pred["theta1_rad"], pred["theta2_rad"]])
             if mode == "pressure-only"
             else np.nan_to_num(np.atleast_2d(np.asarray(theta, dtype=float)), nan=0.0)
         )
@@ -1230,7 +1231,7 @@ def table_arrays(table: Any, rows: np.ndarray | None = None, motion: bool = Fals
         return v if rows is None else v[rows]
 
     def col(names: tuple[str, ...], default: float = math.nan) -> np.ndarray:
-        return np.column_stack([values(c) if c in table.columns else np.full(n, default) for c in names])
+        return stack_columns([values(c) if c in table.columns else np.full(n, default) for c in names])
 
     missing = [c for c in BASELINE_COLUMNS + LOADED_COLUMNS if c not in table.columns]
     if missing:
@@ -1251,7 +1252,7 @@ def table_arrays(table: Any, rows: np.ndarray | None = None, motion: bool = Fals
     if motion:
         # From every row: the previous trial of a fit trial may be one that ``rows`` leaves out.
         def whole(names: tuple[str, ...], default: float) -> np.ndarray:
-            return np.column_stack(
+            return stack_columns(
                 [
                     np.asarray(table[c], dtype=float) if c in table.columns else np.full(len(table), default)
                     for c in names

@@ -51,6 +51,7 @@ from typing import Any, NoReturn, cast
 import numpy as np
 
 from ....core import idranges
+from ....core.arrays import rows_all, rows_any, stack_columns
 from ....core.jsontext import MAX_DEPTH, JSONDepthError, PlainList, dumps_indented, json_kind, loads_bounded
 from ....core.nogc import paused_gc
 from ....core.version import __version__
@@ -146,7 +147,7 @@ def _measured_angles(theta: Any, n: int, flags: list[list[str]], bad_p: np.ndarr
     th_meas = np.atleast_2d(np.asarray(theta, dtype=float))
     if th_meas.shape != (n, 2):
         raise ModelError(f"Measured angles must be an (n, 2) array; got {th_meas.shape}.")
-    known = np.all(np.isfinite(th_meas), axis=1)
+    known = rows_all(np.isfinite(th_meas))
     for i in np.flatnonzero(~known):
         flags[i].append("missing-angle")
     return np.where(known[:, None], th_meas, 0.0), known & ~bad_p
@@ -256,7 +257,7 @@ def _table_arrays(table: Any, rows: np.ndarray | None = None) -> dict[str, np.nd
 
     def col(names: Sequence[str]) -> np.ndarray:
         cols = [values(c) if c in table.columns else np.full(n, np.nan) for c in names]
-        return np.column_stack(cols) if cols else np.empty((n, 0))
+        return stack_columns(cols) if cols else np.empty((n, 0))
 
     return {
         "trial": values("trial", None).astype(int),
@@ -583,19 +584,14 @@ class TakumaModel:
         the trials' angles (any stand-in where one is missing: such a trial is left out by that alone)."""
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         reasons: dict[str, dict[int, str]] = {eq: {} for eq in EQUATIONS}
-        bad_p = ~(
-            np.all(np.isfinite(P0), axis=1)
-            & np.all(np.isfinite(P), axis=1)
-            & np.all(P0 > 0, axis=1)
-            & np.all(P > 0, axis=1)
-        )
+        bad_p = ~(rows_all(np.isfinite(P0)) & rows_all(np.isfinite(P)) & rows_all(P0 > 0) & rows_all(P > 0))
         for eq in EQUATIONS:
             for t in trial[bad_p]:
                 reasons[eq][int(t)] = "a pressure is missing or not positive"
         for k, eq in enumerate(("theta1", "theta2")):
             for t in trial[~np.isfinite(theta[:, k]) & ~bad_p]:
                 reasons[eq][int(t)] = f"{ANGLE_COLUMNS[k]} is missing"
-        angles_known = np.all(np.isfinite(theta), axis=1)
+        angles_known = rows_all(np.isfinite(theta))
         theta2_threshold(h2, h3, self.max_amplification)  # a bound <= 1 is refused here
         amp = force_amplification(np.where(angles_known[:, None], theta, 0.0), h2, h3, js)
         for k, eq in enumerate(("Fx", "Fy")):
@@ -634,24 +630,19 @@ class TakumaModel:
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         with paused_gc():  # a list per trial: 10^6 of them, no cycles
             flags: list[list[str]] = [[] for _ in range(n)]
-        bad_p = ~(
-            np.all(np.isfinite(P0), axis=1)
-            & np.all(np.isfinite(P), axis=1)
-            & np.all(P0 > 0, axis=1)
-            & np.all(P > 0, axis=1)
-        )
+        bad_p = ~(rows_all(np.isfinite(P0)) & rows_all(np.isfinite(P)) & rows_all(P0 > 0) & rows_all(P > 0))
         # Bad rows get a neutral surrogate (no load) so the arithmetic stays finite.
         P0s = np.where(bad_p[:, None], 1.0, P0)
         Ps = np.where(bad_p[:, None], 1.0, P)
         u = pressure_ratio_features(P0s, Ps)
         b = self.coefficients
-        s = np.column_stack(
+        s = stack_columns(
             [u[:, :2] @ np.array([b[k] for k in TERMS["theta1"]]), u @ np.array([b[k] for k in TERMS["theta2"]])]
         )
         clipped = np.abs(s) > 1.0
         th = np.arcsin(np.clip(s, -1.0, 1.0))
         ok_t = ~clipped & ~bad_p[:, None]
-        for i in np.flatnonzero(bad_p | clipped.any(axis=1)):
+        for i in np.flatnonzero(bad_p | rows_any(clipped)):
             if bad_p[i]:
                 flags[i].append("bad-pressure")
             for k in range(2):
@@ -667,19 +658,19 @@ class TakumaModel:
             js = jstar(th_force, h2, h3)
         amp = force_amplification(th_force, h2, h3, js)
         singular = ~(amp <= self.max_amplification)  # (n, 2): Fx, Fy
-        for i in np.flatnonzero(singular.any(axis=1) & ok_source):
+        for i in np.flatnonzero(rows_any(singular) & ok_source):
             flags[i].append("singular-jacobian")
         bx, by = (np.array([b[k] for k in TERMS[eq]]) for eq in ("Fx", "Fy"))
         with np.errstate(divide="ignore", invalid="ignore"):
             Xfx, Xfy = force_design(P0s, Ps, th_force, h2, h3, js=js)
-            F = np.column_stack([Xfx @ bx, Xfy @ by])
+            F = stack_columns([Xfx @ bx, Xfy @ by])
         bad = ~np.isfinite(F)
         if bad.any():
             # theta2 = 0 exactly: a finite stand-in from the edge of the trusted region.
             thr = self.theta2_threshold_rad
             t2 = np.where(th_force[:, 1] < 0, -thr, thr)
-            Sx, Sy = force_design(P0s, Ps, np.column_stack([th_force[:, 0], t2]), h2, h3)
-            F = np.where(bad, np.column_stack([Sx @ bx, Sy @ by]), F)
+            Sx, Sy = force_design(P0s, Ps, stack_columns([th_force[:, 0], t2]), h2, h3)
+            F = np.where(bad, stack_columns([Sx @ bx, Sy @ by]), F)
         ok_f = ok_source[:, None] & ~singular
         return {
             "theta1_rad": th[:, 0],
