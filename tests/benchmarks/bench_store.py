@@ -8,12 +8,13 @@ float64 and ``seq`` uint32 per frame, as the run file stores them.
 
 * ``store (fsync)``: ``run.records.write`` of each trial, its two windows given in memory:
   the frames and the trial's row written, ``@committed`` moved, one checkpoint (flush, then
-  the file's two fsyncs, :mod:`labcli.core.store.journal`).  Every row times the trials'
+  one record appended to the journal and synced; the run file itself synced every few
+  commits and at close, :mod:`labcli.core.store.journal`).  Every row times the trials'
   writes alone; creating and closing the run file (once a run) is printed apart.
-* ``store (no fsync)``: the same writes with ``os.fsync`` made a no-op for the run (the
-  flushes stay), to separate the cost of durability from the cost of the layout.  RunFile
-  has no switch for it (every commit syncs twice, by design): the benchmark counts the
-  calls, and prints them, so a row that says "no fsync" cannot quietly be the fsync path
+* ``store (no fsync)``: the same writes with ``os.fsync`` and ``os.fdatasync`` made no-ops
+  for the run (the flushes stay), to separate the cost of durability from the cost of the
+  layout.  RunFile has no switch for it (every commit syncs, by design): the benchmark counts
+  the calls, and prints them, so a row that says "no fsync" cannot quietly be the fsync path
   (tests/benchmarks/test_bench_options.py holds each option to what it changes).
 * ``bare h5py, same filters, one fsync per trial``: the independent baseline of the write path
   (the same four arrays, the run file's gzip 4, shuffle, Fletcher32 and chunk length, each

@@ -4,7 +4,8 @@ Also the writer process of the kill tests:
 ``python tests/support/records.py RUN.h5 N_TRIALS N_SAMPLES [KILL_AT_WRITE]`` writes trials
 0..N-1 of :func:`make_record`, resuming a file that exists, and prints
 "ready" once the file is open and "stored N" after each trial (killed at its
-KILL_AT_WRITE-th write to the file: :func:`kill_at_write`).
+KILL_AT_WRITE-th write to the file: :func:`kill_at_write`; with a fifth argument ``after-sync``,
+killed just after its KILL_AT_WRITE-th ``fdatasync`` returns instead: :func:`kill_after_sync`).
 """
 
 from __future__ import annotations
@@ -195,7 +196,30 @@ def kill_at_write(n: int) -> None:
         atexit.register(lambda: print(f"writes {calls[0]}", flush=True))
 
 
+def kill_after_sync(n: int) -> None:
+    """SIGKILL this process just after its ``n``-th ``os.fdatasync`` returns (the journal's record of a
+    checkpoint is durable, the pages it holds not yet copied into the run file); with ``n`` 0, print
+    how many there were when the process ends."""
+    import atexit
+    import signal
+
+    calls = [0]
+    fdatasync = os.fdatasync
+
+    def counted(fd):
+        fdatasync(fd)
+        calls[0] += 1
+        if calls[0] == n:
+            os.kill(os.getpid(), signal.SIGKILL)
+
+    os.fdatasync = counted
+    if n == 0:
+        atexit.register(lambda: print(f"syncs {calls[0]}", flush=True))
+
+
 if __name__ == "__main__":
-    if len(sys.argv) > 4:
+    if len(sys.argv) > 5 and sys.argv[5] == "after-sync":
+        kill_after_sync(int(sys.argv[4]))
+    elif len(sys.argv) > 4:
         kill_at_write(int(sys.argv[4]))
     writer(sys.argv[1], int(sys.argv[2]), int(sys.argv[3]))

@@ -12,8 +12,9 @@ never finished (a kill, a full disk) and is ignored.  Appending is:
    would tear committed rows; rows between the last committed one and the boundary stay
    unwritten, checksum 0, and are skipped).  Rows a killed writer left past ``@committed``
    are written over by the next commit: they were never part of the table;
-2. flush and fsync (the caller, :class:`~labcli.core.store.RunFile`);
-3. set ``@committed`` to the new end (in place), flush and fsync again.
+2. set ``@committed`` to the new end (in place);
+3. flush, and make the whole change durable as one checkpoint (the caller,
+   :class:`~labcli.core.store.writer.Writer`, through :mod:`.journal`).
 
 Rows are never changed or removed.  A reader reads ``@committed`` first, then the rows, and
 checks each row's checksum: a row that fails it is damaged (named, left out), a row with

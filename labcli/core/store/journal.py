@@ -9,23 +9,44 @@ signature.  So a writer does not give HDF5 the file; it gives it a :class:`Journ
 (h5py's ``fileobj`` driver), which
 
 * writes straight to the file whatever lies past the end recorded in the superblock at the
-  last checkpoint (nothing on disk points there yet: new chunks, new nodes, new headers);
+  last checkpoint (nothing on disk points there yet: new chunks, new nodes, new headers),
+  and notes where;
 * keeps in memory, in 4 KiB pages, every write to bytes before that end (the bookkeeping
   that points at the new things), and reads see those pages;
-* at :meth:`JournalFile.checkpoint`: fsyncs the file (the new things are on disk, and the
-  pages the last checkpoint copied in), writes the pages to the journal next to the run
-  (``.<name>.labcli-journal``, with the file's identity and a checksum) and fsyncs it, then
-  copies them into the file.  Those copies are made durable by the next checkpoint's first
-  fsync (or at close), before the journal that holds them is overwritten or removed: two
-  fsyncs a checkpoint, not three.
+* at :meth:`JournalFile.checkpoint`: appends one record to the journal next to the run
+  (``.<name>.labcli-journal``), holding every byte written since the last checkpoint (the
+  new bytes, read back from the file, and the kept pages), the file's identity, the
+  journal's generation and the record's place in it, and a checksum; makes the journal
+  durable (one ``fdatasync``: the checkpoint is made), then copies the pages into the
+  file.  The file itself is not synced: it is synced every :data:`SYNC_EVERY` checkpoints
+  (or when the journal would outgrow :data:`JOURNAL_MAX`, or the file size limit) and at
+  close, and only then does the journal start again from its first byte, under a new
+  generation, or go.  A journal that meets a full disk starts again the same way before it
+  gives up: a record that fits in the room it already holds is written there.
 
-A kill before the journal is whole leaves the file as the last checkpoint left it (the
-torn journal fails its checksum and is dropped); a kill after it is replayed by whoever
-opens the file next (:func:`recover`), reader or writer, when no writer holds it.
-Replaying the last journal twice is harmless: its pages are what the file holds after it.
+The crash argument.  Let S_k be the file as checkpoint k left it, and B the file as it was
+when last synced (every record in the journal came after B).  Every byte a checkpoint k
+changed, below or past the recorded end, is in record k, with its value in S_k.  What a
+kill or a power cut leaves on disk is B changed by any part of the writes made since, torn
+anywhere, and a journal whose records from the first are whole up to some record n (the
+last whose ``fdatasync`` returned, at least), the rest torn, stale (another generation, a
+wrong place) or missing.  Recovery (:func:`replay`, by whoever opens the file next when no
+writer holds it, reader or writer) writes records 1..n in order, syncs the file, and
+removes the journal.  After it, a byte some record wrote holds its value in the last such
+record, which is its value in S_n; a byte none wrote was not changed by checkpoints 1..n,
+so it holds its value in B, which is its value in S_n, unless the writes after checkpoint
+n changed it -- and those go straight to the file only past S_n's recorded end (bytes S_n
+does not reach), never before it (kept in memory until the next record is durable).  So
+the file reads as S_n, whole.  Replaying records the file already holds is harmless for
+the same reason; so is replaying an old generation's records the file was synced after
+(its bytes are B's or rewritten by the records that follow).  A journal starts again only
+after the file is synced: nothing before that sync is needed from it any more, and a
+record of the new generation that is torn or missing stops the replay at once (the stale
+records after it are of another generation).
 
 A file built under a temporary name (:mod:`.space`) is not journaled until it is put in
-place: a kill before then leaves a ``.partial`` file, removed at the next start.
+place: each checkpoint syncs it (a kill before then leaves a ``.partial`` file, removed at
+the next start).
 """
 
 from __future__ import annotations
@@ -35,13 +56,20 @@ import errno
 import fcntl
 import hashlib
 import os
+import resource
+import secrets
 import struct
 
 PAGE = 4096
-MAGIC = b"LABCLIJ1"
-HEADER = struct.Struct("<8sQQQQ")  # magic, device, inode, page count, superblock end
+MAGIC = b"LABCLIJ2"
+RECORD = struct.Struct("<8sQQQQQ")  # magic, device, inode, generation, place, bytes of extents
+EXTENT = struct.Struct("<QQ")  # where, how many bytes
+OLD_MAGIC = b"LABCLIJ1"  # one record of pages, written by labcli before the redo journal
+OLD_HEADER = struct.Struct("<8sQQQQ")  # magic, device, inode, page count, superblock end
 SUFFIX = ".labcli-journal"
 DIGEST = 16
+SYNC_EVERY = 32  # checkpoints between two syncs of the file itself
+JOURNAL_MAX = 8 << 20  # bytes of journal before the file is synced and the journal starts again
 
 
 def journal_path(path: str) -> str:
@@ -73,7 +101,7 @@ class JournalFile:
     """The file-like object HDF5 reads and writes a run through (see the module docstring).
 
     ``fd``: the run file, open read-write and locked; ``journaled``: False while the file is
-    built under a temporary name (every write goes straight to it).
+    built under a temporary name (every write goes straight to it, every checkpoint syncs it).
     """
 
     def __init__(self, fd: int, path: str, journaled: bool = True) -> None:
@@ -81,10 +109,15 @@ class JournalFile:
         self.path = path
         self.pos = 0
         self.pages: dict[int, bytearray] = {}
+        self.extents: list[tuple[int, int]] = []  # written straight to the file since the last checkpoint
         self.journaled = journaled
         self.durable_end = self._recorded_end() if journaled else 0
         self.written_end = 0  # the furthest byte written (the room to reserve starts there)
-        self.copied = False  # pages copied in since the last fsync: the journal still holds them
+        self.unsynced = 0  # records in the journal the file's last sync came before
+        self._jfd: int | None = None
+        self._jend = 0  # where the next record goes
+        self._generation = 0
+        self._place = 0
 
     # ------------------------------------------------------------ what h5py's driver calls
 
@@ -115,6 +148,8 @@ class JournalFile:
         b = memoryview(data).cast("B")
         n = len(b)
         self.written_end = max(self.written_end, self.pos + n)
+        if self.journaled:
+            self.extents.append((self.pos, n))
         if self.journaled and self.pos < self.durable_end:
             self._keep(self.pos, b)
         else:
@@ -144,55 +179,98 @@ class JournalFile:
 
     def checkpoint(self) -> None:
         """Make everything written so far durable, as one change (see the module docstring)."""
-        os.fsync(self.fd)
-        self.copied = False
-        if not self.pages:
-            self.durable_end = self._recorded_end() if self.journaled else 0
+        if not self.journaled:
+            os.fsync(self.fd)
             return
-        where = journal_path(self.path)
-        st = os.fstat(self.fd)
-        order = sorted(self.pages)
-        body = b"".join(struct.pack("<Q", p) + bytes(self.pages[p]) for p in order)
-        head = HEADER.pack(MAGIC, st.st_dev, st.st_ino, len(order), 0)
-        record = head + body
-        record += hashlib.blake2b(record, digest_size=DIGEST).digest()
-        new = not os.path.exists(where)
-        jfd = os.open(where, os.O_WRONLY | os.O_CREAT, 0o644)
-        try:
-            os.posix_fallocate(jfd, 0, len(record))  # a full disk stops it here, the file untouched
-            _pwrite_all(jfd, record, 0)
-            os.fsync(jfd)
-        finally:
-            os.close(jfd)
-        if new:
-            _sync_folder(where)
-        for p in order:
+        if not self.pages and not self.extents:
+            return
+        self._append(self._record())  # durable: the checkpoint is made
+        for p in sorted(self.pages):
             _pwrite_all(self.fd, self.pages[p], p * PAGE)
-        self.copied = True  # synced by the next checkpoint's first fsync, or at close
         self.pages.clear()
+        self.extents.clear()
+        self.unsynced += 1
         self.durable_end = self._recorded_end()
 
     def discard(self) -> None:
         """Forget what was written since the last checkpoint (a write that failed half-way)."""
         self.pages.clear()
+        self.extents.clear()
 
     def start_journal(self, path: str) -> None:
-        """The file is in place at ``path`` now: from here on, checkpoints are journaled."""
+        """The file is in place at ``path`` (and synced): from here on, checkpoints are journaled."""
         self.path = path
         self.journaled = True
+        self.extents.clear()
         self.durable_end = self._recorded_end()
 
     def close(self, end: int | None = None) -> None:
-        """Remove the journal (the last checkpoint is in the file), give back the room past ``end``."""
-        if self.copied:
-            os.fsync(self.fd)  # the journal goes only once what it holds is durable in the file
-            self.copied = False
+        """Sync the file, remove the journal (the file holds it all), give back the room past ``end``."""
+        try:
+            if self.unsynced:
+                os.fsync(self.fd)  # the journal goes only once what it holds is durable in the file
+                self.unsynced = 0
+        finally:
+            if self._jfd is not None:
+                os.close(self._jfd)
+                self._jfd = None
         with contextlib.suppress(FileNotFoundError):
             os.unlink(journal_path(self.path))
         if end is not None and self.size() > end:
             with contextlib.suppress(OSError):
                 os.ftruncate(self.fd, end)
         os.close(self.fd)
+
+    # ------------------------------------------------------------ the journal
+
+    def _record(self) -> bytes:
+        """A record's extents: every byte written since the last checkpoint, as it stands now (the
+        kept pages laid over the file), each run of them once (see the module docstring)."""
+        parts: list[bytes] = []
+        for at, n in _merged(self.extents):
+            parts += (EXTENT.pack(at, n), self._peek(at, n))
+        return b"".join(parts)
+
+    def _append(self, data: bytes) -> None:
+        """Add a record to the journal and make it durable (the journal starts again first when full)."""
+        size = RECORD.size + len(data) + DIGEST
+        limit = _file_size_limit()
+        if self._jend and (
+            self.unsynced >= SYNC_EVERY
+            or self._jend + size > JOURNAL_MAX
+            or (limit is not None and self._jend + size > limit)
+        ):
+            self._start_again()
+        where = journal_path(self.path)
+        new = self._jfd is None and not os.path.exists(where)
+        if self._jfd is None:
+            self._jfd = os.open(where, os.O_WRONLY | os.O_CREAT, 0o644)
+        try:
+            os.posix_fallocate(self._jfd, self._jend, size)  # a full disk stops it here, the file untouched
+        except OSError as e:
+            if not self._jend or e.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+                raise
+            self._start_again()  # the room the journal holds already is enough for one record
+            os.posix_fallocate(self._jfd, 0, size)
+        if self._jend == 0:
+            self._generation = int.from_bytes(secrets.token_bytes(8), "little")
+            self._place = 0
+        st = os.fstat(self.fd)
+        head = RECORD.pack(MAGIC, st.st_dev, st.st_ino, self._generation, self._place, len(data))
+        digest = hashlib.blake2b(head, digest_size=DIGEST)
+        digest.update(data)
+        _pwrite_all(self._jfd, head + data + digest.digest(), self._jend)
+        os.fdatasync(self._jfd)
+        if new:
+            _sync_folder(where)
+        self._jend += size
+        self._place += 1
+
+    def _start_again(self) -> None:
+        """Sync the file, which then holds every record so far, so the journal may start again from its first byte."""
+        os.fsync(self.fd)
+        self.unsynced = 0
+        self._jend = 0
 
     # ------------------------------------------------------------ inside
 
@@ -264,39 +342,81 @@ def recover(path: str) -> bool:
 
 
 def replay(fd: int, where: str) -> bool:
-    """Copy a whole journal's pages into the file ``fd`` (held locked), then remove the journal."""
+    """Write a journal's whole records into the file ``fd`` (held locked), in order, then remove the journal."""
     try:
         with open(where, "rb") as j:
-            record = j.read()
+            journal = j.read()
     except FileNotFoundError:
         return False
-    pages = _pages(record, os.fstat(fd))
-    if pages:
-        for p, page in pages:
-            _pwrite_all(fd, page, p * PAGE)
+    writes = records(journal, os.fstat(fd))
+    if writes:
+        for at, data in writes:
+            _pwrite_all(fd, data, at)
         os.fsync(fd)
     with contextlib.suppress(FileNotFoundError):
         os.unlink(where)
     _sync_folder(where)
-    return bool(pages)
+    return bool(writes)
 
 
-def _pages(record: bytes, st: os.stat_result) -> list[tuple[int, bytes]]:
-    """The pages of a whole journal of this file (by device and inode); none for a torn or foreign one."""
-    if len(record) < HEADER.size + DIGEST:
+def records(journal: bytes, st: os.stat_result) -> list[tuple[int, bytes]]:
+    """The writes of a journal of this file (by device and inode), in order: every record of the
+    first one's generation, each in its place, up to the first torn, stale or foreign one."""
+    if journal[:8] == OLD_MAGIC:
+        return _old_pages(journal, st)
+    out: list[tuple[int, bytes]] = []
+    at, place, generation = 0, 0, None
+    while len(journal) - at >= RECORD.size + DIGEST:
+        magic, dev, ino, gen, where, extents = RECORD.unpack_from(journal, at)
+        size = RECORD.size + extents
+        if magic != MAGIC or (dev, ino) != (st.st_dev, st.st_ino) or where != place:
+            break
+        if generation is not None and gen != generation or len(journal) - at < size + DIGEST:
+            break
+        digest = hashlib.blake2b(memoryview(journal)[at : at + size], digest_size=DIGEST).digest()
+        if digest != journal[at + size : at + size + DIGEST]:
+            break
+        k = at + RECORD.size
+        while k < at + size:
+            there, n = EXTENT.unpack_from(journal, k)
+            out.append((there, journal[k + EXTENT.size : k + EXTENT.size + n]))
+            k += EXTENT.size + n
+        generation, place, at = gen, place + 1, at + size + DIGEST
+    return out
+
+
+def _old_pages(record: bytes, st: os.stat_result) -> list[tuple[int, bytes]]:
+    """The pages of a whole journal written before the redo journal; none for a torn or foreign one."""
+    if len(record) < OLD_HEADER.size + DIGEST:
         return []
-    magic, dev, ino, count, _ = HEADER.unpack_from(record)
-    size = HEADER.size + count * (8 + PAGE)
-    if magic != MAGIC or (dev, ino) != (st.st_dev, st.st_ino) or len(record) < size + DIGEST:
+    magic, dev, ino, count, _ = OLD_HEADER.unpack_from(record)
+    size = OLD_HEADER.size + count * (8 + PAGE)
+    if magic != OLD_MAGIC or (dev, ino) != (st.st_dev, st.st_ino) or len(record) < size + DIGEST:
         return []
     if hashlib.blake2b(record[:size], digest_size=DIGEST).digest() != record[size : size + DIGEST]:
         return []
     out = []
     for k in range(count):
-        at = HEADER.size + k * (8 + PAGE)
+        at = OLD_HEADER.size + k * (8 + PAGE)
         (p,) = struct.unpack_from("<Q", record, at)
-        out.append((p, record[at + 8 : at + 8 + PAGE]))
+        out.append((p * PAGE, record[at + 8 : at + 8 + PAGE]))
     return out
+
+
+def _merged(extents: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """The byte ranges ``(at, n)`` covered, overlapping and touching ones joined, in order."""
+    out: list[list[int]] = []
+    for at, n in sorted(extents):
+        if out and at <= out[-1][0] + out[-1][1]:
+            out[-1][1] = max(out[-1][1], at + n - out[-1][0])
+        else:
+            out.append([at, n])
+    return [(at, n) for at, n in out]
+
+
+def _file_size_limit() -> int | None:
+    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return None if limit == resource.RLIM_INFINITY else int(limit)
 
 
 def _pwrite_all(fd: int, data: bytes | bytearray, at: int) -> None:

@@ -9,9 +9,10 @@ log's events) is one commit, and every commit goes through :meth:`Writer.commit`
    after the committed ones at fresh chunk boundaries (:meth:`.columns.Table.write`, which
    resizes each column and writes into it);
 3. each table's ``@committed`` is set to its new end (in place);
-4. HDF5 flushes, and the file takes everything as one checkpoint (:mod:`.journal`): what
-   HDF5 rewrote in place (its headers and B-tree nodes, the superblock, ``@committed``)
-   reaches the file through a journal, after the new bytes it points at are on disk.
+4. HDF5 flushes, and the file takes everything as one checkpoint (:mod:`.journal`): every
+   byte written since the last one (the new bytes, and what HDF5 rewrote in place: its
+   headers and B-tree nodes, the superblock, ``@committed``) becomes one record of the
+   journal, synced, before the rewrites reach the file.
 
 The new rows only count once ``@committed`` says so, and the checkpoint makes HDF5's
 bookkeeping change whole or not at all; what a kill or a power cut interrupts before that
