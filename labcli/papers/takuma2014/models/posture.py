@@ -76,6 +76,7 @@ from ....errors import ModelError
 from . import routes as rt
 from .calibrated import baseline_dict, calibrated_range, check_baseline, check_range
 from .geometry import jacobian
+from .paper_folds import fold_models
 from .takuma import (
     ANGLE_COLUMNS,
     BASELINE_COLUMNS,
@@ -714,7 +715,9 @@ class PostureModel:
 
         try:
             rows = rt.route_sample(np.flatnonzero(set_mask(table, "fit", source)))
-            cv = rt.held_out_errors(table.iloc[rows], posture_only, paper)
+            template = TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="none")
+            folds = functools.partial(fold_models, template, source=source)
+            cv = rt.held_out_errors(table.iloc[rows], posture_only, paper, folds)
             full = paper(table, record_trials=True)
         except ModelError:
             # Too few trials, or a block whose absence leaves a design singular: the posture form alone.

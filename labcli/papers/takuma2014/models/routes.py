@@ -77,13 +77,19 @@ def _blocks(n: int) -> list[np.ndarray]:
 
 
 def held_out_errors(
-    fit_rows: Any, fit_posture: Callable[[Any], Any], fit_paper: Callable[[Any], TakumaModel]
+    fit_rows: Any,
+    fit_posture: Callable[[Any], Any],
+    fit_paper: Callable[[Any], TakumaModel],
+    paper_folds: Callable[[Any, list[np.ndarray]], list[TakumaModel] | None] | None = None,
 ) -> dict[str, dict[str, np.ndarray]]:
     """Per form and quantity: held-out errors (rad, N) of the fit trials and whether each was reported.
 
     ``fit_rows`` are the table's fit trials in recorded order; each contiguous block is left out
     in turn, both forms are fitted on the rest (``fit_posture``, ``fit_paper``) and predict the
-    block pressure-only.  Returns ``{form: {q: err}}`` and ``{form + "_ok": {q: bool}}``.
+    block pressure-only.  ``paper_folds(fit_rows, blocks)``, when given and not None, gives the
+    paper form's fold fits all at once (models/paper_folds.py: from each block's R factor) in
+    place of ``fit_paper`` on each fold's rows.  Returns ``{form: {q: err}}`` and
+    ``{form + "_ok": {q: bool}}``.
     """
     n = len(fit_rows)
     out: dict[str, dict[str, np.ndarray]] = {
@@ -96,11 +102,14 @@ def held_out_errors(
         "Fx": np.asarray(fit_rows["Fx_N"], dtype=float),
         "Fy": np.asarray(fit_rows["Fy_N"], dtype=float),
     }
-    for block in _blocks(n):
+    blocks = _blocks(n)
+    papers = paper_folds(fit_rows, blocks) if paper_folds is not None else None
+    for f, block in enumerate(blocks):
         train = fit_rows.iloc[np.setdiff1d(np.arange(n), block)]
         test = fit_rows.iloc[block]
         for form, fitter in ((POSTURE, fit_posture), (PAPER, fit_paper)):
-            pred = fitter(train).predict_table(test)
+            model = papers[f] if form == PAPER and papers is not None else fitter(train)
+            pred = model.predict_table(test)
             for q in QUANTITIES:
                 out[form][q][block] = np.asarray(pred[VALUE_KEYS[q]], dtype=float) - truth[q][block]
                 out[form + "_ok"][q][block] = np.asarray(pred["ok"][q], dtype=bool)
