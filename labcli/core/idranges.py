@@ -99,8 +99,8 @@ def _as_written(value: list[Any]) -> Ranges | None:
         return None
     if set(map(type, chain.from_iterable(value))) != {int}:
         return None
-    try:
-        a = np.array(value, dtype=np.int64)
+    try:  # every item is an int (checked above): read flat, as an (n, 2) array
+        a = np.fromiter(chain.from_iterable(value), dtype=np.int64, count=2 * len(value)).reshape(-1, 2)
     except OverflowError:
         return None  # beyond int64: refused, one by one, below
     if not (np.all(a[:, 0] <= a[:, 1]) and np.all(a[1:, 0] > a[:-1, 1] + 1)):
@@ -115,9 +115,13 @@ def merge(ranges: Pairs) -> Ranges:
         return Ranges()
     order = np.argsort(lo, kind="stable")
     lo, hi = lo[order], hi[order]
-    if np.all(lo[1:] > hi[:-1] + 1):  # already as written (one model's ranges): nothing to merge
+    if np.all(lo <= hi) and np.all(np.abs(lo) < 2**62) and np.all(np.abs(hi) < 2**62):
+        # Whole-array: a pair starts a new range where it begins past every earlier end + 1
+        # (the loop below, for the ranges a model file holds: 10^5 pairs per equation).
+        reach = np.maximum.accumulate(hi)
+        first = np.flatnonzero(np.r_[True, lo[1:] > reach[:-1] + 1])
         with paused_gc():
-            return Ranges(np.column_stack([lo, hi]).tolist())
+            return Ranges(np.column_stack([lo[first], np.maximum.reduceat(hi, first)]).tolist())
     out = Ranges()
     with paused_gc():
         for a, b in zip(lo.tolist(), hi.tolist(), strict=False):

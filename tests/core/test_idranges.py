@@ -115,3 +115,26 @@ def test_the_collector_is_paused_only_inside_and_left_as_it_was():
     with pytest.raises(ValueError), paused_gc():
         raise ValueError
     assert gc.isenabled()
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_whole_array_merge_is_the_pair_by_pair_one(seed):
+    rng = np.random.default_rng(seed)
+    lo = rng.integers(-50, 300, size=int(rng.integers(1, 80)))
+    pairs = [[int(a), int(a + rng.integers(0, 6))] for a in lo]
+    want = merged_by_loop(pairs)
+    assert idranges.merge(pairs) == want
+    assert idranges.merge(pairs + [[-(2**63), -(2**63) + 1]]) == [
+        [-(2**63), -(2**63) + 1],
+        *want,
+    ]  # past 2^62: the loop
+
+
+def merged_by_loop(pairs):
+    out = []
+    for a, b in sorted(pairs, key=lambda r: r[0]):
+        if out and a <= out[-1][1] + 1:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return out
