@@ -34,9 +34,13 @@ class TrendTracker:
         self.t: float | None = None
         self.x = np.zeros((k, 2))  # level, slope
         self.P = np.zeros((k, 2, 2))
+        # The last extrapolation and the state it was made from (the estimator asks twice a block).
+        self._version = 0
+        self._last_at: tuple[float, int, tuple[np.ndarray, np.ndarray]] | None = None
 
     def start(self, t: float, level: np.ndarray, level_var: np.ndarray) -> None:
         """Begin at ``level`` (variance ``level_var``) with an unknown slope."""
+        self._version += 1
         self.t = float(t)
         self.x = np.column_stack([np.asarray(level, dtype=float), np.zeros_like(self.q_level)])
         self.P = np.zeros((len(self.q_level), 2, 2))
@@ -45,6 +49,7 @@ class TrendTracker:
 
     def reset(self, t: float, level: np.ndarray, level_var: np.ndarray) -> None:
         """A new level at ``t`` (after a release); the slope and its spread are kept."""
+        self._version += 1
         slope, slope_var = self.x[:, 1].copy(), self.P[:, 1, 1].copy()
         self.t = float(t)
         self.x = np.column_stack([np.asarray(level, dtype=float), slope])
@@ -54,10 +59,15 @@ class TrendTracker:
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """The extrapolated level at ``t`` and its variance (the state is not changed)."""
-        dt = float(t) - float(self.t or 0.0)
+        t = float(t)
+        last = self._last_at
+        if last is not None and last[0] == t and last[1] == self._version:
+            return last[2]
+        dt = t - float(self.t or 0.0)
         level = self.x[:, 0] + self.x[:, 1] * dt
         P = self.P
         var = P[:, 0, 0] + 2 * dt * P[:, 0, 1] + dt * dt * P[:, 1, 1] + self.q_level * abs(dt)
+        self._last_at = (t, self._version, (level, var))
         return level, var
 
     @property
@@ -66,6 +76,7 @@ class TrendTracker:
 
     def update(self, t: float, y: np.ndarray, r: np.ndarray) -> None:
         """Take a block mean ``y`` (variance ``r``) at ``t``."""
+        self._version += 1
         dt = max(0.0, float(t) - float(self.t or t))
         x, P = self.x, self.P
         # Predict: level += slope dt.
@@ -88,4 +99,5 @@ class TrendTracker:
         return self.t, self.x.copy(), self.P.copy()
 
     def restore(self, snap: tuple[float | None, np.ndarray, np.ndarray]) -> None:
+        self._version += 1
         self.t, self.x, self.P = snap[0], snap[1].copy(), snap[2].copy()

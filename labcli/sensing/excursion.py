@@ -14,6 +14,7 @@ settled value ``A`` is what the rig is heading for, ``B`` the heat that is still
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -34,6 +35,7 @@ class Excursion:
     residuals: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)  # (tc, whitened, raw) residuals
     pending: float | None = None  # when the next change was seen, while its first blocks come in
     held: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)  # those blocks (tc, change, var)
+    _transient: tuple[Any, float, float, np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     def finished(self, t: float) -> np.ndarray:
         """The finished changes' response at ``t`` (k,)."""
@@ -67,7 +69,12 @@ class Excursion:
         r = self.fit.result
         if r is None:
             return np.full(self.fit._e.shape[1], np.inf)
-        return r.var_A * max(1.0, r.misfit) + (shape_sd * self.fit.step().unresolved(t)) ** 2
+        last = self._transient  # the estimator asks up to three times a block
+        if last is not None and last[0] is r and last[1] == t and last[2] == shape_sd:
+            return last[3]
+        out = r.var_A * max(1.0, r.misfit) + (shape_sd * self.fit.step().unresolved(t)) ** 2
+        self._transient = (r, t, shape_sd, out)
+        return out
 
     def heat_var(self, t: float) -> np.ndarray:
         """The variance of the active change's heat at ``t`` (k,)."""

@@ -105,6 +105,8 @@ def board_fields(names: Sequence[str], board: Any, units: Mapping[str, str]) -> 
 def line_of(item: Estimate | Event, board: dict[str, Any] | None = None) -> str:
     """One JSON line: the item's fields, ``board`` (the board's estimate of the same frame, when
     there is one) and ``t_host_s`` (Unix time, s)."""
+    if board is None and isinstance(item, Estimate):
+        return item.json_line(round(time.time(), 6))
     obj = item.as_json()
     if board is not None:
         obj["board"] = board

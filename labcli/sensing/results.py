@@ -7,6 +7,8 @@ JSON-line form people and other programs read (degrees for angles, the unit in e
 
 from __future__ import annotations
 
+import functools
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -59,6 +61,37 @@ class Estimate:
             out[f"{q}_{unit}_se"] = _num(self.se[q] * factor)
         out["flags"] = list(self.flags)
         return out
+
+    def json_line(self, t_host_s: float) -> str:
+        """:meth:`as_json` and ``t_host_s`` as one JSON line, character for character what
+        ``json.dumps(..., separators=(", ", ": "), allow_nan=False)`` writes of them, with the numbers
+        formatted straight into the text (a live session writes one a block)."""
+        parts = [f'{{"seq": {int(self.seq)}, "t_device_s": {_text(self.t_device_s)}, "state": {_quoted(self.state)}']
+        for q, v in self.values.items():
+            key, key_se, factor = _keys(q, self.units[q])
+            parts.append(f", {key}: {_text(v * factor)}, {key_se}: {_text(self.se[q] * factor)}")
+        parts.append(
+            f', "flags": [{", ".join(_quoted(f) for f in self.flags)}], "t_host_s": {float.__repr__(float(t_host_s))}}}'
+        )
+        return "".join(parts)
+
+
+def _text(x: float) -> str:
+    """A number as json.dumps writes :func:`_num`'s rounding of it (``null`` when not finite)."""
+    v = _num(x)
+    return "null" if v is None else float.__repr__(v)
+
+
+@functools.lru_cache(maxsize=256)
+def _quoted(text: str) -> str:
+    return json.dumps(text)
+
+
+@functools.lru_cache(maxsize=256)
+def _keys(q: str, si: str) -> tuple[str, str, float]:
+    """A quantity's two JSON keys (value, standard error), quoted, and its display factor."""
+    unit, factor = DISPLAY.get(si, (si, 1.0))
+    return json.dumps(f"{q}_{unit}"), json.dumps(f"{q}_{unit}_se"), factor
 
 
 @dataclass(frozen=True, slots=True)

@@ -113,6 +113,31 @@ def test_a_line_is_the_items_json_and_the_host_time():
     assert ev["event"] == "load" and ev["t_device_s"] == 1.0
 
 
+def test_an_estimates_line_is_what_json_dumps_writes_of_its_fields_character_for_character():
+    rng = np.random.default_rng(5)
+
+    def pick() -> float:
+        """A number as estimates hold them: any size, and the ones json and rounding treat specially."""
+        return float(rng.choice(odd)) if rng.random() < 0.3 else float(rng.normal(0, 10.0 ** rng.integers(-8, 6)))
+
+    odd = [0.0, -0.0, 1e-7, -4.9999995e-7, 123456.0000005, 1e21, 2.5e-300, np.nan, np.inf, -np.inf]
+    units = {"theta1": "rad", "Fx": "N", "P": "MPa", "L": "m", "w": "au"}
+    flags = [(), ("transient",), ("out-of-range", "unobservable:Fx", 'caf\u00e9 "q"')]
+    for i in range(300):
+        e = Estimate(
+            int(rng.integers(0, 2**40)),
+            pick(),
+            ("idle", "loading", "caf\u00e9")[i % 3],
+            {q: pick() for q in units},
+            {q: pick() for q in units},
+            units,
+            flags[i % 3],
+        )
+        t_host = round(1.7e9 + rng.random() * 1e8, 6)
+        expected = json.dumps({**e.as_json(), "t_host_s": t_host}, separators=(", ", ": "), allow_nan=False)
+        assert e.json_line(t_host) == expected
+
+
 class Sink:
     def __init__(self) -> None:
         self.lines: list[str] = []

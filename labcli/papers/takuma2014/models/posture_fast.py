@@ -134,6 +134,7 @@ class CompiledPosture:
     torque_select: np.ndarray  # the kept columns of the 14 torque terms
     torque_weights: np.ndarray  # (m_t, 2 + m_t): coefficients and (X^T X)^-1
     torque_cov: tuple[float, float, float]  # the torques' residual covariance: (0, 0), symmetrised (0, 1), (1, 1)
+    torque_cov_matrix: np.ndarray  # the same as a (2, 2, 1) matrix
     prior: np.ndarray  # (2, 1): the force prior's variances, N^2
     limits: np.ndarray  # (4,) standard-error limits
     paper: _Paper | None  # Eqs. 34-37 where a quantity takes them (None: the posture form throughout)
@@ -173,6 +174,7 @@ class CompiledPosture:
             np.array([TORQUE_TERMS.index(t) for t in model.torque_terms], dtype=np.intp),
             torque,
             _symmetric(model.torque_resid_cov),
+            _symmetric_matrix(model.torque_resid_cov),
             sd[:, None],
             np.array([model.limits.get(q, math.inf) for q in rt.QUANTITIES], dtype=float),
             _Paper.of(model) if routes - {rt.POSTURE} and model.paper is not None else None,
@@ -243,16 +245,20 @@ class CompiledPosture:
         cs = np.empty((2, 2, 5 * n))  # cos, sin of theta1 and theta1 + theta2
         np.cos(t, out=cs[0])
         np.sin(t, out=cs[1])
-        ja = -self.h2 * cs[:, 0] - self.h3 * cs[:, 1]  # J's first column (J11, J21), then its second
-        jb = -self.h3 * cs[:, 1]
-        pja, pjb = self.prior * ja, self.prior * jb
-        r00, r01, r11 = self.torque_cov
-        # J^T P J + S, its off-diagonal symmetrised as inv_spd_2x2 does.
-        a = np.einsum("kn,kn->n", pja, ja) + s * r00
-        b = np.einsum("kn,kn->n", pja, jb) + s * r01
-        d = np.einsum("kn,kn->n", pjb, jb) + s * r11
+        J = np.empty((2, 2, 5 * n))  # J's first column (J11, J21), then its second
+        np.multiply(-self.h3, cs[:, 1], out=J[1])
+        np.multiply(-self.h2, cs[:, 0], out=J[0])
+        J[0] += J[1]  # -h2 c - h3 c12: the second column's term is the first's too
+        ja, jb = J
+        PJ = self.prior * J
+        pja, pjb = PJ
+        # J^T P J + S, its off-diagonal symmetrised as inv_spd_2x2 does: every product of the two
+        # columns summed over the components at once ((2, 2, 5n): a, b; -, d), then the residual term.
+        JPJ = np.add.reduce(PJ[:, None] * J[None, :], axis=2)
+        JPJ += s * self.torque_cov_matrix
+        a, b, d = JPJ[0, 0], JPJ[0, 1], JPJ[1, 1]
         det = a * d - b * b
-        if not ((det > INV_2X2_RCOND * a * d) & (a > 0) & (d > 0)).all():
+        if not ((det > INV_2X2_RCOND * a * d) & (np.minimum(a, d) > 0)).all():
             return False
         i00, i01, i11 = d / det, -b / det, a / det
         ka, kb = pja * i00 + pjb * i01, pja * i01 + pjb * i11  # the gain's columns
@@ -367,3 +373,8 @@ def _flat(m: Any) -> tuple[float, float, float, float]:
 def _symmetric(m: Any) -> tuple[float, float, float]:
     a = np.asarray(m, dtype=float)
     return float(a[0, 0]), 0.5 * (float(a[0, 1]) + float(a[1, 0])), float(a[1, 1])
+
+
+def _symmetric_matrix(m: Any) -> np.ndarray:
+    r00, r01, r11 = _symmetric(m)
+    return np.array([[r00, r01], [r01, r11]])[:, :, None]
