@@ -166,7 +166,10 @@ class ResponseFit:
         self.heated = np.ones(k) if heated is None else np.asarray(heated, dtype=float)
         # The heat shares per hypothesis and channel (K, 1, 1, k), and the multiples the solve takes
         # of them: worked out once, the span is solved every block.
-        self._kap = self.kappas[:, None, None, None] * self.heated
+        # Tiled to the whole grid (K, T, S, k): numpy's loops over a grid broadcast along its middle
+        # axes run six numbers at a time, over a whole one at full speed.
+        grid = (len(self.kappas), len(self.taus), len(self.shifts), k)
+        self._kap = np.ascontiguousarray(np.broadcast_to(self.kappas[:, None, None, None] * self.heated, grid))
         self._kap2 = self._kap**2
         self._two_kap = 2 * self._kap
         self._t = np.empty(capacity)
@@ -270,18 +273,22 @@ class ResponseFit:
         """
         n = self.n
         Spp, Spg, Sgg, Spe, Sge, See = self._sums()
-        kap = self._kap  # (K, 1, 1, k): no heat on unheated channels
+        kap = self._kap  # (K, T, S, k): no heat on unheated channels
         Sqq = Spp + self._two_kap * Spg + self._kap2 * Sgg + 1.0 / A_SPAN**2  # (K, T, S, k)
         Sqe = Spe + kap * Sge
         A = Sqe / Sqq
-        chi2 = np.add.reduce((See - Sqe * A)[..., self._shared_at], axis=-1)  # (K, T, S)
+        resid = See - Sqe * A
+        chi2 = _channel_sum(resid, self._shared_at)  # (K, T, S)
         dof = max(1, (n - 3) * int(self.shared.sum()))
         least = chi2.min()
         misfit = float(least) / dof
         # The noise scale is the best hypothesis's residual when that is above the blocks' own.
         wt = np.exp(-0.5 * (chi2 - least) / max(1.0, misfit))
         wt /= wt.sum()
-        wk = wt[..., None]
+        # The averages over the hypotheses: summed one hypothesis after another (np.add.reduce over
+        # the grid's axes), the order the estimates are held to; the weights tiled over the channels once.
+        wk = np.empty_like(A)
+        wk[:] = wt[..., None]
         grid = (0, 1, 2)
         Am = np.add.reduce(wk * A, axis=grid)
         B = kap * A
@@ -351,6 +358,17 @@ class ResponseFit:
         step = Step(self.t0 + self._shift, r.A, r.B, r.tau, self.thermal_tau, r.var_A * inflate, r.var_B * inflate)
         self._step = (r, self._shift, step)
         return step
+
+
+def _channel_sum(x: np.ndarray, channels: Any) -> np.ndarray:
+    """``x[..., channels].sum(axis=-1)``, a leading slice of channels added one after another (the
+    order np.add.reduce takes over a few numbers) instead of reduced over an axis six numbers long."""
+    if not isinstance(channels, slice) or channels.stop - channels.start < 2:
+        return np.add.reduce(x[..., channels], axis=-1)
+    out = x[..., channels.start] + x[..., channels.start + 1]
+    for j in range(channels.start + 2, channels.stop):
+        out += x[..., j]
+    return out
 
 
 def _grid_var(values: np.ndarray, best: tuple[Any, ...]) -> np.ndarray:
