@@ -106,19 +106,38 @@ def grow(ds: h5py.Dataset, rows: int) -> None:
 
 def append(ds: h5py.Dataset, start: int, arr: np.ndarray) -> None:
     """Write ``arr`` at rows ``[start, start + len(arr))`` of ``ds``, growing it to hold them."""
-    # Through the low-level id: a commit makes about a hundred of these, and each of h5py's
-    # ``Dataset.shape`` and ``dtype`` makes objects of its own.
-    n = arr.shape[0]
-    dsid = ds.id
-    fspace = dsid.get_space()
-    shape = fspace.shape
-    if start + n > shape[0]:
-        dsid.set_extent((start + n, *shape[1:]))
-        fspace = dsid.get_space()
-    if n == 0:
-        return
-    fspace.select_hyperslab((start,) + (0,) * (arr.ndim - 1), arr.shape)
-    dsid.write(h5py.h5s.create_simple(arr.shape), fspace, np.ascontiguousarray(arr, dtype=dsid.dtype))
+    append_all([(ds, arr)], start)
+
+
+def append_all(items: Sequence[tuple[h5py.Dataset, np.ndarray]], start: int, extent: int | None = None) -> None:
+    """:func:`append` each ``(ds, arr)`` at ``start``, the dataspaces made once for each shape.
+
+    ``extent``: no dataset holds more rows than this (the caller knows), so one whose rows end
+    at or past it is grown to end there without its extent read first.  A dataset never shrinks.
+    """
+    # Through the low-level id: a commit makes about a hundred of these, and h5py's
+    # ``Dataset.shape`` and each dataspace cost as much as a small write.
+    spaces: dict[tuple[tuple[int, ...], tuple[int, ...]], tuple[h5py.h5s.SpaceID, h5py.h5s.SpaceID]] = {}
+    for ds, arr in items:
+        dsid = ds.id
+        n = arr.shape[0]
+        if extent is not None and start + n >= extent:
+            dims: tuple[int, ...] = (start + n, *arr.shape[1:])
+            dsid.set_extent(dims)
+        else:
+            dims = dsid.get_space().shape
+            if start + n > dims[0]:
+                dims = (start + n, *dims[1:])
+                dsid.set_extent(dims)
+        if n == 0:
+            continue
+        key = (dims, arr.shape)
+        space = spaces.get(key)
+        if space is None:
+            fspace = h5py.h5s.create_simple(dims, (h5py.h5s.UNLIMITED, *dims[1:]))
+            fspace.select_hyperslab((start,) + (0,) * (arr.ndim - 1), arr.shape)
+            space = spaces[key] = (h5py.h5s.create_simple(arr.shape), fspace)
+        dsid.write(space[0], space[1], np.ascontiguousarray(arr, dtype=dsid.dtype))
 
 
 def _check_header(ds: h5py.Dataset) -> None:
@@ -188,6 +207,9 @@ class Table:
                 "with labcli inspect --verify and use a backup copy."
             )
         self.chunk = int(g.attrs["chunk_rows"])
+        # The count this object's own last commit set: a writer holds the file's lock, so nothing
+        # else moves it, and its next write need not read it back (a reader never commits).
+        self._committed: int | None = None
 
     @classmethod
     def create(
@@ -220,6 +242,8 @@ class Table:
     @property
     def committed_ok(self) -> bool:
         """Whether ``@committed`` matches its checksum (a flipped bit, or a kill between the two)."""
+        if self._committed is not None:
+            return True
         try:
             n = int(self.g.attrs["committed"])
             return int(self.g.attrs["committed_checksum"]) == int(row_checksums([np.array([n], dtype="<i8")], 0)[0])
@@ -229,6 +253,8 @@ class Table:
     @property
     def committed(self) -> int:
         """Rows ``[0, committed)`` are the table; when the count is damaged, every row stored."""
+        if self._committed is not None:
+            return self._committed
         if not self.committed_ok:
             return self.extent
         return int(self.g.attrs["committed"])
@@ -264,17 +290,20 @@ class Table:
         """
         start = self.next_start()
         checks = row_checksums(arrays, start)
+        items = []
         for name, arr in zip(self.names, arrays, strict=False):
             ds = self.ds[name]
             if isinstance(arr, Repeated) and start >= ds.shape[0]:
                 grow(ds, start + n)  # rows never written before read as the dataset's fill value
             else:
-                append(ds, start, np.repeat(arr.row, n, axis=0) if isinstance(arr, Repeated) else arr)
-        append(self.ds[CHECKSUM.name], start, checks)
+                items.append((ds, np.repeat(arr.row, n, axis=0) if isinstance(arr, Repeated) else arr))
+        append_all([*items, (self.ds[CHECKSUM.name], checks)], start)
         return start, start + n
 
     def commit(self, stop: int) -> None:
+        self._committed = None
         self._set_committed(self.g, stop)
+        self._committed = stop
 
     def read(self, want: Sequence[str] | None = None, span: tuple[int, int] | None = None) -> Rows:
         """Rows ``span`` (the committed ones when None), checked: good rows' ``want`` columns (all

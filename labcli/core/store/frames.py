@@ -37,7 +37,7 @@ from ...errors import StoreError
 from ..paper import Column
 from ..window import FrameSource, Stats, Stored, Window
 from .checksum import frames_checksum
-from .columns import append, create_dataset, read_rows
+from .columns import append_all, create_dataset, read_rows
 from .h5 import put
 
 TIME = Column("time", "s", what="device time, unwrapped")
@@ -115,6 +115,7 @@ class Frames:
         # Integer counts (and the decimals apart) since raw counts are stored as integers; float64 before.
         self.integer = bool(self.channels) and self.raw_value[0].dtype.kind == "i"
         self.raw_decimal = [_uncached(g, f"{c}/raw_decimal") for c in self.channels] if self.integer else []
+        self.raw_dtype = self.raw_value[0].dtype if self.channels else np.dtype("<i4")
 
     @property
     def extent(self) -> int:
@@ -125,16 +126,19 @@ class Frames:
 
     def write(self, start: int, time: np.ndarray, seq: np.ndarray, counts: np.ndarray, si: np.ndarray) -> None:
         """Frames at ``start`` (every array grows to end after them)."""
-        append(self.time, start, np.asarray(time, dtype="<f8"))
-        append(self.seq, start, np.asarray(seq, dtype="<u8"))
+        items = [(self.time, np.asarray(time, dtype="<f8")), (self.seq, np.asarray(seq, dtype="<u8"))]
         whole = not self.integer or _whole(counts)
+        decimal = []
         for j in range(len(self.channels)):
-            append(self.value[j], start, np.ascontiguousarray(si[:, j], dtype="<f8"))
+            items.append((self.value[j], np.ascontiguousarray(si[:, j], dtype="<f8")))
             if whole:
-                append(self.raw_value[j], start, np.ascontiguousarray(counts[:, j], dtype=self.raw_value[j].dtype))
+                items.append((self.raw_value[j], np.ascontiguousarray(counts[:, j], dtype=self.raw_dtype)))
             else:  # the decimals as sent, exactly, where raw_value says so
-                append(self.raw_value[j], start, np.full(len(counts), DECIMAL, dtype="<i4"))
-                append(self.raw_decimal[j], start, np.ascontiguousarray(counts[:, j], dtype="<f8"))
+                items.append((self.raw_value[j], np.full(len(counts), DECIMAL, dtype="<i4")))
+                decimal.append((self.raw_decimal[j], np.ascontiguousarray(counts[:, j], dtype="<f8")))
+        # ``time`` is written first, so no frame array holds more frames than it does.
+        append_all(items, start, extent=self.extent)
+        append_all(decimal, start)
 
     def read(self, a: int, b: int) -> tuple[dict[str, np.ndarray], bool]:
         """Frames ``[a, b)`` as ``t_s``, ``seq``, ``counts`` (n, k), ``si`` (n, k); and whether all read."""

@@ -301,7 +301,16 @@ class JournalFile:
     def _keep(self, at: int, b: memoryview, only_kept: bool = False) -> None:
         """Copy ``b`` (to go at ``at``) into the pages kept in memory (``only_kept``: those already kept)."""
         end = at + len(b)
-        for p in range(at // PAGE, (end - 1) // PAGE + 1):
+        first = at // PAGE
+        if (end - 1) // PAGE == first:  # most of HDF5's rewrites: a header or a node within one page
+            page = self.pages.get(first)
+            if page is None:
+                if only_kept:
+                    return
+                page = self._page(first)
+            page[at - first * PAGE : end - first * PAGE] = b
+            return
+        for p in range(first, (end - 1) // PAGE + 1):
             if only_kept and p not in self.pages:
                 continue
             page = self._page(p)

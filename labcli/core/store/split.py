@@ -48,15 +48,22 @@ class Splits:
 
     def __init__(self, run: RunFile) -> None:
         self._run = run
+        # A writer's split read once (the store asks for it with every record it checks): it holds
+        # the file's lock, so the split changes only through :meth:`set`, which forgets it.
+        self._held: tuple[Split | None] | None = None
 
     def get(self) -> Split | None:
         """The split in force, or None when the run has none."""
         run = self._run
         if run.v1 is not None:
             return run.v1.split()
+        if self._held is not None:
+            return self._held[0]
         s, problems = read_afresh(run, lambda: read_split(run.tables.split), lambda got: bool(got[1]))
         if problems:
             run.warn(f"{run.path}: {problems[0]}; the last split that checks out is used.")
+        if run.mode == "a" and not problems:
+            self._held = (s,)
         return s
 
     def set_of(self) -> dict[int, str]:
@@ -76,6 +83,7 @@ class Splits:
         fit, val = checked(run.path, self._candidates(), fit_ids, validation_ids)
         run.check_v2("a split")
         t = run.tables.split
+        self._held = None
         run.writer.commit_row(
             t,
             {c.name: c for c in SPLIT_COLUMNS},
