@@ -79,7 +79,7 @@ def evaluate(model: SensingModel, x: Inputs2) -> tuple[np.ndarray, np.ndarray, t
     if same:
         centres, var = x.P_state[None, :], x.var_state[None, :]
     else:
-        centres, var = np.stack((x.P_state, x.P_load)), np.stack((x.var_state, x.var_load))
+        centres, var = np.array((x.P_state, x.P_load), dtype=float), np.array((x.var_state, x.var_load), dtype=float)
     sd = np.sqrt(np.asarray(var, dtype=float))
     rows, h = _rows(np.asarray(centres, dtype=float), sd)
     g, n, p = rows.shape
@@ -94,16 +94,19 @@ def evaluate(model: SensingModel, x: Inputs2) -> tuple[np.ndarray, np.ndarray, t
     values = pred.values[group * n, q_idx]
     se_model = pred.se[group * n, q_idx]
     at = pred.values.reshape(g, n, -1)
-    # The central difference per channel (zero where a channel's step is none), read from each
-    # quantity's own group only: the other group's slopes are never asked for.
+    # The central difference per channel, zero where a channel's step is none (every channel has
+    # one on the estimator's blocks: then there is nothing to stand in for).
     positive = h > 0
     with np.errstate(invalid="ignore", divide="ignore"):
-        slope = np.where(
-            positive[:, :, None],
-            (at[:, 1 : 1 + p] - at[:, 1 + p :]) / (2 * np.where(positive, h, 1.0))[:, :, None],
-            0.0,
-        )
-    var_q = np.square(slope * sd[:, :, None]).sum(axis=1)[group, q_idx]
+        if positive.all():
+            slope = (at[:, 1 : 1 + p] - at[:, 1 + p :]) / (2 * h)[:, :, None]
+        else:
+            slope = np.where(
+                positive[:, :, None],
+                (at[:, 1 : 1 + p] - at[:, 1 + p :]) / (2 * np.where(positive, h, 1.0))[:, :, None],
+                0.0,
+            )
+    var_q = np.add.reduce(np.square(slope * sd[:, :, None]), axis=1)[group, q_idx]
     se = np.sqrt(se_model**2 + var_q)
     flags = pred.flags[0] if same else _merge(pred.flags[0], pred.flags[n], model)
     return values, se, flags
