@@ -340,16 +340,24 @@ def test_fast_path_agrees_with_parse_line_on_many_streams(case):
 
 @st.composite
 def clean_chunks(draw):
-    """Chunks of good frames (the whole-chunk path's case), then at most a few bytes changed."""
+    """Chunks of good frames (the whole-chunk path's case), then at most a few bytes changed.
+
+    Lines end "\\r\\n" all, none or some of them (each a case of its own in the reader); a field
+    may carry leading zeros, up to lines longer than the protocol allows.
+    """
     k = draw(st.integers(1, 14))
     big = st.integers(0, 10 ** draw(st.sampled_from([4, 10, 18, 20])))
+    crlf = draw(st.sampled_from(["none", "all", "some"]))
+    zeros = draw(st.sampled_from([0, 0, 3, 11, 12, 40]))
     lines = []
     for i in range(draw(st.integers(8, 30))):
         seq = draw(st.one_of(st.just(i), u32, st.integers(U32, 10**12)))
         vals = draw(st.lists(big, min_size=k, max_size=k))
-        body = b",".join([b"D", b"%d" % seq, b"%d" % draw(u32)] + [b"%d" % v for v in vals])
+        pad = b"0" * draw(st.integers(0, zeros))
+        body = b",".join([b"D", b"%d" % seq, b"%d" % draw(u32)] + [pad + b"%d" % v for v in vals])
         hh = b"%02x" % checksum(body) if draw(st.booleans()) else b"%02X" % checksum(body)
-        lines.append(b"$" + body + b"*" + hh + (b"\r\n" if draw(st.booleans()) else b"\n"))
+        cr = crlf == "all" or (crlf == "some" and draw(st.booleans()))
+        lines.append(b"$" + body + b"*" + hh + (b"\r\n" if cr else b"\n"))
     stream = bytearray(b"".join(lines))
     for _ in range(draw(st.integers(0, 2))):
         i = draw(st.integers(0, len(stream) - 2))
@@ -383,9 +391,55 @@ def test_whole_chunk_path_takes_a_clean_chunk_and_refuses_a_damaged_one():
         block.replace(lines[4], b"\r" + lines[4]),  # ... before the '$'
         block.replace(lines[4], lines[4].replace(b"$D,", b"$D,,", 1)),  # an empty field ...
         block.replace(lines[4], lines[4].replace(b"$D,", b"x$D,", 1)),  # a byte before the '$'
+        block.replace(lines[4], _resum(lines[4].replace(b",2048*", b",*"))),  # an empty last field
+        block.replace(lines[4], _resum(lines[4].replace(b"$D,4,", b"$D,,"))),  # an empty first field
+        block.replace(lines[4], _resum(lines[4].replace(b",7,", b"*7,"))),  # a '*' for a ','
+        block.replace(lines[4], _resum(lines[4].replace(b",7,", b",7*0,"))),  # a '*' inside a field
+        block.replace(lines[4], _resum(lines[4].replace(b",7,", b",7,0,"))),  # one value too many
+        block.replace(lines[4], _resum(lines[4].replace(b",7,", b",0$7,"))),  # a '$' inside a field
+        block.replace(lines[4], _resum(lines[4].replace(b",7,", b", 7,"))),  # a blank before a value
+        block.replace(lines[4], _resum(lines[4].replace(b",7,", b",-7,"))),  # a sign, checksum right
+        block.replace(lines[4], _resum(lines[4].replace(b",7,", b",7" + b"0" * 200 + b",")), 1),  # too long
+        block.replace(lines[4], _resum(lines[4].replace(b",7,", b"," + b"0" * 220 + b"7,"))),  # ... in zeros
     ):
         assert wirechunk.whole_chunk(damaged, 20, k, MAX_LINE) is None
         assert_agrees(damaged, [], k)
+
+
+def _resum(line: bytes) -> bytes:
+    """``line`` (``$...*HH`` and its end) with its checksum made right again."""
+    star = line.rindex(b"*")
+    return line[: star + 1] + b"%02X" % checksum(line[1:star]) + line[star + 3 :]
+
+
+def test_whole_chunk_path_takes_every_kind_of_line_end():
+    k = 6
+    for crlf in ([False] * 20, [True] * 20, [i == 7 for i in range(20)], [i % 2 == 0 for i in range(20)]):
+        lines = [_good(i, [i, 4095, 0, 7, 10**17, 2048], crlf=crlf[i]) for i in range(20)]
+        block = b"".join(lines)
+        batch = wirechunk.whole_chunk(block, 20, k, MAX_LINE)
+        assert batch is not None and batch[0].tolist() == list(range(20)), crlf
+        assert batch[1].tolist() == [i * 5000 for i in range(20)]
+        assert batch[2][:, 0].tolist() == list(range(20)) and batch[2][:, 5].tolist() == [2048] * 20
+        for i in (0, 7, 19):
+            body = lines[i].rstrip(b"\r\n")
+            inside = block.replace(lines[i], body[:-1] + b"\r" + body[-1:] + b"\n")  # a '\r' in the checksum
+            doubled = block.replace(lines[i], body + b"\r\r\n")
+            for damaged in (inside, doubled):
+                assert wirechunk.whole_chunk(damaged, 20, k, MAX_LINE) is None
+                assert_agrees(damaged, [], k)
+
+
+def test_a_line_of_leading_zeros_is_refused_exactly_past_256_bytes():
+    good = [_good(i, [i, 1, 2, 3, 4, 5]) for i in range(20)]
+    for length in (255, 256, 257, 258):
+        line = _good(5, [5, 1, 2, 3, 4, 5])
+        line = _resum(line.replace(b",1,", b"," + b"0" * (length - len(line) + 1) + b"1,"))
+        assert len(line) == length + 1
+        block = b"".join(good[:5] + [line] + good[6:])
+        batch = wirechunk.whole_chunk(block, 20, 6, MAX_LINE)
+        assert (batch is not None) == (length <= MAX_LINE)
+        assert_agrees(block, [], 6)
 
 
 @given(st.binary(max_size=2000), st.lists(st.integers(0, 2000), max_size=20))
