@@ -376,7 +376,7 @@ def test_whole_chunk_path_takes_a_clean_chunk_and_refuses_a_damaged_one():
     k = 6
     lines = [_good(i, [i, 4095, 0, 7, 10**17, 2048], crlf=i % 3 == 0) for i in range(20)]
     block = b"".join(lines)
-    batch = wirechunk.whole_chunk(block, 20, k, MAX_LINE)
+    batch = wirechunk.whole_chunk(block, k, MAX_LINE)
     assert batch is not None and batch[0].tolist() == list(range(20))
     assert batch[2][:, 4].tolist() == [1e17] * 20
     for damaged in (
@@ -402,7 +402,7 @@ def test_whole_chunk_path_takes_a_clean_chunk_and_refuses_a_damaged_one():
         block.replace(lines[4], _resum(lines[4].replace(b",7,", b",7" + b"0" * 200 + b",")), 1),  # too long
         block.replace(lines[4], _resum(lines[4].replace(b",7,", b"," + b"0" * 220 + b"7,"))),  # ... in zeros
     ):
-        assert wirechunk.whole_chunk(damaged, 20, k, MAX_LINE) is None
+        assert wirechunk.whole_chunk(damaged, k, MAX_LINE) is None
         assert_agrees(damaged, [], k)
 
 
@@ -417,7 +417,7 @@ def test_whole_chunk_path_takes_every_kind_of_line_end():
     for crlf in ([False] * 20, [True] * 20, [i == 7 for i in range(20)], [i % 2 == 0 for i in range(20)]):
         lines = [_good(i, [i, 4095, 0, 7, 10**17, 2048], crlf=crlf[i]) for i in range(20)]
         block = b"".join(lines)
-        batch = wirechunk.whole_chunk(block, 20, k, MAX_LINE)
+        batch = wirechunk.whole_chunk(block, k, MAX_LINE)
         assert batch is not None and batch[0].tolist() == list(range(20)), crlf
         assert batch[1].tolist() == [i * 5000 for i in range(20)]
         assert batch[2][:, 0].tolist() == list(range(20)) and batch[2][:, 5].tolist() == [2048] * 20
@@ -426,7 +426,7 @@ def test_whole_chunk_path_takes_every_kind_of_line_end():
             inside = block.replace(lines[i], body[:-1] + b"\r" + body[-1:] + b"\n")  # a '\r' in the checksum
             doubled = block.replace(lines[i], body + b"\r\r\n")
             for damaged in (inside, doubled):
-                assert wirechunk.whole_chunk(damaged, 20, k, MAX_LINE) is None
+                assert wirechunk.whole_chunk(damaged, k, MAX_LINE) is None
                 assert_agrees(damaged, [], k)
 
 
@@ -437,7 +437,7 @@ def test_a_line_of_leading_zeros_is_refused_exactly_past_256_bytes():
         line = _resum(line.replace(b",1,", b"," + b"0" * (length - len(line) + 1) + b"1,"))
         assert len(line) == length + 1
         block = b"".join(good[:5] + [line] + good[6:])
-        batch = wirechunk.whole_chunk(block, 20, 6, MAX_LINE)
+        batch = wirechunk.whole_chunk(block, 6, MAX_LINE)
         assert (batch is not None) == (length <= MAX_LINE)
         assert_agrees(block, [], 6)
 
