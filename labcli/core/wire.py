@@ -391,15 +391,10 @@ class StreamReader:
 
     def _parse_block(self, block: bytes) -> FrameBatch:
         """Parse complete lines (``block`` ends with ``\\n``) and count loss across them."""
-        k = self.n_channels
-        clean = k is not None and self._whole(block, k)
-        if clean:  # the common block: nothing but good frames
-            batch = FrameBatch(*clean)
-            self.lines += len(clean[0])
-            self._count_frames(batch)
-            return batch
-        batches: list[FrameBatch] = []
-        offset = 0
+        clean = self.n_channels is not None and whole_chunk(block, self.n_channels, MAX_LINE)
+        batches: list[FrameBatch] = [FrameBatch(*clean)] if clean else []  # the common block
+        offset = len(block) if clean else 0
+        self.lines += len(clean[0]) if clean else 0
         # The channel count comes from the first valid frame; until then go line by line.
         while self.n_channels is None and offset < len(block):
             nl = block.index(b"\n", offset)
@@ -411,22 +406,15 @@ class StreamReader:
             offset = nl + 1
         if offset < len(block):
             rest = block[offset:] if offset else block
-            k = self.n_channels or 0
-            clean = bool(offset) and self._whole(rest, k)  # (with offset 0, tried above)
-            if clean:
-                self.lines += len(clean[0])
-                batches.append(FrameBatch(*clean))
-            else:
-                few = rest.count(b"\n") < _MIN_VECTOR_LINES
-                batches.append(self._parse_lines(rest) if few else self._parse_vectorised(rest))
+            clean = bool(offset) and whole_chunk(rest, self.n_channels or 0, MAX_LINE)  # (tried above at 0)
+            self.lines += len(clean[0]) if clean else 0
+            few = not clean and rest.count(b"\n") < _MIN_VECTOR_LINES
+            batches.append(
+                FrameBatch(*clean) if clean else self._parse_lines(rest) if few else self._parse_vectorised(rest)
+            )
         batch = batches[0] if len(batches) == 1 else FrameBatch.concat(batches, self.n_channels or 0)
         self._count_frames(batch)
         return batch
-
-    @staticmethod
-    def _whole(block: bytes, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        # Below _MIN_VECTOR_LINES of the shortest data line, line by line is quicker.
-        return whole_chunk(block, k, MAX_LINE) if len(block) >= _MIN_VECTOR_LINES * (2 * k + 10) else None
 
     def _count_frames(self, batch: FrameBatch) -> None:
         n = len(batch)

@@ -19,6 +19,7 @@ def whole_chunk(block: bytes, k: int, max_line: int) -> tuple[np.ndarray, np.nda
     """``seq, t_us, values`` of every line of ``block``, or None unless each is a plain integer data line.
 
     ``block`` holds complete lines; ``k`` values a line; ``max_line`` bytes at most before ``\\n``.
+    A block shorter than _MIN_LINES data lines is left to the reader's line-by-line path.
 
     The common chunk is nothing but ``$D,<seq>,<t_us>,<v1>,...,<vk>*<HH>`` lines of short
     unsigned integers, so it is judged as a whole, in as few numpy calls as possible, since at
@@ -35,7 +36,7 @@ def whole_chunk(block: bytes, k: int, max_line: int) -> tuple[np.ndarray, np.nda
     :func:`labcli.core.wire.parse_line` accepts as a frame (the property tests hold both to that).
     """
     fromstring = getattr(np, "fromstring", None)  # numpy's C text parser
-    if fromstring is None or not block.startswith(b"$D,"):
+    if fromstring is None or len(block) < _MIN_LINES * (2 * k + 10) or not block.startswith(b"$D,"):
         return None
     rows, table = _ROWS, _CHECKSUM_LF
     if b"\r" in block:
@@ -152,6 +153,7 @@ _ROWS_CR = np.array([[-3], [4], [1], [0], [-1], [-2], [3], [2]])
 _FILL_LF = np.array([[44], [45], [49], [32], [32], [32]], np.uint8)  # '*' '\n' '$' 'D' H H
 _FILL_CR = np.array([[44], [32], [45], [49], [32], [32], [32]], np.uint8)  # '*' '\r' '\n' '$' 'D' H H
 _FEW = 16  # '\r' bytes a chunk worth finding one by one
+_MIN_LINES = 8  # of the shortest data line (2 k + 10 bytes): in fewer, line by line is quicker
 # A field has fewer than len(_ZEROS) leading zeros unless _ZEROS is in the chunk, and at most 19
 # digits after them unless fromstring saturates (which whole_chunk refuses): so at most 30
 # digits, and a line of _BOUNDED_K values or fewer is at most 3 + 31 * (k + 2) + 3 <= 256 bytes.
