@@ -580,6 +580,34 @@ def test_a_reader_that_meets_a_commit_under_way_reads_windows_and_metadata_again
     assert len(opened) == 2  # the torn read was met, and the file read again once
 
 
+@pytest.mark.parametrize("table", ["split", "models", "sessions"])
+def test_a_log_table_hdf5_cannot_read_is_one_sentence(run_path, monkeypatch, table):
+    """A bit flip in a table's header can make HDF5 (or the table's own reader) fail in any way (the
+    metadata campaign met KeyError: 'strategy' in the split): with no writer about, one sentence
+    naming the table, never the exception."""
+    from labcli.core.store import models, sessions, split
+
+    module, name = {
+        "split": (split, "read_split"),
+        "models": (models, "read_models"),
+        "sessions": (sessions, "read_sessions"),
+    }[table]
+
+    def damaged(t):
+        raise KeyError("strategy")
+
+    monkeypatch.setattr(module, name, damaged)
+    said = {"split": "its split", "models": "its recorded models", "sessions": "its session log"}[table]
+    with RunFile.open(run_path) as run:
+        with pytest.raises(StoreError) as e:
+            {"split": run.split.get, "models": run.models.all, "sessions": run.sessions.all}[table]()
+        assert str(e.value) == (
+            f"{run_path}: {said} cannot be read (damaged); check the file with labcli inspect --verify and use a "
+            "backup copy."
+        )
+        assert f"{table}: {run_path}: {said} cannot be read" in " ".join(run.verify()["problems"])
+
+
 def test_torn_uncommitted_row_is_ignored_and_written_over(run_path):
     """A kill mid-write can leave any bytes past ``@committed``: never read, and the next commit goes on."""
     leave_uncommitted_row(run_path, 5, float("nan"))  # a repeated id and nonsense values: never counted

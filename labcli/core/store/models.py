@@ -23,7 +23,6 @@ from ..version import __version__
 from .blobs import blob_read, blob_write, cell_text
 from .columns import Table
 from .layout import MODEL_COLUMNS
-from .opening import read_afresh
 
 if TYPE_CHECKING:
     from .runfile import RunFile
@@ -42,7 +41,9 @@ class Models:
         run = self._run
         if run.v1 is not None:
             return run.v1.models()
-        out, problems = read_afresh(run, lambda: read_models(run.tables.models), lambda got: bool(got[1]))
+        out, problems = run.read_checked(
+            lambda: read_models(run.tables.models), "its recorded models", lambda got: bool(got[1])
+        )
         if problems:
             run.warn(f"{run.path}: {problems[0]}; it is left out.")
         return out

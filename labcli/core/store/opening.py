@@ -31,8 +31,9 @@ from .nexus import field_parts, home
 # Attributes a commit changes in place: left out of the metadata's checksum.
 MUTABLE_ATTRS = ("committed", "committed_checksum", "metadata_checksum")
 READ_RETRIES = 8  # torn reads while a writer commits: tries before the damage is believed
-# What HDF5 raises on a torn read (a B-tree node or an object header copied in beside old ones).
-READ_ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError)
+# What HDF5 raises on a torn read (a B-tree node or an object header copied in beside old ones) or a
+# damaged header (a dataspace of 0 rows: IndexError from h5py).
+READ_ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError, IndexError)
 T = TypeVar("T")
 
 

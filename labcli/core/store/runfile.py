@@ -417,7 +417,7 @@ class RunFile:
                 "check the file with labcli inspect --verify and use a backup copy."
             ) from None
 
-    def _read_afresh(self, read: Callable[[], T], what: str, torn: Callable[[T], bool] = lambda _: False) -> T:
+    def read_checked(self, read: Callable[[], T], what: str, torn: Callable[[T], bool] = lambda _: False) -> T:
         """``read()`` through :func:`.opening.read_afresh`; one sentence naming ``what`` when HDF5 cannot read it."""
         try:
             return read_afresh(self, read, torn)
@@ -448,7 +448,7 @@ class RunFile:
         """Per-channel gain (SI/count), offset (SI) and units as stored."""
         if self.v1 is not None:
             return self.v1.calibration()
-        return self._read_afresh(lambda: _calibration(self.h5, self.version, self.channels), "its calibration")
+        return self.read_checked(lambda: _calibration(self.h5, self.version, self.channels), "its calibration")
 
     def plan_table(self) -> Any:
         """The plan table stored at creation (DataFrame), or None."""
@@ -457,7 +457,7 @@ class RunFile:
         if self.v1 is not None:
             plan = self.v1.plan()
             return None if plan is None else pd.DataFrame(plan)
-        got = self._read_afresh(
+        got = self.read_checked(
             lambda: _plan(self.h5), "its plan", lambda got: got is not None and bool(got[1].damaged)
         )
         if got is None:

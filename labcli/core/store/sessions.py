@@ -38,7 +38,6 @@ from ..timestamps import utc_now
 from .blobs import cell_text
 from .columns import Table, fill_value
 from .layout import session_columns
-from .opening import read_afresh
 from .unused import mark as mark_unused
 from .writer import Write
 
@@ -184,7 +183,9 @@ class Sessions:
         run = self._run
         if run.v1 is not None:
             return []
-        out, problems = read_afresh(run, lambda: read_sessions(run.tables.sessions), lambda got: bool(got[1]))
+        out, problems = run.read_checked(
+            lambda: read_sessions(run.tables.sessions), "its session log", lambda got: bool(got[1])
+        )
         if problems:
             run.warn(f"{run.path}: {problems[0]}; that event is left out of the session log.")
         return out

@@ -27,7 +27,6 @@ from ..words import count
 from .blobs import blob_read, blob_write, cell_text
 from .columns import Table
 from .layout import SPLIT_COLUMNS
-from .opening import read_afresh
 
 if TYPE_CHECKING:
     from .runfile import RunFile
@@ -59,7 +58,7 @@ class Splits:
             return run.v1.split()
         if self._held is not None:
             return self._held[0]
-        s, problems = read_afresh(run, lambda: read_split(run.tables.split), lambda got: bool(got[1]))
+        s, problems = run.read_checked(lambda: read_split(run.tables.split), "its split", lambda got: bool(got[1]))
         if problems:
             run.warn(f"{run.path}: {problems[0]}; the last split that checks out is used.")
         if run.mode == "a" and not problems:

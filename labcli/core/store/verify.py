@@ -67,6 +67,8 @@ def _verify(run: RunFile) -> dict[str, Any]:
             ("unused raw frames", run.windows.unused),
             ("plan", run.plan_table),
             ("protocol", lambda: run.protocol_text),
+            ("calibration", run.calibration),
+            ("metadata", lambda: run.attrs),
         ):
             try:
                 read()
