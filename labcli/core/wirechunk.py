@@ -48,8 +48,6 @@ def whole_chunk(block: bytes, k: int, max_line: int) -> tuple[np.ndarray, np.nda
             block = bare
         else:
             return None
-    if not _EMPTY_FIELD_RAISES and b",," in block:
-        return None  # an older numpy reads up to an empty field, warns and stops
     # The newline before the first line is found with the others; "$D," after the last
     # line stands for the next line's, whose opening the gather reads from each line's end.
     buf = bytearray(b"\n")
@@ -75,6 +73,8 @@ def whole_chunk(block: bytes, k: int, max_line: int) -> tuple[np.ndarray, np.nda
     np.frombuffer(text, np.uint8).put(at[1:], _fill(n, rows is _ROWS_CR))
     if text.find(0, 4, len(text) - 1) >= 0:
         return None  # a byte other than a digit or a comma inside a line
+    if not _EMPTY_FIELD_RAISES and (b",," in text or text[4] == 44):
+        return None  # an empty field, which an older numpy reads up to, warns and stops at
     # "\n$D," before the first line and the "," after the last left out.
     digits = np.frombuffer(text, np.uint8, len(text) - 5, 4)
     digits.flags.writeable = False  # fromstring reads a read-only buffer: no copy to bytes

@@ -430,6 +430,24 @@ def test_whole_chunk_path_takes_every_kind_of_line_end():
                 assert_agrees(damaged, [], k)
 
 
+def test_an_empty_field_is_refused_before_a_numpy_that_only_warns_reads_it(monkeypatch):
+    """An older numpy reads up to an empty field, warns and stops: whole_chunk must not call it then."""
+    real = np.fromstring
+
+    def older_numpy(text, dtype, sep):
+        assert b",," not in bytes(text) and bytes(text)[:1] != b",", "fromstring met an empty field"
+        return real(text, dtype=dtype, sep=sep)
+
+    monkeypatch.setattr(wirechunk, "_EMPTY_FIELD_RAISES", False)
+    monkeypatch.setattr(np, "fromstring", older_numpy)
+    lines = [_good(i, [i, 1, 2, 3, 4, 5]) for i in range(20)]
+    assert wirechunk.whole_chunk(b"".join(lines), 6, MAX_LINE) is not None
+    for i in (0, 7, 19):
+        for old, new in ((b"$D,%d," % i, b"$D,,"), (b",5*", b",*"), (b",2,", b",,")):
+            damaged = b"".join(lines[:i] + [_resum(lines[i].replace(old, new))] + lines[i + 1 :])
+            assert wirechunk.whole_chunk(damaged, 6, MAX_LINE) is None
+
+
 def test_a_line_of_leading_zeros_is_refused_exactly_past_256_bytes():
     good = [_good(i, [i, 1, 2, 3, 4, 5]) for i in range(20)]
     for length in (255, 256, 257, 258):
