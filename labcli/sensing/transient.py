@@ -187,6 +187,8 @@ class ResponseFit:
         self._reset_sums()
         self._shift = 0.0
         self._step: tuple[FitResult, float, Step] | None = None
+        self._grid: tuple[np.ndarray, ...] | None = None
+        self._one: tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray] | None = None
         # After the span: the shape frozen, the level refined by sums over the later blocks (the last
         # TAIL_KEEP of them kept one by one, so a change found among them can take them back).
         self._frozen: FitResult | None = None
@@ -274,10 +276,17 @@ class ResponseFit:
         n = self.n
         Spp, Spg, Sgg, Spe, Sge, See = self._sums()
         kap = self._kap  # (K, T, S, k): no heat on unheated channels
-        Sqq = Spp + self._two_kap * Spg + self._kap2 * Sgg + 1.0 / A_SPAN**2  # (K, T, S, k)
-        Sqe = Spe + kap * Sge
-        A = Sqe / Sqq
-        resid = See - Sqe * A
+        # The grid's arrays are worked in buffers the fit keeps (the same arithmetic in the same
+        # order; nothing returned refers to them): solved every block, they stay in the cache.
+        Sqq, Sqe, A, work, wk, B = self._grid_buffers()
+        np.multiply(self._two_kap, Spg, out=Sqq)
+        Sqq += Spp
+        Sqq += np.multiply(self._kap2, Sgg, out=work)
+        Sqq += 1.0 / A_SPAN**2  # (K, T, S, k)
+        np.multiply(kap, Sge, out=Sqe)
+        Sqe += Spe
+        np.divide(Sqe, Sqq, out=A)
+        resid = np.subtract(See, np.multiply(Sqe, A, out=work), out=work)
         chi2 = _channel_sum(resid, self._shared_at)  # (K, T, S)
         dof = max(1, (n - 3) * int(self.shared.sum()))
         least = chi2.min()
@@ -287,19 +296,18 @@ class ResponseFit:
         wt /= wt.sum()
         # The averages over the hypotheses: summed one hypothesis after another (np.add.reduce over
         # the grid's axes), the order the estimates are held to; the weights tiled over the channels once.
-        wk = np.empty_like(A)
         wk[:] = wt[..., None]
         grid = (0, 1, 2)
-        Am = np.add.reduce(wk * A, axis=grid)
-        B = kap * A
-        Bm = np.add.reduce(wk * B, axis=grid)
+        Am = np.add.reduce(np.multiply(wk, A, out=work), axis=grid)
+        np.multiply(kap, A, out=B)
+        Bm = np.add.reduce(np.multiply(wk, B, out=work), axis=grid)
         best = np.unravel_index(int(np.argmin(chi2)), chi2.shape)
-        spread = A - Am
+        spread = np.subtract(A, Am, out=work)
         spread *= spread
         spread += 1.0 / Sqq
         spread *= wk
         var_A = np.add.reduce(spread, axis=grid) + _grid_var(A, best)
-        spread = B - Bm
+        spread = np.subtract(B, Bm, out=work)
         spread *= spread
         spread += self._kap2 / Sqq
         spread *= wk
@@ -309,6 +317,12 @@ class ResponseFit:
         self._shift = float((marg.sum(axis=0) * self.shifts).sum())
         self.result = FitResult(Am, Bm, var_A, var_B, tau_w, misfit, n)
         return self.result
+
+    def _grid_buffers(self) -> tuple[np.ndarray, ...]:
+        """Six (K, T, S, k) arrays for :meth:`_solve_span`'s work, made once per fit."""
+        if self._grid is None:
+            self._grid = tuple(np.empty(self._kap.shape) for _ in range(6))
+        return self._grid
 
     def _reset_sums(self) -> None:
         T, S, k = len(self.taus), len(self.shifts), self._e.shape[1]
@@ -324,19 +338,13 @@ class ResponseFit:
         (all of them again after :meth:`truncate` takes some back), not the whole span every block.
         """
         lo, n = self._sums_n, self.n
-        if lo < n:
+        if n - lo == 1:  # one new block (every solve but the first after a truncate)
+            self._sum_one(lo)
+        elif lo < n:
             t, e, w = self._t[lo:n], self._e[lo:n], self._w[lo:n]
             s = t[None, None, :] - (self.t0 + self.shifts)[None, :, None]
             tau = self.taus[:, None, None]
             phi, g = lag(s, tau), heat(s, tau, self.thermal_tau)  # (T, S, n - lo)
-            if n - lo == 1:  # one new block (every solve but the first after a truncate): plain products
-                kernels = np.stack((phi * phi, phi * g, g * g, phi, g))  # (5, T, S, 1)
-                we = w * e
-                self._S[:, 0] += kernels * np.stack((w, w, w, we, we))[:, None]
-                self._See += (w * e * e)[0]
-                self._sums_n = n
-                S = self._S
-                return S[0], S[1], S[2], S[3], S[4], self._See
             self._S[0, 0] += np.einsum("tsn,tsn,nk->tsk", phi, phi, w)
             self._S[1, 0] += np.einsum("tsn,tsn,nk->tsk", phi, g, w)
             self._S[2, 0] += np.einsum("tsn,tsn,nk->tsk", g, g, w)
@@ -346,6 +354,42 @@ class ResponseFit:
             self._sums_n = n
         S = self._S
         return S[0], S[1], S[2], S[3], S[4], self._See
+
+    def _sum_one(self, i: int) -> None:
+        """Block ``i`` into the sums (:meth:`_sums`): :func:`lag`'s and :func:`heat`'s arithmetic at
+        its time under every (lag, step time) hypothesis, then plain products, written into buffers
+        the fit keeps (the fit is solved every block; numpy's general paths cost more than the sums)."""
+        b = self._one
+        if b is None:
+            T, S, k = len(self.taus), len(self.shifts), self._e.shape[1]
+            tau = self.taus[:, None, None]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                coef = self.thermal_tau / (self.thermal_tau - tau)
+            near = np.abs(self.thermal_tau - tau) < 1e-9 * self.thermal_tau
+            b = self._one = (tau, coef, near if near.any() else None, np.empty((5, T, S, 1)), np.empty((5, 1, 1, k)))
+        tau, coef, near, kernels, weights = b
+        t, e, w = self._t[i], self._e[i], self._w[i]
+        s = t - (self.t0 + self.shifts)[None, :, None]  # (1, S, 1)
+        m = np.maximum(s, 0.0)
+        neg = -m
+        x = neg / tau  # (T, S, 1)
+        phi, g = kernels[3], kernels[4]
+        np.negative(np.expm1(x), out=phi)
+        phi[...] = np.where(s > 0, phi, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ex = np.exp(x)
+            np.multiply(coef, np.exp(neg / self.thermal_tau) - ex, out=g)
+        if near is not None:
+            g[...] = np.where(near, m / tau * ex, g)
+        np.multiply(phi, phi, out=kernels[0])
+        np.multiply(phi, g, out=kernels[1])
+        np.multiply(g, g, out=kernels[2])
+        weights[:3, 0, 0] = w
+        np.multiply(w, e, out=weights[3, 0, 0])
+        weights[4] = weights[3]
+        self._S[:, 0] += kernels * weights
+        self._See += weights[3, 0, 0] * e
+        self._sums_n = i + 1
 
     def step(self) -> Step:
         """The fitted response as a :class:`Step` (at the lag and step time found); the same object
