@@ -365,8 +365,8 @@ class ResponseFit:
             tau = self.taus[:, None, None]
             with np.errstate(divide="ignore", invalid="ignore"):
                 coef = self.thermal_tau / (self.thermal_tau - tau)
-            near = np.abs(self.thermal_tau - tau) < 1e-9 * self.thermal_tau
-            b = self._one = (tau, coef, near if near.any() else None, np.empty((5, T, S, 1)), np.empty((5, 1, 1, k)))
+            close = np.abs(self.thermal_tau - tau) < 1e-9 * self.thermal_tau
+            b = self._one = (tau, coef, close if close.any() else None, np.empty((5, T, S, 1)), np.empty((5, 1, 1, k)))
         tau, coef, near, kernels, weights = b
         t, e, w = self._t[i], self._e[i], self._w[i]
         s = t - (self.t0 + self.shifts)[None, :, None]  # (1, S, 1)
