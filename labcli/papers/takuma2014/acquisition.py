@@ -70,12 +70,23 @@ def _plan(protocol: Any, options: AcquireOptions) -> Any:
         return None
     if options.plan is not None:
         lim = protocol.settings.force_limits
-        return read_plan(
+        table = read_plan(
             options.plan,
             mass_range_g=(lim.mass_min_g, lim.mass_max_g) if lim else None,
             direction_range_deg=(lim.direction_min_deg, lim.direction_max_deg) if lim else None,
         )
+        _not_empty(table, options.plan, ("trial", "trials"), "trial, set, mass_g, direction_deg")
+        return table
     return load_plan(protocol)
+
+
+def _not_empty(table: Any, path: Any, noun: tuple[str, str], columns: str) -> None:
+    """Refuse a plan file that holds only its header: a run of nothing, or (pushes) the simulated objects
+    in its place, would not be what was asked."""
+    if not len(table):
+        raise ConfigError(
+            f"{path} holds no {noun[1]}, only its header; add a row per {noun[0]} ({columns}), or leave --plan out."
+        )
 
 
 def _push_acquisition(protocol: Any, options: AcquireOptions) -> PushAcquisition:
@@ -87,6 +98,7 @@ def _push_acquisition(protocol: Any, options: AcquireOptions) -> PushAcquisition
         table = load_push_plan(
             options.plan, distance_range_m=(push.distance_min_m, push.distance_max_m) if push is not None else None
         )
+        _not_empty(table, options.plan, ("push", "pushes"), "push, object, R_mm, d_mm, phi_deg")
     if table is not None and len(table):
         objects, ids = plan_objects(table)
         if options.unattended:
