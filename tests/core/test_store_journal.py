@@ -193,12 +193,13 @@ def test_records_of_another_generation_after_the_chain_are_not_replayed(tmp_path
     path = tmp_path / "f.bin"
     path.write_bytes(bytes(2 * PAGE))
     old = _journal_of(path, [[(0, b"old0")], [(100, b"old1")], [(200, b"old2")]]).read_bytes()
-    new = _journal_of(path, [[(0, b"new0")]]).read_bytes()  # a journal started again, shorter
-    path.write_bytes(bytes(2 * PAGE))
+    synced = path.read_bytes()  # the file synced, holding the old records: the journal may start again
+    new = _journal_of(path, [[(0, b"new0"), (100, b"mine")]]).read_bytes()  # shorter than the old one
+    path.write_bytes(synced)  # the power cut: none of the new record in the file
     Path(journal_path(str(path))).write_bytes(new + old[len(new) :])  # the old records' tail still there
     assert journal.recover(str(path))
     data = path.read_bytes()
-    assert data[0:4] == b"new0" and data[100:104] == b"\0" * 4 and data[200:204] == b"\0" * 4
+    assert data[0:4] == b"new0" and data[100:104] == b"mine" and data[200:204] == b"old2"
 
 
 def test_a_journal_left_by_the_page_journal_before_it_is_still_replayed(tmp_path: Path) -> None:

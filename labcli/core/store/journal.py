@@ -14,8 +14,9 @@ signature.  So a writer does not give HDF5 the file; it gives it a :class:`Journ
 * keeps in memory, in 4 KiB pages, every write to bytes before that end (the bookkeeping
   that points at the new things), and reads see those pages;
 * at :meth:`JournalFile.checkpoint`: appends one record to the journal next to the run
-  (``.<name>.labcli-journal``), holding every byte written since the last checkpoint (the
-  new bytes, read back from the file, and the kept pages), the file's identity, the
+  (``.<name>.labcli-journal``), holding every byte changed since the last checkpoint (the
+  new bytes, read back from the file, and of the kept pages the bytes that differ from the
+  file's: HDF5 rewrites a whole B-tree node to add one entry), the file's identity, the
   journal's generation and the record's place in it, and a checksum; makes the journal
   durable (one ``fdatasync``: the checkpoint is made), then copies the pages into the
   file.  The file itself is not synced: it is synced every :data:`SYNC_EVERY` checkpoints
@@ -26,7 +27,8 @@ signature.  So a writer does not give HDF5 the file; it gives it a :class:`Journ
 
 The crash argument.  Let S_k be the file as checkpoint k left it, and B the file as it was
 when last synced (every record in the journal came after B).  Every byte a checkpoint k
-changed, below or past the recorded end, is in record k, with its value in S_k.  What a
+changed, below or past the recorded end, is in record k, with its value in S_k (a byte
+HDF5 wrote with the value it had is unchanged: S_k holds it as S_k-1 did).  What a
 kill or a power cut leaves on disk is B changed by any part of the writes made since, torn
 anywhere, and a journal whose records from the first are whole up to some record n (the
 last whose ``fdatasync`` returned, at least), the rest torn, stale (another generation, a
@@ -60,10 +62,13 @@ import resource
 import secrets
 import struct
 
+import numpy as np
+
 PAGE = 4096
 MAGIC = b"LABCLIJ2"
 RECORD = struct.Struct("<8sQQQQQ")  # magic, device, inode, generation, place, bytes of extents
 EXTENT = struct.Struct("<QQ")  # where, how many bytes
+GAP = 32  # unchanged bytes between two changed ones that a record holds rather than start another extent
 OLD_MAGIC = b"LABCLIJ1"  # one record of pages, written by labcli before the redo journal
 OLD_HEADER = struct.Struct("<8sQQQQ")  # magic, device, inode, page count, superblock end
 SUFFIX = ".labcli-journal"
@@ -109,6 +114,7 @@ class JournalFile:
         self.path = path
         self.pos = 0
         self.pages: dict[int, bytearray] = {}
+        self.before: dict[int, bytes] = {}  # each kept page as the file held it
         self.extents: list[tuple[int, int]] = []  # written straight to the file since the last checkpoint
         self.journaled = journaled
         self.durable_end = self._recorded_end() if journaled else 0
@@ -148,11 +154,11 @@ class JournalFile:
         b = memoryview(data).cast("B")
         n = len(b)
         self.written_end = max(self.written_end, self.pos + n)
-        if self.journaled:
-            self.extents.append((self.pos, n))
         if self.journaled and self.pos < self.durable_end:
             self._keep(self.pos, b)
         else:
+            if self.journaled:
+                self.extents.append((self.pos, n))
             done = 0
             while done < n:
                 done += os.pwrite(self.fd, b[done:], self.pos + done)
@@ -184,10 +190,13 @@ class JournalFile:
             return
         if not self.pages and not self.extents:
             return
-        self._append(self._record())  # durable: the checkpoint is made
+        record = self._record()
+        if record:  # else every byte written holds the value it had: nothing changed
+            self._append(record)  # durable: the checkpoint is made
         for p in sorted(self.pages):
             _pwrite_all(self.fd, self.pages[p], p * PAGE)
         self.pages.clear()
+        self.before.clear()
         self.extents.clear()
         self.unsynced += 1
         self.durable_end = self._recorded_end()
@@ -195,6 +204,7 @@ class JournalFile:
     def discard(self) -> None:
         """Forget what was written since the last checkpoint (a write that failed half-way)."""
         self.pages.clear()
+        self.before.clear()
         self.extents.clear()
 
     def start_journal(self, path: str) -> None:
@@ -224,9 +234,26 @@ class JournalFile:
     # ------------------------------------------------------------ the journal
 
     def _record(self) -> bytes:
-        """A record's extents: every byte written since the last checkpoint, as it stands now (the
-        kept pages laid over the file), each run of them once (see the module docstring)."""
+        """A record's extents: every byte written since the last checkpoint, as it stands now.
+
+        The new bytes whole (read back, the kept pages laid over them); of the kept pages, the
+        runs of bytes that differ from what the file holds (HDF5 rewrites a whole B-tree node or
+        header to change a few entries: a byte rewritten with its own value changed nothing).
+        """
         parts: list[bytes] = []
+        if self.pages:
+            order = sorted(self.pages)
+            new = np.frombuffer(b"".join(self.pages[p] for p in order), dtype=np.uint8)
+            old = np.frombuffer(b"".join(self.before[p] for p in order), dtype=np.uint8)
+            changed = np.flatnonzero(new != old)
+            if changed.size:
+                # One run per stretch of changes less than GAP bytes apart, never across a page.
+                cut = np.flatnonzero((np.diff(changed) > GAP) | (np.diff(changed // PAGE) != 0))
+                firsts = changed[np.concatenate(([0], cut + 1))].tolist()
+                lasts = changed[np.concatenate((cut, [changed.size - 1]))].tolist()
+                for a, b in zip(firsts, lasts, strict=True):
+                    at = order[a // PAGE] * PAGE + a % PAGE
+                    parts += (EXTENT.pack(at, b + 1 - a), new[a : b + 1].tobytes())
         for at, n in _merged(self.extents):
             parts += (EXTENT.pack(at, n), self._peek(at, n))
         return b"".join(parts)
@@ -296,6 +323,7 @@ class JournalFile:
             page = bytearray(os.pread(self.fd, PAGE, p * PAGE))
             page.extend(bytes(PAGE - len(page)))
             self.pages[p] = page
+            self.before[p] = bytes(page)
         return page
 
     def _keep(self, at: int, b: memoryview, only_kept: bool = False) -> None:
