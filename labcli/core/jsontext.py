@@ -130,6 +130,7 @@ def dumps_indented(value: Any, *, allow_nan: bool = True) -> str:
     one number a line.  The same JSON value either way.
     """
     long_lists: list[list[int]] = []
+    index: dict[int, int] = {}  # id() of a list in ``value`` (alive throughout) -> its place in long_lists
     mark = f"long-list-{secrets.token_hex(8)}-"  # a fresh mark: no text in the document can hold it
 
     def swap(v: Any) -> Any:
@@ -137,12 +138,16 @@ def dumps_indented(value: Any, *, allow_nan: bool = True) -> str:
             return {k: swap(x) for k, x in v.items()}
         if isinstance(v, (list, tuple)):
             if len(v) > LONG_LIST and (isinstance(v, PlainList) or all(type(x) is int for x in v)):
-                long_lists.append(list(v))
-                return f"{mark}{len(long_lists) - 1}"
+                # Encoded once however often the one list appears: a model lists its trial ranges
+                # for each of its equations (10^5 pairs each on a random split of an archive).
+                if id(v) not in index:
+                    index[id(v)] = len(long_lists)
+                    long_lists.append(list(v))
+                return f"{mark}{index[id(v)]}"
             return [swap(x) for x in v]
         return v
 
     text = json.dumps(swap(value), indent=2, allow_nan=allow_nan)
     for k, ids in enumerate(long_lists):
-        text = text.replace(f'"{mark}{k}"', json.dumps(ids, separators=(", ", ": ")), 1)
+        text = text.replace(f'"{mark}{k}"', json.dumps(ids, separators=(", ", ": ")))
     return text

@@ -98,3 +98,18 @@ def test_trial_ranges_go_on_one_line_and_read_back_as_written():
     assert '"few": [\n    [\n      1,' in text  # a short list keeps json's own layout
     back = json.loads(text)
     assert idranges.parse(back["fitted_trials"], "fitted_trials", None) == ranges == back["fitted_trials"]
+
+
+def test_one_long_list_met_several_times_is_written_each_time_the_same():
+    import json
+
+    from labcli.core import idranges
+    from labcli.core.jsontext import LONG_LIST, dumps_indented
+
+    ranges = idranges.to_ranges([i for i in range(12 * LONG_LIST) if i % 6 != 5])
+    other = idranges.to_ranges([i for i in range(12 * LONG_LIST) if i % 6 != 4])
+    doc = {"a": ranges, "b": {"x": ranges, "y": other, "z": ranges}, "ids": list(range(LONG_LIST + 1))}
+    text = dumps_indented(doc)
+    assert json.loads(text) == json.loads(json.dumps(doc))
+    one_line = json.dumps(ranges, separators=(", ", ": "))
+    assert text.count(one_line) == 3 and json.dumps(other, separators=(", ", ": ")) in text
