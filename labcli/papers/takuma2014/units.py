@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ...core.arrays import rows_all, stack_columns
+from ...core.arrays import stack_columns
 from ...core.bounds import fmt_number
 from ...core.tables import table_error
 from ...errors import LabcliWarning
@@ -134,17 +134,19 @@ def radian_findings(table: Any) -> list[Finding]:
     if len(cols) < len(found):
         return []
     load = np.hypot(cols[2], cols[3])
-    big = np.isfinite(load) & (load >= RADIAN_LOAD_N)
-    angles = np.abs(stack_columns(cols[:2]))[big]
-    angles = angles[rows_all(np.isfinite(angles))]
-    if len(angles) < MISTAKE_MIN_ROWS or np.max(angles) >= RADIAN_LIKE_DEG:
+    # Column by column: the trials under a large load whose two deflections are both known.
+    sel = np.isfinite(load) & (load >= RADIAN_LOAD_N) & np.isfinite(cols[0]) & np.isfinite(cols[1])
+    if np.count_nonzero(sel) < MISTAKE_MIN_ROWS:
+        return []
+    largest = max(float(np.max(np.abs(cols[0][sel]))), float(np.max(np.abs(cols[1][sel]))))
+    if largest >= RADIAN_LIKE_DEG:
         return []
     return [
         Finding(
             _DEFLECTIONS,
             False,
             f"theta1_deg and theta2_deg look like radians: no deflection reaches "
-            f"{fmt_number(RADIAN_LIKE_DEG)} deg (largest {float(np.max(angles)):.3g}) while the loads "
+            f"{fmt_number(RADIAN_LIKE_DEG)} deg (largest {largest:.3g}) while the loads "
             f"reach {float(np.nanmax(load)):.3g} N; the columns hold degrees (1 rad = 57.3 deg).",
         )
     ]
@@ -156,9 +158,9 @@ def pressure_findings(table: Any) -> list[Finding]:
     cols = [c for c in found if c is not None]
     if len(cols) < len(found):
         return []
-    p = stack_columns(cols)
-    p = p[rows_all(np.isfinite(p))]
-    if len(p) == 0 or not np.all(np.abs(p - ATMOSPHERE_MPA) <= ATMOSPHERE_BAND_MPA):
+    # Column by column over the trials whose four baselines are known: none outside the band.
+    known = np.logical_and.reduce([np.isfinite(c) for c in cols])
+    if not known.any() or any(np.any(known & (np.abs(c - ATMOSPHERE_MPA) > ATMOSPHERE_BAND_MPA)) for c in cols):
         return []
     return [
         Finding(
