@@ -20,8 +20,8 @@ from ..files import check_output
 from ..paper import Column
 from ..protocol import load_protocol
 from ..registry import import_protocol, record_type, untagged_run_kind
-from .h5 import missing, nan_if_empty
-from .layout import extra_column, extra_key
+from .h5 import h5_name, missing, nan_if_empty
+from .layout import extra_column, extra_key, record_columns
 from .records import ALL_COLUMNS
 from .runfile import RunFile
 from .split import Split
@@ -99,6 +99,24 @@ def _carried(df: Any) -> dict[str, Any]:
     return out
 
 
+# The record table's header keeps its column names in one attribute, whose bytes (names x the
+# longest name) HDF5 holds to 64 KiB in the run file's format; the rest is the header's own room.
+HEADER_ROOM = 60_000
+
+
+def _check_header_room(rt: Any, extras: Sequence[Column], source: str) -> None:
+    """Refuse, before any file is made, extra columns whose names the record table's header cannot hold."""
+    names = [h5_name(c.name).encode("utf-8") for c in record_columns(rt, extras)]
+    width = max(len(n) for n in names)
+    if len(names) * width > HEADER_ROOM:
+        fits = max(0, HEADER_ROOM // width - (len(names) - len(extras)))
+        raise ConfigError(
+            f"{source or 'the table'} has {len(extras)} columns labcli does not know, more than a run file's {rt.noun} "
+            f"table can name ({fits} at the longest name's {width} bytes; {HEADER_ROOM} bytes of names in all); "
+            "drop some or shorten their names, or keep them in a table beside the run."
+        )
+
+
 def _check_storable(df: Any, id_col: str) -> None:
     """Refuse, before any file is made, a table holding text a run file cannot store."""
     for c in df.columns:
@@ -144,6 +162,7 @@ def import_table(
     columns = {**rt.from_table(df, protocol), **_carried(df)}
     carried = {c.name for c in ALL_COLUMNS}
     extra_cols, extra_values = _extras(df, [c for c in df.columns if c not in rt.known_columns and c not in carried])
+    _check_header_room(rt, extra_cols, source)
     run = RunFile.create(
         path,
         protocol=protocol,
