@@ -2,7 +2,8 @@
 refuses the file, or inspect, export, fit, validate and read_run all read it, never a traceback.
 
 The campaign's short variant runs here (a few dozen cases spread over every region of the map);
-the full one (``--cases 3000``, about 20 minutes on two cores) is marked slow.
+the full one (``--cases 3000``: about a second of CPU a case, so most of an hour on two shared
+cores) is marked slow.
 """
 
 from __future__ import annotations
