@@ -190,7 +190,17 @@ def test_sigterm_and_sighup_end_acquire_as_ctrl_c_does(tmp_path, sig):
         stdin=subprocess.DEVNULL,
         text=True,
     )
-    time.sleep(3)
+    # Signalled once the rig is open and checked (its line printed), when the session is under
+    # way, however long a busy machine takes to get there.
+    started = time.monotonic()
+    seen = ""
+    while "readings in range" not in seen and time.monotonic() - started < 120:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        seen += line
+    assert "readings in range" in seen, seen
+    time.sleep(0.5)
     proc.send_signal(getattr(signal, sig))
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
