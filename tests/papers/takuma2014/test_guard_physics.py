@@ -124,7 +124,8 @@ def test_the_runs_trials_set_the_friction_allowed_for_from_the_second_on(prior):
             assert not prior.refined and prior.friction_share == gp.FRICTION_SHARE
         else:
             assert prior.refined
-            assert prior.friction_share == pytest.approx(gp.LEARN_MARGIN * max(shown), abs=gp.LEARN_MARGIN * STEP)
+            expected = max(gp.LEARN_FLOOR, gp.LEARN_MARGIN * max(shown))
+            assert prior.friction_share == pytest.approx(expected, abs=gp.LEARN_MARGIN * STEP)
     # Less friction than the prior's own allowance: a light load is now judged, and its least
     # motion is the statics past the run's friction.
     assert prior.friction_share < gp.FRICTION_SHARE
@@ -181,3 +182,16 @@ def test_a_resumed_run_allows_for_the_friction_its_stored_trials_showed():
     assert resumed.friction_share == pytest.approx(live.friction_share, abs=gp.LEARN_MARGIN * STEP)
     # A table whose rows do not pair with the baselines teaches nothing.
     assert not _resumed_guard(PROTOCOL, history[:12], baselines[:11]).prior.refined
+
+
+def test_the_runs_allowance_never_falls_below_its_floor(prior):
+    # Trials that moved as far as the frictionless rig show no friction at all; the first trials can
+    # hide the rig's, so the allowance stays at the floor.
+    F = pull(800, -60)
+    base = windows(UPRIGHT, SUPPLY)
+    K, tau, held = prior._statics(UPRIGHT, SUPPLY, F)
+    free = prior._motion(K, tau, held, np.zeros(1))[0]
+    for i in range(3):
+        prior.learn(F, base, windows(UPRIGHT + free, SUPPLY, seed=i + 1))
+    assert max(prior._shown) <= STEP  # the windows' noise alone
+    assert prior.refined and prior.friction_share == gp.LEARN_FLOOR
