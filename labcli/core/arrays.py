@@ -34,21 +34,21 @@ def stack_columns(parts: Sequence[Any]) -> np.ndarray:
 
 def rows_all(x: Any) -> np.ndarray:
     """``np.all(x, axis=1)`` of a 2-D array: whether every column of each row is true."""
-    x = np.asarray(x)
-    if x.ndim != 2 or x.shape[1] == 0:
-        return np.all(x, axis=1)
-    out = x[:, 0].astype(bool)
-    for k in range(1, x.shape[1]):
-        out &= x[:, k].astype(bool, copy=False)
-    return out
+    return _rows(x, np.all, np.logical_and)
 
 
 def rows_any(x: Any) -> np.ndarray:
     """``np.any(x, axis=1)`` of a 2-D array: whether some column of each row is true."""
+    return _rows(x, np.any, np.logical_or)
+
+
+def _rows(x: Any, whole: Any, combine: np.ufunc) -> np.ndarray:
+    """``whole(x, axis=1)`` taken column by column with ``combine`` (numpy's axis reductions are
+    slow on a few columns of many rows)."""
     x = np.asarray(x)
     if x.ndim != 2 or x.shape[1] == 0:
-        return np.any(x, axis=1)
+        return np.asarray(whole(x, axis=1))
     out = x[:, 0].astype(bool)
     for k in range(1, x.shape[1]):
-        out |= x[:, k].astype(bool, copy=False)
+        combine(out, x[:, k].astype(bool, copy=False), out=out)
     return out
