@@ -325,7 +325,9 @@ def test_a_handful_of_kills(tmp_path):
     rng = random.Random(7)
     pending = [signal.SIGKILL, signal.SIGINT, signal.SIGINT, signal.SIGKILL]
     n = 0
-    while pending and n < 6:
+    # A run faster than the reference (a machine less busy than when the reference ran) completes
+    # before its signal; each such episode aims earlier, and enough of them are allowed to get there.
+    while pending and n < 12:
         pending = c.episode(f"run{n}", rng, pending[:2]) + pending[2:]
         n += 1
     print(c.report())
