@@ -255,11 +255,13 @@ def weak_response(
     watch: Watch, baseline: Any, loaded: Any, prediction: tuple[np.ndarray, np.ndarray, float] | None
 ) -> str | None:
     """The sentence when the readings moved by less than a quarter of what the load surely causes."""
-    if prediction is None or not clear_enough(watch, baseline, loaded, prediction):
+    if prediction is None:
         return None
     f = watch.floors(baseline, loaded)
     e = least_expected(prediction, f) / f
     size = float(np.linalg.norm(e))
+    if size < EXPECT_FLOORS:
+        return None
     seen = watch.change(baseline, loaded)
     # The share of the sure change the readings made along it: noise and the leak across it do not count.
     share = max(0.0, float((seen / f) @ e)) / size**2
