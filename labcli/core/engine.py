@@ -585,8 +585,12 @@ def _what(e: Exception) -> str:
 
 @contextlib.contextmanager
 def _sigint_deferred() -> Iterator[None]:
-    """Hold Ctrl-C until a trial is written whole (the store's write is not interruptible)."""
-    if threading.current_thread() is not threading.main_thread():
+    """Hold Ctrl-C until a trial is written whole (the store's write is not interruptible).
+
+    A process started with Ctrl-C ignored (``nohup``, a script's background job) was asked to run
+    through it: catching it here would honour a Ctrl-C that lands during a write and no other.
+    """
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         yield
         return
     caught: list[Any] = []

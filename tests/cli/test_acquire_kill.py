@@ -31,11 +31,13 @@ import sys
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
 from support.long_capture import write_long_protocol
+from support.procs import at_a_terminal
 from support.records import stored_trials
 
 from labcli.core.acquisition import acquire
@@ -70,7 +72,7 @@ def datasets(items: dict[str, Any]) -> dict[str, Any]:
 class Acquire:
     """One ``labcli acquire`` process; stdout and stderr collected as they come."""
 
-    def __init__(self, args: list[str]) -> None:
+    def __init__(self, args: list[str], preexec: Callable[[], None] = at_a_terminal) -> None:
         env = dict(
             os.environ,
             PYTHONUNBUFFERED="1",
@@ -84,6 +86,7 @@ class Acquire:
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
+            preexec_fn=preexec,
         )
         self.out: list[str] = []
         self.err: list[str] = []
@@ -334,6 +337,27 @@ def test_a_handful_of_kills(tmp_path):
     assert c.landed["SIGKILL"] == 2 and c.landed["SIGINT"] == 2
 
 
+def test_a_run_started_with_ctrl_c_ignored_runs_through_it(tmp_path):
+    """``nohup labcli acquire ... &`` asks for a run that Ctrl-C does not stop: none lands, not even
+    in a write, where the session otherwise holds a Ctrl-C back and honours it after."""
+    rows = plan_rows(12, 2)
+    plan = tmp_path / "plan.csv"
+    plan.write_text("trial,set,mass_g,direction_deg\n" + "".join(f"{t},{s},{m:g},{d:g}\n" for t, s, m, d in rows))
+    path = tmp_path / "run.h5"
+    proc = Acquire(run_args(path, plan), preexec=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    assert proc.wait_ready()
+    sent = 0
+    while proc.proc.poll() is None:
+        proc.proc.send_signal(signal.SIGINT)
+        sent += 1
+        time.sleep(0.005)
+    assert proc.wait() == 0, proc.stderr
+    assert sent > 100 and proc.stderr == ""
+    assert "Session complete: 12 trials stored" in proc.stdout
+    with RunFile.open(path) as run:
+        assert run.records.ids() == [r[0] for r in rows] and run.split.get() is not None
+
+
 def test_ctrl_c_during_the_setup_check_leaves_no_file_and_says_so(tmp_path, monkeypatch):
     from labcli.core.device import Device
 
@@ -364,6 +388,9 @@ def quiet():
 def ctrl_c_inside(monkeypatch, facet: type, name: str, when=lambda *a: True) -> None:
     """Press Ctrl-C (a real SIGINT to this process) as ``<facet>.<name>`` of a run file starts."""
     real = getattr(facet, name)
+
+    # As a terminal starts labcli: the runner may have passed this process SIGINT ignored.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
     def pressed(self, *args, **kwargs):
         if when(*args):

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from support.procs import at_a_terminal
 
 from labcli.cli import cli
 from labcli.core.protocol import load_protocol
@@ -74,6 +75,7 @@ class Session:
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
+            preexec_fn=at_a_terminal,
         )
         self.out = ""
         self._pos = 0
@@ -196,8 +198,9 @@ def test_a_person_redoes_skips_quits_is_interrupted_and_resumes(tmp_path, rig_on
     assert df["trial"].tolist() == [1, 2, 3]
     assert df["set"].tolist() == ["fit", "fit", "validation"]
     # The person hung what the prompts said: the joints bent, the bottom one opposite ways for
-    # a pull to the right (-60 deg) and one to the left (150 deg).
-    assert df["theta1_deg"].abs().min() > 0.5
+    # a pull to the right (-60 deg) and one to the left (150 deg).  On the paper-scale rig 200 g
+    # bends the bottom joint by about 0.3 deg.
+    assert df["theta1_deg"].abs().min() > 0.15
     assert math.copysign(1, df["theta1_deg"][0]) != math.copysign(1, df["theta1_deg"][2])
     with RunFile.open(run) as f:
         assert f.attrs["port"] == port

@@ -53,6 +53,15 @@ def labcli(
         )
 
 
+def at_a_terminal() -> None:
+    """``preexec_fn`` of a child that is sent Ctrl-C: SIGINT at its default, as a terminal starts it.
+
+    A child inherits an ignored SIGINT, and test runners are often started that way (a script's
+    background job, some CI runners): its Ctrl-C would then be ignored, as labcli is asked to.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def finish(proc: subprocess.Popen, timeout: float = 10.0) -> tuple[str, str]:
     """The rest of a text-mode child's stdout and stderr once it exits, and its exit awaited.
 
