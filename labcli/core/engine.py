@@ -27,10 +27,8 @@ from __future__ import annotations
 
 import contextlib
 import math
-import signal
-import threading
 import time
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -188,7 +186,7 @@ class RunEngine:
         all, should Ctrl-C come), with the session's start logged in it."""
         if self.run_file is None:
             assert self._new_run is not None
-            with _sigint_deferred():  # Ctrl-C during the creation: the file exists whole, or not at all
+            with interrupts.deferred():  # Ctrl-C during the creation: the file exists whole, or not at all
                 self.run_file = self._new_run.create()
                 self._begin_log(self.run_file)
         return self.run_file
@@ -501,7 +499,7 @@ class RunEngine:
         if self._flags:
             record["flags"] = [*record.get("flags", ()), *self._flags]
         run = self.open_run()
-        with _sigint_deferred():
+        with interrupts.deferred():
             run.records.write(record)
             # Inside the deferral, so a Ctrl-C held during the write finds the trial stored.
             self._stored += 1
@@ -517,7 +515,7 @@ class RunEngine:
     def _finish(self, step: Finish) -> None:
         self.stream.stop()
         run = self.open_run()  # a session that recorded nothing still leaves its (empty) run
-        with _sigint_deferred():  # a Ctrl-C now finds the split whole and the run finished
+        with interrupts.deferred():  # a Ctrl-C now finds the split whole and the run finished
             if step.split:
                 # Only stored trials join (a session restarted after a lost rig counts skips as done).
                 stored = set(run.records.ids())
@@ -581,24 +579,3 @@ class RunEngine:
 def _what(e: Exception) -> str:
     """What a lost rig did, for "the rig on PORT {what} during trial 3"."""
     return getattr(e, "what", None) or "stopped sending data"
-
-
-@contextlib.contextmanager
-def _sigint_deferred() -> Iterator[None]:
-    """Hold Ctrl-C until a trial is written whole (the store's write is not interruptible).
-
-    A process started with Ctrl-C ignored (``nohup``, a script's background job) was asked to run
-    through it: catching it here would honour a Ctrl-C that lands during a write and no other.
-    """
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        yield
-        return
-    caught: list[Any] = []
-    previous = signal.signal(signal.SIGINT, lambda *a: caught.append(a))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        if caught:
-            raise KeyboardInterrupt
-        interrupts.check()

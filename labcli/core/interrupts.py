@@ -11,12 +11,14 @@ that means the experimenter pressed Ctrl-C and the session ran on to the end.
 printing it; :func:`check` raises it at a point where raising is safe (the
 engine calls it between steps and between frame batches).  Re-sending the
 signal from inside the hook does not work: the new KeyboardInterrupt lands in
-the same finaliser and is swallowed again.
+the same finaliser and is swallowed again.  :func:`deferred` holds a Ctrl-C back while a trial is
+written, and raises it once the write is whole.
 """
 
 from __future__ import annotations
 
 import contextlib
+import signal
 import sys
 import threading
 from collections.abc import Iterator
@@ -57,3 +59,24 @@ def check() -> None:
     if _pending.is_set():
         _pending.clear()
         raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """Hold Ctrl-C until a trial is written whole (the store's write is not interruptible).
+
+    A process started with Ctrl-C ignored (``nohup``, a script's background job) was asked to run
+    through it: catching it here would honour a Ctrl-C that lands during a write and no other.
+    """
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        yield
+        return
+    caught: list[Any] = []
+    previous = signal.signal(signal.SIGINT, lambda *a: caught.append(a))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if caught:
+            raise KeyboardInterrupt
+        check()
