@@ -113,3 +113,25 @@ def test_one_long_list_met_several_times_is_written_each_time_the_same():
     assert json.loads(text) == json.loads(json.dumps(doc))
     one_line = json.dumps(ranges, separators=(", ", ": "))
     assert text.count(one_line) == 3 and json.dumps(other, separators=(", ", ": ")) in text
+
+
+def test_long_texts_find_huge_numbers_whole_array_as_the_pattern_does():
+    import random
+
+    from labcli.core.jsontext import _HUGE_NUMBER, LONG_TEXT, _may_hold_huge_number
+
+    rng = random.Random(5)
+    filler = '[1, 2.5e-05, "x"], '
+    seen = set()
+    for _ in range(40):
+        # A long plain document with one spot of digits, exponent letters and signs spliced in.
+        spot = "".join(rng.choice("0123456789eE+-. ,") for _ in range(rng.randrange(1, 12)))
+        spot += "7" * rng.choice([0, 3, 308, 309, 400])
+        text = filler * (LONG_TEXT // len(filler)) + spot + rng.choice(["", "e", "E+", "e-1", "]"])
+        found = _may_hold_huge_number(text)
+        assert found == (_HUGE_NUMBER.search(text) is not None), spot
+        seen.add(found)
+    assert seen == {True, False}
+    for text in ("9" * (LONG_TEXT + 5), "9" * 308 + "," + filler * LONG_TEXT, filler * LONG_TEXT + "1E+300"):
+        assert _may_hold_huge_number(text) == (_HUGE_NUMBER.search(text) is not None)
+    assert isinstance(loads_bounded("[" + filler * 2_000 + "1e999]")[-1], OutOfRange)

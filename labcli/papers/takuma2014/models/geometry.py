@@ -28,10 +28,12 @@ def jacobian(theta1: np.ndarray, theta2: np.ndarray, h2: float, h3: float) -> np
     t12 = t1 + np.atleast_1d(np.asarray(theta2, dtype=float))
     t1, t12 = np.broadcast_arrays(t1, t12)
     J = np.empty(t1.shape + (2, 2))
-    J[..., 0, 0] = -h2 * np.cos(t1) - h3 * np.cos(t12)
-    J[..., 0, 1] = -h3 * np.cos(t12)
-    J[..., 1, 0] = -h2 * np.sin(t1) - h3 * np.sin(t12)
-    J[..., 1, 1] = -h3 * np.sin(t12)
+    # The outer link's terms once each (the same numbers as writing them out twice).
+    c12, s12 = -h3 * np.cos(t12), -h3 * np.sin(t12)
+    J[..., 0, 0] = -h2 * np.cos(t1) + c12
+    J[..., 0, 1] = c12
+    J[..., 1, 0] = -h2 * np.sin(t1) + s12
+    J[..., 1, 1] = s12
     return J
 
 

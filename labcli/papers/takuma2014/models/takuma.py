@@ -209,8 +209,10 @@ def force_design(
     js = jstar(theta, h2, h3) if js is None else js
 
     def rows(ja: np.ndarray, jb: np.ndarray) -> np.ndarray:
-        # Written into one array: six (n,) temporaries and a stacked copy were 2x the design.
-        X = np.empty((len(dP), 6))
+        # Written into one array: six (n,) temporaries and a stacked copy were 2x the design.  Column
+        # by column (Fortran order): each product lands contiguous, and the least squares' blocks
+        # are copied into LAPACK's own order from it.
+        X = np.empty((len(dP), 6), order="F")
         outer, inner, lower = ja * c1, ja * (c1 - c2), jb * c2  # each weight serves two pressure drops
         for k, (weight, drop) in enumerate(((outer, 0), (outer, 1), (inner, 2), (inner, 3), (lower, 2), (lower, 3))):
             np.multiply(weight, dP[:, drop], out=X[:, k])
@@ -306,7 +308,9 @@ QR_BLOCK = 32_768
 
 def _lstsq(X: np.ndarray, y: np.ndarray, names: Sequence[str], equation: str, max_cond: float) -> _LstsqResult:
     n, p = X.shape
-    scale = np.linalg.norm(X, axis=0)
+    # Each column's norm by itself: numpy's norm along the rows of a C-ordered (n, 2-6) array
+    # steps a row at a time.
+    scale = np.sqrt(np.array([X[:, k] @ X[:, k] for k in range(p)]))
     zero = [names[k] for k in range(p) if not scale[k] > 0]
     if zero:
         raise ModelError(
