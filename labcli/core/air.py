@@ -12,6 +12,11 @@ reads what the chambers do (:class:`AirSettings` holds the protocol's limits):
   fed through a valve that should be closed.  Either is named before the first trial.  The slope's
   standard error is far below the limit: 0.15 kPa of noise over 5 s at 200 Hz fits a slope to
   about 0.1 kPa/min.
+* **the steady leak**: the slopes the hold check measured are each held chamber's leak; the
+  trials' waits take them out of the settling rule's tail (``AirDrift.leak_per_s``,
+  :mod:`labcli.core.settle`), so that a chamber losing a few kPa/min steadily is not read as a
+  load still settling (seed 3 of the simulated rig, 3.6 kPa/min, had most of its windows accepted
+  at the timeout before).
 * **re-pressurising** (:class:`AirDrift`): the chambers leak (about 1 kPa/min on the reference
   rig), and a run of 108 trials holds its air for half an hour or more, so the operating point
   drifts under the fitted model.  Each trial's baseline is compared with the first baseline after
@@ -157,10 +162,23 @@ def hold_problem(names: Sequence[str], rate_MPa_per_s: Sequence[float], settings
 class AirDrift:
     """How far the held chambers have drifted since the first baseline after the last supply."""
 
-    def __init__(self, names: Sequence[str], cols: Sequence[int], settings: AirSettings) -> None:
+    def __init__(
+        self,
+        names: Sequence[str],
+        cols: Sequence[int],
+        settings: AirSettings,
+        rate_per_s: Sequence[float] | None = None,
+    ) -> None:
         self.names = tuple(names)
         self.cols = list(cols)
         self.settings = settings
+        # Every channel's steady drift (SI per s): the hold check's slope on the chambers, zero elsewhere.
+        self.leak_per_s: tuple[float, ...] = ()
+        if rate_per_s is not None:
+            rate = np.asarray(rate_per_s, dtype=float)
+            leak = np.zeros(len(rate))
+            leak[self.cols] = np.where(np.isfinite(rate[self.cols]), rate[self.cols], 0.0)
+            self.leak_per_s = tuple(float(x) for x in leak)
         self._reference: np.ndarray | None = None
         self.largest_kPa = 0.0  # the largest drift any baseline showed (before a re-supply)
         self.supplies = 0  # re-pressurisations so far

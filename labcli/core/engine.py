@@ -149,10 +149,10 @@ class RunEngine:
         units = tuple(protocol.calibration.units)
         self._pcols = [i for i, u in enumerate(units) if u == "MPa"]
         self._acols = [i for i, u in enumerate(units) if u == "rad"]
-        # Length channels (a draw-wire sensor) settle only under a protocol that gives
-        # their limit; without one they are not watched.
+        # Length channels (a draw-wire sensor) settle only under a protocol giving their limit, else not watched.
         self._length_spread_m = getattr(protocol.settling, "length_spread_m", None)
         self._lcols = [i for i, u in enumerate(units) if u == "m"] if self._length_spread_m else []
+        self._settle_cols = (self._pcols, self._acols, self._lcols, self._length_spread_m)
         self._subscribers: list[Callable[[Any, Any], None]] = []
         self._trial: BeginTrial | None = None  # the trial in progress (None between trials)
         self._trials_begun = False
@@ -364,7 +364,7 @@ class RunEngine:
         if isinstance(step, BeginTrial):
             return self._begin(step)
         if isinstance(step, WaitSettle):
-            return self._wait_settle(step.label)
+            return self._wait_settle(step.label, step.drift_per_s)
         if isinstance(step, (Baseline, Capture)):
             self.stream.start()
             return self._capture(step.capture_s)
@@ -449,9 +449,9 @@ class RunEngine:
             self._rate_warned.add(key)
             self.ui.warn(f"{text}; each trial recorded so carries a flag")
 
-    def _wait_settle(self, label: str) -> SettleReport | str:
+    def _wait_settle(self, label: str, drift_per_s: tuple[float, ...] = ()) -> SettleReport | str:
         self.stream.start()
-        detector = SettleDetector(self.criteria, self._pcols, self._acols, self._lcols, self._length_spread_m)
+        detector = SettleDetector(self.criteria, *self._settle_cols, drift_per_s=drift_per_s or None)
         while True:
             # The live status line is closed before any question is asked.
             with self.ui.settling(label, self.criteria) as show:
@@ -470,7 +470,7 @@ class RunEngine:
                     if status.settled or status.timed_out:
                         break
             if status.settled:
-                report = self._report(status, True, status.settle_time_s, "")
+                report = self._report(status, True, status.settle_time_s, detector.leak_note)
                 break
             choice = self.ui.settle_timeout(label, status, self.criteria)
             if choice == "wait":
@@ -478,7 +478,7 @@ class RunEngine:
                 continue
             if choice == "redo":
                 return "redo"
-            report = self._report(status, False, status.elapsed_s, " (timed out, accepted)")
+            report = self._report(status, False, status.elapsed_s, detector.leak_note + " (timed out, accepted)")
             break
         self.ui.settled(label, report)
         return report

@@ -25,6 +25,14 @@ short, so the toolkit judges equilibrium from the data instead:
   ``angle_spread_rad``, and has stayed so for ``hold_s`` seconds of device
   time.  The tail needs three windows of data, so the earliest acceptance is
   ``3 window_s + hold_s`` after the wait begins;
+* a chamber that leaks steadily drifts by the same amount every window: a trend that does not
+  decay, which the tail would count as ``TAIL_MAX`` windows of it (a leak of 3.6 kPa/min is
+  0.24 kPa of the 0.31 kPa limit, and the noise of single windows pushes it over).  A steady
+  drift known beforehand (``drift_per_s``, per channel: each chamber's leak as the hold check
+  measured it, :func:`labcli.core.air.hold_problem`) is taken out of the block means before the
+  spread and the tail are judged, so a constant leak is no tail while a decaying one on top of
+  it still is; a drift that changes (a leak that steps up, a valve that starts to pass) leaves
+  the difference in the means, and that difference is a trend like any other;
 * a length channel (the rPAM stand's draw-wire sensor) has its own limit, and
   counts as motion with the angles: its spread is reported as the angle spread
   that is the same fraction of the angle limit.
@@ -130,8 +138,10 @@ class SettleDetector:
 
     ``pressure_cols``, ``angle_cols`` and ``length_cols`` index the SI columns
     that the thresholds apply to; length columns need ``length_spread_m``, their
-    limit.  ``t_s`` must be non-decreasing device time in seconds (already
-    unwrapped); its origin is the first sample seen.
+    limit.  ``drift_per_s`` (shape (k,), SI units per second, zero where none is
+    known) is each channel's steady drift, taken out before the spreads and the
+    tail are judged (the module docstring).  ``t_s`` must be non-decreasing device
+    time in seconds (already unwrapped); its origin is the first sample seen.
     """
 
     def __init__(
@@ -141,8 +151,15 @@ class SettleDetector:
         angle_cols: tuple[int, ...] | list[int],
         length_cols: tuple[int, ...] | list[int] = (),
         length_spread_m: float | None = None,
+        drift_per_s: np.ndarray | tuple[float, ...] | None = None,
     ) -> None:
         self.criteria = criteria
+        drift = np.zeros(0) if drift_per_s is None else np.asarray(drift_per_s, dtype=float)
+        if not np.all(np.isfinite(drift)):
+            raise ValueError(f"settling drift_per_s must be finite, got {drift_per_s!r}")
+        # The drift over each block of the tail's history, oldest first: subtracted from the block means.
+        steps = np.arange(TAIL_WINDOWS * BLOCKS)[:, None] * (criteria.window_s / BLOCKS)
+        self._drift = steps * drift[None, :] if np.any(drift) else None
         self._pcols = list(pressure_cols)
         self._acols = list(angle_cols)
         self._lcols = list(length_cols)
@@ -170,6 +187,15 @@ class SettleDetector:
     def status(self) -> SettleStatus:
         return self._status
 
+    @property
+    def leak_note(self) -> str:
+        """What the wait's criterion adds when it takes a steady drift out of the pressures
+        (``", less the leaks (up to 3.6 kPa/min)"``: the run file keeps 192 bytes of it), or ``""``."""
+        if self._drift is None or not self._pcols:
+            return ""
+        largest = float(np.abs(self._drift[1, self._pcols]).max()) / self._block_s
+        return f", less the leaks (up to {largest * 60e3:.2g} kPa/min)" if largest > 0 else ""
+
     def extend_timeout(self, extra_s: float | None = None) -> None:
         """Wait longer: push the timeout out by ``extra_s`` (default: one more timeout)."""
         self._timeout_s += self.criteria.timeout_s if extra_s is None else extra_s
@@ -196,6 +222,8 @@ class SettleDetector:
         if t_s.size == 0 or self._status.settled or self._status.timed_out:
             return self._status
         if self._t0 is None:
+            if self._drift is not None and self._drift.shape[1] != si.shape[1]:
+                raise ValueError(f"settling drift_per_s has {self._drift.shape[1]} channels, the samples {si.shape[1]}")
             self._t0 = float(t_s[0])
             self._sum = np.zeros(si.shape[1])
             self._means = np.zeros((0, si.shape[1]))
@@ -257,11 +285,11 @@ class SettleDetector:
         tail_p, tail_a = np.full((2, len(blocks)), np.inf)  # no tail estimate yet: not quiet
         one = np.flatnonzero(length >= BLOCKS)
         if len(one):
-            m = history[length[one, None] + np.arange(-BLOCKS, 0)]
+            m = self._steady(history[length[one, None] + np.arange(-BLOCKS, 0)])
             spread_p[one], spread_a[one] = self._largest(m.max(axis=1) - m.min(axis=1))
         three = np.flatnonzero(length >= TAIL_WINDOWS * BLOCKS)
         if len(three):
-            m = history[length[three, None] + np.arange(-TAIL_WINDOWS * BLOCKS, 0)]
+            m = self._steady(history[length[three, None] + np.arange(-TAIL_WINDOWS * BLOCKS, 0)])
             A, B, C = np.moveaxis(m.reshape(len(three), TAIL_WINDOWS, BLOCKS, -1).mean(axis=2), 1, 0)
             tail_p[three], tail_a[three] = self._largest(remaining_tail(A, B, C))
         quiet = (np.maximum(spread_p, tail_p) < c.pressure_spread_MPa) & (
@@ -294,6 +322,12 @@ class SettleDetector:
             False,
         )
         return j if settled else None
+
+    def _steady(self, means: np.ndarray) -> np.ndarray:
+        """Block means (evaluations, blocks, channels) less the steady drift since their first block."""
+        if self._drift is None:
+            return means
+        return means - self._drift[None, : means.shape[1], :]
 
     def _largest(self, per_channel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Largest pressure and motion (angle, or length as the same share of its limit) values per row."""

@@ -158,6 +158,9 @@ class WaitSettle:
     """Read until the rig is at equilibrium (:mod:`labcli.core.settle`)."""
 
     label: str  # "baseline", "load", "air supply", ...
+    # Each SI channel's steady drift per second (a held chamber's leak, measured by the hold
+    # check), taken out of the spreads and the tail; empty when none is known.
+    drift_per_s: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)

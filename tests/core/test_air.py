@@ -155,3 +155,12 @@ def test_the_running_sums_give_the_slope_of_the_whole_window():
     assert mean == pytest.approx(v.mean(axis=0), rel=1e-12)
     assert sums.n == 2000
     assert np.isnan(SlopeSums(2).result()[0]).all()
+
+
+def test_the_hold_checks_slopes_are_the_waits_steady_leak():
+    air = AirSettings()
+    slopes = np.array([-1e-5, -6e-5, np.nan, 2e-6, 0.01, -0.02])  # four chambers, then two angles
+    drift = AirDrift(NAMES, [0, 1, 2, 3], air, slopes)
+    # The chambers' own slopes (a chamber the check could not fit counts none); the angles none.
+    assert drift.leak_per_s == (-1e-5, -6e-5, 0.0, 2e-6, 0.0, 0.0)
+    assert AirDrift(NAMES, [0, 1, 2, 3], air).leak_per_s == ()

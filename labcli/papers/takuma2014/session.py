@@ -486,7 +486,7 @@ def _pressurise_by_command(
             hold = yield Hold(air.hold_check_s)
             problem = hold_problem(names, hold.slope_per_s[cols], air)
         if problem is None:
-            return AirDrift(names, cols, air)
+            return AirDrift(names, cols, air, hold.slope_per_s)
         yield Problem(problem, Prompt(FIX_AIR_TEXT))
         yield Valves("supply")
 
@@ -560,7 +560,8 @@ def _trial(
     while True:
         if air is not None and air.settings.friction_relief_s > 0:
             yield from _relieve(air, checked.guard if checked is not None else None)
-        wait_b = yield WaitSettle("baseline")
+        leak = air.leak_per_s if air is not None else ()
+        wait_b = yield WaitSettle("baseline", leak)
         if wait_b == "redo":
             continue
         base = yield Baseline(capture_s)
@@ -582,7 +583,7 @@ def _trial(
         typed = yield load
         if typed is not None:
             return typed
-        wait_l = yield WaitSettle("load")
+        wait_l = yield WaitSettle("load", leak)
         if wait_l == "redo":
             yield unload
             continue
