@@ -6,6 +6,7 @@ import contextlib
 import json
 import os
 import shutil
+import warnings
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -13,7 +14,7 @@ import h5py
 import pytest
 from support.records import CHANNELS, FakeDevice, FakeProtocol, assert_record_stored, make_record
 
-from labcli.core.store import RunFile
+from labcli.core.store import SCHEMA_VERSION, RunFile
 from labcli.errors import LabcliWarning, StoreError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -182,14 +183,14 @@ def test_adding_to_a_version_1_file_copies_it_into_the_current_schema(tmp_path):
         ids = run.records.ids()
         models = run.models.all()
     with RunFile.open(path, "a") as run:
-        assert run.version == 3
+        assert run.version == SCHEMA_VERSION
         run.records.write(make_record(200))
     with RunFile.open(path) as run:
         assert run.records.ids() == ids + [200]
         assert run.records.table().iloc[: len(ids)].equals(before)
         assert run.models.all() == models
     with h5py.File(path, "r") as f:
-        assert f["entry/labcli"].attrs["schema_version"] == 3 and "schema_version" not in f.attrs
+        assert f["entry/labcli"].attrs["schema_version"] == SCHEMA_VERSION and "schema_version" not in f.attrs
     assert not [p for p in os.listdir(tmp_path) if p != "force.h5"]  # no partial file left behind
 
 
@@ -213,7 +214,7 @@ def test_a_schema_2_file_reads_into_the_keys_of_schema_3(tmp_path):
     with new_run(new) as run:
         run.records.write(make_record(1))
     with RunFile.open(str(v2)) as old, RunFile.open(new) as now:
-        assert (old.version, now.version) == (2, 3)
+        assert (old.version, now.version) == (2, SCHEMA_VERSION)
         assert set(now.attrs) <= set(old.attrs) | {"creator_version"}, set(now.attrs) - set(old.attrs)
         assert old.attrs["kind"] == now.attrs["kind"] == "force" and old.attrs["imported"] is False
         assert old.protocol_text and list(old.calibration()["units"]) == list(now.calibration()["units"])
@@ -249,16 +250,14 @@ def test_nexus_the_way_h5py_users_read_it(tmp_path):
         assert table["P"].attrs["units"] == b"MPa" and table["P"].shape == (2, 4)
         np.testing.assert_array_equal(table["P"][1], make_record(2)["P_MPa"])
         assert list(table["trial"][:]) == [1, 2]
-        # the default plot: the pressures logged over the run against device time, the raw log's own data
+        # the default plot: every channel logged over the run against device time, the raw log's own data
         plot = entry[entry.attrs["default"].decode()]
-        assert plot.attrs["NX_class"] == b"NXdata" and plot.attrs["signal"] == b"P_L1"
-        assert list(plot.attrs["axes"]) == [b"time"] and list(plot.attrs["auxiliary_signals"]) == [
-            b"P_R1",
-            b"P_L2",
-            b"P_R2",
-        ]
-        assert plot["P_L1"] == entry["raw/P_L1/value"] and plot["time"] == entry["raw/time"]  # the same datasets
-        assert plot["P_L1"].attrs["units"] == b"MPa" and plot["time"].attrs["units"] == b"s"
+        assert plot.attrs["NX_class"] == b"NXdata" and plot.attrs["signal"] == b"values"
+        assert list(plot.attrs["axes"]) == [b"time", b"channel"] and "auxiliary_signals" not in plot.attrs
+        assert plot["values"] == entry["raw/values"] and plot["time"] == entry["raw/time"]  # the same datasets
+        assert plot["values"].shape == (plot["time"].shape[0], len(CHANNELS))
+        assert list(plot["channel"][:]) == list(range(len(CHANNELS))) and plot["time"].attrs["units"] == b"s"
+        assert plot["channel"].attrs["long_name"] == ("channel: " + ", ".join(CHANNELS)).encode()
         # the plan's set is no NeXus set point (a field plan_set would be one): stored as plan_set_
         assert b"plan_set_" in list(table.attrs["columns"]) and "plan_set_" in table and "plan_set" not in table
 
@@ -270,9 +269,57 @@ def test_nexus_the_way_h5py_users_read_it(tmp_path):
                     units[name] = obj.attrs["units"].decode()
 
         f.visititems(visit)
-    # one unit per dataset, but the session log's calibration per channel: each channel's
-    assert all("," not in u for k, u in units.items() if not k.startswith("entry/sessions/")), units
+    # one unit per dataset, but the session log's calibration and the frames x channels arrays per
+    # channel: each channel's (and each channel's NXlog has its own one)
+    apart = ("entry/sessions/", "entry/plot/values")  # raw/values, visited by its link in the plot
+    assert all("," not in u for k, u in units.items() if not k.startswith(apart)), units
+    assert units["entry/plot/values"] == "MPa,MPa,MPa,MPa,rad,rad" and units["entry/raw/P_L1/value"] == "MPa"
     assert not [s for s in strings if str(tmp_path) in s]  # no path of the writer's machine
+
+
+def test_a_schema_3_file_takes_new_records_in_its_own_layout(tmp_path):
+    # Up to schema 3 each channel's values and counts are datasets of their own; a file of that
+    # schema opened to add to keeps them (no frames x channels arrays appear) and reads as before.
+    path = tmp_path / "force.h5"
+    shutil.copy(ROOT / "tests" / "data" / "v3" / "force-before-marks.h5", path)
+    with RunFile.open(path) as run:
+        before, ids = run.records.table(), run.records.ids()
+    rec = make_record(max(ids) + 1, n=300)
+    with RunFile.open(path, "a") as run:
+        assert run.version == 3
+        run.records.write(rec)
+    with RunFile.open(path) as run:
+        assert run.records.ids() == [*ids, max(ids) + 1]
+        assert run.records.table().iloc[: len(ids)].equals(before)
+        assert_record_stored(run.records.read(max(ids) + 1), rec)
+        assert run.verify()["ok"]
+    with h5py.File(path, "r") as f:
+        raw = f["entry/raw"]
+        assert "values" not in raw and "counts" not in raw and not raw["P_L1/value"].is_virtual
+        assert raw["P_L1/raw_value"].shape == raw["time"].shape
+
+
+def test_raw_frames_rewritten_by_hand_fail_verify_never_a_traceback(tmp_path):
+    """From schema 4 the readers read a channel's frames from raw/values and raw/counts (its NXlog's
+    value and raw_value are views of them): either replaced, cut to one channel, fails verify."""
+    path = tmp_path / "run.h5"
+    with new_run(str(path)) as run:
+        for i in (1, 2):
+            run.records.write(make_record(i, n=120))
+    good = path.read_bytes()
+    for name in ("entry/raw/values", "entry/raw/counts"):
+        path.write_bytes(good)
+        with h5py.File(path, "r+") as f:
+            data, attrs = f[name][()], dict(f[name].attrs)
+            del f[name]
+            f.create_dataset(name, data=data[:, :1])
+            f[name].attrs.update(attrs)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LabcliWarning)
+            with RunFile.open(str(path)) as run:
+                report = run.verify()
+                assert run.records.ids() == [1, 2]  # the rows are whole: their windows are what is damaged
+        assert not report["ok"] and report["records"] == 2 and report["windows"] == 0, report
 
 
 def _rewrite(path: Path, name: str, how: str) -> None:
@@ -304,6 +351,11 @@ def test_a_dataset_rewritten_by_hand_is_caught_never_a_traceback(tmp_path, name,
         pytest.skip("frame numbers as text keep their values (read back the same), and scaled is not a type they take")
     run = tmp_path / "run.h5"
     shutil.copyfile(ROOT / "sample_runs" / "force.h5", run)
+    with h5py.File(run, "r") as f:
+        if f[name].is_virtual:
+            pytest.skip(
+                "from schema 4 a channel's value is a view of raw/values, what the readers read (rewritten above)"
+            )
     _rewrite(run, name, how)
     model = ROOT / "sample_runs" / "force.model.json"
     # Rescaled trial columns leave every row failing its checksum: each reader says so in one

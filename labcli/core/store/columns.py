@@ -65,15 +65,18 @@ def h5_dtype(c: Column) -> Any:
     return c.dtype
 
 
-def create_dataset(g: h5py.Group, c: Column, chunk: int, length: int = 0, dtype: Any = None) -> h5py.Dataset:
+def create_dataset(
+    g: h5py.Group, c: Column, chunk: int, length: int = 0, dtype: Any = None, by_component: bool = False
+) -> h5py.Dataset:
     """A resizable dataset for column ``c`` (``length`` rows, chunked by ``chunk`` rows), with its units;
-    ``dtype``: a narrower one than the column's kind stores (raw counts as int32)."""
+    ``dtype``: a narrower one than the column's kind stores (raw counts as int32); ``by_component``:
+    each component in chunks of its own (a channel's frames compress as well as they would alone)."""
     ds = g.create_dataset(
         h5_name(c.name),
         shape=(length, *c.shape),
         maxshape=(None, *c.shape),
         dtype=h5_dtype(c) if dtype is None else dtype,
-        chunks=(chunk, *c.shape),
+        chunks=(chunk, *(1 for _ in c.shape)) if by_component else (chunk, *c.shape),
         fillvalue=fill_value(c),
         **FILTERS,
     )

@@ -1,9 +1,9 @@
-"""The layout of a run file, schema version 2: what a new run holds and where.
+"""The layout of a run file (schema version :data:`SCHEMA_VERSION`): what a new run holds and where.
 
 ::
 
     /                           NXroot  @default "entry"  @file_name @file_time @creator
-                                @HDF5_Version @h5py_version  @schema "labcli-run" @schema_version 2
+                                @HDF5_Version @h5py_version  (@schema and @schema_version: entry/labcli)
       entry/                    NXentry  @default (the record table)  @kind @protocol @run_uid
                                 @start_time @program_name @program_version @command_line @host_name
                                 @operator @device @firmware @port @channels @imported @source
@@ -11,7 +11,8 @@
         protocol (1,)           the protocol TOML, verbatim  @name @kind @file_name
         plan/                   the plan table (when there was a plan)
         trials/ (pushes/, points/)  NXdata  @signal @axes: the records, one row each
-        raw/                    every raw frame: time, seq, and per channel an NXlog
+        raw/                    every raw frame: time, seq, values and counts (frames x channels),
+                                and per channel an NXlog (its value and raw_value: views of those)
           unused/               ranges of frames no record takes, and why (redone, interrupted, ...)
         split/                  every split assigned, the last one in force; ids (m,)
         models/                 every model recorded, the last of each name in force; json (bytes)
@@ -52,7 +53,7 @@ from .h5 import put
 from .nexus import default_plot, write_metadata
 
 SCHEMA = "labcli-run"
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 WINDOWS = ("baseline", "loaded")  # a record's raw windows: group names of schema 1, column prefixes here
 TIME_WIDTH = 40
 FLAGS_WIDTH = 1024  # bytes of the flags column: a few one-sentence notes per record

@@ -10,9 +10,11 @@ an attribute of labcli's own collection where it has none.
       program_name        "labcli"  @version  @configuration (the command line, file names only)
       user/               NXuser: name (the operator)
       instrument/         NXinstrument: name (the rig's device, its ID? reply)
-      plot/               NXdata, /entry@default: the first channel (a pressure) against device
-                          time, the other channels in its unit as @auxiliary_signals
-                          (hard links to raw/<channel>/value and raw/time)
+      plot/               NXdata, /entry@default: every channel's calibrated values (frames x
+                          channels) against device time and the channel's place in
+                          raw@channels (hard links to raw/values and raw/time); up to schema 3
+                          the first channel (a pressure) against time, the other channels in
+                          its unit as @auxiliary_signals (links to raw/<channel>/value)
       labcli/             NXcollection  @schema @schema_version @metadata_checksum @kind @protocol
                           @host_name @firmware @port @channels @imported (0 or 1) @source;
         protocol (1,)     the protocol TOML, verbatim  @name @kind @file_name
@@ -108,29 +110,29 @@ def write_metadata(
 
 def default_plot(entry: h5py.Group) -> None:
     """``/entry/plot``, the run's default plot (NeXus ``@default``): what a NeXus viewer
-    (NeXpy, h5web, nexusformat's ``plot()``) draws when the file is opened, the channels in the
-    first channel's unit (the pressures, on both papers' rigs) over the run, every window
-    trial after trial, against device time.
+    (NeXpy, h5web, nexusformat's ``plot()``) draws when the file is opened: every frame of the
+    run, window after window, against device time, each channel a column (``channel``: its
+    place in ``raw@channels``).
 
-    Its datasets are the raw log's own (hard links), so it costs no bytes and no write.  A record
-    table is not plotted by default: its results are pairs (two angles, two force components),
-    which a NeXus plot can only show as an image or with a ``"."`` axis that validators refuse.
+    Its datasets are the raw log's own (hard links), so it costs no bytes and no write.  Not
+    the channels' NXlog values: those are virtual datasets, which nexusformat (what nxinspect
+    reads a file with) takes for a stack of files and sizes wrongly.  A record table is not
+    plotted by default: its results are pairs (two angles, two force components), which a
+    NeXus plot can only show as an image or with a ``"."`` axis that validators refuse.
     """
     raw = entry["raw"]
     channels = [text(c) for c in raw.attrs["channels"]]
-    units = [text(raw[c]["value"].attrs.get("units", "")) for c in channels]
-    shown = [c for c, u in zip(channels, units, strict=True) if u == units[0]] if channels else []
-    if not shown:
+    if not channels or "values" not in raw:
         return
     g = entry.create_group("plot")
     put(g, "NX_class", "NXdata")
     g["time"] = raw["time"]
-    for c in shown:
-        g[c] = raw[c]["value"]
-    put(g, "signal", shown[0])
-    put(g, "axes", ["time"])
-    if len(shown) > 1:
-        put(g, "auxiliary_signals", shown[1:])
+    g["values"] = raw["values"]
+    index = g.create_dataset("channel", data=np.arange(len(channels), dtype="<i8"), chunks=(len(channels),), **FILTERS)
+    put(index, "units", "1")
+    put(index, "long_name", "channel: " + ", ".join(channels))
+    put(g, "signal", "values")
+    put(g, "axes", ["time", "channel"])
     put(entry, "default", "plot")
 
 

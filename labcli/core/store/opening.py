@@ -89,10 +89,29 @@ def metadata_checksum(f: h5py.File) -> int:
             parts.append(f"{name}@{key}:{v.dtype.str}:".encode() + data)
 
     add("/", f)
-    f.visititems(add)
+    views = _views(f)
+    names: list[str] = []
+    f.visit(names.append)  # each object once, by the first name met, as visititems gives them
+    for name in names:
+        if name not in views:
+            add(name, f[name])
     parts += field_parts(f)
     blob = np.frombuffer(b"\x1e".join(parts), dtype=np.uint8)
     return int(row_checksums([blob.reshape(1, -1)], 0)[0])
+
+
+def _views(f: h5py.File) -> set[str]:
+    """The channels' NXlog ``value`` and ``raw_value`` of a schema-4 file, by name: views of
+    ``raw/values`` and ``raw/counts`` (virtual datasets, :mod:`.frames`), which no reader opens.
+
+    Their mappings live in HDF5's global heap, and HDF5 reads them as it opens the dataset: one
+    flipped bit there can crash or hang the process (measured, as for variable-length text), so
+    labcli reads the frames from the arrays themselves and leaves the views to NeXus readers.
+    """
+    raw = f.get("entry/raw")
+    if not isinstance(raw, h5py.Group) or "values" not in raw:
+        return set()
+    return {f"entry/raw/{c}/{k}" for c in raw for k in ("value", "raw_value")}
 
 
 def metadata_ok(f: h5py.File) -> bool:

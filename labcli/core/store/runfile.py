@@ -561,7 +561,13 @@ def _calibration(h5: h5py.File, version: int, channels: tuple[str, ...]) -> dict
     cal = raw if version == 2 else raw["calibration"]
     gain = np.array([cal[c]["gain"][0] for c in channels])
     offset = np.array([cal[c]["offset"][0] for c in channels])
-    units = tuple(text(raw[c]["value"].attrs["units"]) for c in channels)
+    if "values" in raw:  # schema 4: the channels' NXlog values are views, never opened (opening._views)
+        each = text(raw["values"].attrs["units"]).split(",")
+        units = tuple(each * len(channels) if len(each) == 1 else each)
+        if len(units) != len(channels):
+            raise ValueError(f"raw/values has {len(each)} units for {len(channels)} channels")
+    else:
+        units = tuple(text(raw[c]["value"].attrs["units"]) for c in channels)
     return {"channels": channels, "gain": gain, "offset": offset, "units": units}
 
 

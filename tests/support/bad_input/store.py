@@ -30,7 +30,7 @@ def newer_schema(path: str) -> None:
     import h5py
 
     with h5py.File(path, "a") as f:  # the schema lives in /entry/labcli from schema 3
-        (f["entry/labcli"] if "entry/labcli" in f else f).attrs["schema_version"] = 4
+        (f["entry/labcli"] if "entry/labcli" in f else f).attrs["schema_version"] = 5
 
 
 def flip_in_trial_row(row: int) -> Callable[[str], None]:
@@ -67,7 +67,7 @@ CASES: list[Case] = [
         "run file",
         "run file of a newer schema version (inspect)",
         ["inspect", "new.h5"],
-        ["new.h5 uses run-file schema version 4, newer than this labcli reads (3); upgrade labcli."],
+        ["new.h5 uses run-file schema version 5, newer than this labcli reads (4); upgrade labcli."],
         files={"new.h5": edited_run("acq.h5", newer_schema)},
     ),
     Case(
