@@ -566,8 +566,9 @@ def test_a_reader_that_meets_a_commit_under_way_reads_windows_and_metadata_again
             monkeypatch.setattr(runfile, "plain", raise_when_torn(runfile.plain))
         elif torn == "metadata":
             monkeypatch.setattr(runfile, "read_metadata", raise_when_torn(runfile.read_metadata))
-        elif torn == "calibration":
+        elif torn == "calibration":  # the units are read in frames (from raw/values), the rest in runfile
             monkeypatch.setattr(runfile, "text", raise_when_torn(runfile.text))
+            monkeypatch.setattr(frames, "text", raise_when_torn(frames.text))
         else:
 
             class TornPlan(Table):

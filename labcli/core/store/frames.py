@@ -51,7 +51,7 @@ from ..paper import Column
 from ..window import FrameSource, Stats, Stored, Window
 from .checksum import frames_checksum
 from .columns import append_all, create_dataset, read_rows
-from .h5 import put
+from .h5 import put, text
 
 TIME = Column("time", "s", what="device time, unwrapped")
 MOD = 1 << 64
@@ -120,6 +120,18 @@ def _column_of(g: h5py.Group, name: str, source: h5py.Dataset, j: int, units: st
     put(ds, "units", units)
     put(ds, "long_name", what)
     return ds
+
+
+def channel_units(raw: h5py.Group, channels: Sequence[str]) -> tuple[str, ...]:
+    """Each channel's unit: from ``raw/values`` (schema 4: the channels' NXlog values are views no
+    reader opens, :func:`.opening._views`), else from each channel's own ``value``."""
+    if "values" not in raw:
+        return tuple(text(raw[c]["value"].attrs["units"]) for c in channels)
+    each = text(raw["values"].attrs["units"]).split(",")
+    units = tuple(each * len(channels) if len(each) == 1 else each)
+    if len(units) != len(channels):
+        raise ValueError(f"raw/values has {len(each)} units for {len(channels)} channels")
+    return units
 
 
 def window_parts(time: np.ndarray, seq: np.ndarray, counts: np.ndarray, si: np.ndarray) -> list[np.ndarray]:

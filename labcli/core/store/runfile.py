@@ -56,7 +56,7 @@ from ..paper import Column, RecordType
 from ..registry import record_type, untagged_run_kind
 from . import space
 from .columns import Rows, Table
-from .frames import chunk_frames
+from .frames import channel_units, chunk_frames
 from .h5 import calibration_arrays, plain, text
 from .journal import JournalFile, lock
 from .layout import initialise
@@ -561,13 +561,7 @@ def _calibration(h5: h5py.File, version: int, channels: tuple[str, ...]) -> dict
     cal = raw if version == 2 else raw["calibration"]
     gain = np.array([cal[c]["gain"][0] for c in channels])
     offset = np.array([cal[c]["offset"][0] for c in channels])
-    if "values" in raw:  # schema 4: the channels' NXlog values are views, never opened (opening._views)
-        each = text(raw["values"].attrs["units"]).split(",")
-        units = tuple(each * len(channels) if len(each) == 1 else each)
-        if len(units) != len(channels):
-            raise ValueError(f"raw/values has {len(each)} units for {len(channels)} channels")
-    else:
-        units = tuple(text(raw[c]["value"].attrs["units"]) for c in channels)
+    units = channel_units(raw, channels)
     return {"channels": channels, "gain": gain, "offset": offset, "units": units}
 
 
