@@ -470,11 +470,15 @@ def _format_frame(df: pd.DataFrame, spec: TableSpec) -> tuple[list[str], list[li
     presence = {c: p for c, _, p in spec.columns}
     header = [c for c in spec.names if c in names or presence[c] != "omit-if-empty"]
     header += [c for c in names if c not in kinds]
+    # Each column taken once, in order (the first of a repeated name, as df[name] gave it): looking
+    # each up by name costs more than the formatting of a one-row table (the store checks one a trial).
+    series: dict[str, Any] = {}
+    for name, (_, s) in zip(names, df.items(), strict=True):
+        series.setdefault(name, s)
     cols = []
     for c in header:
-        if c in names:
-            series = df[df.columns[names.index(c)]]
-            cols.append([_format(v, kinds.get(c)) for v in series.tolist()])
+        if c in series:
+            cols.append([_format(v, kinds.get(c)) for v in series[c].tolist()])
         else:
             cols.append([""] * len(df))
     # Optional columns that are empty throughout stay out of the file.
