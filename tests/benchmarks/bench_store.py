@@ -242,6 +242,7 @@ def main() -> None:
         in_processes(args)
         return
     figures: dict[str, float | int | str] = {"trials": args.trials, "best of": args.repeat}
+    figures["load average at start"] = round(os.getloadavg()[0], 2)  # 1-minute: how busy the machine was
     folder = args.dir or tempfile.mkdtemp(prefix="bench_store_")
     os.makedirs(folder, exist_ok=True)
     print(
@@ -291,6 +292,10 @@ def main() -> None:
         if args.dir is None:
             shutil.rmtree(folder, ignore_errors=True)
     print("A 200 Hz rig produces 1200 samples/s (6 channels).")
+    figures["load average at end"] = round(os.getloadavg()[0], 2)
+    print(
+        f"load average (1 min) {figures['load average at start']} at the start, {figures['load average at end']} at the end"
+    )
     if args.figures:
         Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n")
 

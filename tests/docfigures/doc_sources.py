@@ -734,7 +734,7 @@ SOURCES: dict[str, Source] = {
             "benchmark",
             "trials into the run file with fsync, with os.fsync made a no-op, and bare h5py appends",
             script="bench_store.py",
-            runs={"": ("--trials", "30", "--samples", "400,4000", "--repeat", "1", "--processes", "5")},
+            runs={"": ("--trials", "30", "--samples", "400,4000", "--repeat", "3", "--processes", "5")},
         ),
         Source(
             "classify-report",
