@@ -25,10 +25,18 @@ reads what the chambers do (:class:`AirSettings` holds the protocol's limits):
   :data:`REPRESSURISE_FLOORS` pressure floors (the settling criterion's pressure spread, at least
   one count): ten times what the protocol calls still, 3.1 kPa on the paper's protocol.
 * **friction relief** (``friction_relief_s``, off by default): a supply pulse of that length, then
-  hold, before each trial's baseline, so that the arm leaves the friction band the last load left
-  it in.  On held-out seeds of the simulated rig it lowers every RMSE of the re-pressurising run
-  by 6-17 % (tests/benchmarks/bench_air.py, docs/at-the-rig.md); it stays off by default until it
-  is judged on the tuning seeds and on a real rig.
+  hold, before each trial's baseline.  It sets every baseline's pressures back to the regulator's,
+  but the sleeves' friction holds the arm where the last load left it (the pulse barely moves the
+  arm), so the baseline's friction still follows the history.  On held-out seeds of the kind
+  simulated rig it lowers every RMSE of the re-pressurising run by 6-17 %
+  (tests/benchmarks/bench_air.py, docs/air.md).  With ``friction_relief_vent_s`` the pulse starts
+  with one side's actuators (``friction_relief_vent``: L1 and L2, or R1 and R2) vented for that
+  long: the other side swings the arm over, and supplied again it comes back to its rest from that
+  side every time, so every baseline keeps the same friction whatever the last load was (venting
+  all four would not do it: on the straight arm the vented posture is close to the rest, and the
+  side it comes back from still follows the history).  The posture form's relieved friction terms
+  (``PostureModel(friction="relieved")``) fit what is left (docs/rig-realism.md).
+  Both stay off by default until judged on a real rig.
 * **the valves at the end** (``end_valves``): ``hold`` (the default) or ``vent``, set when the
   session ends, however it ends (finished, quit, Ctrl-C, an error); the board is never left
   supplying.  A board that loses its host keeps its pressure limit (``PMAX``) on its own.
@@ -48,6 +56,7 @@ import numpy as np
 
 VALVE_MODES = ("auto", "hand")
 END_STATES = ("hold", "vent")
+RELIEF_SIDES = ("L", "R")  # acquisition.friction_relief_vent: the side of each pair vented
 DEFAULT_LEAK_MAX_KPA_PER_MIN = 5.0  # five times the reference rig's leak of about 1 kPa/min
 DEFAULT_HOLD_CHECK_S = 5.0
 REPRESSURISE_FLOORS = 10.0
@@ -90,6 +99,22 @@ ACQUISITION_KEYS: dict[str, dict[str, Any]] = {
         "optional": True,
         "help": "a supply pulse this long before each baseline, to shake the sleeves' friction loose (0: none)",
     },
+    "friction_relief_vent_s": {
+        "type": "number",
+        "unit": "s",
+        "check": "nonnegative",
+        "max": 10,
+        "optional": True,
+        "help": "vent one side's chambers (friction_relief_vent) this long before the relief's supply "
+        "pulse, so that every baseline is approached from that side (0: supply pulse only; needs "
+        "friction_relief_s)",
+    },
+    "friction_relief_vent": {
+        "type": "str",
+        "check": ["one-of", list(RELIEF_SIDES)],
+        "optional": True,
+        "help": "the actuators vented by the relief: L (L1 and L2; the R actuators swing the arm to their side) or R",
+    },
     "repressurise_kPa": {
         "type": "number",
         "unit": "kPa",
@@ -111,6 +136,13 @@ class AirSettings:
     repressurise_kPa: float = REPRESSURISE_FLOORS * COUNT_MPA * 1e3
     repressurise_default: bool = True  # the limit came from the sensor noise, not the protocol
     friction_relief_s: float = 0.0
+    friction_relief_vent_s: float = 0.0
+    friction_relief_vent: str = "L"
+
+    def relief_vented(self, names: Sequence[str]) -> tuple[str, ...]:
+        """The pressure channels the relief vents: one side's actuator of each pair (``P_L1``,
+        ``P_L2`` for L)."""
+        return tuple(n for n in names if n.upper().startswith(f"P_{self.friction_relief_vent}"))
 
     @classmethod
     def of(cls, acquisition: dict[str, Any], pressure_floor_MPa: float | None) -> AirSettings:
@@ -125,6 +157,8 @@ class AirSettings:
             repressurise_kPa=float(given) if given is not None else REPRESSURISE_FLOORS * floor * 1e3,
             repressurise_default=given is None,
             friction_relief_s=float(acquisition.get("friction_relief_s", 0.0)),
+            friction_relief_vent_s=float(acquisition.get("friction_relief_vent_s", 0.0)),
+            friction_relief_vent=acquisition.get("friction_relief_vent", "L"),
         )
 
 

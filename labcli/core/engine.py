@@ -379,7 +379,7 @@ class RunEngine:
         if isinstance(step, Finish):
             return self._finish(step)
         if isinstance(step, Valves):
-            return self._set_valves(step.state)
+            return self._set_valves(step.state, step.channels)
         if isinstance(step, Note):
             self.ui.info(step.text)
             return None
@@ -525,14 +525,14 @@ class RunEngine:
             self._finished = True
 
     # ------------------------------------------------------------------ valves (labcli.core.air)
-    def _set_valves(self, state: str) -> dict[str, str] | None:
-        """The board's valves set to ``state`` by command, or None when they are the experimenter's."""
-        air = getattr(self.protocol, "air", None)
-        caps = getattr(self.device, "caps", None)
+    def _set_valves(self, state: str, channels: tuple[str, ...] = ()) -> dict[str, str] | None:
+        """The board's valves (``channels``' only, if named) set to ``state``, or None when the experimenter's."""
+        air, caps = getattr(self.protocol, "air", None), getattr(self.device, "caps", None)
         mode = self._valves_mode or (air.valves if air is not None else "hand")
         if mode == "hand" or caps is None or not caps.valves:
             return None
-        states = self.device.set_valves(state)
+        for channel in channels or (None,):
+            states = self.device.set_valves(state, channel)
         self._valves_driven = True
         return dict(states)
 

@@ -420,6 +420,12 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
     device, cal = _device(checked, spec.channel_roles, chk)
     settling = _settling(checked, chk)
     settings = spec.build(checked, chk, path) if spec.build is not None else None
+    acq = checked.get("acquisition", {})
+    if acq.get("friction_relief_vent_s", 0.0) > 0 and not acq.get("friction_relief_s", 0.0) > 0:
+        chk.fail(
+            "key 'acquisition.friction_relief_vent_s' needs acquisition.friction_relief_s above 0: "
+            "the supply pulse that fills the vented chambers again."
+        )
     return Protocol(
         name=top["name"],
         kind=spec.name,

@@ -222,9 +222,11 @@ class Finish:
 @dataclass(frozen=True)
 class Valves:
     """Set every chamber's valve to ``state`` (``supply``, ``hold`` or ``vent``) by command, when the
-    board drives them (:mod:`labcli.core.air`); the reply says whether it did."""
+    board drives them (:mod:`labcli.core.air`); the reply says whether it did.  ``channels``: only
+    those chambers' valves (pressure channels' names), the others left as they are."""
 
     state: str
+    channels: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,19 @@ report, with 95 % intervals from a bootstrap over seeds (a seed's trials share i
 is what is resampled), the ratio friction / plain with its interval, the trials each reports, and
 the coverage of each form's 95 % intervals with a Wilson interval.
 
-    nice python tests/benchmarks/friction_estimator.py [--seeds 11-30] [--cache FILE] [--figures OUT]
+With ``--relief S``: the same seeds' runs acquired again with the protocol's friction relief
+(``acquisition.friction_relief_s = S``; ``--vent V`` vents the ``--vent-side`` actuators for V s
+first, ``friction_relief_vent_s``), and beside the posture form without relief (the reference,
+``plain``) the posture form on the relieved run (``relief_plain``) and, with ``--vent``, the
+relieved run's friction terms (``relieved``, ``PostureModel(friction="relieved")``, what
+``labcli fit`` offers on such a run).  The plan, the rig seed and its draws are the same; the
+runs differ by the relief alone.  Ratios are each form's RMSE over the reference's.
 
-The friction terms' fade (FRICTION_MOTION_RAD) was chosen on seeds 1-10; nothing here is tuned.
+    nice python tests/benchmarks/friction_estimator.py [--seeds 11-30] [--cache FILE] [--figures OUT]
+    nice python tests/benchmarks/friction_estimator.py --relief 3 --vent 2 [--vent-side L] ...
+
+The friction terms' fade (FRICTION_MOTION_RAD) and the relief's pulse and vent were chosen on
+seeds 1-10; nothing here is tuned.
 """
 
 from __future__ import annotations
@@ -39,7 +49,14 @@ QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
 BOOTSTRAP = 2000
 
 
-def measure(seed: int) -> dict[str, Any]:
+def forms_of(relief: float, vent: float) -> tuple[str, ...]:
+    """The forms measured: the reference (``plain``, no relief) first."""
+    if relief <= 0:
+        return FORMS
+    return ("plain", "relief_plain", "relieved") if vent > 0 else ("plain", "relief_plain")
+
+
+def measure(seed: int, relief: float = 0.0, vent: float = 0.0, side: str = "L") -> dict[str, Any]:
     """Per protocol, form and quantity: the validation errors, which trials are reported, interval hits."""
     from sensing_accuracy import trials
 
@@ -48,11 +65,18 @@ def measure(seed: int) -> dict[str, Any]:
     from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
     out: dict[str, Any] = {}
+    friction = {"plain": False, "friction": True, "relief_plain": False, "relieved": "relieved"}
     for short, name in PROTOCOLS.items():
-        proto, table = trials(name, seed, 8.0, rig_kw={"nonideal": NonIdeal(realism="literature")})
-        for form in FORMS:
+        rig_kw = {"nonideal": NonIdeal(realism="literature")}
+        runs = {"": trials(name, seed, 8.0, rig_kw=rig_kw)}
+        if relief > 0:
+            runs["relief"] = trials(
+                name, seed, 8.0, rig_kw=rig_kw, relief_s=relief, relief_vent_s=vent, relief_vent=side
+            )
+        for form in forms_of(relief, vent):
+            proto, table = runs["relief" if form.startswith("relie") else ""]
             model = PostureModel(
-                geometry=proto.settings.rig, limits=limits_from_protocol(proto), friction=form == "friction"
+                geometry=proto.settings.rig, limits=limits_from_protocol(proto), friction=friction[form]
             ).fit(table)
             ev = evaluate(model, table)
             for q in QUANTITIES:
@@ -68,34 +92,57 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else math.nan
 
 
-def figures(raw: dict[int, dict[str, Any]]) -> dict[str, Any]:
+def _ratio_key(form: str, short: str, q: str, which: str) -> str:
+    # The friction terms' ratio keeps the key the docs have quoted since before the relief.
+    return f"{short}/{q}/ratio_{which}" if form == "friction" else f"{short}/{q}/{form}/ratio_{which}"
+
+
+def _rmses(err: dict, ok: dict, forms: tuple[str, ...], picks: list, key: Any) -> dict[str, Any]:
+    """Each form's RMSE with its bootstrap interval, and its ratio to the first form's, over every
+    trial (``all``) and over the trials the first form and it both report (``both``)."""
+    out: dict[str, Any] = {}
+    ref, n = forms[0], len(err[forms[0]])
+    for f in forms[1:]:
+        both = [ok[ref][i] & ok[f][i] for i in range(n)]
+        for which, mask in (("all", None), ("both", both)):
+
+            def rmse(form: str, idx: Any, mask: Any = mask) -> float:
+                parts = [err[form][i] if mask is None else err[form][i][mask[i]] for i in idx]
+                return _rms(np.concatenate(parts)) if parts else math.nan
+
+            whole = {g: rmse(g, range(n)) for g in (ref, f)}
+            boots = np.array([[rmse(g, p) for g in (ref, f)] for p in picks])
+            for k, g in enumerate((ref, f)):
+                if which == "all" or g == f or len(forms) == 2:
+                    lo, hi = np.nanpercentile(boots[:, k], [2.5, 97.5])
+                    out[key(g, f"rmse_{which}")] = whole[g]
+                    out[key(g, f"rmse_{which}_ci95")] = [float(lo), float(hi)]
+            lo, hi = np.nanpercentile(boots[:, 1] / boots[:, 0], [2.5, 97.5])
+            out[key(("ratio", f), which)] = whole[f] / whole[ref]
+            out[key(("ratio", f), which) + "_ci95"] = [float(lo), float(hi)]
+        out[key(("both", f), "")] = int(sum(int(b.sum()) for b in both))
+    return out
+
+
+def figures(raw: dict[int, dict[str, Any]], forms: tuple[str, ...] = FORMS) -> dict[str, Any]:
     rng = np.random.default_rng(20261126)
     seeds = sorted(raw)
     picks = [rng.integers(0, len(seeds), len(seeds)) for _ in range(BOOTSTRAP)]
     out: dict[str, Any] = {}
     for short in PROTOCOLS:
         for q in QUANTITIES:
-            err = {f: [np.asarray(raw[s][f"{short}/{f}/{q}/err"]) for s in seeds] for f in FORMS}
-            ok = {f: [np.asarray(raw[s][f"{short}/{f}/{q}/ok"], dtype=bool) for s in seeds] for f in FORMS}
-            both = [ok["plain"][i] & ok["friction"][i] for i in range(len(seeds))]
-            for which, mask in (("all", None), ("both", both)):
+            err = {f: [np.asarray(raw[s][f"{short}/{f}/{q}/err"]) for s in seeds] for f in forms}
+            ok = {f: [np.asarray(raw[s][f"{short}/{f}/{q}/ok"], dtype=bool) for s in seeds] for f in forms}
 
-                def rmse(form: str, idx: Any, mask: Any = mask) -> float:
-                    parts = [err[form][i] if mask is None else err[form][i][mask[i]] for i in idx]
-                    return _rms(np.concatenate(parts)) if parts else math.nan
+            def key(form: Any, what: str, short: str = short, q: str = q) -> str:
+                if isinstance(form, tuple) and form[0] == "ratio":
+                    return _ratio_key(form[1], short, q, what)
+                if isinstance(form, tuple):  # the trials both report
+                    return f"{short}/{q}/both_reported" + ("" if len(forms) == 2 else f"/{form[1]}")
+                return f"{short}/{q}/{form}/{what}"
 
-                whole = {f: rmse(f, range(len(seeds))) for f in FORMS}
-                boots = np.array([[rmse(f, p) for f in FORMS] for p in picks])
-                for k, f in enumerate(FORMS):
-                    lo, hi = np.nanpercentile(boots[:, k], [2.5, 97.5])
-                    out[f"{short}/{q}/{f}/rmse_{which}"] = whole[f]
-                    out[f"{short}/{q}/{f}/rmse_{which}_ci95"] = [float(lo), float(hi)]
-                ratio = boots[:, 1] / boots[:, 0]
-                lo, hi = np.nanpercentile(ratio, [2.5, 97.5])
-                out[f"{short}/{q}/ratio_{which}"] = whole["friction"] / whole["plain"]
-                out[f"{short}/{q}/ratio_{which}_ci95"] = [float(lo), float(hi)]
-            out[f"{short}/{q}/both_reported"] = int(sum(int(b.sum()) for b in both))
-            for f in FORMS:
+            out.update(_rmses(err, ok, forms, picks, key))
+            for f in forms:
                 out[f"{short}/{q}/{f}/reported"] = int(sum(int(o.sum()) for o in ok[f]))
                 inside = np.concatenate(
                     [
@@ -107,8 +154,10 @@ def figures(raw: dict[int, dict[str, Any]]) -> dict[str, Any]:
                 out[f"{short}/{q}/{f}/coverage"] = p
                 out[f"{short}/{q}/{f}/coverage_ci95"] = [lo, hi]
             out[f"{short}/trials"] = int(sum(len(raw[s][f"{short}/plain/Fx/err"]) for s in seeds))
-        kept = [raw[s][f"{short}/friction/terms"] for s in seeds]
-        out[f"{short}/friction_terms_kept_seeds"] = int(sum(bool(k) for k in kept))
+        for f in [g for g in forms if g in ("friction", "relieved")]:
+            kept = [raw[s][f"{short}/{f}/terms"] for s in seeds]
+            name = "friction_terms_kept_seeds" if f == "friction" else f"{f}_terms_kept_seeds"
+            out[f"{short}/{name}"] = int(sum(bool(k) for k in kept))
     return out
 
 
@@ -116,10 +165,17 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="11-30", help="held-out rig seeds (default 11-30)")
     ap.add_argument("--cache", type=Path, default=None, help="JSON-lines file of measured seeds (resumable)")
-    ap.add_argument(
-        "--figures", "--json", dest="json", type=Path, default=ROOT / "docs" / "figures" / "friction-estimator.json"
-    )
+    ap.add_argument("--relief", type=float, default=0.0, help="the friction relief's supply pulse, s (0: none)")
+    ap.add_argument("--vent", type=float, default=0.0, help="with --relief: vent one side this long first, s")
+    ap.add_argument("--vent-side", default="L", choices=("L", "R"), help="the actuators vented (default L)")
+    ap.add_argument("--figures", "--json", dest="json", type=Path, default=None)
     args = ap.parse_args(argv)
+    if args.vent > 0 and args.relief <= 0:
+        ap.error("--vent needs --relief (the supply pulse that fills the vented chambers again)")
+    name = "friction-relief" if args.relief > 0 else "friction-estimator"
+    args.json = args.json or ROOT / "docs" / "figures" / f"{name}.json"
+    forms = forms_of(args.relief, args.vent)
+    config = {"relief": args.relief, "vent": args.vent, "side": args.vent_side}
     seeds = seeds_of(args.seeds)
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
     done: dict[int, dict[str, Any]] = {}
@@ -127,28 +183,32 @@ def main(argv: list[str] | None = None) -> None:
         for line in args.cache.read_text().splitlines():
             if line.strip():
                 rec = json.loads(line)
-                done[int(rec["seed"])] = rec["raw"]
+                if rec.get("config", {"relief": 0.0, "vent": 0.0, "side": "L"}) == config:
+                    done[int(rec["seed"])] = rec["raw"]
     for seed in seeds:
         if seed not in done:
-            done[seed] = measure(seed)
+            done[seed] = measure(seed, args.relief, args.vent, args.vent_side)
             print(f"  measured seed {seed}", file=sys.stderr, flush=True)
             if args.cache is not None:
                 with args.cache.open("a") as f:
-                    f.write(json.dumps({"seed": seed, "raw": done[seed]}) + "\n")
-    figs = figures({s: done[s] for s in seeds})
-    print(f"held-out seeds {args.seeds}, literature's rig: posture form plain -> with friction terms, same trials")
+                    f.write(json.dumps({"seed": seed, "config": config, "raw": done[seed]}) + "\n")
+    figs = figures({s: done[s] for s in seeds}, forms)
+    print(f"held-out seeds {args.seeds}, literature's rig ({config}): RMSE of {' / '.join(forms)}")
     for short in PROTOCOLS:
         for q in QUANTITIES:
             k = f"{short}/{q}"
-            lo, hi = figs[f"{k}/ratio_all_ci95"]
-            print(
-                f"{k:16s} RMSE all {figs[f'{k}/plain/rmse_all']:.3f} -> {figs[f'{k}/friction/rmse_all']:.3f} "
-                f"(ratio {figs[f'{k}/ratio_all']:.2f} [{lo:.2f}, {hi:.2f}]); both reported "
-                f"({figs[f'{k}/both_reported']}) {figs[f'{k}/plain/rmse_both']:.3f} -> "
-                f"{figs[f'{k}/friction/rmse_both']:.3f}; coverage {figs[f'{k}/plain/coverage']:.2f} -> "
-                f"{figs[f'{k}/friction/coverage']:.2f}"
-            )
+            parts = [f"{figs[f'{k}/plain/rmse_all']:.3f}"]
+            for f in forms[1:]:
+                r = _ratio_key(f, short, q, "all")
+                lo, hi = figs[f"{r}_ci95"]
+                parts.append(
+                    f"{f} {figs[f'{k}/{f}/rmse_all']:.3f} (ratio {figs[r]:.2f} [{lo:.2f}, {hi:.2f}], "
+                    f"reported {figs[f'{k}/{f}/reported']}, coverage {figs[f'{k}/{f}/coverage']:.2f})"
+                )
+            print(f"{k:16s} plain {' -> '.join(parts)}; plain coverage {figs[f'{k}/plain/coverage']:.2f}")
     meta = {"meta/commit": head, "meta/seeds": args.seeds, "meta/bootstrap": BOOTSTRAP}
+    if args.relief > 0:
+        meta.update({"meta/relief_s": args.relief, "meta/vent_s": args.vent, "meta/vent_side": args.vent_side})
     flat: dict[str, Any] = {}
     for k, v in {**meta, **figs}.items():
         if isinstance(v, list):

@@ -48,10 +48,21 @@ class _Recorder:
         return out
 
 
-def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False, rig_kw: dict | None = None):
+def trials(
+    protocol_name: str,
+    seed: int,
+    settle_s: float,
+    ideal: bool | str = False,
+    rig_kw: dict | None = None,
+    relief_s: float = 0.0,
+    relief_vent_s: float = 0.0,
+    relief_vent: str = "L",
+):
     """The protocol's trial table on the simulated rig, with the rest posture columns (deg).
 
-    ``rig_kw``: more keyword arguments of the rig (``nonideal``, ``noise``, ...), as a sweep sets them."""
+    ``rig_kw``: more keyword arguments of the rig (``nonideal``, ``noise``, ...), as a sweep sets them;
+    ``relief_s``: the friction relief's supply pulse before each baseline (0: none), after the
+    ``relief_vent`` side's chambers are vented for ``relief_vent_s`` (0: no vent)."""
     from labcli.core.protocol import load_protocol
     from labcli.papers.takuma2014.protocol import load_plan
     from labcli.papers.takuma2014.sim.drive import simulate_weight_trials
@@ -67,7 +78,15 @@ def trials(protocol_name: str, seed: int, settle_s: float, ideal: bool | str = F
     elif ideal:  # one effect alone, the others off
         kw["nonideal"] = NonIdeal(**{**NonIdeal.ideal().as_dict(), ideal: 1.0})
     rig = _Recorder(SimRig(seed=seed, **kw))
-    table = simulate_weight_trials(rig, load_plan(proto), calibration=proto.calibration, settle_s=settle_s)
+    table = simulate_weight_trials(
+        rig,
+        load_plan(proto),
+        calibration=proto.calibration,
+        settle_s=settle_s,
+        relief_s=relief_s,
+        relief_vent_s=relief_vent_s,
+        relief_vent=relief_vent,
+    )
     pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
     base = np.array([np.asarray(proto.calibration.to_si(w), dtype=float).mean(axis=0)[pots] for w in rig.windows[0::2]])
     table["theta1_0_deg"], table["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])

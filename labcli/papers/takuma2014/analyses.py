@@ -138,14 +138,22 @@ def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
             )
 
 
+def friction_of(protocol: Any) -> bool | str:
+    """The friction terms the posture form is offered on a run of ``protocol``: the relieved ones
+    where its baselines were each approached from the vented chambers
+    (``acquisition.friction_relief_vent_s``), none otherwise."""
+    air = getattr(protocol, "air", None)
+    return "relieved" if getattr(air, "friction_relief_vent_s", 0.0) > 0 else False
+
+
 def _fit_form(
     form: str, src: Any, source: str, max_amplification: float = MAX_AMPLIFICATION, *, record_trials: bool = True
 ) -> TakumaModel | PostureModel:
     rig, name = src.protocol.settings.rig, src.protocol.name
     if form == POSTURE:
-        return PostureModel(geometry=rig, protocol=name, limits=limits_from_protocol(src.protocol)).fit(
-            src.table, source=source, record_trials=record_trials
-        )
+        return PostureModel(
+            geometry=rig, protocol=name, limits=limits_from_protocol(src.protocol), friction=friction_of(src.protocol)
+        ).fit(src.table, source=source, record_trials=record_trials)
     model = TakumaModel(geometry=rig, protocol=name, max_amplification=max_amplification)
     return model.fit(src.table, source=source, record_trials=record_trials)
 

@@ -492,7 +492,12 @@ def _pressurise_by_command(
 
 
 def _relieve(air: AirDrift, guard: Guard | None) -> Generator[Step, Any, None]:
-    """Friction relief: a supply pulse of ``friction_relief_s``, then hold (a fresh supply each trial)."""
+    """Friction relief: a supply pulse of ``friction_relief_s``, then hold (a fresh supply each trial),
+    after one side's chambers are vented for ``friction_relief_vent_s`` where the protocol asks for it
+    (the arm swings to the other side, and comes back to every baseline from there)."""
+    if air.settings.friction_relief_vent_s > 0:
+        yield Valves("vent", air.settings.relief_vented(air.names))
+        yield Hold(air.settings.friction_relief_vent_s)
     yield Valves("supply")
     yield Hold(air.settings.friction_relief_s)
     yield Valves("hold")

@@ -245,3 +245,23 @@ def test_the_hold_checks_leak_is_taken_out_of_every_trials_wait(tmp_path):
     _, seen, dev, _ = run(tmp_path, "sim://?seed=3&clock=virtual", loads=LOADS[:3], protocol=hand)
     dev.close()
     assert all(s.drift_per_s == () for s, _ in seen if isinstance(s, WaitSettle))
+
+
+def test_friction_relief_vents_one_side_then_supplies_before_every_baseline(tmp_path):
+    protocol = protocol_with(tmp_path, friction_relief_s=2.0, friction_relief_vent_s=1.5)
+    assert protocol.air.relief_vented(("P_L1", "P_R1", "P_L2", "P_R2")) == ("P_L1", "P_L2")
+    outcome, seen, dev, path = run(
+        tmp_path, "sim://?seed=11&clock=virtual&realism=literature", protocol=protocol, loads=LOADS[:2]
+    )
+    dev.close()
+    assert outcome.status == "finished" and outcome.stored == 2
+    valves = [(s.state, s.channels) for s, _ in seen if isinstance(s, Valves)]
+    pulse = [("vent", ("P_L1", "P_L2")), ("supply", ()), ("hold", ())]
+    assert valves == [("supply", ()), ("hold", ())] + pulse * 2
+    # The board vented the L chambers only: its reply lists the R ones still holding.
+    vented = [r for s, r in seen if isinstance(s, Valves) and s.state == "vent"]
+    assert vented[0]["P_L1"] == "vent" and vented[0]["P_R1"] == "hold" and vented[0]["P_R2"] == "hold"
+    assert [s.duration_s for s, _ in seen if isinstance(s, Hold)] == [5.0, 1.5, 2.0, 1.5, 2.0]
+    df = load_trials(path)
+    dP = (df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()) * 1e3
+    assert np.abs(dP).max(axis=1).min() > 2.0  # held after each pulse: the loads still move the pressures

@@ -232,6 +232,12 @@ def export(model: str | Path, *, c: str | Path, protocol: str | None = None, **_
     proto = load_protocol(protocol or m.protocol)
     if proto.calibration is None:
         raise ModelError(f"The protocol {proto.name} has no channel calibration for the board's counts.")
+    beyond = [t for t in getattr(m, "torque_terms", ()) if t not in TORQUE_TERMS]
+    if beyond:
+        raise ModelError(
+            f"The model file {model} uses the sleeves' friction terms ({', '.join(beyond)}), which the "
+            "board's estimator does not compute; the C header carries the posture form without them."
+        )
     channels = tuple(proto.channels)
     text = c_header(m, proto.calibration, channels, source=str(model))
     atomic_write(c, text.encode("ascii"), what="the C header to ")

@@ -108,7 +108,13 @@ TORQUE_TERMS = (
 # Sleeve friction's share of the load torque (PostureModel(friction=True), :func:`friction_columns`):
 # one term per actuator pair, offered to the torque fit beside TORQUE_TERMS.
 FRICTION_TERMS = ("friction1", "friction2")
-KNOWN_TORQUE_TERMS = TORQUE_TERMS + FRICTION_TERMS
+# The same friction on a run whose baselines are all approached from one side (the protocol's
+# friction relief by venting, ``acquisition.friction_relief_vent_s``; PostureModel(friction=
+# "relieved"), :func:`relieved_columns`): per pair the sign of its motion under the load, and one
+# constant, the friction every baseline keeps.
+RELIEVED_TERMS = ("friction1_load", "friction2_load", "friction_rest")
+KNOWN_TORQUE_TERMS = TORQUE_TERMS + FRICTION_TERMS + RELIEVED_TERMS
+FRICTION_MODES = (False, True, "relieved")  # PostureModel(friction=...): none, from the history, relieved
 # A motion this large (rad) is a motion: the friction's sign follows it; below it tanh fades the
 # term out, where the pots' play (0.2 deg) and the angle estimate's error hide its direction.
 FRICTION_MOTION_RAD = math.radians(0.1)
@@ -157,6 +163,7 @@ def torque_features(
     dP = np.atleast_2d(dP)
     dtheta = np.atleast_2d(dtheta)
     friction = friction_columns(dtheta, motion_in, motion_sd) if any(t in FRICTION_TERMS for t in terms) else None
+    relieved = relieved_columns(dtheta, motion_sd) if any(t in RELIEVED_TERMS for t in terms) else None
     # Only the terms asked for, each written into its own column (Fortran order: every write is
     # contiguous); at the validation's 10^6 rows the stack of all fourteen and a copy of the
     # chosen ones took a second.
@@ -169,9 +176,12 @@ def torque_features(
             np.multiply(dP[:, (at - 4) // 2], dtheta[:, (at - 4) % 2], out=out[:, k])
         elif at < 14:  # a deflection
             out[:, k] = dtheta[:, at - 12]
-        else:
+        elif at < 16:  # a friction term read from the history of loads
             assert friction is not None
             out[:, k] = friction[:, at - 14]
+        else:  # a relieved run's friction term
+            assert relieved is not None
+            out[:, k] = relieved[:, at - 16]
     return out
 
 
@@ -212,6 +222,23 @@ def friction_columns(
 
     now = sign(dtheta)
     return now if motion_in is None else now - sign(motion_in)
+
+
+def relieved_columns(dtheta: np.ndarray, motion_sd: np.ndarray | None = None) -> np.ndarray:
+    """The relieved run's friction terms (n, 3): per pair the sign of its motion under the load
+    (faded in as in :func:`friction_columns`), and 1.
+
+    Vented before each baseline, the sleeves lose their friction (it is a share of the pressure
+    force); supplied again, the arm rises from the same vented posture every time and stops short
+    of its rest on that side.  Each pair then keeps at its baseline the same friction, in the same
+    direction, whatever the last load was: the term ``sign(now) - sign(before)`` of
+    :func:`friction_columns` becomes ``sign(now)`` plus a constant.  A load along the approach
+    moves the arm at once and the pressures read it whole; a load against it must first undo the
+    friction held and then overcome its own, and reads two frictions short.  The constant is that
+    baseline friction; an arm that did not move (a load within that band) is given its middle.
+    """
+    now = friction_columns(dtheta, None, motion_sd)
+    return stack_columns([now, np.ones(len(now))])
 
 
 def motion_into_baseline(trial: np.ndarray, theta0: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
@@ -621,9 +648,10 @@ class PostureModel:
     paper_variance: dict[str, float] = field(default_factory=dict)
     blends: dict[str, dict[str, float]] = field(default_factory=dict)
     fitted_on: dict[str, Any] | None = None  # the run it was fitted on (labcli.core.provenance)
-    # Offer the sleeves' friction terms (FRICTION_TERMS) to the torque fit: a fit option; the
-    # terms kept are in torque_terms like any other.
-    friction: bool = False
+    # Offer the sleeves' friction terms to the torque fit: a fit option (FRICTION_MODES); True
+    # offers FRICTION_TERMS (read from the history of loads), "relieved" RELIEVED_TERMS (a run
+    # relieved by venting before each baseline).  The terms kept are in torque_terms like any other.
+    friction: bool | str = False
     # The fit trials' span, and how their P0 was taken (models/calibrated.py, models/leak.py).
     calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
     p0_leak_corrected: bool = False
@@ -664,8 +692,10 @@ class PostureModel:
         return self
 
     def _fit_posture(self, table: Any, source: str, record_trials: bool = True) -> None:
+        if self.friction not in FRICTION_MODES:
+            raise ModelError(f"Unknown friction terms {self.friction!r}; use one of {FRICTION_MODES}.")
         fit_rows = set_mask(table, "fit", source)
-        a = table_arrays(table, fit_rows, motion=self.friction)
+        a = table_arrays(table, fit_rows, motion=self.friction is True)
         use = (
             rows_all(np.isfinite(a["P0"]) & (a["P0"] > 0))
             & rows_all(np.isfinite(a["P"]) & (a["P"] > 0))
@@ -685,7 +715,7 @@ class PostureModel:
         own = _shared_lstsq(angles, [ANGLE_TERMS.index(t) for t in self.theta1_terms], "deflection", ys=theta1)
         self.theta1_coefficients, self.theta1_xtx_inv = own.beta[:, 0].tolist(), own.xtx_inv.tolist()
         self.theta1_resid_var = float(own.resid_cov[0, 0])
-        names = KNOWN_TORQUE_TERMS if self.friction else TORQUE_TERMS
+        names = TORQUE_TERMS + {True: FRICTION_TERMS, "relieved": RELIEVED_TERMS}.get(self.friction, ())
         torques = _Blocks.build(
             len(P),
             len(names),

@@ -47,8 +47,17 @@ def simulate_weight_trials(
     rate_hz: float = 200.0,
     capture_s: float = 1.0,
     settle_s: float = 6.0,
+    relief_s: float = 0.0,
+    relief_vent_s: float = 0.0,
+    relief_vent: str = "L",
 ) -> Any:
-    """Hang each plan row's weight (``trial, set, mass_g, direction_deg``) and return the trial table."""
+    """Hang each plan row's weight (``trial, set, mass_g, direction_deg``) and return the trial table.
+
+    ``relief_s`` > 0: the protocol's friction relief (``acquisition.friction_relief_s``), the
+    chambers supplied for that long and held again before each baseline, as the session does it;
+    ``relief_vent_s`` > 0: first the ``relief_vent`` side's actuators (L or R) vented for that
+    long, the others held (``acquisition.friction_relief_vent_s``, ``friction_relief_vent``).
+    """
     import pandas as pd
 
     p_idx, a_idx = _indices(rig)
@@ -56,6 +65,13 @@ def simulate_weight_trials(
     _pressurise(rig, settle_s)
     rows = []
     for r in plan.itertuples():
+        if relief_vent_s > 0:
+            rig.set_valves(tuple("vent" if c.startswith(f"P_{relief_vent}") else "hold" for c in rig.valve_channels))
+            rig.advance(relief_vent_s)
+        if relief_s > 0:
+            rig.supply_air()
+            rig.advance(relief_s)
+            rig.close_valves()
         rig.advance(settle_s)
         base = _window(rig, calibration, n, rate_hz)
         m, direction = float(r.mass_g) / 1000.0, math.radians(float(r.direction_deg))
