@@ -423,12 +423,19 @@ def test_routes_of_a_large_archive_are_chosen_on_an_even_sample_in_recorded_orde
 
 
 def test_torque_features_are_the_chosen_columns_of_every_term_element_for_element():
-    from labcli.papers.takuma2014.models.posture import FRICTION_TERMS, KNOWN_TORQUE_TERMS, friction_columns
+    from labcli.papers.takuma2014.models.posture import (
+        FRICTION_TERMS,
+        KNOWN_TORQUE_TERMS,
+        RELIEVED_TERMS,
+        friction_columns,
+        relieved_columns,
+    )
 
     rng = np.random.default_rng(8)
     dP, dth, moved = rng.normal(size=(40, 4)), rng.normal(size=(40, 2)), 0.01 * rng.normal(size=(40, 2))
     products = (dP[:, :, None] * dth[:, None, :]).reshape(40, 8)  # dP_a * dtheta_j, a outer, j inner
-    every = np.column_stack([dP, products, dth, friction_columns(dth, moved)])
-    for terms in (TORQUE_TERMS, KNOWN_TORQUE_TERMS, ("dtheta2", "dP_R2*dtheta1", FRICTION_TERMS[1], "dP_L1")):
+    every = np.column_stack([dP, products, dth, friction_columns(dth, moved), relieved_columns(dth)])
+    mixed = ("dtheta2", "dP_R2*dtheta1", FRICTION_TERMS[1], RELIEVED_TERMS[2], "dP_L1", RELIEVED_TERMS[0])
+    for terms in (TORQUE_TERMS, KNOWN_TORQUE_TERMS, mixed):
         got = torque_features(dP, dth, terms, moved)
         assert np.array_equal(got, every[:, [KNOWN_TORQUE_TERMS.index(t) for t in terms]])
