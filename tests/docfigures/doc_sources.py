@@ -667,6 +667,14 @@ SOURCES: dict[str, Source] = {
             runs={"": ()},
         ),
         Source(
+            "friction-relief",
+            "benchmark",
+            "the posture form on runs relieved by venting one side before each baseline, against the "
+            "posture form without relief, on the literature's rig, seeds 11-30",
+            script="friction_estimator.py",
+            runs={"": ("--relief", "3", "--vent", "2")},
+        ),
+        Source(
             "baseline-estimator-new-rig",
             "benchmark",
             "the estimators of the commit it names on the literature's rig, held-out seeds 11-30",
