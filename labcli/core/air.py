@@ -35,7 +35,8 @@ reads what the chambers do (:class:`AirSettings` holds the protocol's limits):
   side every time, so every baseline keeps the same friction whatever the last load was (venting
   all four would not do it: on the straight arm the vented posture is close to the rest, and the
   side it comes back from still follows the history).  The posture form's relieved friction terms
-  (``PostureModel(friction="relieved")``) fit what is left (docs/rig-realism.md).
+  (``PostureModel(friction="relieved")``) fit what is left, and since the baselines now repeat,
+  each trial's P0 is the mean of the last few (docs/rig-realism.md).
   Both stay off by default until judged on a real rig.
 * **the valves at the end** (``end_valves``): ``hold`` (the default) or ``vent``, set when the
   session ends, however it ends (finished, quit, Ctrl-C, an error); the board is never left

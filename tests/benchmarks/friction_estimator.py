@@ -12,9 +12,10 @@ the coverage of each form's 95 % intervals with a Wilson interval.
 With ``--relief S``: the same seeds' runs acquired again with the protocol's friction relief
 (``acquisition.friction_relief_s = S``; ``--vent V`` vents the ``--vent-side`` actuators for V s
 first, ``friction_relief_vent_s``), and beside the posture form without relief (the reference,
-``plain``) the posture form on the relieved run (``relief_plain``) and, with ``--vent``, the
-relieved run's friction terms (``relieved``, ``PostureModel(friction="relieved")``, what
-``labcli fit`` offers on such a run).  The plan, the rig seed and its draws are the same; the
+``plain``) the posture form on the relieved run (``relief_plain``) and, with ``--vent``, with the
+relieved run's friction terms (``relief_terms``, ``PostureModel(friction="relieved")``) and with
+them and each P0 the mean of RELIEVED_BASELINES baselines (``relieved``, what ``labcli fit``
+makes of such a run).  The plan, the rig seed and its draws are the same; the
 runs differ by the relief alone.  Ratios are each form's RMSE over the reference's.
 
     nice python tests/benchmarks/friction_estimator.py [--seeds 11-30] [--cache FILE] [--figures OUT]
@@ -53,7 +54,7 @@ def forms_of(relief: float, vent: float) -> tuple[str, ...]:
     """The forms measured: the reference (``plain``, no relief) first."""
     if relief <= 0:
         return FORMS
-    return ("plain", "relief_plain", "relieved") if vent > 0 else ("plain", "relief_plain")
+    return ("plain", "relief_plain", "relief_terms", "relieved") if vent > 0 else ("plain", "relief_plain")
 
 
 def measure(seed: int, relief: float = 0.0, vent: float = 0.0, side: str = "L") -> dict[str, Any]:
@@ -61,11 +62,17 @@ def measure(seed: int, relief: float = 0.0, vent: float = 0.0, side: str = "L") 
     from sensing_accuracy import trials
 
     from labcli.papers.takuma2014.models.metrics import evaluate
-    from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
+    from labcli.papers.takuma2014.models.posture import RELIEVED_BASELINES, PostureModel, limits_from_protocol
     from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
     out: dict[str, Any] = {}
-    friction = {"plain": False, "friction": True, "relief_plain": False, "relieved": "relieved"}
+    friction = {
+        "plain": False,
+        "friction": True,
+        "relief_plain": False,
+        "relief_terms": "relieved",
+        "relieved": "relieved",
+    }
     for short, name in PROTOCOLS.items():
         rig_kw = {"nonideal": NonIdeal(realism="literature")}
         runs = {"": trials(name, seed, 8.0, rig_kw=rig_kw)}
@@ -76,7 +83,10 @@ def measure(seed: int, relief: float = 0.0, vent: float = 0.0, side: str = "L") 
         for form in forms_of(relief, vent):
             proto, table = runs["relief" if form.startswith("relie") else ""]
             model = PostureModel(
-                geometry=proto.settings.rig, limits=limits_from_protocol(proto), friction=friction[form]
+                geometry=proto.settings.rig,
+                limits=limits_from_protocol(proto),
+                friction=friction[form],
+                baseline_mean=RELIEVED_BASELINES if form == "relieved" else 1,
             ).fit(table)
             ev = evaluate(model, table)
             for q in QUANTITIES:
@@ -154,7 +164,7 @@ def figures(raw: dict[int, dict[str, Any]], forms: tuple[str, ...] = FORMS) -> d
                 out[f"{short}/{q}/{f}/coverage"] = p
                 out[f"{short}/{q}/{f}/coverage_ci95"] = [lo, hi]
             out[f"{short}/trials"] = int(sum(len(raw[s][f"{short}/plain/Fx/err"]) for s in seeds))
-        for f in [g for g in forms if g in ("friction", "relieved")]:
+        for f in [g for g in forms if g in ("friction", "relief_terms", "relieved")]:
             kept = [raw[s][f"{short}/{f}/terms"] for s in seeds]
             name = "friction_terms_kept_seeds" if f == "friction" else f"{f}_terms_kept_seeds"
             out[f"{short}/{name}"] = int(sum(bool(k) for k in kept))

@@ -29,7 +29,13 @@ from .models.classify import classify_file, flag_summary, object_items, push_ite
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate, evaluation_to_dict
 from .models.posture import FORM as POSTURE
-from .models.posture import PostureModel, force_model_from_json, limits_from_protocol, load_force_model
+from .models.posture import (
+    RELIEVED_BASELINES,
+    PostureModel,
+    force_model_from_json,
+    limits_from_protocol,
+    load_force_model,
+)
 from .models.takuma import ANGLE_COLUMNS, EQUATIONS, FORCE_COLUMNS, TERMS, TakumaModel, cap
 from .options import FORMS, ClassifyOptions, FitOptions, ValidateOptions
 
@@ -141,7 +147,8 @@ def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
 def friction_of(protocol: Any) -> bool | str:
     """The friction terms the posture form is offered on a run of ``protocol``: the relieved ones
     where its baselines were each approached from the vented chambers
-    (``acquisition.friction_relief_vent_s``), none otherwise."""
+    (``acquisition.friction_relief_vent_s``), none otherwise.  Such a run's baselines repeat, and
+    each trial's P0 is then the mean of RELIEVED_BASELINES of them."""
     air = getattr(protocol, "air", None)
     return "relieved" if getattr(air, "friction_relief_vent_s", 0.0) > 0 else False
 
@@ -151,8 +158,13 @@ def _fit_form(
 ) -> TakumaModel | PostureModel:
     rig, name = src.protocol.settings.rig, src.protocol.name
     if form == POSTURE:
+        friction = friction_of(src.protocol)
         return PostureModel(
-            geometry=rig, protocol=name, limits=limits_from_protocol(src.protocol), friction=friction_of(src.protocol)
+            geometry=rig,
+            protocol=name,
+            limits=limits_from_protocol(src.protocol),
+            friction=friction,
+            baseline_mean=RELIEVED_BASELINES if friction == "relieved" else 1,
         ).fit(src.table, source=source, record_trials=record_trials)
     model = TakumaModel(geometry=rig, protocol=name, max_amplification=max_amplification)
     return model.fit(src.table, source=source, record_trials=record_trials)

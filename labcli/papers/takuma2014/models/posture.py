@@ -115,6 +115,11 @@ FRICTION_TERMS = ("friction1", "friction2")
 RELIEVED_TERMS = ("friction1_load", "friction2_load", "friction_rest")
 KNOWN_TORQUE_TERMS = TORQUE_TERMS + FRICTION_TERMS + RELIEVED_TERMS
 FRICTION_MODES = (False, True, "relieved")  # PostureModel(friction=...): none, from the history, relieved
+# On a relieved run every baseline is the same posture on the same regulated air, so a trial's P0
+# may be the mean of its own baseline and the ones before it (PostureModel(baseline_mean=k),
+# :func:`running_baseline`): the pressure sensors' repeatability, a fresh error in each reading,
+# averages out of P0.  Chosen on seeds 1-10 of the literature's rig (3, 5 and 10 tried).
+RELIEVED_BASELINES = 5
 # A motion this large (rad) is a motion: the friction's sign follows it; below it tanh fades the
 # term out, where the pots' play (0.2 deg) and the angle estimate's error hide its direction.
 FRICTION_MOTION_RAD = math.radians(0.1)
@@ -239,6 +244,26 @@ def relieved_columns(dtheta: np.ndarray, motion_sd: np.ndarray | None = None) ->
     """
     now = friction_columns(dtheta, None, motion_sd)
     return stack_columns([now, np.ones(len(now))])
+
+
+def running_baseline(trial: np.ndarray, P0: np.ndarray, k: int) -> np.ndarray:
+    """Each trial's P0 (n, 4) as the mean of its own baseline and the ``k - 1`` before it (in trial
+    id order, those in the table), each chamber over the readings it has."""
+    trial = np.asarray(trial)
+    order = np.argsort(trial, kind="stable")
+    p = np.asarray(P0, dtype=float)[order]
+    known = np.isfinite(p)
+    csum, ccount = np.cumsum(np.where(known, p, 0.0), axis=0), np.cumsum(known, axis=0)
+    total, count = csum.copy(), ccount.copy()
+    lag = np.arange(len(p)) - k
+    before = lag >= 0
+    total[before] -= csum[lag[before]]
+    count[before] -= ccount[lag[before]]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(known, total / np.maximum(count, 1), np.nan)
+    out = np.empty_like(mean)
+    out[order] = mean
+    return out
 
 
 def motion_into_baseline(trial: np.ndarray, theta0: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
@@ -652,6 +677,8 @@ class PostureModel:
     # offers FRICTION_TERMS (read from the history of loads), "relieved" RELIEVED_TERMS (a run
     # relieved by venting before each baseline).  The terms kept are in torque_terms like any other.
     friction: bool | str = False
+    # How many relieved baselines make a trial's P0 (RELIEVED_BASELINES on a relieved run; 1: its own).
+    baseline_mean: int = 1
     # The fit trials' span, and how their P0 was taken (models/calibrated.py, models/leak.py).
     calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
     p0_leak_corrected: bool = False
@@ -695,7 +722,7 @@ class PostureModel:
         if self.friction not in FRICTION_MODES:
             raise ModelError(f"Unknown friction terms {self.friction!r}; use one of {FRICTION_MODES}.")
         fit_rows = set_mask(table, "fit", source)
-        a = table_arrays(table, fit_rows, motion=self.friction is True)
+        a = table_arrays(table, fit_rows, motion=self.friction is True, baseline_mean=self.baseline_mean)
         use = (
             rows_all(np.isfinite(a["P0"]) & (a["P0"] > 0))
             & rows_all(np.isfinite(a["P"]) & (a["P"] > 0))
@@ -998,7 +1025,7 @@ class PostureModel:
 
     def predict_table(self, table: Any, mode: str = "pressure-only") -> dict[str, Any]:
         """``predict`` on a trial table (rest posture from theta1_0_deg, theta2_0_deg; absent = 0)."""
-        a = table_arrays(table)
+        a = table_arrays(table, baseline_mean=self.baseline_mean)
         moved = None
         if any(t in FRICTION_TERMS for t in self.torque_terms):
             # The motion into each baseline from the previous trial's loaded posture: its
@@ -1058,6 +1085,7 @@ class PostureModel:
                 "blends": self.blends,
                 "calibrated_range": self.calibrated_range,
                 "baseline": baseline_dict(self.p0_leak_corrected, self.baseline_gap_s),
+                "baseline_mean": self.baseline_mean,
             }
         )
 
@@ -1130,6 +1158,10 @@ class PostureModel:
             model._paper = TakumaModel.from_dict(d["paper_model"], name=f"{name}'s paper-form part")
         model.calibrated_range = check_range(d.get("calibrated_range"), name)
         model.p0_leak_corrected, model.baseline_gap_s = check_baseline(d.get("baseline"), name)
+        k = d.get("baseline_mean", 1)
+        if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 100:
+            bad("baseline_mean", "must be a whole number of baselines, 1 to 100")
+        model.baseline_mean = k
         return model
 
 
@@ -1270,12 +1302,15 @@ def force_model_from_json(text: str, name: str = "the model") -> TakumaModel | P
     return TakumaModel.from_json(text, name=name)
 
 
-def table_arrays(table: Any, rows: np.ndarray | None = None, motion: bool = False) -> dict[str, np.ndarray]:
+def table_arrays(
+    table: Any, rows: np.ndarray | None = None, motion: bool = False, baseline_mean: int = 1
+) -> dict[str, np.ndarray]:
     """Trial ids, pressures (MPa), rest posture and deflections (rad), forces (N) of a trial table.
 
     ``rows``: a boolean mask of the rows wanted (default all), taken column by column so
     the table itself is never copied.  ``motion``: also each trial's measured motion into its
-    baseline (``motion_in``, :func:`motion_into_baseline`).
+    baseline (``motion_in``, :func:`motion_into_baseline`).  ``baseline_mean`` > 1: each P0 the
+    mean of that many baselines (:func:`running_baseline`), over every row of the table.
     """
     n = len(table) if rows is None else int(np.count_nonzero(rows))
 
@@ -1317,4 +1352,8 @@ def table_arrays(table: Any, rows: np.ndarray | None = None, motion: bool = Fals
             trial, np.deg2rad(np.where(np.isfinite(r), r, 0.0)), np.deg2rad(whole(ANGLE_COLUMNS, math.nan))
         )
         out["motion_in"] = moved if rows is None else moved[rows]
+    if baseline_mean > 1:
+        every = stack_columns([np.asarray(table[c], dtype=float) for c in BASELINE_COLUMNS])
+        mean = running_baseline(trial, every, baseline_mean)
+        out["P0"] = mean if rows is None else mean[rows]
     return out
