@@ -90,9 +90,7 @@ def metadata_checksum(f: h5py.File) -> int:
 
     add("/", f)
     views = _views(f)
-    names: list[str] = []
-    f.visit(names.append)  # each object once, by the first name met, as visititems gives them
-    for name in names:
+    for name in _objects(f):
         if name not in views:
             add(name, f[name])
     parts += field_parts(f)
@@ -100,13 +98,33 @@ def metadata_checksum(f: h5py.File) -> int:
     return int(row_checksums([blob.reshape(1, -1)], 0)[0])
 
 
+def _objects(f: h5py.File) -> list[str]:
+    """Each object of the file once, by the first name met through hard links: the names
+    ``visititems`` gives, in its order, found from the links alone.
+
+    HDF5's object visit (``visit``, ``visititems``) reads each dataset's layout, and a virtual
+    dataset's layout in the global heap, where one flipped bit hung it (measured); the link visit
+    reads no object.
+    """
+    links: list[bytes] = []
+    f.id.links.visit(links.append)  # H5Lvisit, in visit's order
+    seen, names = {h5py.h5o.get_info(f.id).addr}, []  # the root group: no dataset, no layout
+    for name in links:
+        info = f.id.links.get_info(name)
+        if info.type == h5py.h5l.TYPE_HARD and info.u not in seen:
+            seen.add(info.u)
+            names.append(name.decode("utf-8", "surrogateescape"))
+    return names
+
+
 def _views(f: h5py.File) -> set[str]:
     """The channels' NXlog ``value`` and ``raw_value`` of a schema-4 file, by name: views of
     ``raw/values`` and ``raw/counts`` (virtual datasets, :mod:`.frames`), which no reader opens.
 
-    Their mappings live in HDF5's global heap, and HDF5 reads them as it opens the dataset: one
-    flipped bit there can crash or hang the process (measured, as for variable-length text), so
-    labcli reads the frames from the arrays themselves and leaves the views to NeXus readers.
+    Their mappings live in HDF5's global heap, and HDF5 reads them as it opens the dataset (and
+    in its object visit, hence :func:`_objects`): one flipped bit there can crash or hang the
+    process (measured, as for variable-length text), so labcli reads the frames from the arrays
+    themselves and leaves the views to NeXus readers.
     """
     raw = f.get("entry/raw")
     if not isinstance(raw, h5py.Group) or "values" not in raw:
