@@ -136,3 +136,31 @@ def test_apply_play_corrects_validation_labels_the_same_way(play_only_trials):
     assert (np.abs(fixed["theta1_deg"]) >= np.abs(table["theta1_deg"]) - 1e-12).all()
     assert not fixed["theta1_deg"].equals(table["theta1_deg"])
     assert apply_play(table, (0.0, 0.0))["theta2_deg"].equals(table["theta2_deg"])
+
+
+def test_the_posture_form_fits_the_same_play_and_the_same_corrected_deflections(play_only_trials):
+    from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
+
+    proto, table = play_only_trials
+    rig, limits = proto.settings.rig, limits_from_protocol(proto)
+    paper = TakumaModel(geometry=rig, protocol=proto.name).fit(table)
+    fitted = PostureModel(geometry=rig, protocol=proto.name, limits=limits).fit(table)
+    as_read = PostureModel(geometry=rig, protocol=proto.name, limits=limits, label_play="none").fit(table)
+    # One operator, one answer: the posture form's play is the paper form's, the rig's 0.2 deg.
+    assert fitted.play == paper.play
+    assert fitted.play["play_deg"] == pytest.approx([0.2, 0.2], abs=0.03)
+    assert as_read.play == {}
+    # Fitted to the labels as read, every pressure-derived deflection comes out short (the slope
+    # absorbs the short readings); corrected, they lengthen by a share of the play.
+    ours, theirs = fitted.predict_table(table), as_read.predict_table(table)
+    for q in ("theta1_rad", "theta2_rad"):
+        gain = np.mean(np.abs(ours[q])) - np.mean(np.abs(theirs[q]))
+        assert math.radians(0.04) < gain < math.radians(0.2)
+    d = fitted.to_dict()
+    assert d["labels"]["play"] == "fit" and d["labels"]["play_deg"] == fitted.play["play_deg"]
+    back = PostureModel.from_dict(d)
+    assert back.label_play == "fit" and back.play == fitted.play
+    older = {k: v for k, v in d.items() if k != "labels"}
+    assert PostureModel.from_dict(older).label_play == "none"
+    with pytest.raises(ModelError, match="bad 'labels' entry"):
+        PostureModel.from_dict({**d, "labels": {"play": "maybe"}})

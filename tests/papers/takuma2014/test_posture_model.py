@@ -301,8 +301,8 @@ def test_a_paper_routed_quantity_takes_the_paper_value_and_its_own_error(bent_ri
     assert model.route("theta1") == "paper"
     cv = model.fit_stats["routes_cv"]["theta1"]
     assert cv["rmse_paper"] < cv["rmse_posture"]
-    # The posture form's paper route fits the labels as read, as the posture form does.
-    paper = TakumaModel(geometry=rig, label_play="none").fit(bent_rig_table)
+    # The posture form's paper route fits the labels the posture form fits: corrected for the play.
+    paper = TakumaModel(geometry=rig, label_play="none").fit(PostureModel(geometry=rig)._unplayed(bent_rig_table, "t"))
     v = bent_rig_table[bent_rig_table.set == "validation"]
     out = model.predict_table(v)
     np.testing.assert_allclose(out["theta1_rad"], paper.predict_table(v)["theta1_rad"], rtol=1e-12)

@@ -89,6 +89,7 @@ from .takuma import (
     TakumaModel,
     _clean,
     cap,
+    labels_from_dict,
     normalise_geometry,
     pressure_arrays,
     qr_r,
@@ -683,6 +684,10 @@ class PostureModel:
     calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
     p0_leak_corrected: bool = False
     baseline_gap_s: float | None = None
+    # The potentiometers' play, fitted as the paper's form fits it (models/labels.py): "fit" fits
+    # the form to the corrected labels, "none" to the labels as read.
+    label_play: str = "fit"
+    play: dict[str, Any] = field(default_factory=dict)
 
     form = FORM
 
@@ -709,6 +714,7 @@ class PostureModel:
         choice's cross-validation fits predict one block and are thrown away, and on a random
         split listing their trials was a tenth of the fit.
         """
+        table = self._unplayed(table, source)
         self._fit_posture(table, source, record_trials)
         self.routes, self.paper_model, self.paper_variance, self.blends = {}, None, {}, {}
         self._paper = None
@@ -717,6 +723,21 @@ class PostureModel:
             # before the paper's form reads them again (at 10^6 trials, 100 MB of the peak).
             self._choose_routes(table, source)
         return self
+
+    def _unplayed(self, table: Any, source: str) -> Any:
+        """The table with its angle labels corrected for the potentiometers' play, fitted with the
+        paper's Eqs. 34-35 designs exactly as that form fits it (models/labels.py), so that both
+        forms learn the same deflections.  Play under-reads a deflection after a load the same way
+        and least squares takes it as a smaller slope: the posture form fitted to the labels as read
+        put the steel can's k at 0.44-0.45 of true on tuning seeds 1-2 (0.88-0.91 corrected).  A
+        reading that never left the play keeps the pressures' estimate within it, as there."""
+        self.play = {}
+        if self.label_play == "none":
+            return table
+        probe = TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="fit")
+        corrected, _ = probe._unplayed(table, set_mask(table, "fit", source))
+        self.play = probe.play
+        return corrected
 
     def _fit_posture(self, table: Any, source: str, record_trials: bool = True) -> None:
         if self.friction not in FRICTION_MODES:
@@ -781,11 +802,16 @@ class PostureModel:
 
         def posture_only(rows: Any) -> PostureModel:
             return PostureModel(
-                geometry=self.geometry, protocol=self.protocol, limits=self.limits, friction=self.friction
+                geometry=self.geometry,
+                protocol=self.protocol,
+                limits=self.limits,
+                friction=self.friction,
+                label_play="none",  # the rows' labels are corrected already
             ).fit(rows, choose_routes=False, record_trials=False)
 
         def paper(rows: Any, record_trials: bool = False) -> TakumaModel:
-            # The labels as read: the posture form fits them so, and both forms are judged on them.
+            # The rows' labels as the posture form fits them (play corrected, or as read): both
+            # forms are judged on the same labels.
             return TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="none").fit(
                 rows, record_trials=record_trials
             )
@@ -1086,6 +1112,7 @@ class PostureModel:
                 "calibrated_range": self.calibrated_range,
                 "baseline": baseline_dict(self.p0_leak_corrected, self.baseline_gap_s),
                 "baseline_mean": self.baseline_mean,
+                "labels": {"play": self.label_play, **self.play},
             }
         )
 
@@ -1162,6 +1189,7 @@ class PostureModel:
         if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 100:
             bad("baseline_mean", "must be a whole number of baselines, 1 to 100")
         model.baseline_mean = k
+        model.label_play, model.play = labels_from_dict(d.get("labels"), name)
         return model
 
 

@@ -789,7 +789,7 @@ class TakumaModel:
         model = cls(**_model_fields(d, cap(name)))
         model.calibrated_range = check_range(d.get("calibrated_range"), name)
         model.p0_leak_corrected, model.baseline_gap_s = check_baseline(d.get("baseline"), name)
-        model.label_play, model.play = _labels(d.get("labels"), name)
+        model.label_play, model.play = labels_from_dict(d.get("labels"), name)
         unknown = [k for k in model.coefficients if k not in COEFFICIENT_NAMES]
         if unknown:
             what = "an unknown coefficient" if len(unknown) == 1 else "unknown coefficients"
@@ -840,7 +840,7 @@ class TakumaModel:
         Path(path).write_text(self.to_json(), encoding="utf-8")
 
 
-def _labels(value: Any, name: str) -> tuple[str, dict[str, Any]]:
+def labels_from_dict(value: Any, name: str) -> tuple[str, dict[str, Any]]:
     """A model file's ``labels``: how its angle labels were taken (absent in older files: as read)."""
     if value is None:
         return "none", {}
