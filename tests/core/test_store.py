@@ -64,21 +64,31 @@ def test_large_raw_windows_are_compressed_and_read_back_exactly(tmp_path):
     with RunFile.open(path) as run:
         assert_record_stored(run.records.read(1), big)
         assert_record_stored(run.records.read(2), small)
-    unfiltered, views = [], {}
+    unfiltered, views, shuffled_floats, tables = [], {}, [], []
 
     def check(name: str, obj: object) -> None:
         if not isinstance(obj, h5py.Dataset):
             return
         if obj.is_virtual:  # a channel's column of raw/values or raw/counts: its bytes are theirs
             views[name] = obj.virtual_sources()
-        elif not (obj.compression == "gzip" and obj.shuffle and obj.fletcher32 and obj.chunks):
+            return
+        if not (obj.compression == "gzip" and obj.fletcher32 and obj.chunks):
+            unfiltered.append(name)
+        listed = [n.decode() if isinstance(n, bytes) else str(n) for n in obj.parent.attrs.get("columns", [])]
+        table = name.rsplit("/", 1)[-1] in [*listed, "checksum"]  # a table's column: level 1, shuffled if whole
+        if table:
+            tables.append(name)
+            if obj.compression_opts != 1 or obj.shuffle != (obj.dtype.kind in "iu"):
+                shuffled_floats.append(name)
+        elif not (obj.shuffle and obj.compression_opts == 4):  # raw windows and the rest: as before
             unfiltered.append(name)
 
     with h5py.File(path, "r") as f:
         f.visititems(check)
         assert f["entry/raw/values"].shape == (f["entry/raw/time"].shape[0], len(CHANNELS))
         assert f["entry/raw/counts"].dtype == np.int32
-    assert unfiltered == []
+    assert unfiltered == [] and shuffled_floats == []
+    assert any(t.endswith("/trial") for t in tables) and any(t.endswith("/P0") for t in tables)
     assert len(views) == 2 * len(CHANNELS)  # visited once each (the default plot links to the same ones)
     with h5py.File(path, "r") as f:  # what a reader with h5py alone sees: each channel's column, every frame
         raw = f["entry/raw"]

@@ -44,6 +44,14 @@ from .checksum import Repeated, row_checksums
 from .h5 import column_name, h5_name, put
 
 FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletcher32": True}
+# A table's columns (trials, sessions, splits, an imported archive of 10^6 rows): gzip at level 1,
+# byte shuffle for whole numbers only, Fletcher32 on every chunk as everywhere.  Measured on an
+# imported 10^6-row trial table (docs/performance.md): numbers read from decimal text repeat their
+# eight bytes from row to row, which shuffling splits apart, so a float column shuffled at level 4
+# took 3-5x the time and 3x the bytes of the same column unshuffled at level 1; ids and counts keep
+# the shuffle, which makes them smaller and no slower.  Neither the level nor the shuffle is part
+# of the schema: HDF5 records both with each dataset, and every reader is indifferent.
+TABLE_FILTERS = {"compression": "gzip", "compression_opts": 1, "fletcher32": True}
 CHECKSUM = Column("checksum", "1", kind="uint", what="checksum of the row's other columns")
 READ_BLOCK = 65_536  # rows read and checked at a time, so memory stays bounded on large tables
 
@@ -65,8 +73,19 @@ def h5_dtype(c: Column) -> Any:
     return c.dtype
 
 
+def table_filters(c: Column) -> dict[str, Any]:
+    """The filters of a table's column ``c`` (:data:`TABLE_FILTERS`; shuffled when it holds whole numbers)."""
+    return {**TABLE_FILTERS, "shuffle": c.kind in ("int", "uint", "flag")}
+
+
 def create_dataset(
-    g: h5py.Group, c: Column, chunk: int, length: int = 0, dtype: Any = None, by_component: bool = False
+    g: h5py.Group,
+    c: Column,
+    chunk: int,
+    length: int = 0,
+    dtype: Any = None,
+    by_component: bool = False,
+    filters: Mapping[str, Any] = FILTERS,
 ) -> h5py.Dataset:
     """A resizable dataset for column ``c`` (``length`` rows, chunked by ``chunk`` rows), with its units;
     ``dtype``: a narrower one than the column's kind stores (raw counts as int32); ``by_component``:
@@ -78,7 +97,7 @@ def create_dataset(
         dtype=h5_dtype(c) if dtype is None else dtype,
         chunks=(chunk, *(1 for _ in c.shape)) if by_component else (chunk, *c.shape),
         fillvalue=fill_value(c),
-        **FILTERS,
+        **filters,
     )
     if c.kind != "text":  # a number has a unit ('1' for a count or an id); a text has none
         put(ds, "units", c.units)
@@ -230,7 +249,7 @@ class Table:
         g.attrs["chunk_rows"] = np.int64(chunk_rows)
         cls._set_committed(g, 0, create=True)
         for c in (*columns, CHECKSUM):
-            create_dataset(g, c, chunk_rows, length)
+            create_dataset(g, c, chunk_rows, length, filters=table_filters(c))
         return cls(g)
 
     @staticmethod

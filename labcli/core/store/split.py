@@ -223,7 +223,9 @@ def checked(
     complete = list(complete)
     try:
         f, v = np.asarray(fit, dtype=np.int64), np.asarray(val, dtype=np.int64)
-        done = np.fromiter((int(i) for i in complete), dtype=np.int64)
+        done = np.asarray(complete)  # ints already (a run's record ids): read in C, not one at a time
+        if done.dtype.kind != "i" or done.ndim != 1:
+            done = np.fromiter((int(i) for i in complete), dtype=np.int64)
     except OverflowError:  # an id past int64 is no record's: the checks id by id name it
         return _checked_one_by_one(path, complete, fit, val)
     fs, vs = np.sort(f), np.sort(v)  # sorts, not np.unique: numpy 2 hashes, ten times slower here
