@@ -392,9 +392,13 @@ class StreamReader:
     def _parse_block(self, block: bytes) -> FrameBatch:
         """Parse complete lines (``block`` ends with ``\\n``) and count loss across them."""
         clean = self.n_channels is not None and whole_chunk(block, self.n_channels, MAX_LINE)
-        batches: list[FrameBatch] = [FrameBatch(*clean)] if clean else []  # the common block
-        offset = len(block) if clean else 0
-        self.lines += len(clean[0]) if clean else 0
+        if clean:  # the common block, whole: no list of batches, no concatenation
+            batch = FrameBatch(*clean)
+            self.lines += clean[0].shape[0]
+            self._count_frames(batch)
+            return batch
+        batches: list[FrameBatch] = []
+        offset = 0
         # The channel count comes from the first valid frame; until then go line by line.
         while self.n_channels is None and offset < len(block):
             nl = block.index(b"\n", offset)
@@ -417,14 +421,14 @@ class StreamReader:
         return batch
 
     def _count_frames(self, batch: FrameBatch) -> None:
-        n = len(batch)
+        seq = batch.seq
+        n = seq.shape[0]
         if not n:
             return
         self.counters["frames"] += n
-        seq = batch.seq
         gap: np.ndarray | int = 0
         forward: np.ndarray | bool = True  # one step each, on from the last frame (the common batch)
-        if self._last_seq is None or (seq - (self._last_seq + 1)).tobytes() != steps_bytes(n):
+        if self._last_seq is None or seq.tobytes() != steps_bytes(n, self._last_seq + 1):
             prev = np.concatenate(([seq[0] - 1 if self._last_seq is None else self._last_seq], seq[:-1]))
             gaps = (seq - prev - 1) % U32
             ahead = gaps < (U32 >> 1)

@@ -87,7 +87,7 @@ def whole_chunk(block: bytes, k: int, max_line: int) -> tuple[np.ndarray, np.nda
     nums = nums.reshape(n, k + 3)
     if nums[:, -1].tobytes() != _minus_ones(n):  # k + 2 fields a line
         return None
-    if nums.max() >= _U32:  # seq and t_us are unsigned 32-bit; a value may be larger
+    if _MAX(nums, axis=None) >= _U32:  # seq and t_us are unsigned 32-bit; a value may be larger
         top = nums.max(axis=0).tolist()  # fromstring saturates at 2**63 - 1 on a longer number
         if top[0] >= _U32 or top[1] >= _U32 or max(top) == _I64_MAX:
             return None
@@ -118,15 +118,22 @@ def _fromstring_refuses_empty_fields() -> bool:
     return False
 
 
-def steps_bytes(n: int) -> bytes:
-    """``0, 1, ..., n - 1`` as int64 bytes: a batch's seq less its expected first, when none is lost."""
-    global _STEPS
-    if 8 * n > len(_STEPS):
-        _STEPS = np.arange(2 * n, dtype=np.int64).tobytes()
-    return _STEPS[: 8 * n]
+def steps_bytes(n: int, first: int = 0) -> bytes:
+    """``first, first + 1, ..., first + n - 1`` as int64 bytes: a batch's seq when none is lost.
+
+    Cut from one run of numbers kept from call to call (a stream's seq climbs by the batch): a
+    slice of bytes costs less than subtracting the expected first from every seq.
+    """
+    global _STEPS, _STEPS_FIRST
+    at = first - _STEPS_FIRST
+    if at < 0 or 8 * (at + n) > len(_STEPS):
+        _STEPS_FIRST, at = first, 0
+        _STEPS = np.arange(first, first + max(4 * n, 1 << 14), dtype=np.int64).tobytes()
+    return _STEPS[8 * at : 8 * (at + n)]
 
 
 _STEPS = b""
+_STEPS_FIRST = 0
 
 
 @functools.lru_cache(maxsize=64)
@@ -160,6 +167,7 @@ _MIN_LINES = 8  # of the shortest data line (2 k + 10 bytes): in fewer, line by 
 _ZEROS = b"0" * 12
 _BOUNDED_K = 6
 _I64_MAX = int(np.iinfo(np.int64).max)
+_MAX = np.maximum.reduce  # ndarray.max less its Python wrapper
 _HEXNUM = np.full(256, -1, np.int32)
 for _i, _c in enumerate(b"0123456789abcdef"):
     _HEXNUM[_c] = _i

@@ -597,3 +597,25 @@ def test_place_value_decoder_agrees_when_numpy_has_no_text_parser(monkeypatch):
     monkeypatch.delattr(np, "fromstring")
     got = assert_agrees(stream, [1000])
     assert got.counters == want.counters and got.counters["frames"] == 52
+
+
+@given(st.lists(st.tuples(st.integers(-(2**40), 2**40), st.integers(0, 3000)), min_size=1, max_size=30))
+def test_steps_bytes_are_the_run_of_numbers_asked_for_from_any_first(calls):
+    for first, n in calls:  # climbing, falling and far jumps: the kept run is cut or made again
+        assert wirechunk.steps_bytes(n, first) == np.arange(first, first + n, dtype=np.int64).tobytes()
+
+
+@given(st.lists(st.sampled_from([1, 1, 1, 2, 0, -3, 40_000]), min_size=1, max_size=80), st.integers(0, U32 - 1))
+def test_loss_over_many_clean_chunks_is_counted_as_frame_by_frame(steps, start):
+    # Chunks of 20 frames each (the whole-chunk path), seq climbing by the given steps.
+    seqs, s = [], start
+    for step in steps:
+        s = (s + step) % U32
+        seqs.append(s)
+    lines = [format_frame(q, 0, [1, 2, 3]) for q in seqs]
+    r = StreamReader()
+    for i in range(0, len(lines), 20):
+        r.feed(b"".join(lines[i : i + 20]))
+    gaps = [(b - a - 1) % U32 for a, b in zip(seqs, seqs[1:], strict=False)]
+    assert r.counters["frames"] == len(seqs)
+    assert r.counters["lost"] == sum(g for g in gaps if g < U32 >> 1)
