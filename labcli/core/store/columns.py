@@ -1,7 +1,7 @@
 """Append-only tables: how a run file keeps its records, its session log, its splits and models.
 
 A table is an HDF5 group holding one resizable, chunked dataset per column (gzip, byte
-shuffle and HDF5's Fletcher32 checksum on every chunk), a ``checksum`` column (one 64-bit
+shuffle for whole numbers, HDF5's Fletcher32 checksum on every chunk), a ``checksum`` column (one 64-bit
 checksum per row over every other column, :mod:`.checksum`) and the attribute
 ``@committed``: rows ``[0, @committed)`` are the table; anything past it is a write that
 never finished (a kill, a full disk) and is ignored.  Appending is:
