@@ -393,8 +393,16 @@ class StreamReader:
         """Parse complete lines (``block`` ends with ``\\n``) and count loss across them."""
         clean = self.n_channels is not None and whole_chunk(block, self.n_channels, MAX_LINE)
         if clean:  # the common block, whole: no list of batches, no concatenation
+            seq, t_us, _ = clean
+            n = seq.shape[0]
+            self.lines += n
+            last = self._last_seq
+            if self.period_us is None and last is not None and seq.tobytes() == steps_bytes(n, last + 1):
+                # On from the last frame, one step each: nothing lost, and no stall to time.
+                self.counters["frames"] += n
+                self._last_seq, self._last_t_us = last + n, int(t_us[-1])
+                return FrameBatch(*clean)
             batch = FrameBatch(*clean)
-            self.lines += clean[0].shape[0]
             self._count_frames(batch)
             return batch
         batches: list[FrameBatch] = []
