@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from .boardlines import ESTIMATE_KIND, EVENT_KIND, Estimate, Event, parse_board_fields
-from .wirechunk import steps_bytes, whole_chunk
+from .wirechunk import follows_on, whole_chunk
 
 MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
 OVERLONG = f"line longer than {MAX_LINE} bytes"  # Noise reasons the reader counts apart
@@ -259,26 +259,23 @@ _MIN_VECTOR_LINES = 8  # below this, line by line is quicker than numpy's fixed 
 class StreamReader:
     """Turns a byte stream from the rig into frame batches, replies and log lines.
 
-    ``port`` is any object with pyserial's ``read``/``in_waiting`` (or None for
-    :meth:`feed` only).  Its ``timeout`` is the poll interval of :meth:`read`, so
-    it must be finite (the Device sets 0.05 s).  ``n_channels=None`` takes the
-    channel count from the first valid frame; later frames with another count
-    are malformed.
+    ``port`` is any object with pyserial's ``read``/``in_waiting`` (or None for :meth:`feed`
+    only).  Its ``timeout`` is the poll interval of :meth:`read`, so it must be finite (the
+    Device sets 0.05 s).  ``n_channels=None`` takes the channel count from the first valid
+    frame; later frames with another count are malformed.
 
-    A 1.1 board's event and estimate lines are counted and kept in ``events`` and
-    ``estimates`` (bounded; the device takes them).
-    A line longer than ``MAX_LINE`` is counted once as ``overlong`` and skipped
-    up to the next ``\\n``.  Lost frames are counted from gaps in ``seq``
-    (modulo 2**32); a backwards jump (firmware restarted) resynchronises
-    without counting loss.
+    A 1.1 board's event and estimate lines are counted and kept in ``events`` and ``estimates``
+    (bounded; the device takes them).  A line longer than ``MAX_LINE`` is counted once as
+    ``overlong`` and skipped up to the next ``\\n``.  Lost frames are counted from gaps in
+    ``seq`` (modulo 2**32); a backwards jump (firmware restarted) resynchronises without
+    counting loss.
 
-    Stalls: once the sample rate is known (:meth:`set_rate`, which
-    ``Device.set_rate`` calls with the rate the firmware confirmed), a gap
-    between consecutive frames whose device time (``t_us``) exceeds
-    ``seq`` difference x period by more than ``stall_us`` counts as one stall
-    (``stalls``; their total excess in ``stalled_s``).  Device time, not
-    arrival time, is judged, so a burst held back by a USB bridge is not a
-    stall and a stall is seen even when the host read late.
+    Stalls: once the sample rate is known (:meth:`set_rate`, which ``Device.set_rate`` calls
+    with the rate the firmware confirmed), a gap between consecutive frames whose device time
+    (``t_us``) exceeds ``seq`` difference x period by more than ``stall_us`` counts as one
+    stall (``stalls``; their total excess in ``stalled_s``).  Device time, not arrival time, is
+    judged, so a burst held back by a USB bridge is not a stall and a stall is seen even when
+    the host read late.
     """
 
     def __init__(
@@ -373,8 +370,7 @@ class StreamReader:
             self._pending = buf
             self._check_pending()
             return FrameBatch.empty(self.n_channels or 0)
-        self._pending = buf[last + 1 :]
-        batch = self._parse_block(buf[: last + 1])
+        self._pending, batch = buf[last + 1 :], self._parse_block(buf[: last + 1])
         self._check_pending()
         return batch
 
@@ -393,18 +389,8 @@ class StreamReader:
         """Parse complete lines (``block`` ends with ``\\n``) and count loss across them."""
         clean = self.n_channels is not None and whole_chunk(block, self.n_channels, MAX_LINE)
         if clean:  # the common block, whole: no list of batches, no concatenation
-            seq, t_us, _ = clean
-            n = seq.shape[0]
-            self.lines += n
-            last = self._last_seq
-            if self.period_us is None and last is not None and seq.tobytes() == steps_bytes(n, last + 1):
-                # On from the last frame, one step each: nothing lost, and no stall to time.
-                self.counters["frames"] += n
-                self._last_seq, self._last_t_us = last + n, int(t_us[-1])
-                return FrameBatch(*clean)
-            batch = FrameBatch(*clean)
-            self._count_frames(batch)
-            return batch
+            self.lines += clean[0].shape[0]
+            return self._count_frames(FrameBatch(*clean))
         batches: list[FrameBatch] = []
         offset = 0
         # The channel count comes from the first valid frame; until then go line by line.
@@ -424,19 +410,20 @@ class StreamReader:
             batches.append(
                 FrameBatch(*clean) if clean else self._parse_lines(rest) if few else self._parse_vectorised(rest)
             )
-        batch = batches[0] if len(batches) == 1 else FrameBatch.concat(batches, self.n_channels or 0)
-        self._count_frames(batch)
-        return batch
+        return self._count_frames(batches[0] if len(batches) == 1 else FrameBatch.concat(batches, self.n_channels or 0))
 
-    def _count_frames(self, batch: FrameBatch) -> None:
-        seq = batch.seq
-        n = seq.shape[0]
+    def _count_frames(self, batch: FrameBatch) -> FrameBatch:
+        """Count ``batch``'s frames, and the frames lost and stalls before and among them; returns it."""
+        seq, n, last = batch.seq, batch.seq.shape[0], self._last_seq
         if not n:
-            return
+            return batch
         self.counters["frames"] += n
+        if self.period_us is None and follows_on(seq, last):  # nothing lost, no stall to time
+            self._last_seq, self._last_t_us = int(seq[-1]), int(batch.t_us[-1])
+            return batch
         gap: np.ndarray | int = 0
         forward: np.ndarray | bool = True  # one step each, on from the last frame (the common batch)
-        if self._last_seq is None or seq.tobytes() != steps_bytes(n, self._last_seq + 1):
+        if not follows_on(seq, last):
             prev = np.concatenate(([seq[0] - 1 if self._last_seq is None else self._last_seq], seq[:-1]))
             gaps = (seq - prev - 1) % U32
             ahead = gaps < (U32 >> 1)
@@ -455,6 +442,7 @@ class StreamReader:
                 self.stalled_s += float(excess[stalled].sum()) * 1e-6
         self._last_t_us = int(batch.t_us[-1])
         self._last_seq = int(seq[-1])
+        return batch
 
     def _classify(self, line: bytes) -> Parsed:
         """Slow path: one line through the reference parser, counted."""

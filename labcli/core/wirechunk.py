@@ -118,6 +118,11 @@ def _fromstring_refuses_empty_fields() -> bool:
     return False
 
 
+def follows_on(seq: np.ndarray, last: int | None) -> bool:
+    """Whether the int64 ``seq`` climbs one step a frame on from ``last`` (a batch with none lost)."""
+    return last is not None and seq.tobytes() == steps_bytes(seq.shape[0], last + 1)
+
+
 def steps_bytes(n: int, first: int = 0) -> bytes:
     """``first, first + 1, ..., first + n - 1`` as int64 bytes: a batch's seq when none is lost.
 
