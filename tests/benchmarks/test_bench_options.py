@@ -218,3 +218,16 @@ def test_fresh_processes_are_measured_themselves_not_the_parent(tmp_path: Path) 
     assert len(pair.mine) == len(pair.base) == 3 and pair.ratio("cpu_s") < 0.5
     assert set(pair.figures()) >= {"t cpu ratio", "t labcli peak memory MiB", "t baseline wall s"}
     del ballast
+
+
+def test_table_filters_measures_the_filters_the_run_file_uses():
+    from labcli.core.paper import Column
+    from labcli.core.store.columns import FILTERS, table_filters
+
+    tf = bench("table_filters")
+    assert tf.WAYS["gzip 4 shuffle"] == FILTERS  # the tables' filters before, the raw windows' still
+    assert {**tf.WAYS["gzip 1"], "shuffle": False} == table_filters(Column("P", "MPa"))  # a float column's now
+    assert table_filters(Column("trial", "1", kind="int"))["shuffle"] is True
+    cols = {"x": (np.random.default_rng(1).normal(size=(5000, 2)).round(4), (1024, 2))}
+    sizes = {way: tf.write(cols, ("x",), filters)[1] for way, filters in tf.WAYS.items()}
+    assert sizes["gzip 1"] < sizes["gzip 1 shuffle"]  # decimal numbers: shuffling splits their repeats

@@ -724,6 +724,13 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--sizes", "1e4,1e5,1e6", "--repeat", "5")},
         ),
         Source(
+            "table-filters",
+            "benchmark",
+            "what gzip level and byte shuffle cost on the columns labcli import writes, time and bytes",
+            script="table_filters.py",
+            runs={"": ("--rows", "1e6", "--repeat", "5")},
+        ),
+        Source(
             "reader",
             "benchmark",
             "the stream reader beside a one-fromstring numpy parser, 4 KiB and 64 KiB chunks, fresh processes",
