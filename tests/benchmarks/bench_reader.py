@@ -161,6 +161,8 @@ def main() -> None:
             figures[f"{chunk} B reader frames per s"] = round(reader_rate)
             figures[f"{chunk} B numpy frames per s"] = round(numpy_rate)
             figures[f"{chunk} B reader over numpy"] = round(ratio, 2)
+            figures[f"{chunk} B reader over numpy lowest round"] = round(min(ratios), 2)
+            figures[f"{chunk} B reader over numpy highest round"] = round(max(ratios), 2)
     load_after = os.getloadavg()
     print("ratio: the baseline's CPU time over the reader's (above 1: the reader is faster)")
     print(f"load average before {load[0]:.2f}, after {load_after[0]:.2f} (2 CPUs)")
