@@ -47,9 +47,9 @@ FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletc
 # A table's columns (trials, sessions, splits, an imported archive of 10^6 rows): gzip at level 1,
 # byte shuffle for whole numbers only, Fletcher32 on every chunk as everywhere.  Measured on an
 # imported 10^6-row trial table (docs/performance.md): numbers read from decimal text repeat their
-# eight bytes from row to row, which shuffling splits apart, so a float column shuffled at level 4
-# took 3-5x the time and 3x the bytes of the same column unshuffled at level 1; ids and counts keep
-# the shuffle, which makes them smaller and no slower.  Neither the level nor the shuffle is part
+# eight bytes from row to row, which shuffling splits apart, so the float columns shuffled at level 4
+# took several times the CPU and twice the bytes of the same columns unshuffled at level 1
+# (tests/benchmarks/table_filters.py); ids and counts keep the shuffle, which makes them smaller.  Neither the level nor the shuffle is part
 # of the schema: HDF5 records both with each dataset, and every reader is indifferent.
 TABLE_FILTERS = {"compression": "gzip", "compression_opts": 1, "fletcher32": True}
 CHECKSUM = Column("checksum", "1", kind="uint", what="checksum of the row's other columns")
