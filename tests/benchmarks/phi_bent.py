@@ -12,8 +12,16 @@ the stiffness estimate has its own flags.
 paper's Eqs. 2-7 without the simulated rig's code (ideal braided muscles closed at rest, exact
 geometry a few per cent off the protocol's, potentiometer scale errors, 0.5 kPa pressure noise).
 
+``--second KEY=VALUE`` (repeatable) changes a field of the second rig (``p_noise_kPa=0``, ``h2=0.130``,
+``pot_scale=1,1``), and ``--realism literature`` runs the simulated rig at the literature's levels
+(its pressure repeatability of 0.33 kPa per reading among them): which of its differences makes the
+direction wrong.  On the second rig each seed also prints how far the estimated force's direction is
+from the true one (median over the pushes) and the Fy error, beside the Cramer-Rao floor of Fy's
+standard error from one push's readings (``second_rig.force_floor``).
+
     python tests/benchmarks/phi_bent.py [--seeds 1-3] [--angles pressure-only|measured-angles]
-                                        [--rig project|second] [--figures FILE.json]
+                                        [--rig project|second] [--second KEY=VALUE ...]
+                                        [--realism kind|literature] [--figures FILE.json]
 """
 
 from __future__ import annotations
@@ -27,6 +35,8 @@ from sensing_accuracy import BENT_SUPPLY_MPA, _Recorder, trials
 
 # The stiffness settings, as --max-phi-se sets them (None: the protocol's defaults).
 PARAMS: dict | None = None
+SECOND: dict = {}  # the second rig's fields changed by --second
+DIRECTION: list[tuple[float, float]] = []  # per seed of the second rig: median direction error (deg), Fy RMSE (N)
 
 
 def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, int]:
@@ -66,26 +76,32 @@ def run_second(seed: int, angles: str) -> tuple[int, int, int]:
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from support.second_rig import push_table, weight_trials
+    from support.second_rig import harsher, push_table, weight_trials
 
     from labcli.core.protocol import load_protocol
     from labcli.papers.takuma2014.models.classify import classify_pushes
     from labcli.papers.takuma2014.models.posture import PostureModel
     from labcli.papers.takuma2014.protocol import load_plan
 
+    rig = harsher(None, **SECOND)
     proto = load_protocol("takuma2014-bent")
-    table = weight_trials(load_plan(proto), seed)
+    table = weight_trials(load_plan(proto), seed, rig)
     model = PostureModel(
         geometry=proto.settings.rig,
         protocol="takuma2014-stiffness",
         limits={q: np.inf for q in ("theta1", "theta2", "Fx", "Fy")},
     ).fit(table)
-    pushes = push_table(seed + 1000)
+    pushes = push_table(seed + 1000, rig)
     truth = dict(zip(pushes["object"], pushes["true_category"], strict=False))
     bands = {k: list(v) for k, v in load_protocol("takuma2014-stiffness").settings.push.stiffness_bands_N_per_m.items()}
     res = classify_pushes(pushes, model, bands=bands, method="bands", angles=angles, allow_unusable=True, params=PARAMS)
     ps, objs = (res.pushes, res.objects) if "push" in res.pushes.columns else (res.objects, res.pushes)
     right = int(sum(truth[o] == c for o, c in zip(objs["object"], objs["category"], strict=False)))
+    est = np.arctan2(ps["Fy_N"].to_numpy(float), ps["Fx_N"].to_numpy(float))
+    true = np.arctan2(pushes["true_Fy_N"].to_numpy(float), pushes["true_Fx_N"].to_numpy(float))
+    off = np.degrees(np.abs(np.angle(np.exp(1j * (est - true)))))
+    fy = ps["Fy_N"].to_numpy(float) - pushes["true_Fy_N"].to_numpy(float)
+    DIRECTION.append((float(np.nanmedian(off)), float(np.sqrt(np.nanmean(fy**2)))))
     return int(objs["n_used"].sum()), len(ps), right
 
 
@@ -95,19 +111,46 @@ def main() -> None:
     ap.add_argument("--angles", default="pressure-only", choices=["pressure-only", "measured-angles"])
     ap.add_argument("--rig", default="project", choices=["project", "second"])
     ap.add_argument("--max-phi-se", type=float, help="max_phi_se_deg of the stiffness settings (deg)")
+    ap.add_argument("--second", action="append", default=[], metavar="KEY=VALUE", help="a second rig's field")
+    ap.add_argument("--realism", choices=["kind", "literature"], help="the simulated rig's levels (default: kind)")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
     global PARAMS
     if args.max_phi_se is not None:
         PARAMS = {"max_phi_se_deg": args.max_phi_se}
+    for item in args.second:
+        key, _, value = item.partition("=")
+        numbers = tuple(float(v) for v in value.split(","))
+        SECOND[key] = numbers if len(numbers) > 1 else numbers[0]
+    rig_kw = None
+    if args.realism:
+        from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+
+        rig_kw = {"nonideal": NonIdeal(realism=args.realism)}
     lo, hi = (int(s) for s in args.seeds.split("-"))
     rows = []
     for seed in range(lo, hi + 1):
-        used, n, right = (run_second if args.rig == "second" else run)(seed, args.angles)
+        used, n, right = run_second(seed, args.angles) if args.rig == "second" else run(seed, args.angles, rig_kw)
         rows.append((used, n, right))
+        aside = ""
+        if args.rig == "second":
+            aside = (
+                f"; force direction off by {DIRECTION[-1][0]:.1f} deg (median), Fy error {DIRECTION[-1][1]:.2f} N rms"
+            )
         print(
             f"seed {seed}: {used}/{n} pushes used ({100 * used / n:.0f} %), {right}/6 objects in category "
-            f"(target >= 80 %, 6/6)"
+            f"(target >= 80 %, 6/6){aside}"
+        )
+    if args.rig == "second":
+        import sys
+
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        from support.second_rig import force_floor, harsher
+
+        floor = force_floor(harsher(None, **SECOND))
+        print(
+            f"Cramer-Rao floor of one push's force from its pressures: Fx {floor[0]:.2f} N, Fy {floor[1]:.2f} N "
+            f"(median force direction error {np.median([d for d, _ in DIRECTION]):.1f} deg over the seeds)"
         )
     if args.figures:
         figures = {
@@ -122,6 +165,13 @@ def main() -> None:
             "objects right min": min(r for _, _, r in rows),
             "seeds with every object right": sum(r == 6 for _, _, r in rows),
         }
+        if args.rig == "second":
+            figures["direction error median deg"] = float(np.median([d for d, _ in DIRECTION]))
+            figures["Fy error rms N"] = float(np.sqrt(np.mean([f**2 for _, f in DIRECTION])))
+            figures["Fy floor N"], figures["Fx floor N"] = float(floor[1]), float(floor[0])
+            figures["second"] = " ".join(args.second)
+        if args.realism:
+            figures["realism"] = args.realism
         Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n")
 
 

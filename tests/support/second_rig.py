@@ -217,3 +217,28 @@ def push_table(seed: int, rig: SecondRig | None = None, pushes_per_object: int =
 
 def harsher(rig: SecondRig | None = None, **changes) -> SecondRig:
     return replace(rig or SecondRig(), **changes)
+
+
+def force_floor(rig: SecondRig | None = None, seed: int = 1, pots: bool = False) -> np.ndarray:
+    """The smallest standard errors (N) of (Fx, Fy) any estimator can reach from one trial's readings
+    at the rest posture, knowing this rig's physics exactly (the Cramer-Rao bound of the linearised
+    statics): pressures, and with ``pots`` also the potentiometers, each read twice (baseline and
+    load) with the rig's noise.  On the bent arm the pressures barely see Fy: the outside pair not at
+    all (its joint carries Fy's torque only through the tip's small sideways offset), the inside pair
+    a fifth of what it sees of Fx."""
+    rig = rig or SecondRig()
+    if rig.p_noise_kPa == 0 or (pots and rig.pot_noise_deg == 0):
+        return np.zeros(2)  # a reading without noise: the statics give the force exactly
+    arm = Arm(rig, seed)
+    dp, dth = np.zeros((4, 2)), np.zeros((2, 2))
+    for k in range(2):
+        unit = np.zeros(2)
+        unit[k] = 1.0  # 1 N each way: the response's slope, free of its curvature
+        up, down = arm.loaded(lambda th, F=unit: F), arm.loaded(lambda th, F=-unit: F)
+        dp[:, k] = (arm.pressures(up) - arm.pressures(down)) / 2  # Pa per N
+        dth[:, k] = np.asarray(rig.pot_scale) * (up - down) / 2  # rad per N, as the pots read it
+    rows = [dp / (rig.p_noise_kPa * 1e3 * math.sqrt(2))]
+    if pots:
+        rows.append(dth / (math.radians(rig.pot_noise_deg) * math.sqrt(2)))
+    info = sum(r.T @ r for r in rows)
+    return np.sqrt(np.diag(np.linalg.inv(info)))

@@ -71,3 +71,38 @@ def test_tables_read_through_labcli(tmp_path):
     pushes.drop(columns=["true_category"]).to_csv(tmp_path / "p.csv", index=False)
     read = read_push_csv(tmp_path / "p.csv")
     assert read["phi_deg"].isna().all() and len(read) == len(sr.OBJECTS)
+
+
+def test_the_bent_arm_barely_shows_fy_in_its_pressures():
+    # The Cramer-Rao floor of one push's force, knowing the rig's physics exactly: Fx about 1.2 N,
+    # Fy about 9 N at 0.5 kPa of pressure noise per capture, against the pushes' Fy of well under
+    # 1 N.  No estimator finds the push direction from these pressures; the potentiometers help.
+    floor = sr.force_floor()
+    assert 0.8 < floor[0] < 2.0 and floor[1] > 5.0
+    pushes = sr.push_table(1001, pushes_per_object=3)
+    assert floor[1] > 5 * np.sqrt(np.mean(pushes["true_Fy_N"] ** 2))
+    assert sr.force_floor(pots=True)[1] < floor[1] / 4
+    # The bound is linear in the noise, and a reading without noise gives the force exactly.
+    np.testing.assert_allclose(sr.force_floor(sr.harsher(None, p_noise_kPa=0.05)), floor / 10, rtol=1e-9)
+    assert np.all(sr.force_floor(sr.harsher(None, p_noise_kPa=0.0)) == 0.0)
+
+
+def test_without_noise_the_posture_form_finds_each_push_direction():
+    # The second rig's geometry and muscles are not the protocol's, yet on noiseless readings the
+    # posture form fitted on its own weight trials gives every push's force direction: the
+    # direction error on the noisy rig is the noise's, not a fault of the fit or of the geometry.
+    from labcli.core.protocol import load_protocol
+    from labcli.papers.takuma2014.models.posture import PostureModel
+    from labcli.papers.takuma2014.protocol import load_plan
+
+    proto = load_protocol("takuma2014-bent")
+    quiet = sr.harsher(None, p_noise_kPa=0.0, pot_noise_deg=0.0)
+    model = PostureModel(geometry=proto.settings.rig, protocol="takuma2014-stiffness").fit(
+        sr.weight_trials(load_plan(proto), 1, quiet)
+    )
+    pushes = sr.push_table(1001, quiet, pushes_per_object=3)
+    p0 = pushes[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()
+    p = pushes[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy()
+    got = model.predict(p0, p, theta0=np.radians(pushes[["theta1_0_deg", "theta2_0_deg"]].to_numpy()))
+    off = np.arctan2(got["Fy_N"], got["Fx_N"]) - np.arctan2(pushes["true_Fy_N"], pushes["true_Fx_N"])
+    assert np.degrees(np.abs(np.angle(np.exp(1j * off)))).max() < 0.5
