@@ -594,16 +594,19 @@ SOURCES: dict[str, Source] = {
         Source(
             "phi-bent-heldout",
             "benchmark",
-            "pushes with phi blank on the bent arm, held-out seeds 11-30",
+            "pushes with phi blank on the bent arm (kind rig, and the literature's levels), held-out seeds 11-30",
             script="phi_bent.py",
-            runs={"": ("--seeds", "11-30")},
+            runs={"": ("--seeds", "11-30"), "literature": ("--seeds", "11-30", "--realism", "literature")},
         ),
         Source(
             "phi-bent-second",
             "benchmark",
-            "pushes with phi blank on the second forward model's bent arm, held-out seeds 11-30",
+            "pushes with phi blank on the second forward model's bent arm, and without its pressure noise, held-out seeds 11-30",
             script="phi_bent.py",
-            runs={"": ("--seeds", "11-30", "--rig", "second")},
+            runs={
+                "": ("--seeds", "11-30", "--rig", "second"),
+                "quiet": ("--seeds", "11-30", "--rig", "second", "--second", "p_noise_kPa=0"),
+            },
         ),
         Source(
             "classify-accuracy",
