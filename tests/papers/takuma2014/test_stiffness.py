@@ -26,6 +26,7 @@ from labcli.papers.takuma2014.models.stiffness import (
     REASON_SINGULAR,
     REASON_SMALL_DEFORMATION,
     REASON_SMALL_FORCE,
+    REASON_UNDETERMINED_DIRECTION,
     REASON_UNOBSERVED_DIRECTION,
     StiffnessParams,
     contact_point,
@@ -175,6 +176,12 @@ def test_force_pointing_away_from_the_object_has_no_phi():
     e = estimate_pushes([0.02], [0.05], [2.0], [0.0], CAN_R, PUSH_D, None, h2=H2, h3=H3)
     assert e.flag[0] and e.reason[0].startswith(REASON_NO_PHI)
     assert math.isnan(e.phi[0]) and e.n_phi_solutions[0] == 0
+    # Known to 0.01 N the force is inconsistent with any push; known only to several newtons its
+    # direction could be any, so the push is not determined rather than impossible (left out either way).
+    sure = estimate_pushes([0.02], [0.05], [2.0], [0.0], CAN_R, PUSH_D, None, h2=H2, h3=H3, force_se=[[0.01, 0.01]])
+    assert sure.reason[0].startswith(REASON_NO_PHI)
+    vague = estimate_pushes([0.02], [0.05], [2.0], [0.0], CAN_R, PUSH_D, None, h2=H2, h3=H3, force_se=[[5.0, 5.0]])
+    assert vague.flag[0] and vague.reason[0] == REASON_UNDETERMINED_DIRECTION and vague.n_phi_solutions[0] == 0
 
 
 def test_singular_pose_flag_and_model_flags_take_over():

@@ -408,9 +408,7 @@ def estimate_pushes(
     push_ids: Sequence[Any] | None = None,
     force_se: Any = None,
 ) -> PushEstimates:
-    """Stiffness of the pushed object for each push (Eqs. 38-42), with flags.
-
-    ``theta1, theta2`` (rad) are the estimated joint deflections and ``Fx, Fy`` (N) the estimated
+    """Stiffness of the pushed object for each push (Eqs. 38-42), with flags.  ``theta1, theta2`` (rad) are the estimated joint deflections and ``Fx, Fy`` (N) the estimated
     force for each push; ``R`` and ``d`` in m (scalars or per push); ``phi`` in rad, NaN (or None
     for all) where unknown, then solved.  ``theta0`` is the absolute baseline posture ((2,) or
     (n, 2) rad; None: the paper's upright arm).  ``model_flags`` (per push: list of flag names,
@@ -445,6 +443,7 @@ def estimate_pushes(
     _flag(reasons, finite_in, force, known, unobserved, sol.n_solutions, phi_out, delta_x, direction_error, params)
     phi_gain = np.where(known | unobserved, np.nan, sol.phi_gain)
     phi_se = _phi_standard_error(F, force_se, phi_gain, reasons, finite_in & np.isfinite(phi_out), params)
+    _within_noise(reasons, C, F, R, d, object_centre(R, np.zeros(n), np.zeros(n), h2, h3, C0), force_se)
     if model is None:
         _add(reasons, finite_in & (np.abs(np.sin(a2)) < params.singular_sin_theta2), REASON_SINGULAR)
     else:
@@ -492,6 +491,40 @@ def _phi_standard_error(
         phi_se = np.abs(phi_gain) * se_alpha
         _add(reasons, solved & (phi_se > math.radians(params.max_phi_se_deg)), REASON_UNDETERMINED_DIRECTION)
     return phi_se
+
+
+def _within_noise(
+    reasons: list[list[str]], C: np.ndarray, F: np.ndarray, R: np.ndarray, d: np.ndarray, O1: np.ndarray, force_se: Any
+) -> None:
+    """A push whose force points from no admissible object centre, but within twice the force
+    direction's standard error of one that does, is not determined rather than inconsistent: its
+    reason becomes that of an undetermined direction (it stays left out either way).
+
+    The admissible directions are found on a half-degree grid: the ray from C against the force
+    must meet the circle of radius d about O1 at a distance 0 < s < R.
+    """
+    rows = [i for i, r in enumerate(reasons) if REASON_NO_PHI in r]
+    if force_se is None or not rows:
+        return
+    se = np.asarray(force_se, dtype=float)[rows]
+    Fr = F[rows]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        se_alpha = np.hypot(Fr[:, 1] * se[:, 0], Fr[:, 0] * se[:, 1]) / (Fr[:, 0] ** 2 + Fr[:, 1] ** 2)
+    grid = np.radians(np.arange(0.0, 360.0, 0.5))
+    u = np.stack([np.cos(grid), np.sin(grid)], axis=-1)  # (k, 2) candidate force directions
+    w = (C - O1)[rows]
+    b = w @ u.T  # (m, k)
+    disc = b * b - (np.einsum("ij,ij->i", w, w) - d[rows] ** 2)[:, None]
+    root = np.sqrt(np.where(disc >= 0, disc, np.nan))
+    Rm = R[rows, None]
+    with np.errstate(invalid="ignore"):
+        ok = (((b - root) > 0) & ((b - root) < Rm)) | (((b + root) > 0) & ((b + root) < Rm))
+    alpha = np.arctan2(Fr[:, 1], Fr[:, 0])
+    miss = np.abs(np.angle(np.exp(1j * (grid[None, :] - alpha[:, None]))))
+    nearest = np.where(ok, miss, np.inf).min(axis=1)
+    for i, near, spread in zip(rows, nearest.tolist(), se_alpha.tolist(), strict=True):
+        if math.isfinite(near) and near <= 2.0 * spread:
+            reasons[i] = [REASON_UNDETERMINED_DIRECTION if r == REASON_NO_PHI else r for r in reasons[i]]
 
 
 def _push_inputs(
