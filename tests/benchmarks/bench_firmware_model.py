@@ -5,7 +5,7 @@ Run:  python tests/benchmarks/bench_firmware_model.py [--seconds 3] [--bauds 115
 
 Models: ``force`` (the sample force run refitted: the posture form with three quantities blended
 with the paper's: the heaviest), ``bent`` (the bent protocol's: the paper's angles, the posture
-form's forces) and ``paper`` (sample_runs/force.model.json: Eqs. 34-37 alone).  For each:
+form's forces) and ``paper`` (sample_runs/force-paper.model.json: Eqs. 34-37 alone).  For each:
 
 * flash and RAM of the firmware built with the model (avr-size), beside the firmware without one
   (baseline, same run);
@@ -64,7 +64,7 @@ def model_files(work: Path, names: list[str]) -> dict[str, Path]:
     out = {}
     for name in names:
         if name == "paper":
-            out[name] = ROOT / "sample_runs" / "force.model.json"
+            out[name] = ROOT / "sample_runs" / "force-paper.model.json"
             continue
         shutil.copy(ROOT / "sample_runs" / f"{name}.h5", work / f"{name}.h5")
         run([sys.executable, "-m", "labcli", "fit", str(work / f"{name}.h5"), "-o", str(work / f"{name}.json")])

@@ -45,7 +45,15 @@ def ideal_demo_out(tmp_path_factory):
 
 def test_demo_writes_every_file(demo_out):
     out, _ = demo_out
-    for name in ("force.h5", "force.model.json", "pushes.h5", "trials.csv", "pushes.csv", "summary.json"):
+    for name in (
+        "force.h5",
+        "force.model.json",
+        "force-paper.model.json",
+        "pushes.h5",
+        "trials.csv",
+        "pushes.csv",
+        "summary.json",
+    ):
         assert (out / name).stat().st_size > 0, name
     for name in ("fig7-accuracy.png", "fig9-stiffness.png"):
         assert (out / name).read_bytes()[:8] == PNG, name
@@ -180,3 +188,28 @@ def test_demo_summary_is_whole_and_plain_when_piped(demo_out):
     _, text = demo_out
     assert not re.search("[\u2500-\u257f]", text), "box drawing in piped output"
     assert not re.search(r"[0-9.+\-]\u2026", text), "a number cut short"
+
+
+def test_the_demo_model_is_labcli_fits_and_a_plain_classify_agrees(demo_out, tmp_path):
+    # The demo, the sample runs and a plain `labcli fit` use one form, the default; a plain
+    # `labcli classify` of the demo's pushes with its model gives the demo's categories.
+    out, _ = demo_out
+    demo_model = json.loads((out / "force.model.json").read_text())
+    result = CliRunner().invoke(cli, ["fit", str(out / "force.h5"), "-o", str(tmp_path / "m.json")])
+    assert result.exit_code == 0, result.output
+    plain = json.loads((tmp_path / "m.json").read_text())
+    assert demo_model["form"] == plain["form"] == "posture"
+    for key in ("angle_coefficients", "torque_coefficients", "routes", "labels"):
+        assert demo_model[key] == plain[key], key
+    summary = json.loads((out / "summary.json").read_text())
+    result = CliRunner().invoke(
+        cli,
+        ["classify", str(out / "pushes.h5"), "--model", str(out / "force.model.json"), "--method", "bands", "--json"],
+    )
+    assert result.exit_code == 0, result.output
+    objects = {o["object"]: o for o in json.loads(result.output)["objects"]}
+    assert {o["object"]: o["category"] for o in summary["objects"]} == {k: o["category"] for k, o in objects.items()}
+    assert all(objects[o["object"]]["k_mean_N_per_m"] == pytest.approx(o["k_mean_N_per_m"]) for o in summary["objects"])
+    # The steel can is hard with the default form: the play fitted (labels as read put it near 0.45
+    # of its true stiffness, in the medium band).
+    assert objects["can-steel-1"]["category"] == "hard"

@@ -265,7 +265,8 @@ def demo() -> dict[str, Any]:
     fig["trials.total"] = summary["trials"]["fit"] + summary["trials"]["validation"]
     acc, ideal = summary["accuracy"], summary["accuracy_ideal_rig"]
     for q in ("theta1", "theta2", "Fx", "Fy"):
-        fig[f"ideal ratio {q}"] = rounded(acc[q]["rmse"] / ideal[q]["rmse"])
+        if acc[q]["rmse"] is not None and ideal[q]["rmse"] is not None:  # Fy: none reported upright
+            fig[f"ideal ratio {q}"] = rounded(acc[q]["rmse"] / ideal[q]["rmse"])
     fig["ideal ratio angles min"] = min(fig["ideal ratio theta1"], fig["ideal ratio theta2"])
     fig["ideal ratio angles max"] = max(fig["ideal ratio theta1"], fig["ideal ratio theta2"])
     ratios = [o["k_mean_N_per_m"] / o["true_k_N_per_m"] for o in summary["objects"]]
