@@ -369,3 +369,10 @@ class Table:
             for name, parts in out.items()
         }
         return Rows(np.concatenate(rows) if rows else np.empty(0, dtype=np.int64), cols, damaged)
+
+
+def per_channel(units: Sequence[str], suffix: str = "") -> str:
+    """One ``units`` attribute for a value per channel: the unit they share, else each channel's,
+    comma-separated in the channels' order."""
+    each = [f"{u or '1'}{suffix}" for u in units] or [f"1{suffix}"]
+    return each[0] if len(set(each)) == 1 else ",".join(each)

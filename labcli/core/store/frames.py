@@ -50,7 +50,7 @@ from ...errors import StoreError
 from ..paper import Column
 from ..window import FrameSource, Stats, Stored, Window
 from .checksum import frames_checksum
-from .columns import append_all, create_dataset, read_rows
+from .columns import append_all, create_dataset, per_channel, read_rows
 from .h5 import put, text
 
 TIME = Column("time", "s", what="device time, unwrapped")
@@ -68,8 +68,6 @@ def create(
     entry: h5py.Group, channels: Sequence[str], units: Sequence[str], gain: np.ndarray, offset: np.ndarray, chunk: int
 ) -> h5py.Group:
     """The empty ``raw`` group of a new run (see the module docstring)."""
-    from .layout import per_channel  # the layout builds this group: imported when it runs
-
     g = entry.create_group("raw")
     put(g, "NX_class", "NXcollection")
     put(g, "channels", list(channels))

@@ -48,7 +48,7 @@ from ..files import stored_text
 from ..paper import Column, RecordType
 from ..timestamps import utc_now
 from ..version import __version__
-from .columns import FILTERS, TABLE_FILTERS, Table
+from .columns import FILTERS, TABLE_FILTERS, Table, per_channel
 from .frames import create as create_frames
 from .h5 import put
 from .nexus import default_plot, write_metadata
@@ -156,13 +156,6 @@ MODEL_COLUMNS = [
     Column("json_stop", "1", kind="int"),
     Column("json_checksum", "1", kind="uint"),
 ]
-
-
-def per_channel(units: Sequence[str], suffix: str = "") -> str:
-    """One ``units`` attribute for a value per channel: the unit they share, else each channel's,
-    comma-separated in the channels' order."""
-    each = [f"{u or '1'}{suffix}" for u in units] or [f"1{suffix}"]
-    return each[0] if len(set(each)) == 1 else ",".join(each)
 
 
 def session_columns(k: int, units: Sequence[str] = ()) -> list[Column]:
