@@ -18,7 +18,7 @@ never finished (a kill, a full disk) and is ignored.  Appending is:
 
 Rows are never changed or removed.  A reader reads ``@committed`` first, then the rows, and
 checks each row's checksum: a row that fails it is damaged (named, left out), a row with
-checksum 0 is a gap.  A chunk whose Fletcher32 check fails is read again without the check,
+checksum 0 is a gap, if its chunk was written (else its chunk's record is lost, and it is damaged).  A chunk whose Fletcher32 check fails is read again without the check,
 so that one damaged row does not take the rows sharing its chunk with it.
 
 A column whose name ends in a suffix NeXus reserves for a field's companions (``_set``,
@@ -356,6 +356,8 @@ class Table:
             stored = values[CHECKSUM.name].astype(np.uint64)
             computed = row_checksums([values[name] for name in self.names], a)
             gap = (stored == 0) & ~bad  # a checksum that could not be read is no gap: its row is damaged
+            if gap.any():
+                gap[gap] = self._written(np.flatnonzero(gap) + a)
             wrong = ~gap & ((stored != computed) | unreadable)
             damaged += [(a + int(i), "its checksum does not match its values") for i in np.flatnonzero(wrong)]
             keep = ~gap & ~wrong
@@ -369,6 +371,23 @@ class Table:
             for name, parts in out.items()
         }
         return Rows(np.concatenate(rows) if rows else np.empty(0, dtype=np.int64), cols, damaged)
+
+    def _written(self, rows: np.ndarray) -> np.ndarray:
+        """Whether the chunk of the checksum column holding each row was ever written.  Gaps lie in
+        written chunks only (past a commit's last row, up to the chunk's end); a chunk HDF5 holds
+        no record of (a flipped bit in its index) reads as zeros too, and its rows are damaged."""
+        ds = self.ds[CHECKSUM.name]
+        if ds.chunks is None:
+            return np.ones(len(rows), dtype=bool)
+        starts = rows - rows % ds.chunks[0]
+        out = np.zeros(len(rows), dtype=bool)
+        for start in np.unique(starts):
+            try:
+                info = ds.id.get_chunk_info_by_coord((int(start), *(0,) * (ds.ndim - 1)))
+            except (OSError, RuntimeError, ValueError):
+                continue  # an index HDF5 cannot walk: not written, as far as anyone can tell
+            out[starts == start] = info.byte_offset is not None and info.size > 0
+        return out
 
 
 def per_channel(units: Sequence[str], suffix: str = "") -> str:
