@@ -183,7 +183,11 @@ def test_the_device_asks_the_board_for_its_estimates(model_board):
         dev.stop()
         estimates, events = dev.take_estimates(), dev.take_events()
     assert [e.fields for e in events if e.kind == "VALVE"] == [("SSSS", "host"), ("HHHH", "host")]
-    assert [e.fields[0] for e in events if e.kind == "BASELINE"] == ["start", "host"]
+    # The start rule's baseline, then the host's; between them the chip may take one of its own
+    # after a "release": the chambers just filled settle for seconds (their air cools), a drift
+    # the model can read as a load that comes and goes.
+    causes = [e.fields[0] for e in events if e.kind == "BASELINE"]
+    assert causes[0] == "start" and causes[-1] == "host" and set(causes[1:-1]) <= {"release"}, causes
     assert 60 <= len(estimates) <= 80  # one every second data line
     assert all(b.seq - a.seq == 2 for a, b in zip(estimates, estimates[1:], strict=False))
     assert dev.counters["estimates"] == len(estimates) and dev.counters["malformed"] == 0
