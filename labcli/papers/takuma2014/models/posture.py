@@ -732,7 +732,7 @@ class PostureModel:
         paper's Eqs. 34-35 designs exactly as that form fits it (models/labels.py), so that both
         forms learn the same deflections.  Play under-reads a deflection after a load the same way
         and least squares takes it as a smaller slope: the posture form fitted to the labels as read
-        put the steel can's k at 0.44-0.45 of true on tuning seeds 1-2 (0.88-0.91 corrected).  Every
+        put the steel can's k at 0.44-0.45 of true on tuning seeds 1-2 (0.85-0.92 corrected).  Every
         label is corrected from its reading and the play's states alone, as the validation labels
         are (:func:`~.labels.apply_play`): the paper form's fit gives a reading that never left the
         play the pressures' own estimate, and fitted to those the posture form's residuals, and so
