@@ -18,8 +18,9 @@ never finished (a kill, a full disk) and is ignored.  Appending is:
 
 Rows are never changed or removed.  A reader reads ``@committed`` first, then the rows, and
 checks each row's checksum: a row that fails it is damaged (named, left out), a row with
-checksum 0 is a gap, if its chunk was written (else its chunk's record is lost, and it is damaged).  A chunk whose Fletcher32 check fails is read again without the check,
-so that one damaged row does not take the rows sharing its chunk with it.
+checksum 0 is a gap, if its chunk was written (else its chunk's record is lost, and it is damaged).
+A chunk whose Fletcher32 check fails is read again without the check, so that one damaged row
+does not take the rows sharing its chunk with it.
 
 A column whose name ends in a suffix NeXus reserves for a field's companions (``_set``,
 ``_errors``, ``_weights``, ``_mask``: ``plan_set`` would read as the set point of a field
@@ -49,8 +50,9 @@ FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletc
 # imported 10^6-row trial table (docs/performance.md): numbers read from decimal text repeat their
 # eight bytes from row to row, which shuffling splits apart, so the float columns shuffled at level 4
 # took several times the CPU and twice the bytes of the same columns unshuffled at level 1
-# (tests/benchmarks/table_filters.py); ids and counts keep the shuffle, which makes them smaller.  Neither the level nor the shuffle is part
-# of the schema: HDF5 records both with each dataset, and every reader is indifferent.
+# (tests/benchmarks/table_filters.py); ids and counts keep the shuffle, which makes them smaller.
+# Neither the level nor the shuffle is part of the schema: HDF5 records both with each dataset,
+# and every reader is indifferent.
 TABLE_FILTERS = {"compression": "gzip", "compression_opts": 1, "fletcher32": True}
 CHECKSUM = Column("checksum", "1", kind="uint", what="checksum of the row's other columns")
 READ_BLOCK = 65_536  # rows read and checked at a time, so memory stays bounded on large tables

@@ -16,7 +16,8 @@ trial is judged by the rig's statics where the protocol gives the rig's geometry
   pressures (theta2 = 0), and from the first trial: the shipped protocols' 15 s settle leaves an
   arm with no weight hung exactly where it was.  From :data:`LEARN_MIN` accepted trials on, the
   friction allowed for is the run's own (:meth:`PhysicsPrior.learn`): the most friction any of
-  its trials showed, times :data:`LEARN_MARGIN`, and never less than :data:`LEARN_FLOOR`.  Refined so, the least motion is the run's own
+  its trials showed, times :data:`LEARN_MARGIN`, and never less than :data:`LEARN_FLOOR`.  Refined
+  so, the least motion is the run's own
   prediction, judged as the run's trials judge theirs (four floors to judge, a quarter to pass),
   and it also judges loads the run's trials predict too vaguely: a light load early in the run
   (the shipped plan's trial 4, 300 g) on a rig with less friction than the literature's, whose

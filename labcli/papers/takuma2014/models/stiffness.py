@@ -408,7 +408,8 @@ def estimate_pushes(
     push_ids: Sequence[Any] | None = None,
     force_se: Any = None,
 ) -> PushEstimates:
-    """Stiffness of the pushed object for each push (Eqs. 38-42), with flags.  ``theta1, theta2`` (rad) are the estimated joint deflections and ``Fx, Fy`` (N) the estimated
+    """Stiffness of the pushed object for each push (Eqs. 38-42), with flags.  ``theta1, theta2``
+    (rad) are the estimated joint deflections and ``Fx, Fy`` (N) the estimated
     force for each push; ``R`` and ``d`` in m (scalars or per push); ``phi`` in rad, NaN (or None
     for all) where unknown, then solved.  ``theta0`` is the absolute baseline posture ((2,) or
     (n, 2) rad; None: the paper's upright arm).  ``model_flags`` (per push: list of flag names,
