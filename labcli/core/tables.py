@@ -25,7 +25,7 @@ import io
 import math
 import os
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -465,26 +465,30 @@ def _format(v: Any, kind: str | None) -> str:
 
 
 def _format_frame(df: pd.DataFrame, spec: TableSpec) -> tuple[list[str], list[list[str]]]:
-    kinds = {c: k for c, k, _ in spec.columns}
-    names = [str(c) for c in df.columns]
-    presence = {c: p for c, _, p in spec.columns}
-    header = [c for c in spec.names if c in names or presence[c] != "omit-if-empty"]
-    header += [c for c in names if c not in kinds]
     # Each column taken once, in order (the first of a repeated name, as df[name] gave it): looking
-    # each up by name costs more than the formatting of a one-row table (the store checks one a trial).
-    series: dict[str, Any] = {}
+    # each up by name costs more than the formatting of a small table.
+    names = [str(c) for c in df.columns]
+    series: dict[str, list[Any]] = {}
     for name, (_, s) in zip(names, df.items(), strict=True):
-        series.setdefault(name, s)
-    cols = []
-    for c in header:
-        if c in series:
-            cols.append([_format(v, kinds.get(c)) for v in series[c].tolist()])
-        else:
-            cols.append([""] * len(df))
+        if name not in series:
+            series[name] = s.tolist()
+    return _format_columns(series, len(df), spec, names)
+
+
+def _format_columns(
+    series: Mapping[str, list[Any]], n: int, spec: TableSpec, names: list[str] | None = None
+) -> tuple[list[str], list[list[str]]]:
+    """The header and rows of text a table of ``n`` rows is written as (``series``: column -> its
+    values; ``names``: the columns in order, a repeated one repeated, when not ``series``' keys)."""
+    kinds = {c: k for c, k, _ in spec.columns}
+    presence = {c: p for c, _, p in spec.columns}
+    header = [c for c in spec.names if c in series or presence[c] != "omit-if-empty"]
+    header += [c for c in (list(series) if names is None else names) if c not in kinds]
+    cols = [[_format(v, kinds.get(c)) for v in series[c]] if c in series else [""] * n for c in header]
     # Optional columns that are empty throughout stay out of the file.
     drop = {c for c, _, p in spec.columns if p == "omit-if-empty" and c in header and not any(cols[header.index(c)])}
     keep = [i for i, c in enumerate(header) if c not in drop]
-    rows = [[cols[i][r] for i in keep] for r in range(len(df))]
+    rows = [[cols[i][r] for i in keep] for r in range(n)]
     return [header[i] for i in keep], rows
 
 
@@ -493,11 +497,30 @@ def frame_problems(
 ) -> list[tuple[int, str | None, str]]:
     """What the reader of ``spec`` would refuse in ``df``: (row index in ``df``, column, why), in order.
 
-    The bounds of every table in one place: the store asks this of a record before writing it
-    and ``labcli export`` of a run before writing its table, so that what is stored is what
-    may be exported and imported again.
+    The bounds of every table in one place: ``labcli export`` asks this of a run before
+    writing its table, and the store (through :func:`columns_problems`, the same rules) of a
+    record before writing it, so that what is stored is what may be exported and imported again.
     """
-    header, rows = _format_frame(df, spec)
+    return _problems(*_format_frame(df, spec), spec, span)
+
+
+def columns_problems(
+    columns: Mapping[str, Any], spec: TableSpec, span: tuple[float, float] = PRESSURE_SPAN_MPA
+) -> list[tuple[int, str | None, str]]:
+    """:func:`frame_problems` of the table whose columns are ``columns`` (name -> array or list of
+    its values, all of one length), without making the DataFrame.
+
+    The store checks every record it writes, one row at a time, and a one-row DataFrame costs
+    more than the row's whole check; the cells are formatted and read by the same functions.
+    """
+    series = {str(k): v.tolist() if hasattr(v, "tolist") else list(v) for k, v in columns.items()}
+    n = len(next(iter(series.values()))) if series else 0
+    return _problems(*_format_columns(series, n, spec), spec, span)
+
+
+def _problems(
+    header: list[str], rows: list[list[str]], spec: TableSpec, span: tuple[float, float]
+) -> list[tuple[int, str | None, str]]:
     problems = _Problems("")
     hrow, names, data = _header([header, *rows], spec, "")
     keep, pairs = _check_header(names, data, spec, hrow, problems)

@@ -179,13 +179,18 @@ class PointRecords(BaseRecordType):
         """
         import pandas as pd
 
+        return pd.DataFrame(self.table_columns(run, ids, cols))
+
+    def table_columns(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> dict[str, Any]:
+        """:meth:`table`'s columns (name -> values over ``ids``), the frame not made: what the store
+        checks each point against the table's rules with (:func:`labcli.core.tables.columns_problems`)."""
         n = len(ids)
 
         def get(key: str, i: int | None = None) -> list[float]:
             v = np.asarray(cols[key], dtype=np.float64)
             return [float(x) for x in (v.reshape(n, -1)[:, i] if i is not None else v.reshape(n))]
 
-        out: dict[str, list] = {"point": list(ids)}
+        out: dict[str, Any] = {"point": np.asarray(ids, dtype=np.int64)}
         stretch = self.experiment == "stretch"
         if stretch:
             out["mass_g"] = list(to_edge([m * 1e3 for m in get("mass")]))
@@ -200,9 +205,7 @@ class PointRecords(BaseRecordType):
             vals = get(f"plan_{key}")
             if any(math.isfinite(v) for v in vals):
                 out[f"set_{key}"] = vals
-        df = pd.DataFrame(out)
-        df["point"] = df["point"].astype("int64")
-        return df
+        return out
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
         """One row of a point table as the record the run file takes (SI)."""

@@ -299,6 +299,13 @@ class TrialRecords(_McKibbenRecords):
         """The trial table (docs/table-formats.md): MPa, N, degrees and grams; ``set`` from the split."""
         import pandas as pd
 
+        data = self.table_columns(run, ids, cols)
+        data["set"] = pd.Series(data["set"], dtype=object)
+        return pd.DataFrame(data)
+
+    def table_columns(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> dict[str, Any]:
+        """:meth:`table`'s columns (name -> values over ``ids``), the frame not made: what the store
+        checks each trial against the table's rules with (:func:`labcli.core.tables.columns_problems`)."""
         sets = run.split.set_of()
         n = len(ids)
         p0 = np.asarray(cols["P0"], dtype=np.float64).reshape(n, 4)
@@ -307,10 +314,7 @@ class TrialRecords(_McKibbenRecords):
         force = np.asarray(cols["F"], dtype=np.float64).reshape(n, 2)
         # The columns gathered first, the frame made once: a column set on a frame copies its
         # blocks, and the store makes this table of one row for every trial it writes.
-        data: dict[str, Any] = {
-            "trial": np.asarray(ids, dtype=np.int64),
-            "set": pd.Series([sets.get(t, "") for t in ids], dtype=object),
-        }
+        data: dict[str, Any] = {"trial": np.asarray(ids, dtype=np.int64), "set": [sets.get(t, "") for t in ids]}
         for j, name in enumerate(BASELINE):
             data[name] = p0[:, j]
         for j, name in enumerate(LOADED):
@@ -326,7 +330,7 @@ class TrialRecords(_McKibbenRecords):
         if np.any(np.isfinite(direction)):
             data["direction_deg"] = wrap_degrees_array(to_edge(direction))
         self._rest_posture(data, cols, n)
-        return pd.DataFrame(data)
+        return data
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
         return {
@@ -465,28 +469,33 @@ class PushRecords(_McKibbenRecords):
         """The push table (docs/table-formats.md): m, degrees, MPa; ``phi_deg`` NaN when unknown."""
         import pandas as pd
 
+        data = self.table_columns(run, ids, cols)
+        for name in ("object", "category"):
+            data[name] = pd.Series(data[name], dtype=object)
+        return pd.DataFrame(data)
+
+    def table_columns(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> dict[str, Any]:
+        """:meth:`table`'s columns (name -> values over ``ids``), the frame not made (the store's check)."""
         n = len(ids)
         p0 = np.asarray(cols["P0"], dtype=np.float64).reshape(n, 4)
         p = np.asarray(cols["P"], dtype=np.float64).reshape(n, 4)
-        df = pd.DataFrame(
-            {
-                "push": np.asarray(ids, dtype=np.int64),
-                "object": pd.Series([str(x) for x in cols["object"]], dtype=object),
-                "R_m": np.asarray(cols["R"], dtype=np.float64),
-                "d_m": np.asarray(cols["d"], dtype=np.float64),
-                "phi_deg": wrap_degrees_array(to_edge(np.degrees(np.asarray(cols["phi"], dtype=np.float64)))),
-            }
-        )
+        data: dict[str, Any] = {
+            "push": np.asarray(ids, dtype=np.int64),
+            "object": [str(x) for x in cols["object"]],
+            "R_m": np.asarray(cols["R"], dtype=np.float64),
+            "d_m": np.asarray(cols["d"], dtype=np.float64),
+            "phi_deg": wrap_degrees_array(to_edge(np.degrees(np.asarray(cols["phi"], dtype=np.float64)))),
+        }
         for j, name in enumerate(BASELINE):
-            df[name] = p0[:, j]
+            data[name] = p0[:, j]
         for j, name in enumerate(LOADED):
-            df[name] = p[:, j]
-        df["category"] = pd.Series([str(x) for x in cols["category"]], dtype=object)
+            data[name] = p[:, j]
+        data["category"] = [str(x) for x in cols["category"]]
         stiffness = np.asarray(cols["true_stiffness"], dtype=np.float64)
         if np.any(np.isfinite(stiffness)):
-            df["true_stiffness_N_per_m"] = stiffness
-        self._rest_posture(df, cols, n)
-        return df
+            data["true_stiffness_N_per_m"] = stiffness
+        self._rest_posture(data, cols, n)
+        return data
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:
         return {
