@@ -69,8 +69,9 @@ def fold(parts: Sequence[np.ndarray | Repeated], positions: np.ndarray) -> np.nd
             h = _fold_same(h, words(part.row, 1)[0] if n else np.empty(0, dtype="<u8"))
             continue
         w = words(part, n)
-        for j in range(w.shape[1]):
-            h = (h ^ w[:, j]) * _PRIME
+        for j in range(w.shape[1]):  # in place: no two fresh arrays of n words per word folded
+            np.bitwise_xor(h, w[:, j], out=h)
+            np.multiply(h, _PRIME, out=h)
     return h
 
 

@@ -69,6 +69,17 @@ def fill_value(c: Column) -> Any:
     return b""
 
 
+def all_fill(c: Column, arr: np.ndarray) -> bool:
+    """Whether every value of ``arr`` (column ``c`` as stored) is ``c``'s fill value."""
+    if arr.size == 0:
+        return False
+    flat = arr.reshape(-1)
+    if c.kind == "float":  # NaN of any sign or payload is the fill's NaN: what the fill reads back
+        return bool(np.isnan(flat[0]) and np.isnan(flat).all())
+    fill = fill_value(c)
+    return bool(flat[0] == fill and np.all(flat == fill))  # the first value decides most columns at once
+
+
 def h5_dtype(c: Column) -> Any:
     if c.kind == "text":
         return h5py.string_dtype("utf-8", length=max(1, c.width))
@@ -301,10 +312,14 @@ class Table:
         compressed row by row).
         """
         if unwritten_fill:
-            return [
-                fixed(columns[name], values[name], n) if name in values else Repeated(fixed(columns[name], None, 1), n)
-                for name in self.names
-            ]
+            out: list[np.ndarray | Repeated] = []
+            for name in self.names:
+                c = columns[name]
+                arr = fixed(c, values[name], n) if name in values else None
+                # A column given as its fill throughout (an imported table's absent masses, all NaN)
+                # is left unwritten too: it reads back the same, and its rows check the same.
+                out.append(Repeated(fixed(c, None, 1), n) if arr is None or all_fill(c, arr) else arr)
+            return out
         return [fixed(columns[name], values.get(name), n) for name in self.names]
 
     def write(self, arrays: Sequence[np.ndarray | Repeated], n: int) -> tuple[int, int]:

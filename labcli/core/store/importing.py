@@ -50,15 +50,20 @@ def storable_cells(row: Mapping[str, Any]) -> Iterable[tuple[str, str]]:
 
 
 def _any_nul(frame: Any) -> bool:
-    """Whether any text cell of a table holds a NUL (whole columns; the row check then names them)."""
+    """Whether any text cell of a table holds a NUL or is long (whole columns; the row check then names them).
+
+    Each text column's distinct values are looked at, not its cells: a million rows of
+    ``fit`` and ``validation`` are two strings to check, not a million to convert.
+    """
     import pandas as pd
 
-    return any(
-        frame[c].astype(str).str.contains("\x00", regex=False).any()
-        or frame[c].astype(str).str.len().max() > CELL_BYTES // 4
-        for c in frame.columns
-        if not (pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]))
-    )
+    for c in frame.columns:
+        if pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]):
+            continue
+        distinct = pd.Series(pd.unique(frame[c]), dtype=object).astype(str)
+        if distinct.str.contains("\x00", regex=False).any() or distinct.str.len().max() > CELL_BYTES // 4:
+            return True
+    return False
 
 
 storable_cells.screen = _any_nul  # type: ignore[attr-defined]

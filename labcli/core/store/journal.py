@@ -47,8 +47,8 @@ record of the new generation that is torn or missing stops the replay at once (t
 records after it are of another generation).
 
 A file built under a temporary name (:mod:`.space`) is not journaled until it is put in
-place: each checkpoint syncs it (a kill before then leaves a ``.partial`` file, removed at
-the next start).
+place: it is synced once, whole, just before (a kill before then leaves a ``.partial`` file,
+removed at the next start).
 """
 
 from __future__ import annotations
@@ -183,10 +183,16 @@ class JournalFile:
         """Where HDF5's next bytes go, about (what follows may be only reserved room)."""
         return max(self.written_end, self.recorded_end() or 0)
 
-    def checkpoint(self) -> None:
-        """Make everything written so far durable, as one change (see the module docstring)."""
+    def checkpoint(self, publishing: bool = False) -> None:
+        """Make everything written so far durable, as one change (see the module docstring).
+
+        A file built under a temporary name is synced once, whole, when it is about to be put in
+        place (``publishing``): until then a kill leaves a partial file nobody reads (removed at
+        the next start), so a sync at each of its checkpoints would buy nothing.
+        """
         if not self.journaled:
-            os.fsync(self.fd)
+            if publishing:
+                os.fsync(self.fd)
             return
         if not self.pages and not self.extents:
             return

@@ -232,7 +232,7 @@ class RunFile:
         if self._staged is None or self._tmp is None:
             return
         force, hint = self._staged
-        self.writer.sync()
+        self.writer.sync(publishing=True)
         try:
             space.publish(self._tmp, self.path, force=force, exists_hint=hint)
         except BaseException:

@@ -83,13 +83,24 @@ class Splits:
         run.check_v2("a split")
         t = run.tables.split
         self._held = None
-        run.writer.commit_row(
-            t,
-            {c.name: c for c in SPLIT_COLUMNS},
-            lambda: split_row(t.g, fit, val, str(strategy), seed),
-            8 * (len(fit) + len(val)),
-            "the split",
-        )
+        written: dict[str, object] = {}
+
+        def row() -> dict[str, object]:
+            written.update(split_row(t.g, fit, val, str(strategy), seed))
+            return written
+
+        run.writer.commit_row(t, {c.name: c for c in SPLIT_COLUMNS}, row, 8 * (len(fit) + len(val)), "the split")
+        # What was just committed is the split in force (the writer holds the file's lock): held as
+        # written, so that its ids are not read back and folded again (a million ids for an import).
+        stored_seed = -1 if seed is None else int(seed)  # as split_row stores it, as read_split reads it
+        split: Split = {
+            "fit": fit,
+            "validation": val,
+            "strategy": str(strategy),
+            "seed": None if stored_seed < 0 else stored_seed,
+            "created": str(written["created"]),
+        }
+        self._held = (split,)
 
     def assign(
         self, n_fit: int | None, n_validation: int | None, strategy: str = "sequential", seed: int | None = None
@@ -104,6 +115,7 @@ class Splits:
             n_validation = default_validation if n_validation is None else n_validation
         fit, val = choose(self._candidates(), n_fit, n_validation, strategy, seed, self._run.path)
         self.set(fit, val, strategy, (0 if seed is None else seed) if strategy == "random" else None)
+        self._held = None  # read back from the file: what a later open will find
         split = self.get()
         if split is None:
             raise StoreError(f"{self._run.path}: the split just stored cannot be read back; the file is damaged.")
@@ -118,7 +130,7 @@ def split_row(
     g: h5py.Group, fit: Sequence[int], validation: Sequence[int], strategy: str, seed: int | None
 ) -> dict[str, object]:
     """Write the split's ids to the blob; the row that refers to them (not yet committed)."""
-    ids = np.asarray([*fit, *validation], dtype=np.int64)
+    ids = np.concatenate([np.asarray(fit, dtype=np.int64), np.asarray(validation, dtype=np.int64)])
     start, stop, checksum = blob_write(g["ids"], ids)
     mid = start + len(fit)
     return {
@@ -218,8 +230,7 @@ def checked(
     Whole-array (an imported archive's split holds 10^6 ids): the first id of each kind of fault
     is the one a check id by id would name.
     """
-    fit = [int(i) for i in fit_ids]
-    val = [int(i) for i in validation_ids]
+    fit, val = _ints(fit_ids), _ints(validation_ids)
     complete = list(complete)
     try:
         f, v = np.asarray(fit, dtype=np.int64), np.asarray(val, dtype=np.int64)
@@ -240,6 +251,12 @@ def checked(
         first = int(every[int(np.argmax(missing))])
         raise StoreError(f"trial {first} is not a complete trial in {path}, so it cannot join the split.")
     return fit, val
+
+
+def _ints(ids: Iterable[int]) -> list[int]:
+    """``ids`` as a list of Python ints: copied whole when they are ints already (an import's million)."""
+    out = list(ids)
+    return out if set(map(type, out)) <= {int} else [int(i) for i in out]
 
 
 def _checked_one_by_one(

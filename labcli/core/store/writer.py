@@ -91,15 +91,17 @@ class Writer:
         if self.broken:
             raise StoreError(f"{self.path} met a write error earlier; close it and open it again.")
 
-    def sync(self, doing: str = "the change") -> None:
+    def sync(self, doing: str = "the change", publishing: bool = False) -> None:
         """Push everything written so far to the disk, as one change (flush, then a checkpoint).
+
+        ``publishing``: the file, built under a temporary name, is about to be put in place.
 
         A checkpoint refused for want of room (its journal) leaves the file as the last one left
         it; HDF5's state in memory is ahead of it, so nothing more is written through it.
         """
         self._file().flush()
         try:
-            self._journal().checkpoint()
+            self._journal().checkpoint(publishing)
         except OSError as e:
             if e.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
                 raise
