@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from .boardlines import ESTIMATE_KIND, EVENT_KIND, Estimate, Event, parse_board_fields
-from .wirechunk import follows_on, whole_chunk
+from .wirechunk import clean_rows, digits_to_rows, follows_on, steps_bytes, whole_chunk
 
 MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
 OVERLONG = f"line longer than {MAX_LINE} bytes"  # Noise reasons the reader counts apart
@@ -250,9 +250,6 @@ _IS_DIGIT = np.zeros(256, bool)
 _IS_DIGIT[48:58] = True
 _IS_FIELD = _IS_DIGIT.copy()
 _IS_FIELD[44] = True  # ','
-_POW10 = 10 ** np.arange(19, dtype=np.int64)
-_MAX_VALUE_DIGITS = 15  # below 2**53: counts stay exact in float64
-_MAX_U32_DIGITS = 10
 _MIN_VECTOR_LINES = 8  # below this, line by line is quicker than numpy's fixed cost per call
 
 
@@ -364,15 +361,38 @@ class StreamReader:
                 return FrameBatch.empty(self.n_channels or 0)
             data = data[nl + 1 :]
             self._skipping = False
+        end = data.rfind(b"\n") + 1
+        k = self.n_channels
+        if end and k is not None:  # the common chunk: the carried bytes and this one's lines, whole
+            rows = clean_rows(self._pending, data, end, k, MAX_LINE)
+            if rows is not None:
+                self._pending = data[end:]
+                if len(self._pending) > MAX_LINE + 1:
+                    self._check_pending()
+                return self._take_rows(rows)
         buf = self._pending + data if self._pending else data
         last = buf.rfind(b"\n")
         if last < 0:
             self._pending = buf
             self._check_pending()
             return FrameBatch.empty(self.n_channels or 0)
-        self._pending, batch = buf[last + 1 :], self._parse_block(buf[: last + 1])
+        self._pending, batch = buf[last + 1 :], self._parse_block(buf[: last + 1], tried=k is not None)
         self._check_pending()
         return batch
+
+    def _take_rows(self, rows: np.ndarray) -> FrameBatch:
+        """The batch of a clean chunk's rows (:func:`clean_rows`), counted."""
+        n = rows.shape[0]
+        self.lines += n
+        seq = rows[:, 0]
+        batch = _new_batch(seq, rows[:, 1], rows[:, 2:-1].astype(np.float64))
+        last = self._last_seq
+        if self.period_us is None and last is not None and seq.tobytes() == steps_bytes(n, last + 1):
+            self.counters["frames"] += n  # nothing lost, no stall to time
+            self._last_seq = last + n
+            self._last_t_us = int(rows[n - 1, 1])
+            return batch
+        return self._count_frames(batch)
 
     def _check_pending(self) -> None:
         # One '\r' may still precede the '\n', so MAX_LINE + 1 bytes can yet be a good line.
@@ -385,9 +405,12 @@ class StreamReader:
 
     # -- parsing -----------------------------------------------------------
 
-    def _parse_block(self, block: bytes) -> FrameBatch:
-        """Parse complete lines (``block`` ends with ``\\n``) and count loss across them."""
-        clean = self.n_channels is not None and whole_chunk(block, self.n_channels, MAX_LINE)
+    def _parse_block(self, block: bytes, tried: bool = False) -> FrameBatch:
+        """Parse complete lines (``block`` ends with ``\\n``) and count loss across them.
+
+        ``tried``: :func:`clean_rows` already refused the whole block.
+        """
+        clean = not tried and self.n_channels is not None and whole_chunk(block, self.n_channels, MAX_LINE)
         if clean:  # the common block, whole: no list of batches, no concatenation
             self.lines += clean[0].shape[0]
             return self._count_frames(FrameBatch(*clean))
@@ -513,7 +536,8 @@ class StreamReader:
         slow = np.ones(n_lines, bool)
         fast = None
         if good.shape[0]:
-            fast, valid = _digits_to_batch(a, starts[good] + 3, ends[good] - 2, k)
+            seq, t_us, values, valid = digits_to_rows(a, starts[good] + 3, ends[good] - 2, k)
+            fast = FrameBatch(seq, t_us, values)
             if not valid.all():
                 good = good[valid]
                 fast = FrameBatch(fast.seq[valid], fast.t_us[valid], fast.values[valid])
@@ -542,59 +566,19 @@ class StreamReader:
         return FrameBatch(merged.seq[order], merged.t_us[order], merged.values[order])
 
 
+def _new_batch(seq: np.ndarray, t_us: np.ndarray, values: np.ndarray) -> FrameBatch:
+    """``FrameBatch(seq, t_us, values)`` less the frozen dataclass's three guarded assignments."""
+    batch = _NEW(FrameBatch)
+    batch.__dict__.update(seq=seq, t_us=t_us, values=values)
+    return batch
+
+
+_NEW = object.__new__
+
+
 def _batch_of(frames: list[Frame], k: int) -> FrameBatch:
     return FrameBatch(
         np.fromiter((f.seq for f in frames), np.int64, len(frames)),
         np.fromiter((f.t_us for f in frames), np.int64, len(frames)),
         np.array([f.values for f in frames], np.float64).reshape(len(frames), k),
     )
-
-
-def _digits_to_batch(a: np.ndarray, lo: np.ndarray, hi: np.ndarray, k: int) -> tuple[FrameBatch, np.ndarray]:
-    """Decode ``a[lo:hi]`` ranges of ``digits(,digits)*\\*`` into numbers, all lines at once.
-
-    Returns the batch and a per-line mask of lines whose numbers fit the fast
-    path (seq/t_us below 2**32, values of at most 15 digits); the others are
-    for :func:`parse_line` to judge.
-    """
-    lens = hi - lo
-    n = lens.shape[0]
-    total = int(lens.sum())
-    first = np.cumsum(lens) - lens
-    b = a[np.repeat(lo - first, lens) + np.arange(total, dtype=np.int64)]
-    seppos = np.flatnonzero((b == 44) | (b == 42))  # n * (k + 2) separators, one ending each field
-    flen: np.ndarray = np.empty_like(seppos)
-    flen[0] = seppos[0]
-    flen[1:] = seppos[1:] - seppos[:-1] - 1
-    flen = flen.reshape(n, k + 2)
-    b[first + lens - 1] = 44  # '*' -> ',' : one separator throughout
-    nums = _parse_csv_ints(b, seppos).reshape(n, k + 2)
-    valid = (
-        (flen[:, 0] <= _MAX_U32_DIGITS)
-        & (flen[:, 1] <= _MAX_U32_DIGITS)
-        & (flen[:, 2:] <= _MAX_VALUE_DIGITS).all(axis=1)
-    )
-    valid &= (nums[:, 0] < U32) & (nums[:, 1] < U32)
-    return FrameBatch(nums[:, 0].copy(), nums[:, 1].copy(), nums[:, 2:].astype(np.float64)), valid
-
-
-def _parse_csv_ints(b: np.ndarray, seppos: np.ndarray) -> np.ndarray:
-    """``b``: ASCII digits, each field ended by ','.  Too-long fields come out wrong, never raise."""
-    try:
-        # numpy's C text parser: one call for the whole chunk (saturates on overflow).
-        nums = np.fromstring(b.tobytes(), dtype=np.int64, sep=",")
-        if nums.shape[0] == seppos.shape[0]:
-            return nums
-    except (AttributeError, ValueError):  # a numpy without text-mode fromstring
-        pass
-    # Place value by place value: digit * 10**(distance to its field's end), summed per field.
-    total = b.shape[0]
-    sep = b == 44
-    power = seppos[np.cumsum(sep) - sep] - np.arange(total) - 1
-    np.clip(power, 0, 18, out=power)
-    digit = b.astype(np.int64) - 48
-    digit[sep] = 0
-    fstart = np.empty_like(seppos)
-    fstart[0] = 0
-    fstart[1:] = seppos[:-1] + 1
-    return np.add.reduceat(digit * _POW10[power], fstart)

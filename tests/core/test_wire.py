@@ -619,3 +619,122 @@ def test_loss_over_many_clean_chunks_is_counted_as_frame_by_frame(steps, start):
     gaps = [(b - a - 1) % U32 for a, b in zip(seqs, seqs[1:], strict=False)]
     assert r.counters["frames"] == len(seqs)
     assert r.counters["lost"] == sum(g for g in gaps if g < U32 >> 1)
+
+
+@st.composite
+def clean_streams(draw):
+    """Long runs of good frames of one channel count (the clean-chunk path), cut anywhere.
+
+    Now and then a frame is lost, the firmware restarts, the device time jumps (a stall), a line
+    ends "\\r\\n", a value (fine) or the device time (noise) is too big for 32 bits, a field carries
+    leading zeros (up to a line too long), or a line is damaged: the chunks around it take the
+    other paths.
+    """
+    k = draw(st.integers(1, 8))
+    seq, t = draw(u32), draw(u32)
+    period = draw(st.sampled_from([1000, 5000]))
+    kinds = ["good"] * 14 + ["gap", "restart", "stall", "crlf", "crlf", "big", "bigt", "zeros", "damage"]
+    lines = []
+    for _ in range(draw(st.integers(20, 160))):
+        kind = draw(st.sampled_from(kinds))
+        vals = draw(st.lists(st.integers(0, 4095), min_size=k, max_size=k))
+        if kind == "gap":
+            seq += draw(st.integers(1, 3))
+        elif kind == "restart":
+            seq = draw(st.integers(0, 5))
+        elif kind == "stall":
+            t += draw(st.integers(0, 3 * STALL))
+        elif kind == "big":
+            vals[-1] = draw(st.integers(U32, 10**15))
+        line = format_frame(seq, t, vals)
+        if kind == "crlf":
+            line = line[:-1] + b"\r\n"
+        elif kind == "zeros":
+            line = _resum(line.replace(b",", b"," + b"0" * draw(st.sampled_from([11, 12, 20, 21, 40, 250])), 2))
+        elif kind == "bigt":  # device time past 32 bits: noise
+            fields = line.split(b",")
+            line = _resum(b",".join(fields[:2] + [b"%d" % (t + U32)] + fields[3:]))
+        elif kind == "damage":
+            i = draw(st.integers(0, len(line) - 2))
+            line = line[:i] + bytes([draw(st.integers(0, 255))]) + line[i + 1 :]
+        lines.append(line)
+        seq, t = (seq + 1) % U32, (t + period) % U32
+    stream = b"".join(lines)
+    cuts = draw(st.lists(st.integers(0, len(stream)), max_size=12))
+    return stream, cuts, draw(st.sampled_from([None, k])), period
+
+
+STALL = 20_000
+
+
+def reference_stalls(frames: list[Frame], period_us: float, stall_us: int) -> int:
+    """Stalls frame by frame: device time beyond the seq step's periods, between frames that go forward."""
+    stalls = 0
+    for prev, f in zip(frames, frames[1:], strict=False):
+        gap = (f.seq - prev.seq - 1) % U32
+        if gap < U32 // 2 and (f.t_us - prev.t_us) % U32 - (gap + 1) * period_us > stall_us:
+            stalls += 1
+    return stalls
+
+
+@given(clean_streams())
+@settings(max_examples=150, suppress_health_check=[HealthCheck.too_slow])
+def test_clean_chunks_cut_anywhere_give_the_reference_frames_losses_and_stalls(case):
+    stream, cuts, k, period = case
+    cuts = sorted(set(c for c in cuts if 0 < c < len(stream)))
+    for rate in (None, 1e6 / period):
+        r = StreamReader(n_channels=k, stall_us=STALL)
+        r.set_rate(rate)
+        batches = [r.feed(stream[a:b]) for a, b in zip([0] + cuts, cuts + [len(stream)], strict=False)]
+        frames, counters, *_ = reference(stream, k)
+        assert r.counters == counters
+        assert np.concatenate([b.seq for b in batches]).tolist() == [f.seq for f in frames]
+        assert np.concatenate([b.t_us for b in batches]).tolist() == [f.t_us for f in frames]
+        got = [b.values for b in batches if len(b)]
+        if frames:
+            np.testing.assert_array_equal(np.concatenate(got), np.array([f.values for f in frames], np.float64))
+        assert r.stalls == (0 if rate is None else reference_stalls(frames, r.period_us, STALL))
+
+
+def test_a_clean_stream_in_4_kib_chunks_is_read_whole_chunk_by_chunk(monkeypatch):
+    """Each chunk, with the line carried from the one before, is taken by clean_rows in one piece."""
+    taken = []
+
+    def counting(*args):
+        rows = wirechunk.clean_rows(*args)
+        taken.append(rows is not None)
+        return rows
+
+    monkeypatch.setattr("labcli.core.wire.clean_rows", counting)
+    lines = [_good(i, [i % 4096, 4095, 0, 7, 2048, 1], crlf=i % 50 == 0) for i in range(2000)]
+    stream = b"".join(lines)
+    r = assert_agrees(stream, list(range(4096, len(stream), 4096)), 6)
+    assert r.counters["frames"] == 2000 and taken and all(taken)
+    assert r.lines == 2000
+
+
+def test_many_carriage_returns_not_one_a_line_are_each_checked():
+    """More '\\r' than are found one by one, but not on every line: still only before a '\\n'."""
+    lines = [_good(i, [i, 1, 2, 3, 4, 5], crlf=i % 3 != 0) for i in range(60)]  # 40 of 60 lines
+    block = b"".join(lines)
+    rows = wirechunk.clean_rows(b"", block, len(block), 6, MAX_LINE)
+    assert rows is not None and rows[:, 0].tolist() == list(range(60))
+    for i in (0, 1, 59):
+        body = lines[i].rstrip(b"\r\n")
+        for damaged in (body[:-1] + b"\r" + body[-1:] + b"\n", body + b"\r\r\n", b"\r" + body + b"\n"):
+            block_d = b"".join(lines[:i] + [damaged] + lines[i + 1 :])
+            assert wirechunk.clean_rows(b"", block_d, len(block_d), 6, MAX_LINE) is None
+            assert_agrees(block_d, [], 6)
+
+
+@given(st.integers(0, 4000), st.sampled_from([1, 6, 9]))
+def test_clean_rows_of_a_carried_head_and_a_chunk_are_those_of_the_whole_block(cut, k):
+    lines = [_good(i, [(i * 37 + j) % 4096 for j in range(k)], crlf=i % 7 == 0) for i in range(80)]
+    block = b"".join(lines)
+    cut = min(cut, len(block) - 1)
+    data = block[cut:] + b"$D,12"  # a partial line after the last '\n' is left out
+    whole = wirechunk.clean_rows(b"", block, len(block), k, MAX_LINE)
+    split = wirechunk.clean_rows(block[:cut], data, len(data) - 5, k, MAX_LINE)
+    assert whole is not None and split is not None
+    assert whole.tolist() == split.tolist()
+    assert whole[:, -1].tolist() == [-1] * 80 and whole[:, 0].tolist() == list(range(80))
