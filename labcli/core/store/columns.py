@@ -31,6 +31,7 @@ column's own name.  Files of schema 2 and earlier hold the names as they are.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -86,9 +87,37 @@ def h5_dtype(c: Column) -> Any:
     return c.dtype
 
 
-def table_filters(c: Column) -> dict[str, Any]:
-    """The filters of a table's column ``c`` (:data:`TABLE_FILTERS`; shuffled when it holds whole numbers)."""
+SMALL_CHUNK = 64  # bytes: a chunk of a table's numbers this small is stored as it is, checksummed
+
+
+def table_filters(c: Column, chunk_rows: int | None = None) -> dict[str, Any]:
+    """The filters of a table's column ``c`` chunked by ``chunk_rows`` rows (:data:`TABLE_FILTERS`;
+    shuffled when it holds whole numbers).
+
+    A chunk of numbers of at most :data:`SMALL_CHUNK` bytes (a table written a row a commit:
+    the records of an acquisition, the session log) keeps only Fletcher32: gzip makes one
+    number's 8 bytes about 16, and setting up the deflate stream costs more than the write.
+    Texts keep gzip (a fixed-width text is mostly zeros)."""
+    if (
+        chunk_rows is not None
+        and c.kind != "text"
+        and chunk_rows * c.dtype.itemsize * math.prod(c.shape) <= SMALL_CHUNK
+    ):
+        return {"fletcher32": True}
     return {**TABLE_FILTERS, "shuffle": c.kind in ("int", "uint", "flag")}
+
+
+def uncached(g: h5py.Group, name: str) -> h5py.Dataset:
+    """Dataset ``name`` of ``g`` without HDF5's chunk cache.
+
+    Frames are written in whole chunks, each once, and read in whole windows; a table written
+    a row a commit has one row a chunk, written once: a cache saves nothing, and flushing it
+    at every commit costs (HDF5's default would also keep the last 8 MiB written of each of
+    a run's 2 + 2k frame arrays in memory).
+    """
+    dapl = h5py.h5p.create(h5py.h5p.DATASET_ACCESS)
+    dapl.set_chunk_cache(1, 0, 1.0)
+    return h5py.Dataset(h5py.h5d.open(g.id, name.encode(), dapl))
 
 
 def create_dataset(
@@ -242,6 +271,8 @@ class Table:
                 "with labcli inspect --verify and use a backup copy."
             )
         self.chunk = int(g.attrs["chunk_rows"])
+        if self.chunk == 1:
+            self.ds = {name: uncached(g, ds.name.rsplit("/", 1)[-1]) for name, ds in self.ds.items()}
         # The count this object's own last commit set: a writer holds the file's lock, so nothing
         # else moves it, and its next write need not read it back (a reader never commits).
         self._committed: int | None = None
@@ -262,7 +293,7 @@ class Table:
         g.attrs["chunk_rows"] = np.int64(chunk_rows)
         cls._set_committed(g, 0, create=True)
         for c in (*columns, CHECKSUM):
-            create_dataset(g, c, chunk_rows, length, filters=table_filters(c))
+            create_dataset(g, c, chunk_rows, length, filters=table_filters(c, chunk_rows))
         return cls(g)
 
     @staticmethod
@@ -270,9 +301,9 @@ class Table:
         check = np.uint64(row_checksums([np.array([n], dtype="<i8")], 0)[0])
         if create:
             g.attrs["committed"], g.attrs["committed_checksum"] = np.int64(n), check
-        else:
-            g.attrs.modify("committed", np.int64(n))
-            g.attrs.modify("committed_checksum", check)
+        else:  # in place, through the low-level attributes (h5py's ``modify`` checks cost more)
+            h5py.h5a.open(g.id, b"committed").write(np.array(n, dtype="<i8"))
+            h5py.h5a.open(g.id, b"committed_checksum").write(np.array(check, dtype="<u8"))
 
     @property
     def committed_ok(self) -> bool:

@@ -51,6 +51,7 @@ from ..paper import Column
 from ..window import FrameSource, Stats, Stored, Window
 from .checksum import frames_checksum
 from .columns import append_all, create_dataset, per_channel, read_rows
+from .columns import uncached as _uncached
 from .h5 import put, text
 
 TIME = Column("time", "s", what="device time, unwrapped")
@@ -140,18 +141,6 @@ def window_parts(time: np.ndarray, seq: np.ndarray, counts: np.ndarray, si: np.n
         np.asarray(si, dtype="<f8"),
         np.asarray(counts, dtype="<f8"),
     ]
-
-
-def _uncached(g: h5py.Group, name: str) -> h5py.Dataset:
-    """Dataset ``name`` of ``g`` without HDF5's chunk cache.
-
-    Frames are written in whole chunks, each once, and read in whole windows, so a cache
-    saves nothing; HDF5's default (8 MiB per dataset in HDF5 2) would keep the last 8 MiB
-    written of each of a run's 2 + 2k frame arrays in memory.
-    """
-    dapl = h5py.h5p.create(h5py.h5p.DATASET_ACCESS)
-    dapl.set_chunk_cache(1, 0, 1.0)
-    return h5py.Dataset(h5py.h5d.open(g.id, name.encode(), dapl))
 
 
 class Frames:

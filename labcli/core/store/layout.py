@@ -20,7 +20,8 @@
 
 Every dataset is chunked with gzip and Fletcher32 (raw windows at gzip level 4 with byte
 shuffle; tables and split ids at level 1, shuffled where they hold whole numbers: see
-:data:`.columns.TABLE_FILTERS`) and has a ``units`` attribute (one unit: per-channel units live in
+:data:`.columns.TABLE_FILTERS`; a table's numbers in chunks of at most 64 bytes, as a table
+written a row a commit has them, Fletcher32 alone: :func:`.columns.table_filters`) and has a ``units`` attribute (one unit: per-channel units live in
 separate datasets); every group has an
 ``NX_class``.  Times are ISO 8601 with microseconds and a UTC offset.  No path of the
 writer's machine is stored: files are named by their file name only, and the command line
