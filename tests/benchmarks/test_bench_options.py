@@ -231,3 +231,30 @@ def test_table_filters_measures_the_filters_the_run_file_uses():
     cols = {"x": (np.random.default_rng(1).normal(size=(5000, 2)).round(4), (1024, 2))}
     sizes = {way: tf.write(cols, ("x",), filters)[1] for way, filters in tf.WAYS.items()}
     assert sizes["gzip 1"] < sizes["gzip 1 shuffle"]  # decimal numbers: shuffling splits their repeats
+
+
+# --------------------------------------------------------------------------- label_play_forces
+
+
+def test_label_play_forces_reads_the_rigs_own_deflections_beside_the_pots():
+    lp = bench("label_play_forces")
+    # No effect at all: settled, the pots read the joints (their noise only), trial by trial.
+    _, table, d_true, rest = lp.trials_with_truth("takuma2014", 1, 8.0, effects="ideal")
+    assert d_true.shape == (len(table), 2) and rest.shape == (len(table), 2)
+    assert np.max(np.abs(table[["theta1_deg", "theta2_deg"]].to_numpy() - d_true)) < 0.03
+    # The play alone (0.2 deg full width): readings short of the joint's deflection, never by more than it.
+    _, table, d_true, _ = lp.trials_with_truth("takuma2014", 1, 8.0, effects="backlash")
+    read = table[["theta1_deg", "theta2_deg"]].to_numpy()
+    moved = np.abs(d_true) > 0.5
+    assert np.mean(np.abs(read[moved])) < np.mean(np.abs(d_true[moved])) - 0.05
+    assert np.max(np.abs(read - d_true)) < 0.2 + 0.03
+
+
+def test_label_play_forces_turns_on_only_the_effects_asked():
+    lp = bench("label_play_forces")
+    scales = lp._rig_kw("backlash,leak")["nonideal"].as_dict()
+    assert scales["backlash"] == scales["leak"] == 1.0
+    assert all(v == 0.0 for k, v in scales.items() if k not in ("backlash", "leak"))
+    assert lp._rig_kw("") == {}
+    with pytest.raises(SystemExit, match="Unknown effect.*frction"):
+        lp._rig_kw("frction")
