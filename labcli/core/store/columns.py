@@ -57,6 +57,7 @@ FILTERS = {"compression": "gzip", "compression_opts": 4, "shuffle": True, "fletc
 TABLE_FILTERS = {"compression": "gzip", "compression_opts": 1, "fletcher32": True}
 CHECKSUM = Column("checksum", "1", kind="uint", what="checksum of the row's other columns")
 READ_BLOCK = 65_536  # rows read and checked at a time, so memory stays bounded on large tables
+GROW = 64  # rows a table written a row a commit grows by at a time (trimmed to the rows written at close)
 
 
 def fill_value(c: Column) -> Any:
@@ -173,11 +174,15 @@ def append(ds: h5py.Dataset, start: int, arr: np.ndarray) -> None:
     append_all([(ds, arr)], start)
 
 
-def append_all(items: Sequence[tuple[h5py.Dataset, np.ndarray]], start: int, extent: int | None = None) -> None:
+def append_all(
+    items: Sequence[tuple[h5py.Dataset, np.ndarray]], start: int, extent: int | None = None, room: int | None = None
+) -> None:
     """:func:`append` each ``(ds, arr)`` at ``start``, the dataspaces made once for each shape.
 
     ``extent``: no dataset holds more rows than this (the caller knows), so one whose rows end
-    at or past it is grown to end there without its extent read first.  A dataset never shrinks.
+    at or past it is grown to end there without its extent read first.  ``room``: every
+    dataset holds exactly this many rows (the caller grew them), so rows that end within it
+    are written without the extent read or changed.  A dataset never shrinks here.
     """
     # Through the low-level id: a commit makes about a hundred of these, and h5py's
     # ``Dataset.shape`` and each dataspace cost as much as a small write.
@@ -185,8 +190,10 @@ def append_all(items: Sequence[tuple[h5py.Dataset, np.ndarray]], start: int, ext
     for ds, arr in items:
         dsid = ds.id
         n = arr.shape[0]
-        if extent is not None and start + n >= extent:
-            dims: tuple[int, ...] = (start + n, *arr.shape[1:])
+        if room is not None and start + n <= room:
+            dims: tuple[int, ...] = (room, *arr.shape[1:])
+        elif extent is not None and start + n >= extent:
+            dims = (start + n, *arr.shape[1:])
             dsid.set_extent(dims)
         else:
             dims = dsid.get_space().shape
@@ -273,6 +280,7 @@ class Table:
         self.chunk = int(g.attrs["chunk_rows"])
         if self.chunk == 1:
             self.ds = {name: uncached(g, ds.name.rsplit("/", 1)[-1]) for name, ds in self.ds.items()}
+        self._room: int | None = None  # rows every column holds, once this object grew them (chunks of a row)
         # The count this object's own last commit set: a writer holds the file's lock, so nothing
         # else moves it, and its next write need not read it back (a reader never commits).
         self._committed: int | None = None
@@ -322,12 +330,39 @@ class Table:
         if self._committed is not None:
             return self._committed
         if not self.committed_ok:
-            return self.extent
+            return self.stored()
         return int(self.g.attrs["committed"])
 
     @property
     def extent(self) -> int:
         return int(self.ds[CHECKSUM.name].shape[0])
+
+    def stored(self) -> int:
+        """Rows ever written: the extent, less the rows past the last one written that a table
+        grown ahead of its writes holds (a row a commit, :data:`GROW` rows at a time)."""
+        end = self.extent
+        if self.chunk != 1:
+            return end
+        dsid = self.ds[CHECKSUM.name].id
+        for row in range(end - 1, max(-1, end - 1 - GROW), -1):
+            try:
+                info = dsid.get_chunk_info_by_coord((row,))
+            except (OSError, RuntimeError, ValueError):
+                continue
+            if info.byte_offset is not None and info.size > 0:
+                return row + 1
+        return max(0, end - GROW)
+
+    def trim(self) -> None:
+        """Give back the rows grown ahead and never written (a writer closing the file): the
+        file then holds the rows written, as a reader with h5py alone expects."""
+        if self.chunk != 1 or self._room is None:
+            return
+        end = max(self.stored(), self._committed or 0)
+        if end < self._room:
+            for ds in self.ds.values():
+                ds.id.set_extent((end, *ds.shape[1:]))
+            self._room = end
 
     def next_start(self) -> int:
         """Where the next rows go: after the committed rows, at a chunk boundary."""
@@ -359,6 +394,10 @@ class Table:
         They are not part of the table until :meth:`commit`.
         """
         start = self.next_start()
+        # Grown ahead only for rows all written (a bulk write leaves its fill columns unwritten
+        # where no row was ever held).
+        whole = self.chunk == 1 and not any(isinstance(a, Repeated) for a in arrays)
+        room = self._grow(start + n) if whole else None
         checks = row_checksums(arrays, start)
         items = []
         for name, arr in zip(self.names, arrays, strict=False):
@@ -367,8 +406,25 @@ class Table:
                 grow(ds, start + n)  # rows never written before read as the dataset's fill value
             else:
                 items.append((ds, np.repeat(arr.row, n, axis=0) if isinstance(arr, Repeated) else arr))
-        append_all([*items, (self.ds[CHECKSUM.name], checks)], start)
+        append_all([*items, (self.ds[CHECKSUM.name], checks)], start, room=room)
         return start, start + n
+
+    def _grow(self, stop: int) -> int | None:
+        """Make every column hold at least ``stop`` rows, growing them :data:`GROW` rows at a time;
+        the rows they hold.  A table written a row a commit would otherwise change every column's
+        extent (each dataset's header, and the flush and the journal's share of it) at every commit.
+        None: the columns' lengths differ (a write cut short), and each is grown as written."""
+        if self._room is None:
+            self._room = min(int(ds.shape[0]) for ds in self.ds.values())
+            if any(int(ds.shape[0]) != self._room for ds in self.ds.values()):
+                self._room = None  # columns of different lengths (a write cut short): grown one by one
+                return None
+        if stop > self._room:
+            room = -(-stop // GROW) * GROW
+            for ds in self.ds.values():
+                ds.id.set_extent((room, *ds.shape[1:]))
+            self._room = room
+        return self._room
 
     def commit(self, stop: int) -> None:
         self._committed = None

@@ -328,6 +328,10 @@ class RunFile:
             return
         if self.sessions.waiting:
             self.writer.commit([])
+        if self._tables is not None:  # the rows grown ahead of the writes, never written, given back
+            with self.writer.writing("closing the run file"):
+                for t in (self._tables.records, self._tables.split, self._tables.models, self._tables.sessions):
+                    t.trim()
         self.writer.sync()
         self.h5.close()
         if io is None:

@@ -120,7 +120,8 @@ def from_v2(t: Table, rt: RecordType) -> RecordColumns:
     damaged = [(_row_name(t, rt, r), why) for r, why in rows.damaged]
     known = {c.name for c in (*common_columns(rt.id_column), *rt.columns, *window_columns())}
     extras = [name for name in t.names if name not in known]
-    tail = t.read(want=[rt.id_column], span=(t.committed, t.extent)) if t.extent > t.committed else None
+    stored = t.stored()
+    tail = t.read(want=[rt.id_column], span=(t.committed, stored)) if stored > t.committed else None
     incomplete = sorted({int(i) for i in tail.cols[rt.id_column]} - set(ids)) if tail is not None else []
     return check(RecordColumns(ids, cols, [int(r) for r in rows.rows], damaged, incomplete, extras), rt, rt.noun)
 
