@@ -385,7 +385,7 @@ class StreamReader:
         n = rows.shape[0]
         self.lines += n
         seq = rows[:, 0]
-        batch = _new_batch(seq, rows[:, 1], rows[:, 2:-1].astype(np.float64))
+        batch = _new_batch(seq, rows[:, 1], rows[:, 2:-1].astype(_F64))
         last = self._last_seq
         if self.period_us is None and last is not None and seq.tobytes() == steps_bytes(n, last + 1):
             self.counters["frames"] += n  # nothing lost, no stall to time
@@ -564,6 +564,9 @@ class StreamReader:
         merged = FrameBatch.concat([fast, _batch_of(frames, k)], k)
         order = np.argsort(keys, kind="stable")
         return FrameBatch(merged.seq[order], merged.t_us[order], merged.values[order])
+
+
+_F64 = np.float64
 
 
 def _new_batch(seq: np.ndarray, t_us: np.ndarray, values: np.ndarray) -> FrameBatch:

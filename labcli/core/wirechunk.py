@@ -83,7 +83,7 @@ def clean_rows(head: bytes, data: bytes, end: int, k: int, max_line: int) -> np.
     ends = bounds[1:]
     # 8 bytes from each line's '*': "*HH\n$D,<first digit of the next seq>" or "*HH\r\n$D,", read
     # as one unaligned 64-bit number each (a gather of n items, not 8 n).
-    got = np.ndarray((a.shape[0] - 4,), "<u8", buf, 0 if wide else 1, (1,))[ends]
+    got = np.ndarray((a.shape[0] - 4,), _U8LE, buf, 0 if wide else 1, (1,))[ends]
     g = got.tobytes()
     if g.translate(_AS_H) != _shape(n, wide) or g[5 + wide :: 8] != _D(n):
         return None
@@ -97,15 +97,15 @@ def clean_rows(head: bytes, data: bytes, end: int, k: int, max_line: int) -> np.
         return None
     text = buf.translate(_DIGITS_COMMAS)
     # Each line's end becomes ",  -1 ," (",   -1 ,"): a -1 between lines, in two 32-bit writes.
-    np.ndarray((a.shape[0] - 3,), "<u4", text, 0 if wide else 1, (1,))[ends] = _FILL_CR if wide else _FILL_LF
-    np.ndarray((a.shape[0] - 3,), "<u4", text, 4, (1,))[ends] = _FILL_NEXT
-    if text.find(0, 8) >= 0:
-        return None  # a byte other than a digit or a comma inside a line
-    if not _EMPTY_FIELD_RAISES and (b",," in text or text[8] == 44):
-        return None  # an empty field, which an older numpy reads up to, warns and stops at
+    np.ndarray((a.shape[0] - 3,), _U4LE, text, 0 if wide else 1, (1,))[ends] = _FILL_CR if wide else _FILL_LF
+    np.ndarray((a.shape[0] - 3,), _U4LE, text, 4, (1,))[ends] = _FILL_NEXT
+    # A NUL left is a byte other than a digit or a comma inside a line; an empty field is refused
+    # too, by fromstring itself (an older numpy reads up to either, warns and stops: found first).
+    if not _EMPTY_FIELD_RAISES and (text.find(0, 8) >= 0 or b",," in text or text[8] == 44):
+        return None
     try:  # "    \n$D," before the first line and the "0" after the last left out
         nums = fromstring(bytes(memoryview(text)[8:-1]), dtype=np.int64, sep=",")
-    except ValueError:  # an empty field
+    except ValueError:  # a NUL or an empty field
         return None
     if nums.view(np.uint32)[_HIGH::2].tobytes() == _high_words(n, k):
         # The common chunk, judged by the high 32 bits of every number: 0 (a number below 2**32)
@@ -196,16 +196,19 @@ def _each_before_lf(block: bytes | bytearray, crlf: int) -> bool:
 
 
 def _fromstring_refuses_empty_fields() -> bool:
+    """Whether numpy's fromstring raises at an empty field and at a NUL (an older one warns and stops)."""
     fromstring = getattr(np, "fromstring", None)
     if fromstring is None:
         return False
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            fromstring(b"1,,2", dtype=np.int64, sep=",")
-        except ValueError:
-            return True
-    return False
+    refused = 0
+    for text in (b"1,,2", b"1,\x002", b"1,2\x00,3", b"1,2,3\x00"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                fromstring(text, dtype=np.int64, sep=",")
+            except ValueError:
+                refused += 1
+    return refused == 4
 
 
 def follows_on(seq: np.ndarray, last: int | None) -> bool:
@@ -274,6 +277,7 @@ _MANY_ZEROS = b"0" * 21
 _BOUNDED_K = 6
 _I64_MAX = int(np.iinfo(np.int64).max)
 _MAX = np.maximum.reduce  # ndarray.max less its Python wrapper
+_U8LE, _U4LE = np.dtype("<u8"), np.dtype("<u4")  # (a dtype object, not its name to parse each call)
 _HIGH = 1 if sys.byteorder == "little" else 0  # which 32-bit half of an int64 holds its high bits
 _HEXNUM = np.full(256, -1, np.int32)
 for _i, _c in enumerate(b"0123456789abcdef"):

@@ -431,11 +431,13 @@ def test_whole_chunk_path_takes_every_kind_of_line_end():
 
 
 def test_an_empty_field_is_refused_before_a_numpy_that_only_warns_reads_it(monkeypatch):
-    """An older numpy reads up to an empty field, warns and stops: whole_chunk must not call it then."""
+    """An older numpy reads up to an empty field or a NUL, warns and stops: whole_chunk must not call it then."""
     real = np.fromstring
 
     def older_numpy(text, dtype, sep):
-        assert b",," not in bytes(text) and bytes(text)[:1] != b",", "fromstring met an empty field"
+        text = bytes(text)
+        assert b",," not in text and text[:1] != b",", "fromstring met an empty field"
+        assert b"\0" not in text, "fromstring met a NUL"
         return real(text, dtype=dtype, sep=sep)
 
     monkeypatch.setattr(wirechunk, "_EMPTY_FIELD_RAISES", False)
@@ -443,9 +445,29 @@ def test_an_empty_field_is_refused_before_a_numpy_that_only_warns_reads_it(monke
     lines = [_good(i, [i, 1, 2, 3, 4, 5]) for i in range(20)]
     assert wirechunk.whole_chunk(b"".join(lines), 6, MAX_LINE) is not None
     for i in (0, 7, 19):
-        for old, new in ((b"$D,%d," % i, b"$D,,"), (b",5*", b",*"), (b",2,", b",,")):
+        for old, new in (
+            (b"$D,%d," % i, b"$D,,"),
+            (b",5*", b",*"),
+            (b",2,", b",,"),
+            (b",2,", b",2x,"),
+            (b",3", b",\x003"),
+        ):
             damaged = b"".join(lines[:i] + [_resum(lines[i].replace(old, new))] + lines[i + 1 :])
             assert wirechunk.whole_chunk(damaged, 6, MAX_LINE) is None
+
+
+def test_fromstring_here_refuses_a_nul_and_an_empty_field_or_the_reader_checks_first():
+    """Where numpy's fromstring raises at both, the whole-chunk path leaves finding them to it."""
+    if wirechunk._EMPTY_FIELD_RAISES:
+        for text in (b"1,,2", b"1,2\x00,3", b"1,\x002", b"7,1\x00"):
+            with pytest.raises(ValueError):
+                np.fromstring(text, dtype=np.int64, sep=",")
+    lines = [_good(i, [i, 1, 2, 3, 4, 5]) for i in range(20)]
+    for i in (0, 7, 19):
+        for old, new in ((b",2,", b",2\x00,"), (b",2,", b",\x002,"), (b",5*", b",5\x00*"), (b",5*", b",5x*")):
+            damaged = b"".join(lines[:i] + [_resum(lines[i].replace(old, new))] + lines[i + 1 :])
+            assert wirechunk.whole_chunk(damaged, 6, MAX_LINE) is None
+            assert_agrees(damaged, [], 6)
 
 
 def test_a_line_of_leading_zeros_is_refused_exactly_past_256_bytes():
