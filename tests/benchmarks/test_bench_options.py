@@ -258,3 +258,47 @@ def test_label_play_forces_turns_on_only_the_effects_asked():
     assert lp._rig_kw("") == {}
     with pytest.raises(SystemExit, match="Unknown effect.*frction"):
         lp._rig_kw("frction")
+
+
+def test_study_trials_and_pushes_wait_and_resupply_as_the_protocol_does(monkeypatch):
+    """The objects of study.py / sensitivity.py are pushed as `labcli acquire` would: every window
+    after the protocols' earliest equilibrium (15 s, not drive.py's 6 s, whose thermal tail put
+    the steel can at 1.8 times its stiffness), the chambers supplied again past the drift limit,
+    and the pushes on the rig opened anew; a retaken baseline keeps the rest columns aligned."""
+    ca = bench("classify_accuracy")
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+
+    seen: list[dict] = []
+    rigs: list[object] = []
+
+    def spy(real):
+        def call(rig, *args, **kwargs):
+            seen.append(kwargs)
+            rigs.append(rig._rig)
+            supplies = [0]
+            supply = rig._rig.supply_air
+
+            def counted():
+                supplies[0] += 1
+                supply()
+
+            rig._rig.supply_air = counted
+            out = real(rig, *args, **kwargs)
+            kwargs["supplies"] = supplies[0]
+            return out
+
+        return call
+
+    monkeypatch.setattr(ca, "simulate_weight_trials", spy(ca.simulate_weight_trials))
+    monkeypatch.setattr(ca, "simulate_pushes", spy(ca.simulate_pushes))
+    trials, table = ca.trials_and_pushes(2, 1, rig_kw={"nonideal": NonIdeal(realism="kind", leak=3.0)})
+    assert [k["settle_s"] for k in seen] == [15.0, 15.0]
+    assert [k["repressurise_kPa"] for k in seen] == [3.1, 3.1]
+    assert seen[0]["supplies"] > 1  # the leak of three times the default made the run supply again
+    assert rigs[0] is not rigs[1]
+    assert len(trials) == 108 and len(table) == len(ca.DEMO_OBJECTS)
+    for df in (trials, table):
+        assert np.isfinite(df[["theta1_0_deg", "theta2_0_deg"]].to_numpy()).all()
+    # The rest columns are each row's own baseline: the deflection label is the loaded reading minus it,
+    # so the rest posture moves with the arm, not with a window left over from a drifted baseline.
+    assert np.ptp(trials["theta1_0_deg"]) < 1.0

@@ -34,6 +34,35 @@ def _pressurise(rig: Any, settle_s: float) -> None:
     rig.close_valves()
 
 
+class _Air:
+    """Re-pressurising as the acquisition session does it (labcli.core.air.AirDrift): each baseline's
+    pressures against the first baseline since the last supply; once a chamber has drifted past
+    ``limit_kPa`` the chambers are supplied for ``settle_s``, held, and the baseline is taken again.
+    ``limit_kPa`` <= 0: never (the valves held for the whole run, as before)."""
+
+    def __init__(self, rig: Any, p_idx: list[int], limit_kPa: float, settle_s: float) -> None:
+        self.rig, self.p_idx, self.limit_kPa, self.settle_s = rig, p_idx, float(limit_kPa), settle_s
+        self.reference: np.ndarray | None = None
+        self.supplies = 0
+
+    def baseline(self, window: Any) -> np.ndarray:
+        """Settle, then the baseline window (supplying again first when the chambers drifted)."""
+        while True:
+            self.rig.advance(self.settle_s)
+            base = window()
+            if self.limit_kPa <= 0:
+                return base
+            p = np.asarray(base, dtype=float)[self.p_idx]
+            if self.reference is None:
+                self.reference = p
+            if not np.max(np.abs(p - self.reference)) * 1e3 > self.limit_kPa:
+                return base
+            self.rig.supply_air()
+            self.rig.advance(self.settle_s)
+            self.rig.close_valves()
+            self.reference, self.supplies = None, self.supplies + 1
+
+
 def _indices(rig: Any) -> tuple[list[int], list[int]]:
     names = list(rig.channels)
     return [names.index(c) for c in ("P_L1", "P_R1", "P_L2", "P_R2")], [names.index(c) for c in ("POT1", "POT2")]
@@ -50,6 +79,7 @@ def simulate_weight_trials(
     relief_s: float = 0.0,
     relief_vent_s: float = 0.0,
     relief_vent: str = "L",
+    repressurise_kPa: float = 0.0,
 ) -> Any:
     """Hang each plan row's weight (``trial, set, mass_g, direction_deg``) and return the trial table.
 
@@ -57,12 +87,16 @@ def simulate_weight_trials(
     chambers supplied for that long and held again before each baseline, as the session does it;
     ``relief_vent_s`` > 0: first the ``relief_vent`` side's actuators (L or R) vented for that
     long, the others held (``acquisition.friction_relief_vent_s``, ``friction_relief_vent``).
+    ``repressurise_kPa`` > 0: the chambers supplied again once a baseline drifted that far since the
+    last supply (``acquisition.repressurise_kPa``, as ``labcli acquire`` on a board that drives its
+    valves does it); 0 holds them for the whole run.
     """
     import pandas as pd
 
     p_idx, a_idx = _indices(rig)
     n = max(1, int(round(capture_s * rate_hz)))
     _pressurise(rig, settle_s)
+    air = _Air(rig, p_idx, repressurise_kPa, settle_s)
     rows = []
     for r in plan.itertuples():
         if relief_vent_s > 0:
@@ -72,8 +106,7 @@ def simulate_weight_trials(
             rig.supply_air()
             rig.advance(relief_s)
             rig.close_valves()
-        rig.advance(settle_s)
-        base = _window(rig, calibration, n, rate_hz)
+        base = air.baseline(lambda: _window(rig, calibration, n, rate_hz))
         m, direction = float(r.mass_g) / 1000.0, math.radians(float(r.direction_deg))
         rig.hang_weight(m, direction)
         rig.advance(settle_s)
@@ -110,6 +143,7 @@ def simulate_pushes(
     capture_s: float = 1.0,
     settle_s: float = 6.0,
     first_push: int = 1,
+    repressurise_kPa: float = 0.0,
 ) -> Any:
     """Push each object on the simulated rig and return the push table (DataFrame).
 
@@ -119,7 +153,8 @@ def simulate_pushes(
     ``settle_s`` after each change (the lag's time constant is about 0.7 s).
     Extra columns: ``true_stiffness_N_per_m``, ``theta1_deg, theta2_deg``
     (potentiometer deflections) and ``true_phi_deg`` (the direction used even
-    when the table leaves ``phi_deg`` empty).
+    when the table leaves ``phi_deg`` empty).  ``repressurise_kPa``: as for
+    :func:`simulate_weight_trials`.
     """
     import pandas as pd
 
@@ -130,13 +165,13 @@ def simulate_pushes(
         return _window(rig, calibration, n, rate_hz)
 
     _pressurise(rig, settle_s)
+    air = _Air(rig, p_idx, repressurise_kPa, settle_s)
     rows = []
     push = first_push
     for obj in objects:
         for k in range(pushes_per_object):
             phi = float(phi_deg[k % len(phi_deg)])
-            rig.advance(settle_s)
-            base = window()
+            base = air.baseline(window)
             rig.push_object(obj.radius_m, obj.distance_m, math.radians(phi), obj.stiffness_N_per_m)
             rig.advance(settle_s)
             loaded = window()
