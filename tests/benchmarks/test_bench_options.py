@@ -103,6 +103,23 @@ def test_the_durable_baseline_syncs_once_per_trial(tmp_path: Path, monkeypatch: 
     assert len(disk) == 5
 
 
+def test_the_durable_baseline_without_fsync_syncs_nothing_and_writes_the_same(tmp_path: Path) -> None:
+    store = bench("bench_store")
+    t = store.measure(str(tmp_path), store.make_records(2, 30), repeat=1)
+    assert t["durable_nosync"] > 0
+    with h5py.File(tmp_path / "durable.h5") as a, h5py.File(tmp_path / "durable-nosync.h5") as b:
+        np.testing.assert_array_equal(a["counts"][:], b["counts"][:])
+    disk: list[int] = []
+    real = os.fsync
+    try:
+        os.fsync = disk.append  # type: ignore[assignment]
+        with store.fsyncs(False) as calls:
+            store.run_durable(str(tmp_path / "d.h5"), store.make_records(3, 20), store.chunk_of(20))
+    finally:
+        os.fsync = real
+    assert disk == [] and calls == [3]  # counted, none reaching the disk
+
+
 # --------------------------------------------------------------------------- bench_tables
 
 
