@@ -12,10 +12,11 @@ as :func:`labcli.core.wire.parse_line` drops it).  One pass finds the newlines; 
 the 8 bytes from each line's ``*`` (``*HH\\n$D,`` and the next line's first digit, or
 ``*HH\\r\\n$D,``) as one 64-bit number, and their shape is checked as bytes; one reduction XORs
 every line, checked against what both checksum digits make it (two ``bytes.translate`` tables,
-the n lines compared as one number).  Then every byte but a digit or a comma becomes NUL, two
-32-bit writes a line turn each line's end into ``,  -1 ,`` (a ``-1`` between lines), and a NUL
-left is a byte no data line may hold there; one ``fromstring`` reads every number, refusing an
-empty field.  The high 32 bits of every number, as bytes, then say at once that each ``-1``
+the n lines compared as one number).  A blank or a sign anywhere refuses the chunk (fromstring
+would read past it or take it for a number's); two 32-bit writes a line turn each line's end
+into ``,  -1 ,`` (a ``-1`` between lines); one ``fromstring`` reads every number, refusing an
+empty field and any byte but a digit or a comma (a numpy that only warns at those has every
+such byte made a NUL, and looked for, first).  The high 32 bits of every number, as bytes, then say at once that each ``-1``
 closes a row of ``k + 2`` numbers and that every number is below 2**32 (else the rows and ranges
 are checked one by one).  Any line that fails sends the chunk to
 :meth:`labcli.core.wire.StreamReader._parse_vectorised`, which finds it and hands it to
@@ -58,7 +59,7 @@ def clean_rows(head: bytes, data: bytes, end: int, k: int, max_line: int) -> np.
     # Four bytes before the '\n' that opens the first line let each window below start at a line's
     # '\n' position itself (no index arithmetic); "$D,0" after the last line stands for the next
     # line's opening, which is read after each line's end.
-    buf = bytearray(b"    \n")
+    buf = bytearray(b"####\n")
     buf += head
     buf += data[:end] if end < len(data) else data
     if buf[4:8] != b"\n$D,":
@@ -95,17 +96,21 @@ def clean_rows(head: bytes, data: bytes, end: int, k: int, max_line: int) -> np.
         int.from_bytes(xor, "little")
     ):
         return None
-    text = buf.translate(_DIGITS_COMMAS)
+    if not _EMPTY_FIELD_RAISES:  # an older numpy reads up to a stray byte, warns and stops
+        text = buf.translate(_DIGITS_COMMAS)  # every byte but a digit or a comma a NUL, found below
+    elif b" " in buf or b"-" in buf or b"+" in buf or b"\t" in buf or b"\x0b" in buf or b"\x0c" in buf:
+        return None  # a blank or a sign, which fromstring reads past or as part of a number ('\n'
+        # and '\r' are only at the lines' ends, which are written over)
+    else:
+        text = buf  # fromstring itself refuses any other byte but a digit or a comma
     # Each line's end becomes ",  -1 ," (",   -1 ,"): a -1 between lines, in two 32-bit writes.
     np.ndarray((a.shape[0] - 3,), _U4LE, text, 0 if wide else 1, (1,))[ends] = _FILL_CR if wide else _FILL_LF
     np.ndarray((a.shape[0] - 3,), _U4LE, text, 4, (1,))[ends] = _FILL_NEXT
-    # A NUL left is a byte other than a digit or a comma inside a line; an empty field is refused
-    # too, by fromstring itself (an older numpy reads up to either, warns and stops: found first).
     if not _EMPTY_FIELD_RAISES and (text.find(0, 8) >= 0 or b",," in text or text[8] == 44):
-        return None
-    try:  # "    \n$D," before the first line and the "0" after the last left out
+        return None  # a stray byte (a NUL now) or an empty field, found before fromstring meets it
+    try:  # "####\n$D," before the first line and the "0" after the last left out
         nums = fromstring(bytes(memoryview(text)[8:-1]), dtype=np.int64, sep=",")
-    except ValueError:  # a NUL or an empty field
+    except ValueError:  # a byte but a digit or a comma, or an empty field
         return None
     if nums.view(np.uint32)[_HIGH::2].tobytes() == _high_words(n, k):
         # The common chunk, judged by the high 32 bits of every number: 0 (a number below 2**32)
@@ -196,19 +201,24 @@ def _each_before_lf(block: bytes | bytearray, crlf: int) -> bool:
 
 
 def _fromstring_refuses_empty_fields() -> bool:
-    """Whether numpy's fromstring raises at an empty field and at a NUL (an older one warns and stops)."""
+    """Whether numpy's fromstring raises at an empty field and at any byte it cannot read.
+
+    A blank or a sign it reads as part of a number (as strtol does), so the whole-chunk path
+    refuses those itself; an older numpy warns and stops instead of raising.
+    """
     fromstring = getattr(np, "fromstring", None)
     if fromstring is None:
         return False
     refused = 0
-    for text in (b"1,,2", b"1,\x002", b"1,2\x00,3", b"1,2,3\x00"):
+    strays = (b"1,,2", b"1,\x002", b"1,2\x00,3", b"1,2,3\x00", b"1,2x,3", b"1,*2", b"1,$2", b"1,2.5", b"1,\xff2")
+    for text in strays:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
                 fromstring(text, dtype=np.int64, sep=",")
             except ValueError:
                 refused += 1
-    return refused == 4
+    return refused == len(strays)
 
 
 def follows_on(seq: np.ndarray, last: int | None) -> bool:

@@ -457,14 +457,19 @@ def test_an_empty_field_is_refused_before_a_numpy_that_only_warns_reads_it(monke
 
 
 def test_fromstring_here_refuses_a_nul_and_an_empty_field_or_the_reader_checks_first():
-    """Where numpy's fromstring raises at both, the whole-chunk path leaves finding them to it."""
+    """Where numpy's fromstring raises at both, the whole-chunk path leaves finding them to it.
+
+    A blank or a sign fromstring reads past (or as a number's): the path refuses those itself.
+    """
     if wirechunk._EMPTY_FIELD_RAISES:
         for text in (b"1,,2", b"1,2\x00,3", b"1,\x002", b"7,1\x00"):
             with pytest.raises(ValueError):
                 np.fromstring(text, dtype=np.int64, sep=",")
     lines = [_good(i, [i, 1, 2, 3, 4, 5]) for i in range(20)]
     for i in (0, 7, 19):
-        for old, new in ((b",2,", b",2\x00,"), (b",2,", b",\x002,"), (b",5*", b",5\x00*"), (b",5*", b",5x*")):
+        nul = ((b",2,", b",2\x00,"), (b",2,", b",\x002,"), (b",5*", b",5\x00*"), (b",5*", b",5x*"))
+        blank = tuple((b",2,", b",%s2," % c) for c in (b" ", b"\t", b"\x0b", b"\x0c", b"+", b"-", b"\r"))
+        for old, new in nul + blank + ((b",2,", b",2 ,"), (b",2,", b",2\t,"), (b",5*", b",5 *")):
             damaged = b"".join(lines[:i] + [_resum(lines[i].replace(old, new))] + lines[i + 1 :])
             assert wirechunk.whole_chunk(damaged, 6, MAX_LINE) is None
             assert_agrees(damaged, [], 6)
