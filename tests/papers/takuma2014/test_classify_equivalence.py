@@ -146,9 +146,23 @@ def test_statistics_and_band_verdicts_of_many_groups_are_each_group_s_own(seed: 
 def test_the_streamed_pushes_are_json_dumps_of_each_push_item(lab: dict[str, Any]) -> None:
     res = classify_pushes(lab["table"], lab["model"], bands=lab["bands"], method="bands", allow_unusable=True)
     res.pushes.loc[3, "source"] = "run"  # a source column, as a reference run adds
+    # A float's text is made once per distinct value of a repeating column and taken from the
+    # estimate where the force used is the same float: equal is not enough (-0.0 == 0.0).
+    df = res.pushes
+    df.loc[7, ["Fx_N", "Fx_used_N", "R_m", "phi_deg"]] = [0.0, -0.0, -0.0, -0.0]
+    df.loc[8, ["Fx_N", "Fx_used_N", "R_m", "phi_deg"]] = [-0.0, 0.0, 0.0, 0.0]
+    df.loc[9, ["Fy_N", "Fy_used_N"]] = [np.nan, 1.5]
+    df.loc[10, ["Fy_N", "Fy_used_N"]] = [2.5, np.nan]
+    df.loc[11, ["Fy_N", "Fy_used_N", "R_m"]] = [np.inf, np.inf, 0.1 + 0.2]
+    df.loc[90:110, "Fx_used_N"] += 0.25  # a component rebuilt along the push, across a chunk's end
     report = ClassifyReport(res, "p.csv", "m.json", None, load_protocol("takuma2014-stiffness"), "pressure-only")
     lines = [line for chunk in push_lines(report, chunk=97) for line in chunk]
     assert lines == [json.dumps(item, allow_nan=False) for item in push_items(report)]
+    assert '"Fx_N": 0.0, "Fy_N"' in lines[7] and '"Fx_used_N": -0.0' in lines[7] and '"R_mm": -0.0' in lines[7]
+    assert '"Fx_N": -0.0' in lines[8] and '"Fx_used_N": 0.0' in lines[8] and '"phi_deg": 0.0' in lines[8]
+    assert '"Fy_N": null' in lines[9] and '"Fy_used_N": 1.5' in lines[9] and '"Fy_used_N": null' in lines[10]
+    assert '"Fy_used_N": null' in lines[11] and '"R_mm": 300.00000000000006' in lines[11]
+    assert f'"Fx_used_N": {float(df.loc[100, "Fx_N"]) + 0.25!r}' in lines[100]
     assert any('"phi_deg": null' in line for line in lines) and any('"flagged": true' in line for line in lines)
     assert any("\\u00fc" in line for line in lines)  # the object names' u-umlaut, as json.dumps escapes it
     res.pushes.loc[5, "R_m"] = 1e306  # scaled to mm it overflows: refused as json.dumps refuses it

@@ -34,6 +34,7 @@ from typing import IO, Any
 import numpy as np
 
 from ....core.files import RUN_FILE_SUFFIXES
+from ....core.nogc import paused_gc
 from ....core.protocol import load_protocol, loads_protocol, shipped_protocols
 from ....core.provenance import rig_warning, run_identity, table_identity
 from ....core.store import RunFile
@@ -686,6 +687,7 @@ class ClassifyReport:
         return report_to_dict(self)
 
 
+@paused_gc()
 def classify_file(
     pushes: Any,
     model: Any,
@@ -704,6 +706,10 @@ def classify_file(
     takuma2014-stiffness); ``method`` ``auto | reference | bands``; ``angles``
     ``pressure-only | measured-angles``.  Bands come from the protocol's
     ``[stiffness_bands_N_per_m]``, flag settings from its ``[stiffness]``.
+
+    Cyclic collection waits until the report is built (:mod:`labcli.core.nogc`): the table's
+    texts and the pushes' flag lists made Python walk every live object four times, a sixth of
+    this function at 10^5 pushes, and found nothing to collect.
     """
     if method not in ("auto", "reference", "bands"):
         raise ConfigError(f"Unknown category method {method!r}; use 'auto', 'reference' or 'bands'.")
@@ -846,24 +852,25 @@ def push_lines(report: ClassifyReport, chunk: int = 10_000) -> Iterator[list[str
         yield [template % values for values in zip(*columns, strict=True)]
 
 
-class _Null:
-    """Formats as JSON's ``null`` under ``%r``, in a column of floats (whose ``%r`` is json's own text)."""
-
-    def __repr__(self) -> str:
-        return "null"
-
-
-_NULL = _Null()
+# Columns of few distinct values (set per object or by the protocol's push directions): each distinct
+# value's repr once.  And the force a push used, the estimate itself unless a component was rebuilt
+# along the push: its text is the estimate's wherever the two are the same float.
+_REPEATED = frozenset({"R_m", "d_m", "phi_deg", TRUE_K})
+_TWINS = {"Fx_used_N": "Fx_N", "Fy_used_N": "Fy_N"}
 Converter = Callable[[int, int], list[Any]]  # rows [start, stop) of a column, each formatted by its field's spec
 
 
 def _line_fields(df: Any) -> list[tuple[str, str, Converter]]:
     """The keys of a push item in order, each with its %-spec and its values for rows [start, stop).
 
-    Texts come as their JSON, ints as ints (``%d``), floats as floats (``%r``, json's own text of a
-    float, with no string made apart), a missing number as :data:`_NULL`.  The columns are taken
-    once, as arrays (views of the frame's own), and cut per chunk.
+    Texts come as their JSON, ints as ints (``%d``), floats as their ``repr`` (json's own text of a
+    float), a missing number as ``null``.  The columns are taken once, as arrays (views of the
+    frame's own), and cut per chunk.  A float's ``repr`` is most of the cost (half a microsecond
+    each, 2 x 10^6 of them at 10^5 pushes), so it is made once per distinct float where a column
+    repeats its values (:data:`_REPEATED`, :data:`_TWINS`); "distinct" is bit for bit, which keeps
+    -0.0 apart from 0.0.
     """
+    made: dict[str, tuple[int, np.ndarray, list[str]]] = {}  # this chunk's floats and texts, by column
 
     def ints(col: str) -> Converter:
         values = df[col].to_numpy()
@@ -885,7 +892,7 @@ def _line_fields(df: Any) -> list[tuple[str, str, Converter]]:
 
     def numbers(col: str, scale: float = 1.0) -> Converter:
         if col not in df.columns:
-            return lambda a, b: [_NULL] * (b - a)
+            return lambda a, b: ["null"] * (b - a)
         values = np.asarray(df[col], dtype=float)
 
         def convert(a: int, b: int) -> list[Any]:
@@ -895,9 +902,11 @@ def _line_fields(df: Any) -> list[tuple[str, str, Converter]]:
                 scaled = v * scale
             if not np.all(np.isfinite(scaled[finite])):
                 raise OverflowError(col)
-            out: list[Any] = scaled.tolist()
+            bits = scaled.view(np.int64)
+            out = _float_texts(scaled, bits, col, made.get(_TWINS.get(col, ""), (-1, bits, [])), a)
             for i in np.flatnonzero(~finite).tolist():
-                out[i] = _NULL
+                out[i] = "null"
+            made[col] = (a, bits, out)
             return out
 
         return convert
@@ -906,12 +915,29 @@ def _line_fields(df: Any) -> list[tuple[str, str, Converter]]:
     if "source" in df.columns:
         fields.append(("source", "%s", texts("source")))
     fields.append(("category_given", "%s", texts("category", given=True)))
-    fields += [(key, "%r", numbers(col, scale)) for key, col, scale in PUSH_FIELDS]
+    fields += [(key, "%s", numbers(col, scale)) for key, col, scale in PUSH_FIELDS]
     fields += [("phi_solved", "%s", flags("phi_solved")), ("n_phi_solutions", "%d", ints("n_phi_solutions"))]
     fields += [("flagged", "%s", flags("flag")), ("reason", "%s", texts("reason")), ("note", "%s", texts("note"))]
     if TRUE_K in df.columns:
-        fields.append(("true_k_N_per_m", "%r", numbers(TRUE_K)))
+        fields.append(("true_k_N_per_m", "%s", numbers(TRUE_K)))
     return fields
+
+
+def _float_texts(
+    scaled: np.ndarray, bits: np.ndarray, col: str, twin: tuple[int, np.ndarray, list[str]], start: int
+) -> list[str]:
+    """``repr`` of each float of a chunk: once per distinct value in a column of few, the twin
+    column's text where it holds the same float (``twin``: its chunk's start, floats' bits, texts)."""
+    if col in _REPEATED:
+        codes, uniques = _factorize(bits)
+        words = np.array(list(map(repr, uniques.view(np.float64).tolist())), dtype=object)
+        return words[codes].tolist()
+    if twin[0] != start or len(twin[2]) != len(scaled):
+        return list(map(repr, scaled.tolist()))
+    out = np.array(twin[2], dtype=object)
+    other = np.flatnonzero(bits != twin[1])
+    out[other] = list(map(repr, scaled[other].tolist()))
+    return out.tolist()
 
 
 def _factorize(values: Any) -> tuple[np.ndarray, Any]:
