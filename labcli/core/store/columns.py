@@ -75,11 +75,11 @@ def all_fill(c: Column, arr: np.ndarray) -> bool:
     """Whether every value of ``arr`` (column ``c`` as stored) is ``c``'s fill value."""
     if arr.size == 0:
         return False
-    flat = arr.reshape(-1)
+    first = arr.flat[0]  # not reshape(-1): a column of a DataFrame's block is in Fortran order, and would be copied
     if c.kind == "float":  # NaN of any sign or payload is the fill's NaN: what the fill reads back
-        return bool(np.isnan(flat[0]) and np.isnan(flat).all())
+        return bool(np.isnan(first) and np.isnan(arr).all())
     fill = fill_value(c)
-    return bool(flat[0] == fill and np.all(flat == fill))  # the first value decides most columns at once
+    return bool(first == fill and np.all(arr == fill))  # the first value decides most columns at once
 
 
 def h5_dtype(c: Column) -> Any:

@@ -373,8 +373,10 @@ class TrialRecords(_McKibbenRecords):
             if s not in ("fit", "validation", ""):
                 t = trials[int(np.flatnonzero(codes == k)[0])]
                 raise ConfigError(f"trial {int(t)}: set must be fit, validation or empty, got {s!r}.")
-        named = np.asarray(names + [""], dtype=object)[codes]
-        return trials[named == "fit"].astype(int).tolist(), trials[named == "validation"].astype(int).tolist()
+        # By code, not by a million names compared as objects.
+        fit = np.isin(codes, [k for k, s in enumerate(names) if s == "fit"])
+        val = np.isin(codes, [k for k, s in enumerate(names) if s == "validation"])
+        return trials[fit].astype(int).tolist(), trials[val].astype(int).tolist()
 
 
 def _numbers(table: Any, name: str, n: int) -> np.ndarray:
@@ -383,6 +385,8 @@ def _numbers(table: Any, name: str, n: int) -> np.ndarray:
 
     if name not in table:
         return np.full(n, np.nan)
+    if table[name].dtype == np.float64:  # as the table reader gives it: numbers already, no empty text to find
+        return table[name].to_numpy(dtype=np.float64)
     return pd.to_numeric(table[name].replace("", np.nan), errors="coerce").to_numpy(dtype=np.float64)
 
 
