@@ -2,8 +2,9 @@
 
 The objects' statistics and the bands' verdicts (:func:`object_stats_many`,
 :meth:`CategoryModel.predict_groups`) against :func:`object_stats` and ``predict`` one object at a
-time, as the report was built before; the streamed JSON's lines (:func:`push_lines`) against
-``json.dumps`` of each push's item; the objects' items (:func:`object_items`) against a row at a time.
+time, as the report was built before; the streamed JSON's lines (:func:`push_lines`, and
+:func:`push_text` that joins them) against ``json.dumps`` of each push's item; the objects' items
+(:func:`object_items`) against a row at a time.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from labcli.papers.takuma2014.models.classify import (
     object_items,
     push_items,
     push_lines,
+    push_text,
     write_report_json,
 )
 from labcli.papers.takuma2014.models.stiffness import object_stats, object_stats_many
@@ -158,6 +160,8 @@ def test_the_streamed_pushes_are_json_dumps_of_each_push_item(lab: dict[str, Any
     report = ClassifyReport(res, "p.csv", "m.json", None, load_protocol("takuma2014-stiffness"), "pressure-only")
     lines = [line for chunk in push_lines(report, chunk=97) for line in chunk]
     assert lines == [json.dumps(item, allow_nan=False) for item in push_items(report)]
+    for chunk in (97, 1):  # what write_report_json streams: each chunk's lines joined
+        assert list(push_text(report, chunk=chunk)) == [",\n    ".join(c) for c in push_lines(report, chunk=chunk)]
     assert '"Fx_N": 0.0, "Fy_N"' in lines[7] and '"Fx_used_N": -0.0' in lines[7] and '"R_mm": -0.0' in lines[7]
     assert '"Fx_N": -0.0' in lines[8] and '"Fx_used_N": 0.0' in lines[8] and '"phi_deg": 0.0' in lines[8]
     assert '"Fy_N": null' in lines[9] and '"Fy_used_N": 1.5' in lines[9] and '"Fy_used_N": null' in lines[10]
