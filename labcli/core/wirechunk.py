@@ -65,7 +65,7 @@ def clean_rows(head: bytes, data: bytes, end: int, k: int, max_line: int) -> np.
     if buf[4:8] != b"\n$D,":
         return None
     crlf = 0
-    if b"\r" in buf:
+    if 13 in buf:  # (a byte as a number: a bytes operand would first fail as one, at a cost)
         bare = buf.replace(b"\r", b"")
         crlf = len(buf) - len(bare)
         if crlf <= _FEW:  # a '\r\n' now and then: each found one by one
@@ -98,7 +98,7 @@ def clean_rows(head: bytes, data: bytes, end: int, k: int, max_line: int) -> np.
         return None
     if not _EMPTY_FIELD_RAISES:  # an older numpy reads up to a stray byte, warns and stops
         text = buf.translate(_DIGITS_COMMAS)  # every byte but a digit or a comma a NUL, found below
-    elif b" " in buf or b"-" in buf or b"+" in buf or b"\t" in buf or b"\x0b" in buf or b"\x0c" in buf:
+    elif 32 in buf or 45 in buf or 43 in buf or 9 in buf or 11 in buf or 12 in buf:  # " -+\t\v\f"
         return None  # a blank or a sign, which fromstring reads past or as part of a number ('\n'
         # and '\r' are only at the lines' ends, which are written over)
     else:
@@ -106,7 +106,7 @@ def clean_rows(head: bytes, data: bytes, end: int, k: int, max_line: int) -> np.
     # Each line's end becomes ",  -1 ," (",   -1 ,"): a -1 between lines, in two 32-bit writes.
     np.ndarray((a.shape[0] - 3,), _U4LE, text, 0 if wide else 1, (1,))[ends] = _FILL_CR if wide else _FILL_LF
     np.ndarray((a.shape[0] - 3,), _U4LE, text, 4, (1,))[ends] = _FILL_NEXT
-    if not _EMPTY_FIELD_RAISES and (text.find(0, 8) >= 0 or b",," in text or text[8] == 44):
+    if not _EMPTY_FIELD_RAISES and (text.find(0, 8) >= 0 or text.find(b",,") >= 0 or text[8] == 44):
         return None  # a stray byte (a NUL now) or an empty field, found before fromstring meets it
     try:  # "####\n$D," before the first line and the "0" after the last left out
         nums = fromstring(bytes(memoryview(text)[8:-1]), dtype=np.int64, sep=",")
@@ -115,11 +115,11 @@ def clean_rows(head: bytes, data: bytes, end: int, k: int, max_line: int) -> np.
     if nums.view(np.uint32)[_HIGH::2].tobytes() == _high_words(n, k):
         # The common chunk, judged by the high 32 bits of every number: 0 (a number below 2**32)
         # but for a -1 closing each row of k + 2 (the only negative numbers are those -1).
-        if k > _BOUNDED_K or _MANY_ZEROS in buf:  # else no line is longer than max_line (_ZEROS)
+        if k > _BOUNDED_K or buf.find(_MANY_ZEROS) >= 0:  # else no line is longer than max_line (_ZEROS)
             if _MAX(ends - bounds[:-1]) > max_line + 1 + wide:
                 return None
         return nums.reshape(n, k + 3)
-    overlong = (k > _BOUNDED_K or _ZEROS in buf) and _MAX(ends - bounds[:-1]) > max_line + 1 + wide
+    overlong = (k > _BOUNDED_K or buf.find(_ZEROS) >= 0) and _MAX(ends - bounds[:-1]) > max_line + 1 + wide
     return _checked_rows(nums, n, k, overlong)
 
 
