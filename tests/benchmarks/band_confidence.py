@@ -4,7 +4,8 @@ For each held-out rig seed, on the kind rig (the default) and the literature's, 
 objects pushed ten times each on the straight arm with phi given, classified by the protocol's
 bands with the posture form (whose standard errors make each confidence, models/classify.py
 ``_band_confidence``).  Reported per rig: the objects put in the wrong category and the largest
-confidence among them, and how many right ones carry a confidence under 0.9.
+confidence among them, the objects left without a category because every push was flagged, and
+how many right ones carry a confidence under 0.9.
 
     nice python tests/benchmarks/band_confidence.py [--seeds 11-30] [--figures OUT]
 """
@@ -47,13 +48,18 @@ def main(argv: list[str] | None = None) -> None:
                         right.append(conf)
                     else:
                         wrong.append((s, base.split("/")[2], str(figs[f"{base}/category"]), conf))
-        out[f"{rig}/objects"] = len(right) + len(wrong)
+        # An object whose every push was flagged has no category (nor a confidence): unmeasured, not wrong.
+        unmeasured = [w for w in wrong if not w[2]]
+        wrong = [w for w in wrong if w[2]]
+        out[f"{rig}/objects"] = len(right) + len(wrong) + len(unmeasured)
         out[f"{rig}/wrong"] = len(wrong)
+        out[f"{rig}/unmeasured"] = len(unmeasured)
         out[f"{rig}/wrong_max_confidence"] = max((w[3] for w in wrong), default=0.0)
         out[f"{rig}/right_below_0.9"] = sum(c < 0.9 for c in right)
         print(
-            f"{rig}: {len(wrong)} of {len(right) + len(wrong)} objects in the wrong category, confidence at most "
-            f"{out[f'{rig}/wrong_max_confidence']:.2f} ({wrong}); {out[f'{rig}/right_below_0.9']} right ones under 0.9"
+            f"{rig}: {len(wrong)} of {out[f'{rig}/objects']} objects in the wrong category, confidence at most "
+            f"{out[f'{rig}/wrong_max_confidence']:.2f} ({wrong}); {len(unmeasured)} unmeasured (every push "
+            f"flagged: {unmeasured}); {out[f'{rig}/right_below_0.9']} right ones under 0.9"
         )
     args.figures.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
     print(f"wrote {args.figures}")
