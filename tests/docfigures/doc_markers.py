@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[2]
 FIGURES = ROOT / "docs" / "figures"
 
 NUMBER = r"[-+−]?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?:[eE][-+]?\d+)?"
-_OPEN = re.compile(r"<!--(fig|text):(\w[^>]*?)-->")
+_OPEN = re.compile(r"<!--(fig|text):(\w.*?)-->")  # a key may hold ">" (">= 0.9"), not "-->"
 _CLOSE = "<!--/text-->"
 
 

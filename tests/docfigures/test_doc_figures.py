@@ -89,6 +89,14 @@ def test_marks_numbers_texts_and_blocks():
     assert text[got[3].start : got[3].end] == got[3].text
 
 
+def test_a_key_may_hold_a_comparison():
+    # classify_heldout.py's "fit wrong with confidence >= 0.9": a ">" once ended the key's match, so
+    # such a figure was no marker at all and a page kept a stale count unchecked.
+    (mark,) = markers.marks("wrong: <!--fig:classify-heldout.none wrong with confidence >= 0.9-->0 of 120")
+    assert (mark.key, mark.text) == ("classify-heldout.none wrong with confidence >= 0.9", "0")
+    assert "the source says 1" in markers.check(mark, {"none wrong with confidence >= 0.9": 1})
+
+
 @pytest.mark.parametrize(
     "text, why",
     [("<!--fig:demo.x--> 0.2", "followed by no number"), ("<!--text:demo.x-->abc", "has no <!--/text-->")],
