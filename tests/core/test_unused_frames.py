@@ -263,3 +263,41 @@ def test_runs_without_the_marks_read_as_before(name):
         assert "unused_frames" not in run.summary()
     result = CliRunner().invoke(cli, ["inspect", str(ROOT / "tests" / "data" / name)])
     assert result.exit_code == 0 and "frames in no" not in result.output
+
+
+@pytest.mark.parametrize("damage", ["torn while a writer commits", "lasting"])
+def test_a_row_of_marks_that_fails_its_checksum_is_read_again_before_it_is_said(
+    scripted, tmp_path, monkeypatch, damage
+):
+    """A row of raw/unused copied in by a writer's checkpoint while a reader read it fails its
+    checksum as a damaged row does: the reader opens the file afresh and reads again, and warns
+    only of damage that is still there (a reader of a run being recorded saw such a warning)."""
+    from labcli.core.store import space
+    from labcli.core.store.columns import Table
+
+    path = tmp_path / "run.h5"
+    shutil.copy(scripted[0], path)
+    with RunFile.open(path) as run:
+        expected = run.windows.unused()
+    monkeypatch.setattr(space, "writer_holds", lambda p: True)
+    reads = []
+    real_read = Table.read
+
+    def read(self, *args, **kwargs):
+        rows = real_read(self, *args, **kwargs)
+        if self.g.name.endswith("/raw/unused"):
+            reads.append(self.g.name)
+            if damage == "lasting" or len(reads) == 1:
+                rows.damaged.append((0, "its checksum does not match its values"))
+        return rows
+
+    monkeypatch.setattr(Table, "read", read)
+    with RunFile.open(path) as run:
+        if damage == "lasting":
+            with pytest.warns(labcli.errors.LabcliWarning, match="row 0 of raw/unused: its checksum does not match"):
+                ranges = run.windows.unused()
+            assert len(reads) > 2  # read again before the damage was believed
+        else:
+            ranges = run.windows.unused()  # no warning: pyproject turns one into an error
+            assert len(reads) == 2
+    assert ranges == expected

@@ -65,12 +65,25 @@ class Unused(NamedTuple):
 
 def unused(run: RunFile) -> list[Unused]:
     """Every range of raw frames no committed record references, in order: the marked ones as
-    marked, the rest as :data:`UNMARKED`.  [] for schema 1 (its windows are the records' own)."""
+    marked, the rest as :data:`UNMARKED`.  [] for schema 1 (its windows are the records' own).
+    A damaged row of the marks is left out, with a warning."""
+    ranges, damage = read_unused(run)
+    if damage:
+        run.warn(damage)
+    return ranges
+
+
+def read_unused(run: RunFile) -> tuple[list[Unused], str | None]:
+    """:func:`unused`, and the sentence its first damaged row of marks would warn (None: none).
+
+    Nothing is said here, so a reader can read again first: a row copied in by a writer's
+    checkpoint while it was read fails its checksum just as a damaged one does
+    (:func:`.opening.read_afresh`)."""
     if run.v1 is not None:
-        return []
-    marked = _marked(run)
+        return [], None
+    marked, damage = _marked_rows(run)
     loose = [Unused(a, b, UNMARKED, None, None) for a, b in _loose(run, marked)]
-    return sorted([*marked, *loose])
+    return sorted([*marked, *loose]), damage
 
 
 def mark(run: RunFile, why: str, record: int | None, session: int | None, resuming: bool = False) -> Write | None:
@@ -139,12 +152,21 @@ def _table(run: RunFile, create: bool = False) -> Table | None:
 
 
 def _marked(run: RunFile) -> list[Unused]:
+    marked, damage = _marked_rows(run)
+    if damage:
+        run.warn(damage)
+    return marked
+
+
+def _marked_rows(run: RunFile) -> tuple[list[Unused], str | None]:
+    """The marks that check out, and the sentence naming the first damaged row (None: none)."""
     t = _table(run)
     if t is None:
-        return []
+        return [], None
     rows = t.read()
+    damage = None
     if rows.damaged:
-        run.warn(f"{run.path}: row {rows.damaged[0][0]} of raw/unused: {rows.damaged[0][1]}; it is left out.")
+        damage = f"{run.path}: row {rows.damaged[0][0]} of raw/unused: {rows.damaged[0][1]}; it is left out."
     c = rows.cols
     out = []
     for i in range(len(rows.rows)):
@@ -155,7 +177,7 @@ def _marked(run: RunFile) -> list[Unused]:
                 int(c["start"][i]), int(c["stop"][i]), why, None if rid < 0 else rid, None if session < 0 else session
             )
         )
-    return out
+    return out, damage
 
 
 def _record_windows(run: RunFile) -> list[tuple[int, int, int]]:

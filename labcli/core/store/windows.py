@@ -24,7 +24,7 @@ from ...errors import ConfigError, StoreError
 from ..window import NOT_KEPT, Stored, Window
 from .frames import WindowWriter, counts_out
 from .opening import READ_ERRORS, read_afresh
-from .unused import Unused, unused
+from .unused import Unused, read_unused
 
 if TYPE_CHECKING:
     from .runfile import RunFile
@@ -91,15 +91,19 @@ class Windows:
         """The ranges of raw frames no committed record takes, and why (:mod:`.unused`).
 
         A run being recorded is read up to the frames its writer streams in now: a read torn by a
-        checkpoint (a chunk past the end the file had at its opening) is read again afresh."""
+        checkpoint (a chunk past the end the file had at its opening, a row of marks that fails
+        its checksum) is read again afresh, and only damage that outlasts it is said."""
         run = self._run
         try:
-            return read_afresh(run, lambda: unused(run), lambda _: False)
+            ranges, damage = read_afresh(run, lambda: read_unused(run), lambda got: got[1] is not None)
         except READ_ERRORS:
             raise StoreError(
                 f"{run.path}: the raw frames no record takes cannot be read (damaged); "
                 "check the file with labcli inspect --verify and use a backup copy."
             ) from None
+        if damage:
+            run.warn(damage)
+        return ranges
 
     @property
     def extent(self) -> int:
