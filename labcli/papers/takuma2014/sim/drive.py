@@ -35,32 +35,41 @@ def _pressurise(rig: Any, settle_s: float) -> None:
 
 
 class _Air:
-    """Re-pressurising as the acquisition session does it (labcli.core.air.AirDrift): each baseline's
-    pressures against the first baseline since the last supply; once a chamber has drifted past
-    ``limit_kPa`` the chambers are supplied for ``settle_s``, held, and the baseline is taken again.
-    ``limit_kPa`` <= 0: never (the valves held for the whole run, as before)."""
+    """Re-pressurising as the acquisition session does it, by its own rule
+    (:class:`labcli.core.air.AirDrift`): each baseline's pressures against the first baseline since
+    the last supply; once a chamber has drifted past ``limit_kPa`` the chambers are supplied for
+    ``settle_s``, held, and the baseline is taken again.  ``limit_kPa`` <= 0: never (the valves
+    held for the whole run, as before)."""
 
     def __init__(self, rig: Any, p_idx: list[int], limit_kPa: float, settle_s: float) -> None:
-        self.rig, self.p_idx, self.limit_kPa, self.settle_s = rig, p_idx, float(limit_kPa), settle_s
-        self.reference: np.ndarray | None = None
-        self.supplies = 0
+        from ....core.air import AirDrift, AirSettings
+
+        self.rig, self.settle_s = rig, settle_s
+        names = [str(c) for c in rig.channels]
+        settings = AirSettings(repressurise_kPa=float(limit_kPa), repressurise_default=False)
+        self.drift = AirDrift(names, p_idx, settings) if limit_kPa > 0 else None
 
     def baseline(self, window: Any) -> np.ndarray:
         """Settle, then the baseline window (supplying again first when the chambers drifted)."""
         while True:
             self.rig.advance(self.settle_s)
             base = window()
-            if self.limit_kPa <= 0:
-                return base
-            p = np.asarray(base, dtype=float)[self.p_idx]
-            if self.reference is None:
-                self.reference = p
-            if not np.max(np.abs(p - self.reference)) * 1e3 > self.limit_kPa:
+            if self.drift is None or self.drift.check(_Means(base)) is None:
                 return base
             self.rig.supply_air()
             self.rig.advance(self.settle_s)
             self.rig.close_valves()
-            self.reference, self.supplies = None, self.supplies + 1
+            self.drift.supplied()
+
+
+class _Means:
+    """A window's channel means where :meth:`AirDrift.check` takes a window (its ``mean()``)."""
+
+    def __init__(self, means: np.ndarray) -> None:
+        self.means = means
+
+    def mean(self) -> np.ndarray:
+        return self.means
 
 
 def _indices(rig: Any) -> tuple[list[int], list[int]]:
