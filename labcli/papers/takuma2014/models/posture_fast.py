@@ -18,7 +18,8 @@ does not depend on the pressures:
 * the paper's coefficients of Eqs. 34-37 and their covariances as block matrices, so Eqs. 36
   and 37 and their standard errors are one design, one product each.
 
-The arithmetic is the reference's (the same formulas, the same step for dF/d(dtheta)) and
+The arithmetic is the reference's (the same formulas; dF/d(dtheta) by a central step, where the
+reference writes the derivative out, the two within 1e-8 of each other) and
 tests/papers/takuma2014/test_sensing_fast.py holds the two together on random blocks, edge
 cases included.  A row the table form treats specially (a pressure not positive, an arm
 exactly straight for Eqs. 36-37, a posterior the adjugate cannot invert) makes
@@ -40,7 +41,7 @@ from . import routes as rt
 from .posture import ACTUATORS, INV_2X2_RCOND, TORQUE_TERMS, PostureModel
 from .takuma import TERMS
 
-STEP = 1e-6  # rad: the reference's step for dF / d(dtheta) (PostureModel._force_covariance)
+STEP = 1e-6  # rad: the central step for dF / d(dtheta) (PostureModel._force_covariance's FORCE_STEP)
 # Columns of the 14 torque terms before the selection: dP (4), dP_a * dtheta_j (8, a-major), dtheta (2).
 _PRODUCT_A = np.repeat(np.arange(4), 2)
 _PRODUCT_J = np.tile(np.arange(2), 4)
