@@ -24,8 +24,10 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import pandas as pd  # noqa: E402
+from acquired import Windows, acquired_air, protocol_settle_s  # noqa: E402
 
 from labcli.core.protocol import load_protocol  # noqa: E402
 from labcli.papers.takuma2014.models.classify import classify_pushes  # noqa: E402
@@ -54,7 +56,7 @@ def trials_and_pushes(
     demo's two runs acquire them (tests/benchmarks/classify_heldout.py) but without the wire.
 
     Every baseline and every load waits ``settle_s`` before its window, by default the protocols'
-    earliest acceptance of equilibrium (:func:`protocol_settle_s`: three windows and the hold,
+    earliest acceptance of equilibrium (:func:`acquired.protocol_settle_s`: three windows and the hold,
     15 s, five time constants of the air's thermal relaxation), as ``labcli acquire`` waits at
     the least.  A shorter wait leaves the last load's thermal tail in the pressures: with
     drive.py's 6 s, the steel can's 1.3 mm deformation came out 0.5-0.6 mm short (posture
@@ -64,60 +66,18 @@ def trials_and_pushes(
     its valves (the demo's runs): over the longer waits a leaking chamber would otherwise move the
     arm away from the operating point the model was fitted at.
     """
-    import numpy as np
-
     force, push = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
-    if settle_s is None:
-        settle_s = max(protocol_settle_s(force), protocol_settle_s(push))
-    if repressurise_kPa is None:
-        repressurise_kPa = float(force.air.repressurise_kPa)
-    rig = _Windows(SimRig(seed=seed, **(rig_kw or {})))
-    pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
-
-    def rest_columns(df, calibration) -> None:  # each row's baseline potentiometers, as a run file has them
-        base = np.array([np.asarray(calibration.to_si(w), dtype=float).mean(axis=0)[pots] for w in rig.windows[0::2]])
-        df["theta1_0_deg"], df["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
-        rig.windows.clear()
-
-    air = {"settle_s": settle_s, "repressurise_kPa": repressurise_kPa}
+    air = acquired_air(force, push, settle_s=settle_s, repressurise_kPa=repressurise_kPa)
+    rig = Windows(SimRig(seed=seed, **(rig_kw or {})))
     trials = simulate_weight_trials(rig, load_plan(force), calibration=force.calibration, **air)
-    rest_columns(trials, force.calibration)
+    rig.rest_columns(trials, force.calibration)
     # The push run opens the port anew, as a second `labcli acquire` on sim://?seed=N does: the same
     # rig seed, its air supplied from the start (on tuning seeds 1-2 the steel can's k/k_true went
     # 1.02, 0.95 -> 0.92, 0.87 with it, the acquired runs' 0.89, 0.88).
-    rig = _Windows(SimRig(seed=seed, **(rig_kw or {})))
+    rig = Windows(SimRig(seed=seed, **(rig_kw or {})))
     table = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=pushes, **air)
-    rest_columns(table, push.calibration)
+    rig.rest_columns(table, push.calibration)
     return trials, table
-
-
-def protocol_settle_s(protocol) -> float:
-    """When the protocol's settling rule accepts equilibrium at the earliest (s): three windows and the hold."""
-    st = protocol.settling
-    if st is None:
-        raise ValueError(f"the protocol {protocol.name} has no [settling] section")
-    return 3.0 * float(st.window_s) + float(st.hold_s)
-
-
-class _Windows:
-    """The rig with every sample window kept (baseline, loaded, baseline, ...; a baseline retaken
-    after the chambers were supplied again replaces the one that drifted)."""
-
-    def __init__(self, rig):
-        self._rig, self.windows = rig, []
-
-    def __getattr__(self, name):
-        return getattr(self._rig, name)
-
-    def samples(self, n, rate_hz):
-        out = self._rig.samples(n, rate_hz)
-        self.windows.append(out[1])
-        return out
-
-    def supply_air(self):
-        if len(self.windows) % 2:  # a baseline that drifted: taken again once the chambers are supplied
-            self.windows.pop()
-        self._rig.supply_air()
 
 
 def classify_rows(trials, table, model, policy: str = "project", angles: str = "pressure-only") -> list[dict]:

@@ -75,11 +75,9 @@ def measure(seed: int, relief: float = 0.0, vent: float = 0.0, side: str = "L") 
     }
     for short, name in PROTOCOLS.items():
         rig_kw = {"nonideal": NonIdeal(realism="literature")}
-        runs = {"": trials(name, seed, 8.0, rig_kw=rig_kw)}
-        if relief > 0:
-            runs["relief"] = trials(
-                name, seed, 8.0, rig_kw=rig_kw, relief_s=relief, relief_vent_s=vent, relief_vent=side
-            )
+        runs = {"": trials(name, seed, rig_kw=rig_kw)}
+        if relief > 0:  # the relief before each baseline, the same wait and re-supply rule as acquired
+            runs["relief"] = trials(name, seed, rig_kw=rig_kw, relief_s=relief, relief_vent_s=vent, relief_vent=side)
         for form in forms_of(relief, vent):
             proto, table = runs["relief" if form.startswith("relie") else ""]
             model = PostureModel(

@@ -17,8 +17,12 @@ RMSE on the validation trials (pressure-only) of the torque route alone and of t
 with its route choice (models/routes.py), with the plan's trials whose corrected label is off by
 more than half the play.
 
-    python tests/benchmarks/label_play_forces.py [--protocol takuma2014] [--seeds 1-10] [--settle 8]
-                                                 [--effects backlash,friction]
+    python tests/benchmarks/label_play_forces.py [--protocol takuma2014] [--seeds 1-10] [--settle S]
+                                                 [--repressurise KPA] [--effects backlash,friction]
+
+The trials are sensing_accuracy.py's, taken as ``labcli acquire`` takes them (each window after
+the protocol's earliest equilibrium, the chambers supplied again past the drift limit); the
+figures below were measured with ``--settle 8 --repressurise 0`` (8 s, the valves held for the run).
 
 ``--effects`` turns every rig effect off but those listed (NonIdeal's scales), to see which one,
 beside the play, the correction trips on.
@@ -65,6 +69,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import sensing_accuracy as sa  # noqa: E402  (the same trials, the same rig)
+from acquired import add_air_options  # noqa: E402
 
 LABELS = ("read", "corrected", "true")
 
@@ -81,8 +86,15 @@ class _TruthRecorder(sa._Recorder):
         self.truth.append(np.asarray(self._rig.true_state()["theta_rad"], dtype=float).copy())
         return out
 
+    def supply_air(self):
+        if len(self.truth) % 2:  # the drifted baseline the window list drops: its truth with it
+            self.truth.pop()
+        super().supply_air()
 
-def trials_with_truth(protocol: str, seed: int, settle_s: float, effects: str = ""):
+
+def trials_with_truth(
+    protocol: str, seed: int, settle_s: float | None = None, effects: str = "", repressurise_kPa: float | None = None
+):
     """The protocol's trial table (sensing_accuracy.trials) and the rig's true deflections and rests (deg)."""
     made: list[_TruthRecorder] = []
 
@@ -92,7 +104,7 @@ def trials_with_truth(protocol: str, seed: int, settle_s: float, effects: str = 
 
     keep, sa._Recorder = sa._Recorder, record
     try:
-        proto, table = sa.trials(protocol, seed, settle_s, rig_kw=_rig_kw(effects))
+        proto, table = sa.trials(protocol, seed, settle_s, rig_kw=_rig_kw(effects), repressurise_kPa=repressurise_kPa)
     finally:
         sa._Recorder = keep
     theta = np.degrees(np.array(made[0].truth))  # windows alternate baseline, loaded
@@ -130,10 +142,12 @@ def scores(model, table, d_true: np.ndarray) -> dict:
     return out
 
 
-def measure(protocol: str, seed: int, settle_s: float, effects: str = "") -> dict:
+def measure(
+    protocol: str, seed: int, settle_s: float | None = None, effects: str = "", repressurise_kPa: float | None = None
+) -> dict:
     from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
 
-    proto, table, d_true, rest_true = trials_with_truth(protocol, seed, settle_s, effects)
+    proto, table, d_true, rest_true = trials_with_truth(protocol, seed, settle_s, effects, repressurise_kPa)
     rig, limits = proto.settings.rig, limits_from_protocol(proto)
     true_table = table.copy()
     true_table["theta1_deg"], true_table["theta2_deg"] = d_true[:, 0], d_true[:, 1]
@@ -169,14 +183,14 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--protocol", default="takuma2014", help="takuma2014 (straight) or takuma2014-bent")
     ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 11-30")
-    ap.add_argument("--settle", type=float, default=8.0, help="settle time per window (s)")
+    add_air_options(ap)
     ap.add_argument(
         "--effects", default="", help="only these rig effects on, e.g. backlash,friction (default: the rig as shipped)"
     )
     args = ap.parse_args(argv)
     rows = {name: [] for name in LABELS}
     for seed in _seeds(args.seeds):
-        m = measure(args.protocol, seed, args.settle, args.effects)
+        m = measure(args.protocol, seed, args.settle, args.effects, args.repressurise)
         parts = []
         for name in LABELS:
             r = m[name]

@@ -3,7 +3,9 @@ at least 80 % of pushes used, the six objects 6/6 in their category).
 
 Per rig seed: the bent protocol's 90 fit trials fit the posture-aware form; the six simulated
 objects are pushed ten times each on the same bent rig (supply 0.15/0.15/0.45/0.15 MPa) with phi
-left blank; each push's rest posture comes from its baseline potentiometers.  classify solves
+left blank; each push's rest posture comes from its baseline potentiometers.  Trials and pushes are
+taken as ``labcli acquire`` takes them (tests/benchmarks/acquired.py: each window after the
+protocol's earliest equilibrium, 15 s, the chambers supplied again past the drift limit).  classify solves
 phi from the force direction (Eqs. 39-41 as docs/errata.md reads them) and categorises by the
 stiffness protocol's bands.  The force model's standard-error limits are lifted here, because
 the stiffness estimate has its own flags.
@@ -31,7 +33,8 @@ import json
 from pathlib import Path
 
 import numpy as np
-from sensing_accuracy import BENT_SUPPLY_MPA, _Recorder, trials
+from acquired import Windows, acquired_air
+from sensing_accuracy import BENT_SUPPLY_MPA, trials
 
 # The stiffness settings, as --max-phi-se sets them (None: the protocol's defaults).
 PARAMS: dict | None = None
@@ -48,18 +51,17 @@ def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, i
     from labcli.papers.takuma2014.sim.drive import simulate_pushes
     from labcli.papers.takuma2014.sim.rig import SimRig
 
-    proto, table = trials("takuma2014-bent", seed, 8.0, rig_kw=rig_kw)
+    proto, table = trials("takuma2014-bent", seed, rig_kw=rig_kw)
     model = PostureModel(
         geometry=proto.settings.rig,
         protocol="takuma2014-stiffness",
         limits={q: np.inf for q in ("theta1", "theta2", "Fx", "Fy")},
     ).fit(table)
     sp = load_protocol("takuma2014-stiffness")
-    rig = _Recorder(SimRig(seed=seed, **{"supply_MPa": BENT_SUPPLY_MPA, **(rig_kw or {})}))
-    pushes = simulate_pushes(rig, calibration=sp.calibration, phi_known=False)
-    pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
-    base = np.array([np.asarray(sp.calibration.to_si(w), dtype=float).mean(axis=0)[pots] for w in rig.windows[0::2]])
-    pushes["theta1_0_deg"], pushes["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
+    # The push run on the rig opened anew, taken as the trials are (as acquired: acquired.py).
+    rig = Windows(SimRig(seed=seed, **{"supply_MPa": BENT_SUPPLY_MPA, **(rig_kw or {})}))
+    pushes = simulate_pushes(rig, calibration=sp.calibration, phi_known=False, **acquired_air(sp))
+    rig.rest_columns(pushes, sp.calibration)
     truth = dict(
         zip(pushes["object"], [sp.settings.push.category_of(k) for k in pushes["true_stiffness_N_per_m"]], strict=False)
     )

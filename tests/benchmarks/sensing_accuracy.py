@@ -8,8 +8,16 @@ Printed per protocol and quantity, over the seeds: trials reported (not flagged)
 reported trials and over all trials, and for the posture form the coverage of its 95 % intervals
 (share of reported validation errors within +-1.96 standard errors, pooled over seeds).
 
-    python tests/benchmarks/sensing_accuracy.py [--seeds 1-10] [--settle 8] [--ideal | --only EFFECT]
+The trials are taken as ``labcli acquire`` takes them (tests/benchmarks/acquired.py): each window
+after the protocol's earliest acceptance of equilibrium (15 s), the chambers supplied again once a
+baseline drifted past ``acquisition.repressurise_kPa`` (3.1 kPa).
+
+    python tests/benchmarks/sensing_accuracy.py [--seeds 1-10] [--settle S] [--repressurise KPA]
+                                                [--ideal | --only EFFECT]
                                                 [--bent-supply 0.3,0.3,0.4,0.2] [--figures FILE.json]
+
+``--settle 8 --repressurise 0`` takes them as these figures were measured before: each window 8 s
+after the change and the valves held for the whole run.
 
 ``--ideal`` turns the rig's non-idealities off (friction, leak, heat, backlash, link weight);
 ``--only friction`` (or leak, thermal, backlash, links) keeps that one alone, to see what each costs.
@@ -27,39 +35,33 @@ import math
 from pathlib import Path
 
 import numpy as np
+from acquired import Windows, acquired_air, add_air_options
 
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
 # The bent protocol's regulators (protocols/takuma2014-bent.toml; the demo's BENT_SUPPLY).
 BENT_SUPPLY_MPA = (0.15, 0.15, 0.45, 0.15)
-
-
-class _Recorder:
-    """The rig with every sample window kept: windows alternate baseline, loaded (drive.py's order)."""
-
-    def __init__(self, rig):
-        self._rig, self.windows = rig, []
-
-    def __getattr__(self, name):
-        return getattr(self._rig, name)
-
-    def samples(self, n, rate_hz):
-        out = self._rig.samples(n, rate_hz)
-        self.windows.append(out[1])
-        return out
+# The rig wrapper that keeps the windows (label_play_forces.py puts one that also keeps the truth).
+_Recorder = Windows
 
 
 def trials(
     protocol_name: str,
     seed: int,
-    settle_s: float,
+    settle_s: float | None = None,
     ideal: bool | str = False,
     rig_kw: dict | None = None,
     relief_s: float = 0.0,
     relief_vent_s: float = 0.0,
     relief_vent: str = "L",
+    repressurise_kPa: float | None = None,
 ):
     """The protocol's trial table on the simulated rig, with the rest posture columns (deg).
 
+    Taken as ``labcli acquire`` takes it (:mod:`acquired`): each window ``settle_s`` after the
+    change, by default the protocol's earliest acceptance of equilibrium (15 s), and the chambers
+    supplied again once a baseline drifted ``repressurise_kPa`` since the last supply, by default
+    the protocol's ``acquisition.repressurise_kPa`` (0: the valves held for the whole run, as
+    these figures were once measured, with an 8 s wait).
     ``rig_kw``: more keyword arguments of the rig (``nonideal``, ``noise``, ...), as a sweep sets them;
     ``relief_s``: the friction relief's supply pulse before each baseline (0: none), after the
     ``relief_vent`` side's chambers are vented for ``relief_vent_s`` (0: no vent)."""
@@ -82,26 +84,29 @@ def trials(
         rig,
         load_plan(proto),
         calibration=proto.calibration,
-        settle_s=settle_s,
         relief_s=relief_s,
         relief_vent_s=relief_vent_s,
         relief_vent=relief_vent,
+        **acquired_air(proto, settle_s=settle_s, repressurise_kPa=repressurise_kPa),
     )
-    pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
-    base = np.array([np.asarray(proto.calibration.to_si(w), dtype=float).mean(axis=0)[pots] for w in rig.windows[0::2]])
-    table["theta1_0_deg"], table["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
+    rig.rest_columns(table, proto.calibration)
     return proto, table
 
 
 def measure(
-    protocol_name: str, seed: int, settle_s: float, ideal: bool | str = False, rig_kw: dict | None = None
+    protocol_name: str,
+    seed: int,
+    settle_s: float | None = None,
+    ideal: bool | str = False,
+    rig_kw: dict | None = None,
+    repressurise_kPa: float | None = None,
 ) -> dict:
     from labcli.errors import ModelError
     from labcli.papers.takuma2014.models.metrics import evaluate
     from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
     from labcli.papers.takuma2014.models.takuma import TakumaModel
 
-    proto, table = trials(protocol_name, seed, settle_s, ideal, rig_kw)
+    proto, table = trials(protocol_name, seed, settle_s, ideal, rig_kw, repressurise_kPa=repressurise_kPa)
     rig = proto.settings.rig
     out = {}
     for form, model in (
@@ -135,7 +140,7 @@ def rms(x) -> float:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 1,4,7")
-    ap.add_argument("--settle", type=float, default=8.0, help="settling time per load, s (simulated)")
+    add_air_options(ap)
     ap.add_argument("--ideal", action="store_true", help="the rig with its non-idealities off")
     ap.add_argument(
         "--only",
@@ -156,7 +161,7 @@ def main(argv: list[str] | None = None) -> None:
         seeds = [int(s) for s in args.seeds.split(",")]
     figures: dict = {"seeds": args.seeds, "validation trials": 18 * len(seeds)}
     for protocol in ("takuma2014", "takuma2014-bent"):
-        runs = [measure(protocol, s, args.settle, rig_kind) for s in seeds]
+        runs = [measure(protocol, s, args.settle, rig_kind, repressurise_kPa=args.repressurise) for s in seeds]
         rest = np.median([r["rest_deg"] for r in runs])
         figures[f"{protocol} rest theta2 deg"] = float(rest)
         print(f"\n{protocol}: {len(seeds)} seeds x 18 validation trials, rest theta2 {rest:.1f} deg (median)")

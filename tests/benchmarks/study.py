@@ -4,20 +4,18 @@ The building block of ``sensitivity.py`` (the sweep) and ``baseline_estimator.py
 baseline), assembled from the accuracy benchmarks:
 
 * ``sensing_accuracy.measure``: the straight (takuma2014) and bent (takuma2014-bent) protocols,
-  108 trials each, both forms fitted on the 90 fit trials and checked on the 18 validation ones
-  (``SETTLE_S`` = 8 s per window and the valves held, as every sensing benchmark has it: shorter
-  than the protocol's 15 s, so the thermal tail's share of these figures is a little larger than
-  on an acquired run);
+  108 trials each, both forms fitted on the 90 fit trials and checked on the 18 validation ones,
+  taken as ``labcli acquire`` takes them (tests/benchmarks/acquired.py: every window after the
+  protocol's earliest equilibrium, 15 s, the chambers supplied again past the drift limit);
 * ``classify_accuracy.trials_and_pushes`` / ``classify_rows``: the six demo objects pushed ten
   times each on the straight arm with phi given, classified by the protocol's bands with the
-  paper's form (the README demo's) and the posture form.  The trials and pushes are taken as
-  ``labcli acquire`` takes them (the demo's runs, tests/benchmarks/classify_heldout.py): every
-  window after the protocols' earliest equilibrium (15 s), the chambers supplied again past the
-  drift limit, the push run on the rig opened anew.  They differ from the acquired runs in
-  waiting exactly 15 s where the settling rule waits until the readings are still (15-26 s) and
-  in skipping the guard's checks; the steel can's k / k_true (posture form, kind rig, held-out
+  paper's form (the README demo's) and the posture form.  The trials and pushes are taken the same
+  way (the demo's runs, tests/benchmarks/classify_heldout.py), the push run on the rig opened
+  anew.  They differ from the acquired runs in waiting exactly 15 s where the settling rule waits
+  until the readings are still (15-26 s) and in skipping the guard's checks; the steel can's k / k_true (posture form, kind rig, held-out
   seeds 11-30) is 0.89 here against the demo path's 0.88 (with drive.py's 6 s it was 1.77);
-* ``phi_bent.run`` (optional): the same objects pushed on the bent arm with phi left blank.
+* ``phi_bent.run`` (optional): the same objects pushed on the bent arm with phi left blank, the
+  trials and pushes taken the same way.
 
 A level is a set of the rig's keyword arguments (:func:`rig_kw`): the literature's rig
 (sim/nonideal.py, ``realism="literature"``) with some scales changed, or the kind rig.
@@ -39,7 +37,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
 PROTOCOLS = {"straight": "takuma2014", "bent": "takuma2014-bent"}
 FORMS = ("posture", "paper")
-SETTLE_S = 8.0
 
 
 def rig_kw(level: dict[str, Any]) -> dict[str, Any]:
@@ -62,7 +59,7 @@ def sensing(seed: int, kw: dict[str, Any]) -> dict[str, Any]:
 
     out: dict[str, Any] = {}
     for short, protocol in PROTOCOLS.items():
-        m = measure(protocol, seed, SETTLE_S, rig_kw=kw)
+        m = measure(protocol, seed, rig_kw=kw)
         for form in FORMS:
             for q in QUANTITIES:
                 d = m[form][q]

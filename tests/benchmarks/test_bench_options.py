@@ -319,3 +319,86 @@ def test_study_trials_and_pushes_wait_and_resupply_as_the_protocol_does(monkeypa
     # The rest columns are each row's own baseline: the deflection label is the loaded reading minus it,
     # so the rest posture moves with the arm, not with a window left over from a drifted baseline.
     assert np.ptp(trials["theta1_0_deg"]) < 1.0
+
+
+def _logged_trials(monkeypatch, **kwargs) -> tuple[list[tuple], pd.DataFrame]:
+    """sensing_accuracy.trials on the straight protocol, with every wait, window (calibrated
+    channel means), supply and load the drive makes, in order."""
+    sa, acquired = bench("sensing_accuracy"), bench("acquired")
+    calibration = load_protocol("takuma2014").calibration
+    events: list[tuple] = []
+
+    class Logged(acquired.Windows):
+        def advance(self, seconds):
+            events.append(("wait", seconds))
+            self._rig.advance(seconds)
+
+        def samples(self, n, rate_hz):
+            out = super().samples(n, rate_hz)
+            events.append(("window", np.asarray(calibration.to_si(out[1]), dtype=float).mean(axis=0)))
+            return out
+
+        def supply_air(self):
+            events.append(("supply",))
+            super().supply_air()
+
+        def hang_weight(self, *args):
+            events.append(("load",))
+            self._rig.hang_weight(*args)
+
+    monkeypatch.setattr(sa, "_Recorder", Logged)
+    _, table = sa.trials("takuma2014", 2, **kwargs)
+    return events, table
+
+
+def test_sensing_trials_wait_and_resupply_as_the_protocol_does(monkeypatch):
+    """The sensing benchmarks' trials (sensing_accuracy.trials, under study.py, sensitivity.py,
+    baseline_estimator.py, friction_estimator.py, phi_bent.py) are taken as `labcli acquire`
+    takes them: every window after the protocol's earliest equilibrium, and the chambers supplied
+    again when a baseline has drifted past acquisition.repressurise_kPa since the last supply, and
+    not before; a retaken baseline replaces the drifted one in the rest columns."""
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+
+    proto = load_protocol("takuma2014")
+    settle = 3 * proto.settling.window_s + proto.settling.hold_s  # the settling rule's earliest acceptance
+    limit = proto.air.repressurise_kPa
+    events, table = _logged_trials(monkeypatch, rig_kw={"nonideal": NonIdeal(realism="kind", leak=3.0)})
+    windows = [i for i, e in enumerate(events) if e[0] == "window"]
+    assert len(windows) >= 2 * len(table) == 216
+    assert all(events[i - 1] == ("wait", settle) for i in windows)
+    from labcli.papers.takuma2014.sim.rig import SimRig
+
+    channels = list(SimRig(seed=2).channels)
+    p_idx = [channels.index(c) for c in ("P_L1", "P_R1", "P_L2", "P_R2")]
+    pots = [channels.index(c) for c in ("POT1", "POT2")]
+    reference, accepted, drifted, carried = None, [], 0, 0.0
+    for i in windows:
+        after = events[i + 1][0] if i + 1 < len(events) else "end"
+        if after not in ("load", "supply"):
+            continue  # a loaded window
+        p = events[i][1][p_idx]
+        if reference is None:
+            reference = p  # the first baseline since the last supply
+            assert after == "load"
+        else:
+            drift = float(np.max(np.abs(p - reference))) * 1e3
+            if after == "supply":
+                assert drift > limit
+                drifted, reference = drifted + 1, None
+            else:
+                assert drift <= limit
+                carried = max(carried, drift)
+        if after == "load":
+            accepted.append(events[i][1][pots])
+    assert drifted >= 1  # the tripled leak made the run supply again
+    assert carried > limit / 2  # and it held the chambers while the drift stayed under the limit
+    np.testing.assert_allclose(table[["theta1_0_deg", "theta2_0_deg"]], np.degrees(accepted))
+
+
+def test_sensing_trials_settle_option_takes_them_the_old_way(monkeypatch):
+    """``--settle 8 --repressurise 0``: every window 8 s after the change, the valves held for the run."""
+    events, table = _logged_trials(monkeypatch, settle_s=8.0, repressurise_kPa=0.0)
+    windows = [i for i, e in enumerate(events) if e[0] == "window"]
+    assert len(windows) == 2 * len(table)
+    assert all(events[i - 1] == ("wait", 8.0) for i in windows)
+    assert [e for e in events if e[0] == "supply"] == [("supply",)]  # the first supply only
