@@ -146,6 +146,39 @@ def test_a_bulk_append_names_the_smallest_repeated_or_stored_id(tmp_path):
         assert run.records.ids() == [8, 2, 6, 4]
 
 
+def test_ids_of_bulk_appends_held_as_arrays_count_as_the_ids_read_back(tmp_path):
+    out = tmp_path / "t.h5"
+    cols = {"P0": np.full((3, 4), 0.2), "P": np.full((3, 4), 0.25), "theta": np.zeros((3, 2)), "F": np.ones((3, 2))}
+    with RunFile.create(out, protocol=load_protocol("takuma2014"), imported=True) as run:
+        run.records.append({"trial": np.array([30, 10, 20]), **cols})
+        run.records.append({"trial": np.array([5, 7, 6]), **cols})
+        assert run.records.id_array().tolist() == [30, 10, 20, 5, 7, 6]
+        with pytest.raises(StoreError, match="trial 40 is not a complete trial"):
+            run.split.set([30, 40], [5])
+        run.split.set([30, 10, 6], [5])
+        assert 7 in run.records and 8 not in run.records and len(run.records) == 6
+        assert run.records.ids() == [30, 10, 20, 5, 7, 6]
+        with pytest.raises(StoreError, match="trial 10 is already complete"):
+            run.records.append({"trial": np.array([11, 10, 12]), **cols})
+    with RunFile.open(str(out)) as run:
+        assert run.records.ids() == [30, 10, 20, 5, 7, 6] and run.records.id_array().tolist() == run.records.ids()
+        assert run.split.get()["fit"] == [30, 10, 6]
+
+
+def test_an_imported_tables_checksums_are_stored_unzipped_and_its_numbers_at_level_1(tmp_path):
+    src = tmp_path / "t.csv"
+    trial_csv(src, 3000)
+    out = tmp_path / "t.h5"
+    import_csv(str(src), str(out), protocol="takuma2014")
+    with h5py.File(out, "r") as f:
+        t = f["entry/trials"]
+        assert t["checksum"].compression is None and t["checksum"].fletcher32
+        assert t["P"].compression == "gzip" and t["P"].compression_opts == 1 and t["P"].fletcher32
+        # 64 bits that look random: deflate would not make them smaller
+        ck = t["checksum"]
+        assert ck.id.get_storage_size() == ck.id.get_num_chunks() * (8 * ck.chunks[0] + 4)  # each chunk + Fletcher32
+
+
 def test_an_import_syncs_its_file_once_whole_before_it_is_put_in_place(tmp_path, monkeypatch):
     src = tmp_path / "t.csv"
     trial_csv(src, 300)

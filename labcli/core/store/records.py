@@ -53,6 +53,9 @@ class Records:
         self._cols: RecordColumns | None = None  # the last read, until something is written
         self._done: set[int] | None = None  # ids complete in the file
         self._order: list[int] | None = None  # ... in recording order
+        # Ids of bulk appends not yet in the two above: an import's million become Python ints
+        # only if something asks for them as such (the split checks them as an array).
+        self._bulk: list[np.ndarray] = []
 
     # ------------------------------------------------------------ writing
     def write(self, record: Record) -> None:
@@ -160,14 +163,33 @@ class Records:
         run.writer.commit(
             [Write(tables.records, tables.columns, values, n)], 0, f"the batch of {rt.count(n)}", unwritten_fill=True
         )
-        self._written(ids.tolist())
+        self._written(ids)
         return n
 
-    def _written(self, ids: list[int]) -> None:
-        """Note records committed; ``ids`` plain Python ints (an import's million: no conversion one by one)."""
+    def _written(self, ids: list[int] | np.ndarray) -> None:
+        """Note records committed; ``ids`` plain Python ints, or an array of a bulk append (kept as it is)."""
         self._cols = None
+        if isinstance(ids, np.ndarray):
+            self._bulk.append(ids)
+            return
         self._ids().update(ids)
         self._recorded().extend(ids)
+
+    def _take_bulk(self) -> None:
+        """Fold the ids of bulk appends into the id set and order (both read before any append)."""
+        if not self._bulk:
+            return
+        fresh = np.concatenate(self._bulk).tolist()
+        self._bulk = []
+        assert self._done is not None and self._order is not None
+        self._done.update(fresh)
+        self._order.extend(fresh)
+
+    def id_array(self) -> np.ndarray:
+        """:meth:`ids` as an int64 array (a bulk append's ids as they were given, never made Python ints)."""
+        if self._bulk and self._order is not None:
+            return np.concatenate([np.asarray(self._order, dtype=np.int64), *self._bulk])
+        return np.asarray(self.ids(), dtype=np.int64)
 
     # ------------------------------------------------------------ reading
     def columns(self) -> RecordColumns:
@@ -190,16 +212,19 @@ class Records:
         if rec.damaged:
             run.warn(damage_sentence(run.path, rec.damaged))
         self._cols = rec
+        self._bulk = []  # read back with the rest
         self._done = set(rec.ids)
         self._order = list(rec.ids)
         return rec
 
     def _ids(self) -> set[int]:
+        self._take_bulk()
         if self._done is None:
             self._done = set(self.ids())
         return self._done
 
     def _recorded(self) -> list[int]:
+        self._take_bulk()
         if self._order is None:
             self.columns()
         assert self._order is not None
@@ -207,6 +232,7 @@ class Records:
 
     def ids(self) -> list[int]:
         """Ids of the complete records (trials, pushes, points: the run's kind), in recording order."""
+        self._take_bulk()
         if self._cols is None and self._order is not None:
             return list(self._order)
         return list(self.columns().ids)

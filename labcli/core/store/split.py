@@ -79,7 +79,8 @@ class Splits:
         """Store which complete records fit and which validate (the split in force from now on)."""
         run = self._run
         run.writer.check()
-        fit, val = checked(run.path, self._candidates(), fit_ids, validation_ids)
+        done = run.records.id_array() if run.record_type.splits else np.empty(0, dtype=np.int64)
+        fit, val = checked(run.path, done, fit_ids, validation_ids)
         run.check_v2("a split")
         t = run.tables.split
         self._held = None
@@ -231,7 +232,8 @@ def checked(
     is the one a check id by id would name.
     """
     fit, val = _ints(fit_ids), _ints(validation_ids)
-    complete = list(complete)
+    if not (isinstance(complete, np.ndarray) and complete.dtype.kind == "i"):  # a run's ids: an array already
+        complete = list(complete)
     try:
         f, v = np.asarray(fit, dtype=np.int64), np.asarray(val, dtype=np.int64)
         done = np.asarray(complete)  # ints already (a run's record ids): read in C, not one at a time
