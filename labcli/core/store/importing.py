@@ -17,6 +17,7 @@ import numpy as np
 
 from ...errors import ConfigError, StoreError
 from ..files import check_output
+from ..heap import kept_heap
 from ..paper import Column
 from ..protocol import load_protocol
 from ..registry import import_protocol, record_type, untagged_run_kind
@@ -218,9 +219,10 @@ def import_csv(
     base = load_protocol(protocol)
     _, run_protocol = import_protocol(base, experiment, protocol)
     rt = record_type(run_protocol.kind)
-    df = rt.read_csv(table, id_range=(0, MAX_ID), check=storable_cells)
-    with import_table(
-        df, output, protocol=run_protocol, force=force, source=os.path.basename(table), operator=operator
-    ) as run:
-        split = run.split.get()
+    with kept_heap():  # the table's columns read, converted and written: arrays of 8-40 MB each
+        df = rt.read_csv(table, id_range=(0, MAX_ID), check=storable_cells)
+        with import_table(
+            df, output, protocol=run_protocol, force=force, source=os.path.basename(table), operator=operator
+        ) as run:
+            split = run.split.get()
     return Imported(len(df), rt, split)
