@@ -109,12 +109,18 @@ def figures(raw: dict[int, dict[str, Any]]) -> dict[str, Any]:
         out["phi_blank/used/total"] = int(sum(raw[s]["phi_blank/used"] for s in seeds))
         out["phi_blank/pushes/total"] = int(sum(raw[s]["phi_blank/pushes"] for s in seeds))
         out["phi_blank/all_six/seeds"] = int(sum(raw[s]["phi_blank/right"] == 6 for s in seeds))
+        out["phi_blank/right/min"] = int(min(raw[s]["phi_blank/right"] for s in seeds))
+        out["phi_blank/right/max"] = int(max(raw[s]["phi_blank/right"] for s in seeds))
     for form in study.FORMS:
         for name in {k.split("/")[2] for k in raw[seeds[0]] if k.startswith("objects/")}:
             ratios = np.array([raw[s][f"objects/{form}/{name}/k_over_true"] for s in seeds], dtype=float)
             out[f"objects/{form}/{name}/k_over_true/median"] = float(np.nanmedian(ratios))
             out[f"objects/{form}/{name}/correct/count"] = int(
                 sum(raw[s][f"objects/{form}/{name}/correct"] for s in seeds)
+            )
+            # Seeds on which the object has no category: every push's force flagged.
+            out[f"objects/{form}/{name}/uncategorised/count"] = int(
+                sum(not raw[s][f"objects/{form}/{name}/category"] for s in seeds)
             )
     return out
 
