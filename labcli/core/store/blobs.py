@@ -13,27 +13,39 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .checksum import row_checksums
+from .checksum import row_checksums, words_checksum
 from .columns import append
 from .h5 import text
 
+VERSIONS = (1, 2)  # of a piece's checksum (:func:`blob_checksum`)
 
-def blob_write(ds: h5py.Dataset, values: np.ndarray) -> tuple[int, int, int]:
-    """Append ``values`` to a blob at its next chunk boundary: (start, stop, checksum)."""
+
+def blob_write(ds: h5py.Dataset, values: np.ndarray, version: int = 1) -> tuple[int, int, int]:
+    """Append ``values`` to a blob at its next chunk boundary: (start, stop, checksum of ``version``)."""
     chunk = ds.chunks[0]
     start = -(-int(ds.shape[0]) // chunk) * chunk
-    append(ds, start, np.asarray(values, dtype=ds.dtype))
-    return start, start + len(values), blob_checksum(values)
+    values = np.asarray(values, dtype=ds.dtype)
+    append(ds, start, values)
+    return start, start + len(values), blob_checksum(values, version)
 
 
-def blob_checksum(values: np.ndarray) -> int:
+def blob_checksum(values: np.ndarray, version: int = 1) -> int:
+    """The checksum of a piece's bytes: version 1, every 64-bit word folded in turn (a model's JSON, and
+    a split's ids before version 2); version 2, the words folded each on its own and summed, whole-array
+    (:func:`~.checksum.words_checksum`)."""
     v = np.ascontiguousarray(values)
-    return int(row_checksums([v.view(np.uint8).reshape(1, -1)], 0)[0])
+    if version == 1:
+        return int(row_checksums([v.view(np.uint8).reshape(1, -1)], 0)[0])
+    if version == 2:
+        return words_checksum(v)
+    raise ValueError(f"no blob checksum has version {version}")
 
 
-def blob_read(g: h5py.Group, name: str, start: int, stop: int, checksum: int) -> np.ndarray | None:
+def blob_read(g: h5py.Group, name: str, start: int, stop: int, checksum: int, version: int = 1) -> np.ndarray | None:
     """Values ``[start, stop)`` of the blob ``g[name]``, or None when they do not match their checksum
-    or HDF5 cannot read them (a damaged dataset header fails as KeyError or TypeError too)."""
+    (of ``version``) or HDF5 cannot read them (a damaged dataset header fails as KeyError or TypeError too)."""
+    if version not in VERSIONS:  # a damaged row, or a labcli newer than this one: not believed
+        return None
     try:
         ds = g[name]
         if not 0 <= start <= stop <= ds.shape[0]:
@@ -41,7 +53,7 @@ def blob_read(g: h5py.Group, name: str, start: int, stop: int, checksum: int) ->
         values = ds[start:stop]
     except (OSError, ValueError, RuntimeError, KeyError, TypeError):
         return None
-    return values if blob_checksum(values) == int(checksum) else None
+    return values if blob_checksum(values, version) == int(checksum) else None
 
 
 def cell_text(v: Any) -> str:

@@ -107,6 +107,19 @@ def row_checksums(parts: Sequence[np.ndarray | Repeated], first_row: int) -> np.
     return h
 
 
+def words_checksum(values: np.ndarray) -> int:
+    """One checksum of a long entry's bytes (a split's ids), computed whole-array.
+
+    Each 64-bit word (the bytes as stored, the last word padded with zeros) is folded on its
+    own from a start given by its place, and the folds are summed mod 2**64: a raw window's
+    checksum (:func:`frames_checksum`) with each word a frame.  A change confined to one word
+    always changes it, as it changes the word-by-word fold of :func:`row_checksums`, which
+    split logs written before it keep (``ids_checksum_version`` 1, :mod:`.split`).
+    """
+    b = np.ascontiguousarray(values).view(np.uint8).reshape(1, -1)
+    return int(frames_checksum([words(b, 1)[0]], 0))
+
+
 def frames_checksum(parts: Sequence[np.ndarray], first_frame: int) -> np.uint64:
     """The part of a raw window's checksum given by frames ``first_frame, ...`` of it.
 

@@ -139,6 +139,7 @@ SPLIT_COLUMNS = [
     Column("validation_start", "1", kind="int"),
     Column("validation_stop", "1", kind="int"),
     Column("ids_checksum", "1", kind="uint"),
+    Column("ids_checksum_version", "1", kind="int", what="1: the ids' words folded in turn; 2: each, then summed"),
 ]
 # raw/unused: ranges of raw frames no record takes, and why (:mod:`.unused`).
 UNUSED = "unused"

@@ -32,6 +32,9 @@ if TYPE_CHECKING:
     from .runfile import RunFile
 
 
+CHECKSUM_VERSION = 2  # of the ids' checksum in a new file (:func:`~.blobs.blob_checksum`)
+
+
 class Split(TypedDict):
     """A split as stored: the fit and validation ids (recording order), how it was chosen, when."""
 
@@ -86,8 +89,12 @@ class Splits:
         self._held = None
         written: dict[str, object] = {}
 
+        # The ids' checksum whole-array (version 2) where the log has the column saying so; a log
+        # of a file written before it keeps the word-by-word fold its readers check.
+        version = CHECKSUM_VERSION if "ids_checksum_version" in t.names else 1
+
         def row() -> dict[str, object]:
-            written.update(split_row(t.g, fit, val, str(strategy), seed))
+            written.update(split_row(t.g, fit, val, str(strategy), seed, version))
             return written
 
         run.writer.commit_row(t, {c.name: c for c in SPLIT_COLUMNS}, row, 8 * (len(fit) + len(val)), "the split")
@@ -128,11 +135,17 @@ class Splits:
 
 
 def split_row(
-    g: h5py.Group, fit: Sequence[int], validation: Sequence[int], strategy: str, seed: int | None
+    g: h5py.Group,
+    fit: Sequence[int],
+    validation: Sequence[int],
+    strategy: str,
+    seed: int | None,
+    version: int = CHECKSUM_VERSION,
 ) -> dict[str, object]:
-    """Write the split's ids to the blob; the row that refers to them (not yet committed)."""
+    """Write the split's ids to the blob; the row that refers to them (not yet committed), its ids'
+    checksum of ``version`` (1 for a log without the ``ids_checksum_version`` column)."""
     ids = np.concatenate([np.asarray(fit, dtype=np.int64), np.asarray(validation, dtype=np.int64)])
-    start, stop, checksum = blob_write(g["ids"], ids)
+    start, stop, checksum = blob_write(g["ids"], ids, version)
     mid = start + len(fit)
     return {
         "strategy": strategy,
@@ -143,6 +156,7 @@ def split_row(
         "validation_start": mid,
         "validation_stop": stop,
         "ids_checksum": checksum,
+        "ids_checksum_version": version,  # left out by a log without the column (its own is 1)
     }
 
 
@@ -153,7 +167,8 @@ def read_split(t: Table) -> tuple[Split | None, list[str]]:
     c = rows.cols
     for i in range(len(rows.rows) - 1, -1, -1):
         a, m, b = int(c["fit_start"][i]), int(c["fit_stop"][i]), int(c["validation_stop"][i])
-        ids = blob_read(t.g, "ids", a, b, int(c["ids_checksum"][i]))
+        version = int(c["ids_checksum_version"][i]) if "ids_checksum_version" in c else 1
+        ids = blob_read(t.g, "ids", a, b, int(c["ids_checksum"][i]), version)
         if ids is None:
             problems.append(f"the ids of split {i + 1} do not match their checksum")
             continue
