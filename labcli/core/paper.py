@@ -29,6 +29,7 @@ must offer, and anything that offers it plugs in.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,11 +107,17 @@ class Column:
     @property
     def dtype(self) -> Any:
         """The numpy dtype the column is stored as."""
-        import numpy as np
+        return _stored_dtype(self.kind, self.width)
 
-        return {"float": np.dtype("<f8"), "int": np.dtype("<i8"), "uint": np.dtype("<u8"), "flag": np.dtype("i1")}.get(
-            self.kind
-        ) or np.dtype(f"S{max(1, self.width)}")
+
+@functools.cache
+def _stored_dtype(kind: str, width: int) -> Any:
+    # Asked for every column of every row written: made once per kind and width.
+    import numpy as np
+
+    return {"float": np.dtype("<f8"), "int": np.dtype("<i8"), "uint": np.dtype("<u8"), "flag": np.dtype("i1")}.get(
+        kind
+    ) or np.dtype(f"S{max(1, width)}")
 
 
 @runtime_checkable

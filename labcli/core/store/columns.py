@@ -283,6 +283,7 @@ class Table:
         if self.chunk == 1:
             self.ds = {name: uncached(g, ds.name.rsplit("/", 1)[-1]) for name, ds in self.ds.items()}
         self._room: int | None = None  # rows every column holds, once this object grew them (chunks of a row)
+        self._fresh: int | None = None  # rows from here on were never written before this object wrote them
         # The count this object's own last commit set: a writer holds the file's lock, so nothing
         # else moves it, and its next write need not read it back (a reader never commits).
         self._committed: int | None = None
@@ -396,16 +397,24 @@ class Table:
         They are not part of the table until :meth:`commit`.
         """
         start = self.next_start()
-        # Grown ahead only for rows all written (a bulk write leaves its fill columns unwritten
-        # where no row was ever held).
-        whole = self.chunk == 1 and not any(isinstance(a, Repeated) for a in arrays)
+        if self._fresh is None:
+            self._fresh = min(int(ds.shape[0]) for ds in self.ds.values())
+        # Rows from ``_fresh`` on were grown by this object and never written by anyone: a column
+        # given as its fill there is left unwritten (its rows read back as the fill, and check the
+        # same).  Before it, a killed writer of an older labcli (no journal) may have left rows past
+        # ``@committed``, which only a write of every column makes the new row's own.
+        fresh = start >= self._fresh
+        # Grown ahead only for rows all written, or fresh (a bulk write leaves its fill columns
+        # unwritten where no row was ever held).
+        whole = self.chunk == 1 and (fresh or not any(isinstance(a, Repeated) for a in arrays))
         room = self._grow(start + n) if whole else None
         checks = row_checksums(arrays, start)
         items = []
         for name, arr in zip(self.names, arrays, strict=False):
             ds = self.ds[name]
-            if isinstance(arr, Repeated) and start >= ds.shape[0]:
-                grow(ds, start + n)  # rows never written before read as the dataset's fill value
+            if isinstance(arr, Repeated) and (fresh or start >= ds.shape[0]):
+                if room is None:
+                    grow(ds, start + n)  # rows never written before read as the dataset's fill value
             else:
                 items.append((ds, np.repeat(arr.row, n, axis=0) if isinstance(arr, Repeated) else arr))
         append_all([*items, (self.ds[CHECKSUM.name], checks)], start, room=room)

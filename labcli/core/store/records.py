@@ -160,9 +160,7 @@ class Records:
         n = ids.shape[0]
         tables = run.tables
         values = bulk_values(rt, tables.columns, columns, ids, self._ids(), run.path)
-        run.writer.commit(
-            [Write(tables.records, tables.columns, values, n)], 0, f"the batch of {rt.count(n)}", unwritten_fill=True
-        )
+        run.writer.commit([Write(tables.records, tables.columns, values, n)], 0, f"the batch of {rt.count(n)}")
         self._written(ids)
         return n
 

@@ -140,17 +140,17 @@ class Writer:
                 f"{self.path} could not be written ({e.strerror or e}), so {doing} was not stored; {self._kept()}."
             ) from None
 
-    def commit(
-        self, writes: Sequence[Write], frames: int = 0, doing: str = "the change", unwritten_fill: bool = False
-    ) -> list[tuple[int, int]]:
+    def commit(self, writes: Sequence[Write], frames: int = 0, doing: str = "the change") -> list[tuple[int, int]]:
         """Write rows into tables in one commit; their ``[start, stop)``.
 
-        ``frames``: bytes of raw frames already written for it (for the reservation).
-        ``unwritten_fill``: columns without values are left unwritten (:meth:`Table.prepared`).
+        ``frames``: bytes of raw frames already written for it (for the reservation).  Columns
+        without values, or given as their fill throughout, are left unwritten where no row was
+        ever held (:meth:`Table.prepared`, :meth:`Table.write`): a trial leaves about half of
+        its table's columns empty, and the session log's ``added`` row most of its own.
         """
         riding = self.riders.pending() if self.riders is not None else None
         everything = [*writes, *([riding] if riding is not None else [])]
-        arrays = [(w.table, w.table.prepared(w.columns, w.values, w.n, unwritten_fill), w.n) for w in everything]
+        arrays = [(w.table, w.table.prepared(w.columns, w.values, w.n, unwritten_fill=True), w.n) for w in everything]
         self.reserve(sum(a.nbytes for _, arrs, _ in arrays for a in arrs) + frames, doing)
         with self.writing(doing):
             spans = [t.write(arrs, n) for t, arrs, n in arrays]
