@@ -87,6 +87,27 @@ def test_long_texts_count_their_depth_whole_array_as_short_ones_do_char_by_char(
     assert nesting_depth('["[[[[", ' * 3_000 + "1" + "]" * 3_000) == 3_000  # brackets in strings do not count
 
 
+def test_long_texts_leave_the_brackets_in_strings_out_as_the_string_pattern_does():
+    import itertools
+    import random
+
+    from labcli.core.jsontext import _STRING
+
+    def depth(text: str) -> int:  # strings taken out by the pattern, then one bracket at a time
+        bare = _STRING.sub("", text)
+        return max(itertools.accumulate(1 if c in "[{" else -1 for c in bare if c in "[]{}"), default=0)
+
+    rng = random.Random(5)
+    strings = ['"[["', '"]"', '"{x}"', '"a[b"', '""', '"é[ü"']
+    escaped = ['"\\"[["', '"\\\\"', '"q\\"]"']  # an escaped quote, an escaped backslash
+    for pool in (strings, strings + escaped):
+        for _ in range(10):
+            tokens = [rng.choice(["[", "]", "{", "}", " ", "1", *pool]) for _ in range(12_000)]
+            text = "".join(tokens)
+            assert len(text) > 20_000
+            assert nesting_depth(text) == depth(text)
+
+
 def test_trial_ranges_go_on_one_line_and_read_back_as_written():
     from labcli.core import idranges
     from labcli.core.jsontext import LONG_LIST, dumps_indented

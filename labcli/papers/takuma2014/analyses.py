@@ -17,6 +17,7 @@ import numpy as np
 
 from ...core import idranges
 from ...core.figures import source_line
+from ...core.heap import kept_heap
 from ...core.jsontext import dumps_indented
 from ...core.modelfile import check_fit_paths, default_model_path, model_destination, model_text, save_model
 from ...core.provenance import rig_warning, same_data
@@ -86,6 +87,19 @@ def fit(
         )
     # Before the inputs are read: an output that is one of them is refused whatever else is wrong.
     check_fit_paths(run, Path(output) if output is not None else default_model_path(run), protocol)
+    with kept_heap():  # the table's columns, designs and factors: arrays of 8-100 MB made and dropped
+        return _fit(run, form, options, output, protocol, record, leak_correct)
+
+
+def _fit(
+    run: Path,
+    form: str,
+    options: FitOptions,
+    output: Path | None,
+    protocol: str | None,
+    record: bool | None,
+    leak_correct: bool,
+) -> FitResult:
     src = load_trial_source(run, protocol)
     out_path, keep = model_destination(run, output, record, src.is_run)
     if leak_correct:
@@ -239,6 +253,11 @@ def validate(run: Path, options: ValidateOptions, *, protocol: str | None = None
     Refuses when validation trials were used in the fit (unless ``options.allow_overlap``); warns
     when the model was fitted on another rig or under other protocol settings.
     """
+    with kept_heap():  # the table's columns and the predictions: arrays of 8-100 MB made and dropped
+        return _validate(run, options, protocol)
+
+
+def _validate(run: Path, options: ValidateOptions, protocol: str | None) -> ValidationResult:
     model_path, mode, plot = options.model, options.mode, options.plot
     src = load_trial_source(run, protocol)
     model, label = model_for_run(run, model_path, src.is_run, src.protocol.name)

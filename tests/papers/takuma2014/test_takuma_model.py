@@ -266,6 +266,21 @@ def test_force_amplification_per_component() -> None:
     assert np.all(force_amplification(np.array([[0.1, 0.0]]), H2, H3) == np.inf)
 
 
+def test_force_amplification_is_numpys_row_norm_to_the_bit() -> None:
+    # The fit's exclusions compare it with a cut: the rows' norms written out must be numpy's own.
+    from labcli.papers.takuma2014.models.geometry import _smax2_det, jstar
+
+    rng = np.random.default_rng(12)
+    th = rng.uniform(-1.6, 1.6, (20_000, 2))
+    th[:50, 1] = 0.0  # singular: inf
+    with np.errstate(all="ignore"):
+        js = jstar(th, H2, H3)
+        ref = np.linalg.norm(js, axis=2) * np.sqrt(_smax2_det(th[:, 1], H2, H3)[0])[:, None]
+    ref = np.where(np.abs(H2 * H3 * np.sin(th[:, 1]))[:, None] > 0, ref, np.inf)
+    np.testing.assert_array_equal(force_amplification(th, H2, H3), ref)
+    np.testing.assert_array_equal(force_amplification(th, H2, H3, js), ref)
+
+
 def test_near_singular_trials_are_left_out_of_the_force_fit_and_flagged(clean: pd.DataFrame) -> None:
     near = paper_trials(4, seed=4, noise=False, start_id=900, theta2_values_deg=[0.8, -1.5, 2.5, 0.1])
     amp = force_amplification(np.radians(near[["theta1_deg", "theta2_deg"]].to_numpy()), H2, H3)

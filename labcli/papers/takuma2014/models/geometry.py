@@ -78,6 +78,9 @@ def force_amplification(theta: np.ndarray, h2: float, h3: float, js: np.ndarray 
     """
     theta = np.atleast_2d(np.asarray(theta, dtype=float))
     smax2, det = _smax2_det(theta[:, 1], h2, h3)
+    js = jstar(theta, h2, h3) if js is None else js
     with np.errstate(invalid="ignore"):
-        amp = np.linalg.norm(jstar(theta, h2, h3) if js is None else js, axis=2) * np.sqrt(smax2)[:, None]
+        # Each row's norm written out: numpy's norm along a 2-wide axis sums these same two squares
+        # (the same bits), at ten times the cost.
+        amp = np.sqrt(js[:, :, 0] * js[:, :, 0] + js[:, :, 1] * js[:, :, 1]) * np.sqrt(smax2)[:, None]
     return np.where(det[:, None] > 0, amp, np.inf)
