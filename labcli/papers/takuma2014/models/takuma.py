@@ -406,18 +406,26 @@ def cap(text: str) -> str:
     return text
 
 
-def _clean(value: Any) -> Any:
-    """Plain JSON types: numpy scalars to Python, non-finite floats to None."""
+def _clean(value: Any, copies: dict[int, PlainList] | None = None) -> Any:
+    """Plain JSON types: numpy scalars to Python, non-finite floats to None.
+
+    A :class:`PlainList` met several times (one equation's trial ranges shared by the others) is
+    copied once, so the copies stay one list and the writer encodes it once
+    (:func:`~labcli.core.jsontext.dumps_indented`: 10^5 pairs each on a random split).
+    """
+    copies = {} if copies is None else copies
     if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
+        return {str(k): _clean(v, copies) for k, v in value.items()}
     if isinstance(value, PlainList):  # trial ranges: plain already, however many
-        return type(value)(value)
+        if id(value) not in copies:  # ``value`` lives as long as the call: its id is its own
+            copies[id(value)] = type(value)(value)
+        return copies[id(value)]
     if isinstance(value, (list, tuple)):
         if all(type(v) is int for v in value):  # trial ids: already plain, however many
             return list(value)
-        return [_clean(v) for v in value]
+        return [_clean(v, copies) for v in value]
     if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
+        return _clean(value.tolist(), copies)
     if isinstance(value, (np.integer,)):
         return int(value)
     if isinstance(value, (float, np.floating)):
