@@ -73,6 +73,25 @@ def test_an_import_leaves_columns_given_as_fill_unwritten_and_reads_and_exports_
     pd.testing.assert_frame_equal(pd.read_csv(back), pd.read_csv(src))  # no mass, direction or rest columns
 
 
+def test_rest_postures_are_stored_in_radians_where_rows_give_them_and_not_at_all_when_none_does(tmp_path):
+    src = tmp_path / "t.csv"
+    df = trial_csv(src, 600)
+    df["theta1_0_deg"], df["theta2_0_deg"] = np.nan, np.nan
+    df.to_csv(src, index=False)  # the columns there, every cell empty
+    import_csv(str(src), str(tmp_path / "none.h5"), protocol="takuma2014")
+    with h5py.File(tmp_path / "none.h5", "r") as f:
+        assert f["entry/trials/pot0"].id.get_storage_size() == 0
+    df.loc[::3, "theta1_0_deg"] = 12.5
+    df.loc[::3, "theta2_0_deg"] = -30.0  # on every third row (a table gives both or neither)
+    df.to_csv(src, index=False)
+    import_csv(str(src), str(tmp_path / "some.h5"), protocol="takuma2014")
+    with RunFile.open(str(tmp_path / "some.h5")) as run:
+        pot0 = run.records.columns().cols["pot0"]
+    both = (np.arange(600) % 3) == 0
+    np.testing.assert_allclose(pot0[both], np.radians([[12.5, -30.0]] * int(both.sum())), rtol=1e-15)
+    assert np.isnan(pot0[~both]).all()
+
+
 def test_unwritten_fill_rows_check_exactly_as_the_fill_spelt_out():
     # The checksum a row keeps is the same whether a column of fill is written or left unwritten:
     # what a reader folds from the fill it reads back.

@@ -151,7 +151,10 @@ class _McKibbenRecords(BaseRecordType):
         """``pot0`` (rad, NaN where a row gives no rest posture) from a table's rest columns, if it has them."""
         if not all(c in table for c in REST):
             return {}
-        rest = stack_columns([_numbers(table, c, n) for c in REST])
+        parts = [_numbers(table, c, n) for c in REST]
+        if not any(np.isfinite(p).any() for p in parts):  # an archive without rest postures: the fill throughout
+            return {}
+        rest = stack_columns(parts)
         rest[~rows_all(np.isfinite(rest))] = np.nan
         return {"pot0": np.radians(rest)}
 
@@ -347,12 +350,13 @@ class TrialRecords(_McKibbenRecords):
     def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
         """The trial table's rows as columns, all at once (what :meth:`from_row` gives row by row)."""
         n = len(table)
+        theta = _rows(table, ["theta1_deg", "theta2_deg"])
         cols = {
             "trial": table["trial"].to_numpy(dtype=np.int64),
-            "P0": table[list(BASELINE)].to_numpy(dtype=np.float64),
-            "P": table[list(LOADED)].to_numpy(dtype=np.float64),
-            "theta": np.radians(table[["theta1_deg", "theta2_deg"]].to_numpy(dtype=np.float64)),
-            "F": table[["Fx_N", "Fy_N"]].to_numpy(dtype=np.float64),
+            "P0": _rows(table, BASELINE),
+            "P": _rows(table, LOADED),
+            "theta": np.radians(theta, out=theta),
+            "F": _rows(table, ["Fx_N", "Fy_N"]),
             "mass": _numbers(table, "mass_g", n) * 1e-3,
             "direction": np.radians(_numbers(table, "direction_deg", n)),
             **self._rest_columns(table, n),
@@ -377,6 +381,12 @@ class TrialRecords(_McKibbenRecords):
         fit = np.isin(codes, [k for k, s in enumerate(names) if s == "fit"])
         val = np.isin(codes, [k for k, s in enumerate(names) if s == "validation"])
         return trials[fit].astype(int).tolist(), trials[val].astype(int).tolist()
+
+
+def _rows(table: Any, names: Any) -> np.ndarray:
+    """Columns of numbers as one array of rows, C-ordered as a run file stores them (a DataFrame's
+    ``to_numpy`` of several columns is Fortran-ordered: its row checksums and its write each copied it)."""
+    return stack_columns([table[c].to_numpy(dtype=np.float64) for c in names])
 
 
 def _numbers(table: Any, name: str, n: int) -> np.ndarray:
