@@ -140,14 +140,35 @@ def _line(data: bytes | bytearray, at: int, stop: int) -> bytes:
 
 
 def _count(data: bytes | bytearray, stop: int) -> tuple[int, int]:
-    """Separators and lines that are not blank in ``data[:stop]`` (whole lines, each ending in a line break)."""
+    """Separators and lines that are not blank in ``data[:stop]`` (whole lines, each ending in a line break).
+
+    A blank line is a line break right after another (or after a carriage return that follows
+    one, or at the block's start): without one, every line break ends a line that is not blank,
+    and their count is the line breaks' (the array of line ends built otherwise took three times
+    the rest of the scan).
+    """
     a = np.frombuffer(data, dtype=np.uint8, count=stop)
+    breaks = a == 10
+    if not _blank_line(a, breaks, data.find(b"\r", 0, stop) >= 0):
+        return int(np.count_nonzero(a == 44)), int(np.count_nonzero(breaks))
     ends = np.flatnonzero(a == 10)
     starts = np.empty_like(ends)
     starts[:1] = 0
     starts[1:] = ends[:-1] + 1
     length = ends - starts - (a[np.maximum(ends - 1, 0)] == 13)
     return int(np.count_nonzero(a == 44)), int(np.count_nonzero(length > 0))
+
+
+def _blank_line(a: np.ndarray, breaks: np.ndarray, has_cr: bool) -> bool:
+    """Whether the whole lines ``a`` (``breaks`` its line breaks) hold a blank one: a line break at
+    the start or right after another, or a carriage return there before one (``has_cr``: any at all)."""
+    if not len(a):
+        return False
+    if breaks[0] or np.any(breaks[1:] & breaks[:-1]):
+        return True
+    if not has_cr or len(a) < 2:
+        return False
+    return bool((a[0] == 13 and breaks[1]) or np.any(breaks[:-2] & (a[1:-1] == 13) & breaks[2:]))
 
 
 def _plain(data: bytes | bytearray, stop: int) -> bool:

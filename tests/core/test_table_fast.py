@@ -271,3 +271,17 @@ def test_a_longer_first_line_is_refused_when_the_header_ends_a_block(tmp_path: P
     monkeypatch.setattr(table_fast, "BLOCK", block)
     assert table_fast._scan(p) is None
     assert table_fast._scan(put(tmp_path, "a,b\n1,2\n5,6\n4,3\n", "good.csv")) == ["a", "b"]
+
+
+@given(st.lists(st.sampled_from(["a", "1,2", ",", "\n", "\r\n", "\r", "\n\n", "\n\r\n", " "]), max_size=80))
+@settings(max_examples=400)
+def test_separators_and_lines_are_counted_as_one_line_at_a_time_counts_them(parts):
+    # Whole lines (each ending in a line break), as the scan hands them over: the count with no
+    # blank line among them (the bytes' own count) and with some (line ends whole-array) is the
+    # count line by line.
+    text = "".join(parts)
+    text = text[: text.rfind("\n") + 1]
+    data = bytearray(text.encode())
+    lines = [line.removesuffix("\r") for line in text.split("\n")[:-1]]
+    expected = (text.count(","), sum(1 for line in lines if line))
+    assert table_fast._count(data, len(data)) == expected
