@@ -14,14 +14,16 @@
         raw/                    every raw frame: time, seq, values and counts (frames x channels),
                                 and per channel an NXlog (its value and raw_value: views of those)
           unused/               ranges of frames no record takes, and why (redone, interrupted, ...)
-        split/                  every split assigned, the last one in force; ids (m,)
+        split/                  every split assigned, the last one in force; ids (m,), their
+                                checksum and its version (2, whole-array; a log without the
+                                column holds version 1)
         models/                 every model recorded, the last of each name in force; json (bytes)
         sessions/               the session log: one row per event (begin, added, redone, skipped, end)
 
 Every dataset is chunked with gzip and Fletcher32 (raw windows at gzip level 4 with byte
 shuffle; tables and split ids at level 1, shuffled where they hold whole numbers: see
 :data:`.columns.TABLE_FILTERS`; a table's numbers in chunks of at most 64 bytes, as a table
-written a row a commit has them, Fletcher32 alone: :func:`.columns.table_filters`) and has a ``units`` attribute (one unit: per-channel units live in
+written a row a commit has them, and checksum columns, Fletcher32 alone: :func:`.columns.table_filters`) and has a ``units`` attribute (one unit: per-channel units live in
 separate datasets); every group has an
 ``NX_class``.  Times are ISO 8601 with microseconds and a UTC offset.  No path of the
 writer's machine is stored: files are named by their file name only, and the command line
