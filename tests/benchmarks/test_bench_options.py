@@ -402,3 +402,40 @@ def test_sensing_trials_settle_option_takes_them_the_old_way(monkeypatch):
     assert len(windows) == 2 * len(table)
     assert all(events[i - 1] == ("wait", 8.0) for i in windows)
     assert [e for e in events if e[0] == "supply"] == [("supply",)]  # the first supply only
+
+
+def test_sensing_trials_mark_the_baselines_taken_after_a_resupply():
+    """sensing_accuracy.trials' ``supplies``: a row is marked when the chambers were supplied just
+    before its baseline.  A supply brings air back and the closed chambers only lose it, so every
+    marked baseline lies above the one before it and every other one below; a rig without the leak
+    never drifts, and only the run's first baseline (after its first supply) is marked."""
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+
+    sa = bench("sensing_accuracy")
+    marks: list = []
+    _, table = sa.trials("takuma2014", 2, rig_kw={"nonideal": NonIdeal(realism="kind", leak=3.0)}, supplies=marks)
+    marked = np.asarray(marks, dtype=bool)
+    assert len(marked) == len(table) and marked[0] and 10 < marked.sum() < len(table)
+    change = np.diff(table[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy(dtype=float), axis=0).mean(axis=1)
+    assert (change[marked[1:]] > 0).all() and (change[~marked[1:]] < 0).all()
+    marks.clear()
+    sa.trials("takuma2014", 2, without="leak", supplies=marks)
+    assert marks[0] and not any(marks[1:])
+
+
+def test_sensing_rig_effects_one_off_or_alone():
+    """sensing_accuracy.nonideal_of: ``without`` turns one effect off and keeps the realism's
+    others at their levels; ``ideal`` with a name keeps that one alone; the kind rig is the default."""
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+
+    sa = bench("sensing_accuracy")
+    assert sa.nonideal_of() is None
+    lit = NonIdeal(realism="literature").as_dict()
+    off = sa.nonideal_of(without="thermal", realism="literature")
+    assert off.realism == "literature" and off.thermal == 0.0
+    assert {k: v for k, v in off.as_dict().items() if k != "thermal"} == {
+        k: v for k, v in lit.items() if k != "thermal"
+    }
+    alone = sa.nonideal_of("friction").as_dict()
+    assert alone["friction"] == 1.0 and sum(alone.values()) == 1.0
+    assert sum(sa.nonideal_of(True, realism="literature").as_dict().values()) == 0.0
