@@ -98,3 +98,47 @@ def test_short_windows_keep_the_channels_in_one_chunk_and_long_ones_apart(tmp_pa
     with RunFile.open(path) as run:
         for rec in recs:
             assert_record_stored(run.records.read(rec["trial"]), rec)
+
+
+def test_room_is_reserved_ahead_so_most_commits_ask_the_disk_nothing(tmp_path, monkeypatch) -> None:
+    from labcli.core.store import space
+
+    calls: list[int] = []
+    real = space.os.posix_fallocate
+
+    def counted(fd: int, offset: int, length: int) -> None:
+        calls.append(fd)
+        real(fd, offset, length)
+
+    path = str(tmp_path / "run.h5")
+    with new_run(path) as run:
+        monkeypatch.setattr(space.os, "posix_fallocate", counted)
+        for i in range(1, 11):
+            run.records.write(make_record(i))
+        fd = run.io.fd
+        monkeypatch.undo()
+    # Ten trials, each two windows and a commit: thirty reservations, one asked of the disk.
+    assert calls.count(fd) == 1
+    with RunFile.open(path) as run:
+        assert run.records.ids() == list(range(1, 11))
+
+
+def test_near_the_size_limit_a_commit_takes_just_the_room_it_needs(tmp_path, monkeypatch) -> None:
+    from labcli.core.store import space, writer
+    from labcli.errors import DiskFull
+
+    path = str(tmp_path / "run.h5")
+    with new_run(path) as run:
+        end = run.io.end()
+        # Room for two trials and HDF5's slack, not for the megabyte reserved ahead.
+        monkeypatch.setattr(space, "file_size_limit", lambda: end + space.SLACK + writer.AHEAD // 2)
+        run.records.write(make_record(1))
+        run.records.write(make_record(2))
+        assert run.io.end() < end + writer.AHEAD // 2
+        monkeypatch.setattr(space, "file_size_limit", lambda: run.io.end() + 1024)
+        with pytest.raises(DiskFull, match=r"ulimit -f.*the 2 trials stored before are intact"):
+            run.records.write(make_record(3))
+        monkeypatch.undo()
+    with RunFile.open(path) as run:
+        assert run.records.ids() == [1, 2]
+        assert_record_stored(run.records.read(2), make_record(2))

@@ -31,6 +31,7 @@ column's own name.  Files of schema 2 and earlier hold the names as they are.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -69,6 +70,15 @@ def fill_value(c: Column) -> Any:
     if c.kind == "uint":
         return 0
     return b""
+
+
+@functools.lru_cache(maxsize=4096)
+def fill_row(c: Column) -> np.ndarray:
+    """One row of ``c``'s fill, as stored (made once: a trial leaves half its columns empty at every
+    commit).  Shared: never to be written into."""
+    row = fixed(c, None, 1)
+    row.flags.writeable = False
+    return row
 
 
 def all_fill(c: Column, arr: np.ndarray) -> bool:
@@ -387,7 +397,7 @@ class Table:
                 arr = fixed(c, values[name], n) if name in values else None
                 # A column given as its fill throughout (an imported table's absent masses, all NaN)
                 # is left unwritten too: it reads back the same, and its rows check the same.
-                out.append(Repeated(fixed(c, None, 1), n) if arr is None or all_fill(c, arr) else arr)
+                out.append(Repeated(fill_row(c), n) if arr is None or all_fill(c, arr) else arr)
             return out
         return [fixed(columns[name], values.get(name), n) for name in self.names]
 

@@ -82,15 +82,37 @@ def record_row(
         raise StoreError(f"{label} record: the run file has no column {unknown[0]!r} for it.")
     row.update(extra)
     _texts_fit(columns, row, label)
-    bad = out_of_bounds(
-        rt.columns,
-        {c.name: np.asarray([row[c.name]]) for c in rt.columns if c.name in row and c.kind in ("float", "int")},
-    )
-    if bad:
-        raise StoreError(f"{label} record: {bad[0]}.")
+    if not _plainly_in_bounds(rt.columns, row):  # the sentence from the same check as a read's
+        bad = out_of_bounds(
+            rt.columns,
+            {c.name: np.asarray([row[c.name]]) for c in rt.columns if c.name in row and c.kind in ("float", "int")},
+        )
+        if bad:
+            raise StoreError(f"{label} record: {bad[0]}.")
     if table_check:
         exportable(rt, [row], [rid], [label], run)
     return row
+
+
+def _plainly_in_bounds(cols: Sequence[Column], row: Mapping[str, Any]) -> bool:
+    """Whether one row's numbers pass :func:`~.view.out_of_bounds` (finite where required, within
+    bounds where finite), judged value by value: for one row, a tenth of the time of the arrays."""
+    for c in cols:
+        if c.kind not in ("float", "int") or c.name not in row:
+            continue
+        v = row[c.name]
+        values = np.ravel(v).tolist() if isinstance(v, (np.ndarray, list, tuple)) else [v]
+        for x in values:
+            try:
+                x = float(x)
+            except (TypeError, ValueError):
+                return False  # not a number: the array check says what it is
+            if not math.isfinite(x):
+                if not c.optional:
+                    return False
+            elif c.bounds is not None and not c.bounds[0] <= x <= c.bounds[1]:
+                return False
+    return True
 
 
 def exportable(

@@ -30,7 +30,7 @@ import resource
 import secrets
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from ...errors import DiskFull, StoreError
 from ..files import check_writable_name, kind_of
@@ -61,18 +61,19 @@ def free_bytes(path: str) -> int:
     return st.f_bavail * st.f_frsize
 
 
-def reserve(fd: int, end: int, need: int, path: str, doing: str, kept: str) -> None:
+def reserve(fd: int, end: int, need: int, path: str, doing: str, kept: str | Callable[[], str]) -> None:
     """Make sure ``need`` bytes past ``end`` can be written to the file ``fd``, or raise DiskFull.
 
     ``doing`` says what was about to be written ("trial 12"), ``kept`` what is safe ("the 11
-    trials stored before are intact"); both go into the one sentence.
+    trials stored before are intact", or what says it, asked only when it is said); both go
+    into the one sentence.
     """
     need += SLACK
     limit = file_size_limit()
     if limit is not None and end + need > limit:
         raise DiskFull(
             f"{path} cannot grow past the file size limit of {mb(limit)} (ulimit -f), so {doing} was "
-            f"not written; {kept}. Raise the limit, then try again."
+            f"not written; {_said(kept)}. Raise the limit, then try again."
         )
     try:
         os.posix_fallocate(fd, end, need)
@@ -80,13 +81,17 @@ def reserve(fd: int, end: int, need: int, path: str, doing: str, kept: str) -> N
     except OSError as e:
         code = e.errno
     if code in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
-        raise no_room(code, path, doing, kept)
+        raise no_room(code, path, doing, _said(kept))
     # A file system without fallocate: judge by the free space it reports.
     if free_bytes(path) < need:
         raise DiskFull(
             f"The disk holding {path} is full ({mb(free_bytes(path))} free), so {doing} was not written; "
-            f"{kept}. Free some space, then try again."
+            f"{_said(kept)}. Free some space, then try again."
         )
+
+
+def _said(kept: str | Callable[[], str]) -> str:
+    return kept() if callable(kept) else kept
 
 
 def no_room(code: int | None, path: str, doing: str, kept: str) -> DiskFull:

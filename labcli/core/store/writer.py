@@ -40,6 +40,8 @@ from . import space
 from .columns import Table
 from .journal import JournalFile
 
+AHEAD = 1 << 20  # bytes of room reserved at a time past the end of the file (given back at close)
+
 
 @dataclass(frozen=True)
 class Write:
@@ -83,6 +85,7 @@ class Writer:
         self._file = file
         self._kept = kept
         self._io = io
+        self._room = 0  # the file's bytes up to here (and space.SLACK past them) are reserved
 
     def check(self) -> None:
         """Refuse a write to a file open read-only, or one that met a write error."""
@@ -114,9 +117,24 @@ class Writer:
             self.sync(doing)
 
     def reserve(self, nbytes: int, doing: str) -> None:
-        """Make sure ``nbytes`` more can be written, or raise DiskFull naming ``doing`` and what is safe."""
+        """Make sure ``nbytes`` more can be written, or raise DiskFull naming ``doing`` and what is safe.
+
+        Room is reserved :data:`AHEAD` bytes at a time (or just what is asked, when that much
+        is not to be had), so most commits find theirs reserved already and ask the disk nothing.
+        """
         io = self._journal()
-        space.reserve(io.fd, io.end(), int(nbytes), self.path, doing, self._kept())
+        end, need = io.end(), int(nbytes)
+        if end + need <= self._room:
+            return
+        ask = max(need, AHEAD)
+        try:
+            space.reserve(io.fd, end, ask, self.path, doing, self._kept)
+        except DiskFull:
+            if ask == need:
+                raise
+            ask = need
+            space.reserve(io.fd, end, ask, self.path, doing, self._kept)
+        self._room = end + ask
 
     def _journal(self) -> JournalFile:
         io = self._io()
