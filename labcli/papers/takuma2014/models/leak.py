@@ -15,12 +15,21 @@ the load, the leak over that gap.  Two ways to live with it, and the model file 
   moved the same way (``validate`` does so; the estimator gives it the baseline at the
   estimate's time).
 
-Measured on the simulated rig (seeds 1-10, posture form, 108 trials each; the sensing page of the docs):
-with every non-ideality on, correcting P0 made the validation RMSE of theta2 and Fx worse
-(x1.23 and x1.18), with the leak alone better (x0.81, x0.90): sleeve friction holds the arm
-through the leak's slow change of the tensions and lets it go at the next load, so the loaded
-window carries part of the gap's leak in the posture too.  So ``fit`` leaves P0 as measured
-unless asked.
+Measured on the simulated rig (seeds 1-10, posture form, 108 trials each; the sensing page of the docs),
+with the trials taken 8 s after each change and the valves held for the whole run: with every
+non-ideality on, correcting P0 made the validation RMSE of theta2 and Fx worse (x1.23 and x1.18),
+with the leak alone better (x0.81, x0.90): sleeve friction holds the arm through the leak's slow
+change of the tensions and lets it go at the next load, so the loaded window carries part of the
+gap's leak in the posture too.  So ``fit`` leaves P0 as measured unless asked.
+
+Taken as ``labcli acquire`` takes them (15 s waits, the chambers supplied again past
+``acquisition.repressurise_kPa``; docs/fit-and-validate.md), the baselines rise at every supply
+and fall between, and the one line through them is flat (seed 1: within 0.003 kPa/min of level,
+where the chambers lose 0.65-1.0 kPa/min between supplies): the correction then moves P0 by
+almost nothing (kind rig, Fx 0.305 / 0.232 N straight / bent against 0.305 / 0.230 as measured).
+A line per supply interval, the leak itself, measured worse (0.334 / 0.250 N), and the leak costs
+little on such a run (the leak alone: Fx 0.033 N against 0.030 with no effect at all); what is
+left of the forces' error there is the sleeves' friction.
 """
 
 from __future__ import annotations
