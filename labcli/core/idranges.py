@@ -15,7 +15,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from .jsontext import PlainList
+from .jsontext import PairList, PlainList
 from .nogc import paused_gc
 
 
@@ -94,15 +94,19 @@ def _as_written(value: list[Any]) -> Ranges | None:
     A model fitted on a random split lists 10^5 pairs; read one number at a time they took a
     second of every ``validate``.
     """
-    # Element types checked in C loops (map, chain), not one generator step per pair: 10^5 pairs.
-    if not value or set(map(type, value)) != {list} or set(map(len, value)) != {2}:
-        return None
-    if set(map(type, chain.from_iterable(value))) != {int}:
-        return None
-    try:  # every item is an int (checked above): read flat, as an (n, 2) array
-        a = np.fromiter(chain.from_iterable(value), dtype=np.int64, count=2 * len(value)).reshape(-1, 2)
-    except OverflowError:
-        return None  # beyond int64: refused, one by one, below
+    a = getattr(value, "array", None)
+    if isinstance(value, PairList) and isinstance(a, np.ndarray) and a.shape == (len(value), 2):
+        pass  # read whole-array from the file's text: ints in pairs, the array beside them (core.jsontext)
+    else:
+        # Element types checked in C loops (map, chain), not one generator step per pair: 10^5 pairs.
+        if not value or set(map(type, value)) != {list} or set(map(len, value)) != {2}:
+            return None
+        if set(map(type, chain.from_iterable(value))) != {int}:
+            return None
+        try:  # every item is an int (checked above): read flat, as an (n, 2) array
+            a = np.fromiter(chain.from_iterable(value), dtype=np.int64, count=2 * len(value)).reshape(-1, 2)
+        except OverflowError:
+            return None  # beyond int64: refused, one by one, below
     if not (np.all(a[:, 0] <= a[:, 1]) and np.all(a[1:, 0] > a[:-1, 1] + 1)):
         return None
     return Ranges(value)

@@ -156,3 +156,119 @@ def test_long_texts_find_huge_numbers_whole_array_as_the_pattern_does():
     for text in ("9" * (LONG_TEXT + 5), "9" * 308 + "," + filler * LONG_TEXT, filler * LONG_TEXT + "1E+300"):
         assert _may_hold_huge_number(text) == (_HUGE_NUMBER.search(text) is not None)
     assert isinstance(loads_bounded("[" + filler * 2_000 + "1e999]")[-1], OutOfRange)
+
+
+# --------------------------------------------------------------------------- long lists of pairs
+
+
+def _document(pairs: list[list[int]], *, pair_text: str | None = None, extra: str = "") -> str:
+    """A model-like document holding ``pairs`` as the writer writes them (or as ``pair_text``)."""
+    from labcli.core.jsontext import PlainList, dumps_indented
+
+    doc = {"schema": "x", "coefficients": [[0.5, -1.25e-3], [2.0, 1e-300]], "trials": PlainList(pairs)}
+    text = dumps_indented(doc)
+    if pair_text is not None:
+        text = text.replace(json.dumps(pairs, separators=(", ", ": ")), pair_text)
+    return text.replace('"schema": "x"', '"schema": "x"' + extra)
+
+
+def test_long_lists_of_pairs_read_as_json_reads_them_and_carry_their_array():
+    import random
+
+    import numpy as np
+
+    from labcli.core.jsontext import PairList
+
+    rng = random.Random(8)
+    for _ in range(20):
+        pairs = [[rng.randint(-(10**14), 10**14), rng.choice([0, 7, -3, 10**14 - 1])] for _ in range(3000)]
+        text = _document(pairs)
+        got = loads_bounded(text)
+        assert got == json.loads(text)
+        assert isinstance(got["trials"], PairList)
+        np.testing.assert_array_equal(got["trials"].array, np.array(pairs, dtype=np.int64))
+        assert all(type(x) is int for p in got["trials"] for x in p)
+
+
+@pytest.mark.parametrize(
+    "odd",
+    [
+        "[1, 2], [-0, 5]",  # -0: json reads 0, the text is not the writer's
+        "[1, 2], [05, 6]",  # a leading zero: not JSON at all
+        "[1, 2], [1.5, 6]",  # a float
+        "[1, 2], [1e3, 6]",  # an exponent
+        "[1, 2], [1,2]",  # other spacing
+        "[1, 2], [1, 2, 3]",  # not a pair
+        "[1, 2], [9999999999999999999999, 6]",  # beyond int64
+        "[1, 2], [5-3, 6]",  # a stray sign
+        "[1, 2], [--5, 6]",
+        "[1, 2], [true, 6]",
+    ],
+)
+def test_anything_but_the_writers_pairs_is_read_as_json_reads_it(odd):
+    from labcli.core.jsontext import PairList
+
+    pairs = [[i, i + 1] for i in range(0, 6000, 2)]
+    written = json.dumps(pairs, separators=(", ", ": "))
+    text = _document(pairs, pair_text="[" + odd + ", " + written[1:])
+    try:
+        expected = json.loads(text)
+    except json.JSONDecodeError as e:
+        with pytest.raises(json.JSONDecodeError) as got:
+            loads_bounded(text)
+        assert (got.value.lineno, got.value.colno, got.value.msg) == (e.lineno, e.colno, e.msg)
+        return
+    got = loads_bounded(text)
+    assert got == expected
+    if "9999999999" in odd:
+        assert isinstance(got["trials"][1][0], int) and got["trials"][1][0] == 9999999999999999999999
+    assert not isinstance(got["trials"], PairList)
+
+
+def test_pairs_in_a_string_a_key_or_a_broken_document_are_read_as_json_reads_them():
+    pairs = [[i, i + 3] for i in range(0, 9000, 5)]
+    written = json.dumps(pairs, separators=(", ", ": "))
+    in_string = '{"note": "' + written + '", "n": 1}'
+    assert loads_bounded(in_string) == json.loads(in_string)
+    as_key = '{"a": 1, ' + written + ": 2}"  # not JSON: a key must be a string
+    broken = '{"a": ' + written + ', "b": [1, 2}'
+    for text in (as_key, broken):
+        with pytest.raises(json.JSONDecodeError) as expected:
+            json.loads(text)
+        with pytest.raises(json.JSONDecodeError) as got:
+            loads_bounded(text)
+        assert (got.value.lineno, got.value.colno) == (expected.value.lineno, expected.value.colno)
+
+
+def test_depth_and_huge_numbers_are_checked_with_long_pairs_in_the_document():
+    pairs = [[i, i + 1] for i in range(0, 8000, 2)]
+    huge = _document(pairs, extra=', "big": 1e999')
+    got = loads_bounded(huge)
+    assert isinstance(got["big"], OutOfRange) and got["trials"] == pairs
+    written = json.dumps(pairs, separators=(", ", ": "))
+    for levels, refused in ((61, False), (62, False), (63, True)):  # the pairs add two levels
+        text = "[" * levels + written + "]" * levels
+        if refused:
+            with pytest.raises(JSONDepthError) as e:
+                loads_bounded(text)
+            assert e.value.depth == levels + 2
+        else:
+            value = loads_bounded(text)
+            for _ in range(levels):
+                value = value[0]
+            assert value == pairs
+
+
+def test_ranges_read_whole_array_parse_as_the_lists_do():
+    from labcli.core import idranges
+
+    def bad(key: str, what: str):
+        raise ValueError(f"{key} {what}")
+
+    good = [[i, i + 2] for i in range(0, 12_000, 5)]
+    unsorted = good[::-1]
+    for pairs in (good, unsorted):
+        fast = loads_bounded(_document(pairs))["trials"]
+        plain = json.loads(_document(pairs))["trials"]
+        assert idranges.parse(fast, "t", bad) == idranges.parse(plain, "t", bad)
+        assert type(idranges.parse(fast, "t", bad)) is idranges.Ranges
