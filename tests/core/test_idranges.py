@@ -117,6 +117,47 @@ def test_the_collector_is_paused_only_inside_and_left_as_it_was():
     assert gc.isenabled()
 
 
+def test_what_is_built_while_paused_goes_to_the_oldest_generation_and_stays_collectable():
+    import gc
+    import weakref
+
+    from labcli.core.nogc import paused_gc
+
+    class Node:
+        pass
+
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    with paused_gc():
+        lists = [[i, i + 1] for i in range(5000)]
+        a, b = Node(), Node()
+        a.other, b.other = b, a  # a reference cycle: only the collector frees it
+        gone = weakref.ref(a)
+    assert gc.get_count()[0] < 100  # nothing young left for the next collection to walk
+    oldest = {id(o) for o in gc.get_objects(generation=2)}
+    assert id(lists) in oldest and id(lists[-1]) in oldest
+    assert gc.get_freeze_count() == 0  # nothing left frozen
+    del a, b
+    gc.collect()
+    assert gone() is None  # the cycle is still collected
+
+
+def test_objects_a_program_froze_stay_frozen():
+    import gc
+
+    from labcli.core.nogc import paused_gc
+
+    keep = [[1, 2], [3, 4]]
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        with paused_gc():
+            built = [[i] for i in range(100)]
+        assert gc.get_freeze_count() == frozen  # not handed back to the collector
+        assert built and keep
+    finally:
+        gc.unfreeze()
+
+
 @pytest.mark.parametrize("seed", range(20))
 def test_the_whole_array_merge_is_the_pair_by_pair_one(seed):
     rng = np.random.default_rng(seed)
