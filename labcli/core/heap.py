@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import ctypes
 import sys
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -23,6 +24,11 @@ from typing import Any
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
 START_THRESHOLD = 128 * 1024
 KEPT = 2**31 - 1  # bytes: every block from the heap, and nothing freed returned until the block ends
+
+# The thresholds are the process's, so blocks nest by a count: only the outermost sets and restores
+# them (an inner block's exit would otherwise end the outer block's reuse half-way).
+_depth = 0
+_lock = threading.Lock()
 
 
 def _libc() -> Any:
@@ -39,16 +45,26 @@ def _libc() -> Any:
 def kept_heap() -> Iterator[None]:
     """Large blocks from the heap, freed memory kept there for reuse, for the block; then given back.
 
-    Afterwards the thresholds are glibc's starting ones, fixed (mallopt ends their rise)."""
+    Blocks nest (and may be entered from several threads): the outermost one sets the thresholds
+    and restores them.  Afterwards they are glibc's starting ones, fixed (mallopt ends their rise)."""
+    global _depth
     libc = _libc()
-    kept = (
-        libc is not None and bool(libc.mallopt(M_MMAP_THRESHOLD, KEPT)) and bool(libc.mallopt(M_TRIM_THRESHOLD, KEPT))
-    )
+    with _lock:
+        outermost = _depth == 0
+        _depth += 1
+        kept = (
+            outermost
+            and libc is not None
+            and bool(libc.mallopt(M_MMAP_THRESHOLD, KEPT))
+            and bool(libc.mallopt(M_TRIM_THRESHOLD, KEPT))
+        )
     try:
         yield
     finally:
-        if libc is not None:
-            libc.mallopt(M_MMAP_THRESHOLD, START_THRESHOLD)
-            libc.mallopt(M_TRIM_THRESHOLD, START_THRESHOLD)
-            if kept:
-                libc.malloc_trim(0)
+        with _lock:
+            _depth -= 1
+            if _depth == 0 and libc is not None:
+                libc.mallopt(M_MMAP_THRESHOLD, START_THRESHOLD)
+                libc.mallopt(M_TRIM_THRESHOLD, START_THRESHOLD)
+                if kept:
+                    libc.malloc_trim(0)

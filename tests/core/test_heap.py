@@ -45,3 +45,14 @@ def test_an_error_inside_kept_heap_passes_through_and_the_thresholds_are_restore
         with kept_heap():
             raise ValueError("inside")
     assert faults_of_second_block(_libc()) > SIZE // resource.getpagesize() // 2
+
+
+@pytest.mark.skipif(_libc() is None, reason="glibc's mallopt is not available here")
+def test_an_inner_kept_heap_leaves_the_outer_blocks_reuse_in_place():
+    pages = SIZE // resource.getpagesize()
+    with kept_heap():
+        with kept_heap():
+            pass
+        after_inner = faults_of_second_block(_libc())
+    assert after_inner < pages // 20  # still the heap's own pages: the inner exit restored nothing
+    assert faults_of_second_block(_libc()) > pages // 2  # the outer exit did
