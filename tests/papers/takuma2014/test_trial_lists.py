@@ -58,6 +58,8 @@ def test_the_posture_forms_paper_part_writes_its_shared_ranges_once(random_split
     d = model.to_dict()
     part = d["paper_model"]["fitted_trials"]
     assert all(part[eq] is part[EQUATIONS[0]] for eq in EQUATIONS)
+    # Fitted on the same trials as the posture form's own: the one list, written once.
+    assert part["Fx"] == model.fitted_trials and part["Fx"] is d["fitted_trials"]
     text = model.to_json()
     assert json.loads(text)["paper_model"]["fitted_trials"] == json.loads(json.dumps(part))
     assert force_model_from_json(text, name="the model").fitted_trials == model.fitted_trials

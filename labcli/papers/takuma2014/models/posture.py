@@ -837,6 +837,12 @@ class PostureModel:
         self.routes, self.fit_stats["routes_cv"], self.blends = rt.choose_routes(cv, self.limits)
         if set(self.routes.values()) - {rt.POSTURE}:
             self.paper_model = full.to_dict()
+            # The paper's equations fitted on the posture form's own trials (ranges of ints, both):
+            # one list, written once (on a random split of 10^6 trials, 10^5 pairs).
+            shared = self.paper_model.get("fitted_trials", {})
+            for eq, ranges in shared.items():
+                if ranges == self.fitted_trials:
+                    shared[eq] = self.fitted_trials
             self.paper_variance = rt.paper_residual_variances(cv, self.routes)
             self._paper = full
 
