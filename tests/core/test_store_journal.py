@@ -240,3 +240,32 @@ def test_the_file_is_synced_every_few_checkpoints_and_the_journal_starts_again(
     io.close()
     assert syncs.count("file") == 3 and not os.path.exists(journal_path(str(path)))
     assert path.read_bytes()[:80] == b"".join(b"%08d" % k for k in range(10))
+
+
+def test_a_checkpoint_copies_consecutive_kept_pages_in_one_write_each(tmp_path: Path, monkeypatch) -> None:
+    path = tmp_path / "f.bin"
+    path.write_bytes(bytes(8 * PAGE))  # no superblock: every byte is protected, every write kept
+    fd = os.open(path, os.O_RDWR)
+    io = journal.JournalFile(fd, str(path))
+    expected = bytearray(8 * PAGE)
+    for at, data in ((PAGE + 10, b"\x01" * (2 * PAGE)), (6 * PAGE + 5, b"\x02" * 100), (3 * PAGE, b"\x03" * 7)):
+        io.seek(at)
+        io.write(data)
+        expected[at : at + len(data)] = data
+    assert path.read_bytes() == bytes(8 * PAGE)  # nothing reaches the file before the checkpoint
+    writes: list[tuple[int, int]] = []
+    real = os.pwrite
+
+    def counted(f: int, data: bytes, offset: int) -> int:
+        if f == fd:
+            writes.append((offset, len(data)))
+        return real(f, data, offset)
+
+    monkeypatch.setattr(os, "pwrite", counted)
+    io.checkpoint()
+    monkeypatch.undo()
+    # Pages 1-3 in one write, page 6 in another.
+    assert writes == [(PAGE, 3 * PAGE), (6 * PAGE, PAGE)]
+    assert path.read_bytes() == bytes(expected)
+    io.close()
+    assert not os.path.exists(journal_path(str(path)))  # closed: the file holds it all

@@ -199,8 +199,8 @@ class JournalFile:
         record = self._record()
         if record:  # else every byte written holds the value it had: nothing changed
             self._append(record)  # durable: the checkpoint is made
-        for p in sorted(self.pages):
-            _pwrite_all(self.fd, self.pages[p], p * PAGE)
+        for first, pages in _runs(self.pages):  # consecutive pages in one write (HDF5's nodes lie together)
+            _pwrite_all(self.fd, pages[0] if len(pages) == 1 else b"".join(pages), first * PAGE)
         self.pages.clear()
         self.before.clear()
         self.extents.clear()
@@ -455,6 +455,17 @@ def _merged(extents: list[tuple[int, int]]) -> list[tuple[int, int]]:
         else:
             out.append([at, n])
     return [(at, n) for at, n in out]
+
+
+def _runs(pages: dict[int, bytearray]) -> list[tuple[int, list[bytearray]]]:
+    """The kept pages in runs of consecutive page numbers: (first page, the run's pages in order)."""
+    out: list[tuple[int, list[bytearray]]] = []
+    for p in sorted(pages):
+        if out and out[-1][0] + len(out[-1][1]) == p:
+            out[-1][1].append(pages[p])
+        else:
+            out.append((p, [pages[p]]))
+    return out
 
 
 def _file_size_limit() -> int | None:
