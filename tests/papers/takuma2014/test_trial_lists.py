@@ -60,6 +60,12 @@ def test_the_posture_forms_paper_part_writes_its_shared_ranges_once(random_split
     assert all(part[eq] is part[EQUATIONS[0]] for eq in EQUATIONS)
     # Fitted on the same trials as the posture form's own: the one list, written once.
     assert part["Fx"] == model.fitted_trials and part["Fx"] is d["fitted_trials"]
+    # Its calibrated range is the posture form's, taken over: what a fit of its own on the same
+    # labels (corrected for the pots' play here: 1200 trials) works out.
+    labels = PostureModel(geometry=PAPER_GEOMETRY)._unplayed(random_split, "the table")
+    own = TakumaModel(geometry=PAPER_GEOMETRY, label_play="none").fit(labels, record_trials=False)
+    assert d["paper_model"]["calibrated_range"] == model.calibrated_range == own.calibrated_range
+    assert model.play.get("play_deg")  # the labels were corrected: the range is theirs
     text = model.to_json()
     assert json.loads(text)["paper_model"]["fitted_trials"] == json.loads(json.dumps(part))
     assert force_model_from_json(text, name="the model").fitted_trials == model.fitted_trials

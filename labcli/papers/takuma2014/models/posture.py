@@ -817,11 +817,11 @@ class PostureModel:
                 label_play="none",  # the rows' labels are corrected already
             ).fit(rows, choose_routes=False, record_trials=False)
 
-        def paper(rows: Any, record_trials: bool = False) -> TakumaModel:
+        def paper(rows: Any, record_trials: bool = False, calibrated: Any = None) -> TakumaModel:
             # The rows' labels as the posture form fits them (play corrected, or as read): both
             # forms are judged on the same labels.
             return TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="none").fit(
-                rows, record_trials=record_trials
+                rows, record_trials=record_trials, calibrated=calibrated
             )
 
         try:
@@ -829,7 +829,9 @@ class PostureModel:
             template = TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="none")
             folds = functools.partial(fold_models, template, source=source)
             cv = rt.held_out_errors(table.iloc[rows], posture_only, paper, folds)
-            full = paper(table, record_trials=True)
+            # The same table and fit rows as the posture fit's (its labels taken as they are): the
+            # same calibrated range.
+            full = paper(table, record_trials=True, calibrated=self.calibrated_range)
         except ModelError:
             # Too few trials, or a block whose absence leaves a design singular: the posture form alone.
             self.routes = {q: rt.POSTURE for q in rt.QUANTITIES}
