@@ -142,3 +142,20 @@ def test_near_the_size_limit_a_commit_takes_just_the_room_it_needs(tmp_path, mon
     with RunFile.open(path) as run:
         assert run.records.ids() == [1, 2]
         assert_record_stored(run.records.read(2), make_record(2))
+
+
+def test_a_writer_counts_the_frames_it_grew_as_the_file_holds_them(tmp_path) -> None:
+    path = str(tmp_path / "run.h5")
+    with new_run(path) as run:
+        frames = run.tables.frames
+        for i in (1, 2, 3):
+            run.records.write(make_record(i, n=70))
+            held = int(frames.time.shape[0])
+            assert frames.extent == held == frames.next_start() - (-held % frames.chunk)
+        w = run.windows.begin()
+        w.append(np.arange(5) * 1e-3, np.arange(5), np.ones((5, 6)), np.ones((5, 6)))
+        stored = w.finish()
+        assert stored.stored is not None and stored.stored.start == held + (-held % frames.chunk)
+        assert frames.extent == int(frames.time.shape[0]) == stored.stored.stop
+    with RunFile.open(path) as run:
+        assert run.tables.frames.extent == stored.stored.stop

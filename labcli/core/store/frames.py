@@ -171,9 +171,13 @@ class Frames:
         self.integer = bool(self.channels) and raw_dtype.kind == "i"
         self.raw_decimal = [_uncached(g, f"{c}/raw_decimal") for c in self.channels] if self.integer else []
         self.raw_dtype = raw_dtype
+        self._extent: int | None = None  # set by this object's writes (a reader reads the file's)
 
     @property
     def extent(self) -> int:
+        """Frames the arrays hold (``time`` first: no array holds more)."""
+        if self._extent is not None:  # a writer's own count: only its writes grow the arrays
+            return self._extent
         return int(self.time.shape[0])
 
     def next_start(self) -> int:
@@ -193,8 +197,10 @@ class Frames:
         # The decimals as sent, exactly, where the counts say so.
         decimal = [] if whole else [(self.raw_decimal[j], np.asarray(counts[:, j], dtype="<f8")) for j in range(k)]
         # ``time`` is written first, so no frame array holds more frames than it does.
-        append_all(items, start, extent=self.extent)
+        end = self.extent
+        append_all(items, start, extent=end)
         append_all(decimal, start)
+        self._extent = max(end, start + len(items[0][1]))
 
     def read(self, a: int, b: int) -> tuple[dict[str, np.ndarray], bool]:
         """Frames ``[a, b)`` as ``t_s``, ``seq``, ``counts`` (n, k), ``si`` (n, k); and whether all read."""
