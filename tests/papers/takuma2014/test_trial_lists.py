@@ -100,3 +100,21 @@ def test_overlap_on_ranges_as_read_is_the_merges(random_split, tmp_path):
         model = PostureModel(geometry=PAPER_GEOMETRY, fitted_trials=ft, fitted_on=identity)
         found.append(overlap(model, Source))
     assert found[0] == found[1] == sorted(val[::3].tolist())
+
+
+def test_a_posture_model_read_back_writes_the_file_it_was_read_from(random_split, tmp_path):
+    model = PostureModel(geometry=PAPER_GEOMETRY).fit(random_split)
+    if model.paper_model is None:
+        pytest.skip("no quantity took the paper's route on this table")
+    path = tmp_path / "m.json"
+    path.write_text(model.to_json())
+    first = path.read_text()
+    # 200 ranges: the fit writes each list on one line, not one number a line.
+    assert len(first.splitlines()) < 1000
+    again = force_model_from_json(first, name="the model")
+    assert again.to_json() == first
+    # Read back, the paper part's lists are the posture form's one list again (written once).
+    d = again.to_dict()
+    assert all(d["paper_model"]["fitted_trials"][eq] is d["fitted_trials"] for eq in EQUATIONS)
+    # Twice round: the same text.
+    assert force_model_from_json(again.to_json(), name="the model").to_json() == first

@@ -838,15 +838,23 @@ class PostureModel:
             return
         self.routes, self.fit_stats["routes_cv"], self.blends = rt.choose_routes(cv, self.limits)
         if set(self.routes.values()) - {rt.POSTURE}:
-            self.paper_model = full.to_dict()
-            # The paper's equations fitted on the posture form's own trials (ranges of ints, both):
-            # one list, written once (on a random split of 10^6 trials, 10^5 pairs).
-            shared = self.paper_model.get("fitted_trials", {})
-            for eq, ranges in shared.items():
-                if ranges == self.fitted_trials:
-                    shared[eq] = self.fitted_trials
+            self.paper_model = self._share_ranges(full.to_dict())
             self.paper_variance = rt.paper_residual_variances(cv, self.routes)
             self._paper = full
+
+    def _share_ranges(self, paper_model: dict[str, Any]) -> dict[str, Any]:
+        """``paper_model`` with each equation's trial ranges that are the posture form's own taken as
+        that one list: written once, on one line (on a random split of 10^6 trials, 10^5 pairs).
+
+        Read back from a file, the paper part's ranges are the ones its model parsed
+        (:func:`~labcli.core.idranges.parse`): as the file's plain lists they were written one
+        number a line (40 MB, 2.4 s a model on a random split of 10^6 rows).
+        """
+        shared = dict(paper_model.get("fitted_trials", {}))
+        for eq, ranges in shared.items():
+            if ranges == self.fitted_trials:
+                shared[eq] = self.fitted_trials
+        return {**paper_model, "fitted_trials": shared} if "fitted_trials" in paper_model else paper_model
 
     @property
     def paper(self) -> TakumaModel | None:
@@ -1280,10 +1288,13 @@ class PostureModel:
             routes=routes,
             paper_variance=variance,
             blends=blends,
-            paper_model=d.get("paper_model") if variance else None,
         )
         if variance:
             model._paper = TakumaModel.from_dict(d["paper_model"], name=f"{name}'s paper-form part")
+            part = d["paper_model"]
+            if "fitted_trials" in part:  # as parsed: ranges, as a fit writes them
+                part = {**part, "fitted_trials": model._paper.fitted_trials}
+            model.paper_model = model._share_ranges(part)
         model.calibrated_range = check_range(d.get("calibrated_range"), name)
         model.p0_leak_corrected, model.baseline_gap_s = check_baseline(d.get("baseline"), name)
         k = d.get("baseline_mean", 1)
