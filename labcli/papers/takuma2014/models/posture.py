@@ -718,17 +718,20 @@ class PostureModel:
         """
         if self.friction not in FRICTION_MODES:
             raise ModelError(f"Unknown friction terms {self.friction!r}; use one of {FRICTION_MODES}.")
-        table = self._unplayed(table, source)
-        self._fit_posture(table, source, record_trials)
+        # Which rows are fit trials, worked out once: the play's correction keeps every row and
+        # its set, and each pass of set_mask over 10^6 trials' set names took 16-20 ms.
+        fit_rows = set_mask(table, "fit", source)
+        table = self._unplayed(table, source, fit_rows)
+        self._fit_posture(table, source, record_trials, fit_rows)
         self.routes, self.paper_model, self.paper_variance, self.blends = {}, None, {}, {}
         self._paper = None
         if choose_routes:
             # After the posture fit has returned: its arrays (a copy of the fit trials) are freed
             # before the paper's form reads them again (at 10^6 trials, 100 MB of the peak).
-            self._choose_routes(table, source)
+            self._choose_routes(table, source, fit_rows)
         return self
 
-    def _unplayed(self, table: Any, source: str) -> Any:
+    def _unplayed(self, table: Any, source: str, fit_rows: np.ndarray | None = None) -> Any:
         """The table with its angle labels corrected for the potentiometers' play, fitted with the
         paper's Eqs. 34-35 designs exactly as that form fits it (models/labels.py), so that both
         forms learn the same deflections.  Play under-reads a deflection after a load the same way
@@ -742,15 +745,14 @@ class PostureModel:
         if self.label_play == "none":
             return table
         probe = TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="fit")
-        probe._unplayed(table, set_mask(table, "fit", source))
+        probe._unplayed(table, set_mask(table, "fit", source) if fit_rows is None else fit_rows)
         self.play = probe.play
         widths = self.play.get("play_deg")
         if not widths:
             return table
         return apply_play(table, (math.radians(widths[0]), math.radians(widths[1])))
 
-    def _fit_posture(self, table: Any, source: str, record_trials: bool = True) -> None:
-        fit_rows = set_mask(table, "fit", source)
+    def _fit_posture(self, table: Any, source: str, record_trials: bool, fit_rows: np.ndarray) -> None:
         a = table_arrays(table, fit_rows, motion=self.friction is True, baseline_mean=self.baseline_mean)
         use = (
             rows_all(np.isfinite(a["P0"]) & (a["P0"] > 0))
@@ -805,7 +807,7 @@ class PostureModel:
         self.source = source
         self.calibrated_range = calibrated_range(table, fit_rows)
 
-    def _choose_routes(self, table: Any, source: str) -> None:
+    def _choose_routes(self, table: Any, source: str, fit_rows: np.ndarray) -> None:
         """Cross-validate both forms on the fit trials; keep the paper's where it predicts better."""
 
         def posture_only(rows: Any) -> PostureModel:
@@ -817,21 +819,23 @@ class PostureModel:
                 label_play="none",  # the rows' labels are corrected already
             ).fit(rows, choose_routes=False, record_trials=False)
 
-        def paper(rows: Any, record_trials: bool = False, calibrated: Any = None) -> TakumaModel:
+        def paper(
+            rows: Any, record_trials: bool = False, calibrated: Any = None, fit_rows: np.ndarray | None = None
+        ) -> TakumaModel:
             # The rows' labels as the posture form fits them (play corrected, or as read): both
             # forms are judged on the same labels.
             return TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="none").fit(
-                rows, record_trials=record_trials, calibrated=calibrated
+                rows, record_trials=record_trials, calibrated=calibrated, fit_rows=fit_rows
             )
 
         try:
-            rows = rt.route_sample(np.flatnonzero(set_mask(table, "fit", source)))
+            rows = rt.route_sample(np.flatnonzero(fit_rows))
             template = TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="none")
             folds = functools.partial(fold_models, template, source=source)
             cv = rt.held_out_errors(table.iloc[rows], posture_only, paper, folds)
             # The same table and fit rows as the posture fit's (its labels taken as they are): the
             # same calibrated range.
-            full = paper(table, record_trials=True, calibrated=self.calibrated_range)
+            full = paper(table, record_trials=True, calibrated=self.calibrated_range, fit_rows=fit_rows)
         except ModelError:
             # Too few trials, or a block whose absence leaves a design singular: the posture form alone.
             self.routes = {q: rt.POSTURE for q in rt.QUANTITIES}
@@ -851,8 +855,11 @@ class PostureModel:
         number a line (40 MB, 2.4 s a model on a random split of 10^6 rows).
         """
         shared = dict(paper_model.get("fitted_trials", {}))
+        same: dict[int, bool] = {}  # one list shared by the equations is compared once (10^5 pairs)
         for eq, ranges in shared.items():
-            if ranges == self.fitted_trials:
+            if id(ranges) not in same:
+                same[id(ranges)] = ranges == self.fitted_trials
+            if same[id(ranges)]:
                 shared[eq] = self.fitted_trials
         return {**paper_model, "fitted_trials": shared} if "fitted_trials" in paper_model else paper_model
 

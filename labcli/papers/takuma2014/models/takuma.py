@@ -491,15 +491,17 @@ class TakumaModel:
         *,
         record_trials: bool = True,
         calibrated: Mapping[str, list[list[float]]] | None = None,
+        fit_rows: np.ndarray | None = None,
     ) -> TakumaModel:
         """Least squares on the table's ``set == 'fit'`` rows; returns self, fitted.
 
         ``record_trials=False`` leaves ``fitted_trials`` empty (a fit made only to predict, as
         the posture form's route choice makes ten).  ``calibrated``: the fit rows'
         ``calibrated_range`` when the caller has it from the same table and rows (the posture
-        form's, for the paper's part it fits on its own trials: a pass over 10^6 rows saved).
+        form's, for the paper's part it fits on its own trials: a pass over 10^6 rows saved);
+        ``fit_rows``, likewise, the table's :func:`set_mask` of its fit trials.
         """
-        fit_rows = set_mask(table, "fit", source)
+        fit_rows = set_mask(table, "fit", source) if fit_rows is None else fit_rows
         table, stuck = self._unplayed(table, fit_rows)
         a = _table_arrays(table, fit_rows)
         trial, P0, P, theta, F = a["trial"], a["P0"], a["P"], a["theta"], a["F"]
