@@ -118,3 +118,22 @@ def test_a_posture_model_read_back_writes_the_file_it_was_read_from(random_split
     assert all(d["paper_model"]["fitted_trials"][eq] is d["fitted_trials"] for eq in EQUATIONS)
     # Twice round: the same text.
     assert force_model_from_json(again.to_json(), name="the model").to_json() == first
+
+
+@pytest.mark.parametrize("baseline_mean", [1, 3])
+def test_the_posture_forms_calibrated_range_is_the_tables_over_its_fit_rows(random_split, baseline_mean):
+    """The fit's own columns stand in for the table's only where they are the table's: a running
+    baseline's P0 is not, and its range is still the pressures as read."""
+    from labcli.papers.takuma2014.models.calibrated import calibrated_range
+
+    table = random_split.copy()
+    table.loc[table.index[7], "P_L10"] += 0.05  # one baseline far from the rest: the mean moves it
+    model = PostureModel(geometry=PAPER_GEOMETRY, label_play="none", baseline_mean=baseline_mean)
+    model.fit(table, choose_routes=False)
+    fit = (table["set"] == "fit").to_numpy()
+    expected = calibrated_range(table, fit)
+    assert model.calibrated_range == expected
+    assert expected["P0_MPa"][0][1] == table.loc[fit, "P_L10"].max()
+    # A table without force columns: no force range, the rest as before.
+    bare = table.drop(columns=["Fx_N"])
+    assert "F_N" not in calibrated_range(bare, fit)

@@ -29,17 +29,22 @@ FORCE_COLUMNS = ("Fx_N", "Fy_N")
 RANGE_KEYS = {"P0_MPa": 4, "dP_MPa": 4, "rest_deg": 2, "theta_deg": 2, "F_N": 2}
 
 
-def calibrated_range(table: Any, rows: np.ndarray) -> dict[str, list[list[float]]]:
+def calibrated_range(
+    table: Any, rows: np.ndarray, taken: Mapping[str, np.ndarray] | None = None
+) -> dict[str, list[list[float]]]:
     """[min, max] per component of each of :data:`RANGE_KEYS` over the ``rows`` (a mask) of a trial table.
 
     A key's span is over the rows where all its components are finite.  Worked one column at a
     time: numpy's reductions along a 4-wide axis of an (n, 4) stack took a second at 10^6 trials.
+    ``taken``: columns the caller has already taken over ``rows`` as floats (the posture fit's
+    pressures and forces), used as they are: picking them out again was 40 ms at 10^6 trials.
     """
+    taken = {} if taken is None else taken
 
     def cols(names: tuple[str, ...]) -> list[np.ndarray] | None:
         if not all(c in table.columns for c in names):
             return None
-        return [np.asarray(table[c], dtype=float)[rows] for c in names]
+        return [taken[c] if c in taken else np.asarray(table[c], dtype=float)[rows] for c in names]
 
     P0, P = cols(BASELINE_COLUMNS), cols(LOADED_COLUMNS)
     parts = {

@@ -760,8 +760,15 @@ class PostureModel:
             & rows_all(np.isfinite(a["dtheta"]))
             & rows_all(np.isfinite(a["F"]))
         )
+        taken: dict[str, np.ndarray] = {}  # the fit rows' columns as read, for the calibrated range
         if not use.all():
             a = {k: v[use] for k, v in a.items()}
+        else:
+            # Only the pressures as read (a running baseline's P0 is not) and the forces (columns
+            # a table lacks are left to calibrated_range, which leaves their key out).
+            parts = [("P", LOADED_COLUMNS), ("F", FORCE_COLUMNS)]
+            parts += [("P0", BASELINE_COLUMNS)] if self.baseline_mean == 1 else []
+            taken = {c: a[key][:, k] for key, names in parts for k, c in enumerate(names)}
         P0, P, th0, dth, F = (a[k] for k in ("P0", "P", "theta0", "dtheta", "F"))
         moved = a.get("motion_in", np.zeros((len(P), 2)))
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
@@ -805,7 +812,7 @@ class PostureModel:
             "torque_rmse_Nm": np.sqrt(np.diag(tq.resid_cov)).tolist(),
         }
         self.source = source
-        self.calibrated_range = calibrated_range(table, fit_rows)
+        self.calibrated_range = calibrated_range(table, fit_rows, taken)
 
     def _choose_routes(self, table: Any, source: str, fit_rows: np.ndarray) -> None:
         """Cross-validate both forms on the fit trials; keep the paper's where it predicts better."""
