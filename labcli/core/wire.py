@@ -444,6 +444,9 @@ class StreamReader:
         if self.period_us is None and follows_on(seq, last):  # nothing lost, no stall to time
             self._last_seq, self._last_t_us = int(seq[-1]), int(batch.t_us[-1])
             return batch
+        if n < _MIN_VECTOR_LINES:  # an idle host's read of a frame or a few: numpy's cost per call is the most of it
+            self._count_few(seq.tolist(), batch.t_us.tolist())
+            return batch
         gap: np.ndarray | int = 0
         forward: np.ndarray | bool = True  # one step each, on from the last frame (the common batch)
         if not follows_on(seq, last):
@@ -466,6 +469,34 @@ class StreamReader:
         self._last_t_us = int(batch.t_us[-1])
         self._last_seq = int(seq[-1])
         return batch
+
+    def _count_few(self, seqs: list[int], times: list[int]) -> None:
+        """:meth:`_count_frames`' loss and stalls frame by frame, for fewer than 8 frames.
+
+        A stall's excess is the same number as there; the stalls' excesses are summed by numpy as there.
+        """
+        last, last_t, period = self._last_seq, self._last_t_us, self.period_us
+        lost = 0
+        stalled: list[float] = []
+        for s, t in zip(seqs, times, strict=True):
+            if last is None:  # the first frame since START has nothing before it
+                gap, forward = 0, False
+            else:
+                gap = (s - last - 1) % U32
+                forward = gap < U32 >> 1
+                if forward:
+                    lost += gap
+            if period is not None:
+                # t_us wraps like seq: differences modulo 2**32 stay right across the wrap.
+                excess = (t - (t if last_t is None else last_t)) % U32 - (gap + 1) * period
+                if forward and excess > self.stall_us:
+                    stalled.append(excess)
+            last, last_t = s, t
+        self.counters["lost"] += lost
+        if stalled:  # (rare)
+            self.stalls += len(stalled)
+            self.stalled_s += float(np.array(stalled).sum()) * 1e-6
+        self._last_seq, self._last_t_us = last, last_t
 
     def _classify(self, line: bytes) -> Parsed:
         """Slow path: one line through the reference parser, counted."""

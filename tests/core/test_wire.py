@@ -723,6 +723,60 @@ def test_clean_chunks_cut_anywhere_give_the_reference_frames_losses_and_stalls(c
         assert r.stalls == (0 if rate is None else reference_stalls(frames, r.period_us, STALL))
 
 
+def reference_stalled_s(frames: list[Frame], period_us: float, stall_us: int) -> float:
+    """The device time lost to stalls, frame by frame (as :func:`reference_stalls` finds them), s."""
+    total = 0.0
+    for prev, f in zip(frames, frames[1:], strict=False):
+        gap = (f.seq - prev.seq - 1) % U32
+        excess = (f.t_us - prev.t_us) % U32 - (gap + 1) * period_us
+        if gap < U32 // 2 and excess > stall_us:
+            total += excess * 1e-6
+    return total
+
+
+@given(clean_streams(), st.lists(st.integers(1, 3), min_size=1, max_size=40))
+@settings(max_examples=150, suppress_health_check=[HealthCheck.too_slow])
+def test_chunks_of_one_to_three_lines_give_the_reference_frames_losses_and_stalls(case, sizes):
+    """An idle host reads a line or a few at a time: each chunk's frames are counted one by one."""
+    stream, _, k, period = case
+    lines = stream.splitlines(keepends=True)
+    chunks, i = [], 0
+    while i < len(lines):
+        size = sizes[len(chunks) % len(sizes)]
+        chunks.append(b"".join(lines[i : i + size]))
+        i += size
+    frames, counters, *_ = reference(stream, k)
+    for rate in (None, 1e6 / period, 1e6 / (period + 1 / 3)):  # a period not a whole number of us too
+        r = StreamReader(n_channels=k, stall_us=STALL)
+        r.set_rate(rate)
+        batches = [r.feed(ch) for ch in chunks]
+        assert r.counters == counters
+        assert np.concatenate([b.seq for b in batches]).tolist() == [f.seq for f in frames]
+        assert np.concatenate([b.t_us for b in batches]).tolist() == [f.t_us for f in frames]
+        if rate is None:
+            assert r.stalls == 0 and r.stalled_s == 0.0
+        else:
+            assert r.stalls == reference_stalls(frames, r.period_us, STALL)
+            assert r.stalled_s == pytest.approx(reference_stalled_s(frames, r.period_us, STALL), rel=1e-12, abs=1e-12)
+
+
+def test_a_few_frames_are_counted_as_a_batch_of_many_counts_them():
+    """Loss, a restart and stalls read a frame at a time (counted one by one) and in one read (by numpy)."""
+    seqs = [5, 6, 9, 10, 2, 3, 4, 5]  # two lost before 9, a restart at 2 (nothing lost)
+    times = [0, 1000, 900_000, 901_000, 1_400_000, 1_401_000, 1_700_000, 2_000_000]  # stalls before 9, 4, 5
+    lines = [format_frame(q, t, [1, 2]) for q, t in zip(seqs, times, strict=True)]
+    few, many = (StreamReader(n_channels=2, stall_us=100_000) for _ in range(2))
+    for r in (few, many):
+        r.set_rate(1000)
+    for line in lines:
+        few.feed(line)
+    many.feed(b"".join(lines))
+    assert few.counters == many.counters and few.counters["lost"] == 2
+    assert few.stalls == many.stalls == 3
+    want_us = (900_000 - 1000 - 3000) + (1_700_000 - 1_401_000 - 1000) + (2_000_000 - 1_700_000 - 1000)
+    assert few.stalled_s == many.stalled_s == pytest.approx(want_us * 1e-6, abs=1e-12)
+
+
 def test_a_clean_stream_in_4_kib_chunks_is_read_whole_chunk_by_chunk(monkeypatch):
     """Each chunk, with the line carried from the one before, is taken by clean_rows in one piece."""
     taken = []
