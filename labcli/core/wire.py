@@ -334,14 +334,20 @@ class StreamReader:
         deadline = time.monotonic() + timeout
         lines_before = self.lines
         batches = []
+        # A port that waits for its first byte and reads what it holds in one call (the Device's
+        # serial port on a POSIX system): read_burst(timeout, size).
+        burst = getattr(port, "read_burst", None)
         while True:
-            waiting = port.in_waiting
-            data = port.read(min(waiting, self.chunk) if waiting else 1)
-            if data:
-                # The blocking read(1) woke on the first byte; take the rest of the burst too.
+            if burst is not None:
+                data = burst(max(0.0, deadline - time.monotonic()), self.chunk)
+            else:
                 waiting = port.in_waiting
+                data = port.read(min(waiting, self.chunk) if waiting else 1)
+                # The blocking read(1) woke on the first byte; take the rest of the burst too.
+                waiting = port.in_waiting if data else 0
                 if waiting:
                     data += port.read(min(waiting, self.chunk))
+            if data:
                 batch = self.feed(data)
                 if len(batch):
                     batches.append(batch)

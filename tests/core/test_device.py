@@ -162,6 +162,34 @@ def test_unplugged_mid_stream(firmware):
     dev.close()  # closing a dead device is quiet
 
 
+def test_a_read_takes_every_byte_waiting_in_one_system_call(firmware, monkeypatch):
+    """On a POSIX serial port a wake costs one wait and one os.read of all that waits (no read(1), no in_waiting)."""
+    dev = Device.open(firmware.port, boot_wait=0, timeout=1.0)
+    try:
+        dev.start()
+        assert len(read_frames(dev, 5)[0]) >= 5
+        time.sleep(0.1)  # 50 frames at 500 Hz wait in the port
+        fd, calls = dev.serial.fd, []
+        real_read = os.read
+
+        def counting_read(f, n):
+            data = real_read(f, n)
+            if f == fd:
+                calls.append(len(data))
+            return data
+
+        monkeypatch.setattr(os, "read", counting_read)
+        monkeypatch.setattr(type(dev.serial), "in_waiting", property(lambda _: pytest.fail("in_waiting asked")))
+        before = dev.counters["frames"]
+        batch = dev.read(timeout=0.5)
+        assert len(calls) == 1 and calls[0] > 40 * 30  # one read, of 40 frames or more
+        assert len(batch) == dev.counters["frames"] - before >= 40
+        assert np.all(np.diff(batch.seq) == 1) and dev.arrived is not None
+    finally:
+        monkeypatch.undo()
+        dev.close()
+
+
 @pytest.mark.parametrize("firmware", [{"max_frames": 20}], indirect=True)
 def test_stream_that_goes_quiet_times_out(firmware):
     dev = Device.open(firmware.port, boot_wait=0, timeout=0.4)
