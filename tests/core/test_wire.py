@@ -760,6 +760,59 @@ def test_chunks_of_one_to_three_lines_give_the_reference_frames_losses_and_stall
             assert r.stalled_s == pytest.approx(reference_stalled_s(frames, r.period_us, STALL), rel=1e-12, abs=1e-12)
 
 
+def _resummed(body: bytes, hexdigits: bytes = b"%02X") -> bytes:
+    return b"$" + body + b"*" + hexdigits % checksum(body) + b"\n"
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        _resummed(b"D,1,2,%d,7" % (2**53 - 1)),  # the largest count exact in float64: the few-frames path
+        _resummed(b"D,1,2,%d,7" % 2**53),  # one more: left to the other paths (a frame all the same)
+        _resummed(b"D,%d,2,3,7" % (U32 - 1)),
+        _resummed(b"D,%d,2,3,7" % U32),  # seq past 32 bits: noise
+        _resummed(b"D,1,2,3,7", b"%02x"),  # a lowercase checksum
+        _resummed(b"D,1,2,+3,7"),  # a sign: a frame by parse_line, not by the few-frames path
+        _resummed(b"D,1,2,3.5,7"),
+        _resummed(b"D,1,2,,7"),
+        _resummed(b"D,1,2,3,7,8"),  # a value too many
+        _resummed(b"D,1,2,3,7")[:-1] + b"\r\n",
+        _resummed(b"D,1,2,3,7")[:-1] + b"\r\r\n",
+        _resummed(b"D,1,2,3,7").replace(b"*", b"**"),
+        _resummed(b"D,1,2,3\r,7"),
+        _resummed(b"D,1,2,3,7\xb2"),  # a non-ASCII digit
+        _resummed(b"D,1,2," + b"0" * 240 + b"3,7"),  # leading zeros up to a line too long
+        _resummed(b"D,1,2," + b"0" * 235 + b"3,7"),
+        _resummed(b"E,1,2,VALVE,S"),
+        b"#boot\n",
+    ],
+)
+def test_a_line_read_alone_or_beside_two_frames_is_what_parse_line_makes_of_it(line):
+    """A read of one to three lines (an idle host's) judges each line as the reference parser does."""
+    good = [_good(7 + i, [1, 2]) for i in range(2)]
+    stream = good[0] + line + good[1]
+    for k in (None, 2):
+        assert_agrees(stream, [len(good[0]), len(good[0]) + len(line)], k)  # the line alone
+        assert_agrees(stream, [], k)  # with a frame before and after it
+        assert_agrees(stream, [len(good[0]) + 3], k)  # cut inside it
+
+
+def test_reads_of_a_few_clean_lines_take_the_python_path_and_eight_take_numpy(monkeypatch):
+    calls = []
+    monkeypatch.setattr("labcli.core.wire.clean_rows", lambda *a: calls.append(a) or wirechunk.clean_rows(*a))
+    lines = [_good(i, [i, 4095, 0, 7, 2048, 1], crlf=i == 2) for i in range(19)]
+    r = StreamReader(n_channels=6)
+    r.set_rate(200)
+    got = [r.feed(b"".join(lines[:3])), r.feed(lines[3][:10]), r.feed(lines[3][10:])]
+    assert not calls  # 3 lines, then a line cut in two: no numpy parse
+    got.append(r.feed(b"".join(lines[4:11])))  # 7 lines
+    assert not calls
+    got.append(r.feed(b"".join(lines[11:19])))
+    assert len(calls) == 1  # 8 lines: the whole-chunk path
+    assert np.concatenate([b.seq for b in got]).tolist() == list(range(19))
+    assert r.counters["frames"] == 19 and r.counters["lost"] == 0 and r.lines == 19
+
+
 def test_a_few_frames_are_counted_as_a_batch_of_many_counts_them():
     """Loss, a restart and stalls read a frame at a time (counted one by one) and in one read (by numpy)."""
     seqs = [5, 6, 9, 10, 2, 3, 4, 5]  # two lost before 9, a restart at 2 (nothing lost)
