@@ -258,7 +258,8 @@ class StreamReader:
 
     ``port`` is any object with pyserial's ``read``/``in_waiting`` (or None for :meth:`feed`
     only).  Its ``timeout`` is the poll interval of :meth:`read`, so it must be finite (the
-    Device sets 0.05 s).  ``n_channels=None`` takes the channel count from the first valid
+    Device sets 0.05 s).  A port with ``read_burst(timeout, size)`` (the Device's on a POSIX
+    system) is read through that instead: one wait for the first byte, one read of all that waits.  ``n_channels=None`` takes the channel count from the first valid
     frame; later frames with another count are malformed.
 
     A 1.1 board's event and estimate lines are counted and kept in ``events`` and ``estimates``

@@ -1,7 +1,8 @@
 """The stream reader's whole-chunk path: a chunk of nothing but good integer frames, in one pass.
 
 :class:`labcli.core.wire.StreamReader` tries :func:`clean_rows` first on every chunk of enough
-bytes (with the partial line carried from the chunk before); a chunk with anything else in it
+bytes (with the partial line carried from the chunk before; a read of fewer than 8 lines is
+judged line by line in Python first); a chunk with anything else in it
 (a log line, a reply, noise, a decimal) goes to the reader's line-finding path (whose digit
 decoding, :func:`digits_to_rows`, is here too) and the reference parser.
 
