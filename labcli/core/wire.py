@@ -251,6 +251,9 @@ _IS_DIGIT[48:58] = True
 _IS_FIELD = _IS_DIGIT.copy()
 _IS_FIELD[44] = True  # ','
 _MIN_VECTOR_LINES = 8  # below this, line by line is quicker than numpy's fixed cost per call
+# A read this long holds more lines than that unless they are overlong (which the other paths
+# count): a full chunk skips the count of its line breaks.
+_FEW_BYTES = 1024
 
 
 class StreamReader:
@@ -370,7 +373,7 @@ class StreamReader:
             self._skipping = False
         end = data.rfind(b"\n") + 1
         k = self.n_channels
-        if end and k is not None and data.count(b"\n", 0, end) < _MIN_VECTOR_LINES:
+        if end and k is not None and end < _FEW_BYTES and data.count(b"\n", 0, end) < _MIN_VECTOR_LINES:
             # An idle host's read: a frame or a few, judged line by line in Python (at a few lines a
             # read, numpy's calls cost more than their work, all the more from a cold cache).
             batch = _few_frames(self._pending + data[:end] if self._pending else data[:end], k)
