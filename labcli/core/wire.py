@@ -30,35 +30,20 @@ import time
 from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass
-from numbers import Integral
 from typing import Any
 
 import numpy as np
 
 from .boardlines import ESTIMATE_KIND, EVENT_KIND, Estimate, Event, parse_board_fields
 from .wirechunk import clean_rows, digits_to_rows, follows_on, steps_bytes, whole_chunk
+from .wireline import HEX_DIGITS, MAX_LINE, U32, checksum, few_rows
+from .wireline import format_command as format_command
+from .wireline import format_frame as format_frame
+from .wireline import format_log as format_log
 
-MAX_LINE = 256  # bytes per line, '\n' excluded; longer runs are noise
 OVERLONG = f"line longer than {MAX_LINE} bytes"  # Noise reasons the reader counts apart
 BAD_CHECKSUM = "bad checksum"
 STALL_US = 250_000  # device-time excess over the expected gap that counts as a stall
-U32 = 1 << 32
-
-
-def checksum(payload: bytes) -> int:
-    """XOR of every byte of ``payload`` (the bytes strictly between ``$`` and ``*``)."""
-    # XOR of bytes == XOR of the big integer's byte lanes; folding the int is
-    # far quicker in CPython than a per-byte loop.
-    n = len(payload)
-    if n == 0:
-        return 0
-    x = int.from_bytes(payload, "little")
-    width = n * 8
-    while width > 8:
-        half = ((width // 8 + 1) // 2) * 8
-        x = (x ^ (x >> half)) & ((1 << half) - 1)
-        width = half
-    return x & 0xFF
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,7 +75,6 @@ Parsed = Frame | Event | Estimate | LogLine | Reply | Noise
 # or float() would also swallow (spaces, '_', 'nan', 'inf') is on the wire.
 _INT_RE = re.compile(rb"[+-]?[0-9]+")
 _DEC_RE = re.compile(rb"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-_HEX_DIGITS = frozenset(b"0123456789abcdefABCDEF")
 
 
 def _number(field: bytes) -> float | int:
@@ -146,7 +130,7 @@ def _parse_data(line: bytes, n_channels: int | None) -> Parsed:
     if star < 0 or len(line) - star != 3:
         return Noise(line, "data line without '*HH' checksum at its end")
     hh = line[star + 1 :]
-    if not all(c in _HEX_DIGITS for c in hh):
+    if not all(c in HEX_DIGITS for c in hh):
         return Noise(line, "checksum is not two hex digits")
     want = int(hh, 16)
     payload = line[1:star]
@@ -175,27 +159,6 @@ def _parse_data(line: bytes, n_channels: int | None) -> Parsed:
     return Frame(seq, t_us, values)
 
 
-def format_frame(seq: int, t_us: int, values: Iterable[Any]) -> bytes:
-    """Encode a data line, ``\\n`` included.  Integers (numpy's too) stay integers."""
-    body = ",".join(
-        ["D", str(int(seq) % U32), str(int(t_us) % U32)]
-        + [str(int(v)) if isinstance(v, Integral) else repr(float(v)) for v in values]
-    ).encode("ascii")
-    return b"$" + body + b"*%02X\n" % checksum(body)
-
-
-def format_log(text: str) -> bytes:
-    return b"#" + text.replace("\n", " ").encode("ascii", "replace") + b"\n"
-
-
-def format_command(command: str, *args: object) -> bytes:
-    """Encode a host command: ``format_command("RATE", 200) == b"RATE 200\\n"``."""
-    text = " ".join([command, *(str(a) for a in args)])
-    if "\n" in text or "\r" in text:
-        raise ValueError("a command is one line")
-    return text.encode("ascii") + b"\n"
-
-
 def noise_counter(reason: str) -> str:
     """The :class:`StreamReader` counter a :class:`Noise` line of this ``reason`` adds to."""
     if reason == BAD_CHECKSUM:
@@ -203,10 +166,6 @@ def noise_counter(reason: str) -> str:
     if reason == OVERLONG:
         return "overlong"
     return "malformed"
-
-
-# --------------------------------------------------------------------------
-# Stream reader
 
 
 @dataclass(frozen=True)
@@ -376,8 +335,9 @@ class StreamReader:
         if end and k is not None and end < _FEW_BYTES and data.count(b"\n", 0, end) < _MIN_VECTOR_LINES:
             # An idle host's read: a frame or a few, judged line by line in Python (at a few lines a
             # read, numpy's calls cost more than their work, all the more from a cold cache).
-            batch = _few_frames(self._pending + data[:end] if self._pending else data[:end], k)
-            if batch is not None:
+            few = few_rows(self._pending + data[:end] if self._pending else data[:end], k)
+            if few is not None:
+                batch = _new_batch(few[:, 0], few[:, 1], few[:, 2:].astype(_F64))
                 self._pending = data[end:]
                 if len(self._pending) > MAX_LINE + 1:
                     self._check_pending()
@@ -618,37 +578,6 @@ class StreamReader:
 
 
 _F64 = np.float64
-_EXACT = 1 << 53  # counts below this stay exact in float64
-
-
-def _few_frames(block: bytes, k: int) -> FrameBatch | None:
-    """The frames of ``block`` (complete lines), or None unless each line is a plain integer data line.
-
-    What is taken is exactly what :func:`parse_line` makes a frame of ``k`` values (the property
-    tests hold both to that): ``$D,`` then ``k + 2`` fields of ASCII digits (seq and t_us below
-    2**32, values below 2**53, so exact as float64), ``*`` and two hex digits naming the XOR
-    checksum, at most ``MAX_LINE`` bytes before the ``\\n`` (less one ``\\r``).  Anything else is
-    left to the reader's other paths, which count it.
-    """
-    lines = block.split(b"\n")
-    lines.pop()  # after the final '\n'
-    flat: list[int] = []
-    for line in lines:
-        if line[-1:] == b"\r":
-            line = line[:-1]
-        if len(line) > MAX_LINE or line[:3] != b"$D," or line[-3:-2] != b"*":
-            return None
-        if line[-2] not in _HEX_DIGITS or line[-1] not in _HEX_DIGITS or checksum(line[1:-3]) != int(line[-2:], 16):
-            return None
-        fields = line[3:-3].split(b",")
-        if len(fields) != k + 2 or not all(map(bytes.isdigit, fields)):
-            return None
-        row = list(map(int, fields))
-        if row[0] >= U32 or row[1] >= U32 or max(row) >= _EXACT:
-            return None
-        flat += row
-    rows = np.array(flat, np.int64).reshape(len(lines), k + 2)
-    return _new_batch(rows[:, 0], rows[:, 1], rows[:, 2:].astype(_F64))
 
 
 def _new_batch(seq: np.ndarray, t_us: np.ndarray, values: np.ndarray) -> FrameBatch:

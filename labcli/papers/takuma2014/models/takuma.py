@@ -541,15 +541,7 @@ class TakumaModel:
         for eq in EQUATIONS:
             names = TERMS[eq]
             use = ~np.isin(trial, np.fromiter(reasons[eq], dtype=trial.dtype, count=len(reasons[eq])))
-            n, p = int(use.sum()), len(names)
-            if n < p + 1:
-                why = sorted(set(reasons[eq].values()))
-                detail = f" ({len(reasons[eq])} excluded: {'; '.join(why)})" if why else ""
-                raise ModelError(
-                    f"The {eq} equation needs at least {p + 1} usable fit trials for "
-                    f"its {p} coefficients, but {source} has {n}{detail}; "
-                    "record more fit trials."
-                )
+            n = _enough_trials(eq, int(use.sum()), len(names), reasons[eq], source)
             X, y = (design(eq), targets[eq]) if use.all() else (design(eq)[use], targets[eq][use])
             res = _lstsq(X, y, names, eq, self.max_design_cond)
             tq = t_975(res.dof)
@@ -570,13 +562,7 @@ class TakumaModel:
         self.excluded_trials = excluded
         self.source = str(source)
         self.labcli_version = __version__
-        from .calibrated import calibrated_range
-
-        self.calibrated_range = (
-            calibrated_range(table, fit_rows)  # the play's correction keeps the rows
-            if calibrated is None
-            else {k: [list(p) for p in v] for k, v in calibrated.items()}
-        )
+        self.calibrated_range = _calibrated(table, fit_rows, calibrated)
         return self
 
     def _unplayed(self, table: Any, fit_rows: np.ndarray) -> tuple[Any, dict[str, list[int]]]:
@@ -996,3 +982,27 @@ def fit(
     return TakumaModel(
         geometry=dict(geometry), protocol=protocol, max_amplification=max_amplification, max_design_cond=max_design_cond
     ).fit(table, source=source)
+
+
+def _enough_trials(eq: str, n: int, p: int, reasons: Mapping[int, str], source: str) -> int:
+    """``n``, the equation's usable fit trials, or the one sentence saying they are too few for its ``p`` coefficients."""
+    if n < p + 1:
+        why = sorted(set(reasons.values()))
+        detail = f" ({len(reasons)} excluded: {'; '.join(why)})" if why else ""
+        raise ModelError(
+            f"The {eq} equation needs at least {p + 1} usable fit trials for "
+            f"its {p} coefficients, but {source} has {n}{detail}; "
+            "record more fit trials."
+        )
+    return n
+
+
+def _calibrated(
+    table: Any, fit_rows: np.ndarray, calibrated: Mapping[str, list[list[float]]] | None
+) -> dict[str, list[list[float]]]:
+    """The fit rows' calibrated range: the caller's, when it has it from the same table and rows."""
+    from .calibrated import calibrated_range
+
+    if calibrated is None:
+        return calibrated_range(table, fit_rows)  # the play's correction keeps the rows
+    return {k: [list(p) for p in v] for k, v in calibrated.items()}
