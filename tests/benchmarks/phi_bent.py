@@ -16,14 +16,20 @@ geometry a few per cent off the protocol's, potentiometer scale errors, 0.5 kPa 
 
 ``--second KEY=VALUE`` (repeatable) changes a field of the second rig (``p_noise_kPa=0``, ``h2=0.130``,
 ``pot_scale=1,1``), and ``--realism literature`` runs the simulated rig at the literature's levels
-(its pressure repeatability of 0.33 kPa per reading among them): which of its differences makes the
-direction wrong.  On the second rig each seed also prints how far the estimated force's direction is
-from the true one (median over the pushes) and the Fy error, beside the Cramer-Rao floor of Fy's
-standard error from one push's readings (``second_rig.force_floor``).
+(``kind``, the default, is passed to the rig explicitly, so the figures do not follow the rig's own
+default); ``--effect NAME=SCALE`` (repeatable) scales one of its effects (``repeat=0``,
+``friction=0.25``): which of the differences makes the direction wrong.  ``--settle S`` and
+``--repressurise KPA`` change the trials' and pushes' timing (``--settle 8 --repressurise 0``: the
+timing these figures were once measured with).  Each seed also prints how far the estimated force's
+direction is from the true one (median over the pushes) and, on the simulated rig, its mean signed
+error (a bias the pushes share; the true direction is the radial one, from the pushed object's true
+centre to the contact point its potentiometers give), on the second rig the Fy error, beside the
+Cramer-Rao floor of Fy's standard error from one push's readings (``second_rig.force_floor``).
 
     python tests/benchmarks/phi_bent.py [--seeds 1-3] [--angles pressure-only|measured-angles]
                                         [--rig project|second] [--second KEY=VALUE ...]
-                                        [--realism kind|literature] [--figures FILE.json]
+                                        [--realism kind|literature] [--effect NAME=SCALE ...]
+                                        [--settle S] [--repressurise KPA] [--figures FILE.json]
 """
 
 from __future__ import annotations
@@ -33,13 +39,16 @@ import json
 from pathlib import Path
 
 import numpy as np
-from acquired import Windows, acquired_air
+from acquired import Windows, acquired_air, add_air_options
 from sensing_accuracy import BENT_SUPPLY_MPA, trials
 
 # The stiffness settings, as --max-phi-se sets them (None: the protocol's defaults).
 PARAMS: dict | None = None
 SECOND: dict = {}  # the second rig's fields changed by --second
 DIRECTION: list[tuple[float, float]] = []  # per seed of the second rig: median direction error (deg), Fy RMSE (N)
+# Per seed of the simulated rig: the force direction's median absolute and mean signed error (deg).
+BIAS: list[tuple[float, float]] = []
+AIR: dict = {}  # the trials' and pushes' timing, as --settle and --repressurise set it (empty: as acquired)
 
 
 def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, int]:
@@ -51,7 +60,7 @@ def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, i
     from labcli.papers.takuma2014.sim.drive import simulate_pushes
     from labcli.papers.takuma2014.sim.rig import SimRig
 
-    proto, table = trials("takuma2014-bent", seed, rig_kw=rig_kw)
+    proto, table = trials("takuma2014-bent", seed, rig_kw=rig_kw, **AIR)
     model = PostureModel(
         geometry=proto.settings.rig,
         protocol="takuma2014-stiffness",
@@ -60,7 +69,7 @@ def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, i
     sp = load_protocol("takuma2014-stiffness")
     # The push run on the rig opened anew, taken as the trials are (as acquired: acquired.py).
     rig = Windows(SimRig(seed=seed, **{"supply_MPa": BENT_SUPPLY_MPA, **(rig_kw or {})}))
-    pushes = simulate_pushes(rig, calibration=sp.calibration, phi_known=False, **acquired_air(sp))
+    pushes = simulate_pushes(rig, calibration=sp.calibration, phi_known=False, **acquired_air(sp, **AIR))
     rig.rest_columns(pushes, sp.calibration)
     truth = dict(
         zip(pushes["object"], [sp.settings.push.category_of(k) for k in pushes["true_stiffness_N_per_m"]], strict=False)
@@ -70,7 +79,27 @@ def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, i
     ps, objs = (res.pushes, res.objects) if "push" in res.pushes.columns else (res.objects, res.pushes)
     used = int(objs["n_used"].sum())
     right = int(sum(truth[o] == c for o, c in zip(objs["object"], objs["category"], strict=False)))
+    off = direction_error(pushes, ps, proto.settings.rig)
+    BIAS.append((float(np.nanmedian(np.abs(off))), float(np.nanmean(off))))
     return used, len(ps), right
+
+
+def direction_error(pushes, ps, rig: dict) -> np.ndarray:
+    """Each push's estimated force direction less the true radial one (deg): from the object's true
+    centre (its true phi, Eq. 39 from the rest posture's contact point) to the contact point its
+    potentiometers give."""
+    from labcli.papers.takuma2014.models.geometry import contact_point
+    from labcli.papers.takuma2014.models.stiffness import object_centre
+
+    h2, h3 = float(rig["h2_m"]), float(rig["h3_m"])
+    rest = np.radians(pushes[["theta1_0_deg", "theta2_0_deg"]].to_numpy(float))
+    moved = rest + np.radians(pushes[["theta1_deg", "theta2_deg"]].to_numpy(float))
+    C0 = contact_point(rest[:, 0], rest[:, 1], h2, h3)
+    C = contact_point(moved[:, 0], moved[:, 1], h2, h3)
+    phi = np.radians(pushes["true_phi_deg"].to_numpy(float))
+    radial = C - object_centre(pushes["R_m"].to_numpy(float), pushes["d_m"].to_numpy(float), phi, h2, h3, C0)
+    est = np.arctan2(ps["Fy_N"].to_numpy(float), ps["Fx_N"].to_numpy(float))
+    return np.degrees(np.angle(np.exp(1j * (est - np.arctan2(radial[:, 1], radial[:, 0])))))
 
 
 def run_second(seed: int, angles: str) -> tuple[int, int, int]:
@@ -114,7 +143,11 @@ def main() -> None:
     ap.add_argument("--rig", default="project", choices=["project", "second"])
     ap.add_argument("--max-phi-se", type=float, help="max_phi_se_deg of the stiffness settings (deg)")
     ap.add_argument("--second", action="append", default=[], metavar="KEY=VALUE", help="a second rig's field")
-    ap.add_argument("--realism", choices=["kind", "literature"], help="the simulated rig's levels (default: kind)")
+    ap.add_argument(
+        "--realism", default="kind", choices=["kind", "literature"], help="the simulated rig's levels (default: kind)"
+    )
+    ap.add_argument("--effect", action="append", default=[], metavar="NAME=SCALE", help="one effect's scale")
+    add_air_options(ap)
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
     global PARAMS
@@ -124,11 +157,11 @@ def main() -> None:
         key, _, value = item.partition("=")
         numbers = tuple(float(v) for v in value.split(","))
         SECOND[key] = numbers if len(numbers) > 1 else numbers[0]
-    rig_kw = None
-    if args.realism:
-        from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
-        rig_kw = {"nonideal": NonIdeal(realism=args.realism)}
+    effects = {name: float(value) for name, _, value in (e.partition("=") for e in args.effect)}
+    rig_kw = {"nonideal": NonIdeal(realism=args.realism, **effects)}
+    AIR.update({k: v for k, v in (("settle_s", args.settle), ("repressurise_kPa", args.repressurise)) if v is not None})
     lo, hi = (int(s) for s in args.seeds.split("-"))
     rows = []
     for seed in range(lo, hi + 1):
@@ -139,6 +172,8 @@ def main() -> None:
             aside = (
                 f"; force direction off by {DIRECTION[-1][0]:.1f} deg (median), Fy error {DIRECTION[-1][1]:.2f} N rms"
             )
+        else:
+            aside = f"; force direction off by {BIAS[-1][0]:.1f} deg (median), {BIAS[-1][1]:+.1f} deg on average"
         print(
             f"seed {seed}: {used}/{n} pushes used ({100 * used / n:.0f} %), {right}/6 objects in category "
             f"(target >= 80 %, 6/6){aside}"
@@ -172,8 +207,12 @@ def main() -> None:
             figures["Fy error rms N"] = float(np.sqrt(np.mean([f**2 for _, f in DIRECTION])))
             figures["Fy floor N"], figures["Fx floor N"] = float(floor[1]), float(floor[0])
             figures["second"] = " ".join(args.second)
-        if args.realism:
+        else:
+            figures["direction error median deg"] = float(np.median([d for d, _ in BIAS]))
+            figures["direction bias deg"] = float(np.mean([b for _, b in BIAS]))
             figures["realism"] = args.realism
+            figures["effects"] = " ".join(args.effect)
+            figures["timing"] = " ".join(f"{k}={v:g}" for k, v in AIR.items())
         Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n")
 
 

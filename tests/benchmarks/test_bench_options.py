@@ -439,3 +439,64 @@ def test_sensing_rig_effects_one_off_or_alone():
     alone = sa.nonideal_of("friction").as_dict()
     assert alone["friction"] == 1.0 and sum(alone.values()) == 1.0
     assert sum(sa.nonideal_of(True, realism="literature").as_dict().values()) == 0.0
+
+
+def test_phi_bent_direction_error_is_the_turn_from_the_radial_force():
+    """phi_bent.direction_error: a force turned by a known angle from the radial one (the object's
+    true centre, Eq. 39 from the rest contact point, to the loaded contact point) reads that angle."""
+    from labcli.papers.takuma2014.models.geometry import contact_point
+    from labcli.papers.takuma2014.models.stiffness import object_centre
+
+    pb = bench("phi_bent")
+    rig = dict(load_protocol("takuma2014-bent").settings.rig)
+    h2, h3 = rig["h2_m"], rig["h3_m"]
+    pushes = pd.DataFrame(
+        {
+            "theta1_0_deg": [-0.8, 0.3, 0.0],
+            "theta2_0_deg": [19.2, 20.1, 18.0],
+            "theta1_deg": [0.7, 0.3, 1.1],
+            "theta2_deg": [1.3, 0.8, -0.4],
+            "true_phi_deg": [0.0, 15.0, -30.0],
+            "R_m": [0.033, 0.033, 0.0325],
+            "d_m": [0.01, 0.01, 0.008],
+        }
+    )
+    rest = np.radians(pushes[["theta1_0_deg", "theta2_0_deg"]].to_numpy())
+    moved = rest + np.radians(pushes[["theta1_deg", "theta2_deg"]].to_numpy())
+    C0, C = contact_point(rest[:, 0], rest[:, 1], h2, h3), contact_point(moved[:, 0], moved[:, 1], h2, h3)
+    O2 = object_centre(
+        pushes["R_m"].to_numpy(), pushes["d_m"].to_numpy(), np.radians(pushes["true_phi_deg"]), h2, h3, C0
+    )
+    radial = np.arctan2(*(C - O2)[:, ::-1].T)
+    for turn in (0.0, 10.0, -25.0, 170.0):
+        a = radial + np.radians(turn)
+        ps = pd.DataFrame({"Fx_N": 3.0 * np.cos(a), "Fy_N": 3.0 * np.sin(a)})
+        np.testing.assert_allclose(pb.direction_error(pushes, ps, rig), turn, atol=1e-9)
+
+
+def test_phi_bent_passes_its_realism_effects_and_timing(monkeypatch, capsys):
+    """phi_bent.py gives the rig its realism even when it is the kind one (the rig's own default may
+    change), scales an effect by --effect, and times trials and pushes by --settle/--repressurise."""
+    pb = bench("phi_bent")
+    seen = []
+
+    def fake_run(seed, angles, rig_kw=None):
+        seen.append((seed, rig_kw["nonideal"], dict(pb.AIR)))
+        pb.BIAS.append((1.0, 0.5))
+        return 50, 60, 6
+
+    monkeypatch.setattr(pb, "run", fake_run)
+    monkeypatch.setattr(pb, "AIR", {})
+    monkeypatch.setattr(pb, "BIAS", [])
+    argv = ["phi_bent.py", "--seeds", "4-5", "--effect", "repeat=0", "--settle", "8", "--repressurise", "0"]
+    monkeypatch.setattr(sys, "argv", argv)
+    pb.main()
+    assert [s for s, _, _ in seen] == [4, 5]
+    scales = seen[0][1]
+    assert scales.realism == "kind" and scales.repeat == 0.0 and scales.friction == 1.0
+    assert seen[0][2] == {"settle_s": 8.0, "repressurise_kPa": 0.0}
+    monkeypatch.setattr(sys, "argv", ["phi_bent.py", "--seeds", "1-1", "--realism", "literature"])
+    monkeypatch.setattr(pb, "AIR", {})
+    pb.main()
+    assert seen[-1][1].realism == "literature" and seen[-1][1].repeat == 1.0 and seen[-1][2] == {}
+    assert "+0.5 deg on average" in capsys.readouterr().out
