@@ -17,6 +17,13 @@ fitted on leak-corrected baselines (``model.p0_leak_corrected``).  A model fitte
 baselines as measured, ``baseline_gap_s`` before their loaded capture, gets the line as it
 stood that long before the block: the same leak the fit saw.  With neither known (older model
 files), the baseline at the load's start, as a trial's baseline window would have it.
+
+The history of loads.  For a model that reads it (:class:`~.model.HistoryModel`: a friction
+that opposes the last motion), each load is estimated with the joints' motion into its baseline:
+the rest posture at its start less the posture of the load before it (that load's rest plus the
+deflections the model reads from its last pressures before it came off, while no change was
+under way), as ``labcli predict`` works it out from a table's rows in trial order.  The first load
+has none, and the idle rig none: at its baseline nothing has moved since.
 """
 
 from __future__ import annotations
@@ -36,7 +43,7 @@ from .detector import ChangeDetector, whiten
 from .evaluate import Inputs2, evaluate
 from .excursion import Excursion
 from .inputs import DeviceClock, Inputs
-from .model import BASELINE, STATE, TRANSIENT, SensingModel, check_model
+from .model import BASELINE, STATE, TRANSIENT, SensingModel, check_model, uses_history
 from .results import IDLE, LOAD, LOADED, LOADING, RELEASE, RELEASING, SETTLED, STARTING, Estimate, Event
 from .transient import ResponseFit, Step, lag, onset
 
@@ -79,6 +86,7 @@ class Estimator:
         )
         self.on_settled = on_settled
         self._state_kind = np.array([k == STATE for k in self.model.kinds])
+        self._history_model = uses_history(self.model)
         self.rate_hz = rate_hz
         self._clock = DeviceClock()
         self._count = 0  # frames given without their seq (update_si)
@@ -110,6 +118,13 @@ class Estimator:
         self._tails: list[Step] = []  # finished changes whose settled value the baseline holds
         self._rest = np.zeros(k - p)
         self._p0_onset = np.zeros(p)
+        # The history of loads (module docstring): the present load's last blocks (tc, P0, P, rest),
+        # the posture the last one left the arm in, the motion into the present load's baseline.
+        self._load_blocks: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(
+            maxlen=max(8, int(round(c.history_s / c.block_s)))
+        )
+        self._before: np.ndarray | None = None
+        self._motion: np.ndarray | None = None
 
     def update(self, frames: Any) -> list[Estimate | Event]:
         """Take frames as the reader delivers them (a :class:`~labcli.core.wire.FrameBatch`, or
@@ -284,6 +299,7 @@ class Estimator:
         level0, _ = self.tracker.at(t0)
         p = self.inputs.n_pressures
         self._rest, self._p0_onset = level0[p:].copy(), level0[:p].copy()
+        self._motion = None if self._before is None else self._rest - self._before
         fit = self._new_fit(t0)
         for block in blocks:
             fit.add(*block)
@@ -341,6 +357,7 @@ class Estimator:
         kind = RELEASE if back >= c.release_cosine and size <= c.release_overshoot * load else LOAD
         if kind == LOAD and self.state == LOADED and np.max(np.abs(exc.settled_total()[:p])) < c.small_load_MPa:
             return self._restart(t1, tc, seq)
+        self._load_done(t1)
         dropped = exc.finish(t1) + exc.held
         exc.kind, exc.fit = kind, self._new_fit(t1)
         last = exc.steps[-1] if exc.steps else None
@@ -364,6 +381,7 @@ class Estimator:
         assert exc is not None
         dropped = exc.finish(t1) + exc.held
         last = exc.steps[-1]
+        self._load_done(t1)
         b, bvar = self.tracker.at(t1)
         total = sum((s.A for s in exc.steps), np.zeros(self.inputs.width))
         extra = exc.step_var if exc.step_var is not None else 0.0
@@ -407,6 +425,16 @@ class Estimator:
         self.detector.reset()
         self._history.clear()
         return []
+
+    def _load_done(self, t1: float) -> None:
+        """A change began at ``t1`` on a load (its release, or another load on it): the posture the
+        load held the arm in just before, for the next load's motion into its baseline (module
+        docstring, "The history of loads")."""
+        held = [b for b in self._load_blocks if b[0] <= t1]
+        if self._history_model and held:
+            _, P0, P, rest = held[-1]
+            self._before = rest + self.model.deflections(P0[None], P[None])[0]  # type: ignore[attr-defined]
+        self._load_blocks.clear()
 
     def _tails_at(self, tc: float) -> tuple[np.ndarray, np.ndarray]:
         """What finished changes still add to the pressures (their lag and heat) and its variance,
@@ -454,7 +482,9 @@ class Estimator:
                 P_load = level[:p] + exc.settled_total()[:p]
                 extra = exc.step_var[:p] if exc.step_var is not None else 0.0
                 var_load = np.minimum(exc.transient_var(tc, self.config.shape_sd)[:p] + extra + r[:p] / 4, MAX_VAR)
-            x = Inputs2(P0, self._rest, y[:p] - heat_now[:p], var_state, P_load, var_load)
+            x = Inputs2(P0, self._rest, y[:p] - heat_now[:p], var_state, P_load, var_load, self._motion)
+            if self._history_model and exc.pending is None and self.state in (LOADING, LOADED):
+                self._load_blocks.append((tc, P0, x.P_state, self._rest))
         values, se, flags = evaluate(self.model, x)
         if exc is not None:  # a load is on: the angles' standard error as the rig shows it (config)
             se = np.where(self._state_kind, se * self.config.loaded_state_se_factor, se)

@@ -38,6 +38,7 @@ class Inputs2:
     var_state: np.ndarray
     P_load: np.ndarray
     var_load: np.ndarray
+    motion_in: np.ndarray | None = None  # (a,) rad, for a model that reads the history of loads (.model)
 
 
 @functools.cache
@@ -88,7 +89,12 @@ def evaluate(model: SensingModel, x: Inputs2) -> tuple[np.ndarray, np.ndarray, t
     P0[:] = x.P0
     rest = np.empty((g * n, len(x.rest)))
     rest[:] = x.rest
-    pred = model.predict(P0, P, rest)
+    if x.motion_in is None:
+        pred = model.predict(P0, P, rest)
+    else:
+        moved = np.empty((g * n, len(x.motion_in)))
+        moved[:] = x.motion_in
+        pred = model.predict(P0, P, rest, motion_in=moved)  # type: ignore[call-arg]
     one, two, q_idx = _groups(tuple(model.kinds))
     group = one if same else two
     values = pred.values[group * n, q_idx]

@@ -16,6 +16,12 @@ A model declares, as plain data:
   ``[channels.NAME]`` tables name them), pressures first, then the rest posture;
 * ``p0_leak_corrected`` and ``baseline_gap_s``: how the trials it was fitted on measured
   their baseline pressure P0 (see :mod:`.estimator`, "Baseline").
+
+A model may also read the history of loads (:class:`HistoryModel`, ``uses_history`` true): the
+joints' motion into the baseline from the previous load's posture (``motion_in``, rad, one per
+joint), which a friction that opposes the last motion needs.  The estimator keeps it: the rest
+posture now less the previous load's, that load's rest plus the deflections the model's
+``deflections`` reads from its last pressures before it came off.
 """
 
 from __future__ import annotations
@@ -67,6 +73,25 @@ class SensingModel(Protocol):
     def predict(self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray) -> Prediction:
         """Rows of baseline pressures ``P0`` and pressures ``P`` (n, len(actuators)), MPa, and rest
         postures ``rest`` (n, len(joints)), rad: the estimate of each row."""
+
+
+class HistoryModel(Protocol):
+    """What a model that reads the history of loads offers beside :class:`SensingModel`'s (the
+    module docstring): ``predict`` takes ``motion_in`` (n, len(joints)) rad, None where unknown."""
+
+    uses_history: bool
+
+    def deflections(self, P0: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """The joints' deflections (n, len(joints)) rad from the rest posture that the history reads."""
+
+    def predict(
+        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, motion_in: np.ndarray | None = None
+    ) -> Prediction: ...
+
+
+def uses_history(model: Any) -> bool:
+    """Does ``model`` read the joints' motion into each baseline (:class:`HistoryModel`)?"""
+    return bool(getattr(model, "uses_history", False)) and hasattr(model, "deflections")
 
 
 @runtime_checkable

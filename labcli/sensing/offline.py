@@ -17,7 +17,7 @@ import numpy as np
 
 from .config import EstimatorConfig
 from .estimator import Estimator
-from .model import SensingModel, check_model
+from .model import SensingModel, check_model, uses_history
 from .results import Estimate, Event
 
 CHUNK = 50_000  # rows per call of the model: a million-row table is not held in the model's arrays at once
@@ -44,15 +44,22 @@ class RowEstimates:
         return out
 
 
-def predict_rows(model: SensingModel, P0: Any, P: Any, rest: Any) -> RowEstimates:
-    """The model's estimate of each row: ``P0``, ``P`` (n, actuators) MPa, ``rest`` (n, joints) rad."""
+def predict_rows(model: SensingModel, P0: Any, P: Any, rest: Any, motion_in: Any = None) -> RowEstimates:
+    """The model's estimate of each row: ``P0``, ``P`` (n, actuators) MPa, ``rest`` (n, joints) rad;
+    ``motion_in`` (n, joints) rad, each row's motion into its baseline, for a model that reads the
+    history of loads (:class:`~.model.HistoryModel`; None: unknown)."""
     m = check_model(model)
     P0, P, rest = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (P0, P, rest))
+    moved = None if motion_in is None or not uses_history(m) else np.atleast_2d(np.asarray(motion_in, dtype=float))
     values, se, flags = [], [], []
     for lo in range(0, max(len(P), 1), CHUNK):
         if lo >= len(P):
             break
-        pred = m.predict(P0[lo : lo + CHUNK], P[lo : lo + CHUNK], rest[lo : lo + CHUNK])
+        rows = slice(lo, lo + CHUNK)
+        if moved is None:
+            pred = m.predict(P0[rows], P[rows], rest[rows])
+        else:
+            pred = m.predict(P0[rows], P[rows], rest[rows], motion_in=moved[rows])  # type: ignore[call-arg]
         values.append(pred.values)
         se.append(pred.se)
         flags += list(pred.flags)

@@ -171,3 +171,53 @@ def test_an_estimate_as_json_names_its_units():
     j = out[-1].as_json()
     assert set(j) == {"seq", "t_device_s", "state", "x_deg", "x_deg_se", "f_N", "f_N_se", "flags"}
     assert j["x_deg"] == pytest.approx(np.degrees(out[-1].values["x"]), abs=1e-6)
+
+
+class HistoryModel(LinearModel):
+    """The linear model, reading the history of loads: ``m1, m2`` are the motion into the baseline
+    it was given (0 where none), its deflections a linear map of the pressure drops."""
+
+    quantities = ("x", "f", "m1", "m2")
+    units = ("rad", "N", "rad", "rad")
+    kinds = ("state", "load", "state", "state")
+    uses_history = True
+    D = np.array([[10.0, -10.0, 0.0, 0.0], [0.0, 0.0, 10.0, -10.0]])  # 1 kPa: 0.01 rad
+
+    def __init__(self) -> None:
+        super().__init__(se=(0.002, 0.05))
+        self.se = np.array([0.002, 0.05, 1e-3, 1e-3])
+
+    def deflections(self, P0: np.ndarray, P: np.ndarray) -> np.ndarray:
+        return (np.asarray(P0) - np.asarray(P)) @ self.D.T
+
+    def predict(self, P0, P, rest, motion_in=None):
+        base = super().predict(P0, P, rest)
+        m = np.zeros((len(base.values), 2)) if motion_in is None else np.asarray(motion_in, dtype=float)
+        return type(base)(np.column_stack([base.values, m]), np.tile(self.se, (len(m), 1)), base.flags)
+
+
+def test_each_load_is_given_the_joints_motion_into_its_baseline_from_the_load_before():
+    """The arm left 0.01, -0.02 rad off its old rest after the first load (friction holds it): the
+    second load's motion into its baseline is that rest less the first load's posture (its rest
+    plus the deflections of its pressures), in closed form; the first load and the idle rig have none."""
+    A1, A2 = np.array([-0.004, 0.004, -0.002, 0.002]), np.array([0.0, 0.0, 0.005, -0.005])
+    t, x, _ = stream(90.0, loads=[Load(20.0, 40.0, A1), Load(60.0, 80.0, A2)], seed=11)
+    shift = np.array([0.01, -0.02])
+    x[t >= 44.0, 4:] += shift
+    model = HistoryModel()
+    est, out = run(model, t, x)
+    assert [e.kind for e in events(out)] == [LOAD, SETTLED, RELEASE] * 2
+    ests = [o for o in out if isinstance(o, Estimate)]
+
+    def motion(lo, hi):
+        return np.array([[e.values["m1"], e.values["m2"]] for e in ests if lo < e.t_device_s <= hi])
+
+    # The first load's posture: rest 0 plus D (P0 - P) = D (-A1) = (0.08, 0.04) rad.
+    expected = shift - model.D @ (-A1)
+    loaded = [e for e in ests if e.state == LOADED and 60.0 < e.t_device_s <= 80.0]
+    got = motion(61.0, 80.0)
+    assert len(loaded) > 50
+    np.testing.assert_allclose(got, np.tile(expected, (len(got), 1)), atol=2e-3)
+    assert np.all(motion(20.0, 40.0) == 0.0)  # the first load: no load before it
+    idle = [e for e in ests if e.state == IDLE]
+    assert len(idle) > 100 and all(e.values["m1"] == e.values["m2"] == 0.0 for e in idle)

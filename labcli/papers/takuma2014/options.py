@@ -56,7 +56,7 @@ class FitOptions:
     friction_terms: bool = switch(
         help="With the posture form: offer its torque fit the sleeves' friction terms, each trial's read from "
         "its motion under the load and into its baseline (lower Fx on runs taken with 15 s waits; "
-        "`labcli sense` knows no motion into a baseline and applies them in part, and export-model refuses them)."
+        "export-model refuses them)."
     )
 
 

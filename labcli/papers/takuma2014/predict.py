@@ -7,6 +7,12 @@ Fx, Fy (N), each with its standard error, and its flags, from the model applied 
 (``P_L10..P_R20``, ``P_L1..P_R2`` in MPa) and takes the rest posture (``theta1_0_deg,
 theta2_0_deg``) when it has one; the truth (``theta1_deg, theta2_deg, Fx_N, Fy_N``), ids and
 any other columns are carried through, before the estimates.
+
+A model with the sleeves' friction terms reads each row's motion into its baseline from the row
+before it in trial order (row order without ids): that row's rest posture plus the deflections
+the model reads from its pressures (``PostureModel.predict_table``'s pressure-only history), so
+the rows of a run give what ``labcli validate`` gives them and what ``labcli sense`` gives the
+same loads as they come.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from ...core.files import RUN_FILE_SUFFIXES, atomic_write, check_output
 from ...core.tables import read_table
 from ...errors import ConfigError
 from ...sensing.offline import predict_rows
-from .models.posture import load_force_model
+from .models.posture import load_force_model, motion_into_baseline
 from .options import PredictOptions
 from .sensing import TakumaSensing
 from .tables import BASELINE, LOADED, REST, REST_POSTURE
@@ -94,7 +100,12 @@ def estimate_table(rows: Any, model: TakumaSensing) -> Any:
         rest = np.where(np.isfinite(rest), rest, 0.0)  # an empty rest posture: the arm at (0, 0), as validate reads it
     else:
         rest = np.zeros((len(rows), 2))
-    est = predict_rows(model, P0, P, rest)
+    moved = None
+    if model.uses_history:
+        trial = np.asarray(rows["trial"], dtype=float) if "trial" in rows.columns else np.arange(len(rows), dtype=float)
+        trial = np.where(np.isfinite(trial), trial, np.arange(len(rows)))
+        moved = motion_into_baseline(trial, rest, model.deflections(P0, P))
+    est = predict_rows(model, P0, P, rest, motion_in=moved)
     rows = rows.reset_index(drop=True)
     empty = [c for c in TRUTH if c in rows.columns and not np.isfinite(np.asarray(rows[c], dtype=float)).any()]
     carried = rows.drop(columns=empty).rename(columns={c: f"{c}_true" for c in TRUTH if c in rows.columns})

@@ -21,6 +21,11 @@ without.  The adapter only reshapes what ``predict`` returns:
 Angles are ``state`` quantities (the arm as it is now), forces ``load`` quantities (the cause,
 estimated from the pressures the rig settles to).
 
+A posture form with the sleeves' friction terms (``labcli fit --friction-terms``) reads the
+history of loads (:class:`labcli.sensing.model.HistoryModel`): ``predict`` takes the joints'
+motion into each baseline (``motion_in``), and ``deflections`` gives the posture form's own
+deflections, the ones ``PostureModel.predict_table`` (``labcli validate``) reads that motion from.
+
 The estimator asks about a dozen-odd rows a block; for those (up to ``FAST_ROWS``) the posture
 form is applied by its compiled twin (``models/posture_fast.py``: everything that does not
 depend on the pressures worked out when the model is read), which gives the model's own
@@ -77,6 +82,8 @@ class TakumaSensing:
         # The posture form's predict worked out once for the estimator's few rows a call
         # (models/posture_fast.py); ``fast=False`` keeps the table form (the reference) throughout.
         self._compiled = CompiledPosture.compile(model) if fast and isinstance(model, PostureModel) else None
+        # The friction terms read the joints' motion into each baseline (module docstring).
+        self.uses_history = isinstance(model, PostureModel) and model.uses_history
 
     @property
     def geometry(self) -> dict[str, float]:
@@ -100,8 +107,18 @@ class TakumaSensing:
         ]
         return PushClassifier.from_protocol(protocol, self.model, pushes)
 
-    def predict(self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray) -> Prediction:
-        """(n, 4) baselines and pressures (MPa), (n, 2) rest postures (rad): the model's estimate."""
+    def deflections(self, P0: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """The posture form's own deflections (n, 2) rad, routes aside: what the history reads."""
+        if not isinstance(self.model, PostureModel):
+            raise ModelError("A model of the paper's form reads no history of loads.")
+        return self.model.deflections(_rows(P0), _rows(P))
+
+    def predict(
+        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, motion_in: np.ndarray | None = None
+    ) -> Prediction:
+        """(n, 4) baselines and pressures (MPa), (n, 2) rest postures (rad), and for a model with
+        the friction terms the joints' motion into each baseline (n, 2) rad (None: unknown): the
+        model's estimate."""
         P0, P, rest = _rows(P0), _rows(P), _rows(rest)
         few = self._compiled is not None and len(P) <= FAST_ROWS
         fast = self._compiled.predict(P0, P, rest) if few else None  # type: ignore[union-attr]
@@ -109,7 +126,8 @@ class TakumaSensing:
             values, se, ok = fast
             return Prediction(values, se, self._raise(np.zeros(len(values), bool), ok, P0, P, rest, values))
         if isinstance(self.model, PostureModel):
-            out = self.model.predict(P0, P, rest, mode="pressure-only")
+            moved = _rows(motion_in) if motion_in is not None and self.uses_history else None
+            out = self.model.predict(P0, P, rest, mode="pressure-only", motion_in=moved)
             se = np.column_stack([out["se"][q] for q in QUANTITIES])
         else:
             out = self.model.predict(P0, P, mode="pressure-only")

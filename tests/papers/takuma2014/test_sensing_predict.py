@@ -179,3 +179,30 @@ def test_the_range_margin_is_the_share_of_the_calibrated_span_allowed_beyond_it(
     assert (
         r.exit_code == 2 and "Error: Invalid value for '--range-margin': -1.0 is not in the range 0<=x<=10." in r.output
     )
+
+
+def test_a_friction_models_estimates_read_each_trials_history_as_validate_does(fitted, invoke, tmp_path):
+    """With the friction terms each row's motion into its baseline comes from the row before it in
+    trial order: ``labcli predict`` gives the validation trials what validate gives them (the first
+    one's history from the last fit trial), and without that history its forces are others."""
+    d, csv, _, table = fitted
+    model_path = tmp_path / "friction.model.json"
+    assert invoke("fit", csv, "--friction-terms", "-o", model_path).exit_code == 0
+    model = load_force_model(model_path)
+    assert model.uses_history
+    out = tmp_path / "estimates.csv"
+    shuffled = table.sample(frac=1.0, random_state=1)  # row order aside: the trial ids say which came before
+    shuffled.to_csv(tmp_path / "shuffled.csv", index=False)
+    assert invoke("predict", tmp_path / "shuffled.csv", "--model", model_path, "-o", out).exit_code == 0
+    got = pd.read_csv(out).set_index("trial").loc[table["trial"]]
+    ev = evaluate(model, table)
+    val = got[(table["set"] == "validation").to_numpy()]
+    for q, col in (("theta1", "theta1_deg"), ("theta2", "theta2_deg"), ("Fx", "Fx_N"), ("Fy", "Fy_N")):
+        np.testing.assert_allclose(val[col], ev["calculated"][q], rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(val[col + "_se"], ev["se"][q], rtol=1e-9, atol=1e-12)
+    sens = TakumaSensing(model)
+    rows = table[table["set"] == "validation"]
+    P0 = rows[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()
+    P = rows[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy()
+    blind = sens.predict(P0, P, np.radians(rows[["theta1_0_deg", "theta2_0_deg"]].to_numpy()))
+    assert np.min(np.abs(blind.values[:, 2] - val["Fx_N"].to_numpy())) > 0.1  # the history matters: 0.2-0.26 N

@@ -80,8 +80,12 @@ def evaluate(model: ForceModel, table: Any, mode: str = "pressure-only", source:
     """
     if mode not in MODES:
         raise ModelError(f"Unknown validation mode '{mode}'; use pressure-only or measured-angles.")
-    rows = select_set(_unplayed(model, table), "validation", source)
-    pred = model.predict_table(rows, mode=mode)
+    whole = _unplayed(model, table)
+    rows = select_set(whole, "validation", source)
+    if getattr(model, "uses_history", False):  # the friction terms: each trial's history from the whole run
+        pred = model.predict_table(rows, mode=mode, history=whole)  # type: ignore[call-arg]
+    else:
+        pred = model.predict_table(rows, mode=mode)
     calculated = {
         "theta1": np.degrees(pred["theta1_rad"]),
         "theta2": np.degrees(pred["theta2_rad"]),

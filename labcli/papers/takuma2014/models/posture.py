@@ -941,6 +941,12 @@ class PostureModel:
             return np.zeros(2)
         return np.sqrt(np.maximum([c[0, 0], c[0, 0] + c[1, 1] + 2.0 * c[0, 1]], 0.0))
 
+    def deflections(self, P0: Any, P: Any) -> np.ndarray:
+        """The posture form's own deflections (n, 2) rad from pressures (MPa), routes aside: what
+        the friction terms' history of loads reads (:meth:`predict_table`, ``labcli predict`` and
+        the run-time estimator alike)."""
+        return self._angles(*pressure_arrays(P0, P))[0]
+
     def predict(
         self,
         P0: Any,
@@ -1172,17 +1178,31 @@ class PostureModel:
             G[:, 1, k] = pr[1] * dy1 + k10 * u0 + k11 * u1
         return G
 
-    def predict_table(self, table: Any, mode: str = "pressure-only") -> dict[str, Any]:
-        """``predict`` on a trial table (rest posture from theta1_0_deg, theta2_0_deg; absent = 0)."""
+    @property
+    def uses_history(self) -> bool:
+        """Do the torques read the joints' motion into each baseline (the friction terms)?"""
+        return any(t in FRICTION_TERMS for t in self.torque_terms)
+
+    def predict_table(self, table: Any, mode: str = "pressure-only", history: Any = None) -> dict[str, Any]:
+        """``predict`` on a trial table (rest posture from theta1_0_deg, theta2_0_deg; absent = 0).
+
+        ``history``: the whole run's table, when ``table`` holds only some of its trials (the
+        validation trials): each trial's motion into its baseline is from the trial before it in
+        the run, whichever set that one is in.
+        """
         a = table_arrays(table, baseline_mean=self.baseline_mean)
         moved = None
-        if any(t in FRICTION_TERMS for t in self.torque_terms):
+        if self.uses_history:
             # The motion into each baseline from the previous trial's loaded posture: its
             # deflection as this prediction sees it (estimated from the pressures unless measured).
-            est = self._angles(*pressure_arrays(a["P0"], a["P"]))[0]
-            seen = a["dtheta"] if mode == "measured-angles" else est
+            h = a if history is None else table_arrays(history, baseline_mean=self.baseline_mean)
+            est = self.deflections(h["P0"], h["P"])
+            seen = h["dtheta"] if mode == "measured-angles" else est
             seen = np.where(np.isfinite(seen), seen, est)
-            moved = motion_into_baseline(a["trial"], a["theta0"], seen)
+            moved = motion_into_baseline(h["trial"], h["theta0"], seen)
+            if history is not None:
+                at = {int(t): i for i, t in enumerate(h["trial"].tolist())}
+                moved = moved[[at[int(t)] for t in a["trial"].tolist()]]
         out = self.predict(
             a["P0"],
             a["P"],

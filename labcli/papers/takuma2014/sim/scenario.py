@@ -9,7 +9,9 @@
   estimator takes the frames as a serial link delivers them, in batches of one read;
 * :func:`offline_twin`: what ``acquire`` + ``validate`` would have measured for the same loads
   from the same stream: the baseline window just before each load, the loaded window after the
-  protocol's settling rule said settled (:mod:`labcli.core.settle`), the model's prediction.
+  protocol's settling rule said settled (:mod:`labcli.core.settle`), the model's prediction
+  (with the friction terms, given each load's motion into its baseline from the one before, as
+  ``labcli predict`` reads it from a run's rows).
 """
 
 from __future__ import annotations
@@ -53,8 +55,15 @@ class _Windows:
         return out
 
 
-def calibrate(protocol: Any, seed: int, rig_options: dict[str, Any] | None = None, settle_s: float = 8.0) -> Any:
-    """The posture-aware model fitted on the protocol's plan, simulated on the rig of ``seed``."""
+def calibrate(
+    protocol: Any,
+    seed: int,
+    rig_options: dict[str, Any] | None = None,
+    settle_s: float = 8.0,
+    friction: bool | str = False,
+) -> Any:
+    """The posture-aware model fitted on the protocol's plan, simulated on the rig of ``seed``
+    (``friction``: PostureModel's, True for ``labcli fit --friction-terms``)."""
     from ..models.posture import PostureModel, limits_from_protocol
     from ..protocol import load_plan
     from .drive import simulate_weight_trials
@@ -65,7 +74,7 @@ def calibrate(protocol: Any, seed: int, rig_options: dict[str, Any] | None = Non
     base = np.array([protocol.calibration.to_si(c).mean(axis=0)[pots] for _, c in rig.windows[0::2]])
     table["theta1_0_deg"], table["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
     model = PostureModel(
-        geometry=protocol.settings.rig, protocol=protocol.name, limits=limits_from_protocol(protocol)
+        geometry=protocol.settings.rig, protocol=protocol.name, limits=limits_from_protocol(protocol), friction=friction
     ).fit(table, source=f"simulated rig seed {seed}")
     t_base = np.array([t.mean() for t, _ in rig.windows[0::2]]) * 1e-6
     t_load = np.array([t.mean() for t, _ in rig.windows[1::2]]) * 1e-6
@@ -187,6 +196,7 @@ def offline_twin(
     ac = [cal.index(n) for n in ("POT1", "POT2")]
     t, si = session.t_s, session.si
     out: list[dict[str, Any] | None] = []
+    before = None  # the posture the previous load held the arm in (rad), for a model that reads it
     for c in session.changes:
         on, off = c["on_s"], c["off_s"]
         base = (t > on - capture) & (t <= on)
@@ -198,15 +208,28 @@ def offline_twin(
                 decided = float(t[min(k + 9, len(t) - 1)])
                 break
             k += 10
-        if decided is None or decided + capture > off or not base.any():
+        ok = decided is not None and decided + capture <= off and bool(base.any())
+        # Not settled in time: the posture it left still from its last capture window before it came off.
+        start = decided if ok and decided is not None else off - capture
+        load = (t > start) & (t <= start + capture)
+        if not base.any() or not load.any():
             out.append(None)
             continue
-        load = (t > decided) & (t <= decided + capture)
         P0, P, rest = si[base][:, pc].mean(axis=0), si[load][:, pc].mean(axis=0), si[base][:, ac].mean(axis=0)
         if sensing.p0_leak_corrected:
             slope = np.polyfit(t[base], si[base][:, pc], 1)[0]
             P0 = P0 + slope * (t[load].mean() - t[base].mean())
-        pred = sensing.predict(P0[None], P[None], rest[None])
+        history = getattr(sensing, "uses_history", False)
+        moved = None if before is None or not history else (rest - before)[None]
+        if history:
+            before = rest + sensing.deflections(P0[None], P[None])[0]
+        if not ok:
+            out.append(None)
+            continue
+        if moved is None:
+            pred = sensing.predict(P0[None], P[None], rest[None])
+        else:
+            pred = sensing.predict(P0[None], P[None], rest[None], motion_in=moved)
         mid = t[load].mean()
         i = min(int(np.searchsorted(session.truth_t, mid)), len(session.truth_t) - 1)
         out.append(
@@ -215,7 +238,7 @@ def offline_twin(
                 "se": pred.se[0],
                 "flags": pred.flags[0],
                 "truth": session.truth[i],
-                "settle_s": decided - on,
+                "settle_s": start - on,
             }
         )
     return out
