@@ -10,13 +10,15 @@ push flagged), the steel can's category and k / k_true.
 
     nice python tests/benchmarks/friction_terms_pushes.py [--seeds 1-10] [--realism literature]
 
-The pushes carry no history of loads into the estimate (their estimator knows no motion into a
-baseline), so only the friction term's half under the load is applied to them.
+classify reads each push's motion into its baseline from the push before it (by push number), so
+both halves of the friction term apply to the pushes.
 
 Measured (2026-11, seeds 1-10 then held-out 11-30): on the literature's rig, objects in category
-55 -> 59 of 60 and 90 -> 115 of 120, objects with every push flagged 5 -> 0 and 28 -> 0, the steel
-can right on 7 -> 9 and 7 -> 15 seeds and without a category on 3 -> 0 and 11 -> 0; on the kind rig
-every object in category with both forms (60 of 60, 120 of 120).
+55 -> 60 of 60 and 90 -> 118 of 120, objects with every push flagged 5 -> 0 and 28 -> 0, the steel
+can right on 7 -> 10 and 7 -> 18 seeds and without a category on 3 -> 0 and 11 -> 0 (with the term's
+half under the load alone, before classify read the pushes' history: 59 of 60, 115 of 120, the steel
+can right on 9 and 15 seeds); on the kind rig every object in category with both forms (60 of 60,
+120 of 120).
 """
 
 from __future__ import annotations

@@ -18,7 +18,9 @@ geometry a few per cent off the protocol's, potentiometer scale errors, 0.5 kPa 
 ``pot_scale=1,1``), and ``--realism literature`` runs the simulated rig at the literature's levels
 (``kind``, the default, is passed to the rig explicitly, so the figures do not follow the rig's own
 default); ``--effect NAME=SCALE`` (repeatable) scales one of its effects (``repeat=0``,
-``friction=0.25``): which of the differences makes the direction wrong.  ``--settle S`` and
+``friction=0.25``): which of the differences makes the direction wrong.  ``--friction-terms`` fits the posture
+form with the sleeves' friction terms (``labcli fit --friction-terms``; classify then reads each
+push's motion into its baseline from the push before it).  ``--settle S`` and
 ``--repressurise KPA`` change the trials' and pushes' timing (``--settle 8 --repressurise 0``: the
 timing these figures were once measured with).  Each seed also prints how far the estimated force's
 direction is from the true one (median over the pushes) and, on the simulated rig, its mean signed
@@ -29,7 +31,8 @@ Cramer-Rao floor of Fy's standard error from one push's readings (``second_rig.f
     python tests/benchmarks/phi_bent.py [--seeds 1-3] [--angles pressure-only|measured-angles]
                                         [--rig project|second] [--second KEY=VALUE ...]
                                         [--realism kind|literature] [--effect NAME=SCALE ...]
-                                        [--settle S] [--repressurise KPA] [--figures FILE.json]
+                                        [--settle S] [--repressurise KPA] [--friction-terms]
+                                        [--figures FILE.json]
 """
 
 from __future__ import annotations
@@ -49,6 +52,8 @@ DIRECTION: list[tuple[float, float]] = []  # per seed of the second rig: median 
 # Per seed of the simulated rig: the force direction's median absolute and mean signed error (deg).
 BIAS: list[tuple[float, float]] = []
 AIR: dict = {}  # the trials' and pushes' timing, as --settle and --repressurise set it (empty: as acquired)
+FORM: dict = {}  # the posture form's options: {"friction": True} with --friction-terms
+CONFIDENT_WRONG: list[int] = []  # per seed: objects in a wrong category with confidence >= 0.9
 
 
 def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, int]:
@@ -65,6 +70,7 @@ def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, i
         geometry=proto.settings.rig,
         protocol="takuma2014-stiffness",
         limits={q: np.inf for q in ("theta1", "theta2", "Fx", "Fy")},
+        **FORM,
     ).fit(table)
     sp = load_protocol("takuma2014-stiffness")
     # The push run on the rig opened anew, taken as the trials are (as acquired: acquired.py).
@@ -79,9 +85,16 @@ def run(seed: int, angles: str, rig_kw: dict | None = None) -> tuple[int, int, i
     ps, objs = (res.pushes, res.objects) if "push" in res.pushes.columns else (res.objects, res.pushes)
     used = int(objs["n_used"].sum())
     right = int(sum(truth[o] == c for o, c in zip(objs["object"], objs["category"], strict=False)))
+    CONFIDENT_WRONG.append(confident_wrong(objs, truth))
     off = direction_error(pushes, ps, proto.settings.rig)
     BIAS.append((float(np.nanmedian(np.abs(off))), float(np.nanmean(off))))
     return used, len(ps), right
+
+
+def confident_wrong(objs, truth: dict) -> int:
+    """Objects given a category that is not theirs with a confidence of 0.9 or more."""
+    cats, conf = objs["category"].fillna("").astype(str), objs["confidence"].to_numpy(float)
+    return int(sum(bool(c) and c != truth[o] and p >= 0.9 for o, c, p in zip(objs["object"], cats, conf, strict=True)))
 
 
 def direction_error(pushes, ps, rig: dict) -> np.ndarray:
@@ -121,6 +134,7 @@ def run_second(seed: int, angles: str) -> tuple[int, int, int]:
         geometry=proto.settings.rig,
         protocol="takuma2014-stiffness",
         limits={q: np.inf for q in ("theta1", "theta2", "Fx", "Fy")},
+        **FORM,
     ).fit(table)
     pushes = push_table(seed + 1000, rig)
     truth = dict(zip(pushes["object"], pushes["true_category"], strict=False))
@@ -147,6 +161,7 @@ def main() -> None:
         "--realism", default="kind", choices=["kind", "literature"], help="the simulated rig's levels (default: kind)"
     )
     ap.add_argument("--effect", action="append", default=[], metavar="NAME=SCALE", help="one effect's scale")
+    ap.add_argument("--friction-terms", action="store_true", help="the posture form with the sleeves' friction terms")
     add_air_options(ap)
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
@@ -161,6 +176,7 @@ def main() -> None:
 
     effects = {name: float(value) for name, _, value in (e.partition("=") for e in args.effect)}
     rig_kw = {"nonideal": NonIdeal(realism=args.realism, **effects)}
+    FORM.update({"friction": True} if args.friction_terms else {})
     AIR.update({k: v for k, v in (("settle_s", args.settle), ("repressurise_kPa", args.repressurise)) if v is not None})
     lo, hi = (int(s) for s in args.seeds.split("-"))
     rows = []
@@ -173,7 +189,10 @@ def main() -> None:
                 f"; force direction off by {DIRECTION[-1][0]:.1f} deg (median), Fy error {DIRECTION[-1][1]:.2f} N rms"
             )
         else:
-            aside = f"; force direction off by {BIAS[-1][0]:.1f} deg (median), {BIAS[-1][1]:+.1f} deg on average"
+            aside = (
+                f"; force direction off by {BIAS[-1][0]:.1f} deg (median), {BIAS[-1][1]:+.1f} deg on average; "
+                f"{CONFIDENT_WRONG[-1]} wrong at confidence >= 0.9"
+            )
         print(
             f"seed {seed}: {used}/{n} pushes used ({100 * used / n:.0f} %), {right}/6 objects in category "
             f"(target >= 80 %, 6/6){aside}"
@@ -210,6 +229,8 @@ def main() -> None:
         else:
             figures["direction error median deg"] = float(np.median([d for d, _ in BIAS]))
             figures["direction bias deg"] = float(np.mean([b for _, b in BIAS]))
+            figures["wrong at confidence 0.9"] = int(sum(CONFIDENT_WRONG))
+            figures["friction terms"] = bool(args.friction_terms)
             figures["realism"] = args.realism
             figures["effects"] = " ".join(args.effect)
             figures["timing"] = " ".join(f"{k}={v:g}" for k, v in AIR.items())

@@ -483,11 +483,13 @@ def test_phi_bent_passes_its_realism_effects_and_timing(monkeypatch, capsys):
     def fake_run(seed, angles, rig_kw=None):
         seen.append((seed, rig_kw["nonideal"], dict(pb.AIR)))
         pb.BIAS.append((1.0, 0.5))
+        pb.CONFIDENT_WRONG.append(0)
         return 50, 60, 6
 
     monkeypatch.setattr(pb, "run", fake_run)
     monkeypatch.setattr(pb, "AIR", {})
     monkeypatch.setattr(pb, "BIAS", [])
+    monkeypatch.setattr(pb, "CONFIDENT_WRONG", [])
     argv = ["phi_bent.py", "--seeds", "4-5", "--effect", "repeat=0", "--settle", "8", "--repressurise", "0"]
     monkeypatch.setattr(sys, "argv", argv)
     pb.main()

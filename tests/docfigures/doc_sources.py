@@ -590,14 +590,23 @@ SOURCES: dict[str, Source] = {
             "benchmark",
             "pushes with phi blank on the bent arm, seeds 1-10",
             script="phi_bent.py",
-            runs={"": ("--seeds", "1-10")},
+            runs={"": ("--seeds", "1-10", "--realism", "kind")},
         ),
         Source(
             "phi-bent-heldout",
             "benchmark",
-            "pushes with phi blank on the bent arm (kind rig, and the literature's levels), held-out seeds 11-30",
+            "pushes with phi blank on the bent arm (kind rig, and the literature's levels; the posture form with and "
+            "without the friction terms; the kind rig with the literature's friction or pressure repeatability), "
+            "held-out seeds 11-30",
             script="phi_bent.py",
-            runs={"": ("--seeds", "11-30"), "literature": ("--seeds", "11-30", "--realism", "literature")},
+            runs={
+                "": ("--seeds", "11-30", "--realism", "kind"),
+                "literature": ("--seeds", "11-30", "--realism", "literature"),
+                "friction": ("--seeds", "11-30", "--realism", "kind", "--friction-terms"),
+                "literature friction": ("--seeds", "11-30", "--realism", "literature", "--friction-terms"),
+                "kind with friction x4": ("--seeds", "11-30", "--realism", "kind", "--effect", "friction=4"),
+                "kind with repeatability": ("--seeds", "11-30", "--realism", "kind", "--effect", "repeat=1"),
+            },
         ),
         Source(
             "phi-bent-second",

@@ -114,3 +114,24 @@ def test_a_model_with_friction_terms_survives_its_file(literature_run, tmp_path:
     # One trial alone (no previous trial known): a finite estimate, the friction before it unknown.
     one = again.predict_table(val.iloc[[0]])
     assert np.isfinite(one["Fx_N"]).all() and np.isfinite(one["se"]["Fx"]).all()
+
+
+def test_classify_reads_each_pushs_motion_into_its_baseline_from_the_push_before(literature_run) -> None:
+    """With friction terms, classify's forces are predict_table's for the same readings taken as a
+    sequence by push number (the motion into each baseline from the push before it), whatever the
+    rows' order; without that history the forces differ."""
+    from labcli.papers.takuma2014.models.classify import classify_pushes
+
+    proto, table = literature_run
+    fric = PostureModel(geometry=proto.settings.rig, limits=limits_from_protocol(proto), friction=True).fit(table)
+    val = table[table["set"] == "validation"].reset_index(drop=True)
+    pushes = val.rename(columns={"trial": "push"}).assign(object="can", R_m=0.033, d_m=0.01, phi_deg=np.nan)
+    shuffled = pushes.iloc[np.random.default_rng(0).permutation(len(pushes))].reset_index(drop=True)
+    res = classify_pushes(shuffled, fric, method="bands", bands={"any": [0.0, 1e9]}, allow_unusable=True)
+    got = res.pushes.set_index("push")["Fx_N"].sort_index().to_numpy()
+    want = fric.predict_table(val)
+    np.testing.assert_allclose(got, np.asarray(want["Fx_N"])[np.argsort(want["trial"])], rtol=1e-9, atol=1e-12)
+    rest = np.radians(val[["theta1_0_deg", "theta2_0_deg"]].to_numpy())
+    cols = [f"P_{s}{j}0" for j in (1, 2) for s in "LR"], [f"P_{s}{j}" for j in (1, 2) for s in "LR"]
+    blind = fric.predict(val[cols[0]].to_numpy(), val[cols[1]].to_numpy(), rest)
+    assert not np.allclose(np.asarray(blind["Fx_N"])[np.argsort(val["trial"])], got, atol=1e-3)

@@ -274,21 +274,42 @@ def _posture_and_force(
 ) -> tuple[np.ndarray, Mapping[str, Any]]:
     """The joint angles (rad, per push) and the model's prediction, from the pressures or the pots.
 
-    The posture-aware form also takes the rest posture (its Jacobian is evaluated there).
+    The posture-aware form also takes the rest posture (its Jacobian is evaluated there) and, with
+    friction terms, each push's motion into its baseline from the push before it (by push number):
+    pushed from one side, the arm comes back into every baseline against the way the next push
+    moves it, so the sleeves' friction turns round between baseline and push, push after push.
     """
     P0 = np.column_stack([_column(table, c) for c in P0_COLUMNS])
     P = np.column_stack([_column(table, c) for c in P_COLUMNS])
-    rest = {"theta0": theta0} if isinstance(model, PostureModel) and theta0 is not None else {}
-    if angles == "pressure-only":
-        pred = model.predict(P0, P, mode="pressure-only", **rest)
-        return np.column_stack([_prediction(pred, "theta1"), _prediction(pred, "theta2")]), pred
+    theta = None
     if angles == "measured-angles":
         missing = [c for c in THETA_COLUMNS if c not in table.columns]
         if missing:
             raise ConfigError(f"The push table lacks column {missing[0]!r}, which measured angles need.")
         theta = np.radians(np.column_stack([_column(table, c) for c in THETA_COLUMNS]))
-        return theta, model.predict(P0, P, mode="measured-angles", theta=theta, **rest)
-    raise ConfigError(f"Unknown angle source {angles!r}; use 'pressure-only' or 'measured-angles'.")
+    elif angles != "pressure-only":
+        raise ConfigError(f"Unknown angle source {angles!r}; use 'pressure-only' or 'measured-angles'.")
+    rest: dict[str, Any] = {}
+    if isinstance(model, PostureModel):
+        th0 = np.zeros((len(P), 2)) if theta0 is None else theta0
+        rest = {} if theta0 is None else {"theta0": theta0}
+        moved = model.motion_in_of(_push_order(table), P0, P, th0, theta)
+        if moved is not None:
+            rest["motion_in"] = moved
+    if theta is None:
+        pred = model.predict(P0, P, mode="pressure-only", **rest)
+        return np.column_stack([_prediction(pred, "theta1"), _prediction(pred, "theta2")]), pred
+    return theta, model.predict(P0, P, mode="measured-angles", theta=theta, **rest)
+
+
+def _push_order(table: Any) -> np.ndarray:
+    """The pushes' order of acquisition: their numbers where every one is a number, else the rows'."""
+    import pandas as pd
+
+    if "push" not in table.columns:
+        return np.arange(len(table), dtype=float)
+    ids = pd.to_numeric(table["push"], errors="coerce").to_numpy(dtype=float)
+    return ids if np.isfinite(ids).all() and len(np.unique(ids)) == len(ids) else np.arange(len(ids), dtype=float)
 
 
 def _known_categories(objects: list[str], members: Mapping[str, np.ndarray], labels: np.ndarray) -> dict[str, str]:

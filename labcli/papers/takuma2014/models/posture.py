@@ -1193,14 +1193,12 @@ class PostureModel:
         a = table_arrays(table, baseline_mean=self.baseline_mean)
         moved = None
         if self.uses_history:
-            # The motion into each baseline from the previous trial's loaded posture: its
-            # deflection as this prediction sees it (estimated from the pressures unless measured).
+            # The motion into each baseline from the previous trial's loaded posture.
             h = a if history is None else table_arrays(history, baseline_mean=self.baseline_mean)
-            est = self.deflections(h["P0"], h["P"])
-            seen = h["dtheta"] if mode == "measured-angles" else est
-            seen = np.where(np.isfinite(seen), seen, est)
-            moved = motion_into_baseline(h["trial"], h["theta0"], seen)
-            if history is not None:
+            moved = self.motion_in_of(
+                h["trial"], h["P0"], h["P"], h["theta0"], h["dtheta"] if mode == "measured-angles" else None
+            )
+            if moved is not None and history is not None:
                 at = {int(t): i for i, t in enumerate(h["trial"].tolist())}
                 moved = moved[[at[int(t)] for t in a["trial"].tolist()]]
         out = self.predict(
@@ -1213,6 +1211,17 @@ class PostureModel:
         )
         out["trial"] = a["trial"]
         return out
+
+    def motion_in_of(self, trial: Any, P0: Any, P: Any, theta0: Any, dtheta: Any = None) -> np.ndarray | None:
+        """The joints' motion into each baseline (n, 2) rad that the friction terms need, from the
+        previous trial's (or push's, by ``trial`` id) loaded posture: its deflection as
+        :meth:`predict` sees it, ``dtheta`` where measured and finite, else estimated from the
+        pressures.  None for a model without friction terms."""
+        if not self.uses_history:
+            return None
+        est = self.deflections(P0, P)
+        seen = est if dtheta is None else np.where(np.isfinite(dtheta), dtheta, est)
+        return motion_into_baseline(trial, np.broadcast_to(np.asarray(theta0, dtype=float), est.shape), seen)
 
     def check_compatible(
         self, protocol: str, geometry: Mapping[str, Any], model_name: str = "the model", run_name: str = "the run"
