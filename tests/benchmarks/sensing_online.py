@@ -30,7 +30,13 @@ batches of one serial read (50 ms of frames).  Reported, pooled over the seeds:
 
     python tests/benchmarks/sensing_online.py [--seeds 11-30] [--loads 40] [--idle-min 10]
         [--rate 200] [--rig "friction=2&leak=3"] [--jobs 2] [--fast-seconds 180] [--json out.json]
-        [--figures docs/figures/sensing-online.json]
+        [--figures docs/figures/sensing-online.json] [--protocol takuma2014-bent] [--friction-terms] [--acquired]
+
+``--protocol``, ``--friction-terms`` and ``--acquired`` choose the calibration: the bent arm's
+protocol (give the rig its supply too: ``--rig "supply=0.15,0.15,0.45,0.15"``), the posture form
+with the sleeves' friction terms (``labcli fit --friction-terms``; the estimator keeps the history
+of loads they read), and a calibration run taken as ``labcli acquire`` takes it (15 s waits, the
+chambers supplied again past the protocol's drift limit) instead of 8 s waits with the valves held.
 
 Tune on seeds 1-10, report on 11-30 (the defaults).  ``--rig`` takes the McKibben rig's own
 ``sim://`` options (the ones ``labcli sim --help`` lists), so the same figures can be measured
@@ -88,6 +94,18 @@ def rig_options(text: str) -> dict[str, Any]:
     return out
 
 
+def calibration_air(protocol: Any, a: dict[str, Any]) -> dict[str, float]:
+    """The calibration run's timing: as ``labcli acquire`` takes it with ``--acquired`` (15 s waits,
+    the chambers supplied again past the protocol's drift limit; tests/benchmarks/acquired.py),
+    else the 8 s waits with the valves held these figures were first measured with."""
+    if not a.get("acquired"):
+        return {}
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from acquired import acquired_air
+
+    return acquired_air(protocol)
+
+
 def one_seed(job: tuple[int, dict[str, Any]]) -> dict[str, Any]:
     """Everything measured on one rig seed (run in a worker process)."""
     seed, a = job
@@ -96,9 +114,9 @@ def one_seed(job: tuple[int, dict[str, Any]]) -> dict[str, Any]:
     from labcli.papers.takuma2014.sim import scenario as sc
     from labcli.sensing.scoring import score
 
-    protocol = load_protocol("takuma2014")
+    protocol = load_protocol(a.get("protocol", "takuma2014"))
     opts = rig_options(a["rig"])
-    model = sc.calibrate(protocol, seed, opts)
+    model = sc.calibrate(protocol, seed, opts, friction=a.get("friction", False), **calibration_air(protocol, a))
     script = sc.random_script(seed, loads=a["loads"], idle_s=a["idle_min"] * 60.0)
     session = sc.run_session(model, protocol, script, seed, rate_hz=a["rate"], batch=a["batch"], rig_options=opts)
     offline = sc.offline_twin(TakumaSensing(model), protocol, session)
@@ -401,6 +419,11 @@ def pool(results: list[dict[str, Any]]) -> dict[str, Any]:
         on = math.sqrt(np.mean([c["online_sq"][j] for c in use])) if use else math.nan
         off = math.sqrt(np.mean([c["offline"]["sq"][j] for c in use])) if use else math.nan
         rmse[q] = {"online": on, "offline": off, "ratio": on / off if off else math.nan, "n": len(use)}
+        # Every settled load the estimator reports q on, whether or not the offline protocol settled in time.
+        alone = [c["online_sq"][j] for r in results for c in r["changes"] if c["online_sq"] is not None]
+        alone = [v for v in alone if math.isfinite(v)]
+        rmse[q]["online_all"] = math.sqrt(np.mean(alone)) if alone else math.nan
+        rmse[q]["n_all"] = len(alone)
     cov = {}
     for q in QUANTITIES:
         n = sum(r["coverage_n"][q] for r in results)
@@ -521,7 +544,8 @@ def report(p: dict[str, Any], fast: dict[str, Any] | None, a: dict[str, Any]) ->
     frac = p["found"] / p["loads_1N"] if p["loads_1N"] else math.nan
     lines = [
         f"Seeds {a['seeds']}, {a['loads']} loads + {a['idle_min']:g} min idle each, {a['rate']:g} Hz, "
-        f"rig options {a['rig'] or '(default)'}, block 0.05 s.",
+        f"rig options {a['rig'] or '(default)'}, block 0.05 s; calibration {a.get('protocol', 'takuma2014')}"
+        f"{' with the friction terms' if a.get('friction') else ''}{', as acquired' if a.get('acquired') else ''}.",
         "",
         "| figure | measured | target | |",
         "|---|---|---|---|",
@@ -537,7 +561,8 @@ def report(p: dict[str, Any], fast: dict[str, Any] | None, a: dict[str, Any]) ->
         r = p["settled"][q]
         lines.append(
             f"| settled RMSE {q} | {k * r['online']:.3f} {unit} vs offline {k * r['offline']:.3f} {unit} "
-            f"(x{r['ratio']:.2f}, {r['n']} loads) | <= x1.5 | {ok(r['ratio'] <= 1.5)} |"
+            f"(x{r['ratio']:.2f}, {r['n']} loads); over every load settled online {k * r['online_all']:.3f} {unit} "
+            f"({r['n_all']} loads) | <= x1.5 | {ok(r['ratio'] <= 1.5)} |"
         )
     for q in QUANTITIES:
         c = p["coverage"][q]
@@ -620,6 +645,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--rate", type=float, default=200.0)
     ap.add_argument("--batch-s", type=float, default=0.05, help="device time per read (one batch), s")
     ap.add_argument("--rig", default="", help="the rig's own sim:// options, e.g. 'friction=2&leak=3'")
+    ap.add_argument(
+        "--protocol", default="takuma2014", help="the calibration's protocol (takuma2014-bent: the bent arm)"
+    )
+    ap.add_argument("--friction-terms", action="store_true", help="fit the posture form with the friction terms")
+    ap.add_argument(
+        "--acquired", action="store_true", help="calibrate on a run taken as labcli acquire takes it (15 s waits)"
+    )
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--fast-seconds", type=float, default=180.0, help="device seconds of the 1 kHz session (0: none)")
     ap.add_argument(
@@ -636,6 +668,9 @@ def main(argv: list[str] | None = None) -> None:
         "idle_min": args.idle_min,
         "rate": args.rate,
         "rig": args.rig,
+        "protocol": args.protocol,
+        "friction": args.friction_terms,
+        "acquired": args.acquired,
         "batch": max(1, int(round(args.batch_s * args.rate))),
         "fast_seconds": args.fast_seconds,
     }

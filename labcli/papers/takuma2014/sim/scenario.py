@@ -54,6 +54,11 @@ class _Windows:
         self.windows.append(out)
         return out
 
+    def supply_air(self) -> None:
+        if len(self.windows) % 2:  # a baseline that drifted: taken again once the chambers are supplied
+            self.windows.pop()
+        self._rig.supply_air()
+
 
 def calibrate(
     protocol: Any,
@@ -61,15 +66,20 @@ def calibrate(
     rig_options: dict[str, Any] | None = None,
     settle_s: float = 8.0,
     friction: bool | str = False,
+    repressurise_kPa: float = 0.0,
 ) -> Any:
     """The posture-aware model fitted on the protocol's plan, simulated on the rig of ``seed``
-    (``friction``: PostureModel's, True for ``labcli fit --friction-terms``)."""
+    (``friction``: PostureModel's, True for ``labcli fit --friction-terms``; ``settle_s`` and
+    ``repressurise_kPa``: each window's wait and the drift past which the chambers are supplied
+    again, 15 s and the protocol's as ``labcli acquire`` takes a run, 8 s and 0 as they once were)."""
     from ..models.posture import PostureModel, limits_from_protocol
     from ..protocol import load_plan
     from .drive import simulate_weight_trials
 
     rig = _Windows(build(seed, rig_options))
-    table = simulate_weight_trials(rig, load_plan(protocol), calibration=protocol.calibration, settle_s=settle_s)
+    table = simulate_weight_trials(
+        rig, load_plan(protocol), calibration=protocol.calibration, settle_s=settle_s, repressurise_kPa=repressurise_kPa
+    )
     pots = [list(rig.channels).index(c) for c in ("POT1", "POT2")]
     base = np.array([protocol.calibration.to_si(c).mean(axis=0)[pots] for _, c in rig.windows[0::2]])
     table["theta1_0_deg"], table["theta2_0_deg"] = np.degrees(base[:, 0]), np.degrees(base[:, 1])
