@@ -10,6 +10,11 @@
  * loads' spread (the gain form P J (J^T P J + S)^-1); the forces' covariance adds the
  * deflections' through dF/d(dtheta), in closed form (the host takes central differences: four
  * more evaluations of the forces, which would double the chip's time).
+ * With the sleeves' friction terms (MODEL_HAS_FRICTION, labcli fit --friction-terms) the torque
+ * design has per actuator pair erf(m / w) - erf(m_in / w): its motion under the load m (the
+ * outside pair's dtheta1, the inside pair's dtheta1 + dtheta2) and into the baseline m_in (from
+ * the caller's history; 0 where unknown), w the fade with the estimated motion's error
+ * (MODEL_FRICTION_WIDTH, posture.py's friction_columns); erf by model_erf.
  * Paper form (Eqs. 34-37) where a quantity is routed to it or blended with it: angles by
  * arcsin, forces through (J^-1)^T at the estimated angles, standard errors from the held-out
  * variance plus x^T C x.
@@ -19,6 +24,10 @@
 #include "model.h"
 
 #include MODEL_HEADER
+
+#ifndef MODEL_HAS_FRICTION
+#define MODEL_HAS_FRICTION 0 /* a header of before the friction terms */
+#endif
 
 #define ROUTE_POSTURE 0
 #define ROUTE_PAPER 1
@@ -52,6 +61,22 @@ float model_baseline_min_counts(uint8_t k)
 {
     return MODEL_BASELINE_MIN_COUNTS[k];
 }
+
+uint8_t model_uses_history(void)
+{
+    return MODEL_HAS_FRICTION;
+}
+
+#if MODEL_HAS_FRICTION || !defined(__AVR__) /* the chip keeps it only for the friction terms */
+float model_erf(float x, float *slope)
+{
+    float a = fabsf(x), t = 1.0f / (1.0f + 0.3275911f * a), g = expf(-a * a);
+    float y = 1.0f - t * (0.254829592f + t * (-0.284496736f + t * (1.421413741f + t * (-1.453152027f + t * 1.061405429f)))) * g;
+    if (slope)
+        *slope = 1.12837917f * g; /* 2 / sqrt(pi) exp(-x^2) */
+    return x < 0.0f ? -y : y;
+}
+#endif
 
 #if MODEL_HAS_POSTURE
 /* x^T M x for a symmetric n x n M in flash: the diagonal and twice the upper triangle. */
@@ -120,12 +145,34 @@ static void inv2(const float A[2][2], float R[2][2])
 }
 
 
-/* The torque design's columns MODEL_TORQUE_TERM of the 14: dP (4), dP_j dtheta_l (8), dtheta (2);
- * with d (>= 0), their derivatives by dtheta_d instead. */
-static void torque_features(const float *dP, const float *dth, int8_t d, float *x)
+#if MODEL_HAS_FRICTION
+/* Pair p's friction term (t = 14 + p) at deflections dth and motion into the baseline moved (0:
+ * none), or with d >= 0 its derivative by dtheta_d (the inside pair moves with both joints). */
+static float friction_term(uint8_t p, const float *dth, const float *moved, int8_t d)
+{
+    float w = MODEL_FRICTION_WIDTH[p], slope;
+    float now = model_erf((p ? dth[0] + dth[1] : dth[0]) / w, &slope);
+    if (d >= 0)
+        return p || d == 0 ? slope / w : 0.0f;
+    return moved ? now - model_erf((p ? moved[0] + moved[1] : moved[0]) / w, 0) : now;
+}
+#endif
+
+/* The torque design's columns MODEL_TORQUE_TERM of the 14: dP (4), dP_j dtheta_l (8), dtheta (2),
+ * and the friction terms (2) read with the motion into the baseline; with d (>= 0), their
+ * derivatives by dtheta_d instead. */
+static void torque_features(const float *dP, const float *dth, const float *moved, int8_t d, float *x)
 {
     for (uint8_t k = 0; k < MODEL_NT; k++) {
         uint8_t t = MODEL_TORQUE_TERM[k];
+#if MODEL_HAS_FRICTION
+        if (t >= 14) {
+            x[k] = friction_term(t - 14, dth, moved, d);
+            continue;
+        }
+#else
+        (void)moved;
+#endif
         if (d < 0)
             x[k] = t < 4 ? dP[t] : t < 12 ? dP[(t - 4) >> 1] * dth[(t - 4) & 1] : dth[t - 12];
         else
@@ -167,9 +214,10 @@ struct force_parts {
 };
 
 /* Forces and their covariance from the torque error alone, at deflection dth (t: the trig of th0 + dth). */
-static void forces(const float *dP, const struct trig *t, const float *dth, float *F, float C[2][2], struct force_parts *fp)
+static void forces(const float *dP, const struct trig *t, const float *dth, const float *moved, float *F, float C[2][2],
+                   struct force_parts *fp)
 {
-    torque_features(dP, dth, -1, fp->x);
+    torque_features(dP, dth, moved, -1, fp->x);
     torques(fp->x, fp->tau);
     float g = 1.0f, A[2][2], M[2][2];
     for (uint8_t i = 0; i < MODEL_NT; i++) { /* (X^T X)^-1 x, kept for the gradient's dg */
@@ -192,10 +240,18 @@ static void forces(const float *dP, const struct trig *t, const float *dth, floa
     inv2(A, fp->Ai);
     mul2(fp->PJ, fp->Ai, fp->K, 0, 0); /* K = P J A^-1 */
     apply2(fp->K, fp->tau, F);
-    mul2(fp->K, fp->J, M, 0, 1); /* C = P - K J^T P */
+    /* C = (P^-1 + J (g R)^-1 J^T)^-1, the information form of P - K J^T P: where the torques pin
+     * a force down (C a few hundredths of P), that difference keeps only a digit or two in 32-bit
+     * floats (the friction model's sample rows: Fx's standard error 5 % off). */
     for (uint8_t i = 0; i < 2; i++)
         for (uint8_t l = 0; l < 2; l++)
-            C[i][l] = (i == l ? p[i] : 0.0f) - M[i][l] * p[l];
+            A[i][l] = g * MODEL_TORQUE_RESID[i][l];
+    inv2(A, M);
+    mul2(fp->J, M, A, 0, 0);
+    mul2(A, fp->J, M, 0, 1);
+    M[0][0] += 1.0f / p[0];
+    M[1][1] += 1.0f / p[1];
+    inv2(M, C);
 #else
     float JJ[2][2], S[2][2], AS[2][2];
     mul2(fp->J, fp->J, JJ, 0, 1); /* pinv(J^T) = (J J^T)^+ J for a 2 x 2 */
@@ -214,13 +270,14 @@ static void forces(const float *dP, const struct trig *t, const float *dth, floa
 /* dF / d(dtheta), column d: the derivative of K tau with K = P J A^-1 and A = J^T P J + g R:
  * dK = (P dJ - K dA) A^-1, dA = dJ^T P J + (P J)^T dJ + dg R, dg = 2 x^T (X^T X)^-1 dx.
  * The host takes the same by central differences (PostureModel._force_covariance). */
-static void force_gradient(const float *dP, const struct trig *t, const struct force_parts *fp, float G[2][2])
+static void force_gradient(const float *dP, const struct trig *t, const float *dth, const struct force_parts *fp,
+                           float G[2][2])
 {
     float p[2] = {MODEL_PRIOR_SD[0] * MODEL_PRIOR_SD[0], MODEL_PRIOR_SD[1] * MODEL_PRIOR_SD[1]};
     float h2 = MODEL_H2, h3 = MODEL_H3;
     for (int8_t d = 0; d < 2; d++) {
         float dx[MODEL_NT], dtau[2], dg = 0.0f, dJ[2][2], dA[2][2], B[2][2], M[2][2], dK[2][2], y[2], z[2];
-        torque_features(dP, 0, d, dx);
+        torque_features(dP, dth, 0, d, dx);
         torques(dx, dtau);
         for (uint8_t i = 0; i < MODEL_NT; i++)
             if (dx[i] != 0.0f)
@@ -261,7 +318,8 @@ static void stepped(const struct trig *t, uint8_t k, float sign, struct trig *ou
 
 /* dF / d(dtheta) by central differences, as the host (a step of 1e-4 rad: the float's 7 digits
  * would drown the host's 1e-6), for a model without a force prior (files of earlier fits). */
-static void force_gradient_numeric(const float *dP, const struct trig *t, const float *dth, float G[2][2])
+static void force_gradient_numeric(const float *dP, const struct trig *t, const float *dth, const float *moved,
+                                   float G[2][2])
 {
     for (uint8_t k = 0; k < 2; k++) {
         float up[2] = {dth[0], dth[1]}, dn[2] = {dth[0], dth[1]}, Fu[2], Fd[2], Cx[2][2];
@@ -271,15 +329,16 @@ static void force_gradient_numeric(const float *dP, const struct trig *t, const 
         dn[k] -= DTH_STEP;
         stepped(t, k, 1.0f, &tu);
         stepped(t, k, -1.0f, &td);
-        forces(dP, &tu, up, Fu, Cx, &fp);
-        forces(dP, &td, dn, Fd, Cx, &fp);
+        forces(dP, &tu, up, moved, Fu, Cx, &fp);
+        forces(dP, &td, dn, moved, Fd, Cx, &fp);
         G[0][k] = (Fu[0] - Fd[0]) / (2.0f * DTH_STEP);
         G[1][k] = (Fu[1] - Fd[1]) / (2.0f * DTH_STEP);
     }
 }
 #endif
 
-static void posture(const float *P0, const float *P, const float *th0, const float *u, struct model_out *out)
+static void posture(const float *P0, const float *P, const float *th0, const float *moved, const float *u,
+                    struct model_out *out)
 {
     float xa[MODEL_NA], dth[2] = {0.0f, 0.0f};
     angle_features(MODEL_ANGLE_TERM, MODEL_NA, u, xa);
@@ -303,17 +362,19 @@ static void posture(const float *P0, const float *P, const float *th0, const flo
 #endif
     out->v[1] = dth[1];
     out->se[1] = sqrtf(cov_a[1][1]);
+    out->dth[0] = dth[0];
+    out->dth[1] = dth[1];
     float dP[4], F[2], C[2][2], G[2][2];
     for (uint8_t k = 0; k < 4; k++)
         dP[k] = P0[k] - P[k];
     struct trig t;
     struct force_parts fp;
     trig_of(th0[0] + dth[0], th0[1] + dth[1], &t);
-    forces(dP, &t, dth, F, C, &fp);
+    forces(dP, &t, dth, moved, F, C, &fp);
 #if MODEL_HAS_PRIOR
-    force_gradient(dP, &t, &fp, G);
+    force_gradient(dP, &t, dth, &fp, G);
 #else
-    force_gradient_numeric(dP, &t, dth, G);
+    force_gradient_numeric(dP, &t, dth, moved, G);
 #endif
     for (uint8_t i = 0; i < 2; i++) {
         float c = C[i][i];
@@ -459,7 +520,7 @@ static void paper(const float *P0, const float *P, const float *u, float *v, flo
 
 #endif /* MODEL_HAS_PAPER */
 
-void model_predict(const float *P0_in, const float *P_in, const float *th0, struct model_out *out)
+void model_predict(const float *P0_in, const float *P_in, const float *th0, const float *moved, struct model_out *out)
 {
     float P0[4], P[4], u[4];
     uint8_t bad = 0;
@@ -471,10 +532,12 @@ void model_predict(const float *P0_in, const float *P_in, const float *th0, stru
         u[k] = P0[k] / P[k] - 1.0f;
     }
     out->flags = bad ? MODEL_FLAG_BAD_PRESSURE : 0;
+    out->dth[0] = out->dth[1] = 0.0f;
 #if MODEL_HAS_POSTURE
-    posture(P0, P, th0, u, out);
+    posture(P0, P, th0, moved, u, out);
 #else
     (void)th0;
+    (void)moved;
 #endif
 #if MODEL_HAS_PAPER
     float vp[4], sp[4];

@@ -19,13 +19,23 @@
 #define MODEL_FLAG_LOADED 512U
 
 struct model_out {
-    float v[4];  /* theta1, theta2 (rad, deflections), Fx, Fy (N) */
-    float se[4]; /* their standard errors (0 where the model has none) */
+    float v[4];   /* theta1, theta2 (rad, deflections), Fx, Fy (N) */
+    float se[4];  /* their standard errors (0 where the model has none) */
+    float dth[2]; /* the posture form's own deflections (rad, routes aside): what the history reads */
     uint16_t flags;
 };
 
-/* P0, P: baseline and present pressures (MPa gauge) of L1, R1, L2, R2; th0: rest posture (rad). */
-void model_predict(const float *P0, const float *P, const float *th0, struct model_out *out);
+/* P0, P: baseline and present pressures (MPa gauge) of L1, R1, L2, R2; th0: rest posture (rad);
+ * moved: the joints' motion into the baseline from the previous load's posture (rad, 2), which a
+ * model with the sleeves' friction terms reads (0: unknown, as for the first load). */
+void model_predict(const float *P0, const float *P, const float *th0, const float *moved, struct model_out *out);
+
+/* 1 when the model reads the history of loads (the friction terms), else 0. */
+uint8_t model_uses_history(void);
+
+/* erf(x) to within 5e-7 (Abramowitz & Stegun 7.1.26: 1.5e-7, and the float's rounding), and its
+ * derivative in *slope: the friction terms' fade on a chip whose libc has no erf. */
+float model_erf(float x, float *slope);
 
 /* One channel's counts as MPa or rad (the model's calibration). */
 float model_si(uint8_t channel, float counts);

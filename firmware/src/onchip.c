@@ -15,6 +15,12 @@
  * Until a baseline exists estimates carry the no-baseline flag and zeros.  The chip does not
  * follow a leak's slow drift by itself: the host retakes the baseline (BASELINE) when it wants.
  *
+ * A model with the sleeves' friction terms reads the history of loads, as labcli sense keeps it:
+ * while a load is on (its force still above LOAD_OFF limits) and the pressures are steady, the
+ * chip keeps the posture it holds the arm in (the rest plus the model's own deflections); each
+ * baseline taken after that gets the motion into it (its rest less that posture), and the
+ * estimates of the next load read it.  Estimates of the idle rig read none.
+ *
  * The model takes milliseconds; frames that arrive meanwhile wait in the sampler's queue, are
  * sent and checked against the limit, and the next estimate is of the newest of them: estimates
  * thin out, data lines do not (the STOP log counts the frames skipped).
@@ -43,6 +49,8 @@ enum { CAUSE_HOST = 1, CAUSE_RELEASE, CAUSE_START };
 static struct {
     uint8_t have_base, taking, cause, loaded, steady_windows, window_open, still;
     float P0[4], th0[2];
+    uint8_t have_before, have_moved;
+    float before[2], moved[2]; /* the last load's posture; the motion into the present baseline (rad) */
     uint32_t sum[N_CHANNELS], first_us, window_us;
     uint16_t n_sum;
     int32_t mean[4], lo[4], hi[4]; /* 1/16 counts */
@@ -156,6 +164,11 @@ static uint8_t take(const uint16_t *counts, uint32_t t_us)
         uint8_t ch = model_pot_channel(j);
         e.th0[j] = model_si(ch, (float)e.sum[ch] / (float)e.n_sum);
     }
+    if (e.have_before) {
+        e.moved[0] = e.th0[0] - e.before[0];
+        e.moved[1] = e.th0[1] - e.before[1];
+        e.have_moved = 1;
+    }
     e.taking = 0;
     e.have_base = 1;
     e.loaded = 0;
@@ -238,7 +251,7 @@ void onchip_estimate(const struct proto_state *st)
             P[k] = model_si(ch, (float)e.counts[ch]);
         }
         uint32_t t0 = sampler_ticks();
-        model_predict(e.P0, P, e.th0, &out);
+        model_predict(e.P0, P, e.th0, e.loaded && e.have_moved ? e.moved : 0, &out);
         uint32_t ticks = sampler_ticks() - t0;
         e.made++;
         e.ticks_sum += ticks;
@@ -251,6 +264,11 @@ void onchip_estimate(const struct proto_state *st)
                 continue;
             float x = out.v[q] / model_limit(q);
             r = x > r ? x : -x > r ? -x : r;
+        }
+        if (e.loaded && r >= LOAD_OFF && steady() && model_uses_history()) {
+            e.before[0] = e.th0[0] + out.dth[0]; /* the posture this load holds the arm in */
+            e.before[1] = e.th0[1] + out.dth[1];
+            e.have_before = 1;
         }
         if (!e.loaded && r > LOAD_ON)
             e.loaded = 1;

@@ -32,7 +32,7 @@ int main(void)
             p[k] = P0[k] * scale[(i + k) & 7];
         }
         PORTB = 1;
-        model_predict(p0, p, t, &out);
+        model_predict(p0, p, t, 0, &out);
         PORTB = 0;
         PORTB = 2;
         r = a * b;

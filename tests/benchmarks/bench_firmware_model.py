@@ -1,11 +1,13 @@
 """Estimates on the chip: cycles per estimate, the highest rate the chip keeps up with, flash and RAM,
 and the agreement with the host, for models of each form, on simavr.
 
-Run:  python tests/benchmarks/bench_firmware_model.py [--seconds 3] [--bauds 115200,1000000] [--models force,bent,paper]
+Run:  python tests/benchmarks/bench_firmware_model.py [--seconds 3] [--bauds 115200,1000000] [--models force,bent,paper,friction]
 
 Models: ``force`` (the sample force run refitted: the posture form with three quantities blended
 with the paper's: the heaviest), ``bent`` (the bent protocol's: the paper's angles, the posture
-form's forces) and ``paper`` (sample_runs/force-paper.model.json: Eqs. 34-37 alone).  For each:
+form's forces), ``paper`` (sample_runs/force-paper.model.json: Eqs. 34-37 alone) and ``friction``
+(the sample force run refitted with ``--friction-terms``; its estimates here read no history, one
+erf a term, and a load's read one more).  For each:
 
 * flash and RAM of the firmware built with the model (avr-size), beside the firmware without one
   (baseline, same run);
@@ -66,8 +68,10 @@ def model_files(work: Path, names: list[str]) -> dict[str, Path]:
         if name == "paper":
             out[name] = ROOT / "sample_runs" / "force-paper.model.json"
             continue
-        shutil.copy(ROOT / "sample_runs" / f"{name}.h5", work / f"{name}.h5")
-        run([sys.executable, "-m", "labcli", "fit", str(work / f"{name}.h5"), "-o", str(work / f"{name}.json")])
+        source = "force" if name == "friction" else name
+        shutil.copy(ROOT / "sample_runs" / f"{source}.h5", work / f"{name}.h5")
+        extra = ["--friction-terms"] if name == "friction" else []
+        run([sys.executable, "-m", "labcli", "fit", str(work / f"{name}.h5"), *extra, "-o", str(work / f"{name}.json")])
         out[name] = work / f"{name}.json"
     return out
 

@@ -36,16 +36,31 @@ QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
 LOADED = 512
 
 
-@pytest.fixture(scope="module")
-def model_board(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """(firmware ELF with the model, the model file)."""
+def built(d: Path, *fit_options: str) -> tuple[Path, Path]:
+    """(firmware ELF with the sample force run's model fitted with ``fit_options``, the model file)."""
     need_simavr()
-    d = tmp_path_factory.mktemp("firmware-model")
     shutil.copy(ROOT / "sample_runs" / "force.h5", d / "force.h5")
-    assert CliRunner().invoke(cli, ["fit", str(d / "force.h5"), "-o", str(d / "model.json")]).exit_code == 0
+    assert (
+        CliRunner().invoke(cli, ["fit", str(d / "force.h5"), *fit_options, "-o", str(d / "model.json")]).exit_code == 0
+    )
     assert CliRunner().invoke(cli, ["export-model", str(d / "model.json"), "--c", str(d / "model.h")]).exit_code == 0
     make(d / "build", "all", model=d / "model.h")
     return d / "build" / "labcli_rig.elf", d / "model.json"
+
+
+@pytest.fixture(scope="module")
+def model_board(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(firmware ELF with the model, the model file)."""
+    return built(tmp_path_factory.mktemp("firmware-model"))
+
+
+def aired(rig: SimRig) -> SimRig:
+    """The rig's chambers supplied and closed, as a session finds them."""
+    rig.supply_air()
+    rig.advance(3.0)
+    rig.close_valves()
+    rig.advance(1.0)
+    return rig
 
 
 class Board:
@@ -97,11 +112,7 @@ def test_the_chip_estimates_what_the_host_predicts(model_board):
     elf, model_path = model_board
     model = load_force_model(model_path)
     assert isinstance(model, PostureModel)
-    rig = SimRig(seed=3, tau_s=0.3)
-    rig.supply_air()
-    rig.advance(3.0)
-    rig.close_valves()
-    rig.advance(1.0)
+    rig = aired(SimRig(seed=3, tau_s=0.3))
     board = Board(elf, rig)
     try:
         board.run(0.05)
@@ -191,3 +202,72 @@ def test_the_device_asks_the_board_for_its_estimates(model_board):
     assert 60 <= len(estimates) <= 80  # one every second data line
     assert all(b.seq - a.seq == 2 for a, b in zip(estimates, estimates[1:], strict=False))
     assert dev.counters["estimates"] == len(estimates) and dev.counters["malformed"] == 0
+
+
+@pytest.fixture(scope="module")
+def friction_board(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(firmware ELF with the sample force run's model fitted with the friction terms, the model file)."""
+    return built(tmp_path_factory.mktemp("firmware-friction"), "--friction-terms")
+
+
+def test_with_the_friction_terms_the_chip_keeps_the_history_the_host_reads(friction_board):
+    """Two weights, the first taken off between them: the chip takes its baseline again after the
+    release, and the second weight's estimates read the motion into that baseline from the posture
+    the first held the arm in (its rest plus the model's deflections from its last steady frame),
+    as labcli sense keeps it; the host's predict given that motion is what the chip sends, within
+    the posture form's 1 % of each quantity's range, and the same without it is not."""
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+
+    elf, model_path = friction_board
+    model = load_force_model(model_path)
+    assert isinstance(model, PostureModel) and model.uses_history
+    rig = aired(SimRig(seed=3, tau_s=0.3, nonideal=NonIdeal(realism="kind")))
+    board = Board(elf, rig)
+    # (device seconds to run, then what happens): two weights, the first taken off after 2.5 s.
+    script = [
+        (0.05, lambda: board.send("RATE 50", "EST 1", "START")),
+        (1.6, lambda: rig.hang_weight(0.6, np.radians(-30))),
+        (2.5, rig.remove_weight),
+        (3.0, lambda: rig.hang_weight(0.5, np.radians(150))),
+        (2.0, lambda: board.send("STOP")),
+        (0.1, None),
+    ]
+    try:
+        for seconds, then in script:
+            board.run(seconds)
+            if then == rig.remove_weight:
+                off_s = board.link.avr_time_s
+            if then is not None:
+                then()
+        lines = board.lines()
+    finally:
+        board.link.stop()
+    events = [p for p in lines if isinstance(p, Event) and p.kind == "BASELINE"]
+    assert [e.fields[0] for e in events] == ["start", "release"]
+    frames = {p.seq: p for p in lines if isinstance(p, Frame)}
+    estimates = [p for p in lines if isinstance(p, Estimate) and p.seq in frames]
+    cal = load_protocol("takuma2014").calibration
+
+    def si(base: Event) -> np.ndarray:
+        return cal.to_si(np.array(baseline_counts(base.fields))[None, :])[0]
+
+    first, second = si(events[0]), si(events[1])
+    held = [e for e in estimates if e.flags & LOADED and e.t_us < events[1].t_us and e.t_us < (off_s - 0.2) * 1e6]
+    P_held = cal.to_si(np.array([frames[held[-1].seq].values]))[0, :4]
+    before = first[4:] + model.deflections(first[None, :4], P_held[None])[0]
+    loaded = [e for e in estimates if e.flags & LOADED and e.t_us > events[1].t_us]
+    assert len(held) > 20 and len(loaded) > 20
+    si_now = cal.to_si(np.array([frames[e.seq].values for e in loaded]))
+    n = len(loaded)
+    P0, th0 = np.tile(second[:4], (n, 1)), np.tile(second[4:], (n, 1))
+    moved = np.tile(second[4:] - before, (n, 1))
+    got = np.array([e.values for e in loaded])
+    want, blind = (
+        np.column_stack([out[k] for k in ("theta1_rad", "theta2_rad", "Fx_N", "Fy_N")])
+        for out in (model.predict(P0, si_now[:, :4], th0, motion_in=m) for m in (moved, None))
+    )
+    want[0] = blind[0]  # the estimate that found the load was made before the chip knew a load was on
+    span = np.ptp(np.array([e.values for e in estimates if e.flags & LOADED]), axis=0)
+    tol = np.maximum(0.01 * span, [1e-6, 1e-6, 1e-4, 1e-4])
+    assert np.all(np.abs(got - want).max(axis=0) <= tol), np.abs(got - want).max(axis=0) / span
+    assert np.max(np.abs(got[:, 2:] - blind[:, 2:])) > 5 * tol[2:].max()  # the history moved the forces

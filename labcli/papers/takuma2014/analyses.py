@@ -181,8 +181,8 @@ def friction_of(protocol: Any, asked: bool = False) -> bool | str:
 
     Not offered unasked: on the kind rig, trials taken as acquired (15 s waits, the chambers
     supplied again), they lower Fx (seeds 1-10, straight 0.305 -> 0.250 N, bent 0.230 -> 0.176;
-    docs/fit-and-validate.md), and the run-time estimator keeps the motion into each baseline
-    they read, but the board's export refuses them."""
+    docs/fit-and-validate.md), and the run-time estimator and the board keep the motion into
+    each baseline they read."""
     air = getattr(protocol, "air", None)
     if getattr(air, "friction_relief_vent_s", 0.0) > 0:
         return "relieved"

@@ -55,8 +55,7 @@ class FitOptions:
     )
     friction_terms: bool = switch(
         help="With the posture form: offer its torque fit the sleeves' friction terms, each trial's read from "
-        "its motion under the load and into its baseline (lower Fx on runs taken with 15 s waits; "
-        "export-model refuses them)."
+        "its motion under the load and into its baseline (lower Fx on runs taken with 15 s waits)."
     )
 
 

@@ -6,8 +6,10 @@ of firmware/test/model_tool.c) and held against ``PostureModel.predict`` / ``Tak
 (pressure-only, as ``labcli validate`` applies a model) on random pressures and rest postures and
 on the edge cases: bad pressures, the paper's clipped angles, a straight arm.  Three models: the
 posture form with blends (the sample force run refitted), the bent protocol's (the paper's angles
-with the posture form's forces) and the paper's form alone (the sample model file).  The chip
-itself, on simavr, is in tests/core/test_firmware_model.py.
+with the posture form's forces) and the paper's form alone (the sample model file); and the
+posture form with the sleeves' friction terms (``--friction-terms``), given each row's motion into
+its baseline, and the erf its fade takes on the chip.  The chip itself, on simavr, is in
+tests/core/test_firmware_model.py.
 """
 
 from __future__ import annotations
@@ -35,10 +37,14 @@ def models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Model files of each form: fitted here from the sample runs, and the sample paper-form model."""
     d = tmp_path_factory.mktemp("models")
     out = {"paper": ROOT / "sample_runs" / "force-paper.model.json"}
-    for name in ("force", "bent"):
-        run = d / f"{name}.h5"
-        shutil.copy(ROOT / "sample_runs" / f"{name}.h5", run)
-        result = CliRunner().invoke(cli, ["fit", str(run), "-o", str(d / f"{name}.json")])
+    for name, run_name, extra in (
+        ("force", "force", []),
+        ("bent", "bent", []),
+        ("friction", "force", ["--friction-terms"]),
+    ):
+        run = d / f"{run_name}.h5"
+        shutil.copy(ROOT / "sample_runs" / f"{run_name}.h5", run)
+        result = CliRunner().invoke(cli, ["fit", str(run), *extra, "-o", str(d / f"{name}.json")])
         assert result.exit_code == 0, result.output
         out[name] = d / f"{name}.json"
     return out
@@ -53,9 +59,12 @@ def model_tool(model: Path, build: Path) -> Path:
     return build / "host" / "model_tool"
 
 
-def chip(tool: Path, P0: np.ndarray, P: np.ndarray, th0: np.ndarray) -> np.ndarray:
-    """(n, 9): theta1, theta2, Fx, Fy, their standard errors, flags."""
-    lines = "".join("P " + " ".join(f"{v:.9g}" for v in np.r_[P0[i], P[i], th0[i]]) + "\n" for i in range(len(P0)))
+def chip(tool: Path, P0: np.ndarray, P: np.ndarray, th0: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    """(n, 9): theta1, theta2, Fx, Fy, their standard errors, flags (``moved``: each row's motion into its baseline)."""
+    extra = np.empty((len(P0), 0)) if moved is None else moved
+    lines = "".join(
+        "P " + " ".join(f"{v:.9g}" for v in np.r_[P0[i], P[i], th0[i], extra[i]]) + "\n" for i in range(len(P0))
+    )
     out = subprocess.run([str(tool)], input=lines, capture_output=True, text=True, timeout=60, check=True).stdout
     return np.array([[float(x) for x in row.split()] for row in out.splitlines()])
 
@@ -72,11 +81,13 @@ def inputs(seed: int, n: int = 1500) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return P0, P, th0
 
 
-def host(model_path: Path, P0: np.ndarray, P: np.ndarray, th0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def host(
+    model_path: Path, P0: np.ndarray, P: np.ndarray, th0: np.ndarray, moved: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Values (n, 4), standard errors (n, 4; zeros for the paper's form) and the flag bits, from the host."""
     m = load_force_model(model_path)
     if isinstance(m, PostureModel):
-        out = m.predict(P0, P, th0)
+        out = m.predict(P0, P, th0, motion_in=moved)
         se = np.column_stack([out["se"][q] for q in QUANTITIES])
         limits = np.array([m.limits[q] for q in QUANTITIES])
     else:
@@ -94,12 +105,21 @@ def host(model_path: Path, P0: np.ndarray, P: np.ndarray, th0: np.ndarray) -> tu
     return values, se, bits
 
 
-@pytest.mark.parametrize("form", ["force", "bent", "paper"])
+def motions(seed: int, n: int) -> np.ndarray:
+    """The joints' motions into the baselines (rad): back from a load's 0.5-3 deg, or within the fade."""
+    rng = np.random.default_rng(seed)
+    m = rng.normal(0.0, np.radians(1.5), (n, 2))
+    m[::4] = rng.normal(0.0, np.radians(0.1), (len(m[::4]), 2))
+    return m
+
+
+@pytest.mark.parametrize("form", ["force", "bent", "paper", "friction"])
 def test_the_chips_model_computes_the_hosts_predictions(form, models, tmp_path):
     tool = model_tool(models[form], tmp_path)
-    P0, P, th0 = inputs(seed={"force": 1, "bent": 2, "paper": 3}[form])
-    got = chip(tool, P0, P, th0)
-    values, se, bits = host(models[form], P0, P, th0)
+    P0, P, th0 = inputs(seed={"force": 1, "bent": 2, "paper": 3, "friction": 4}[form])
+    moved = motions(5, len(P0)) if form == "friction" else None
+    got = chip(tool, P0, P, th0, moved)
+    values, se, bits = host(models[form], P0, P, th0, moved)
     ok = np.all(np.isfinite(values), axis=1)
     # The target: 1 % of each quantity's range, on every estimate the host does not flag singular
     # (on those, a few 1e-5 of it).  Near a straight arm the paper's (J^-1)^T grows as
@@ -191,3 +211,45 @@ def test_the_firmware_makefile_refuses_a_missing_model(tmp_path):
     assert f"MODEL={tmp_path / 'none.h'}: no such file (write one with labcli export-model M.json --c model.h)" in (
         proc.stderr
     )
+
+
+def test_the_friction_terms_read_the_motion_into_the_baseline_on_the_chip(models, tmp_path):
+    """The friction model's header carries the terms and their fade; without a motion (the first
+    load) the chip computes the host's prediction without one, and the motion changes Fx by the
+    friction's share, as on the host."""
+    tool = model_tool(models["friction"], tmp_path)
+    m = load_force_model(models["friction"])
+    assert isinstance(m, PostureModel) and m.uses_history
+    text = (tmp_path / "model.h").read_text()
+    assert "#define MODEL_HAS_FRICTION 1" in text and "MODEL_FRICTION_WIDTH[2]" in text
+    P0, P, th0 = inputs(seed=6, n=300)
+    P0, P, th0 = P0[6:], P[6:], th0[6:]  # the ordinary rows
+    none = chip(tool, P0, P, th0)
+    values, _, _ = host(models["friction"], P0, P, th0)
+    span = np.ptp(values, axis=0)
+    assert np.all(np.abs(none[:, :4] - values).max(axis=0) <= 1e-3 * span)
+    moved = motions(7, len(P0))
+    given = chip(tool, P0, P, th0, moved)
+    shift = given[:, 2] - none[:, 2]
+    want = host(models["friction"], P0, P, th0, moved)[0][:, 2] - values[:, 2]
+    assert np.max(np.abs(want)) > 0.1  # N: the history moves Fx
+    assert np.max(np.abs(shift - want)) <= 1e-3 * span[2]
+
+
+def test_the_chips_erf_is_within_its_bound(tmp_path, models):
+    """model_erf (Abramowitz & Stegun 7.1.26, for a libc without erf): within 5e-7 of erf (the
+    formula's 1.5e-7 and the float's rounding of 1 - ...; measured 4.1e-7), a thousandth of the
+    fade's width in the motion, and its slope within 1e-6 of 2 exp(-x^2) / sqrt(pi), from the fade's
+    middle to far past it."""
+    from scipy.special import erf
+
+    tool = model_tool(models["friction"], tmp_path)
+    x = np.r_[np.linspace(-6.0, 6.0, 2401), 1e-6, -1e-6, 0.0]
+    out = subprocess.run(
+        [str(tool)], input="".join(f"E {v:.9g}\n" for v in x), capture_output=True, text=True, timeout=60, check=True
+    ).stdout
+    got = np.array([[float(v) for v in row.split()] for row in out.splitlines()])
+    xf = x.astype(np.float32).astype(float)
+    assert np.max(np.abs(got[:, 0] - erf(xf))) <= 5e-7
+    assert np.max(np.abs(got[:, 1] - 2.0 / np.sqrt(np.pi) * np.exp(-(xf**2)))) <= 1e-6
+    assert np.all(np.diff(got[:2401, 0]) >= 0.0)  # monotone: a sign never flips on rounding

@@ -88,18 +88,39 @@ def test_the_covariance_is_the_stepped_ones_for_every_kind_of_term(terms):
     assert np.median(np.trace(C - C_torque, axis1=1, axis2=2)) > 0
 
 
-def test_models_without_a_prior_or_with_friction_terms_take_the_central_differences():
+def test_models_without_a_prior_take_the_central_differences():
     dP, th0, dth, cov = random_inputs(5, 200)
-    motion = np.random.default_rng(6).normal(0.0, 0.01, (200, 2))
-    for model, moved in (
-        (random_model(3, prior=False), None),
-        (random_model(4, TORQUE_TERMS + FRICTION_TERMS), motion),
-    ):
-        assert model._force_gradient(dP, th0, dth, moved) is None
-        F, C = model._force_covariance(dP, th0, dth, cov, moved)
-        F_ref, C_ref = model._force_covariance(dP, th0, dth, cov, moved, closed_form=False)
-        np.testing.assert_array_equal(F, F_ref)
-        np.testing.assert_array_equal(C, C_ref)
+    model = random_model(3, prior=False)
+    assert model._force_gradient(dP, th0, dth) is None
+    F, C = model._force_covariance(dP, th0, dth, cov)
+    F_ref, C_ref = model._force_covariance(dP, th0, dth, cov, closed_form=False)
+    np.testing.assert_array_equal(F, F_ref)
+    np.testing.assert_array_equal(C, C_ref)
+
+
+@pytest.mark.parametrize("sd", [None, (1e-3, 2e-3)])
+def test_the_friction_terms_derivative_is_the_central_differences(sd):
+    """The friction terms' faded signs are steep within their fade (0.1 deg, widened by the
+    estimated motion's error): deflections there, and motions into the baseline either way."""
+    rng = np.random.default_rng(6)
+    model = random_model(4, TORQUE_TERMS + FRICTION_TERMS)
+    dP, th0, _, cov = random_inputs(5, 2000)
+    dth = rng.normal(0.0, 0.004, (2000, 2))
+    moved = rng.normal(0.0, 0.01, (2000, 2))
+    motion_sd = None if sd is None else np.array(sd)
+    G = model._force_gradient(dP, th0, dth, moved, motion_sd)
+    assert G is not None
+    F, C = model._force_covariance(dP, th0, dth, cov, moved, motion_sd)
+    F_ref, C_ref = model._force_covariance(dP, th0, dth, cov, moved, motion_sd, closed_form=False)
+    np.testing.assert_array_equal(F, F_ref)
+    scale = np.abs(C_ref).max(axis=(1, 2))[:, None, None]
+    # Within the differences' own error (measured 1.6e-6 and 2.7e-6: the erf's curvature over a step
+    # of 1e-6 within a fade of 2.5e-3, and rounding).
+    assert np.max(np.abs(C - C_ref) / scale) < 1e-5
+    # The terms' own share: without their slope the derivative would be another.
+    plain = random_model(4, TORQUE_TERMS + FRICTION_TERMS)
+    plain.torque_coefficients = [list(r) for r in np.asarray(model.torque_coefficients)[:-2]] + [[0.0, 0.0]] * 2
+    assert np.median(np.abs(G - plain._force_gradient(dP, th0, dth, moved, motion_sd))) > 1e-2
 
 
 def test_a_posterior_the_adjugate_cannot_invert_takes_the_central_differences():

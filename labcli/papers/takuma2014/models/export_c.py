@@ -8,7 +8,10 @@ in the chip's 32-bit floats, from one frame's counts and the baseline the chip t
   channel is which actuator and joint, and the rig's geometry (h2, h3);
 * the posture form: the angle terms kept and their coefficients, (X^T X)^-1 and residual
   covariance; theta1's own equation; the torque terms kept (indices into TORQUE_TERMS), their
-  coefficients, (X^T X)^-1, residual covariance and the force prior;
+  coefficients, (X^T X)^-1, residual covariance and the force prior; with the sleeves' friction
+  terms (``labcli fit --friction-terms``, indices 14 and 15), each pair's fade
+  (``MODEL_FRICTION_WIDTH``: sqrt(2 (sd^2 + FRICTION_MOTION_RAD^2)), sd the pair's motion's
+  standard error from the pressures), the chip reading the motion into each baseline it keeps;
 * the paper's Eqs. 34-37 where a quantity takes them (route ``paper`` or ``blend``): the 18
   coefficients, their covariances, the amplification bound and theta2's stand-in threshold,
   the held-out variances and each blend's weight and error correlation;
@@ -33,7 +36,15 @@ import numpy as np
 
 from ....errors import ModelError
 from . import routes as rt
-from .posture import DEFAULT_LIMITS, TORQUE_TERMS, PostureModel, load_force_model
+from .posture import (
+    DEFAULT_LIMITS,
+    FRICTION_MOTION_RAD,
+    FRICTION_TERMS,
+    RELIEVED_TERMS,
+    TORQUE_TERMS,
+    PostureModel,
+    load_force_model,
+)
 from .takuma import TERMS, TakumaModel
 
 ROUTE_CODES = {rt.POSTURE: 0, rt.PAPER: 1, rt.BLEND: 2}
@@ -131,6 +142,9 @@ def _posture_part(m: PostureModel) -> str:
     a_pairs = _angle_term_pairs(m.angle_terms)
     t1 = list(m.theta1_terms)
     has_prior = bool(m.force_prior_sd)
+    known = TORQUE_TERMS + FRICTION_TERMS
+    friction = m.uses_history
+    width = np.sqrt(2.0 * (m.pair_motion_sd() ** 2 + FRICTION_MOTION_RAD**2))
     return (
         "#define MODEL_HAS_POSTURE 1\n"
         f"#define MODEL_NA {len(a_pairs)} /* deflection terms: {', '.join(m.angle_terms)} */\n"
@@ -151,7 +165,9 @@ def _posture_part(m: PostureModel) -> str:
         + f"#define MODEL_THETA1_VAR {_f(m.theta1_resid_var)}\n"
         + f"#define MODEL_NT {len(m.torque_terms)} /* torque terms: {', '.join(m.torque_terms)} */\n"
         + f"static const __flash uint8_t MODEL_TORQUE_TERM[{len(m.torque_terms)}] = "
-        + f"{{{_ints(TORQUE_TERMS.index(t) for t in m.torque_terms)}}};\n"
+        + f"{{{_ints(known.index(t) for t in m.torque_terms)}}};\n"
+        + f"#define MODEL_HAS_FRICTION {int(friction)} /* torque terms 14, 15: the sleeves' friction */\n"
+        + _array("float", "MODEL_FRICTION_WIDTH", width if friction else [0.0, 0.0])
         + _array("float", "MODEL_TORQUE_COEF", m.torque_coefficients)
         + _array("float", "MODEL_TORQUE_XTX", m.torque_xtx_inv)
         + _array("float", "MODEL_TORQUE_RESID", m.torque_resid_cov)
@@ -232,11 +248,11 @@ def export(model: str | Path, *, c: str | Path, protocol: str | None = None, **_
     proto = load_protocol(protocol or m.protocol)
     if proto.calibration is None:
         raise ModelError(f"The protocol {proto.name} has no channel calibration for the board's counts.")
-    beyond = [t for t in getattr(m, "torque_terms", ()) if t not in TORQUE_TERMS]
+    beyond = [t for t in getattr(m, "torque_terms", ()) if t in RELIEVED_TERMS]
     if beyond:
         raise ModelError(
-            f"The model file {model} uses the sleeves' friction terms ({', '.join(beyond)}), which the "
-            "board's estimator does not compute; the C header carries the posture form without them."
+            f"The model file {model} uses the relieved run's friction terms ({', '.join(beyond)}), which the "
+            "board's estimator does not compute (it keeps no friction relief); fit the run without them."
         )
     channels = tuple(proto.channels)
     text = c_header(m, proto.calibration, channels, source=str(model))

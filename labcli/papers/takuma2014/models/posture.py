@@ -231,6 +231,15 @@ def friction_columns(
     return now if motion_in is None else now - sign(motion_in)
 
 
+def friction_slopes(dtheta: np.ndarray, motion_sd: np.ndarray | None = None) -> np.ndarray:
+    """d/dm of each pair's faded sign erf(m / width) of :func:`friction_columns` at its motion m (n, 2)."""
+    width = np.sqrt(
+        2.0 * (np.asarray(0.0 if motion_sd is None else motion_sd, dtype=float) ** 2 + FRICTION_MOTION_RAD**2)
+    )
+    z = np.nan_to_num(pair_motion(dtheta), nan=0.0) / width
+    return 2.0 / math.sqrt(math.pi) * np.exp(-(z**2)) / width
+
+
 def relieved_columns(dtheta: np.ndarray, motion_sd: np.ndarray | None = None) -> np.ndarray:
     """The relieved run's friction terms (n, 3): per pair the sign of its motion under the load
     (faded in as in :func:`friction_columns`), and 1.
@@ -1078,7 +1087,7 @@ class PostureModel:
         """Forces and their covariance: torque error through (J^T)^-1, angle error through dF/d(dtheta).
 
         dF/d(dtheta) is the derivative of the posterior mean in closed form (:meth:`_force_gradient`)
-        where the model has a force prior and no friction terms, by central differences (a step of
+        where the model has a force prior and no relieved run's terms, by central differences (a step of
         FORCE_STEP) otherwise or unless ``closed_form``.
         """
         G = self._force_gradient(dP, th0, dth, motion_in, motion_sd) if closed_form else None
@@ -1114,7 +1123,9 @@ class PostureModel:
     ) -> np.ndarray | None:
         """dF/d(dtheta) (n, 2, 2), ``[:, i, k]`` = dF_i / d(dtheta_k), of :meth:`_forces`' posterior mean
         F = P J y with y = M^-1 tau and M = J^T P J + (1 + h) S_tau; None where it is not written out
-        here (no force prior, friction terms, or a posterior the adjugate does not invert).
+        here (no force prior, a relieved run's terms, or a posterior the adjugate does not invert).
+        The friction terms' columns move with the deflections through their faded signs
+        (:func:`friction_slopes`).
 
         For each deflection k: dF = P dJ y + K (dtau - dM y), K = P J M^-1 the gain, with
         dM y = dJ^T F + J^T P dJ y + dh S_tau y, dtau = dX beta, dh = 2 x^T (X^T X)^-1 dx.  One
@@ -1125,10 +1136,11 @@ class PostureModel:
         if not self.force_prior_sd:
             return None
         at = [KNOWN_TORQUE_TERMS.index(t) for t in self.torque_terms]
-        if any(a >= len(TORQUE_TERMS) for a in at):
+        if any(a >= len(TORQUE_TERMS) + len(FRICTION_TERMS) for a in at):
             return None
         n = len(dP)
         dP, dth = np.atleast_2d(dP), np.atleast_2d(dth)
+        slope = friction_slopes(dth, motion_sd) if any(a >= len(TORQUE_TERMS) for a in at) else None
         X = torque_features(dP, dth, self.torque_terms, motion_in, motion_sd)
         beta = np.asarray(self.torque_coefficients, dtype=float)
         tau = X @ beta
@@ -1168,6 +1180,9 @@ class PostureModel:
                     dX[:, col] = dP[:, (a - 4) // 2]
                 elif a == 12 + k:  # dtheta_k
                     dX[:, col] = 1.0
+                elif a >= 14 and (a == 15 or k == 0):  # a friction term: the pair moves with dtheta_k
+                    assert slope is not None
+                    dX[:, col] = slope[:, a - 14]
             dtau = dX @ beta
             dh = 2.0 * np.einsum("ni,ni->n", XA, dX)
             dy0, dy1 = d00 * y0 + d01 * y1, d10 * y0 + d11 * y1  # dJ y
