@@ -102,3 +102,29 @@ def test_log_k_standard_error_adds_force_and_deformation_in_quadrature() -> None
     assert se[0] == pytest.approx(math.hypot(math.hypot(6 * 0.3, 8 * 0.4) / 100.0, rel_x))
     assert se[1] == pytest.approx(math.hypot(0.3 / 6.0, rel_x))
     assert log_k_standard_errors({"theta1_rad": np.zeros(2)}, Est(), ok) is None
+
+
+def test_a_solved_phi_adds_its_directions_error_to_the_deformations() -> None:
+    """With phi solved, delta_x's error also has the force direction's standard error (phi_se over
+    |phi_gain|) times dx_gain; a given phi (NaN gains) adds nothing."""
+
+    class Est:
+        force = np.array([5.0, 5.0])
+        delta_x = np.array([0.004, 0.004])
+        dx_theta_gain = np.array([0.1, 0.1])  # m/rad
+        F = np.array([[-3.0, -4.0], [-3.0, -4.0]])
+        phi_se = np.array([math.radians(30.0), math.nan])
+        phi_gain = np.array([-3.0, math.nan])
+        dx_gain = np.array([0.012, math.nan])  # m per rad of the force direction
+
+        def __len__(self) -> int:
+            return 2
+
+    th = math.radians(0.3)
+    pred = {"se": {"theta1": np.full(2, th), "theta2": np.zeros(2), "Fx": np.full(2, 0.2), "Fy": np.full(2, 0.2)}}
+    se = log_k_standard_errors(pred, Est(), None)
+    rel_f, rel_x = math.hypot(3 * 0.2, 4 * 0.2) / 25.0, 0.1 * th / 0.004
+    turn = 0.012 * math.radians(30.0) / 3.0 / 0.004  # 10 deg of direction: 2.1 mm of 4
+    assert se[0] == pytest.approx(math.hypot(rel_f, math.hypot(rel_x, turn)))
+    assert se[1] == pytest.approx(math.hypot(rel_f, rel_x))
+    assert se[0] > 3 * se[1]

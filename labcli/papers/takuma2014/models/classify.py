@@ -421,7 +421,10 @@ def log_k_standard_errors(
     angles' standard errors come from the calibration's held-out residuals, so they carry the
     labels' play, scale error and thermal tail as the fit saw them.  Where one force component is
     unobservable (a straight arm's Fy) the force was rebuilt from the other along the push, and
-    its relative error is that component's.
+    its relative error is that component's.  A solved phi adds its own term to the deformation's:
+    the force direction's standard error (``phi_se / |phi_gain|``) times ``dx_gain``, how far
+    delta_x moves per radian the direction turns (at 40 deg of phi error a PET bottle's delta_x
+    is barely known, whatever the angles' errors).
     """
     se = pred.get("se")
     if not isinstance(se, Mapping) or not all(q in se for q in ("theta1", "theta2", "Fx", "Fy")):
@@ -436,6 +439,9 @@ def log_k_standard_errors(
             rel_f = np.where(~force_ok[:, 1] & force_ok[:, 0], fx / np.abs(F[:, 0]), rel_f)
             rel_f = np.where(~force_ok[:, 0] & force_ok[:, 1], fy / np.abs(F[:, 1]), rel_f)
         rel_x = est.dx_theta_gain * np.hypot(t1, t2) / est.delta_x
+        if getattr(est, "phi_se", None) is not None:
+            turn = np.abs(est.dx_gain) * est.phi_se / np.abs(est.phi_gain)
+            rel_x = np.hypot(rel_x, np.where(np.isfinite(turn), turn, 0.0) / est.delta_x)
     return np.hypot(rel_f, rel_x)
 
 
