@@ -180,9 +180,18 @@ def test_the_device_asks_the_board_for_its_estimates(model_board):
     elf, model_path = model_board
     with Device.open(f"sim://?firmware={elf}&seed=3&tau=0.3") as dev:
         assert dev.caps.estimates == QUANTITIES and dev.caps.baseline and len(dev.caps.model) == 8
-        dev.set_valves("supply")  # the board's valves fill the chambers, then hold their air
-        dev.set_valves("hold")
         dev.set_rate(50)
+        # The board's valves fill the chambers for 0.2 s of its time, then hold their air.  (Not
+        # "supply" then at once "hold": that supplies for as long as the host takes to answer, in
+        # the virtual clock anything from 10 to 140 ms, and 10 ms leaves the chambers below the
+        # start rule's minimum.)
+        dev.set_valves("supply")
+        dev.start()
+        n = 0
+        while n < 10:
+            n += len(dev.read(1.0))
+        dev.stop()
+        dev.set_valves("hold")
         assert dev.stream_estimates(2) == 2
         dev.start()
         n = 0

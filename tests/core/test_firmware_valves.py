@@ -20,7 +20,7 @@ from support.firmware_build import make
 from labcli.core.board import limit_counts
 from labcli.core.boardlines import Event
 from labcli.core.device import Device
-from labcli.core.sim.hil import VALVE_PINS, HilLink
+from labcli.core.sim.hil import VALVE_LAG_BATCHES, VALVE_PINS, HilLink
 from labcli.core.sim.orifice import flow_factor
 from labcli.core.wire import Frame, LogLine, Reply, StreamReader, parse_line
 from labcli.errors import DeviceUnsupported
@@ -142,6 +142,45 @@ def test_valve_commands_move_the_pins_and_the_chambers(firmware_elf):
                     assert not (value >> inlet & 1 and value >> exhaust & 1)
     finally:
         board.close()
+
+
+def test_a_valve_acts_on_the_rig_a_fixed_lag_after_its_pin_however_far_ahead_the_rig_is(firmware_elf):
+    """The rig is sampled up to VALVE_LAG_BATCHES batches ahead of the AVR, how far by the pump's
+    luck.  A command read by an AVR at rest (the pump then grants a whole demand at once) and one
+    read mid-stream both reach the rig exactly the lag after their pins moved, so the rig's chambers
+    are supplied as long as the board supplied them (not 0 ms of a 10 ms supply, as under load)."""
+    rig = pressurised_rig()
+    changes: list[tuple[float, tuple[str, ...]]] = []
+    set_valves = rig.set_valves
+
+    def logged(states) -> None:
+        changes.append((rig.time_s, tuple(states)))
+        set_valves(states)
+
+    rig.set_valves = logged
+    board = Board(firmware_elf, rig)
+    link = board.link
+    try:
+        board.run(0.2)
+        deadline = time.monotonic() + 30
+        while link.avr_time_s < link.rig_time_s and time.monotonic() < deadline:
+            time.sleep(0.005)  # the AVR runs what it was given, then rests
+        board.send("VALVE ALL SUPPLY")
+        board.run(0.03)
+        board.send("VALVE ALL HOLD")
+        board.run(0.3)
+    finally:
+        board.close()
+    # (The coils of port D move before those of port B: a change may pass through mixed states.)
+    assert changes[0][1] == ("supply",) * 4 and changes[-1][1] == ("hold",) * 4, changes
+    lag = VALVE_LAG_BATCHES * 10e-3  # the default 10 ms batches
+    for t_rig, _ in changes:
+        since = [t_rig - link.rig_t0 - t for t, _, _ in link.pins()]
+        assert any(lag <= d < lag + 1e-3 for d in since), (t_rig - link.rig_t0, link.pins())
+    # The rig's supply lasted the board's (to a slice or two): its VALVE events' times apart.
+    events = [e for e in board.events() if e.kind == "VALVE"]
+    supplied = (events[1].t_us - events[0].t_us) * 1e-6
+    assert abs(changes[-1][0] - changes[0][0] - supplied) <= 2e-3, (changes, supplied)
 
 
 def test_the_chip_vents_an_over_pressure_with_the_host_silent(firmware_elf):

@@ -28,8 +28,11 @@ a small harness (``firmware/hil/harness.c``, built next to the ELF as
 * **Valves.**  The harness reports every write of the firmware to PORTB and PORTD; the
   link reads the valves' coils off them (:data:`VALVE_PINS`, the map of
   ``firmware/src/config.h``) and sets the rig's valves (``rig.set_valves``) when they
-  change.  The rig is up to ``IN_FLIGHT`` batches ahead of the AVR, so a valve acts on the
-  rig up to that much later than the firmware switched it (at most 90 ms of simulated time).
+  change, a fixed :data:`VALVE_LAG_BATCHES` batches (90 ms of simulated time at the default
+  ``batch_ms``) after the firmware switched them, at that very slice: the most the rig can be
+  ahead of the AVR, so the change always lies in the rig's future.  Set when the write is
+  read instead, a valve would act up to that much later by the pump's luck: under load a
+  supply the board held for 60 ms could give the rig none at all.
 
 ``record=True`` keeps every fed sample (``fed()``: AVR time in microseconds
 and the rig's counts) so tests can hold the firmware's frames against the rig;
@@ -68,11 +71,13 @@ BUILD_HINT = (
 )
 SLICE_MS = 1
 IN_FLIGHT = {"wall": 3, "demand": 8}  # batches the harness may hold beyond the one it runs
+VALVE_LAG_BATCHES = max(IN_FLIGHT.values()) + 1  # a valve acts on the rig this long after its pin moved
 VREF = 5.0
 ADC_MAX = 4095  # the rig's counts are the protocol's: V = counts * 5 / 4095
 START_TIMEOUT_S = 10.0
 CPU_HZ = 16_000_000  # the harness's default --freq
 _HEAD = struct.Struct("<cI")
+_SLICE_CYCLES = CPU_HZ * SLICE_MS // 1000
 
 
 class FirmwareSimError(DeviceError):
@@ -139,6 +144,9 @@ class HilLink:
         self._ports = {"B": 0, "D": 0}
         self._pins: list[tuple[float, str, int]] = []
         self.valve_states: tuple[str, ...] = ("hold",) * len(VALVE_PINS)  # the pins at power-up
+        # The rig's valve changes still to come: (the slice after which they act, the states).
+        self._valves_due: deque[tuple[int, list[str]]] = deque()
+        self._valve_lag = VALVE_LAG_BATCHES * self.batch  # slices
         self._stderr: deque[str] = deque(maxlen=20)
         self._write_lock = threading.Lock()
         self._stop = threading.Event()
@@ -184,6 +192,11 @@ class HilLink:
     def avr_time_s(self) -> float:
         """Simulated time the AVR has run to, s since its power-up."""
         return self._batches_done * self._batch_s
+
+    @property
+    def rig_time_s(self) -> float:
+        """Simulated time the rig has been sampled to, s since the AVR's power-up (the AVR's plus what is in flight)."""
+        return self._batches_sent * self._batch_s
 
     def write(self, data: bytes) -> None:
         """Send host bytes to the AVR's UART."""
@@ -340,7 +353,9 @@ class HilLink:
         if tuple(states) != self.valve_states:
             self.valve_states = tuple(states)
             if hasattr(self.rig, "set_valves"):
-                self.rig.set_valves(states)
+                # The write's slice (rounded up), plus the lag: never before the rig's clock.
+                at = -(-cycle // _SLICE_CYCLES) + self._valve_lag
+                self._valves_due.append((max(at, self._batches_sent * self.batch), states))
 
     def _may_send(self) -> bool:
         if self._batches_sent - self._batches_done > self._in_flight:
@@ -358,7 +373,7 @@ class HilLink:
 
     def _grant(self) -> None:
         while self._may_send():
-            _, counts = self.rig.samples(self.batch, 1000.0 / SLICE_MS)
+            counts = self._next_counts()
             volts = (np.asarray(counts, np.float32) * np.float32(VREF / ADC_MAX)).astype("<f4")
             self._send(b"V", volts.tobytes())
             if self._record is not None:
@@ -366,3 +381,17 @@ class HilLink:
                 t_us = (first + np.arange(1, self.batch + 1, dtype=np.int64)) * SLICE_MS * 1000
                 self._record.append((t_us, np.asarray(counts, np.int64)))
             self._batches_sent += 1
+
+    def _next_counts(self) -> np.ndarray:
+        """The rig's counts over the next batch's slices, each valve change made after its own slice."""
+        done = self._batches_sent * self.batch
+        end = done + self.batch
+        parts = []
+        while self._valves_due and self._valves_due[0][0] < end:
+            at, states = self._valves_due.popleft()
+            if at > done:
+                parts.append(self.rig.samples(at - done, 1000.0 / SLICE_MS)[1])
+                done = at
+            self.rig.set_valves(states)
+        parts.append(self.rig.samples(end - done, 1000.0 / SLICE_MS)[1])
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
