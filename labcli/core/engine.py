@@ -511,6 +511,8 @@ class RunEngine:
             self._trial = None
             self._flags = []
             self._note = ""
+            # Only now may an unattended run say so: a line on the screen is a trial in the file.
+            getattr(self.ui, "stored", lambda: None)()
 
     def _finish(self, step: Finish) -> None:
         self.stream.stop()

@@ -342,7 +342,7 @@ class RichUI:
 
 
 class UnattendedUI:
-    """Answers every prompt itself (simulated rig only) and prints one line per trial."""
+    """Answers every prompt itself (simulated rig only) and prints one line per trial, once it is stored."""
 
     unattended = True
 
@@ -352,6 +352,7 @@ class UnattendedUI:
         self.console = console or Console(highlight=False)
         self.verbose = verbose
         self._step: BeginTrial | None = None
+        self._accepted: tuple[dict, tuple[str, ...]] | None = None  # reviewed, not yet stored
 
     def info(self, text: str) -> None:
         self.console.print(text, markup=False)
@@ -384,11 +385,20 @@ class UnattendedUI:
         return "accept"
 
     def review(self, row: dict, warnings: tuple[str, ...] = (), default: str = "accept") -> str:
-        """Accepts every trial; what the checks found is printed and stays with the record."""
+        """Accepts every trial; its line is printed once it is stored (:meth:`stored`)."""
+        self._accepted = (row, warnings)
+        return "accept"
+
+    def stored(self) -> None:
+        """The trial last reviewed is committed: its line, and what the checks found (it stays with
+        the record).  Not before: nobody reads a line on the screen as a trial that a kill may yet lose."""
+        if self._accepted is None:
+            return
+        row, warnings = self._accepted
+        self._accepted = None
         self.console.print("  " + "  ".join(f"{k} {v}" for k, v in row.items()), markup=False)
         for w in warnings:
             self.warn(w)
-        return "accept"
 
 
 class ProgressUI(UnattendedUI):

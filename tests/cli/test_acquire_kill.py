@@ -45,13 +45,14 @@ from labcli.core.protocol import load_protocol
 from labcli.core.store import RunFile
 from labcli.core.store.records import Records
 from labcli.core.store.split import Splits
+from labcli.errors import StoreError
 from labcli.papers.takuma2014.protocol import load_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED = 21
 PORT = f"sim://?seed={SEED}&clock=virtual"
 READY = "readings in range."  # printed once the setup check passed (just before the file is created)
-REVIEW = "  trial "  # the unattended session prints one such line per trial, before writing it
+REVIEW = "  trial "  # the unattended session prints one such line per trial, once it is stored
 
 
 # ---------------------------------------------------------------- the file's contents
@@ -262,17 +263,19 @@ class Campaign:
             return "start-up and setup check" + ("" if path.exists() else " (no file yet)")
         if len(ids) == len(self.ids):
             return "after the last trial (split)"
-        if proc.reviews == new:
-            said = proc.stderr.strip().splitlines()[-1:] or [""]
-            if "during the setup" in said[0]:
-                return "air supply and valves"
-            if "between trials" in said[0]:
-                return "between trials"
-            return "acquiring a trial" if said[0] else "air supply, valves or acquiring a trial"
-        assert proc.reviews == new + 1, (proc.reviews, new, proc.stdout)
+        # Every trial line printed is a trial stored; only the last one stored may have no line yet.
+        assert proc.reviews in (new, new - 1), (proc.reviews, new, proc.stdout)
+        if proc.reviews == new - 1:
+            return "between a trial's commit and its line"
         with RunFile.open(path) as run:
-            on_disk = bool(run.records.incomplete_ids())
-        return "writing a trial (incomplete group on disk)" if on_disk else "writing a trial"
+            if run.records.incomplete_ids():
+                return "writing a trial (incomplete group on disk)"
+        said = proc.stderr.strip().splitlines()[-1:] or [""]
+        if "during the setup" in said[0]:
+            return "air supply and valves"
+        if "between trials" in said[0]:
+            return "between trials"
+        return "acquiring a trial" if said[0] else "air supply, valves, acquiring or writing a trial"
 
     def check_sigint(self, proc: Acquire, rc: int, path: Path, ids: list[int]) -> None:
         assert rc == 130, (rc, proc.stdout, proc.stderr)
@@ -414,6 +417,35 @@ def test_ctrl_c_during_a_write_stores_the_trial_whole_and_says_so(tmp_path, monk
     )
     with RunFile.open(path) as run:
         assert run.records.ids() == [1, 2, 3] and run.records.incomplete_ids() == [] and run.split.get() is None
+
+
+def test_a_trial_line_is_printed_only_once_the_trial_is_stored(tmp_path, monkeypatch):
+    """The unattended run's line per trial tells whoever watches that the trial is in the file: a write
+    that fails (here the disk's I/O error; a kill alike) leaves its trial without a line."""
+    import io
+
+    from rich.console import Console
+
+    from labcli.core.ui import UnattendedUI
+
+    plan = tmp_path / "plan.csv"
+    plan.write_text("trial,set,mass_g,direction_deg\n1,fit,200,-60\n2,fit,500,30\n3,validation,300,150\n")
+    path = tmp_path / "run.h5"
+    real = Records.write
+
+    def dies_on_trial_2(self, record):
+        if record["trial"] == 2:
+            raise StoreError(f"{path} could not be written (Input/output error), so trial 2 was not stored.")
+        return real(self, record)
+
+    monkeypatch.setattr(Records, "write", dies_on_trial_2)
+    out = io.StringIO()
+    with pytest.raises(StoreError, match="trial 2 was not stored"):
+        acquire(path, PORT, protocol="takuma2014", plan=plan, unattended=True, ui=UnattendedUI(Console(file=out)))
+    lines = [line for line in out.getvalue().splitlines() if line.startswith(REVIEW)]
+    assert [line.split()[1] for line in lines] == ["1"], out.getvalue()
+    with RunFile.open(path) as run:
+        assert run.records.ids() == [1]
 
 
 def test_ctrl_c_while_the_split_is_written_finishes_the_run(tmp_path, monkeypatch):
