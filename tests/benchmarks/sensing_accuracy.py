@@ -22,12 +22,15 @@ after the change and the valves held for the whole run.
 
 ``--ideal`` turns the rig's non-idealities off (friction, leak, heat, backlash, link weight);
 ``--only friction`` (or leak, thermal, backlash, links) keeps that one alone, to see what each costs;
-``--without thermal`` (or another) turns that one off and keeps the rest.
+``--without thermal`` (or another of the rig's scales: contact, pulley, potscale, potlin, repeat,
+drift too, which the literature's rig has) turns that one off and keeps the rest.
 ``--realism literature`` runs the literature's rig (NonIdeal's levels) instead of the kind one.
 ``--friction-terms`` adds a third form, the posture form with the sleeves' friction terms offered
 to its torque fit (``PostureModel(friction=True)``, models/posture.py's ``friction_columns``).
 Under the table, each posture form's Fx RMSE on the validation trials whose baseline was taken
-right after the chambers were supplied again, against the others.
+right after the chambers were supplied again, against the others; and the joint torque the
+posture form's pressure terms leave unexplained (the residual standard deviation its model file
+records, ``torque_resid_cov``; RMS over the seeds), which the Jacobian turns into its force error.
 ``--bent-supply`` runs the bent protocol at other regulator settings (MPa, L1,R1,L2,R2).
 ``--figures`` also writes every printed figure to a flat JSON object {name: value} (the docs' figures).
 
@@ -188,7 +191,8 @@ def measure(
     out: dict = {"after_supply": np.asarray(supplies, dtype=bool)[(table["set"] == "validation").to_numpy()]}
     for form, model in forms:
         try:
-            ev = evaluate(model.fit(table), table)
+            fitted = model.fit(table)
+            ev = evaluate(fitted, table)
         except ModelError:
             # A form that cannot be fitted on this run (on a harsh rig the paper's Fy equation may
             # keep too few trials): no estimate, every validation trial unreported.
@@ -202,6 +206,8 @@ def measure(
             inside = (np.abs(err) <= 1.96 * ev["se"][q])[ok] if ev["se"] is not None else np.array([])
             per_q[q] = {"err_ok": err[ok], "err_all": err, "inside": inside}
         out[form] = per_q
+        if form == "posture":
+            out["torque_sd"] = np.sqrt(np.diag(np.asarray(fitted.torque_resid_cov, dtype=float)))
     out["rest_deg"] = float(np.median(table["theta2_0_deg"]))
     return out
 
@@ -212,13 +218,15 @@ def rms(x) -> float:
 
 
 def main(argv: list[str] | None = None) -> None:
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 1,4,7")
     add_air_options(ap)
     ap.add_argument("--ideal", action="store_true", help="the rig with its non-idealities off")
     which = ap.add_mutually_exclusive_group()
     which.add_argument("--only", choices=EFFECTS, help="the rig with this one non-ideality and no other")
-    which.add_argument("--without", choices=EFFECTS, help="the rig with every non-ideality but this one")
+    which.add_argument("--without", choices=NonIdeal.scale_names(), help="the rig with every non-ideality but this one")
     ap.add_argument("--realism", choices=("kind", "literature"), default="kind", help="the rig's levels (default kind)")
     ap.add_argument("--friction-terms", action="store_true", help="also the posture form with the friction terms")
     ap.add_argument("--bent-supply", help="the bent protocol's regulators, MPa: L1,R1,L2,R2")
@@ -282,6 +290,14 @@ def main(argv: list[str] | None = None) -> None:
             f"{inside.size} reported validation errors (target 90-98 %)"
         )
         figures[f"{protocol} posture all cover pct"] = 100 * float(inside.mean())
+        sd = [r["torque_sd"] for r in runs if "torque_sd" in r]
+        if sd:
+            bottom, upper = np.sqrt(np.mean(np.square(sd), axis=0))
+            figures[f"{protocol} posture torque sd N m joint1"] = float(bottom)
+            figures[f"{protocol} posture torque sd N m joint2"] = float(upper)
+            print(
+                f"posture form, joint torque its pressure terms leave: {bottom:.3g} N m bottom, {upper:.3g} N m upper"
+            )
         for form in forms[1:]:
             split = {}
             for after in (True, False):
