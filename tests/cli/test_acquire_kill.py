@@ -267,9 +267,10 @@ class Campaign:
         assert proc.reviews in (new, new - 1), (proc.reviews, new, proc.stdout)
         if proc.reviews == new - 1:
             return "between a trial's commit and its line"
-        with RunFile.open(path) as run:
-            if run.records.incomplete_ids():
-                return "writing a trial (incomplete group on disk)"
+        if path.exists():  # (a kill right after the setup check may come before the file)
+            with RunFile.open(path) as run:
+                if run.records.incomplete_ids():
+                    return "writing a trial (incomplete group on disk)"
         said = proc.stderr.strip().splitlines()[-1:] or [""]
         if "during the setup" in said[0]:
             return "air supply and valves"
