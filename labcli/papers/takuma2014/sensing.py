@@ -120,13 +120,13 @@ class TakumaSensing:
         the friction terms the joints' motion into each baseline (n, 2) rad (None: unknown): the
         model's estimate."""
         P0, P, rest = _rows(P0), _rows(P), _rows(rest)
+        moved = _rows(motion_in) if motion_in is not None and self.uses_history else None
         few = self._compiled is not None and len(P) <= FAST_ROWS
-        fast = self._compiled.predict(P0, P, rest) if few else None  # type: ignore[union-attr]
+        fast = self._compiled.predict(P0, P, rest, moved) if few else None  # type: ignore[union-attr]
         if fast is not None:
             values, se, ok = fast
             return Prediction(values, se, self._raise(np.zeros(len(values), bool), ok, P0, P, rest, values))
         if isinstance(self.model, PostureModel):
-            moved = _rows(motion_in) if motion_in is not None and self.uses_history else None
             out = self.model.predict(P0, P, rest, mode="pressure-only", motion_in=moved)
             se = np.column_stack([out["se"][q] for q in QUANTITIES])
         else:

@@ -282,14 +282,14 @@ def test_a_posterior_the_adjugate_cannot_invert_goes_to_the_reference(models, mo
 def test_the_forms_the_compiled_form_does_not_cover_take_the_models_own_predict(models):
     rng = np.random.default_rng(3)
     base = models[0]
-    friction = variant(
+    relieved = variant(
         base,
-        torque_terms=list(base.torque_terms) + ["friction1"],
+        torque_terms=list(base.torque_terms) + ["friction_rest"],
         torque_coefficients=base.torque_coefficients + [[0.01, -0.02]],
         torque_xtx_inv=np.eye(len(base.torque_terms) + 1).tolist(),
     )
     no_prior = variant(base, force_prior_sd=[])
-    for m in (friction, no_prior):
+    for m in (relieved, no_prior):
         assert CompiledPosture.compile(m) is None
         assert TakumaSensing(m)._compiled is None
     assert CompiledPosture.compile(PostureModel(geometry=base.geometry)) is None  # not fitted
@@ -332,3 +332,33 @@ def test_a_whole_session_through_the_estimator_is_the_references(sensing):
         np.testing.assert_allclose(list(a.values.values()), list(b.values.values()), rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(list(a.se.values()), list(b.se.values()), rtol=1e-8, atol=1e-12)
     assert sum(isinstance(i, Event) for i in got) >= 2
+
+
+def test_the_friction_terms_compiled_read_the_motion_into_the_baseline_as_the_model_does(models):
+    """The sleeves' friction terms (both pairs) on every route: the compiled form, given each row's
+    motion into its baseline or none, is the model's own predict; its dF/d(dtheta) by the central
+    step where the model writes the faded signs' slope out, the two within 1e-6 (the step's error on
+    the erf's curvature within its 0.1 deg fade)."""
+    rng = np.random.default_rng(14)
+    n = 80
+    P0 = rng.uniform(0.15, 0.45, (n, 4))
+    P = P0 - rng.normal(0.0, 0.004, (n, 4))  # deflections of a few tenths of a degree: within and past the fade
+    rest = np.radians(rng.uniform(-20, 20, (n, 2)))
+    moved = rng.normal(0.0, np.radians(0.5), (n, 2))
+    shifted = 0
+    for base in models:
+        m = variant(
+            base,
+            torque_terms=list(base.torque_terms) + ["friction1", "friction2"],
+            torque_coefficients=base.torque_coefficients + [[0.05, -0.02], [-0.01, 0.04]],
+            torque_xtx_inv=np.diag(np.r_[np.diag(np.asarray(base.torque_xtx_inv)), 0.05, 0.05]).tolist(),
+        )
+        fast, reference = TakumaSensing(m), TakumaSensing(m, fast=False)
+        assert fast._compiled is not None and fast.uses_history
+        for motion in (moved, None):
+            got, want = fast.predict(P0, P, rest, motion), reference.predict(P0, P, rest, motion)
+            np.testing.assert_allclose(got.values, want.values, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(got.se, want.se, rtol=1e-6, atol=1e-12)
+            assert got.flags == want.flags
+        shifted += np.max(np.abs(fast.predict(P0, P, rest, moved).values - fast.predict(P0, P, rest).values)) > 0.05
+    assert shifted == len(models)  # the motion into the baseline moves the forces on every model

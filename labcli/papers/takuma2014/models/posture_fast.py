@@ -16,7 +16,10 @@ does not depend on the pressures:
   as plain numbers, so the force posterior is written out element by element: the gain
   ``P J (J^T P J + S)^-1`` by the adjugate, the covariance's diagonal only;
 * the paper's coefficients of Eqs. 34-37 and their covariances as block matrices, so Eqs. 36
-  and 37 and their standard errors are one design, one product each.
+  and 37 and their standard errors are one design, one product each;
+* the sleeves' friction terms (``labcli fit --friction-terms``) as two more torque columns, each
+  pair's faded sign under the load less the one into its baseline (``motion_in``), the fade's
+  width worked out once.
 
 The arithmetic is the reference's (the same formulas; dF/d(dtheta) by a central step, where the
 reference writes the derivative out, the two within 1e-8 of each other) and
@@ -24,7 +27,7 @@ tests/papers/takuma2014/test_sensing_fast.py holds the two together on random bl
 cases included.  A row the table form treats specially (a pressure not positive, an arm
 exactly straight for Eqs. 36-37, a posterior the adjugate cannot invert) makes
 :meth:`CompiledPosture.predict` return None and the caller takes the reference; so does a
-model this form does not cover (:meth:`CompiledPosture.compile`: friction terms, no force prior).
+model this form does not cover (:meth:`CompiledPosture.compile`: a relieved run's terms, no force prior).
 
 Units: pressures MPa, angles rad, forces N.
 """
@@ -38,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from . import routes as rt
-from .posture import ACTUATORS, INV_2X2_RCOND, TORQUE_TERMS, PostureModel
+from .posture import ACTUATORS, FRICTION_MOTION_RAD, FRICTION_TERMS, INV_2X2_RCOND, TORQUE_TERMS, PostureModel
 from .takuma import TERMS
 
 STEP = 1e-6  # rad: the central step for dF / d(dtheta) (PostureModel._force_covariance's FORCE_STEP)
@@ -139,12 +142,14 @@ class CompiledPosture:
     prior: np.ndarray  # (2, 1): the force prior's variances, N^2
     limits: np.ndarray  # (4,) standard-error limits
     paper: _Paper | None  # Eqs. 34-37 where a quantity takes them (None: the posture form throughout)
+    friction_width: np.ndarray | None = None  # (2,) each pair's fade, rad (None: no friction terms)
 
     @classmethod
     def compile(cls, model: PostureModel) -> CompiledPosture | None:
-        """The compiled form of ``model``, or None where it does not cover the model (friction
-        terms, whose columns depend on the motion into the baseline; no force prior)."""
-        if not model.is_fitted or not model.force_prior_sd or not set(model.torque_terms) <= set(TORQUE_TERMS):
+        """The compiled form of ``model``, or None where it does not cover the model (a relieved
+        run's terms; no force prior)."""
+        known = TORQUE_TERMS + FRICTION_TERMS
+        if not model.is_fitted or not model.force_prior_sd or not set(model.torque_terms) <= set(known):
             return None
         # The two designs side by side (a term in both is gathered twice: a file may even list one twice).
         union = model.angle_terms + model.theta1_terms
@@ -172,21 +177,24 @@ class CompiledPosture:
             weights,
             _flat(model.angle_resid_cov),
             float(model.theta1_resid_var) if model.theta1_terms else None,
-            np.array([TORQUE_TERMS.index(t) for t in model.torque_terms], dtype=np.intp),
+            np.array([known.index(t) for t in model.torque_terms], dtype=np.intp),
             torque,
             _symmetric(model.torque_resid_cov),
             _symmetric_matrix(model.torque_resid_cov),
             sd[:, None],
             np.array([model.limits.get(q, math.inf) for q in rt.QUANTITIES], dtype=float),
             _Paper.of(model) if routes - {rt.POSTURE} and model.paper is not None else None,
+            np.sqrt(2.0 * (model.pair_motion_sd() ** 2 + FRICTION_MOTION_RAD**2)) if model.uses_history else None,
         )
 
     def predict(
-        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray
+        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, motion_in: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Values, standard errors and ``ok`` (n, 4) of theta1, theta2, Fx, Fy for (n, 4) pressures
-        (MPa) and (n, 2) rest postures (rad), as ``PostureModel.predict(..., mode="pressure-only")``
-        gives them; None where a row needs the reference's special cases (module docstring)."""
+        (MPa) and (n, 2) rest postures (rad), and for a model with the friction terms the joints'
+        motion into each baseline (n, 2) rad (None: unknown), as ``PostureModel.predict(...,
+        mode="pressure-only")`` gives them; None where a row needs the reference's special cases
+        (module docstring)."""
         # NaN compares False and an infinity makes the sum one: a missing pressure lands here too.
         if not (((P0 > 0) & (P > 0)).all() and math.isfinite(float(P0.sum() + P.sum()))):
             return None
@@ -197,7 +205,7 @@ class CompiledPosture:
         values, se, valid = np.empty((n, 4)), np.empty((n, 4)), np.ones((n, 4), bool)
         with np.errstate(over="ignore", invalid="ignore"):  # the paper's standard errors: as the reference's
             dth, cov_a = self._angles(u, values, se)
-            if not self._forces(dP, th0, dth, cov_a, values, se):
+            if not self._forces(dP, th0, dth, cov_a, values, se, motion_in):
                 return None
             if self.paper is not None and not self._paper_routes(u, dP, values, se, valid):
                 return None
@@ -224,7 +232,14 @@ class CompiledPosture:
         return Y[:, :2], cov
 
     def _forces(
-        self, dP: np.ndarray, th0: np.ndarray, dth: np.ndarray, cov_a: np.ndarray, values: np.ndarray, se: np.ndarray
+        self,
+        dP: np.ndarray,
+        th0: np.ndarray,
+        dth: np.ndarray,
+        cov_a: np.ndarray,
+        values: np.ndarray,
+        se: np.ndarray,
+        motion_in: np.ndarray | None = None,
     ) -> bool:
         """Fx, Fy into ``values`` and their standard errors into ``se``: the posterior at the
         deflections, and dF/d(dtheta) by the reference's central step, all five evaluations as one
@@ -232,11 +247,14 @@ class CompiledPosture:
         adjugate would not invert the posterior."""
         n = len(dP)
         dth5 = dth[None] + _OFFSETS  # (5, n, 2)
-        every = np.empty((5, n, 14))
+        width = 14 if self.friction_width is None else 16
+        every = np.empty((5, n, width))
         every[:, :, :4] = dP
         np.multiply(dP[:, _PRODUCT_A], dth5[:, :, _PRODUCT_J], out=every[:, :, 4:12])
-        every[:, :, 12:] = dth5
-        X = every.reshape(5 * n, 14)[:, self.torque_select]
+        every[:, :, 12:14] = dth5
+        if self.friction_width is not None:
+            every[:, :, 14:] = self._friction(dth5, motion_in)
+        X = every.reshape(5 * n, width)[:, self.torque_select]
         Y = X @ self.torque_weights
         s = 1.0 + np.einsum("ni,ni->n", X, Y[:, 2:])
         th = th0 + dth5
@@ -271,6 +289,20 @@ class CompiledPosture:
         values[:, 2:] = F[:, :n].T
         se[:, 2:] = np.sqrt(np.maximum(own + spread, 0.0)).T
         return True
+
+    def _friction(self, dth5: np.ndarray, motion_in: np.ndarray | None) -> np.ndarray:
+        """The friction terms (5, n, 2) at the five evaluations' deflections (posture.friction_columns)."""
+        from scipy.special import erf
+
+        assert self.friction_width is not None
+        now = np.empty_like(dth5)
+        now[..., 0] = dth5[..., 0]
+        np.add(dth5[..., 0], dth5[..., 1], out=now[..., 1])
+        out = erf(np.nan_to_num(now, nan=0.0) / self.friction_width)
+        if motion_in is not None:
+            m = np.nan_to_num(np.asarray(motion_in, dtype=float), nan=0.0)
+            out -= erf(np.column_stack([m[:, 0], m[:, 0] + m[:, 1]]) / self.friction_width)
+        return out
 
     def _paper_routes(
         self, u: np.ndarray, dP: np.ndarray, values: np.ndarray, se: np.ndarray, valid: np.ndarray
