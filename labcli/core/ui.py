@@ -6,7 +6,7 @@ Two implementations of one small interface:
   and the summary table with ``rich``, and reads answers line by line from
   standard input (a terminal, a pipe or a test runner alike);
 * :class:`UnattendedUI` answers every prompt itself, for the simulated rig,
-  and prints one line per trial.
+  and prints one line per trial once the trial is stored.
 
 Typing ``q`` at any prompt raises :class:`QuitRequested`; the engine then
 discards the trial in progress and says how to resume.  Input that ends (a closed
