@@ -70,7 +70,11 @@ def main() -> None:
         help="the friction relief's supply pulse, s (a run per value and seed; comma-separated)",
     )
     ap.add_argument("--no-hand", action="store_true", help="leave out the runs without re-pressurising")
-    ap.add_argument("--rig", default="", help="more sim:// options of the rig, e.g. friction=0 (default: none)")
+    ap.add_argument(
+        "--rig",
+        default="",
+        help="more sim:// options of the rig, e.g. friction=0 (default: none; the kind rig unless realism= is given)",
+    )
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -95,6 +99,7 @@ def main() -> None:
             )
         for seed in seeds:
             url = f"sim://?seed={seed}&clock=virtual&leak={args.leak}" + (f"&{args.rig}" if args.rig else "")
+            url += "" if "realism=" in args.rig else "&realism=kind"  # the rig its docs figures were measured on
             with_ = one_run(work, f"auto{seed}", auto, url)
             without = None if args.no_hand else one_run(work, f"hand{seed}", hand, url)
             relieved = [one_run(work, f"{r.stem}-{seed}", r, url) for r in reliefs]

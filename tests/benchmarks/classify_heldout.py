@@ -46,7 +46,7 @@ def acquire_seed(seed: int, realism: str, where: Path) -> tuple[Path, Path]:
     from labcli.core.demo import acquire_unattended, simulated_port
     from labcli.papers.takuma2014.demo import RUN_VALVES
 
-    port = simulated_port(seed) + ("" if realism == "kind" else f"&realism={realism}")
+    port = simulated_port(seed) + f"&realism={realism}"
     where.mkdir(parents=True, exist_ok=True)
     force, pushes = where / "force.h5", where / "pushes.h5"
     if not (force.exists() and pushes.exists()):

@@ -91,7 +91,7 @@ _Recorder = _Supplies
 
 def nonideal_of(ideal: bool | str = False, without: str | None = None, realism: str = "kind"):
     """The rig's NonIdeal scales: the realism's defaults; all off (``ideal`` True); one effect alone
-    (``ideal`` its name); or every effect but ``without``.  None: the rig's own default (kind)."""
+    (``ideal`` its name); or every effect but ``without``."""
     from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
     if ideal is True:
@@ -100,7 +100,7 @@ def nonideal_of(ideal: bool | str = False, without: str | None = None, realism: 
         return NonIdeal(**{**NonIdeal.ideal(realism).as_dict(), ideal: 1.0}, realism=realism)
     if without:
         return NonIdeal(**{without: 0.0}, realism=realism)
-    return None if realism == "kind" else NonIdeal(realism=realism)
+    return NonIdeal(realism=realism)
 
 
 def trials(

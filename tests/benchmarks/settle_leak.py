@@ -39,7 +39,7 @@ def acquire_seed(seed: int, realism: str, path: Path) -> None:
     from labcli.core.demo import acquire_unattended, simulated_port
     from labcli.papers.takuma2014.demo import RUN_VALVES
 
-    port = simulated_port(seed) + ("" if realism == "kind" else f"&realism={realism}")
+    port = simulated_port(seed) + f"&realism={realism}"
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
         acquire_unattended(path, port, "force run", "run", None, protocol="takuma2014", valves=RUN_VALVES)

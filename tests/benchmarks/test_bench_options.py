@@ -429,7 +429,7 @@ def test_sensing_rig_effects_one_off_or_alone():
     from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
     sa = bench("sensing_accuracy")
-    assert sa.nonideal_of() is None
+    assert sa.nonideal_of() == NonIdeal(realism="kind")  # explicit: the simulator's default is the literature's
     lit = NonIdeal(realism="literature").as_dict()
     off = sa.nonideal_of(without="thermal", realism="literature")
     assert off.realism == "literature" and off.thermal == 0.0

@@ -392,7 +392,15 @@ def test_typed_push_session_on_the_simulated_rig(tmp_path):
     answers = "\n" + obj + pushes + "\n" * 12
     result = CliRunner().invoke(
         cli,
-        ["acquire", str(path), "--port", "sim://?seed=9&clock=virtual", "--protocol", "takuma2014-stiffness"],
+        # The kind rig, whose waits these answers follow (the literature's waits differently).
+        [
+            "acquire",
+            str(path),
+            "--port",
+            "sim://?seed=9&clock=virtual&realism=kind",
+            "--protocol",
+            "takuma2014-stiffness",
+        ],
         input=answers,
     )
     assert result.exit_code == 0, result.output

@@ -488,9 +488,10 @@ def print_demo(res: Any) -> None:
     print_table(con, _accuracy_table(res.accuracy, ideal))
     if ideal:
         con.print(
-            "The default rig has sleeve friction, chamber leaks, thermal relaxation, potentiometer backlash "
-            "and link weight; the ideal rig (the same seed with ideal=1) has none, so the two RMSE columns "
-            "show what they cost.",
+            "The default rig, at the literature's levels, has sleeve, contact and pulley friction, chamber "
+            "leaks, thermal relaxation, potentiometer backlash, scale and linearity errors, the pressure "
+            "sensors' repeatability and drift, and link weight; the ideal rig (the same seed with ideal=1) "
+            "has none, so the two RMSE columns show what they cost.",
             soft_wrap=True,
         )
     for protocol, forms in getattr(res, "forms", {}).items():

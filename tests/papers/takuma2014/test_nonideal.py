@@ -105,8 +105,14 @@ def test_ideal_rig_is_the_ideal_model_at_the_paper_scale():
 def test_default_rig_is_realistic_and_each_switch_turns_its_effect_off():
     assert SimRig(seed=0).nonideal == NonIdeal()
     m = NonIdeal().magnitudes()
-    assert m["friction_fraction"] == 0.005 and m["thermal_kappa"] == 1.4 and m["leak_tau_s"] == 6 * 3600
+    # The default is the literature's rig: every effect on at its level, the sensors' drift too.
+    assert m["realism"] == "literature" and m["friction_fraction"] == 0.02 and m["drift"] == 1.0
+    assert m["thermal_kappa"] == 1.4 and m["leak_tau_s"] == 6 * 3600
     assert m["backlash_rad"] == pytest.approx(math.radians(0.2)) and m["link_mass_kg"] == [0.08, 0.03]
+    assert m["contact_mu"] > 0 and m["pulley_loss"] > 0 and m["pot_scale_sd"] > 0 and m["pot_linearity"] > 0
+    assert m["pressure_repeat_sd_MPa"] > 0
+    kind = serial.serial_for_url("sim://?seed=2&realism=kind").rig.nonideal.magnitudes()
+    assert kind["friction_fraction"] == 0.005 and kind["drift"] == 0.0 and kind["contact_mu"] == 0.0
     port = serial.serial_for_url("sim://?seed=2&ideal=1&leak=2")
     assert port.rig.nonideal == only(leak=2.0)
     port = serial.serial_for_url("sim://?seed=2&friction=0&thermal=0.5")
@@ -188,7 +194,9 @@ def test_load_unload_load_cycle_leaves_a_loop_of_the_configured_size():
 
 def test_friction_scales_the_loop_and_zero_friction_has_none():
     gaps = []
-    for scale in (0.0, 1.0, 2.0):
+    # A quarter and half the literature's level (0.5 % and 1 %): at 4 % the sleeves hold a 600 g
+    # load altogether, and a loop held so shows no scaling.
+    for scale in (0.0, 0.25, 0.5):
         rig = settled(only(friction=scale), seed=5)
         rig.hang_weight(0.6, 0.0)
         rig.advance(15)
@@ -451,14 +459,16 @@ def test_unequal_inside_supply_bends_the_rest_posture_and_true_state_reports_it(
 # ---------------------------------------------------------------- the paper's scale
 
 
-def test_papers_coefficients_read_the_default_rig_within_a_factor_of_1_5():
-    # Section 3.3's coefficients on the default (realistic) rig's pressures, shipped plan, seed 1
+def test_papers_coefficients_read_the_kind_rig_within_a_factor_of_1_5():
+    # Section 3.3's coefficients on the kind rig's pressures, shipped plan, seed 1
     # (python -m labcli.papers.takuma2014.sim.paper_scale reruns it over seeds).  Magnitudes: the paper's Fx
     # coefficients give the opposite sign to its printed Jacobian's x axis on any rig that
     # follows Eqs. 2-7, and beta_theta2_R2's sign depends on the reading of Eq. 35.
     from labcli.papers.takuma2014.sim.paper_scale import paper_ratios
 
-    r = paper_ratios(SimRig(seed=1))
+    # The kind rig (realism=kind): on the literature's rig (seed 1) theta1 has a ratio on 35 trials, and
+    # the paper's Fx coefficients read -0.57 times the truth, just outside these bounds.
+    r = paper_ratios(SimRig(seed=1, nonideal=NonIdeal(realism="kind")))
     for q in ("theta1", "theta2", "Fx"):
         assert r[q]["n"] >= 40, q
         assert 1 / 1.5 <= abs(r[q]["median"]) <= 1.5, (q, r[q])

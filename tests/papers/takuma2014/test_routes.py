@@ -100,14 +100,18 @@ def test_a_weight_within_snap_of_0_or_1_is_the_one_form_alone():
 
 @pytest.fixture(scope="module")
 def straight_rig_table():
-    """The straight protocol on the simulated rig (seed 1), rest posture from the baseline pots."""
+    """The straight protocol on the kind rig (seed 1), rest posture from the baseline pots: on the
+    literature's rig the route choice takes each quantity from one form alone, and nothing blends."""
     from labcli.core.protocol import load_protocol
     from labcli.papers.takuma2014.protocol import load_plan
     from labcli.papers.takuma2014.sim.drive import simulate_weight_trials
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
     from labcli.papers.takuma2014.sim.rig import SimRig
 
     proto = load_protocol("takuma2014")
-    table = simulate_weight_trials(SimRig(seed=1), load_plan(proto), calibration=proto.calibration, settle_s=8.0)
+    table = simulate_weight_trials(
+        SimRig(seed=1, nonideal=NonIdeal(realism="kind")), load_plan(proto), calibration=proto.calibration, settle_s=8.0
+    )
     table["theta1_0_deg"], table["theta2_0_deg"] = 0.0, 0.0
     return proto, table
 

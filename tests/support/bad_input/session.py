@@ -123,7 +123,7 @@ CASES: list[Case] = [
         "no air supply (`sim://?supply=0`): refused before any trial",
         ["acquire", "new.h5", "--port", SIM + "&supply=0", "--unattended"],
         [
-            "After the air supply P_L1 reads -0.002 MPa, P_R1 reads -0.001 MPa, P_L2 reads 0.001 MPa, P_R2 reads "
+            "After the air supply P_L1 reads -0.002 MPa, P_R1 reads -0.001 MPa, P_L2 reads 0.002 MPa, P_R2 reads "
             "0.003 MPa, below the 0.1 MPa the protocol asks for (acquisition.supply_min_MPa): check the compressor, "
             "the regulator and that the valves are open; nothing was written to new.h5."
         ],

@@ -2,7 +2,7 @@
 rig they build.
 
 Each non-ideality (:mod:`.nonideal`) has a scale (1 = its level, 0 = off);
-``realism`` picks the levels and default scales (``literature`` or ``kind``, the rig as it was
+``realism`` picks the levels and default scales (``literature``, the default, or ``kind``, the rig as it was
 before the literature's levels, byte for byte with ``flow=lag``); ``ideal`` turns every effect off, and a scale
 given beside it still applies (``ideal=1&leak=1`` is the ideal rig with a leak).  ``supply`` is the regulator
 pressure, MPa gauge, one value or four (L1, R1, L2, R2); ``design`` the actuators
@@ -87,8 +87,8 @@ class McKibbenRigOptions:
     )
     realism: str | None = choice(
         REALISM_NAMES,
-        help="Levels of the non-idealities: the literature's, or the kinder rig of earlier runs.",
-        default_text="kind",
+        help="Levels of the non-idealities: the literature's (the default), or kind, the kinder rig of earlier runs.",
+        default_text="literature",
     )
     valves: str | None = choice(
         ("ok", "open"),

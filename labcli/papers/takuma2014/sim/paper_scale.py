@@ -78,7 +78,8 @@ def main(argv: list[str]) -> None:
     seeds = [int(a) for a in argv] or [1, 2, 3, 4, 5]
     print("prediction / truth with the paper's Section 3.3 coefficients, median [interquartile] (n, flagged)")
     for label, kw in (
-        ("realistic", {}),
+        ("literature", {"nonideal": NonIdeal(realism="literature")}),
+        ("kind", {"nonideal": NonIdeal(realism="kind")}),
         ("ideal", {"nonideal": NonIdeal.ideal()}),
         ("thin, ideal", {"nonideal": NonIdeal.ideal(), "design": "thin"}),
     ):

@@ -43,7 +43,7 @@ kind one).  Both rigs read their sensors through one front end,
 :class:`labcli.core.sim.sensors.SensorFrontEnd` (``rig.sensors``).
 
 ``nonideal`` (:class:`labcli.papers.takuma2014.sim.nonideal.NonIdeal`, on at the levels of its
-``realism`` by default) adds sleeve friction with hysteresis, a leak of the closed chambers,
+``realism`` by default, the literature's unless ``realism="kind"``) adds sleeve friction with hysteresis, a leak of the closed chambers,
 thermal relaxation after fast loads, potentiometer backlash and the links'
 weight, friction at a pushed object's contact and in the weight's pulley, and the sensors'
 errors: the potentiometers' scale and linearity (:class:`labcli.core.sim.sensors.GainLinearity`)
