@@ -488,24 +488,11 @@ def test_sim_command_without_pty_says_what_to_add():
 def test_operator_drives_the_pty_rig_by_typing_and_the_port_shows_the_physics():
     # Two terminals, no Python: `labcli sim --pty` takes the operator's lines on stdin while a
     # serial program reads the port.  The readings must move as the physics says.
+    # Without the pressure sensors' repeatability and drift, which move a reading by about 0.3 kPa
+    # more than the window's noise: the port's pressures then follow the rig's to 0.5 kPa.
+    quiet = ("--repeat", "0", "--drift", "0")
     proc = subprocess.Popen(
-        # Without the pressure sensors' repeatability and drift, which move a reading by about
-        # 0.3 kPa more than the window's noise: the port's pressures then follow the rig's to 0.5 kPa.
-        [
-            sys.executable,
-            "-m",
-            "labcli",
-            "sim",
-            "--pty",
-            "--seed",
-            "3",
-            "--rate",
-            "100",
-            "--repeat",
-            "0",
-            "--drift",
-            "0",
-        ],
+        [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "3", "--rate", "100", *quiet],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
