@@ -41,9 +41,10 @@ SHIPPED = load_plan(ROOT / "protocols" / "takuma2014-plan.csv")
 LOADS = [(float(m), float(d)) for m, d in zip(SHIPPED["mass_g"], SHIPPED["direction_deg"], strict=True)]
 # The kind rig (realism=kind).  On the literature's rig (seed 3) these slips go unwarned: the light
 # trial 4 (300 g) taken off or hung out of step, because its sleeves' friction holds much of so light a
-# load and the checks cannot tell it from none; trial 1 with no weight hung, because the
-# potentiometers' linearity error reads the rest posture 1.6 deg off and the statics then ask 1.99 deg
-# of motion, short of the 2 deg that stands clear of the noise (docs/load-check.md).
+# load and the checks cannot tell it from none; trial 1 done wrong (no weight hung, taken off, out of
+# step), because the potentiometers' linearity error reads the rest posture 1.6 deg off and the
+# statics then ask 1.99 deg of motion (no weight hung), short of the 2 deg that stands clear of the
+# noise (docs/load-check.md).
 URL = "sim://?seed=3&clock=virtual&realism=kind"
 
 

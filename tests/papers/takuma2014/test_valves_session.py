@@ -87,8 +87,8 @@ def run(tmp_path: Path, url: str, *, protocol=PROTOCOL, loads=LOADS, ui=None, wa
 
 
 def test_a_board_with_valves_is_supplied_held_and_checked_by_command(tmp_path):
-    # The kind rig: on the literature's a baseline moves past the 3.1 kPa limit within three trials
-    # (the sleeves' friction leaves the chambers off their last baseline), and they are supplied again.
+    # The kind rig: on the literature's a baseline moves past the 3.1 kPa limit within three trials,
+    # and the chambers are supplied again.
     outcome, seen, dev, path = run(tmp_path, "sim://?seed=11&clock=virtual&realism=kind", loads=LOADS[:3])
     try:
         assert outcome.status == "finished" and outcome.stored == 3
@@ -182,7 +182,7 @@ def test_the_chambers_are_supplied_again_when_the_baseline_drifts_past_the_limit
     # A leak twice the typical over eighteen trials (about four minutes of the rig's time).
     loads = LOADS * 3
     # The kind rig: on the literature's the stored baselines still spread by 4.0 kPa with the supply
-    # (the sleeves' friction moves them, which no supply undoes), past the limit asserted below.
+    # (moves that a supply does not undo), past the limit asserted below.
     url = "sim://?seed=11&clock=virtual&leak=2&realism=kind"
     outcome, seen, dev, path = run(tmp_path, url, loads=loads)
     dev.close()
