@@ -281,6 +281,12 @@ class Campaign:
     def check_sigint(self, proc: Acquire, rc: int, path: Path, ids: list[int]) -> None:
         assert rc == 130, (rc, proc.stdout, proc.stderr)
         last = proc.stderr.strip().splitlines()[-1]
+        if not path.exists():  # Ctrl-C after the setup check, before the first trial made the file
+            assert last == (
+                f"Interrupted during the setup, before anything was written to {path}; "
+                "run the same command again to start the run."
+            ), last
+            return
         n = len(ids)
         safe = f"{n} trial{'' if n == 1 else 's'} stored in {path} {'is' if n == 1 else 'are'} safe"
         m = re.fullmatch(
