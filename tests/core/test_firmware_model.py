@@ -37,9 +37,9 @@ LOADED = 512
 
 def kind_force_run(path: Path) -> None:
     """The demo's force run of seed 1 on the kind rig (``realism=kind``), as sample_runs/ held it before
-    the default rig became the literature's.  The sample run's own model (the literature's rig) makes
-    avr-gcc warn that MODEL_P_CHANNEL is uninitialised, and its friction terms move the forces of the
-    second weight below by at most 0.13 N, too little beside the tolerance to show the history."""
+    the default rig became the literature's.  On the literature's rig the friction terms move the forces
+    of the second weight below by at most 0.13 N, too little beside the tolerance to show the history
+    (its models build clean: tests/papers/takuma2014/test_export_model.py)."""
     from labcli.core.demo import acquire_unattended, simulated_port
     from labcli.papers.takuma2014.demo import RUN_VALVES
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from support.firmware_build import FIRMWARE, make, need_host_compiler
+from support.firmware_build import FIRMWARE, make, need_avr_tools, need_host_compiler
 
 from labcli.cli import cli
 from labcli.core.boardlines import ESTIMATE_FLAGS
@@ -253,3 +253,47 @@ def test_the_chips_erf_is_within_its_bound(tmp_path, models):
     assert np.max(np.abs(got[:, 0] - erf(xf))) <= 5e-7
     assert np.max(np.abs(got[:, 1] - 2.0 / np.sqrt(np.pi) * np.exp(-(xf**2)))) <= 1e-6
     assert np.all(np.diff(got[:2401, 0]) >= 0.0)  # monotone: a sign never flips on rounding
+
+
+def flash_tables(text: str) -> dict[str, bytes]:
+    """Each ``__flash`` table of a header: its bytes on the chip (float, uint8_t, int8_t)."""
+    import re
+
+    ctypes = {"float": np.float32, "uint8_t": np.uint8, "int8_t": np.int8}
+    out = {}
+    for ctype, name, body in re.findall(r"static const __flash (\w+) (\w+)\S* = (\{.*\});", text):
+        numbers = re.findall(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?", body)
+        out[name] = np.array([float(x) for x in numbers]).astype(ctypes[ctype]).tobytes()
+    return out
+
+
+@pytest.mark.parametrize("form", ["force", "bent", "paper", "friction"])
+def test_no_two_flash_tables_of_a_header_hold_the_same_bytes(form, models, tmp_path):
+    """avr-gcc 5 folds two read-only tables of the same bytes into one and then warns that the other
+    is uninitialised in program memory: the literature rig's force model had its torque terms
+    dP_L1..dP_R2 ({0, 1, 2, 3}) equal to the pressures' channels.  A repeated table is padded with
+    entries no code reads; the entries the chip reads keep their values."""
+    header = tmp_path / "model.h"
+    assert CliRunner().invoke(cli, ["export-model", str(models[form]), "--c", str(header)]).exit_code == 0
+    text = header.read_text()
+    tables = flash_tables(text)
+    assert len(set(tables.values())) == len(tables), sorted(tables)
+    assert tables["MODEL_P_CHANNEL"] == bytes([0, 1, 2, 3]) and tables["MODEL_POT_CHANNEL"] == bytes([4, 5])
+    m = load_force_model(models[form])
+    if isinstance(m, PostureModel):
+        from labcli.papers.takuma2014.models.posture import FRICTION_TERMS, TORQUE_TERMS
+
+        known = TORQUE_TERMS + FRICTION_TERMS
+        read = bytes(known.index(t) for t in m.torque_terms)
+        assert tables["MODEL_TORQUE_TERM"][: len(read)] == read
+
+
+@pytest.mark.parametrize("form", ["force", "bent", "paper", "friction"])
+def test_every_sample_run_model_builds_for_the_chip_with_warnings_as_errors(form, models, tmp_path):
+    """The sample runs are the literature rig's: each of their models builds into the firmware
+    (avr-gcc -Werror, and make() refuses any warning besides)."""
+    need_avr_tools()
+    header = tmp_path / "model.h"
+    assert CliRunner().invoke(cli, ["export-model", str(models[form]), "--c", str(header)]).exit_code == 0
+    out = make(tmp_path / "build", "firmware", defs="-Werror", model=header)
+    assert "-Werror" in out and (tmp_path / "build" / "labcli_rig.hex").read_text().endswith(":00000001FF\n")
