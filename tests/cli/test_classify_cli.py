@@ -20,6 +20,7 @@ from click.testing import CliRunner
 from labcli.cli import cli
 from labcli.core.protocol import load_protocol
 from labcli.core.store import import_table
+from labcli.errors import ModelError
 from labcli.papers.takuma2014.models.classify import classify_file, stiffness_settings
 from labcli.papers.takuma2014.models.stiffness import REASON_UNOBSERVED_DIRECTION, StiffnessParams
 from labcli.papers.takuma2014.models.takuma import DEFAULT_MAX_AMPLIFICATION, TakumaModel, force_amplification
@@ -307,25 +308,41 @@ def test_reference_method_without_reference_objects(lab):
 
 def test_object_whose_pushes_are_all_flagged(lab, tmp_path):
     # An object pushed along an unknown direction: the direction would come from
-    # Fy, which the upright arm leaves unobservable, so every push is flagged.
+    # Fy, which the upright arm leaves unobservable, so every push is flagged.  It is reported
+    # without a category, one sentence says why, and the other objects are classified as before.
     table = lab["table"]
     extra = table[table["object"] == "pet-2"].head(3).assign(object="bottle-x", phi_deg=np.nan)
     extra["push"] = [101, 102, 103]
     p = tmp_path / "pushes.csv"
     write_push_csv(pd.concat([table, extra], ignore_index=True), p)
-    res = run("classify", p, "--model", lab["model"])
-    assert res.exit_code == 1
-    assert res.output == (
-        f"Error: Object 'bottle-x' has no usable push: all 3 are flagged (most often: {REASON_UNOBSERVED_DIRECTION}).\n"
+    sentence = (
+        f"Warning: Object 'bottle-x' has no category: all 3 of its pushes are flagged "
+        f"(most often: {REASON_UNOBSERVED_DIRECTION}).\n"
     )
-    # the library can still report it, with the reason per push
-    report = classify_file(p, lab["model"], allow_unusable=True)
-    data = report.to_dict()
+    res = CliRunner().invoke(cli, ["classify", str(p), "--model", str(lab["model"]), "--json"])
+    assert res.exit_code == 0, res.output
+    assert res.stderr == sentence
+    data = json.loads(res.stdout)
+    assert data["warnings"] == [sentence[len("Warning: ") : -1]]
     bx = [q for q in data["pushes"] if q["object"] == "bottle-x"]
-    assert all(q["flagged"] and q["reason"] == REASON_UNOBSERVED_DIRECTION for q in bx)
+    assert len(bx) == 3 and all(q["flagged"] and q["reason"] == REASON_UNOBSERVED_DIRECTION for q in bx)
     assert all(q["phi_deg"] is None and q["k_N_per_m"] is None for q in bx)
-    obj = next(o for o in data["objects"] if o["object"] == "bottle-x")
+    objs = {o["object"]: o for o in data["objects"]}
+    obj = objs.pop("bottle-x")
     assert (obj["n"], obj["n_flagged"], obj["category"]) == (3, 3, "")
+    assert obj["note"] == f"no usable push ({REASON_UNOBSERVED_DIRECTION})"
+    assert list(objs) == [o.name for o in DEMO_OBJECTS]
+    for name, (category, k_true) in truth().items():  # the others as without the unusable object
+        assert objs[name]["category"] == category, objs[name]
+        assert objs[name]["k_mean_N_per_m"] == pytest.approx(k_true, rel=K_TOLERANCE)
+    # The report says it too, before the table; the library call without allow_unusable still refuses.
+    res = run("classify", p, "--model", lab["model"])
+    assert res.exit_code == 0 and res.stderr == sentence and "bottle-x" in res.stdout
+    with pytest.raises(ModelError) as e:
+        classify_file(p, lab["model"])
+    assert str(e.value) == (
+        f"Object 'bottle-x' has no usable push: all 3 are flagged (most often: {REASON_UNOBSERVED_DIRECTION})."
+    )
 
 
 def test_input_errors(lab, tmp_path):

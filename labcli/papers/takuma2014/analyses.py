@@ -366,7 +366,16 @@ class ClassificationResult:
 def classify(pushes: Path, options: ClassifyOptions, *, protocol: str | None = None) -> ClassificationResult:
     """Stiffness and category of each object pushed in a push run or push CSV (Figure 9)."""
     o = options
-    result = classify_file(pushes, o.model, reference=o.reference, protocol=protocol, method=o.method, angles=o.angles)
+    # An object with every push flagged is reported without a category (and a sentence why), the others classified.
+    result = classify_file(
+        pushes,
+        o.model,
+        reference=o.reference,
+        protocol=protocol,
+        method=o.method,
+        angles=o.angles,
+        allow_unusable=True,
+    )
     if o.plot is not None:
         prot = getattr(getattr(result, "protocol", None), "name", None) or protocol
         figure9(result.result, o.plot, source=source_line(pushes, prot, o.model))

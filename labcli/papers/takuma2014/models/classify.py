@@ -511,6 +511,9 @@ def _group_nanmean(values: np.ndarray, codes: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
+UNUSABLE = "no usable push"  # an uncategorised object's note: "no usable push (its pushes' commonest flag)"
+
+
 def _unusable(name: str, sel: np.ndarray, est: PushEstimates, cat_model: CategoryModel, allow: bool) -> dict[str, Any]:
     """An object whose pushes are all flagged: ModelError, or (``allow``) a row that says why."""
     counts = Counter(r for r in est.reason[sel] if r)
@@ -522,10 +525,22 @@ def _unusable(name: str, sel: np.ndarray, est: PushEstimates, cat_model: Categor
         "confidence": 0.0,
         "z": math.nan,
         "method": cat_model.method,
-        "note": f"no usable push ({top})",
+        "note": f"{UNUSABLE} ({top})",
         "evidence": "uncertain",
         "z_by_category": {},
     }
+
+
+def _uncategorised(objects: Any) -> list[str]:
+    """One sentence per object left without a category because every push of it is flagged (``allow_unusable``)."""
+    prefix = f"{UNUSABLE} ("
+    if not len(objects) or "note" not in objects.columns:
+        return []
+    rows = objects[(objects["category"] == "") & objects["note"].astype(str).str.startswith(prefix)]
+    return [
+        f"Object {name!r} has no category: all {n} of its pushes are flagged (most often: {note[len(prefix) : -1]})."
+        for name, n, note in zip(rows["object"], rows["n_pushes"], rows["note"], strict=True)
+    ]
 
 
 def _verdict(p: Any, i: int, note: str = "", in_sample: bool = False) -> dict[str, Any]:
@@ -791,6 +806,7 @@ def classify_file(
         if warnings:  # a model of another rig is the likeliest cause: say so with the failure
             raise ModelError(f"{e} {warnings[0]}") from None
         raise
+    warnings += _uncategorised(result.objects)
     return ClassifyReport(result, src.path, model_path, ref_path, src.protocol, angles, force_protocol, warnings)
 
 
