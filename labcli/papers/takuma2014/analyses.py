@@ -87,6 +87,8 @@ def fit(
         )
     if options.friction_terms and form != POSTURE:
         raise ConfigError("--friction-terms are the posture form's; leave out --form paper or --friction-terms.")
+    if options.friction_terms and options.no_friction_terms:
+        raise ConfigError("--friction-terms and --no-friction-terms ask for opposite fits; give one of them.")
     # Before the inputs are read: an output that is one of them is refused whatever else is wrong.
     check_fit_paths(run, Path(output) if output is not None else default_model_path(run), protocol)
     with kept_heap():  # the table's columns, designs and factors: arrays of 8-100 MB made and dropped
@@ -108,7 +110,11 @@ def _fit(
         src = replace(src, table=leak.corrected(src.table, run, "fit --leak-correct"))
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
         model = _fit_form(
-            form, src, str(run), options.max_amplification or MAX_AMPLIFICATION, friction_terms=options.friction_terms
+            form,
+            src,
+            str(run),
+            options.max_amplification or MAX_AMPLIFICATION,
+            friction_terms=not options.no_friction_terms,
         )
     if isinstance(model, TakumaModel):
         refuse_non_finite(model, src.table, str(run))
@@ -176,13 +182,13 @@ def friction_of(protocol: Any, asked: bool = False) -> bool | str:
     """The friction terms the posture form is offered on a run of ``protocol``: the relieved ones
     where its baselines were each approached from the vented chambers
     (``acquisition.friction_relief_vent_s``), those read from the history of loads where ``asked``
-    (``labcli fit --friction-terms``), none otherwise.  A relieved run's baselines repeat, and
-    each trial's P0 is then the mean of RELIEVED_BASELINES of them.
+    (``labcli fit``'s default; ``--no-friction-terms`` leaves them out), none otherwise.  A
+    relieved run's baselines repeat, and each trial's P0 is then the mean of RELIEVED_BASELINES
+    of them.
 
-    Not offered unasked: on the kind rig, trials taken as acquired (15 s waits, the chambers
-    supplied again), they lower Fx (seeds 1-10, straight 0.305 -> 0.250 N, bent 0.230 -> 0.176;
-    docs/fit-and-validate.md), and the run-time estimator and the board keep the motion into
-    each baseline they read."""
+    The default since the run-time estimator and the board keep the motion into each baseline
+    they read: on runs taken as acquired (15 s waits, the chambers supplied again) they lower
+    Fx, offline and live (docs/fit-and-validate.md)."""
     air = getattr(protocol, "air", None)
     if getattr(air, "friction_relief_vent_s", 0.0) > 0:
         return "relieved"
@@ -196,7 +202,7 @@ def _fit_form(
     max_amplification: float = MAX_AMPLIFICATION,
     *,
     record_trials: bool = True,
-    friction_terms: bool = False,
+    friction_terms: bool = True,
 ) -> TakumaModel | PostureModel:
     rig, name = src.protocol.settings.rig, src.protocol.name
     if form == POSTURE:

@@ -41,7 +41,7 @@ from .figures import figure7, figure9
 from .models.classify import classify_file
 from .models.inputs import load_trial_source
 from .models.metrics import evaluate
-from .models.posture import PostureModel, limits_from_protocol
+from .models.posture import PostureModel
 from .models.takuma import TakumaModel
 from .records import load_pushes
 from .sim.nonideal import REALISM_DEFAULT
@@ -221,9 +221,12 @@ def _accuracy(evaluation: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
 
 def _posture(src: Any, run: Path) -> PostureModel:
-    return PostureModel(
-        geometry=src.protocol.settings.rig, protocol=src.protocol.name, limits=limits_from_protocol(src.protocol)
-    ).fit(src.table, source=str(run))
+    """The model `labcli fit RUN` writes (the default form, with the friction terms)."""
+    from .analyses import _fit_form
+
+    model = _fit_form("posture", src, str(run))
+    assert isinstance(model, PostureModel)
+    return model
 
 
 def _bent_arm(port: str, files: dict[str, Path], progress: Progress | None) -> dict[str, Any]:

@@ -55,7 +55,11 @@ class FitOptions:
     )
     friction_terms: bool = switch(
         help="With the posture form: offer its torque fit the sleeves' friction terms, each trial's read from "
-        "its motion under the load and into its baseline (lower Fx on runs taken with 15 s waits)."
+        "its motion under the load and into its baseline (the default; lower Fx on runs taken with 15 s waits)."
+    )
+    no_friction_terms: bool = switch(
+        help="With the posture form: fit it without the sleeves' friction terms, as it was fitted before they "
+        "were the default."
     )
 
 

@@ -21,7 +21,7 @@ without.  The adapter only reshapes what ``predict`` returns:
 Angles are ``state`` quantities (the arm as it is now), forces ``load`` quantities (the cause,
 estimated from the pressures the rig settles to).
 
-A posture form with the sleeves' friction terms (``labcli fit --friction-terms``) reads the
+A posture form with the sleeves' friction terms (``labcli fit``'s default) reads the
 history of loads (:class:`labcli.sensing.model.HistoryModel`): ``predict`` takes the joints'
 motion into each baseline (``motion_in``), and ``deflections`` gives the posture form's own
 deflections, the ones ``PostureModel.predict_table`` (``labcli validate``) reads that motion from.

@@ -9,7 +9,7 @@ in the chip's 32-bit floats, from one frame's counts and the baseline the chip t
 * the posture form: the angle terms kept and their coefficients, (X^T X)^-1 and residual
   covariance; theta1's own equation; the torque terms kept (indices into TORQUE_TERMS), their
   coefficients, (X^T X)^-1, residual covariance and the force prior; with the sleeves' friction
-  terms (``labcli fit --friction-terms``, indices 14 and 15), each pair's fade
+  terms (``labcli fit``'s default, indices 14 and 15), each pair's fade
   (``MODEL_FRICTION_WIDTH``: sqrt(2 (sd^2 + FRICTION_MOTION_RAD^2)), sd the pair's motion's
   standard error from the pressures), the chip reading the motion into each baseline it keeps;
 * the paper's Eqs. 34-37 where a quantity takes them (route ``paper`` or ``blend``): the 18

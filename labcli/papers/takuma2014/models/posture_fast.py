@@ -17,7 +17,7 @@ does not depend on the pressures:
   ``P J (J^T P J + S)^-1`` by the adjugate, the covariance's diagonal only;
 * the paper's coefficients of Eqs. 34-37 and their covariances as block matrices, so Eqs. 36
   and 37 and their standard errors are one design, one product each;
-* the sleeves' friction terms (``labcli fit --friction-terms``) as two more torque columns, each
+* the sleeves' friction terms (``labcli fit``'s default) as two more torque columns, each
   pair's faded sign under the load less the one into its baseline (``motion_in``), the fade's
   width worked out once.
 

@@ -69,7 +69,7 @@ def calibrate(
     repressurise_kPa: float = 0.0,
 ) -> Any:
     """The posture-aware model fitted on the protocol's plan, simulated on the rig of ``seed``
-    (``friction``: PostureModel's, True for ``labcli fit --friction-terms``; ``settle_s`` and
+    (``friction``: PostureModel's, True as ``labcli fit`` fits it; ``settle_s`` and
     ``repressurise_kPa``: each window's wait and the drift past which the chambers are supplied
     again, 15 s and the protocol's as ``labcli acquire`` takes a run, 8 s and 0 as they once were)."""
     from ..models.posture import PostureModel, limits_from_protocol
