@@ -1,7 +1,8 @@
 """Estimates on the chip: the firmware built with a fitted model (make MODEL=...) on simavr, against the host.
 
-The sample force run is refitted (the posture form with three blends: the heaviest model the
-chip computes), exported (``labcli export-model``) and built in.  On the simulated rig the board
+The sample force run (the literature's rig) is refitted (the angles on the paper's route, the
+forces on the posture form's), exported (``labcli export-model``) and built in; the model with the
+friction terms is fitted on the kind rig's force run (:func:`kind_force_run`).  On the simulated rig the board
 takes its baseline once the pressures are steady, then a weight is hung; every estimate line the
 board sends is held against ``PostureModel.predict`` on the very counts of its data line and of
 the baseline it reported (the BASELINE event's means): within 1 % of each quantity's range, the
@@ -10,6 +11,7 @@ flags alike.  Also: CAPS names the model, BASELINE retakes it, a release retakes
 
 from __future__ import annotations
 
+import shutil
 import threading
 import time
 from pathlib import Path
@@ -47,10 +49,14 @@ def kind_force_run(path: Path) -> None:
     acquire_unattended(path, port, "force run", "run", None, protocol="takuma2014", valves=RUN_VALVES)
 
 
-def built(d: Path, *fit_options: str) -> tuple[Path, Path]:
-    """(firmware ELF with the kind rig's force run's model fitted with ``fit_options``, the model file)."""
+def built(d: Path, *fit_options: str, kind: bool = False) -> tuple[Path, Path]:
+    """(firmware ELF with the sample force run's model fitted with ``fit_options``, the model file;
+    ``kind``: the kind rig's force run's instead)."""
     need_simavr()
-    kind_force_run(d / "force.h5")
+    if kind:
+        kind_force_run(d / "force.h5")
+    else:
+        shutil.copy(ROOT / "sample_runs" / "force.h5", d / "force.h5")
     assert (
         CliRunner().invoke(cli, ["fit", str(d / "force.h5"), *fit_options, "-o", str(d / "model.json")]).exit_code == 0
     )
@@ -62,7 +68,7 @@ def built(d: Path, *fit_options: str) -> tuple[Path, Path]:
 @pytest.fixture(scope="module")
 def model_board(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """(firmware ELF with the model, the model file)."""
-    return built(tmp_path_factory.mktemp("firmware-model"))
+    return built(tmp_path_factory.mktemp("firmware-model"), "--no-friction-terms")
 
 
 def aired(rig: SimRig) -> SimRig:
@@ -226,8 +232,8 @@ def test_the_device_asks_the_board_for_its_estimates(model_board):
 
 @pytest.fixture(scope="module")
 def friction_board(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """(firmware ELF with the sample force run's model fitted with the friction terms, the model file)."""
-    return built(tmp_path_factory.mktemp("firmware-friction"), "--friction-terms")
+    """(firmware ELF with the kind rig's force run's model fitted with the friction terms, the model file)."""
+    return built(tmp_path_factory.mktemp("firmware-friction"), "--friction-terms", kind=True)
 
 
 def test_with_the_friction_terms_the_chip_keeps_the_history_the_host_reads(friction_board):

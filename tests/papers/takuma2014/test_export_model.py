@@ -5,9 +5,10 @@ MODEL=... host-tools``: the same C the chip runs, in the host's 32-bit floats, b
 of firmware/test/model_tool.c) and held against ``PostureModel.predict`` / ``TakumaModel.predict``
 (pressure-only, as ``labcli validate`` applies a model) on random pressures and rest postures and
 on the edge cases: bad pressures, the paper's clipped angles, a straight arm.  Three models: the
-posture form with blends (the sample force run refitted), the bent protocol's (the paper's angles
-with the posture form's forces) and the paper's form alone (the sample model file); and the
-posture form with the sleeves' friction terms (``--friction-terms``), given each row's motion into
+posture form without the friction terms (the sample force run refitted, ``--no-friction-terms``),
+the bent protocol's (the paper's angles with the posture form's forces, likewise) and the paper's
+form alone (the sample model file); and the posture form with the sleeves' friction terms
+(``--friction-terms``, ``labcli fit``'s default), given each row's motion into
 its baseline, and the erf its fade takes on the chip.  The chip itself, on simavr, is in
 tests/core/test_firmware_model.py.
 """
@@ -38,8 +39,8 @@ def models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("models")
     out = {"paper": ROOT / "sample_runs" / "force-paper.model.json"}
     for name, run_name, extra in (
-        ("force", "force", []),
-        ("bent", "bent", []),
+        ("force", "force", ["--no-friction-terms"]),
+        ("bent", "bent", ["--no-friction-terms"]),
         ("friction", "force", ["--friction-terms"]),
     ):
         run = d / f"{run_name}.h5"
