@@ -56,6 +56,9 @@ class EstimatorConfig:
     classify_s: float = 0.3  # blocks gathered after a change is seen before it is called a release or a load
     release_cosine: float = 0.7
     release_overshoot: float = 3.0
+    # The first change after the air was seen supplied waits this long for the joints to move: a
+    # load moves them, the valves' closing (the pressure sensors reading afresh) does not.
+    closing_s: float = 1.0
     # A load whose pressures moved less than this may come off unseen (friction holds the arm): a
     # change on top of it starts afresh from where the rig stands.
     small_load_MPa: float = 5e-4
@@ -80,6 +83,7 @@ class EstimatorConfig:
             "fit_span_s",
             "history_s",
             "loaded_state_se_factor",
+            "closing_s",
         )
         for name in positive:
             if not getattr(self, name) > 0:

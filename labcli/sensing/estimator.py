@@ -24,6 +24,14 @@ the rest posture at its start less the posture of the load before it (that load'
 deflections the model reads from its last pressures before it came off, while no change was
 under way), as ``labcli predict`` works it out from a table's rows in trial order.  The first load
 has none, and the idle rig none: at its baseline nothing has moved since.
+
+The valves' closing.  The frames do not say when the valves close, and the closing moves the
+pressures: each sensor reads afresh (its repeatability, up to 1 kPa on the literature's simulated
+rig) and the sleeves' friction may let the arm slide.  So once the air has been seen being
+supplied (the baseline begun again for moving pressures), the first change found is held up to
+``closing_s``: a load moves the joints and is a load from where it began; a change the
+potentiometers do not follow is the closing, and the baseline is learnt again once the sensors'
+new readings have settled.  A closing that slides the arm still reads as a load.
 """
 
 from __future__ import annotations
@@ -114,6 +122,11 @@ class Estimator:
         self._excess = 1.0  # idle innovations' variance over the predicted one
         self._prev_y: np.ndarray | None = None
         self._started = 0.0
+        # The valves (module docstring, "The valves' closing"): None until the air is seen being
+        # supplied, "open" from then, "closed" once a change has been taken for their closing.
+        self._valves: str | None = None
+        self._quiet_until = -math.inf
+        self._closing: tuple[float, list[tuple[np.ndarray, np.ndarray]]] | None = None  # a change on hold
         self._exc: Excursion | None = None
         self._tails: list[Step] = []  # finished changes whose settled value the baseline holds
         self._rest = np.zeros(k - p)
@@ -240,10 +253,11 @@ class Estimator:
         level, lvar = tr.at(tc)
         e, v = y - level, r + lvar
         if self.state == STARTING:
-            if np.any(np.abs(e[:p]) > 6 * np.sqrt(v[:p])):
-                tr.start(tc, y, 4 * r)  # still moving (air being supplied): begin again
-                self._started = tc
-                self._spreads.clear()
+            if tc < self._quiet_until:
+                self._restart_baseline(tc, y, r)  # the sensors still settling after the valves' closing
+            elif np.any(np.abs(e[:p]) > 6 * np.sqrt(v[:p])):
+                self._restart_baseline(tc, y, r)  # still moving (air being supplied): begin again
+                self._valves = self._valves or "open"
             else:
                 tr.update(tc, y, r)
             if tc - self._started >= self.config.warmup_s:
@@ -253,13 +267,43 @@ class Estimator:
             return []
         z = whiten(e[:p], v[:p])
         self._history.append((tc, y.copy(), r.copy(), tr.snapshot(), z))
-        if self.detector.push(z, self._wander(v)):
+        if self._closing is not None or self.detector.push(z, self._wander(v)):
+            if self._valves == "open" and len(e) > p:
+                return self._closing_or_load(tc, seq, y, r, e[p:], v[p:])
             return self._begin(tc, seq)
         tr.update(tc, y, r)
         ratio = float(np.mean(np.minimum(e[:p] ** 2 / v[:p], 25.0)))
         a = min(1.0, self.config.block_s / 60.0)
         self._excess = float(np.clip(self._excess + a * (ratio - self._excess), 1.0, 25.0))
         return []
+
+    def _closing_or_load(
+        self, tc: float, seq: int, y: np.ndarray, r: np.ndarray, e_pots: np.ndarray, v_pots: np.ndarray
+    ) -> list[Event]:
+        """The first change since the air was seen supplied: a load moves the joints, the valves'
+        closing does not (module docstring).  Wait up to ``closing_s`` for the potentiometers."""
+        if self._closing is None:
+            self._closing = (tc, [])
+        since, seen = self._closing
+        seen.append((e_pots, v_pots))
+        last = seen[-4:]  # a few blocks' mean: a small load's motion is a few times a block's noise
+        mean = sum(x for x, _ in last) / len(last)
+        sd = np.sqrt(sum(w for _, w in last) / len(last) ** 2)
+        if np.any(np.abs(mean) > 4 * sd):
+            self._valves, self._closing = "closed", None
+            return self._begin(tc, seq)
+        if tc - since >= self.config.closing_s - 1e-9:
+            self._valves, self._closing = "closed", None
+            self._restart_baseline(tc, y, r)
+            self._quiet_until = tc + 3 * self.config.tau_s  # the sensors' new readings settle with the lag
+            self.state = STARTING
+        return []
+
+    def _restart_baseline(self, tc: float, y: np.ndarray, r: np.ndarray) -> None:
+        """Learn the baseline again from this block on (the rig is still changing)."""
+        self.tracker.start(tc, y, 4 * r)
+        self._started = tc
+        self._spreads.clear()
 
     def _wander(self, var: np.ndarray) -> float:
         """The baseline's wander in the detector's whitened units (:meth:`ChangeDetector.push`)."""
