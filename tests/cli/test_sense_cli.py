@@ -25,9 +25,7 @@ from labcli.cli import cli
 ROOT = Path(__file__).resolve().parents[2]
 MODEL = ROOT / "sample_runs" / "force.model.json"  # the demo's model: the simulated rig of seed 1
 SCRIPT = ROOT / "docs" / "sensing-example.toml"
-# The kind rig (realism=kind): on the literature's, the default, the valves' closing at 6 s is also
-# taken for a load (the pressure sensors read afresh, or the sleeves' friction lets the arm slide; docs/sensing.md).
-PORT = f"sim://?seed=1&clock=virtual&realism=kind&script={SCRIPT}"
+PORT = f"sim://?seed=1&clock=virtual&script={SCRIPT}"
 G = 9.80665
 FX_TRUE = 0.5 * G * math.cos(math.radians(-45.0))
 KEYS = ("theta1_deg", "theta2_deg", "Fx_N", "Fy_N")

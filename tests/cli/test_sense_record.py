@@ -22,9 +22,7 @@ from labcli.errors import StoreError
 ROOT = Path(__file__).resolve().parents[2]
 MODEL = ROOT / "sample_runs" / "force.model.json"
 SCRIPT = ROOT / "docs" / "sensing-example.toml"
-# The kind rig (realism=kind): on the literature's, the default, the valves' closing at 6 s is also
-# taken for a load (the pressure sensors read afresh, or the sleeves' friction lets the arm slide; docs/sensing.md).
-PORT = f"sim://?seed=1&clock=virtual&realism=kind&script={SCRIPT}"
+PORT = f"sim://?seed=1&clock=virtual&script={SCRIPT}"
 
 
 def test_the_run_file_holds_every_frame_estimate_and_event_as_published(tmp_path):
