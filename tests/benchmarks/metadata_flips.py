@@ -4,7 +4,7 @@ Run:  nice -n 10 python tests/benchmarks/metadata_flips.py [--cases 3000] [--lim
                                                            [--run RUN.h5] [--out flips.jsonl] [--dir D]
                                                            [--replay flips.jsonl] [--minutes M]
 
-A run is recorded (``labcli acquire`` on ``sim://?seed=1&clock=virtual``, 12 trials: 9 fit, 3
+A run is recorded (``labcli acquire`` on ``sim://?seed=1&clock=virtual&realism=kind``, 12 trials: 9 fit, 3
 validation), or ``--run`` names one (a sample run's copy).  Its metadata are mapped: the bytes
 HDF5 reads while ``inspect --verify``, ``inspect``, ``export``, ``fit``, ``validate`` and
 ``labcli.read_run`` read the run, less the bytes of its datasets' chunks (raw frames and table
@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
-SIM = "sim://?seed=1&clock=virtual"
+SIM = "sim://?seed=1&clock=virtual&realism=kind"
 HANG_S = 120.0  # a case still running after this long is a hang
 # fit as the campaign runs it: the paper's form reads the run as the posture form does, in a fifth of
 # the time; 12 trials put some near theta2 = 0, where its default cut (100) refuses them
