@@ -16,6 +16,7 @@ baseline drifted past ``acquisition.repressurise_kPa`` (3.1 kPa).
                                                 [--ideal | --only EFFECT | --without EFFECT]
                                                 [--realism kind|literature] [--friction-terms]
                                                 [--bent-supply 0.3,0.3,0.4,0.2] [--figures FILE.json]
+                                                [--validation-at ROW]
 
 ``--settle 8 --repressurise 0`` takes them as these figures were measured before: each window 8 s
 after the change and the valves held for the whole run.
@@ -33,6 +34,18 @@ posture form's pressure terms leave unexplained (the residual standard deviation
 records, ``torque_resid_cov``; RMS over the seeds), which the Jacobian turns into its force error.
 ``--bent-supply`` runs the bent protocol at other regulator settings (MPa, L1,R1,L2,R2).
 ``--figures`` also writes every printed figure to a flat JSON object {name: value} (the docs' figures).
+``--validation-at ROW`` checks the forms on the 18 trials from that row of the run (0-based) instead
+of the plan's validation trials, and fits them on the other 90: the plan's come last, after every
+fit trial, as a model meets its trials after the run it was fitted on, and the intervals' coverage
+depends on it.  Literature rig, tuning seeds 1-10, the friction terms' form, coverage theta1 /
+theta2 / Fx at rows 0, 45, 90 (the plan's): straight 96/96/90, 94/92/93, 89/94/91 %, RMS of
+error / standard error 0.96/1.00/1.10, 1.00/1.08/1.01, 1.17/1.02/1.16; with the sensors' zero drift
+off (``--without drift``) the plan's last rows give 93/96/93 % (1.07/0.97/1.07).  The shortfall is
+the run's end on a drifting rig, not yet explained: the drift cancels in P0 - P and in the
+deflections, and the fit trials' residuals hardly carry it (lag-1 correlation 0.13, leaving out
+each trial's neighbours too raises their held-out error 1-2 %).  Moved rows also take loads out of
+the fit (a plan groups its trials by pulley position): on the bent arm rows 45-62 leave Fx 84 %
+covered at 1.12 N RMSE against 94 % at 0.85 N on the plan's own.
 
 The baseline is the paper's form on the same trials; the sensing targets are printed beside.
 
@@ -156,6 +169,17 @@ def trials(
     return proto, table
 
 
+def move_validation(table, first: int):
+    """The table with its validation set moved to the rows ``first`` .. ``first`` + 17 (0-based, the
+    run's order; as many rows as the plan's) and every other row a fit trial."""
+    n_val = int((table["set"] == "validation").sum())
+    if not 0 <= first <= len(table) - n_val:
+        raise ValueError(f"--validation-at takes a row from 0 to {len(table) - n_val}, got {first}.")
+    sets = np.full(len(table), "fit", dtype=object)
+    sets[first : first + n_val] = "validation"
+    return table.assign(set=sets)
+
+
 def measure(
     protocol_name: str,
     seed: int,
@@ -166,6 +190,7 @@ def measure(
     without: str | None = None,
     realism: str = "kind",
     friction_terms: bool = False,
+    validation_at: int | None = None,
 ) -> dict:
     from labcli.errors import ModelError
     from labcli.papers.takuma2014.models.metrics import evaluate
@@ -184,6 +209,8 @@ def measure(
         realism=realism,
         supplies=supplies,
     )
+    if validation_at is not None:
+        table = move_validation(table, validation_at)
     rig, limits = proto.settings.rig, limits_from_protocol(proto)
     forms = [("paper", TakumaModel(geometry=rig)), ("posture", PostureModel(geometry=rig, limits=limits))]
     if friction_terms:
@@ -231,6 +258,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--friction-terms", action="store_true", help="also the posture form with the friction terms")
     ap.add_argument("--bent-supply", help="the bent protocol's regulators, MPa: L1,R1,L2,R2")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
+    ap.add_argument("--validation-at", type=int, help="check on the 18 trials from this row (0-based) instead")
     args = ap.parse_args(argv)
     global BENT_SUPPLY_MPA
     if args.bent_supply:
@@ -253,6 +281,7 @@ def main(argv: list[str] | None = None) -> None:
                 without=args.without,
                 realism=args.realism,
                 friction_terms=args.friction_terms,
+                validation_at=args.validation_at,
             )
             for s in seeds
         ]

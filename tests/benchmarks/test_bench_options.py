@@ -423,6 +423,26 @@ def test_sensing_trials_mark_the_baselines_taken_after_a_resupply():
     assert marks[0] and not any(marks[1:])
 
 
+def test_sensing_validation_moves_to_the_rows_asked_and_keeps_its_size():
+    """sensing_accuracy.move_validation: the plan's 18 validation trials (its last rows) become fit
+    trials and the 18 rows from the one asked become the validation set; the table is otherwise the
+    same, and a row that leaves fewer than 18 after it is refused in a sentence."""
+    sa = bench("sensing_accuracy")
+    table = pd.concat(
+        [paper_trials(90, seed=3), paper_trials(18, seed=4, set_name="validation", start_id=91)], ignore_index=True
+    )
+    moved = sa.move_validation(table, 45)
+    before, after = (t["set"].to_numpy() == "validation" for t in (table, moved))
+    assert after.sum() == before.sum() == 18
+    assert np.flatnonzero(after).tolist() == list(range(45, 63))
+    assert not (before & after).any() and (moved["set"] != "validation").sum() == len(table) - 18
+    pd.testing.assert_frame_equal(moved.drop(columns="set"), table.drop(columns="set"))
+    assert sa.move_validation(table, len(table) - 18)["set"].iloc[-18:].eq("validation").all()
+    for bad in (-1, len(table) - 17):
+        with pytest.raises(ValueError, match="takes a row from 0 to"):
+            sa.move_validation(table, bad)
+
+
 def test_sensing_rig_effects_one_off_or_alone():
     """sensing_accuracy.nonideal_of: ``without`` turns one effect off and keeps the realism's
     others at their levels; ``ideal`` with a name keeps that one alone; the kind rig is the default."""
