@@ -59,6 +59,10 @@ class EstimatorConfig:
     # The first change after the air was seen supplied waits this long for the joints to move: a
     # load moves them, the valves' closing (the pressure sensors reading afresh) does not.
     closing_s: float = 1.0
+    # A change on a load placed this long before it was found is no load or release (their lag
+    # shows them within 2 s) but the reference creeping under the held load: the fitted heat's
+    # error from the pressure sensors' new readings, the sleeves' friction.  It is folded into the load.
+    creep_s: float = 2.5
     # A load whose pressures moved less than this may come off unseen (friction holds the arm): a
     # change on top of it starts afresh from where the rig stands.
     small_load_MPa: float = 5e-4
@@ -84,6 +88,7 @@ class EstimatorConfig:
             "history_s",
             "loaded_state_se_factor",
             "closing_s",
+            "creep_s",
         )
         for name in positive:
             if not getattr(self, name) > 0:

@@ -389,6 +389,10 @@ class Estimator:
         assert exc is not None
         tcs = np.array([h[0] for h in exc.residuals])
         t1, _ = onset(tcs, np.array([h[1] for h in exc.residuals]), c.tau_s, c.block_s)
+        if tc - t1 > c.creep_s:  # no step: the reference creeping under the load (config), folded in silently
+            exc.next_change(t1, self._new_fit(t1))
+            self.detector.reset()
+            return []
         # The change's size, as a lagged step from t1 on, against what is on the rig, both whitened alike.
         phi = lag(tcs - t1, c.tau_s)
         step = phi @ np.array([h[2] for h in exc.residuals]) / max(float(phi @ phi), 1e-300)
@@ -402,17 +406,8 @@ class Estimator:
         if kind == LOAD and self.state == LOADED and np.max(np.abs(exc.settled_total()[:p])) < c.small_load_MPa:
             return self._restart(t1, tc, seq)
         self._load_done(t1)
-        dropped = exc.finish(t1) + exc.held
-        exc.kind, exc.fit = kind, self._new_fit(t1)
-        last = exc.steps[-1] if exc.steps else None
-        for td, e_old, var in dropped:
-            exc.fit.add(td, e_old - (last.at(td) if last is not None else 0.0), var)
-        if exc.fit.n:
-            exc.fit.solve()
-        exc.residuals.clear()
-        exc.held.clear()
-        exc.pending = None
-        exc.settled_since = None
+        exc.kind = kind
+        exc.next_change(t1, self._new_fit(t1))
         self.detector.reset()
         self.state = RELEASING if kind == RELEASE else LOADING
         return [Event(kind, t1, tc, seq)]

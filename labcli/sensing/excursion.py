@@ -94,3 +94,19 @@ class Excursion:
             var = res.var_A * max(1.0, res.misfit)
             self.step_var = var if self.step_var is None else self.step_var + var
         return dropped
+
+    def next_change(self, t1: float, fit: ResponseFit) -> None:
+        """End the active change at ``t1`` (:meth:`finish`) and fit the next one with ``fit``, from
+        the blocks after ``t1`` and those held while it was told apart (their change less the
+        finished one's response)."""
+        dropped = self.finish(t1) + self.held
+        self.fit = fit
+        last = self.steps[-1] if self.steps else None
+        for td, e_old, var in dropped:
+            fit.add(td, e_old - (last.at(td) if last is not None else 0.0), var)
+        if fit.n:
+            fit.solve()
+        self.residuals.clear()
+        self.held.clear()
+        self.pending = None
+        self.settled_since = None

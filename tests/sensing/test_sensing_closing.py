@@ -1,5 +1,6 @@
 """The valves' closing is not a load: on the literature's rig (the default) the pressure sensors read
-afresh when the valves close, and an estimator started with the air took that for a load."""
+afresh when the valves close, and an estimator started with the air took that for a load.  Nor is
+the slow creep of the pressures under a held load another load."""
 
 from __future__ import annotations
 
@@ -40,3 +41,13 @@ def test_an_estimator_started_with_the_air_finds_the_load_and_not_the_valves_clo
     assert abs(load.t_device_s - 20.0) < 0.2 and abs(release.t_device_s - 35.0) < 0.2
     # The load found as fast as an estimator that never saw the air (its joints move at once).
     assert load.t_detected_s - 20.0 < 0.2
+
+
+def test_a_held_load_creeping_is_not_another_load():
+    # Seed 4 of the literature's rig: under the 500 g the pressures creep by under 0.1 kPa over
+    # seconds (the fitted heat's error from the sensors' new readings), which main took for a
+    # second load at 22.1 s, found at 25.2 s.  A load or its release shows within 2 s.
+    ev = events(f"sim://?seed=4&clock=virtual&script={SCRIPT}")
+    assert [e.kind for e in ev] == [LOAD, SETTLED, RELEASE], [(e.kind, e.t_device_s) for e in ev]
+    assert abs(ev[0].t_device_s - 20.0) < 0.2 and ev[0].t_detected_s - 20.0 < 0.2
+    assert abs(ev[2].t_device_s - 35.0) < 0.2
