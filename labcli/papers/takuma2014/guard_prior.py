@@ -12,7 +12,8 @@ trial is judged by the rig's statics where the protocol gives the rig's geometry
   left it up to one friction band towards this load's side, and the load must then overcome the
   friction of its own motion.  So only the torque beyond ``2 FRICTION_SHARE`` of the actuators'
   pressure forces (times their moment arms) must move the joints; what it must move them by, the
-  potentiometers read.  It judges the straight arm too, where no force can be read from the
+  potentiometers read, and the closed chambers' pressures with them (Boyle's law) until the run
+  refines the friction.  It judges the straight arm too, where no force can be read from the
   pressures (theta2 = 0), and from the first trial: the shipped protocols' 15 s settle leaves an
   arm with no weight hung exactly where it was.  From :data:`LEARN_MIN` accepted trials on, the
   friction allowed for is the run's own (:meth:`PhysicsPrior.learn`): the most friction any of
@@ -250,6 +251,15 @@ class PhysicsPrior(_RigChannels):
         if shown is not None:
             self._shown.append(shown)
 
+    def pressure_change(self, theta0: np.ndarray, P0_MPa: np.ndarray, moved: np.ndarray) -> np.ndarray:
+        """The closed chambers' pressure change (MPa) when the joints move by ``moved`` (rad) from
+        ``theta0`` with the valves closed at ``P0_MPa`` (Boyle's law: a change of length alone, so
+        friction does not enter)."""
+        ph, params = self._ph, self.params
+        gauge = np.clip(P0_MPa, 0.0, None) * 1e6
+        chambers = ph.Chambers.closed_at(ph.actuator_lengths(theta0, params), gauge, params)
+        return (chambers.gauge(ph.actuator_lengths(theta0 + moved, params), params) - gauge) / 1e6
+
     def __call__(self, load: Sequence[float], baseline: Any, loaded: Any, floors: np.ndarray) -> PriorReading | None:
         b, m = self._means(baseline, loaded)
         if not (np.all(np.isfinite(b)) and np.all(np.isfinite(m))):
@@ -258,17 +268,25 @@ class PhysicsPrior(_RigChannels):
         size = float(np.linalg.norm(least))
         if not size > 0:
             return None
-        along = least / size
-        noise = float(np.sqrt(np.sum((floors[self._a] * along) ** 2)))
-        # Refined by the run, the least motion is the run's own prediction, judged as the run's
-        # trials judge theirs; before that, a tenth of it must stand clear of the noise.
+        # Before the run refines it, the least motion is read on the angles and, through Boyle's law,
+        # on the closed chambers' pressures together (each channel in its noise floors): the
+        # potentiometers' linearity error can read the rest posture where the angles alone fall
+        # just short of standing clear of the noise (docs/load-check.md).  Refined, it is the run's
+        # own prediction of the angles, judged as the run's trials judge theirs.
+        expected = np.zeros(len(b))
+        expected[self._a] = least
+        if not self.refined:
+            expected[self._p] = self.pressure_change(b[self._a], b[self._p], least)
         lowest, clear = (WEAK_FRACTION, EXPECT_FLOORS) if self.refined else (PRIOR_SHARE, PRIOR_NOISE / PRIOR_SHARE)
-        if not size >= clear * noise:
+        weighted = expected / floors
+        span = float(np.linalg.norm(weighted))
+        if not span >= clear:
             return None
-        moved = float((m[self._a] - b[self._a]) @ along)
+        share = float(((m - b) / floors) @ weighted) / span**2
+        moved = float((m[self._a] - b[self._a]) @ least) / size
         past = "the friction this run's trials show" if self.refined else "the sleeves' friction"
         seen = (
             f"the joints moved {math.degrees(moved):.2f} deg of the at least {math.degrees(size):.2f} deg "
             f"it bends them past {past}"
         )
-        return PriorReading(max(0.0, moved / size), lowest, seen)  # a move the other way is none
+        return PriorReading(max(0.0, share), lowest, seen)  # a move the other way is none

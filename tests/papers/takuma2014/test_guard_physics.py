@@ -79,8 +79,14 @@ def test_a_trial_that_did_not_move_reads_nothing_and_one_that_did_reads_its_shar
     still = prior(F, base, windows(UPRIGHT, SUPPLY, seed=1), floors)
     assert still is not None and abs(still.share) < PRIOR_SHARE and still.least == PRIOR_SHARE
     assert still.seen.startswith("the joints moved 0.00 deg of the at least ")
-    bent = prior(F, base, windows(UPRIGHT + least, SUPPLY, seed=2), floors)
+    # Bent as far as the least motion, the closed chambers' pressures following it (Boyle's law).
+    followed = SUPPLY + prior.pressure_change(UPRIGHT, SUPPLY, least)
+    bent = prior(F, base, windows(UPRIGHT + least, followed, seed=2), floors)
     assert bent is not None and bent.share == pytest.approx(1.0, abs=0.02)
+    # Before the run refines the prior the pressures count too: bent with the pressures left as
+    # they were, the reading is the angles' share only, well short of all of it.
+    unfollowed = prior(F, base, windows(UPRIGHT + least, SUPPLY, seed=2), floors)
+    assert unfollowed is not None and 0.3 < unfollowed.share < 0.9
     # A load friction can hold is not judged at all.
     assert prior(pull(100, -60), base, windows(UPRIGHT, SUPPLY, seed=3), floors) is None
 
@@ -195,3 +201,18 @@ def test_the_runs_allowance_never_falls_below_its_floor(prior):
         prior.learn(F, base, windows(UPRIGHT + free, SUPPLY, seed=i + 1))
     assert max(prior._shown) <= STEP  # the windows' noise alone
     assert prior.refined and prior.friction_share == gp.LEARN_FLOOR
+
+
+def test_the_pressures_a_motion_makes_keep_each_closed_chambers_air(prior):
+    # Boyle's law: P_abs (V + V_dead) stays each closed chamber's own; no motion, no change; an
+    # actuator a motion lengthens loses volume below 54.7 deg of braid, so its pressure rises.
+    params, theta0, moved = prior.params, np.radians([-2.0, 2.0]), np.radians([-0.1, -2.0])
+    assert np.allclose(prior.pressure_change(theta0, SUPPLY, np.zeros(2)), 0.0, atol=1e-12)
+    dP = prior.pressure_change(theta0, SUPPLY, moved)
+    before, after = (ph.actuator_lengths(t, params) for t in (theta0, theta0 + moved))
+    amount = [
+        (p * 1e6 + ph.P_ATM) * (ph.mckibben_volume(L, params.b, params.n) + params.V_dead)
+        for p, L in ((SUPPLY, before), (SUPPLY + dP, after))
+    ]
+    assert np.allclose(amount[0], amount[1], rtol=1e-9)
+    assert np.all(np.sign(dP) == np.sign(after - before)) and np.abs(dP).max() > 1e-3  # over a kPa for 2 deg

@@ -1,0 +1,72 @@
+"""The load check's catches: the shipped plan's trial 1 (800 g) and trial 4 (300 g) done wrong
+once, through the real serial code path, seed by seed on a rig.
+
+Each mistake is made once by the scripted experimenter of
+``tests/papers/takuma2014/test_guard_first_trial.py`` under the shipped 15 s settle: no weight hung
+(trial 1), the weight taken off half a second into the settle, an Enter out of step (the weight
+goes on at the next prompt).  A mistake is caught when any trial of the run is warned.  Tune on
+seeds 1-10; report on held-out seeds (11-30)::
+
+    python tests/benchmarks/guard_mistakes.py --seeds 11-20 --realism literature
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "papers" / "takuma2014"))
+
+import test_guard_first_trial as scripted  # noqa: E402
+from test_valves_session import Person  # noqa: E402
+
+from labcli.papers.takuma2014.session import HangWeight  # noqa: E402
+
+
+def forget(action, slip) -> bool:
+    """Enter at "hang" with no weight hung."""
+    if isinstance(action, HangWeight):
+        slip.done = True
+        return True
+    return False
+
+
+# (name, trial, trials run, how): the trials run reach one past the slip, where an Enter out of
+# step has the weight it left on met.
+MISTAKES = (
+    ("trial 1 no weight hung", 1, 2, forget),
+    ("trial 1 taken off", 1, 2, scripted.lift),
+    ("trial 1 out of step", 1, 2, scripted.late),
+    ("trial 4 taken off", 4, 5, scripted.lift),
+    ("trial 4 out of step", 4, 5, scripted.late),
+)
+
+
+def caught(url: str, trial: int, n: int, how) -> bool:
+    """Whether the run of the shipped plan's first ``n`` trials warned of the slip at ``trial``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        ui = scripted.Attended() if how is scripted.late else Person()
+        ui, _, _ = scripted.session_with(Path(tmp), n, trial, how, ui=ui, url=url, protocol=scripted.PROTOCOL)
+    return bool(scripted.warned(ui))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="1-10", help="seeds of the simulated rig (1-10: the tuning seeds)")
+    ap.add_argument("--realism", default="literature", help="the rig's realism= (literature, kind)")
+    args = ap.parse_args()
+    lo, _, hi = args.seeds.partition("-")
+    seeds = range(int(lo), int(hi or lo) + 1)
+    out: dict[str, list[int]] = {}
+    for name, trial, n, how in MISTAKES:
+        out[name] = [s for s in seeds if caught(f"sim://?seed={s}&clock=virtual&realism={args.realism}", trial, n, how)]
+        print(f"{name}: caught on {len(out[name])}/{len(seeds)} seeds {out[name]}", flush=True)
+    print(json.dumps({k: len(v) for k, v in out.items()}))
+
+
+if __name__ == "__main__":
+    main()
