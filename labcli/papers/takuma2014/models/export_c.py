@@ -39,11 +39,11 @@ from ....errors import ModelError
 from . import routes as rt
 from .posture import (
     DEFAULT_LIMITS,
-    FRICTION_MOTION_RAD,
     FRICTION_TERMS,
     RELIEVED_TERMS,
     TORQUE_TERMS,
     PostureModel,
+    friction_width,
     load_force_model,
 )
 from .takuma import TERMS, TakumaModel
@@ -178,7 +178,7 @@ def _posture_part(m: PostureModel) -> str:
     has_prior = bool(m.force_prior_sd)
     known = TORQUE_TERMS + FRICTION_TERMS
     friction = m.uses_history
-    width = np.sqrt(2.0 * (m.pair_motion_sd() ** 2 + FRICTION_MOTION_RAD**2))
+    width = friction_width(m.pair_motion_sd())
     return (
         "#define MODEL_HAS_POSTURE 1\n"
         f"#define MODEL_NA {len(a_pairs)} /* deflection terms: {', '.join(m.angle_terms)} */\n"

@@ -200,6 +200,14 @@ def pair_motion(dtheta: np.ndarray) -> np.ndarray:
     return stack_columns([d[:, 0], d[:, 0] + d[:, 1]])
 
 
+def friction_width(motion_sd: Any = None) -> np.ndarray:
+    """Each pair's fade sqrt(2 (sd^2 + FRICTION_MOTION_RAD^2)) rad of :func:`friction_columns`' faded
+    signs, ``motion_sd`` the pairs' motions' standard errors (None: measured, 0)."""
+    return np.sqrt(
+        2.0 * (np.asarray(0.0 if motion_sd is None else motion_sd, dtype=float) ** 2 + FRICTION_MOTION_RAD**2)
+    )
+
+
 def friction_columns(
     dtheta: np.ndarray, motion_in: np.ndarray | None = None, motion_sd: np.ndarray | None = None
 ) -> np.ndarray:
@@ -220,9 +228,7 @@ def friction_columns(
     """
     from scipy.special import erf
 
-    width = np.sqrt(
-        2.0 * (np.asarray(0.0 if motion_sd is None else motion_sd, dtype=float) ** 2 + FRICTION_MOTION_RAD**2)
-    )
+    width = friction_width(motion_sd)
 
     def sign(m: np.ndarray) -> np.ndarray:
         return erf(np.nan_to_num(pair_motion(m), nan=0.0) / width)
@@ -233,9 +239,7 @@ def friction_columns(
 
 def friction_slopes(dtheta: np.ndarray, motion_sd: np.ndarray | None = None) -> np.ndarray:
     """d/dm of each pair's faded sign erf(m / width) of :func:`friction_columns` at its motion m (n, 2)."""
-    width = np.sqrt(
-        2.0 * (np.asarray(0.0 if motion_sd is None else motion_sd, dtype=float) ** 2 + FRICTION_MOTION_RAD**2)
-    )
+    width = friction_width(motion_sd)
     z = np.nan_to_num(pair_motion(dtheta), nan=0.0) / width
     return 2.0 / math.sqrt(math.pi) * np.exp(-(z**2)) / width
 

@@ -41,7 +41,15 @@ from typing import Any
 import numpy as np
 
 from . import routes as rt
-from .posture import ACTUATORS, FRICTION_MOTION_RAD, FRICTION_TERMS, INV_2X2_RCOND, TORQUE_TERMS, PostureModel
+from .posture import (
+    ACTUATORS,
+    FRICTION_TERMS,
+    INV_2X2_RCOND,
+    TORQUE_TERMS,
+    PostureModel,
+    friction_width,
+    pair_motion,
+)
 from .takuma import TERMS
 
 STEP = 1e-6  # rad: the central step for dF / d(dtheta) (PostureModel._force_covariance's FORCE_STEP)
@@ -184,7 +192,7 @@ class CompiledPosture:
             sd[:, None],
             np.array([model.limits.get(q, math.inf) for q in rt.QUANTITIES], dtype=float),
             _Paper.of(model) if routes - {rt.POSTURE} and model.paper is not None else None,
-            np.sqrt(2.0 * (model.pair_motion_sd() ** 2 + FRICTION_MOTION_RAD**2)) if model.uses_history else None,
+            friction_width(model.pair_motion_sd()) if model.uses_history else None,
         )
 
     def predict(
@@ -301,7 +309,7 @@ class CompiledPosture:
         out = erf(np.nan_to_num(now, nan=0.0) / self.friction_width)
         if motion_in is not None:
             m = np.nan_to_num(np.asarray(motion_in, dtype=float), nan=0.0)
-            out -= erf(np.column_stack([m[:, 0], m[:, 0] + m[:, 1]]) / self.friction_width)
+            out -= erf(pair_motion(m) / self.friction_width)
         return out
 
     def _paper_routes(
