@@ -30,8 +30,9 @@ def export_model(model: Path, c_header: Path, protocol: str | None) -> None:
 
     The firmware built with it computes the joint angles and the tip force from the pressures
     at the data rate, against a baseline it takes itself, and sends them as estimate lines
-    (docs/wire-protocol.md).  Every form `labcli fit` writes is exported: the posture form, the
-    paper's Eqs. 34-37, and their blends.
+    (docs/wire-protocol.md).  Every form `labcli fit` writes is exported: the posture form (with
+    the sleeves' friction terms, fit's default, the chip reading the motion into each baseline it
+    takes), the paper's Eqs. 34-37, and their blends; a relieved run's friction terms are refused.
 
     \b
     Example:

@@ -292,7 +292,8 @@ def _posture_and_force(
     rest: dict[str, Any] = {}
     if isinstance(model, PostureModel):
         th0 = np.zeros((len(P), 2)) if theta0 is None else theta0
-        rest = {} if theta0 is None else {"theta0": theta0}
+        if theta0 is not None:
+            rest["theta0"] = theta0
         moved = model.motion_in_of(_push_order(table), P0, P, th0, theta)
         if moved is not None:
             rest["motion_in"] = moved
