@@ -101,7 +101,9 @@ def calibration_air(protocol: Any, a: dict[str, Any]) -> dict[str, float]:
     else the 8 s waits with the valves held these figures were first measured with."""
     if not a.get("acquired"):
         return {}
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    here = os.path.dirname(os.path.abspath(__file__))
+    if here not in sys.path:  # once per worker, not once per seed
+        sys.path.insert(0, here)
     from acquired import acquired_air
 
     return acquired_air(protocol)

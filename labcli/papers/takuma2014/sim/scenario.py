@@ -207,6 +207,7 @@ def offline_twin(
     t, si = session.t_s, session.si
     out: list[dict[str, Any] | None] = []
     before = None  # the posture the previous load held the arm in (rad), for a model that reads it
+    history = getattr(sensing, "uses_history", False)
     for c in session.changes:
         on, off = c["on_s"], c["off_s"]
         base = (t > on - capture) & (t <= on)
@@ -229,7 +230,6 @@ def offline_twin(
         if sensing.p0_leak_corrected:
             slope = np.polyfit(t[base], si[base][:, pc], 1)[0]
             P0 = P0 + slope * (t[load].mean() - t[base].mean())
-        history = getattr(sensing, "uses_history", False)
         moved = None if before is None or not history else (rest - before)[None]
         if history:
             before = rest + sensing.deflections(P0[None], P[None])[0]
