@@ -8,7 +8,8 @@ the earlier figures were measured on.  Per level and rig seed (:mod:`study`): th
 Fy RMSE on the straight and the bent protocol for both forms (over the reported trials, and over
 all), trials reported, the posture form's 95 % coverage per quantity, and the six demo objects'
 k / k_true and category (straight arm, phi given, bands; the paper's form as the README demo uses
-it, and the posture form), the steel can among them.
+it, and the posture form), the steel can among them.  The posture form is fitted as ``labcli fit``
+fits it by default, with the sleeves' friction terms.
 
     python tests/benchmarks/sensitivity.py --quick               # 2 seeds, the sweep's ends: minutes
     nice python tests/benchmarks/sensitivity.py                  # the full sweep: seeds 11-15, all levels
@@ -50,6 +51,8 @@ LEVELS: dict[str, dict[str, Any]] = {
     "repeat x0": {"repeat": 0.0},
     "repeat x2": {"repeat": 2.0},
 }
+# The posture form as ``labcli fit`` fits it by default: with the sleeves' friction terms.
+FRICTION_TERMS = True
 QUICK_LEVELS = ("literature", "friction x0.5", "friction x4", "noise x30", "leak x3")
 HEADLINE = (  # (column, figure, scale, format) of the headline table
     ("th1 str", "straight/posture/theta1/rmse", 1, "{:.3f}"),
@@ -85,7 +88,8 @@ def load_cache(path: Path | None) -> dict[tuple[str, int], dict[str, float]]:
 
 def _run(job: tuple[str, int, int]) -> tuple[str, int, dict[str, float]]:
     level, seed, pushes = job
-    return level, seed, study.per_seed(study.measure_level(LEVELS[level], seed, pushes))
+    figs = study.measure_level(LEVELS[level], seed, pushes, friction_terms=FRICTION_TERMS)
+    return level, seed, study.per_seed(figs)
 
 
 def gather(levels: list[str], seeds: list[int], pushes: int, cache: Path | None, jobs: int) -> dict:
@@ -198,6 +202,7 @@ def main(argv: list[str] | None = None) -> None:
         "meta/commit": head,
         "meta/seeds": f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else str(seeds),
         "meta/pushes_per_object": pushes,
+        "meta/posture_friction_terms": FRICTION_TERMS,
         **{f"meta/level/{lv}": json.dumps(LEVELS[lv], sort_keys=True) for lv in levels},
         "headline": table,  # the pages show it whole (docs/rig-realism.md)
     }

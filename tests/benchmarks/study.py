@@ -53,16 +53,19 @@ def _finite(x: Any) -> list[float]:
     return [float(v) for v in np.asarray(x, dtype=float).ravel()]
 
 
-def sensing(seed: int, kw: dict[str, Any]) -> dict[str, Any]:
-    """Validation errors of both forms on both protocols, and the posture form's interval hits."""
+def sensing(seed: int, kw: dict[str, Any], friction_terms: bool = False) -> dict[str, Any]:
+    """Validation errors of both forms on both protocols, and the posture form's interval hits;
+    with ``friction_terms`` the posture form is fitted with the sleeves' friction terms, as
+    ``labcli fit`` fits it by default."""
     from sensing_accuracy import measure
 
     out: dict[str, Any] = {}
     for short, protocol in PROTOCOLS.items():
-        m = measure(protocol, seed, rig_kw=kw)
+        m = measure(protocol, seed, rig_kw=kw, friction_terms=friction_terms)
         for form in FORMS:
+            fitted_as = "friction" if friction_terms and form == "posture" else form
             for q in QUANTITIES:
-                d = m[form][q]
+                d = m[fitted_as][q]
                 out[f"{short}/{form}/{q}/err_ok"] = _finite(d["err_ok"])
                 out[f"{short}/{form}/{q}/err_all"] = _finite(d["err_all"])
                 if form == "posture":
@@ -70,7 +73,7 @@ def sensing(seed: int, kw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def objects(seed: int, kw: dict[str, Any], pushes: int) -> dict[str, Any]:
+def objects(seed: int, kw: dict[str, Any], pushes: int, friction_terms: bool = False) -> dict[str, Any]:
     """k / k_true, category, right or not and confidence of each demo object, per form."""
     from classify_accuracy import classify_rows, trials_and_pushes
 
@@ -82,7 +85,9 @@ def objects(seed: int, kw: dict[str, Any], pushes: int) -> dict[str, Any]:
     trials, table = trials_and_pushes(seed, pushes, rig_kw=kw)
     models = {
         "paper": TakumaModel(geometry=force.settings.rig, protocol=force.name),
-        "posture": PostureModel(geometry=force.settings.rig, limits=limits_from_protocol(force)),
+        "posture": PostureModel(
+            geometry=force.settings.rig, limits=limits_from_protocol(force), friction=friction_terms
+        ),
     }
     out: dict[str, Any] = {}
     from labcli.errors import ModelError
@@ -109,10 +114,13 @@ def phi_blank(seed: int, kw: dict[str, Any]) -> dict[str, Any]:
     return {"phi_blank/used": int(used), "phi_blank/pushes": int(n), "phi_blank/right": int(right)}
 
 
-def measure_level(level: dict[str, Any], seed: int, pushes: int = 10, with_phi_blank: bool = False) -> dict[str, Any]:
-    """Everything above for one level and one seed."""
+def measure_level(
+    level: dict[str, Any], seed: int, pushes: int = 10, with_phi_blank: bool = False, friction_terms: bool = False
+) -> dict[str, Any]:
+    """Everything above for one level and one seed (the posture form with the friction terms where
+    ``friction_terms``: labcli fit's default)."""
     kw = rig_kw(level)
-    out = {**sensing(seed, kw), **objects(seed, kw, pushes)}
+    out = {**sensing(seed, kw, friction_terms), **objects(seed, kw, pushes, friction_terms)}
     if with_phi_blank:
         out.update(phi_blank(seed, kw))
     return out
