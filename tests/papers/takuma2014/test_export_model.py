@@ -268,33 +268,45 @@ def flash_tables(text: str) -> dict[str, bytes]:
     return out
 
 
+def elf_tables(elf: Path) -> dict[str, tuple[int, bytes]]:
+    """Each MODEL_ table the linked firmware keeps in flash: its address and bytes (avr-nm, avr-objcopy)."""
+    image = elf.with_suffix(".text.bin")
+    subprocess.run(["avr-objcopy", "-O", "binary", "-j", ".text", str(elf), str(image)], check=True)
+    flash = image.read_bytes()
+    nm = subprocess.run(["avr-nm", "-S", str(elf)], capture_output=True, text=True, check=True).stdout
+    out = {}
+    for line in nm.splitlines():
+        parts = line.split()
+        if len(parts) == 4 and parts[3].startswith("MODEL_") and parts[2] in "tT":
+            at, size = int(parts[0], 16), int(parts[1], 16)
+            out[parts[3]] = (at, flash[at : at + size])
+    return out
+
+
 @pytest.mark.parametrize("form", ["force", "bent", "paper", "friction"])
-def test_no_two_flash_tables_of_a_header_hold_the_same_bytes(form, models, tmp_path):
-    """avr-gcc 5 folds two read-only tables of the same bytes into one and then warns that the other
-    is uninitialised in program memory: the literature rig's force model had its torque terms
-    dP_L1..dP_R2 ({0, 1, 2, 3}) equal to the pressures' channels.  A repeated table is padded with
-    entries no code reads; the entries the chip reads keep their values."""
+def test_every_sample_run_model_builds_for_the_chip_with_its_own_tables(form, models, tmp_path):
+    """The sample runs are the literature rig's: each of their models builds into the firmware
+    (avr-gcc -Werror, and make() refuses any warning besides), and every table the chip reads holds
+    the header's bytes, at an address of its own.  avr-gcc 5 folds two read-only tables of the same
+    bytes into one and then warns that the other is uninitialised in program memory (the force run's
+    model without the friction terms has its torque terms dP_L1..dP_R2, {0, 1, 2, 3}, equal to the
+    pressures' channels); the firmware's -fno-ipa-icf-variables keeps each, so the header holds the
+    model's numbers alone, no table longer than the model's terms."""
+    need_avr_tools()
     header = tmp_path / "model.h"
     assert CliRunner().invoke(cli, ["export-model", str(models[form]), "--c", str(header)]).exit_code == 0
-    text = header.read_text()
-    tables = flash_tables(text)
-    assert len(set(tables.values())) == len(tables), sorted(tables)
+    out = make(tmp_path / "build", "firmware", defs="-Werror", model=header)
+    assert "-Werror" in out and "-fno-ipa-icf-variables" in out
+    assert (tmp_path / "build" / "labcli_rig.hex").read_text().endswith(":00000001FF\n")
+    tables = flash_tables(header.read_text())
     assert tables["MODEL_P_CHANNEL"] == bytes([0, 1, 2, 3]) and tables["MODEL_POT_CHANNEL"] == bytes([4, 5])
     m = load_force_model(models[form])
     if isinstance(m, PostureModel):
         from labcli.papers.takuma2014.models.posture import FRICTION_TERMS, TORQUE_TERMS
 
         known = TORQUE_TERMS + FRICTION_TERMS
-        read = bytes(known.index(t) for t in m.torque_terms)
-        assert tables["MODEL_TORQUE_TERM"][: len(read)] == read
-
-
-@pytest.mark.parametrize("form", ["force", "bent", "paper", "friction"])
-def test_every_sample_run_model_builds_for_the_chip_with_warnings_as_errors(form, models, tmp_path):
-    """The sample runs are the literature rig's: each of their models builds into the firmware
-    (avr-gcc -Werror, and make() refuses any warning besides)."""
-    need_avr_tools()
-    header = tmp_path / "model.h"
-    assert CliRunner().invoke(cli, ["export-model", str(models[form]), "--c", str(header)]).exit_code == 0
-    out = make(tmp_path / "build", "firmware", defs="-Werror", model=header)
-    assert "-Werror" in out and (tmp_path / "build" / "labcli_rig.hex").read_text().endswith(":00000001FF\n")
+        assert tables["MODEL_TORQUE_TERM"] == bytes(known.index(t) for t in m.torque_terms)
+    kept = elf_tables(tmp_path / "build" / "labcli_rig.elf")
+    assert {"MODEL_P_CHANNEL", "MODEL_POT_CHANNEL", "MODEL_GAIN", "MODEL_ZERO"} <= set(kept)
+    assert {name: data for name, (_, data) in kept.items()} == {name: tables[name] for name in kept}
+    assert len({at for at, _ in kept.values()}) == len(kept)  # none folded into another

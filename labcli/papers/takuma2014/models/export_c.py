@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,39 +92,6 @@ def _array(ctype: str, name: str, values: Any, fmt: Any = _f) -> str:
         return "{" + ", ".join(body(r) for r in x) + "}"
 
     return f"static const __flash {ctype} {name}{dims} = {body(a)};\n"
-
-
-_TABLE = re.compile(r"^static const __flash (\w+) (\w+)((?:\[\d+\])+) = (\{.*\});(.*)$", re.MULTILINE)
-_CTYPES = {"float": np.float32, "uint8_t": np.uint8, "int8_t": np.int8}
-
-
-def _distinct_tables(text: str) -> str:
-    """Every ``__flash`` table of ``text`` made unlike every other in its bytes.
-
-    avr-gcc 5's identical-code folding (-Os) merges two read-only tables of the same bytes
-    (a model's torque terms dP_L1..dP_R2, {0, 1, 2, 3}, and the pressures' channels) and then
-    warns that the one it dropped is an uninitialised variable in program memory.  A table that
-    repeats an earlier one gets trailing rows of a padding value no code reads (MODEL_N* and
-    the fixed sizes bound every loop) until its bytes are its own.
-    """
-    seen: set[bytes] = set()
-
-    def one(match: re.Match[str]) -> str:
-        ctype, name, dims, body, tail = match.groups()
-        shape = tuple(int(n) for n in re.findall(r"\d+", dims))
-        numbers = re.findall(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?", body)
-        a = np.array([float(x) for x in numbers]).reshape(shape)
-        pad = 1.0
-        while (key := a.astype(_CTYPES[ctype]).tobytes()) in seen:
-            a = np.concatenate([a, np.full((1,) + a.shape[1:], pad)])
-            pad += 1.0
-        seen.add(key)
-        if a.shape == shape:
-            return match.group(0)
-        fmt = _f if ctype == "float" else (lambda v: str(int(v)))
-        return _array(ctype, name, a, fmt).rstrip("\n") + tail
-
-    return _TABLE.sub(one, text)
 
 
 def _ints(values: Iterable[float]) -> str:
@@ -249,7 +215,7 @@ def c_header(model: TakumaModel | PostureModel, calibration: Any, channels: Sequ
         routes = dict.fromkeys(rt.QUANTITIES, rt.PAPER)
         paper, posture, limits, variance, blends = model, "#define MODEL_HAS_POSTURE 0\n", DEFAULT_LIMITS, {}, {}
     g = model.geometry
-    return _distinct_tables(
+    return (
         f"/*\n * The force model {Path(source).name} for the rig firmware (make -C firmware MODEL=this file).\n"
         f" * Written by `labcli export-model`; sha256 of the model file {digest or 'unknown'}.\n"
         f" * Routes: {', '.join(f'{q} {r}' for q, r in routes.items())}.  Units: MPa, rad, m, N.\n */\n"
