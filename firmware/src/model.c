@@ -14,7 +14,8 @@
  * design has per actuator pair erf(m / w) - erf(m_in / w): its motion under the load m (the
  * outside pair's dtheta1, the inside pair's dtheta1 + dtheta2) and into the baseline m_in (from
  * the caller's history; 0 where unknown), w the fade with the estimated motion's error
- * (MODEL_FRICTION_WIDTH, posture.py's friction_columns); erf by model_erf.
+ * (MODEL_FRICTION_WIDTH, posture.py's friction_columns); erf by model_erf, once a pair per
+ * estimate (the forces and their gradient share its value and slope) and once a pair per baseline.
  * Paper form (Eqs. 34-37) where a quantity is routed to it or blended with it: angles by
  * arcsin, forces through (J^-1)^T at the estimated angles, standard errors from the held-out
  * variance plus x^T C x.
@@ -145,33 +146,55 @@ static void inv2(const float A[2][2], float R[2][2])
 }
 
 
+/* The friction terms at one posture, per pair (term 14 + p): erf(m / w) less the baseline's
+ * erf(m_in / w), and its slope by the pair's motion, 2 exp(-(m/w)^2) / (sqrt(pi) w). */
+struct friction {
+    float v[2], slope[2];
+};
+
 #if MODEL_HAS_FRICTION
-/* Pair p's friction term (t = 14 + p) at deflections dth and motion into the baseline moved (0:
- * none), or with d >= 0 its derivative by dtheta_d (the inside pair moves with both joints). */
-static float friction_term(uint8_t p, const float *dth, const float *moved, int8_t d)
+/* Pair p's erf(m_in / w) of the motion into the baseline (moved; 0: none, the term reads 0): one
+ * erf when the motion changes (a new baseline), kept for every estimate of that baseline. */
+static float baseline_erf(uint8_t p, const float *moved)
 {
-    float w = MODEL_FRICTION_WIDTH[p], slope;
-    float now = model_erf((p ? dth[0] + dth[1] : dth[0]) / w, &slope);
-    if (d >= 0)
-        return p || d == 0 ? slope / w : 0.0f;
-    return moved ? now - model_erf((p ? moved[0] + moved[1] : moved[0]) / w, 0) : now;
+    static float m_was[2] = {NAN, NAN}, erf_was[2];
+    if (!moved)
+        return 0.0f;
+    float m = p ? moved[0] + moved[1] : moved[0];
+    if (!(m == m_was[p])) {
+        m_was[p] = m;
+        erf_was[p] = model_erf(m / MODEL_FRICTION_WIDTH[p], 0);
+    }
+    return erf_was[p];
+}
+
+/* Both pairs' terms at deflections dth (the inside pair moves with both joints): one erf a pair
+ * for the value and the slope, which the forces and their gradient then share. */
+static void friction_of(const float *dth, const float *moved, struct friction *f)
+{
+    for (uint8_t p = 0; p < 2; p++) {
+        float w = MODEL_FRICTION_WIDTH[p], slope;
+        f->v[p] = model_erf((p ? dth[0] + dth[1] : dth[0]) / w, &slope) - baseline_erf(p, moved);
+        f->slope[p] = slope / w;
+    }
 }
 #endif
 
 /* The torque design's columns MODEL_TORQUE_TERM of the 14: dP (4), dP_j dtheta_l (8), dtheta (2),
- * and the friction terms (2) read with the motion into the baseline; with d (>= 0), their
- * derivatives by dtheta_d instead. */
-static void torque_features(const float *dP, const float *dth, const float *moved, int8_t d, float *x)
+ * and the friction terms (2, fr: friction_of at dth); with d (>= 0), their derivatives by
+ * dtheta_d instead (the outside pair's moves with theta1 alone). */
+static void torque_features(const float *dP, const float *dth, const struct friction *fr, int8_t d, float *x)
 {
     for (uint8_t k = 0; k < MODEL_NT; k++) {
         uint8_t t = MODEL_TORQUE_TERM[k];
 #if MODEL_HAS_FRICTION
         if (t >= 14) {
-            x[k] = friction_term(t - 14, dth, moved, d);
+            uint8_t p = (uint8_t)(t - 14);
+            x[k] = d < 0 ? fr->v[p] : p || d == 0 ? fr->slope[p] : 0.0f;
             continue;
         }
 #else
-        (void)moved;
+        (void)fr;
 #endif
         if (d < 0)
             x[k] = t < 4 ? dP[t] : t < 12 ? dP[(t - 4) >> 1] * dth[(t - 4) & 1] : dth[t - 12];
@@ -214,10 +237,10 @@ struct force_parts {
 };
 
 /* Forces and their covariance from the torque error alone, at deflection dth (t: the trig of th0 + dth). */
-static void forces(const float *dP, const struct trig *t, const float *dth, const float *moved, float *F, float C[2][2],
-                   struct force_parts *fp)
+static void forces(const float *dP, const struct trig *t, const float *dth, const struct friction *fr, float *F,
+                   float C[2][2], struct force_parts *fp)
 {
-    torque_features(dP, dth, moved, -1, fp->x);
+    torque_features(dP, dth, fr, -1, fp->x);
     torques(fp->x, fp->tau);
     float g = 1.0f, A[2][2], M[2][2];
     for (uint8_t i = 0; i < MODEL_NT; i++) { /* (X^T X)^-1 x, kept for the gradient's dg */
@@ -270,14 +293,14 @@ static void forces(const float *dP, const struct trig *t, const float *dth, cons
 /* dF / d(dtheta), column d: the derivative of K tau with K = P J A^-1 and A = J^T P J + g R:
  * dK = (P dJ - K dA) A^-1, dA = dJ^T P J + (P J)^T dJ + dg R, dg = 2 x^T (X^T X)^-1 dx.
  * The host takes the same by central differences (PostureModel._force_covariance). */
-static void force_gradient(const float *dP, const struct trig *t, const float *dth, const struct force_parts *fp,
-                           float G[2][2])
+static void force_gradient(const float *dP, const struct trig *t, const float *dth, const struct friction *fr,
+                           const struct force_parts *fp, float G[2][2])
 {
     float p[2] = {MODEL_PRIOR_SD[0] * MODEL_PRIOR_SD[0], MODEL_PRIOR_SD[1] * MODEL_PRIOR_SD[1]};
     float h2 = MODEL_H2, h3 = MODEL_H3;
     for (int8_t d = 0; d < 2; d++) {
         float dx[MODEL_NT], dtau[2], dg = 0.0f, dJ[2][2], dA[2][2], B[2][2], M[2][2], dK[2][2], y[2], z[2];
-        torque_features(dP, dth, 0, d, dx);
+        torque_features(dP, dth, fr, d, dx);
         torques(dx, dtau);
         for (uint8_t i = 0; i < MODEL_NT; i++)
             if (dx[i] != 0.0f)
@@ -325,12 +348,19 @@ static void force_gradient_numeric(const float *dP, const struct trig *t, const 
         float up[2] = {dth[0], dth[1]}, dn[2] = {dth[0], dth[1]}, Fu[2], Fd[2], Cx[2][2];
         struct trig tu, td;
         struct force_parts fp;
+        struct friction fu, fd;
         up[k] += DTH_STEP;
         dn[k] -= DTH_STEP;
         stepped(t, k, 1.0f, &tu);
         stepped(t, k, -1.0f, &td);
-        forces(dP, &tu, up, moved, Fu, Cx, &fp);
-        forces(dP, &td, dn, moved, Fd, Cx, &fp);
+#if MODEL_HAS_FRICTION
+        friction_of(up, moved, &fu);
+        friction_of(dn, moved, &fd);
+#else
+        (void)moved;
+#endif
+        forces(dP, &tu, up, &fu, Fu, Cx, &fp);
+        forces(dP, &td, dn, &fd, Fd, Cx, &fp);
         G[0][k] = (Fu[0] - Fd[0]) / (2.0f * DTH_STEP);
         G[1][k] = (Fu[1] - Fd[1]) / (2.0f * DTH_STEP);
     }
@@ -369,10 +399,16 @@ static void posture(const float *P0, const float *P, const float *th0, const flo
         dP[k] = P0[k] - P[k];
     struct trig t;
     struct force_parts fp;
+    struct friction fr; /* read only by a model with the friction terms */
+#if MODEL_HAS_FRICTION
+    friction_of(dth, moved, &fr);
+#elif MODEL_HAS_PRIOR
+    (void)moved;
+#endif
     trig_of(th0[0] + dth[0], th0[1] + dth[1], &t);
-    forces(dP, &t, dth, moved, F, C, &fp);
+    forces(dP, &t, dth, &fr, F, C, &fp);
 #if MODEL_HAS_PRIOR
-    force_gradient(dP, &t, dth, &fp, G);
+    force_gradient(dP, &t, dth, &fr, &fp, G);
 #else
     force_gradient_numeric(dP, &t, dth, moved, G);
 #endif

@@ -6,14 +6,16 @@ Run:  python tests/benchmarks/bench_firmware_model.py [--seconds 3] [--bauds 115
 Models: ``force`` (the sample force run refitted: the posture form with three quantities blended
 with the paper's: the heaviest), ``bent`` (the bent protocol's: the paper's angles, the posture
 form's forces), ``paper`` (sample_runs/force-paper.model.json: Eqs. 34-37 alone) and ``friction``
-(the sample force run refitted with ``--friction-terms``; its estimates here read no history, one
-erf a term, and a load's read one more).  For each:
+(the sample force run refitted with ``--friction-terms``: ``labcli fit``'s default, as ``force`` and
+``bent`` are fitted now).  For each:
 
 * flash and RAM of the firmware built with the model (avr-size), beside the firmware without one
   (baseline, same run);
 * cycles per estimate: ``model_predict`` on 8 inputs, timed by the harness's cycle counter
   between two port writes (firmware/test/model_bench.c), beside one float multiply and one sinf
-  in the same run (the estimate in multiplies is the machine-independent figure);
+  in the same run (the estimate in multiplies is the machine-independent figure); and with a
+  motion into the baseline, which a model with the friction terms reads (one erf a pair per
+  estimate either way: the baseline's erf once per baseline);
 * the highest rate at which every frame gets its estimate (``EST 1``, the estimator skipping under
   1 % of the frames and no data line lost over ``--seconds`` of streaming), by bisection, at each baud:
   at 115200 the line carries a data and an estimate line per frame; at 1000000 the chip's time
@@ -271,7 +273,7 @@ def main() -> None:
                 f"\n{name} ({path.name}): flash {flash} B (+{flash - plain[0]}), RAM {ram} B (+{ram - plain[1]}); "
                 f"{est:.0f} cycles per estimate ({est / 16e3:.2f} ms at 16 MHz) = {est / c[2]:.0f} float multiplies "
                 f"({c[2]:.0f} cycles) or {est / c[16]:.0f} sinf ({c[16]:.0f}); add {c[4]:.0f}, divide {c[8]:.0f}, "
-                f"sqrt {c[32]:.0f} cycles"
+                f"sqrt {c[32]:.0f} cycles; with a motion into the baseline {c[64]:.0f} ({c[64] / 16e3:.2f} ms)"
             )
             figures.update(
                 {
@@ -280,6 +282,8 @@ def main() -> None:
                     f"{name} cycles": est,
                     f"{name} ms": est / 16e3,
                     f"{name} multiplies": est / c[2],
+                    f"{name} cycles with history": c[64],
+                    f"{name} ms with history": c[64] / 16e3,
                 }
             )
             pct, flags, n = agreement(built / "labcli_rig.elf", path)
