@@ -522,3 +522,40 @@ def test_phi_bent_passes_its_realism_effects_and_timing(monkeypatch, capsys):
     pb.main()
     assert seen[-1][1].realism == "literature" and seen[-1][1].repeat == 1.0 and seen[-1][2] == {}
     assert "+0.5 deg on average" in capsys.readouterr().out
+
+
+# --------------------------------------------------------------------------- interval_coverage
+
+
+def test_interval_coverage_diagnoses_with_the_held_out_errors_the_fit_chose_its_routes_by():
+    """The fit trials' held-out errors it prints are the route choice's own: over the trials both
+    forms report, their RMSE is the stacked RMSE the fit recorded, whichever route each quantity took."""
+    ic = bench("interval_coverage")
+    from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
+
+    proto, table = ic.sa.trials("takuma2014", 1, realism="kind")
+    model = PostureModel(geometry=proto.settings.rig, limits=limits_from_protocol(proto), friction=True)
+    with ic.held_out_capture() as seen:
+        model.fit(table)
+    assert len(seen["rows"]) == int((table["set"] == "fit").sum())
+    for q in ic.QUANTITIES:
+        stats = model.fit_stats["routes_cv"][q]
+        if not stats["n_both"]:
+            continue
+        cv = seen["cv"]
+        both = cv["posture_ok"][q] & cv["paper_ok"][q] & np.isfinite(cv["paper"][q]) & np.isfinite(cv["posture"][q])
+        scale = np.degrees(1.0) if q.startswith("theta") else 1.0
+        assert ic.rms(ic.route_errors(model, seen, q)[both]) == pytest.approx(scale * stats["rmse_stacked"], rel=1e-9)
+
+
+def test_interval_coverage_counts_an_error_inside_its_interval_and_resamples_seeds():
+    ic = bench("interval_coverage")
+    rng = np.random.default_rng(0)
+    # Seed A: 3 of 4 inside (1.96 standard errors is inside, 2 is not); seed B: 1 of 1.
+    a = {"Fx": {"err": np.array([0.0, 1.0, -1.959, 2.0]), "se": np.ones(4)}}
+    b = {"Fx": {"err": np.array([0.5]), "se": np.ones(1)}}
+    p, lo, hi = ic.coverage_ci([a, b], "Fx", rng)
+    assert p == pytest.approx(4 / 5)
+    assert 0.75 <= lo <= p <= hi <= 1.0  # a resample holds seed A alone (3/4) at worst, B alone (1) at best
+    same, slo, shi = ic.coverage_ci([a, a, a], "Fx", rng)
+    assert same == slo == shi == pytest.approx(0.75)  # identical seeds: nothing to resample

@@ -508,6 +508,37 @@ def sensing_derived(f: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def coverage_derived(f: dict[str, Any]) -> dict[str, Any]:
+    """The docs' table of every cell's coverage (held out, tuning) beside what the diagnosis compares."""
+    lines = [
+        "| rig | arm | quantity | reported | 95 % cover, seeds 11-30 [95 % interval] | seeds 1-10 | RMSE | RMS standard "
+        "error | fit trials held out: RMSE | held joints / light loads: share of fit → validation trials, "
+        "their RMSE fit → validation |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for rig in ("literature", "kind"):
+        for arm in ("straight", "bent"):
+            for q, name in QUANTITY.items():
+                k, t = f"heldout {rig} {arm} {q}", f"tuning {rig} {arm} {q}"
+                if not f[f"{k} reported"]:
+                    lines.append(f"| {rig} | {arm} | {name} | 0/{f[f'{k} trials']} | — | — | — | — | — | — |")
+                    continue
+                tuning = f"{f[f'{t} cover pct']:.1f} %" if f.get(f"{t} cover pct") is not None else "—"
+                lines.append(
+                    f"| {rig} | {arm} | {name} | {f[f'{k} reported']}/{f[f'{k} trials']} | "
+                    f"{f[f'{k} cover pct']:.1f} % [{f[f'{k} cover ci lo']:.1f}, {f[f'{k} cover ci hi']:.1f}] | "
+                    f"{tuning} | {f[f'{k} rmse']:.3g} | {f[f'{k} rms se']:.3g} | {f[f'{k} fit held-out rmse']:.3g} | "
+                    f"{100 * f[f'{k} fit first share']:.0f} → {100 * f[f'{k} val first share']:.0f} %, "
+                    f"{f[f'{k} fit first rmse']:.3g} → {f[f'{k} val first rmse']:.3g} |"
+                )
+    shares = {
+        f"{key[: -len(' share')]} pct": 100 * value
+        for key, value in f.items()
+        if key.endswith((" fit first share", " val first share")) and value is not None
+    }
+    return {"table": "\n".join(lines), **shares}
+
+
 def effects_derived(f: dict[str, Any]) -> dict[str, Any]:
     """The bent arm's Fy over all trials with one non-ideality at a time: the others' range."""
     others = [f[f"{e} takuma2014-bent posture Fy rmse all"] for e in ("leak", "thermal", "backlash", "links")]
@@ -693,6 +724,15 @@ SOURCES: dict[str, Source] = {
             "the estimators of the commit it names on the literature's rig, held-out seeds 11-30",
             script="baseline_estimator.py",
             runs={"": ()},
+        ),
+        Source(
+            "interval-coverage",
+            "benchmark",
+            "every estimate's 95 % interval coverage per rig, arm and quantity, with the fit trials' held-out "
+            "errors beside, held-out seeds 11-30 and tuning seeds 1-10",
+            script="interval_coverage.py",
+            runs={"heldout": ("--seeds", "11-30", "--diagnose"), "tuning": ("--seeds", "1-10", "--diagnose")},
+            derive=coverage_derived,
         ),
         Source(
             "air",
