@@ -7,12 +7,11 @@ bands with the posture form (whose standard errors make each confidence, models/
 confidence among them, the objects left without a category because every push was flagged, and
 how many right ones carry a confidence under 0.9.
 
-    nice python tests/benchmarks/band_confidence.py [--seeds 11-30] [--figures OUT]
+    nice python tests/benchmarks/band_confidence.py [--seeds 11-30] [--realism kind,literature] [--figures OUT]
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -21,21 +20,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import study  # noqa: E402
-from sensitivity import seeds_of  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-RIGS = {"kind": {"realism": "kind"}, "literature": {}}
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11-30")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind,literature", seeds="11-30", several=True)
     ap.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures" / "band-confidence.json")
     args = ap.parse_args(argv)
-    seeds = seeds_of(args.seeds)
-    out: dict[str, object] = {"meta/seeds": args.seeds}
-    for rig, level in RIGS.items():
-        kw = study.rig_kw(level)
+    seeds = args.seeds
+    out: dict[str, object] = {"meta/seeds": seeds_text(seeds)}
+    for rig in args.realism:
+        kw = study.rig_kw({"realism": rig})
         wrong: list[tuple[int, str, str, float]] = []
         right: list[float] = []
         for s in seeds:

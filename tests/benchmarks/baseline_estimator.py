@@ -14,7 +14,8 @@ left blank (posture form).  Reported:
 * every object's k / k_true and category per seed, the steel can's among them; the phi-blank
   pushes used and objects in category per seed.
 
-    nice python tests/benchmarks/baseline_estimator.py [--seeds 11-30] [--cache FILE] [--json OUT]
+    nice python tests/benchmarks/baseline_estimator.py [--seeds 11-30] [--realism literature] [--cache FILE]
+                                                       [--json OUT]
 
 It writes docs/figures/baseline-estimator-new-rig.json (``{name: value}``) with the commit it ran
 on and the last commit that changed the estimators (labcli/papers/takuma2014/models/).
@@ -22,7 +23,6 @@ on and the last commit that changed the estimators (labcli/papers/takuma2014/mod
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import subprocess
@@ -34,27 +34,28 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study  # noqa: E402
-from sensitivity import seeds_of  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 BOOTSTRAP = 2000
 
 
-def raw_results(seeds: list[int], cache: Path | None) -> dict[int, dict[str, Any]]:
+def raw_results(seeds: list[int], cache: Path | None, realism: str = "literature") -> dict[int, dict[str, Any]]:
     done: dict[int, dict[str, Any]] = {}
     if cache is not None and cache.exists():
         for line in cache.read_text().splitlines():
             if line.strip():
                 rec = json.loads(line)
-                done[int(rec["seed"])] = rec["raw"]
+                if rec.get("realism", "literature") == realism:  # files of before the option: the literature's
+                    done[int(rec["seed"])] = rec["raw"]
     for seed in seeds:
         if seed in done:
             continue
-        done[seed] = study.measure_level({}, seed, 10, with_phi_blank=True)
+        done[seed] = study.measure_level({"realism": realism}, seed, 10, with_phi_blank=True)
         print(f"  measured seed {seed}", file=sys.stderr, flush=True)
         if cache is not None:
             with cache.open("a") as f:
-                f.write(json.dumps({"seed": seed, "raw": done[seed]}) + "\n")
+                f.write(json.dumps({"seed": seed, "realism": realism, "raw": done[seed]}) + "\n")
     return {s: done[s] for s in seeds}
 
 
@@ -130,8 +131,8 @@ def git(*args: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11-30", help="held-out rig seeds (default 11-30)")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="literature", seeds="11-30")  # 11-30: the held-out seeds
     ap.add_argument("--cache", type=Path, default=None, help="JSON-lines file of measured seeds (resumable)")
     ap.add_argument(
         "--json",
@@ -141,19 +142,21 @@ def main(argv: list[str] | None = None) -> None:
         default=ROOT / "docs" / "figures" / "baseline-estimator-new-rig.json",
     )
     args = ap.parse_args(argv)
-    seeds = seeds_of(args.seeds)
+    seeds, seeds_label = args.seeds, seeds_text(args.seeds)
     meta = {  # read before the run: the code measured is the code at its start
         "meta/commit": git("rev-parse", "HEAD"),
         "meta/estimator_commit": git("log", "-1", "--format=%H", "--", "labcli/papers/takuma2014/models"),
         "meta/uncommitted_changes_in_labcli": bool(git("status", "--porcelain", "--", "labcli")),
-        "meta/rig": "sim:// default rig (realism=literature), takuma2014 and takuma2014-bent protocols",
-        "meta/seeds": args.seeds,
+        "meta/rig": f"sim:// rig (realism={args.realism}), takuma2014 and takuma2014-bent protocols",
+        "meta/seeds": seeds_label,
         "meta/bootstrap": BOOTSTRAP,
     }
-    figs = figures(raw_results(seeds, args.cache))
+    figs = figures(raw_results(seeds, args.cache, args.realism))
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps({**meta, **figs}, indent=1, sort_keys=True) + "\n")
-    print(f"held-out seeds {args.seeds}: RMSE over reported trials [95 % interval], reported / trials, coverage")
+    print(
+        f"{args.realism} rig, held-out seeds {seeds_label}: RMSE over reported trials [95 % interval], reported / trials, coverage"
+    )
     for proto in study.PROTOCOLS:
         for form in study.FORMS:
             for q in study.QUANTITIES:

@@ -1,6 +1,6 @@
 """Wall time of an unattended 108-trial acquisition on the simulated rig (virtual clock).
 
-Run:  python tests/benchmarks/bench_acquire.py [--seed N] [--block S]
+Run:  python tests/benchmarks/bench_acquire.py [--seeds N] [--realism kind] [--block S]
 
 Three figures, measured in the same run:
 
@@ -23,7 +23,6 @@ run is the simulated link.
 
 from __future__ import annotations
 
-import argparse
 import io
 import sys
 import tempfile
@@ -33,6 +32,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from rich.console import Console  # noqa: E402
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 
 import labcli.core.sim.protocol_sim as protocol_sim  # noqa: E402
 from labcli.core.acquisition import acquire  # noqa: E402
@@ -41,13 +41,14 @@ from labcli.core.ui import UnattendedUI  # noqa: E402
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=1)
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="1", one=True)  # the rig of docs/performance.md's figures
     ap.add_argument("--block", type=float, default=None, help="virtual-clock block, device s per read")
     args = ap.parse_args()
     if args.block:
         protocol_sim.BLOCK_S = args.block
-    port = f"sim://?seed={args.seed}&clock=virtual"
+    seed = args.seeds[0]
+    port = f"sim://?seed={seed}&clock=virtual&realism={args.realism}"
 
     frames = 0
     original_read = Device.read
@@ -68,7 +69,7 @@ def main() -> None:
     Device.read = original_read
     assert outcome.stored == 108, outcome.message
 
-    with Device.open(f"sim://?seed={args.seed + 1}&clock=virtual") as dev:
+    with Device.open(f"sim://?seed={seed + 1}&clock=virtual&realism={args.realism}") as dev:
         rate = dev.set_rate(200)
         got = 0
         t0 = time.perf_counter()

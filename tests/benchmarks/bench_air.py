@@ -1,10 +1,11 @@
 """The chambers' air over a whole run: the baseline drift with and without re-pressurising, and what it does to the accuracy.
 
-Run:  python tests/benchmarks/bench_air.py [--seeds 11,12,13] [--leak 1] [--figures FILE]
+Run:  python tests/benchmarks/bench_air.py [--seeds 11,12,13] [--realism kind] [--leak 1] [--figures FILE]
 
 For each held-out seed, the paper's 108-trial plan is acquired unattended on the simulated rig
-(``sim://?seed=N&clock=virtual&leak=X``, its 1.1 board driving the valves) twice, through the
-real serial code path:
+(``sim://?seed=N&clock=virtual&leak=X&realism=R``, its 1.1 board driving the valves; ``--realism``
+kind by default, the rig docs/air.md's figures were measured on) twice, through the real serial
+code path:
 
 * **with** re-pressurising: the shipped protocol, whose chambers are supplied and held again
   whenever a trial's baseline has drifted past ``acquisition.repressurise_kPa`` (its default,
@@ -21,7 +22,6 @@ run, the re-pressurisations made, and the posture form's RMSE on the 18 validati
 
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
@@ -32,6 +32,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 from labcli.core.protocol import load_protocol  # noqa: E402
 from labcli.papers.takuma2014.records import load_trials  # noqa: E402
@@ -61,8 +63,8 @@ def one_run(work: Path, name: str, protocol: Path, url: str) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11,12,13", help="held-out seeds of the simulated rig")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="11,12,13")  # held-out seeds
     ap.add_argument("--leak", default="1", help="the rig's leak scale (1: about 1 kPa/min)")
     ap.add_argument(
         "--relief",
@@ -73,13 +75,20 @@ def main() -> None:
     ap.add_argument(
         "--rig",
         default="",
-        help="more sim:// options of the rig, e.g. friction=0 (default: none; the kind rig unless realism= is given)",
+        help="more sim:// options of the rig, e.g. friction=0 (default: none; its realism is --realism's)",
     )
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
-    seeds = [int(s) for s in args.seeds.split(",")]
+    if "realism=" in args.rig:
+        ap.error("--rig takes the rig's other options; give its realism as --realism")
+    seeds = args.seeds
     shipped = load_protocol("takuma2014")
-    figures: dict = {"seeds": args.seeds, "leak": float(args.leak), "limit kPa": shipped.air.repressurise_kPa}
+    figures: dict = {
+        "seeds": seeds_text(seeds),
+        "realism": args.realism,
+        "leak": float(args.leak),
+        "limit kPa": shipped.air.repressurise_kPa,
+    }
     if args.rig:
         figures["rig"] = args.rig
     rows = []
@@ -98,8 +107,8 @@ def main() -> None:
                 shipped.text.replace("rate_hz = 200.0\n", f"rate_hz = 200.0\nfriction_relief_s = {x}\n")
             )
         for seed in seeds:
-            url = f"sim://?seed={seed}&clock=virtual&leak={args.leak}" + (f"&{args.rig}" if args.rig else "")
-            url += "" if "realism=" in args.rig else "&realism=kind"  # the rig its docs figures were measured on
+            url = f"sim://?seed={seed}&clock=virtual&leak={args.leak}&realism={args.realism}"
+            url += f"&{args.rig}" if args.rig else ""
             with_ = one_run(work, f"auto{seed}", auto, url)
             without = None if args.no_hand else one_run(work, f"hand{seed}", hand, url)
             relieved = [one_run(work, f"{r.stem}-{seed}", r, url) for r in reliefs]

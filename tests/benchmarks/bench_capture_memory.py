@@ -1,10 +1,11 @@
 """Peak memory of one trial with long capture windows: streamed into the file against gathered in memory.
 
 Run:  python tests/benchmarks/bench_capture_memory.py [--windows 60,600,3600] [--rate 1000] [--dir DIR]
+                                                       [--realism kind] [--seeds 1]
 
-One force trial of takuma2014 (the reference rig's 6 channels) on the simulated rig in
-virtual time, with every capture window (the air supply's, the trial's baseline and its
-loaded window) ``--windows`` seconds long at ``--rate`` Hz (``tests/support/long_capture.py``):
+One force trial of takuma2014 (the reference rig's 6 channels) on the simulated rig (the kind
+one, seed 1, by default: ``--realism``, ``--seeds``, rig_options.py) in virtual time, with every
+capture window (the air supply's, the trial's baseline and its loaded window) ``--windows`` seconds long at ``--rate`` Hz (``tests/support/long_capture.py``):
 
 * ``streamed``: ``labcli``'s engine, which streams a trial's windows into the run file in
   whole chunks as they arrive and keeps only their running statistics;
@@ -37,6 +38,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "tests" / "support")]
 
+from rig_options import add_rig_options, bench_parser  # noqa: E402
+
 MiB = 1 << 20
 
 
@@ -45,7 +48,7 @@ def rss_bytes() -> int:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-def child(window_s: float, mode: str, rate: float, folder: str) -> None:
+def child(window_s: float, mode: str, rate: float, folder: str, seed: int = 1, realism: str = "kind") -> None:
     """One trial in this process; prints one JSON line."""
     from long_capture import record_trial
 
@@ -53,11 +56,11 @@ def child(window_s: float, mode: str, rate: float, folder: str) -> None:
 
     path = Path(folder) / f"{mode}-{window_s:g}.h5"
     # A trial of 1 s windows first, so what the first trial imports and sets up is not counted.
-    record_trial(path, 1.0, in_memory=(mode == "in memory"), rate_hz=rate)
+    record_trial(path, 1.0, in_memory=(mode == "in memory"), rate_hz=rate, seed=seed, realism=realism)
     path.unlink()
     before = rss_bytes()
     t = time.perf_counter()
-    outcome = record_trial(path, window_s, in_memory=(mode == "in memory"), rate_hz=rate)
+    outcome = record_trial(path, window_s, in_memory=(mode == "in memory"), rate_hz=rate, seed=seed, realism=realism)
     wall = time.perf_counter() - t
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     with RunFile.open(path) as run:
@@ -89,9 +92,10 @@ def run_checksums(path: Path) -> dict[str, int]:
         return {k: t[k][0] for k in ("baseline_checksum", "loaded_checksum")}
 
 
-def measure(window_s: float, mode: str, rate: float, folder: str) -> dict:
+def measure(window_s: float, mode: str, rate: float, folder: str, seed: int = 1, realism: str = "kind") -> dict:
+    rig = ["--seeds", str(seed), "--realism", realism]
     out = subprocess.run(
-        [sys.executable, __file__, "--child", f"{window_s}", mode, "--rate", f"{rate}", "--dir", folder],
+        [sys.executable, __file__, "--child", f"{window_s}", mode, "--rate", f"{rate}", "--dir", folder, *rig],
         capture_output=True,
         text=True,
         check=False,
@@ -106,7 +110,8 @@ def label(s: float) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="1", one=True)
     ap.add_argument("--windows", default="60,600,3600", help="capture window lengths, s (comma-separated)")
     ap.add_argument("--rate", type=float, default=1000.0, help="frames per second")
     ap.add_argument("--dir", default=None, help="folder for the run files (default: a temporary one)")
@@ -114,7 +119,7 @@ def main() -> None:
     a = ap.parse_args()
     folder = a.dir or tempfile.mkdtemp(prefix="bench-capture-")
     if a.child:
-        child(float(a.child[0]), a.child[1], a.rate, folder)
+        child(float(a.child[0]), a.child[1], a.rate, folder, a.seeds[0], a.realism)
         return
     windows = [float(w) for w in a.windows.split(",")]
     print(
@@ -127,8 +132,8 @@ def main() -> None:
     )
     results = []
     for w in windows:
-        mem = measure(w, "in memory", a.rate, folder)
-        st = measure(w, "streamed", a.rate, folder)
+        mem = measure(w, "in memory", a.rate, folder, a.seeds[0], a.realism)
+        st = measure(w, "streamed", a.rate, folder, a.seeds[0], a.realism)
         for r in (mem, st):
             if r["status"] != "finished" or not r["ok"]:
                 raise SystemExit(f"a {label(w)} trial did not finish clean: {r}")

@@ -1,10 +1,13 @@
 """``labcli classify --json`` on an archive of n pushes beside a pandas groupby that does the same by hand.
 
 Run:  python tests/benchmarks/bench_classify_report.py [--sizes 1e5] [--repeat 5] [--figures FILE.json] [--keep DIR]
+                                                       [--realism kind] [--seeds 1]
 
 Input: the six demo objects pushed ten times each on the simulated rig, tiled to n pushes on
 n / 10 objects (an archive: every copy of the pool named apart), written as a push CSV, and a
-force model of the paper's form fitted on the shipped plan's weight trials through the same rig.
+force model of the paper's form fitted on the shipped plan's weight trials through the same rig:
+the kind rig, seed 1 (``--realism``, ``--seeds``: rig_options.py), on which docs/performance.md's
+figures were measured.
 
 Each side is a fresh process (tests/benchmarks/fresh.py: CPU time, wall time, peak resident
 memory; medians of ``--repeat`` interleaved rounds, the order flipping every round):
@@ -26,7 +29,6 @@ The human report (``classify`` without ``--json``) is measured beside the same b
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import sys
@@ -40,21 +42,23 @@ sys.path.insert(0, str(HERE.parents[1]))
 sys.path.insert(0, str(HERE))
 
 from fresh import HEADER, interleaved, machine, row, write_figures  # noqa: E402
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 
 
-def inputs(folder: Path, n: int) -> tuple[Path, Path]:
-    """The push CSV of n pushes and the force model file (made once per folder)."""
+def inputs(folder: Path, n: int, realism: str = "kind", seed: int = 1) -> tuple[Path, Path]:
+    """The push CSV of n pushes and the force model file (made once per folder and rig)."""
     from labcli.core.protocol import load_protocol
     from labcli.papers.takuma2014.models.takuma import TakumaModel
     from labcli.papers.takuma2014.protocol import load_plan
     from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
     from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS
     from labcli.papers.takuma2014.sim.rig import SimRig
     from labcli.papers.takuma2014.tables import write_push_csv
 
     force, push = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
-    rig = SimRig(seed=1)
-    model_path = folder / "force.model.json"
+    rig = SimRig(seed=seed, nonideal=NonIdeal(realism=realism))
+    model_path = folder / f"force-{realism}-{seed}.model.json"
     if not model_path.exists():
         trials = simulate_weight_trials(rig, load_plan(force), calibration=force.calibration)
         TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(trials).save(model_path)
@@ -63,7 +67,7 @@ def inputs(folder: Path, n: int) -> tuple[Path, Path]:
     table = pool.iloc[idx].reset_index(drop=True)
     table["push"] = np.arange(1, n + 1)
     table["object"] = table["object"] + "#" + (np.arange(n) // len(pool)).astype(str)
-    csv = folder / f"pushes-{n}.csv"
+    csv = folder / f"pushes-{n}-{realism}-{seed}.csv"
     write_push_csv(table, csv)
     return csv, model_path
 
@@ -83,8 +87,9 @@ def baseline_args(csv: Path, model: Path) -> list[str]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--sizes", default="1e5", help="comma-separated push counts (archive scale: 1e6)")
+    add_rig_options(ap, realism="kind", seeds="1", one=True)
     ap.add_argument("--repeat", type=int, default=5, help="rounds per figure (the median is kept)")
     ap.add_argument("--report", action="store_true", help="also the human report (classify without --json)")
     ap.add_argument("--figures", default=None, help="write the figures to this JSON file ({name: value})")
@@ -97,7 +102,7 @@ def main() -> None:
     print(HEADER)
     try:
         for n in (int(float(s)) for s in args.sizes.split(",")):
-            csv, model = inputs(folder, n)
+            csv, model = inputs(folder, n, args.realism, args.seeds[0])
             figures[f"push csv {n:.0e} MiB"] = round(csv.stat().st_size / 2**20, 1)
             command = ["-m", "labcli", "classify", str(csv), "--model", str(model), "--method", "bands"]
             ways = [("classify --json", [*command, "--json"])] + ([("classify report", command)] if args.report else [])

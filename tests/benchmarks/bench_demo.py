@@ -1,14 +1,17 @@
 """Wall time of ``labcli demo`` and of an unattended 108-trial ``labcli acquire``, as subprocesses.
 
-Run:  python tests/benchmarks/bench_demo.py [--seeds 1-3] [--import-repeat 10] [--skip-demo] [--skip-acquire]
+Run:  python tests/benchmarks/bench_demo.py [--seeds 1-3] [--realism kind] [--import-repeat 10]
+                                            [--skip-demo] [--skip-acquire]
 
 Each run is a fresh process in a fresh temporary folder, exactly as a user types it:
 
 * ``labcli demo OUT --seed S``: 108 force trials acquired unattended through the ``sim://``
   serial protocol (virtual clock), split, fit, validation with Figure 7, 60 pushes,
   classification with Figure 9, the summary;
-* ``labcli acquire RUN.h5 --port 'sim://?seed=S&clock=virtual' --unattended``: the 108
-  trials of the shipped takuma2014 plan, each written crash-safe.
+* ``labcli acquire RUN.h5 --port 'sim://?seed=S&clock=virtual&realism=R' --unattended``: the 108
+  trials of the shipped takuma2014 plan, each written crash-safe, on the rig of ``--realism``
+  (rig_options.py; kind by default, the rig docs/performance.md's figures were measured on).
+  ``labcli demo`` takes no realism: it runs the simulator's default rig whatever ``--realism`` says.
 
 Baseline, measured in the same run: ``python -c "import labcli.core.engine, labcli.core.store,
 labcli.papers.takuma2014.models.takuma"``, the start-up every one of those commands pays before its first
@@ -21,7 +24,6 @@ faster than real time the simulated rig runs the protocol.
 
 from __future__ import annotations
 
-import argparse
 import json
 import statistics
 import subprocess
@@ -29,6 +31,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from rig_options import add_rig_options, bench_parser
 
 ROOT = Path(__file__).resolve().parents[2]
 LABCLI = [sys.executable, "-m", "labcli"]
@@ -62,20 +66,15 @@ def device_seconds(path: Path) -> float:
     return end
 
 
-def seeds_from(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
-
-
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-3", help="rig seeds, e.g. 1-3 (one run of each command per seed)")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="1-3")  # one run of each command per seed
     ap.add_argument("--import-repeat", type=int, default=10, help="runs of the import baseline (median kept)")
     ap.add_argument("--skip-demo", action="store_true")
     ap.add_argument("--skip-acquire", action="store_true")
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file (for run_all.py)")
     args = ap.parse_args()
-    seeds = seeds_from(args.seeds)
+    seeds = args.seeds
 
     with tempfile.TemporaryDirectory(prefix="bench_demo_") as tmp:
         base = statistics.median(wall([sys.executable, "-c", IMPORTS], tmp) for _ in range(args.import_repeat))
@@ -87,7 +86,14 @@ def main() -> None:
             if not args.skip_acquire:
                 folder = Path(tempfile.mkdtemp(dir=tmp))
                 t = wall(
-                    LABCLI + ["acquire", "run.h5", "--port", f"sim://?seed={seed}&clock=virtual", "--unattended"],
+                    LABCLI
+                    + [
+                        "acquire",
+                        "run.h5",
+                        "--port",
+                        f"sim://?seed={seed}&clock=virtual&realism={args.realism}",
+                        "--unattended",
+                    ],
                     str(folder),
                 )
                 results.setdefault("acquire", []).append((t, device_seconds(folder / "run.h5")))

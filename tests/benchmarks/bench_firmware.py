@@ -1,6 +1,7 @@
 """The highest frame rate the reference firmware sustains with no frame lost, on simavr.
 
 Run:  python tests/benchmarks/bench_firmware.py [--seconds 5] [--bauds 115200,1000000] [--max-rate 2000]
+                                                 [--realism kind] [--seeds 1]
 
 The firmware (firmware/) is built for each line rate with its RATE guard lifted
 (RATE_MAX_HZ=5000), so rates past its limit can be tried, and twice per line
@@ -31,7 +32,6 @@ Needs gcc-avr, avr-libc and simavr (see firmware/README.md).
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 import shutil
@@ -45,6 +45,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 
 from labcli.core.sim import make_rig  # noqa: E402
 from labcli.core.sim.hil import HilLink  # noqa: E402
@@ -83,8 +85,11 @@ def build(folder: Path, baud: int, long_lines: bool) -> Path:
     return folder / "labcli_rig.elf"
 
 
+RIG = {"seed": 1, "realism": "kind"}  # --seeds, --realism: the kind rig, on which the docs' figures were measured
+
+
 def rig():
-    r = make_rig("mckibben", seed=1)
+    r = make_rig("mckibben", **RIG)
     r.supply_air()
     r.advance(5.0)  # 0.3 MPa: every value has four digits, as on a working rig
     r.close_valves()
@@ -169,12 +174,14 @@ def cause(p: Probe) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--seconds", type=float, default=5.0, help="simulated seconds per probe")
+    add_rig_options(ap, realism="kind", seeds="1", one=True)
     ap.add_argument("--bauds", default="115200,1000000")
     ap.add_argument("--max-rate", type=int, default=2000)
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
+    RIG.update(seed=args.seeds[0], realism=args.realism)
     figures: dict = {"simulated seconds per probe": args.seconds}
     if not (shutil.which("avr-gcc") and shutil.which("make") and Path("/usr/include/simavr/sim_avr.h").exists()):
         print(f"skipped: needs gcc-avr, avr-libc and simavr ({INSTALL})")

@@ -2,6 +2,7 @@
 and the agreement with the host, for models of each form, on simavr.
 
 Run:  python tests/benchmarks/bench_firmware_model.py [--seconds 3] [--bauds 115200,1000000] [--models force,bent,paper,friction]
+                                                       [--realism literature] [--seeds 3]
 
 Models: ``force`` (the sample force run refitted: the posture form with three quantities blended
 with the paper's: the heaviest), ``bent`` (the bent protocol's: the paper's angles, the posture
@@ -24,12 +25,15 @@ form's forces), ``paper`` (sample_runs/force-paper.model.json: Eqs. 34-37 alone)
   ``predict`` on the same counts and the baseline the board reported: the largest difference in
   % of the quantity's range over the run, and the share of estimates whose flags agree.
 
+The board streams from the simulated rig of ``--realism`` and ``--seeds`` (rig_options.py; default the
+literature's rig, seed 3, the one docs/hardware.md's figures were measured on).
+
 Needs gcc-avr, avr-libc and simavr (firmware/README.md).
 """
 
 from __future__ import annotations
 
-import argparse
+import functools
 import json
 import re
 import shutil
@@ -47,12 +51,15 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
+from rig_options import add_rig_options, bench_parser  # noqa: E402
+
 from labcli.core.board import baseline_counts  # noqa: E402
 from labcli.core.boardlines import Estimate, Event  # noqa: E402
 from labcli.core.protocol import load_protocol  # noqa: E402
 from labcli.core.sim.hil import HilLink  # noqa: E402
 from labcli.core.wire import Frame, LogLine, parse_line  # noqa: E402
 from labcli.papers.takuma2014.models.posture import PostureModel, load_force_model  # noqa: E402
+from labcli.papers.takuma2014.sim.nonideal import NonIdeal  # noqa: E402
 from labcli.papers.takuma2014.sim.rig import SimRig  # noqa: E402
 
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
@@ -165,8 +172,8 @@ class Board:
             return [parse_line(x, 6) for x in bytes(self._bytes).split(b"\n")[:-1]]
 
 
-def pressurised() -> SimRig:
-    rig = SimRig(seed=3, tau_s=0.3)
+def pressurised(seed: int = 3, realism: str = "literature") -> SimRig:
+    rig = SimRig(seed=seed, tau_s=0.3, nonideal=NonIdeal(realism=realism))
     rig.supply_air()
     rig.advance(3.0)
     rig.close_valves()
@@ -174,9 +181,9 @@ def pressurised() -> SimRig:
     return rig
 
 
-def keeps_up(elf: Path, rate: float, seconds: float) -> tuple[bool, str]:
+def keeps_up(elf: Path, rate: float, seconds: float, rig_of=pressurised) -> tuple[bool, str]:
     """Stream at ``rate`` with an estimate line per frame: every frame estimated and sent?"""
-    board = Board(elf, pressurised())
+    board = Board(elf, rig_of())
     try:
         board.send("RATE 20", "START")
         board.run(1.6)  # the baseline, at a rate the chip surely keeps up with
@@ -195,20 +202,20 @@ def keeps_up(elf: Path, rate: float, seconds: float) -> tuple[bool, str]:
     return ok, f"{logs[-2]} / {logs[-1]}"
 
 
-def highest_rate(elf: Path, seconds: float, hi: float) -> tuple[float, str]:
+def highest_rate(elf: Path, seconds: float, hi: float, rig_of=pressurised) -> tuple[float, str]:
     lo, why = 1.0, ""
     while hi - lo > 1.0:
         mid = round((lo + hi) / 2)
-        ok, text = keeps_up(elf, mid, seconds)
+        ok, text = keeps_up(elf, mid, seconds, rig_of)
         lo, hi = (mid, hi) if ok else (lo, mid)
         why = text if not ok else why
     return lo, why
 
 
-def agreement(elf: Path, model_path: Path) -> tuple[np.ndarray, float, int]:
+def agreement(elf: Path, model_path: Path, rig_of=pressurised) -> tuple[np.ndarray, float, int]:
     """Largest |chip - host| in % of each quantity's range; share of flags alike; estimates compared."""
     model = load_force_model(model_path)
-    rig = pressurised()
+    rig = rig_of()
     board = Board(elf, rig)
     try:
         board.send("RATE 50", "EST 1", "START")
@@ -248,12 +255,14 @@ def agreement(elf: Path, model_path: Path) -> tuple[np.ndarray, float, int]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--seconds", type=float, default=3.0, help="simulated seconds each rate is held")
     ap.add_argument("--bauds", default="115200,1000000")
     ap.add_argument("--models", default="force,bent,paper")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
+    add_rig_options(ap, realism="literature", seeds="3", one=True)
     args = ap.parse_args()
+    rig_of = functools.partial(pressurised, args.seeds[0], args.realism)
     figures: dict = {"simulated seconds per probe": args.seconds}
     if not (shutil.which("avr-gcc") and Path("/usr/include/simavr/sim_avr.h").exists()):
         sys.exit(
@@ -286,7 +295,7 @@ def main() -> None:
                     f"{name} ms with history": c[64] / 16e3,
                 }
             )
-            pct, flags, n = agreement(built / "labcli_rig.elf", path)
+            pct, flags, n = agreement(built / "labcli_rig.elf", path, rig_of)
             figures.update({f"{name} {q} difference %": float(v) for q, v in zip(QUANTITIES, pct, strict=True)})
             figures[f"{name} flags alike %"] = 100 * flags
             print(
@@ -296,7 +305,7 @@ def main() -> None:
             )
             for baud in (int(b) for b in args.bauds.split(",")):
                 elf = build(work, path, baud, "-DRATE_MAX_HZ=2000") / "labcli_rig.elf"
-                rate, why = highest_rate(elf, args.seconds, 400.0)
+                rate, why = highest_rate(elf, args.seconds, 400.0, rig_of)
                 figures[f"{name} {baud} max Hz"] = rate
                 print(
                     f"  {baud} baud: every frame estimated and sent up to {rate:g} Hz "

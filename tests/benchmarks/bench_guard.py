@@ -1,6 +1,7 @@
 """The load check's false alarms on correct runs: the shipped plan acquired unattended, nothing wrong done.
 
-Run:  python tests/benchmarks/bench_guard.py [--seeds 1-10] [--rigs NAME=OPTIONS;...] [--jobs 2] [--figures FILE]
+Run:  python tests/benchmarks/bench_guard.py [--seeds 1-10] [--realism kind,literature] [--rigs NAME=OPTIONS;...]
+                                            [--jobs 2] [--figures FILE]
 
 For each rig and seed, the paper's 108-trial plan is acquired unattended on the simulated rig
 (``sim://?seed=N&clock=virtual&OPTIONS``, its 1.1 board driving the valves) through the real
@@ -12,12 +13,13 @@ all, runs stopped, trials stored.
 
 Default rigs: the kind rig (the default when these figures were measured); the literature's (the
 default now); the kind rig at two, three and four times its sleeve friction (four times is the
-literature's level); the literature's at twice its own.
+literature's level); the literature's at twice its own.  ``--realism`` (rig_options.py) keeps the
+rigs of the realisms it names (default both); a rig of ``--rigs`` that names no realism runs on the
+first of them.
 """
 
 from __future__ import annotations
 
-import argparse
 import io
 import json
 import sys
@@ -27,6 +29,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
+
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 RIGS = (
     "kind=realism=kind",
@@ -62,26 +66,24 @@ def one(url: str) -> tuple[int, bool, int, list[str]]:
         return stored, stopped, len(warned) + stopped, warned + why
 
 
-def seeds_of(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",")]
-
-
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-10", help="seeds of the simulated rig (1-10: the tuning seeds)")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind,literature", seeds="1-10", several=True)  # 1-10: the tuning seeds
     ap.add_argument("--rigs", default=";".join(RIGS), help="NAME=SIM_OPTIONS;... (default: the six of the docstring)")
     ap.add_argument("--jobs", type=int, default=2, help="runs at once")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
-    seeds = seeds_of(args.seeds)
-    rigs = [r.split("=", 1) for r in args.rigs.split(";")]
+    seeds = args.seeds
+    rigs = []
+    for name, _, opts in (r.partition("=") for r in args.rigs.split(";")):
+        if "realism=" not in opts:
+            opts = "&".join(filter(None, (f"realism={args.realism[0]}", opts)))
+        if any(f"realism={r}" in opts.split("&") for r in args.realism):
+            rigs.append((name, opts))
     urls = [
         (name, f"sim://?seed={s}&clock=virtual" + (f"&{opts}" if opts else "")) for name, opts in rigs for s in seeds
     ]
-    figures: dict = {"seeds": args.seeds, "trials per run": 108}
+    figures: dict = {"seeds": seeds_text(seeds), "trials per run": 108}
     with ProcessPoolExecutor(args.jobs) as ex:
         results = list(ex.map(one, [u for _, u in urls]))
     for name, _ in rigs:

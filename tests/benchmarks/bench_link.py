@@ -1,9 +1,10 @@
 """End to end over a pseudo-terminal: the simulated rig at 1 kHz x 6 channels.
 
 Run:  python tests/benchmarks/bench_link.py [--seconds 10] [--rounds 5] [--rate 1000]
-                                       [--faults KIND:RATE[@X],...] [--figures FILE]
+                                       [--faults KIND:RATE[@X],...] [--figures FILE] [--realism kind] [--seeds 1]
 
-The rig runs in its own process (``labcli sim --pty``, wall clock), as a
+The rig runs in its own process (``labcli sim --pty --seed S --realism R``, wall clock; the kind
+rig, seed 1, by default, on which the docs' figures were measured: rig_options.py), as a
 microcontroller would; this process is the host.  Measured per path, over the
 same pty in the same run:
 
@@ -49,6 +50,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import serial  # noqa: E402
 from fresh import command_line  # noqa: E402
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 
 from labcli.core.device import Device  # noqa: E402
 
@@ -57,8 +59,9 @@ STOP_REPLY_S = 5.0  # OK STOP arrives within this after STOP, the backlog draine
 EXIT_S = 10.0  # the rig process exits within this after SIGINT
 
 
-def start_rig(rate: float, faults: str) -> tuple[subprocess.Popen, str]:
-    cmd = [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", "1", "--rate", f"{rate:g}"]
+def start_rig(rate: float, faults: str, seed: int = 1, realism: str = "kind") -> tuple[subprocess.Popen, str]:
+    cmd = [sys.executable, "-m", "labcli", "sim", "--pty", "--seed", str(seed), "--realism", realism]
+    cmd += ["--rate", f"{rate:g}"]
     if faults:
         cmd += ["--faults", faults]
     # stdin from /dev/null: the rig's operator console sees the end of its input at once.
@@ -179,8 +182,9 @@ def run_child(which: str, path: str, rate: float, seconds: float) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--seconds", type=float, default=10.0, help="duration of each path in each round, s")
+    add_rig_options(ap, realism="kind", seeds="1", one=True)
     ap.add_argument("--rounds", type=int, default=5, help="rounds, each path once a round (fresh processes)")
     ap.add_argument("--rate", type=float, default=1000.0, help="frames per second")
     ap.add_argument("--faults", default="", help="fault specification for the rig (labcli path only, one round)")
@@ -194,7 +198,7 @@ def main() -> None:
 
     t_start = time.monotonic()
     load = os.getloadavg()
-    proc, path = start_rig(a.rate, a.faults)
+    proc, path = start_rig(a.rate, a.faults, a.seeds[0], a.realism)
     rounds: list[list[dict]] = []
     try:
         for r in range(1 if a.faults else a.rounds):

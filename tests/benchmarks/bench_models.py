@@ -1,7 +1,7 @@
 """Fit, validate and classify from 10^2 to 10^6 trials, against a bare numpy lstsq of the same size.
 
 Run:  python tests/benchmarks/bench_models.py [--sizes 1e2,1e3,1e4,1e5,1e6] [--repeat 5] [--repeat-large 2]
-                                         [--no-memory]
+                                         [--no-memory] [--realism kind] [--seeds 1]
 
 Inputs, built once before any timing:
 
@@ -14,7 +14,8 @@ Inputs, built once before any timing:
   (:func:`labcli.papers.takuma2014.sim.drive.simulate_pushes`), tiled to n pushes with 1 count of fresh
   pressure noise, classified with a model fitted on the rig's 90 weight trials.  Two
   shapes: the six objects pushed n / 6 times each (``classify``), and an archive of n / 10
-  objects pushed ten times each, every copy of the pool named apart (``archive``).
+  objects pushed ten times each, every copy of the pool named apart (``archive``).  The rig is the kind one
+  (``--realism``, rig_options.py), the one docs/performance.md's figures were measured on.
 
 Timed at each n (best of ``--repeat``, ``--repeat-large`` from 10^5 on):
 
@@ -35,7 +36,6 @@ costs no longer dominate, and over the whole range), and the peak traced memory
 
 from __future__ import annotations
 
-import argparse
 import gc
 import json
 import os
@@ -61,8 +61,12 @@ from labcli.papers.takuma2014.models.synthetic import PAPER_GEOMETRY, add_sensor
 from labcli.papers.takuma2014.models.takuma import TakumaModel  # noqa: E402
 from labcli.papers.takuma2014.protocol import load_plan  # noqa: E402
 from labcli.papers.takuma2014.sim.drive import simulate_pushes, simulate_weight_trials  # noqa: E402
+from labcli.papers.takuma2014.sim.nonideal import NonIdeal  # noqa: E402
 from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
 from labcli.papers.takuma2014.sim.rig import SimRig  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 
 POOL = 2000
 PRESSURES = ("P_L10", "P_R10", "P_L20", "P_R20", "P_L1", "P_R1", "P_L2", "P_R2")
@@ -106,8 +110,9 @@ def slope(ns: list[int], ts: list[float]) -> float:
 
 # Over 80 lines: one benchmark from its options to its printed table, each step a column of it.
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--sizes", default="1e2,1e3,1e4,1e5,1e6", help="numbers of trials, comma-separated")
+    add_rig_options(ap, realism="kind", seeds="1", one=True)  # the push pool's rig
     ap.add_argument("--repeat", type=int, default=5, help="repeats below 10^5 trials (best is kept)")
     ap.add_argument("--repeat-large", type=int, default=2, help="repeats from 10^5 trials on")
     ap.add_argument("--no-memory", action="store_true", help="skip the tracemalloc pass at the largest n")
@@ -120,7 +125,7 @@ def main() -> None:
     geometry = dict(PAPER_GEOMETRY)
     force, push = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
     bands = push.settings.push.stiffness_bands_N_per_m
-    rig = SimRig(seed=1)
+    rig = SimRig(seed=args.seeds[0], nonideal=NonIdeal(realism=args.realism))
     push_model = TakumaModel(geometry=force.settings.rig, protocol=force.name).fit(
         simulate_weight_trials(rig, load_plan(force), calibration=force.calibration)
     )

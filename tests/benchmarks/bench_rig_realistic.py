@@ -1,12 +1,13 @@
 """What the realistic simulated rig costs: the unattended 108-trial run on it against the ideal rig.
 
-Run:  python tests/benchmarks/bench_rig_realistic.py [--seed N] [--repeat R] [--parts]
+Run:  python tests/benchmarks/bench_rig_realistic.py [--seeds N] [--realism kind] [--repeat R] [--parts]
 
 Both runs are the library call ``labcli acquire RUN --port 'sim://?seed=N' --unattended``
 makes (virtual clock, the shipped protocol and plan): setup, air, 108 trials of
 baseline, load, settling, capture and review, the crash-safe writes, the split.  The
-default rig has sleeve friction, leak, heat, backlash and link weight
-(:mod:`labcli.papers.takuma2014.sim.nonideal`); ``&ideal=1`` turns them off.  The two alternate, R times
+rig has sleeve friction, leak, heat, backlash and link weight at the levels of ``--realism``
+(:mod:`labcli.papers.takuma2014.sim.nonideal`; kind by default, the rig the docs' figures were
+measured on; rig_options.py); ``&ideal=1`` turns them off.  The two alternate, R times
 each, in this one process, and the figures are medians:
 
 * wall and CPU time of each run, and realistic / ideal;
@@ -21,7 +22,6 @@ each, in this one process, and the figures are medians:
 
 from __future__ import annotations
 
-import argparse
 import functools
 import io
 import statistics
@@ -34,6 +34,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from rich.console import Console  # noqa: E402
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 
 from labcli.core.acquisition import acquire  # noqa: E402
 from labcli.core.device import Device  # noqa: E402
@@ -114,14 +115,15 @@ def one_run(port: str, meter: Meter | None) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=1)
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="1", one=True)
     ap.add_argument("--repeat", type=int, default=3, help="runs of each rig, alternating (default 3)")
     ap.add_argument("--parts", action="store_true", help="CPU time per part of the run (adds a little overhead)")
     args = ap.parse_args()
+    seed = args.seeds[0]
     ports = {
-        "realistic": f"sim://?seed={args.seed}&clock=virtual",
-        "ideal": f"sim://?seed={args.seed}&clock=virtual&ideal=1",
+        "realistic": f"sim://?seed={seed}&clock=virtual&realism={args.realism}",
+        "ideal": f"sim://?seed={seed}&clock=virtual&realism={args.realism}&ideal=1",
     }
     meter = Meter() if args.parts else None
     if meter is not None:
@@ -136,7 +138,9 @@ def main() -> None:
 
     med = {rig: {k: statistics.median(r[k] for r in rs) for k in ("wall", "cpu", "device")} for rig, rs in runs.items()}
     real, ideal = med["realistic"], med["ideal"]
-    print(f"unattended 108-trial run, seed {args.seed}, median of {args.repeat} runs of each rig (alternating):")
+    print(
+        f"unattended 108-trial run, {args.realism} rig, seed {seed}, median of {args.repeat} runs of each rig (alternating):"
+    )
     print(f"{'rig':10s} {'wall (s)':>9s} {'CPU (s)':>9s} {'device (s)':>11s} {'wall per device s (ms)':>23s}")
     for rig in ports:
         m = med[rig]

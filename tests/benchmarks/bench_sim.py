@@ -1,6 +1,6 @@
 """Frame generation of the simulated rig against a per-frame baseline.
 
-Run:  python tests/benchmarks/bench_sim.py [--frames N] [--repeat R]
+Run:  python tests/benchmarks/bench_sim.py [--frames N] [--repeat R] [--realism kind] [--seeds 1]
 
 Both sides produce the same bytes for N frames of the reference rig (six
 12-bit channels, 1 kHz): the rig's vectorised ``samples`` then either the
@@ -8,12 +8,12 @@ firmware's column-wise :func:`labcli.core.sim.firmware.format_frames` or the
 baseline, :func:`labcli.core.wire.format_frame` called once per frame.  Also
 reported: device seconds produced per wall second through a ``sim://`` port
 (virtual clock) read in 64 KiB chunks.  Best of R runs; the ratio is measured
-in the same run on the same machine.
+in the same run on the same machine.  The rig is the kind one (``--realism``, rig_options.py), the
+one docs/performance.md's figures were measured on.
 """
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -24,7 +24,11 @@ import numpy as np  # noqa: E402
 
 from labcli.core.sim.firmware import format_frames  # noqa: E402
 from labcli.core.wire import format_frame  # noqa: E402
+from labcli.papers.takuma2014.sim.nonideal import NonIdeal  # noqa: E402
 from labcli.papers.takuma2014.sim.rig import SimRig  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 
 
 def best(fn, repeat: int) -> tuple[float, object]:
@@ -37,14 +41,15 @@ def best(fn, repeat: int) -> tuple[float, object]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser()
+    ap = bench_parser(__doc__)
     ap.add_argument("--frames", type=int, default=100_000)
     ap.add_argument("--repeat", type=int, default=3)
+    add_rig_options(ap, realism="kind", seeds="1", one=True)
     a = ap.parse_args()
-    n = a.frames
+    n, seed = a.frames, a.seeds[0]
 
     def samples():
-        rig = SimRig(seed=1)
+        rig = SimRig(seed=seed, nonideal=NonIdeal(realism=a.realism))
         rig.supply_air()
         return rig.samples(n, 1000.0)
 
@@ -62,7 +67,7 @@ def main() -> None:
     from labcli.core.sim import register
 
     register()
-    port = serial.serial_for_url("sim://?seed=1&rate=1000", timeout=1.0)
+    port = serial.serial_for_url(f"sim://?seed={seed}&rate=1000&realism={a.realism}", timeout=1.0)
     port.write(b"START\n")
     t = time.perf_counter()
     got = 0

@@ -1,6 +1,7 @@
 """Stiffness and category accuracy of ``labcli classify`` on the simulated rig.
 
-Run:  python tests/benchmarks/classify_accuracy.py [--seeds 1-10] [--pushes 10] [--ideal | --only EFFECT]
+Run:  python tests/benchmarks/classify_accuracy.py [--seeds 1-10] [--realism kind] [--pushes 10]
+                                                  [--ideal | --only EFFECT]
                                                   [--figures FILE.json]
 
 For each rig seed (actuator variation, sensor offsets, noise): fit the paper's
@@ -18,7 +19,6 @@ one alone, to see what each costs.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -28,6 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import pandas as pd  # noqa: E402
 from acquired import Windows, acquired_air, protocol_settle_s  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 from labcli.core.protocol import load_protocol  # noqa: E402
 from labcli.papers.takuma2014.models.classify import classify_pushes  # noqa: E402
@@ -107,8 +108,9 @@ def classify_rows(trials, table, model, policy: str = "project", angles: str = "
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10")
+    ap = bench_parser(__doc__)
+    # The kind rig by default, the one the docs' figures were measured on.
+    add_rig_options(ap, realism="kind", seeds="1-10")
     ap.add_argument("--pushes", type=int, default=10, help="pushes per object")
     ap.add_argument("--ideal", action="store_true", help="the rig with its non-idealities off")
     ap.add_argument(
@@ -118,14 +120,13 @@ def main() -> None:
     )
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
-    # The kind rig (realism=kind), the one the docs' figures were measured on.
-    rig_kw = {"nonideal": NonIdeal(realism="kind")}
+    realism = args.realism
+    rig_kw = {"nonideal": NonIdeal(realism=realism)}
     if args.ideal:
-        rig_kw["nonideal"] = NonIdeal.ideal("kind")
+        rig_kw["nonideal"] = NonIdeal.ideal(realism)
     elif args.only:
-        rig_kw["nonideal"] = NonIdeal(**{**NonIdeal.ideal("kind").as_dict(), args.only: 1.0}, realism="kind")
-    lo, _, hi = args.seeds.partition("-")
-    seeds = range(int(lo), int(hi or lo) + 1)
+        rig_kw["nonideal"] = NonIdeal(**{**NonIdeal.ideal(realism).as_dict(), args.only: 1.0}, realism=realism)
+    seeds = args.seeds
     force = load_protocol("takuma2014")
     rows = []
     for seed in seeds:
@@ -147,7 +148,7 @@ def main() -> None:
     print(f"seeds {seeds.start}-{seeds.stop - 1}, {args.pushes} pushes per object, phi given")
     print(out.round(3).to_string())
     if args.figures:
-        figures: dict = {"seeds": args.seeds, "pushes per object": args.pushes}
+        figures: dict = {"seeds": seeds_text(seeds), "pushes per object": args.pushes}
         for (policy, angles, obj), row in out.iterrows():
             for col, v in row.items():
                 figures[f"{policy} {angles} {obj} {col}"] = float(v)

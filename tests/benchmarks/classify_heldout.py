@@ -22,7 +22,6 @@ choices were made on seeds 1-10; report 11-30.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -36,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from baseline_estimator import wilson  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ESTIMATORS = ("fit", "none")  # label_play of the paper's form
 BOOTSTRAP = 2000
@@ -116,14 +116,12 @@ def summarise(raw: dict[int, dict[str, Any]]) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11-30")
-    ap.add_argument("--realism", default="kind", choices=("kind", "literature"))
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="11-30")
     ap.add_argument("--runs", help="keep each seed's run files in this folder (reused when present)")
     ap.add_argument("--figures", help="write the summary figures to this JSON file")
     args = ap.parse_args(argv)
-    lo, _, hi = args.seeds.partition("-")
-    seeds = list(range(int(lo), int(hi or lo) + 1))
+    seeds = args.seeds
     raw: dict[int, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory(prefix="labcli-heldout-") as tmp:
         root = Path(args.runs) if args.runs else Path(tmp)
@@ -131,7 +129,7 @@ def main(argv: list[str] | None = None) -> None:
             raw[seed] = seed_rows(*acquire_seed(seed, args.realism, root / f"{args.realism}-seed{seed}"))
             print(f"seed {seed} done", file=sys.stderr)
     fig = summarise(raw)
-    print(f"{args.realism} rig, seeds {args.seeds}, demo path (bands), paper form")
+    print(f"{args.realism} rig, seeds {seeds_text(seeds)}, demo path (bands), paper form")
     for est in ESTIMATORS:
         label = "play fitted" if est == "fit" else "readings as read (before)"
         plays = [fig[f"{est} play_deg theta{k} median"] for k in (1, 2)]

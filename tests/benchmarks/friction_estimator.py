@@ -18,7 +18,8 @@ them and each P0 the mean of RELIEVED_BASELINES baselines (``relieved``, what ``
 makes of such a run).  The plan, the rig seed and its draws are the same; the
 runs differ by the relief alone.  Ratios are each form's RMSE over the reference's.
 
-    nice python tests/benchmarks/friction_estimator.py [--seeds 11-30] [--cache FILE] [--figures OUT]
+    nice python tests/benchmarks/friction_estimator.py [--seeds 11-30] [--realism literature] [--cache FILE]
+                                                       [--figures OUT]
     nice python tests/benchmarks/friction_estimator.py --relief 3 --vent 2 [--vent-side L] ...
 
 The friction terms' fade (FRICTION_MOTION_RAD) and the relief's pulse and vent were chosen on
@@ -27,7 +28,6 @@ seeds 1-10; nothing here is tuned.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import subprocess
@@ -41,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from baseline_estimator import wilson  # noqa: E402
-from sensitivity import seeds_of  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOLS = {"straight": "takuma2014", "bent": "takuma2014-bent"}
@@ -57,7 +57,9 @@ def forms_of(relief: float, vent: float) -> tuple[str, ...]:
     return ("plain", "relief_plain", "relief_terms", "relieved") if vent > 0 else ("plain", "relief_plain")
 
 
-def measure(seed: int, relief: float = 0.0, vent: float = 0.0, side: str = "L") -> dict[str, Any]:
+def measure(
+    seed: int, relief: float = 0.0, vent: float = 0.0, side: str = "L", realism: str = "literature"
+) -> dict[str, Any]:
     """Per protocol, form and quantity: the validation errors, which trials are reported, interval hits."""
     from sensing_accuracy import trials
 
@@ -74,7 +76,7 @@ def measure(seed: int, relief: float = 0.0, vent: float = 0.0, side: str = "L") 
         "relieved": "relieved",
     }
     for short, name in PROTOCOLS.items():
-        rig_kw = {"nonideal": NonIdeal(realism="literature")}
+        rig_kw = {"nonideal": NonIdeal(realism=realism)}
         runs = {"": trials(name, seed, rig_kw=rig_kw)}
         if relief > 0:  # the relief before each baseline, the same wait and re-supply rule as acquired
             runs["relief"] = trials(name, seed, rig_kw=rig_kw, relief_s=relief, relief_vent_s=vent, relief_vent=side)
@@ -170,8 +172,8 @@ def figures(raw: dict[int, dict[str, Any]], forms: tuple[str, ...] = FORMS) -> d
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11-30", help="held-out rig seeds (default 11-30)")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="literature", seeds="11-30")  # 11-30: the held-out seeds
     ap.add_argument("--cache", type=Path, default=None, help="JSON-lines file of measured seeds (resumable)")
     ap.add_argument("--relief", type=float, default=0.0, help="the friction relief's supply pulse, s (0: none)")
     ap.add_argument("--vent", type=float, default=0.0, help="with --relief: vent one side this long first, s")
@@ -183,25 +185,26 @@ def main(argv: list[str] | None = None) -> None:
     name = "friction-relief" if args.relief > 0 else "friction-estimator"
     args.json = args.json or ROOT / "docs" / "figures" / f"{name}.json"
     forms = forms_of(args.relief, args.vent)
-    config = {"relief": args.relief, "vent": args.vent, "side": args.vent_side}
-    seeds = seeds_of(args.seeds)
+    config = {"relief": args.relief, "vent": args.vent, "side": args.vent_side, "realism": args.realism}
+    seeds = args.seeds
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
     done: dict[int, dict[str, Any]] = {}
     if args.cache is not None and args.cache.exists():
         for line in args.cache.read_text().splitlines():
             if line.strip():
                 rec = json.loads(line)
-                if rec.get("config", {"relief": 0.0, "vent": 0.0, "side": "L"}) == config:
+                # a record of before --realism: the literature's rig
+                if {"realism": "literature", **rec.get("config", {"relief": 0.0, "vent": 0.0, "side": "L"})} == config:
                     done[int(rec["seed"])] = rec["raw"]
     for seed in seeds:
         if seed not in done:
-            done[seed] = measure(seed, args.relief, args.vent, args.vent_side)
+            done[seed] = measure(seed, args.relief, args.vent, args.vent_side, args.realism)
             print(f"  measured seed {seed}", file=sys.stderr, flush=True)
             if args.cache is not None:
                 with args.cache.open("a") as f:
                     f.write(json.dumps({"seed": seed, "config": config, "raw": done[seed]}) + "\n")
     figs = figures({s: done[s] for s in seeds}, forms)
-    print(f"held-out seeds {args.seeds}, literature's rig ({config}): RMSE of {' / '.join(forms)}")
+    print(f"held-out seeds {seeds_text(seeds)}, {args.realism} rig ({config}): RMSE of {' / '.join(forms)}")
     for short in PROTOCOLS:
         for q in QUANTITIES:
             k = f"{short}/{q}"
@@ -214,7 +217,9 @@ def main(argv: list[str] | None = None) -> None:
                     f"reported {figs[f'{k}/{f}/reported']}, coverage {figs[f'{k}/{f}/coverage']:.2f})"
                 )
             print(f"{k:16s} plain {' -> '.join(parts)}; plain coverage {figs[f'{k}/plain/coverage']:.2f}")
-    meta = {"meta/commit": head, "meta/seeds": args.seeds, "meta/bootstrap": BOOTSTRAP}
+    meta = {"meta/commit": head, "meta/seeds": seeds_text(seeds), "meta/bootstrap": BOOTSTRAP}
+    if args.realism != "literature":
+        meta["meta/realism"] = args.realism
     if args.relief > 0:
         meta.update({"meta/relief_s": args.relief, "meta/vent_s": args.vent, "meta/vent_side": args.vent_side})
     flat: dict[str, Any] = {}

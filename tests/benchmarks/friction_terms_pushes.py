@@ -23,14 +23,13 @@ can right on 9 and 15 seeds); on the kind rig every object in category with both
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from classify_accuracy import classify_rows, trials_and_pushes  # noqa: E402
-from sensitivity import seeds_of  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 FORMS = {"posture": False, "friction terms": True}
 
@@ -62,12 +61,11 @@ def summary(rows: list[dict]) -> dict:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 11-30")
-    ap.add_argument("--realism", choices=("kind", "literature"), default="literature", help="the rig's levels")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="literature", seeds="1-10")
     args = ap.parse_args(argv)
     totals = {form: {"right": 0, "none": 0, "n": 0, "steel right": 0, "steel none": 0} for form in FORMS}
-    for seed in seeds_of(args.seeds):
+    for seed in args.seeds:
         parts = []
         for form, rows in measure(seed, args.realism).items():
             s, t = summary(rows), totals[form]
@@ -80,7 +78,7 @@ def main(argv: list[str] | None = None) -> None:
                 f"steel {s['steel']['category'] or '-'} (k/k_true {s['steel']['ratio']:.2f})"
             )
         print(f"seed {seed:3d}  " + "  |  ".join(parts), flush=True)
-    print(f"\n{args.realism} rig, seeds {args.seeds}, straight arm, phi given, the protocol's bands:")
+    print(f"\n{args.realism} rig, seeds {seeds_text(args.seeds)}, straight arm, phi given, the protocol's bands:")
     for form, t in totals.items():
         print(
             f"  {form:15s} objects in category {t['right']}/{t['n']}, with every push flagged {t['none']}; "

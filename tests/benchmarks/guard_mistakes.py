@@ -8,11 +8,13 @@ goes on at the next prompt).  A mistake is caught when any trial of the run is w
 seeds 1-10; report on held-out seeds (11-30)::
 
     python tests/benchmarks/guard_mistakes.py --seeds 11-20 --realism literature
+
+``--realism`` and ``--seeds`` as every benchmark takes them (rig_options.py); the default rig is the
+literature's, docs/load-check.md's first row (its kind row: ``--realism kind``).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -22,6 +24,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "papers" / "takuma2014"))
 
 import test_guard_first_trial as scripted  # noqa: E402
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 from test_valves_session import Person  # noqa: E402
 
 from labcli.papers.takuma2014.session import HangWeight  # noqa: E402
@@ -55,12 +58,10 @@ def caught(url: str, trial: int, n: int, how) -> bool:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-10", help="seeds of the simulated rig (1-10: the tuning seeds)")
-    ap.add_argument("--realism", default="literature", help="the rig's realism= (literature, kind)")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="literature", seeds="1-10")  # 1-10: the tuning seeds
     args = ap.parse_args()
-    lo, _, hi = args.seeds.partition("-")
-    seeds = range(int(lo), int(hi or lo) + 1)
+    seeds = args.seeds
     out: dict[str, list[int]] = {}
     for name, trial, n, how in MISTAKES:
         out[name] = [s for s in seeds if caught(f"sim://?seed={s}&clock=virtual&realism={args.realism}", trial, n, how)]

@@ -1,6 +1,6 @@
 """Accuracy, not time: design choices made on seeds 1-10, measured again on the held-out seeds 11-30.
 
-Each choice against the alternative it replaced, on the default (kind) simulated rig:
+Each choice against the alternative it replaced, on the kind simulated rig (``--realism``, rig_options.py):
 
 * ``terms``: the posture form's torque terms grown by cross-validation (models/posture.py,
   ``select_torque_terms``) against all 14 of the derivation's terms; the bent protocol's Fx RMSE
@@ -12,12 +12,11 @@ Each choice against the alternative it replaced, on the default (kind) simulated
   against the mean; pushes with phi left blank on the bent arm (tests/benchmarks/phi_bent.py),
   seeds with all six objects in their category.
 
-    nice python tests/benchmarks/heldout_choices.py [--seeds 11-30] [terms] [theta1] [median]
+    nice python tests/benchmarks/heldout_choices.py [--seeds 11-30] [--realism kind] [terms] [theta1] [median]
 """
 
 from __future__ import annotations
 
-import argparse
 import sys
 import types
 from pathlib import Path
@@ -27,10 +26,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from sensitivity import seeds_of  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 
-def terms(seeds: list[int]) -> None:
+def terms(seeds: list[int], realism: str = "kind") -> None:
     from sensing_accuracy import trials
 
     import labcli.papers.takuma2014.models.posture as pm
@@ -40,7 +39,7 @@ def terms(seeds: list[int]) -> None:
     errs: dict[str, list[np.ndarray]] = {"terms grown": [], "all 14 terms": []}
     try:
         for s in seeds:
-            proto, table = trials("takuma2014-bent", s, 8.0, repressurise_kPa=0.0)
+            proto, table = trials("takuma2014-bent", s, 8.0, repressurise_kPa=0.0, realism=realism)
             for name in errs:
                 pm.select_torque_terms = (
                     grown if name == "terms grown" else (lambda blocks, names=pm.TORQUE_TERMS: names)
@@ -53,7 +52,7 @@ def terms(seeds: list[int]) -> None:
     _report("bent protocol, Fx RMSE over the reported validation trials", errs, seeds, "N")
 
 
-def theta1(seeds: list[int]) -> None:
+def theta1(seeds: list[int], realism: str = "kind") -> None:
     from sensing_accuracy import trials
 
     import labcli.papers.takuma2014.models.posture as pm
@@ -61,7 +60,7 @@ def theta1(seeds: list[int]) -> None:
 
     errs: dict[str, list[np.ndarray]] = {"own equation": [], "shared design": []}
     for s in seeds:
-        proto, table = trials("takuma2014-bent", s, 8.0, repressurise_kPa=0.0)
+        proto, table = trials("takuma2014-bent", s, 8.0, repressurise_kPa=0.0, realism=realism)
         # The posture form alone: with the route choice the bent arm's theta1 comes from the paper's form.
         model = pm.PostureModel(geometry=proto.settings.rig, limits=pm.limits_from_protocol(proto))
         model.fit(table, choose_routes=False)
@@ -75,7 +74,7 @@ def theta1(seeds: list[int]) -> None:
 
 def _report(what: str, errs: dict[str, list[np.ndarray]], seeds: list[int], unit: str) -> None:
     rng = np.random.default_rng(1)
-    print(f"{what}, seeds {seeds[0]}-{seeds[-1]}:")
+    print(f"{what}, seeds {seeds_text(seeds)}:")
     for name, per_seed in errs.items():
         x = np.concatenate(per_seed)
         boots = [
@@ -86,10 +85,13 @@ def _report(what: str, errs: dict[str, list[np.ndarray]], seeds: list[int], unit
         print(f"  {name:14s} {np.sqrt(np.mean(x**2)):.3f} {unit} [{lo:.3f}, {hi:.3f}]  ({x.size} trials)")
 
 
-def median(seeds: list[int]) -> None:
+def median(seeds: list[int], realism: str = "kind") -> None:
     from phi_bent import run
 
     import labcli.papers.takuma2014.models.categories as cg
+    from labcli.papers.takuma2014.sim.nonideal import NonIdeal
+
+    rig_kw = {"nonideal": NonIdeal(realism=realism)}  # the pushes' rig too, not the simulator's default
 
     by_mean = types.ModuleType("numpy_with_mean_for_median")
     by_mean.__dict__.update(np.__dict__)
@@ -99,24 +101,23 @@ def median(seeds: list[int]) -> None:
         for s in seeds:
             for rule in out:
                 cg.np = np if rule == "median" else by_mean  # type: ignore[attr-defined]
-                out[rule].append(run(s, "pressure-only"))
+                out[rule].append(run(s, "pressure-only", rig_kw))
     finally:
         cg.np = np  # type: ignore[attr-defined]
-    print(f"bent arm, phi left blank, seeds {seeds[0]}-{seeds[-1]}:")
+    print(f"bent arm, phi left blank, seeds {seeds_text(seeds)}:")
     for rule, rows in out.items():
         six = sum(r[2] == 6 for r in rows)
         print(f"  category from the {rule:6s}: all six objects right on {six} of {len(rows)} seeds")
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11-30")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="11-30")
     names = ["terms", "theta1", "median"]
     ap.add_argument("choices", nargs="*", choices=names, help=f"which (default all: {', '.join(names)})")
     args = ap.parse_args(argv)
-    seeds = seeds_of(args.seeds)
     for choice in args.choices or names:
-        {"terms": terms, "theta1": theta1, "median": median}[choice](seeds)
+        {"terms": terms, "theta1": theta1, "median": median}[choice](args.seeds, args.realism)
 
 
 if __name__ == "__main__":

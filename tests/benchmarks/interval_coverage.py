@@ -18,12 +18,14 @@ load (the sleeves' friction held it) against the rest; for Fx, the loads of at m
 against the heavier ones.  A cell whose validation trials differ from its fit trials in such a
 share, or err differently within it, is off by its plan, not by its standard error's formula.
 
-    nice python tests/benchmarks/interval_coverage.py [--seeds 11-30] [--diagnose] [--figures OUT.json]
+    nice python tests/benchmarks/interval_coverage.py [--seeds 11-30] [--realism literature,kind] [--diagnose]
+                                                      [--figures OUT.json]
+
+``--realism`` and ``--seeds`` as every benchmark takes them (rig_options.py); both rigs by default.
 """
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import json
 import math
@@ -38,9 +40,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import sensing_accuracy as sa  # noqa: E402
 from baseline_estimator import wilson  # noqa: E402
-from sensitivity import seeds_of  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
-RIGS = ("literature", "kind")
 ARMS = {"straight": "takuma2014", "bent": "takuma2014-bent"}
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
 COLUMNS = {"theta1": "theta1_deg", "theta2": "theta2_deg", "Fx": "Fx_N", "Fy": "Fy_N"}
@@ -182,15 +183,15 @@ def show(key: str, q: str, f: dict[str, Any]) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11-30", help="rig seeds, e.g. 11-30 (held out) or 1-10 (tuning)")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="literature,kind", seeds="11-30", several=True)  # 11-30 held out, 1-10 tuning
     ap.add_argument("--diagnose", action="store_true", help="also the fit trials' held-out errors and the splits")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args(argv)
-    seeds = seeds_of(args.seeds)
+    seeds = args.seeds
     rng = np.random.default_rng(20261127)
-    figures: dict[str, Any] = {"seeds": args.seeds, "held deg": HELD_DEG, "light g": LIGHT_G}
-    for rig in RIGS:
+    figures: dict[str, Any] = {"seeds": seeds_text(seeds), "held deg": HELD_DEG, "light g": LIGHT_G}
+    for rig in args.realism:
         for arm in ARMS:
             runs = [measure(rig, arm, s, args.diagnose) for s in seeds]
             for q in QUANTITIES:

@@ -17,7 +17,7 @@ RMSE on the validation trials (pressure-only) of the torque route alone and of t
 with its route choice (models/routes.py), with the plan's trials whose corrected label is off by
 more than half the play.
 
-    python tests/benchmarks/label_play_forces.py [--protocol takuma2014] [--seeds 1-10] [--settle S]
+    python tests/benchmarks/label_play_forces.py [--protocol takuma2014] [--seeds 1-10] [--realism kind] [--settle S]
                                                  [--repressurise KPA] [--effects backlash,friction]
 
 The trials are sensing_accuracy.py's, taken as ``labcli acquire`` takes them (each window after
@@ -59,10 +59,10 @@ What it showed (kind rig, 2026-11; tuning seeds 1-10, then held-out 11-30):
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -70,6 +70,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import sensing_accuracy as sa  # noqa: E402  (the same trials, the same rig)
 from acquired import add_air_options  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 LABELS = ("read", "corrected", "true")
 
@@ -93,7 +94,12 @@ class _TruthRecorder(sa._Recorder):
 
 
 def trials_with_truth(
-    protocol: str, seed: int, settle_s: float | None = None, effects: str = "", repressurise_kPa: float | None = None
+    protocol: str,
+    seed: int,
+    settle_s: float | None = None,
+    effects: str = "",
+    repressurise_kPa: float | None = None,
+    realism: str = "kind",
 ):
     """The protocol's trial table (sensing_accuracy.trials) and the rig's true deflections and rests (deg)."""
     made: list[_TruthRecorder] = []
@@ -104,26 +110,33 @@ def trials_with_truth(
 
     keep, sa._Recorder = sa._Recorder, record
     try:
-        proto, table = sa.trials(protocol, seed, settle_s, rig_kw=_rig_kw(effects), repressurise_kPa=repressurise_kPa)
+        proto, table = sa.trials(
+            protocol,
+            seed,
+            settle_s,
+            rig_kw=_rig_kw(effects, realism),
+            repressurise_kPa=repressurise_kPa,
+            realism=realism,
+        )
     finally:
         sa._Recorder = keep
     theta = np.degrees(np.array(made[0].truth))  # windows alternate baseline, loaded
     return proto, table, theta[1::2] - theta[0::2], theta[0::2]
 
 
-def _rig_kw(effects: str) -> dict:
-    """The rig's keywords for ``effects`` (comma-separated NonIdeal scales kept at 1, the others
-    off; ``ideal``: all off; empty: the default rig)."""
+def _rig_kw(effects: str, realism: str = "kind") -> dict:
+    """The rig's keywords for ``effects`` (comma-separated NonIdeal scales kept at 1, the ``realism``'s
+    levels, the others off; ``ideal``: all off; empty: the realism's rig as it is)."""
     if not effects:
         return {}
     from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
     on = [e.strip() for e in effects.split(",") if e.strip() and e.strip() != "ideal"]
-    scales = NonIdeal.ideal().as_dict()
+    scales = NonIdeal.ideal(realism).as_dict()
     unknown = [e for e in on if e not in scales]
     if unknown:
         raise SystemExit(f"Unknown effect(s) {', '.join(unknown)}; use ideal or some of {', '.join(sorted(scales))}.")
-    return {"nonideal": NonIdeal(**{**scales, **{e: 1.0 for e in on}})}
+    return {"nonideal": NonIdeal(**{**scales, **{e: 1.0 for e in on}}, realism=realism)}
 
 
 def scores(model, table, d_true: np.ndarray) -> dict:
@@ -142,12 +155,12 @@ def scores(model, table, d_true: np.ndarray) -> dict:
     return out
 
 
-def measure(
-    protocol: str, seed: int, settle_s: float | None = None, effects: str = "", repressurise_kPa: float | None = None
-) -> dict:
+def measure(protocol: str, seed: int, *rig: Any) -> dict:
+    """The labels' errors and the fits' scores on seed ``seed``'s trials (``rig``: trials_with_truth's
+    settle_s, effects, repressurise_kPa and realism)."""
     from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
 
-    proto, table, d_true, rest_true = trials_with_truth(protocol, seed, settle_s, effects, repressurise_kPa)
+    proto, table, d_true, rest_true = trials_with_truth(protocol, seed, *rig)
     rig, limits = proto.settings.rig, limits_from_protocol(proto)
     true_table = table.copy()
     true_table["theta1_deg"], true_table["theta2_deg"] = d_true[:, 0], d_true[:, 1]
@@ -174,23 +187,18 @@ def measure(
     return out
 
 
-def _seeds(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
-
-
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--protocol", default="takuma2014", help="takuma2014 (straight) or takuma2014-bent")
-    ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 11-30")
+    add_rig_options(ap, realism="kind", seeds="1-10")  # the kind rig: the figures of the docstring
     add_air_options(ap)
     ap.add_argument(
         "--effects", default="", help="only these rig effects on, e.g. backlash,friction (default: the rig as shipped)"
     )
     args = ap.parse_args(argv)
     rows = {name: [] for name in LABELS}
-    for seed in _seeds(args.seeds):
-        m = measure(args.protocol, seed, args.settle, args.effects, args.repressurise)
+    for seed in args.seeds:
+        m = measure(args.protocol, seed, args.settle, args.effects, args.repressurise, args.realism)
         parts = []
         for name in LABELS:
             r = m[name]
@@ -201,7 +209,7 @@ def main(argv: list[str] | None = None) -> None:
             )
         print(f"seed {seed:3d}  " + "  |  ".join(parts) + f"  | corrected off by > play/2: {m['miscorrected']}")
     print(
-        f"\n{args.protocol}, seeds {args.seeds}: RMS over seeds of the labels' error (deg, theta1/theta2) and of"
+        f"\n{args.protocol}, {args.realism} rig, seeds {seeds_text(args.seeds)}: RMS over seeds of the labels' error (deg, theta1/theta2) and of"
         " the validation Fx (N, torque route / routed); the routed model's angles against the rig's own"
         " deflections: RMSE (deg) and 95 % interval coverage, pooled"
     )

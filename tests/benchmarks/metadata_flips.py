@@ -3,9 +3,11 @@
 Run:  nice -n 10 python tests/benchmarks/metadata_flips.py [--cases 3000] [--limit N] [--workers 2]
                                                            [--run RUN.h5] [--out flips.jsonl] [--dir D]
                                                            [--replay flips.jsonl] [--minutes M]
+                                                           [--realism kind] [--seeds 1]
 
 A run is recorded (``labcli acquire`` on ``sim://?seed=1&clock=virtual&realism=kind``, 12 trials: 9 fit, 3
-validation), or ``--run`` names one (a sample run's copy).  Its metadata are mapped: the bytes
+validation; ``--seeds``, ``--realism``: rig_options.py), or ``--run`` names one (a sample run's
+copy).  Its metadata are mapped: the bytes
 HDF5 reads while ``inspect --verify``, ``inspect``, ``export``, ``fit``, ``validate`` and
 ``labcli.read_run`` read the run, less the bytes of its datasets' chunks (raw frames and table
 rows, which their own checksums guard), each byte named by the structure it lies in:
@@ -50,7 +52,7 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
-SIM = "sim://?seed=1&clock=virtual&realism=kind"
+SIM = "sim://?seed={seed}&clock=virtual&realism={realism}"
 HANG_S = 120.0  # a case still running after this long is a hang
 # fit as the campaign runs it: the paper's form reads the run as the posture form does, in a fifth of
 # the time; 12 trials put some near theta2 = 0, where its default cut (100) refuses them
@@ -287,12 +289,13 @@ def metadata_map(path: str, model: str) -> list[tuple[int, str]]:
 # ----------------------------------------------------------------- the campaign
 
 
-def record_run(d: Path) -> tuple[Path, Path]:
+def record_run(d: Path, seed: int = 1, realism: str = "kind") -> tuple[Path, Path]:
     """A 12-trial run recorded on the simulated rig, and its model (fit in the posture form)."""
     plan_csv(d / "plan12.csv")
     run, model = d / "good.h5", d / "good.model.json"
+    port = SIM.format(seed=seed, realism=realism)
     for args in (
-        ["acquire", str(run), "--port", SIM, "--unattended", "--plan", str(d / "plan12.csv")],
+        ["acquire", str(run), "--port", port, "--unattended", "--plan", str(d / "plan12.csv")],
         ["fit", str(run), "-o", str(model)],
     ):
         kind, detail = invoke(args)
@@ -472,7 +475,10 @@ def report(res: dict[str, Any], seconds: float) -> str:
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # the tests load this file by its path
+    from rig_options import add_rig_options, bench_parser
+
+    p = bench_parser(__doc__)
     p.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
     p.add_argument("--run", type=Path, help="a run file to flip (default: a 12-trial run recorded now)")
     p.add_argument("--cases", type=int, default=3000, help="about this many cases, shared equally by the regions")
@@ -482,6 +488,7 @@ def main() -> int:
     p.add_argument("--minutes", type=float, default=float("inf"), help="start no case after this long")
     p.add_argument("--out", type=Path, help="every case as a JSON line (as they come, then in file order)")
     p.add_argument("--dir", type=Path, help="work here (default: a temporary folder)")
+    add_rig_options(p, realism="kind", seeds="1", one=True)  # the recorded run's rig
     a = p.parse_args()
     if a.worker:
         worker(a.worker)
@@ -498,7 +505,7 @@ def main() -> int:
                 if kind != "ok":
                     raise SystemExit(f"could not fit {a.run}: {detail}")
             else:
-                run, model = record_run(d)
+                run, model = record_run(d, a.seeds[0], a.realism)
             shutil.copyfile(run, d / "map.h5")
             meta = metadata_map(str(d / "map.h5"), str(model))
         if a.out:

@@ -37,12 +37,12 @@ Cramer-Rao floor of Fy's standard error from one push's readings (``second_rig.f
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
 import numpy as np
 from acquired import Windows, acquired_air, add_air_options
+from rig_options import add_rig_options, bench_parser, seeds_text
 from sensing_accuracy import BENT_SUPPLY_MPA, trials
 
 # The stiffness settings, as --max-phi-se sets them (None: the protocol's defaults).
@@ -151,15 +151,12 @@ def run_second(seed: int, angles: str) -> tuple[int, int, int]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-3")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="1-3")
     ap.add_argument("--angles", default="pressure-only", choices=["pressure-only", "measured-angles"])
     ap.add_argument("--rig", default="project", choices=["project", "second"])
     ap.add_argument("--max-phi-se", type=float, help="max_phi_se_deg of the stiffness settings (deg)")
     ap.add_argument("--second", action="append", default=[], metavar="KEY=VALUE", help="a second rig's field")
-    ap.add_argument(
-        "--realism", default="kind", choices=["kind", "literature"], help="the simulated rig's levels (default: kind)"
-    )
     ap.add_argument("--effect", action="append", default=[], metavar="NAME=SCALE", help="one effect's scale")
     ap.add_argument("--friction-terms", action="store_true", help="the posture form with the sleeves' friction terms")
     add_air_options(ap)
@@ -178,9 +175,8 @@ def main() -> None:
     rig_kw = {"nonideal": NonIdeal(realism=args.realism, **effects)}
     FORM.update({"friction": True} if args.friction_terms else {})
     AIR.update({k: v for k, v in (("settle_s", args.settle), ("repressurise_kPa", args.repressurise)) if v is not None})
-    lo, hi = (int(s) for s in args.seeds.split("-"))
     rows = []
-    for seed in range(lo, hi + 1):
+    for seed in args.seeds:
         used, n, right = run_second(seed, args.angles) if args.rig == "second" else run(seed, args.angles, rig_kw)
         rows.append((used, n, right))
         aside = ""
@@ -210,7 +206,7 @@ def main() -> None:
         )
     if args.figures:
         figures = {
-            "seeds": args.seeds,
+            "seeds": seeds_text(args.seeds),
             "angles": args.angles,
             "rig": args.rig,
             "pushes per seed": rows[0][1],

@@ -13,7 +13,6 @@ freedom), and how many moduli the data determine per run.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -27,15 +26,15 @@ sys.path[:0] = [str(HERE.parent), str(HERE.parent / "papers" / "rpam2015")]
 
 def main() -> None:
     import test_actuator_fit as stand  # the test's stand, protocol and stretch run
+    from rig_options import add_seeds_option, bench_parser
 
     from labcli.papers.rpam2015.models.rpam_fit import analyse_stretch
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11-30")
+    ap = bench_parser(__doc__)
+    add_seeds_option(ap, "11-30", what="seeds of the stand's actuator (held out: 11-30)")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
-    lo, _, hi = args.seeds.partition("-")
-    seeds = range(int(lo), int(hi or lo) + 1)
+    seeds = args.seeds
     devs, chi2, determined = [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         protocol = stand.lab_protocol(Path(tmp))

@@ -22,7 +22,6 @@ the toggle counts as "toggles" and stays out of alpha's statistics.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import re
@@ -37,11 +36,6 @@ PA, PB = 0.096, 0.041
 # One standard deviation of a lab's spread (relative for the moduli, metres for the dimensions).
 SPREAD = {"mu_rel": 0.10, "L0_m": 0.5e-3, "radius_m": 0.1e-3, "link_m": 0.2e-3}
 MARGIN_DEG = 1.0
-
-
-def parse_seeds(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
 
 
 def balance_deg(geom: Any, act_a: Any, act_b: Any) -> tuple[float, float]:
@@ -172,11 +166,13 @@ def _json_value(v: Any) -> Any:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="11-30", help="seeds of the lab actuators drawn (held out: 11-30)")
+    from rig_options import add_seeds_option, bench_parser
+
+    ap = bench_parser(__doc__)
+    add_seeds_option(ap, "11-30", what="seeds of the lab actuators drawn (held out: 11-30)")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
-    seeds = parse_seeds(args.seeds)
+    seeds = args.seeds
     figures: dict[str, Any] = {}
     for reading in KMIN:
         fig = study(reading, seeds)

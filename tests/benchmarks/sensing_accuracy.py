@@ -66,13 +66,13 @@ made it worse (0.292 / 0.173).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 from acquired import Windows, acquired_air, add_air_options
+from rig_options import add_rig_options, bench_parser, seeds_text
 
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
 # The bent protocol's regulators (protocols/takuma2014-bent.toml; the demo's BENT_SUPPLY).
@@ -250,14 +250,13 @@ def rms(x) -> float:
 def main(argv: list[str] | None = None) -> None:
     from labcli.papers.takuma2014.sim.nonideal import NonIdeal
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-10", help="rig seeds, e.g. 1-10 or 1,4,7")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="1-10")
     add_air_options(ap)
     ap.add_argument("--ideal", action="store_true", help="the rig with its non-idealities off")
     which = ap.add_mutually_exclusive_group()
     which.add_argument("--only", choices=EFFECTS, help="the rig with this one non-ideality and no other")
     which.add_argument("--without", choices=NonIdeal.scale_names(), help="the rig with every non-ideality but this one")
-    ap.add_argument("--realism", choices=("kind", "literature"), default="kind", help="the rig's levels (default kind)")
     ap.add_argument("--friction-terms", action="store_true", help="also the posture form with the friction terms")
     ap.add_argument("--bent-supply", help="the bent protocol's regulators, MPa: L1,R1,L2,R2")
     ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
@@ -267,12 +266,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.bent_supply:
         BENT_SUPPLY_MPA = tuple(float(v) for v in args.bent_supply.split(","))
     rig_kind = args.only or args.ideal
-    if "-" in args.seeds:
-        lo, hi = (int(s) for s in args.seeds.split("-"))
-        seeds = list(range(lo, hi + 1))
-    else:
-        seeds = [int(s) for s in args.seeds.split(",")]
-    figures: dict = {"seeds": args.seeds, "validation trials": 18 * len(seeds)}
+    seeds = args.seeds
+    figures: dict = {"seeds": seeds_text(seeds), "validation trials": 18 * len(seeds)}
     for protocol in ("takuma2014", "takuma2014-bent"):
         runs = [
             measure(

@@ -14,7 +14,6 @@ after the air at once, as the estimator did before it held it for the joints (th
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -23,7 +22,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from sensitivity import seeds_of  # noqa: E402
+from rig_options import add_rig_options, bench_parser  # noqa: E402
 
 
 def measure(realism: str, seeds: list[int], loads: int) -> str:
@@ -57,9 +56,8 @@ def measure(realism: str, seeds: list[int], loads: int) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-10")
-    ap.add_argument("--realism", default="literature,kind")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="literature,kind", seeds="1-10", several=True)
     ap.add_argument("--loads", type=int, default=8)
     ap.add_argument("--no-hold", action="store_true", help="take the first change after the air at once")
     args = ap.parse_args()
@@ -67,8 +65,8 @@ def main() -> None:
         from labcli.sensing.estimator import Estimator
 
         Estimator._closing_or_load = lambda self, tc, seq, *rest: self._begin(tc, seq)  # type: ignore[method-assign]
-    for realism in args.realism.split(","):
-        print(measure(realism, seeds_of(args.seeds), args.loads), flush=True)
+    for realism in args.realism:
+        print(measure(realism, args.seeds, args.loads), flush=True)
 
 
 if __name__ == "__main__":

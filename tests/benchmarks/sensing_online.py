@@ -28,7 +28,7 @@ batches of one serial read (50 ms of frames).  Reported, pooled over the seeds:
   estimator makes it), the same blocks replayed afterwards through the model's own predict
   (``TakumaSensing(fast=False)``) as its baseline.
 
-    python tests/benchmarks/sensing_online.py [--seeds 11-30] [--loads 40] [--idle-min 10]
+    python tests/benchmarks/sensing_online.py [--seeds 11-30] [--realism kind] [--loads 40] [--idle-min 10]
         [--rate 200] [--rig "friction=2&leak=3"] [--jobs 2] [--fast-seconds 180] [--json out.json]
         [--figures docs/figures/sensing-online.json] [--protocol takuma2014-bent] [--friction-terms] [--acquired]
 
@@ -38,14 +38,14 @@ with the sleeves' friction terms (``labcli fit --friction-terms``; the estimator
 of loads they read), and a calibration run taken as ``labcli acquire`` takes it (15 s waits, the
 chambers supplied again past the protocol's drift limit) instead of 8 s waits with the valves held.
 
-Tune on seeds 1-10, report on 11-30 (the defaults).  ``--rig`` takes the McKibben rig's own
-``sim://`` options (the ones ``labcli sim --help`` lists), so the same figures can be measured
-on a harsher rig.
+Tune on seeds 1-10, report on 11-30 (the defaults).  ``--realism`` and ``--seeds`` as every benchmark
+takes them (rig_options.py; the kind rig by default, the one docs/sensing.md's figures were measured
+on); ``--rig`` takes the McKibben rig's other ``sim://`` options (the ones ``labcli sim --help``
+lists), so the same figures can be measured on a harsher rig.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -56,6 +56,7 @@ from multiprocessing import get_context
 from typing import Any
 
 import numpy as np
+from rig_options import add_rig_options, bench_parser, seeds_text
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one BLAS thread per worker: the machine is shared
 
@@ -72,23 +73,17 @@ TARGETS = {
 }
 
 
-def seeds_of(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b or a) + 1))
-    return out
-
-
-def rig_options(text: str) -> dict[str, Any]:
-    """``"friction=2&leak=3"`` -> the McKibben rig's parsed options; the kind rig unless ``realism``
-    is given (the rig the docs' figures were measured on)."""
+def rig_options(text: str, realism: str = "kind") -> dict[str, Any]:
+    """``"friction=2&leak=3"`` -> the McKibben rig's parsed options, at the levels of ``realism``
+    (``--realism``: the kind rig by default, the rig the docs' figures were measured on)."""
     from labcli.core import registry
 
     known = registry.sim_options("mckibben")
-    out: dict[str, Any] = {"realism": "kind"}
+    out: dict[str, Any] = {"realism": realism}
     for item in filter(None, text.split("&")):
         key, _, raw = item.partition("=")
+        if key == "realism":
+            sys.exit("--rig takes the rig's other options; give its realism as --realism.")
         if key not in known:
             sys.exit(f"--rig: unknown option {key!r}; known: {', '.join(sorted(known))}")
         out[key] = known[key].read(urllib.parse.unquote(raw))
@@ -118,7 +113,7 @@ def one_seed(job: tuple[int, dict[str, Any]]) -> dict[str, Any]:
     from labcli.sensing.scoring import score
 
     protocol = load_protocol(a.get("protocol", "takuma2014"))
-    opts = rig_options(a["rig"])
+    opts = rig_options(a["rig"], a["realism"])
     model = sc.calibrate(protocol, seed, opts, friction=a.get("friction", False), **calibration_air(protocol, a))
     script = sc.random_script(seed, loads=a["loads"], idle_s=a["idle_min"] * 60.0)
     session = sc.run_session(model, protocol, script, seed, rate_hz=a["rate"], batch=a["batch"], rig_options=opts)
@@ -192,7 +187,7 @@ def fast_run(seed: int, a: dict[str, Any]) -> dict[str, Any]:
     from labcli.papers.takuma2014.sim import scenario as sc
 
     protocol = load_protocol("takuma2014")
-    opts = rig_options(a["rig"])
+    opts = rig_options(a["rig"], a["realism"])
     model = sc.calibrate(protocol, seed, opts)
     n = max(1, int(a["fast_seconds"] // 36))
     script = sc.random_script(seed, loads=n, idle_s=0.0)
@@ -286,7 +281,7 @@ def _session(seed: int, a: dict[str, Any], rate_hz: float, bare: bool) -> dict[s
     from labcli.sensing.publish import JsonLines, TcpPublisher
 
     protocol = load_protocol("takuma2014")
-    opts = rig_options(a["rig"])
+    opts = rig_options(a["rig"], a["realism"])
     model = sc.calibrate(protocol, seed, opts)
     n = max(1, int(a["fast_seconds"] // 36))
     script = sc.random_script(seed, loads=n, idle_s=0.0)
@@ -641,8 +636,8 @@ def latency_figures(published: list[dict[str, Any]], a: dict[str, Any]) -> dict[
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", default="11-30")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind", seeds="11-30")
     ap.add_argument("--loads", type=int, default=40)
     ap.add_argument("--idle-min", type=float, default=10.0)
     ap.add_argument("--rate", type=float, default=200.0)
@@ -650,7 +645,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--rig",
         default="",
-        help="the rig's own sim:// options, e.g. 'friction=2&leak=3' (the kind rig unless realism= is given)",
+        help="the rig's other sim:// options, e.g. 'friction=2&leak=3' (its realism: --realism)",
     )
     ap.add_argument(
         "--protocol", default="takuma2014", help="the calibration's protocol (takuma2014-bent: the bent arm)"
@@ -670,7 +665,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--figures", default=None, help="write the figures the docs quote (flat JSON) to this file")
     args = ap.parse_args(argv)
     a = {
-        "seeds": args.seeds,
+        "seeds": seeds_text(args.seeds),
+        "realism": args.realism,
         "loads": args.loads,
         "idle_min": args.idle_min,
         "rate": args.rate,
@@ -681,8 +677,8 @@ def main(argv: list[str] | None = None) -> None:
         "batch": max(1, int(round(args.batch_s * args.rate))),
         "fast_seconds": args.fast_seconds,
     }
-    rig_options(args.rig)  # refuse a bad option before any work
-    seeds = seeds_of(args.seeds)
+    rig_options(args.rig, args.realism)  # refuse a bad option before any work
+    seeds = args.seeds
     t0 = time.time()
     if args.latency_only:
         published = [publish_run(seeds, a, r) for r in (a["rate"], 1000.0)]

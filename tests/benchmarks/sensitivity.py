@@ -16,9 +16,11 @@ fits it by default, with the sleeves' friction terms.
     nice python tests/benchmarks/sensitivity.py --cache /tmp/s.jsonl --jobs 1 &    # in the background,
                                                                  # resumable: done (level, seed) pairs are kept
 
-Held-out seeds (11 and up) by default: nothing here is tuned.  It prints a headline table (the
-posture form, mean over seeds +- sd) and every figure per level, and writes them all as one flat
-JSON object ``{"LEVEL/FIGURE/STAT": value}`` (default docs/figures/sensitivity.json) for the docs.
+Held-out seeds (11 and up) by default: nothing here is tuned. ``--seeds`` and ``--realism`` as every
+benchmark takes them (rig_options.py); ``--realism`` is the rig of the scaled levels, the
+literature's by default. It prints a headline table (the posture form, mean over seeds +- sd) and
+every figure per level, and writes them all as one flat JSON object ``{"LEVEL/FIGURE/STAT": value}``
+(default docs/figures/sensitivity.json) for the docs.
 """
 
 from __future__ import annotations
@@ -35,10 +37,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study  # noqa: E402
+from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 LEVELS: dict[str, dict[str, Any]] = {
-    "literature": {},
+    "literature": {"realism": "literature"},
     "kind": {"realism": "kind"},
     "friction x0.5": {"friction": 0.5},
     "friction x2": {"friction": 2.0},
@@ -69,52 +72,51 @@ HEADLINE = (  # (column, figure, scale, format) of the headline table
 )
 
 
-def seeds_of(text: str) -> list[int]:
-    if "-" in text:
-        lo, hi = (int(s) for s in text.split("-"))
-        return list(range(lo, hi + 1))
-    return [int(s) for s in text.split(",")]
-
-
-def load_cache(path: Path | None) -> dict[tuple[str, int], dict[str, float]]:
+def load_cache(path: Path | None, realism: str = "literature") -> dict[tuple[str, int], dict[str, float]]:
+    """The cache's (level, seed) figures measured with the levels on ``realism`` (records of before
+    --realism: the literature's)."""
     done: dict[tuple[str, int], dict[str, float]] = {}
     if path is not None and path.exists():
         for line in path.read_text().splitlines():
             if line.strip():
                 rec = json.loads(line)
-                done[(rec["level"], int(rec["seed"]))] = rec["figures"]
+                if rec.get("realism", "literature") == realism:
+                    done[(rec["level"], int(rec["seed"]))] = rec["figures"]
     return done
 
 
-def _run(job: tuple[str, int, int]) -> tuple[str, int, dict[str, float]]:
-    level, seed, pushes = job
-    figs = study.measure_level(LEVELS[level], seed, pushes, friction_terms=FRICTION_TERMS)
+def _run(job: tuple[str, int, int, str]) -> tuple[str, int, dict[str, float]]:
+    level, seed, pushes, realism = job
+    figs = study.measure_level({"realism": realism, **LEVELS[level]}, seed, pushes, friction_terms=FRICTION_TERMS)
     return level, seed, study.per_seed(figs)
 
 
-def gather(levels: list[str], seeds: list[int], pushes: int, cache: Path | None, jobs: int) -> dict:
-    """Per level and seed, the figures (from the cache where done); appends new ones to it."""
-    done = load_cache(cache)
-    todo = [(lv, s, pushes) for lv in levels for s in seeds if (lv, s) not in done]
+def gather(
+    levels: list[str], seeds: list[int], pushes: int, cache: Path | None, jobs: int, realism: str = "literature"
+) -> dict:
+    """Per level and seed, the figures (from the cache where done); appends new ones to it.
+    ``realism``: the rig of the levels that name none (``kind`` and ``literature`` name theirs)."""
+    done = load_cache(cache, realism)
+    todo = [(lv, s, pushes, realism) for lv in levels for s in seeds if (lv, s) not in done]
     if jobs > 1:
         from multiprocessing import Pool
 
         with Pool(jobs) as pool:
             results = pool.imap_unordered(_run, todo)
             for level, seed, figs in results:
-                _keep(done, cache, level, seed, figs)
+                _keep(done, cache, level, seed, figs, realism)
     else:
         for job in todo:
-            _keep(done, cache, *_run(job))
+            _keep(done, cache, *_run(job), realism)
     return {lv: {s: done[(lv, s)] for s in seeds} for lv in levels}
 
 
-def _keep(done: dict, cache: Path | None, level: str, seed: int, figs: dict[str, float]) -> None:
+def _keep(done: dict, cache: Path | None, level: str, seed: int, figs: dict[str, float], realism: str) -> None:
     done[(level, seed)] = figs
     print(f"  measured {level}, seed {seed}", file=sys.stderr, flush=True)
     if cache is not None:
         with cache.open("a") as f:
-            f.write(json.dumps({"level": level, "seed": seed, "figures": figs}) + "\n")
+            f.write(json.dumps({"level": level, "seed": seed, "realism": realism, "figures": figs}) + "\n")
 
 
 def summarise(per_level: dict[str, dict[int, dict[str, float]]]) -> dict[str, float]:
@@ -174,9 +176,13 @@ def commit() -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--quick", action="store_true", help=f"seeds 11-12, levels {', '.join(QUICK_LEVELS)}, 5 pushes")
-    ap.add_argument("--seeds", default=None, help="rig seeds, e.g. 11-15 or 11,14 (default 11-15; --quick 11-12)")
+    # The scaled levels' rig: the literature's, around whose levels docs/rig-realism.md's sweep was measured.
+    pre = argparse.ArgumentParser(add_help=False)  # --quick's own seeds are the default of --seeds
+    pre.add_argument("--quick", action="store_true")
+    quick = pre.parse_known_args(argv)[0].quick
+    add_rig_options(ap, realism="literature", seeds="11-12" if quick else "11-15")
     ap.add_argument("--levels", default=None, help="comma-separated level names (default: all)")
     ap.add_argument("--pushes", type=int, default=None, help="pushes per object (default 10; --quick 5)")
     ap.add_argument("--cache", type=Path, default=None, help="JSON-lines file of measured (level, seed) pairs")
@@ -189,11 +195,11 @@ def main(argv: list[str] | None = None) -> None:
     unknown = [lv for lv in levels if lv not in LEVELS]
     if unknown:
         raise SystemExit(f"unknown level {unknown[0]!r}; levels: {', '.join(LEVELS)}")
-    seeds = seeds_of(args.seeds or ("11-12" if args.quick else "11-15"))
+    seeds = args.seeds
     pushes = args.pushes or (5 if args.quick else 10)
     head = commit()  # the code measured is the code at the start
-    summary = summarise(gather(levels, seeds, pushes, args.cache, args.jobs))
-    print(f"\nseeds {seeds[0]}-{seeds[-1]} ({len(seeds)}), {pushes} pushes per object; posture form unless named")
+    summary = summarise(gather(levels, seeds, pushes, args.cache, args.jobs, args.realism))
+    print(f"\nseeds {seeds_text(seeds)} ({len(seeds)}), {pushes} pushes per object; posture form unless named")
     table = headline(summary, levels)
     print(table)
     print("\nEvery figure, mean ± sd over seeds:")

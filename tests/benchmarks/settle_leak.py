@@ -16,23 +16,15 @@ baseline of the same run).
 
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from rig_options import add_rig_options, bench_parser, seeds_text
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-
-
-def seeds_of(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out.extend(range(int(a), int(b or a) + 1))
-    return out
 
 
 def acquire_seed(seed: int, realism: str, path: Path) -> None:
@@ -58,9 +50,8 @@ def settle_rows(path: Path) -> dict[str, Any]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="1-10")
-    ap.add_argument("--realism", default="kind,literature")
+    ap = bench_parser(__doc__)
+    add_rig_options(ap, realism="kind,literature", seeds="1-10", several=True)
     ap.add_argument("--runs", type=Path, default=None, help="keep (and reuse) the run files here")
     ap.add_argument("--no-leak", action="store_true", help="the waits count the leak as a tail (the rule before)")
     args = ap.parse_args()
@@ -74,10 +65,10 @@ def main() -> None:
 
         air.AirDrift.__init__ = unknown  # type: ignore[method-assign]
     where = args.runs or Path(tempfile.mkdtemp(prefix="settle_leak_"))
-    for realism in args.realism.split(","):
+    for realism in args.realism:
         totals = np.zeros(4)
         waits: dict[str, list[float]] = {"baseline": [], "load": []}
-        seeds = seeds_of(args.seeds)
+        seeds = args.seeds
         for seed in seeds:
             path = where / realism / f"seed{seed}.h5"
             acquire_seed(seed, realism, path)
@@ -92,7 +83,7 @@ def main() -> None:
                 flush=True,
             )
         print(
-            f"{realism:10s} {'(leak counted) ' if args.no_leak else ''}seeds {args.seeds}: baselines {int(totals[0])}/{int(totals[1])} "
+            f"{realism:10s} {'(leak counted) ' if args.no_leak else ''}seeds {seeds_text(args.seeds)}: baselines {int(totals[0])}/{int(totals[1])} "
             f"(mean wait {np.mean(waits['baseline']):.1f} s), loads {int(totals[2])}/{int(totals[3])} "
             f"(mean wait {np.mean(waits['load']):.1f} s)",
             flush=True,

@@ -559,3 +559,102 @@ def test_interval_coverage_counts_an_error_inside_its_interval_and_resamples_see
     assert 0.75 <= lo <= p <= hi <= 1.0  # a resample holds seed A alone (3/4) at worst, B alone (1) at best
     same, slo, shi = ic.coverage_ci([a, a, a], "Fx", rng)
     assert same == slo == shi == pytest.approx(0.75)  # identical seeds: nothing to resample
+
+
+# --------------------------------------------------------------------------- rig_options: --realism and --seeds
+
+RIG_CODE = re.compile(
+    r"SimRig|sim://|NonIdeal|make_rig|simulated_port|trials_and_pushes|run_session|study\.|long_capture"
+)
+
+
+def test_seeds_read_as_ranges_lists_and_both() -> None:
+    ro = bench("rig_options")
+    assert ro.seeds_of("11-30") == list(range(11, 31))
+    assert ro.seeds_of("1,4,7") == [1, 4, 7] and ro.seeds_of("3") == [3]
+    assert ro.seeds_of("1-3,7") == [1, 2, 3, 7] and ro.seeds_of(" 2 - 4 ") == [2, 3, 4]
+    for seeds in ([11, 12, 13, 14], [1, 4, 7], [1, 2, 3, 7, 9, 10], [5]):
+        assert ro.seeds_of(ro.seeds_text(seeds)) == seeds  # what a benchmark prints reads back
+    assert ro.seeds_text(list(range(11, 31))) == "11-30"
+
+
+@pytest.mark.parametrize("bad", ["", "2-x", "3-1", "0", "0-4", "1,,2", "-3", "1-2-3", "1.5", "1,1", "1-3,2"])
+def test_bad_seeds_are_one_sentence(bad: str) -> None:
+    ro = bench("rig_options")
+    with pytest.raises(ValueError) as e:
+        ro.seeds_of(bad)
+    text = str(e.value)
+    assert text.startswith("--seeds ") and "\n" not in text and repr(bad) in text
+
+
+def test_the_realism_takes_the_simulators_names_one_or_several() -> None:
+    from labcli.papers.takuma2014.sim.nonideal import REALISMS
+
+    ro = bench("rig_options")
+    assert set(REALISMS) == {"kind", "literature"}
+    assert ro.realism_of("kind") == "kind" and ro.realisms_of("literature,kind") == ["literature", "kind"]
+    for bad in ("harsh", "kind,kind", "kind,", ""):
+        with pytest.raises(ValueError, match="^--realism takes"):
+            ro.realisms_of(bad)
+    with pytest.raises(ValueError, match="^--realism takes"):
+        ro.realism_of("kind,literature")
+
+
+def test_the_parser_reads_the_options_and_refuses_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    ro = bench("rig_options")
+
+    def parser(**kw: object):
+        ap = ro.bench_parser("A benchmark.\n\nMore.", prog="bench.py")
+        ro.add_rig_options(ap, **kw)
+        return ap
+
+    args = parser(realism="kind", seeds="1-10").parse_args([])
+    assert args.realism == "kind" and args.seeds == list(range(1, 11))  # the defaults, read as given ones are
+    args = parser(realism="kind", seeds="1-10").parse_args(["--realism", "literature", "--seeds", "11-12,15"])
+    assert args.realism == "literature" and args.seeds == [11, 12, 15]
+    assert parser(realism="literature,kind", seeds="3", several=True).parse_args([]).realism == ["literature", "kind"]
+    for kw, argv, said in (
+        ({"realism": "kind", "seeds": "1"}, ["--seeds", "5-2"], "argument --seeds: takes a range"),
+        ({"realism": "kind", "seeds": "1"}, ["--realism", "kind,literature"], "argument --realism: takes"),
+        ({"realism": "kind", "seeds": "1", "one": True}, ["--seeds", "1-3"], "takes one seed here"),
+        ({"realism": "kind", "seeds": "1"}, ["--sede", "3"], "unrecognized arguments: --sede"),
+    ):
+        with pytest.raises(SystemExit) as e:
+            parser(**kw).parse_args(argv)
+        err = capsys.readouterr().err
+        assert e.value.code == 2 and err.count("\n") == 1 and err.startswith("bench.py: ") and said in err
+        assert "usage" not in err and err.endswith(".\n")
+    with pytest.raises(ValueError):  # a benchmark whose own default is wrong fails at once, not in a run
+        parser(realism="harsh", seeds="1")
+
+
+def test_every_benchmark_of_the_rig_takes_the_shared_options() -> None:
+    """A benchmark that runs the simulated McKibben rig takes --realism and --seeds from rig_options.py
+    (with a default realism of its own, never the simulator's, which has moved once), and none parses
+    them its own way; the rPAM benchmarks take --seeds alone."""
+    own_way = re.compile(r"add_argument\(\s*\"--(seeds|seed|realism)\"|def (seeds_of|parse_seeds|seeds_from|_seeds)\(")
+    rig, checked = re.compile(r"add_rig_options\(\w+, realism=\"[a-z,]+\""), []
+    for path in sorted(HERE.glob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        # kill_layouts.py's --seed draws its kills (its rig is a stand-in); run_all.py runs the others.
+        if path.name in ("rig_options.py", "test_bench_options.py", "kill_layouts.py", "run_all.py"):
+            continue
+        if "parse_args(" not in text:
+            continue
+        assert not own_way.search(text), f"{path.name} parses --seeds or --realism its own way"
+        if path.name.startswith("rpam_"):
+            assert "add_seeds_option(" in text, path.name
+        elif RIG_CODE.search(text):
+            assert rig.search(text), f"{path.name} runs the rig without add_rig_options(ap, realism=...)"
+            checked.append(path.name)
+    assert {"bench_sim.py", "bench_models.py", "bench_classify_report.py", "bench_firmware_model.py"} <= set(checked)
+    assert len(checked) >= 25
+
+
+@pytest.mark.parametrize("script", ["bench_sim.py", "guard_mistakes.py"])
+def test_a_benchmark_refuses_bad_seeds_in_one_sentence(script: str) -> None:
+    out = subprocess.run(
+        [sys.executable, str(HERE / script), "--seeds", "11-x"], capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 2 and out.stdout == ""
+    assert out.stderr.count("\n") == 1 and "Traceback" not in out.stderr and "'11-x'" in out.stderr

@@ -38,8 +38,9 @@ RATE_HZ = 1000.0
 CHANNELS = 6  # the reference rig's
 
 
-def port(seed: int = 1) -> str:
-    return f"sim://?seed={seed}&clock=virtual"
+def port(seed: int = 1, realism: str | None = None) -> str:
+    """The simulated rig's URL (``realism`` None: the simulator's default levels)."""
+    return f"sim://?seed={seed}&clock=virtual" + (f"&realism={realism}" if realism else "")
 
 
 def write_long_protocol(folder: Path, capture_s: float, rate_hz: float = RATE_HZ) -> Path:
@@ -74,14 +75,20 @@ class InMemoryEngine(RunEngine):
 
 
 def record_trial(
-    path: Path, capture_s: float, *, in_memory: bool = False, seed: int = 1, rate_hz: float = RATE_HZ
+    path: Path,
+    capture_s: float,
+    *,
+    in_memory: bool = False,
+    seed: int = 1,
+    rate_hz: float = RATE_HZ,
+    realism: str | None = None,
 ) -> Outcome:
     """Record plan trial 1 of takuma2014 into a new run file at ``path`` with windows of ``capture_s``."""
     protocol = long_protocol(capture_s, rate_hz)
     plan = load_plan(load_protocol("takuma2014")).iloc[:1]
-    dev = Device.open(port(seed))
+    dev = Device.open(port(seed, realism))
     try:
-        with RunFile.create(path, protocol=protocol, device_info=dev.info, port=port(seed), plan=plan) as run:
+        with RunFile.create(path, protocol=protocol, device_info=dev.info, port=port(seed, realism), plan=plan) as run:
             engine = (InMemoryEngine if in_memory else RunEngine)(
                 dev,
                 run,
