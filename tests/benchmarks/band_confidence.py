@@ -28,16 +28,21 @@ ROOT = Path(__file__).resolve().parents[2]
 def main(argv: list[str] | None = None) -> None:
     ap = bench_parser(__doc__)
     add_rig_options(ap, realism="kind,literature", seeds="11-30", several=True)
+    ap.add_argument(
+        "--friction-terms",
+        action="store_true",
+        help="the posture form with the sleeves' friction terms (fit's default)",
+    )
     ap.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures" / "band-confidence.json")
     args = ap.parse_args(argv)
     seeds = args.seeds
-    out: dict[str, object] = {"meta/seeds": seeds_text(seeds)}
+    out: dict[str, object] = {"meta/seeds": seeds_text(seeds), "meta/friction_terms": args.friction_terms}
     for rig in args.realism:
         kw = study.rig_kw({"realism": rig})
         wrong: list[tuple[int, str, str, float]] = []
         right: list[float] = []
         for s in seeds:
-            figs = study.objects(s, kw, 10)
+            figs = study.objects(s, kw, 10, friction_terms=args.friction_terms)
             for key, ok in figs.items():
                 if key.startswith("objects/posture/") and key.endswith("/correct"):
                     base = key[: -len("/correct")]

@@ -659,9 +659,13 @@ SOURCES: dict[str, Source] = {
         Source(
             "classify-effects",
             "benchmark",
-            "stiffness of the six objects on the ideal rig and with each non-ideality alone, seed 1",
+            "stiffness of the six objects by the paper's form on the ideal rig, and with each of the kind rig's "
+            "non-idealities alone and the labels as read, seed 1",
             script="classify_accuracy.py",
-            runs={"ideal": ("--seeds", "1", "--ideal"), **{e: ("--seeds", "1", "--only", e) for e in EFFECTS}},
+            runs={
+                "ideal": ("--seeds", "1", "--ideal"),
+                **{e: ("--seeds", "1", "--only", e, "--labels", "as-read") for e in EFFECTS},
+            },
             derive=classify_effects_derived,
         ),
         Source(
@@ -692,9 +696,10 @@ SOURCES: dict[str, Source] = {
         Source(
             "band-confidence",
             "benchmark",
-            "the bands' confidences of the posture form, wrong categories and their largest confidence, seeds 11-30",
+            "the bands' confidences of the posture form with the sleeves' friction terms, wrong categories and their "
+            "largest confidence, seeds 11-30",
             script="band_confidence.py",
-            runs={"": ()},
+            runs={"": ("--friction-terms",)},
         ),
         Source(
             "classify-heldout",
