@@ -76,6 +76,7 @@ from ....errors import ModelError
 from . import routes as rt
 from .calibrated import baseline_dict, calibrated_range, check_baseline, check_range
 from .geometry import jacobian
+from .history import motion_from, motion_into_baseline, previous_rows, rows_of
 from .labels import apply_play
 from .paper_folds import fold_models
 from .takuma import (
@@ -162,15 +163,21 @@ def torque_features(
     terms: tuple[str, ...] = TORQUE_TERMS,
     motion_in: np.ndarray | None = None,
     motion_sd: np.ndarray | None = None,
+    made: np.ndarray | None = None,
 ) -> np.ndarray:
     """Columns ``terms`` (default all 14 of TORQUE_TERMS; FRICTION_TERMS too) from pressure drops
     (n, 4) MPa and deflections (n, 2) rad; ``motion_in`` (n, 2) rad, the joints' motion into the
     baseline, for the friction terms (:func:`friction_columns`; None: unknown), ``motion_sd`` (2,)
-    rad the standard error of the pairs' motions when they are estimated."""
+    rad the standard error of the pairs' motions when they are estimated.  ``made``: the columns
+    of the one friction family ``terms`` offers, made already (:func:`friction_family`), for a
+    design built block by block: each block's erf was a fifth of the fit at 10^6 trials."""
     dP = np.atleast_2d(dP)
     dtheta = np.atleast_2d(dtheta)
-    friction = friction_columns(dtheta, motion_in, motion_sd) if any(t in FRICTION_TERMS for t in terms) else None
-    relieved = relieved_columns(dtheta, motion_sd) if any(t in RELIEVED_TERMS for t in terms) else None
+    wants = any(t in FRICTION_TERMS for t in terms), any(t in RELIEVED_TERMS for t in terms)
+    if made is not None and all(wants):
+        raise ValueError("made columns stand for one friction family; these terms offer both")
+    friction = (friction_columns(dtheta, motion_in, motion_sd) if made is None else made) if wants[0] else None
+    relieved = (relieved_columns(dtheta, motion_sd) if made is None else made) if wants[1] else None
     # Only the terms asked for, each written into its own column (Fortran order: every write is
     # contiguous); at the validation's 10^6 rows the stack of all fourteen and a copy of the
     # chosen ones took a second.
@@ -190,6 +197,14 @@ def torque_features(
             assert relieved is not None
             out[:, k] = relieved[:, at - 16]
     return out
+
+
+def friction_family(friction: bool | str, dtheta: np.ndarray, motion_in: np.ndarray | None) -> np.ndarray | None:
+    """The columns of the friction terms a fit offers (PostureModel(friction=...)): FRICTION_TERMS'
+    (n, 2) from the measured deflections and motions into the baselines, RELIEVED_TERMS' (n, 3), or None."""
+    if friction is True:
+        return friction_columns(dtheta, motion_in)
+    return relieved_columns(dtheta) if friction == "relieved" else None
 
 
 def pair_motion(dtheta: np.ndarray) -> np.ndarray:
@@ -278,21 +293,6 @@ def running_baseline(trial: np.ndarray, P0: np.ndarray, k: int) -> np.ndarray:
         mean = np.where(known, total / np.maximum(count, 1), np.nan)
     out = np.empty_like(mean)
     out[order] = mean
-    return out
-
-
-def motion_into_baseline(trial: np.ndarray, theta0: np.ndarray, dtheta: np.ndarray) -> np.ndarray:
-    """Each trial's joint motion (n, 2) rad from the previous trial's loaded posture (the previous
-    trial id in the table: theta0 + dtheta) to its own baseline posture; 0 for the first trial and
-    where a posture is unknown."""
-    trial = np.asarray(trial)
-    order = np.argsort(trial, kind="stable")
-    th0 = np.asarray(theta0, dtype=float)[order]
-    loaded = th0 + np.asarray(dtheta, dtype=float)[order]
-    moved = np.zeros_like(th0)
-    moved[1:] = th0[1:] - loaded[:-1]
-    out = np.empty_like(moved)
-    out[order] = np.nan_to_num(moved, nan=0.0)
     return out
 
 
@@ -783,7 +783,6 @@ class PostureModel:
             parts += [("P0", BASELINE_COLUMNS)] if self.baseline_mean == 1 else []
             taken = {c: a[key][:, k] for key, names in parts for k, c in enumerate(names)}
         P0, P, th0, dth, F = (a[k] for k in ("P0", "P", "theta0", "dtheta", "F"))
-        moved = a.get("motion_in", np.zeros((len(P), 2)))
         h2, h3 = self.geometry["h2"], self.geometry["h3"]
         angles = angle_blocks(P0, P, dth)
         self.angle_terms = select_angle_terms(angles)
@@ -794,13 +793,19 @@ class PostureModel:
         self.theta1_coefficients, self.theta1_xtx_inv = own.beta[:, 0].tolist(), own.xtx_inv.tolist()
         self.theta1_resid_var = float(own.resid_cov[0, 0])
         names = TORQUE_TERMS + {True: FRICTION_TERMS, "relieved": RELIEVED_TERMS}.get(self.friction, ())
+        # The friction columns and the load torques once for the fit: the blocks are built twice
+        # (their R factors, then the leave-one-out residuals), the selection's folds reuse them.
+        made = friction_family(self.friction, dth, a.pop("motion_in", None))
+        tau = load_torque(th0 + dth, F, h2, h3)
         torques = _Blocks.build(
             len(P),
             len(names),
             lambda lo, hi: stack_columns(
                 [
-                    torque_features(P0[lo:hi] - P[lo:hi], dth[lo:hi], names, moved[lo:hi]),
-                    load_torque(th0[lo:hi] + dth[lo:hi], F[lo:hi], h2, h3),
+                    torque_features(
+                        P0[lo:hi] - P[lo:hi], dth[lo:hi], names, made=None if made is None else made[lo:hi]
+                    ),
+                    tau[lo:hi],
                 ]
             ),
         )
@@ -958,7 +963,8 @@ class PostureModel:
         """The posture form's own deflections (n, 2) rad from pressures (MPa), routes aside: what
         the friction terms' history of loads reads (:meth:`predict_table`, ``labcli predict`` and
         the run-time estimator alike)."""
-        return self._angles(*pressure_arrays(P0, P))[0]
+        P0, P = pressure_arrays(P0, P)
+        return angle_features(P0, P, self.angle_terms) @ np.asarray(self.angle_coefficients)
 
     def predict(
         self,
@@ -1211,15 +1217,13 @@ class PostureModel:
         """
         a = table_arrays(table, baseline_mean=self.baseline_mean)
         moved = None
-        if self.uses_history:
+        if self.uses_history and history is not None:
+            moved = self._motion_from_history(history, a["trial"], mode == "measured-angles")
+        elif self.uses_history:
             # The motion into each baseline from the previous trial's loaded posture.
-            h = a if history is None else table_arrays(history, baseline_mean=self.baseline_mean)
             moved = self.motion_in_of(
-                h["trial"], h["P0"], h["P"], h["theta0"], h["dtheta"] if mode == "measured-angles" else None
+                a["trial"], a["P0"], a["P"], a["theta0"], a["dtheta"] if mode == "measured-angles" else None
             )
-            if moved is not None and history is not None:
-                at = {int(t): i for i, t in enumerate(h["trial"].tolist())}
-                moved = moved[[at[int(t)] for t in a["trial"].tolist()]]
         out = self.predict(
             a["P0"],
             a["P"],
@@ -1241,6 +1245,21 @@ class PostureModel:
         est = self.deflections(P0, P)
         seen = est if dtheta is None else np.where(np.isfinite(dtheta), dtheta, est)
         return motion_into_baseline(trial, np.broadcast_to(np.asarray(theta0, dtype=float), est.shape), seen)
+
+    def _motion_from_history(self, history: Any, trial: np.ndarray, measured: bool) -> np.ndarray:
+        """:meth:`motion_in_of` of the trials ``trial`` read from the whole run's table ``history``:
+        only their own rows and their previous trials' are read, and only the previous trials'
+        deflections estimated (at 10^6 trials, every row's estimate and a dict of every id took
+        most of validate's history)."""
+        ids = np.asarray(history["trial"]).astype(int)
+        own = rows_of(trial, ids)
+        before = previous_rows(ids)[own]
+        first = before < 0
+        h = table_arrays(history, np.concatenate([own, np.where(first, 0, before)]), baseline_mean=self.baseline_mean)
+        k = len(own)
+        est = self.deflections(h["P0"][k:], h["P"][k:])
+        seen = np.where(np.isfinite(h["dtheta"][k:]), h["dtheta"][k:], est) if measured else est
+        return motion_from(h["theta0"][:k], h["theta0"][k:], seen, first)
 
     def check_compatible(
         self, protocol: str, geometry: Mapping[str, Any], model_name: str = "the model", run_name: str = "the run"
@@ -1509,12 +1528,12 @@ def table_arrays(
 ) -> dict[str, np.ndarray]:
     """Trial ids, pressures (MPa), rest posture and deflections (rad), forces (N) of a trial table.
 
-    ``rows``: a boolean mask of the rows wanted (default all), taken column by column so
+    ``rows``: a boolean mask or the indices of the rows wanted (default all), taken column by column so
     the table itself is never copied.  ``motion``: also each trial's measured motion into its
     baseline (``motion_in``, :func:`motion_into_baseline`).  ``baseline_mean`` > 1: each P0 the
     mean of that many baselines (:func:`running_baseline`), over every row of the table.
     """
-    n = len(table) if rows is None else int(np.count_nonzero(rows))
+    n = len(table) if rows is None else int(np.count_nonzero(rows)) if rows.dtype == bool else len(rows)
 
     def values(c: str) -> np.ndarray:
         v = np.asarray(table[c], dtype=float)
@@ -1540,22 +1559,31 @@ def table_arrays(
         "F": col(FORCE_COLUMNS),
     }
     if motion:
-        # From every row: the previous trial of a fit trial may be one that ``rows`` leaves out.
-        def whole(names: tuple[str, ...], default: float) -> np.ndarray:
-            return stack_columns(
-                [
-                    np.asarray(table[c], dtype=float) if c in table.columns else np.full(len(table), default)
-                    for c in names
-                ]
-            )
-
-        r = whole(REST_COLUMNS, 0.0)
-        moved = motion_into_baseline(
-            trial, np.deg2rad(np.where(np.isfinite(r), r, 0.0)), np.deg2rad(whole(ANGLE_COLUMNS, math.nan))
-        )
-        out["motion_in"] = moved if rows is None else moved[rows]
+        out["motion_in"] = _measured_motion(table, trial, rows, out["theta0"])
     if baseline_mean > 1:
         every = stack_columns([np.asarray(table[c], dtype=float) for c in BASELINE_COLUMNS])
         mean = running_baseline(trial, every, baseline_mean)
         out["P0"] = mean if rows is None else mean[rows]
     return out
+
+
+def _measured_motion(table: Any, trial: np.ndarray, rows: np.ndarray | None, theta0: np.ndarray) -> np.ndarray:
+    """The measured motion into the baselines (:func:`~.history.motion_into_baseline`) of the rows
+    ``rows`` (default all), whose rest postures are ``theta0``.  The previous trial of a fit trial
+    may be one that ``rows`` leaves out: it is looked up among every row, and only those read."""
+    prev = previous_rows(trial)
+    before = prev if rows is None else prev[rows]
+    first = before < 0
+    before = np.where(first, 0, before)
+
+    def at(names: tuple[str, ...], default: float) -> np.ndarray:
+        return stack_columns(
+            [
+                np.asarray(table[c], dtype=float)[before] if c in table.columns else np.full(len(before), default)
+                for c in names
+            ]
+        )
+
+    r = at(REST_COLUMNS, 0.0)
+    rest = np.deg2rad(np.where(np.isfinite(r), r, 0.0))
+    return motion_from(theta0, rest, np.deg2rad(at(ANGLE_COLUMNS, math.nan)), first)
