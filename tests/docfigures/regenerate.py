@@ -26,6 +26,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import doc_markers as markers  # noqa: E402
+import doc_provenance as provenance  # noqa: E402
 from doc_sources import BENCH, ROOT, SOURCES, Source  # noqa: E402
 
 
@@ -40,6 +41,7 @@ def measure(source: Source) -> dict:
     if source.produce is not None:
         return source.produce()
     figures: dict = {}
+    commit = provenance.head_commit()
     for prefix, args in (source.runs or {"": ()}).items():
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "figures.json"
@@ -51,6 +53,9 @@ def measure(source: Source) -> dict:
             f"python tests/benchmarks/{source.script} {' '.join(args)}"
         )
         figures.update({f"{prefix} {k}" if prefix else k: v for k, v in run.items()})
+        # What the run measured on, unless the script recorded it itself (doc_provenance.py).
+        for k, v in provenance.stamp(prefix, source.script, args, commit).items():
+            figures.setdefault(k, v)
     if source.derive is not None:
         figures.update(source.derive(figures))
     return figures

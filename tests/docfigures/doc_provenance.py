@@ -1,0 +1,83 @@
+"""What a benchmark's figures were measured on: the commit and the simulated rig's realism.
+
+regenerate.py stamps each run of a benchmark source with ``meta/commit`` (the checkout's HEAD,
+``-dirty`` when labcli/, protocols/ or tests/benchmarks/ had changes not committed) and, for a
+script that runs the simulated McKibben rig (it calls ``add_rig_options``), ``meta/realism``: the
+``--realism`` of the run's arguments, else the script's own default.  A run's keys carry its
+prefix as its figures do (``"literature meta/realism"``).
+
+Figures measured before the stamp carry ``meta/committed_in`` instead: the commit that wrote the
+figures into the file (git log; for guard.json the measuring commit before a relabelling one), the
+nearest record there is of the code they were measured on.  Sources others were measuring again
+when the stamp came (``PENDING``) are not held to it yet: once ``regenerate.py NAME`` has stamped
+one, take its name out of ``PENDING``.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH = ROOT / "tests" / "benchmarks"
+RIG_DEFAULT = re.compile(r"add_rig_options\(\s*ap,\s*realism=\"([a-z,]+)\"")
+# Measured again elsewhere when the stamp came; stamped by their next regeneration.
+PENDING = frozenset({"sensitivity", "interval-coverage", "firmware-model"})
+# The directories whose changes move a benchmark's figures.
+MEASURED_CODE = ("labcli", "protocols", "tests/benchmarks", "tests/support")
+
+
+def key(prefix: str, name: str) -> str:
+    """A run's figure key, as regenerate.py writes it: ``"PREFIX name"``, or ``name`` for the run ``""``."""
+    return f"{prefix} {name}" if prefix else name
+
+
+def script_realism(script: str) -> str | None:
+    """The realism a benchmark script runs by default, None for a script without the simulated rig."""
+    m = RIG_DEFAULT.search((BENCH / script).read_text(encoding="utf-8"))
+    return m.group(1) if m else None
+
+
+def run_realism(script: str, args: tuple[str, ...]) -> str | None:
+    """The realism one run of ``script`` with ``args`` measures on (None: no McKibben rig of labcli's)."""
+    default = script_realism(script)
+    if default is None:
+        return None
+    pairs = dict(zip(args, args[1:], strict=False))
+    if pairs.get("--rig") == "second":  # phi_bent.py's second forward model has no realism
+        return None
+    return pairs.get("--realism", default)
+
+
+def head_commit() -> str:
+    """HEAD of the checkout, ``-dirty`` when the measured code has uncommitted changes."""
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True)
+    status = subprocess.run(
+        ["git", "status", "--porcelain", "--", *MEASURED_CODE], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    return head.stdout.strip() + ("-dirty" if status.stdout.strip() else "")
+
+
+def stamp(prefix: str, script: str, args: tuple[str, ...], commit: str) -> dict[str, Any]:
+    """The provenance keys of one run."""
+    out: dict[str, Any] = {key(prefix, "meta/commit"): commit}
+    realism = run_realism(script, args)
+    if realism is not None:
+        out[key(prefix, "meta/realism")] = realism
+    return out
+
+
+def missing(figures: dict[str, Any], runs: dict[str, tuple[str, ...]], script: str) -> list[str]:
+    """What a source's file lacks or contradicts of its runs' provenance (empty: all recorded)."""
+    problems = []
+    for prefix, args in runs.items():
+        name = repr(prefix or "the run")
+        if key(prefix, "meta/commit") not in figures and key(prefix, "meta/committed_in") not in figures:
+            problems.append(f"{name} records no commit ({key(prefix, 'meta/commit')})")
+        realism = run_realism(script, args)
+        recorded = figures.get(key(prefix, "meta/realism"))
+        if realism is not None and recorded != realism:
+            problems.append(f"{name} records realism {recorded!r}; its arguments run {realism!r}")
+    return problems
