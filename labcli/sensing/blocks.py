@@ -71,3 +71,36 @@ class BlockAverager:
     def pending(self) -> int:
         """Frames waiting for their block to complete."""
         return int(self._t.shape[0])
+
+
+class Recent:
+    """The last ``size`` vectors (k,) in a ring, and their median per channel (np.median's, the
+    ring's order aside, which a median does not see): the estimator asks for it every idle block."""
+
+    def __init__(self, size: int, k: int) -> None:
+        self._rows = np.empty((size, k))
+        self._n = 0
+        self._i = 0
+
+    def clear(self) -> None:
+        self._n = self._i = 0
+
+    def append(self, v: np.ndarray) -> None:
+        size = self._rows.shape[0]
+        self._rows[self._i] = v
+        self._i = (self._i + 1) % size
+        self._n = min(self._n + 1, size)
+
+    def __len__(self) -> int:
+        return self._n
+
+    def median(self) -> np.ndarray:
+        """np.median(rows, axis=0): the same partition, the middle one or the mean of the middle
+        two, NaN in a channel that holds one."""
+        n, h = self._n, self._n // 2
+        part = np.partition(self._rows[:n], [h, -1] if n % 2 else [h - 1, h, -1], axis=0)
+        mid = part[h].copy() if n % 2 else (part[h - 1] + part[h]) / 2.0
+        nan = np.isnan(part[-1])
+        if nan.any():
+            mid[nan] = np.nan
+        return mid

@@ -56,6 +56,11 @@ class EstimatorConfig:
     classify_s: float = 0.3  # blocks gathered after a change is seen before it is called a release or a load
     release_cosine: float = 0.7
     release_overshoot: float = 3.0
+    # Or (:mod:`.release`) the pressures come back part of the way, give or take the pressure
+    # sensors' new readings (how far a new reading may land from the last, rms), or the model
+    # reads the force after the change within release_force_se standard errors of zero (0: not asked).
+    reread_MPa: float = 5e-4
+    release_force_se: float = 2.0
     # The first change after the air was seen supplied waits this long for the joints to move: a
     # load moves them, the valves' closing (the pressure sensors reading afresh) does not.
     closing_s: float = 1.0
@@ -93,6 +98,9 @@ class EstimatorConfig:
         for name in positive:
             if not getattr(self, name) > 0:
                 raise ConfigError(f"Estimator setting {name} must be greater than 0, got {getattr(self, name)!r}.")
+        for name in ("reread_MPa", "release_force_se"):  # 0: that reading of a release is not made
+            if not getattr(self, name) >= 0:
+                raise ConfigError(f"Estimator setting {name} must be 0 or more, got {getattr(self, name)!r}.")
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -10,7 +10,8 @@ The estimator walks through :data:`~.results.STATES`: ``starting`` (learning the
 ``idle`` (tracking it, :mod:`.baseline`, and watching for a change, :mod:`.detector`),
 ``loading`` (a load came on: its response is fitted, :mod:`.transient`), ``loaded`` (it has
 settled), ``releasing`` (it came off; once settled the baseline is set anew and the rig is
-idle again).  Every block gives one :class:`~.results.Estimate` (:mod:`.evaluate`).
+idle again).  A change while a load is on is its release or another load (:mod:`.release`).
+Every block gives one :class:`~.results.Estimate` (:mod:`.evaluate`).
 
 Baseline P0 and the leak.  The model gets the baseline line at the block's time when it was
 fitted on leak-corrected baselines (``model.p0_leak_corrected``).  A model fitted on
@@ -38,22 +39,23 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any, Protocol
 
 import numpy as np
 
 from .baseline import TrendTracker
-from .blocks import BlockAverager, Blocks
+from .blocks import BlockAverager, Blocks, Recent
 from .config import EstimatorConfig
 from .detector import ChangeDetector, whiten
 from .evaluate import Inputs2, evaluate
 from .excursion import Excursion
-from .inputs import DeviceClock, Inputs
+from .inputs import DeviceClock, Inputs, frame_arrays
 from .model import BASELINE, STATE, TRANSIENT, SensingModel, check_model, uses_history
+from .release import force_at_zero, is_release, lagged_step
 from .results import IDLE, LOAD, LOADED, LOADING, RELEASE, RELEASING, SETTLED, STARTING, Estimate, Event
-from .transient import ResponseFit, Step, lag, onset
+from .transient import ResponseFit, Step, onset
 
 MAX_VAR = 0.05**2  # MPa^2: an input known to no better than 50 kPa is simply not known
 STATE_FLAGS = {STARTING: (BASELINE,), LOADING: (TRANSIENT,), RELEASING: (TRANSIENT,)}  # what a state adds to the flags
@@ -118,7 +120,7 @@ class Estimator:
             maxlen=max(8, int(round(c.history_s / c.block_s)))
         )
         self._r: np.ndarray | None = None  # block-mean noise variance per channel
-        self._spreads = _Recent(max(8, int(round(10.0 / c.block_s))), k)  # the last 10 s
+        self._spreads = Recent(max(8, int(round(10.0 / c.block_s))), k)  # the last 10 s
         self._excess = 1.0  # idle innovations' variance over the predicted one
         self._prev_y: np.ndarray | None = None
         self._started = 0.0
@@ -143,7 +145,7 @@ class Estimator:
         """Take frames as the reader delivers them (a :class:`~labcli.core.wire.FrameBatch`, or
         :class:`~labcli.core.wire.Frame` objects): the estimates of the blocks they complete
         and the events found, in time order (a block's events before its estimate)."""
-        seq, t_us, values = _arrays(frames)
+        seq, t_us, values = frame_arrays(frames)
         if not len(seq):
             return []
         return self.update_si(self._clock.seconds(t_us), self.inputs.si(values), seq)
@@ -393,16 +395,9 @@ class Estimator:
             exc.next_change(t1, self._new_fit(t1))
             self.detector.reset()
             return []
-        # The change's size, as a lagged step from t1 on, against what is on the rig, both whitened alike.
-        phi = lag(tcs - t1, c.tau_s)
-        step = phi @ np.array([h[2] for h in exc.residuals]) / max(float(phi @ phi), 1e-300)
-        amp, total = whiten(step, r[:p]), whiten(exc.settled_total()[:p], r[:p])
-        # A release takes back what is on the rig: the change points the way back to the baseline.
-        # Its size, read from the first blocks of a lagged change, is only roughly known (the heat
-        # makes it look larger): up to release_overshoot times the load's.
-        size, load = float(np.linalg.norm(amp)), float(np.linalg.norm(total))
-        back = -float(amp @ total) / max(size * load, 1e-300)
-        kind = RELEASE if back >= c.release_cosine and size <= c.release_overshoot * load else LOAD
+        step, total = lagged_step(tcs, np.array([h[2] for h in exc.residuals]), t1, c.tau_s), exc.settled_total()
+        release = is_release(step, total[:p], r[:p], c, lambda: self._at_zero(tc, step, r))
+        kind = RELEASE if release else LOAD
         if kind == LOAD and self.state == LOADED and np.max(np.abs(exc.settled_total()[:p])) < c.small_load_MPa:
             return self._restart(t1, tc, seq)
         self._load_done(t1)
@@ -411,6 +406,19 @@ class Estimator:
         self.detector.reset()
         self.state = RELEASING if kind == RELEASE else LOADING
         return [Event(kind, t1, tc, seq)]
+
+    def _at_zero(self, tc: float, step: np.ndarray, r: np.ndarray) -> bool:
+        """Does the model read the pressures after a change (the loads so far and the change's
+        settled ``step``) as no force against the baseline (:func:`.release.force_at_zero`)?"""
+        exc, c, p = self._exc, self.config, self.inputs.n_pressures
+        assert exc is not None
+        level, lvar = self.tracker.at(tc)
+        after = level[:p] + exc.settled_total()[:p] + step
+        extra = exc.step_var[:p] if exc.step_var is not None else 0.0
+        var = lvar[:p] + extra + exc.transient_var(tc, c.shape_sd)[:p] + (c.shape_sd * step) ** 2 + r[:p]
+        var = np.minimum(var, MAX_VAR)
+        x = Inputs2(self._p0(level[:p]), self._rest, after, var, after, var, self._motion)
+        return force_at_zero(self.model, x, c.release_force_se)
 
     def _restart(self, t1: float, tc: float, seq: int) -> list[Event]:
         """A load on top of one too small to have shown its release (sleeve friction holds the arm
@@ -538,51 +546,3 @@ class Estimator:
             dict(zip(m.quantities, m.units, strict=True)),
             tuple(extra_flags) + tuple(flags),
         )
-
-
-class _Recent:
-    """The last ``size`` vectors (k,) in a ring, and their median per channel (np.median's, the
-    ring's order aside, which a median does not see): the estimator asks for it every idle block."""
-
-    def __init__(self, size: int, k: int) -> None:
-        self._rows = np.empty((size, k))
-        self._n = 0
-        self._i = 0
-
-    def clear(self) -> None:
-        self._n = self._i = 0
-
-    def append(self, v: np.ndarray) -> None:
-        size = self._rows.shape[0]
-        self._rows[self._i] = v
-        self._i = (self._i + 1) % size
-        self._n = min(self._n + 1, size)
-
-    def __len__(self) -> int:
-        return self._n
-
-    def median(self) -> np.ndarray:
-        """np.median(rows, axis=0): the same partition, the middle one or the mean of the middle
-        two, NaN in a channel that holds one."""
-        n, h = self._n, self._n // 2
-        part = np.partition(self._rows[:n], [h, -1] if n % 2 else [h - 1, h, -1], axis=0)
-        mid = part[h].copy() if n % 2 else (part[h - 1] + part[h]) / 2.0
-        nan = np.isnan(part[-1])
-        if nan.any():
-            mid[nan] = np.nan
-        return mid
-
-
-def _arrays(frames: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """seq, t_us, values of a FrameBatch or of an iterable of Frame objects."""
-    if hasattr(frames, "seq") and hasattr(frames, "values") and isinstance(frames.seq, np.ndarray):
-        return frames.seq, frames.t_us, frames.values
-    items: Iterable[Any] = list(frames)
-    rows = [f for f in items if hasattr(f, "values")]
-    if not rows:
-        return np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 0))
-    return (
-        np.array([f.seq for f in rows], dtype=np.int64),
-        np.array([f.t_us for f in rows], dtype=np.int64),
-        np.array([f.values for f in rows], dtype=float),
-    )

@@ -12,7 +12,7 @@ that lacks one is refused in one sentence.
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -125,3 +125,18 @@ class DeviceClock:
         self._offset += int(wraps[-1])
         self._last = int(t[-1])
         return out
+
+
+def frame_arrays(frames: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """seq, t_us, values of a FrameBatch or of an iterable of Frame objects."""
+    if hasattr(frames, "seq") and hasattr(frames, "values") and isinstance(frames.seq, np.ndarray):
+        return frames.seq, frames.t_us, frames.values
+    items: Iterable[Any] = list(frames)
+    rows = [f for f in items if hasattr(f, "values")]
+    if not rows:
+        return np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 0))
+    return (
+        np.array([f.seq for f in rows], dtype=np.int64),
+        np.array([f.t_us for f in rows], dtype=np.int64),
+        np.array([f.values for f in rows], dtype=float),
+    )

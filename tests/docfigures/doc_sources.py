@@ -676,6 +676,19 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--seeds", "11-30", "--loads", "10", "--idle-min", "3", "--jobs", "2", "--fast-seconds", "120")},
         ),
         Source(
+            "sensing-closing",
+            "benchmark",
+            "labcli sense's loads found and false loads from the air on, tuning seeds 1-10 and held-out 11-30, "
+            "releases told by their direction alone and by every reading",
+            script="sensing_closing.py",
+            runs={
+                "held-out": ("--seeds", "11-30"),
+                "held-out direction only": ("--seeds", "11-30", "--direction-only"),
+                "tuning": ("--seeds", "1-10"),
+                "tuning direction only": ("--seeds", "1-10", "--direction-only"),
+            },
+        ),
+        Source(
             "sensing-latency",
             "benchmark",
             "labcli sense's frame-to-published latency beside a bare read-and-write floor, held-out seeds 11-20",

@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 
 from labcli.sensing.baseline import TrendTracker
-from labcli.sensing.blocks import BlockAverager
+from labcli.sensing.blocks import BlockAverager, Recent
 from labcli.sensing.config import EstimatorConfig
-from labcli.sensing.estimator import _Recent
 from labcli.sensing.inputs import U32, DeviceClock
 from labcli.sensing.transient import ResponseFit, _grid_var
 
@@ -60,7 +59,7 @@ def test_block_means_and_spreads_are_numpys_mean_and_variance_of_the_mean():
 @pytest.mark.parametrize("n", [1, 2, 7, 8, 100, 230])
 def test_the_running_median_is_numpys_median_of_the_last_rows(n):
     rng = np.random.default_rng(n)
-    recent = _Recent(100, 5)
+    recent = Recent(100, 5)
     rows = rng.lognormal(-18, 1, (n, 5))
     if n > 2:
         rows[n // 2, 3] = np.nan  # a block that held a NaN: its channel's median is NaN while it is kept

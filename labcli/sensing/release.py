@@ -1,0 +1,100 @@
+"""A change while a load is on: the load coming off, or another load on top of it.
+
+The estimator sees the change as a lagged step of the pressures, ``step`` (MPa per chamber,
+:func:`lagged_step`), on top of what the loads so far have moved them by, ``total``.  It is the
+release when any of three readings says the rig is coming back to rest:
+
+* **It points back** (:func:`points_back`): the change takes back what is on the rig, within
+  ``release_cosine`` of the way back to the baseline and at most ``release_overshoot`` times the
+  load's size (read from the first blocks of a lagged change, the heat makes it look larger).
+* **It is a partial return, give or take the sensors' new readings** (:func:`partial_return`).
+  The sleeves' friction may hold the arm anywhere between where the load held it and where it
+  rested, and every change of the rig gives each pressure sensor a new reading, off the last by
+  up to ``reread_MPa`` rms (0.5 kPa: on the literature's simulated rig each reading is off by
+  0.33 kPa rms, two readings' difference by 0.47 kPa).
+  For a small load the new readings are a large share of the way back, or all of it when
+  friction holds the arm where the load left it.  So the change is the release when the
+  pressures after it, ``total + step``, lie within the sensors' new readings of a point between
+  the loaded pressures and the baseline: ``min over a in [0, 1] of |step + a total|^2`` in units
+  of ``reread_MPa`` (common mode removed, as the detector has it) under the chi-square(3) 99 %
+  point.
+* **The force reads zero** (:func:`force_at_zero`): the model, given the pressures after the
+  change against the baseline, reads every load quantity it reports within ``release_force_se``
+  standard errors of zero.  A load held by friction (along the arm, where it makes little
+  torque) may let the arm slide to another rest when it comes off: the pressures then move away
+  from the baseline's, in the muscles' own way, which the model reads as the posture it is and
+  no force.
+
+A load put on top of another is taken for the release when it leaves the pressures where one of
+these readings puts a rig at rest: a load whose change is within the sensors' repeatability, or
+that leaves no force the model can tell from zero, cannot be told from a release by the
+pressures (nor, for a small one, by the potentiometers: friction holds the arm).  The settings
+were tuned on seeds 1-10 of tests/benchmarks/sensing_closing.py (docs/sensing.md, "Release or load").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from .config import EstimatorConfig
+from .detector import whiten
+from .evaluate import Inputs2, evaluate
+from .model import LOAD, UNOBSERVABLE, SensingModel
+from .transient import lag
+
+CHI2_3_99 = 11.345  # the chi-square(3) 99 % point: the detector's vectors have one degree fewer than the chambers
+
+
+def lagged_step(tcs: np.ndarray, raw: np.ndarray, t1: float, tau: float) -> np.ndarray:
+    """The settled size of a change begun at ``t1``: least squares of the residuals ``raw`` (n, p)
+    at the blocks' times ``tcs`` on the muscles' lag ``1 - exp(-(t - t1)/tau)`` (p,)."""
+    phi = lag(tcs - t1, tau)
+    return phi @ raw / max(float(phi @ phi), 1e-300)
+
+
+def points_back(step: np.ndarray, total: np.ndarray, var: np.ndarray, cosine: float, overshoot: float) -> bool:
+    """Does the change take back what is on the rig (module docstring)?  ``var``: the chambers'
+    noise variance (p,), by which both are whitened alike."""
+    amp, load = whiten(step, var), whiten(total, var)
+    size, held = float(np.linalg.norm(amp)), float(np.linalg.norm(load))
+    back = -float(amp @ load) / max(size * held, 1e-300)
+    return back >= cosine and size <= overshoot * held
+
+
+def partial_return(step: np.ndarray, total: np.ndarray, reread_MPa: float) -> bool:
+    """Are the pressures after the change within the sensors' new readings of a point between
+    the loaded ones and the baseline (module docstring)?"""
+    var = np.full(len(step), reread_MPa**2)
+    d, t = whiten(step, var), whiten(total, var)
+    a = float(np.clip(-(d @ t) / max(float(t @ t), 1e-300), 0.0, 1.0))
+    miss = d + a * t
+    return float(miss @ miss) <= CHI2_3_99
+
+
+def force_at_zero(model: SensingModel, x: Inputs2, z: float) -> bool:
+    """Does the model read the pressures ``x.P_load`` against ``x.P0`` as no load: every load
+    quantity it reports within ``z`` standard errors of zero (and at least one reported)?"""
+    values, se, flags = evaluate(model, x)
+    seen = False
+    for q, kind, v, s in zip(model.quantities, model.kinds, values, se, strict=True):
+        if kind != LOAD or f"{UNOBSERVABLE}:{q}" in flags or not np.isfinite(v):
+            continue
+        seen = True
+        if abs(float(v)) > z * float(s):
+            return False
+    return seen
+
+
+def is_release(
+    step: np.ndarray, total: np.ndarray, var: np.ndarray, config: EstimatorConfig, at_zero: Callable[[], bool]
+) -> bool:
+    """Any of the three readings (module docstring), the pressures' first; ``at_zero`` asks the
+    model (:func:`force_at_zero`) only when they do not say."""
+    c = config
+    if points_back(step, total, var, c.release_cosine, c.release_overshoot):
+        return True
+    if c.reread_MPa > 0 and partial_return(step, total, c.reread_MPa):
+        return True
+    return c.release_force_se > 0 and at_zero()
