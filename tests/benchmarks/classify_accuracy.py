@@ -51,10 +51,12 @@ def trials_and_pushes(
     rig_kw: dict | None = None,
     settle_s: float | None = None,
     repressurise_kPa: float | None = None,
+    rig_class: type = SimRig,
 ):
     """On the rig of seed ``seed``: the force protocol's trial table, then the demo objects' push
-    table with each push's rest posture (``rig_kw``: more keyword arguments of the rig), as the
-    demo's two runs acquire them (tests/benchmarks/classify_heldout.py) but without the wire.
+    table with each push's rest posture (``rig_kw``: more keyword arguments of the rig; ``rig_class``
+    builds it, by default the simulated rig itself), as the demo's two runs acquire them
+    (tests/benchmarks/classify_heldout.py) but without the wire.
 
     Every baseline and every load waits ``settle_s`` before its window, by default the protocols'
     earliest acceptance of equilibrium (:func:`acquired.protocol_settle_s`: three windows and the hold,
@@ -69,13 +71,13 @@ def trials_and_pushes(
     """
     force, push = load_protocol("takuma2014"), load_protocol("takuma2014-stiffness")
     air = acquired_air(force, push, settle_s=settle_s, repressurise_kPa=repressurise_kPa)
-    rig = Windows(SimRig(seed=seed, **(rig_kw or {})))
+    rig = Windows(rig_class(seed=seed, **(rig_kw or {})))
     trials = simulate_weight_trials(rig, load_plan(force), calibration=force.calibration, **air)
     rig.rest_columns(trials, force.calibration)
     # The push run opens the port anew, as a second `labcli acquire` on sim://?seed=N does: the same
     # rig seed, its air supplied from the start (on tuning seeds 1-2 the steel can's k/k_true went
     # 1.02, 0.95 -> 0.92, 0.87 with it, the acquired runs' 0.89, 0.88).
-    rig = Windows(SimRig(seed=seed, **(rig_kw or {})))
+    rig = Windows(rig_class(seed=seed, **(rig_kw or {})))
     table = simulate_pushes(rig, DEMO_OBJECTS, calibration=push.calibration, pushes_per_object=pushes, **air)
     rig.rest_columns(table, push.calibration)
     return trials, table

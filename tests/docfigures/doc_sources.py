@@ -722,6 +722,14 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--seeds", "11-30"), "literature": ("--seeds", "11-15", "--realism", "literature")},
         ),
         Source(
+            "steel-deformation",
+            "benchmark",
+            "each push's k / k_true split into force, deformation and contact with the rig's truth, the play "
+            "by least squares and on the loads, and each effect off (literature rig, seeds 11-30 and 1-10)",
+            script="steel_deformation.py",
+            runs={"": ("--seeds", "11-30"), "tuning": ("--seeds", "1-10", "--effects")},
+        ),
+        Source(
             "friction-estimator",
             "benchmark",
             "the posture form with and without the sleeves' friction terms on the literature's rig, seeds 11-30",

@@ -164,3 +164,46 @@ def test_the_posture_form_fits_the_same_play_and_the_same_corrected_deflections(
     assert PostureModel.from_dict(older).label_play == "none"
     with pytest.raises(ModelError, match="bad 'labels' entry"):
         PostureModel.from_dict({**d, "labels": {"play": "maybe"}})
+
+
+NOISE = 0.35
+
+
+def _noisy_regressors(seed: int) -> tuple[np.ndarray, ...]:
+    """Trials whose deflections follow their loads exactly, read through play B, with a design whose
+    pressure ratios carry reading errors of NOISE of their spread (joint 1 on the literature's rig)."""
+    rng = np.random.default_rng(seed)
+    n = 150
+    F = rng.normal(0.0, 1.5, (n, 2))
+    d_true = np.radians(F @ np.array([[0.3, -0.1], [0.1, 0.4]]))  # a compliance, rad per N (x deg)
+    design_true = np.column_stack([np.sin(d_true[:, 0]), -np.sin(d_true[:, 0])]) / np.array([1.5, 0.8])
+    noisy = design_true + rng.normal(0.0, NOISE * design_true.std(axis=0), design_true.shape)
+    read = _read(d_true[:, 0], B) + rng.normal(0.0, math.radians(0.005), n)
+    return noisy, read, F, d_true[:, 0]
+
+
+def test_errors_in_the_pressures_shorten_the_least_squares_play_and_not_the_one_on_the_loads():
+    from labcli.papers.takuma2014.models.labels import load_instruments
+
+    ls, on_loads = [], []
+    for seed in range(1, 9):
+        design, read, F, _ = _noisy_regressors(seed)
+        n = len(read)
+        args = (design, read, np.arange(n), np.ones(n, bool), np.arange(1, n + 1))
+        ls.append(fit_play(*args)[0].play_rad)
+        on_loads.append(fit_play(*args, load_instruments(F))[0].play_rad)
+    # Least squares on regressors with errors shortens their slope (the two ratios' mean by
+    # 1 / (1 + NOISE^2 / 2)), and the play's column, which follows the deflection's sign, takes the
+    # short part: the width comes out low on nearly every draw.
+    assert np.median(ls) < 0.85 * B
+    assert sum(w < B for w in ls) >= 7
+    # The loads move the joint and not the readings' errors: on them the width is the rig's.
+    assert np.median(on_loads) == pytest.approx(B, rel=0.1)
+
+
+def test_the_play_on_the_loads_is_a_model_option_its_file_keeps(play_only_trials):
+    proto, table = play_only_trials
+    model = TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play="loads").fit(table)
+    assert model.play["play_deg"] == pytest.approx([0.2, 0.2], abs=0.03)
+    back = TakumaModel.from_json(model.to_json())
+    assert back.label_play == "loads" and back.play["play_deg"] == model.play["play_deg"]

@@ -78,13 +78,47 @@ def correct(dtheta_read: np.ndarray, c: np.ndarray, play: float) -> np.ndarray:
     return dtheta_read + play * c
 
 
+def load_instruments(F: np.ndarray) -> np.ndarray:
+    """The instruments of the play's fit from the trials' known loads (n, 2) N: the force and its
+    second-order products, which the deflection follows and the pressure readings' errors do not."""
+    F = np.asarray(F, dtype=float)
+    return np.column_stack([F, F[:, 0] ** 2, F[:, 1] ** 2, F[:, 0] * F[:, 1]])
+
+
+def _solve(X: np.ndarray, y: np.ndarray, Z: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients and their unscaled covariance: least squares, or two-stage least squares on the
+    instruments ``Z`` (X projected onto them first) when given."""
+    if Z is not None:
+        X = Z @ np.linalg.lstsq(Z, X, rcond=None)[0]
+    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    return beta, np.linalg.pinv(X.T @ X)
+
+
 def fit_play(
-    design: np.ndarray, dtheta_read: np.ndarray, order: np.ndarray, fit_rows: np.ndarray, trial: np.ndarray
+    design: np.ndarray,
+    dtheta_read: np.ndarray,
+    order: np.ndarray,
+    fit_rows: np.ndarray,
+    trial: np.ndarray,
+    instruments: np.ndarray | None = None,
 ) -> tuple[PlayFit, np.ndarray]:
     """Fit one joint's play with its angle design (all rows in table order; ``order`` sorts them by
-    trial; ``fit_rows`` the rows fitted).  Returns the fit and the corrected deflections (rad)."""
+    trial; ``fit_rows`` the rows fitted).  Returns the fit and the corrected deflections (rad).
+
+    ``instruments`` (n, m), e.g. :func:`load_instruments`: the width by two-stage least squares on
+    them and the states.  The design's pressure ratios carry the sensors' reading errors (a fresh
+    error in each reading, which no window averages away); least squares on such regressors
+    shortens their slopes, and the short part of every deflection, which grows with it as the
+    play's states do, is taken from the play: on the literature's rig the width came out 0.02-0.22
+    deg of the 0.2 deg (seeds 1-10, joint 1).  The loads move the joint but not the readings'
+    errors, so the width fitted on them is free of that bias (0.03-0.23 deg, median 0.16, on the same
+    seeds: the sleeves' friction, which the operator's return to the same rest leaves out, still
+    shortens it).  Opt-in (``TakumaModel(label_play="loads")``): on the bent arm's theta2 it came out
+    0.49 deg (seeds 1-5, tests/benchmarks/steel_deformation.py)."""
     r = np.asarray(dtheta_read, dtype=float)
     ok = fit_rows & np.isfinite(r) & np.all(np.isfinite(design), axis=1)
+    if instruments is not None:
+        ok &= np.all(np.isfinite(instruments), axis=1)
     play = START_RAD  # a small play to start from: the states are then the readings' signs
     se = 0.0
     d_true = r.copy()
@@ -98,11 +132,12 @@ def fit_play(
         use = ok & ~stuck
         X = np.column_stack([design[use], -c[use]])
         y = np.sin(r[use])
-        beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+        Z = None if instruments is None else np.column_stack([instruments[use], -c[use]])
+        beta, unscaled = _solve(X, y, Z)
         new_play = max(float(beta[-1]), 0.0)
         resid = y - X @ beta
         dof = max(len(y) - X.shape[1], 1)
-        cov = np.linalg.pinv(X.T @ X) * float(resid @ resid) / dof
+        cov = unscaled * float(resid @ resid) / dof
         se = float(np.sqrt(max(cov[-1, -1], 0.0)))
         pred = np.arcsin(np.clip(design @ beta[:-1], -1.0, 1.0))
         d_true = np.where(np.isfinite(r), correct(r, c, new_play), pred)

@@ -757,7 +757,7 @@ class PostureModel:
         self.play = {}
         if self.label_play == "none":
             return table
-        probe = TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play="fit")
+        probe = TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play=self.label_play)
         probe._unplayed(table, set_mask(table, "fit", source) if fit_rows is None else fit_rows)
         self.play = probe.play
         widths = self.play.get("play_deg")

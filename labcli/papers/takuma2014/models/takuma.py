@@ -120,6 +120,7 @@ MAX_COEFFICIENT = 1e6
 DEFAULT_MAX_AMPLIFICATION = 100.0
 DEFAULT_MAX_DESIGN_COND = 1e8
 # Fewer fit trials than this: the play is not estimated (its column would eat a tenth of the data).
+LABEL_PLAYS = ("fit", "loads", "none")  # TakumaModel.label_play: how the pots' play is taken
 MIN_PLAY_TRIALS = 20
 MAX_PLAY_TRIALS = 20_000
 # Above this (column-scaled) condition number the fit is kept but marked ill-conditioned.
@@ -466,8 +467,11 @@ class TakumaModel:
     calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
     p0_leak_corrected: bool = False
     baseline_gap_s: float | None = None
-    # The potentiometers' play fitted with Eqs. 34-35 (models/labels.py): "fit" estimates it,
-    # "none" takes the readings as they are.  ``play`` holds what the fit estimated.
+    # The potentiometers' play fitted with Eqs. 34-35 (models/labels.py): "fit" estimates it by least
+    # squares, "loads" by two-stage least squares on the trials' loads (free of the pressure
+    # readings' errors, which shorten a least-squares width; opt-in: on the bent arm's theta2 it
+    # came out 0.49 deg of the rig's 0.2), "none" takes the readings as they are.  ``play`` holds
+    # what the fit estimated.
     label_play: str = "fit"
     play: dict[str, Any] = field(default_factory=dict)
 
@@ -569,7 +573,7 @@ class TakumaModel:
         """The table with its angle labels corrected for the potentiometers' play (fitted here with
         Eqs. 34-35's designs, models/labels.py), and per angle equation the trials left out as read
         inside the play.  ``label_play="none"``, or too few fit trials, leaves the labels as read."""
-        from .labels import fit_play
+        from .labels import fit_play, load_instruments
 
         self.play = {}
         n_fit = int(np.count_nonzero(fit_rows))
@@ -588,9 +592,13 @@ class TakumaModel:
         out = table.copy()
         stuck: dict[str, list[int]] = {}
         widths, ses, trailing = [], [], []
+        fit_rows = np.asarray(fit_rows, bool)
+        # "loads": the width on the loads as instruments where every fit trial has one (models/labels.py).
+        on_loads = self.label_play == "loads" and np.isfinite(a["F"][fit_rows]).all()
+        loads = load_instruments(a["F"]) if on_loads else None
         for k, eq in enumerate(("theta1", "theta2")):
             design = u[:, :2] if eq == "theta1" else u
-            res, corrected = fit_play(design, a["theta"][:, k], order, np.asarray(fit_rows, bool), a["trial"])
+            res, corrected = fit_play(design, a["theta"][:, k], order, fit_rows, a["trial"], loads)
             out[ANGLE_COLUMNS[k]] = np.degrees(corrected)
             stuck[eq] = list(res.stuck)
             widths.append(math.degrees(res.play_rad))
@@ -853,9 +861,9 @@ def labels_from_dict(value: Any, name: str) -> tuple[str, dict[str, Any]]:
     """A model file's ``labels``: how its angle labels were taken (absent in older files: as read)."""
     if value is None:
         return "none", {}
-    if not isinstance(value, Mapping) or value.get("play") not in ("fit", "none"):
+    if not isinstance(value, Mapping) or value.get("play") not in LABEL_PLAYS:
         raise ModelError(
-            f"{cap(name)} has a bad 'labels' entry (expected play 'fit' or 'none'); refit with `labcli fit`."
+            f"{cap(name)} has a bad 'labels' entry (expected play 'fit', 'loads' or 'none'); refit with `labcli fit`."
         )
     rest = {k: v for k, v in value.items() if k != "play"}
     return str(value["play"]), rest
