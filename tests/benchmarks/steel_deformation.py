@@ -155,8 +155,7 @@ def summarise(raw: dict[int, dict], estimators: tuple[str, ...] = ESTIMATORS) ->
         fig[f"{est} wrong with confidence >= 0.9"] = sum(
             o["category"] != o["true"] and o["confidence"] >= 0.9 for o in objects
         )
-        fig["objects"] = list(dict.fromkeys(o["object"] for o in objects))
-        for name in fig["objects"]:
+        for name in dict.fromkeys(o["object"] for o in objects):
             mine = [o for o in objects if o["object"] == name]
             med, lo, hi = median_ci([o["ratio"] for o in mine], rng)
             right = sum(o["category"] == o["true"] for o in mine)
@@ -184,7 +183,7 @@ def print_summary(fig: dict[str, Any], estimators: tuple[str, ...] = ESTIMATORS)
         print(
             f"{'object':12s} {'k/k_true [95 % CI]':24s} {'right':6s}  per push: k  force  deform  contact  dth1  dth2"
         )
-        for name in fig["objects"]:
+        for name in [o.name for o in DEMO_OBJECTS]:
             lo, hi = fig[f"{est} {name} k/k_true ci95 lo"], fig[f"{est} {name} k/k_true ci95 hi"]
             sh = [fig[f"{est} {name} push {s} median"] for s in SHARES]
             print(
@@ -198,8 +197,8 @@ def print_summary(fig: dict[str, Any], estimators: tuple[str, ...] = ESTIMATORS)
 def effects(seeds: list[int], realism: str, fig: dict[str, Any]) -> None:
     """The least-squares split of the steel can with each of the rig's effects off in turn (into ``fig``)."""
     print("\nsteel can, least-squares play, one effect off (median over pushes): k/k_true  force  deformation")
-    for effect in ("none", *_SCALES, "drift"):
-        scales = {} if effect == "none" else {effect: 0.0}
+    for effect in ("all", *_SCALES, "drift"):
+        scales = {} if effect == "all" else {effect: 0.0}
         pushes = [
             p
             for s in seeds
@@ -208,8 +207,8 @@ def effects(seeds: list[int], realism: str, fig: dict[str, Any]) -> None:
         ]
         med = [float(np.median([p[k] for p in pushes])) for k in ("k", "force", "deformation")]
         for k, v in zip(("k", "force", "deformation"), med, strict=True):
-            fig[f"steel {effect} off {k}"] = v
-        print(f"  {effect + ' off' if effect != 'none' else 'all on':14s} " + "  ".join(f"{v:.3f}" for v in med))
+            fig[f"steel {effect} on {k}" if effect == "all" else f"steel {effect} off {k}"] = v
+        print(f"  {effect + (' on' if effect == 'all' else ' off'):14s} " + "  ".join(f"{v:.3f}" for v in med))
 
 
 def main(argv: list[str] | None = None) -> None:

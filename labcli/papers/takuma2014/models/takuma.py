@@ -470,7 +470,7 @@ class TakumaModel:
     # The potentiometers' play fitted with Eqs. 34-35 (models/labels.py): "fit" estimates it by least
     # squares, "loads" by two-stage least squares on the trials' loads (free of the pressure
     # readings' errors, which shorten a least-squares width; opt-in: on the bent arm's theta2 it
-    # came out 0.49 deg of the rig's 0.2), "none" takes the readings as they are.  ``play`` holds
+    # averaged 0.49 deg of the rig's 0.2 over seeds 1-5), "none" takes the readings as they are.  ``play`` holds
     # what the fit estimated.
     label_play: str = "fit"
     play: dict[str, Any] = field(default_factory=dict)
