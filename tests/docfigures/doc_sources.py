@@ -619,9 +619,9 @@ SOURCES: dict[str, Source] = {
         Source(
             "phi-bent",
             "benchmark",
-            "pushes with phi blank on the bent arm, seeds 1-10",
+            "pushes with phi blank on the bent arm, the posture form with the sleeves' friction terms, seeds 1-10",
             script="phi_bent.py",
-            runs={"": ("--seeds", "1-10", "--realism", "kind")},
+            runs={"": ("--seeds", "1-10", "--realism", "kind", "--friction-terms")},
         ),
         Source(
             "phi-bent-heldout",
