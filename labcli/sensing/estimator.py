@@ -415,7 +415,10 @@ class Estimator:
         level, lvar = self.tracker.at(tc)
         after = level[:p] + exc.settled_total()[:p] + step
         extra = exc.step_var[:p] if exc.step_var is not None else 0.0
-        var = lvar[:p] + extra + exc.transient_var(tc, c.shape_sd)[:p] + (c.shape_sd * step) ** 2 + r[:p]
+        # Not the change's size in doubt (its shape's share, which grows with it): a slide to
+        # another rest reads no force whatever its size, and a load of any size reads one.  The
+        # sensors' new readings are in doubt.
+        var = lvar[:p] + extra + exc.transient_var(tc, c.shape_sd)[:p] + c.reread_MPa**2 + r[:p]
         var = np.minimum(var, MAX_VAR)
         x = Inputs2(self._p0(level[:p]), self._rest, after, var, after, var, self._motion)
         return force_at_zero(self.model, x, c.release_force_se)

@@ -20,7 +20,9 @@ release when any of three readings says the rig is coming back to rest:
   point.
 * **The force reads zero** (:func:`force_at_zero`): the model, given the pressures after the
   change against the baseline, reads every load quantity it reports within ``release_force_se``
-  standard errors of zero.  A load held by friction (along the arm, where it makes little
+  standard errors of zero (the estimator gives the model the sensors' new readings as the
+  pressures' doubt, not the change's size: that doubt grows with the change and would make any
+  large load read as none).  A load held by friction (along the arm, where it makes little
   torque) may let the arm slide to another rest when it comes off: the pressures then move away
   from the baseline's, in the muscles' own way, which the model reads as the posture it is and
   no force.

@@ -84,11 +84,13 @@ def test_a_release_friction_holds_with_the_sensors_reading_afresh_is_a_release()
     assert est.state == IDLE
 
 
-def test_a_real_load_put_on_a_small_one_is_another_load():
-    # 2 kPa on the first pair at 40 s, on top of the 0.6 N: the pressures go away from the
-    # baseline by four times the new readings' spread and the force stays 0.6 N: a load.
+def test_a_real_load_put_on_another_is_another_load():
+    # 2 kPa on the first pair at 40 s, on top of 1.5 N: the pressures go away from the baseline
+    # by four times the new readings' spread and the force stays 1.5 N, four standard errors
+    # with the new readings' (0.5 kPa a chamber: 0.35 N): a load.  (On top of 0.6 N the force
+    # after is within the new readings' reach of zero: that load cannot be told from a release.)
     B = np.array([2e-3, -2e-3, 0.0, 0.0])
-    t, x, _ = stream(60.0, loads=[Load(20.0, 60.0, A), Load(40.0, 60.0, B)], seed=3)
+    t, x, _ = stream(60.0, loads=[Load(20.0, 60.0, 2.5 * A), Load(40.0, 60.0, B)], seed=3)
     _, out = _run(LinearModel(), t, x)
     ev = [(e.kind, round(e.t_device_s, 1)) for e in out if isinstance(e, Event)]
     assert [k for k, _ in ev][:3] == [LOAD, SETTLED, LOAD], ev
@@ -134,3 +136,17 @@ def test_force_at_zero_reads_the_model_against_the_baseline():
 def test_a_negative_release_setting_is_refused_in_one_sentence(name):
     with pytest.raises(ConfigError, match=f"{name} must be 0 or more"):
         EstimatorConfig(**{name: -1.0})
+
+
+def test_a_large_load_on_a_small_one_is_a_load_however_uncertain_its_size():
+    # A force read from many chambers at once, partly cancelling (f from both pairs): 10 kPa put on
+    # top of a small load reads 2.5 N against an uncertainty of its size that grows with it.  The
+    # force's reading takes the change's direction as seen, its size known to the sensors' new
+    # readings: a large change is never "no force" for being large (main took it for a release).
+    model = LinearModel(C=np.array([[10.0, -10.0, 0.0, 0.0], [500.0, -500.0, -400.0, 400.0]]))
+    small = np.array([0.3e-3, -0.3e-3, 0.3e-3, -0.3e-3])
+    big = np.array([-5.5e-3, 5.4e-3, -9.3e-3, 9.9e-3])
+    t, x, _ = stream(60.0, loads=[Load(20.0, 60.0, small), Load(40.0, 60.0, big)], seed=3)
+    _, out = _run(model, t, x)
+    ev = [(e.kind, round(e.t_device_s, 1)) for e in out if isinstance(e, Event) and e.kind != SETTLED]
+    assert ev[:2] == [(LOAD, pytest.approx(20.0, abs=0.2)), (LOAD, pytest.approx(40.0, abs=0.2))], ev
