@@ -13,6 +13,7 @@ import pytest
 from labcli.errors import ConfigError, ModelError
 from labcli.papers.takuma2014.models.metrics import evaluate
 from labcli.papers.takuma2014.models.posture import load_force_model
+from labcli.papers.takuma2014.predict import SUMMARY_FLAGS, count_flags, estimate_table, predict_file
 from labcli.papers.takuma2014.records import RECORD_TYPES, load_trials
 from labcli.papers.takuma2014.sensing import TakumaSensing
 from labcli.sensing import load_model
@@ -206,3 +207,65 @@ def test_a_friction_models_estimates_read_each_trials_history_as_validate_does(f
     P = rows[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy()
     blind = sens.predict(P0, P, np.radians(rows[["theta1_0_deg", "theta2_0_deg"]].to_numpy()))
     assert np.min(np.abs(blind.values[:, 2] - val["Fx_N"].to_numpy())) > 0.1  # the history matters: 0.2-0.26 N
+
+
+def _counted_row_by_row(column) -> dict[str, int]:
+    """The summary's counts a row at a time: the plain formulation :func:`count_flags` must equal."""
+    named = {f: sum(1 for v in column if isinstance(v, str) and f in v) for f in SUMMARY_FLAGS}
+    return {f: n for f, n in named.items() if n}
+
+
+def test_flag_counts_are_the_row_by_row_counts_and_the_summary_says_them(fitted, invoke, tmp_path):
+    """Rows flagged out-of-range (pressures past the calibrated span) and not, and with missing
+    truth or rest posture: the summary line names what a row-by-row count of the written flags
+    gives, in the summary's order."""
+    d, csv, model_path, table = fitted
+    rows = table.drop(columns=["set", "mass_g", "direction_deg"]).reset_index(drop=True)
+    rows.loc[[7, 8, 9], ["P_L1", "P_R1"]] *= 3.0
+    rows.loc[[10, 11], "Fx_N"] = np.nan
+    rows.loc[[12], ["theta1_0_deg", "theta2_0_deg"]] = np.nan
+    rows.to_csv(tmp_path / "mixed.csv", index=False)
+    out = tmp_path / "estimates.csv"
+    r = invoke("predict", tmp_path / "mixed.csv", "--model", model_path, "-o", out)
+    assert r.exit_code == 0, r.output
+    written = pd.read_csv(out)["flags"]  # an unflagged row would read back as missing
+    expected = _counted_row_by_row(written)
+    assert 3 <= expected.get("out-of-range", 0) < len(rows)  # some rows flagged so, others not
+    listed = ", ".join(f"{n} {f}" for f, n in expected.items())
+    assert r.output == f"Estimated {len(rows)} rows with {model_path} to {out} ({listed}).\n"
+    assert (
+        json.loads(invoke("predict", tmp_path / "mixed.csv", "--model", model_path, "--json").output)["flagged"]
+        == expected
+    )
+
+
+@pytest.mark.parametrize("dtype", [object, "str"])
+def test_count_flags_matches_a_row_at_a_time_with_missing_values(dtype):
+    values = ["", "unobservable:Fy", "unobservable:Fx;out-of-range:Fx", None, "bad-input", np.nan, "uncertain"]
+    column = pd.Series(values * 5 + ["out-of-range:theta2"], dtype=dtype)
+    assert count_flags(column) == _counted_row_by_row(column)
+    assert count_flags(column) == {"unobservable": 10, "out-of-range": 6, "bad-input": 5}
+    assert list(count_flags(column)) == list(SUMMARY_FLAGS)
+    assert count_flags(pd.Series(["", "uncertain", None], dtype=dtype)) == {}
+
+
+def test_a_carried_flags_column_is_not_counted(fitted, tmp_path):
+    """A table that already holds a ``flags`` column (an earlier run's estimates) keeps it; the
+    summary counts the new estimates' flags."""
+    d, csv, model_path, table = fitted
+    rows = table.drop(columns=["set", "mass_g", "direction_deg"]).assign(flags="bad-input")
+    rows.loc[[1, 2], ["P_L1", "P_R1"]] *= 3.0
+    rows.to_csv(tmp_path / "again.csv", index=False)
+    result = predict_file(tmp_path / "again.csv", model_path=model_path)
+    assert "bad-input" not in result.flagged and result.flagged.get("out-of-range", 0) >= 2
+    assert result.flagged == _counted_row_by_row(result.table["flags"].iloc[:, -1])
+
+
+def test_bad_input_rows_are_counted_as_a_row_at_a_time_counts_them(fitted):
+    """A pressure of 0 (a run's record, not a checked table) flags its row bad-input."""
+    d, csv, model_path, table = fitted
+    rows = table.drop(columns=["set", "mass_g", "direction_deg"]).reset_index(drop=True)
+    rows.loc[[3, 40], "P_L1"] = 0.0
+    out = estimate_table(rows, TakumaSensing(load_force_model(model_path)))
+    assert count_flags(out["flags"]) == _counted_row_by_row(out["flags"])
+    assert count_flags(out["flags"])["bad-input"] == 2
