@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -41,6 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from baseline_estimator import wilson  # noqa: E402
+from figures_file import write_figures  # noqa: E402
 from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -187,7 +187,6 @@ def main(argv: list[str] | None = None) -> None:
     forms = forms_of(args.relief, args.vent)
     config = {"relief": args.relief, "vent": args.vent, "side": args.vent_side, "realism": args.realism}
     seeds = args.seeds
-    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
     done: dict[int, dict[str, Any]] = {}
     if args.cache is not None and args.cache.exists():
         for line in args.cache.read_text().splitlines():
@@ -217,20 +216,12 @@ def main(argv: list[str] | None = None) -> None:
                     f"reported {figs[f'{k}/{f}/reported']}, coverage {figs[f'{k}/{f}/coverage']:.2f})"
                 )
             print(f"{k:16s} plain {' -> '.join(parts)}; plain coverage {figs[f'{k}/plain/coverage']:.2f}")
-    meta = {"meta/commit": head, "meta/seeds": seeds_text(seeds), "meta/bootstrap": BOOTSTRAP}
+    meta = {"meta/seeds": seeds_text(seeds), "meta/bootstrap": BOOTSTRAP}
     if args.realism != "literature":
         meta["meta/realism"] = args.realism
     if args.relief > 0:
         meta.update({"meta/relief_s": args.relief, "meta/vent_s": args.vent, "meta/vent_side": args.vent_side})
-    flat: dict[str, Any] = {}
-    for k, v in {**meta, **figs}.items():
-        if isinstance(v, list):
-            flat[f"{k}/lo"], flat[f"{k}/hi"] = v
-        else:
-            flat[k] = v
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(flat, indent=1, sort_keys=True) + "\n")
-    print(f"wrote {args.json}")
+    write_figures(args.json, meta, figs)
 
 
 if __name__ == "__main__":
