@@ -745,6 +745,23 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--relief", "3", "--vent", "2")},
         ),
         Source(
+            "pressure-floor",
+            "benchmark",
+            "the Cramér-Rao floor of one trial's readings set by the pressure sensors' repeatability, "
+            "literature's rig, held-out seeds 11-30, and its check on the rig with only the repeatability on",
+            script="pressure_floor.py",
+            # N captures averaged: the repeatability's error over the square root of N.
+            runs={"": ("--empirical",), "N2": ("--repeat", "0.7071"), "N3": ("--repeat", "0.5774")},
+        ),
+        Source(
+            "multi-capture",
+            "benchmark",
+            "N captures of each load averaged (a supply pulse or the relief before each), against one, "
+            "literature's rig, tuning seeds 1-10 and held-out seeds 11-30",
+            script="multi_capture.py",
+            runs={"": ("--seeds", "1-10"), "heldout": ("--seeds", "11-30")},
+        ),
+        Source(
             "baseline-estimator-new-rig",
             "benchmark",
             "the estimators of the commit it names on the literature's rig, held-out seeds 11-30",
