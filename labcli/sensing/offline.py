@@ -44,10 +44,13 @@ class RowEstimates:
         return out
 
 
-def predict_rows(model: SensingModel, P0: Any, P: Any, rest: Any, motion_in: Any = None) -> RowEstimates:
+def predict_rows(
+    model: SensingModel, P0: Any, P: Any, rest: Any, motion_in: Any = None, deflections: Any = None
+) -> RowEstimates:
     """The model's estimate of each row: ``P0``, ``P`` (n, actuators) MPa, ``rest`` (n, joints) rad;
     ``motion_in`` (n, joints) rad, each row's motion into its baseline, for a model that reads the
-    history of loads (:class:`~.model.HistoryModel`; None: unknown)."""
+    history of loads (:class:`~.model.HistoryModel`; None: unknown), and ``deflections`` (n, joints)
+    rad, the model's ``deflections`` that motion was read from (None: the model estimates them again)."""
     m = check_model(model)
     P0, P, rest = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (P0, P, rest))
     moved = None if motion_in is None or not uses_history(m) else np.atleast_2d(np.asarray(motion_in, dtype=float))
@@ -59,7 +62,8 @@ def predict_rows(model: SensingModel, P0: Any, P: Any, rest: Any, motion_in: Any
         if moved is None:
             pred = m.predict(P0[rows], P[rows], rest[rows])
         else:
-            pred = m.predict(P0[rows], P[rows], rest[rows], motion_in=moved[rows])  # type: ignore[call-arg]
+            given = None if deflections is None else np.asarray(deflections, dtype=float)[rows]
+            pred = m.predict(P0[rows], P[rows], rest[rows], motion_in=moved[rows], deflections=given)  # type: ignore[call-arg]
         values.append(pred.values)
         se.append(pred.se)
         flags += list(pred.flags)
