@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "tests" / "benchmarks"
 RIG_DEFAULT = re.compile(r"add_rig_options\(\s*ap,\s*realism=\"([a-z,]+)\"")
 # Measured again elsewhere when the stamp came; stamped by their next regeneration.
-PENDING = frozenset({"interval-coverage", "firmware-model"})
+PENDING: frozenset[str] = frozenset()
 # The directories whose changes move a benchmark's figures.
 MEASURED_CODE = ("labcli", "protocols", "tests/benchmarks", "tests/support")
 
