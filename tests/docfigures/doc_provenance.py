@@ -8,9 +8,8 @@ prefix as its figures do (``"literature meta/realism"``).
 
 Figures measured before the stamp carry ``meta/committed_in`` instead: the commit that wrote the
 figures into the file (git log; for guard.json the measuring commit before a relabelling one), the
-nearest record there is of the code they were measured on.  Sources others were measuring again
-when the stamp came (``PENDING``) are not held to it yet: once ``regenerate.py NAME`` has stamped
-one, take its name out of ``PENDING``.
+nearest record there is of the code they were measured on.  A source named in ``PENDING`` is not
+held to the record until ``regenerate.py NAME`` has stamped it; then take its name out.
 """
 
 from __future__ import annotations
@@ -22,8 +21,8 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "tests" / "benchmarks"
-RIG_DEFAULT = re.compile(r"add_rig_options\(\s*ap,\s*realism=\"([a-z,]+)\"")
-# Measured again elsewhere when the stamp came; stamped by their next regeneration.
+RIG_DEFAULT = re.compile(r"add_rig_options\(\s*\w+,\s*realism=\"([a-z,]+)\"")
+# Sources whose files await the stamp of their next regeneration.
 PENDING: frozenset[str] = frozenset()
 # The directories whose changes move a benchmark's figures.
 MEASURED_CODE = ("labcli", "protocols", "tests/benchmarks", "tests/support")
@@ -45,10 +44,16 @@ def run_realism(script: str, args: tuple[str, ...]) -> str | None:
     default = script_realism(script)
     if default is None:
         return None
-    pairs = dict(zip(args, args[1:], strict=False))
+    split = [part for a in args for part in (a.split("=", 1) if a.startswith("--") and "=" in a else [a])]
+    pairs = dict(zip(split, split[1:], strict=False))
     if pairs.get("--rig") == "second":  # phi_bent.py's second forward model has no realism
         return None
-    return pairs.get("--realism", default)
+    return same_order(pairs.get("--realism", default))
+
+
+def same_order(realism: str) -> str:
+    """A comma list of realisms in one order, so that "kind,literature" and "literature,kind" agree."""
+    return ",".join(sorted(realism.split(",")))
 
 
 def head_commit() -> str:
@@ -78,6 +83,6 @@ def missing(figures: dict[str, Any], runs: dict[str, tuple[str, ...]], script: s
             problems.append(f"{name} records no commit ({key(prefix, 'meta/commit')})")
         realism = run_realism(script, args)
         recorded = figures.get(key(prefix, "meta/realism"))
-        if realism is not None and recorded != realism:
+        if realism is not None and (not isinstance(recorded, str) or same_order(recorded) != realism):
             problems.append(f"{name} records realism {recorded!r}; its arguments run {realism!r}")
     return problems

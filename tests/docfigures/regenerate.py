@@ -53,9 +53,9 @@ def measure(source: Source) -> dict:
             f"python tests/benchmarks/{source.script} {' '.join(args)}"
         )
         figures.update({f"{prefix} {k}" if prefix else k: v for k, v in run.items()})
-        # What the run measured on, unless the script recorded it itself (doc_provenance.py).
-        for k, v in provenance.stamp(prefix, source.script, args, commit).items():
-            figures.setdefault(k, v)
+        # What the run measured on (doc_provenance.py), over any record of the script's own: only
+        # this checkout's stamp knows whether the measured code had changes not committed.
+        figures.update(provenance.stamp(prefix, source.script, args, commit))
     if source.derive is not None:
         figures.update(source.derive(figures))
     return figures

@@ -37,6 +37,20 @@ def test_realism_follows_the_run_arguments_then_the_script_default():
     assert provenance.run_realism("phi_bent.py", ("--rig", "second")) is None
     assert provenance.run_realism("bench_reader.py", ()) is None  # no simulated rig
     assert provenance.script_realism("band_confidence.py") == "kind,literature"
+    assert provenance.run_realism("phi_bent.py", ("--realism=literature",)) == "literature"
+    assert provenance.run_realism("band_confidence.py", ("--realism", "literature,kind")) == "kind,literature"
+    # A parser not named ``ap`` still declares the rig.
+    assert provenance.script_realism("metadata_flips.py") is not None
+
+
+def test_a_realism_list_in_another_order_is_the_same_record():
+    runs = {"": ("--realism", "literature,kind")}
+    assert (
+        provenance.missing({"meta/commit": "abc", "meta/realism": "literature,kind"}, runs, "band_confidence.py") == []
+    )
+    assert provenance.missing({"meta/commit": "abc", "meta/realism": "kind"}, runs, "band_confidence.py") == [
+        "'the run' records realism 'kind'; its arguments run 'kind,literature'"
+    ]
 
 
 def test_a_file_without_provenance_or_with_another_realism_is_reported():
