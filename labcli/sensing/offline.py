@@ -62,8 +62,9 @@ def predict_rows(
         if moved is None:
             pred = m.predict(P0[rows], P[rows], rest[rows])
         else:
-            given = None if deflections is None else np.asarray(deflections, dtype=float)[rows]
-            pred = m.predict(P0[rows], P[rows], rest[rows], motion_in=moved[rows], deflections=given)  # type: ignore[call-arg]
+            # A model of the older interface takes no deflections: pass them only when known.
+            extra = {} if deflections is None else {"deflections": np.asarray(deflections, dtype=float)[rows]}
+            pred = m.predict(P0[rows], P[rows], rest[rows], motion_in=moved[rows], **extra)  # type: ignore[call-arg]
         values.append(pred.values)
         se.append(pred.se)
         flags += list(pred.flags)

@@ -221,3 +221,16 @@ def test_each_load_is_given_the_joints_motion_into_its_baseline_from_the_load_be
     assert np.all(motion(20.0, 40.0) == 0.0)  # the first load: no load before it
     idle = [e for e in ests if e.state == IDLE]
     assert len(idle) > 100 and all(e.values["m1"] == e.values["m2"] == 0.0 for e in idle)
+
+
+def test_a_history_model_that_takes_no_deflections_is_still_given_its_motion():
+    """``predict_rows`` passes a model's own deflections on only when it has them: a history model
+    whose ``predict`` takes ``motion_in`` alone (as the protocol first had it) keeps working."""
+    from labcli.sensing.offline import predict_rows
+
+    m = HistoryModel()
+    P0 = np.full((3, 4), 0.3)
+    P = P0 - np.array([[1e-3, 0.0, 0.0, 0.0]])
+    moved = np.array([[0.01, -0.02], [0.0, 0.0], [-0.03, 0.005]])
+    out = predict_rows(m, P0, P, np.zeros((3, 2)), motion_in=moved)
+    np.testing.assert_allclose(out.values[:, 2:], moved)

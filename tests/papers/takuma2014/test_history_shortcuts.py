@@ -2,8 +2,8 @@
 
 The fit makes the friction columns once and reads each fit trial's motion into its baseline from
 its previous row without sorting a table already in trial order; validate reads a trial's history
-from its previous trial's row alone.  Each is checked here against the formulation it replaced,
-written out in full, on the sample runs (whose models keep a friction term) and on shuffled
+from its previous trial's row alone.  Each is checked here against the plain formulation, a sort
+and a dict of every id written out in full, on the sample runs (whose models keep a friction term) and on shuffled
 tables with repeated ids and missing angles.
 """
 
@@ -161,7 +161,7 @@ def test_a_trial_missing_from_the_history_is_refused_in_a_sentence() -> None:
 
 @pytest.mark.parametrize("run", RUNS)
 def test_the_sample_runs_fit_to_the_models_beside_them(run: str) -> None:
-    """What ``labcli fit`` makes of each sample run is the model it made before these shortcuts."""
+    """What ``labcli fit`` makes of each sample run is the model file the sample run ships."""
     src = load_trial_source(SAMPLES / f"{run}.h5", None)
     with np.errstate(all="ignore"):
         got = _fit_form("posture", src, run).to_dict()

@@ -207,3 +207,31 @@ def test_the_play_on_the_loads_is_a_model_option_its_file_keeps(play_only_trials
     assert model.play["play_deg"] == pytest.approx([0.2, 0.2], abs=0.03)
     back = TakumaModel.from_json(model.to_json())
     assert back.label_play == "loads" and back.play["play_deg"] == model.play["play_deg"]
+
+
+def test_an_unknown_label_play_is_refused_in_one_sentence():
+    proto = load_protocol("takuma2014")
+    with pytest.raises(ModelError, match=r"^Unknown label play 'load'; use one of fit, loads, none\.$"):
+        TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play="load")
+
+
+def test_the_play_on_the_loads_is_longer_than_least_squares_on_a_noisy_run_even_with_a_load_missing():
+    """The sample force run (its pressures read with the literature rig's repeatability): least
+    squares shortens the play, the loads do not; one fit trial without its force must not turn
+    "loads" back into "fit" (the trial is left out of the instruments, not the method)."""
+    from pathlib import Path
+
+    from labcli.papers.takuma2014.records import load_trials
+
+    run = Path(__file__).resolve().parents[3] / "sample_runs" / "force.h5"
+    proto, table = load_protocol("takuma2014"), load_trials(run)
+    fitted = {
+        play: TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play=play).fit(table).play["play_deg"]
+        for play in ("fit", "loads")
+    }
+    assert fitted["loads"][0] > fitted["fit"][0] + 0.02
+    one_missing = table.copy()
+    first_fit = one_missing.index[one_missing["set"] == "fit"][0]
+    one_missing.loc[first_fit, "Fx_N"] = np.nan
+    gapped = TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play="loads").fit(one_missing)
+    assert gapped.play["play_deg"][0] == pytest.approx(fitted["loads"][0], abs=0.01)

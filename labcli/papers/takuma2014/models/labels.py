@@ -109,12 +109,11 @@ def fit_play(
     them and the states.  The design's pressure ratios carry the sensors' reading errors (a fresh
     error in each reading, which no window averages away); least squares on such regressors
     shortens their slopes, and the short part of every deflection, which grows with it as the
-    play's states do, is taken from the play: on the literature's rig the width came out 0.02-0.22
-    deg of the 0.2 deg (seeds 1-10, joint 1).  The loads move the joint but not the readings'
-    errors, so the width fitted on them is free of that bias (0.06-0.23 deg, median 0.16, on the same
-    seeds: the sleeves' friction, which the operator's return to the same rest leaves out, still
-    shortens it).  Opt-in (``TakumaModel(label_play="loads")``): on the bent arm's theta2 it averaged
-    0.49 deg (the posture form fitted on the takuma2014-bent trials of seeds 1-5)."""
+    play's states do, is taken from the play (on the literature's rig, well short of the rig's
+    width: tests/benchmarks/steel_deformation.py, docs/classify.md).  The loads move the joint but
+    not the readings' errors, so the width fitted on them is free of that bias (the sleeves'
+    friction, which the operator's return to the same rest leaves out, still shortens it).
+    Opt-in (``TakumaModel(label_play="loads")``): its width still varies from seed to seed."""
     r = np.asarray(dtheta_read, dtype=float)
     ok = fit_rows & np.isfinite(r) & np.all(np.isfinite(design), axis=1)
     if instruments is not None:

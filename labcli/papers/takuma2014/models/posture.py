@@ -91,6 +91,7 @@ from .takuma import (
     TakumaModel,
     _clean,
     cap,
+    check_label_play,
     labels_from_dict,
     normalise_geometry,
     pressure_arrays,
@@ -170,7 +171,7 @@ def torque_features(
     baseline, for the friction terms (:func:`friction_columns`; None: unknown), ``motion_sd`` (2,)
     rad the standard error of the pairs' motions when they are estimated.  ``made``: the columns
     of the one friction family ``terms`` offers, made already (:func:`friction_family`), for a
-    design built block by block: each block's erf was a fifth of the fit at 10^6 trials."""
+    design built block by block, which would otherwise make them again in every block."""
     dP = np.atleast_2d(dP)
     dtheta = np.atleast_2d(dtheta)
     wants = any(t in FRICTION_TERMS for t in terms), any(t in RELIEVED_TERMS for t in terms)
@@ -699,8 +700,9 @@ class PostureModel:
     calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
     p0_leak_corrected: bool = False
     baseline_gap_s: float | None = None
-    # The potentiometers' play, fitted as the paper's form fits it (models/labels.py): "fit" fits
-    # the form to the corrected labels, "none" to the labels as read.
+    # The potentiometers' play, fitted as the paper's form fits it (models/labels.py): "fit" or
+    # "loads" fit the form to the labels corrected by the play fitted that way, "none" to the
+    # labels as read.
     label_play: str = "fit"
     play: dict[str, Any] = field(default_factory=dict)
 
@@ -731,6 +733,7 @@ class PostureModel:
         """
         if self.friction not in FRICTION_MODES:
             raise ModelError(f"Unknown friction terms {self.friction!r}; use one of {FRICTION_MODES}.")
+        check_label_play(self.label_play)
         # Which rows are fit trials, worked out once: the play's correction keeps every row and
         # its set, and each pass of set_mask over 10^6 trials' set names took 16-20 ms.
         fit_rows = set_mask(table, "fit", source)
