@@ -80,7 +80,9 @@ def load_cache(path: Path | None, realism: str = "literature") -> dict[tuple[str
         for line in path.read_text().splitlines():
             if line.strip():
                 rec = json.loads(line)
-                if rec.get("realism", "literature") == realism:
+                # Records of before the posture form took the friction terms were fitted without them.
+                same_form = rec.get("friction_terms", False) == FRICTION_TERMS
+                if rec.get("realism", "literature") == realism and same_form:
                     done[(rec["level"], int(rec["seed"]))] = rec["figures"]
     return done
 
@@ -116,7 +118,18 @@ def _keep(done: dict, cache: Path | None, level: str, seed: int, figs: dict[str,
     print(f"  measured {level}, seed {seed}", file=sys.stderr, flush=True)
     if cache is not None:
         with cache.open("a") as f:
-            f.write(json.dumps({"level": level, "seed": seed, "realism": realism, "figures": figs}) + "\n")
+            f.write(
+                json.dumps(
+                    {
+                        "level": level,
+                        "seed": seed,
+                        "realism": realism,
+                        "friction_terms": FRICTION_TERMS,
+                        "figures": figs,
+                    }
+                )
+                + "\n"
+            )
 
 
 def summarise(per_level: dict[str, dict[int, dict[str, float]]]) -> dict[str, float]:

@@ -13,7 +13,8 @@ models/labels.py).  The rig records each push's true joint angles, tip force and
 
     k / k_true = (|F| / |F_true|) x (delta_true / delta) x (|F_true| / (k_true delta_true))
 
-the force's share, the deformation's and the contact's (the tangential drag that Eq. 38's radial
+the force's share, the deformation's (printed as its inverse, delta / delta_true, the factor by
+which the deformation reads long) and the contact's (the tangential drag that Eq. 38's radial
 force leaves out), and the deflections' errors (deg).  Printed per estimator: per object the median
 over pushes of each share and, over seeds, the median k / k_true with a 95 % interval (bootstrap
 over seeds), seeds with the right category, wrong categories with confidence >= 0.9, and the play
