@@ -396,9 +396,9 @@ class Estimator:
             self.detector.reset()
             return []
         step, total = lagged_step(tcs, np.array([h[2] for h in exc.residuals]), t1, c.tau_s), exc.settled_total()
-        release = is_release(step, total[:p], r[:p], c, lambda: self._at_zero(tc, step, r))
+        release = is_release(step, total[:p], r[:p], c, lambda: self._at_zero(tc, step, total, r))
         kind = RELEASE if release else LOAD
-        if kind == LOAD and self.state == LOADED and np.max(np.abs(exc.settled_total()[:p])) < c.small_load_MPa:
+        if kind == LOAD and self.state == LOADED and np.max(np.abs(total[:p])) < c.small_load_MPa:
             return self._restart(t1, tc, seq)
         self._load_done(t1)
         exc.kind = kind
@@ -407,13 +407,13 @@ class Estimator:
         self.state = RELEASING if kind == RELEASE else LOADING
         return [Event(kind, t1, tc, seq)]
 
-    def _at_zero(self, tc: float, step: np.ndarray, r: np.ndarray) -> bool:
-        """Does the model read the pressures after a change (the loads so far and the change's
-        settled ``step``) as no force against the baseline (:func:`.release.force_at_zero`)?"""
+    def _at_zero(self, tc: float, step: np.ndarray, total: np.ndarray, r: np.ndarray) -> bool:
+        """Does the model read the pressures after a change (the loads so far, ``total``, and the
+        change's settled ``step``) as no force against the baseline (:func:`.release.force_at_zero`)?"""
         exc, c, p = self._exc, self.config, self.inputs.n_pressures
         assert exc is not None
         level, lvar = self.tracker.at(tc)
-        after = level[:p] + exc.settled_total()[:p] + step
+        after = level[:p] + total[:p] + step
         extra = exc.step_var[:p] if exc.step_var is not None else 0.0
         # Not the change's size in doubt (its shape's share, which grows with it): a slide to
         # another rest reads no force whatever its size, and a load of any size reads one.  The

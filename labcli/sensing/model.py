@@ -85,9 +85,8 @@ class HistoryModel(Protocol):
         """The joints' deflections (n, len(joints)) rad from the rest posture that the history reads."""
 
     def predict(
-        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, motion_in: Any = None, deflections: Any = None
-    ) -> Prediction:
-        """``deflections``: the rows' :meth:`deflections` when the caller has them (None: estimated here)."""
+        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, motion_in: np.ndarray | None = None
+    ) -> Prediction: ...
 
 
 def uses_history(model: Any) -> bool:

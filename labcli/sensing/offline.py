@@ -44,13 +44,10 @@ class RowEstimates:
         return out
 
 
-def predict_rows(
-    model: SensingModel, P0: Any, P: Any, rest: Any, motion_in: Any = None, deflections: Any = None
-) -> RowEstimates:
+def predict_rows(model: SensingModel, P0: Any, P: Any, rest: Any, motion_in: Any = None) -> RowEstimates:
     """The model's estimate of each row: ``P0``, ``P`` (n, actuators) MPa, ``rest`` (n, joints) rad;
     ``motion_in`` (n, joints) rad, each row's motion into its baseline, for a model that reads the
-    history of loads (:class:`~.model.HistoryModel`; None: unknown), and ``deflections`` (n, joints)
-    rad, the model's ``deflections`` that motion was read from (None: the model estimates them again)."""
+    history of loads (:class:`~.model.HistoryModel`; None: unknown)."""
     m = check_model(model)
     P0, P, rest = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (P0, P, rest))
     moved = None if motion_in is None or not uses_history(m) else np.atleast_2d(np.asarray(motion_in, dtype=float))
@@ -62,9 +59,7 @@ def predict_rows(
         if moved is None:
             pred = m.predict(P0[rows], P[rows], rest[rows])
         else:
-            # A model of the older interface takes no deflections: pass them only when known.
-            extra = {} if deflections is None else {"deflections": np.asarray(deflections, dtype=float)[rows]}
-            pred = m.predict(P0[rows], P[rows], rest[rows], motion_in=moved[rows], **extra)  # type: ignore[call-arg]
+            pred = m.predict(P0[rows], P[rows], rest[rows], motion_in=moved[rows])  # type: ignore[call-arg]
         values.append(pred.values)
         se.append(pred.se)
         flags += list(pred.flags)

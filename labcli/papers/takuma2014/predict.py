@@ -101,13 +101,12 @@ def estimate_table(rows: Any, model: TakumaSensing) -> Any:
         rest = np.where(np.isfinite(rest), rest, 0.0)  # an empty rest posture: the arm at (0, 0), as validate reads it
     else:
         rest = np.zeros((len(rows), 2))
-    moved = deflections = None
+    moved = None
     if model.uses_history:
         trial = np.asarray(rows["trial"], dtype=float) if "trial" in rows.columns else np.arange(len(rows), dtype=float)
         trial = np.where(np.isfinite(trial), trial, np.arange(len(rows)))
-        deflections = model.deflections(P0, P)  # once: the history reads them, the estimates keep them
-        moved = motion_into_baseline(trial, rest, deflections)
-    est = predict_rows(model, P0, P, rest, motion_in=moved, deflections=deflections)
+        moved = motion_into_baseline(trial, rest, model.deflections(P0, P))
+    est = predict_rows(model, P0, P, rest, motion_in=moved)
     rows = rows.reset_index(drop=True)
     empty = [c for c in TRUTH if c in rows.columns and not np.isfinite(np.asarray(rows[c], dtype=float)).any()]
     carried = rows.drop(columns=empty).rename(columns={c: f"{c}_true" for c in TRUTH if c in rows.columns})

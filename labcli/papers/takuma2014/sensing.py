@@ -114,11 +114,11 @@ class TakumaSensing:
         return self.model.deflections(_rows(P0), _rows(P))
 
     def predict(
-        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, motion_in: Any = None, deflections: Any = None
+        self, P0: np.ndarray, P: np.ndarray, rest: np.ndarray, motion_in: np.ndarray | None = None
     ) -> Prediction:
         """(n, 4) baselines and pressures (MPa), (n, 2) rest postures (rad), and for a model with
-        the friction terms the joints' motion into each baseline (n, 2) rad (None: unknown) and the
-        rows' :meth:`deflections` when the caller estimated them for that motion: the model's estimate."""
+        the friction terms the joints' motion into each baseline (n, 2) rad (None: unknown): the
+        model's estimate."""
         P0, P, rest = _rows(P0), _rows(P), _rows(rest)
         moved = _rows(motion_in) if motion_in is not None and self.uses_history else None
         few = self._compiled is not None and len(P) <= FAST_ROWS
@@ -127,8 +127,7 @@ class TakumaSensing:
             values, se, ok = fast
             return Prediction(values, se, self._raise(np.zeros(len(values), bool), ok, P0, P, rest, values))
         if isinstance(self.model, PostureModel):
-            given = None if deflections is None else _rows(deflections)
-            out = self.model.predict(P0, P, rest, mode="pressure-only", motion_in=moved, deflections=given)
+            out = self.model.predict(P0, P, rest, mode="pressure-only", motion_in=moved)
             se = np.column_stack([out["se"][q] for q in QUANTITIES])
         else:
             out = self.model.predict(P0, P, mode="pressure-only")

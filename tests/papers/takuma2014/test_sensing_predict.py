@@ -12,13 +12,11 @@ import pytest
 
 from labcli.errors import ConfigError, ModelError
 from labcli.papers.takuma2014.models.metrics import evaluate
-from labcli.papers.takuma2014.models.posture import load_force_model, motion_into_baseline
+from labcli.papers.takuma2014.models.posture import load_force_model
 from labcli.papers.takuma2014.predict import SUMMARY_FLAGS, count_flags, estimate_table, predict_file
 from labcli.papers.takuma2014.records import RECORD_TYPES, load_trials
 from labcli.papers.takuma2014.sensing import TakumaSensing
-from labcli.papers.takuma2014.tables import BASELINE, LOADED
 from labcli.sensing import load_model
-from labcli.sensing.offline import predict_rows
 
 SAMPLES = Path(__file__).resolve().parents[3] / "sample_runs"
 
@@ -271,27 +269,3 @@ def test_bad_input_rows_are_counted_as_a_row_at_a_time_counts_them(fitted):
     out = estimate_table(rows, TakumaSensing(load_force_model(model_path)))
     assert count_flags(out["flags"]) == _counted_row_by_row(out["flags"])
     assert count_flags(out["flags"])["bad-input"] == 2
-
-
-def test_a_friction_models_deflections_are_estimated_once_to_the_same_bits(fitted, invoke, tmp_path):
-    """The deflections the history reads are the ones the estimates keep: passing them on gives
-    what estimating them again gives, to the bit, a row with a pressure of 0 (bad-input) included."""
-    d, csv, _, table = fitted
-    model_path = tmp_path / "friction.model.json"
-    assert invoke("fit", csv, "--friction-terms", "-o", model_path).exit_code == 0
-    sens = TakumaSensing(load_force_model(model_path))
-    rows = table.drop(columns=["set", "mass_g", "direction_deg"]).reset_index(drop=True)
-    rows.loc[5, "P_R1"] = 0.0
-    P0, P, rest = (  # laid out as estimate_table lays them out: the last bits depend on it
-        np.column_stack([rows[c].to_numpy(float) for c in cols])
-        for cols in (BASELINE, LOADED, ("theta1_0_deg", "theta2_0_deg"))
-    )
-    rest = np.radians(rest)
-    moved = motion_into_baseline(rows["trial"].to_numpy(float), rest, sens.deflections(P0, P))
-    again = predict_rows(sens, P0, P, rest, motion_in=moved)
-    once = estimate_table(rows, sens)
-    assert once["flags"][5] == "bad-input" and sens.uses_history
-    for j, col in enumerate(("theta1_deg", "theta2_deg", "Fx_N", "Fy_N")):
-        np.testing.assert_array_equal(once[col], again.columns()[col])
-        np.testing.assert_array_equal(once[col + "_se"], again.columns()[col + "_se"])
-    assert list(once["flags"]) == again.columns()["flags"]

@@ -903,19 +903,11 @@ class PostureModel:
         return self.routes.get(quantity, rt.POSTURE)
 
     # ---------------------------------------------------------------- prediction
-    def _angles(
-        self, P0: np.ndarray, P: np.ndarray, given: Any = None, bad: Any = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The deflections (n, 2) and their covariance; ``given``: the deflections :meth:`deflections`
-        estimated already (the friction terms' history read them), kept but for the ``bad`` rows,
-        whose pressures :meth:`predict` has set to 1 MPa since."""
+    def _angles(self, P0: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         X = angle_features(P0, P, self.angle_terms)
         h = np.einsum("ni,ij,nj->n", X, np.asarray(self.angle_xtx_inv), X)
         cov = (1.0 + h)[:, None, None] * np.asarray(self.angle_resid_cov)[None]
-        if given is not None and not (bad is not None and np.any(bad)):
-            return np.asarray(given, dtype=float), cov
-        dth = X @ np.asarray(self.angle_coefficients)
-        return (dth if given is None else np.where(np.asarray(bad)[:, None], dth, given)), cov
+        return X @ np.asarray(self.angle_coefficients), cov
 
     def _theta1(
         self, P0: np.ndarray, P: np.ndarray, shared: np.ndarray, shared_var: np.ndarray
@@ -985,15 +977,13 @@ class PostureModel:
         mode: str = "pressure-only",
         theta: Any = None,
         motion_in: Any = None,
-        deflections: Any = None,
     ) -> dict[str, Any]:
         """Deflections (rad), forces (N) and their standard errors from pressures (MPa, (n, 4)).
 
         ``theta0`` (n, 2) rad is the rest posture (default 0, 0).  ``mode="measured-angles"``
         uses the measured deflections ``theta`` for the forces instead of the estimated ones.
         ``motion_in`` (n, 2) rad, the joints' motion into each baseline
-        (:func:`motion_into_baseline`), for a model with friction terms (None: unknown);
-        ``deflections`` (n, 2) rad, these rows' :meth:`deflections` when already estimated for it.
+        (:func:`motion_into_baseline`), for a model with friction terms (None: unknown).
         """
         if not self.is_fitted:
             raise ModelError("The model has no coefficients yet; fit it on a run first (`labcli fit RUN.h5`).")
@@ -1006,7 +996,7 @@ class PostureModel:
         P = np.where(bad[:, None], 1.0, P)
         with paused_gc():  # a list per trial: 10^6 of them, no cycles
             flags: list[list[str]] = [["bad-pressure"] if b else [] for b in bad.tolist()]
-        dth, cov_a = self._angles(P0, P, deflections, bad)
+        dth, cov_a = self._angles(P0, P)
         theta1, var1 = self._theta1(P0, P, dth[:, 0], cov_a[:, 0, 0])
         if mode == "measured-angles":
             if theta is None:
