@@ -38,6 +38,12 @@ reads what the chambers do (:class:`AirSettings` holds the protocol's limits):
   (``PostureModel(friction="relieved")``) fit what is left, and since the baselines now repeat,
   each trial's P0 is the mean of the last few (docs/rig-realism.md).
   Both stay off by default until judged on a real rig.
+* **captures per load** (``captures_per_load``, 1 by default): each plan load taken that many
+  times in a row, each capture preceded by the relief, so that the pressure sensors read afresh;
+  the run stores every capture and the analyses average a load's captures into one row (the
+  repeatability's variance over N; tests/benchmarks/multi_capture.py).  A protocol that asks for
+  more than one capture and gives no ``friction_relief_s`` gets the relief that benchmark was
+  chosen with on seeds 1-10 (:data:`CAPTURE_RELIEF`: a 3 s supply pulse after a 2 s vent).
 * **the valves at the end** (``end_valves``): ``hold`` (the default) or ``vent``, set when the
   session ends, however it ends (finished, quit, Ctrl-C, an error); the board is never left
   supplying.  A board that loses its host keeps its pressure limit (``PMAX``) on its own.
@@ -61,6 +67,8 @@ RELIEF_SIDES = ("L", "R")  # acquisition.friction_relief_vent: the side of each 
 DEFAULT_LEAK_MAX_KPA_PER_MIN = 5.0  # five times the reference rig's leak of about 1 kPa/min
 DEFAULT_HOLD_CHECK_S = 5.0
 REPRESSURISE_FLOORS = 10.0
+MAX_CAPTURES = 10  # captures of one load: 10 relieved captures already take ten trials' time
+CAPTURE_RELIEF = (3.0, 2.0)  # (supply pulse s, vent s) before each capture unless the protocol gives its own
 COUNT_MPA = 5.0 / 16380  # one count of the reference calibration, the floor's floor when none is known
 
 # The [acquisition] keys of this module (labcli.core.protocol's key-spec language).
@@ -116,6 +124,15 @@ ACQUISITION_KEYS: dict[str, dict[str, Any]] = {
         "optional": True,
         "help": "the actuators vented by the relief: L (L1 and L2; the R actuators swing the arm to their side) or R",
     },
+    "captures_per_load": {
+        "type": "int",
+        "check": "positive",
+        "max": MAX_CAPTURES,
+        "optional": True,
+        "help": "take each plan load this many times in a row, each capture after the friction relief "
+        "(a 3 s supply pulse after a 2 s vent unless friction_relief_s is given); fit, validate and "
+        "predict average a load's captures into one row",
+    },
     "repressurise_kPa": {
         "type": "number",
         "unit": "kPa",
@@ -139,6 +156,7 @@ class AirSettings:
     friction_relief_s: float = 0.0
     friction_relief_vent_s: float = 0.0
     friction_relief_vent: str = "L"
+    captures_per_load: int = 1
 
     def relief_vented(self, names: Sequence[str]) -> tuple[str, ...]:
         """The pressure channels the relief vents: one side's actuator of each pair (``P_L1``,
@@ -150,6 +168,8 @@ class AirSettings:
         """From a checked ``[acquisition]`` table and the protocol's pressure floor (its settle spread)."""
         floor = max(pressure_floor_MPa or 0.0, COUNT_MPA)
         given = acquisition.get("repressurise_kPa")
+        captures = int(acquisition.get("captures_per_load", 1))
+        pulse, vent = CAPTURE_RELIEF if captures > 1 and "friction_relief_s" not in acquisition else (0.0, 0.0)
         return cls(
             valves=acquisition.get("valves", "auto"),
             end_valves=acquisition.get("end_valves", "hold"),
@@ -157,9 +177,10 @@ class AirSettings:
             hold_check_s=float(acquisition.get("hold_check_s", DEFAULT_HOLD_CHECK_S)),
             repressurise_kPa=float(given) if given is not None else REPRESSURISE_FLOORS * floor * 1e3,
             repressurise_default=given is None,
-            friction_relief_s=float(acquisition.get("friction_relief_s", 0.0)),
-            friction_relief_vent_s=float(acquisition.get("friction_relief_vent_s", 0.0)),
+            friction_relief_s=float(acquisition.get("friction_relief_s", pulse)),
+            friction_relief_vent_s=float(acquisition.get("friction_relief_vent_s", vent)),
             friction_relief_vent=acquisition.get("friction_relief_vent", "L"),
+            captures_per_load=captures,
         )
 
 

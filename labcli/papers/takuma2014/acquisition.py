@@ -12,7 +12,7 @@ from ...errors import ConfigError
 from .protocol import load_plan
 from .push_plan import load_push_plan, plan_objects
 from .push_session import push_session
-from .session import PRESSURE_NAMES, force_session
+from .session import PRESSURE_NAMES, force_session, planned_trials
 from .sim.objects import demo_plan
 from .tables import load_plan as read_plan
 
@@ -34,15 +34,18 @@ class ForceAcquisition:
 
     def already_done(self, run: Any, path: str) -> str | None:
         plan = self.plan
-        if plan is None or not len(plan) or run.records.first_incomplete(plan["trial"]) is not None:
+        if plan is None or not len(plan):
+            return None
+        rows = planned_trials(plan, self.protocol.air.captures_per_load)
+        if run.records.first_incomplete(r.trial for r in rows) is not None:
             return None
         if run.split.get() is None:
             # Stopped between the last trial and the split: finish the job.
-            sets = dict(zip(plan["trial"].astype(int), plan["set"], strict=False))
+            sets = {r.trial: r.set for r in rows}
             run.split.set(
                 [t for t, v in sets.items() if v == "fit"], [t for t, v in sets.items() if v == "validation"], "plan"
             )
-        return f"All {len(plan)} planned trials are already stored in {path}; nothing to resume."
+        return f"All {len(rows)} planned trials are already stored in {path}; nothing to resume."
 
 
 @dataclass
@@ -150,6 +153,24 @@ def _baselines(run: Any, protocol: Any) -> tuple:
     return tuple(out)
 
 
+def _check_captures(protocol: Any, plan: Any) -> None:
+    """More than one capture a load needs a plan of trials numbered from 1 (each capture's id, session.capture_id)."""
+    n = protocol.air.captures_per_load
+    if n == 1:
+        return
+    if plan is None:
+        raise ConfigError(
+            f"acquisition.captures_per_load = {n} takes each plan load {n} times; loads typed at the rig are "
+            "captured once, so give a plan or set captures_per_load to 1."
+        )
+    low = int(plan["trial"].min()) if len(plan) else 1
+    if low < 1:
+        raise ConfigError(
+            f"With acquisition.captures_per_load = {n} the plan's trials are numbered from 1 (each capture's "
+            f"record id is (trial - 1) x {n} + capture), but the plan has trial {low}."
+        )
+
+
 def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | PushAcquisition:
     """Plan a run of a ``force`` or ``push`` protocol."""
     if protocol.kind == "push":
@@ -167,6 +188,7 @@ def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | Pu
                 "resume it without --unattended and type each load."
             )
         raise ConfigError("--unattended needs a plan to follow: drop --no-plan, or give --plan FILE.")
+    _check_captures(protocol, plan)
     if options.resume is None:
         return ForceAcquisition(protocol, plan)
     return ForceAcquisition(

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Generator, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any
 
@@ -151,12 +151,41 @@ class PlannedTrial:
     mass_kg: float
     direction_rad: float
     plan_row: dict | None = None  # the plan's values as written (g, deg), kept with the trial
+    capture: tuple[int, int] = (1, 1)  # (this capture, captures of its load)
+
+    @property
+    def load(self) -> int:
+        """The plan trial this capture is of (its own id when a load is captured once)."""
+        return capture_load(self.trial, self.capture[1])
 
 
-def planned_trials(plan: Any) -> list[PlannedTrial]:
-    """Plan rows (a DataFrame or dicts with trial, set, mass_g, direction_deg) in SI."""
+def capture_id(load: int, capture: int, captures: int) -> int:
+    """The record id of capture ``capture`` (1..``captures``) of plan trial ``load``: (load - 1) N + capture,
+    so that a plan's captures are ids in the plan's order and one capture a load keeps the plan's ids."""
+    return (load - 1) * captures + capture
+
+
+def capture_load(rid: int, captures: int) -> int:
+    """The plan trial a record id is a capture of (:func:`capture_id` undone)."""
+    return (rid - 1) // captures + 1
+
+
+def planned_trials(plan: Any, captures: int = 1) -> list[PlannedTrial]:
+    """Plan rows (a DataFrame or dicts with trial, set, mass_g, direction_deg) in SI, each row
+    ``captures`` times in a row (ids by :func:`capture_id`)."""
     if plan is None:
         return []
+    rows = _plan_rows(plan)
+    if captures == 1:
+        return rows
+    return [
+        replace(r, trial=capture_id(r.trial, c, captures), capture=(c, captures))
+        for r in rows
+        for c in range(1, captures + 1)
+    ]
+
+
+def _plan_rows(plan: Any) -> list[PlannedTrial]:
     if hasattr(plan, "to_dict"):
         rows: Iterable[dict] = plan.to_dict("records")
     else:
@@ -192,6 +221,12 @@ def fmt_deg(angle_rad: float) -> str:
 
 def trial_label(trial: int, total: int, set_: str) -> str:
     return f"Trial {trial}/{total}" + (f" ({set_})" if set_ else "")
+
+
+def planned_label(planned: PlannedTrial, loads: int) -> str:
+    """``Trial 12/108 (fit)``, and ``, capture 2/3`` when each load is captured more than once."""
+    c, n = planned.capture
+    return trial_label(planned.load, loads, planned.set) + (f", capture {c}/{n}" if n > 1 else "")
 
 
 def load_prompt(label: str, mass_kg: float, direction_rad: float) -> str:
@@ -691,9 +726,9 @@ def force_session(
     history: Iterable[tuple[Sequence[float], Sequence[float]]] = (),
     baselines: Sequence[Sequence[float]] = (),
 ) -> Generator[Step, Any, None]:
-    """The force/angle calibration session of Section 3.2 (one trial per plan row).
+    """Section 3.2's calibration: a trial per plan row, or ``captures_per_load`` records in a row (:func:`capture_id`).
 
-    ``plan``: the plan table (None: the experimenter types each load);
+    ``plan``: the plan table (None: the experimenter types each load, captured once);
     ``completed``: trial ids already stored (resume skips them);
     ``target``: the number of trials announced when there is no plan
     (default: the protocol's fit + validation counts);
@@ -705,10 +740,10 @@ def force_session(
     capture_s = float(protocol.settling.capture_s)
     cmap = ChannelMap.from_channels(protocol.channels)
     guard = _resumed_guard(protocol, history, baselines)
-    done = set(int(t) for t in completed)
-    rows = planned_trials(plan)
+    done, captures = set(int(t) for t in completed), protocol.air.captures_per_load if plan is not None else 1
+    rows = planned_trials(plan, captures)
     remaining = [r for r in rows if r.trial not in done]
-    total = len(rows) or _planned_total(protocol, target)
+    total = len(rows) // captures or _planned_total(protocol, target)
 
     air = yield from _pressurise(protocol)
 
@@ -718,7 +753,7 @@ def force_session(
     while not rows or remaining:
         if rows:
             planned = remaining.pop(0)
-            label = trial_label(planned.trial, total, planned.set)
+            label = planned_label(planned, total)
         else:
             # Ids stay dense: a skipped trial's id is used by the next load.
             next_id = max(done, default=0) + 1
@@ -734,7 +769,7 @@ def force_session(
             planned = PlannedTrial(next_id, "", typed.mass_kg, typed.direction_rad)
             typed = None
             label = trial_label(next_id, shown_total, "")
-        yield BeginTrial(planned.trial, planned.set, len(done) + 1, total, label)
+        yield BeginTrial(planned.trial, planned.set, len(done) + 1, total * captures, label)
         remove = Prompt(remove_prompt(label), RemoveWeight())
         hang = _hang_prompt(label, planned, limits, typed_by_hand=not rows)
         stored = yield from _trial(

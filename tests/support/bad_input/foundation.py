@@ -31,7 +31,7 @@ CASES: list[Case] = [
         ["acquire", "new.h5", "--port", SIM, "--unattended", "--protocol", "p.toml"],
         [
             "p.toml: unknown key 'acquisition.rate_hzz'; the keys allowed there are rate_hz, supply_min_MPa, valves, "
-            "end_valves, leak_max_kPa_per_min, hold_check_s, friction_relief_s, friction_relief_vent_s, friction_relief_vent, repressurise_kPa."
+            "end_valves, leak_max_kPa_per_min, hold_check_s, friction_relief_s, friction_relief_vent_s, friction_relief_vent, captures_per_load, repressurise_kPa."
         ],
         files={"p.toml": toml_edit("rate_hz = 200.0", "rate_hz = 200.0\nrate_hzz = 3")},
     ),
