@@ -16,8 +16,9 @@ release when any of three readings says the rig is coming back to rest:
   friction holds the arm where the load left it.  So the change is the release when the
   pressures after it, ``total + step``, lie within the sensors' new readings of a point between
   the loaded pressures and the baseline: ``min over a in [0, 1] of |step + a total|^2`` in units
-  of ``reread_MPa`` (common mode removed, as the detector has it) under the chi-square(3) 99 %
-  point.
+  of ``reread_MPa`` (common mode removed, as the detector has it) under the chi-square 99 %
+  point of one degree of freedom fewer than the chambers (:func:`chi2_99`: 3 for the paper's
+  four muscles, 1 for the rPAM paper's antagonistic pair).
 * **The force reads zero** (:func:`force_at_zero`): the model, given the pressures after the
   change against the baseline, reads every load quantity it reports within ``release_force_se``
   standard errors of zero (the estimator gives the model the sensors' new readings as the
@@ -36,6 +37,8 @@ were tuned on seeds 1-10 of tests/benchmarks/sensing_closing.py (docs/sensing.md
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -46,7 +49,36 @@ from .evaluate import Inputs2, evaluate
 from .model import LOAD, UNOBSERVABLE, SensingModel
 from .transient import lag
 
-CHI2_3_99 = 11.345  # the chi-square(3) 99 % point: the detector's vectors have one degree fewer than the chambers
+
+@functools.cache
+def chi2_99(dof: int) -> float:
+    """The chi-square 99 % point of ``dof`` (>= 1) degrees of freedom (6.635 for 1, 11.345 for 3).
+
+    The survival function in closed form (Abramowitz & Stegun 26.4.4-26.4.5: a finite sum for
+    an integer ``dof``), solved by bisection: the estimator needs it once per chamber count."""
+    if dof < 1:
+        raise ValueError(f"a chi-square needs at least one degree of freedom, got {dof}")
+
+    def survival(x: float) -> float:
+        h = x / 2.0
+        if dof % 2 == 0:
+            term, total = 1.0, 1.0
+            for j in range(1, dof // 2):
+                term *= h / j
+                total += term
+            return math.exp(-h) * total
+        r = math.sqrt(x)
+        term, total = r, 0.0
+        for j in range(1, (dof - 1) // 2 + 1):
+            total += term
+            term *= x / (2 * j + 1)
+        return math.erfc(r / math.sqrt(2.0)) + math.sqrt(2.0 / math.pi) * math.exp(-h) * total
+
+    lo, hi = 0.0, 10.0 * dof + 50.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if survival(mid) > 0.01 else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 def lagged_step(tcs: np.ndarray, raw: np.ndarray, t1: float, tau: float) -> np.ndarray:
@@ -72,7 +104,7 @@ def partial_return(step: np.ndarray, total: np.ndarray, reread_MPa: float) -> bo
     d, t = whiten(step, var), whiten(total, var)
     a = float(np.clip(-(d @ t) / max(float(t @ t), 1e-300), 0.0, 1.0))
     miss = d + a * t
-    return float(miss @ miss) <= CHI2_3_99
+    return float(miss @ miss) <= chi2_99(len(step) - 1)  # the common mode removed: one degree fewer
 
 
 def force_at_zero(model: SensingModel, x: Inputs2, z: float) -> bool:

@@ -17,10 +17,11 @@ from support.sensing import LinearModel, Load, stream
 
 from labcli.core.device import Device
 from labcli.core.protocol import load_protocol
-from labcli.errors import ConfigError
+from labcli.errors import ConfigError, ModelError
 from labcli.sensing import IDLE, LOAD, RELEASE, SETTLED, Estimate, Estimator, EstimatorConfig, Event, load_model
 from labcli.sensing.evaluate import Inputs2
-from labcli.sensing.release import CHI2_3_99, force_at_zero, partial_return, points_back
+from labcli.sensing.model import Prediction
+from labcli.sensing.release import chi2_99, force_at_zero, partial_return, points_back
 
 ROOT = Path(__file__).resolve().parents[2]
 REREAD = 5e-4  # MPa: EstimatorConfig's default
@@ -115,7 +116,7 @@ def test_partial_return_is_any_point_between_loaded_and_rest_within_the_new_read
     side = np.array([0.0, 0.0, 3e-3, -3e-3])
     assert not partial_return(side, total, REREAD)  # elsewhere: another load
     # The bound is the chi-square(3) 99 % point in units of the new readings' spread.
-    edge = np.array([1.0, -1.0, 0.0, 0.0]) * REREAD * np.sqrt(CHI2_3_99 / 2)
+    edge = np.array([1.0, -1.0, 0.0, 0.0]) * REREAD * np.sqrt(chi2_99(3) / 2)
     assert partial_return(0.99 * edge, np.zeros(4), REREAD) and not partial_return(1.01 * edge, np.zeros(4), REREAD)
 
 
@@ -150,3 +151,53 @@ def test_a_large_load_on_a_small_one_is_a_load_however_uncertain_its_size():
     _, out = _run(model, t, x)
     ev = [(e.kind, round(e.t_device_s, 1)) for e in out if isinstance(e, Event) and e.kind != SETTLED]
     assert ev[:2] == [(LOAD, pytest.approx(20.0, abs=0.2)), (LOAD, pytest.approx(40.0, abs=0.2))], ev
+
+
+def test_the_chi_square_points_are_the_tables():
+    # Abramowitz & Stegun table 26.8, Q = 0.01: 6.63490, 9.21034, 11.3449, 13.2767, 23.2093 (10).
+    for dof, point in ((1, 6.63490), (2, 9.21034), (3, 11.3449), (4, 13.2767), (10, 23.2093)):
+        assert chi2_99(dof) == pytest.approx(point, abs=2e-4)
+    with pytest.raises(ValueError):
+        chi2_99(0)
+
+
+class PairModel:
+    """A joint driven by one antagonistic pair (the rPAM paper's 1-DoF joint): x and f linear in the drops."""
+
+    quantities, units, kinds = ("x", "f"), ("rad", "N"), ("state", "load")
+    actuators, joints, protocol = ("A", "B"), (1,), "toy"
+    p0_leak_corrected, baseline_gap_s = True, None
+
+    def __init__(self, actuators: tuple[str, ...] = ("A", "B")) -> None:
+        self.actuators = actuators
+        self.C = np.array([[10.0, -10.0], [500.0, -500.0]])[:, : len(actuators)]
+
+    def predict(self, P0, P, rest):
+        dP = np.asarray(P0, dtype=float) - np.asarray(P, dtype=float)
+        return Prediction(dP @ self.C.T, np.tile([0.002, 0.05], (len(dP), 1)), [() for _ in range(len(dP))])
+
+
+def test_a_pair_of_chambers_has_one_degree_of_freedom_in_the_partial_return():
+    # Two chambers, the common mode removed: one degree of freedom, the 99 % point 6.63 (not the
+    # four chambers' 11.34, which would take a change 1.3 times as large for a release).
+    edge = np.array([1.0, -1.0]) * REREAD * np.sqrt(chi2_99(1) / 2)
+    assert partial_return(0.99 * edge, np.zeros(2), REREAD)
+    assert not partial_return(1.01 * edge, np.zeros(2), REREAD)
+    assert not partial_return(1.2 * edge, np.zeros(2), REREAD)  # within the four chambers' bound
+
+
+def test_an_estimator_on_a_pair_of_chambers_finds_a_load_and_its_release():
+    # The pair's pressures moved 1.5 kPa apart (A up, B down: f = 500 N/MPa x -3 kPa = -1.5 N), 20-40 s.
+    t, x, _ = stream(60.0, loads=[Load(20.0, 40.0, np.array([0.0, 0.0, 1.5e-3, -1.5e-3]))], seed=4)
+    est, out = _run(PairModel(), t, x[:, [2, 3, 4]])
+    ev = [(e.kind, round(e.t_device_s, 1)) for e in out if isinstance(e, Event)]
+    assert [k for k, _ in ev] == [LOAD, SETTLED, RELEASE], ev
+    assert abs(ev[0][1] - 20.0) < 0.2 and abs(ev[2][1] - 40.0) < 0.2
+    loaded = [o for o in out if isinstance(o, Estimate) and 30.0 < o.t_device_s < 39.0]
+    assert loaded and all(abs(o.values["f"] + 1.5) < 3 * o.se["f"] for o in loaded)
+    assert est.state == IDLE
+
+
+def test_a_model_of_one_chamber_is_refused_in_one_sentence():
+    with pytest.raises(ModelError, match=r"at least two pressure channels .*got 1: .*\.$"):
+        Estimator(PairModel(("A",)), rate_hz=200.0)
