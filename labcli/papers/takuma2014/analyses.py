@@ -24,6 +24,7 @@ from ...core.provenance import rig_warning, same_data
 from ...core.report import ids_text, print_warnings
 from ...errors import ConfigError, ModelError
 from . import report
+from .captures import record_ids
 from .figures import figure7, figure9
 from .models import leak
 from .models.classify import classify_file, flag_summary, object_items, push_items, report_header, write_report_json
@@ -107,6 +108,7 @@ def _fit(
     src = load_trial_source(run, protocol)
     out_path, keep = model_destination(run, output, record, src.is_run)
     if leak_correct:
+        refuse_leak_on_captures(src, "fit --leak-correct")
         src = replace(src, table=leak.corrected(src.table, run, "fit --leak-correct"))
     with np.errstate(all="ignore"):  # an overflow is refused below, in a sentence
         model = _fit_form(
@@ -120,7 +122,8 @@ def _fit(
         refuse_non_finite(model, src.table, str(run))
     model.fitted_on = src.identity
     model.p0_leak_corrected = leak_correct
-    model.baseline_gap_s = leak.baseline_gap(run, _fit_ids(src.table)) if src.is_run else None
+    fit_records = _fit_ids(src.table) if src.captures == 1 else record_ids(_fit_ids(src.table), src.captures)
+    model.baseline_gap_s = leak.baseline_gap(run, fit_records) if src.is_run else None
     recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
     return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
 
@@ -139,10 +142,21 @@ def in_set(table: Any, name: str) -> np.ndarray:
     return hit[codes]
 
 
+def refuse_leak_on_captures(src: Any, what: str) -> None:
+    """ConfigError: the leak correction moves each record's P0 by its own windows' times, and a row of a
+    run of several captures a load is the mean of several records."""
+    if src.captures > 1:
+        raise ConfigError(
+            f"{what} moves each trial's P0 by its own windows' times, but {src.path} averages "
+            f"{src.captures} captures into each load's row (acquisition.captures_per_load); leave it out."
+        )
+
+
 def leak_handled(model: Any, src: Any, run: Path) -> Any:
     """The trial source as the model wants it: P0 moved along the leak when it was fitted so (models/leak.py)."""
     if not getattr(model, "p0_leak_corrected", False):
         return src
+    refuse_leak_on_captures(src, "A model fitted on leak-corrected baselines")
     return replace(src, table=leak.corrected(src.table, run, "A model fitted on leak-corrected baselines"))
 
 

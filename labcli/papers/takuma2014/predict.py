@@ -25,9 +25,11 @@ import numpy as np
 
 from ...core.cells import TableSpec
 from ...core.files import RUN_FILE_SUFFIXES, atomic_write, check_output
+from ...core.protocol import loads_protocol
 from ...core.tables import read_table
 from ...errors import ConfigError
 from ...sensing.offline import predict_rows
+from .captures import averaged, captures_of
 from .models.posture import load_force_model, motion_into_baseline
 from .options import PredictOptions
 from .sensing import TakumaSensing
@@ -82,11 +84,15 @@ def read_rows(path: Path) -> Any:
 
         with RunFile.open(path) as run:
             kind = run.kind
+            text = run.protocol_text if kind == "force" else ""
         if kind not in ("force", "push"):
             raise ConfigError(
                 f"{path} is a run of kind '{kind}'; predict reads the trials or pushes of a McKibben run."
             )
-        return load_trials(path) if kind == "force" else load_pushes(path)
+        if kind == "push":
+            return load_pushes(path)
+        # One row per load of a run of several captures a load, as fit and validate read it (.captures).
+        return averaged(load_trials(path), captures_of(loads_protocol(text)) if text.strip() else 1)
     return read_table(path, NEW_DATA)
 
 

@@ -1,7 +1,9 @@
 """Where fit and validate get their trials and their rig: a run file or a trial CSV.
 
 A run file (``.h5``) carries its protocol verbatim, so its geometry is the one the trials were
-recorded with; a CSV carries none, so the protocol is named (default ``takuma2014``).
+recorded with; a CSV carries none, so the protocol is named (default ``takuma2014``).  A run of
+several captures a load (``acquisition.captures_per_load``) gives one row per load, its captures
+averaged (:mod:`..captures`).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from ....core.protocol import load_protocol, loads_protocol
 from ....core.provenance import run_identity, table_identity
 from ....core.store import RunFile
 from ....errors import ConfigError
+from ..captures import averaged, captures_of
 from ..options import TRIAL_PROTOCOL  # the paper declares it (fit and validate read a table with it)
 from ..records import load_trials
 
@@ -26,6 +29,7 @@ class TrialSource:
     protocol: Any  # labcli.core.protocol.Protocol
     is_run: bool  # True for a run file, False for a CSV
     identity: dict = field(default_factory=dict)  # core.provenance: the data, the rig, the protocol
+    captures: int = 1  # records a row of ``table`` averages (a run's acquisition.captures_per_load)
 
     @property
     def label(self) -> str:
@@ -62,7 +66,8 @@ def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSou
                 "fit and validate read the trials of a force run such as one recorded "
                 f"with protocol {TRIAL_PROTOCOL}."
             )
-        return TrialSource(p, _read_table(p), proto, True, identity)
+        n = captures_of(proto)
+        return TrialSource(p, averaged(_read_table(p), n), proto, True, identity, n)
     proto = load_protocol(protocol or TRIAL_PROTOCOL)
     if proto.kind != "force":
         # A model fitted under a push or rPAM protocol would be refused by every later check.

@@ -1,0 +1,125 @@
+"""Several relieved captures a load (``acquisition.captures_per_load``): every capture stored and
+committed as it is taken, a run interrupted mid-load resumed at the capture it stopped at, and fit,
+validate and predict reading one row per load, the mean of its captures."""
+
+from __future__ import annotations
+
+import io
+import os
+import signal
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from rich.console import Console
+
+from labcli.core.acquisition import acquire
+from labcli.core.protocol import load_protocol, loads_protocol
+from labcli.core.store import RunFile
+from labcli.core.store.records import Records
+from labcli.core.ui import UnattendedUI
+from labcli.errors import ConfigError
+from labcli.papers.takuma2014.captures import AVERAGED, averaged, record_ids
+from labcli.papers.takuma2014.models.inputs import load_trial_source
+from labcli.papers.takuma2014.predict import read_rows
+from labcli.papers.takuma2014.records import load_trials
+
+PORT = "sim://?seed=21&clock=virtual"
+N = 3
+PLAN = "trial,set,mass_g,direction_deg\n1,fit,800,-90\n2,validation,500,30\n"
+
+
+def quiet() -> UnattendedUI:
+    return UnattendedUI(console=Console(file=io.StringIO()))
+
+
+@pytest.fixture(scope="module")
+def interrupted(tmp_path_factory):
+    """A run of two loads, three captures each, interrupted (Ctrl-C) as load 2's second capture is
+    written, then resumed: (path, the first outcome, the ids stored then, the resumed outcome)."""
+    tmp = tmp_path_factory.mktemp("captures")
+    proto = tmp / "p.toml"
+    proto.write_text(
+        load_protocol("takuma2014").text.replace("rate_hz = 200.0\n", f"rate_hz = 200.0\ncaptures_per_load = {N}\n")
+    )
+    plan = tmp / "plan.csv"
+    plan.write_text(PLAN)
+    path = tmp / "run.h5"
+    real = Records.write
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    def pressed(self, record):
+        if record["trial"] == 5:  # load 2, capture 2
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(self, record)
+
+    try:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(Records, "write", pressed)
+            first = acquire(path, PORT, protocol=str(proto), plan=plan, unattended=True, ui=quiet())
+        with RunFile.open(path) as run:
+            stored = run.records.ids()
+        resumed = acquire(path, PORT, resume=True, unattended=True, ui=quiet())
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    return path, first, stored, resumed
+
+
+def test_an_interrupted_load_resumes_at_its_next_capture_and_ends_with_n_captures_each(interrupted):
+    path, first, stored, resumed = interrupted
+    # The capture being written when Ctrl-C came is stored whole; nothing after it.
+    assert first.exit_code == 130 and stored == [1, 2, 3, 4, 5]
+    assert "5 trials stored" in first.message
+    assert resumed.exit_code == 0, resumed.message
+    with RunFile.open(path) as run:
+        assert run.records.ids() == [1, 2, 3, 4, 5, 6] and run.records.incomplete_ids() == []
+        split = run.split.get()
+        assert split["fit"] == [1, 2, 3] and split["validation"] == [4, 5, 6]
+        assert loads_protocol(run.protocol_text).air.captures_per_load == N  # the run's own protocol says how many
+    df = load_trials(path)
+    assert df.groupby(df["mass_g"]).size().to_dict() == {500.0: N, 800.0: N}
+    assert df["mass_g"].tolist() == [800.0] * N + [500.0] * N  # each load's captures in a row
+    # A resumed run asks for no capture already stored, and the finished one for nothing more.
+    again = acquire(path, PORT, resume=True, unattended=True, ui=quiet())
+    assert again.exit_code == 0 and again.message.startswith("All 6 planned trials are already stored")
+
+
+def test_fit_validate_and_predict_read_each_load_as_the_mean_of_its_captures(interrupted):
+    path = interrupted[0]
+    stored = load_trials(path)
+    src = load_trial_source(path)
+    assert src.captures == N and src.table["trial"].tolist() == [1, 2]
+    assert src.table["set"].tolist() == ["fit", "validation"]
+    for load, rows in ((0, slice(0, 3)), (1, slice(3, 6))):
+        for c in AVERAGED:
+            assert src.table[c].iloc[load] == pytest.approx(stored[c].iloc[rows].mean(), abs=1e-15), c
+        assert src.table["Fx_N"].iloc[load] == stored["Fx_N"].iloc[rows.start]
+    # The captures do differ (fresh readings): the mean is not any one of them.
+    assert stored["P_L1"].iloc[:3].nunique() == 3
+    pd.testing.assert_frame_equal(read_rows(Path(path)), src.table)
+
+
+def test_a_skipped_capture_leaves_its_load_the_mean_of_the_others_and_one_capture_is_unchanged():
+    table = pd.DataFrame(
+        {
+            "trial": [1, 2, 3, 5, 6],  # load 2's first capture (id 4) skipped
+            "set": ["fit", "fit", "fit", "validation", "validation"],
+            **{c: np.arange(5.0) * (i + 1) for i, c in enumerate(AVERAGED)},
+            "Fx_N": [1.0, 1.0, 1.0, 2.0, 2.0],
+        }
+    )
+    out = averaged(table, 3)
+    assert out["trial"].tolist() == [1, 2] and out["set"].tolist() == ["fit", "validation"]
+    assert out["P_L1"].tolist() == pytest.approx([table["P_L1"][:3].mean(), table["P_L1"][3:].mean()])
+    assert out["Fx_N"].tolist() == [1.0, 2.0] and out["trial"].dtype == table["trial"].dtype
+    assert averaged(table, 1) is table
+    assert record_ids([1, 2], 3).tolist() == [1, 2, 3, 4, 5, 6] and record_ids([4], 1).tolist() == [4]
+
+
+def test_the_leak_correction_is_refused_on_averaged_rows(interrupted, tmp_path):
+    from labcli.papers.takuma2014.analyses import fit
+    from labcli.papers.takuma2014.options import FitOptions
+
+    with pytest.raises(ConfigError, match="averages 3 captures into each load's row"):
+        fit(interrupted[0], FitOptions(), output=tmp_path / "m.json", leak_correct=True)
