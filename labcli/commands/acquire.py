@@ -39,6 +39,13 @@ from ._options import FiniteRange, port_options
     is_flag=True,
     help="With --resume: continue on a rig other than the one the run was recorded on.",
 )
+@click.option(
+    "--captures",
+    type=click.IntRange(min=1),  # the protocol's key says how many at most (labcli.core.air)
+    default=None,
+    help="Take each plan load N times in a row, each capture after the friction relief; fit, validate and "
+    "predict average them  [default: the protocol's acquisition.captures_per_load, 1]",
+)
 @experiment_option("Which experiment of {holders} to record: {choices}.")
 def acquire(
     run: str,
@@ -54,6 +61,7 @@ def acquire(
     unattended: bool,
     rate: float | None,
     allow_other_rig: bool,
+    captures: int | None,
     experiment: str | None,
 ) -> None:
     """Guide a run at the rig, trial by trial, and record it into RUN.h5.
@@ -71,6 +79,7 @@ def acquire(
         labcli acquire run.h5 --port /dev/ttyUSB0 --operator kim
         labcli acquire run.h5 --port /dev/ttyUSB0 --resume
         labcli acquire sim.h5 --port 'sim://?seed=1&clock=virtual' --unattended
+        labcli acquire three.h5 --port 'sim://?seed=1&clock=virtual' --unattended --captures 3
         labcli acquire stretch.h5 --protocol rpam2015 --experiment stretch \\
             --port 'sim://?mode=rpam&clock=virtual' --unattended
     """
@@ -92,6 +101,7 @@ def acquire(
             baud=baud,
             device_timeout=timeout,
             allow_other_rig=allow_other_rig,
+            captures=captures,
         )
     except LabcliError as e:
         raise click.ClickException(str(e)) from None

@@ -215,6 +215,7 @@ def acquire(
     baud: int = DEFAULT_BAUD,
     allow_other_rig: bool = False,
     valves: str | None = None,
+    captures: int | None = None,
 ) -> Outcome:
     """Run ``labcli acquire``: open the rig and the run file, build the session, run it.
 
@@ -222,12 +223,16 @@ def acquire(
     default the registry names for ``acquire``; a resumed run carries its own, and a name given must match it; its calibration is then this rig's,
     checked against the run's).  ``allow_other_rig``: resume on a rig other than the
     run's.  ``valves``: ``"hand"`` keeps the prompts on a board that drives its valves (the
-    protocol's ``acquisition.valves`` otherwise, :mod:`labcli.core.air`).  Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the
+    protocol's ``acquisition.valves`` otherwise, :mod:`labcli.core.air`).  ``captures``: each load
+    taken that many times (``acquisition.captures_per_load``, written into the run's protocol; the
+    paper judges it).  Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the
     person at the rig can fix; returns the :class:`Outcome` otherwise.
     """
     path = str(path)
     _check_options(path, resume, force, plan, no_plan, protocol)
-    options = AcquireOptions(path, plan=plan, no_plan=no_plan, experiment=experiment, unattended=unattended)
+    options = AcquireOptions(
+        path, plan=plan, no_plan=no_plan, experiment=experiment, unattended=unattended, captures=captures
+    )
     link = Link(port, baud, device_timeout)
     existing: RunFile | None = None
     given = None

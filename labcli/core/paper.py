@@ -275,7 +275,7 @@ class AcquireOptions:
 
     ``experiment``: the ``--experiment`` choice of a protocol holding several;
     ``plan``/``no_plan``: a plan file, or typed loads; ``resume``: the run being continued
-    (None for a new run).
+    (None for a new run); ``captures``: the ``--captures`` of each load (None: the protocol's).
     """
 
     path: str
@@ -284,6 +284,7 @@ class AcquireOptions:
     experiment: str | None = None
     unattended: bool = False
     resume: Any = None  # the open RunFile being resumed
+    captures: int | None = None
 
 
 Session = Generator[Any, Any, None]

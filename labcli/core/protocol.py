@@ -444,3 +444,25 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
         source=top.get("source", ""),
         document=copy.deepcopy(data),
     )
+
+
+def with_captures(protocol: Protocol, captures: int, flag: str = "--captures") -> Protocol:
+    """``protocol`` with ``acquisition.captures_per_load = captures`` written into its text (the copy a
+    run stores, so the run says how many captures it took of each load and a resume takes as many).
+
+    A protocol that gives another number already is refused in one sentence (ConfigError)."""
+    given = protocol.sections.get("acquisition", {}).get("captures_per_load")
+    if given is not None:
+        if int(given) == captures:
+            return protocol
+        raise ConfigError(
+            f"{protocol.name} gives acquisition.captures_per_load = {given}, and {flag} {captures} asks for "
+            f"{captures}; leave out {flag} or give a protocol without the key."
+        )
+    line = f"captures_per_load = {captures}\n"
+    header = re.search(r"^\[acquisition\][ \t]*(#[^\n]*)?\n", protocol.text, flags=re.MULTILINE)
+    if header is not None:
+        text = protocol.text[: header.end()] + line + protocol.text[header.end() :]
+    else:
+        text = protocol.text.rstrip("\n") + "\n\n[acquisition]\n" + line
+    return loads_protocol(text, source=f"{protocol.name} with {flag} {captures}", path=protocol.path)

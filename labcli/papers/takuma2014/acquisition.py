@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ...core.paper import AcquireOptions, Session
+from ...core.protocol import with_captures
 from ...errors import ConfigError
 from .protocol import load_plan
 from .push_plan import load_push_plan, plan_objects
@@ -171,8 +172,29 @@ def _check_captures(protocol: Any, plan: Any) -> None:
         )
 
 
+def _captured(protocol: Any, options: AcquireOptions) -> Any:
+    """The protocol with ``--captures`` written in (a new run), or checked against the run's (a resumed one)."""
+    n = options.captures
+    if n is None:
+        return protocol
+    if protocol.kind == "push":
+        raise ConfigError(
+            f"--captures takes each load of a force run {n} times; protocol {protocol.name} records pushes, "
+            "each its own, so leave it out."
+        )
+    if options.resume is None:
+        return with_captures(protocol, n)
+    if protocol.air.captures_per_load != n:
+        raise ConfigError(
+            f"{options.path} was recorded with {protocol.air.captures_per_load} captures of each load, not {n}; "
+            "drop --captures to resume it, or start a new run."
+        )
+    return protocol
+
+
 def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | PushAcquisition:
     """Plan a run of a ``force`` or ``push`` protocol."""
+    protocol = _captured(protocol, options)
     if protocol.kind == "push":
         return _push_acquisition(protocol, options)
     plan = _plan(protocol, options)

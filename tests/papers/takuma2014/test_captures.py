@@ -123,3 +123,56 @@ def test_the_leak_correction_is_refused_on_averaged_rows(interrupted, tmp_path):
 
     with pytest.raises(ConfigError, match="averages 3 captures into each load's row"):
         fit(interrupted[0], FitOptions(), output=tmp_path / "m.json", leak_correct=True)
+
+
+def labcli(*args: str):
+    from click.testing import CliRunner
+
+    from labcli.cli import cli
+
+    return CliRunner().invoke(cli, list(args))
+
+
+def test_acquire_captures_writes_the_number_into_the_runs_protocol_and_resume_keeps_it(tmp_path):
+    plan = tmp_path / "plan.csv"
+    plan.write_text(PLAN)
+    run = tmp_path / "three.h5"
+    res = labcli("acquire", str(run), "--port", PORT, "--unattended", "--plan", str(plan), "--captures", "3")
+    assert res.exit_code == 0, res.output
+    with RunFile.open(run) as f:
+        proto = loads_protocol(f.protocol_text)
+        assert f.records.ids() == [1, 2, 3, 4, 5, 6]
+    assert proto.air.captures_per_load == 3 and proto.air.friction_relief_vent_s == 2.0
+    assert "captures_per_load = 3\n" in proto.text and proto.settings.rig == load_protocol("takuma2014").settings.rig
+    res = labcli("acquire", str(run), "--port", PORT, "--unattended", "--resume", "--captures", "2")
+    assert res.exit_code == 1 and "was recorded with 3 captures of each load, not 2" in res.output
+    res = labcli("acquire", str(run), "--port", PORT, "--unattended", "--resume", "--captures", "3")
+    assert res.exit_code == 0 and "All 6 planned trials are already stored" in res.output
+
+
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [
+        (("--captures", "11"), "captures_per_load"),
+        (("--captures", "0"), "0 is not in the range x>=1"),
+        (("--protocol", "takuma2014-stiffness", "--captures", "2"), "records pushes, each its own"),
+        (("--protocol", "rpam2015", "--experiment", "stretch", "--captures", "2"), "each point of its grid once"),
+    ],
+)
+def test_acquire_refuses_captures_it_cannot_take_in_one_sentence(tmp_path, args, said):
+    res = labcli("acquire", str(tmp_path / "x.h5"), "--port", PORT, "--unattended", *args)
+    assert res.exit_code != 0 and said in res.output and "Traceback" not in res.output, res.output
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_protocol_giving_another_number_of_captures_is_refused(tmp_path):
+    from labcli.core.protocol import with_captures
+
+    two = with_captures(load_protocol("takuma2014"), 2)
+    assert two.air.captures_per_load == 2 and with_captures(two, 2) is two
+    with pytest.raises(ConfigError, match="gives acquisition.captures_per_load = 2, and --captures 3"):
+        with_captures(two, 3)
+    # The key goes into the protocol's own [acquisition] table, a comment after its header kept.
+    noted = loads_protocol(load_protocol("takuma2014").text.replace("[acquisition]\n", "[acquisition]  # air\n"))
+    three = with_captures(noted, 3)
+    assert three.air.captures_per_load == 3 and "[acquisition]  # air\ncaptures_per_load = 3\n" in three.text
