@@ -23,7 +23,6 @@ on and the last commit that changed the estimators (labcli/papers/takuma2014/mod
 
 from __future__ import annotations
 
-import json
 import math
 import subprocess
 import sys
@@ -34,6 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study  # noqa: E402
+from figures_file import cached_seeds, git_head, write_figures  # noqa: E402
 from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -41,22 +41,14 @@ BOOTSTRAP = 2000
 
 
 def raw_results(seeds: list[int], cache: Path | None, realism: str = "literature") -> dict[int, dict[str, Any]]:
-    done: dict[int, dict[str, Any]] = {}
-    if cache is not None and cache.exists():
-        for line in cache.read_text().splitlines():
-            if line.strip():
-                rec = json.loads(line)
-                if rec.get("realism", "literature") == realism:  # files of before the option: the literature's
-                    done[int(rec["seed"])] = rec["raw"]
-    for seed in seeds:
-        if seed in done:
-            continue
-        done[seed] = study.measure_level({"realism": realism}, seed, 10, with_phi_blank=True)
-        print(f"  measured seed {seed}", file=sys.stderr, flush=True)
-        if cache is not None:
-            with cache.open("a") as f:
-                f.write(json.dumps({"seed": seed, "realism": realism, "raw": done[seed]}) + "\n")
-    return {s: done[s] for s in seeds}
+    return cached_seeds(
+        cache,
+        seeds,
+        lambda seed: study.measure_level({"realism": realism}, seed, 10, with_phi_blank=True),
+        tag={"realism": realism},
+        # files of before the option: the literature's
+        same=lambda rec: rec.get("realism", "literature") == realism,
+    )
 
 
 def rmse_ci(per_seed: list[list[float]], rng: np.random.Generator) -> tuple[float, float, float]:
@@ -143,8 +135,8 @@ def main(argv: list[str] | None = None) -> None:
     )
     args = ap.parse_args(argv)
     seeds, seeds_label = args.seeds, seeds_text(args.seeds)
-    meta = {  # read before the run: the code measured is the code at its start
-        "meta/commit": git("rev-parse", "HEAD"),
+    head = git_head()  # read before the run, as the meta: the code measured is the code at its start
+    meta = {
         "meta/estimator_commit": git("log", "-1", "--format=%H", "--", "labcli/papers/takuma2014/models"),
         "meta/uncommitted_changes_in_labcli": bool(git("status", "--porcelain", "--", "labcli")),
         "meta/rig": f"sim:// rig (realism={args.realism}), takuma2014 and takuma2014-bent protocols",
@@ -152,8 +144,6 @@ def main(argv: list[str] | None = None) -> None:
         "meta/bootstrap": BOOTSTRAP,
     }
     figs = figures(raw_results(seeds, args.cache, args.realism))
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps({**meta, **figs}, indent=1, sort_keys=True) + "\n")
     print(
         f"{args.realism} rig, held-out seeds {seeds_label}: RMSE over reported trials [95 % interval], reported / trials, coverage"
     )
@@ -183,7 +173,7 @@ def main(argv: list[str] | None = None) -> None:
     total = sum(figs[f"phi_blank/pushes/seed{s}"] for s in seeds)
     right = [figs[f"phi_blank/right/seed{s}"] for s in seeds]
     print(f"phi blank, bent arm: {used}/{total} pushes used, objects in category per seed {right}")
-    print(f"wrote {args.json}")
+    write_figures(args.json, meta, figs, commit=head)
 
 
 if __name__ == "__main__":

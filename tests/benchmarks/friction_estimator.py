@@ -28,7 +28,6 @@ seeds 1-10; nothing here is tuned.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from pathlib import Path
@@ -40,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from baseline_estimator import wilson  # noqa: E402
-from figures_file import write_figures  # noqa: E402
+from figures_file import cached_seeds, write_figures  # noqa: E402
 from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -48,6 +47,7 @@ PROTOCOLS = {"straight": "takuma2014", "bent": "takuma2014-bent"}
 FORMS = ("plain", "friction")
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
 BOOTSTRAP = 2000
+OLD_CONFIG = {"relief": 0.0, "vent": 0.0, "side": "L"}  # a record of before --relief: none
 
 
 def forms_of(relief: float, vent: float) -> tuple[str, ...]:
@@ -187,22 +187,15 @@ def main(argv: list[str] | None = None) -> None:
     forms = forms_of(args.relief, args.vent)
     config = {"relief": args.relief, "vent": args.vent, "side": args.vent_side, "realism": args.realism}
     seeds = args.seeds
-    done: dict[int, dict[str, Any]] = {}
-    if args.cache is not None and args.cache.exists():
-        for line in args.cache.read_text().splitlines():
-            if line.strip():
-                rec = json.loads(line)
-                # a record of before --realism: the literature's rig
-                if {"realism": "literature", **rec.get("config", {"relief": 0.0, "vent": 0.0, "side": "L"})} == config:
-                    done[int(rec["seed"])] = rec["raw"]
-    for seed in seeds:
-        if seed not in done:
-            done[seed] = measure(seed, args.relief, args.vent, args.vent_side, args.realism)
-            print(f"  measured seed {seed}", file=sys.stderr, flush=True)
-            if args.cache is not None:
-                with args.cache.open("a") as f:
-                    f.write(json.dumps({"seed": seed, "config": config, "raw": done[seed]}) + "\n")
-    figs = figures({s: done[s] for s in seeds}, forms)
+    done = cached_seeds(
+        args.cache,
+        seeds,
+        lambda seed: measure(seed, args.relief, args.vent, args.vent_side, args.realism),
+        tag={"config": config},
+        # a record of before --realism: the literature's rig
+        same=lambda rec: {"realism": "literature", **rec.get("config", OLD_CONFIG)} == config,
+    )
+    figs = figures(done, forms)
     print(f"held-out seeds {seeds_text(seeds)}, {args.realism} rig ({config}): RMSE of {' / '.join(forms)}")
     for short in PROTOCOLS:
         for q in QUANTITIES:

@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import subprocess
 import sys
 from pathlib import Path
 from typing import Any
@@ -37,6 +36,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import study  # noqa: E402
+from figures_file import cache_append, cache_records, git_head, write_figures  # noqa: E402
 from rig_options import add_rig_options, bench_parser, seeds_text  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -75,16 +75,13 @@ HEADLINE = (  # (column, figure, scale, format) of the headline table
 def load_cache(path: Path | None, realism: str = "literature") -> dict[tuple[str, int], dict[str, float]]:
     """The cache's (level, seed) figures measured with the levels on ``realism`` (records of before
     --realism: the literature's)."""
-    done: dict[tuple[str, int], dict[str, float]] = {}
-    if path is not None and path.exists():
-        for line in path.read_text().splitlines():
-            if line.strip():
-                rec = json.loads(line)
-                # Records of before the posture form took the friction terms were fitted without them.
-                same_form = rec.get("friction_terms", False) == FRICTION_TERMS
-                if rec.get("realism", "literature") == realism and same_form:
-                    done[(rec["level"], int(rec["seed"]))] = rec["figures"]
-    return done
+
+    def same(rec: dict[str, Any]) -> bool:
+        # Records of before the posture form took the friction terms were fitted without them.
+        same_form = rec.get("friction_terms", False) == FRICTION_TERMS
+        return rec.get("realism", "literature") == realism and same_form
+
+    return {(rec["level"], int(rec["seed"])): rec["figures"] for rec in cache_records(path, same)}
 
 
 def _run(job: tuple[str, int, int, str]) -> tuple[str, int, dict[str, float]]:
@@ -116,20 +113,8 @@ def gather(
 def _keep(done: dict, cache: Path | None, level: str, seed: int, figs: dict[str, float], realism: str) -> None:
     done[(level, seed)] = figs
     print(f"  measured {level}, seed {seed}", file=sys.stderr, flush=True)
-    if cache is not None:
-        with cache.open("a") as f:
-            f.write(
-                json.dumps(
-                    {
-                        "level": level,
-                        "seed": seed,
-                        "realism": realism,
-                        "friction_terms": FRICTION_TERMS,
-                        "figures": figs,
-                    }
-                )
-                + "\n"
-            )
+    record = {"level": level, "seed": seed, "realism": realism, "friction_terms": FRICTION_TERMS, "figures": figs}
+    cache_append(cache, record)
 
 
 def summarise(per_level: dict[str, dict[int, dict[str, float]]]) -> dict[str, float]:
@@ -181,13 +166,6 @@ def details(summary: dict[str, float], levels: list[str]) -> str:
     return "\n".join(lines)
 
 
-def commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    except OSError:
-        return ""
-
-
 def main(argv: list[str] | None = None) -> None:
     ap = bench_parser(__doc__)
     ap.add_argument("--quick", action="store_true", help=f"seeds 11-12, levels {', '.join(QUICK_LEVELS)}, 5 pushes")
@@ -210,7 +188,7 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"unknown level {unknown[0]!r}; levels: {', '.join(LEVELS)}")
     seeds = args.seeds
     pushes = args.pushes or (5 if args.quick else 10)
-    head = commit()  # the code measured is the code at the start
+    head = git_head()  # the code measured is the code at the start
     summary = summarise(gather(levels, seeds, pushes, args.cache, args.jobs, args.realism))
     print(f"\nseeds {seeds_text(seeds)} ({len(seeds)}), {pushes} pushes per object; posture form unless named")
     table = headline(summary, levels)
@@ -218,16 +196,14 @@ def main(argv: list[str] | None = None) -> None:
     print("\nEvery figure, mean ± sd over seeds:")
     print(details(summary, levels))
     meta = {
-        "meta/commit": head,
         "meta/seeds": f"{seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else str(seeds),
         "meta/pushes_per_object": pushes,
         "meta/posture_friction_terms": FRICTION_TERMS,
         **{f"meta/level/{lv}": json.dumps(LEVELS[lv], sort_keys=True) for lv in levels},
         "headline": table,  # the pages show it whole (docs/rig-realism.md)
     }
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps({**meta, **summary}, indent=1, sort_keys=True) + "\n")
-    print(f"\nwrote {args.json}")
+    print()
+    write_figures(args.json, meta, summary, commit=head)
 
 
 if __name__ == "__main__":
