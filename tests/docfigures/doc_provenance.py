@@ -10,6 +10,10 @@ Figures measured before the stamp carry ``meta/committed_in`` instead: the commi
 figures into the file (git log; for guard.json the measuring commit before a relabelling one), the
 nearest record there is of the code they were measured on.  A source named in ``PENDING`` is not
 held to the record until ``regenerate.py NAME`` has stamped it; then take its name out.
+
+A recorded commit must be HEAD or one of its ancestors (:func:`off_history`): a commit of a branch
+that was rebased before it landed names code this history never had.  A checkout that cannot tell
+(no git, a source tarball, a shallow clone: :func:`history_unknown`) is not held to it.
 """
 
 from __future__ import annotations
@@ -24,6 +28,10 @@ BENCH = ROOT / "tests" / "benchmarks"
 RIG_DEFAULT = re.compile(r"add_rig_options\(\s*\w+,\s*realism=\"([a-z,]+)\"")
 # Sources whose files await the stamp of their next regeneration.
 PENDING: frozenset[str] = frozenset()
+# Sources whose files name a commit off this history (measured on a branch before its rebase, and
+# too long to measure again at once: tens of minutes to hours of the rig's seeds).  Their figures
+# stand; their record does not name the code measured.  Regenerate them, then take the name out.
+OFF_HISTORY: frozenset[str] = frozenset({"friction-estimator", "friction-relief", "multi-capture", "pressure-floor"})
 # The directories whose changes move a benchmark's figures.
 MEASURED_CODE = ("labcli", "protocols", "tests/benchmarks", "tests/support")
 
@@ -85,4 +93,38 @@ def missing(figures: dict[str, Any], runs: dict[str, tuple[str, ...]], script: s
         recorded = figures.get(key(prefix, "meta/realism"))
         if realism is not None and (not isinstance(recorded, str) or same_order(recorded) != realism):
             problems.append(f"{name} records realism {recorded!r}; its arguments run {realism!r}")
+    return problems
+
+
+def _git(*args: str) -> subprocess.CompletedProcess[str] | None:
+    try:
+        return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True)
+    except OSError:
+        return None
+
+
+def history_unknown() -> str | None:
+    """Why this checkout cannot tell whether a commit is in its history, or None when it can."""
+    top = _git("rev-parse", "--show-toplevel")
+    if top is None:
+        return "git is not installed"
+    if top.returncode != 0 or Path(top.stdout.strip()).resolve() != ROOT.resolve():
+        return "not a git checkout of its own (a source tarball)"
+    shallow = _git("rev-parse", "--is-shallow-repository")
+    if shallow is None or shallow.stdout.strip() != "false":
+        return "a shallow clone, without the history"
+    return None
+
+
+def off_history(figures: dict[str, Any]) -> list[str]:
+    """The recorded commits (every run's ``meta/commit`` and ``meta/committed_in``) that are neither
+    HEAD nor an ancestor of it, each as a sentence (empty: all in the history)."""
+    problems = []
+    for k, v in figures.items():
+        if not k.endswith(("meta/commit", "meta/committed_in")):
+            continue
+        commit = str(v).removesuffix("-dirty")
+        done = _git("merge-base", "--is-ancestor", commit, "HEAD") if commit else None
+        if done is None or done.returncode != 0:
+            problems.append(f"{k} {v!r} is not HEAD or an ancestor of it")
     return problems

@@ -76,3 +76,34 @@ def test_head_commit_names_a_commit_of_this_repository():
     commit = provenance.head_commit()
     assert len(commit.removesuffix("-dirty")) == 40
     int(commit.removesuffix("-dirty"), 16)
+
+
+def _history_or_skip() -> None:
+    why = provenance.history_unknown()
+    if why is not None:
+        pytest.skip(f"{why}: whether a recorded commit is in the history cannot be told")
+
+
+@pytest.mark.parametrize("source", BENCHMARKS, ids=[s.name for s in BENCHMARKS])
+def test_benchmark_figures_name_a_commit_of_this_history(source):
+    _history_or_skip()
+    off = provenance.off_history(_figures(source.name))
+    if off and source.name in provenance.OFF_HISTORY:
+        pytest.skip(f"{source.name} was measured on a commit off this history; regenerate it: " + "; ".join(off))
+    assert not off, f"docs/figures/{source.name}.json: " + "; ".join(off) + " (measure it again on this history)"
+
+
+def test_a_commit_off_the_history_is_reported_and_head_is_not():
+    _history_or_skip()
+    head = provenance.head_commit()
+    made_up = "0123456789abcdef0123456789abcdef01234567"
+    assert provenance.off_history({"meta/commit": head, "N2 meta/committed_in": head.removesuffix("-dirty")}) == []
+    assert provenance.off_history({"meta/commit": made_up + "-dirty", "meta/seeds": "11-30", "x meta/commit": ""}) == [
+        f"meta/commit '{made_up}-dirty' is not HEAD or an ancestor of it",
+        "x meta/commit '' is not HEAD or an ancestor of it",
+    ]
+
+
+def test_a_checkout_without_its_history_says_why(tmp_path, monkeypatch):
+    monkeypatch.setattr(provenance, "ROOT", tmp_path)  # a source tarball: no repository of its own
+    assert provenance.history_unknown() == "not a git checkout of its own (a source tarball)"
