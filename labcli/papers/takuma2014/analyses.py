@@ -53,14 +53,16 @@ class FitResult:
     run: Path
     recorded: bool  # also recorded in the run file under /models/<protocol>
     paper: dict[str, float]
+    captures: int = 1  # captures a fitted row averages (acquisition.captures_per_load)
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "model_path": str(self.model_path),
             "recorded_in_run": self.recorded,
             "model": self.model.to_dict(),
             "paper_coefficients": self.paper,
         }
+        return out if self.captures == 1 else {**out, "captures_per_load": self.captures}
 
 
 def fit(
@@ -125,7 +127,8 @@ def _fit(
     fit_records = _fit_ids(src.table) if src.captures == 1 else record_ids(_fit_ids(src.table), src.captures)
     model.baseline_gap_s = leak.baseline_gap(run, fit_records) if src.is_run else None
     recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
-    return FitResult(model, out_path, run, recorded, dict(src.protocol.settings.paper_coefficients or {}))
+    paper = dict(src.protocol.settings.paper_coefficients or {})
+    return FitResult(model, out_path, run, recorded, paper, src.captures)
 
 
 def _fit_ids(table: Any) -> Any:
@@ -237,6 +240,11 @@ def show_fit(result: FitResult, *, as_json: bool = False) -> None:
         print(dumps_indented(result.to_dict()))
         return
     recorded = f" and recorded in {result.run} under /models/{result.model.protocol}" if result.recorded else ""
+    if result.captures > 1:
+        print(
+            f"Each trial is the mean of its load's {result.captures} captures (acquisition.captures_per_load): "
+            f"the standard errors are those of such a mean, too narrow for a single capture."
+        )
     if isinstance(result.model, PostureModel):
         report.print_posture_fit(result.model, result.model_path, recorded)
     else:

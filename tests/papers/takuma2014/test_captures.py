@@ -176,3 +176,30 @@ def test_a_protocol_giving_another_number_of_captures_is_refused(tmp_path):
     noted = loads_protocol(load_protocol("takuma2014").text.replace("[acquisition]\n", "[acquisition]  # air\n"))
     three = with_captures(noted, 3)
     assert three.air.captures_per_load == 3 and "[acquisition]  # air\ncaptures_per_load = 3\n" in three.text
+
+
+def test_labcli_fit_of_a_run_of_two_captures_a_load_is_the_fit_of_its_averaged_rows(tmp_path):
+    """The model ``labcli fit`` writes is the one fitted on the loads' means, said so in its report."""
+    import json
+
+    from labcli.papers.takuma2014.analyses import _fit_form
+
+    rows = pd.read_csv(Path(__file__).resolve().parents[3] / "protocols" / "takuma2014-plan.csv")
+    plan = tmp_path / "plan.csv"
+    pd.concat([rows[rows["set"] == "fit"].iloc[::3], rows[rows["set"] == "validation"].iloc[:6]]).to_csv(
+        plan, index=False
+    )
+    run = tmp_path / "two.h5"
+    res = labcli("acquire", str(run), "--port", PORT, "--unattended", "--plan", str(plan), "--captures", "2")
+    assert res.exit_code == 0, res.output
+    res = labcli("fit", str(run), "-o", str(tmp_path / "m.json"), "--no-friction-terms")
+    assert res.exit_code == 0, res.output
+    assert "Each trial is the mean of its load's 2 captures" in res.output
+    src = load_trial_source(run)
+    assert len(src.table) == 36 and len(load_trials(run)) == 72
+    with np.errstate(all="ignore"):
+        by_hand = _fit_form("posture", src, str(run), friction_terms=False).to_dict()
+    written = json.loads((tmp_path / "m.json").read_text())
+    for key in ("angle_coefficients", "torque_coefficients", "angle_resid_cov"):
+        np.testing.assert_allclose(written[key], by_hand[key], rtol=1e-12, err_msg=key)
+    assert written["fitted_trials"] == by_hand["fitted_trials"]
