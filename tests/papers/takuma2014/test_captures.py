@@ -183,6 +183,7 @@ def test_labcli_fit_of_a_run_of_two_captures_a_load_is_the_fit_of_its_averaged_r
     import json
 
     from labcli.papers.takuma2014.analyses import _fit_form
+    from labcli.papers.takuma2014.models.posture import RELIEVED_TERMS
 
     rows = pd.read_csv(Path(__file__).resolve().parents[3] / "protocols" / "takuma2014-plan.csv")
     plan = tmp_path / "plan.csv"
@@ -203,3 +204,6 @@ def test_labcli_fit_of_a_run_of_two_captures_a_load_is_the_fit_of_its_averaged_r
     for key in ("angle_coefficients", "torque_coefficients", "angle_resid_cov"):
         np.testing.assert_allclose(written[key], by_hand[key], rtol=1e-12, err_msg=key)
     assert written["fitted_trials"] == by_hand["fitted_trials"]
+    # Relieved (the default relief vents): each row's P0 is its own, already the mean of its captures'
+    # baselines, not the mean of five rows' as on a run of one relieved capture a load.
+    assert set(RELIEVED_TERMS) <= set(written["torque_terms"]) and written["baseline_mean"] == 1
