@@ -332,3 +332,38 @@ def test_push_session_with_a_fixed_schedule_resumes_by_push_id():
     acts = [s.action for s in of(steps, Prompt)]
     assert PushObject(0.033, 0.004, 0.1, 5000.0) in acts and ReleaseObject() in acts
     assert of(steps, BeginTrial)[0].label == "Push 4/10 of can-steel-1"
+
+
+def test_n_captures_of_each_load_as_steps_and_a_resume_takes_only_the_captures_missing():
+    """No rig: the session's steps alone.  Three captures a load, each its own trial (id (load - 1) 3 +
+    capture) hung, captured and committed; a session resumed with captures 1, 2 and 4 stored takes 3, 5, 6."""
+    from labcli.core.protocol import with_captures
+
+    three = with_captures(PROTOCOL, 3)
+    two_loads = PLAN.iloc[:2]
+    steps = drive(force_session(three, two_loads))
+    begun = of(steps, BeginTrial)
+    assert [b.trial for b in begun] == [1, 2, 3, 4, 5, 6]
+    assert [b.label for b in begun[:4]] == [
+        "Trial 1/2 (fit), capture 1/3",
+        "Trial 1/2 (fit), capture 2/3",
+        "Trial 1/2 (fit), capture 3/3",
+        "Trial 2/2 (fit), capture 1/3",
+    ]
+    hung = [s.action.mass_kg for s in of(steps, Prompt) if isinstance(s.action, HangWeight)]
+    masses = two_loads["mass_g"].to_numpy() * 1e-3
+    assert hung == pytest.approx(np.repeat(masses, 3))
+    commits = [s.record for s in of(steps, Commit)]
+    assert [r["trial"] for r in commits] == [1, 2, 3, 4, 5, 6]
+    assert [r["mass_kg"] for r in commits] == pytest.approx(np.repeat(masses, 3))
+    assert of(steps, Finish)[0].split == {t: "fit" for t in range(1, 7)}
+    resumed = drive(force_session(three, two_loads, completed=[1, 2, 4]))
+    assert [r.record["trial"] for r in of(resumed, Commit)] == [3, 5, 6]
+    assert [b.label for b in of(resumed, BeginTrial)] == [
+        "Trial 1/2 (fit), capture 3/3",
+        "Trial 2/2 (fit), capture 2/3",
+        "Trial 2/2 (fit), capture 3/3",
+    ]
+    # One capture a load: the plan's own ids and labels, as before.
+    once = of(drive(force_session(PROTOCOL, two_loads)), BeginTrial)
+    assert [(b.trial, b.label, b.total) for b in once] == [(1, "Trial 1/2 (fit)", 2), (2, "Trial 2/2 (fit)", 2)]
