@@ -31,7 +31,7 @@ PENDING: frozenset[str] = frozenset()
 # Sources whose files name a commit off this history (measured on a branch before its rebase, and
 # too long to measure again at once: tens of minutes to hours of the rig's seeds).  Their figures
 # stand; their record does not name the code measured.  Regenerate them, then take the name out.
-OFF_HISTORY: frozenset[str] = frozenset({"friction-relief", "multi-capture", "pressure-floor"})
+OFF_HISTORY: frozenset[str] = frozenset({"multi-capture"})
 # The directories whose changes move a benchmark's figures.
 MEASURED_CODE = ("labcli", "protocols", "tests/benchmarks", "tests/support")
 
