@@ -3,9 +3,10 @@
 For each rig (the literature's and the kind one), arm (the straight protocol takuma2014 and the bent
 one) and seed, the trials are taken as ``labcli acquire`` takes them (sensing_accuracy.trials) and
 the posture form is fitted as ``labcli fit`` fits it by default (with the sleeves' friction terms)
-on the 90 fit trials, then checked pressure-only on the 18 validation trials, as ``labcli
-validate`` checks it.  Printed per cell and quantity: trials reported (not flagged), the coverage
-of the 95 % intervals (+-1.96 standard errors) over them with a 95 % interval from a bootstrap over
+on the plan's fit trials, then checked pressure-only on its validation trials (18 in the shipped
+plans; the count is read from the plan), as ``labcli validate`` checks them.  Printed per cell and
+quantity: trials reported (not flagged) of those planned, the coverage of the 95 % intervals
+(+-1.96 standard errors) over them with a 95 % interval from a bootstrap over
 seeds (a seed's trials share its fit, so the seed is what is resampled), the RMSE and the RMS of
 the standard errors.
 
@@ -97,7 +98,7 @@ def measure(rig: str, arm: str, seed: int, diagnose: bool = False) -> dict[str, 
         model.fit(table)
     ev = evaluate(model, table)
     mass = np.asarray(table.loc[table["set"] == "validation", "mass_g"], dtype=float)
-    out: dict[str, Any] = {}
+    out: dict[str, Any] = {"planned": planned_validation(proto)}
     for q in QUANTITIES:
         ok = ev["ok"][q] & np.isfinite(ev["observed"][q])
         out[q] = {
@@ -116,6 +117,13 @@ def measure(rig: str, arm: str, seed: int, diagnose: bool = False) -> dict[str, 
                 "mass": np.asarray(rows["mass_g"], dtype=float)[keep],
             }
     return out
+
+
+def planned_validation(proto: Any) -> int:
+    """How many validation trials the protocol's plan holds (each cell reports over these)."""
+    from labcli.papers.takuma2014.protocol import load_plan
+
+    return int(np.count_nonzero(np.asarray(load_plan(proto)["set"]) == "validation"))
 
 
 def rms(x: np.ndarray) -> float:
@@ -146,7 +154,12 @@ def cell_figures(runs: list[dict[str, Any]], q: str, rng: np.random.Generator) -
     n = len(cat["err"])
     hits = int(np.sum(np.abs(cat["err"]) <= Z95 * cat["se"]))
     _, wlo, whi = wilson(hits, n)
-    out: dict[str, Any] = {"reported": n, "trials": 18 * len(runs), "rmse": rms(cat["err"]), "rms se": rms(cat["se"])}
+    out: dict[str, Any] = {
+        "reported": n,
+        "trials": sum(r["planned"] for r in runs),
+        "rmse": rms(cat["err"]),
+        "rms se": rms(cat["se"]),
+    }
     if n:
         out.update({"cover pct": 100 * p, "cover ci lo": 100 * lo, "cover ci hi": 100 * hi})
         out.update({"cover wilson lo": 100 * wlo, "cover wilson hi": 100 * whi})

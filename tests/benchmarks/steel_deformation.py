@@ -7,8 +7,8 @@ Per rig seed, on the literature's rig by default: the force protocol's trials an
 (straight arm, phi given; ``classify_accuracy.trials_and_pushes``), the posture form fitted as
 ``labcli fit`` fits it (with the sleeves' friction terms) and the pushes classified with the
 protocol's bands.  Two estimators on the same trials: the potentiometers' play fitted by least
-squares (``label_play="fit"``, the default) and on the loads as instruments (``"loads"``,
-models/labels.py).  The rig records each push's true joint angles, tip force and deformation
+squares corrected for the pressure ratios' reading errors (``label_play="fit"``, the default) and on
+the loads as instruments (``"loads"``, models/labels.py).  The rig records each push's true joint angles, tip force and deformation
 (:class:`TruthRig`), so per push
 
     k / k_true = (|F| / |F_true|) x (delta_true / delta) x (|F_true| / (k_true delta_true))
@@ -18,10 +18,11 @@ which the deformation reads long) and the contact's (the tangential drag that Eq
 force leaves out), and the deflections' errors (deg).  Printed per estimator: per object the median
 over pushes of each share and, over seeds, the median k / k_true with a 95 % interval (bootstrap
 over seeds), seeds with the right category, wrong categories with confidence >= 0.9, and the play
-fitted (the rig's is 0.2 deg).  ``--effects`` repeats the least-squares split with each of the
+fitted (the rig's is 0.2 deg).  ``--effects`` repeats the default's split with each of the
 rig's effects off in turn (NonIdeal scales), to find which one makes the bias.
 
-Measured (2026-11, tuning seeds 1-10, least squares): the steel can's k/k_true 0.667 (median over
+Measured (2026-11, tuning seeds 1-10, the play by plain least squares, before its correction at
+commit 3d0d421): the steel can's k/k_true 0.667 (median over
 pushes), its force share 1.01 and its deformation 1.57 times true, from deflections reading 0.22
 deg (theta1) and 0.09 deg (theta2) short of 2.4 and 8.0 deg; the contact's drag adds 4 %.  With
 one effect off: the pots' play 1.017, the pressure sensors' repeatability 0.969, the sleeves'
@@ -54,7 +55,7 @@ from labcli.papers.takuma2014.sim.nonideal import _SCALES, NonIdeal  # noqa: E40
 from labcli.papers.takuma2014.sim.objects import DEMO_OBJECTS  # noqa: E402
 from labcli.papers.takuma2014.sim.rig import SimRig  # noqa: E402
 
-ESTIMATORS = ("loads", "fit")  # the models' label_play: the play on the loads, and by least squares
+ESTIMATORS = ("loads", "fit")  # the models' label_play: the play on the loads, and by corrected least squares
 SHARES = ("k", "force", "deformation", "contact", "dtheta1_deg", "dtheta2_deg")
 
 
@@ -179,7 +180,7 @@ def summarise(raw: dict[int, dict], estimators: tuple[str, ...] = ESTIMATORS) ->
 def print_summary(fig: dict[str, Any], estimators: tuple[str, ...] = ESTIMATORS) -> None:
     for est in estimators:
         play = ", ".join(f"{fig[f'{est} play_deg theta{k} median']:.3f}" for k in (1, 2))
-        how = "on the loads (label_play='loads')" if est == "loads" else "by least squares (label_play='fit')"
+        how = "on the loads (label_play='loads')" if est == "loads" else "by corrected least squares (label_play='fit')"
         print(f"\nplay fitted {how}: {play} deg (median over seeds; the rig's 0.2)")
         print(
             f"{'object':12s} {'k/k_true [95 % CI]':24s} {'right':6s}  per push: k  force  deform  contact  dth1  dth2"
@@ -196,8 +197,8 @@ def print_summary(fig: dict[str, Any], estimators: tuple[str, ...] = ESTIMATORS)
 
 
 def effects(seeds: list[int], realism: str, fig: dict[str, Any]) -> None:
-    """The least-squares split of the steel can with each of the rig's effects off in turn (into ``fig``)."""
-    print("\nsteel can, least-squares play, one effect off (median over pushes): k/k_true  force  deformation")
+    """The default's split of the steel can with each of the rig's effects off in turn (into ``fig``)."""
+    print("\nsteel can, the default's play, one effect off (median over pushes): k/k_true  force  deformation")
     for effect in ("all", *_SCALES, "drift"):
         scales = {} if effect == "all" else {effect: 0.0}
         pushes = [

@@ -725,7 +725,7 @@ SOURCES: dict[str, Source] = {
             "steel-deformation",
             "benchmark",
             "each push's k / k_true split into force, deformation and contact with the rig's truth, the play "
-            "by least squares and on the loads, and each effect off (literature rig, seeds 11-30 and 1-10)",
+            "by corrected least squares and on the loads, and each effect off (literature rig, seeds 11-30 and 1-10)",
             script="steel_deformation.py",
             runs={"": ("--seeds", "11-30"), "tuning": ("--seeds", "1-10", "--effects")},
         ),

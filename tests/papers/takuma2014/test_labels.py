@@ -9,7 +9,7 @@ import pytest
 
 from labcli.core.protocol import load_protocol
 from labcli.errors import ModelError
-from labcli.papers.takuma2014.models.labels import apply_play, fit_play, play_states
+from labcli.papers.takuma2014.models.labels import apply_play, fit_play, play_states, ratio_error_var
 from labcli.papers.takuma2014.models.takuma import TakumaModel
 from labcli.papers.takuma2014.protocol import load_plan
 from labcli.papers.takuma2014.sim.drive import simulate_weight_trials
@@ -62,6 +62,54 @@ def test_fit_play_recovers_the_play_and_the_true_deflections():
     # The readings as read are biased towards zero by a share of the play; the corrected ones are not.
     assert np.mean(np.abs(read)) < np.mean(np.abs(d_true)) - 0.3 * B
     assert abs(np.mean(np.abs(corrected[keep])) - np.mean(np.abs(d_true[keep]))) < 0.05 * B
+
+
+def _noisy_play_run(seed: int, n: int, s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An antagonistic pair's ratios (one deflection moves both, opposite ways), read with a fresh
+    error of sd ``s`` in each feature, and the shaft's readings of the true deflections with play B."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(0.0, 0.01, n)
+    true = np.column_stack([x, -x + rng.normal(0.0, 0.002, n)])
+    d_true = np.arcsin(true @ np.array([1.5, -0.8]))
+    read = _read(d_true, B) + rng.normal(0.0, math.radians(0.005), n)
+    return true + rng.normal(0.0, s, (n, 2)), read, d_true
+
+
+def test_reading_errors_in_the_ratios_shorten_the_play_unless_corrected():
+    s, n = 0.002, 300
+    plain, corrected = [], []
+    for seed in range(12):
+        design, read, _ = _noisy_play_run(seed, n, s)
+        args = (design, read, np.arange(n), np.ones(n, bool), np.arange(1, n + 1))
+        plain.append(fit_play(*args)[0].play_rad / B)
+        corrected.append(fit_play(*args, error_var=np.full(2, s**2))[0].play_rad / B)
+    # Least squares takes the slopes' attenuation out of the play; the moment correction puts it back.
+    assert np.mean(plain) < 0.85
+    assert np.mean(corrected) == pytest.approx(1.0, abs=0.08)
+
+
+def test_the_ratios_error_variance_is_read_from_the_pairs_common_mode():
+    rng = np.random.default_rng(8)
+    n = 90
+    x1, x2 = rng.normal(0.0, 0.01, n), rng.normal(0.0, 0.01, n)
+    # Each pair moves oppositely, with a curvature and a coupling the quadratic takes up.
+    u = np.column_stack([x1, -x1 + 3 * x1**2, x2 + 0.5 * x1, -x2 - 0.5 * x1 + 2 * x2**2])
+    assert np.all(ratio_error_var(u) < 1e-9)  # no reading error: nothing to correct
+    s = 1.5e-3
+    est = np.sqrt(ratio_error_var(u + rng.normal(0.0, s, u.shape)))
+    np.testing.assert_allclose(est, s, rtol=0.2)
+    assert np.all(ratio_error_var(u[:5]) == 0.0)  # too few trials to tell
+
+
+def test_a_correction_larger_than_the_scatter_is_bounded():
+    design, read, _ = _noisy_play_run(3, 120, 0.002)
+    args = (design, read, np.arange(120), np.ones(120, bool), np.arange(1, 121))
+    # An error variance claimed far above the ratios' own scatter: no division by noise, the
+    # directions it would swamp are fitted as least squares fits them.
+    res, corrected = fit_play(*args, error_var=np.full(2, 1.0))
+    plain, _ = fit_play(*args)
+    assert res.play_rad == pytest.approx(plain.play_rad, rel=1e-6)
+    assert np.all(np.isfinite(corrected))
 
 
 def test_no_play_is_fitted_as_none():
@@ -215,23 +263,29 @@ def test_an_unknown_label_play_is_refused_in_one_sentence():
         TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play="load")
 
 
-def test_the_play_on_the_loads_is_longer_than_least_squares_on_a_noisy_run_even_with_a_load_missing():
+def test_the_corrected_play_is_longer_than_least_squares_on_a_noisy_run_and_loads_keep_their_method(monkeypatch):
     """The sample force run (its pressures read with the literature rig's repeatability): least
-    squares shortens the play, the loads do not; one fit trial without its force must not turn
-    "loads" back into "fit" (the trial is left out of the instruments, not the method)."""
+    squares on the ratios as read shortens the play, the correction for their reading errors and the
+    loads do not; one fit trial without its force must not turn "loads" back into "fit" (the trial is
+    left out of the instruments, not the method)."""
     from pathlib import Path
 
+    from labcli.papers.takuma2014.models import labels
     from labcli.papers.takuma2014.records import load_trials
 
     run = Path(__file__).resolve().parents[3] / "sample_runs" / "force.h5"
     proto, table = load_protocol("takuma2014"), load_trials(run)
-    fitted = {
-        play: TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play=play).fit(table).play["play_deg"]
-        for play in ("fit", "loads")
-    }
-    assert fitted["loads"][0] > fitted["fit"][0] + 0.02
+
+    def play(how: str, frame=table) -> list[float]:
+        return TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play=how).fit(frame).play["play_deg"]
+
+    fitted = {how: play(how) for how in ("fit", "loads")}
+    with monkeypatch.context() as m:
+        m.setattr(labels, "ratio_error_var", lambda u: np.zeros(4))
+        plain = play("fit")
+    assert fitted["fit"][0] > plain[0] + 0.02
+    assert fitted["loads"][0] > plain[0] + 0.02
     one_missing = table.copy()
     first_fit = one_missing.index[one_missing["set"] == "fit"][0]
     one_missing.loc[first_fit, "Fx_N"] = np.nan
-    gapped = TakumaModel(geometry=proto.settings.rig, protocol=proto.name, label_play="loads").fit(one_missing)
-    assert gapped.play["play_deg"][0] == pytest.approx(fitted["loads"][0], abs=0.01)
+    assert play("loads", one_missing)[0] == pytest.approx(fitted["loads"][0], abs=0.01)

@@ -21,6 +21,18 @@ under :data:`STUCK_SHARE` of the play) may be a shaft that never left the play, 
 that ``|d| <= b``: such trials stay out of that joint's angle fit, with a reason, and the
 pressures' own estimate (kept within the play) carries the state on to the next trial.
 
+The pressure ratios carry the sensors' repeatability (a fresh error in every reading, which no
+window averages away), and least squares on such regressors shortens their slopes; the short part
+of each deflection follows its sign, as the play's states do, so the play's column takes it and the
+width comes out short (on the literature's rig 0.07 deg of the rig's 0.2 for theta1,
+tests/benchmarks/steel_deformation.py).  The width is therefore fitted by corrected least squares
+(the errors-in-variables moment correction, Fuller 1987, Sec. 2.2: ``X'X - n diag(s2)``), with the
+reading errors' variance ``s2`` measured on the run itself (:func:`ratio_error_var`): an
+antagonistic pair's common mode ``u_L + u_R`` hardly moves with the posture (one muscle shortens as
+the other lengthens), so its scatter about a smooth function of both pairs' differential modes is
+the readings' own error.  On a rig without repeatability error that scatter is near zero and the fit
+is least squares.
+
 Trials are taken in their ``trial`` order, the order the plan ran them; the state before the
 first is unknown and taken as the centre of the play.  With no play (an ideal rig, or a
 potentiometer coupled without backlash) the fitted ``b`` is near zero and the labels are
@@ -37,6 +49,11 @@ import numpy as np
 STUCK_SHARE = 0.25  # a trailing reading under this share of the play has not left the play
 PASSES = 6  # state reruns; the play estimate settles in three or four
 START_RAD = 1e-3  # the play the first pass assumes (0.06 deg): small against most deflections
+# A direction of the design whose scatter is more reading error than this share of signal is left
+# as least squares fits it: correcting it would divide by noise (tuning seeds 1-10: clipping such a
+# direction's correction at a fifth instead let the bent arm's theta2 play run to 0.65 deg of 0.2).
+MIN_KEPT_SHARE = 0.5
+MIN_ERROR_TRIALS = 12  # fewer fit trials than this give no error variance (its six-term fit needs them)
 
 
 @dataclass(frozen=True)
@@ -85,11 +102,60 @@ def load_instruments(F: np.ndarray) -> np.ndarray:
     return np.column_stack([F, F[:, 0] ** 2, F[:, 1] ** 2, F[:, 0] * F[:, 1]])
 
 
-def _solve(X: np.ndarray, y: np.ndarray, Z: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients and their unscaled covariance: least squares, or two-stage least squares on the
-    instruments ``Z`` (X projected onto them first) when given."""
+def ratio_error_var(u: np.ndarray) -> np.ndarray:
+    """The reading errors' variance of each pressure-ratio feature (4,), from the fit rows' features
+    ``u`` (n, 4; L1, R1, L2, R2): per pair, half the residual variance of its common mode
+    ``u_L + u_R`` about a quadratic in both pairs' differential modes (the two channels' errors are
+    independent, so the common mode carries both and the differential modes' errors do not enter
+    it).  Zeros when too few finite rows."""
+    u = np.asarray(u, dtype=float)
+    u = u[np.all(np.isfinite(u), axis=1)]
+    out = np.zeros(4)
+    if len(u) < MIN_ERROR_TRIALS:
+        return out
+    d1, d2 = u[:, 0] - u[:, 1], u[:, 2] - u[:, 3]
+    X = np.column_stack([np.ones(len(u)), d1, d2, d1**2, d2**2, d1 * d2])
+    for a in (0, 2):
+        common = u[:, a] + u[:, a + 1]
+        resid = common - X @ np.linalg.lstsq(X, common, rcond=None)[0]
+        out[a : a + 2] = float(resid @ resid) / (len(u) - X.shape[1]) / 2.0
+    return out
+
+
+def _corrected(X: np.ndarray, error_var: np.ndarray | None) -> np.ndarray | None:
+    """``X'X`` less the reading errors' share of it (zero for the play's column, which has no reading
+    error), in each direction of the design whose scatter keeps at least :data:`MIN_KEPT_SHARE` of
+    its own after the correction; the others are left uncorrected (nearly all error, they carry
+    nothing to correct).  None when there is nothing to correct."""
+    if error_var is None or not np.any(error_var > 0):
+        return None
+    m = len(error_var)
+    A = X.T @ X
+    S = np.zeros_like(A)
+    S[:m, :m] = np.diag(len(X) * np.asarray(error_var, dtype=float))
+    try:
+        L = np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:  # a column without scatter (no play states yet): least squares
+        return None
+    Li = np.linalg.inv(L)
+    # In A's own metric each direction keeps the share 1 - (its error variance over its scatter).
+    kept, V = np.linalg.eigh(np.eye(len(A)) - Li @ S @ Li.T)
+    M = (V * np.where(kept >= MIN_KEPT_SHARE, kept, 1.0)) @ V.T
+    return L @ M @ L.T
+
+
+def _solve(
+    X: np.ndarray, y: np.ndarray, Z: np.ndarray | None, error_var: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients and their unscaled covariance: least squares, two-stage least squares on the
+    instruments ``Z`` (X projected onto them first) when given, or else corrected least squares
+    when the design's leading columns carry reading errors of variance ``error_var``."""
     if Z is not None:
         X = Z @ np.linalg.lstsq(Z, X, rcond=None)[0]
+    else:
+        A = _corrected(X, error_var)
+        if A is not None:
+            return np.linalg.solve(A, X.T @ y), np.linalg.inv(A)
     beta, *_ = np.linalg.lstsq(X, y, rcond=None)
     return beta, np.linalg.pinv(X.T @ X)
 
@@ -101,19 +167,17 @@ def fit_play(
     fit_rows: np.ndarray,
     trial: np.ndarray,
     instruments: np.ndarray | None = None,
+    error_var: np.ndarray | None = None,
 ) -> tuple[PlayFit, np.ndarray]:
     """Fit one joint's play with its angle design (all rows in table order; ``order`` sorts them by
     trial; ``fit_rows`` the rows fitted).  Returns the fit and the corrected deflections (rad).
 
-    ``instruments`` (n, m), e.g. :func:`load_instruments`: the width by two-stage least squares on
-    them and the states.  The design's pressure ratios carry the sensors' reading errors (a fresh
-    error in each reading, which no window averages away); least squares on such regressors
-    shortens their slopes, and the short part of every deflection, which grows with it as the
-    play's states do, is taken from the play (on the literature's rig, well short of the rig's
-    width: tests/benchmarks/steel_deformation.py, docs/classify.md).  The loads move the joint but
-    not the readings' errors, so the width fitted on them is free of that bias (the sleeves'
-    friction, which the operator's return to the same rest leaves out, still shortens it).
-    Opt-in (``TakumaModel(label_play="loads")``): its width still varies from seed to seed."""
+    ``error_var`` (m,): the reading errors' variance of each design column (:func:`ratio_error_var`),
+    taken out of the moment matrix (corrected least squares, the module docstring).
+    ``instruments`` (n, m), e.g. :func:`load_instruments`: instead, the width by two-stage least
+    squares on them and the states; the loads move the joint but not the readings' errors (the
+    sleeves' friction, which the operator's return to the same rest leaves out, still shortens it).
+    Opt-in (``TakumaModel(label_play="loads")``): its width varies more from seed to seed."""
     r = np.asarray(dtheta_read, dtype=float)
     ok = fit_rows & np.isfinite(r) & np.all(np.isfinite(design), axis=1)
     if instruments is not None:
@@ -132,7 +196,7 @@ def fit_play(
         X = np.column_stack([design[use], -c[use]])
         y = np.sin(r[use])
         Z = None if instruments is None else np.column_stack([instruments[use], -c[use]])
-        beta, unscaled = _solve(X, y, Z)
+        beta, unscaled = _solve(X, y, Z, error_var)
         new_play = max(float(beta[-1]), 0.0)
         resid = y - X @ beta
         dof = max(len(y) - X.shape[1], 1)
