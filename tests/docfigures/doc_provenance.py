@@ -28,10 +28,10 @@ BENCH = ROOT / "tests" / "benchmarks"
 RIG_DEFAULT = re.compile(r"add_rig_options\(\s*\w+,\s*realism=\"([a-z,]+)\"")
 # Sources whose files await the stamp of their next regeneration.
 PENDING: frozenset[str] = frozenset()
-# Sources whose files name a commit off this history (measured on a branch before its rebase, and
-# too long to measure again at once: tens of minutes to hours of the rig's seeds).  Their figures
-# stand; their record does not name the code measured.  Regenerate them, then take the name out.
-OFF_HISTORY: frozenset[str] = frozenset({"multi-capture"})
+# Sources whose files name a commit off this history (measured on a branch before its rebase) and
+# that cannot be measured again at once.  Their figures stand; their record does not name the code
+# measured.  Regenerate them, then take the name out.
+OFF_HISTORY: frozenset[str] = frozenset()
 # The directories whose changes move a benchmark's figures.
 MEASURED_CODE = ("labcli", "protocols", "tests/benchmarks", "tests/support")
 
