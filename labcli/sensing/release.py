@@ -18,7 +18,10 @@ release when any of three readings says the rig is coming back to rest:
   the loaded pressures and the baseline: ``min over a in [0, 1] of |step + a total|^2`` in units
   of ``reread_MPa`` (common mode removed, as the detector has it) under the chi-square 99 %
   point of one degree of freedom fewer than the chambers (:func:`chi2_99`: 3 for the paper's
-  four muscles, 1 for the rPAM paper's antagonistic pair).
+  four muscles, 1 for the rPAM paper's antagonistic pair).  Within that bound any change small
+  enough (under 1.7 kPa on four chambers) is near the loaded point whatever its direction, so
+  the direction decides: a change further out along the load than the new readings reach
+  (``AWAY_Z`` of their spread, one-sided 99 %) is another weight on it, not its release.
 * **The force reads zero** (:func:`force_at_zero`): the model, given the pressures after the
   change against the baseline, reads every load quantity it reports within ``release_force_se``
   standard errors of zero (the estimator gives the model the sensors' new readings as the
@@ -48,6 +51,9 @@ from .detector import whiten
 from .evaluate import Inputs2, evaluate
 from .model import LOAD, UNOBSERVABLE, SensingModel
 from .transient import lag
+
+# A change further out along the load than this many spreads of the new readings is a load (one-sided 99 %).
+AWAY_Z = 2.33
 
 
 @functools.cache
@@ -97,14 +103,22 @@ def points_back(step: np.ndarray, total: np.ndarray, var: np.ndarray, cosine: fl
     return back >= cosine and size <= overshoot * held
 
 
-def partial_return(step: np.ndarray, total: np.ndarray, reread_MPa: float) -> bool:
+def partial_return(step: np.ndarray, total: np.ndarray, reread_MPa: float, away: float = AWAY_Z) -> bool:
     """Are the pressures after the change within the sensors' new readings of a point between
-    the loaded ones and the baseline (module docstring)?"""
+    the loaded ones and the baseline, and not further out along the load than they reach
+    (module docstring)?"""
     var = np.full(len(step), reread_MPa**2)
     d, t = whiten(step, var), whiten(total, var)
-    a = float(np.clip(-(d @ t) / max(float(t @ t), 1e-300), 0.0, 1.0))
+    held = float(t @ t)
+    a = float(np.clip(-(d @ t) / max(held, 1e-300), 0.0, 1.0))
     miss = d + a * t
-    return float(miss @ miss) <= chi2_99(len(step) - 1)  # the common mode removed: one degree fewer
+    if float(miss @ miss) > chi2_99(len(step) - 1):  # the common mode removed: one degree fewer
+        return False
+    # Any change within the new readings' reach of the loaded point passes the bound, whatever its
+    # direction (under 1.7 kPa on four chambers): its direction decides.  A share of the new
+    # readings points away from the baseline (their component along the load has unit spread
+    # here); further out than that is another weight on the load.
+    return float(d @ t) <= away * math.sqrt(held)
 
 
 def force_at_zero(model: SensingModel, x: Inputs2, z: float) -> bool:

@@ -682,7 +682,7 @@ SOURCES: dict[str, Source] = {
             "releases told by their direction alone and by every reading",
             script="sensing_closing.py",
             runs={
-                "held-out": ("--seeds", "11-30"),
+                "held-out": ("--seeds", "11-30", "--stacked"),
                 "held-out direction only": ("--seeds", "11-30", "--direction-only"),
                 "tuning": ("--seeds", "1-10"),
                 "tuning direction only": ("--seeds", "1-10", "--direction-only"),

@@ -201,3 +201,18 @@ def test_an_estimator_on_a_pair_of_chambers_finds_a_load_and_its_release():
 def test_a_model_of_one_chamber_is_refused_in_one_sentence():
     with pytest.raises(ModelError, match=r"at least two pressure channels .*got 1: .*\.$"):
         Estimator(PairModel(("A",)), rate_hz=200.0)
+
+
+def test_a_small_change_further_out_along_the_load_is_not_its_partial_return():
+    # The load held the pressures 3 kPa apart on the first pair.  A change of 1 kPa a chamber is
+    # within the new readings' reach of the loaded point (|d|^2 = 8 < 11.3 in their units): by
+    # the bound alone a release whichever way it goes.  Further out along the load by 2.8 spreads
+    # of the new readings it is a second weight on the same hanger; back toward the baseline it is
+    # the release friction held; 1.7 spreads out, the new readings' own scatter reaches.
+    total = np.array([3e-3, -3e-3, 0.0, 0.0])
+    out = np.array([1e-3, -1e-3, 0.0, 0.0])
+    assert not partial_return(out, total, REREAD)
+    assert partial_return(-out, total, REREAD)
+    assert partial_return(0.6 * out, total, REREAD)
+    # Across the load the direction says nothing: within the new readings' reach, a release.
+    assert partial_return(np.array([0.0, 0.0, 1e-3, -1e-3]), total, REREAD)

@@ -17,7 +17,8 @@ import pytest
 from labcli.core.protocol import load_protocol
 from labcli.papers.takuma2014.sensing import TakumaSensing
 from labcli.papers.takuma2014.sim import scenario as sc
-from labcli.papers.takuma2014.sim.script import parse_script
+from labcli.papers.takuma2014.sim.script import ScriptError, parse_script
+from labcli.papers.takuma2014.sim.scripted import ScriptedRig
 from labcli.sensing import LOAD, RELEASE, SETTLED, Estimate, Event
 from labcli.sensing.scoring import score
 
@@ -179,3 +180,40 @@ def test_with_the_friction_terms_the_live_estimates_are_what_predict_gives_the_s
     assert np.all(rms <= 0.25 * sd), (rms, sd)
     assert rms[2] <= 0.15, rms  # N
     assert rms_blind[2] > 4 * rms[2] and rms_blind[2] > 0.4, (rms_blind, rms)
+
+
+def test_a_second_weight_on_the_same_hanger_hangs_their_sum_and_comes_off_on_its_own():
+    # 200 g from 20 s to 50 s and 150 g on the same hanger from 30 s to 40 s: from 30 s the rig holds
+    # 350 g (the force of one 350 g weight), from 40 s 200 g again; the truth keeps each weight's times.
+    air = {"supply_s": 0.0, "close_s": 6.0}
+    rows = [
+        {"at_s": 20.0, "hold_s": 30.0, "mass_g": 200.0, "direction_deg": 10.0},
+        {"at_s": 30.0, "hold_s": 10.0, "mass_g": 150.0, "direction_deg": 10.0},
+    ]
+    stacked = ScriptedRig(sc.build(1, KIND), parse_script({"air": air, "load": rows}))
+    single = {
+        m: ScriptedRig(sc.build(1, KIND), parse_script({"air": air, "load": [dict(rows[0], mass_g=m)]}))
+        for m in (200.0, 350.0)
+    }
+    force = {}
+    for t in (29.0, 39.0, 49.0):
+        for name, rig in [("stacked", stacked)] + [(m, r) for m, r in single.items()]:
+            rig.advance_to(t)
+            force[name, t] = rig.truth_at(np.array([math.inf]))["force_N"][0]
+    np.testing.assert_allclose(force["stacked", 29.0], force[200.0, 29.0], rtol=1e-9)
+    np.testing.assert_allclose(force["stacked", 39.0], force[350.0, 39.0], rtol=1e-9)
+    assert np.linalg.norm(force["stacked", 39.0]) > 1.5 * np.linalg.norm(force["stacked", 29.0])
+    stacked.advance_to(60.0)
+    assert [(c["on_s"], c["off_s"]) for c in stacked.changes] == [(20.0, 50.0), (30.0, 40.0)]
+
+
+def test_weights_that_pull_different_ways_cannot_share_the_hanger():
+    rows = [
+        {"at_s": 20.0, "hold_s": 30.0, "mass_g": 200.0, "direction_deg": 10.0},
+        {"at_s": 30.0, "hold_s": 10.0, "mass_g": 150.0, "direction_deg": 40.0},
+    ]
+    with pytest.raises(
+        ScriptError,
+        match=r"^The sim script s: the load at 30 s begins before the load at 20 s ends \(50 s\), and pulls another way \(stacked weights share one hanger\)\.$",
+    ):
+        parse_script({"load": rows}, "s")

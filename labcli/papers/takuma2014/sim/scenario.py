@@ -4,7 +4,7 @@
   protocol's plan on this rig (the trials simulated directly, :mod:`.drive`, each trial's
   rest posture its baseline potentiometer reading, as a run file stores it);
 * :func:`random_script`: a session of random pulley loads (mass, direction, hold and gap drawn
-  from a seed) and a stretch of idle rig at the end;
+  from a seed) and a stretch of idle rig at the end; :func:`stacked_script`: stacked weights;
 * :func:`run_session`: the rig acts the script out (:class:`.scripted.ScriptedRig`) and the
   estimator takes the frames as a serial link delivers them, in batches of one read;
 * :func:`offline_twin`: what ``acquire`` + ``validate`` would have measured for the same loads
@@ -117,6 +117,33 @@ def random_script(
         t += hold + float(rng.uniform(*gap_s))
     idle = [{"from_s": round(t, 3), "to_s": round(t + idle_s, 3)}] if idle_s > 0 else []
     return parse_script({"air": {"supply_s": 0.0, "close_s": 6.0}, "load": rows, "idle": idle}, f"random seed {seed}")
+
+
+def stacked_script(
+    seed: int,
+    *,
+    stacks: int = 4,
+    hold_s: tuple[float, float] = (10.0, 15.0),
+    gap_s: tuple[float, float] = (12.0, 25.0),
+    mass_g: tuple[float, float] = (100.0, 300.0),
+) -> Script:
+    """Stacked weights (drawn from ``seed``): a weight hung, a second put on the same hanger while
+    it hangs, then taken off one by one (the second first), each change held ``hold_s``.  They
+    pull within 45 degrees of across the straight arm (+x or -x): along it a weight makes no torque
+    (Fy is not observable there) and no pressure reading can tell one weight from two."""
+    rng = np.random.default_rng([int(seed), 28])
+    t, rows = 30.0, []
+    for _ in range(stacks):
+        holds = rng.uniform(*hold_s, size=3)
+        across = float(rng.uniform(-45.0, 45.0)) + (180.0 if rng.uniform() < 0.5 else 0.0)
+        direction = round((across + 180.0) % 360.0 - 180.0, 1)
+        first, second = (round(float(m), 1) for m in rng.uniform(*mass_g, size=2))
+        total = float(holds.sum())
+        rows.append({"at_s": round(t, 3), "hold_s": round(total, 3), "mass_g": first, "direction_deg": direction})
+        on2 = round(t + float(holds[0]), 3)
+        rows.append({"at_s": on2, "hold_s": round(float(holds[1]), 3), "mass_g": second, "direction_deg": direction})
+        t += total + float(rng.uniform(*gap_s))
+    return parse_script({"air": {"supply_s": 0.0, "close_s": 6.0}, "load": rows}, f"stacked seed {seed}")
 
 
 @dataclass

@@ -33,10 +33,12 @@ the stream: every frame's true joint deflection and tip force, and one row per l
     from_s = 100.0
     to_s = 700.0
 
-Loads and pushes may not overlap, nor start before the valves close.  The truth
+A load may begin while another hangs when it pulls the same way: a second weight put on the
+same hanger (the rig then holds their sum, and each comes off at its own time, the last put on
+first or not).  Pushes overlap nothing, and nothing starts before the valves close.  The truth
 (:meth:`ScriptedRig.truth`): per frame the device time, the true deflection from the rest
 posture the arm last rested at (rad) and the force on the tip (N); per load the times it
-came on and off, its force and the deflection it settles to.
+came on and off, its force (a weight stacked on another: the hanger's) and the deflection it settles to.
 """
 
 from __future__ import annotations
@@ -200,12 +202,20 @@ def _idle(data: Mapping[str, Any], source: str) -> list[tuple[int, Any]]:
     return list(enumerate(_list(data, "idle", source), start=1))
 
 
+def _stacked(a: Change, b: Change) -> bool:
+    """May ``b`` hang while ``a`` does: two weights on one hanger (module docstring)?"""
+    return a.kind == b.kind == "load" and math.isclose(a.direction_rad, b.direction_rad, abs_tol=1e-9)
+
+
 def _check_times(changes: list[Change], idle: tuple[tuple[float, float], ...], close: float, source: str) -> None:
-    for a, b in zip(changes, changes[1:], strict=False):
-        if b.on_s < a.off_s:
+    for i, b in enumerate(changes):
+        for a in changes[:i]:
+            if b.on_s >= a.off_s or _stacked(a, b):
+                continue
             raise ScriptError(
                 f"The sim script {source}: the {b.kind} at {b.on_s:g} s begins before the {a.kind} "
-                f"at {a.on_s:g} s ends ({a.off_s:g} s)."
+                f"at {a.on_s:g} s ends ({a.off_s:g} s)"
+                + (", and pulls another way (stacked weights share one hanger)." if a.kind == b.kind == "load" else ".")
             )
     if changes and changes[0].on_s < close:
         raise ScriptError(

@@ -104,8 +104,11 @@ class ScriptedRig:
                     "change": c,
                 }
             )
-        elif self.changes:
-            self.changes[-1]["off_s"] = at
+        else:
+            for row in reversed(self.changes):  # stacked weights come off in any order
+                if row["change"] is c:
+                    row["off_s"] = at
+                    break
 
     def truth(self) -> dict[str, Any]:
         """Per frame ``t_s``, ``deflection_rad`` (n, 2), ``force_N`` (n, 2); ``changes`` as noted."""
@@ -124,18 +127,24 @@ def _settled_force(rig: Any, state: dict[str, Any]) -> np.ndarray:
     return np.asarray(rig.truth_at(np.array([math.inf]))["force_N"][0], dtype=float)
 
 
-def _on(c: Change, rig: Any) -> None:
+def _on(c: Change, hanger: list[Change], rig: Any) -> None:
     if c.kind == "load":
-        rig.hang_weight(c.mass_kg, c.direction_rad)
+        hanger.append(c)
+        rig.hang_weight(sum(w.mass_kg for w in hanger), c.direction_rad)
     else:
         rig.push_object(c.radius_m, c.distance_m, c.phi_rad, c.stiffness_N_per_m)
 
 
-def _off(c: Change, rig: Any) -> None:
-    if c.kind == "load":
-        rig.remove_weight()
-    else:
+def _off(c: Change, hanger: list[Change], rig: Any) -> None:
+    """Take a push away, or a weight off the hanger: the rig holds the others' sum (stacked weights, :mod:`.script`)."""
+    if c.kind != "load":
         rig.release_object()
+        return
+    hanger[:] = [w for w in hanger if w is not c]
+    if hanger:
+        rig.hang_weight(sum(w.mass_kg for w in hanger), hanger[0].direction_rad)
+    else:
+        rig.remove_weight()
 
 
 def _actions(script: Script) -> list[tuple[float, Callable[[Any], None], tuple[str, Change] | None]]:
@@ -144,7 +153,8 @@ def _actions(script: Script) -> list[tuple[float, Callable[[Any], None], tuple[s
         (script.supply_s, lambda rig: rig.supply_air(), None),
         (script.close_s, lambda rig: rig.close_valves(), None),
     ]
+    hanger: list[Change] = []  # the weights hanging (stacked ones share it)
     for c in script.changes:
-        out += [(c.on_s, partial(_on, c), ("on", c)), (c.off_s, partial(_off, c), ("off", c))]
+        out += [(c.on_s, partial(_on, c, hanger), ("on", c)), (c.off_s, partial(_off, c, hanger), ("off", c))]
     out.sort(key=lambda a: a[0])
     return out
