@@ -762,6 +762,14 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--seeds", "1-10"), "heldout": ("--seeds", "11-30")},
         ),
         Source(
+            "captures-acquired",
+            "benchmark",
+            "labcli acquire --captures 3 (the relief before each capture) read and fitted as labcli fit does, "
+            "against the issue's estimator on single captures, literature's rig, held-out seeds 11-30",
+            script="captures_acquired.py",
+            runs={"": ("--seeds", "11-30")},
+        ),
+        Source(
             "baseline-estimator-new-rig",
             "benchmark",
             "the estimators of the commit it names on the literature's rig, held-out seeds 11-30",
