@@ -10,7 +10,11 @@ seeds 1-10; report on held-out seeds (11-30)::
     python tests/benchmarks/guard_mistakes.py --seeds 11-20 --realism literature
 
 ``--realism`` and ``--seeds`` as every benchmark takes them (rig_options.py); the default rig is the
-literature's, docs/load-check.md's first row (its kind row: ``--realism kind``).
+literature's, docs/load-check.md's first row (its kind row: ``--realism kind``).  ``--relief`` (L or
+R): the shipped protocol with the friction relief before every trial, venting that side (the
+table's relieved rows)::
+
+    python tests/benchmarks/guard_mistakes.py --seeds 11-20 --relief R
 """
 
 from __future__ import annotations
@@ -24,9 +28,10 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "papers" / "takuma2014"))
 
 import test_guard_first_trial as scripted  # noqa: E402
-from rig_options import add_rig_options, bench_parser  # noqa: E402
+from rig_options import add_relief_option, add_rig_options, bench_parser, relieved  # noqa: E402
 from test_valves_session import Person  # noqa: E402
 
+from labcli.core.protocol import loads_protocol  # noqa: E402
 from labcli.papers.takuma2014.session import HangWeight  # noqa: E402
 
 
@@ -49,22 +54,28 @@ MISTAKES = (
 )
 
 
-def caught(url: str, trial: int, n: int, how) -> bool:
+def caught(url: str, trial: int, n: int, how, protocol=scripted.PROTOCOL) -> bool:
     """Whether the run of the shipped plan's first ``n`` trials warned of the slip at ``trial``."""
     with tempfile.TemporaryDirectory() as tmp:
         ui = scripted.Attended() if how is scripted.late else Person()
-        ui, _, _ = scripted.session_with(Path(tmp), n, trial, how, ui=ui, url=url, protocol=scripted.PROTOCOL)
+        ui, _, _ = scripted.session_with(Path(tmp), n, trial, how, ui=ui, url=url, protocol=protocol)
     return bool(scripted.warned(ui))
 
 
 def main() -> None:
     ap = bench_parser(__doc__)
     add_rig_options(ap, realism="literature", seeds="1-10")  # 1-10: the tuning seeds
+    add_relief_option(ap)
     args = ap.parse_args()
-    seeds = args.seeds
+    seeds, protocol = args.seeds, scripted.PROTOCOL
+    if args.relief:
+        protocol = loads_protocol(
+            relieved(protocol.text, args.relief), source=f"takuma2014, relief venting {args.relief}"
+        )
     out: dict[str, list[int]] = {}
     for name, trial, n, how in MISTAKES:
-        out[name] = [s for s in seeds if caught(f"sim://?seed={s}&clock=virtual&realism={args.realism}", trial, n, how)]
+        url = "sim://?seed={}&clock=virtual&realism=" + args.realism
+        out[name] = [s for s in seeds if caught(url.format(s), trial, n, how, protocol)]
         print(f"{name}: caught on {len(out[name])}/{len(seeds)} seeds {out[name]}", flush=True)
     print(json.dumps({k: len(v) for k, v in out.items()}))
 

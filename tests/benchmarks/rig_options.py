@@ -15,6 +15,8 @@ Every benchmark that runs the simulated McKibben rig takes them one way::
 
 A bad value is refused in one sentence on stderr (exit status 2), never a usage dump or a traceback.
 The benchmarks of the rPAM joint run no McKibben rig and take ``--seeds`` alone (``add_seeds_option``).
+The load check's benchmarks also take ``--relief`` (``add_relief_option``): the shipped protocol with the
+friction relief before every trial, venting the side it names (L, the default, or R).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import re
 from collections.abc import Sequence
 from typing import NoReturn
 
+from labcli.core.air import CAPTURE_RELIEF, RELIEF_SIDES
 from labcli.papers.takuma2014.sim.nonideal import REALISMS
 
 SEEDS_FORM = "a range such as 11-30, a list such as 1,4,7, or both (1-3,7)"
@@ -125,3 +128,27 @@ def add_rig_options(
         f"(default {realism}: the rig its docs figures were measured on)",
     )
     add_seeds_option(ap, seeds, one=one)
+
+
+def relieved(text: str, vent: str) -> str:
+    """A protocol's text with the friction relief before every trial: the pulse and vent of a run of
+    several captures a load (``labcli.core.air.CAPTURE_RELIEF``, what ``labcli acquire --captures 3``
+    gives), here asked for explicitly so that one capture a load has it, venting the ``vent`` side."""
+    if text.count("[acquisition]\n") != 1:
+        raise ValueError("--relief needs a protocol with one [acquisition] table")
+    pulse, vent_s = CAPTURE_RELIEF
+    lines = f"friction_relief_s = {pulse}\nfriction_relief_vent_s = {vent_s}\nfriction_relief_vent = {vent!r}\n"
+    return text.replace("[acquisition]\n", "[acquisition]\n" + lines.replace("'", '"'))
+
+
+def add_relief_option(ap: argparse.ArgumentParser) -> None:
+    """``--relief [L|R]``: the friction relief before every trial, venting that side (L without a side);
+    None without the option."""
+    ap.add_argument(
+        "--relief",
+        nargs="?",
+        const="L",
+        choices=RELIEF_SIDES,
+        help="the friction relief before every trial (a %g s pulse after a %g s vent), venting this side "
+        "(default L, as --captures gives it)" % CAPTURE_RELIEF,
+    )
