@@ -219,20 +219,15 @@ def acquire(
 ) -> Outcome:
     """Run ``labcli acquire``: open the rig and the run file, build the session, run it.
 
-    ``protocol``: a shipped name or a .toml path (a new run without one records with the
-    default the registry names for ``acquire``; a resumed run carries its own, and a name given must match it; its calibration is then this rig's,
-    checked against the run's).  ``allow_other_rig``: resume on a rig other than the
-    run's.  ``valves``: ``"hand"`` keeps the prompts on a board that drives its valves (the
-    protocol's ``acquisition.valves`` otherwise, :mod:`labcli.core.air`).  ``captures``: each load
-    taken that many times (``acquisition.captures_per_load``, written into the run's protocol; the
-    paper judges it).  Raises :class:`~labcli.errors.LabcliError` (one sentence) for anything the
-    person at the rig can fix; returns the :class:`Outcome` otherwise.
+    ``protocol``: a shipped name or a .toml path (a new run without one: the registry's default for ``acquire``;
+    a resumed run carries its own, a name given must match it, and its calibration, this rig's, is checked against
+    the run's).  ``allow_other_rig``: resume on another rig.  ``valves``: ``"hand"`` keeps the prompts on a board
+    that drives its valves.  ``captures``: each load taken that many times (the paper judges it).  Raises
+    :class:`~labcli.errors.LabcliError` (one sentence) for anything the person at the rig can fix; else the Outcome.
     """
     path = str(path)
     _check_options(path, resume, force, plan, no_plan, protocol)
-    options = AcquireOptions(
-        path, plan=plan, no_plan=no_plan, experiment=experiment, unattended=unattended, captures=captures
-    )
+    options = AcquireOptions(path, plan, no_plan, experiment, unattended, captures=captures)
     link = Link(port, baud, device_timeout)
     existing: RunFile | None = None
     given = None
