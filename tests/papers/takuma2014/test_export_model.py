@@ -27,6 +27,7 @@ from support.firmware_build import FIRMWARE, make, need_avr_tools, need_host_com
 from labcli.cli import cli
 from labcli.core.boardlines import ESTIMATE_FLAGS
 from labcli.papers.takuma2014.models.posture import PostureModel, load_force_model
+from labcli.papers.takuma2014.models.takuma import force_design
 
 ROOT = Path(__file__).resolve().parents[3]
 QUANTITIES = ("theta1", "theta2", "Fx", "Fy")
@@ -144,6 +145,61 @@ def test_the_chips_model_computes_the_hosts_predictions(form, models, tmp_path):
         rel = np.abs(got[ok, 4:8] - se[ok]) / np.maximum(se[ok], 1e-12)
         assert np.nanmax(np.where(np.isfinite(se[ok]), rel, 0.0)) < 1e-2  # the chip's closed-form dF/dtheta
     assert bits[0] == bits[1] == bits[2] == BITS["bad-pressure"] == got[0, 8] == got[1, 8] == got[2, 8]
+
+
+def near_straight(model: Path, seed: int, n: int = 300) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pressures whose Eq. 35 gives sin(theta2) of 1e-6 to 1e-2 either way (the straight arm's
+    singular Jacobian), and each row's exact sin(theta2) in doubles."""
+    b = load_force_model(model).coefficients
+    beta = np.array([b[k] for k in ("beta_theta2_L1", "beta_theta2_R1", "beta_theta2_L2", "beta_theta2_R2")])
+    rng = np.random.default_rng(seed)
+    P0 = rng.uniform(0.25, 0.35, (n, 4))
+    u = rng.normal(0.0, 2e-3, (n, 4))
+    s = rng.choice([-1.0, 1.0], n) * 10.0 ** rng.uniform(-6.0, -2.0, n)
+    u[:, 3] = (s - u[:, :3] @ beta[:3]) / beta[3]
+    # In floats both, so that the chip and the host read the same pressures.
+    P0, P = P0.astype(np.float32).astype(float), (P0 / (1.0 + u)).astype(np.float32).astype(float)
+    return P0, P, (P0 / P - 1.0) @ beta
+
+
+def test_the_paper_forms_straight_arm_differs_by_the_floats_rounding_of_sin_theta2_alone(models, tmp_path):
+    """Near a straight arm Eqs. 36-37's (J^-1)^T grows as 1/sin(theta2): the chip's forces there
+    differ from the host's by as much as its 32-bit sin(theta2) does (docs/hardware.md).  Given the
+    chip's own angles the host computes the chip's forces: no term or coefficient is lost."""
+    tool = model_tool(models["paper"], tmp_path)
+    P0, P, s = near_straight(models["paper"], seed=6)
+    got = chip(tool, P0, P, np.zeros((len(P0), 2)))
+    m = load_force_model(models["paper"])
+    b = m.coefficients
+    beta = np.array([b[k] for k in ("beta_theta2_L1", "beta_theta2_R1", "beta_theta2_L2", "beta_theta2_R2")])
+    u = P0 / P - 1.0
+    # The float argument: P0 / P rounded to 2^-24 of itself and the 1 taken off exactly, so each
+    # ratio u carries 2^-24 (1 + u), 6e-8, however small it is; Eq. 35's sum of four beta u adds
+    # 2^-24 of its terms per operation, and the chip's asin and the host's sin 2^-24 of sin(theta2)
+    # each.  Near a straight arm the first is all of it, against a sin(theta2) of 1e-6.
+    eps = 2.0**-24
+    bound = eps * (np.abs(u + 1.0) @ np.abs(beta) + 6.0 * np.abs(u) @ np.abs(beta) + 4.0 * np.abs(s))
+    s_chip = np.sin(got[:, 1])
+    assert np.all(np.abs(s_chip - s) <= bound), np.max(np.abs(s_chip - s) / bound)
+    # The forces at the chip's angles: the chip's, to a float's rounding of their terms.
+    at = m.predict(P0, P, mode="measured-angles", theta=got[:, :2])
+    exact = m.predict(P0, P)
+    # Their terms (Eqs. 36-37's designs times beta) cancel to a thousandth of their size: the
+    # rounding is of the terms', a float's 6e-8 a few times over each.
+    h2, h3 = m.geometry["h2"], m.geometry["h3"]
+    designs = force_design(P0, P, got[:, :2], h2, h3)
+    for k, name, X in ((2, "Fx_N", designs[0]), (3, "Fy_N", designs[1])):
+        terms = np.abs(X) @ np.abs(np.array([b[f"beta_{name[:2]}{j}"] for j in range(1, 7)]))
+        assert np.all(np.abs(got[:, k] - at[name]) <= 1e-5 * terms), (
+            name,
+            np.max(np.abs(got[:, k] - at[name]) / terms),
+        )
+    # Against the host's own angles the relative difference is the sine's: up to bound / |s|,
+    # over 1 % of Fy on the rows nearest straight (what the benchmark's singular rows show).
+    rel = np.abs(got[:, 3] - exact["Fy_N"]) / np.abs(exact["Fy_N"])
+    assert np.all(rel <= 2.0 * bound / np.abs(s) + 1e-4)
+    assert rel.max() > 1e-2
+    assert all("singular-jacobian" in f for f in exact["flags"])
 
 
 def test_the_header_names_its_model_and_calibration(models, tmp_path):
