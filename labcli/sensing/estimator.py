@@ -45,6 +45,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ..errors import ModelError
 from .baseline import TrendTracker
 from .blocks import BlockAverager, Blocks, Recent
 from .config import EstimatorConfig
@@ -70,6 +71,21 @@ class SettledHook(Protocol):
     def __call__(self, estimate: Estimate, rest: np.ndarray) -> dict[str, Any] | None: ...
 
 
+def check_streamable(model: Any) -> SensingModel:
+    """``model`` (:func:`~.model.check_model`) if the estimator can stream it, else ModelError.
+
+    The detector and the release's readings remove the pressures' common mode (the leak, the
+    room): one chamber leaves nothing to see a load in.  A table's settled rows need no detector,
+    so :func:`~.offline.predict_rows` takes a model of one chamber."""
+    m = check_model(model)
+    if len(m.actuators) < 2:
+        raise ModelError(
+            f"A sensing model needs at least two pressure channels (an antagonistic pair), "
+            f"got {len(m.actuators)}: with one, the leak cannot be told from a load."
+        )
+    return m
+
+
 class Estimator:
     """Incremental estimates from a stream of frames (module docstring).
 
@@ -89,7 +105,7 @@ class Estimator:
         config: EstimatorConfig | None = None,
         on_settled: SettledHook | None = None,
     ) -> None:
-        self.model = check_model(model)
+        self.model = check_streamable(model)
         self.config = config or EstimatorConfig()
         self.inputs = (
             Inputs.from_calibration(calibration, model, channels) if calibration is not None else Inputs.identity(model)

@@ -21,6 +21,7 @@ from labcli.errors import ConfigError, ModelError
 from labcli.sensing import IDLE, LOAD, RELEASE, SETTLED, Estimate, Estimator, EstimatorConfig, Event, load_model
 from labcli.sensing.evaluate import Inputs2
 from labcli.sensing.model import Prediction
+from labcli.sensing.offline import predict_rows, replay
 from labcli.sensing.release import chi2_99, force_at_zero, partial_return, points_back
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -198,9 +199,20 @@ def test_an_estimator_on_a_pair_of_chambers_finds_a_load_and_its_release():
     assert est.state == IDLE
 
 
-def test_a_model_of_one_chamber_is_refused_in_one_sentence():
-    with pytest.raises(ModelError, match=r"at least two pressure channels .*got 1: .*\.$"):
-        Estimator(PairModel(("A",)), rate_hz=200.0)
+def test_a_model_of_one_chamber_reads_a_table_but_is_not_streamed():
+    # A table's settled rows need no detector: predict_rows gives the model's own answer
+    # (x = 10 rad/MPa, f = 500 N/MPa times the drop).  The estimator, and replay, which runs it,
+    # refuse the one chamber: with the common mode removed nothing is left to see a load in.
+    one = PairModel(("A",))
+    out = predict_rows(one, [[0.30], [0.30]], [[0.30], [0.298]], np.zeros((2, 1)))
+    assert out.values == pytest.approx(np.array([[0.0, 0.0], [0.02, 1.0]]))
+    t = np.arange(400) / 200.0
+    x = np.column_stack([np.full(400, 0.3), np.zeros(400)])
+    refusal = r"^A sensing model needs at least two pressure channels .*got 1: .*\.$"
+    with pytest.raises(ModelError, match=refusal):
+        Estimator(one, rate_hz=200.0)
+    with pytest.raises(ModelError, match=refusal):
+        replay(one, t, x, rate_hz=200.0)
 
 
 def test_a_small_change_further_out_along_the_load_is_not_its_partial_return():
