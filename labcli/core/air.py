@@ -184,6 +184,18 @@ class AirSettings:
         )
 
 
+def record_ids(loads: Any, captures: int) -> np.ndarray:
+    """Every capture's record id of the plan trials ``loads``, in order: (load - 1) N + capture, so a
+    plan's captures are ids in the plan's order and one capture a load keeps the plan's ids."""
+    base = (np.asarray(loads, dtype=np.int64) - 1) * captures
+    return (base[:, None] + np.arange(1, captures + 1)[None, :]).ravel()
+
+
+def load_ids(ids: Any, captures: int) -> np.ndarray:
+    """The plan trial of each record id (:func:`record_ids` undone)."""
+    return (np.asarray(ids, dtype=np.int64) - 1) // captures + 1
+
+
 def hold_problem(names: Sequence[str], rate_MPa_per_s: Sequence[float], settings: AirSettings) -> str | None:
     """What the hold check found (a chamber losing or gaining air with its valve holding), or None."""
     rate = np.asarray(rate_MPa_per_s, dtype=float) * 60e3  # kPa/min

@@ -32,15 +32,19 @@ class SplitDone:
     seed: int | None
     sizes: str  # how sizes not given were chosen ("" when both were given or the protocol's fit)
     written: str = ""  # the CSV written (a table's split); "" for a run file
+    captures: int = 1  # records a load (``acquisition.captures_per_load``): sizes and total count loads
+    records: int = 0  # complete records (captures) when ``captures`` > 1
 
     def sentence(self) -> str:
         how = self.strategy if self.seed is None else f"{self.strategy}, seed {self.seed}"
         unassigned = self.total - self.fit - self.validation
         where = self.path if not self.written else f"{self.path} -> {self.written} (its set column)"
-        text = (
-            f"{where}: {self.fit} fit, {self.validation} validation, {unassigned} unassigned "
-            f"of {count(self.total, 'completed trial')} ({how})."
+        of = (
+            count(self.total, "completed trial")
+            if self.captures == 1
+            else f"{count(self.total, 'load')} (the loads of {count(self.records, 'capture')}, {self.captures} a load)"
         )
+        text = f"{where}: {self.fit} fit, {self.validation} validation, {unassigned} unassigned of {of} ({how})."
         return text + (f" {self.sizes[:1].upper()}{self.sizes[1:]}." if self.sizes else "")
 
 
@@ -112,6 +116,40 @@ def split(
     return _split_table(p, n_fit, n_validation, strategy, seed, protocol or default_protocol("split"), output)
 
 
+def _choose_loads(
+    ids: list[int],
+    captures: int,
+    defaults: tuple[int, int] | None,
+    n_fit: int | None,
+    n_val: int | None,
+    strategy: str,
+    seed: int | None,
+    path: str,
+) -> tuple[list[int], list[int], tuple[int, int, int], str]:
+    """Fit and validation record ids, the count of units split and the sizes' note: with several captures a
+    load the units are loads (the counts given count loads) and each set takes every capture of its loads.
+    The counts returned: fit, validation and all units."""
+    from .air import load_ids, record_ids
+    from .store.split import choose
+
+    if captures == 1:
+        units = ids
+    else:
+        units = [int(u) for u in dict.fromkeys(load_ids(ids, captures).tolist())]
+    fit_n, val_n, note = split_sizes(len(units), defaults, n_fit, n_val, path)
+    fit, val = choose(units, fit_n, val_n, strategy, seed, path)
+    sizes = (len(fit), len(val), len(units))
+    if captures == 1:
+        return fit, val, sizes, note
+    done = set(ids)
+    return (
+        [int(i) for i in record_ids(fit, captures) if int(i) in done],
+        [int(i) for i in record_ids(val, captures) if int(i) in done],
+        sizes,
+        note,
+    )
+
+
 def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, seed: int | None) -> SplitDone:
     from .store import RunFile
     from .store.split import default_sizes
@@ -126,9 +164,25 @@ def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, s
             defaults: tuple[int, int] | None = default_sizes(rf.protocol_text, path)
         except ConfigError:
             defaults = None
-        fit, val, note = split_sizes(len(ids), defaults, n_fit, n_val, path)
-        s = rf.split.assign(fit, val, strategy, seed)
-    return SplitDone(path, len(s["fit"]), len(s["validation"]), len(ids), strategy, s["seed"], note)
+        n = _captures(rf.protocol_text, path)
+        fit, val, (fits, vals, units), note = _choose_loads(list(ids), n, defaults, n_fit, n_val, strategy, seed, path)
+        used_seed = (0 if seed is None else seed) if strategy == "random" else None
+        rf.split.set(fit, val, strategy, used_seed)
+    return SplitDone(path, fits, vals, units, strategy, used_seed, note, "", n, len(ids))
+
+
+def _captures(protocol_text: str, path: str) -> int:
+    """The captures a run took of each load (1 when its protocol does not say or cannot be read)."""
+    from .protocol import loads_protocol
+
+    try:
+        return _captures_of(loads_protocol(protocol_text, source=f"{path} (embedded protocol)"))
+    except ConfigError:
+        return 1
+
+
+def _captures_of(protocol: Any) -> int:
+    return int(getattr(getattr(protocol, "air", None), "captures_per_load", 1) or 1)
 
 
 def _split_table(
@@ -142,7 +196,6 @@ def _split_table(
 ) -> SplitDone:
     from .protocol import load_protocol
     from .registry import record_type
-    from .store.split import choose
     from .table_meta import SIDECAR_SUFFIX, load_described, write_sidecar
 
     if not Path(path).is_file():
@@ -155,8 +208,9 @@ def _split_table(
         )
     df = load_described(path, kind)
     ids = [int(i) for i in df[kind.id_column]]
-    fit_n, val_n, note = split_sizes(len(ids), getattr(proto.settings, "default_split", None), n_fit, n_val, path)
-    fit, val = choose(ids, fit_n, val_n, strategy, seed, path)
+    n = _captures_of(proto)
+    defaults = getattr(proto.settings, "default_split", None)
+    fit, val, (fits, vals, units), note = _choose_loads(ids, n, defaults, n_fit, n_val, strategy, seed, path)
     sets = {i: "fit" for i in fit} | {i: "validation" for i in val}
     had = "set" in df.columns and any(str(v) for v in df["set"])
     df["set"] = [sets.get(i, "") for i in ids]
@@ -167,4 +221,4 @@ def _split_table(
     if had and out == path:
         note = (note + "; " if note else "") + "the set column it had is replaced"
     used_seed = (0 if seed is None else seed) if strategy == "random" else None
-    return SplitDone(path, len(fit), len(val), len(ids), strategy, used_seed, note, out)
+    return SplitDone(path, fits, vals, units, strategy, used_seed, note, out, n, len(ids))

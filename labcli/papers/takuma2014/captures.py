@@ -1,11 +1,13 @@
 """A load captured N times (``acquisition.captures_per_load``), averaged into one row before a model sees it.
 
 A run of N captures a load stores every capture as its own record (record id
-``(trial - 1) N + capture``, :func:`.session.capture_id`); nothing is averaged at acquisition.
+``(trial - 1) N + capture``, :func:`record_ids`); nothing is averaged at acquisition.
 ``labcli fit``, ``validate`` and ``predict`` read such a run as one row per plan load: the
 pressures (baseline and loaded), the deflection labels and the rest posture are the mean of the
-load's captures; the rest (set, force, mass, direction) is its first capture's, and the row's
-``trial`` is the plan's.  A capture skipped at the rig leaves its load the mean of the others.
+load's captures; the rest (force) is its first capture's, and the row's ``trial`` is the plan's.
+A load's captures share its set, mass and direction (``labcli split`` assigns whole loads): a table
+whose captures of one load disagree on them is refused, since its ids are not a run of N captures
+a load (a plain run read with a captures protocol) or its split divides a load.  A capture skipped at the rig leaves its load the mean of the others.
 
 What an averaged row's standard errors mean: the pressure sensors' repeatability is a fresh error
 per capture, so the mean of N has 1/N of its variance (tests/benchmarks/multi_capture.py).  A
@@ -20,7 +22,11 @@ from typing import Any
 
 import numpy as np
 
+from ...core.air import load_ids, record_ids  # the record-id formula, which labcli split needs too
+from ...errors import ConfigError
 from .tables import BASELINE, LOADED, REST
+
+__all__ = ["AVERAGED", "averaged", "captures_of", "load_ids", "record_ids"]
 
 AVERAGED = (*BASELINE, *LOADED, "theta1_deg", "theta2_deg", *REST)
 
@@ -31,22 +37,12 @@ def captures_of(protocol: Any) -> int:
     return int(getattr(air, "captures_per_load", 1) or 1)
 
 
-def load_ids(ids: Any, captures: int) -> np.ndarray:
-    """The plan trial of each record id (:func:`.session.capture_load`, vectorised)."""
-    return (np.asarray(ids, dtype=np.int64) - 1) // captures + 1
-
-
-def record_ids(loads: Any, captures: int) -> np.ndarray:
-    """Every capture's record id of the plan trials ``loads``, in order."""
-    base = (np.asarray(loads, dtype=np.int64) - 1) * captures
-    return (base[:, None] + np.arange(1, captures + 1)[None, :]).ravel()
-
-
 def averaged(table: Any, captures: int) -> Any:
     """One row per plan load of a trial table of ``captures`` records a load (module docstring)."""
     if captures == 1 or not len(table):
         return table
     key = load_ids(table["trial"], captures)
+    _check_constant(table, key, captures)
     first = table.loc[~_duplicated(key)].copy()
     present = [c for c in AVERAGED if c in table.columns]
     means = table[present].groupby(key, sort=False).mean()
@@ -54,6 +50,24 @@ def averaged(table: Any, captures: int) -> Any:
         first[c] = means[c].to_numpy()
     first["trial"] = means.index.to_numpy().astype(table["trial"].dtype)  # in order of first capture, as the rows
     return first.reset_index(drop=True)
+
+
+CONSTANT = ("set", "mass_g", "direction_deg")  # a load's, so the same in each of its captures
+
+
+def _check_constant(table: Any, key: np.ndarray, captures: int) -> None:
+    """Refuse a table whose captures of one load differ in :data:`CONSTANT` (module docstring)."""
+    for c in (c for c in CONSTANT if c in table.columns):
+        col = table[c].reset_index(drop=True)
+        differ = col.groupby(key, sort=False).nunique(dropna=False) > 1
+        if differ.any():
+            load = int(differ.index[differ.to_numpy()][0])
+            ids = ", ".join(str(int(i)) for i in table["trial"].to_numpy()[key == load])
+            raise ConfigError(
+                f"records {ids} would be the {captures} captures of load {load} but differ in {c}: "
+                f"these are not captures of one load (read the table with the protocol it was recorded "
+                f"with), or its split divides a load (split it again with labcli split, which assigns loads)."
+            )
 
 
 def _duplicated(key: np.ndarray) -> np.ndarray:

@@ -51,6 +51,7 @@ from ...core.steps import (
     Window,
 )
 from ...core.words import count
+from .captures import load_ids, record_ids
 from .records import TrialRecord
 
 G = 9.80665  # standard gravity, m/s^2 (docs/table-formats.md)
@@ -162,12 +163,12 @@ class PlannedTrial:
 def capture_id(load: int, capture: int, captures: int) -> int:
     """The record id of capture ``capture`` (1..``captures``) of plan trial ``load``: (load - 1) N + capture,
     so that a plan's captures are ids in the plan's order and one capture a load keeps the plan's ids."""
-    return (load - 1) * captures + capture
+    return int(record_ids([load], captures)[capture - 1])
 
 
 def capture_load(rid: int, captures: int) -> int:
     """The plan trial a record id is a capture of (:func:`capture_id` undone)."""
-    return (rid - 1) // captures + 1
+    return int(load_ids([rid], captures)[0])
 
 
 def planned_trials(plan: Any, captures: int = 1) -> list[PlannedTrial]:

@@ -207,3 +207,52 @@ def test_labcli_fit_of_a_run_of_two_captures_a_load_is_the_fit_of_its_averaged_r
     # Relieved (the default relief vents): each row's P0 is its own, already the mean of its captures'
     # baselines, not the mean of five rows' as on a run of one relieved capture a load.
     assert set(RELIEVED_TERMS) <= set(written["torque_terms"]) and written["baseline_mean"] == 1
+
+
+def test_split_assigns_whole_loads_and_counts_loads(interrupted, tmp_path):
+    """With N captures a load the counts given are loads and each set takes all of a load's captures;
+    a split by record would put one load's captures in both sets (seed 3 did, on 6 loads x 3)."""
+    import shutil
+
+    from labcli.core.splitting import split
+
+    run = tmp_path / "run.h5"
+    shutil.copy(interrupted[0], run)
+    for seed in range(6):
+        done = split(run, 1, 1, "random", seed)
+        with RunFile.open(run) as rf:
+            s = rf.split.get()
+        assert sorted((s["fit"], s["validation"])) == [[1, 2, 3], [4, 5, 6]], seed
+        assert (done.fit, done.validation, done.total) == (1, 1, 2)
+    assert "1 fit, 1 validation, 0 unassigned of 2 loads (the loads of 6 captures, 3 a load)" in done.sentence()
+    # The protocol's 90 + 18 on 2 loads keeps its proportion over loads, not over the 6 captures.
+    done = split(run)
+    assert (done.fit, done.validation) == (1, 1)
+    # A CSV of the run read with its captures protocol is split the same way.
+    table = tmp_path / "run.csv"
+    load_trials(run).assign(set="").to_csv(table, index=False)
+    proto = tmp_path / "p.toml"
+    with RunFile.open(run) as rf:
+        proto.write_text(rf.protocol_text)
+    split(table, 1, 1, "random", 2, protocol=str(proto))
+    sets = pd.read_csv(table, keep_default_na=False)["set"].tolist()
+    assert sets[:3] == [sets[0]] * 3 and sets[3:] == [sets[3]] * 3 and {sets[0], sets[3]} == {"fit", "validation"}
+    with pytest.raises(ConfigError, match="fewer than the 3 asked for"):
+        split(run, 2, 1)
+
+
+@pytest.mark.parametrize("column", ["set", "mass_g", "direction_deg"])
+def test_averaged_refuses_captures_of_one_load_that_differ_in_set_mass_or_direction(column):
+    table = pd.DataFrame(
+        {
+            "trial": [1, 2, 3, 4],
+            "set": ["fit"] * 4,
+            "mass_g": [800.0] * 4,
+            "direction_deg": [30.0] * 4,
+            **{c: np.arange(4.0) for c in AVERAGED},
+        }
+    )
+    assert averaged(table, 2)["trial"].tolist() == [1, 2]
+    table.loc[3, column] = {"set": "validation", "mass_g": 500.0, "direction_deg": -90.0}[column]
+    with pytest.raises(ConfigError, match=f"records 3, 4 would be the 2 captures of load 2 but differ in {column}"):
+        averaged(table, 2)
