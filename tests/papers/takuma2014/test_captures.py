@@ -256,3 +256,28 @@ def test_averaged_refuses_captures_of_one_load_that_differ_in_set_mass_or_direct
     table.loc[3, column] = {"set": "validation", "mass_g": 500.0, "direction_deg": -90.0}[column]
     with pytest.raises(ConfigError, match=f"records 3, 4 would be the 2 captures of load 2 but differ in {column}"):
         averaged(table, 2)
+
+
+def test_a_csv_read_with_a_captures_protocol_is_averaged_as_its_run_and_a_plain_run_is_refused(interrupted, tmp_path):
+    """The export of a run of N captures a load, read with its protocol, gives the run's rows (so the same
+    model); an ordinary run's table read or imported with such a protocol would merge two loads: refused."""
+    run = interrupted[0]
+    proto = tmp_path / "p.toml"
+    with RunFile.open(run) as rf:
+        proto.write_text(rf.protocol_text)
+    table = tmp_path / "run.csv"
+    assert labcli("export", str(run), "-o", str(table)).exit_code == 0
+    from_csv, from_run = load_trial_source(table, str(proto)), load_trial_source(run)
+    assert from_csv.captures == N and len(from_csv.table) == 2 and len(load_trials(table)) == 2 * N
+    cols = ["trial", "set", *AVERAGED, "Fx_N"]
+    pd.testing.assert_frame_equal(from_csv.table[cols], from_run.table[cols], check_dtype=False, atol=1e-9)
+    # A run of one capture a load: its first two trials are two loads (800 g, 500 g), not two captures.
+    plain = load_trials(run).iloc[[0, 3]].assign(trial=[1, 2])
+    plain.to_csv(table, index=False)
+    with pytest.raises(ConfigError, match="records 1, 2 would be the 3 captures of load 1 but differ in set"):
+        load_trial_source(table, str(proto))
+    res = labcli("import", str(table), "-o", str(tmp_path / "imported.h5"), "--protocol", str(proto))
+    assert res.exit_code == 0, res.output
+    res = labcli("fit", str(tmp_path / "imported.h5"), "-o", str(tmp_path / "m.json"))
+    assert res.exit_code != 0 and "would be the 3 captures of load 1 but differ in set" in res.output
+    assert "Traceback" not in res.output and not (tmp_path / "m.json").exists()

@@ -3,7 +3,8 @@
 A run file (``.h5``) carries its protocol verbatim, so its geometry is the one the trials were
 recorded with; a CSV carries none, so the protocol is named (default ``takuma2014``).  A run of
 several captures a load (``acquisition.captures_per_load``) gives one row per load, its captures
-averaged (:mod:`..captures`).
+averaged (:mod:`..captures`), and so does a CSV read with such a protocol (the run's export), so the
+two give the same model.
 """
 
 from __future__ import annotations
@@ -75,4 +76,6 @@ def load_trial_source(path: str | Path, protocol: str | None = None) -> TrialSou
             f"--protocol {protocol} is of kind '{proto.kind}'; a trial CSV is read with a "
             f"force protocol such as {TRIAL_PROTOCOL}."
         )
-    return TrialSource(p, _read_table(p), proto, False, table_identity(p, proto))
+    # A CSV read with a protocol of N captures a load is the export of such a run: read as the run is.
+    n = captures_of(proto)
+    return TrialSource(p, averaged(_read_table(p), n), proto, False, table_identity(p, proto), n)
