@@ -375,7 +375,12 @@ class Paper(Protocol):
         """As :meth:`run_protocol`, for ``labcli import`` (its own sentences)."""
 
     def acquisition(self, protocol: Any, options: AcquireOptions) -> Acquisition:
-        """Plan one run of ``protocol`` (from :meth:`run_protocol`)."""
+        """Plan one run of ``protocol`` (from :meth:`run_protocol`).
+
+        A paper whose runs of some kinds take each load several times (``--captures``,
+        ``acquisition.captures_per_load``) lists those run kinds in an attribute ``capture_kinds``
+        (a tuple, optional); the core refuses more than one capture a load for any other kind
+        (:func:`labcli.core.acquisition.check_captures`)."""
 
     def analysis(self, name: str) -> Analysis | None:
         """The analysis of command ``name`` (one of :attr:`analysis_options`, or ``export-model``), or None.

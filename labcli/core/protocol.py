@@ -446,11 +446,19 @@ def _build(data: dict[str, Any], text: str, chk: Checker, path: Path | None) -> 
     )
 
 
+# The [acquisition] header line (TOML allows blanks and quotes inside the brackets), its comment and
+# its line end, LF or CRLF (the table holds rate_hz, so a line follows).
+_ACQUISITION_HEADER = re.compile(r"^\[[ \t]*([\"']?)acquisition\1[ \t]*\][ \t]*(?:#[^\r\n]*)?\r?\n", flags=re.MULTILINE)
+
+
 def with_captures(protocol: Protocol, captures: int, flag: str = "--captures") -> Protocol:
     """``protocol`` with ``acquisition.captures_per_load = captures`` written into its text (the copy a
     run stores, so the run says how many captures it took of each load and a resume takes as many).
 
-    A protocol that gives another number already is refused in one sentence (ConfigError)."""
+    One capture, the default, leaves the protocol as it is: its text, and so the digest a model
+    fitted on the run compares (:mod:`.provenance`), stays the file's.  The key goes into the
+    file's own ``[acquisition]`` table, its line endings (LF or CRLF) kept.  A protocol that gives
+    another number already is refused in one sentence (ConfigError)."""
     given = protocol.sections.get("acquisition", {}).get("captures_per_load")
     if given is not None:
         if int(given) == captures:
@@ -459,10 +467,20 @@ def with_captures(protocol: Protocol, captures: int, flag: str = "--captures") -
             f"{protocol.name} gives acquisition.captures_per_load = {given}, and {flag} {captures} asks for "
             f"{captures}; leave out {flag} or give a protocol without the key."
         )
-    line = f"captures_per_load = {captures}\n"
-    header = re.search(r"^\[acquisition\][ \t]*(#[^\n]*)?\n", protocol.text, flags=re.MULTILINE)
+    if captures == 1:
+        return protocol
+    text = protocol.text
+    end = "\r\n" if "\r\n" in text else "\n"
+    line = f"captures_per_load = {captures}{end}"
+    header = _ACQUISITION_HEADER.search(text)
     if header is not None:
-        text = protocol.text[: header.end()] + line + protocol.text[header.end() :]
+        text = text[: header.end()] + line + text[header.end() :]
+    elif "acquisition" in protocol.sections:
+        # Given as dotted keys or an inline table: there is no table header to write under.
+        raise ConfigError(
+            f"{protocol.name} gives its acquisition settings without an [acquisition] table header; "
+            f"write captures_per_load = {captures} there instead of {flag} {captures}."
+        )
     else:
-        text = protocol.text.rstrip("\n") + "\n\n[acquisition]\n" + line
+        text = text.rstrip("\r\n") + f"{end}{end}[acquisition]{end}" + line
     return loads_protocol(text, source=f"{protocol.name} with {flag} {captures}", path=protocol.path)

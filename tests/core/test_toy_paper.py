@@ -115,6 +115,30 @@ def test_a_real_port_or_an_unknown_mode_is_refused_in_its_words(toy_paper, tmp_p
     assert "option 'mode' in sim:// URL must be one of mckibben, rpam, toy, got 'toys'" in result.output
 
 
+def test_a_paper_declaring_no_captures_refuses_more_than_one_capture_a_load(toy_paper, tmp_path, invoke):
+    """The toy paper lists no ``capture_kinds``: its session takes each load once, so ``--captures 3`` and a
+    protocol's ``captures_per_load = 3`` are refused before the rig is woken, not silently ignored."""
+    run = tmp_path / "x.h5"
+    result = invoke("acquire", run, "--protocol", toy_paper, "--port", PORT, "--unattended", "--captures", "3")
+    assert result.exit_code == 1 and not run.exists()
+    assert result.output == (
+        "Error: --captures 3 asks for each load 3 times, but paper toy takes each load of a toy run once; leave it out.\n"
+    )
+    three = tmp_path / "three.toml"
+    three.write_text(toy.PROTOCOL_TEXT.replace("[acquisition]\n", "[acquisition]\ncaptures_per_load = 3\n"))
+    result = invoke("acquire", run, "--protocol", three, "--port", PORT, "--unattended")
+    assert result.exit_code == 1 and not run.exists()
+    assert result.output == (
+        "Error: Protocol toy gives acquisition.captures_per_load = 3, but paper toy takes each load of a toy run "
+        "once: set the key to 1 or leave it out.\n"
+    )
+    # One capture a load is what the paper takes: the run is recorded with the protocol as written.
+    result = invoke("acquire", run, "--protocol", toy_paper, "--port", PORT, "--unattended", "--captures", "1")
+    assert result.exit_code == 0, result.output
+    with RunFile.open(run) as f:
+        assert f.records.ids() == [1, 2] and f.protocol_text == toy.PROTOCOL_TEXT
+
+
 def test_a_record_type_must_give_its_four_hooks():
     from labcli.core.store.record_type import BaseRecordType
 

@@ -28,6 +28,7 @@ class Takuma2014:
     protocol_kinds = PROTOCOL_KINDS
     shipped_protocols = (TRIAL_PROTOCOL, PUSH_PROTOCOL)
     run_kinds = ("force", "push", "sense")
+    capture_kinds = ("force",)  # runs that take each load several times (acquisition.captures_per_load)
     untagged_run_kind = "force"  # run files from before files named their kind held force trials
     sim_modes = ("mckibben",)
     default_sim_mode = "mckibben"

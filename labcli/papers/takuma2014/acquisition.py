@@ -173,8 +173,14 @@ def _check_captures(protocol: Any, plan: Any) -> None:
 
 
 def _captured(protocol: Any, options: AcquireOptions) -> Any:
-    """The protocol with ``--captures`` written in (a new run), or checked against the run's (a resumed one)."""
+    """The protocol with ``--captures`` written in (a new run), or checked against the run's (a resumed one);
+    a push protocol takes neither the option nor ``captures_per_load`` above 1."""
     n = options.captures
+    if protocol.kind == "push" and protocol.air.captures_per_load > 1 and options.resume is None:
+        raise ConfigError(
+            f"Protocol {protocol.name} gives acquisition.captures_per_load = {protocol.air.captures_per_load}, "
+            "but it records pushes, each its own: set the key to 1 or leave it out."
+        )
     if n is None:
         return protocol
     if protocol.kind == "push":

@@ -178,6 +178,67 @@ def test_a_protocol_giving_another_number_of_captures_is_refused(tmp_path):
     assert three.air.captures_per_load == 3 and "[acquisition]  # air\ncaptures_per_load = 3\n" in three.text
 
 
+def test_one_capture_keeps_the_protocol_as_written_so_a_model_sees_the_same_settings(tmp_path):
+    """``--captures 1`` is the default: the run stores the file's own text, whose digest a model fitted
+    on it compares, so a run acquired without the option shows no other settings."""
+    from labcli.core.protocol import with_captures
+    from labcli.core.provenance import rig_differences, run_identity
+
+    base = load_protocol("takuma2014")
+    assert with_captures(base, 1) is base
+    given = loads_protocol(base.text.replace("rate_hz = 200.0\n", "rate_hz = 200.0\ncaptures_per_load = 1\n"))
+    assert with_captures(given, 1) is given
+    plan = tmp_path / "plan.csv"
+    plan.write_text(PLAN)
+    ids = []
+    for name, extra in (("one_a.h5", ()), ("one_b.h5", ("--captures", "1"))):
+        res = labcli("acquire", str(tmp_path / name), "--port", PORT, "--unattended", "--plan", str(plan), *extra)
+        assert res.exit_code == 0, res.output
+        with RunFile.open(tmp_path / name) as run:
+            assert run.protocol_text == base.text and run.records.ids() == [1, 2]
+            ids.append(run_identity(run, tmp_path / name))
+    assert ids[0]["protocol_sha256"] == ids[1]["protocol_sha256"] and rig_differences(ids[1], ids[0]) == []
+
+
+@pytest.mark.parametrize("end", ["\r\n", "\n"])
+def test_captures_go_into_the_acquisition_table_of_a_file_with_either_line_end(end):
+    from labcli.core.protocol import with_captures
+
+    text = load_protocol("takuma2014").text.replace("\n", end)
+    three = with_captures(loads_protocol(text), 3)
+    assert three.air.captures_per_load == 3 and three.settings.rig == load_protocol("takuma2014").settings.rig
+    assert f"[acquisition]{end}captures_per_load = 3{end}" in three.text
+    assert three.text.count("\n") == text.count("\n") + 1 and three.text.count("\r\n") == text.count("\r\n") + (
+        end == "\r\n"
+    )
+
+
+def test_captures_given_without_an_acquisition_header_are_refused_in_one_sentence():
+    from labcli.core.protocol import with_captures
+
+    bare = load_protocol("takuma2014").text.replace("[acquisition]\n", "").replace("rate_hz = 200.0\n", "")
+    dotted = loads_protocol("acquisition.rate_hz = 200.0\n" + bare)
+    assert dotted.rate_hz == 200.0
+    with pytest.raises(ConfigError) as err:
+        with_captures(dotted, 2)
+    assert str(err.value) == (
+        "takuma2014 gives its acquisition settings without an [acquisition] table header; "
+        "write captures_per_load = 2 there instead of --captures 2."
+    )
+
+
+def test_a_push_protocol_giving_several_captures_a_load_is_refused_in_one_sentence(tmp_path):
+    proto = tmp_path / "push.toml"
+    text = load_protocol("takuma2014-stiffness").text
+    proto.write_text(text.replace("[acquisition]\n", "[acquisition]\ncaptures_per_load = 3\n"))
+    res = labcli("acquire", str(tmp_path / "x.h5"), "--port", PORT, "--unattended", "--protocol", str(proto))
+    assert res.exit_code == 1 and not (tmp_path / "x.h5").exists()
+    assert res.output == (
+        "Error: Protocol takuma2014-stiffness gives acquisition.captures_per_load = 3, but it records pushes, "
+        "each its own: set the key to 1 or leave it out.\n"
+    )
+
+
 def test_labcli_fit_of_a_run_of_two_captures_a_load_is_the_fit_of_its_averaged_rows(tmp_path):
     """The model ``labcli fit`` writes is the one fitted on the loads' means, said so in its report."""
     import json
