@@ -9,6 +9,7 @@ from typing import Any
 
 from ...core.paper import AcquireOptions, Session
 from ...core.protocol import with_captures
+from ...core.words import count
 from ...errors import ConfigError
 from .protocol import load_plan
 from .push_plan import load_push_plan, plan_objects
@@ -192,7 +193,8 @@ def _captured(protocol: Any, options: AcquireOptions) -> Any:
         return with_captures(protocol, n)
     if protocol.air.captures_per_load != n:
         raise ConfigError(
-            f"{options.path} was recorded with {protocol.air.captures_per_load} captures of each load, not {n}; "
+            f"{options.path} was recorded with {count(protocol.air.captures_per_load, 'capture')} of each load, "
+            f"not {n}; "
             "drop --captures to resume it, or start a new run."
         )
     return protocol

@@ -54,6 +54,7 @@ class FitResult:
     recorded: bool  # also recorded in the run file under /models/<protocol>
     paper: dict[str, float]
     captures: int = 1  # captures a fitted row averages (acquisition.captures_per_load)
+    records: tuple[int, int] = (0, 0)  # with several captures a load: (captures read, rows they make)
 
     def to_dict(self) -> dict[str, Any]:
         out = {
@@ -128,7 +129,8 @@ def _fit(
     model.baseline_gap_s = leak.baseline_gap(run, fit_records) if src.is_run else None
     recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
     paper = dict(src.protocol.settings.paper_coefficients or {})
-    return FitResult(model, out_path, run, recorded, paper, src.captures)
+    records = (int(src.table.attrs.get("records", 0)), len(src.table))
+    return FitResult(model, out_path, run, recorded, paper, src.captures, records)
 
 
 def _fit_ids(table: Any) -> Any:
@@ -237,6 +239,18 @@ def _fit_form(
     return model.fit(src.table, source=source, record_trials=record_trials)
 
 
+def _captures_read(result: FitResult) -> str:
+    """How many captures a fitted row averages: N, or fewer where a capture was skipped at the rig."""
+    read, rows = result.records
+    n = result.captures
+    if read in (0, rows * n):
+        return f"{n} captures (acquisition.captures_per_load)"
+    return (
+        f"captures, {n} a load (acquisition.captures_per_load) or fewer where one was skipped "
+        f"({read} of {rows * n} read)"
+    )
+
+
 def show_fit(result: FitResult, *, as_json: bool = False) -> None:
     if as_json:
         print(dumps_indented(result.to_dict()))
@@ -244,7 +258,7 @@ def show_fit(result: FitResult, *, as_json: bool = False) -> None:
     recorded = f" and recorded in {result.run} under /models/{result.model.protocol}" if result.recorded else ""
     if result.captures > 1:
         print(
-            f"Each trial is the mean of its load's {result.captures} captures (acquisition.captures_per_load): "
+            f"Each trial is the mean of its load's {_captures_read(result)}: "
             f"the standard errors are those of such a mean, too narrow for a single capture."
         )
     if isinstance(result.model, PostureModel):

@@ -49,7 +49,9 @@ def averaged(table: Any, captures: int) -> Any:
     for c in present:
         first[c] = means[c].to_numpy()
     first["trial"] = means.index.to_numpy().astype(table["trial"].dtype)  # in order of first capture, as the rows
-    return first.reset_index(drop=True)
+    out = first.reset_index(drop=True)
+    out.attrs["records"] = len(table)  # the captures averaged, for the sentences that count them
+    return out
 
 
 CONSTANT = ("set", "mass_g", "direction_deg")  # a load's, so the same in each of its captures

@@ -27,6 +27,7 @@ from ...core.cells import TableSpec
 from ...core.files import RUN_FILE_SUFFIXES, atomic_write, check_output
 from ...core.protocol import loads_protocol
 from ...core.tables import read_table
+from ...core.words import count
 from ...errors import ConfigError
 from ...sensing.offline import predict_rows
 from .captures import averaged, captures_of
@@ -64,6 +65,7 @@ class PredictResult:
     model: str
     rows: int
     flagged: dict[str, int] = field(default_factory=dict)
+    records: int = 0  # the captures the rows average (a run of several captures a load), else 0
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -145,13 +147,14 @@ def predict_file(
     margin = (options or PredictOptions()).range_margin
     model = TakumaSensing(load_force_model(model_path), margin=margin)
     rows = read_rows(Path(table))
+    records = int(rows.attrs.get("records", 0))  # set by captures.averaged, for the sentence
     if table.suffix.lower() in RUN_FILE_SUFFIXES:
         _check_rig(model, table, model_path)
     out = estimate_table(rows, model)
     flagged = count_flags(out["flags"])
     if output is not None:
         atomic_write(output, out.to_csv(index=False, float_format="%.10g").encode("utf-8"), what="the estimates to ")
-    return PredictResult(out, output, str(model_path), len(out), flagged)
+    return PredictResult(out, output, str(model_path), len(out), flagged, records)
 
 
 def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> None:
@@ -181,4 +184,9 @@ def show_predict(result: PredictResult, *, as_json: bool = False) -> None:
         return
     where = f" to {result.output}" if result.output else ""
     flags = ", ".join(f"{n} {f}" for f, n in result.flagged.items())
-    print(f"Estimated {result.rows} rows with {result.model}{where}" + (f" ({flags})." if flags else "."))
+    what = (
+        f"{count(result.rows, 'row')}"
+        if not result.records
+        else f"{count(result.rows, 'load')} (the means of {count(result.records, 'capture')})"
+    )
+    print(f"Estimated {what} with {result.model}{where}" + (f" ({flags})." if flags else "."))

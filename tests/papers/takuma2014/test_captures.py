@@ -148,6 +148,10 @@ def test_acquire_captures_writes_the_number_into_the_runs_protocol_and_resume_ke
     assert res.exit_code == 1 and "was recorded with 3 captures of each load, not 2" in res.output
     res = labcli("acquire", str(run), "--port", PORT, "--unattended", "--resume", "--captures", "3")
     assert res.exit_code == 0 and "All 6 planned trials are already stored" in res.output
+    once = tmp_path / "once.h5"
+    assert labcli("acquire", str(once), "--port", PORT, "--unattended", "--plan", str(plan)).exit_code == 0
+    res = labcli("acquire", str(once), "--port", PORT, "--unattended", "--resume", "--captures", "2")
+    assert res.exit_code == 1 and "was recorded with 1 capture of each load, not 2" in res.output
 
 
 @pytest.mark.parametrize(
@@ -268,6 +272,19 @@ def test_labcli_fit_of_a_run_of_two_captures_a_load_is_the_fit_of_its_averaged_r
     # Relieved (the default relief vents): each row's P0 is its own, already the mean of its captures'
     # baselines, not the mean of five rows' as on a run of one relieved capture a load.
     assert set(RELIEVED_TERMS) <= set(written["torque_terms"]) and written["baseline_mean"] == 1
+    # predict counts loads, the means of the captures it read.
+    res = labcli("predict", str(run), "--model", str(tmp_path / "m.json"))
+    assert res.exit_code == 0 and "Estimated 36 loads (the means of 72 captures) with" in res.output, res.output
+    # A capture skipped (here dropped from the run's export): its load is the mean of one, and fit says so.
+    table = tmp_path / "two.csv"
+    assert labcli("export", str(run), "-o", str(table)).exit_code == 0
+    pd.read_csv(table).drop(index=5).to_csv(table, index=False)
+    proto = tmp_path / "two.toml"
+    proto.write_text(src.protocol.text)
+    res = labcli("fit", str(table), "--protocol", str(proto), "-o", str(tmp_path / "m2.json"), "--no-friction-terms")
+    assert res.exit_code == 0, res.output
+    assert "Each trial is the mean of its load's captures, 2 a load" in res.output
+    assert "or fewer where one was skipped (71 of 72 read)" in res.output
 
 
 def test_split_assigns_whole_loads_and_counts_loads(interrupted, tmp_path):
