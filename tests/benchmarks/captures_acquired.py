@@ -17,7 +17,8 @@ One relieved capture a load through the same path is multi_capture.py's ``relief
 
 Reported: RMSE over every validation trial (a load's averaged row for ``relief3``), its ratio to ``ref``'s
 with a 95 % paired bootstrap interval over seeds, Fy reported, the 95 % intervals' coverage, and
-the rig's clock per plan load (first baseline to last capture over the plan's loads) with its ratio.
+the rig's clock per plan load (the median gap between consecutive captures' baselines times the
+captures a load, since a long run's stored device times restart part-way) with its ratio.
 
     nice python tests/benchmarks/captures_acquired.py [--seeds 11-30] [--cache FILE] [--figures OUT]
 """
