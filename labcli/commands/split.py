@@ -15,14 +15,14 @@ from ._declared import protocol_option
     "n_fit",
     type=int,
     default=None,
-    help="Trials in the fit set  [default: the run's protocol's; a shorter run keeps its proportion]",
+    help="Trials (loads, for a run of several captures a load) in the fit set  [default: the run's protocol's; a shorter run keeps its proportion]",
 )
 @click.option(
     "--validation",
     "n_validation",
     type=int,
     default=None,
-    help="Trials in the validation set  [default: the run's protocol's; or the proportion]",
+    help="Trials (loads) in the validation set  [default: the run's protocol's; or the proportion]",
 )
 @click.option(
     "--strategy",
@@ -59,6 +59,8 @@ def split(
     table.  A trial CSV gets its ``set`` column filled (in place, or in -o OUT.csv).
     Without --fit and --validation the protocol's sizes are used (the paper's 90 +
     18); a shorter run is split in the same proportion, and the output says so.
+    A run of several captures a load (acquisition.captures_per_load) is split by
+    load: the sizes count loads and each set takes every capture of its loads.
 
     \b
     Example (the paper's 90 fit + 18 validation trials):
