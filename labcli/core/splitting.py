@@ -137,6 +137,11 @@ def _choose_loads(
     else:
         units = [int(u) for u in dict.fromkeys(load_ids(ids, captures).tolist())]
     fit_n, val_n, note = split_sizes(len(units), defaults, n_fit, n_val, path)
+    if captures > 1 and fit_n >= 1 and val_n >= 0 and fit_n + val_n > len(units):
+        raise ConfigError(
+            f"{path}: the run has {count(len(units), 'load')} ({count(len(ids), 'capture')}, {captures} a load), "
+            f"fewer than the {fit_n + val_n} loads asked for ({fit_n} fit + {val_n} validation): the sizes count loads."
+        )
     fit, val = choose(units, fit_n, val_n, strategy, seed, path)
     sizes = (len(fit), len(val), len(units))
     if captures == 1:

@@ -315,7 +315,7 @@ def test_split_assigns_whole_loads_and_counts_loads(interrupted, tmp_path):
     split(table, 1, 1, "random", 2, protocol=str(proto))
     sets = pd.read_csv(table, keep_default_na=False)["set"].tolist()
     assert sets[:3] == [sets[0]] * 3 and sets[3:] == [sets[3]] * 3 and {sets[0], sets[3]} == {"fit", "validation"}
-    with pytest.raises(ConfigError, match="fewer than the 3 asked for"):
+    with pytest.raises(ConfigError, match=r"has 2 loads \(6 captures, 3 a load\), fewer than the 3 loads asked for"):
         split(run, 2, 1)
 
 
