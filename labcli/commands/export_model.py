@@ -32,7 +32,10 @@ def export_model(model: Path, c_header: Path, protocol: str | None) -> None:
     at the data rate, against a baseline it takes itself, and sends them as estimate lines
     (docs/wire-protocol.md).  Every form `labcli fit` writes is exported: the posture form (with
     the sleeves' friction terms, fit's default, the chip reading the motion into each baseline it
-    takes), the paper's Eqs. 34-37, and their blends; a relieved run's friction terms are refused.
+    takes), the paper's Eqs. 34-37, and their blends; a relieved run's friction terms are refused
+    (`labcli fit RUN --no-friction-terms` fits it without them).  A model fitted on runs of
+    several captures a load is exported with a warning: its intervals are too narrow for the
+    board's single captures.
 
     \b
     Example:

@@ -85,6 +85,24 @@ def print_warnings(warnings: list[str]) -> None:
         print(f"Warning: {w}", file=sys.stderr)
 
 
+def _captured(n: int) -> str:
+    return "single captures" if n == 1 else f"means of {n} captures a load"
+
+
+def captures_warning(model: str, fitted: int, rows: str, captured: int) -> str | None:
+    """The sentence for a model applied to rows averaging another number of captures than its fit
+    rows did (``acquisition.captures_per_load``): its standard errors are a mean of ``fitted``
+    captures' (a capture's repeatability variance over that number), so they do not fit the rows.
+    None when the numbers agree.  ``model`` and ``rows`` name them (``rows`` plural)."""
+    if fitted == captured:
+        return None
+    side = "narrow" if fitted > captured else "wide"
+    return (
+        f"{model[:1].upper()}{model[1:]} was fitted on {_captured(fitted)} (acquisition.captures_per_load) "
+        f"but {rows} are {_captured(captured)}: its standard errors and 95 % intervals are too {side} for them."
+    )
+
+
 def cell(x: Any, spec: str) -> str:
     """``x`` formatted with ``spec``, or a dash where there is no number (None, NaN, inf)."""
     if x is None or (isinstance(x, float) and not math.isfinite(x)):

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.options import Typed
+from ..core.report import captures_warning
 from ..errors import ConfigError, ModelError, StoreError
 from .config import EstimatorConfig
 from .estimator import Estimator
@@ -168,6 +169,12 @@ def sense(
     from ..core.device import Device
 
     model, protocol, hook = prepare(opts)
+    # Every live estimate is of one capture: a model fitted on several a load gives intervals too narrow.
+    narrow = captures_warning(
+        f"the model file {opts.model}", int(getattr(model, "captures_per_load", 1)), "the live loads", 1
+    )
+    if narrow:
+        notice(f"Warning: {narrow}")
     rate = float(opts.rate_hz if opts.rate_hz is not None else protocol.rate_hz)
     url = opts.port
     if url.startswith("sim://") and "clock=" not in url:

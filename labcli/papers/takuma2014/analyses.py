@@ -21,7 +21,7 @@ from ...core.heap import kept_heap
 from ...core.jsontext import dumps_indented
 from ...core.modelfile import check_fit_paths, default_model_path, model_destination, model_text, save_model
 from ...core.provenance import rig_warning, same_data
-from ...core.report import ids_text, print_warnings
+from ...core.report import captures_warning, ids_text, print_warnings
 from ...errors import ConfigError, ModelError
 from . import report
 from .captures import record_ids
@@ -125,6 +125,7 @@ def _fit(
         refuse_non_finite(model, src.table, str(run))
     model.fitted_on = src.identity
     model.p0_leak_corrected = leak_correct
+    model.captures_per_load = src.captures
     fit_records = _fit_ids(src.table) if src.captures == 1 else record_ids(_fit_ids(src.table), src.captures)
     model.baseline_gap_s = leak.baseline_gap(run, fit_records) if src.is_run else None
     recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
@@ -198,20 +199,22 @@ def refuse_non_finite(model: TakumaModel, table: Any, source: str) -> None:
 
 
 def friction_of(protocol: Any, asked: bool = False) -> bool | str:
-    """The friction terms the posture form is offered on a run of ``protocol``: the relieved ones
-    where its baselines were each approached from the vented chambers
-    (``acquisition.friction_relief_vent_s``), those read from the history of loads where ``asked``
-    (``labcli fit``'s default; ``--no-friction-terms`` leaves them out), none otherwise.  A
-    relieved run's baselines repeat, and each trial's P0 is then the mean of RELIEVED_BASELINES
-    of them (a run of several captures a load: its row's own, already the mean of its captures').
+    """The friction terms the posture form is offered on a run of ``protocol`` where ``asked``
+    (``labcli fit``'s default; ``--no-friction-terms`` leaves them out, on every run, so that a
+    relieved run too gives the plain form the board computes): the relieved ones where its
+    baselines were each approached from the vented chambers (``acquisition.friction_relief_vent_s``,
+    every run of several captures a load by default), those read from the history of loads
+    otherwise.  A relieved run's baselines repeat, and each trial's P0 is then the mean of
+    RELIEVED_BASELINES of them (a run of several captures a load: its row's own, already the mean
+    of its captures').
 
     The default since the run-time estimator and the board keep the motion into each baseline
     they read: on runs taken as acquired (15 s waits, the chambers supplied again) they lower
     Fx, offline and live (docs/fit-and-validate.md)."""
+    if not asked:
+        return False
     air = getattr(protocol, "air", None)
-    if getattr(air, "friction_relief_vent_s", 0.0) > 0:
-        return "relieved"
-    return bool(asked)
+    return "relieved" if getattr(air, "friction_relief_vent_s", 0.0) > 0 else True
 
 
 def _fit_form(
@@ -342,7 +345,14 @@ def _validate(run: Path, options: ValidateOptions, protocol: str | None) -> Vali
         model_name=f"the model {label}" if ":/models/" in label else f"the model file {label}",
         run_name=str(run),
     )
-    warnings = [w for w in [rig_warning(cap(label), model.fitted_on, str(run), src.identity)] if w]
+    warnings = [
+        w
+        for w in [
+            rig_warning(cap(label), model.fitted_on, str(run), src.identity),
+            captures_warning(f"the model {label}", model.captures_per_load, f"the rows of {run}", src.captures),
+        ]
+        if w
+    ]
     src = leak_handled(model, src, run)
     shared = overlap(model, src)
     if shared:

@@ -58,8 +58,8 @@ class FitOptions:
         "its motion under the load and into its baseline (the default; lower Fx on runs taken with 15 s waits)."
     )
     no_friction_terms: bool = switch(
-        help="With the posture form: fit it without the sleeves' friction terms, as it was fitted before they "
-        "were the default."
+        help="With the posture form: fit it without the sleeves' friction terms (a relieved run's too), as it "
+        "was fitted before they were the default; the form export-model carries to the board."
     )
 
 

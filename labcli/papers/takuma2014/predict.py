@@ -26,6 +26,7 @@ import numpy as np
 from ...core.cells import TableSpec
 from ...core.files import RUN_FILE_SUFFIXES, atomic_write, check_output
 from ...core.protocol import loads_protocol
+from ...core.report import captures_warning, print_warnings
 from ...core.tables import read_table
 from ...core.words import count
 from ...errors import ConfigError
@@ -66,6 +67,7 @@ class PredictResult:
     rows: int
     flagged: dict[str, int] = field(default_factory=dict)
     records: int = 0  # the captures the rows average (a run of several captures a load), else 0
+    warnings: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -148,17 +150,21 @@ def predict_file(
     model = TakumaSensing(load_force_model(model_path), margin=margin)
     rows = read_rows(Path(table))
     records = int(rows.attrs.get("records", 0))  # set by captures.averaged, for the sentence
+    captured = 1  # a table's rows are taken as they are; a run's as read_rows averaged them
     if table.suffix.lower() in RUN_FILE_SUFFIXES:
-        _check_rig(model, table, model_path)
+        captured = _check_rig(model, table, model_path)
+    fitted = getattr(model.model, "captures_per_load", 1)
+    warning = captures_warning(f"the model file {model_path}", fitted, f"the rows of {table}", captured)
     out = estimate_table(rows, model)
     flagged = count_flags(out["flags"])
     if output is not None:
         atomic_write(output, out.to_csv(index=False, float_format="%.10g").encode("utf-8"), what="the estimates to ")
-    return PredictResult(out, output, str(model_path), len(out), flagged, records)
+    return PredictResult(out, output, str(model_path), len(out), flagged, records, [warning] if warning else [])
 
 
-def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> None:
-    """A run of another protocol or rig than the model's is refused, as validate and classify refuse it."""
+def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> int:
+    """A run of another protocol or rig than the model's is refused, as validate and classify refuse it;
+    the captures each of its rows averages (:func:`read_rows`)."""
     from ...core.protocol import loads_protocol
     from ...core.store import RunFile
     from .models.classify import check_force_model
@@ -166,19 +172,21 @@ def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> None:
     with RunFile.open(run) as rf:
         kind, text = rf.kind, rf.protocol_text
     if not text.strip():
-        return  # a run without its protocol (imported from a table): nothing to compare
+        return 1  # a run without its protocol (imported from a table): nothing to compare
     protocol = loads_protocol(text, source=f"{run} (embedded protocol)")
     name = f"the model file {model_path}"
     if kind == "force":
         model.model.check_compatible(protocol.name, protocol.settings.rig, model_name=name, run_name=str(run))
-    else:
-        check_force_model(model.model, protocol, model_name=name, run_name=str(run))
+        return captures_of(protocol)
+    check_force_model(model.model, protocol, model_name=name, run_name=str(run))
+    return 1
 
 
 def show_predict(result: PredictResult, *, as_json: bool = False) -> None:
     """One line: how many rows, where they went, how many are flagged."""
     import json
 
+    print_warnings(result.warnings)
     if as_json:
         print(json.dumps(result.to_dict(), indent=2))
         return

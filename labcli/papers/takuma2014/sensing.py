@@ -77,6 +77,7 @@ class TakumaSensing:
         self.p0_leak_corrected = bool(getattr(model, "p0_leak_corrected", False))
         gap = getattr(model, "baseline_gap_s", None)
         self.baseline_gap_s = float(gap) if gap is not None else None
+        self.captures_per_load = int(getattr(model, "captures_per_load", 1))  # each fit row's (models/calibrated.py)
         self.calibrated_range: dict[str, Any] = dict(getattr(model, "calibrated_range", None) or {})
         self._paper_var = _paper_variances(model) if isinstance(model, TakumaModel) else None
         # The posture form's predict worked out once for the estimator's few rows a call

@@ -19,7 +19,7 @@ from labcli.core.protocol import load_protocol, loads_protocol
 from labcli.core.store import RunFile
 from labcli.core.store.records import Records
 from labcli.core.ui import UnattendedUI
-from labcli.errors import ConfigError
+from labcli.errors import ConfigError, ModelError
 from labcli.papers.takuma2014.captures import AVERAGED, averaged, record_ids
 from labcli.papers.takuma2014.models.inputs import load_trial_source
 from labcli.papers.takuma2014.predict import read_rows
@@ -243,48 +243,176 @@ def test_a_push_protocol_giving_several_captures_a_load_is_refused_in_one_senten
     )
 
 
-def test_labcli_fit_of_a_run_of_two_captures_a_load_is_the_fit_of_its_averaged_rows(tmp_path):
-    """The model ``labcli fit`` writes is the one fitted on the loads' means, said so in its report."""
-    import json
-
-    from labcli.papers.takuma2014.analyses import _fit_form
-    from labcli.papers.takuma2014.models.posture import RELIEVED_TERMS
-
+@pytest.fixture(scope="module")
+def two(tmp_path_factory):
+    """A run of two captures a load (the default relief vents before each) on 18 fit and 6
+    validation loads of the plan, and the model `labcli fit` writes of it by default."""
+    tmp = tmp_path_factory.mktemp("two")
     rows = pd.read_csv(Path(__file__).resolve().parents[3] / "protocols" / "takuma2014-plan.csv")
-    plan = tmp_path / "plan.csv"
+    plan = tmp / "plan.csv"
     pd.concat([rows[rows["set"] == "fit"].iloc[::3], rows[rows["set"] == "validation"].iloc[:6]]).to_csv(
         plan, index=False
     )
-    run = tmp_path / "two.h5"
+    run = tmp / "two.h5"
     res = labcli("acquire", str(run), "--port", PORT, "--unattended", "--plan", str(plan), "--captures", "2")
     assert res.exit_code == 0, res.output
-    res = labcli("fit", str(run), "-o", str(tmp_path / "m.json"), "--no-friction-terms")
+    model = tmp / "two.model.json"
+    res = labcli("fit", str(run), "-o", str(model))
     assert res.exit_code == 0, res.output
     assert "Each trial is the mean of its load's 2 captures" in res.output
+    return run, model
+
+
+def _fitted_as_by_hand(run: Path, model: Path, friction_terms: bool) -> dict:
+    import json
+
+    from labcli.papers.takuma2014.analyses import _fit_form
+
     src = load_trial_source(run)
     assert len(src.table) == 36 and len(load_trials(run)) == 72
     with np.errstate(all="ignore"):
-        by_hand = _fit_form("posture", src, str(run), friction_terms=False).to_dict()
-    written = json.loads((tmp_path / "m.json").read_text())
+        by_hand = _fit_form("posture", src, str(run), friction_terms=friction_terms).to_dict()
+    written = json.loads(model.read_text())
     for key in ("angle_coefficients", "torque_coefficients", "angle_resid_cov"):
         np.testing.assert_allclose(written[key], by_hand[key], rtol=1e-12, err_msg=key)
     assert written["fitted_trials"] == by_hand["fitted_trials"]
+    assert written["torque_terms"] == by_hand["torque_terms"]
+    return written
+
+
+def test_labcli_fit_of_a_run_of_two_captures_a_load_is_the_fit_of_its_averaged_rows(two):
+    """The model ``labcli fit`` writes is the one fitted on the loads' means, said so in its report
+    and in the model file."""
+    from labcli.papers.takuma2014.models.posture import RELIEVED_TERMS
+
+    run, model = two
+    written = _fitted_as_by_hand(run, model, friction_terms=True)
     # Relieved (the default relief vents): each row's P0 is its own, already the mean of its captures'
     # baselines, not the mean of five rows' as on a run of one relieved capture a load.
     assert set(RELIEVED_TERMS) <= set(written["torque_terms"]) and written["baseline_mean"] == 1
+    assert written["captures_per_load"] == 2
+
+
+def test_predict_counts_loads_and_fit_counts_a_skipped_capture(two, tmp_path):
+    run, model = two
     # predict counts loads, the means of the captures it read.
-    res = labcli("predict", str(run), "--model", str(tmp_path / "m.json"))
+    res = labcli("predict", str(run), "--model", str(model))
     assert res.exit_code == 0 and "Estimated 36 loads (the means of 72 captures) with" in res.output, res.output
     # A capture skipped (here dropped from the run's export): its load is the mean of one, and fit says so.
     table = tmp_path / "two.csv"
     assert labcli("export", str(run), "-o", str(table)).exit_code == 0
     pd.read_csv(table).drop(index=5).to_csv(table, index=False)
     proto = tmp_path / "two.toml"
-    proto.write_text(src.protocol.text)
+    proto.write_text(load_trial_source(run).protocol.text)
     res = labcli("fit", str(table), "--protocol", str(proto), "-o", str(tmp_path / "m2.json"), "--no-friction-terms")
     assert res.exit_code == 0, res.output
     assert "Each trial is the mean of its load's captures, 2 a load" in res.output
     assert "or fewer where one was skipped (71 of 72 read)" in res.output
+
+
+def test_no_friction_terms_fits_the_plain_posture_form_on_a_relieved_run_and_exports_it(two, tmp_path):
+    """--no-friction-terms is honoured on a relieved run (every run of several captures a load by
+    default): the plain form, which export-model carries to the board; the refusal of the relieved
+    terms names that route."""
+    from labcli.papers.takuma2014.models.posture import RELIEVED_TERMS, TORQUE_TERMS
+
+    run, relieved = two
+    plain = tmp_path / "plain.json"
+    res = labcli("fit", str(run), "-o", str(plain), "--no-friction-terms")
+    assert res.exit_code == 0, res.output
+    written = _fitted_as_by_hand(run, plain, friction_terms=False)
+    # The plain form's terms (those its selection keeps), no friction term of either kind.
+    assert set(written["torque_terms"]) <= set(TORQUE_TERMS) and not set(RELIEVED_TERMS) & set(written["torque_terms"])
+    assert not [t for t in written["torque_terms"] if "friction" in t]
+    assert written["baseline_mean"] == 1 and written["captures_per_load"] == 2
+
+    res = labcli("export-model", str(relieved), "--c", str(tmp_path / "relieved.h"))
+    assert res.exit_code == 1 and not (tmp_path / "relieved.h").exists()
+    assert f"refit without them (`labcli fit {run} --no-friction-terms`) and export that model." in res.output
+    res = labcli("export-model", str(plain), "--c", str(tmp_path / "plain.h"))
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "plain.h").read_text().count("#define MODEL_ID") == 1
+    assert res.stderr == (
+        f"Warning: The model file {plain} was fitted on means of 2 captures a load (acquisition.captures_per_load) "
+        "but the board's loads are single captures: its standard errors and 95 % intervals are too narrow for them.\n"
+    )
+
+
+def narrow(model: str, rows: str) -> str:
+    return (
+        f"Warning: {model} was fitted on means of 2 captures a load (acquisition.captures_per_load) "
+        f"but {rows} are single captures: its standard errors and 95 % intervals are too narrow for them.\n"
+    )
+
+
+def test_commands_say_when_the_rows_average_another_number_of_captures_than_the_model(two, tmp_path):
+    """validate, predict and sense warn (and go on) when a model of averaged rows estimates single captures."""
+    run, model = two
+    csv, proto = tmp_path / "two.csv", tmp_path / "cap2.toml"
+    res = labcli("export", str(run), "-o", str(csv))
+    assert res.exit_code == 0, res.output
+    with RunFile.open(run) as rf:
+        proto.write_text(rf.protocol_text)
+    assert len(pd.read_csv(csv)) == 72  # every capture its own row
+
+    # Read with the shipped protocol (one capture a load), each row is one capture.
+    res = labcli("validate", str(csv), "--model", str(model))
+    assert res.exit_code == 0, res.output
+    assert narrow(f"The model {model}", f"the rows of {csv}") in res.stderr
+    # Read with its own protocol, averaged as the run is: nothing to say.
+    res = labcli("validate", str(csv), "--protocol", str(proto), "--model", str(model))
+    assert res.exit_code == 0, res.output
+    assert "captures" not in res.stderr
+    res = labcli("predict", str(csv), "--model", str(model))
+    assert res.exit_code == 0, res.output
+    assert res.stderr == narrow(f"The model file {model}", f"the rows of {csv}")
+    # The run itself is read as its loads' means, as the model was fitted: nothing to say.
+    res = labcli("validate", str(run), "--model", str(model))
+    assert res.exit_code == 0, res.output
+    assert "captures" not in res.stderr
+    res = labcli("predict", str(run), "--model", str(model))
+    assert res.exit_code == 0 and res.stderr == "", res.output
+
+    # Live, every estimate is of one capture.
+    out = tmp_path / "live.jsonl"
+    res = labcli("sense", "--port", PORT, "--model", str(model), "--seconds", "0.5", "--jsonl", str(out))
+    assert res.exit_code == 0, res.output
+    assert res.stderr.startswith(narrow(f"The model file {model}", "the live loads"))
+    assert out.read_text().count("\n") > 0  # warned, not refused
+
+
+def test_a_model_of_one_capture_a_load_on_averaged_rows_is_said_too_wide(two, tmp_path):
+    run, _ = two
+    single = tmp_path / "one.json"
+    res = labcli("fit", str(Path(__file__).resolve().parents[3] / "sample_runs" / "force.h5"), "-o", str(single))
+    assert res.exit_code == 0, res.output
+    res = labcli("predict", str(run), "--model", str(single))
+    assert res.exit_code == 0, res.output
+    assert (
+        f"Warning: The model file {single} was fitted on single captures (acquisition.captures_per_load) "
+        f"but the rows of {run} are means of 2 captures a load: its standard errors and 95 % intervals are too "
+        "wide for them.\n"
+    ) in res.stderr
+    # Nothing on a single-capture model applied live.
+    res = labcli("sense", "--port", PORT, "--model", str(single), "--seconds", "0.2", "--jsonl", str(tmp_path / "o"))
+    assert res.exit_code == 0 and "captures" not in res.stderr, res.output
+
+
+@pytest.mark.parametrize("name", ["force.model.json", "bent.model.json", "force-paper.model.json"])
+def test_model_files_of_one_capture_a_load_carry_no_captures_key_and_read_back_byte_for_byte(name, tmp_path):
+    from labcli.papers.takuma2014.models.posture import force_model_from_json, load_force_model
+
+    path = Path(__file__).resolve().parents[3] / "sample_runs" / name
+    model = load_force_model(path)
+    assert model.captures_per_load == 1 and "captures_per_load" not in path.read_text()
+    assert model.to_json() == path.read_text()
+    model.captures_per_load = 3
+    again = force_model_from_json(model.to_json(), name="the model m.json")
+    assert again.captures_per_load == 3 and '"captures_per_load": 3' in model.to_json()
+    for bad in ("0", "2.5", "true", '"2"'):
+        text = model.to_json().replace('"captures_per_load": 3', f'"captures_per_load": {bad}')
+        with pytest.raises(ModelError, match="^The model m.json: key 'captures_per_load' must be a whole number"):
+            force_model_from_json(text, name="the model m.json")
 
 
 def test_split_assigns_whole_loads_and_counts_loads(interrupted, tmp_path):

@@ -70,7 +70,10 @@ def test_the_terms_are_offered_only_when_asked_and_a_relieved_run_keeps_its_own(
             "rate_hz = 200.0\n", "rate_hz = 200.0\nfriction_relief_s = 3.0\nfriction_relief_vent_s = 2.0\n"
         )
     )
-    assert friction_of(load_protocol(str(path)), True) == "relieved"
+    relieved = load_protocol(str(path))
+    assert friction_of(relieved, True) == "relieved"
+    # --no-friction-terms on a relieved run: the plain posture form, the one the board computes.
+    assert friction_of(relieved, False) is False
 
 
 def test_the_paper_form_refuses_the_friction_terms_in_a_sentence(acquired_csv, tmp_path) -> None:

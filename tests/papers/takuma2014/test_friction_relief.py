@@ -93,7 +93,7 @@ def test_a_protocol_that_vents_before_each_baseline_has_the_fit_offer_the_reliev
             "rate_hz = 200.0\n", "rate_hz = 200.0\nfriction_relief_s = 3.0\nfriction_relief_vent_s = 2.0\n"
         )
     )
-    assert friction_of(load_protocol(str(path))) == "relieved"
+    assert friction_of(load_protocol(str(path)), True) == "relieved"
     with pytest.raises(ModelError, match="Unknown friction terms 'sometimes'"):
         PostureModel(geometry=shipped.settings.rig, friction="sometimes").fit(None)
 

@@ -5,10 +5,14 @@
   so that an estimate from inputs outside them can be flagged ``out-of-range``
   (:mod:`..sensing`);
 * ``baseline``: how the fit trials' P0 was taken (:mod:`.leak`): ``p0_leak_corrected`` and the
-  median baseline-to-capture ``gap_s`` (null when the trials carried no window times).
+  median baseline-to-capture ``gap_s`` (null when the trials carried no window times);
+* ``captures_per_load``: how many captures each fit row averaged (``acquisition.captures_per_load``),
+  written only when more than one, so that a model of one capture a load is written as before.
+  The standard errors of a model fitted on averaged rows are an averaged row's
+  (:mod:`..captures`), too narrow for one capture: the commands applying it say so.
 
-Both are optional: a model file written before them reads as "no range known" and "P0 as
-measured, gap unknown".
+All are optional: a model file written before them reads as "no range known", "P0 as
+measured, gap unknown" and "one capture a load".
 """
 
 from __future__ import annotations
@@ -107,3 +111,20 @@ def check_baseline(value: Any, name: str) -> tuple[bool, float | None]:
 
 def baseline_dict(corrected: bool, gap_s: float | None) -> dict[str, Any]:
     return {"p0_leak_corrected": bool(corrected), "gap_s": gap_s}
+
+
+def check_captures(value: Any, name: str) -> int:
+    """A model file's ``captures_per_load``, checked; absent: 1."""
+    if value is None:
+        return 1
+    if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= 100:
+        raise ModelError(
+            f"{name[:1].upper()}{name[1:]}: key 'captures_per_load' must be a whole number of captures, "
+            "1 to 100; refit with `labcli fit`."
+        )
+    return value
+
+
+def captures_dict(captures: int) -> dict[str, int]:
+    """The model file's ``captures_per_load`` entry: none for one capture a load (files as before)."""
+    return {"captures_per_load": int(captures)} if captures > 1 else {}

@@ -28,12 +28,13 @@ from __future__ import annotations
 import hashlib
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ....core.report import captures_warning
 from ....errors import ModelError
 from . import routes as rt
 from .posture import (
@@ -63,6 +64,7 @@ class Export:
     form: str
     routes: dict[str, str]
     protocol: str
+    warnings: list[str] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- C text
@@ -252,15 +254,24 @@ def export(model: str | Path, *, c: str | Path, protocol: str | None = None, **_
     if beyond:
         raise ModelError(
             f"The model file {model} uses the relieved run's friction terms ({', '.join(beyond)}), which the "
-            "board's estimator does not compute (it keeps no friction relief); fit the run without them."
+            "board's estimator does not compute (it keeps no friction relief); refit without them "
+            f"(`labcli fit {m.source or 'RUN.h5'} --no-friction-terms`) and export that model."
         )
     channels = tuple(proto.channels)
     text = c_header(m, proto.calibration, channels, source=str(model))
     atomic_write(c, text.encode("ascii"), what="the C header to ")
     routes = {q: m.route(q) for q in rt.QUANTITIES} if isinstance(m, PostureModel) else {}
     model_id = text.split('#define MODEL_ID "', 1)[1][:8]
+    # The board estimates each load from one capture of it.
+    narrow = captures_warning(f"the model file {model}", m.captures_per_load, "the board's loads", 1)
     return Export(
-        Path(c), Path(model), model_id, "posture" if isinstance(m, PostureModel) else "paper", routes, proto.name
+        Path(c),
+        Path(model),
+        model_id,
+        "posture" if isinstance(m, PostureModel) else "paper",
+        routes,
+        proto.name,
+        [narrow] if narrow else [],
     )
 
 
@@ -268,6 +279,8 @@ def show(result: Export, **_: Any) -> None:
     import click
 
     routes = ", ".join(f"{q} {r}" for q, r in result.routes.items()) or "the paper's Eqs. 34-37"
+    for w in result.warnings:
+        click.echo(f"Warning: {w}", err=True)
     click.echo(
         f"Wrote {result.header}: the {result.form} model {result.model} (id {result.model_id}; {routes}), "
         f"calibration of protocol {result.protocol}."

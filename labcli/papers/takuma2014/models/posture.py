@@ -74,7 +74,7 @@ from ....core.jsontext import dumps_indented
 from ....core.nogc import paused_gc
 from ....errors import ModelError
 from . import routes as rt
-from .calibrated import baseline_dict, calibrated_range, check_baseline, check_range
+from .calibrated import baseline_dict, calibrated_range, captures_dict, check_baseline, check_captures, check_range
 from .geometry import jacobian
 from .history import motion_from, motion_into_baseline, previous_rows, rows_of
 from .labels import apply_play
@@ -696,6 +696,7 @@ class PostureModel:
     friction: bool | str = False
     # How many relieved baselines make a trial's P0 (RELIEVED_BASELINES on a relieved run; 1: its own).
     baseline_mean: int = 1
+    captures_per_load: int = 1  # captures each fit row averaged (.calibrated); its standard errors are such a mean's
     # The fit trials' span, and how their P0 was taken (models/calibrated.py, models/leak.py).
     calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
     p0_leak_corrected: bool = False
@@ -1306,6 +1307,7 @@ class PostureModel:
                 "baseline": baseline_dict(self.p0_leak_corrected, self.baseline_gap_s),
                 "baseline_mean": self.baseline_mean,
                 "labels": {"play": self.label_play, **self.play},
+                **captures_dict(self.captures_per_load),
             }
         )
 
@@ -1385,6 +1387,7 @@ class PostureModel:
         if not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 100:
             bad("baseline_mean", "must be a whole number of baselines, 1 to 100")
         model.baseline_mean = k
+        model.captures_per_load = check_captures(d.get("captures_per_load"), name)
         model.label_play, model.play = labels_from_dict(d.get("labels"), name)
         return model
 

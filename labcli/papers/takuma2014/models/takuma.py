@@ -474,6 +474,7 @@ class TakumaModel:
     calibrated_range: dict[str, list[list[float]]] = field(default_factory=dict)
     p0_leak_corrected: bool = False
     baseline_gap_s: float | None = None
+    captures_per_load: int = 1  # captures each fit row averaged (models/calibrated.py)
     # The potentiometers' play fitted with Eqs. 34-35 (models/labels.py): "fit" estimates it by least
     # squares, "loads" by two-stage least squares on the trials' loads (free of the pressure
     # readings' errors, which shorten a least-squares width; opt-in, as its width still varies from
@@ -756,6 +757,8 @@ class TakumaModel:
 
     # ---------------------------------------------------------------- JSON
     def to_dict(self) -> dict[str, Any]:
+        from .calibrated import captures_dict
+
         return _clean(
             {
                 "schema": SCHEMA,
@@ -784,6 +787,7 @@ class TakumaModel:
                 "calibrated_range": self.calibrated_range,
                 "baseline": {"p0_leak_corrected": self.p0_leak_corrected, "gap_s": self.baseline_gap_s},
                 "labels": {"play": self.label_play, **self.play},
+                **captures_dict(self.captures_per_load),
             }
         )
 
@@ -812,11 +816,12 @@ class TakumaModel:
                 f"{cap(name)} holds the {d.get('form')!r} form, not the paper's Eqs. 34-37; "
                 "this step needs a model from `labcli fit --form paper`."
             )
-        from .calibrated import check_baseline, check_range
+        from .calibrated import check_baseline, check_captures, check_range
 
         model = cls(**_model_fields(d, cap(name)))
         model.calibrated_range = check_range(d.get("calibrated_range"), name)
         model.p0_leak_corrected, model.baseline_gap_s = check_baseline(d.get("baseline"), name)
+        model.captures_per_load = check_captures(d.get("captures_per_load"), name)
         model.label_play, model.play = labels_from_dict(d.get("labels"), name)
         unknown = [k for k in model.coefficients if k not in COEFFICIENT_NAMES]
         if unknown:
