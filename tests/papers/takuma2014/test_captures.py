@@ -5,6 +5,7 @@ validate and predict reading one row per load, the mean of its captures."""
 from __future__ import annotations
 
 import io
+import json
 import os
 import signal
 from pathlib import Path
@@ -301,9 +302,16 @@ def test_predict_counts_loads_and_fit_counts_a_skipped_capture(two, tmp_path):
     # A capture skipped (here dropped from the run's export): its load is the mean of one, and fit says so.
     table = tmp_path / "two.csv"
     assert labcli("export", str(run), "-o", str(table)).exit_code == 0
-    pd.read_csv(table).drop(index=5).to_csv(table, index=False)
     proto = tmp_path / "two.toml"
     proto.write_text(load_trial_source(run).protocol.text)
+    # The export read with the run's protocol fits the run's model (not one of 72 single captures).
+    res = labcli("fit", str(table), "--protocol", str(proto), "-o", str(tmp_path / "m3.json"))
+    assert res.exit_code == 0, res.output
+    from_csv, written = (json.loads(p.read_text()) for p in (tmp_path / "m3.json", model))
+    assert from_csv["baseline_mean"] == written["baseline_mean"] == 1
+    for key in ("angle_coefficients", "torque_coefficients"):
+        np.testing.assert_allclose(from_csv[key], written[key], rtol=1e-6, err_msg=key)
+    pd.read_csv(table).drop(index=5).to_csv(table, index=False)
     res = labcli("fit", str(table), "--protocol", str(proto), "-o", str(tmp_path / "m2.json"), "--no-friction-terms")
     assert res.exit_code == 0, res.output
     assert "Each trial is the mean of its load's captures, 2 a load" in res.output
