@@ -199,7 +199,11 @@ def test_the_demo_model_is_labcli_fits_and_a_plain_classify_agrees(demo_out, tmp
     assert result.exit_code == 0, result.output
     plain = json.loads((tmp_path / "m.json").read_text())
     assert demo_model["form"] == plain["form"] == "posture"
-    for key in ("angle_coefficients", "torque_coefficients", "routes", "labels"):
+    # The whole file: the coefficients and what the model records of its trials (the baseline's
+    # gap to the capture, which `labcli sense` extrapolates the leak over, the data it was fitted on).
+    assert demo_model["baseline"]["gap_s"] > 0
+    assert set(demo_model) == set(plain)
+    for key in plain:
         assert demo_model[key] == plain[key], key
     summary = json.loads((out / "summary.json").read_text())
     result = CliRunner().invoke(

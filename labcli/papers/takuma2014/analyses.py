@@ -123,15 +123,22 @@ def _fit(
         )
     if isinstance(model, TakumaModel):
         refuse_non_finite(model, src.table, str(run))
+    stamp_fitted(model, src, run, leak_correct)
+    recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
+    paper = dict(src.protocol.settings.paper_coefficients or {})
+    records = (int(src.table.attrs.get("records", 0)), len(src.table))
+    return FitResult(model, out_path, run, recorded, paper, src.captures, records)
+
+
+def stamp_fitted(model: Any, src: Any, run: Path, leak_correct: bool = False) -> None:
+    """What a fitted model records of its trials besides its coefficients, as `labcli fit` writes it
+    (the demo's and the sample runs' models too): the data it was fitted on, how its P0 were read,
+    the captures a row averages and the fit trials' baseline-to-capture time (the leak's reach)."""
     model.fitted_on = src.identity
     model.p0_leak_corrected = leak_correct
     model.captures_per_load = src.captures
     fit_records = _fit_ids(src.table) if src.captures == 1 else record_ids(_fit_ids(src.table), src.captures)
     model.baseline_gap_s = leak.baseline_gap(run, fit_records) if src.is_run else None
-    recorded = save_model(model.to_json(), out_path, run=run if keep else None, name=model.protocol)
-    paper = dict(src.protocol.settings.paper_coefficients or {})
-    records = (int(src.table.attrs.get("records", 0)), len(src.table))
-    return FitResult(model, out_path, run, recorded, paper, src.captures, records)
 
 
 def _fit_ids(table: Any) -> Any:

@@ -148,6 +148,8 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False, progress
             files["force_run"], port, "force run", STAGES[0], progress, protocol=FORCE_PROTOCOL, valves=RUN_VALVES
         )
     with stages.run(1, "fit"):
+        from .analyses import stamp_fitted
+
         src = load_trial_source(files["force_run"])
         # The model file is the one `labcli fit force.h5` writes (the default form): the figures, the
         # classification and a plain `labcli classify` of the pushes all use it.  The paper's
@@ -155,10 +157,10 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False, progress
         paper_model = TakumaModel(geometry=src.protocol.settings.rig, protocol=src.protocol.name).fit(
             src.table, source=str(files["force_run"])
         )
-        paper_model.fitted_on = src.identity
+        stamp_fitted(paper_model, src, files["force_run"])
         save_model(paper_model.to_json(), files["paper_model"])  # the file alone: the run records the default
         model = _posture(src, files["force_run"])
-        model.fitted_on = src.identity
+        stamp_fitted(model, src, files["force_run"])
         save_model(model.to_json(), files["model"], run=files["force_run"], name=model.protocol)
     with stages.run(2, "validate"):
         evaluation = evaluate(model, src.table, "pressure-only", source=str(files["force_run"]))
@@ -236,6 +238,9 @@ def _bent_arm(port: str, files: dict[str, Path], progress: Progress | None) -> d
     )
     bent = load_trial_source(files["bent_run"])
     model = _posture(bent, files["bent_run"])
+    from .analyses import stamp_fitted
+
+    stamp_fitted(model, bent, files["bent_run"])
     save_model(model.to_json(), files["bent_model"], run=files["bent_run"], name=model.protocol)
     evaluation = evaluate(model, bent.table, "pressure-only", source=str(files["bent_run"]))
     figure7(
