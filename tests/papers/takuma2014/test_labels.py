@@ -99,6 +99,24 @@ def test_the_ratios_error_variance_is_read_from_the_pairs_common_mode():
     est = np.sqrt(ratio_error_var(u + rng.normal(0.0, s, u.shape)))
     np.testing.assert_allclose(est, s, rtol=0.2)
     assert np.all(ratio_error_var(u[:5]) == 0.0)  # too few trials to tell
+    # Chambers not supplied together: a common mode scattering far past any reading error (5 %) is
+    # not one, so nothing is corrected; one pair so, the other still read.
+    loose = u.copy()
+    loose[:, :2] += rng.normal(0.0, 0.05, n)[:, None]  # the pair's common supply drawn apart
+    v = ratio_error_var(loose + rng.normal(0.0, s, u.shape))
+    assert np.all(v[:2] == 0.0)
+    np.testing.assert_allclose(np.sqrt(v[2:]), s, rtol=0.2)
+
+
+def test_the_paper_form_recovers_the_papers_coefficients_from_its_own_equations():
+    # Trials drawn from Eqs. 34-37 alone (no play, no reading error, the pairs' pressures drawn
+    # apart): the default fit, play fit included, gives the paper's coefficients back exactly.
+    from labcli.papers.takuma2014.models.synthetic import PAPER_GEOMETRY, paper_trials
+    from labcli.papers.takuma2014.models.takuma import COEFFICIENT_NAMES, PAPER_COEFFICIENTS, fit
+
+    model = fit(paper_trials(90, seed=11, noise=False), PAPER_GEOMETRY)
+    worst = max(abs(model.coefficients[n] / PAPER_COEFFICIENTS[n] - 1) for n in COEFFICIENT_NAMES)
+    assert worst < 1e-9
 
 
 def test_a_correction_larger_than_the_scatter_is_bounded():
