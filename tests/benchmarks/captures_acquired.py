@@ -84,7 +84,7 @@ def errors(path: Path, form: str, baseline_mean: int | None = None) -> dict[str,
     """Validation errors (deg, N), which are reported and whether the 95 % interval covers; the rig's
     seconds per plan load.  ``baseline_mean``: P0 the mean of that many baselines instead of ``labcli
     fit``'s choice."""
-    from multi_capture import QUANTITIES
+    from multi_capture import error_records
 
     from labcli.papers.takuma2014.analyses import _fit_form
     from labcli.papers.takuma2014.models.inputs import load_trial_source
@@ -104,12 +104,7 @@ def errors(path: Path, form: str, baseline_mean: int | None = None) -> dict[str,
                 kw = {"geometry": proto.settings.rig, "limits": limits_from_protocol(proto), "friction": model.friction}
                 model = PostureModel(**kw, baseline_mean=baseline_mean).fit(src.table)
         ev = evaluate(model, src.table)
-    out: dict[str, Any] = {}
-    for q in QUANTITIES:
-        err = np.asarray(ev["calculated"][q] - ev["observed"][q], dtype=float)
-        out[f"{q}/err"] = err.tolist()
-        out[f"{q}/ok"] = np.asarray(ev["ok"][q], dtype=bool).tolist()
-        out[f"{q}/inside"] = (np.abs(err) <= 1.96 * np.asarray(ev["se"][q])).tolist()
+    out = error_records(ev)
     # The rig's clock from one capture's baseline to the next's (the median: the stored device times
     # start again part-way through a long run), times the captures of a load.
     starts = np.array([tb for tb, _ in window_times(path).values()])

@@ -103,7 +103,12 @@ def errors(proto: Any, table: Any, friction: Any) -> dict[str, Any]:
     from labcli.papers.takuma2014.models.posture import PostureModel, limits_from_protocol
 
     model = PostureModel(geometry=proto.settings.rig, limits=limits_from_protocol(proto), friction=friction)
-    ev = evaluate(model.fit(table), table)
+    return error_records(evaluate(model.fit(table), table))
+
+
+def error_records(ev: dict[str, Any]) -> dict[str, Any]:
+    """Per quantity of an evaluation: each validation trial's error, whether it is reported, and
+    whether its 95 % interval covers the truth (the records :func:`figures` reads)."""
     out: dict[str, Any] = {}
     for q in QUANTITIES:
         err = np.asarray(ev["calculated"][q] - ev["observed"][q], dtype=float)
