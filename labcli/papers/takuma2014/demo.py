@@ -37,6 +37,7 @@ from typing import Any
 from ...core.demo import Progress, Stages, acquire_unattended, check_outdir, simulated_port
 from ...core.figures import source_line
 from ...core.modelfile import save_model
+from .analyses import stamp_fitted
 from .figures import figure7, figure9
 from .models.classify import classify_file
 from .models.inputs import load_trial_source
@@ -148,8 +149,6 @@ def run_demo(outdir: str | Path, *, seed: int = 1, force: bool = False, progress
             files["force_run"], port, "force run", STAGES[0], progress, protocol=FORCE_PROTOCOL, valves=RUN_VALVES
         )
     with stages.run(1, "fit"):
-        from .analyses import stamp_fitted
-
         src = load_trial_source(files["force_run"])
         # The model file is the one `labcli fit force.h5` writes (the default form): the figures, the
         # classification and a plain `labcli classify` of the pushes all use it.  The paper's
@@ -238,8 +237,6 @@ def _bent_arm(port: str, files: dict[str, Path], progress: Progress | None) -> d
     )
     bent = load_trial_source(files["bent_run"])
     model = _posture(bent, files["bent_run"])
-    from .analyses import stamp_fitted
-
     stamp_fitted(model, bent, files["bent_run"])
     save_model(model.to_json(), files["bent_model"], run=files["bent_run"], name=model.protocol)
     evaluation = evaluate(model, bent.table, "pressure-only", source=str(files["bent_run"]))
