@@ -95,8 +95,12 @@ def read_rows(path: Path) -> Any:
             )
         if kind == "push":
             return load_pushes(path)
-        # One row per load of a run of several captures a load, as fit and validate read it (.captures).
-        return averaged(load_trials(path), captures_of(loads_protocol(text)) if text.strip() else 1)
+        # One row per load of a run of several captures a load, as fit and validate read it (.captures);
+        # the rows say how many captures each averages, for the model's intervals' warning.
+        captures = captures_of(loads_protocol(text)) if text.strip() else 1
+        rows = averaged(load_trials(path), captures)
+        rows.attrs["captures_per_load"] = captures
+        return rows
     return read_table(path, NEW_DATA)
 
 
@@ -150,9 +154,9 @@ def predict_file(
     model = TakumaSensing(load_force_model(model_path), margin=margin)
     rows = read_rows(Path(table))
     records = int(rows.attrs.get("records", 0))  # set by captures.averaged, for the sentence
-    captured = 1  # a table's rows are taken as they are; a run's as read_rows averaged them
+    captured = int(rows.attrs.get("captures_per_load", 1))  # a table's rows are taken as they are
     if table.suffix.lower() in RUN_FILE_SUFFIXES:
-        captured = _check_rig(model, table, model_path)
+        _check_rig(model, table, model_path)
     fitted = getattr(model.model, "captures_per_load", 1)
     warning = captures_warning(f"the model file {model_path}", fitted, f"the rows of {table}", captured)
     out = estimate_table(rows, model)
@@ -162,9 +166,8 @@ def predict_file(
     return PredictResult(out, output, str(model_path), len(out), flagged, records, [warning] if warning else [])
 
 
-def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> int:
-    """A run of another protocol or rig than the model's is refused, as validate and classify refuse it;
-    the captures each of its rows averages (:func:`read_rows`)."""
+def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> None:
+    """A run of another protocol or rig than the model's is refused, as validate and classify refuse it."""
     from ...core.protocol import loads_protocol
     from ...core.store import RunFile
     from .models.classify import check_force_model
@@ -172,14 +175,13 @@ def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> int:
     with RunFile.open(run) as rf:
         kind, text = rf.kind, rf.protocol_text
     if not text.strip():
-        return 1  # a run without its protocol (imported from a table): nothing to compare
+        return  # a run without its protocol (imported from a table): nothing to compare
     protocol = loads_protocol(text, source=f"{run} (embedded protocol)")
     name = f"the model file {model_path}"
     if kind == "force":
         model.model.check_compatible(protocol.name, protocol.settings.rig, model_name=name, run_name=str(run))
-        return captures_of(protocol)
-    check_force_model(model.model, protocol, model_name=name, run_name=str(run))
-    return 1
+    else:
+        check_force_model(model.model, protocol, model_name=name, run_name=str(run))
 
 
 def show_predict(result: PredictResult, *, as_json: bool = False) -> None:
