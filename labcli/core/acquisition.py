@@ -124,7 +124,8 @@ def _resume(path: str, protocol: str | None, options: AcquireOptions) -> tuple[A
                 1
             ]
         resumed = replace(options, resume=existing)
-        acq = check_captures(paper, paper.acquisition(proto, resumed), resumed)
+        check_captures(paper, proto, resumed)
+        acq = paper.acquisition(proto, resumed)
         if given_plan is not None:  # the same plan again is harmless; another one would change the run
             planned = paper.acquisition(proto, replace(options, plan=given_plan)).plan
             if not same_plan(acq.plan, planned):
@@ -165,28 +166,30 @@ def _plan_new(path: str, protocol: str | None, options: AcquireOptions, force: b
     if Path(path).exists() and not force:
         raise StoreError(f"{path} already exists; {RESUME_OR_FORCE}.")
     paper, proto = run_protocol(load_protocol(protocol or default_protocol("acquire")), options.experiment)
-    return check_captures(paper, paper.acquisition(proto, options), options)
+    check_captures(paper, proto, options)
+    return paper.acquisition(proto, options)
 
 
-def check_captures(paper: Any, acq: Any, options: AcquireOptions) -> Any:
-    """``acq`` when its run may take each load as many times as ``--captures`` or the protocol's
-    ``acquisition.captures_per_load`` asks; more than one is refused (ConfigError) unless the paper
-    lists the run kind in ``capture_kinds``, since its session would take each load once regardless
-    (the key is judged when a run begins: one already stored goes on as it began)."""
-    if acq.kind in getattr(paper, "capture_kinds", ()):
-        return acq
-    what = f"paper {paper.name} takes each load of a {acq.kind} run once"
+def check_captures(paper: Any, protocol: Any, options: AcquireOptions) -> None:
+    """Refuse (ConfigError) more than one capture of each load, by ``--captures`` or the protocol's
+    ``acquisition.captures_per_load``, for a run kind the paper does not list in ``capture_kinds``:
+    its session would take each load once regardless.  The one place the sentence is written; its words
+    are the paper's ``single_captures[kind]`` (the unit such a run takes once, and why), else loads.
+    The key is judged when a run begins: one already stored goes on as it began."""
+    kind = protocol.kind
+    if kind in getattr(paper, "capture_kinds", ()):
+        return
+    unit, why = getattr(paper, "single_captures", {}).get(kind, ("load", ""))
+    what = why or f"paper {paper.name} takes each {unit} of a {kind} run once"
     if options.captures is not None and options.captures > 1:
-        raise ConfigError(
-            f"--captures {options.captures} asks for each load {options.captures} times, but {what}; leave it out."
-        )
-    n = acq.protocol.air.captures_per_load
+        n = options.captures
+        raise ConfigError(f"--captures {n} asks for each {unit} {n} times, but {what}; leave it out.")
+    n = protocol.air.captures_per_load
     if n > 1 and options.resume is None:  # a run begun before the key was checked goes on as it began
         raise ConfigError(
-            f"Protocol {acq.protocol.name} gives acquisition.captures_per_load = {n}, but {what}: "
+            f"Protocol {protocol.name} gives acquisition.captures_per_load = {n}, but {what}: "
             "set the key to 1 or leave it out."
         )
-    return acq
 
 
 @dataclass(frozen=True)

@@ -380,7 +380,8 @@ class Paper(Protocol):
         A paper whose runs of some kinds take each load several times (``--captures``,
         ``acquisition.captures_per_load``) lists those run kinds in an attribute ``capture_kinds``
         (a tuple, optional); the core refuses more than one capture a load for any other kind
-        (:func:`labcli.core.acquisition.check_captures`)."""
+        (:func:`labcli.core.acquisition.check_captures`), in the words of an optional attribute
+        ``single_captures``: run kind -> (the unit such a run takes once, the clause saying why)."""
 
     def analysis(self, name: str) -> Analysis | None:
         """The analysis of command ``name`` (one of :attr:`analysis_options`, or ``export-model``), or None.

@@ -15,7 +15,7 @@ from typing import Any
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType, SimulatedRig
 from ...errors import ConfigError
 from .options import DEFAULT_PROTOCOLS, OPTIONS, RPAM_PROTOCOL
-from .protocol import EXPERIMENTS, PROTOCOL_KINDS
+from .protocol import EXPERIMENTS, PROTOCOL_KINDS, SINGLE_CAPTURES
 from .sim.options import RpamRigOptions
 
 
@@ -26,6 +26,7 @@ class Rpam2015:
     protocol_kinds = PROTOCOL_KINDS
     shipped_protocols = (RPAM_PROTOCOL,)
     run_kinds = tuple(EXPERIMENTS.values())
+    single_captures = SINGLE_CAPTURES  # each point once (core.acquisition.check_captures says so)
     untagged_run_kind = None
     sim_modes = ("rpam",)
     default_sim_mode = None

@@ -39,9 +39,4 @@ def acquisition(protocol: Any, options: AcquireOptions) -> PointAcquisition:
             "--plan and --no-plan apply to force protocols; an rPAM experiment runs the "
             "grid of its protocol's [experiments] table."
         )
-    if options.captures is not None:
-        raise ConfigError(
-            "--captures takes each load of a McKibben force run several times; an rPAM experiment takes "
-            "each point of its grid once, so leave it out."
-        )
     return PointAcquisition(protocol, protocol.kind)

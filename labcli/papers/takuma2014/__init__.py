@@ -14,7 +14,7 @@ from typing import Any
 
 from ...core.paper import AcquireOptions, Analysis, Demo, RecordType, SimulatedRig
 from .options import DEFAULT_PROTOCOLS, OPTIONS, PUSH_PROTOCOL, TRIAL_PROTOCOL, SensingOptions
-from .protocol import PROTOCOL_KINDS
+from .protocol import CAPTURE_KINDS, PROTOCOL_KINDS, SINGLE_CAPTURES
 from .sim.options import McKibbenRigOptions
 
 
@@ -28,7 +28,8 @@ class Takuma2014:
     protocol_kinds = PROTOCOL_KINDS
     shipped_protocols = (TRIAL_PROTOCOL, PUSH_PROTOCOL)
     run_kinds = ("force", "push", "sense")
-    capture_kinds = ("force",)  # runs that take each load several times (acquisition.captures_per_load)
+    capture_kinds = CAPTURE_KINDS  # runs that take each load several times (acquisition.captures_per_load)
+    single_captures = SINGLE_CAPTURES  # the words of the core's refusal for the others
     untagged_run_kind = "force"  # run files from before files named their kind held force trials
     sim_modes = ("mckibben",)
     default_sim_mode = "mckibben"

@@ -11,7 +11,7 @@ from ...core.paper import AcquireOptions, Session
 from ...core.protocol import with_captures
 from ...core.words import count
 from ...errors import ConfigError
-from .protocol import load_plan
+from .protocol import CAPTURE_KINDS, load_plan
 from .push_plan import load_push_plan, plan_objects
 from .push_session import push_session
 from .session import PRESSURE_NAMES, force_session, planned_trials
@@ -174,21 +174,12 @@ def _check_captures(protocol: Any, plan: Any) -> None:
 
 
 def _captured(protocol: Any, options: AcquireOptions) -> Any:
-    """The protocol with ``--captures`` written in (a new run), or checked against the run's (a resumed one);
-    a push protocol takes neither the option nor ``captures_per_load`` above 1."""
+    """A force protocol with ``--captures`` written in (a new run), or checked against the run's (a resumed
+    one).  A push protocol is left as it is: the core refuses more than one capture for it
+    (:func:`labcli.core.acquisition.check_captures`, in the words of ``single_captures``)."""
     n = options.captures
-    if protocol.kind == "push" and protocol.air.captures_per_load > 1 and options.resume is None:
-        raise ConfigError(
-            f"Protocol {protocol.name} gives acquisition.captures_per_load = {protocol.air.captures_per_load}, "
-            "but it records pushes, each its own: set the key to 1 or leave it out."
-        )
-    if n is None:
+    if n is None or protocol.kind not in CAPTURE_KINDS:
         return protocol
-    if protocol.kind == "push":
-        raise ConfigError(
-            f"--captures takes each load of a force run {n} times; protocol {protocol.name} records pushes, "
-            "each its own, so leave it out."
-        )
     if options.resume is None:
         return with_captures(protocol, n)
     if protocol.air.captures_per_load != n:

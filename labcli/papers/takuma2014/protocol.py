@@ -225,6 +225,11 @@ PROTOCOL_KINDS: dict[str, ProtocolKind] = {
     ),
 }
 
+# Run kinds that take each load several times (--captures, acquisition.captures_per_load), and for
+# the others what the core's refusal says each takes once, and why (core.acquisition.check_captures).
+CAPTURE_KINDS = ("force",)
+SINGLE_CAPTURES: dict[str, tuple[str, str]] = {"push": ("push", "a push run records pushes, each its own")}
+
 
 def load_plan(protocol: Any) -> Any:
     """The plan named by ``trials.plan`` as a DataFrame, checked against the protocol."""

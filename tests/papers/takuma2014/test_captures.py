@@ -160,14 +160,51 @@ def test_acquire_captures_writes_the_number_into_the_runs_protocol_and_resume_ke
     [
         (("--captures", "11"), "captures_per_load"),
         (("--captures", "0"), "0 is not in the range x>=1"),
-        (("--protocol", "takuma2014-stiffness", "--captures", "2"), "records pushes, each its own"),
-        (("--protocol", "rpam2015", "--experiment", "stretch", "--captures", "2"), "each point of its grid once"),
     ],
 )
 def test_acquire_refuses_captures_it_cannot_take_in_one_sentence(tmp_path, args, said):
     res = labcli("acquire", str(tmp_path / "x.h5"), "--port", PORT, "--unattended", *args)
     assert res.exit_code != 0 and said in res.output and "Traceback" not in res.output, res.output
     assert not (tmp_path / "x.h5").exists()
+
+
+ONCE = {  # run kinds taking each unit once: (their protocol's arguments, the unit, why), the papers' words
+    "push": (("--protocol", "takuma2014-stiffness"), "push", "a push run records pushes, each its own"),
+    "stretch": (
+        ("--protocol", "rpam2015", "--experiment", "stretch"),
+        "load",
+        "an rPAM experiment takes each point of its grid once",
+    ),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(ONCE))
+def test_a_run_kind_taking_each_unit_once_refuses_captures_in_one_sentence_of_the_core(kind, tmp_path):
+    """The core's check_captures is the one place the refusal is written, in the words of the paper's
+    ``single_captures``: the option and the protocol's key above 1 refused before the rig is woken, and
+    ``--captures 1`` (the default) taken as it is."""
+    from labcli.core.acquisition import check_captures
+    from labcli.core.paper import AcquireOptions
+    from labcli.core.registry import run_protocol
+
+    args, unit, why = ONCE[kind]
+    port = PORT if kind == "push" else "sim://?mode=rpam&seed=1&clock=virtual"
+    run = tmp_path / "x.h5"
+    res = labcli("acquire", str(run), "--port", port, "--unattended", *args, "--captures", "2")
+    assert res.exit_code == 1 and not run.exists()
+    assert res.output == f"Error: --captures 2 asks for each {unit} 2 times, but {why}; leave it out.\n"
+    name = args[1]
+    proto = tmp_path / "three.toml"
+    proto.write_text(load_protocol(name).text.replace("[acquisition]\n", "[acquisition]\ncaptures_per_load = 3\n"))
+    res = labcli("acquire", str(run), "--port", port, "--unattended", "--protocol", str(proto), *args[2:])
+    assert res.exit_code == 1 and not run.exists()
+    assert res.output == (
+        f"Error: Protocol {name} gives acquisition.captures_per_load = 3, but {why}: set the key to 1 or leave it out.\n"
+    )
+    paper, given = run_protocol(load_protocol(name), args[3] if len(args) > 2 else None)
+    one = AcquireOptions(str(run), unattended=True, captures=1)
+    check_captures(paper, given, one)
+    assert paper.acquisition(given, one).protocol.text == given.text  # the protocol as written
 
 
 def test_a_protocol_giving_another_number_of_captures_is_refused(tmp_path):
@@ -229,18 +266,6 @@ def test_captures_given_without_an_acquisition_header_are_refused_in_one_sentenc
     assert str(err.value) == (
         "takuma2014 gives its acquisition settings without an [acquisition] table header; "
         "write captures_per_load = 2 there instead of --captures 2."
-    )
-
-
-def test_a_push_protocol_giving_several_captures_a_load_is_refused_in_one_sentence(tmp_path):
-    proto = tmp_path / "push.toml"
-    text = load_protocol("takuma2014-stiffness").text
-    proto.write_text(text.replace("[acquisition]\n", "[acquisition]\ncaptures_per_load = 3\n"))
-    res = labcli("acquire", str(tmp_path / "x.h5"), "--port", PORT, "--unattended", "--protocol", str(proto))
-    assert res.exit_code == 1 and not (tmp_path / "x.h5").exists()
-    assert res.output == (
-        "Error: Protocol takuma2014-stiffness gives acquisition.captures_per_load = 3, but it records pushes, "
-        "each its own: set the key to 1 or leave it out.\n"
     )
 
 
