@@ -42,9 +42,11 @@ from .settings import Bounds, JointMapGrid, OptimizeSettings, RpamSettings, Sens
 
 # ``--experiment`` choices and the run kinds they record.
 EXPERIMENTS: dict[str, str] = {"stretch": "rpam-stretch", "joint": "rpam-joint"}
-# Why an experiment refuses --captures (acquisition.captures_per_load), for the core's refusal.
+# What an experiment takes once where --captures (acquisition.captures_per_load) takes a McKibben load
+# several times, for the core's refusal: a point of its grid (a pressure with a payload, or two pressures),
+# not a load (a stretch test's payload hangs on many points).
 SINGLE_CAPTURES: dict[str, tuple[str, str]] = {
-    kind: ("load", "an rPAM experiment takes each point of its grid once") for kind in EXPERIMENTS.values()
+    kind: ("point", "an rPAM experiment takes each point of its grid once") for kind in EXPERIMENTS.values()
 }
 # The stand's channels, in the order of [sensors]: two pressures, the joint angle, actuator a's length.
 CHANNELS = ("P_A", "P_B", "POT", "LEN")

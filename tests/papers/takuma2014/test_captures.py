@@ -172,7 +172,12 @@ ONCE = {  # run kinds taking each unit once: (their protocol's arguments, the un
     "push": (("--protocol", "takuma2014-stiffness"), "push", "a push run records pushes, each its own"),
     "stretch": (
         ("--protocol", "rpam2015", "--experiment", "stretch"),
-        "load",
+        "point",  # the rPAM paper's word: a stretch test's payload (load) hangs on many points
+        "an rPAM experiment takes each point of its grid once",
+    ),
+    "joint": (
+        ("--protocol", "rpam2015", "--experiment", "joint"),
+        "point",
         "an rPAM experiment takes each point of its grid once",
     ),
 }
