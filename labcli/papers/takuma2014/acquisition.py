@@ -47,7 +47,11 @@ class ForceAcquisition:
             run.split.set(
                 [t for t, v in sets.items() if v == "fit"], [t for t, v in sets.items() if v == "validation"], "plan"
             )
-        return f"All {len(rows)} planned trials are already stored in {path}; nothing to resume."
+        n = self.protocol.air.captures_per_load  # a trial is a plan load, of n captures (records)
+        trials = f"{len(rows)} planned trials"
+        if n > 1:
+            trials = f"{len(rows)} captures of the {count(len(rows) // n, 'planned trial')}"
+        return f"All {trials} are already stored in {path}; nothing to resume."
 
 
 @dataclass
