@@ -39,11 +39,10 @@ class SplitDone:
         how = self.strategy if self.seed is None else f"{self.strategy}, seed {self.seed}"
         unassigned = self.total - self.fit - self.validation
         where = self.path if not self.written else f"{self.path} -> {self.written} (its set column)"
-        of = (
-            count(self.total, "completed trial")
-            if self.captures == 1
-            else f"{count(self.total, 'load')} (the loads of {count(self.records, 'capture')}, {self.captures} a load)"
-        )
+        # One bracket: a run of several captures a load says its captures beside the strategy.
+        of = count(self.total, "completed trial")
+        if self.captures > 1:
+            of, how = count(self.total, "load"), f"{count(self.records, 'capture')}, {self.captures} a load; {how}"
         text = f"{where}: {self.fit} fit, {self.validation} validation, {unassigned} unassigned of {of} ({how})."
         return text + (f" {self.sizes[:1].upper()}{self.sizes[1:]}." if self.sizes else "")
 

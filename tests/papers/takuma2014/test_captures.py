@@ -471,7 +471,11 @@ def test_split_assigns_whole_loads_and_counts_loads(interrupted, tmp_path):
             s = rf.split.get()
         assert sorted((s["fit"], s["validation"])) == [[1, 2, 3], [4, 5, 6]], seed
         assert (done.fit, done.validation, done.total) == (1, 1, 2)
-    assert "1 fit, 1 validation, 0 unassigned of 2 loads (the loads of 6 captures, 3 a load)" in done.sentence()
+    # labcli split says it in one sentence of one bracket, captures beside the strategy.
+    res = labcli("split", str(run), "--fit", "1", "--validation", "1", "--strategy", "random", "--seed", "5")
+    assert res.exit_code == 0 and res.output == (
+        f"{run}: 1 fit, 1 validation, 0 unassigned of 2 loads (6 captures, 3 a load; random, seed 5).\n"
+    )
     # The protocol's 90 + 18 on 2 loads keeps its proportion over loads, not over the 6 captures.
     done = split(run)
     assert (done.fit, done.validation) == (1, 1)
