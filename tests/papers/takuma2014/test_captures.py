@@ -83,7 +83,8 @@ def test_an_interrupted_load_resumes_at_its_next_capture_and_ends_with_n_capture
     assert df["mass_g"].tolist() == [800.0] * N + [500.0] * N  # each load's captures in a row
     # A resumed run asks for no capture already stored, and the finished one for nothing more.
     again = acquire(path, PORT, resume=True, unattended=True, ui=quiet())
-    assert again.exit_code == 0 and again.message.startswith("All 6 planned trials are already stored")
+    assert again.exit_code == 0
+    assert again.message.startswith("All 6 captures of the 2 planned trials are already stored")
 
 
 def test_fit_validate_and_predict_read_each_load_as_the_mean_of_its_captures(interrupted):
