@@ -80,28 +80,35 @@ class PredictResult:
 
 def read_rows(path: Path) -> Any:
     """The rows of a run file (its trials or pushes) or of a CSV table of new data (DataFrame)."""
+    return _read(path)[0]
+
+
+def _read(path: Path) -> tuple[Any, tuple[str, Any] | None]:
+    """The rows of ``path`` and, for a run file, its kind and embedded protocol (None: a run without
+    one, imported from a table), from one opening of the file and one reading of the protocol."""
     if not path.exists():
         raise ConfigError(f"{path} does not exist; pass a table (.csv) of pressures or a run file (.h5).")
-    if path.suffix.lower() in RUN_FILE_SUFFIXES:
-        from ...core.store import RunFile
-        from .records import load_pushes, load_trials
+    if path.suffix.lower() not in RUN_FILE_SUFFIXES:
+        return read_table(path, NEW_DATA), None
+    from ...core.store import RunFile
+    from .records import RECORD_TYPES
 
-        with RunFile.open(path) as run:
-            kind = run.kind
-            text = run.protocol_text if kind == "force" else ""
+    with RunFile.open(path) as run:
+        kind = run.kind
         if kind not in ("force", "push"):
             raise ConfigError(
                 f"{path} is a run of kind '{kind}'; predict reads the trials or pushes of a McKibben run."
             )
-        if kind == "push":
-            return load_pushes(path)
-        # One row per load of a run of several captures a load, as fit and validate read it (.captures);
-        # the rows say how many captures each averages, for the model's intervals' warning.
-        captures = captures_of(loads_protocol(text)) if text.strip() else 1
-        rows = averaged(load_trials(path), captures)
-        rows.attrs["captures_per_load"] = captures
-        return rows
-    return read_table(path, NEW_DATA)
+        text, table = run.protocol_text, run.records.table(RECORD_TYPES[kind])
+    protocol = loads_protocol(text, source=f"{path} (embedded protocol)") if text.strip() else None
+    if kind == "push":
+        return table, (kind, protocol)
+    # One row per load of a run of several captures a load, as fit and validate read it (.captures);
+    # the rows say how many captures each averages, for the model's intervals' warning.
+    captures = captures_of(protocol) if protocol is not None else 1
+    rows = averaged(table, captures)
+    rows.attrs["captures_per_load"] = captures
+    return rows, (kind, protocol)
 
 
 def estimate_table(rows: Any, model: TakumaSensing) -> Any:
@@ -152,11 +159,11 @@ def predict_file(
         check_output(output, inputs=(table, model_path), what="the estimates to ")
     margin = (options or PredictOptions()).range_margin
     model = TakumaSensing(load_force_model(model_path), margin=margin)
-    rows = read_rows(Path(table))
+    rows, run = _read(Path(table))
     records = int(rows.attrs.get("records", 0))  # set by captures.averaged, for the sentence
     captured = int(rows.attrs.get("captures_per_load", 1))  # a table's rows are taken as they are
-    if table.suffix.lower() in RUN_FILE_SUFFIXES:
-        _check_rig(model, table, model_path)
+    if run is not None:
+        _check_rig(model, run, table, model_path)
     fitted = getattr(model.model, "captures_per_load", 1)
     warning = captures_warning(f"the model file {model_path}", fitted, f"the rows of {table}", captured)
     out = estimate_table(rows, model)
@@ -166,22 +173,19 @@ def predict_file(
     return PredictResult(out, output, str(model_path), len(out), flagged, records, [warning] if warning else [])
 
 
-def _check_rig(model: TakumaSensing, run: Path, model_path: Path) -> None:
-    """A run of another protocol or rig than the model's is refused, as validate and classify refuse it."""
-    from ...core.protocol import loads_protocol
-    from ...core.store import RunFile
+def _check_rig(model: TakumaSensing, run: tuple[str, Any], path: Path, model_path: Path) -> None:
+    """A run (its kind and embedded protocol, from :func:`_read`) of another protocol or rig than the
+    model's is refused, as validate and classify refuse it."""
     from .models.classify import check_force_model
 
-    with RunFile.open(run) as rf:
-        kind, text = rf.kind, rf.protocol_text
-    if not text.strip():
+    kind, protocol = run
+    if protocol is None:
         return  # a run without its protocol (imported from a table): nothing to compare
-    protocol = loads_protocol(text, source=f"{run} (embedded protocol)")
     name = f"the model file {model_path}"
     if kind == "force":
-        model.model.check_compatible(protocol.name, protocol.settings.rig, model_name=name, run_name=str(run))
+        model.model.check_compatible(protocol.name, protocol.settings.rig, model_name=name, run_name=str(path))
     else:
-        check_force_model(model.model, protocol, model_name=name, run_name=str(run))
+        check_force_model(model.model, protocol, model_name=name, run_name=str(path))
 
 
 def show_predict(result: PredictResult, *, as_json: bool = False) -> None:

@@ -352,6 +352,34 @@ def test_predict_counts_loads_and_fit_counts_a_skipped_capture(two, tmp_path):
     assert "or fewer where one was skipped (71 of 72 read)" in res.output
 
 
+def test_predict_opens_the_run_once_and_reads_its_protocol_once(two, monkeypatch):
+    """The rows, the captures they average and the rig check come from one opening of the run file and
+    one reading of its embedded protocol (they were three openings and two readings)."""
+    from labcli.core import protocol as core_protocol
+    from labcli.core.store import RunFile as Run
+    from labcli.papers.takuma2014 import predict
+
+    run, model = two
+    calls = {"open": 0, "protocol": 0}
+    opened, parsed = Run.open.__func__, core_protocol.loads_protocol
+
+    def counted_open(cls, *args, **kwargs):
+        if Path(args[0]) == run:
+            calls["open"] += 1
+        return opened(cls, *args, **kwargs)
+
+    def counted_protocol(*args, **kwargs):
+        calls["protocol"] += 1
+        return parsed(*args, **kwargs)
+
+    monkeypatch.setattr(Run, "open", classmethod(counted_open))
+    monkeypatch.setattr(core_protocol, "loads_protocol", counted_protocol)
+    monkeypatch.setattr(predict, "loads_protocol", counted_protocol)
+    result = predict.predict_file(run, model_path=model)
+    assert (result.rows, result.records) == (36, 72)  # still one row per load, the means of its captures
+    assert calls == {"open": 1, "protocol": 1}
+
+
 def test_no_friction_terms_fits_the_plain_posture_form_on_a_relieved_run_and_exports_it(two, tmp_path):
     """--no-friction-terms is honoured on a relieved run (every run of several captures a load by
     default): the plain form, which export-model carries to the board; the refusal of the relieved
