@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from .words import count
+
 
 def report_console(*, markup: bool = False) -> Any:
     """A rich console for a report, as wide as the terminal (COLUMNS, else 80 when piped).
@@ -148,6 +150,9 @@ def records_line(s: dict[str, Any]) -> str:
     """``  trials      12 complete, 1 incomplete (13), 108 planned``."""
     rec = s["records"]
     planned = "" if s["planned"] is None else f", {s['planned']} planned"
+    n = s.get("captures_per_load", 1)
+    if n > 1 and s["planned"] is not None:  # the captures' plan trials (loads), as labcli split counts them
+        planned += f" ({count(s['planned'] // n, 'plan trial')}, {n} captures each)"
     incomplete = f" ({ids_text(s['incomplete_ids'])})" if s["incomplete"] else ""
     return f"  {rec:<11} {s['complete']} complete, {s['incomplete']} incomplete{incomplete}{planned}"
 
@@ -158,7 +163,8 @@ def split_line(s: dict[str, Any]) -> str:
     if sp is None:
         return "  split       none (labcli split assigns one)"
     how = sp["strategy"] + ("" if sp["seed"] is None else f", seed {sp['seed']}")
-    return f"  split       {sp['fit']} fit, {sp['validation']} validation, {sp['unassigned']} unassigned ({how})"
+    unit = " captures" if s.get("captures_per_load", 1) > 1 else ""  # labcli split counts their loads
+    return f"  split       {sp['fit']} fit, {sp['validation']} validation, {sp['unassigned']} unassigned{unit} ({how})"
 
 
 def settling_line(s: dict[str, Any]) -> str:

@@ -155,6 +155,7 @@ def _choose_loads(
 
 
 def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, seed: int | None) -> SplitDone:
+    from .air import run_captures
     from .store import RunFile
     from .store.split import default_sizes
 
@@ -168,21 +169,11 @@ def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, s
             defaults: tuple[int, int] | None = default_sizes(rf.protocol_text, path)
         except ConfigError:
             defaults = None
-        n = _captures(rf.protocol_text, path)
+        n = run_captures(rf.protocol_text, path)
         fit, val, (fits, vals, units), note = _choose_loads(list(ids), n, defaults, n_fit, n_val, strategy, seed, path)
         used_seed = (0 if seed is None else seed) if strategy == "random" else None
         rf.split.set(fit, val, strategy, used_seed)
     return SplitDone(path, fits, vals, units, strategy, used_seed, note, "", n, len(ids))
-
-
-def _captures(protocol_text: str, path: str) -> int:
-    """The captures a run took of each load (1 when its protocol does not say or cannot be read)."""
-    from .protocol import loads_protocol
-
-    try:
-        return _captures_of(loads_protocol(protocol_text, source=f"{path} (embedded protocol)"))
-    except ConfigError:
-        return 1
 
 
 def _captures_of(protocol: Any) -> int:

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..air import run_captures
 from .unused import counts as unused_counts
 from .unused import describe
 
@@ -60,6 +61,9 @@ def summarise(run: RunFile) -> dict[str, Any]:
             out["notes"] = [
                 {**n, "about": "the run" if n["record"] is None else f"{rt.noun} {n['record']}"} for n in notes
             ]
+    n = run_captures(run.protocol_text, run.path) if plan is not None else 1
+    if n > 1:  # a record is one capture of a plan trial (acquisition.captures_per_load): counted as such
+        out.update(records="captures", planned=int(len(plan)) * n, captures_per_load=n)
     if rec.damaged:
         out["damaged"] = [f"{what}: {why}" for what, why in rec.damaged]
     s = run.split.get()

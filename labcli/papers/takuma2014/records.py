@@ -175,7 +175,7 @@ def drift_lines(s: dict[str, Any]) -> list[str]:
     for name, d in drift.items():
         lines.append(
             f"    {name:<5} first {d['first_MPa']:.4f} MPa, last {d['last_MPa']:.4f} MPa, "
-            f"slope {d['slope_kPa_per_trial']:+.3f} kPa/{rec[:-1] if rec == 'trials' else 'push'}, "
+            f"slope {d['slope_kPa_per_trial']:+.3f} kPa/{'push' if rec == 'pushes' else rec[:-1]}, "
             f"max deviation {d['max_deviation_kPa']:.3f} kPa"
         )
     return lines

@@ -485,6 +485,28 @@ def test_model_files_of_one_capture_a_load_carry_no_captures_key_and_read_back_b
             force_model_from_json(text, name="the model m.json")
 
 
+def test_inspect_and_runs_count_a_runs_captures_as_captures_against_its_plan_trials(interrupted, tmp_path):
+    """A run of 2 plan trials of 3 captures holds 6 records: inspect and runs count 6 captures of 6
+    planned (they said 6 trials complete of 2 planned), per capture where they count records."""
+    import shutil
+
+    run = tmp_path / "lab" / "run.h5"
+    run.parent.mkdir()
+    shutil.copy(interrupted[0], run)
+    res = labcli("inspect", str(run))
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert "  captures    6 complete, 0 incomplete, 6 planned (2 plan trials, 3 captures each)" in lines
+    assert "  split       3 fit, 3 validation, 0 unassigned captures (plan)" in lines
+    assert any(ln.startswith("  settling    median ") and " over 6 captures; " in ln for ln in lines)
+    assert "  baseline drift over 6 captures (recording order):" in lines
+    assert sum("kPa/capture, max deviation" in ln for ln in lines) == 4
+    shown = json.loads(labcli("inspect", str(run), "--json").output)
+    assert (shown["records"], shown["complete"], shown["planned"], shown["captures_per_load"]) == ("captures", 6, 6, N)
+    (row,) = json.loads(labcli("runs", str(run.parent), "--json").output)
+    assert (row["records"], row["complete"], row["planned"]) == ("captures", 6, 6)
+
+
 def test_split_assigns_whole_loads_and_counts_loads(interrupted, tmp_path):
     """With N captures a load the counts given are loads and each set takes all of a load's captures;
     a split by record would put one load's captures in both sets (seed 3 did, on 6 loads x 3)."""
