@@ -338,6 +338,13 @@ def recorded_operator(run: Any) -> str:
     return str(run.attrs.get("operator", "") or "")
 
 
+def _record_noun(acq: Any) -> str:
+    """What the session's sentences call one record: a capture where each load is taken several times
+    (``acquisition.captures_per_load``; a trial is then a load), else the record type's noun."""
+    captures = getattr(getattr(acq.protocol, "air", None), "captures_per_load", 1)
+    return "capture" if captures > 1 else record_type(acq.kind).noun
+
+
 def _engine(
     rig: Connection,
     run: RunFile | NewRun,
@@ -371,7 +378,7 @@ def _engine(
         simulated_operator=rig.operator,
         rate_hz=opts.rate_hz,
         silent_s=opts.silent_s,
-        noun=record_type(acq.kind).noun,
+        noun=_record_noun(acq),
         session=info,
         valves=valves,
     )

@@ -71,8 +71,10 @@ def test_an_interrupted_load_resumes_at_its_next_capture_and_ends_with_n_capture
     path, first, stored, resumed = interrupted
     # The capture being written when Ctrl-C came is stored whole; nothing after it.
     assert first.exit_code == 130 and stored == [1, 2, 3, 4, 5]
-    assert "5 trials stored" in first.message
+    # The session's sentences count captures (records), not trials (loads): 5 of 2 loads' 6 captures.
+    assert f"; 5 captures stored in {path} are safe. Resume with: " in first.message
     assert resumed.exit_code == 0, resumed.message
+    assert resumed.message.startswith(f"Session complete: 6 captures stored in {path} (1 this session, ")
     with RunFile.open(path) as run:
         assert run.records.ids() == [1, 2, 3, 4, 5, 6] and run.records.incomplete_ids() == []
         split = run.split.get()
@@ -141,6 +143,7 @@ def test_acquire_captures_writes_the_number_into_the_runs_protocol_and_resume_ke
     run = tmp_path / "three.h5"
     res = labcli("acquire", str(run), "--port", PORT, "--unattended", "--plan", str(plan), "--captures", "3")
     assert res.exit_code == 0, res.output
+    assert f"Session complete: 6 captures stored in {run} (6 this session, " in res.output.replace("\n", " ")
     with RunFile.open(run) as f:
         proto = loads_protocol(f.protocol_text)
         assert f.records.ids() == [1, 2, 3, 4, 5, 6]
