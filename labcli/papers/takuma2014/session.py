@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Generator, Iterable, Sequence
+from collections.abc import Callable, Generator, Iterable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any
@@ -412,6 +412,19 @@ def summary_row(record: dict) -> dict[str, str]:
     return row
 
 
+def capture_row(record: dict, planned: PlannedTrial) -> dict[str, str]:
+    """:func:`summary_row` of a force trial, which names a capture of a load taken several times by its
+    plan trial and the capture (``trial 2  capture 1/3``), as the prompts do, not by its record id."""
+    row = summary_row(record)
+    c, n = planned.capture
+    if n == 1:
+        return row
+    return {"trial": str(planned.load), "capture": f"{c}/{n}", **{k: v for k, v in row.items() if k != "trial"}}
+
+
+STILL_HANGING = "the last weight may still hang on the pulley"  # what the load check suspects of a baseline
+
+
 # --------------------------------------------------------------------------- questions
 
 
@@ -585,12 +598,13 @@ def _trial(
     record_of: Any,
     checked: Checked | None = None,
     air: AirDrift | None = None,
+    row_of: Callable[[dict], dict[str, str]] = summary_row,
 ) -> Generator[Step, Any, Any]:
     """One trial or push until accepted (True) or skipped (False).
 
     Baseline at equilibrium, the load, equilibrium, capture, the unload, then the review;
     a redo (of a wait or of the review) starts again from the baseline.
-    ``record_of(baseline, loaded, settle_baseline, settle_load)`` makes the record.
+    ``record_of(baseline, loaded, settle_baseline, settle_load)`` makes the record, ``row_of`` its review row.
     With ``checked``, a baseline that still carries the last load asks for it to be taken
     off, and a load the readings did not follow makes redo the review's default.  A load
     prompt answered with new values (its ``change``) returns them: nothing was loaded, and
@@ -642,7 +656,7 @@ def _trial(
             if weak
             else ()
         )
-        decision = yield Review(summary_row(record), warnings, "redo" if weak else "accept")
+        decision = yield Review(row_of(record), warnings, "redo" if weak else "accept")
         if weak and checked is not None and checked.guard.unsealed:
             # The valves are closed from now on: the baselines before say nothing of the leak.
             checked.guard.resupplied()
@@ -780,14 +794,9 @@ def force_session(
             lambda base, loaded, wait_b, wait_l, p=planned: force_record(
                 p.trial, p.set, p.mass_kg, p.direction_rad, base, loaded, wait_b, wait_l, cmap, p.plan_row
             ),
-            Checked(
-                guard,
-                force_vector(planned.mass_kg, planned.direction_rad),
-                None,
-                remove,
-                "the last weight may still hang on the pulley",
-            ),
+            Checked(guard, force_vector(planned.mass_kg, planned.direction_rad), None, remove, STILL_HANGING),
             air,
+            partial(capture_row, planned=planned),
         )
         if isinstance(stored, Load):  # a new load typed instead of hanging this one: the trial again with it
             typed = stored

@@ -357,6 +357,10 @@ def test_n_captures_of_each_load_as_steps_and_a_resume_takes_only_the_captures_m
     assert [r["trial"] for r in commits] == [1, 2, 3, 4, 5, 6]
     assert [r["mass_kg"] for r in commits] == pytest.approx(np.repeat(masses, 3))
     assert of(steps, Finish)[0].split == {t: "fit" for t in range(1, 7)}
+    # Each capture's review row names its plan trial and capture as the prompts do, not its record id.
+    rows = [(r.row["trial"], r.row["capture"], r.row["set"]) for r in of(steps, Review)]
+    assert rows == [(str(t), f"{c}/3", "fit") for t in (1, 2) for c in (1, 2, 3)]
+    assert list(of(steps, Review)[0].row)[:3] == ["trial", "capture", "set"]
     resumed = drive(force_session(three, two_loads, completed=[1, 2, 4]))
     assert [r.record["trial"] for r in of(resumed, Commit)] == [3, 5, 6]
     assert [b.label for b in of(resumed, BeginTrial)] == [
@@ -365,5 +369,9 @@ def test_n_captures_of_each_load_as_steps_and_a_resume_takes_only_the_captures_m
         "Trial 2/2 (fit), capture 3/3",
     ]
     # One capture a load: the plan's own ids and labels, as before.
-    once = of(drive(force_session(PROTOCOL, two_loads)), BeginTrial)
-    assert [(b.trial, b.label, b.total) for b in once] == [(1, "Trial 1/2 (fit)", 2), (2, "Trial 2/2 (fit)", 2)]
+    once = drive(force_session(PROTOCOL, two_loads))
+    assert [(b.trial, b.label, b.total) for b in of(once, BeginTrial)] == [
+        (1, "Trial 1/2 (fit)", 2),
+        (2, "Trial 2/2 (fit)", 2),
+    ]
+    assert [r.row["trial"] for r in of(once, Review)] == ["1", "2"] and "capture" not in of(once, Review)[0].row
