@@ -151,6 +151,7 @@ class BeginTrial:
     index: int  # 1-based position in this session's schedule
     total: int
     label: str  # "Trial 12/108 (fit)"
+    unit: str = ""  # what index and total count where the label counts something else: "captures"
 
 
 @dataclass(frozen=True)

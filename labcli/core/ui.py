@@ -148,7 +148,8 @@ def progress_text(step: BeginTrial, stored: int, elapsed_s: float, remaining_s: 
     bar = "#" * filled + "-" * (width - filled)
     left = "estimating" if remaining_s is None else f"about {fmt_duration(remaining_s)} left"
     return (
-        f"{step.label}  [{bar}] {done}/{step.total} done ({stored} stored this session)  "
+        f"{step.label}  [{bar}] {done}/{step.total} {step.unit + ' ' if step.unit else ''}done "
+        f"({stored} stored this session)  "
         f"elapsed {fmt_duration(elapsed_s)}, {left}"
     )
 

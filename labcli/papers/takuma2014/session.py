@@ -784,7 +784,10 @@ def force_session(
             planned = PlannedTrial(next_id, "", typed.mass_kg, typed.direction_rad)
             typed = None
             label = trial_label(next_id, shown_total, "")
-        yield BeginTrial(planned.trial, planned.set, len(done) + 1, total * captures, label)
+        # The label counts trials (loads); the bar counts every capture of them.
+        yield BeginTrial(
+            planned.trial, planned.set, len(done) + 1, total * captures, label, "captures" if captures > 1 else ""
+        )
         remove = Prompt(remove_prompt(label), RemoveWeight())
         hang = _hang_prompt(label, planned, limits, typed_by_hand=not rows)
         stored = yield from _trial(

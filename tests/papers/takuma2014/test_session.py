@@ -357,6 +357,11 @@ def test_n_captures_of_each_load_as_steps_and_a_resume_takes_only_the_captures_m
     assert [r["trial"] for r in commits] == [1, 2, 3, 4, 5, 6]
     assert [r["mass_kg"] for r in commits] == pytest.approx(np.repeat(masses, 3))
     assert of(steps, Finish)[0].split == {t: "fit" for t in range(1, 7)}
+    # The progress bar counts captures, as its total does, beside a label counting trials (loads).
+    from labcli.core.ui import progress_text
+
+    shown = progress_text(begun[4], 4, 60.0, None)
+    assert shown.startswith("Trial 2/2 (fit), capture 2/3  [################--------] 4/6 captures done (4 stored ")
     # Each capture's review row names its plan trial and capture as the prompts do, not its record id.
     rows = [(r.row["trial"], r.row["capture"], r.row["set"]) for r in of(steps, Review)]
     assert rows == [(str(t), f"{c}/3", "fit") for t in (1, 2) for c in (1, 2, 3)]
@@ -375,3 +380,4 @@ def test_n_captures_of_each_load_as_steps_and_a_resume_takes_only_the_captures_m
         (2, "Trial 2/2 (fit)", 2),
     ]
     assert [r.row["trial"] for r in of(once, Review)] == ["1", "2"] and "capture" not in of(once, Review)[0].row
+    assert " [------------------------] 0/2 done (0 stored " in progress_text(of(once, BeginTrial)[0], 0, 0.0, None)
