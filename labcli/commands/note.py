@@ -32,13 +32,14 @@ def note(run: str, text: str | None, record: int | None) -> None:
         labcli note run.h5
     """
     from ..core.store import RunFile  # heavy: when the command runs, not for --help
+    from ..core.store.summary import record_noun
 
     try:
         with RunFile.open(run, "r" if text is None else "a") as rf:
             if text is None:
-                noun, notes = rf.record_type.noun, rf.notes.all()
+                noun, notes = record_noun(rf), rf.notes.all()
             else:
-                noun, added = rf.record_type.noun, rf.notes.add(text, record)
+                noun, added = record_noun(rf), rf.notes.add(text, record)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
     if text is not None:

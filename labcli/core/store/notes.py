@@ -102,8 +102,9 @@ class Notes:
         if size > NOTE_BYTES:
             raise StoreError(f"a note holds at most {NOTE_BYTES} bytes, and this one has {size}; nothing was added.")
         if record is not None and int(record) not in run.records:
-            noun = run.record_type.noun
-            raise StoreError(f"{run.path} has no complete {noun} {record}, so the note was not added.")
+            from .summary import record_noun
+
+            raise StoreError(f"{run.path} has no complete {record_noun(run)} {record}, so the note was not added.")
         t = self._table() or self._create()
         note: Note = {"time": utc_now(), "record": None if record is None else int(record), "text": text}
         row = {"time": note["time"], "record": -1 if record is None else int(record), "text": text}

@@ -49,21 +49,22 @@ def summarise(run: RunFile) -> dict[str, Any]:
         "settle": None,
         "models": run.models.names(),
     }
+    n = run_captures(run.protocol_text, run.path) if plan is not None else 1
+    noun = "capture" if n > 1 else rt.noun
+    if n > 1:  # a record is one capture of a plan trial (acquisition.captures_per_load): counted as such
+        out.update(records="captures", planned=int(len(plan)) * n, captures_per_load=n)
     if run.version >= 2:
         out["run_uid"] = a.get("run_uid", "")
         out["sessions"] = len(run.sessions.all())
         unused = run.windows.unused()
         if unused:  # raw frames of a redone, skipped or interrupted record: said, never read as one
             by = unused_counts(unused)
-            out["unused_frames"] = {"total": sum(by.values()), "by_reason": by, "text": describe(unused, rt.noun)}
+            out["unused_frames"] = {"total": sum(by.values()), "by_reason": by, "text": describe(unused, noun)}
         notes = run.notes.all()
         if notes:  # only an annotated run says so: the summary of any other is as it was
             out["notes"] = [
-                {**n, "about": "the run" if n["record"] is None else f"{rt.noun} {n['record']}"} for n in notes
+                {**note, "about": "the run" if note["record"] is None else f"{noun} {note['record']}"} for note in notes
             ]
-    n = run_captures(run.protocol_text, run.path) if plan is not None else 1
-    if n > 1:  # a record is one capture of a plan trial (acquisition.captures_per_load): counted as such
-        out.update(records="captures", planned=int(len(plan)) * n, captures_per_load=n)
     if rec.damaged:
         out["damaged"] = [f"{what}: {why}" for what, why in rec.damaged]
     s = run.split.get()
@@ -78,6 +79,13 @@ def summarise(run: RunFile) -> dict[str, Any]:
     out.update(rt.summarise(run, ids, rec.cols))
     out["settle"] = _settling(ids, rec.cols)
     return out
+
+
+def record_noun(run: RunFile) -> str:
+    """What one record of ``run`` is called in sentences: a capture in a run of several captures of each
+    plan trial (``acquisition.captures_per_load``), else its record type's noun (as :func:`summarise`)."""
+    several = run.plan_table() is not None and run_captures(run.protocol_text, run.path) > 1
+    return "capture" if several else run.record_type.noun
 
 
 def _settling(ids: list[int], cols: dict[str, Any]) -> dict[str, Any]:

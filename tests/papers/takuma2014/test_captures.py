@@ -508,6 +508,15 @@ def test_inspect_and_runs_count_a_runs_captures_as_captures_against_its_plan_tri
     assert (shown["records"], shown["complete"], shown["planned"], shown["captures_per_load"]) == ("captures", 6, 6, N)
     (row,) = json.loads(labcli("runs", str(run.parent), "--json").output)
     assert (row["records"], row["complete"], row["planned"]) == ("captures", 6, 6)
+    # A note's record is a capture (record 5: trial 2's second), and so is one the run does not hold.
+    res = labcli("note", str(run), "--trial", "5", "the weight swung")
+    assert res.exit_code == 0 and res.output.startswith(f"{run}: note on capture 5 kept ("), res.output
+    assert any(
+        ln.startswith("  note        capture 5: the weight swung (")
+        for ln in labcli("inspect", str(run)).output.splitlines()
+    )
+    res = labcli("note", str(run), "--trial", "7", "none")
+    assert res.exit_code == 1 and res.output == f"Error: {run} has no complete capture 7, so the note was not added.\n"
 
 
 def test_split_assigns_whole_loads_and_counts_loads(interrupted, tmp_path):
