@@ -69,7 +69,9 @@ def export(run: str, output: str, fmt: str | None, all_columns: bool) -> None:
     from ..core.store import RunFile
     from ..core.store.notes import with_notes
     from ..core.store.records import ALL_COLUMNS
+    from ..core.store.summary import record_noun
     from ..core.table_meta import SIDECAR_SUFFIX
+    from ..core.words import count
 
     try:
         check_output(output, inputs=(run,))  # writing over the input is the graver mistake: said first
@@ -77,7 +79,7 @@ def export(run: str, output: str, fmt: str | None, all_columns: bool) -> None:
         if fmt == "csv":
             check_output(output + SIDECAR_SUFFIX, inputs=(run,))
         with RunFile.open(run) as rf:
-            records, df = rf.record_type, rf.records.table(all_columns=all_columns)
+            records, df, noun = rf.record_type, rf.records.table(all_columns=all_columns), record_noun(rf)
             table_meta.describe(df, records.table_spec, table_meta.run_provenance(rf, run))
             with_notes(df, records.id_column, rf.notes.all())
         if all_columns:
@@ -86,4 +88,5 @@ def export(run: str, output: str, fmt: str | None, all_columns: bool) -> None:
         exports.write(df, records.table_spec, records.collection, output, fmt, records.write_csv)
     except LabcliError as e:
         raise click.ClickException(str(e)) from None
-    click.echo(f"Wrote {records.count(len(df))} from {run} to {output}.")
+    what = records.count(len(df)) if noun == records.noun else count(len(df), noun)  # a capture's row: a capture
+    click.echo(f"Wrote {what} from {run} to {output}.")

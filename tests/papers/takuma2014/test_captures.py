@@ -508,6 +508,8 @@ def test_inspect_and_runs_count_a_runs_captures_as_captures_against_its_plan_tri
     assert (shown["records"], shown["complete"], shown["planned"], shown["captures_per_load"]) == ("captures", 6, 6, N)
     (row,) = json.loads(labcli("runs", str(run.parent), "--json").output)
     assert (row["records"], row["complete"], row["planned"]) == ("captures", 6, 6)
+    res = labcli("export", str(run), "-o", str(run.with_suffix(".csv")))
+    assert res.output == f"Wrote 6 captures from {run} to {run.with_suffix('.csv')}.\n"
     # A note's record is a capture (record 5: trial 2's second), and so is one the run does not hold.
     res = labcli("note", str(run), "--trial", "5", "the weight swung")
     assert res.exit_code == 0 and res.output.startswith(f"{run}: note on capture 5 kept ("), res.output
