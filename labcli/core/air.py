@@ -196,21 +196,6 @@ def load_ids(ids: Any, captures: int) -> np.ndarray:
     return (np.asarray(ids, dtype=np.int64) - 1) // captures + 1
 
 
-def run_captures(protocol_text: str, path: str) -> int:
-    """The captures a run took of each load, from its embedded protocol (1 when it does not say or
-    cannot be read): what ``labcli split`` and ``labcli inspect`` count a run's loads by."""
-    from ..errors import ConfigError
-    from .protocol import loads_protocol  # a protocol holds AirSettings: imported when asked
-
-    if not protocol_text.strip():
-        return 1
-    try:
-        protocol = loads_protocol(protocol_text, source=f"{path} (embedded protocol)")
-    except ConfigError:
-        return 1
-    return int(getattr(getattr(protocol, "air", None), "captures_per_load", 1) or 1)
-
-
 def hold_problem(names: Sequence[str], rate_MPa_per_s: Sequence[float], settings: AirSettings) -> str | None:
     """What the hold check found (a chamber losing or gaining air with its valve holding), or None."""
     rate = np.asarray(rate_MPa_per_s, dtype=float) * 60e3  # kPa/min

@@ -484,3 +484,15 @@ def with_captures(protocol: Protocol, captures: int, flag: str = "--captures") -
     else:
         text = text.rstrip("\r\n") + f"{end}{end}[acquisition]{end}" + line
     return loads_protocol(text, source=f"{protocol.name} with {flag} {captures}", path=protocol.path)
+
+
+def run_captures(protocol_text: str, path: str) -> int:
+    """The captures a run took of each load, from its embedded protocol (1 when it does not say or
+    cannot be read): what ``labcli split`` and ``labcli inspect`` count a run's loads by."""
+    if not protocol_text.strip():
+        return 1
+    try:
+        protocol = loads_protocol(protocol_text, source=f"{path} (embedded protocol)")
+    except ConfigError:
+        return 1
+    return int(protocol.air.captures_per_load)

@@ -155,7 +155,7 @@ def _choose_loads(
 
 
 def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, seed: int | None) -> SplitDone:
-    from .air import run_captures
+    from .protocol import run_captures
     from .store import RunFile
     from .store.split import default_sizes
 

@@ -21,6 +21,7 @@ from ..heap import kept_heap
 from ..paper import Column
 from ..protocol import load_protocol
 from ..registry import import_protocol, record_type, untagged_run_kind
+from ..words import count
 from .h5 import h5_name, missing, nan_if_empty
 from .layout import extra_column, extra_key, record_columns
 from .records import ALL_COLUMNS
@@ -200,6 +201,7 @@ class Imported:
     n: int
     record_type: Any
     split: Split | None
+    captures: int = 1  # the protocol's captures_per_load: above 1, each row is a capture of a load
 
     def sentence(self, table: str, output: str) -> str:
         split = (
@@ -207,7 +209,8 @@ class Imported:
             if self.split is None
             else (f" (split: {len(self.split['fit'])} fit, {len(self.split['validation'])} validation)")
         )
-        return f"Imported {self.record_type.count(self.n)} from {table} into {output}{split}."
+        what = self.record_type.count(self.n) if self.captures == 1 else count(self.n, "capture")
+        return f"Imported {what} from {table} into {output}{split}."
 
 
 def import_csv(
@@ -225,4 +228,4 @@ def import_csv(
             df, output, protocol=run_protocol, force=force, source=os.path.basename(table), operator=operator
         ) as run:
             split = run.split.get()
-    return Imported(len(df), rt, split)
+    return Imported(len(df), rt, split, run_protocol.air.captures_per_load)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..air import run_captures
+from ..protocol import run_captures
 from .unused import counts as unused_counts
 from .unused import describe
 
@@ -49,10 +49,14 @@ def summarise(run: RunFile) -> dict[str, Any]:
         "settle": None,
         "models": run.models.names(),
     }
-    n = run_captures(run.protocol_text, run.path) if plan is not None else 1
+    # A record is one capture of a plan trial (acquisition.captures_per_load, which fit averages by, a
+    # plan or not: an imported export): counted as such.
+    n = run_captures(run.protocol_text, run.path)
     noun = "capture" if n > 1 else rt.noun
-    if n > 1:  # a record is one capture of a plan trial (acquisition.captures_per_load): counted as such
-        out.update(records="captures", planned=int(len(plan)) * n, captures_per_load=n)
+    if n > 1:
+        out.update(records="captures", captures_per_load=n)
+        if plan is not None:
+            out["planned"] = int(len(plan)) * n
     if run.version >= 2:
         out["run_uid"] = a.get("run_uid", "")
         out["sessions"] = len(run.sessions.all())
@@ -84,8 +88,7 @@ def summarise(run: RunFile) -> dict[str, Any]:
 def record_noun(run: RunFile) -> str:
     """What one record of ``run`` is called in sentences: a capture in a run of several captures of each
     plan trial (``acquisition.captures_per_load``), else its record type's noun (as :func:`summarise`)."""
-    several = run.plan_table() is not None and run_captures(run.protocol_text, run.path) > 1
-    return "capture" if several else run.record_type.noun
+    return "capture" if run_captures(run.protocol_text, run.path) > 1 else run.record_type.noun
 
 
 def _settling(ids: list[int], cols: dict[str, Any]) -> dict[str, Any]:

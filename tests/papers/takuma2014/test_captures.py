@@ -510,6 +510,16 @@ def test_inspect_and_runs_count_a_runs_captures_as_captures_against_its_plan_tri
     assert (row["records"], row["complete"], row["planned"]) == ("captures", 6, 6)
     res = labcli("export", str(run), "-o", str(run.with_suffix(".csv")))
     assert res.output == f"Wrote 6 captures from {run} to {run.with_suffix('.csv')}.\n"
+    # Imported back with the run's protocol, the rows are captures still, as fit reads them.
+    proto = tmp_path / "p.toml"
+    with RunFile.open(run) as rf:
+        proto.write_text(rf.protocol_text)
+    back = tmp_path / "back.h5"
+    res = labcli("import", str(run.with_suffix(".csv")), "-o", str(back), "--protocol", str(proto))
+    assert (
+        res.output == f"Imported 6 captures from {run.with_suffix('.csv')} into {back} (split: 3 fit, 3 validation).\n"
+    )
+    assert "  captures    6 complete, 0 incomplete" in labcli("inspect", str(back)).output.splitlines()
     # A note's record is a capture (record 5: trial 2's second), and so is one the run does not hold.
     res = labcli("note", str(run), "--trial", "5", "the weight swung")
     assert res.exit_code == 0 and res.output.startswith(f"{run}: note on capture 5 kept ("), res.output
