@@ -32,9 +32,14 @@ reads what the chambers do (:class:`AirSettings` holds the protocol's limits):
   (tests/benchmarks/bench_air.py, docs/air.md).  With ``friction_relief_vent_s`` the pulse starts
   with one side's actuators (``friction_relief_vent``: L1 and L2, or R1 and R2) vented for that
   long: the other side swings the arm over, and supplied again it comes back to its rest from that
-  side every time, so every baseline keeps the same friction whatever the last load was (venting
-  all four would not do it: on the straight arm the vented posture is close to the rest, and the
-  side it comes back from still follows the history).  The posture form's relieved friction terms
+  side, so the baseline's friction no longer follows the last load (venting all four would not do
+  it: on the straight arm the vented posture is close to the rest, and the side it comes back from
+  still follows the history).  By default (``"load"``) the side vented is the one each load pulls
+  the arm towards (the session finds it from the rig's statics), so that every load pulls the arm
+  away from its baseline's lean and moves it at once; venting one side for every trial, the loads
+  that pull towards the lean must first overcome two friction bands, which on the literature's rig
+  hold a light load entirely, and the load check cannot tell such a trial from one never hung
+  (docs/load-check.md).  The posture form's relieved friction terms
   (``PostureModel(friction="relieved")``) fit what is left, and since the baselines now repeat,
   each trial's P0 is the mean of the last few (docs/rig-realism.md).
   Both stay off by default until judged on a real rig.
@@ -63,7 +68,10 @@ import numpy as np
 
 VALVE_MODES = ("auto", "hand")
 END_STATES = ("hold", "vent")
-RELIEF_SIDES = ("L", "R")  # acquisition.friction_relief_vent: the side of each pair vented
+RELIEF_SIDES = ("L", "R")  # the side of each pair the relief vents
+# acquisition.friction_relief_vent: "load" (the side each load pulls the arm towards, found by the
+# session from the rig's statics; L where it finds none) or one side for every trial.
+RELIEF_VENTS = ("load", *RELIEF_SIDES)
 DEFAULT_LEAK_MAX_KPA_PER_MIN = 5.0  # five times the reference rig's leak of about 1 kPa/min
 DEFAULT_HOLD_CHECK_S = 5.0
 REPRESSURISE_FLOORS = 10.0
@@ -120,9 +128,11 @@ ACQUISITION_KEYS: dict[str, dict[str, Any]] = {
     },
     "friction_relief_vent": {
         "type": "str",
-        "check": ["one-of", list(RELIEF_SIDES)],
+        "check": ["one-of", list(RELIEF_VENTS)],
         "optional": True,
-        "help": "the actuators vented by the relief: L (L1 and L2; the R actuators swing the arm to their side) or R",
+        "help": "the actuators vented by the relief: load (the side each load pulls the arm towards, so "
+        "that the load pulls it away from where its baseline leans; the default), L (L1 and L2; the R "
+        "actuators swing the arm to their side) or R",
     },
     "captures_per_load": {
         "type": "int",
@@ -155,13 +165,17 @@ class AirSettings:
     repressurise_default: bool = True  # the limit came from the sensor noise, not the protocol
     friction_relief_s: float = 0.0
     friction_relief_vent_s: float = 0.0
-    friction_relief_vent: str = "L"
+    friction_relief_vent: str = "load"
     captures_per_load: int = 1
 
-    def relief_vented(self, names: Sequence[str]) -> tuple[str, ...]:
+    def relief_vented(self, names: Sequence[str], pulled: str | None = None) -> tuple[str, ...]:
         """The pressure channels the relief vents: one side's actuator of each pair (``P_L1``,
-        ``P_L2`` for L)."""
-        return tuple(n for n in names if n.upper().startswith(f"P_{self.friction_relief_vent}"))
+        ``P_L2`` for L).  With ``friction_relief_vent = "load"`` the side is ``pulled``, the side
+        the trial's load pulls the arm towards (L where none is known)."""
+        side = self.friction_relief_vent
+        if side not in RELIEF_SIDES:
+            side = pulled if pulled in RELIEF_SIDES else "L"
+        return tuple(n for n in names if n.upper().startswith(f"P_{side}"))
 
     @classmethod
     def of(cls, acquisition: dict[str, Any], pressure_floor_MPa: float | None) -> AirSettings:
@@ -179,7 +193,7 @@ class AirSettings:
             repressurise_default=given is None,
             friction_relief_s=float(acquisition.get("friction_relief_s", pulse)),
             friction_relief_vent_s=float(acquisition.get("friction_relief_vent_s", vent)),
-            friction_relief_vent=acquisition.get("friction_relief_vent", "L"),
+            friction_relief_vent=acquisition.get("friction_relief_vent", "load"),
             captures_per_load=captures,
         )
 

@@ -10,11 +10,12 @@ seeds 1-10; report on held-out seeds (11-30)::
     python tests/benchmarks/guard_mistakes.py --seeds 11-20 --realism literature
 
 ``--realism`` and ``--seeds`` as every benchmark takes them (rig_options.py); the default rig is the
-literature's, docs/load-check.md's first row (its kind row: ``--realism kind``).  ``--relief`` (L or
-R): the shipped protocol with the friction relief before every trial, venting that side (the
-table's relieved rows)::
+literature's, docs/load-check.md's first row (its kind row: ``--realism kind``).  ``--relief``
+(``load``, the default side, or L or R): the shipped protocol with the friction relief before every
+trial, venting the side each load pulls the arm towards or the side named (the relieved tables);
+``--figures FILE`` also writes the counts as JSON::
 
-    python tests/benchmarks/guard_mistakes.py --seeds 11-20 --relief R
+    python tests/benchmarks/guard_mistakes.py --seeds 11-30 --relief --figures out.json
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "papers" / "takuma2014"))
 
 import test_guard_first_trial as scripted  # noqa: E402
-from rig_options import add_relief_option, add_rig_options, bench_parser, relieved  # noqa: E402
+from rig_options import add_relief_option, add_rig_options, bench_parser, relieved, seeds_text  # noqa: E402
 from test_valves_session import Person  # noqa: E402
 
 from labcli.core.protocol import loads_protocol  # noqa: E402
@@ -66,6 +67,7 @@ def main() -> None:
     ap = bench_parser(__doc__)
     add_rig_options(ap, realism="literature", seeds="1-10")  # 1-10: the tuning seeds
     add_relief_option(ap)
+    ap.add_argument("--figures", help="also write the figures to this JSON file ({name: value})")
     args = ap.parse_args()
     seeds, protocol = args.seeds, scripted.PROTOCOL
     if args.relief:
@@ -78,6 +80,10 @@ def main() -> None:
         out[name] = [s for s in seeds if caught(url.format(s), trial, n, how, protocol)]
         print(f"{name}: caught on {len(out[name])}/{len(seeds)} seeds {out[name]}", flush=True)
     print(json.dumps({k: len(v) for k, v in out.items()}))
+    if args.figures:
+        figures = {"seeds": seeds_text(seeds), "relief": args.relief or "none", "runs": len(seeds)}
+        figures.update({f"{k}.caught": len(v) for k, v in out.items()})
+        Path(args.figures).write_text(json.dumps(figures, indent=1) + "\n", encoding="utf-8")
 
 
 if __name__ == "__main__":

@@ -16,7 +16,8 @@ Every benchmark that runs the simulated McKibben rig takes them one way::
 A bad value is refused in one sentence on stderr (exit status 2), never a usage dump or a traceback.
 The benchmarks of the rPAM joint run no McKibben rig and take ``--seeds`` alone (``add_seeds_option``).
 The load check's benchmarks also take ``--relief`` (``add_relief_option``): the shipped protocol with the
-friction relief before every trial, venting the side it names (L, the default, or R).
+friction relief before every trial, venting the side each load pulls the arm towards (load, the default)
+or the side it names (L or R).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import re
 from collections.abc import Sequence
 from typing import NoReturn
 
-from labcli.core.air import CAPTURE_RELIEF, RELIEF_SIDES
+from labcli.core.air import CAPTURE_RELIEF, RELIEF_VENTS
 from labcli.papers.takuma2014.sim.nonideal import REALISMS
 
 SEEDS_FORM = "a range such as 11-30, a list such as 1,4,7, or both (1-3,7)"
@@ -142,13 +143,13 @@ def relieved(text: str, vent: str) -> str:
 
 
 def add_relief_option(ap: argparse.ArgumentParser) -> None:
-    """``--relief [L|R]``: the friction relief before every trial, venting that side (L without a side);
-    None without the option."""
+    """``--relief [load|L|R]``: the friction relief before every trial, venting the side each load
+    pulls the arm towards (load, without a side) or that side; None without the option."""
     ap.add_argument(
         "--relief",
         nargs="?",
-        const="L",
-        choices=RELIEF_SIDES,
+        const="load",
+        choices=RELIEF_VENTS,
         help="the friction relief before every trial (a %g s pulse after a %g s vent), venting this side "
-        "(default L, as --captures gives it)" % CAPTURE_RELIEF,
+        "(default load: the side each load pulls the arm towards, as --captures gives it)" % CAPTURE_RELIEF,
     )

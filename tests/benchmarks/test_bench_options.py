@@ -663,7 +663,7 @@ def test_a_benchmark_refuses_bad_seeds_in_one_sentence(script: str) -> None:
 # --------------------------------------------------------------------------- --relief (guard_mistakes, bench_guard)
 
 
-@pytest.mark.parametrize("side, vented", [("L", ("P_L1", "P_L2")), ("R", ("P_R1", "P_R2"))])
+@pytest.mark.parametrize("side, vented", [("L", ("P_L1", "P_L2")), ("R", ("P_R1", "P_R2")), ("load", ("P_R1", "P_R2"))])
 def test_the_relief_option_gives_the_shipped_protocol_the_relief_of_several_captures(side, vented) -> None:
     from labcli.core.air import CAPTURE_RELIEF
     from labcli.core.protocol import loads_protocol
@@ -673,11 +673,11 @@ def test_the_relief_option_gives_the_shipped_protocol_the_relief_of_several_capt
     assert shipped.air.friction_relief_s == 0  # off by default with one capture a load
     air = loads_protocol(rig_options.relieved(shipped.text, side)).air
     assert (air.friction_relief_s, air.friction_relief_vent_s) == CAPTURE_RELIEF
-    assert air.relief_vented(["P_L1", "P_R1", "P_L2", "P_R2"]) == vented
+    assert air.relief_vented(["P_L1", "P_R1", "P_L2", "P_R2"], "R") == vented  # "load": the side pulled towards
     assert air.captures_per_load == 1
     with pytest.raises(ValueError, match="one \\[acquisition\\] table"):
         rig_options.relieved(shipped.text.replace("[acquisition]\n", "[acq]\n"), side)
     ap = rig_options.bench_parser("x")
     rig_options.add_relief_option(ap)
-    assert ap.parse_args([]).relief is None and ap.parse_args(["--relief"]).relief == "L"
+    assert ap.parse_args([]).relief is None and ap.parse_args(["--relief"]).relief == "load"
     assert ap.parse_args(["--relief", "R"]).relief == "R"

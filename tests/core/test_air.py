@@ -57,7 +57,10 @@ def test_the_protocols_air_settings_and_their_defaults():
         ("leak_max_kPa_per_min = -1", "key 'acquisition.leak_max_kPa_per_min' must be greater than 0, not -1.0."),
         ("hold_check_s = 1000", "key 'acquisition.hold_check_s' must be at most 600 s, not 1000.0."),
         ("friction_relief_s = -0.5", "key 'acquisition.friction_relief_s' must be at least 0, not -0.5."),
-        ('friction_relief_vent = "both"', "key 'acquisition.friction_relief_vent' must be one of L, R, not 'both'."),
+        (
+            'friction_relief_vent = "both"',
+            "key 'acquisition.friction_relief_vent' must be one of load, L, R, not 'both'.",
+        ),
         (
             "friction_relief_vent_s = 2.0",
             "key 'acquisition.friction_relief_vent_s' needs acquisition.friction_relief_s above 0: "

@@ -814,6 +814,30 @@ SOURCES: dict[str, Source] = {
             runs={"": ("--seeds", "1-10")},
         ),
         Source(
+            "guard-relief",
+            "benchmark",
+            "the load check's false alarms on correct runs with the friction relief venting L or per load, "
+            "literature rig, held-out seeds 11-30",
+            script="bench_guard.py",
+            runs={
+                side: ("--seeds", "11-30", "--realism", "literature", "--rigs", "literature=realism=literature")
+                + ("--relief", *flag)
+                for side, flag in (("vent L", ("L",)), ("per load", ()))
+            },
+        ),
+        Source(
+            "guard-mistakes",
+            "benchmark",
+            "the load check's catches of trial 1 and 4 done wrong, literature rig, held-out seeds 11-30, "
+            "relief off, venting L and venting per load",
+            script="guard_mistakes.py",
+            runs={
+                "off": ("--seeds", "11-30"),
+                "vent L": ("--seeds", "11-30", "--relief", "L"),
+                "per load": ("--seeds", "11-30", "--relief"),
+            },
+        ),
+        Source(
             "firmware-model",
             "benchmark",
             "estimates on the chip: sizes, cycles, the highest rate, agreement with the host, on simavr",

@@ -23,10 +23,10 @@ def _figures(name: str) -> dict:
 
 @pytest.mark.parametrize("source", BENCHMARKS, ids=[s.name for s in BENCHMARKS])
 def test_benchmark_figures_record_their_commit_and_realism(source):
+    if source.name in provenance.PENDING:  # a new source has no file before its first regeneration
+        pytest.skip(f"{source.name} is stamped at its next regeneration by regenerate.py")
     figures = _figures(source.name)
     runs = source.runs or {"": ()}
-    if source.name in provenance.PENDING:
-        pytest.skip(f"{source.name} is stamped at its next regeneration by regenerate.py")
     problems = provenance.missing(figures, runs, source.script)
     assert not problems, f"docs/figures/{source.name}.json: " + "; ".join(problems)
 
@@ -87,6 +87,8 @@ def _history_or_skip() -> None:
 @pytest.mark.parametrize("source", BENCHMARKS, ids=[s.name for s in BENCHMARKS])
 def test_benchmark_figures_name_a_commit_of_this_history(source):
     _history_or_skip()
+    if source.name in provenance.PENDING:
+        pytest.skip(f"{source.name} is stamped at its next regeneration by regenerate.py")
     off = provenance.off_history(_figures(source.name))
     if off and source.name in provenance.OFF_HISTORY:
         pytest.skip(f"{source.name} was measured on a commit off this history; regenerate it: " + "; ".join(off))

@@ -15,7 +15,10 @@ trial is judged by the rig's statics where the protocol gives the rig's geometry
   potentiometers read, and the closed chambers' pressures with them (Boyle's law) until the run
   refines the friction.  It judges the straight arm too, where no force can be read from the
   pressures (theta2 = 0), and from the first trial: the shipped protocols' 15 s settle leaves an
-  arm with no weight hung exactly where it was.  From :data:`LEARN_MIN` accepted trials on, the
+  arm with no weight hung exactly where it was.  Where the friction relief vents, before each
+  baseline, the side the load pulls the arm towards (:meth:`PhysicsPrior.pulled_side`), the
+  baseline leans the other way and no band holds the load back at its start: one band, half the
+  allowance, is left.  From :data:`LEARN_MIN` accepted trials on, the
   friction allowed for is the run's own (:meth:`PhysicsPrior.learn`): the most friction any of
   its trials showed, times :data:`LEARN_MARGIN`, and never less than :data:`LEARN_FLOOR`.  Refined
   so, the least motion is the run's own
@@ -67,6 +70,7 @@ FRICTION_SHARE = 0.025
 LEARN_MIN = 2
 LEARN_MARGIN = 1.5
 LEARN_FLOOR = 0.015
+PULL_MIN_RAD = 1e-9  # a load bending the joints by less pulls the arm towards no side (pulled_side)
 SHARE_MAX = 0.2  # a trial that moved no further than this much friction allows shows at least it
 _SHARES = np.linspace(0.0, SHARE_MAX, 401)
 
@@ -156,6 +160,12 @@ class PhysicsPrior(_RigChannels):
         self._ph = physics
         self.params = physics.nominal_params(physics.Geometry(**geometry))
         self._shown: list[float] = []  # the friction share each accepted trial showed
+        # The friction bands that can hold a load back before the run's trials show their friction
+        # (:attr:`friction_share`): two, or one where the relief vents per load (:meth:`of`).
+        self.bands = 2
+        # The last accepted trial's baseline (posture rad, gauge MPa): the rest, straight, on the
+        # design's supply before any (:meth:`pulled_side`).
+        self._posture = (np.zeros(2), self.params.supply_pa / 1e6)
         super().__init__(protocol)
 
     @classmethod
@@ -172,7 +182,13 @@ class PhysicsPrior(_RigChannels):
             return None
         if not all(n in names for n in PRESSURE_NAMES + POT_NAMES) or not all(k in geometry for k in GEOMETRY_KEYS):
             return None
-        return cls(protocol, {k: geometry[k] for k in GEOMETRY_KEYS})
+        prior = cls(protocol, {k: geometry[k] for k in GEOMETRY_KEYS})
+        air = getattr(protocol, "air", None)
+        if getattr(air, "friction_relief_vent_s", 0.0) > 0 and getattr(air, "friction_relief_vent", "") == "load":
+            # Vented on the side each load pulls towards, the baseline leans the other way and no
+            # friction band holds the load back at its start: one band (its own motion's) is left.
+            prior.bands = 1
+        return prior
 
     def _statics(
         self, theta0: np.ndarray, P0_MPa: np.ndarray, load: np.ndarray
@@ -202,9 +218,10 @@ class PhysicsPrior(_RigChannels):
     def friction_share(self) -> float:
         """The share of the actuators' pressure forces the sleeves are taken to hold: the run's
         own once it has shown :data:`LEARN_MIN` trials (:meth:`learn`; never below
-        :data:`LEARN_FLOOR`), else :data:`FRICTION_SHARE`."""
+        :data:`LEARN_FLOOR`), else :data:`FRICTION_SHARE` (half of it with one band, where the
+        friction relief vents the side each load pulls towards)."""
         if len(self._shown) < LEARN_MIN:
-            return FRICTION_SHARE
+            return FRICTION_SHARE * self.bands / 2
         return max(LEARN_FLOOR, LEARN_MARGIN * max(self._shown))
 
     @property
@@ -247,9 +264,35 @@ class PhysicsPrior(_RigChannels):
         b, c = np.asarray(base, dtype=float), np.asarray(change, dtype=float)
         if not (np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
             return
+        self._posture = (b[self._a], b[self._p])
         shown = self.shown_share(b[self._a], b[self._p], np.asarray(load, dtype=float), c[self._a])
         if shown is not None:
             self._shown.append(shown)
+
+    def pulled_side(self, load: Sequence[float]) -> str | None:
+        """The side, ``"L"`` or ``"R"``, whose actuators ``load`` (N) shortens as it bends the joints
+        from the last accepted trial's baseline (the rest before any): the side it pulls the arm
+        towards, None where it bends them by nothing to speak of.
+
+        The friction relief vents that side (``acquisition.friction_relief_vent = "load"``): the
+        other side swings the arm over, and supplied again it leans that way, a friction band short
+        of its rest.  The load then pulls the arm away from the lean and moves it as the
+        frictionless statics say, where a load pulling towards the lean must first overcome two
+        bands, which hold a light load entirely on the literature's rig (docs/load-check.md)."""
+        F = np.asarray(load, dtype=float)
+        if F.shape != (2,) or not np.all(np.isfinite(F)):
+            return None
+        theta0, P0 = self._posture
+        K, tau, _ = self._statics(theta0, P0, F)
+        try:
+            moved = np.linalg.solve(K, tau)
+        except np.linalg.LinAlgError:
+            return None
+        if not float(np.linalg.norm(moved)) > PULL_MIN_RAD:
+            return None
+        # Each actuator's change of length (L1, R1, L2, R2); a pair's two change oppositely.
+        left = float((self._ph.path_gradients(theta0, self.params.geometry) @ moved)[[0, 2]].sum())
+        return "L" if left < 0 else "R"
 
     def pressure_change(self, theta0: np.ndarray, P0_MPa: np.ndarray, moved: np.ndarray) -> np.ndarray:
         """The closed chambers' pressure change (MPa) when the joints move by ``moved`` (rad) from

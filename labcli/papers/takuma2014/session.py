@@ -540,12 +540,16 @@ def _pressurise_by_command(
         yield Valves("supply")
 
 
-def _relieve(air: AirDrift, guard: Guard | None) -> Generator[Step, Any, None]:
+def _relieve(air: AirDrift, checked: Checked | None) -> Generator[Step, Any, None]:
     """Friction relief: a supply pulse of ``friction_relief_s``, then hold (a fresh supply each trial),
     after one side's chambers are vented for ``friction_relief_vent_s`` where the protocol asks for it
-    (the arm swings to the other side, and comes back to every baseline from there)."""
+    (the arm swings to the other side, and comes back to the baseline from there): by default the
+    side the trial's load pulls the arm towards, so that the load pulls it away from its lean."""
+    guard = checked.guard if checked is not None else None
     if air.settings.friction_relief_vent_s > 0:
-        yield Valves("vent", air.settings.relief_vented(air.names))
+        pulled = getattr(getattr(guard, "prior", None), "pulled_side", None)
+        side = pulled(checked.load) if pulled is not None and checked is not None else None
+        yield Valves("vent", air.settings.relief_vented(air.names, side))
         yield Hold(air.settings.friction_relief_vent_s)
     yield Valves("supply")
     yield Hold(air.settings.friction_relief_s)
@@ -614,7 +618,7 @@ def _trial(
     """
     while True:
         if air is not None and air.settings.friction_relief_s > 0:
-            yield from _relieve(air, checked.guard if checked is not None else None)
+            yield from _relieve(air, checked)
         leak = air.leak_per_s if air is not None else ()
         wait_b = yield WaitSettle("baseline", leak)
         if wait_b == "redo":

@@ -216,3 +216,50 @@ def test_the_pressures_a_motion_makes_keep_each_closed_chambers_air(prior):
     ]
     assert np.allclose(amount[0], amount[1], rtol=1e-9)
     assert np.all(np.sign(dP) == np.sign(after - before)) and np.abs(dP).max() > 1e-3  # over a kPa for 2 deg
+
+
+@pytest.mark.parametrize("direction", [-150, -120, -60, -30, 0, 30, 60, 135, 180])
+def test_the_side_a_load_pulls_towards_is_the_side_its_equilibrium_shortens(prior, direction):
+    # The closed design rig's own equilibrium under the load (no friction): the actuators of the side
+    # named shorten, the other side's lengthen; the relief vents that side, so the baseline leans
+    # the other way and the load pulls the arm away from the lean.
+    params = ph.nominal_params(ph.Geometry())
+    rest = ph.actuator_lengths(UPRIGHT, params)
+    chambers = ph.Chambers.closed_at(rest, SUPPLY * 1e6, params)
+    theta = ph.solve_equilibrium(params, chambers, ph.Weight(0.3, math.radians(direction))).theta_rad
+    change = dict(zip(("L1", "R1", "L2", "R2"), ph.actuator_lengths(theta, params) - rest, strict=True))
+    side = prior.pulled_side(pull(300, direction))
+    other = {"L": "R", "R": "L"}[side]
+    assert change[f"{side}1"] + change[f"{side}2"] < 0 < change[f"{other}1"] + change[f"{other}2"]
+    # The mirror load pulls towards the other side.
+    assert prior.pulled_side(-pull(300, direction)) == other
+
+
+def test_a_load_that_bends_the_upright_arm_by_nothing_pulls_towards_no_side(prior):
+    # Straight up or down along the upright arm: no torque on either joint (tau = J^T F).
+    assert prior.pulled_side(pull(500, 90)) is None and prior.pulled_side(pull(500, -90)) is None
+    assert prior.pulled_side(np.array([np.nan, 1.0])) is None and prior.pulled_side(np.array([1.0])) is None
+
+
+def relieved_prior(vent: str | None) -> PhysicsPrior:
+    """The prior of the shipped protocol with the relief before every trial venting ``vent`` (no
+    relief: None)."""
+    from labcli.core.protocol import loads_protocol
+
+    lines = (
+        ""
+        if vent is None
+        else f'friction_relief_s = 3.0\nfriction_relief_vent_s = 2.0\nfriction_relief_vent = "{vent}"\n'
+    )
+    prior = PhysicsPrior.of(loads_protocol(PROTOCOL.text.replace("[acquisition]\n", "[acquisition]\n" + lines)))
+    assert prior is not None
+    return prior
+
+
+@pytest.mark.parametrize("vent, bands", [("load", 1), ("L", 2), ("R", 2), (None, 2)])
+def test_venting_the_side_each_load_pulls_towards_leaves_one_friction_band_before_the_run_says(vent, bands):
+    prior = relieved_prior(vent)
+    assert prior.bands == bands and prior.friction_share == pytest.approx(gp.FRICTION_SHARE * bands / 2)
+    # One band held back asks more motion of a light load than two: 300 g at -60 deg.
+    one, two = (np.linalg.norm(p.least_motion(UPRIGHT, SUPPLY, pull(300, -60))) for p in (prior, relieved_prior("L")))
+    assert one > two if bands == 1 else one == two

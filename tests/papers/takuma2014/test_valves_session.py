@@ -252,20 +252,30 @@ def test_the_hold_checks_leak_is_taken_out_of_every_trials_wait(tmp_path):
     assert all(s.drift_per_s == () for s, _ in seen if isinstance(s, WaitSettle))
 
 
+def pulses(*sides: str) -> list[tuple[str, tuple[str, ...]]]:
+    """The relief's valve steps before each trial, venting each side in turn, then supply and hold."""
+    return [v for side in sides for v in (("vent", (f"P_{side}1", f"P_{side}2")), ("supply", ()), ("hold", ()))]
+
+
 def test_friction_relief_vents_one_side_then_supplies_before_every_baseline(tmp_path):
     protocol = protocol_with(tmp_path, friction_relief_s=2.0, friction_relief_vent_s=1.5)
-    assert protocol.air.relief_vented(("P_L1", "P_R1", "P_L2", "P_R2")) == ("P_L1", "P_L2")
+    names = ("P_L1", "P_R1", "P_L2", "P_R2")
+    # By default the side each load pulls the arm towards; L where no side is known.
+    assert protocol.air.friction_relief_vent == "load"
+    assert protocol.air.relief_vented(names, "R") == ("P_R1", "P_R2")
+    assert protocol.air.relief_vented(names) == ("P_L1", "P_L2")
+    assert protocol_with(tmp_path, friction_relief_vent="L").air.relief_vented(names, "R") == ("P_L1", "P_L2")
     outcome, seen, dev, path = run(
         tmp_path, "sim://?seed=11&clock=virtual&realism=literature", protocol=protocol, loads=LOADS[:2]
     )
     dev.close()
     assert outcome.status == "finished" and outcome.stored == 2
     valves = [(s.state, s.channels) for s, _ in seen if isinstance(s, Valves)]
-    pulse = [("vent", ("P_L1", "P_L2")), ("supply", ()), ("hold", ())]
-    assert valves == [("supply", ()), ("hold", ())] + pulse * 2
-    # The board vented the L chambers only: its reply lists the R ones still holding.
+    # 800 g at 0 deg pulls the upright arm towards the R actuators, 500 g at 180 deg towards the L ones.
+    assert valves == [("supply", ()), ("hold", ())] + pulses("R", "L")
+    # The board vented the R chambers only: its reply lists the L ones still holding.
     vented = [r for s, r in seen if isinstance(s, Valves) and s.state == "vent"]
-    assert vented[0]["P_L1"] == "vent" and vented[0]["P_R1"] == "hold" and vented[0]["P_R2"] == "hold"
+    assert vented[0]["P_R1"] == "vent" and vented[0]["P_L1"] == "hold" and vented[0]["P_L2"] == "hold"
     assert [s.duration_s for s, _ in seen if isinstance(s, Hold)] == [5.0, 1.5, 2.0, 1.5, 2.0]
     df = load_trials(path)
     dP = (df[["P_L1", "P_R1", "P_L2", "P_R2"]].to_numpy() - df[["P_L10", "P_R10", "P_L20", "P_R20"]].to_numpy()) * 1e3
@@ -289,12 +299,12 @@ def test_each_load_is_captured_n_times_each_capture_after_the_relief(tmp_path):
     assert begun[4].label == "Trial 2/2 (fit), capture 2/3"
     hung = [s.action.mass_kg for s, _ in seen if isinstance(s, Prompt) and "hang" in s.text]
     assert hung == pytest.approx([0.8] * 3 + [0.5] * 3)
-    # Every capture, the first of a load too, comes after the vent and the supply pulse.
-    pulse = [("vent", ("P_L1", "P_L2")), ("supply", ()), ("hold", ())]
+    # Every capture, the first of a load too, comes after the vent (the side the load pulls towards)
+    # and the supply pulse.
     assert [(s.state, s.channels) for s, _ in seen if isinstance(s, Valves)] == [
         ("supply", ()),
         ("hold", ()),
-    ] + pulse * 6
+    ] + pulses(*"RRRLLL")
     assert [s.duration_s for s, _ in seen if isinstance(s, Hold)] == [5.0] + [2.0, 3.0] * 6
     df = load_trials(path)
     assert df["trial"].tolist() == [1, 2, 3, 4, 5, 6]
