@@ -569,6 +569,7 @@ void model_predict(const float *P0_in, const float *P_in, const float *th0, cons
     }
     out->flags = bad ? MODEL_FLAG_BAD_PRESSURE : 0;
     out->dth[0] = out->dth[1] = 0.0f;
+    float wpo[4] = {1.0f, 1.0f, 1.0f, 1.0f}; /* the posture form's weight in each estimate */
 #if MODEL_HAS_POSTURE
     posture(P0, P, th0, moved, u, out);
 #else
@@ -592,6 +593,7 @@ void model_predict(const float *P0_in, const float *P_in, const float *th0, cons
             if (okp[q] && isfinite(v) && isfinite(s)) {
                 out->v[q] = v;
                 out->se[q] = s;
+                wpo[q] = w;
             }
             continue;
         }
@@ -599,6 +601,7 @@ void model_predict(const float *P0_in, const float *P_in, const float *th0, cons
         if (route == ROUTE_PAPER) {
             out->v[q] = vp[q];
             out->se[q] = MODEL_HAS_POSTURE ? sp[q] : 0.0f; /* a file of the paper's form alone has none */
+            wpo[q] = 0.0f;
             uint16_t why = q == 0 ? MODEL_FLAG_THETA1_CLIPPED : q == 1 ? MODEL_FLAG_THETA2_CLIPPED : MODEL_FLAG_SINGULAR;
             if (!okp[q] && !bad)
                 out->flags |= pflags & why;
@@ -608,4 +611,12 @@ void model_predict(const float *P0_in, const float *P_in, const float *th0, cons
     for (uint8_t q = 0; q < 4; q++)
         if (!bad && !(out->se[q] <= MODEL_LIMIT[q]))
             out->flags |= (uint16_t)(MODEL_FLAG_UNCERTAIN << q);
+#if MODEL_HAS_POSTURE
+    /* The plan's direction term widens the intervals after the flags, in the posture form's weight. */
+    for (uint8_t q = 0; q < 4; q++)
+        if (MODEL_HELD_OUT_VAR[q] > 0.0f)
+            out->se[q] = sqrtf(out->se[q] * out->se[q] + wpo[q] * wpo[q] * MODEL_HELD_OUT_VAR[q]);
+#else
+    (void)wpo;
+#endif
 }

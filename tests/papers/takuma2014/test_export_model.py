@@ -15,6 +15,7 @@ tests/core/test_firmware_model.py.
 
 from __future__ import annotations
 
+import copy
 import shutil
 import subprocess
 from pathlib import Path
@@ -85,26 +86,33 @@ def inputs(seed: int, n: int = 1500) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 def host(
     model_path: Path, P0: np.ndarray, P: np.ndarray, th0: np.ndarray, moved: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Values (n, 4), standard errors (n, 4; zeros for the paper's form) and the flag bits, from the host."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Values (n, 4), standard errors (n, 4; zeros for the paper's form), the flag bits and the
+    standard errors the flags judge (before the fit plan's direction term), from the host."""
     m = load_force_model(model_path)
     if isinstance(m, PostureModel):
         out = m.predict(P0, P, th0, motion_in=moved)
         se = np.column_stack([out["se"][q] for q in QUANTITIES])
+        # The flags judge the standard errors before the fit plan's direction term (routes.held_out_variances).
+        plain = copy.copy(m)
+        plain.held_out_variance = {}
+        own = plain.predict(P0, P, th0, motion_in=moved)["se"]
+        judged = np.column_stack([own[q] for q in QUANTITIES])
         limits = np.array([m.limits[q] for q in QUANTITIES])
     else:
         out = m.predict(P0, P)
         se, limits = np.zeros((len(P0), 4)), np.full(4, np.inf)
+        judged = se
     values = np.column_stack([out[k] for k in ("theta1_rad", "theta2_rad", "Fx_N", "Fy_N")])
     bits = np.zeros(len(P0), np.int64)
     bad = np.array(["bad-pressure" in f for f in out["flags"]])
     for q, name in enumerate(QUANTITIES):
-        bits |= np.where(~bad & ~(se[:, q] <= limits[q]), BITS[f"{name}-uncertain"], 0)
+        bits |= np.where(~bad & ~(judged[:, q] <= limits[q]), BITS[f"{name}-uncertain"], 0)
     for i, flags in enumerate(out["flags"]):
         for name in ("bad-pressure", "theta1-clipped", "theta2-clipped", "singular-jacobian"):
             if name in flags:
                 bits[i] |= BITS[name]
-    return values, se, bits
+    return values, se, bits, judged
 
 
 def motions(seed: int, n: int) -> np.ndarray:
@@ -121,7 +129,7 @@ def test_the_chips_model_computes_the_hosts_predictions(form, models, tmp_path):
     P0, P, th0 = inputs(seed={"force": 1, "bent": 2, "paper": 3, "friction": 4}[form])
     moved = motions(5, len(P0)) if form == "friction" else None
     got = chip(tool, P0, P, th0, moved)
-    values, se, bits = host(models[form], P0, P, th0, moved)
+    values, se, bits, judged = host(models[form], P0, P, th0, moved)
     ok = np.all(np.isfinite(values), axis=1)
     # The target: 1 % of each quantity's range, on every estimate the host does not flag singular
     # (on those, a few 1e-5 of it).  Near a straight arm the paper's (J^-1)^T grows as
@@ -139,7 +147,7 @@ def test_the_chips_model_computes_the_hosts_predictions(form, models, tmp_path):
     m = load_force_model(models[form])
     limits = np.array([getattr(m, "limits", {}).get(q, np.inf) for q in QUANTITIES])
     differ = got[:, 8].astype(np.int64) != bits
-    borderline = np.any(np.abs(se - limits) <= 1e-4 * limits, axis=1)
+    borderline = np.any(np.abs(judged - limits) <= 1e-4 * limits, axis=1)
     assert not np.any(differ & ~borderline), np.flatnonzero(differ & ~borderline)[:5]
     if isinstance(m, PostureModel):
         rel = np.abs(got[ok, 4:8] - se[ok]) / np.maximum(se[ok], 1e-12)
@@ -282,7 +290,7 @@ def test_the_friction_terms_read_the_motion_into_the_baseline_on_the_chip(models
     P0, P, th0 = inputs(seed=6, n=300)
     P0, P, th0 = P0[6:], P[6:], th0[6:]  # the ordinary rows
     none = chip(tool, P0, P, th0)
-    values, _, _ = host(models["friction"], P0, P, th0)
+    values, _, _, _ = host(models["friction"], P0, P, th0)
     span = np.ptp(values, axis=0)
     assert np.all(np.abs(none[:, :4] - values).max(axis=0) <= 1e-3 * span)
     moved = motions(7, len(P0))

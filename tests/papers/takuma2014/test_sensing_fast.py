@@ -163,6 +163,8 @@ def every_route(model: PostureModel) -> list[PostureModel]:
                 q: {"posture_weight": w, "error_correlation": r}
                 for q, w, r in (("theta2", 0.3, 0.6), ("Fy", 0.8, -0.2))
             },
+            # The fit plan's direction term on every quantity: none on the paper's route, w^2 of it in a blend.
+            held_out_variance={"theta1": 1e-6, "theta2": 2e-6, "Fx": 0.1, "Fy": 0.2},
         ),
         variant(
             model,

@@ -8,7 +8,8 @@ in the chip's 32-bit floats, from one frame's counts and the baseline the chip t
   channel is which actuator and joint, and the rig's geometry (h2, h3);
 * the posture form: the angle terms kept and their coefficients, (X^T X)^-1 and residual
   covariance; theta1's own equation; the torque terms kept (indices into TORQUE_TERMS), their
-  coefficients, (X^T X)^-1, residual covariance and the force prior; with the sleeves' friction
+  coefficients, (X^T X)^-1, residual covariance and the force prior, the variance the fit plan's
+  directions add to each standard error (after the flags); with the sleeves' friction
   terms (``labcli fit``'s default, indices 14 and 15), each pair's fade
   (``MODEL_FRICTION_WIDTH``: sqrt(2 (sd^2 + FRICTION_MOTION_RAD^2)), sd the pair's motion's
   standard error from the pressures), the chip reading the motion into each baseline it keeps;
@@ -175,6 +176,8 @@ def _posture_part(m: PostureModel) -> str:
         + _array("float", "MODEL_TORQUE_RESID", m.torque_resid_cov)
         + f"#define MODEL_HAS_PRIOR {int(has_prior)}\n"
         + _array("float", "MODEL_PRIOR_SD", m.force_prior_sd if has_prior else [0.0, 0.0])
+        + "/* the variance the fit plan's directions add to each standard error (rad^2, N^2) */\n"
+        + _array("float", "MODEL_HELD_OUT_VAR", [m.held_out_variance.get(q, 0.0) for q in rt.QUANTITIES])
     )
 
 

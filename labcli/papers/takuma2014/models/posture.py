@@ -51,7 +51,10 @@ straight arm, where the torques say nothing, it falls back to the prior (0 +- th
 instead of blowing up.  Its covariance is the posterior's, (J S^-1 J^T + Lambda)^-1, plus
 G Sigma_dtheta G^T with G = dF / d(dtheta) through both the Jacobian and the torque's dtheta terms
 (numerically).  A trial's
-estimate is flagged when its standard error exceeds the protocol's ``[sensing]`` limit.
+estimate is flagged when this standard error exceeds the protocol's ``[sensing]`` limit.  The
+interval then adds what these residuals cannot show, the error at a load direction the fit never
+used (``held_out_variance``, measured by the route choice's folds: models/routes.py); it widens the
+interval and leaves the estimate and its flags as they are.
 
 Units: pressures MPa, angles rad, torques N m, forces N.
 """
@@ -689,6 +692,9 @@ class PostureModel:
     paper_model: dict[str, Any] | None = None
     paper_variance: dict[str, float] = field(default_factory=dict)
     blends: dict[str, dict[str, float]] = field(default_factory=dict)
+    # Per quantity the variance (rad^2, N^2) its standard errors lack at a load direction the fit
+    # never used (routes.held_out_variances); absent in older files: none.
+    held_out_variance: dict[str, float] = field(default_factory=dict)
     fitted_on: dict[str, Any] | None = None  # the run it was fitted on (labcli.core.provenance)
     # Offer the sleeves' friction terms to the torque fit: a fit option (FRICTION_MODES); True
     # offers FRICTION_TERMS (read from the history of loads), "relieved" RELIEVED_TERMS (a run
@@ -741,6 +747,7 @@ class PostureModel:
         table = self._unplayed(table, source, fit_rows)
         self._fit_posture(table, source, record_trials, fit_rows)
         self.routes, self.paper_model, self.paper_variance, self.blends = {}, None, {}, {}
+        self.held_out_variance = {}
         self._paper = None
         if choose_routes:
             # After the posture fit has returned: its arrays (a copy of the fit trials) are freed
@@ -870,6 +877,7 @@ class PostureModel:
             self.routes = {q: rt.POSTURE for q in rt.QUANTITIES}
             return
         self.routes, self.fit_stats["routes_cv"], self.blends = rt.choose_routes(cv, self.limits)
+        self.held_out_variance = rt.held_out_variances(cv)
         if set(self.routes.values()) - {rt.POSTURE}:
             self.paper_model = self._share_ranges(full.to_dict())
             self.paper_variance = rt.paper_residual_variances(cv, self.routes)
@@ -1024,7 +1032,7 @@ class PostureModel:
         }
         value = {"theta1": theta1, "theta2": dth[:, 1], "Fx": F[:, 0], "Fy": F[:, 1]}
         valid = {q: known if q in ("Fx", "Fy") else np.ones(n, bool) for q in se}
-        self._paper_routes(P0, P, mode, theta, value, se, valid, flags)
+        weight = self._paper_routes(P0, P, mode, theta, value, se, valid, flags)
         ok = {}
         for q, s in se.items():
             within = s <= self.limits.get(q, math.inf)
@@ -1032,6 +1040,10 @@ class PostureModel:
             for i in np.flatnonzero(~within & ~bad):
                 if "uncertain" not in flags[i]:
                     flags[i].append("uncertain")
+        # The plan's direction term widens the intervals, not the flags: those judge the trial's own
+        # pressures (routes.held_out_variances).  It is the posture form's, so it enters in its weight.
+        for q, v in self.held_out_variance.items():
+            se[q] = np.sqrt(se[q] ** 2 + weight.get(q, 1.0) ** 2 * v)
         return {
             "theta1_rad": value["theta1"],
             "theta2_rad": value["theta2"],
@@ -1057,12 +1069,14 @@ class PostureModel:
         se: dict[str, np.ndarray],
         valid: dict[str, np.ndarray],
         flags: list[list[str]],
-    ) -> None:
-        """Put the paper's estimates (or the blends with them), standard errors and flags in place."""
+    ) -> dict[str, Any]:
+        """Put the paper's estimates (or the blends with them), standard errors and flags in place;
+        returns the posture form's weight in each quantity it does not take alone (per trial or one)."""
         paper = self.paper
         mine = [q for q in rt.QUANTITIES if self.route(q) != rt.POSTURE]
+        weight: dict[str, Any] = {}
         if paper is None or not mine:
-            return
+            return weight
         pred = paper.predict(P0, P, mode=mode, theta=theta)
         th_force = (
             stack_columns([pred["theta1_rad"], pred["theta2_rad"]])
@@ -1080,13 +1094,15 @@ class PostureModel:
                 )
                 both = ok_pa & np.isfinite(v) & np.isfinite(s)
                 value[q], se[q] = np.where(both, v, value[q]), np.where(both, s, se[q])
+                weight[q] = np.where(both, b["posture_weight"], 1.0)
                 continue
-            value[q], se[q] = v_pa, paper_se[q]
+            value[q], se[q], weight[q] = v_pa, paper_se[q], 0.0
             valid[q] = valid[q] & ok_pa
             why = f"{q}-clipped" if q.startswith("theta") else "singular-jacobian"
             for i in np.flatnonzero(~ok_pa):
                 if why in pred["flags"][i] and why not in flags[i]:
                     flags[i].append(why)
+        return weight
 
     def _force_covariance(
         self,
@@ -1308,6 +1324,8 @@ class PostureModel:
                 "baseline_mean": self.baseline_mean,
                 "labels": {"play": self.label_play, **self.play},
                 **captures_dict(self.captures_per_load),
+                # Only where there is one: a file written before it reads back byte for byte.
+                **({"held_out_variance": self.held_out_variance} if self.held_out_variance else {}),
             }
         )
 
@@ -1374,6 +1392,7 @@ class PostureModel:
             routes=routes,
             paper_variance=variance,
             blends=blends,
+            held_out_variance=_held_out_from_dict(d.get("held_out_variance"), name),
         )
         if variance:
             model._paper = TakumaModel.from_dict(d["paper_model"], name=f"{name}'s paper-form part")
@@ -1447,6 +1466,25 @@ def _routes_from_dict(
         {q: float(v) for q, v in variance.items()},
         {q: {k: float(v) for k, v in b.items()} for q, b in blends.items()},
     )
+
+
+def _held_out_from_dict(value: Any, name: str) -> dict[str, float]:
+    """A model file's ``held_out_variance``, checked (absent, as in files written before it: none)."""
+    if value is None:
+        return {}
+    if not (
+        isinstance(value, Mapping)
+        and set(value) <= set(rt.QUANTITIES)
+        and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v)) and v >= 0
+            for v in value.values()
+        )
+    ):
+        raise ModelError(
+            f"{cap(name)}: key 'held_out_variance' must give theta1, theta2, Fx or Fy a finite variance "
+            "of at least 0; refit with `labcli fit`."
+        )
+    return {q: float(v) for q, v in value.items()}
 
 
 def _check_tables(d: Mapping[str, Any], n_angle: int, n_torque: int, name: str) -> None:

@@ -35,7 +35,7 @@ Units: pressures MPa, angles rad, forces N.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -151,6 +151,8 @@ class CompiledPosture:
     limits: np.ndarray  # (4,) standard-error limits
     paper: _Paper | None  # Eqs. 34-37 where a quantity takes them (None: the posture form throughout)
     friction_width: np.ndarray | None = None  # (2,) each pair's fade, rad (None: no friction terms)
+    # (4,) the plan's direction term of the posture form's variances (routes.held_out_variances; zeros: none)
+    held_out: np.ndarray = field(default_factory=lambda: np.zeros(4))
 
     @classmethod
     def compile(cls, model: PostureModel) -> CompiledPosture | None:
@@ -193,6 +195,7 @@ class CompiledPosture:
             np.array([model.limits.get(q, math.inf) for q in rt.QUANTITIES], dtype=float),
             _Paper.of(model) if routes - {rt.POSTURE} and model.paper is not None else None,
             friction_width(model.pair_motion_sd()) if model.uses_history else None,
+            np.array([model.held_out_variance.get(q, 0.0) for q in rt.QUANTITIES], dtype=float),
         )
 
     def predict(
@@ -211,13 +214,17 @@ class CompiledPosture:
         u = P0 / P - 1.0
         dP = P0 - P
         values, se, valid = np.empty((n, 4)), np.empty((n, 4)), np.ones((n, 4), bool)
+        weight = np.ones((n, 4))  # the posture form's weight in each estimate
         with np.errstate(over="ignore", invalid="ignore"):  # the paper's standard errors: as the reference's
             dth, cov_a = self._angles(u, values, se)
             if not self._forces(dP, th0, dth, cov_a, values, se, motion_in):
                 return None
-            if self.paper is not None and not self._paper_routes(u, dP, values, se, valid):
+            if self.paper is not None and not self._paper_routes(u, dP, values, se, valid, weight):
                 return None
-        return values, se, (se <= self.limits) & valid
+        ok = (se <= self.limits) & valid
+        if self.held_out.any():  # the intervals' direction term, after the flags (PostureModel.predict)
+            se = np.sqrt(se * se + weight * weight * self.held_out)
+        return values, se, ok
 
     def _angles(self, u: np.ndarray, values: np.ndarray, se: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """theta1 and the deflection theta2 into ``values``, their standard errors into ``se``; the
@@ -313,11 +320,11 @@ class CompiledPosture:
         return out
 
     def _paper_routes(
-        self, u: np.ndarray, dP: np.ndarray, values: np.ndarray, se: np.ndarray, valid: np.ndarray
+        self, u: np.ndarray, dP: np.ndarray, values: np.ndarray, se: np.ndarray, valid: np.ndarray, weight: np.ndarray
     ) -> bool:
         """The paper's estimates, or the blends with them, put in place (PostureModel._paper_routes),
-        all blended quantities at once; False where Eqs. 36-37 meet an arm exactly straight (the
-        reference's stand-in posture)."""
+        all blended quantities at once, and the posture form's ``weight`` in each; False where
+        Eqs. 36-37 meet an arm exactly straight (the reference's stand-in posture)."""
         paper = self._paper_estimates(u, dP)
         if paper is None:
             return False
@@ -333,8 +340,10 @@ class CompiledPosture:
             sd = np.sqrt(np.maximum(var, 0.0))
             both = ok_pa[:, b] & np.isfinite(v) & np.isfinite(sd)
             values[:, b], se[:, b] = np.where(both, v, v_po), np.where(both, sd, s_po)
+            weight[:, b] = np.where(both, pa.weight, 1.0)
         if len(r):
             values[:, r], se[:, r] = v_pa[:, r], s_pa[:, r]
+            weight[:, r] = 0.0
             valid[:, r] &= ok_pa[:, r]
         return True
 
