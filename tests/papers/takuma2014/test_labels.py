@@ -307,3 +307,71 @@ def test_the_corrected_play_is_longer_than_least_squares_on_a_noisy_run_and_load
     first_fit = one_missing.index[one_missing["set"] == "fit"][0]
     one_missing.loc[first_fit, "Fx_N"] = np.nan
     assert play("loads", one_missing)[0] == pytest.approx(fitted["loads"][0], abs=0.01)
+
+
+def _held_run(seed: int, hold: float) -> tuple[np.ndarray, ...]:
+    """Loads read through play B on an arm whose friction holds it where a load of less than ``hold``
+    (rad) left it (a larger one it lets return): the design, the readings, and how far the shaft
+    moved from each loaded reading to the next rest reading (NaN after the last trial)."""
+    rng = np.random.default_rng(seed)
+    n = 120
+    x = rng.normal(0.0, 1.0, n)
+    d_true = np.sign(x) * np.radians(0.3 + 0.6 * np.abs(x))  # every load moves the joint past the play
+    design = np.column_stack([np.sin(d_true), -np.sin(d_true)]) / np.array([3.0, 1.6])
+    design += rng.normal(0.0, 1e-5, design.shape)
+    joint = shaft = 0.0
+    read, moved = [], []
+    for d in d_true:
+        rest = shaft
+        joint += d
+        shaft = min(max(shaft, joint - B / 2), joint + B / 2)
+        read.append(shaft - rest)
+        loaded = shaft
+        if abs(d) >= hold:
+            joint -= d
+        shaft = min(max(shaft, joint - B / 2), joint + B / 2)
+        moved.append(shaft - loaded)
+    noise = rng.normal(0.0, math.radians(0.005), (2, n))
+    returns = np.append(np.array(moved[:-1]) + noise[1, :-1], np.nan)
+    return design, np.array(read) + noise[0], returns
+
+
+def test_a_shaft_that_stayed_after_the_unload_says_friction_held_the_arm():
+    # Taken as a full return every time, the held unloads put the states wrong and the width far
+    # short; with the shaft's own motion between the load and the next rest it is the rig's.
+    as_returned, with_shafts = [], []
+    for seed in range(6):
+        design, read, returns = _held_run(seed, math.radians(0.7))
+        n = len(read)
+        args = (design, read, np.arange(n), np.ones(n, bool), np.arange(1, n + 1))
+        as_returned.append(fit_play(*args)[0].play_rad / B)
+        with_shafts.append(fit_play(*args, returns=returns)[0].play_rad / B)
+    assert max(as_returned) < 0.5
+    np.testing.assert_allclose(with_shafts, 1.0, atol=0.02)
+    # An arm that always returns: the shafts' motion agrees with the operator as written.
+    design, read, returns = _held_run(7, 0.0)
+    n = len(read)
+    args = (design, read, np.arange(n), np.ones(n, bool), np.arange(1, n + 1))
+    assert fit_play(*args, returns=returns)[0].play_rad == pytest.approx(fit_play(*args)[0].play_rad, rel=1e-6)
+
+
+def test_the_shafts_returns_are_read_from_the_rest_posture_in_trial_order():
+    import pandas as pd
+
+    from labcli.papers.takuma2014.models.labels import shaft_returns
+
+    table = pd.DataFrame(
+        {
+            "trial": [2, 1, 3],
+            "theta1_deg": [0.5, 1.0, -0.2],
+            "theta2_deg": [0.0, 0.0, 0.0],
+            "theta1_0_deg": [10.9, 10.0, 11.1],
+            "theta2_0_deg": [5.0, 5.0, np.nan],
+        }
+    )
+    order = np.argsort(table["trial"].to_numpy(), kind="stable")
+    got = np.degrees(shaft_returns(table, order))
+    # Trial 1 loaded read 11.0, trial 2 rested at 10.9: -0.1; trial 2 loaded 11.4, trial 3 rested 11.1.
+    np.testing.assert_allclose(got[:, 0], [-0.3, -0.1, np.nan], atol=1e-12)
+    assert np.isnan(got[0, 1]) and got[1, 1] == 0.0
+    assert np.isnan(shaft_returns(table.drop(columns=["theta1_0_deg"]), order)).all()

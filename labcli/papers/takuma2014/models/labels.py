@@ -21,6 +21,21 @@ under :data:`STUCK_SHARE` of the play) may be a shaft that never left the play, 
 that ``|d| <= b``: such trials stay out of that joint's angle fit, with a reason, and the
 pressures' own estimate (kept within the play) carries the state on to the next trial.
 
+The unload's return.  The operator as written takes the joint back by its whole deflection after
+each load; with the sleeves' friction it often is not: static friction holds the arm where a small
+load left it, or stops it short of its rest (the rig's friction equilibrium).  On the literature's
+rig, taken as a full return, that put the state wrong on 8-26 of 107 trials a joint (tuning seeds
+1-5, against the rig's own shafts) and the width short (median over tuning seeds 1-10, theta2 0.15
+deg of 0.2; 0.20 with the shafts' returns below, theta1 0.18 either way: a return that stops inside
+the play is not seen).  The run records
+where the shaft stood at every rest (``theta1_0_deg``, ``theta2_0_deg``), so the shaft's own motion
+from each loaded reading to the next rest reading tells the state after the unload
+(:func:`shaft_returns`): a shaft that moved (more than :data:`STUCK_SHARE` of the play) was pushed
+by the joint and lies on the far side of the play from the motion; a shaft that stayed where a whole
+return would have moved it says the joint did not come back, and the state is the loaded one.  A
+return that stayed inside the play either way is still taken as whole.  Without the rest posture
+(a table that does not record it) the states are the operator's as written.
+
 The pressure ratios carry the sensors' repeatability (a fresh error in every reading, which no
 window averages away), and least squares on such regressors shortens their slopes; the short part
 of each deflection follows its sign, as the play's states do, so the play's column takes it and the
@@ -46,6 +61,8 @@ from typing import Any
 
 import numpy as np
 
+from ..tables import REST
+
 STUCK_SHARE = 0.25  # a trailing reading under this share of the play has not left the play
 PASSES = 6  # state reruns; the play estimate settles in three or four
 START_RAD = 1e-3  # the play the first pass assumes (0.06 deg): small against most deflections
@@ -58,6 +75,7 @@ MIN_ERROR_TRIALS = 12  # fewer fit trials than this give no error variance (its 
 # times the literature rig's 0.33 kPa repeatability) is not the sensors' reading error but chambers
 # not supplied together (trials drawn from Eqs. 34-37 alone, models/synthetic.py): nothing to correct.
 MAX_RATIO_ERROR_SD = 0.015
+READ_COLUMNS = ("theta1_deg", "theta2_deg")
 
 
 @dataclass(frozen=True)
@@ -71,18 +89,49 @@ class PlayFit:
     stuck: tuple[int, ...]  # trial ids whose reading did not leave the play
 
 
-def play_states(dtheta_true: np.ndarray, play: float) -> tuple[np.ndarray, np.ndarray]:
+def play_states(
+    dtheta_true: np.ndarray, play: float, returns: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """For deflections (rad, in trial order) of one joint: ``c`` per trial (the reading is
-    ``d - play * c``) and whether the shaft trailed (moved less than the joint)."""
+    ``d - play * c``) and whether the shaft trailed (moved less than the joint).
+
+    ``returns`` (rad, in trial order; NaN where not known, :func:`shaft_returns`): how far the shaft
+    moved from each trial's loaded reading to the next trial's rest reading.  Without it the joint
+    is taken to return by its whole deflection.  With it, a shaft that moved (more than
+    :data:`STUCK_SHARE` of the play) was pushed there by the joint and lies on the far side of
+    the play; a shaft that stayed where a whole return would have moved it says the joint did not
+    return: the sleeves' friction held the arm where the load left it (module docstring)."""
     q = 0.0
     c = np.zeros(len(dtheta_true))
     if play <= 0:
         return c, np.zeros(len(dtheta_true), dtype=bool)
+    moved = np.full(len(c), np.nan) if returns is None else np.asarray(returns, dtype=float) / play
     for i, d in enumerate(np.nan_to_num(dtheta_true) / play):
         q_loaded = min(max(q - d, -0.5), 0.5)
         c[i] = q - q_loaded  # the reading is d + (q' - q) in units of the play
         q = min(max(q_loaded + d, -0.5), 0.5)
+        if np.isfinite(moved[i]):
+            if abs(moved[i]) > STUCK_SHARE:
+                q = -0.5 if moved[i] > 0 else 0.5
+            elif abs(q - q_loaded - d) > STUCK_SHARE:  # a whole return would have moved the shaft this much
+                q = q_loaded
     return c, np.abs(c) > 1e-9
+
+
+def shaft_returns(table: Any, order: np.ndarray) -> np.ndarray:
+    """Per row (n, 2) rad, table order: how far each potentiometer's shaft moved from the trial's
+    loaded reading to the next trial's rest reading (``theta1_0_deg``, ``theta2_0_deg``), in the
+    order ``order`` gives; NaN for the last trial and wherever the rest posture is not recorded."""
+    n = len(table)
+    out = np.full((n, 2), np.nan)
+    if not all(c in table.columns for c in REST) or n < 2:
+        return out
+    rest = np.radians(np.column_stack([np.asarray(table[c], dtype=float) for c in REST]))[order]
+    read = np.radians(np.column_stack([np.asarray(table[c], dtype=float) for c in READ_COLUMNS]))[order]
+    moved = np.full((n, 2), np.nan)
+    moved[:-1] = rest[1:] - (rest[:-1] + read[:-1])
+    out[order] = moved
+    return out
 
 
 def _stuck(r: np.ndarray, c: np.ndarray, play: float) -> np.ndarray:
@@ -174,12 +223,15 @@ def fit_play(
     trial: np.ndarray,
     instruments: np.ndarray | None = None,
     error_var: np.ndarray | None = None,
+    returns: np.ndarray | None = None,
 ) -> tuple[PlayFit, np.ndarray]:
     """Fit one joint's play with its angle design (all rows in table order; ``order`` sorts them by
     trial; ``fit_rows`` the rows fitted).  Returns the fit and the corrected deflections (rad).
 
     ``error_var`` (m,): the reading errors' variance of each design column (:func:`ratio_error_var`),
     taken out of the moment matrix (corrected least squares, the module docstring).
+    ``returns`` (n,): the shaft's motion from each trial's load to the next rest
+    (:func:`shaft_returns`), which tells the states after the unloads (:func:`play_states`).
     ``instruments`` (n, m), e.g. :func:`load_instruments`: instead, the width by two-stage least
     squares on them and the states; the loads move the joint but not the readings' errors (the
     sleeves' friction, which the operator's return to the same rest leaves out, still shortens it).
@@ -193,8 +245,9 @@ def fit_play(
     d_true = r.copy()
     use = ok
     c = np.zeros(len(r))
+    back = None if returns is None else np.asarray(returns, dtype=float)[order]
     for _ in range(PASSES):
-        c_sorted, _ = play_states(d_true[order], play)
+        c_sorted, _ = play_states(d_true[order], play, back)
         c = np.empty(len(r))
         c[order] = c_sorted
         stuck = _stuck(r, c, play)
@@ -218,7 +271,7 @@ def fit_play(
         play = new_play
         if converged:
             break
-    c_sorted, trailing_sorted = play_states(d_true[order], play)
+    c_sorted, trailing_sorted = play_states(d_true[order], play, back)
     c = np.empty(len(r))
     c[order] = c_sorted
     trailing = np.empty(len(r), dtype=bool)
@@ -235,13 +288,14 @@ def apply_play(table: Any, play_rad: tuple[float, float]) -> Any:
     validation trials of a model fitted with :func:`fit_play`: the same states, the same widths)."""
     out = table.copy()
     order = np.argsort(np.asarray(table["trial"], dtype=int), kind="stable")
-    for k, col in enumerate(("theta1_deg", "theta2_deg")):
+    returns = shaft_returns(table, order)[order]
+    for k, col in enumerate(READ_COLUMNS):
         if col not in table.columns or play_rad[k] <= 0:
             continue
         r = np.radians(np.asarray(table[col], dtype=float))
         d = r.copy()
         for _ in range(2):  # states from the readings, then from the corrected deflections
-            c_sorted, _ = play_states(d[order], play_rad[k])
+            c_sorted, _ = play_states(d[order], play_rad[k], returns[:, k])
             c = np.empty(len(r))
             c[order] = c_sorted
             d = correct(r, c, play_rad[k])

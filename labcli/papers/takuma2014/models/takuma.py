@@ -582,7 +582,7 @@ class TakumaModel:
         """The table with its angle labels corrected for the potentiometers' play (fitted here with
         Eqs. 34-35's designs, models/labels.py), and per angle equation the trials left out as read
         inside the play.  ``label_play="none"``, or too few fit trials, leaves the labels as read."""
-        from .labels import fit_play, load_instruments, ratio_error_var
+        from .labels import fit_play, load_instruments, ratio_error_var, shaft_returns
 
         self.play = {}
         n_fit = int(np.count_nonzero(fit_rows))
@@ -606,10 +606,18 @@ class TakumaModel:
         # trial without a finite load, so one such trial does not turn the fit back to "fit").
         loads = load_instruments(a["F"]) if self.label_play == "loads" else None
         error_var = ratio_error_var(u[fit_rows])  # the readings' repeatability, from the run itself
+        returns = shaft_returns(table, order)  # where the shafts went between a load and the next rest
         for k, eq in enumerate(("theta1", "theta2")):
             design = u[:, :2] if eq == "theta1" else u
             res, corrected = fit_play(
-                design, a["theta"][:, k], order, fit_rows, a["trial"], loads, error_var[: design.shape[1]]
+                design,
+                a["theta"][:, k],
+                order,
+                fit_rows,
+                a["trial"],
+                loads,
+                error_var[: design.shape[1]],
+                returns[:, k],
             )
             out[ANGLE_COLUMNS[k]] = np.degrees(corrected)
             stuck[eq] = list(res.stuck)
