@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "tests" / "benchmarks"
 RIG_DEFAULT = re.compile(r"add_rig_options\(\s*\w+,\s*realism=\"([a-z,]+)\"")
 # Sources whose files await the stamp of their next regeneration.
-PENDING: frozenset[str] = frozenset({"guard-relief", "guard-mistakes"})
+PENDING: frozenset[str] = frozenset()
 # Sources whose files name a commit off this history (measured on a branch before its rebase) and
 # that cannot be measured again at once.  Their figures stand; their record does not name the code
 # measured.  Regenerate them, then take the name out.
