@@ -54,7 +54,7 @@ from .evaluate import Inputs2, evaluate
 from .excursion import Excursion
 from .inputs import DeviceClock, Inputs, frame_arrays
 from .model import BASELINE, STATE, TRANSIENT, SensingModel, check_model, uses_history
-from .release import force_at_zero, is_release, lagged_step
+from .release import force_at_zero, is_release, lagged_step, slides_back
 from .results import IDLE, LOAD, LOADED, LOADING, RELEASE, RELEASING, SETTLED, STARTING, Estimate, Event
 from .transient import ResponseFit, Step, onset
 
@@ -413,7 +413,7 @@ class Estimator:
             return []
         step, total = lagged_step(tcs, np.array([h[2] for h in exc.residuals]), t1, c.tau_s), exc.settled_total()
         release = is_release(step, total[:p], r[:p], c, lambda: self._at_zero(tc, step, total, r))
-        kind = RELEASE if release else LOAD
+        kind = RELEASE if release or self._slid_back(t1, total, r) else LOAD
         if kind == LOAD and self.state == LOADED and np.max(np.abs(total[:p])) < c.small_load_MPa:
             return self._restart(t1, tc, seq)
         self._load_done(t1)
@@ -422,6 +422,21 @@ class Estimator:
         self.detector.reset()
         self.state = RELEASING if kind == RELEASE else LOADING
         return [Event(kind, t1, tc, seq)]
+
+    def _slid_back(self, t1: float, total: np.ndarray, r: np.ndarray) -> bool:
+        """Do the joints slide on the way they came back from the load before, at the change
+        begun at ``t1`` (:func:`.release.slides_back`)?  Their change: the blocks held since it
+        was seen, less the active load's fitted response, on the muscles' lag."""
+        exc, p = self._exc, self.inputs.n_pressures
+        assert exc is not None
+        if self._motion is None or not exc.held or exc.fit.result is None:
+            return False
+        step = exc.fit.step()
+        tcs = np.array([h[0] for h in exc.held])
+        raw = np.array([h[1][p:] - step.at(h[0])[p:] for h in exc.held])
+        moved = lagged_step(tcs, raw, t1, self.config.tau_s)
+        noise = math.sqrt(float(np.sum(r[p:])))  # the joints' noise, as the length of their change
+        return slides_back(moved, self._motion, total[p:], noise, self.config.release_cosine)
 
     def _at_zero(self, tc: float, step: np.ndarray, total: np.ndarray, r: np.ndarray) -> bool:
         """Does the model read the pressures after a change (the loads so far, ``total``, and the

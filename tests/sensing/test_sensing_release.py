@@ -22,7 +22,7 @@ from labcli.sensing import IDLE, LOAD, RELEASE, SETTLED, Estimate, Estimator, Es
 from labcli.sensing.evaluate import Inputs2
 from labcli.sensing.model import Prediction
 from labcli.sensing.offline import predict_rows, replay
-from labcli.sensing.release import chi2_99, force_at_zero, partial_return, points_back
+from labcli.sensing.release import chi2_99, force_at_zero, partial_return, points_back, slides_back
 
 ROOT = Path(__file__).resolve().parents[2]
 REREAD = 5e-4  # MPa: EstimatorConfig's default
@@ -228,3 +228,47 @@ def test_a_small_change_further_out_along_the_load_is_not_its_partial_return():
     assert partial_return(0.6 * out, total, REREAD)
     # Across the load the direction says nothing: within the new readings' reach, a release.
     assert partial_return(np.array([0.0, 0.0, 1e-3, -1e-3]), total, REREAD)
+
+
+def test_joints_sliding_on_the_way_they_came_back_is_a_release():
+    noise = 3e-4  # rad, the joints' reading noise
+    came = np.array([-0.01, -0.05])  # the way the arm came back from the load before
+    # On that way (friction's hold let go), well beyond the noise: the release.
+    assert slides_back(np.array([-0.001, -0.025]), came, np.zeros(2), noise, 0.7)
+    # The other way, across it, or within the noise: not a slide back.
+    assert not slides_back(np.array([0.001, 0.025]), came, np.zeros(2), noise, 0.7)
+    assert not slides_back(np.array([0.025, -0.002]), came, np.zeros(2), noise, 0.7)
+    assert not slides_back(np.array([-0.0002, -0.001]), came, np.zeros(2), noise, 0.7)
+    # A load that moved the joints is left to the pressures, whichever way they slide; one that moved
+    # them within the noise did not.
+    assert not slides_back(np.array([-0.001, -0.025]), came, np.array([0.0, 0.01]), noise, 0.7)
+    assert slides_back(np.array([-0.001, -0.025]), came, np.array([0.0, -0.001]), noise, 0.7)
+
+
+# (at_s, hold_s, mass_g, direction_deg) of two loads of the literature rig's random scripts (seed 7's
+# 22nd and 23rd loads, seed 1's 13th and 14th), moved to begin at 20 s.
+SLID = {
+    7: ((20.0, 19.685, 743.1, -130.8), (55.131, 21.887, 92.0, -90.1)),
+    1: ((20.0, 16.608, 326.0, -167.2), (59.56, 22.084, 178.7, -135.4)),
+}
+
+
+@pytest.mark.parametrize("seed", sorted(SLID))
+def test_a_release_that_lets_friction_slide_the_arm_on_is_no_load(monkeypatch, seed):
+    # A load, then one that friction holds the arm through (along the arm, or small).  At its
+    # release the arm slides on towards its rest (about 1.5 deg of theta2), the way it came back
+    # from the first load, and the pressures read against the friction-held baseline show
+    # 1.7-2.0 N: the pressures' readings alone took that release for a new load.
+    from labcli.papers.takuma2014.sim import scenario as sc
+    from labcli.papers.takuma2014.sim.script import parse_script
+
+    rows = [dict(zip(("at_s", "hold_s", "mass_g", "direction_deg"), r, strict=True)) for r in SLID[seed]]
+    script = parse_script({"air": {"supply_s": 0.0, "close_s": 6.0}, "load": rows}, "friction's slide")
+    model = load_model(ROOT / "sample_runs" / "force.model.json")
+    monkeypatch.setattr(sc, "SESSION_START_S", 0.0)
+    rig = {"realism": "literature"}
+    out = sc.run_session(model.model, load_protocol(model.protocol), script, seed, rig_options=rig, keep_stream=False)
+    ev = [(e.kind, round(e.t_device_s, 1)) for e in out.items if isinstance(e, Event) and e.kind in (LOAD, RELEASE)]
+    assert [k for k, _ in ev] == [LOAD, RELEASE, LOAD, RELEASE], ev
+    want = [t for r in SLID[seed] for t in (r[0], r[0] + r[1])]
+    assert all(abs(t - w) < 0.5 for (_, t), w in zip(ev, want, strict=True)), ev
