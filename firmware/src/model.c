@@ -29,6 +29,9 @@
 #ifndef MODEL_HAS_FRICTION
 #define MODEL_HAS_FRICTION 0 /* a header of before the friction terms */
 #endif
+#ifndef MODEL_HAS_HELD_OUT
+#define MODEL_HAS_HELD_OUT 0 /* a header of before the direction term: no MODEL_HELD_OUT_VAR */
+#endif
 
 #define ROUTE_POSTURE 0
 #define ROUTE_PAPER 1
@@ -611,7 +614,7 @@ void model_predict(const float *P0_in, const float *P_in, const float *th0, cons
     for (uint8_t q = 0; q < 4; q++)
         if (!bad && !(out->se[q] <= MODEL_LIMIT[q]))
             out->flags |= (uint16_t)(MODEL_FLAG_UNCERTAIN << q);
-#if MODEL_HAS_POSTURE
+#if MODEL_HAS_POSTURE && MODEL_HAS_HELD_OUT
     /* The plan's direction term widens the intervals after the flags, in the posture form's weight. */
     for (uint8_t q = 0; q < 4; q++)
         if (MODEL_HELD_OUT_VAR[q] > 0.0f)

@@ -374,3 +374,27 @@ def test_every_sample_run_model_builds_for_the_chip_with_its_own_tables(form, mo
     assert {"MODEL_P_CHANNEL", "MODEL_POT_CHANNEL", "MODEL_GAIN", "MODEL_ZERO"} <= set(kept)
     assert {name: data for name, (_, data) in kept.items()} == {name: tables[name] for name in kept}
     assert len({at for at, _ in kept.values()}) == len(kept)  # none folded into another
+
+
+def test_a_header_of_before_the_direction_term_still_builds_and_gives_the_plain_errors(models, tmp_path):
+    """A header exported before the fit plan's direction term (no MODEL_HAS_HELD_OUT, no
+    MODEL_HELD_OUT_VAR) builds as it did, and its chip gives the standard errors without the term."""
+    need_host_compiler()
+    header = tmp_path / "model.h"
+    assert CliRunner().invoke(cli, ["export-model", str(models["force"]), "--c", str(header)]).exit_code == 0
+    text = header.read_text()
+    assert "#define MODEL_HAS_HELD_OUT 1\n" in text
+    assert load_force_model(models["force"]).held_out_variance, "the sample model carries the term"
+    old = "".join(
+        line
+        for line in text.splitlines(keepends=True)
+        if "MODEL_HAS_HELD_OUT" not in line and "HELD_OUT_VAR" not in line
+    )
+    header.write_text(old)
+    make(tmp_path, str(tmp_path / "host" / "model_tool"), defs="", model=header)
+    P0, P, th0 = inputs(seed=6, n=200)
+    got = chip(tmp_path / "host" / "model_tool", P0, P, th0)
+    _, se, _, judged = host(models["force"], P0, P, th0)
+    ok = np.all(np.isfinite(judged), axis=1) & np.all(judged > 0, axis=1)
+    assert np.allclose(got[ok, 4:8], judged[ok], rtol=1e-2)  # the plain errors
+    assert np.any(se[ok] > judged[ok] * 1.02)  # which the term would have widened

@@ -126,3 +126,12 @@ def test_a_weight_left_on_the_literatures_rig_is_caught(tmp_path):
     assert str(e.value).startswith("The readings have not returned since the last load: they are still ")
     assert "the last weight may still hang on the pulley; the 13 completed trials in " in str(e.value)
     assert math.isclose(rig.true_state()["load"]["mass_kg"], 1.0)
+
+
+def test_the_simulated_trials_refuse_a_vent_side_they_cannot_take():
+    """The session's per-load side is not simulated by the driver: it is refused, not vented as nothing."""
+    proto = load_protocol("takuma2014")
+    plan = load_plan(proto).head(2)
+    rig = SimRig(seed=1, noise=0)
+    with pytest.raises(ValueError, match="relief_vent must be 'L' or 'R' here, not 'load'"):
+        simulate_weight_trials(rig, plan, calibration=proto.calibration, relief_vent_s=2.0, relief_vent="load")

@@ -177,6 +177,7 @@ def _posture_part(m: PostureModel) -> str:
         + f"#define MODEL_HAS_PRIOR {int(has_prior)}\n"
         + _array("float", "MODEL_PRIOR_SD", m.force_prior_sd if has_prior else [0.0, 0.0])
         + "/* the variance the fit plan's directions add to each standard error (rad^2, N^2) */\n"
+        + "#define MODEL_HAS_HELD_OUT 1\n"
         + _array("float", "MODEL_HELD_OUT_VAR", [m.held_out_variance.get(q, 0.0) for q in rt.QUANTITIES])
     )
 

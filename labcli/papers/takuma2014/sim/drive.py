@@ -95,13 +95,18 @@ def simulate_weight_trials(
     ``relief_s`` > 0: the protocol's friction relief (``acquisition.friction_relief_s``), the
     chambers supplied for that long and held again before each baseline, as the session does it;
     ``relief_vent_s`` > 0: first the ``relief_vent`` side's actuators (L or R) vented for that
-    long, the others held (``acquisition.friction_relief_vent_s``, ``friction_relief_vent``).
+    long, the others held (``acquisition.friction_relief_vent_s``, ``friction_relief_vent`` of a
+    run that vents one side; the session's default, per load, is not simulated here).
     ``repressurise_kPa`` > 0: the chambers supplied again once a baseline drifted that far since the
     last supply (``acquisition.repressurise_kPa``, as ``labcli acquire`` on a board that drives its
     valves does it); 0 holds them for the whole run.
     """
     import pandas as pd
 
+    if relief_vent_s > 0 and relief_vent not in ("L", "R"):
+        # The session's per-load side ("load") needs the guard's statics, which this driver has not:
+        # matched as a prefix it would vent nothing and say nothing.
+        raise ValueError(f"relief_vent must be 'L' or 'R' here, not {relief_vent!r}")
     p_idx, a_idx = _indices(rig)
     n = max(1, int(round(capture_s * rate_hz)))
     _pressurise(rig, settle_s)
