@@ -163,8 +163,10 @@ def slides_back(moved: np.ndarray, came: np.ndarray, loaded: np.ndarray, noise: 
 def is_release(
     step: np.ndarray, total: np.ndarray, var: np.ndarray, config: EstimatorConfig, at_zero: Callable[[], bool]
 ) -> bool:
-    """Any of the three readings (module docstring), the pressures' first; ``at_zero`` asks the
-    model (:func:`force_at_zero`) only when they do not say."""
+    """Three of the four readings (module docstring; the joints' slide is ``Estimator._slid_back``),
+    the pressures' first; ``at_zero`` asks the model (:func:`force_at_zero`) only when they do not
+    say.  Its standard errors include the fit plan's direction term (routes.held_out_variances),
+    which widens the band of forces read as none."""
     c = config
     if points_back(step, total, var, c.release_cosine, c.release_overshoot):
         return True

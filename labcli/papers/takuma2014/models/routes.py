@@ -44,7 +44,9 @@ it saw).  c is the value with mean e^2 / (s^2 + c d^2) = 1 over the held-out tri
 form reports (e its held-out error, s its fold's standard error), and a new load is given the
 term at the farthest a load can lie from the fit plan's directions, half the widest gap between
 neighbouring directions (:func:`held_out_variances`).  It widens the intervals only: the
-estimates and their flags are those of the trial's own standard error.  Chosen on tuning seeds
+estimates and their flags are those of the trial's own standard error (``labcli sense``'s release
+reading, forces within ``release_force_se`` standard errors of zero, takes the widened ones: the
+sensing figures are measured with it).  Chosen on tuning seeds
 1-10 over the folds' own excess at every load (c d^2 at the folds' distance): that one covered the
 literature bent arm's Fx 98 % and, entering the flags, left 60 of its 180 trials under the 1 N
 limit (159 before); the kind rig's bent Fy 100 %.
