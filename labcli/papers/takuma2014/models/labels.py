@@ -121,7 +121,12 @@ def play_states(
 def shaft_returns(table: Any, order: np.ndarray) -> np.ndarray:
     """Per row (n, 2) rad, table order: how far each potentiometer's shaft moved from the trial's
     loaded reading to the next trial's rest reading (``theta1_0_deg``, ``theta2_0_deg``), in the
-    order ``order`` gives; NaN for the last trial and wherever the rest posture is not recorded."""
+    order ``order`` gives; NaN for the last trial and wherever the rest posture is not recorded.
+
+    The net motion is read as the unload's return.  On a relieved run (a side vented before each
+    baseline) the arm's last motion into its rest is the return from the relief's swing instead, so
+    the side of the play it names is the vented side's, not the unload's; and on rows averaging
+    several captures it is the captures' mean.  Neither is told apart here (docs/calibration-labels.md)."""
     n = len(table)
     out = np.full((n, 2), np.nan)
     if not all(c in table.columns for c in REST) or n < 2:
