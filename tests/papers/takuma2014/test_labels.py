@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -309,6 +310,23 @@ def test_the_corrected_play_is_longer_than_least_squares_on_a_noisy_run_and_load
     assert play("loads", one_missing)[0] == pytest.approx(fitted["loads"][0], abs=0.01)
 
 
+def _loads_and_returns(d_true: np.ndarray, back: Any) -> tuple[list[float], list[float]]:
+    """Through play B, per load: the reading, and how far the shaft moved from the loaded reading to
+    the next rest when the unload takes the joint back by ``back(d)``."""
+    joint = shaft = 0.0
+    read, moved = [], []
+    for d in d_true:
+        rest = shaft
+        joint += d
+        shaft = min(max(shaft, joint - B / 2), joint + B / 2)
+        read.append(shaft - rest)
+        loaded = shaft
+        joint -= back(d)
+        shaft = min(max(shaft, joint - B / 2), joint + B / 2)
+        moved.append(shaft - loaded)
+    return read, moved
+
+
 def _held_run(seed: int, hold: float) -> tuple[np.ndarray, ...]:
     """Loads read through play B on an arm whose friction holds it where a load of less than ``hold``
     (rad) left it (a larger one it lets return): the design, the readings, and how far the shaft
@@ -319,18 +337,7 @@ def _held_run(seed: int, hold: float) -> tuple[np.ndarray, ...]:
     d_true = np.sign(x) * np.radians(0.3 + 0.6 * np.abs(x))  # every load moves the joint past the play
     design = np.column_stack([np.sin(d_true), -np.sin(d_true)]) / np.array([3.0, 1.6])
     design += rng.normal(0.0, 1e-5, design.shape)
-    joint = shaft = 0.0
-    read, moved = [], []
-    for d in d_true:
-        rest = shaft
-        joint += d
-        shaft = min(max(shaft, joint - B / 2), joint + B / 2)
-        read.append(shaft - rest)
-        loaded = shaft
-        if abs(d) >= hold:
-            joint -= d
-        shaft = min(max(shaft, joint - B / 2), joint + B / 2)
-        moved.append(shaft - loaded)
+    read, moved = _loads_and_returns(d_true, lambda d: d if abs(d) >= hold else 0.0)
     noise = rng.normal(0.0, math.radians(0.005), (2, n))
     returns = np.append(np.array(moved[:-1]) + noise[1, :-1], np.nan)
     return design, np.array(read) + noise[0], returns
@@ -375,3 +382,32 @@ def test_the_shafts_returns_are_read_from_the_rest_posture_in_trial_order():
     np.testing.assert_allclose(got[:, 0], [-0.3, -0.1, np.nan], atol=1e-12)
     assert np.isnan(got[0, 1]) and got[1, 1] == 0.0
     assert np.isnan(shaft_returns(table.drop(columns=["theta1_0_deg"]), order)).all()
+
+
+def _short_run(seed: int, short: float) -> tuple[np.ndarray, ...]:
+    """True deflections, readings through play B and the shafts' returns of an arm whose friction
+    stops every return ``short`` (rad) before the rest it left (a kind rig's small band): the
+    deflections, the states the rig's own shafts had, and the returns."""
+    rng = np.random.default_rng(seed)
+    d_true = rng.choice([-1.0, 1.0], 200) * B * rng.uniform(1.2, 6.0, 200)
+    read, moved = _loads_and_returns(d_true, lambda d: d - math.copysign(short, d))
+    c_true = (d_true - np.array(read)) / B
+    return d_true, c_true, np.append(moved[:-1], np.nan)
+
+
+def test_a_shaft_that_stayed_after_a_small_return_is_not_held_when_no_clear_return_was():
+    # Friction that stops each return a little short leaves the shaft where a small return would
+    # just have moved it: the joint stands inside the play near the far side, not where the load
+    # left it, so the states are the whole return's to within the shortfall.
+    d, c_true, returns = _short_run(3, 0.4 * B)
+    stayed = (np.abs(returns) <= 0.25 * B) & (np.abs(d) > 1.4 * B)
+    assert stayed.sum() >= 5  # small returns that a whole return would have pushed the shaft after
+    c, _ = play_states(d, B, returns)
+    np.testing.assert_allclose(c, c_true, atol=0.4 + 1e-9)
+    # A run whose friction held the arm on a clear return keeps reading a stayed shaft as held.
+    held = returns.copy()
+    big = np.flatnonzero(np.abs(d[:-1]) > 3 * B)[0]
+    held[big] = 0.0
+    c_held, _ = play_states(d, B, held)
+    after = np.flatnonzero(stayed[:-1])[0] + 1
+    assert abs(c_held[after] - c[after]) > 0.4
