@@ -157,7 +157,7 @@ def _choose_loads(
 def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, seed: int | None) -> SplitDone:
     from .protocol import run_captures
     from .store import RunFile
-    from .store.split import default_sizes
+    from .store.split import default_sizes, seed_used
 
     with RunFile.open(path, "a") as rf:
         ids = rf.records.ids() if rf.record_type.splits else []
@@ -171,7 +171,7 @@ def _split_run(path: str, n_fit: int | None, n_val: int | None, strategy: str, s
             defaults = None
         n = run_captures(rf.protocol_text, path)
         fit, val, (fits, vals, units), note = _choose_loads(list(ids), n, defaults, n_fit, n_val, strategy, seed, path)
-        used_seed = (0 if seed is None else seed) if strategy == "random" else None
+        used_seed = seed_used(strategy, seed)
         rf.split.set(fit, val, strategy, used_seed)
     return SplitDone(path, fits, vals, units, strategy, used_seed, note, "", n, len(ids))
 
@@ -191,6 +191,7 @@ def _split_table(
 ) -> SplitDone:
     from .protocol import load_protocol
     from .registry import record_type
+    from .store.split import seed_used
     from .table_meta import SIDECAR_SUFFIX, load_described, write_sidecar
 
     if not Path(path).is_file():
@@ -215,5 +216,5 @@ def _split_table(
         write_sidecar(df, kind.table_spec, out)
     if had and out == path:
         note = (note + "; " if note else "") + "the set column it had is replaced"
-    used_seed = (0 if seed is None else seed) if strategy == "random" else None
+    used_seed = seed_used(strategy, seed)
     return SplitDone(path, fits, vals, units, strategy, used_seed, note, out, n, len(ids))

@@ -122,7 +122,7 @@ class Splits:
             n_fit = default_fit if n_fit is None else n_fit
             n_validation = default_validation if n_validation is None else n_validation
         fit, val = choose(self._candidates(), n_fit, n_validation, strategy, seed, self._run.path)
-        self.set(fit, val, strategy, (0 if seed is None else seed) if strategy == "random" else None)
+        self.set(fit, val, strategy, seed_used(strategy, seed))
         self._held = None  # read back from the file: what a later open will find
         split = self.get()
         if split is None:
@@ -132,6 +132,12 @@ class Splits:
     def _candidates(self) -> list[int]:
         """The records a split may hold: the complete ones, if the record type splits at all."""
         return self._run.records.ids() if self._run.record_type.splits else []
+
+
+def seed_used(strategy: str, seed: int | None) -> int | None:
+    """The seed a split records: a random split's (0 when none was given, as :func:`choose_split`
+    draws with it), none for the others."""
+    return (0 if seed is None else seed) if strategy == "random" else None
 
 
 def split_row(
