@@ -469,21 +469,31 @@ def with_captures(protocol: Protocol, captures: int, flag: str = "--captures") -
         )
     if captures == 1:
         return protocol
+    return with_acquisition_key(
+        protocol,
+        f"captures_per_load = {captures}",
+        f"{protocol.name} with {flag} {captures}",
+        f"write captures_per_load = {captures} there instead of {flag} {captures}",
+    )
+
+
+def with_acquisition_key(protocol: Protocol, line: str, source: str, instead: str) -> Protocol:
+    """``protocol`` with ``line`` (``key = value``) written at the top of its file's own ``[acquisition]``
+    table, its line endings (LF or CRLF) kept, or a new table at the end where the file has none.  A
+    file that gives its acquisition settings as dotted keys or an inline table has no header to write
+    under: refused in one sentence ending with ``instead`` (what to write there by hand)."""
     text = protocol.text
     end = "\r\n" if "\r\n" in text else "\n"
-    line = f"captures_per_load = {captures}{end}"
     header = _ACQUISITION_HEADER.search(text)
     if header is not None:
-        text = text[: header.end()] + line + text[header.end() :]
+        text = text[: header.end()] + line + end + text[header.end() :]
     elif "acquisition" in protocol.sections:
-        # Given as dotted keys or an inline table: there is no table header to write under.
         raise ConfigError(
-            f"{protocol.name} gives its acquisition settings without an [acquisition] table header; "
-            f"write captures_per_load = {captures} there instead of {flag} {captures}."
+            f"{protocol.name} gives its acquisition settings without an [acquisition] table header; {instead}."
         )
     else:
-        text = text.rstrip("\r\n") + f"{end}{end}[acquisition]{end}" + line
-    return loads_protocol(text, source=f"{protocol.name} with {flag} {captures}", path=protocol.path)
+        text = text.rstrip("\r\n") + f"{end}{end}[acquisition]{end}" + line + end
+    return loads_protocol(text, source=source, path=protocol.path)
 
 
 def run_captures(protocol_text: str, path: str) -> int:

@@ -4,11 +4,11 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from ...core.paper import AcquireOptions, Session
-from ...core.protocol import with_captures
+from ...core.protocol import with_acquisition_key, with_captures
 from ...core.words import count
 from ...errors import ConfigError
 from .protocol import CAPTURE_KINDS, load_plan
@@ -195,9 +195,45 @@ def _captured(protocol: Any, options: AcquireOptions) -> Any:
     return protocol
 
 
+def _relief_vent(protocol: Any, options: AcquireOptions) -> Any:
+    """A force protocol whose friction relief vents, with the side it vents settled: a new run's copy
+    says it (``friction_relief_vent``, the default ``"load"`` written in), so that the run stores what
+    it did; a resumed run keeps venting what it vented.  A stored protocol without the key was begun
+    before the per-load default, and vented L, as did ``"load"`` where the rig's statics could not find
+    the side (:meth:`PhysicsPrior.of` None); a new run asking for ``"load"`` there is refused in one
+    sentence (docs/load-check.md)."""
+    from .guard_prior import PhysicsPrior
+
+    air = protocol.air
+    if protocol.kind not in CAPTURE_KINDS or not air.friction_relief_vent_s > 0:
+        return protocol
+    given = "friction_relief_vent" in protocol.sections.get("acquisition", {})
+    per_load = air.friction_relief_vent == "load"
+    if options.resume is not None:
+        if given and (not per_load or PhysicsPrior.of(protocol) is not None):
+            return protocol
+        return replace(protocol, air=replace(air, friction_relief_vent="L"))
+    if per_load and PhysicsPrior.of(protocol) is None:
+        raise ConfigError(
+            f"The friction relief of {protocol.name} vents the side each load pulls the arm towards "
+            '(acquisition.friction_relief_vent = "load", the default), which the rig\'s statics find from its '
+            "[rig] geometry and the channels P_L1, P_R1, P_L2, P_R2, POT1 and POT2, and the protocol does not "
+            'name them all: name them so, or set friction_relief_vent = "L" or "R" to vent that side before '
+            "every trial."
+        )
+    if given:
+        return protocol
+    return with_acquisition_key(
+        protocol,
+        'friction_relief_vent = "load"',
+        f"{protocol.name} venting per load",
+        'write friction_relief_vent = "load" there (or "L", "R"), so that the run records the side it vents',
+    )
+
+
 def acquisition(protocol: Any, options: AcquireOptions) -> ForceAcquisition | PushAcquisition:
     """Plan a run of a ``force`` or ``push`` protocol."""
-    protocol = _captured(protocol, options)
+    protocol = _relief_vent(_captured(protocol, options), options)
     if protocol.kind == "push":
         return _push_acquisition(protocol, options)
     plan = _plan(protocol, options)

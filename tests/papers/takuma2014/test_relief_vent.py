@@ -1,0 +1,165 @@
+"""Which side the friction relief vents is the run's stored choice: a new run writes the per-load
+default into the protocol it stores, a run begun before that default (no key) keeps venting L when
+resumed, and "load" without the rig's geometry is refused before anything is stored."""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import signal
+from dataclasses import replace
+
+import pytest
+from click.testing import CliRunner
+from rich.console import Console
+
+from labcli.cli import cli
+from labcli.core.acquisition import acquire
+from labcli.core.air import AirSettings
+from labcli.core.paper import AcquireOptions
+from labcli.core.protocol import load_protocol, loads_protocol, with_captures
+from labcli.core.store import RunFile
+from labcli.core.store.records import Records
+from labcli.core.ui import UnattendedUI
+from labcli.papers.takuma2014 import acquisition as force_acquisition
+from labcli.papers.takuma2014.guard_prior import PhysicsPrior
+
+PORT = "sim://?seed=21&clock=virtual"
+# Loads at 0 deg pull the upright arm towards R (Fx > 0), at 180 deg towards L.
+PLAN = "trial,set,mass_g,direction_deg\n1,fit,500,0\n2,fit,500,180\n3,validation,500,0\n"
+
+
+def quiet() -> UnattendedUI:
+    return UnattendedUI(console=Console(file=io.StringIO()))
+
+
+@pytest.fixture
+def vented(monkeypatch):
+    """The side of every relief, in order ("L" or "R", from the channels vented)."""
+    sides: list[str] = []
+    real = AirSettings.relief_vented
+
+    def spy(self, names, pulled=None):
+        out = real(self, names, pulled)
+        sides.append("".join(sorted({n[2] for n in out})))
+        return out
+
+    monkeypatch.setattr(AirSettings, "relief_vented", spy)
+    return sides
+
+
+def _plan(tmp_path):
+    plan = tmp_path / "plan.csv"
+    plan.write_text(PLAN)
+    return plan
+
+
+def _interrupted(run, mp, **kw):
+    """``acquire(run, ...)`` of the plan at two captures a load, Ctrl-C pressed as record 3 (load 2's
+    first capture) is written: the outcome."""
+    real = Records.write
+
+    def pressed(self, record):
+        if record["trial"] == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(self, record)
+
+    mp.setattr(Records, "write", pressed)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return acquire(run, PORT, plan=_plan(run.parent), unattended=True, ui=quiet(), captures=2, **kw)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_a_new_run_stores_the_per_load_default_and_vents_the_side_each_load_pulls(tmp_path, vented):
+    run = tmp_path / "new.h5"
+    out = acquire(run, PORT, plan=_plan(tmp_path), unattended=True, ui=quiet(), captures=2)
+    assert out.exit_code == 0, out.message
+    with RunFile.open(run) as f:
+        stored = loads_protocol(f.protocol_text)
+    assert re.search(r'^friction_relief_vent = "load"$', stored.text, flags=re.MULTILINE)
+    assert stored.air.friction_relief_vent == "load" and stored.air.captures_per_load == 2
+    assert vented == ["R", "R", "L", "L", "R", "R"]
+
+
+def test_a_run_begun_before_the_per_load_default_keeps_venting_l_when_resumed(tmp_path, monkeypatch, vented):
+    """An old-style run: its stored protocol has the relief (two captures a load) but no vent key, and
+    it vented L before every capture.  Interrupted after load 1, resumed: it vents L again."""
+    run = tmp_path / "old.h5"
+    # The toolkit before the per-load default: the key left out of the stored protocol, L vented.
+    with monkeypatch.context() as mp:
+        mp.setattr(
+            force_acquisition,
+            "_relief_vent",
+            lambda protocol, options: replace(protocol, air=replace(protocol.air, friction_relief_vent="L")),
+        )
+        first = _interrupted(run, mp)
+    assert first.exit_code != 0 and vented == ["L", "L", "L"]
+    with RunFile.open(run) as f:
+        assert "friction_relief_vent" not in f.protocol_text and f.records.ids() == [1, 2, 3]
+    vented.clear()
+    resumed = acquire(run, PORT, resume=True, unattended=True, ui=quiet())
+    assert resumed.exit_code == 0, resumed.message
+    # Loads 2 and 3 pull L and R; per load it would vent L, R, R: the run's own choice vents L.
+    assert vented == ["L", "L", "L"]
+    with RunFile.open(run) as f:
+        assert "friction_relief_vent" not in f.protocol_text and f.records.ids() == [1, 2, 3, 4, 5, 6]
+
+
+def test_a_resumed_run_that_stored_its_side_vents_it(tmp_path, vented):
+    """A side given in the protocol is stored as given and vented again when resumed."""
+    proto = tmp_path / "r.toml"
+    proto.write_text(
+        load_protocol("takuma2014").text.replace("[acquisition]\n", '[acquisition]\nfriction_relief_vent = "R"\n')
+    )
+    run = tmp_path / "r.h5"
+    with pytest.MonkeyPatch.context() as mp:
+        assert _interrupted(run, mp, protocol=str(proto)).exit_code != 0
+    assert vented == ["R", "R", "R"]
+    vented.clear()
+    assert acquire(run, PORT, resume=True, unattended=True, ui=quiet()).exit_code == 0
+    assert vented == ["R", "R", "R"]
+
+
+def _unnamed(tmp_path, extra: str = ""):
+    """The shipped protocol with its angle channels named otherwise: the rig's statics cannot read
+    them, so they find no side a load pulls towards (no PhysicsPrior; nor the paper's model)."""
+    text = load_protocol("takuma2014").text.replace("POT1", "ANG1").replace("POT2", "ANG2")
+    path = tmp_path / "unnamed.toml"
+    path.write_text(text.replace("[acquisition]\n", "[acquisition]\n" + extra))
+    assert PhysicsPrior.of(load_protocol(str(path))) is None
+    return path
+
+
+def test_venting_per_load_where_the_statics_find_no_side_is_refused_in_one_sentence(tmp_path):
+    proto, run = _unnamed(tmp_path), tmp_path / "x.h5"
+    args = ["acquire", str(run), "--port", PORT, "--unattended", "--protocol", str(proto), "--plan"]
+    res = CliRunner().invoke(cli, [*args, str(_plan(tmp_path)), "--captures", "2"])
+    assert res.exit_code == 1 and not run.exists()
+    assert res.output == (
+        "Error: The friction relief of takuma2014 vents the side each load pulls the arm towards "
+        '(acquisition.friction_relief_vent = "load", the default), which the rig\'s statics find from its [rig] '
+        "geometry and the channels P_L1, P_R1, P_L2, P_R2, POT1 and POT2, and the protocol does not name them "
+        'all: name them so, or set friction_relief_vent = "L" or "R" to vent that side before every trial.\n'
+    )
+
+
+@pytest.mark.parametrize("extra", ['friction_relief_vent = "R"\n', ""])
+def test_a_side_given_or_no_relief_needs_no_statics(tmp_path, extra):
+    """A side given is vented whatever the channels; without the relief nothing is vented."""
+    proto = with_captures(load_protocol(str(_unnamed(tmp_path, extra))), 2 if extra else 1)
+    planned = force_acquisition._relief_vent(proto, AcquireOptions(str(tmp_path / "x.h5")))
+    assert planned.air.friction_relief_vent == ("R" if extra else "load")
+    assert planned.air.friction_relief_vent_s == (2.0 if extra else 0.0)
+    assert planned.text.count("friction_relief_vent =") == (1 if extra else 0)
+
+
+def test_a_resumed_run_whose_statics_find_no_side_keeps_venting_l():
+    """A run begun with "load" where the statics found no side vented L (before it was refused): resumed, L."""
+    text = load_protocol("takuma2014").text.replace("POT1", "ANG1").replace("POT2", "ANG2")
+    stored = loads_protocol(text.replace("[acquisition]\n", '[acquisition]\nfriction_relief_vent = "load"\n'))
+    stored = with_captures(stored, 2)
+    resumed = force_acquisition._relief_vent(stored, AcquireOptions("x.h5", resume=object()))
+    assert resumed.air.friction_relief_vent == "L" and resumed.text == stored.text
