@@ -64,6 +64,7 @@ unchanged to within its standard error.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -97,10 +98,11 @@ class PlayFit:
     se_rad: float
     trailing: int  # fit trials whose shaft trailed (read short)
     stuck: tuple[int, ...]  # trial ids whose reading did not leave the play
+    holds: bool = False  # whether the sleeves' friction held the arm on a clear return (friction_holds)
 
 
 def play_states(
-    dtheta_true: np.ndarray, play: float, returns: np.ndarray | None = None
+    dtheta_true: np.ndarray, play: float, returns: np.ndarray | None = None, holds: bool | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """For deflections (rad, in trial order) of one joint: ``c`` per trial (the reading is
     ``d - play * c``) and whether the shaft trailed (moved less than the joint).
@@ -111,13 +113,15 @@ def play_states(
     :data:`STUCK_SHARE` of the play) was pushed there by the joint and lies on the far side of
     the play; a shaft that stayed where a whole return would have moved it says the joint did not
     return: the sleeves' friction held the arm where the load left it, if the run shows that it
-    ever does (:func:`friction_holds`; module docstring)."""
+    ever does (:func:`friction_holds`; module docstring).  ``holds`` gives that decision instead
+    (a fitted model's, for its validation trials); None decides it from these trials."""
     q = 0.0
     c = np.zeros(len(dtheta_true))
     if play <= 0:
         return c, np.zeros(len(dtheta_true), dtype=bool)
     moved = np.full(len(c), np.nan) if returns is None else np.asarray(returns, dtype=float) / play
-    holds = friction_holds(np.asarray(dtheta_true, dtype=float) / play, moved)
+    if holds is None:
+        holds = friction_holds(np.asarray(dtheta_true, dtype=float) / play, moved)
     for i, d in enumerate(np.nan_to_num(dtheta_true) / play):
         q_loaded = min(max(q - d, -0.5), 0.5)
         c[i] = q - q_loaded  # the reading is d + (q' - q) in units of the play
@@ -298,7 +302,8 @@ def fit_play(
         play = new_play
         if converged:
             break
-    c_sorted, trailing_sorted = play_states(d_true[order], play, back)
+    holds = play > 0 and back is not None and friction_holds(d_true[order] / play, back / play)
+    c_sorted, trailing_sorted = play_states(d_true[order], play, back, holds)
     c = np.empty(len(r))
     c[order] = c_sorted
     trailing = np.empty(len(r), dtype=bool)
@@ -306,13 +311,18 @@ def fit_play(
     stuck = ok & _stuck(r, c, play)
     d_final = np.where(stuck, d_true, correct(r, c, play))
     d_final = np.where(np.isfinite(r), d_final, np.nan)
-    result = PlayFit(play, se, int((trailing & ok).sum()), tuple(int(t) for t in trial[stuck]))
+    result = PlayFit(play, se, int((trailing & ok).sum()), tuple(int(t) for t in trial[stuck]), bool(holds))
     return result, d_final
 
 
-def apply_play(table: Any, play_rad: tuple[float, float]) -> Any:
+def apply_play(table: Any, play_rad: tuple[float, float], holds: tuple[bool, bool] = (False, False)) -> Any:
     """A copy of the trial table with each joint's deflection corrected for the given play (the
-    validation trials of a model fitted with :func:`fit_play`: the same states, the same widths)."""
+    validation trials of a model fitted with :func:`fit_play`: the same states, the same widths).
+
+    ``holds``: per joint, whether the fit found the sleeves' friction holding the arm on a clear
+    return (:attr:`PlayFit.holds`, the model file's ``labels.friction_holds``).  It is the fit's
+    decision, not this table's: a validation table alone, with fewer clear returns, may decide
+    otherwise, and its labels would then be corrected by other states than the fit's."""
     out = table.copy()
     order = np.argsort(np.asarray(table["trial"], dtype=int), kind="stable")
     returns = shaft_returns(table, order)[order]
@@ -322,9 +332,21 @@ def apply_play(table: Any, play_rad: tuple[float, float]) -> Any:
         r = np.radians(np.asarray(table[col], dtype=float))
         d = r.copy()
         for _ in range(2):  # states from the readings, then from the corrected deflections
-            c_sorted, _ = play_states(d[order], play_rad[k], returns[:, k])
+            c_sorted, _ = play_states(d[order], play_rad[k], returns[:, k], bool(holds[k]))
             c = np.empty(len(r))
             c[order] = c_sorted
             d = correct(r, c, play_rad[k])
         out[col] = np.degrees(d)
     return out
+
+
+def fitted_play(play: Any) -> tuple[tuple[float, float], tuple[bool, bool]] | None:
+    """From a model's ``labels`` entry (``play`` of TakumaModel and PostureModel): the widths (rad)
+    and the fit's friction decision per joint, for :func:`apply_play`; None when it fitted no play.
+    ``friction_holds`` is written only where the fit found it (files written before it read back
+    byte for byte), so its absence is the decision that friction held no clear return."""
+    widths = (play or {}).get("play_deg")
+    if not widths or not all(isinstance(w, (int, float)) and math.isfinite(w) for w in widths):
+        return None
+    holds = (play or {}).get("friction_holds") or (False, False)
+    return (math.radians(widths[0]), math.radians(widths[1])), (bool(holds[0]), bool(holds[1]))

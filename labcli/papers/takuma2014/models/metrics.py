@@ -62,12 +62,10 @@ def _unplayed(model: Any, table: Any) -> Any:
     """The table's angle labels corrected for the play the model fitted (models/labels.py), so that
     its predictions are judged against the labels it was fitted to; as read otherwise.  The states
     run over the whole table in trial order, as in the fit."""
-    widths = (getattr(model, "play", None) or {}).get("play_deg")
-    if not widths or not all(isinstance(w, (int, float)) and math.isfinite(w) for w in widths):
-        return table
-    from .labels import apply_play
+    from .labels import apply_play, fitted_play
 
-    return apply_play(table, (math.radians(widths[0]), math.radians(widths[1])))
+    fitted = fitted_play(getattr(model, "play", None))
+    return table if fitted is None else apply_play(table, *fitted)
 
 
 def evaluate(model: ForceModel, table: Any, mode: str = "pressure-only", source: str = "the run") -> dict[str, Any]:

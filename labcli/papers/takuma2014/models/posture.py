@@ -80,7 +80,7 @@ from . import routes as rt
 from .calibrated import baseline_dict, calibrated_range, captures_dict, check_baseline, check_captures, check_range
 from .geometry import jacobian
 from .history import motion_from, motion_into_baseline, previous_rows, rows_of
-from .labels import apply_play
+from .labels import apply_play, fitted_play
 from .paper_folds import fold_models
 from .takuma import (
     ANGLE_COLUMNS,
@@ -771,10 +771,8 @@ class PostureModel:
         probe = TakumaModel(geometry=self.geometry, protocol=self.protocol, label_play=self.label_play)
         probe._unplayed(table, set_mask(table, "fit", source) if fit_rows is None else fit_rows)
         self.play = probe.play
-        widths = self.play.get("play_deg")
-        if not widths:
-            return table
-        return apply_play(table, (math.radians(widths[0]), math.radians(widths[1])))
+        fitted = fitted_play(self.play)  # the widths and the fit's own friction decision
+        return table if fitted is None else apply_play(table, *fitted)
 
     def _fit_posture(self, table: Any, source: str, record_trials: bool, fit_rows: np.ndarray) -> None:
         a = table_arrays(table, fit_rows, motion=self.friction is True, baseline_mean=self.baseline_mean)

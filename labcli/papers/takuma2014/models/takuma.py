@@ -600,7 +600,7 @@ class TakumaModel:
         order = np.argsort(a["trial"], kind="stable")
         out = table.copy()
         stuck: dict[str, list[int]] = {}
-        widths, ses, trailing = [], [], []
+        widths, ses, trailing, holds = [], [], [], []
         fit_rows = np.asarray(fit_rows, bool)
         # "loads": the width on the loads as instruments (models/labels.py; fit_play leaves out a
         # trial without a finite load, so one such trial does not turn the fit back to "fit").
@@ -624,7 +624,10 @@ class TakumaModel:
             widths.append(math.degrees(res.play_rad))
             ses.append(math.degrees(res.se_rad))
             trailing.append(res.trailing)
+            holds.append(res.holds)
         self.play = {"play_deg": widths, "se_deg": ses, "trailing_trials": trailing, "inside_play": stuck}
+        if any(holds):  # only where friction held: a file written before it reads back byte for byte
+            self.play["friction_holds"] = holds
         return out, stuck
 
     def _exclusions(
@@ -888,6 +891,11 @@ def labels_from_dict(value: Any, name: str) -> tuple[str, dict[str, Any]]:
     if not isinstance(value, Mapping) or value.get("play") not in LABEL_PLAYS:
         raise ModelError(
             f"{cap(name)} has a bad 'labels' entry (expected play 'fit', 'loads' or 'none'); refit with `labcli fit`."
+        )
+    holds = value.get("friction_holds", [False, False])
+    if not (isinstance(holds, list) and len(holds) == 2 and all(isinstance(h, bool) for h in holds)):
+        raise ModelError(
+            f"{cap(name)}: key 'labels.friction_holds' must list two booleans (theta1, theta2); refit with `labcli fit`."
         )
     rest = {k: v for k, v in value.items() if k != "play"}
     return str(value["play"]), rest
