@@ -20,7 +20,11 @@ with a 95 % paired bootstrap interval over seeds, Fy reported, the 95 % interval
 the rig's clock per plan load (the median gap between consecutive captures' baselines times the
 captures a load, since a long run's stored device times restart part-way) with its ratio.
 
-    nice python tests/benchmarks/captures_acquired.py [--seeds 11-30] [--cache FILE] [--figures OUT]
+``--diagnose`` adds, per arm, where the ``relief3`` intervals' width comes from and where the fit
+trials err (interval_parts.py: each share of the variance against the errors it stands for, and the
+fit trials' Fx error per load direction); it reads what each seed's record keeps, measured with it.
+
+    nice python tests/benchmarks/captures_acquired.py [--seeds 11-30] [--cache FILE] [--figures OUT] [--diagnose]
 """
 
 from __future__ import annotations
@@ -35,6 +39,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import interval_parts  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 ARMS = {"straight": "takuma2014", "bent": "takuma2014-bent"}
@@ -105,6 +111,8 @@ def errors(path: Path, form: str, baseline_mean: int | None = None) -> dict[str,
                 model = PostureModel(**kw, baseline_mean=baseline_mean).fit(src.table)
         ev = evaluate(model, src.table)
     out = error_records(ev)
+    if form != "ref" and baseline_mean is None:  # labcli fit's own: where its intervals' width comes from
+        out.update(interval_parts.records(model, src.table))
     # The rig's clock from one capture's baseline to the next's (the median: the stored device times
     # start again part-way through a long run), times the captures of a load.
     starts = np.array([tb for tb, _ in window_times(path).values()])
@@ -138,6 +146,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument(
         "--figures", "--json", dest="json", type=Path, default=ROOT / "docs" / "figures" / "captures-acquired.json"
     )
+    ap.add_argument(
+        "--diagnose", action="store_true", help="also where the intervals' width comes from (interval_parts.py)"
+    )
     args = ap.parse_args(argv)
     commit = git_head()  # the code measured: the checkout's at the run's start
     raw = cached(args.cache, f"acquired {args.realism}", args.seeds, lambda s: measure(s, args.realism))
@@ -156,6 +167,9 @@ def main(argv: list[str] | None = None) -> None:
             t = figs[f"{arm}/{form}/seconds_per_trial"]
             cells.append(f"{t:.0f} s/load (x{figs[f'{arm}/{form}/time_ratio']:.2f})")
             print(f"{arm:8s} {form:8s} " + "; ".join(cells))
+        if args.diagnose:
+            for form in FORMS:
+                interval_parts.show(raw, f"{arm}/{form}/")
     meta = {"meta/seeds": seeds_text(args.seeds), "meta/realism": args.realism}
     write_figures(args.json, meta, figs, commit=commit)
 
