@@ -168,13 +168,18 @@ class AirSettings:
     friction_relief_vent: str = "load"
     captures_per_load: int = 1
 
-    def relief_vented(self, names: Sequence[str], pulled: str | None = None) -> tuple[str, ...]:
-        """The pressure channels the relief vents: one side's actuator of each pair (``P_L1``,
-        ``P_L2`` for L).  With ``friction_relief_vent = "load"`` the side is ``pulled``, the side
-        the trial's load pulls the arm towards (L where none is known)."""
+    def relief_side(self, pulled: str | None = None) -> str:
+        """The side the relief vents, L or R: with ``friction_relief_vent = "load"`` the side is
+        ``pulled``, the side the trial's load pulls the arm towards (L where none is known)."""
         side = self.friction_relief_vent
         if side not in RELIEF_SIDES:
             side = pulled if pulled in RELIEF_SIDES else "L"
+        return side
+
+    def relief_vented(self, names: Sequence[str], pulled: str | None = None) -> tuple[str, ...]:
+        """The pressure channels the relief vents: one side's actuator of each pair (``P_L1``,
+        ``P_L2`` for L), the side :meth:`relief_side`."""
+        side = self.relief_side(pulled)
         return tuple(n for n in names if n.upper().startswith(f"P_{side}"))
 
     @classmethod

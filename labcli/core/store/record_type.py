@@ -29,6 +29,9 @@ class BaseRecordType(ABC):
     plural: str
     splits: bool = False
     columns: tuple[Column, ...] = ()
+    # Optional columns a later version added: a run file written before has no dataset for them, and
+    # reads as though every record left them empty (nor does a record written to it carry them).
+    added_columns: frozenset[str] = frozenset()
     # The store checks each record's row against the exchange table's bounds before writing it
     # (labcli.core.store.rows): what is stored is what may be exported.  A stream of estimates
     # opts out: its standard errors may be infinite, and it is written at the stream's rate.

@@ -4,7 +4,8 @@ A run of N captures a load stores every capture as its own record (record id
 ``(trial - 1) N + capture``, :func:`record_ids`); nothing is averaged at acquisition.
 ``labcli fit``, ``validate`` and ``predict`` read such a run as one row per plan load: the
 pressures (baseline and loaded), the deflection labels and the rest posture are the mean of the
-load's captures; the rest (force) is its first capture's, and the row's ``trial`` is the plan's.
+load's captures; the rest (force) is its first capture's, and the row's ``trial`` is the plan's
+(the side the relief vented, ``relief_vent``, the load's where its captures agree, else empty).
 A load's captures share its set, mass and direction (``labcli split`` assigns whole loads): a table
 whose captures of one load disagree on them is refused, since its ids are not a run of N captures
 a load (a plain run read with a captures protocol) or its split divides a load.  A capture skipped at the rig leaves its load the mean of the others.
@@ -49,6 +50,9 @@ def averaged(table: Any, captures: int) -> Any:
     for c in present:
         first[c] = means[c].to_numpy()
     first["trial"] = means.index.to_numpy().astype(table["trial"].dtype)  # in order of first capture, as the rows
+    if "relief_vent" in table.columns:  # the side each capture was relieved from: the load's where they agree
+        one = table["relief_vent"].groupby(key, sort=False).nunique(dropna=False).to_numpy() == 1
+        first["relief_vent"] = np.where(one, first["relief_vent"].to_numpy(), "")
     out = first.reset_index(drop=True)
     out.attrs["records"] = len(table)  # the captures averaged, for the sentences that count them
     return out

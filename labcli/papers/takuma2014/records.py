@@ -8,6 +8,7 @@ The columns each record holds in its run's table (SI: MPa gauge, rad, N, m, kg):
              F (2,) N       Fx, Fy at the contact point
              mass kg, direction rad   the pulley load (NaN when not a pulley load)
              plan_set, plan_mass_g, plan_direction_deg   the plan row it followed
+             relief_vent   the side the friction relief vented before the baseline (L, R; empty: none)
     pushes   P0, P (4,) MPa, R m, d m, phi rad (NaN: unknown), true_stiffness N/m (NaN unless
              simulated), theta and pot0 (2,) rad (NaN when not measured), object, category
 
@@ -39,6 +40,7 @@ from .sense_records import SenseRecords
 from .tables import BASELINE, LOADED, PUSH, REST, TRIAL
 
 PRESSURE_NAMES = LOADED  # P_L1, P_R1, P_L2, P_R2
+RELIEF_SIDES = ("", "L", "R")  # a trial's relief_vent: no relief, or the side vented before its baseline
 TWO_PI = 2 * math.pi
 # Physical ranges of what a record can hold; a value read back outside one marks the record
 # damaged.  Wide on purpose: they catch a changed file, not an unusual experiment.
@@ -53,6 +55,7 @@ class _TrialOptional(Record, total=False):
     set: str  # the plan's set (fit, validation)
     pot0_rad: np.ndarray  # (2,) baseline potentiometer angles
     plan: dict[str, Any]  # the plan row it followed: set, mass_g, direction_deg
+    relief_vent: str  # the side the friction relief vented before the baseline: L or R
 
 
 class TrialRecord(_TrialOptional):
@@ -260,7 +263,9 @@ class TrialRecords(_McKibbenRecords):
         Column("plan_set", "", kind="text", width=16, optional=True, what="the plan's set"),
         Column("plan_mass_g", "g", bounds=(0.0, 1e7), optional=True, what="the plan's mass"),
         Column("plan_direction_deg", "deg", bounds=DEG_BOUNDS, optional=True, what="the plan's direction"),
+        Column("relief_vent", "", kind="text", width=1, optional=True, what="the side the relief vented"),
     )
+    added_columns = frozenset({"relief_vent"})  # runs from before it have none
 
     def check(self, record: Mapping[str, Any], label: str, run: Any) -> dict[str, Any]:
         """A trial (:class:`TrialRecord`), checked before anything is written."""
@@ -281,6 +286,11 @@ class TrialRecords(_McKibbenRecords):
             )
         for key, v in plan.items():
             row[f"plan_{key}"] = str(v) if key == "set" else scalar(plan, key, label)
+        vent = record.get("relief_vent", "")
+        if vent not in RELIEF_SIDES:
+            raise StoreError(f"{label} record: relief_vent must be L, R or empty, got {vent!r}.")
+        if vent:
+            row["relief_vent"] = vent
         return row
 
     def read(self, row: Mapping[str, Any]) -> dict[str, Any]:
@@ -296,6 +306,8 @@ class TrialRecords(_McKibbenRecords):
         }
         if _finite(row["pot0"]):
             rec["pot0_rad"] = np.asarray(row["pot0"])
+        if row.get("relief_vent"):
+            rec["relief_vent"] = str(row["relief_vent"])
         return rec
 
     def table(self, run: Any, ids: list[int], cols: Mapping[str, Any]) -> Any:
@@ -333,6 +345,9 @@ class TrialRecords(_McKibbenRecords):
         if np.any(np.isfinite(direction)):
             data["direction_deg"] = wrap_degrees_array(to_edge(direction))
         self._rest_posture(data, cols, n)
+        vent = [str(v) for v in cols.get("relief_vent", ())]
+        if any(vent):  # a column of its own beside the exchange table's, as an imported one is
+            data["relief_vent"] = vent
         return data
 
     def from_row(self, row: Mapping[str, Any], protocol: Any) -> dict[str, Any]:

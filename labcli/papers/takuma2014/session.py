@@ -540,16 +540,18 @@ def _pressurise_by_command(
         yield Valves("supply")
 
 
-def _relieve(air: AirDrift, checked: Checked | None) -> Generator[Step, Any, None]:
+def _relieve(air: AirDrift, checked: Checked | None) -> Generator[Step, Any, str]:
     """Friction relief: a supply pulse of ``friction_relief_s``, then hold (a fresh supply each trial),
     after one side's chambers are vented for ``friction_relief_vent_s`` where the protocol asks for it
     (the arm swings to the other side, and comes back to the baseline from there): by default the
-    side the trial's load pulls the arm towards, so that the load pulls it away from its lean."""
+    side the trial's load pulls the arm towards, so that the load pulls it away from its lean.
+    Returns the side vented ("" for none), which the trial's record keeps (``relief_vent``)."""
     guard = checked.guard if checked is not None else None
+    vented = ""
     if air.settings.friction_relief_vent_s > 0:
         pulled = getattr(getattr(guard, "prior", None), "pulled_side", None)
-        side = pulled(checked.load) if pulled is not None and checked is not None else None
-        yield Valves("vent", air.settings.relief_vented(air.names, side))
+        vented = air.settings.relief_side(pulled(checked.load) if pulled is not None and checked is not None else None)
+        yield Valves("vent", air.settings.relief_vented(air.names, vented))
         yield Hold(air.settings.friction_relief_vent_s)
     yield Valves("supply")
     yield Hold(air.settings.friction_relief_s)
@@ -557,6 +559,7 @@ def _relieve(air: AirDrift, checked: Checked | None) -> Generator[Step, Any, Non
     air.supplied()
     if guard is not None:
         guard.resupplied()
+    return vented
 
 
 def _resupply(air: AirDrift, why: str, guard: Guard | None) -> Generator[Step, Any, None]:
@@ -616,9 +619,10 @@ def _trial(
     a baseline that drifted past the protocol's limit since the last supply has the chambers
     supplied and held again, and the baseline retaken.
     """
+    vented = ""  # the side the relief vented before this baseline, kept with the record
     while True:
         if air is not None and air.settings.friction_relief_s > 0:
-            yield from _relieve(air, checked)
+            vented = yield from _relieve(air, checked)
         leak = air.leak_per_s if air is not None else ()
         wait_b = yield WaitSettle("baseline", leak)
         if wait_b == "redo":
@@ -649,7 +653,7 @@ def _trial(
         loaded = yield Capture(capture_s)
         weak = checked.guard.after_load(checked.load, base, loaded, checked.key) if checked else None
         yield unload
-        record = record_of(base, loaded, wait_b, wait_l)
+        record: Any = {**record_of(base, loaded, wait_b, wait_l), **({"relief_vent": vented} if vented else {})}
         fix = (
             ""
             if checked is not None and checked.guard.unsealed

@@ -7,9 +7,13 @@ from __future__ import annotations
 import io
 import os
 import re
+import shutil
 import signal
 from dataclasses import replace
+from pathlib import Path
 
+import h5py
+import pandas as pd
 import pytest
 from click.testing import CliRunner
 from rich.console import Console
@@ -22,8 +26,12 @@ from labcli.core.protocol import load_protocol, loads_protocol, with_captures
 from labcli.core.store import RunFile
 from labcli.core.store.records import Records
 from labcli.core.ui import UnattendedUI
+from labcli.errors import StoreError
 from labcli.papers.takuma2014 import acquisition as force_acquisition
 from labcli.papers.takuma2014.guard_prior import PhysicsPrior
+from labcli.papers.takuma2014.models.inputs import load_trial_source
+
+ROOT = Path(__file__).resolve().parents[3]
 
 PORT = "sim://?seed=21&clock=virtual"
 # Loads at 0 deg pull the upright arm towards R (Fx > 0), at 180 deg towards L.
@@ -82,6 +90,11 @@ def test_a_new_run_stores_the_per_load_default_and_vents_the_side_each_load_pull
     assert re.search(r'^friction_relief_vent = "load"$', stored.text, flags=re.MULTILINE)
     assert stored.air.friction_relief_vent == "load" and stored.air.captures_per_load == 2
     assert vented == ["R", "R", "L", "L", "R", "R"]
+    # Each record keeps the side vented before its baseline; a load's averaged row keeps its captures'.
+    with RunFile.open(run) as f:
+        assert list(f.records.table()["relief_vent"]) == vented
+        assert f.records.read(3)["relief_vent"] == "L"
+    assert list(load_trial_source(run).table["relief_vent"]) == ["R", "L", "R"]
 
 
 def test_a_run_begun_before_the_per_load_default_keeps_venting_l_when_resumed(tmp_path, monkeypatch, vented):
@@ -106,6 +119,7 @@ def test_a_run_begun_before_the_per_load_default_keeps_venting_l_when_resumed(tm
     assert vented == ["L", "L", "L"]
     with RunFile.open(run) as f:
         assert "friction_relief_vent" not in f.protocol_text and f.records.ids() == [1, 2, 3, 4, 5, 6]
+        assert list(f.records.table()["relief_vent"]) == ["L"] * 6
 
 
 def test_a_resumed_run_that_stored_its_side_vents_it(tmp_path, vented):
@@ -163,3 +177,56 @@ def test_a_resumed_run_whose_statics_find_no_side_keeps_venting_l():
     stored = with_captures(stored, 2)
     resumed = force_acquisition._relief_vent(stored, AcquireOptions("x.h5", resume=object()))
     assert resumed.air.friction_relief_vent == "L" and resumed.text == stored.text
+
+
+def test_a_run_without_the_relief_stores_no_side(tmp_path):
+    run = tmp_path / "plain.h5"
+    assert acquire(run, PORT, plan=_plan(tmp_path), unattended=True, ui=quiet()).exit_code == 0
+    with RunFile.open(run) as f:
+        assert "relief_vent" not in f.records.table().columns and "relief_vent" not in f.records.read(1)
+
+
+def test_a_run_file_from_before_the_column_reads_and_takes_records_without_it(tmp_path):
+    """sample_runs/force.h5 was written before records kept the side vented: it reads as before, and a
+    record written to it (a resumed run) is stored without the side, nothing else changed."""
+    path = tmp_path / "force.h5"
+    shutil.copy(ROOT / "sample_runs" / "force.h5", path)
+    with h5py.File(path, "r") as f:
+        assert "relief_vent" not in f["entry/trials"]
+    with RunFile.open(path) as f:
+        before, ids = f.records.table(), f.records.ids()
+        rec = f.records.read(ids[-1])
+    assert "relief_vent" not in before.columns and "relief_vent" not in rec
+    with RunFile.open(path, "a") as f:
+        f.records.write({**rec, "trial": max(ids) + 1, "relief_vent": "R"})
+    with RunFile.open(path) as f:
+        after = f.records.table()
+        assert f.records.ids() == [*ids, max(ids) + 1] and after.iloc[: len(ids)].equals(before)
+        assert "relief_vent" not in after.columns and f.verify()["ok"]
+
+
+def test_the_side_goes_out_with_export_and_back_with_import(tmp_path):
+    """Beside the exchange table's columns (docs/table-formats.md): exported, and imported back as the
+    run's own column of that name, which the labels read."""
+    run = tmp_path / "r.h5"
+    assert acquire(run, PORT, plan=_plan(tmp_path), unattended=True, ui=quiet(), captures=2).exit_code == 0
+    table = tmp_path / "r.csv"
+    assert CliRunner().invoke(cli, ["export", str(run), "-o", str(table)]).exit_code == 0
+    rows = pd.read_csv(table, keep_default_na=False)
+    assert list(rows["relief_vent"]) == ["R", "R", "L", "L", "R", "R"]
+    back = tmp_path / "back.h5"
+    res = CliRunner().invoke(cli, ["import", str(table), "-o", str(back), "--protocol", "takuma2014"])
+    assert res.exit_code == 0, res.output
+    with RunFile.open(back) as f:
+        assert list(f.records.table()["relief_vent"]) == list(rows["relief_vent"])
+
+
+def test_a_record_with_another_side_is_refused_before_anything_is_written(tmp_path):
+    run = tmp_path / "r.h5"
+    assert acquire(run, PORT, plan=_plan(tmp_path), unattended=True, ui=quiet()).exit_code == 0
+    with RunFile.open(run, "a") as f:
+        rec = f.records.read(1)
+        with pytest.raises(StoreError) as err:
+            f.records.write({**rec, "trial": 9, "relief_vent": "left"})
+        assert str(err.value) == "trial 9 record: relief_vent must be L, R or empty, got 'left'."
+        assert f.records.ids() == [1, 2, 3]

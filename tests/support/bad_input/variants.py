@@ -57,7 +57,7 @@ CASES: list[Case] = [
         ["import", "wide.csv", "-o", "new.h5", "--protocol", "takuma2014"],
         [
             "wide.csv has 2200 columns labcli does not know, more than a run file's trial table can name "
-            "(2107 at the longest name's 28 bytes; 60000 bytes of names in all); drop some or shorten their "
+            "(2106 at the longest name's 28 bytes; 60000 bytes of names in all); drop some or shorten their "
             "names, or keep them in a table beside the run."
         ],
         files={"wide.csv": wide_trial_table},
