@@ -100,6 +100,12 @@ MIN_ERROR_TRIALS = 12  # fewer fit trials than this give no error variance (its 
 # not supplied together (trials drawn from Eqs. 34-37 alone, models/synthetic.py): nothing to correct.
 MAX_RATIO_ERROR_SD = 0.015
 READ_COLUMNS = ("theta1_deg", "theta2_deg")
+# The relief's swing: venting L, the R actuators swing both joints the negative way by degrees (seed 1:
+# -15 and -7 deg on the straight arm, -10 and -19 on the bent one), and supplied again the arm comes
+# back the positive way, its last motion into the rest, which leaves each shaft on the far side of its
+# play; venting R, the other way.  The swing's size is not recorded: any return past the play reads
+# alike (play_states), so it is given as a degree.
+RELIEF_RETURNS = {"L": np.radians(1.0), "R": -np.radians(1.0)}
 
 
 @dataclass(frozen=True)
@@ -187,18 +193,23 @@ def shaft_returns(table: Any, order: np.ndarray) -> np.ndarray:
     loaded reading to the next trial's rest reading (``theta1_0_deg``, ``theta2_0_deg``), in the
     order ``order`` gives; NaN for the last trial and wherever the rest posture is not recorded.
 
-    The net motion is read as the unload's return.  On a relieved run (a side vented before each
-    baseline) the arm's last motion into its rest is the return from the relief's swing instead, so
-    the side of the play it names is the vented side's, not the unload's; and on rows averaging
-    several captures it is the captures' mean.  Neither is told apart here (docs/calibration-labels.md)."""
+    The net motion is read as the unload's return.  Where the next trial was relieved (a side
+    vented before its baseline, its ``relief_vent``), the arm's last motion into that rest is the
+    return from the relief's swing instead, and it is given as that return (:data:`RELIEF_RETURNS`):
+    it names the vented side of the play, whatever the unload did.  On rows averaging several
+    captures the net motion is the captures' mean (docs/calibration-labels.md)."""
     n = len(table)
     out = np.full((n, 2), np.nan)
-    if not all(c in table.columns for c in REST) or n < 2:
+    if n < 2:
         return out
-    rest = np.radians(np.column_stack([np.asarray(table[c], dtype=float) for c in REST]))[order]
-    read = np.radians(np.column_stack([np.asarray(table[c], dtype=float) for c in READ_COLUMNS]))[order]
     moved = np.full((n, 2), np.nan)
-    moved[:-1] = rest[1:] - (rest[:-1] + read[:-1])
+    if all(c in table.columns for c in REST):
+        rest = np.radians(np.column_stack([np.asarray(table[c], dtype=float) for c in REST]))[order]
+        read = np.radians(np.column_stack([np.asarray(table[c], dtype=float) for c in READ_COLUMNS]))[order]
+        moved[:-1] = rest[1:] - (rest[:-1] + read[:-1])
+    if "relief_vent" in table.columns:
+        swung = np.array([RELIEF_RETURNS.get(str(v), np.nan) for v in np.asarray(table["relief_vent"])[order]])
+        moved[:-1] = np.where(np.isfinite(swung[1:, None]), swung[1:, None], moved[:-1])
     out[order] = moved
     return out
 
