@@ -18,7 +18,8 @@ trial is judged by the rig's statics where the protocol gives the rig's geometry
   arm with no weight hung exactly where it was.  Where the friction relief vents, before each
   baseline, the side the load pulls the arm towards (:meth:`PhysicsPrior.pulled_side`), the
   baseline leans the other way and no band holds the load back at its start: one band, half the
-  allowance, is left.  From :data:`LEARN_MIN` accepted trials on, the
+  allowance, is left on each joint the load pulls that way, two on a joint it pulls the other way
+  (:meth:`PhysicsPrior.joint_bands`).  From :data:`LEARN_MIN` accepted trials on, the
   friction allowed for is the run's own (:meth:`PhysicsPrior.learn`): the most friction any of
   its trials showed, times :data:`LEARN_MARGIN`, and never less than :data:`LEARN_FLOOR`.  Refined
   so, the least motion is the run's own
@@ -231,9 +232,32 @@ class PhysicsPrior(_RigChannels):
 
     def least_motion(self, theta0: np.ndarray, P0_MPa: np.ndarray, load: np.ndarray) -> np.ndarray:
         """The joints' least deflection (rad) under ``load`` (N) from the baseline posture ``theta0``
-        (rad) with the chambers closed at ``P0_MPa`` (gauge), past :attr:`friction_share`."""
+        (rad) with the chambers closed at ``P0_MPa`` (gauge), past :attr:`friction_share` (on each
+        joint the bands :meth:`joint_bands` allows, before the run refines it)."""
         K, tau, held = self._statics(theta0, P0_MPa, load)
+        if not self.refined:
+            held = held * self.joint_bands(theta0, K, tau, load) / self.bands
         return self._motion(K, tau, held, np.array([self.friction_share]))[0]
+
+    def joint_bands(self, theta0: np.ndarray, K: np.ndarray, tau: np.ndarray, load: Any) -> np.ndarray:
+        """The friction bands that may hold ``load`` back on each joint before the run shows its
+        friction: :attr:`bands` on both, except where the relief vents per load.  There a joint that
+        the load pulls towards the side vented (:meth:`pulled_side`: the side whose actuator the
+        joint's own motion shortens) leans the other way, and only its own motion's band is left; a
+        joint the load pulls the other way (on a bent arm some directions pull the two joints
+        opposite ways) is pulled towards its lean, and both bands are."""
+        out = np.full(2, float(self.bands))
+        if self.bands != 1:
+            return out
+        try:
+            moved = np.linalg.solve(K, tau)
+        except np.linalg.LinAlgError:
+            return out
+        vented = self.pulled_side(load) or "L"  # the session vents L where the load pulls no way
+        g = self._ph.path_gradients(theta0, self.params.geometry)
+        own = np.array([g[0, 0] * moved[0], g[2, 1] * moved[1]])  # L1's and L2's change of length per joint
+        towards = np.where(own < 0, "L", "R")
+        return np.where((towards == vented) | (np.abs(moved) <= PULL_MIN_RAD), 1.0, 2.0)
 
     def shown_share(self, theta0: np.ndarray, P0_MPa: np.ndarray, load: np.ndarray, moved: np.ndarray) -> float | None:
         """The friction share that accounts for a trial's motion ``moved`` (rad): the least share at
