@@ -187,10 +187,11 @@ def test_a_run_without_the_relief_stores_no_side(tmp_path):
 
 
 def test_a_run_file_from_before_the_column_reads_and_takes_records_without_it(tmp_path):
-    """sample_runs/force.h5 was written before records kept the side vented: it reads as before, and a
-    record written to it (a resumed run) is stored without the side, nothing else changed."""
+    """tests/data/v3/force-before-marks.h5 was written before records kept the side vented (the sample
+    runs, made again, keep it): it reads as before, and a record written to it (a resumed run) is
+    stored without the side, nothing else changed."""
     path = tmp_path / "force.h5"
-    shutil.copy(ROOT / "sample_runs" / "force.h5", path)
+    shutil.copy(ROOT / "tests" / "data" / "v3" / "force-before-marks.h5", path)
     with h5py.File(path, "r") as f:
         assert "relief_vent" not in f["entry/trials"]
     with RunFile.open(path) as f:
@@ -230,3 +231,26 @@ def test_a_record_with_another_side_is_refused_before_anything_is_written(tmp_pa
             f.records.write({**rec, "trial": 9, "relief_vent": "left"})
         assert str(err.value) == "trial 9 record: relief_vent must be L, R or empty, got 'left'."
         assert f.records.ids() == [1, 2, 3]
+
+
+def test_a_relief_given_as_dotted_keys_without_its_side_is_refused_in_one_sentence(tmp_path):
+    """No [acquisition] header to write the per-load default under: the run could not store what it
+    vents, so it is refused before anything is written, naming what to write by hand."""
+    bare = load_protocol("takuma2014").text.replace("[acquisition]\n", "").replace("rate_hz = 200.0\n", "")
+    dotted = (
+        "acquisition.rate_hz = 200.0\nacquisition.friction_relief_s = 3.0\nacquisition.friction_relief_vent_s = 2.0\n"
+    )
+    proto, run = tmp_path / "dotted.toml", tmp_path / "x.h5"
+    proto.write_text(dotted + bare)
+    args = ["acquire", str(run), "--port", PORT, "--unattended", "--protocol", str(proto), "--plan"]
+    res = CliRunner().invoke(cli, [*args, str(_plan(tmp_path))])
+    assert res.exit_code == 1 and not run.exists()
+    assert res.output == (
+        "Error: takuma2014 gives its acquisition settings without an [acquisition] table header; write "
+        'friction_relief_vent = "load" there (or "L", "R"), so that the run records the side it vents.\n'
+    )
+    proto.write_text(dotted + 'acquisition.friction_relief_vent = "R"\n' + bare)  # written by hand: taken
+    out = acquire(run, PORT, plan=_plan(tmp_path), unattended=True, ui=quiet(), protocol=str(proto))
+    assert out.exit_code == 0, out.message
+    with RunFile.open(run) as f:
+        assert list(f.records.table()["relief_vent"]) == ["R", "R", "R"]
