@@ -242,6 +242,20 @@ def leak_lines(s: dict[str, Any]) -> list[str]:
     ]
 
 
+def _check_relief_sides(table: Any) -> None:
+    """Refuse an imported table whose ``relief_vent`` holds another side than L, R or empty: the
+    labels read the play's states from it (models/labels.py), and would take another as no relief."""
+    import pandas as pd
+
+    if "relief_vent" not in table:
+        return
+    codes, names = pd.factorize(table["relief_vent"], use_na_sentinel=True)
+    for k, s in enumerate(names):
+        if not missing(s) and str(s) not in RELIEF_SIDES:
+            t = table["trial"].to_numpy()[int(np.flatnonzero(codes == k)[0])]
+            raise ConfigError(f"trial {int(t)}: relief_vent must be L, R or empty, got {str(s)!r}.")
+
+
 class TrialRecords(_McKibbenRecords):
     """Force/angle trials of a ``force`` run: loaded pressures, deflections, the pulley load."""
 
@@ -365,6 +379,7 @@ class TrialRecords(_McKibbenRecords):
     def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
         """The trial table's rows as columns, all at once (what :meth:`from_row` gives row by row)."""
         n = len(table)
+        _check_relief_sides(table)
         theta = _rows(table, ["theta1_deg", "theta2_deg"])
         cols = {
             "trial": table["trial"].to_numpy(dtype=np.int64),

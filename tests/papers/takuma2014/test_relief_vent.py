@@ -222,6 +222,22 @@ def test_the_side_goes_out_with_export_and_back_with_import(tmp_path):
         assert list(f.records.table()["relief_vent"]) == list(rows["relief_vent"])
 
 
+@pytest.mark.parametrize("side", ["left", "l", "1"])
+def test_an_imported_table_with_another_side_is_refused_in_one_sentence(tmp_path, side):
+    """The labels read a relieved rest from its side and take any other value as no relief: an
+    imported table naming another side is refused, naming the trial, before any file is made."""
+    run, table = tmp_path / "r.h5", tmp_path / "r.csv"
+    assert acquire(run, PORT, plan=_plan(tmp_path), unattended=True, ui=quiet(), captures=2).exit_code == 0
+    assert CliRunner().invoke(cli, ["export", str(run), "-o", str(table)]).exit_code == 0
+    rows = pd.read_csv(table, keep_default_na=False)
+    rows.loc[3, "relief_vent"] = side
+    rows.to_csv(table, index=False)
+    back = tmp_path / "back.h5"
+    res = CliRunner().invoke(cli, ["import", str(table), "-o", str(back), "--protocol", "takuma2014"])
+    assert res.exit_code == 1 and not back.exists()
+    assert res.output == f"Error: trial {rows['trial'][3]}: relief_vent must be L, R or empty, got {side!r}.\n"
+
+
 def test_a_record_with_another_side_is_refused_before_anything_is_written(tmp_path):
     run = tmp_path / "r.h5"
     assert acquire(run, PORT, plan=_plan(tmp_path), unattended=True, ui=quiet()).exit_code == 0
