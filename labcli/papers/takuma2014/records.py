@@ -242,9 +242,10 @@ def leak_lines(s: dict[str, Any]) -> list[str]:
     ]
 
 
-def _check_relief_sides(table: Any) -> None:
-    """Refuse an imported table whose ``relief_vent`` holds another side than L, R or empty: the
-    labels read the play's states from it (models/labels.py), and would take another as no relief."""
+def check_relief_sides(table: Any) -> None:
+    """Refuse, in one sentence naming the trial, a trial table (imported, or read by fit and validate)
+    whose ``relief_vent`` holds another side than L, R or empty: the labels read the play's states
+    from it (models/labels.py), and would take another as no relief."""
     import pandas as pd
 
     if "relief_vent" not in table:
@@ -379,7 +380,7 @@ class TrialRecords(_McKibbenRecords):
     def from_table(self, table: Any, protocol: Any) -> dict[str, Any]:
         """The trial table's rows as columns, all at once (what :meth:`from_row` gives row by row)."""
         n = len(table)
-        _check_relief_sides(table)
+        check_relief_sides(table)
         theta = _rows(table, ["theta1_deg", "theta2_deg"])
         cols = {
             "trial": table["trial"].to_numpy(dtype=np.int64),

@@ -6,7 +6,9 @@ import math
 
 import numpy as np
 import pandas as pd
+import pytest
 
+from labcli.errors import ConfigError
 from labcli.papers.takuma2014.models.labels import RELIEF_RETURNS, play_states, shaft_returns
 
 B = math.radians(0.2)
@@ -81,3 +83,21 @@ def test_rows_without_a_side_keep_the_shafts_net_motion():
     back = shaft_returns(table, np.arange(3))
     np.testing.assert_allclose(back[0], np.radians([0.3 - 0.5] * 2))
     np.testing.assert_allclose(back[1], [RELIEF_RETURNS["L"]] * 2)
+
+
+def test_a_table_naming_another_side_is_refused_in_one_sentence():
+    """fit and validate read a CSV table without importing it: a side other than L, R or empty is
+    refused, naming the trial, where it would be read as no relief; a missing cell is no relief."""
+    table = pd.DataFrame(
+        {
+            "trial": [4, 5, 6],
+            "theta1_deg": [0.5, 0.5, 0.5],
+            "theta2_deg": [0.5, 0.5, 0.5],
+            "relief_vent": ["L", np.nan, "left"],
+        }
+    )
+    with pytest.raises(ConfigError) as err:
+        shaft_returns(table, np.arange(3))
+    assert str(err.value) == "trial 6: relief_vent must be L, R or empty, got 'left'."
+    table.loc[2, "relief_vent"] = "R"
+    np.testing.assert_allclose(shaft_returns(table, np.arange(3))[1], [RELIEF_RETURNS["R"]] * 2)

@@ -83,6 +83,7 @@ from typing import Any
 
 import numpy as np
 
+from ..records import check_relief_sides
 from ..tables import REST
 
 STUCK_SHARE = 0.25  # a trailing reading under this share of the play has not left the play
@@ -208,6 +209,7 @@ def shaft_returns(table: Any, order: np.ndarray) -> np.ndarray:
         read = np.radians(np.column_stack([np.asarray(table[c], dtype=float) for c in READ_COLUMNS]))[order]
         moved[:-1] = rest[1:] - (rest[:-1] + read[:-1])
     if "relief_vent" in table.columns:
+        check_relief_sides(table)
         swung = np.array([RELIEF_RETURNS.get(str(v), np.nan) for v in np.asarray(table["relief_vent"])[order]])
         moved[:-1] = np.where(np.isfinite(swung[1:, None]), swung[1:, None], moved[:-1])
     out[order] = moved
