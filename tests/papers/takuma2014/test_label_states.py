@@ -84,10 +84,13 @@ def test_a_validation_table_is_corrected_by_the_fits_friction_decision():
     alone = np.abs(fixed["theta2_deg"].to_numpy()[1:] - truth)  # theta2: fitted as not held
     assert np.sum(held < 1e-6) >= 0.8 * len(truth) > np.sum(alone < 1e-6) + 8
     assert np.sqrt(np.mean(held**2)) < 0.6 * np.sqrt(np.mean(alone**2))
-    # A model file without the decision (written before it) reads no held return.
+    # A model file without the decision (written before the fit kept it) decides from the table it
+    # is given, as it did when it was written: here the validation trials' own "not held".
     model.play = {"play_deg": [0.2, 0.2]}
-    assert fitted_play(model.play) == ((B, B), (False, False))
-    pd.testing.assert_frame_equal(_unplayed(model, valid), apply_play(valid, (B, B)))
+    assert fitted_play(model.play) == ((B, B), (None, None))
+    older = _unplayed(model, valid)
+    pd.testing.assert_frame_equal(older, apply_play(valid, (B, B), (None, None)))
+    assert not np.allclose(older["theta1_deg"], fixed["theta1_deg"])
 
 
 def test_the_sample_model_files_read_back_byte_for_byte():
@@ -96,14 +99,14 @@ def test_the_sample_model_files_read_back_byte_for_byte():
         assert load_force_model(ROOT / "sample_runs" / name).to_json() == text
 
 
-def test_the_fits_decision_is_written_only_where_friction_held_and_read_back():
+def test_the_fits_decision_is_read_back_and_a_file_from_before_it_decides_from_the_table():
     model = load_force_model(ROOT / "sample_runs" / "force.model.json")
     assert isinstance(model, PostureModel)
-    # A file written before the decision was kept (no key): it reads back byte for byte, as not held.
+    # A file written before the decision was kept (no key): it reads back byte for byte, undecided.
     model.play = {k: v for k, v in model.play.items() if k != "friction_holds"}
     older = model.to_json()
     assert "friction_holds" not in older and force_model_from_json(older).to_json() == older
-    assert fitted_play(force_model_from_json(older).play)[1] == (False, False)  # type: ignore[index]
+    assert fitted_play(force_model_from_json(older).play)[1] == (None, None)  # type: ignore[index]
     model.play = {**model.play, "friction_holds": [False, True]}
     back = force_model_from_json(model.to_json())
     assert back.play["friction_holds"] == [False, True]
@@ -125,6 +128,11 @@ def test_the_fit_records_where_friction_held_the_arm():
     proto, table = load_protocol("takuma2014"), load_trials(ROOT / "sample_runs" / "force.h5")
     model = TakumaModel(geometry=proto.settings.rig, protocol=proto.name).fit(table)
     assert model.to_dict()["labels"]["friction_holds"] == [True, True]
+    # On a run whose friction never held a clear return the fit writes that decision too.
+    steady = TakumaModel(geometry=proto.settings.rig, protocol=proto.name).fit(
+        table.assign(theta1_0_deg=np.nan, theta2_0_deg=np.nan)
+    )
+    assert steady.to_dict()["labels"]["friction_holds"] == [False, False]
     valid = table[table["set"] == "validation"]
     widths = tuple(math.radians(w) for w in model.play["play_deg"])
     pd.testing.assert_frame_equal(_unplayed(model, valid), apply_play(valid, widths, (True, True)))  # type: ignore[arg-type]

@@ -368,14 +368,15 @@ def fit_play(
     return result, d_final
 
 
-def apply_play(table: Any, play_rad: tuple[float, float], holds: tuple[bool, bool] = (False, False)) -> Any:
+def apply_play(table: Any, play_rad: tuple[float, float], holds: tuple[bool | None, bool | None] = (None, None)) -> Any:
     """A copy of the trial table with each joint's deflection corrected for the given play (the
     validation trials of a model fitted with :func:`fit_play`: the same states, the same widths).
 
     ``holds``: per joint, whether the fit found the sleeves' friction holding the arm on a clear
     return (:attr:`PlayFit.holds`, the model file's ``labels.friction_holds``).  It is the fit's
     decision, not this table's: a validation table alone, with fewer clear returns, may decide
-    otherwise, and its labels would then be corrected by other states than the fit's."""
+    otherwise, and its labels would then be corrected by other states than the fit's.  None (a
+    model file written before the fit kept its decision) decides from this table."""
     out = table.copy()
     order = np.argsort(np.asarray(table["trial"], dtype=int), kind="stable")
     returns = shaft_returns(table, order)[order]
@@ -385,7 +386,7 @@ def apply_play(table: Any, play_rad: tuple[float, float], holds: tuple[bool, boo
         r = np.radians(np.asarray(table[col], dtype=float))
         d = r.copy()
         for _ in range(2):  # states from the readings, then from the corrected deflections
-            c_sorted, _ = play_states(d[order], play_rad[k], returns[:, k], bool(holds[k]))
+            c_sorted, _ = play_states(d[order], play_rad[k], returns[:, k], holds[k])
             c = np.empty(len(r))
             c[order] = c_sorted
             d = correct(r, c, play_rad[k])
@@ -393,13 +394,14 @@ def apply_play(table: Any, play_rad: tuple[float, float], holds: tuple[bool, boo
     return out
 
 
-def fitted_play(play: Any) -> tuple[tuple[float, float], tuple[bool, bool]] | None:
+def fitted_play(play: Any) -> tuple[tuple[float, float], tuple[bool | None, bool | None]] | None:
     """From a model's ``labels`` entry (``play`` of TakumaModel and PostureModel): the widths (rad)
     and the fit's friction decision per joint, for :func:`apply_play`; None when it fitted no play.
-    ``friction_holds`` is written only where the fit found it (files written before it read back
-    byte for byte), so its absence is the decision that friction held no clear return."""
+    Every fit writes ``friction_holds``; a file without it was written before the fit kept its
+    decision, and its validation decides from the table given (None), as it did then."""
     widths = (play or {}).get("play_deg")
     if not widths or not all(isinstance(w, (int, float)) and math.isfinite(w) for w in widths):
         return None
-    holds = (play or {}).get("friction_holds") or (False, False)
-    return (math.radians(widths[0]), math.radians(widths[1])), (bool(holds[0]), bool(holds[1]))
+    holds = (play or {}).get("friction_holds")
+    decided = (None, None) if holds is None else (bool(holds[0]), bool(holds[1]))
+    return (math.radians(widths[0]), math.radians(widths[1])), decided

@@ -626,8 +626,9 @@ class TakumaModel:
             trailing.append(res.trailing)
             holds.append(res.holds)
         self.play = {"play_deg": widths, "se_deg": ses, "trailing_trials": trailing, "inside_play": stuck}
-        if any(holds):  # only where friction held: a file written before it reads back byte for byte
-            self.play["friction_holds"] = holds
+        # Always written: a file without it predates the fit's decision, which its validation then
+        # takes from the table as it did when it was written (labels.fitted_play).
+        self.play["friction_holds"] = holds
         return out, stuck
 
     def _exclusions(
