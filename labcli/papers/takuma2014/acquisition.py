@@ -205,7 +205,16 @@ def _relief_vent(protocol: Any, options: AcquireOptions) -> Any:
     from .guard_prior import PhysicsPrior
 
     air = protocol.air
-    if protocol.kind not in CAPTURE_KINDS or not air.friction_relief_vent_s > 0:
+    if not air.friction_relief_vent_s > 0:
+        return protocol
+    if protocol.kind not in CAPTURE_KINDS:
+        if air.friction_relief_vent == "load" and options.resume is None:
+            # A push has no load for the statics to take a side from; it would vent L unsaid.
+            raise ConfigError(
+                f"The friction relief of {protocol.name} vents the side each load pulls the arm towards "
+                '(acquisition.friction_relief_vent = "load", the default), and a push has no load to take it '
+                'from: set friction_relief_vent = "L" or "R" to vent that side before every push.'
+            )
         return protocol
     given = "friction_relief_vent" in protocol.sections.get("acquisition", {})
     per_load = air.friction_relief_vent == "load"

@@ -270,3 +270,25 @@ def test_a_relief_given_as_dotted_keys_without_its_side_is_refused_in_one_senten
     assert out.exit_code == 0, out.message
     with RunFile.open(run) as f:
         assert list(f.records.table()["relief_vent"]) == ["R", "R", "R"]
+
+
+@pytest.mark.parametrize("side", ["", 'friction_relief_vent = "L"\n'])
+def test_a_push_protocol_venting_per_load_is_refused_and_a_side_given_is_kept(tmp_path, side):
+    """A push has no load whose pull the statics could read, so "load" (the default) would vent L
+    without saying so: refused in one sentence before anything is written; a side given is kept."""
+    text = load_protocol("takuma2014-stiffness").text.replace(
+        "[acquisition]\n", "[acquisition]\nfriction_relief_s = 3.0\nfriction_relief_vent_s = 2.0\n" + side
+    )
+    proto, run = tmp_path / "push.toml", tmp_path / "p.h5"
+    proto.write_text(text)
+    if side:
+        planned = force_acquisition._relief_vent(load_protocol(str(proto)), AcquireOptions(str(run)))
+        assert (planned.air.friction_relief_vent, planned.air.friction_relief_vent_s) == ("L", 2.0)
+        return
+    res = CliRunner().invoke(cli, ["acquire", str(run), "--port", PORT, "--unattended", "--protocol", str(proto)])
+    assert res.exit_code == 1 and not run.exists()
+    assert res.output == (
+        "Error: The friction relief of takuma2014-stiffness vents the side each load pulls the arm towards "
+        '(acquisition.friction_relief_vent = "load", the default), and a push has no load to take it from: '
+        'set friction_relief_vent = "L" or "R" to vent that side before every push.\n'
+    )
