@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core.air import RELIEF_SIDES as VENTED_SIDES
 from ...core.arrays import rows_all, stack_columns
 from ...core.bounds import wrap_degrees_array
 from ...core.files import RUN_FILE_SUFFIXES
@@ -40,7 +41,7 @@ from .sense_records import SenseRecords
 from .tables import BASELINE, LOADED, PUSH, REST, TRIAL
 
 PRESSURE_NAMES = LOADED  # P_L1, P_R1, P_L2, P_R2
-RELIEF_SIDES = ("", "L", "R")  # a trial's relief_vent: no relief, or the side vented before its baseline
+RELIEF_SIDES = ("", *VENTED_SIDES)  # a trial's relief_vent: no relief, or the side vented before its baseline
 TWO_PI = 2 * math.pi
 # Physical ranges of what a record can hold; a value read back outside one marks the record
 # damaged.  Wide on purpose: they catch a changed file, not an unusual experiment.
